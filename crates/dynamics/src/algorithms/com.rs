@@ -1,0 +1,27 @@
+//! Centre of mass and the mass properties of every subtree, in world coordinates.
+
+use nalgebra::Vector3;
+
+use super::forward_kinematics;
+use crate::model::{Data, Model};
+
+/// Fills `data.subtree[i]` with the mass properties of the subtree rooted at body `i`, in the world frame
+/// (inertia about the subtree's COM): the quantity the distributed agents of Moll et al. compute by
+/// message passing. Runs forward kinematics first.
+pub fn subtree_mass_properties<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d [crate::MassProperties] {
+    forward_kinematics(model, data, q);
+    for i in 0..model.nbodies() {
+        let pose = &data.o_m_i[i];
+        data.subtree[i] = model.body(i).transformed_unchecked(&pose.rotation, &pose.translation);
+    }
+    for i in (1..model.nbodies()).rev() {
+        let p = model.parent(i);
+        data.subtree[p] = data.subtree[p] + data.subtree[i];
+    }
+    &data.subtree
+}
+
+/// The whole model's centre of mass in the world frame.
+pub fn center_of_mass(model: &Model, data: &mut Data, q: &[f64]) -> Vector3<f64> {
+    subtree_mass_properties(model, data, q)[0].com()
+}

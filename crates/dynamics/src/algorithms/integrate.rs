@@ -1,0 +1,142 @@
+//! Free simulation (no contacts) over the articulated-body algorithm: semi-implicit Euler and RK4.
+
+use nalgebra::{DVector, Quaternion, UnitQuaternion, Vector3};
+
+use super::aba;
+use crate::model::{Data, Joint, Model};
+use crate::Result;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// v ← v + h q̈(q, v); q ← q ⊕ h v: first order, symplectic for separable systems.
+    SemiImplicitEuler,
+    /// Classical fourth-order Runge–Kutta, stages combined in the tangent space.
+    Rk4,
+}
+
+/// `q ⊕ v dt`: joint coordinates add; the free-flyer base moves along the screw exp(v dt) in its own
+/// frame (Pinocchio's `integrate`), keeping the quaternion unit.
+pub fn integrate(model: &Model, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
+    out.copy_from_slice(q);
+    for i in 0..model.nbodies() {
+        let (kq, kv) = (model.idx_q(i), model.idx_v(i));
+        match model.joint(i) {
+            Joint::FreeFlyer => {
+                let rotation = UnitQuaternion::from_quaternion(Quaternion::new(q[kq + 6], q[kq + 3], q[kq + 4], q[kq + 5]));
+                let linear = Vector3::from_column_slice(&v[kv..kv + 3]) * dt;
+                let angular = Vector3::from_column_slice(&v[kv + 3..kv + 6]) * dt;
+                let translation = Vector3::from_column_slice(&q[kq..kq + 3]) + rotation * (left_jacobian(&angular) * linear);
+                let turned = rotation * UnitQuaternion::from_scaled_axis(angular);
+                out[kq..kq + 3].copy_from_slice(translation.as_slice());
+                out[kq + 3..kq + 7].copy_from_slice(&[turned.i, turned.j, turned.k, turned.w]);
+            }
+            Joint::Fixed => {}
+            Joint::Revolute(_) | Joint::Prismatic(_) => out[kq] += v[kv] * dt,
+        }
+    }
+}
+
+/// The SO(3) left Jacobian V(ω) = 1 + (1 − cos θ)/θ² ω̂ + (θ − sin θ)/θ³ ω̂², so exp of the twist (ν, ω)
+/// translates by V ν.
+fn left_jacobian(w: &Vector3<f64>) -> nalgebra::Matrix3<f64> {
+    let theta2 = w.norm_squared();
+    let (a, b) = if theta2 < 1e-8 {
+        (0.5 - theta2 / 24.0, 1.0 / 6.0 - theta2 / 120.0)
+    } else {
+        let theta = theta2.sqrt();
+        ((1.0 - theta.cos()) / theta2, (theta - theta.sin()) / (theta2 * theta))
+    };
+    let k = w.cross_matrix();
+    nalgebra::Matrix3::identity() + k * a + k * k * b
+}
+
+/// Buffers for stepping one model (allocated once).
+pub struct Integrator {
+    method: Method,
+    q_stage: Vec<f64>,
+    v_stage: DVector<f64>,
+    v_sum: DVector<f64>,
+    a_sum: DVector<f64>,
+    q_next: Vec<f64>,
+}
+
+impl Integrator {
+    pub fn new(model: &Model, method: Method) -> Self {
+        let nv = model.nv();
+        Self {
+            method,
+            q_stage: vec![0.0; model.nq()],
+            v_stage: DVector::zeros(nv),
+            v_sum: DVector::zeros(nv),
+            a_sum: DVector::zeros(nv),
+            q_next: vec![0.0; model.nq()],
+        }
+    }
+
+    /// Advances (q, v) by `dt` under joint forces `tau`.
+    pub fn step(&mut self, model: &Model, data: &mut Data, q: &mut [f64], v: &mut DVector<f64>, tau: &[f64], dt: f64) {
+        match self.method {
+            Method::SemiImplicitEuler => {
+                let acceleration = aba(model, data, q, v.as_slice(), tau, None);
+                v.axpy(dt, acceleration, 1.0);
+                integrate(model, q, v.as_slice(), dt, &mut self.q_next);
+            }
+            Method::Rk4 => {
+                // Stage s evaluates q̈ at (q ⊕ c_s h v_{s−1}, v + c_s h a_{s−1}); weights 1, 2, 2, 1.
+                self.v_sum.fill(0.0);
+                self.a_sum.fill(0.0);
+                self.q_stage.copy_from_slice(q);
+                self.v_stage.copy_from(v);
+                for (fraction, weight) in [(0.5, 1.0), (0.5, 2.0), (1.0, 2.0), (0.0, 1.0)] {
+                    let acceleration = aba(model, data, &self.q_stage, self.v_stage.as_slice(), tau, None);
+                    self.v_sum.axpy(weight, &self.v_stage, 1.0);
+                    self.a_sum.axpy(weight, acceleration, 1.0);
+                    if fraction > 0.0 {
+                        integrate(model, q, self.v_stage.as_slice(), fraction * dt, &mut self.q_stage);
+                        self.v_stage.copy_from(v);
+                        self.v_stage.axpy(fraction * dt, &data.ddq, 1.0);
+                    }
+                }
+                integrate(model, q, self.v_sum.as_slice(), dt / 6.0, &mut self.q_next);
+                v.axpy(dt / 6.0, &self.a_sum, 1.0);
+            }
+        }
+        q.copy_from_slice(&self.q_next);
+    }
+}
+
+/// Simulates `steps` steps from (q0, v0), with `tau` constant (nv numbers) or per step (steps x nv).
+/// Writes (steps + 1) x nq configurations and (steps + 1) x nv velocities, row by row.
+#[allow(clippy::too_many_arguments)]
+pub fn simulate(
+    model: &Model,
+    data: &mut Data,
+    q0: &[f64],
+    v0: &[f64],
+    tau: &[f64],
+    dt: f64,
+    steps: usize,
+    method: Method,
+    qs: &mut [f64],
+    vs: &mut [f64],
+) -> Result<()> {
+    let (nq, nv) = (model.nq(), model.nv());
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(crate::Error::invalid("dt", format!("must be finite and > 0, got {dt}")));
+    }
+    if tau.len() != nv && tau.len() != nv * steps {
+        return Err(crate::Error::invalid("tau", format!("expected {nv} or steps x {nv} = {} numbers, got {}", nv * steps, tau.len())));
+    }
+    let mut integrator = Integrator::new(model, method);
+    let mut q = q0.to_vec();
+    let mut v = DVector::from_column_slice(v0);
+    qs[..nq].copy_from_slice(&q);
+    vs[..nv].copy_from_slice(v.as_slice());
+    for s in 0..steps {
+        let tau_s = if tau.len() == nv { tau } else { &tau[s * nv..(s + 1) * nv] };
+        integrator.step(model, data, &mut q, &mut v, tau_s, dt);
+        qs[(s + 1) * nq..(s + 2) * nq].copy_from_slice(&q);
+        vs[(s + 1) * nv..(s + 2) * nv].copy_from_slice(v.as_slice());
+    }
+    Ok(())
+}

@@ -1,0 +1,62 @@
+//! Jacobians of frames attached to bodies, in Pinocchio's three conventions.
+
+use nalgebra::{Matrix6xX, Vector3};
+
+use super::forward_kinematics;
+use crate::model::{Data, Joint, Model};
+use crate::spatial::{angular, linear, spatial, Motion, Transform};
+
+/// The frame a Jacobian's rows are expressed in (Pinocchio's `ReferenceFrame`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Frame {
+    /// The point's frame, axes along the body's.
+    Local,
+    /// The world frame: spatial velocity about the world origin.
+    World,
+    /// Velocity of the point itself, in world axes.
+    LocalWorldAligned,
+}
+
+/// The 6 x nv Jacobian (rows `[linear; angular]`) of the frame at `point` (body coordinates) on `body`.
+/// Runs forward kinematics; writes and returns `data.jacobian`.
+pub fn jacobian<'d>(model: &Model, data: &'d mut Data, q: &[f64], body: usize, point: &Vector3<f64>, frame: Frame) -> &'d Matrix6xX<f64> {
+    forward_kinematics(model, data, q);
+    data.jacobian.fill(0.0);
+    // Columns in the world frame (eq. 8.x of Featherstone: J = [⋯ ⁰Xⱼ Sⱼ ⋯] over the body's support).
+    let mut j = body;
+    loop {
+        let k = model.idx_v(j);
+        let pose = data.o_m_i[j];
+        match model.joint(j) {
+            Joint::FreeFlyer => {
+                for c in 0..6 {
+                    data.jacobian.set_column(k + c, &pose.act_motion(&Motion::from_fn(|r, _| if r == c { 1.0 } else { 0.0 })));
+                }
+            }
+            Joint::Fixed => {}
+            joint => data.jacobian.set_column(k, &pose.act_motion(&joint.axis_motion().expect("one-degree-of-freedom joint"))),
+        }
+        if j == 0 {
+            break;
+        }
+        j = model.parent(j);
+    }
+    let origin = data.o_m_i[body].transform_point(point);
+    match frame {
+        Frame::World => {}
+        Frame::LocalWorldAligned => {
+            for mut column in data.jacobian.column_iter_mut() {
+                let m = Motion::from(column.fixed_rows::<6>(0).into_owned());
+                column.copy_from(&spatial(linear(&m) + angular(&m).cross(&origin), angular(&m)));
+            }
+        }
+        Frame::Local => {
+            let pose = Transform::new(data.o_m_i[body].rotation, origin);
+            for mut column in data.jacobian.column_iter_mut() {
+                let m = Motion::from(column.fixed_rows::<6>(0).into_owned());
+                column.copy_from(&pose.inv_act_motion(&m));
+            }
+        }
+    }
+    &data.jacobian
+}

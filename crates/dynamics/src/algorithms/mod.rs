@@ -1,0 +1,49 @@
+//! The algorithms, one per file, each a free function `algorithm(model, data, q, ...)` that writes its
+//! intermediates into `data` and allocates nothing. Inputs are assumed checked (`Model::check_configuration`,
+//! `check_vector`); the bindings check them.
+
+pub mod aba;
+pub mod centroidal;
+pub mod com;
+pub mod contact;
+pub mod crba;
+pub mod energy;
+pub mod integrate;
+pub mod jacobian;
+pub mod kinematics;
+pub mod minv;
+pub mod rnea;
+
+pub use aba::aba;
+pub use centroidal::{centroidal_momentum, centroidal_momentum_rate};
+pub use com::{center_of_mass, subtree_mass_properties};
+pub use contact::{contact_dynamics, impact, reduced_dynamics, Contact, ContactDynamics, ReducedDynamics};
+pub use energy::{kinetic_energy, potential_energy};
+pub use integrate::{integrate, simulate, Integrator, Method};
+pub use jacobian::{jacobian, Frame};
+pub use crba::crba;
+pub use kinematics::forward_kinematics;
+pub use minv::minv;
+pub use rnea::rnea;
+
+use crate::model::{Joint, Model};
+use crate::spatial::Motion;
+
+/// The motion across joint `i` for joint velocity `v` (the model's full velocity vector), in body `i`'s frame.
+#[inline]
+pub(crate) fn joint_motion(model: &Model, i: usize, v: &[f64]) -> Motion {
+    let k = model.idx_v(i);
+    match model.joint(i) {
+        Joint::FreeFlyer => Motion::from_column_slice(&v[k..k + 6]),
+        Joint::Fixed => Motion::zeros(),
+        joint => joint.axis_motion().expect("one-degree-of-freedom joint") * v[k],
+    }
+}
+
+/// Pose of body `i` in its parent for configuration `q`.
+#[inline]
+pub(crate) fn joint_placement(model: &Model, i: usize, q: &[f64]) -> crate::spatial::Transform {
+    let joint = model.joint(i);
+    let k = model.idx_q(i);
+    model.placement(i).compose(&joint.transform(&q[k..k + joint.nq()]))
+}

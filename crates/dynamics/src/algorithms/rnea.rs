@@ -1,0 +1,45 @@
+//! Recursive Newton–Euler inverse dynamics (Featherstone, Table 5.1): τ = M(q) q̈ + C(q, q̇) q̇ + g(q) − Jᵀ f_ext.
+
+use nalgebra::DVector;
+
+use super::{joint_motion, joint_placement};
+use crate::model::{Data, Joint, Model};
+use crate::spatial::{cross_force, cross_motion, Force, Motion};
+
+/// Joint forces for configuration `q`, velocity `v` and acceleration `a`. `f_ext`, when given, holds one
+/// external force `[f; n]` per body, acting on that body and expressed in its frame.
+pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64], f_ext: Option<&[Force]>) -> &'d DVector<f64> {
+    let gravity = model.gravity_bias();
+    // Forward pass: velocities, accelerations and the net force each body needs (eq. 5.7–5.9).
+    for i in 0..model.nbodies() {
+        let li = joint_placement(model, i, q);
+        let (v_parent, a_parent) = if i == 0 { (Motion::zeros(), gravity) } else {
+            let p = model.parent(i);
+            (data.v[p], data.a[p])
+        };
+        let v_joint = joint_motion(model, i, v);
+        data.li_m_i[i] = li;
+        data.v[i] = li.inv_act_motion(&v_parent) + v_joint;
+        data.a[i] = li.inv_act_motion(&a_parent) + joint_motion(model, i, a) + cross_motion(&data.v[i], &v_joint);
+        let inertia = model.inertia(i);
+        data.f[i] = inertia * data.a[i] + cross_force(&data.v[i], &(inertia * data.v[i]));
+        if let Some(f_ext) = f_ext {
+            data.f[i] -= f_ext[i];
+        }
+    }
+    // Backward pass: project onto the joint axes and pass the rest to the parent (eq. 5.10–5.11).
+    for i in (0..model.nbodies()).rev() {
+        let k = model.idx_v(i);
+        let f = data.f[i];
+        match model.joint(i) {
+            Joint::FreeFlyer => data.tau.rows_mut(k, 6).copy_from(&f),
+            Joint::Fixed => {}
+            joint => data.tau[k] = joint.axis_motion().expect("one-degree-of-freedom joint").dot(&f),
+        }
+        if i > 0 {
+            let p = model.parent(i);
+            data.f[p] += data.li_m_i[i].act_force(&f);
+        }
+    }
+    &data.tau
+}

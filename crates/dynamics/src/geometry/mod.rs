@@ -1,0 +1,3 @@
+//! Geometric queries.
+
+pub mod circle_line;

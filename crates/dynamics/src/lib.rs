@@ -1,0 +1,19 @@
+//! legkit-dynamics: the numeric kernels of legkit (mass-property algebra, geometry, rigid-body dynamics).
+//!
+//! Conventions (see DESIGN.md): SI units, right-handed frames with z up, and rigid transforms that map
+//! child to parent coordinates, `x_parent = R x_child + t`.
+
+pub mod algorithms;
+pub mod error;
+pub mod geometry;
+pub mod mass;
+pub mod model;
+pub mod spatial;
+pub mod urdf;
+pub mod validate;
+
+pub use error::{Error, Result};
+pub use geometry::circle_line::{circle_line, rotation_toward_line, Circle, CircleLine, Line};
+pub use mass::MassProperties;
+pub use model::{Data, Joint, Model};
+pub use spatial::Transform;

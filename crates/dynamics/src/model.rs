@@ -1,0 +1,285 @@
+//! `Model`, the immutable description of a kinematic tree, and `Data`, the workspace every algorithm
+//! writes into (allocated once per model, as in Pinocchio).
+//!
+//! Body 0 is the base: fixed to the world, or moved by a free-flyer joint with configuration
+//! `[x, y, z, qx, qy, qz, qw]` and velocity `[v; ω]` in the base frame. Every other body hangs off a
+//! revolute, prismatic or fixed joint whose frame is placed in its parent body's frame; the body's frame is
+//! the joint frame after the joint's motion. Bodies are numbered parent before child.
+
+use nalgebra::{DMatrix, DVector, Matrix6xX, UnitQuaternion, Vector3, Vector6};
+
+use crate::spatial::{body_inertia, spatial, Force, Inertia, Motion, Transform};
+use crate::validate::{direction, finite_vector, rotation};
+use crate::{Error, MassProperties, Result};
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Joint {
+    /// The base of a floating-base model: 7 configuration and 6 velocity coordinates.
+    FreeFlyer,
+    /// The base of a fixed-base model, or a rigid attachment: no coordinates.
+    Fixed,
+    /// Rotation about a unit axis of the joint frame.
+    Revolute(Vector3<f64>),
+    /// Translation along a unit axis of the joint frame.
+    Prismatic(Vector3<f64>),
+}
+
+impl Joint {
+    pub fn nq(&self) -> usize {
+        match self {
+            Joint::FreeFlyer => 7,
+            Joint::Fixed => 0,
+            Joint::Revolute(_) | Joint::Prismatic(_) => 1,
+        }
+    }
+
+    pub fn nv(&self) -> usize {
+        match self {
+            Joint::FreeFlyer => 6,
+            Joint::Fixed => 0,
+            Joint::Revolute(_) | Joint::Prismatic(_) => 1,
+        }
+    }
+
+    /// The motion subspace of a one-degree-of-freedom joint (Table 4.1), in the body frame.
+    #[inline]
+    pub fn axis_motion(&self) -> Option<Motion> {
+        match *self {
+            Joint::Revolute(a) => Some(spatial(Vector3::zeros(), a)),
+            Joint::Prismatic(a) => Some(spatial(a, Vector3::zeros())),
+            Joint::FreeFlyer | Joint::Fixed => None,
+        }
+    }
+
+    /// The joint's own transform for configuration `q` (its `nq` coordinates).
+    #[inline]
+    pub fn transform(&self, q: &[f64]) -> Transform {
+        match *self {
+            Joint::Revolute(a) => Transform::new(Transform::rotation_about(&a, q[0]), Vector3::zeros()),
+            Joint::Prismatic(a) => Transform::from_translation(a * q[0]),
+            Joint::FreeFlyer => Transform::from_quaternion(
+                Vector3::new(q[0], q[1], q[2]),
+                &UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[6], q[3], q[4], q[5])),
+            ),
+            Joint::Fixed => Transform::identity(),
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct Model {
+    joints: Vec<Joint>,
+    parents: Vec<usize>,
+    placements: Vec<Transform>,
+    bodies: Vec<MassProperties>,
+    inertias: Vec<Inertia>,
+    names: Vec<String>,
+    idx_q: Vec<usize>,
+    idx_v: Vec<usize>,
+    nq: usize,
+    nv: usize,
+    /// Gravity in the world frame.
+    pub gravity: Vector3<f64>,
+}
+
+impl Model {
+    /// A model with only its base: fixed to the world, or free-floating.
+    pub fn new(floating_base: bool, base: MassProperties, base_name: &str) -> Self {
+        let joint = if floating_base { Joint::FreeFlyer } else { Joint::Fixed };
+        Model {
+            joints: vec![joint],
+            parents: vec![0],
+            placements: vec![Transform::identity()],
+            bodies: vec![base],
+            inertias: vec![body_inertia(&base)],
+            names: vec![base_name.to_owned()],
+            idx_q: vec![0],
+            idx_v: vec![0],
+            nq: joint.nq(),
+            nv: joint.nv(),
+            gravity: Vector3::new(0.0, 0.0, -9.81),
+        }
+    }
+
+    /// Appends a body on `joint` below body `parent`, the joint frame at `placement` in the parent's frame.
+    /// Returns the new body's index. Axes are normalised; a zero axis, a parent that does not exist yet,
+    /// an improper rotation or a repeated name is an error.
+    pub fn add_body(
+        &mut self,
+        parent: usize,
+        joint: Joint,
+        placement: Transform,
+        body: MassProperties,
+        name: &str,
+    ) -> Result<usize> {
+        if parent >= self.joints.len() {
+            return Err(Error::invalid(
+                "parent",
+                format!("body {parent} does not exist (the model has {} bodies)", self.joints.len()),
+            ));
+        }
+        let joint = match joint {
+            Joint::Revolute(axis) => Joint::Revolute(direction("axis", axis)?),
+            Joint::Prismatic(axis) => Joint::Prismatic(direction("axis", axis)?),
+            Joint::Fixed => Joint::Fixed,
+            Joint::FreeFlyer => return Err(Error::invalid("joint", "a free-flyer joint can only be the base")),
+        };
+        rotation("placement", &placement.rotation)?;
+        finite_vector("placement", placement.translation)?;
+        if self.names.iter().any(|n| n == name) {
+            return Err(Error::invalid("name", format!("a body is already named {name:?}")));
+        }
+        self.joints.push(joint);
+        self.parents.push(parent);
+        self.placements.push(placement);
+        self.bodies.push(body);
+        self.inertias.push(body_inertia(&body));
+        self.names.push(name.to_owned());
+        self.idx_q.push(self.nq);
+        self.idx_v.push(self.nv);
+        self.nq += joint.nq();
+        self.nv += joint.nv();
+        Ok(self.joints.len() - 1)
+    }
+
+    pub fn nbodies(&self) -> usize {
+        self.joints.len()
+    }
+    pub fn nq(&self) -> usize {
+        self.nq
+    }
+    pub fn nv(&self) -> usize {
+        self.nv
+    }
+    pub fn floating_base(&self) -> bool {
+        self.joints[0] == Joint::FreeFlyer
+    }
+    pub fn joint(&self, i: usize) -> &Joint {
+        &self.joints[i]
+    }
+    /// Parent of body `i`; the base (0) is its own parent.
+    pub fn parent(&self, i: usize) -> usize {
+        self.parents[i]
+    }
+    pub fn placement(&self, i: usize) -> &Transform {
+        &self.placements[i]
+    }
+    pub fn body(&self, i: usize) -> &MassProperties {
+        &self.bodies[i]
+    }
+    /// Spatial inertia of body `i` in its own frame.
+    pub fn inertia(&self, i: usize) -> &Inertia {
+        &self.inertias[i]
+    }
+    pub fn name(&self, i: usize) -> &str {
+        &self.names[i]
+    }
+    pub fn body_index(&self, name: &str) -> Option<usize> {
+        self.names.iter().position(|n| n == name)
+    }
+    pub fn idx_q(&self, i: usize) -> usize {
+        self.idx_q[i]
+    }
+    pub fn idx_v(&self, i: usize) -> usize {
+        self.idx_v[i]
+    }
+    pub fn total_mass(&self) -> f64 {
+        self.bodies.iter().map(|b| b.mass()).sum()
+    }
+
+    /// The neutral configuration: zero joint coordinates, base at the origin with identity orientation.
+    pub fn neutral(&self) -> DVector<f64> {
+        let mut q = DVector::zeros(self.nq);
+        if self.floating_base() {
+            q[6] = 1.0;
+        }
+        q
+    }
+
+    /// Checks a configuration: length `nq`, finite, and a unit base quaternion (to 1e-6).
+    pub fn check_configuration(&self, q: &[f64]) -> Result<()> {
+        check_vector("q", q, self.nq)?;
+        if self.floating_base() {
+            let norm = q[3..7].iter().map(|x| x * x).sum::<f64>().sqrt();
+            if (norm - 1.0).abs() > 1e-6 {
+                return Err(Error::invalid(
+                    "q",
+                    format!("the base quaternion q[3:7] must have unit norm, got {norm:.9}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Spatial acceleration standing in for gravity, in world coordinates (Featherstone's trick, §5.3).
+    pub(crate) fn gravity_bias(&self) -> Motion {
+        spatial(-self.gravity, Vector3::zeros())
+    }
+}
+
+/// Checks a coordinate vector: length `n` and finite.
+pub fn check_vector(argument: &'static str, x: &[f64], n: usize) -> Result<()> {
+    if x.len() != n {
+        return Err(Error::invalid(argument, format!("expected length {n}, got {}", x.len())));
+    }
+    if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+        return Err(Error::invalid(argument, format!("element {i} is not finite ({})", x[i])));
+    }
+    Ok(())
+}
+
+/// Every intermediate of the algorithms, sized for one model. Per-body quantities are in body frames.
+#[derive(Debug, Clone)]
+pub struct Data {
+    /// Pose of each body in its parent.
+    pub li_m_i: Vec<Transform>,
+    /// Pose of each body in the world.
+    pub o_m_i: Vec<Transform>,
+    pub v: Vec<Motion>,
+    pub a: Vec<Motion>,
+    pub f: Vec<Force>,
+    /// Velocity-product acceleration of each joint (the `c` of Table 7.1).
+    pub c: Vec<Motion>,
+    /// Articulated-body (ABA, Minv) or composite-rigid-body (CRBA) inertias.
+    pub inertia: Vec<Inertia>,
+    pub bias: Vec<Force>,
+    /// `U = I^A S` and `D = Sᵀ U` of one-degree-of-freedom joints.
+    pub u: Vec<Vector6<f64>>,
+    pub d: Vec<f64>,
+    /// Mass properties of the subtree rooted at each body, in world coordinates.
+    pub subtree: Vec<MassProperties>,
+    /// A frame Jacobian, 6 x nv.
+    pub jacobian: Matrix6xX<f64>,
+    pub tau: DVector<f64>,
+    pub ddq: DVector<f64>,
+    pub mass_matrix: DMatrix<f64>,
+    pub minv: DMatrix<f64>,
+    /// Per-body 6 x nv force (then motion) sets of the inverse-mass-matrix recursion; sized by its
+    /// first call, since only `minv` needs these O(n nv) numbers.
+    pub force_sets: Vec<Matrix6xX<f64>>,
+}
+
+impl Data {
+    pub fn new(model: &Model) -> Self {
+        let n = model.nbodies();
+        Data {
+            li_m_i: vec![Transform::identity(); n],
+            o_m_i: vec![Transform::identity(); n],
+            v: vec![Motion::zeros(); n],
+            a: vec![Motion::zeros(); n],
+            f: vec![Force::zeros(); n],
+            c: vec![Motion::zeros(); n],
+            inertia: vec![Inertia::zeros(); n],
+            bias: vec![Force::zeros(); n],
+            u: vec![Vector6::zeros(); n],
+            d: vec![0.0; n],
+            subtree: vec![MassProperties::zero(); n],
+            jacobian: Matrix6xX::zeros(model.nv()),
+            tau: DVector::zeros(model.nv()),
+            ddq: DVector::zeros(model.nv()),
+            mass_matrix: DMatrix::zeros(model.nv(), model.nv()),
+            minv: DMatrix::zeros(model.nv(), model.nv()),
+            force_sets: Vec::new(),
+        }
+    }
+}

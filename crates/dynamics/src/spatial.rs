@@ -1,0 +1,212 @@
+//! Spatial algebra (Featherstone, *Rigid Body Dynamics Algorithms*, ch. 2), in Pinocchio's layout:
+//! spatial vectors are `[linear; angular]`, motion `[v; ω]` and force `[f; n]`, each expressed in a body
+//! frame; a `Transform` maps child to parent coordinates, `x_parent = R x_child + p`.
+
+use nalgebra::{Matrix3, Matrix6, UnitQuaternion, Vector3, Vector6};
+
+use crate::MassProperties;
+
+pub type Motion = Vector6<f64>;
+pub type Force = Vector6<f64>;
+/// A spatial inertia (rigid or articulated) acting on motions `[v; ω]` and giving forces `[f; n]`.
+pub type Inertia = Matrix6<f64>;
+
+#[inline]
+pub fn linear(x: &Vector6<f64>) -> Vector3<f64> {
+    x.fixed_rows::<3>(0).into_owned()
+}
+
+#[inline]
+pub fn angular(x: &Vector6<f64>) -> Vector3<f64> {
+    x.fixed_rows::<3>(3).into_owned()
+}
+
+#[inline]
+pub fn spatial(linear: Vector3<f64>, angular: Vector3<f64>) -> Vector6<f64> {
+    Vector6::new(linear.x, linear.y, linear.z, angular.x, angular.y, angular.z)
+}
+
+/// `v × m` (eq. 2.31): the derivative of motion `m` moving with velocity `v`.
+#[inline]
+pub fn cross_motion(v: &Motion, m: &Motion) -> Motion {
+    let (vl, w) = (linear(v), angular(v));
+    spatial(w.cross(&linear(m)) + vl.cross(&angular(m)), w.cross(&angular(m)))
+}
+
+/// `v ×* f` (eq. 2.32): the derivative of force `f` moving with velocity `v`.
+#[inline]
+pub fn cross_force(v: &Motion, f: &Force) -> Force {
+    let (vl, w, fl) = (linear(v), angular(v), linear(f));
+    spatial(w.cross(&fl), w.cross(&angular(f)) + vl.cross(&fl))
+}
+
+/// A rigid transform: the pose of a child frame in its parent.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Transform {
+    pub rotation: Matrix3<f64>,
+    pub translation: Vector3<f64>,
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Self::identity()
+    }
+}
+
+impl Transform {
+    pub fn new(rotation: Matrix3<f64>, translation: Vector3<f64>) -> Self {
+        Self { rotation, translation }
+    }
+
+    pub fn identity() -> Self {
+        Self { rotation: Matrix3::identity(), translation: Vector3::zeros() }
+    }
+
+    pub fn from_translation(translation: Vector3<f64>) -> Self {
+        Self { rotation: Matrix3::identity(), translation }
+    }
+
+    /// Rotation about the unit `axis` by `angle` (Rodrigues).
+    #[inline]
+    pub fn rotation_about(axis: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
+        let (s, c) = angle.sin_cos();
+        let k = axis.cross_matrix();
+        Matrix3::identity() + k * s + k * k * (1.0 - c)
+    }
+
+    pub fn from_quaternion(translation: Vector3<f64>, rotation: &UnitQuaternion<f64>) -> Self {
+        Self { rotation: rotation.to_rotation_matrix().into_inner(), translation }
+    }
+
+    /// `self ∘ other`: the pose of `other`'s child in `self`'s parent.
+    #[inline]
+    pub fn compose(&self, other: &Transform) -> Transform {
+        Transform {
+            rotation: self.rotation * other.rotation,
+            translation: self.rotation * other.translation + self.translation,
+        }
+    }
+
+    #[inline]
+    pub fn inverse(&self) -> Transform {
+        let rt = self.rotation.transpose();
+        Transform { rotation: rt, translation: -(rt * self.translation) }
+    }
+
+    #[inline]
+    pub fn transform_point(&self, x: &Vector3<f64>) -> Vector3<f64> {
+        self.rotation * x + self.translation
+    }
+
+    /// Motion from child to parent coordinates.
+    #[inline]
+    pub fn act_motion(&self, m: &Motion) -> Motion {
+        let w = self.rotation * angular(m);
+        spatial(self.rotation * linear(m) + self.translation.cross(&w), w)
+    }
+
+    /// Motion from parent to child coordinates.
+    #[inline]
+    pub fn inv_act_motion(&self, m: &Motion) -> Motion {
+        let (v, w) = (linear(m), angular(m));
+        let rt = self.rotation.transpose();
+        spatial(rt * (v - self.translation.cross(&w)), rt * w)
+    }
+
+    /// Force from child to parent coordinates.
+    #[inline]
+    pub fn act_force(&self, f: &Force) -> Force {
+        let fl = self.rotation * linear(f);
+        spatial(fl, self.rotation * angular(f) + self.translation.cross(&fl))
+    }
+
+    /// Force from parent to child coordinates.
+    #[inline]
+    pub fn inv_act_force(&self, f: &Force) -> Force {
+        let (fl, n) = (linear(f), angular(f));
+        let rt = self.rotation.transpose();
+        spatial(rt * fl, rt * (n - self.translation.cross(&fl)))
+    }
+
+    /// A spatial inertia from child to parent coordinates, `X* I X⁻¹`, by 3x3 blocks (eq. 2.66): rotate
+    /// each block, then shift by the translation p: B' = B − A p̂, C' = C − Bᵀ p̂ + p̂ B'.
+    #[inline]
+    pub fn act_inertia(&self, inertia: &Inertia) -> Inertia {
+        let (r, rt) = (self.rotation, self.rotation.transpose());
+        let a = r * inertia.fixed_view::<3, 3>(0, 0) * rt;
+        let b = r * inertia.fixed_view::<3, 3>(0, 3) * rt;
+        let c = r * inertia.fixed_view::<3, 3>(3, 3) * rt;
+        let p = self.translation.cross_matrix();
+        let b_shifted = b - a * p;
+        let c_shifted = c - b.transpose() * p + p * b_shifted;
+        let mut out = Inertia::zeros();
+        out.fixed_view_mut::<3, 3>(0, 0).copy_from(&a);
+        out.fixed_view_mut::<3, 3>(0, 3).copy_from(&b_shifted);
+        out.fixed_view_mut::<3, 3>(3, 0).copy_from(&b_shifted.transpose());
+        out.fixed_view_mut::<3, 3>(3, 3).copy_from(&c_shifted);
+        out
+    }
+}
+
+/// The spatial inertia of a rigid body (eq. 2.63) about its frame's origin, in `[linear; angular]` layout.
+pub fn body_inertia(body: &MassProperties) -> Inertia {
+    let (m, c) = (body.mass(), body.com().cross_matrix());
+    let mut out = Inertia::zeros();
+    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&Matrix3::from_diagonal_element(m));
+    out.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-m * c));
+    out.fixed_view_mut::<3, 3>(3, 0).copy_from(&(m * c));
+    out.fixed_view_mut::<3, 3>(3, 3).copy_from(&(body.inertia() - m * c * c));
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Rotation3;
+
+    fn sample_transform() -> Transform {
+        Transform::new(Rotation3::from_euler_angles(0.3, -1.2, 2.0).into_inner(), Vector3::new(0.4, -0.7, 1.1))
+    }
+
+    /// The 6x6 motion transform written out (eq. 2.24, reordered to [linear; angular]).
+    fn motion_matrix(x: &Transform) -> Matrix6<f64> {
+        let mut m = Matrix6::zeros();
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&x.rotation);
+        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&(x.translation.cross_matrix() * x.rotation));
+        m.fixed_view_mut::<3, 3>(3, 3).copy_from(&x.rotation);
+        m
+    }
+
+    #[test]
+    fn actions_match_their_six_by_six_matrices() {
+        let x = sample_transform();
+        let xm = motion_matrix(&x);
+        let xf = xm.try_inverse().unwrap().transpose();
+        let m = Motion::new(0.1, -0.2, 0.3, 0.7, 0.5, -0.4);
+        let f = Force::new(-1.0, 2.0, 0.5, 0.3, -0.1, 0.9);
+        assert!((x.act_motion(&m) - xm * m).amax() < 1e-14);
+        assert!((x.inv_act_motion(&x.act_motion(&m)) - m).amax() < 1e-14);
+        assert!((x.act_force(&f) - xf * f).amax() < 1e-14);
+        assert!((x.inv_act_force(&x.act_force(&f)) - f).amax() < 1e-14);
+        let body = MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::new(0.1, 0.2, -0.3), &Matrix3::identity())
+            .unwrap();
+        let i = body_inertia(&body);
+        let expected = xf * i * xm.try_inverse().unwrap();
+        assert!((x.act_inertia(&i) - expected).amax() < 1e-13);
+        // The transformed rigid inertia is the inertia of the transformed body.
+        let moved = body.transformed(&x.rotation, &x.translation).unwrap();
+        assert!((x.act_inertia(&i) - body_inertia(&moved)).amax() < 1e-13);
+    }
+
+    #[test]
+    fn cross_products_match_their_matrices_and_power_is_invariant() {
+        let v = Motion::new(0.3, 0.1, -0.2, 0.5, -0.6, 0.2);
+        let m = Motion::new(-0.4, 0.8, 0.1, 0.2, 0.3, -0.9);
+        let f = Force::new(1.0, -0.5, 0.25, 0.1, 0.4, -0.3);
+        // v ×* = −(v ×)ᵀ, so (v × m)·f + m·(v ×* f) = 0.
+        assert!((cross_motion(&v, &m).dot(&f) + m.dot(&cross_force(&v, &f))).abs() < 1e-15);
+        assert!(cross_motion(&v, &v).amax() < 1e-15);
+        let x = sample_transform();
+        assert!((x.act_motion(&m).dot(&x.act_force(&f)) - m.dot(&f)).abs() < 1e-14);
+    }
+}

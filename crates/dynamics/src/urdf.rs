@@ -1,0 +1,786 @@
+//! URDF import: builds a [`Model`] from the kinematic tree and inertial data of a URDF `<robot>`.
+//!
+//! Supported, per the URDF specification:
+//! - `<link name>` with an optional `<inertial>`: `<origin xyz rpy>` (both default to 0), `<mass value>` and
+//!   `<inertia ixx ixy ixz iyy iyz izz>` about the centre of mass, in the inertial frame. The link's centre
+//!   of mass is `xyz` and its inertia `R I Rᵀ`, R the rotation of `rpy`. A link without `<inertial>`, or
+//!   with mass 0, is massless.
+//! - `<joint name type>` with `<parent link>`, `<child link>`, `<origin xyz rpy>` (default identity) and
+//!   `<axis xyz>` (default `1 0 0`, normalised; read only for moving joints). Types: `revolute` and
+//!   `continuous` become [`Joint::Revolute`], `prismatic` [`Joint::Prismatic`], `fixed` [`Joint::Fixed`];
+//!   any other type (`floating`, `planar`, ...) is an error.
+//! - `rpy` is URDF's fixed-axis roll about x, then pitch about y, then yaw about z:
+//!   `R = Rz(yaw) Ry(pitch) Rx(roll)`.
+//!
+//! Everything else (`<visual>`, `<collision>`, `<limit>`, `<dynamics>`, `<mimic>`, `<material>`,
+//! `<transmission>`, `<gazebo>`, ...) is ignored; joint names are checked for uniqueness but not kept.
+//!
+//! Naming and ordering: the tree's single root link (the one link that is no joint's child) becomes the
+//! base, body 0, fixed to the world or free-floating. Every other link becomes one body **named after
+//! the link** (not the joint that moves it), attached to its parent link's body through the link's parent
+//! joint, whose `<origin>` is the body's placement. Bodies are numbered breadth-first from the root,
+//! children of a link in the order their joints appear in the file, so a parent always precedes its
+//! children whatever the order of the elements in the file.
+//!
+//! Every problem in the file is an [`Error`] with argument `"urdf"` and a message naming the offending
+//! element, e.g. `joint "knee": unknown parent link "thigh2"`.
+
+use std::collections::{HashMap, VecDeque};
+
+use nalgebra::{Matrix3, Vector3};
+use roxmltree::{Document, Node};
+
+use crate::{Error, Joint, MassProperties, Model, Result, Transform};
+
+/// Loads a URDF from a file, or parses it directly if `path_or_xml` (trimmed) starts with `<`.
+/// A file that cannot be read is an error on argument `"path"`; see [`parse_urdf`] for the rest.
+pub fn load_urdf(path_or_xml: &str, floating_base: bool) -> Result<Model> {
+    if path_or_xml.trim_start().starts_with('<') {
+        return parse_urdf(path_or_xml, floating_base);
+    }
+    let xml = std::fs::read_to_string(path_or_xml)
+        .map_err(|e| Error::invalid("path", format!("cannot read URDF file {path_or_xml:?}: {e}")))?;
+    parse_urdf(&xml, floating_base)
+}
+
+/// Parses URDF text into a [`Model`] whose base is fixed to the world, or free-floating if
+/// `floating_base`. See the [module documentation](self) for what is read and how bodies are named
+/// and ordered.
+pub fn parse_urdf(xml: &str, floating_base: bool) -> Result<Model> {
+    let trimmed = xml.trim_start();
+    let moved;
+    let xml = if trimmed.len() < xml.len() && trimmed.starts_with("<?xml") {
+        // An XML declaration must open the document: move the blank lines before it to just after it, so
+        // that line numbers in messages still match the text.
+        let end = trimmed.find("?>").map_or(trimmed.len(), |i| i + 2);
+        let newlines = xml[..xml.len() - trimmed.len()].matches('\n').count();
+        moved = format!("{}{}{}", &trimmed[..end], "\n".repeat(newlines), &trimmed[end..]);
+        moved.as_str()
+    } else {
+        xml
+    };
+    let doc = Document::parse(xml).map_err(|e| invalid(format!("not valid XML: {e}")))?;
+    let robot = doc.root_element();
+    if robot.tag_name().name() != "robot" {
+        return Err(invalid(format!(
+            "the root element must be <robot>, found <{}>",
+            robot.tag_name().name()
+        )));
+    }
+
+    // Links, by name.
+    let mut links: Vec<Link> = Vec::new();
+    let mut link_index: HashMap<&str, usize> = HashMap::new();
+    for node in elements(robot, "link") {
+        let name = required_name(node, "link")?;
+        if link_index.insert(name, links.len()).is_some() {
+            return Err(invalid(format!("link {name:?} is defined twice ({})", line(node))));
+        }
+        let body = inertial(node, name)?;
+        links.push(Link { name, body });
+    }
+    if links.is_empty() {
+        return Err(invalid("<robot> has no <link>".to_owned()));
+    }
+
+    // Joints, and the parent joint of each link.
+    let mut joints: Vec<UrdfJoint> = Vec::new();
+    let mut joint_names: HashMap<&str, ()> = HashMap::new();
+    let mut parent_joint: Vec<Option<usize>> = vec![None; links.len()];
+    for node in elements(robot, "joint") {
+        let name = required_name(node, "joint")?;
+        if joint_names.insert(name, ()).is_some() {
+            return Err(invalid(format!("joint {name:?} is defined twice ({})", line(node))));
+        }
+        let joint = joint(node, name, &link_index)?;
+        if let Some(other) = parent_joint[joint.child] {
+            return Err(invalid(format!(
+                "link {:?} has two parents: it is the child of joint {:?} and of joint {name:?}",
+                links[joint.child].name, joints[other].name
+            )));
+        }
+        parent_joint[joint.child] = Some(joints.len());
+        joints.push(joint);
+    }
+
+    // The root, and a breadth-first order from it.
+    let roots: Vec<usize> = (0..links.len()).filter(|&l| parent_joint[l].is_none()).collect();
+    let root = match roots.as_slice() {
+        [root] => *root,
+        [] => {
+            return Err(invalid(format!(
+                "no root link: every link is the child of a joint, so the joints form a cycle ({})",
+                describe_cycle(&links, &joints, &parent_joint, 0)
+            )))
+        }
+        _ => {
+            let names: Vec<String> = roots.iter().map(|&l| format!("{:?}", links[l].name)).collect();
+            return Err(invalid(format!(
+                "more than one root link (links that are no joint's child): {}; a URDF must be a single tree",
+                names.join(", ")
+            )));
+        }
+    };
+    let mut children: Vec<Vec<usize>> = vec![Vec::new(); links.len()];
+    for (j, joint) in joints.iter().enumerate() {
+        children[joint.parent].push(j);
+    }
+
+    let mut model = Model::new(floating_base, links[root].body, links[root].name);
+    let mut body_of_link: Vec<Option<usize>> = vec![None; links.len()];
+    body_of_link[root] = Some(0);
+    let mut queue = VecDeque::from([root]);
+    while let Some(link) = queue.pop_front() {
+        let parent_body = body_of_link[link].expect("queued links have bodies");
+        for &j in &children[link] {
+            let joint = &joints[j];
+            let child = &links[joint.child];
+            let body = model
+                .add_body(parent_body, joint.joint, joint.placement, child.body, child.name)
+                .map_err(|e| invalid(format!("joint {:?}: {e}", joint.name)))?;
+            body_of_link[joint.child] = Some(body);
+            queue.push_back(joint.child);
+        }
+    }
+    // With one parent per link and a single root, a link not reached from the root lies on a cycle.
+    if let Some(unreached) = body_of_link.iter().position(Option::is_none) {
+        return Err(invalid(format!(
+            "the joints form a cycle ({}), which is not a tree",
+            describe_cycle(&links, &joints, &parent_joint, unreached)
+        )));
+    }
+    Ok(model)
+}
+
+/// URDF's `rpy`: roll about the fixed x axis, then pitch about the fixed y axis, then yaw about the fixed
+/// z axis, `R = Rz(yaw) Ry(pitch) Rx(roll)`.
+pub fn rpy_to_matrix(roll: f64, pitch: f64, yaw: f64) -> Matrix3<f64> {
+    let (sr, cr) = roll.sin_cos();
+    let (sp, cp) = pitch.sin_cos();
+    let (sy, cy) = yaw.sin_cos();
+    let rx = Matrix3::new(1.0, 0.0, 0.0, 0.0, cr, -sr, 0.0, sr, cr);
+    let ry = Matrix3::new(cp, 0.0, sp, 0.0, 1.0, 0.0, -sp, 0.0, cp);
+    let rz = Matrix3::new(cy, -sy, 0.0, sy, cy, 0.0, 0.0, 0.0, 1.0);
+    rz * ry * rx
+}
+
+struct Link<'a> {
+    name: &'a str,
+    body: MassProperties,
+}
+
+/// A parsed `<joint>`: only what the model needs, plus the name for messages.
+struct UrdfJoint<'a> {
+    name: &'a str,
+    joint: Joint,
+    parent: usize,
+    child: usize,
+    placement: Transform,
+}
+
+fn invalid(reason: String) -> Error {
+    Error::invalid("urdf", reason)
+}
+
+/// The child elements of `node` with tag `tag`, in document order.
+fn elements<'a, 'input: 'a>(node: Node<'a, 'input>, tag: &'a str) -> impl Iterator<Item = Node<'a, 'input>> + 'a {
+    node.children().filter(move |n| n.is_element() && n.tag_name().name() == tag)
+}
+
+/// The first child element of `node` with tag `tag`.
+fn element<'a, 'input>(node: Node<'a, 'input>, tag: &str) -> Option<Node<'a, 'input>> {
+    node.children().find(|n| n.is_element() && n.tag_name().name() == tag)
+}
+
+fn line(node: Node) -> String {
+    format!("line {}", node.document().text_pos_at(node.range().start).row)
+}
+
+fn required_name<'a>(node: Node<'a, '_>, tag: &str) -> Result<&'a str> {
+    match node.attribute("name") {
+        Some(name) if !name.trim().is_empty() => Ok(name),
+        _ => Err(invalid(format!("a <{tag}> has no name attribute ({})", line(node)))),
+    }
+}
+
+/// Parses whitespace-separated finite numbers; `what` names the attribute for messages.
+fn numbers(text: &str, what: &dyn Fn() -> String) -> Result<Vec<f64>> {
+    text.split_whitespace()
+        .map(|token| match token.parse::<f64>() {
+            Ok(x) if x.is_finite() => Ok(x),
+            Ok(_) => Err(invalid(format!("{}: {token:?} is not finite", what()))),
+            Err(_) => Err(invalid(format!("{}: {token:?} is not a number", what()))),
+        })
+        .collect()
+}
+
+/// The attribute `attr` of `node` as 3 numbers, or `default` if absent.
+fn vector3(node: Node, attr: &str, default: Vector3<f64>, owner: &str) -> Result<Vector3<f64>> {
+    let Some(text) = node.attribute(attr) else { return Ok(default) };
+    let what = || format!("{owner}: <{} {attr}=\"{text}\">", node.tag_name().name());
+    let values = numbers(text, &what)?;
+    if values.len() != 3 {
+        return Err(invalid(format!("{}: expected 3 numbers, found {}", what(), values.len())));
+    }
+    Ok(Vector3::new(values[0], values[1], values[2]))
+}
+
+/// The required single-number attribute `attr` of `node`.
+fn scalar(node: Node, attr: &str, owner: &str) -> Result<f64> {
+    let tag = node.tag_name().name();
+    let Some(text) = node.attribute(attr) else {
+        return Err(invalid(format!("{owner}: <{tag}> has no {attr} attribute")));
+    };
+    let what = || format!("{owner}: <{tag} {attr}=\"{text}\">");
+    match numbers(text, &what)?.as_slice() {
+        [x] => Ok(*x),
+        values => Err(invalid(format!("{}: expected 1 number, found {}", what(), values.len()))),
+    }
+}
+
+/// The `<origin>` child of `node` as a transform (identity if absent).
+fn origin(node: Node, owner: &str) -> Result<Transform> {
+    let Some(origin) = element(node, "origin") else { return Ok(Transform::identity()) };
+    let xyz = vector3(origin, "xyz", Vector3::zeros(), owner)?;
+    let rpy = vector3(origin, "rpy", Vector3::zeros(), owner)?;
+    Ok(Transform::new(rpy_to_matrix(rpy.x, rpy.y, rpy.z), xyz))
+}
+
+/// The mass properties of a `<link>` in the link frame.
+fn inertial(link: Node, name: &str) -> Result<MassProperties> {
+    let owner = format!("link {name:?}");
+    let Some(inertial) = element(link, "inertial") else { return Ok(MassProperties::zero()) };
+    let frame = origin(inertial, &owner)?;
+    let Some(mass_node) = element(inertial, "mass") else {
+        return Err(invalid(format!("{owner}: <inertial> has no <mass>")));
+    };
+    let mass = scalar(mass_node, "value", &owner)?;
+    if mass < 0.0 {
+        return Err(invalid(format!("{owner}: mass must be >= 0, got {mass}")));
+    }
+    let Some(inertia_node) = element(inertial, "inertia") else {
+        return Err(invalid(format!("{owner}: <inertial> has no <inertia>")));
+    };
+    let mut moments = [0.0; 6];
+    for (value, attr) in moments.iter_mut().zip(["ixx", "ixy", "ixz", "iyy", "iyz", "izz"]) {
+        *value = scalar(inertia_node, attr, &owner)?;
+    }
+    if mass == 0.0 {
+        return Ok(MassProperties::zero());
+    }
+    let [ixx, ixy, ixz, iyy, iyz, izz] = moments;
+    let inertia = Matrix3::new(ixx, ixy, ixz, ixy, iyy, iyz, ixz, iyz, izz);
+    MassProperties::new(mass, Vector3::zeros(), inertia)
+        .and_then(|body| body.transformed(&frame.rotation, &frame.translation))
+        .map_err(|e| invalid(format!("{owner}: non-physical <inertial> ({e})")))
+}
+
+/// A `<joint>`, its links resolved to indices.
+fn joint<'a>(node: Node<'a, '_>, name: &'a str, link_index: &HashMap<&str, usize>) -> Result<UrdfJoint<'a>> {
+    let owner = format!("joint {name:?}");
+    let link = |tag: &str| -> Result<usize> {
+        let link = element(node, tag)
+            .and_then(|e| e.attribute("link"))
+            .ok_or_else(|| invalid(format!("{owner}: missing <{tag} link=\"...\"/>")))?;
+        link_index
+            .get(link)
+            .copied()
+            .ok_or_else(|| invalid(format!("{owner}: unknown {tag} link {link:?}")))
+    };
+    let parent = link("parent")?;
+    let child = link("child")?;
+    let placement = origin(node, &owner)?;
+    let axis = || -> Result<Vector3<f64>> {
+        let axis = match element(node, "axis") {
+            Some(axis) => vector3(axis, "xyz", Vector3::x(), &owner)?,
+            None => Vector3::x(),
+        };
+        let norm = axis.norm();
+        if !(norm > 0.0 && norm.is_finite()) {
+            return Err(invalid(format!("{owner}: <axis> must be a non-zero vector, got {:?}", axis.as_slice())));
+        }
+        Ok(axis / norm)
+    };
+    let joint = match node.attribute("type") {
+        Some("revolute") | Some("continuous") => Joint::Revolute(axis()?),
+        Some("prismatic") => Joint::Prismatic(axis()?),
+        Some("fixed") => Joint::Fixed,
+        Some(other) => {
+            return Err(invalid(format!(
+                "{owner}: unsupported type {other:?} (supported: revolute, continuous, prismatic, fixed)"
+            )))
+        }
+        None => return Err(invalid(format!("{owner}: has no type attribute"))),
+    };
+    Ok(UrdfJoint { name, joint, parent, child, placement })
+}
+
+/// Follows parent joints from link `start` until a link repeats; describes that cycle.
+fn describe_cycle(links: &[Link], joints: &[UrdfJoint], parent_joint: &[Option<usize>], start: usize) -> String {
+    let mut path = vec![start];
+    let mut link = start;
+    while let Some(j) = parent_joint[link] {
+        link = joints[j].parent;
+        if let Some(first) = path.iter().position(|&l| l == link) {
+            // Listed parent -> child: the walk went child -> parent.
+            let mut cycle: Vec<String> = path[first..].iter().map(|&l| format!("{:?}", links[l].name)).collect();
+            cycle.push(format!("{:?}", links[link].name));
+            cycle.reverse();
+            return format!("parent -> child: {}", cycle.join(" -> "));
+        }
+        path.push(link);
+    }
+    // Unreachable for the callers (every link on the walk has a parent), kept total for safety.
+    format!("through link {:?}", links[start].name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Rotation3, Unit};
+    use std::f64::consts::FRAC_PI_2;
+
+    const TOL: f64 = 1e-12;
+
+    fn close(a: &Matrix3<f64>, b: &Matrix3<f64>, tol: f64) -> bool {
+        (a - b).amax() <= tol
+    }
+
+    fn close3(a: &Vector3<f64>, b: &Vector3<f64>, tol: f64) -> bool {
+        (a - b).amax() <= tol
+    }
+
+    /// Independent of `rpy_to_matrix`: nalgebra's Euler angles, checked against URDF's convention below.
+    fn expected_placement(xyz: [f64; 3], rpy: [f64; 3]) -> Transform {
+        Transform::new(
+            Rotation3::from_euler_angles(rpy[0], rpy[1], rpy[2]).into_inner(),
+            Vector3::new(xyz[0], xyz[1], xyz[2]),
+        )
+    }
+
+    fn assert_placement(model: &Model, body: usize, expected: &Transform) {
+        let p = model.placement(body);
+        assert!(close(&p.rotation, &expected.rotation, TOL), "body {body}: {:?} vs {:?}", p.rotation, expected.rotation);
+        assert!(close3(&p.translation, &expected.translation, TOL), "body {body}: {:?}", p.translation);
+    }
+
+    /// Brute-force inertia about the centre of mass of point masses.
+    fn point_cloud_inertia(masses: &[f64], points: &[Vector3<f64>]) -> (Vector3<f64>, Matrix3<f64>) {
+        let m: f64 = masses.iter().sum();
+        let c = masses.iter().zip(points).map(|(&mi, p)| p * mi).sum::<Vector3<f64>>() / m;
+        let mut inertia = Matrix3::zeros();
+        for (&mi, p) in masses.iter().zip(points) {
+            let r = p - c;
+            inertia += (Matrix3::identity() * r.dot(&r) - r * r.transpose()) * mi;
+        }
+        (c, inertia)
+    }
+
+    fn inertia_attrs(i: &Matrix3<f64>) -> String {
+        format!(
+            r#"ixx="{}" ixy="{}" ixz="{}" iyy="{}" iyz="{}" izz="{}""#,
+            i[(0, 0)],
+            i[(0, 1)],
+            i[(0, 2)],
+            i[(1, 1)],
+            i[(1, 2)],
+            i[(2, 2)]
+        )
+    }
+
+    #[test]
+    fn nalgebra_euler_angles_and_rpy_to_matrix_follow_urdfs_fixed_axis_convention() {
+        // URDF: roll about the fixed x, then pitch about the fixed y, then yaw about the fixed z, so
+        // R = Rz(yaw) Ry(pitch) Rx(roll). nalgebra documents from_euler_angles as "roll, then pitch, then
+        // yaw" about fixed axes; check both against the product of elementary rotations.
+        let about = |axis: Vector3<f64>, angle: f64| Rotation3::from_axis_angle(&Unit::new_normalize(axis), angle);
+        for &(r, p, y) in &[(0.3, -0.7, 1.1), (-1.2, 0.4, 2.5), (2.9, 1.4, -3.0), (0.0, 0.0, 0.0)] {
+            let product = (about(Vector3::z(), y) * about(Vector3::y(), p) * about(Vector3::x(), r)).into_inner();
+            assert!(close(&Rotation3::from_euler_angles(r, p, y).into_inner(), &product, TOL));
+            assert!(close(&rpy_to_matrix(r, p, y), &product, TOL));
+        }
+        // Concrete cases that tell the conventions apart: yaw takes x to y, roll takes y to z, and roll
+        // then pitch (fixed axes) takes y to z and then z to x; the moving-axis Rx Ry would give z.
+        assert!(close3(&(rpy_to_matrix(0.0, 0.0, FRAC_PI_2) * Vector3::x()), &Vector3::y(), TOL));
+        assert!(close3(&(rpy_to_matrix(FRAC_PI_2, 0.0, 0.0) * Vector3::y()), &Vector3::z(), TOL));
+        assert!(close3(&(rpy_to_matrix(FRAC_PI_2, FRAC_PI_2, 0.0) * Vector3::y()), &Vector3::x(), TOL));
+    }
+
+    fn pendulum_xml() -> (String, Vector3<f64>, Matrix3<f64>, Matrix3<f64>, f64) {
+        // The upper link's body is a cloud of point masses given in its inertial frame (COM at the origin).
+        let masses = [1.0, 2.0, 0.5, 1.5];
+        let raw = [
+            Vector3::new(0.3, 0.1, -0.2),
+            Vector3::new(-0.1, 0.4, 0.05),
+            Vector3::new(0.2, -0.3, 0.6),
+            Vector3::new(-0.25, -0.1, -0.3),
+        ];
+        let (c, _) = point_cloud_inertia(&masses, &raw);
+        let points: Vec<Vector3<f64>> = raw.iter().map(|p| p - c).collect();
+        let (_, inertia_local) = point_cloud_inertia(&masses, &points);
+        let mass: f64 = masses.iter().sum();
+        // Brute force in the link frame: move every point by the inertial origin and recompute.
+        let (rpy, xyz) = ([0.3, -0.7, 1.1], Vector3::new(0.1, -0.2, 0.3));
+        let rot = Rotation3::from_euler_angles(rpy[0], rpy[1], rpy[2]).into_inner();
+        let moved: Vec<Vector3<f64>> = points.iter().map(|p| rot * p + xyz).collect();
+        let (com_link, inertia_link) = point_cloud_inertia(&masses, &moved);
+        let xml = format!(
+            r#"<?xml version="1.0"?>
+            <robot name="pendulum">
+              <link name="base">
+                <inertial><mass value="2"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>
+              </link>
+              <link name="upper">
+                <visual><geometry><box size="0.1 0.1 1"/></geometry></visual>
+                <inertial>
+                  <origin xyz="0.1 -0.2 0.3" rpy="0.3 -0.7 1.1"/>
+                  <mass value="{mass}"/>
+                  <inertia {attrs}/>
+                </inertial>
+              </link>
+              <link name="lower">
+                <inertial><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.025"/></inertial>
+              </link>
+              <joint name="shoulder" type="revolute">
+                <parent link="base"/><child link="upper"/>
+                <origin xyz="0 0 1" rpy="0.1 0.2 0.3"/>
+                <axis xyz="0 2 0"/>
+                <limit lower="-1" upper="1" effort="10" velocity="1"/>
+              </joint>
+              <joint name="elbow" type="continuous">
+                <parent link="upper"/><child link="lower"/>
+                <origin xyz="0.5 0 -0.25" rpy="-1.2 0.4 2.5"/>
+                <axis xyz="1 1 0"/>
+              </joint>
+            </robot>"#,
+            attrs = inertia_attrs(&inertia_local)
+        );
+        (xml, com_link, inertia_link, inertia_local, mass)
+    }
+
+    #[test]
+    fn two_link_pendulum_structure_placements_axes_and_inertials() {
+        let (xml, com_link, inertia_link, inertia_local, mass) = pendulum_xml();
+        let model = parse_urdf(&xml, false).unwrap();
+        assert_eq!(model.nbodies(), 3);
+        assert_eq!((model.nq(), model.nv()), (2, 2));
+        assert!(!model.floating_base());
+        assert_eq!([model.name(0), model.name(1), model.name(2)], ["base", "upper", "lower"]);
+        assert_eq!([model.parent(1), model.parent(2)], [0, 1]);
+        assert_eq!(*model.joint(0), Joint::Fixed);
+
+        assert_placement(&model, 0, &Transform::identity());
+        assert_placement(&model, 1, &expected_placement([0.0, 0.0, 1.0], [0.1, 0.2, 0.3]));
+        assert_placement(&model, 2, &expected_placement([0.5, 0.0, -0.25], [-1.2, 0.4, 2.5]));
+
+        // Axes are normalised.
+        let Joint::Revolute(a1) = *model.joint(1) else { panic!("{:?}", model.joint(1)) };
+        assert!(close3(&a1, &Vector3::new(0.0, 1.0, 0.0), TOL));
+        let Joint::Revolute(a2) = *model.joint(2) else { panic!("{:?}", model.joint(2)) };
+        let s = 0.5f64.sqrt();
+        assert!(close3(&a2, &Vector3::new(s, s, 0.0), TOL));
+
+        // The rotated, offset inertial agrees with the brute force over the moved point cloud.
+        let upper = model.body(1);
+        assert!((upper.mass() - mass).abs() < TOL);
+        assert!(close3(&upper.com(), &com_link, 1e-12));
+        assert!(close(&upper.inertia(), &inertia_link, 1e-12), "{:?} vs {:?}", upper.inertia(), inertia_link);
+        // and it really was rotated: the inertia in the inertial frame is far from it.
+        assert!(!close(&upper.inertia(), &inertia_local, 1e-2));
+
+        // No <origin> in <inertial>: the inertia is taken as is, the COM at the link origin.
+        let lower = model.body(2);
+        assert_eq!(lower.mass(), 1.0);
+        assert_eq!(lower.com(), Vector3::zeros());
+        assert_eq!(lower.inertia(), Matrix3::from_diagonal(&Vector3::new(0.01, 0.02, 0.025)));
+        assert_eq!(model.body(0).mass(), 2.0);
+        assert!((model.total_mass() - (3.0 + mass)).abs() < TOL);
+    }
+
+    #[test]
+    fn branching_tree_listed_in_scrambled_order_is_numbered_parent_before_child() {
+        let legs = ["FL", "FR", "RL", "RR"];
+        let chain = ["hip", "thigh", "calf", "foot"];
+        let mut links = vec!["trunk".to_owned(), "imu".to_owned()];
+        // (joint name, type, parent link, child link)
+        let mut joints = vec![("imu_joint".to_owned(), "fixed", "trunk".to_owned(), "imu".to_owned())];
+        for leg in legs {
+            let mut parent = "trunk".to_owned();
+            for (k, part) in chain.iter().enumerate() {
+                let child = format!("{leg}_{part}");
+                let kind = if k == 3 { "fixed" } else { "revolute" };
+                joints.push((format!("{leg}_{part}_joint"), kind, parent.clone(), child.clone()));
+                links.push(child.clone());
+                parent = child;
+            }
+        }
+        let expected_parent: HashMap<String, String> =
+            joints.iter().map(|(_, _, parent, child)| (child.clone(), parent.clone())).collect();
+        // Scramble: links and joints deepest first, interleaved, with the root link in the middle.
+        links.reverse();
+        links.rotate_left(7);
+        joints.reverse();
+        let mut body = String::new();
+        for k in 0..links.len().max(joints.len()) {
+            if let Some((name, kind, parent, child)) = joints.get(k) {
+                body += &format!(
+                    r#"<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>
+                       <origin xyz="0.1 0.2 -0.3" rpy="0.1 0 0"/><axis xyz="0 1 0"/></joint>"#
+                );
+            }
+            if let Some(name) = links.get(k) {
+                body += &format!(
+                    r#"<link name="{name}"><inertial><mass value="0.5"/>
+                       <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>"#
+                );
+            }
+        }
+        let xml = format!("<robot name=\"dog\">{body}</robot>");
+        // The scramble did put children before parents in the file.
+        assert!(xml.find("name=\"FL_foot\"").unwrap() < xml.find("name=\"FL_hip\"").unwrap());
+        assert!(xml.find("name=\"FL_foot_joint\"").unwrap() < xml.find("name=\"FL_hip_joint\"").unwrap());
+
+        for floating in [false, true] {
+            let model = parse_urdf(&xml, floating).unwrap();
+            assert_eq!(model.nbodies(), 18);
+            assert_eq!(model.name(0), "trunk");
+            let moving = 12;
+            let (nq, nv) = if floating { (7 + moving, 6 + moving) } else { (moving, moving) };
+            assert_eq!((model.nq(), model.nv()), (nq, nv));
+            for i in 1..model.nbodies() {
+                assert!(model.parent(i) < i, "body {i} ({}) has parent {}", model.name(i), model.parent(i));
+                assert_eq!(model.name(model.parent(i)), expected_parent[model.name(i)], "body {}", model.name(i));
+            }
+            let mut names: Vec<&str> = (0..model.nbodies()).map(|i| model.name(i)).collect();
+            names.sort_unstable();
+            let mut all: Vec<&str> = links.iter().map(String::as_str).collect();
+            all.sort_unstable();
+            assert_eq!(names, all);
+        }
+    }
+
+    #[test]
+    fn fixed_continuous_and_prismatic_joints_and_floating_base() {
+        let xml = r#"
+            <robot name="mixed">
+              <link name="root"><inertial><mass value="3"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+              <link name="bracket"/>
+              <link name="wheel"><inertial><mass value="0"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+              <link name="slider"><inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>
+              <link name="tip"><inertial><origin xyz="0 0 0.2"/><mass value="0.5"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+              <joint name="mount" type="fixed">
+                <parent link="root"/><child link="bracket"/><origin xyz="0 0 0.5"/><axis xyz="0 0 0"/>
+              </joint>
+              <joint name="spin" type="continuous"><parent link="bracket"/><child link="wheel"/></joint>
+              <joint name="slide" type="prismatic">
+                <parent link="wheel"/><child link="slider"/><origin rpy="0 0 1.5707963267948966"/><axis xyz="0 0 -3"/>
+              </joint>
+              <joint name="twist" type="revolute"><parent link="slider"/><child link="tip"/><axis xyz="0 0 1"/></joint>
+              <transmission name="t"><joint name="spin"/><actuator name="m"/></transmission>
+            </robot>"#;
+        let model = parse_urdf(xml, false).unwrap();
+        assert_eq!(model.nbodies(), 5);
+        assert_eq!((model.nq(), model.nv()), (3, 3));
+        assert_eq!(*model.joint(1), Joint::Fixed);
+        // Continuous joint without <axis>: the default x axis; without <origin>: identity.
+        assert_eq!(*model.joint(2), Joint::Revolute(Vector3::x()));
+        assert_placement(&model, 2, &Transform::identity());
+        let Joint::Prismatic(axis) = *model.joint(3) else { panic!("{:?}", model.joint(3)) };
+        assert!(close3(&axis, &-Vector3::z(), TOL));
+        assert_placement(&model, 3, &expected_placement([0.0; 3], [0.0, 0.0, FRAC_PI_2]));
+        assert_eq!(*model.joint(4), Joint::Revolute(Vector3::z()));
+        assert_placement(&model, 1, &expected_placement([0.0, 0.0, 0.5], [0.0; 3]));
+        // Massless links: no <inertial>, or mass 0.
+        assert!(model.body(1).is_zero() && model.body(2).is_zero());
+        assert_eq!(model.body(4).com(), Vector3::new(0.0, 0.0, 0.2));
+        assert_eq!([model.idx_q(2), model.idx_q(3), model.idx_q(4)], [0, 1, 2]);
+
+        let floating = parse_urdf(xml, true).unwrap();
+        assert!(floating.floating_base());
+        assert_eq!(*floating.joint(0), Joint::FreeFlyer);
+        assert_eq!((floating.nq(), floating.nv()), (7 + 3, 6 + 3));
+        assert_eq!(floating.nbodies(), 5);
+        assert_eq!(floating.name(0), "root");
+    }
+
+    #[test]
+    fn load_urdf_reads_files_and_inline_xml() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/two_link_pendulum.urdf");
+        let from_file = load_urdf(path, false).unwrap();
+        let text = std::fs::read_to_string(path).unwrap();
+        let inline = load_urdf(&format!("\n  {text}"), false).unwrap();
+        assert_eq!(from_file.nbodies(), 3);
+        assert_eq!((from_file.nq(), from_file.nv()), (2, 2));
+        assert_eq!(from_file.name(2), "forearm");
+        assert_placement(&from_file, 2, &Transform::from_translation(Vector3::new(0.0, 0.0, -1.0)));
+        assert_eq!(from_file.body(2).com(), Vector3::new(0.0, 0.0, -0.5));
+        for i in 0..3 {
+            assert_eq!(from_file.placement(i), inline.placement(i));
+            assert_eq!(from_file.body(i), inline.body(i));
+            assert_eq!(from_file.name(i), inline.name(i));
+        }
+
+        let missing = load_urdf("/nonexistent/robot.urdf", false).unwrap_err();
+        assert_eq!(missing.argument(), "path");
+        assert!(missing.to_string().contains("/nonexistent/robot.urdf"), "{missing}");
+    }
+
+    /// Parses `xml`, expecting an error on argument "urdf" whose message contains every one of `needles`.
+    fn assert_fails(xml: &str, needles: &[&str]) {
+        let error = match parse_urdf(xml, false) {
+            Ok(model) => panic!("expected an error containing {needles:?}, got a model with {} bodies", model.nbodies()),
+            Err(e) => e,
+        };
+        assert_eq!(error.argument(), "urdf");
+        let message = error.to_string();
+        for needle in needles {
+            assert!(message.contains(needle), "{message:?} does not contain {needle:?}");
+        }
+    }
+
+    const INERTIA: &str = r#"<inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/>"#;
+
+    /// A robot with links `a` and `b` joined by revolute `j`, plus `extra`.
+    fn robot(extra: &str) -> String {
+        format!(
+            r#"<robot name="r"><link name="a"/><link name="b"/>
+               <joint name="j" type="revolute"><parent link="a"/><child link="b"/></joint>{extra}</robot>"#
+        )
+    }
+
+    /// A robot whose only link `heavy` has the given inertial contents.
+    fn inertial_robot(inertial: &str) -> String {
+        format!(r#"<robot name="r"><link name="heavy"><inertial>{inertial}</inertial></link></robot>"#)
+    }
+
+    fn joint_robot(joint: &str) -> String {
+        format!(r#"<robot name="r"><link name="a"/><link name="b"/>{joint}</robot>"#)
+    }
+
+    #[test]
+    fn the_helpers_build_valid_robots() {
+        // So that each error below is due to its one defect.
+        assert_eq!(parse_urdf(&robot(""), false).unwrap().nbodies(), 2);
+        let ok = inertial_robot(&format!(r#"<mass value="1"/>{INERTIA}"#));
+        assert_eq!(parse_urdf(&ok, false).unwrap().body(0).mass(), 1.0);
+        let ok = joint_robot(r#"<joint name="j" type="prismatic"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/></joint>"#);
+        assert_eq!(parse_urdf(&ok, false).unwrap().nv(), 1);
+    }
+
+    #[test]
+    fn malformed_documents_are_errors() {
+        assert_fails("not xml at all", &["not valid XML"]);
+        assert_fails("<robot name=\"r\"><link name=\"a\">", &["not valid XML"]);
+        assert_fails(r#"<model name="m"><link name="a"/></model>"#, &["<robot>", "<model>"]);
+        assert_fails(r#"<robot name="r"/>"#, &["no <link>"]);
+        assert_fails(r#"<robot name="r"><link/></robot>"#, &["<link> has no name", "line 1"]);
+        // Blank lines before an XML declaration are tolerated and counted.
+        assert_fails("\n\n<?xml version=\"1.0\"?>\n<robot name=\"r\">\n<link/></robot>", &["no name", "line 5"]);
+        assert_fails(&robot(r#"<joint type="fixed"><parent link="a"/><child link="b"/></joint>"#), &["<joint> has no name"]);
+    }
+
+    #[test]
+    fn duplicate_and_unknown_names_are_errors() {
+        assert_fails(&robot(r#"<link name="a"/>"#), &[r#"link "a" is defined twice"#]);
+        assert_fails(
+            &robot(r#"<link name="c"/><joint name="j" type="fixed"><parent link="b"/><child link="c"/></joint>"#),
+            &[r#"joint "j" is defined twice"#],
+        );
+        assert_fails(
+            &joint_robot(r#"<joint name="knee" type="revolute"><parent link="thigh2"/><child link="b"/></joint>"#),
+            &[r#"joint "knee": unknown parent link "thigh2""#],
+        );
+        assert_fails(
+            &joint_robot(r#"<joint name="knee" type="revolute"><parent link="a"/><child link="shin"/></joint>"#),
+            &[r#"joint "knee": unknown child link "shin""#],
+        );
+        assert_fails(
+            &joint_robot(r#"<joint name="knee" type="revolute"><child link="b"/></joint>"#),
+            &[r#"joint "knee": missing <parent"#],
+        );
+        assert_fails(
+            &joint_robot(r#"<joint name="knee" type="revolute"><parent link="a"/><child/></joint>"#),
+            &[r#"joint "knee": missing <child"#],
+        );
+    }
+
+    #[test]
+    fn non_tree_structures_are_errors() {
+        // A link with two parents.
+        assert_fails(
+            &robot(r#"<link name="c"/><joint name="j1" type="fixed"><parent link="a"/><child link="c"/></joint>
+                      <joint name="j2" type="fixed"><parent link="b"/><child link="c"/></joint>"#),
+            &[r#"link "c" has two parents"#, r#""j1""#, r#""j2""#],
+        );
+        // A cycle beside a proper root.
+        assert_fails(
+            r#"<robot name="r"><link name="root"/><link name="x"/><link name="y"/>
+               <joint name="j1" type="fixed"><parent link="x"/><child link="y"/></joint>
+               <joint name="j2" type="fixed"><parent link="y"/><child link="x"/></joint></robot>"#,
+            &["cycle", r#""x" -> "y" -> "x""#],
+        );
+        // A joint from a link to itself.
+        assert_fails(
+            r#"<robot name="r"><link name="root"/><link name="x"/>
+               <joint name="j" type="fixed"><parent link="x"/><child link="x"/></joint></robot>"#,
+            &["cycle", r#""x" -> "x""#],
+        );
+        // No root at all.
+        assert_fails(
+            r#"<robot name="r"><link name="x"/><link name="y"/>
+               <joint name="j1" type="fixed"><parent link="x"/><child link="y"/></joint>
+               <joint name="j2" type="fixed"><parent link="y"/><child link="x"/></joint></robot>"#,
+            &["no root link", "cycle", r#""x""#, r#""y""#],
+        );
+        // Two roots.
+        assert_fails(&robot(r#"<link name="island"/>"#), &["more than one root link", r#""a""#, r#""island""#]);
+    }
+
+    #[test]
+    fn bad_inertials_are_errors_naming_the_link() {
+        let link = r#"link "heavy""#;
+        assert_fails(&inertial_robot(&format!(r#"<mass value="-1"/>{INERTIA}"#)), &[link, "mass must be >= 0"]);
+        assert_fails(&inertial_robot(&format!(r#"<mass value="nan"/>{INERTIA}"#)), &[link, "not finite"]);
+        assert_fails(&inertial_robot(&format!(r#"<mass value="inf"/>{INERTIA}"#)), &[link, "not finite"]);
+        assert_fails(&inertial_robot(&format!(r#"<mass value="heavy"/>{INERTIA}"#)), &[link, "not a number"]);
+        assert_fails(&inertial_robot(&format!(r#"<mass value="1 2"/>{INERTIA}"#)), &[link, "expected 1 number"]);
+        assert_fails(&inertial_robot(&format!(r#"<mass/>{INERTIA}"#)), &[link, "no value attribute"]);
+        assert_fails(&inertial_robot(INERTIA), &[link, "no <mass>"]);
+        assert_fails(&inertial_robot(r#"<mass value="1"/>"#), &[link, "no <inertia>"]);
+        // Principal moments 1, 1, 3 violate the triangle inequality.
+        let triangle = r#"<mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="3"/>"#;
+        assert_fails(&inertial_robot(triangle), &[link, "non-physical", "inertia"]);
+        let negative = r#"<mass value="1"/><inertia ixx="-1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>"#;
+        assert_fails(&inertial_robot(negative), &[link, "non-physical"]);
+        let unparsable = r#"<mass value="1"/><inertia ixx="abc" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>"#;
+        assert_fails(&inertial_robot(unparsable), &[link, "ixx", "not a number"]);
+        let missing = r#"<mass value="1"/><inertia ixx="1" ixz="0" iyy="1" iyz="0" izz="1"/>"#;
+        assert_fails(&inertial_robot(missing), &[link, "no ixy attribute"]);
+        let short_rpy = format!(r#"<origin rpy="0 1"/><mass value="1"/>{INERTIA}"#);
+        assert_fails(&inertial_robot(&short_rpy), &[link, "rpy", "expected 3 numbers, found 2"]);
+    }
+
+    #[test]
+    fn bad_joints_are_errors_naming_the_joint() {
+        let joint = |kind: &str, inner: &str| {
+            joint_robot(&format!(
+                r#"<joint name="knee" type="{kind}"><parent link="a"/><child link="b"/>{inner}</joint>"#
+            ))
+        };
+        let knee = r#"joint "knee""#;
+        assert_fails(&joint("revolute", r#"<origin xyz="1 2"/>"#), &[knee, "xyz", "expected 3 numbers, found 2"]);
+        assert_fails(&joint("revolute", r#"<origin xyz="1 2 3 4"/>"#), &[knee, "expected 3 numbers, found 4"]);
+        assert_fails(&joint("revolute", r#"<origin xyz="1 2 x"/>"#), &[knee, r#""x" is not a number"#]);
+        assert_fails(&joint("revolute", r#"<origin rpy="0 0 inf"/>"#), &[knee, "rpy", "not finite"]);
+        assert_fails(&joint("revolute", r#"<axis xyz="0 0 0"/>"#), &[knee, "<axis> must be a non-zero"]);
+        assert_fails(&joint("prismatic", r#"<axis xyz="0 0 0"/>"#), &[knee, "<axis> must be a non-zero"]);
+        assert_fails(&joint("continuous", r#"<axis xyz="0 1"/>"#), &[knee, "axis", "expected 3 numbers"]);
+        for kind in ["floating", "planar", "spherical", "REVOLUTE"] {
+            assert_fails(&joint(kind, ""), &[knee, &format!("unsupported type {kind:?}")]);
+        }
+        assert_fails(
+            &joint_robot(r#"<joint name="knee"><parent link="a"/><child link="b"/></joint>"#),
+            &[knee, "no type"],
+        );
+    }
+}

@@ -1,0 +1,54 @@
+//! Argument checks shared by the kernels and the bindings: each returns the value it accepts or an error
+//! naming the argument.
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::{Error, Result};
+
+pub fn finite(argument: &'static str, value: f64) -> Result<f64> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(Error::invalid(argument, format!("must be finite, got {value}")))
+    }
+}
+
+pub fn finite_vector(argument: &'static str, v: Vector3<f64>) -> Result<Vector3<f64>> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(v)
+    } else {
+        Err(Error::invalid(argument, format!("must be finite, got [{}, {}, {}]", v.x, v.y, v.z)))
+    }
+}
+
+/// A finite, non-zero direction, returned normalised.
+pub fn direction(argument: &'static str, v: Vector3<f64>) -> Result<Vector3<f64>> {
+    let v = finite_vector(argument, v)?;
+    let norm = v.norm();
+    if norm > 0.0 && norm.is_finite() {
+        Ok(v / norm)
+    } else {
+        Err(Error::invalid(argument, "must be a non-zero direction vector"))
+    }
+}
+
+pub fn finite_matrix(argument: &'static str, m: &Matrix3<f64>) -> Result<()> {
+    if m.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(Error::invalid(argument, "must be finite"))
+    }
+}
+
+/// A proper rotation: orthonormal with determinant +1, to 1e-9.
+pub fn rotation(argument: &'static str, r: &Matrix3<f64>) -> Result<()> {
+    finite_matrix(argument, r)?;
+    let orthogonality = (r.transpose() * r - Matrix3::identity()).abs().max();
+    if orthogonality > 1e-9 || r.determinant() < 0.0 {
+        return Err(Error::invalid(
+            argument,
+            format!("must be a rotation matrix (R^T R = I, det R = +1); |R^T R - I| = {orthogonality:.3e}"),
+        ));
+    }
+    Ok(())
+}

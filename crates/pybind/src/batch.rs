@@ -1,0 +1,140 @@
+//! Broadcasting of leading batch dimensions, and batch loops spread over all cores.
+//!
+//! Each argument has a core shape (a scalar, or a vector of known length); whatever dimensions lead it
+//! form its batch shape, and the batch shapes broadcast as in NumPy. Arguments that are contiguous and
+//! either unbatched or of the full batch shape are read in place; others are copied once.
+
+use std::borrow::Cow;
+
+use legkit_dynamics::Error;
+use numpy::ndarray::{ArrayViewD, IxDyn};
+use numpy::{AllowTypeChange, PyArrayDyn, PyArrayLikeDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use rayon::prelude::*;
+
+use crate::convert::batch_error;
+
+pub type ArrayArg<'py> = PyArrayLikeDyn<'py, f64, AllowTypeChange>;
+
+/// The core shape of one argument (`&[]` for a scalar); the dimensions before it are its batch shape.
+pub type Core<'c> = &'c [usize];
+
+/// One argument's rows, one per batch element.
+pub struct Rows<'a> {
+    data: Cow<'a, [f64]>,
+    width: usize,
+    shared: bool,
+}
+
+impl Rows<'_> {
+    #[inline]
+    pub fn row(&self, i: usize) -> &[f64] {
+        let start = if self.shared { 0 } else { i * self.width };
+        &self.data[start..start + self.width]
+    }
+}
+
+/// The broadcast batch: its shape, its length, and every argument's rows.
+pub struct Batch<'a> {
+    pub shape: Vec<usize>,
+    pub len: usize,
+    pub rows: Vec<Rows<'a>>,
+}
+
+impl Batch<'_> {
+    /// The shape of an output with the given core dimensions.
+    pub fn output_shape(&self, core: &[usize]) -> Vec<usize> {
+        self.shape.iter().chain(core).copied().collect()
+    }
+}
+
+fn describe(core: Core) -> String {
+    if core.is_empty() {
+        return "a scalar or an array of scalars".to_owned();
+    }
+    let dims: Vec<String> = core.iter().map(|d| d.to_string()).collect();
+    format!("(..., {})", dims.join(", "))
+}
+
+pub fn broadcast<'a>(arguments: &[(&str, &'a ArrayArg<'_>, Core)]) -> PyResult<Batch<'a>> {
+    let mut shape: Vec<usize> = Vec::new();
+    for (name, array, core) in arguments {
+        let dims = array.shape();
+        if dims.len() < core.len() || &dims[dims.len() - core.len()..] != *core {
+            return Err(PyValueError::new_err(format!(
+                "{name}: expected shape {}, got {dims:?}",
+                describe(*core)
+            )));
+        }
+        let batch = &dims[..dims.len() - core.len()];
+        shape = broadcast_shapes(&shape, batch).ok_or_else(|| {
+            PyValueError::new_err(format!("{name}: batch shape {batch:?} does not broadcast with {shape:?}"))
+        })?;
+    }
+    let len = shape.iter().product();
+    let rows = arguments
+        .iter()
+        .map(|(_, array, core)| {
+            let batch = &array.shape()[..array.ndim() - core.len()];
+            let shared = batch.iter().product::<usize>() == 1;
+            let view: ArrayViewD<'a, f64> = array.as_array();
+            let data = if shared || batch == shape.as_slice() {
+                match view.to_slice() {
+                    Some(slice) => Cow::Borrowed(slice),
+                    None => Cow::Owned(view.iter().copied().collect()),
+                }
+            } else {
+                let full: Vec<usize> = shape.iter().chain(core.iter()).copied().collect();
+                let spread = view.broadcast(IxDyn(&full)).expect("shapes were checked to broadcast");
+                Cow::Owned(spread.iter().copied().collect())
+            };
+            Rows { data, width: core.iter().product(), shared }
+        })
+        .collect();
+    Ok(Batch { shape, len, rows })
+}
+
+fn broadcast_shapes(a: &[usize], b: &[usize]) -> Option<Vec<usize>> {
+    let n = a.len().max(b.len());
+    let dim = |s: &[usize], i: usize| if i + s.len() >= n { s[i + s.len() - n] } else { 1 };
+    (0..n)
+        .map(|i| match (dim(a, i), dim(b, i)) {
+            (x, y) if x == y => Some(x),
+            (1, y) => Some(y),
+            (x, 1) => Some(x),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Rows per parallel task: large enough that a task's setup (e.g. a fresh workspace) is amortised.
+const MIN_ROWS_PER_TASK: usize = 64;
+
+/// Evaluates `kernel(state, i, out)` for each batch row `i`, writing `width` numbers per row, in parallel
+/// over the available cores (each task with its own `state` from `init`). Errors name the row.
+pub fn map_rows<S, I, K>(len: usize, width: usize, init: I, kernel: K) -> PyResult<Vec<f64>>
+where
+    I: Fn() -> S + Sync,
+    K: Fn(&mut S, usize, &mut [f64]) -> Result<(), Error> + Sync,
+{
+    let mut out = vec![0.0; len * width];
+    if width == 0 {
+        return Ok(out);
+    }
+    let result = if len < 2 * MIN_ROWS_PER_TASK {
+        let mut state = init();
+        out.chunks_mut(width).enumerate().try_for_each(|(i, row)| kernel(&mut state, i, row).map_err(|e| (e, i)))
+    } else {
+        out.par_chunks_mut(width)
+            .enumerate()
+            .with_min_len(MIN_ROWS_PER_TASK)
+            .try_for_each_init(&init, |state, (i, row)| kernel(state, i, row).map_err(|e| (e, i)))
+    };
+    result.map_err(|(e, i)| if len == 1 { crate::convert::value_error(e) } else { batch_error(e, i) })?;
+    Ok(out)
+}
+
+pub fn to_numpy<'py>(py: Python<'py>, shape: Vec<usize>, data: Vec<f64>) -> Bound<'py, PyArrayDyn<f64>> {
+    crate::convert::to_numpy(py, IxDyn(&shape), data)
+}

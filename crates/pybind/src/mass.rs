@@ -1,0 +1,135 @@
+//! `legkit.MassProperties`.
+
+use legkit_dynamics::MassProperties;
+use nalgebra::{Matrix3, Matrix4, Vector3};
+use numpy::{PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::basic::CompareOp;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyInt;
+
+use crate::convert::{matrix3, matrix_to_numpy, rows3, scalars, value_error, vector3, vector_to_numpy, Matrix, Vector};
+
+/// Mass, centre of mass and rotational inertia about the centre of mass, all in one frame.
+#[pyclass(name = "MassProperties", module = "legkit", frozen, from_py_object)]
+#[derive(Clone, Copy)]
+pub struct PyMassProperties(pub MassProperties);
+
+#[pymethods]
+impl PyMassProperties {
+    #[new]
+    fn new(mass: f64, com: Vector<'_>, inertia: Matrix<'_>) -> PyResult<Self> {
+        let com = vector3("com", &com)?;
+        let inertia = matrix3("inertia", &inertia)?;
+        MassProperties::new(mass, com, inertia).map(Self).map_err(value_error)
+    }
+
+    #[staticmethod]
+    fn zero() -> Self {
+        Self(MassProperties::zero())
+    }
+
+    #[staticmethod]
+    fn point(mass: f64, position: Vector<'_>) -> PyResult<Self> {
+        MassProperties::point(mass, vector3("position", &position)?).map(Self).map_err(value_error)
+    }
+
+    #[staticmethod]
+    #[pyo3(signature = (mass, size, center = None, rotation = None))]
+    fn r#box(mass: f64, size: Vector<'_>, center: Option<Vector<'_>>, rotation: Option<Matrix<'_>>) -> PyResult<Self> {
+        let center = center.map(|c| vector3("center", &c)).transpose()?.unwrap_or_else(Vector3::zeros);
+        let rotation = rotation.map(|r| matrix3("rotation", &r)).transpose()?.unwrap_or_else(Matrix3::identity);
+        MassProperties::cuboid(mass, vector3("size", &size)?, center, &rotation).map(Self).map_err(value_error)
+    }
+
+    #[staticmethod]
+    fn from_points(masses: PyReadonlyArray1<'_, f64>, positions: PyReadonlyArray2<'_, f64>) -> PyResult<Self> {
+        let positions = rows3("positions", &positions)?;
+        MassProperties::from_points(scalars(&masses)?, &positions).map(Self).map_err(value_error)
+    }
+
+    #[getter]
+    fn mass(&self) -> f64 {
+        self.0.mass()
+    }
+
+    #[getter]
+    fn com<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        vector_to_numpy(py, &self.0.com())
+    }
+
+    /// Inertia about the centre of mass.
+    #[getter]
+    fn inertia<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        matrix_to_numpy(py, &self.0.inertia())
+    }
+
+    fn inertia_about<'py>(&self, py: Python<'py>, point: Vector<'_>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        Ok(matrix_to_numpy(py, &self.0.inertia_about(&vector3("point", &point)?)))
+    }
+
+    /// Express in the parent frame of `x_parent = R x + t`: `(R, t)`, or one 4x4 homogeneous matrix.
+    #[pyo3(signature = (rotation, translation = None))]
+    fn transformed(&self, rotation: Matrix<'_>, translation: Option<Vector<'_>>) -> PyResult<Self> {
+        let (r, t) = match translation {
+            Some(t) => (matrix3("rotation", &rotation)?, vector3("translation", &t)?),
+            None => homogeneous(&rotation)?,
+        };
+        self.0.transformed(&r, &t).map(Self).map_err(value_error)
+    }
+
+    #[pyo3(signature = (other, rtol = 1e-9, atol = 1e-12))]
+    fn isclose(&self, other: &Self, rtol: f64, atol: f64) -> bool {
+        self.0.is_close(&other.0, rtol, atol)
+    }
+
+    fn __add__(&self, other: &Self) -> Self {
+        Self(self.0 + other.0)
+    }
+
+    /// Lets `sum(bodies)` start from the integer 0.
+    fn __radd__(&self, other: &Bound<'_, PyAny>) -> PyResult<Self> {
+        match other.cast::<PyInt>() {
+            Ok(i) if i.extract::<i64>()? == 0 => Ok(*self),
+            _ => Err(pyo3::exceptions::PyTypeError::new_err("only 0 or a MassProperties can be added")),
+        }
+    }
+
+    fn __sub__(&self, other: &Self) -> PyResult<Self> {
+        (self.0 - other.0).map(Self).map_err(value_error)
+    }
+
+    fn __richcmp__(&self, other: &Bound<'_, PyAny>, op: CompareOp, py: Python<'_>) -> Py<PyAny> {
+        let Ok(other) = other.extract::<Self>() else { return py.NotImplemented() };
+        let equal = self.0.is_close(&other.0, 1e-9, 1e-12);
+        match op {
+            CompareOp::Eq => equal.into_pyobject(py).unwrap().to_owned().into_any().unbind(),
+            CompareOp::Ne => (!equal).into_pyobject(py).unwrap().to_owned().into_any().unbind(),
+            _ => py.NotImplemented(),
+        }
+    }
+
+    fn __repr__(&self) -> String {
+        let (c, i) = (self.0.com(), self.0.inertia());
+        format!(
+            "MassProperties(mass={}, com=[{}, {}, {}], inertia=[[{}, {}, {}], [{}, {}, {}], [{}, {}, {}]])",
+            self.0.mass(), c.x, c.y, c.z,
+            i[(0, 0)], i[(0, 1)], i[(0, 2)], i[(1, 0)], i[(1, 1)], i[(1, 2)], i[(2, 0)], i[(2, 1)], i[(2, 2)]
+        )
+    }
+}
+
+fn homogeneous(transform: &Matrix<'_>) -> PyResult<(Matrix3<f64>, Vector3<f64>)> {
+    let view = transform.as_array();
+    if view.shape() != [4, 4] {
+        return Err(PyValueError::new_err(format!(
+            "rotation: expected a (3, 3) rotation with a translation, or a (4, 4) transform; got shape {:?}",
+            view.shape()
+        )));
+    }
+    let m = Matrix4::from_fn(|i, j| view[[i, j]]);
+    if m.fixed_view::<1, 4>(3, 0) != nalgebra::RowVector4::new(0.0, 0.0, 0.0, 1.0) {
+        return Err(PyValueError::new_err("rotation: the last row of a 4x4 transform must be [0, 0, 0, 1]"));
+    }
+    Ok((m.fixed_view::<3, 3>(0, 0).into_owned(), m.fixed_view::<3, 1>(0, 3).into_owned()))
+}

@@ -1,0 +1,261 @@
+//! `legkit.Model`: a kinematic tree built body by body (or from URDF), with a cached workspace.
+
+use std::sync::Mutex;
+
+use legkit_dynamics::{Data, Joint, MassProperties, Model, Transform};
+use nalgebra::Matrix4;
+use numpy::{PyArray1, PyArray2};
+use pyo3::exceptions::{PyIndexError, PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyString, PyTuple};
+
+use crate::convert::{matrix3, to_numpy, value_error, vector3, vector_to_numpy, Matrix, Vector};
+use crate::mass::PyMassProperties;
+
+/// A kinematic tree: body 0 is the base (fixed to the world, or a free flyer with
+/// q = [x, y, z, qx, qy, qz, qw] and v = [v_lin, v_ang] in the base frame); every other body hangs off a
+/// revolute, prismatic or fixed joint placed in its parent's frame. Bodies are numbered parent first.
+#[pyclass(name = "Model", module = "legkit")]
+pub struct PyModel {
+    pub model: Model,
+    workspace: Mutex<Option<Data>>,
+}
+
+impl PyModel {
+    pub fn wrap(model: Model) -> Self {
+        Self { model, workspace: Mutex::new(None) }
+    }
+
+    /// The cached workspace (or a new one if another thread holds it); hand it back with `put_back`.
+    pub fn take_workspace(&self) -> Data {
+        let cached = self.workspace.try_lock().ok().and_then(|mut w| w.take());
+        cached.unwrap_or_else(|| Data::new(&self.model))
+    }
+
+    pub fn put_back(&self, data: Data) {
+        if let Ok(mut w) = self.workspace.try_lock() {
+            *w = Some(data);
+        }
+    }
+
+    fn add(
+        &mut self,
+        parent: &Bound<'_, PyAny>,
+        joint: Joint,
+        placement: Option<&Bound<'_, PyAny>>,
+        body: Option<PyMassProperties>,
+        name: Option<String>,
+    ) -> PyResult<usize> {
+        let parent = self.body_index(parent)?;
+        let placement = placement.map(transform).transpose()?.unwrap_or_default();
+        let body = body.map_or_else(MassProperties::zero, |b| b.0);
+        let name = name.unwrap_or_else(|| format!("body{}", self.model.nbodies()));
+        let index = self.model.add_body(parent, joint, placement, body, &name).map_err(value_error)?;
+        *self.workspace.get_mut().unwrap_or_else(|e| e.into_inner()) = None;
+        Ok(index)
+    }
+
+    /// A body given by index or by name.
+    pub fn body_index(&self, body: &Bound<'_, PyAny>) -> PyResult<usize> {
+        if let Ok(name) = body.cast::<PyString>() {
+            let name = name.to_str()?;
+            return self
+                .model
+                .body_index(name)
+                .ok_or_else(|| PyValueError::new_err(format!("body: no body is named {name:?}")));
+        }
+        let index: i64 = body.extract().map_err(|_| PyTypeError::new_err("body: expected an index or a name"))?;
+        if index < 0 || index as usize >= self.model.nbodies() {
+            return Err(PyIndexError::new_err(format!(
+                "body: index {index} is out of range for {} bodies",
+                self.model.nbodies()
+            )));
+        }
+        Ok(index as usize)
+    }
+
+    fn index(&self, i: i64) -> PyResult<usize> {
+        if i < 0 || i as usize >= self.model.nbodies() {
+            return Err(PyIndexError::new_err(format!("body: index {i} is out of range for {} bodies", self.model.nbodies())));
+        }
+        Ok(i as usize)
+    }
+}
+
+/// A placement from a 4x4 homogeneous matrix or an (R, t) pair.
+pub fn transform(value: &Bound<'_, PyAny>) -> PyResult<Transform> {
+    if let Ok(pair) = value.cast::<PyTuple>() {
+        if pair.len() != 2 {
+            return Err(PyValueError::new_err("placement: expected a 4x4 matrix or an (R, t) pair"));
+        }
+        let rotation: Matrix<'_> = pair.get_item(0)?.extract()?;
+        let translation: Vector<'_> = pair.get_item(1)?.extract()?;
+        return Ok(Transform::new(matrix3("placement", &rotation)?, vector3("placement", &translation)?));
+    }
+    let matrix: Matrix<'_> = value.extract()?;
+    let view = matrix.as_array();
+    if view.shape() != [4, 4] {
+        return Err(PyValueError::new_err(format!(
+            "placement: expected a 4x4 matrix or an (R, t) pair, got shape {:?}",
+            view.shape()
+        )));
+    }
+    let m = Matrix4::from_fn(|i, j| view[[i, j]]);
+    if m.fixed_view::<1, 4>(3, 0) != nalgebra::RowVector4::new(0.0, 0.0, 0.0, 1.0) {
+        return Err(PyValueError::new_err("placement: the last row of a 4x4 transform must be [0, 0, 0, 1]"));
+    }
+    Ok(Transform::new(m.fixed_view::<3, 3>(0, 0).into_owned(), m.fixed_view::<3, 1>(0, 3).into_owned()))
+}
+
+pub fn homogeneous(x: &Transform) -> [f64; 16] {
+    let mut out = [0.0; 16];
+    for i in 0..3 {
+        for j in 0..3 {
+            out[4 * i + j] = x.rotation[(i, j)];
+        }
+        out[4 * i + 3] = x.translation[i];
+    }
+    out[15] = 1.0;
+    out
+}
+
+#[pymethods]
+impl PyModel {
+    #[new]
+    #[pyo3(signature = (floating_base = false, base = None, base_name = "base", gravity = None))]
+    fn new(floating_base: bool, base: Option<PyMassProperties>, base_name: &str, gravity: Option<Vector<'_>>) -> PyResult<Self> {
+        let mut model = Model::new(floating_base, base.map_or_else(MassProperties::zero, |b| b.0), base_name);
+        if let Some(g) = gravity {
+            model.gravity = legkit_dynamics::validate::finite_vector("gravity", vector3("gravity", &g)?).map_err(value_error)?;
+        }
+        Ok(Self::wrap(model))
+    }
+
+    /// Adds a body on a revolute joint about `axis` (in the joint frame); returns its index.
+    #[pyo3(signature = (parent, axis, placement = None, body = None, name = None))]
+    fn add_revolute(
+        &mut self,
+        parent: &Bound<'_, PyAny>,
+        axis: Vector<'_>,
+        placement: Option<&Bound<'_, PyAny>>,
+        body: Option<PyMassProperties>,
+        name: Option<String>,
+    ) -> PyResult<usize> {
+        let axis = vector3("axis", &axis)?;
+        self.add(parent, Joint::Revolute(axis), placement, body, name)
+    }
+
+    /// Adds a body on a prismatic joint along `axis` (in the joint frame); returns its index.
+    #[pyo3(signature = (parent, axis, placement = None, body = None, name = None))]
+    fn add_prismatic(
+        &mut self,
+        parent: &Bound<'_, PyAny>,
+        axis: Vector<'_>,
+        placement: Option<&Bound<'_, PyAny>>,
+        body: Option<PyMassProperties>,
+        name: Option<String>,
+    ) -> PyResult<usize> {
+        let axis = vector3("axis", &axis)?;
+        self.add(parent, Joint::Prismatic(axis), placement, body, name)
+    }
+
+    /// Adds a body rigidly attached to `parent`; returns its index.
+    #[pyo3(signature = (parent, placement = None, body = None, name = None))]
+    fn add_fixed(
+        &mut self,
+        parent: &Bound<'_, PyAny>,
+        placement: Option<&Bound<'_, PyAny>>,
+        body: Option<PyMassProperties>,
+        name: Option<String>,
+    ) -> PyResult<usize> {
+        self.add(parent, Joint::Fixed, placement, body, name)
+    }
+
+    #[getter]
+    fn nq(&self) -> usize {
+        self.model.nq()
+    }
+    #[getter]
+    fn nv(&self) -> usize {
+        self.model.nv()
+    }
+    #[getter]
+    fn nbodies(&self) -> usize {
+        self.model.nbodies()
+    }
+    #[getter]
+    fn floating_base(&self) -> bool {
+        self.model.floating_base()
+    }
+    /// Parent index of each body; -1 for the base.
+    #[getter]
+    fn parents(&self) -> Vec<i64> {
+        (0..self.model.nbodies()).map(|i| if i == 0 { -1 } else { self.model.parent(i) as i64 }).collect()
+    }
+    #[getter]
+    fn names(&self) -> Vec<String> {
+        (0..self.model.nbodies()).map(|i| self.model.name(i).to_owned()).collect()
+    }
+    #[getter]
+    fn gravity<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        vector_to_numpy(py, &self.model.gravity)
+    }
+    #[getter]
+    fn total_mass(&self) -> f64 {
+        self.model.total_mass()
+    }
+    /// Index of each body's first configuration coordinate.
+    #[getter]
+    fn idx_q(&self) -> Vec<usize> {
+        (0..self.model.nbodies()).map(|i| self.model.idx_q(i)).collect()
+    }
+    /// Index of each body's first velocity coordinate.
+    #[getter]
+    fn idx_v(&self) -> Vec<usize> {
+        (0..self.model.nbodies()).map(|i| self.model.idx_v(i)).collect()
+    }
+
+    /// "free_flyer", "fixed", "revolute" or "prismatic".
+    fn joint_type(&self, body: i64) -> PyResult<&'static str> {
+        Ok(match self.model.joint(self.index(body)?) {
+            Joint::FreeFlyer => "free_flyer",
+            Joint::Fixed => "fixed",
+            Joint::Revolute(_) => "revolute",
+            Joint::Prismatic(_) => "prismatic",
+        })
+    }
+
+    /// The unit axis of a revolute or prismatic joint, None otherwise.
+    fn joint_axis<'py>(&self, py: Python<'py>, body: i64) -> PyResult<Option<Bound<'py, PyArray1<f64>>>> {
+        Ok(match self.model.joint(self.index(body)?) {
+            Joint::Revolute(a) | Joint::Prismatic(a) => Some(vector_to_numpy(py, a)),
+            _ => None,
+        })
+    }
+
+    /// The body's mass properties in its own frame.
+    fn body(&self, body: i64) -> PyResult<PyMassProperties> {
+        Ok(PyMassProperties(*self.model.body(self.index(body)?)))
+    }
+
+    /// The 4x4 placement of the body's joint frame in its parent's frame.
+    fn placement<'py>(&self, py: Python<'py>, body: i64) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        Ok(to_numpy(py, (4, 4), homogeneous(self.model.placement(self.index(body)?)).to_vec()))
+    }
+
+    /// The neutral configuration (zero joints, identity base orientation).
+    fn neutral<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        to_numpy(py, self.model.nq(), self.model.neutral().as_slice().to_vec())
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Model(nbodies={}, nq={}, nv={}, floating_base={}, mass={:.6})",
+            self.model.nbodies(),
+            self.model.nq(),
+            self.model.nv(),
+            self.model.floating_base(),
+            self.model.total_mass()
+        )
+    }
+}

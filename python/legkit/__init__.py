@@ -1,0 +1,23 @@
+"""legkit: Rust-accelerated physics for legged and modular robots.
+
+Conventions: SI units, right-handed frames with z up, gravity (0, 0, -9.81); a rigid transform maps child
+to parent coordinates, ``x_parent = R @ x_child + t``. Every array argument is float64 (lists accepted),
+and leading batch dimensions broadcast; batches run in Rust on all cores with the GIL released.
+A floating base uses q = [x, y, z, qx, qy, qz, qw] and v = [v_lin, v_ang] in the base frame, as Pinocchio.
+"""
+
+from legkit._core import MassProperties, Model, aba, crba, forward_kinematics, minv, rnea
+from legkit.geometry import CircleLineResult, circle_line, rotation_toward_line
+
+__all__ = [
+    "MassProperties",
+    "Model",
+    "CircleLineResult",
+    "circle_line",
+    "rotation_toward_line",
+    "forward_kinematics",
+    "rnea",
+    "crba",
+    "aba",
+    "minv",
+]

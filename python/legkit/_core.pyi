@@ -1,0 +1,112 @@
+"""Type stubs of the compiled module ``legkit._core``."""
+
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+_Vector = npt.ArrayLike
+_Matrix = npt.ArrayLike
+
+class MassProperties:
+    """Mass, centre of mass and rotational inertia about the centre of mass, all in one frame.
+
+    ``+`` composes bodies by the parallel-axis theorem (not the mass-weighted average of inertias);
+    ``-`` is its exact inverse and raises ValueError when the difference would not be a physical body
+    (``a - a`` gives ``zero()``). ``==`` compares with ``isclose``'s default tolerances.
+    """
+
+    def __init__(self, mass: float, com: _Vector, inertia: _Matrix) -> None: ...
+    @staticmethod
+    def zero() -> MassProperties: ...
+    @staticmethod
+    def point(mass: float, position: _Vector) -> MassProperties: ...
+    @staticmethod
+    def box(mass: float, size: _Vector, center: _Vector | None = None, rotation: _Matrix | None = None) -> MassProperties:
+        """A solid cuboid with full edge lengths ``size``, centred at ``center``, rotated by ``rotation``."""
+    @staticmethod
+    def from_points(masses: _Vector, positions: _Matrix) -> MassProperties: ...
+    @property
+    def mass(self) -> float: ...
+    @property
+    def com(self) -> np.ndarray: ...
+    @property
+    def inertia(self) -> np.ndarray:
+        """3x3 inertia about the centre of mass."""
+    def inertia_about(self, point: _Vector) -> np.ndarray: ...
+    def transformed(self, rotation: _Matrix, translation: _Vector | None = None) -> MassProperties:
+        """Express in the parent frame of ``x_parent = R x + t``: pass ``(R, t)`` or one 4x4 matrix."""
+    def isclose(self, other: MassProperties, rtol: float = 1e-9, atol: float = 1e-12) -> bool: ...
+    def __add__(self, other: MassProperties) -> MassProperties: ...
+    def __radd__(self, other: int) -> MassProperties: ...
+    def __sub__(self, other: MassProperties) -> MassProperties: ...
+    def __eq__(self, other: object) -> bool: ...
+
+_Placement = npt.ArrayLike | tuple[npt.ArrayLike, npt.ArrayLike]
+_Body = int | str
+
+class Model:
+    """A kinematic tree. Body 0 is the base: fixed to the world, or a free flyer with
+    q = [x, y, z, qx, qy, qz, qw] and v = [v_lin, v_ang] in the base frame. Every other body hangs off a
+    revolute, prismatic or fixed joint whose frame is placed (4x4, or (R, t)) in its parent's frame; the
+    body's frame is the joint frame after the joint's motion. Bodies are numbered parent first."""
+
+    def __init__(
+        self, floating_base: bool = False, base: MassProperties | None = None, base_name: str = "base",
+        gravity: _Vector | None = None,
+    ) -> None: ...
+    def add_revolute(
+        self, parent: _Body, axis: _Vector, placement: _Placement | None = None, body: MassProperties | None = None,
+        name: str | None = None,
+    ) -> int: ...
+    def add_prismatic(
+        self, parent: _Body, axis: _Vector, placement: _Placement | None = None, body: MassProperties | None = None,
+        name: str | None = None,
+    ) -> int: ...
+    def add_fixed(
+        self, parent: _Body, placement: _Placement | None = None, body: MassProperties | None = None, name: str | None = None
+    ) -> int: ...
+    @property
+    def nq(self) -> int: ...
+    @property
+    def nv(self) -> int: ...
+    @property
+    def nbodies(self) -> int: ...
+    @property
+    def floating_base(self) -> bool: ...
+    @property
+    def parents(self) -> list[int]:
+        """Parent of each body; -1 for the base."""
+    @property
+    def names(self) -> list[str]: ...
+    @property
+    def gravity(self) -> np.ndarray: ...
+    @property
+    def total_mass(self) -> float: ...
+    @property
+    def idx_q(self) -> list[int]: ...
+    @property
+    def idx_v(self) -> list[int]: ...
+    def joint_type(self, body: int) -> str: ...
+    def joint_axis(self, body: int) -> np.ndarray | None: ...
+    def body(self, body: int) -> MassProperties: ...
+    def placement(self, body: int) -> np.ndarray: ...
+    def neutral(self) -> np.ndarray: ...
+
+def forward_kinematics(model: Model, q: npt.ArrayLike) -> np.ndarray:
+    """World pose (4x4) of every body: (..., nbodies, 4, 4)."""
+def rnea(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike, f_ext: npt.ArrayLike | None = None) -> np.ndarray:
+    """Inverse dynamics tau = M a + C v + g - sum J^T f_ext; f_ext is (..., nbodies, 6), [f, n] in each body's frame."""
+def aba(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, f_ext: npt.ArrayLike | None = None) -> np.ndarray:
+    """Forward dynamics by the O(n) articulated-body algorithm: (..., nv)."""
+def crba(model: Model, q: npt.ArrayLike) -> np.ndarray:
+    """Joint-space mass matrix M(q): (..., nv, nv)."""
+def minv(model: Model, q: npt.ArrayLike) -> np.ndarray:
+    """M(q)^-1 by the O(n) articulated-body recursion: (..., nv, nv)."""
+def circle_line(
+    center: npt.ArrayLike, normal: npt.ArrayLike, radius: npt.ArrayLike, line_point: npt.ArrayLike, line_direction: npt.ArrayLike
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...
+def rotation_toward_line(
+    axis_point: npt.ArrayLike, axis_direction: npt.ArrayLike, point: npt.ArrayLike, line_point: npt.ArrayLike,
+    line_direction: npt.ArrayLike,
+) -> tuple[np.ndarray, np.ndarray]: ...

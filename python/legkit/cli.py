@@ -1,0 +1,42 @@
+"""The ``legkit`` command."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+import legkit as lk
+
+
+def demo(_: argparse.Namespace) -> int:
+    """A composite mass and a circle–line query: the two quantities the balancing controller builds on."""
+    module = lk.MassProperties.box(0.25, [0.084, 0.084, 0.084], center=[0.0, 0.0, 0.042])
+    arm = lk.MassProperties.box(0.10, [0.3, 0.03, 0.03], center=[0.15, 0.0, 0.1])
+    tip = lk.MassProperties.point(0.05, [0.3, 0.0, 0.1])
+    total = sum([module, arm, tip], lk.MassProperties.zero())
+    np.set_printoptions(precision=6, suppress=True)
+    print("Composite of a 0.25 kg cube, a 0.10 kg arm and a 0.05 kg tip mass:")
+    print(f"  mass    {total.mass:.6f} kg")
+    print(f"  com     {total.com} m")
+    print(f"  inertia about the com (kg m^2):\n{total.inertia}")
+
+    r = lk.circle_line(center=[0, 0, 0.1], normal=[0, 0, 1], radius=0.3, line_point=[0.5, -1, 0], line_direction=[0, 1, 0])
+    print("\nCircle (centre [0 0 0.1], normal z, radius 0.3) to the line x = 0.5, z = 0:")
+    print(f"  distance {r.distance:.6f} m at circle point {r.circle_points[0]} and line point {r.line_points[0]}")
+    theta, distance = lk.rotation_toward_line([0, 0, 0], [0, 0, 1], total.com, [0.5, -1, 0], [0, 1, 0])
+    print(f"\nYawing the composite's COM toward that line: theta = {np.degrees(theta):.3f} deg, distance {distance:.6f} m")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="legkit", description="Physics for legged and modular robots.")
+    commands = parser.add_subparsers(dest="command", required=True)
+    commands.add_parser("demo", help="print a composite mass and a circle-line query").set_defaults(run=demo)
+    args = parser.parse_args(argv)
+    return args.run(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
