@@ -6,7 +6,27 @@ and leading batch dimensions broadcast; batches run in Rust on all cores with th
 A floating base uses q = [x, y, z, qx, qy, qz, qw] and v = [v_lin, v_ang] in the base frame, as Pinocchio.
 """
 
-from legkit._core import MassProperties, Model, aba, crba, forward_kinematics, minv, rnea
+from legkit._core import (
+    MassProperties,
+    Model,
+    aba,
+    center_of_mass,
+    centroidal_momentum,
+    centroidal_momentum_rate,
+    contact_dynamics,
+    crba,
+    forward_kinematics,
+    impact,
+    integrate,
+    jacobian,
+    kinetic_energy,
+    minv,
+    potential_energy,
+    reduced_dynamics,
+    rnea,
+    simulate,
+    subtree_mass_properties,
+)
 from legkit.geometry import CircleLineResult, circle_line, rotation_toward_line
 
 __all__ = [
@@ -20,4 +40,16 @@ __all__ = [
     "crba",
     "aba",
     "minv",
+    "jacobian",
+    "center_of_mass",
+    "subtree_mass_properties",
+    "centroidal_momentum",
+    "centroidal_momentum_rate",
+    "kinetic_energy",
+    "potential_energy",
+    "contact_dynamics",
+    "impact",
+    "reduced_dynamics",
+    "integrate",
+    "simulate",
 ]

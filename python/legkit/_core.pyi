@@ -1,6 +1,7 @@
 """Type stubs of the compiled module ``legkit._core``."""
 
-from typing import Any
+import os
+from typing import Any, Literal, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -92,6 +93,9 @@ class Model:
     def body(self, body: int) -> MassProperties: ...
     def placement(self, body: int) -> np.ndarray: ...
     def neutral(self) -> np.ndarray: ...
+    @staticmethod
+    def from_urdf(path_or_xml: str | os.PathLike[str], floating_base: bool = False) -> Model:
+        """A model from a URDF path or XML string; bodies are named after links, the root link is the base."""
 
 def forward_kinematics(model: Model, q: npt.ArrayLike) -> np.ndarray:
     """World pose (4x4) of every body: (..., nbodies, 4, 4)."""
@@ -103,6 +107,36 @@ def crba(model: Model, q: npt.ArrayLike) -> np.ndarray:
     """Joint-space mass matrix M(q): (..., nv, nv)."""
 def minv(model: Model, q: npt.ArrayLike) -> np.ndarray:
     """M(q)^-1 by the O(n) articulated-body recursion: (..., nv, nv)."""
+_Frame = Literal["local", "world", "local_world_aligned"]
+_Contacts = Sequence[tuple[_Body, npt.ArrayLike]]
+
+def jacobian(model: Model, q: npt.ArrayLike, body: _Body, point: npt.ArrayLike | None = None, frame: _Frame = "local_world_aligned") -> np.ndarray:
+    """6 x nv Jacobian (rows [linear; angular]) of the frame at `point` on `body`: (..., 6, nv)."""
+def center_of_mass(model: Model, q: npt.ArrayLike) -> np.ndarray:
+    """World centre of mass: (..., 3)."""
+def subtree_mass_properties(model: Model, q: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-body subtree (mass (..., nb), com (..., nb, 3), inertia about the subtree COM (..., nb, 3, 3)), world frame."""
+def centroidal_momentum(model: Model, q: npt.ArrayLike, v: npt.ArrayLike) -> np.ndarray:
+    """[h_lin, h_ang about the COM], world-aligned: (..., 6)."""
+def centroidal_momentum_rate(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike) -> np.ndarray:
+    """Time derivative of the centroidal momentum (gravity excluded): (..., 6)."""
+def kinetic_energy(model: Model, q: npt.ArrayLike, v: npt.ArrayLike) -> np.ndarray: ...
+def potential_energy(model: Model, q: npt.ArrayLike) -> np.ndarray: ...
+def contact_dynamics(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _Contacts) -> tuple[np.ndarray, np.ndarray]:
+    """(ddq (..., nv), forces (..., k, 3)) with each contact point (body, point in body frame) held still."""
+def impact(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, contacts: _Contacts) -> tuple[np.ndarray, np.ndarray]:
+    """(v_plus (..., nv), impulses (..., k, 3)) of a perfectly inelastic impact at the contacts."""
+def reduced_dynamics(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _Contacts, independent: Sequence[int] | None = None
+) -> tuple[np.ndarray, list[int], list[int], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(ddq, independent, dependent, basis N, reduced mass N^T M N, reduced force, offset) for one state."""
+def integrate(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, dt: float) -> np.ndarray:
+    """q (+) v dt: (..., nq)."""
+def simulate(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, dt: float, steps: int, tau: npt.ArrayLike | None = None,
+    method: Literal["rk4", "semi_implicit_euler"] = "rk4",
+) -> tuple[np.ndarray, np.ndarray]:
+    """(qs (..., steps + 1, nq), vs (..., steps + 1, nv)) of a free simulation (no contacts)."""
 def circle_line(
     center: npt.ArrayLike, normal: npt.ArrayLike, radius: npt.ArrayLike, line_point: npt.ArrayLike, line_direction: npt.ArrayLike
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...

@@ -3,78 +3,13 @@
 
 use legkit_dynamics::algorithms;
 use legkit_dynamics::model::check_vector;
-use legkit_dynamics::spatial::Force;
-use legkit_dynamics::{Data, Error, Model};
+use legkit_dynamics::Model;
 use numpy::PyArrayDyn;
 use pyo3::prelude::*;
 
-use crate::batch::{broadcast, map_rows, to_numpy, ArrayArg, Batch};
-use crate::model::{homogeneous, PyModel};
-
-/// A workspace for one task: the model's cached one when free, handed back when done.
-struct Workspace<'m> {
-    owner: &'m PyModel,
-    data: Option<Data>,
-    forces: Vec<Force>,
-}
-
-impl<'m> Workspace<'m> {
-    fn new(owner: &'m PyModel) -> Self {
-        Self { owner, data: Some(owner.take_workspace()), forces: vec![Force::zeros(); owner.model.nbodies()] }
-    }
-
-    fn data(&mut self) -> &mut Data {
-        self.data.as_mut().expect("present until dropped")
-    }
-
-    /// The workspace and the external forces read from a row of `nbodies x 6` numbers (None when the
-    /// argument was not given).
-    fn with_forces(&mut self, row: Option<&[f64]>) -> Result<(&mut Data, Option<&[Force]>), Error> {
-        let data = self.data.as_mut().expect("present until dropped");
-        let Some(row) = row else { return Ok((data, None)) };
-        check_vector("f_ext", row, 6 * self.forces.len())?;
-        for (force, values) in self.forces.iter_mut().zip(row.chunks_exact(6)) {
-            force.copy_from_slice(values);
-        }
-        Ok((data, Some(&self.forces)))
-    }
-}
-
-impl Drop for Workspace<'_> {
-    fn drop(&mut self) {
-        if let Some(data) = self.data.take() {
-            self.owner.put_back(data);
-        }
-    }
-}
-
-/// Runs `kernel(model, workspace, i, out)` over the batch, GIL released; returns `batch + out_core`.
-fn run<'py, K>(py: Python<'py>, owner: &PyModel, batch: &Batch<'_>, out_core: &[usize], kernel: K) -> PyResult<Bound<'py, PyArrayDyn<f64>>>
-where
-    K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
-{
-    let width = out_core.iter().product();
-    let model = &owner.model;
-    let out = py.detach(|| map_rows(batch.len, width, || Workspace::new(owner), |w, i, out| kernel(model, w, i, out)))?;
-    Ok(to_numpy(py, batch.output_shape(out_core), out))
-}
-
-/// Fails on NaN or infinity in a result: a singular model or state rather than silent garbage.
-fn finite_result(values: &[f64]) -> Result<(), Error> {
-    if values.iter().all(|x| x.is_finite()) {
-        Ok(())
-    } else {
-        Err(Error::invalid("model", "the result is not finite: the mass matrix is singular at this configuration"))
-    }
-}
-
-fn check_state(model: &Model, q: &[f64], v: Option<&[f64]>) -> Result<(), Error> {
-    model.check_configuration(q)?;
-    if let Some(v) = v {
-        check_vector("v", v, model.nv())?;
-    }
-    Ok(())
-}
+use crate::batch::{broadcast, ArrayArg, Batch};
+use crate::model::PyModel;
+use crate::workspace::{check_state, finite_result, run};
 
 /// The batch of (q, v, x[, f_ext]) with cores (nq,), (nv,), (nv,) and (nbodies, 6).
 fn state_batch<'a>(
@@ -90,23 +25,6 @@ fn state_batch<'a>(
         arguments.push(("f_ext", f, &force_core[..]));
     }
     broadcast(&arguments)
-}
-
-/// World pose (4x4) of every body: `(..., nbodies, 4, 4)`.
-#[pyfunction]
-pub fn forward_kinematics<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    let m = &model.model;
-    let batch = broadcast(&[("q", &q, &[m.nq()])])?;
-    run(py, &model, &batch, &[m.nbodies(), 4, 4], |m, w, i, out| {
-        let q = batch.rows[0].row(i);
-        m.check_configuration(q)?;
-        let data = w.data();
-        algorithms::forward_kinematics(m, data, q);
-        for (pose, chunk) in data.o_m_i.iter().zip(out.chunks_exact_mut(16)) {
-            chunk.copy_from_slice(&homogeneous(pose));
-        }
-        Ok(())
-    })
 }
 
 /// Inverse dynamics τ = M q̈ + C q̇ + g − Σ Jᵀ f_ext (recursive Newton–Euler). `f_ext`, optional, holds one
@@ -180,5 +98,30 @@ pub fn minv<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) ->
         m.check_configuration(q)?;
         out.copy_from_slice(algorithms::minv(m, w.data(), q).as_slice());
         finite_result(out)
+    })
+}
+
+/// Kinetic energy ½ vᵀ M v: `(...)`.
+#[pyfunction]
+pub fn kinetic_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>, v: ArrayArg<'_>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let m = &model.model;
+    let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()])])?;
+    run(py, &model, &batch, &[], |m, w, i, out| {
+        let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
+        check_state(m, q, Some(v))?;
+        out[0] = algorithms::kinetic_energy(m, w.data(), q, v);
+        Ok(())
+    })
+}
+
+/// Potential energy −Σ mᵢ gᵀ cᵢ: `(...)`.
+#[pyfunction]
+pub fn potential_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
+    run(py, &model, &batch, &[], |m, w, i, out| {
+        let q = batch.rows[0].row(i);
+        check_state(m, q, None)?;
+        out[0] = algorithms::potential_energy(m, w.data(), q);
+        Ok(())
     })
 }

@@ -2,11 +2,15 @@
 //! every computation lives in `legkit-dynamics`.
 
 mod batch;
+mod contact;
 mod convert;
 mod dynamics;
 mod geometry;
+mod kinematics;
 mod mass;
 mod model;
+mod simulate;
+mod workspace;
 
 use pyo3::prelude::*;
 
@@ -14,11 +18,23 @@ use pyo3::prelude::*;
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<mass::PyMassProperties>()?;
     m.add_class::<model::PyModel>()?;
-    m.add_function(wrap_pyfunction!(dynamics::forward_kinematics, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::forward_kinematics, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::jacobian, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::center_of_mass, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::subtree_mass_properties, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::centroidal_momentum, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::centroidal_momentum_rate, m)?)?;
     m.add_function(wrap_pyfunction!(dynamics::rnea, m)?)?;
     m.add_function(wrap_pyfunction!(dynamics::aba, m)?)?;
     m.add_function(wrap_pyfunction!(dynamics::crba, m)?)?;
     m.add_function(wrap_pyfunction!(dynamics::minv, m)?)?;
+    m.add_function(wrap_pyfunction!(dynamics::kinetic_energy, m)?)?;
+    m.add_function(wrap_pyfunction!(dynamics::potential_energy, m)?)?;
+    m.add_function(wrap_pyfunction!(contact::contact_dynamics, m)?)?;
+    m.add_function(wrap_pyfunction!(contact::impact, m)?)?;
+    m.add_function(wrap_pyfunction!(contact::reduced_dynamics, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate::integrate, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(geometry::circle_line, m)?)?;
     m.add_function(wrap_pyfunction!(geometry::rotation_toward_line, m)?)?;
     Ok(())

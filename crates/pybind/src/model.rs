@@ -131,6 +131,21 @@ impl PyModel {
         Ok(Self::wrap(model))
     }
 
+    /// A model from a URDF file path or an XML string: links become bodies named after them (the root link
+    /// is the base), revolute/continuous/prismatic/fixed joints their joints.
+    #[staticmethod]
+    #[pyo3(signature = (path_or_xml, floating_base = false))]
+    fn from_urdf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: bool) -> PyResult<Self> {
+        let source: String = match path_or_xml.cast::<PyString>() {
+            Ok(s) => s.to_str()?.to_owned(),
+            Err(_) => py.import("os")?.call_method1("fspath", (path_or_xml,))?.extract().map_err(|_| {
+                PyTypeError::new_err("path_or_xml: expected a path or an XML string")
+            })?,
+        };
+        let model = py.detach(|| legkit_dynamics::urdf::load_urdf(&source, floating_base)).map_err(value_error)?;
+        Ok(Self::wrap(model))
+    }
+
     /// Adds a body on a revolute joint about `axis` (in the joint frame); returns its index.
     #[pyo3(signature = (parent, axis, placement = None, body = None, name = None))]
     fn add_revolute(
@@ -254,7 +269,7 @@ impl PyModel {
             self.model.nbodies(),
             self.model.nq(),
             self.model.nv(),
-            self.model.floating_base(),
+            if self.model.floating_base() { "True" } else { "False" },
             self.model.total_mass()
         )
     }

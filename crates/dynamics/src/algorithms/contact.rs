@@ -87,16 +87,13 @@ fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[
     (jc, gamma)
 }
 
-/// Solves the symmetric positive semi-definite system `a x = b`: Cholesky, or the pseudo-inverse when the
-/// constraints are redundant (then the minimum-norm forces).
+/// Solves the symmetric positive semi-definite system `a x = b` in the least-squares, minimum-norm sense:
+/// redundant contacts (a rank-deficient J) get the smallest forces that do the job.
 fn solve_spd(a: DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
-    match a.clone().cholesky() {
-        Some(c) => c.solve(b),
-        None => {
-            let scale = a.amax().max(f64::MIN_POSITIVE);
-            a.svd(true, true).solve(b, 1e-12 * scale).expect("SVD computed with both factors")
-        }
-    }
+    let eigen = a.symmetric_eigen();
+    let tolerance = 1e-12 * eigen.eigenvalues.amax();
+    let inverse = eigen.eigenvalues.map(|l| if l > tolerance { 1.0 / l } else { 0.0 });
+    &eigen.eigenvectors * inverse.component_mul(&(eigen.eigenvectors.transpose() * b))
 }
 
 /// M and the bias h = C q̇ + g at (q, v), and a Cholesky factor of M.

@@ -1,0 +1,120 @@
+//! Contact-constrained dynamics, the reduced ODE and impacts.
+
+use legkit_dynamics::algorithms::{self, Contact};
+use legkit_dynamics::model::check_vector;
+use numpy::{PyArray1, PyArray2, PyArrayDyn};
+use pyo3::prelude::*;
+
+use crate::batch::{broadcast, ArrayArg};
+use crate::convert::{to_numpy, value_error, vector3, Vector};
+use crate::model::PyModel;
+use crate::workspace::{check_state, finite_result, run_packed, unpack};
+
+/// Contacts from a sequence of (body, point) pairs: body index or name, point in the body's frame.
+fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<Contact>> {
+    let mut out = Vec::new();
+    for item in value.try_iter()? {
+        let (body, point): (Bound<'_, PyAny>, Vector<'_>) = item?.extract().map_err(|_| {
+            pyo3::exceptions::PyTypeError::new_err("contacts: expected a sequence of (body, point) pairs")
+        })?;
+        out.push(Contact { body: model.body_index(&body)?, point: vector3("contacts", &point)? });
+    }
+    algorithms::contact::check_contacts(&model.model, &out).map_err(value_error)?;
+    Ok(out)
+}
+
+/// Forward dynamics with the contact points held still (Hardt & von Stryk eq. 1–3):
+/// returns (ddq (..., nv), forces (..., k, 3)), the forces on the robot at the contacts in world axes.
+#[pyfunction]
+pub fn contact_dynamics<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    tau: ArrayArg<'_>,
+    contacts: &Bound<'_, PyAny>,
+) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>)> {
+    let contacts = self::contacts(&model, contacts)?;
+    let (nv, k) = (model.model.nv(), contacts.len());
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("tau", &tau, &[nv])])?;
+    let packed = run_packed(py, &model, &batch, nv + 3 * k, |m, w, i, out| {
+        let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
+        check_state(m, q, Some(v))?;
+        check_vector("tau", tau, nv)?;
+        let solution = algorithms::contact_dynamics(m, w.data(), q, v, tau, &contacts)?;
+        out[..nv].copy_from_slice(solution.ddq.as_slice());
+        out[nv..].copy_from_slice(solution.forces.as_slice());
+        finite_result(out)
+    })?;
+    let mut parts = unpack(py, &batch, &packed, &[&[nv], &[k, 3]]).into_iter();
+    Ok((parts.next().unwrap(), parts.next().unwrap()))
+}
+
+/// Perfectly inelastic impact at the contacts: returns (v_plus (..., nv), impulses (..., k, 3)).
+#[pyfunction]
+pub fn impact<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    contacts: &Bound<'_, PyAny>,
+) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>)> {
+    let contacts = self::contacts(&model, contacts)?;
+    let (nv, k) = (model.model.nv(), contacts.len());
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv])])?;
+    let packed = run_packed(py, &model, &batch, nv + 3 * k, |m, w, i, out| {
+        let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
+        check_state(m, q, Some(v))?;
+        let (v_plus, impulses) = algorithms::impact(m, w.data(), q, v, &contacts)?;
+        out[..nv].copy_from_slice(v_plus.as_slice());
+        out[nv..].copy_from_slice(impulses.as_slice());
+        finite_result(out)
+    })?;
+    let mut parts = unpack(py, &batch, &packed, &[&[nv], &[k, 3]]).into_iter();
+    Ok((parts.next().unwrap(), parts.next().unwrap()))
+}
+
+type Reduced<'py> = (
+    Bound<'py, PyArray1<f64>>,
+    Vec<usize>,
+    Vec<usize>,
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+);
+
+/// The reduced ODE on independent velocity coordinates for one state (Hardt & von Stryk eq. 7):
+/// (ddq, independent, dependent, basis N (nv, nI), mass N^T M N, force, offset) with v = N v_I and
+/// q̈ = N v̇_I + offset. `independent` picks the coordinates; by default they are chosen by pivoting.
+#[pyfunction]
+#[pyo3(signature = (model, q, v, tau, contacts, independent = None))]
+pub fn reduced_dynamics<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: Vector<'_>,
+    v: Vector<'_>,
+    tau: Vector<'_>,
+    contacts: &Bound<'_, PyAny>,
+    independent: Option<Vec<usize>>,
+) -> PyResult<Reduced<'py>> {
+    let contacts = self::contacts(&model, contacts)?;
+    let m = &model.model;
+    let (q, v, tau) = (q.as_slice()?, v.as_slice()?, tau.as_slice()?);
+    check_state(m, q, Some(v)).map_err(value_error)?;
+    check_vector("tau", tau, m.nv()).map_err(value_error)?;
+    let mut data = model.take_workspace();
+    let result = algorithms::reduced_dynamics(m, &mut data, q, v, tau, &contacts, independent.as_deref());
+    model.put_back(data);
+    let r = result.map_err(value_error)?;
+    let matrix = |x: &nalgebra::DMatrix<f64>| to_numpy(py, (x.nrows(), x.ncols()), x.transpose().as_slice().to_vec());
+    Ok((
+        to_numpy(py, r.ddq.len(), r.ddq.as_slice().to_vec()),
+        r.independent.clone(),
+        r.dependent.clone(),
+        matrix(&r.basis),
+        matrix(&r.mass),
+        to_numpy(py, r.force.len(), r.force.as_slice().to_vec()),
+        to_numpy(py, r.offset.len(), r.offset.as_slice().to_vec()),
+    ))
+}

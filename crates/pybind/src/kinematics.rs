@@ -1,0 +1,144 @@
+//! Kinematic quantities over batches: poses, Jacobians, centre of mass, subtree mass properties and
+//! centroidal momentum.
+
+use legkit_dynamics::algorithms::{self, Frame};
+use legkit_dynamics::model::check_vector;
+use nalgebra::Vector3;
+use numpy::PyArrayDyn;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+use crate::batch::{broadcast, ArrayArg};
+use crate::convert::{vector3, Vector};
+use crate::model::{homogeneous, PyModel};
+use crate::workspace::{check_state, run, run_packed, unpack};
+
+/// World pose (4x4) of every body: `(..., nbodies, 4, 4)`.
+#[pyfunction]
+pub fn forward_kinematics<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let m = &model.model;
+    let batch = broadcast(&[("q", &q, &[m.nq()])])?;
+    run(py, &model, &batch, &[m.nbodies(), 4, 4], |m, w, i, out| {
+        let q = batch.rows[0].row(i);
+        m.check_configuration(q)?;
+        let data = w.data();
+        algorithms::forward_kinematics(m, data, q);
+        for (pose, chunk) in data.o_m_i.iter().zip(out.chunks_exact_mut(16)) {
+            chunk.copy_from_slice(&homogeneous(pose));
+        }
+        Ok(())
+    })
+}
+
+fn frame(name: &str) -> PyResult<Frame> {
+    match name {
+        "local" => Ok(Frame::Local),
+        "world" => Ok(Frame::World),
+        "local_world_aligned" => Ok(Frame::LocalWorldAligned),
+        other => Err(PyValueError::new_err(format!(
+            "frame: expected \"local\", \"world\" or \"local_world_aligned\", got {other:?}"
+        ))),
+    }
+}
+
+/// The 6 x nv Jacobian (rows [linear; angular]) of the frame at `point` (body coordinates, default the
+/// origin) on `body` (index or name), in Pinocchio's `frame` convention: "local", "world" or
+/// "local_world_aligned" (the point's velocity in world axes). `(..., 6, nv)`.
+#[pyfunction]
+#[pyo3(signature = (model, q, body, point = None, frame = "local_world_aligned"))]
+pub fn jacobian<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    body: &Bound<'_, PyAny>,
+    point: Option<Vector<'_>>,
+    frame: &str,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let (body, convention) = (model.body_index(body)?, self::frame(frame)?);
+    let point = point.map(|p| vector3("point", &p)).transpose()?.unwrap_or_else(Vector3::zeros);
+    legkit_dynamics::validate::finite_vector("point", point).map_err(crate::convert::value_error)?;
+    let nv = model.model.nv();
+    let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
+    run(py, &model, &batch, &[6, nv], |m, w, i, out| {
+        let q = batch.rows[0].row(i);
+        check_state(m, q, None)?;
+        let j = algorithms::jacobian(m, w.data(), q, body, &point, convention);
+        for (r, row) in out.chunks_exact_mut(nv).enumerate() {
+            for (c, x) in row.iter_mut().enumerate() {
+                *x = j[(r, c)];
+            }
+        }
+        Ok(())
+    })
+}
+
+/// The model's centre of mass in the world frame: `(..., 3)`.
+#[pyfunction]
+pub fn center_of_mass<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
+    run(py, &model, &batch, &[3], |m, w, i, out| {
+        let q = batch.rows[0].row(i);
+        check_state(m, q, None)?;
+        out.copy_from_slice(algorithms::center_of_mass(m, w.data(), q).as_slice());
+        Ok(())
+    })
+}
+
+/// Mass properties of the subtree rooted at each body, in world coordinates (inertia about the subtree's
+/// COM): `(mass (..., nbodies), com (..., nbodies, 3), inertia (..., nbodies, 3, 3))`.
+#[pyfunction]
+pub fn subtree_mass_properties<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>)> {
+    let nb = model.model.nbodies();
+    let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
+    let packed = run_packed(py, &model, &batch, 13 * nb, |m, w, i, out| {
+        let q = batch.rows[0].row(i);
+        check_state(m, q, None)?;
+        let (masses, rest) = out.split_at_mut(nb);
+        let (coms, inertias) = rest.split_at_mut(3 * nb);
+        for (b, body) in algorithms::subtree_mass_properties(m, w.data(), q).iter().enumerate() {
+            masses[b] = body.mass();
+            coms[3 * b..3 * b + 3].copy_from_slice(body.com().as_slice());
+            inertias[9 * b..9 * b + 9].copy_from_slice(body.inertia().transpose().as_slice());
+        }
+        Ok(())
+    })?;
+    let mut parts = unpack(py, &batch, &packed, &[&[nb], &[nb, 3], &[nb, 3, 3]]).into_iter();
+    Ok((parts.next().unwrap(), parts.next().unwrap(), parts.next().unwrap()))
+}
+
+/// Centroidal momentum [h_lin, h_ang about the COM], world-aligned: `(..., 6)`.
+#[pyfunction]
+pub fn centroidal_momentum<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>, v: ArrayArg<'_>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let m = &model.model;
+    let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()])])?;
+    run(py, &model, &batch, &[6], |m, w, i, out| {
+        let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
+        check_state(m, q, Some(v))?;
+        out.copy_from_slice(algorithms::centroidal_momentum(m, w.data(), q, v).as_slice());
+        Ok(())
+    })
+}
+
+/// Time derivative of the centroidal momentum for joint accelerations `a` (gravity excluded): `(..., 6)`.
+#[pyfunction]
+pub fn centroidal_momentum_rate<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    a: ArrayArg<'_>,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let m = &model.model;
+    let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()]), ("a", &a, &[m.nv()])])?;
+    run(py, &model, &batch, &[6], |m, w, i, out| {
+        let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
+        check_state(m, q, Some(v))?;
+        check_vector("a", a, m.nv())?;
+        out.copy_from_slice(algorithms::centroidal_momentum_rate(m, w.data(), q, v, a).as_slice());
+        Ok(())
+    })
+}

@@ -1,0 +1,99 @@
+//! Running a kernel over a batch of states with per-task workspaces, the GIL released.
+
+use legkit_dynamics::model::check_vector;
+use legkit_dynamics::spatial::Force;
+use legkit_dynamics::{Data, Error, Model};
+use numpy::PyArrayDyn;
+use pyo3::prelude::*;
+
+use crate::batch::{map_rows, to_numpy, Batch};
+use crate::model::PyModel;
+
+/// A workspace for one task: the model's cached one when free, handed back when done.
+pub struct Workspace<'m> {
+    owner: &'m PyModel,
+    data: Option<Data>,
+    forces: Vec<Force>,
+}
+
+impl<'m> Workspace<'m> {
+    fn new(owner: &'m PyModel) -> Self {
+        Self { owner, data: Some(owner.take_workspace()), forces: vec![Force::zeros(); owner.model.nbodies()] }
+    }
+
+    pub fn data(&mut self) -> &mut Data {
+        self.data.as_mut().expect("present until dropped")
+    }
+
+    /// The workspace and the external forces read from a row of `nbodies x 6` numbers (None when the
+    /// argument was not given).
+    pub fn with_forces(&mut self, row: Option<&[f64]>) -> Result<(&mut Data, Option<&[Force]>), Error> {
+        let data = self.data.as_mut().expect("present until dropped");
+        let Some(row) = row else { return Ok((data, None)) };
+        check_vector("f_ext", row, 6 * self.forces.len())?;
+        for (force, values) in self.forces.iter_mut().zip(row.chunks_exact(6)) {
+            force.copy_from_slice(values);
+        }
+        Ok((data, Some(&self.forces)))
+    }
+}
+
+impl Drop for Workspace<'_> {
+    fn drop(&mut self) {
+        if let Some(data) = self.data.take() {
+            self.owner.put_back(data);
+        }
+    }
+}
+
+/// Runs `kernel(model, workspace, i, out)` over the batch, GIL released; returns `batch + out_core`.
+pub fn run<'py, K>(py: Python<'py>, owner: &PyModel, batch: &Batch<'_>, out_core: &[usize], kernel: K) -> PyResult<Bound<'py, PyArrayDyn<f64>>>
+where
+    K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
+{
+    let out = run_packed(py, owner, batch, out_core.iter().product(), kernel)?;
+    Ok(to_numpy(py, batch.output_shape(out_core), out))
+}
+
+/// `run` with `width` numbers per row, left packed (see `unpack`).
+pub fn run_packed<K>(py: Python<'_>, owner: &PyModel, batch: &Batch<'_>, width: usize, kernel: K) -> PyResult<Vec<f64>>
+where
+    K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
+{
+    let model = &owner.model;
+    py.detach(|| map_rows(batch.len, width, || Workspace::new(owner), |w, i, out| kernel(model, w, i, out)))
+}
+
+/// Splits rows packed as `[part 0 | part 1 | ...]` into one array per part, shaped `batch + core`.
+pub fn unpack<'py>(py: Python<'py>, batch: &Batch<'_>, packed: &[f64], cores: &[&[usize]]) -> Vec<Bound<'py, PyArrayDyn<f64>>> {
+    let widths: Vec<usize> = cores.iter().map(|c| c.iter().product()).collect();
+    let width: usize = widths.iter().sum();
+    let mut start = 0;
+    cores
+        .iter()
+        .zip(&widths)
+        .map(|(core, &w)| {
+            let part = packed.chunks_exact(width.max(1)).flat_map(|row| &row[start..start + w]).copied().collect();
+            start += w;
+            to_numpy(py, batch.output_shape(core), part)
+        })
+        .collect()
+}
+
+/// Fails on NaN or infinity in a result: a singular model or state rather than silent garbage.
+pub fn finite_result(values: &[f64]) -> Result<(), Error> {
+    if values.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(Error::invalid("model", "the result is not finite: the mass matrix is singular at this configuration"))
+    }
+}
+
+pub fn check_state(model: &Model, q: &[f64], v: Option<&[f64]>) -> Result<(), Error> {
+    model.check_configuration(q)?;
+    if let Some(v) = v {
+        check_vector("v", v, model.nv())?;
+    }
+    Ok(())
+}
+
