@@ -240,9 +240,12 @@ pub struct Data {
     pub f: Vec<Force>,
     /// Velocity-product acceleration of each joint (the `c` of Table 7.1).
     pub c: Vec<Motion>,
-    /// Articulated-body (ABA, Minv) or composite-rigid-body (CRBA) inertias.
+    /// Articulated-body (ABA, body frames; Minv, world frame) or composite-rigid-body (CRBA, world frame)
+    /// inertias.
     pub inertia: Vec<Inertia>,
     pub bias: Vec<Force>,
+    /// Motion subspace of each one-degree-of-freedom joint in world coordinates (CRBA, Minv).
+    pub s: Vec<Motion>,
     /// `U = I^A S` and `D = Sᵀ U` of one-degree-of-freedom joints.
     pub u: Vec<Vector6<f64>>,
     pub d: Vec<f64>,
@@ -271,6 +274,7 @@ impl Data {
             c: vec![Motion::zeros(); n],
             inertia: vec![Inertia::zeros(); n],
             bias: vec![Force::zeros(); n],
+            s: vec![Motion::zeros(); n],
             u: vec![Vector6::zeros(); n],
             d: vec![0.0; n],
             subtree: vec![MassProperties::zero(); n],

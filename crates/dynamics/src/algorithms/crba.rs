@@ -1,43 +1,51 @@
 //! Composite-rigid-body algorithm (Featherstone, Table 6.2): the joint-space mass matrix M(q).
+//!
+//! Worked in world coordinates, as Pinocchio does: composite inertias then add without transforms, and
+//! each entry M_ji = S_jᵀ F_i is one dot product, whatever the depth of the tree.
 
 use nalgebra::DMatrix;
 
-use super::joint_placement;
+use super::forward_kinematics;
 use crate::model::{Data, Joint, Model};
 
 /// Fills `data.mass_matrix` (both triangles) and returns it. Works for any parent-before-child order.
 pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64> {
     let n = model.nbodies();
+    forward_kinematics(model, data, q);
     for i in 0..n {
-        data.li_m_i[i] = joint_placement(model, i, q);
-        data.inertia[i] = *model.inertia(i);
+        data.inertia[i] = data.o_m_i[i].act_inertia(model.inertia(i));
+        if let Some(s) = model.joint(i).axis_motion() {
+            data.s[i] = data.o_m_i[i].act_motion(&s);
+        }
     }
     for i in (0..n).rev() {
-        let ic = data.inertia[i];
+        let composite = data.inertia[i];
         if i > 0 {
-            let p = model.parent(i);
-            let shifted = data.li_m_i[i].act_inertia(&ic);
-            data.inertia[p] += shifted;
+            data.inertia[model.parent(i)] += composite;
         }
         let k = model.idx_v(i);
         match model.joint(i) {
-            Joint::FreeFlyer => data.mass_matrix.view_mut((k, k), (6, 6)).copy_from(&ic),
+            // The base's subspace is its own frame: M_00 is the composite inertia expressed there.
+            Joint::FreeFlyer => {
+                let local = data.o_m_i[0].inverse().act_inertia(&composite);
+                data.mass_matrix.view_mut((k, k), (6, 6)).copy_from(&local);
+            }
             Joint::Fixed => {}
-            joint => {
-                // F = I^c S, then carried up the ancestors: M_ji = S_jᵀ F (eq. 6.17–6.18).
-                let mut force = ic * joint.axis_motion().expect("one-degree-of-freedom joint");
-                data.mass_matrix[(k, k)] = joint.axis_motion().unwrap().dot(&force);
+            Joint::Revolute(_) | Joint::Prismatic(_) => {
+                // F = I^c S (eq. 6.17), then M_ji = S_jᵀ F up the ancestors (eq. 6.18).
+                let force = composite * data.s[i];
+                data.mass_matrix[(k, k)] = data.s[i].dot(&force);
                 let mut j = i;
                 while j != 0 {
-                    force = data.li_m_i[j].act_force(&force);
                     j = model.parent(j);
                     let kj = model.idx_v(j);
                     match model.joint(j) {
-                        Joint::FreeFlyer => data.mass_matrix.view_mut((kj, k), (6, 1)).copy_from(&force),
-                        Joint::Fixed => {}
-                        parent_joint => {
-                            data.mass_matrix[(kj, k)] = parent_joint.axis_motion().unwrap().dot(&force);
+                        Joint::FreeFlyer => {
+                            let local = data.o_m_i[0].inv_act_force(&force);
+                            data.mass_matrix.view_mut((kj, k), (6, 1)).copy_from(&local);
                         }
+                        Joint::Fixed => {}
+                        Joint::Revolute(_) | Joint::Prismatic(_) => data.mass_matrix[(kj, k)] = data.s[j].dot(&force),
                     }
                 }
             }

@@ -1,12 +1,28 @@
 //! The inverse of the joint-space mass matrix by the articulated-body recursion (Carpentier 2018,
-//! "Analytical inverse of the joint space inertia matrix"; Pinocchio's `computeMinverse`): O(n) per
-//! entry of the result, never forming or factorising M.
+//! "Analytical inverse of the joint space inertia matrix"; Pinocchio's `computeMinverse`), never forming
+//! or factorising M.
+//!
+//! Worked in world coordinates: articulated inertias, the force sets F_i (τ ↦ bias force of subtree i) and
+//! the motion sets P_i (τ ↦ acceleration of body i) pass between bodies without transforms, so each
+//! (body, column) pair costs a few 6-vector operations. Row i of the upper triangle is kept in column i
+//! (the lower triangle), where it is contiguous.
 
-use nalgebra::{DMatrix, Matrix6xX};
+use nalgebra::{DMatrix, Matrix6xX, Vector6};
 
-use super::joint_placement;
+use super::forward_kinematics;
 use crate::model::{Data, Joint, Model};
 use crate::spatial::Inertia;
+
+/// Columns `from..` of body `i`'s set and its parent's, as 6-vector chunks (`parent < i`).
+fn sets(data: &mut [Matrix6xX<f64>], parent: usize, i: usize, from: usize) -> (&mut [f64], &mut [f64]) {
+    let (head, tail) = data.split_at_mut(i);
+    (&mut head[parent].as_mut_slice()[6 * from..], &mut tail[0].as_mut_slice()[6 * from..])
+}
+
+#[inline]
+fn dot(a: &Vector6<f64>, b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
 
 /// Fills `data.minv` (both triangles) with M(q)⁻¹ and returns it.
 pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64> {
@@ -14,77 +30,84 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
     if data.force_sets.len() != n {
         data.force_sets = vec![Matrix6xX::zeros(nv); n];
     }
+    forward_kinematics(model, data, q);
     for i in 0..n {
-        data.li_m_i[i] = joint_placement(model, i, q);
-        data.inertia[i] = *model.inertia(i);
-        data.force_sets[i].fill(0.0);
+        data.inertia[i] = data.o_m_i[i].act_inertia(model.inertia(i));
+        if let Some(s) = model.joint(i).axis_motion() {
+            data.s[i] = data.o_m_i[i].act_motion(&s);
+        }
+        let k = model.idx_v(i);
+        data.force_sets[i].columns_mut(k, nv - k).fill(0.0);
     }
-    // Backward pass: articulated inertias and the rows' subtree parts D⁻¹(e_i − Sᵀ F_i), where F_i maps τ to
-    // the articulated bias force of subtree i; then F_i += U M⁻¹_i is carried to the parent.
+    // Backward pass: the rows' subtree parts D⁻¹(e_i − Sᵀ F_i), then F_i += U M⁻¹_i goes to the parent
+    // together with the articulated inertia I^A − U D⁻¹ Uᵀ.
     for i in (0..n).rev() {
         let k = model.idx_v(i);
-        let mut ia = data.inertia[i];
         match model.joint(i) {
             Joint::FreeFlyer => {
-                let dinv = ia.try_inverse().unwrap_or_else(|| Inertia::repeat(f64::NAN));
+                // S = X_0 (the base frame), so D = X_0ᵀ I^A X_0 is the inertia in the base frame.
+                let base = data.o_m_i[0];
+                let dinv = base.inverse().act_inertia(&data.inertia[0]).try_inverse().unwrap_or_else(|| Inertia::repeat(f64::NAN));
                 data.minv.view_mut((0, 0), (6, 6)).copy_from(&dinv);
-                let below = -dinv * data.force_sets[0].columns(6, nv - 6);
-                data.minv.view_mut((0, 6), (6, nv - 6)).copy_from(&below);
+                for col in 6..nv {
+                    let f = Vector6::from_column_slice(&data.force_sets[0].as_slice()[6 * col..6 * col + 6]);
+                    data.minv.view_mut((col, 0), (1, 6)).copy_from(&(-dinv * base.inv_act_force(&f)).transpose());
+                }
             }
             Joint::Fixed => {}
-            joint => {
-                let s = joint.axis_motion().expect("one-degree-of-freedom joint");
+            Joint::Revolute(_) | Joint::Prismatic(_) => {
+                let (s, ia) = (data.s[i], data.inertia[i]);
                 let u = ia * s;
-                let d = s.dot(&u);
-                data.minv[(k, k)] = 1.0 / d;
-                for col in k + 1..nv {
-                    data.minv[(k, col)] = -s.dot(&data.force_sets[i].column(col)) / d;
+                let dinv = 1.0 / s.dot(&u);
+                let row = &mut data.minv.as_mut_slice()[k * nv + k..(k + 1) * nv];
+                let f = &mut data.force_sets[i].as_mut_slice()[6 * k..];
+                for (c, (column, entry)) in f.chunks_exact_mut(6).zip(row.iter_mut()).enumerate() {
+                    let m = if c == 0 { dinv } else { -dinv * dot(&s, column) };
+                    *entry = m;
+                    column.iter_mut().zip(u.iter()).for_each(|(x, ui)| *x += ui * m);
                 }
-                for col in k..nv {
-                    let m = data.minv[(k, col)];
-                    let mut f = data.force_sets[i].column_mut(col);
-                    f += u * m;
-                }
-                ia -= u * u.transpose() / d;
+                data.inertia[i] = ia - u * u.transpose() * dinv;
                 data.u[i] = u;
-                data.d[i] = d;
+                data.d[i] = 1.0 / dinv;
             }
         }
         if i > 0 {
-            let (p, li) = (model.parent(i), data.li_m_i[i]);
-            data.inertia[p] += li.act_inertia(&ia);
-            for col in k..nv {
-                let f = li.act_force(&data.force_sets[i].column(col).into_owned());
-                let mut fp = data.force_sets[p].column_mut(col);
-                fp += f;
-            }
+            let p = model.parent(i);
+            let ia = data.inertia[i];
+            data.inertia[p] += ia;
+            let (fp, fi) = sets(&mut data.force_sets, p, i, k);
+            fp.iter_mut().zip(fi.iter()).for_each(|(a, b)| *a += b);
         }
     }
-    // Forward pass: subtract D⁻¹ Uᵀ X⁻¹ P_parent, where the motion set P_i = S_i M⁻¹_i + X⁻¹ P_parent maps τ
-    // to body i's acceleration.
+    // Forward pass: subtract D⁻¹ Uᵀ P_parent, then P_i = S M⁻¹_i + P_parent (reusing the sets' storage).
     for i in 0..n {
         let k = model.idx_v(i);
         match model.joint(i) {
             Joint::FreeFlyer => {
-                let rows = data.minv.rows(0, 6).into_owned();
-                data.force_sets[0].copy_from(&rows);
+                let base = data.o_m_i[0];
+                for col in 0..nv {
+                    let m = Vector6::from_fn(|r, _| data.minv[(col.max(r), col.min(r))]);
+                    data.force_sets[0].set_column(col, &base.act_motion(&m));
+                }
             }
             Joint::Fixed if i == 0 => data.force_sets[0].fill(0.0),
             joint => {
-                let (p, li) = (model.parent(i), data.li_m_i[i]);
-                let axis = joint.axis_motion();
-                for col in k..nv {
-                    let carried = li.inv_act_motion(&data.force_sets[p].column(col).into_owned());
-                    let mut motion = carried;
-                    if let Some(s) = axis {
-                        data.minv[(k, col)] -= data.u[i].dot(&carried) / data.d[i];
-                        motion += s * data.minv[(k, col)];
-                    }
-                    data.force_sets[i].set_column(col, &motion);
+                let p = model.parent(i);
+                let (s, u, dinv) = (data.s[i], data.u[i], 1.0 / data.d[i]);
+                let (pp, pi) = sets(&mut data.force_sets, p, i, k);
+                if matches!(joint, Joint::Fixed) {
+                    pi.copy_from_slice(pp);
+                    continue;
+                }
+                let row = &mut data.minv.as_mut_slice()[k * nv + k..(k + 1) * nv];
+                for ((parent, own), entry) in pp.chunks_exact(6).zip(pi.chunks_exact_mut(6)).zip(row.iter_mut()) {
+                    let m = *entry - dinv * dot(&u, parent);
+                    *entry = m;
+                    own.iter_mut().zip(parent.iter().zip(s.iter())).for_each(|(x, (pj, si))| *x = pj + si * m);
                 }
             }
         }
     }
-    data.minv.fill_lower_triangle_with_upper_triangle();
+    data.minv.fill_upper_triangle_with_lower_triangle();
     &data.minv
 }

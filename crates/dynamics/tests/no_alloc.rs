@@ -1,0 +1,66 @@
+//! The algorithms allocate nothing once `Data` exists: a counting global allocator watches every call.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use legkit_dynamics::algorithms::{
+    aba, center_of_mass, centroidal_momentum, centroidal_momentum_rate, crba, forward_kinematics, jacobian, kinetic_energy,
+    minv, potential_energy, rnea, subtree_mass_properties, Frame,
+};
+use legkit_dynamics::{Data, Joint, MassProperties, Model, Transform};
+use nalgebra::{Matrix3, Vector3};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations_during(f: impl FnOnce()) -> usize {
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    f();
+    ALLOCATIONS.load(Ordering::SeqCst) - before
+}
+
+#[test]
+fn algorithms_do_not_allocate() {
+    let body = MassProperties::cuboid(1.0, Vector3::new(0.1, 0.2, 0.3), Vector3::new(0.0, 0.0, 0.1), &Matrix3::identity()).unwrap();
+    let mut model = Model::new(true, body, "base");
+    for i in 1..30 {
+        let joint = if i % 4 == 0 { Joint::Prismatic(Vector3::z()) } else { Joint::Revolute(Vector3::new(1.0, 2.0, 0.5)) };
+        let placement = Transform::from_translation(Vector3::new(0.1, 0.0, 0.05));
+        model.add_body((i - 1) / 2, joint, placement, body, &format!("b{i}")).unwrap();
+    }
+    let mut data = Data::new(&model);
+    let mut q = vec![0.1; model.nq()];
+    q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
+    let v = vec![0.2; model.nv()];
+    let tau = vec![0.3; model.nv()];
+    minv(&model, &mut data, &q); // sizes its force sets on the first call
+    let count = allocations_during(|| {
+        forward_kinematics(&model, &mut data, &q);
+        rnea(&model, &mut data, &q, &v, &tau, None);
+        aba(&model, &mut data, &q, &v, &tau, None);
+        crba(&model, &mut data, &q);
+        minv(&model, &mut data, &q);
+        jacobian(&model, &mut data, &q, 17, &Vector3::new(0.1, 0.0, 0.0), Frame::LocalWorldAligned);
+        center_of_mass(&model, &mut data, &q);
+        subtree_mass_properties(&model, &mut data, &q);
+        centroidal_momentum(&model, &mut data, &q, &v);
+        centroidal_momentum_rate(&model, &mut data, &q, &v, &tau);
+        kinetic_energy(&model, &mut data, &q, &v);
+        potential_energy(&model, &mut data, &q);
+    });
+    assert_eq!(count, 0, "the algorithms allocated {count} times");
+}
