@@ -129,16 +129,24 @@ impl Transform {
     }
 
     /// A spatial inertia from child to parent coordinates, `X* I X⁻¹`, by 3x3 blocks (eq. 2.66): rotate
-    /// each block, then shift by the translation p: B' = B − A p̂, C' = C − Bᵀ p̂ + p̂ B'.
+    /// each block, then shift by the translation p: B' = B − A p̂, C' = C − Bᵀ p̂ + p̂ B'. Blocks are copied
+    /// out first so the products run on fixed-size matrices rather than strided views.
     #[inline]
     pub fn act_inertia(&self, inertia: &Inertia) -> Inertia {
         let (r, rt) = (self.rotation, self.rotation.transpose());
-        let a = r * inertia.fixed_view::<3, 3>(0, 0) * rt;
-        let b = r * inertia.fixed_view::<3, 3>(0, 3) * rt;
-        let c = r * inertia.fixed_view::<3, 3>(3, 3) * rt;
-        let p = self.translation.cross_matrix();
-        let b_shifted = b - a * p;
-        let c_shifted = c - b.transpose() * p + p * b_shifted;
+        let a = r * inertia.fixed_view::<3, 3>(0, 0).into_owned() * rt;
+        let b = r * inertia.fixed_view::<3, 3>(0, 3).into_owned() * rt;
+        let c = r * inertia.fixed_view::<3, 3>(3, 3).into_owned() * rt;
+        let p = self.translation;
+        // X p̂ has rows (row of X) × p; p̂ X has columns p × (column of X).
+        let right = |x: &Matrix3<f64>| Matrix3::from_rows(&[
+            x.row(0).transpose().cross(&p).transpose(),
+            x.row(1).transpose().cross(&p).transpose(),
+            x.row(2).transpose().cross(&p).transpose(),
+        ]);
+        let left = |x: &Matrix3<f64>| Matrix3::from_columns(&[p.cross(&x.column(0)), p.cross(&x.column(1)), p.cross(&x.column(2))]);
+        let b_shifted = b - right(&a);
+        let c_shifted = c - right(&b.transpose()) + left(&b_shifted);
         let mut out = Inertia::zeros();
         out.fixed_view_mut::<3, 3>(0, 0).copy_from(&a);
         out.fixed_view_mut::<3, 3>(0, 3).copy_from(&b_shifted);

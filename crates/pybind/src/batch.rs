@@ -8,14 +8,14 @@ use std::borrow::Cow;
 
 use legkit_dynamics::Error;
 use numpy::ndarray::{ArrayViewD, IxDyn};
-use numpy::{AllowTypeChange, PyArrayDyn, PyArrayLikeDyn, PyUntypedArrayMethods};
+use numpy::{PyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rayon::prelude::*;
 
 use crate::convert::batch_error;
 
-pub type ArrayArg<'py> = PyArrayLikeDyn<'py, f64, AllowTypeChange>;
+pub type ArrayArg<'py> = crate::convert::Floats<'py, IxDyn>;
 
 /// The core shape of one argument (`&[]` for a scalar); the dimensions before it are its batch shape.
 pub type Core<'c> = &'c [usize];

@@ -3,12 +3,34 @@
 use legkit_dynamics::Error;
 use nalgebra::{Matrix3, Vector3};
 use numpy::ndarray::{Array, ArrayView2, Dimension, IntoDimension};
-use numpy::{AllowTypeChange, PyArray, PyArrayLike1, PyArrayLike2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
+use numpy::{AllowTypeChange, PyArray, PyArrayLike, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
-pub type Vector<'py> = PyArrayLike1<'py, f64, AllowTypeChange>;
-pub type Matrix<'py> = PyArrayLike2<'py, f64, AllowTypeChange>;
+/// A float64 array argument: anything NumPy converts. A failed conversion becomes a TypeError, which
+/// pyo3 prefixes with the argument's name.
+pub struct Floats<'py, D: Dimension>(PyArrayLike<'py, f64, D, AllowTypeChange>);
+
+impl<'a, 'py, D: Dimension + 'py> FromPyObject<'a, 'py> for Floats<'py, D> {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        <PyArrayLike<'py, f64, D, AllowTypeChange> as FromPyObject<'a, 'py>>::extract(obj)
+            .map(Floats)
+            .map_err(|e| PyTypeError::new_err(format!("expected an array of numbers ({e})")))
+    }
+}
+
+impl<'py, D: Dimension> std::ops::Deref for Floats<'py, D> {
+    type Target = PyArrayLike<'py, f64, D, AllowTypeChange>;
+
+    fn deref(&self) -> &Self::Target {
+        &self.0
+    }
+}
+
+pub type Vector<'py> = Floats<'py, numpy::Ix1>;
+pub type Matrix<'py> = Floats<'py, numpy::Ix2>;
 
 pub fn value_error(error: Error) -> PyErr {
     PyValueError::new_err(error.to_string())
@@ -43,16 +65,12 @@ fn matrix3_view(argument: &str, view: ArrayView2<'_, f64>) -> PyResult<Matrix3<f
 }
 
 /// Rows of an (n, 3) array as vectors.
-pub fn rows3(argument: &str, value: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Vector3<f64>>> {
+pub fn rows3(argument: &str, value: &Matrix<'_>) -> PyResult<Vec<Vector3<f64>>> {
     let view = value.as_array();
     if view.ncols() != 3 {
         return Err(shape_error(argument, "(n, 3)", view.shape()));
     }
     Ok(view.rows().into_iter().map(|r| Vector3::new(r[0], r[1], r[2])).collect())
-}
-
-pub fn scalars<'a>(value: &'a PyReadonlyArray1<'_, f64>) -> PyResult<&'a [f64]> {
-    value.as_slice().map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
 pub fn to_numpy<'py, D: Dimension, S: IntoDimension<Dim = D>, T: numpy::Element>(

@@ -2,13 +2,13 @@
 
 use legkit_dynamics::MassProperties;
 use nalgebra::{Matrix3, Matrix4, Vector3};
-use numpy::{PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{PyArray1, PyArray2};
 use pyo3::basic::CompareOp;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyInt;
 
-use crate::convert::{matrix3, matrix_to_numpy, rows3, scalars, value_error, vector3, vector_to_numpy, Matrix, Vector};
+use crate::convert::{matrix3, matrix_to_numpy, rows3, value_error, vector3, vector_to_numpy, Matrix, Vector};
 
 /// Mass, centre of mass and rotational inertia about the centre of mass, all in one frame.
 #[pyclass(name = "MassProperties", module = "legkit", frozen, from_py_object)]
@@ -43,9 +43,10 @@ impl PyMassProperties {
     }
 
     #[staticmethod]
-    fn from_points(masses: PyReadonlyArray1<'_, f64>, positions: PyReadonlyArray2<'_, f64>) -> PyResult<Self> {
+    fn from_points(masses: Vector<'_>, positions: Matrix<'_>) -> PyResult<Self> {
         let positions = rows3("positions", &positions)?;
-        MassProperties::from_points(scalars(&masses)?, &positions).map(Self).map_err(value_error)
+        let masses: Vec<f64> = masses.as_array().iter().copied().collect();
+        MassProperties::from_points(&masses, &positions).map(Self).map_err(value_error)
     }
 
     #[getter]

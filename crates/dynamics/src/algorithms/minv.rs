@@ -21,7 +21,17 @@ fn sets(data: &mut [Matrix6xX<f64>], parent: usize, i: usize, from: usize) -> (&
 
 #[inline]
 fn dot(a: &Vector6<f64>, b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+    let b: &[f64; 6] = b.try_into().expect("a 6-vector chunk");
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
+}
+
+/// `out = base + x m`, 6-vectors.
+#[inline]
+fn axpy(out: &mut [f64], base: &[f64], x: &Vector6<f64>, m: f64) {
+    let (out, base): (&mut [f64; 6], &[f64; 6]) = (out.try_into().expect("6"), base.try_into().expect("6"));
+    for r in 0..6 {
+        out[r] = base[r] + x[r] * m;
+    }
 }
 
 /// Fills `data.minv` (both triangles) with M(q)⁻¹ and returns it.
@@ -37,7 +47,7 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
             data.s[i] = data.o_m_i[i].act_motion(&s);
         }
         let k = model.idx_v(i);
-        data.force_sets[i].columns_mut(k, nv - k).fill(0.0);
+        data.force_sets[i].as_mut_slice()[6 * k..].fill(0.0);
     }
     // Backward pass: the rows' subtree parts D⁻¹(e_i − Sᵀ F_i), then F_i += U M⁻¹_i goes to the parent
     // together with the articulated inertia I^A − U D⁻¹ Uᵀ.
@@ -64,7 +74,8 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
                 for (c, (column, entry)) in f.chunks_exact_mut(6).zip(row.iter_mut()).enumerate() {
                     let m = if c == 0 { dinv } else { -dinv * dot(&s, column) };
                     *entry = m;
-                    column.iter_mut().zip(u.iter()).for_each(|(x, ui)| *x += ui * m);
+                    let before: [f64; 6] = (&*column).try_into().expect("6");
+                    axpy(column, &before, &u, m);
                 }
                 data.inertia[i] = ia - u * u.transpose() * dinv;
                 data.u[i] = u;
@@ -103,7 +114,7 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
                 for ((parent, own), entry) in pp.chunks_exact(6).zip(pi.chunks_exact_mut(6)).zip(row.iter_mut()) {
                     let m = *entry - dinv * dot(&u, parent);
                     *entry = m;
-                    own.iter_mut().zip(parent.iter().zip(s.iter())).for_each(|(x, (pj, si))| *x = pj + si * m);
+                    axpy(own, parent, &s, m);
                 }
             }
         }
