@@ -6,8 +6,12 @@ and once as a `pinocchio.Model`. The mapping is:
 * legkit floating base -> `JointModelFreeFlyer` as pin joint 1 carrying the base inertia; a fixed base
   -> pin's universe (joint 0), whose inertia pin ignores (legkit: "its mass is irrelevant").
 * every revolute / prismatic body -> one pin joint (RX/RY/RZ, PX/PY/PZ when the axis is exactly +x/+y/+z,
-  otherwise the *Unaligned joint with the normalised axis), added in legkit body order, so that q and v
-  are laid out identically in both libraries.
+  otherwise the *Unaligned joint with the normalised axis). Pinocchio's CRBA and Minverse assume that every
+  joint's subtree occupies a contiguous range of v (depth-first joint order), while legkit accepts any
+  parent-before-child numbering; so pin joints are added in depth-first pre-order of the legkit tree and
+  the twin records the permutation (`perm_q`, `perm_v`, and the converters q_pin / v_pin / v_lk / m_lk /
+  cols_lk). When the legkit bodies are themselves numbered depth-first (`depth_first=True`) the
+  permutation is the identity and the q/v vectors are literally identical.
 * every fixed body -> no pin joint: its inertia is appended (`appendBodyToJoint`) to the pin joint of its
   nearest movable ancestor, with the composed placement, and `body_joint[i]`, `body_in_joint[i]` record
   which pin joint carries legkit body i and where the body frame sits in that joint frame.
@@ -19,15 +23,17 @@ prints Python source that rebuilds the legkit model exactly, for reproducers.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from hypothesis import strategies as st
+from hypothesis import event, strategies as st
 
 import legkit as lk
 
 UNIT_AXES = np.eye(3)
+REVOLUTE = [pin.JointModelRX, pin.JointModelRY, pin.JointModelRZ]
+PRISMATIC = [pin.JointModelPX, pin.JointModelPY, pin.JointModelPZ]
 
 
 # --------------------------------------------------------------------------------------------------
@@ -98,7 +104,7 @@ def random_body(rng: np.random.Generator) -> tuple[float, np.ndarray, np.ndarray
 # --------------------------------------------------------------------------------------------------
 
 
-@dataclass
+@dataclass(repr=False)
 class Twin:
     model: lk.Model
     pin_model: pin.Model
@@ -111,7 +117,15 @@ class Twin:
     body_joint: list[int]  # pin joint carrying legkit body i
     body_in_joint: list[pin.SE3]  # placement of legkit body i's frame in that pin joint's frame
     gravity: np.ndarray
-    placement_as_tuple: list[bool] = field(default_factory=list)
+    placement_as_tuple: list[bool]
+    perm_q: np.ndarray  # pin q = legkit q[perm_q]
+    perm_v: np.ndarray  # pin v = legkit v[perm_v]
+    depth_first: bool
+    lk_iv: list[int]  # legkit velocity index of each movable body (0 for the base / fixed bodies)
+
+    def __repr__(self) -> str:  # short: the full model is in describe(), noted by the tests on failure
+        kinds = "".join({"base": "B", "revolute": "R", "prismatic": "P", "fixed": "F"}[k] for k in self.kinds)
+        return f"Twin(nbodies={self.nbodies}, floating={self.floating}, depth_first={self.depth_first}, kinds={kinds})"
 
     # ---- sizes -------------------------------------------------------------------------------------
     @property
@@ -147,6 +161,36 @@ class Twin:
         f[rng.random(self.nbodies) < 0.2] = 0.0
         return f
 
+    # ---- layout conversions (legkit body order <-> pin depth-first joint order) ----------------------
+    def q_pin(self, q) -> np.ndarray:
+        return np.ascontiguousarray(np.asarray(q, float)[..., self.perm_q])
+
+    def v_pin(self, v) -> np.ndarray:
+        return np.ascontiguousarray(np.asarray(v, float)[..., self.perm_v])
+
+    def v_lk(self, v_pin) -> np.ndarray:
+        """A pin joint-space vector (last axis) in legkit order."""
+        v_pin = np.asarray(v_pin, float)
+        out = np.empty_like(v_pin)
+        out[..., self.perm_v] = v_pin
+        return out
+
+    def m_lk(self, m_pin) -> np.ndarray:
+        """A pin nv x nv matrix in legkit order."""
+        m_pin = np.asarray(m_pin, float)
+        out = np.empty_like(m_pin)
+        out[np.ix_(self.perm_v, self.perm_v)] = m_pin
+        return out
+
+    def cols_lk(self, j_pin) -> np.ndarray:
+        """A pin (k, nv) matrix (e.g. a Jacobian) with its columns in legkit order."""
+        j_pin = np.asarray(j_pin, float)
+        if j_pin.ndim == 1:  # eigenpy hands back a (6, 1) matrix as a vector
+            j_pin = j_pin.reshape(-1, self.nv) if self.nv else np.zeros((j_pin.size, 0))
+        out = np.empty_like(j_pin)
+        out[:, self.perm_v] = j_pin
+        return out
+
     # ---- pin-side mappings ---------------------------------------------------------------------------
     def pin_fext(self, f_ext: np.ndarray) -> pin.StdVec_Force:
         """legkit per-body wrenches (body frames) -> pin per-joint wrenches (LOCAL joint frames), summed."""
@@ -162,7 +206,8 @@ class Twin:
 
     def pin_world_poses(self, data: pin.Data) -> np.ndarray:
         """World pose of every legkit body frame from pin's data.oMi (after forwardKinematics)."""
-        return np.array([(data.oMi[self.body_joint[i]] * self.body_in_joint[i]).homogeneous for i in range(self.nbodies)])
+        poses = [data.oMi[self.body_joint[i]] * self.body_in_joint[i] for i in range(self.nbodies)]
+        return np.array([p.homogeneous for p in poses])
 
     def add_pin_frame(self, body: int, point: np.ndarray | None) -> int:
         """Add a pin operational frame at `point` (body frame) on legkit body `body`; return its id."""
@@ -191,9 +236,8 @@ class Twin:
             if self.kinds[i] == "fixed":
                 lines.append(f"model.add_fixed({self.parents[i]}, {pl}, {mp(self.bodies[i])}, 'b{i}')")
             else:
-                lines.append(
-                    f"model.add_{self.kinds[i]}({self.parents[i]}, {arr(self.axes[i])}, {pl}, {mp(self.bodies[i])}, 'b{i}')"
-                )
+                axis, body = arr(self.axes[i]), mp(self.bodies[i])
+                lines.append(f"model.add_{self.kinds[i]}({self.parents[i]}, {axis}, {pl}, {body}, 'b{i}')")
         return "\n".join(lines)
 
 
@@ -205,19 +249,24 @@ def build_twin(
     anchored_mass: bool = True,
     gravity: np.ndarray | None = None,
     massive_fixed_base: bool | None = None,
+    depth_first: bool | None = None,
 ) -> Twin:
     """A random tree of `n_bodies` bodies (base included) and its pin twin.
 
     anchored_mass=False: with a fixed base, the base and every body welded to it through fixed joints
     are massless, so quantities like the centre of mass do not depend on whether those (immobile)
     bodies count; pin never counts them.
+    depth_first=True numbers the legkit bodies in depth-first pre-order (then the q/v layouts of legkit and
+    pin coincide); otherwise parents are any earlier body and pin (whose CRBA / Minverse need depth-first
+    joint order) gets its joints in depth-first order with the permutation recorded in the twin.
     """
     if n_bodies < 1:
         raise ValueError("n_bodies must be >= 1")
+    if depth_first is None:
+        depth_first = bool(rng.random() < 0.3)
     g = np.array([0.0, 0.0, -9.81]) if gravity is None else np.asarray(gravity, float)
-    pin_model = pin.Model()
-    pin_model.gravity = pin.Motion(g, np.zeros(3))
 
+    # ---- the random tree, in legkit body order ----------------------------------------------------
     if floating:
         base = random_body(rng)
     elif not anchored_mass:
@@ -226,77 +275,111 @@ def build_twin(
         if massive_fixed_base is None:
             massive_fixed_base = bool(rng.random() < 0.5)
         base = random_body(rng) if massive_fixed_base else None
-    base_mp = None if base is None else lk.MassProperties(*base)
-    model = lk.Model(floating_base=floating, base=base_mp, base_name="base", gravity=None if gravity is None else g)
-
-    parents, kinds, axes, placements, bodies = [-1], ["base"], [None], [np.eye(4)], [base]
-    body_joint: list[int] = []
-    body_in_joint: list[pin.SE3] = []
-    as_tuple = [False]
-    if floating:
-        j = pin_model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "base")
-        pin_model.appendBodyToJoint(j, pin.Inertia(base[0], base[1], base[2]), pin.SE3.Identity())
-        body_joint.append(j)
-    else:
-        body_joint.append(0)
-    body_in_joint.append(pin.SE3.Identity())
+    parents, kinds, axes, units = [-1], ["base"], [None], [None]
+    placements, bodies, as_tuple = [np.eye(4)], [base], [False]
     anchored = [not floating]  # welded to the (fixed) world
-
+    path = [0]  # the current root-to-last-body path (for depth-first numbering)
     for i in range(1, n_bodies):
-        # Parent: mostly a recent body (deep chains), sometimes any earlier body (branching).
-        if rng.random() < 0.6:
+        if depth_first:
+            # a body on the current root-to-leaf path (mostly near its end): keeps the numbering depth-first
+            lo = max(0, len(path) - 3) if rng.random() < 0.7 else 0
+            parent = path[int(rng.integers(lo, len(path)))]
+            path = path[: path.index(parent) + 1] + [i]
+        elif rng.random() < 0.6:  # mostly a recent body (deep chains), sometimes any earlier one (branching)
             parent = int(rng.integers(max(0, i - 3), i))
         else:
             parent = int(rng.integers(0, i))
         u = rng.random()
         kind = "revolute" if u < 0.7 else ("prismatic" if u < 0.9 else "fixed")
-        T = random_placement(rng)
-        X = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
         body = random_body(rng)
-        if kind == "fixed" and rng.random() < 0.3:
+        if kind == "fixed" and (rng.random() < 0.3 or (anchored[parent] and not anchored_mass)):
             body = None  # a massless marker frame
-        if kind == "fixed" and anchored[parent] and not anchored_mass:
-            body = None
-        use_tuple = bool(rng.random() < 0.5)
-        placement = (T[:3, :3].copy(), T[:3, 3].copy()) if use_tuple else T.copy()
-        body_mp = None if body is None else lk.MassProperties(*body)
-        name = f"b{i}"
-        pj, pX = body_joint[parent], body_in_joint[parent]
         if kind == "fixed":
-            idx = model.add_fixed(parent, placement, body_mp, name)
-            axis = None
-            in_joint = pX * X
-            if body is not None:
-                pin_model.appendBodyToJoint(pj, pin.Inertia(body[0], body[1], body[2]), in_joint)
-            body_joint.append(pj)
-            body_in_joint.append(in_joint)
-            anchored.append(anchored[parent])
+            axis = unit = None
         else:
             axis, unit = random_axis(rng)
-            aligned = [k for k in range(3) if np.array_equal(unit, UNIT_AXES[k])]
-            if kind == "revolute":
-                idx = model.add_revolute(parent, axis, placement, body_mp, name)
-                jm = [pin.JointModelRX, pin.JointModelRY, pin.JointModelRZ][aligned[0]]() if aligned else pin.JointModelRevoluteUnaligned(unit)
-            else:
-                idx = model.add_prismatic(parent, axis, placement, body_mp, name)
-                jm = [pin.JointModelPX, pin.JointModelPY, pin.JointModelPZ][aligned[0]]() if aligned else pin.JointModelPrismaticUnaligned(unit)
-            j = pin_model.addJoint(pj, jm, pX * X, name)
-            pin_model.appendBodyToJoint(j, pin.Inertia(body[0], body[1], body[2]), pin.SE3.Identity())
-            body_joint.append(j)
-            body_in_joint.append(pin.SE3.Identity())
-            anchored.append(False)
-        assert idx == i, (idx, i)
         parents.append(parent)
         kinds.append(kind)
         axes.append(axis)
-        placements.append(T)
+        units.append(unit)
+        placements.append(random_placement(rng))
         bodies.append(body)
-        as_tuple.append(use_tuple)
+        as_tuple.append(bool(rng.random() < 0.5))
+        anchored.append(kind == "fixed" and anchored[parent])
 
-    twin = Twin(model, pin_model, floating, parents, kinds, axes, placements, bodies, body_joint, body_in_joint, g, as_tuple)
-    # The q/v layouts coincide by construction (1-DoF joints and the free flyer, added in body order).
-    assert model.nq == pin_model.nq and model.nv == pin_model.nv, (model.nq, pin_model.nq, model.nv, pin_model.nv)
+    # ---- legkit, in body order -----------------------------------------------------------------------
+    def mp(b):
+        return None if b is None else lk.MassProperties(*b)
+
+    model = lk.Model(floating_base=floating, base=mp(base), base_name="base", gravity=None if gravity is None else g)
+    lk_iv = [0] * n_bodies  # legkit velocity index of each movable body (body order; free flyer first)
+    nv = 6 if floating else 0
+    for i in range(1, n_bodies):
+        T = placements[i]
+        placement = (T[:3, :3].copy(), T[:3, 3].copy()) if as_tuple[i] else T.copy()
+        if kinds[i] == "fixed":
+            idx = model.add_fixed(parents[i], placement, mp(bodies[i]), f"b{i}")
+        else:
+            add = model.add_revolute if kinds[i] == "revolute" else model.add_prismatic
+            idx = add(parents[i], axes[i], placement, mp(bodies[i]), f"b{i}")
+            lk_iv[i] = nv
+            nv += 1
+        assert idx == i, (idx, i)
+
+    # ---- pin, in depth-first pre-order ------------------------------------------------------------------
+    children: list[list[int]] = [[] for _ in range(n_bodies)]
+    for i in range(1, n_bodies):
+        children[parents[i]].append(i)
+    order, stack = [], [0]
+    while stack:
+        i = stack.pop()
+        order.append(i)
+        stack.extend(reversed(children[i]))
+
+    pin_model = pin.Model()
+    pin_model.gravity = pin.Motion(g, np.zeros(3))
+    body_joint = [0] * n_bodies
+    body_in_joint = [pin.SE3.Identity()] * n_bodies
+    perm_q = list(range(7)) if floating else []
+    perm_v = list(range(6)) if floating else []
+    offset_q = 1 if floating else 0  # legkit q index = legkit v index + 1 with a free flyer
+    for i in order:
+        if i == 0:
+            if floating:
+                j = pin_model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "base")
+                pin_model.appendBodyToJoint(j, pin.Inertia(base[0], base[1], base[2]), pin.SE3.Identity())
+                body_joint[0] = j
+            continue
+        T = placements[i]
+        X = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
+        pj, pX = body_joint[parents[i]], body_in_joint[parents[i]]
+        body = bodies[i]
+        if kinds[i] == "fixed":
+            body_joint[i] = pj
+            body_in_joint[i] = pX * X
+            if body is not None:
+                pin_model.appendBodyToJoint(pj, pin.Inertia(body[0], body[1], body[2]), pX * X)
+            continue
+        unit = units[i]
+        aligned = [k for k in range(3) if np.array_equal(unit, UNIT_AXES[k])]
+        if kinds[i] == "revolute":
+            jm = REVOLUTE[aligned[0]]() if aligned else pin.JointModelRevoluteUnaligned(unit)
+        else:
+            jm = PRISMATIC[aligned[0]]() if aligned else pin.JointModelPrismaticUnaligned(unit)
+        j = pin_model.addJoint(pj, jm, pX * X, f"b{i}")
+        pin_model.appendBodyToJoint(j, pin.Inertia(body[0], body[1], body[2]), pin.SE3.Identity())
+        body_joint[i] = j
+        perm_v.append(lk_iv[i])
+        perm_q.append(lk_iv[i] + offset_q)
+
+    twin = Twin(
+        model, pin_model, floating, parents, kinds, axes, placements, bodies, body_joint, body_in_joint, g, as_tuple,
+        np.array(perm_q, dtype=int), np.array(perm_v, dtype=int), depth_first, lk_iv,
+    )
+    assert model.nq == pin_model.nq and model.nv == pin_model.nv == nv, (model.nq, pin_model.nq, model.nv, pin_model.nv)
     assert model.nbodies == n_bodies
+    if depth_first:  # depth-first numbering: identical layouts
+        assert np.array_equal(twin.perm_v, np.arange(nv)), twin.perm_v
     return twin
 
 
@@ -311,9 +394,9 @@ def body_counts(max_bodies: int = 200):
     @st.composite
     def counts(draw):
         size_class = draw(st.integers(0, 19))
-        if size_class < 14 or max_bodies <= 8:
+        if size_class < 12 or max_bodies <= 8:
             return draw(st.integers(1, min(8, max_bodies)))
-        if size_class < 18 or max_bodies <= 40:
+        if size_class < 17 or max_bodies <= 40:
             return draw(st.integers(9, min(40, max_bodies)))
         return draw(st.integers(41, max_bodies))
 
@@ -331,6 +414,7 @@ def twins(draw, max_bodies: int = 200, floating: bool | None = None, **kwargs) -
     """A random twin: size from body_counts(max_bodies), fixed or floating base (drawn unless given)."""
     n = draw(body_counts(max_bodies), label="n_bodies")
     fl = draw(st.booleans(), label="floating") if floating is None else floating
+    event("bodies", "1-8" if n <= 8 else ("9-40" if n <= 40 else "41+"))
     return random_model(draw, n, fl, **kwargs)
 
 

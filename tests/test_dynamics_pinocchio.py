@@ -1,0 +1,645 @@
+"""Differential tests of legkit's rigid-body dynamics against Pinocchio.
+
+Every property builds a random kinematic tree twice (tests/robots.py: a legkit model and its exact
+Pinocchio twin) and compares legkit with Pinocchio at 1e-9 relative,
+    max|got - want| <= 1e-9 * max(1, max|want|).
+Pinocchio's joints are in depth-first order, legkit's in body order; the twin converts q, v and results.
+
+Also here: bit-for-bit agreement of batched calls (B=5, and B=300 for the multithreaded path) with
+per-row calls, NumPy-style broadcasting, the gravity option, two Pinocchio-free self-consistency checks
+(ABA == CRBA^-1 (tau - rnea(q, v, 0)) and minv @ crba == I), and bad-input handling.
+
+Quantities that count bodies welded to a fixed base (centre of mass, subtree mass properties, centroidal
+momentum, potential energy) are compared on models whose welded bodies are massless: Pinocchio never
+counts them and legkit's convention for them is not specified here.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from hypothesis import assume, given, note, settings
+from hypothesis import strategies as st
+
+import legkit as lk
+from robots import Twin, body_counts, build_twin, rngs, twins
+
+RTOL = 1e-9
+FRAMES = {
+    "local": pin.ReferenceFrame.LOCAL,
+    "world": pin.ReferenceFrame.WORLD,
+    "local_world_aligned": pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+}
+
+
+def fast(n: int):
+    return settings(max_examples=n, deadline=None)
+
+
+def assert_close(got, want, what: str = "") -> None:
+    got = np.asarray(got, dtype=np.float64)
+    want = np.asarray(want, dtype=np.float64)
+    assert got.shape == want.shape, f"{what}: shape {got.shape} != expected {want.shape}"
+    assert np.all(np.isfinite(got)), f"{what}: non-finite values in {got}"
+    scale = max(1.0, float(np.abs(want).max(initial=0.0)))
+    err = float(np.abs(got - want).max(initial=0.0))
+    assert err <= RTOL * scale, f"{what}: max error {err:.3e} > {RTOL:g} * {scale:.3e}\ngot\n{got}\nexpected\n{want}"
+
+
+def note_case(tw: Twin, **arrays) -> None:
+    note(tw.describe())
+    for k, a in arrays.items():
+        note(f"{k} = np.array({np.asarray(a).tolist()!r})")
+
+
+def pin_sym(m: np.ndarray) -> np.ndarray:
+    """Pinocchio fills (at least) the upper triangle of M and Minv."""
+    m = np.array(m, dtype=np.float64)
+    return np.triu(m) + np.triu(m, 1).T
+
+
+def state(tw: Twin, rng: np.random.Generator):
+    return tw.random_q(rng), tw.random_v(rng), tw.random_v(rng)
+
+
+# --------------------------------------------------------------------------------------------------
+# Model bookkeeping
+# --------------------------------------------------------------------------------------------------
+
+
+@fast(60)
+@given(twins())
+def test_model_layout(tw: Twin):
+    m = tw.model
+    nv_joints = sum(k in ("revolute", "prismatic") for k in tw.kinds)
+    assert m.nv == nv_joints + (6 if tw.floating else 0)
+    assert m.nq == nv_joints + (7 if tw.floating else 0)
+    assert m.nbodies == tw.nbodies
+    assert list(m.parents) == tw.parents
+    assert list(m.names) == ["base"] + [f"b{i}" for i in range(1, tw.nbodies)]
+    assert m.floating_base == tw.floating
+    off_q = 1 if tw.floating else 0
+    for i, kind in enumerate(tw.kinds):
+        if kind in ("revolute", "prismatic"):
+            assert m.idx_v[i] == tw.lk_iv[i], (i, m.idx_v)
+            assert m.idx_q[i] == tw.lk_iv[i] + off_q, (i, m.idx_q)
+    neutral = np.asarray(m.neutral())
+    expected = np.zeros(m.nq)
+    if tw.floating:
+        expected[6] = 1.0  # identity quaternion [0, 0, 0, 1]
+    assert np.array_equal(neutral, expected)
+    assert np.array_equal(tw.q_pin(neutral), pin.neutral(tw.pin_model))
+
+
+# --------------------------------------------------------------------------------------------------
+# Kinematics and dynamics against Pinocchio
+# --------------------------------------------------------------------------------------------------
+
+
+@fast(60)
+@given(twins(), rngs())
+def test_forward_kinematics(tw: Twin, rng):
+    q = tw.random_q(rng)
+    note_case(tw, q=q)
+    data = tw.data()
+    pin.forwardKinematics(tw.pin_model, data, tw.q_pin(q))
+    assert_close(lk.forward_kinematics(tw.model, q), tw.pin_world_poses(data), "forward_kinematics")
+
+
+@fast(60)
+@given(twins(), rngs())
+def test_rnea(tw: Twin, rng):
+    q, v, a = state(tw, rng)
+    note_case(tw, q=q, v=v, a=a)
+    want = pin.rnea(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v), tw.v_pin(a))
+    assert_close(lk.rnea(tw.model, q, v, a), tw.v_lk(want), "rnea")
+
+
+@fast(60)
+@given(twins(), rngs())
+def test_rnea_f_ext(tw: Twin, rng):
+    q, v, a = state(tw, rng)
+    f = tw.random_f_ext(rng)
+    note_case(tw, q=q, v=v, a=a, f_ext=f)
+    want = pin.rnea(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v), tw.v_pin(a), tw.pin_fext(f))
+    assert_close(lk.rnea(tw.model, q, v, a, f), tw.v_lk(want), "rnea with f_ext")
+    # Zero external forces are the same as none.
+    assert_close(lk.rnea(tw.model, q, v, a, np.zeros((tw.nbodies, 6))), lk.rnea(tw.model, q, v, a), "rnea f_ext=0")
+
+
+@fast(60)
+@given(twins(), rngs())
+def test_aba(tw: Twin, rng):
+    q, v, _ = state(tw, rng)
+    tau = rng.uniform(-20.0, 20.0, size=tw.nv)
+    note_case(tw, q=q, v=v, tau=tau)
+    want = pin.aba(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v), tw.v_pin(tau))
+    assert_close(lk.aba(tw.model, q, v, tau), tw.v_lk(want), "aba")
+
+
+@fast(60)
+@given(twins(), rngs())
+def test_aba_f_ext(tw: Twin, rng):
+    q, v, _ = state(tw, rng)
+    tau = rng.uniform(-20.0, 20.0, size=tw.nv)
+    f = tw.random_f_ext(rng)
+    note_case(tw, q=q, v=v, tau=tau, f_ext=f)
+    want = pin.aba(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v), tw.v_pin(tau), tw.pin_fext(f))
+    assert_close(lk.aba(tw.model, q, v, tau, f), tw.v_lk(want), "aba with f_ext")
+
+
+@fast(60)
+@given(twins(), rngs())
+def test_crba(tw: Twin, rng):
+    q = tw.random_q(rng)
+    note_case(tw, q=q)
+    want = tw.m_lk(pin_sym(pin.crba(tw.pin_model, tw.data(), tw.q_pin(q))))
+    got = lk.crba(tw.model, q)
+    assert_close(got, want, "crba")
+    assert np.array_equal(got, np.asarray(got).T), "crba must be exactly symmetric"
+
+
+@fast(60)
+@given(twins(), rngs())
+def test_minv(tw: Twin, rng):
+    q = tw.random_q(rng)
+    note_case(tw, q=q)
+    want = tw.m_lk(pin_sym(pin.computeMinverse(tw.pin_model, tw.data(), tw.q_pin(q))))
+    got = lk.minv(tw.model, q)
+    assert_close(got, want, "minv")
+    assert np.array_equal(got, np.asarray(got).T), "minv must be exactly symmetric"
+
+
+@fast(60)
+@given(body_counts(40), st.booleans(), st.integers(0, 2**32 - 1), rngs())
+def test_gravity_option(n, floating, seed, rng):
+    """Model(gravity=g) agrees with pin's model.gravity = (g, 0): rnea, generalized gravity and aba."""
+    g = rng.uniform(-20.0, 20.0, size=3) * (0.0 if rng.random() < 0.1 else 1.0)
+    tw = build_twin(np.random.default_rng(seed), n, floating, gravity=g)
+    assert np.array_equal(np.asarray(tw.model.gravity), g)
+    q, v, a = state(tw, rng)
+    tau = rng.uniform(-20.0, 20.0, size=tw.nv)
+    note_case(tw, q=q, v=v, a=a, tau=tau)
+    pm, qp = tw.pin_model, tw.q_pin(q)
+    zero = np.zeros(tw.nv)
+    assert_close(lk.rnea(tw.model, q, v, a), tw.v_lk(pin.rnea(pm, tw.data(), qp, tw.v_pin(v), tw.v_pin(a))), "rnea")
+    assert_close(
+        lk.rnea(tw.model, q, zero, zero), tw.v_lk(pin.computeGeneralizedGravity(pm, tw.data(), qp)), "gravity torque"
+    )
+    assert_close(lk.aba(tw.model, q, v, tau), tw.v_lk(pin.aba(pm, tw.data(), qp, tw.v_pin(v), tw.v_pin(tau))), "aba")
+
+
+def test_default_gravity():
+    assert np.array_equal(np.asarray(lk.Model().gravity), np.array([0.0, 0.0, -9.81]))
+    assert np.array_equal(np.asarray(lk.Model(floating_base=True, gravity=None).gravity), np.array([0.0, 0.0, -9.81]))
+
+
+# --------------------------------------------------------------------------------------------------
+# Pinocchio-free self-consistency
+# --------------------------------------------------------------------------------------------------
+
+
+@fast(60)
+@given(twins(), rngs())
+def test_aba_equals_crba_solve(tw: Twin, rng):
+    q, v, _ = state(tw, rng)
+    tau = rng.uniform(-20.0, 20.0, size=tw.nv)
+    note_case(tw, q=q, v=v, tau=tau)
+    bias = lk.rnea(tw.model, q, v, np.zeros(tw.nv))
+    want = np.linalg.solve(lk.crba(tw.model, q), tau - bias) if tw.nv else np.zeros(0)
+    assert_close(lk.aba(tw.model, q, v, tau), want, "aba vs solve(crba, tau - rnea(q, v, 0))")
+
+
+@fast(60)
+@given(twins(), rngs())
+def test_minv_inverts_crba(tw: Twin, rng):
+    q = tw.random_q(rng)
+    note_case(tw, q=q)
+    assert_close(np.asarray(lk.minv(tw.model, q)) @ np.asarray(lk.crba(tw.model, q)), np.eye(tw.nv), "minv @ crba")
+
+
+# --------------------------------------------------------------------------------------------------
+# Centre of mass, subtree mass properties, momentum, Jacobians, energies
+# --------------------------------------------------------------------------------------------------
+
+
+def com_twins(max_bodies: int = 200):
+    """Twins whose bodies welded to a fixed base are massless (see the module docstring)."""
+    return twins(max_bodies=max_bodies, anchored_mass=False)
+
+
+def total_mass(tw: Twin) -> float:
+    return sum(b[0] for b in tw.bodies if b is not None)
+
+
+@fast(60)
+@given(com_twins(), rngs())
+def test_center_of_mass(tw: Twin, rng):
+    assume(total_mass(tw) > 0)
+    q = tw.random_q(rng)
+    note_case(tw, q=q)
+    want = pin.centerOfMass(tw.pin_model, tw.data(), tw.q_pin(q))
+    assert_close(lk.center_of_mass(tw.model, q), want, "center_of_mass")
+
+
+def brute_force_subtrees(tw: Twin, q: np.ndarray):
+    """Subtree (mass, world com, world inertia about the subtree com) of every body, from pin's joint poses."""
+    data = tw.data()
+    pin.forwardKinematics(tw.pin_model, data, tw.q_pin(q))
+    poses = tw.pin_world_poses(data)
+    n = tw.nbodies
+    masses, coms, inertias = np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3, 3))
+    for i, b in enumerate(tw.bodies):
+        if b is None:
+            continue
+        R, t = poses[i][:3, :3], poses[i][:3, 3]
+        masses[i], coms[i], inertias[i] = b[0], R @ b[1] + t, R @ b[2] @ R.T
+    members = [[i] for i in range(n)]
+    for i in range(n):
+        p = tw.parents[i]
+        while p >= 0:
+            members[p].append(i)
+            p = tw.parents[p]
+    m_out, c_out, i_out = np.zeros(n), np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)
+    for k in range(n):
+        idx = members[k]
+        mk = masses[idx].sum()
+        m_out[k] = mk
+        if mk == 0:
+            continue
+        ck = (masses[idx, None] * coms[idx]).sum(axis=0) / mk
+        inertia = np.zeros((3, 3))
+        for i in idx:
+            d = coms[i] - ck
+            inertia += inertias[i] + masses[i] * (d @ d * np.eye(3) - np.outer(d, d))
+        c_out[k], i_out[k] = ck, inertia
+    return m_out, c_out, i_out, data
+
+
+@fast(60)
+@given(com_twins(), rngs())
+def test_subtree_mass_properties(tw: Twin, rng):
+    q = tw.random_q(rng)
+    note_case(tw, q=q)
+    mass, com, inertia = lk.subtree_mass_properties(tw.model, q)
+    mass, com, inertia = np.asarray(mass), np.asarray(com), np.asarray(inertia)
+    want_m, want_c, want_i, _ = brute_force_subtrees(tw, q)
+    assert mass.shape == (tw.nbodies,) and com.shape == (tw.nbodies, 3) and inertia.shape == (tw.nbodies, 3, 3)
+    assert_close(mass, want_m, "subtree mass")
+    has_mass = want_m > 0  # the com of a massless subtree is undefined
+    assert_close(com[has_mass], want_c[has_mass], "subtree com")
+    assert_close(inertia[has_mass], want_i[has_mass], "subtree inertia about its com")
+
+    # Pinocchio's own subtree masses / coms for the bodies that own a pin joint. (In pin 4.1, data.com[j] of
+    # a subtree is expressed in joint j's LOCAL frame: map it to the world with data.oMi[j].)
+    data = tw.data()
+    pin.centerOfMass(tw.pin_model, data, tw.q_pin(q), True)
+    for i in range(tw.nbodies):
+        if tw.kinds[i] == "fixed" or not has_mass[i]:
+            continue
+        j = tw.body_joint[i]
+        assert_close(mass[i], data.mass[j], f"subtree mass of body {i} (pin joint {j})")
+        assert_close(com[i], data.oMi[j].act(data.com[j]), f"subtree com of body {i} (pin joint {j})")
+
+
+@fast(60)
+@given(com_twins(), rngs())
+def test_centroidal_momentum(tw: Twin, rng):
+    assume(total_mass(tw) > 0)
+    q, v, _ = state(tw, rng)
+    note_case(tw, q=q, v=v)
+    hg = pin.computeCentroidalMomentum(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v))
+    assert_close(lk.centroidal_momentum(tw.model, q, v), np.concatenate([hg.linear, hg.angular]), "centroidal_momentum")
+
+
+@fast(60)
+@given(com_twins(), rngs())
+def test_centroidal_momentum_rate(tw: Twin, rng):
+    assume(total_mass(tw) > 0)
+    q, v, a = state(tw, rng)
+    note_case(tw, q=q, v=v, a=a)
+    dhg = pin.computeCentroidalMomentumTimeVariation(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v), tw.v_pin(a))
+    want = np.concatenate([dhg.linear, dhg.angular])
+    assert_close(lk.centroidal_momentum_rate(tw.model, q, v, a), want, "centroidal_momentum_rate")
+
+
+@fast(60)
+@given(twins(), rngs())
+def test_jacobian(tw: Twin, rng):
+    q = tw.random_q(rng)
+    body = int(rng.integers(tw.nbodies))
+    point = None if rng.random() < 0.3 else rng.uniform(-0.5, 0.5, size=3)
+    note_case(tw, q=q)
+    note(f"body={body}, point={None if point is None else point.tolist()!r}")
+    fid = tw.add_pin_frame(body, point)
+    data = tw.data()
+    qp = tw.q_pin(q)
+    kwargs = {} if point is None else {"point": point}
+    for name, rf in FRAMES.items():
+        want = tw.cols_lk(pin.computeFrameJacobian(tw.pin_model, data, qp, fid, rf))
+        assert_close(lk.jacobian(tw.model, q, body, frame=name, **kwargs), want, f"jacobian frame={name}")
+    default = lk.jacobian(tw.model, q, body, **kwargs)
+    assert np.array_equal(default, lk.jacobian(tw.model, q, body, frame="local_world_aligned", **kwargs))
+    # A body may also be named.
+    assert np.array_equal(default, lk.jacobian(tw.model, q, tw.model.names[body], **kwargs))
+
+
+@fast(60)
+@given(twins(), rngs())
+def test_kinetic_energy(tw: Twin, rng):
+    q, v, _ = state(tw, rng)
+    note_case(tw, q=q, v=v)
+    want = pin.computeKineticEnergy(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v))
+    got = lk.kinetic_energy(tw.model, q, v)
+    assert np.ndim(got) == 0
+    assert_close(got, want, "kinetic_energy")
+    # Independent of pin: 1/2 v^T M v.
+    assert_close(got, 0.5 * v @ np.asarray(lk.crba(tw.model, q)) @ v, "kinetic_energy vs 1/2 v'Mv")
+
+
+@fast(60)
+@given(body_counts(), st.booleans(), st.integers(0, 2**32 - 1), rngs())
+def test_potential_energy(n, floating, seed, rng):
+    g = None if rng.random() < 0.5 else rng.uniform(-20.0, 20.0, size=3)
+    tw = build_twin(np.random.default_rng(seed), n, floating, anchored_mass=False, gravity=g)
+    q = tw.random_q(rng)
+    note_case(tw, q=q)
+    want = pin.computePotentialEnergy(tw.pin_model, tw.data(), tw.q_pin(q))
+    got = lk.potential_energy(tw.model, q)
+    assert np.ndim(got) == 0
+    assert_close(got, want, "potential_energy")
+
+
+# --------------------------------------------------------------------------------------------------
+# Batches: bit-for-bit equal to per-row calls
+# --------------------------------------------------------------------------------------------------
+
+
+def _call(name: str, tw: Twin, args: dict):
+    m = tw.model
+    if name == "forward_kinematics":
+        return lk.forward_kinematics(m, args["q"])
+    if name == "rnea":
+        return lk.rnea(m, args["q"], args["v"], args["a"])
+    if name == "rnea_f_ext":
+        return lk.rnea(m, args["q"], args["v"], args["a"], args["f"])
+    if name == "aba":
+        return lk.aba(m, args["q"], args["v"], args["tau"])
+    if name == "aba_f_ext":
+        return lk.aba(m, args["q"], args["v"], args["tau"], args["f"])
+    if name == "crba":
+        return lk.crba(m, args["q"])
+    if name == "minv":
+        return lk.minv(m, args["q"])
+    if name == "center_of_mass":
+        return lk.center_of_mass(m, args["q"])
+    if name == "subtree_mass_properties":
+        return lk.subtree_mass_properties(m, args["q"])
+    if name == "centroidal_momentum":
+        return lk.centroidal_momentum(m, args["q"], args["v"])
+    if name == "centroidal_momentum_rate":
+        return lk.centroidal_momentum_rate(m, args["q"], args["v"], args["a"])
+    if name == "jacobian":
+        return lk.jacobian(m, args["q"], args["body"], point=args["point"], frame=args["frame"])
+    if name == "kinetic_energy":
+        return lk.kinetic_energy(m, args["q"], args["v"])
+    if name == "potential_energy":
+        return lk.potential_energy(m, args["q"])
+    raise AssertionError(name)
+
+
+BATCHED = [
+    "forward_kinematics", "rnea", "rnea_f_ext", "aba", "aba_f_ext", "crba", "minv", "center_of_mass",
+    "subtree_mass_properties", "centroidal_momentum", "centroidal_momentum_rate", "jacobian", "kinetic_energy",
+    "potential_energy",
+]  # fmt: skip
+
+
+def _as_tuple(x):
+    return tuple(np.asarray(y) for y in x) if isinstance(x, tuple) else (np.asarray(x),)
+
+
+def _batch_args(tw: Twin, rng, shape: tuple[int, ...]):
+    n = int(np.prod(shape))
+    q = np.array([tw.random_q(rng) for _ in range(n)]).reshape(*shape, tw.nq)
+    return {
+        "q": q,
+        "v": rng.uniform(-3, 3, size=(*shape, tw.nv)),
+        "a": rng.uniform(-3, 3, size=(*shape, tw.nv)),
+        "tau": rng.uniform(-20, 20, size=(*shape, tw.nv)),
+        "f": rng.uniform(-20, 20, size=(*shape, tw.nbodies, 6)),
+        "body": int(rng.integers(tw.nbodies)),
+        "point": rng.uniform(-0.5, 0.5, size=3),
+        "frame": ["local", "world", "local_world_aligned"][int(rng.integers(3))],
+    }
+
+
+def _row(args: dict, idx: tuple[int, ...]):
+    return {k: (v[idx] if k in ("q", "v", "a", "tau", "f") else v) for k, v in args.items()}
+
+
+@pytest.mark.parametrize("batch", [5, 300])
+@pytest.mark.parametrize("name", BATCHED)
+def test_batch_equals_rows(name, batch):
+    @settings(max_examples=4 if batch == 5 else 2, deadline=None)
+    @given(com_twins(max_bodies=40), rngs())
+    def check(tw: Twin, rng):
+        if name in ("center_of_mass", "centroidal_momentum", "centroidal_momentum_rate"):
+            assume(total_mass(tw) > 0)
+        args = _batch_args(tw, rng, (batch,))
+        got = _as_tuple(_call(name, tw, args))
+        rows = [_as_tuple(_call(name, tw, _row(args, (b,)))) for b in range(batch)]
+        for k, out in enumerate(got):
+            want = np.stack([r[k] for r in rows])
+            assert out.shape == want.shape, (name, k, out.shape, want.shape)
+            assert np.array_equal(out, want, equal_nan=True), f"{name}[{k}]: batch differs from per-row calls"
+
+    check()
+
+
+@fast(10)
+@given(twins(max_bodies=20), rngs())
+def test_broadcasting(tw: Twin, rng):
+    """Leading dimensions broadcast as in NumPy; unbatched arguments are shared by every row."""
+    args = _batch_args(tw, rng, (2, 3))
+    v1, a1 = args["v"][1, 2], args["a"][0, 0]
+    got = np.asarray(lk.rnea(tw.model, args["q"], v1, a1[None, None, :]))
+    assert got.shape == (2, 3, tw.nv)
+    for i in range(2):
+        for j in range(3):
+            assert np.array_equal(got[i, j], lk.rnea(tw.model, args["q"][i, j], v1, a1))
+    # (2, 1) against (3,) broadcasts to (2, 3).
+    q21 = args["q"][:, :1]
+    got = np.asarray(lk.aba(tw.model, q21, args["v"][0], args["tau"][1]))
+    assert got.shape == (2, 3, tw.nv)
+    for i in range(2):
+        for j in range(3):
+            assert np.array_equal(got[i, j], lk.aba(tw.model, args["q"][i, 0], args["v"][0, j], args["tau"][1, j]))
+    # f_ext batched alone.
+    got = np.asarray(lk.rnea(tw.model, args["q"][0, 0], args["v"][0, 0], args["a"][0, 0], args["f"]))
+    assert got.shape == (2, 3, tw.nv)
+    q0, v0, a0 = args["q"][0, 0], args["v"][0, 0], args["a"][0, 0]
+    assert np.array_equal(got[1, 2], lk.rnea(tw.model, q0, v0, a0, args["f"][1, 2]))
+    # Batched crba / fk shapes.
+    assert np.asarray(lk.crba(tw.model, args["q"])).shape == (2, 3, tw.nv, tw.nv)
+    assert np.asarray(lk.forward_kinematics(tw.model, args["q"])).shape == (2, 3, tw.nbodies, 4, 4)
+
+
+# --------------------------------------------------------------------------------------------------
+# Bad input
+# --------------------------------------------------------------------------------------------------
+
+
+def _small_model(floating: bool = True):
+    rng = np.random.default_rng(7)
+    for seed in range(1000):
+        tw = build_twin(np.random.default_rng(seed), 5, floating, anchored_mass=False)
+        if tw.nv >= (8 if floating else 2):
+            return tw, tw.random_q(rng), tw.random_v(rng), tw.random_v(rng)
+    raise AssertionError("no suitable model")
+
+
+def _mentions(message: str, names: tuple[str, ...]) -> bool:
+    return any(re.search(rf"(?<![A-Za-z0-9_]){re.escape(n)}(?![A-Za-z0-9_])", message) for n in names)
+
+
+def _bad_q(q):
+    bad = q.copy()
+    bad[3:7] = [0.0, 0.0, 0.0, 2.0]
+    return bad
+
+
+def _with_nan(x, i=0):
+    bad = x.copy()
+    bad[i] = np.nan
+    return bad
+
+
+_REFLECTION = np.diag([1.0, 1.0, -1.0])
+_SHEAR = np.array([[1.0, 0.2, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+_MP = lk.MassProperties(1.0, np.zeros(3), np.eye(3) * 0.01)
+_Z = [0.0, 0.0, 1.0]
+
+
+def _zero_quat(q):
+    bad = q.copy()
+    bad[3:7] = 0.0
+    return bad
+
+
+def _tile(x, n):
+    return np.broadcast_to(x, (n, *np.shape(x))).copy()
+
+# (case id, callable(model, q, v, a) -> anything, accepted argument names)
+BAD_CALLS = [
+    ("fk q short", lambda m, q, v, a: lk.forward_kinematics(m, q[:-1]), ("q",)),
+    ("rnea q short", lambda m, q, v, a: lk.rnea(m, q[:-1], v, a), ("q",)),
+    ("rnea q long", lambda m, q, v, a: lk.rnea(m, np.append(q, 0.0), v, a), ("q",)),
+    ("crba q short", lambda m, q, v, a: lk.crba(m, q[:-1]), ("q",)),
+    ("minv q short", lambda m, q, v, a: lk.minv(m, q[:-1]), ("q",)),
+    ("aba q short", lambda m, q, v, a: lk.aba(m, q[:-1], v, a), ("q",)),
+    ("rnea v nan", lambda m, q, v, a: lk.rnea(m, q, _with_nan(v, 2), a), ("v",)),
+    ("aba v nan", lambda m, q, v, a: lk.aba(m, q, _with_nan(v, 7), a), ("v",)),
+    ("rnea a nan", lambda m, q, v, a: lk.rnea(m, q, v, _with_nan(a)), ("a",)),
+    ("rnea q nan", lambda m, q, v, a: lk.rnea(m, _with_nan(q, 8), v, a), ("q",)),
+    ("aba tau nan", lambda m, q, v, a: lk.aba(m, q, v, _with_nan(a, 1)), ("tau",)),
+    ("rnea quat", lambda m, q, v, a: lk.rnea(m, _bad_q(q), v, a), ("q",)),
+    ("aba quat", lambda m, q, v, a: lk.aba(m, _bad_q(q), v, a), ("q",)),
+    ("crba quat", lambda m, q, v, a: lk.crba(m, _bad_q(q)), ("q",)),
+    ("minv quat", lambda m, q, v, a: lk.minv(m, _bad_q(q)), ("q",)),
+    ("fk quat", lambda m, q, v, a: lk.forward_kinematics(m, _bad_q(q)), ("q",)),
+    ("fk quat zero", lambda m, q, v, a: lk.forward_kinematics(m, _zero_quat(q)), ("q",)),
+    ("aba tau short", lambda m, q, v, a: lk.aba(m, q, v, a[:-1]), ("tau",)),
+    ("aba tau 2d wrong", lambda m, q, v, a: lk.aba(m, q, v, np.zeros((2, len(a) + 1))), ("tau",)),
+    ("rnea v short", lambda m, q, v, a: lk.rnea(m, q, v[:-1], a), ("v",)),
+    ("rnea a short", lambda m, q, v, a: lk.rnea(m, q, v, a[:-1]), ("a",)),
+    ("rnea f_ext rows", lambda m, q, v, a: lk.rnea(m, q, v, a, np.zeros((m.nbodies - 1, 6))), ("f_ext",)),
+    ("rnea f_ext cols", lambda m, q, v, a: lk.rnea(m, q, v, a, np.zeros((m.nbodies, 3))), ("f_ext",)),
+    ("rnea f_ext flat", lambda m, q, v, a: lk.rnea(m, q, v, a, np.zeros(6)), ("f_ext",)),
+    ("aba f_ext rows", lambda m, q, v, a: lk.aba(m, q, v, a, np.zeros((m.nbodies + 1, 6))), ("f_ext",)),
+    ("rnea f_ext nan", lambda m, q, v, a: lk.rnea(m, q, v, a, np.full((m.nbodies, 6), np.nan)), ("f_ext",)),
+    ("rnea batch mismatch", lambda m, q, v, a: lk.rnea(m, np.tile(q, (3, 1)), np.tile(v, (4, 1)), a), ("q", "v")),
+    ("aba batch mismatch", lambda m, q, v, a: lk.aba(m, np.tile(q, (3, 1)), np.tile(v, (4, 1)), a), ("q", "v")),
+    (
+        "rnea f_ext batch mismatch",
+        lambda m, q, v, a: lk.rnea(m, _tile(q, 3), v, a, _tile(np.zeros((m.nbodies, 6)), 4)),
+        ("q", "f_ext"),
+    ),
+    ("rnea q string", lambda m, q, v, a: lk.rnea(m, "abc", v, a), ("q",)),
+    ("jacobian body range", lambda m, q, v, a: lk.jacobian(m, q, m.nbodies), ("body",)),
+    ("jacobian body name", lambda m, q, v, a: lk.jacobian(m, q, "no_such_body"), ("body",)),
+    ("jacobian frame", lambda m, q, v, a: lk.jacobian(m, q, 1, frame="global"), ("frame",)),
+    ("jacobian point", lambda m, q, v, a: lk.jacobian(m, q, 1, point=np.zeros(2)), ("point",)),
+    ("jacobian q quat", lambda m, q, v, a: lk.jacobian(m, _bad_q(q), 1), ("q",)),
+    ("center_of_mass q short", lambda m, q, v, a: lk.center_of_mass(m, q[:-1]), ("q",)),
+    ("subtree q quat", lambda m, q, v, a: lk.subtree_mass_properties(m, _bad_q(q)), ("q",)),
+    ("momentum v nan", lambda m, q, v, a: lk.centroidal_momentum(m, q, _with_nan(v)), ("v",)),
+    ("momentum rate a short", lambda m, q, v, a: lk.centroidal_momentum_rate(m, q, v, a[:-1]), ("a",)),
+    ("kinetic v nan", lambda m, q, v, a: lk.kinetic_energy(m, q, _with_nan(v)), ("v",)),
+    ("potential q short", lambda m, q, v, a: lk.potential_energy(m, q[:-1]), ("q",)),
+]
+
+
+@pytest.mark.parametrize("case, call, names", BAD_CALLS, ids=[c[0] for c in BAD_CALLS])
+def test_bad_call_raises(case, call, names):
+    tw, q, v, a = _small_model()
+    with pytest.raises((ValueError, TypeError, IndexError)) as info:
+        call(tw.model, q, v, a)
+    assert _mentions(str(info.value), names), f"{case}: message {str(info.value)!r} does not name {names}"
+    # The model and the interpreter are fine afterwards.
+    want = pin.rnea(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v), tw.v_pin(a))
+    assert_close(lk.rnea(tw.model, q, v, a), tw.v_lk(want), "rnea after a bad call")
+
+
+# (case id, callable(model) -> anything, accepted argument names)
+BAD_BUILDS = [
+    ("revolute zero axis", lambda m: m.add_revolute(0, np.zeros(3), np.eye(4), _MP, "x"), ("axis",)),
+    ("prismatic zero axis", lambda m: m.add_prismatic(0, [0.0, 0.0, 0.0], np.eye(4), _MP, "x"), ("axis",)),
+    ("revolute nan axis", lambda m: m.add_revolute(0, [np.nan, 0.0, 1.0], np.eye(4), _MP, "x"), ("axis",)),
+    ("revolute axis shape", lambda m: m.add_revolute(0, [0.0, 1.0], np.eye(4), _MP, "x"), ("axis",)),
+    ("revolute unknown parent", lambda m: m.add_revolute(99, [0.0, 0.0, 1.0], np.eye(4), _MP, "x"), ("parent", "body")),
+    ("fixed unknown parent", lambda m: m.add_fixed(m.nbodies, np.eye(4), _MP, "x"), ("parent", "body")),
+    ("prismatic negative parent", lambda m: m.add_prismatic(-1, _Z, np.eye(4), _MP, "x"), ("parent", "body")),
+    ("revolute unknown parent name", lambda m: m.add_revolute("nope", _Z, np.eye(4), _MP, "x"), ("parent", "body")),
+    ("placement reflection 4x4", lambda m: m.add_revolute(0, _Z, _homog(_REFLECTION), _MP, "x"), ("placement",)),
+    ("placement reflection tuple", lambda m: m.add_fixed(0, (_REFLECTION, np.zeros(3)), _MP, "x"), ("placement",)),
+    ("placement shear", lambda m: m.add_prismatic(0, [1.0, 0.0, 0.0], (_SHEAR, np.zeros(3)), _MP, "x"), ("placement",)),
+    ("placement scaled", lambda m: m.add_revolute(0, _Z, (2.0 * np.eye(3), np.zeros(3)), _MP, "x"), ("placement",)),
+    ("placement bottom row", lambda m: m.add_revolute(0, [1.0, 0.0, 0.0], _bad_bottom(), _MP, "x"), ("placement",)),
+    ("placement shape", lambda m: m.add_revolute(0, [1.0, 0.0, 0.0], np.eye(3), _MP, "x"), ("placement",)),
+    ("placement nan", lambda m: m.add_fixed(0, (np.eye(3), [0.0, np.nan, 0.0]), _MP, "x"), ("placement",)),
+    ("duplicate name", lambda m: m.add_revolute(0, [0.0, 0.0, 1.0], np.eye(4), _MP, "b1"), ("name",)),
+    ("duplicate base name", lambda m: m.add_fixed(0, np.eye(4), _MP, "base"), ("name",)),
+]
+
+
+def _homog(R, t=(0.0, 0.0, 0.0)):
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, t
+    return T
+
+
+def _bad_bottom():
+    T = np.eye(4)
+    T[3, 0] = 0.5
+    return T
+
+
+@pytest.mark.parametrize("case, build, names", BAD_BUILDS, ids=[c[0] for c in BAD_BUILDS])
+def test_bad_model_building_raises(case, build, names):
+    tw, q, v, a = _small_model()
+    m = tw.model
+    nb, nq, nv, names_before = m.nbodies, m.nq, m.nv, list(m.names)
+    with pytest.raises((ValueError, TypeError, IndexError)) as info:
+        build(m)
+    assert _mentions(str(info.value), names), f"{case}: message {str(info.value)!r} does not name {names}"
+    # A rejected add leaves the model untouched and usable.
+    assert (m.nbodies, m.nq, m.nv, list(m.names)) == (nb, nq, nv, names_before)
+    want = pin.rnea(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v), tw.v_pin(a))
+    assert_close(lk.rnea(m, q, v, a), tw.v_lk(want), "rnea after a rejected add")
+    # And a valid add still works.
+    i = m.add_revolute(1, [0.0, 1.0, 0.0], np.eye(4), _MP, "fresh")
+    assert i == nb and m.nbodies == nb + 1 and m.nv == nv + 1
