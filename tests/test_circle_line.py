@@ -26,13 +26,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, given
 from hypothesis import strategies as st
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import reference as ref  # noqa: E402
-from conftest import directions, reals, rotations, vectors  # noqa: E402
+from conftest import directions, examples, reals, rotations, vectors  # noqa: E402
 
 import legkit as lk  # noqa: E402
 
@@ -227,16 +227,22 @@ def check_single_result_geometry(res, center, normal, radius, line_point, line_d
     assert res.distance >= 0.0
     n = ref.unit(normal)
     d = ref.unit(line_direction)
+    query = "query: " + ", ".join(
+        f"{k}={np.asarray(v).tolist()!r}"
+        for k, v in zip(CL_ORDER, (center, normal, radius, line_point, line_direction))
+    )
     for x, y in zip(cp, lp):
-        assert abs(np.linalg.norm(x - center) - radius) <= tol, f"circle point {x!r} not on the circle"
-        assert abs(np.dot(x - center, n)) <= tol, f"circle point {x!r} not in the circle's plane"
+        err = abs(np.linalg.norm(x - center) - radius)
+        assert err <= tol, f"circle point {x!r} off the circle by {err:.3e} (tol {tol:.3e}); {query}"
+        err = abs(np.dot(x - center, n))
+        assert err <= tol, f"circle point {x!r} off the circle's plane by {err:.3e} (tol {tol:.3e}); {query}"
         off_line = np.linalg.norm(np.cross(y - line_point, d))
-        assert off_line <= tol + 8 * EPS * np.linalg.norm(y - line_point), f"line point {y!r} off the line by {off_line:.3e}"
-        assert abs(np.linalg.norm(x - y) - res.distance) <= tol, (
-            f"|circle point - line point| = {np.linalg.norm(x - y)!r} but distance = {res.distance!r}"
+        assert off_line <= tol + 8 * EPS * np.linalg.norm(y - line_point), (
+            f"line point {y!r} off the line by {off_line:.3e} (tol {tol:.3e}); {query}"
         )
-    if res.count == 2 and radius > tol:
-        assert np.linalg.norm(cp[0] - cp[1]) > 0.0, "count == 2 but the two circle points coincide"
+        assert abs(np.linalg.norm(x - y) - res.distance) <= tol, (
+            f"|circle point - line point| = {np.linalg.norm(x - y)!r} but distance = {res.distance!r}; {query}"
+        )
 
 
 def assert_point_sets_match(got, expected, atol, what, all_expected=True):
@@ -363,7 +369,7 @@ def test_hand_example_line_parallel_to_plane():
 # --------------------------------------------------------------------------------------------------
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(general_scene())
 def test_general_scene_matches_brute_force(scene):
     res, r_ref = check_scene(scene)
@@ -384,13 +390,13 @@ def test_direction_lengths_and_signs_do_not_matter(scene, normal_factor, directi
 
 
 @pytest.mark.parametrize("family", FAMILIES)
-@settings(max_examples=100)
+@examples(100)
 @given(data=st.data())
 def test_special_family(family, data):
     check_scene(data.draw(family_scene(family), label=family))
 
 
-@settings(max_examples=100)
+@examples(100)
 @given(vectors(), directions(), vectors(), directions())
 def test_radius_zero(center, normal, line_point, line_direction):
     res = lk.circle_line(center, normal, 0.0, line_point, line_direction)
@@ -407,7 +413,7 @@ def test_radius_zero(center, normal, line_point, line_direction):
 TILTS = [1e-6, 1e-8, 1e-10]
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(st.sampled_from(FAMILIES), st.sampled_from(TILTS), st.data())
 def test_nearly_degenerate_family(family, tilt, data):
     """Each special family with the line direction tilted by 1e-6, 1e-8 or 1e-10 rad about a random axis
@@ -424,7 +430,7 @@ def test_nearly_degenerate_family(family, tilt, data):
     check_scene(scene)
 
 
-@settings(max_examples=100)
+@examples(100)
 @given(general_scene(), st.sampled_from([1e-6, 1e-8, 1e-10, 1e-13]))
 def test_nearly_zero_radius(scene, relative_radius):
     scene.radius = relative_radius * max(scene.radius, 1.0)
@@ -432,7 +438,7 @@ def test_nearly_zero_radius(scene, relative_radius):
     check_scene(scene)
 
 
-@settings(max_examples=150)
+@examples(150)
 @given(st.sampled_from(["general"] + FAMILIES), st.sampled_from([1e6, 1e9]), directions(), st.data())
 def test_large_coordinates(family, magnitude, offset_direction, data):
     """The whole scene translated by |offset| = 1e6 or 1e9 must give the untranslated answer within
@@ -465,7 +471,7 @@ def distance_after_rotation(theta, axis_point, axis_direction, point, line_point
     return float(ref.point_line_distance(moved, line_point, line_direction))
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(vectors(), directions(), vectors(), vectors(), directions())
 def test_rotation_toward_line_matches_brute_force(axis_point, axis_direction, point, line_point, line_direction):
     args = (axis_point, axis_direction, point, line_point, line_direction)
@@ -534,7 +540,7 @@ def test_rotation_tie_returns_lowest_rotated_point(case):
     )
 
 
-@settings(max_examples=100)
+@examples(100)
 @given(st.sampled_from(["through_centre", "in_plane_crossing", "parallel_plane_crossing"]), st.data())
 def test_rotation_tie_rule_in_random_placements(family, data):
     """Symmetric scenes (two circle points tie exactly) in random placements: the returned angle rotates the
@@ -559,7 +565,7 @@ def test_rotation_tie_rule_in_random_placements(family, data):
     )
 
 
-@settings(max_examples=100)
+@examples(100)
 @given(vectors(), directions(), vectors(), directions())
 def test_rotation_point_on_axis_gives_zero(axis_point, axis_direction, line_point, line_direction):
     theta, dist = lk.rotation_toward_line(axis_point, axis_direction, axis_point.copy(), line_point, line_direction)
@@ -575,7 +581,7 @@ def test_rotation_point_on_axis_exact_examples():
     assert dist == pytest.approx(np.hypot(2.0, 7.0), abs=1e-14)
 
 
-@settings(max_examples=100)
+@examples(100)
 @given(vectors(), directions(), vectors(), st.sampled_from([1.0, 2.0, -1.0, -0.5]))
 def test_rotation_axis_equal_to_line_gives_zero(axis_point, axis_direction, point, factor):
     theta, dist = lk.rotation_toward_line(axis_point, axis_direction, point, axis_point.copy(), axis_direction * factor)

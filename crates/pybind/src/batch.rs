@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 use crate::convert::batch_error;
 
-pub type ArrayArg<'py> = crate::convert::Floats<'py, IxDyn>;
+pub type ArrayArg<'py> = crate::convert::Floats<'py>;
 
 /// The core shape of one argument (`&[]` for a scalar); the dimensions before it are its batch shape.
 pub type Core<'c> = &'c [usize];
@@ -60,7 +60,7 @@ fn describe(core: Core) -> String {
 pub fn broadcast<'a>(arguments: &[(&str, &'a ArrayArg<'_>, Core)]) -> PyResult<Batch<'a>> {
     let mut shape: Vec<usize> = Vec::new();
     for (name, array, core) in arguments {
-        let dims = array.shape();
+        let dims = array.get(name)?.shape();
         if dims.len() < core.len() || &dims[dims.len() - core.len()..] != *core {
             return Err(PyValueError::new_err(format!(
                 "{name}: expected shape {}, got {dims:?}",
@@ -75,7 +75,8 @@ pub fn broadcast<'a>(arguments: &[(&str, &'a ArrayArg<'_>, Core)]) -> PyResult<B
     let len = shape.iter().product();
     let rows = arguments
         .iter()
-        .map(|(_, array, core)| {
+        .map(|(name, array, core)| {
+            let array = array.get(name).expect("checked above");
             let batch = &array.shape()[..array.ndim() - core.len()];
             let shared = batch.iter().product::<usize>() == 1;
             let view: ArrayViewD<'a, f64> = array.as_array();

@@ -2,35 +2,33 @@
 
 use legkit_dynamics::Error;
 use nalgebra::{Matrix3, Vector3};
-use numpy::ndarray::{Array, ArrayView2, Dimension, IntoDimension};
-use numpy::{AllowTypeChange, PyArray, PyArrayLike, PyUntypedArrayMethods};
+use numpy::ndarray::{Array, ArrayViewD, Dimension, IntoDimension, IxDyn};
+use numpy::{AllowTypeChange, PyArray, PyArrayLike};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
-/// A float64 array argument: anything NumPy converts. A failed conversion becomes a TypeError, which
-/// pyo3 prefixes with the argument's name.
-pub struct Floats<'py, D: Dimension>(PyArrayLike<'py, f64, D, AllowTypeChange>);
+/// A float64 array argument: anything NumPy converts. Extraction never fails; `get` raises the
+/// conversion's error as a TypeError naming the argument.
+pub struct Floats<'py>(Result<PyArrayLike<'py, f64, IxDyn, AllowTypeChange>, String>);
 
-impl<'a, 'py, D: Dimension + 'py> FromPyObject<'a, 'py> for Floats<'py, D> {
+impl<'a, 'py> FromPyObject<'a, 'py> for Floats<'py> {
     type Error = PyErr;
 
     fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
-        <PyArrayLike<'py, f64, D, AllowTypeChange> as FromPyObject<'a, 'py>>::extract(obj)
-            .map(Floats)
-            .map_err(|e| PyTypeError::new_err(format!("expected an array of numbers ({e})")))
+        Ok(Floats(<PyArrayLike<'py, f64, IxDyn, AllowTypeChange> as FromPyObject<'a, 'py>>::extract(obj).map_err(|e| e.to_string())))
     }
 }
 
-impl<'py, D: Dimension> std::ops::Deref for Floats<'py, D> {
-    type Target = PyArrayLike<'py, f64, D, AllowTypeChange>;
-
-    fn deref(&self) -> &Self::Target {
-        &self.0
+impl<'py> Floats<'py> {
+    pub fn get(&self, argument: &str) -> PyResult<&PyArrayLike<'py, f64, IxDyn, AllowTypeChange>> {
+        self.0
+            .as_ref()
+            .map_err(|e| PyTypeError::new_err(format!("{argument}: expected an array of numbers ({e})")))
     }
 }
 
-pub type Vector<'py> = Floats<'py, numpy::Ix1>;
-pub type Matrix<'py> = Floats<'py, numpy::Ix2>;
+pub type Vector<'py> = Floats<'py>;
+pub type Matrix<'py> = Floats<'py>;
 
 pub fn value_error(error: Error) -> PyErr {
     PyValueError::new_err(error.to_string())
@@ -47,30 +45,46 @@ fn shape_error(argument: &str, expected: &str, shape: &[usize]) -> PyErr {
 }
 
 pub fn vector3(argument: &str, value: &Vector<'_>) -> PyResult<Vector3<f64>> {
-    match value.as_slice() {
-        Ok(&[x, y, z]) => Ok(Vector3::new(x, y, z)),
-        _ => Err(shape_error(argument, "(3,)", value.shape())),
+    let view = value.get(argument)?.as_array();
+    if view.shape() != [3] {
+        return Err(shape_error(argument, "(3,)", view.shape()));
     }
+    Ok(Vector3::from_iterator(view.iter().copied()))
 }
 
 pub fn matrix3(argument: &str, value: &Matrix<'_>) -> PyResult<Matrix3<f64>> {
-    matrix3_view(argument, value.as_array())
+    matrix3_view(argument, value.get(argument)?.as_array())
 }
 
-fn matrix3_view(argument: &str, view: ArrayView2<'_, f64>) -> PyResult<Matrix3<f64>> {
+fn matrix3_view(argument: &str, view: ArrayViewD<'_, f64>) -> PyResult<Matrix3<f64>> {
     if view.shape() != [3, 3] {
         return Err(shape_error(argument, "(3, 3)", view.shape()));
     }
     Ok(Matrix3::from_fn(|i, j| view[[i, j]]))
 }
 
+/// The rotation and translation of a 4x4 homogeneous transform.
+pub fn homogeneous_matrix(argument: &str, value: &Matrix<'_>) -> PyResult<(Matrix3<f64>, Vector3<f64>)> {
+    let view = value.get(argument)?.as_array();
+    if view.shape() != [4, 4] {
+        return Err(PyValueError::new_err(format!(
+            "{argument}: expected a 4x4 transform or an (R, t) pair, got shape {:?}",
+            view.shape()
+        )));
+    }
+    if (0..4).any(|j| view[[3, j]] != if j == 3 { 1.0 } else { 0.0 }) {
+        return Err(PyValueError::new_err(format!("{argument}: the last row of a 4x4 transform must be [0, 0, 0, 1]")));
+    }
+    Ok((Matrix3::from_fn(|i, j| view[[i, j]]), Vector3::from_fn(|i, _| view[[i, 3]])))
+}
+
 /// Rows of an (n, 3) array as vectors.
 pub fn rows3(argument: &str, value: &Matrix<'_>) -> PyResult<Vec<Vector3<f64>>> {
-    let view = value.as_array();
-    if view.ncols() != 3 {
+    let view = value.get(argument)?.as_array();
+    if view.ndim() != 2 || view.shape()[1] != 3 {
         return Err(shape_error(argument, "(n, 3)", view.shape()));
     }
-    Ok(view.rows().into_iter().map(|r| Vector3::new(r[0], r[1], r[2])).collect())
+    Ok(view.outer_iter().map(|r| Vector3::new(r[0], r[1], r[2])).collect())
 }
 
 pub fn to_numpy<'py, D: Dimension, S: IntoDimension<Dim = D>, T: numpy::Element>(

@@ -1,14 +1,14 @@
 //! `legkit.MassProperties`.
 
+use legkit_dynamics::validate::finite_vector;
 use legkit_dynamics::MassProperties;
-use nalgebra::{Matrix3, Matrix4, Vector3};
+use nalgebra::{Matrix3, Vector3};
 use numpy::{PyArray1, PyArray2};
 use pyo3::basic::CompareOp;
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyInt;
 
-use crate::convert::{matrix3, matrix_to_numpy, rows3, value_error, vector3, vector_to_numpy, Matrix, Vector};
+use crate::convert::{homogeneous_matrix, matrix3, matrix_to_numpy, rows3, value_error, vector3, vector_to_numpy, Matrix, Vector};
 
 /// Mass, centre of mass and rotational inertia about the centre of mass, all in one frame.
 #[pyclass(name = "MassProperties", module = "legkit", frozen, from_py_object)]
@@ -45,7 +45,7 @@ impl PyMassProperties {
     #[staticmethod]
     fn from_points(masses: Vector<'_>, positions: Matrix<'_>) -> PyResult<Self> {
         let positions = rows3("positions", &positions)?;
-        let masses: Vec<f64> = masses.as_array().iter().copied().collect();
+        let masses: Vec<f64> = masses.get("masses")?.as_array().iter().copied().collect();
         MassProperties::from_points(&masses, &positions).map(Self).map_err(value_error)
     }
 
@@ -66,7 +66,8 @@ impl PyMassProperties {
     }
 
     fn inertia_about<'py>(&self, py: Python<'py>, point: Vector<'_>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        Ok(matrix_to_numpy(py, &self.0.inertia_about(&vector3("point", &point)?)))
+        let point = finite_vector("point", vector3("point", &point)?).map_err(value_error)?;
+        Ok(matrix_to_numpy(py, &self.0.inertia_about(&point)))
     }
 
     /// Express in the parent frame of `x_parent = R x + t`: `(R, t)`, or one 4x4 homogeneous matrix.
@@ -74,7 +75,7 @@ impl PyMassProperties {
     fn transformed(&self, rotation: Matrix<'_>, translation: Option<Vector<'_>>) -> PyResult<Self> {
         let (r, t) = match translation {
             Some(t) => (matrix3("rotation", &rotation)?, vector3("translation", &t)?),
-            None => homogeneous(&rotation)?,
+            None => homogeneous_matrix("rotation", &rotation)?,
         };
         self.0.transformed(&r, &t).map(Self).map_err(value_error)
     }
@@ -118,19 +119,4 @@ impl PyMassProperties {
             i[(0, 0)], i[(0, 1)], i[(0, 2)], i[(1, 0)], i[(1, 1)], i[(1, 2)], i[(2, 0)], i[(2, 1)], i[(2, 2)]
         )
     }
-}
-
-fn homogeneous(transform: &Matrix<'_>) -> PyResult<(Matrix3<f64>, Vector3<f64>)> {
-    let view = transform.as_array();
-    if view.shape() != [4, 4] {
-        return Err(PyValueError::new_err(format!(
-            "rotation: expected a (3, 3) rotation with a translation, or a (4, 4) transform; got shape {:?}",
-            view.shape()
-        )));
-    }
-    let m = Matrix4::from_fn(|i, j| view[[i, j]]);
-    if m.fixed_view::<1, 4>(3, 0) != nalgebra::RowVector4::new(0.0, 0.0, 0.0, 1.0) {
-        return Err(PyValueError::new_err("rotation: the last row of a 4x4 transform must be [0, 0, 0, 1]"));
-    }
-    Ok((m.fixed_view::<3, 3>(0, 0).into_owned(), m.fixed_view::<3, 1>(0, 3).into_owned()))
 }

@@ -3,13 +3,12 @@
 use std::sync::Mutex;
 
 use legkit_dynamics::{Data, Joint, MassProperties, Model, Transform};
-use nalgebra::Matrix4;
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::{PyIndexError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyString, PyTuple};
 
-use crate::convert::{matrix3, to_numpy, value_error, vector3, vector_to_numpy, Matrix, Vector};
+use crate::convert::{homogeneous_matrix, matrix3, to_numpy, value_error, vector3, vector_to_numpy, Matrix, Vector};
 use crate::mass::PyMassProperties;
 
 /// A kinematic tree: body 0 is the base (fixed to the world, or a free flyer with
@@ -93,18 +92,8 @@ pub fn transform(value: &Bound<'_, PyAny>) -> PyResult<Transform> {
         return Ok(Transform::new(matrix3("placement", &rotation)?, vector3("placement", &translation)?));
     }
     let matrix: Matrix<'_> = value.extract()?;
-    let view = matrix.as_array();
-    if view.shape() != [4, 4] {
-        return Err(PyValueError::new_err(format!(
-            "placement: expected a 4x4 matrix or an (R, t) pair, got shape {:?}",
-            view.shape()
-        )));
-    }
-    let m = Matrix4::from_fn(|i, j| view[[i, j]]);
-    if m.fixed_view::<1, 4>(3, 0) != nalgebra::RowVector4::new(0.0, 0.0, 0.0, 1.0) {
-        return Err(PyValueError::new_err("placement: the last row of a 4x4 transform must be [0, 0, 0, 1]"));
-    }
-    Ok(Transform::new(m.fixed_view::<3, 3>(0, 0).into_owned(), m.fixed_view::<3, 1>(0, 3).into_owned()))
+    let (rotation, translation) = homogeneous_matrix("placement", &matrix)?;
+    Ok(Transform::new(rotation, translation))
 }
 
 pub fn homogeneous(x: &Transform) -> [f64; 16] {
