@@ -1,9 +1,12 @@
 """Hypothesis profiles and shared strategies for the legkit tests.
 
 Profiles (select with the environment variable LEGKIT_HYPOTHESIS_PROFILE):
-  legkit   (default) 150 examples per property, no deadline;
-  quick    25 examples, for a fast local loop;
-  thorough 2000 examples, for occasional deep runs.
+  legkit   (default) 100 examples per property (hypothesis' default; tests asking for more or fewer via
+           `examples(n)` get n), no deadline;
+  quick    25 examples (n/4), for a fast local loop;
+  thorough 1000 examples (10 n), for occasional deep runs.
+These settings apply to every test module in this directory; they only relax the deadline and keep
+hypothesis' default example count, so other modules' explicit @settings are unaffected.
 No example database is written (database=None) so test runs leave no files behind; a failing example is
 printed together with a @reproduce_failure blob.
 
@@ -27,15 +30,22 @@ import reference as ref  # noqa: E402
 
 settings.register_profile(
     "legkit",
-    max_examples=150,
+    max_examples=100,
     deadline=None,
     database=None,
     print_blob=True,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
 )
 settings.register_profile("quick", parent=settings.get_profile("legkit"), max_examples=25)
-settings.register_profile("thorough", parent=settings.get_profile("legkit"), max_examples=2000)
-settings.load_profile(os.environ.get("LEGKIT_HYPOTHESIS_PROFILE", "legkit"))
+settings.register_profile("thorough", parent=settings.get_profile("legkit"), max_examples=1000)
+PROFILE = os.environ.get("LEGKIT_HYPOTHESIS_PROFILE", "legkit")
+settings.load_profile(PROFILE)
+_EXAMPLE_FACTOR = {"legkit": 1.0, "quick": 0.25, "thorough": 10.0}.get(PROFILE, 1.0)
+
+
+def examples(n: int):
+    """@settings for a test that wants n examples under the default profile (scaled for quick/thorough)."""
+    return settings(max_examples=max(5, int(n * _EXAMPLE_FACTOR)))
 
 
 def reals(lo: float, hi: float):

@@ -138,6 +138,16 @@ def family_scene(draw, family):
         return Scene(**p, line_point_local=h * e + s * Z, line_direction_local=Z, distance=abs(h - r), count=1,
                      equidistant=False, circle_points_local=np.array([r * e]), line_points_local=np.array([h * e]),
                      name=family)
+    if family == "parallel_axis_close":
+        # as parallel_axis, but the line hugs the axis (h = 1e-9 .. 1e-2 r) and its given point is far along
+        # it: the offset h must not be computed by cancellation (sqrt(|w|^2 - (w.n)^2) has error eps s^2 / h).
+        # Flags are asserted only where the distances over the circle vary by >= 2e-6 r (h >= 1e-6 r).
+        h = float(np.exp(draw(reals(np.log(1e-9), np.log(1e-2))))) * r
+        s = draw(reals(-100.0, 100.0))
+        flags = dict(count=1, equidistant=False) if h >= 1e-6 * r else {}
+        return Scene(**p, line_point_local=h * e + s * Z, line_direction_local=Z, distance=abs(h - r),
+                     circle_points_local=np.array([r * e]) if flags else None,
+                     line_points_local=np.array([h * e]) if flags else None, name=family, **flags)
     if family == "through_centre":
         # line through the centre with direction d = cos(a) e + sin(a) z; for X = r w (w in-plane unit),
         # dist = r sqrt(1 - (w.d)^2) = r sqrt(1 - cos^2(a) (w.e)^2): minimal r |sin a| at w = +-e (two points);
@@ -190,6 +200,7 @@ def family_scene(draw, family):
 FAMILIES = [
     "axis",
     "parallel_axis",
+    "parallel_axis_close",
     "through_centre",
     "in_plane_crossing",
     "in_plane_outside",
@@ -232,16 +243,16 @@ def check_single_result_geometry(res, center, normal, radius, line_point, line_d
         for k, v in zip(CL_ORDER, (center, normal, radius, line_point, line_direction))
     )
     for x, y in zip(cp, lp):
-        err = abs(np.linalg.norm(x - center) - radius)
+        err = abs(ref.norm(x - center) - radius)
         assert err <= tol, f"circle point {x!r} off the circle by {err:.3e} (tol {tol:.3e}); {query}"
         err = abs(np.dot(x - center, n))
         assert err <= tol, f"circle point {x!r} off the circle's plane by {err:.3e} (tol {tol:.3e}); {query}"
-        off_line = np.linalg.norm(np.cross(y - line_point, d))
-        assert off_line <= tol + 8 * EPS * np.linalg.norm(y - line_point), (
+        off_line = ref.norm(np.cross(y - line_point, d))
+        assert off_line <= tol + 8 * EPS * ref.norm(y - line_point), (
             f"line point {y!r} off the line by {off_line:.3e} (tol {tol:.3e}); {query}"
         )
-        assert abs(np.linalg.norm(x - y) - res.distance) <= tol, (
-            f"|circle point - line point| = {np.linalg.norm(x - y)!r} but distance = {res.distance!r}; {query}"
+        assert abs(ref.norm(x - y) - res.distance) <= tol, (
+            f"|circle point - line point| = {ref.norm(x - y)!r} but distance = {res.distance!r}; {query}"
         )
 
 
@@ -364,6 +375,69 @@ def test_hand_example_line_parallel_to_plane():
     assert_point_sets_match(r.line_points, [[0.8, 0.6, 3], [-0.8, 0.6, 3]], LOCATION_REL * 4, "line points")
 
 
+# Cases found by the property tests below, kept as fixed regressions: (query, expected flags or None).
+# Checked with the same invariants and brute force as the property tests.
+REGRESSIONS = {
+    # parallel_axis family, distance 0: a line parallel to a nearly y-aligned normal through a circle point
+    "parallel-axis-nearly-aligned-normal": (
+        (
+            [0.0, 0.0, 0.0],
+            [1.465934043551448e-05, 0.9999999998925518, 1.0744816147933989e-10],
+            1.0,
+            [-0.9999999997851037, 1.465934043551448e-05, -1.465934043551448e-05],
+            [2.915357960347044e-05, 1.9887374693686057, 2.136861847716919e-10],
+        ),
+        dict(count=1, equidistant=False),
+    ),
+    # nearly tangent line tilted 1e-6 out of the plane: the distance has two wells 1.4e-3 rad apart
+    "tangent-tilted-double-well": (
+        (
+            [0.0, 0.0, 0.0],
+            [0.0, -0.0, -0.9999999999999998],
+            3.0,
+            [-1.7999999999999998, -2.5999999999999996, 0.0],
+            [0.5999994343142752, -0.8000004242636686, -7.071067811864296e-07],
+        ),
+        None,
+    ),
+    # the line IS the axis (normal and line direction parallel to 1e-51, line point on the axis to 1e-51;
+    # the brute-force spread of distances over the circle is 3e-16, i.e. rounding)
+    "axis-line-nearly-z-normal": (
+        (
+            [0.0, 0.0, 0.0],
+            [0.00012600806401593902, 4.173049432566246e-32, -0.9999999920609839],
+            1.0,
+            [0.00012600806401593902, 4.173049432566246e-32, -0.9999999920609839],
+            [0.0019254373294128571, 6.376532500278581e-31, -15.280270585565274],
+        ),
+        dict(count=1, equidistant=True),
+    ),
+    # the line is the axis through the centre; normal nearly -z with 1e-4 x/y components
+    "axis-line-tilted-normal": (
+        (
+            [0.0, 0.0, 0.0],
+            [5.135579277246771e-05, 9.950184849665618e-05, -0.9999999937309825],
+            1.0,
+            [0.0, 0.0, 0.0],
+            [0.0007847304159295114, 0.0015204151808634282, -15.280270611083305],
+        ),
+        dict(count=1, equidistant=True),
+    ),
+}
+
+
+@pytest.mark.parametrize("case", REGRESSIONS.values(), ids=REGRESSIONS.keys())
+def test_regression_queries(case):
+    query, flags = case
+    args = tuple(np.asarray(a, dtype=np.float64) for a in query)
+    res = lk.circle_line(*args)
+    tol = tolerance(args[0], args[2], args[3], args[4])
+    check_single_result_geometry(res, *args, tol)
+    check_against_reference(res, args, tol)
+    if flags is not None:
+        assert (res.count, res.equidistant) == (flags["count"], flags["equidistant"]), res
+
+
 # --------------------------------------------------------------------------------------------------
 # random scenes
 # --------------------------------------------------------------------------------------------------
@@ -408,6 +482,31 @@ def test_radius_zero(center, normal, line_point, line_direction):
     np.testing.assert_allclose(res.circle_points[0], center, rtol=0, atol=tol)
     np.testing.assert_allclose(res.line_points[0], ref.foot_on_line(center, line_point, line_direction), rtol=0,
                                atol=tol + 8 * EPS * np.linalg.norm(line_point))
+
+
+@examples(150)
+@given(vectors(), directions(), directions(), directions(), reals(np.log(1e-12), np.log(1e-2)), reals(-100.0, 100.0),
+       st.sampled_from([None, 1.0, -2.5]))
+def test_radius_zero_line_passing_close_to_the_centre(center, normal, line_direction, side, log_gap, s, along_axis):
+    """A radius-0 circle (a point) and a line passing at a small gap from it, with the given line point far
+    along the line: the distance is the gap. The line direction is random or parallel to the normal (the
+    line parallel to the circle's axis). Point-line distance computed as sqrt(|w|^2 - (w.d)^2) loses half
+    the digits here (error ~ eps |w|^2 / gap); computed from the perpendicular component it does not."""
+    if along_axis is not None:
+        line_direction = along_axis * normal
+    d = ref.unit(line_direction)
+    p = np.cross(d, ref.unit(side))
+    assume(np.linalg.norm(p) > 0.1)
+    gap = float(np.exp(log_gap)) * (1.0 + abs(s))
+    line_point = center + gap * ref.unit(p) + s * d
+    expected = float(ref.point_line_distance(center, line_point, line_direction))  # == gap up to rounding
+    res = lk.circle_line(center, normal, 0.0, line_point, line_direction)
+    tol = tolerance(center, 0.0, line_point, line_direction)
+    check_single_result_geometry(res, center, normal, 0.0, line_point, line_direction, tol)
+    assert abs(res.distance - expected) <= tol, (
+        f"distance {res.distance!r}, expected {expected!r} (diff {res.distance - expected:.3e}, tol {tol:.3e}); "
+        f"query={[np.asarray(a).tolist() for a in (center, normal, 0.0, line_point, line_direction)]}"
+    )
 
 
 TILTS = [1e-6, 1e-8, 1e-10]
@@ -503,6 +602,30 @@ def test_rotation_toward_line_matches_brute_force(axis_point, axis_direction, po
         dtheta = ref.angle_difference(theta, best)
         allowed = 2 * np.sqrt(tol / k) + 1e-12
         assert dtheta <= allowed, f"theta {theta!r} vs brute-force minimiser {best!r} (|diff| {dtheta:.3e} > {allowed:.3e})"
+
+
+@examples(150)
+@given(vectors(), directions(), vectors(), st.one_of(reals(-np.pi, np.pi), st.sampled_from([1e-8, -6e-8, 1e-5, 3.0])),
+       st.one_of(directions(), st.just(None)), reals(-10.0, 10.0))
+def test_rotation_onto_a_line_that_crosses_the_circle(axis_point, axis_direction, point, theta0, line_direction, s):
+    """The line passes through the point rotated by theta0 (so the minimum distance is 0), with its given
+    point s along it; line direction random or parallel to the axis. The returned angle must actually bring
+    the point onto the line (checked by an independent Rodrigues rotation) and the distance must be ~0."""
+    target = ref.rotate_about_axis(point, axis_point, axis_direction, theta0)
+    if line_direction is None:
+        line_direction = 2.0 * axis_direction
+    line_point = target + s * ref.unit(line_direction)
+    args = (axis_point, axis_direction, point, line_point, line_direction)
+    tol, scale, _, radius = rotation_tolerance(*args)
+    if radius < 1e-3 * (1 + np.linalg.norm(point - axis_point)):
+        return
+    theta, dist = lk.rotation_toward_line(*args)
+    achieved = distance_after_rotation(theta, *args)
+    assert abs(dist) <= tol, f"distance {dist!r} should be ~0 (tol {tol:.3e}); args={[np.asarray(a).tolist() for a in args]}"
+    assert achieved <= tol, (
+        f"rotating by the returned theta={theta!r} leaves the point {achieved!r} from the line (tol {tol:.3e}); "
+        f"a crossing angle is theta0={theta0!r}; args={[np.asarray(a).tolist() for a in args]}"
+    )
 
 
 # Exactly representable symmetric set-ups in which two rotations tie; the lower-z one must be returned.

@@ -134,6 +134,25 @@ def test_constructor_accepts_rotated_flat_plate():
     np.testing.assert_allclose(a.inertia, inertia, rtol=0, atol=1e-15)
 
 
+@given(point_clouds(min_points=1, max_points=8), st.sampled_from(["general", "planar", "collinear"]), rotations(),
+       vectors())
+def test_constructor_accepts_the_inertia_of_any_point_cloud(cloud, shape, rotation, origin):
+    """The brute-force inertia of real point masses is physical by construction, including the boundary
+    cases of planar clouds (I_zz = I_xx + I_yy exactly: triangle equality) and collinear ones (a zero
+    principal moment), placed in a random orientation (so only up to rounding). The constructor must accept
+    them: its PSD / triangle checks need a tolerance of a few eps relative to the tensor's size."""
+    masses, positions = cloud
+    if shape == "planar":
+        positions = positions * np.array([1.0, 1.0, 0.0])
+    elif shape == "collinear":
+        positions = positions * np.array([1.0, 0.0, 0.0])
+    positions = positions @ rotation.T + origin
+    m, com, inertia = ref.point_cloud_mass_properties(masses, positions)
+    inertia = 0.5 * (inertia + inertia.T)
+    a = MP(m, com, inertia)
+    np.testing.assert_allclose(a.inertia, inertia, rtol=0, atol=4 * ref.EPS * np.max(np.abs(inertia)) + 1e-300)
+
+
 def test_point_mass():
     p = MP.point(2.5, [1.0, -2.0, 3.0])
     assert p.mass == 2.5

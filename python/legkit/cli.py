@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 
 import numpy as np
@@ -30,10 +31,24 @@ def demo(_: argparse.Namespace) -> int:
     return 0
 
 
+#: Subcommands implemented by an experiment module's own ``main(argv)``.
+EXPERIMENTS = {
+    "balance": ("legkit.experiments.balance", "distributed COM balancing of SuperBot trees (Moll et al. 2006)"),
+    "strain": ("legkit.experiments.strain", "leg strain models and tripod body pose (Lin et al. 2003)"),
+    "gait": ("legkit.experiments.gait", "stability and energy indices over a gait (Hardt & von Stryk 2002)"),
+}
+
+
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv and argv[0] in EXPERIMENTS:
+        module, _ = EXPERIMENTS[argv[0]]
+        return importlib.import_module(module).main(argv[1:])
     parser = argparse.ArgumentParser(prog="legkit", description="Physics for legged and modular robots.")
-    commands = parser.add_subparsers(dest="command", required=True)
+    commands = parser.add_subparsers(dest="command", required=True, metavar="command")
     commands.add_parser("demo", help="print a composite mass and a circle-line query").set_defaults(run=demo)
+    for name, (_, summary) in EXPERIMENTS.items():
+        commands.add_parser(name, help=f"{summary}; `legkit {name} --help` for its options", add_help=False)
     args = parser.parse_args(argv)
     return args.run(args)
 

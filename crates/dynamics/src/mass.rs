@@ -34,7 +34,9 @@ pub struct MassProperties {
 /// `|d|² 1 − d dᵀ`: the inertia of a unit point mass at offset `d` about the origin.
 #[inline]
 fn point_inertia(d: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::from_diagonal_element(d.norm_squared()) - d * d.transpose()
+    let (xx, yy, zz) = (d.x * d.x, d.y * d.y, d.z * d.z);
+    let (xy, xz, yz) = (d.x * d.y, d.x * d.z, d.y * d.z);
+    Matrix3::new(yy + zz, -xy, -xz, -xy, xx + zz, -yz, -xz, -yz, xx + yy)
 }
 
 impl MassProperties {
@@ -175,10 +177,11 @@ impl Add for MassProperties {
             return self;
         }
         let mass = self.mass + other.mass;
-        let com = (self.com * self.mass + other.com * other.mass) / mass;
-        let inertia =
-            self.inertia + other.inertia + point_inertia(&(self.com - other.com)) * (self.mass * other.mass / mass);
-        Self { mass, com, inertia }
+        let inverse = 1.0 / mass;
+        let com = (self.com * self.mass + other.com * other.mass) * inverse;
+        let offset = self.com - other.com;
+        let transfer = point_inertia(&offset) * (self.mass * other.mass * inverse);
+        Self { mass, com, inertia: self.inertia + other.inertia + transfer }
     }
 }
 

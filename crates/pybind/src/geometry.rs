@@ -1,22 +1,30 @@
-//! Circle–line queries over broadcast batches (the loop is cheap per query, so it stays on one core).
+//! Circle–line queries over broadcast batches, written straight into the output arrays in parallel
+//! chunks with the GIL released.
 
 use legkit_dynamics::validate::finite_vector;
 use legkit_dynamics::{circle_line as circle_line_query, rotation_toward_line as rotation_query, Circle, Error, Line};
 use nalgebra::Vector3;
-use numpy::PyArrayDyn;
+use numpy::{IxDyn, PyArrayDyn};
 use pyo3::prelude::*;
+use rayon::prelude::*;
 
-use crate::batch::{broadcast, to_numpy, ArrayArg, Batch, Rows};
-use crate::convert::{batch_error, value_error};
+use crate::batch::{broadcast, ArrayArg, Batch, Rows};
+use crate::convert::{batch_error, to_numpy, value_error};
+
+/// Queries per parallel task.
+const CHUNK: usize = 4096;
 
 fn vector(rows: &Rows<'_>, i: usize) -> Vector3<f64> {
     Vector3::from_column_slice(rows.row(i))
 }
 
-/// Runs `query` on each row with the GIL released, naming the row of a failing batch element.
-fn each_row<T: Send>(py: Python<'_>, batch: &Batch<'_>, query: impl Fn(usize) -> Result<T, Error> + Sync) -> PyResult<Vec<T>> {
-    py.detach(|| (0..batch.len).map(|i| query(i).map_err(|e| (e, i))).collect::<Result<Vec<T>, _>>())
-        .map_err(|(e, i)| if batch.shape.is_empty() { value_error(e) } else { batch_error(e, i) })
+/// The error of the lowest failing row, if any (so that the message does not depend on scheduling).
+fn first_error(errors: impl ParallelIterator<Item = Option<(usize, Error)>>) -> Option<(usize, Error)> {
+    errors.flatten().min_by_key(|(i, _)| *i)
+}
+
+fn raise(batch: &Batch<'_>, (i, error): (usize, Error)) -> PyErr {
+    if batch.shape.is_empty() { value_error(error) } else { batch_error(error, i) }
 }
 
 type CircleLineArrays<'py> = (
@@ -44,22 +52,49 @@ pub fn circle_line<'py>(
         ("line_point", &line_point, &[3]),
         ("line_direction", &line_direction, &[3]),
     ])?;
+    let n = batch.len;
+    let (mut distance, mut count, mut equidistant) = (vec![0.0; n], vec![0i64; n], vec![false; n]);
+    let (mut circle_points, mut line_points) = (vec![0.0; 6 * n], vec![0.0; 6 * n]);
     let r = &batch.rows;
-    let results = each_row(py, &batch, |i| {
-        let circle = Circle::new(vector(&r[0], i), vector(&r[1], i), r[2].row(i)[0])?;
-        let line = Line::new(vector(&r[3], i), vector(&r[4], i))?;
-        Ok(circle_line_query(&circle, &line))
-    })?;
-    let points = |pick: fn(&legkit_dynamics::CircleLine) -> &[Vector3<f64>; 2]| {
-        let data = results.iter().flat_map(|x| pick(x).iter().flat_map(|p| p.iter().copied())).collect();
-        crate::convert::to_numpy(py, numpy::IxDyn(&batch.output_shape(&[2, 3])), data)
-    };
+    let failure = py.detach(|| {
+        let chunks = distance
+            .par_chunks_mut(CHUNK)
+            .zip(count.par_chunks_mut(CHUNK))
+            .zip(equidistant.par_chunks_mut(CHUNK))
+            .zip(circle_points.par_chunks_mut(6 * CHUNK))
+            .zip(line_points.par_chunks_mut(6 * CHUNK))
+            .enumerate();
+        first_error(chunks.map(|(c, ((((distance, count), equidistant), circle_points), line_points))| {
+            for j in 0..distance.len() {
+                let i = c * CHUNK + j;
+                let query = Circle::new(vector(&r[0], i), vector(&r[1], i), r[2].row(i)[0])
+                    .and_then(|circle| Ok((circle, Line::new(vector(&r[3], i), vector(&r[4], i))?)));
+                let (circle, line) = match query {
+                    Ok(q) => q,
+                    Err(e) => return Some((i, e)),
+                };
+                let result = circle_line_query(&circle, &line);
+                distance[j] = result.distance;
+                count[j] = result.count as i64;
+                equidistant[j] = result.equidistant;
+                for k in 0..2 {
+                    circle_points[6 * j + 3 * k..6 * j + 3 * k + 3].copy_from_slice(result.circle_points[k].as_slice());
+                    line_points[6 * j + 3 * k..6 * j + 3 * k + 3].copy_from_slice(result.line_points[k].as_slice());
+                }
+            }
+            None
+        }))
+    });
+    if let Some(failure) = failure {
+        return Err(raise(&batch, failure));
+    }
+    let points_shape = IxDyn(&batch.output_shape(&[2, 3]));
     Ok((
-        to_numpy(py, batch.shape.clone(), results.iter().map(|x| x.distance).collect()),
-        crate::convert::to_numpy(py, numpy::IxDyn(&batch.shape), results.iter().map(|x| x.count as i64).collect()),
-        points(|x| &x.circle_points),
-        points(|x| &x.line_points),
-        crate::convert::to_numpy(py, numpy::IxDyn(&batch.shape), results.iter().map(|x| x.equidistant).collect()),
+        to_numpy(py, IxDyn(&batch.shape), distance),
+        to_numpy(py, IxDyn(&batch.shape), count),
+        to_numpy(py, points_shape.clone(), circle_points),
+        to_numpy(py, points_shape, line_points),
+        to_numpy(py, IxDyn(&batch.shape), equidistant),
     ))
 }
 
@@ -80,16 +115,28 @@ pub fn rotation_toward_line<'py>(
         ("line_point", &line_point, &[3]),
         ("line_direction", &line_direction, &[3]),
     ])?;
+    let (mut theta, mut distance) = (vec![0.0; batch.len], vec![0.0; batch.len]);
     let r = &batch.rows;
-    let results = each_row(py, &batch, |i| {
-        let axis = Line::axis(vector(&r[0], i), vector(&r[1], i))?;
-        let point = finite_vector("point", vector(&r[2], i))?;
-        let line = Line::new(vector(&r[3], i), vector(&r[4], i))?;
-        Ok(rotation_query(&axis, &point, &line))
-    })?;
-    Ok((
-        to_numpy(py, batch.shape.clone(), results.iter().map(|x| x.0).collect()),
-        to_numpy(py, batch.shape.clone(), results.iter().map(|x| x.1).collect()),
-    ))
+    let failure = py.detach(|| {
+        let chunks = theta.par_chunks_mut(CHUNK).zip(distance.par_chunks_mut(CHUNK)).enumerate();
+        first_error(chunks.map(|(c, (theta, distance))| {
+            for j in 0..theta.len() {
+                let i = c * CHUNK + j;
+                let query = (|| {
+                    let axis = Line::axis(vector(&r[0], i), vector(&r[1], i))?;
+                    let point = finite_vector("point", vector(&r[2], i))?;
+                    Ok((axis, point, Line::new(vector(&r[3], i), vector(&r[4], i))?))
+                })();
+                match query {
+                    Ok((axis, point, line)) => (theta[j], distance[j]) = rotation_query(&axis, &point, &line),
+                    Err(e) => return Some((i, e)),
+                }
+            }
+            None
+        }))
+    });
+    if let Some(failure) = failure {
+        return Err(raise(&batch, failure));
+    }
+    Ok((to_numpy(py, IxDyn(&batch.shape), theta), to_numpy(py, IxDyn(&batch.shape), distance)))
 }
-

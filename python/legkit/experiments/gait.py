@@ -1,0 +1,503 @@
+"""`legkit gait`: stability and energy indices over one cycle of a quadruped amble and a biped walk.
+
+Reproduces the gait analysis of Hardt & von Stryk (RoboCup 2002): a periodic amble of the quadruped with
+duty factor 0.5 at 0.67 m/s, and a biped walking at 1.8 km/h (0.5 m/s).
+
+Pipeline, per robot:
+1. Reference motion from foot placements: the base moves at constant speed and height (the biped also sways
+   sideways over its stance foot and swings its arms); stance feet stay where they touched down, swing feet
+   follow a C2 minimum-jerk arc to the next foothold; joint angles by closed-form leg inverse kinematics;
+   joint velocities and accelerations by periodic fourth-order central differences.
+2. Inverse dynamics with contacts: rnea gives M a + h; the contact forces f of the stance feet solve the
+   six base rows  M_b a + h_b = J_c,b^T f  in the least-squares (minimum-norm) sense, and the joint torques
+   follow as tau = (M a + h)_joints - J_c,joints^T f. With two point feet (the quadruped's amble) the six
+   rows cannot all be met: point forces cannot produce a moment about the line through the two feet, so the
+   residual is the unbalanced tipping moment about the support line, reported as such. `lk.contact_dynamics`
+   with those torques then gives the acceleration the constrained robot would really have; its distance
+   from the reference is reported too.
+3. Indices: S_H (with the swing tips as catching legs), static stability margin, ZMP from the centroidal
+   momentum rate and its margin to the support polygon, CoP of the contact forces, friction-cone margin,
+   torque-speed margin, and the two energy indices over the cycle. The biped also gets the FRI of its
+   stance foot in single support and J_s1.
+
+Outputs in --out: gait_<robot>.csv (one row per sample) and gait_<robot>.png (S_H over the cycle, like the
+paper's Fig. 3, with the static and ZMP margins below). A short table is printed. Nothing is random: the
+same arguments give the same files.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+import legkit as lk
+import legkit.stability as st
+from legkit.robots.biped import SIDES, Biped, build_biped
+from legkit.robots.quadruped import LEGS, Quadruped, build_quadruped
+
+STANDARD_GRAVITY = 9.81
+
+
+@dataclass(frozen=True)
+class MotorParameters:
+    """DC motor and gear of every actuated joint (same for all joints of a robot)."""
+
+    resistance: float  # ohm
+    torque_constant: float  # N m / A
+    gear_ratio: float  # motor turns per joint turn
+    efficiency: float  # gear efficiency in (0, 1]
+    no_load_speed: float  # motor no-load speed [rad/s]
+    stall_torque: float  # motor stall torque [N m]
+
+    @property
+    def joint_max_speed(self) -> float:
+        return self.no_load_speed / self.gear_ratio
+
+    @property
+    def slope(self) -> float:
+        """Motor speed-torque gradient m [rad/s per N m]."""
+        return self.no_load_speed / self.stall_torque
+
+
+QUADRUPED_MOTOR = MotorParameters(resistance=5.0, torque_constant=0.012, gear_ratio=60.0, efficiency=0.7, no_load_speed=1257.0, stall_torque=0.03)
+BIPED_MOTOR = MotorParameters(resistance=0.5, torque_constant=0.05, gear_ratio=160.0, efficiency=0.8, no_load_speed=838.0, stall_torque=1.2)
+
+
+@dataclass
+class GaitReference:
+    """Sampled reference motion of a whole-body gait."""
+
+    t: np.ndarray  # (T,)
+    q: np.ndarray  # (T, nq)
+    v: np.ndarray  # (T, nv)
+    a: np.ndarray  # (T, nv)
+    contacts: list[tuple[int, np.ndarray]]  # every possible contact point (body, point in body frame)
+    active: np.ndarray  # (T, k) bool: which contact points are on the ground
+    support_label: list[str]  # (T,) human-readable support set
+    distance: float  # metres travelled over t
+    feet: list[list[int]]  # contact indices of each foot
+    zmp_tracking_error: float  # largest distance [m] of the whole-body ZMP from the planned ZMP
+
+
+# --------------------------------------------------------------------------------------------------
+# Reference motions
+# --------------------------------------------------------------------------------------------------
+
+
+def _min_jerk(s: np.ndarray) -> np.ndarray:
+    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+def _bump(s: np.ndarray) -> np.ndarray:
+    """C2 lift profile with value 1 at s = 1/2 and zero value, slope and curvature at s = 0 and 1."""
+    return 64.0 * (s * (1.0 - s)) ** 3
+
+
+def _foot_track(samples: int, touchdown: int, stance_samples: int, dt: float, speed: float, step_height: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World foot x (relative to where the body's nominal frame was at t = 0), lift and stance flag over one
+    cycle of `samples` steps of dt. The foot touches down at sample `touchdown` half a stance ahead of its
+    hip, stays put for `stance_samples`, then swings one stride (speed x cycle time) forward along a
+    minimum-jerk arc; all in integer sample arithmetic, so support sets switch exactly at sample boundaries."""
+    i = np.arange(samples)
+    phase = (i - touchdown) % samples
+    stance = phase < stance_samples
+    s = np.clip((phase - stance_samples) / (samples - stance_samples), 0.0, 1.0)
+    half_stance = 0.5 * speed * stance_samples * dt
+    x = speed * (i - phase) * dt + half_stance + np.where(stance, 0.0, speed * samples * dt * _min_jerk(s))
+    z = np.where(stance, 0.0, step_height * _bump(s))
+    return x, z, stance
+
+
+def _periodic_derivatives(values: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """First and second time derivatives of samples periodic along axis 0 (fourth-order central differences)."""
+    p1, m1 = np.roll(values, -1, axis=0), np.roll(values, 1, axis=0)
+    p2, m2 = np.roll(values, -2, axis=0), np.roll(values, 2, axis=0)
+    first = (-p2 + 8.0 * p1 - 8.0 * m1 + m2) / (12.0 * dt)
+    second = (-p2 + 16.0 * p1 - 30.0 * values + 16.0 * m1 - m2) / (12.0 * dt * dt)
+    return first, second
+
+
+def periodic_lip(zmp_offset: np.ndarray, period: float, height: float) -> np.ndarray:
+    """The periodic COM path (N, 2) of the linear inverted pendulum c - (height / g) c'' = p for a periodic
+    ZMP reference p (N, 2), both taken relative to the steady progression (speed t, 0).
+
+    In Fourier terms C_k = P_k / (1 + (height / g) (2 pi k / period)^2): the unique periodic solution, so the
+    gait's base motion starts and ends in the same state and the ZMP (in the LIP sense) follows p."""
+    frequency = 2.0 * np.pi * np.fft.rfftfreq(zmp_offset.shape[0], d=period / zmp_offset.shape[0])
+    spectrum = np.fft.rfft(zmp_offset, axis=0) / (1.0 + height / STANDARD_GRAVITY * frequency**2)[:, None]
+    return np.fft.irfft(spectrum, n=zmp_offset.shape[0], axis=0)
+
+
+def _base_on_zmp(model: lk.Model, t: np.ndarray, speed: float, zmp_ref: np.ndarray, com_height: float, joints_for,
+                 states, iterations: int = 8) -> tuple[np.ndarray, np.ndarray, float]:
+    """Periodic base xy offsets (N, 2) whose whole-body ZMP follows zmp_ref (N, 2); also the joints (N, nj)
+    and the remaining largest ZMP error [m].
+
+    Starts from the periodic LIP path and corrects it by the LIP response to the whole-body ZMP error (legs
+    and arms swing and shift the ZMP, which a point-mass model ignores): a fixed-point iteration in the style
+    of iterative ZMP compensation. joints_for(base_xy) -> joint angles; states(base_xy, joints) -> (q, v, a)."""
+    period = t[1] * len(t)
+    progression = np.stack([speed * t, np.zeros_like(t)], axis=1)
+    base = periodic_lip(zmp_ref - progression, period, com_height)
+    for _ in range(iterations):
+        error = zmp_ref - st.zmp(model, *states(base, joints_for(base)))[:, :2]
+        base = base + periodic_lip(error, period, com_height)
+    joints = joints_for(base)
+    error = zmp_ref - st.zmp(model, *states(base, joints))[:, :2]
+    return base, joints, float(np.max(np.linalg.norm(error, axis=1)))
+
+
+def _expand(robot_model: lk.Model, dt: float, cycles: int, speed: float, base_xy: np.ndarray, base_z: float,
+            joints: np.ndarray, joint_columns: list[slice]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(t, q, v, a) over `cycles` cycles from one periodic cycle of base offsets and joint angles; the base
+    keeps an identity orientation and moves at `speed` along x plus the periodic offsets."""
+    samples = len(base_xy)
+    base_v, base_a = _periodic_derivatives(base_xy, dt)
+    joint_v, joint_a = _periodic_derivatives(joints, dt)
+    t = np.arange(samples * cycles) * dt
+    index = np.arange(samples * cycles) % samples
+    q = np.zeros((len(t), robot_model.nq))
+    q[:, 0], q[:, 1], q[:, 2], q[:, 6] = speed * t + base_xy[index, 0], base_xy[index, 1], base_z, 1.0
+    v = np.zeros((len(t), robot_model.nv))
+    v[:, 0], v[:, 1] = speed + base_v[index, 0], base_v[index, 1]
+    a = np.zeros_like(v)
+    a[:, :2] = base_a[index]
+    offset = 0
+    for cols in joint_columns:
+        width = cols.stop - cols.start
+        q[:, cols.start + 1 : cols.stop + 1] = joints[index, offset : offset + width]
+        v[:, cols] = joint_v[index, offset : offset + width]
+        a[:, cols] = joint_a[index, offset : offset + width]
+        offset += width
+    return t, q, v, a
+
+
+def quadruped_amble(robot: Quadruped, speed: float, period: float, samples: int, cycles: int, step_height: float, hip_height: float) -> GaitReference:
+    """Amble with duty factor 0.5 in the lateral sequence LH, LF, RH, RF (touchdowns a quarter cycle apart):
+    the support alternates between a diagonal pair (LH+RF, LF+RH) and a lateral pair (LH+LF, RH+RF). The
+    torso sways so that the COM follows the periodic LIP whose ZMP is the midpoint of the supporting pair."""
+    p = robot.parameters
+    dt = period / samples
+    t = np.arange(samples) * dt
+    torso_z = hip_height - p.hip_z
+    touchdown = {"lh": 0, "lf": samples // 4, "rh": samples // 2, "rf": (3 * samples) // 4}
+    # Footholds at the hip offsets from the COM path, so the supporting pairs' midpoints follow the COM; the
+    # torso then runs behind the COM by the head's forward shift.
+    _, _, com_up = np.asarray(lk.center_of_mass(robot.model, robot.model.neutral()))
+    feet = np.zeros((samples, 4, 3))
+    active = np.zeros((samples, 4), dtype=bool)
+    for n, leg in enumerate(LEGS):
+        x, z, stance = _foot_track(samples, touchdown[leg], samples // 2, dt, speed, step_height)
+        hip = p.hip_position(leg)
+        feet[:, n] = np.stack([hip[0] + x, np.full(samples, hip[1]), z], axis=-1)
+        active[:, n] = stance
+    zmp_ref = np.sum(feet[:, :, :2] * active[:, :, None], axis=1) / np.sum(active, axis=1, keepdims=True)
+    columns = [robot.joint_slice(leg) for leg in LEGS]
+
+    def joints_for(base_xy: np.ndarray) -> np.ndarray:
+        base = np.stack([speed * t + base_xy[:, 0], base_xy[:, 1], np.full(samples, torso_z)], axis=-1)
+        return np.concatenate([robot.leg_angles(leg, feet[:, n] - base) for n, leg in enumerate(LEGS)], axis=1)
+
+    def states(base_xy: np.ndarray, joints: np.ndarray):
+        return _expand(robot.model, dt, 1, speed, base_xy, torso_z, joints, columns)[1:]
+
+    base_xy, joints, zmp_error = _base_on_zmp(robot.model, t, speed, zmp_ref, torso_z + com_up, joints_for, states)
+    times, q, v, a = _expand(robot.model, dt, cycles, speed, base_xy, torso_z, joints, columns)
+    active = np.tile(active, (cycles, 1))
+    labels = ["+".join(leg.upper() for leg, on in zip(LEGS, row) if on) for row in active]
+    return GaitReference(times, q, v, a, robot.contacts(), active, labels, speed * len(times) * dt, [[n] for n in range(4)], zmp_error)
+
+
+def biped_walk(robot: Biped, speed: float, step_length: float, samples: int, cycles: int, double_support: float,
+               step_height: float, hip_height: float, arm_swing: float) -> GaitReference:
+    """Walk with the left foot touching down at t = 0 and the right half a cycle later; each stance lasts
+    (1 + double_support) step times. The pelvis follows the periodic LIP whose ZMP sits at the stance sole's
+    centre in single support and moves from the trailing to the leading sole centre in double support; the
+    arms swing by `arm_swing` [rad] against the same-side leg."""
+    p = robot.parameters
+    period = 2.0 * step_length / speed
+    dt = period / samples
+    t = np.arange(samples) * dt
+    stance_samples = int(round(0.5 * (1.0 + double_support) * samples))
+    touchdown = {"l": 0, "r": samples // 2}
+    sole_centre = np.array([0.5 * (p.foot_toe - p.foot_heel), 0.0, 0.0])
+    ankles = np.zeros((samples, 2, 3))
+    active = np.zeros((samples, 8), dtype=bool)
+    since_touchdown = np.zeros((samples, 2), dtype=int)
+    for n, side in enumerate(SIDES):
+        x, z, stance = _foot_track(samples, touchdown[side], stance_samples, dt, speed, step_height)
+        ankles[:, n] = np.stack([x, np.full(samples, p.hip_y if side == "l" else -p.hip_y), z + p.ankle_height], axis=-1)
+        active[:, 4 * n : 4 * n + 4] = stance[:, None]
+        since_touchdown[:, n] = (np.arange(samples) - touchdown[side]) % samples
+    centres = ankles[:, :, :2] + sole_centre[:2]
+    left_on, right_on = active[:, 0], active[:, 4]
+    leading = np.where(since_touchdown[:, 0] < since_touchdown[:, 1], 0, 1)
+    weight = np.clip(np.min(since_touchdown, axis=1) / max(stance_samples - samples // 2, 1), 0.0, 1.0)
+    rows = np.arange(samples)
+    double = (1.0 - weight)[:, None] * centres[rows, 1 - leading] + weight[:, None] * centres[rows, leading]
+    zmp_ref = np.where((left_on & right_on)[:, None], double, np.where(left_on[:, None], centres[:, 0], centres[:, 1]))
+    arm_phase = 2.0 * np.pi * t / period
+    arms = np.stack([arm_swing * np.sin(arm_phase), np.zeros(samples), -arm_swing * np.sin(arm_phase), np.zeros(samples)], axis=-1)
+    columns = [robot.joint_slice("l"), robot.joint_slice("r"), robot.joint_slice("l", "arm"), robot.joint_slice("r", "arm")]
+
+    def joints_for(base_xy: np.ndarray) -> np.ndarray:
+        base = np.stack([speed * t + base_xy[:, 0], base_xy[:, 1], np.full(samples, hip_height)], axis=-1)
+        legs = [robot.leg_angles(side, ankles[:, n] - base) for n, side in enumerate(SIDES)]
+        return np.concatenate(legs + [arms], axis=1)
+
+    def states(base_xy: np.ndarray, joints: np.ndarray):
+        return _expand(robot.model, dt, 1, speed, base_xy, hip_height, joints, columns)[1:]
+
+    com_up = float(np.asarray(lk.center_of_mass(robot.model, robot.model.neutral()))[2])
+    base_xy, joints, zmp_error = _base_on_zmp(robot.model, t, speed, zmp_ref, hip_height + com_up, joints_for, states)
+    times, q, v, a = _expand(robot.model, dt, cycles, speed, base_xy, hip_height, joints, columns)
+    active = np.tile(active, (cycles, 1))
+    labels = ["double" if row.all() else ("left" if row[0] else "right") for row in active]
+    return GaitReference(times, q, v, a, robot.contacts(), active, labels, speed * len(times) * dt, [[0, 1, 2, 3], [4, 5, 6, 7]], zmp_error)
+
+
+# --------------------------------------------------------------------------------------------------
+# Dynamics and indices
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class ContactInverseDynamics:
+    torques: np.ndarray  # (T, nv - 6) actuated joint torques [N m]
+    forces: np.ndarray  # (T, k, 3) contact forces on the robot [N], zero for contacts in the air
+    unbalanced: np.ndarray  # (T, 6) base-row residual [N; N m] the contact forces cannot supply
+    points: np.ndarray  # (T, k, 3) world contact points
+
+
+def contact_inverse_dynamics(model: lk.Model, ref: GaitReference) -> ContactInverseDynamics:
+    """Least-squares contact forces and joint torques realising the reference accelerations (module docstring)."""
+    generalized = np.asarray(lk.rnea(model, ref.q, ref.v, ref.a))  # (T, nv) = M a + h
+    poses = np.asarray(lk.forward_kinematics(model, ref.q))
+    jacobians = np.stack([np.asarray(lk.jacobian(model, ref.q, body, point))[:, :3, :] for body, point in ref.contacts], axis=1)  # (T, k, 3, nv)
+    points = np.stack([np.einsum("tij,j->ti", poses[:, body, :3, :3], point) + poses[:, body, :3, 3] for body, point in ref.contacts], axis=1)
+    jacobians = jacobians * ref.active[:, :, None, None]
+    samples, k = ref.active.shape
+    base_map = np.transpose(jacobians[..., :6], (0, 3, 1, 2)).reshape(samples, 6, 3 * k)  # (T, 6, 3k): J_b^T
+    forces = np.einsum("tij,tj->ti", np.linalg.pinv(base_map, rcond=1e-10), generalized[:, :6])
+    unbalanced = generalized[:, :6] - np.einsum("tij,tj->ti", base_map, forces)
+    forces = forces.reshape(samples, k, 3)
+    torques = generalized[:, 6:] - np.einsum("tkcv,tkc->tv", jacobians[..., 6:], forces)
+    return ContactInverseDynamics(torques, forces, unbalanced, points)
+
+
+def constrained_acceleration_gap(model: lk.Model, ref: GaitReference, torques: np.ndarray) -> float:
+    """Largest |ddq - a_ref| over the samples, with ddq from `lk.contact_dynamics` under the found torques
+    and the stance contacts held (one batched call per distinct support set)."""
+    tau = np.concatenate([np.zeros((len(ref.t), 6)), torques], axis=1)
+    gap = 0.0
+    for support in np.unique(ref.active, axis=0):
+        rows = np.all(ref.active == support, axis=1)
+        contacts = [c for c, on in zip(ref.contacts, support) if on]
+        ddq, _ = lk.contact_dynamics(model, ref.q[rows], ref.v[rows], tau[rows], contacts)
+        gap = max(gap, float(np.max(np.abs(np.asarray(ddq) - ref.a[rows]))))
+    return gap
+
+
+@dataclass
+class GaitAnalysis:
+    robot: str
+    ref: GaitReference
+    dynamics: ContactInverseDynamics
+    columns: dict[str, np.ndarray]
+    summary: dict[str, float]
+
+
+def analyse(name: str, model: lk.Model, ref: GaitReference, motor: MotorParameters, v_tip_max: float, mu: float,
+            progress: tqdm) -> GaitAnalysis:
+    """Every index over the reference (see the module docstring); the contact points in the air are the
+    swing tips that make support edges "diagonal" for S_H."""
+    dyn = contact_inverse_dynamics(model, ref)
+    progress.update()
+    gap = constrained_acceleration_gap(model, ref, dyn.torques)
+    progress.update()
+    com = np.asarray(lk.center_of_mass(model, ref.q))
+    s_h = st.angular_momentum_stability_of_model(model, ref.q, ref.v, dyn.points, ref.active, dyn.points, ~ref.active, v_tip_max)
+    static = st.static_stability_margin(com, dyn.points, ref.active)
+    zmp = st.zmp(model, ref.q, ref.v, ref.a)
+    zmp_margin = st.static_stability_margin(zmp, dyn.points, ref.active)
+    cop = st.center_of_pressure(dyn.points, dyn.forces)
+    # Friction on each foot's resultant: how a foot's force is split among its sole corners is not determined.
+    foot_forces = np.stack([dyn.forces[:, group].sum(axis=1) for group in ref.feet], axis=1)
+    foot_on = np.stack([ref.active[:, group[0]] for group in ref.feet], axis=1)
+    normals = np.broadcast_to([0.0, 0.0, 1.0], foot_forces.shape)
+    friction = np.min(np.where(foot_on, st.friction_cone_margin(foot_forces, normals, mu), np.inf), axis=1)
+    joint_v = ref.v[:, 6:]
+    torque_speed = np.min(st.torque_speed_margin(dyn.torques, joint_v, motor.joint_max_speed, motor.gear_ratio, motor.efficiency, motor.slope), axis=1)
+    joule = st.joule_loss_power(dyn.torques, motor.resistance, motor.gear_ratio, motor.torque_constant)
+    mechanical = np.sum(np.abs(dyn.torques * joint_v), axis=1)
+    progress.update()
+    columns = {
+        "t": ref.t, "S_H": s_h, "static_margin": static, "zmp_x": zmp[:, 0], "zmp_y": zmp[:, 1], "zmp_margin": zmp_margin,
+        "cop_x": cop[:, 0], "cop_y": cop[:, 1], "com_x": com[:, 0], "com_y": com[:, 1],
+        "unbalanced_moment": np.linalg.norm(dyn.unbalanced[:, 3:], axis=1), "friction_margin": friction,
+        "torque_speed_margin": torque_speed, "joule_power": joule, "mechanical_power": mechanical,
+    }
+    worst, worst_t = st.worst_case(s_h, ref.t)
+    mass = model.total_mass
+    summary = {
+        "S_H min [N m s]": worst, "S_H min at [s]": worst_t, "S_H mean [N m s]": float(np.mean(s_h)),
+        "static margin min [m]": float(np.min(static)), "static margin max [m]": float(np.max(static)),
+        "ZMP margin min [m]": float(np.min(zmp_margin)), "ZMP margin max [m]": float(np.max(zmp_margin)),
+        "planned-ZMP tracking error max [m]": ref.zmp_tracking_error,
+        "|CoP - ZMP| max [m]": float(np.max(np.linalg.norm(cop[:, :2] - zmp[:, :2], axis=1))),
+        "unbalanced tipping moment max [N m]": float(np.max(columns["unbalanced_moment"])),
+        "contact-dynamics |ddq - a_ref| max": gap,
+        "friction margin min [N]": float(np.min(friction)), "torque-speed margin min [N m]": float(np.min(torque_speed)),
+        "E1 Joule loss [J/m]": st.joule_loss_index(dyn.torques, ref.t, ref.distance, motor.resistance, motor.gear_ratio, motor.torque_constant),
+        "E2 specific resistance [-]": st.specific_resistance(dyn.torques, joint_v, ref.t, ref.distance, mass, STANDARD_GRAVITY),
+    }
+    return GaitAnalysis(name, ref, dyn, columns, summary)
+
+
+def _biped_extras(robot: Biped, analysis: GaitAnalysis) -> None:
+    """FRI of the stance foot in single support and its margin to the sole, the foot-torque margins (eq. 6) of
+    each stance foot's wrench about its sole point below the ankle, and J_s1 of the GCoM."""
+    ref, model = analysis.ref, robot.model
+    poses = np.asarray(lk.forward_kinematics(model, ref.q))
+    torque_margin = np.full(len(ref.t), np.inf)
+    for side, group in zip(SIDES, ref.feet):
+        sole_point = poses[:, model.names.index(f"{side}_foot"), :3, 3] - [0.0, 0.0, robot.parameters.ankle_height]
+        forces = analysis.dynamics.forces[:, group]
+        moment = np.sum(np.cross(analysis.dynamics.points[:, group] - sole_point[:, None, :], forces), axis=1)
+        margins = np.min(st.foot_torque_margin(forces.sum(axis=1), moment, robot.parameters.sole), axis=1)
+        torque_margin = np.where(ref.active[:, group[0]], np.minimum(torque_margin, margins), torque_margin)
+    analysis.columns["foot_torque_margin"] = torque_margin
+    analysis.summary["foot-torque margin min (eq. 6) [N m]"] = float(np.min(torque_margin))
+    left, right = ref.active[:, 0], ref.active[:, 4]
+    fri = np.full((len(ref.t), 3), np.nan)
+    fri_margin = np.full(len(ref.t), np.nan)
+    for side, rows in (("l", left & ~right), ("r", right & ~left)):
+        if not np.any(rows):
+            continue
+        fri[rows] = st.foot_rotation_indicator(model, ref.q[rows], ref.v[rows], ref.a[rows], f"{side}_foot")
+        corners = analysis.dynamics.points[rows][:, (0 if side == "l" else 4) : (4 if side == "l" else 8)]
+        fri_margin[rows] = st.static_stability_margin(fri[rows], corners)
+    analysis.columns.update({"fri_x": fri[:, 0], "fri_y": fri[:, 1], "fri_margin": fri_margin})
+    single = ~np.isnan(fri_margin)
+    analysis.summary["FRI margin min, single support [m]"] = float(np.min(fri_margin[single]))
+    centroid = st.support_polygon_centroid(analysis.dynamics.points, ref.active)
+    gcom = np.stack([analysis.columns["com_x"], analysis.columns["com_y"]], axis=1)
+    analysis.summary["J_s1 = int |GCoM - S|^2 dt [m^2 s]"] = st.stability_performance_1(gcom, centroid, ref.t)
+
+
+# --------------------------------------------------------------------------------------------------
+# Output
+# --------------------------------------------------------------------------------------------------
+
+
+def write_csv(path: Path, analysis: GaitAnalysis) -> None:
+    names = list(analysis.columns)
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(names + ["support"])
+        rows = np.stack([analysis.columns[n] for n in names], axis=1)
+        for row, label in zip(rows, analysis.ref.support_label):
+            writer.writerow([f"{x:.9g}" for x in row] + [label])
+
+
+def plot(path: Path, analysis: GaitAnalysis, title: str) -> None:
+    """S_H over the cycle (paper Fig. 3) with the support phases shaded, and the static/ZMP margins below."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t, labels = analysis.ref.t, analysis.ref.support_label
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    starts = [0] + [i for i in range(1, len(labels)) if labels[i] != labels[i - 1]] + [len(labels)]
+    shades = {}
+    for a, b in zip(starts[:-1], starts[1:]):
+        colour = shades.setdefault(labels[a], f"C{len(shades) + 2}")
+        for axis in (top, bottom):
+            axis.axvspan(t[a], t[b - 1], color=colour, alpha=0.12, lw=0)
+        top.text(0.5 * (t[a] + t[b - 1]), 1.0, labels[a], transform=top.get_xaxis_transform(), ha="center", va="bottom", fontsize=7)
+    top.plot(t, analysis.columns["S_H"], color="C0", label="S_H")
+    top.axhline(0.0, color="k", lw=0.8)
+    top.set_ylabel("S_H [N m s]")
+    top.set_title(title, pad=14)
+    bottom.plot(t, analysis.columns["static_margin"] * 1e3, color="C1", label="static margin")
+    bottom.plot(t, analysis.columns["zmp_margin"] * 1e3, color="C0", ls="--", label="ZMP margin")
+    bottom.axhline(0.0, color="k", lw=0.8)
+    bottom.set_ylabel("margin [mm]")
+    bottom.set_xlabel("t [s]")
+    bottom.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def print_table(analyses: list[GaitAnalysis]) -> None:
+    keys = list(dict.fromkeys(k for a in analyses for k in a.summary))
+    width = max(len(k) for k in keys)
+    print(f"{'':{width}}  " + "  ".join(f"{a.robot:>12}" for a in analyses))
+    for key in keys:
+        cells = [f"{a.summary[key]:12.5g}" if key in a.summary else f"{'-':>12}" for a in analyses]
+        print(f"{key:{width}}  " + "  ".join(cells))
+
+
+def run(robot_name: str, args: argparse.Namespace, progress: tqdm) -> GaitAnalysis:
+    """Build the robot and its reference, analyse it, and write its CSV and figure."""
+    if robot_name == "quadruped":
+        quadruped = build_quadruped()
+        ref = quadruped_amble(quadruped, args.quadruped_speed, args.quadruped_period, args.samples, args.cycles, 0.03, 0.09)
+        model, motor, tip_speed = quadruped.model, QUADRUPED_MOTOR, args.quadruped_tip_speed
+        title = f"Quadruped amble, duty 0.5, {args.quadruped_speed:g} m/s: S_H over {args.cycles} cycle(s)"
+    else:
+        biped = build_biped()
+        ref = biped_walk(biped, args.biped_speed / 3.6, args.biped_step, args.samples, args.cycles, 0.2, 0.05, 0.82, 0.3)
+        model, motor, tip_speed = biped.model, BIPED_MOTOR, args.biped_tip_speed
+        title = f"Biped walk, {args.biped_speed:g} km/h: S_H over {args.cycles} cycle(s)"
+    progress.update()
+    analysis = analyse(robot_name, model, ref, motor, tip_speed, args.mu, progress)
+    if robot_name == "biped":
+        _biped_extras(biped, analysis)
+    write_csv(args.out / f"gait_{robot_name}.csv", analysis)
+    plot(args.out / f"gait_{robot_name}.png", analysis, title)
+    progress.update()
+    return analysis
+
+
+def main(argv: list[str] | None = None) -> int:
+    """`legkit gait`: analyse the quadruped amble and/or the biped walk; writes CSVs and figures to --out."""
+    parser = argparse.ArgumentParser(prog="legkit gait", description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", choices=["quadruped", "biped", "both"], default="both")
+    parser.add_argument("--out", type=Path, default=Path("gait_results"), help="output folder (created)")
+    parser.add_argument("--cycles", type=_positive_int, default=1, help="gait cycles to analyse")
+    parser.add_argument("--samples", type=_positive_int, default=400, help="samples per cycle (>= 8)")
+    parser.add_argument("--mu", type=float, default=0.8, help="friction coefficient for the friction-cone margin")
+    parser.add_argument("--quadruped-speed", type=float, default=0.67, help="amble speed [m/s]")
+    parser.add_argument("--quadruped-period", type=float, default=0.4, help="amble cycle time [s]")
+    parser.add_argument("--quadruped-tip-speed", type=float, default=1.5, help="swing-leg tip speed limit v_tip_max [m/s]")
+    parser.add_argument("--biped-speed", type=float, default=1.8, help="walking speed [km/h]")
+    parser.add_argument("--biped-step", type=float, default=0.4, help="step length [m]")
+    parser.add_argument("--biped-tip-speed", type=float, default=3.0, help="swing-foot speed limit v_tip_max [m/s]")
+    args = parser.parse_args(argv)
+    if args.samples < 8:
+        parser.error("--samples must be at least 8")
+    for name in ("mu", "quadruped_speed", "quadruped_period", "quadruped_tip_speed", "biped_speed", "biped_step", "biped_tip_speed"):
+        if not np.isfinite(getattr(args, name)) or getattr(args, name) <= 0.0:
+            parser.error(f"--{name.replace('_', '-')} must be a positive number")
+    args.out.mkdir(parents=True, exist_ok=True)
+    robots = ["quadruped", "biped"] if args.robot == "both" else [args.robot]
+    with tqdm(total=5 * len(robots), desc="gait analysis", unit="stage") as progress:
+        analyses = [run(name, args, progress) for name in robots]
+    print_table(analyses)
+    print(f"wrote {', '.join(f'gait_{n}.csv/.png' for n in robots)} to {args.out}")
+    return 0
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {value}")
+    return value

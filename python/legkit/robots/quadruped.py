@@ -1,0 +1,195 @@
+"""A quadruped like the Sony four-legged robot of Hardt & von Stryk (RoboCup 2002), and URDF export.
+
+Torso frame: origin at the torso's geometric centre, x forward, y left, z up. The heavy head is fixed to the
+front of the torso. Each leg (lf, rf, lh, rh: left/right, fore/hind) hangs from a hip point on the torso
+underside through a 2-DoF universal hip, roll about x first (abduction, body `<leg>_hip`, massless) then
+pitch about y (`<leg>_thigh`), and a 1-DoF knee about y (`<leg>_shank`). At zero angles every leg points
+straight down; the foot is the point at the end of the shank. Positive pitch swings the foot backwards
+(toward -x), as a right-handed rotation about +y does to a point below the axis.
+
+Free-flyer base: nq = 7 + 12 = 19, nv = 6 + 12 = 18, 12 actuated joints ordered leg by leg
+(lf, rf, lh, rh), each (hip roll, hip pitch, knee).
+
+The default numbers are an AIBO-ERS-210-sized robot (about 1.6 kg, 0.15 m legs); the paper's own
+parameter table was not at hand, so every value is a documented, overridable field of
+`QuadrupedParameters`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+import numpy.typing as npt
+
+import legkit as lk
+
+LEGS = ("lf", "rf", "lh", "rh")
+#: Diagonal leg pairs and lateral leg pairs (support lines of a two-legged stance).
+DIAGONAL_PAIRS = (("lf", "rh"), ("rf", "lh"))
+LATERAL_PAIRS = (("lf", "lh"), ("rf", "rh"))
+
+
+@dataclass(frozen=True)
+class QuadrupedParameters:
+    """Geometry [m] and masses [kg] of the quadruped; override any field: QuadrupedParameters(head_mass=0.4)."""
+
+    torso_mass: float = 0.80
+    torso_size: tuple[float, float, float] = (0.18, 0.10, 0.08)  # x, y, z edge lengths of the torso box
+    head_mass: float = 0.30
+    head_size: tuple[float, float, float] = (0.07, 0.07, 0.07)
+    head_position: tuple[float, float, float] = (0.12, 0.0, 0.05)  # head box centre in the torso frame
+    hip_x: float = 0.065  # fore hips at +hip_x, hind hips at -hip_x
+    hip_y: float = 0.055  # left hips at +hip_y, right hips at -hip_y
+    hip_z: float = -0.03  # hip height in the torso frame
+    thigh_length: float = 0.070
+    thigh_mass: float = 0.08
+    shank_length: float = 0.075
+    shank_mass: float = 0.04
+    link_width: float = 0.02  # square cross-section of thigh and shank boxes
+    knee_direction: dict[str, float] = field(
+        default_factory=lambda: {"lf": -1.0, "rf": -1.0, "lh": 1.0, "rh": 1.0}
+    )  # sign of the knee angle in the inverse kinematics: fore knees bend backwards (elbow), hind forwards
+
+    def __post_init__(self) -> None:
+        for name in ("torso_mass", "head_mass", "thigh_mass", "shank_mass", "thigh_length", "shank_length", "link_width"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name in ("torso_size", "head_size"):
+            if len(getattr(self, name)) != 3 or min(getattr(self, name)) <= 0.0:
+                raise ValueError(f"{name} must be three positive edge lengths, got {getattr(self, name)}")
+        if set(self.knee_direction) != set(LEGS) or any(abs(s) != 1.0 for s in self.knee_direction.values()):
+            raise ValueError(f"knee_direction must map each of {LEGS} to +1 or -1, got {self.knee_direction}")
+
+    def hip_position(self, leg: str) -> np.ndarray:
+        """Hip point of `leg` in the torso frame [m]."""
+        fore = 1.0 if leg[1] == "f" else -1.0
+        left = 1.0 if leg[0] == "l" else -1.0
+        return np.array([fore * self.hip_x, left * self.hip_y, self.hip_z])
+
+    @property
+    def total_mass(self) -> float:
+        return self.torso_mass + self.head_mass + 4.0 * (self.thigh_mass + self.shank_mass)
+
+
+@dataclass
+class Quadruped:
+    """The built quadruped: its legkit model, parameters and foot contact points."""
+
+    model: lk.Model
+    parameters: QuadrupedParameters
+
+    @property
+    def feet(self) -> dict[str, tuple[str, np.ndarray]]:
+        """Contact point of each leg: (body name, point in that body's frame [m])."""
+        tip = np.array([0.0, 0.0, -self.parameters.shank_length])
+        return {leg: (f"{leg}_shank", tip.copy()) for leg in LEGS}
+
+    def contacts(self, legs: tuple[str, ...] = LEGS) -> list[tuple[int, np.ndarray]]:
+        """Contact list for `lk.contact_dynamics` / `lk.jacobian`: (body index, point) of each leg in `legs`."""
+        return [(self.model.names.index(self.feet[leg][0]), self.feet[leg][1]) for leg in legs]
+
+    def joint_slice(self, leg: str) -> slice:
+        """Indices of `leg`'s three joints (roll, pitch, knee) in v (q is the same plus one)."""
+        first = self.model.idx_v[self.model.names.index(f"{leg}_hip")]
+        return slice(first, first + 3)
+
+    def leg_angles(self, leg: str, foot_in_torso: npt.ArrayLike) -> np.ndarray:
+        """(..., 3) joint angles (hip roll, hip pitch, knee) [rad] that put the foot of `leg` at
+        foot_in_torso (..., 3) [m, torso frame]. Raises ValueError when out of reach."""
+        p = self.parameters
+        relative = np.asarray(foot_in_torso, dtype=np.float64) - p.hip_position(leg)
+        return roll_pitch_knee_ik(relative, p.thigh_length, p.shank_length, p.knee_direction[leg])
+
+    def to_urdf(self) -> str:
+        """URDF text of the model (free-flyer root link `torso`); load with Model.from_urdf(xml, floating_base=True)."""
+        return model_to_urdf(self.model, "quadruped")
+
+
+def _link_box(mass: float, length: float, width: float) -> lk.MassProperties:
+    return lk.MassProperties.box(mass, [width, width, length], center=[0.0, 0.0, -length / 2.0])
+
+
+def build_quadruped(parameters: QuadrupedParameters | None = None) -> Quadruped:
+    """The quadruped of the module docstring as an `lk.Model` with a free-flyer torso."""
+    p = parameters or QuadrupedParameters()
+    model = lk.Model(floating_base=True, base=lk.MassProperties.box(p.torso_mass, list(p.torso_size)), base_name="torso")
+    model.add_fixed("torso", (np.eye(3), list(p.head_position)), lk.MassProperties.box(p.head_mass, list(p.head_size)), "head")
+    knee = (np.eye(3), [0.0, 0.0, -p.thigh_length])
+    for leg in LEGS:
+        hip = model.add_revolute("torso", [1.0, 0.0, 0.0], (np.eye(3), p.hip_position(leg)), None, f"{leg}_hip")
+        thigh = model.add_revolute(hip, [0.0, 1.0, 0.0], None, _link_box(p.thigh_mass, p.thigh_length, p.link_width), f"{leg}_thigh")
+        model.add_revolute(thigh, [0.0, 1.0, 0.0], knee, _link_box(p.shank_mass, p.shank_length, p.link_width), f"{leg}_shank")
+    return Quadruped(model, p)
+
+
+def roll_pitch_knee_ik(foot: npt.ArrayLike, upper: float, lower: float, knee_direction: float) -> np.ndarray:
+    """Closed-form inverse kinematics of a roll(x)-pitch(y)-knee(y) leg; foot (..., 3) relative to the hip.
+
+    Forward map: foot = R_x(roll) R_y(pitch) [(0, 0, -upper) + R_y(knee) (0, 0, -lower)]. knee_direction
+    (+1/-1) picks the sign of the knee angle. Returns (..., 3) [roll, pitch, knee] [rad]; ValueError when the
+    foot is farther than upper + lower or closer than |upper - lower| (with 1e-12 slack).
+    """
+    f = np.asarray(foot, dtype=np.float64)
+    roll = np.arctan2(f[..., 1], -f[..., 2])
+    wx, wz = f[..., 0], -np.hypot(f[..., 1], f[..., 2])
+    reach_sq = wx * wx + wz * wz
+    cos_knee = (reach_sq - upper * upper - lower * lower) / (2.0 * upper * lower)
+    if np.any(np.abs(cos_knee) > 1.0 + 1e-12):
+        raise ValueError(
+            f"foot target out of reach: hip-to-foot distance {np.sqrt(reach_sq.max()):.4f} m outside "
+            f"[{abs(upper - lower):.4f}, {upper + lower:.4f}] m"
+        )
+    knee = knee_direction * np.arccos(np.clip(cos_knee, -1.0, 1.0))
+    pitch = np.arctan2(-wx, -wz) - np.arctan2(lower * np.sin(knee), upper + lower * np.cos(knee))
+    return np.stack([roll, pitch, knee], axis=-1)
+
+
+def _rpy(rotation: np.ndarray) -> tuple[float, float, float]:
+    """URDF roll-pitch-yaw of R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    pitch = float(np.arcsin(np.clip(-rotation[2, 0], -1.0, 1.0)))
+    if abs(rotation[2, 0]) < 1.0 - 1e-12:
+        return float(np.arctan2(rotation[2, 1], rotation[2, 2])), pitch, float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+    return 0.0, pitch, float(np.arctan2(-rotation[0, 1], rotation[1, 1]))  # gimbal lock: fold roll into yaw
+
+
+def _numbers(values: npt.ArrayLike) -> str:
+    return " ".join(repr(float(x)) for x in np.ravel(values))
+
+
+def _inertial(body: lk.MassProperties) -> str:
+    if body.mass <= 0.0:
+        return ""
+    i = [repr(float(x)) for x in np.ravel(body.inertia)]
+    return (
+        f'<inertial><origin xyz="{_numbers(body.com)}" rpy="0 0 0"/><mass value="{float(body.mass)!r}"/>'
+        f'<inertia ixx="{i[0]}" ixy="{i[1]}" ixz="{i[2]}" iyy="{i[4]}" iyz="{i[5]}" izz="{i[8]}"/>'
+        "</inertial>"
+    )
+
+
+def model_to_urdf(model: lk.Model, robot_name: str) -> str:
+    """URDF text of any legkit model: one link per body (named as the body, with its inertia), one joint
+    `<body>_joint` per non-base body (revolute with +-pi limits, prismatic with +-1 m, or fixed). A floating
+    base is not written as a joint (URDF has none): load with Model.from_urdf(xml, floating_base=True)."""
+    lines = ['<?xml version="1.0"?>', f"<robot name={quoteattr(robot_name)}>"]
+    for i, name in enumerate(model.names):
+        lines.append(f"  <link name={quoteattr(name)}>{_inertial(model.body(i))}</link>")
+    for i in range(1, model.nbodies):
+        placement = model.placement(i)
+        roll, pitch, yaw = _rpy(placement[:3, :3])
+        kind = model.joint_type(i)
+        parts = [
+            f"  <joint name={quoteattr(model.names[i] + '_joint')} type={quoteattr(kind)}>",
+            f"<parent link={quoteattr(model.names[model.parents[i]])}/><child link={quoteattr(model.names[i])}/>",
+            f'<origin xyz="{_numbers(placement[:3, 3])}" rpy="{_numbers([roll, pitch, yaw])}"/>',
+        ]
+        if kind in ("revolute", "prismatic"):
+            limit = np.pi if kind == "revolute" else 1.0
+            parts.append(f'<axis xyz="{_numbers(model.joint_axis(i))}"/>')
+            parts.append(f'<limit lower="{-float(limit)!r}" upper="{float(limit)!r}" effort="1000" velocity="100"/>')
+        parts.append("</joint>")
+        lines.append("".join(parts))
+    lines.append("</robot>")
+    return "\n".join(lines) + "\n"
