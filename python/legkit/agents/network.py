@@ -1,0 +1,454 @@
+"""One agent per SuperBot module, estimating the robot's mass properties from its neighbours only.
+
+This is Moll, Will, Krivokon, Shen, "Distributed control of the center of mass of a modular robot"
+(IROS 2006), Algorithms 1 and 2. Each agent n keeps, per connector i, an estimate ``E[n, i]`` of the mass
+properties of everything beyond connector i, and its own mass properties ``O[n]`` (which depend on its three
+joint angles, which it senses itself).
+
+* Algorithm 1, UpdateMass(i, M): a message M arrives on connector i. It is expressed in the sender's
+  connector frame; the receiver knows the relative rotation of the two mated connectors and turns it into
+  its own connector frame. If it differs from ``E[n, i]`` it replaces it, and RecomputeMass runs.
+* Algorithm 2, RecomputeMass: the total is ``T = O + sum_j E[n, j]``; on every connected connector i the
+  agent sends ``T - E[n, i]`` (in that connector's frame), but only if it differs from what it last sent
+  there.
+
+All agents run in lock step, vectorised with numpy over agents and connectors (``round()``): a synchronous
+round delivers every message sent in the previous round (Algorithm 1 for each), then runs Algorithm 2 for
+every agent. Running Algorithm 2 for an agent whose inputs did not change is a no-op on the wire, because
+messages are only sent when their payload changed; so this is the paper's event-driven algorithm, batched.
+
+Numerics: "T minus what came from i" is computed as ``O + sum_{j != i} E[n, j]`` (prefix plus suffix sums
+over the connectors). It is the same quantity, but it avoids subtracting nearly equal numbers, so the
+value sent is bit-for-bit the same whenever the inputs are: once the estimates are right no rounding noise
+triggers further messages, and the network falls silent. Estimates are stored in the receiving connector's
+frame, so an agent moving its own joints keeps them valid and re-expresses them in its frame with its
+current joint angles (tracking).
+
+On top, as the paper suggests for world coordinates: a randomised leader election among the modules
+touching the ground (each draws a random priority from the bus's seeded generator; the highest priority is
+flooded through the tree), and propagation of the leader's world pose and support line outwards from the
+leader, each agent composing the pose it received with its connector's pose. The connector through which
+an agent heard of the leader (its *uplink*) tells it which side of each of its joints is fixed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+import legkit as lk
+from legkit.agents import moments
+from legkit.agents.bus import BusConfig, Channel
+from legkit.robots.superbot import CONNECTOR_BLOCK, ModelLayout, ModuleParameters, ModuleTree, module_kinematics
+
+_N_SLOTS = 6
+_POSE_WIDTH = 9 + 3 + 3 + 3 + 1  # connector rotation, position, support point, support direction, leader id
+
+
+@dataclass(frozen=True)
+class GroundContact:
+    """A module touching the ground: its ``block`` (0: A, 1: B) rests on the ground with world pose
+    (``rotation``, ``translation``) of that block's frame (the module frame carried by the block), and the
+    support line through ``line_point`` along ``line_direction`` (world, m) that the controller steers to."""
+
+    module: int
+    block: int
+    rotation: np.ndarray
+    translation: np.ndarray
+    line_point: np.ndarray
+    line_direction: np.ndarray
+
+
+@dataclass(frozen=True)
+class EstimateErrors:
+    """Largest absolute errors of the agents' estimates against the centralised truth (module frames)."""
+
+    mass: float
+    com: float
+    inertia: float
+
+    @property
+    def largest(self) -> float:
+        """The largest of the three (kg, m and kg m^2 mixed: a convergence figure, not a physical one)."""
+        return max(self.mass, self.com, self.inertia)
+
+
+class AgentNetwork:
+    """The agents of one or more module trees (``trees``), numbered tree after tree, and their bus.
+
+    ``ground`` lists the modules touching the ground (candidates for leadership); ``angles`` (N, 3) are the
+    joint angles the agents sense at start (zeros by default). On construction each agent runs Algorithm 2
+    once with empty estimates (round 0: it sends its own mass on every connector)."""
+
+    def __init__(
+        self, trees: ModuleTree | Sequence[ModuleTree], bus: BusConfig | None = None, ground: Sequence[GroundContact] = (),
+        angles: np.ndarray | None = None,
+    ):
+        trees = [trees] if isinstance(trees, ModuleTree) else list(trees)
+        if not trees or not all(isinstance(t, ModuleTree) for t in trees):
+            raise TypeError("trees: must be a ModuleTree or a non-empty sequence of ModuleTree")
+        parameters = trees[0].parameters
+        if any(t.parameters != parameters for t in trees):
+            raise ValueError("trees: all trees must share the same ModuleParameters")
+        bus = BusConfig() if bus is None else bus
+        if not isinstance(bus, BusConfig):
+            raise TypeError(f"bus: must be a BusConfig, got {type(bus).__name__}")
+        self.parameters: ModuleParameters = parameters
+        self.bus = bus
+        tables = [t.connector_table() for t in trees]
+        offsets = np.cumsum([0] + [t.n_modules for t in trees])
+        self.partner = np.concatenate([np.where(p >= 0, p + o, -1) for (p, _, _), o in zip(tables, offsets)])
+        self.partner_slot = np.concatenate([s for _, s, _ in tables])
+        self.mate = np.concatenate([m for _, _, m in tables])
+        self.connected = self.partner >= 0
+        self.n_modules = int(offsets[-1])
+        self.ground = self._check_ground(ground)
+        self.rng = np.random.default_rng(bus.seed)
+        self.mass_channel = Channel(self.partner, self.partner_slot, moments.WIDTH, bus, self.rng)
+        self.election_channel = Channel(self.partner, self.partner_slot, 2, bus, self.rng)
+        self.pose_channel = Channel(self.partner, self.partner_slot, _POSE_WIDTH, bus, self.rng)
+        self._part_moments_zero = moments.pack(*_part_arrays(parameters))
+        self._connector_rotation_zero, self._connector_position_zero = parameters.connector_frames()
+        n = self.n_modules
+        self.now = 0
+        self.estimates_connector_frame = np.zeros((n, _N_SLOTS, moments.WIDTH))
+        # Election: a random, distinct priority for each ground module; -1 means "no leader heard of".
+        self.leader_key = np.full(n, -1.0)
+        self.leader = np.full(n, -1, dtype=np.int64)
+        self.uplink = np.full(n, -1, dtype=np.int64)
+        priorities = self.rng.permutation(len(self.ground)).astype(float)
+        for contact, priority in zip(self.ground, priorities):
+            self.leader_key[contact.module], self.leader[contact.module] = priority, contact.module
+        self._ground_by_module = {c.module: c for c in self.ground}
+        self.line = np.zeros((n, 6))
+        for contact in self.ground:
+            direction = np.asarray(contact.line_direction, dtype=float)
+            self.line[contact.module] = np.concatenate([np.asarray(contact.line_point, dtype=float), direction / np.linalg.norm(direction)])
+        # Pose: the world pose of the uplink connector as received (receiver's connector frame), and the line.
+        self.received_connector_rotation = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+        self.received_connector_position = np.zeros((n, 3))
+        self.pose_known = np.zeros(n, dtype=bool)
+        self._pose_rotation = np.zeros((n, _N_SLOTS, 3, 3))
+        self._pose_position = np.zeros((n, _N_SLOTS, 3))
+        self._pose_line = np.zeros((n, _N_SLOTS, 6))
+        self._pose_leader = np.full((n, _N_SLOTS), -1, dtype=np.int64)
+        # Module-frame copies of the estimates, connector-major (6, N, 13) so each connector's block is contiguous.
+        self._estimates_module_frame = np.zeros((_N_SLOTS, n, moments.WIDTH))
+        self._dirty_mass = np.ones(n, dtype=bool)
+        self._dirty_estimate = np.zeros((n, _N_SLOTS), dtype=bool)  # module-frame copy of an estimate is stale
+        self._dirty_election = np.ones(n, dtype=bool)
+        self._dirty_pose = np.ones(n, dtype=bool)
+        self.recomputations = 0
+        self.observe(np.zeros((n, 3)) if angles is None else angles)
+        self._send()
+
+    def _check_ground(self, ground: Sequence[GroundContact]) -> list[GroundContact]:
+        checked = []
+        for index, contact in enumerate(ground):
+            if not isinstance(contact, GroundContact):
+                raise TypeError(f"ground[{index}]: must be a GroundContact, got {type(contact).__name__}")
+            if not 0 <= contact.module < self.n_modules or contact.block not in (0, 1):
+                raise ValueError(f"ground[{index}]: module must be in 0..{self.n_modules - 1} and block 0 or 1")
+            direction = np.asarray(contact.line_direction, dtype=float)
+            if direction.shape != (3,) or not np.linalg.norm(direction) > 0:
+                raise ValueError(f"ground[{index}]: line_direction must be a non-zero 3-vector")
+            checked.append(contact)
+        if len({c.module for c in checked}) != len(checked):
+            raise ValueError("ground: a module is listed twice")
+        return checked
+
+    # ------------------------------------------------------------------------------------------------
+    # Sensing
+    def observe(self, angles: np.ndarray) -> None:
+        """Every agent reads its own three joint angles (N, 3) rad. Agents whose angles changed recompute their
+        own mass properties and connector poses, and will run Algorithm 2 in the next round."""
+        angles = np.asarray(angles, dtype=float)
+        if angles.shape != (self.n_modules, 3):
+            raise ValueError(f"angles: must have shape ({self.n_modules}, 3), got {angles.shape}")
+        if not np.all(np.isfinite(angles)):
+            raise ValueError("angles: must be finite")
+        if not hasattr(self, "angles"):
+            n = self.n_modules
+            self.angles = angles.copy()
+            self.part_rotation = np.zeros((n, 4, 3, 3))
+            self.part_translation = np.zeros((n, 4, 3))
+            self.part_moments = np.zeros((n, 4, moments.WIDTH))
+            self.own = np.zeros((n, moments.WIDTH))
+            self.connector_rotation = np.zeros((n, _N_SLOTS, 3, 3))
+            self.connector_position = np.zeros((n, _N_SLOTS, 3))
+            rows = np.arange(n)
+        else:
+            rows = np.flatnonzero(np.any(angles != self.angles, axis=1))
+        if rows.size == 0:
+            return
+        self.angles[rows] = angles[rows]
+        part_rotation, part_translation = module_kinematics(angles[rows], self.parameters)
+        self.part_rotation[rows], self.part_translation[rows] = part_rotation, part_translation
+        self.part_moments[rows] = moments.transform(part_rotation, part_translation, self._part_moments_zero)
+        self.own[rows] = self.part_moments[rows].sum(axis=1)
+        # Connectors on block A do not move in the module frame; those on block B move with part 3.
+        on_block = np.where(CONNECTOR_BLOCK == 1, 3, 0)
+        rotation, translation = part_rotation[:, on_block], part_translation[:, on_block]
+        self.connector_rotation[rows] = rotation @ self._connector_rotation_zero
+        self.connector_position[rows] = translation + np.einsum("nsij,sj->nsi", rotation, self._connector_position_zero)
+        self._dirty_mass[rows] = True
+        self._dirty_estimate[rows] = self.connected[rows]
+        self._dirty_pose[rows] = True
+
+    def reconfigure(self, bus: BusConfig) -> None:
+        """Change the network's behaviour from now on (delays, loss, duplication, retransmission period), e.g.
+        to stop losses; messages in flight keep their delivery times. The mode cannot change."""
+        if not isinstance(bus, BusConfig):
+            raise TypeError(f"bus: must be a BusConfig, got {type(bus).__name__}")
+        if bus.mode != self.bus.mode:
+            raise ValueError(f"bus: the mode cannot change from {self.bus.mode!r} to {bus.mode!r}")
+        self.bus = bus
+        for channel in self.channels:
+            channel.config = bus
+
+    # ------------------------------------------------------------------------------------------------
+    # Rounds
+    def round(self) -> int:
+        """One tick: deliver due messages (Algorithm 1), then Algorithm 2 and the election / pose updates for
+        every agent. Returns the number of data messages put on the wire this round (all channels)."""
+        before = self.transmissions
+        self.now += 1
+        self._receive()
+        self._send()
+        for channel in self.channels:
+            channel.retransmit(self.now)
+        return self.transmissions - before
+
+    def run(self, rounds: int) -> int:
+        """Run ``rounds`` rounds; returns the data messages sent."""
+        return sum(self.round() for _ in range(rounds))
+
+    def run_until_quiescent(self, max_rounds: int = 100_000) -> int:
+        """Run rounds until every channel is idle (nothing in flight, nothing unacknowledged); returns the
+        rounds run. Raises RuntimeError if that takes more than ``max_rounds``."""
+        for rounds in range(max_rounds + 1):
+            if self.quiescent:
+                return rounds
+            self.round()
+        raise RuntimeError(f"max_rounds: the network did not fall silent within {max_rounds} rounds")
+
+    @property
+    def channels(self) -> tuple[Channel, Channel, Channel]:
+        return self.mass_channel, self.election_channel, self.pose_channel
+
+    @property
+    def quiescent(self) -> bool:
+        """No agent has work pending (joints moved since the last round), nothing is on the wire and nothing
+        waits for an acknowledgement, on every channel."""
+        pending = self._dirty_mass.any() or self._dirty_election.any() or self._dirty_pose.any()
+        return not pending and all(c.idle for c in self.channels)
+
+    @property
+    def transmissions(self) -> int:
+        """Data messages put on the wire so far (all channels, including retransmissions)."""
+        return sum(c.transmissions for c in self.channels)
+
+    @property
+    def acknowledgements(self) -> int:
+        """Acknowledgements put on the wire so far (asynchronous mode only)."""
+        return sum(c.acknowledgements for c in self.channels)
+
+    def _receive(self) -> None:
+        # Algorithm 1: into the receiving connector's frame (mated connectors share their origin); an agent
+        # whose estimate changed runs Algorithm 2 in this round's _send.
+        module, slot, _, _, payload = self.mass_channel.deliver(self.now)
+        received = moments.transform(self.mate[module, slot], np.zeros(3), payload)
+        changed = np.any(received != self.estimates_connector_frame[module, slot], axis=-1)
+        self.estimates_connector_frame[module[changed], slot[changed]] = received[changed]
+        self._dirty_mass[module[changed]] = True
+        self._dirty_estimate[module[changed], slot[changed]] = True
+
+        module, slot, _, _, payload = self.election_channel.deliver(self.now)
+        key = payload[:, 0]
+        best = self.leader_key.copy()
+        np.maximum.at(best, module, key)
+        improved = (key == best[module]) & (key > self.leader_key[module])
+        module, slot = module[improved], slot[improved]
+        self.leader_key[module] = key[improved]
+        self.leader[module] = payload[improved, 1].astype(np.int64)
+        self.uplink[module] = slot
+        self._dirty_election[module] = True
+        self._dirty_pose[module] = True
+
+        # Poses are kept per connector (a pose may arrive before the election tells which connector leads to
+        # the leader); an agent uses the one on its uplink, if it comes from the leader it follows.
+        module, slot, _, _, payload = self.pose_channel.deliver(self.now)
+        self._pose_rotation[module, slot] = payload[:, :9].reshape(-1, 3, 3) @ self.mate[module, slot]
+        self._pose_position[module, slot] = payload[:, 9:12]
+        self._pose_line[module, slot] = payload[:, 12:18]
+        self._pose_leader[module, slot] = payload[:, 18].astype(np.int64)
+        self._dirty_pose[module[slot == self.uplink[module]]] = True
+        rows = np.arange(self.n_modules)
+        uplink = np.maximum(self.uplink, 0)
+        self.pose_known = (self.uplink >= 0) & (self._pose_leader[rows, uplink] == self.leader)
+        self.received_connector_rotation = self._pose_rotation[rows, uplink]
+        self.received_connector_position = self._pose_position[rows, uplink]
+        follower = ~self._is_leader()
+        self.line[follower] = self._pose_line[rows, uplink][follower]
+
+    def _send(self) -> None:
+        # Algorithm 2 for every agent whose own mass or an estimate changed.
+        rows = np.flatnonzero(self._dirty_mass)
+        self._dirty_mass[:] = False
+        self.recomputations += rows.size
+        modules, slots = np.nonzero(self._dirty_estimate)
+        self._dirty_estimate[:] = False
+        self._estimates_module_frame[slots, modules] = moments.transform(
+            self.connector_rotation[modules, slots], self.connector_position[modules, slots], self.estimates_connector_frame[modules, slots]
+        )
+        row_index, slots = np.nonzero(self.connected[rows])
+        modules = rows[row_index]
+        outgoing = self.own[modules] + _exclusive_sums(self._estimates_module_frame[:, rows])[slots, row_index]
+        inverse_rotation, inverse_translation = moments.inverse_pose(self.connector_rotation[modules, slots], self.connector_position[modules, slots])
+        self.mass_channel.send_changed(self.now, modules, slots, moments.transform(inverse_rotation, inverse_translation, outgoing))
+
+        # Flooding: forward the best leader heard of on every connector but the one it came from.
+        rows = np.flatnonzero(self._dirty_election & (self.leader_key >= 0))
+        self._dirty_election[:] = False
+        row_index, slots = np.nonzero(self.connected[rows] & (np.arange(_N_SLOTS) != self.uplink[rows, None]))
+        modules = rows[row_index]
+        self.election_channel.send_changed(self.now, modules, slots, np.stack([self.leader_key[modules], self.leader[modules]], axis=-1))
+
+        rows = np.flatnonzero(self._dirty_pose & (self.pose_known | self._is_leader()))
+        self._dirty_pose[:] = False
+        row_index, slots = np.nonzero(self.connected[rows] & (np.arange(_N_SLOTS) != self.uplink[rows, None]))
+        modules = rows[row_index]
+        rotation, translation = self.world_poses(modules)
+        payload = np.concatenate(
+            [(rotation @ self.connector_rotation[modules, slots]).reshape(-1, 9),
+             translation + np.einsum("kij,kj->ki", rotation, self.connector_position[modules, slots]),
+             self.line[modules], self.leader[modules, None].astype(float)],
+            axis=-1,
+        )
+        self.pose_channel.send_changed(self.now, modules, slots, payload)
+
+    # ------------------------------------------------------------------------------------------------
+    # What each agent knows
+    def _is_leader(self) -> np.ndarray:
+        """(N,) True for the agents that currently believe they lead (a ground module that heard of no better)."""
+        return self.leader == np.arange(self.n_modules)
+
+    def connector_estimates(self) -> np.ndarray:
+        """Packed moments (N, 6, 13) of what lies beyond each connector, in each agent's module frame at its
+        current joint angles (zeros on free connectors and before any message arrived)."""
+        return moments.transform(self.connector_rotation, self.connector_position, self.estimates_connector_frame)
+
+    def current_connector_estimates(self) -> np.ndarray:
+        """Like ``connector_estimates`` (N, 6, 13), read from the copies Algorithm 2 keeps: current after
+        ``round()`` (``observe`` without a round leaves them at the previous angles)."""
+        return np.swapaxes(self._estimates_module_frame, 0, 1)
+
+    def total_estimates(self) -> np.ndarray:
+        """Packed moments (N, 13) of the whole robot (as each agent knows it), in each agent's module frame."""
+        return self.own + self.connector_estimates().sum(axis=1)
+
+    def world_poses(self, modules: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Each agent's belief of its module frame's world pose: rotations (k, 3, 3), translations (k, 3) for
+        ``modules`` (all by default).
+
+        Leaders compute it from their ground contact and joint angles; the others from the pose received on
+        their uplink composed with that connector's current pose. Identity where nothing is known yet
+        (``pose_known`` False and not a leader)."""
+        modules = np.arange(self.n_modules) if modules is None else np.asarray(modules, dtype=np.int64)
+        uplink = np.maximum(self.uplink[modules], 0)
+        inverse_rotation, inverse_translation = moments.inverse_pose(
+            self.connector_rotation[modules, uplink], self.connector_position[modules, uplink]
+        )
+        received = self.received_connector_rotation[modules]
+        rotation = received @ inverse_rotation
+        translation = self.received_connector_position[modules] + np.einsum("nij,nj->ni", received, inverse_translation)
+        for k in np.flatnonzero(self._is_leader()[modules]):
+            n = modules[k]
+            contact = self._ground_by_module[n]
+            block_rotation = np.asarray(contact.rotation, dtype=float)
+            block_translation = np.asarray(contact.translation, dtype=float)
+            if contact.block == 0:
+                rotation[k], translation[k] = block_rotation, block_translation
+            else:
+                part_inverse_rotation, part_inverse_translation = moments.inverse_pose(self.part_rotation[n, 3], self.part_translation[n, 3])
+                rotation[k] = block_rotation @ part_inverse_rotation
+                translation[k] = block_translation + block_rotation @ part_inverse_translation
+        unknown = ~(self.pose_known[modules] | self._is_leader()[modules])
+        rotation[unknown] = np.eye(3)
+        translation[unknown] = 0.0
+        return rotation, translation
+
+    def fixed_block(self) -> np.ndarray:
+        """(N,) the block (0: A, 1: B) on the leader's side of each module: the grounded block for a leader, the
+        block of the uplink connector otherwise; -1 where no leader is known."""
+        block = np.where(self.uplink >= 0, CONNECTOR_BLOCK[np.maximum(self.uplink, 0)], -1)
+        for n in np.flatnonzero(self._is_leader()):
+            block[n] = self._ground_by_module[n].block
+        return block
+
+    # ------------------------------------------------------------------------------------------------
+    # Reports against the centralised truth
+    def estimate_errors(self, model: lk.Model, layout: ModelLayout, q: np.ndarray) -> EstimateErrors:
+        """Largest errors of every agent's per-connector and total estimates against
+        ``lk.subtree_mass_properties(model, q)``, compared in each module's frame (true module poses)."""
+        reference_connectors, reference_totals = reference_estimates(model, layout, self.partner, q)
+        mine = unpack_pairs(self.connector_estimates()[self.connected], self.total_estimates())
+        truth = unpack_pairs(reference_connectors[self.connected], reference_totals)
+        return EstimateErrors(*(float(np.max(np.abs(a - b))) for a, b in zip(mine, truth)))
+
+
+def unpack_pairs(connector_moments: np.ndarray, total_moments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Connector and total estimates unpacked and concatenated: (masses, COMs, inertias)."""
+    a = moments.unpack(connector_moments)
+    b = moments.unpack(total_moments)
+    return tuple(np.concatenate([x, y]) for x, y in zip(a, b))
+
+
+def reference_estimates(model: lk.Model, layout: ModelLayout, partner: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The centralised truth from ``lk.subtree_mass_properties``: packed moments of what lies beyond each
+    connector (N, 6, 13) and of each module's whole tree (N, 13), in each module's frame at configuration q.
+
+    Beyond a connector leading away from the root lies the child module's subtree; beyond the connector
+    leading to the root lies the whole tree minus the module's own subtree."""
+    mass, com, inertia = lk.subtree_mass_properties(model, q)
+    subtree = moments.pack(mass, com, inertia)  # world frame, per body
+    entry = layout.part_bodies.min(axis=1)  # the first body of each module (the one hanging off its parent)
+    parents = np.asarray(model.parents)
+    n_modules = partner.shape[0]
+    module_of_body = np.full(model.nbodies, -1, dtype=np.int64)
+    module_of_body[layout.part_bodies] = np.arange(n_modules)[:, None]
+    parent_module = module_of_body[parents[entry]]
+    tree_total = subtree[entry[layout.root_modules[layout.tree_of_module]]]
+    own_subtree = subtree[entry]
+    beyond = np.zeros(partner.shape + (moments.WIDTH,))
+    connected = partner >= 0
+    rows, slots = np.nonzero(connected)
+    other = partner[rows, slots]
+    toward_root = parent_module[rows] == other
+    beyond[rows, slots] = np.where(toward_root[:, None], tree_total[rows] - own_subtree[rows], own_subtree[other])
+    rotation, translation = layout.module_poses(model, q)
+    inverse_rotation, inverse_translation = moments.inverse_pose(rotation, translation)
+    beyond = np.where(connected[..., None], moments.transform(inverse_rotation[:, None], inverse_translation[:, None], beyond), 0.0)
+    return beyond, moments.transform(inverse_rotation, inverse_translation, tree_total)
+
+
+def _exclusive_sums(estimates: np.ndarray) -> np.ndarray:
+    """For each connector i, the sum of the estimates of the other connectors, as prefix plus suffix sums
+    (no subtraction, a fixed order), over axis 0 of (S, N, W)."""
+    slots = estimates.shape[0]
+    prefix = np.empty_like(estimates)
+    suffix = np.empty_like(estimates)
+    prefix[0] = 0.0
+    suffix[-1] = 0.0
+    for i in range(1, slots):
+        np.add(prefix[i - 1], estimates[i - 1], out=prefix[i])
+        np.add(suffix[slots - i], estimates[slots - i], out=suffix[slots - 1 - i])
+    return np.add(prefix, suffix, out=prefix)
+
+
+def _part_arrays(parameters: ModuleParameters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(mass (4,), COM (4, 3), inertia about the COM (4, 3, 3)) of the module's parts, zero-angle module frame."""
+    parts = parameters.part_mass_properties()
+    return np.array([p.mass for p in parts]), np.array([p.com for p in parts]), np.array([p.inertia for p in parts])

@@ -1,0 +1,36 @@
+"""A bank of independent PID controllers (one per joint), vectorised with numpy."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class PID:
+    """PID controllers for ``shape`` joints: ``u = K_P e + K_I sum(e dt) + K_D de/dt`` with e = target - angle
+    (rad), u in N m. The gains are passed on every call (so a schedule may change them); the integral and
+    the previous error are the state. The derivative is a backward difference of the error, zero on the
+    first call."""
+
+    def __init__(self, shape: tuple[int, ...]):
+        self.shape = tuple(shape)
+        self.integral = np.zeros(self.shape)
+        self.previous_error: np.ndarray | None = None
+
+    def reset(self) -> None:
+        """Forget the integral and the previous error."""
+        self.integral = np.zeros(self.shape)
+        self.previous_error = None
+
+    def __call__(self, error: np.ndarray, dt: float, kp: np.ndarray, ki: np.ndarray, kd: np.ndarray) -> np.ndarray:
+        """Control effort for ``error`` (rad, of ``shape``) after a step of ``dt`` s; gains broadcast to ``shape``."""
+        error = np.asarray(error, dtype=float)
+        if error.shape != self.shape:
+            raise ValueError(f"error: must have shape {self.shape}, got {error.shape}")
+        if not np.all(np.isfinite(error)):
+            raise ValueError("error: must be finite")
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt: must be a finite number > 0, got {dt!r}")
+        self.integral = self.integral + error * dt
+        derivative = np.zeros(self.shape) if self.previous_error is None else (error - self.previous_error) / dt
+        self.previous_error = error.copy()
+        return kp * error + ki * self.integral + kd * derivative

@@ -1,0 +1,353 @@
+"""The seed experiment (Moll et al., IROS 2006, Fig. 4): random SuperBot trees balance their centre of mass.
+
+Each random tree (``random_tree``: a vertical root fixed to the ground plus modules in branches) is run
+once per gain schedule (constant, distance-based, momentum-based). Every module is an agent
+(``legkit.agents``) that learns the mass properties from its neighbours; every joint steers the COM toward
+the support line, here the vertical line through the root's footprint, with its own PID
+(``legkit.control``). Each millisecond the agents read their joint angles, run one round of messages, and
+the joints compute their torques, which drive the plant for one step of ``dt``.
+
+Each run has its own plant; the agents of all runs share one vectorised network (the runs are separate
+trees of it), which batches their rounds over every run at once. The plant is a parameter:
+anything with ``step(tau)``, ``q`` and ``v``. ``FreePlant`` integrates the fixed-base model with the core's
+dynamics through geared servos (no contacts: the seed's root is fixed, and nothing else is meant to touch
+the ground); ``--plant rapier`` uses ``lk.Simulation`` on a ground plane with the same joint damping (Rapier
+has no armature term).
+
+Recorded: the horizontal distance between each run's COM and its support line, in module widths. Reported
+per run: the final distance, the time to reach 10 % of the initial distance, the overshoot (how far, as a
+fraction of the initial distance, the COM went past the line along the initial offset direction), and
+the data messages per module per second.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol, Sequence
+
+import numpy as np
+from tqdm import tqdm
+
+import legkit as lk
+from legkit.agents import AgentNetwork, BusConfig, GroundContact
+from legkit.control import SCHEMES, BalanceController, GainSchedule
+from legkit.robots.superbot import ModuleTree, random_tree
+
+class Plant(Protocol):
+    """What the experiment needs from a simulator: joint torques in, joint state out (legkit's order)."""
+
+    @property
+    def q(self) -> np.ndarray: ...
+
+    @property
+    def v(self) -> np.ndarray: ...
+
+    def step(self, tau: np.ndarray) -> None: ...
+
+
+class FreePlant:
+    """A fixed-base legkit model without contacts, driven through geared servos, stepped by semi-implicit Euler.
+
+    Each joint's servo adds its reflected rotor inertia (``armature``, kg m^2) and viscous back-EMF damping
+    (``damping``, N m s / rad): ``(M(q) + armature I) a = tau - damping v - b(q, v)`` with M from ``lk.crba``
+    and the bias b (Coriolis, centrifugal, gravity) from ``lk.rnea``; then ``v += dt a`` and ``q += dt v``.
+    The mass matrix is block diagonal over the subtrees hanging off the fixed base (independent robots side
+    by side), so it is solved block by block.
+
+    Defaults: armature 0.01 kg m^2 and damping 0.1 N m s / rad, the order of magnitude of a small geared
+    servo (rotor ~2e-7 kg m^2 behind a ~1:250 gearbox; ~1 N m stall torque over ~6 rad/s no-load speed),
+    approximate figures, not SuperBot's datasheet. Without them the seed's 5 g middle links under
+    K_P = 10 N m/rad would ring at ~1.4e3 rad/s, beyond what a 1 kHz torque loop can control."""
+
+    DEFAULT_DAMPING = 0.1
+
+    def __init__(
+        self, model: lk.Model, q0: np.ndarray | None = None, v0: np.ndarray | None = None, dt: float = 1e-3,
+        armature: float = 0.01, damping: float = DEFAULT_DAMPING,
+    ):
+        if model.floating_base:
+            raise ValueError("model: FreePlant integrates fixed-base models only")
+        for name, value, positive in (("dt", dt, True), ("armature", armature, False), ("damping", damping, False)):
+            if not (isinstance(value, (int, float)) and np.isfinite(value) and (value > 0 if positive else value >= 0)):
+                raise ValueError(f"{name}: must be a finite number {'> 0' if positive else '>= 0'}, got {value!r}")
+        self.model = model
+        self.dt = float(dt)
+        self.armature = float(armature)
+        self.damping = float(damping)
+        self._q = self._vector("q0", model.neutral() if q0 is None else q0, model.nq)
+        self._v = self._vector("v0", np.zeros(model.nv) if v0 is None else v0, model.nv)
+        self._blocks = _independent_blocks(model)
+
+    @staticmethod
+    def _vector(name: str, value: np.ndarray, size: int) -> np.ndarray:
+        array = np.asarray(value, dtype=float)
+        if array.shape != (size,):
+            raise ValueError(f"{name}: must have shape ({size},), got {array.shape}")
+        if not np.all(np.isfinite(array)):
+            raise ValueError(f"{name}: must be finite")
+        return array.copy()
+
+    @property
+    def q(self) -> np.ndarray:
+        """Joint angles (nq,) rad (a copy)."""
+        return self._q.copy()
+
+    @property
+    def v(self) -> np.ndarray:
+        """Joint velocities (nv,) rad/s (a copy)."""
+        return self._v.copy()
+
+    def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Joint accelerations (nv,) rad/s^2 of the servo-driven model."""
+        mass = lk.crba(self.model, q)
+        force = tau - self.damping * v - lk.rnea(self.model, q, v, np.zeros(self.model.nv))
+        acceleration = np.zeros(self.model.nv)
+        for block in self._blocks:
+            matrix = mass[np.ix_(block, block)] + self.armature * np.eye(block.size)
+            acceleration[block] = np.linalg.solve(matrix, force[block])
+        return acceleration
+
+    def step(self, tau: np.ndarray) -> None:
+        """Advance one step of ``dt`` under joint torques ``tau`` (nv,) N m; raises ValueError on bad input or if the
+        state would stop being finite (the state is then left unchanged)."""
+        tau = self._vector("tau", tau, self.model.nv)
+        v = self._v + self.dt * self.acceleration(self._q, self._v, tau)
+        q = self._q + self.dt * v
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            raise ValueError("tau: the step diverged (non-finite state); the plant state is unchanged")
+        self._q, self._v = q, v
+
+
+def _independent_blocks(model: lk.Model) -> list[np.ndarray]:
+    """Velocity indices of each subtree hanging off the fixed base: the mass matrix's diagonal blocks."""
+    parents = model.parents
+    top = np.arange(model.nbodies)
+    for body in range(1, model.nbodies):  # parents come first, so a parent's top is already final
+        top[body] = body if parents[body] == 0 else top[parents[body]]
+    idx_v = model.idx_v
+    blocks: dict[int, list[int]] = {}
+    for body in range(1, model.nbodies):
+        if model.joint_type(body) != "fixed":
+            blocks.setdefault(int(top[body]), []).append(idx_v[body])
+    return [np.array(b) for b in blocks.values()]
+
+
+def make_plant(kind: str, model: lk.Model, q0: np.ndarray, dt: float) -> Plant:
+    """A plant of ``kind`` ("free" or "rapier") for ``model``, starting at rest at ``q0``."""
+    if kind == "free":
+        return FreePlant(model, q0=q0, dt=dt)
+    if kind == "rapier":
+        if not hasattr(lk, "Simulation") or not hasattr(lk, "Ground"):
+            raise RuntimeError("plant: the Rapier simulation (lk.Simulation) is not available yet; use --plant free")
+        simulation = lk.Simulation(model, dt=dt, ground=lk.Ground.plane(friction=0.8), joint_damping=FreePlant.DEFAULT_DAMPING)
+        simulation.reset(q0, None)
+        return simulation
+    raise ValueError(f"plant: must be 'free' or 'rapier', got {kind!r}")
+
+
+@dataclass
+class RunResult:
+    """One tree x scheme run: ``times`` (s) and ``distance`` (module widths) sampled, plus the summary figures."""
+
+    tree: int
+    scheme: str
+    times: np.ndarray
+    distance: np.ndarray
+    signed_offset: np.ndarray
+    messages_per_module_second: float
+
+    @property
+    def initial(self) -> float:
+        return float(self.distance[0])
+
+    @property
+    def final(self) -> float:
+        return float(self.distance[-1])
+
+    @property
+    def time_to_10_percent(self) -> float:
+        """First time (s) the distance is at most 10 % of the initial one; NaN if never."""
+        reached = np.flatnonzero(self.distance <= 0.1 * self.initial)
+        return float(self.times[reached[0]]) if reached.size else float("nan")
+
+    @property
+    def overshoot(self) -> float:
+        """How far the COM went past the support line along the initial offset, as a fraction of the initial distance."""
+        return float(max(0.0, -self.signed_offset.min()) / self.initial) if self.initial > 0 else 0.0
+
+
+def initial_angles(tree: ModuleTree, seed: int) -> np.ndarray:
+    """The start configuration of a run, (N, 3) rad: every joint at a random angle, uniform within
+    +-INITIAL_SPREAD of the joint limit (generator seeded with ``seed``), except the root, which leans with
+    both pitch joints at INITIAL_LEAN of the limit, to whichever side puts the COM farther from the support
+    line (the vertical through the root), so every run starts clearly off balance."""
+    rng = np.random.default_rng([seed, 1])
+    limit = tree.parameters.joint_limit
+    angles = rng.uniform(-INITIAL_SPREAD * limit, INITIAL_SPREAD * limit, size=(tree.n_modules, 3))
+    model, layout = tree.to_model()
+    candidates = []
+    for side in (1.0, -1.0):
+        angles[0] = [side * INITIAL_LEAN * limit, 0.0, side * INITIAL_LEAN * limit]
+        q = np.zeros(model.nq)
+        q[layout.joint_q] = angles
+        candidates.append((float(np.hypot(*lk.center_of_mass(model, q)[:2])), side))
+    side = max(candidates)[1]
+    angles[0] = [side * INITIAL_LEAN * limit, 0.0, side * INITIAL_LEAN * limit]
+    return angles
+
+
+def run_balance(
+    trees: Sequence[ModuleTree], duration: float, dt: float = 1e-3, loss: float = 0.0, plant: str = "free",
+    seed: int = 0, sample_every: int = 10, progress: bool = True, rounds_per_step: int = 1,
+) -> list[RunResult]:
+    """Simulate every tree under every scheme for ``duration`` s (see the module docstring).
+
+    Tree i starts from ``initial_angles(tree, seed + i)`` at rest. ``loss`` > 0 runs the agents on the
+    asynchronous bus (one-tick delays, that loss probability, acknowledgements and retransmission), seeded
+    with ``seed``. The agents run ``rounds_per_step`` rounds of messages per control step. One plant per run; the agents of all runs share one vectorised network (the runs are not
+    connected, so they do not interact). Samples every ``sample_every`` steps."""
+    if not trees:
+        raise ValueError("trees: need at least one tree")
+    if not (np.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration: must be > 0, got {duration!r}")
+    if not 0 <= loss < 1:
+        raise ValueError(f"loss: must be in [0, 1), got {loss!r}")
+    runs = [(t, s) for t in range(len(trees)) for s in SCHEMES]
+    instances = [trees[t] for t, _ in runs]
+    built = [tree.to_model() for tree in trees]
+    starts = [initial_angles(tree, seed + i) for i, tree in enumerate(trees)]
+    plants = []
+    for t, _ in runs:
+        model, layout = built[t]
+        q0 = np.zeros(model.nq)
+        q0[layout.joint_q] = starts[t]
+        plants.append(make_plant(plant, model, q0, dt))
+    origin = np.zeros(3)
+    first_module = np.cumsum([0] + [tree.n_modules for tree in instances])[:-1]
+    ground = [GroundContact(int(m), 0, np.eye(3), origin, origin, np.array([0.0, 0.0, 1.0])) for m in first_module]
+    bus = BusConfig() if loss == 0 else BusConfig(mode="async", loss=loss, seed=seed)
+
+    def sensed_angles() -> np.ndarray:
+        return np.concatenate([built[t][1].module_angles(p.q) for (t, _), p in zip(runs, plants)])
+
+    network = AgentNetwork(instances, bus=bus, ground=ground, angles=sensed_angles())
+    network.run_until_quiescent()  # the agents agree on a leader and the mass properties before moving
+    schedules = [GainSchedule.paper(s) for (_, s), tree in zip(runs, instances) for _ in range(tree.n_modules)]
+    controller = BalanceController(network, schedules)
+    messages_before = sum(c.sent_by_module for c in network.channels)
+    module_slices = [slice(f, f + tree.n_modules) for f, tree in zip(first_module, instances)]
+
+    steps = int(round(duration / dt))
+    samples = steps // sample_every + 1
+    times = np.arange(samples) * sample_every * dt
+    coms = np.zeros((samples, len(runs), 3))
+    for step in tqdm(range(steps + 1), desc="balance", unit="step", disable=not progress, mininterval=0.5):
+        if step % sample_every == 0:
+            coms[step // sample_every] = [lk.center_of_mass(built[t][0], p.q) for (t, _), p in zip(runs, plants)]
+        if step == steps:
+            break
+        network.observe(sensed_angles())
+        network.run(rounds_per_step)
+        torque, _ = controller.torques(dt)
+        for (t, _), p, modules in zip(runs, plants, module_slices):
+            model, layout = built[t]
+            tau = np.zeros(model.nv)
+            tau[np.asarray(model.idx_v)[layout.joint_bodies]] = torque[modules]
+            p.step(tau)
+
+    sent = sum(c.sent_by_module for c in network.channels) - messages_before
+    width = trees[0].parameters.width
+    offsets = coms[..., :2]
+    distance = np.linalg.norm(offsets, axis=-1) / width
+    initial_direction = offsets[0] / np.maximum(np.linalg.norm(offsets[0], axis=-1, keepdims=True), 1e-300)
+    signed = np.sum(offsets * initial_direction, axis=-1) / width
+    return [
+        RunResult(t, scheme, times, distance[:, i], signed[:, i], float(sent[module_slices[i]].sum() / instances[i].n_modules / duration))
+        for i, (t, scheme) in enumerate(runs)
+    ]
+
+
+def write_csv(results: Sequence[RunResult], path: Path) -> None:
+    """Long format: tree, scheme, time_s, distance_widths."""
+    with open(path, "w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["tree", "scheme", "time_s", "distance_widths"])
+        for r in results:
+            writer.writerows((r.tree, r.scheme, f"{t:.4f}", f"{d:.6f}") for t, d in zip(r.times, r.distance))
+
+
+def plot(results: Sequence[RunResult], path: Path) -> None:
+    """One panel per tree (a row, like the paper's Fig. 4), one curve per scheme."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n_trees = max(r.tree for r in results) + 1
+    figure, axes = plt.subplots(1, n_trees, figsize=(3.6 * n_trees, 3.2), sharey=True, squeeze=False)
+    for r in results:
+        axis = axes[0, r.tree]
+        axis.plot(r.times, r.distance, label=r.scheme)
+        axis.set_title(f"tree {r.tree + 1}")
+        axis.set_xlabel("time (s)")
+        axis.grid(True, alpha=0.3)
+    axes[0, 0].set_ylabel("COM to support line (module widths)")
+    axes[0, 0].legend()
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+
+
+def table(results: Sequence[RunResult]) -> str:
+    """The summary table as text."""
+    lines = [f"{'tree':>4} {'scheme':>9} {'initial':>8} {'final':>8} {'t10% (s)':>9} {'overshoot':>9} {'msg/mod/s':>10}"]
+    for r in results:
+        lines.append(
+            f"{r.tree + 1:>4} {r.scheme:>9} {r.initial:>8.3f} {r.final:>8.3f} {r.time_to_10_percent:>9.3f} "
+            f"{100 * r.overshoot:>8.1f}% {r.messages_per_module_second:>10.1f}"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``legkit balance``: run the experiment, write ``balance.csv`` and ``balance.png`` to ``--out``, print the table."""
+    parser = argparse.ArgumentParser(prog="legkit balance", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--trees", type=int, default=4, help="number of random trees (default 4)")
+    parser.add_argument("--modules", type=int, default=20, help="modules per tree besides the root (default 20)")
+    parser.add_argument("--branches", type=int, default=4, help="branches off the root (default 4)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the trees and of the bus (default 0)")
+    parser.add_argument("--duration", type=float, default=DEFAULT_DURATION, help=f"simulated seconds (default {DEFAULT_DURATION})")
+    parser.add_argument("--loss", type=float, default=0.0, help="message loss probability (default 0: synchronous bus)")
+    parser.add_argument("--out", type=Path, default=Path("balance-out"), help="output folder (default ./balance-out)")
+    parser.add_argument("--plant", choices=("free", "rapier"), default="free", help="simulator (default free)")
+    args = parser.parse_args(argv)
+    if args.trees < 1:
+        parser.error("--trees: must be >= 1")
+    if args.duration <= 0:
+        parser.error("--duration: must be > 0")
+    if not 0 <= args.loss < 1:
+        parser.error("--loss: must be in [0, 1)")
+    try:
+        trees = [random_tree(args.modules, args.branches, args.seed + i) for i in range(args.trees)]
+        results = run_balance(trees, args.duration, loss=args.loss, plant=args.plant, seed=args.seed)
+    except (ValueError, RuntimeError) as error:
+        print(f"legkit balance: {error}", file=sys.stderr)
+        return 2
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_csv(results, args.out / "balance.csv")
+    plot(results, args.out / "balance.png")
+    print(table(results))
+    print(f"wrote {args.out / 'balance.csv'} and {args.out / 'balance.png'}")
+    return 0
+
+
+DEFAULT_DURATION = 3.0
+INITIAL_SPREAD = 0.25
+INITIAL_LEAN = 0.5
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,223 @@
+"""Distributed mass-property agents: exact after `diameter` rounds, silent afterwards, robust to an unreliable bus.
+
+The reference is brute force: for every module and connector, the set of modules beyond that connector is
+found by a graph search, and their bodies are summed with lk.MassProperties from forward kinematics.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import legkit as lk
+from legkit.agents import AgentNetwork, BusConfig, GroundContact, moments
+from legkit.robots import superbot as sb
+
+TOLERANCE = 1e-9
+
+
+def ground_root(line_point=(0.0, 0.0, 0.0), line_direction=(0.0, 0.0, 1.0)):
+    return [GroundContact(0, 0, np.eye(3), np.zeros(3), np.array(line_point), np.array(line_direction))]
+
+
+def brute_force(tree, model, layout, q):
+    """Per module: {connector: MassProperties beyond it} and the total, all in the module's frame."""
+    poses = lk.forward_kinematics(model, q)
+    rotation, translation = layout.module_poses(model, q)
+    world = [
+        sum((model.body(b).transformed(poses[b]) for b in layout.part_bodies[n]), lk.MassProperties.zero())
+        for n in range(tree.n_modules)
+    ]
+    links = tree.neighbours()
+    beyond, totals = [], []
+    total_world = sum(world, lk.MassProperties.zero())
+    for n in range(tree.n_modules):
+        inverse = (rotation[n].T, -rotation[n].T @ translation[n])
+        per_connector = {}
+        for own, v, _, _ in links[n]:
+            seen, stack = {n, v}, [v]
+            while stack:
+                for _, x, _, _ in links[stack.pop()]:
+                    if x not in seen:
+                        seen.add(x)
+                        stack.append(x)
+            part = sum((world[m] for m in seen - {n}), lk.MassProperties.zero())
+            per_connector[own] = part.transformed(*inverse)
+        beyond.append(per_connector)
+        totals.append(total_world.transformed(*inverse))
+    return beyond, totals
+
+
+def assert_matches(network, reference, tolerance=TOLERANCE):
+    beyond, totals = reference
+    mass, com, inertia = moments.unpack(network.connector_estimates())
+    total_mass, total_com, total_inertia = moments.unpack(network.total_estimates())
+    for n, per_connector in enumerate(beyond):
+        for slot, truth in per_connector.items():
+            assert abs(mass[n, slot] - truth.mass) < tolerance
+            assert np.max(np.abs(com[n, slot] - truth.com)) < tolerance
+            assert np.max(np.abs(inertia[n, slot] - truth.inertia)) < tolerance
+        assert abs(total_mass[n] - totals[n].mass) < tolerance
+        assert np.max(np.abs(total_com[n] - totals[n].com)) < tolerance
+        assert np.max(np.abs(total_inertia[n] - totals[n].inertia)) < tolerance
+
+
+def largest_error(network, reference):
+    beyond, _ = reference
+    mass = moments.unpack(network.connector_estimates())[0]
+    return max(abs(mass[n, s] - t.mass) for n, pc in enumerate(beyond) for s, t in pc.items())
+
+
+trees = st.builds(
+    lambda n, b, seed: sb.random_tree(n, min(b, n), seed), st.integers(1, 14), st.integers(1, 5), st.integers(0, 10_000)
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(trees, st.integers(0, 10_000))
+def test_exact_after_diameter_rounds_then_silent(tree, angle_seed):
+    model, layout = tree.to_model()
+    q = np.random.default_rng(angle_seed).uniform(-np.pi, np.pi, model.nq)
+    network = AgentNetwork(tree, ground=ground_root(), angles=layout.module_angles(q))
+    reference = brute_force(tree, model, layout, q)
+    diameter = tree.diameter()
+    network.run(diameter - 1)
+    # Exactly `diameter`: one round earlier, some estimate still misses at least one module's mass.
+    assert largest_error(network, reference) > 0.5 * tree.parameters.mass
+    network.run(1)
+    assert_matches(network, reference)
+    assert network.estimate_errors(model, layout, q).largest < TOLERANCE  # against lk.subtree_mass_properties
+    assert network.quiescent
+    assert network.run(5) == 0  # no message after quiescence
+    # Every agent knows its world pose and which side of it holds the ground.
+    rotation, translation = layout.module_poses(model, q)
+    believed_rotation, believed_translation = network.world_poses()
+    assert np.allclose(believed_rotation, rotation, atol=1e-12)
+    assert np.allclose(believed_translation, translation, atol=1e-12)
+    assert np.all(network.leader == 0)
+
+
+def test_single_module_network():
+    tree = sb.ModuleTree(1, [])
+    model, layout = tree.to_model()
+    network = AgentNetwork(tree, ground=ground_root(), angles=np.array([[0.3, -0.2, 0.1]]))
+    assert network.quiescent and network.transmissions == 0
+    q = np.array([0.3, -0.2, 0.1])
+    assert network.estimate_errors(model, layout, q).largest < TOLERANCE
+
+
+@settings(max_examples=25, deadline=None)
+@given(trees, st.integers(0, 10_000), st.integers(0, 10_000))
+def test_estimates_track_moving_joints(tree, angle_seed, move_seed):
+    model, layout = tree.to_model()
+    rng = np.random.default_rng(angle_seed)
+    q = rng.uniform(-np.pi, np.pi, model.nq)
+    network = AgentNetwork(tree, ground=ground_root(), angles=layout.module_angles(q))
+    network.run(tree.diameter())
+    moved = np.random.default_rng(move_seed).random(model.nq) < 0.3
+    q = np.where(moved, rng.uniform(-np.pi, np.pi, model.nq), q)
+    network.observe(layout.module_angles(q))
+    network.run_until_quiescent()
+    assert_matches(network, brute_force(tree, model, layout, q))
+
+
+@pytest.mark.parametrize("loss, duplication, delay_max", [(0.3, 0.2, 4), (0.0, 0.3, 7), (0.6, 0.0, 1)])
+@settings(max_examples=15, deadline=None)
+@given(tree=trees, angle_seed=st.integers(0, 10_000), bus_seed=st.integers(0, 10_000))
+def test_unreliable_bus_is_eventually_exact(loss, duplication, delay_max, tree, angle_seed, bus_seed):
+    model, layout = tree.to_model()
+    q = np.random.default_rng(angle_seed).uniform(-np.pi, np.pi, model.nq)
+    bus = BusConfig(mode="async", delay_min=1, delay_max=delay_max, loss=loss, duplication=duplication, retransmit_after=3, seed=bus_seed)
+    network = AgentNetwork(tree, bus=bus, ground=ground_root(), angles=layout.module_angles(q))
+    network.run(50)
+    network.reconfigure(dataclasses.replace(bus, loss=0.0))  # loss stops; delays and reordering go on
+    network.run_until_quiescent(max_rounds=10_000)
+    assert_matches(network, brute_force(tree, model, layout, q))
+    assert np.all(network.leader == 0)
+    rotation, _ = layout.module_poses(model, q)
+    assert np.allclose(network.world_poses()[0], rotation, atol=1e-12)
+    assert network.run(5) == 0
+
+
+def test_same_seed_same_run_and_reordering_happens():
+    tree = sb.random_tree(12, 3, 1)
+    runs = []
+    for _ in range(2):
+        bus = BusConfig(mode="async", delay_min=1, delay_max=6, loss=0.2, duplication=0.2, seed=7)
+        network = AgentNetwork(tree, bus=bus, ground=ground_root())
+        network.run(40)
+        runs.append((network.transmissions, network.acknowledgements, network.estimates_connector_frame.copy()))
+    assert runs[0][0] == runs[1][0] and runs[0][1] == runs[1][1]
+    assert np.array_equal(runs[0][2], runs[1][2])
+    assert network.mass_channel.lost > 0 and network.mass_channel.duplicated > 0 and network.mass_channel.retransmissions > 0
+
+
+def test_randomised_leader_election_among_ground_modules():
+    tree = sb.random_tree(12, 3, 2)
+    grounded = [0, 4, 9]
+    leaders = set()
+    for seed in range(12):
+        ground = [GroundContact(m, 0, np.eye(3), np.zeros(3), np.zeros(3), np.array([0.0, 0.0, 1.0])) for m in grounded]
+        network = AgentNetwork(tree, bus=BusConfig(seed=seed), ground=ground)
+        network.run_until_quiescent()
+        assert len(set(network.leader)) == 1  # everybody agrees
+        leaders.add(int(network.leader[0]))
+        # The uplink of every non-leader points one step closer to the leader.
+        leader = int(network.leader[0])
+        assert network.uplink[leader] == -1
+        partner = network.partner
+        for n in range(tree.n_modules):
+            if n != leader:
+                assert partner[n, network.uplink[n]] >= 0
+    assert leaders <= set(grounded) and len(leaders) > 1
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.floats(0.01, 10), st.tuples(*[st.floats(-2, 2)] * 3), st.tuples(*[st.floats(0.01, 1)] * 3),
+    st.tuples(*[st.floats(-1, 1)] * 4).filter(lambda v: np.linalg.norm(v) > 0.1), st.tuples(*[st.floats(-3, 3)] * 3),
+)
+def test_moment_algebra_matches_mass_properties(mass, centre, size, quaternion, translation):
+    x, y, z, w = np.array(quaternion) / np.linalg.norm(quaternion)
+    rotation = np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+    body = lk.MassProperties.box(mass, size, center=centre, rotation=rotation)
+    packed = moments.pack(body.mass, body.com, body.inertia)
+    moved = body.transformed(rotation, translation)
+    m, c, inertia = moments.unpack(moments.transform(rotation, np.array(translation), packed))
+    assert np.isclose(m, moved.mass) and np.allclose(c, moved.com, atol=1e-12)
+    assert np.allclose(inertia, moved.inertia, atol=1e-12 * max(1.0, np.abs(moved.inertia).max()))
+    other = lk.MassProperties.point(2.0, [0.5, -0.3, 1.0])
+    m, c, inertia = moments.unpack(packed + moments.pack(other.mass, other.com, other.inertia))
+    both = body + other
+    assert np.isclose(m, both.mass) and np.allclose(c, both.com) and np.allclose(inertia, both.inertia, atol=1e-12)
+
+
+def test_bad_input_is_rejected_and_leaves_state_unchanged():
+    tree = sb.random_tree(6, 2, 0)
+    network = AgentNetwork(tree, ground=ground_root())
+    angles = network.angles.copy()
+    with pytest.raises(ValueError, match="angles"):
+        network.observe(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="angles"):
+        network.observe(np.full((tree.n_modules, 3), np.nan))
+    assert np.array_equal(network.angles, angles)
+    with pytest.raises(ValueError, match="mode"):
+        BusConfig(mode="radio")
+    with pytest.raises(ValueError, match="loss"):
+        BusConfig(mode="async", loss=1.5)
+    with pytest.raises(ValueError, match="mode"):
+        BusConfig(mode="sync", loss=0.1)
+    with pytest.raises(ValueError, match="mode"):
+        network.reconfigure(BusConfig(mode="async"))
+    with pytest.raises(TypeError, match="trees"):
+        AgentNetwork([])
+    with pytest.raises(ValueError, match="ground"):
+        AgentNetwork(tree, ground=[GroundContact(99, 0, np.eye(3), np.zeros(3), np.zeros(3), np.array([0, 0, 1.0]))])

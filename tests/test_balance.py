@@ -1,0 +1,91 @@
+"""The balance experiment: the plant against the core's integrator, the closed loop on the four seed trees,
+and the CLI."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+import legkit as lk
+from legkit.control import SCHEMES
+from legkit.experiments import balance
+from legkit.robots import superbot as sb
+
+
+def test_free_plant_without_servo_terms_is_the_cores_semi_implicit_euler():
+    tree = sb.random_tree(6, 2, 0)
+    model, _ = tree.to_model()
+    rng = np.random.default_rng(0)
+    q0, v0 = rng.uniform(-1, 1, model.nq), rng.uniform(-1, 1, model.nv)
+    tau = rng.uniform(-0.2, 0.2, model.nv)
+    plant = balance.FreePlant(model, q0, v0, dt=1e-3, armature=0.0, damping=0.0)
+    for _ in range(20):
+        plant.step(tau)
+    qs, vs = lk.simulate(model, q0, v0, 1e-3, 20, tau, method="semi_implicit_euler")
+    assert np.allclose(plant.q, qs[-1], atol=1e-9) and np.allclose(plant.v, vs[-1], atol=1e-9)
+
+
+def test_free_plant_servo_terms():
+    # One module standing upright, not moving: with armature a and damping b, a joint's acceleration under
+    # a torque tau from rest at a configuration in equilibrium is (M + a I)^-1 tau.
+    model, _ = sb.ModuleTree(1, []).to_model()
+    plant = balance.FreePlant(model, dt=1e-3, armature=0.02, damping=0.3)
+    tau = np.array([0.0, 0.01, 0.0])
+    expected = np.linalg.solve(lk.crba(model, np.zeros(3)) + 0.02 * np.eye(3), tau - lk.rnea(model, np.zeros(3), np.zeros(3), np.zeros(3)))
+    assert np.allclose(plant.acceleration(np.zeros(3), np.zeros(3), tau), expected, atol=1e-15)
+    # Damping opposes velocity.
+    moving = plant.acceleration(np.zeros(3), np.array([0.0, 1.0, 0.0]), np.zeros(3))
+    assert moving[1] < 0
+
+
+def test_free_plant_rejects_bad_input_and_keeps_its_state():
+    model, _ = sb.random_tree(3, 1, 0).to_model()
+    plant = balance.FreePlant(model)
+    q, v = plant.q, plant.v
+    with pytest.raises(ValueError, match="tau"):
+        plant.step(np.zeros(model.nv + 1))
+    with pytest.raises(ValueError, match="tau"):
+        plant.step(np.full(model.nv, np.nan))
+    assert np.array_equal(plant.q, q) and np.array_equal(plant.v, v)
+    with pytest.raises(ValueError, match="dt"):
+        balance.FreePlant(model, dt=0.0)
+    with pytest.raises(ValueError, match="armature"):
+        balance.FreePlant(model, armature=-1.0)
+    with pytest.raises(ValueError, match="plant"):
+        balance.make_plant("mujoco", model, np.zeros(model.nq), 1e-3)
+
+
+@pytest.fixture(scope="module")
+def seed_runs():
+    """The CLI's default experiment: four seed trees x three schemes for the default duration."""
+    trees = [sb.random_tree(20, 4, seed) for seed in range(4)]
+    return balance.run_balance(trees, balance.DEFAULT_DURATION, progress=False)
+
+
+def test_closed_loop_brings_the_com_to_the_support_line_on_every_seed_tree(seed_runs):
+    assert len(seed_runs) == 4 * len(SCHEMES)
+    for run in seed_runs:
+        assert run.initial > 0.5  # every run starts clearly off balance (module widths)
+        # Reaches under 25 % of the start within the simulated time ...
+        assert run.distance.min() < 0.25 * run.initial, (run.tree, run.scheme)
+        # ... and stays well below the start over the last half second (the constant scheme keeps oscillating).
+        settled = run.distance[run.times >= run.times[-1] - 0.5].mean()
+        assert settled < 0.5 * run.initial, (run.tree, run.scheme, settled / run.initial)
+        assert run.messages_per_module_second > 0
+
+
+def test_cli_writes_csv_and_figure(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = balance.main(["--trees", "2", "--modules", "4", "--branches", "2", "--duration", "0.05", "--out", str(out), "--loss", "0.1"])
+    assert code == 0
+    with open(out / "balance.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert {r["scheme"] for r in rows} == set(SCHEMES) and {r["tree"] for r in rows} == {"0", "1"}
+    assert len(rows) == 2 * 3 * 6  # 0.05 s sampled every 10 ms: 6 samples per run
+    assert (out / "balance.png").stat().st_size > 0
+    assert "msg/mod/s" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        balance.main(["--loss", "1.5"])
+    assert balance.main(["--modules", "3", "--branches", "5", "--out", str(out)]) == 2  # clear error, no traceback
