@@ -7,8 +7,10 @@ A floating base uses q = [x, y, z, qx, qy, qz, qw] and v = [v_lin, v_ang] in the
 """
 
 from legkit._core import (
+    Ground,
     MassProperties,
     Model,
+    Simulation,
     aba,
     center_of_mass,
     centroidal_momentum,
@@ -52,4 +54,6 @@ __all__ = [
     "reduced_dynamics",
     "integrate",
     "simulate",
+    "Simulation",
+    "Ground",
 ]

@@ -144,3 +144,56 @@ def rotation_toward_line(
     axis_point: npt.ArrayLike, axis_direction: npt.ArrayLike, point: npt.ArrayLike, line_point: npt.ArrayLike,
     line_direction: npt.ArrayLike,
 ) -> tuple[np.ndarray, np.ndarray]: ...
+
+_ShapeSpec = tuple[Any, ...] | None
+
+class Ground:
+    """Terrain for a Simulation: the plane z = 0, or a heightfield centred on the origin."""
+    @staticmethod
+    def plane(friction: float = 0.8) -> Ground: ...
+    @staticmethod
+    def heightfield(heights: npt.ArrayLike, cell_size: float, friction: float = 0.8) -> Ground:
+        """heights (nx, ny), nx, ny >= 2: height at x = (i - (nx-1)/2) cell_size, y = (j - (ny-1)/2) cell_size."""
+    @property
+    def kind(self) -> Literal["plane", "heightfield"]: ...
+    @property
+    def friction(self) -> float: ...
+    @property
+    def heights(self) -> np.ndarray | None: ...
+    @property
+    def cell_size(self) -> float | None: ...
+
+class Simulation:
+    """Contact simulation of a Model on Rapier (reduced-coordinate multibody, exact joint dynamics)."""
+    def __init__(
+        self, model: Model, dt: float = 1e-3, ground: Ground | None = None, shapes: dict[int | str, _ShapeSpec] | None = None,
+        self_collision: bool = False, joint_damping: float = 0.0, substeps: int = 1,
+    ) -> None: ...
+    def step(self, tau: npt.ArrayLike | None = None, n: int = 1) -> None:
+        """n steps with feed-forward tau (nv,) held over them; GIL released."""
+    def set_servo(
+        self, kp: npt.ArrayLike, kd: npt.ArrayLike | None = None, torque_limit: npt.ArrayLike | None = None,
+        target_q: npt.ArrayLike | None = None, target_v: npt.ArrayLike | None = None,
+    ) -> None:
+        """tau = clip(kp (target_q - q) + kd (target_v - v) + tau_ff, +-torque_limit), every step."""
+    @property
+    def q(self) -> np.ndarray: ...
+    @q.setter
+    def q(self, value: npt.ArrayLike) -> None: ...
+    @property
+    def v(self) -> np.ndarray: ...
+    @v.setter
+    def v(self, value: npt.ArrayLike) -> None: ...
+    @property
+    def time(self) -> float: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def applied_tau(self) -> np.ndarray: ...
+    @property
+    def contact_tolerance(self) -> float: ...
+    def body_poses(self) -> np.ndarray:
+        """(nbodies, 4, 4) world poses."""
+    def contacts(self) -> dict[str, np.ndarray]:
+        """body, other (-1: ground), point (k,3), normal (k,3) into body, normal_force (k,), tangential_force (k,3), depth (k,)."""
+    def reset(self, q: npt.ArrayLike | None = None, v: npt.ArrayLike | None = None) -> None: ...

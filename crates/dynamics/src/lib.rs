@@ -8,6 +8,7 @@ pub mod error;
 pub mod geometry;
 pub mod mass;
 pub mod model;
+pub mod sim;
 pub mod spatial;
 pub mod urdf;
 pub mod validate;

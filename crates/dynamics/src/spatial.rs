@@ -70,8 +70,15 @@ impl Transform {
     #[inline]
     pub fn rotation_about(axis: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
         let (s, c) = angle.sin_cos();
-        let k = axis.cross_matrix();
-        Matrix3::identity() + k * s + k * k * (1.0 - c)
+        let (x, y, z) = (axis.x, axis.y, axis.z);
+        let t = 1.0 - c;
+        let (tx, ty, tz) = (t * x, t * y, t * z);
+        let (sx, sy, sz) = (s * x, s * y, s * z);
+        Matrix3::new(
+            tx * x + c, tx * y - sz, tx * z + sy,
+            tx * y + sz, ty * y + c, ty * z - sx,
+            tx * z - sy, ty * z + sx, tz * z + c,
+        )
     }
 
     pub fn from_quaternion(translation: Vector3<f64>, rotation: &UnitQuaternion<f64>) -> Self {
@@ -129,24 +136,27 @@ impl Transform {
     }
 
     /// A spatial inertia from child to parent coordinates, `X* I X⁻¹`, by 3x3 blocks (eq. 2.66): rotate
-    /// each block, then shift by the translation p: B' = B − A p̂, C' = C − Bᵀ p̂ + p̂ B'. Blocks are copied
-    /// out first so the products run on fixed-size matrices rather than strided views.
+    /// each block (R A Rᵀ, using the symmetry of A and C), then shift by the translation p:
+    /// B' = B − A p̂ and C' = C − Bᵀ p̂ + p̂ B'.
     #[inline]
     pub fn act_inertia(&self, inertia: &Inertia) -> Inertia {
-        let (r, rt) = (self.rotation, self.rotation.transpose());
-        let a = r * inertia.fixed_view::<3, 3>(0, 0).into_owned() * rt;
-        let b = r * inertia.fixed_view::<3, 3>(0, 3).into_owned() * rt;
-        let c = r * inertia.fixed_view::<3, 3>(3, 3).into_owned() * rt;
+        let r = &self.rotation;
+        let block = |row: usize, col: usize| inertia.fixed_view::<3, 3>(row, col).into_owned();
+        let a = rotate_symmetric(r, &block(0, 0));
+        let b = r * block(0, 3) * r.transpose();
+        let c = rotate_symmetric(r, &block(3, 3));
         let p = self.translation;
         // X p̂ has rows (row of X) × p; p̂ X has columns p × (column of X).
-        let right = |x: &Matrix3<f64>| Matrix3::from_rows(&[
-            x.row(0).transpose().cross(&p).transpose(),
-            x.row(1).transpose().cross(&p).transpose(),
-            x.row(2).transpose().cross(&p).transpose(),
-        ]);
-        let left = |x: &Matrix3<f64>| Matrix3::from_columns(&[p.cross(&x.column(0)), p.cross(&x.column(1)), p.cross(&x.column(2))]);
-        let b_shifted = b - right(&a);
-        let c_shifted = c - right(&b.transpose()) + left(&b_shifted);
+        let times_p = |x: &Matrix3<f64>| {
+            Matrix3::from_rows(&[
+                x.row(0).transpose().cross(&p).transpose(),
+                x.row(1).transpose().cross(&p).transpose(),
+                x.row(2).transpose().cross(&p).transpose(),
+            ])
+        };
+        let b_shifted = b - times_p(&a);
+        let shifted_b = Matrix3::from_columns(&[p.cross(&b_shifted.column(0)), p.cross(&b_shifted.column(1)), p.cross(&b_shifted.column(2))]);
+        let c_shifted = c - times_p(&b.transpose()) + shifted_b;
         let mut out = Inertia::zeros();
         out.fixed_view_mut::<3, 3>(0, 0).copy_from(&a);
         out.fixed_view_mut::<3, 3>(0, 3).copy_from(&b_shifted);
@@ -154,6 +164,15 @@ impl Transform {
         out.fixed_view_mut::<3, 3>(3, 3).copy_from(&c_shifted);
         out
     }
+}
+
+/// `R S Rᵀ` for a symmetric `S`: the six distinct entries only.
+#[inline]
+fn rotate_symmetric(r: &Matrix3<f64>, s: &Matrix3<f64>) -> Matrix3<f64> {
+    let t = r * s;
+    let entry = |i: usize, j: usize| t[(i, 0)] * r[(j, 0)] + t[(i, 1)] * r[(j, 1)] + t[(i, 2)] * r[(j, 2)];
+    let (xx, yy, zz, xy, xz, yz) = (entry(0, 0), entry(1, 1), entry(2, 2), entry(0, 1), entry(0, 2), entry(1, 2));
+    Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz)
 }
 
 /// The spatial inertia of a rigid body (eq. 2.63) about its frame's origin, in `[linear; angular]` layout.

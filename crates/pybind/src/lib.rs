@@ -9,6 +9,7 @@ mod geometry;
 mod kinematics;
 mod mass;
 mod model;
+mod sim;
 mod simulate;
 mod workspace;
 
@@ -18,6 +19,8 @@ use pyo3::prelude::*;
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<mass::PyMassProperties>()?;
     m.add_class::<model::PyModel>()?;
+    m.add_class::<sim::PySimulation>()?;
+    m.add_class::<sim::PyGround>()?;
     m.add_function(wrap_pyfunction!(kinematics::forward_kinematics, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::jacobian, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::center_of_mass, m)?)?;

@@ -34,8 +34,9 @@ pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f
             let u = ia * s;
             let d = s.dot(&u);
             let u_scalar = tau[k] - s.dot(&pa);
-            ia -= u * u.transpose() / d;
-            pa += u * (u_scalar / d);
+            let u_over_d = u / d;
+            ia -= u * u_over_d.transpose();
+            pa += u_over_d * u_scalar;
             data.u[i] = u;
             data.d[i] = d;
             data.ddq[k] = u_scalar;

@@ -1,0 +1,70 @@
+//! One 1 ms step of the Rapier-backed simulation on the SuperBot-like trees of
+//! `benches/simulation_vs_mujoco.py` (targets from issue 4: the 21-module, 63-DoF tree with ground contact
+//! and position servos ≤ 50 µs per step; a 101-module tree ≤ 1000 µs).
+//!
+//! Trees: modules of four 0.0125 kg bodies (0.06 x 0.06 x 0.0425 m boxes stacked along the module's +z):
+//! end block, pitch (y), link, roll (z), link, pitch (y), end block. A vertical root module fixed to the
+//! ground; four branches of (n − 1)/4 modules leave its top block horizontally (turned 0°, 90°, 180°,
+//! 270° about z) and sag onto the ground plane. Servos: kp 0.5 N m/rad, kd 0.002 N m s/rad, limit 0.5 N m,
+//! holding the neutral configuration. Each measurement starts after 100 settling steps.
+
+use std::hint::black_box;
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use legkit_dynamics::sim::{Ground, Options, Servo, Simulation};
+use legkit_dynamics::{Joint, MassProperties, Model, Transform};
+use nalgebra::{Matrix3, Vector3};
+
+const MODULE_LENGTH: f64 = 0.17;
+const PART_MASS: f64 = 0.05 / 4.0;
+
+fn module_tree(n_modules: usize) -> Model {
+    let part = MassProperties::cuboid(PART_MASS, Vector3::new(0.06, 0.06, MODULE_LENGTH / 4.0), Vector3::new(0.0, 0.0, MODULE_LENGTH / 8.0), &Matrix3::identity())
+        .expect("valid box");
+    let mut model = Model::new(false, MassProperties::zero(), "base");
+    let step = Transform::from_translation(Vector3::new(0.0, 0.0, MODULE_LENGTH / 4.0));
+    let add_module = |model: &mut Model, parent: usize, placement: Transform| -> usize {
+        let mut body = model.add_body(parent, Joint::Fixed, placement, part, &format!("block{}", model.nbodies())).expect("valid");
+        for axis in [Vector3::y(), Vector3::z(), Vector3::y()] {
+            body = model.add_body(body, Joint::Revolute(axis), step, part, &format!("part{}", model.nbodies())).expect("valid");
+        }
+        body
+    };
+    let top = add_module(&mut model, 0, Transform::from_translation(Vector3::new(0.0, 0.0, 0.05)));
+    for branch in 0..4 {
+        let turn = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), branch as f64 * std::f64::consts::FRAC_PI_2)
+            * nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), std::f64::consts::FRAC_PI_2);
+        let mut parent = top;
+        let mut placement = Transform::new(turn.into_inner(), step.translation);
+        for _ in 0..(n_modules - 1) / 4 {
+            parent = add_module(&mut model, parent, placement);
+            placement = step;
+        }
+    }
+    model
+}
+
+fn settled(model: &Model) -> Simulation {
+    let mut options = Options::new(1e-3);
+    options.ground = Some(Ground::plane(0.8).expect("valid friction"));
+    let mut sim = Simulation::new(model, options).expect("valid model");
+    let nv = model.nv();
+    let servo = Servo::new(model, vec![0.5; nv], vec![0.002; nv], vec![0.5; nv], vec![0.0; nv], vec![0.0; nv]).expect("valid servo");
+    sim.set_servo(servo).expect("sized for the model");
+    sim.step(None, 100).expect("stable");
+    sim
+}
+
+fn step(c: &mut Criterion) {
+    let mut group = c.benchmark_group("simulation_step");
+    group.sample_size(10);
+    for n in [21, 101] {
+        let model = module_tree(n);
+        let mut sim = settled(&model);
+        group.bench_with_input(BenchmarkId::new("superbot_tree_modules", n), &n, |b, _| b.iter(|| black_box(&mut sim).step(None, 1).expect("stable")));
+    }
+    group.finish();
+}
+
+criterion_group!(benches, step);
+criterion_main!(benches);

@@ -1,0 +1,76 @@
+//! The ground: an infinite plane z = 0, or a heightfield over the xy plane.
+
+use nalgebra::DMatrix;
+use rapier3d_f64::math::{Pose, Rotation, Vector};
+use rapier3d_f64::prelude::{ColliderBuilder, SharedShape};
+use rapier3d_f64::parry::utils::Array2;
+
+use crate::validate::finite;
+use crate::{Error, Result};
+
+/// The terrain under the robot, with its Coulomb friction coefficient.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Ground {
+    /// The plane z = 0, solid below.
+    Plane { friction: f64 },
+    /// Heights on a regular grid: `heights[(i, j)]` is the terrain height at
+    /// x = (i − (nx − 1)/2) cell_size, y = (j − (ny − 1)/2) cell_size, so the grid is centred on the world
+    /// origin; between samples each cell is split into two planar triangles. Outside the grid there is no
+    /// ground.
+    Heightfield { heights: DMatrix<f64>, cell_size: f64, friction: f64 },
+}
+
+fn check_friction(friction: f64) -> Result<f64> {
+    if finite("friction", friction)? < 0.0 {
+        return Err(Error::invalid("friction", format!("must be >= 0, got {friction}")));
+    }
+    Ok(friction)
+}
+
+impl Ground {
+    pub fn plane(friction: f64) -> Result<Self> {
+        Ok(Ground::Plane { friction: check_friction(friction)? })
+    }
+
+    /// A heightfield of at least 2 x 2 finite samples spaced `cell_size` (> 0) apart.
+    pub fn heightfield(heights: DMatrix<f64>, cell_size: f64, friction: f64) -> Result<Self> {
+        if heights.nrows() < 2 || heights.ncols() < 2 {
+            return Err(Error::invalid(
+                "heights",
+                format!("needs at least 2 x 2 samples, got {} x {}", heights.nrows(), heights.ncols()),
+            ));
+        }
+        if let Some(bad) = heights.iter().find(|h| !h.is_finite()) {
+            return Err(Error::invalid("heights", format!("must be finite, got {bad}")));
+        }
+        if finite("cell_size", cell_size)? <= 0.0 {
+            return Err(Error::invalid("cell_size", format!("must be > 0, got {cell_size}")));
+        }
+        Ok(Ground::Heightfield { heights, cell_size, friction: check_friction(friction)? })
+    }
+
+    pub fn friction(&self) -> f64 {
+        match self {
+            Ground::Plane { friction } | Ground::Heightfield { friction, .. } => *friction,
+        }
+    }
+
+    /// The collider of this ground, attached to a fixed body at the world origin.
+    pub(crate) fn collider(&self) -> ColliderBuilder {
+        let builder = match self {
+            Ground::Plane { .. } => ColliderBuilder::new(SharedShape::halfspace(Vector::Z)),
+            Ground::Heightfield { heights, cell_size, .. } => {
+                // Parry's heightfield lies in its local xz plane with heights along local y, rows along z
+                // and columns along x, spanning [-1/2, 1/2] x scale. The rotation local (x, y, z) →
+                // world (y, z, x) makes rows run along world x and columns along world y, so the sample
+                // grid maps one to one; both are column-major.
+                let (nx, ny) = heights.shape();
+                let scale = Vector::new((ny - 1) as f64 * cell_size, 1.0, (nx - 1) as f64 * cell_size);
+                let samples = Array2::new(nx, ny, heights.as_slice().to_vec());
+                let rotation = Rotation::from_mat3(&rapier3d_f64::math::Matrix::from_cols(Vector::Y, Vector::Z, Vector::X));
+                ColliderBuilder::new(SharedShape::heightfield(samples, scale)).position(Pose::from_parts(Vector::ZERO, rotation))
+            }
+        };
+        builder.friction(self.friction()).restitution(0.0).density(0.0)
+    }
+}

@@ -1,0 +1,280 @@
+//! The simulation against the dynamics core (free motion against ABA + RK4), statics (contact forces
+//! against weight), determinism, actuation and input checks.
+
+use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
+
+use super::*;
+use crate::algorithms::{simulate, Method};
+use crate::{Data, MassProperties};
+
+fn rod(mass: f64, length: f64) -> MassProperties {
+    // A 4 cm square bar along the body's x axis, starting at the joint.
+    MassProperties::cuboid(mass, Vector3::new(length, 0.04, 0.04), Vector3::new(length / 2.0, 0.0, 0.0), &Matrix3::identity()).unwrap()
+}
+
+/// A 10-link branching tree hanging from a fixed base: a chain of 5 with three side branches, joint axes
+/// not aligned with the links, one prismatic joint.
+fn ten_link_tree() -> Model {
+    let mut model = Model::new(false, MassProperties::cuboid(1.0, Vector3::new(0.1, 0.1, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap(), "base");
+    let turn = |x: f64, y: f64, z: f64| Rotation3::from_euler_angles(x, y, z).into_inner();
+    let along = |length: f64, r: Matrix3<f64>| Transform::new(r, Vector3::new(length, 0.0, 0.0));
+    let axes = [Vector3::y(), Vector3::new(0.0, 1.0, 0.3), Vector3::z(), Vector3::new(0.2, 1.0, 0.0), Vector3::y()];
+    let mut parent = 0;
+    let mut chain = Vec::new();
+    for (k, axis) in axes.iter().enumerate() {
+        // The first link hangs down (body x onto world −z); the rest continue it with small bends.
+        let placement = if k == 0 { Transform::new(turn(0.0, std::f64::consts::FRAC_PI_2, 0.0), Vector3::zeros()) } else { along(0.25, turn(0.1 * k as f64, 0.0, 0.2)) };
+        parent = model.add_body(parent, Joint::Revolute(*axis), placement, rod(0.6 - 0.05 * k as f64, 0.25), &format!("chain{k}")).unwrap();
+        chain.push(parent);
+    }
+    let b = model.add_body(chain[1], Joint::Revolute(Vector3::x()), along(0.25, turn(0.0, 0.0, 1.2)), rod(0.3, 0.2), "side0").unwrap();
+    model.add_body(b, Joint::Revolute(Vector3::new(0.0, 0.4, 1.0)), along(0.2, turn(0.3, 0.0, 0.0)), rod(0.2, 0.15), "side1").unwrap();
+    let c = model.add_body(chain[2], Joint::Prismatic(Vector3::x()), along(0.25, turn(0.0, 0.5, -1.0)), rod(0.25, 0.2), "slider").unwrap();
+    model.add_body(c, Joint::Revolute(Vector3::y()), along(0.2, Matrix3::identity()), rod(0.2, 0.2), "side2").unwrap();
+    model.add_body(chain[4], Joint::Revolute(Vector3::z()), along(0.25, turn(0.0, 0.0, -0.4)), rod(0.15, 0.15), "tip").unwrap();
+    assert_eq!(model.nv(), 10);
+    model
+}
+
+fn start(model: &Model) -> (Vec<f64>, Vec<f64>) {
+    let q: Vec<f64> = (0..model.nq()).map(|k| 0.3 * ((k as f64) * 1.7).sin()).collect();
+    (q, vec![0.0; model.nv()])
+}
+
+/// legkit's reference: ABA + RK4 at `dt`, `steps` steps; returns the final (q, v).
+fn reference(model: &Model, q: &[f64], v: &[f64], dt: f64, steps: usize) -> (Vec<f64>, Vec<f64>) {
+    let (nq, nv) = (model.nq(), model.nv());
+    let mut qs = vec![0.0; (steps + 1) * nq];
+    let mut vs = vec![0.0; (steps + 1) * nv];
+    simulate(model, &mut Data::new(model), q, v, &vec![0.0; nv], dt, steps, Method::Rk4, &mut qs, &mut vs).unwrap();
+    (qs[steps * nq..].to_vec(), vs[steps * nv..].to_vec())
+}
+
+fn max_difference(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+}
+
+fn released(model: &Model, substeps: usize) -> Simulation {
+    let (q, v) = start(model);
+    let mut options = Options::new(1e-3);
+    options.substeps = substeps;
+    let mut sim = Simulation::new(model, options).unwrap();
+    sim.set_state(Some(&q), Some(&v)).unwrap();
+    sim
+}
+
+#[test]
+fn state_round_trips_through_rapier() {
+    let model = ten_link_tree();
+    let (q, _) = start(&model);
+    let v: Vec<f64> = (0..model.nv()).map(|k| 0.1 * k as f64 - 0.4).collect();
+    let mut sim = Simulation::new(&model, Options::new(1e-3)).unwrap();
+    sim.set_state(Some(&q), Some(&v)).unwrap();
+    assert_eq!(sim.q(), q.as_slice());
+    assert_eq!(sim.v(), v.as_slice());
+    // Body poses agree with legkit's forward kinematics.
+    let mut data = Data::new(&model);
+    crate::algorithms::forward_kinematics(&model, &mut data, &q);
+    for (pose, expected) in sim.body_poses().iter().zip(&data.o_m_i) {
+        assert!((pose.rotation - expected.rotation).amax() < 1e-12);
+        assert!((pose.translation - expected.translation).amax() < 1e-12);
+    }
+}
+
+#[test]
+fn free_tree_follows_aba_rk4() {
+    // Rapier's integrator is first order: the error after 1 s must halve with the substep length, and at
+    // 8 substeps per 1 ms step stay within 1e-3 rad.
+    let model = ten_link_tree();
+    let (q, v) = start(&model);
+    let (q_ref, _) = reference(&model, &q, &v, 1e-3, 1000);
+    let errors: Vec<f64> = [1, 2, 4, 8]
+        .iter()
+        .map(|&substeps| {
+            let mut sim = released(&model, substeps);
+            sim.step(None, 1000).unwrap();
+            let error = max_difference(sim.q(), &q_ref);
+            println!("free 10-link tree, 1 s at 1 kHz, {substeps} substeps: max |q - q_rk4| = {error:.3e}");
+            error
+        })
+        .collect();
+    for pair in errors.windows(2) {
+        let ratio = pair[0] / pair[1];
+        assert!((1.6..2.5).contains(&ratio), "halving the substep should halve the error, ratio {ratio}");
+    }
+    assert!(errors[3] < 1e-3, "joint coordinates differ from ABA + RK4 by {}", errors[3]);
+}
+
+#[test]
+fn floating_base_follows_aba_rk4() {
+    // A tumbling floating box with an off-centre COM and a two-link arm, thrown upward and spinning.
+    let base = MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::new(0.03, -0.02, 0.01), &Matrix3::identity()).unwrap();
+    let mut model = Model::new(true, base, "base");
+    let a = model.add_body(0, Joint::Revolute(Vector3::z()), Transform::from_translation(Vector3::new(0.15, 0.0, 0.05)), rod(0.4, 0.2), "a").unwrap();
+    model.add_body(a, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.2, 0.0, 0.0)), rod(0.3, 0.2), "b").unwrap();
+    let rotation = nalgebra::UnitQuaternion::from_axis_angle(&Unit::new_normalize(Vector3::new(1.0, 2.0, 3.0)), 0.7);
+    let q = vec![0.1, -0.2, 1.0, rotation.i, rotation.j, rotation.k, rotation.w, 0.4, -0.3];
+    let v = vec![0.2, 0.1, 3.0, 1.0, -2.0, 0.5, 1.5, -1.0];
+    let (q_ref, v_ref) = reference(&model, &q, &v, 1e-3, 500);
+    let mut options = Options::new(1e-3);
+    options.substeps = 8;
+    let mut sim = Simulation::new(&model, options).unwrap();
+    sim.set_state(Some(&q), Some(&v)).unwrap();
+    assert!(max_difference(sim.q(), &q) < 1e-14 && max_difference(sim.v(), &v) < 1e-12);
+    sim.step(None, 500).unwrap();
+    let (eq, ev) = (max_difference(sim.q(), &q_ref), max_difference(sim.v(), &v_ref));
+    println!("floating base, 0.5 s at 1 kHz, 8 substeps: max |q - q_rk4| = {eq:.3e}, max |v - v_rk4| = {ev:.3e}");
+    assert!(eq < 1e-3, "configuration differs from ABA + RK4 by {eq}");
+}
+
+#[test]
+fn joint_torques_match_aba_accelerations() {
+    // One step from rest: Δv / dt is the acceleration Rapier used; with no Coriolis terms at rest it must
+    // equal ABA's q̈ for the same torques to first order in dt.
+    let model = ten_link_tree();
+    let (q, v) = start(&model);
+    let tau: Vec<f64> = (0..model.nv()).map(|k| 0.5 * ((k as f64) * 0.9).cos()).collect();
+    let mut sim = released(&model, 1);
+    sim.step(Some(&tau), 1).unwrap();
+    let mut data = Data::new(&model);
+    let ddq = crate::algorithms::aba(&model, &mut data, &q, &v, &tau, None).clone();
+    let numeric: Vec<f64> = sim.v().iter().map(|x| x / 1e-3).collect();
+    let error = max_difference(&numeric, ddq.as_slice()) / ddq.amax();
+    assert!(error < 1e-2, "relative acceleration error {error}");
+}
+
+fn floating_box(mass: f64, size: Vector3<f64>) -> Model {
+    Model::new(true, MassProperties::cuboid(mass, size, Vector3::zeros(), &Matrix3::identity()).unwrap(), "box")
+}
+
+fn total_normal_force(contacts: &[Contact]) -> Vector3<f64> {
+    contacts.iter().map(|c| c.normal * c.normal_force + c.tangential_force).sum()
+}
+
+#[test]
+fn box_resting_on_the_plane_carries_its_weight() {
+    let model = floating_box(3.0, Vector3::new(0.4, 0.3, 0.2));
+    let mut options = Options::new(1e-3);
+    options.ground = Some(Ground::plane(0.8).unwrap());
+    let mut sim = Simulation::new(&model, options).unwrap();
+    sim.set_state(Some(&[0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0]), None).unwrap();
+    sim.step(None, 1000).unwrap();
+    let contacts = sim.contacts();
+    assert!(contacts.len() >= 4, "a box face on a plane has 4 contact points, got {}", contacts.len());
+    let force = total_normal_force(&contacts);
+    let weight = 3.0 * 9.81;
+    println!("box on plane: contact force {force:?}, weight {weight}");
+    assert!((force.z - weight).abs() < 0.01 * weight, "vertical contact force {} vs weight {weight}", force.z);
+    assert!(force.xy().norm() < 0.01 * weight);
+    assert!(contacts.iter().all(|c| c.body == 0 && c.other.is_none() && (c.normal - Vector3::z()).norm() < 1e-9 && c.point.z.abs() < 2e-3));
+}
+
+/// A floating 4 kg body on four two-joint legs (hip and knee about y) with ball feet, standing straight.
+fn quadruped() -> (Model, Vec<(usize, Option<Shape>)>) {
+    let mut model = floating_box(4.0, Vector3::new(0.4, 0.2, 0.06));
+    let mut shapes = Vec::new();
+    let down = |mass: f64| MassProperties::cuboid(mass, Vector3::new(0.03, 0.03, 0.15), Vector3::new(0.0, 0.0, -0.075), &Matrix3::identity()).unwrap();
+    for (k, (x, y)) in [(0.15, 0.08), (0.15, -0.08), (-0.15, 0.08), (-0.15, -0.08)].into_iter().enumerate() {
+        let hip = model.add_body(0, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(x, y, -0.03)), down(0.3), &format!("thigh{k}")).unwrap();
+        let shin = model.add_body(hip, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)), down(0.2), &format!("shin{k}")).unwrap();
+        let foot = Shape::new(ShapeKind::Sphere(0.02), Some(Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)))).unwrap();
+        shapes.push((hip, None));
+        shapes.push((shin, Some(foot)));
+    }
+    (model, shapes)
+}
+
+fn quadruped_on_plane(substeps: usize) -> Simulation {
+    let (model, shapes) = quadruped();
+    let mut options = Options::new(1e-3);
+    options.ground = Some(Ground::plane(0.8).unwrap());
+    options.shapes = shapes;
+    options.substeps = substeps;
+    let nv = model.nv();
+    let mut sim = Simulation::new(&model, options).unwrap();
+    let mut q = model.neutral().as_slice().to_vec();
+    q[2] = 0.03 + 0.3 + 0.02 + 0.005;
+    sim.set_state(Some(&q), None).unwrap();
+    let mut kp = vec![40.0; nv];
+    let mut kd = vec![1.0; nv];
+    kp[..6].fill(0.0);
+    kd[..6].fill(0.0);
+    sim.set_servo(Servo::new(&model, kp, kd, vec![20.0; nv], vec![0.0; nv], vec![0.0; nv]).unwrap()).unwrap();
+    sim
+}
+
+#[test]
+fn quadruped_standing_on_servos_carries_its_weight() {
+    let mut sim = quadruped_on_plane(1);
+    sim.step(None, 2000).unwrap();
+    let contacts = sim.contacts();
+    let force = total_normal_force(&contacts);
+    let weight = sim.model().total_mass() * 9.81;
+    println!("quadruped on plane: contact force {force:?}, weight {weight}, {} contacts", contacts.len());
+    assert_eq!(contacts.len(), 4);
+    assert!((force.z - weight).abs() < 0.01 * weight, "vertical contact force {} vs weight {weight}", force.z);
+    assert!(sim.v().iter().all(|x| x.abs() < 1e-3), "not at rest: {:?}", sim.v());
+}
+
+#[test]
+fn identical_inputs_give_identical_trajectories() {
+    let run = || {
+        let mut sim = quadruped_on_plane(2);
+        let nv = sim.model().nv();
+        let tau: Vec<f64> = (0..nv).map(|k| if k < 6 { 0.0 } else { 0.3 * (k as f64).sin() }).collect();
+        sim.step(Some(&tau), 300).unwrap();
+        (sim.q().to_vec(), sim.v().to_vec(), sim.contacts())
+    };
+    let (a, b) = (run(), run());
+    assert_eq!(a, b);
+}
+
+#[test]
+fn servo_torques_respect_limits_and_hold_targets() {
+    let model = ten_link_tree();
+    let nv = model.nv();
+    let mut sim = released(&model, 1);
+    let target: Vec<f64> = vec![0.0; nv];
+    let servo = Servo::new(&model, vec![50.0; nv], vec![2.0; nv], vec![1.5; nv], target, vec![0.0; nv]).unwrap();
+    sim.set_servo(servo).unwrap();
+    let mut peak: f64 = 0.0;
+    for _ in 0..2000 {
+        sim.step(Some(&vec![3.0; nv]), 1).unwrap();
+        peak = peak.max(sim.applied_torques().iter().fold(0.0, |m, t| m.max(t.abs())));
+    }
+    assert!(peak <= 1.5, "peak torque {peak} exceeds the 1.5 limit");
+    assert!(peak == 1.5, "the feed-forward of 3 must saturate");
+}
+
+#[test]
+fn bad_input_is_rejected_and_changes_nothing() {
+    let model = ten_link_tree();
+    let mut sim = released(&model, 1);
+    sim.step(None, 10).unwrap();
+    let (q, v, t) = (sim.q().to_vec(), sim.v().to_vec(), sim.time());
+    let mut nan = vec![0.0; model.nv()];
+    nan[3] = f64::NAN;
+    assert_eq!(sim.step(Some(&nan), 5).unwrap_err().argument(), "tau");
+    assert_eq!(sim.step(Some(&[0.0; 3]), 5).unwrap_err().argument(), "tau");
+    assert_eq!(sim.set_state(Some(&[0.0; 3]), None).unwrap_err().argument(), "q");
+    assert_eq!(sim.set_state(None, Some(&nan)).unwrap_err().argument(), "v");
+    assert_eq!(sim.reset(&q, &[1.0]).unwrap_err().argument(), "v");
+    assert!(Servo::new(&model, vec![-1.0; model.nv()], vec![0.0; model.nv()], vec![1.0; model.nv()], vec![0.0; model.nv()], vec![0.0; model.nv()]).is_err());
+    assert_eq!((sim.q(), sim.v(), sim.time()), (q.as_slice(), v.as_slice(), t));
+    assert_eq!(Simulation::new(&model, Options::new(0.0)).err().unwrap().argument(), "dt");
+    assert_eq!(Ground::heightfield(nalgebra::DMatrix::zeros(1, 5), 0.1, 0.8).unwrap_err().argument(), "heights");
+}
+
+#[test]
+fn reset_reproduces_a_fresh_simulation() {
+    let mut fresh = quadruped_on_plane(1);
+    let (q, v) = (fresh.q().to_vec(), fresh.v().to_vec());
+    fresh.step(None, 200).unwrap();
+    let mut reused = quadruped_on_plane(1);
+    reused.step(None, 137).unwrap();
+    reused.reset(&q, &v).unwrap();
+    reused.step(None, 200).unwrap();
+    assert_eq!((fresh.q(), fresh.v(), fresh.time()), (reused.q(), reused.v(), reused.time()));
+}
+
+

@@ -1,0 +1,340 @@
+//! `legkit.Simulation` and `legkit.Ground`: conversions around `legkit_dynamics::sim`.
+
+use legkit_dynamics::model::check_vector;
+use legkit_dynamics::sim::{dof_coordinates, Ground, Options, Servo, Shape, ShapeKind, Simulation};
+use legkit_dynamics::Transform;
+use nalgebra::{DMatrix, Vector3};
+use numpy::{PyArray1, PyArray2, PyArray3};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+
+use crate::convert::{to_numpy, value_error, Floats};
+use crate::model::{homogeneous, transform, PyModel};
+
+/// Terrain for a `Simulation`: `Ground.plane(friction)` (the plane z = 0) or
+/// `Ground.heightfield(heights, cell_size, friction)`.
+#[pyclass(name = "Ground", module = "legkit", frozen)]
+pub struct PyGround {
+    pub ground: Ground,
+}
+
+#[pymethods]
+impl PyGround {
+    /// The plane z = 0, solid below, with Coulomb friction coefficient `friction` (>= 0).
+    #[staticmethod]
+    #[pyo3(signature = (friction = 0.8))]
+    fn plane(friction: f64) -> PyResult<Self> {
+        Ok(PyGround { ground: Ground::plane(friction).map_err(value_error)? })
+    }
+
+    /// Terrain heights (m) on a regular grid: `heights[i, j]` is the height at
+    /// x = (i − (nx − 1)/2) cell_size, y = (j − (ny − 1)/2) cell_size (the grid is centred on the origin;
+    /// each cell is two planar triangles; no ground outside the grid). `heights` is (nx, ny) with
+    /// nx, ny >= 2, `cell_size` > 0 (m), `friction` >= 0.
+    #[staticmethod]
+    #[pyo3(signature = (heights, cell_size, friction = 0.8))]
+    fn heightfield(heights: Floats<'_>, cell_size: f64, friction: f64) -> PyResult<Self> {
+        let view = heights.get("heights")?.as_array();
+        if view.ndim() != 2 {
+            return Err(PyValueError::new_err(format!("heights: expected a 2-D array (nx, ny), got shape {:?}", view.shape())));
+        }
+        let (nx, ny) = (view.shape()[0], view.shape()[1]);
+        let matrix = DMatrix::from_fn(nx, ny, |i, j| view[[i, j]]);
+        Ok(PyGround { ground: Ground::heightfield(matrix, cell_size, friction).map_err(value_error)? })
+    }
+
+    /// "plane" or "heightfield".
+    #[getter]
+    fn kind(&self) -> &'static str {
+        match self.ground {
+            Ground::Plane { .. } => "plane",
+            Ground::Heightfield { .. } => "heightfield",
+        }
+    }
+
+    #[getter]
+    fn friction(&self) -> f64 {
+        self.ground.friction()
+    }
+
+    /// The height samples (nx, ny) of a heightfield, None for a plane.
+    #[getter]
+    fn heights<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray2<f64>>> {
+        match &self.ground {
+            Ground::Heightfield { heights, .. } => Some(to_numpy(py, heights.shape(), heights.transpose().as_slice().to_vec())),
+            Ground::Plane { .. } => None,
+        }
+    }
+
+    /// Grid spacing (m) of a heightfield, None for a plane.
+    #[getter]
+    fn cell_size(&self) -> Option<f64> {
+        match &self.ground {
+            Ground::Heightfield { cell_size, .. } => Some(*cell_size),
+            Ground::Plane { .. } => None,
+        }
+    }
+
+    fn __repr__(&self) -> String {
+        match &self.ground {
+            Ground::Plane { friction } => format!("Ground.plane(friction={friction})"),
+            Ground::Heightfield { heights, cell_size, friction } => {
+                format!("Ground.heightfield(<{}x{} heights>, cell_size={cell_size}, friction={friction})", heights.nrows(), heights.ncols())
+            }
+        }
+    }
+}
+
+/// A contact simulation of a `Model` on Rapier (reduced-coordinate multibody, exact joint dynamics).
+///
+/// `Simulation(model, dt=1e-3, ground=None, shapes=None, self_collision=False, joint_damping=0.0,
+/// substeps=1)`: `ground` a `Ground` or None; `shapes` maps bodies (index or name) to
+/// ("box", (sx, sy, sz)) full edge lengths, ("sphere", r), ("capsule", half_height, r) or
+/// ("cylinder", half_height, r) along z, each optionally followed by a 4x4 placement in the body frame
+/// (default: at the body's COM, body axes), or to None for no collider; unlisted bodies get the uniform
+/// box with their mass and principal moments (massless bodies none). `joint_damping` (N m s/rad) acts on
+/// every joint; `substeps` Rapier substeps per step (the integrator is first order in dt/substeps).
+/// The robot starts at `model.neutral()`, at rest, at time 0.
+#[pyclass(name = "Simulation", module = "legkit")]
+pub struct PySimulation {
+    sim: Simulation,
+}
+
+fn shape_error(reason: impl std::fmt::Display) -> PyErr {
+    PyValueError::new_err(format!("shapes: {reason}"))
+}
+
+fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
+    if value.is_none() {
+        return Ok(None);
+    }
+    let tuple = value
+        .cast::<PyTuple>()
+        .map_err(|_| PyTypeError::new_err("shapes: each value must be a tuple like (\"box\", size) or None"))?;
+    let kind: String = tuple.get_item(0).and_then(|k| k.extract()).map_err(|_| PyTypeError::new_err("shapes: the first element must be a shape name"))?;
+    let count = match kind.as_str() {
+        "box" | "sphere" => 1,
+        "capsule" | "cylinder" => 2,
+        other => return Err(shape_error(format!("unknown shape {other:?} (expected box, sphere, capsule or cylinder)"))),
+    };
+    if tuple.len() != 1 + count && tuple.len() != 2 + count {
+        return Err(shape_error(format!("{kind} takes {count} size parameter(s) and an optional placement, got {} values", tuple.len() - 1)));
+    }
+    let number = |k: usize| -> PyResult<f64> { tuple.get_item(k)?.extract().map_err(|_| PyTypeError::new_err(format!("shapes: {kind} parameters must be numbers"))) };
+    let shape_kind = match kind.as_str() {
+        "box" => {
+            let size: Floats<'_> = tuple.get_item(1)?.extract()?;
+            let size = crate::convert::vector3("shapes", &size)?;
+            ShapeKind::Box(size)
+        }
+        "sphere" => ShapeKind::Sphere(number(1)?),
+        "capsule" => ShapeKind::Capsule { half_height: number(1)?, radius: number(2)? },
+        _ => ShapeKind::Cylinder { half_height: number(1)?, radius: number(2)? },
+    };
+    let placement: Option<Transform> = if tuple.len() == 2 + count {
+        Some(transform(&tuple.get_item(1 + count)?).map_err(|e| shape_error(e.to_string()))?)
+    } else {
+        None
+    };
+    Shape::new(shape_kind, placement).map(Some).map_err(value_error)
+}
+
+/// A per-degree-of-freedom parameter: a scalar (applied to the joint coordinates, `base` on a floating
+/// base's six) or an (nv,) array.
+fn per_dof(argument: &'static str, value: &Floats<'_>, nv: usize, floating: bool, base: f64) -> PyResult<Vec<f64>> {
+    let view = value.get(argument)?.as_array();
+    match view.ndim() {
+        0 => {
+            let x = view[[]];
+            Ok((0..nv).map(|k| if floating && k < 6 { base } else { x }).collect())
+        }
+        1 if view.len() == nv => Ok(view.iter().copied().collect()),
+        _ => Err(PyValueError::new_err(format!("{argument}: expected a scalar or shape ({nv},), got {:?}", view.shape()))),
+    }
+}
+
+fn vector_argument(argument: &'static str, value: &Floats<'_>, n: usize) -> PyResult<Vec<f64>> {
+    let view = value.get(argument)?.as_array();
+    if view.ndim() != 1 || view.len() != n {
+        return Err(PyValueError::new_err(format!("{argument}: expected shape ({n},), got {:?}", view.shape())));
+    }
+    Ok(view.iter().copied().collect())
+}
+
+#[pymethods]
+impl PySimulation {
+    #[new]
+    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, joint_damping = 0.0, substeps = 1))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        model: PyRef<'_, PyModel>,
+        dt: f64,
+        ground: Option<PyRef<'_, PyGround>>,
+        shapes: Option<Bound<'_, PyDict>>,
+        self_collision: bool,
+        joint_damping: f64,
+        substeps: i64,
+    ) -> PyResult<Self> {
+        let mut options = Options::new(dt);
+        options.ground = ground.map(|g| g.ground.clone());
+        options.self_collision = self_collision;
+        options.joint_damping = joint_damping;
+        if substeps < 1 {
+            return Err(PyValueError::new_err(format!("substeps: must be >= 1, got {substeps}")));
+        }
+        options.substeps = substeps as usize;
+        if let Some(shapes) = shapes {
+            for (key, value) in shapes.iter() {
+                let body = model.body_index(&key).map_err(|e| PyValueError::new_err(format!("shapes: {e}")))?;
+                options.shapes.push((body, parse_shape(&value)?));
+            }
+        }
+        let sim = Simulation::new(&model.model, options).map_err(value_error)?;
+        Ok(PySimulation { sim })
+    }
+
+    /// Advances `n` steps (in Rust, GIL released) with feed-forward generalized forces `tau` (nv,) held
+    /// over the steps (None: zero); servos, if set, add to it and the sum is clipped to the torque limits.
+    /// On a floating base tau[:6] is a wrench [f, n] on the base, in its frame, at its origin (as `aba`).
+    #[pyo3(signature = (tau = None, n = 1))]
+    fn step(&mut self, py: Python<'_>, tau: Option<Floats<'_>>, n: i64) -> PyResult<()> {
+        if n < 0 {
+            return Err(PyValueError::new_err(format!("n: must be >= 0, got {n}")));
+        }
+        let tau = tau.map(|t| vector_argument("tau", &t, self.sim.model().nv())).transpose()?;
+        let sim = &mut self.sim;
+        py.detach(|| sim.step(tau.as_deref(), n as usize)).map_err(value_error)
+    }
+
+    /// Position/velocity servos, evaluated every step in Rust:
+    /// τ = clip(kp (target_q − q) + kd (target_v − v) + tau, ±torque_limit) per velocity coordinate.
+    /// `kp` (N m/rad), `kd` (N m s/rad), `torque_limit` (N m, may be inf): scalars (joint coordinates only;
+    /// a floating base is never servoed) or (nv,) arrays (zero gains on a floating base's six).
+    /// `target_q`: a configuration (nq,) whose joint coordinates are the targets (None: the current q);
+    /// `target_v`: (nv,) (None: zero). Clear servos with kp = kd = 0.
+    #[pyo3(signature = (kp, kd = None, torque_limit = None, target_q = None, target_v = None))]
+    fn set_servo(
+        &mut self,
+        kp: Floats<'_>,
+        kd: Option<Floats<'_>>,
+        torque_limit: Option<Floats<'_>>,
+        target_q: Option<Floats<'_>>,
+        target_v: Option<Floats<'_>>,
+    ) -> PyResult<()> {
+        let model = self.sim.model();
+        let (nq, nv, floating) = (model.nq(), model.nv(), model.floating_base());
+        let kp = per_dof("kp", &kp, nv, floating, 0.0)?;
+        let kd = kd.map(|k| per_dof("kd", &k, nv, floating, 0.0)).transpose()?.unwrap_or_else(|| vec![0.0; nv]);
+        let limit = torque_limit.map(|l| per_dof("torque_limit", &l, nv, floating, f64::INFINITY)).transpose()?.unwrap_or_else(|| vec![f64::INFINITY; nv]);
+        let configuration = match target_q {
+            Some(t) => {
+                let t = vector_argument("target_q", &t, nq)?;
+                check_vector("target_q", &t, nq).map_err(value_error)?;
+                t
+            }
+            None => self.sim.q().to_vec(),
+        };
+        let mut targets = vec![0.0; nv];
+        dof_coordinates(model, &configuration, &mut targets);
+        let target_v = target_v.map(|t| vector_argument("target_v", &t, nv)).transpose()?.unwrap_or_else(|| vec![0.0; nv]);
+        let servo = Servo::new(model, kp, kd, limit, targets, target_v).map_err(value_error)?;
+        self.sim.set_servo(servo).map_err(value_error)
+    }
+
+    /// Configuration (nq,) in legkit's layout; setting it moves the robot (velocity, time and contact
+    /// history kept).
+    #[getter]
+    fn q<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        to_numpy(py, self.sim.q().len(), self.sim.q().to_vec())
+    }
+
+    #[setter]
+    fn set_q(&mut self, q: Floats<'_>) -> PyResult<()> {
+        let q = vector_argument("q", &q, self.sim.model().nq())?;
+        self.sim.set_state(Some(&q), None).map_err(value_error)
+    }
+
+    /// Velocity (nv,) in legkit's layout (a floating base's [v_lin, ω] in its own frame); settable.
+    #[getter]
+    fn v<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        to_numpy(py, self.sim.v().len(), self.sim.v().to_vec())
+    }
+
+    #[setter]
+    fn set_v(&mut self, v: Floats<'_>) -> PyResult<()> {
+        let v = vector_argument("v", &v, self.sim.model().nv())?;
+        self.sim.set_state(None, Some(&v)).map_err(value_error)
+    }
+
+    /// Simulated time (s).
+    #[getter]
+    fn time(&self) -> f64 {
+        self.sim.time()
+    }
+
+    /// Step length (s).
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.sim.options().dt
+    }
+
+    /// Generalized forces applied during the last step (nv,): servo plus feed-forward, clipped.
+    #[getter]
+    fn applied_tau<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        to_numpy(py, self.sim.applied_torques().len(), self.sim.applied_torques().to_vec())
+    }
+
+    /// Penetration (m) Rapier leaves uncorrected: the contact tolerance.
+    #[getter]
+    fn contact_tolerance(&self) -> f64 {
+        self.sim.contact_tolerance()
+    }
+
+    /// World pose of every body, (nbodies, 4, 4).
+    fn body_poses<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray3<f64>> {
+        let poses = self.sim.body_poses();
+        let data = poses.iter().flat_map(homogeneous).collect();
+        to_numpy(py, (poses.len(), 4, 4), data)
+    }
+
+    /// Contact points of the last step as a dict of arrays over k points: "body" (k,) int (the body the
+    /// force acts on), "other" (k,) int (the other body, -1 for the ground), "point" (k, 3) world,
+    /// "normal" (k, 3) unit, pointing into "body", "normal_force" (k,) N >= 0, "tangential_force" (k, 3) N
+    /// (friction on "body"), "depth" (k,) penetration (m). Forces are averages over the step.
+    fn contacts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let contacts = self.sim.contacts();
+        let k = contacts.len();
+        let rows = |f: &dyn Fn(&legkit_dynamics::sim::Contact) -> Vector3<f64>| -> Vec<f64> { contacts.iter().flat_map(|c| f(c).as_slice().to_vec()).collect() };
+        let out = PyDict::new(py);
+        out.set_item("body", to_numpy(py, k, contacts.iter().map(|c| c.body as i64).collect::<Vec<i64>>()))?;
+        out.set_item("other", to_numpy(py, k, contacts.iter().map(|c| c.other.map_or(-1, |o| o as i64)).collect::<Vec<i64>>()))?;
+        out.set_item("point", to_numpy(py, (k, 3), rows(&|c| c.point)))?;
+        out.set_item("normal", to_numpy(py, (k, 3), rows(&|c| c.normal)))?;
+        out.set_item("normal_force", to_numpy(py, k, contacts.iter().map(|c| c.normal_force).collect::<Vec<f64>>()))?;
+        out.set_item("tangential_force", to_numpy(py, (k, 3), rows(&|c| c.tangential_force)))?;
+        out.set_item("depth", to_numpy(py, k, contacts.iter().map(|c| c.depth).collect::<Vec<f64>>()))?;
+        Ok(out)
+    }
+
+    /// Starts over at time 0 from (q, v) (None: neutral configuration, zero velocity) with no contact
+    /// history: bit-identical to a new Simulation set to that state. Servo settings are kept.
+    #[pyo3(signature = (q = None, v = None))]
+    fn reset(&mut self, q: Option<Floats<'_>>, v: Option<Floats<'_>>) -> PyResult<()> {
+        let model = self.sim.model();
+        let q = match q {
+            Some(q) => vector_argument("q", &q, model.nq())?,
+            None => model.neutral().as_slice().to_vec(),
+        };
+        let v = match v {
+            Some(v) => vector_argument("v", &v, model.nv())?,
+            None => vec![0.0; model.nv()],
+        };
+        self.sim.reset(&q, &v).map_err(value_error)
+    }
+
+    fn __repr__(&self) -> String {
+        let model = self.sim.model();
+        format!("Simulation(nq={}, nv={}, dt={}, time={})", model.nq(), model.nv(), self.sim.options().dt, self.sim.time())
+    }
+}

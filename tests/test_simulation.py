@@ -1,0 +1,323 @@
+"""lk.Simulation (Rapier) against legkit's dynamics core, statics, terrain, actuation and input checks."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import legkit as lk
+
+G = 9.81
+
+
+def rotation(axis, angle):
+    """Rodrigues rotation matrix about a unit axis."""
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k
+
+
+def rod(mass, length):
+    """A 4 cm square bar along the body x axis, starting at the joint."""
+    return lk.MassProperties.box(mass, [length, 0.04, 0.04], center=[length / 2, 0, 0])
+
+
+def ten_link_tree():
+    """A 10-link tree hanging from a fixed base: chain of 5 plus side branches, one prismatic joint."""
+    model = lk.Model(floating_base=False, base=lk.MassProperties.box(1.0, [0.1, 0.1, 0.1]))
+    axes = [[0, 1, 0], [0, 1, 0.3], [0, 0, 1], [0.2, 1, 0], [0, 1, 0]]
+    chain, parent = [], 0
+    for k, axis in enumerate(axes):
+        placement = (rotation([0, 1, 0], math.pi / 2), np.zeros(3)) if k == 0 else (rotation([1, 0.2, 0.3], 0.25), [0.25, 0, 0])
+        parent = model.add_revolute(parent, axis, placement, rod(0.6 - 0.05 * k, 0.25), f"chain{k}")
+        chain.append(parent)
+    side = model.add_revolute(chain[1], [1, 0, 0], (rotation([0, 0, 1], 1.2), [0.25, 0, 0]), rod(0.3, 0.2), "side0")
+    model.add_revolute(side, [0, 0.4, 1], (rotation([1, 0, 0], 0.3), [0.2, 0, 0]), rod(0.2, 0.15), "side1")
+    slider = model.add_prismatic(chain[2], [1, 0, 0], (rotation([0, 1, -2], 1.0), [0.25, 0, 0]), rod(0.25, 0.2), "slider")
+    model.add_revolute(slider, [0, 1, 0], (np.eye(3), [0.2, 0, 0]), rod(0.2, 0.2), "side2")
+    model.add_revolute(chain[4], [0, 0, 1], (rotation([0, 0, 1], -0.4), [0.25, 0, 0]), rod(0.15, 0.15), "tip")
+    return model
+
+
+LEG_LENGTH = 0.15
+FOOT_RADIUS = 0.02
+
+
+def quadruped():
+    """A floating 4 kg body on four hip/knee legs (axes y) with ball feet; thighs have no collider."""
+    model = lk.Model(floating_base=True, base=lk.MassProperties.box(4.0, [0.4, 0.2, 0.06]))
+    shapes = {}
+    segment = lambda m: lk.MassProperties.box(m, [0.03, 0.03, LEG_LENGTH], center=[0, 0, -LEG_LENGTH / 2])
+    for k, (x, y) in enumerate([(0.15, 0.08), (0.15, -0.08), (-0.15, 0.08), (-0.15, -0.08)]):
+        thigh = model.add_revolute(0, [0, 1, 0], (np.eye(3), [x, y, -0.03]), segment(0.3), f"thigh{k}")
+        shin = model.add_revolute(thigh, [0, 1, 0], (np.eye(3), [0, 0, -LEG_LENGTH]), segment(0.2), f"shin{k}")
+        foot = np.eye(4)
+        foot[2, 3] = -LEG_LENGTH
+        shapes[thigh] = None
+        shapes[f"shin{k}"] = ("sphere", FOOT_RADIUS, foot)
+    return model, shapes
+
+
+def standing_quadruped(ground, height=0.03 + 2 * LEG_LENGTH + FOOT_RADIUS + 0.005, substeps=1, kp=40.0, kd=0.3):
+    model, shapes = quadruped()
+    sim = lk.Simulation(model, dt=1e-3, ground=ground, shapes=shapes, substeps=substeps)
+    q = model.neutral()
+    q[2] = height
+    sim.q = q
+    # kd is explicit (sampled each step): keep kd dt / (shin inertia, 1.5e-3 kg m^2) well below 1.
+    sim.set_servo(kp=kp, kd=kd, torque_limit=20.0, target_q=model.neutral())
+    return sim
+
+
+def total_contact_force(contacts):
+    return (contacts["normal"] * contacts["normal_force"][:, None] + contacts["tangential_force"]).sum(axis=0)
+
+
+def test_free_tree_follows_aba_rk4_within_a_milliradian():
+    model = ten_link_tree()
+    q0 = 0.3 * np.sin(1.7 * np.arange(model.nq))
+    v0 = np.zeros(model.nv)
+    qs, _ = lk.simulate(model, q0, v0, 1e-3, 1000, method="rk4")
+    errors = []
+    for substeps in (1, 8, 32):
+        sim = lk.Simulation(model, dt=1e-3, substeps=substeps)
+        sim.q, sim.v = q0, v0
+        sim.step(n=1000)
+        assert sim.time == pytest.approx(1.0)
+        errors.append(np.abs(sim.q - qs[-1]).max())
+    # Rapier's integrator is first order in the substep (Coriolis terms are linearly implicit): the error
+    # shrinks in proportion, and 32 substeps per 1 ms step bring it within 1e-3 rad after 1 s.
+    assert 7 < errors[0] / errors[1] < 9 and 3.5 < errors[1] / errors[2] < 4.5
+    assert errors[2] < 1e-3
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 6), st.integers(0, 2**31 - 1))
+def test_first_step_from_rest_uses_the_aba_acceleration(links, seed):
+    # From rest Coriolis and gyroscopic terms vanish, so Rapier's first velocity is exactly dt * aba(q, 0, tau).
+    rng = np.random.default_rng(seed)
+    model = lk.Model(floating_base=bool(seed % 2), base=lk.MassProperties.box(2.0, rng.uniform(0.1, 0.4, 3), center=rng.uniform(-0.05, 0.05, 3)))
+    for i in range(1, links + 1):
+        axis = rng.normal(size=3)
+        placement = (rotation(rng.normal(size=3), rng.uniform(-3, 3)), rng.uniform(-0.3, 0.3, 3))
+        body = lk.MassProperties.box(rng.uniform(0.2, 2), rng.uniform(0.05, 0.4, 3), center=rng.uniform(-0.1, 0.1, 3), rotation=rotation(rng.normal(size=3), 1.0))
+        adder = model.add_prismatic if rng.uniform() < 0.2 else model.add_revolute
+        adder(int(rng.integers(0, i)), axis, placement, body)
+    q = model.neutral()
+    q[model.nq - links :] = rng.uniform(-2, 2, links)
+    if model.floating_base:
+        quat = rng.normal(size=4)
+        q[3:7] = quat / np.linalg.norm(quat)
+    tau = rng.uniform(-3, 3, model.nv)
+    sim = lk.Simulation(model, dt=1e-4)
+    sim.q = q
+    sim.step(tau)
+    expected = lk.aba(model, q, np.zeros(model.nv), tau)
+    np.testing.assert_allclose(sim.v / 1e-4, expected, rtol=1e-6, atol=1e-6 * np.abs(expected).max())
+
+
+def test_identical_inputs_give_bit_identical_trajectories():
+    terrain = lk.Ground.heightfield(0.02 * np.sin(np.arange(21)[:, None] * 0.7 + np.arange(15)[None, :] * 0.4), 0.1, 0.8)
+
+    def run():
+        sim = standing_quadruped(terrain, height=0.5, substeps=2)
+        tau = np.where(np.arange(sim.v.size) < 6, 0.0, 0.4 * np.sin(np.arange(sim.v.size)))
+        trajectory = []
+        for _ in range(20):
+            sim.step(tau, n=25)
+            trajectory.append(np.concatenate([sim.q, sim.v, sim.applied_tau]))
+        return np.array(trajectory), sim.contacts(), sim.body_poses()
+
+    (a, contacts_a, poses_a), (b, contacts_b, poses_b) = run(), run()
+    assert np.array_equal(a, b)
+    assert np.array_equal(poses_a, poses_b)
+    assert contacts_a.keys() == contacts_b.keys() and all(np.array_equal(contacts_a[k], contacts_b[k]) for k in contacts_a)
+
+
+def test_reset_is_a_fresh_start():
+    sim = standing_quadruped(lk.Ground.plane(0.8))
+    q0, v0 = sim.q, sim.v
+    sim.step(n=300)
+    expected = sim.q
+    sim.step(n=77)
+    sim.reset(q0, v0)
+    assert sim.time == 0.0
+    sim.step(n=300)
+    assert np.array_equal(sim.q, expected)
+
+
+def test_standing_quadruped_contact_forces_carry_its_weight():
+    sim = standing_quadruped(lk.Ground.plane(0.8))
+    sim.step(n=2000)
+    contacts = sim.contacts()
+    weight = sim_weight = 4.0 + 4 * (0.3 + 0.2)
+    assert len(contacts["body"]) == 4 and set(contacts["other"]) == {-1}
+    force = total_contact_force(contacts)
+    assert abs(contacts["normal_force"].sum() - weight * G) < 0.01 * sim_weight * G
+    assert np.abs(force[:2]).max() < 0.01 * weight * G
+    np.testing.assert_allclose(contacts["normal"], np.tile([0, 0, 1.0], (4, 1)), atol=1e-12)
+    assert np.abs(sim.v).max() < 1e-3
+
+
+def test_box_at_rest_on_a_slope_is_held_by_friction():
+    # A tilted plane as a heightfield: the resting box's contact forces (normal plus friction) sum to its
+    # weight, straight up, with the normal tilted by the slope angle.
+    slope = 0.2
+    x = (np.arange(41) - 20) * 0.05
+    heights = np.tile(slope * x[:, None], (1, 41))
+    model = lk.Model(floating_base=True, base=lk.MassProperties.box(2.0, [0.2, 0.2, 0.1]))
+    sim = lk.Simulation(model, ground=lk.Ground.heightfield(heights, 0.05, friction=0.9))
+    angle = math.atan(slope)
+    half = math.sin(angle / 2)
+    sim.q = [0, 0, 0.06, 0, -half, 0, math.cos(angle / 2)]
+    sim.step(n=1500)
+    contacts = sim.contacts()
+    force = total_contact_force(contacts)
+    np.testing.assert_allclose(force, [0, 0, 2.0 * G], atol=0.01 * 2.0 * G)
+    # The points carrying load sit on the slope, normal to it (others are unloaded speculative contacts).
+    loaded = contacts["normal_force"] > 1e-6
+    normal = np.array([-math.sin(angle), 0, math.cos(angle)])
+    assert loaded.sum() >= 3
+    np.testing.assert_allclose(contacts["normal"][loaded], np.tile(normal, (loaded.sum(), 1)), atol=1e-6)
+    assert np.abs(contacts["tangential_force"] @ normal).max() < 1e-9
+
+
+def terrain_distance(points_xz, xs, hs):
+    """Distance from points (k, 2) in the xz plane to the polyline (xs, hs), brute force over segments."""
+    a = np.stack([xs[:-1], hs[:-1]], axis=1)
+    b = np.stack([xs[1:], hs[1:]], axis=1)
+    d = b - a
+    t = np.clip(((points_xz[:, None, :] - a) * d).sum(-1) / (d * d).sum(-1), 0, 1)
+    nearest = a + t[..., None] * d
+    return np.linalg.norm(points_xz[:, None, :] - nearest, axis=-1).min(axis=1)
+
+
+def test_quadruped_dropped_on_a_heightfield_settles_without_sinking_in():
+    # Ridges along y (heights depend on x only), so the terrain is exactly a polyline in the xz plane.
+    xs = (np.arange(61) - 30) * 0.025
+    hs = 0.015 * np.sin(2 * math.pi * xs / 0.6) + 0.01 * np.cos(2 * math.pi * xs / 0.25)
+    ground = lk.Ground.heightfield(np.tile(hs[:, None], (1, 31)), 0.025, friction=0.9)
+    sim = standing_quadruped(ground, height=0.42, kp=300.0, kd=0.5)
+    sim.step(n=3000)
+    assert np.abs(sim.v).max() < 1e-2, "the robot should have come to rest"
+    poses = sim.body_poses()
+    feet = [poses[sim_index][:3, :3] @ [0, 0, -LEG_LENGTH] + poses[sim_index][:3, 3] for sim_index in (2, 4, 6, 8)]
+    feet = np.array(feet)
+    penetration = FOOT_RADIUS - terrain_distance(feet[:, [0, 2]], xs, hs)
+    assert penetration.max() <= sim.contact_tolerance
+    contacts = sim.contacts()
+    assert set(contacts["body"]) == {2, 4, 6, 8}
+    assert contacts["depth"].max() <= sim.contact_tolerance
+    assert abs(total_contact_force(contacts)[2] - 6.0 * G) < 0.01 * 6.0 * G
+
+
+def test_servo_torques_stay_within_their_limits():
+    model = ten_link_tree()
+    sim = lk.Simulation(model)
+    sim.q = 0.5 * np.cos(np.arange(model.nq))
+    limit = np.linspace(0.5, 2.0, model.nv)
+    sim.set_servo(kp=200.0, kd=3.0, torque_limit=limit, target_q=np.zeros(model.nq))
+    applied = []
+    for _ in range(500):
+        sim.step(np.full(model.nv, 0.7))
+        applied.append(sim.applied_tau)
+    applied = np.array(applied)
+    assert np.all(np.abs(applied) <= limit)
+    assert np.any(np.isclose(np.abs(applied), limit))
+    # Below the limits the servo law holds exactly.
+    sim.set_servo(kp=2.0, kd=0.5, torque_limit=100.0, target_q=np.zeros(model.nq))
+    q, v = sim.q, sim.v
+    sim.step(np.full(model.nv, 0.1))
+    np.testing.assert_allclose(sim.applied_tau, 2.0 * (0 - q) + 0.5 * (0 - v) + 0.1, rtol=1e-12)
+
+
+def test_body_poses_match_forward_kinematics():
+    model, shapes = quadruped()
+    sim = lk.Simulation(model, shapes=shapes)
+    q = model.neutral()
+    q[:3] = [0.3, -0.2, 0.8]
+    q[3:7] = [0.1, -0.2, 0.3, 0.9] / np.linalg.norm([0.1, -0.2, 0.3, 0.9])
+    q[7:] = np.linspace(-1, 1, 8)
+    sim.q = q
+    np.testing.assert_allclose(sim.body_poses(), lk.forward_kinematics(model, q), atol=1e-12)
+    np.testing.assert_allclose(sim.q, q, atol=1e-15)
+
+
+def test_bad_input_raises_and_leaves_the_state_unchanged():
+    model = ten_link_tree()
+    sim = lk.Simulation(model, ground=lk.Ground.plane())
+    sim.q = 0.2 * np.ones(model.nq)
+    sim.step(n=5)
+    before = (sim.q, sim.v, sim.time, sim.applied_tau)
+    bad_tau = np.zeros(model.nv)
+    bad_tau[2] = np.nan
+    with pytest.raises(ValueError, match="tau"):
+        sim.step(bad_tau)
+    with pytest.raises(ValueError, match="tau"):
+        sim.step(np.zeros(3))
+    with pytest.raises(ValueError, match="q"):
+        sim.q = np.zeros(model.nq + 1)
+    with pytest.raises(ValueError, match="v"):
+        sim.v = np.full(model.nv, np.inf)
+    with pytest.raises(ValueError, match="kp"):
+        sim.set_servo(kp=-1.0)
+    with pytest.raises(ValueError, match="kd"):
+        sim.set_servo(kp=np.ones(model.nv), kd=np.ones(3))
+    with pytest.raises(ValueError, match="torque_limit"):
+        sim.set_servo(kp=1.0, torque_limit=-1.0)
+    with pytest.raises(ValueError, match="target_q"):
+        sim.set_servo(kp=1.0, target_q=np.zeros(2))
+    with pytest.raises(ValueError, match="v"):
+        sim.reset(np.zeros(model.nq), np.zeros(model.nv + 2))
+    with pytest.raises(ValueError, match="n"):
+        sim.step(n=-1)
+    after = (sim.q, sim.v, sim.time, sim.applied_tau)
+    assert all(np.array_equal(x, y) for x, y in zip(before, after))
+
+
+def test_bad_construction_arguments_name_the_argument():
+    model = ten_link_tree()
+    for dt in (0.0, -1e-3, float("nan")):
+        with pytest.raises(ValueError, match="dt"):
+            lk.Simulation(model, dt=dt)
+    with pytest.raises(ValueError, match="heights"):
+        lk.Ground.heightfield(np.zeros(10), 0.1)
+    with pytest.raises(ValueError, match="heights"):
+        lk.Ground.heightfield(np.zeros((1, 10)), 0.1)
+    with pytest.raises(ValueError, match="heights"):
+        lk.Ground.heightfield(np.full((3, 3), np.nan), 0.1)
+    with pytest.raises(ValueError, match="cell_size"):
+        lk.Ground.heightfield(np.zeros((3, 3)), 0.0)
+    with pytest.raises(ValueError, match="friction"):
+        lk.Ground.plane(-0.1)
+    with pytest.raises(ValueError, match="shapes"):
+        lk.Simulation(model, shapes={1: ("sphere", -0.1)})
+    with pytest.raises(ValueError, match="shapes"):
+        lk.Simulation(model, shapes={1: ("cone", 0.1)})
+    with pytest.raises(ValueError, match="shapes"):
+        lk.Simulation(model, shapes={"nope": ("sphere", 0.1)})
+    with pytest.raises(ValueError, match="joint_damping"):
+        lk.Simulation(model, joint_damping=-1.0)
+    with pytest.raises(ValueError, match="substeps"):
+        lk.Simulation(model, substeps=0)
+    with pytest.raises(ValueError, match="kp"):
+        # A floating base cannot be servoed.
+        model_f, _ = quadruped()
+        lk.Simulation(model_f).set_servo(kp=np.ones(model_f.nv))
+
+
+def test_joint_damping_dissipates_and_is_absent_by_default():
+    # A single pendulum: without damping its energy is conserved to integrator accuracy; with damping it decays.
+    model = lk.Model(floating_base=False)
+    model.add_revolute(0, [0, 1, 0], None, rod(1.0, 0.5))
+    energies = []
+    for damping in (0.0, 0.05):
+        sim = lk.Simulation(model, joint_damping=damping, substeps=4)
+        sim.q = [1.0]
+        e0 = lk.kinetic_energy(model, sim.q, sim.v) + lk.potential_energy(model, sim.q)
+        sim.step(n=3000)
+        energies.append((lk.kinetic_energy(model, sim.q, sim.v) + lk.potential_energy(model, sim.q) - e0) / abs(e0))
+    assert abs(energies[0]) < 2e-3
+    assert energies[1] < -0.1
