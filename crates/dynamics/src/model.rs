@@ -76,6 +76,9 @@ pub struct Model {
     names: Vec<String>,
     idx_q: Vec<usize>,
     idx_v: Vec<usize>,
+    /// One past the last velocity index of each body's subtree (exact for depth-first numbering, a
+    /// superset of the subtree's columns otherwise).
+    subtree_v_end: Vec<usize>,
     nq: usize,
     nv: usize,
     /// Gravity in the world frame.
@@ -95,6 +98,7 @@ impl Model {
             names: vec![base_name.to_owned()],
             idx_q: vec![0],
             idx_v: vec![0],
+            subtree_v_end: vec![joint.nv()],
             nq: joint.nq(),
             nv: joint.nv(),
             gravity: Vector3::new(0.0, 0.0, -9.81),
@@ -139,6 +143,15 @@ impl Model {
         self.idx_v.push(self.nv);
         self.nq += joint.nq();
         self.nv += joint.nv();
+        self.subtree_v_end.push(self.nv);
+        let mut ancestor = parent;
+        loop {
+            self.subtree_v_end[ancestor] = self.nv;
+            if ancestor == 0 {
+                break;
+            }
+            ancestor = self.parents[ancestor];
+        }
         Ok(self.joints.len() - 1)
     }
 
@@ -182,6 +195,9 @@ impl Model {
     }
     pub fn idx_v(&self, i: usize) -> usize {
         self.idx_v[i]
+    }
+    pub fn subtree_v_end(&self, i: usize) -> usize {
+        self.subtree_v_end[i]
     }
     pub fn total_mass(&self) -> f64 {
         self.bodies.iter().map(|b| b.mass()).sum()

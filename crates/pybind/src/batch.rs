@@ -8,7 +8,7 @@ use std::borrow::Cow;
 
 use legkit_dynamics::Error;
 use numpy::ndarray::{ArrayViewD, IxDyn};
-use numpy::{PyArrayDyn, PyUntypedArrayMethods};
+use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rayon::prelude::*;
@@ -59,36 +59,38 @@ fn describe(core: Core) -> String {
 
 pub fn broadcast<'a>(arguments: &[(&str, &'a ArrayArg<'_>, Core)]) -> PyResult<Batch<'a>> {
     let mut shape: Vec<usize> = Vec::new();
-    for (name, array, core) in arguments {
-        let dims = array.get(name)?.shape();
+    let mut arrays = Vec::with_capacity(arguments.len());
+    for (name, argument, core) in arguments {
+        let array = argument.array(name)?;
+        let dims = array.shape();
         if dims.len() < core.len() || &dims[dims.len() - core.len()..] != *core {
             return Err(PyValueError::new_err(format!(
                 "{name}: expected shape {}, got {dims:?}",
-                describe(*core)
+                describe(core)
             )));
         }
         let batch = &dims[..dims.len() - core.len()];
         shape = broadcast_shapes(&shape, batch).ok_or_else(|| {
             PyValueError::new_err(format!("{name}: batch shape {batch:?} does not broadcast with {shape:?}"))
         })?;
+        arrays.push((array, batch.len(), *core));
     }
     let len = shape.iter().product();
-    let rows = arguments
-        .iter()
-        .map(|(name, array, core)| {
-            let array = array.get(name).expect("checked above");
-            let batch = &array.shape()[..array.ndim() - core.len()];
+    let rows = arrays
+        .into_iter()
+        .map(|(array, batch_ndim, core)| {
+            let batch = &array.shape()[..batch_ndim];
             let shared = batch.iter().product::<usize>() == 1;
-            let view: ArrayViewD<'a, f64> = array.as_array();
-            let data = if shared || batch == shape.as_slice() {
-                match view.to_slice() {
-                    Some(slice) => Cow::Borrowed(slice),
-                    None => Cow::Owned(view.iter().copied().collect()),
+            // SAFETY: see `Floats`: nothing writes these arrays while the call runs.
+            let contiguous = unsafe { array.as_slice() }.ok();
+            let data = match contiguous {
+                Some(slice) if shared || batch == shape.as_slice() => Cow::Borrowed(slice),
+                _ => {
+                    let view: ArrayViewD<'a, f64> = unsafe { array.as_array() };
+                    let full: Vec<usize> = shape.iter().chain(core.iter()).copied().collect();
+                    let spread = if shared || batch == shape.as_slice() { Some(view) } else { view.broadcast(IxDyn(&full)) };
+                    Cow::Owned(spread.expect("shapes were checked to broadcast").iter().copied().collect())
                 }
-            } else {
-                let full: Vec<usize> = shape.iter().chain(core.iter()).copied().collect();
-                let spread = view.broadcast(IxDyn(&full)).expect("shapes were checked to broadcast");
-                Cow::Owned(spread.iter().copied().collect())
             };
             Rows { data, width: core.iter().product(), shared }
         })
@@ -112,28 +114,34 @@ fn broadcast_shapes(a: &[usize], b: &[usize]) -> Option<Vec<usize>> {
 /// Rows per parallel task: large enough that a task's setup (e.g. a fresh workspace) is amortised.
 const MIN_ROWS_PER_TASK: usize = 64;
 
-/// Evaluates `kernel(state, i, out)` for each batch row `i`, writing `width` numbers per row, in parallel
-/// over the available cores (each task with its own `state` from `init`). Errors name the row.
-pub fn map_rows<S, I, K>(len: usize, width: usize, init: I, kernel: K) -> PyResult<Vec<f64>>
+/// Evaluates `kernel(state, i, row)` for each batch row `i` of `out` (`width` numbers per row), in parallel
+/// over the available cores (each task with its own `state` from `init`). A failure names the lowest
+/// failing row, so the message does not depend on scheduling.
+pub fn map_rows<S, I, K>(out: &mut [f64], width: usize, init: I, kernel: K) -> PyResult<()>
 where
     I: Fn() -> S + Sync,
     K: Fn(&mut S, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
-    let mut out = vec![0.0; len * width];
     if width == 0 {
-        return Ok(out);
+        return Ok(());
     }
-    let result = if len < 2 * MIN_ROWS_PER_TASK {
+    let len = out.len() / width;
+    let failure = if len < 2 * MIN_ROWS_PER_TASK {
         let mut state = init();
-        out.chunks_mut(width).enumerate().try_for_each(|(i, row)| kernel(&mut state, i, row).map_err(|e| (e, i)))
+        out.chunks_mut(width).enumerate().find_map(|(i, row)| kernel(&mut state, i, row).err().map(|e| (i, e)))
     } else {
         out.par_chunks_mut(width)
             .enumerate()
             .with_min_len(MIN_ROWS_PER_TASK)
-            .try_for_each_init(&init, |state, (i, row)| kernel(state, i, row).map_err(|e| (e, i)))
+            .map_init(&init, |state, (i, row)| kernel(state, i, row).err().map(|e| (i, e)))
+            .flatten()
+            .min_by_key(|(i, _)| *i)
     };
-    result.map_err(|(e, i)| if len == 1 { crate::convert::value_error(e) } else { batch_error(e, i) })?;
-    Ok(out)
+    match failure {
+        Some((_, e)) if len == 1 => Err(crate::convert::value_error(e)),
+        Some((i, e)) => Err(batch_error(e, i)),
+        None => Ok(()),
+    }
 }
 
 pub fn to_numpy<'py>(py: Python<'py>, shape: Vec<usize>, data: Vec<f64>) -> Bound<'py, PyArrayDyn<f64>> {

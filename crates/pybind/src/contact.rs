@@ -100,7 +100,7 @@ pub fn reduced_dynamics<'py>(
 ) -> PyResult<Reduced<'py>> {
     let contacts = self::contacts(&model, contacts)?;
     let m = &model.model;
-    let slice = |name: &str, x: &Vector<'_>| -> PyResult<Vec<f64>> { Ok(x.get(name)?.as_array().iter().copied().collect()) };
+    let slice = |name: &str, x: &Vector<'_>| -> PyResult<Vec<f64>> { Ok(x.get(name)?.iter().copied().collect()) };
     let (q, v, tau) = (&slice("q", &q)?[..], &slice("v", &v)?[..], &slice("tau", &tau)?[..]);
     check_state(m, q, Some(v)).map_err(value_error)?;
     check_vector("tau", tau, m.nv()).map_err(value_error)?;

@@ -2,28 +2,42 @@
 
 use legkit_dynamics::Error;
 use nalgebra::{Matrix3, Vector3};
-use numpy::ndarray::{Array, ArrayViewD, Dimension, IntoDimension, IxDyn};
-use numpy::{AllowTypeChange, PyArray, PyArrayLike};
+use numpy::ndarray::{Array, ArrayViewD, Dimension, IntoDimension};
+use numpy::{PyArray, PyArrayDyn, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
-/// A float64 array argument: anything NumPy converts. Extraction never fails; `get` raises the
-/// conversion's error as a TypeError naming the argument.
-pub struct Floats<'py>(Result<PyArrayLike<'py, f64, IxDyn, AllowTypeChange>, String>);
+/// A float64 array argument: anything NumPy converts (float64 arrays are used in place, anything else goes
+/// through `numpy.asarray`). Extraction never fails; `get` raises a failed conversion as a TypeError
+/// naming the argument.
+///
+/// Arrays are read without rust-numpy's borrow tracking, whose bookkeeping costs more than a small
+/// kernel: like NumPy's own GIL-free loops, legkit assumes no other thread writes an array while a
+/// call that reads it is running.
+pub struct Floats<'py>(Result<Bound<'py, PyArrayDyn<f64>>, String>);
 
 impl<'a, 'py> FromPyObject<'a, 'py> for Floats<'py> {
     type Error = PyErr;
 
     fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
-        Ok(Floats(<PyArrayLike<'py, f64, IxDyn, AllowTypeChange> as FromPyObject<'a, 'py>>::extract(obj).map_err(|e| e.to_string())))
+        if let Ok(array) = obj.cast::<PyArrayDyn<f64>>() {
+            return Ok(Floats(Ok(array.to_owned())));
+        }
+        let converted = numpy::get_array_module(obj.py())?
+            .call_method1("asarray", (obj, "float64"))
+            .and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?));
+        Ok(Floats(converted.map_err(|e| e.to_string())))
     }
 }
 
 impl<'py> Floats<'py> {
-    pub fn get(&self, argument: &str) -> PyResult<&PyArrayLike<'py, f64, IxDyn, AllowTypeChange>> {
-        self.0
-            .as_ref()
-            .map_err(|e| PyTypeError::new_err(format!("{argument}: expected an array of numbers ({e})")))
+    pub fn array(&self, argument: &str) -> PyResult<&Bound<'py, PyArrayDyn<f64>>> {
+        self.0.as_ref().map_err(|e| PyTypeError::new_err(format!("{argument}: expected an array of numbers ({e})")))
+    }
+
+    pub fn get(&self, argument: &str) -> PyResult<ArrayViewD<'_, f64>> {
+        // SAFETY: no Rust code mutates these arrays, and (see above) neither may another thread.
+        Ok(unsafe { self.array(argument)?.as_array() })
     }
 }
 
@@ -45,7 +59,7 @@ fn shape_error(argument: &str, expected: &str, shape: &[usize]) -> PyErr {
 }
 
 pub fn vector3(argument: &str, value: &Vector<'_>) -> PyResult<Vector3<f64>> {
-    let view = value.get(argument)?.as_array();
+    let view = value.get(argument)?;
     if view.shape() != [3] {
         return Err(shape_error(argument, "(3,)", view.shape()));
     }
@@ -53,7 +67,7 @@ pub fn vector3(argument: &str, value: &Vector<'_>) -> PyResult<Vector3<f64>> {
 }
 
 pub fn matrix3(argument: &str, value: &Matrix<'_>) -> PyResult<Matrix3<f64>> {
-    matrix3_view(argument, value.get(argument)?.as_array())
+    matrix3_view(argument, value.get(argument)?)
 }
 
 fn matrix3_view(argument: &str, view: ArrayViewD<'_, f64>) -> PyResult<Matrix3<f64>> {
@@ -65,7 +79,7 @@ fn matrix3_view(argument: &str, view: ArrayViewD<'_, f64>) -> PyResult<Matrix3<f
 
 /// The rotation and translation of a 4x4 homogeneous transform.
 pub fn homogeneous_matrix(argument: &str, value: &Matrix<'_>) -> PyResult<(Matrix3<f64>, Vector3<f64>)> {
-    let view = value.get(argument)?.as_array();
+    let view = value.get(argument)?;
     if view.shape() != [4, 4] {
         return Err(PyValueError::new_err(format!(
             "{argument}: expected a 4x4 transform or an (R, t) pair, got shape {:?}",
@@ -80,7 +94,7 @@ pub fn homogeneous_matrix(argument: &str, value: &Matrix<'_>) -> PyResult<(Matri
 
 /// Rows of an (n, 3) array as vectors.
 pub fn rows3(argument: &str, value: &Matrix<'_>) -> PyResult<Vec<Vector3<f64>>> {
-    let view = value.get(argument)?.as_array();
+    let view = value.get(argument)?;
     if view.ndim() != 2 || view.shape()[1] != 3 {
         return Err(shape_error(argument, "(n, 3)", view.shape()));
     }

@@ -45,7 +45,7 @@ impl PyMassProperties {
     #[staticmethod]
     fn from_points(masses: Vector<'_>, positions: Matrix<'_>) -> PyResult<Self> {
         let positions = rows3("positions", &positions)?;
-        let masses: Vec<f64> = masses.get("masses")?.as_array().iter().copied().collect();
+        let masses: Vec<f64> = masses.get("masses")?.iter().copied().collect();
         MassProperties::from_points(&masses, &positions).map(Self).map_err(value_error)
     }
 

@@ -35,7 +35,7 @@ impl PyGround {
     #[staticmethod]
     #[pyo3(signature = (heights, cell_size, friction = 0.8))]
     fn heightfield(heights: Floats<'_>, cell_size: f64, friction: f64) -> PyResult<Self> {
-        let view = heights.get("heights")?.as_array();
+        let view = heights.get("heights")?;
         if view.ndim() != 2 {
             return Err(PyValueError::new_err(format!("heights: expected a 2-D array (nx, ny), got shape {:?}", view.shape())));
         }
@@ -143,7 +143,7 @@ fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
 /// A per-degree-of-freedom parameter: a scalar (applied to the joint coordinates, `base` on a floating
 /// base's six) or an (nv,) array.
 fn per_dof(argument: &'static str, value: &Floats<'_>, nv: usize, floating: bool, base: f64) -> PyResult<Vec<f64>> {
-    let view = value.get(argument)?.as_array();
+    let view = value.get(argument)?;
     match view.ndim() {
         0 => {
             let x = view[[]];
@@ -155,7 +155,7 @@ fn per_dof(argument: &'static str, value: &Floats<'_>, nv: usize, floating: bool
 }
 
 fn vector_argument(argument: &'static str, value: &Floats<'_>, n: usize) -> PyResult<Vec<f64>> {
-    let view = value.get(argument)?.as_array();
+    let view = value.get(argument)?;
     if view.ndim() != 1 || view.len() != n {
         return Err(PyValueError::new_err(format!("{argument}: expected shape ({n},), got {:?}", view.shape())));
     }

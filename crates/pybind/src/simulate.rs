@@ -46,7 +46,7 @@ pub fn simulate<'py>(
     };
     let (nq, nv) = (model.model.nq(), model.model.nv());
     let tau: Vec<f64> = match &tau {
-        Some(t) => t.get("tau")?.as_array().iter().copied().collect(),
+        Some(t) => t.get("tau")?.iter().copied().collect(),
         None => vec![0.0; nv],
     };
     if let Some(bad) = tau.iter().find(|x| !x.is_finite()) {

@@ -3,11 +3,14 @@
 use legkit_dynamics::model::check_vector;
 use legkit_dynamics::spatial::Force;
 use legkit_dynamics::{Data, Error, Model};
-use numpy::PyArrayDyn;
+use numpy::{IxDyn, PyArrayDyn, PyArrayMethods};
 use pyo3::prelude::*;
 
 use crate::batch::{map_rows, to_numpy, Batch};
 use crate::model::PyModel;
+
+/// Models with fewer bodies than this run a single state without releasing the GIL.
+const SMALL_MODEL: usize = 16;
 
 /// A workspace for one task: the model's cached one when free, handed back when done.
 pub struct Workspace<'m> {
@@ -18,7 +21,7 @@ pub struct Workspace<'m> {
 
 impl<'m> Workspace<'m> {
     fn new(owner: &'m PyModel) -> Self {
-        Self { owner, data: Some(owner.take_workspace()), forces: vec![Force::zeros(); owner.model.nbodies()] }
+        Self { owner, data: Some(owner.take_workspace()), forces: Vec::new() }
     }
 
     pub fn data(&mut self) -> &mut Data {
@@ -30,6 +33,7 @@ impl<'m> Workspace<'m> {
     pub fn with_forces(&mut self, row: Option<&[f64]>) -> Result<(&mut Data, Option<&[Force]>), Error> {
         let data = self.data.as_mut().expect("present until dropped");
         let Some(row) = row else { return Ok((data, None)) };
+        self.forces.resize(self.owner.model.nbodies(), Force::zeros());
         check_vector("f_ext", row, 6 * self.forces.len())?;
         for (force, values) in self.forces.iter_mut().zip(row.chunks_exact(6)) {
             force.copy_from_slice(values);
@@ -46,13 +50,17 @@ impl Drop for Workspace<'_> {
     }
 }
 
-/// Runs `kernel(model, workspace, i, out)` over the batch, GIL released; returns `batch + out_core`.
+/// Runs `kernel(model, workspace, i, out)` over the batch, GIL released; returns `batch + out_core`,
+/// written in place into a new NumPy array.
 pub fn run<'py, K>(py: Python<'py>, owner: &PyModel, batch: &Batch<'_>, out_core: &[usize], kernel: K) -> PyResult<Bound<'py, PyArrayDyn<f64>>>
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
-    let out = run_packed(py, owner, batch, out_core.iter().product(), kernel)?;
-    Ok(to_numpy(py, batch.output_shape(out_core), out))
+    let array = PyArrayDyn::<f64>::zeros(py, IxDyn(&batch.output_shape(out_core)), false);
+    // SAFETY: the array was just created here and nothing else refers to it yet.
+    let out = unsafe { array.as_slice_mut() }.expect("a new array is contiguous");
+    fill(py, owner, batch, out, out_core.iter().product(), kernel)?;
+    Ok(array)
 }
 
 /// `run` with `width` numbers per row, left packed (see `unpack`).
@@ -60,8 +68,23 @@ pub fn run_packed<K>(py: Python<'_>, owner: &PyModel, batch: &Batch<'_>, width: 
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
-    let model = &owner.model;
-    py.detach(|| map_rows(batch.len, width, || Workspace::new(owner), |w, i, out| kernel(model, w, i, out)))
+    let mut out = vec![0.0; batch.len * width];
+    fill(py, owner, batch, &mut out, width, kernel)?;
+    Ok(out)
+}
+
+fn fill<K>(py: Python<'_>, owner: &PyModel, batch: &Batch<'_>, out: &mut [f64], width: usize, kernel: K) -> PyResult<()>
+where
+    K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
+{
+    let (model, kernel) = (&owner.model, &kernel);
+    let work = |out: &mut [f64]| map_rows(out, width, || Workspace::new(owner), |w, i, row| kernel(model, w, i, row));
+    // Releasing and retaking the GIL costs about as much as one small model's kernel: keep it for those.
+    if batch.len == 1 && model.nbodies() < SMALL_MODEL {
+        work(out)
+    } else {
+        py.detach(|| work(out))
+    }
 }
 
 /// Splits rows packed as `[part 0 | part 1 | ...]` into one array per part, shaped `batch + core`.

@@ -46,13 +46,13 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
         if let Some(s) = model.joint(i).axis_motion() {
             data.s[i] = data.o_m_i[i].act_motion(&s);
         }
-        let k = model.idx_v(i);
-        data.force_sets[i].as_mut_slice()[6 * k..].fill(0.0);
+        let (k, end) = (model.idx_v(i), model.subtree_v_end(i));
+        data.force_sets[i].as_mut_slice()[6 * k..6 * end].fill(0.0);
     }
     // Backward pass: the rows' subtree parts D⁻¹(e_i − Sᵀ F_i), then F_i += U M⁻¹_i goes to the parent
     // together with the articulated inertia I^A − U D⁻¹ Uᵀ.
     for i in (0..n).rev() {
-        let k = model.idx_v(i);
+        let (k, end) = (model.idx_v(i), model.subtree_v_end(i));
         match model.joint(i) {
             Joint::FreeFlyer => {
                 // S = X_0 (the base frame), so D = X_0ᵀ I^A X_0 is the inertia in the base frame.
@@ -70,7 +70,9 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
                 let u = ia * s;
                 let dinv = 1.0 / s.dot(&u);
                 let row = &mut data.minv.as_mut_slice()[k * nv + k..(k + 1) * nv];
-                let f = &mut data.force_sets[i].as_mut_slice()[6 * k..];
+                // Beyond the subtree F_i is zero, and so is this part of the row until the forward pass.
+                row[end - k..].fill(0.0);
+                let f = &mut data.force_sets[i].as_mut_slice()[6 * k..6 * end];
                 for (c, (column, entry)) in f.chunks_exact_mut(6).zip(row.iter_mut()).enumerate() {
                     let m = if c == 0 { dinv } else { -dinv * dot(&s, column) };
                     *entry = m;
@@ -87,7 +89,8 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
             let ia = data.inertia[i];
             data.inertia[p] += ia;
             let (fp, fi) = sets(&mut data.force_sets, p, i, k);
-            fp.iter_mut().zip(fi.iter()).for_each(|(a, b)| *a += b);
+            let span = 6 * (end - k);
+            fp[..span].iter_mut().zip(fi[..span].iter()).for_each(|(a, b)| *a += b);
         }
     }
     // Forward pass: subtract D⁻¹ Uᵀ P_parent, then P_i = S M⁻¹_i + P_parent (reusing the sets' storage).
