@@ -23,6 +23,7 @@ from legkit.stability.equilibrium import (
 )
 from legkit.stability.fri import foot_rotation_indicator, stability_performance_1
 from legkit.stability.friction import foot_torque_margin, friction_cone_margin
+from legkit.stability.simulated import ground_contact_wrench, simulated_center_of_pressure
 from legkit.stability.support import (
     SupportEdges,
     polygon_margin,
@@ -34,6 +35,8 @@ from legkit.stability.support import (
 from legkit.stability.zmp import center_of_pressure, ground_point, zmp, zmp_from_momentum_rate
 
 __all__ = [
+    "ground_contact_wrench",
+    "simulated_center_of_pressure",
     "SupportEdges",
     "support_edges",
     "support_polygon",
