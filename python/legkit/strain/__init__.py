@@ -40,6 +40,7 @@ from legkit.strain.pose import (
     toe_in_leg,
     tripod_pose,
 )
+from legkit.strain.simulated import simulated_walk
 from legkit.strain.walking import (
     ClockGait,
     PoseEstimate,
@@ -85,5 +86,6 @@ __all__ = [
     "WalkingStream",
     "estimate_body_pose",
     "kinematic_walk",
+    "simulated_walk",
     "tripod_clock_signal",
 ]
