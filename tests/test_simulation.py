@@ -321,3 +321,116 @@ def test_joint_damping_dissipates_and_is_absent_by_default():
         energies.append((lk.kinetic_energy(model, sim.q, sim.v) + lk.potential_energy(model, sim.q) - e0) / abs(e0))
     assert abs(energies[0]) < 2e-3
     assert energies[1] < -0.1
+
+
+# Joint limits: stored on the Model, ignored by the dynamics, enforced by the simulation.
+
+ROD_MASS, ROD_LENGTH = 1.0, 0.5
+# Rod inertia about the joint (y axis): box about its COM plus the parallel-axis term.
+ROD_INERTIA = ROD_MASS * (ROD_LENGTH**2 + 0.04**2) / 12 + ROD_MASS * (ROD_LENGTH / 2) ** 2
+
+
+def inverted_pendulum(limits=None):
+    """A 1 kg, 0.5 m rod standing up on a revolute joint about y; q > 0 leans it toward +x, where gravity pulls."""
+    model = lk.Model(floating_base=False)
+    # Body x (the rod) onto world +z.
+    model.add_revolute(0, [0, 1, 0], (rotation([0, 1, 0], -math.pi / 2), np.zeros(3)), rod(ROD_MASS, ROD_LENGTH), "rod", limits=limits)
+    return model
+
+
+def joint_excursion(sim, steps):
+    """Largest and smallest joint coordinate over `steps` single steps."""
+    qs = np.empty(steps)
+    for k in range(steps):
+        sim.step()
+        qs[k] = sim.q[0]
+    return qs.max(), qs.min()
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(0.2, 1.2), st.floats(0.3, 0.95), st.sampled_from([1.0, -1.0]), st.sampled_from([1, 2, 4]))
+def test_falling_pendulum_stops_at_its_position_limit(limit, start_fraction, side, substeps):
+    # Rapier's limit is a velocity constraint that engages once the coordinate is past a bound (checked
+    # every substep h = dt / substeps). Semi-implicit Euler moves the joint by h (v + h alpha) in the substep
+    # that crosses, so the overshoot is at most omega h + alpha h^2: omega the speed at the limit by energy
+    # conservation from rest at the start angle (Rapier's integrator only loses energy), alpha <= m g (L/2) / I.
+    start = start_fraction * limit
+    dt = 1e-3
+    h = dt / substeps
+    omega = math.sqrt(2 * ROD_MASS * G * ROD_LENGTH / 2 * (math.cos(start) - math.cos(limit)) / ROD_INERTIA)
+    alpha = ROD_MASS * G * ROD_LENGTH / 2 / ROD_INERTIA
+    model = inverted_pendulum((-limit, limit))
+    sim = lk.Simulation(model, dt=dt, substeps=substeps)
+    sim.q = [side * start]
+    high, low = joint_excursion(sim, 800)
+    overshoot = high - limit if side > 0 else -limit - low
+    assert overshoot <= omega * h + alpha * h * h
+    # It reached the limit (within 0.8 s from >= 0.3 of it) and rests there.
+    assert overshoot > -1e-6
+    assert abs(sim.q[0] - side * limit) < 1e-4 and abs(sim.v[0]) < 1e-2
+
+
+def test_limits_from_urdf_stop_the_pendulum_and_dynamics_ignore_them():
+    xml = f"""<robot name="p"><link name="base"/>
+      <link name="rod"><inertial><origin xyz="0 0 {ROD_LENGTH / 2}"/><mass value="{ROD_MASS}"/>
+        <inertia ixx="0.02" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.001"/></inertial></link>
+      <joint name="hinge" type="revolute"><parent link="base"/><child link="rod"/><axis xyz="0 1 0"/>
+        <limit lower="-0.5" upper="0.5" effort="7" velocity="3"/></joint></robot>"""
+    model = lk.Model.from_urdf(xml)
+    assert model.limits("rod") == {"lower": -0.5, "upper": 0.5, "effort": 7.0, "velocity": 3.0}
+    assert model.limits(0) is None
+    sim = lk.Simulation(model)
+    sim.q = [0.4]
+    high, _ = joint_excursion(sim, 1000)
+    # One 1 ms step at the impact speed bounds the overshoot: omega h + alpha h^2 ~ 1.64e-3 rad for this rod
+    # (I = 0.0825 kg m^2 about the hinge: omega ~ 1.61 rad/s from 0.4 rad, alpha <= 30 rad/s^2).
+    assert 0.5 - 1e-6 < high <= 0.5 + 2e-3
+    # The dynamics algorithms ignore limits: outside its range the joint accelerates as if unlimited.
+    free = lk.Model.from_urdf(xml.replace('<limit lower="-0.5" upper="0.5" effort="7" velocity="3"/>', ""))
+    assert free.limits(1) is None
+    q, v, tau = np.array([1.0]), np.array([0.3]), np.array([20.0])
+    np.testing.assert_array_equal(lk.aba(model, q, v, tau), lk.aba(free, q, v, tau))
+
+
+def test_effort_limit_clips_the_actuation():
+    limited = inverted_pendulum({"effort": 1.5})
+    assert limited.limits(1) == {"lower": -math.inf, "upper": math.inf, "effort": 1.5, "velocity": math.inf}
+    sim = lk.Simulation(limited)
+    sim.step([10.0])
+    assert sim.applied_tau.tolist() == [1.5]
+    sim.step([-10.0])
+    assert sim.applied_tau.tolist() == [-1.5]
+    # The tighter of the servo's torque limit and the effort limit applies.
+    sim.set_servo(kp=5.0, torque_limit=3.0, target_q=[0.0])
+    sim.step([10.0])
+    assert sim.applied_tau.tolist() == [1.5]
+    sim.set_servo(kp=5.0, torque_limit=1.0, target_q=[0.0])
+    sim.step([10.0])
+    assert sim.applied_tau.tolist() == [1.0]
+    # The clipped torque is what moves the joint: the same motion as commanding 1.5 N m without a bound.
+    bounded, unbounded = lk.Simulation(limited), lk.Simulation(inverted_pendulum())
+    bounded.step([10.0], n=200)
+    unbounded.step([1.5], n=200)
+    np.testing.assert_array_equal(bounded.q, unbounded.q)
+    np.testing.assert_array_equal(bounded.v, unbounded.v)
+
+
+def test_limits_arguments_are_checked_and_read_back():
+    model = lk.Model(floating_base=False)
+    hinge = model.add_revolute(0, [0, 1, 0], limits=np.array([-1.0, 2.0]))
+    slider = model.add_prismatic(hinge, [0, 0, 1], limits={"lower": -0.1, "velocity": 0.5})
+    fixed = model.add_fixed(slider)
+    assert model.limits(hinge) == {"lower": -1.0, "upper": 2.0, "effort": math.inf, "velocity": math.inf}
+    assert model.limits(slider) == {"lower": -0.1, "upper": math.inf, "effort": math.inf, "velocity": 0.5}
+    assert model.limits(fixed) is None and model.limits(0) is None
+    unlimited = model.add_revolute(0, [1, 0, 0], limits={})
+    assert model.limits(unlimited) is None
+    nbodies = model.nbodies
+    for bad, error in [
+        ((1.0, -1.0), ValueError), ((0.0, 1.0, 2.0), ValueError), ({"effort": 0.0}, ValueError),
+        ({"velocity": -1.0}, ValueError), ({"lower": math.nan}, ValueError), ({"upper": -math.inf}, ValueError),
+        ({"lowr": 1.0}, ValueError), ({"lower": "x"}, TypeError), ("ab", TypeError), (3.0, TypeError),
+    ]:
+        with pytest.raises(error, match="limits"):
+            model.add_revolute(0, [0, 1, 0], limits=bad)
+    assert model.nbodies == nbodies

@@ -45,6 +45,7 @@ class MassProperties:
 
 _Placement = npt.ArrayLike | tuple[npt.ArrayLike, npt.ArrayLike]
 _Body = int | str
+_Limits = tuple[float, float] | Sequence[float] | dict[str, float]
 
 class Model:
     """A kinematic tree. Body 0 is the base: fixed to the world, or a free flyer with
@@ -58,12 +59,15 @@ class Model:
     ) -> None: ...
     def add_revolute(
         self, parent: _Body, axis: _Vector, placement: _Placement | None = None, body: MassProperties | None = None,
-        name: str | None = None,
-    ) -> int: ...
+        name: str | None = None, limits: _Limits | None = None,
+    ) -> int:
+        """limits: (lower, upper) in rad, or a dict with any of lower, upper (rad, +-inf for none), effort (N m),
+        velocity (rad/s) (> 0, inf for none). Enforced by Simulation (range, effort); ignored by the dynamics."""
     def add_prismatic(
         self, parent: _Body, axis: _Vector, placement: _Placement | None = None, body: MassProperties | None = None,
-        name: str | None = None,
-    ) -> int: ...
+        name: str | None = None, limits: _Limits | None = None,
+    ) -> int:
+        """limits as for add_revolute, in m, N and m/s."""
     def add_fixed(
         self, parent: _Body, placement: _Placement | None = None, body: MassProperties | None = None, name: str | None = None
     ) -> int: ...
@@ -90,6 +94,8 @@ class Model:
     def idx_v(self) -> list[int]: ...
     def joint_type(self, body: int) -> str: ...
     def joint_axis(self, body: int) -> np.ndarray | None: ...
+    def limits(self, body: _Body) -> dict[str, float] | None:
+        """{lower, upper, effort, velocity} of the body's joint (+-inf where unbounded), None if it has no limits."""
     def body(self, body: int) -> MassProperties: ...
     def placement(self, body: int) -> np.ndarray: ...
     def neutral(self) -> np.ndarray: ...
@@ -175,7 +181,7 @@ class Simulation:
         self, kp: npt.ArrayLike, kd: npt.ArrayLike | None = None, torque_limit: npt.ArrayLike | None = None,
         target_q: npt.ArrayLike | None = None, target_v: npt.ArrayLike | None = None,
     ) -> None:
-        """tau = clip(kp (target_q - q) + kd (target_v - v) + tau_ff, +-torque_limit), every step."""
+        """tau = clip(kp (target_q - q) + kd (target_v - v) + tau_ff, +-min(torque_limit, effort limit)), every step."""
     @property
     def q(self) -> np.ndarray: ...
     @q.setter

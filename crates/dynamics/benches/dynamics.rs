@@ -16,7 +16,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use legkit_dynamics::algorithms::{aba, crba, minv, rnea};
-use legkit_dynamics::{Data, Joint, MassProperties, Model, Transform};
+use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{Matrix3, Vector3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -48,7 +48,7 @@ fn revolute(
     name: String,
 ) -> usize {
     model
-        .add_body(parent, Joint::Revolute(axis), placement, body, &name)
+        .add_body(parent, Joint::Revolute(axis), placement, body, &name, JointLimits::NONE)
         .expect("valid body")
 }
 

@@ -12,7 +12,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use legkit_dynamics::sim::{Ground, Options, Servo, Simulation};
-use legkit_dynamics::{Joint, MassProperties, Model, Transform};
+use legkit_dynamics::{Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{Matrix3, Vector3};
 
 const MODULE_LENGTH: f64 = 0.17;
@@ -24,9 +24,9 @@ fn module_tree(n_modules: usize) -> Model {
     let mut model = Model::new(false, MassProperties::zero(), "base");
     let step = Transform::from_translation(Vector3::new(0.0, 0.0, MODULE_LENGTH / 4.0));
     let add_module = |model: &mut Model, parent: usize, placement: Transform| -> usize {
-        let mut body = model.add_body(parent, Joint::Fixed, placement, part, &format!("block{}", model.nbodies())).expect("valid");
+        let mut body = model.add_body(parent, Joint::Fixed, placement, part, &format!("block{}", model.nbodies()), JointLimits::NONE).expect("valid");
         for axis in [Vector3::y(), Vector3::z(), Vector3::y()] {
-            body = model.add_body(body, Joint::Revolute(axis), step, part, &format!("part{}", model.nbodies())).expect("valid");
+            body = model.add_body(body, Joint::Revolute(axis), step, part, &format!("part{}", model.nbodies()), JointLimits::NONE).expect("valid");
         }
         body
     };

@@ -5,6 +5,10 @@
 //! `[x, y, z, qx, qy, qz, qw]` and velocity `[v; ω]` in the base frame. Every other body hangs off a
 //! revolute, prismatic or fixed joint whose frame is placed in its parent body's frame; the body's frame is
 //! the joint frame after the joint's motion. Bodies are numbered parent before child.
+//!
+//! Each joint may carry [`JointLimits`] (position range, effort and velocity bounds). The dynamics
+//! algorithms ignore them: they describe the mechanism for the simulation (which enforces the position
+//! range and the effort bound) and for controllers (which read them with [`Model::limits`]).
 
 use nalgebra::{DMatrix, DVector, Matrix6xX, UnitQuaternion, Vector3, Vector6};
 
@@ -66,9 +70,79 @@ impl Joint {
     }
 }
 
+/// Limits of a revolute or prismatic joint, in the joint's coordinate: position range `lower..=upper`
+/// (rad or m; ±inf where unbounded), and bounds on the magnitude of its generalized force `effort`
+/// (N m or N) and of its velocity `velocity` (rad/s or m/s), each +inf where unbounded.
+///
+/// Build with [`JointLimits::new`] (checked) or start from [`JointLimits::NONE`]; [`Model::add_body`]
+/// checks again, so a model never holds invalid limits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointLimits {
+    pub lower: f64,
+    pub upper: f64,
+    pub effort: f64,
+    pub velocity: f64,
+}
+
+impl JointLimits {
+    /// No limit at all: the only limits a fixed joint or the base can have.
+    pub const NONE: JointLimits =
+        JointLimits { lower: f64::NEG_INFINITY, upper: f64::INFINITY, effort: f64::INFINITY, velocity: f64::INFINITY };
+
+    /// Checked limits: `lower` finite or −inf, `upper` finite or +inf, `lower <= upper`, `effort` and
+    /// `velocity` > 0 (+inf allowed). Errors name the argument `"limits"`.
+    pub fn new(lower: f64, upper: f64, effort: f64, velocity: f64) -> Result<Self> {
+        let limits = JointLimits { lower, upper, effort, velocity };
+        limits.check()?;
+        Ok(limits)
+    }
+
+    /// A position range only (no effort or velocity bound).
+    pub fn position(lower: f64, upper: f64) -> Result<Self> {
+        Self::new(lower, upper, f64::INFINITY, f64::INFINITY)
+    }
+
+    /// Whether any of the four bounds is finite.
+    pub fn is_limited(&self) -> bool {
+        *self != Self::NONE
+    }
+
+    /// Whether the position range has a finite end.
+    pub fn has_position_limits(&self) -> bool {
+        self.lower.is_finite() || self.upper.is_finite()
+    }
+
+    fn check(&self) -> Result<()> {
+        let bad = |reason: String| Err(Error::invalid("limits", reason));
+        if self.lower.is_nan() || self.lower == f64::INFINITY {
+            return bad(format!("lower must be finite or -inf, got {}", self.lower));
+        }
+        if self.upper.is_nan() || self.upper == f64::NEG_INFINITY {
+            return bad(format!("upper must be finite or +inf, got {}", self.upper));
+        }
+        if self.lower > self.upper {
+            return bad(format!("lower ({}) must be <= upper ({})", self.lower, self.upper));
+        }
+        for (name, value) in [("effort", self.effort), ("velocity", self.velocity)] {
+            // NaN fails `> 0`.
+            if !(value > 0.0) {
+                return bad(format!("{name} must be > 0 (+inf for no limit), got {value}"));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Default for JointLimits {
+    fn default() -> Self {
+        Self::NONE
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct Model {
     joints: Vec<Joint>,
+    limits: Vec<JointLimits>,
     parents: Vec<usize>,
     placements: Vec<Transform>,
     bodies: Vec<MassProperties>,
@@ -91,6 +165,7 @@ impl Model {
         let joint = if floating_base { Joint::FreeFlyer } else { Joint::Fixed };
         Model {
             joints: vec![joint],
+            limits: vec![JointLimits::NONE],
             parents: vec![0],
             placements: vec![Transform::identity()],
             bodies: vec![base],
@@ -105,9 +180,10 @@ impl Model {
         }
     }
 
-    /// Appends a body on `joint` below body `parent`, the joint frame at `placement` in the parent's frame.
-    /// Returns the new body's index. Axes are normalised; a zero axis, a parent that does not exist yet,
-    /// an improper rotation or a repeated name is an error.
+    /// Appends a body on `joint` below body `parent`, the joint frame at `placement` in the parent's frame,
+    /// with the joint's `limits` (`JointLimits::NONE` for none). Returns the new body's index. Axes are
+    /// normalised; a zero axis, a parent that does not exist yet, an improper rotation, a repeated name,
+    /// invalid limits or limits on a fixed joint are errors.
     pub fn add_body(
         &mut self,
         parent: usize,
@@ -115,6 +191,7 @@ impl Model {
         placement: Transform,
         body: MassProperties,
         name: &str,
+        limits: JointLimits,
     ) -> Result<usize> {
         if parent >= self.joints.len() {
             return Err(Error::invalid(
@@ -130,10 +207,15 @@ impl Model {
         };
         rotation("placement", &placement.rotation)?;
         finite_vector("placement", placement.translation)?;
+        limits.check()?;
+        if joint == Joint::Fixed && limits.is_limited() {
+            return Err(Error::invalid("limits", "a fixed joint has no coordinate to limit"));
+        }
         if self.names.iter().any(|n| n == name) {
             return Err(Error::invalid("name", format!("a body is already named {name:?}")));
         }
         self.joints.push(joint);
+        self.limits.push(limits);
         self.parents.push(parent);
         self.placements.push(placement);
         self.bodies.push(body);
@@ -169,6 +251,11 @@ impl Model {
     }
     pub fn joint(&self, i: usize) -> &Joint {
         &self.joints[i]
+    }
+    /// Limits of the joint of body `i` (`JointLimits::NONE` for the base and fixed joints). Ignored by the
+    /// dynamics algorithms; enforced by the simulation (position range, effort).
+    pub fn limits(&self, i: usize) -> &JointLimits {
+        &self.limits[i]
     }
     /// Parent of body `i`; the base (0) is its own parent.
     pub fn parent(&self, i: usize) -> usize {
@@ -301,5 +388,60 @@ impl Data {
             minv: DMatrix::zeros(model.nv(), model.nv()),
             force_sets: Vec::new(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn one_joint_model(joint: Joint, limits: JointLimits) -> Result<Model> {
+        let mut model = Model::new(false, MassProperties::zero(), "base");
+        model.add_body(0, joint, Transform::identity(), MassProperties::zero(), "link", limits)?;
+        Ok(model)
+    }
+
+    #[test]
+    fn limits_are_stored_per_body() {
+        let limits = JointLimits::new(-0.5, 1.5, 20.0, f64::INFINITY).unwrap();
+        let model = one_joint_model(Joint::Prismatic(Vector3::z()), limits).unwrap();
+        assert_eq!(*model.limits(0), JointLimits::NONE);
+        assert_eq!(*model.limits(1), JointLimits { lower: -0.5, upper: 1.5, effort: 20.0, velocity: f64::INFINITY });
+        assert!(model.limits(1).has_position_limits() && model.limits(1).is_limited());
+        let one_sided = JointLimits::position(f64::NEG_INFINITY, 0.0).unwrap();
+        assert!(one_sided.has_position_limits());
+        let effort_only = JointLimits::new(f64::NEG_INFINITY, f64::INFINITY, 2.0, f64::INFINITY).unwrap();
+        assert!(!effort_only.has_position_limits() && effort_only.is_limited());
+        assert!(!JointLimits::default().is_limited());
+        // A zero-width range (a locked joint) is allowed.
+        assert!(JointLimits::position(0.3, 0.3).is_ok());
+    }
+
+    #[test]
+    fn invalid_limits_are_rejected_naming_limits() {
+        let (inf, nan) = (f64::INFINITY, f64::NAN);
+        for (lower, upper, effort, velocity, needle) in [
+            (1.0, -1.0, inf, inf, "lower (1) must be <= upper (-1)"),
+            (nan, 1.0, inf, inf, "lower must be finite or -inf"),
+            (inf, inf, inf, inf, "lower must be finite or -inf"),
+            (-1.0, nan, inf, inf, "upper must be finite or +inf"),
+            (-inf, -inf, inf, inf, "upper must be finite or +inf"),
+            (-1.0, 1.0, 0.0, inf, "effort must be > 0"),
+            (-1.0, 1.0, -2.0, inf, "effort must be > 0"),
+            (-1.0, 1.0, inf, nan, "velocity must be > 0"),
+        ] {
+            let error = JointLimits::new(lower, upper, effort, velocity).unwrap_err();
+            assert_eq!(error.argument(), "limits");
+            assert!(error.to_string().contains(needle), "{error} does not contain {needle:?}");
+            // add_body checks limits built field by field as well, and leaves the model unchanged.
+            let mut model = Model::new(false, MassProperties::zero(), "base");
+            let raw = JointLimits { lower, upper, effort, velocity };
+            let error = model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), MassProperties::zero(), "l", raw).unwrap_err();
+            assert_eq!(error.argument(), "limits");
+            assert_eq!((model.nbodies(), model.nq()), (1, 0));
+        }
+        let fixed = one_joint_model(Joint::Fixed, JointLimits::position(-1.0, 1.0).unwrap()).unwrap_err();
+        assert_eq!(fixed.argument(), "limits");
+        assert!(one_joint_model(Joint::Fixed, JointLimits::NONE).is_ok());
     }
 }

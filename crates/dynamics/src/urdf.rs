@@ -9,10 +9,18 @@
 //!   `<axis xyz>` (default `1 0 0`, normalised; read only for moving joints). Types: `revolute` and
 //!   `continuous` become [`Joint::Revolute`], `prismatic` [`Joint::Prismatic`], `fixed` [`Joint::Fixed`];
 //!   any other type (`floating`, `planar`, ...) is an error.
+//! - `<limit lower upper effort velocity>` of a moving joint becomes its [`JointLimits`]: `lower` and
+//!   `upper` (rad or m; each defaults to 0, as the specification says) bound a `revolute` or `prismatic`
+//!   joint; a `continuous` joint has no position limits (its `lower`/`upper` are ignored). `effort`
+//!   (N m or N) and `velocity` (rad/s or m/s) must be > 0; unlike the specification, which requires
+//!   them, either may be omitted for no bound. A moving joint without `<limit>` has no limits (the
+//!   specification requires one on `revolute` and `prismatic` joints; legkit tolerates its absence).
+//!   `lower > upper`, a non-positive `effort` or `velocity`, or a value that is not a finite number is
+//!   an error naming the joint. `<limit>` on a fixed joint is ignored.
 //! - `rpy` is URDF's fixed-axis roll about x, then pitch about y, then yaw about z:
 //!   `R = Rz(yaw) Ry(pitch) Rx(roll)`.
 //!
-//! Everything else (`<visual>`, `<collision>`, `<limit>`, `<dynamics>`, `<mimic>`, `<material>`,
+//! Everything else (`<visual>`, `<collision>`, `<dynamics>`, `<safety_controller>`, `<mimic>`, `<material>`,
 //! `<transmission>`, `<gazebo>`, ...) is ignored; joint names are checked for uniqueness but not kept.
 //!
 //! Naming and ordering: the tree's single root link (the one link that is no joint's child) becomes the
@@ -30,7 +38,7 @@ use std::collections::{HashMap, VecDeque};
 use nalgebra::{Matrix3, Vector3};
 use roxmltree::{Document, Node};
 
-use crate::{Error, Joint, MassProperties, Model, Result, Transform};
+use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
 /// Loads a URDF from a file, or parses it directly if `path_or_xml` (trimmed) starts with `<`.
 /// A file that cannot be read is an error on argument `"path"`; see [`parse_urdf`] for the rest.
@@ -136,7 +144,7 @@ pub fn parse_urdf(xml: &str, floating_base: bool) -> Result<Model> {
             let joint = &joints[j];
             let child = &links[joint.child];
             let body = model
-                .add_body(parent_body, joint.joint, joint.placement, child.body, child.name)
+                .add_body(parent_body, joint.joint, joint.placement, child.body, child.name, joint.limits)
                 .map_err(|e| invalid(format!("joint {:?}: {e}", joint.name)))?;
             body_of_link[joint.child] = Some(body);
             queue.push_back(joint.child);
@@ -176,6 +184,7 @@ struct UrdfJoint<'a> {
     parent: usize,
     child: usize,
     placement: Transform,
+    limits: JointLimits,
 }
 
 fn invalid(reason: String) -> Error {
@@ -301,10 +310,11 @@ fn joint<'a>(node: Node<'a, '_>, name: &'a str, link_index: &HashMap<&str, usize
         }
         Ok(axis / norm)
     };
-    let joint = match node.attribute("type") {
-        Some("revolute") | Some("continuous") => Joint::Revolute(axis()?),
-        Some("prismatic") => Joint::Prismatic(axis()?),
-        Some("fixed") => Joint::Fixed,
+    let (joint, bounded) = match node.attribute("type") {
+        Some("revolute") => (Joint::Revolute(axis()?), true),
+        Some("continuous") => (Joint::Revolute(axis()?), false),
+        Some("prismatic") => (Joint::Prismatic(axis()?), true),
+        Some("fixed") => (Joint::Fixed, false),
         Some(other) => {
             return Err(invalid(format!(
                 "{owner}: unsupported type {other:?} (supported: revolute, continuous, prismatic, fixed)"
@@ -312,7 +322,38 @@ fn joint<'a>(node: Node<'a, '_>, name: &'a str, link_index: &HashMap<&str, usize
         }
         None => return Err(invalid(format!("{owner}: has no type attribute"))),
     };
-    Ok(UrdfJoint { name, joint, parent, child, placement })
+    let limits = match element(node, "limit") {
+        Some(limit) if joint != Joint::Fixed => limits(limit, bounded, &owner)?,
+        _ => JointLimits::NONE,
+    };
+    Ok(UrdfJoint { name, joint, parent, child, placement, limits })
+}
+
+/// A moving joint's `<limit>`: the position range if `bounded` (attributes default to 0, as URDF says),
+/// effort and velocity bounds if given (+inf if absent).
+fn limits(limit: Node, bounded: bool, owner: &str) -> Result<JointLimits> {
+    let optional = |attr: &str, default: f64| -> Result<f64> {
+        if limit.attribute(attr).is_some() {
+            scalar(limit, attr, owner)
+        } else {
+            Ok(default)
+        }
+    };
+    let (lower, upper) = if bounded {
+        (optional("lower", 0.0)?, optional("upper", 0.0)?)
+    } else {
+        (f64::NEG_INFINITY, f64::INFINITY)
+    };
+    let (effort, velocity) = (optional("effort", f64::INFINITY)?, optional("velocity", f64::INFINITY)?);
+    if lower > upper {
+        return Err(invalid(format!("{owner}: <limit> lower ({lower}) must be <= upper ({upper})")));
+    }
+    for (attr, value) in [("effort", effort), ("velocity", velocity)] {
+        if value <= 0.0 {
+            return Err(invalid(format!("{owner}: <limit> {attr} must be > 0 (omit it for no bound), got {value}")));
+        }
+    }
+    JointLimits::new(lower, upper, effort, velocity).map_err(|e| invalid(format!("{owner}: <limit>: {e}")))
 }
 
 /// Follows parent joints from link `start` until a link repeats; describes that cycle.
@@ -758,6 +799,56 @@ mod tests {
         assert_fails(&inertial_robot(missing), &[link, "no ixy attribute"]);
         let short_rpy = format!(r#"<origin rpy="0 1"/><mass value="1"/>{INERTIA}"#);
         assert_fails(&inertial_robot(&short_rpy), &[link, "rpy", "expected 3 numbers, found 2"]);
+    }
+
+    #[test]
+    fn limits_are_read_per_joint_type() {
+        let (xml, ..) = pendulum_xml();
+        let model = parse_urdf(&xml, false).unwrap();
+        assert_eq!(*model.limits(0), JointLimits::NONE);
+        assert_eq!(*model.limits(1), JointLimits { lower: -1.0, upper: 1.0, effort: 10.0, velocity: 1.0 });
+        // "elbow" is continuous without <limit>.
+        assert_eq!(*model.limits(2), JointLimits::NONE);
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/two_link_pendulum.urdf");
+        let fixture = load_urdf(path, false).unwrap();
+        assert_eq!(*fixture.limits(2), JointLimits { lower: -2.5, upper: 2.5, effort: 10.0, velocity: 5.0 });
+
+        let joint = |kind: &str, limit: &str| {
+            let xml = joint_robot(&format!(
+                r#"<joint name="knee" type="{kind}"><parent link="a"/><child link="b"/>{limit}</joint>"#
+            ));
+            *parse_urdf(&xml, false).unwrap().limits(1)
+        };
+        let inf = f64::INFINITY;
+        // A continuous joint keeps effort and velocity but has no position range, whatever it says.
+        assert_eq!(
+            joint("continuous", r#"<limit lower="-1" upper="1" effort="5" velocity="2"/>"#),
+            JointLimits { lower: -inf, upper: inf, effort: 5.0, velocity: 2.0 }
+        );
+        // lower and upper default to 0 (URDF specification); effort and velocity to no bound.
+        assert_eq!(joint("revolute", r#"<limit effort="3"/>"#), JointLimits { lower: 0.0, upper: 0.0, effort: 3.0, velocity: inf });
+        assert_eq!(joint("prismatic", r#"<limit upper="0.25" velocity="0.5"/>"#), JointLimits { lower: 0.0, upper: 0.25, effort: inf, velocity: 0.5 });
+        assert_eq!(joint("revolute", ""), JointLimits::NONE);
+        // Limits on a fixed joint mean nothing and are ignored.
+        assert_eq!(joint("fixed", r#"<limit lower="-1" upper="1" effort="1" velocity="1"/>"#), JointLimits::NONE);
+    }
+
+    #[test]
+    fn bad_limits_are_errors_naming_the_joint() {
+        let joint = |kind: &str, limit: &str| {
+            joint_robot(&format!(
+                r#"<joint name="knee" type="{kind}"><parent link="a"/><child link="b"/><limit {limit}/></joint>"#
+            ))
+        };
+        let knee = r#"joint "knee""#;
+        assert_fails(&joint("revolute", r#"lower="1" upper="-1""#), &[knee, "lower (1) must be <= upper (-1)"]);
+        assert_fails(&joint("prismatic", r#"lower="0.5""#), &[knee, "lower (0.5) must be <= upper (0)"]);
+        assert_fails(&joint("revolute", r#"lower="-1" upper="1" effort="0""#), &[knee, "effort must be > 0", "got 0"]);
+        assert_fails(&joint("continuous", r#"velocity="-2""#), &[knee, "velocity must be > 0", "got -2"]);
+        assert_fails(&joint("revolute", r#"lower="low" upper="1""#), &[knee, "lower", r#""low" is not a number"#]);
+        assert_fails(&joint("revolute", r#"lower="-1" upper="inf""#), &[knee, "upper", "not finite"]);
+        assert_fails(&joint("prismatic", r#"effort="1 2""#), &[knee, "effort", "expected 1 number, found 2"]);
+        assert_fails(&joint("revolute", r#"upper="""#), &[knee, "upper", "expected 1 number, found 0"]);
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! column by column, Minv inverts CRBA. (Differential tests against Pinocchio are in the Python suite.)
 
 use legkit_dynamics::algorithms::{aba, crba, forward_kinematics, minv, rnea};
-use legkit_dynamics::{Data, Joint, MassProperties, Model, Transform};
+use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{DMatrix, DVector, Rotation3, Unit, Vector3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -34,7 +34,7 @@ fn random_tree(rng: &mut StdRng, n: usize, floating: bool) -> Model {
         };
         let rotation = Rotation3::from_axis_angle(&Unit::new_normalize(unit(rng)), rng.random_range(-3.0..3.0)).into_inner();
         let placement = Transform::new(rotation, unit(rng) * rng.random_range(0.0..0.5));
-        model.add_body(parent, joint, placement, random_body(rng), &format!("body{i}")).unwrap();
+        model.add_body(parent, joint, placement, random_body(rng), &format!("body{i}"), JointLimits::NONE).unwrap();
     }
     model
 }
@@ -91,8 +91,8 @@ fn rnea_crba_aba_and_minv_agree() {
 fn kinematics_composes_placements_and_joint_motions() {
     let mut model = Model::new(false, MassProperties::zero(), "base");
     let upper = MassProperties::point(1.0, Vector3::new(0.0, 0.0, -0.5)).unwrap();
-    let shoulder = model.add_body(0, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.0, 0.0, 1.0)), upper, "upper").unwrap();
-    model.add_body(shoulder, Joint::Prismatic(Vector3::z()), Transform::from_translation(Vector3::new(0.0, 0.0, -1.0)), upper, "lower").unwrap();
+    let shoulder = model.add_body(0, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.0, 0.0, 1.0)), upper, "upper", JointLimits::NONE).unwrap();
+    model.add_body(shoulder, Joint::Prismatic(Vector3::z()), Transform::from_translation(Vector3::new(0.0, 0.0, -1.0)), upper, "lower", JointLimits::NONE).unwrap();
     let mut data = Data::new(&model);
     forward_kinematics(&model, &mut data, &[std::f64::consts::FRAC_PI_2, 0.25]);
     // Rotating +90° about y takes the local -z axis to -x; the prismatic joint slides along it by 0.25 after the

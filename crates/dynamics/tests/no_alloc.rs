@@ -7,7 +7,7 @@ use legkit_dynamics::algorithms::{
     aba, center_of_mass, centroidal_momentum, centroidal_momentum_rate, crba, forward_kinematics, jacobian, kinetic_energy,
     minv, potential_energy, rnea, subtree_mass_properties, Frame,
 };
-use legkit_dynamics::{Data, Joint, MassProperties, Model, Transform};
+use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{Matrix3, Vector3};
 
 struct Counting;
@@ -40,7 +40,7 @@ fn algorithms_do_not_allocate() {
     for i in 1..30 {
         let joint = if i % 4 == 0 { Joint::Prismatic(Vector3::z()) } else { Joint::Revolute(Vector3::new(1.0, 2.0, 0.5)) };
         let placement = Transform::from_translation(Vector3::new(0.1, 0.0, 0.05));
-        model.add_body((i - 1) / 2, joint, placement, body, &format!("b{i}")).unwrap();
+        model.add_body((i - 1) / 2, joint, placement, body, &format!("b{i}"), JointLimits::NONE).unwrap();
     }
     let mut data = Data::new(&model);
     let mut q = vec![0.1; model.nq()];

@@ -2,11 +2,11 @@
 
 use std::sync::Mutex;
 
-use legkit_dynamics::{Data, Joint, MassProperties, Model, Transform};
+use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::{PyIndexError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyString, PyTuple};
+use pyo3::types::{PyDict, PyString, PyTuple};
 
 use crate::convert::{homogeneous_matrix, matrix3, to_numpy, value_error, vector3, vector_to_numpy, Matrix, Vector};
 use crate::mass::PyMassProperties;
@@ -44,12 +44,13 @@ impl PyModel {
         placement: Option<&Bound<'_, PyAny>>,
         body: Option<PyMassProperties>,
         name: Option<String>,
+        limits: JointLimits,
     ) -> PyResult<usize> {
         let parent = self.body_index(parent)?;
         let placement = placement.map(transform).transpose()?.unwrap_or_default();
         let body = body.map_or_else(MassProperties::zero, |b| b.0);
         let name = name.unwrap_or_else(|| format!("body{}", self.model.nbodies()));
-        let index = self.model.add_body(parent, joint, placement, body, &name).map_err(value_error)?;
+        let index = self.model.add_body(parent, joint, placement, body, &name, limits).map_err(value_error)?;
         *self.workspace.get_mut().unwrap_or_else(|e| e.into_inner()) = None;
         Ok(index)
     }
@@ -96,6 +97,41 @@ pub fn transform(value: &Bound<'_, PyAny>) -> PyResult<Transform> {
     Ok(Transform::new(rotation, translation))
 }
 
+/// Joint limits from None (no limits), a (lower, upper) pair (any sequence of two numbers), or a dict with
+/// any of the keys "lower", "upper", "effort", "velocity" (absent keys: no bound).
+fn joint_limits(value: Option<&Bound<'_, PyAny>>) -> PyResult<JointLimits> {
+    let Some(value) = value else { return Ok(JointLimits::NONE) };
+    let limits = if let Ok(dict) = value.cast::<PyDict>() {
+        let mut limits = JointLimits::NONE;
+        for (key, item) in dict.iter() {
+            let key: String = key.extract().map_err(|_| PyTypeError::new_err("limits: dict keys must be strings"))?;
+            let slot = match key.as_str() {
+                "lower" => &mut limits.lower,
+                "upper" => &mut limits.upper,
+                "effort" => &mut limits.effort,
+                "velocity" => &mut limits.velocity,
+                other => {
+                    return Err(PyValueError::new_err(format!(
+                        "limits: unknown key {other:?} (expected lower, upper, effort, velocity)"
+                    )))
+                }
+            };
+            *slot = item.extract().map_err(|_| PyTypeError::new_err(format!("limits: {key} must be a number")))?;
+        }
+        limits
+    } else {
+        // pyo3 refuses to read a str as a sequence of numbers.
+        let pair: Vec<f64> = value.extract().map_err(|_| {
+            PyTypeError::new_err("limits: expected None, a (lower, upper) pair or a dict with keys lower, upper, effort, velocity")
+        })?;
+        let [lower, upper] = pair[..] else {
+            return Err(PyValueError::new_err(format!("limits: expected a (lower, upper) pair, got {} values", pair.len())));
+        };
+        JointLimits { lower, upper, ..JointLimits::NONE }
+    };
+    JointLimits::new(limits.lower, limits.upper, limits.effort, limits.velocity).map_err(value_error)
+}
+
 pub fn homogeneous(x: &Transform) -> [f64; 16] {
     let mut out = [0.0; 16];
     for i in 0..3 {
@@ -121,7 +157,7 @@ impl PyModel {
     }
 
     /// A model from a URDF file path or an XML string: links become bodies named after them (the root link
-    /// is the base), revolute/continuous/prismatic/fixed joints their joints.
+    /// is the base), revolute/continuous/prismatic/fixed joints their joints, `<limit>`s their limits.
     #[staticmethod]
     #[pyo3(signature = (path_or_xml, floating_base = false))]
     fn from_urdf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: bool) -> PyResult<Self> {
@@ -135,8 +171,11 @@ impl PyModel {
         Ok(Self::wrap(model))
     }
 
-    /// Adds a body on a revolute joint about `axis` (in the joint frame); returns its index.
-    #[pyo3(signature = (parent, axis, placement = None, body = None, name = None))]
+    /// Adds a body on a revolute joint about `axis` (in the joint frame); returns its index. `limits`:
+    /// None, a (lower, upper) angle range (rad), or a dict with any of lower, upper (rad; ±inf for
+    /// none), effort (N m) and velocity (rad/s) (> 0; inf for none). Enforced by `Simulation` (range and
+    /// effort), ignored by the dynamics algorithms.
+    #[pyo3(signature = (parent, axis, placement = None, body = None, name = None, limits = None))]
     fn add_revolute(
         &mut self,
         parent: &Bound<'_, PyAny>,
@@ -144,13 +183,16 @@ impl PyModel {
         placement: Option<&Bound<'_, PyAny>>,
         body: Option<PyMassProperties>,
         name: Option<String>,
+        limits: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<usize> {
         let axis = vector3("axis", &axis)?;
-        self.add(parent, Joint::Revolute(axis), placement, body, name)
+        let limits = joint_limits(limits)?;
+        self.add(parent, Joint::Revolute(axis), placement, body, name, limits)
     }
 
-    /// Adds a body on a prismatic joint along `axis` (in the joint frame); returns its index.
-    #[pyo3(signature = (parent, axis, placement = None, body = None, name = None))]
+    /// Adds a body on a prismatic joint along `axis` (in the joint frame); returns its index. `limits` as
+    /// for `add_revolute`, in m, N and m/s.
+    #[pyo3(signature = (parent, axis, placement = None, body = None, name = None, limits = None))]
     fn add_prismatic(
         &mut self,
         parent: &Bound<'_, PyAny>,
@@ -158,9 +200,11 @@ impl PyModel {
         placement: Option<&Bound<'_, PyAny>>,
         body: Option<PyMassProperties>,
         name: Option<String>,
+        limits: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<usize> {
         let axis = vector3("axis", &axis)?;
-        self.add(parent, Joint::Prismatic(axis), placement, body, name)
+        let limits = joint_limits(limits)?;
+        self.add(parent, Joint::Prismatic(axis), placement, body, name, limits)
     }
 
     /// Adds a body rigidly attached to `parent`; returns its index.
@@ -172,7 +216,7 @@ impl PyModel {
         body: Option<PyMassProperties>,
         name: Option<String>,
     ) -> PyResult<usize> {
-        self.add(parent, Joint::Fixed, placement, body, name)
+        self.add(parent, Joint::Fixed, placement, body, name, JointLimits::NONE)
     }
 
     #[getter]
@@ -235,6 +279,21 @@ impl PyModel {
             Joint::Revolute(a) | Joint::Prismatic(a) => Some(vector_to_numpy(py, a)),
             _ => None,
         })
+    }
+
+    /// The limits of the body's joint as a dict {lower, upper, effort, velocity} (rad or m, N m or N,
+    /// rad/s or m/s; ±inf where unbounded), or None if the joint has none (always for the base and
+    /// fixed joints).
+    fn limits<'py>(&self, py: Python<'py>, body: &Bound<'py, PyAny>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let limits = self.model.limits(self.body_index(body)?);
+        if !limits.is_limited() {
+            return Ok(None);
+        }
+        let dict = PyDict::new(py);
+        for (key, value) in [("lower", limits.lower), ("upper", limits.upper), ("effort", limits.effort), ("velocity", limits.velocity)] {
+            dict.set_item(key, value)?;
+        }
+        Ok(Some(dict))
     }
 
     /// The body's mass properties in its own frame.

@@ -195,7 +195,9 @@ impl PySimulation {
     }
 
     /// Advances `n` steps (in Rust, GIL released) with feed-forward generalized forces `tau` (nv,) held
-    /// over the steps (None: zero); servos, if set, add to it and the sum is clipped to the torque limits.
+    /// over the steps (None: zero); servos, if set, add to it and the sum is clipped to the servo's torque
+    /// limit and the joint's effort limit (`Model.limits`), whichever is tighter. Joint position limits
+    /// are enforced by Rapier joint limits.
     /// On a floating base tau[:6] is a wrench [f, n] on the base, in its frame, at its origin (as `aba`).
     #[pyo3(signature = (tau = None, n = 1))]
     fn step(&mut self, py: Python<'_>, tau: Option<Floats<'_>>, n: i64) -> PyResult<()> {
@@ -208,7 +210,8 @@ impl PySimulation {
     }
 
     /// Position/velocity servos, evaluated every step in Rust:
-    /// τ = clip(kp (target_q − q) + kd (target_v − v) + tau, ±torque_limit) per velocity coordinate.
+    /// τ = clip(kp (target_q − q) + kd (target_v − v) + tau, ±min(torque_limit, effort limit)) per velocity
+    /// coordinate, the effort limit being the model's (`Model.limits`, inf if none).
     /// `kp` (N m/rad), `kd` (N m s/rad), `torque_limit` (N m, may be inf): scalars (joint coordinates only;
     /// a floating base is never servoed) or (nv,) arrays (zero gains on a floating base's six).
     /// `target_q`: a configuration (nq,) whose joint coordinates are the targets (None: the current q);
@@ -279,7 +282,8 @@ impl PySimulation {
         self.sim.options().dt
     }
 
-    /// Generalized forces applied during the last step (nv,): servo plus feed-forward, clipped.
+    /// Generalized forces applied during the last step (nv,): servo plus feed-forward, clipped to the
+    /// servo's torque limit and the joint's effort limit.
     #[getter]
     fn applied_tau<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         to_numpy(py, self.sim.applied_torques().len(), self.sim.applied_torques().to_vec())

@@ -304,10 +304,14 @@ def plot(results: Sequence[RunResult], path: Path) -> None:
 
 def table(results: Sequence[RunResult]) -> str:
     """The summary table as text."""
-    lines = [f"{'tree':>4} {'scheme':>9} {'initial':>8} {'final':>8} {'t10% (s)':>9} {'overshoot':>9} {'msg/mod/s':>10}"]
+    lines = [
+        "distances in module widths; t10%: first time within 10 % of the initial distance",
+        f"{'tree':>4} {'scheme':>9} {'initial':>8} {'final':>8} {'t10% (s)':>9} {'overshoot':>9} {'msg/mod/s':>10}",
+    ]
     for r in results:
+        reached = "never" if np.isnan(r.time_to_10_percent) else f"{r.time_to_10_percent:.3f}"
         lines.append(
-            f"{r.tree + 1:>4} {r.scheme:>9} {r.initial:>8.3f} {r.final:>8.3f} {r.time_to_10_percent:>9.3f} "
+            f"{r.tree + 1:>4} {r.scheme:>9} {r.initial:>8.3f} {r.final:>8.3f} {reached:>9} "
             f"{100 * r.overshoot:>8.1f}% {r.messages_per_module_second:>10.1f}"
         )
     return "\n".join(lines)

@@ -3,7 +3,8 @@
 //!
 //! Every step, before Rapier integrates, each degree of freedom k gets
 //! `τ_k = clip(kp_k (q*_k − q_k) + kd_k (v*_k − v_k) + τ_ff,k, ±limit_k)`, held over the step (a servo
-//! sampled at 1/dt). A joint force enters Rapier as an equal and opposite pair on the child and parent
+//! sampled at 1/dt), then clipped again to the joint's effort bound in the model (`JointLimits::effort`),
+//! so the tighter of the two applies. A joint force enters Rapier as an equal and opposite pair on the child and parent
 //! bodies (a couple about the axis for a revolute joint, a force along the axis through the joint origin
 //! for a prismatic one), whose generalized force is exactly τ_k on that joint and zero on every other.
 

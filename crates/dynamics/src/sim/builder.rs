@@ -1,6 +1,7 @@
 //! From a legkit `Model` to a Rapier world: one rigid body per movable body (bodies on fixed joints are
 //! merged into their parent, which keeps the multibody's dense mass matrix small), one multibody joint
-//! per revolute or prismatic joint, and one collider per body.
+//! per revolute or prismatic joint (with the model's position limits as Rapier joint limits), and one
+//! collider per body.
 //!
 //! Frames: the Rapier frame of every jointed body is its legkit body frame. The Rapier frame of the
 //! base is the legkit base frame moved to the centre of mass of the base and everything merged into it
@@ -10,7 +11,7 @@
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use rapier3d_f64::math::{Matrix, Pose, Rotation, Vector};
 use rapier3d_f64::prelude::{
-    ColliderBuilder, CoefficientCombineRule, FrictionModel, GenericJointBuilder, IntegrationParameters, JointAxesMask, MassProperties as RapierMass,
+    ColliderBuilder, CoefficientCombineRule, FrictionModel, GenericJointBuilder, IntegrationParameters, JointAxesMask, JointAxis, MassProperties as RapierMass,
     MultibodyJointHandle, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, SharedShape,
 };
 
@@ -307,17 +308,26 @@ pub(crate) fn build(model: &Model, options: &Options) -> Result<(PhysicsWorld, L
     for (r, &i) in owner.iter().enumerate().skip(1) {
         let p = model.parent(i);
         let frame_in_parent = offset[p].compose(model.placement(i));
-        let (axis, locked) = match *model.joint(i) {
-            Joint::Revolute(a) => (a, JointAxesMask::LOCKED_REVOLUTE_AXES),
-            Joint::Prismatic(a) => (a, JointAxesMask::LOCKED_PRISMATIC_AXES),
+        let (axis, locked, free) = match *model.joint(i) {
+            Joint::Revolute(a) => (a, JointAxesMask::LOCKED_REVOLUTE_AXES, JointAxis::AngX),
+            Joint::Prismatic(a) => (a, JointAxesMask::LOCKED_PRISMATIC_AXES, JointAxis::LinX),
             Joint::Fixed | Joint::FreeFlyer => unreachable!("only one-degree-of-freedom joints define Rapier bodies"),
         };
         let to_axis = Transform::new(x_onto(&axis), Vector3::zeros());
-        let joint = GenericJointBuilder::new(locked)
+        let mut joint = GenericJointBuilder::new(locked)
             .local_frame1(to_pose(&frame_in_parent.compose(&to_axis)))
             .local_frame2(to_pose(&to_axis))
             .contacts_enabled(false)
             .build();
+        let limits = model.limits(i);
+        if limits.has_position_limits() {
+            // The free axis's coordinate is the legkit joint coordinate (see `state`). Rapier's limit is a
+            // velocity constraint that engages once the coordinate is past a bound and drives it back
+            // within one substep (its joint softness is nearly rigid), so a moving joint overshoots its
+            // limit by at most about one substep of travel. An infinite side becomes Rapier's own
+            // "unbounded" value.
+            joint.set_limits(free, [limits.lower.max(f64::MIN), limits.upper.min(f64::MAX)]);
+        }
         let handle = world
             .multibody_joints
             .insert(handles[carrier[p]], handles[r], joint, true)

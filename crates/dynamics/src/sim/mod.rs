@@ -5,6 +5,10 @@
 //! (a box matching its inertia unless a shape is given). Joint dynamics are exact: no damping, armature or
 //! joint friction unless `joint_damping` asks for it; gravity is the model's.
 //!
+//! The model's joint limits (`Model::limits`) are enforced: the position range by Rapier joint limits,
+//! the effort bound by clipping the actuation (servo plus feed-forward) of that joint. Velocity bounds
+//! are not enforced (they are for controllers).
+//!
 //! Rapier integrates each substep semi-implicitly (velocities first, Coriolis and gyroscopic terms
 //! linearly implicit, then positions), so free motion matches legkit's ABA + RK4 to first order in the
 //! substep length. Single-threaded and free of hash-order effects, the same inputs give bit-identical
@@ -39,6 +43,8 @@ pub struct Simulation {
     world: PhysicsWorld,
     layout: Layout,
     servo: Servo,
+    /// The model's effort bound per velocity coordinate (+inf on the base and unbounded joints).
+    effort: Vec<f64>,
     steps: u64,
     /// Actuation of the last step, one entry per velocity coordinate.
     applied: Vec<f64>,
@@ -60,6 +66,7 @@ impl Simulation {
             world,
             layout,
             servo: Servo::off(nv),
+            effort: effort_bounds(model),
             steps: 0,
             applied: vec![0.0; nv],
             q: vec![0.0; nq],
@@ -94,8 +101,8 @@ impl Simulation {
         &self.v
     }
 
-    /// Generalized forces applied during the last step (servo plus feed-forward, clipped), per velocity
-    /// coordinate.
+    /// Generalized forces applied during the last step (servo plus feed-forward, clipped to the tighter of
+    /// the servo's limit and the joint's effort bound), per velocity coordinate.
     pub fn applied_torques(&self) -> &[f64] {
         &self.applied
     }
@@ -164,6 +171,9 @@ impl Simulation {
         for _ in 0..n {
             dof_coordinates(&self.model, &self.q, &mut self.q_dof);
             self.servo.torques(&self.q_dof, &self.v, &tau_ff, &mut self.applied);
+            for (tau, bound) in self.applied.iter_mut().zip(&self.effort) {
+                *tau = tau.clamp(-bound, *bound);
+            }
             self.apply_forces();
             self.world.step();
             self.steps += 1;
@@ -247,4 +257,15 @@ impl Simulation {
             }
         }
     }
+}
+
+/// The effort bound of each velocity coordinate: the joint's `effort` limit, +inf on the base.
+fn effort_bounds(model: &Model) -> Vec<f64> {
+    let mut bounds = vec![f64::INFINITY; model.nv()];
+    for i in 1..model.nbodies() {
+        if model.joint(i).nv() == 1 {
+            bounds[model.idx_v(i)] = model.limits(i).effort;
+        }
+    }
+    bounds
 }

@@ -4,6 +4,7 @@
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 
 use super::*;
+use crate::model::JointLimits;
 use crate::algorithms::{simulate, Method};
 use crate::{Data, MassProperties};
 
@@ -24,14 +25,14 @@ fn ten_link_tree() -> Model {
     for (k, axis) in axes.iter().enumerate() {
         // The first link hangs down (body x onto world −z); the rest continue it with small bends.
         let placement = if k == 0 { Transform::new(turn(0.0, std::f64::consts::FRAC_PI_2, 0.0), Vector3::zeros()) } else { along(0.25, turn(0.1 * k as f64, 0.0, 0.2)) };
-        parent = model.add_body(parent, Joint::Revolute(*axis), placement, rod(0.6 - 0.05 * k as f64, 0.25), &format!("chain{k}")).unwrap();
+        parent = model.add_body(parent, Joint::Revolute(*axis), placement, rod(0.6 - 0.05 * k as f64, 0.25), &format!("chain{k}"), JointLimits::NONE).unwrap();
         chain.push(parent);
     }
-    let b = model.add_body(chain[1], Joint::Revolute(Vector3::x()), along(0.25, turn(0.0, 0.0, 1.2)), rod(0.3, 0.2), "side0").unwrap();
-    model.add_body(b, Joint::Revolute(Vector3::new(0.0, 0.4, 1.0)), along(0.2, turn(0.3, 0.0, 0.0)), rod(0.2, 0.15), "side1").unwrap();
-    let c = model.add_body(chain[2], Joint::Prismatic(Vector3::x()), along(0.25, turn(0.0, 0.5, -1.0)), rod(0.25, 0.2), "slider").unwrap();
-    model.add_body(c, Joint::Revolute(Vector3::y()), along(0.2, Matrix3::identity()), rod(0.2, 0.2), "side2").unwrap();
-    model.add_body(chain[4], Joint::Revolute(Vector3::z()), along(0.25, turn(0.0, 0.0, -0.4)), rod(0.15, 0.15), "tip").unwrap();
+    let b = model.add_body(chain[1], Joint::Revolute(Vector3::x()), along(0.25, turn(0.0, 0.0, 1.2)), rod(0.3, 0.2), "side0", JointLimits::NONE).unwrap();
+    model.add_body(b, Joint::Revolute(Vector3::new(0.0, 0.4, 1.0)), along(0.2, turn(0.3, 0.0, 0.0)), rod(0.2, 0.15), "side1", JointLimits::NONE).unwrap();
+    let c = model.add_body(chain[2], Joint::Prismatic(Vector3::x()), along(0.25, turn(0.0, 0.5, -1.0)), rod(0.25, 0.2), "slider", JointLimits::NONE).unwrap();
+    model.add_body(c, Joint::Revolute(Vector3::y()), along(0.2, Matrix3::identity()), rod(0.2, 0.2), "side2", JointLimits::NONE).unwrap();
+    model.add_body(chain[4], Joint::Revolute(Vector3::z()), along(0.25, turn(0.0, 0.0, -0.4)), rod(0.15, 0.15), "tip", JointLimits::NONE).unwrap();
     assert_eq!(model.nv(), 10);
     model
 }
@@ -110,8 +111,8 @@ fn floating_base_follows_aba_rk4() {
     // A tumbling floating box with an off-centre COM and a two-link arm, thrown upward and spinning.
     let base = MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::new(0.03, -0.02, 0.01), &Matrix3::identity()).unwrap();
     let mut model = Model::new(true, base, "base");
-    let a = model.add_body(0, Joint::Revolute(Vector3::z()), Transform::from_translation(Vector3::new(0.15, 0.0, 0.05)), rod(0.4, 0.2), "a").unwrap();
-    model.add_body(a, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.2, 0.0, 0.0)), rod(0.3, 0.2), "b").unwrap();
+    let a = model.add_body(0, Joint::Revolute(Vector3::z()), Transform::from_translation(Vector3::new(0.15, 0.0, 0.05)), rod(0.4, 0.2), "a", JointLimits::NONE).unwrap();
+    model.add_body(a, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.2, 0.0, 0.0)), rod(0.3, 0.2), "b", JointLimits::NONE).unwrap();
     let rotation = nalgebra::UnitQuaternion::from_axis_angle(&Unit::new_normalize(Vector3::new(1.0, 2.0, 3.0)), 0.7);
     let q = vec![0.1, -0.2, 1.0, rotation.i, rotation.j, rotation.k, rotation.w, 0.4, -0.3];
     let v = vec![0.2, 0.1, 3.0, 1.0, -2.0, 0.5, 1.5, -1.0];
@@ -175,8 +176,8 @@ fn quadruped() -> (Model, Vec<(usize, Option<Shape>)>) {
     let mut shapes = Vec::new();
     let down = |mass: f64| MassProperties::cuboid(mass, Vector3::new(0.03, 0.03, 0.15), Vector3::new(0.0, 0.0, -0.075), &Matrix3::identity()).unwrap();
     for (k, (x, y)) in [(0.15, 0.08), (0.15, -0.08), (-0.15, 0.08), (-0.15, -0.08)].into_iter().enumerate() {
-        let hip = model.add_body(0, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(x, y, -0.03)), down(0.3), &format!("thigh{k}")).unwrap();
-        let shin = model.add_body(hip, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)), down(0.2), &format!("shin{k}")).unwrap();
+        let hip = model.add_body(0, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(x, y, -0.03)), down(0.3), &format!("thigh{k}"), JointLimits::NONE).unwrap();
+        let shin = model.add_body(hip, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)), down(0.2), &format!("shin{k}"), JointLimits::NONE).unwrap();
         let foot = Shape::new(ShapeKind::Sphere(0.02), Some(Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)))).unwrap();
         shapes.push((hip, None));
         shapes.push((shin, Some(foot)));
@@ -278,3 +279,116 @@ fn reset_reproduces_a_fresh_simulation() {
 }
 
 
+
+/// An inverted pendulum: a 1 kg, 0.5 m rod standing up from a fixed base on a revolute joint about y
+/// (q > 0 leans the tip toward +x, so gravity drives |q| up), with `limits`.
+fn inverted_pendulum(limits: JointLimits) -> Model {
+    let mut model = Model::new(false, MassProperties::zero(), "base");
+    // Body x (the rod) onto world +z: the tip is at L (sin q, 0, cos q).
+    let up = Transform::new(Rotation3::from_euler_angles(0.0, -std::f64::consts::FRAC_PI_2, 0.0).into_inner(), Vector3::zeros());
+    model.add_body(0, Joint::Revolute(Vector3::y()), up, rod(1.0, 0.5), "rod", limits).unwrap();
+    model
+}
+
+/// Runs `sim` for `steps` steps with no actuation; returns the largest and smallest joint coordinate seen.
+fn excursion(sim: &mut Simulation, steps: usize) -> (f64, f64) {
+    let (mut high, mut low) = (f64::NEG_INFINITY, f64::INFINITY);
+    for _ in 0..steps {
+        sim.step(None, 1).unwrap();
+        high = high.max(sim.q()[0]);
+        low = low.min(sim.q()[0]);
+    }
+    (high, low)
+}
+
+#[test]
+fn revolute_limit_stops_a_falling_pendulum() {
+    // Released at rest from ±0.4 rad, the pendulum falls onto the ±0.5 rad limit. Rapier's limit is a
+    // velocity constraint that engages only once the coordinate is past the bound (checked at the start
+    // of each substep, of length h = dt / substeps), so the joint can travel one substep past it before
+    // being driven back. Semi-implicit Euler moves it by h v_{n+1} = h (v_n + h α_n) in that substep, so
+    // the overshoot is at most ω h + α h², with ω the speed at the limit (energy conservation from
+    // 0.4 rad; Rapier's integrator only loses energy) and α ≤ m g (L/2) / I the largest gravitational
+    // acceleration.
+    let (m, length, g, dt): (f64, f64, f64, f64) = (1.0, 0.5, 9.81, 1e-3);
+    let inertia = m * (length * length + 0.04 * 0.04) / 12.0 + m * (length / 2.0).powi(2);
+    let omega = (2.0 * m * g * (length / 2.0) * (0.4f64.cos() - 0.5f64.cos()) / inertia).sqrt();
+    let alpha = m * g * (length / 2.0) / inertia;
+    for substeps in [1, 4] {
+        let h = dt / substeps as f64;
+        let tolerance = omega * h + alpha * h * h;
+        for sign in [1.0, -1.0] {
+            let model = inverted_pendulum(JointLimits::position(-0.5, 0.5).unwrap());
+            let mut options = Options::new(dt);
+            options.substeps = substeps;
+            let mut sim = Simulation::new(&model, options).unwrap();
+            sim.set_state(Some(&[0.4 * sign]), None).unwrap();
+            let (high, low) = excursion(&mut sim, 1000);
+            let overshoot = if sign > 0.0 { high - 0.5 } else { -0.5 - low };
+            println!("pendulum onto ±0.5 rad limit ({substeps} substeps, side {sign}): overshoot {overshoot:.3e} rad, bound {tolerance:.3e}");
+            assert!(overshoot <= tolerance, "overshoot {overshoot} exceeds the one-substep bound {tolerance}");
+            // It did reach the limit (unlimited, it would pass 0.5 within 0.3 s) and rests against it.
+            assert!(overshoot > -1e-6, "the pendulum never reached the limit: overshoot {overshoot}");
+            assert!((sim.q()[0] - 0.5 * sign).abs() < 1e-4 && sim.v()[0].abs() < 1e-2, "not resting at the limit: q {}, v {}", sim.q()[0], sim.v()[0]);
+        }
+    }
+    // Without limits the same release falls through 0.5 rad: the limit is what stopped it.
+    let mut free = Simulation::new(&inverted_pendulum(JointLimits::NONE), Options::new(dt)).unwrap();
+    free.set_state(Some(&[0.4]), None).unwrap();
+    assert!(excursion(&mut free, 1000).0 > 1.0);
+}
+
+#[test]
+fn prismatic_limit_stops_a_falling_slider() {
+    // A 2 kg block sliding along world z from 0 falls onto its lower limit at −0.2 m: speed at the limit
+    // √(2 g 0.2), and the same one-step overshoot bound v dt + g dt².
+    let (g, dt) = (9.81, 1e-3);
+    let mut model = Model::new(false, MassProperties::zero(), "base");
+    let block = MassProperties::cuboid(2.0, Vector3::new(0.1, 0.1, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap();
+    model.add_body(0, Joint::Prismatic(Vector3::z()), Transform::identity(), block, "block", JointLimits::position(-0.2, 0.3).unwrap()).unwrap();
+    let mut sim = Simulation::new(&model, Options::new(dt)).unwrap();
+    let (_, low) = excursion(&mut sim, 1000);
+    let tolerance = (2.0 * g * 0.2f64).sqrt() * dt + g * dt * dt;
+    let overshoot = -0.2 - low;
+    println!("slider onto -0.2 m limit: overshoot {overshoot:.3e} m, bound {tolerance:.3e}");
+    assert!(overshoot <= tolerance && overshoot > -1e-6, "overshoot {overshoot}, bound {tolerance}");
+    assert!((sim.q()[0] + 0.2).abs() < 1e-4 && sim.v()[0].abs() < 1e-2);
+}
+
+#[test]
+fn limits_out_of_reach_change_nothing() {
+    // Inside the range, the limit constraints carry zero impulse: the free tree's motion is unchanged.
+    let free = ten_link_tree();
+    let mut limited = Model::new(false, *free.body(0), free.name(0));
+    for i in 1..free.nbodies() {
+        let limits = JointLimits::new(-10.0, 10.0, 1e3, 1e3).unwrap();
+        limited.add_body(free.parent(i), *free.joint(i), *free.placement(i), *free.body(i), free.name(i), limits).unwrap();
+    }
+    let (mut a, mut b) = (released(&free, 1), released(&limited, 1));
+    a.step(None, 300).unwrap();
+    b.step(None, 300).unwrap();
+    assert!(max_difference(a.q(), b.q()) < 1e-12 && max_difference(a.v(), b.v()) < 1e-12);
+}
+
+#[test]
+fn effort_limit_clips_actuation() {
+    // Joint effort bound 1.5 N m; servo limit 3 (looser) then 1 (tighter); feed-forward ±10.
+    let limited = inverted_pendulum(JointLimits::new(f64::NEG_INFINITY, f64::INFINITY, 1.5, f64::INFINITY).unwrap());
+    let mut sim = Simulation::new(&limited, Options::new(1e-3)).unwrap();
+    sim.step(Some(&[10.0]), 1).unwrap();
+    assert_eq!(sim.applied_torques(), &[1.5]);
+    sim.step(Some(&[-10.0]), 1).unwrap();
+    assert_eq!(sim.applied_torques(), &[-1.5]);
+    sim.set_servo(Servo::new(&limited, vec![5.0], vec![0.0], vec![3.0], vec![0.0], vec![0.0]).unwrap()).unwrap();
+    sim.step(Some(&[10.0]), 1).unwrap();
+    assert_eq!(sim.applied_torques(), &[1.5]);
+    sim.set_servo(Servo::new(&limited, vec![5.0], vec![0.0], vec![1.0], vec![0.0], vec![0.0]).unwrap()).unwrap();
+    sim.step(Some(&[10.0]), 1).unwrap();
+    assert_eq!(sim.applied_torques(), &[1.0]);
+    // The clipped torque is what drives the joint: the same motion as commanding 1.5 without a bound.
+    let mut bounded = Simulation::new(&limited, Options::new(1e-3)).unwrap();
+    let mut unbounded = Simulation::new(&inverted_pendulum(JointLimits::NONE), Options::new(1e-3)).unwrap();
+    bounded.step(Some(&[10.0]), 200).unwrap();
+    unbounded.step(Some(&[1.5]), 200).unwrap();
+    assert_eq!((bounded.q(), bounded.v()), (unbounded.q(), unbounded.v()));
+}
