@@ -67,10 +67,23 @@ def rotations(draw):
     return ref.quaternion_to_rotation(np.array(q))
 
 
+# Direction components: mostly uniform, sometimes exactly 0 or tiny, so that nearly axis-aligned directions
+# (the usual trigger of branch/basis-selection bugs) are probed on purpose.
+_COMPONENTS = st.one_of(
+    reals(-1, 1),
+    reals(-1, 1),
+    st.sampled_from([0.0, -0.0, 1e-300, -1e-60, 1e-30, -1e-16, 1e-12, -1e-8, 1e-5]),
+)
+
+
 @st.composite
 def directions(draw, min_norm: float = 1e-3, max_norm: float = 1e3):
     """A non-zero, generally non-unit direction vector: a random unit vector times a random length."""
-    v = draw(vectors(-1, 1).filter(lambda v: np.linalg.norm(v) > 0.1))
+    v = draw(
+        st.tuples(_COMPONENTS, _COMPONENTS, _COMPONENTS)
+        .map(lambda t: np.array(t, dtype=np.float64))
+        .filter(lambda v: np.linalg.norm(v) > 0.1)
+    )
     length = draw(reals(np.log(min_norm), np.log(max_norm)).map(np.exp))
     return ref.unit(v) * length
 

@@ -31,7 +31,7 @@ def norm(v, axis=-1) -> np.ndarray:
 
 def unit(v) -> np.ndarray:
     v = np.asarray(v, dtype=np.float64)
-    return v / np.linalg.norm(v)
+    return v / norm(v)
 
 
 def quaternion_to_rotation(q) -> np.ndarray:
@@ -245,7 +245,7 @@ def point_line_distance(points, line_point, line_direction) -> np.ndarray:
     """Distance of each point (..., 3) to the infinite line through line_point along line_direction."""
     d = unit(line_direction)
     w = np.asarray(points, dtype=np.float64) - np.asarray(line_point, dtype=np.float64)
-    return np.linalg.norm(np.cross(w, d), axis=-1)
+    return norm(np.cross(w, d), axis=-1)
 
 
 def foot_on_line(point, line_point, line_direction) -> np.ndarray:
@@ -281,7 +281,7 @@ def circle_line(center, normal, radius, line_point, line_direction, samples: int
     def f(t):
         t = np.asarray(t, dtype=np.float64)
         x = r * (np.cos(t)[..., None] * u + np.sin(t)[..., None] * v)
-        return np.linalg.norm(np.cross(x - q, d), axis=-1)
+        return norm(np.cross(x - q, d), axis=-1)
 
     m = minimise_periodic(f, samples=samples)
     points = c + r * (np.cos(m.angles)[:, None] * u + np.sin(m.angles)[:, None] * v)
@@ -327,12 +327,12 @@ def rotation_toward_line(axis_point, axis_direction, point, line_point, line_dir
     def f(t):
         t = np.asarray(t, dtype=np.float64)
         x = np.cos(t)[..., None] * p_perp + np.sin(t)[..., None] * a_cross
-        return np.linalg.norm(np.cross(x - q, d), axis=-1)
+        return norm(np.cross(x - q, d), axis=-1)
 
     m = minimise_periodic(f, start=-np.pi, samples=samples)
     angles = wrap_angle(m.angles)
     rotated = c + np.cos(angles)[:, None] * p_perp + np.sin(angles)[:, None] * a_cross
-    return RotationReference(m.value, angles, m.values, rotated, float(np.linalg.norm(p_perp)), m.sample_spread)
+    return RotationReference(m.value, angles, m.values, rotated, float(norm(p_perp)), m.sample_spread)
 
 
 def circle_line_scale(center, radius, line_point, line_direction) -> float:
@@ -350,5 +350,5 @@ def circle_line_tolerance(center, radius, line_point, line_direction, factor: fl
     that when the scene sits far from the origin.
     """
     scale = circle_line_scale(center, radius, line_point, line_direction)
-    magnitude = max(np.linalg.norm(center), np.linalg.norm(line_point)) + float(radius)
+    magnitude = max(norm(center), norm(line_point)) + float(radius)
     return factor * scale + 8.0 * EPS * magnitude

@@ -16,10 +16,14 @@
 //! along the circle's axis sees every circle point at the same distance.
 //!
 //! The distance is evaluated in the 2D frame relative to the circle centre, so it keeps full precision relative
-//! to the problem's scale (radius plus the centre's offset from the line) even far from the origin. Projected
-//! coordinates, and `|β|` near 0 or 1, within a few ε of the scale of a degenerate value are snapped to it, so
-//! that mirror-symmetric and equidistant configurations built in rounded coordinates are recognised; this
-//! moves the distance by at most that rounding level.
+//! to the problem's scale (radius plus the centre's offset from the line) even far from the origin. That needs
+//! `u` perpendicular to `d` to a few ε, not merely to `ε / |n × d|`, or the line-parallel part of the offset,
+//! which may dwarf the scale, leaks into the projection: `u` is formed as `n × (d ∓ n)`, which stays well
+//! conditioned as `d` approaches `±n`. Problems far from unit size are first rescaled by a power of two, so
+//! that no square underflows or overflows. Projected coordinates within a few ε (of the scale, or of the
+//! inputs' coordinates) of a degenerate value, and `|β|` within a few ε of 0 or 1, are snapped to it, so that
+//! mirror-symmetric and equidistant configurations built in rounded coordinates are recognised; this moves the
+//! distance by at most that rounding level.
 
 use std::f64::consts::{FRAC_1_SQRT_2, PI};
 
@@ -33,6 +37,12 @@ const EPS: f64 = f64::EPSILON;
 /// an axis ratio within it of a degenerate value is treated as degenerate, which moves the distance by at most
 /// this fraction of the problem's scale.
 const ROUNDING: f64 = 16.0 * EPS;
+
+/// How far, per unit of the inputs' coordinates, their rounding can move a line off a degenerate position: a
+/// point is only known to ε/2 per coordinate, so to about ε |X|; this leaves a margin of two. Applied to the
+/// sum of the largest coordinates of both points, snapping within it moves the distance by at most 8 ε |X|,
+/// the inputs' own uncertainty.
+const COORDINATE_ROUNDING: f64 = 2.0 * EPS;
 
 /// Halley iterations are bounded; bisection alone resolves the angle to rounding in about 55 steps.
 const MAX_ITERATIONS: usize = 100;
@@ -122,7 +132,8 @@ struct Solution {
 /// circle point is equidistant. Accurate to rounding relative to the problem's scale in every configuration.
 pub fn circle_line(circle: &Circle, line: &Line) -> CircleLine {
     let w = line.point - circle.center;
-    let solution = solve(&circle.normal, circle.radius, &line.direction, &w);
+    let magnitude = circle.center.amax() + line.point.amax();
+    let solution = solve(&circle.normal, circle.radius, &line.direction, &w, magnitude);
     let points = |(cos, sin): (f64, f64)| {
         let radial = (solution.u * cos + solution.v * sin) * circle.radius;
         // Projecting the offset from the line point, not the absolute circle point, keeps large coordinates out
@@ -153,7 +164,7 @@ pub fn rotation_toward_line(axis: &Line, point: &Vector3<f64>, line: &Line) -> (
     let relative = point - axis.point;
     let along = relative.dot(&n);
     let radial = relative - n * along;
-    let radius = radial.norm();
+    let radius = norm(&radial);
     // A point on the axis, given in rounded coordinates, leaves a radial residue at the rounding level of those
     // coordinates; at that radius the angle would be pure noise, so it counts as on the axis.
     let radius = if radius <= 8.0 * EPS * (point.amax() + axis.point.amax()) {
@@ -164,7 +175,9 @@ pub fn rotation_toward_line(axis: &Line, point: &Vector3<f64>, line: &Line) -> (
     // The line's offset from the rotation centre `axis.point + along n`, formed without rounding the centre's
     // absolute coordinates.
     let w = (line.point - axis.point) - n * along;
-    let solution = solve(&n, radius, &line.direction, &w);
+    // `point` enters w only along n, which cannot move the line off the axis.
+    let magnitude = axis.point.amax() + line.point.amax();
+    let solution = solve(&n, radius, &line.direction, &w, magnitude);
     if solution.equidistant {
         return (0.0, solution.distance);
     }
@@ -191,25 +204,44 @@ pub fn rotation_toward_line(axis: &Line, point: &Vector3<f64>, line: &Line) -> (
 }
 
 /// Closest points of the circle with unit normal `n` and radius `r` to the line with unit direction `d` whose
-/// point is at `w` from the circle's centre.
-fn solve(n: &Vector3<f64>, r: f64, d: &Vector3<f64>, w: &Vector3<f64>) -> Solution {
-    let cross = n.cross(d);
-    // When n ∥ d the projected ellipse is a circle and any in-plane u serves.
+/// point is at `w` from the circle's centre; `magnitude` is the size of the absolute coordinates `w` was formed
+/// from, whose rounding it carries.
+fn solve(n: &Vector3<f64>, r: f64, d: &Vector3<f64>, w: &Vector3<f64>, magnitude: f64) -> Solution {
+    let size = r.max(w.amax());
+    if size == 0.0 || (1e-100..=1e100).contains(&size) {
+        return solve_in_range(n, r, d, w, magnitude);
+    }
+    // Rescaling by a power of two is exact. Clamping the exponent keeps the factor finite, and still brings any
+    // finite size within 2^±74 of 1.
+    let factor = 2f64.powi((-size.log2().round()).clamp(-1000.0, 1000.0) as i32);
+    let mut solution = solve_in_range(n, r * factor, d, &(w * factor), magnitude * factor);
+    solution.distance /= factor;
+    solution
+}
+
+/// `solve` for a problem whose size (largest of `r` and the coordinates of `w`) is within 1e±100 of 1, where
+/// the squares of the distance and of everything down to its rounding level neither overflow nor underflow.
+fn solve_in_range(n: &Vector3<f64>, r: f64, d: &Vector3<f64>, w: &Vector3<f64>, magnitude: f64) -> Solution {
+    let beta = n.dot(d);
+    // n × d = n × (d ∓ n), taking the sign of β. fl(n × d) has an absolute error of O(ε), so when d is
+    // nearly ±n its direction is rounding noise: u then leaves the circle's plane and, worse, tilts toward d,
+    // mixing the line-parallel part of w (possibly far larger than the scale) into the projected coordinates.
+    // d ∓ n is rounded only relative to itself and at least 45° from n (cos² = (1 - |β|) / 2), so its cross
+    // product with n, and u, are accurate to a few ε in direction however close d is to ±n.
+    let cross = n.cross(&(d - n * 1f64.copysign(beta)));
+    // Below this |n × d| ≤ 1e-100, so any in-plane u is perpendicular to d to far below rounding.
     let u = if cross.norm_squared() > 1e-200 {
         cross
     } else {
         perpendicular(n)
-    };
-    // fl(n × d) carries an O(ε) component along n that normalisation magnifies by 1/|n × d| when n is nearly
-    // parallel to d; removing it keeps the circle points in the circle's plane. The remaining in-plane error
-    // only tilts u toward d by O(ε), which the projection tolerates.
-    let u = (u - n * u.dot(&n)).normalize();
+    }
+    .normalize();
     let v = n.cross(&u);
     let e2 = d.cross(&u);
-    let beta = n.dot(d);
     let (p1, p2) = (w.dot(&u), w.dot(&e2));
-    // Below this a projected coordinate is indistinguishable from zero.
-    let tol = ROUNDING * (r + w.amax());
+    // Below this a projected coordinate is indistinguishable from zero, given the rounding of the projection
+    // and of the coordinates w came from.
+    let tol = ROUNDING * (r + w.amax()) + COORDINATE_ROUNDING * magnitude;
     // |β| within rounding of 0 is a flat ellipse (line parallel to the plane) and of 1 a circle.
     let k = if beta.abs() <= ROUNDING {
         0.0
@@ -229,16 +261,14 @@ fn solve(n: &Vector3<f64>, r: f64, d: &Vector3<f64>, w: &Vector3<f64>) -> Soluti
     }
 
     let (y0, y1) = (p1.abs(), p2.abs());
-    let inverse_r = 1.0 / r;
-    let (c, s, count) = closest_on_ellipse(k, y0 * inverse_r, if y1 <= tol { 0.0 } else { y1 * inverse_r });
+    let (c, s, count) = closest_on_ellipse(r, k, y0, if y1 <= tol { 0.0 } else { y1 });
     // Undo the reflection into the first quadrant; the second coordinate of the ellipse carries sign(β).
     let cos = c.copysign(p1);
     let sin = if (p2 < 0.0) != (beta < 0.0) { -s } else { s };
     Solution {
         u,
         v,
-        // Plain sqrt rather than hypot (a sixth of the query's cost): the squares only overflow for
-        // coordinates beyond 1e150.
+        // Plain sqrt rather than hypot (a sixth of the query's cost): `solve` keeps the squares in range.
         distance: ((r * c - y0).powi(2) + (r * k * s - y1).powi(2)).sqrt(),
         count,
         angles: [(cos, sin), (cos, if count == 2 { -sin } else { sin })],
@@ -246,12 +276,13 @@ fn solve(n: &Vector3<f64>, r: f64, d: &Vector3<f64>, w: &Vector3<f64>) -> Soluti
     }
 }
 
-/// Closest point `(c, k s)` of the ellipse with semi-axes `1 ≥ k ≥ 0` to the query `(y0, y1)`, both
-/// non-negative, as `(c, s)` on the unit circle with the number of mirrored minimisers `(c, ±s)`.
+/// Closest point `(r c, r k s)` of the ellipse with semi-axes `r ≥ r k` (`1 ≥ k ≥ 0`) to the query
+/// `(y0, y1)`, both non-negative, as `(c, s)` on the unit circle with the number of mirrored minimisers
+/// `(c, ±s)`. The query is not divided by `r`, which would overflow for a radius far below the query's size.
 #[inline]
-fn closest_on_ellipse(k: f64, y0: f64, y1: f64) -> (f64, f64, usize) {
-    // 1 - k² without cancellation when k is close to 1.
-    let e = (1.0 - k) * (1.0 + k);
+fn closest_on_ellipse(r: f64, k: f64, y0: f64, y1: f64) -> (f64, f64, usize) {
+    // r (1 - k²), without cancellation when k is close to 1.
+    let e = r * ((1.0 - k) * (1.0 + k));
     if y1 == 0.0 || k == 0.0 {
         // On the major axis (or any query to a flat ellipse): inside the evolute's cusp at x = e the normal foot
         // leaves the vertex and splits into a mirrored pair.
@@ -265,18 +296,19 @@ fn closest_on_ellipse(k: f64, y0: f64, y1: f64) -> (f64, f64, usize) {
         // On the minor axis the co-vertex is always closest, since b ≤ a.
         return (0.0, 1.0, 1);
     }
-    let (c, s) = halley(k, e, y0, y1);
+    let (c, s) = halley(e, y0, k * y1);
     (c, s, 1)
 }
 
-/// The root in (0, π/2) of `g = s (y0 - e c) - k y1 c`, negative at 0 and positive at π/2, by Halley steps
-/// (g'' costs a few multiplications more than g') kept inside a shrinking bracket, bisecting whenever a step
-/// would leave it. From the bracket's midpoint typical queries take three or four steps.
+/// The root in (0, π/2) of `g = s (y0 - e c) - y1 c` (`y1` here standing for the query's `k y1`), negative at 0
+/// and positive at π/2, by Halley steps (g'' costs a few multiplications more than g') kept inside a shrinking
+/// bracket, bisecting whenever a step would leave it. From the bracket's midpoint typical queries take three or
+/// four steps.
 #[inline]
-fn halley(k: f64, e: f64, y0: f64, y1: f64) -> (f64, f64) {
-    // g is linear in (e, y0, k y1); scaling them to sum 1 keeps the squares in the step far from overflow.
-    let m = 1.0 / (e + y0 + k * y1);
-    let (e, y0, y1) = (e * m, y0 * m, k * y1 * m);
+fn halley(e: f64, y0: f64, y1: f64) -> (f64, f64) {
+    // g is linear in (e, y0, y1); scaling them to sum 1 keeps the squares in the step far from overflow.
+    let m = 1.0 / (e + y0 + y1);
+    let (e, y0, y1) = (e * m, y0 * m, y1 * m);
     let mut lo = (1.0, 0.0);
     let mut hi = (0.0, 1.0);
     let (mut c, mut s) = (FRAC_1_SQRT_2, FRAC_1_SQRT_2);
@@ -324,6 +356,21 @@ fn halley(k: f64, e: f64, y0: f64, y1: f64) -> (f64, f64) {
         }
     }
     (c, s)
+}
+
+/// `|v|`, scaling `v` by its largest coordinate when the sum of squares would underflow (losing precision) or
+/// overflow, as nalgebra's `norm` does not.
+fn norm(v: &Vector3<f64>) -> f64 {
+    let squared = v.norm_squared();
+    if (1e-200..=1e200).contains(&squared) {
+        return squared.sqrt();
+    }
+    let largest = v.amax();
+    if largest == 0.0 {
+        0.0
+    } else {
+        (v / largest).norm() * largest
+    }
 }
 
 #[inline]
@@ -716,6 +763,88 @@ mod tests {
         }
     }
 
+    /// The rounding of the inputs' own coordinates, which moves the answer by a few ε of their magnitude
+    /// whatever the scale (as in the Python suite's tolerance).
+    fn input_rounding(circle: &Circle, line: &Line) -> f64 {
+        8.0 * EPS * (circle.center.norm().max(line.point.norm()) + circle.radius)
+    }
+
+    /// Line direction equal to the normal up to rounding or to a small tilt, normals near a coordinate axis
+    /// (found by the Python suite): fl(n × d) was rounding noise, so the frame left the circle's plane and tilted
+    /// toward the line, moving the circle points off the plane and the distance by a fraction of the scale.
+    #[test]
+    fn line_nearly_parallel_to_the_normal() {
+        let v = |x, y, z| V::new(x, y, z);
+        // Circle points 1.1e-11, 8.4e-10 and 2.2e-12 off the plane (radius 1; the second is the axis).
+        let cases = [
+            (
+                v(1.465934043551448e-05, 0.9999999998925518, 1.0744816147933989e-10),
+                v(-0.9999999997851037, 1.465934043551448e-05, -1.465934043551448e-05),
+                v(2.915357960347044e-05, 1.9887374693686057, 2.136861847716919e-10),
+            ),
+            (
+                v(7.775179140127354e-11, 1.117682001393307e-10, -0.0009999999999999907),
+                V::zeros(),
+                v(1.5550358280254707e-07, 2.235364002786614e-07, -1.9999999999999813),
+            ),
+            (
+                v(5.135579277246771e-05, 9.950184849665618e-05, -0.9999999937309825),
+                V::zeros(),
+                v(0.0007847304159295114, 0.0015204151808634282, -15.280270611083305),
+            ),
+        ];
+        for (normal, point, direction) in cases {
+            let (c, l) = (circle(V::zeros(), normal, 1.0), line(point, direction));
+            check_against(&c, &l, (&c, &l), input_rounding(&c, &l));
+        }
+
+        // The axis, given through a normal with a 1e-32 component: not recognised as equidistant, at distance
+        // 0.99999999999932.
+        let normal = v(0.00012600806401593902, 4.173049432566246e-32, -0.9999999920609839);
+        let axis = line(normal, v(0.0019254373294128571, 6.376532500278581e-31, -15.280270585565274));
+        let result = check(&circle(V::zeros(), normal, 1.0), &axis);
+        assert!(result.equidistant, "{result:?}");
+        assert!((result.distance - 1.0).abs() <= 1e-15, "{result:?}");
+
+        // Radius 0 with directions equal up to an ulp and 1e-69 or 1e-39 x components: distances 2.3% and 2e-7
+        // off, disagreeing with the returned points.
+        for (normal, point, direction, expected) in [
+            (
+                v(1.3750669035920504e-69, 6.216527089015008e-08, 0.9999999999999981),
+                v(0.0, 0.0, 1.0),
+                v(1.463751099515076e-69, 6.617458639969246e-08, 1.0644944589178573),
+                6.216527089015006e-08,
+            ),
+            (
+                v(8.540973236015979e-39, 1.9561755098827145e-05, 0.9258185579077083),
+                v(0.0, 0.0, 1.94911792695584),
+                v(6.1841935151886e-39, 1.416392203616174e-05, 0.6703499664313196),
+                4.118319643915983e-05,
+            ),
+        ] {
+            let (c, l) = (circle(V::zeros(), normal, 0.0), line(point, direction));
+            let result = check_against(&c, &l, (&c, &l), input_rounding(&c, &l));
+            assert!(result.equidistant, "{result:?}");
+            assert!((result.distance - expected).abs() <= input_rounding(&c, &l), "{result:?}");
+        }
+    }
+
+    /// An axis line given by a point in coordinates much larger than the scene (found by the Python suite:
+    /// centre (0, 8, 0), radius 0.125, line point 0.03 from it): rounding that point moves the line off the axis
+    /// by about ε times its coordinates, which the equidistance test must accept.
+    #[test]
+    fn axis_through_a_rounded_point_far_from_the_origin() {
+        let mut rng = StdRng::seed_from_u64(10);
+        for _ in 0..2000 {
+            let radius = 10f64.powf(rng.random_range(-3.0..1.0));
+            let c = circle(point(&mut rng, 10.0), unit(&mut rng), radius);
+            let along = c.normal * rng.random_range(-0.1..0.1);
+            let axis = line(c.center + along, c.normal * rng.random_range(0.5..2.0));
+            let result = check_against(&c, &axis, (&c, &axis), input_rounding(&c, &axis));
+            assert!(result.equidistant, "{c:?} {axis:?}: {result:?}");
+        }
+    }
+
     #[test]
     fn both_minimisers_realise_the_distance() {
         let mut rng = StdRng::seed_from_u64(4);
@@ -751,6 +880,62 @@ mod tests {
                 let circle = random_circle(&mut rng);
                 let line = line(point(&mut rng, 3.0), unit(&mut rng));
                 check_shifted(&circle, &line, shift);
+            }
+        }
+    }
+
+    /// Scenes scaled by powers of two, which round nothing, down to 1e-301 and up to 1e289: the answer must scale
+    /// with them (found by the Python suite: a point 4.7e-160 from a rotation axis along the line got a distance
+    /// 1e-6 off, its squared radius having underflowed). Also a radius too far below the scene for its inverse.
+    #[test]
+    fn extreme_scales_scale_the_answer() {
+        let y = 4.6547511301852685e-160;
+        let on_axis = line(V::zeros(), V::z());
+        assert_eq!(rotation_toward_line(&on_axis, &V::new(0.0, y, 0.0), &on_axis), (0.0, y));
+
+        let mut rng = StdRng::seed_from_u64(11);
+        let mut scenes: Vec<(Circle, Line)> = (0..200)
+            .map(|_| (random_circle(&mut rng), line(point(&mut rng, 2.0), unit(&mut rng))))
+            .collect();
+        scenes.extend(degenerate_cases(&mut rng).into_iter().map(|(_, c, l, _)| (c, l)));
+        for (c, l) in scenes {
+            let base = circle_line(&c, &l);
+            let axis = line(point(&mut rng, 2.0), unit(&mut rng));
+            let p = point(&mut rng, 2.0);
+            let (base_theta, base_distance) = rotation_toward_line(&axis, &p, &l);
+            for factor in [2f64.powi(-540), 2f64.powi(-1000), 2f64.powi(540), 2f64.powi(960)] {
+                let scaled = |l: &Line| Line {
+                    point: l.point * factor,
+                    ..*l
+                };
+                let result = circle_line(
+                    &Circle {
+                        center: c.center * factor,
+                        radius: c.radius * factor,
+                        ..c
+                    },
+                    &scaled(&l),
+                );
+                let tol = 1e-12 * scale(&c, &l) * factor;
+                assert!(
+                    (result.distance - base.distance * factor).abs() <= tol,
+                    "factor {factor:e}: {result:?} vs {base:?}"
+                );
+                assert_eq!((result.count, result.equidistant), (base.count, base.equidistant));
+                for (x, base_x) in result.circle_points.iter().zip(&base.circle_points) {
+                    assert!((x - base_x * factor).amax() <= tol, "factor {factor:e}: {result:?} vs {base:?}");
+                }
+                let (theta, distance) = rotation_toward_line(&scaled(&axis), &(p * factor), &scaled(&l));
+                assert!((theta - base_theta).abs() <= 1e-12, "factor {factor:e}: {theta} vs {base_theta}");
+                let size = base_distance + (p - axis.point).norm();
+                assert!((distance - base_distance * factor).abs() <= 1e-12 * size * factor);
+            }
+
+            let point_distance = circle_line(&circle(c.center, c.normal, 0.0), &l).distance;
+            for radius in [1e-300, 1e-320] {
+                let result = circle_line(&circle(c.center, c.normal, radius), &l);
+                let tol = radius + 1e-15 * point_distance;
+                assert!((result.distance - point_distance).abs() <= tol, "{result:?}");
             }
         }
     }
@@ -835,6 +1020,24 @@ mod tests {
                 0.0
             );
         }
+    }
+
+    /// `line_nearly_parallel_to_the_normal`'s radius-0 case as a rotation axis: the distance was 6.07e-8 for a
+    /// point on the axis, and for a point at 1 from it θ was 2.3% short, leaving the point 1.4e-9 from the line.
+    #[test]
+    fn rotation_about_an_axis_nearly_parallel_to_the_line() {
+        let direction = V::new(1.3750669035920504e-69, 6.216527089015008e-08, 0.9999999999999981);
+        let target = line(
+            V::new(0.0, 0.0, 1.0),
+            V::new(1.463751099515076e-69, 6.617458639969246e-08, 1.0644944589178573),
+        );
+        let (theta, distance) = rotation_toward_line(&line(V::zeros(), direction), &V::zeros(), &target);
+        assert_eq!(theta, 0.0);
+        assert!((distance - 6.216527089015006e-08).abs() <= 8.0 * EPS, "{distance}");
+
+        let axis = line(V::x(), direction);
+        let theta = check_rotation(&axis, &V::zeros(), &target);
+        assert!((theta - 6.21653e-08).abs() <= 1e-12, "{theta}");
     }
 
     #[test]
