@@ -1,7 +1,8 @@
 """The Python batch call of lk.circle_line over 1M queries against the Rust loop measured by criterion.
 
-Run `cargo bench -p legkit-dynamics --bench circle_line` first to get the Rust figure; this script reads
-criterion's estimate and prints the ratio (target: <= 1.5).
+Run `cargo bench -p legkit-dynamics --bench circle_line` first to get the Rust figures; this script reads
+criterion's estimates and prints the ratios (target: <= 1.5 against the loop that does the same job:
+validate raw inputs, solve, write fresh output arrays).
 """
 
 from __future__ import annotations
@@ -28,13 +29,11 @@ def random_queries(rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
     }
 
 
-def rust_loop_ns() -> float | None:
-    root = pathlib.Path(__file__).resolve().parents[1] / "target" / "criterion"
-    estimates = sorted(root.glob("circle_line*/**/new/estimates.json"))
-    if not estimates:
+def rust_loop_ns(name: str) -> float | None:
+    estimate = pathlib.Path(__file__).resolve().parents[1] / "target" / "criterion" / "circle_line" / name / "new" / "estimates.json"
+    if not estimate.is_file():
         return None
-    median_ns = json.loads(estimates[0].read_text())["median"]["point_estimate"]
-    return median_ns / N
+    return json.loads(estimate.read_text())["median"]["point_estimate"] / N
 
 
 def main() -> None:
@@ -46,11 +45,12 @@ def main() -> None:
         times.append(time.perf_counter() - start)
     python_ns = float(np.median(times)) / N * 1e9
     print(f"lk.circle_line, batch of {N:,}: median {python_ns:.1f} ns per query ({REPEATS} runs)")
-    rust_ns = rust_loop_ns()
-    if rust_ns is None:
-        print("no criterion estimate found: run `cargo bench -p legkit-dynamics --bench circle_line` first")
-    else:
-        print(f"Rust loop (criterion median): {rust_ns:.1f} ns per query; Python/Rust = {python_ns / rust_ns:.2f}")
+    for name, what in (("random_1m_from_raw", "the same job in Rust"), ("random_1m", "the solve alone")):
+        rust_ns = rust_loop_ns(name)
+        if rust_ns is None:
+            print(f"no criterion estimate for {name}: run `cargo bench -p legkit-dynamics --bench circle_line` first")
+        else:
+            print(f"Rust loop, {what} (criterion median): {rust_ns:.1f} ns per query; Python/Rust = {python_ns / rust_ns:.2f}")
 
 
 if __name__ == "__main__":

@@ -1,4 +1,6 @@
-//! Mean cost of one `circle_line` query over a million random configurations.
+//! Mean cost of one `circle_line` query over a million random configurations: the solve alone
+//! (`random_1m`), and the whole job a batch call does (`random_1m_from_raw`: validate raw inputs,
+//! solve, write every result into freshly allocated output arrays), the baseline for the Python batch.
 
 use std::hint::black_box;
 
@@ -39,6 +41,26 @@ fn bench(c: &mut Criterion) {
             for (circle, line) in &queries {
                 black_box(circle_line(black_box(circle), black_box(line)));
             }
+        })
+    });
+    let raw: Vec<[Vector3<f64>; 4]> = queries.iter().map(|(c, l)| [c.center, c.normal * 2.0, l.point, l.direction * 3.0]).collect();
+    let radii: Vec<f64> = queries.iter().map(|(c, _)| c.radius).collect();
+    group.bench_function("random_1m_from_raw", |b| {
+        b.iter(|| {
+            let (mut distance, mut count, mut equidistant) = (vec![0.0; QUERIES], vec![0i64; QUERIES], vec![false; QUERIES]);
+            let (mut circle_points, mut line_points) = (vec![0.0; 6 * QUERIES], vec![0.0; 6 * QUERIES]);
+            for (i, ([center, normal, point, direction], radius)) in raw.iter().zip(&radii).enumerate() {
+                let circle = Circle::new(*center, *normal, *radius).unwrap();
+                let result = circle_line(&circle, &Line::new(*point, *direction).unwrap());
+                distance[i] = result.distance;
+                count[i] = result.count as i64;
+                equidistant[i] = result.equidistant;
+                for k in 0..2 {
+                    circle_points[6 * i + 3 * k..6 * i + 3 * k + 3].copy_from_slice(result.circle_points[k].as_slice());
+                    line_points[6 * i + 3 * k..6 * i + 3 * k + 3].copy_from_slice(result.line_points[k].as_slice());
+                }
+            }
+            black_box((distance, count, equidistant, circle_points, line_points))
         })
     });
     group.finish();
