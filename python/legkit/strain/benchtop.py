@@ -40,17 +40,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from legkit._validation import float_array
 from legkit.robots.rhex import LEG_LENGTH
-
-
-def _finite(name: str, values: object) -> np.ndarray:
-    try:
-        array = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be an array of numbers: {exc}") from exc
-    if not np.all(np.isfinite(array)):
-        raise ValueError(f"{name} contains a non-finite value (NaN or inf)")
-    return array
 
 
 @dataclass(frozen=True)
@@ -95,8 +86,8 @@ class CompliantFourBarLeg:
 
     def deform(self, radial_force: object, hip_torque: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(length m, deflection rad, strain microstrain) under generalised loads (f_r N, tau N m), broadcast."""
-        f_r = _finite("radial_force", radial_force)
-        tau = _finite("hip_torque", hip_torque)
+        f_r = float_array(radial_force, "radial_force")
+        tau = float_array(hip_torque, "hip_torque")
         phi = (self.linkage_compression * f_r + self.linkage_deflection * tau) / self.linkage_stiffness
         compression = self.linkage_compression * phi + f_r / self.axial_stiffness
         deflection = self.linkage_deflection * phi + tau / self.clamp_stiffness
@@ -107,8 +98,8 @@ class CompliantFourBarLeg:
 
         Inverts the compliance: (f_r, tau) = C^-1 (L0 - l, d), then sigma = g (a_r f_r + a_d tau) / k_link.
         """
-        compression = self.nominal_length - _finite("length", length)
-        d = _finite("deflection", deflection)
+        compression = self.nominal_length - float_array(length, "length")
+        d = float_array(deflection, "deflection")
         stiffness = np.linalg.inv(self.compliance())
         f_r = stiffness[0, 0] * compression + stiffness[0, 1] * d
         tau = stiffness[1, 0] * compression + stiffness[1, 1] * d
@@ -129,16 +120,16 @@ def leg_frame_loads(
 
     f_r = F_n cos a + F_t sin a (toward the hip), f_t = F_n sin a - F_t cos a, tau = f_t L0.
     """
-    f_n = _finite("normal_force", normal_force)
-    f_t = _finite("tangential_force", tangential_force)
-    angle = _finite("leg_angle", leg_angle)
+    f_n = float_array(normal_force, "normal_force")
+    f_t = float_array(tangential_force, "tangential_force")
+    angle = float_array(leg_angle, "leg_angle")
     c, s = np.cos(angle), np.sin(angle)
     return f_n * c + f_t * s, (f_n * s - f_t * c) * nominal_length
 
 
 def quantize(signal: object, bits: int, full_scale: tuple[float, float]) -> np.ndarray:
     """An n-bit ADC: clip to full_scale = (low, high) and round to the nearest of 2**bits evenly spaced levels."""
-    values = _finite("signal", signal)
+    values = float_array(signal, "signal")
     if isinstance(bits, bool) or not isinstance(bits, (int, np.integer)) or not 1 <= bits <= 32:
         raise ValueError(f"bits must be an integer between 1 and 32, got {bits!r}")
     low, high = float(full_scale[0]), float(full_scale[1])
@@ -166,7 +157,7 @@ class StrainSensor:
 
     def measure(self, strain: object, rng: np.random.Generator) -> np.ndarray:
         """Noisy, quantised readings of the true strain (any shape)."""
-        true = _finite("strain", strain)
+        true = float_array(strain, "strain")
         return quantize(true + self.noise_std * rng.standard_normal(true.shape), self.bits, self.full_scale)
 
 
@@ -218,9 +209,9 @@ def synthetic_benchtop(
     theta, f_n, f_t = (
         grid.ravel()
         for grid in np.meshgrid(
-            _finite("sweep.hip_angles", sweep.hip_angles),
-            _finite("sweep.normal_forces", sweep.normal_forces),
-            _finite("sweep.tangential_forces", sweep.tangential_forces),
+            float_array(sweep.hip_angles, "sweep.hip_angles"),
+            float_array(sweep.normal_forces, "sweep.normal_forces"),
+            float_array(sweep.tangential_forces, "sweep.tangential_forces"),
             indexing="ij",
         )
     )
@@ -242,8 +233,8 @@ def synthetic_benchtop(
 
 def physically_relevant(normal_force: object, tangential_force: object, mu: float = 0.5) -> np.ndarray:
     """Boolean mask of loads the ground can apply: F_n > 0 and |F_t| < mu F_n (Coulomb friction, mu >= 0)."""
-    f_n = _finite("normal_force", normal_force)
-    f_t = _finite("tangential_force", tangential_force)
+    f_n = float_array(normal_force, "normal_force")
+    f_t = float_array(tangential_force, "tangential_force")
     if f_n.shape != f_t.shape:
         raise ValueError(f"normal_force and tangential_force must have the same shape, got {f_n.shape} and {f_t.shape}")
     if not (np.isfinite(mu) and mu >= 0):
@@ -263,7 +254,7 @@ def average_by_group(groups: object, *values: object) -> tuple[np.ndarray, list[
     counts = np.bincount(inverse)
     means = []
     for k, value in enumerate(values):
-        array = _finite(f"values[{k}]", value)
+        array = float_array(value, f"values[{k}]")
         if array.shape != ids.shape:
             raise ValueError(f"values[{k}] must have the shape of groups {ids.shape}, got {array.shape}")
         means.append(np.bincount(inverse, weights=array) / counts)
@@ -272,8 +263,8 @@ def average_by_group(groups: object, *values: object) -> tuple[np.ndarray, list[
 
 def configuration_cells(length: object, deflection: object, bins: tuple[int, int]) -> np.ndarray:
     """Cell id of each sample on a regular bins[0] x bins[1] grid over the (length, deflection) bounding box."""
-    ell = _finite("length", length)
-    d = _finite("deflection", deflection)
+    ell = float_array(length, "length")
+    d = float_array(deflection, "deflection")
     if ell.shape != d.shape or ell.ndim != 1:
         raise ValueError(f"length and deflection must be 1-D of equal length, got {ell.shape} and {d.shape}")
     n_l, n_d = int(bins[0]), int(bins[1])

@@ -31,20 +31,12 @@ from itertools import combinations
 
 import numpy as np
 
+from legkit._validation import float_array
+
 from legkit.robots.rhex import HIP_POSITIONS
 
 # Relative size below which three toes are treated as collinear: |cross| <= tol * (longest edge)^2.
 COLLINEAR_TOLERANCE = 1e-9
-
-
-def _float_array(name: str, values: object) -> np.ndarray:
-    try:
-        array = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be an array of numbers: {exc}") from exc
-    if not np.all(np.isfinite(array)):
-        raise ValueError(f"{name} contains a non-finite value (NaN or inf)")
-    return array
 
 
 def _leg_indices(leg_index: object) -> np.ndarray:
@@ -76,7 +68,7 @@ def hip_to_body(theta: object, leg_index: object) -> np.ndarray:
     Returns:
         (..., 4, 4) with R = Ry(theta) and t the hip position.
     """
-    angle = _float_array("theta", theta)
+    angle = float_array(theta, "theta")
     index = _leg_indices(leg_index)
     angle, index = np.broadcast_arrays(angle, index)
     transform = np.zeros(angle.shape + (4, 4))
@@ -88,8 +80,8 @@ def hip_to_body(theta: object, leg_index: object) -> np.ndarray:
 
 def toe_in_leg(length: object, deflection: object) -> np.ndarray:
     """Toe position (..., 3) in the leg frame for leg length (m) and deflection (rad): (-l sin d, 0, -l cos d)."""
-    ell = _float_array("length", length)
-    d = _float_array("deflection", deflection)
+    ell = float_array(length, "length")
+    d = float_array(deflection, "deflection")
     ell, d = np.broadcast_arrays(ell, d)
     return np.stack([-ell * np.sin(d), np.zeros_like(ell), -ell * np.cos(d)], -1)
 
@@ -99,9 +91,9 @@ def toe_in_body(theta: object, length: object, deflection: object, leg_index: ob
 
     Equivalent to hip_i + Ry(theta + d) (0, 0, -l); all arguments broadcast together.
     """
-    angle = _float_array("theta", theta)
-    d = _float_array("deflection", deflection)
-    ell = _float_array("length", length)
+    angle = float_array(theta, "theta")
+    d = float_array(deflection, "deflection")
+    ell = float_array(length, "length")
     index = _leg_indices(leg_index)
     total = angle + d
     hip = HIP_POSITIONS[index]
@@ -138,7 +130,7 @@ class TripodPose:
 
 
 def _check_toes(toes: object, minimum: int, exact: bool = False) -> np.ndarray:
-    points = _float_array("toes", toes)
+    points = float_array(toes, "toes")
     count_ok = points.ndim >= 2 and (points.shape[-2] == minimum if exact else points.shape[-2] >= minimum)
     if not count_ok or points.shape[-1] != 3:
         wanted = f"{minimum}" if exact else f"at least {minimum}"
@@ -193,7 +185,7 @@ def tripod_pose(toes: object) -> TripodPose:
 
 def euler_zyx(roll: object, pitch: object, yaw: object) -> np.ndarray:
     """Rotation Rz(yaw) Ry(pitch) Rx(roll), (..., 3, 3), the convention of ``tripod_pose``'s angles."""
-    r, p, y = (_float_array(name, v) for name, v in (("roll", roll), ("pitch", pitch), ("yaw", yaw)))
+    r, p, y = (float_array(v, name) for name, v in (("roll", roll), ("pitch", pitch), ("yaw", yaw)))
     r, p, y = np.broadcast_arrays(r, p, y)
     cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
     return np.stack(
@@ -241,7 +233,7 @@ def stance_intervals(rho: object, threshold: float, min_length: int = 1) -> np.n
         threshold: samples with rho <= threshold count as support.
         min_length: runs shorter than this many samples are dropped (debouncing).
     """
-    signal = _float_array("rho", rho)
+    signal = float_array(rho, "rho")
     if signal.ndim != 1:
         raise ValueError(f"rho must be one-dimensional, got shape {signal.shape}")
     if not np.isfinite(threshold):
