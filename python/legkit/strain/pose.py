@@ -32,7 +32,6 @@ from itertools import combinations
 import numpy as np
 
 from legkit._validation import float_array
-
 from legkit.robots.rhex import HIP_POSITIONS
 
 # Relative size below which three toes are treated as collinear: |cross| <= tol * (longest edge)^2.
