@@ -6,7 +6,7 @@ import csv
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 import legkit as lk
@@ -89,6 +89,7 @@ def test_quadruped_leg_ik_reaches_the_target(leg, dx, dy, depth):
 def test_biped_leg_ik_reaches_the_target_with_a_flat_foot(side, dx, dy, depth):
     robot = build_biped()
     target = np.array([dx, (robot.parameters.hip_y if side == "l" else -robot.parameters.hip_y) + dy, -depth])
+    assume(np.linalg.norm([dx, dy, depth]) < 0.999 * (robot.parameters.thigh_length + robot.parameters.shank_length))
     q = robot.model.neutral()
     cols = robot.joint_slice(side)
     q[cols.start + 1 : cols.stop + 1] = robot.leg_angles(side, target)

@@ -26,6 +26,7 @@ from legkit.stability.friction import foot_torque_margin, friction_cone_margin
 from legkit.stability.simulated import ground_contact_wrench, simulated_center_of_pressure
 from legkit.stability.support import (
     SupportEdges,
+    distinct_contact_count,
     polygon_margin,
     static_stability_margin,
     support_edges,
@@ -41,6 +42,7 @@ __all__ = [
     "support_edges",
     "support_polygon",
     "support_polygon_centroid",
+    "distinct_contact_count",
     "static_stability_margin",
     "polygon_margin",
     "zmp",

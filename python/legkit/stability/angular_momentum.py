@@ -71,7 +71,8 @@ def angular_momentum_stability(
     com: (..., 3) [m]; linear_momentum: (..., 3) [kg m/s]; angular_momentum: (..., 3) about the COM
     [N m s] (both as `lk.centroidal_momentum`); inertia: (..., 3, 3) about the COM, world frame [kg m^2];
     mass [kg]; contact_points: (..., k, 3) with optional active (..., k) bool (at least two distinct active
-    contacts per sample: an edge to tip about); swing_tips: optional (..., s, 3) tips of legs in the air with
+    contacts per sample, an edge to tip about: contacts closer than the support tolerance merge, see
+    `legkit.stability.support` and `distinct_contact_count`); swing_tips: optional (..., s, 3) tips of legs in the air with
     optional swing_active (..., s) bool, which make the edges they lie beyond "diagonal"; v_tip_max [m/s]
     is required with swing_tips; gravity: magnitude [m/s^2] of a gravity pointing along -z.
     """

@@ -26,7 +26,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import linprog
+from scipy.optimize import OptimizeResult, linprog
 
 from legkit.stability._validation import float_array, friction_coefficient, positive_scalar, unit_vectors
 from legkit.stability.support import convex_hull_2d, polygon_margin
@@ -88,23 +88,25 @@ class _EquilibriumLP:
         centre = points[:, :2].mean(axis=0)
         self.bounds = [(None, None)] * (3 * k) + [(centre[0] - bound, centre[0] + bound), (centre[1] - bound, centre[1] + bound)]
 
+    def _solve(self, cost: np.ndarray, bounds: list) -> OptimizeResult:
+        """HiGHS' dual simplex, then its interior-point method when the simplex ends without a verdict
+        (it occasionally stops with an unknown model status on these small, degenerate LPs)."""
+        for method in ("highs-ds", "highs-ipm"):
+            result = linprog(cost, A_ub=self.a_ub, b_ub=self.b_ub, A_eq=self.a_eq, b_eq=self.b_eq, bounds=bounds, method=method)
+            if result.status in (0, 2):
+                return result
+        raise RuntimeError(f"HiGHS failed on the equilibrium LP: {result.message}")
+
     def support(self, direction: np.ndarray) -> np.ndarray | None:
         """The COM ground point maximising direction . c, or None when no equilibrium exists at all."""
         cost = np.zeros(3 * self.k + 2)
         cost[-2:] = -direction
-        result = linprog(cost, A_ub=self.a_ub, b_ub=self.b_ub, A_eq=self.a_eq, b_eq=self.b_eq, bounds=self.bounds, method="highs")
-        if result.status == 2:
-            return None
-        if result.status != 0:
-            raise RuntimeError(f"HiGHS failed on the equilibrium LP: {result.message}")
-        return result.x[-2:]
+        result = self._solve(cost, self.bounds)
+        return None if result.status == 2 else result.x[-2:]
 
     def feasible_at(self, com_xy: np.ndarray) -> bool:
         bounds = self.bounds[:-2] + [(com_xy[0], com_xy[0]), (com_xy[1], com_xy[1])]
-        result = linprog(np.zeros(3 * self.k + 2), A_ub=self.a_ub, b_ub=self.b_ub, A_eq=self.a_eq, b_eq=self.b_eq, bounds=bounds, method="highs")
-        if result.status not in (0, 2):
-            raise RuntimeError(f"HiGHS failed on the equilibrium LP: {result.message}")
-        return result.status == 0
+        return self._solve(np.zeros(3 * self.k + 2), bounds).status == 0
 
 
 def _check(contacts, mu, cone_sides) -> tuple[np.ndarray, np.ndarray, float, int]:
@@ -144,13 +146,13 @@ def static_equilibrium_region(
         if point is None:
             return np.zeros((0, 2))
         found.append(point)
-    polygon = _hull(np.array(found), tol)
+    polygon = convex_hull_2d(np.array(found), tol)
     confirmed: set[tuple[tuple[float, float], tuple[float, float]]] = set()
     while True:
         if len(polygon) < 3:
             # A point or segment so far: probe both normals of the segment (and its direction) once.
             extra = _probe_degenerate(lp, polygon)
-            merged = _hull(np.vstack([polygon, extra]), tol)
+            merged = convex_hull_2d(np.vstack([polygon, extra]), tol)
             if len(merged) == len(polygon):
                 return polygon
             polygon = merged
@@ -164,7 +166,7 @@ def static_equilibrium_region(
             normal = np.array([edge[1], -edge[0]]) / np.linalg.norm(edge)
             point = lp.support(normal)
             if point is not None and normal @ (point - a) > tol:
-                polygon = _hull(np.vstack([polygon, point]), tol)
+                polygon = convex_hull_2d(np.vstack([polygon, point]), tol)
                 grew = True
                 break
             confirmed.add(key)
@@ -180,16 +182,6 @@ def _probe_degenerate(lp: _EquilibriumLP, polygon: np.ndarray) -> np.ndarray:
     else:
         directions = [np.array([1.0, 0.0]), np.array([0.0, 1.0]), np.array([-1.0, 0.0]), np.array([0.0, -1.0])]
     return np.array([p for p in (lp.support(d) for d in directions) if p is not None]).reshape(-1, 2)
-
-
-def _hull(points: np.ndarray, tol: float) -> np.ndarray:
-    """CCW hull of points, merging points closer than tol (LP optima repeat up to solver precision)."""
-    distinct: list[np.ndarray] = []
-    for p in points:
-        if all(np.linalg.norm(p - q) > tol for q in distinct):
-            distinct.append(p)
-    ordered = np.array(sorted(distinct, key=lambda p: (p[0], p[1])))
-    return ordered if len(ordered) <= 2 else convex_hull_2d(ordered)
 
 
 def is_statically_stable(

@@ -3,9 +3,15 @@
 The support polygon is the convex hull of the ground projections (x, y) of the contact points; z is up.
 Everything here is vectorised over leading sample dimensions: `contact_points` has shape (..., k, 3) and an
 optional boolean `active` (..., k) selects the contacts touching the ground at each sample, so a gait whose
-support set changes over time is one array call. For k contacts the hull edges are found by testing all
-k (k - 1) ordered pairs at once (an ordered pair i -> j is a counter-clockwise hull edge when no active
-point lies strictly to its right), which is exact, loop-free and cheap for the handful of feet a robot has.
+support set changes over time is one array call. Contacts closer than a tolerance tau (SUPPORT_TOLERANCE times
+the support's diameter plus the rounding level of the coordinates plus 1e-13 m, see below) are merged first, so results do
+not change when the scene is rotated or translated, and change continuously as contacts come together. For k contacts the
+hull edges are found by testing all k (k - 1) ordered pairs at once: an ordered pair i -> j of distinct
+contacts is a counter-clockwise hull edge when every other contact lies strictly to its left or on the
+segment i-j itself (not on its extension), which is loop-free and cheap for the handful of feet a robot has.
+Degenerate supports: when all contacts merge into one, the support is a point and has no edges; when they
+are collinear it is a segment, whose two edges are the segment between the extreme contacts traversed both
+ways (both sides of the line are outside).
 """
 
 from __future__ import annotations
@@ -17,9 +23,24 @@ import numpy.typing as npt
 
 from legkit.stability._validation import bool_mask, float_array
 
-# Relative tolerance of the hull test: a point counts as "on the left" of an edge unless it lies to the right
-# by more than this fraction of (edge length x scene extent), so collinear contacts do not flicker.
-_HULL_TOLERANCE = 1e-10
+# One tolerance tau, a distance [m] per sample, decides both which contacts are distinct and which are collinear:
+#     tau = SUPPORT_TOLERANCE * D + _ROUNDING * M + _ABSOLUTE_TOLERANCE,
+# D the support's diameter (largest distance between two active contacts' ground projections), M the largest
+# |x| or |y| of the active contacts (so _ROUNDING * M is the rounding level of the coordinates: a rotation or
+# translation of the scene moves them by a few eps * M), and an absolute floor of 1e-13 m, far below any
+# physical contact spacing, so that a support of sub-atomic size is a point (its squared lengths would
+# otherwise underflow).
+# * Two active contacts closer than tau are one contact; the lowest-index member of each cluster is kept.
+#   Without this, a pair a rounding error apart spans a hull "edge" whose direction is pure noise and changes
+#   when the scene is rotated or translated.
+# * A contact within tau of the line through two others lies on it, the distance being measured as the height
+#   of their triangle over its longest side (symmetric in the three points, so the three edges of the triangle
+#   agree, and well-conditioned even when two of the points are close): collinear contacts make one edge
+#   between the extreme ones, never sub-edges.
+# tau is kept near rounding level so that the polygon, and the margins measured to it, stay exact to ~1e-12 m.
+SUPPORT_TOLERANCE = 1e-13
+_ROUNDING = 64.0 * np.finfo(np.float64).eps
+_ABSOLUTE_TOLERANCE = 1e-13  # [m]
 
 
 @dataclass(frozen=True)
@@ -27,8 +48,9 @@ class SupportEdges:
     """Counter-clockwise support-polygon edges of every sample, one slot per ordered contact pair.
 
     start, end: (..., E, 2) edge end points in the ground plane, E = k (k - 1);
-    valid: (..., E) whether the slot is a hull edge at that sample (for a two-contact support both
-    directions of the segment are edges, i.e. both sides of the line are "outside");
+    valid: (..., E) whether the slot is a hull edge at that sample, after merging near-coincident contacts
+    (module docstring); collinear contacts give one edge between the extreme ones; for a segment support
+    both directions of the segment are edges (both sides of the line are "outside"), a point support has none;
     start_index, end_index: (E,) contact indices of each slot.
     """
 
@@ -65,7 +87,7 @@ class _Hull:
 
     x: np.ndarray  # (k, T) contact ground coordinates
     y: np.ndarray
-    mask: np.ndarray  # (k, T)
+    mask: np.ndarray  # (k, T) active contacts left after merging near-coincident ones
     start_index: np.ndarray  # (E,)
     end_index: np.ndarray
     sx: np.ndarray  # (E, T) edge start
@@ -80,28 +102,56 @@ class _Hull:
         return np.any(self.valid, axis=0)
 
 
-def _hull(x: np.ndarray, y: np.ndarray, mask: np.ndarray) -> _Hull:
-    """Ordered pairs i -> j of the active contacts (k, T) that are CCW hull edges (module docstring).
+def _distinct(
+    x: np.ndarray, y: np.ndarray, mask: np.ndarray, tolerance: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Merge near-coincident active contacts (k, T) (see SUPPORT_TOLERANCE, or closer than an explicit
+    `tolerance` [m]): returns the (k, T) mask of the contacts kept (the lowest-index member of every cluster)
+    and the (T,) tolerance tau [m]."""
+    k = x.shape[0]
+    distance = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])  # (k, k, T)
+    both = mask[:, None] & mask[None, :]
+    diameter = np.max(np.where(both, distance, 0.0), axis=(0, 1))
+    magnitude = np.max(np.where(mask, np.maximum(np.abs(x), np.abs(y)), 0.0), axis=0)
+    if tolerance is None:
+        tolerance = SUPPORT_TOLERANCE * diameter + _ROUNDING * magnitude + _ABSOLUTE_TOLERANCE
+    else:
+        tolerance = np.full(diameter.shape, tolerance)
+    kept = mask.copy()
+    for later in range(1, k):  # greedy in index order: k is the number of feet, vectorised over samples
+        near = kept[:later] & (distance[:later, later] <= tolerance)
+        kept[later] &= ~np.any(near, axis=0)
+    return kept, tolerance
+
+
+def _hull(x: np.ndarray, y: np.ndarray, mask: np.ndarray, tolerance: float | None = None) -> _Hull:
+    """Ordered pairs i -> j of the merged active contacts (k, T) that are CCW hull edges (module docstring).
 
     The side test runs once per unordered pair: j -> i sees every point on the opposite side of i -> j
-    (cross products negate), so both directions come from one pass."""
+    (cross products negate), so both directions come from one pass. `tolerance` [m] replaces tau if given."""
+    kept, tolerance = _distinct(x, y, mask, tolerance)
     k = x.shape[0]
     a, b = np.triu_indices(k, 1)
     sx, sy = x[a], y[a]
     dx, dy = x[b] - sx, y[b] - sy
-    length = np.sqrt(dx * dx + dy * dy)
-    extent = np.sqrt(np.max((x - x[:1]) ** 2 + (y - y[:1]) ** 2, axis=0))
-    tolerance = _HULL_TOLERANCE * length * (extent + 1e-300)
-    both = mask[a] & mask[b] & (length > tolerance + 1e-300)
+    length_sq = dx * dx + dy * dy  # the end point's own `along` below, bit for bit
+    length = np.sqrt(length_sq)
+    both = kept[a] & kept[b]
     forward, backward = both.copy(), both
     for other in range(k):  # k is the number of feet: a handful; the work is vectorised over pairs and samples
-        cross = dx * (y[other] - sy) - dy * (x[other] - sx)
-        ignored = ~mask[other]
-        forward &= (cross >= -tolerance) | ignored
-        backward &= (cross <= tolerance) | ignored
+        rx, ry = x[other] - sx, y[other] - sy
+        cross = dx * ry - dy * rx
+        # Height of the triangle (start, end, other) over its longest side: the same for all three of its edges.
+        longest = np.maximum(length, np.maximum(np.hypot(rx, ry), np.hypot(x[other] - x[b], y[other] - y[b])))
+        band = tolerance * longest
+        along = dx * rx + dy * ry
+        on_segment = (np.abs(cross) <= band) & (along >= 0.0) & (along <= length_sq)
+        free = on_segment | ~kept[other]  # the end points themselves are on the segment
+        forward &= (cross > band) | free
+        backward &= (cross < -band) | free
     i, j = np.concatenate([a, b]), np.concatenate([b, a])
     return _Hull(
-        x, y, mask, i, j,
+        x, y, kept, i, j,
         np.concatenate([sx, x[b]]), np.concatenate([sy, y[b]]), np.concatenate([dx, -dx]), np.concatenate([dy, -dy]),
         np.concatenate([length, length]), np.concatenate([forward, backward]),
     )
@@ -172,37 +222,55 @@ def static_stability_margin(
 
 
 def support_polygon(contact_points: npt.ArrayLike, active: npt.ArrayLike | None = None) -> np.ndarray:
-    """Counter-clockwise vertices (m, 2) of the support polygon of one sample.
+    """Counter-clockwise vertices (m, 2) [m] of the support polygon of one sample, starting at the lowest-x
+    (then lowest-y) vertex.
 
-    contact_points: (k, 3) world positions [m]; active: optional (k,) bool. Andrew's monotone chain keeps only
-    strict corners, so collinear contacts give the two end points (m = 2) and coincident ones a single point.
+    contact_points: (k, 3) world positions [m]; active: optional (k,) bool. Built from the same merged contacts
+    and hull edges as `support_edges` (module docstring): only strict corners are vertices, so collinear
+    contacts give the two end points (m = 2) and contacts that all merge give a single point (m = 1).
     """
     points, mask = _contacts(contact_points, active)
     if points.ndim != 2:
         raise ValueError(f"contact_points must be (k, 3) for one sample, got shape {points.shape}")
-    xy = np.unique(points[mask][:, :2], axis=0)  # sorted by x then y, as the monotone chain needs
-    if len(xy) <= 2:
-        return xy
-    return convex_hull_2d(xy)
+    x, y, flat_mask, _ = _flatten(points, mask)
+    return _polygon(_hull(x, y, flat_mask))
 
 
-def convex_hull_2d(xy: np.ndarray) -> np.ndarray:
-    """CCW hull of distinct 2-D points sorted lexicographically (Andrew's monotone chain), strict corners only."""
-    scale = float(np.max(np.abs(xy - xy[0]))) or 1.0
+def _polygon(hull: _Hull) -> np.ndarray:
+    """CCW vertices (m, 2) of the hull of the first sample, from the lowest-x (then lowest-y) vertex."""
+    if not hull.any_edge[0]:
+        first = int(np.argmax(hull.mask[:, 0]))
+        return np.array([[hull.x[first, 0], hull.y[first, 0]]])
+    corners = np.unique(hull.start_index[hull.valid[:, 0]])
+    xy = np.column_stack([hull.x[corners, 0], hull.y[corners, 0]])
+    if len(xy) == 2:
+        return xy[np.lexsort((xy[:, 1], xy[:, 0]))]
+    # The corners of a convex polygon, sorted by angle about their mean, are in counter-clockwise order.
+    centre = xy.mean(axis=0)
+    ccw = xy[np.argsort(np.arctan2(xy[:, 1] - centre[1], xy[:, 0] - centre[0]))]
+    return np.roll(ccw, -int(np.lexsort((ccw[:, 1], ccw[:, 0]))[0]), axis=0)
 
-    def half(sequence: np.ndarray) -> list[np.ndarray]:
-        chain: list[np.ndarray] = []
-        for p in sequence:
-            while len(chain) >= 2:
-                a, b = chain[-2], chain[-1]
-                if (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]) > 1e-12 * scale * scale:
-                    break
-                chain.pop()
-            chain.append(p)
-        return chain
 
-    lower, upper = half(xy), half(xy[::-1])
-    return np.array(lower[:-1] + upper[:-1])
+def convex_hull_2d(xy: np.ndarray, tolerance: float) -> np.ndarray:
+    """CCW corners (m, 2) of the hull of 2-D points (n, 2), built like the support polygon but with an explicit
+    `tolerance` [m] instead of tau: points closer than it merge, and a point within it of a line through two
+    others lies on that line. So a point farther than `tolerance` beyond every hull edge it lies outside of is
+    always a corner (the iterative projection of `static_equilibrium_region` relies on this to terminate).
+    """
+    x, y = np.ascontiguousarray(xy[:, :1]), np.ascontiguousarray(xy[:, 1:2])
+    return _polygon(_hull(x, y, np.ones(x.shape, dtype=bool), tolerance))
+
+
+def distinct_contact_count(contact_points: npt.ArrayLike, active: npt.ArrayLike | None = None) -> np.ndarray:
+    """Number (...,) of distinct active contacts at every sample, after merging contacts closer than the
+    support tolerance (module docstring). S_H needs at least two (an edge to tip about).
+
+    contact_points: (..., k, 3) world positions [m]; active: optional (..., k) bool.
+    """
+    points, mask = _contacts(contact_points, active)
+    x, y, flat_mask, shape = _flatten(points, mask)
+    kept, _ = _distinct(x, y, flat_mask)
+    return np.sum(kept, axis=0).reshape(shape)
 
 
 def polygon_margin(points: npt.ArrayLike, polygon: npt.ArrayLike) -> np.ndarray:
@@ -233,55 +301,29 @@ def support_polygon_centroid(contact_points: npt.ArrayLike, active: npt.ArrayLik
     """Area centroid (..., 2) [m] of the support polygon at every sample.
 
     For a line support (two or more collinear contacts) it is the midpoint of the segment, for a point
-    support the point. This is the reference S of the paper's Stability Performance 1.
+    support (all contacts merged, module docstring) the first active contact. This is the reference S of the paper's Stability Performance 1.
     """
     points, mask = _contacts(contact_points, active)
     x, y, flat_mask, shape = _flatten(points, mask)
     hull = _hull(x, y, flat_mask)
-    # Shoelace over the hull edges, each counted once: drop slots spanning a collinear contact (their pieces
-    # are slots too) and slots starting or ending at a duplicate of a lower-numbered contact.
-    unique = _first_of_coincident(hull)
-    primary = hull.valid & ~_spans_active_point(hull) & unique[hull.start_index] & unique[hull.end_index]
+    # Shoelace over the hull edges: each is one slot, as contacts are merged and collinear ones make one edge.
     ex, ey = hull.sx + hull.dx, hull.sy + hull.dy
-    cross = np.where(primary, hull.sx * ey - ex * hull.sy, 0.0)
+    cross = np.where(hull.valid, hull.sx * ey - ex * hull.sy, 0.0)
     area = 0.5 * np.sum(cross, axis=0)
     safe = 6.0 * np.where(area > 0.0, area, 1.0)
     centroid_x = np.sum((hull.sx + ex) * cross, axis=0) / safe
     centroid_y = np.sum((hull.sy + ey) * cross, axis=0) / safe
-    # Degenerate supports: midpoint of the longest valid segment, or the (first) active point.
-    longest = np.argmax(np.where(hull.valid, hull.length, -1.0), axis=0)
+    # Degenerate supports, as the hull classifies them: a segment (its edge valid both ways) gives its
+    # midpoint, a point (no edge) the first active contact.
+    pairs = hull.valid.shape[0] // 2
+    two_sided = hull.valid[:pairs] & hull.valid[pairs:]
+    segment = np.argmax(two_sided, axis=0)
     columns = np.arange(x.shape[1])
-    mid_x = hull.sx[longest, columns] + 0.5 * hull.dx[longest, columns]
-    mid_y = hull.sy[longest, columns] + 0.5 * hull.dy[longest, columns]
-    first = np.argmax(flat_mask, axis=0)
-    extent = np.max(np.hypot(x - x[:1], y - y[:1]), axis=0)
-    degenerate = area <= 1e-12 * (extent * extent + 1e-300)
-    any_edge = hull.any_edge
-    fallback_x = np.where(any_edge, mid_x, x[first, columns])
-    fallback_y = np.where(any_edge, mid_y, y[first, columns])
+    mid_x = hull.sx[segment, columns] + 0.5 * hull.dx[segment, columns]
+    mid_y = hull.sy[segment, columns] + 0.5 * hull.dy[segment, columns]
+    first = np.argmax(hull.mask, axis=0)
+    degenerate = np.any(two_sided, axis=0) | ~hull.any_edge
+    fallback_x = np.where(hull.any_edge, mid_x, x[first, columns])
+    fallback_y = np.where(hull.any_edge, mid_y, y[first, columns])
     result = np.stack([np.where(degenerate, fallback_x, centroid_x), np.where(degenerate, fallback_y, centroid_y)], axis=-1)
     return result.reshape(shape + (2,))
-
-
-def _spans_active_point(hull: _Hull) -> np.ndarray:
-    """(E, T) whether an active contact lies strictly inside the segment of the slot (a collinear split)."""
-    length_sq = hull.length * hull.length
-    safe = np.where(length_sq > 0.0, length_sq, 1.0)
-    spans = np.zeros(hull.valid.shape, dtype=bool)
-    for other in range(hull.x.shape[0]):
-        rx, ry = hull.x[other] - hull.sx, hull.y[other] - hull.sy
-        s = (rx * hull.dx + ry * hull.dy) / safe
-        on_line = np.abs(hull.dx * ry - hull.dy * rx) <= _HULL_TOLERANCE * 10 * (length_sq + 1e-300)
-        spans |= on_line & (s > 1e-9) & (s < 1 - 1e-9) & hull.mask[other]
-    return spans
-
-
-def _first_of_coincident(hull: _Hull) -> np.ndarray:
-    """(k, T) active contacts with no coincident active contact of lower index."""
-    x, y, mask = hull.x, hull.y, hull.mask
-    scale = np.max(np.hypot(x - x[:1], y - y[:1]), axis=0) + 1e-300
-    first = mask.copy()
-    for a in range(1, x.shape[0]):
-        for b in range(a):
-            first[a] &= ~((np.hypot(x[a] - x[b], y[a] - y[b]) <= 1e-12 * scale) & mask[b])
-    return first
