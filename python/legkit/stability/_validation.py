@@ -5,22 +5,9 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from legkit._validation import float_array
+
 UNIT_TOLERANCE = 1e-6
-
-
-def float_array(value: npt.ArrayLike, name: str, *, last: int | None = None, min_ndim: int = 0) -> np.ndarray:
-    """`value` as a finite float64 array; TypeError if not numeric, ValueError on shape or NaN/inf."""
-    try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as error:
-        raise TypeError(f"{name} must be an array of real numbers, got {type(value).__name__}") from error
-    if array.ndim < min_ndim:
-        raise ValueError(f"{name} must have at least {min_ndim} dimensions, got shape {array.shape}")
-    if last is not None and (array.ndim == 0 or array.shape[-1] != last):
-        raise ValueError(f"{name} must have a last dimension of size {last}, got shape {array.shape}")
-    if not np.all(np.isfinite(array)):
-        raise ValueError(f"{name} contains NaN or infinite values")
-    return array
 
 
 def bool_mask(value: npt.ArrayLike | None, name: str, shape: tuple[int, ...]) -> np.ndarray:

@@ -49,7 +49,8 @@ import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
-from legkit.stability._validation import bool_mask, float_array, positive_scalar
+from legkit._validation import float_array
+from legkit.stability._validation import bool_mask, positive_scalar
 from legkit.stability.support import _contacts, _hull
 
 

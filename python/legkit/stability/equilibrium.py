@@ -28,7 +28,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import OptimizeResult, linprog
 
-from legkit.stability._validation import float_array, friction_coefficient, positive_scalar, unit_vectors
+from legkit._validation import float_array
+from legkit.stability._validation import friction_coefficient, positive_scalar, unit_vectors
 from legkit.stability.support import convex_hull_2d, polygon_margin
 
 _GRAVITY = 9.81

@@ -12,7 +12,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from legkit.stability._validation import float_array
+from legkit._validation import float_array
 from legkit.stability.zmp import center_of_pressure
 
 _KEYS = ("other", "point", "normal", "normal_force", "tangential_force")
