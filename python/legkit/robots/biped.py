@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
-from legkit.robots.quadruped import model_to_urdf, roll_pitch_knee_ik
+from legkit.robots.legs import limb_segment, model_to_urdf, roll_pitch_knee_ik
 
 SIDES = ("l", "r")
 LEG_JOINTS = ("hip_yaw", "hip_roll", "thigh", "shank", "ankle", "foot")  # body names after the side prefix
@@ -112,10 +112,6 @@ class Biped:
         return model_to_urdf(self.model, "biped")
 
 
-def _segment(mass: float, length: float, width: float) -> lk.MassProperties:
-    return lk.MassProperties.box(mass, [width, width, length], center=[0.0, 0.0, -length / 2.0])
-
-
 def build_biped(parameters: BipedParameters | None = None) -> Biped:
     """The biped of the module docstring as an `lk.Model` with a free-flyer pelvis."""
     p = parameters or BipedParameters()
@@ -131,12 +127,12 @@ def build_biped(parameters: BipedParameters | None = None) -> Biped:
         sign = 1.0 if side == "l" else -1.0
         yaw = model.add_revolute("pelvis", z, (np.eye(3), [0.0, sign * p.hip_y, 0.0]), None, f"{side}_hip_yaw")
         roll = model.add_revolute(yaw, x, None, None, f"{side}_hip_roll")
-        thigh = model.add_revolute(roll, y, None, _segment(p.thigh_mass, p.thigh_length, p.link_width), f"{side}_thigh")
-        shank = model.add_revolute(thigh, y, (np.eye(3), [0.0, 0.0, -p.thigh_length]), _segment(p.shank_mass, p.shank_length, p.link_width), f"{side}_shank")
+        thigh = model.add_revolute(roll, y, None, limb_segment(p.thigh_mass, p.thigh_length, p.link_width), f"{side}_thigh")
+        shank = model.add_revolute(thigh, y, (np.eye(3), [0.0, 0.0, -p.thigh_length]), limb_segment(p.shank_mass, p.shank_length, p.link_width), f"{side}_shank")
         ankle = model.add_revolute(shank, y, (np.eye(3), [0.0, 0.0, -p.shank_length]), None, f"{side}_ankle")
         model.add_revolute(ankle, x, None, foot_body, f"{side}_foot")
     for side in SIDES:
         sign = 1.0 if side == "l" else -1.0
         shoulder = model.add_revolute("pelvis", y, (np.eye(3), [0.0, sign * p.shoulder_y, p.shoulder_z]), None, f"{side}_shoulder")
-        model.add_revolute(shoulder, x, None, _segment(p.arm_mass, p.arm_length, p.link_width), f"{side}_arm")
+        model.add_revolute(shoulder, x, None, limb_segment(p.arm_mass, p.arm_length, p.link_width), f"{side}_arm")
     return Biped(model, p)

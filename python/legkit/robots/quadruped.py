@@ -18,12 +18,12 @@ parameter table was not at hand, so every value is a documented, overridable fie
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
+from legkit.robots.legs import limb_segment, model_to_urdf, roll_pitch_knee_ik
 
 LEGS = ("lf", "rf", "lh", "rh")
 #: Diagonal leg pairs and lateral leg pairs (support lines of a two-legged stance).
@@ -107,10 +107,6 @@ class Quadruped:
         return model_to_urdf(self.model, "quadruped")
 
 
-def _link_box(mass: float, length: float, width: float) -> lk.MassProperties:
-    return lk.MassProperties.box(mass, [width, width, length], center=[0.0, 0.0, -length / 2.0])
-
-
 def build_quadruped(parameters: QuadrupedParameters | None = None) -> Quadruped:
     """The quadruped of the module docstring as an `lk.Model` with a free-flyer torso."""
     p = parameters or QuadrupedParameters()
@@ -119,77 +115,6 @@ def build_quadruped(parameters: QuadrupedParameters | None = None) -> Quadruped:
     knee = (np.eye(3), [0.0, 0.0, -p.thigh_length])
     for leg in LEGS:
         hip = model.add_revolute("torso", [1.0, 0.0, 0.0], (np.eye(3), p.hip_position(leg)), None, f"{leg}_hip")
-        thigh = model.add_revolute(hip, [0.0, 1.0, 0.0], None, _link_box(p.thigh_mass, p.thigh_length, p.link_width), f"{leg}_thigh")
-        model.add_revolute(thigh, [0.0, 1.0, 0.0], knee, _link_box(p.shank_mass, p.shank_length, p.link_width), f"{leg}_shank")
+        thigh = model.add_revolute(hip, [0.0, 1.0, 0.0], None, limb_segment(p.thigh_mass, p.thigh_length, p.link_width), f"{leg}_thigh")
+        model.add_revolute(thigh, [0.0, 1.0, 0.0], knee, limb_segment(p.shank_mass, p.shank_length, p.link_width), f"{leg}_shank")
     return Quadruped(model, p)
-
-
-def roll_pitch_knee_ik(foot: npt.ArrayLike, upper: float, lower: float, knee_direction: float) -> np.ndarray:
-    """Closed-form inverse kinematics of a roll(x)-pitch(y)-knee(y) leg; foot (..., 3) relative to the hip.
-
-    Forward map: foot = R_x(roll) R_y(pitch) [(0, 0, -upper) + R_y(knee) (0, 0, -lower)]. knee_direction
-    (+1/-1) picks the sign of the knee angle. Returns (..., 3) [roll, pitch, knee] [rad]; ValueError when the
-    foot is farther than upper + lower or closer than |upper - lower| (with 1e-12 slack).
-    """
-    f = np.asarray(foot, dtype=np.float64)
-    roll = np.arctan2(f[..., 1], -f[..., 2])
-    wx, wz = f[..., 0], -np.hypot(f[..., 1], f[..., 2])
-    reach_sq = wx * wx + wz * wz
-    cos_knee = (reach_sq - upper * upper - lower * lower) / (2.0 * upper * lower)
-    if np.any(np.abs(cos_knee) > 1.0 + 1e-12):
-        raise ValueError(
-            f"foot target out of reach: hip-to-foot distance {np.sqrt(reach_sq.max()):.4f} m outside "
-            f"[{abs(upper - lower):.4f}, {upper + lower:.4f}] m"
-        )
-    knee = knee_direction * np.arccos(np.clip(cos_knee, -1.0, 1.0))
-    pitch = np.arctan2(-wx, -wz) - np.arctan2(lower * np.sin(knee), upper + lower * np.cos(knee))
-    return np.stack([roll, pitch, knee], axis=-1)
-
-
-def _rpy(rotation: np.ndarray) -> tuple[float, float, float]:
-    """URDF roll-pitch-yaw of R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    pitch = float(np.arcsin(np.clip(-rotation[2, 0], -1.0, 1.0)))
-    if abs(rotation[2, 0]) < 1.0 - 1e-12:
-        return float(np.arctan2(rotation[2, 1], rotation[2, 2])), pitch, float(np.arctan2(rotation[1, 0], rotation[0, 0]))
-    return 0.0, pitch, float(np.arctan2(-rotation[0, 1], rotation[1, 1]))  # gimbal lock: fold roll into yaw
-
-
-def _numbers(values: npt.ArrayLike) -> str:
-    return " ".join(repr(float(x)) for x in np.ravel(values))
-
-
-def _inertial(body: lk.MassProperties) -> str:
-    if body.mass <= 0.0:
-        return ""
-    i = [repr(float(x)) for x in np.ravel(body.inertia)]
-    return (
-        f'<inertial><origin xyz="{_numbers(body.com)}" rpy="0 0 0"/><mass value="{float(body.mass)!r}"/>'
-        f'<inertia ixx="{i[0]}" ixy="{i[1]}" ixz="{i[2]}" iyy="{i[4]}" iyz="{i[5]}" izz="{i[8]}"/>'
-        "</inertial>"
-    )
-
-
-def model_to_urdf(model: lk.Model, robot_name: str) -> str:
-    """URDF text of any legkit model: one link per body (named as the body, with its inertia), one joint
-    `<body>_joint` per non-base body (revolute with +-pi limits, prismatic with +-1 m, or fixed). A floating
-    base is not written as a joint (URDF has none): load with Model.from_urdf(xml, floating_base=True)."""
-    lines = ['<?xml version="1.0"?>', f"<robot name={quoteattr(robot_name)}>"]
-    for i, name in enumerate(model.names):
-        lines.append(f"  <link name={quoteattr(name)}>{_inertial(model.body(i))}</link>")
-    for i in range(1, model.nbodies):
-        placement = model.placement(i)
-        roll, pitch, yaw = _rpy(placement[:3, :3])
-        kind = model.joint_type(i)
-        parts = [
-            f"  <joint name={quoteattr(model.names[i] + '_joint')} type={quoteattr(kind)}>",
-            f"<parent link={quoteattr(model.names[model.parents[i]])}/><child link={quoteattr(model.names[i])}/>",
-            f'<origin xyz="{_numbers(placement[:3, 3])}" rpy="{_numbers([roll, pitch, yaw])}"/>',
-        ]
-        if kind in ("revolute", "prismatic"):
-            limit = np.pi if kind == "revolute" else 1.0
-            parts.append(f'<axis xyz="{_numbers(model.joint_axis(i))}"/>')
-            parts.append(f'<limit lower="{-float(limit)!r}" upper="{float(limit)!r}" effort="1000" velocity="100"/>')
-        parts.append("</joint>")
-        lines.append("".join(parts))
-    lines.append("</robot>")
-    return "\n".join(lines) + "\n"
