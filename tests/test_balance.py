@@ -59,7 +59,7 @@ def test_free_plant_rejects_bad_input_and_keeps_its_state():
 
 @pytest.fixture(scope="module")
 def seed_runs():
-    """The CLI's default experiment: four seed trees x three schemes for the default duration."""
+    """The CLI's default experiment: four seed trees x three schemes for the default duration, on Rapier."""
     trees = [sb.random_tree(20, 4, seed) for seed in range(4)]
     return balance.run_balance(trees, balance.DEFAULT_DURATION, progress=False)
 
@@ -68,11 +68,10 @@ def test_closed_loop_brings_the_com_to_the_support_line_on_every_seed_tree(seed_
     assert len(seed_runs) == 4 * len(SCHEMES)
     for run in seed_runs:
         assert run.initial > 0.5  # every run starts clearly off balance (module widths)
-        # Reaches under 25 % of the start within the simulated time ...
-        assert run.distance.min() < 0.25 * run.initial, (run.tree, run.scheme)
-        # ... and stays well below the start over the last half second (the constant scheme keeps oscillating).
+        # Under 25 % of the start by the end of the simulated time, and on average over its last half second.
+        assert run.distance[-1] < 0.25 * run.initial, (run.tree, run.scheme, run.distance[-1] / run.initial)
         settled = run.distance[run.times >= run.times[-1] - 0.5].mean()
-        assert settled < 0.5 * run.initial, (run.tree, run.scheme, settled / run.initial)
+        assert settled < 0.25 * run.initial, (run.tree, run.scheme, settled / run.initial)
         assert run.messages_per_module_second > 0
 
 

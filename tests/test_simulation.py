@@ -118,6 +118,26 @@ def test_first_step_from_rest_uses_the_aba_acceleration(links, seed):
     np.testing.assert_allclose(sim.v / 1e-4, expected, rtol=1e-6, atol=1e-6 * np.abs(expected).max())
 
 
+def test_joint_armature_adds_to_the_mass_matrix_diagonal():
+    # From rest the first step's velocity is dt * (M + a 1_joints)^-1 (tau - g), the fixed-base ABA with a
+    # rotor inertia a on every joint; the Rapier step must agree, and must differ from a = 0.
+    model = lk.Model()
+    parent = 0
+    for i in range(3):
+        body = lk.MassProperties.box(0.3, [0.2, 0.04, 0.04], center=[0.1, 0.0, 0.0])
+        parent = model.add_revolute(parent, [0.0, 1.0, 0.0] if i % 2 == 0 else [0.0, 0.0, 1.0], (np.eye(3), [0.2 * (i > 0), 0.0, 0.0]), body)
+    q, tau, armature = np.array([0.4, -0.3, 0.7]), np.array([0.2, -0.1, 0.05]), 0.01
+    sim = lk.Simulation(model, dt=1e-4, joint_armature=armature)
+    sim.q = q
+    sim.step(tau)
+    bias = lk.rnea(model, q, np.zeros(3), np.zeros(3))
+    expected = np.linalg.solve(lk.crba(model, q) + armature * np.eye(3), tau - bias)
+    np.testing.assert_allclose(sim.v / 1e-4, expected, rtol=1e-6, atol=1e-9)
+    assert np.abs(expected - lk.aba(model, q, np.zeros(3), tau)).max() > 1e-3
+    with pytest.raises(ValueError, match="joint_armature"):
+        lk.Simulation(model, joint_armature=-1.0)
+
+
 def test_identical_inputs_give_bit_identical_trajectories():
     terrain = lk.Ground.heightfield(0.02 * np.sin(np.arange(21)[:, None] * 0.7 + np.arange(15)[None, :] * 0.4), 0.1, 0.8)
 

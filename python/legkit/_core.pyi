@@ -173,7 +173,7 @@ class Simulation:
     """Contact simulation of a Model on Rapier (reduced-coordinate multibody, exact joint dynamics)."""
     def __init__(
         self, model: Model, dt: float = 1e-3, ground: Ground | None = None, shapes: dict[int | str, _ShapeSpec] | None = None,
-        self_collision: bool = False, joint_damping: float = 0.0, substeps: int = 1,
+        self_collision: bool = False, joint_damping: float = 0.0, joint_armature: float = 0.0, substeps: int = 1,
     ) -> None: ...
     def step(self, tau: npt.ArrayLike | None = None, n: int = 1) -> None:
         """n steps with feed-forward tau (nv,) held over them; GIL released."""

@@ -89,12 +89,12 @@ impl PyGround {
 /// A contact simulation of a `Model` on Rapier (reduced-coordinate multibody, exact joint dynamics).
 ///
 /// `Simulation(model, dt=1e-3, ground=None, shapes=None, self_collision=False, joint_damping=0.0,
-/// substeps=1)`: `ground` a `Ground` or None; `shapes` maps bodies (index or name) to
+/// joint_armature=0.0, substeps=1)`: `ground` a `Ground` or None; `shapes` maps bodies (index or name) to
 /// ("box", (sx, sy, sz)) full edge lengths, ("sphere", r), ("capsule", half_height, r) or
 /// ("cylinder", half_height, r) along z, each optionally followed by a 4x4 placement in the body frame
 /// (default: at the body's COM, body axes), or to None for no collider; unlisted bodies get the uniform
 /// box with their mass and principal moments (massless bodies none). `joint_damping` (N m s/rad) acts on
-/// every joint; `substeps` Rapier substeps per step (the integrator is first order in dt/substeps).
+/// every joint, and `joint_armature` (kg m², a geared motor's reflected rotor inertia) adds to each joint; `substeps` Rapier substeps per step (the integrator is first order in dt/substeps).
 /// The robot starts at `model.neutral()`, at rest, at time 0.
 #[pyclass(name = "Simulation", module = "legkit")]
 pub struct PySimulation {
@@ -165,7 +165,7 @@ fn vector_argument(argument: &'static str, value: &Floats<'_>, n: usize) -> PyRe
 #[pymethods]
 impl PySimulation {
     #[new]
-    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, joint_damping = 0.0, substeps = 1))]
+    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, joint_damping = 0.0, joint_armature = 0.0, substeps = 1))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         model: PyRef<'_, PyModel>,
@@ -174,12 +174,14 @@ impl PySimulation {
         shapes: Option<Bound<'_, PyDict>>,
         self_collision: bool,
         joint_damping: f64,
+        joint_armature: f64,
         substeps: i64,
     ) -> PyResult<Self> {
         let mut options = Options::new(dt);
         options.ground = ground.map(|g| g.ground.clone());
         options.self_collision = self_collision;
         options.joint_damping = joint_damping;
+        options.joint_armature = joint_armature;
         if substeps < 1 {
             return Err(PyValueError::new_err(format!("substeps: must be >= 1, got {substeps}")));
         }

@@ -9,10 +9,10 @@ the joints compute their torques, which drive the plant for one step of ``dt``.
 
 Each run has its own plant; the agents of all runs share one vectorised network (the runs are separate
 trees of it), which batches their rounds over every run at once. The plant is a parameter:
-anything with ``step(tau)``, ``q`` and ``v``. ``FreePlant`` integrates the fixed-base model with the core's
-dynamics through geared servos (no contacts: the seed's root is fixed, and nothing else is meant to touch
-the ground); ``--plant rapier`` uses ``lk.Simulation`` on a ground plane with the same joint damping (Rapier
-has no armature term).
+anything with ``step(tau)``, ``q`` and ``v``. The default, ``--plant rapier``, is ``lk.Simulation`` on a
+ground plane, with the joints driven through geared servos (rotor inertia and damping on every joint);
+``--plant free`` integrates the same fixed-base model and servos with the core's dynamics and no contacts
+(the seed's root is fixed, and nothing else is meant to touch the ground).
 
 Recorded: the horizontal distance between each run's COM and its support line, in module widths. Reported
 per run: the final distance, the time to reach 10 % of the initial distance, the overshoot (how far, as a
@@ -63,11 +63,12 @@ class FreePlant:
     approximate figures, not SuperBot's datasheet. Without them the seed's 5 g middle links under
     K_P = 10 N m/rad would ring at ~1.4e3 rad/s, beyond what a 1 kHz torque loop can control."""
 
+    DEFAULT_ARMATURE = 0.01
     DEFAULT_DAMPING = 0.1
 
     def __init__(
         self, model: lk.Model, q0: np.ndarray | None = None, v0: np.ndarray | None = None, dt: float = 1e-3,
-        armature: float = 0.01, damping: float = DEFAULT_DAMPING,
+        armature: float = DEFAULT_ARMATURE, damping: float = DEFAULT_DAMPING,
     ):
         if model.floating_base:
             raise ValueError("model: FreePlant integrates fixed-base models only")
@@ -143,7 +144,11 @@ def make_plant(kind: str, model: lk.Model, q0: np.ndarray, dt: float) -> Plant:
     if kind == "rapier":
         if not hasattr(lk, "Simulation") or not hasattr(lk, "Ground"):
             raise RuntimeError("plant: the Rapier simulation (lk.Simulation) is not available yet; use --plant free")
-        simulation = lk.Simulation(model, dt=dt, ground=lk.Ground.plane(friction=0.8), joint_damping=FreePlant.DEFAULT_DAMPING)
+        # The same servo model as the free plant: rotor inertia and damping on every joint.
+        simulation = lk.Simulation(
+            model, dt=dt, ground=lk.Ground.plane(friction=0.8),
+            joint_damping=FreePlant.DEFAULT_DAMPING, joint_armature=FreePlant.DEFAULT_ARMATURE,
+        )
         simulation.reset(q0, None)
         return simulation
     raise ValueError(f"plant: must be 'free' or 'rapier', got {kind!r}")
@@ -201,7 +206,7 @@ def initial_angles(tree: ModuleTree, seed: int) -> np.ndarray:
 
 
 def run_balance(
-    trees: Sequence[ModuleTree], duration: float, dt: float = 1e-3, loss: float = 0.0, plant: str = "free",
+    trees: Sequence[ModuleTree], duration: float, dt: float = 1e-3, loss: float = 0.0, plant: str = "rapier",
     seed: int = 0, sample_every: int = 10, progress: bool = True, rounds_per_step: int = 1,
 ) -> list[RunResult]:
     """Simulate every tree under every scheme for ``duration`` s (see the module docstring).
@@ -327,7 +332,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=DEFAULT_DURATION, help=f"simulated seconds (default {DEFAULT_DURATION})")
     parser.add_argument("--loss", type=float, default=0.0, help="message loss probability (default 0: synchronous bus)")
     parser.add_argument("--out", type=Path, default=Path("balance-out"), help="output folder (default ./balance-out)")
-    parser.add_argument("--plant", choices=("free", "rapier"), default="free", help="simulator (default free)")
+    parser.add_argument("--plant", choices=("free", "rapier"), default="rapier", help="simulator (default rapier)")
     args = parser.parse_args(argv)
     if args.trees < 1:
         parser.error("--trees: must be >= 1")

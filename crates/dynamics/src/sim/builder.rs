@@ -164,6 +164,9 @@ pub struct Options {
     pub self_collision: bool,
     /// Viscous damping (N m s/rad or N s/m) on every revolute and prismatic joint, integrated implicitly.
     pub joint_damping: f64,
+    /// Reflected rotor inertia (kg m² or kg) added on every revolute and prismatic joint, as a geared
+    /// servo's motor adds to the joint's diagonal of the mass matrix.
+    pub joint_armature: f64,
     /// Rapier substeps per step (its solver iterations): each re-evaluates the multibody dynamics, so
     /// more substeps integrate more accurately at a proportional cost.
     pub substeps: usize,
@@ -171,7 +174,7 @@ pub struct Options {
 
 impl Options {
     pub fn new(dt: f64) -> Self {
-        Options { dt, ground: None, shapes: Vec::new(), self_collision: false, joint_damping: 0.0, substeps: 1 }
+        Options { dt, ground: None, shapes: Vec::new(), self_collision: false, joint_damping: 0.0, joint_armature: 0.0, substeps: 1 }
     }
 
     pub(crate) fn check(&self, model: &Model) -> Result<()> {
@@ -180,6 +183,9 @@ impl Options {
         }
         if finite("joint_damping", self.joint_damping)? < 0.0 {
             return Err(Error::invalid("joint_damping", format!("must be >= 0, got {}", self.joint_damping)));
+        }
+        if finite("joint_armature", self.joint_armature)? < 0.0 {
+            return Err(Error::invalid("joint_armature", format!("must be >= 0, got {}", self.joint_armature)));
         }
         if self.substeps == 0 {
             return Err(Error::invalid("substeps", "must be >= 1"));
@@ -344,12 +350,12 @@ pub(crate) fn build(model: &Model, options: &Options) -> Result<(PhysicsWorld, L
         let (multibody, _) = world.multibody_joints.get_mut(handle).expect("inserted above");
         multibody.set_self_contacts_enabled(options.self_collision);
         // Settle the root's degrees of freedom (fixed or free), then set exact joint dynamics: no damping
-        // (Rapier defaults to 0.1 on angular ones) other than the requested one, no armature, no friction.
+        // (Rapier defaults to 0.1 on angular ones) and no armature other than requested, no friction.
         multibody.forward_kinematics(&world.bodies, true);
         let root_dofs = multibody.ndofs() - (model.nv() - if model.floating_base() { 6 } else { 0 });
         for k in 0..multibody.ndofs() {
             multibody.damping_mut()[k] = if k < root_dofs { 0.0 } else { options.joint_damping };
-            multibody.armature_mut()[k] = 0.0;
+            multibody.armature_mut()[k] = if k < root_dofs { 0.0 } else { options.joint_armature };
             multibody.frictions_mut()[k] = 0.0;
         }
         multibody.update_rigid_bodies(&mut world.bodies, true);
