@@ -73,13 +73,6 @@ impl PyModel {
         }
         Ok(index as usize)
     }
-
-    fn index(&self, i: i64) -> PyResult<usize> {
-        if i < 0 || i as usize >= self.model.nbodies() {
-            return Err(PyIndexError::new_err(format!("body: index {i} is out of range for {} bodies", self.model.nbodies())));
-        }
-        Ok(i as usize)
-    }
 }
 
 /// A placement from a 4x4 homogeneous matrix or an (R, t) pair.
@@ -264,8 +257,8 @@ impl PyModel {
     }
 
     /// "free_flyer", "fixed", "revolute" or "prismatic".
-    fn joint_type(&self, body: i64) -> PyResult<&'static str> {
-        Ok(match self.model.joint(self.index(body)?) {
+    fn joint_type(&self, body: &Bound<'_, PyAny>) -> PyResult<&'static str> {
+        Ok(match self.model.joint(self.body_index(body)?) {
             Joint::FreeFlyer => "free_flyer",
             Joint::Fixed => "fixed",
             Joint::Revolute(_) => "revolute",
@@ -274,8 +267,8 @@ impl PyModel {
     }
 
     /// The unit axis of a revolute or prismatic joint, None otherwise.
-    fn joint_axis<'py>(&self, py: Python<'py>, body: i64) -> PyResult<Option<Bound<'py, PyArray1<f64>>>> {
-        Ok(match self.model.joint(self.index(body)?) {
+    fn joint_axis<'py>(&self, py: Python<'py>, body: &Bound<'py, PyAny>) -> PyResult<Option<Bound<'py, PyArray1<f64>>>> {
+        Ok(match self.model.joint(self.body_index(body)?) {
             Joint::Revolute(a) | Joint::Prismatic(a) => Some(vector_to_numpy(py, a)),
             _ => None,
         })
@@ -297,13 +290,13 @@ impl PyModel {
     }
 
     /// The body's mass properties in its own frame.
-    fn body(&self, body: i64) -> PyResult<PyMassProperties> {
-        Ok(PyMassProperties(*self.model.body(self.index(body)?)))
+    fn body(&self, body: &Bound<'_, PyAny>) -> PyResult<PyMassProperties> {
+        Ok(PyMassProperties(*self.model.body(self.body_index(body)?)))
     }
 
     /// The 4x4 placement of the body's joint frame in its parent's frame.
-    fn placement<'py>(&self, py: Python<'py>, body: i64) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        Ok(to_numpy(py, (4, 4), homogeneous(self.model.placement(self.index(body)?)).to_vec()))
+    fn placement<'py>(&self, py: Python<'py>, body: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        Ok(to_numpy(py, (4, 4), homogeneous(self.model.placement(self.body_index(body)?)).to_vec()))
     }
 
     /// The neutral configuration (zero joints, identity base orientation).
