@@ -12,7 +12,7 @@
 
 use nalgebra::{DMatrix, DVector, Matrix6xX, UnitQuaternion, Vector3, Vector6};
 
-use crate::spatial::{body_inertia, spatial, Force, Inertia, Motion, Transform};
+use crate::spatial::{spatial, Force, Inertia, Motion, RigidInertia, Transform};
 use crate::validate::{direction, finite_vector, rotation};
 use crate::{Error, MassProperties, Result};
 
@@ -146,7 +146,7 @@ pub struct Model {
     parents: Vec<usize>,
     placements: Vec<Transform>,
     bodies: Vec<MassProperties>,
-    inertias: Vec<Inertia>,
+    inertias: Vec<RigidInertia>,
     names: Vec<String>,
     idx_q: Vec<usize>,
     idx_v: Vec<usize>,
@@ -169,7 +169,7 @@ impl Model {
             parents: vec![0],
             placements: vec![Transform::identity()],
             bodies: vec![base],
-            inertias: vec![body_inertia(&base)],
+            inertias: vec![RigidInertia::from_body(&base)],
             names: vec![base_name.to_owned()],
             idx_q: vec![0],
             idx_v: vec![0],
@@ -219,7 +219,7 @@ impl Model {
         self.parents.push(parent);
         self.placements.push(placement);
         self.bodies.push(body);
-        self.inertias.push(body_inertia(&body));
+        self.inertias.push(RigidInertia::from_body(&body));
         self.names.push(name.to_owned());
         self.idx_q.push(self.nq);
         self.idx_v.push(self.nv);
@@ -268,7 +268,7 @@ impl Model {
         &self.bodies[i]
     }
     /// Spatial inertia of body `i` in its own frame.
-    pub fn inertia(&self, i: usize) -> &Inertia {
+    pub fn inertia(&self, i: usize) -> &RigidInertia {
         &self.inertias[i]
     }
     pub fn name(&self, i: usize) -> &str {
@@ -331,7 +331,8 @@ pub fn check_vector(argument: &'static str, x: &[f64], n: usize) -> Result<()> {
     Ok(())
 }
 
-/// Every intermediate of the algorithms, sized for one model. Per-body quantities are in body frames.
+/// Every intermediate of the algorithms, sized for one model. Per-body quantities are in body frames,
+/// except where an algorithm's documentation says world frame (ABA, CRBA, Minv).
 #[derive(Debug, Clone)]
 pub struct Data {
     /// Pose of each body in its parent.
@@ -343,11 +344,12 @@ pub struct Data {
     pub f: Vec<Force>,
     /// Velocity-product acceleration of each joint (the `c` of Table 7.1).
     pub c: Vec<Motion>,
-    /// Articulated-body (ABA, body frames; Minv, world frame) or composite-rigid-body (CRBA, world frame)
-    /// inertias.
+    /// Articulated-body inertias (ABA, Minv; world frame).
     pub inertia: Vec<Inertia>,
+    /// Composite-rigid-body inertias (CRBA; world frame).
+    pub composite: Vec<RigidInertia>,
     pub bias: Vec<Force>,
-    /// Motion subspace of each one-degree-of-freedom joint in world coordinates (CRBA, Minv).
+    /// Motion subspace of each one-degree-of-freedom joint in world coordinates (ABA, CRBA, Minv).
     pub s: Vec<Motion>,
     /// `U = I^A S` and `D = Sᵀ U` of one-degree-of-freedom joints.
     pub u: Vec<Vector6<f64>>,
@@ -376,6 +378,7 @@ impl Data {
             f: vec![Force::zeros(); n],
             c: vec![Motion::zeros(); n],
             inertia: vec![Inertia::zeros(); n],
+            composite: vec![RigidInertia::zeros(); n],
             bias: vec![Force::zeros(); n],
             s: vec![Motion::zeros(); n],
             u: vec![Vector6::zeros(); n],

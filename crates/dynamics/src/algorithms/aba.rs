@@ -1,70 +1,88 @@
 //! Articulated-body algorithm (Featherstone, Table 7.1): O(n) forward dynamics q̈ = M⁻¹(τ − C q̇ − g + Jᵀ f_ext).
+//!
+//! Worked in world coordinates, as Pinocchio's: each body's rigid inertia moves to the world once, in its
+//! 10-parameter form, and articulated inertias and bias forces then pass to the parent without a transform.
 
 use nalgebra::DVector;
 
-use super::{joint_motion, joint_placement};
+use super::joint_placement;
 use crate::model::{Data, Joint, Model};
-use crate::spatial::{cross_force, cross_motion, Force, Motion};
+use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, inertia_times_pair, Force, Motion};
 
 /// Joint accelerations for configuration `q`, velocity `v` and joint forces `tau`; `f_ext` as in `rnea`.
-/// Writes `data.ddq` and returns it; `data.a` holds each body's acceleration (gravity included, §5.3).
+/// Writes `data.ddq` and returns it. In world coordinates, `data.o_m_i` holds each body's pose, `data.v`
+/// its velocity and `data.a` its acceleration with gravity as a base acceleration (§5.3).
 pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>) -> &'d DVector<f64> {
     let n = model.nbodies();
-    // Pass 1: velocities, velocity-product accelerations and rigid-body bias forces.
+    // Pass 1: poses, velocities v_i = v_λ + S q̇, velocity-product accelerations c_i = v_λ × S q̇ and bias
+    // forces v_i ×* I_i v_i − f_ext (eq. 7.34–7.36, world frame).
     for i in 0..n {
         let li = joint_placement(model, i, q);
-        let v_parent = if i == 0 { Motion::zeros() } else { data.v[model.parent(i)] };
-        let v_joint = joint_motion(model, i, v);
-        data.li_m_i[i] = li;
-        data.v[i] = li.inv_act_motion(&v_parent) + v_joint;
-        data.c[i] = cross_motion(&data.v[i], &v_joint);
-        let inertia = model.inertia(i);
-        data.inertia[i] = *inertia;
-        data.bias[i] = cross_force(&data.v[i], &(inertia * data.v[i]));
+        let (pose, v_parent) = if i == 0 { (li, Motion::zeros()) } else { (data.o_m_i[model.parent(i)].compose(&li), data.v[model.parent(i)]) };
+        let k = model.idx_v(i);
+        let v_joint = match model.joint(i) {
+            Joint::FreeFlyer => pose.act_motion(&Motion::from_column_slice(&v[k..k + 6])),
+            Joint::Fixed => {
+                data.s[i] = Motion::zeros();
+                Motion::zeros()
+            }
+            joint => {
+                data.s[i] = pose.act_axis(joint).expect("one-degree-of-freedom joint");
+                data.s[i] * v[k]
+            }
+        };
+        data.o_m_i[i] = pose;
+        data.v[i] = v_parent + v_joint;
+        data.c[i] = cross_motion(&v_parent, &v_joint);
+        let inertia = pose.act_rigid_inertia(model.inertia(i));
+        data.inertia[i] = inertia.matrix();
+        data.bias[i] = cross_force(&data.v[i], &inertia.apply(&data.v[i]));
         if let Some(f_ext) = f_ext {
-            data.bias[i] -= f_ext[i];
+            data.bias[i] -= pose.act_force(&f_ext[i]);
         }
     }
-    // Pass 2: articulated inertias and bias forces, leaves to root (eq. 7.38–7.44).
+    // Pass 2: articulated inertias and bias forces, leaves to root (eq. 7.38–7.44). With w = U / D, the
+    // parent gets I^A − U wᵀ and p^A + (I^A − U wᵀ) c + w u.
     for i in (1..n).rev() {
-        let k = model.idx_v(i);
-        let mut ia = data.inertia[i];
-        let mut pa = data.bias[i];
-        if let Some(s) = model.joint(i).axis_motion() {
-            let u = ia * s;
+        let (k, p) = (model.idx_v(i), model.parent(i));
+        let (s, c) = (data.s[i], data.c[i]);
+        let (u, ia_c) = inertia_times_pair(&data.inertia[i], &s, &c);
+        let mut pa = data.bias[i] + ia_c;
+        let w = if model.joint(i).nv() == 1 {
             let d = s.dot(&u);
-            let u_scalar = tau[k] - s.dot(&pa);
-            let u_over_d = u / d;
-            ia -= u * u_over_d.transpose();
-            pa += u_over_d * u_scalar;
+            let u_scalar = tau[k] - s.dot(&data.bias[i]);
+            let w = u / d;
+            pa += w * (u_scalar - u.dot(&c));
             data.u[i] = u;
             data.d[i] = d;
             data.ddq[k] = u_scalar;
-        }
-        pa += ia * data.c[i];
-        let (p, li) = (model.parent(i), data.li_m_i[i]);
-        data.inertia[p] += li.act_inertia(&ia);
-        data.bias[p] += li.act_force(&pa);
+            w
+        } else {
+            Motion::zeros()
+        };
+        let (head, tail) = data.inertia.split_at_mut(i);
+        add_reduced_inertia(&mut head[p], &tail[0], &u, &w);
+        data.bias[p] += pa;
     }
     // Pass 3: accelerations, root to leaves (eq. 7.45–7.47).
     let gravity = model.gravity_bias();
     for i in 0..n {
         let k = model.idx_v(i);
-        let a_parent = if i == 0 { gravity } else { data.a[model.parent(i)] };
-        let a_prime = data.li_m_i[i].inv_act_motion(&a_parent) + data.c[i];
+        let a_prime = if i == 0 { gravity } else { data.a[model.parent(i)] + data.c[i] };
         data.a[i] = match model.joint(i) {
             Joint::FreeFlyer => {
-                let rhs = Motion::from_column_slice(&tau[k..k + 6]) - data.bias[i];
+                // The base's joint force, and its acceleration, are spatial vectors in its own frame.
+                let pose = data.o_m_i[i];
+                let rhs = pose.act_force(&Force::from_column_slice(&tau[k..k + 6])) - data.bias[i];
                 let a = data.inertia[i].cholesky().map(|c| c.solve(&rhs)).unwrap_or_else(|| Motion::repeat(f64::NAN));
-                data.ddq.rows_mut(k, 6).copy_from(&(a - a_prime));
+                data.ddq.rows_mut(k, 6).copy_from(&pose.inv_act_motion(&(a - a_prime)));
                 a
             }
             Joint::Fixed => a_prime,
-            joint => {
-                let s = joint.axis_motion().expect("one-degree-of-freedom joint");
+            Joint::Revolute(_) | Joint::Prismatic(_) => {
                 let qdd = (data.ddq[k] - data.u[i].dot(&a_prime)) / data.d[i];
                 data.ddq[k] = qdd;
-                a_prime + s * qdd
+                a_prime + data.s[i] * qdd
             }
         };
     }

@@ -27,11 +27,11 @@ fn world_momentum(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Optio
         let v_joint = joint_motion(model, i, v);
         data.v[i] = li.inv_act_motion(&v_parent) + v_joint;
         let inertia = model.inertia(i);
-        let h = inertia * data.v[i];
+        let h = inertia.apply(&data.v[i]);
         momentum += data.o_m_i[i].act_force(&h);
         if let Some(a) = a {
             data.a[i] = li.inv_act_motion(&a_parent) + joint_motion(model, i, a) + cross_motion(&data.v[i], &v_joint);
-            rate += data.o_m_i[i].act_force(&(inertia * data.a[i] + cross_force(&data.v[i], &h)));
+            rate += data.o_m_i[i].act_force(&(inertia.apply(&data.a[i]) + cross_force(&data.v[i], &h)));
         }
     }
     (momentum, rate, total.com())

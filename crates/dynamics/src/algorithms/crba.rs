@@ -1,7 +1,8 @@
 //! Composite-rigid-body algorithm (Featherstone, Table 6.2): the joint-space mass matrix M(q).
 //!
-//! Worked in world coordinates, as Pinocchio does: composite inertias then add without transforms, and
-//! each entry M_ji = S_jᵀ F_i is one dot product, whatever the depth of the tree.
+//! Worked in world coordinates, as Pinocchio does: composite inertias, in their 10-parameter rigid form,
+//! then add without transforms, and each entry M_ji = S_jᵀ F_i is one dot product, whatever the depth of
+//! the tree.
 
 use nalgebra::DMatrix;
 
@@ -13,27 +14,27 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
     let n = model.nbodies();
     forward_kinematics(model, data, q);
     for i in 0..n {
-        data.inertia[i] = data.o_m_i[i].act_inertia(model.inertia(i));
+        data.composite[i] = data.o_m_i[i].act_rigid_inertia(model.inertia(i));
         if let Some(s) = model.joint(i).axis_motion() {
             data.s[i] = data.o_m_i[i].act_motion(&s);
         }
     }
     for i in (0..n).rev() {
-        let composite = data.inertia[i];
+        let composite = data.composite[i];
         if i > 0 {
-            data.inertia[model.parent(i)] += composite;
+            data.composite[model.parent(i)] += composite;
         }
         let k = model.idx_v(i);
         match model.joint(i) {
             // The base's subspace is its own frame: M_00 is the composite inertia expressed there.
             Joint::FreeFlyer => {
-                let local = data.o_m_i[0].inverse().act_inertia(&composite);
+                let local = data.o_m_i[0].inverse().act_rigid_inertia(&composite).matrix();
                 data.mass_matrix.view_mut((k, k), (6, 6)).copy_from(&local);
             }
             Joint::Fixed => {}
             Joint::Revolute(_) | Joint::Prismatic(_) => {
                 // F = I^c S (eq. 6.17), then M_ji = S_jᵀ F up the ancestors (eq. 6.18).
-                let force = composite * data.s[i];
+                let force = composite.apply(&data.s[i]);
                 data.mass_matrix[(k, k)] = data.s[i].dot(&force);
                 let mut j = i;
                 while j != 0 {

@@ -10,7 +10,7 @@ pub fn kinetic_energy(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> f
     for i in 0..model.nbodies() {
         let v_parent = if i == 0 { crate::spatial::Motion::zeros() } else { data.v[model.parent(i)] };
         data.v[i] = data.li_m_i[i].inv_act_motion(&v_parent) + joint_motion(model, i, v);
-        energy += 0.5 * data.v[i].dot(&(model.inertia(i) * data.v[i]));
+        energy += 0.5 * data.v[i].dot(&model.inertia(i).apply(&data.v[i]));
     }
     energy
 }

@@ -42,7 +42,7 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
     }
     forward_kinematics(model, data, q);
     for i in 0..n {
-        data.inertia[i] = data.o_m_i[i].act_inertia(model.inertia(i));
+        data.inertia[i] = data.o_m_i[i].act_rigid_inertia(model.inertia(i)).matrix();
         if let Some(s) = model.joint(i).axis_motion() {
             data.s[i] = data.o_m_i[i].act_motion(&s);
         }

@@ -27,7 +27,7 @@ pub use minv::minv;
 pub use rnea::rnea;
 
 use crate::model::{Joint, Model};
-use crate::spatial::Motion;
+use crate::spatial::{Motion, Transform};
 
 /// The motion across joint `i` for joint velocity `v` (the model's full velocity vector), in body `i`'s frame.
 #[inline]
@@ -40,10 +40,14 @@ pub(crate) fn joint_motion(model: &Model, i: usize, v: &[f64]) -> Motion {
     }
 }
 
-/// Pose of body `i` in its parent for configuration `q`.
+/// Pose of body `i` in its parent for configuration `q`: its placement followed by the joint's motion.
 #[inline]
-pub(crate) fn joint_placement(model: &Model, i: usize, q: &[f64]) -> crate::spatial::Transform {
-    let joint = model.joint(i);
-    let k = model.idx_q(i);
-    model.placement(i).compose(&joint.transform(&q[k..k + joint.nq()]))
+pub(crate) fn joint_placement(model: &Model, i: usize, q: &[f64]) -> Transform {
+    let (placement, k) = (model.placement(i), model.idx_q(i));
+    match *model.joint(i) {
+        Joint::Revolute(axis) => placement.rotated_about(&axis, q[k]),
+        Joint::Prismatic(axis) => Transform::new(placement.rotation, placement.transform_point(&(axis * q[k]))),
+        Joint::Fixed => *placement,
+        joint @ Joint::FreeFlyer => placement.compose(&joint.transform(&q[k..k + 7])),
+    }
 }

@@ -22,7 +22,7 @@ pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f6
         data.v[i] = li.inv_act_motion(&v_parent) + v_joint;
         data.a[i] = li.inv_act_motion(&a_parent) + joint_motion(model, i, a) + cross_motion(&data.v[i], &v_joint);
         let inertia = model.inertia(i);
-        data.f[i] = inertia * data.a[i] + cross_force(&data.v[i], &(inertia * data.v[i]));
+        data.f[i] = inertia.apply(&data.a[i]) + cross_force(&data.v[i], &inertia.apply(&data.v[i]));
         if let Some(f_ext) = f_ext {
             data.f[i] -= f_ext[i];
         }
