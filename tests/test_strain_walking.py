@@ -119,6 +119,29 @@ def test_pose_targets_with_the_leg_model_in_the_loop(calibrated: LegModel, speed
     assert np.ptp(stream.height) > 0.005 and np.ptp(stream.roll) > np.radians(2.0)
 
 
+@settings(max_examples=60, deadline=None)
+@given(
+    theta=st.floats(-0.6, 0.6),
+    length=st.floats(0.12, 0.2),
+    radius=st.floats(0.0, 0.03),
+    samples=st.integers(1, 4),
+)
+def test_toe_radius_puts_the_ground_below_the_toe_centres(theta, length, radius, samples) -> None:
+    # Every leg at the same angle and a leg model predicting (length, 0) for any strain: the toe centres lie
+    # at z = -length cos(theta) in the body frame, a level plane, so by hand the body stands
+    # length cos(theta) + radius above the ground, level, with the support origin radius below s_0.
+    hips = np.full((samples, 6), theta)
+    model = LegModel([length, 0.0], [0.0, 0.0])
+    strain = np.zeros((samples, 6))
+    estimate = estimate_body_pose(hips, strain, model, toe_radius=radius)
+    centres = estimate_body_pose(hips, strain, model)
+    np.testing.assert_allclose(estimate.pose.height, length * np.cos(theta) + radius, atol=1e-12)
+    np.testing.assert_allclose(np.stack([estimate.pose.roll, estimate.pose.pitch]), 0.0, atol=1e-12)
+    np.testing.assert_allclose(estimate.pose.origin[:, 2], -length * np.cos(theta) - radius, atol=1e-12)
+    np.testing.assert_array_equal(estimate.pose.rotation, centres.pose.rotation)
+    np.testing.assert_array_equal(estimate.toes, centres.toes)
+
+
 def test_walk_is_deterministic_and_validates_input() -> None:
     a, b = kinematic_walk(0.3, 0.5, 2), kinematic_walk(0.3, 0.5, 2)
     np.testing.assert_array_equal(a.strain, b.strain)
@@ -131,6 +154,10 @@ def test_walk_is_deterministic_and_validates_input() -> None:
         kinematic_walk(0.3, 0.5, com_offset=(0.3, 0.0))
     with pytest.raises(ValueError, match="hip_angle and strain"):
         estimate_body_pose(a.hip_angle, a.strain[:, :3], LegModel([0.17, 0.0], [0.0, 0.0]))
+    for bad in (-0.001, np.nan, np.inf):
+        with pytest.raises(ValueError, match="toe_radius"):
+            estimate_body_pose(a.hip_angle, a.strain, LegModel([0.17, 0.0], [0.0, 0.0]), toe_radius=bad)
+    assert a.toe_radius == 0.0  # point toes
 
 
 def test_rhex_model_structure() -> None:

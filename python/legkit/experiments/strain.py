@@ -65,7 +65,7 @@ class RunResult:
 
 def evaluate_run(stream: WalkingStream, model: LegModel, seed: int) -> tuple[RunResult, PoseEstimate]:
     """Score the leg model and the pose estimator on one stream."""
-    estimate = estimate_body_pose(stream.hip_angle, stream.strain, model, stream.stance_centre)
+    estimate = estimate_body_pose(stream.hip_angle, stream.strain, model, stream.stance_centre, stream.toe_radius)
     stance = stream.stance
     result = RunResult(
         speed=stream.speed,

@@ -72,8 +72,12 @@ def rhex_model() -> lk.Model:
     return model
 
 
-#: Mass split of one compliant leg (``rhex_compliant_model``), kg: hip clamp, leg members + shin, toe.
-COMPLIANT_LEG_MASSES = (0.03, 0.04, 0.01)
+#: Mass split of one compliant leg (``rhex_compliant_model``), kg: hip clamp; the two compliant members (thin
+#: composite strips); the shin (the four-bar's rigid coupler) with the toe and its rubber tread. The shin and
+#: toe are most of a four-bar leg's mass, and they are what rides on the compression spring.
+COMPLIANT_LEG_MASSES = (0.02, 0.02, 0.04)
+#: Fraction of the leg length, from the toe up, taken by the shin; the members span the rest up to the hip.
+SHIN_FRACTION = 1.0 / 3.0
 #: Reflected rotor inertia of a hip gearmotor about the hip axis (kg m^2), carried by the hip clamp body.
 HIP_ROTOR_INERTIA = 1.0e-3
 
@@ -82,12 +86,13 @@ def rhex_compliant_model(spring_axis: object) -> lk.Model:
     """RHex with compliant legs: each leg is a hip, a deflection joint and a compression slider (18 joints).
 
     Leg i adds three bodies (bodies 3i+1, 3i+2, 3i+3, named ``<leg>_hip``, ``<leg>_flex``, ``<leg>_toe``):
-      * hip: revolute about +y at the hip (the motor, angle theta); a 0.03 kg clamp carrying the reflected
+      * hip: revolute about +y at the hip (the motor, angle theta); a 0.02 kg clamp carrying the reflected
         gearmotor rotor inertia ``HIP_ROTOR_INERTIA`` about y (a disk), so a hip servo acts on a real inertia;
-      * flex: revolute about +y at the same point (the leg deflection beyond the clamp, rad); the members and
-        shin, a 0.04 kg slab down to the unloaded toe;
+      * flex: revolute about +y at the same point (the leg deflection beyond the clamp, rad); the compliant
+        members, a 0.02 kg slab from the hip down to the shin (the upper 1 - ``SHIN_FRACTION`` of the leg);
       * toe: prismatic along ``spring_axis`` (a unit vector in the flex frame, 3-vector with zero y; coordinate
-        in metres), a 0.01 kg point at (0, 0, -LEG_LENGTH): the toe.
+        in metres): the shin and toe, a 0.04 kg slab over the lowest ``SHIN_FRACTION`` of the leg, ending at
+        the toe (0, 0, -LEG_LENGTH). (``COMPLIANT_LEG_MASSES``; the whole shin moves with the compression.)
     With zero joint coordinates the leg is the rigid leg of ``rhex_model``. The flex and toe joints are meant
     to be held by stiff position servos acting as the leg springs (see ``legkit.strain.simulated``, which
     chooses the axis and stiffnesses that match the compliant four-bar leg of ``legkit.strain.benchtop``).
@@ -98,11 +103,14 @@ def rhex_compliant_model(spring_axis: object) -> lk.Model:
     axis = np.asarray(spring_axis, dtype=np.float64)
     if axis.shape != (3,) or not np.all(np.isfinite(axis)) or abs(np.linalg.norm(axis) - 1.0) > 1e-9 or axis[1] != 0.0:
         raise ValueError(f"spring_axis must be a finite unit 3-vector with zero y component, got {spring_axis!r}")
-    clamp_mass, member_mass, toe_mass = COMPLIANT_LEG_MASSES
+    clamp_mass, member_mass, shin_mass = COMPLIANT_LEG_MASSES
     rotor = 0.5 * HIP_ROTOR_INERTIA
     clamp = lk.MassProperties(clamp_mass, np.zeros(3), np.diag([rotor, HIP_ROTOR_INERTIA, rotor]))
-    members = lk.MassProperties.box(member_mass, [0.02, 0.03, LEG_LENGTH], center=[0.0, 0.0, -LEG_LENGTH / 2])
-    toe = lk.MassProperties.point(toe_mass, [0.0, 0.0, -LEG_LENGTH])
+    shin = SHIN_FRACTION * LEG_LENGTH
+    members = lk.MassProperties.box(
+        member_mass, [0.02, 0.03, LEG_LENGTH - shin], center=[0.0, 0.0, -(LEG_LENGTH - shin) / 2]
+    )
+    toe = lk.MassProperties.box(shin_mass, [0.02, 0.03, shin], center=[0.0, 0.0, -LEG_LENGTH + shin / 2])
     body = lk.MassProperties.box(BODY_MASS, [BODY_LENGTH, BODY_WIDTH, BODY_THICKNESS])
     model = lk.Model(floating_base=True, base=body, base_name="body")
     for name, hip in zip(LEG_NAMES, HIP_POSITIONS):

@@ -15,7 +15,13 @@ Three compliance modes, in series, give the radial and torsional compliance of t
     compresses and deflects: c = a_r phi, d = a_d phi (the coupler curve linearised at the unloaded leg).
     Its generalised force is the virtual work a_r f_r + a_d tau, so phi = (a_r f_r + a_d tau) / k_link;
   * axial compliance of the members: c += f_r / k_axial (stiff);
-  * torsional compliance of the hip clamp: d += tau / k_clamp (stiff).
+  * torsional compliance of the hip clamp: d += tau / k_clamp (stiff). This lumps everything between the
+    hip encoder and the roots of the members that twists under hip torque: gearhead output shaft, clamp hub
+    and bolts. The default k_clamp = 1000 N m/rad is the order of the stiffest-to-softest part of that chain,
+    a 6 mm steel output shaft (G = 79 GPa) with about 1 cm free between gearhead bearing and clamp:
+    G pi d^4 / (32 L) = 1.0e3 N m/rad (a machined aluminium clamp hub is stiffer by an order of magnitude).
+    The clamp then takes a tenth of the leg's torsional deflection (linkage a_d^2 / k_link = 0.01 rad/(N m)
+    against 1 / k_clamp = 0.001): the part of the deflection the single gauge cannot see.
 The strain gauge sits near the root of the rear member in a bending bridge: it reads the member's bending
 strain, which is proportional to the flexure moment k_link phi, so sigma = g phi (microstrain); the bridge
 rejects axial strain and the clamp does not load the member. Hence with rigid secondary modes the
@@ -63,7 +69,7 @@ class CompliantFourBarLeg:
     linkage_deflection: float = 0.2
     linkage_stiffness: float = 4.0
     axial_stiffness: float = 3.0e4
-    clamp_stiffness: float = 250.0
+    clamp_stiffness: float = 1000.0
     gauge_gain: float = 2000.0
 
     def __post_init__(self) -> None:

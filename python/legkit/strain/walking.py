@@ -34,7 +34,7 @@ Lateral leg compliance, swing-leg dynamics, impacts and double support are outsi
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -66,6 +66,8 @@ class WalkingStream:
         roll, pitch, yaw: (T,) rad, Z-Y-X angles of body_rotation.
         speed: commanded speed (m/s); period: gait period (s); stance_sweep: phi_s (rad);
         stance_centre: theta_0 (rad).
+        toe_radius: radius (m) of the spherical toes whose centres ``toes``, ``length`` and ``deflection``
+            describe; 0 for point toes (a robot parameter the estimator uses, like the clock's).
     """
 
     time: np.ndarray
@@ -85,6 +87,7 @@ class WalkingStream:
     period: float
     stance_sweep: float
     stance_centre: float
+    toe_radius: float = 0.0
 
     @property
     def height(self) -> np.ndarray:
@@ -277,18 +280,37 @@ class PoseEstimate:
 
 
 def estimate_body_pose(
-    hip_angle: object, strain: object, model: LegModel, stance_centre: float = STANCE_CENTRE
+    hip_angle: object,
+    strain: object,
+    model: LegModel,
+    stance_centre: float = STANCE_CENTRE,
+    toe_radius: float = 0.0,
 ) -> PoseEstimate:
     """The paper's estimator: strain -> (l, d) by the leg model, toes by h_i^theta, pose by ``tripod_pose``.
 
     The support tripod at each sample is the one deeper in its stance sweep (smaller ``tripod_clock_signal``).
+    The leg model gives toe centres; spherical toes of radius ``toe_radius`` (m) touch flat ground that far
+    below their centres along the support normal, so the returned pose's support plane (its ``origin`` and
+    ``position``, hence ``height``) is the ground, toe_radius below the plane of the toe centres.
+
+    Raises:
+        ValueError: hip_angle and strain not both (T, 6); toe_radius negative or not finite.
     """
     theta = np.asarray(hip_angle, dtype=np.float64)
     sigma = np.asarray(strain, dtype=np.float64)
     if theta.shape != sigma.shape or theta.ndim != 2 or theta.shape[1] != 6:
         raise ValueError(f"hip_angle and strain must both have shape (T, 6), got {theta.shape} and {sigma.shape}")
+    if not (np.isfinite(toe_radius) and toe_radius >= 0):
+        raise ValueError(f"toe_radius must be finite and non-negative, got {toe_radius}")
     length, deflection = model.predict(sigma)
     toes = toe_in_body(theta, length, deflection, LEGS)
     support = np.argmin(tripod_clock_signal(theta, stance_centre), axis=1)
     stance_toes = toes[np.arange(theta.shape[0])[:, None], TRIPOD_LEGS[support]]
-    return PoseEstimate(support, toes, length, deflection, tripod_pose(stance_toes))
+    centres = tripod_pose(stance_toes)
+    # Move the support frame from the toe-centre plane down to the ground along its own z axis (the normal).
+    ground = replace(
+        centres,
+        position=centres.position + np.array([0.0, 0.0, toe_radius]),
+        origin=centres.origin - toe_radius * centres.support_frame[..., :, 2],
+    )
+    return PoseEstimate(support, toes, length, deflection, ground)
