@@ -10,6 +10,8 @@
 //! algorithms ignore them: they describe the mechanism for the simulation (which enforces the position
 //! range and the effort bound) and for controllers (which read them with [`Model::limits`]).
 
+use std::ops::Range;
+
 use nalgebra::{DMatrix, DVector, Matrix6xX, UnitQuaternion, Vector3, Vector6};
 
 use crate::spatial::{spatial, Force, Inertia, Motion, RigidInertia, Transform};
@@ -150,9 +152,9 @@ pub struct Model {
     names: Vec<String>,
     idx_q: Vec<usize>,
     idx_v: Vec<usize>,
-    /// One past the last velocity index of each body's subtree (exact for depth-first numbering, a
-    /// superset of the subtree's columns otherwise).
-    subtree_v_end: Vec<usize>,
+    /// The velocity indices of each body's subtree as increasing ranges (one range when bodies are
+    /// numbered depth first).
+    subtree_columns: Vec<Vec<Range<usize>>>,
     nq: usize,
     nv: usize,
     /// Gravity in the world frame.
@@ -173,7 +175,7 @@ impl Model {
             names: vec![base_name.to_owned()],
             idx_q: vec![0],
             idx_v: vec![0],
-            subtree_v_end: vec![joint.nv()],
+            subtree_columns: vec![if joint.nv() > 0 { vec![0..joint.nv()] } else { Vec::new() }],
             nq: joint.nq(),
             nv: joint.nv(),
             gravity: Vector3::new(0.0, 0.0, -9.81),
@@ -225,10 +227,15 @@ impl Model {
         self.idx_v.push(self.nv);
         self.nq += joint.nq();
         self.nv += joint.nv();
-        self.subtree_v_end.push(self.nv);
+        let columns = self.nv - joint.nv()..self.nv;
+        self.subtree_columns.push(if columns.is_empty() { Vec::new() } else { vec![columns.clone()] });
         let mut ancestor = parent;
-        loop {
-            self.subtree_v_end[ancestor] = self.nv;
+        while !columns.is_empty() {
+            let ranges = &mut self.subtree_columns[ancestor];
+            match ranges.last_mut() {
+                Some(last) if last.end == columns.start => last.end = columns.end,
+                _ => ranges.push(columns.clone()),
+            }
             if ancestor == 0 {
                 break;
             }
@@ -283,8 +290,9 @@ impl Model {
     pub fn idx_v(&self, i: usize) -> usize {
         self.idx_v[i]
     }
-    pub fn subtree_v_end(&self, i: usize) -> usize {
-        self.subtree_v_end[i]
+    /// The velocity indices of body `i`'s subtree (its own included), as increasing ranges.
+    pub fn subtree_columns(&self, i: usize) -> &[Range<usize>] {
+        &self.subtree_columns[i]
     }
     pub fn total_mass(&self) -> f64 {
         self.bodies.iter().map(|b| b.mass()).sum()
@@ -335,7 +343,7 @@ pub fn check_vector(argument: &'static str, x: &[f64], n: usize) -> Result<()> {
 /// except where an algorithm's documentation says world frame (ABA, CRBA, Minv).
 #[derive(Debug, Clone)]
 pub struct Data {
-    /// Pose of each body in its parent.
+    /// Pose of each body in its parent (RNEA, centroidal momentum).
     pub li_m_i: Vec<Transform>,
     /// Pose of each body in the world.
     pub o_m_i: Vec<Transform>,
@@ -351,9 +359,9 @@ pub struct Data {
     pub bias: Vec<Force>,
     /// Motion subspace of each one-degree-of-freedom joint in world coordinates (ABA, CRBA, Minv).
     pub s: Vec<Motion>,
-    /// `U = I^A S` and `D = Sᵀ U` of one-degree-of-freedom joints.
+    /// `U = I^A S` and `D⁻¹ = (Sᵀ U)⁻¹` of one-degree-of-freedom joints.
     pub u: Vec<Vector6<f64>>,
-    pub d: Vec<f64>,
+    pub d_inv: Vec<f64>,
     /// Mass properties of the subtree rooted at each body, in world coordinates.
     pub subtree: Vec<MassProperties>,
     /// A frame Jacobian, 6 x nv.
@@ -382,7 +390,7 @@ impl Data {
             bias: vec![Force::zeros(); n],
             s: vec![Motion::zeros(); n],
             u: vec![Vector6::zeros(); n],
-            d: vec![0.0; n],
+            d_inv: vec![0.0; n],
             subtree: vec![MassProperties::zero(); n],
             jacobian: Matrix6xX::zeros(model.nv()),
             tau: DVector::zeros(model.nv()),
@@ -402,6 +410,27 @@ mod tests {
         let mut model = Model::new(false, MassProperties::zero(), "base");
         model.add_body(0, joint, Transform::identity(), MassProperties::zero(), "link", limits)?;
         Ok(model)
+    }
+
+    #[test]
+    fn subtree_columns_follow_any_parent_before_child_numbering() {
+        let mut model = Model::new(true, MassProperties::zero(), "base");
+        let mut add = |parent: usize, joint: Joint, name: &str| {
+            model.add_body(parent, joint, Transform::identity(), MassProperties::zero(), name, JointLimits::NONE).unwrap()
+        };
+        // Bodies 1 and 2 hang off the base, 3 off 1 (not depth first), 4 is fixed below 3, 5 below 4.
+        let y = Joint::Revolute(Vector3::y());
+        let (a, b) = (add(0, y, "a"), add(0, y, "b"));
+        let c = add(a, y, "c");
+        let d = add(c, Joint::Fixed, "d");
+        let e = add(d, y, "e");
+        let columns = |i: usize| model.subtree_columns(i).to_vec();
+        assert_eq!(columns(0), vec![0..10]);
+        assert_eq!(columns(a), vec![6..7, 8..10]);
+        assert_eq!(columns(b), vec![7..8]);
+        assert_eq!(columns(c), vec![8..10]);
+        assert_eq!(columns(d), vec![9..10]);
+        assert_eq!(columns(e), vec![9..10]);
     }
 
     #[test]

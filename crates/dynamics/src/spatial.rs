@@ -183,17 +183,27 @@ impl Transform {
 
 /// `(I x, I y)` for a 6x6 inertia, in one pass over I written over fixed arrays, so that it compiles to
 /// straight vector code (nalgebra's generic product does not, and these products dominate ABA and Minv).
+/// The linear and angular halves of x and y are summed apart: ABA's backward pass is a chain of these
+/// products, so their latency counts.
 #[inline]
 pub fn inertia_times_pair(inertia: &Inertia, x: &Vector6<f64>, y: &Vector6<f64>) -> (Vector6<f64>, Vector6<f64>) {
     let entries: &[f64; 36] = inertia.as_slice().try_into().expect("6x6");
-    let (mut ix, mut iy) = ([0.0; 6], [0.0; 6]);
+    let mut sums = [[0.0; 6]; 4];
     for (c, column) in entries.chunks_exact(6).enumerate() {
+        let half = c / 3;
         for r in 0..6 {
-            ix[r] += column[r] * x[c];
-            iy[r] += column[r] * y[c];
+            sums[half][r] += column[r] * x[c];
+            sums[2 + half][r] += column[r] * y[c];
         }
     }
-    (Vector6::from(ix), Vector6::from(iy))
+    let add = |a: &[f64; 6], b: &[f64; 6]| Vector6::from_fn(|r, _| a[r] + b[r]);
+    (add(&sums[0], &sums[1]), add(&sums[2], &sums[3]))
+}
+
+/// `a · b` for 6-vectors, summed pairwise (a shorter dependency chain than left to right).
+#[inline]
+pub fn dot6(a: &Vector6<f64>, b: &[f64]) -> f64 {
+    (a[0] * b[0] + a[1] * b[1]) + (a[2] * b[2] + a[3] * b[3]) + (a[4] * b[4] + a[5] * b[5])
 }
 
 /// `parent += I − u wᵀ`: an articulated inertia less a joint's rank-one part (I^A − U D⁻¹ Uᵀ with w = U / D),
@@ -212,7 +222,13 @@ pub fn add_reduced_inertia(parent: &mut Inertia, inertia: &Inertia, u: &Vector6<
 /// `R S Rᵀ` for a symmetric `S`: the six distinct entries only.
 #[inline]
 fn rotate_symmetric(r: &Matrix3<f64>, s: &Matrix3<f64>) -> Matrix3<f64> {
-    let t = Matrix3::from_fn(|i, j| r[(i, 0)] * s[(0, j)] + r[(i, 1)] * s[(1, j)] + r[(i, 2)] * s[(2, j)]);
+    // Bodies are mostly modelled along their frame's axes, where S is diagonal and R S scales R's columns.
+    let diagonal = s[(0, 1)] == 0.0 && s[(0, 2)] == 0.0 && s[(1, 2)] == 0.0;
+    let t = if diagonal {
+        Matrix3::from_fn(|i, j| r[(i, j)] * s[(j, j)])
+    } else {
+        Matrix3::from_fn(|i, j| r[(i, 0)] * s[(0, j)] + r[(i, 1)] * s[(1, j)] + r[(i, 2)] * s[(2, j)])
+    };
     let entry = |i: usize, j: usize| t[(i, 0)] * r[(j, 0)] + t[(i, 1)] * r[(j, 1)] + t[(i, 2)] * r[(j, 2)];
     let (xx, yy, zz, xy, xz, yz) = (entry(0, 0), entry(1, 1), entry(2, 2), entry(0, 1), entry(0, 2), entry(1, 2));
     Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz)
@@ -295,20 +311,30 @@ impl Transform {
     #[inline]
     pub fn rotated_about(&self, axis: &Vector3<f64>, angle: f64) -> Transform {
         let r = &self.rotation;
-        let coordinate = |a: usize| axis[a] == 1.0 && axis[(a + 1) % 3] == 0.0 && axis[(a + 2) % 3] == 0.0;
-        let rotation = match (0..3).find(|&a| coordinate(a)) {
-            Some(a) => {
-                let (s, c) = angle.sin_cos();
-                let (j, k) = ((a + 1) % 3, (a + 2) % 3);
-                let (cj, ck) = (r.column(j), r.column(k));
-                let mut out = *r;
-                out.set_column(j, &(cj * c + ck * s));
-                out.set_column(k, &(ck * c - cj * s));
-                out
-            }
-            None => r * Transform::rotation_about(axis, angle),
+        // Columns j and k of R turned by the angle about the third coordinate axis.
+        let mix = |j: usize, k: usize| {
+            let (s, c) = angle.sin_cos();
+            let (cj, ck) = (r.column(j), r.column(k));
+            let mut out = *r;
+            out.set_column(j, &(cj * c + ck * s));
+            out.set_column(k, &(ck * c - cj * s));
+            out
+        };
+        let rotation = match (axis.x, axis.y, axis.z) {
+            (1.0, 0.0, 0.0) => mix(1, 2),
+            (0.0, 1.0, 0.0) => mix(2, 0),
+            (0.0, 0.0, 1.0) => mix(0, 1),
+            _ => r * Transform::rotation_about(axis, angle),
         };
         Transform { rotation, translation: self.translation }
+    }
+
+    /// Whether the rotation is exactly the identity (a placement that only translates).
+    #[inline]
+    pub fn is_translation(&self) -> bool {
+        let r = &self.rotation;
+        let off_diagonal = [r[(1, 0)], r[(2, 0)], r[(0, 1)], r[(2, 1)], r[(0, 2)], r[(1, 2)]];
+        r[(0, 0)] == 1.0 && r[(1, 1)] == 1.0 && r[(2, 2)] == 1.0 && off_diagonal.iter().all(|&x| x == 0.0)
     }
 }
 
@@ -357,6 +383,12 @@ mod tests {
         let mut sum = rigid;
         sum += acted;
         assert!((sum.matrix() - (i + acted.matrix())).amax() < 1e-15);
+        // A body whose rotational inertia about the frame origin is diagonal (centred, axis-aligned) takes
+        // the diagonal shortcut of `rotate_symmetric`.
+        let centred = RigidInertia::from_body(&MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap());
+        let r = &centred.rotational;
+        assert!(r[(0, 1)] == 0.0 && r[(0, 2)] == 0.0 && r[(1, 2)] == 0.0);
+        assert!((x.act_rigid_inertia(&centred).matrix() - x.act_inertia(&centred.matrix())).amax() < 1e-13);
     }
 
     #[test]

@@ -12,6 +12,7 @@ use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rayon::prelude::*;
+use smallvec::SmallVec;
 
 use crate::convert::batch_error;
 
@@ -35,16 +36,20 @@ impl Rows<'_> {
     }
 }
 
+/// A shape; inline up to four dimensions, as every call's arguments and outputs are, so that a call
+/// allocates nothing for its shapes.
+pub type Shape = SmallVec<[usize; 4]>;
+
 /// The broadcast batch: its shape, its length, and every argument's rows.
 pub struct Batch<'a> {
-    pub shape: Vec<usize>,
+    pub shape: Shape,
     pub len: usize,
-    pub rows: Vec<Rows<'a>>,
+    pub rows: SmallVec<[Rows<'a>; 4]>,
 }
 
 impl Batch<'_> {
     /// The shape of an output with the given core dimensions.
-    pub fn output_shape(&self, core: &[usize]) -> Vec<usize> {
+    pub fn output_shape(&self, core: &[usize]) -> Shape {
         self.shape.iter().chain(core).copied().collect()
     }
 }
@@ -58,8 +63,8 @@ fn describe(core: Core) -> String {
 }
 
 pub fn broadcast<'a>(arguments: &[(&str, &'a ArrayArg<'_>, Core)]) -> PyResult<Batch<'a>> {
-    let mut shape: Vec<usize> = Vec::new();
-    let mut arrays = Vec::with_capacity(arguments.len());
+    let mut shape = Shape::new();
+    let mut arrays: SmallVec<[_; 4]> = SmallVec::new();
     for (name, argument, core) in arguments {
         let array = argument.array(name)?;
         let dims = array.shape();
@@ -98,7 +103,7 @@ pub fn broadcast<'a>(arguments: &[(&str, &'a ArrayArg<'_>, Core)]) -> PyResult<B
     Ok(Batch { shape, len, rows })
 }
 
-fn broadcast_shapes(a: &[usize], b: &[usize]) -> Option<Vec<usize>> {
+fn broadcast_shapes(a: &[usize], b: &[usize]) -> Option<Shape> {
     let n = a.len().max(b.len());
     let dim = |s: &[usize], i: usize| if i + s.len() >= n { s[i + s.len() - n] } else { 1 };
     (0..n)
@@ -144,6 +149,6 @@ where
     }
 }
 
-pub fn to_numpy<'py>(py: Python<'py>, shape: Vec<usize>, data: Vec<f64>) -> Bound<'py, PyArrayDyn<f64>> {
+pub fn to_numpy<'py>(py: Python<'py>, shape: Shape, data: Vec<f64>) -> Bound<'py, PyArrayDyn<f64>> {
     crate::convert::to_numpy(py, IxDyn(&shape), data)
 }

@@ -20,11 +20,11 @@ fn state_batch<'a>(
     f_ext: Option<&'a ArrayArg<'_>>,
 ) -> PyResult<Batch<'a>> {
     let (q_core, v_core, force_core) = ([m.nq()], [m.nv()], [m.nbodies(), 6]);
-    let mut arguments = vec![("q", q, &q_core[..]), ("v", v, &v_core[..]), (name, x, &v_core[..])];
-    if let Some(f) = f_ext {
-        arguments.push(("f_ext", f, &force_core[..]));
+    let arguments = [("q", q, &q_core[..]), ("v", v, &v_core[..]), (name, x, &v_core[..])];
+    match f_ext {
+        Some(f) => broadcast(&[arguments[0], arguments[1], arguments[2], ("f_ext", f, &force_core[..])]),
+        None => broadcast(&arguments),
     }
-    broadcast(&arguments)
 }
 
 /// Inverse dynamics τ = M q̈ + C q̇ + g − Σ Jᵀ f_ext (recursive Newton–Euler). `f_ext`, optional, holds one

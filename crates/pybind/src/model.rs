@@ -17,7 +17,7 @@ use crate::mass::PyMassProperties;
 #[pyclass(name = "Model", module = "legkit")]
 pub struct PyModel {
     pub model: Model,
-    workspace: Mutex<Option<Data>>,
+    workspace: Mutex<Option<Box<Data>>>,
 }
 
 impl PyModel {
@@ -26,12 +26,12 @@ impl PyModel {
     }
 
     /// The cached workspace (or a new one if another thread holds it); hand it back with `put_back`.
-    pub fn take_workspace(&self) -> Data {
+    pub fn take_workspace(&self) -> Box<Data> {
         let cached = self.workspace.try_lock().ok().and_then(|mut w| w.take());
-        cached.unwrap_or_else(|| Data::new(&self.model))
+        cached.unwrap_or_else(|| Box::new(Data::new(&self.model)))
     }
 
-    pub fn put_back(&self, data: Data) {
+    pub fn put_back(&self, data: Box<Data>) {
         if let Ok(mut w) = self.workspace.try_lock() {
             *w = Some(data);
         }

@@ -15,7 +15,8 @@ const SMALL_MODEL: usize = 16;
 /// A workspace for one task: the model's cached one when free, handed back when done.
 pub struct Workspace<'m> {
     owner: &'m PyModel,
-    data: Option<Data>,
+    /// Boxed, so that taking and handing back a workspace moves a pointer.
+    data: Option<Box<Data>>,
     forces: Vec<Force>,
 }
 
@@ -51,12 +52,14 @@ impl Drop for Workspace<'_> {
 }
 
 /// Runs `kernel(model, workspace, i, out)` over the batch, GIL released; returns `batch + out_core`,
-/// written in place into a new NumPy array.
+/// written in place into a new NumPy array. The array starts uninitialised: a kernel writes all of `out`
+/// or fails (and the array is dropped).
 pub fn run<'py, K>(py: Python<'py>, owner: &PyModel, batch: &Batch<'_>, out_core: &[usize], kernel: K) -> PyResult<Bound<'py, PyArrayDyn<f64>>>
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
-    let array = PyArrayDyn::<f64>::zeros(py, IxDyn(&batch.output_shape(out_core)), false);
+    // SAFETY: every kernel writes its whole row before the array can be read (see above).
+    let array = unsafe { PyArrayDyn::<f64>::new(py, IxDyn(&batch.output_shape(out_core)), false) };
     // SAFETY: the array was just created here and nothing else refers to it yet.
     let out = unsafe { array.as_slice_mut() }.expect("a new array is contiguous");
     fill(py, owner, batch, out, out_core.iter().product(), kernel)?;

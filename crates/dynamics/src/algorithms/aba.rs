@@ -1,24 +1,29 @@
 //! Articulated-body algorithm (Featherstone, Table 7.1): O(n) forward dynamics q̈ = M⁻¹(τ − C q̇ − g + Jᵀ f_ext).
 //!
-//! Worked in world coordinates, as Pinocchio's: each body's rigid inertia moves to the world once, in its
-//! 10-parameter form, and articulated inertias and bias forces then pass to the parent without a transform.
+//! Worked in the world's axes about the base (`kinematics::base_centred_kinematics`), as Pinocchio's in world
+//! coordinates: each body's rigid inertia moves to the world once, in its 10-parameter form, and articulated
+//! inertias and bias forces then pass to the parent without a transform.
 
 use nalgebra::DVector;
 
-use super::joint_placement;
+use super::kinematics::base_centred_root;
+use super::world_pose;
 use crate::model::{Data, Joint, Model};
-use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, inertia_times_pair, Force, Motion};
+use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inertia_times_pair, Force, Motion};
 
 /// Joint accelerations for configuration `q`, velocity `v` and joint forces `tau`; `f_ext` as in `rnea`.
-/// Writes `data.ddq` and returns it. In world coordinates, `data.o_m_i` holds each body's pose, `data.v`
-/// its velocity and `data.a` its acceleration with gravity as a base acceleration (§5.3).
+/// Writes `data.ddq` and returns it. In the world's axes about the base's origin (see
+/// `kinematics::base_centred_kinematics`), `data.o_m_i` holds each body's pose, `data.v` its velocity and
+/// `data.a` its acceleration with gravity as a base acceleration (§5.3).
 pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>) -> &'d DVector<f64> {
     let n = model.nbodies();
     // Pass 1: poses, velocities v_i = v_λ + S q̇, velocity-product accelerations c_i = v_λ × S q̇ and bias
     // forces v_i ×* I_i v_i − f_ext (eq. 7.34–7.36, world frame).
     for i in 0..n {
-        let li = joint_placement(model, i, q);
-        let (pose, v_parent) = if i == 0 { (li, Motion::zeros()) } else { (data.o_m_i[model.parent(i)].compose(&li), data.v[model.parent(i)]) };
+        let (pose, v_parent) = match i {
+            0 => (base_centred_root(model, q), Motion::zeros()),
+            _ => (world_pose(model, i, &data.o_m_i[model.parent(i)], q), data.v[model.parent(i)]),
+        };
         let k = model.idx_v(i);
         let v_joint = match model.joint(i) {
             Joint::FreeFlyer => pose.act_motion(&Motion::from_column_slice(&v[k..k + 6])),
@@ -49,12 +54,13 @@ pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f
         let (u, ia_c) = inertia_times_pair(&data.inertia[i], &s, &c);
         let mut pa = data.bias[i] + ia_c;
         let w = if model.joint(i).nv() == 1 {
-            let d = s.dot(&u);
-            let u_scalar = tau[k] - s.dot(&data.bias[i]);
-            let w = u / d;
-            pa += w * (u_scalar - u.dot(&c));
+            // One division per joint, off the accelerations' dependency chain.
+            let d_inv = 1.0 / dot6(&s, u.as_slice());
+            let u_scalar = tau[k] - dot6(&s, data.bias[i].as_slice());
+            let w = u * d_inv;
+            pa += w * (u_scalar - dot6(&u, c.as_slice()));
             data.u[i] = u;
-            data.d[i] = d;
+            data.d_inv[i] = d_inv;
             data.ddq[k] = u_scalar;
             w
         } else {
@@ -80,7 +86,7 @@ pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f
             }
             Joint::Fixed => a_prime,
             Joint::Revolute(_) | Joint::Prismatic(_) => {
-                let qdd = (data.ddq[k] - data.u[i].dot(&a_prime)) / data.d[i];
+                let qdd = (data.ddq[k] - dot6(&data.u[i], a_prime.as_slice())) * data.d_inv[i];
                 data.ddq[k] = qdd;
                 a_prime + data.s[i] * qdd
             }

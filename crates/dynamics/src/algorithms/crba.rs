@@ -1,22 +1,25 @@
 //! Composite-rigid-body algorithm (Featherstone, Table 6.2): the joint-space mass matrix M(q).
 //!
-//! Worked in world coordinates, as Pinocchio does: composite inertias, in their 10-parameter rigid form,
-//! then add without transforms, and each entry M_ji = S_jᵀ F_i is one dot product, whatever the depth of
-//! the tree.
+//! Worked in the world's axes about the base (`kinematics::base_centred_kinematics`), as Pinocchio works in world
+//! coordinates: composite inertias, in their 10-parameter rigid form, then add without transforms, and each entry
+//! M_ji = S_jᵀ F_i is one dot product, whatever the depth of the tree.
 
 use nalgebra::DMatrix;
 
-use super::forward_kinematics;
+use super::kinematics::base_centred_kinematics;
 use crate::model::{Data, Joint, Model};
+use crate::spatial::RigidInertia;
 
-/// Fills `data.mass_matrix` (both triangles) and returns it. Works for any parent-before-child order.
+/// Fills `data.mass_matrix` (both triangles, each entry as it is found) and returns it. Works for any parent-before-child order.
 pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64> {
     let n = model.nbodies();
-    forward_kinematics(model, data, q);
-    for i in 0..n {
+    base_centred_kinematics(model, data, q);
+    // A fixed base's composite inertia is not needed.
+    data.composite[0] = if model.floating_base() { data.o_m_i[0].act_rigid_inertia(model.inertia(0)) } else { RigidInertia::zeros() };
+    for i in 1..n {
         data.composite[i] = data.o_m_i[i].act_rigid_inertia(model.inertia(i));
-        if let Some(s) = model.joint(i).axis_motion() {
-            data.s[i] = data.o_m_i[i].act_motion(&s);
+        if let Some(s) = data.o_m_i[i].act_axis(model.joint(i)) {
+            data.s[i] = s;
         }
     }
     for i in (0..n).rev() {
@@ -44,14 +47,18 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
                         Joint::FreeFlyer => {
                             let local = data.o_m_i[0].inv_act_force(&force);
                             data.mass_matrix.view_mut((kj, k), (6, 1)).copy_from(&local);
+                            data.mass_matrix.view_mut((k, kj), (1, 6)).copy_from(&local.transpose());
                         }
                         Joint::Fixed => {}
-                        Joint::Revolute(_) | Joint::Prismatic(_) => data.mass_matrix[(kj, k)] = data.s[j].dot(&force),
+                        Joint::Revolute(_) | Joint::Prismatic(_) => {
+                            let entry = data.s[j].dot(&force);
+                            data.mass_matrix[(kj, k)] = entry;
+                            data.mass_matrix[(k, kj)] = entry;
+                        }
                     }
                 }
             }
         }
     }
-    data.mass_matrix.fill_lower_triangle_with_upper_triangle();
     &data.mass_matrix
 }

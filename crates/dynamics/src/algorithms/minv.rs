@@ -2,33 +2,35 @@
 //! "Analytical inverse of the joint space inertia matrix"; Pinocchio's `computeMinverse`), never forming
 //! or factorising M.
 //!
-//! Worked in world coordinates: articulated inertias, the force sets F_i (τ ↦ bias force of subtree i) and
-//! the motion sets P_i (τ ↦ acceleration of body i) pass between bodies without transforms, so each
-//! (body, column) pair costs a few 6-vector operations. Row i of the upper triangle is kept in column i
-//! (the lower triangle), where it is contiguous.
+//! Worked in the world's axes about the base (`kinematics::base_centred_kinematics`): articulated inertias, the
+//! force sets F_i (τ ↦ bias force of subtree i) and the motion sets P_i (τ ↦ acceleration of body i) pass between
+//! bodies without transforms, so each (body, column) pair costs a few 6-vector operations. Row i of the upper
+//! triangle is kept in column i (the lower triangle), where it is contiguous.
+//!
+//! F_i is nonzero only on the columns of i's subtree, and each of those but i's own belongs to exactly one
+//! child's subtree: a child writes its part of F_parent outright, so no set is ever cleared.
 
 use nalgebra::{DMatrix, Matrix6xX, Vector6};
 
-use super::forward_kinematics;
+use super::kinematics::base_centred_kinematics;
 use crate::model::{Data, Joint, Model};
-use crate::spatial::Inertia;
+use crate::spatial::{add_reduced_inertia, dot6};
 
-/// Columns `from..` of body `i`'s set and its parent's, as 6-vector chunks (`parent < i`).
-fn sets(data: &mut [Matrix6xX<f64>], parent: usize, i: usize, from: usize) -> (&mut [f64], &mut [f64]) {
+/// Body `i`'s set and its parent's (`parent < i`), as 6-vector chunks, one per column.
+fn sets(data: &mut [Matrix6xX<f64>], parent: usize, i: usize) -> (&mut [f64], &mut [f64]) {
     let (head, tail) = data.split_at_mut(i);
-    (&mut head[parent].as_mut_slice()[6 * from..], &mut tail[0].as_mut_slice()[6 * from..])
+    (head[parent].as_mut_slice(), tail[0].as_mut_slice())
 }
 
 #[inline]
-fn dot(a: &Vector6<f64>, b: &[f64]) -> f64 {
-    let b: &[f64; 6] = b.try_into().expect("a 6-vector chunk");
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
+fn chunk(x: &[f64], column: usize) -> &[f64; 6] {
+    x[6 * column..6 * column + 6].try_into().expect("a 6-vector chunk")
 }
+
 
 /// `out = base + x m`, 6-vectors.
 #[inline]
-fn axpy(out: &mut [f64], base: &[f64], x: &Vector6<f64>, m: f64) {
-    let (out, base): (&mut [f64; 6], &[f64; 6]) = (out.try_into().expect("6"), base.try_into().expect("6"));
+fn axpy(out: &mut [f64; 6], base: &[f64; 6], x: &Vector6<f64>, m: f64) {
     for r in 0..6 {
         out[r] = base[r] + x[r] * m;
     }
@@ -40,82 +42,89 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
     if data.force_sets.len() != n {
         data.force_sets = vec![Matrix6xX::zeros(nv); n];
     }
-    forward_kinematics(model, data, q);
+    base_centred_kinematics(model, data, q);
     for i in 0..n {
         data.inertia[i] = data.o_m_i[i].act_rigid_inertia(model.inertia(i)).matrix();
-        if let Some(s) = model.joint(i).axis_motion() {
-            data.s[i] = data.o_m_i[i].act_motion(&s);
-        }
-        let (k, end) = (model.idx_v(i), model.subtree_v_end(i));
-        data.force_sets[i].as_mut_slice()[6 * k..6 * end].fill(0.0);
+        data.s[i] = data.o_m_i[i].act_axis(model.joint(i)).unwrap_or_else(Vector6::zeros);
     }
-    // Backward pass: the rows' subtree parts D⁻¹(e_i − Sᵀ F_i), then F_i += U M⁻¹_i goes to the parent
-    // together with the articulated inertia I^A − U D⁻¹ Uᵀ.
+    // Backward pass: the rows' subtree parts D⁻¹(e_i − Sᵀ F_i); F_i + U M⁻¹_i goes to the parent together
+    // with the articulated inertia I^A − U D⁻¹ Uᵀ.
     for i in (0..n).rev() {
-        let (k, end) = (model.idx_v(i), model.subtree_v_end(i));
-        match model.joint(i) {
-            Joint::FreeFlyer => {
-                // S = X_0 (the base frame), so D = X_0ᵀ I^A X_0 is the inertia in the base frame.
-                let base = data.o_m_i[0];
-                let dinv = base.inverse().act_inertia(&data.inertia[0]).try_inverse().unwrap_or_else(|| Inertia::repeat(f64::NAN));
-                data.minv.view_mut((0, 0), (6, 6)).copy_from(&dinv);
-                for col in 6..nv {
-                    let f = Vector6::from_column_slice(&data.force_sets[0].as_slice()[6 * col..6 * col + 6]);
-                    data.minv.view_mut((col, 0), (1, 6)).copy_from(&(-dinv * base.inv_act_force(&f)).transpose());
+        let k = model.idx_v(i);
+        if let Joint::FreeFlyer = model.joint(i) {
+            // S = X_0 (the base frame to the world), so D⁻¹ Sᵀ = X_0⁻¹ I^A⁻¹: the base rows of column c are
+            // X_0⁻¹ I^A⁻¹ (X_0⁻ᵀ e_c) for the base's own columns and −X_0⁻¹ I^A⁻¹ F_0[c] for the others, and
+            // the base's motion set P_0[c] = S M⁻¹_0[c] is the world-frame solve itself.
+            let base = data.o_m_i[0];
+            let solver = data.inertia[0].cholesky();
+            let solve = |f: &Vector6<f64>| solver.as_ref().map_or(Vector6::repeat(f64::NAN), |c| c.solve(f));
+            for col in 0..nv {
+                let motion = if col < 6 {
+                    solve(&base.act_force(&Vector6::ith(col, 1.0)))
+                } else {
+                    -solve(&Vector6::from_column_slice(chunk(data.force_sets[0].as_slice(), col)))
+                };
+                let rows = base.inv_act_motion(&motion);
+                if col < 6 {
+                    data.minv.view_mut((0, col), (6, 1)).copy_from(&rows);
+                } else {
+                    data.minv.view_mut((col, 0), (1, 6)).copy_from(&rows.transpose());
                 }
+                data.force_sets[0].set_column(col, &motion);
             }
-            Joint::Fixed => {}
-            Joint::Revolute(_) | Joint::Prismatic(_) => {
-                let (s, ia) = (data.s[i], data.inertia[i]);
-                let u = ia * s;
-                let dinv = 1.0 / s.dot(&u);
-                let row = &mut data.minv.as_mut_slice()[k * nv + k..(k + 1) * nv];
-                // Beyond the subtree F_i is zero, and so is this part of the row until the forward pass.
-                row[end - k..].fill(0.0);
-                let f = &mut data.force_sets[i].as_mut_slice()[6 * k..6 * end];
-                for (c, (column, entry)) in f.chunks_exact_mut(6).zip(row.iter_mut()).enumerate() {
-                    let m = if c == 0 { dinv } else { -dinv * dot(&s, column) };
-                    *entry = m;
-                    let before: [f64; 6] = (&*column).try_into().expect("6");
-                    axpy(column, &before, &u, m);
-                }
-                data.inertia[i] = ia - u * u.transpose() * dinv;
-                data.u[i] = u;
-                data.d[i] = 1.0 / dinv;
+            continue;
+        }
+        let (s, u) = (data.s[i], data.inertia[i] * data.s[i]);
+        let one_dof = model.joint(i).nv() == 1;
+        let dinv = if one_dof { 1.0 / s.dot(&u) } else { 0.0 };
+        if one_dof {
+            // Beyond the subtree this row is zero until the forward pass.
+            data.minv.as_mut_slice()[k * nv + k..(k + 1) * nv].fill(0.0);
+            data.u[i] = u;
+            data.d_inv[i] = dinv;
+        }
+        if i == 0 {
+            continue;
+        }
+        let p = model.parent(i);
+        let (fp, fi) = sets(&mut data.force_sets, p, i);
+        let row: &mut [f64] = if one_dof { &mut data.minv.as_mut_slice()[k * nv..(k + 1) * nv] } else { &mut [] };
+        for columns in model.subtree_columns(i) {
+            let span = 6 * columns.start..6 * columns.end;
+            let pairs = fp[span.clone()].chunks_exact_mut(6).zip(fi[span].chunks_exact(6));
+            if !one_dof {
+                pairs.for_each(|(to, from)| to.copy_from_slice(from));
+                continue;
+            }
+            for (c, ((to, from), entry)) in (columns.start..).zip(pairs.zip(&mut row[columns.clone()])) {
+                let (to, from): (&mut [f64; 6], &[f64; 6]) = (to.try_into().expect("6"), from.try_into().expect("6"));
+                // F_i is zero on i's own column.
+                let m = if c == k { dinv } else { -dinv * dot6(&s, from) };
+                *entry = m;
+                axpy(to, if c == k { &[0.0; 6] } else { from }, &u, m);
             }
         }
-        if i > 0 {
-            let p = model.parent(i);
-            let ia = data.inertia[i];
-            data.inertia[p] += ia;
-            let (fp, fi) = sets(&mut data.force_sets, p, i, k);
-            let span = 6 * (end - k);
-            fp[..span].iter_mut().zip(fi[..span].iter()).for_each(|(a, b)| *a += b);
-        }
+        let (head, tail) = data.inertia.split_at_mut(i);
+        add_reduced_inertia(&mut head[p], &tail[0], &u, &(u * dinv));
     }
     // Forward pass: subtract D⁻¹ Uᵀ P_parent, then P_i = S M⁻¹_i + P_parent (reusing the sets' storage).
     for i in 0..n {
         let k = model.idx_v(i);
         match model.joint(i) {
-            Joint::FreeFlyer => {
-                let base = data.o_m_i[0];
-                for col in 0..nv {
-                    let m = Vector6::from_fn(|r, _| data.minv[(col.max(r), col.min(r))]);
-                    data.force_sets[0].set_column(col, &base.act_motion(&m));
-                }
-            }
+            // The backward pass left P_0.
+            Joint::FreeFlyer => {}
             Joint::Fixed if i == 0 => data.force_sets[0].fill(0.0),
             joint => {
-                let p = model.parent(i);
-                let (s, u, dinv) = (data.s[i], data.u[i], 1.0 / data.d[i]);
-                let (pp, pi) = sets(&mut data.force_sets, p, i, k);
+                let (p, s, u, dinv) = (model.parent(i), data.s[i], data.u[i], data.d_inv[i]);
+                let (pp, pi) = sets(&mut data.force_sets, p, i);
                 if matches!(joint, Joint::Fixed) {
-                    pi.copy_from_slice(pp);
+                    pi[6 * k..].copy_from_slice(&pp[6 * k..]);
                     continue;
                 }
                 let row = &mut data.minv.as_mut_slice()[k * nv + k..(k + 1) * nv];
-                for ((parent, own), entry) in pp.chunks_exact(6).zip(pi.chunks_exact_mut(6)).zip(row.iter_mut()) {
-                    let m = *entry - dinv * dot(&u, parent);
+                for ((parent, own), entry) in pp[6 * k..].chunks_exact(6).zip(pi[6 * k..].chunks_exact_mut(6)).zip(row) {
+                    let (parent, own): (&[f64; 6], &mut [f64; 6]) = (parent.try_into().expect("6"), own.try_into().expect("6"));
+                    let m = *entry - dinv * dot6(&u, parent);
                     *entry = m;
                     axpy(own, parent, &s, m);
                 }

@@ -40,14 +40,33 @@ pub(crate) fn joint_motion(model: &Model, i: usize, v: &[f64]) -> Motion {
     }
 }
 
+/// `pose` followed by joint `i`'s motion for configuration `q`.
+#[inline]
+fn after_joint(model: &Model, i: usize, pose: Transform, q: &[f64]) -> Transform {
+    let k = model.idx_q(i);
+    match *model.joint(i) {
+        Joint::Revolute(axis) => pose.rotated_about(&axis, q[k]),
+        Joint::Prismatic(axis) => Transform::new(pose.rotation, pose.transform_point(&(axis * q[k]))),
+        Joint::Fixed => pose,
+        joint @ Joint::FreeFlyer => pose.compose(&joint.transform(&q[k..k + 7])),
+    }
+}
+
 /// Pose of body `i` in its parent for configuration `q`: its placement followed by the joint's motion.
 #[inline]
 pub(crate) fn joint_placement(model: &Model, i: usize, q: &[f64]) -> Transform {
-    let (placement, k) = (model.placement(i), model.idx_q(i));
-    match *model.joint(i) {
-        Joint::Revolute(axis) => placement.rotated_about(&axis, q[k]),
-        Joint::Prismatic(axis) => Transform::new(placement.rotation, placement.transform_point(&(axis * q[k]))),
-        Joint::Fixed => *placement,
-        joint @ Joint::FreeFlyer => placement.compose(&joint.transform(&q[k..k + 7])),
-    }
+    after_joint(model, i, *model.placement(i), q)
+}
+
+/// Pose of body `i` in the world, given its parent's: parent ∘ placement ∘ joint motion, composed in that
+/// order so that a placement without rotation (the usual case) costs no rotation product.
+#[inline]
+pub(crate) fn world_pose(model: &Model, i: usize, parent: &Transform, q: &[f64]) -> Transform {
+    let placement = model.placement(i);
+    let placed = if placement.is_translation() {
+        Transform::new(parent.rotation, parent.transform_point(&placement.translation))
+    } else {
+        parent.compose(placement)
+    };
+    after_joint(model, i, placed, q)
 }

@@ -266,7 +266,7 @@ pub(crate) fn build(model: &Model, options: &Options) -> Result<(PhysicsWorld, L
     let neutral = model.neutral();
     let mut poses = vec![Transform::identity(); n];
     for i in 1..n {
-        poses[i] = poses[model.parent(i)].compose(&crate::algorithms::joint_placement(model, i, neutral.as_slice()));
+        poses[i] = crate::algorithms::world_pose(model, i, &poses[model.parent(i)], neutral.as_slice());
     }
     let mut handles = Vec::with_capacity(owner.len());
     for (r, &i) in owner.iter().enumerate() {
