@@ -44,7 +44,7 @@ pub fn contact_dynamics<'py>(
         let solution = algorithms::contact_dynamics(m, w.data(), q, v, tau, &contacts)?;
         out[..nv].copy_from_slice(solution.ddq.as_slice());
         out[nv..].copy_from_slice(solution.forces.as_slice());
-        finite_result(out)
+        finite_result(&*out)
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[nv], &[k, 3]]).into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap()))
@@ -68,7 +68,7 @@ pub fn impact<'py>(
         let (v_plus, impulses) = algorithms::impact(m, w.data(), q, v, &contacts)?;
         out[..nv].copy_from_slice(v_plus.as_slice());
         out[nv..].copy_from_slice(impulses.as_slice());
-        finite_result(out)
+        finite_result(&*out)
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[nv], &[k, 3]]).into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap()))

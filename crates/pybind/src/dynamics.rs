@@ -70,7 +70,7 @@ pub fn aba<'py>(
         check_vector("tau", tau, m.nv())?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         out.copy_from_slice(algorithms::aba(m, data, q, v, tau, forces).as_slice());
-        finite_result(out)
+        finite_result(&*out)
     })
 }
 
@@ -97,7 +97,8 @@ pub fn minv<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) ->
         let q = batch.rows[0].row(i);
         m.check_configuration(q)?;
         out.copy_from_slice(algorithms::minv(m, w.data(), q).as_slice());
-        finite_result(out)
+        // M⁻¹ is positive definite, so |M⁻¹_ij| <= sqrt(M⁻¹_ii M⁻¹_jj): a singular M shows on the diagonal.
+        finite_result(out.iter().step_by(m.nv() + 1))
     })
 }
 

@@ -59,7 +59,7 @@ pub fn simulate<'py>(
         check_state(m, q, Some(v))?;
         let (qs, vs) = out.split_at_mut((steps + 1) * nq);
         algorithms::simulate(m, w.data(), q, v, &tau, dt, steps, method, qs, vs)?;
-        finite_result(out)
+        finite_result(&*out)
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[steps + 1, nq], &[steps + 1, nv]]).into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap()))

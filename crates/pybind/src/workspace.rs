@@ -107,8 +107,8 @@ pub fn unpack<'py>(py: Python<'py>, batch: &Batch<'_>, packed: &[f64], cores: &[
 }
 
 /// Fails on NaN or infinity in a result: a singular model or state rather than silent garbage.
-pub fn finite_result(values: &[f64]) -> Result<(), Error> {
-    if values.iter().all(|x| x.is_finite()) {
+pub fn finite_result<'a>(values: impl IntoIterator<Item = &'a f64>) -> Result<(), Error> {
+    if values.into_iter().all(|x| x.is_finite()) {
         Ok(())
     } else {
         Err(Error::invalid("model", "the result is not finite: the mass matrix is singular at this configuration"))

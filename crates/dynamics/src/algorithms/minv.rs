@@ -14,7 +14,7 @@ use nalgebra::{DMatrix, Matrix6xX, Vector6};
 
 use super::kinematics::base_centred_kinematics;
 use crate::model::{Data, Joint, Model};
-use crate::spatial::{add_reduced_inertia, dot6};
+use crate::spatial::{add_reduced_inertia, dot6, Inertia};
 
 /// Body `i`'s set and its parent's (`parent < i`), as 6-vector chunks, one per column.
 fn sets(data: &mut [Matrix6xX<f64>], parent: usize, i: usize) -> (&mut [f64], &mut [f64]) {
@@ -56,21 +56,20 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
             // X_0⁻¹ I^A⁻¹ (X_0⁻ᵀ e_c) for the base's own columns and −X_0⁻¹ I^A⁻¹ F_0[c] for the others, and
             // the base's motion set P_0[c] = S M⁻¹_0[c] is the world-frame solve itself.
             let base = data.o_m_i[0];
-            let solver = data.inertia[0].cholesky();
-            let solve = |f: &Vector6<f64>| solver.as_ref().map_or(Vector6::repeat(f64::NAN), |c| c.solve(f));
+            // One inverse, then independent products (the solves would each be a chain of divisions).
+            let inverse = data.inertia[0].cholesky().map_or(Inertia::repeat(f64::NAN), |c| c.inverse());
             for col in 0..nv {
                 let motion = if col < 6 {
-                    solve(&base.act_force(&Vector6::ith(col, 1.0)))
+                    inverse * base.act_force(&Vector6::ith(col, 1.0))
                 } else {
-                    -solve(&Vector6::from_column_slice(chunk(data.force_sets[0].as_slice(), col)))
+                    -(inverse * Vector6::from_column_slice(chunk(data.force_sets[0].as_slice(), col)))
                 };
-                let rows = base.inv_act_motion(&motion);
-                if col < 6 {
-                    data.minv.view_mut((0, col), (6, 1)).copy_from(&rows);
-                } else {
-                    data.minv.view_mut((col, 0), (1, 6)).copy_from(&rows.transpose());
+                // Row r of the upper triangle lives in column r: entry (col, r), at r nv + col.
+                let minv = data.minv.as_mut_slice();
+                for (r, x) in base.inv_act_motion(&motion).iter().enumerate() {
+                    minv[r * nv + col] = *x;
                 }
-                data.force_sets[0].set_column(col, &motion);
+                data.force_sets[0].as_mut_slice()[6 * col..6 * col + 6].copy_from_slice(motion.as_slice());
             }
             continue;
         }
