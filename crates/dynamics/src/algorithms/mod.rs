@@ -30,7 +30,7 @@ use crate::model::{Joint, Model};
 use crate::spatial::{Motion, Transform};
 
 /// The motion across joint `i` for joint velocity `v` (the model's full velocity vector), in body `i`'s frame.
-#[inline]
+#[inline(always)]
 pub(crate) fn joint_motion(model: &Model, i: usize, v: &[f64]) -> Motion {
     let k = model.idx_v(i);
     match model.joint(i) {
@@ -41,7 +41,7 @@ pub(crate) fn joint_motion(model: &Model, i: usize, v: &[f64]) -> Motion {
 }
 
 /// `pose` followed by joint `i`'s motion for configuration `q`.
-#[inline]
+#[inline(always)]
 fn after_joint(model: &Model, i: usize, pose: Transform, q: &[f64]) -> Transform {
     let k = model.idx_q(i);
     match *model.joint(i) {
@@ -53,14 +53,14 @@ fn after_joint(model: &Model, i: usize, pose: Transform, q: &[f64]) -> Transform
 }
 
 /// Pose of body `i` in its parent for configuration `q`: its placement followed by the joint's motion.
-#[inline]
+#[inline(always)]
 pub(crate) fn joint_placement(model: &Model, i: usize, q: &[f64]) -> Transform {
     after_joint(model, i, *model.placement(i), q)
 }
 
 /// Pose of body `i` in the world, given its parent's: parent ∘ placement ∘ joint motion, composed in that
 /// order so that a placement without rotation (the usual case) costs no rotation product.
-#[inline]
+#[inline(always)]
 pub(crate) fn world_pose(model: &Model, i: usize, parent: &Transform, q: &[f64]) -> Transform {
     let placement = model.placement(i);
     let placed = if placement.is_translation() {
