@@ -11,6 +11,7 @@ from legkit._core import (
     MassProperties,
     Model,
     Simulation,
+    SimulationBatch,
     aba,
     center_of_mass,
     centroidal_momentum,
@@ -55,5 +56,6 @@ __all__ = [
     "integrate",
     "simulate",
     "Simulation",
+    "SimulationBatch",
     "Ground",
 ]

@@ -170,13 +170,18 @@ class Ground:
     def cell_size(self) -> float | None: ...
 
 class Simulation:
-    """Contact simulation of a Model on Rapier (reduced-coordinate multibody, exact joint dynamics)."""
+    """Contact simulation of a Model: legkit's tree engine (backend="tree", default) or Rapier's multibody
+    (backend="rapier", the reference)."""
     def __init__(
         self, model: Model, dt: float = 1e-3, ground: Ground | None = None, shapes: dict[int | str, _ShapeSpec] | None = None,
         self_collision: bool = False, joint_damping: float = 0.0, joint_armature: float = 0.0, substeps: int = 1,
+        backend: Literal["tree", "rapier"] = "tree", solver_iterations: int = 100,
     ) -> None: ...
+    @property
+    def backend(self) -> Literal["tree", "rapier"]: ...
     def step(self, tau: npt.ArrayLike | None = None, n: int = 1) -> None:
-        """n steps with feed-forward tau (nv,) held over them; GIL released."""
+        """n steps with feed-forward tau (nv,) held over them; GIL released. RuntimeError (naming the step and
+        the body) if the state would diverge; the last good state is kept."""
     def set_servo(
         self, kp: npt.ArrayLike, kd: npt.ArrayLike | None = None, torque_limit: npt.ArrayLike | None = None,
         target_q: npt.ArrayLike | None = None, target_v: npt.ArrayLike | None = None,
@@ -203,3 +208,18 @@ class Simulation:
     def contacts(self) -> dict[str, np.ndarray]:
         """body, other (-1: ground), point (k,3), normal (k,3) into body, normal_force (k,), tangential_force (k,3), depth (k,)."""
     def reset(self, q: npt.ArrayLike | None = None, v: npt.ArrayLike | None = None) -> None: ...
+
+class SimulationBatch:
+    """Steps many Simulations (any models, any backends) in parallel on all cores, GIL released."""
+    def __init__(self, simulations: Sequence[Simulation]) -> None: ...
+    def step(self, tau: npt.ArrayLike | Sequence[npt.ArrayLike | None] | None = None, n: int = 1) -> None:
+        """tau: None, (nv,) for all, (B, nv), or a list with one (nv,) array (or None) per simulation."""
+    @property
+    def simulations(self) -> list[Simulation]: ...
+    @property
+    def q(self) -> np.ndarray:
+        """(B, nq), when all simulations share nq."""
+    @property
+    def v(self) -> np.ndarray:
+        """(B, nv), when all simulations share nv."""
+    def __len__(self) -> int: ...

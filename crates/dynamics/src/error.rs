@@ -1,4 +1,5 @@
-//! The one error type of the crate: bad input, named by the argument it came from.
+//! The one error type of the crate: bad input, named by the argument it came from, or a computation that
+//! failed on valid input (a diverging simulation).
 
 use std::fmt;
 
@@ -6,6 +7,8 @@ use std::fmt;
 pub enum Error {
     /// An argument's value is out of its domain (non-finite, negative mass, non-physical inertia, ...).
     InvalidArgument { argument: &'static str, reason: String },
+    /// A computation failed on valid input (`context` names it, e.g. "step"): a RuntimeError in Python.
+    Numerical { context: &'static str, reason: String },
 }
 
 impl Error {
@@ -13,9 +16,14 @@ impl Error {
         Error::InvalidArgument { argument, reason: reason.into() }
     }
 
+    pub fn numerical(context: &'static str, reason: impl Into<String>) -> Self {
+        Error::Numerical { context, reason: reason.into() }
+    }
+
+    /// The argument (or, for a numerical failure, the computation) the error is about.
     pub fn argument(&self) -> &'static str {
         match self {
-            Error::InvalidArgument { argument, .. } => argument,
+            Error::InvalidArgument { argument, .. } | Error::Numerical { context: argument, .. } => argument,
         }
     }
 }
@@ -23,7 +31,7 @@ impl Error {
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Error::InvalidArgument { argument, reason } => write!(f, "{argument}: {reason}"),
+            Error::InvalidArgument { argument, reason } | Error::Numerical { context: argument, reason } => write!(f, "{argument}: {reason}"),
         }
     }
 }

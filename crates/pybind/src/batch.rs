@@ -143,7 +143,7 @@ where
             .min_by_key(|(i, _)| *i)
     };
     match failure {
-        Some((_, e)) if len == 1 => Err(crate::convert::value_error(e)),
+        Some((_, e)) if len == 1 => Err(crate::convert::kernel_error(e)),
         Some((i, e)) => Err(batch_error(e, i)),
         None => Ok(()),
     }

@@ -6,7 +6,7 @@ use numpy::{PyArray1, PyArray2, PyArrayDyn};
 use pyo3::prelude::*;
 
 use crate::batch::{broadcast, ArrayArg};
-use crate::convert::{to_numpy, value_error, vector3, Vector};
+use crate::convert::{to_numpy, kernel_error, vector3, Vector};
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run_packed, unpack};
 
@@ -19,7 +19,7 @@ fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<Contact>>
         })?;
         out.push(Contact { body: model.body_index(&body)?, point: vector3("contacts", &point)? });
     }
-    algorithms::contact::check_contacts(&model.model, &out).map_err(value_error)?;
+    algorithms::contact::check_contacts(&model.model, &out).map_err(kernel_error)?;
     Ok(out)
 }
 
@@ -102,12 +102,12 @@ pub fn reduced_dynamics<'py>(
     let m = &model.model;
     let slice = |name: &str, x: &Vector<'_>| -> PyResult<Vec<f64>> { Ok(x.get(name)?.iter().copied().collect()) };
     let (q, v, tau) = (&slice("q", &q)?[..], &slice("v", &v)?[..], &slice("tau", &tau)?[..]);
-    check_state(m, q, Some(v)).map_err(value_error)?;
-    check_vector("tau", tau, m.nv()).map_err(value_error)?;
+    check_state(m, q, Some(v)).map_err(kernel_error)?;
+    check_vector("tau", tau, m.nv()).map_err(kernel_error)?;
     let mut data = model.take_workspace();
     let result = algorithms::reduced_dynamics(m, &mut data, q, v, tau, &contacts, independent.as_deref());
     model.put_back(data);
-    let r = result.map_err(value_error)?;
+    let r = result.map_err(kernel_error)?;
     let matrix = |x: &nalgebra::DMatrix<f64>| to_numpy(py, (x.nrows(), x.ncols()), x.transpose().as_slice().to_vec());
     Ok((
         to_numpy(py, r.ddq.len(), r.ddq.as_slice().to_vec()),

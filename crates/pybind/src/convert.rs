@@ -4,7 +4,7 @@ use legkit_dynamics::Error;
 use nalgebra::{Matrix3, Vector3};
 use numpy::ndarray::{Array, ArrayViewD, Dimension, IntoDimension};
 use numpy::{PyArray, PyArrayDyn, PyArrayMethods};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
 /// A float64 array argument: anything NumPy converts (float64 arrays are used in place, anything else goes
@@ -44,14 +44,21 @@ impl<'py> Floats<'py> {
 pub type Vector<'py> = Floats<'py>;
 pub type Matrix<'py> = Floats<'py>;
 
-pub fn value_error(error: Error) -> PyErr {
-    PyValueError::new_err(error.to_string())
+/// A kernel error as Python's: bad input a ValueError, a numerical failure (a diverging simulation) a
+/// RuntimeError.
+pub fn kernel_error(error: Error) -> PyErr {
+    match error {
+        Error::InvalidArgument { .. } => PyValueError::new_err(error.to_string()),
+        Error::Numerical { .. } => PyRuntimeError::new_err(error.to_string()),
+    }
 }
 
 /// A kernel error from row `index` of a batch, e.g. "radius[4]: must be >= 0".
 pub fn batch_error(error: Error, index: usize) -> PyErr {
-    let Error::InvalidArgument { argument, reason } = error;
-    PyValueError::new_err(format!("{argument}[{index}]: {reason}"))
+    match error {
+        Error::InvalidArgument { argument, reason } => PyValueError::new_err(format!("{argument}[{index}]: {reason}")),
+        Error::Numerical { context, reason } => PyRuntimeError::new_err(format!("{context}[{index}]: {reason}")),
+    }
 }
 
 fn shape_error(argument: &str, expected: &str, shape: &[usize]) -> PyErr {

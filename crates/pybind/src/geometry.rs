@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use rayon::prelude::*;
 
 use crate::batch::{broadcast, ArrayArg, Batch, Rows};
-use crate::convert::{batch_error, to_numpy, value_error};
+use crate::convert::{batch_error, to_numpy, kernel_error};
 
 /// Queries per parallel task.
 const CHUNK: usize = 4096;
@@ -24,7 +24,7 @@ fn first_error(errors: impl ParallelIterator<Item = Option<(usize, Error)>>) -> 
 }
 
 fn raise(batch: &Batch<'_>, (i, error): (usize, Error)) -> PyErr {
-    if batch.shape.is_empty() { value_error(error) } else { batch_error(error, i) }
+    if batch.shape.is_empty() { kernel_error(error) } else { batch_error(error, i) }
 }
 
 type CircleLineArrays<'py> = (

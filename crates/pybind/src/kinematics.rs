@@ -56,7 +56,7 @@ pub fn jacobian<'py>(
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let (body, convention) = (model.body_index(body)?, self::frame(frame)?);
     let point = point.map(|p| vector3("point", &p)).transpose()?.unwrap_or_else(Vector3::zeros);
-    legkit_dynamics::validate::finite_vector("point", point).map_err(crate::convert::value_error)?;
+    legkit_dynamics::validate::finite_vector("point", point).map_err(crate::convert::kernel_error)?;
     let nv = model.model.nv();
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
     run(py, &model, &batch, &[6, nv], |m, w, i, out| {

@@ -8,7 +8,7 @@ use pyo3::basic::CompareOp;
 use pyo3::prelude::*;
 use pyo3::types::PyInt;
 
-use crate::convert::{homogeneous_matrix, matrix3, matrix_to_numpy, rows3, value_error, vector3, vector_to_numpy, Matrix, Vector};
+use crate::convert::{homogeneous_matrix, matrix3, matrix_to_numpy, rows3, kernel_error, vector3, vector_to_numpy, Matrix, Vector};
 
 /// Mass, centre of mass and rotational inertia about the centre of mass, all in one frame.
 #[pyclass(name = "MassProperties", module = "legkit", frozen, from_py_object)]
@@ -21,7 +21,7 @@ impl PyMassProperties {
     fn new(mass: f64, com: Vector<'_>, inertia: Matrix<'_>) -> PyResult<Self> {
         let com = vector3("com", &com)?;
         let inertia = matrix3("inertia", &inertia)?;
-        MassProperties::new(mass, com, inertia).map(Self).map_err(value_error)
+        MassProperties::new(mass, com, inertia).map(Self).map_err(kernel_error)
     }
 
     #[staticmethod]
@@ -31,7 +31,7 @@ impl PyMassProperties {
 
     #[staticmethod]
     fn point(mass: f64, position: Vector<'_>) -> PyResult<Self> {
-        MassProperties::point(mass, vector3("position", &position)?).map(Self).map_err(value_error)
+        MassProperties::point(mass, vector3("position", &position)?).map(Self).map_err(kernel_error)
     }
 
     #[staticmethod]
@@ -39,14 +39,14 @@ impl PyMassProperties {
     fn r#box(mass: f64, size: Vector<'_>, center: Option<Vector<'_>>, rotation: Option<Matrix<'_>>) -> PyResult<Self> {
         let center = center.map(|c| vector3("center", &c)).transpose()?.unwrap_or_else(Vector3::zeros);
         let rotation = rotation.map(|r| matrix3("rotation", &r)).transpose()?.unwrap_or_else(Matrix3::identity);
-        MassProperties::cuboid(mass, vector3("size", &size)?, center, &rotation).map(Self).map_err(value_error)
+        MassProperties::cuboid(mass, vector3("size", &size)?, center, &rotation).map(Self).map_err(kernel_error)
     }
 
     #[staticmethod]
     fn from_points(masses: Vector<'_>, positions: Matrix<'_>) -> PyResult<Self> {
         let positions = rows3("positions", &positions)?;
         let masses: Vec<f64> = masses.get("masses")?.iter().copied().collect();
-        MassProperties::from_points(&masses, &positions).map(Self).map_err(value_error)
+        MassProperties::from_points(&masses, &positions).map(Self).map_err(kernel_error)
     }
 
     #[getter]
@@ -66,7 +66,7 @@ impl PyMassProperties {
     }
 
     fn inertia_about<'py>(&self, py: Python<'py>, point: Vector<'_>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let point = finite_vector("point", vector3("point", &point)?).map_err(value_error)?;
+        let point = finite_vector("point", vector3("point", &point)?).map_err(kernel_error)?;
         Ok(matrix_to_numpy(py, &self.0.inertia_about(&point)))
     }
 
@@ -77,7 +77,7 @@ impl PyMassProperties {
             Some(t) => (matrix3("rotation", &rotation)?, vector3("translation", &t)?),
             None => homogeneous_matrix("rotation", &rotation)?,
         };
-        self.0.transformed(&r, &t).map(Self).map_err(value_error)
+        self.0.transformed(&r, &t).map(Self).map_err(kernel_error)
     }
 
     #[pyo3(signature = (other, rtol = 1e-9, atol = 1e-12))]
@@ -98,7 +98,7 @@ impl PyMassProperties {
     }
 
     fn __sub__(&self, other: &Self) -> PyResult<Self> {
-        (self.0 - other.0).map(Self).map_err(value_error)
+        (self.0 - other.0).map(Self).map_err(kernel_error)
     }
 
     fn __richcmp__(&self, other: &Bound<'_, PyAny>, op: CompareOp, py: Python<'_>) -> Py<PyAny> {

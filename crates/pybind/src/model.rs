@@ -8,7 +8,7 @@ use pyo3::exceptions::{PyIndexError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
 
-use crate::convert::{homogeneous_matrix, matrix3, to_numpy, value_error, vector3, vector_to_numpy, Matrix, Vector};
+use crate::convert::{homogeneous_matrix, matrix3, to_numpy, kernel_error, vector3, vector_to_numpy, Matrix, Vector};
 use crate::mass::PyMassProperties;
 
 /// A kinematic tree: body 0 is the base (fixed to the world, or a free flyer with
@@ -50,7 +50,7 @@ impl PyModel {
         let placement = placement.map(transform).transpose()?.unwrap_or_default();
         let body = body.map_or_else(MassProperties::zero, |b| b.0);
         let name = name.unwrap_or_else(|| format!("body{}", self.model.nbodies()));
-        let index = self.model.add_body(parent, joint, placement, body, &name, limits).map_err(value_error)?;
+        let index = self.model.add_body(parent, joint, placement, body, &name, limits).map_err(kernel_error)?;
         *self.workspace.get_mut().unwrap_or_else(|e| e.into_inner()) = None;
         Ok(index)
     }
@@ -122,7 +122,7 @@ fn joint_limits(value: Option<&Bound<'_, PyAny>>) -> PyResult<JointLimits> {
         };
         JointLimits { lower, upper, ..JointLimits::NONE }
     };
-    JointLimits::new(limits.lower, limits.upper, limits.effort, limits.velocity).map_err(value_error)
+    JointLimits::new(limits.lower, limits.upper, limits.effort, limits.velocity).map_err(kernel_error)
 }
 
 pub fn homogeneous(x: &Transform) -> [f64; 16] {
@@ -144,7 +144,7 @@ impl PyModel {
     fn new(floating_base: bool, base: Option<PyMassProperties>, base_name: &str, gravity: Option<Vector<'_>>) -> PyResult<Self> {
         let mut model = Model::new(floating_base, base.map_or_else(MassProperties::zero, |b| b.0), base_name);
         if let Some(g) = gravity {
-            model.gravity = legkit_dynamics::validate::finite_vector("gravity", vector3("gravity", &g)?).map_err(value_error)?;
+            model.gravity = legkit_dynamics::validate::finite_vector("gravity", vector3("gravity", &g)?).map_err(kernel_error)?;
         }
         Ok(Self::wrap(model))
     }
@@ -160,7 +160,7 @@ impl PyModel {
                 PyTypeError::new_err("path_or_xml: expected a path or an XML string")
             })?,
         };
-        let model = py.detach(|| legkit_dynamics::urdf::load_urdf(&source, floating_base)).map_err(value_error)?;
+        let model = py.detach(|| legkit_dynamics::urdf::load_urdf(&source, floating_base)).map_err(kernel_error)?;
         Ok(Self::wrap(model))
     }
 

@@ -1,15 +1,16 @@
 //! `legkit.Simulation` and `legkit.Ground`: conversions around `legkit_dynamics::sim`.
 
 use legkit_dynamics::model::check_vector;
-use legkit_dynamics::sim::{dof_coordinates, Ground, Options, Servo, Shape, ShapeKind, Simulation};
+use legkit_dynamics::sim::{dof_coordinates, Backend, Ground, Options, Servo, Shape, ShapeKind, Simulation, DEFAULT_SOLVER_ITERATIONS};
 use legkit_dynamics::Transform;
 use nalgebra::{DMatrix, Vector3};
 use numpy::{PyArray1, PyArray2, PyArray3};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyTuple};
+use pyo3::types::{PyDict, PyList, PyTuple};
+use rayon::prelude::*;
 
-use crate::convert::{to_numpy, value_error, Floats};
+use crate::convert::{batch_error, to_numpy, kernel_error, Floats};
 use crate::model::{homogeneous, transform, PyModel};
 
 /// Terrain for a `Simulation`: `Ground.plane(friction)` (the plane z = 0) or
@@ -25,7 +26,7 @@ impl PyGround {
     #[staticmethod]
     #[pyo3(signature = (friction = 0.8))]
     fn plane(friction: f64) -> PyResult<Self> {
-        Ok(PyGround { ground: Ground::plane(friction).map_err(value_error)? })
+        Ok(PyGround { ground: Ground::plane(friction).map_err(kernel_error)? })
     }
 
     /// Terrain heights (m) on a regular grid: `heights[i, j]` is the height at
@@ -41,7 +42,7 @@ impl PyGround {
         }
         let (nx, ny) = (view.shape()[0], view.shape()[1]);
         let matrix = DMatrix::from_fn(nx, ny, |i, j| view[[i, j]]);
-        Ok(PyGround { ground: Ground::heightfield(matrix, cell_size, friction).map_err(value_error)? })
+        Ok(PyGround { ground: Ground::heightfield(matrix, cell_size, friction).map_err(kernel_error)? })
     }
 
     /// "plane" or "heightfield".
@@ -86,15 +87,19 @@ impl PyGround {
     }
 }
 
-/// A contact simulation of a `Model` on Rapier (reduced-coordinate multibody, exact joint dynamics).
+/// A contact simulation of a `Model`.
 ///
 /// `Simulation(model, dt=1e-3, ground=None, shapes=None, self_collision=False, joint_damping=0.0,
-/// joint_armature=0.0, substeps=1)`: `ground` a `Ground` or None; `shapes` maps bodies (index or name) to
-/// ("box", (sx, sy, sz)) full edge lengths, ("sphere", r), ("capsule", half_height, r) or
-/// ("cylinder", half_height, r) along z, each optionally followed by a 4x4 placement in the body frame
-/// (default: at the body's COM, body axes), or to None for no collider; unlisted bodies get the uniform
-/// box with their mass and principal moments (massless bodies none). `joint_damping` (N m s/rad) acts on
-/// every joint, and `joint_armature` (kg m², a geared motor's reflected rotor inertia) adds to each joint; `substeps` Rapier substeps per step (the integrator is first order in dt/substeps).
+/// joint_armature=0.0, substeps=1, backend="tree", solver_iterations=100)`: `ground` a `Ground` or None;
+/// `shapes` maps bodies (index or name) to ("box", (sx, sy, sz)) full edge lengths, ("sphere", r),
+/// ("capsule", half_height, r) or ("cylinder", half_height, r) along z, each optionally followed by a 4x4
+/// placement in the body frame (default: at the body's COM, body axes), or to None for no collider;
+/// unlisted bodies get the uniform box with their mass and principal moments (massless bodies none).
+/// `joint_damping` (N m s/rad) acts on every joint, and `joint_armature` (kg m², a geared motor's
+/// reflected rotor inertia) adds to each joint. `backend` is "tree" (legkit's reduced-coordinate engine:
+/// O(n) dynamics, parry contacts, a warm-started Gauss–Seidel contact solver with at most
+/// `solver_iterations` sweeps, servos and damping integrated implicitly) or "rapier" (Rapier's multibody,
+/// the reference). Both integrate semi-implicitly to first order in dt / `substeps`.
 /// The robot starts at `model.neutral()`, at rest, at time 0.
 #[pyclass(name = "Simulation", module = "legkit")]
 pub struct PySimulation {
@@ -137,7 +142,7 @@ fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
     } else {
         None
     };
-    Shape::new(shape_kind, placement).map(Some).map_err(value_error)
+    Shape::new(shape_kind, placement).map(Some).map_err(kernel_error)
 }
 
 /// A per-degree-of-freedom parameter: a scalar (applied to the joint coordinates, `base` on a floating
@@ -165,7 +170,7 @@ fn vector_argument(argument: &'static str, value: &Floats<'_>, n: usize) -> PyRe
 #[pymethods]
 impl PySimulation {
     #[new]
-    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, joint_damping = 0.0, joint_armature = 0.0, substeps = 1))]
+    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, joint_damping = 0.0, joint_armature = 0.0, substeps = 1, backend = "tree", solver_iterations = DEFAULT_SOLVER_ITERATIONS as i64))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         model: PyRef<'_, PyModel>,
@@ -176,31 +181,40 @@ impl PySimulation {
         joint_damping: f64,
         joint_armature: f64,
         substeps: i64,
+        backend: &str,
+        solver_iterations: i64,
     ) -> PyResult<Self> {
         let mut options = Options::new(dt);
         options.ground = ground.map(|g| g.ground.clone());
         options.self_collision = self_collision;
         options.joint_damping = joint_damping;
         options.joint_armature = joint_armature;
-        if substeps < 1 {
-            return Err(PyValueError::new_err(format!("substeps: must be >= 1, got {substeps}")));
-        }
-        options.substeps = substeps as usize;
+        options.substeps = at_least_one("substeps", substeps)?;
+        options.solver_iterations = at_least_one("solver_iterations", solver_iterations)?;
+        options.backend = Backend::parse(backend).map_err(kernel_error)?;
         if let Some(shapes) = shapes {
             for (key, value) in shapes.iter() {
                 let body = model.body_index(&key).map_err(|e| PyValueError::new_err(format!("shapes: {e}")))?;
                 options.shapes.push((body, parse_shape(&value)?));
             }
         }
-        let sim = Simulation::new(&model.model, options).map_err(value_error)?;
+        let sim = Simulation::new(&model.model, options).map_err(kernel_error)?;
         Ok(PySimulation { sim })
+    }
+
+    /// "tree" or "rapier".
+    #[getter]
+    fn backend(&self) -> &'static str {
+        self.sim.options().backend.name()
     }
 
     /// Advances `n` steps (in Rust, GIL released) with feed-forward generalized forces `tau` (nv,) held
     /// over the steps (None: zero); servos, if set, add to it and the sum is clipped to the servo's torque
     /// limit and the joint's effort limit (`Model.limits`), whichever is tighter. Joint position limits
-    /// are enforced by Rapier joint limits.
+    /// are enforced as constraints.
     /// On a floating base tau[:6] is a wrench [f, n] on the base, in its frame, at its origin (as `aba`).
+    /// Raises RuntimeError, naming the step and the body, if the state would stop being finite or explode
+    /// (a speed or position beyond 1e6); the state before that step is kept.
     #[pyo3(signature = (tau = None, n = 1))]
     fn step(&mut self, py: Python<'_>, tau: Option<Floats<'_>>, n: i64) -> PyResult<()> {
         if n < 0 {
@@ -208,7 +222,7 @@ impl PySimulation {
         }
         let tau = tau.map(|t| vector_argument("tau", &t, self.sim.model().nv())).transpose()?;
         let sim = &mut self.sim;
-        py.detach(|| sim.step(tau.as_deref(), n as usize)).map_err(value_error)
+        py.detach(|| sim.step(tau.as_deref(), n as usize)).map_err(kernel_error)
     }
 
     /// Position/velocity servos, evaluated every step in Rust:
@@ -235,7 +249,7 @@ impl PySimulation {
         let configuration = match target_q {
             Some(t) => {
                 let t = vector_argument("target_q", &t, nq)?;
-                check_vector("target_q", &t, nq).map_err(value_error)?;
+                check_vector("target_q", &t, nq).map_err(kernel_error)?;
                 t
             }
             None => self.sim.q().to_vec(),
@@ -243,8 +257,8 @@ impl PySimulation {
         let mut targets = vec![0.0; nv];
         dof_coordinates(model, &configuration, &mut targets);
         let target_v = target_v.map(|t| vector_argument("target_v", &t, nv)).transpose()?.unwrap_or_else(|| vec![0.0; nv]);
-        let servo = Servo::new(model, kp, kd, limit, targets, target_v).map_err(value_error)?;
-        self.sim.set_servo(servo).map_err(value_error)
+        let servo = Servo::new(model, kp, kd, limit, targets, target_v).map_err(kernel_error)?;
+        self.sim.set_servo(servo).map_err(kernel_error)
     }
 
     /// Configuration (nq,) in legkit's layout; setting it moves the robot (velocity, time and contact
@@ -257,7 +271,7 @@ impl PySimulation {
     #[setter]
     fn set_q(&mut self, q: Floats<'_>) -> PyResult<()> {
         let q = vector_argument("q", &q, self.sim.model().nq())?;
-        self.sim.set_state(Some(&q), None).map_err(value_error)
+        self.sim.set_state(Some(&q), None).map_err(kernel_error)
     }
 
     /// Velocity (nv,) in legkit's layout (a floating base's [v_lin, ω] in its own frame); settable.
@@ -269,7 +283,7 @@ impl PySimulation {
     #[setter]
     fn set_v(&mut self, v: Floats<'_>) -> PyResult<()> {
         let v = vector_argument("v", &v, self.sim.model().nv())?;
-        self.sim.set_state(None, Some(&v)).map_err(value_error)
+        self.sim.set_state(None, Some(&v)).map_err(kernel_error)
     }
 
     /// Simulated time (s).
@@ -291,7 +305,7 @@ impl PySimulation {
         to_numpy(py, self.sim.applied_torques().len(), self.sim.applied_torques().to_vec())
     }
 
-    /// Penetration (m) Rapier leaves uncorrected: the contact tolerance.
+    /// Penetration (m) the engine leaves uncorrected: the contact tolerance.
     #[getter]
     fn contact_tolerance(&self) -> f64 {
         self.sim.contact_tolerance()
@@ -336,11 +350,142 @@ impl PySimulation {
             Some(v) => vector_argument("v", &v, model.nv())?,
             None => vec![0.0; model.nv()],
         };
-        self.sim.reset(&q, &v).map_err(value_error)
+        self.sim.reset(&q, &v).map_err(kernel_error)
     }
 
     fn __repr__(&self) -> String {
         let model = self.sim.model();
-        format!("Simulation(nq={}, nv={}, dt={}, time={})", model.nq(), model.nv(), self.sim.options().dt, self.sim.time())
+        format!("Simulation(nq={}, nv={}, dt={}, time={}, backend={:?})", model.nq(), model.nv(), self.sim.options().dt, self.sim.time(), self.backend())
+    }
+}
+
+fn at_least_one(argument: &str, value: i64) -> PyResult<usize> {
+    if value < 1 {
+        return Err(PyValueError::new_err(format!("{argument}: must be >= 1, got {value}")));
+    }
+    Ok(value as usize)
+}
+
+/// Steps many simulations at once on all cores (GIL released), each in its own thread of work: the
+/// plants of a sweep or of an experiment's schemes. `SimulationBatch(simulations)` groups existing
+/// `Simulation`s (any models, any backends); they stay usable on their own.
+#[pyclass(name = "SimulationBatch", module = "legkit")]
+pub struct PySimulationBatch {
+    members: Vec<Py<PySimulation>>,
+}
+
+#[pymethods]
+impl PySimulationBatch {
+    #[new]
+    fn new(simulations: Vec<Bound<'_, PyAny>>) -> PyResult<Self> {
+        if simulations.is_empty() {
+            return Err(PyValueError::new_err("simulations: need at least one Simulation"));
+        }
+        let mut members: Vec<Py<PySimulation>> = Vec::with_capacity(simulations.len());
+        for (i, item) in simulations.iter().enumerate() {
+            let sim = item
+                .cast::<PySimulation>()
+                .map_err(|_| PyTypeError::new_err(format!("simulations[{i}]: expected a Simulation, got {}", item.get_type().name().map_or_else(|_| "?".into(), |n| n.to_string()))))?;
+            if members.iter().any(|m| m.is(sim)) {
+                return Err(PyValueError::new_err(format!("simulations[{i}]: the same Simulation appears twice")));
+            }
+            members.push(sim.clone().unbind());
+        }
+        Ok(PySimulationBatch { members })
+    }
+
+    /// Advances every simulation `n` steps, in parallel. `tau`: None (zero), one (nv,) array for all, a
+    /// (B, nv) array, or a list of B arrays (or None), one per simulation (each its own nv). Every tau is
+    /// checked before anything moves. A simulation that diverges stops at its last good state and raises
+    /// RuntimeError naming its index (the lowest such index); the others complete their n steps.
+    #[pyo3(signature = (tau = None, n = 1))]
+    fn step(&self, py: Python<'_>, tau: Option<Bound<'_, PyAny>>, n: i64) -> PyResult<()> {
+        if n < 0 {
+            return Err(PyValueError::new_err(format!("n: must be >= 0, got {n}")));
+        }
+        let mut guards = self
+            .members
+            .iter()
+            .enumerate()
+            .map(|(i, m)| m.bind(py).try_borrow_mut().map_err(|_| PyRuntimeError::new_err(format!("simulations[{i}]: in use elsewhere"))))
+            .collect::<PyResult<Vec<_>>>()?;
+        let taus = self.torques(&guards, tau)?;
+        let sims: Vec<&mut Simulation> = guards.iter_mut().map(|g| &mut g.sim).collect();
+        let outcomes: Vec<_> = py.detach(|| sims.into_par_iter().zip(taus.par_iter()).map(|(sim, tau)| sim.step(tau.as_deref(), n as usize)).collect());
+        match outcomes.into_iter().enumerate().find_map(|(i, r)| r.err().map(|e| (i, e))) {
+            Some((i, error)) => Err(batch_error(error, i)),
+            None => Ok(()),
+        }
+    }
+
+    /// The grouped simulations, in order.
+    #[getter]
+    fn simulations(&self, py: Python<'_>) -> Vec<Py<PySimulation>> {
+        self.members.iter().map(|m| m.clone_ref(py)).collect()
+    }
+
+    /// Configurations (B, nq) (all simulations must share nq).
+    #[getter]
+    fn q<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        self.stack(py, "q", |s| s.q())
+    }
+
+    /// Velocities (B, nv) (all simulations must share nv).
+    #[getter]
+    fn v<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        self.stack(py, "v", |s| s.v())
+    }
+
+    fn __len__(&self) -> usize {
+        self.members.len()
+    }
+
+    fn __repr__(&self) -> String {
+        format!("SimulationBatch(<{} simulations>)", self.members.len())
+    }
+}
+
+impl PySimulationBatch {
+    /// One feed-forward per simulation, checked (length, finite) before any step.
+    fn torques(&self, guards: &[PyRefMut<'_, PySimulation>], tau: Option<Bound<'_, PyAny>>) -> PyResult<Vec<Option<Vec<f64>>>> {
+        let count = guards.len();
+        let Some(tau) = tau.filter(|t| !t.is_none()) else { return Ok(vec![None; count]) };
+        let per_sim: Vec<Option<Vec<f64>>> = if tau.is_instance_of::<PyList>() || tau.is_instance_of::<PyTuple>() {
+            let list: Vec<Option<Floats<'_>>> = tau.extract()?;
+            if list.len() != count {
+                return Err(PyValueError::new_err(format!("tau: expected {count} entries (one per simulation), got {}", list.len())));
+            }
+            list.iter()
+                .enumerate()
+                .map(|(i, t)| t.as_ref().map(|t| vector_argument("tau", t, guards[i].sim.model().nv()).map_err(|e| PyValueError::new_err(format!("tau[{i}]: {}", e.value(tau.py())))) ).transpose())
+                .collect::<PyResult<_>>()?
+        } else {
+            let array: Floats<'_> = tau.extract()?;
+            let view = array.get("tau")?;
+            let nv = guards[0].sim.model().nv();
+            if guards.iter().any(|g| g.sim.model().nv() != nv) {
+                return Err(PyValueError::new_err("tau: the simulations differ in nv; pass a list of arrays, one per simulation"));
+            }
+            match view.shape() {
+                [k] if *k == nv => vec![Some(view.iter().copied().collect()); count],
+                [b, k] if *b == count && *k == nv => (0..count).map(|i| Some((0..nv).map(|j| view[[i, j]]).collect())).collect(),
+                shape => return Err(PyValueError::new_err(format!("tau: expected shape ({nv},) or ({count}, {nv}), got {shape:?}"))),
+            }
+        };
+        for (i, (t, g)) in per_sim.iter().zip(guards).enumerate() {
+            if let Some(t) = t {
+                check_vector("tau", t, g.sim.model().nv()).map_err(|e| batch_error(e, i))?;
+            }
+        }
+        Ok(per_sim)
+    }
+
+    fn stack<'py>(&self, py: Python<'py>, what: &str, get: impl Fn(&Simulation) -> &[f64]) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let rows: Vec<Vec<f64>> = self.members.iter().map(|m| get(&m.bind(py).borrow().sim).to_vec()).collect();
+        let width = rows[0].len();
+        if rows.iter().any(|r| r.len() != width) {
+            return Err(PyValueError::new_err(format!("{what}: the simulations differ in size; read each simulation's {what}")));
+        }
+        Ok(to_numpy(py, (rows.len(), width), rows.concat()))
     }
 }

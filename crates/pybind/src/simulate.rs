@@ -13,7 +13,7 @@ use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
 #[pyfunction]
 pub fn integrate<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>, v: ArrayArg<'_>, dt: f64) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let m = &model.model;
-    legkit_dynamics::validate::finite("dt", dt).map_err(crate::convert::value_error)?;
+    legkit_dynamics::validate::finite("dt", dt).map_err(crate::convert::kernel_error)?;
     let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()])])?;
     run(py, &model, &batch, &[m.nq()], |m, _, i, out| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));

@@ -9,10 +9,12 @@ the joints compute their torques, which drive the plant for one step of ``dt``.
 
 Each run has its own plant; the agents of all runs share one vectorised network (the runs are separate
 trees of it), which batches their rounds over every run at once. The plant is a parameter:
-anything with ``step(tau)``, ``q`` and ``v``. The default, ``--plant rapier``, is ``lk.Simulation`` on a
-ground plane, with the joints driven through geared servos (rotor inertia and damping on every joint);
-``--plant free`` integrates the same fixed-base model and servos with the core's dynamics and no contacts
-(the seed's root is fixed, and nothing else is meant to touch the ground).
+anything with ``step(tau)``, ``q`` and ``v``. The default, ``--plant tree``, is ``lk.Simulation`` (legkit's
+tree engine) on a ground plane, with the joints driven through geared servos (rotor inertia and damping on
+every joint), all runs stepped together by ``lk.SimulationBatch`` on every core; ``--plant rapier`` is the
+same on Rapier's multibody (the reference backend); ``--plant free`` integrates the same fixed-base model
+and servos with the core's dynamics and no contacts (the seed's root is fixed, and nothing else is meant to
+touch the ground).
 
 Recorded: the horizontal distance between each run's COM and its support line, in module widths. Reported
 per run: the final distance, the time to reach 10 % of the initial distance, the overshoot (how far, as a
@@ -137,21 +139,23 @@ def _independent_blocks(model: lk.Model) -> list[np.ndarray]:
     return [np.array(b) for b in blocks.values()]
 
 
+PLANTS = ("tree", "rapier", "free")
+
+
 def make_plant(kind: str, model: lk.Model, q0: np.ndarray, dt: float) -> Plant:
-    """A plant of ``kind`` ("free" or "rapier") for ``model``, starting at rest at ``q0``."""
+    """A plant of ``kind`` (one of ``PLANTS``) for ``model``, starting at rest at ``q0``: "tree" and "rapier"
+    are ``lk.Simulation`` on that backend, "free" a ``FreePlant``."""
     if kind == "free":
         return FreePlant(model, q0=q0, dt=dt)
-    if kind == "rapier":
-        if not hasattr(lk, "Simulation") or not hasattr(lk, "Ground"):
-            raise RuntimeError("plant: the Rapier simulation (lk.Simulation) is not available yet; use --plant free")
+    if kind in ("tree", "rapier"):
         # The same servo model as the free plant: rotor inertia and damping on every joint.
         simulation = lk.Simulation(
-            model, dt=dt, ground=lk.Ground.plane(friction=0.8),
+            model, dt=dt, ground=lk.Ground.plane(friction=0.8), backend=kind,
             joint_damping=FreePlant.DEFAULT_DAMPING, joint_armature=FreePlant.DEFAULT_ARMATURE,
         )
         simulation.reset(q0, None)
         return simulation
-    raise ValueError(f"plant: must be 'free' or 'rapier', got {kind!r}")
+    raise ValueError(f"plant: must be one of {PLANTS}, got {kind!r}")
 
 
 @dataclass
@@ -206,7 +210,7 @@ def initial_angles(tree: ModuleTree, seed: int) -> np.ndarray:
 
 
 def run_balance(
-    trees: Sequence[ModuleTree], duration: float, dt: float = 1e-3, loss: float = 0.0, plant: str = "rapier",
+    trees: Sequence[ModuleTree], duration: float, dt: float = 1e-3, loss: float = 0.0, plant: str = "tree",
     seed: int = 0, sample_every: int = 10, progress: bool = True, rounds_per_step: int = 1,
 ) -> list[RunResult]:
     """Simulate every tree under every scheme for ``duration`` s (see the module docstring).
@@ -243,6 +247,9 @@ def run_balance(
     network.run_until_quiescent()  # the agents agree on a leader and the mass properties before moving
     schedules = [GainSchedule.paper(s) for (_, s), tree in zip(runs, instances) for _ in range(tree.n_modules)]
     controller = BalanceController(network, schedules)
+    # Simulations step together, on every core; other plants one after another.
+    batch = lk.SimulationBatch(plants) if all(isinstance(p, lk.Simulation) for p in plants) else None
+    joint_index = [np.asarray(built[t][0].idx_v)[built[t][1].joint_bodies] for t, _ in runs]
     messages_before = sum(c.sent_by_module for c in network.channels)
     module_slices = [slice(f, f + tree.n_modules) for f, tree in zip(first_module, instances)]
 
@@ -258,11 +265,16 @@ def run_balance(
         network.observe(sensed_angles())
         network.run(rounds_per_step)
         torque, _ = controller.torques(dt)
-        for (t, _), p, modules in zip(runs, plants, module_slices):
-            model, layout = built[t]
-            tau = np.zeros(model.nv)
-            tau[np.asarray(model.idx_v)[layout.joint_bodies]] = torque[modules]
-            p.step(tau)
+        taus = []
+        for (t, _), index, modules in zip(runs, joint_index, module_slices):
+            tau = np.zeros(built[t][0].nv)
+            tau[index] = torque[modules]
+            taus.append(tau)
+        if batch is not None:
+            batch.step(taus)
+        else:
+            for p, tau in zip(plants, taus):
+                p.step(tau)
 
     sent = sum(c.sent_by_module for c in network.channels) - messages_before
     width = trees[0].parameters.width
@@ -332,7 +344,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=DEFAULT_DURATION, help=f"simulated seconds (default {DEFAULT_DURATION})")
     parser.add_argument("--loss", type=float, default=0.0, help="message loss probability (default 0: synchronous bus)")
     parser.add_argument("--out", type=Path, default=Path("balance-out"), help="output folder (default ./balance-out)")
-    parser.add_argument("--plant", choices=("free", "rapier"), default="rapier", help="simulator (default rapier)")
+    parser.add_argument("--plant", choices=PLANTS, default="tree", help="simulator: legkit's tree engine (default), Rapier, or free (no contacts)")
     args = parser.parse_args(argv)
     if args.trees < 1:
         parser.error("--trees: must be >= 1")

@@ -1,14 +1,9 @@
-//! Actuation: per-degree-of-freedom position/velocity servos around direct joint forces, and the
-//! application of generalized forces to the Rapier bodies.
+//! Actuation: per-degree-of-freedom position/velocity servos around direct joint forces.
 //!
-//! Every step, before Rapier integrates, each degree of freedom k gets
-//! `τ_k = clip(kp_k (q*_k − q_k) + kd_k (v*_k − v_k) + τ_ff,k, ±limit_k)`, held over the step (a servo
-//! sampled at 1/dt), then clipped again to the joint's effort bound in the model (`JointLimits::effort`),
-//! so the tighter of the two applies. A joint force enters Rapier as an equal and opposite pair on the child and parent
-//! bodies (a couple about the axis for a revolute joint, a force along the axis through the joint origin
-//! for a prismatic one), whose generalized force is exactly τ_k on that joint and zero on every other.
-
-use nalgebra::Vector3;
+//! Every step each degree of freedom k gets `τ_k = clip(kp_k (q*_k − q_k) + kd_k (v*_k − v_k) + τ_ff,k, ±b_k)`
+//! with `b_k` the tighter of the servo's limit and the joint's effort bound in the model
+//! (`JointLimits::effort`). Rapier holds it over the step (a servo sampled at 1/dt); the tree engine
+//! integrates the PD terms of an unsaturated servo implicitly (`sim::tree`).
 
 use crate::model::{Joint, Model};
 use crate::{Error, Result};
@@ -60,15 +55,6 @@ impl Servo {
         }
         Ok(Servo { kp, kd, limit, target_q, target_v })
     }
-
-    /// The actuation for state (joint coordinates by velocity index `q_dof`, velocities `v`) and
-    /// feed-forward `tau_ff`, written to `out`.
-    pub fn torques(&self, q_dof: &[f64], v: &[f64], tau_ff: &[f64], out: &mut [f64]) {
-        for k in 0..out.len() {
-            let raw = self.kp[k] * (self.target_q[k] - q_dof[k]) + self.kd[k] * (self.target_v[k] - v[k]) + tau_ff[k];
-            out[k] = raw.clamp(-self.limit[k], self.limit[k]);
-        }
-    }
 }
 
 /// Joint coordinates indexed by velocity coordinate: q[idx_q] for each one-degree-of-freedom joint, zero
@@ -82,13 +68,43 @@ pub fn dof_coordinates(model: &Model, q: &[f64], out: &mut [f64]) {
     }
 }
 
-/// The world-frame wrench of one generalized force, to apply to Rapier bodies.
-#[derive(Debug, Clone, Copy)]
-pub(crate) enum Push {
-    /// A pure couple on `child` and its opposite on `parent` (Rapier body indices).
-    Couple { child: usize, parent: usize, torque: Vector3<f64> },
-    /// A force through `point` on `child` and its opposite on `parent`.
-    Force { child: usize, parent: usize, force: Vector3<f64>, point: Vector3<f64> },
-    /// A wrench on the base: `force` through `point`, plus a couple.
-    Base { force: Vector3<f64>, point: Vector3<f64>, torque: Vector3<f64> },
+/// The effort bound of each velocity coordinate: the joint's `effort` limit, +inf on the base.
+pub(crate) fn effort_bounds(model: &Model) -> Vec<f64> {
+    let mut bounds = vec![f64::INFINITY; model.nv()];
+    for i in 1..model.nbodies() {
+        if model.joint(i).nv() == 1 {
+            bounds[model.idx_v(i)] = model.limits(i).effort;
+        }
+    }
+    bounds
+}
+
+/// What drives the joints during one step: servos, the model's effort bounds, feed-forward forces.
+pub(crate) struct Actuation<'a> {
+    pub servo: &'a Servo,
+    pub effort: &'a [f64],
+    pub tau_ff: &'a [f64],
+}
+
+impl Actuation<'_> {
+    /// The bound on |τ_k|: the tighter of the servo's limit and the joint's effort bound.
+    #[inline]
+    pub fn bound(&self, k: usize) -> f64 {
+        self.servo.limit[k].min(self.effort[k])
+    }
+
+    /// The servo plus feed-forward force on coordinate k before clipping.
+    #[inline]
+    pub fn raw(&self, k: usize, q_dof: &[f64], v: &[f64]) -> f64 {
+        let s = self.servo;
+        s.kp[k] * (s.target_q[k] - q_dof[k]) + s.kd[k] * (s.target_v[k] - v[k]) + self.tau_ff[k]
+    }
+
+    /// The clipped forces, held over the step, written to `out`.
+    pub fn explicit(&self, q_dof: &[f64], v: &[f64], out: &mut [f64]) {
+        for (k, tau) in out.iter_mut().enumerate() {
+            let bound = self.bound(k);
+            *tau = self.raw(k, q_dof, v).clamp(-bound, bound);
+        }
+    }
 }

@@ -55,10 +55,10 @@ impl Ground {
         }
     }
 
-    /// The collider of this ground, attached to a fixed body at the world origin.
-    pub(crate) fn collider(&self) -> ColliderBuilder {
-        let builder = match self {
-            Ground::Plane { .. } => ColliderBuilder::new(SharedShape::halfspace(Vector::Z)),
+    /// The ground's parry shape and its pose in the world.
+    pub(crate) fn shape(&self) -> (SharedShape, Pose) {
+        match self {
+            Ground::Plane { .. } => (SharedShape::halfspace(Vector::Z), Pose::IDENTITY),
             Ground::Heightfield { heights, cell_size, .. } => {
                 // Parry's heightfield lies in its local xz plane with heights along local y, rows along z
                 // and columns along x, spanning [-1/2, 1/2] x scale. The rotation local (x, y, z) →
@@ -68,9 +68,14 @@ impl Ground {
                 let scale = Vector::new((ny - 1) as f64 * cell_size, 1.0, (nx - 1) as f64 * cell_size);
                 let samples = Array2::new(nx, ny, heights.as_slice().to_vec());
                 let rotation = Rotation::from_mat3(&rapier3d_f64::math::Matrix::from_cols(Vector::Y, Vector::Z, Vector::X));
-                ColliderBuilder::new(SharedShape::heightfield(samples, scale)).position(Pose::from_parts(Vector::ZERO, rotation))
+                (SharedShape::heightfield(samples, scale), Pose::from_parts(Vector::ZERO, rotation))
             }
-        };
-        builder.friction(self.friction()).restitution(0.0).density(0.0)
+        }
+    }
+
+    /// The Rapier collider of this ground, attached to a fixed body at the world origin.
+    pub(crate) fn collider(&self) -> ColliderBuilder {
+        let (shape, pose) = self.shape();
+        ColliderBuilder::new(shape).position(pose).friction(self.friction()).restitution(0.0).density(0.0)
     }
 }

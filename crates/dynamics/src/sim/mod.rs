@@ -1,47 +1,74 @@
-//! Contact simulation of a legkit `Model` on Rapier (reduced-coordinate multibodies, parry collision).
+//! Contact simulation of a legkit `Model`: legkit's own reduced-coordinate tree engine (`tree`, the
+//! default) or Rapier's multibody (`rapier`, kept as the reference), behind one `Simulation`.
 //!
-//! The model becomes one Rapier multibody (see `builder`): revolute and prismatic joints become
-//! multibody joints, bodies on fixed joints are merged into their parents, and every body gets a collider
-//! (a box matching its inertia unless a shape is given). Joint dynamics are exact: no damping, armature or
-//! joint friction unless `joint_damping` asks for it; gravity is the model's.
-//!
-//! The model's joint limits (`Model::limits`) are enforced: the position range by Rapier joint limits,
-//! the effort bound by clipping the actuation (servo plus feed-forward) of that joint. Velocity bounds
-//! are not enforced (they are for controllers).
-//!
-//! Rapier integrates each substep semi-implicitly (velocities first, Coriolis and gyroscopic terms
-//! linearly implicit, then positions), so free motion matches legkit's ABA + RK4 to first order in the
-//! substep length. Single-threaded and free of hash-order effects, the same inputs give bit-identical
-//! trajectories.
-//!
-//! Every method checks its input before touching the state: on error the simulation is unchanged.
+//! Both take the same options (`Options`): ground, collision shapes (a box matching each body's inertia
+//! unless given), self-collision, joint damping and armature, servos (`Servo`) and the model's joint
+//! limits (position range enforced as a constraint, effort bound by clipping the actuation; velocity bounds
+//! are for controllers). Every method checks its input before touching the state: on error the simulation is
+//! unchanged. A step that would leave the state non-finite or exploding (a speed or position beyond
+//! `DIVERGENCE_BOUND`) stops with `Error::Numerical`, naming the step and the body, and leaves the last
+//! good state. The same inputs give bit-identical trajectories on either backend.
 
 mod actuation;
-mod builder;
 mod ground;
-mod state;
+mod options;
+mod rapier;
 #[cfg(test)]
 mod tests;
+mod tree;
 
 pub use actuation::{dof_coordinates, Servo};
-pub use builder::{Options, Shape, ShapeKind, MIN_DEFAULT_EDGE};
 pub use ground::Ground;
-pub use state::Contact;
+pub use options::{Backend, Options, Shape, ShapeKind, DEFAULT_SOLVER_ITERATIONS, MIN_DEFAULT_EDGE};
 
 use nalgebra::Vector3;
-use rapier3d_f64::prelude::PhysicsWorld;
 
 use crate::model::{check_vector, Joint, Model};
 use crate::spatial::Transform;
 use crate::{Error, Result};
-use actuation::Push;
-use builder::{to_vector, Layout};
+use actuation::{effort_bounds, Actuation};
+
+/// A state beyond this (a speed in m/s or rad/s, a base or slider position in m) has diverged: no robot
+/// gets there, and a physics engine fed such numbers may never return.
+pub const DIVERGENCE_BOUND: f64 = 1e6;
+
+/// One contact point, seen from `body`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Contact {
+    /// The legkit body the force acts on.
+    pub body: usize,
+    /// The other legkit body, or None for the ground.
+    pub other: Option<usize>,
+    /// World contact point (midpoint of the two surface points).
+    pub point: Vector3<f64>,
+    /// Unit contact normal in the world, pointing into `body` (the direction of the normal force on it).
+    pub normal: Vector3<f64>,
+    /// Normal force on `body` (N, >= 0), averaged over the last step.
+    pub normal_force: f64,
+    /// Friction force on `body` in the world (N, orthogonal to `normal`), averaged over the last step.
+    pub tangential_force: Vector3<f64>,
+    /// Penetration depth (m, >= 0) at the start of the last step's contact update.
+    pub depth: f64,
+}
+
+/// What a backend does; `Simulation` keeps time, servos and the checks.
+pub(crate) trait Engine: Send + Sync {
+    /// Moves to (q, v), keeping the contact history.
+    fn write_state(&mut self, model: &Model, q: &[f64], v: &[f64]);
+    /// Starts over from (q, v) with no history.
+    fn restart(&mut self, model: &Model, q: &[f64], v: &[f64]) -> Result<()>;
+    /// Advances (q, v) by one step; writes the generalized forces the actuation applied.
+    fn step(&mut self, model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64]) -> Result<()>;
+    fn body_poses(&self, model: &Model, q: &[f64]) -> Vec<Transform>;
+    fn contacts(&self) -> Vec<Contact>;
+    /// Penetration the engine lets stand without correcting it (m).
+    fn contact_tolerance(&self) -> f64;
+}
 
 pub struct Simulation {
     model: Model,
     options: Options,
-    world: PhysicsWorld,
-    layout: Layout,
+    engine: Box<dyn Engine>,
     servo: Servo,
     /// The model's effort bound per velocity coordinate (+inf on the base and unbounded joints).
     effort: Vec<f64>,
@@ -50,31 +77,36 @@ pub struct Simulation {
     applied: Vec<f64>,
     q: Vec<f64>,
     v: Vec<f64>,
-    q_dof: Vec<f64>,
-    pushes: Vec<Push>,
+    q_next: Vec<f64>,
+    v_next: Vec<f64>,
+    tau_ff: Vec<f64>,
 }
 
 impl Simulation {
     /// A simulation of `model` at its neutral configuration, at rest, at time 0.
     pub fn new(model: &Model, options: Options) -> Result<Self> {
         options.check(model)?;
-        let (world, layout) = builder::build(model, &options)?;
+        let engine: Box<dyn Engine> = match options.backend {
+            Backend::Tree => Box::new(tree::TreeSimulation::new(model, &options)),
+            Backend::Rapier => Box::new(rapier::RapierSimulation::new(model, &options)?),
+        };
         let (nq, nv) = (model.nq(), model.nv());
+        let q = model.neutral().as_slice().to_vec();
         let mut sim = Simulation {
             model: model.clone(),
             options,
-            world,
-            layout,
+            engine,
             servo: Servo::off(nv),
             effort: effort_bounds(model),
             steps: 0,
             applied: vec![0.0; nv],
-            q: vec![0.0; nq],
+            q_next: vec![0.0; nq],
+            v_next: vec![0.0; nv],
+            tau_ff: vec![0.0; nv],
+            q,
             v: vec![0.0; nv],
-            q_dof: vec![0.0; nv],
-            pushes: Vec::with_capacity(model.nbodies()),
         };
-        sim.refresh();
+        sim.engine.write_state(&sim.model, &sim.q, &sim.v);
         Ok(sim)
     }
 
@@ -101,7 +133,7 @@ impl Simulation {
         &self.v
     }
 
-    /// Generalized forces applied during the last step (servo plus feed-forward, clipped to the tighter of
+    /// Generalized forces applied during the last step (servo plus feed-forward, within the tighter of
     /// the servo's limit and the joint's effort bound), per velocity coordinate.
     pub fn applied_torques(&self) -> &[f64] {
         &self.applied
@@ -119,12 +151,12 @@ impl Simulation {
         Ok(())
     }
 
-    /// Penetration Rapier lets stand without correcting it (m): the contact tolerance.
+    /// Penetration the engine lets stand without correcting it (m): the contact tolerance.
     pub fn contact_tolerance(&self) -> f64 {
-        self.world.integration_parameters.allowed_linear_error()
+        self.engine.contact_tolerance()
     }
 
-    /// Moves the robot to (q, v) without touching time, servos or the contact cache. Both are checked
+    /// Moves the robot to (q, v) without touching time, servos or the contact history. Both are checked
     /// (length, finite, unit base quaternion) before anything changes.
     pub fn set_state(&mut self, q: Option<&[f64]>, v: Option<&[f64]>) -> Result<()> {
         if let Some(q) = q {
@@ -133,139 +165,100 @@ impl Simulation {
         if let Some(v) = v {
             check_vector("v", v, self.model.nv())?;
         }
-        let q = q.map_or_else(|| self.q.clone(), <[f64]>::to_vec);
-        let v = v.map_or_else(|| self.v.clone(), <[f64]>::to_vec);
-        state::write(&mut self.world, &self.layout, &self.model, &q, &v);
-        self.refresh();
+        if let Some(q) = q {
+            self.q.copy_from_slice(q);
+        }
+        if let Some(v) = v {
+            self.v.copy_from_slice(v);
+        }
+        self.engine.write_state(&self.model, &self.q, &self.v);
         Ok(())
     }
 
-    /// Starts over from (q, v) at time 0: a fresh Rapier world (no contact history), so what follows is
-    /// bit-identical to a new simulation set to the same state. Servo settings are kept.
+    /// Starts over from (q, v) at time 0 with no contact history, so what follows is bit-identical to a
+    /// new simulation set to the same state. Servo settings are kept.
     pub fn reset(&mut self, q: &[f64], v: &[f64]) -> Result<()> {
         self.model.check_configuration(q)?;
         check_vector("v", v, self.model.nv())?;
-        let (world, layout) = builder::build(&self.model, &self.options)?;
-        self.world = world;
-        self.layout = layout;
+        self.engine.restart(&self.model, q, v)?;
+        self.q.copy_from_slice(q);
+        self.v.copy_from_slice(v);
         self.steps = 0;
         self.applied.fill(0.0);
-        state::write(&mut self.world, &self.layout, &self.model, q, v);
-        self.refresh();
         Ok(())
     }
 
     /// Advances `n` steps with feed-forward generalized forces `tau` (nv, held over the steps; None for
     /// zero). On a floating base, tau[0..6] is a wrench [f; n] on the base in its frame at its origin, as
-    /// in `aba`. Fails before stepping on bad `tau`, and stops with an error if the state stops being
-    /// finite.
+    /// in `aba`. Fails before stepping on bad `tau`; stops with `Error::Numerical` at the first step whose
+    /// state would diverge, keeping the state before it.
     pub fn step(&mut self, tau: Option<&[f64]>, n: usize) -> Result<()> {
-        let nv = self.model.nv();
-        let tau_ff = match tau {
+        match tau {
             Some(t) => {
-                check_vector("tau", t, nv)?;
-                t.to_vec()
+                check_vector("tau", t, self.model.nv())?;
+                self.tau_ff.copy_from_slice(t);
             }
-            None => vec![0.0; nv],
-        };
+            None => self.tau_ff.fill(0.0),
+        }
         for _ in 0..n {
-            dof_coordinates(&self.model, &self.q, &mut self.q_dof);
-            self.servo.torques(&self.q_dof, &self.v, &tau_ff, &mut self.applied);
-            for (tau, bound) in self.applied.iter_mut().zip(&self.effort) {
-                *tau = tau.clamp(-bound, *bound);
+            self.q_next.copy_from_slice(&self.q);
+            self.v_next.copy_from_slice(&self.v);
+            let actuation = Actuation { servo: &self.servo, effort: &self.effort, tau_ff: &self.tau_ff };
+            let outcome = self.engine.step(&self.model, &actuation, &mut self.q_next, &mut self.v_next, &mut self.applied);
+            let outcome = outcome.and_then(|()| divergence(&self.model, &self.q_next, &self.v_next, self.steps + 1, self.options.dt));
+            if let Err(error) = outcome {
+                self.engine.write_state(&self.model, &self.q, &self.v);
+                return Err(error);
             }
-            self.apply_forces();
-            self.world.step();
+            std::mem::swap(&mut self.q, &mut self.q_next);
+            std::mem::swap(&mut self.v, &mut self.v_next);
             self.steps += 1;
-            self.refresh();
-            if self.q.iter().chain(&self.v).any(|x| !x.is_finite()) {
-                return Err(Error::invalid(
-                    "step",
-                    format!("the simulation diverged (non-finite state) at t = {:.6} s; reduce dt or the servo gains", self.time()),
-                ));
-            }
         }
         Ok(())
     }
 
     /// World pose of every body.
     pub fn body_poses(&self) -> Vec<Transform> {
-        state::body_poses(&self.world, &self.layout)
+        self.engine.body_poses(&self.model, &self.q)
     }
 
     /// Contacts of the last step.
     pub fn contacts(&self) -> Vec<Contact> {
-        state::contacts(&self.world, self.options.dt)
-    }
-
-    fn refresh(&mut self) {
-        state::read(&self.world, &self.layout, &self.model, &mut self.q, &mut self.v);
-    }
-
-    /// Turns `self.applied` into forces on the Rapier bodies (replacing those of the previous step).
-    fn apply_forces(&mut self) {
-        let layout = &self.layout;
-        let carrier_pose = |r: usize| builder::from_pose(&state::carrier_pose(&self.world, layout, r));
-        self.pushes.clear();
-        for i in 0..self.model.nbodies() {
-            let k = self.model.idx_v(i);
-            match *self.model.joint(i) {
-                Joint::FreeFlyer => {
-                    let base = carrier_pose(0).compose(&layout.offset[0]);
-                    let (f, n) = (Vector3::new(self.applied[0], self.applied[1], self.applied[2]), Vector3::new(self.applied[3], self.applied[4], self.applied[5]));
-                    if f != Vector3::zeros() || n != Vector3::zeros() {
-                        self.pushes.push(Push::Base { force: base.rotation * f, point: base.translation, torque: base.rotation * n });
-                    }
-                }
-                Joint::Fixed => {}
-                Joint::Revolute(axis) | Joint::Prismatic(axis) if self.applied[k] != 0.0 => {
-                    let (child, parent) = (layout.carrier[i], layout.carrier[self.model.parent(i)]);
-                    let pose = carrier_pose(child);
-                    let direction = pose.rotation * axis * self.applied[k];
-                    self.pushes.push(if matches!(self.model.joint(i), Joint::Revolute(_)) {
-                        Push::Couple { child, parent, torque: direction }
-                    } else {
-                        Push::Force { child, parent, force: direction, point: pose.translation }
-                    });
-                }
-                Joint::Revolute(_) | Joint::Prismatic(_) => {}
-            }
-        }
-        let coms: Vec<Vector3<f64>> = (0..layout.handles.len()).map(|r| carrier_pose(r).transform_point(&layout.local_com[r])).collect();
-        for handle in &layout.handles {
-            let rb = &mut self.world.bodies[*handle];
-            rb.reset_forces(false);
-            rb.reset_torques(false);
-        }
-        let bodies = &mut self.world.bodies;
-        let mut push = |r: usize, force: Vector3<f64>, point: Vector3<f64>, torque: Vector3<f64>| {
-            let rb = &mut bodies[layout.handles[r]];
-            rb.add_force(to_vector(&force), false);
-            rb.add_torque(to_vector(&(torque + (point - coms[r]).cross(&force))), false);
-        };
-        for p in &self.pushes {
-            match *p {
-                Push::Couple { child, parent, torque } => {
-                    push(child, Vector3::zeros(), Vector3::zeros(), torque);
-                    push(parent, Vector3::zeros(), Vector3::zeros(), -torque);
-                }
-                Push::Force { child, parent, force, point } => {
-                    push(child, force, point, Vector3::zeros());
-                    push(parent, -force, point, Vector3::zeros());
-                }
-                Push::Base { force, point, torque } => push(0, force, point, torque),
-            }
-        }
+        self.engine.contacts()
     }
 }
 
-/// The effort bound of each velocity coordinate: the joint's `effort` limit, +inf on the base.
-fn effort_bounds(model: &Model) -> Vec<f64> {
-    let mut bounds = vec![f64::INFINITY; model.nv()];
-    for i in 1..model.nbodies() {
-        if model.joint(i).nv() == 1 {
-            bounds[model.idx_v(i)] = model.limits(i).effort;
-        }
+/// `Error::Numerical` naming `step` and the first body whose coordinates are non-finite or beyond
+/// `DIVERGENCE_BOUND` (speeds; the base's position and prismatic joints' coordinates).
+fn divergence(model: &Model, q: &[f64], v: &[f64], step: u64, dt: f64) -> Result<()> {
+    for i in 0..model.nbodies() {
+        let (kq, kv, joint) = (model.idx_q(i), model.idx_v(i), model.joint(i));
+        let speeds = &v[kv..kv + joint.nv()];
+        let coordinates = &q[kq..kq + joint.nq()];
+        let positions = match joint {
+            Joint::FreeFlyer => &coordinates[..3],
+            Joint::Prismatic(_) => coordinates,
+            Joint::Revolute(_) | Joint::Fixed => &[],
+        };
+        let exploded = |x: &f64| !(x.abs() <= DIVERGENCE_BOUND);
+        let what = if coordinates.iter().chain(speeds).any(|x| !x.is_finite()) {
+            "its state is not finite"
+        } else if speeds.iter().any(exploded) {
+            "its speed exceeds 1e6"
+        } else if positions.iter().any(exploded) {
+            "its position exceeds 1e6 m"
+        } else {
+            continue;
+        };
+        return Err(Error::numerical(
+            "step",
+            format!(
+                "the simulation diverged at step {step} (t = {:.6} s): body {i} ({:?}) {what}; the state before that step is kept. \
+                 Check the units of tau and the servo gains, or reduce dt",
+                step as f64 * dt,
+                model.name(i)
+            ),
+        ));
     }
-    bounds
+    Ok(())
 }

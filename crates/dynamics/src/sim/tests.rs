@@ -4,6 +4,7 @@
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 
 use super::*;
+use crate::sim::options::Backend;
 use crate::model::JointLimits;
 use crate::algorithms::{simulate, Method};
 use crate::{Data, MassProperties};
@@ -55,21 +56,20 @@ fn max_difference(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
 }
 
-fn released(model: &Model, substeps: usize) -> Simulation {
+fn released(model: &Model, substeps: usize, backend: Backend) -> Simulation {
     let (q, v) = start(model);
-    let mut options = Options::new(1e-3);
+    let mut options = opts(backend, 1e-3);
     options.substeps = substeps;
     let mut sim = Simulation::new(model, options).unwrap();
     sim.set_state(Some(&q), Some(&v)).unwrap();
     sim
 }
 
-#[test]
-fn state_round_trips_through_rapier() {
+fn state_round_trips(backend: Backend) {
     let model = ten_link_tree();
     let (q, _) = start(&model);
     let v: Vec<f64> = (0..model.nv()).map(|k| 0.1 * k as f64 - 0.4).collect();
-    let mut sim = Simulation::new(&model, Options::new(1e-3)).unwrap();
+    let mut sim = Simulation::new(&model, opts(backend, 1e-3)).unwrap();
     sim.set_state(Some(&q), Some(&v)).unwrap();
     assert_eq!(sim.q(), q.as_slice());
     assert_eq!(sim.v(), v.as_slice());
@@ -82,17 +82,17 @@ fn state_round_trips_through_rapier() {
     }
 }
 
-#[test]
-fn free_tree_follows_aba_rk4() {
-    // Rapier's integrator is first order: the error after 1 s must halve with the substep length, and at
-    // 8 substeps per 1 ms step stay within 1e-3 rad.
+fn free_tree_follows_aba_rk4(backend: Backend) {
+    // Both integrators are first order: the error after 1 s must halve with the substep length. At 8
+    // substeps per 1 ms step Rapier (Coriolis terms linearly implicit) stays within 1e-3 rad, the tree
+    // engine's semi-implicit Euler (Coriolis explicit, as MuJoCo's Euler) within 2.5e-3 rad.
     let model = ten_link_tree();
     let (q, v) = start(&model);
     let (q_ref, _) = reference(&model, &q, &v, 1e-3, 1000);
     let errors: Vec<f64> = [1, 2, 4, 8]
         .iter()
         .map(|&substeps| {
-            let mut sim = released(&model, substeps);
+            let mut sim = released(&model, substeps, backend);
             sim.step(None, 1000).unwrap();
             let error = max_difference(sim.q(), &q_ref);
             println!("free 10-link tree, 1 s at 1 kHz, {substeps} substeps: max |q - q_rk4| = {error:.3e}");
@@ -103,11 +103,14 @@ fn free_tree_follows_aba_rk4() {
         let ratio = pair[0] / pair[1];
         assert!((1.6..2.5).contains(&ratio), "halving the substep should halve the error, ratio {ratio}");
     }
-    assert!(errors[3] < 1e-3, "joint coordinates differ from ABA + RK4 by {}", errors[3]);
+    let bound = match backend {
+        Backend::Rapier => 1e-3,
+        Backend::Tree => 2.5e-3,
+    };
+    assert!(errors[3] < bound, "joint coordinates differ from ABA + RK4 by {}", errors[3]);
 }
 
-#[test]
-fn floating_base_follows_aba_rk4() {
+fn floating_base_follows_aba_rk4(backend: Backend) {
     // A tumbling floating box with an off-centre COM and a two-link arm, thrown upward and spinning.
     let base = MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::new(0.03, -0.02, 0.01), &Matrix3::identity()).unwrap();
     let mut model = Model::new(true, base, "base");
@@ -117,7 +120,7 @@ fn floating_base_follows_aba_rk4() {
     let q = vec![0.1, -0.2, 1.0, rotation.i, rotation.j, rotation.k, rotation.w, 0.4, -0.3];
     let v = vec![0.2, 0.1, 3.0, 1.0, -2.0, 0.5, 1.5, -1.0];
     let (q_ref, v_ref) = reference(&model, &q, &v, 1e-3, 500);
-    let mut options = Options::new(1e-3);
+    let mut options = opts(backend, 1e-3);
     options.substeps = 8;
     let mut sim = Simulation::new(&model, options).unwrap();
     sim.set_state(Some(&q), Some(&v)).unwrap();
@@ -128,14 +131,13 @@ fn floating_base_follows_aba_rk4() {
     assert!(eq < 1e-3, "configuration differs from ABA + RK4 by {eq}");
 }
 
-#[test]
-fn joint_torques_match_aba_accelerations() {
+fn joint_torques_match_aba_accelerations(backend: Backend) {
     // One step from rest: Δv / dt is the acceleration Rapier used; with no Coriolis terms at rest it must
     // equal ABA's q̈ for the same torques to first order in dt.
     let model = ten_link_tree();
     let (q, v) = start(&model);
     let tau: Vec<f64> = (0..model.nv()).map(|k| 0.5 * ((k as f64) * 0.9).cos()).collect();
-    let mut sim = released(&model, 1);
+    let mut sim = released(&model, 1, backend);
     sim.step(Some(&tau), 1).unwrap();
     let mut data = Data::new(&model);
     let ddq = crate::algorithms::aba(&model, &mut data, &q, &v, &tau, None).clone();
@@ -152,10 +154,9 @@ fn total_normal_force(contacts: &[Contact]) -> Vector3<f64> {
     contacts.iter().map(|c| c.normal * c.normal_force + c.tangential_force).sum()
 }
 
-#[test]
-fn box_resting_on_the_plane_carries_its_weight() {
+fn box_resting_on_the_plane_carries_its_weight(backend: Backend) {
     let model = floating_box(3.0, Vector3::new(0.4, 0.3, 0.2));
-    let mut options = Options::new(1e-3);
+    let mut options = opts(backend, 1e-3);
     options.ground = Some(Ground::plane(0.8).unwrap());
     let mut sim = Simulation::new(&model, options).unwrap();
     sim.set_state(Some(&[0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0]), None).unwrap();
@@ -185,9 +186,9 @@ fn quadruped() -> (Model, Vec<(usize, Option<Shape>)>) {
     (model, shapes)
 }
 
-fn quadruped_on_plane(substeps: usize) -> Simulation {
+fn quadruped_on_plane(substeps: usize, backend: Backend) -> Simulation {
     let (model, shapes) = quadruped();
-    let mut options = Options::new(1e-3);
+    let mut options = opts(backend, 1e-3);
     options.ground = Some(Ground::plane(0.8).unwrap());
     options.shapes = shapes;
     options.substeps = substeps;
@@ -204,9 +205,8 @@ fn quadruped_on_plane(substeps: usize) -> Simulation {
     sim
 }
 
-#[test]
-fn quadruped_standing_on_servos_carries_its_weight() {
-    let mut sim = quadruped_on_plane(1);
+fn quadruped_standing_on_servos_carries_its_weight(backend: Backend) {
+    let mut sim = quadruped_on_plane(1, backend);
     sim.step(None, 2000).unwrap();
     let contacts = sim.contacts();
     let force = total_normal_force(&contacts);
@@ -217,10 +217,9 @@ fn quadruped_standing_on_servos_carries_its_weight() {
     assert!(sim.v().iter().all(|x| x.abs() < 1e-3), "not at rest: {:?}", sim.v());
 }
 
-#[test]
-fn identical_inputs_give_identical_trajectories() {
+fn identical_inputs_give_identical_trajectories(backend: Backend) {
     let run = || {
-        let mut sim = quadruped_on_plane(2);
+        let mut sim = quadruped_on_plane(2, backend);
         let nv = sim.model().nv();
         let tau: Vec<f64> = (0..nv).map(|k| if k < 6 { 0.0 } else { 0.3 * (k as f64).sin() }).collect();
         sim.step(Some(&tau), 300).unwrap();
@@ -230,11 +229,10 @@ fn identical_inputs_give_identical_trajectories() {
     assert_eq!(a, b);
 }
 
-#[test]
-fn servo_torques_respect_limits_and_hold_targets() {
+fn servo_torques_respect_limits_and_hold_targets(backend: Backend) {
     let model = ten_link_tree();
     let nv = model.nv();
-    let mut sim = released(&model, 1);
+    let mut sim = released(&model, 1, backend);
     let target: Vec<f64> = vec![0.0; nv];
     let servo = Servo::new(&model, vec![50.0; nv], vec![2.0; nv], vec![1.5; nv], target, vec![0.0; nv]).unwrap();
     sim.set_servo(servo).unwrap();
@@ -247,10 +245,9 @@ fn servo_torques_respect_limits_and_hold_targets() {
     assert!(peak == 1.5, "the feed-forward of 3 must saturate");
 }
 
-#[test]
-fn bad_input_is_rejected_and_changes_nothing() {
+fn bad_input_is_rejected_and_changes_nothing(backend: Backend) {
     let model = ten_link_tree();
-    let mut sim = released(&model, 1);
+    let mut sim = released(&model, 1, backend);
     sim.step(None, 10).unwrap();
     let (q, v, t) = (sim.q().to_vec(), sim.v().to_vec(), sim.time());
     let mut nan = vec![0.0; model.nv()];
@@ -262,16 +259,15 @@ fn bad_input_is_rejected_and_changes_nothing() {
     assert_eq!(sim.reset(&q, &[1.0]).unwrap_err().argument(), "v");
     assert!(Servo::new(&model, vec![-1.0; model.nv()], vec![0.0; model.nv()], vec![1.0; model.nv()], vec![0.0; model.nv()], vec![0.0; model.nv()]).is_err());
     assert_eq!((sim.q(), sim.v(), sim.time()), (q.as_slice(), v.as_slice(), t));
-    assert_eq!(Simulation::new(&model, Options::new(0.0)).err().unwrap().argument(), "dt");
+    assert_eq!(Simulation::new(&model, opts(backend, 0.0)).err().unwrap().argument(), "dt");
     assert_eq!(Ground::heightfield(nalgebra::DMatrix::zeros(1, 5), 0.1, 0.8).unwrap_err().argument(), "heights");
 }
 
-#[test]
-fn reset_reproduces_a_fresh_simulation() {
-    let mut fresh = quadruped_on_plane(1);
+fn reset_reproduces_a_fresh_simulation(backend: Backend) {
+    let mut fresh = quadruped_on_plane(1, backend);
     let (q, v) = (fresh.q().to_vec(), fresh.v().to_vec());
     fresh.step(None, 200).unwrap();
-    let mut reused = quadruped_on_plane(1);
+    let mut reused = quadruped_on_plane(1, backend);
     reused.step(None, 137).unwrap();
     reused.reset(&q, &v).unwrap();
     reused.step(None, 200).unwrap();
@@ -301,8 +297,7 @@ fn excursion(sim: &mut Simulation, steps: usize) -> (f64, f64) {
     (high, low)
 }
 
-#[test]
-fn revolute_limit_stops_a_falling_pendulum() {
+fn revolute_limit_stops_a_falling_pendulum(backend: Backend) {
     // Released at rest from ±0.4 rad, the pendulum falls onto the ±0.5 rad limit. Rapier's limit is a
     // velocity constraint that engages only once the coordinate is past the bound (checked at the start
     // of each substep, of length h = dt / substeps), so the joint can travel one substep past it before
@@ -319,7 +314,7 @@ fn revolute_limit_stops_a_falling_pendulum() {
         let tolerance = omega * h + alpha * h * h;
         for sign in [1.0, -1.0] {
             let model = inverted_pendulum(JointLimits::position(-0.5, 0.5).unwrap());
-            let mut options = Options::new(dt);
+            let mut options = opts(backend, dt);
             options.substeps = substeps;
             let mut sim = Simulation::new(&model, options).unwrap();
             sim.set_state(Some(&[0.4 * sign]), None).unwrap();
@@ -333,20 +328,19 @@ fn revolute_limit_stops_a_falling_pendulum() {
         }
     }
     // Without limits the same release falls through 0.5 rad: the limit is what stopped it.
-    let mut free = Simulation::new(&inverted_pendulum(JointLimits::NONE), Options::new(dt)).unwrap();
+    let mut free = Simulation::new(&inverted_pendulum(JointLimits::NONE), opts(backend, dt)).unwrap();
     free.set_state(Some(&[0.4]), None).unwrap();
     assert!(excursion(&mut free, 1000).0 > 1.0);
 }
 
-#[test]
-fn prismatic_limit_stops_a_falling_slider() {
+fn prismatic_limit_stops_a_falling_slider(backend: Backend) {
     // A 2 kg block sliding along world z from 0 falls onto its lower limit at −0.2 m: speed at the limit
     // √(2 g 0.2), and the same one-step overshoot bound v dt + g dt².
     let (g, dt) = (9.81, 1e-3);
     let mut model = Model::new(false, MassProperties::zero(), "base");
     let block = MassProperties::cuboid(2.0, Vector3::new(0.1, 0.1, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap();
     model.add_body(0, Joint::Prismatic(Vector3::z()), Transform::identity(), block, "block", JointLimits::position(-0.2, 0.3).unwrap()).unwrap();
-    let mut sim = Simulation::new(&model, Options::new(dt)).unwrap();
+    let mut sim = Simulation::new(&model, opts(backend, dt)).unwrap();
     let (_, low) = excursion(&mut sim, 1000);
     let tolerance = (2.0 * g * 0.2f64).sqrt() * dt + g * dt * dt;
     let overshoot = -0.2 - low;
@@ -355,8 +349,7 @@ fn prismatic_limit_stops_a_falling_slider() {
     assert!((sim.q()[0] + 0.2).abs() < 1e-4 && sim.v()[0].abs() < 1e-2);
 }
 
-#[test]
-fn limits_out_of_reach_change_nothing() {
+fn limits_out_of_reach_change_nothing(backend: Backend) {
     // Inside the range, the limit constraints carry zero impulse: the free tree's motion is unchanged.
     let free = ten_link_tree();
     let mut limited = Model::new(false, *free.body(0), free.name(0));
@@ -364,17 +357,16 @@ fn limits_out_of_reach_change_nothing() {
         let limits = JointLimits::new(-10.0, 10.0, 1e3, 1e3).unwrap();
         limited.add_body(free.parent(i), *free.joint(i), *free.placement(i), *free.body(i), free.name(i), limits).unwrap();
     }
-    let (mut a, mut b) = (released(&free, 1), released(&limited, 1));
+    let (mut a, mut b) = (released(&free, 1, backend), released(&limited, 1, backend));
     a.step(None, 300).unwrap();
     b.step(None, 300).unwrap();
     assert!(max_difference(a.q(), b.q()) < 1e-12 && max_difference(a.v(), b.v()) < 1e-12);
 }
 
-#[test]
-fn effort_limit_clips_actuation() {
+fn effort_limit_clips_actuation(backend: Backend) {
     // Joint effort bound 1.5 N m; servo limit 3 (looser) then 1 (tighter); feed-forward ±10.
     let limited = inverted_pendulum(JointLimits::new(f64::NEG_INFINITY, f64::INFINITY, 1.5, f64::INFINITY).unwrap());
-    let mut sim = Simulation::new(&limited, Options::new(1e-3)).unwrap();
+    let mut sim = Simulation::new(&limited, opts(backend, 1e-3)).unwrap();
     sim.step(Some(&[10.0]), 1).unwrap();
     assert_eq!(sim.applied_torques(), &[1.5]);
     sim.step(Some(&[-10.0]), 1).unwrap();
@@ -386,9 +378,46 @@ fn effort_limit_clips_actuation() {
     sim.step(Some(&[10.0]), 1).unwrap();
     assert_eq!(sim.applied_torques(), &[1.0]);
     // The clipped torque is what drives the joint: the same motion as commanding 1.5 without a bound.
-    let mut bounded = Simulation::new(&limited, Options::new(1e-3)).unwrap();
-    let mut unbounded = Simulation::new(&inverted_pendulum(JointLimits::NONE), Options::new(1e-3)).unwrap();
+    let mut bounded = Simulation::new(&limited, opts(backend, 1e-3)).unwrap();
+    let mut unbounded = Simulation::new(&inverted_pendulum(JointLimits::NONE), opts(backend, 1e-3)).unwrap();
     bounded.step(Some(&[10.0]), 200).unwrap();
     unbounded.step(Some(&[1.5]), 200).unwrap();
     assert_eq!((bounded.q(), bounded.v()), (unbounded.q(), unbounded.v()));
 }
+
+fn opts(backend: Backend, dt: f64) -> Options {
+    Options { backend, ..Options::new(dt) }
+}
+
+/// Each test runs on both backends: `name::tree` and `name::rapier`.
+macro_rules! on_both_backends {
+    ($($name:ident),* $(,)?) => {
+        $(mod $name {
+            #[test]
+            fn tree() {
+                super::$name(super::Backend::Tree)
+            }
+            #[test]
+            fn rapier() {
+                super::$name(super::Backend::Rapier)
+            }
+        })*
+    };
+}
+
+on_both_backends!(
+    state_round_trips,
+    free_tree_follows_aba_rk4,
+    floating_base_follows_aba_rk4,
+    joint_torques_match_aba_accelerations,
+    box_resting_on_the_plane_carries_its_weight,
+    quadruped_standing_on_servos_carries_its_weight,
+    identical_inputs_give_identical_trajectories,
+    servo_torques_respect_limits_and_hold_targets,
+    bad_input_is_rejected_and_changes_nothing,
+    reset_reproduces_a_fresh_simulation,
+    revolute_limit_stops_a_falling_pendulum,
+    prismatic_limit_stops_a_falling_slider,
+    limits_out_of_reach_change_nothing,
+    effort_limit_clips_actuation,
+);

@@ -9,28 +9,11 @@ use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use rapier3d_f64::math::{Pose, Vector};
 use rapier3d_f64::prelude::{Multibody, PhysicsWorld};
 
-use super::builder::{from_pose, from_vector, to_pose, to_vector, Layout, GROUND_TAG};
+use super::builder::{Layout, GROUND_TAG};
+use crate::sim::options::{from_pose, from_vector, to_pose, to_vector};
+use crate::sim::Contact;
 use crate::model::{Joint, Model};
 use crate::spatial::Transform;
-
-/// One contact point, seen from `body`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Contact {
-    /// The legkit body the force acts on.
-    pub body: usize,
-    /// The other legkit body, or None for the ground.
-    pub other: Option<usize>,
-    /// World contact point (midpoint of the two surface points).
-    pub point: Vector3<f64>,
-    /// Unit contact normal in the world, pointing into `body` (the direction of the normal force on it).
-    pub normal: Vector3<f64>,
-    /// Normal force on `body` (N, >= 0), averaged over the last step.
-    pub normal_force: f64,
-    /// Friction force on `body` in the world (N, orthogonal to `normal`), averaged over the last step.
-    pub tangential_force: Vector3<f64>,
-    /// Penetration depth (m, >= 0) at the start of the last step's contact update.
-    pub depth: f64,
-}
 
 pub(crate) fn multibody<'w>(world: &'w PhysicsWorld, layout: &Layout) -> Option<&'w Multibody> {
     layout.joint_handle.map(|h| world.multibody_joints.get(h).expect("joint handle is valid").0)

@@ -1,0 +1,221 @@
+//! Construction options shared by both backends: step, ground, collision shapes, joint damping and
+//! armature, and the backend itself; collision shapes as parry shapes; conversions between nalgebra and
+//! parry's math types.
+
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use rapier3d_f64::math::{Matrix, Pose, Rotation, Vector};
+use rapier3d_f64::prelude::SharedShape;
+
+use crate::model::Model;
+use crate::spatial::Transform;
+use crate::validate::{finite, finite_vector, rotation};
+use crate::{Error, MassProperties, Result};
+
+use super::ground::Ground;
+
+/// Edges of default boxes are at least this long (m), so point masses and thin rods still collide.
+pub const MIN_DEFAULT_EDGE: f64 = 1e-3;
+/// Contact-solver sweeps per step of the tree engine unless asked otherwise.
+pub const DEFAULT_SOLVER_ITERATIONS: usize = 100;
+/// Friction coefficient of body-body contacts when there is no ground to take it from.
+pub const DEFAULT_FRICTION: f64 = 0.8;
+
+/// A collision shape in a body's frame. `placement` (the shape frame in the body frame) defaults to the
+/// body's centre of mass with the body's axes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Shape {
+    pub kind: ShapeKind,
+    pub placement: Option<Transform>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ShapeKind {
+    /// Full edge lengths along the shape's x, y, z.
+    Box(Vector3<f64>),
+    Sphere(f64),
+    /// Along the shape's z axis: half the length of the axis segment, and the radius.
+    Capsule { half_height: f64, radius: f64 },
+    /// Along the shape's z axis.
+    Cylinder { half_height: f64, radius: f64 },
+}
+
+fn positive(argument: &'static str, x: f64) -> Result<f64> {
+    if finite(argument, x)? <= 0.0 {
+        return Err(Error::invalid(argument, format!("must be > 0, got {x}")));
+    }
+    Ok(x)
+}
+
+impl Shape {
+    /// Checks sizes (finite, > 0) and the placement (a proper rotation, finite translation).
+    pub fn new(kind: ShapeKind, placement: Option<Transform>) -> Result<Self> {
+        match kind {
+            ShapeKind::Box(size) => {
+                for s in size.iter() {
+                    positive("shapes", *s)?;
+                }
+            }
+            ShapeKind::Sphere(r) => {
+                positive("shapes", r)?;
+            }
+            ShapeKind::Capsule { half_height, radius } | ShapeKind::Cylinder { half_height, radius } => {
+                positive("shapes", radius)?;
+                if finite("shapes", half_height)? < 0.0 {
+                    return Err(Error::invalid("shapes", format!("half_height must be >= 0, got {half_height}")));
+                }
+            }
+        }
+        if let Some(p) = &placement {
+            rotation("shapes", &p.rotation)?;
+            finite_vector("shapes", p.translation)?;
+        }
+        Ok(Shape { kind, placement })
+    }
+
+    /// The uniform box with the body's mass and principal moments, centred at its COM along its principal
+    /// axes: edges a² = 6 (I₂ + I₃ − I₁) / m and cyclically, floored at `MIN_DEFAULT_EDGE`. None for a
+    /// massless body.
+    pub fn default_box(body: &MassProperties) -> Option<Shape> {
+        if body.mass() <= 0.0 {
+            return None;
+        }
+        let eigen = SymmetricEigen::new(body.inertia());
+        let mut axes = eigen.eigenvectors;
+        if axes.determinant() < 0.0 {
+            axes.set_column(2, &(-axes.column(2)));
+        }
+        let moments = eigen.eigenvalues;
+        let edge = |k: usize| {
+            let squared = 6.0 * (moments[(k + 1) % 3] + moments[(k + 2) % 3] - moments[k]) / body.mass();
+            squared.max(0.0).sqrt().max(MIN_DEFAULT_EDGE)
+        };
+        Some(Shape {
+            kind: ShapeKind::Box(Vector3::new(edge(0), edge(1), edge(2))),
+            placement: Some(Transform::new(axes, body.com())),
+        })
+    }
+
+    pub(crate) fn shared_shape(&self) -> (SharedShape, Transform) {
+        // Parry's cylinder runs along its y axis: turn it onto z (x → x, y → z, z → −y).
+        let y_to_z = Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0);
+        match self.kind {
+            ShapeKind::Box(size) => (SharedShape::cuboid(size.x / 2.0, size.y / 2.0, size.z / 2.0), Transform::identity()),
+            ShapeKind::Sphere(r) => (SharedShape::ball(r), Transform::identity()),
+            ShapeKind::Capsule { half_height, radius } => (SharedShape::capsule_z(half_height, radius), Transform::identity()),
+            ShapeKind::Cylinder { half_height, radius } => {
+                (SharedShape::cylinder(half_height, radius), Transform::new(y_to_z, Vector3::zeros()))
+            }
+        }
+    }
+}
+
+pub(crate) fn to_pose(t: &Transform) -> Pose {
+    let r = &t.rotation;
+    let m = Matrix::from_cols(
+        Vector::new(r[(0, 0)], r[(1, 0)], r[(2, 0)]),
+        Vector::new(r[(0, 1)], r[(1, 1)], r[(2, 1)]),
+        Vector::new(r[(0, 2)], r[(1, 2)], r[(2, 2)]),
+    );
+    Pose::from_parts(to_vector(&t.translation), Rotation::from_mat3(&m).normalize())
+}
+
+pub(crate) fn from_pose(p: &Pose) -> Transform {
+    let m = Matrix::from_quat(p.rotation);
+    let (x, y, z) = (m.col(0), m.col(1), m.col(2));
+    Transform::new(Matrix3::new(x.x, y.x, z.x, x.y, y.y, z.y, x.z, y.z, z.z), from_vector(p.translation))
+}
+
+#[inline]
+pub(crate) fn to_vector(v: &Vector3<f64>) -> Vector {
+    Vector::new(v.x, v.y, v.z)
+}
+
+#[inline]
+pub(crate) fn from_vector(v: Vector) -> Vector3<f64> {
+    Vector3::new(v.x, v.y, v.z)
+}
+
+/// Construction options of a simulation (see `Simulation::new`).
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Step length (s), > 0.
+    pub dt: f64,
+    pub ground: Option<Ground>,
+    /// Shapes replacing the default box of the listed bodies; `None` removes a body's collider.
+    pub shapes: Vec<(usize, Option<Shape>)>,
+    /// Contacts between bodies of the robot (never between a body and its parent).
+    pub self_collision: bool,
+    /// Viscous damping (N m s/rad or N s/m) on every revolute and prismatic joint, integrated implicitly.
+    pub joint_damping: f64,
+    /// Reflected rotor inertia (kg m² or kg) added on every revolute and prismatic joint, as a geared
+    /// servo's motor adds to the joint's diagonal of the mass matrix.
+    pub joint_armature: f64,
+    /// Substeps per step: the tree engine takes `substeps` steps of dt / substeps; Rapier runs that many
+    /// solver iterations, each re-evaluating the multibody dynamics. Either way more substeps integrate
+    /// more accurately at a proportional cost.
+    pub substeps: usize,
+    pub backend: Backend,
+    /// Most contact-solver sweeps per (sub)step of the tree engine (it stops earlier once converged).
+    pub solver_iterations: usize,
+}
+
+/// Which engine steps the simulation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Backend {
+    /// legkit's reduced-coordinate tree engine (`sim::tree`): the default.
+    Tree,
+    /// Rapier's multibody, kept as the reference.
+    Rapier,
+}
+
+impl Backend {
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "tree" => Ok(Backend::Tree),
+            "rapier" => Ok(Backend::Rapier),
+            other => Err(Error::invalid("backend", format!("must be 'tree' or 'rapier', got {other:?}"))),
+        }
+    }
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            Backend::Tree => "tree",
+            Backend::Rapier => "rapier",
+        }
+    }
+}
+
+impl Options {
+    pub fn new(dt: f64) -> Self {
+        Options { dt, ground: None, shapes: Vec::new(), self_collision: false, joint_damping: 0.0, joint_armature: 0.0, substeps: 1, backend: Backend::Tree, solver_iterations: DEFAULT_SOLVER_ITERATIONS }
+    }
+
+    pub(crate) fn check(&self, model: &Model) -> Result<()> {
+        if finite("dt", self.dt)? <= 0.0 {
+            return Err(Error::invalid("dt", format!("must be > 0, got {}", self.dt)));
+        }
+        if finite("joint_damping", self.joint_damping)? < 0.0 {
+            return Err(Error::invalid("joint_damping", format!("must be >= 0, got {}", self.joint_damping)));
+        }
+        if finite("joint_armature", self.joint_armature)? < 0.0 {
+            return Err(Error::invalid("joint_armature", format!("must be >= 0, got {}", self.joint_armature)));
+        }
+        if self.substeps == 0 {
+            return Err(Error::invalid("substeps", "must be >= 1"));
+        }
+        if self.solver_iterations == 0 {
+            return Err(Error::invalid("solver_iterations", "must be >= 1"));
+        }
+        let mut seen = vec![false; model.nbodies()];
+        for (body, _) in &self.shapes {
+            if *body >= model.nbodies() {
+                return Err(Error::invalid("shapes", format!("body {body} does not exist (the model has {} bodies)", model.nbodies())));
+            }
+            if std::mem::replace(&mut seen[*body], true) {
+                return Err(Error::invalid("shapes", format!("body {body} is given more than once")));
+            }
+        }
+        Ok(())
+    }
+}
+

@@ -1,0 +1,215 @@
+//! Contact detection for the tree engine, on parry: every collider against the ground (plane or
+//! heightfield) and, with self-collision, against the colliders of other bodies (never its parent's, nor
+//! those merged with it by fixed joints). Each pair keeps its contact manifolds from step to step, so parry
+//! matches a new contact point to the last step's by the shapes' features and hands over its impulses
+//! (the solver's warm start).
+
+use rapier3d_f64::math::Pose;
+use rapier3d_f64::parry::bounding_volume::{Aabb, BoundingVolume};
+use rapier3d_f64::parry::query::{ContactManifold, ContactManifoldsWorkspace, DefaultQueryDispatcher, PersistentQueryDispatcher};
+use rapier3d_f64::prelude::SharedShape;
+
+use crate::model::{Joint, Model};
+use crate::sim::options::{from_vector, to_pose, Options, Shape};
+use crate::spatial::Transform;
+use nalgebra::Vector3;
+
+/// Contacts are tracked from this distance apart (m), so an approaching body is slowed before it touches.
+pub(super) const PREDICTION: f64 = 1e-3;
+
+/// What a contact point carries from one step to the next: the impulses [λ_n, λ_t (world, 3)].
+pub(super) type Warm = [f64; 4];
+
+struct Collider {
+    body: usize,
+    /// The nearest body at or above `body` whose joint moves (bodies on fixed joints move with it).
+    carrier: usize,
+    shape: SharedShape,
+    /// Shape frame in the body frame.
+    local: Transform,
+}
+
+#[derive(Default)]
+pub(super) struct Pair {
+    pub manifolds: Vec<ContactManifold<(), Warm>>,
+    workspace: Option<ContactManifoldsWorkspace>,
+}
+
+/// One contact point of this step, between `body` (pushed along `normal`) and `other` (the ground if None).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Found {
+    pub body: usize,
+    pub other: Option<usize>,
+    pub point: Vector3<f64>,
+    pub normal: Vector3<f64>,
+    /// Signed distance (m): negative when the shapes overlap.
+    pub distance: f64,
+    pub warm: Warm,
+    /// Where the point lives, to hand its impulses back: (pair, manifold, point); pairs below the number
+    /// of colliders are ground pairs.
+    pub source: (u32, u32, u32),
+}
+
+pub(super) struct Collision {
+    colliders: Vec<Collider>,
+    ground: Option<(SharedShape, Pose)>,
+    ground_pairs: Vec<Pair>,
+    self_collision: bool,
+    /// Overlapping collider pairs (a < b) of the last step, sorted, with their manifolds.
+    self_pairs: Vec<(u32, u32, Pair)>,
+    poses: Vec<Pose>,
+    boxes: Vec<Aabb>,
+    order: Vec<u32>,
+    candidates: Vec<(u32, u32)>,
+    dispatcher: DefaultQueryDispatcher,
+}
+
+impl Collision {
+    pub(super) fn new(model: &Model, options: &Options) -> Self {
+        let mut carrier = vec![0; model.nbodies()];
+        for i in 1..model.nbodies() {
+            carrier[i] = if *model.joint(i) == Joint::Fixed { carrier[model.parent(i)] } else { i };
+        }
+        let mut colliders = Vec::new();
+        for i in 0..model.nbodies() {
+            let shape = match options.shapes.iter().find(|(b, _)| *b == i) {
+                Some((_, shape)) => shape.clone(),
+                None => Shape::default_box(model.body(i)),
+            };
+            let Some(shape) = shape else { continue };
+            let (shared, correction) = shape.shared_shape();
+            let in_body = shape.placement.unwrap_or_else(|| Transform::from_translation(model.body(i).com()));
+            colliders.push(Collider { body: i, carrier: carrier[i], shape: shared, local: in_body.compose(&correction) });
+        }
+        let n = colliders.len();
+        Collision {
+            ground: options.ground.as_ref().map(|g| g.shape()),
+            ground_pairs: (0..n).map(|_| Pair::default()).collect(),
+            colliders,
+            self_collision: options.self_collision,
+            self_pairs: Vec::new(),
+            poses: vec![Pose::IDENTITY; n],
+            boxes: Vec::with_capacity(n),
+            order: Vec::with_capacity(n),
+            candidates: Vec::new(),
+            dispatcher: DefaultQueryDispatcher,
+        }
+    }
+
+    /// Forgets every contact (no warm start for what follows).
+    pub(super) fn clear(&mut self) {
+        self.ground_pairs.iter_mut().for_each(|p| *p = Pair::default());
+        self.self_pairs.clear();
+    }
+
+    /// Finds the contacts of bodies at world poses `poses`, appending them to `out`.
+    pub(super) fn detect(&mut self, model: &Model, poses: &[Transform], out: &mut Vec<Found>) {
+        for (pose, c) in self.poses.iter_mut().zip(&self.colliders) {
+            *pose = to_pose(&poses[c.body].compose(&c.local));
+        }
+        if let Some((ground, ground_pose)) = &self.ground {
+            for (index, (c, pair)) in self.colliders.iter().zip(self.ground_pairs.iter_mut()).enumerate() {
+                let pose = &self.poses[index];
+                // The plane: skip shapes whose lowest point is clear of it (most of a robot, most steps).
+                if ground.as_halfspace().is_some() && c.shape.compute_aabb(pose).mins.z > PREDICTION {
+                    pair.manifolds.clear();
+                    continue;
+                }
+                let pos12 = ground_pose.inv_mul(pose);
+                let found = self.dispatcher.contact_manifolds(&pos12, ground.as_ref(), c.shape.as_ref(), PREDICTION, &mut pair.manifolds, &mut pair.workspace);
+                if found.is_err() {
+                    pair.manifolds.clear();
+                }
+                collect(pair, ground_pose, pose, c.body, None, index as u32, out);
+            }
+        }
+        if self.self_collision {
+            self.detect_self(model, out);
+        }
+    }
+
+    fn detect_self(&mut self, model: &Model, out: &mut Vec<Found>) {
+        // Sweep and prune along x over bounding boxes grown by the prediction distance.
+        self.boxes.clear();
+        self.boxes.extend(self.colliders.iter().zip(&self.poses).map(|(c, p)| c.shape.compute_aabb(p).loosened(PREDICTION / 2.0)));
+        self.order.clear();
+        self.order.extend(0..self.colliders.len() as u32);
+        let boxes = &self.boxes;
+        self.order.sort_by(|&a, &b| boxes[a as usize].mins.x.total_cmp(&boxes[b as usize].mins.x).then(a.cmp(&b)));
+        self.candidates.clear();
+        for (n, &a) in self.order.iter().enumerate() {
+            for &b in &self.order[n + 1..] {
+                if boxes[b as usize].mins.x > boxes[a as usize].maxs.x {
+                    break;
+                }
+                let (ca, cb) = (&self.colliders[a as usize], &self.colliders[b as usize]);
+                let related = ca.carrier == cb.carrier
+                    || ca.carrier == model.parent(cb.carrier) && cb.carrier != 0
+                    || cb.carrier == model.parent(ca.carrier) && ca.carrier != 0;
+                if !related && boxes[a as usize].intersects(&boxes[b as usize]) {
+                    self.candidates.push((a.min(b), a.max(b)));
+                }
+            }
+        }
+        self.candidates.sort_unstable();
+        // Keep the manifolds of pairs that still overlap, in the candidates' order.
+        let mut previous = std::mem::take(&mut self.self_pairs).into_iter().peekable();
+        for &(a, b) in &self.candidates {
+            while previous.peek().is_some_and(|(pa, pb, _)| (*pa, *pb) < (a, b)) {
+                previous.next();
+            }
+            let pair = match previous.peek() {
+                Some((pa, pb, _)) if (*pa, *pb) == (a, b) => previous.next().expect("peeked").2,
+                _ => Pair::default(),
+            };
+            self.self_pairs.push((a, b, pair));
+        }
+        let base = self.colliders.len() as u32;
+        for (index, (a, b, pair)) in self.self_pairs.iter_mut().enumerate() {
+            let (pa, pb) = (&self.poses[*a as usize], &self.poses[*b as usize]);
+            let (ca, cb) = (&self.colliders[*a as usize], &self.colliders[*b as usize]);
+            let found = self.dispatcher.contact_manifolds(&pa.inv_mul(pb), ca.shape.as_ref(), cb.shape.as_ref(), PREDICTION, &mut pair.manifolds, &mut pair.workspace);
+            if found.is_err() {
+                pair.manifolds.clear();
+            }
+            // The normal points from a to b: the force along it acts on b.
+            collect(pair, pa, pb, cb.body, Some(ca.body), base + index as u32, out);
+        }
+    }
+
+    /// Stores the impulses of the contact at `source` for the next step's warm start.
+    pub(super) fn store(&mut self, source: (u32, u32, u32), warm: Warm) {
+        let (pair, manifold, point) = (source.0 as usize, source.1 as usize, source.2 as usize);
+        let pair = match self.ground_pairs.get_mut(pair) {
+            Some(p) => p,
+            None => &mut self.self_pairs[pair - self.colliders.len()].2,
+        };
+        pair.manifolds[manifold].points[point].data = warm;
+    }
+}
+
+/// Appends the points of `pair` (shape 1 at `pose1`, shape 2 at `pose2`), the force along the normal acting
+/// on `body` (shape 2's).
+fn collect(pair: &Pair, pose1: &Pose, pose2: &Pose, body: usize, other: Option<usize>, index: u32, out: &mut Vec<Found>) {
+    for (m, manifold) in pair.manifolds.iter().enumerate() {
+        let (sub1, sub2) = (manifold.subshape_pos1(), manifold.subshape_pos2());
+        let frame1 = sub1.map_or(*pose1, |s| *pose1 * *s);
+        let frame2 = sub2.map_or(*pose2, |s| *pose2 * *s);
+        let normal = from_vector(frame1.rotation * manifold.local_n1);
+        for (p, point) in manifold.points.iter().enumerate() {
+            if point.dist > PREDICTION {
+                continue;
+            }
+            let midpoint = (frame1 * point.local_p1 + frame2 * point.local_p2) * 0.5;
+            out.push(Found {
+                body,
+                other,
+                point: from_vector(midpoint),
+                normal,
+                distance: point.dist,
+                warm: point.data,
+                source: (index, m as u32, p as u32),
+            });
+        }
+    }
+}

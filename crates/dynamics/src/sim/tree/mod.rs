@@ -1,0 +1,288 @@
+//! legkit's contact engine on the kinematic tree, in reduced coordinates. Each (sub)step of length h:
+//!
+//! 1. Actuation: an unsaturated servo's PD terms and the joint damping are integrated implicitly, as
+//!    M̃ = M + diag(armature + h (kd + damping) + h² kp) and τ = servo + feed-forward − h kp v − damping v
+//!    (the linearisation of the servo at the end of the step); a saturated servo applies its bound.
+//! 2. Dynamics: the articulated-body algorithm on M̃ gives v_free = v + h M̃⁻¹ (τ − C v − g) in O(n), and
+//!    leaves the tree-sparse factor M̃ = Lᵀ D L (`factor`).
+//! 3. Contacts from parry at the start-of-step configuration (`collision`), joint limits about to be
+//!    crossed, each a constraint whose rows follow the ancestor chain of its bodies.
+//! 4. Projected Gauss–Seidel on the soft contacts, warm-started from the last step's impulses (`solver`).
+//! 5. v⁺ = v_free + M̃⁻¹ Jᵀ λ, then q⁺ = q ⊕ h v⁺ (semi-implicit Euler).
+//!
+//! Why Gauss–Seidel in u = D^½ L v: a row update costs the depth of its body (its Y row is nonzero only on
+//! the body's ancestors), so a sweep costs the number of Jacobian nonzeros; the Delassus matrix, which is
+//! dense over all contacts on a floating or deep tree, is never formed. Warm starting makes a standing
+//! robot's solve converge in a few sweeps.
+//!
+//! Nothing is allocated per step once the buffers have grown to the largest contact set seen.
+
+mod collision;
+mod factor;
+mod solver;
+
+use nalgebra::Vector3;
+
+use super::actuation::{dof_coordinates, Actuation};
+use super::options::{Options, DEFAULT_FRICTION};
+use super::{Contact, Engine};
+use crate::algorithms::{aba_with_armature, integrate, joint_placement, world_pose};
+use crate::model::{Data, Model};
+use crate::spatial::{spatial, Transform};
+use crate::{Error, Result};
+use collision::{Collision, Found};
+use factor::{Entry, Factor};
+use solver::{Constraint, Kind, BAUMGARTE, TOLERANCE};
+
+/// Joint limits are watched from this far off (rad or m), beyond the step's own travel.
+const LIMIT_MARGIN: f64 = 1e-3;
+
+pub(crate) struct TreeSimulation {
+    options: Options,
+    /// Substep length (s).
+    h: f64,
+    friction: f64,
+    data: Data,
+    factor: Factor,
+    collision: Collision,
+    /// Joints with a position range: (body, velocity coordinate, configuration coordinate, lower, upper).
+    limited: Vec<(usize, usize, usize, f64, f64)>,
+    /// Last step's limit impulses per velocity coordinate: [at the lower bound, at the upper bound].
+    limit_impulses: Vec<[f64; 2]>,
+    found: Vec<Found>,
+    /// For each limit constraint of this step: (velocity coordinate, 0 for lower or 1 for upper).
+    limit_rows: Vec<(usize, usize)>,
+    entries: Vec<Entry>,
+    constraints: Vec<Constraint>,
+    poses: Vec<Transform>,
+    q_dof: Vec<f64>,
+    tau: Vec<f64>,
+    armature: Vec<f64>,
+    implicit: Vec<bool>,
+    saturated: Vec<bool>,
+    v_free: Vec<f64>,
+    u: Vec<f64>,
+    q_start: Vec<f64>,
+    contacts: Vec<Contact>,
+}
+
+impl TreeSimulation {
+    pub(crate) fn new(model: &Model, options: &Options) -> Self {
+        let nv = model.nv();
+        let limited = (1..model.nbodies())
+            .filter(|&i| model.joint(i).nv() == 1 && model.limits(i).has_position_limits())
+            .map(|i| (i, model.idx_v(i), model.idx_q(i), model.limits(i).lower, model.limits(i).upper))
+            .collect();
+        TreeSimulation {
+            h: options.dt / options.substeps as f64,
+            friction: options.ground.as_ref().map_or(DEFAULT_FRICTION, |g| g.friction()),
+            data: Data::new(model),
+            factor: Factor::new(model),
+            collision: Collision::new(model, options),
+            options: options.clone(),
+            limited,
+            limit_impulses: vec![[0.0; 2]; nv],
+            found: Vec::new(),
+            limit_rows: Vec::new(),
+            entries: Vec::new(),
+            constraints: Vec::new(),
+            poses: vec![Transform::identity(); model.nbodies()],
+            q_dof: vec![0.0; nv],
+            tau: vec![0.0; nv],
+            armature: vec![0.0; nv],
+            implicit: vec![false; nv],
+            saturated: vec![false; nv],
+            v_free: vec![0.0; nv],
+            u: vec![0.0; nv],
+            q_start: vec![0.0; model.nq()],
+            contacts: Vec::new(),
+        }
+    }
+
+    /// The actuation of step 1; `saturated` marks servos treated as saturated whatever their force.
+    fn actuate(&mut self, model: &Model, actuation: &Actuation<'_>, v: &[f64]) {
+        let h = self.h;
+        let base = if model.floating_base() { 6 } else { 0 };
+        for k in 0..model.nv() {
+            let (damping, armature) = if k < base { (0.0, 0.0) } else { (self.options.joint_damping, self.options.joint_armature) };
+            let (kp, kd) = (actuation.servo.kp[k], actuation.servo.kd[k]);
+            let (raw, bound) = (actuation.raw(k, &self.q_dof, v), actuation.bound(k));
+            let implicit = !self.saturated[k] && raw.abs() <= bound && (kp > 0.0 || kd > 0.0);
+            if implicit {
+                self.tau[k] = raw - h * kp * v[k] - damping * v[k];
+                self.armature[k] = armature + h * (kd + damping) + h * h * kp;
+            } else {
+                self.tau[k] = raw.clamp(-bound, bound) - damping * v[k];
+                self.armature[k] = armature + h * damping;
+            }
+            self.implicit[k] = implicit;
+        }
+    }
+
+    /// Step 3: the constraints of this step, rows in `entries`.
+    fn constrain(&mut self, model: &Model, q: &[f64]) {
+        let h = self.h;
+        let origin = base_origin(model, q);
+        self.entries.clear();
+        self.constraints.clear();
+        for f in &self.found {
+            let (t1, t2) = tangents(&f.normal);
+            let r = f.point - origin;
+            let forces = [f.normal, t1, t2].map(|d| spatial(d, r.cross(&d)));
+            let start = self.entries.len();
+            self.factor.push_rows(model, &self.data, f.body, f.other, forces, None, &mut self.entries);
+            let bias = if f.distance > 0.0 { -f.distance / h } else { BAUMGARTE * (-f.distance - TOLERANCE).max(0.0) / h };
+            let warm_t = Vector3::new(f.warm[1], f.warm[2], f.warm[3]);
+            let warm = [f.warm[0], warm_t.dot(&t1), warm_t.dot(&t2)];
+            self.constraints.push(Constraint::new(Kind::Contact { mu: self.friction }, start..self.entries.len(), bias, warm, &self.entries));
+        }
+        self.limit_rows.clear();
+        for &(body, k, kq, lower, upper) in &self.limited {
+            let travel = h * self.v_free[k];
+            for (side, gap, sign) in [(0, q[kq] - lower, 1.0), (1, upper - q[kq], -1.0)] {
+                if gap >= LIMIT_MARGIN + (-sign * travel).max(0.0) {
+                    continue;
+                }
+                let start = self.entries.len();
+                self.factor.push_rows(model, &self.data, body, None, [Vector3::zeros(); 3].map(|z| spatial(z, z)), Some(sign), &mut self.entries);
+                let bias = if gap > 0.0 { -gap / h } else { -BAUMGARTE * gap / h };
+                let warm = [self.limit_impulses[k][side], 0.0, 0.0];
+                self.constraints.push(Constraint::new(Kind::Limit, start..self.entries.len(), bias, warm, &self.entries));
+                self.limit_rows.push((k, side));
+            }
+        }
+    }
+
+    fn substep(&mut self, model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64]) -> Result<()> {
+        let (h, nv) = (self.h, model.nv());
+        dof_coordinates(model, q, &mut self.q_dof);
+        self.saturated.fill(false);
+        let mut detected = false;
+        loop {
+            self.actuate(model, actuation, v);
+            let ddq = aba_with_armature(model, &mut self.data, q, v, &self.tau, None, Some(&self.armature));
+            for k in 0..nv {
+                self.v_free[k] = v[k] + h * ddq[k];
+            }
+            if !self.factor.update(model, &self.data) {
+                return Err(Error::numerical("step", "the mass matrix stopped being positive definite (a massless body on a joint?)"));
+            }
+            if !detected {
+                let origin = base_origin(model, q);
+                for (pose, centred) in self.poses.iter_mut().zip(&self.data.o_m_i) {
+                    *pose = Transform::new(centred.rotation, centred.translation + origin);
+                }
+                self.found.clear();
+                self.collision.detect(model, &self.poses, &mut self.found);
+                detected = true;
+            }
+            self.constrain(model, q);
+            self.factor.to_u(model, &self.data, &self.v_free, &mut self.u);
+            solver::solve(&mut self.constraints, &self.entries, &mut self.u, self.options.solver_iterations);
+            self.factor.from_u(model, &self.data, &self.u, &mut self.v_free);
+            // An implicit servo whose force at the end of the step exceeds its bound saturates: redo the
+            // step with it applying its bound.
+            let mut redo = false;
+            for k in 0..nv {
+                let (raw, bound) = (actuation.raw(k, &self.q_dof, v), actuation.bound(k));
+                applied[k] = if self.implicit[k] {
+                    let (kp, kd) = (actuation.servo.kp[k], actuation.servo.kd[k]);
+                    let force = raw - kp * h * self.v_free[k] - kd * (self.v_free[k] - v[k]);
+                    if force.abs() > bound {
+                        self.saturated[k] = true;
+                        redo = true;
+                    }
+                    force
+                } else {
+                    raw.clamp(-bound, bound)
+                };
+            }
+            if !redo {
+                break;
+            }
+        }
+        self.report(h);
+        v.copy_from_slice(&self.v_free);
+        self.q_start.copy_from_slice(q);
+        integrate(model, &self.q_start, v, h, q);
+        Ok(())
+    }
+
+    /// Keeps the impulses for the next step's warm start and reports the contacts.
+    fn report(&mut self, h: f64) {
+        self.contacts.clear();
+        for (f, c) in self.found.iter().zip(&self.constraints) {
+            let (t1, t2) = tangents(&f.normal);
+            let friction = t1 * c.lambda[1] + t2 * c.lambda[2];
+            self.collision.store(f.source, [c.lambda[0], friction.x, friction.y, friction.z]);
+            self.contacts.push(Contact {
+                body: f.body,
+                other: f.other,
+                point: f.point,
+                normal: f.normal,
+                normal_force: c.lambda[0] / h,
+                tangential_force: friction / h,
+                depth: (-f.distance).max(0.0),
+            });
+        }
+        for impulses in self.limit_impulses.iter_mut() {
+            *impulses = [0.0; 2];
+        }
+        for (&(k, side), c) in self.limit_rows.iter().zip(&self.constraints[self.found.len()..]) {
+            self.limit_impulses[k][side] = c.lambda[0];
+        }
+    }
+}
+
+impl Engine for TreeSimulation {
+    fn write_state(&mut self, _model: &Model, _q: &[f64], _v: &[f64]) {}
+
+    fn restart(&mut self, _model: &Model, _q: &[f64], _v: &[f64]) -> Result<()> {
+        self.collision.clear();
+        self.limit_impulses.iter_mut().for_each(|x| *x = [0.0; 2]);
+        self.contacts.clear();
+        Ok(())
+    }
+
+    fn step(&mut self, model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64]) -> Result<()> {
+        for _ in 0..self.options.substeps {
+            self.substep(model, actuation, q, v, applied)?;
+        }
+        Ok(())
+    }
+
+    fn body_poses(&self, model: &Model, q: &[f64]) -> Vec<Transform> {
+        let mut poses = vec![joint_placement(model, 0, q)];
+        for i in 1..model.nbodies() {
+            let parent = poses[model.parent(i)];
+            poses.push(world_pose(model, i, &parent, q));
+        }
+        poses
+    }
+
+    fn contacts(&self) -> Vec<Contact> {
+        self.contacts.clone()
+    }
+
+    fn contact_tolerance(&self) -> f64 {
+        TOLERANCE
+    }
+}
+
+/// The base's origin in the world: the origin of the frame `aba` works about.
+fn base_origin(model: &Model, q: &[f64]) -> Vector3<f64> {
+    if model.floating_base() {
+        Vector3::new(q[0], q[1], q[2])
+    } else {
+        Vector3::zeros()
+    }
+}
+
+/// An orthonormal pair spanning the plane normal to the unit `n` (Duff et al.'s branchless basis).
+fn tangents(n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let sign = 1f64.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    let t1 = Vector3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    (t1, n.cross(&t1))
+}
