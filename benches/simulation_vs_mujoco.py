@@ -1,31 +1,73 @@
-"""Side-by-side step time of lk.Simulation (Rapier) and MuJoCo on the same modular robot.
+"""Side-by-side step time of lk.Simulation (legkit's tree engine and the Rapier reference) and MuJoCo.
 
-The robot is a SuperBot-like tree: modules of four bodies (end block, two links, end block) on three
-revolute joints (pitch, roll about the module's long axis, pitch); a vertical root module fixed to the
-ground and four branches of (n_modules - 1) / 4 modules leaving its top block horizontally, sagging onto a
-ground plane. Every joint has a position servo (kp, kd, torque limit); self-collision is off and every body
-collides with the ground. Both engines step at 1 kHz with their default solvers.
+Scenes, each built twice from the same numbers (a `legkit.Model` and an MJCF string):
 
-Run: ``python benches/simulation_vs_mujoco.py [--modules 21 100] [--seconds 1.0]``. Prints µs per step,
-real-time factor and the ratio legkit / MuJoCo.
+* ``tree-N``: a SuperBot-like modular tree of N modules (default 21, 51, 101). Modules of four bodies (end
+  block, two links, end block) on three revolute joints (pitch, roll about the module's long axis, pitch); a
+  vertical root module fixed to the ground and four branches of (N - 1) / 4 modules (the remainder spread
+  over the first branches) leaving its top block horizontally, sagging onto a ground plane. Every joint has
+  a position servo holding zero (kp, kd, torque limit); self-collision is off and every body (a box)
+  collides with the ground.
+* ``quadruped-stand`` / ``quadruped-trot``: a 12-DoF floating-base quadruped (torso box; per leg a hip roll,
+  a hip pitch and a knee, box links, a sphere foot: the only leg geometry touching the ground) with PD
+  position servos on every joint. Standing holds a crouched pose; trotting is an open-loop gait whose joint
+  targets vary sinusoidally in time (diagonal legs in phase), sent every step in both engines
+  (legkit: ``sim.set_servo(target_q=...)``; MuJoCo: ``data.ctrl``), so both timings include the same
+  per-step Python call.
+
+Each engine runs in this one process at dt = 1 ms with its default solver (MuJoCo: Euler for the trees,
+``implicitfast`` for the quadruped, whose stiff light-legged servos the explicit damping of Euler would
+not hold; legkit integrates servos implicitly). Each first settles untimed (0.3 s), then is timed in blocks
+of 100 steps; the reported step time is the median of the block means. Also reported: contact points
+(legkit ``len(sim.contacts()["body"])``, MuJoCo ``data.ncon``; median over the blocks), the real-time
+factor dt / step time, and the ratios legkit / MuJoCo and legkit / Rapier (below 1: legkit is faster).
+Rapier is slow on large trees (0.2-0.7 s per step at 101 modules): when its settling would take longer than
+``--budget`` seconds it starts instead from the state legkit's tree engine settled to (plus a few settling
+steps of its own) and uses short blocks; ``--skip-rapier`` leaves it out altogether.
+
+The batch section steps 12 copies of the 21-module tree three ways: a Python loop calling ``sim.step(tau)``
+for every simulation every step, a loop of ``sim.step(None, n)`` per simulation, and
+``lk.SimulationBatch(sims).step(None, n)`` (all cores, GIL released), and prints simulation-steps per second
+and the ratios (MuJoCo stepping 12 ``MjData`` in a loop for reference).
+
+Run: ``python benches/simulation_vs_mujoco.py [--modules 21 51 101] [--seconds 1.0] [--skip-rapier]
+[--quick] [--budget 10] [--solver-iterations 100] [--no-quadruped] [--no-batch]``. ``--seconds`` is the
+simulated time timed per engine and scene (1.0: ten blocks of 100 steps); ``--quick`` is a smoke test
+(21 modules, five blocks of 50 steps, ~10 s); a full run takes about 3 minutes on 2 cores, most of it
+MuJoCo and legkit on the 101-module tree and Rapier within its budget. ``--solver-iterations`` sets the
+tree engine's contact-solver sweeps (its cost on contact-rich trees grows about linearly with them).
+Prints Markdown tables (step times, quadruped behaviour, batch throughput) and the load average: other
+work on the machine inflates the times, and the batch speed-up needs idle cores.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import statistics
 import time
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
 import legkit as lk
+
+DT = 1e-3
+FRICTION = 0.8
+SETTLE_SECONDS = 0.3
+SOLVER_ITERATIONS = 100  # legkit's default; --solver-iterations overrides
+BLOCK_STEPS = 100
+
+# ------------------------------------------------------------------------------------------------------
+# The modular tree
+# ------------------------------------------------------------------------------------------------------
 
 MODULE_LENGTH = 0.17  # m, end face to end face (SuperBot modules are about 17 cm long)
 MODULE_MASS = 0.05  # kg: 10% of a real module's ~0.5 kg, as in the seed experiments
 PART_MASS = MODULE_MASS / 4
 PART_SIZE = np.array([0.06, 0.06, MODULE_LENGTH / 4])  # each of the 4 bodies, stacked along the module axis
 KP, KD, TORQUE_LIMIT = 0.5, 0.002, 0.5  # N m/rad, N m s/rad, N m
-DT = 1e-3
 
 
 @dataclass(frozen=True)
@@ -51,7 +93,9 @@ def rotation_z(angle: float) -> np.ndarray:
 
 def module_tree(n_modules: int) -> list[Part]:
     """Parts of the tree, parent first. Each module runs along its local +z: end block, pitch (y), link,
-    roll (z, the long axis), link, pitch (y), end block; part frames sit at each part's lower face."""
+    roll (z, the long axis), link, pitch (y), end block; part frames sit at each part's lower face.
+    The n_modules - 1 branch modules are spread over four branches, the first ones one longer when they
+    do not divide evenly (51 modules: branches of 13, 13, 12, 12)."""
     step = np.array([0.0, 0.0, MODULE_LENGTH / 4])
     parts: list[Part] = []
 
@@ -62,12 +106,12 @@ def module_tree(n_modules: int) -> list[Part]:
         return len(parts) - 1  # the top end block
 
     top = add_module(-1, np.eye(3), np.array([0.0, 0.0, 0.05]))
-    per_branch = (n_modules - 1) // 4
+    per_branch, extra = divmod(n_modules - 1, 4)
     for branch in range(4):
         # Leave the top block sideways: turn about z to the branch direction, then tip the axis horizontal.
         parent, rotation = top, rotation_z(branch * np.pi / 2) @ rotation_y(np.pi / 2)
         translation = step
-        for _ in range(per_branch):
+        for _ in range(per_branch + (branch < extra)):
             parent = add_module(parent, rotation, translation)
             rotation, translation = np.eye(3), step
     return parts
@@ -86,6 +130,20 @@ def legkit_model(parts: list[Part]) -> lk.Model:
     return model
 
 
+def quaternion_wxyz(r: np.ndarray) -> str:
+    w = np.sqrt(max(0.0, 1 + np.trace(r))) / 2
+    if w > 1e-6:
+        q = [w, (r[2, 1] - r[1, 2]) / (4 * w), (r[0, 2] - r[2, 0]) / (4 * w), (r[1, 0] - r[0, 1]) / (4 * w)]
+    else:  # a half turn: axis from the diagonal
+        axis = np.sqrt(np.maximum(0.0, (np.diag(r) + 1) / 2))
+        q = [0.0, *axis]
+    return " ".join(f"{x:.12g}" for x in q)
+
+
+def vec(x) -> str:
+    return " ".join(f"{float(v):.12g}" for v in x)
+
+
 def mujoco_xml(parts: list[Part]) -> str:
     children: dict[int, list[int]] = {}
     for index, part in enumerate(parts):
@@ -93,24 +151,15 @@ def mujoco_xml(parts: list[Part]) -> str:
     half = PART_SIZE / 2
     inertia = PART_MASS / 12 * np.array([PART_SIZE[1] ** 2 + PART_SIZE[2] ** 2, PART_SIZE[0] ** 2 + PART_SIZE[2] ** 2, PART_SIZE[0] ** 2 + PART_SIZE[1] ** 2])
 
-    def quaternion(r: np.ndarray) -> str:
-        w = np.sqrt(max(0.0, 1 + np.trace(r))) / 2
-        if w > 1e-6:
-            q = [w, (r[2, 1] - r[1, 2]) / (4 * w), (r[0, 2] - r[2, 0]) / (4 * w), (r[1, 0] - r[0, 1]) / (4 * w)]
-        else:  # a half turn: axis from the diagonal
-            axis = np.sqrt(np.maximum(0.0, (np.diag(r) + 1) / 2))
-            q = [0.0, *axis]
-        return " ".join(f"{x:.12g}" for x in q)
-
     def body(index: int) -> str:
         part = parts[index]
-        joint = "" if part.axis is None else f'<joint name="j{index}" type="hinge" axis="{part.axis[0]} {part.axis[1]} {part.axis[2]}"/>'
+        joint = "" if part.axis is None else f'<joint name="j{index}" type="hinge" axis="{vec(part.axis)}"/>'
         inner = "".join(body(c) for c in children.get(index, []))
         return (
-            f'<body name="b{index}" pos="{part.translation[0]:.12g} {part.translation[1]:.12g} {part.translation[2]:.12g}" quat="{quaternion(part.rotation)}">'
+            f'<body name="b{index}" pos="{vec(part.translation)}" quat="{quaternion_wxyz(part.rotation)}">'
             f"{joint}"
-            f'<inertial pos="0 0 {half[2]:.12g}" mass="{PART_MASS}" diaginertia="{inertia[0]:.12g} {inertia[1]:.12g} {inertia[2]:.12g}"/>'
-            f'<geom type="box" size="{half[0]} {half[1]} {half[2]}" pos="0 0 {half[2]:.12g}" contype="1" conaffinity="2" friction="0.8"/>'
+            f'<inertial pos="0 0 {half[2]:.12g}" mass="{PART_MASS}" diaginertia="{vec(inertia)}"/>'
+            f'<geom type="box" size="{vec(half)}" pos="0 0 {half[2]:.12g}" contype="1" conaffinity="2" friction="{FRICTION}"/>'
             f"{inner}</body>"
         )
 
@@ -121,57 +170,518 @@ def mujoco_xml(parts: list[Part]) -> str:
     )
     return (
         f'<mujoco><option timestep="{DT}" gravity="0 0 -9.81"/>'
-        f'<worldbody><geom type="plane" size="5 5 0.1" contype="2" conaffinity="1" friction="0.8"/>'
+        f'<worldbody><geom type="plane" size="5 5 0.1" contype="2" conaffinity="1" friction="{FRICTION}"/>'
         f'{"".join(body(c) for c in children.get(-1, []))}</worldbody>'
         f"<actuator>{actuators}</actuator></mujoco>"
     )
 
 
-def time_legkit(parts: list[Part], steps: int, substeps: int) -> tuple[float, int]:
-    """µs per step and the number of contact points at the end."""
+# ------------------------------------------------------------------------------------------------------
+# The quadruped
+# ------------------------------------------------------------------------------------------------------
+
+LEGS = ("lf", "rf", "lh", "rh")
+TORSO_MASS, TORSO_SIZE = 4.0, np.array([0.36, 0.16, 0.08])
+HIP_MASS, HIP_SIZE = 0.3, np.array([0.06, 0.05, 0.05])  # the hip-roll body, a small box at the hip point
+THIGH_MASS, SHANK_MASS = 0.5, 0.15
+LINK_LENGTH, LINK_WIDTH = 0.15, 0.03  # thigh and shank
+FOOT_RADIUS = 0.02  # sphere centred at the shank's end
+HIP_X, HIP_Y, HIP_Z = 0.15, 0.10, -0.02  # hip points in the torso frame (torso frame at its centre)
+STAND_PITCH, STAND_KNEE = 0.6, -1.2  # rad: feet below the hips in x, knees pointing backwards
+Q_KP, Q_KD, Q_TORQUE_LIMIT = 60.0, 1.0, 30.0  # N m/rad, N m s/rad, N m
+TROT_HZ, TROT_HIP, TROT_KNEE = 2.5, 0.15, 0.3  # gait frequency, hip pitch and knee lift amplitudes (rad)
+TROT_PHASE = {"lf": 0.0, "rh": 0.0, "rf": np.pi, "lh": np.pi}
+SPLAY = 0.1  # rad of hip roll putting the feet outside the hips (left legs +, right legs -): without it
+# the trot tips the robot over sideways within ~2 s in all three engines
+
+
+def stand_height() -> float:
+    """Torso-centre height at the standing pose with the feet on the ground."""
+    return -HIP_Z + 2 * LINK_LENGTH * np.cos(STAND_PITCH) * np.cos(SPLAY) + FOOT_RADIUS
+
+
+def hip_position(leg: str) -> np.ndarray:
+    return np.array([HIP_X if leg[1] == "f" else -HIP_X, HIP_Y if leg[0] == "l" else -HIP_Y, HIP_Z])
+
+
+def quadruped_joint_targets(t: float | np.ndarray, trot: bool) -> np.ndarray:
+    """(..., 12) joint targets at time t, leg by leg (hip roll, hip pitch, knee). Positive pitch swings the
+    foot backwards; the knee bends further (lifting the foot) while the foot swings forwards."""
+    t = np.asarray(t, dtype=np.float64)
+    out = np.zeros(t.shape + (12,))
+    for k, leg in enumerate(LEGS):
+        out[..., 3 * k] = SPLAY if leg[0] == "l" else -SPLAY
+        out[..., 3 * k + 1] = STAND_PITCH
+        out[..., 3 * k + 2] = STAND_KNEE
+        if trot:
+            phase = 2 * np.pi * TROT_HZ * t + TROT_PHASE[leg]
+            out[..., 3 * k + 1] += TROT_HIP * np.sin(phase)
+            out[..., 3 * k + 2] -= TROT_KNEE * np.maximum(0.0, -np.cos(phase))  # swing: pitch decreasing
+    return out
+
+
+def quadruped_start() -> np.ndarray:
+    """legkit q (19,): torso 5 mm above its standing height, upright, joints at the standing pose."""
+    return np.concatenate([[0.0, 0.0, stand_height() + 0.005, 0.0, 0.0, 0.0, 1.0], quadruped_joint_targets(0.0, False)])
+
+
+def link_inertia() -> tuple[lk.MassProperties, lk.MassProperties]:
+    size = [LINK_WIDTH, LINK_WIDTH, LINK_LENGTH]
+    centre = [0.0, 0.0, -LINK_LENGTH / 2]
+    return lk.MassProperties.box(THIGH_MASS, size, center=centre), lk.MassProperties.box(SHANK_MASS, size, center=centre)
+
+
+def quadruped_legkit() -> tuple[lk.Model, dict]:
+    """The model and its `shapes`: the sphere foot replaces the shank's default box; every other body keeps
+    its default box (torso, hip block and thigh: the same boxes as the MJCF geoms)."""
+    model = lk.Model(floating_base=True, base=lk.MassProperties.box(TORSO_MASS, TORSO_SIZE), base_name="torso")
+    thigh, shank = link_inertia()
+    foot = np.eye(4)
+    foot[2, 3] = -LINK_LENGTH
+    shapes: dict = {}
+    for leg in LEGS:
+        hip = model.add_revolute("torso", [1.0, 0.0, 0.0], (np.eye(3), hip_position(leg)), lk.MassProperties.box(HIP_MASS, HIP_SIZE), f"{leg}_hip")
+        upper = model.add_revolute(hip, [0.0, 1.0, 0.0], None, thigh, f"{leg}_thigh")
+        model.add_revolute(upper, [0.0, 1.0, 0.0], (np.eye(3), [0.0, 0.0, -LINK_LENGTH]), shank, f"{leg}_shank")
+        shapes[f"{leg}_shank"] = ("sphere", FOOT_RADIUS, foot)
+    return model, shapes
+
+
+def box_diaginertia(mass: float, size) -> np.ndarray:
+    s = np.asarray(size, dtype=np.float64) ** 2
+    return mass / 12 * np.array([s[1] + s[2], s[0] + s[2], s[0] + s[1]])
+
+
+def quadruped_xml() -> str:
+    collide = f'contype="1" conaffinity="2" friction="{FRICTION}"'
+    link_size = np.array([LINK_WIDTH, LINK_WIDTH, LINK_LENGTH])
+    legs = []
+    for leg in LEGS:
+        legs.append(
+            f'<body name="{leg}_hip" pos="{vec(hip_position(leg))}"><joint name="{leg}_roll" type="hinge" axis="1 0 0"/>'
+            f'<inertial pos="0 0 0" mass="{HIP_MASS}" diaginertia="{vec(box_diaginertia(HIP_MASS, HIP_SIZE))}"/>'
+            f'<geom type="box" size="{vec(HIP_SIZE / 2)}" {collide}/>'
+            f'<body name="{leg}_thigh"><joint name="{leg}_pitch" type="hinge" axis="0 1 0"/>'
+            f'<inertial pos="0 0 {-LINK_LENGTH / 2}" mass="{THIGH_MASS}" diaginertia="{vec(box_diaginertia(THIGH_MASS, link_size))}"/>'
+            f'<geom type="box" size="{vec(link_size / 2)}" pos="0 0 {-LINK_LENGTH / 2}" {collide}/>'
+            f'<body name="{leg}_shank" pos="0 0 {-LINK_LENGTH}"><joint name="{leg}_knee" type="hinge" axis="0 1 0"/>'
+            f'<inertial pos="0 0 {-LINK_LENGTH / 2}" mass="{SHANK_MASS}" diaginertia="{vec(box_diaginertia(SHANK_MASS, link_size))}"/>'
+            f'<geom type="box" size="{vec(link_size / 2)}" pos="0 0 {-LINK_LENGTH / 2}" contype="0" conaffinity="0"/>'
+            f'<geom name="{leg}_foot" type="sphere" size="{FOOT_RADIUS}" pos="0 0 {-LINK_LENGTH}" {collide}/>'
+            f"</body></body></body>"
+        )
+    actuators = "".join(
+        f'<position joint="{leg}_{j}" kp="{Q_KP}" kv="{Q_KD}" forcerange="{-Q_TORQUE_LIMIT} {Q_TORQUE_LIMIT}" forcelimited="true"/>'
+        for leg in LEGS
+        for j in ("roll", "pitch", "knee")
+    )
+    return (
+        f'<mujoco><option timestep="{DT}" gravity="0 0 -9.81" integrator="implicitfast"/>'
+        f'<worldbody><geom type="plane" size="5 5 0.1" contype="2" conaffinity="1" friction="{FRICTION}"/>'
+        f'<body name="torso" pos="0 0 {stand_height() + 0.005}"><freejoint/>'
+        f'<inertial pos="0 0 0" mass="{TORSO_MASS}" diaginertia="{vec(box_diaginertia(TORSO_MASS, TORSO_SIZE))}"/>'
+        f'<geom type="box" size="{vec(TORSO_SIZE / 2)}" {collide}/>'
+        f'{"".join(legs)}</body></worldbody>'
+        f"<actuator>{actuators}</actuator></mujoco>"
+    )
+
+
+# ------------------------------------------------------------------------------------------------------
+# Runners: one simulation of one scene in one engine, advanced a number of steps with its controller
+# ------------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Runner:
+    advance: Callable[[int], None]
+    contacts: Callable[[], int]
+    base: Callable[[], np.ndarray] | None = None  # quadrupeds: [x, y, z, up_z] of the torso
+    state: Callable[[], tuple[np.ndarray, np.ndarray, int]] | None = None  # legkit: (q, v, steps done)
+    restore: Callable[[np.ndarray, np.ndarray, int], None] | None = None
+
+
+@dataclass
+class Scene:
+    name: str
+    dof: int
+    legkit: Callable[[str], Runner]  # backend -> runner
+    mujoco: Callable[[], Runner]
+
+
+def tree_scene(n_modules: int) -> Scene:
+    parts = module_tree(n_modules)
+    dof = sum(p.axis is not None for p in parts)
+    modules = (len(parts)) // 4
+
+    def legkit_runner(backend: str) -> Runner:
+        model = legkit_model(parts)
+        sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), backend=backend, solver_iterations=SOLVER_ITERATIONS)
+        sim.set_servo(kp=KP, kd=KD, torque_limit=TORQUE_LIMIT, target_q=model.neutral())
+        done = [0]
+
+        def advance(n: int) -> None:
+            sim.step(None, n)
+            done[0] += n
+
+        def restore(q: np.ndarray, v: np.ndarray, steps: int) -> None:
+            sim.reset(q, v)
+            done[0] = steps
+
+        return Runner(advance, lambda: len(sim.contacts()["body"]), state=lambda: (sim.q, sim.v, done[0]), restore=restore)
+
+    def mujoco_runner() -> Runner:
+        import mujoco
+
+        m = mujoco.MjModel.from_xml_string(mujoco_xml(parts))
+        d = mujoco.MjData(m)
+        return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon))
+
+    return Scene(f"tree-{modules}", dof, legkit_runner, mujoco_runner)
+
+
+def quadruped_scene(trot: bool) -> Scene:
+    # Targets at every step of one gait period (the gait is periodic in steps: 1 / (TROT_HZ DT) steps).
+    period = int(round(1.0 / (TROT_HZ * DT)))
+    targets = quadruped_joint_targets(np.arange(period) * DT, trot)
+
+    def legkit_runner(backend: str) -> Runner:
+        model, shapes = quadruped_legkit()
+        sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), shapes=shapes, backend=backend,
+                            solver_iterations=SOLVER_ITERATIONS)
+        start = quadruped_start()
+        sim.reset(start, np.zeros(model.nv))
+        sim.set_servo(kp=Q_KP, kd=Q_KD, torque_limit=Q_TORQUE_LIMIT, target_q=start)
+        target_q = start.copy()
+        done = [0]
+
+        def advance(n: int) -> None:
+            if not trot:
+                sim.step(None, n)
+                done[0] += n
+                return
+            for _ in range(n):
+                target_q[7:] = targets[done[0] % period]
+                sim.set_servo(kp=Q_KP, kd=Q_KD, torque_limit=Q_TORQUE_LIMIT, target_q=target_q)
+                sim.step()
+                done[0] += 1
+
+        def base() -> np.ndarray:
+            q = sim.q
+            x, y, _, _ = q[3:7]
+            return np.array([q[0], q[1], q[2], 1 - 2 * (x * x + y * y)])
+
+        def restore(q: np.ndarray, v: np.ndarray, steps: int) -> None:
+            sim.reset(q, v)
+            done[0] = steps
+
+        return Runner(advance, lambda: len(sim.contacts()["body"]), base, lambda: (sim.q, sim.v, done[0]), restore)
+
+    def mujoco_runner() -> Runner:
+        import mujoco
+
+        m = mujoco.MjModel.from_xml_string(quadruped_xml())
+        d = mujoco.MjData(m)
+        d.qpos[7:] = quadruped_joint_targets(0.0, False)
+        d.ctrl[:] = quadruped_joint_targets(0.0, False)
+        mujoco.mj_forward(m, d)
+        done = [0]
+
+        def advance(n: int) -> None:
+            if not trot:
+                mujoco.mj_step(m, d, nstep=n)
+                done[0] += n
+                return
+            for _ in range(n):
+                d.ctrl[:] = targets[done[0] % period]
+                mujoco.mj_step(m, d)
+                done[0] += 1
+
+        def base() -> np.ndarray:
+            w, x, y, _ = d.qpos[3:7]
+            return np.array([d.qpos[0], d.qpos[1], d.qpos[2], 1 - 2 * (x * x + y * y)])
+
+        return Runner(advance, lambda: int(d.ncon), base)
+
+    return Scene("quadruped-trot" if trot else "quadruped-stand", 12, legkit_runner, mujoco_runner)
+
+
+# ------------------------------------------------------------------------------------------------------
+# Measurement
+# ------------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Result:
+    step_s: float  # median over blocks of the mean step time
+    spread: tuple[float, float]  # min and max block means
+    contacts: int  # median over blocks
+    blocks: int
+    block_steps: int
+    settle_steps: int
+    handoff: bool = False  # started from legkit's settled state
+    base: np.ndarray | None = None
+    base_start: np.ndarray | None = None
+    error: str | None = None
+
+
+def measure(runner: Runner, settle_steps: int, blocks: int, block_steps: int, budget: float,
+            handoff: tuple[np.ndarray, np.ndarray, int] | None = None) -> Result:
+    """Settle, then time `blocks` blocks of `block_steps`. When a 10-step probe says settling or timing would
+    take longer than `budget` seconds, shorten both (settling from `handoff` if given)."""
+    used_handoff = False
+    try:
+        start = time.perf_counter()
+        runner.advance(10)
+        probe = (time.perf_counter() - start) / 10
+        if probe * settle_steps > budget:
+            if handoff is not None and runner.restore is not None:
+                runner.restore(*handoff)
+                used_handoff = True
+            settle_steps = max(10, int(budget / probe))
+        else:
+            settle_steps = max(0, settle_steps - 10)
+        if probe * blocks * block_steps > budget:
+            block_steps = max(5, int(budget / (probe * blocks)))
+        runner.advance(settle_steps)
+        base_start = runner.base() if runner.base else None
+        means, contacts = [], []
+        for _ in range(blocks):
+            start = time.perf_counter()
+            runner.advance(block_steps)
+            means.append((time.perf_counter() - start) / block_steps)
+            contacts.append(runner.contacts())
+        return Result(statistics.median(means), (min(means), max(means)), int(statistics.median(contacts)), blocks,
+                      block_steps, settle_steps + (0 if used_handoff else 10), used_handoff,
+                      runner.base() if runner.base else None, base_start)
+    except Exception as error:  # noqa: BLE001 - reported in the table, the other engines still run
+        return Result(float("nan"), (float("nan"),) * 2, -1, 0, 0, settle_steps, used_handoff, error=f"{type(error).__name__}: {error}")
+
+
+def run_scene(scene: Scene, args: argparse.Namespace) -> dict[str, Result | None]:
+    settle = int(round(args.settle / DT))
+    blocks = max(1, int(round(args.seconds / (args.block_steps * DT))))
+    out: dict[str, Result | None] = {}
+    ours = scene.legkit("tree")
+    out["legkit"] = measure(ours, settle, blocks, args.block_steps, float("inf"))
+    handoff = ours.state() if ours.state and out["legkit"].error is None else None
+    try:
+        import mujoco  # noqa: F401
+
+        out["MuJoCo"] = measure(scene.mujoco(), settle, blocks, args.block_steps, float("inf"))
+    except ImportError:
+        out["MuJoCo"] = None
+    if args.skip_rapier:
+        out["Rapier"] = None
+    else:
+        out["Rapier"] = measure(scene.legkit("rapier"), settle, blocks, args.block_steps, args.budget, handoff)
+    return out
+
+
+def fmt_us(r: Result | None) -> str:
+    if r is None:
+        return "–"
+    if r.error:
+        return "error"
+    return f"{r.step_s * 1e6:.1f}" if r.step_s < 1e-2 else f"{r.step_s * 1e6:.0f}"
+
+
+def fmt_rtf(r: Result | None) -> str:
+    if r is None or r.error:
+        return "–"
+    x = DT / r.step_s
+    return f"{x:.1f}" if x >= 1 else f"{x:.3f}"
+
+
+def fmt_ratio(a: Result | None, b: Result | None) -> str:
+    if a is None or b is None or a.error or b.error:
+        return "–"
+    return f"{a.step_s / b.step_s:.2f}"
+
+
+def print_scene_table(rows: list[tuple[Scene, dict[str, Result | None]]]) -> None:
+    print("| scene | DoF | legkit µs/step | MuJoCo µs/step | Rapier µs/step | legkit × real time | MuJoCo × real time "
+          "| Rapier × real time | contacts legkit / MuJoCo / Rapier | legkit / MuJoCo | legkit / Rapier |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | :---: | ---: | ---: |")
+    for scene, r in rows:
+        contacts = " / ".join("–" if r[e] is None or r[e].error else str(r[e].contacts) for e in ("legkit", "MuJoCo", "Rapier"))
+        rapier = fmt_us(r["Rapier"]) + ("*" if r["Rapier"] is not None and r["Rapier"].handoff else "")
+        print(f"| {scene.name} | {scene.dof} | {fmt_us(r['legkit'])} | {fmt_us(r['MuJoCo'])} | {rapier} | {fmt_rtf(r['legkit'])} "
+              f"| {fmt_rtf(r['MuJoCo'])} | {fmt_rtf(r['Rapier'])} | {contacts} | {fmt_ratio(r['legkit'], r['MuJoCo'])} "
+              f"| {fmt_ratio(r['legkit'], r['Rapier'])} |")
+
+
+def print_details(rows: list[tuple[Scene, dict[str, Result | None]]]) -> None:
+    print("\nMeasurement details (blocks x steps timed after settling; min-max of the block means; * = Rapier "
+          "started from legkit's settled state):")
+    for scene, r in rows:
+        for engine, res in r.items():
+            if res is None:
+                continue
+            if res.error:
+                print(f"  {scene.name:16} {engine:7} ERROR {res.error}")
+                continue
+            print(f"  {scene.name:16} {engine:7} settle {res.settle_steps:4d}{'*' if res.handoff else ' '} steps, "
+                  f"{res.blocks:2d} x {res.block_steps:3d} steps, block means {res.spread[0] * 1e6:.1f}-{res.spread[1] * 1e6:.1f} µs")
+
+
+def print_quadruped_table(rows: list[tuple[Scene, dict[str, Result | None]]]) -> None:
+    quads = [(s, r) for s, r in rows if s.name.startswith("quadruped")]
+    if not quads:
+        return
+    print("\nQuadruped behaviour over the timed steps (torso: start -> end; up = world z of the torso's z axis; "
+          f"standing height {stand_height():.3f} m):\n")
+    print("| scene | engine | torso z (m) | up | distance travelled (m) | timed steps |")
+    print("| --- | --- | ---: | ---: | ---: | ---: |")
+    for scene, r in quads:
+        for engine, res in r.items():
+            if res is None or res.error or res.base is None:
+                continue
+            b0, b1 = res.base_start, res.base
+            print(f"| {scene.name} | {engine} | {b0[2]:.3f} -> {b1[2]:.3f} | {b1[3]:.3f} | {np.hypot(*(b1[:2] - b0[:2])):.3f} "
+                  f"(dx {b1[0] - b0[0]:+.3f}) | {res.blocks * res.block_steps} |")
+
+
+# ------------------------------------------------------------------------------------------------------
+# Batch throughput
+# ------------------------------------------------------------------------------------------------------
+
+
+def batch_section(n_sims: int, modules: int, steps: int, repeats: int, settle: int) -> None:
+    parts = module_tree(modules)
     model = legkit_model(parts)
-    sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(0.8), substeps=substeps)
-    sim.set_servo(kp=KP, kd=KD, torque_limit=TORQUE_LIMIT, target_q=model.neutral())
-    sim.step(n=100)  # settle onto the ground first: time the loaded, contacting regime
-    start = time.perf_counter()
-    sim.step(n=steps)
-    elapsed = time.perf_counter() - start
-    return elapsed / steps * 1e6, len(sim.contacts()["body"])
+    rng = np.random.default_rng(0)
+    sims = []
+    for _ in range(n_sims):
+        sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), solver_iterations=SOLVER_ITERATIONS)
+        q = model.neutral() + rng.normal(0.0, 0.02, model.nq)  # not identical copies
+        sim.reset(q, np.zeros(model.nv))
+        sim.set_servo(kp=KP, kd=KD, torque_limit=TORQUE_LIMIT, target_q=model.neutral())
+        sims.append(sim)
+    batch = lk.SimulationBatch(sims)
+    batch.step(None, settle)
+    tau = np.zeros(model.nv)
 
+    def per_step_loop() -> None:
+        for _ in range(steps):
+            for sim in sims:
+                sim.step(tau)
 
-def time_mujoco(parts: list[Part], steps: int) -> tuple[float, int] | None:
+    def per_sim_loop() -> None:
+        for sim in sims:
+            sim.step(None, steps)
+
+    def batched() -> None:
+        batch.step(None, steps)
+
+    ways: list[tuple[str, Callable[[], None]]] = [
+        ("Python loop, sim.step(tau) per sim per step", per_step_loop),
+        ("Python loop, sim.step(None, n) per sim", per_sim_loop),
+        ("SimulationBatch(sims).step(None, n)", batched),
+    ]
     try:
         import mujoco
+
+        m = mujoco.MjModel.from_xml_string(mujoco_xml(parts))
+        datas = [mujoco.MjData(m) for _ in range(n_sims)]
+        for d in datas:
+            mujoco.mj_step(m, d, nstep=settle)
+
+        def mujoco_loop() -> None:
+            for d in datas:
+                mujoco.mj_step(m, d, nstep=steps)
+
+        ways.append(("MuJoCo (reference): mj_step(m, d, nstep=n) per MjData", mujoco_loop))
     except ImportError:
-        return None
-    m = mujoco.MjModel.from_xml_string(mujoco_xml(parts))
-    d = mujoco.MjData(m)
-    mujoco.mj_step(m, d, nstep=100)
-    start = time.perf_counter()
-    mujoco.mj_step(m, d, nstep=steps)
-    elapsed = time.perf_counter() - start
-    return elapsed / steps * 1e6, int(d.ncon)
+        pass
+
+    times: list[list[float]] = [[] for _ in ways]
+    for _ in range(repeats):  # interleaved, so slow drifts of the state or of the machine hit every way alike
+        for k, (_, fn) in enumerate(ways):
+            start = time.perf_counter()
+            fn()
+            times[k].append(time.perf_counter() - start)
+    results = [(name, statistics.median(t)) for (name, _), t in zip(ways, times)]
+    base = results[0][1]
+    print(f"\nBatch throughput: {n_sims} simulations of the {len(parts) // 4}-module tree ({model.nv} DoF), {steps} steps "
+          f"per call, median of {repeats} repeats, after {settle} settling steps:\n")
+    print("| how | sim-steps / s | µs per sim-step | vs per-step loop |")
+    print("| --- | ---: | ---: | ---: |")
+    for name, t in results:
+        rate = n_sims * steps / t
+        print(f"| {name} | {rate:,.0f} | {t / (n_sims * steps) * 1e6:.1f} | {base / t:.2f}x |")
+    print(f"\nSimulationBatch / per-simulation loop throughput: {results[1][1] / results[2][1]:.2f}x; "
+          f"SimulationBatch / per-step loop: {results[0][1] / results[2][1]:.2f}x")
+
+
+# ------------------------------------------------------------------------------------------------------
+
+
+def extension_time() -> str:
+    """Modification time of the compiled extension (which build was measured)."""
+    try:
+        return time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(os.path.getmtime(lk._core.__file__)))
+    except (AttributeError, OSError):
+        return "?"
+
+
+def load_average() -> str:
+    try:
+        return " ".join(f"{x:.2f}" for x in os.getloadavg())
+    except OSError:
+        return "n/a"
+
+
+def mujoco_version() -> str:
+    try:
+        import mujoco
+
+        return mujoco.__version__
+    except ImportError:
+        return "(not installed)"
 
 
 def main(argv: list[str] | None = None) -> int:
+    global SOLVER_ITERATIONS
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--modules", type=int, nargs="+", default=[21, 101], help="modules per tree (1 + 4 branches)")
-    parser.add_argument("--seconds", type=float, default=1.0, help="simulated time per measurement")
-    parser.add_argument("--substeps", type=int, default=1, help="Rapier substeps per step")
+    parser.add_argument("--modules", type=int, nargs="+", default=None, help="modules per tree (default 21 51 101)")
+    parser.add_argument("--seconds", type=float, default=1.0, help="simulated time timed per engine and scene (blocks of 100 steps)")
+    parser.add_argument("--skip-rapier", action="store_true", help="leave the Rapier backend out")
+    parser.add_argument("--quick", action="store_true", help="smoke test: 21 modules, 5 blocks of 50 steps, short batch")
+    parser.add_argument("--no-quadruped", action="store_true", help="trees only")
+    parser.add_argument("--no-batch", action="store_true", help="skip the batch throughput section")
+    parser.add_argument("--budget", type=float, default=10.0, help="wall seconds Rapier may spend settling, and timing, per scene")
+    parser.add_argument("--solver-iterations", type=int, default=SOLVER_ITERATIONS,
+                        help="legkit tree engine's contact-solver sweeps per step (its default: 100)")
     args = parser.parse_args(argv)
-    steps = int(round(args.seconds / DT))
-    print(f"{'modules':>7} {'DoF':>5} {'legkit µs/step':>15} {'x real time':>11} {'contacts':>8} {'MuJoCo µs/step':>15} {'x real time':>11} {'contacts':>8} {'legkit/MuJoCo':>13}")
-    for n in args.modules:
-        parts = module_tree(n)
-        dof = sum(p.axis is not None for p in parts)
-        ours, our_contacts = time_legkit(parts, steps, args.substeps)
-        theirs = time_mujoco(parts, steps)
-        row = f"{n:>7} {dof:>5} {ours:>15.1f} {DT * 1e6 / ours:>11.2f} {our_contacts:>8}"
-        if theirs is None:
-            row += f" {'(pip install mujoco)':>36}"
+    SOLVER_ITERATIONS = args.solver_iterations
+    args.settle, args.block_steps = SETTLE_SECONDS, BLOCK_STEPS
+    if args.quick:
+        args.modules = args.modules or [21]
+        args.seconds, args.block_steps, args.budget = 0.25, 50, min(args.budget, 3.0)
+    args.modules = args.modules or [21, 51, 101]
+
+    scenes = [tree_scene(n) for n in args.modules]
+    if not args.no_quadruped:
+        scenes += [quadruped_scene(False), quadruped_scene(True)]
+    rows = []
+    wall = time.perf_counter()
+    load_start = load_average()
+    for scene in scenes:
+        print(f"... {scene.name}", flush=True)
+        rows.append((scene, run_scene(scene, args)))
+    print(f"\nStep time at dt = {DT * 1e3:g} ms, median of block means ({'quick' if args.quick else 'full'} run), "
+          f"legkit's tree engine (solver_iterations={SOLVER_ITERATIONS}) vs MuJoCo {mujoco_version()} and Rapier "
+          f"(backend=\"rapier\"); legkit extension built {extension_time()}:\n")
+    print_scene_table(rows)
+    print_details(rows)
+    print_quadruped_table(rows)
+    if not args.no_batch:
+        if args.quick:
+            batch_section(12, 21, steps=50, repeats=3, settle=300)
         else:
-            row += f" {theirs[0]:>15.1f} {DT * 1e6 / theirs[0]:>11.2f} {theirs[1]:>8} {ours / theirs[0]:>13.2f}"
-        print(row)
+            batch_section(12, 21, steps=100, repeats=5, settle=300)
+    print(f"\ntotal wall time {time.perf_counter() - wall:.0f} s; load average at the start {load_start}, at the end "
+          f"{load_average()} on {os.cpu_count()} cores (other work on the machine inflates the times, the batch's most)")
     return 0
 
 

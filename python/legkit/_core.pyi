@@ -175,10 +175,13 @@ class Simulation:
     def __init__(
         self, model: Model, dt: float = 1e-3, ground: Ground | None = None, shapes: dict[int | str, _ShapeSpec] | None = None,
         self_collision: bool = False, joint_damping: float = 0.0, joint_armature: float = 0.0, substeps: int = 1,
-        backend: Literal["tree", "rapier"] = "tree", solver_iterations: int = 100,
+        backend: Literal["tree", "rapier"] = "tree", solver_iterations: int = 20,
     ) -> None: ...
     @property
     def backend(self) -> Literal["tree", "rapier"]: ...
+    @property
+    def solver_sweeps(self) -> int | None:
+        """Contact-solver sweeps of the last (sub)step (tree engine); None on Rapier."""
     def step(self, tau: npt.ArrayLike | None = None, n: int = 1) -> None:
         """n steps with feed-forward tau (nv,) held over them; GIL released. RuntimeError (naming the step and
         the body) if the state would diverge; the last good state is kept."""

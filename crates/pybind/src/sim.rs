@@ -90,7 +90,7 @@ impl PyGround {
 /// A contact simulation of a `Model`.
 ///
 /// `Simulation(model, dt=1e-3, ground=None, shapes=None, self_collision=False, joint_damping=0.0,
-/// joint_armature=0.0, substeps=1, backend="tree", solver_iterations=100)`: `ground` a `Ground` or None;
+/// joint_armature=0.0, substeps=1, backend="tree", solver_iterations=20)`: `ground` a `Ground` or None;
 /// `shapes` maps bodies (index or name) to ("box", (sx, sy, sz)) full edge lengths, ("sphere", r),
 /// ("capsule", half_height, r) or ("cylinder", half_height, r) along z, each optionally followed by a 4x4
 /// placement in the body frame (default: at the body's COM, body axes), or to None for no collider;
@@ -200,6 +200,13 @@ impl PySimulation {
         }
         let sim = Simulation::new(&model.model, options).map_err(kernel_error)?;
         Ok(PySimulation { sim })
+    }
+
+    /// Contact-solver sweeps of the last (sub)step on the tree engine (it stops once the impulses
+    /// converge, or at `solver_iterations`); None on Rapier.
+    #[getter]
+    fn solver_sweeps(&self) -> Option<usize> {
+        self.sim.solver_sweeps()
     }
 
     /// "tree" or "rapier".

@@ -64,6 +64,9 @@ class Channel:
     ``partner`` / ``partner_slot`` (N, S) give the module and connector mated to each connector (-1: free).
     Counters: ``transmissions`` (data messages put on the wire, including retransmissions; per sending module
     in ``sent_by_module``), ``acknowledgements``, ``retransmissions``, ``lost``, ``duplicated``.
+
+    Internally a connector is addressed by its link number ``module * S + slot``, so that the per-connector
+    state is read and written with one flat index per message.
     """
 
     def __init__(self, partner: np.ndarray, partner_slot: np.ndarray, width: int, config: BusConfig, rng: np.random.Generator):
@@ -80,10 +83,11 @@ class Channel:
         self.seq_in = np.zeros(shape, dtype=np.int64)
         self.unacked = np.zeros(shape, dtype=bool)
         self.last_transmission = np.zeros(shape, dtype=np.int64)
-        # In-flight messages: due tick, sending module and connector, sequence number, is-ack flag, payload.
+        self._slots = shape[1]
+        self._partner_link = np.where(partner >= 0, partner * self._slots + partner_slot, -1).ravel()
+        # In-flight messages: due tick, sending link, sequence number, is-ack flag, payload.
         self._due = np.zeros(0, dtype=np.int64)
-        self._module = np.zeros(0, dtype=np.int64)
-        self._slot = np.zeros(0, dtype=np.int64)
+        self._link = np.zeros(0, dtype=np.int64)
         self._seq = np.zeros(0, dtype=np.int64)
         self._ack = np.zeros(0, dtype=bool)
         self._payload = np.zeros((0, width))
@@ -108,17 +112,24 @@ class Channel:
         """Send ``payloads[k]`` on connector ``slots[k]`` of module ``modules[k]`` where it differs (bitwise) from
         the last payload sent there, or nothing was sent there yet; returns the number sent. The connectors
         must be connected; ``payloads`` is (k, width)."""
-        changed = ~self.has_sent[modules, slots] | np.any(payloads != self.last_sent[modules, slots], axis=-1)
-        modules, slots, payloads = modules[changed], slots[changed], payloads[changed]
-        if modules.size == 0:
+        return self._send_changed(now, np.asarray(modules) * self._slots + np.asarray(slots), np.asarray(payloads, dtype=float))
+
+    def _send_changed(self, now: int, links: np.ndarray, payloads: np.ndarray) -> int:
+        """``send_changed`` by link number (distinct links)."""
+        last = np.take(self.last_sent.reshape(-1, self.width), links, axis=0)
+        changed = ~np.take(self.has_sent.reshape(-1), links) | rows_differ(payloads, last)
+        if not changed.all():
+            links, payloads = links[changed], payloads[changed]
+        if links.size == 0:
             return 0
-        self.has_sent[modules, slots] = True
-        self.last_sent[modules, slots] = payloads
-        self.seq_out[modules, slots] += 1
-        self.unacked[modules, slots] = not self.reliable
-        self.last_transmission[modules, slots] = now
-        self._transmit(now, modules, slots, self.seq_out[modules, slots], payloads, acks=False)
-        return int(modules.size)
+        self.has_sent.reshape(-1)[links] = True
+        self.last_sent.reshape(-1, self.width)[links] = payloads
+        seq = np.take(self.seq_out.reshape(-1), links) + 1
+        self.seq_out.reshape(-1)[links] = seq
+        self.unacked.reshape(-1)[links] = not self.reliable
+        self.last_transmission.reshape(-1)[links] = now
+        self._transmit(now, links, seq, payloads, acks=False)
+        return int(links.size)
 
     def retransmit(self, now: int) -> int:
         """Asynchronous mode: resend every unacknowledged payload whose last transmission is ``retransmit_after``
@@ -126,20 +137,20 @@ class Channel:
         if self.reliable:
             return 0
         due = self.unacked & (now - self.last_transmission >= self.config.retransmit_after)
-        modules, slots = np.nonzero(due)
-        if modules.size:
-            self.last_transmission[modules, slots] = now
-            self.retransmissions += int(modules.size)
-            self._transmit(now, modules, slots, self.seq_out[modules, slots], self.last_sent[modules, slots], acks=False)
-        return int(modules.size)
+        links = np.flatnonzero(due)
+        if links.size:
+            self.last_transmission.reshape(-1)[links] = now
+            self.retransmissions += int(links.size)
+            self._transmit(now, links, self.seq_out.reshape(-1)[links], self.last_sent.reshape(-1, self.width)[links], acks=False)
+        return int(links.size)
 
-    def _transmit(self, now: int, modules: np.ndarray, slots: np.ndarray, seq: np.ndarray, payload: np.ndarray, acks: bool) -> None:
-        count = modules.size
+    def _transmit(self, now: int, links: np.ndarray, seq: np.ndarray, payload: np.ndarray, acks: bool) -> None:
+        count = links.size
         if acks:
             self.acknowledgements += count
         else:
             self.transmissions += count
-            np.add.at(self.sent_by_module, modules, 1)
+            self.sent_by_module += np.bincount(links // self._slots, minlength=self.sent_by_module.size)
         if self.reliable:
             due = np.full(count, now + 1, dtype=np.int64)
         else:
@@ -149,13 +160,12 @@ class Channel:
             extra = copies[self.rng.random(copies.size) < self.config.duplication]
             self.duplicated += int(extra.size)
             copies = np.concatenate([copies, extra])
-            modules, slots, seq, payload = modules[copies], slots[copies], seq[copies], payload[copies]
+            links, seq, payload = links[copies], seq[copies], payload[copies]
             due = now + self.rng.integers(self.config.delay_min, self.config.delay_max + 1, size=copies.size)
         self._due = np.concatenate([self._due, due])
-        self._module = np.concatenate([self._module, modules])
-        self._slot = np.concatenate([self._slot, slots])
+        self._link = np.concatenate([self._link, links])
         self._seq = np.concatenate([self._seq, seq])
-        self._ack = np.concatenate([self._ack, np.full(modules.size, acks)])
+        self._ack = np.concatenate([self._ack, np.full(links.size, acks)])
         self._payload = np.concatenate([self._payload, payload])
 
     def deliver(self, now: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -164,32 +174,50 @@ class Channel:
         Returns the accepted data messages as (receiving module, receiving connector, sending module, sending
         connector, payload (k, width)), at most one per receiving connector (the newest). Acknowledgements are
         consumed here."""
+        receivers, senders, payload = self._deliver(now)
+        return receivers // self._slots, receivers % self._slots, senders // self._slots, senders % self._slots, payload
+
+    def _deliver(self, now: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``deliver`` by link number: (receiving links, sending links, payloads), in the order of the receiving link."""
         ready = self._due <= now
         if not ready.any():
             empty = np.zeros(0, dtype=np.int64)
-            return empty, empty, empty, empty, np.zeros((0, self.width))
-        index = np.flatnonzero(ready)
+            return empty, empty, np.zeros((0, self.width))
+        if self.reliable and ready.all():  # the usual synchronous round: everything on the wire arrives
+            link, seq, ack, payload = self._link, self._seq, self._ack, self._payload
+            self._due, self._link, self._seq, self._ack = self._due[:0], self._link[:0], self._seq[:0], self._ack[:0]
+            self._payload = self._payload[:0]
+        else:
+            index = np.flatnonzero(ready)
+            if not self.reliable:
+                index = index[self.rng.permutation(index.size)]
+            link, seq, ack, payload = self._link[index], self._seq[index], self._ack[index], self._payload[index]
+            keep = ~ready
+            self._due, self._link, self._seq, self._ack = self._due[keep], self._link[keep], self._seq[keep], self._ack[keep]
+            self._payload = self._payload[keep]
+        receiver = np.take(self._partner_link, link)
+
         if not self.reliable:
-            index = index[self.rng.permutation(index.size)]
-        module, slot, seq, ack, payload = self._module[index], self._slot[index], self._seq[index], self._ack[index], self._payload[index]
-        keep = ~ready
-        self._due, self._module, self._slot = self._due[keep], self._module[keep], self._slot[keep]
-        self._seq, self._ack, self._payload = self._seq[keep], self._ack[keep], self._payload[keep]
-        receiver, receiver_slot = self.partner[module, slot], self.partner_slot[module, slot]
-
-        # Acknowledgements: the receiver of an ack is the original sender.
-        acked = ack & (seq == self.seq_out[receiver, receiver_slot])
-        self.unacked[receiver[acked], receiver_slot[acked]] = False
-
-        data = np.flatnonzero(~ack)
-        if not self.reliable and data.size:
-            self._transmit(now, receiver[data], receiver_slot[data], seq[data], np.zeros((data.size, self.width)), acks=True)
+            # Acknowledgements: the receiver of an ack is the original sender.
+            acked = ack & (seq == np.take(self.seq_out.reshape(-1), receiver))
+            self.unacked.reshape(-1)[receiver[acked]] = False
+            data = np.flatnonzero(~ack)
+            if data.size:
+                self._transmit(now, receiver[data], seq[data], np.zeros((data.size, self.width)), acks=True)
+            receiver, link, seq, payload = receiver[data], link[data], seq[data], payload[data]
         # Keep, per receiving connector, the newest message, and only if newer than what was accepted before.
-        data = data[np.lexsort((seq[data], receiver_slot[data], receiver[data]))]
-        if data.size:
-            last_of_group = np.ones(data.size, dtype=bool)
-            last_of_group[:-1] = (receiver[data][1:] != receiver[data][:-1]) | (receiver_slot[data][1:] != receiver_slot[data][:-1])
-            data = data[last_of_group]
-            data = data[seq[data] > self.seq_in[receiver[data], receiver_slot[data]]]
-            self.seq_in[receiver[data], receiver_slot[data]] = seq[data]
-        return receiver[data], receiver_slot[data], module[data], slot[data], payload[data]
+        order = np.lexsort((seq, receiver))
+        receiver, link, seq = receiver[order], link[order], seq[order]
+        last_of_group = np.ones(receiver.size, dtype=bool)
+        last_of_group[:-1] = receiver[1:] != receiver[:-1]
+        newer = last_of_group & (seq > np.take(self.seq_in.reshape(-1), receiver))
+        keep = order[newer]
+        receiver, link = receiver[newer], link[newer]
+        self.seq_in.reshape(-1)[receiver] = seq[newer]
+        return receiver, link, payload[keep]
+
+
+def rows_differ(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(k,) True where row k of ``a`` and ``b`` (k, w) differ anywhere (``!=``: -0.0 equals +0.0)."""
+    # Reduced over a transposed copy: numpy reduces a few long rows much faster than many short ones.
+    return np.not_equal(a, b).T.copy().any(axis=0)

@@ -15,6 +15,8 @@ dimensions.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 WIDTH = 13
@@ -57,31 +59,63 @@ def unpack(moments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def transform(rotation: np.ndarray, translation: np.ndarray, moments: np.ndarray) -> np.ndarray:
     """Moments expressed in the frame where the moments' frame has pose (rotation (..., 3, 3), translation (..., 3)).
 
-    Written out component by component over contiguous (batch,) vectors: for the small 3x3 blocks this is
-    several times faster than stacked matrix products. The second moment is assumed symmetric (it always
-    is here) and the result is exactly symmetric."""
+    Computed on component-major copies, one array operation per term for all components at once, in the
+    order ``h' = (R_i0 h_0 + R_i1 h_1) + R_i2 h_2 + m t_i`` and ``P'_ij = ((RP)_i0 R_j0 + (RP)_i1 R_j1 +
+    (RP)_i2 R_j2) + g_i t_j + t_i g_j + m t_i t_j`` (g = R h), left to right. The second moment is assumed
+    symmetric (it always is here); the result is exactly symmetric (the lower triangle copies the upper)."""
     shape = np.broadcast_shapes(moments.shape[:-1], rotation.shape[:-2], translation.shape[:-1])
-    r = np.broadcast_to(rotation, shape + (3, 3)).reshape(-1, 9).T
-    t = np.broadcast_to(translation, shape + (3,)).reshape(-1, 3).T
-    x = np.broadcast_to(moments, shape + (WIDTH,)).reshape(-1, WIDTH).T
-    mass, h = x[0], x[1:4]
-    R = [[r[3 * i + j] for j in range(3)] for i in range(3)]
-    P = [[x[4 + 3 * i + j] for j in range(3)] for i in range(3)]
-    g = [R[i][0] * h[0] + R[i][1] * h[1] + R[i][2] * h[2] for i in range(3)]
-    RP = [[R[i][0] * P[0][k] + R[i][1] * P[1][k] + R[i][2] * P[2][k] for k in range(3)] for i in range(3)]
-    mt = [mass * t[i] for i in range(3)]
-    out = np.empty((WIDTH, x.shape[1]))
+    count = math.prod(shape)
+    r = _component_major(rotation, shape, (3, 3)).reshape(3, 3, count)
+    t = _component_major(translation, shape, (3,))
+    x = _component_major(moments, shape, (WIDTH,))
+    mass, h, second = x[0], x[1:4], x[4:].reshape(3, 3, count)
+    g = r[:, 0] * h[0] + r[:, 1] * h[1] + r[:, 2] * h[2]
+    rp = r[:, 0, None] * second[0] + r[:, 1, None] * second[1] + r[:, 2, None] * second[2]
+    mt = mass * t
+    out = np.empty((WIDTH, count))
     out[0] = mass
-    for i in range(3):
-        out[1 + i] = g[i] + mt[i]
-        for j in range(i, 3):
-            value = RP[i][0] * R[j][0] + RP[i][1] * R[j][1] + RP[i][2] * R[j][2] + g[i] * t[j] + t[i] * g[j] + mt[i] * t[j]
-            out[4 + 3 * i + j] = value
-            out[4 + 3 * j + i] = value
+    np.add(g, mt, out=out[1:4])
+    full = out[4:].reshape(3, 3, count)
+    np.multiply(rp[:, None, 0], r[None, :, 0], out=full)
+    full += rp[:, None, 1] * r[None, :, 1]
+    full += rp[:, None, 2] * r[None, :, 2]
+    full += g[:, None] * t[None]
+    full += t[:, None] * g[None]
+    full += mt[:, None] * t[None]
+    out[_LOWER] = out[_UPPER]
     return out.T.reshape(shape + (WIDTH,))
+
+
+def _component_major(array: np.ndarray, shape: tuple[int, ...], item: tuple[int, ...]) -> np.ndarray:
+    """``array`` (batch dims + ``item``) broadcast to ``shape`` + ``item``, as a C-contiguous (item size, count)
+    copy: each component one contiguous row, so the arithmetic runs over long contiguous vectors."""
+    if array.shape != shape + item:
+        array = np.broadcast_to(array, shape + item)
+    return array.reshape(-1, math.prod(item)).T.copy()
+
+
+# Flat indices (into the 13 packed floats) of the second moment's upper triangle (0,1), (0,2), (1,2) and of
+# their mirror images (1,0), (2,0), (2,1).
+_UPPER = np.array([5, 6, 9])
+_LOWER = np.array([7, 10, 11])
 
 
 def inverse_pose(rotation: np.ndarray, translation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The inverse rigid transform (R^T, -R^T t) of (rotation (..., 3, 3), translation (..., 3))."""
     rotation_t = np.swapaxes(rotation, -1, -2)
-    return rotation_t, -np.einsum("...ij,...j->...i", rotation_t, translation)
+    t = translation[..., None, :]
+    # Summed from +0 in this order (as numpy's einsum did for it): results stay bit for bit the same.
+    product = rotation_t[..., 0] * t[..., 0] + rotation_t[..., 1] * t[..., 1] + rotation_t[..., 2] * t[..., 2]
+    product += 0.0
+    return rotation_t, -product
+
+
+def rotate(rotation: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    """``rotation`` (..., 3, 3) times ``vector`` (..., 3), batch dimensions broadcast.
+
+    Summed from +0 as ``(R_i0 v_0 + R_i2 v_2) + R_i1 v_1``, the order numpy's einsum uses for contiguous
+    operands, so that results are bit for bit those of the einsum-based code this replaced."""
+    v = vector[..., None, :]
+    product = rotation[..., 0] * v[..., 0] + rotation[..., 2] * v[..., 2] + rotation[..., 1] * v[..., 1]
+    product += 0.0
+    return product

@@ -29,6 +29,13 @@ touching the ground (each draws a random priority from the bus's seeded generato
 flooded through the tree), and propagation of the leader's world pose and support line outwards from the
 leader, each agent composing the pose it received with its connector's pose. The connector through which
 an agent heard of the leader (its *uplink*) tells it which side of each of its joints is fixed.
+
+Speed: a round costs a fixed number of array operations whatever the number of agents (no Python loop
+over agents, connectors or messages). What never changes is tabled once: the mated connectors' relative
+rotations and the connector frames are signed permutations (entries exactly 0 and +-1), so turning a
+message or a connector frame by them is an exact gather with sign flips rather than a matrix product. The
+arithmetic is otherwise the same operation for operation as the plain matrix formulation (see
+``moments.transform`` and ``moments.rotate``), so results are reproducible bit for bit.
 """
 
 from __future__ import annotations
@@ -40,7 +47,7 @@ import numpy as np
 
 import legkit as lk
 from legkit.agents import moments
-from legkit.agents.bus import BusConfig, Channel
+from legkit.agents.bus import BusConfig, Channel, rows_differ
 from legkit.robots.superbot import CONNECTOR_BLOCK, ModelLayout, ModuleParameters, ModuleTree, module_kinematics
 
 _N_SLOTS = 6
@@ -109,8 +116,6 @@ class AgentNetwork:
         self.mass_channel = Channel(self.partner, self.partner_slot, moments.WIDTH, bus, self.rng)
         self.election_channel = Channel(self.partner, self.partner_slot, 2, bus, self.rng)
         self.pose_channel = Channel(self.partner, self.partner_slot, _POSE_WIDTH, bus, self.rng)
-        self._part_moments_zero = moments.pack(*_part_arrays(parameters))
-        self._connector_rotation_zero, self._connector_position_zero = parameters.connector_frames()
         n = self.n_modules
         self.now = 0
         self.estimates_connector_frame = np.zeros((n, _N_SLOTS, moments.WIDTH))
@@ -121,19 +126,24 @@ class AgentNetwork:
         priorities = self.rng.permutation(len(self.ground)).astype(float)
         for contact, priority in zip(self.ground, priorities):
             self.leader_key[contact.module], self.leader[contact.module] = priority, contact.module
-        self._ground_by_module = {c.module: c for c in self.ground}
         self.line = np.zeros((n, 6))
         for contact in self.ground:
             direction = np.asarray(contact.line_direction, dtype=float)
             self.line[contact.module] = np.concatenate([np.asarray(contact.line_point, dtype=float), direction / np.linalg.norm(direction)])
+        # The ground contacts as arrays, and each module's contact (-1: not on the ground).
+        self._contact_of_module = np.full(n, -1, dtype=np.int64)
+        self._contact_of_module[[c.module for c in self.ground]] = np.arange(len(self.ground))
+        self._contact_block = np.array([c.block for c in self.ground], dtype=np.int64)
+        self._contact_rotation = np.array([np.asarray(c.rotation, dtype=float) for c in self.ground]).reshape(-1, 3, 3)
+        self._contact_translation = np.array([np.asarray(c.translation, dtype=float) for c in self.ground]).reshape(-1, 3)
         # Pose: the world pose of the uplink connector as received (receiver's connector frame), and the line.
         self.received_connector_rotation = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
         self.received_connector_position = np.zeros((n, 3))
         self.pose_known = np.zeros(n, dtype=bool)
-        self._pose_rotation = np.zeros((n, _N_SLOTS, 3, 3))
-        self._pose_position = np.zeros((n, _N_SLOTS, 3))
-        self._pose_line = np.zeros((n, _N_SLOTS, 6))
-        self._pose_leader = np.full((n, _N_SLOTS), -1, dtype=np.int64)
+        # The last pose message received on each connector (link), turned into the receiver's connector frame.
+        self._pose = np.zeros((n * _N_SLOTS, _POSE_WIDTH))
+        self._pose[:, 18] = -1.0
+        self._world_poses: tuple[np.ndarray, np.ndarray] | None = None  # every module's, while nothing changes
         # Module-frame copies of the estimates, connector-major (6, N, 13) so each connector's block is contiguous.
         self._estimates_module_frame = np.zeros((_N_SLOTS, n, moments.WIDTH))
         self._dirty_mass = np.ones(n, dtype=bool)
@@ -141,7 +151,14 @@ class AgentNetwork:
         self._dirty_election = np.ones(n, dtype=bool)
         self._dirty_pose = np.ones(n, dtype=bool)
         self.recomputations = 0
-        self.observe(np.zeros((n, 3)) if angles is None else angles)
+        self._module_ids = np.arange(n)
+        # Connector (module, slot) is link module * 6 + slot; the connected ones in ascending order.
+        self._links = np.flatnonzero(self.connected)
+        self._link_module, self._link_slot = np.divmod(self._links, _N_SLOTS)
+        tables = _signed_permutation_tables(self.mate.reshape(-1, 3, 3))
+        self._mate_rotation_index, self._mate_rotation_signs, self._mate_moment_index, self._mate_moment_signs = tables
+        self._init_module_state(parameters)
+        self._sense(self._checked_angles(np.zeros((n, 3)) if angles is None else angles), slice(None))
         self._send()
 
     def _check_ground(self, ground: Sequence[GroundContact]) -> list[GroundContact]:
@@ -159,43 +176,62 @@ class AgentNetwork:
             raise ValueError("ground: a module is listed twice")
         return checked
 
+    def _init_module_state(self, parameters: ModuleParameters) -> None:
+        """Each agent's own state, and the parts of it that its joints never move: block A is the module frame,
+        so its part moments and the frames of its connectors (0, 1, 2) are constants."""
+        n = self.n_modules
+        self.angles = np.zeros((n, 3))
+        self.part_rotation = np.zeros((n, 4, 3, 3))
+        self.part_translation = np.zeros((n, 4, 3))
+        self.part_moments = np.zeros((n, 4, moments.WIDTH))
+        self.own = np.zeros((n, moments.WIDTH))
+        self.connector_rotation = np.zeros((n, _N_SLOTS, 3, 3))
+        self.connector_position = np.zeros((n, _N_SLOTS, 3))
+        self._part_moments_zero = moments.pack(*_part_arrays(parameters))
+        self.part_moments[:, 0] = moments.transform(np.eye(3), np.zeros(3), self._part_moments_zero[0])
+        rotation_zero, position_zero = parameters.connector_frames()
+        self.connector_rotation[:, :3] = np.eye(3) @ rotation_zero[:3]
+        self.connector_position[:, :3] = np.zeros(3) + moments.rotate(np.eye(3), position_zero[:3])
+        # Block B's connectors (3, 4, 5) turn with part 3: their rotations are signed permutations of its columns.
+        self._block_b_connector_index, self._block_b_connector_signs, _, _ = _signed_permutation_tables(rotation_zero[3:])
+        self._block_b_connector_position_zero = position_zero[3:]
+
     # ------------------------------------------------------------------------------------------------
     # Sensing
     def observe(self, angles: np.ndarray) -> None:
         """Every agent reads its own three joint angles (N, 3) rad. Agents whose angles changed recompute their
         own mass properties and connector poses, and will run Algorithm 2 in the next round."""
+        angles = self._checked_angles(angles)
+        changed = np.any(angles != self.angles, axis=1)
+        if changed.all():
+            self._sense(angles, slice(None))
+        elif changed.any():
+            self._sense(angles, np.flatnonzero(changed))
+
+    def _checked_angles(self, angles: np.ndarray) -> np.ndarray:
         angles = np.asarray(angles, dtype=float)
         if angles.shape != (self.n_modules, 3):
             raise ValueError(f"angles: must have shape ({self.n_modules}, 3), got {angles.shape}")
         if not np.all(np.isfinite(angles)):
             raise ValueError("angles: must be finite")
-        if not hasattr(self, "angles"):
-            n = self.n_modules
-            self.angles = angles.copy()
-            self.part_rotation = np.zeros((n, 4, 3, 3))
-            self.part_translation = np.zeros((n, 4, 3))
-            self.part_moments = np.zeros((n, 4, moments.WIDTH))
-            self.own = np.zeros((n, moments.WIDTH))
-            self.connector_rotation = np.zeros((n, _N_SLOTS, 3, 3))
-            self.connector_position = np.zeros((n, _N_SLOTS, 3))
-            rows = np.arange(n)
-        else:
-            rows = np.flatnonzero(np.any(angles != self.angles, axis=1))
-        if rows.size == 0:
-            return
+        return angles
+
+    def _sense(self, angles: np.ndarray, rows: slice | np.ndarray) -> None:
+        """The agents ``rows`` take ``angles[rows]``: part poses and moments, own mass, block B's connector frames."""
         self.angles[rows] = angles[rows]
         part_rotation, part_translation = module_kinematics(angles[rows], self.parameters)
         self.part_rotation[rows], self.part_translation[rows] = part_rotation, part_translation
-        self.part_moments[rows] = moments.transform(part_rotation, part_translation, self._part_moments_zero)
+        self.part_moments[rows, 1:] = moments.transform(part_rotation[:, 1:], part_translation[:, 1:], self._part_moments_zero[1:])
         self.own[rows] = self.part_moments[rows].sum(axis=1)
-        # Connectors on block A do not move in the module frame; those on block B move with part 3.
-        on_block = np.where(CONNECTOR_BLOCK == 1, 3, 0)
-        rotation, translation = part_rotation[:, on_block], part_translation[:, on_block]
-        self.connector_rotation[rows] = rotation @ self._connector_rotation_zero
-        self.connector_position[rows] = translation + np.einsum("nsij,sj->nsi", rotation, self._connector_position_zero)
+        block_b_rotation = part_rotation[:, 3]
+        turned = block_b_rotation.reshape(-1, 9)[:, self._block_b_connector_index] * self._block_b_connector_signs
+        turned += 0.0  # the matrix product this replaces gives +0.0 where the sign flip gives -0.0
+        self.connector_rotation[rows, 3:] = turned.reshape(-1, 3, 3, 3)
+        self.connector_position[rows, 3:] = part_translation[:, 3, None] + moments.rotate(block_b_rotation[:, None], self._block_b_connector_position_zero)
         self._dirty_mass[rows] = True
         self._dirty_estimate[rows] = self.connected[rows]
         self._dirty_pose[rows] = True
+        self._world_poses = None
 
     def reconfigure(self, bus: BusConfig) -> None:
         """Change the network's behaviour from now on (delays, loss, duplication, retransmission period), e.g.
@@ -256,84 +292,113 @@ class AgentNetwork:
         return sum(c.acknowledgements for c in self.channels)
 
     def _receive(self) -> None:
+        self._world_poses = None
         # Algorithm 1: into the receiving connector's frame (mated connectors share their origin); an agent
         # whose estimate changed runs Algorithm 2 in this round's _send.
-        module, slot, _, _, payload = self.mass_channel.deliver(self.now)
-        received = moments.transform(self.mate[module, slot], np.zeros(3), payload)
-        changed = np.any(received != self.estimates_connector_frame[module, slot], axis=-1)
-        self.estimates_connector_frame[module[changed], slot[changed]] = received[changed]
-        self._dirty_mass[module[changed]] = True
-        self._dirty_estimate[module[changed], slot[changed]] = True
+        links, _, payload = self.mass_channel._deliver(self.now)
+        received = _gather_rows(payload, np.take(self._mate_moment_index, links, axis=0))
+        received *= np.take(self._mate_moment_signs, links, axis=0)
+        received[:, 1:] += 0.0  # the turned moments the arithmetic gave: +0.0 where the sign flip gives -0.0
+        estimates = self.estimates_connector_frame.reshape(-1, moments.WIDTH)
+        changed = rows_differ(received, np.take(estimates, links, axis=0))
+        links, received = links[changed], received[changed]
+        estimates[links] = received
+        self._dirty_mass[links // _N_SLOTS] = True
+        self._dirty_estimate.reshape(-1)[links] = True
 
-        module, slot, _, _, payload = self.election_channel.deliver(self.now)
-        key = payload[:, 0]
-        best = self.leader_key.copy()
-        np.maximum.at(best, module, key)
-        improved = (key == best[module]) & (key > self.leader_key[module])
-        module, slot = module[improved], slot[improved]
-        self.leader_key[module] = key[improved]
-        self.leader[module] = payload[improved, 1].astype(np.int64)
-        self.uplink[module] = slot
-        self._dirty_election[module] = True
-        self._dirty_pose[module] = True
+        links, _, payload = self.election_channel._deliver(self.now)
+        if links.size:
+            module, slot = np.divmod(links, _N_SLOTS)
+            key = payload[:, 0]
+            best = self.leader_key.copy()
+            np.maximum.at(best, module, key)
+            improved = (key == best[module]) & (key > self.leader_key[module])
+            module, slot = module[improved], slot[improved]
+            self.leader_key[module] = key[improved]
+            self.leader[module] = payload[improved, 1].astype(np.int64)
+            self.uplink[module] = slot
+            self._dirty_election[module] = True
+            self._dirty_pose[module] = True
 
         # Poses are kept per connector (a pose may arrive before the election tells which connector leads to
         # the leader); an agent uses the one on its uplink, if it comes from the leader it follows.
-        module, slot, _, _, payload = self.pose_channel.deliver(self.now)
-        self._pose_rotation[module, slot] = payload[:, :9].reshape(-1, 3, 3) @ self.mate[module, slot]
-        self._pose_position[module, slot] = payload[:, 9:12]
-        self._pose_line[module, slot] = payload[:, 12:18]
-        self._pose_leader[module, slot] = payload[:, 18].astype(np.int64)
+        links, _, payload = self.pose_channel._deliver(self.now)
+        turned = _gather_rows(payload, np.take(self._mate_rotation_index, links, axis=0))
+        turned *= np.take(self._mate_rotation_signs, links, axis=0)
+        turned += 0.0
+        payload[:, :9] = turned
+        self._pose[links] = payload
+        module, slot = np.divmod(links, _N_SLOTS)
         self._dirty_pose[module[slot == self.uplink[module]]] = True
-        rows = np.arange(self.n_modules)
-        uplink = np.maximum(self.uplink, 0)
-        self.pose_known = (self.uplink >= 0) & (self._pose_leader[rows, uplink] == self.leader)
-        self.received_connector_rotation = self._pose_rotation[rows, uplink]
-        self.received_connector_position = self._pose_position[rows, uplink]
+        uplink = np.take(self._pose, self._module_ids * _N_SLOTS + np.maximum(self.uplink, 0), axis=0)
+        self.pose_known = (self.uplink >= 0) & (uplink[:, 18] == self.leader)
+        self.received_connector_rotation = uplink[:, :9].reshape(-1, 3, 3)
+        self.received_connector_position = uplink[:, 9:12]
         follower = ~self._is_leader()
-        self.line[follower] = self._pose_line[rows, uplink][follower]
+        self.line[follower] = uplink[follower, 12:18]
 
     def _send(self) -> None:
         # Algorithm 2 for every agent whose own mass or an estimate changed.
-        rows = np.flatnonzero(self._dirty_mass)
+        n = self.n_modules
+        dirty = self._dirty_mass.copy()
         self._dirty_mass[:] = False
+        rows = np.flatnonzero(dirty)
         self.recomputations += rows.size
-        modules, slots = np.nonzero(self._dirty_estimate)
+        stale = np.flatnonzero(self._dirty_estimate)  # links whose module-frame copy is stale
         self._dirty_estimate[:] = False
-        self._estimates_module_frame[slots, modules] = moments.transform(
-            self.connector_rotation[modules, slots], self.connector_position[modules, slots], self.estimates_connector_frame[modules, slots]
+        module, slot = np.divmod(stale, _N_SLOTS)
+        self._estimates_module_frame.reshape(-1, moments.WIDTH)[slot * n + module] = moments.transform(
+            np.take(self.connector_rotation.reshape(-1, 3, 3), stale, axis=0),
+            np.take(self.connector_position.reshape(-1, 3), stale, axis=0),
+            np.take(self.estimates_connector_frame.reshape(-1, moments.WIDTH), stale, axis=0),
         )
-        row_index, slots = np.nonzero(self.connected[rows])
-        modules = rows[row_index]
-        outgoing = self.own[modules] + _exclusive_sums(self._estimates_module_frame[:, rows])[slots, row_index]
-        inverse_rotation, inverse_translation = moments.inverse_pose(self.connector_rotation[modules, slots], self.connector_position[modules, slots])
-        self.mass_channel.send_changed(self.now, modules, slots, moments.transform(inverse_rotation, inverse_translation, outgoing))
+        links = self._links[dirty[self._link_module]]
+        module, slot = np.divmod(links, _N_SLOTS)
+        if rows.size == n:
+            others = _exclusive_sums(self._estimates_module_frame)
+            row = module
+        else:
+            others = _exclusive_sums(np.take(self._estimates_module_frame, rows, axis=1))
+            row = np.searchsorted(rows, module)
+        outgoing = np.take(self.own, module, axis=0) + np.take(others.reshape(-1, moments.WIDTH), slot * rows.size + row, axis=0)
+        inverse_rotation, inverse_translation = moments.inverse_pose(
+            np.take(self.connector_rotation.reshape(-1, 3, 3), links, axis=0), np.take(self.connector_position.reshape(-1, 3), links, axis=0)
+        )
+        self.mass_channel._send_changed(self.now, links, moments.transform(inverse_rotation, inverse_translation, outgoing))
 
         # Flooding: forward the best leader heard of on every connector but the one it came from.
-        rows = np.flatnonzero(self._dirty_election & (self.leader_key >= 0))
+        ready = self._dirty_election & (self.leader_key >= 0)
         self._dirty_election[:] = False
-        row_index, slots = np.nonzero(self.connected[rows] & (np.arange(_N_SLOTS) != self.uplink[rows, None]))
-        modules = rows[row_index]
-        self.election_channel.send_changed(self.now, modules, slots, np.stack([self.leader_key[modules], self.leader[modules]], axis=-1))
+        if ready.any():
+            links = self._forward_links(ready)
+            module = links // _N_SLOTS
+            self.election_channel._send_changed(self.now, links, np.stack([self.leader_key[module], self.leader[module]], axis=-1))
 
-        rows = np.flatnonzero(self._dirty_pose & (self.pose_known | self._is_leader()))
+        ready = self._dirty_pose & (self.pose_known | self._is_leader())
         self._dirty_pose[:] = False
-        row_index, slots = np.nonzero(self.connected[rows] & (np.arange(_N_SLOTS) != self.uplink[rows, None]))
-        modules = rows[row_index]
-        rotation, translation = self.world_poses(modules)
-        payload = np.concatenate(
-            [(rotation @ self.connector_rotation[modules, slots]).reshape(-1, 9),
-             translation + np.einsum("kij,kj->ki", rotation, self.connector_position[modules, slots]),
-             self.line[modules], self.leader[modules, None].astype(float)],
-            axis=-1,
-        )
-        self.pose_channel.send_changed(self.now, modules, slots, payload)
+        rows = np.flatnonzero(ready)
+        links = self._forward_links(ready)
+        module = links // _N_SLOTS
+        rotation, translation = self._world_poses_of(rows)
+        row = module if rows.size == n else np.searchsorted(rows, module)
+        rotation, translation = np.take(rotation, row, axis=0), np.take(translation, row, axis=0)
+        payload = np.empty((links.size, _POSE_WIDTH))
+        payload[:, :9] = (rotation @ np.take(self.connector_rotation.reshape(-1, 3, 3), links, axis=0)).reshape(-1, 9)
+        payload[:, 9:12] = translation + moments.rotate(rotation, np.take(self.connector_position.reshape(-1, 3), links, axis=0))
+        payload[:, 12:18] = np.take(self.line, module, axis=0)
+        payload[:, 18] = np.take(self.leader, module)
+        self.pose_channel._send_changed(self.now, links, payload)
+
+    def _forward_links(self, ready: np.ndarray) -> np.ndarray:
+        """The connected links of the agents ``ready`` (N,) other than their uplinks, in ascending order."""
+        module = self._link_module
+        return self._links[ready[module] & (self._link_slot != self.uplink[module])]
 
     # ------------------------------------------------------------------------------------------------
     # What each agent knows
     def _is_leader(self) -> np.ndarray:
         """(N,) True for the agents that currently believe they lead (a ground module that heard of no better)."""
-        return self.leader == np.arange(self.n_modules)
+        return self.leader == self._module_ids
 
     def connector_estimates(self) -> np.ndarray:
         """Packed moments (N, 6, 13) of what lies beyond each connector, in each agent's module frame at its
@@ -356,26 +421,43 @@ class AgentNetwork:
         Leaders compute it from their ground contact and joint angles; the others from the pose received on
         their uplink composed with that connector's current pose. Identity where nothing is known yet
         (``pose_known`` False and not a leader)."""
-        modules = np.arange(self.n_modules) if modules is None else np.asarray(modules, dtype=np.int64)
+        if modules is None:
+            rotation, translation = self._world_poses_of(self._module_ids)
+            return rotation.copy(), translation.copy()
+        return self._world_poses_of(np.asarray(modules, dtype=np.int64))
+
+    def _world_poses_of(self, modules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``world_poses(modules)``. Every module's is kept from when it is first asked for until the joints
+        move or messages arrive (a round's pose messages and the controller after it ask for the same)."""
+        if self._world_poses is None and modules.size == self.n_modules:
+            self._world_poses = self._compute_world_poses(self._module_ids)
+        if self._world_poses is None:
+            return self._compute_world_poses(modules)
+        rotation, translation = self._world_poses
+        return rotation[modules], translation[modules]
+
+    def _compute_world_poses(self, modules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         uplink = np.maximum(self.uplink[modules], 0)
         inverse_rotation, inverse_translation = moments.inverse_pose(
             self.connector_rotation[modules, uplink], self.connector_position[modules, uplink]
         )
         received = self.received_connector_rotation[modules]
         rotation = received @ inverse_rotation
-        translation = self.received_connector_position[modules] + np.einsum("nij,nj->ni", received, inverse_translation)
-        for k in np.flatnonzero(self._is_leader()[modules]):
-            n = modules[k]
-            contact = self._ground_by_module[n]
-            block_rotation = np.asarray(contact.rotation, dtype=float)
-            block_translation = np.asarray(contact.translation, dtype=float)
-            if contact.block == 0:
-                rotation[k], translation[k] = block_rotation, block_translation
-            else:
+        translation = self.received_connector_position[modules] + moments.rotate(received, inverse_translation)
+        is_leader = self.leader[modules] == modules
+        leaders = np.flatnonzero(is_leader)
+        if leaders.size:
+            contact = self._contact_of_module[modules[leaders]]
+            rotation[leaders] = self._contact_rotation[contact]
+            translation[leaders] = self._contact_translation[contact]
+            # A leader standing on block B: the block's pose composed with the inverse of part 3's.
+            on_b = self._contact_block[contact] == 1
+            if on_b.any():
+                n, block_rotation, block_translation = modules[leaders[on_b]], self._contact_rotation[contact[on_b]], self._contact_translation[contact[on_b]]
                 part_inverse_rotation, part_inverse_translation = moments.inverse_pose(self.part_rotation[n, 3], self.part_translation[n, 3])
-                rotation[k] = block_rotation @ part_inverse_rotation
-                translation[k] = block_translation + block_rotation @ part_inverse_translation
-        unknown = ~(self.pose_known[modules] | self._is_leader()[modules])
+                rotation[leaders[on_b]] = block_rotation @ part_inverse_rotation
+                translation[leaders[on_b]] = block_translation + (block_rotation @ part_inverse_translation[..., None])[..., 0]
+        unknown = ~(self.pose_known[modules] | is_leader)
         rotation[unknown] = np.eye(3)
         translation[unknown] = 0.0
         return rotation, translation
@@ -384,8 +466,8 @@ class AgentNetwork:
         """(N,) the block (0: A, 1: B) on the leader's side of each module: the grounded block for a leader, the
         block of the uplink connector otherwise; -1 where no leader is known."""
         block = np.where(self.uplink >= 0, CONNECTOR_BLOCK[np.maximum(self.uplink, 0)], -1)
-        for n in np.flatnonzero(self._is_leader()):
-            block[n] = self._ground_by_module[n].block
+        leaders = np.flatnonzero(self._is_leader())
+        block[leaders] = self._contact_block[self._contact_of_module[leaders]]
         return block
 
     # ------------------------------------------------------------------------------------------------
@@ -448,7 +530,34 @@ def _exclusive_sums(estimates: np.ndarray) -> np.ndarray:
     return np.add(prefix, suffix, out=prefix)
 
 
+def _gather_rows(rows: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """``rows[k, index[k, c]]`` for (k, w) rows and (k, c) column indices, as one flat gather."""
+    return np.take(rows.reshape(-1), index + rows.shape[1] * np.arange(rows.shape[0])[:, None])
+
+
 def _part_arrays(parameters: ModuleParameters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(mass (4,), COM (4, 3), inertia about the COM (4, 3, 3)) of the module's parts, zero-angle module frame."""
     parts = parameters.part_mass_properties()
     return np.array([p.mass for p in parts]), np.array([p.com for p in parts]), np.array([p.inertia for p in parts])
+
+
+def _signed_permutation_tables(rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Gather tables for signed permutation matrices ``rotation`` (..., 3, 3) (entries exactly 0 and +-1).
+
+    Returns (index (..., 9), signs (..., 9)) with ``(A @ R).flat[f] = signs[f] * A.flat[index[f]]``, and
+    (index (..., 13), signs (..., 13)) with ``transform(R, 0, x) = signs * x[index]`` for packed moments x
+    (the second moment's lower triangle taken from its upper one, as ``transform`` does). Exact up to the
+    sign of zero (the products give +0.0 where a sign flip gives -0.0; callers add 0.0)."""
+    source_row = np.argmax(np.abs(rotation), axis=-2)  # column j of R has its entry in row source_row[j]
+    column_signs = np.take_along_axis(rotation, source_row[..., None, :], axis=-2)[..., 0, :]
+    source_column = np.argmax(np.abs(rotation), axis=-1)  # row i of R has its entry in column source_column[i]
+    row_signs = np.take_along_axis(rotation, source_column[..., :, None], axis=-1)[..., 0]
+    i, j = np.divmod(np.arange(9), 3)
+    product_index = 3 * i + source_row[..., j]
+    product_signs = column_signs[..., j]
+    low, high = np.minimum(i, j), np.maximum(i, j)
+    moment_index = np.concatenate(
+        [np.zeros(rotation.shape[:-2] + (1,), dtype=np.int64), 1 + source_column, 4 + 3 * source_column[..., low] + source_column[..., high]], axis=-1
+    )
+    moment_signs = np.concatenate([np.ones(rotation.shape[:-2] + (1,)), row_signs, row_signs[..., low] * row_signs[..., high]], axis=-1)
+    return product_index, product_signs, moment_index, moment_signs

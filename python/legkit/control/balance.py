@@ -25,6 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
+from legkit.agents import moments
 from legkit.agents.network import AgentNetwork
 from legkit.control.gains import SCHEMES, GainSchedule
 from legkit.control.pid import PID
@@ -62,73 +63,87 @@ class BalanceController:
             raise ValueError(f"schedules: must be a GainSchedule or {n} of them (one per module)")
         self.network = network
         self.schedules = schedules
-        self._scheme = np.array([SCHEMES.index(s.scheme) for s in schedules])[:, None]
+        scheme = np.array([SCHEMES.index(s.scheme) for s in schedules])[:, None]
+        self._distance_scheme, self._momentum_scheme = scheme == 1, scheme == 2
         self._c = np.array([[s.c0, s.c1] for s in schedules])
         self._k0 = np.array([[s.kp0, s.ki0, s.kd0] for s in schedules])
         self.pid = PID((n, 3))
         parameters = network.parameters
         self.limit = parameters.joint_limit
         self.width = parameters.width
-        self._joint_points = np.outer(JOINT_Z, [0.0, 0.0, parameters.width])
+        # Joint k's point and axis in the zero-angle module frame, (3 joints, 2, 3): both fixed in part k + 1.
+        self._joint_point_axis = np.stack([np.outer(JOINT_Z, [0.0, 0.0, parameters.width]), JOINT_AXES], axis=1)
 
     def decide(self) -> JointDecisions:
         """Every joint's rotation toward the support line and its target (see the module docstring)."""
         net = self.network
         n = net.n_modules
-        estimates = net.current_connector_estimates()  # (N, 6, 13), module frames
-        parts = net.part_moments  # (N, 4, 13)
-        side_a_connectors = estimates[:, :3].sum(axis=1)
-        side_b_connectors = estimates[:, 3:].sum(axis=1)
-        # Joint k separates parts 0..k (A side) from parts k+1..3 (B side).
-        side_a = np.cumsum(parts, axis=1)[:, :3] + side_a_connectors[:, None]
-        side_b = np.cumsum(parts[:, ::-1], axis=1)[:, ::-1][:, 1:] + side_b_connectors[:, None]
-        total = net.own + side_a_connectors + side_b_connectors
+        # Only masses and first moments are needed: the moving parts' masses and COMs.
+        estimates = net.current_connector_estimates()[..., :4]  # (N, 6, 4), module frames
+        parts = net.part_moments[..., :4]  # (N, 4, 4)
+        side_a_connectors = estimates[:, 0] + estimates[:, 1] + estimates[:, 2]
+        side_a_connectors += 0.0  # sums from +0, as numpy's reduction does
+        side_b_connectors = estimates[:, 3] + estimates[:, 4] + estimates[:, 5]
+        side_b_connectors += 0.0
+        # Joint k separates parts 0..k (A side) from parts k+1..3 (B side); the fixed side holds the ground.
         fixed = net.fixed_block()
-        moving = np.where((fixed == 1)[:, None, None], side_a, side_b)
+        moving = np.empty((n, 3, 4))
+        moving[:, 0] = parts[:, 3] + parts[:, 2] + parts[:, 1]
+        moving[:, 1] = parts[:, 3] + parts[:, 2]
+        moving[:, 2] = parts[:, 3]
+        moving += side_b_connectors[:, None]
+        fixed_b = np.flatnonzero(fixed == 1)
+        side_a = np.empty((fixed_b.size, 3, 4))
+        side_a[:, 0] = parts[fixed_b, 0]
+        side_a[:, 1] = side_a[:, 0] + parts[fixed_b, 1]
+        side_a[:, 2] = side_a[:, 1] + parts[fixed_b, 2]
+        moving[fixed_b] = side_a + side_a_connectors[fixed_b, None]
+        total = net.own[:, :4] + side_a_connectors + side_b_connectors
         sign = np.where(fixed == 1, -1.0, 1.0)[:, None]
 
-        rotation, translation = net.world_poses()
-        # Joint k's point and axis move with part k + 1 (they are fixed on both of its sides).
-        part_rotation, part_translation = net.part_rotation[:, 1:], net.part_translation[:, 1:]
-        axis_point = part_translation + np.einsum("nkij,kj->nki", part_rotation, self._joint_points)
-        axis_direction = np.einsum("nkij,kj->nki", part_rotation, JOINT_AXES)
-        axis_point = translation[:, None] + np.einsum("nij,nkj->nki", rotation, axis_point)
-        axis_direction = np.einsum("nij,nkj->nki", rotation, axis_direction)
-        # Only masses and COMs are needed here: c_world = R c + t.
+        # Module-frame points and directions, then all turned into the world at once (c_world = R c + t):
+        # joint k's point and axis move with part k + 1 (they are fixed on both of its sides).
         m2 = moving[..., 0]
-        p2 = translation[:, None] + np.einsum("nij,nkj->nki", rotation, moving[..., 1:4] / m2[..., None])
-        total_mass = total[:, :1]
-        com = np.repeat((translation + np.einsum("nij,nj->ni", rotation, total[:, 1:4] / total_mass))[:, None], 3, axis=1)
-        pivot = com - (m2 / total_mass)[..., None] * (p2 - axis_point)
-        line_point = np.broadcast_to(net.line[:, None, :3], (n, 3, 3))
-        line_direction = np.broadcast_to(net.line[:, None, 3:], (n, 3, 3))
-        known = (fixed >= 0)[:, None] & np.ones((1, 3), dtype=bool)
+        local = np.empty((n, 10, 3))
+        joint_point_axis = moments.rotate(net.part_rotation[:, 1:, None], self._joint_point_axis)
+        np.add(net.part_translation[:, 1:], joint_point_axis[:, :, 0], out=local[:, 0:3])
+        local[:, 3:6] = joint_point_axis[:, :, 1]
+        np.divide(moving[..., 1:4], m2[..., None], out=local[:, 6:9])
+        np.divide(total[:, 1:4], total[:, :1], out=local[:, 9])
+        rotation, translation = net.world_poses()
+        world = moments.rotate(rotation[:, None], local)
+        world[:, [0, 1, 2, 6, 7, 8, 9]] += translation[:, None]
+        axis_point, axis_direction, p2, com = world[:, 0:3], world[:, 3:6], world[:, 6:9], world[:, 9]
+        pivot = com[:, None] - (m2 / total[:, :1])[..., None] * (p2 - axis_point)
+        known = fixed >= 0
+        rows = np.flatnonzero(known)
+        if rows.size == n:
+            rows = slice(None)  # every joint: no copies
         theta = np.zeros((n, 3))
         distance = np.zeros((n, 3))
-        if known.any():
-            theta[known], distance[known] = rotation_toward_line(
-                pivot[known], axis_direction[known], com[known], line_point[known], line_direction[known]
+        if np.any(known):
+            theta[rows], distance[rows] = rotation_toward_line(
+                pivot[rows], axis_direction[rows], com[rows, None], net.line[rows, None, :3], net.line[rows, None, 3:]
             )
-        offset = com[:, 0] - net.line[:, :3]
+        offset = com - net.line[:, :3]
         direction = net.line[:, 3:]
         support_distance = np.linalg.norm(offset - np.sum(offset * direction, axis=-1, keepdims=True) * direction, axis=-1)
         target = np.clip(net.angles + sign * theta, -self.limit, self.limit)
-        target = np.where(known, target, net.angles)
-        mass_moment = np.linalg.norm(m2[..., None] * np.cross(axis_direction, p2 - axis_point), axis=-1)
-        support_distance = np.where(fixed >= 0, support_distance, 0.0)
-        return JointDecisions(theta, target, distance, np.broadcast_to(support_distance[:, None], (n, 3)), np.where(known, mass_moment, 0.0))
+        target = np.where(known[:, None], target, net.angles)
+        lever = p2 - axis_point
+        cross = axis_direction[..., [1, 2, 0]] * lever[..., [2, 0, 1]] - axis_direction[..., [2, 0, 1]] * lever[..., [1, 2, 0]]
+        mass_moment = np.linalg.norm(m2[..., None] * cross, axis=-1)
+        support_distance = np.where(known, support_distance, 0.0)
+        return JointDecisions(theta, target, distance, np.broadcast_to(support_distance[:, None], (n, 3)), np.where(known[:, None], mass_moment, 0.0))
 
     def gain_factors(self, decisions: JointDecisions) -> np.ndarray:
         """(N, 3) gain factors from each module's schedule: constant c0, distance c0 + c1 d / width,
         momentum c0 + c1 |m2 u x (p2 - q)|."""
-        variable = np.select(
-            [self._scheme == 1, self._scheme == 2], [decisions.support_distance / self.width, decisions.mass_moment], 0.0
-        )
+        variable = np.where(self._distance_scheme, decisions.support_distance / self.width, np.where(self._momentum_scheme, decisions.mass_moment, 0.0))
         return self._c[:, :1] + self._c[:, 1:] * variable
 
     def torques(self, dt: float) -> tuple[np.ndarray, JointDecisions]:
         """Joint torques (N, 3) N m for the agents' current state, after a control period ``dt`` s, and the decisions."""
         decisions = self.decide()
         factor = self.gain_factors(decisions)
-        kp, ki, kd = (factor * self._k0[:, i : i + 1] for i in range(3))
-        return self.pid(decisions.target - self.network.angles, dt, kp, ki, kd), decisions
+        return self.pid(decisions.target - self.network.angles, dt, factor * self._k0[:, 0:1], factor * self._k0[:, 1:2], factor * self._k0[:, 2:3]), decisions

@@ -128,19 +128,36 @@ def module_kinematics(angles: np.ndarray, parameters: ModuleParameters) -> tuple
     """Poses of the four parts in the module frame for joint angles ``angles`` (..., 3) in radians.
 
     Returns (rotations (..., 4, 3, 3), translations (..., 4, 3)): part j's points map as x_module = R x + t,
-    where x is the point's position in the module frame at zero angles."""
+    where x is the point's position in the module frame at zero angles. Part k + 1 is part k turned by joint
+    k about its point p_k (zero-angle coordinates): x -> R_k (J_k (x - p_k) + p_k) + t_k."""
     angles = np.asarray(angles, dtype=float)
-    points = parameters.joint_points
-    rotations = [np.broadcast_to(np.eye(3), angles.shape[:-1] + (3, 3))]
-    translations = [np.zeros(angles.shape[:-1] + (3,))]
-    joint_rotations = (rot_x(angles[..., 0]), rot_z(angles[..., 1]), rot_x(angles[..., 2]))
-    for k in range(3):
-        # Rotation about the point p_k (zero-angle coordinates): x -> R_prev (J (x - p) + p) + t_prev.
-        rotation = rotations[-1] @ joint_rotations[k]
-        translation = translations[-1] + np.einsum("...ij,...j->...i", rotations[-1] - rotation, points[k])
-        rotations.append(rotation)
-        translations.append(translation)
-    return np.stack(rotations, axis=-3), np.stack(translations, axis=-2)
+    batch = angles.shape[:-1]
+    cos, sin = np.cos(angles.reshape(-1, 3)).T, np.sin(angles.reshape(-1, 3)).T
+    count = cos.shape[1]
+    rotations = np.zeros((count, 4, 3, 3))
+    rotations[:, 0] = np.eye(3)
+    # Rx(phi_1), and Rx(phi_1) Rz(phi_2) written out: every entry is a single product (+0.0 turns the -0.0
+    # of a zero angle into +0.0, as the matrix product did).
+    first = rotations[:, 1]
+    first[:, 0, 0] = 1.0
+    first[:, 1, 1], first[:, 1, 2], first[:, 2, 1], first[:, 2, 2] = cos[0], -sin[0], sin[0], cos[0]
+    second = rotations[:, 2]
+    second[:, 0, 0], second[:, 0, 1] = cos[1], -sin[1]
+    second[:, 1, 0], second[:, 1, 1], second[:, 1, 2] = cos[0] * sin[1], cos[0] * cos[1], -sin[0]
+    second[:, 2, 0], second[:, 2, 1], second[:, 2, 2] = sin[0] * sin[1], sin[0] * cos[1], cos[0]
+    rotations[:, 1:3] += 0.0
+    third_joint = np.zeros((count, 3, 3))
+    third_joint[:, 0, 0] = 1.0
+    third_joint[:, 1, 1], third_joint[:, 1, 2], third_joint[:, 2, 1], third_joint[:, 2, 2] = cos[2], -sin[2], sin[2], cos[2]
+    rotations[:, 3] = second @ third_joint
+    # t_{k+1} = t_k + (R_k - R_{k+1}) p_k summed from t_0 = 0; the joint points lie on the z axis, so each
+    # term is a difference of third columns times p_k's z (+0.0: the sums start from +0).
+    third_columns = rotations[:, :, :, 2]
+    steps = (third_columns[:, :3] - third_columns[:, 1:]) * parameters.joint_points[:, 2, None]
+    translations = np.zeros((count, 4, 3))
+    np.cumsum(steps, axis=1, out=translations[:, 1:])
+    translations += 0.0
+    return rotations.reshape(batch + (4, 3, 3)), translations.reshape(batch + (4, 3))
 
 
 @dataclass(frozen=True)

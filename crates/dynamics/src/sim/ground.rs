@@ -3,6 +3,7 @@
 use nalgebra::DMatrix;
 use rapier3d_f64::math::{Pose, Rotation, Vector};
 use rapier3d_f64::prelude::{ColliderBuilder, SharedShape};
+use rapier3d_f64::parry::shape::HeightFieldFlags;
 use rapier3d_f64::parry::utils::Array2;
 
 use crate::validate::finite;
@@ -68,7 +69,8 @@ impl Ground {
                 let scale = Vector::new((ny - 1) as f64 * cell_size, 1.0, (nx - 1) as f64 * cell_size);
                 let samples = Array2::new(nx, ny, heights.as_slice().to_vec());
                 let rotation = Rotation::from_mat3(&rapier3d_f64::math::Matrix::from_cols(Vector::Y, Vector::Z, Vector::X));
-                (SharedShape::heightfield(samples, scale), Pose::from_parts(Vector::ZERO, rotation))
+                // Internal edges fixed: a body sliding over the triangles' shared edges meets no ghost contact.
+                (SharedShape::heightfield_with_flags(samples, scale, HeightFieldFlags::FIX_INTERNAL_EDGES), Pose::from_parts(Vector::ZERO, rotation))
             }
         }
     }

@@ -31,6 +31,9 @@ use actuation::{effort_bounds, Actuation};
 /// A state beyond this (a speed in m/s or rad/s, a base or slider position in m) has diverged: no robot
 /// gets there, and a physics engine fed such numbers may never return.
 pub const DIVERGENCE_BOUND: f64 = 1e6;
+/// An actuation beyond this (N m or N) is a units error, whatever the state does with it (Rapier drops
+/// forces whose impulses overflow and carries on).
+pub const ACTUATION_BOUND: f64 = 1e12;
 
 /// One contact point, seen from `body`.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,6 +66,8 @@ pub(crate) trait Engine: Send + Sync {
     fn contacts(&self) -> Vec<Contact>;
     /// Penetration the engine lets stand without correcting it (m).
     fn contact_tolerance(&self) -> f64;
+    /// Contact-solver sweeps of the last (sub)step, where the engine stops on convergence.
+    fn solver_sweeps(&self) -> Option<usize>;
 }
 
 pub struct Simulation {
@@ -156,6 +161,11 @@ impl Simulation {
         self.engine.contact_tolerance()
     }
 
+    /// Contact-solver sweeps of the last (sub)step (tree engine; None on Rapier, which runs a fixed number).
+    pub fn solver_sweeps(&self) -> Option<usize> {
+        self.engine.solver_sweeps()
+    }
+
     /// Moves the robot to (q, v) without touching time, servos or the contact history. Both are checked
     /// (length, finite, unit base quaternion) before anything changes.
     pub fn set_state(&mut self, q: Option<&[f64]>, v: Option<&[f64]>) -> Result<()> {
@@ -205,7 +215,7 @@ impl Simulation {
             self.v_next.copy_from_slice(&self.v);
             let actuation = Actuation { servo: &self.servo, effort: &self.effort, tau_ff: &self.tau_ff };
             let outcome = self.engine.step(&self.model, &actuation, &mut self.q_next, &mut self.v_next, &mut self.applied);
-            let outcome = outcome.and_then(|()| divergence(&self.model, &self.q_next, &self.v_next, self.steps + 1, self.options.dt));
+            let outcome = outcome.and_then(|()| divergence(&self.model, &self.q_next, &self.v_next, &self.applied, self.steps + 1, self.options.dt));
             if let Err(error) = outcome {
                 self.engine.write_state(&self.model, &self.q, &self.v);
                 return Err(error);
@@ -229,11 +239,13 @@ impl Simulation {
 }
 
 /// `Error::Numerical` naming `step` and the first body whose coordinates are non-finite or beyond
-/// `DIVERGENCE_BOUND` (speeds; the base's position and prismatic joints' coordinates).
-fn divergence(model: &Model, q: &[f64], v: &[f64], step: u64, dt: f64) -> Result<()> {
+/// `DIVERGENCE_BOUND` (speeds; the base's position and prismatic joints' coordinates), or whose actuation
+/// is beyond `ACTUATION_BOUND`.
+fn divergence(model: &Model, q: &[f64], v: &[f64], applied: &[f64], step: u64, dt: f64) -> Result<()> {
     for i in 0..model.nbodies() {
         let (kq, kv, joint) = (model.idx_q(i), model.idx_v(i), model.joint(i));
         let speeds = &v[kv..kv + joint.nv()];
+        let actuation = &applied[kv..kv + joint.nv()];
         let coordinates = &q[kq..kq + joint.nq()];
         let positions = match joint {
             Joint::FreeFlyer => &coordinates[..3],
@@ -247,6 +259,8 @@ fn divergence(model: &Model, q: &[f64], v: &[f64], step: u64, dt: f64) -> Result
             "its speed exceeds 1e6"
         } else if positions.iter().any(exploded) {
             "its position exceeds 1e6 m"
+        } else if actuation.iter().any(|x| !(x.abs() <= ACTUATION_BOUND)) {
+            "its actuation exceeds 1e12 (N m or N)"
         } else {
             continue;
         };

@@ -16,7 +16,7 @@ use super::ground::Ground;
 /// Edges of default boxes are at least this long (m), so point masses and thin rods still collide.
 pub const MIN_DEFAULT_EDGE: f64 = 1e-3;
 /// Contact-solver sweeps per step of the tree engine unless asked otherwise.
-pub const DEFAULT_SOLVER_ITERATIONS: usize = 100;
+pub const DEFAULT_SOLVER_ITERATIONS: usize = 20;
 /// Friction coefficient of body-body contacts when there is no ground to take it from.
 pub const DEFAULT_FRICTION: f64 = 0.8;
 

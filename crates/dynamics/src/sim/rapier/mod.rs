@@ -91,6 +91,10 @@ impl Engine for RapierSimulation {
     fn contact_tolerance(&self) -> f64 {
         self.world.integration_parameters.allowed_linear_error()
     }
+
+    fn solver_sweeps(&self) -> Option<usize> {
+        None
+    }
 }
 
 impl RapierSimulation {

@@ -1,18 +1,21 @@
-//! Contact detection for the tree engine, on parry: every collider against the ground (plane or
-//! heightfield) and, with self-collision, against the colliders of other bodies (never its parent's, nor
-//! those merged with it by fixed joints). Each pair keeps its contact manifolds from step to step, so parry
-//! matches a new contact point to the last step's by the shapes' features and hands over its impulses
-//! (the solver's warm start).
+//! Contact detection for the tree engine: every collider against the ground and, with self-collision,
+//! against the colliders of other bodies (never its parent's, nor those merged with it by fixed joints).
+//! The ground plane is met in closed form (`plane`); a heightfield and body pairs go through parry, each
+//! pair keeping its contact manifolds from step to step. Either way a contact point is matched to the
+//! last step's by the shapes' features and inherits its impulses (the solver's warm start).
 
 use rapier3d_f64::math::Pose;
 use rapier3d_f64::parry::bounding_volume::{Aabb, BoundingVolume};
 use rapier3d_f64::parry::query::{ContactManifold, ContactManifoldsWorkspace, DefaultQueryDispatcher, PersistentQueryDispatcher};
 use rapier3d_f64::prelude::SharedShape;
 
-use crate::model::{Joint, Model};
-use crate::sim::options::{from_vector, to_pose, Options, Shape};
-use crate::spatial::Transform;
 use nalgebra::Vector3;
+
+use super::plane::{plane_points, MAX_FEATURES};
+use crate::model::{Joint, Model};
+use crate::sim::options::{from_vector, to_pose, Options, Shape, ShapeKind};
+use crate::sim::Ground;
+use crate::spatial::Transform;
 
 /// Contacts are tracked from this distance apart (m), so an approaching body is slowed before it touches.
 pub(super) const PREDICTION: f64 = 1e-3;
@@ -24,9 +27,21 @@ struct Collider {
     body: usize,
     /// The nearest body at or above `body` whose joint moves (bodies on fixed joints move with it).
     carrier: usize,
-    shape: SharedShape,
+    kind: ShapeKind,
     /// Shape frame in the body frame.
     local: Transform,
+    shape: SharedShape,
+    /// Parry's shape frame in the body frame (parry's cylinder runs along y).
+    parry_local: Transform,
+}
+
+/// Where a contact point lives, to hand its impulses back.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Source {
+    /// Feature `1` of collider `0` on the ground plane.
+    Plane(u32, u32),
+    /// Point `2` of manifold `1` of pair `0` (pairs below the number of colliders are heightfield pairs).
+    Manifold(u32, u32, u32),
 }
 
 #[derive(Default)]
@@ -45,14 +60,16 @@ pub(super) struct Found {
     /// Signed distance (m): negative when the shapes overlap.
     pub distance: f64,
     pub warm: Warm,
-    /// Where the point lives, to hand its impulses back: (pair, manifold, point); pairs below the number
-    /// of colliders are ground pairs.
-    pub source: (u32, u32, u32),
+    pub source: Source,
 }
 
 pub(super) struct Collision {
     colliders: Vec<Collider>,
-    ground: Option<(SharedShape, Pose)>,
+    /// The ground as a parry shape; None for the plane (closed form) or no ground.
+    heightfield: Option<(SharedShape, Pose)>,
+    plane: bool,
+    /// Impulses of each collider's features on the plane, from the last step.
+    plane_warm: Vec<[Warm; MAX_FEATURES]>,
     ground_pairs: Vec<Pair>,
     self_collision: bool,
     /// Overlapping collider pairs (a < b) of the last step, sorted, with their manifolds.
@@ -79,11 +96,13 @@ impl Collision {
             let Some(shape) = shape else { continue };
             let (shared, correction) = shape.shared_shape();
             let in_body = shape.placement.unwrap_or_else(|| Transform::from_translation(model.body(i).com()));
-            colliders.push(Collider { body: i, carrier: carrier[i], shape: shared, local: in_body.compose(&correction) });
+            colliders.push(Collider { body: i, carrier: carrier[i], kind: shape.kind, local: in_body, shape: shared, parry_local: in_body.compose(&correction) });
         }
         let n = colliders.len();
         Collision {
-            ground: options.ground.as_ref().map(|g| g.shape()),
+            heightfield: options.ground.as_ref().filter(|g| matches!(g, Ground::Heightfield { .. })).map(|g| g.shape()),
+            plane: matches!(options.ground, Some(Ground::Plane { .. })),
+            plane_warm: vec![[[0.0; 4]; MAX_FEATURES]; n],
             ground_pairs: (0..n).map(|_| Pair::default()).collect(),
             colliders,
             self_collision: options.self_collision,
@@ -99,28 +118,50 @@ impl Collision {
     /// Forgets every contact (no warm start for what follows).
     pub(super) fn clear(&mut self) {
         self.ground_pairs.iter_mut().for_each(|p| *p = Pair::default());
+        self.plane_warm.iter_mut().for_each(|w| *w = [[0.0; 4]; MAX_FEATURES]);
         self.self_pairs.clear();
     }
 
     /// Finds the contacts of bodies at world poses `poses`, appending them to `out`.
     pub(super) fn detect(&mut self, model: &Model, poses: &[Transform], out: &mut Vec<Found>) {
-        for (pose, c) in self.poses.iter_mut().zip(&self.colliders) {
-            *pose = to_pose(&poses[c.body].compose(&c.local));
-        }
-        if let Some((ground, ground_pose)) = &self.ground {
-            for (index, (c, pair)) in self.colliders.iter().zip(self.ground_pairs.iter_mut()).enumerate() {
-                let pose = &self.poses[index];
-                // The plane: skip shapes whose lowest point is clear of it (most of a robot, most steps).
-                if ground.as_halfspace().is_some() && c.shape.compute_aabb(pose).mins.z > PREDICTION {
-                    pair.manifolds.clear();
-                    continue;
+        if self.plane {
+            for (index, c) in self.colliders.iter().enumerate() {
+                let pose = poses[c.body].compose(&c.local);
+                let warm = &mut self.plane_warm[index];
+                let mut touching = [false; MAX_FEATURES];
+                plane_points(&c.kind, &pose, PREDICTION, |p| {
+                    touching[p.feature] = true;
+                    out.push(Found {
+                        body: c.body,
+                        other: None,
+                        point: Vector3::new(p.surface.x, p.surface.y, 0.5 * p.height),
+                        normal: Vector3::z(),
+                        distance: p.height,
+                        warm: warm[p.feature],
+                        source: Source::Plane(index as u32, p.feature as u32),
+                    });
+                });
+                for (w, t) in warm.iter_mut().zip(touching) {
+                    if !t {
+                        *w = [0.0; 4];
+                    }
                 }
-                let pos12 = ground_pose.inv_mul(pose);
+            }
+        }
+        if !(self.self_collision || self.heightfield.is_some()) {
+            return;
+        }
+        for (pose, c) in self.poses.iter_mut().zip(&self.colliders) {
+            *pose = to_pose(&poses[c.body].compose(&c.parry_local));
+        }
+        if let Some((ground, ground_pose)) = &self.heightfield {
+            for (index, (c, pair)) in self.colliders.iter().zip(self.ground_pairs.iter_mut()).enumerate() {
+                let pos12 = ground_pose.inv_mul(&self.poses[index]);
                 let found = self.dispatcher.contact_manifolds(&pos12, ground.as_ref(), c.shape.as_ref(), PREDICTION, &mut pair.manifolds, &mut pair.workspace);
                 if found.is_err() {
                     pair.manifolds.clear();
                 }
-                collect(pair, ground_pose, pose, c.body, None, index as u32, out);
+                collect(pair, ground_pose, &self.poses[index], c.body, None, index as u32, out);
             }
         }
         if self.self_collision {
@@ -178,13 +219,17 @@ impl Collision {
     }
 
     /// Stores the impulses of the contact at `source` for the next step's warm start.
-    pub(super) fn store(&mut self, source: (u32, u32, u32), warm: Warm) {
-        let (pair, manifold, point) = (source.0 as usize, source.1 as usize, source.2 as usize);
-        let pair = match self.ground_pairs.get_mut(pair) {
-            Some(p) => p,
-            None => &mut self.self_pairs[pair - self.colliders.len()].2,
-        };
-        pair.manifolds[manifold].points[point].data = warm;
+    pub(super) fn store(&mut self, source: Source, warm: Warm) {
+        match source {
+            Source::Plane(collider, feature) => self.plane_warm[collider as usize][feature as usize] = warm,
+            Source::Manifold(pair, manifold, point) => {
+                let pair = match self.ground_pairs.get_mut(pair as usize) {
+                    Some(p) => p,
+                    None => &mut self.self_pairs[pair as usize - self.colliders.len()].2,
+                };
+                pair.manifolds[manifold as usize].points[point as usize].data = warm;
+            }
+        }
     }
 }
 
@@ -208,7 +253,7 @@ fn collect(pair: &Pair, pose1: &Pose, pose2: &Pose, body: usize, other: Option<u
                 normal,
                 distance: point.dist,
                 warm: point.data,
-                source: (index, m as u32, p as u32),
+                source: Source::Manifold(index, m as u32, p as u32),
             });
         }
     }

@@ -7,18 +7,21 @@
 //! The solver works with u = D^½ L v, in which a constraint row J becomes Y = D^-½ L⁻ᵀ Jᵀ, so that
 //! J v = Yᵀ u and J M̃⁻¹ Jᵀ = Yᵀ Y. L⁻ᵀ Jᵀ for a force on one body is the ABA backward pass of that force
 //! alone: nonzero only on the body's ancestor joints, O(depth) to build, and the Delassus matrix is never
-//! formed. Everything is in the world's axes about the base origin, as `aba` leaves it in `Data`.
+//! formed. Every contact on a body shares its six columns Φ (one per unit spatial force), so the solver
+//! keeps Φ per body rather than per contact row. Everything is in the world's axes about the base
+//! origin, as `aba` leaves it in `Data`.
 
 use nalgebra::{Cholesky, Matrix6, Vector6};
 
 use crate::model::{Data, Joint, Model};
 use crate::spatial::{dot6, Force, Motion};
 
-/// One nonzero of up to three rows sharing a sparsity pattern (a contact's normal and two tangents).
+/// One nonzero row of Φ = D^-½ L⁻ᵀ Jᵀ for a body's six unit spatial forces (its columns): Yᵀ u for any
+/// force f on the body is fᵀ (Φᵀ u), and Φᵀ u is the body's spatial velocity.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Entry {
     pub index: u32,
-    pub value: [f64; 3],
+    pub value: [f64; 6],
 }
 
 pub(super) struct Factor {
@@ -89,24 +92,12 @@ impl Factor {
         }
     }
 
-    /// Appends the rows Y = D^-½ L⁻ᵀ Jᵀ of up to three spatial forces (world axes about the base origin)
-    /// acting on body `a` and, opposite, on body `b`: the backward pass of each force up both chains,
-    /// merged where they meet. `start` is an extra unit generalized force on body `a`'s own coordinate
-    /// (a joint-limit row) instead of a force.
-    pub(super) fn push_rows(&self, model: &Model, data: &Data, a: usize, b: Option<usize>, forces: [Force; 3], start: Option<f64>, out: &mut Vec<Entry>) {
-        let mut pa = forces;
-        let mut pb = forces.map(|f| -f);
+    /// Appends Φ for the six unit spatial forces (world axes about the base origin) acting on body `a`
+    /// and, opposite, on body `b`: the backward pass of each force up both chains, merged where they meet.
+    pub(super) fn push_chain(&self, model: &Model, data: &Data, a: usize, b: Option<usize>, out: &mut Vec<Entry>) {
+        let mut pa: [Force; 6] = std::array::from_fn(|j| Force::from_fn(|r, _| if r == j { 1.0 } else { 0.0 }));
+        let mut pb = pa.map(|f| -f);
         let (mut a, mut b) = (a, b);
-        if let Some(sign) = start {
-            let k = model.idx_v(a);
-            let y = sign;
-            out.push(Entry { index: k as u32, value: [y * self.sqrt_d_inv[k], 0.0, 0.0] });
-            pa[0] = -data.u[a] * (y * data.d_inv[a]);
-            if a == 0 {
-                return;
-            }
-            a = model.parent(a);
-        }
         // Walk the deeper chain up until the two meet (parents have lower indices), then carry their sum.
         loop {
             match b {
@@ -131,14 +122,31 @@ impl Factor {
         }
     }
 
+    /// Appends the one column of Φ for a unit generalized force on the coordinate of body `i`'s joint (a
+    /// joint-limit row), in the entries' first slot.
+    pub(super) fn push_coordinate(&self, model: &Model, data: &Data, i: usize, out: &mut Vec<Entry>) {
+        let k = model.idx_v(i);
+        out.push(Entry { index: k as u32, value: [self.sqrt_d_inv[k], 0.0, 0.0, 0.0, 0.0, 0.0] });
+        let mut forces = [Force::zeros(); 6];
+        forces[0] = -data.u[i] * data.d_inv[i];
+        let mut j = model.parent(i);
+        loop {
+            self.eliminate(model, data, j, &mut forces, out);
+            if j == 0 {
+                return;
+            }
+            j = model.parent(j);
+        }
+    }
+
     /// One joint of the backward pass: y_k = S_kᵀ P (the rows' entries, scaled by D^-½), then the parent
     /// receives P − U_k D_k⁻¹ y_k (eq. 7.42 with only external forces).
     #[inline(always)]
-    fn eliminate(&self, model: &Model, data: &Data, i: usize, forces: &mut [Force; 3], out: &mut Vec<Entry>) {
+    fn eliminate(&self, model: &Model, data: &Data, i: usize, forces: &mut [Force; 6], out: &mut Vec<Entry>) {
         let k = model.idx_v(i);
         match model.joint(i) {
             Joint::Revolute(_) | Joint::Prismatic(_) => {
-                let mut value = [0.0; 3];
+                let mut value = [0.0; 6];
                 for (r, f) in forces.iter_mut().enumerate() {
                     let y = dot6(&data.s[i], f.as_slice());
                     value[r] = y * self.sqrt_d_inv[k];
@@ -149,9 +157,9 @@ impl Factor {
             Joint::FreeFlyer => {
                 // The base's six coordinates in world axes: y_0 = P, Y_0 = C⁻¹ P.
                 let c = self.base.as_ref().expect("floating base factor");
-                let columns: [Vector6<f64>; 3] = forces.map(|f| c.solve_lower_triangular(&f).expect("positive diagonal"));
+                let columns: [Vector6<f64>; 6] = forces.map(|f| c.solve_lower_triangular(&f).expect("positive diagonal"));
                 for j in 0..6 {
-                    out.push(Entry { index: (k + j) as u32, value: [columns[0][j], columns[1][j], columns[2][j]] });
+                    out.push(Entry { index: (k + j) as u32, value: std::array::from_fn(|r| columns[r][j]) });
                 }
             }
             Joint::Fixed => {}

@@ -19,9 +19,10 @@
 
 mod collision;
 mod factor;
+mod plane;
 mod solver;
 
-use nalgebra::Vector3;
+use nalgebra::{Vector3, Vector6};
 
 use super::actuation::{dof_coordinates, Actuation};
 use super::options::{Options, DEFAULT_FRICTION};
@@ -32,7 +33,7 @@ use crate::spatial::{spatial, Transform};
 use crate::{Error, Result};
 use collision::{Collision, Found};
 use factor::{Entry, Factor};
-use solver::{Constraint, Kind, BAUMGARTE, TOLERANCE};
+use solver::{Constraint, Group, Kind, BAUMGARTE, MAX_CORRECTION, TOLERANCE};
 
 /// Joint limits are watched from this far off (rad or m), beyond the step's own travel.
 const LIMIT_MARGIN: f64 = 1e-3;
@@ -53,7 +54,12 @@ pub(crate) struct TreeSimulation {
     /// For each limit constraint of this step: (velocity coordinate, 0 for lower or 1 for upper).
     limit_rows: Vec<(usize, usize)>,
     entries: Vec<Entry>,
+    groups: Vec<Group>,
     constraints: Vec<Constraint>,
+    /// The nearest body at or above each body whose joint moves: bodies with one carrier share a chain.
+    carrier: Vec<usize>,
+    /// Sweeps of the contact solver in the last substep.
+    sweeps: usize,
     poses: Vec<Transform>,
     q_dof: Vec<f64>,
     tau: Vec<f64>,
@@ -62,6 +68,8 @@ pub(crate) struct TreeSimulation {
     saturated: Vec<bool>,
     v_free: Vec<f64>,
     u: Vec<f64>,
+    u_free: Vec<f64>,
+    u_before: Vec<f64>,
     q_start: Vec<f64>,
     contacts: Vec<Contact>,
 }
@@ -85,7 +93,10 @@ impl TreeSimulation {
             found: Vec::new(),
             limit_rows: Vec::new(),
             entries: Vec::new(),
+            groups: Vec::new(),
             constraints: Vec::new(),
+            carrier: carriers(model),
+            sweeps: 0,
             poses: vec![Transform::identity(); model.nbodies()],
             q_dof: vec![0.0; nv],
             tau: vec![0.0; nv],
@@ -94,6 +105,8 @@ impl TreeSimulation {
             saturated: vec![false; nv],
             v_free: vec![0.0; nv],
             u: vec![0.0; nv],
+            u_free: vec![0.0; nv],
+            u_before: vec![0.0; nv],
             q_start: vec![0.0; model.nq()],
             contacts: Vec::new(),
         }
@@ -119,35 +132,53 @@ impl TreeSimulation {
         }
     }
 
-    /// Step 3: the constraints of this step, rows in `entries`.
+    /// Step 3: the constraints of this step, grouped by the bodies they act on (consecutive contacts on
+    /// bodies with the same carriers share one group).
     fn constrain(&mut self, model: &Model, q: &[f64]) {
         let h = self.h;
         let origin = base_origin(model, q);
         self.entries.clear();
+        self.groups.clear();
         self.constraints.clear();
-        for f in &self.found {
-            let (t1, t2) = tangents(&f.normal);
-            let r = f.point - origin;
-            let forces = [f.normal, t1, t2].map(|d| spatial(d, r.cross(&d)));
-            let start = self.entries.len();
-            self.factor.push_rows(model, &self.data, f.body, f.other, forces, None, &mut self.entries);
-            let bias = if f.distance > 0.0 { -f.distance / h } else { BAUMGARTE * (-f.distance - TOLERANCE).max(0.0) / h };
-            let warm_t = Vector3::new(f.warm[1], f.warm[2], f.warm[3]);
-            let warm = [f.warm[0], warm_t.dot(&t1), warm_t.dot(&t2)];
-            self.constraints.push(Constraint::new(Kind::Contact { mu: self.friction }, start..self.entries.len(), bias, warm, &self.entries));
+        let key = |f: &Found| (self.carrier[f.body], f.other.map(|o| self.carrier[o]));
+        let mut start = 0;
+        while start < self.found.len() {
+            let group_key = key(&self.found[start]);
+            let end = start + self.found[start..].iter().take_while(|f| key(f) == group_key).count();
+            let first = self.entries.len();
+            self.factor.push_chain(model, &self.data, self.found[start].body, self.found[start].other, &mut self.entries);
+            let mut group = Group::new(first..self.entries.len(), &self.entries);
+            let from = self.constraints.len();
+            for f in &self.found[start..end] {
+                let (t1, t2) = tangents(&f.normal);
+                let r = f.point - origin;
+                let rows = [f.normal, t1, t2].map(|d| spatial(d, r.cross(&d)));
+                let bias = if f.distance > 0.0 { -f.distance / h } else { (BAUMGARTE * (-f.distance - 0.5 * TOLERANCE).max(0.0) / h).min(MAX_CORRECTION) };
+                let warm_t = Vector3::new(f.warm[1], f.warm[2], f.warm[3]);
+                let warm = [f.warm[0], warm_t.dot(&t1), warm_t.dot(&t2)];
+                self.constraints.push(group.constraint(Kind::Contact { mu: self.friction }, rows, bias, warm));
+            }
+            group.constraints = from..self.constraints.len();
+            self.groups.push(group);
+            start = end;
         }
         self.limit_rows.clear();
+        let unit = Vector6::new(1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         for &(body, k, kq, lower, upper) in &self.limited {
             let travel = h * self.v_free[k];
             for (side, gap, sign) in [(0, q[kq] - lower, 1.0), (1, upper - q[kq], -1.0)] {
                 if gap >= LIMIT_MARGIN + (-sign * travel).max(0.0) {
                     continue;
                 }
-                let start = self.entries.len();
-                self.factor.push_rows(model, &self.data, body, None, [Vector3::zeros(); 3].map(|z| spatial(z, z)), Some(sign), &mut self.entries);
-                let bias = if gap > 0.0 { -gap / h } else { -BAUMGARTE * gap / h };
+                let first = self.entries.len();
+                self.factor.push_coordinate(model, &self.data, body, &mut self.entries);
+                let mut group = Group::new(first..self.entries.len(), &self.entries);
+                let bias = if gap > 0.0 { -gap / h } else { (-BAUMGARTE * gap / h).min(MAX_CORRECTION) };
                 let warm = [self.limit_impulses[k][side], 0.0, 0.0];
-                self.constraints.push(Constraint::new(Kind::Limit, start..self.entries.len(), bias, warm, &self.entries));
+                let zero = Vector6::zeros();
+                self.constraints.push(group.constraint(Kind::Limit, [unit * sign, zero, zero], bias, warm));
+                group.constraints = self.constraints.len() - 1..self.constraints.len();
+                self.groups.push(group);
                 self.limit_rows.push((k, side));
             }
         }
@@ -174,11 +205,17 @@ impl TreeSimulation {
                 }
                 self.found.clear();
                 self.collision.detect(model, &self.poses, &mut self.found);
+                // Bodies fixed to a fixed base cannot move: their contacts carry no constraint.
+                if !model.floating_base() {
+                    let carrier = &self.carrier;
+                    self.found.retain(|f| carrier[f.body] != 0 || f.other.is_some_and(|o| carrier[o] != 0));
+                }
                 detected = true;
             }
             self.constrain(model, q);
             self.factor.to_u(model, &self.data, &self.v_free, &mut self.u);
-            solver::solve(&mut self.constraints, &self.entries, &mut self.u, self.options.solver_iterations);
+            let iterations = self.options.solver_iterations;
+            self.sweeps = solver::solve(&self.groups, &mut self.constraints, &self.entries, &mut self.u, &mut self.u_free, &mut self.u_before, iterations);
             self.factor.from_u(model, &self.data, &self.u, &mut self.v_free);
             // An implicit servo whose force at the end of the step exceeds its bound saturates: redo the
             // step with it applying its bound.
@@ -267,6 +304,18 @@ impl Engine for TreeSimulation {
     fn contact_tolerance(&self) -> f64 {
         TOLERANCE
     }
+
+    fn solver_sweeps(&self) -> Option<usize> {
+        Some(self.sweeps)
+    }
+}
+
+fn carriers(model: &Model) -> Vec<usize> {
+    let mut carrier = vec![0; model.nbodies()];
+    for i in 1..model.nbodies() {
+        carrier[i] = if model.joint(i).nv() == 0 { carrier[model.parent(i)] } else { i };
+    }
+    carrier
 }
 
 /// The base's origin in the world: the origin of the frame `aba` works about.
