@@ -142,15 +142,19 @@ def _independent_blocks(model: lk.Model) -> list[np.ndarray]:
 PLANTS = ("tree", "rapier", "free")
 
 
-def make_plant(kind: str, model: lk.Model, q0: np.ndarray, dt: float) -> Plant:
+DEFAULT_FRICTION = 0.8
+
+
+def make_plant(kind: str, model: lk.Model, q0: np.ndarray, dt: float, friction: float = DEFAULT_FRICTION) -> Plant:
     """A plant of ``kind`` (one of ``PLANTS``) for ``model``, starting at rest at ``q0``: "tree" and "rapier"
-    are ``lk.Simulation`` on that backend, "free" a ``FreePlant``."""
+    are ``lk.Simulation`` on that backend, on a ground plane with Coulomb coefficient ``friction``; "free" a
+    ``FreePlant`` (no ground)."""
     if kind == "free":
         return FreePlant(model, q0=q0, dt=dt)
     if kind in ("tree", "rapier"):
         # The same servo model as the free plant: rotor inertia and damping on every joint.
         simulation = lk.Simulation(
-            model, dt=dt, ground=lk.Ground.plane(friction=0.8), backend=kind,
+            model, dt=dt, ground=lk.Ground.plane(friction=friction), backend=kind,
             joint_damping=FreePlant.DEFAULT_DAMPING, joint_armature=FreePlant.DEFAULT_ARMATURE,
         )
         simulation.reset(q0, None)
@@ -212,6 +216,7 @@ def initial_angles(tree: ModuleTree, seed: int) -> np.ndarray:
 def run_balance(
     trees: Sequence[ModuleTree], duration: float, dt: float = 1e-3, loss: float = 0.0, plant: str = "tree",
     seed: int = 0, sample_every: int = 10, progress: bool = True, rounds_per_step: int = 1,
+    friction: float = DEFAULT_FRICTION,
 ) -> list[RunResult]:
     """Simulate every tree under every scheme for ``duration`` s (see the module docstring).
 
@@ -234,7 +239,7 @@ def run_balance(
         model, layout = built[t]
         q0 = np.zeros(model.nq)
         q0[layout.joint_q] = starts[t]
-        plants.append(make_plant(plant, model, q0, dt))
+        plants.append(make_plant(plant, model, q0, dt, friction))
     origin = np.zeros(3)
     first_module = np.cumsum([0] + [tree.n_modules for tree in instances])[:-1]
     ground = [GroundContact(int(m), 0, np.eye(3), origin, origin, np.array([0.0, 0.0, 1.0])) for m in first_module]
@@ -343,6 +348,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the trees and of the bus (default 0)")
     parser.add_argument("--duration", type=float, default=DEFAULT_DURATION, help=f"simulated seconds (default {DEFAULT_DURATION})")
     parser.add_argument("--loss", type=float, default=0.0, help="message loss probability (default 0: synchronous bus)")
+    parser.add_argument("--friction", type=float, default=DEFAULT_FRICTION, help=f"ground friction coefficient (default {DEFAULT_FRICTION})")
     parser.add_argument("--out", type=Path, default=Path("balance-out"), help="output folder (default ./balance-out)")
     parser.add_argument("--plant", choices=PLANTS, default="tree", help="simulator: legkit's tree engine (default), Rapier, or free (no contacts)")
     args = parser.parse_args(argv)
@@ -354,7 +360,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--loss: must be in [0, 1)")
     try:
         trees = [random_tree(args.modules, args.branches, args.seed + i) for i in range(args.trees)]
-        results = run_balance(trees, args.duration, loss=args.loss, plant=args.plant, seed=args.seed)
+        results = run_balance(trees, args.duration, loss=args.loss, plant=args.plant, seed=args.seed, friction=args.friction)
     except (ValueError, RuntimeError) as error:
         print(f"legkit balance: {error}", file=sys.stderr)
         return 2
