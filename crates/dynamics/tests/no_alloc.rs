@@ -64,3 +64,34 @@ fn algorithms_do_not_allocate() {
     });
     assert_eq!(count, 0, "the algorithms allocated {count} times");
 }
+
+#[test]
+fn tree_engine_steps_do_not_allocate_once_warm() {
+    // A floating box on four legs with ball feet, on servos, standing on the plane: after the buffers have
+    // grown to the contact set, steps allocate nothing.
+    use legkit_dynamics::sim::{Ground, Options, Servo, Shape, ShapeKind, Simulation};
+    let base = MassProperties::cuboid(4.0, Vector3::new(0.4, 0.2, 0.06), Vector3::zeros(), &Matrix3::identity()).unwrap();
+    let leg = MassProperties::cuboid(0.3, Vector3::new(0.03, 0.03, 0.15), Vector3::new(0.0, 0.0, -0.075), &Matrix3::identity()).unwrap();
+    let mut model = Model::new(true, base, "base");
+    let mut options = Options::new(1e-3);
+    options.ground = Some(Ground::plane(0.8).unwrap());
+    for (k, (x, y)) in [(0.15, 0.08), (0.15, -0.08), (-0.15, 0.08), (-0.15, -0.08)].into_iter().enumerate() {
+        let hip = model.add_body(0, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(x, y, -0.03)), leg, &format!("thigh{k}"), JointLimits::NONE).unwrap();
+        let shin = model.add_body(hip, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)), leg, &format!("shin{k}"), JointLimits::position(-2.0, 2.0).unwrap()).unwrap();
+        options.shapes.push((hip, None));
+        options.shapes.push((shin, Some(Shape::new(ShapeKind::Sphere(0.02), Some(Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)))).unwrap())));
+    }
+    let nv = model.nv();
+    let mut sim = Simulation::new(&model, options).unwrap();
+    let mut q = model.neutral().as_slice().to_vec();
+    q[2] = 0.03 + 0.3 + 0.02;
+    sim.set_state(Some(&q), None).unwrap();
+    let (mut kp, mut kd) = (vec![40.0; nv], vec![1.0; nv]);
+    kp[..6].fill(0.0);
+    kd[..6].fill(0.0);
+    sim.set_servo(Servo::new(&model, kp, kd, vec![20.0; nv], vec![0.0; nv], vec![0.0; nv]).unwrap()).unwrap();
+    let tau = vec![0.0; nv];
+    sim.step(Some(&tau), 1000).unwrap();
+    assert_eq!(sim.contacts().len(), 4);
+    assert_eq!(allocations_during(|| sim.step(Some(&tau), 200).unwrap()), 0);
+}
