@@ -190,6 +190,19 @@ impl Options {
         Options { dt, ground: None, shapes: Vec::new(), self_collision: false, joint_damping: 0.0, joint_armature: 0.0, substeps: 1, backend: Backend::Tree, solver_iterations: DEFAULT_SOLVER_ITERATIONS }
     }
 
+    /// Every body's collision shape (a given one, else the default box; none where `shapes` says None or
+    /// the body is massless), with the shape frame in the body frame.
+    pub(crate) fn colliders<'a>(&'a self, model: &'a Model) -> impl Iterator<Item = (usize, Shape, Transform)> + 'a {
+        (0..model.nbodies()).filter_map(move |i| {
+            let shape = match self.shapes.iter().find(|(b, _)| *b == i) {
+                Some((_, shape)) => shape.clone(),
+                None => Shape::default_box(model.body(i)),
+            }?;
+            let in_body = shape.placement.unwrap_or_else(|| Transform::from_translation(model.body(i).com()));
+            Some((i, shape, in_body))
+        })
+    }
+
     pub(crate) fn check(&self, model: &Model) -> Result<()> {
         if finite("dt", self.dt)? <= 0.0 {
             return Err(Error::invalid("dt", format!("must be > 0, got {}", self.dt)));

@@ -19,7 +19,7 @@ use crate::model::{Joint, Model};
 use crate::spatial::Transform;
 use crate::{Error, MassProperties, Result};
 
-use crate::sim::options::{to_pose, to_vector, Options, Shape, DEFAULT_FRICTION};
+use crate::sim::options::{to_pose, to_vector, Options, DEFAULT_FRICTION};
 use crate::sim::Ground;
 
 /// Marks the ground collider in `Collider::user_data` (bodies store their legkit index).
@@ -120,14 +120,8 @@ pub(crate) fn build(model: &Model, options: &Options) -> Result<(PhysicsWorld, L
     }
 
     // Colliders, attached to the carrier at the body's offset.
-    for i in 0..n {
-        let shape = match options.shapes.iter().find(|(b, _)| *b == i) {
-            Some((_, shape)) => shape.clone(),
-            None => Shape::default_box(model.body(i)),
-        };
-        let Some(shape) = shape else { continue };
+    for (i, shape, in_body) in options.colliders(model) {
         let (shared, correction) = shape.shared_shape();
-        let in_body = shape.placement.unwrap_or_else(|| Transform::from_translation(model.body(i).com()));
         let in_carrier = offset[i].compose(&in_body).compose(&correction);
         let collider = ColliderBuilder::new(shared)
             .position(to_pose(&in_carrier))

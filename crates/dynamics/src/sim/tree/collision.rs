@@ -12,8 +12,8 @@ use rapier3d_f64::prelude::SharedShape;
 use nalgebra::Vector3;
 
 use super::plane::{plane_points, MAX_FEATURES};
-use crate::model::{Joint, Model};
-use crate::sim::options::{from_vector, to_pose, Options, Shape, ShapeKind};
+use crate::model::Model;
+use crate::sim::options::{from_vector, to_pose, Options, ShapeKind};
 use crate::sim::Ground;
 use crate::spatial::Transform;
 
@@ -82,22 +82,15 @@ pub(super) struct Collision {
 }
 
 impl Collision {
-    pub(super) fn new(model: &Model, options: &Options) -> Self {
-        let mut carrier = vec![0; model.nbodies()];
-        for i in 1..model.nbodies() {
-            carrier[i] = if *model.joint(i) == Joint::Fixed { carrier[model.parent(i)] } else { i };
-        }
-        let mut colliders = Vec::new();
-        for i in 0..model.nbodies() {
-            let shape = match options.shapes.iter().find(|(b, _)| *b == i) {
-                Some((_, shape)) => shape.clone(),
-                None => Shape::default_box(model.body(i)),
-            };
-            let Some(shape) = shape else { continue };
-            let (shared, correction) = shape.shared_shape();
-            let in_body = shape.placement.unwrap_or_else(|| Transform::from_translation(model.body(i).com()));
-            colliders.push(Collider { body: i, carrier: carrier[i], kind: shape.kind, local: in_body, shape: shared, parry_local: in_body.compose(&correction) });
-        }
+    /// The colliders of `options` on `model`, whose bodies move with `carrier` (see `TreeSimulation`).
+    pub(super) fn new(model: &Model, options: &Options, carrier: &[usize]) -> Self {
+        let colliders: Vec<Collider> = options
+            .colliders(model)
+            .map(|(i, shape, in_body)| {
+                let (shared, correction) = shape.shared_shape();
+                Collider { body: i, carrier: carrier[i], kind: shape.kind, local: in_body, shape: shared, parry_local: in_body.compose(&correction) }
+            })
+            .collect();
         let n = colliders.len();
         Collision {
             heightfield: options.ground.as_ref().filter(|g| matches!(g, Ground::Heightfield { .. })).map(|g| g.shape()),

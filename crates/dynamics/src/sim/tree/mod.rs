@@ -81,12 +81,13 @@ impl TreeSimulation {
             .filter(|&i| model.joint(i).nv() == 1 && model.limits(i).has_position_limits())
             .map(|i| (i, model.idx_v(i), model.idx_q(i), model.limits(i).lower, model.limits(i).upper))
             .collect();
+        let carrier = carriers(model);
         TreeSimulation {
             h: options.dt / options.substeps as f64,
             friction: options.ground.as_ref().map_or(DEFAULT_FRICTION, |g| g.friction()),
             data: Data::new(model),
             factor: Factor::new(model),
-            collision: Collision::new(model, options),
+            collision: Collision::new(model, options, &carrier),
             options: options.clone(),
             limited,
             limit_impulses: vec![[0.0; 2]; nv],
@@ -95,7 +96,7 @@ impl TreeSimulation {
             entries: Vec::new(),
             groups: Vec::new(),
             constraints: Vec::new(),
-            carrier: carriers(model),
+            carrier,
             sweeps: 0,
             poses: vec![Transform::identity(); model.nbodies()],
             q_dof: vec![0.0; nv],
