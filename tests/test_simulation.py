@@ -1,4 +1,4 @@
-"""lk.Simulation (Rapier) against legkit's dynamics core, statics, terrain, actuation and input checks."""
+"""lk.Simulation (the default tree engine) against legkit's dynamics core, statics, terrain, actuation and input checks."""
 
 import math
 
@@ -87,7 +87,7 @@ def test_free_tree_follows_aba_rk4_within_a_milliradian():
         sim.step(n=1000)
         assert sim.time == pytest.approx(1.0)
         errors.append(np.abs(sim.q - qs[-1]).max())
-    # Rapier's integrator is first order in the substep (Coriolis terms are linearly implicit): the error
+    # The integrator is first order in the substep (semi-implicit Euler): the error
     # shrinks in proportion, and 32 substeps per 1 ms step bring it within 1e-3 rad after 1 s.
     assert 7 < errors[0] / errors[1] < 9 and 3.5 < errors[1] / errors[2] < 4.5
     assert errors[2] < 1e-3
@@ -96,7 +96,7 @@ def test_free_tree_follows_aba_rk4_within_a_milliradian():
 @settings(max_examples=40, deadline=None)
 @given(st.integers(1, 6), st.integers(0, 2**31 - 1))
 def test_first_step_from_rest_uses_the_aba_acceleration(links, seed):
-    # From rest Coriolis and gyroscopic terms vanish, so Rapier's first velocity is exactly dt * aba(q, 0, tau).
+    # From rest Coriolis and gyroscopic terms vanish, so the first velocity is exactly dt * aba(q, 0, tau).
     rng = np.random.default_rng(seed)
     model = lk.Model(floating_base=bool(seed % 2), base=lk.MassProperties.box(2.0, rng.uniform(0.1, 0.4, 3), center=rng.uniform(-0.05, 0.05, 3)))
     for i in range(1, links + 1):
@@ -120,7 +120,7 @@ def test_first_step_from_rest_uses_the_aba_acceleration(links, seed):
 
 def test_joint_armature_adds_to_the_mass_matrix_diagonal():
     # From rest the first step's velocity is dt * (M + a 1_joints)^-1 (tau - g), the fixed-base ABA with a
-    # rotor inertia a on every joint; the Rapier step must agree, and must differ from a = 0.
+    # rotor inertia a on every joint; the simulation step must agree, and must differ from a = 0.
     model = lk.Model()
     parent = 0
     for i in range(3):
@@ -377,10 +377,11 @@ def joint_excursion(sim, steps):
 @settings(max_examples=30, deadline=None)
 @given(st.floats(0.2, 1.2), st.floats(0.3, 0.95), st.sampled_from([1.0, -1.0]), st.sampled_from([1, 2, 4]))
 def test_falling_pendulum_stops_at_its_position_limit(limit, start_fraction, side, substeps):
-    # Rapier's limit is a velocity constraint that engages once the coordinate is past a bound (checked
-    # every substep h = dt / substeps). Semi-implicit Euler moves the joint by h (v + h alpha) in the substep
-    # that crosses, so the overshoot is at most omega h + alpha h^2: omega the speed at the limit by energy
-    # conservation from rest at the start angle (Rapier's integrator only loses energy), alpha <= m g (L/2) / I.
+    # Rapier's limit engages once the coordinate is past a bound, the tree engine's just before it (a
+    # speculative constraint); either way semi-implicit Euler moves the joint by at most h (v + h alpha) past
+    # it in one substep h = dt / substeps, so the overshoot is at most omega h + alpha h^2: omega the speed
+    # at the limit by energy conservation from rest at the start angle (the integrator only loses energy
+    # here), alpha <= m g (L/2) / I.
     start = start_fraction * limit
     dt = 1e-3
     h = dt / substeps

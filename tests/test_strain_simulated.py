@@ -1,4 +1,4 @@
-"""RHex walking in the Rapier simulation (legkit.strain.simulated): leg springs, clock, gait, issue-6 targets."""
+"""RHex walking in the contact simulation (legkit.strain.simulated): leg springs, clock, gait, issue-6 targets."""
 
 from __future__ import annotations
 
@@ -235,4 +235,4 @@ def test_stance_toes_barely_sink(walk):
 def test_cli_simulated_source(tmp_path, capsys):
     assert main(["--source", "simulated", "--runs", "1", "--duration", "0.5", "--out", str(tmp_path)]) == 0
     printed = capsys.readouterr().out
-    assert "Rapier contact simulation" in printed and (tmp_path / "strain_pose_stride.png").is_file()
+    assert "RHex in the contact simulation" in printed and (tmp_path / "strain_pose_stride.png").is_file()

@@ -1,9 +1,9 @@
-"""Issue 7: the ZMP from the dynamics equals the CoP of the simulated (Rapier) contact forces within 5 mm.
+"""Issue 7: the ZMP from the dynamics equals the CoP of the simulated contact forces (tree engine) within 5 mm.
 
 A robot stands on a plane with position servos holding a pose, settles, then sways its torso over
 planted feet. At every step the ZMP comes from `legkit.stability.zmp` (centroidal momentum rate of the
 legkit model at the simulated q, v, with the acceleration from central differences of the simulated v)
-and the CoP from the ground contact forces Rapier reports (normal plus friction). Both the model's
+and the CoP from the ground contact forces the simulation reports (normal plus friction). Both the model's
 gravity and its mass properties are the simulation's own (the Simulation is built from the same Model).
 """
 
@@ -94,7 +94,7 @@ def stand_and_sway(
     servo targets are reset to the settled pose, with the static joint torques as feed-forward, which
     releases that preload. From sway_time on the targets follow sway(t - sway_time) - stand + settled (the
     feed-forward follows the target pose), so the torso moves while the feet stay planted.
-    One Rapier substep per 1 ms step suffices: the momentum balance closes on each step's own impulses, so
+    One substep per 1 ms step suffices: the momentum balance closes on each step's own impulses, so
     substeps (tried: 4) change the ZMP-CoP gap only in the hundredths of a millimetre.
     """
     sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), shapes=shapes, substeps=1)
@@ -136,7 +136,7 @@ def stand_and_sway(
 def zmp_and_cop(run: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ZMP, CoP, COM) (n - 1, 3) at the states k = 1..n-1.
 
-    Time alignment. Rapier's step j solves the contact impulses at state (q_j, v_j) and updates
+    Time alignment. The simulation's step j solves the contact impulses at state (q_j, v_j) and updates
     v_{j+1} = v_j + dt (free acceleration + contact impulse / dt), then q_{j+1}; contacts() read after step
     j reports that impulse / dt. So (v_{j+1} - v_j) / dt is exactly the acceleration produced by step j's
     forces, and the central difference a_k = (v_{k+1} - v_{k-1}) / (2 dt) at state k is the mean of the

@@ -36,7 +36,7 @@ SPEEDS = (0.2, 0.45)
 #: Walking sources of ``legkit strain --source``: name -> (source, description).
 SOURCES: dict[str, tuple[WalkingSource, str]] = {
     "kinematic": (kinematic_walk, "kinematic, quasi-static alternating-tripod generator (legkit.strain.walking.kinematic_walk)"),
-    "simulated": (simulated_walk, "RHex in the Rapier contact simulation (legkit.strain.simulated.simulated_walk)"),
+    "simulated": (simulated_walk, "RHex in the contact simulation (legkit.strain.simulated.simulated_walk)"),
 }
 
 

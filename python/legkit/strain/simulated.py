@@ -1,4 +1,4 @@
-"""RHex walking an alternating-tripod gait in the Rapier contact simulation: strain streams with ground truth.
+"""RHex walking an alternating-tripod gait in the contact simulation (``lk.Simulation``): strain streams with ground truth.
 
 ``simulated_walk`` is a ``WalkingSource`` (same signature and ``WalkingStream`` fields as
 ``legkit.strain.walking.kinematic_walk``) backed by ``lk.Simulation`` instead of the quasi-static model.
@@ -36,10 +36,11 @@ Toe contact
 -----------
 The toe is a sphere of radius ``TOE_RADIUS`` = 6 mm and the "toe" of the leg model is its centre; the
 estimator (``walking.estimate_body_pose(..., toe_radius=stream.toe_radius)``) puts the ground that far below
-the plane of the stance toe centres. Rapier's contacts are soft: a resting toe sinks until the contact
-spring, whose stiffness is the contact's effective mass times a fixed (2 pi 60 Hz)^2, carries the load, so
-the penetration (the residual error of the height estimate) scales with load / effective mass and is
-further reduced by shorter solver substeps. Two physical choices keep it small:
+the plane of the stance toe centres. On the default tree engine a resting toe settles within the
+contact tolerance (0.2 mm). Rapier's contacts (``backend="rapier"``) are soft: a resting toe sinks until the
+contact spring, whose stiffness is the contact's effective mass times a fixed (2 pi 60 Hz)^2, carries the
+load, so the penetration (the residual error of the height estimate) scales with load / effective mass and
+is further reduced by shorter solver substeps. Two choices, made on Rapier, keep it small there:
   * the leg's mass sits where a four-bar leg has it, mostly in the rigid shin and toe that ride on the
     compression spring (``legkit.robots.rhex.COMPLIANT_LEG_MASSES``: clamp 0.02, members 0.02, shin and toe
     0.04 kg). With a 0.01 kg toe the toe's effective mass was four times smaller and stance toes sank up to
@@ -124,8 +125,8 @@ class SimulationSettings:
 
     Attributes:
         steps_per_sample: simulation steps per strain sample (dt = 1 / (rate * steps_per_sample)).
-        substeps: Rapier solver substeps per step; shorter substeps stiffen Rapier's soft toe contacts (module
-            docstring, Toe contact), 16 keeps stance penetration under about 4 mm.
+        substeps: simulation substeps per step; on Rapier shorter substeps stiffen its soft toe contacts
+            (module docstring, Toe contact), 16 keeps stance penetration under about 4 mm there.
         hip_stiffness, hip_damping, hip_torque_limit: hip position servo (N m/rad, N m s/rad, N m).
         spring_damping_ratio: damping of the leg springs (fraction of critical for the free leg).
         friction: ground friction coefficient.
@@ -256,7 +257,7 @@ def simulated_walk(
     gait: BuehlerClock | None = None,
     settings: SimulationSettings | None = None,
 ) -> WalkingStream:
-    """A walking stream of RHex in the Rapier simulation (module docstring); a ``WalkingSource``.
+    """A walking stream of RHex in the contact simulation (module docstring); a ``WalkingSource``.
 
     Args:
         speed: commanded forward speed (m/s); sets the clock period ``gait.period(speed)``.

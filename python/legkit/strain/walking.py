@@ -1,9 +1,9 @@
 """Synthetic RHex walking streams from a kinematic, quasi-static model of the alternating-tripod gait.
 
-This generator stands in for the Rapier simulation (``lk.Simulation``) until it is available: any function
-with the signature of ``WalkingSource`` -- (speed m/s, duration s, seed) -> ``WalkingStream`` -- can replace
-``kinematic_walk`` in the experiment, e.g. one that drives ``legkit.robots.rhex.rhex_model()`` in the
-contact simulation and reads strain from the simulated leg deflections.
+This generator is the fast, contact-free source; any function with the signature of ``WalkingSource`` --
+(speed m/s, duration s, seed) -> ``WalkingStream`` -- can replace ``kinematic_walk`` in the experiment, as
+``legkit.strain.simulated.simulated_walk`` does: it drives ``legkit.robots.rhex.rhex_model()`` in the contact
+simulation and reads strain from the simulated leg deflections.
 
 The model
 ---------
