@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import legkit as lk
-from legkit.agents import AgentNetwork, BusConfig, GroundContact, moments
+from legkit.agents import AgentNetwork, BusConfig, Channel, GroundContact, moments
 from legkit.robots import superbot as sb
 
 TOLERANCE = 1e-9
@@ -221,3 +221,61 @@ def test_bad_input_is_rejected_and_leaves_state_unchanged():
         AgentNetwork([])
     with pytest.raises(ValueError, match="ground"):
         AgentNetwork(tree, ground=[GroundContact(99, 0, np.eye(3), np.zeros(3), np.zeros(3), np.array([0, 0, 1.0]))])
+
+
+def test_component_major_forms_match_the_array_forms():
+    # The agents keep their state component-major; those kernels must agree with the (..., 13) / (..., 3, 3) forms.
+    rng = np.random.default_rng(5)
+    rotation = np.linalg.qr(rng.standard_normal((7, 4, 3, 3)))[0]
+    translation = rng.standard_normal((7, 4, 3))
+    packed = moments.pack(rng.uniform(0.1, 1.0, 4), rng.standard_normal((4, 3)), np.eye(3) * rng.uniform(0.1, 1.0, (4, 1, 1)))
+    expected = moments.transform(rotation, translation, packed)
+    got = moments.transform_components(np.moveaxis(rotation, (2, 3), (0, 1)), np.moveaxis(translation, 2, 0), packed.T[:, None])
+    assert np.array_equal(np.moveaxis(got, 0, -1), expected)
+    vector = rng.standard_normal((7, 4, 3))
+    assert np.allclose(np.moveaxis(moments.rotate_components(np.moveaxis(rotation, (2, 3), (0, 1)), np.moveaxis(vector, 2, 0)), 0, -1),
+                       np.einsum("...ij,...j->...i", rotation, vector), atol=1e-15)
+    inverse_rotation, inverse_translation = moments.inverse_pose(rotation, translation)
+    assert np.allclose(np.einsum("...ij,...j->...i", inverse_rotation, translation) + inverse_translation, 0.0, atol=1e-15)
+    angles = rng.uniform(-np.pi, np.pi, (5, 3))
+    parts_rotation, parts_translation = sb.module_kinematics(angles, sb.ModuleParameters())
+    rotation_components, translation_components = sb.module_kinematics_components(angles, sb.ModuleParameters())
+    assert np.array_equal(np.moveaxis(rotation_components, (0, 1, 2), (-2, -1, -3)), parts_rotation)
+    assert np.array_equal(np.moveaxis(translation_components, (0, 1), (-1, -2)), parts_translation)
+
+
+def test_network_queries_agree_with_each_other():
+    tree = sb.random_tree(10, 3, 4)
+    model, layout = tree.to_model()
+    rng = np.random.default_rng(4)
+    q = rng.uniform(-1, 1, model.nq)
+    network = AgentNetwork(tree, ground=ground_root(), angles=layout.module_angles(q))
+    network.run_until_quiescent()
+    network.observe(layout.module_angles(q + 0.1 * rng.standard_normal(model.nq)))
+    network.run(1)
+    # Algorithm 2's module-frame copies are the connector-frame estimates turned by the current connector frames.
+    assert np.array_equal(network.current_connector_estimates(), network.connector_estimates())
+    per_block = network.current_connector_estimates().reshape(tree.n_modules, 2, 3, moments.WIDTH)
+    assert np.array_equal(network.block_estimates(), per_block[:, :, 0] + per_block[:, :, 1] + per_block[:, :, 2] + 0.0)
+    assert np.array_equal(network.estimates_connector_frame[~network.connected], np.zeros((np.count_nonzero(~network.connected), moments.WIDTH)))
+    # Connector frames: block A's fixed in the module frame, block B's carried by part 3.
+    rotation_zero, position_zero = tree.parameters.connector_frames()
+    assert np.allclose(network.connector_rotation[:, :3], rotation_zero[:3])
+    assert np.allclose(network.connector_rotation[:, 3:], network.part_rotation[:, 3, None] @ rotation_zero[3:], atol=1e-15)
+    expected = network.part_translation[:, 3, None] + np.einsum("nij,sj->nsi", network.part_rotation[:, 3], position_zero[3:])
+    assert np.allclose(network.connector_position[:, 3:], expected, atol=1e-15)
+
+
+def test_channel_delivers_in_connector_order_and_keeps_the_newest():
+    tree = sb.random_tree(6, 2, 0)
+    partner, partner_slot, _ = tree.connector_table()
+    modules, slots = np.nonzero(partner >= 0)
+    channel = Channel(partner, partner_slot, 2, BusConfig(), np.random.default_rng(0))
+    channel.send_changed(0, modules, slots, np.stack([modules, slots], axis=1).astype(float))
+    channel.send_changed(0, modules[:2], slots[:2], np.full((2, 2), 9.0))  # newer messages on two links
+    receiver, receiver_slot, sender, sender_slot, payload = channel.deliver(1)
+    assert np.array_equal(receiver * 6 + receiver_slot, np.sort(receiver * 6 + receiver_slot))
+    assert np.array_equal(receiver, partner[sender, sender_slot]) and np.array_equal(receiver_slot, partner_slot[sender, sender_slot])
+    newest = np.isin(sender * 6 + sender_slot, modules[:2] * 6 + slots[:2])
+    assert np.all(payload[newest] == 9.0) and np.array_equal(payload[~newest], np.stack([sender, sender_slot], axis=1)[~newest])
+    assert channel.in_flight == 0 and channel.transmissions == modules.size + 2

@@ -85,6 +85,13 @@ class Channel:
         self.last_transmission = np.zeros(shape, dtype=np.int64)
         self._slots = shape[1]
         self._partner_link = np.where(partner >= 0, partner * self._slots + partner_slot, -1).ravel()
+        # The per-connector state by link number (views).
+        self._has_sent = self.has_sent.reshape(-1)
+        self._last_sent = self.last_sent.reshape(-1, width)
+        self._seq_out = self.seq_out.reshape(-1)
+        self._seq_in = self.seq_in.reshape(-1)
+        self._unacked = self.unacked.reshape(-1)
+        self._last_transmission = self.last_transmission.reshape(-1)
         # In-flight messages: due tick, sending link, sequence number, is-ack flag, payload.
         self._due = np.zeros(0, dtype=np.int64)
         self._link = np.zeros(0, dtype=np.int64)
@@ -112,22 +119,25 @@ class Channel:
         """Send ``payloads[k]`` on connector ``slots[k]`` of module ``modules[k]`` where it differs (bitwise) from
         the last payload sent there, or nothing was sent there yet; returns the number sent. The connectors
         must be connected; ``payloads`` is (k, width)."""
-        return self._send_changed(now, np.asarray(modules) * self._slots + np.asarray(slots), np.asarray(payloads, dtype=float))
+        return self._send_changed(now, np.asarray(modules) * self._slots + np.asarray(slots), np.array(payloads, dtype=float))
 
     def _send_changed(self, now: int, links: np.ndarray, payloads: np.ndarray) -> int:
-        """``send_changed`` by link number (distinct links)."""
-        last = np.take(self.last_sent.reshape(-1, self.width), links, axis=0)
-        changed = ~np.take(self.has_sent.reshape(-1), links) | rows_differ(payloads, last)
+        """``send_changed`` by link number (distinct links). Takes ownership of ``links`` and ``payloads``: they
+        may go on the wire as they are."""
+        changed = _rows_differ(payloads, self._last_sent.take(links, axis=0))
+        changed |= ~self._has_sent.take(links)
         if not changed.all():
             links, payloads = links[changed], payloads[changed]
         if links.size == 0:
             return 0
-        self.has_sent.reshape(-1)[links] = True
-        self.last_sent.reshape(-1, self.width)[links] = payloads
-        seq = np.take(self.seq_out.reshape(-1), links) + 1
-        self.seq_out.reshape(-1)[links] = seq
-        self.unacked.reshape(-1)[links] = not self.reliable
-        self.last_transmission.reshape(-1)[links] = now
+        self._has_sent[links] = True
+        self._last_sent[links] = payloads
+        seq = self._seq_out.take(links)
+        seq += 1
+        self._seq_out[links] = seq
+        if not self.reliable:
+            self._unacked[links] = True
+        self._last_transmission[links] = now
         self._transmit(now, links, seq, payloads, acks=False)
         return int(links.size)
 
@@ -139,9 +149,9 @@ class Channel:
         due = self.unacked & (now - self.last_transmission >= self.config.retransmit_after)
         links = np.flatnonzero(due)
         if links.size:
-            self.last_transmission.reshape(-1)[links] = now
+            self._last_transmission[links] = now
             self.retransmissions += int(links.size)
-            self._transmit(now, links, self.seq_out.reshape(-1)[links], self.last_sent.reshape(-1, self.width)[links], acks=False)
+            self._transmit(now, links, self._seq_out[links], self._last_sent[links], acks=False)
         return int(links.size)
 
     def _transmit(self, now: int, links: np.ndarray, seq: np.ndarray, payload: np.ndarray, acks: bool) -> None:
@@ -162,11 +172,15 @@ class Channel:
             copies = np.concatenate([copies, extra])
             links, seq, payload = links[copies], seq[copies], payload[copies]
             due = now + self.rng.integers(self.config.delay_min, self.config.delay_max + 1, size=copies.size)
-        self._due = np.concatenate([self._due, due])
-        self._link = np.concatenate([self._link, links])
-        self._seq = np.concatenate([self._seq, seq])
-        self._ack = np.concatenate([self._ack, np.full(links.size, acks)])
-        self._payload = np.concatenate([self._payload, payload])
+        ack = np.full(links.size, acks)
+        if self._due.size:
+            self._due = np.concatenate([self._due, due])
+            self._link = np.concatenate([self._link, links])
+            self._seq = np.concatenate([self._seq, seq])
+            self._ack = np.concatenate([self._ack, ack])
+            self._payload = np.concatenate([self._payload, payload])
+        else:  # nothing on the wire (every synchronous round): the arrays are this call's own
+            self._due, self._link, self._seq, self._ack, self._payload = due, links, seq, ack, payload
 
     def deliver(self, now: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Deliver the messages due by tick ``now``.
@@ -175,18 +189,28 @@ class Channel:
         connector, payload (k, width)), at most one per receiving connector (the newest). Acknowledgements are
         consumed here."""
         receivers, senders, payload = self._deliver(now)
+        order = np.argsort(receivers, kind="stable")
+        receivers, senders, payload = receivers[order], senders[order], payload[order]
         return receivers // self._slots, receivers % self._slots, senders // self._slots, senders % self._slots, payload
 
     def _deliver(self, now: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``deliver`` by link number: (receiving links, sending links, payloads), in the order of the receiving link."""
+        """``deliver`` by link number: (receiving links, sending links, payloads), one per receiving link, in no
+        particular order."""
         ready = self._due <= now
         if not ready.any():
             empty = np.zeros(0, dtype=np.int64)
             return empty, empty, np.zeros((0, self.width))
         if self.reliable and ready.all():  # the usual synchronous round: everything on the wire arrives
-            link, seq, ack, payload = self._link, self._seq, self._ack, self._payload
+            link, seq, payload = self._link, self._seq, self._payload
             self._due, self._link, self._seq, self._ack = self._due[:0], self._link[:0], self._seq[:0], self._ack[:0]
             self._payload = self._payload[:0]
+            receiver = self._partner_link.take(link)
+            if np.bincount(receiver).max() == 1:  # one message per connector: nothing to choose between
+                newer = seq > self._seq_in.take(receiver)
+                if not newer.all():
+                    receiver, link, seq, payload = receiver[newer], link[newer], seq[newer], payload[newer]
+                self._seq_in[receiver] = seq
+                return receiver, link, payload
         else:
             index = np.flatnonzero(ready)
             if not self.reliable:
@@ -195,12 +219,12 @@ class Channel:
             keep = ~ready
             self._due, self._link, self._seq, self._ack = self._due[keep], self._link[keep], self._seq[keep], self._ack[keep]
             self._payload = self._payload[keep]
-        receiver = np.take(self._partner_link, link)
+            receiver = self._partner_link.take(link)
 
         if not self.reliable:
             # Acknowledgements: the receiver of an ack is the original sender.
-            acked = ack & (seq == np.take(self.seq_out.reshape(-1), receiver))
-            self.unacked.reshape(-1)[receiver[acked]] = False
+            acked = ack & (seq == self._seq_out.take(receiver))
+            self._unacked[receiver[acked]] = False
             data = np.flatnonzero(~ack)
             if data.size:
                 self._transmit(now, receiver[data], seq[data], np.zeros((data.size, self.width)), acks=True)
@@ -210,14 +234,15 @@ class Channel:
         receiver, link, seq = receiver[order], link[order], seq[order]
         last_of_group = np.ones(receiver.size, dtype=bool)
         last_of_group[:-1] = receiver[1:] != receiver[:-1]
-        newer = last_of_group & (seq > np.take(self.seq_in.reshape(-1), receiver))
+        newer = last_of_group & (seq > self._seq_in.take(receiver))
         keep = order[newer]
         receiver, link = receiver[newer], link[newer]
-        self.seq_in.reshape(-1)[receiver] = seq[newer]
+        self._seq_in[receiver] = seq[newer]
         return receiver, link, payload[keep]
 
 
-def rows_differ(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _rows_differ(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(k,) True where row k of ``a`` and ``b`` (k, w) differ anywhere (``!=``: -0.0 equals +0.0)."""
-    # Reduced over a transposed copy: numpy reduces a few long rows much faster than many short ones.
-    return np.not_equal(a, b).T.copy().any(axis=0)
+    # Reduced component-major: numpy reduces a few long rows much faster than many short ones.
+    differs = np.not_equal(a.T, b.T)
+    return np.ascontiguousarray(differs).any(axis=0)

@@ -10,12 +10,11 @@ zeros, and a rigid transform x' = R x + t is linear:
 This is the parallel-axis theorem in disguise: the inertia about the COM is ``I = tr(P_c) E - P_c`` with
 ``P_c = P - h h^T / m``. (The seed paper's shorthand ``(m1 I1 + m2 I2) / (m1 + m2)`` for combined inertia is
 not physically correct; the moment form composes inertia exactly.) Every function takes leading batch
-dimensions.
+dimensions; the ``*_components`` variants take component-major arrays (components first, batch last), the
+layout the agents keep their state in.
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
@@ -59,41 +58,59 @@ def unpack(moments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def transform(rotation: np.ndarray, translation: np.ndarray, moments: np.ndarray) -> np.ndarray:
     """Moments expressed in the frame where the moments' frame has pose (rotation (..., 3, 3), translation (..., 3)).
 
-    Computed on component-major copies, one array operation per term for all components at once, in the
-    order ``h' = (R_i0 h_0 + R_i1 h_1) + R_i2 h_2 + m t_i`` and ``P'_ij = ((RP)_i0 R_j0 + (RP)_i1 R_j1 +
-    (RP)_i2 R_j2) + g_i t_j + t_i g_j + m t_i t_j`` (g = R h), left to right. The second moment is assumed
-    symmetric (it always is here); the result is exactly symmetric (the lower triangle copies the upper)."""
-    shape = np.broadcast_shapes(moments.shape[:-1], rotation.shape[:-2], translation.shape[:-1])
-    count = math.prod(shape)
-    r = _component_major(rotation, shape, (3, 3)).reshape(3, 3, count)
-    t = _component_major(translation, shape, (3,))
-    x = _component_major(moments, shape, (WIDTH,))
-    mass, h, second = x[0], x[1:4], x[4:].reshape(3, 3, count)
-    g = r[:, 0] * h[0] + r[:, 1] * h[1] + r[:, 2] * h[2]
-    rp = r[:, 0, None] * second[0] + r[:, 1, None] * second[1] + r[:, 2, None] * second[2]
+    The second moment is assumed symmetric (it always is here); the result is exactly symmetric. See
+    ``transform_components`` for the arithmetic."""
+    r = np.moveaxis(np.asarray(rotation, dtype=float), (-2, -1), (0, 1))
+    t = np.moveaxis(np.asarray(translation, dtype=float), -1, 0)
+    x = np.moveaxis(np.asarray(moments, dtype=float), -1, 0)
+    return np.moveaxis(transform_components(r, t, x), 0, -1)
+
+
+def transform_components(rotation: np.ndarray, translation: np.ndarray, moments: np.ndarray) -> np.ndarray:
+    """``transform`` on component-major arrays: rotation (3, 3, ...), translation (3, ...), moments (13, ...) ->
+    (13, ...), the trailing (batch) dimensions broadcast. Long batch rows make this much faster than the
+    same arithmetic on many small matrices.
+
+    The sums are evaluated left to right: ``h'_i = ((R_i0 h_0 + R_i1 h_1) + R_i2 h_2) + m t_i`` and
+    ``P'_ij = (((((RP)_i0 R_j0 + (RP)_i1 R_j1) + (RP)_i2 R_j2) + g_i t_j) + t_i g_j) + m t_i t_j`` (g = R h);
+    the lower triangle of P' copies the upper one."""
+    batch = rotation.shape[2:]
+    if translation.shape[1:] == batch and moments.shape[1:] == batch:
+        r, t, x = rotation, translation, moments
+    else:
+        batch = np.broadcast_shapes(batch, translation.shape[1:], moments.shape[1:])
+        r, t, x = _align(rotation, 2, len(batch)), _align(translation, 1, len(batch)), _align(moments, 1, len(batch))
+    # R [P | h] in one go: y[l] = (P_l0, P_l1, P_l2, h_l), so rp_g[i] = ((RP)_i0, (RP)_i1, (RP)_i2, g_i).
+    y = x[_RP_G_INDEX]
+    rp_g = r[:, 0, None] * y[0]
+    rp_g += r[:, 1, None] * y[1]
+    rp_g += r[:, 2, None] * y[2]
+    rp, g = rp_g[:, :3], rp_g[:, 3]
+    mass = x[0]
     mt = mass * t
-    out = np.empty((WIDTH, count))
+    out = np.empty((WIDTH,) + batch)
     out[0] = mass
     np.add(g, mt, out=out[1:4])
-    full = out[4:].reshape(3, 3, count)
-    np.multiply(rp[:, None, 0], r[None, :, 0], out=full)
-    full += rp[:, None, 1] * r[None, :, 1]
-    full += rp[:, None, 2] * r[None, :, 2]
-    full += g[:, None] * t[None]
-    full += t[:, None] * g[None]
-    full += mt[:, None] * t[None]
+    second = out[4:].reshape((3, 3) + batch)
+    np.multiply(rp[:, None, 0], r[None, :, 0], out=second)
+    second += rp[:, None, 1] * r[None, :, 1]
+    second += rp[:, None, 2] * r[None, :, 2]
+    second += g[:, None] * t[None]
+    second += t[:, None] * g[None]
+    second += mt[:, None] * t[None]
     out[_LOWER] = out[_UPPER]
-    return out.T.reshape(shape + (WIDTH,))
+    return out
 
 
-def _component_major(array: np.ndarray, shape: tuple[int, ...], item: tuple[int, ...]) -> np.ndarray:
-    """``array`` (batch dims + ``item``) broadcast to ``shape`` + ``item``, as a C-contiguous (item size, count)
-    copy: each component one contiguous row, so the arithmetic runs over long contiguous vectors."""
-    if array.shape != shape + item:
-        array = np.broadcast_to(array, shape + item)
-    return array.reshape(-1, math.prod(item)).T.copy()
+def _align(array: np.ndarray, components: int, batch_ndim: int) -> np.ndarray:
+    """A component-major array (``components`` leading axes, then batch axes) with singleton batch axes
+    inserted after the component axes, so that its batch axes line up with ``batch_ndim`` others'."""
+    missing = batch_ndim - (array.ndim - components)
+    return array.reshape(array.shape[:components] + (1,) * missing + array.shape[components:]) if missing else array
 
 
+# The packed moments' second-moment rows and first moment as columns: [l, c] = P_l0, P_l1, P_l2, h_l.
+_RP_G_INDEX = np.array([[4, 5, 6, 1], [7, 8, 9, 2], [10, 11, 12, 3]])
 # Flat indices (into the 13 packed floats) of the second moment's upper triangle (0,1), (0,2), (1,2) and of
 # their mirror images (1,0), (2,0), (2,1).
 _UPPER = np.array([5, 6, 9])
@@ -102,20 +119,36 @@ _LOWER = np.array([7, 10, 11])
 
 def inverse_pose(rotation: np.ndarray, translation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The inverse rigid transform (R^T, -R^T t) of (rotation (..., 3, 3), translation (..., 3))."""
-    rotation_t = np.swapaxes(rotation, -1, -2)
-    t = translation[..., None, :]
-    # Summed from +0 in this order (as numpy's einsum did for it): results stay bit for bit the same.
-    product = rotation_t[..., 0] * t[..., 0] + rotation_t[..., 1] * t[..., 1] + rotation_t[..., 2] * t[..., 2]
+    r = np.moveaxis(rotation, (-2, -1), (0, 1))
+    return np.swapaxes(rotation, -1, -2), np.moveaxis(inverse_translation_components(r, np.moveaxis(translation, -1, 0)), 0, -1)
+
+
+def inverse_translation_components(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
+    """-R^T t on component-major arrays: rotation (3, 3, ...), translation (3, ...) -> (3, ...).
+
+    Summed from +0 as ``(R_0i t_0 + R_1i t_1) + R_2i t_2`` (as numpy's einsum did for it), so that results
+    are bit for bit those of the einsum-based code this replaced."""
+    r, t = _align_pair(rotation, translation)
+    product = r[0] * t[0] + r[1] * t[1] + r[2] * t[2]
     product += 0.0
-    return rotation_t, -product
+    return -product
 
 
-def rotate(rotation: np.ndarray, vector: np.ndarray) -> np.ndarray:
-    """``rotation`` (..., 3, 3) times ``vector`` (..., 3), batch dimensions broadcast.
+def rotate_components(rotation: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    """``rotation`` (3, 3, ...) times ``vector`` (3, ...) on component-major arrays -> (3, ...), the trailing
+    (batch) dimensions broadcast.
 
     Summed from +0 as ``(R_i0 v_0 + R_i2 v_2) + R_i1 v_1``, the order numpy's einsum uses for contiguous
     operands, so that results are bit for bit those of the einsum-based code this replaced."""
-    v = vector[..., None, :]
-    product = rotation[..., 0] * v[..., 0] + rotation[..., 2] * v[..., 2] + rotation[..., 1] * v[..., 1]
+    r, v = _align_pair(rotation, vector)
+    product = r[:, 0] * v[0] + r[:, 2] * v[2] + r[:, 1] * v[1]
     product += 0.0
     return product
+
+
+def _align_pair(rotation: np.ndarray, vector: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``rotation`` (3, 3, ...) and ``vector`` (3, ...) with their batch axes lined up (see ``_align``)."""
+    if rotation.ndim - 2 == vector.ndim - 1:
+        return rotation, vector
+    batch_ndim = max(rotation.ndim - 2, vector.ndim - 1)
+    return _align(rotation, 2, batch_ndim), _align(vector, 1, batch_ndim)

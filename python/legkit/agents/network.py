@@ -31,11 +31,16 @@ leader, each agent composing the pose it received with its connector's pose. The
 an agent heard of the leader (its *uplink*) tells it which side of each of its joints is fixed.
 
 Speed: a round costs a fixed number of array operations whatever the number of agents (no Python loop
-over agents, connectors or messages). What never changes is tabled once: the mated connectors' relative
-rotations and the connector frames are signed permutations (entries exactly 0 and +-1), so turning a
-message or a connector frame by them is an exact gather with sign flips rather than a matrix product. The
-arithmetic is otherwise the same operation for operation as the plain matrix formulation (see
-``moments.transform`` and ``moments.rotate``), so results are reproducible bit for bit.
+over agents, connectors or messages), each over all agents or connectors at once. The state is kept
+component-major (components first, agents or connectors last, e.g. ``(13, N)``), so that every operation
+runs along long contiguous rows, and per connector only for the connected ones (numbered 0..L-1 in the
+order of their link number ``6 n + s``, the bus's address): when every agent is busy, as while the robot
+moves, the arrays are used whole, without gathering. The (N, ...) attributes are views or copies of this
+state. What never changes is tabled once: the mated connectors' relative rotations and the connector
+frames are signed permutations (entries exactly 0 and +-1), so turning a message or a connector frame by
+them is an exact gather with sign flips rather than a matrix product. The arithmetic is otherwise the
+same operation for operation as the plain matrix formulation (see ``moments.transform_components``), so
+results are reproducible bit for bit.
 """
 
 from __future__ import annotations
@@ -47,10 +52,11 @@ import numpy as np
 
 import legkit as lk
 from legkit.agents import moments
-from legkit.agents.bus import BusConfig, Channel, rows_differ
-from legkit.robots.superbot import CONNECTOR_BLOCK, ModelLayout, ModuleParameters, ModuleTree, module_kinematics
+from legkit.agents.bus import BusConfig, Channel
+from legkit.robots.superbot import CONNECTOR_BLOCK, ModelLayout, ModuleParameters, ModuleTree, module_kinematics_components
 
 _N_SLOTS = 6
+_UPLINK_BLOCK = np.append(CONNECTOR_BLOCK, -1)  # the block of each uplink connector; -1 for none (uplink -1)
 _POSE_WIDTH = 9 + 3 + 3 + 3 + 1  # connector rotation, position, support point, support direction, leader id
 
 
@@ -87,7 +93,11 @@ class AgentNetwork:
 
     ``ground`` lists the modules touching the ground (candidates for leadership); ``angles`` (N, 3) are the
     joint angles the agents sense at start (zeros by default). On construction each agent runs Algorithm 2
-    once with empty estimates (round 0: it sends its own mass on every connector)."""
+    once with empty estimates (round 0: it sends its own mass on every connector).
+
+    ``part_rotation``, ``part_translation``, ``part_moments`` and ``own`` are (N, ...) views of the agents'
+    component-major state; ``connector_rotation``, ``connector_position`` and ``estimates_connector_frame``
+    are computed (N, 6, ...) copies, as are the estimate queries below."""
 
     def __init__(
         self, trees: ModuleTree | Sequence[ModuleTree], bus: BusConfig | None = None, ground: Sequence[GroundContact] = (),
@@ -118,7 +128,6 @@ class AgentNetwork:
         self.pose_channel = Channel(self.partner, self.partner_slot, _POSE_WIDTH, bus, self.rng)
         n = self.n_modules
         self.now = 0
-        self.estimates_connector_frame = np.zeros((n, _N_SLOTS, moments.WIDTH))
         # Election: a random, distinct priority for each ground module; -1 means "no leader heard of".
         self.leader_key = np.full(n, -1.0)
         self.leader = np.full(n, -1, dtype=np.int64)
@@ -136,29 +145,37 @@ class AgentNetwork:
         self._contact_block = np.array([c.block for c in self.ground], dtype=np.int64)
         self._contact_rotation = np.array([np.asarray(c.rotation, dtype=float) for c in self.ground]).reshape(-1, 3, 3)
         self._contact_translation = np.array([np.asarray(c.translation, dtype=float) for c in self.ground]).reshape(-1, 3)
-        # Pose: the world pose of the uplink connector as received (receiver's connector frame), and the line.
+        # The connected connectors, numbered 0..L-1 in the order of their link numbers 6 n + s; number L stands
+        # for any free connector (no estimate, no pose received).
+        self._links = np.flatnonzero(self.connected)
+        count = self._links.size
+        self._link_module, self._link_slot = np.divmod(self._links, _N_SLOTS)
+        self._index_of_link = np.full(n * _N_SLOTS, count)
+        self._index_of_link[self._links] = np.arange(count)
+        self._before, self._after = _other_connectors(self.connected, self._index_of_link)
+        tables = _signed_permutation_tables(self.mate.reshape(-1, 3, 3)[self._links])
+        self._mate_rotation_index, self._mate_rotation_signs = tables[0], tables[1]
+        self._mate_moment_index, self._mate_moment_signs = np.ascontiguousarray(tables[2].T), np.ascontiguousarray(tables[3].T)
+        # Estimates of what lies beyond each connector (13, L), in its frame, and Algorithm 2's copies in the
+        # module frame (13, L + 1; free connectors: zeros).
+        self._estimates = np.zeros((moments.WIDTH, count))
+        self._module_frame_estimates = np.zeros((moments.WIDTH, count + 1))
+        # Pose: the world pose of the uplink connector as received (receiver's connector frame), and the line;
+        # the last pose message received on each connector (L + 1, 19), turned into the receiver's frame.
         self.received_connector_rotation = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
         self.received_connector_position = np.zeros((n, 3))
         self.pose_known = np.zeros(n, dtype=bool)
-        # The last pose message received on each connector (link), turned into the receiver's connector frame.
-        self._pose = np.zeros((n * _N_SLOTS, _POSE_WIDTH))
+        self._pose = np.zeros((count + 1, _POSE_WIDTH))
         self._pose[:, 18] = -1.0
         self._world_poses: tuple[np.ndarray, np.ndarray] | None = None  # every module's, while nothing changes
-        # Module-frame copies of the estimates, connector-major (6, N, 13) so each connector's block is contiguous.
-        self._estimates_module_frame = np.zeros((_N_SLOTS, n, moments.WIDTH))
         self._dirty_mass = np.ones(n, dtype=bool)
-        self._dirty_estimate = np.zeros((n, _N_SLOTS), dtype=bool)  # module-frame copy of an estimate is stale
+        self._dirty_estimate = np.zeros(count, dtype=bool)  # the module-frame copy of an estimate is stale
         self._dirty_election = np.ones(n, dtype=bool)
         self._dirty_pose = np.ones(n, dtype=bool)
         self.recomputations = 0
         self._module_ids = np.arange(n)
-        # Connector (module, slot) is link module * 6 + slot; the connected ones in ascending order.
-        self._links = np.flatnonzero(self.connected)
-        self._link_module, self._link_slot = np.divmod(self._links, _N_SLOTS)
-        tables = _signed_permutation_tables(self.mate.reshape(-1, 3, 3))
-        self._mate_rotation_index, self._mate_rotation_signs, self._mate_moment_index, self._mate_moment_signs = tables
         self._init_module_state(parameters)
-        self._sense(self._checked_angles(np.zeros((n, 3)) if angles is None else angles), slice(None))
+        self._sense(self._checked_angles(np.zeros((n, 3)) if angles is None else angles), None)
         self._send()
 
     def _check_ground(self, ground: Sequence[GroundContact]) -> list[GroundContact]:
@@ -177,24 +194,99 @@ class AgentNetwork:
         return checked
 
     def _init_module_state(self, parameters: ModuleParameters) -> None:
-        """Each agent's own state, and the parts of it that its joints never move: block A is the module frame,
-        so its part moments and the frames of its connectors (0, 1, 2) are constants."""
+        """Each agent's own state, component-major, and the parts of it its joints never move: block A is the
+        module frame, so its part moments and the frames of its connectors (0, 1, 2) are constants."""
         n = self.n_modules
         self.angles = np.zeros((n, 3))
-        self.part_rotation = np.zeros((n, 4, 3, 3))
-        self.part_translation = np.zeros((n, 4, 3))
-        self.part_moments = np.zeros((n, 4, moments.WIDTH))
-        self.own = np.zeros((n, moments.WIDTH))
-        self.connector_rotation = np.zeros((n, _N_SLOTS, 3, 3))
-        self.connector_position = np.zeros((n, _N_SLOTS, 3))
-        self._part_moments_zero = moments.pack(*_part_arrays(parameters))
-        self.part_moments[:, 0] = moments.transform(np.eye(3), np.zeros(3), self._part_moments_zero[0])
+        self._part_rotation = np.zeros((3, 3, 4, n))
+        self._part_translation = np.zeros((3, 4, n))
+        self._part_moments = np.zeros((moments.WIDTH, 4, n))
+        self._own = np.zeros((moments.WIDTH, n))
+        self._part_moments_zero = moments.pack(*_part_arrays(parameters)).T.copy()  # (13, 4)
+        self._part_moments[:, 0] = moments.transform_components(np.eye(3), np.zeros(3), self._part_moments_zero[:, 0])[:, None]
         rotation_zero, position_zero = parameters.connector_frames()
-        self.connector_rotation[:, :3] = np.eye(3) @ rotation_zero[:3]
-        self.connector_position[:, :3] = np.zeros(3) + moments.rotate(np.eye(3), position_zero[:3])
+        self._block_a_rotation = (np.eye(3) @ rotation_zero[:3]).transpose(1, 2, 0)  # (3, 3, slot)
+        self._block_a_position = np.zeros((3, 1)) + moments.rotate_components(np.eye(3), position_zero[:3].T)  # (3, slot)
         # Block B's connectors (3, 4, 5) turn with part 3: their rotations are signed permutations of its columns.
-        self._block_b_connector_index, self._block_b_connector_signs, _, _ = _signed_permutation_tables(rotation_zero[3:])
-        self._block_b_connector_position_zero = position_zero[3:]
+        index, signs, _, _ = _signed_permutation_tables(rotation_zero[3:])
+        self._block_b_columns = index.reshape(3, 3, 3)[:, 0] % 3  # (slot, j): the column of part 3 in column j
+        self._block_b_signs = signs.reshape(3, 3, 3)[:, 0]  # (slot, j)
+        self._block_b_position_zero = position_zero[3:].T  # (3, slot)
+        # The frames of the connected connectors (3, 3, L + 1), (3, L + 1); free ones as connector 0 (A_end).
+        a = self._link_slot < 3
+        self._connector_rotation = np.empty((3, 3, self._links.size + 1))
+        self._connector_position = np.empty((3, self._links.size + 1))
+        self._connector_rotation[:, :, :-1][:, :, a] = self._block_a_rotation[:, :, self._link_slot[a]]
+        self._connector_position[:, :-1][:, a] = self._block_a_position[:, self._link_slot[a]]
+        self._connector_rotation[:, :, -1] = self._block_a_rotation[:, :, 0]
+        self._connector_position[:, -1] = self._block_a_position[:, 0]
+        # Block B's connected connectors: their number, module, and where their rotation's entries come from
+        # in the part rotations (3, 3 x 4 parts x N): column j of part 3 of the module.
+        self._block_b_connectors = (~a).nonzero()[0]
+        self._block_b_module = self._link_module[~a]
+        slot = self._link_slot[~a] - 3
+        self._block_b_entries = self._block_b_columns[slot].T * (4 * n) + 3 * n + self._block_b_module  # (j, k)
+        self._block_b_entry_signs = self._block_b_signs[slot].T  # (j, k)
+        self._block_b_connector_position_zero = self._block_b_position_zero[:, slot]  # (3, k)
+
+    # ------------------------------------------------------------------------------------------------
+    # Each agent's own state, as (N, ...) arrays
+    @property
+    def part_rotation(self) -> np.ndarray:
+        """(N, 4, 3, 3) rotations of each module's parts in its module frame (see ``module_kinematics``); a view."""
+        return self._part_rotation.transpose(3, 2, 0, 1)
+
+    @property
+    def part_translation(self) -> np.ndarray:
+        """(N, 4, 3) translations of each module's parts in its module frame, m; a view."""
+        return self._part_translation.transpose(2, 1, 0)
+
+    @property
+    def part_moments(self) -> np.ndarray:
+        """(N, 4, 13) packed moments of each module's parts, module frame; a view."""
+        return self._part_moments.transpose(2, 1, 0)
+
+    @property
+    def own(self) -> np.ndarray:
+        """(N, 13) packed moments of each module, module frame; a view."""
+        return self._own.T
+
+    @property
+    def connector_rotation(self) -> np.ndarray:
+        """(N, 6, 3, 3) rotations of each module's connector frames in its module frame (a copy)."""
+        return self._connector_frames()[0].transpose(2, 3, 0, 1)
+
+    @property
+    def connector_position(self) -> np.ndarray:
+        """(N, 6, 3) origins of each module's connector frames in its module frame, m (a copy)."""
+        return self._connector_frames()[1].transpose(1, 2, 0)
+
+    @property
+    def estimates_connector_frame(self) -> np.ndarray:
+        """(N, 6, 13) each agent's estimate of what lies beyond each connector, in that connector's frame (zeros
+        on free connectors and before any message arrived; a copy)."""
+        return self._by_connector(self._estimates)
+
+    def _by_connector(self, estimates: np.ndarray) -> np.ndarray:
+        """(N, 6, 13) from (13, L) per connected connector, zeros on the free ones."""
+        full = np.zeros((moments.WIDTH, self.n_modules * _N_SLOTS))
+        full[:, self._links] = estimates
+        return full.reshape(moments.WIDTH, self.n_modules, _N_SLOTS).transpose(1, 2, 0)
+
+    def _connector_frames(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every connector's frame, connected or not: rotations (3, 3, N, 6) and positions (3, N, 6)."""
+        n = self.n_modules
+        rotation = np.empty((3, 3, n, _N_SLOTS))
+        position = np.empty((3, n, _N_SLOTS))
+        rotation[:, :, :, :3] = self._block_a_rotation[:, :, None]
+        position[:, :, :3] = self._block_a_position[:, None]
+        block_b = self._part_rotation[:, :, 3]  # (3, 3, N)
+        turned = block_b[:, self._block_b_columns] * self._block_b_signs[..., None]  # (3, slot, 3, N)
+        turned += 0.0
+        rotation[:, :, :, 3:] = turned.transpose(0, 2, 3, 1)
+        turned_position = self._part_translation[:, 3, None] + moments.rotate_components(block_b[:, :, None], self._block_b_position_zero[..., None])
+        position[:, :, 3:] = turned_position.transpose(0, 2, 1)
+        return rotation, position
 
     # ------------------------------------------------------------------------------------------------
     # Sensing
@@ -202,11 +294,11 @@ class AgentNetwork:
         """Every agent reads its own three joint angles (N, 3) rad. Agents whose angles changed recompute their
         own mass properties and connector poses, and will run Algorithm 2 in the next round."""
         angles = self._checked_angles(angles)
-        changed = np.any(angles != self.angles, axis=1)
+        changed = (angles != self.angles).any(axis=1)
         if changed.all():
-            self._sense(angles, slice(None))
+            self._sense(angles, None)
         elif changed.any():
-            self._sense(angles, np.flatnonzero(changed))
+            self._sense(angles, changed)
 
     def _checked_angles(self, angles: np.ndarray) -> np.ndarray:
         angles = np.asarray(angles, dtype=float)
@@ -216,20 +308,39 @@ class AgentNetwork:
             raise ValueError("angles: must be finite")
         return angles
 
-    def _sense(self, angles: np.ndarray, rows: slice | np.ndarray) -> None:
-        """The agents ``rows`` take ``angles[rows]``: part poses and moments, own mass, block B's connector frames."""
+    def _sense(self, angles: np.ndarray, changed: np.ndarray | None) -> None:
+        """The agents ``changed`` (N,) (all if None) take their ``angles``: part poses and moments, own mass, and
+        the frames of block B's connected connectors."""
+        rows = slice(None) if changed is None else changed.nonzero()[0]
         self.angles[rows] = angles[rows]
-        part_rotation, part_translation = module_kinematics(angles[rows], self.parameters)
-        self.part_rotation[rows], self.part_translation[rows] = part_rotation, part_translation
-        self.part_moments[rows, 1:] = moments.transform(part_rotation[:, 1:], part_translation[:, 1:], self._part_moments_zero[1:])
-        self.own[rows] = self.part_moments[rows].sum(axis=1)
-        block_b_rotation = part_rotation[:, 3]
-        turned = block_b_rotation.reshape(-1, 9)[:, self._block_b_connector_index] * self._block_b_connector_signs
+        rotation, translation = module_kinematics_components(angles[rows], self.parameters)
+        self._part_rotation[..., rows] = rotation
+        self._part_translation[..., rows] = translation
+        parts = moments.transform_components(rotation[:, :, 1:], translation[:, 1:], self._part_moments_zero[:, 1:, None])
+        self._part_moments[:, 1:, rows] = parts
+        own = self._part_moments[:, 0, :1] + parts[:, 0]
+        own += parts[:, 1]
+        own += parts[:, 2]
+        own += 0.0  # sums from +0, as numpy's reduction over the parts did
+        self._own[:, rows] = own
+        connectors, module = self._block_b_connectors, self._block_b_module
+        entries, signs, position_zero = self._block_b_entries, self._block_b_entry_signs, self._block_b_connector_position_zero
+        if changed is not None:
+            moved = changed.take(module)
+            connectors, module, entries, signs, position_zero = connectors[moved], module[moved], entries[:, moved], signs[:, moved], position_zero[:, moved]
+        turned = self._part_rotation.reshape(3, -1).take(entries, axis=1)  # (3, 3, k)
+        turned *= signs
         turned += 0.0  # the matrix product this replaces gives +0.0 where the sign flip gives -0.0
-        self.connector_rotation[rows, 3:] = turned.reshape(-1, 3, 3, 3)
-        self.connector_position[rows, 3:] = part_translation[:, 3, None] + moments.rotate(block_b_rotation[:, None], self._block_b_connector_position_zero)
+        self._connector_rotation[:, :, connectors] = turned
+        block_b = self._part_rotation[:, :, 3].take(module, axis=2)
+        position = moments.rotate_components(block_b, position_zero)
+        position += self._part_translation[:, 3].take(module, axis=1)
+        self._connector_position[:, connectors] = position
         self._dirty_mass[rows] = True
-        self._dirty_estimate[rows] = self.connected[rows]
+        if changed is None:
+            self._dirty_estimate[:] = True
+        else:
+            self._dirty_estimate |= changed.take(self._link_module)
         self._dirty_pose[rows] = True
         self._world_poses = None
 
@@ -296,15 +407,18 @@ class AgentNetwork:
         # Algorithm 1: into the receiving connector's frame (mated connectors share their origin); an agent
         # whose estimate changed runs Algorithm 2 in this round's _send.
         links, _, payload = self.mass_channel._deliver(self.now)
-        received = _gather_rows(payload, np.take(self._mate_moment_index, links, axis=0))
-        received *= np.take(self._mate_moment_signs, links, axis=0)
-        received[:, 1:] += 0.0  # the turned moments the arithmetic gave: +0.0 where the sign flip gives -0.0
-        estimates = self.estimates_connector_frame.reshape(-1, moments.WIDTH)
-        changed = rows_differ(received, np.take(estimates, links, axis=0))
-        links, received = links[changed], received[changed]
-        estimates[links] = received
-        self._dirty_mass[links // _N_SLOTS] = True
-        self._dirty_estimate.reshape(-1)[links] = True
+        connector = self._index_of_link.take(links)
+        count = links.size
+        columns = np.ascontiguousarray(payload.T).reshape(-1)  # component-major: component c of message j at c count + j
+        received = columns.take(self._mate_moment_index.take(connector, axis=1) * count + np.arange(count))
+        received *= self._mate_moment_signs.take(connector, axis=1)
+        received[1:] += 0.0  # the turned moments the arithmetic gave: +0.0 where the sign flip gives -0.0
+        changed = (received != self._estimates.take(connector, axis=1)).any(axis=0)
+        if not changed.all():
+            connector, received = connector[changed], received[:, changed]
+        self._estimates[:, connector] = received
+        self._dirty_mass[self._link_module.take(connector)] = True
+        self._dirty_estimate[connector] = True
 
         links, _, payload = self.election_channel._deliver(self.now)
         if links.size:
@@ -323,14 +437,15 @@ class AgentNetwork:
         # Poses are kept per connector (a pose may arrive before the election tells which connector leads to
         # the leader); an agent uses the one on its uplink, if it comes from the leader it follows.
         links, _, payload = self.pose_channel._deliver(self.now)
-        turned = _gather_rows(payload, np.take(self._mate_rotation_index, links, axis=0))
-        turned *= np.take(self._mate_rotation_signs, links, axis=0)
+        connector = self._index_of_link.take(links)
+        turned = payload.reshape(-1).take(self._mate_rotation_index.take(connector, axis=0) + _POSE_WIDTH * np.arange(links.size)[:, None])
+        turned *= self._mate_rotation_signs.take(connector, axis=0)
         turned += 0.0
         payload[:, :9] = turned
-        self._pose[links] = payload
+        self._pose[connector] = payload
         module, slot = np.divmod(links, _N_SLOTS)
-        self._dirty_pose[module[slot == self.uplink[module]]] = True
-        uplink = np.take(self._pose, self._module_ids * _N_SLOTS + np.maximum(self.uplink, 0), axis=0)
+        self._dirty_pose[module[slot == self.uplink.take(module)]] = True
+        uplink = self._pose.take(self._index_of_link.take(self._module_ids * _N_SLOTS + np.maximum(self.uplink, 0)), axis=0)
         self.pose_known = (self.uplink >= 0) & (uplink[:, 18] == self.leader)
         self.received_connector_rotation = uplink[:, :9].reshape(-1, 3, 3)
         self.received_connector_position = uplink[:, 9:12]
@@ -339,60 +454,77 @@ class AgentNetwork:
 
     def _send(self) -> None:
         # Algorithm 2 for every agent whose own mass or an estimate changed.
-        n = self.n_modules
-        dirty = self._dirty_mass.copy()
-        self._dirty_mass[:] = False
-        rows = np.flatnonzero(dirty)
-        self.recomputations += rows.size
-        stale = np.flatnonzero(self._dirty_estimate)  # links whose module-frame copy is stale
-        self._dirty_estimate[:] = False
-        module, slot = np.divmod(stale, _N_SLOTS)
-        self._estimates_module_frame.reshape(-1, moments.WIDTH)[slot * n + module] = moments.transform(
-            np.take(self.connector_rotation.reshape(-1, 3, 3), stale, axis=0),
-            np.take(self.connector_position.reshape(-1, 3), stale, axis=0),
-            np.take(self.estimates_connector_frame.reshape(-1, moments.WIDTH), stale, axis=0),
-        )
-        links = self._links[dirty[self._link_module]]
-        module, slot = np.divmod(links, _N_SLOTS)
-        if rows.size == n:
-            others = _exclusive_sums(self._estimates_module_frame)
-            row = module
+        dirty, self._dirty_mass = self._dirty_mass, np.zeros(self.n_modules, dtype=bool)
+        self.recomputations += int(np.count_nonzero(dirty))
+        if self._dirty_estimate.all():
+            self._module_frame_estimates[:, :-1] = moments.transform_components(
+                self._connector_rotation[:, :, :-1], self._connector_position[:, :-1], self._estimates
+            )
         else:
-            others = _exclusive_sums(np.take(self._estimates_module_frame, rows, axis=1))
-            row = np.searchsorted(rows, module)
-        outgoing = np.take(self.own, module, axis=0) + np.take(others.reshape(-1, moments.WIDTH), slot * rows.size + row, axis=0)
-        inverse_rotation, inverse_translation = moments.inverse_pose(
-            np.take(self.connector_rotation.reshape(-1, 3, 3), links, axis=0), np.take(self.connector_position.reshape(-1, 3), links, axis=0)
-        )
-        self.mass_channel._send_changed(self.now, links, moments.transform(inverse_rotation, inverse_translation, outgoing))
+            stale = self._dirty_estimate.nonzero()[0]
+            self._module_frame_estimates[:, stale] = moments.transform_components(
+                self._connector_rotation.take(stale, axis=2), self._connector_position.take(stale, axis=1), self._estimates.take(stale, axis=1)
+            )
+        self._dirty_estimate[:] = False
+        active = dirty.take(self._link_module)
+        if active.all():
+            links, module, before, after = self._links, self._link_module, self._before, self._after
+            rotation, position = self._connector_rotation[:, :, :-1], self._connector_position[:, :-1]
+        else:
+            connector = active.nonzero()[0]
+            links, module, before, after = self._links[connector], self._link_module[connector], self._before[:, connector], self._after[:, connector]
+            rotation, position = self._connector_rotation.take(connector, axis=2), self._connector_position.take(connector, axis=1)
+        outgoing = self._own.take(module, axis=1)
+        outgoing += self._others(before, after)
+        inverse_translation = moments.inverse_translation_components(rotation, position)
+        message = moments.transform_components(rotation.swapaxes(0, 1), inverse_translation, outgoing)
+        self.mass_channel._send_changed(self.now, links, message.T)
 
         # Flooding: forward the best leader heard of on every connector but the one it came from.
         ready = self._dirty_election & (self.leader_key >= 0)
         self._dirty_election[:] = False
         if ready.any():
-            links = self._forward_links(ready)
+            links = self._links[self._forward(ready)]
             module = links // _N_SLOTS
             self.election_channel._send_changed(self.now, links, np.stack([self.leader_key[module], self.leader[module]], axis=-1))
 
         ready = self._dirty_pose & (self.pose_known | self._is_leader())
         self._dirty_pose[:] = False
-        rows = np.flatnonzero(ready)
-        links = self._forward_links(ready)
-        module = links // _N_SLOTS
-        rotation, translation = self._world_poses_of(rows)
-        row = module if rows.size == n else np.searchsorted(rows, module)
-        rotation, translation = np.take(rotation, row, axis=0), np.take(translation, row, axis=0)
+        connector = self._forward(ready).nonzero()[0]
+        links, module = self._links.take(connector), self._link_module.take(connector)
+        if ready.all():
+            rotation, translation = self._world_poses_of(self._module_ids)
+            rotation, translation = rotation.take(module, axis=0), translation.take(module, axis=0)
+        else:
+            rotation, translation = self._compute_world_poses(module)
         payload = np.empty((links.size, _POSE_WIDTH))
-        payload[:, :9] = (rotation @ np.take(self.connector_rotation.reshape(-1, 3, 3), links, axis=0)).reshape(-1, 9)
-        payload[:, 9:12] = translation + moments.rotate(rotation, np.take(self.connector_position.reshape(-1, 3), links, axis=0))
-        payload[:, 12:18] = np.take(self.line, module, axis=0)
-        payload[:, 18] = np.take(self.leader, module)
+        frame = np.ascontiguousarray(self._connector_rotation.take(connector, axis=2).transpose(2, 0, 1))
+        np.matmul(rotation, frame, out=payload[:, :9].reshape(-1, 3, 3))
+        origin = moments.rotate_components(rotation.transpose(1, 2, 0), self._connector_position.take(connector, axis=1))
+        payload[:, 9:12] = translation + origin.T
+        payload[:, 12:18] = self.line.take(module, axis=0)
+        payload[:, 18] = self.leader.take(module)
         self.pose_channel._send_changed(self.now, links, payload)
 
-    def _forward_links(self, ready: np.ndarray) -> np.ndarray:
-        """The connected links of the agents ``ready`` (N,) other than their uplinks, in ascending order."""
+    def _others(self, before: np.ndarray, after: np.ndarray) -> np.ndarray:
+        """(13, k) sums of the module-frame estimates of the other connected connectors of k connectors, given as
+        lists (P, k) of the connectors before and after each one's own, padded with free (zero) connectors.
+
+        "T minus what came from i" as prefix plus suffix sums over the connectors (no subtraction, a fixed
+        order): the slots below i upwards from +0, plus the slots above i downwards from +0. Free connectors,
+        whose estimates are zero, leave these sums unchanged, so only the connected ones are listed."""
+        estimates = self._module_frame_estimates
+        prefix = np.zeros((moments.WIDTH, before.shape[1]))
+        suffix = np.zeros((moments.WIDTH, before.shape[1]))
+        for k in range(before.shape[0]):
+            prefix += estimates.take(before[k], axis=1)
+            suffix += estimates.take(after[k], axis=1)
+        return np.add(prefix, suffix, out=prefix)
+
+    def _forward(self, ready: np.ndarray) -> np.ndarray:
+        """(L,) True for the connected connectors of the agents ``ready`` (N,) other than their uplinks."""
         module = self._link_module
-        return self._links[ready[module] & (self._link_slot != self.uplink[module])]
+        return ready.take(module) & (self._link_slot != self.uplink.take(module))
 
     # ------------------------------------------------------------------------------------------------
     # What each agent knows
@@ -403,12 +535,27 @@ class AgentNetwork:
     def connector_estimates(self) -> np.ndarray:
         """Packed moments (N, 6, 13) of what lies beyond each connector, in each agent's module frame at its
         current joint angles (zeros on free connectors and before any message arrived)."""
-        return moments.transform(self.connector_rotation, self.connector_position, self.estimates_connector_frame)
+        rotation, position = self._connector_frames()
+        estimates = self._by_connector(self._estimates).transpose(2, 0, 1)
+        return moments.transform_components(rotation, position, estimates).transpose(1, 2, 0)
 
     def current_connector_estimates(self) -> np.ndarray:
         """Like ``connector_estimates`` (N, 6, 13), read from the copies Algorithm 2 keeps: current after
         ``round()`` (``observe`` without a round leaves them at the previous angles)."""
-        return np.swapaxes(self._estimates_module_frame, 0, 1)
+        return self._by_connector(self._module_frame_estimates[:, :-1])
+
+    def block_estimates(self) -> np.ndarray:
+        """(N, 2, 13) the sums of ``current_connector_estimates`` over each block's connectors: what lies beyond
+        block A (connectors 0, 1, 2) and beyond block B (3, 4, 5), summed in connector order."""
+        estimates = self._module_frame_estimates
+        connector = self._index_of_link.reshape(self.n_modules, _N_SLOTS).T  # (slot, N); free: the zero column
+        sums = np.empty((2, moments.WIDTH, self.n_modules))
+        for block in range(2):
+            total = sums[block]
+            np.add(estimates.take(connector[3 * block], axis=1), estimates.take(connector[3 * block + 1], axis=1), out=total)
+            total += estimates.take(connector[3 * block + 2], axis=1)
+            total += 0.0  # sums from +0, as numpy's reduction does
+        return sums.transpose(2, 0, 1)
 
     def total_estimates(self) -> np.ndarray:
         """Packed moments (N, 13) of the whole robot (as each agent knows it), in each agent's module frame."""
@@ -437,37 +584,41 @@ class AgentNetwork:
         return rotation[modules], translation[modules]
 
     def _compute_world_poses(self, modules: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        uplink = np.maximum(self.uplink[modules], 0)
-        inverse_rotation, inverse_translation = moments.inverse_pose(
-            self.connector_rotation[modules, uplink], self.connector_position[modules, uplink]
-        )
-        received = self.received_connector_rotation[modules]
-        rotation = received @ inverse_rotation
-        translation = self.received_connector_position[modules] + moments.rotate(received, inverse_translation)
-        is_leader = self.leader[modules] == modules
-        leaders = np.flatnonzero(is_leader)
+        # The uplink connector's frame; an agent without an uplink uses connector 0's (the result is replaced).
+        uplink = self._index_of_link.take(modules * _N_SLOTS + np.maximum(self.uplink.take(modules), 0))
+        connector = self._connector_rotation.take(uplink, axis=2)
+        inverse_translation = moments.inverse_translation_components(connector, self._connector_position.take(uplink, axis=1))
+        received = self.received_connector_rotation.take(modules, axis=0)
+        rotation = received @ np.ascontiguousarray(connector.transpose(2, 0, 1)).swapaxes(1, 2)
+        translation = moments.rotate_components(received.transpose(1, 2, 0), inverse_translation).T
+        translation += self.received_connector_position.take(modules, axis=0)
+        is_leader = self.leader.take(modules) == modules
+        leaders = is_leader.nonzero()[0]
         if leaders.size:
-            contact = self._contact_of_module[modules[leaders]]
+            contact = self._contact_of_module.take(modules.take(leaders))
             rotation[leaders] = self._contact_rotation[contact]
             translation[leaders] = self._contact_translation[contact]
             # A leader standing on block B: the block's pose composed with the inverse of part 3's.
             on_b = self._contact_block[contact] == 1
             if on_b.any():
                 n, block_rotation, block_translation = modules[leaders[on_b]], self._contact_rotation[contact[on_b]], self._contact_translation[contact[on_b]]
-                part_inverse_rotation, part_inverse_translation = moments.inverse_pose(self.part_rotation[n, 3], self.part_translation[n, 3])
+                part_inverse_rotation, part_inverse_translation = moments.inverse_pose(
+                    np.ascontiguousarray(self.part_rotation[n, 3]), self.part_translation[n, 3]
+                )
                 rotation[leaders[on_b]] = block_rotation @ part_inverse_rotation
                 translation[leaders[on_b]] = block_translation + (block_rotation @ part_inverse_translation[..., None])[..., 0]
-        unknown = ~(self.pose_known[modules] | is_leader)
-        rotation[unknown] = np.eye(3)
-        translation[unknown] = 0.0
+        unknown = ~(self.pose_known.take(modules) | is_leader)
+        if unknown.any():
+            rotation[unknown] = np.eye(3)
+            translation[unknown] = 0.0
         return rotation, translation
 
     def fixed_block(self) -> np.ndarray:
         """(N,) the block (0: A, 1: B) on the leader's side of each module: the grounded block for a leader, the
         block of the uplink connector otherwise; -1 where no leader is known."""
-        block = np.where(self.uplink >= 0, CONNECTOR_BLOCK[np.maximum(self.uplink, 0)], -1)
-        leaders = np.flatnonzero(self._is_leader())
-        block[leaders] = self._contact_block[self._contact_of_module[leaders]]
+        block = _UPLINK_BLOCK.take(self.uplink)
+        leaders = self._is_leader().nonzero()[0]
+        block[leaders] = self._contact_block.take(self._contact_of_module.take(leaders))
         return block
 
     # ------------------------------------------------------------------------------------------------
@@ -516,23 +667,22 @@ def reference_estimates(model: lk.Model, layout: ModelLayout, partner: np.ndarra
     return beyond, moments.transform(inverse_rotation, inverse_translation, tree_total)
 
 
-def _exclusive_sums(estimates: np.ndarray) -> np.ndarray:
-    """For each connector i, the sum of the estimates of the other connectors, as prefix plus suffix sums
-    (no subtraction, a fixed order), over axis 0 of (S, N, W)."""
-    slots = estimates.shape[0]
-    prefix = np.empty_like(estimates)
-    suffix = np.empty_like(estimates)
-    prefix[0] = 0.0
-    suffix[-1] = 0.0
-    for i in range(1, slots):
-        np.add(prefix[i - 1], estimates[i - 1], out=prefix[i])
-        np.add(suffix[slots - i], estimates[slots - i], out=suffix[slots - 1 - i])
-    return np.add(prefix, suffix, out=prefix)
-
-
-def _gather_rows(rows: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """``rows[k, index[k, c]]`` for (k, w) rows and (k, c) column indices, as one flat gather."""
-    return np.take(rows.reshape(-1), index + rows.shape[1] * np.arange(rows.shape[0])[:, None])
+def _other_connectors(connected: np.ndarray, index_of_link: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For each connected connector (by number), the numbers of its module's other connected connectors: those
+    with a lower slot in ascending order, and those with a higher slot in descending order, (P, L) each,
+    padded with the number of a free connector (P: the most connectors of a module, less one)."""
+    n, slots = connected.shape
+    padding = int(connected.sum())
+    width = max(int(connected.sum(axis=1).max()) - 1, 0)
+    before, after = [], []
+    for module, slot in zip(*np.nonzero(connected)):
+        others = [(j, int(index_of_link[module * slots + j])) for j in np.flatnonzero(connected[module])]
+        below = [c for j, c in others if j < slot]
+        above = [c for j, c in reversed(others) if j > slot]
+        before.append(below + [padding] * (width - len(below)))
+        after.append(above + [padding] * (width - len(above)))
+    shape = (len(before), width)
+    return np.array(before, dtype=np.int64).reshape(shape).T.copy(), np.array(after, dtype=np.int64).reshape(shape).T.copy()
 
 
 def _part_arrays(parameters: ModuleParameters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -71,68 +71,78 @@ class BalanceController:
         parameters = network.parameters
         self.limit = parameters.joint_limit
         self.width = parameters.width
-        # Joint k's point and axis in the zero-angle module frame, (3 joints, 2, 3): both fixed in part k + 1.
-        self._joint_point_axis = np.stack([np.outer(JOINT_Z, [0.0, 0.0, parameters.width]), JOINT_AXES], axis=1)
+        # Joint k's point (0, 0, z_k) and axis (a coordinate axis) in the zero-angle module frame.
+        self._joint_height = (JOINT_Z * parameters.width)[:, None]
+        # Joint k's axis is column argmax(u_k) of part k + 1's rotation: entry (column, part) of (3, 3 x 4 parts).
+        self._joint_axis_entries = 4 * np.argmax(JOINT_AXES, axis=1) + np.arange(1, 4)
 
     def decide(self) -> JointDecisions:
         """Every joint's rotation toward the support line and its target (see the module docstring)."""
+        # Component-major throughout (components first, modules last): every operation runs over all modules.
         net = self.network
         n = net.n_modules
-        # Only masses and first moments are needed: the moving parts' masses and COMs.
-        estimates = net.current_connector_estimates()[..., :4]  # (N, 6, 4), module frames
-        parts = net.part_moments[..., :4]  # (N, 4, 4)
-        side_a_connectors = estimates[:, 0] + estimates[:, 1] + estimates[:, 2]
-        side_a_connectors += 0.0  # sums from +0, as numpy's reduction does
-        side_b_connectors = estimates[:, 3] + estimates[:, 4] + estimates[:, 5]
-        side_b_connectors += 0.0
-        # Joint k separates parts 0..k (A side) from parts k+1..3 (B side); the fixed side holds the ground.
+        # Only masses and first moments are needed, (4, ..., N): m, h_x, h_y, h_z (module frames).
+        side_a_connectors, side_b_connectors = net.block_estimates()[..., :4].transpose(1, 2, 0)  # (4, N) each
+        parts = net.part_moments[..., :4].transpose(2, 1, 0)  # (4, 4, N)
+        # Joint k separates parts 0..k (A side) from parts k+1..3 (B side); the side away from the ground moves.
         fixed = net.fixed_block()
-        moving = np.empty((n, 3, 4))
-        moving[:, 0] = parts[:, 3] + parts[:, 2] + parts[:, 1]
-        moving[:, 1] = parts[:, 3] + parts[:, 2]
-        moving[:, 2] = parts[:, 3]
-        moving += side_b_connectors[:, None]
-        fixed_b = np.flatnonzero(fixed == 1)
-        side_a = np.empty((fixed_b.size, 3, 4))
-        side_a[:, 0] = parts[fixed_b, 0]
-        side_a[:, 1] = side_a[:, 0] + parts[fixed_b, 1]
-        side_a[:, 2] = side_a[:, 1] + parts[fixed_b, 2]
-        moving[fixed_b] = side_a + side_a_connectors[fixed_b, None]
-        total = net.own[:, :4] + side_a_connectors + side_b_connectors
-        sign = np.where(fixed == 1, -1.0, 1.0)[:, None]
+        side_a = np.empty((4, 3, n))
+        side_a[:, 0] = parts[:, 0]
+        np.add(side_a[:, 0], parts[:, 1], out=side_a[:, 1])
+        np.add(side_a[:, 1], parts[:, 2], out=side_a[:, 2])
+        side_a += side_a_connectors[:, None]
+        side_b = np.empty((4, 3, n))
+        side_b[:, 2] = parts[:, 3]
+        np.add(parts[:, 3], parts[:, 2], out=side_b[:, 1])
+        np.add(side_b[:, 1], parts[:, 1], out=side_b[:, 0])
+        side_b += side_b_connectors[:, None]
+        moving = np.where(fixed == 1, side_a, side_b)
+        total = net.own[:, :4].T + side_a_connectors + side_b_connectors
+        m2 = moving[0]  # (3, N)
 
-        # Module-frame points and directions, then all turned into the world at once (c_world = R c + t):
-        # joint k's point and axis move with part k + 1 (they are fixed on both of its sides).
-        m2 = moving[..., 0]
-        local = np.empty((n, 10, 3))
-        joint_point_axis = moments.rotate(net.part_rotation[:, 1:, None], self._joint_point_axis)
-        np.add(net.part_translation[:, 1:], joint_point_axis[:, :, 0], out=local[:, 0:3])
-        local[:, 3:6] = joint_point_axis[:, :, 1]
-        np.divide(moving[..., 1:4], m2[..., None], out=local[:, 6:9])
-        np.divide(total[:, 1:4], total[:, :1], out=local[:, 9])
+        # Points and directions in the module frame, then all turned into the world at once (c_world = R c + t):
+        # joint k's point and axis (fixed in part k + 1), p2, the COM. The axis is a coordinate axis and the
+        # point lies on the z axis, so R u and R p are a column of part k + 1's rotation (times the point's z;
+        # +0.0 as the sum R p from +0 gives).
+        part_rotation = net.part_rotation.transpose(2, 3, 1, 0)  # (3, 3, 4 parts, N)
+        local = np.empty((3, 10, n))
+        np.multiply(part_rotation[:, 2, 1:], self._joint_height, out=local[:, 0:3])
+        local[:, 0:3] += 0.0
+        local[:, 0:3] += net.part_translation[:, 1:].transpose(2, 1, 0)
+        np.divide(moving[1:], m2, out=local[:, 3:6])
+        np.divide(total[1:], total[0], out=local[:, 6])
+        np.add(part_rotation.reshape(3, 12, n).take(self._joint_axis_entries, axis=1), 0.0, out=local[:, 7:10])
         rotation, translation = net.world_poses()
-        world = moments.rotate(rotation[:, None], local)
-        world[:, [0, 1, 2, 6, 7, 8, 9]] += translation[:, None]
-        axis_point, axis_direction, p2, com = world[:, 0:3], world[:, 3:6], world[:, 6:9], world[:, 9]
-        pivot = com[:, None] - (m2 / total[:, :1])[..., None] * (p2 - axis_point)
+        world = moments.rotate_components(np.ascontiguousarray(rotation.transpose(1, 2, 0))[:, :, None], local)
+        world[:, 0:7] += translation.T[:, None]
+        axis_point, p2, com, axis_direction = world[:, 0:3], world[:, 3:6], world[:, 6], world[:, 7:10]
+        lever = p2 - axis_point
+        pivot = np.empty((n, 3, 3))  # (N, joint, 3), as the kernel below reads it
+        np.subtract(com[:, None], (m2 / total[0]) * lever, out=pivot.transpose(2, 1, 0))
+
         known = fixed >= 0
-        rows = np.flatnonzero(known)
-        if rows.size == n:
-            rows = slice(None)  # every joint: no copies
         theta = np.zeros((n, 3))
         distance = np.zeros((n, 3))
-        if np.any(known):
+        if known.any():
+            rows = slice(None) if known.all() else known.nonzero()[0]  # every joint at once: no copies
+            # Each query a contiguous row (the kernel reads contiguous same-shape batches directly).
             theta[rows], distance[rows] = rotation_toward_line(
-                pivot[rows], axis_direction[rows], com[rows, None], net.line[rows, None, :3], net.line[rows, None, 3:]
+                pivot[rows], np.ascontiguousarray(axis_direction.T[rows]),
+                com.T[rows, None].repeat(3, axis=1), net.line[rows, None, :3].repeat(3, axis=1), net.line[rows, None, 3:].repeat(3, axis=1),
             )
-        offset = com - net.line[:, :3]
-        direction = net.line[:, 3:]
-        support_distance = np.linalg.norm(offset - np.sum(offset * direction, axis=-1, keepdims=True) * direction, axis=-1)
-        target = np.clip(net.angles + sign * theta, -self.limit, self.limit)
+        offset = com - net.line[:, :3].T
+        direction = net.line[:, 3:].T
+        along = offset * direction
+        along = along[0] + along[1] + along[2]
+        along += 0.0
+        support_distance = _norm(offset - along * direction)
+        target = np.minimum(np.maximum(net.angles + np.where(fixed == 1, -1.0, 1.0)[:, None] * theta, -self.limit), self.limit)
         target = np.where(known[:, None], target, net.angles)
-        lever = p2 - axis_point
-        cross = axis_direction[..., [1, 2, 0]] * lever[..., [2, 0, 1]] - axis_direction[..., [2, 0, 1]] * lever[..., [1, 2, 0]]
-        mass_moment = np.linalg.norm(m2[..., None] * cross, axis=-1)
+        # |m2 u x (p2 - q)|, the cross product as numpy's np.cross computes it: u_{i+1} l_{i+2} - u_{i+2} l_{i+1}.
+        u, l = np.concatenate([axis_direction, axis_direction[:2]]), np.concatenate([lever, lever[:2]])
+        cross = u[1:4] * l[2:5]
+        cross -= u[2:5] * l[1:4]
+        mass_moment = _norm(m2 * cross).T
         support_distance = np.where(known, support_distance, 0.0)
         return JointDecisions(theta, target, distance, np.broadcast_to(support_distance[:, None], (n, 3)), np.where(known[:, None], mass_moment, 0.0))
 
@@ -147,3 +157,9 @@ class BalanceController:
         decisions = self.decide()
         factor = self.gain_factors(decisions)
         return self.pid(decisions.target - self.network.angles, dt, factor * self._k0[:, 0:1], factor * self._k0[:, 1:2], factor * self._k0[:, 2:3]), decisions
+
+
+def _norm(vectors: np.ndarray) -> np.ndarray:
+    """Euclidean norms of component-major vectors (3, ...), summed as ``np.linalg.norm`` sums them."""
+    squares = vectors * vectors
+    return np.sqrt(squares[0] + squares[1] + squares[2])

@@ -36,6 +36,7 @@ as +-90 degrees for all three joints (approximate).
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Sequence
@@ -130,34 +131,55 @@ def module_kinematics(angles: np.ndarray, parameters: ModuleParameters) -> tuple
     Returns (rotations (..., 4, 3, 3), translations (..., 4, 3)): part j's points map as x_module = R x + t,
     where x is the point's position in the module frame at zero angles. Part k + 1 is part k turned by joint
     k about its point p_k (zero-angle coordinates): x -> R_k (J_k (x - p_k) + p_k) + t_k."""
+    rotations, translations = module_kinematics_components(angles, parameters)
+    return np.moveaxis(rotations, (0, 1, 2), (-2, -1, -3)), np.moveaxis(translations, (0, 1), (-1, -2))
+
+
+def module_kinematics_components(angles: np.ndarray, parameters: ModuleParameters) -> tuple[np.ndarray, np.ndarray]:
+    """``module_kinematics`` component-major: rotations (3, 3, 4, ...) and translations (3, 4, ...) for angles
+    (..., 3), components first and the batch last (long rows: much faster for many modules)."""
     angles = np.asarray(angles, dtype=float)
     batch = angles.shape[:-1]
-    cos, sin = np.cos(angles.reshape(-1, 3)).T, np.sin(angles.reshape(-1, 3)).T
-    count = cos.shape[1]
-    rotations = np.zeros((count, 4, 3, 3))
-    rotations[:, 0] = np.eye(3)
-    # Rx(phi_1), and Rx(phi_1) Rz(phi_2) written out: every entry is a single product (+0.0 turns the -0.0
-    # of a zero angle into +0.0, as the matrix product did).
-    first = rotations[:, 1]
-    first[:, 0, 0] = 1.0
-    first[:, 1, 1], first[:, 1, 2], first[:, 2, 1], first[:, 2, 2] = cos[0], -sin[0], sin[0], cos[0]
-    second = rotations[:, 2]
-    second[:, 0, 0], second[:, 0, 1] = cos[1], -sin[1]
-    second[:, 1, 0], second[:, 1, 1], second[:, 1, 2] = cos[0] * sin[1], cos[0] * cos[1], -sin[0]
-    second[:, 2, 0], second[:, 2, 1], second[:, 2, 2] = sin[0] * sin[1], sin[0] * cos[1], cos[0]
-    rotations[:, 1:3] += 0.0
-    third_joint = np.zeros((count, 3, 3))
-    third_joint[:, 0, 0] = 1.0
-    third_joint[:, 1, 1], third_joint[:, 1, 2], third_joint[:, 2, 1], third_joint[:, 2, 2] = cos[2], -sin[2], sin[2], cos[2]
-    rotations[:, 3] = second @ third_joint
-    # t_{k+1} = t_k + (R_k - R_{k+1}) p_k summed from t_0 = 0; the joint points lie on the z axis, so each
-    # term is a difference of third columns times p_k's z (+0.0: the sums start from +0).
-    third_columns = rotations[:, :, :, 2]
-    steps = (third_columns[:, :3] - third_columns[:, 1:]) * parameters.joint_points[:, 2, None]
-    translations = np.zeros((count, 4, 3))
-    np.cumsum(steps, axis=1, out=translations[:, 1:])
-    translations += 0.0
-    return rotations.reshape(batch + (4, 3, 3)), translations.reshape(batch + (4, 3))
+    count = math.prod(batch)
+    trig = np.empty((2, 3, count))  # cos, sin of the three angles
+    np.cos(angles.reshape(count, 3).T, out=trig[0])
+    np.sin(angles.reshape(count, 3).T, out=trig[1])
+    (cos, sin), minus_sin = trig, -trig[1]
+    # Parts 1 and 2, Rx(phi_1) and Rx(phi_1) Rz(phi_2), written out: every entry is a single product (+0.0
+    # turns the -0.0 of a zero angle into +0.0, as the matrix product did).
+    products = trig[:, 0, None] * trig[::-1, 1]  # c1 s2, c1 c2; s1 s2, s1 c2
+    entries = np.concatenate([cos[:2], sin[:1], minus_sin[:2], products.reshape(4, count)])
+    entries += 0.0
+    rotations = np.zeros((9, 4, count))
+    rotations[_IDENTITY_ENTRIES, 0] = 1.0
+    rotations[0, 1] = 1.0
+    rotations[_PART_1_2_ENTRIES[0], _PART_1_2_ENTRIES[1]] = entries[_PART_1_2_VALUES]
+    rotations = rotations.reshape(3, 3, 4, count)
+    # Part 3 = part 2 Rx(phi_3): a matrix product (its rounding is the BLAS kernel's), on contiguous matrices;
+    # Rx(phi_3) exactly as ``rot_x`` builds it.
+    third_joint = np.zeros((count, 9))
+    third_joint[:, 0] = 1.0
+    third_joint[:, 4], third_joint[:, 5], third_joint[:, 7], third_joint[:, 8] = cos[2], minus_sin[2], sin[2], cos[2]
+    second = np.ascontiguousarray(rotations[:, :, 2].transpose(2, 0, 1))
+    rotations[:, :, 3] = (second @ third_joint.reshape(count, 3, 3)).transpose(1, 2, 0)
+    # t_{k+1} = t_k + (R_k - R_{k+1}) p_k from t_0 = +0; the joint points lie on the z axis, so each step is a
+    # difference of third columns times p_k's z.
+    steps = rotations[:, 2, :3] - rotations[:, 2, 1:]
+    steps *= (JOINT_Z * parameters.width)[:, None]  # the joint points' z, as ``joint_points`` computes them
+    translations = np.zeros((3, 4, count))
+    for k in range(3):
+        np.add(translations[:, k], steps[:, k], out=translations[:, k + 1])
+    return rotations.reshape((3, 3, 4) + batch), translations.reshape((3, 4) + batch)
+
+
+# Where the entries computed above go in the (9 entries, 4 parts) rotations: flat entry 3 i + j and part.
+_IDENTITY_ENTRIES = [0, 4, 8]
+# Rows of ``entries``: c1, c2, s1, -s1, -s2, c1 s2, c1 c2, s1 s2, s1 c2 (c_k = cos phi_k, s_k = sin phi_k).
+_PART_1_2_ENTRIES = (
+    np.array([4, 5, 7, 8, 0, 1, 3, 4, 5, 6, 7, 8]),
+    np.array([1, 1, 1, 1, 2, 2, 2, 2, 2, 2, 2, 2]),
+)
+_PART_1_2_VALUES = np.array([0, 3, 2, 0, 1, 4, 5, 6, 3, 7, 8, 0])
 
 
 @dataclass(frozen=True)
