@@ -31,7 +31,7 @@ for every simulation every step, a loop of ``sim.step(None, n)`` per simulation,
 and the ratios (MuJoCo stepping 12 ``MjData`` in a loop for reference).
 
 Run: ``python benches/simulation_vs_mujoco.py [--modules 21 51 101] [--seconds 1.0] [--skip-rapier]
-[--quick] [--settle 0.3] [--budget 10] [--solver-iterations 100] [--no-quadruped] [--no-batch]``. ``--seconds`` is the
+[--quick] [--settle 0.3] [--budget 10] [--solver-iterations N] [--no-quadruped] [--no-batch]``. ``--seconds`` is the
 simulated time timed per engine and scene (1.0: ten blocks of 100 steps); ``--quick`` is a smoke test
 (21 modules, five blocks of 50 steps, ~10 s); a full run takes about 3 minutes on 2 cores, most of it
 MuJoCo and legkit on the 101-module tree and Rapier within its budget. ``--solver-iterations`` sets the
@@ -59,7 +59,11 @@ import legkit as lk
 DT = 1e-3
 FRICTION = 0.8
 SETTLE_SECONDS = 0.3
-SOLVER_ITERATIONS = 100  # legkit's default; --solver-iterations overrides
+SOLVER_ITERATIONS: int | None = None  # None: legkit's default; --solver-iterations overrides
+
+
+def solver_options() -> dict:
+    return {} if SOLVER_ITERATIONS is None else {"solver_iterations": SOLVER_ITERATIONS}
 BLOCK_STEPS = 100
 
 # ------------------------------------------------------------------------------------------------------
@@ -318,7 +322,7 @@ def tree_scene(n_modules: int) -> Scene:
 
     def legkit_runner(backend: str) -> Runner:
         model = legkit_model(parts)
-        sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), backend=backend, solver_iterations=SOLVER_ITERATIONS)
+        sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), backend=backend, **solver_options())
         sim.set_servo(kp=KP, kd=KD, torque_limit=TORQUE_LIMIT, target_q=model.neutral())
         done = [0]
 
@@ -350,7 +354,7 @@ def quadruped_scene(trot: bool) -> Scene:
     def legkit_runner(backend: str) -> Runner:
         model, shapes = quadruped_legkit()
         sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), shapes=shapes, backend=backend,
-                            solver_iterations=SOLVER_ITERATIONS)
+                            **solver_options())
         start = quadruped_start()
         sim.reset(start, np.zeros(model.nv))
         sim.set_servo(kp=Q_KP, kd=Q_KD, torque_limit=Q_TORQUE_LIMIT, target_q=start)
@@ -555,7 +559,7 @@ def batch_section(n_sims: int, modules: int, steps: int, repeats: int, settle: i
     rng = np.random.default_rng(0)
     sims = []
     for _ in range(n_sims):
-        sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), solver_iterations=SOLVER_ITERATIONS)
+        sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), **solver_options())
         q = model.neutral() + rng.normal(0.0, 0.02, model.nq)  # not identical copies
         sim.reset(q, np.zeros(model.nv))
         sim.set_servo(kp=KP, kd=KD, torque_limit=TORQUE_LIMIT, target_q=model.neutral())
@@ -660,7 +664,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="untimed simulated seconds before timing (0.3: the trees are still sagging and swaying; "
                              "about 2 s brings them to rest)")
     parser.add_argument("--solver-iterations", type=int, default=SOLVER_ITERATIONS,
-                        help="legkit tree engine's contact-solver sweeps per step (its default: 100)")
+                        help="legkit tree engine's most contact-solver sweeps per step (default: legkit's)")
     args = parser.parse_args(argv)
     SOLVER_ITERATIONS = args.solver_iterations
     args.block_steps = BLOCK_STEPS
@@ -679,7 +683,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"... {scene.name}", flush=True)
         rows.append((scene, run_scene(scene, args)))
     print(f"\nStep time at dt = {DT * 1e3:g} ms, median of block means ({'quick' if args.quick else 'full'} run), "
-          f"legkit's tree engine (solver_iterations={SOLVER_ITERATIONS}) vs MuJoCo {mujoco_version()} and Rapier "
+          f"legkit's tree engine (solver_iterations={SOLVER_ITERATIONS or 'default'}) vs MuJoCo {mujoco_version()} and Rapier "
           f"(backend=\"rapier\"); legkit extension built {EXTENSION_BUILT}:\n")
     print_scene_table(rows)
     print_details(rows)
