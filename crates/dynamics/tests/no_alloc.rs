@@ -27,6 +27,9 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
+/// The counter is global: tests that count hold this, so no other test allocates meanwhile.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 fn allocations_during(f: impl FnOnce()) -> usize {
     let before = ALLOCATIONS.load(Ordering::SeqCst);
     f();
@@ -35,6 +38,7 @@ fn allocations_during(f: impl FnOnce()) -> usize {
 
 #[test]
 fn algorithms_do_not_allocate() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let body = MassProperties::cuboid(1.0, Vector3::new(0.1, 0.2, 0.3), Vector3::new(0.0, 0.0, 0.1), &Matrix3::identity()).unwrap();
     let mut model = Model::new(true, body, "base");
     for i in 1..30 {
@@ -67,6 +71,7 @@ fn algorithms_do_not_allocate() {
 
 #[test]
 fn tree_engine_steps_do_not_allocate_once_warm() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     // A floating box on four legs with ball feet, on servos, standing on the plane: after the buffers have
     // grown to the contact set, steps allocate nothing.
     use legkit_dynamics::sim::{Ground, Options, Servo, Shape, ShapeKind, Simulation};
