@@ -154,7 +154,7 @@ impl TreeSimulation {
                 let (t1, t2) = tangents(&f.normal);
                 let r = f.point - origin;
                 let rows = [f.normal, t1, t2].map(|d| spatial(d, r.cross(&d)));
-                let bias = if f.distance > 0.0 { -f.distance / h } else { (BAUMGARTE * (-f.distance - 0.5 * TOLERANCE).max(0.0) / h).min(MAX_CORRECTION) };
+                let bias = if f.distance > 0.0 { -f.distance / h } else { (-BAUMGARTE * f.distance / h).min(MAX_CORRECTION) };
                 let warm_t = Vector3::new(f.warm[1], f.warm[2], f.warm[3]);
                 let warm = [f.warm[0], warm_t.dot(&t1), warm_t.dot(&t2)];
                 self.constraints.push(group.constraint(Kind::Contact { mu: self.friction }, rows, bias, warm));

@@ -4,9 +4,10 @@
 //! Each constraint is a contact (normal row n and tangent rows t1, t2, one block) or a joint limit (one
 //! row). With A = J M̃⁻¹ Jᵀ its Delassus block and R = ε diag(A) the regularisation, the impulses λ solve
 //!   normal:   λ_n ≥ 0 ⊥ J_n v⁺ − b + R_n λ_n ≥ 0,
+//!   (friction regularised proximally, R_t (λ_t − λ_t,warm): no creep at rest, and the cone bounds it)
 //!   friction: λ_t in the disc |λ_t| ≤ μ λ_n (the elliptic Coulomb cone), sticking or opposing the slip,
 //! where b is the normal velocity the constraint asks for: the gap closed in one step while apart
-//! (speculative contact), a fraction of the penetration beyond the tolerance while overlapping
+//! (speculative contact), a fraction of the penetration while overlapping
 //! (Baumgarte). The regularisation makes the problem strictly convex, so the impulses are unique even
 //! where contacts are redundant (four corners of a box on the ground), and keeps Gauss–Seidel converging.
 //!
@@ -27,16 +28,17 @@ use super::factor::Entry;
 /// over ε, and lets a loaded contact creep at ε times the velocity its load would build up in one step
 /// (1e-4 m/s under gravity at 1 kHz), which the Baumgarte term stops within a few micrometres.
 pub(super) const REGULARISATION: f64 = 1e-2;
-/// Fraction of the penetration beyond the tolerance removed per step.
+/// Fraction of the penetration removed per step.
 pub(super) const BAUMGARTE: f64 = 0.2;
 /// The fastest the Baumgarte term pushes an overlap apart (m/s): a deep overlap (a robot started inside
 /// the ground) is resolved over several steps rather than thrown apart.
 pub(super) const MAX_CORRECTION: f64 = 0.5;
-/// Penetration a resting contact never exceeds (m): the Baumgarte term acts beyond half of it, and the
-/// regularisation's creep settles within micrometres past that.
+/// Penetration a resting contact stays within (m). The Baumgarte term acts on any penetration (no slop:
+/// a resting body settles at once, its contact forces summing to its weight), so the regularisation's
+/// creep stops a few micrometres in; this bounds what impacts leave behind.
 pub(super) const TOLERANCE: f64 = 2e-4;
 /// Sweeps stop once one changes the velocities by at most this fraction of the contacts' whole change.
-pub(super) const CONVERGED: f64 = 1e-6;
+pub(super) const CONVERGED: f64 = 1e-10;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Kind {
@@ -53,6 +55,9 @@ pub(super) struct Constraint {
     pub bias: f64,
     /// Impulses [λ_n, λ_t1, λ_t2] (N s or N m s); warm start in, solution out.
     pub lambda: [f64; 3],
+    /// The friction impulses of the warm start: friction is regularised towards them (proximally), so a
+    /// sticking contact holds its friction from step to step without creeping.
+    warm_friction: [f64; 2],
     /// Its rows as forces on the group's columns: n, t1, t2.
     rows: [Vector6<f64>; 3],
     /// A = [W F_i · F_j]: [nn, 11, 22, n1, n2, 12].
@@ -94,7 +99,7 @@ impl Group {
                 lambda[2] = 0.0;
             }
         }
-        Constraint { kind, bias, lambda, rows, block }
+        Constraint { kind, bias, lambda, warm_friction: [lambda[1], lambda[2]], rows, block }
     }
 }
 
@@ -122,8 +127,8 @@ fn update(c: &Constraint, dots: [f64; 3]) -> [f64; 3] {
     // the slip (maximal dissipation), which projecting the anisotropic Newton step does not.
     let r_t = REGULARISATION * 0.5 * (t11 + t22);
     let dn = normal - old[0];
-    let g1 = dots[1] + n1 * dn + r_t * old[1];
-    let g2 = dots[2] + n2 * dn + r_t * old[2];
+    let g1 = dots[1] + n1 * dn + r_t * (old[1] - c.warm_friction[0]);
+    let g2 = dots[2] + n2 * dn + r_t * (old[2] - c.warm_friction[1]);
     let (a, b, d) = (t11 + r_t, t12, t22 + r_t);
     let det = a * d - b * b;
     let stick = [old[1] - (d * g1 - b * g2) / det, old[2] - (a * g2 - b * g1) / det];
