@@ -38,7 +38,7 @@ pub(super) const MAX_CORRECTION: f64 = 0.5;
 /// creep stops a few micrometres in; this bounds what impacts leave behind.
 pub(super) const TOLERANCE: f64 = 2e-4;
 /// Sweeps stop once one changes the velocities by at most this fraction of the contacts' whole change.
-pub(super) const CONVERGED: f64 = 1e-10;
+pub(super) const CONVERGED: f64 = 1e-8;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Kind {
