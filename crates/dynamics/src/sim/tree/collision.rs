@@ -57,6 +57,8 @@ pub(super) struct Found {
     pub other: Option<usize>,
     pub point: Vector3<f64>,
     pub normal: Vector3<f64>,
+    /// An orthonormal pair spanning the contact plane: the friction directions.
+    pub tangents: [Vector3<f64>; 2],
     /// Signed distance (m): negative when the shapes overlap.
     pub distance: f64,
     pub warm: Warm,
@@ -118,6 +120,7 @@ impl Collision {
     /// Finds the contacts of bodies at world poses `poses`, appending them to `out`.
     pub(super) fn detect(&mut self, model: &Model, poses: &[Transform], out: &mut Vec<Found>) {
         if self.plane {
+            let up = tangents(&Vector3::z());
             for (index, c) in self.colliders.iter().enumerate() {
                 let pose = poses[c.body].compose(&c.local);
                 let warm = &mut self.plane_warm[index];
@@ -129,6 +132,7 @@ impl Collision {
                         other: None,
                         point: Vector3::new(p.surface.x, p.surface.y, 0.5 * p.height),
                         normal: Vector3::z(),
+                        tangents: up,
                         distance: p.height,
                         warm: warm[p.feature],
                         source: Source::Plane(index as u32, p.feature as u32),
@@ -234,6 +238,7 @@ fn collect(pair: &Pair, pose1: &Pose, pose2: &Pose, body: usize, other: Option<u
         let frame1 = sub1.map_or(*pose1, |s| *pose1 * *s);
         let frame2 = sub2.map_or(*pose2, |s| *pose2 * *s);
         let normal = from_vector(frame1.rotation * manifold.local_n1);
+        let frame = tangents(&normal);
         for (p, point) in manifold.points.iter().enumerate() {
             if point.dist > PREDICTION {
                 continue;
@@ -244,10 +249,20 @@ fn collect(pair: &Pair, pose1: &Pose, pose2: &Pose, body: usize, other: Option<u
                 other,
                 point: from_vector(midpoint),
                 normal,
+                tangents: frame,
                 distance: point.dist,
                 warm: point.data,
                 source: Source::Manifold(index, m as u32, p as u32),
             });
         }
     }
+}
+
+/// An orthonormal pair spanning the plane normal to the unit `n` (Duff et al.'s branchless basis).
+fn tangents(n: &Vector3<f64>) -> [Vector3<f64>; 2] {
+    let sign = 1f64.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    let t1 = Vector3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    [t1, n.cross(&t1)]
 }

@@ -50,7 +50,7 @@ impl Factor {
     }
 
     /// u = D^½ L v: (L v)_k = v_k + D_k⁻¹ U_kᵀ V_λ(k), with V_λ the velocity of joint k's parent body.
-    pub(super) fn to_u(&mut self, model: &Model, data: &Data, v: &[f64], u: &mut [f64]) {
+    pub(super) fn u_from_velocity(&mut self, model: &Model, data: &Data, v: &[f64], u: &mut [f64]) {
         for i in 0..model.nbodies() {
             let k = model.idx_v(i);
             self.velocity[i] = match model.joint(i) {
@@ -72,7 +72,7 @@ impl Factor {
     }
 
     /// v = L⁻¹ D^-½ u, root to leaves (the ABA forward pass).
-    pub(super) fn from_u(&mut self, model: &Model, data: &Data, u: &[f64], v: &mut [f64]) {
+    pub(super) fn velocity_from_u(&mut self, model: &Model, data: &Data, u: &[f64], v: &mut [f64]) {
         for i in 0..model.nbodies() {
             let k = model.idx_v(i);
             self.velocity[i] = match model.joint(i) {

@@ -38,6 +38,16 @@ use solver::{Constraint, Group, Kind, BAUMGARTE, MAX_CORRECTION, TOLERANCE};
 /// Joint limits are watched from this far off (rad or m), beyond the step's own travel.
 const LIMIT_MARGIN: f64 = 1e-3;
 
+/// A joint with a position range: its body, velocity and configuration coordinates, and bounds.
+#[derive(Debug, Clone, Copy)]
+struct LimitedJoint {
+    body: usize,
+    v: usize,
+    q: usize,
+    lower: f64,
+    upper: f64,
+}
+
 pub(crate) struct TreeSimulation {
     options: Options,
     /// Substep length (s).
@@ -46,8 +56,8 @@ pub(crate) struct TreeSimulation {
     data: Data,
     factor: Factor,
     collision: Collision,
-    /// Joints with a position range: (body, velocity coordinate, configuration coordinate, lower, upper).
-    limited: Vec<(usize, usize, usize, f64, f64)>,
+    /// Joints with a position range.
+    limited: Vec<LimitedJoint>,
     /// Last step's limit impulses per velocity coordinate: [at the lower bound, at the upper bound].
     limit_impulses: Vec<[f64; 2]>,
     found: Vec<Found>,
@@ -79,7 +89,7 @@ impl TreeSimulation {
         let nv = model.nv();
         let limited = (1..model.nbodies())
             .filter(|&i| model.joint(i).nv() == 1 && model.limits(i).has_position_limits())
-            .map(|i| (i, model.idx_v(i), model.idx_q(i), model.limits(i).lower, model.limits(i).upper))
+            .map(|i| LimitedJoint { body: i, v: model.idx_v(i), q: model.idx_q(i), lower: model.limits(i).lower, upper: model.limits(i).upper })
             .collect();
         let carrier = carriers(model);
         TreeSimulation {
@@ -151,7 +161,7 @@ impl TreeSimulation {
             let mut group = Group::new(first..self.entries.len(), &self.entries);
             let from = self.constraints.len();
             for f in &self.found[start..end] {
-                let (t1, t2) = tangents(&f.normal);
+                let [t1, t2] = f.tangents;
                 let r = f.point - origin;
                 let rows = [f.normal, t1, t2].map(|d| spatial(d, r.cross(&d)));
                 let bias = if f.distance > 0.0 { -f.distance / h } else { (-BAUMGARTE * f.distance / h).min(MAX_CORRECTION) };
@@ -165,7 +175,7 @@ impl TreeSimulation {
         }
         self.limit_rows.clear();
         let unit = Vector6::new(1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-        for &(body, k, kq, lower, upper) in &self.limited {
+        for &LimitedJoint { body, v: k, q: kq, lower, upper } in &self.limited {
             let travel = h * self.v_free[k];
             for (side, gap, sign) in [(0, q[kq] - lower, 1.0), (1, upper - q[kq], -1.0)] {
                 if gap >= LIMIT_MARGIN + (-sign * travel).max(0.0) {
@@ -214,10 +224,10 @@ impl TreeSimulation {
                 detected = true;
             }
             self.constrain(model, q);
-            self.factor.to_u(model, &self.data, &self.v_free, &mut self.u);
+            self.factor.u_from_velocity(model, &self.data, &self.v_free, &mut self.u);
             let iterations = self.options.solver_iterations;
             self.sweeps = solver::solve(&self.groups, &mut self.constraints, &self.entries, &mut self.u, &mut self.u_free, &mut self.u_before, iterations);
-            self.factor.from_u(model, &self.data, &self.u, &mut self.v_free);
+            self.factor.velocity_from_u(model, &self.data, &self.u, &mut self.v_free);
             // An implicit servo whose force at the end of the step exceeds its bound saturates: redo the
             // step with it applying its bound.
             let mut redo = false;
@@ -250,7 +260,7 @@ impl TreeSimulation {
     fn report(&mut self, h: f64) {
         self.contacts.clear();
         for (f, c) in self.found.iter().zip(&self.constraints) {
-            let (t1, t2) = tangents(&f.normal);
+            let [t1, t2] = f.tangents;
             let friction = t1 * c.lambda[1] + t2 * c.lambda[2];
             self.collision.store(f.source, [c.lambda[0], friction.x, friction.y, friction.z]);
             self.contacts.push(Contact {
@@ -326,13 +336,4 @@ fn base_origin(model: &Model, q: &[f64]) -> Vector3<f64> {
     } else {
         Vector3::zeros()
     }
-}
-
-/// An orthonormal pair spanning the plane normal to the unit `n` (Duff et al.'s branchless basis).
-fn tangents(n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
-    let sign = 1f64.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    let t1 = Vector3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
-    (t1, n.cross(&t1))
 }
