@@ -40,15 +40,18 @@ def main() -> None:
     normals = np.broadcast_to([0.0, 0.0, 1.0], data["forces"].shape)
     indices = {
         "static stability margin": lambda d: ls.static_stability_margin(d["com"], d["points"], d["active"]),
-        "S_H (with swing tips)": lambda d: ls.angular_momentum_stability(
-            d["com"], d["momentum"], d["spin"], d["inertia"], 1.58, d["points"], d["active"], d["points"], ~d["active"], 1.5),
+        "S_H (published)": lambda d: ls.angular_momentum_stability(
+            d["com"], d["momentum"], d["spin"], None, 1.58, d["points"], d["active"], v_tip_max=2.0, diagonal_pairs=[(0, 3), (1, 2)]),
+        "S_H (energy, swing tips)": lambda d: ls.angular_momentum_stability(
+            d["com"], d["momentum"], d["spin"], d["inertia"], 1.58, d["points"], d["active"], d["points"], ~d["active"], 1.5,
+            definition="energy"),
         "ZMP from momentum rate": lambda d: ls.zmp_from_momentum_rate(d["com"], d["rate"], 1.58),
         "centre of pressure": lambda d: ls.center_of_pressure(d["points"], d["forces"]),
         "support centroid + J_s1": lambda d: ls.stability_performance_1(d["com"], ls.support_polygon_centroid(d["points"], d["active"]), d["t"]),
         "friction-cone margin": lambda d: ls.friction_cone_margin(d["forces"], normals, 0.8),
         "foot-torque margin": lambda d: ls.foot_torque_margin(d["forces"][:, 0], d["rate"][:, 3:], (-0.05, 0.15, -0.04, 0.04)),
         "Joule-loss index": lambda d: ls.joule_loss_index(d["torques"], d["t"], 6.7, 5.0, 60.0, 0.012),
-        "specific resistance": lambda d: ls.specific_resistance(d["torques"], d["speeds"], d["t"], 6.7, 1.58),
+        "specific resistance": lambda d: ls.specific_resistance(d["torques"], d["speeds"], d["t"], 0.67, 1.58),
         "torque-speed margin": lambda d: ls.torque_speed_margin(d["torques"], d["speeds"], 21.0, 60.0, 0.7, 42000.0),
     }
     total = 0.0

@@ -120,13 +120,13 @@ def test_periodic_lip_satisfies_the_pendulum_equation():
 def test_gait_experiment_writes_results_and_its_biped_zmp_equals_the_cop(tmp_path, capsys):
     assert gait.main(["--out", str(tmp_path), "--samples", "96"]) == 0
     table = capsys.readouterr().out
-    assert "S_H min" in table and "E2 specific resistance" in table
+    assert "S_H min" in table and "J_e2 (eq. 13)" in table
     for robot in ("quadruped", "biped"):
         assert (tmp_path / f"gait_{robot}.png").stat().st_size > 0
         with (tmp_path / f"gait_{robot}.csv").open() as handle:
             rows = list(csv.DictReader(handle))
         assert len(rows) == 96
-        assert {"t", "S_H", "static_margin", "zmp_x", "zmp_margin", "joule_power", "support"} <= set(rows[0])
+        assert {"t", "S_H", "S_H_energy", "static_margin", "zmp_x", "zmp_margin", "joule_power", "support"} <= set(rows[0])
     # Biped: the least-squares contact forces realise the motion exactly, so their CoP is the ZMP.
     with (tmp_path / "gait_biped.csv").open() as handle:
         rows = list(csv.DictReader(handle))
@@ -140,7 +140,8 @@ def test_quadruped_amble_support_alternates_diagonal_and_lateral_pairs():
     ref = gait.quadruped_amble(robot, 0.67, 0.4, 80, 1, 0.03, 0.09)
     assert np.all(ref.active.sum(axis=1) == 2)
     phases = [ref.support_label[i] for i in (0, 20, 40, 60)]
-    assert phases == ["RF+LH", "LF+LH", "LF+RH", "RF+RH"]
+    # File 003, Sect. 4.2: LF-LB, LF-RR (printed "LR-RR"), RF-RR, RF-LR from the start of the cycle.
+    assert phases == ["LF+LH", "LF+RH", "RF+RH", "RF+LH"]
     # The stance feet do not slide: their world positions are constant while in contact.
     points = np.stack([_foot_world(robot.model, ref.q, robot.model.names[b], p) for b, p in ref.contacts], axis=1)
     for n in range(4):
@@ -158,3 +159,14 @@ def test_gait_cli_rejects_bad_arguments():
         gait.main(["--robot", "hexapod"])
     with pytest.raises(SystemExit):
         gait.main(["--mu", "-1"])
+
+
+def test_gait_defaults_are_the_published_amble(tmp_path):
+    # File 003, Fig. 3: 0.67 m/s, period 1.25 s, duty factor 0.5, v_tip_max 2 m/s, support order LF+LH first.
+    assert gait.main(["--robot", "quadruped", "--out", str(tmp_path), "--samples", "80"]) == 0
+    with (tmp_path / "gait_quadruped.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    t = np.array([float(r["t"]) for r in rows])
+    assert t[1] == pytest.approx(1.25 / 80, rel=1e-12) and len(t) == 80
+    assert [rows[i]["support"] for i in (0, 20, 40, 60)] == ["LF+LH", "LF+RH", "RF+RH", "RF+LH"]
+    assert all(np.isfinite(float(r["S_H"])) for r in rows)

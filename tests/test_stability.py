@@ -57,11 +57,11 @@ def test_box_at_rest_s_h_is_the_energy_to_tip_over_the_long_edge():
     # I_xx + m r^2, and the COM must rise from H to r.
     r = np.hypot(B / 2, H)
     expected = np.sqrt(2.0 * (inertia[0, 0] + M_BOX * r * r) * M_BOX * G * (r - H))
-    s_h = ls.angular_momentum_stability(COM, np.zeros(3), np.zeros(3), inertia, M_BOX, FEET)
+    s_h = ls.angular_momentum_stability(COM, np.zeros(3), np.zeros(3), inertia, M_BOX, FEET, definition="energy")
     assert s_h == pytest.approx(expected, rel=1e-12)
     # Rolling toward -y (angular momentum -x about the COM, zero linear momentum): H about that edge grows.
     spin = 0.2
-    s_h = ls.angular_momentum_stability(COM, np.zeros(3), [-spin, 0.0, 0.0], inertia, M_BOX, FEET)
+    s_h = ls.angular_momentum_stability(COM, np.zeros(3), [-spin, 0.0, 0.0], inertia, M_BOX, FEET, definition="energy")
     assert s_h == pytest.approx(expected - spin, rel=1e-12)
 
 
@@ -97,7 +97,7 @@ def test_point_mass_over_triangle_margin_and_s_h():
     # Point mass: I_edge = m r^2, so H_ref = m r sqrt(2 g (r - h)); the nearest edge (x = 0, d = 0.2) wins.
     r = np.hypot(0.2, h)
     expected = mass * r * np.sqrt(2.0 * G * (r - h))
-    s_h = ls.angular_momentum_stability(com, np.zeros(3), np.zeros(3), np.zeros((3, 3)), mass, TRIANGLE)
+    s_h = ls.angular_momentum_stability(com, np.zeros(3), np.zeros(3), np.zeros((3, 3)), mass, TRIANGLE, definition="energy")
     assert s_h == pytest.approx(expected, rel=1e-12)
     np.testing.assert_allclose(ls.support_polygon_centroid(TRIANGLE), [1 / 3, 1 / 3], atol=1e-15)
 
@@ -116,7 +116,7 @@ def test_pendulum_passes_the_edge_exactly_when_s_h_is_negative(factor):
     h_ref = mass * r * np.sqrt(2.0 * G * (r - h))
     omega = -factor * h_ref / (mass * r * r)  # negative rotation about +x swings the mass toward +y
     support = np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, -5.0, 0.0]])  # the x axis is its nearest edge
-    s_h = ls.angular_momentum_stability_of_model(model, [0.0], [omega], support)
+    s_h = ls.angular_momentum_stability_of_model(model, [0.0], [omega], support, definition="energy")
     assert s_h == pytest.approx((1.0 - factor) * h_ref, rel=1e-9)
     qs, _ = lk.simulate(model, [0.0], [omega], 1e-3, 1500)
     mass_y = -d * np.cos(qs[:, 0]) - h * np.sin(qs[:, 0])  # y of the mass after rotating by q about x
@@ -183,8 +183,8 @@ def test_margins_invariant_to_rotation_about_vertical_and_translation(scene, ang
     edges = ls.support_edges(points)
     lengths = np.linalg.norm(edges.end - edges.start, axis=-1)[edges.valid]
     if ls.distinct_contact_count(points) >= 2 and lengths.min() >= 1e-4:
-        before = ls.angular_momentum_stability(com, p, k, inertia, 2.0, points)
-        after = ls.angular_momentum_stability(moved_com, rotation @ p, rotation @ k, rotation @ inertia @ rotation.T, 2.0, moved_points)
+        before = ls.angular_momentum_stability(com, p, k, inertia, 2.0, points, definition="energy")
+        after = ls.angular_momentum_stability(moved_com, rotation @ p, rotation @ k, rotation @ inertia @ rotation.T, 2.0, moved_points, definition="energy")
         assert after == pytest.approx(before, abs=1e-10)
     rate = np.concatenate([p, k])
     zmp = ls.zmp_from_momentum_rate(com, rate, 2.0, ground_height=0.0)
@@ -199,8 +199,8 @@ def test_near_duplicate_contacts_merge_so_s_h_is_invariant_to_rotation():
     com, rotation, offset = np.array([0.0, -1.0, 1.0]), rot_z(1.0), np.array([0.0, 3.0, 0.0])
     inertia = np.diag([0.3, 0.2, 0.4])
     assert ls.distinct_contact_count(points) == 2
-    before = ls.angular_momentum_stability(com, np.zeros(3), np.zeros(3), inertia, 2.0, points)
-    after = ls.angular_momentum_stability(rotation @ com + offset, np.zeros(3), np.zeros(3), rotation @ inertia @ rotation.T, 2.0, points @ rotation.T + offset)
+    before = ls.angular_momentum_stability(com, np.zeros(3), np.zeros(3), inertia, 2.0, points, definition="energy")
+    after = ls.angular_momentum_stability(rotation @ com + offset, np.zeros(3), np.zeros(3), rotation @ inertia @ rotation.T, 2.0, points @ rotation.T + offset, definition="energy")
     # The support is the segment (0,0)-(0,1) and the COM lies on its line: no rise to tip over it, S_H = 0.
     assert before == pytest.approx(0.0, abs=1e-12)
     assert after == pytest.approx(0.0, abs=1e-10)
@@ -208,7 +208,7 @@ def test_near_duplicate_contacts_merge_so_s_h_is_invariant_to_rotation():
     point = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 6e-293, 0.0]])
     assert ls.distinct_contact_count(point) == 1
     with pytest.raises(ValueError, match="two distinct active contacts"):
-        ls.angular_momentum_stability(com, np.zeros(3), np.zeros(3), inertia, 2.0, point)
+        ls.angular_momentum_stability(com, np.zeros(3), np.zeros(3), inertia, 2.0, point, definition="energy")
     np.testing.assert_array_equal(ls.support_polygon(point), [[0.0, 0.0]])
     assert ls.support_edges(point).valid.sum() == 0
     assert ls.static_stability_margin([3.0, 4.0, 1.0], point) == pytest.approx(-5.0, abs=1e-15)
@@ -229,7 +229,7 @@ def test_collinear_contacts_make_one_segment_traversed_both_ways():
     com = np.array([0.5 - d / np.sqrt(2.0), 0.5 + d / np.sqrt(2.0), h])
     r = np.hypot(d, h)
     expected = -mass * r * np.sqrt(2.0 * G * (r - h))
-    s_h = ls.angular_momentum_stability(com, np.zeros(3), np.zeros(3), np.zeros((3, 3)), mass, line)
+    s_h = ls.angular_momentum_stability(com, np.zeros(3), np.zeros(3), np.zeros((3, 3)), mass, line, definition="energy")
     assert s_h == pytest.approx(expected, rel=1e-12)
     assert ls.static_stability_margin(com, line) == pytest.approx(-d, abs=1e-15)
 
@@ -248,7 +248,7 @@ def test_a_copy_of_a_contact_within_rounding_changes_nothing(scene, which, jitte
     if ls.distinct_contact_count(points) >= 2:
         p = np.array(momentum)
         args = (com, p, np.zeros(3), np.diag([0.3, 0.2, 0.4]), 2.0)
-        assert ls.angular_momentum_stability(*args, doubled) == ls.angular_momentum_stability(*args, points)
+        assert ls.angular_momentum_stability(*args, doubled, definition="energy") == ls.angular_momentum_stability(*args, points, definition="energy")
 
 
 @settings(max_examples=100, deadline=None)
@@ -264,7 +264,7 @@ def test_quasi_static_s_h_changes_sign_exactly_where_the_com_crosses_an_edge(sce
     assume(np.linalg.norm(step) > 0.1)
     path = com + np.linspace(-3.0, 3.0, 401)[:, None] * step
     margin = ls.static_stability_margin(path, points)
-    s_h = ls.angular_momentum_stability(path, np.zeros(3), np.zeros(3), np.diag([0.1, 0.1, 0.1]), 1.0, points)
+    s_h = ls.angular_momentum_stability(path, np.zeros(3), np.zeros(3), np.diag([0.1, 0.1, 0.1]), 1.0, points, definition="energy")
     clear = np.abs(margin) > 1e-9
     np.testing.assert_array_equal(np.sign(s_h[clear]), np.sign(margin[clear]))
 
@@ -293,7 +293,9 @@ def test_zmp_from_dynamics_equals_cop_of_constrained_contact_forces():
     np.testing.assert_allclose(zmp, cop, atol=1e-9)
 
 
-def test_fri_equals_cop_while_the_foot_is_held_still():
+@pytest.mark.parametrize("feet", [("l",), ("l", "r")])
+def test_fri_equals_cop_while_the_feet_are_held_still(feet):
+    # Eq. 8 of file 003 with N_f = 1 or 2 feet in contact: with the feet still, S is the CoP of the ground forces.
     from legkit.robots.biped import build_biped
 
     robot = build_biped()
@@ -301,7 +303,9 @@ def test_fri_equals_cop_while_the_foot_is_held_still():
     q = np.tile(robot.model.neutral(), (4, 1))
     q[:, 2] = 0.9
     q[:, 7:] = rng.normal(scale=0.1, size=(4, 16))
-    contacts = robot.contacts(("l",))
+    if len(feet) == 2:
+        q[:, 7:] = 0.0  # both soles flat on one plane
+    contacts = robot.contacts(feet)
     # Velocities that leave the foot at rest (null space of its corner Jacobian), so its momentum is constant.
     jac = np.concatenate([lk.jacobian(robot.model, q, b, p)[:, :3, :] for b, p in contacts], axis=1)
     v = np.zeros((4, robot.model.nv))
@@ -318,7 +322,7 @@ def test_fri_equals_cop_while_the_foot_is_held_still():
     height = float(np.mean(points[0, :, 2]))
     q_flat = q.copy()
     np.testing.assert_allclose(
-        ls.foot_rotation_indicator(robot.model, q_flat, v, ddq, "l_foot", ground_height=height)[:, :2],
+        ls.foot_rotation_indicator(robot.model, q_flat, v, ddq, [f"{side}_foot" for side in feet], ground_height=height)[:, :2],
         ls.center_of_pressure(points, forces, ground_height=height)[:, :2],
         atol=1e-8,
     )
@@ -360,7 +364,9 @@ def test_energy_indices_by_hand():
     speeds = np.full((5, 2), 3.0)
     # current 2 / (10 * 0.1) = 2 A per joint, 1 ohm: 4 W each, 8 W over 1 s, 2 m travelled
     assert ls.joule_loss_index(torques, t, 2.0, 1.0, 10.0, 0.1) == pytest.approx(4.0, rel=1e-12)
+    # J_e2 at a constant 2 m/s over 1 s: (12 W / (1.5 kg G 2 m/s)) x 1 s, and its time mean the same number.
     assert ls.specific_resistance(torques, speeds, t, 2.0, 1.5) == pytest.approx(12.0 / (1.5 * G * 2.0), rel=1e-12)
+    assert ls.specific_resistance(torques, speeds, t, 2.0, 1.5, definition="mean") == pytest.approx(12.0 / (1.5 * G * 2.0), rel=1e-12)
     # limit (5 - 3) * 10^2 * 0.5 / 20 = 5 N m; |u| = 2 -> margin 3
     np.testing.assert_allclose(ls.torque_speed_margin(torques, speeds, 5.0, 10.0, 0.5, 20.0), 3.0, rtol=1e-12)
 
@@ -478,7 +484,7 @@ def test_bad_input_raises_clear_errors():
     with pytest.raises(ValueError, match="com"):
         ls.static_stability_margin([np.nan, 0.0, 0.0], FEET)
     with pytest.raises(ValueError, match="contact_points"):
-        ls.angular_momentum_stability(COM, np.zeros(3), np.zeros(3), np.eye(3), 1.0, FEET[:1])
+        ls.angular_momentum_stability(COM, np.zeros(3), np.zeros(3), np.eye(3), 1.0, FEET[:1], definition="energy")
     with pytest.raises(ValueError, match="normals"):
         ls.friction_cone_margin(np.ones(3), [0.0, 0.0, 2.0], 0.5)
     with pytest.raises(ValueError, match="mu"):
@@ -496,10 +502,185 @@ def test_bad_input_raises_clear_errors():
     with pytest.raises(ValueError, match="mass"):
         ls.zmp_from_momentum_rate(COM, np.zeros(6), -1.0)
     with pytest.raises(ValueError, match="v_tip_max"):
-        ls.angular_momentum_stability(COM, np.zeros(3), np.zeros(3), np.eye(3), 1.0, FEET, swing_tips=FEET)
+        ls.angular_momentum_stability(COM, np.zeros(3), np.zeros(3), np.eye(3), 1.0, FEET, swing_tips=FEET, definition="energy")
     with pytest.raises(ValueError, match="t"):
         ls.joule_loss_index(np.ones((3, 2)), [0.0, 1.0, 1.0], 1.0, 1.0, 1.0, 1.0)
     with pytest.raises(TypeError, match="torques"):
         ls.joule_loss_power("abc", 1.0, 1.0, 1.0)
     with pytest.raises(ValueError, match="foot"):
         ls.foot_rotation_indicator(lk.Model(floating_base=True, base=lk.MassProperties.point(1.0, [0, 0, 0])), np.r_[0, 0, 1, 0, 0, 0, 1.0], np.zeros(6), np.zeros(6), "toe")
+
+
+# --------------------------------------------------------------------------------------------------
+# The published S_H (file 003, eq. 10 and the diagonal-edge cases) and J_e2 (eq. 13), computed by hand
+# from the paper's text: H_ref = m r sqrt(2 g (r - h)) (the kinetic energy m v_ref^2 / 2 that lifts the COM
+# by r - h, to above the edge), H_max = m r v_tip_max, H = angular momentum about the edge.
+# A point mass at height h moving horizontally at u perpendicular to an edge has H = m u h about it.
+# --------------------------------------------------------------------------------------------------
+
+M_PT, H_PT, V_TIP = 1.6, 0.12, 2.0
+# A diagonal pair on the line y = x (LF at (0.1, 0.1), RH at (-0.1, -0.1)); travel +x. Its forward normal:
+N_FORWARD = np.array([1.0, -1.0, 0.0]) / np.sqrt(2.0)
+DIAGONAL = np.array([[0.1, 0.1, 0.0], [-0.1, -0.1, 0.0]])
+
+
+def _h_ref(r: float, h: float) -> float:
+    return M_PT * r * np.sqrt(2.0 * G * (r - h))
+
+
+def _paper(com, velocity, points, **options):
+    return ls.angular_momentum_stability(com, M_PT * np.asarray(velocity, dtype=float), np.zeros(3), None, M_PT, points, **options)
+
+
+@pytest.mark.parametrize("speed", [0.0, 0.3, 1.2])
+def test_paper_s_h_two_legs_gcom_before_the_diagonal_edge(speed):
+    # GCoM 0.05 sqrt(2) behind the diagonal line (relative to +x), moving toward it at `speed`.
+    d = 0.1 / np.sqrt(2.0)
+    com = np.array([-0.05, 0.05, H_PT])
+    r = np.hypot(d, H_PT)
+    h = M_PT * speed * H_PT
+    expected = min(h - _h_ref(r, H_PT), M_PT * r * V_TIP - h)
+    s_h = _paper(com, speed * N_FORWARD, DIAGONAL, v_tip_max=V_TIP, diagonal_pairs=[(0, 1)])
+    assert s_h == pytest.approx(expected, rel=1e-12)
+    # Not enough forward momentum to roll over the edge: negative (falls back); enough: positive.
+    assert (s_h > 0.0) == (h > _h_ref(r, H_PT) and h < M_PT * r * V_TIP)
+
+
+def test_paper_s_h_two_legs_gcom_past_the_diagonal_edge_and_the_direction_of_travel():
+    com, speed = np.array([0.05, -0.05, H_PT]), 0.4  # the mirror image: past the line for travel along +x
+    r = np.hypot(0.1 / np.sqrt(2.0), H_PT)
+    h = M_PT * speed * H_PT
+    s_h = _paper(com, speed * N_FORWARD, DIAGONAL, v_tip_max=V_TIP, diagonal_pairs=[(0, 1)])
+    assert s_h == pytest.approx(M_PT * r * V_TIP - h, rel=1e-12)
+    # Travelling along -x the same GCoM is before the edge, and forward is -N_FORWARD: H changes sign.
+    backward = _paper(com, speed * N_FORWARD, DIAGONAL, v_tip_max=V_TIP, diagonal_pairs=[(0, 1)], direction=[-1.0, 0.0, 0.0])
+    assert backward == pytest.approx(min(-h - _h_ref(r, H_PT), M_PT * r * V_TIP + h), rel=1e-12)
+
+
+def _edge_terms(a, b, com):
+    """(r, d) of a horizontal edge a-b for a COM: d the horizontal distance of the GCoM to the edge's line."""
+    direction = (b - a)[:2] / np.linalg.norm((b - a)[:2])
+    offset = (com - a)[:2]
+    d = abs(direction[0] * offset[1] - direction[1] * offset[0])
+    return np.hypot(d, com[2]), d
+
+
+@pytest.mark.parametrize("third, diagonal_case", [([-0.1, 0.1, 0.0], "behind"), ([0.1, -0.1, 0.0], "in front")])
+def test_paper_s_h_third_support_leg_behind_or_in_front_of_the_diagonal_edge(third, diagonal_case):
+    points = np.vstack([DIAGONAL, third])
+    com = np.array([-0.02, 0.05, H_PT]) if diagonal_case == "behind" else np.array([0.05, -0.02, H_PT])
+    # At rest (H = 0): non-diagonal edges give H_ref; the diagonal edge H_max (third leg behind, the edge is
+    # the front of the support) or H_ref (third leg in front).
+    values = []
+    for i, j in ((0, 1), (1, 2), (2, 0)):
+        r, _ = _edge_terms(points[i], points[j], com)
+        diagonal = {i, j} == {0, 1}
+        values.append(M_PT * r * V_TIP if diagonal and diagonal_case == "behind" else _h_ref(r, H_PT))
+    s_h = _paper(com, np.zeros(3), points, v_tip_max=V_TIP, diagonal_pairs=[(1, 0)])
+    assert s_h == pytest.approx(min(values), rel=1e-12)
+
+
+def test_paper_s_h_non_diagonal_pair_is_tipped_away_from_the_gcom():
+    side = np.array([[0.1, 0.1, 0.0], [-0.1, 0.1, 0.0]])  # a left side pair; the GCoM lies to its right
+    com, speed = np.array([0.0, 0.0, H_PT]), 0.25
+    r = np.hypot(0.1, H_PT)
+    s_h = _paper(com, [0.0, speed, 0.0], side)  # drifting left, over the pair: H = m u h
+    assert s_h == pytest.approx(_h_ref(r, H_PT) - M_PT * speed * H_PT, rel=1e-12)
+
+
+def test_paper_and_energy_h_ref_agree_for_a_point_mass_inside_a_polygon():
+    com = np.array([0.02, -0.03, H_PT])
+    paper = _paper(com, [0.1, 0.05, 0.0], FEET)
+    energy = ls.angular_momentum_stability(com, M_PT * np.array([0.1, 0.05, 0.0]), np.zeros(3), np.zeros((3, 3)), M_PT, FEET, definition="energy")
+    assert paper == pytest.approx(energy, rel=1e-12)
+    # A body with rotational inertia needs more momentum to tip in the energy variant (I_e > m r^2).
+    heavier = ls.angular_momentum_stability(com, np.zeros(3), np.zeros(3), box_inertia(M_PT, A, B, C), M_PT, FEET, definition="energy")
+    assert heavier > _paper(com, np.zeros(3), FEET)
+
+
+def test_paper_s_h_stays_positive_when_the_com_leaves_a_non_diagonal_edge():
+    # The literal H_ref - H at rest is H_ref >= 0 whichever side the COM is on; the energy variant turns negative.
+    outside = np.array([0.0, -0.2, H_PT])  # beyond the box's edge y = -0.1
+    r = np.hypot(0.1, H_PT)
+    assert _paper(outside, np.zeros(3), FEET) == pytest.approx(_h_ref(r, H_PT), rel=1e-12)
+    assert ls.angular_momentum_stability(outside, np.zeros(3), np.zeros(3), np.zeros((3, 3)), M_PT, FEET, definition="energy") < 0.0
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.floats(-np.pi, np.pi), st.tuples(coords, coords), st.tuples(coords, coords), st.floats(-0.08, 0.08), st.floats(-0.08, 0.08))
+def test_paper_s_h_is_invariant_when_scene_and_direction_move_together(angle, shift, velocity, cx, cy):
+    # The published cases jump where the GCoM crosses a diagonal edge (min(H, H_max - H) before it, H_max - H
+    # past it), so a GCoM within rounding of the line may land on either side once moved: keep clear of it.
+    assume(abs(cx - cy) > 1e-6)
+    rotation = rot_z(angle)
+    offset = np.array([3.0 * shift[0], 3.0 * shift[1], 0.1 * shift[0]])
+    for points in (DIAGONAL, np.vstack([DIAGONAL, [-0.1, 0.1, 0.0]])):
+        com = np.array([cx, cy, H_PT])
+        p = M_PT * np.array([velocity[0], velocity[1], 0.0])
+        before = ls.angular_momentum_stability(com, p, np.zeros(3), None, M_PT, points, v_tip_max=V_TIP, diagonal_pairs=[(0, 1)])
+        after = ls.angular_momentum_stability(
+            rotation @ com + offset, rotation @ p, np.zeros(3), None, M_PT, points @ rotation.T + offset,
+            v_tip_max=V_TIP, diagonal_pairs=[(0, 1)], direction=rotation @ [1.0, 0.0, 0.0],
+        )
+        assert after == pytest.approx(before, abs=1e-9)
+        # Translation alone (direction unchanged) changes nothing either.
+        moved = ls.angular_momentum_stability(com + offset, p, np.zeros(3), None, M_PT, points + offset, v_tip_max=V_TIP, diagonal_pairs=[(0, 1)])
+        assert moved == pytest.approx(before, abs=1e-9)
+
+
+def test_paper_s_h_depends_on_the_direction_of_travel_so_a_rotated_scene_differs():
+    # Turning the scene by 180 degrees about z without turning the direction swaps "before" and "past".
+    com = np.array([-0.05, 0.05, H_PT])
+    before = _paper(com, np.zeros(3), DIAGONAL, v_tip_max=V_TIP, diagonal_pairs=[(0, 1)])
+    turned = rot_z(np.pi)
+    after = _paper(turned @ com, np.zeros(3), DIAGONAL @ turned.T, v_tip_max=V_TIP, diagonal_pairs=[(0, 1)])
+    r = np.hypot(0.1 / np.sqrt(2.0), H_PT)
+    assert before == pytest.approx(-_h_ref(r, H_PT), rel=1e-12)  # before the edge at rest: min(-H_ref, H_max)
+    assert after == pytest.approx(M_PT * r * V_TIP, rel=1e-12)  # past it: H_max
+    # The energy variant has no direction: rotating the scene leaves it unchanged.
+    energy = [ls.angular_momentum_stability(c, np.zeros(3), np.zeros(3), np.zeros((3, 3)), M_PT, pts, definition="energy")
+              for c, pts in ((com, DIAGONAL), (turned @ com, DIAGONAL @ turned.T))]
+    assert energy[1] == pytest.approx(energy[0], rel=1e-12)
+
+
+def test_paper_s_h_bad_input_names_the_argument():
+    com = np.array([0.0, 0.0, H_PT])
+    with pytest.raises(ValueError, match="definition"):
+        _paper(com, np.zeros(3), FEET, definition="published")
+    with pytest.raises(ValueError, match="swing_tips"):
+        _paper(com, np.zeros(3), FEET, swing_tips=FEET, v_tip_max=1.0)
+    with pytest.raises(ValueError, match="v_tip_max"):
+        _paper(com, np.zeros(3), DIAGONAL, diagonal_pairs=[(0, 1)])
+    with pytest.raises(ValueError, match="direction"):
+        _paper(com, np.zeros(3), DIAGONAL, v_tip_max=V_TIP, diagonal_pairs=[(0, 1)], direction=[0.0, 0.0, 1.0])
+    with pytest.raises(ValueError, match="direction is parallel"):
+        _paper(com, np.zeros(3), DIAGONAL, v_tip_max=V_TIP, diagonal_pairs=[(0, 1)], direction=[1.0, 1.0, 0.0])
+    with pytest.raises(ValueError, match="diagonal_pairs"):
+        _paper(com, np.zeros(3), DIAGONAL, v_tip_max=V_TIP, diagonal_pairs=[(0, 2)])
+    with pytest.raises(TypeError, match="diagonal_pairs"):
+        _paper(com, np.zeros(3), DIAGONAL, v_tip_max=V_TIP, diagonal_pairs=[(0.0, 1.0)])
+    with pytest.raises(ValueError, match="inertia"):
+        ls.angular_momentum_stability(com, np.zeros(3), np.zeros(3), None, M_PT, FEET, definition="energy")
+    with pytest.raises(ValueError, match="diagonal_pairs"):
+        ls.angular_momentum_stability(com, np.zeros(3), np.zeros(3), np.eye(3), M_PT, FEET, definition="energy", diagonal_pairs=[(0, 1)])
+
+
+def test_published_j_e2_is_an_integral_in_seconds_and_mean_its_time_mean():
+    # sum |u theta_dot| = 2 * 3 + 1 * 2 = 8 W throughout; v = 1, 2, 4 m/s at t = 0, 1, 2 s; m g = 2 G.
+    t = np.array([0.0, 1.0, 2.0])
+    torques = np.tile([2.0, -1.0], (3, 1))
+    speeds = np.tile([3.0, 2.0], (3, 1))
+    integrand = 8.0 / (2.0 * G * np.array([1.0, 2.0, 4.0]))
+    integral = 0.5 * (integrand[0] + integrand[1]) + 0.5 * (integrand[1] + integrand[2])  # trapezoids, 1 s each
+    assert ls.specific_resistance(torques, speeds, t, [1.0, 2.0, 4.0], 2.0) == pytest.approx(integral, rel=1e-12)
+    assert ls.specific_resistance(torques, speeds, t, [1.0, 2.0, 4.0], 2.0, definition="mean") == pytest.approx(integral / 2.0, rel=1e-12)
+    # Twice the duration at the same state: the published integral doubles, the mean does not.
+    long_t = 2.0 * t
+    assert ls.specific_resistance(torques, speeds, long_t, 1.0, 2.0) == pytest.approx(2.0 * ls.specific_resistance(torques, speeds, t, 1.0, 2.0), rel=1e-12)
+    assert ls.specific_resistance(torques, speeds, long_t, 1.0, 2.0, definition="mean") == pytest.approx(ls.specific_resistance(torques, speeds, t, 1.0, 2.0, definition="mean"), rel=1e-12)
+    with pytest.raises(ValueError, match="forward_velocity"):
+        ls.specific_resistance(torques, speeds, t, [1.0, 0.0, 1.0], 2.0)
+    with pytest.raises(ValueError, match="forward_velocity"):
+        ls.specific_resistance(torques, speeds, t, [1.0, 2.0], 2.0)
+    with pytest.raises(ValueError, match="definition"):
+        ls.specific_resistance(torques, speeds, t, 1.0, 2.0, definition="integral")

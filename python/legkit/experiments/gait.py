@@ -1,7 +1,14 @@
 """`legkit gait`: stability and energy indices over one cycle of a quadruped amble and a biped walk.
 
-Reproduces the gait analysis of Hardt & von Stryk (RoboCup 2002): a periodic amble of the quadruped with
-duty factor 0.5 at 0.67 m/s, and a biped walking at 1.8 km/h (0.5 m/s).
+Reproduces the gait analysis of Hardt & von Stryk (RoboCup 2002; ../shared/seeds/003_8a51da06d878ba35.txt):
+the amble of their Fig. 3 (0.67 m/s, gait period 1.25 s, duty factor 0.5, v_tip_max = 2 m/s, support order
+LF+LH, LF+RH, RF+RH, RF+LH), and a biped walking at the 1.8 km/h (0.5 m/s) of their Sect. 6.
+
+The published amble's numbers fix its stride: 0.67 m/s x 1.25 s = 0.84 m per cycle, so each foot sweeps
+0.42 m under its hip during a stance (the paper's "gait stride 0.416 m" is this half cycle; 0.416 m per
+cycle would mean 0.33 m/s). An AIBO-sized leg (0.145 m, legkit's default quadruped) cannot reach that far,
+so the amble runs on the default quadruped with 0.18 m thighs and shanks at a hip height of 0.20 m
+(``AMBLE_QUADRUPED``, ``AMBLE_HIP_HEIGHT``); masses and the rest of the body are unchanged.
 
 Pipeline, per robot:
 1. Reference motion from foot placements: the base moves at constant speed and height (the biped also sways
@@ -15,13 +22,15 @@ Pipeline, per robot:
    residual is the unbalanced tipping moment about the support line, reported as such. `lk.contact_dynamics`
    with those torques then gives the acceleration the constrained robot would really have; its distance
    from the reference is reported too.
-3. Indices: S_H (with the swing tips as catching legs), static stability margin, ZMP from the centroidal
+3. Indices: S_H as published (definition="paper", the diagonal leg pairs LF-RH and RF-LH, travel along +x)
+   and legkit's energy variant (definition="energy", the swing tips as catching legs), static stability margin, ZMP from the centroidal
    momentum rate and its margin to the support polygon, CoP of the contact forces, friction-cone margin,
-   torque-speed margin, and the two energy indices over the cycle. The biped also gets the FRI of its
-   stance foot in single support and J_s1.
+   torque-speed margin, and the two energy indices over the cycle (J_e2 as the published integral and as
+   its time mean, with v the COM's forward speed). The biped also gets the FRI of its feet in contact
+   (eq. 8, the point S) and J_s1 (eq. 9) of the GCoM about it.
 
 Outputs in --out: gait_<robot>.csv (one row per sample) and gait_<robot>.png (S_H over the cycle, like the
-paper's Fig. 3, with the static and ZMP margins below). A short table is printed. Nothing is random: the
+paper's Fig. 3: the published S_H, with the energy variant overlaid; the static and ZMP margins below). A short table is printed. Nothing is random: the
 same arguments give the same files.
 """
 
@@ -38,7 +47,7 @@ from tqdm import tqdm
 import legkit as lk
 import legkit.stability as st
 from legkit.robots.biped import SIDES, Biped, build_biped
-from legkit.robots.quadruped import LEGS, Quadruped, build_quadruped
+from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, Quadruped, QuadrupedParameters, build_quadruped
 
 STANDARD_GRAVITY = 9.81
 
@@ -65,6 +74,9 @@ class MotorParameters:
 
 
 QUADRUPED_MOTOR = MotorParameters(resistance=5.0, torque_constant=0.012, gear_ratio=60.0, efficiency=0.7, no_load_speed=1257.0, stall_torque=0.03)
+#: The quadruped of the amble: legkit's default with legs long enough for the published 0.42 m stance sweep.
+AMBLE_QUADRUPED = QuadrupedParameters(thigh_length=0.18, shank_length=0.18)
+AMBLE_HIP_HEIGHT = 0.20  # [m]
 BIPED_MOTOR = MotorParameters(resistance=0.5, torque_constant=0.05, gear_ratio=160.0, efficiency=0.8, no_load_speed=838.0, stall_torque=1.2)
 
 
@@ -178,14 +190,17 @@ def _expand(robot_model: lk.Model, dt: float, cycles: int, speed: float, base_xy
 
 
 def quadruped_amble(robot: Quadruped, speed: float, period: float, samples: int, cycles: int, step_height: float, hip_height: float) -> GaitReference:
-    """Amble with duty factor 0.5 in the lateral sequence LH, LF, RH, RF (touchdowns a quarter cycle apart):
-    the support alternates between a diagonal pair (LH+RF, LF+RH) and a lateral pair (LH+LF, RH+RF). The
+    """Amble with duty factor 0.5 in the lateral sequence LF, RH, RF, LH (touchdowns a quarter cycle apart):
+    the support order of file 003, Sect. 4.2, LF+LH, LF+RH, RF+RH, RF+LH from t = 0, a lateral pair then a
+    diagonal one. The published list reads "LF-LB, LR-RR, RF-RR, RF-LR"; its second pair (both rear legs)
+    contradicts the same paragraph (lateral and diagonal pairs alternate) and the Fig. 3 caption (the RR leg
+    touches down as the left rear lifts, leaving a diagonal pair), so it is read as LF-RR (= LF+RH). The
     torso sways so that the COM follows the periodic LIP whose ZMP is the midpoint of the supporting pair."""
     p = robot.parameters
     dt = period / samples
     t = np.arange(samples) * dt
     torso_z = hip_height - p.hip_z
-    touchdown = {"lh": 0, "lf": samples // 4, "rh": samples // 2, "rf": (3 * samples) // 4}
+    touchdown = {"lf": 0, "rh": samples // 4, "rf": samples // 2, "lh": (3 * samples) // 4}
     # Footholds at the hip offsets from the COM path, so the supporting pairs' midpoints follow the COM; the
     # torso then runs behind the COM by the head's forward shift.
     _, _, com_up = np.asarray(lk.center_of_mass(robot.model, robot.model.neutral()))
@@ -313,15 +328,20 @@ class GaitAnalysis:
 
 
 def analyse(name: str, model: lk.Model, ref: GaitReference, motor: MotorParameters, v_tip_max: float, mu: float,
-            progress: tqdm) -> GaitAnalysis:
-    """Every index over the reference (see the module docstring); the contact points in the air are the
-    swing tips that make support edges "diagonal" for S_H."""
+            progress: tqdm, diagonal_pairs: list[tuple[int, int]] | None = None) -> GaitAnalysis:
+    """Every index over the reference (see the module docstring). S_H: published (its diagonal edges join the
+    contact pairs `diagonal_pairs`, travel along +x) and energy variant (the contact points in the air are the
+    swing tips that make support edges diagonal)."""
     dyn = contact_inverse_dynamics(model, ref)
     progress.update()
     gap = constrained_acceleration_gap(model, ref, dyn.torques)
     progress.update()
     com = np.asarray(lk.center_of_mass(model, ref.q))
-    s_h = st.angular_momentum_stability_of_model(model, ref.q, ref.v, dyn.points, ref.active, dyn.points, ~ref.active, v_tip_max)
+    s_h = st.angular_momentum_stability_of_model(model, ref.q, ref.v, dyn.points, ref.active, v_tip_max=v_tip_max, diagonal_pairs=diagonal_pairs)
+    s_h_energy = st.angular_momentum_stability_of_model(
+        model, ref.q, ref.v, dyn.points, ref.active, dyn.points, ~ref.active, v_tip_max, definition="energy"
+    )
+    forward_speed = np.asarray(lk.centroidal_momentum(model, ref.q, ref.v))[:, 0] / model.total_mass
     static = st.static_stability_margin(com, dyn.points, ref.active)
     zmp = st.zmp(model, ref.q, ref.v, ref.a)
     zmp_margin = st.static_stability_margin(zmp, dyn.points, ref.active)
@@ -337,7 +357,7 @@ def analyse(name: str, model: lk.Model, ref: GaitReference, motor: MotorParamete
     mechanical = np.sum(np.abs(dyn.torques * joint_v), axis=1)
     progress.update()
     columns = {
-        "t": ref.t, "S_H": s_h, "static_margin": static, "zmp_x": zmp[:, 0], "zmp_y": zmp[:, 1], "zmp_margin": zmp_margin,
+        "t": ref.t, "S_H": s_h, "S_H_energy": s_h_energy, "static_margin": static, "zmp_x": zmp[:, 0], "zmp_y": zmp[:, 1], "zmp_margin": zmp_margin,
         "cop_x": cop[:, 0], "cop_y": cop[:, 1], "com_x": com[:, 0], "com_y": com[:, 1],
         "unbalanced_moment": np.linalg.norm(dyn.unbalanced[:, 3:], axis=1), "friction_margin": friction,
         "torque_speed_margin": torque_speed, "joule_power": joule, "mechanical_power": mechanical,
@@ -346,6 +366,7 @@ def analyse(name: str, model: lk.Model, ref: GaitReference, motor: MotorParamete
     mass = model.total_mass
     summary = {
         "S_H min [N m s]": worst, "S_H min at [s]": worst_t, "S_H mean [N m s]": float(np.mean(s_h)),
+        "S_H energy variant min [N m s]": float(np.min(s_h_energy)),
         "static margin min [m]": float(np.min(static)), "static margin max [m]": float(np.max(static)),
         "ZMP margin min [m]": float(np.min(zmp_margin)), "ZMP margin max [m]": float(np.max(zmp_margin)),
         "planned-ZMP tracking error max [m]": ref.zmp_tracking_error,
@@ -354,14 +375,16 @@ def analyse(name: str, model: lk.Model, ref: GaitReference, motor: MotorParamete
         "contact-dynamics |ddq - a_ref| max": gap,
         "friction margin min [N]": float(np.min(friction)), "torque-speed margin min [N m]": float(np.min(torque_speed)),
         "E1 Joule loss [J/m]": st.joule_loss_index(dyn.torques, ref.t, ref.distance, motor.resistance, motor.gear_ratio, motor.torque_constant),
-        "E2 specific resistance [-]": st.specific_resistance(dyn.torques, joint_v, ref.t, ref.distance, mass, STANDARD_GRAVITY),
+        "J_e2 (eq. 13) [s]": st.specific_resistance(dyn.torques, joint_v, ref.t, forward_speed, mass, STANDARD_GRAVITY),
+        "J_e2 time mean [-]": st.specific_resistance(dyn.torques, joint_v, ref.t, forward_speed, mass, STANDARD_GRAVITY, definition="mean"),
     }
     return GaitAnalysis(name, ref, dyn, columns, summary)
 
 
 def _biped_extras(robot: Biped, analysis: GaitAnalysis) -> None:
-    """FRI of the stance foot in single support and its margin to the sole, the foot-torque margins (eq. 6) of
-    each stance foot's wrench about its sole point below the ankle, and J_s1 of the GCoM."""
+    """FRI S of the feet in contact (eq. 8) and its margin to the sole in single support, the foot-torque
+    margins (eq. 6) of each stance foot's wrench about its sole point below the ankle, and J_s1 (eq. 9) of the
+    GCoM about S."""
     ref, model = analysis.ref, robot.model
     poses = np.asarray(lk.forward_kinematics(model, ref.q))
     torque_margin = np.full(len(ref.t), np.inf)
@@ -373,21 +396,22 @@ def _biped_extras(robot: Biped, analysis: GaitAnalysis) -> None:
         torque_margin = np.where(ref.active[:, group[0]], np.minimum(torque_margin, margins), torque_margin)
     analysis.columns["foot_torque_margin"] = torque_margin
     analysis.summary["foot-torque margin min (eq. 6) [N m]"] = float(np.min(torque_margin))
+    # S of eq. 8 for the feet in contact (one foot or both); its margin to the sole in single support.
     left, right = ref.active[:, 0], ref.active[:, 4]
-    fri = np.full((len(ref.t), 3), np.nan)
+    fri = np.zeros((len(ref.t), 3))
     fri_margin = np.full(len(ref.t), np.nan)
-    for side, rows in (("l", left & ~right), ("r", right & ~left)):
+    for feet, rows in ((("l_foot",), left & ~right), (("r_foot",), right & ~left), (("l_foot", "r_foot"), left & right)):
         if not np.any(rows):
             continue
-        fri[rows] = st.foot_rotation_indicator(model, ref.q[rows], ref.v[rows], ref.a[rows], f"{side}_foot")
-        corners = analysis.dynamics.points[rows][:, (0 if side == "l" else 4) : (4 if side == "l" else 8)]
-        fri_margin[rows] = st.static_stability_margin(fri[rows], corners)
+        fri[rows] = st.foot_rotation_indicator(model, ref.q[rows], ref.v[rows], ref.a[rows], feet)
+        if len(feet) == 1:
+            group = ref.feet[SIDES.index(feet[0][0])]
+            fri_margin[rows] = st.static_stability_margin(fri[rows], analysis.dynamics.points[rows][:, group])
     analysis.columns.update({"fri_x": fri[:, 0], "fri_y": fri[:, 1], "fri_margin": fri_margin})
     single = ~np.isnan(fri_margin)
     analysis.summary["FRI margin min, single support [m]"] = float(np.min(fri_margin[single]))
-    centroid = st.support_polygon_centroid(analysis.dynamics.points, ref.active)
     gcom = np.stack([analysis.columns["com_x"], analysis.columns["com_y"]], axis=1)
-    analysis.summary["J_s1 = int |GCoM - S|^2 dt [m^2 s]"] = st.stability_performance_1(gcom, centroid, ref.t)
+    analysis.summary["J_s1 (eq. 9) [m^2 s]"] = st.stability_performance_1(gcom, fri, ref.t)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -421,7 +445,9 @@ def plot(path: Path, analysis: GaitAnalysis, title: str) -> None:
         for axis in (top, bottom):
             axis.axvspan(t[a], t[b - 1], color=colour, alpha=0.12, lw=0)
         top.text(0.5 * (t[a] + t[b - 1]), 1.0, labels[a], transform=top.get_xaxis_transform(), ha="center", va="bottom", fontsize=7)
-    top.plot(t, analysis.columns["S_H"], color="C0", label="S_H")
+    top.plot(t, analysis.columns["S_H"], color="C0", label="S_H (paper, eq. 10)")
+    top.plot(t, analysis.columns["S_H_energy"], color="C1", ls="--", lw=0.9, label="S_H (energy variant)")
+    top.legend(loc="lower right", fontsize=8)
     top.axhline(0.0, color="k", lw=0.8)
     top.set_ylabel("S_H [N m s]")
     top.set_title(title, pad=14)
@@ -448,17 +474,19 @@ def print_table(analyses: list[GaitAnalysis]) -> None:
 def run(robot_name: str, args: argparse.Namespace, progress: tqdm) -> GaitAnalysis:
     """Build the robot and its reference, analyse it, and write its CSV and figure."""
     if robot_name == "quadruped":
-        quadruped = build_quadruped()
-        ref = quadruped_amble(quadruped, args.quadruped_speed, args.quadruped_period, args.samples, args.cycles, 0.03, 0.09)
+        quadruped = build_quadruped(AMBLE_QUADRUPED)
+        ref = quadruped_amble(quadruped, args.quadruped_speed, args.quadruped_period, args.samples, args.cycles, 0.03, AMBLE_HIP_HEIGHT)
         model, motor, tip_speed = quadruped.model, QUADRUPED_MOTOR, args.quadruped_tip_speed
-        title = f"Quadruped amble, duty 0.5, {args.quadruped_speed:g} m/s: S_H over {args.cycles} cycle(s)"
+        diagonal = [(LEGS.index(a), LEGS.index(b)) for a, b in DIAGONAL_PAIRS]
+        title = (f"Quadruped amble, duty 0.5, {args.quadruped_speed:g} m/s, period {args.quadruped_period:g} s: "
+                 f"S_H over {args.cycles} cycle(s)")
     else:
         biped = build_biped()
         ref = biped_walk(biped, args.biped_speed / 3.6, args.biped_step, args.samples, args.cycles, 0.2, 0.05, 0.82, 0.3)
-        model, motor, tip_speed = biped.model, BIPED_MOTOR, args.biped_tip_speed
+        model, motor, tip_speed, diagonal = biped.model, BIPED_MOTOR, args.biped_tip_speed, None
         title = f"Biped walk, {args.biped_speed:g} km/h: S_H over {args.cycles} cycle(s)"
     progress.update()
-    analysis = analyse(robot_name, model, ref, motor, tip_speed, args.mu, progress)
+    analysis = analyse(robot_name, model, ref, motor, tip_speed, args.mu, progress, diagonal)
     if robot_name == "biped":
         _biped_extras(biped, analysis)
     write_csv(args.out / f"gait_{robot_name}.csv", analysis)
@@ -475,9 +503,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cycles", type=_positive_int, default=1, help="gait cycles to analyse")
     parser.add_argument("--samples", type=_positive_int, default=400, help="samples per cycle (>= 8)")
     parser.add_argument("--mu", type=float, default=0.8, help="friction coefficient for the friction-cone margin")
-    parser.add_argument("--quadruped-speed", type=float, default=0.67, help="amble speed [m/s]")
-    parser.add_argument("--quadruped-period", type=float, default=0.4, help="amble cycle time [s]")
-    parser.add_argument("--quadruped-tip-speed", type=float, default=1.5, help="swing-leg tip speed limit v_tip_max [m/s]")
+    parser.add_argument("--quadruped-speed", type=float, default=0.67, help="amble speed [m/s] (Fig. 3: 0.67)")
+    parser.add_argument("--quadruped-period", type=float, default=1.25, help="amble cycle time [s] (Fig. 3: 1.25)")
+    parser.add_argument("--quadruped-tip-speed", type=float, default=2.0, help="swing-leg tip speed limit v_tip_max [m/s] (Fig. 3: 2)")
     parser.add_argument("--biped-speed", type=float, default=1.8, help="walking speed [km/h]")
     parser.add_argument("--biped-step", type=float, default=0.4, help="step length [m]")
     parser.add_argument("--biped-tip-speed", type=float, default=3.0, help="swing-foot speed limit v_tip_max [m/s]")

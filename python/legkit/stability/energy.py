@@ -1,4 +1,4 @@
-"""Energy indices of a gait and the actuator torque-speed limit.
+"""Energy indices of a gait and the actuator torque-speed limit (Hardt & von Stryk, file 003, Sect. 2.3 and 3.2).
 
 Joint i is driven by a DC motor through a gear of ratio G_i (motor turns per joint turn) and efficiency
 eta_i; K_i is the motor torque constant [N m/A], R_i the winding resistance [ohm]. A joint torque u_i needs
@@ -9,6 +9,8 @@ are scalars or (n,) and broadcast.
 """
 
 from __future__ import annotations
+
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -52,7 +54,8 @@ def joule_loss_index(
     gear_ratio: npt.ArrayLike,
     torque_constant: npt.ArrayLike,
 ) -> float:
-    """Energy Performance 1 [J/m]: the Joule loss integrated over t (trapezoidal rule) per distance travelled.
+    """Energy Performance 1, J_e1 (eq. 12 of file 003) [J/m]: the Joule loss integrated over t (trapezoidal
+    rule) per distance d_S travelled.
 
     torques: (T, n) [N m]; t: (T,) [s]; distance > 0 [m] travelled over t; motor parameters as the module
     docstring. Lower is better (an energy cost, not a margin).
@@ -66,24 +69,39 @@ def specific_resistance(
     torques: npt.ArrayLike,
     joint_velocities: npt.ArrayLike,
     t: npt.ArrayLike,
-    distance: float,
+    forward_velocity: npt.ArrayLike,
     mass: float,
     gravity: float = 9.81,
+    *,
+    definition: Literal["paper", "mean"] = "paper",
 ) -> float:
-    """Energy Performance 2, the specific resistance (dimensionless): integral of sum_i |u_i dtheta_i/dt| dt
-    divided by m g times the distance travelled.
+    """Energy Performance 2, J_e2 (eq. 13 of file 003), from the specific resistance of Gregorio et al.
 
-    At constant speed v over a duration D/v this equals the time mean of sum |u_i theta_dot_i| / (m g v), the
-    paper's integrand. Negative joint work is counted as spent (|.|): motors do not recover it.
-    torques, joint_velocities: (T, n) [N m], [rad/s]; t: (T,) [s]; distance > 0 [m]; mass > 0 [kg].
+    definition="paper" (default): J_e2 = integral over t of sum_i |u_i theta_dot_i| / (m g v) dt [s], as
+    published: the integral of the dimensionless specific resistance, so it has units of seconds and grows
+    with the duration of t (the text calls the index dimensionless; the equation is not).
+    definition="mean": that integrand's time mean, J_e2 / (t_end - t_0) (dimensionless): the specific
+    resistance itself, which at constant v is the work sum_i |u_i theta_dot_i| spent per m g and metre.
+
+    torques, joint_velocities: (T, n) [N m], [rad/s]; t: (T,) [s]; forward_velocity v: scalar or (T,) forward
+    speed [m/s], > 0 (the integrand divides by it); mass > 0 [kg]. Trapezoidal rule. Negative joint work is
+    counted as spent (|.|): motors do not recover it.
     """
+    if definition not in ("paper", "mean"):
+        raise ValueError(f"definition must be 'paper' or 'mean', got {definition!r}")
     u = _torques(torques)
     w = float_array(joint_velocities, "joint_velocities")
     if w.shape != u.shape:
         raise ValueError(f"joint_velocities must have the shape of torques {u.shape}, got {w.shape}")
     times = time_grid(t, u.shape[0])
-    work = float(np.trapezoid(np.sum(np.abs(u * w), axis=-1), times))
-    return work / (positive_scalar(mass, "mass") * positive_scalar(gravity, "gravity") * positive_scalar(distance, "distance"))
+    speed = float_array(forward_velocity, "forward_velocity")
+    if speed.ndim > 1 or (speed.ndim == 1 and speed.shape[0] != u.shape[0]):
+        raise ValueError(f"forward_velocity must be a scalar or have {u.shape[0]} samples, got shape {speed.shape}")
+    if np.any(speed <= 0.0):
+        raise ValueError(f"forward_velocity must be > 0 (J_e2 divides by it), got minimum {speed.min()}")
+    weight = positive_scalar(mass, "mass") * positive_scalar(gravity, "gravity")
+    integral = float(np.trapezoid(np.sum(np.abs(u * w), axis=-1) / (weight * speed), times))
+    return integral if definition == "paper" else integral / float(times[-1] - times[0])
 
 
 def torque_speed_margin(
@@ -94,7 +112,8 @@ def torque_speed_margin(
     efficiency: npt.ArrayLike,
     slope: npt.ArrayLike,
 ) -> np.ndarray:
-    """Margin (T, n) [N m] to the actuator torque-speed line |u_i| <= (theta_dot_max,i - |theta_dot_i|) G_i^2 eta_i / m_i.
+    """Margin (T, n) [N m] to the actuator torque-speed line of file 003, Sect. 2.3 (interior constraint 3):
+    |u_i| <= (theta_dot_max,i - |theta_dot_i|) G_i^2 eta_i / m_i.
 
     max_speed: the joint's no-load speed theta_dot_max (motor no-load speed / G) [rad/s]; slope m_i: the
     motor's speed-torque gradient [rad/s per N m]; efficiency eta_i in (0, 1]. A motor delivers torque

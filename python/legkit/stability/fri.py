@@ -1,19 +1,24 @@
 """Goswami's foot-rotation indicator (FRI) and the paper's Stability Performance 1, J_s1.
 
-The FRI of a foot in (single) ground contact is the point on the ground where the ground reaction would
-have to act for the foot to stay still, given the motion of the rest of the robot (Goswami 1999). With the
-foot at rest, the ground reaction R balances gravity on the foot and the wrench the rest of the robot puts
-through the ankle, which equals that rest's momentum rate minus its weight:
+Hardt & von Stryk (file 003, Sect. 3.2, eq. 8-9). The FRI S of the N_f feet in ground contact is the point
+on the ground where the ground reaction would have to act for the feet to stay still, given the motion of the
+rest of the robot (Goswami 1999). Eq. 8 sets the tangential moments about S of what acts on the feet to zero:
 
-    R   = dh_rest/dt - (m_rest + m_foot) g
-    M_o = dL_rest,o/dt - c_rest x m_rest g - c_foot x m_foot g       (moments about o on the ground)
+    sum_j (n_j + SO_j x f_j - SG_j x m_j g)_T = 0,
 
-and the FRI is the point of zero horizontal moment of (R, M_o). While the foot is flat and still it is the
-CoP (= ZMP) and lies in the footprint; outside the footprint the foot rotates about its edge, and the
-distance to the footprint measures how strongly (the FRI is the ZMP computed without the foot's inertia).
+n_j, f_j the wrench the rest of the robot puts on foot j at its joint O_j, G_j and m_j the foot's COM and
+mass. That wrench is the rest's momentum rate minus its weight, so with the feet at rest the ground reaction
+R balances
+    R   = dh_rest/dt - (m_rest + m_feet) g
+    M_o = dL_rest,o/dt - c_rest x m_rest g - sum_j c_j x m_j g       (moments about o on the ground)
+and S is the point of zero horizontal moment of (R, M_o). While the feet are flat and still it is the CoP
+(= ZMP) and lies in the support; outside it the feet rotate about its edge, and the distance to the support
+measures how strongly (the FRI is the ZMP computed without the feet's inertia).
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -24,10 +29,10 @@ from legkit.stability._validation import time_grid
 from legkit.stability.zmp import ground_point
 
 
-def _without_mass_of(model: lk.Model, body: int) -> lk.Model:
-    """Copy of `model` (same bodies, joints, placements, gravity) in which `body` carries no mass."""
+def _without_mass_of(model: lk.Model, bodies: list[int]) -> lk.Model:
+    """Copy of `model` (same bodies, joints, placements, gravity) in which `bodies` carry no mass."""
     def mass_of(i: int) -> lk.MassProperties:
-        return lk.MassProperties.zero() if i == body else model.body(i)
+        return lk.MassProperties.zero() if i in bodies else model.body(i)
 
     copy = lk.Model(
         floating_base=model.floating_base, base=mass_of(0), base_name=model.names[0], gravity=model.gravity
@@ -60,41 +65,45 @@ def foot_rotation_indicator(
     q: npt.ArrayLike,
     v: npt.ArrayLike,
     a: npt.ArrayLike,
-    foot: int | str,
+    foot: int | str | Sequence[int | str],
     ground_height: float = 0.0,
 ) -> np.ndarray:
-    """FRI point (..., 3) [m] on the plane z = ground_height for the support foot `foot` (index or name).
+    """FRI point S (..., 3) [m] (eq. 8 of file 003) on the plane z = ground_height for the support foot or
+    feet `foot` (an index or name, or a sequence of them: the N_f feet in contact).
 
-    q, v, a: (..., nq), (..., nv), (..., nv) of the whole robot (the foot's own acceleration is ignored, as
-    the FRI assumes it still). The foot is the only body touching the ground. Compare with the footprint by
-    `polygon_margin(fri, footprint)`: positive (inside) means the foot does not rotate.
+    q, v, a: (..., nq), (..., nv), (..., nv) of the whole robot (the feet's own accelerations are ignored, as
+    the FRI assumes them still). The feet are the only bodies touching the ground. Compare with the support
+    by `polygon_margin(fri, footprint)`: positive (inside) means the feet do not rotate.
     """
-    index = _body_index(model, foot)
-    rest = _without_mass_of(model, index)
-    m_foot = model.body(index).mass
-    m_rest = model.total_mass - m_foot
+    names = [foot] if isinstance(foot, (str, int, np.integer)) else list(foot)
+    if not names:
+        raise ValueError("foot must name at least one body")
+    indices = sorted({_body_index(model, name) for name in names})
+    rest = _without_mass_of(model, indices)
+    masses = np.array([model.body(i).mass for i in indices])
+    m_rest = model.total_mass - float(masses.sum())
     g = model.gravity
     o = np.array([0.0, 0.0, ground_height])
     rate = np.asarray(lk.centroidal_momentum_rate(rest, q, v, a))
     c_rest = np.asarray(lk.center_of_mass(rest, q)) if m_rest > 0.0 else np.zeros(rate.shape[:-1] + (3,))
-    pose = np.asarray(lk.forward_kinematics(model, q))[..., index, :, :]
-    c_foot = np.einsum("...ij,j->...i", pose[..., :3, :3], model.body(index).com) + pose[..., :3, 3]
-    force = rate[..., :3] - (m_rest + m_foot) * g
-    moment = (
-        rate[..., 3:]
-        + np.cross(c_rest - o, rate[..., :3])
-        - np.cross(c_rest - o, m_rest * g)
-        - np.cross(c_foot - o, m_foot * g)
-    )
+    poses = np.asarray(lk.forward_kinematics(model, q))
+    moment = rate[..., 3:] + np.cross(c_rest - o, rate[..., :3]) - np.cross(c_rest - o, m_rest * g)
+    for index, mass in zip(indices, masses):
+        pose = poses[..., index, :, :]
+        c_foot = np.einsum("...ij,j->...i", pose[..., :3, :3], model.body(index).com) + pose[..., :3, 3]
+        moment = moment - np.cross(c_foot - o, mass * g)
+    force = rate[..., :3] - model.total_mass * g
     return ground_point(force, moment, ground_height)
 
 
 def stability_performance_1(points: npt.ArrayLike, reference: npt.ArrayLike, t: npt.ArrayLike) -> float:
-    """The paper's Stability Performance 1, J_s1 = integral of |GCoM - S|^2 dt [m^2 s] (trapezoidal rule).
+    """The paper's Stability Performance 1, J_s1 = integral of |GCoM - S|^2 dt [m^2 s] (eq. 9 of file 003,
+    trapezoidal rule). The text calls it "the average distance" between the two points; the equation, kept
+    here, integrates the squared distance and does not divide by t_f.
 
-    points: (T, 2 or 3) ground points over time, the ground projection of the COM (GCoM) in the paper; the
-    FRI or ZMP may be passed instead. reference: (T, 2 or 3) the point S they should stay close to, e.g.
-    `support_polygon_centroid`; t: (T,) strictly increasing times [s]. Only x and y are compared. Smaller is
+    points: (T, 2 or 3) ground points over time, the ground projection of the COM (GCoM) in the paper.
+    reference: (T, 2 or 3) the point S, in the paper the FRI of the feet in contact (eq. 8,
+    `foot_rotation_indicator`); t: (T,) strictly increasing times [s]. Only x and y are compared. Smaller is
     more stable (J_s1 >= 0); this is a cost, the one index here where smaller rather than positive is better.
     """
     p = float_array(points, "points", min_ndim=2)
