@@ -51,7 +51,7 @@ def test_ground_truth_is_physically_consistent(speed: float, seed: int, com: tup
     assert np.all(stream.normal_force[~stream.stance] == 0.0)
     # Swing legs are unloaded; the generator's pose matches tripod_pose on the true stance toes.
     assert np.all(stream.length[~stream.stance] == LEG_LENGTH) and np.all(stream.deflection[~stream.stance] == 0.0)
-    pose = tripod_pose(stream.toes[rows[:, None], support])
+    pose = tripod_pose(stream.toes[rows[:, None], support], orientation="body_side")
     np.testing.assert_allclose(pose.height, stream.height, atol=1e-12)
     np.testing.assert_allclose(pose.roll, stream.roll, atol=1e-12)
     np.testing.assert_allclose(pose.pitch, stream.pitch, atol=1e-12)

@@ -64,7 +64,7 @@ def test_known_pose_on_flat_ground_recovered_to_1e12() -> None:
     # Toes on z = 0 with toe 0 -> toe 1 along world +x, so the support frame is the world frame shifted to toe 0.
     world_toes = np.array([[0.1, 0.0, 0.0], [0.6, 0.0, 0.0], [0.35, -0.45, 0.0]])
     body_toes = (world_toes - position) @ rotation  # R^T (w - p), row-wise
-    pose = tripod_pose(body_toes)
+    pose = tripod_pose(body_toes, orientation="body_side")  # these toes run clockwise (eq. 2's q_3 points down)
     assert abs(pose.height - height) < 1e-12
     assert abs(pose.roll - roll) < 1e-12 and abs(pose.pitch - pitch) < 1e-12 and abs(pose.yaw - yaw) < 1e-12
     np.testing.assert_allclose(pose.position, position - world_toes[0], atol=1e-12)
@@ -91,7 +91,7 @@ def test_random_pose_and_plane_round_trip(seed: int, tilt: float, height: float)
     position = anchor + rng.uniform(-0.3, 0.3, 2) @ in_plane + height * up
     body_toes = (world_toes - position) @ rotation
 
-    pose = tripod_pose(body_toes)
+    pose = tripod_pose(body_toes, orientation="body_side")
     frame = world_support_frame(world_toes, up)
     np.testing.assert_allclose(pose.rotation, frame.T @ rotation, atol=1e-9)
     np.testing.assert_allclose(pose.position, frame.T @ (position - world_toes[0]), atol=1e-9)
@@ -116,7 +116,7 @@ def test_height_roll_pitch_do_not_depend_on_toe_order(seed: int, permutation: li
     world_toes = np.column_stack([spread_triangle(rng), np.zeros(3)])
     position = np.array([0.0, 0.0, rng.uniform(0.05, 0.3)])
     body_toes = (world_toes - position) @ rotation
-    pose = tripod_pose(body_toes[list(permutation)])
+    pose = tripod_pose(body_toes[list(permutation)], orientation="body_side")
     assert abs(pose.height - position[2]) < 1e-10
     assert abs(pose.roll - roll) < 1e-10 and abs(pose.pitch - pitch) < 1e-10
 
@@ -136,7 +136,7 @@ def test_batched_matches_single() -> None:
 def test_rhex_standing_pose() -> None:
     # All legs straight down at the unloaded length: the body is level at height L0.
     toes = HIP_POSITIONS + np.array([0.0, 0.0, -LEG_LENGTH])
-    pose = tripod_pose(toes[list(TRIPODS[0])])
+    pose = tripod_pose(toes[list(TRIPODS[0])], orientation="body_side")
     assert abs(pose.height - LEG_LENGTH) < 1e-15
     assert abs(pose.roll) < 1e-15 and abs(pose.pitch) < 1e-15 and abs(pose.yaw) < 1e-15
 
@@ -219,12 +219,12 @@ def test_hip_to_body_rejects_bad_leg_index() -> None:
 
 def test_coplanarity_hand_cases() -> None:
     tetrahedron = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
-    assert coplanarity(tetrahedron) == pytest.approx(1.0, abs=1e-15)  # 6 x volume 1/6
+    assert coplanarity(tetrahedron, "determinant") == pytest.approx(1.0, abs=1e-15)  # 6 x volume 1/6
     square = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
-    assert coplanarity(square) == 0.0
+    assert coplanarity(square, "determinant") == 0.0
     # Five points: only subsets containing the raised point are non-coplanar; the largest is |det| = 2.
     five = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 2.0]])
-    assert coplanarity(five) == pytest.approx(2.0, abs=1e-14)
+    assert coplanarity(five, "determinant") == pytest.approx(2.0, abs=1e-14)
 
 
 def test_plane_residual_hand_case() -> None:
@@ -246,16 +246,20 @@ def test_coplanarity_measures_on_planes_and_off_them(seed: int, count: int, lift
     reference = np.linalg.svd(centred, compute_uv=False)[-1] ** 2
     assert plane_residual(points) == pytest.approx(reference, abs=1e-12)
     if lift == 0.0:
-        assert coplanarity(points) < 1e-12 and plane_residual(points) < 1e-12
+        assert coplanarity(points, "determinant") < 1e-12 and plane_residual(points) < 1e-12
     # Both measures are invariant under a rigid motion.
     moved = points @ random_rotation(rng).T + rng.uniform(-1, 1, 3)
-    assert coplanarity(moved) == pytest.approx(coplanarity(points), abs=1e-12)
+    assert coplanarity(moved, "determinant") == pytest.approx(coplanarity(points, "determinant"), abs=1e-12)
     assert plane_residual(moved) == pytest.approx(plane_residual(points), abs=1e-12)
 
 
 def test_coplanarity_rejects_too_few_toes() -> None:
     with pytest.raises(ValueError, match="toes must have shape"):
-        coplanarity(np.zeros((3, 3)))
+        coplanarity(np.zeros((3, 3)), "determinant")
+    with pytest.raises(ValueError, match="toes must have shape"):
+        coplanarity(np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="definition"):
+        coplanarity(np.zeros((6, 3)), "volume")
     with pytest.raises(ValueError, match="toes must have shape"):
         plane_residual(np.zeros((2, 3)))
 
@@ -288,3 +292,99 @@ def test_stance_intervals_bad_input() -> None:
         stance_intervals([0.0, np.nan], 0.1)
     with pytest.raises(ValueError, match="min_length"):
         stance_intervals([0.0], 0.1, min_length=0)
+
+
+# --------------------------------------------------------------------------------------------------
+# The published eq. 2 frame, eq. 5 angles and Sect. 5.2 coplanarity, by hand from file 002
+# --------------------------------------------------------------------------------------------------
+
+
+def paper_frame(toes: np.ndarray) -> np.ndarray:
+    """A = [q1 q2 q3]^T of eq. 2, written out: Gram-Schmidt of the two edge directions, q3 = q1 x q2."""
+    e1 = (toes[1] - toes[0]) / np.linalg.norm(toes[1] - toes[0])
+    e2 = (toes[2] - toes[0]) / np.linalg.norm(toes[2] - toes[0])
+    q2 = e2 - (e1 @ e2) * e1
+    q2 /= np.linalg.norm(q2)
+    return np.array([e1, q2, np.cross(e1, q2)])
+
+
+def test_paper_frame_follows_the_toe_order_and_body_side_turns_it_up() -> None:
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        body_toes = rng.uniform(-0.3, 0.3, (3, 3)) + [0.0, 0.0, -0.2]
+        a = paper_frame(body_toes)
+        pose = tripod_pose(body_toes)
+        np.testing.assert_allclose(pose.rotation, a, atol=1e-12)
+        np.testing.assert_allclose(pose.position, -a @ body_toes[0], atol=1e-12)  # eq. 4
+        toward_body = a[2] @ (-body_toes[0]) > 0.0
+        side = tripod_pose(body_toes, orientation="body_side")
+        if toward_body:
+            np.testing.assert_allclose(side.rotation, a, atol=1e-12)
+        else:  # half a turn about q1: q2 and q3 change sign, and the height becomes positive
+            np.testing.assert_allclose(side.rotation, a * [[1.0], [-1.0], [-1.0]], atol=1e-12)
+            assert pose.height < 0.0 < side.height
+    with pytest.raises(ValueError, match="orientation"):
+        tripod_pose(np.eye(3), orientation="up")
+
+
+@SETTINGS
+@given(roll=st.floats(-0.7, 0.7), pitch=st.floats(-0.7, 0.7), yaw=st.floats(-1.2, 1.2), height=st.floats(0.05, 0.4))
+def test_paper_angles_alpha_gamma_beta_by_hand(roll: float, pitch: float, yaw: float, height: float) -> None:
+    # Toes on flat ground z = 0, counter-clockwise, toe 0 -> toe 1 along world +x: the support frame is the world
+    # frame at toe 0, so A is the body's rotation R and b1, b2 its first two columns.
+    rotation = elementary(2, yaw) @ elementary(1, pitch) @ elementary(0, roll)
+    world_toes = np.array([[0.1, 0.0, 0.0], [0.6, 0.0, 0.0], [0.35, 0.45, 0.0]])
+    body_toes = (world_toes - [0.3, 0.1, height]) @ rotation
+    pose = tripod_pose(body_toes)
+    b1, b2 = rotation[:, 0], rotation[:, 1]
+    assert pose.alpha == pytest.approx(np.arctan(b1[2] / np.sqrt(b1[0] ** 2 + b1[1] ** 2)), abs=1e-12)
+    assert pose.gamma == pytest.approx(np.arctan(b2[2] / np.sqrt(b2[0] ** 2 + b2[1] ** 2)), abs=1e-12)
+    with np.errstate(divide="ignore"):  # at zero yaw and pitch the root is 0 and arctan(inf) = pi/2, as written
+        assert pose.beta == pytest.approx(np.arctan(b1[0] / np.sqrt(b1[1] ** 2 + b1[2] ** 2)), abs=1e-12)
+    # What they mean: alpha = -pitch (nose up), sin gamma = cos(pitch) sin(roll), sin beta = cos(yaw) cos(pitch).
+    assert pose.alpha == pytest.approx(-pitch, abs=1e-12)
+    assert np.sin(pose.gamma) == pytest.approx(np.cos(pitch) * np.sin(roll), abs=1e-12)
+    assert np.sin(pose.beta) == pytest.approx(np.cos(yaw) * np.cos(pitch), abs=1e-12)
+    # beta does not tell a yaw to the left from one to the right; legkit's Z-Y-X yaw does.
+    mirrored = tripod_pose((world_toes - [0.3, 0.1, height]) @ (elementary(2, -yaw) @ elementary(1, pitch) @ elementary(0, roll)))
+    assert mirrored.beta == pytest.approx(pose.beta, abs=1e-12)
+    assert mirrored.yaw == pytest.approx(-pose.yaw, abs=1e-12)
+
+
+def test_paper_angles_at_rest_and_their_dependence_on_toe_order() -> None:
+    toes = HIP_POSITIONS + np.array([0.0, 0.0, -LEG_LENGTH])
+    # RHex standing level, tripod B (right rear, right front, left middle: counter-clockwise): alpha = gamma = 0,
+    # and the body faces along toe 0 -> toe 1, so beta = pi/2.
+    level = tripod_pose(toes[list(TRIPODS[1])])
+    assert abs(level.alpha) < 1e-15 and abs(level.gamma) < 1e-15 and level.beta == pytest.approx(np.pi / 2, abs=1e-15)
+    # The angles are invariant to moving the body frame's origin (all toes shifted), not to the toe order: a
+    # clockwise order turns eq. 2's q3 into the ground, which flips the sign of gamma on a tilted body.
+    tilted = toes @ elementary(0, 0.2).T
+    ccw, cw = tripod_pose(tilted[list(TRIPODS[1])]), tripod_pose(tilted[list(TRIPODS[0])])
+    shifted = tripod_pose(tilted[list(TRIPODS[1])] + [0.05, -0.02, 0.1])
+    assert shifted.gamma == pytest.approx(ccw.gamma, abs=1e-14) and shifted.alpha == pytest.approx(ccw.alpha, abs=1e-14)
+    assert cw.gamma == pytest.approx(-ccw.gamma, abs=1e-14) and abs(ccw.gamma) > 0.1
+    assert tripod_pose(tilted[list(TRIPODS[0])], orientation="body_side").gamma == pytest.approx(ccw.gamma, abs=1e-14)
+
+
+def test_paper_coplanarity_by_hand_and_where_it_is_not_a_coplanarity() -> None:
+    # Six toes on the plane z = -0.15 (coplanar): rho = sum |s_i|^2 - |s_bar|^2, s_bar = (1/6) sum s_i.
+    toes = HIP_POSITIONS + np.array([0.0, 0.0, -0.15])
+    squares = sum(float(x * x + y * y + z * z) for x, y, z in toes)
+    mean = toes.sum(axis=0) / 6.0
+    expected = squares - float(mean @ mean)
+    assert coplanarity(toes) == pytest.approx(expected, rel=1e-14)
+    assert coplanarity(toes) > 0.1 and plane_residual(toes) < 1e-15  # coplanar, yet far from zero
+    # Moving the body frame's origin by t adds (k - 1)(2 s_bar . t + |t|^2): the measure depends on the origin.
+    t = np.array([0.02, -0.01, 0.05])
+    assert coplanarity(toes + t) == pytest.approx(expected + 5.0 * (2.0 * mean @ t + t @ t), rel=1e-13)
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1))
+def test_paper_coplanarity_is_invariant_to_rotations_about_the_body_origin(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    toes = rng.uniform(-0.3, 0.3, (6, 3))
+    assert coplanarity(toes @ random_rotation(rng).T) == pytest.approx(coplanarity(toes), abs=1e-13)
+    batch = np.stack([toes, toes + 0.1])
+    np.testing.assert_allclose(coplanarity(batch), [coplanarity(toes), coplanarity(toes + 0.1)], atol=1e-15)

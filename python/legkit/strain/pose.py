@@ -5,29 +5,53 @@ at its hip, rotated by the hip angle theta_i about +y; in that frame the leg han
 length l deflected by d (a further rotation about +y, same sign as theta) has its toe at
 (-l sin d, 0, -l cos d). ``hip_to_body`` is the paper's h_i^theta: the 4x4 transform leg frame -> body.
 
-Tripod pose (eq. 2-5). Given the three stance toes s_0, s_1, s_2 in the body frame:
-  * support frame Q (eq. 2): origin s_0; x axis q_x = (s_1 - s_0)/|s_1 - s_0|; z axis q_z the unit normal of
-    the toe plane on the side of the body origin (the ground normal pointing up, toward the body); y = z x x.
-    Q = [q_x q_y q_z] (columns are the support axes in body coordinates);
-  * body orientation in the support frame A = Q^T (maps body to support coordinates) (eq. 3);
-  * body position in the support frame u = -A s_0 (eq. 4), so u_z is the body height above the ground;
-  * roll, pitch, yaw (eq. 5) are the Z-Y-X angles of A = Rz(yaw) Ry(pitch) Rx(roll):
+Tripod pose (Lin, Komsuoglu, Koditschek, ICRA 2003; ../shared/seeds/002_e1a2a2fa623d3640.txt, Sect. 5.1,
+eq. 2-5). Given the three stance toes s_0, s_1, s_2 in the body frame:
+  * support frame Q (eq. 2): origin s_0; e_1, e_2 the unit vectors from s_0 to s_1 and s_2; q_1 = e_1,
+    q_2 = e_2 minus its q_1 component, normalised, q_3 = q_1 x q_2. Q = [q_1 q_2 q_3] (columns are the support
+    axes in body coordinates). q_3 follows the toe order: it points up, away from the ground toward the body,
+    when the toes run counter-clockwise seen from above, and into the ground otherwise (RHex's tripod A in
+    ``walking.TRIPOD_LEGS`` order, left rear - left front - right middle, runs clockwise).
+    ``orientation="body_side"`` (legkit's variant) turns Q half a turn about q_1 when q_3 points away from
+    the body origin, so that q_3 is always the ground normal toward the body and u_z is the body height;
+    with counter-clockwise toes the two are the same;
+  * A = Q^T maps body to support coordinates, r(b) = A b - A s_0 (eq. 3);
+  * u = -A s_0 (eq. 4): the body frame's origin in the support frame (the paper calls it the position of
+    the COM: the two coincide when the body frame sits at the COM);
+  * the paper's angles (eq. 5), from b_1 = A [1 0 0]^T and b_2 = A [0 1 0]^T (the body x and y axes in
+    support coordinates) and pi_i the i-th entry:
+        alpha = atan(pi_3 b_1 / sqrt(pi_1 b_1^2 + pi_2 b_1^2))     "pitch"
+        gamma = atan(pi_3 b_2 / sqrt(pi_1 b_2^2 + pi_2 b_2^2))     "roll"
+        beta  = atan(pi_1 b_1 / sqrt(pi_2 b_1^2 + pi_3 b_1^2))     "yaw"
+    In legkit's body frame (x forward, y left, z up) alpha is the elevation of the forward axis above the
+    support plane (nose up positive, exactly minus the Z-Y-X pitch below), gamma the elevation of the left
+    axis (left side up positive; sin gamma = cos(pitch) sin(roll)), and beta = asin(pi_1 b_1) the complement
+    of the angle between the forward axis and q_1: pi/2 when the body faces along the line from toe 0 to
+    toe 1, smaller for any yaw either way, so it does not tell left from right. The paper calls b_1 the
+    body's *lateral* axis; in such a frame alpha would be the elevation of the lateral axis, a roll, although
+    the paper names it pitch. legkit applies eq. 5 literally to its own body axes, where the names fit;
+  * legkit's Z-Y-X angles of A = Rz(yaw) Ry(pitch) Rx(roll), kept beside the paper's (they tell the sign of
+    the yaw and compose back into A with ``euler_zyx``):
         roll = atan2(a_32, a_33),  pitch = atan2(-a_31, sqrt(a_32^2 + a_33^2)),  yaw = atan2(a_21, a_11).
-    On flat ground the support frame differs from the world frame by a yaw and a translation only, so roll,
-    pitch and height equal their world values; yaw is relative to the line from toe 0 to toe 1.
-The published text of eq. 2-5 was not available while writing this module; the support-frame construction
-above (origin at the first toe, x toward the second) is a reconstruction consistent with u = -A s_0.
+    On flat ground with ``orientation="body_side"`` the support frame differs from the world frame by a yaw
+    and a translation only, so roll, pitch and height equal their world values; yaw is relative to q_1.
 
-Coplanarity. ``coplanarity`` is the algebraic measure rho: the absolute determinant |det[s_1 - s_0,
-s_2 - s_0, s_3 - s_0]| (six times the volume of the tetrahedron of four toes, m^3), and for more than four
-toes the largest such value over all four-toe subsets. ``plane_residual`` is the geometric alternative: the
-sum of squared distances of the toes to their least-squares plane (m^2).
+Coplanarity. ``coplanarity(toes)`` is the paper's measure (Sect. 5.2) rho = sum_i s_i^T s_i - s_bar^T s_bar,
+s_bar the mean toe, as printed (m^2). As printed it is not a coplanarity measure: it is not zero for coplanar
+toes and depends on where the body frame's origin is (a translation of all toes by t changes it by
+(k - 1)(2 s_bar . t + |t|^2); the centred scatter sum_i |s_i - s_bar|^2 = sum_i s_i^T s_i - k s_bar^T s_bar
+would not). ``coplanarity(toes, definition="determinant")`` is legkit's algebraic measure: the largest
+|det[s_b - s_a, s_c - s_a, s_e - s_a]| over four-toe subsets (six times a tetrahedron's volume, m^3), zero iff
+every four toes are coplanar. ``plane_residual`` is the geometric one legkit recommends: the sum of squared
+distances of the toes to their least-squares plane (m^2), zero iff they are coplanar, invariant to rigid
+motions. ``legkit strain`` compares the three as stance detectors (docs/strain.md).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from itertools import combinations
+from typing import Literal
 
 import numpy as np
 
@@ -107,11 +131,15 @@ class TripodPose:
     """Body pose in the support frame of a tripod (all arrays carry the batch shape of the toes).
 
     Attributes:
-        position: u = -A s_0, (..., 3) metres; position[..., 2] is the body height above the toe plane.
-        rotation: A, (..., 3, 3), body -> support coordinates.
-        roll, pitch, yaw: (...,) radians, Z-Y-X angles of A.
-        support_frame: Q = A^T, (..., 3, 3), columns are the support axes in body coordinates.
+        position: u = -A s_0 (eq. 4), (..., 3) metres; position[..., 2] is the body height above the toe
+            plane when q_3 points toward the body.
+        rotation: A (eq. 3), (..., 3, 3), body -> support coordinates.
+        roll, pitch, yaw: (...,) radians, Z-Y-X angles of A (legkit's; module docstring).
+        support_frame: Q = A^T (eq. 2), (..., 3, 3), columns are the support axes in body coordinates.
         origin: s_0, (..., 3), the support frame origin in body coordinates.
+        alpha, gamma, beta: (...,) radians, the paper's eq. 5 (its "pitch", "roll", "yaw"): the elevations
+            of the body's forward and left axes above the support plane, and the complement of the angle
+            between the forward axis and q_1 (module docstring).
     """
 
     position: np.ndarray
@@ -121,6 +149,9 @@ class TripodPose:
     yaw: np.ndarray
     support_frame: np.ndarray
     origin: np.ndarray
+    alpha: np.ndarray
+    gamma: np.ndarray
+    beta: np.ndarray
 
     @property
     def height(self) -> np.ndarray:
@@ -137,17 +168,21 @@ def _check_toes(toes: object, minimum: int, exact: bool = False) -> np.ndarray:
     return points
 
 
-def tripod_pose(toes: object) -> TripodPose:
-    """Body pose from three stance toes (eq. 2-5), vectorised over any batch shape.
+def tripod_pose(toes: object, orientation: Literal["paper", "body_side"] = "paper") -> TripodPose:
+    """Body pose from three stance toes (eq. 2-5 of file 002), vectorised over any batch shape.
 
     Args:
         toes: (..., 3, 3) toe positions in the body frame (metres), one row per toe, s_0 first; the order of
-            s_0 and s_1 fixes the support x axis (see the module docstring).
+            s_0 and s_1 fixes the support x axis, the order of all three the side q_3 points to.
+        orientation: "paper" (default): q_3 = q_1 x q_2 as eq. 2 builds it; "body_side": Q turned half a
+            turn about q_1 where that q_3 points away from the body origin (module docstring).
 
     Raises:
-        ValueError: wrong shape, NaN/inf, or a tripod whose toes are coincident or collinear (names the first
-            offending batch index).
+        ValueError: wrong shape, NaN/inf, an unknown orientation, or a tripod whose toes are coincident or
+            collinear (names the first offending batch index).
     """
+    if orientation not in ("paper", "body_side"):
+        raise ValueError(f"orientation must be 'paper' or 'body_side', got {orientation!r}")
     points = _check_toes(toes, 3, exact=True)
     # Component arithmetic on (...,) arrays: about three times faster than np.cross/einsum on big batches.
     x0, y0, z0 = points[..., 0, 0], points[..., 0, 1], points[..., 0, 2]
@@ -164,8 +199,10 @@ def tripod_pose(toes: object) -> TripodPose:
         where = np.argwhere(np.atleast_1d(degenerate))[0]
         label = f" at batch index {tuple(int(i) for i in where)}" if points.ndim > 2 else ""
         raise ValueError(f"toes{label} are coincident or collinear: three stance toes must span a plane")
-    # Ground normal toward the body: the body origin lies on the positive side (-s0 . n > 0).
-    scale = np.where(nx * x0 + ny * y0 + nz * z0 > 0.0, -1.0, 1.0) / normal_norm
+    # q_3 = q_1 x q_2 is the unit normal e_1 x e_2 (eq. 2); "body_side" flips it toward the body origin
+    # (-s0 . n > 0), and q_2 = q_3 x q_1 flips with it.
+    flip = (nx * x0 + ny * y0 + nz * z0 > 0.0) & (orientation == "body_side")
+    scale = np.where(flip, -1.0, 1.0) / normal_norm
     zx, zy, zz = nx * scale, ny * scale, nz * scale
     inverse_a = 1.0 / np.sqrt(a_squared)
     xx, xy, xz = ax * inverse_a, ay * inverse_a, az * inverse_a
@@ -178,8 +215,13 @@ def tripod_pose(toes: object) -> TripodPose:
     roll = np.arctan2(zy, zz)
     pitch = np.arctan2(-zx, np.hypot(zy, zz))
     yaw = np.arctan2(yx, xx)
+    # Eq. 5 on b_1 = A e_x = (xx, yx, zx) and b_2 = A e_y = (xy, yy, zy); arctan2 with its non-negative
+    # square root second is the paper's arctan of the ratio, defined also where the root is zero.
+    alpha = np.arctan2(zx, np.hypot(xx, yx))
+    gamma = np.arctan2(zy, np.hypot(xy, yy))
+    beta = np.arctan2(xx, np.hypot(yx, zx))
     s0 = points[..., 0, :]
-    return TripodPose(position, rotation, roll, pitch, yaw, np.swapaxes(rotation, -1, -2), s0)
+    return TripodPose(position, rotation, roll, pitch, yaw, np.swapaxes(rotation, -1, -2), s0, alpha, gamma, beta)
 
 
 def euler_zyx(roll: object, pitch: object, yaw: object) -> np.ndarray:
@@ -197,11 +239,20 @@ def euler_zyx(roll: object, pitch: object, yaw: object) -> np.ndarray:
     )
 
 
-def coplanarity(toes: object) -> np.ndarray:
-    """The algebraic coplanarity rho of k >= 4 toes, (...,) in m^3; zero iff every four toes are coplanar.
+def coplanarity(toes: object, definition: Literal["paper", "determinant"] = "paper") -> np.ndarray:
+    """A coplanarity measure rho of k toes (...,) (module docstring; small when the toes share a plane).
 
-    rho = max over four-toe subsets {a, b, c, e} of |det[s_b - s_a, s_c - s_a, s_e - s_a]|.
+    definition="paper" (default): rho = sum_i s_i^T s_i - s_bar^T s_bar, s_bar = (1/k) sum_i s_i, as printed in
+    file 002, Sect. 5.2 (k = 6 there; any k >= 3 here), m^2.
+    definition="determinant": max over four-toe subsets {a, b, c, e} of |det[s_b - s_a, s_c - s_a,
+    s_e - s_a]| (k >= 4), m^3; zero iff every four toes are coplanar.
     """
+    if definition not in ("paper", "determinant"):
+        raise ValueError(f"definition must be 'paper' or 'determinant', got {definition!r}")
+    if definition == "paper":
+        points = _check_toes(toes, 3)
+        mean = points.mean(axis=-2)
+        return np.sum(points * points, axis=(-2, -1)) - np.sum(mean * mean, axis=-1)
     points = _check_toes(toes, 4)
     best = np.zeros(points.shape[:-2])
     for a, b, c, e in combinations(range(points.shape[-2]), 4):

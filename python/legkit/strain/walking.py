@@ -306,7 +306,7 @@ def estimate_body_pose(
     toes = toe_in_body(theta, length, deflection, LEGS)
     support = np.argmin(tripod_clock_signal(theta, stance_centre), axis=1)
     stance_toes = toes[np.arange(theta.shape[0])[:, None], TRIPOD_LEGS[support]]
-    centres = tripod_pose(stance_toes)
+    centres = tripod_pose(stance_toes, orientation="body_side")  # tripod A runs clockwise: its eq.-2 normal points down
     # Move the support frame from the toe-centre plane down to the ground along its own z axis (the normal).
     ground = replace(
         centres,
