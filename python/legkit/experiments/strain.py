@@ -8,6 +8,14 @@
    ``run`` to use the contact simulation); the Table-2 analogue (percent NRMSE of length and deflection
    over stance samples, model vs ground truth) and the body-pose errors with the model in the loop.
 3. Plot the estimated height, roll and pitch against ground truth over one stride (Fig. 7 analogue).
+4. Stance detection (Sect. 5.2): how well the paper's coplanarity rho, legkit's determinant measure and the
+   plane residual of the six estimated toes (leg model in the loop, body frame) tell tripod support (exactly
+   three toes down; the paper: "large values point out tripod support") from samples with more toes down.
+   The kinematic generator never has more than three toes down, so this step walks RHex in the contact
+   simulation (one run per speed, ``simulated_walk``). Printed per speed and measure: the AUC (the chance
+   that a tripod sample scores above a more-toes sample; 1 separates perfectly, 0.5 is chance), the best
+   balanced accuracy over thresholds and its threshold rho_hat, and the medians of both classes; rho is
+   also shown with the body frame's origin moved 0.1 m forward, which the printed rho depends on.
 """
 
 from __future__ import annotations
@@ -29,6 +37,7 @@ from legkit.strain.benchtop import (
     synthetic_benchtop,
 )
 from legkit.strain.model import LegModel, format_order_table, nrmse, order_selection_table
+from legkit.strain.pose import coplanarity, plane_residual
 from legkit.strain.simulated import simulated_walk
 from legkit.strain.walking import PoseEstimate, WalkingSource, WalkingStream, estimate_body_pose, kinematic_walk
 
@@ -129,6 +138,73 @@ def plot_stride(stream: WalkingStream, estimate: PoseEstimate, path: Path, sourc
     plt.close(figure)
 
 
+#: Contact measures of the six toes (T, 6, 3) compared as stance detectors; large means tripod support.
+DETECTION_MEASURES = {
+    "rho (paper, Sect. 5.2)": coplanarity,
+    "rho, body origin +0.1 m x": lambda toes: coplanarity(toes + np.array([0.1, 0.0, 0.0])),
+    "determinant": lambda toes: coplanarity(toes, "determinant"),
+    "plane residual": plane_residual,
+}
+
+
+@dataclass(frozen=True)
+class StanceDetection:
+    """How one measure separates tripod support from more toes down over one walking run."""
+
+    speed: float
+    measure: str
+    auc: float
+    balanced_accuracy: float
+    threshold: float  # rho_hat: tripod support when the measure exceeds it
+    tripod_median: float
+    more_toes_median: float
+
+
+def separation(scores: np.ndarray, tripod: np.ndarray) -> tuple[float, float, float]:
+    """(AUC, best balanced accuracy, its threshold) of `scores` (n,) for the classes `tripod` (n,) bool,
+    classifying score > threshold as tripod."""
+    positive, negative = np.sort(scores[tripod]), np.sort(scores[~tripod])
+    if positive.size == 0 or negative.size == 0:
+        raise ValueError("tripod must hold samples of both classes")
+    # Mann-Whitney: count the (tripod, other) pairs ordered correctly, ties as half.
+    below = np.searchsorted(negative, positive, side="left")
+    ties = np.searchsorted(negative, positive, side="right") - below
+    auc = float(np.sum(below + 0.5 * ties)) / (positive.size * negative.size)
+    thresholds = np.unique(scores)
+    sensitivity = 1.0 - np.searchsorted(positive, thresholds, side="right") / positive.size
+    specificity = np.searchsorted(negative, thresholds, side="right") / negative.size
+    balanced = 0.5 * (sensitivity + specificity)
+    best = int(np.argmax(balanced))
+    return auc, float(balanced[best]), float(thresholds[best])
+
+
+def stance_detection(stream: WalkingStream, estimate: PoseEstimate) -> list[StanceDetection]:
+    """Every ``DETECTION_MEASURES`` entry on the estimated toes of one run; samples with fewer than three
+    toes down (the body carried by two legs or tipping) belong to neither class and are left out."""
+    down = stream.stance.sum(axis=1)
+    keep = down >= 3
+    tripod = down[keep] == 3
+    rows = []
+    for name, measure in DETECTION_MEASURES.items():
+        scores = measure(estimate.toes[keep])
+        auc, accuracy, threshold = separation(scores, tripod)
+        rows.append(StanceDetection(stream.speed, name, auc, accuracy, threshold, float(np.median(scores[tripod])), float(np.median(scores[~tripod]))))
+    return rows
+
+
+def format_detection_table(rows: list[StanceDetection]) -> str:
+    lines = [
+        "speed m/s | measure                    |   AUC | balanced acc. | threshold  | median tripod | median >3 toes",
+        "----------+----------------------------+-------+---------------+------------+---------------+---------------",
+    ]
+    for r in rows:
+        lines.append(
+            f"{r.speed:9.2f} | {r.measure:26s} | {r.auc:5.3f} | {r.balanced_accuracy:13.3f} | {r.threshold:10.3g} | "
+            f"{r.tripod_median:13.3g} | {r.more_toes_median:14.3g}"
+        )
+    return "\n".join(lines)
+
+
 @dataclass(frozen=True)
 class ExperimentResult:
     """Everything the experiment prints: the calibrated model, Table 1 and Table 2, and the figure path."""
@@ -138,6 +214,8 @@ class ExperimentResult:
     walking_table: str
     runs: list[RunResult]
     figure: Path
+    detection_table: str
+    detection: list[StanceDetection]
 
 
 def run(
@@ -170,7 +248,13 @@ def run(
     figure = out / "strain_pose_stride.png"
     assert first is not None  # runs >= 1
     plot_stride(*first, figure, source_label)
-    return ExperimentResult(model, order_table, format_walking_table(results), results, figure)
+    detection: list[StanceDetection] = []
+    for speed in tqdm(SPEEDS, desc="stance detection", leave=False):
+        stream = simulated_walk(speed, duration, seed)
+        detection += stance_detection(stream, evaluate_run(stream, model, seed)[1])
+    return ExperimentResult(
+        model, order_table, format_walking_table(results), results, figure, format_detection_table(detection), detection
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -212,6 +296,8 @@ def main(argv: list[str] | None = None) -> int:
     print("Table 2 analogue: model vs ground truth over stance samples; pose errors with the model in the loop\n")
     print(result.walking_table)
     print(f"\nFig. 7 analogue written to {result.figure}")
+    print("\nStance detection (Sect. 5.2) on the six estimated toes, simulated walking: tripod support vs more toes down\n")
+    print(result.detection_table)
     return 0
 
 
