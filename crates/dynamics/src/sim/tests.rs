@@ -385,6 +385,25 @@ fn effort_limit_clips_actuation(backend: Backend) {
     assert_eq!((bounded.q(), bounded.v()), (unbounded.q(), unbounded.v()));
 }
 
+/// A turntable (a box on a vertical revolute axis) lying on the ground: its joint moves the contacts
+/// only along the ground, so their normal rows are immovable (zero Delassus diagonal). They carry
+/// nothing, and the table turns as without the ground (it used to turn the step's state into NaN).
+#[test]
+fn immovable_contacts_carry_nothing() {
+    let mut model = Model::new(false, MassProperties::zero(), "ground");
+    let plate = MassProperties::cuboid(0.5, Vector3::new(0.2, 0.1, 0.1), Vector3::new(0.3, 0.0, 0.0499), &Matrix3::identity()).unwrap();
+    model.add_body(0, Joint::Revolute(Vector3::z()), Transform::identity(), plate, "table", JointLimits::NONE).unwrap();
+    let mut on_ground = Options::new(1e-3);
+    on_ground.ground = Some(Ground::plane(0.8).unwrap());
+    let mut sim = Simulation::new(&model, on_ground).unwrap();
+    let mut free = Simulation::new(&model, Options::new(1e-3)).unwrap();
+    sim.step(Some(&[0.2]), 100).unwrap();
+    free.step(Some(&[0.2]), 100).unwrap();
+    assert!(!sim.contacts().is_empty());
+    assert!(sim.contacts().iter().all(|c| c.normal_force == 0.0 && c.tangential_force == Vector3::zeros()));
+    assert_eq!((sim.q(), sim.v()), (free.q(), free.v()));
+}
+
 fn opts(backend: Backend, dt: f64) -> Options {
     Options { backend, ..Options::new(dt) }
 }

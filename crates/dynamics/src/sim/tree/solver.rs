@@ -39,6 +39,13 @@ pub(super) const MAX_CORRECTION: f64 = 0.5;
 pub(super) const TOLERANCE: f64 = 2e-4;
 /// Sweeps stop once one changes the velocities by at most this fraction of the contacts' whole change.
 pub(super) const CONVERGED: f64 = 1e-8;
+/// A constraint whose Delassus diagonal is below this fraction of its group's scale (tr W |F|²) is
+/// immovable: the joints cannot move it along its normal.
+const IMMOVABLE: f64 = 1e-12;
+/// Newton iterations and relative tolerance of a sliding contact's friction on the disc (it converges
+/// quadratically: three or four iterations reach the tolerance).
+const DISC_ITERATIONS: usize = 8;
+const DISC_TOLERANCE: f64 = 1e-12;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Kind {
@@ -89,8 +96,13 @@ impl Group {
     /// A constraint of this group whose rows are the forces `rows`, with its warm-start impulses.
     pub(super) fn constraint(&self, kind: Kind, rows: [Vector6<f64>; 3], bias: f64, warm: [f64; 3]) -> Constraint {
         let wf = rows.map(|f| self.w * f);
-        let block = [rows[0].dot(&wf[0]), rows[1].dot(&wf[1]), rows[2].dot(&wf[2]), rows[0].dot(&wf[1]), rows[0].dot(&wf[2]), rows[1].dot(&wf[2])];
+        let mut block = [rows[0].dot(&wf[0]), rows[1].dot(&wf[1]), rows[2].dot(&wf[2]), rows[0].dot(&wf[1]), rows[0].dot(&wf[2]), rows[1].dot(&wf[2])];
         let mut lambda = warm;
+        if block[0] <= IMMOVABLE * self.w.trace() * rows[0].norm_squared() {
+            // No joint moves the contact along its normal: it carries nothing (and so holds no friction).
+            block[0] = 0.0;
+            lambda = [0.0; 3];
+        }
         lambda[0] = lambda[0].max(0.0);
         match kind {
             Kind::Contact { mu } => clamp_to_cone(&mut lambda, mu),
@@ -105,7 +117,7 @@ impl Group {
 
 fn clamp_to_cone(lambda: &mut [f64; 3], mu: f64) {
     let bound = mu * lambda[0];
-    let norm = lambda[1].hypot(lambda[2]);
+    let norm = (lambda[1] * lambda[1] + lambda[2] * lambda[2]).sqrt();
     if norm > bound {
         let scale = if norm > 0.0 { bound / norm } else { 0.0 };
         lambda[1] *= scale;
@@ -118,27 +130,60 @@ fn clamp_to_cone(lambda: &mut [f64; 3], mu: f64) {
 fn update(c: &Constraint, dots: [f64; 3]) -> [f64; 3] {
     let [nn, t11, t22, n1, n2, t12] = c.block;
     let old = c.lambda;
+    if nn == 0.0 {
+        return [0.0; 3];
+    }
     let r_n = REGULARISATION * nn;
     let normal = (old[0] - (dots[0] - c.bias + r_n * old[0]) / (nn + r_n)).max(0.0);
     let Kind::Contact { mu } = c.kind else { return [normal, 0.0, 0.0] };
-    // The tangential velocities after the normal update; then the 2x2 block's Newton step, kept if it
-    // sticks (inside the disc |λ_t| ≤ μ λ_n). Otherwise the contact slides: a gradient step of length
-    // 1/(the block's largest eigenvalue) projected on the disc, whose fixed point puts friction against
-    // the slip (maximal dissipation), which projecting the anisotropic Newton step does not.
+    // The tangential velocities after the normal update; then the exact minimiser of the 2x2 block's
+    // quadratic on the disc |λ_t| ≤ μ λ_n: the Newton step if it sticks, otherwise the point of the circle
+    // where friction opposes the (regularised) slip, maximal dissipation.
     let r_t = REGULARISATION * 0.5 * (t11 + t22);
     let dn = normal - old[0];
     let g1 = dots[1] + n1 * dn + r_t * (old[1] - c.warm_friction[0]);
     let g2 = dots[2] + n2 * dn + r_t * (old[2] - c.warm_friction[1]);
     let (a, b, d) = (t11 + r_t, t12, t22 + r_t);
     let det = a * d - b * b;
+    let radius = mu * normal;
+    if !(det > 0.0) {
+        // Tangent rows that move nothing (a contact the tree cannot slide): friction is idle.
+        let mut held = [normal, old[1], old[2]];
+        clamp_to_cone(&mut held, mu);
+        return held;
+    }
     let stick = [old[1] - (d * g1 - b * g2) / det, old[2] - (a * g2 - b * g1) / det];
-    if stick[0].hypot(stick[1]) <= mu * normal {
+    if stick[0] * stick[0] + stick[1] * stick[1] <= radius * radius {
         return [normal, stick[0], stick[1]];
     }
-    let step = 1.0 / (0.5 * (a + d) + (0.25 * (a - d) * (a - d) + b * b).sqrt());
-    let mut slide = [normal, old[1] - step * g1, old[2] - step * g2];
-    clamp_to_cone(&mut slide, mu);
-    slide
+    let [x1, x2] = on_disc(a, b, d, [g1 - a * old[1] - b * old[2], g2 - b * old[1] - d * old[2]], radius);
+    [normal, x1, x2]
+}
+
+/// argmin ½ xᵀ [a b; b d] x + cᵀ x over |x| = r, for a minimiser of the unconstrained quadratic outside
+/// the disc: x = −(A + ν I)⁻¹ c with ν ≥ 0 such that |x| = r (the trust-region subproblem), ν by Newton
+/// on 1/|x(ν)| − 1/r, which rises monotonically to its root from ν = 0 (Moré and Sorensen 1983).
+fn on_disc(a: f64, b: f64, d: f64, c: [f64; 2], r: f64) -> [f64; 2] {
+    if r <= 0.0 {
+        return [0.0, 0.0];
+    }
+    let mut nu = 0.0;
+    let mut x = [0.0; 2];
+    for _ in 0..DISC_ITERATIONS {
+        let (p, s) = (a + nu, d + nu);
+        let det = p * s - b * b;
+        x = [-(s * c[0] - b * c[1]) / det, -(p * c[1] - b * c[0]) / det];
+        let norm2 = x[0] * x[0] + x[1] * x[1];
+        let norm = norm2.sqrt();
+        if norm - r <= DISC_TOLERANCE * r {
+            break;
+        }
+        // xᵀ (A + ν I)⁻¹ x
+        let curvature = (s * x[0] * x[0] - 2.0 * b * x[0] * x[1] + p * x[1] * x[1]) / det;
+        nu += (norm / r - 1.0) * norm2 / curvature;
+    }
+    let scale = r / (x[0] * x[0] + x[1] * x[1]).sqrt();
+    [x[0] * scale, x[1] * scale]
 }
 
 /// Solves for the impulses, updating `u` from u_free (in) to u_free + Σ Φ F λ (out); `free` and `before`
@@ -213,5 +258,28 @@ fn scatter(columns: &[Entry], force: &Vector6<f64>, u: &mut [f64]) {
     for e in columns {
         let v = &e.value;
         u[e.index as usize] += (v[0] * force[0] + v[1] * force[1]) + (v[2] * force[2] + v[3] * force[3]) + (v[4] * force[4] + v[5] * force[5]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::on_disc;
+
+    /// Against brute force: the quadratic's minimum over 100 000 points of the circle |x| = r.
+    #[test]
+    fn friction_on_the_disc_is_the_quadratics_minimum_on_the_circle() {
+        let cases = [(2.0, 0.3, 0.5, [1.0, -2.0], 0.1), (1.0, 0.0, 1.0, [0.3, 0.4], 0.2), (10.0, -2.9, 1.0, [-4.0, 1.0], 0.05), (0.01, 0.0, 5.0, [0.2, 0.2], 1.0)];
+        for (a, b, d, c, r) in cases {
+            let f = |x: [f64; 2]| 0.5 * (a * x[0] * x[0] + 2.0 * b * x[0] * x[1] + d * x[1] * x[1]) + c[0] * x[0] + c[1] * x[1];
+            let x = on_disc(a, b, d, c, r);
+            assert!(((x[0] * x[0] + x[1] * x[1]).sqrt() - r).abs() < 1e-12 * r);
+            let best = (0..100_000).map(|k| {
+                let t = k as f64 * std::f64::consts::TAU / 100_000.0;
+                f([r * t.cos(), r * t.sin()])
+            });
+            let best = best.fold(f64::INFINITY, f64::min);
+            assert!(f(x) <= best + 1e-12, "on_disc gives {} > brute force {best}", f(x));
+            assert!(f(x) >= best - 1e-6 * r * r * (a + d), "the circle's sampled minimum {best} is far below on_disc's {}", f(x));
+        }
     }
 }
