@@ -7,6 +7,10 @@ the support line, here the vertical line through the root's footprint, with its 
 (``legkit.control``). Each millisecond the agents read their joint angles, run one round of messages, and
 the joints compute their torques, which drive the plant for one step of ``dt``.
 
+The trees are ``random_tree(20, 4, seed)``: a root plus 20 modules in 4 branches of 5, 63 joints. The paper
+(file 000, Sect. V) says "20 modules divided into 4 branches of 5 modules" and "60 degrees of freedom",
+which cannot both hold with a root; legkit reads the branches literally and adds the root.
+
 Each run has its own plant; the agents of all runs share one vectorised network (the runs are separate
 trees of it), which batches their rounds over every run at once. The plant is a parameter:
 anything with ``step(tau)``, ``q`` and ``v``. The default, ``--plant tree``, is ``lk.Simulation`` (legkit's
@@ -14,7 +18,9 @@ tree engine) on a ground plane, with the joints driven through geared servos (ro
 every joint), all runs stepped together by ``lk.SimulationBatch`` on every core; ``--plant rapier`` is the
 same on Rapier's multibody (the reference backend); ``--plant free`` integrates the same fixed-base model
 and servos with the core's dynamics and no contacts (the seed's root is fixed, and nothing else is meant to
-touch the ground).
+touch the ground). Branches that hang off the root's lower block lie on the ground at zero angles, where
+the random start angles would sink them into it: the simulated plants are first servoed there from zero
+angles (``pose_on_ground``), so every run starts at rest and out of the ground.
 
 Recorded: the horizontal distance between each run's COM and its support line, in module widths. Reported
 per run: the final distance, the time to reach 10 % of the initial distance, the overshoot (how far, as a
@@ -193,6 +199,24 @@ class RunResult:
         return float(max(0.0, -self.signed_offset.min()) / self.initial) if self.initial > 0 else 0.0
 
 
+def pose_on_ground(batch: lk.SimulationBatch, models: Sequence[lk.Model]) -> None:
+    """Brings every simulation of ``batch`` to its start angles without going through the ground.
+
+    The random start angles (``initial_angles``) would put modules that lie on the ground at zero angles
+    (branches off the root's lower block) deep inside it. So each robot starts at zero angles, where it
+    only touches the ground, and stiff servos (``POSE_KP``, ``POSE_KD``) take every joint toward its start
+    angle for ``POSE_DURATION`` s; a joint whose module the ground holds back stops there. The robot
+    is then released at rest from wherever it got to."""
+    for simulation, model in zip(batch.simulations, models):
+        start = simulation.q
+        simulation.reset(np.zeros(model.nq), None)
+        simulation.set_servo(kp=POSE_KP, kd=POSE_KD, target_q=start)
+    batch.step(None, n=int(round(POSE_DURATION / batch.simulations[0].dt)))
+    for simulation in batch.simulations:
+        simulation.set_servo(kp=0.0)
+        simulation.reset(simulation.q, None)
+
+
 def initial_angles(tree: ModuleTree, seed: int) -> np.ndarray:
     """The start configuration of a run, (N, 3) rad: every joint at a random angle, uniform within
     +-INITIAL_SPREAD of the joint limit (generator seeded with ``seed``), except the root, which leans with
@@ -240,6 +264,10 @@ def run_balance(
         q0 = np.zeros(model.nq)
         q0[layout.joint_q] = starts[t]
         plants.append(make_plant(plant, model, q0, dt, friction))
+    # Simulations step together, on every core; other plants one after another.
+    batch = lk.SimulationBatch(plants) if all(isinstance(p, lk.Simulation) for p in plants) else None
+    if batch is not None:
+        pose_on_ground(batch, [built[t][0] for t, _ in runs])
     origin = np.zeros(3)
     first_module = np.cumsum([0] + [tree.n_modules for tree in instances])[:-1]
     ground = [GroundContact(int(m), 0, np.eye(3), origin, origin, np.array([0.0, 0.0, 1.0])) for m in first_module]
@@ -252,8 +280,6 @@ def run_balance(
     network.run_until_quiescent()  # the agents agree on a leader and the mass properties before moving
     schedules = [GainSchedule.paper(s) for (_, s), tree in zip(runs, instances) for _ in range(tree.n_modules)]
     controller = BalanceController(network, schedules)
-    # Simulations step together, on every core; other plants one after another.
-    batch = lk.SimulationBatch(plants) if all(isinstance(p, lk.Simulation) for p in plants) else None
     joint_index = [np.asarray(built[t][0].idx_v)[built[t][1].joint_bodies] for t, _ in runs]
     messages_before = sum(c.sent_by_module for c in network.channels)
     module_slices = [slice(f, f + tree.n_modules) for f, tree in zip(first_module, instances)]
@@ -375,6 +401,9 @@ def main(argv: list[str] | None = None) -> int:
 DEFAULT_DURATION = 3.0
 INITIAL_SPREAD = 0.25
 INITIAL_LEAN = 0.5
+POSE_KP = 20.0
+POSE_KD = 1.0
+POSE_DURATION = 0.5
 
 if __name__ == "__main__":
     sys.exit(main())
