@@ -1,0 +1,28 @@
+"""legkit.optimize: gait trajectory optimisation by multiphase direct collocation on IPOPT (file 003, Sect. 4).
+
+`MultiphaseProblem` transcribes a fixed contact sequence (`Phase`s) by Hermite–Simpson collocation over
+legkit's batched dynamics; `solve` runs IPOPT (the casadi wheel's) on any `NLP`; `objectives` holds the
+paper's performance indices J_s2, J_e1, J_e2 and a plain control effort.
+"""
+
+from legkit.optimize.collocation import hermite_simpson_defects, point_jacobian
+from legkit.optimize.objectives import Integral, MinMaxStability, effort, joule_loss, specific_resistance
+from legkit.optimize.problem import MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
+from legkit.optimize.solver import NLP, SolveResult, solve
+
+__all__ = [
+    "MultiphaseProblem",
+    "Phase",
+    "TorqueSpeedLine",
+    "Trajectory",
+    "NLP",
+    "SolveResult",
+    "solve",
+    "hermite_simpson_defects",
+    "point_jacobian",
+    "Integral",
+    "MinMaxStability",
+    "effort",
+    "joule_loss",
+    "specific_resistance",
+]

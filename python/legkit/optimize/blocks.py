@@ -1,0 +1,82 @@
+"""Constraint blocks of a transcribed NLP: each knows its rows, bounds, fixed sparsity pattern and values.
+
+Two kinds cover everything but the collocation defects: linear rows (constant Jacobian) and point rows, a
+function applied independently to many small groups of variables (a knot's state, a touchdown's pre-impact
+state), differentiated by `point_jacobian`'s coloured central differences.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from legkit.optimize.collocation import point_jacobian
+
+
+class Block:
+    """rows: local row of each Jacobian entry; cols: its variable; values(x), jacobian(x) in that order."""
+
+    size: int
+    lower: np.ndarray
+    upper: np.ndarray
+    rows: np.ndarray
+    cols: np.ndarray
+
+    def values(self, x: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+class Linear(Block):
+    """g = A x + offset with A given as triplets (duplicates summed)."""
+
+    def __init__(self, size: int, rows, cols, coefficients, offset=0.0, lower=0.0, upper=0.0) -> None:
+        self.size = size
+        self.rows = np.asarray(rows, dtype=np.int64)
+        self.cols = np.asarray(cols, dtype=np.int64)
+        self.coefficients = np.asarray(coefficients, dtype=np.float64)
+        self.offset = np.broadcast_to(np.asarray(offset, dtype=np.float64), (size,))
+        self.lower = np.broadcast_to(np.asarray(lower, dtype=np.float64), (size,)).copy()
+        self.upper = np.broadcast_to(np.asarray(upper, dtype=np.float64), (size,)).copy()
+
+    def values(self, x: np.ndarray) -> np.ndarray:
+        return np.bincount(self.rows, weights=self.coefficients * x[self.cols], minlength=self.size) + self.offset
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        return self.coefficients
+
+
+def equal(size: int, left: np.ndarray, right: np.ndarray) -> Linear:
+    """x[left] - x[right] = 0 elementwise (continuity, periodicity)."""
+    left, right = np.ravel(left), np.ravel(right)
+    rows = np.arange(size)
+    return Linear(size, np.concatenate([rows, rows]), np.concatenate([left, right]), np.r_[np.ones(size), -np.ones(size)])
+
+
+@dataclass
+class Point(Block):
+    """g[p] = function(x[index[p]]) for P groups index (P, k); function maps (B, k) -> (B, r); rows point-major."""
+
+    index: np.ndarray
+    function: Callable[[np.ndarray], np.ndarray]
+    outputs: int
+    lower_bound: float | np.ndarray = 0.0
+    upper_bound: float | np.ndarray = 0.0
+
+    def __post_init__(self) -> None:
+        points, k = self.index.shape
+        self.size = points * self.outputs
+        self.lower = np.resize(np.asarray(self.lower_bound, dtype=np.float64), self.size)
+        self.upper = np.resize(np.asarray(self.upper_bound, dtype=np.float64), self.size)
+        self.rows = np.repeat(np.arange(self.size), k)
+        self.cols = np.repeat(self.index, self.outputs, axis=0).ravel()
+
+    def values(self, x: np.ndarray) -> np.ndarray:
+        return np.asarray(self.function(x[self.index])).ravel()
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        return point_jacobian(self.function, x[self.index])[1].ravel()

@@ -1,0 +1,51 @@
+"""Hermite–Simpson collocation and coloured finite-difference Jacobians of batched point functions.
+
+File 003 (../shared/seeds/003_8a51da06d878ba35.txt), Sect. 4.1, eq. 14: DIRCOL approximates the states by
+cubic Hermite polynomials and the controls linearly on each grid interval [t_k, t_k+1]. With f the state
+derivative, the cubic through (x_k, f_k) and (x_k+1, f_k+1) is collocated at the midpoint m, which gives the
+two (separated) Hermite–Simpson defects per interval of length h:
+
+    interpolation  x_m - (x_k + x_k+1) / 2 - h (f_k - f_k+1) / 8 = 0    (the cubic's value at the midpoint)
+    Simpson        x_k+1 - x_k - h (f_k + 4 f_m + f_k+1) / 6 = 0        (its slope there equals f_m)
+
+For an exact trajectory the first is O(h^4) (Hermite interpolation error), the second O(h^5) (Simpson's rule).
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+#: Relative central-difference step: the cube root of the float64 epsilon balances truncation and rounding.
+FD_STEP = 6e-6
+
+
+def hermite_simpson_defects(
+    x_knots: np.ndarray, x_mid: np.ndarray, f_knots: np.ndarray, f_mid: np.ndarray, h: float | np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(interpolation (N, n), Simpson (N, n)) defects of N intervals (module docstring): x_knots, f_knots
+    (N + 1, n), x_mid, f_mid (N, n), h scalar or (N,)."""
+    h = np.reshape(np.asarray(h, dtype=np.float64), (-1, 1))
+    x0, x1, f0, f1 = x_knots[:-1], x_knots[1:], f_knots[:-1], f_knots[1:]
+    interpolation = x_mid - 0.5 * (x0 + x1) - h * (f0 - f1) / 8.0
+    simpson = x1 - x0 - h * (f0 + 4.0 * f_mid + f1) / 6.0
+    return interpolation, simpson
+
+
+def point_jacobian(function: Callable[[np.ndarray], np.ndarray], z: np.ndarray, step: float = FD_STEP) -> tuple[np.ndarray, np.ndarray]:
+    """Values (P, m) and Jacobians (P, m, n) of a function applied independently to each of P points z (P, n).
+
+    Every point's outputs depend on that point's inputs only, so perturbing input j of all points at once
+    is a valid colouring: the n central differences of all P points are one batched call of 2 n P + P rows.
+    """
+    points, n = z.shape
+    delta = step * np.maximum(1.0, np.abs(z))  # (P, n)
+    eye = np.eye(n)
+    plus = z[:, None, :] + delta[:, None, :] * eye  # (P, n, n): row j perturbs input j
+    minus = z[:, None, :] - delta[:, None, :] * eye
+    batch = np.concatenate([z[:, None, :], plus, minus], axis=1).reshape(points * (2 * n + 1), n)
+    out = np.asarray(function(batch)).reshape(points, 2 * n + 1, -1)
+    value = out[:, 0]
+    jac = (out[:, 1 : n + 1] - out[:, n + 1 :]) / (2.0 * delta[:, :, None])  # (P, n, m)
+    return value, np.transpose(jac, (0, 2, 1))

@@ -1,0 +1,163 @@
+"""Performance indices of Hardt & von Stryk (RoboCup 2002; ../shared/seeds/003_8a51da06d878ba35.txt, Sect. 3.2)
+as objectives of a `MultiphaseProblem`; a problem sums its terms, each scaled by its `weight`.
+
+* `Integral` terms, integrated over every phase by the collocation's own Simpson rule (weights h/6 (1, 4, 1)
+  per interval) and optionally divided by the distance travelled d = speed x cycle time:
+  - `joule_loss`: J_e1 = (1 / d_S) int sum_i R_i (u_i / (G_i K_i))^2 dt (eq. 12);
+  - `specific_resistance`: J_e2 = int sum_i |u_i w_i| / (m g v) dt (eq. 13), with |.| smoothed as
+    sqrt(x^2 + eps^2) and v the forward velocity of the centre of mass;
+  - `effort`: int sum_i w_i u_i^2 dt (a plain control effort, e.g. for a pendulum swing-up).
+* `MinMaxStability`: J_s2 = -p1 with S_H(t) - p1 >= 0 at every knot and midpoint (eq. 11), S_H as published
+  (eq. 10, `legkit.stability.angular_momentum_stability(..., definition="paper")`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable, Sequence
+
+import numpy as np
+
+import legkit as lk
+from legkit.optimize.blocks import Block, Point
+from legkit.optimize.collocation import point_jacobian
+from legkit.stability import angular_momentum_stability_of_model
+
+if TYPE_CHECKING:
+    from legkit.optimize.problem import MultiphaseProblem
+
+#: Smoothing of |x| in J_e2 [W]: sqrt(x^2 + eps^2) keeps the integrand differentiable where a joint's power is 0.
+POWER_SMOOTHING = 1e-3
+
+Integrand = Callable[["MultiphaseProblem", np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Integral:
+    """weight x int integrand dt (/ distance travelled if per_distance); integrand(problem, z (P, nz)) -> (P,)."""
+
+    integrand: Integrand
+    per_distance: bool = False
+    weight: float = 1.0
+
+
+@dataclass(frozen=True)
+class MinMaxStability:
+    """J_s2 (eq. 11): maximise p1 <= S_H(t). diagonal_pairs: pairs of foot names whose support edges are
+    diagonal; v_tip_max [m/s]: the swing-leg tip speed of H_max; direction: of travel."""
+
+    v_tip_max: float
+    diagonal_pairs: Sequence[tuple[str, str]] = ()
+    direction: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    weight: float = 1.0
+
+
+def effort(weights: float | Sequence[float] = 1.0, weight: float = 1.0) -> Integral:
+    """int sum_i weights_i u_i^2 dt."""
+    w = np.asarray(weights, dtype=np.float64)
+    return Integral(lambda problem, z: np.sum(w * z[:, problem.nx : problem.nx + problem.nu] ** 2, axis=1), weight=weight)
+
+
+def joule_loss(resistance, gear_ratio, torque_constant, weight: float = 1.0) -> Integral:
+    """J_e1 of eq. 12: (1 / d_S) int sum_i R_i (u_i / (G_i K_i))^2 dt, per actuated joint (arrays or scalars)."""
+    w = np.asarray(resistance, dtype=np.float64) / (np.asarray(gear_ratio, dtype=np.float64) * np.asarray(torque_constant, dtype=np.float64)) ** 2
+    return Integral(effort(w).integrand, per_distance=True, weight=weight)
+
+
+def specific_resistance(weight: float = 1.0) -> Integral:
+    """J_e2 of eq. 13: int sum_i |u_i w_i| / (m g v) dt, v the COM's forward (x) velocity."""
+
+    def integrand(problem: MultiphaseProblem, z: np.ndarray) -> np.ndarray:
+        u = z[:, problem.nx : problem.nx + problem.nu]
+        w = z[:, problem.nq + np.asarray(problem.actuated)]
+        power = np.sum(np.sqrt((u * w) ** 2 + POWER_SMOOTHING**2), axis=1)
+        model = problem.model
+        momentum = np.asarray(lk.centroidal_momentum(model, problem.configuration(z[:, : problem.nq]), z[:, problem.nq : problem.nx]))
+        return power / (model.total_mass * -model.gravity[2] * momentum[:, 0] / model.total_mass)
+
+    return Integral(integrand, weight=weight)
+
+
+def _simpson_weights(intervals: int) -> np.ndarray:
+    """Simpson weights of the 2N + 1 points of N intervals, in units of h / 6."""
+    c = np.tile([2.0, 4.0], intervals + 1)[: 2 * intervals + 1]
+    c[0] = c[-1] = 1.0
+    return c
+
+
+def build_objective(problem: MultiphaseProblem, terms: Sequence) -> tuple[Callable, Callable, list[Block]]:
+    """(objective(x), gradient(x), extra constraint blocks) of the summed terms."""
+    integrals = [t for t in terms if isinstance(t, Integral)]
+    stability = [t for t in terms if isinstance(t, MinMaxStability)]
+    unknown = [t for t in terms if not isinstance(t, (Integral, MinMaxStability))]
+    if unknown:
+        raise TypeError(f"objectives must be Integral or MinMaxStability terms, got {type(unknown[0]).__name__}")
+    if len(stability) > 1:
+        raise ValueError("objectives may hold one MinMaxStability term")
+    if any(t.per_distance for t in integrals) and problem.speed == 0.0:
+        raise ValueError("a per-distance objective (J_e1) needs speed != 0")
+    weights = [_simpson_weights(p.intervals) / (6.0 * p.intervals) for p in problem.phases]  # x T gives the quadrature
+
+    def integral(term: Integral, x: np.ndarray, gradient: np.ndarray | None) -> float:
+        total, by_duration = 0.0, np.zeros(len(problem.phases))
+        for k, index in enumerate(problem.point_index):
+            duration = x[problem.duration_index[k]]
+            z = x[index]
+            if gradient is None:
+                values = term.integrand(problem, z)
+            else:
+                values, jac = point_jacobian(lambda zz: term.integrand(problem, zz)[:, None], z)
+                values = values[:, 0]
+                np.add.at(gradient, index, duration * weights[k][:, None] * jac[:, 0])
+            by_duration[k] = weights[k] @ values
+            total += duration * by_duration[k]
+        scale = term.weight
+        if term.per_distance:
+            distance = abs(problem.speed) * np.sum(x[problem.duration_index])
+            if gradient is not None:
+                gradient[problem.duration_index] += by_duration
+                gradient *= scale / distance
+                gradient[problem.duration_index] -= scale * total * abs(problem.speed) / distance**2
+            return scale * total / distance
+        if gradient is not None:
+            gradient[problem.duration_index] += by_duration
+            gradient *= scale
+        return scale * total
+
+    def objective(x: np.ndarray) -> float:
+        value = sum(integral(t, x, None) for t in integrals)
+        return value - sum(t.weight * x[problem.p1_index] for t in stability)
+
+    def gradient(x: np.ndarray) -> np.ndarray:
+        total = np.zeros(problem.n)
+        for term in integrals:
+            part = np.zeros(problem.n)
+            integral(term, x, part)
+            total += part
+        for term in stability:
+            total[problem.p1_index] -= term.weight
+        return total
+
+    blocks = [_stability_block(problem, k, stability[0]) for k in range(len(problem.phases))] if stability else []
+    return objective, gradient, blocks
+
+
+def _stability_block(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> Block:
+    """S_H(q, v) - p1 >= 0 at every point of phase k (eq. 11)."""
+    contacts = list(problem.phases[k].contacts)
+    if len(contacts) < 2:
+        raise ValueError(f"MinMaxStability needs two feet on the ground in every phase (S_H, eq. 10); phases[{k}] has {contacts}")
+    pairs = np.array([(contacts.index(a), contacts.index(b)) for a, b in term.diagonal_pairs if a in contacts and b in contacts],
+                     dtype=np.int64).reshape(-1, 2)
+    nq, nx = problem.nq, problem.nx
+
+    def margin(z: np.ndarray) -> np.ndarray:
+        q = z[:, :nq]
+        s_h = angular_momentum_stability_of_model(
+            problem.model, problem.configuration(q), z[:, nq:nx], problem.foot_positions(q, contacts),
+            v_tip_max=term.v_tip_max, definition="paper", direction=term.direction, diagonal_pairs=pairs)
+        return (s_h - z[:, nx])[:, None]
+
+    index = problem.point_index[k]
+    columns = np.concatenate([index[:, :nx], np.full((len(index), 1), problem.p1_index)], axis=1)
+    return Point(columns, margin, 1, 0.0, np.inf)

@@ -1,0 +1,210 @@
+"""One small interface to a sparse NLP solver: IPOPT as bundled in the casadi wheel (pip alone installs it).
+
+The NLP is given as NumPy callbacks (objective, gradient, constraints, Jacobian values on a fixed sparsity
+pattern); casadi only carries them to IPOPT through `casadi.Callback`s, so the model's dynamics stay in
+legkit's batched kernels (no symbolic graph of the robot is ever built). The Hessian is IPOPT's L-BFGS
+approximation: the callbacks give first derivatives only.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+Progress = Callable[[int, float, float], None]
+
+
+@dataclass
+class NLP:
+    """min f(x) s.t. x_lower <= x <= x_upper, g_lower <= g(x) <= g_upper, with the Jacobian of g given as
+    values on the fixed pattern (jac_rows, jac_cols) (no duplicate entries)."""
+
+    x_lower: np.ndarray
+    x_upper: np.ndarray
+    g_lower: np.ndarray
+    g_upper: np.ndarray
+    objective: Callable[[np.ndarray], float]
+    gradient: Callable[[np.ndarray], np.ndarray]
+    constraints: Callable[[np.ndarray], np.ndarray]
+    jacobian: Callable[[np.ndarray], np.ndarray]
+    jac_rows: np.ndarray
+    jac_cols: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.x_lower)
+
+    @property
+    def m(self) -> int:
+        return len(self.g_lower)
+
+    def violation(self, x: np.ndarray) -> float:
+        """Largest violation of the bounds and constraints at x (0 when feasible)."""
+        g = self.constraints(x)
+        parts = [self.x_lower - x, x - self.x_upper, self.g_lower - g, g - self.g_upper]
+        return float(max((np.max(p, initial=0.0) for p in parts)))
+
+
+@dataclass
+class SolveResult:
+    x: np.ndarray
+    objective: float
+    status: str
+    success: bool
+    iterations: int
+    wall_time: float  # [s] of the whole solve
+    evaluation_time: float  # [s] spent in the NLP callbacks (functions and Jacobians)
+    violation: float  # largest bound/constraint violation at x
+    history: list[tuple[int, float, float]] = field(default_factory=list)  # (iteration, objective, violation)
+
+
+class _Timer:
+    """Times the callbacks and keeps the first exception raised in one: casadi would only report a failed
+    evaluation, so `solve` re-raises it after IPOPT returns."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+        self.error: BaseException | None = None
+
+    def __call__(self, function: Callable) -> Callable:
+        def timed(*args):
+            start = time.perf_counter()
+            try:
+                return function(*args)
+            except Exception as error:
+                self.error = self.error or error
+                raise
+            finally:
+                self.seconds += time.perf_counter() - start
+
+        return timed
+
+
+def solve(
+    nlp: NLP, x0: np.ndarray, *, tol: float = 1e-6, max_iter: int = 3000, progress: Progress | None = None,
+    options: dict | None = None,
+) -> SolveResult:
+    """Solve `nlp` from x0 with IPOPT (L-BFGS Hessian, MUMPS). progress(iteration, objective, violation) is
+    called once per IPOPT iteration. options: extra IPOPT options (without the "ipopt." prefix)."""
+    import casadi as ca
+
+    x0 = np.asarray(x0, dtype=np.float64)
+    if x0.shape != (nlp.n,):
+        raise ValueError(f"x0 must have shape ({nlp.n},), got {x0.shape}")
+    timer = _Timer()
+    pattern = ca.Sparsity.triplet(nlp.m, nlp.n, nlp.jac_rows.tolist(), nlp.jac_cols.tolist())
+    # casadi stores column-compressed; order our (row, col) values to match once.
+    order = np.lexsort((nlp.jac_rows, nlp.jac_cols))
+    objective, gradient = timer(nlp.objective), timer(nlp.gradient)
+    constraints, jacobian = timer(nlp.constraints), timer(nlp.jacobian)
+    n, m = nlp.n, nlp.m
+
+    class Jacobian(ca.Callback):
+        def __init__(self, name: str, opts: dict) -> None:
+            ca.Callback.__init__(self)
+            self.construct(name, opts)
+
+        def get_n_in(self) -> int:
+            return 3
+
+        def get_n_out(self) -> int:
+            return 2
+
+        def get_sparsity_in(self, i: int):
+            return [ca.Sparsity.dense(n, 1), ca.Sparsity.dense(1, 1), ca.Sparsity.dense(m, 1)][i]
+
+        def get_sparsity_out(self, i: int):
+            return ca.Sparsity.dense(1, n) if i == 0 else pattern
+
+        def eval(self, arg):
+            x = np.asarray(arg[0]).ravel()
+            return [ca.DM(gradient(x)).T, ca.DM(pattern, jacobian(x)[order])]
+
+    class Functions(ca.Callback):
+        def __init__(self) -> None:
+            ca.Callback.__init__(self)
+            self.construct("legkit_nlp", {})
+
+        def get_n_in(self) -> int:
+            return 1
+
+        def get_n_out(self) -> int:
+            return 2
+
+        def get_sparsity_in(self, i: int):
+            return ca.Sparsity.dense(n, 1)
+
+        def get_sparsity_out(self, i: int):
+            return ca.Sparsity.dense(1, 1) if i == 0 else ca.Sparsity.dense(m, 1)
+
+        def eval(self, arg):
+            x = np.asarray(arg[0]).ravel()
+            return [objective(x), ca.DM(constraints(x))]
+
+        def has_jacobian(self) -> bool:
+            return True
+
+        def get_jacobian(self, name, inames, onames, opts):
+            self.jacobian_callback = Jacobian(name, opts)  # casadi holds a raw reference; keep it alive
+            return self.jacobian_callback
+
+    history: list[tuple[int, float, float]] = []
+
+    class Iteration(ca.Callback):
+        def __init__(self) -> None:
+            ca.Callback.__init__(self)
+            self.construct("legkit_iteration", {})
+
+        def get_n_in(self) -> int:
+            return ca.nlpsol_n_out()
+
+        def get_n_out(self) -> int:
+            return 1
+
+        def get_name_in(self, i: int) -> str:
+            return ca.nlpsol_out(i)
+
+        def get_name_out(self, i: int) -> str:
+            return "ret"
+
+        def get_sparsity_in(self, i: int):
+            name = ca.nlpsol_out(i)
+            if name == "f":
+                return ca.Sparsity.scalar()
+            if name in ("x", "lam_x"):
+                return ca.Sparsity.dense(n)
+            if name in ("g", "lam_g"):
+                return ca.Sparsity.dense(m)
+            return ca.Sparsity(0, 0)
+
+        def eval(self, arg):
+            f = float(arg[ca.nlpsol_out().index("f")])
+            g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
+            x = np.asarray(arg[ca.nlpsol_out().index("x")]).ravel()
+            viol = max(np.max(nlp.g_lower - g, initial=0.0), np.max(g - nlp.g_upper, initial=0.0),
+                       np.max(nlp.x_lower - x, initial=0.0), np.max(x - nlp.x_upper, initial=0.0))
+            history.append((len(history), f, float(viol)))
+            if progress is not None:
+                progress(len(history) - 1, f, float(viol))
+            return [0]
+
+    functions, iteration = Functions(), Iteration()
+    symbol = ca.MX.sym("x", n)
+    f_expr, g_expr = functions(symbol)
+    ipopt = {"tol": tol, "constr_viol_tol": tol, "max_iter": max_iter, "hessian_approximation": "limited-memory",
+             "print_level": 0, "sb": "yes", "mu_strategy": "adaptive"}
+    ipopt.update(options or {})
+    solver = ca.nlpsol("legkit", "ipopt", {"x": symbol, "f": f_expr, "g": g_expr},
+                       {"ipopt": ipopt, "print_time": False, "iteration_callback": iteration, "error_on_fail": False})
+    start = time.perf_counter()
+    result = solver(x0=x0, lbx=nlp.x_lower, ubx=nlp.x_upper, lbg=nlp.g_lower, ubg=nlp.g_upper)
+    wall = time.perf_counter() - start
+    if timer.error is not None:
+        raise timer.error
+    stats = solver.stats()
+    x = np.asarray(result["x"]).ravel()
+    return SolveResult(x, float(result["f"]), stats["return_status"], bool(stats["success"]), int(stats["iter_count"]),
+                       wall, timer.seconds, nlp.violation(x), history)

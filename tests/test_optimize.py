@@ -1,0 +1,203 @@
+"""legkit.optimize: Hermite–Simpson collocation (file 003, Sect. 4.1, eq. 14), its Jacobians, and small
+optimal control problems whose optima are derived here by hand."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_bvp
+
+import legkit as lk
+from legkit.optimize import (
+    MinMaxStability, MultiphaseProblem, Phase, Trajectory, effort, hermite_simpson_defects, joule_loss,
+    specific_resistance,
+)
+from legkit.robots.quadruped import LEGS, build_quadruped
+
+G = 9.81
+MASS, LENGTH = 1.0, 0.5  # pendulum: point mass on a massless rod, inertia m l^2 about the pivot
+
+
+def pendulum(gravity: float) -> lk.Model:
+    model = lk.Model(floating_base=False, gravity=[0.0, 0.0, -gravity])
+    model.add_revolute(0, [0.0, 1.0, 0.0], None, lk.MassProperties.point(MASS, [0.0, 0.0, -LENGTH]), "rod")
+    return model
+
+
+def swing_up(model: lk.Model, intervals: int, duration: float) -> MultiphaseProblem:
+    return MultiphaseProblem(model, [Phase((), intervals, (duration, duration))], objectives=[effort()], periodic=False,
+                             initial=([0.0], [0.0]), final=([np.pi], [0.0]))
+
+
+def single_phase(t: np.ndarray, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> Trajectory:
+    return Trajectory([t], [q], [v], [u], [np.zeros((len(t), 0, 3))], np.array([t[-1] - t[0]]))
+
+
+def test_defects_vanish_for_cubics_and_converge_at_the_method_order():
+    # A cubic is reproduced exactly by both defects.
+    t = np.linspace(0.0, 1.0, 9)
+    x = lambda s: (1.0 + 2.0 * s - 3.0 * s**2 + 0.5 * s**3)[:, None]
+    f = lambda s: (2.0 - 6.0 * s + 1.5 * s**2)[:, None]
+    mid = 0.5 * (t[:-1] + t[1:])
+    interpolation, simpson = hermite_simpson_defects(x(t), x(mid), f(t), f(mid), t[1] - t[0])
+    assert np.max(np.abs(interpolation)) < 1e-14 and np.max(np.abs(simpson)) < 1e-14
+    # The pendulum's own dynamics along theta(t) = sin(2t), torques by inverse dynamics: halving h divides the
+    # interpolation defect by 2^4 (Hermite midpoint error) and the Simpson defect by 2^5 (Simpson's rule).
+    model = pendulum(G)
+    worst = []
+    for intervals in (8, 16):
+        problem = swing_up(model, intervals, 1.0)
+        s = np.linspace(0.0, 1.0, 2 * intervals + 1)
+        q, v, a = np.sin(2 * s)[:, None], 2 * np.cos(2 * s)[:, None], -4 * np.sin(2 * s)[:, None]
+        u = np.asarray(lk.rnea(model, q, v, a))
+        defects = problem.blocks[0].values(problem.pack(single_phase(s, q, v, u))).reshape(intervals, 2, 2)
+        worst.append(np.max(np.abs(defects), axis=(0, 2)))
+    ratio = worst[0] / worst[1]
+    assert 13.0 < ratio[0] < 19.0, ratio
+    assert 26.0 < ratio[1] < 38.0, ratio
+
+
+def quadruped_problem(objectives) -> tuple[MultiphaseProblem, np.ndarray]:
+    robot = build_quadruped()
+    feet = {leg: robot.feet[leg] for leg in LEGS}
+    phases = [Phase(("lf", "lh"), 1, (0.1, 0.5)), Phase(("lf", "rh"), 1, (0.1, 0.5)), Phase(("rf", "rh"), 1, (0.1, 0.5))]
+    problem = MultiphaseProblem(robot.model, phases, feet, objectives, speed=0.3)
+    rng = np.random.default_rng(3)
+    x = rng.normal(0.0, 0.3, problem.n)
+    for index in problem.point_index:
+        x[index[:, 2]] = 0.2
+        x[index[:, 3:7]] = [0.05, -0.03, 0.02, 1.0]
+        x[index[:, problem.nq]] = 0.3  # forward body velocity, so J_e2's 1 / v stays finite
+        x[index[:, problem.nx + problem.nu :: 3] ] = 0.1
+        x[index[:, problem.nx + problem.nu + 2 :: 3]] = 5.0
+    x[problem.duration_index] = 0.25
+    return problem, x
+
+
+def test_constraint_jacobian_and_gradient_match_central_differences():
+    terms = [joule_loss(5.0, 60.0, 0.012), specific_resistance(0.1),
+             MinMaxStability(2.0, diagonal_pairs=(("lf", "rh"), ("rf", "lh")))]
+    problem, x = quadruped_problem(terms)
+    dense = np.zeros((problem.m, problem.n))
+    dense[problem.jac_rows, problem.jac_cols] = problem.jacobian(x)
+    reference = np.zeros_like(dense)
+    for j in range(problem.n):  # plain central differences, column by column
+        step = 1e-6 * max(1.0, abs(x[j]))
+        plus, minus = x.copy(), x.copy()
+        plus[j] += step
+        minus[j] -= step
+        reference[:, j] = (problem.constraints(plus) - problem.constraints(minus)) / (2 * step)
+    scale = np.maximum(1.0, np.abs(reference))
+    assert np.max(np.abs(dense - reference) / scale) < 1e-5
+    outside = np.ones_like(dense, dtype=bool)
+    outside[problem.jac_rows, problem.jac_cols] = False
+    assert np.max(np.abs(reference[outside])) < 1e-7  # the fixed pattern holds every nonzero
+    gradient = problem.gradient(x)
+    for j in np.linspace(0, problem.n - 1, 40).astype(int).tolist() + list(problem.duration_index) + [problem.p1_index]:
+        step = 1e-6 * max(1.0, abs(x[j]))
+        plus, minus = x.copy(), x.copy()
+        plus[j] += step
+        minus[j] -= step
+        expected = (problem.objective(plus) - problem.objective(minus)) / (2 * step)
+        assert gradient[j] == pytest.approx(expected, rel=1e-5, abs=1e-7)
+
+
+def pendulum_guess(intervals: int, duration: float) -> Trajectory:
+    s = np.linspace(0.0, duration, 2 * intervals + 1)
+    return single_phase(s, np.pi * s[:, None] / duration, np.full((len(s), 1), np.pi / duration), np.zeros((len(s), 1)))
+
+
+def test_pendulum_swing_up_reaches_the_known_optimum():
+    duration, inertia = 2.0, MASS * LENGTH**2
+    # Without gravity the swing-up is a double integrator: u(t) = I (6 pi / T^2)(1 - 2 t / T), J = 12 I^2 pi^2 / T^3.
+    trajectory, result = swing_up(pendulum(0.0), 10, duration).solve(pendulum_guess(10, duration))
+    assert result.success
+    assert result.objective == pytest.approx(12.0 * inertia**2 * np.pi**2 / duration**3, rel=1e-7)
+    t = trajectory.t[0]
+    np.testing.assert_allclose(trajectory.u[0][:, 0], inertia * 6.0 * np.pi / duration**2 * (1.0 - 2.0 * t / duration), atol=1e-5)
+    # With gravity, the optimum of int u^2 for I th'' = u - m g l sin(th) satisfies the Euler-Lagrange equation
+    # of the squared residual: I u'' = -m g l cos(th) u, solved here as a boundary-value problem.
+    k = MASS * G * LENGTH
+
+    def rhs(_, y):
+        return np.vstack([y[1], (y[2] - k * np.sin(y[0])) / inertia, y[3], -k * np.cos(y[0]) * y[2] / inertia])
+
+    def ends(ya, yb):
+        return np.array([ya[0], ya[1], yb[0] - np.pi, yb[1]])
+
+    # Started from one backward pump (the torque-cheap way up; the monotone extremal costs more), with the
+    # guess's torques by the dynamics.
+    s = np.linspace(0.0, duration, 50)
+    tau = s / duration
+    theta = np.pi * tau**2 * (3.0 - 2.0 * tau) - 4.0 * np.sin(np.pi * tau) ** 2 * (1.0 - tau)
+    rate = np.gradient(theta, s)
+    torque = inertia * np.gradient(rate, s) + k * np.sin(theta)
+    guess = np.vstack([theta, rate, torque, np.gradient(torque, s)])
+    bvp = solve_bvp(rhs, ends, s, guess, tol=1e-6, max_nodes=20000)
+    assert bvp.success
+    fine = np.linspace(0.0, duration, 4001)
+    optimum = np.trapezoid(bvp.sol(fine)[2] ** 2, fine)
+    trajectory, result = swing_up(pendulum(G), 24, duration).solve(pendulum_guess(24, duration))
+    assert result.success and result.violation < 1e-6
+    assert result.objective == pytest.approx(optimum, rel=2e-3)
+    np.testing.assert_allclose(trajectory.u[0][:, 0], bvp.sol(trajectory.t[0])[2], atol=0.02 * np.max(np.abs(bvp.sol(fine)[2])))
+
+
+BODY, FOOT, PERIOD = 1.0, 0.1, 0.5  # hopper masses [kg] and cycle time [s]
+
+
+def hopper() -> lk.Model:
+    """A body on a vertical slider and a foot on a vertical slider below it; the leg force u acts between them."""
+    model = lk.Model(floating_base=False)
+    body = model.add_prismatic(0, [0.0, 0.0, 1.0], None, lk.MassProperties.point(BODY, [0.0, 0.0, 0.0]), "body")
+    model.add_prismatic(body, [0.0, 0.0, 1.0], None, lk.MassProperties.point(FOOT, [0.0, 0.0, 0.0]), "foot")
+    return model
+
+
+def test_single_leg_hop_reaches_the_known_optimum():
+    # Body: M z_b'' = -u - M g in every phase (the impact stops the foot only). Periodicity: int u = -M g T.
+    # Flight of length T_f from rest on the ground back to the ground: int_flight (T - t)(u / m - g) dt = 0.
+    # Minimising int u^2 under these two linear conditions: u = a in stance, a + b (T - t) in flight, with
+    # a = -(M g T + 3/4 m g T_f) / (T - 3/4 T_f), b = 3 (m g - a) / (2 T_f), and J = a^2 T + a b T_f^2 + b^2 T_f^3 / 3,
+    # decreasing in the stance time, so the stance takes its upper bound 0.3 s.
+    intervals, stance, flight = 8, 0.3, PERIOD - 0.3
+    problem = MultiphaseProblem(hopper(), [Phase(("foot",), intervals, (0.1, stance)), Phase((), intervals, (0.1, 0.45))],
+                                {"foot": ("foot", [0.0, 0.0, 0.0])}, [effort()], actuated=[1], period=PERIOD, force_dims=1)
+    points = 2 * intervals + 1
+    t = [np.linspace(0.0, 0.25, points), np.linspace(0.25, PERIOD, points)]
+    standing = np.tile([0.3, -0.3], (points, 1))
+    guess = Trajectory(t, [standing, standing], [np.zeros((points, 2))] * 2, [np.full((points, 1), -BODY * G)] * 2,
+                       [np.tile([0.0, 0.0, (BODY + FOOT) * G], (points, 1, 1)), np.zeros((points, 0, 3))], np.array([0.25, 0.25]))
+    trajectory, result = problem.solve(guess)
+    a = -(BODY * G * PERIOD + 0.75 * FOOT * G * flight) / (PERIOD - 0.75 * flight)
+    b = 1.5 * (FOOT * G - a) / flight
+    assert result.success and result.violation < 1e-6
+    assert result.objective == pytest.approx(a * a * PERIOD + a * b * flight**2 + b * b * flight**3 / 3.0, rel=1e-6)
+    np.testing.assert_allclose(trajectory.durations, [stance, flight], atol=1e-6)
+    np.testing.assert_allclose(trajectory.u[0][:, 0], a, atol=1e-4)
+    np.testing.assert_allclose(trajectory.u[1][:, 0], a + b * (PERIOD - trajectory.t[1]), atol=1e-4)  # IPOPT tol 1e-6 on a flat optimum
+    assert np.all(trajectory.forces[0][..., 2] > 0.0) and np.all(trajectory.q[1].sum(axis=1) >= -1e-8)
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"phases": []}, "phases must hold"),
+    ({"phases": [Phase(("lf", "lh")), Phase(("lf", "lh"))]}, r"phases\[1\] has the same contacts"),
+    ({"phases": [Phase(("lf", "xx")), Phase(("rf", "rh"))]}, r"phases\[0\]\.contacts names unknown feet \['xx'\]"),
+    ({"phases": [Phase(("lf", "lh"), 0), Phase(("rf", "rh"))]}, r"phases\[0\]\.intervals"),
+    ({"phases": [Phase(("lf", "lh"), 2, (0.3, 0.1)), Phase(("rf", "rh"))]}, r"phases\[0\]\.duration"),
+    ({"speed": 5.0}, "speed 5.0 m/s is unreachable: foot 'lf' stays down"),
+    ({"phases": [Phase(("lf", "lh", "rf")), Phase(("lf", "rh", "rf"))]}, "foot 'lf' never leaves the ground"),
+    ({"period": (5.0, 6.0)}, "period .* cannot be met"),
+    ({"force_dims": 2}, "force_dims must be 1 or 3"),
+    ({"friction": 0.0}, "friction must be > 0"),
+    ({"actuated": [3, 3]}, "actuated must list distinct"),
+    ({"objectives": [MinMaxStability(2.0)], "phases": [Phase(("lf",)), Phase(("rf", "rh"))]}, "MinMaxStability needs two feet"),
+])
+def test_bad_problem_definitions_fail_fast_naming_the_argument(change, message):
+    robot = build_quadruped()
+    amble = [Phase(("lf", "lh")), Phase(("lf", "rh")), Phase(("rf", "rh")), Phase(("rf", "lh"))]
+    arguments = {"model": robot.model, "phases": amble,
+                 "feet": {leg: robot.feet[leg] for leg in LEGS}, "speed": 0.3}
+    arguments.update(change)
+    with pytest.raises(ValueError, match=message):
+        MultiphaseProblem(**arguments)
