@@ -37,8 +37,11 @@ pub(super) const MAX_CORRECTION: f64 = 0.5;
 /// a resting body settles at once, its contact forces summing to its weight), so the regularisation's
 /// creep stops a few micrometres in; this bounds what impacts leave behind.
 pub(super) const TOLERANCE: f64 = 2e-4;
-/// Sweeps stop once one changes the velocities by at most this fraction of the contacts' whole change.
-pub(super) const CONVERGED: f64 = 1e-8;
+/// Sweeps stop once the velocities' estimated remaining error is at most this fraction of the contacts'
+/// whole change (resting contact forces then sum to the weight within about 1e-7).
+pub(super) const CONVERGED: f64 = 1e-7;
+/// The largest contraction per sweep the error estimate assumes.
+const MAX_CONTRACTION: f64 = 0.999;
 /// A constraint whose Delassus diagonal is below this fraction of its group's scale (tr W |F|²) is
 /// immovable: the joints cannot move it along its normal.
 const IMMOVABLE: f64 = 1e-12;
@@ -67,8 +70,18 @@ pub(super) struct Constraint {
     warm_friction: [f64; 2],
     /// Its rows as forces on the group's columns: n, t1, t2.
     rows: [Vector6<f64>; 3],
-    /// A = [W F_i · F_j]: [nn, 11, 22, n1, n2, 12].
-    block: [f64; 6],
+    /// W F of each row: how a unit impulse of the row moves the group's velocity.
+    moves: [Vector6<f64>; 3],
+    /// The normal row's coupling to the tangent rows, A_n1 and A_n2, and its regularisation R_n.
+    coupling: [f64; 2],
+    r_n: f64,
+    /// 1 / (A_nn + R_n); zero for an immovable contact.
+    normal_gain: f64,
+    /// The tangent block with its regularisation, Ã = [a b; b d] as [a, b, d], its inverse likewise (None
+    /// where the tangent rows move nothing, a contact the tree cannot slide), and R_t.
+    tangent: [f64; 3],
+    tangent_inverse: Option<[f64; 3]>,
+    r_t: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -95,12 +108,15 @@ impl Group {
 
     /// A constraint of this group whose rows are the forces `rows`, with its warm-start impulses.
     pub(super) fn constraint(&self, kind: Kind, rows: [Vector6<f64>; 3], bias: f64, warm: [f64; 3]) -> Constraint {
-        let wf = rows.map(|f| self.w * f);
-        let mut block = [rows[0].dot(&wf[0]), rows[1].dot(&wf[1]), rows[2].dot(&wf[2]), rows[0].dot(&wf[1]), rows[0].dot(&wf[2]), rows[1].dot(&wf[2])];
+        let moves = rows.map(|f| self.w * f);
+        // A = [W F_i · F_j]
+        let (nn, t11, t22) = (rows[0].dot(&moves[0]), rows[1].dot(&moves[1]), rows[2].dot(&moves[2]));
+        let (n1, n2, t12) = (rows[0].dot(&moves[1]), rows[0].dot(&moves[2]), rows[1].dot(&moves[2]));
         let mut lambda = warm;
-        if block[0] <= IMMOVABLE * self.w.trace() * rows[0].norm_squared() {
+        let r_n = REGULARISATION * nn;
+        let immovable = nn <= IMMOVABLE * self.w.trace() * rows[0].norm_squared();
+        if immovable {
             // No joint moves the contact along its normal: it carries nothing (and so holds no friction).
-            block[0] = 0.0;
             lambda = [0.0; 3];
         }
         lambda[0] = lambda[0].max(0.0);
@@ -111,7 +127,23 @@ impl Group {
                 lambda[2] = 0.0;
             }
         }
-        Constraint { kind, bias, lambda, warm_friction: [lambda[1], lambda[2]], rows, block }
+        let r_t = REGULARISATION * 0.5 * (t11 + t22);
+        let (a, b, d) = (t11 + r_t, t12, t22 + r_t);
+        let det = a * d - b * b;
+        Constraint {
+            kind,
+            bias,
+            lambda,
+            warm_friction: [lambda[1], lambda[2]],
+            rows,
+            moves,
+            coupling: [n1, n2],
+            r_n,
+            normal_gain: if immovable { 0.0 } else { 1.0 / (nn + r_n) },
+            tangent: [a, b, d],
+            tangent_inverse: (det > 0.0).then(|| [d / det, -b / det, a / det]),
+            r_t,
+        }
     }
 }
 
@@ -128,34 +160,27 @@ fn clamp_to_cone(lambda: &mut [f64; 3], mu: f64) {
 /// The new impulses of one constraint given its rows' current velocities `dots`.
 #[inline]
 fn update(c: &Constraint, dots: [f64; 3]) -> [f64; 3] {
-    let [nn, t11, t22, n1, n2, t12] = c.block;
     let old = c.lambda;
-    if nn == 0.0 {
-        return [0.0; 3];
-    }
-    let r_n = REGULARISATION * nn;
-    let normal = (old[0] - (dots[0] - c.bias + r_n * old[0]) / (nn + r_n)).max(0.0);
+    let normal = (old[0] - (dots[0] - c.bias + c.r_n * old[0]) * c.normal_gain).max(0.0);
     let Kind::Contact { mu } = c.kind else { return [normal, 0.0, 0.0] };
     // The tangential velocities after the normal update; then the exact minimiser of the 2x2 block's
     // quadratic on the disc |λ_t| ≤ μ λ_n: the Newton step if it sticks, otherwise the point of the circle
     // where friction opposes the (regularised) slip, maximal dissipation.
-    let r_t = REGULARISATION * 0.5 * (t11 + t22);
     let dn = normal - old[0];
-    let g1 = dots[1] + n1 * dn + r_t * (old[1] - c.warm_friction[0]);
-    let g2 = dots[2] + n2 * dn + r_t * (old[2] - c.warm_friction[1]);
-    let (a, b, d) = (t11 + r_t, t12, t22 + r_t);
-    let det = a * d - b * b;
-    let radius = mu * normal;
-    if !(det > 0.0) {
-        // Tangent rows that move nothing (a contact the tree cannot slide): friction is idle.
+    let g1 = dots[1] + c.coupling[0] * dn + c.r_t * (old[1] - c.warm_friction[0]);
+    let g2 = dots[2] + c.coupling[1] * dn + c.r_t * (old[2] - c.warm_friction[1]);
+    let Some([i11, i12, i22]) = c.tangent_inverse else {
+        // Friction idles where it can move nothing.
         let mut held = [normal, old[1], old[2]];
         clamp_to_cone(&mut held, mu);
         return held;
-    }
-    let stick = [old[1] - (d * g1 - b * g2) / det, old[2] - (a * g2 - b * g1) / det];
+    };
+    let stick = [old[1] - (i11 * g1 + i12 * g2), old[2] - (i12 * g1 + i22 * g2)];
+    let radius = mu * normal;
     if stick[0] * stick[0] + stick[1] * stick[1] <= radius * radius {
         return [normal, stick[0], stick[1]];
     }
+    let [a, b, d] = c.tangent;
     let [x1, x2] = on_disc(a, b, d, [g1 - a * old[1] - b * old[2], g2 - b * old[1] - d * old[2]], radius);
     [normal, x1, x2]
 }
@@ -189,8 +214,8 @@ fn on_disc(a: f64, b: f64, d: f64, c: [f64; 2], r: f64) -> [f64; 2] {
 /// Solves for the impulses, updating `u` from u_free (in) to u_free + Σ Φ F λ (out); `free` and `before`
 /// are scratch of u's length. Returns the sweeps done.
 ///
-/// Sweeps stop when one changes u by at most `CONVERGED` times the change all the impulses make
-/// (max |u − u_free|): the motion has converged. The impulses themselves may still be shifting inside
+/// Sweeps stop when the error left in u, estimated from the last sweep's change and contraction, is at
+/// most `CONVERGED` times the change all the impulses make (max |u − u_free|): the motion has converged. The impulses themselves may still be shifting inside
 /// the null space of statically indeterminate contact sets (a box's four corners, a tree lying on the
 /// ground), where regularisation lets them settle only slowly and the motion does not depend on them.
 pub(super) fn solve(
@@ -207,6 +232,7 @@ pub(super) fn solve(
         let force: Vector6<f64> = constraints[g.constraints.clone()].iter().map(|c| c.rows[0] * c.lambda[0] + c.rows[1] * c.lambda[1] + c.rows[2] * c.lambda[2]).sum();
         scatter(&entries[g.entries.clone()], &force, u);
     }
+    let mut last = f64::INFINITY;
     for sweep in 1..=max_sweeps {
         before.copy_from_slice(u);
         for g in groups {
@@ -217,9 +243,9 @@ pub(super) fn solve(
                 let dots = [c.rows[0].dot(&velocity), c.rows[1].dot(&velocity), c.rows[2].dot(&velocity)];
                 let next = update(c, dots);
                 if next != c.lambda {
-                    let df = c.rows[0] * (next[0] - c.lambda[0]) + c.rows[1] * (next[1] - c.lambda[1]) + c.rows[2] * (next[2] - c.lambda[2]);
-                    velocity += g.w * df;
-                    force += df;
+                    let delta = [next[0] - c.lambda[0], next[1] - c.lambda[1], next[2] - c.lambda[2]];
+                    velocity += c.moves[0] * delta[0] + c.moves[1] * delta[1] + c.moves[2] * delta[2];
+                    force += c.rows[0] * delta[0] + c.rows[1] * delta[1] + c.rows[2] * delta[2];
                     c.lambda = next;
                 }
             }
@@ -232,7 +258,11 @@ pub(super) fn solve(
             change = change.max((x - b).abs());
             scale = scale.max((x - f).abs());
         }
-        if change <= CONVERGED * scale {
+        // Gauss–Seidel converges linearly: with the contraction ρ of the last sweep, the error left is
+        // about change ρ / (1 − ρ), which may well exceed the change itself.
+        let rho = (change / last).min(MAX_CONTRACTION);
+        last = change;
+        if change * (rho / (1.0 - rho)).max(1.0) <= CONVERGED * scale {
             return sweep;
         }
     }
