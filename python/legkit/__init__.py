@@ -10,6 +10,7 @@ from legkit._core import (
     Ground,
     MassProperties,
     Model,
+    UrdfWarning,
     Simulation,
     SimulationBatch,
     aba,
@@ -35,6 +36,7 @@ from legkit.geometry import CircleLineResult, circle_line, rotation_toward_line
 __all__ = [
     "MassProperties",
     "Model",
+    "UrdfWarning",
     "CircleLineResult",
     "circle_line",
     "rotation_toward_line",

@@ -100,8 +100,13 @@ class Model:
     def placement(self, body: _Body) -> np.ndarray: ...
     def neutral(self) -> np.ndarray: ...
     @staticmethod
-    def from_urdf(path_or_xml: str | os.PathLike[str], floating_base: bool = False) -> Model:
-        """A model from a URDF path or XML string; bodies are named after links, the root link is the base."""
+    def from_urdf(path_or_xml: str | os.PathLike[str], floating_base: bool = False, strict: bool = False) -> Model:
+        """A model from a URDF path or XML string; bodies are named after links, the root link is the base.
+        What exporters write and Pinocchio loads (non-physical inertias, effort="0") loads as written with
+        a UrdfWarning naming the element, or raises ValueError if strict."""
+
+class UrdfWarning(UserWarning):
+    """A URDF loaded as written although it is not quite valid; the message names the element."""
 
 def forward_kinematics(model: Model, q: npt.ArrayLike) -> np.ndarray:
     """World pose (4x4) of every body: (..., nbodies, 4, 4)."""

@@ -23,6 +23,9 @@ use crate::{Error, Result};
 
 /// Relative tolerance of the symmetry, positivity and triangle-inequality checks on an inertia.
 const PHYSICAL_TOLERANCE: f64 = 1e-9;
+/// Absolute round-off allowed on an inertia read from a file (kg m²): far below any real link's (a 1 g,
+/// 1 mm cube has 1.7e-10), so a written-out zero inertia with 1e-35 terms is not refused.
+const ROUND_OFF_INERTIA: f64 = 1e-15;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MassProperties {
@@ -49,6 +52,29 @@ impl MassProperties {
         finite_vector("com", com)?;
         check_inertia("inertia", &inertia)?;
         Ok(Self { mass, com, inertia: symmetrised(&inertia) })
+    }
+
+    /// A body as a file writes it, checked only for finite values, mass >= 0 and a symmetric inertia
+    /// (within `PHYSICAL_TOLERANCE`). Unlike `new` it admits what exporters write and Pinocchio loads: a
+    /// massless body with a rotational inertia, an inertia that is not physical (see `inertia_problem`).
+    pub fn as_written(mass: f64, com: Vector3<f64>, inertia: Matrix3<f64>) -> Result<Self> {
+        if finite("mass", mass)? < 0.0 {
+            return Err(Error::invalid("mass", format!("must be >= 0, got {mass}")));
+        }
+        finite_vector("com", com)?;
+        finite_matrix("inertia", &inertia)?;
+        let asymmetry = (inertia - inertia.transpose()).amax();
+        if asymmetry > PHYSICAL_TOLERANCE * inertia.amax() {
+            return Err(Error::invalid("inertia", format!("must be symmetric (|I - I^T| = {asymmetry:.3e})")));
+        }
+        Ok(Self { mass, com, inertia: symmetrised(&inertia) })
+    }
+
+    /// What makes `inertia` (finite, symmetric) non-physical, beyond round-off: a negative principal
+    /// moment, or one above the sum of the other two, by more than `PHYSICAL_TOLERANCE` of its largest
+    /// entry plus `ROUND_OFF_INERTIA`. None for a physical inertia.
+    pub fn inertia_problem(inertia: &Matrix3<f64>) -> Option<String> {
+        check_inertia_scaled("inertia", inertia, inertia.amax() + ROUND_OFF_INERTIA / PHYSICAL_TOLERANCE).err().map(|e| e.to_string())
     }
 
     /// The identity of `+`: no mass.
@@ -100,8 +126,9 @@ impl MassProperties {
         self.inertia
     }
 
+    /// No mass and no rotational inertia.
     pub fn is_zero(&self) -> bool {
-        self.mass == 0.0
+        self.mass == 0.0 && self.inertia == Matrix3::zeros()
     }
 
     /// Inertia about an arbitrary `point` (parallel-axis theorem).
@@ -177,6 +204,10 @@ impl Add for MassProperties {
             return self;
         }
         let mass = self.mass + other.mass;
+        if mass == 0.0 {
+            // Massless bodies with rotational inertia (Pinocchio keeps those): no centre of mass to move.
+            return Self { mass, com: self.com, inertia: self.inertia + other.inertia };
+        }
         let inverse = 1.0 / mass;
         let com = (self.com * self.mass + other.com * other.mass) * inverse;
         let offset = self.com - other.com;

@@ -4,7 +4,8 @@
 //! - `<link name>` with an optional `<inertial>`: `<origin xyz rpy>` (both default to 0), `<mass value>` and
 //!   `<inertia ixx ixy ixz iyy iyz izz>` about the centre of mass, in the inertial frame. The link's centre
 //!   of mass is `xyz` and its inertia `R I Rᵀ`, R the rotation of `rpy`. A link without `<inertial>`, or
-//!   with mass 0, is massless.
+//!   with mass 0 and no inertia, is massless; a link with mass 0 keeps its rotational inertia, as in
+//!   Pinocchio.
 //! - `<joint name type>` with `<parent link>`, `<child link>`, `<origin xyz rpy>` (default identity) and
 //!   `<axis xyz>` (default `1 0 0`, normalised; read only for moving joints). Types: `revolute` and
 //!   `continuous` become [`Joint::Revolute`], `prismatic` [`Joint::Prismatic`], `fixed` [`Joint::Fixed`];
@@ -12,11 +13,12 @@
 //! - `<limit lower upper effort velocity>` of a moving joint becomes its [`JointLimits`]: `lower` and
 //!   `upper` (rad or m; each defaults to 0, as the specification says) bound a `revolute` or `prismatic`
 //!   joint; a `continuous` joint has no position limits (its `lower`/`upper` are ignored). `effort`
-//!   (N m or N) and `velocity` (rad/s or m/s) must be > 0; unlike the specification, which requires
-//!   them, either may be omitted for no bound. A moving joint without `<limit>` has no limits (the
-//!   specification requires one on `revolute` and `prismatic` joints; legkit tolerates its absence).
-//!   `lower > upper`, a non-positive `effort` or `velocity`, or a value that is not a finite number is
-//!   an error naming the joint. `<limit>` on a fixed joint is ignored.
+//!   (N m or N) and `velocity` (rad/s or m/s) must be >= 0; unlike the specification, which requires
+//!   them, either may be omitted for no bound, and 0 (which exporters write for "unset") also reads as
+//!   no bound, with a warning. A moving joint without `<limit>` has no limits (the specification requires
+//!   one on `revolute` and `prismatic` joints; legkit tolerates its absence). `lower > upper`, a negative
+//!   `effort` or `velocity`, or a value that is not a finite number is an error naming the joint.
+//!   `<limit>` on a fixed joint is ignored.
 //! - `rpy` is URDF's fixed-axis roll about x, then pitch about y, then yaw about z:
 //!   `R = Rz(yaw) Ry(pitch) Rx(roll)`.
 //!
@@ -32,6 +34,12 @@
 //!
 //! Every problem in the file is an [`Error`] with argument `"urdf"` and a message naming the offending
 //! element, e.g. `joint "knee": unknown parent link "thigh2"`.
+//!
+//! What real exporters write and Pinocchio loads, legkit loads too, as written, with a warning in
+//! [`Urdf::warnings`] naming the element: an inertia that is not physical (a negative principal moment,
+//! or one above the sum of the other two; round-off within [`MassProperties::inertia_problem`]'s
+//! tolerance passes silently), and `effort="0"` or `velocity="0"`. With [`UrdfOptions::strict`] these
+//! are errors instead.
 
 use std::collections::{HashMap, VecDeque};
 
@@ -40,21 +48,44 @@ use roxmltree::{Document, Node};
 
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
+/// How a URDF becomes a model.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct UrdfOptions {
+    /// The base (root link) is free-floating rather than fixed to the world.
+    pub floating_base: bool,
+    /// What would be a warning (non-physical inertias, zero effort or velocity bounds) is an error.
+    pub strict: bool,
+}
+
+/// A URDF read into a model, and what was accepted with a warning (each naming its element).
+#[derive(Debug, Clone)]
+pub struct Urdf {
+    pub model: Model,
+    pub warnings: Vec<String>,
+}
+
 /// Loads a URDF from a file, or parses it directly if `path_or_xml` (trimmed) starts with `<`.
 /// A file that cannot be read is an error on argument `"path"`; see [`parse_urdf`] for the rest.
-pub fn load_urdf(path_or_xml: &str, floating_base: bool) -> Result<Model> {
+pub fn load_urdf(path_or_xml: &str, options: UrdfOptions) -> Result<Urdf> {
     if path_or_xml.trim_start().starts_with('<') {
-        return parse_urdf(path_or_xml, floating_base);
+        return parse_urdf(path_or_xml, options);
     }
     let xml = std::fs::read_to_string(path_or_xml)
         .map_err(|e| Error::invalid("path", format!("cannot read URDF file {path_or_xml:?}: {e}")))?;
-    parse_urdf(&xml, floating_base)
+    parse_urdf(&xml, options)
 }
 
-/// Parses URDF text into a [`Model`] whose base is fixed to the world, or free-floating if
-/// `floating_base`. See the [module documentation](self) for what is read and how bodies are named
-/// and ordered.
-pub fn parse_urdf(xml: &str, floating_base: bool) -> Result<Model> {
+/// Parses URDF text into a [`Model`]. See the [module documentation](self) for what is read, what is
+/// accepted with a warning, and how bodies are named and ordered.
+pub fn parse_urdf(xml: &str, options: UrdfOptions) -> Result<Urdf> {
+    let mut warnings = Vec::new();
+    let mut accept = |problem: String| -> Result<()> {
+        if options.strict {
+            return Err(invalid(format!("{problem} (strict)")));
+        }
+        warnings.push(problem);
+        Ok(())
+    };
     let trimmed = xml.trim_start();
     let moved;
     let xml = if trimmed.len() < xml.len() && trimmed.starts_with("<?xml") {
@@ -84,7 +115,7 @@ pub fn parse_urdf(xml: &str, floating_base: bool) -> Result<Model> {
         if link_index.insert(name, links.len()).is_some() {
             return Err(invalid(format!("link {name:?} is defined twice ({})", line(node))));
         }
-        let body = inertial(node, name)?;
+        let body = inertial(node, name, &mut accept)?;
         links.push(Link { name, body });
     }
     if links.is_empty() {
@@ -100,7 +131,7 @@ pub fn parse_urdf(xml: &str, floating_base: bool) -> Result<Model> {
         if joint_names.insert(name, ()).is_some() {
             return Err(invalid(format!("joint {name:?} is defined twice ({})", line(node))));
         }
-        let joint = joint(node, name, &link_index)?;
+        let joint = joint(node, name, &link_index, &mut accept)?;
         if let Some(other) = parent_joint[joint.child] {
             return Err(invalid(format!(
                 "link {:?} has two parents: it is the child of joint {:?} and of joint {name:?}",
@@ -134,7 +165,7 @@ pub fn parse_urdf(xml: &str, floating_base: bool) -> Result<Model> {
         children[joint.parent].push(j);
     }
 
-    let mut model = Model::new(floating_base, links[root].body, links[root].name);
+    let mut model = Model::new(options.floating_base, links[root].body, links[root].name);
     let mut body_of_link: Vec<Option<usize>> = vec![None; links.len()];
     body_of_link[root] = Some(0);
     let mut queue = VecDeque::from([root]);
@@ -157,7 +188,7 @@ pub fn parse_urdf(xml: &str, floating_base: bool) -> Result<Model> {
             describe_cycle(&links, &joints, &parent_joint, unreached)
         )));
     }
-    Ok(model)
+    Ok(Urdf { model, warnings })
 }
 
 /// URDF's `rpy`: roll about the fixed x axis, then pitch about the fixed y axis, then yaw about the fixed
@@ -255,8 +286,8 @@ fn origin(node: Node, owner: &str) -> Result<Transform> {
     Ok(Transform::new(rpy_to_matrix(rpy.x, rpy.y, rpy.z), xyz))
 }
 
-/// The mass properties of a `<link>` in the link frame.
-fn inertial(link: Node, name: &str) -> Result<MassProperties> {
+/// The mass properties of a `<link>` in the link frame; a non-physical inertia goes to `accept`.
+fn inertial(link: Node, name: &str, accept: &mut dyn FnMut(String) -> Result<()>) -> Result<MassProperties> {
     let owner = format!("link {name:?}");
     let Some(inertial) = element(link, "inertial") else { return Ok(MassProperties::zero()) };
     let frame = origin(inertial, &owner)?;
@@ -274,18 +305,23 @@ fn inertial(link: Node, name: &str) -> Result<MassProperties> {
     for (value, attr) in moments.iter_mut().zip(["ixx", "ixy", "ixz", "iyy", "iyz", "izz"]) {
         *value = scalar(inertia_node, attr, &owner)?;
     }
-    if mass == 0.0 {
-        return Ok(MassProperties::zero());
-    }
     let [ixx, ixy, ixz, iyy, iyz, izz] = moments;
     let inertia = Matrix3::new(ixx, ixy, ixz, ixy, iyy, iyz, ixz, iyz, izz);
-    MassProperties::new(mass, Vector3::zeros(), inertia)
+    if let Some(problem) = MassProperties::inertia_problem(&inertia) {
+        accept(format!("{owner}: non-physical <inertial> ({problem}), kept as written"))?;
+    }
+    MassProperties::as_written(mass, Vector3::zeros(), inertia)
         .and_then(|body| body.transformed(&frame.rotation, &frame.translation))
-        .map_err(|e| invalid(format!("{owner}: non-physical <inertial> ({e})")))
+        .map_err(|e| invalid(format!("{owner}: <inertial>: {e}")))
 }
 
 /// A `<joint>`, its links resolved to indices.
-fn joint<'a>(node: Node<'a, '_>, name: &'a str, link_index: &HashMap<&str, usize>) -> Result<UrdfJoint<'a>> {
+fn joint<'a>(
+    node: Node<'a, '_>,
+    name: &'a str,
+    link_index: &HashMap<&str, usize>,
+    accept: &mut dyn FnMut(String) -> Result<()>,
+) -> Result<UrdfJoint<'a>> {
     let owner = format!("joint {name:?}");
     let link = |tag: &str| -> Result<usize> {
         let link = element(node, tag)
@@ -323,15 +359,15 @@ fn joint<'a>(node: Node<'a, '_>, name: &'a str, link_index: &HashMap<&str, usize
         None => return Err(invalid(format!("{owner}: has no type attribute"))),
     };
     let limits = match element(node, "limit") {
-        Some(limit) if joint != Joint::Fixed => limits(limit, bounded, &owner)?,
+        Some(limit) if joint != Joint::Fixed => limits(limit, bounded, &owner, accept)?,
         _ => JointLimits::NONE,
     };
     Ok(UrdfJoint { name, joint, parent, child, placement, limits })
 }
 
 /// A moving joint's `<limit>`: the position range if `bounded` (attributes default to 0, as URDF says),
-/// effort and velocity bounds if given (+inf if absent).
-fn limits(limit: Node, bounded: bool, owner: &str) -> Result<JointLimits> {
+/// effort and velocity bounds if given (+inf if absent, or 0 after a warning to `accept`).
+fn limits(limit: Node, bounded: bool, owner: &str, accept: &mut dyn FnMut(String) -> Result<()>) -> Result<JointLimits> {
     let optional = |attr: &str, default: f64| -> Result<f64> {
         if limit.attribute(attr).is_some() {
             scalar(limit, attr, owner)
@@ -344,15 +380,21 @@ fn limits(limit: Node, bounded: bool, owner: &str) -> Result<JointLimits> {
     } else {
         (f64::NEG_INFINITY, f64::INFINITY)
     };
-    let (effort, velocity) = (optional("effort", f64::INFINITY)?, optional("velocity", f64::INFINITY)?);
     if lower > upper {
         return Err(invalid(format!("{owner}: <limit> lower ({lower}) must be <= upper ({upper})")));
     }
-    for (attr, value) in [("effort", effort), ("velocity", velocity)] {
-        if value <= 0.0 {
-            return Err(invalid(format!("{owner}: <limit> {attr} must be > 0 (omit it for no bound), got {value}")));
+    let mut bound = |attr: &str| -> Result<f64> {
+        let value = optional(attr, f64::INFINITY)?;
+        if value < 0.0 {
+            return Err(invalid(format!("{owner}: <limit> {attr} must be >= 0 (omit it for no bound), got {value}")));
         }
-    }
+        if value == 0.0 {
+            accept(format!("{owner}: <limit> {attr}=\"0\" read as no bound"))?;
+            return Ok(f64::INFINITY);
+        }
+        Ok(value)
+    };
+    let (effort, velocity) = (bound("effort")?, bound("velocity")?);
     JointLimits::new(lower, upper, effort, velocity).map_err(|e| invalid(format!("{owner}: <limit>: {e}")))
 }
 
@@ -380,6 +422,9 @@ mod tests {
     use super::*;
     use nalgebra::{Rotation3, Unit};
     use std::f64::consts::FRAC_PI_2;
+
+    const FIXED: UrdfOptions = UrdfOptions { floating_base: false, strict: false };
+    const FLOATING: UrdfOptions = UrdfOptions { floating_base: true, strict: false };
 
     const TOL: f64 = 1e-12;
 
@@ -502,7 +547,7 @@ mod tests {
     #[test]
     fn two_link_pendulum_structure_placements_axes_and_inertials() {
         let (xml, com_link, inertia_link, inertia_local, mass) = pendulum_xml();
-        let model = parse_urdf(&xml, false).unwrap();
+        let model = parse_urdf(&xml, FIXED).unwrap().model;
         assert_eq!(model.nbodies(), 3);
         assert_eq!((model.nq(), model.nv()), (2, 2));
         assert!(!model.floating_base());
@@ -582,7 +627,7 @@ mod tests {
         assert!(xml.find("name=\"FL_foot_joint\"").unwrap() < xml.find("name=\"FL_hip_joint\"").unwrap());
 
         for floating in [false, true] {
-            let model = parse_urdf(&xml, floating).unwrap();
+            let model = parse_urdf(&xml, UrdfOptions { floating_base: floating, strict: false }).unwrap().model;
             assert_eq!(model.nbodies(), 18);
             assert_eq!(model.name(0), "trunk");
             let moving = 12;
@@ -619,7 +664,7 @@ mod tests {
               <joint name="twist" type="revolute"><parent link="slider"/><child link="tip"/><axis xyz="0 0 1"/></joint>
               <transmission name="t"><joint name="spin"/><actuator name="m"/></transmission>
             </robot>"#;
-        let model = parse_urdf(xml, false).unwrap();
+        let model = parse_urdf(xml, FIXED).unwrap().model;
         assert_eq!(model.nbodies(), 5);
         assert_eq!((model.nq(), model.nv()), (3, 3));
         assert_eq!(*model.joint(1), Joint::Fixed);
@@ -636,7 +681,7 @@ mod tests {
         assert_eq!(model.body(4).com(), Vector3::new(0.0, 0.0, 0.2));
         assert_eq!([model.idx_q(2), model.idx_q(3), model.idx_q(4)], [0, 1, 2]);
 
-        let floating = parse_urdf(xml, true).unwrap();
+        let floating = parse_urdf(xml, FLOATING).unwrap().model;
         assert!(floating.floating_base());
         assert_eq!(*floating.joint(0), Joint::FreeFlyer);
         assert_eq!((floating.nq(), floating.nv()), (7 + 3, 6 + 3));
@@ -647,9 +692,9 @@ mod tests {
     #[test]
     fn load_urdf_reads_files_and_inline_xml() {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/two_link_pendulum.urdf");
-        let from_file = load_urdf(path, false).unwrap();
+        let from_file = load_urdf(path, FIXED).unwrap().model;
         let text = std::fs::read_to_string(path).unwrap();
-        let inline = load_urdf(&format!("\n  {text}"), false).unwrap();
+        let inline = load_urdf(&format!("\n  {text}"), FIXED).unwrap().model;
         assert_eq!(from_file.nbodies(), 3);
         assert_eq!((from_file.nq(), from_file.nv()), (2, 2));
         assert_eq!(from_file.name(2), "forearm");
@@ -661,15 +706,15 @@ mod tests {
             assert_eq!(from_file.name(i), inline.name(i));
         }
 
-        let missing = load_urdf("/nonexistent/robot.urdf", false).unwrap_err();
+        let missing = load_urdf("/nonexistent/robot.urdf", FIXED).unwrap_err();
         assert_eq!(missing.argument(), "path");
         assert!(missing.to_string().contains("/nonexistent/robot.urdf"), "{missing}");
     }
 
     /// Parses `xml`, expecting an error on argument "urdf" whose message contains every one of `needles`.
     fn assert_fails(xml: &str, needles: &[&str]) {
-        let error = match parse_urdf(xml, false) {
-            Ok(model) => panic!("expected an error containing {needles:?}, got a model with {} bodies", model.nbodies()),
+        let error = match parse_urdf(xml, UrdfOptions { floating_base: false, strict: true }) {
+            Ok(urdf) => panic!("expected an error containing {needles:?}, got a model with {} bodies", urdf.model.nbodies()),
             Err(e) => e,
         };
         assert_eq!(error.argument(), "urdf");
@@ -701,11 +746,11 @@ mod tests {
     #[test]
     fn the_helpers_build_valid_robots() {
         // So that each error below is due to its one defect.
-        assert_eq!(parse_urdf(&robot(""), false).unwrap().nbodies(), 2);
+        assert_eq!(parse_urdf(&robot(""), FIXED).unwrap().model.nbodies(), 2);
         let ok = inertial_robot(&format!(r#"<mass value="1"/>{INERTIA}"#));
-        assert_eq!(parse_urdf(&ok, false).unwrap().body(0).mass(), 1.0);
+        assert_eq!(parse_urdf(&ok, FIXED).unwrap().model.body(0).mass(), 1.0);
         let ok = joint_robot(r#"<joint name="j" type="prismatic"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/></joint>"#);
-        assert_eq!(parse_urdf(&ok, false).unwrap().nv(), 1);
+        assert_eq!(parse_urdf(&ok, FIXED).unwrap().model.nv(), 1);
     }
 
     #[test]
@@ -804,20 +849,20 @@ mod tests {
     #[test]
     fn limits_are_read_per_joint_type() {
         let (xml, ..) = pendulum_xml();
-        let model = parse_urdf(&xml, false).unwrap();
+        let model = parse_urdf(&xml, FIXED).unwrap().model;
         assert_eq!(*model.limits(0), JointLimits::NONE);
         assert_eq!(*model.limits(1), JointLimits { lower: -1.0, upper: 1.0, effort: 10.0, velocity: 1.0 });
         // "elbow" is continuous without <limit>.
         assert_eq!(*model.limits(2), JointLimits::NONE);
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/two_link_pendulum.urdf");
-        let fixture = load_urdf(path, false).unwrap();
+        let fixture = load_urdf(path, FIXED).unwrap().model;
         assert_eq!(*fixture.limits(2), JointLimits { lower: -2.5, upper: 2.5, effort: 10.0, velocity: 5.0 });
 
         let joint = |kind: &str, limit: &str| {
             let xml = joint_robot(&format!(
                 r#"<joint name="knee" type="{kind}"><parent link="a"/><child link="b"/>{limit}</joint>"#
             ));
-            *parse_urdf(&xml, false).unwrap().limits(1)
+            *parse_urdf(&xml, FIXED).unwrap().model.limits(1)
         };
         let inf = f64::INFINITY;
         // A continuous joint keeps effort and velocity but has no position range, whatever it says.
@@ -843,12 +888,42 @@ mod tests {
         let knee = r#"joint "knee""#;
         assert_fails(&joint("revolute", r#"lower="1" upper="-1""#), &[knee, "lower (1) must be <= upper (-1)"]);
         assert_fails(&joint("prismatic", r#"lower="0.5""#), &[knee, "lower (0.5) must be <= upper (0)"]);
-        assert_fails(&joint("revolute", r#"lower="-1" upper="1" effort="0""#), &[knee, "effort must be > 0", "got 0"]);
-        assert_fails(&joint("continuous", r#"velocity="-2""#), &[knee, "velocity must be > 0", "got -2"]);
+        assert_fails(&joint("revolute", r#"lower="-1" upper="1" effort="-1""#), &[knee, "effort must be >= 0", "got -1"]);
+        assert_fails(&joint("continuous", r#"velocity="-2""#), &[knee, "velocity must be >= 0", "got -2"]);
+        // What exporters write for "unset": no bound with a warning, an error only when strict.
+        assert_fails(&joint("revolute", r#"lower="-1" upper="1" effort="0""#), &[knee, r#"effort="0" read as no bound"#, "strict"]);
         assert_fails(&joint("revolute", r#"lower="low" upper="1""#), &[knee, "lower", r#""low" is not a number"#]);
         assert_fails(&joint("revolute", r#"lower="-1" upper="inf""#), &[knee, "upper", "not finite"]);
         assert_fails(&joint("prismatic", r#"effort="1 2""#), &[knee, "effort", "expected 1 number, found 2"]);
         assert_fails(&joint("revolute", r#"upper="""#), &[knee, "upper", "expected 1 number, found 0"]);
+    }
+
+    #[test]
+    fn what_exporters_write_loads_as_written_with_warnings() {
+        let urdf = |xml: &str| parse_urdf(xml, FIXED).unwrap();
+        // effort="0" and velocity="0" mean "unset".
+        let unset = urdf(&joint_robot(r#"<joint name="knee" type="revolute"><parent link="a"/><child link="b"/><limit lower="-1" upper="1" effort="0" velocity="0"/></joint>"#));
+        assert_eq!(*unset.model.limits(1), JointLimits { lower: -1.0, upper: 1.0, effort: f64::INFINITY, velocity: f64::INFINITY });
+        assert_eq!(unset.warnings.len(), 2);
+        assert!(unset.warnings.iter().all(|w| w.starts_with(r#"joint "knee": <limit>"#)), "{:?}", unset.warnings);
+        // A non-physical inertia (moments 1, 1, 3) is kept as written, turned by the inertial frame.
+        let triangle = urdf(&inertial_robot(r#"<origin rpy="0 1.5707963267948966 0"/><mass value="2"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="3"/>"#));
+        let body = triangle.model.body(0);
+        assert!((body.inertia() - Matrix3::from_diagonal(&Vector3::new(3.0, 1.0, 1.0))).amax() < 1e-12);
+        assert_eq!(body.mass(), 2.0);
+        assert_eq!(triangle.warnings.len(), 1);
+        assert!(triangle.warnings[0].contains(r#"link "heavy": non-physical <inertial>"#) && triangle.warnings[0].contains("kept as written"));
+        // Round-off passes silently: a written-out zero inertia with a 1e-35 term (iCub's head), and a
+        // principal moment of -2e-22 beside real ones.
+        assert!(urdf(&inertial_robot(r#"<mass value="1"/><inertia ixx="0" ixy="0" ixz="2.4e-35" iyy="0" iyz="0" izz="0"/>"#)).warnings.is_empty());
+        assert!(urdf(&inertial_robot(r#"<mass value="1"/><inertia ixx="1e-3" ixy="0" ixz="0" iyy="1e-3" iyz="0" izz="-2e-22"/>"#)).warnings.is_empty());
+        // A massless link keeps its rotational inertia, as in Pinocchio.
+        let massless = urdf(&inertial_robot(r#"<origin xyz="1 2 3"/><mass value="0"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.3"/>"#));
+        let body = massless.model.body(0);
+        assert_eq!(body.mass(), 0.0);
+        assert!(!body.is_zero());
+        assert_eq!(body.inertia(), Matrix3::from_diagonal(&Vector3::new(0.1, 0.2, 0.3)));
+        assert!(massless.warnings.is_empty());
     }
 
     #[test]

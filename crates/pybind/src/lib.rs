@@ -19,6 +19,7 @@ use pyo3::prelude::*;
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<mass::PyMassProperties>()?;
     m.add_class::<model::PyModel>()?;
+    m.add("UrdfWarning", m.py().get_type::<model::UrdfWarning>())?;
     m.add_class::<sim::PySimulation>()?;
     m.add_class::<sim::PyGround>()?;
     m.add_class::<sim::PySimulationBatch>()?;

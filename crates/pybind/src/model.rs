@@ -1,15 +1,19 @@
 //! `legkit.Model`: a kinematic tree built body by body (or from URDF), with a cached workspace.
 
+use std::ffi::CString;
 use std::sync::Mutex;
 
+use legkit_dynamics::urdf::{load_urdf, UrdfOptions};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use numpy::{PyArray1, PyArray2};
-use pyo3::exceptions::{PyIndexError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyIndexError, PyTypeError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
 
 use crate::convert::{homogeneous_matrix, matrix3, to_numpy, kernel_error, vector3, vector_to_numpy, Matrix, Vector};
 use crate::mass::PyMassProperties;
+
+pyo3::create_exception!(legkit, UrdfWarning, PyUserWarning, "A URDF loaded as written although it is not quite valid (a non-physical inertia, effort=\"0\", ...); the message names the element.");
 
 /// A kinematic tree: body 0 is the base (fixed to the world, or a free flyer with
 /// q = [x, y, z, qx, qy, qz, qw] and v = [v_lin, v_ang] in the base frame); every other body hangs off a
@@ -151,17 +155,24 @@ impl PyModel {
 
     /// A model from a URDF file path or an XML string: links become bodies named after them (the root link
     /// is the base), revolute/continuous/prismatic/fixed joints their joints, `<limit>`s their limits.
+    /// What exporters write and Pinocchio loads (non-physical inertias, `effort="0"`) loads as written
+    /// with a `UrdfWarning` naming the element, or is a ValueError if `strict`.
     #[staticmethod]
-    #[pyo3(signature = (path_or_xml, floating_base = false))]
-    fn from_urdf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: bool) -> PyResult<Self> {
+    #[pyo3(signature = (path_or_xml, floating_base = false, strict = false))]
+    fn from_urdf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: bool, strict: bool) -> PyResult<Self> {
         let source: String = match path_or_xml.cast::<PyString>() {
             Ok(s) => s.to_str()?.to_owned(),
             Err(_) => py.import("os")?.call_method1("fspath", (path_or_xml,))?.extract().map_err(|_| {
                 PyTypeError::new_err("path_or_xml: expected a path or an XML string")
             })?,
         };
-        let model = py.detach(|| legkit_dynamics::urdf::load_urdf(&source, floating_base)).map_err(kernel_error)?;
-        Ok(Self::wrap(model))
+        let options = UrdfOptions { floating_base, strict };
+        let urdf = py.detach(|| load_urdf(&source, options)).map_err(kernel_error)?;
+        let category = py.get_type::<UrdfWarning>();
+        for warning in &urdf.warnings {
+            PyErr::warn(py, &category, &CString::new(format!("urdf: {warning}"))?, 1)?;
+        }
+        Ok(Self::wrap(urdf.model))
     }
 
     /// Adds a body on a revolute joint about `axis` (in the joint frame); returns its index. `limits`:

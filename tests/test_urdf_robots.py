@@ -1,0 +1,150 @@
+"""Every URDF that ships with example-robot-data, loaded by legkit and by Pinocchio.
+
+legkit must load every file Pinocchio loads (what exporters write slightly wrong loads as written, with a
+`lk.UrdfWarning`), refuse what Pinocchio refuses, and agree with Pinocchio's RNEA, CRBA and ABA to 1e-9
+(relative to max(1, max|want|)) on random states, with a fixed and with a floating base.
+
+The two number joints differently: legkit's bodies are the links, breadth first, and fixed joints are
+bodies too; Pinocchio's joints are the moving joints, depth first, and a continuous joint has q = (cos, sin).
+Each legkit body on a moving joint is matched to Pinocchio's joint through the link's body frame.
+
+Two robots (Romeo, Romeo LAAS small) have moving joints that carry no inertia (their mass matrices are singular), so ABA is not
+defined for them: for those the test checks that M is singular instead.
+"""
+
+from __future__ import annotations
+
+import warnings
+from importlib.metadata import distribution
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import legkit as lk
+
+RTOL = 1e-9
+ROBOTS = Path(distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots"))
+FILES = sorted(ROBOTS.rglob("*.urdf"))
+SINGULAR_MASS_MATRIX = {"romeo.urdf", "romeo_laas_small.urdf"}
+
+
+def test_example_robot_data_is_all_there():
+    assert len(FILES) == 69, f"{len(FILES)} URDFs under {ROBOTS}"
+
+
+def pinocchio_model(path: Path, floating: bool) -> pin.Model | None:
+    try:
+        return pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer()) if floating else pin.buildModelFromUrdf(str(path))
+    except (RuntimeError, ValueError):
+        return None
+
+
+def legkit_model(path: Path, floating: bool) -> lk.Model:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lk.UrdfWarning)
+        return lk.Model.from_urdf(path, floating_base=floating)
+
+
+class Twin:
+    """legkit's and Pinocchio's model of one URDF, and the maps between their coordinates."""
+
+    def __init__(self, model: lk.Model, reference: pin.Model):
+        self.model, self.reference = model, reference
+        base = 6 if model.floating_base else 0
+        # (legkit q index, legkit v index, Pinocchio q index, Pinocchio v index, continuous) per moving joint.
+        self.joints = []
+        for body in range(1, model.nbodies):
+            if model.joint_type(body) == "fixed":
+                continue
+            joint = reference.joints[reference.frames[reference.getFrameId(model.names[body], pin.FrameType.BODY)].parentJoint]
+            self.joints.append((model.idx_q[body], model.idx_v[body], joint.idx_q, joint.idx_v, joint.nq == 2))
+        assert len(self.joints) + base == model.nv == reference.nv
+        self.lk_v = np.array(list(range(base)) + [j[1] for j in self.joints], dtype=int)
+        self.pin_v = np.array(list(range(base)) + [j[3] for j in self.joints], dtype=int)
+
+    def state(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """A random configuration in legkit's layout, and the same in Pinocchio's."""
+        q = rng.uniform(-1.0, 1.0, self.model.nq)
+        q_pin = np.zeros(self.reference.nq)
+        if self.model.floating_base:
+            quaternion = rng.normal(size=4)
+            q[3:7] = quaternion / np.linalg.norm(quaternion)
+            q_pin[:7] = q[:7]
+        for lk_q, _, pin_q, _, continuous in self.joints:
+            if continuous:
+                q_pin[pin_q:pin_q + 2] = np.cos(q[lk_q]), np.sin(q[lk_q])
+            else:
+                q_pin[pin_q] = q[lk_q]
+        return q, q_pin
+
+    def to_pin_v(self, v: np.ndarray) -> np.ndarray:
+        out = np.zeros(self.reference.nv)
+        out[self.pin_v] = v[self.lk_v]
+        return out
+
+    def to_lk_v(self, v_pin: np.ndarray) -> np.ndarray:
+        out = np.zeros(self.model.nv)
+        out[self.lk_v] = v_pin[self.pin_v]
+        return out
+
+
+def assert_close(got: np.ndarray, want: np.ndarray, what: str) -> None:
+    assert np.all(np.isfinite(got)), f"{what}: non-finite values"
+    scale = max(1.0, float(np.abs(want).max(initial=0.0)))
+    error = float(np.abs(got - want).max(initial=0.0))
+    assert error <= RTOL * scale, f"{what}: max error {error:.3e} > {RTOL:g} * {scale:.3e}"
+
+
+@pytest.mark.parametrize("floating", [False, True], ids=["fixed", "floating"])
+@pytest.mark.parametrize("path", FILES, ids=[str(f.relative_to(ROBOTS)) for f in FILES])
+def test_legkit_loads_what_pinocchio_loads_and_matches_its_dynamics(path: Path, floating: bool):
+    reference = pinocchio_model(path, floating)
+    if reference is None:
+        with pytest.raises(ValueError, match="urdf"):
+            legkit_model(path, floating)
+        return
+    twin = Twin(legkit_model(path, floating), reference)
+    data = reference.createData()
+    rng = np.random.default_rng(len(path.name))
+    for _ in range(2):
+        q, q_pin = twin.state(rng)
+        v, a = rng.normal(size=twin.model.nv), rng.normal(size=twin.model.nv)
+        v_pin, a_pin = twin.to_pin_v(v), twin.to_pin_v(a)
+        assert_close(lk.rnea(twin.model, q, v, a), twin.to_lk_v(pin.rnea(reference, data, q_pin, v_pin, a_pin)), "rnea")
+        mass = pin.crba(reference, data, q_pin)
+        mass = np.triu(mass) + np.triu(mass, 1).T
+        expected = np.zeros_like(mass)
+        expected[np.ix_(twin.lk_v, twin.lk_v)] = mass[np.ix_(twin.pin_v, twin.pin_v)]
+        assert_close(lk.crba(twin.model, q), expected, "crba")
+        singular = mass.size > 0 and np.linalg.eigvalsh(mass).min() <= 1e-12 * np.abs(mass).max()
+        assert singular == (path.name in SINGULAR_MASS_MATRIX)
+        if not singular:
+            tau = rng.normal(size=twin.model.nv)
+            expected_a = twin.to_lk_v(pin.aba(reference, data, q_pin, v_pin, twin.to_pin_v(tau)))
+            assert_close(lk.aba(twin.model, q, v, tau), expected_a, "aba")
+
+
+def test_a_non_physical_inertia_loads_as_written_with_a_warning_and_strict_refuses_it():
+    go1 = ROBOTS / "go1_description/urdf/go1.urdf"  # its base link's inertia is all 1e-6: not physical
+    with pytest.warns(lk.UrdfWarning, match=r'link "base": non-physical <inertial>.*kept as written'):
+        model = lk.Model.from_urdf(go1)
+    assert np.allclose(model.body(0).inertia, 1e-6)
+    with pytest.raises(ValueError, match=r'link "base": non-physical <inertial>.*\(strict\)'):
+        lk.Model.from_urdf(go1, strict=True)
+
+
+def test_zero_effort_and_velocity_read_as_no_bound_with_a_warning():
+    pendulum = ROBOTS / "double_pendulum_description/urdf/double_pendulum.urdf"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model = lk.Model.from_urdf(pendulum)
+    assert {(w.category, str(w.message)) for w in caught} == {
+        (lk.UrdfWarning, f'urdf: joint "{joint}": <limit> {attr}="0" read as no bound')
+        for joint in ("joint1", "joint2") for attr in ("effort", "velocity")
+    }
+    for body in range(1, model.nbodies):
+        assert model.limits(body)["effort"] == model.limits(body)["velocity"] == np.inf
+    with pytest.raises(ValueError, match=r'effort="0" read as no bound \(strict\)'):
+        lk.Model.from_urdf(pendulum, strict=True)
