@@ -14,6 +14,7 @@ use std::ops::Range;
 
 use nalgebra::{DMatrix, DVector, Matrix6xX, UnitQuaternion, Vector3, Vector6};
 
+use crate::sim::Shape;
 use crate::spatial::{spatial, Force, Inertia, Motion, RigidInertia, Transform};
 use crate::validate::{direction, finite_vector, rotation};
 use crate::{Error, MassProperties, Result};
@@ -159,6 +160,9 @@ pub struct Model {
     nv: usize,
     /// Gravity in the world frame.
     pub gravity: Vector3<f64>,
+    /// The collision geometry the model was described with (URDF `<collision>`s), several shapes per
+    /// body allowed; None when it has none (a simulation then gives every body a default box).
+    collision: Option<Vec<(usize, Shape)>>,
 }
 
 impl Model {
@@ -179,7 +183,23 @@ impl Model {
             nq: joint.nq(),
             nv: joint.nv(),
             gravity: Vector3::new(0.0, 0.0, -9.81),
+            collision: None,
         }
+    }
+
+    /// The collision geometry the model was described with, if any: (body, shape) pairs, in body frames.
+    pub fn collision_shapes(&self) -> Option<&[(usize, Shape)]> {
+        self.collision.as_deref()
+    }
+
+    /// Sets the model's collision geometry (bodies may have several shapes, or none). A body that does
+    /// not exist is an error.
+    pub fn set_collision_shapes(&mut self, shapes: Vec<(usize, Shape)>) -> Result<()> {
+        if let Some((body, _)) = shapes.iter().find(|(body, _)| *body >= self.nbodies()) {
+            return Err(Error::invalid("shapes", format!("body {body} does not exist (the model has {} bodies)", self.nbodies())));
+        }
+        self.collision = Some(shapes);
+        Ok(())
     }
 
     /// Appends a body on `joint` below body `parent`, the joint frame at `placement` in the parent's frame,

@@ -22,7 +22,12 @@
 //! - `rpy` is URDF's fixed-axis roll about x, then pitch about y, then yaw about z:
 //!   `R = Rz(yaw) Ry(pitch) Rx(roll)`.
 //!
-//! Everything else (`<visual>`, `<collision>`, `<dynamics>`, `<safety_controller>`, `<mimic>`, `<material>`,
+//! - `<collision>` with `<origin>` and a `<geometry>` of `<box size>`, `<sphere radius>`, `<cylinder radius
+//!   length>` or `<capsule radius length>` (along z) becomes one of the model's collision shapes
+//!   ([`Model::collision_shapes`], several per body allowed), which a simulation uses instead of default
+//!   boxes. `<mesh>` is not read yet: such a link collides as the box of its inertia, with a warning.
+//!
+//! Everything else (`<visual>`, `<dynamics>`, `<safety_controller>`, `<mimic>`, `<material>`,
 //! `<transmission>`, `<gazebo>`, ...) is ignored; joint names are checked for uniqueness but not kept.
 //!
 //! Naming and ordering: the tree's single root link (the one link that is no joint's child) becomes the
@@ -46,6 +51,7 @@ use std::collections::{HashMap, VecDeque};
 use nalgebra::{Matrix3, Vector3};
 use roxmltree::{Document, Node};
 
+use crate::sim::{Shape, ShapeKind};
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
 /// How a URDF becomes a model.
@@ -79,6 +85,8 @@ pub fn load_urdf(path_or_xml: &str, options: UrdfOptions) -> Result<Urdf> {
 /// accepted with a warning, and how bodies are named and ordered.
 pub fn parse_urdf(xml: &str, options: UrdfOptions) -> Result<Urdf> {
     let mut warnings = Vec::new();
+    // Warnings that `strict` does not turn into errors: what legkit cannot read yet.
+    let mut notes = Vec::new();
     let mut accept = |problem: String| -> Result<()> {
         if options.strict {
             return Err(invalid(format!("{problem} (strict)")));
@@ -116,7 +124,8 @@ pub fn parse_urdf(xml: &str, options: UrdfOptions) -> Result<Urdf> {
             return Err(invalid(format!("link {name:?} is defined twice ({})", line(node))));
         }
         let body = inertial(node, name, &mut accept)?;
-        links.push(Link { name, body });
+        let shapes = collisions(node, name, &body, &mut notes)?;
+        links.push(Link { name, body, shapes });
     }
     if links.is_empty() {
         return Err(invalid("<robot> has no <link>".to_owned()));
@@ -188,6 +197,14 @@ pub fn parse_urdf(xml: &str, options: UrdfOptions) -> Result<Urdf> {
             describe_cycle(&links, &joints, &parent_joint, unreached)
         )));
     }
+    if links.iter().any(|link| !link.shapes.is_empty()) {
+        let shapes = links.iter().zip(&body_of_link).flat_map(|(link, body)| {
+            let body = body.expect("every link has a body");
+            link.shapes.iter().map(move |shape| (body, shape.clone()))
+        });
+        model.set_collision_shapes(shapes.collect())?;
+    }
+    warnings.extend(notes);
     Ok(Urdf { model, warnings })
 }
 
@@ -206,6 +223,8 @@ pub fn rpy_to_matrix(roll: f64, pitch: f64, yaw: f64) -> Matrix3<f64> {
 struct Link<'a> {
     name: &'a str,
     body: MassProperties,
+    /// Its `<collision>` shapes in the link frame.
+    shapes: Vec<Shape>,
 }
 
 /// A parsed `<joint>`: only what the model needs, plus the name for messages.
@@ -313,6 +332,38 @@ fn inertial(link: Node, name: &str, accept: &mut dyn FnMut(String) -> Result<()>
     MassProperties::as_written(mass, Vector3::zeros(), inertia)
         .and_then(|body| body.transformed(&frame.rotation, &frame.translation))
         .map_err(|e| invalid(format!("{owner}: <inertial>: {e}")))
+}
+
+/// The `<collision>` shapes of a `<link>` in the link frame. For meshes, which legkit does not read yet,
+/// the link collides as the box of its inertia (`Shape::default_box`), and `notes` says so.
+fn collisions(link: Node, name: &str, body: &MassProperties, notes: &mut Vec<String>) -> Result<Vec<Shape>> {
+    let owner = format!("link {name:?}");
+    let mut shapes = Vec::new();
+    let mut meshes = Vec::new();
+    for collision in elements(link, "collision") {
+        let placement = origin(collision, &owner)?;
+        let Some(geometry) = element(collision, "geometry").and_then(|g| g.children().find(|c| c.is_element())) else {
+            return Err(invalid(format!("{owner}: <collision> has no <geometry> ({})", line(collision))));
+        };
+        let half_length = |g: Node| -> Result<f64> { Ok(0.5 * scalar(g, "length", &owner)?) };
+        let kind = match geometry.tag_name().name() {
+            "box" => ShapeKind::Box(vector3(geometry, "size", Vector3::zeros(), &owner)?),
+            "sphere" => ShapeKind::Sphere(scalar(geometry, "radius", &owner)?),
+            "cylinder" => ShapeKind::Cylinder { half_height: half_length(geometry)?, radius: scalar(geometry, "radius", &owner)? },
+            "capsule" => ShapeKind::Capsule { half_height: half_length(geometry)?, radius: scalar(geometry, "radius", &owner)? },
+            "mesh" => {
+                meshes.push(geometry.attribute("filename").unwrap_or("?").to_owned());
+                continue;
+            }
+            other => return Err(invalid(format!("{owner}: <collision> has an unknown geometry <{other}> ({})", line(geometry)))),
+        };
+        shapes.push(Shape::new(kind, Some(placement)).map_err(|e| invalid(format!("{owner}: <collision> <{}>: {e}", geometry.tag_name().name())))?);
+    }
+    if !meshes.is_empty() {
+        notes.push(format!("{owner}: <collision> meshes are not read yet ({}); it collides as the box of its inertia", meshes.join(", ")));
+        shapes.extend(Shape::default_box(body));
+    }
+    Ok(shapes)
 }
 
 /// A `<joint>`, its links resolved to indices.
@@ -924,6 +975,48 @@ mod tests {
         assert!(!body.is_zero());
         assert_eq!(body.inertia(), Matrix3::from_diagonal(&Vector3::new(0.1, 0.2, 0.3)));
         assert!(massless.warnings.is_empty());
+    }
+
+    #[test]
+    fn collisions_become_the_models_collision_shapes() {
+        let xml = r#"<robot name="r">
+            <link name="a"><collision><geometry><box size="1 2 3"/></geometry></collision></link>
+            <link name="b">
+              <inertial><mass value="2"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>
+              <collision><origin xyz="0 0 -0.5" rpy="1.5707963267948966 0 0"/><geometry><cylinder radius="0.1" length="0.4"/></geometry></collision>
+              <collision><origin xyz="0 0 -1"/><geometry><sphere radius="0.02"/></geometry></collision>
+              <collision><geometry><capsule radius="0.05" length="0.3"/></geometry></collision>
+            </link>
+            <link name="c"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>
+              <collision><geometry><mesh filename="package://r/c.stl"/></geometry></collision></link>
+            <link name="d"/>
+            <joint name="j" type="revolute"><parent link="a"/><child link="b"/><limit lower="-1" upper="1"/></joint>
+            <joint name="k" type="fixed"><parent link="b"/><child link="c"/></joint>
+            <joint name="l" type="fixed"><parent link="c"/><child link="d"/></joint>
+        </robot>"#;
+        let urdf = parse_urdf(xml, FIXED).unwrap();
+        let shapes = urdf.model.collision_shapes().unwrap();
+        let kinds: Vec<(usize, ShapeKind)> = shapes.iter().map(|(b, s)| (*b, s.kind)).collect();
+        assert_eq!(
+            kinds,
+            vec![
+                (0, ShapeKind::Box(Vector3::new(1.0, 2.0, 3.0))),
+                (1, ShapeKind::Cylinder { half_height: 0.2, radius: 0.1 }),
+                (1, ShapeKind::Sphere(0.02)),
+                (1, ShapeKind::Capsule { half_height: 0.15, radius: 0.05 }),
+                (2, Shape::default_box(urdf.model.body(2)).unwrap().kind),
+            ]
+        );
+        let (placement, expected) = (shapes[1].1.placement.unwrap(), expected_placement([0.0, 0.0, -0.5], [FRAC_PI_2, 0.0, 0.0]));
+        assert!(close(&placement.rotation, &expected.rotation, TOL) && close3(&placement.translation, &expected.translation, TOL));
+        assert_eq!(urdf.warnings.len(), 1);
+        assert!(urdf.warnings[0].contains(r#"link "c": <collision> meshes are not read yet (package://r/c.stl)"#));
+        // A robot without any <collision> has no collision shapes (simulations give it default boxes).
+        assert!(parse_urdf(&robot(""), FIXED).unwrap().model.collision_shapes().is_none());
+        let bad = r#"<robot name="r"><link name="a"><collision><geometry><sphere radius="-1"/></geometry></collision></link></robot>"#;
+        assert_fails(bad, &[r#"link "a""#, "<sphere>", "must be > 0"]);
+        let unknown = r#"<robot name="r"><link name="a"><collision><geometry><cone radius="1"/></geometry></collision></link></robot>"#;
+        assert_fails(unknown, &[r#"link "a""#, "unknown geometry <cone>"]);
     }
 
     #[test]

@@ -141,7 +141,8 @@ pub struct Options {
     /// Step length (s), > 0.
     pub dt: f64,
     pub ground: Option<Ground>,
-    /// Shapes replacing the default box of the listed bodies; `None` removes a body's collider.
+    /// Shapes replacing the listed bodies' own (the model's collision shapes, or the default box); `None`
+    /// removes a body's colliders.
     pub shapes: Vec<(usize, Option<Shape>)>,
     /// Contacts between bodies of the robot (never between a body and its parent).
     pub self_collision: bool,
@@ -190,16 +191,20 @@ impl Options {
         Options { dt, ground: None, shapes: Vec::new(), self_collision: false, joint_damping: 0.0, joint_armature: 0.0, substeps: 1, backend: Backend::Tree, solver_iterations: DEFAULT_SOLVER_ITERATIONS }
     }
 
-    /// Every body's collision shape (a given one, else the default box; none where `shapes` says None or
-    /// the body is massless), with the shape frame in the body frame.
+    /// Every collider, with the shape frame in the body frame: a body's shape given here (none where it
+    /// says None), else the model's own collision shapes if it has any (`Model::collision_shapes`, none
+    /// for a body it lists nothing for), else the default box (none for a massless body).
     pub(crate) fn colliders<'a>(&'a self, model: &'a Model) -> impl Iterator<Item = (usize, Shape, Transform)> + 'a {
-        (0..model.nbodies()).filter_map(move |i| {
-            let shape = match self.shapes.iter().find(|(b, _)| *b == i) {
-                Some((_, shape)) => shape.clone(),
-                None => Shape::default_box(model.body(i)),
-            }?;
-            let in_body = shape.placement.unwrap_or_else(|| Transform::from_translation(model.body(i).com()));
-            Some((i, shape, in_body))
+        (0..model.nbodies()).flat_map(move |i| {
+            let shapes: Vec<Shape> = match (self.shapes.iter().find(|(b, _)| *b == i), model.collision_shapes()) {
+                (Some((_, shape)), _) => shape.iter().cloned().collect(),
+                (None, Some(described)) => described.iter().filter(|(b, _)| *b == i).map(|(_, s)| s.clone()).collect(),
+                (None, None) => Shape::default_box(model.body(i)).into_iter().collect(),
+            };
+            shapes.into_iter().map(move |shape| {
+                let in_body = shape.placement.unwrap_or_else(|| Transform::from_translation(model.body(i).com()));
+                (i, shape, in_body)
+            })
         })
     }
 

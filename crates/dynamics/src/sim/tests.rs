@@ -385,6 +385,25 @@ fn effort_limit_clips_actuation(backend: Backend) {
     assert_eq!((bounded.q(), bounded.v()), (unbounded.q(), unbounded.v()));
 }
 
+/// A body described with three spheres below it (the model's own collision shapes, as from URDF) rests
+/// on them, not on its default box.
+fn model_collision_shapes_replace_default_boxes(backend: Backend) {
+    let mut model = floating_box(2.0, Vector3::new(0.3, 0.3, 0.05));
+    let foot = |x: f64, y: f64| Shape::new(ShapeKind::Sphere(0.02), Some(Transform::from_translation(Vector3::new(x, y, -0.1)))).unwrap();
+    model.set_collision_shapes(vec![(0, foot(0.1, 0.0)), (0, foot(-0.1, 0.1)), (0, foot(-0.1, -0.1))]).unwrap();
+    let mut options = opts(backend, 1e-3);
+    options.ground = Some(Ground::plane(0.8).unwrap());
+    let mut sim = Simulation::new(&model, options).unwrap();
+    sim.set_state(Some(&[0.0, 0.0, 0.13, 0.0, 0.0, 0.0, 1.0]), None).unwrap();
+    sim.step(None, 500).unwrap();
+    let contacts = sim.contacts();
+    assert_eq!(contacts.len(), 3, "{contacts:?}");
+    let height = sim.q()[2];
+    assert!((height - 0.12).abs() <= 2e-3, "rests at {height} m, not on its spheres (0.12 m)");
+    let bad = model.set_collision_shapes(vec![(5, foot(0.0, 0.0))]).unwrap_err();
+    assert_eq!(bad.argument(), "shapes");
+}
+
 /// A turntable (a box on a vertical revolute axis) lying on the ground: its joint moves the contacts
 /// only along the ground, so their normal rows are immovable (zero Delassus diagonal). They carry
 /// nothing, and the table turns as without the ground (it used to turn the step's state into NaN).
@@ -439,4 +458,5 @@ on_both_backends!(
     prismatic_limit_stops_a_falling_slider,
     limits_out_of_reach_change_nothing,
     effort_limit_clips_actuation,
+    model_collision_shapes_replace_default_boxes,
 );
