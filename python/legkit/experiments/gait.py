@@ -495,6 +495,84 @@ def run(robot_name: str, args: argparse.Namespace, progress: tqdm) -> GaitAnalys
     return analysis
 
 
+def run_optimized(args: argparse.Namespace) -> dict[str, float]:
+    """`--optimize`: the Fig. 3 amble optimised by multiphase collocation on IPOPT (`legkit.optimize`), maximising
+    the worst-case S_H (J_s2, eq. 11) from the hand-built reference; one progress line per IPOPT iteration.
+    Writes gait_quadruped_optimized.csv (every collocation point: t, phase, support, q, v, u, S_H) and .png
+    (S_H over the period with its worst case marked, beside the reference's), then replays the gait in
+    `lk.Simulation` (PD tracking + feed-forward torques) over --replay-cycles cycles."""
+    from legkit.optimize import MinMaxStability
+    from legkit.optimize.gaits import amble_problem, amble_reference, guess_from_reference
+    from legkit.optimize.replay import replay
+
+    robot = build_quadruped(AMBLE_QUADRUPED)
+    speed, period = args.quadruped_speed, args.quadruped_period
+    problem = amble_problem(robot, [MinMaxStability(args.quadruped_tip_speed, DIAGONAL_PAIRS)], speed, period,
+                            args.intervals, QUADRUPED_MOTOR, args.mu)
+    ref = amble_reference(robot, speed, period, args.intervals)
+    guess = guess_from_reference(problem, ref)
+    x0 = problem.pack(guess)
+    reference_s_h = np.concatenate(problem.stability_index(x0))
+    x0[problem.p1_index] = reference_s_h.min()  # S_H - p1 >= 0 holds at the start
+    print(f"optimising the amble: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
+
+    def progress(iteration: int, objective: float, violation: float) -> None:
+        print(f"  iter {iteration:4d}  J_s2 {objective: .6e}  max violation {violation:.2e}", flush=True)
+
+    trajectory, result = problem.solve(x0, tol=args.tol, max_iter=args.max_iter, progress=progress)
+    s_h = problem.stability_index(result.x)
+    data = trajectory.stacked()
+    labels = ["+".join(leg.upper() for leg in problem.phases[k].contacts) for k in data["phase"]]
+    columns = {"t": data["t"], "phase": data["phase"].astype(float), "S_H": np.concatenate(s_h)}
+    for name, values in (("q", data["q"]), ("v", data["v"]), ("u", data["u"])):
+        columns.update({f"{name}{i}": values[:, i] for i in range(values.shape[1])})
+    with (args.out / "gait_quadruped_optimized.csv").open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(list(columns) + ["support"])
+        for row, label in zip(np.stack(list(columns.values()), axis=1), labels):
+            writer.writerow([f"{x:.9g}" for x in row] + [label])
+    worst, worst_t = st.worst_case(columns["S_H"], data["t"])
+    _plot_optimized(args.out / "gait_quadruped_optimized.png", data["t"], columns["S_H"], guess.stacked()["t"], reference_s_h, labels, worst, worst_t,
+                    f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}")
+    simulated = replay(problem, trajectory, args.replay_cycles)
+    return {
+        "IPOPT iterations": result.iterations, "solve wall time [s]": result.wall_time,
+        "function + Jacobian share of the solve [%]": 100.0 * result.evaluation_time / result.wall_time,
+        "max constraint violation (legkit dynamics)": result.violation,
+        "S_H min, optimised [N m s]": worst, "S_H min at [s]": worst_t, "S_H min, reference [N m s]": float(reference_s_h.min()),
+        **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d) for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
+        f"replay: drift over {args.replay_cycles} cycles [% of distance]": 100.0 * simulated.drift_fraction,
+        "replay: stayed upright (1 = yes)": float(simulated.upright),
+        "solver succeeded (1 = yes)": float(result.success),
+    }
+
+
+def _plot_optimized(path: Path, t: np.ndarray, s_h: np.ndarray, reference_t: np.ndarray, reference: np.ndarray, labels: list[str],
+                    worst: float, worst_t: float, title: str) -> None:
+    """Fig. 3 of file 003 for the optimised gait: S_H over one period, the worst case marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axis = plt.subplots(figsize=(8, 4))
+    starts = [0] + [i for i in range(1, len(labels)) if labels[i] != labels[i - 1]] + [len(labels)]
+    for n, (a, b) in enumerate(zip(starts[:-1], starts[1:])):
+        axis.axvspan(t[a], t[b - 1], color=f"C{n % 4 + 2}", alpha=0.12, lw=0)
+        axis.text(0.5 * (t[a] + t[b - 1]), 1.0, labels[a], transform=axis.get_xaxis_transform(), ha="center", va="bottom", fontsize=7)
+    axis.plot(reference_t, reference, color="C1", ls="--", lw=0.9, label="hand-built reference")
+    axis.plot(t, s_h, color="C0", marker=".", label="optimised (J_s2)")
+    axis.plot([worst_t], [worst], "rv", label=f"worst case {worst:.3g} N m s")
+    axis.axhline(0.0, color="k", lw=0.8)
+    axis.set_xlabel("t [s]")
+    axis.set_ylabel("S_H (eq. 10) [N m s]")
+    axis.set_title(title, pad=14, fontsize=9)
+    axis.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def main(argv: list[str] | None = None) -> int:
     """`legkit gait`: analyse the quadruped amble and/or the biped walk; writes CSVs and figures to --out."""
     parser = argparse.ArgumentParser(prog="legkit gait", description=__doc__.splitlines()[0])
@@ -509,6 +587,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--biped-speed", type=float, default=1.8, help="walking speed [km/h]")
     parser.add_argument("--biped-step", type=float, default=0.4, help="step length [m]")
     parser.add_argument("--biped-tip-speed", type=float, default=3.0, help="swing-foot speed limit v_tip_max [m/s]")
+    parser.add_argument("--optimize", action="store_true", help="optimise the quadruped amble for the worst-case S_H "
+                        "(J_s2) on IPOPT, write its CSV/figure and replay it in simulation")
+    parser.add_argument("--intervals", type=_positive_int, default=4, help="--optimize: collocation intervals per phase")
+    parser.add_argument("--max-iter", type=_positive_int, default=1000, help="--optimize: IPOPT iteration limit")
+    parser.add_argument("--tol", type=float, default=1e-6, help="--optimize: IPOPT tolerance")
+    parser.add_argument("--replay-cycles", type=_positive_int, default=5, help="--optimize: cycles replayed in simulation")
     args = parser.parse_args(argv)
     if args.samples < 8:
         parser.error("--samples must be at least 8")
@@ -516,6 +600,13 @@ def main(argv: list[str] | None = None) -> int:
         if not np.isfinite(getattr(args, name)) or getattr(args, name) <= 0.0:
             parser.error(f"--{name.replace('_', '-')} must be a positive number")
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.optimize:
+        summary = run_optimized(args)
+        width = max(len(k) for k in summary)
+        for key, value in summary.items():
+            print(f"{key:{width}}  {value:12.5g}")
+        print(f"wrote gait_quadruped_optimized.csv/.png to {args.out}")
+        return 0
     robots = ["quadruped", "biped"] if args.robot == "both" else [args.robot]
     with tqdm(total=5 * len(robots), desc="gait analysis", unit="stage") as progress:
         analyses = [run(name, args, progress) for name in robots]

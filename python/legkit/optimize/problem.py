@@ -307,6 +307,7 @@ class MultiphaseProblem:
             blocks.extend(self._torque_speed_blocks())
         objective, gradient, extra = build_objective(self, self.objectives)
         self.uses_p1 = bool(extra)
+        self.stability_blocks = extra
         blocks.extend(extra)
         self.blocks = blocks
         self.objective, self.gradient = objective, gradient
@@ -417,6 +418,12 @@ class MultiphaseProblem:
         x0 = self.pack(guess) if isinstance(guess, Trajectory) else np.asarray(guess, dtype=np.float64)
         result = solve(self.nlp(), x0, **options)
         return self.unpack(result.x), result
+
+    def stability_index(self, x: np.ndarray) -> list[np.ndarray]:
+        """S_H (eq. 10) at every point of every phase, for a problem with a MinMaxStability objective."""
+        if not self.stability_blocks:
+            raise ValueError("stability_index needs a problem whose objectives hold a MinMaxStability term")
+        return [b.values(x) + x[self.p1_index] for b in self.stability_blocks]
 
     # ------------------------------------------------------------------ packing
     def pack(self, trajectory: Trajectory) -> np.ndarray:

@@ -101,6 +101,7 @@ def solve(
     objective, gradient = timer(nlp.objective), timer(nlp.gradient)
     constraints, jacobian = timer(nlp.constraints), timer(nlp.jacobian)
     n, m = nlp.n, nlp.m
+    cache: dict = {}
 
     class Jacobian(ca.Callback):
         def __init__(self, name: str, opts: dict) -> None:
@@ -121,7 +122,10 @@ def solve(
 
         def eval(self, arg):
             x = np.asarray(arg[0]).ravel()
-            return [ca.DM(gradient(x)).T, ca.DM(pattern, jacobian(x)[order])]
+            # casadi asks for the objective gradient and the constraint Jacobian in separate calls at one x.
+            if cache.get("x") is None or not np.array_equal(cache["x"], x):
+                cache.update(x=x, out=[ca.DM(gradient(x)).T, ca.DM(pattern, jacobian(x)[order])])
+            return cache["out"]
 
     class Functions(ca.Callback):
         def __init__(self) -> None:
@@ -146,6 +150,13 @@ def solve(
 
         def has_jacobian(self) -> bool:
             return True
+
+        # Without these casadi takes a callback's Jacobian as dense, and IPOPT factorises a dense KKT system.
+        def has_jac_sparsity(self, oind: int, iind: int) -> bool:
+            return True
+
+        def get_jac_sparsity(self, oind: int, iind: int, symmetric: bool):
+            return ca.Sparsity.dense(1, n) if oind == 0 else pattern
 
         def get_jacobian(self, name, inames, onames, opts):
             self.jacobian_callback = Jacobian(name, opts)  # casadi holds a raw reference; keep it alive

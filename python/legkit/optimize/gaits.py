@@ -1,0 +1,74 @@
+"""The gaits of file 003 (../shared/seeds/003_8a51da06d878ba35.txt, Sect. 4.2) as `MultiphaseProblem`s, started
+from `legkit.experiments.gait`'s hand-built references.
+
+The amble: duty factor 0.5, support order LF+LH, LF+RH, RF+RH, RF+LH (Sect. 4.2, read as in
+`legkit.experiments.gait.quadruped_amble`), a touchdown and a liftoff at every boundary, so every phase has
+two feet down and S_H (eq. 10) is defined throughout; the full cycle is transcribed (no mirror symmetry).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+import legkit as lk
+from legkit.experiments.gait import (
+    AMBLE_HIP_HEIGHT, GaitReference, MotorParameters, contact_inverse_dynamics, quadruped_amble,
+)
+from legkit.optimize.problem import MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
+from legkit.robots.quadruped import LEGS, Quadruped
+
+#: The amble's support pairs in time order from t = 0 (file 003, Sect. 4.2).
+AMBLE_SUPPORT = (("lf", "lh"), ("lf", "rh"), ("rf", "rh"), ("rf", "lh"))
+
+
+def torque_speed_line(motor: MotorParameters) -> TorqueSpeedLine:
+    """The motor-gear characteristic line of Sect. 2.3: |u| <= (w_max - |w|) G^2 eta / m."""
+    return TorqueSpeedLine(motor.joint_max_speed, motor.gear_ratio**2 * motor.efficiency / motor.slope)
+
+
+def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: float, intervals: int,
+                  motor: MotorParameters, friction: float = 0.8, duration_range: tuple[float, float] = (0.5, 1.5)) -> MultiphaseProblem:
+    """The amble at `speed` [m/s] over a fixed `period` [s]; each phase lasts between duration_range x period / 4."""
+    quarter = period / 4.0
+    phases = [Phase(pair, intervals, (duration_range[0] * quarter, duration_range[1] * quarter)) for pair in AMBLE_SUPPORT]
+    line = torque_speed_line(motor)
+    stall = line.max_speed * line.gain
+    nu = robot.model.nv - 6
+    return MultiphaseProblem(robot.model, phases, {leg: robot.feet[leg] for leg in LEGS}, objectives, speed=speed, period=period,
+                             friction=friction, u_bounds=(np.full(nu, -stall), np.full(nu, stall)), torque_speed=line,
+                             q_bounds=(_base_height_bounds(robot.model, 0.02), _base_height_bounds(robot.model, 1.0)))
+
+
+def _base_height_bounds(model: lk.Model, height: float) -> np.ndarray:
+    """q bounds that limit only the base height (everything else free)."""
+    bound = np.full(model.nq, np.inf if height > 0.5 else -np.inf)
+    bound[2] = height
+    return bound
+
+
+def amble_reference(robot: Quadruped, speed: float, period: float, intervals: int) -> GaitReference:
+    """`quadruped_amble` sampled on the collocation points of equal phases (two cycles, so the last point of
+    the cycle continues the travel coordinate)."""
+    return quadruped_amble(robot, speed, period, 8 * intervals, 2, 0.03, AMBLE_HIP_HEIGHT)
+
+
+def guess_from_reference(problem: MultiphaseProblem, ref: GaitReference) -> Trajectory:
+    """An initial guess on equal phases from a sampled reference whose samples fall on the collocation points:
+    states as sampled, torques and contact forces by `contact_inverse_dynamics` (least squares)."""
+    dynamics = contact_inverse_dynamics(problem.model, ref)
+    names = list(problem.feet)
+    t, q, v, u, forces = [], [], [], [], []
+    start = 0
+    for phase in problem.phases:
+        rows = start + np.arange(2 * phase.intervals + 1)
+        columns = [names.index(c) for c in phase.contacts]
+        t.append(ref.t[rows])
+        q.append(ref.q[rows])
+        v.append(ref.v[rows])
+        u.append(dynamics.torques[rows])
+        forces.append(dynamics.forces[rows][:, columns])
+        start = rows[-1]
+    durations = np.array([t_k[-1] - t_k[0] for t_k in t])
+    return Trajectory(t, q, v, u, forces, durations)
