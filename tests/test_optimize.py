@@ -201,3 +201,15 @@ def test_bad_problem_definitions_fail_fast_naming_the_argument(change, message):
     arguments.update(change)
     with pytest.raises(ValueError, match=message):
         MultiphaseProblem(**arguments)
+
+
+def test_best_keeps_the_best_iterate_within_tolerance_when_ipopt_stops_on_a_worse_one():
+    from legkit.optimize import SolveResult
+
+    last, better = np.array([1.0]), np.array([2.0])
+    stopped = SolveResult(last, 0.5, "Maximum_Iterations_Exceeded", False, 10, 1.0, 0.1, 1e-3, [], (4, -0.2, better), 1e-6)
+    assert stopped.best()[0] is better and stopped.best()[1] == -0.2
+    feasible_and_best = SolveResult(last, -0.3, "Maximum_Iterations_Exceeded", False, 10, 1.0, 0.1, 1e-7, [], (4, -0.2, better), 1e-6)
+    assert feasible_and_best.best()[0] is last
+    converged = SolveResult(last, 0.5, "Solve_Succeeded", True, 10, 1.0, 0.1, 1e-7, [], (4, -0.2, better), 1e-6)
+    assert converged.best()[0] is last

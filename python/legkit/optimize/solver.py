@@ -59,6 +59,17 @@ class SolveResult:
     evaluation_time: float  # [s] spent in the NLP callbacks (functions and Jacobians)
     violation: float  # largest bound/constraint violation at x
     history: list[tuple[int, float, float]] = field(default_factory=list)  # (iteration, objective, violation)
+    best_feasible: tuple[int, float, np.ndarray] | None = None  # (iteration, objective, x) of the best iterate within tol
+    tol: float = 1e-6
+
+    def best(self) -> tuple[np.ndarray, float]:
+        """(x, objective) of the returned point if IPOPT succeeded or it is the best feasible one, else of the
+        best iterate within the tolerance: on a nonsmooth objective (S_H jumps, eq. 10) IPOPT's iterates need
+        not improve monotonically, and an iteration limit can stop it on a worse one."""
+        final_is_best = self.violation <= self.tol and (self.best_feasible is None or self.objective <= self.best_feasible[1])
+        if self.success or self.best_feasible is None or final_is_best:
+            return self.x, self.objective
+        return self.best_feasible[2], self.best_feasible[1]
 
 
 class _Timer:
@@ -163,6 +174,7 @@ def solve(
             return self.jacobian_callback
 
     history: list[tuple[int, float, float]] = []
+    best: list[tuple[int, float, np.ndarray] | None] = [None]
 
     class Iteration(ca.Callback):
         def __init__(self) -> None:
@@ -198,6 +210,8 @@ def solve(
             viol = max(np.max(nlp.g_lower - g, initial=0.0), np.max(g - nlp.g_upper, initial=0.0),
                        np.max(nlp.x_lower - x, initial=0.0), np.max(x - nlp.x_upper, initial=0.0))
             history.append((len(history), f, float(viol)))
+            if viol <= tol and (best[0] is None or f < best[0][1]):
+                best[0] = (len(history) - 1, f, x.copy())
             if progress is not None:
                 progress(len(history) - 1, f, float(viol))
             return [0]
@@ -218,4 +232,4 @@ def solve(
     stats = solver.stats()
     x = np.asarray(result["x"]).ravel()
     return SolveResult(x, float(result["f"]), stats["return_status"], bool(stats["success"]), int(stats["iter_count"]),
-                       wall, timer.seconds, nlp.violation(x), history)
+                       wall, timer.seconds, nlp.violation(x), history, best[0], tol)
