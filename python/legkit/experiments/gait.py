@@ -521,6 +521,7 @@ def run_optimized(args: argparse.Namespace) -> dict[str, float]:
 
     _, result = problem.solve(x0, tol=args.tol, max_iter=args.max_iter, progress=progress)
     x, _ = result.best()
+    kept = result.history[-1][0] if x is result.x else result.best_feasible[0]
     trajectory = problem.unpack(x)
     s_h = problem.stability_index(x)
     data = trajectory.stacked()
@@ -535,17 +536,18 @@ def run_optimized(args: argparse.Namespace) -> dict[str, float]:
             writer.writerow([f"{x:.9g}" for x in row] + [label])
     worst, worst_t = st.worst_case(columns["S_H"], data["t"])
     _plot_optimized(args.out / "gait_quadruped_optimized.png", data["t"], columns["S_H"], guess.stacked()["t"], reference_s_h, labels, worst, worst_t,
-                    f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}")
+                    f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}, iterate {kept} kept")
     simulated = replay(problem, trajectory, args.replay_cycles)
     return {
         "IPOPT iterations": result.iterations, "solve wall time [s]": result.wall_time,
         "function + Jacobian share of the solve [%]": 100.0 * result.evaluation_time / result.wall_time,
-        "kept iterate (IPOPT's last unless a better one within tol)": float(result.history[-1][0] if x is result.x else result.best_feasible[0]),
+        "kept iterate (IPOPT's last unless a better one within tol)": float(kept),
         "max constraint violation (legkit dynamics)": problem.nlp().violation(x),
         "S_H min, optimised [N m s]": worst, "S_H min at [s]": worst_t, "S_H min, reference [N m s]": float(reference_s_h.min()),
         **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d) for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
         f"replay: drift over {args.replay_cycles} cycles [% of distance]": 100.0 * simulated.drift_fraction,
         "replay: stayed upright (1 = yes)": float(simulated.upright),
+        "replay: fell after [s] (inf: never)": simulated.fell_at,
         "solver succeeded (1 = yes)": float(result.success),
     }
 

@@ -20,6 +20,7 @@ class Replay:
     distance: float  # planned forward travel [m]
     drift: float  # |simulated - planned| base xy at the end [m]
     upright: bool  # torso z axis within 45 deg of vertical and base above a third of its planned height throughout
+    fell_at: float  # [s] first control instant that broke `upright` (inf if none)
 
     @property
     def drift_fraction(self) -> float:
@@ -71,11 +72,12 @@ def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, 
         sim.set_servo(kp * gains, kd * gains, target_q=planned_q[i], target_v=planned_v[i])
         sim.step(tau[i], control_every)
         simulated[i + 1] = sim.q
-    upright = True
+    standing = np.ones(len(t), dtype=bool)
     if model.floating_base:
         tilt = rotation(simulated[:, 3:7])[:, 2, 2]  # cosine of the torso z axis to the vertical
-        upright = bool(np.all(tilt > np.cos(np.radians(45.0))) and np.all(simulated[:, 2] > planned_q[:, 2].min() / 3.0))
+        standing = (tilt > np.cos(np.radians(45.0))) & (simulated[:, 2] > planned_q[:, 2].min() / 3.0)
+    fell_at = float(t[np.argmin(standing)]) if not np.all(standing) else np.inf
     travel = problem.travel_index if problem.travel_index is not None else 0
     distance = float(planned_q[-1, travel] - planned_q[0, travel])
     drift = float(np.linalg.norm(simulated[-1, :2] - planned_q[-1, :2])) if model.floating_base else 0.0
-    return Replay(t, simulated, planned_q, distance, drift, upright)
+    return Replay(t, simulated, planned_q, distance, drift, bool(np.all(standing)), fell_at)
