@@ -29,23 +29,23 @@ def torque_speed_line(motor: MotorParameters) -> TorqueSpeedLine:
 
 
 def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: float, intervals: int,
-                  motor: MotorParameters, friction: float = 0.8, duration_range: tuple[float, float] = (0.5, 1.5)) -> MultiphaseProblem:
-    """The amble at `speed` [m/s] over a fixed `period` [s]; each phase lasts between duration_range x period / 4."""
+                  motor: MotorParameters, friction: float = 0.8, duration_range: tuple[float, float] = (0.5, 1.5),
+                  max_tilt: float = np.radians(15.0)) -> MultiphaseProblem:
+    """The amble at `speed` [m/s] over a fixed `period` [s]; each phase lasts between duration_range x period / 4.
+    The state bounds of Sect. 2.3 keep the torso above the ground and its roll and pitch within about
+    max_tilt [rad] (|q_x|, |q_y| <= sin(max_tilt / 2)): unbounded, J_s2 pitches the torso by ~50 deg."""
     quarter = period / 4.0
     phases = [Phase(pair, intervals, (duration_range[0] * quarter, duration_range[1] * quarter)) for pair in AMBLE_SUPPORT]
     line = torque_speed_line(motor)
     stall = line.max_speed * line.gain
     nu = robot.model.nv - 6
+    upper = np.full(robot.model.nq, np.inf)
+    upper[3:5] = np.sin(0.5 * max_tilt)
+    lower = -upper
+    lower[2] = 0.02
     return MultiphaseProblem(robot.model, phases, {leg: robot.feet[leg] for leg in LEGS}, objectives, speed=speed, period=period,
                              friction=friction, u_bounds=(np.full(nu, -stall), np.full(nu, stall)), torque_speed=line,
-                             q_bounds=(_base_height_bounds(robot.model, 0.02), _base_height_bounds(robot.model, 1.0)))
-
-
-def _base_height_bounds(model: lk.Model, height: float) -> np.ndarray:
-    """q bounds that limit only the base height (everything else free)."""
-    bound = np.full(model.nq, np.inf if height > 0.5 else -np.inf)
-    bound[2] = height
-    return bound
+                             q_bounds=(lower, upper))
 
 
 def amble_reference(robot: Quadruped, speed: float, period: float, intervals: int) -> GaitReference:

@@ -19,7 +19,7 @@ class Replay:
     planned_q: np.ndarray  # (S, nq) the optimised configuration at the same instants
     distance: float  # planned forward travel [m]
     drift: float  # |simulated - planned| base xy at the end [m]
-    upright: bool  # torso z axis within 45 deg of vertical and base above a third of its planned height throughout
+    upright: bool  # torso z axis within 45 deg of the planned one and base above a third of its planned height throughout
     fell_at: float  # [s] first control instant that broke `upright` (inf if none)
 
     @property
@@ -73,9 +73,9 @@ def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, 
         sim.step(tau[i], control_every)
         simulated[i + 1] = sim.q
     standing = np.ones(len(t), dtype=bool)
-    if model.floating_base:
-        tilt = rotation(simulated[:, 3:7])[:, 2, 2]  # cosine of the torso z axis to the vertical
-        standing = (tilt > np.cos(np.radians(45.0))) & (simulated[:, 2] > planned_q[:, 2].min() / 3.0)
+    if model.floating_base:  # judged against the plan, whose torso may itself lean
+        tilt = np.einsum("si,si->s", rotation(simulated[:, 3:7])[:, :, 2], rotation(planned_q[:, 3:7])[:, :, 2])
+        standing = (tilt > np.cos(np.radians(45.0))) & (simulated[:, 2] > planned_q[:, 2] / 3.0)
     fell_at = float(t[np.argmin(standing)]) if not np.all(standing) else np.inf
     travel = problem.travel_index if problem.travel_index is not None else 0
     distance = float(planned_q[-1, travel] - planned_q[0, travel])
