@@ -11,7 +11,7 @@ import threading
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import assume, given
 from hypothesis import strategies as st
 
 import legkit as lk
@@ -58,6 +58,9 @@ COM_AGREEMENT = 3e-3
 @examples(8)
 @given(st.floats(0.1, 30.0), st.tuples(st.floats(0.05, 0.5), st.floats(0.05, 0.5), st.floats(0.03, 0.4)))
 def test_resting_box_contact_forces_sum_to_its_weight_on_both_engines(mass, size):
+    # Boxes that rest: at most twice as tall as their narrower side. A slab standing on edge (5 cm by
+    # 31 cm tall) still rocks on Rapier after the 1 s allowed here.
+    assume(size[2] <= 2.0 * min(size[0], size[1]))
     weight = mass * G
     heights = {}
     for backend in BACKENDS:
