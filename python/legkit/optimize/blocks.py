@@ -8,14 +8,14 @@ state), differentiated by `point_jacobian`'s coloured central differences.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Protocol
 
 import numpy as np
 
 from legkit.optimize.collocation import point_jacobian
 
 
-class Block:
+class Block(Protocol):
     """rows: local row of each Jacobian entry; cols: its variable; values(x), jacobian(x) in that order."""
 
     size: int
@@ -24,14 +24,12 @@ class Block:
     rows: np.ndarray
     cols: np.ndarray
 
-    def values(self, x: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+    def values(self, x: np.ndarray) -> np.ndarray: ...
 
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+    def jacobian(self, x: np.ndarray) -> np.ndarray: ...
 
 
-class Linear(Block):
+class Linear:
     """g = A x + offset with A given as triplets (duplicates summed)."""
 
     def __init__(self, size: int, rows, cols, coefficients, offset=0.0, lower=0.0, upper=0.0) -> None:
@@ -58,7 +56,7 @@ def equal(size: int, left: np.ndarray, right: np.ndarray) -> Linear:
 
 
 @dataclass
-class Point(Block):
+class Point:
     """g[p] = function(x[index[p]]) for P groups index (P, k); function maps (B, k) -> (B, r); rows point-major."""
 
     index: np.ndarray

@@ -456,7 +456,7 @@ class MultiphaseProblem:
         return Trajectory(t, q, v, u, forces, durations, float(x[self.p1_index]))
 
 
-class _Defects(Block):
+class _Defects:
     """The Hermite–Simpson defects of one phase (`collocation` docstring); h = T / intervals, T a variable."""
 
     def __init__(self, problem: MultiphaseProblem, k: int) -> None:
