@@ -99,6 +99,9 @@ class Model:
     def body(self, body: _Body) -> MassProperties: ...
     def placement(self, body: _Body) -> np.ndarray: ...
     def neutral(self) -> np.ndarray: ...
+    def colliders(self, shapes: dict[int | str, _ShapeSpec] | None = None) -> list[tuple[int, Literal["box", "sphere", "capsule", "cylinder"], tuple[float, ...], np.ndarray]]:
+        """What ``Simulation(model, shapes=shapes)`` collides with: (body, kind, size, placement (4, 4) in the body
+        frame); size: box full edge lengths, sphere (radius,), capsule/cylinder (half_height, radius) along z."""
     @staticmethod
     def from_urdf(path_or_xml: str | os.PathLike[str], floating_base: bool = False, strict: bool = False) -> Model:
         """A model from a URDF path or XML string; bodies are named after links, the root link is the base.

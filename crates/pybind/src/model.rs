@@ -315,6 +315,16 @@ impl PyModel {
         to_numpy(py, self.model.nq(), self.model.neutral().as_slice().to_vec())
     }
 
+    /// What `Simulation(model, shapes=shapes)` collides with: a list of (body, kind, size, placement),
+    /// kind "box" (size: full edge lengths), "sphere" (radius,), "capsule" or "cylinder" (half_height,
+    /// radius) along the shape's z axis; placement (4, 4) the shape frame in the body frame. `shapes`
+    /// overrides bodies as in `Simulation`; other bodies take the model's URDF collision shapes, else a
+    /// box with the body's inertia.
+    #[pyo3(signature = (shapes = None))]
+    fn colliders<'py>(&self, py: Python<'py>, shapes: Option<&Bound<'py, PyDict>>) -> PyResult<Bound<'py, pyo3::types::PyList>> {
+        crate::sim::colliders(py, self, shapes)
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "Model(nbodies={}, nq={}, nv={}, floating_base={}, mass={:.6})",

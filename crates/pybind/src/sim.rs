@@ -145,6 +145,37 @@ fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
     Shape::new(shape_kind, placement).map(Some).map_err(kernel_error)
 }
 
+/// The `shapes` argument: bodies (index or name) to their replacement shape, or None for no collider.
+fn shape_overrides(model: &PyModel, shapes: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<(usize, Option<Shape>)>> {
+    let Some(shapes) = shapes else { return Ok(Vec::new()) };
+    shapes
+        .iter()
+        .map(|(key, value)| {
+            let body = model.body_index(&key).map_err(|e| PyValueError::new_err(format!("shapes: {e}")))?;
+            Ok((body, parse_shape(&value)?))
+        })
+        .collect()
+}
+
+/// `Model.colliders(shapes=None)`: what a `Simulation(model, shapes=shapes)` collides with, as
+/// (body, kind, size, placement (4, 4) in the body frame).
+pub fn colliders<'py>(py: Python<'py>, model: &PyModel, shapes: Option<&Bound<'py, PyDict>>) -> PyResult<Bound<'py, PyList>> {
+    let mut options = Options::new(1e-3);
+    options.shapes = shape_overrides(model, shapes)?;
+    options.check(&model.model).map_err(kernel_error)?;
+    let items = options.colliders(&model.model).map(|(body, shape, placement)| {
+        let (kind, size): (&str, Vec<f64>) = match shape.kind {
+            ShapeKind::Box(size) => ("box", size.iter().copied().collect()),
+            ShapeKind::Sphere(radius) => ("sphere", vec![radius]),
+            ShapeKind::Capsule { half_height, radius } => ("capsule", vec![half_height, radius]),
+            ShapeKind::Cylinder { half_height, radius } => ("cylinder", vec![half_height, radius]),
+        };
+        let matrix = to_numpy(py, [4, 4], homogeneous(&placement).to_vec());
+        (body, kind, PyTuple::new(py, size)?, matrix).into_pyobject(py)
+    });
+    PyList::new(py, items.collect::<PyResult<Vec<_>>>()?)
+}
+
 /// A per-degree-of-freedom parameter: a scalar (applied to the joint coordinates, `base` on a floating
 /// base's six) or an (nv,) array.
 fn per_dof(argument: &'static str, value: &Floats<'_>, nv: usize, floating: bool, base: f64) -> PyResult<Vec<f64>> {
@@ -192,12 +223,7 @@ impl PySimulation {
         options.substeps = at_least_one("substeps", substeps)?;
         options.solver_iterations = at_least_one("solver_iterations", solver_iterations)?;
         options.backend = Backend::parse(backend).map_err(kernel_error)?;
-        if let Some(shapes) = shapes {
-            for (key, value) in shapes.iter() {
-                let body = model.body_index(&key).map_err(|e| PyValueError::new_err(format!("shapes: {e}")))?;
-                options.shapes.push((body, parse_shape(&value)?));
-            }
-        }
+        options.shapes = shape_overrides(&model, shapes.as_ref())?;
         let sim = Simulation::new(&model.model, options).map_err(kernel_error)?;
         Ok(PySimulation { sim })
     }

@@ -194,7 +194,9 @@ impl Options {
     /// Every collider, with the shape frame in the body frame: a body's shape given here (none where it
     /// says None), else the model's own collision shapes if it has any (`Model::collision_shapes`, none
     /// for a body it lists nothing for), else the default box (none for a massless body).
-    pub(crate) fn colliders<'a>(&'a self, model: &'a Model) -> impl Iterator<Item = (usize, Shape, Transform)> + 'a {
+    /// Every collider as (body, shape, shape frame in the body frame): `shapes` overrides, else the model's
+    /// collision shapes, else a default box from the body's inertia.
+    pub fn colliders<'a>(&'a self, model: &'a Model) -> impl Iterator<Item = (usize, Shape, Transform)> + 'a {
         (0..model.nbodies()).flat_map(move |i| {
             let shapes: Vec<Shape> = match (self.shapes.iter().find(|(b, _)| *b == i), model.collision_shapes()) {
                 (Some((_, shape)), _) => shape.iter().cloned().collect(),
@@ -208,7 +210,8 @@ impl Options {
         })
     }
 
-    pub(crate) fn check(&self, model: &Model) -> Result<()> {
+    /// Checks every option against `model`.
+    pub fn check(&self, model: &Model) -> Result<()> {
         if finite("dt", self.dt)? <= 0.0 {
             return Err(Error::invalid("dt", format!("must be > 0, got {}", self.dt)));
         }
