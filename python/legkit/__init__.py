@@ -61,3 +61,12 @@ __all__ = [
     "SimulationBatch",
     "Ground",
 ]
+
+
+def __getattr__(name: str) -> object:
+    """``lk.viewer`` is imported on first use (it is not needed for computing)."""
+    if name == "viewer":
+        import importlib
+
+        return importlib.import_module("legkit.viewer")
+    raise AttributeError(f"module 'legkit' has no attribute {name!r}")
