@@ -7,6 +7,7 @@ import csv
 
 import numpy as np
 import pytest
+from PIL import Image
 
 import legkit as lk
 from legkit.control import SCHEMES
@@ -81,6 +82,18 @@ def test_closed_loop_brings_the_com_to_the_support_line_on_the_seed_trees(seed_r
     assert len(short) <= 1, short
 
 
+def test_runs_record_the_joint_angles_behind_their_distances(seed_runs):
+    """RunResult.q (the animations' input) is the plant's state at each sample: the COM computed from it
+    gives the recorded distance to the support line."""
+    models = [sb.random_tree(20, 4, seed).to_model()[0] for seed in range(4)]
+    for run in seed_runs:
+        model = models[run.tree]
+        assert run.q.shape == (run.times.size, model.nq)
+        com = lk.center_of_mass(model, run.q)
+        width = sb.random_tree(20, 4, 0).parameters.width
+        np.testing.assert_allclose(np.hypot(com[:, 0], com[:, 1]) / width, run.distance, rtol=1e-12, atol=1e-12)
+
+
 def test_closed_loop_holds_on_a_slippery_ground():
     """On a more slippery ground (mu 0.3 instead of 0.8) the branches lying on the ground slide more
     freely: every run of seed tree 0 ends within a quarter of its start."""
@@ -120,7 +133,13 @@ def test_cli_writes_csv_and_figure(tmp_path, capsys):
     assert {r["scheme"] for r in rows} == set(SCHEMES) and {r["tree"] for r in rows} == {"0", "1"}
     assert len(rows) == 2 * 3 * 6  # 0.05 s sampled every 10 ms: 6 samples per run
     assert (out / "balance.png").stat().st_size > 0
+    page = (out / "balance.html").read_text()
+    assert "MeshCat.Viewer" in page and "<script src" not in page
+    assert Image.open(out / "balance.gif").n_frames == 1  # 0.05 s at 10 frames per second
     assert "msg/mod/s" in capsys.readouterr().out
+    quiet = tmp_path / "quiet"
+    assert balance.main(["--trees", "1", "--modules", "2", "--branches", "2", "--duration", "0.02", "--out", str(quiet), "--no-animation"]) == 0
+    assert sorted(p.name for p in quiet.iterdir()) == ["balance.csv", "balance.png"]
     with pytest.raises(SystemExit):
         balance.main(["--loss", "1.5"])
     assert balance.main(["--modules", "3", "--branches", "5", "--out", str(out)]) == 2  # clear error, no traceback

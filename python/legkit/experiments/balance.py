@@ -25,7 +25,8 @@ angles (``pose_on_ground``), so every run starts at rest and out of the ground.
 Recorded: the horizontal distance between each run's COM and its support line, in module widths. Reported
 per run: the final distance, the time to reach 10 % of the initial distance, the overshoot (how far, as a
 fraction of the initial distance, the COM went past the line along the initial offset direction), and
-the data messages per module per second.
+the data messages per module per second. The joint angles are recorded at the same samples
+(``RunResult.q``): ``legkit balance`` animates every run side by side (``balance.html``, meshcat; ``balance.gif``).
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ import csv
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol, Sequence
+from typing import TYPE_CHECKING, Protocol, Sequence
 
 import numpy as np
 from tqdm import tqdm
@@ -44,6 +45,9 @@ import legkit as lk
 from legkit.agents import AgentNetwork, BusConfig, GroundContact
 from legkit.control import SCHEMES, BalanceController, GainSchedule
 from legkit.robots.superbot import ModuleTree, random_tree
+
+if TYPE_CHECKING:
+    from legkit.viewer import Scene
 
 class Plant(Protocol):
     """What the experiment needs from a simulator: joint torques in, joint state out (legkit's order)."""
@@ -178,6 +182,7 @@ class RunResult:
     distance: np.ndarray
     signed_offset: np.ndarray
     messages_per_module_second: float
+    q: np.ndarray | None = None  # joint angles (samples, nq) at ``times``, for animations
 
     @property
     def initial(self) -> float:
@@ -288,9 +293,12 @@ def run_balance(
     samples = steps // sample_every + 1
     times = np.arange(samples) * sample_every * dt
     coms = np.zeros((samples, len(runs), 3))
+    qs = [np.zeros((samples, built[t][0].nq)) for t, _ in runs]
     for step in tqdm(range(steps + 1), desc="balance", unit="step", disable=not progress, mininterval=0.5):
         if step % sample_every == 0:
-            coms[step // sample_every] = [lk.center_of_mass(built[t][0], p.q) for (t, _), p in zip(runs, plants)]
+            for q_run, p in zip(qs, plants):
+                q_run[step // sample_every] = p.q
+            coms[step // sample_every] = [lk.center_of_mass(built[t][0], q_run[step // sample_every]) for (t, _), q_run in zip(runs, qs)]
         if step == steps:
             break
         network.observe(sensed_angles())
@@ -314,7 +322,7 @@ def run_balance(
     initial_direction = offsets[0] / np.maximum(np.linalg.norm(offsets[0], axis=-1, keepdims=True), 1e-300)
     signed = np.sum(offsets * initial_direction, axis=-1) / width
     return [
-        RunResult(t, scheme, times, distance[:, i], signed[:, i], float(sent[module_slices[i]].sum() / instances[i].n_modules / duration))
+        RunResult(t, scheme, times, distance[:, i], signed[:, i], float(sent[module_slices[i]].sum() / instances[i].n_modules / duration), qs[i])
         for i, (t, scheme) in enumerate(runs)
     ]
 
@@ -350,6 +358,59 @@ def plot(results: Sequence[RunResult], path: Path) -> None:
     plt.close(figure)
 
 
+def animation_scene(trees: Sequence[ModuleTree], results: Sequence[RunResult]) -> Scene:
+    """A ``legkit.viewer.Scene`` of every run side by side: one row per tree (tree 1 at the back), one column
+    per gain schedule, coloured as in ``balance.png``; each run with its support line (red, the vertical
+    through the root) and its COM (a dark ball, with a disc where it projects on the ground)."""
+    from legkit.viewer import Scene, Shape
+
+    if any(r.q is None for r in results):
+        raise ValueError("results: need the recorded joint angles (RunResult.q)")
+    models = [tree.to_model()[0] for tree in trees]
+    width = trees[0].parameters.width
+    poses = {i: lk.forward_kinematics(models[r.tree], r.q)[..., :3, 3].reshape(-1, 3) for i, r in enumerate(results)}
+    reach = max(float(np.max(np.linalg.norm(p[:, :2], axis=1))) for p in poses.values()) + width
+    height = max(float(np.max(p[:, 2])) for p in poses.values()) + width
+    spacing = 2.2 * reach
+    schemes = list(dict.fromkeys(r.scheme for r in results))
+    scene = Scene(
+        view=(0.0, 45.0), title="legkit balance: COM to the support line",
+        caption="rows: trees 1 (back) to {} (front); columns: {}".format(len(trees), ", ".join(schemes)),
+    )
+    colors = {"constant": (0.122, 0.467, 0.706), "distance": (1.0, 0.498, 0.055), "momentum": (0.173, 0.627, 0.173)}
+    lift = np.eye(4)
+    lift[2, 3] = height / 2
+    support = [Shape(0, "cylinder", (height / 2, width / 20), lift)]
+    for r in results:
+        offset = np.array([(r.tree - (len(trees) - 1) / 2) * spacing, (schemes.index(r.scheme) - (len(schemes) - 1) / 2) * spacing, 0.0])
+        name = f"tree{r.tree + 1}_{r.scheme}"
+        model = models[r.tree]
+        scene.add_robot(model, r.q, r.times, name=name, offset=offset, color=colors.get(r.scheme))
+        if r.tree == len(trees) - 1:
+            scene.add_label(r.scheme, offset - [0.5 * spacing, 0.0, 0.0])
+        if r.scheme == schemes[0]:
+            scene.add_label(f"tree {r.tree + 1}", offset - [0.0, 0.5 * spacing, 0.0])
+        com = lk.center_of_mass(model, r.q) + offset  # (samples, 3), one batched call
+        at_com = np.tile(np.eye(4), (len(r.times), 1, 1))
+        at_com[:, :3, 3] = com
+        on_ground = at_com.copy()
+        on_ground[:, 2, 3] = 0.0
+        scene.add_rigid([Shape(0, "sphere", (0.25 * width,))], at_com, r.times, name=f"{name}_com", color=(0.15, 0.15, 0.15))
+        scene.add_rigid([Shape(0, "cylinder", (0.002, 0.25 * width))], on_ground, r.times, name=f"{name}_com_ground", color=(0.15, 0.15, 0.15))
+        at_root = np.eye(4)
+        at_root[:3, 3] = offset
+        scene.add_rigid(support, at_root, name=f"{name}_support", color=(0.85, 0.1, 0.1))
+    return scene
+
+
+def write_animation(trees: Sequence[ModuleTree], results: Sequence[RunResult], html_path: Path, gif_path: Path | None) -> None:
+    """``balance.html`` (meshcat, self-contained) and ``balance.gif`` of ``animation_scene``."""
+    scene = animation_scene(trees, results)
+    scene.write_html(html_path, max_fps=ANIMATION_FPS)
+    if gif_path is not None:
+        scene.write_gif(gif_path, fps=GIF_FPS, size=GIF_SIZE)
+
+
 def table(results: Sequence[RunResult]) -> str:
     """The summary table as text."""
     lines = [
@@ -366,7 +427,8 @@ def table(results: Sequence[RunResult]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``legkit balance``: run the experiment, write ``balance.csv`` and ``balance.png`` to ``--out``, print the table."""
+    """``legkit balance``: run the experiment, write ``balance.csv``, ``balance.png`` and (unless ``--no-animation``)
+    ``balance.html`` and ``balance.gif`` to ``--out``, print the table."""
     parser = argparse.ArgumentParser(prog="legkit balance", description=__doc__.split("\n\n")[0])
     parser.add_argument("--trees", type=int, default=4, help="number of random trees (default 4)")
     parser.add_argument("--modules", type=int, default=20, help="modules per tree besides the root (default 20)")
@@ -377,6 +439,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--friction", type=float, default=DEFAULT_FRICTION, help=f"ground friction coefficient (default {DEFAULT_FRICTION})")
     parser.add_argument("--out", type=Path, default=Path("balance-out"), help="output folder (default ./balance-out)")
     parser.add_argument("--plant", choices=PLANTS, default="tree", help="simulator: legkit's tree engine (default), Rapier, or free (no contacts)")
+    parser.add_argument("--no-animation", action="store_true", help="do not write balance.html and balance.gif")
     args = parser.parse_args(argv)
     if args.trees < 1:
         parser.error("--trees: must be >= 1")
@@ -393,8 +456,12 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     write_csv(results, args.out / "balance.csv")
     plot(results, args.out / "balance.png")
+    written = [args.out / "balance.csv", args.out / "balance.png"]
+    if not args.no_animation:
+        write_animation(trees, results, args.out / "balance.html", args.out / "balance.gif")
+        written += [args.out / "balance.html", args.out / "balance.gif"]
     print(table(results))
-    print(f"wrote {args.out / 'balance.csv'} and {args.out / 'balance.png'}")
+    print("wrote " + ", ".join(str(p) for p in written))
     return 0
 
 
@@ -404,6 +471,9 @@ INITIAL_LEAN = 0.5
 POSE_KP = 20.0
 POSE_KD = 1.0
 POSE_DURATION = 0.5
+ANIMATION_FPS = 20.0  # keyframes per second of motion in balance.html
+GIF_FPS = 10.0
+GIF_SIZE = (960, 540)
 
 if __name__ == "__main__":
     sys.exit(main())
