@@ -43,3 +43,26 @@ def test_bad_overrides_name_the_argument():
         model.colliders({3: ("sphere", 0.1)})
     with pytest.raises(ValueError, match="shapes"):
         model.colliders({0: ("cone", 0.1)})
+
+
+def test_convex_shapes_keep_their_hull_and_urdf_meshes_resolve_through_package_dirs(tmp_path):
+    corners = np.array([[x, y, z] for x in (-0.1, 0.1) for y in (-0.05, 0.05) for z in (0.0, 0.2)])
+    points = np.vstack([corners, [[0.0, 0.0, 0.1]]])  # an interior point is no hull vertex
+    model = lk.Model()
+    model.add_revolute(0, [0, 0, 1], body=lk.MassProperties.box(1.0, [0.2, 0.1, 0.2]))
+    [(_, kind, vertices, _)] = model.colliders({1: ("convex", points)})
+    assert kind == "convex"
+    assert sorted(map(tuple, np.round(vertices, 12))) == sorted(map(tuple, corners))
+    with pytest.raises(ValueError, match="no volume"):
+        model.colliders({1: ("convex", corners[:4])})
+    # A mesh named by package, in a folder only package_dirs knows.
+    (tmp_path / "parts" / "meshes").mkdir(parents=True)
+    (tmp_path / "parts" / "meshes" / "block.obj").write_text("".join(f"v {x} {y} {z}\n" for x, y, z in points))
+    urdf = URDF.replace('<sphere radius="0.1"/>', '<mesh filename="package://parts/meshes/block.obj" scale="2 2 2"/>')
+    with pytest.warns(lk.UrdfWarning, match="block.obj"):
+        unresolved = lk.Model.from_urdf(urdf)
+    assert [c[1] for c in unresolved.colliders()] == ["cylinder", "box"]  # not found: the link's inertia box
+    resolved = lk.Model.from_urdf(urdf, package_dirs=[tmp_path])
+    kind, vertices = resolved.colliders()[0][1:3]
+    assert kind == "convex"
+    assert sorted(map(tuple, np.round(vertices, 12))) == sorted(map(tuple, np.round(2 * corners, 12)))

@@ -150,33 +150,60 @@ def test_zero_effort_and_velocity_read_as_no_bound_with_a_warning():
         lk.Model.from_urdf(pendulum, strict=True)
 
 
+def stands_on_both_engines(model: lk.Model, q: np.ndarray, kp: float, kd: float, feet: set[str], legs: tuple[str, ...], rtol: float) -> dict[str, float]:
+    """Servos holding ``q`` (the base free), 2 s on a plane: the robot touches the ground with ``feet`` (on
+    Rapier, maybe also bodies ending in ``legs``), its contact lift is its weight within ``rtol``, its trunk is
+    level; returns the base height per engine."""
+    gains = np.r_[np.zeros(6), np.ones(model.nv - 6)]
+    heights = {}
+    for backend in ("tree", "rapier"):
+        sim = lk.Simulation(model, ground=lk.Ground.plane(0.8), backend=backend)
+        sim.reset(q, None)
+        sim.set_servo(kp=kp * gains, kd=kd * gains, target_q=q)
+        sim.step(n=2000)
+        contacts = sim.contacts()
+        touching = {model.names[b] for b in contacts["body"]}
+        assert feet <= touching and all(name.endswith(legs) for name in touching), (backend, touching)
+        if backend == "tree":
+            assert touching == feet
+        lift = contacts["normal"][:, 2] * contacts["normal_force"] + contacts["tangential_force"][:, 2]
+        weight = model.total_mass * 9.81
+        assert abs(lift.sum() - weight) <= rtol * weight, (backend, lift.sum(), weight)
+        base = lk.forward_kinematics(model, sim.q)[0]
+        assert base[2, 2] > 0.999, f"{backend}: the trunk tilts ({base[:3, 2]})"
+        heights[backend] = sim.q[2]
+    return heights
+
+
 def test_go1_stands_on_its_own_collision_geometry():
     """Go1's URDF gives each foot a 2 cm sphere (and boxes and cylinders elsewhere): on servos holding a
     crouch it stands on the four foot spheres, carrying its weight, level, on both engines."""
     model = legkit_model(ROBOTS / "go1_description/urdf/go1.urdf", floating=True)
-    feet = {"FL_foot", "FR_foot", "RL_foot", "RR_foot"}
     q = model.neutral()
     for body in range(1, model.nbodies):
         for suffix, angle in (("_thigh", 0.9), ("_calf", -1.8)):
             if model.names[body].endswith(suffix):
                 q[model.idx_q[body]] = angle
     q[2] = 0.3
-    gains = np.r_[np.zeros(6), np.ones(model.nv - 6)]
-    heights = {}
-    for backend in ("tree", "rapier"):
-        sim = lk.Simulation(model, ground=lk.Ground.plane(0.8), backend=backend)
-        sim.reset(q, None)
-        sim.set_servo(kp=60.0 * gains, kd=2.0 * gains, target_q=q)
-        sim.step(n=2000)
-        contacts = sim.contacts()
-        touching = {model.names[b] for b in contacts["body"]}
-        assert feet <= touching and all(name.endswith(("_foot", "_calf")) for name in touching), (backend, touching)
-        lift = contacts["normal"][:, 2] * contacts["normal_force"] + contacts["tangential_force"][:, 2]
-        weight = model.total_mass * 9.81
-        assert abs(lift.sum() - weight) <= 0.01 * weight, (backend, lift.sum(), weight)
-        base = lk.forward_kinematics(model, sim.q)[0]
-        assert base[2, 2] > 0.999, f"{backend}: the trunk tilts ({base[:3, 2]})"
-        heights[backend] = sim.q[2]
-        if backend == "tree":
-            assert touching == feet
+    heights = stands_on_both_engines(model, q, 60.0, 2.0, {"FL_foot", "FR_foot", "RL_foot", "RR_foot"}, ("_foot", "_calf"), 0.01)
     assert abs(heights["tree"] - heights["rapier"]) <= 3e-3, heights
+
+
+def test_solo12_stands_on_the_convex_hulls_of_its_collision_meshes():
+    """Solo-12's URDF collides through STL meshes (package:// names, found beside the URDF): legkit wraps each
+    in its convex hull, and on servos holding a crouch the robot stands on its four feet, level, carrying
+    its weight, on both engines."""
+    model = legkit_model(ROBOTS / "solo_description/robots/solo12.urdf", floating=True)
+    colliders = model.colliders()
+    assert len(colliders) == model.nbodies and all(kind == "convex" for _, kind, _, _ in colliders)
+    q = model.neutral()
+    for body in range(1, model.nbodies):
+        name = model.names[body]
+        front = name.startswith("F")
+        if name.endswith("UPPER_LEG"):
+            q[model.idx_q[body]] = 0.8 if front else -0.8
+        if name.endswith("LOWER_LEG"):
+            q[model.idx_q[body]] = -1.6 if front else 1.6
+    q[2] = 0.3
+    heights = stands_on_both_engines(model, q, 5.0, 0.1, {"FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"}, ("_FOOT", "_LOWER_LEG"), 1e-3)
+    assert abs(heights["tree"] - heights["rapier"]) <= 2e-3, heights

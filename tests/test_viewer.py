@@ -200,8 +200,7 @@ def test_collision_shapes_are_the_models_colliders():
 
 
 def test_visual_shapes_of_solo12_resolve_package_paths(tmp_path):
-    with pytest.warns(lk.UrdfWarning):
-        model = lk.Model.from_urdf(SOLO)
+    model = lk.Model.from_urdf(SOLO)
     shapes = viewer.visual_shapes(SOLO, model)
     assert len(shapes) == SOLO.read_text().count("<visual>")
     assert all(s.kind == "mesh" and s.mesh is not None and s.mesh.is_file() and s.mesh.suffix == ".stl" for s in shapes)
@@ -342,8 +341,7 @@ def test_chromium_shows_the_robot_where_it_projects(tmp_path):
     """Solo-12 (its collision shapes) exported to HTML and rendered by headless Chromium (WebGL on
     SwiftShader), against the same page with the robot hidden: the pixels differ where the software
     renderer, with the same camera, projects the robot, and hardly anywhere else."""
-    with pytest.warns(lk.UrdfWarning):
-        model = lk.Model.from_urdf(SOLO)
+    model = lk.Model.from_urdf(SOLO)
     q = model.neutral()
     q[2] = 0.3
     scene = Scene(view=(30.0, 20.0))

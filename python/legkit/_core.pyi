@@ -99,11 +99,15 @@ class Model:
     def body(self, body: _Body) -> MassProperties: ...
     def placement(self, body: _Body) -> np.ndarray: ...
     def neutral(self) -> np.ndarray: ...
-    def colliders(self, shapes: dict[int | str, _ShapeSpec] | None = None) -> list[tuple[int, Literal["box", "sphere", "capsule", "cylinder"], tuple[float, ...], np.ndarray]]:
+    def colliders(self, shapes: dict[int | str, _ShapeSpec] | None = None) -> list[tuple[int, Literal["box", "sphere", "capsule", "cylinder", "convex"], tuple[float, ...] | np.ndarray, np.ndarray]]:
         """What ``Simulation(model, shapes=shapes)`` collides with: (body, kind, size, placement (4, 4) in the body
-        frame); size: box full edge lengths, sphere (radius,), capsule/cylinder (half_height, radius) along z."""
+        frame); size: box full edge lengths, sphere (radius,), capsule/cylinder (half_height, radius) along z,
+        convex the hull's vertices (n, 3)."""
     @staticmethod
-    def from_urdf(path_or_xml: str | os.PathLike[str], floating_base: bool = False, strict: bool = False) -> Model:
+    def from_urdf(
+        path_or_xml: str | os.PathLike[str], floating_base: bool = False, strict: bool = False,
+        package_dirs: Sequence[str | os.PathLike[str]] | None = None,
+    ) -> Model:
         """A model from a URDF path or XML string; bodies are named after links, the root link is the base.
         What exporters write and Pinocchio loads (non-physical inertias, effort="0") loads as written with
         a UrdfWarning naming the element, or raises ValueError if strict."""

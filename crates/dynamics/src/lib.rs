@@ -7,6 +7,7 @@ pub mod algorithms;
 pub mod error;
 pub mod geometry;
 pub mod mass;
+pub mod mesh;
 pub mod model;
 pub mod sim;
 pub mod spatial;

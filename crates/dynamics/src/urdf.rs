@@ -25,7 +25,11 @@
 //! - `<collision>` with `<origin>` and a `<geometry>` of `<box size>`, `<sphere radius>`, `<cylinder radius
 //!   length>` or `<capsule radius length>` (along z) becomes one of the model's collision shapes
 //!   ([`Model::collision_shapes`], several per body allowed), which a simulation uses instead of default
-//!   boxes. `<mesh>` is not read yet: such a link collides as the box of its inertia, with a warning.
+//!   boxes. `<mesh filename scale>` (STL, OBJ or COLLADA; [`crate::mesh`]) becomes the convex hull of its
+//!   vertices, scaled; `package://` names resolve through [`UrdfOptions::package_dirs`], then
+//!   `ROS_PACKAGE_PATH`, then the URDF file's folder's ancestors, and relative names against that folder
+//!   ([`crate::mesh::resolve_mesh`]). A mesh that cannot be found or read leaves its link colliding as the
+//!   box of its inertia, with a warning (`strict` does not refuse it).
 //!
 //! Everything else (`<visual>`, `<dynamics>`, `<safety_controller>`, `<mimic>`, `<material>`,
 //! `<transmission>`, `<gazebo>`, ...) is ignored; joint names are checked for uniqueness but not kept.
@@ -47,20 +51,24 @@
 //! are errors instead.
 
 use std::collections::{HashMap, VecDeque};
+use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Vector3};
 use roxmltree::{Document, Node};
 
-use crate::sim::{Shape, ShapeKind};
+use crate::mesh::{mesh_vertices, resolve_mesh};
+use crate::sim::{Convex, Shape, ShapeKind};
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
 /// How a URDF becomes a model.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct UrdfOptions {
     /// The base (root link) is free-floating rather than fixed to the world.
     pub floating_base: bool,
     /// What would be a warning (non-physical inertias, zero effort or velocity bounds) is an error.
     pub strict: bool,
+    /// Folders holding ROS packages, searched first for `package://` mesh names.
+    pub package_dirs: Vec<PathBuf>,
 }
 
 /// A URDF read into a model, and what was accepted with a warning (each naming its element).
@@ -72,18 +80,25 @@ pub struct Urdf {
 
 /// Loads a URDF from a file, or parses it directly if `path_or_xml` (trimmed) starts with `<`.
 /// A file that cannot be read is an error on argument `"path"`; see [`parse_urdf`] for the rest.
-pub fn load_urdf(path_or_xml: &str, options: UrdfOptions) -> Result<Urdf> {
+/// Mesh names in a file resolve against its folder.
+pub fn load_urdf(path_or_xml: &str, options: &UrdfOptions) -> Result<Urdf> {
     if path_or_xml.trim_start().starts_with('<') {
         return parse_urdf(path_or_xml, options);
     }
     let xml = std::fs::read_to_string(path_or_xml)
         .map_err(|e| Error::invalid("path", format!("cannot read URDF file {path_or_xml:?}: {e}")))?;
-    parse_urdf(&xml, options)
+    let folder = Path::new(path_or_xml).parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
+    parse(&xml, options, folder)
 }
 
 /// Parses URDF text into a [`Model`]. See the [module documentation](self) for what is read, what is
-/// accepted with a warning, and how bodies are named and ordered.
-pub fn parse_urdf(xml: &str, options: UrdfOptions) -> Result<Urdf> {
+/// accepted with a warning, and how bodies are named and ordered. Relative mesh names resolve against
+/// the working folder.
+pub fn parse_urdf(xml: &str, options: &UrdfOptions) -> Result<Urdf> {
+    parse(xml, options, None)
+}
+
+fn parse(xml: &str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf> {
     let mut warnings = Vec::new();
     // Warnings that `strict` does not turn into errors: what legkit cannot read yet.
     let mut notes = Vec::new();
@@ -124,7 +139,7 @@ pub fn parse_urdf(xml: &str, options: UrdfOptions) -> Result<Urdf> {
             return Err(invalid(format!("link {name:?} is defined twice ({})", line(node))));
         }
         let body = inertial(node, name, &mut accept)?;
-        let shapes = collisions(node, name, &body, &mut notes)?;
+        let shapes = collisions(node, name, &body, (folder, &options.package_dirs), &mut notes)?;
         links.push(Link { name, body, shapes });
     }
     if links.is_empty() {
@@ -334,12 +349,12 @@ fn inertial(link: Node, name: &str, accept: &mut dyn FnMut(String) -> Result<()>
         .map_err(|e| invalid(format!("{owner}: <inertial>: {e}")))
 }
 
-/// The `<collision>` shapes of a `<link>` in the link frame. For meshes, which legkit does not read yet,
-/// the link collides as the box of its inertia (`Shape::default_box`), and `notes` says so.
-fn collisions(link: Node, name: &str, body: &MassProperties, notes: &mut Vec<String>) -> Result<Vec<Shape>> {
+/// The `<collision>` shapes of a `<link>` in the link frame. A mesh that cannot be found or read leaves the
+/// link colliding as the box of its inertia (`Shape::default_box`), and `notes` says so.
+fn collisions(link: Node, name: &str, body: &MassProperties, (folder, package_dirs): (Option<&Path>, &[PathBuf]), notes: &mut Vec<String>) -> Result<Vec<Shape>> {
     let owner = format!("link {name:?}");
     let mut shapes = Vec::new();
-    let mut meshes = Vec::new();
+    let mut unread = Vec::new();
     for collision in elements(link, "collision") {
         let placement = origin(collision, &owner)?;
         let Some(geometry) = element(collision, "geometry").and_then(|g| g.children().find(|c| c.is_element())) else {
@@ -352,15 +367,25 @@ fn collisions(link: Node, name: &str, body: &MassProperties, notes: &mut Vec<Str
             "cylinder" => ShapeKind::Cylinder { half_height: half_length(geometry)?, radius: scalar(geometry, "radius", &owner)? },
             "capsule" => ShapeKind::Capsule { half_height: half_length(geometry)?, radius: scalar(geometry, "radius", &owner)? },
             "mesh" => {
-                meshes.push(geometry.attribute("filename").unwrap_or("?").to_owned());
-                continue;
+                let filename = geometry.attribute("filename").unwrap_or("");
+                let scale = vector3(geometry, "scale", Vector3::repeat(1.0), &owner)?;
+                let hull = resolve_mesh(filename, folder, package_dirs)
+                    .and_then(|path| mesh_vertices(&path))
+                    .and_then(|vertices| Convex::hull(&vertices.iter().map(|v| v.component_mul(&scale)).collect::<Vec<_>>()));
+                match hull {
+                    Ok(convex) => ShapeKind::Convex(convex),
+                    Err(e) => {
+                        unread.push(format!("{filename:?} ({e})"));
+                        continue;
+                    }
+                }
             }
             other => return Err(invalid(format!("{owner}: <collision> has an unknown geometry <{other}> ({})", line(geometry)))),
         };
         shapes.push(Shape::new(kind, Some(placement)).map_err(|e| invalid(format!("{owner}: <collision> <{}>: {e}", geometry.tag_name().name())))?);
     }
-    if !meshes.is_empty() {
-        notes.push(format!("{owner}: <collision> meshes are not read yet ({}); it collides as the box of its inertia", meshes.join(", ")));
+    if !unread.is_empty() {
+        notes.push(format!("{owner}: <collision> meshes not read: {}; it collides as the box of its inertia", unread.join(", ")));
         shapes.extend(Shape::default_box(body));
     }
     Ok(shapes)
@@ -474,8 +499,8 @@ mod tests {
     use nalgebra::{Rotation3, Unit};
     use std::f64::consts::FRAC_PI_2;
 
-    const FIXED: UrdfOptions = UrdfOptions { floating_base: false, strict: false };
-    const FLOATING: UrdfOptions = UrdfOptions { floating_base: true, strict: false };
+    const FIXED: &UrdfOptions = &UrdfOptions { floating_base: false, strict: false, package_dirs: Vec::new() };
+    const FLOATING: &UrdfOptions = &UrdfOptions { floating_base: true, strict: false, package_dirs: Vec::new() };
 
     const TOL: f64 = 1e-12;
 
@@ -678,7 +703,7 @@ mod tests {
         assert!(xml.find("name=\"FL_foot_joint\"").unwrap() < xml.find("name=\"FL_hip_joint\"").unwrap());
 
         for floating in [false, true] {
-            let model = parse_urdf(&xml, UrdfOptions { floating_base: floating, strict: false }).unwrap().model;
+            let model = parse_urdf(&xml, &UrdfOptions { floating_base: floating, ..Default::default() }).unwrap().model;
             assert_eq!(model.nbodies(), 18);
             assert_eq!(model.name(0), "trunk");
             let moving = 12;
@@ -764,7 +789,7 @@ mod tests {
 
     /// Parses `xml`, expecting an error on argument "urdf" whose message contains every one of `needles`.
     fn assert_fails(xml: &str, needles: &[&str]) {
-        let error = match parse_urdf(xml, UrdfOptions { floating_base: false, strict: true }) {
+        let error = match parse_urdf(xml, &UrdfOptions { strict: true, ..Default::default() }) {
             Ok(urdf) => panic!("expected an error containing {needles:?}, got a model with {} bodies", urdf.model.nbodies()),
             Err(e) => e,
         };
@@ -996,7 +1021,7 @@ mod tests {
         </robot>"#;
         let urdf = parse_urdf(xml, FIXED).unwrap();
         let shapes = urdf.model.collision_shapes().unwrap();
-        let kinds: Vec<(usize, ShapeKind)> = shapes.iter().map(|(b, s)| (*b, s.kind)).collect();
+        let kinds: Vec<(usize, ShapeKind)> = shapes.iter().map(|(b, s)| (*b, s.kind.clone())).collect();
         assert_eq!(
             kinds,
             vec![
@@ -1010,13 +1035,52 @@ mod tests {
         let (placement, expected) = (shapes[1].1.placement.unwrap(), expected_placement([0.0, 0.0, -0.5], [FRAC_PI_2, 0.0, 0.0]));
         assert!(close(&placement.rotation, &expected.rotation, TOL) && close3(&placement.translation, &expected.translation, TOL));
         assert_eq!(urdf.warnings.len(), 1);
-        assert!(urdf.warnings[0].contains(r#"link "c": <collision> meshes are not read yet (package://r/c.stl)"#));
+        assert!(urdf.warnings[0].contains(r#"link "c": <collision> meshes not read: "package://r/c.stl" ("#), "{}", urdf.warnings[0]);
         // A robot without any <collision> has no collision shapes (simulations give it default boxes).
         assert!(parse_urdf(&robot(""), FIXED).unwrap().model.collision_shapes().is_none());
         let bad = r#"<robot name="r"><link name="a"><collision><geometry><sphere radius="-1"/></geometry></collision></link></robot>"#;
         assert_fails(bad, &[r#"link "a""#, "<sphere>", "must be > 0"]);
         let unknown = r#"<robot name="r"><link name="a"><collision><geometry><cone radius="1"/></geometry></collision></link></robot>"#;
         assert_fails(unknown, &[r#"link "a""#, "unknown geometry <cone>"]);
+    }
+
+    #[test]
+    fn collision_meshes_become_convex_hulls_found_by_package_and_relative_names() {
+        let root = std::env::temp_dir().join(format!("legkit-urdf-meshes-{}", std::process::id()));
+        std::fs::create_dir_all(root.join("bot/meshes")).unwrap();
+        std::fs::create_dir_all(root.join("bot/urdf")).unwrap();
+        // A unit cube's corners plus its centre (not a hull vertex).
+        let corners: Vec<[f64; 3]> = (0..8).map(|k| [(k & 1) as f64, (k >> 1 & 1) as f64, (k >> 2 & 1) as f64]).collect();
+        let obj: String = corners.iter().chain([[0.5, 0.5, 0.5]].iter()).map(|c| format!("v {} {} {}\n", c[0], c[1], c[2])).collect();
+        std::fs::write(root.join("bot/meshes/cube.obj"), obj).unwrap();
+        let link = |name: &str, filename: &str| format!(r#"<link name="{name}"><collision><geometry><mesh filename="{filename}" scale="0.1 0.2 0.3"/></geometry></collision></link>"#);
+        let xml = format!(
+            r#"<robot name="r">{}{}{}<joint name="j" type="fixed"><parent link="a"/><child link="b"/></joint><joint name="k" type="fixed"><parent link="a"/><child link="c"/></joint></robot>"#,
+            link("a", "package://bot/meshes/cube.obj"),
+            link("b", "../meshes/cube.obj"),
+            link("c", "package://bot/meshes/missing.stl"),
+        );
+        let path = root.join("bot/urdf/r.urdf");
+        std::fs::write(&path, &xml).unwrap();
+        let urdf = load_urdf(path.to_str().unwrap(), FIXED).unwrap();
+        let shapes = urdf.model.collision_shapes().unwrap();
+        for (body, shape) in &shapes[..2] {
+            let ShapeKind::Convex(hull) = &shape.kind else { panic!("body {body}: {:?}", shape.kind) };
+            assert_eq!(hull.vertices().len(), 8);
+            for c in &corners {
+                let scaled = Vector3::new(0.1 * c[0], 0.2 * c[1], 0.3 * c[2]);
+                assert!(hull.vertices().iter().any(|v| (v - scaled).norm() < 1e-12), "{scaled:?} missing on body {body}");
+            }
+        }
+        // The missing mesh: the inertia box (here none: a massless link) and a warning naming it.
+        assert_eq!(shapes.len(), 2);
+        assert_eq!(urdf.warnings.len(), 1);
+        assert!(urdf.warnings[0].contains(r#"link "c""#) && urdf.warnings[0].contains("missing.stl") && urdf.warnings[0].contains("package_dirs"), "{}", urdf.warnings[0]);
+        // Parsed from a string, package names still resolve through package_dirs.
+        let options = UrdfOptions { package_dirs: vec![root.clone()], ..Default::default() };
+        let from_text = parse_urdf(&xml, &options).unwrap();
+        assert!(matches!(from_text.model.collision_shapes().unwrap()[0].1.kind, ShapeKind::Convex(_)));
+        std::fs::remove_dir_all(&root).unwrap();
     }
 
     #[test]

@@ -156,18 +156,20 @@ impl PyModel {
     /// A model from a URDF file path or an XML string: links become bodies named after them (the root link
     /// is the base), revolute/continuous/prismatic/fixed joints their joints, `<limit>`s their limits.
     /// What exporters write and Pinocchio loads (non-physical inertias, `effort="0"`) loads as written
-    /// with a `UrdfWarning` naming the element, or is a ValueError if `strict`.
+    /// with a `UrdfWarning` naming the element, or is a ValueError if `strict`. `<collision>` meshes
+    /// become convex hulls; `package://` names resolve in `package_dirs`, then `ROS_PACKAGE_PATH`, then
+    /// the file's folder's ancestors (a mesh not found: a warning, and the link's inertia box).
     #[staticmethod]
-    #[pyo3(signature = (path_or_xml, floating_base = false, strict = false))]
-    fn from_urdf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: bool, strict: bool) -> PyResult<Self> {
+    #[pyo3(signature = (path_or_xml, floating_base = false, strict = false, package_dirs = None))]
+    fn from_urdf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: bool, strict: bool, package_dirs: Option<Vec<std::path::PathBuf>>) -> PyResult<Self> {
         let source: String = match path_or_xml.cast::<PyString>() {
             Ok(s) => s.to_str()?.to_owned(),
             Err(_) => py.import("os")?.call_method1("fspath", (path_or_xml,))?.extract().map_err(|_| {
                 PyTypeError::new_err("path_or_xml: expected a path or an XML string")
             })?,
         };
-        let options = UrdfOptions { floating_base, strict };
-        let urdf = py.detach(|| load_urdf(&source, options)).map_err(kernel_error)?;
+        let options = UrdfOptions { floating_base, strict, package_dirs: package_dirs.unwrap_or_default() };
+        let urdf = py.detach(|| load_urdf(&source, &options)).map_err(kernel_error)?;
         let category = py.get_type::<UrdfWarning>();
         for warning in &urdf.warnings {
             PyErr::warn(py, &category, &CString::new(format!("urdf: {warning}"))?, 1)?;

@@ -1,7 +1,7 @@
 //! `legkit.Simulation` and `legkit.Ground`: conversions around `legkit_dynamics::sim`.
 
 use legkit_dynamics::model::check_vector;
-use legkit_dynamics::sim::{dof_coordinates, Backend, Ground, Options, Servo, Shape, ShapeKind, Simulation, DEFAULT_SOLVER_ITERATIONS};
+use legkit_dynamics::sim::{dof_coordinates, Backend, Convex, Ground, Options, Servo, Shape, ShapeKind, Simulation, DEFAULT_SOLVER_ITERATIONS};
 use legkit_dynamics::Transform;
 use nalgebra::{DMatrix, Vector3};
 use numpy::{PyArray1, PyArray2, PyArray3};
@@ -92,9 +92,10 @@ impl PyGround {
 /// `Simulation(model, dt=1e-3, ground=None, shapes=None, self_collision=False, joint_damping=0.0,
 /// joint_armature=0.0, substeps=1, backend="tree", solver_iterations=20)`: `ground` a `Ground` or None;
 /// `shapes` maps bodies (index or name) to ("box", (sx, sy, sz)) full edge lengths, ("sphere", r),
-/// ("capsule", half_height, r) or ("cylinder", half_height, r) along z, each optionally followed by a 4x4
-/// placement in the body frame (default: at the body's COM, body axes), or to None for no collider;
-/// unlisted bodies get the uniform box with their mass and principal moments (massless bodies none).
+/// ("capsule", half_height, r), ("cylinder", half_height, r) along z or ("convex", points (n, 3)) (their
+/// convex hull), each optionally followed by a 4x4 placement in the body frame (default: at the body's
+/// COM, body axes), or to None for no collider; unlisted bodies get the model's URDF collision shapes,
+/// else the uniform box with their mass and principal moments (massless bodies none).
 /// `joint_damping` (N m s/rad) acts on every joint, and `joint_armature` (kg m², a geared motor's
 /// reflected rotor inertia) adds to each joint. `backend` is "tree" (legkit's reduced-coordinate engine:
 /// O(n) dynamics, parry contacts, a warm-started Gauss–Seidel contact solver with at most
@@ -119,9 +120,9 @@ fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
         .map_err(|_| PyTypeError::new_err("shapes: each value must be a tuple like (\"box\", size) or None"))?;
     let kind: String = tuple.get_item(0).and_then(|k| k.extract()).map_err(|_| PyTypeError::new_err("shapes: the first element must be a shape name"))?;
     let count = match kind.as_str() {
-        "box" | "sphere" => 1,
+        "box" | "sphere" | "convex" => 1,
         "capsule" | "cylinder" => 2,
-        other => return Err(shape_error(format!("unknown shape {other:?} (expected box, sphere, capsule or cylinder)"))),
+        other => return Err(shape_error(format!("unknown shape {other:?} (expected box, sphere, capsule, cylinder or convex)"))),
     };
     if tuple.len() != 1 + count && tuple.len() != 2 + count {
         return Err(shape_error(format!("{kind} takes {count} size parameter(s) and an optional placement, got {} values", tuple.len() - 1)));
@@ -134,6 +135,15 @@ fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
             ShapeKind::Box(size)
         }
         "sphere" => ShapeKind::Sphere(number(1)?),
+        "convex" => {
+            let points: numpy::PyReadonlyArray2<'_, f64> = tuple.get_item(1)?.extract().map_err(|_| PyTypeError::new_err("shapes: convex takes an (n, 3) array of points"))?;
+            let view = points.as_array();
+            if view.ncols() != 3 {
+                return Err(shape_error(format!("convex takes an (n, 3) array of points, got {:?}", view.shape())));
+            }
+            let points: Vec<Vector3<f64>> = view.rows().into_iter().map(|r| Vector3::new(r[0], r[1], r[2])).collect();
+            ShapeKind::Convex(Convex::hull(&points).map_err(kernel_error)?)
+        }
         "capsule" => ShapeKind::Capsule { half_height: number(1)?, radius: number(2)? },
         _ => ShapeKind::Cylinder { half_height: number(1)?, radius: number(2)? },
     };
@@ -164,14 +174,18 @@ pub fn colliders<'py>(py: Python<'py>, model: &PyModel, shapes: Option<&Bound<'p
     options.shapes = shape_overrides(model, shapes)?;
     options.check(&model.model).map_err(kernel_error)?;
     let items = options.colliders(&model.model).map(|(body, shape, placement)| {
-        let (kind, size): (&str, Vec<f64>) = match shape.kind {
-            ShapeKind::Box(size) => ("box", size.iter().copied().collect()),
-            ShapeKind::Sphere(radius) => ("sphere", vec![radius]),
-            ShapeKind::Capsule { half_height, radius } => ("capsule", vec![half_height, radius]),
-            ShapeKind::Cylinder { half_height, radius } => ("cylinder", vec![half_height, radius]),
-        };
         let matrix = to_numpy(py, [4, 4], homogeneous(&placement).to_vec());
-        (body, kind, PyTuple::new(py, size)?, matrix).into_pyobject(py)
+        let (kind, size): (&str, Bound<'py, PyAny>) = match shape.kind {
+            ShapeKind::Box(size) => ("box", PyTuple::new(py, size.iter())?.into_any()),
+            ShapeKind::Sphere(radius) => ("sphere", PyTuple::new(py, [radius])?.into_any()),
+            ShapeKind::Capsule { half_height, radius } => ("capsule", PyTuple::new(py, [half_height, radius])?.into_any()),
+            ShapeKind::Cylinder { half_height, radius } => ("cylinder", PyTuple::new(py, [half_height, radius])?.into_any()),
+            ShapeKind::Convex(hull) => {
+                let vertices: Vec<f64> = hull.vertices().iter().flat_map(|v| v.iter().copied()).collect();
+                ("convex", to_numpy(py, [hull.vertices().len(), 3], vertices).into_any())
+            }
+        };
+        (body, kind, size, matrix).into_pyobject(py)
     });
     PyList::new(py, items.collect::<PyResult<Vec<_>>>()?)
 }

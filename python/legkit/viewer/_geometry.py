@@ -25,8 +25,9 @@ class Shape:
     """One piece of geometry fixed to a body.
 
     ``kind`` is "box" (``size`` = full edge lengths sx, sy, sz), "sphere" (radius,), "capsule" or "cylinder"
-    (half_height, radius) along the shape's z axis, or "mesh" (``mesh`` a file meshcat reads: STL, DAE or
-    OBJ; ``size`` = the scale along x, y, z). ``placement`` (4, 4) maps shape to body coordinates.
+    (half_height, radius) along the shape's z axis, "convex" (``vertices`` (n, 3), the convex hull's; ``size``
+    empty), or "mesh" (``mesh`` a file meshcat reads: STL, DAE or OBJ; ``size`` = the scale along x, y, z).
+    ``placement`` (4, 4) maps shape to body coordinates.
     ``color`` is an RGBA tuple in [0, 1], or None for the robot's colour."""
 
     body: int
@@ -35,11 +36,12 @@ class Shape:
     placement: np.ndarray = field(default_factory=lambda: np.eye(4))
     mesh: Path | None = None
     color: tuple[float, float, float, float] | None = None
+    vertices: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        if self.kind not in PRIMITIVES + ("mesh",):
-            raise ValueError(f"kind: must be one of {PRIMITIVES + ('mesh',)}, got {self.kind!r}")
-        expected = {"box": 3, "sphere": 1, "capsule": 2, "cylinder": 2, "mesh": 3}[self.kind]
+        if self.kind not in PRIMITIVES + ("convex", "mesh"):
+            raise ValueError(f"kind: must be one of {PRIMITIVES + ('convex', 'mesh')}, got {self.kind!r}")
+        expected = {"box": 3, "sphere": 1, "capsule": 2, "cylinder": 2, "convex": 0, "mesh": 3}[self.kind]
         size = tuple(float(s) for s in float_array(self.size, "size").reshape(-1))
         if len(size) != expected or not all(s > 0 for s in size):
             raise ValueError(f"size: a {self.kind} takes {expected} positive number(s), got {self.size!r}")
@@ -48,6 +50,11 @@ class Shape:
             raise ValueError(f"placement: must be a 4x4 matrix, got shape {placement.shape}")
         if self.kind == "mesh" and self.mesh is None:
             raise ValueError("mesh: a mesh shape needs its file")
+        if self.kind == "convex":
+            vertices = float_array(self.vertices, "vertices")
+            if vertices.ndim != 2 or vertices.shape[1] != 3 or vertices.shape[0] < 4:
+                raise ValueError(f"vertices: a convex shape takes (n >= 4, 3) vertices, got shape {vertices.shape}")
+            object.__setattr__(self, "vertices", vertices.copy())
         if self.color is not None:
             color = float_array(self.color, "color").reshape(-1)
             if color.size != 4 or np.any(color < 0) or np.any(color > 1):
@@ -69,7 +76,23 @@ class Shape:
             return self.size[0] + self.size[1]
         if self.kind == "cylinder":
             return math.hypot(self.size[0], self.size[1])
+        if self.kind == "convex":
+            assert self.vertices is not None
+            return float(np.linalg.norm(self.vertices, axis=1).max())
         return 0.1 * max(self.size)
+
+    def hull_faces(self) -> np.ndarray:
+        """A convex shape's hull triangles (m, 3) as vertex indices, counter-clockwise seen from outside."""
+        from scipy.spatial import ConvexHull
+
+        assert self.vertices is not None
+        hull = ConvexHull(self.vertices)
+        faces = hull.simplices.copy()
+        # Qhull's facet normals point outward; orient each triangle's winding along its facet's normal.
+        a, b, c = (self.vertices[faces[:, k]] for k in range(3))
+        inward = np.einsum("ij,ij->i", np.cross(b - a, c - a), hull.equations[:, :3]) < 0
+        faces[inward] = faces[inward][:, ::-1]
+        return faces
 
 
 def check_model(model: Any) -> lk.Model:
@@ -85,8 +108,11 @@ def collision_shapes(model: lk.Model, shapes: dict[int | str, Any] | None = None
     check_model(model)
     if shapes is not None and not isinstance(shapes, dict):
         raise TypeError(f"shapes: must be a dict like lk.Simulation's or None, got {type(shapes).__name__}")
-    return [Shape(int(body), str(kind), tuple(size), np.asarray(placement, dtype=float))
-            for body, kind, size, placement in model.colliders(shapes)]
+    return [
+        Shape(int(body), "convex", (), np.asarray(placement, dtype=float), vertices=np.asarray(size)) if kind == "convex"
+        else Shape(int(body), str(kind), tuple(size), np.asarray(placement, dtype=float))
+        for body, kind, size, placement in model.colliders(shapes)
+    ]
 
 
 def shape_poses(model: lk.Model, q: npt.ArrayLike, shapes: Sequence[Shape]) -> np.ndarray:

@@ -87,6 +87,10 @@ def shape_polygons(shape: Shape) -> np.ndarray | None:
             _sphere_polygons(radius, half, (0.0, math.pi / 2), rings=3),
             _sphere_polygons(radius, -half, (-math.pi / 2, 0.0), rings=3),
         ])
+    if shape.kind == "convex":
+        assert shape.vertices is not None
+        triangles = shape.vertices[shape.hull_faces()]
+        return np.concatenate([triangles, triangles[:, 2:3]], axis=1)
     assert shape.mesh is not None
     if shape.mesh.suffix.lower() == ".stl":
         return _stl_polygons(shape.mesh, shape.size)

@@ -388,6 +388,8 @@ def _meshcat_pieces(shape: Shape) -> list[tuple[str, Any, np.ndarray]]:
             at[2, 3] = z
             ends.append((sub, mg.Sphere(radius), at))
         return [("/body", mg.Cylinder(2 * half, radius), turn), *ends]
+    if shape.kind == "convex":
+        return [("/hull", mg.TriangularMeshGeometry(shape.vertices, shape.hull_faces()), np.eye(4))]
     assert shape.mesh is not None
     suffix = shape.mesh.suffix.lower()
     reader = {".stl": mg.StlMeshGeometry, ".dae": mg.DaeMeshGeometry, ".obj": mg.ObjMeshGeometry}[suffix]

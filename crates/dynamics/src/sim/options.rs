@@ -4,7 +4,9 @@
 
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use rapier3d_f64::math::{Matrix, Pose, Rotation, Vector};
+use rapier3d_f64::parry::shape::ConvexPolyhedron;
 use rapier3d_f64::prelude::SharedShape;
+use std::sync::Arc;
 
 use crate::model::Model;
 use crate::spatial::Transform;
@@ -28,7 +30,7 @@ pub struct Shape {
     pub placement: Option<Transform>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum ShapeKind {
     /// Full edge lengths along the shape's x, y, z.
     Box(Vector3<f64>),
@@ -37,6 +39,61 @@ pub enum ShapeKind {
     Capsule { half_height: f64, radius: f64 },
     /// Along the shape's z axis.
     Cylinder { half_height: f64, radius: f64 },
+    /// A convex polyhedron (a mesh's convex hull).
+    Convex(Convex),
+}
+
+/// The convex hull of points in the shape frame (a collision mesh's vertices).
+#[derive(Clone)]
+pub struct Convex {
+    vertices: Arc<[Vector3<f64>]>,
+    shape: SharedShape,
+}
+
+impl Convex {
+    /// The hull of `points` (finite); an error if they span no volume.
+    pub fn hull(points: &[Vector3<f64>]) -> Result<Self> {
+        for p in points {
+            finite_vector("shapes", *p)?;
+        }
+        let flat = || Error::invalid("shapes", format!("the convex hull of {} points has no volume (they lie in a plane or are fewer than 4)", points.len()));
+        if !spans_volume(points) {
+            return Err(flat());
+        }
+        let parry: Vec<Vector> = points.iter().map(to_vector).collect();
+        let hull = ConvexPolyhedron::from_convex_hull(&parry).ok_or_else(flat)?;
+        let vertices = hull.points().iter().map(|p| from_vector(*p)).collect();
+        Ok(Convex { vertices, shape: SharedShape::new(hull) })
+    }
+
+    /// The hull's vertices.
+    pub fn vertices(&self) -> &[Vector3<f64>] {
+        &self.vertices
+    }
+}
+
+/// Some point lies off the plane through three others by more than 1e-9 of the points' extent.
+fn spans_volume(points: &[Vector3<f64>]) -> bool {
+    let Some(first) = points.first() else { return false };
+    let farthest = |score: &dyn Fn(&Vector3<f64>) -> f64| points.iter().map(|p| (score(p), *p)).fold((0.0, *first), |a, b| if b.0 > a.0 { b } else { a });
+    let (extent, second) = farthest(&|p| (p - first).norm());
+    let along = (second - first) / extent.max(f64::MIN_POSITIVE);
+    let (_, third) = farthest(&|p| (p - first).cross(&along).norm());
+    let normal = (second - first).cross(&(third - first));
+    let (height, _) = farthest(&|p| (p - first).dot(&normal).abs() / normal.norm().max(f64::MIN_POSITIVE));
+    extent > 0.0 && height > 1e-9 * extent
+}
+
+impl PartialEq for Convex {
+    fn eq(&self, other: &Self) -> bool {
+        self.vertices == other.vertices
+    }
+}
+
+impl std::fmt::Debug for Convex {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Convex({} vertices)", self.vertices.len())
+    }
 }
 
 fn positive(argument: &'static str, x: f64) -> Result<f64> {
@@ -64,6 +121,7 @@ impl Shape {
                     return Err(Error::invalid("shapes", format!("half_height must be >= 0, got {half_height}")));
                 }
             }
+            ShapeKind::Convex(_) => {}
         }
         if let Some(p) = &placement {
             rotation("shapes", &p.rotation)?;
@@ -98,13 +156,14 @@ impl Shape {
     pub(crate) fn shared_shape(&self) -> (SharedShape, Transform) {
         // Parry's cylinder runs along its y axis: turn it onto z (x → x, y → z, z → −y).
         let y_to_z = Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0);
-        match self.kind {
+        match &self.kind {
             ShapeKind::Box(size) => (SharedShape::cuboid(size.x / 2.0, size.y / 2.0, size.z / 2.0), Transform::identity()),
-            ShapeKind::Sphere(r) => (SharedShape::ball(r), Transform::identity()),
-            ShapeKind::Capsule { half_height, radius } => (SharedShape::capsule_z(half_height, radius), Transform::identity()),
+            ShapeKind::Sphere(r) => (SharedShape::ball(*r), Transform::identity()),
+            ShapeKind::Capsule { half_height, radius } => (SharedShape::capsule_z(*half_height, *radius), Transform::identity()),
             ShapeKind::Cylinder { half_height, radius } => {
-                (SharedShape::cylinder(half_height, radius), Transform::new(y_to_z, Vector3::zeros()))
+                (SharedShape::cylinder(*half_height, *radius), Transform::new(y_to_z, Vector3::zeros()))
             }
+            ShapeKind::Convex(convex) => (convex.shape.clone(), Transform::identity()),
         }
     }
 }

@@ -404,6 +404,29 @@ fn model_collision_shapes_replace_default_boxes(backend: Backend) {
     assert_eq!(bad.argument(), "shapes");
 }
 
+/// A box described by its mesh's convex hull (a collision mesh's vertices, an interior point among them)
+/// rests on the ground like the box it is: at its half height, its weight carried.
+fn convex_mesh_rests_like_its_box(backend: Backend) {
+    let size = Vector3::new(0.3, 0.2, 0.05);
+    let mut model = floating_box(2.0, size);
+    let mut vertices: Vec<Vector3<f64>> = (0..8).map(|k| Vector3::new((k & 1) as f64 - 0.5, (k >> 1 & 1) as f64 - 0.5, (k >> 2 & 1) as f64 - 0.5).component_mul(&size)).collect();
+    vertices.push(Vector3::new(0.01, 0.02, 0.0));
+    let hull = Convex::hull(&vertices).unwrap();
+    assert_eq!(hull.vertices().len(), 8);
+    model.set_collision_shapes(vec![(0, Shape::new(ShapeKind::Convex(hull), Some(Transform::identity())).unwrap())]).unwrap();
+    let mut options = opts(backend, 1e-3);
+    options.ground = Some(Ground::plane(0.8).unwrap());
+    let mut sim = Simulation::new(&model, options).unwrap();
+    sim.set_state(Some(&[0.0, 0.0, 0.04, 0.0, 0.0, 0.0, 1.0]), None).unwrap();
+    sim.step(None, 1000).unwrap();
+    let height = sim.q()[2];
+    assert!((height - 0.025).abs() <= 1e-3, "rests at {height} m, not on its hull's bottom face (0.025 m)");
+    let weight = 2.0 * 9.81;
+    let force = total_normal_force(&sim.contacts());
+    assert!((force.z - weight).abs() <= 1e-3 * weight && force.xy().norm() <= 1e-3 * weight, "contact force {force:?} vs weight {weight}");
+    assert!(Convex::hull(&vertices[..4]).is_err(), "four corners of one face span no volume");
+}
+
 /// A turntable (a box on a vertical revolute axis) lying on the ground: its joint moves the contacts
 /// only along the ground, so their normal rows are immovable (zero Delassus diagonal). They carry
 /// nothing, and the table turns as without the ground (it used to turn the step's state into NaN).
@@ -459,4 +482,5 @@ on_both_backends!(
     limits_out_of_reach_change_nothing,
     effort_limit_clips_actuation,
     model_collision_shapes_replace_default_boxes,
+    convex_mesh_rests_like_its_box,
 );

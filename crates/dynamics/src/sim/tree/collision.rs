@@ -1,7 +1,7 @@
 //! Contact detection for the tree engine: every collider against the ground and, with self-collision,
 //! against the colliders of other bodies (never its parent's, nor those merged with it by fixed joints).
-//! The ground plane is met in closed form (`plane`); a heightfield and body pairs go through parry, each
-//! pair keeping its contact manifolds from step to step. Either way a contact point is matched to the
+//! The ground plane is met in closed form (`plane`) by primitives; convex meshes on the plane, a heightfield
+//! and body pairs go through parry, each pair keeping its contact manifolds from step to step. Either way a contact point is matched to the
 //! last step's by the shapes' features and inherits its impulses (the solver's warm start).
 
 use rapier3d_f64::math::Pose;
@@ -67,9 +67,11 @@ pub(super) struct Found {
 
 pub(super) struct Collision {
     colliders: Vec<Collider>,
-    /// The ground as a parry shape; None for the plane (closed form) or no ground.
-    heightfield: Option<(SharedShape, Pose)>,
+    /// The ground as a parry shape, for the colliders that meet it through parry; None without ground.
+    ground: Option<(SharedShape, Pose)>,
     plane: bool,
+    /// Some collider meets the ground through parry (a heightfield, or a convex mesh on the plane).
+    parry_ground: bool,
     /// Impulses of each collider's features on the plane, from the last step.
     plane_warm: Vec<[Warm; MAX_FEATURES]>,
     ground_pairs: Vec<Pair>,
@@ -94,9 +96,11 @@ impl Collision {
             })
             .collect();
         let n = colliders.len();
+        let plane = matches!(options.ground, Some(Ground::Plane { .. }));
         Collision {
-            heightfield: options.ground.as_ref().filter(|g| matches!(g, Ground::Heightfield { .. })).map(|g| g.shape()),
-            plane: matches!(options.ground, Some(Ground::Plane { .. })),
+            ground: options.ground.as_ref().map(|g| g.shape()),
+            parry_ground: options.ground.is_some() && (!plane || colliders.iter().any(|c| matches!(c.kind, ShapeKind::Convex(_)))),
+            plane,
             plane_warm: vec![[[0.0; 4]; MAX_FEATURES]; n],
             ground_pairs: (0..n).map(|_| Pair::default()).collect(),
             colliders,
@@ -145,14 +149,17 @@ impl Collision {
                 }
             }
         }
-        if !(self.self_collision || self.heightfield.is_some()) {
+        if !(self.self_collision || self.parry_ground) {
             return;
         }
         for (pose, c) in self.poses.iter_mut().zip(&self.colliders) {
             *pose = to_pose(&poses[c.body].compose(&c.parry_local));
         }
-        if let Some((ground, ground_pose)) = &self.heightfield {
+        if let Some((ground, ground_pose)) = self.ground.as_ref().filter(|_| self.parry_ground) {
             for (index, (c, pair)) in self.colliders.iter().zip(self.ground_pairs.iter_mut()).enumerate() {
+                if self.plane && !matches!(c.kind, ShapeKind::Convex(_)) {
+                    continue;
+                }
                 let pos12 = ground_pose.inv_mul(&self.poses[index]);
                 let found = self.dispatcher.contact_manifolds(&pos12, ground.as_ref(), c.shape.as_ref(), PREDICTION, &mut pair.manifolds, &mut pair.workspace);
                 if found.is_err() {

@@ -1,4 +1,4 @@
-//! Contacts of the four primitive shapes with the ground plane z = 0, in closed form: no allocation, and
+//! Contacts of the four primitive shapes (not convex meshes) with the ground plane z = 0, in closed form: no allocation, and
 //! each point named by a feature of its shape (a box vertex, a capsule end, a cylinder rim point), so the
 //! next step finds its impulses by name.
 
@@ -61,6 +61,8 @@ pub(super) fn plane_points(kind: &ShapeKind, pose: &Transform, prediction: f64, 
                 }
             }
         }
+        // Convex meshes meet the plane through parry's manifolds (see `collision`).
+        ShapeKind::Convex(_) => {}
     }
 }
 

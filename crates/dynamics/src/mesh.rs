@@ -1,0 +1,293 @@
+//! The vertices of mesh files as URDFs name them (STL binary and ASCII, Wavefront OBJ, COLLADA), which a
+//! collision shape wraps in their convex hull. Only positions are read: faces, normals and materials do
+//! not change a hull.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Matrix3, Matrix4, Rotation3, Unit, Vector3, Vector4};
+use roxmltree::{Document, Node};
+
+use crate::{Error, Result};
+
+/// The vertices of the mesh file at `path`, in the file's units (COLLADA's `<unit meter>` and `<up_axis>`
+/// applied: metres, z up). The format is chosen by the extension (case-insensitive).
+pub fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
+    let fail = |reason: String| Error::invalid("mesh", format!("{}: {reason}", path.display()));
+    let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read it: {e}")))?;
+    let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let vertices = match extension.as_str() {
+        "stl" => stl(&bytes),
+        "obj" => obj(&String::from_utf8_lossy(&bytes)),
+        "dae" => collada(&String::from_utf8_lossy(&bytes)),
+        other => Err(format!("unknown mesh format {other:?} (expected .stl, .obj or .dae)")),
+    }
+    .map_err(fail)?;
+    if vertices.is_empty() {
+        return Err(fail("no vertices".into()));
+    }
+    if let Some(bad) = vertices.iter().find(|v| !v.iter().all(|x| x.is_finite())) {
+        return Err(fail(format!("a vertex is not finite: {bad:?}")));
+    }
+    Ok(vertices)
+}
+
+/// Where a URDF's mesh `filename` lies: `package://name/rest` under the first of `package_dirs`, then of
+/// `ROS_PACKAGE_PATH`'s folders, then of the URDF folder's ancestors (`urdf_dir`) that holds `name/rest`;
+/// `file://` paths as written; relative paths against `urdf_dir` (the working folder if None).
+pub fn resolve_mesh(filename: &str, urdf_dir: Option<&Path>, package_dirs: &[PathBuf]) -> Result<PathBuf> {
+    if let Some(rest) = filename.strip_prefix("package://") {
+        let ros_path = std::env::var_os("ROS_PACKAGE_PATH").map(|p| std::env::split_paths(&p).collect::<Vec<_>>()).unwrap_or_default();
+        let ancestors = urdf_dir.into_iter().flat_map(Path::ancestors).map(Path::to_path_buf);
+        let mut searched = Vec::new();
+        for dir in package_dirs.iter().cloned().chain(ros_path).chain(ancestors) {
+            let candidate = dir.join(rest);
+            if candidate.is_file() {
+                return Ok(candidate);
+            }
+            searched.push(dir.display().to_string());
+        }
+        return Err(Error::invalid("package_dirs", format!("{filename:?} is in none of {}", searched.join(", "))));
+    }
+    let path = PathBuf::from(filename.strip_prefix("file://").unwrap_or(filename));
+    let path = match urdf_dir {
+        Some(dir) if path.is_relative() => dir.join(path),
+        _ => path,
+    };
+    if path.is_file() {
+        Ok(path)
+    } else {
+        Err(Error::invalid("mesh", format!("{filename:?}: no such file ({})", path.display())))
+    }
+}
+
+fn stl(bytes: &[u8]) -> std::result::Result<Vec<Vector3<f64>>, String> {
+    // Binary: an 80-byte header, a triangle count, then 50 bytes per triangle (normal, three vertices,
+    // attribute); ASCII files also start with "solid", so the length decides.
+    if bytes.len() >= 84 {
+        let count = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
+        if bytes.len() == 84 + 50 * count {
+            let float = |at: usize| f32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]) as f64;
+            return Ok((0..count)
+                .flat_map(|t| (1..4).map(move |v| 84 + 50 * t + 12 * v))
+                .map(|at| Vector3::new(float(at), float(at + 4), float(at + 8)))
+                .collect());
+        }
+    }
+    let text = std::str::from_utf8(bytes).map_err(|_| "neither binary STL (wrong length) nor ASCII STL".to_owned())?;
+    let mut vertices = Vec::new();
+    let mut words = text.split_whitespace();
+    while let Some(word) = words.next() {
+        if word == "vertex" {
+            vertices.push(three(&mut words).ok_or("a vertex without three numbers")?);
+        }
+    }
+    Ok(vertices)
+}
+
+fn obj(text: &str) -> std::result::Result<Vec<Vector3<f64>>, String> {
+    text.lines()
+        .enumerate()
+        .filter_map(|(n, line)| {
+            let mut words = line.split_whitespace();
+            (words.next() == Some("v")).then(|| three(&mut words).ok_or(format!("line {}: a vertex without three numbers", n + 1)))
+        })
+        .collect()
+}
+
+fn three<'a>(words: &mut impl Iterator<Item = &'a str>) -> Option<Vector3<f64>> {
+    let mut next = || words.next()?.parse::<f64>().ok();
+    Some(Vector3::new(next()?, next()?, next()?))
+}
+
+/// COLLADA: the positions of every `<instance_geometry>` of the visual scene, through its nodes'
+/// transforms (or every geometry as written when the scene instantiates none).
+fn collada(text: &str) -> std::result::Result<Vec<Vector3<f64>>, String> {
+    let doc = Document::parse(text).map_err(|e| format!("not valid XML: {e}"))?;
+    let root = doc.root_element();
+    let asset = child(root, "asset");
+    let meter = asset.and_then(|a| child(a, "unit")).and_then(|u| u.attribute("meter")).map_or(Ok(1.0), |m| m.trim().parse::<f64>().map_err(|_| format!("<unit meter={m:?}> is not a number")))?;
+    // Turn the file's up axis onto z.
+    let up = match asset.and_then(|a| child(a, "up_axis")).and_then(|u| u.text()).map(str::trim) {
+        Some("Y_UP") => Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0),
+        Some("X_UP") => Matrix3::new(0.0, 0.0, -1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0),
+        _ => Matrix3::identity(),
+    };
+    let mut correction = Matrix4::identity();
+    correction.fixed_view_mut::<3, 3>(0, 0).copy_from(&(up * meter));
+    let mut vertices = Vec::new();
+    let scenes: Vec<Node> = root.descendants().filter(|n| n.has_tag_name("visual_scene")).collect();
+    for scene in &scenes {
+        for node in scene.children().filter(|n| n.has_tag_name("node")) {
+            instances(&doc, node, correction, &mut vertices)?;
+        }
+    }
+    if vertices.is_empty() {
+        for geometry in root.descendants().filter(|n| n.has_tag_name("geometry")) {
+            positions(&doc, geometry, &correction, &mut vertices)?;
+        }
+    }
+    Ok(vertices)
+}
+
+fn instances(doc: &Document, node: Node, parent: Matrix4<f64>, out: &mut Vec<Vector3<f64>>) -> std::result::Result<(), String> {
+    let mut transform = parent;
+    for step in node.children().filter(Node::is_element) {
+        let numbers = || -> std::result::Result<Vec<f64>, String> {
+            step.text().unwrap_or("").split_whitespace().map(|w| w.parse::<f64>().map_err(|_| format!("<{}> holds {w:?}", step.tag_name().name()))).collect()
+        };
+        let local = match step.tag_name().name() {
+            "matrix" => {
+                let m = numbers()?;
+                (m.len() == 16).then(|| Matrix4::from_row_slice(&m)).ok_or("<matrix> needs 16 numbers")?
+            }
+            "translate" => match numbers()?[..] {
+                [x, y, z] => Matrix4::new_translation(&Vector3::new(x, y, z)),
+                _ => return Err("<translate> needs 3 numbers".into()),
+            },
+            "rotate" => match numbers()?[..] {
+                [x, y, z, degrees] => Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::new(x, y, z)), degrees.to_radians()).to_homogeneous(),
+                _ => return Err("<rotate> needs 4 numbers".into()),
+            },
+            "scale" => match numbers()?[..] {
+                [x, y, z] => Matrix4::new_nonuniform_scaling(&Vector3::new(x, y, z)),
+                _ => return Err("<scale> needs 3 numbers".into()),
+            },
+            _ => continue,
+        };
+        transform *= local;
+    }
+    for item in node.children().filter(Node::is_element) {
+        match item.tag_name().name() {
+            "instance_geometry" => {
+                let url = item.attribute("url").unwrap_or("").trim_start_matches('#');
+                let geometry = by_id(doc, url).ok_or(format!("<instance_geometry url=\"#{url}\"> names no geometry"))?;
+                positions(doc, geometry, &transform, out)?;
+            }
+            "node" => instances(doc, item, transform, out)?,
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// The POSITION inputs' floats of a `<geometry>`'s meshes, transformed.
+fn positions(doc: &Document, geometry: Node, transform: &Matrix4<f64>, out: &mut Vec<Vector3<f64>>) -> std::result::Result<(), String> {
+    for mesh in geometry.children().filter(|n| n.has_tag_name("mesh")) {
+        for vertices in mesh.children().filter(|n| n.has_tag_name("vertices")) {
+            for input in vertices.children().filter(|n| n.has_tag_name("input") && n.attribute("semantic") == Some("POSITION")) {
+                let id = input.attribute("source").unwrap_or("").trim_start_matches('#');
+                let array = by_id(doc, id).and_then(|s| child(s, "float_array")).ok_or(format!("POSITION source #{id} has no <float_array>"))?;
+                let floats: Vec<f64> = array.text().unwrap_or("").split_whitespace().map(|w| w.parse::<f64>().map_err(|_| format!("<float_array> holds {w:?}"))).collect::<std::result::Result<_, _>>()?;
+                if floats.len() % 3 != 0 {
+                    return Err(format!("POSITION source #{id} has {} numbers, not a multiple of 3", floats.len()));
+                }
+                out.extend(floats.chunks_exact(3).map(|p| (transform * Vector4::new(p[0], p[1], p[2], 1.0)).xyz()));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn child<'a, 'i>(node: Node<'a, 'i>, tag: &str) -> Option<Node<'a, 'i>> {
+    node.children().find(|n| n.has_tag_name(tag))
+}
+
+fn by_id<'a, 'i>(doc: &'a Document<'i>, id: &str) -> Option<Node<'a, 'i>> {
+    doc.descendants().find(|n| n.attribute("id") == Some(id))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CUBE: [[f64; 3]; 8] = [[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [1., 1., 0.], [0., 0., 1.], [1., 0., 1.], [0., 1., 1.], [1., 1., 1.]];
+    /// The cube's 12 triangles as vertex indices.
+    const FACES: [[usize; 3]; 12] = [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4], [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]];
+
+    fn write(name: &str, bytes: &[u8]) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("legkit-mesh-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        path
+    }
+
+    /// Every vertex read is a corner of `expected` (scaled, shifted), and every corner is read.
+    fn assert_corners(read: &[Vector3<f64>], expected: impl Fn(Vector3<f64>) -> Vector3<f64>) {
+        let corners: Vec<Vector3<f64>> = CUBE.iter().map(|c| expected(Vector3::from(*c))).collect();
+        for v in read {
+            assert!(corners.iter().any(|c| (c - v).norm() < 1e-6), "{v:?} is no corner of {corners:?}");
+        }
+        for c in &corners {
+            assert!(read.iter().any(|v| (c - v).norm() < 1e-6), "corner {c:?} missing");
+        }
+    }
+
+    #[test]
+    fn binary_and_ascii_stl() {
+        let mut binary = vec![0u8; 80];
+        binary.extend((FACES.len() as u32).to_le_bytes());
+        let mut ascii = String::from("solid cube\n");
+        for face in FACES {
+            binary.extend([0u8; 12]);
+            ascii.push_str("facet normal 0 0 0\nouter loop\n");
+            for &v in &face {
+                binary.extend(CUBE[v].iter().flat_map(|x| (*x as f32).to_le_bytes()));
+                ascii.push_str(&format!("vertex {} {} {}\n", CUBE[v][0], CUBE[v][1], CUBE[v][2]));
+            }
+            binary.extend([0u8; 2]);
+            ascii.push_str("endloop\nendfacet\n");
+        }
+        ascii.push_str("endsolid cube\n");
+        assert_corners(&mesh_vertices(&write("cube.STL", &binary)).unwrap(), |c| c);
+        assert_corners(&mesh_vertices(&write("cube-ascii.stl", ascii.as_bytes())).unwrap(), |c| c);
+        let truncated = &binary[..binary.len() - 7];
+        assert!(mesh_vertices(&write("broken.stl", truncated)).is_err());
+    }
+
+    #[test]
+    fn obj_vertices() {
+        let text: String = CUBE.iter().map(|c| format!("v {} {} {}\n", c[0], c[1], c[2])).chain(["vn 0 0 1\nf 1 2 3\n".into()]).collect();
+        assert_corners(&mesh_vertices(&write("cube.obj", text.as_bytes())).unwrap(), |c| c);
+        assert!(mesh_vertices(&write("bad.obj", b"v 1 2\n")).unwrap_err().to_string().contains("line 1"));
+    }
+
+    #[test]
+    fn collada_units_up_axis_and_node_transforms() {
+        let floats: Vec<String> = CUBE.iter().flatten().map(|x| x.to_string()).collect();
+        let dae = format!(
+            r##"<?xml version="1.0"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+  <asset><unit meter="0.001"/><up_axis>Y_UP</up_axis></asset>
+  <library_geometries><geometry id="cube"><mesh>
+    <source id="cube-positions"><float_array id="cube-array" count="24">{}</float_array></source>
+    <vertices id="cube-vertices"><input semantic="POSITION" source="#cube-positions"/></vertices>
+  </mesh></geometry></library_geometries>
+  <library_visual_scenes><visual_scene id="scene">
+    <node id="outer"><translate>10 0 0</translate>
+      <node id="inner"><scale>2 2 2</scale><instance_geometry url="#cube"/></node>
+    </node>
+  </visual_scene></library_visual_scenes>
+</COLLADA>"##,
+            floats.join(" ")
+        );
+        // Millimetres, y up: (x, y, z) mm -> (x, -z, y) m, after the nodes' scale 2 then shift 10 along x.
+        let read = mesh_vertices(&write("cube.dae", dae.as_bytes())).unwrap();
+        assert_corners(&read, |c| Vector3::new(2.0 * c.x + 10.0, -2.0 * c.z, 2.0 * c.y) * 1e-3);
+    }
+
+    #[test]
+    fn package_paths_resolve_against_the_search_path_then_the_urdf_folders_ancestors() {
+        let root = std::env::temp_dir().join(format!("legkit-mesh-{}", std::process::id()));
+        std::fs::create_dir_all(root.join("pkg_a/meshes")).unwrap();
+        std::fs::write(root.join("pkg_a/meshes/part.stl"), b"solid\nendsolid\n").unwrap();
+        let found = resolve_mesh("package://pkg_a/meshes/part.stl", None, &[root.clone()]).unwrap();
+        assert_eq!(found, root.join("pkg_a/meshes/part.stl"));
+        let urdf_dir = root.join("pkg_a/urdf");
+        std::fs::create_dir_all(&urdf_dir).unwrap();
+        assert_eq!(resolve_mesh("package://pkg_a/meshes/part.stl", Some(&urdf_dir), &[]).unwrap(), found);
+        assert_eq!(resolve_mesh("../meshes/part.stl", Some(&urdf_dir), &[]).unwrap(), urdf_dir.join("../meshes/part.stl"));
+        let missing = resolve_mesh("package://nowhere/x.stl", Some(&urdf_dir), &[]).unwrap_err().to_string();
+        assert!(missing.contains("package_dirs") && missing.contains("nowhere"), "{missing}");
+    }
+}
