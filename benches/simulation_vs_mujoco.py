@@ -14,6 +14,13 @@ Scenes, each built twice from the same numbers (a `legkit.Model` and an MJCF str
   targets vary sinusoidally in time (diagonal legs in phase), sent every step in both engines
   (legkit: ``sim.set_servo(target_q=...)``; MuJoCo: ``data.ctrl``), so both timings include the same
   per-step Python call.
+* ``go1-stand`` / ``go1-fall`` / ``anymal-stand`` / ``anymal-fall``: Go1 and ANYmal C from example-robot-data's
+  URDFs, loaded by both engines from the same file (a copy whose placeholder inertias are made physical:
+  MuJoCo refuses them; MuJoCo also told not to infer masses from geometry), with the URDFs' own collision
+  shapes touching the ground (no self-collision). Standing: PD servos hold a crouch. Falling: released
+  rolled by 0.7 rad at 0.45 m with limp, damped joints, it tips over onto its side. The two engines' contact
+  models differ (MuJoCo's soft contacts let feet creep), so the poses they end in differ; see the
+  behaviour table.
 
 Each engine runs in this one process at dt = 1 ms with its default solver (MuJoCo: Euler for the trees,
 ``implicitfast`` for the quadruped, whose stiff light-legged servos the explicit damping of Euler would
@@ -31,7 +38,7 @@ for every simulation every step, a loop of ``sim.step(None, n)`` per simulation,
 and the ratios (MuJoCo stepping 12 ``MjData`` in a loop for reference).
 
 Run: ``python benches/simulation_vs_mujoco.py [--modules 21 51 101] [--seconds 1.0] [--skip-rapier]
-[--quick] [--settle 0.3] [--budget 10] [--solver-iterations N] [--no-quadruped] [--no-batch]``. ``--seconds`` is the
+[--quick] [--settle 0.3] [--budget 10] [--solver-iterations N] [--no-quadruped] [--no-robots] [--no-batch]``. ``--seconds`` is the
 simulated time timed per engine and scene (1.0: ten blocks of 100 steps); ``--quick`` is a smoke test
 (21 modules, five blocks of 50 steps, ~10 s); a full run takes about 3 minutes on 2 cores, most of it
 MuJoCo and legkit on the 101-module tree and Rapier within its budget. ``--solver-iterations`` sets the
@@ -48,8 +55,11 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
+import tempfile
 import time
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -413,6 +423,150 @@ def quadruped_scene(trot: bool) -> Scene:
 
 
 # ------------------------------------------------------------------------------------------------------
+# Real robots from example-robot-data's URDFs
+# ------------------------------------------------------------------------------------------------------
+
+# URDF file (under example-robot-data's robots folder), then a crouch: joint-name suffix -> angle per leg prefix.
+ROBOTS = {
+    "go1": ("go1_description/urdf/go1.urdf", {"_thigh_joint": (0.9, 0.9), "_calf_joint": (-1.8, -1.8)}),
+    "anymal": ("anymal_c_simple_description/urdf/anymal.urdf", {"_HFE": (0.5, -0.5), "_KFE": (-1.0, 1.0)}),
+}
+ROBOT_KP, ROBOT_KD = 60.0, 2.0  # N m/rad, N m s/rad: the servos holding the crouch
+FALL_KD = 0.5  # N m s/rad: limp joints while falling over
+FALL_ROLL, FALL_HEIGHT = 0.7, 0.45  # rad, m: released rolled, so it tips onto its side
+
+
+def physical_urdf(path: Path) -> Path:
+    """A copy of the URDF whose inertias are physical (eigenvalues floored at 1e-3 of the largest and 1e-8,
+    the triangle inequality enforced): MuJoCo refuses the round-off and placeholder inertias these files
+    carry (legkit loads them with a warning), so both engines load this copy."""
+    tree = ET.parse(path)
+    names = ["ixx", "ixy", "ixz", "iyy", "iyz", "izz"]
+    entries = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+    for inertia in tree.iter("inertia"):
+        matrix = np.zeros((3, 3))
+        for name, (r, c) in zip(names, entries):
+            matrix[r, c] = matrix[c, r] = float(inertia.get(name, "0"))
+        w, axes = np.linalg.eigh(matrix)
+        w = np.maximum(w, max(1e-3 * w.max(), 1e-8))
+        w = np.minimum(w, w.sum() - w)  # each moment at most the sum of the other two
+        fixed = axes @ np.diag(w) @ axes.T
+        for name, (r, c) in zip(names, entries):
+            inertia.set(name, repr(float(fixed[r, c])))
+    out = Path(tempfile.mkdtemp(prefix="legkit-bench-")) / path.name
+    tree.write(out)
+    return out
+
+
+def robot_scene(robot: str, fall: bool) -> Scene:
+    """Go1 or ANYmal C from its URDF on a plane: ``stand`` holds a crouch on servos; ``fall`` releases it
+    rolled, joints limp (damped only), so it tips over onto its side (trunk, hips and legs on the ground)."""
+    import warnings
+    from importlib.metadata import distribution
+
+    robots = Path(distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots"))
+    relative, crouch = ROBOTS[robot]
+    urdf = physical_urdf(robots / relative)
+    child_of = {j.get("name"): j.find("child").get("link") for j in ET.parse(urdf).getroot().findall("joint")
+                if j.get("type") in ("revolute", "continuous")}
+    # Front legs (FL, FR, LF, RF) take the first angle, hind legs the second.
+    angles = {name: pair[0 if "F" in name[:2] else 1] for name in child_of for suffix, pair in crouch.items() if name.endswith(suffix)}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lk.UrdfWarning)
+        model = lk.Model.from_urdf(urdf, floating_base=True)
+    start = model.neutral()
+    for joint, angle in angles.items():
+        start[model.idx_q[model.names.index(child_of[joint])]] = angle
+    roll = FALL_ROLL if fall else 0.0
+    start[2] = FALL_HEIGHT if fall else stand_height_of(model, start)
+    start[3:7] = [np.sin(roll / 2), 0.0, 0.0, np.cos(roll / 2)]
+    kp, kd = (0.0, FALL_KD) if fall else (ROBOT_KP, ROBOT_KD)
+
+    def legkit_runner(backend: str) -> Runner:
+        sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), backend=backend, **solver_options())
+        sim.reset(start, np.zeros(model.nv))
+        gains = np.r_[np.zeros(6), np.ones(model.nv - 6)]
+        sim.set_servo(kp=kp * gains, kd=kd * gains, target_q=start)
+        done = [0]
+
+        def advance(n: int) -> None:
+            sim.step(None, n)
+            done[0] += n
+
+        def base() -> np.ndarray:
+            x, y = sim.q[3:5]
+            return np.array([*sim.q[:3], 1 - 2 * (x * x + y * y)])
+
+        def restore(q0: np.ndarray, v0: np.ndarray, steps: int) -> None:
+            sim.reset(q0, v0)
+            done[0] = steps
+
+        return Runner(advance, lambda: len(sim.contacts()["body"]), base, lambda: (sim.q, sim.v, done[0]), restore)
+
+    def mujoco_runner() -> Runner:
+        import mujoco
+
+        spec = mujoco.MjSpec.from_file(str(urdf))
+        spec.compiler.discardvisual = True
+        spec.compiler.balanceinertia = True
+        spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE  # links without <inertial> are massless, as in legkit and Pinocchio
+        spec.option.timestep = DT
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+        spec.worldbody.first_body().add_freejoint()
+        for geom in spec.geoms:  # robot-ground contacts only, as legkit's default (self_collision=False)
+            if geom.contype or geom.conaffinity:  # URDF <visual>s come as contype = conaffinity = 0
+                geom.contype, geom.conaffinity, geom.friction[0] = 1, 0, FRICTION
+        spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], contype=0, conaffinity=1,
+                                friction=[FRICTION, 0.005, 0.0001])
+        for joint in spec.joints:
+            if joint.type == mujoco.mjtJoint.mjJNT_HINGE:
+                if fall:
+                    joint.damping = [kd, 0.0, 0.0]  # MuJoCo 4: linear, quadratic, cubic coefficients
+                else:
+                    spec.add_actuator(target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT).set_to_position(kp=kp, kv=kd)
+        m = spec.compile()
+        d = mujoco.MjData(m)
+        for joint, angle in angles.items():
+            d.qpos[m.jnt_qposadr[m.joint(joint).id]] = angle
+        for index in range(m.nu):
+            d.ctrl[index] = angles.get(m.joint(m.actuator_trnid[index, 0]).name, 0.0)
+        d.qpos[:3] = start[:3]
+        d.qpos[3:7] = [start[6], *start[3:6]]
+        mujoco.mj_forward(m, d)
+
+        def base() -> np.ndarray:
+            _, x, y, _ = d.qpos[3:7]
+            return np.array([*d.qpos[:3], 1 - 2 * (x * x + y * y)])
+
+        return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon), base)
+
+    return Scene(f"{robot}-{'fall' if fall else 'stand'}", model.nv - 6, legkit_runner, mujoco_runner)
+
+
+def stand_height_of(model: lk.Model, q: np.ndarray) -> float:
+    """The base height that puts the lowest collision shape's lowest point on the ground at ``q`` (base at
+    height 0), plus 1 mm."""
+    q0 = q.copy()
+    q0[2] = 0.0
+    poses = lk.forward_kinematics(model, q0)
+    lowest = np.inf
+    for body, kind, size, placement in model.colliders():
+        pose = poses[body] @ placement
+        if kind == "sphere":
+            low = pose[2, 3] - size[0]
+        elif kind == "box":
+            corners = np.array([[sx, sy, sz] for sx in (-0.5, 0.5) for sy in (-0.5, 0.5) for sz in (-0.5, 0.5)]) * size
+            low = (pose[:3, :3] @ corners.T)[2].min() + pose[2, 3]
+        elif kind == "convex":
+            low = (pose[:3, :3] @ np.asarray(size).T)[2].min() + pose[2, 3]
+        else:  # capsule, cylinder along z: bounded by the axis end points and the radius
+            half, radius = size
+            low = pose[2, 3] - abs(pose[2, 2]) * half - radius
+        lowest = min(lowest, low)
+    return 1e-3 - lowest
+
+
+# ------------------------------------------------------------------------------------------------------
 # Measurement
 # ------------------------------------------------------------------------------------------------------
 
@@ -532,11 +686,11 @@ def print_details(rows: list[tuple[Scene, dict[str, Result | None]]]) -> None:
 
 
 def print_quadruped_table(rows: list[tuple[Scene, dict[str, Result | None]]]) -> None:
-    quads = [(s, r) for s, r in rows if s.name.startswith("quadruped")]
+    quads = [(s, r) for s, r in rows if s.name.startswith(("quadruped", *ROBOTS))]
     if not quads:
         return
     print("\nQuadruped behaviour over the timed steps (torso: start -> end; up = world z of the torso's z axis; "
-          f"standing height {stand_height():.3f} m):\n")
+          f"the synthetic quadruped's standing height {stand_height():.3f} m):\n")
     print("| scene | engine | torso z (m) | up | distance travelled (m) | timed steps |")
     print("| --- | --- | ---: | ---: | ---: | ---: |")
     for scene, r in quads:
@@ -658,6 +812,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--skip-rapier", action="store_true", help="leave the Rapier backend out")
     parser.add_argument("--quick", action="store_true", help="smoke test: 21 modules, 5 blocks of 50 steps, short batch")
     parser.add_argument("--no-quadruped", action="store_true", help="trees only")
+    parser.add_argument("--no-robots", action="store_true", help="leave out Go1 and ANYmal from their URDFs")
     parser.add_argument("--no-batch", action="store_true", help="skip the batch throughput section")
     parser.add_argument("--budget", type=float, default=10.0, help="wall seconds Rapier may spend settling, and timing, per scene")
     parser.add_argument("--settle", type=float, default=SETTLE_SECONDS,
@@ -676,6 +831,8 @@ def main(argv: list[str] | None = None) -> int:
     scenes = [tree_scene(n) for n in args.modules]
     if not args.no_quadruped:
         scenes += [quadruped_scene(False), quadruped_scene(True)]
+    if not args.no_robots:
+        scenes += [robot_scene(robot, fall) for robot in ROBOTS for fall in (False, True)]
     rows = []
     wall = time.perf_counter()
     load_start = load_average()

@@ -427,6 +427,55 @@ fn convex_mesh_rests_like_its_box(backend: Backend) {
     assert!(Convex::hull(&vertices[..4]).is_err(), "four corners of one face span no volume");
 }
 
+/// Bodies on fixed joints move as one body with their carrier: a floating box carrying a rotated slab on a
+/// fixed joint, and an arm on a hinge carrying a fixed tip, fall and land as the same robot described
+/// with the slab and the tip merged into their carriers (mass properties summed, shapes moved along);
+/// contacts name the body whose shape touches.
+fn fixed_bodies_move_with_their_carrier(backend: Backend) {
+    let turn = Rotation3::from_euler_angles(0.3, -0.2, 0.5).into_inner();
+    let slab_at = Transform::new(turn, Vector3::new(0.05, -0.1, -0.08));
+    let tip_at = Transform::new(Rotation3::from_euler_angles(0.0, 0.4, 0.0).into_inner(), Vector3::new(0.3, 0.0, 0.0));
+    let torso = MassProperties::cuboid(3.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap();
+    let slab = MassProperties::cuboid(1.0, Vector3::new(0.2, 0.2, 0.04), Vector3::zeros(), &Matrix3::identity()).unwrap();
+    let arm = rod(0.5, 0.3);
+    let tip = MassProperties::cuboid(0.2, Vector3::new(0.06, 0.06, 0.06), Vector3::zeros(), &Matrix3::identity()).unwrap();
+    let arm_at = Transform::from_translation(Vector3::new(0.15, 0.0, 0.0));
+    let boxed = |size: Vector3<f64>, at: Transform| Shape::new(ShapeKind::Box(size), Some(at)).unwrap();
+    let mut split = Model::new(true, torso, "torso");
+    let slab_body = split.add_body(0, Joint::Fixed, slab_at, slab, "slab", JointLimits::NONE).unwrap();
+    let arm_body = split.add_body(slab_body, Joint::Revolute(Vector3::y()), slab_at.inverse().compose(&arm_at), arm, "arm", JointLimits::NONE).unwrap();
+    let tip_body = split.add_body(arm_body, Joint::Fixed, tip_at, tip, "tip", JointLimits::NONE).unwrap();
+    split.set_collision_shapes(vec![
+        (0, boxed(Vector3::new(0.3, 0.2, 0.1), Transform::identity())),
+        (slab_body, boxed(Vector3::new(0.2, 0.2, 0.04), Transform::identity())),
+        (arm_body, boxed(Vector3::new(0.3, 0.04, 0.04), Transform::from_translation(Vector3::new(0.15, 0.0, 0.0)))),
+        (tip_body, boxed(Vector3::new(0.06, 0.06, 0.06), Transform::identity())),
+    ]).unwrap();
+    let merged_torso = torso + slab.transformed(&slab_at.rotation, &slab_at.translation).unwrap();
+    let merged_arm = arm + tip.transformed(&tip_at.rotation, &tip_at.translation).unwrap();
+    let mut merged = Model::new(true, merged_torso, "torso");
+    merged.add_body(0, Joint::Revolute(Vector3::y()), arm_at, merged_arm, "arm", JointLimits::NONE).unwrap();
+    merged.set_collision_shapes(vec![
+        (0, boxed(Vector3::new(0.3, 0.2, 0.1), Transform::identity())),
+        (0, boxed(Vector3::new(0.2, 0.2, 0.04), slab_at)),
+        (1, boxed(Vector3::new(0.3, 0.04, 0.04), Transform::from_translation(Vector3::new(0.15, 0.0, 0.0)))),
+        (1, boxed(Vector3::new(0.06, 0.06, 0.06), tip_at)),
+    ]).unwrap();
+    let run = |model: &Model| {
+        let mut options = opts(backend, 1e-3);
+        options.ground = Some(Ground::plane(0.8).unwrap());
+        let mut sim = Simulation::new(model, options).unwrap();
+        sim.set_state(Some(&[0.0, 0.0, 0.4, 0.1, 0.05, 0.0, (1.0f64 - 0.0125).sqrt(), 0.3]), Some(&[0.2, 0.0, 0.0, 0.0, 1.0, 0.5, 2.0])).unwrap();
+        sim.step(Some(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.3]), 400).unwrap();
+        let touching: Vec<String> = sim.contacts().iter().map(|c| model.name(c.body).to_owned()).collect();
+        (sim.q().to_vec(), touching)
+    };
+    let ((q_split, touch_split), (q_merged, _)) = (run(&split), run(&merged));
+    assert!(q_split[2] < 0.2, "it has landed: base at {}", q_split[2]);
+    assert!(max_difference(&q_split, &q_merged) < 1e-6, "{q_split:?} vs {q_merged:?}");
+    assert!(!touch_split.is_empty() && touch_split.iter().all(|name| ["torso", "slab", "arm", "tip"].contains(&name.as_str())));
+}
+
 /// A turntable (a box on a vertical revolute axis) lying on the ground: its joint moves the contacts
 /// only along the ground, so their normal rows are immovable (zero Delassus diagonal). They carry
 /// nothing, and the table turns as without the ground (it used to turn the step's state into NaN).
@@ -483,4 +532,5 @@ on_both_backends!(
     effort_limit_clips_actuation,
     model_collision_shapes_replace_default_boxes,
     convex_mesh_rests_like_its_box,
+    fixed_bodies_move_with_their_carrier,
 );

@@ -1,5 +1,6 @@
 //! Contact detection for the tree engine: every collider against the ground and, with self-collision,
-//! against the colliders of other bodies (never its parent's, nor those merged with it by fixed joints).
+//! against the colliders of other bodies (never those moving with it or with its parent through fixed
+//! joints).
 //! The ground plane is met in closed form (`plane`) by primitives; convex meshes on the plane, a heightfield
 //! and body pairs go through parry, each pair keeping its contact manifolds from step to step. Either way a contact point is matched to the
 //! last step's by the shapes' features and inherits its impulses (the solver's warm start).
@@ -76,6 +77,8 @@ pub(super) struct Collision {
     plane_warm: Vec<[Warm; MAX_FEATURES]>,
     ground_pairs: Vec<Pair>,
     self_collision: bool,
+    /// Each body's parent.
+    parents: Vec<usize>,
     /// Overlapping collider pairs (a < b) of the last step, sorted, with their manifolds.
     self_pairs: Vec<(u32, u32, Pair)>,
     poses: Vec<Pose>,
@@ -105,6 +108,7 @@ impl Collision {
             ground_pairs: (0..n).map(|_| Pair::default()).collect(),
             colliders,
             self_collision: options.self_collision,
+            parents: (0..model.nbodies()).map(|i| model.parent(i)).collect(),
             self_pairs: Vec::new(),
             poses: vec![Pose::IDENTITY; n],
             boxes: Vec::with_capacity(n),
@@ -122,7 +126,7 @@ impl Collision {
     }
 
     /// Finds the contacts of bodies at world poses `poses`, appending them to `out`.
-    pub(super) fn detect(&mut self, model: &Model, poses: &[Transform], out: &mut Vec<Found>) {
+    pub(super) fn detect(&mut self, carrier: &[usize], poses: &[Transform], out: &mut Vec<Found>) {
         if self.plane {
             let up = tangents(&Vector3::z());
             for (index, c) in self.colliders.iter().enumerate() {
@@ -169,11 +173,11 @@ impl Collision {
             }
         }
         if self.self_collision {
-            self.detect_self(model, out);
+            self.detect_self(carrier, out);
         }
     }
 
-    fn detect_self(&mut self, model: &Model, out: &mut Vec<Found>) {
+    fn detect_self(&mut self, carrier: &[usize], out: &mut Vec<Found>) {
         // Sweep and prune along x over bounding boxes grown by the prediction distance.
         self.boxes.clear();
         self.boxes.extend(self.colliders.iter().zip(&self.poses).map(|(c, p)| c.shape.compute_aabb(p).loosened(PREDICTION / 2.0)));
@@ -189,8 +193,8 @@ impl Collision {
                 }
                 let (ca, cb) = (&self.colliders[a as usize], &self.colliders[b as usize]);
                 let related = ca.carrier == cb.carrier
-                    || ca.carrier == model.parent(cb.carrier) && cb.carrier != 0
-                    || cb.carrier == model.parent(ca.carrier) && ca.carrier != 0;
+                    || ca.carrier == carrier[self.parents[cb.carrier]] && cb.carrier != 0
+                    || cb.carrier == carrier[self.parents[ca.carrier]] && ca.carrier != 0;
                 if !related && boxes[a as usize].intersects(&boxes[b as usize]) {
                     self.candidates.push((a.min(b), a.max(b)));
                 }

@@ -22,6 +22,8 @@ mod factor;
 mod plane;
 mod solver;
 
+use std::sync::Arc;
+
 use nalgebra::{Vector3, Vector6};
 
 use super::actuation::{dof_coordinates, Actuation};
@@ -30,7 +32,7 @@ use super::{Contact, Engine};
 use crate::algorithms::{aba_with_armature, integrate, joint_placement, world_pose};
 use crate::model::{Data, Model};
 use crate::spatial::{spatial, Transform};
-use crate::{Error, Result};
+use crate::{Error, MassProperties, Result};
 use collision::{Collision, Found};
 use factor::{Entry, Factor};
 use solver::{Constraint, Group, Kind, BAUMGARTE, MAX_CORRECTION, TOLERANCE};
@@ -49,6 +51,12 @@ struct LimitedJoint {
 }
 
 pub(crate) struct TreeSimulation {
+    /// The model with every body on a fixed joint merged into its carrier (as MuJoCo's `fusestatic`): the
+    /// same coordinates, far fewer bodies on robots whose URDFs hang sensors and frames on fixed joints.
+    fused: Arc<Model>,
+    /// Each body's body in `fused`, and its frame in that body's frame.
+    fused_body: Vec<usize>,
+    offset: Vec<Transform>,
     options: Options,
     /// Substep length (s).
     h: f64,
@@ -87,16 +95,20 @@ pub(crate) struct TreeSimulation {
 impl TreeSimulation {
     pub(crate) fn new(model: &Model, options: &Options) -> Self {
         let nv = model.nv();
+        let carrier = carriers(model);
+        let (fused, fused_body, offset) = fuse(model, &carrier);
         let limited = (1..model.nbodies())
             .filter(|&i| model.joint(i).nv() == 1 && model.limits(i).has_position_limits())
-            .map(|i| LimitedJoint { body: i, v: model.idx_v(i), q: model.idx_q(i), lower: model.limits(i).lower, upper: model.limits(i).upper })
+            .map(|i| LimitedJoint { body: fused_body[i], v: model.idx_v(i), q: model.idx_q(i), lower: model.limits(i).lower, upper: model.limits(i).upper })
             .collect();
-        let carrier = carriers(model);
         TreeSimulation {
             h: options.dt / options.substeps as f64,
             friction: options.ground.as_ref().map_or(DEFAULT_FRICTION, |g| g.friction()),
-            data: Data::new(model),
-            factor: Factor::new(model),
+            data: Data::new(&fused),
+            factor: Factor::new(&fused),
+            fused: Arc::new(fused),
+            fused_body,
+            offset,
             collision: Collision::new(model, options, &carrier),
             options: options.clone(),
             limited,
@@ -144,7 +156,7 @@ impl TreeSimulation {
     }
 
     /// Step 3: the constraints of this step, grouped by the bodies they act on (consecutive contacts on
-    /// bodies with the same carriers share one group).
+    /// bodies with the same carriers share one group); `model` is the fused model.
     fn constrain(&mut self, model: &Model, q: &[f64]) {
         let h = self.h;
         let origin = base_origin(model, q);
@@ -157,7 +169,8 @@ impl TreeSimulation {
             let group_key = key(&self.found[start]);
             let end = start + self.found[start..].iter().take_while(|f| key(f) == group_key).count();
             let first = self.entries.len();
-            self.factor.push_chain(model, &self.data, self.found[start].body, self.found[start].other, &mut self.entries);
+            let (body, other) = (self.fused_body[self.found[start].body], self.found[start].other.map(|o| self.fused_body[o]));
+            self.factor.push_chain(model, &self.data, body, other, &mut self.entries);
             let mut group = Group::new(first..self.entries.len(), &self.entries);
             let from = self.constraints.len();
             for f in &self.found[start..end] {
@@ -195,7 +208,9 @@ impl TreeSimulation {
         }
     }
 
-    fn substep(&mut self, model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64]) -> Result<()> {
+    fn substep(&mut self, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64]) -> Result<()> {
+        let fused = Arc::clone(&self.fused);
+        let model = fused.as_ref();
         let (h, nv) = (self.h, model.nv());
         dof_coordinates(model, q, &mut self.q_dof);
         self.saturated.fill(false);
@@ -211,11 +226,12 @@ impl TreeSimulation {
             }
             if !detected {
                 let origin = base_origin(model, q);
-                for (pose, centred) in self.poses.iter_mut().zip(&self.data.o_m_i) {
-                    *pose = Transform::new(centred.rotation, centred.translation + origin);
+                for ((pose, &body), offset) in self.poses.iter_mut().zip(&self.fused_body).zip(&self.offset) {
+                    let centred = &self.data.o_m_i[body];
+                    *pose = Transform::new(centred.rotation, centred.translation + origin).compose(offset);
                 }
                 self.found.clear();
-                self.collision.detect(model, &self.poses, &mut self.found);
+                self.collision.detect(&self.carrier, &self.poses, &mut self.found);
                 // Bodies fixed to a fixed base cannot move: their contacts carry no constraint.
                 if !model.floating_base() {
                     let carrier = &self.carrier;
@@ -292,9 +308,9 @@ impl Engine for TreeSimulation {
         Ok(())
     }
 
-    fn step(&mut self, model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64]) -> Result<()> {
+    fn step(&mut self, _model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64]) -> Result<()> {
         for _ in 0..self.options.substeps {
-            self.substep(model, actuation, q, v, applied)?;
+            self.substep(actuation, q, v, applied)?;
         }
         Ok(())
     }
@@ -327,6 +343,34 @@ fn carriers(model: &Model) -> Vec<usize> {
         carrier[i] = if model.joint(i).nv() == 0 { carrier[model.parent(i)] } else { i };
     }
     carrier
+}
+
+/// `model` with every body on a fixed joint merged into its carrier (its mass properties moved into the
+/// carrier's frame), moving bodies kept in order so coordinates are unchanged; and for each body of
+/// `model`, its body in the fused model and its frame there.
+fn fuse(model: &Model, carrier: &[usize]) -> (Model, Vec<usize>, Vec<Transform>) {
+    let n = model.nbodies();
+    let mut offset = vec![Transform::identity(); n];
+    let mut mass = vec![MassProperties::zero(); n];
+    for i in 0..n {
+        if i > 0 && carrier[i] != i {
+            offset[i] = offset[model.parent(i)].compose(model.placement(i));
+        }
+        mass[carrier[i]] = mass[carrier[i]] + model.body(i).transformed_unchecked(&offset[i].rotation, &offset[i].translation);
+    }
+    let mut fused = Model::new(model.floating_base(), mass[0], model.name(0));
+    fused.gravity = model.gravity;
+    let mut fused_body = vec![0; n];
+    for i in 1..n {
+        fused_body[i] = if carrier[i] == i {
+            let parent = model.parent(i);
+            let placement = offset[parent].compose(model.placement(i));
+            fused.add_body(fused_body[parent], *model.joint(i), placement, mass[i], model.name(i), *model.limits(i)).expect("a valid model's moving bodies form a valid model")
+        } else {
+            fused_body[carrier[i]]
+        };
+    }
+    (fused, fused_body, offset)
 }
 
 /// The base's origin in the world: the origin of the frame `aba` works about.
