@@ -66,3 +66,18 @@ def test_convex_shapes_keep_their_hull_and_urdf_meshes_resolve_through_package_d
     kind, vertices = resolved.colliders()[0][1:3]
     assert kind == "convex"
     assert sorted(map(tuple, np.round(vertices, 12))) == sorted(map(tuple, np.round(2 * corners, 12)))
+
+
+def test_resolve_mesh_finds_package_files_as_the_urdf_loader_does(tmp_path):
+    mesh = tmp_path / "robots" / "bot_description" / "meshes" / "leg.stl"
+    mesh.parent.mkdir(parents=True)
+    mesh.write_text("solid\nendsolid\n")
+    urdf = tmp_path / "robots" / "bot_description" / "urdf" / "bot.urdf"
+    urdf.parent.mkdir()
+    name = "package://bot_description/meshes/leg.stl"
+    assert lk.resolve_mesh(name, urdf) == mesh  # the folders above the URDF
+    assert lk.resolve_mesh(name, package_dirs=[tmp_path / "robots"]) == mesh  # a folder holding packages
+    assert lk.resolve_mesh(name, package_dirs=[mesh.parent.parent]) == mesh  # the package itself
+    assert lk.resolve_mesh("../meshes/leg.stl", urdf) == urdf.parent / "../meshes/leg.stl"
+    with pytest.raises(FileNotFoundError, match="package_dirs"):
+        lk.resolve_mesh("package://other/meshes/leg.stl", urdf)

@@ -1,6 +1,7 @@
 """Type stubs of the compiled module ``legkit._core``."""
 
 import os
+import pathlib
 from typing import Any, Literal, Sequence
 
 import numpy as np
@@ -111,6 +112,13 @@ class Model:
         """A model from a URDF path or XML string; bodies are named after links, the root link is the base.
         What exporters write and Pinocchio loads (non-physical inertias, effort="0") loads as written with
         a UrdfWarning naming the element, or raises ValueError if strict."""
+
+def resolve_mesh(
+    filename: str, urdf: str | os.PathLike[str] | None = None, package_dirs: Sequence[str | os.PathLike[str]] | None = None,
+) -> pathlib.Path:
+    """The file a URDF's mesh ``filename`` names, as ``Model.from_urdf`` finds it: ``package://name/rest`` in
+    ``package_dirs`` (folders holding packages, or a package itself), then ROS_PACKAGE_PATH, then the folders
+    above the file ``urdf``; relative names against ``urdf``'s folder. FileNotFoundError naming where it looked."""
 
 class UrdfWarning(UserWarning):
     """A URDF loaded as written although it is not quite valid; the message names the element."""

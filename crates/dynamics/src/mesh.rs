@@ -31,18 +31,22 @@ pub fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
     Ok(vertices)
 }
 
-/// Where a URDF's mesh `filename` lies: `package://name/rest` under the first of `package_dirs`, then of
-/// `ROS_PACKAGE_PATH`'s folders, then of the URDF folder's ancestors (`urdf_dir`) that holds `name/rest`;
-/// `file://` paths as written; relative paths against `urdf_dir` (the working folder if None).
+/// Where a URDF's mesh `filename` lies: `package://name/rest` is `dir/name/rest` (or `dir/rest` when `dir`
+/// is the package `name` itself) for the first such file over `package_dirs`, then `ROS_PACKAGE_PATH`'s
+/// folders, then the URDF folder's ancestors (`urdf_dir`); `file://` paths as written; relative paths
+/// against `urdf_dir` (the working folder if None).
 pub fn resolve_mesh(filename: &str, urdf_dir: Option<&Path>, package_dirs: &[PathBuf]) -> Result<PathBuf> {
     if let Some(rest) = filename.strip_prefix("package://") {
         let ros_path = std::env::var_os("ROS_PACKAGE_PATH").map(|p| std::env::split_paths(&p).collect::<Vec<_>>()).unwrap_or_default();
         let ancestors = urdf_dir.into_iter().flat_map(Path::ancestors).map(Path::to_path_buf);
+        let (package, inside) = rest.split_once('/').unwrap_or((rest, ""));
         let mut searched = Vec::new();
         for dir in package_dirs.iter().cloned().chain(ros_path).chain(ancestors) {
-            let candidate = dir.join(rest);
-            if candidate.is_file() {
-                return Ok(candidate);
+            let itself = dir.file_name().is_some_and(|name| name == package);
+            for candidate in [dir.join(rest), dir.join(inside)].into_iter().take(if itself { 2 } else { 1 }) {
+                if candidate.is_file() {
+                    return Ok(candidate);
+                }
             }
             searched.push(dir.display().to_string());
         }
@@ -283,6 +287,8 @@ mod tests {
         std::fs::write(root.join("pkg_a/meshes/part.stl"), b"solid\nendsolid\n").unwrap();
         let found = resolve_mesh("package://pkg_a/meshes/part.stl", None, &[root.clone()]).unwrap();
         assert_eq!(found, root.join("pkg_a/meshes/part.stl"));
+        // The package folder itself as a search folder.
+        assert_eq!(resolve_mesh("package://pkg_a/meshes/part.stl", None, &[root.join("pkg_a")]).unwrap(), found);
         let urdf_dir = root.join("pkg_a/urdf");
         std::fs::create_dir_all(&urdf_dir).unwrap();
         assert_eq!(resolve_mesh("package://pkg_a/meshes/part.stl", Some(&urdf_dir), &[]).unwrap(), found);

@@ -23,6 +23,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<sim::PySimulation>()?;
     m.add_class::<sim::PyGround>()?;
     m.add_class::<sim::PySimulationBatch>()?;
+    m.add_function(wrap_pyfunction!(model::resolve_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::forward_kinematics, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::jacobian, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::center_of_mass, m)?)?;

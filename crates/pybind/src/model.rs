@@ -3,10 +3,11 @@
 use std::ffi::CString;
 use std::sync::Mutex;
 
+use legkit_dynamics::mesh;
 use legkit_dynamics::urdf::{load_urdf, UrdfOptions};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use numpy::{PyArray1, PyArray2};
-use pyo3::exceptions::{PyIndexError, PyTypeError, PyUserWarning, PyValueError};
+use pyo3::exceptions::{PyFileNotFoundError, PyIndexError, PyTypeError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
 
@@ -337,4 +338,15 @@ impl PyModel {
             self.model.total_mass()
         )
     }
+}
+
+/// `resolve_mesh(filename, urdf=None, package_dirs=None)`: the file a URDF's mesh `filename` names, as
+/// `Model.from_urdf` finds it: `package://name/rest` in `package_dirs` (each a folder holding packages, or
+/// the package itself), then `ROS_PACKAGE_PATH`, then the folders above the file `urdf`; relative names
+/// against `urdf`'s folder. FileNotFoundError naming where it looked.
+#[pyfunction]
+#[pyo3(signature = (filename, urdf = None, package_dirs = None))]
+pub fn resolve_mesh(filename: &str, urdf: Option<std::path::PathBuf>, package_dirs: Option<Vec<std::path::PathBuf>>) -> PyResult<std::path::PathBuf> {
+    let folder = urdf.as_deref().and_then(std::path::Path::parent);
+    mesh::resolve_mesh(filename, folder, &package_dirs.unwrap_or_default()).map_err(|e| PyFileNotFoundError::new_err(e.to_string()))
 }

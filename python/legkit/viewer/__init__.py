@@ -28,7 +28,6 @@ from legkit.viewer._geometry import (
     Shape,
     collision_shapes,
     resolve_mesh,
-    search_path,
     shape_poses,
     visual_shapes,
 )
@@ -43,7 +42,6 @@ __all__ = [
     "visual_shapes",
     "shape_poses",
     "resolve_mesh",
-    "search_path",
     "write_html",
     "write_animation",
 ]

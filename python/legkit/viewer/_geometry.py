@@ -159,33 +159,13 @@ def _origin(element: ET.Element | None, what: str) -> np.ndarray:
     return transform
 
 
-def search_path(urdf: str | os.PathLike[str], package_dirs: Iterable[str | os.PathLike[str]] = ()) -> list[Path]:
-    """Where ``package://`` files are looked for: ``package_dirs`` first, then the URDF's folder and each of
-    its ancestors."""
+def resolve_mesh(filename: str, urdf: str | os.PathLike[str], package_dirs: Iterable[str | os.PathLike[str]] = ()) -> Path:
+    """The file a URDF mesh ``filename`` names, found as ``lk.Model.from_urdf`` finds collision meshes
+    (``lk.resolve_mesh``: ``package_dirs``, then ROS_PACKAGE_PATH, then the folders above ``urdf``).
+    FileNotFoundError naming where it looked."""
     if isinstance(package_dirs, (str, os.PathLike)):
         package_dirs = [package_dirs]
-    folder = Path(urdf).resolve().parent
-    return [Path(d) for d in package_dirs] + [folder, *folder.parents]
-
-
-def resolve_mesh(filename: str, urdf: str | os.PathLike[str], package_dirs: Iterable[str | os.PathLike[str]] = ()) -> Path:
-    """The file a URDF mesh ``filename`` names: ``package://PKG/REST`` is the first existing DIR/PKG/REST (or
-    DIR/REST where DIR is named PKG) over ``search_path``; ``file://`` and absolute paths as they are;
-    relative paths from the URDF's folder. FileNotFoundError (naming the file and where it looked) if none."""
-    folder = Path(urdf).resolve().parent
-    if filename.startswith("package://"):
-        package, _, rest = filename[len("package://"):].partition("/")
-        dirs = search_path(urdf, package_dirs)
-        candidates = [d / package / rest for d in dirs] + [d / rest for d in dirs if d.name == package]
-    elif filename.startswith("file://"):
-        candidates = [Path(filename[len("file://"):])]
-    else:
-        candidates = [folder / filename]
-    for candidate in candidates:
-        if candidate.is_file():
-            return candidate
-    where = ", ".join(str(d) for d in search_path(urdf, package_dirs)) if filename.startswith("package://") else str(candidates[0])
-    raise FileNotFoundError(f"urdf: mesh {filename!r} not found (looked in {where}); pass its package's parent folder in package_dirs")
+    return Path(lk.resolve_mesh(filename, Path(urdf).resolve(), list(package_dirs)))
 
 
 def visual_shapes(
