@@ -64,6 +64,7 @@ class Point:
     outputs: int
     lower_bound: float | np.ndarray = 0.0
     upper_bound: float | np.ndarray = 0.0
+    symbolic: Callable | None = None  # (SymbolicModel, z casadi (k,)) -> (outputs,): the same function for casadi
 
     def __post_init__(self) -> None:
         points, k = self.index.shape

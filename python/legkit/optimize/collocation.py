@@ -33,19 +33,26 @@ def hermite_simpson_defects(
     return interpolation, simpson
 
 
-def point_jacobian(function: Callable[[np.ndarray], np.ndarray], z: np.ndarray, step: float = FD_STEP) -> tuple[np.ndarray, np.ndarray]:
-    """Values (P, m) and Jacobians (P, m, n) of a function applied independently to each of P points z (P, n).
+def point_jacobian(
+    function: Callable[[np.ndarray], np.ndarray], z: np.ndarray, step: float = FD_STEP, columns: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Values (P, m) and Jacobians (P, m, c) of a function applied independently to each of P points z (P, n),
+    differentiated with respect to the inputs `columns` (c of them; default all n, in order).
 
     Every point's outputs depend on that point's inputs only, so perturbing input j of all points at once
-    is a valid colouring: the n central differences of all P points are one batched call of 2 n P + P rows.
+    is a valid colouring: the 2 c central differences of all P points are one batched call of (2 c + 1) P rows.
     """
     points, n = z.shape
-    delta = step * np.maximum(1.0, np.abs(z))  # (P, n)
-    eye = np.eye(n)
-    plus = z[:, None, :] + delta[:, None, :] * eye  # (P, n, n): row j perturbs input j
-    minus = z[:, None, :] - delta[:, None, :] * eye
-    batch = np.concatenate([z[:, None, :], plus, minus], axis=1).reshape(points * (2 * n + 1), n)
-    out = np.asarray(function(batch)).reshape(points, 2 * n + 1, -1)
+    columns = np.arange(n) if columns is None else np.asarray(columns, dtype=np.int64)
+    c = len(columns)
+    delta = step * np.maximum(1.0, np.abs(z[:, columns]))  # (P, c)
+    plus = np.repeat(z[:, None, :], c, axis=1)  # (P, c, n): row j perturbs input columns[j]
+    minus = plus.copy()
+    rows = np.arange(c)
+    plus[:, rows, columns] += delta
+    minus[:, rows, columns] -= delta
+    batch = np.concatenate([z[:, None, :], plus, minus], axis=1).reshape(points * (2 * c + 1), n)
+    out = np.asarray(function(batch)).reshape(points, 2 * c + 1, -1)
     value = out[:, 0]
-    jac = (out[:, 1 : n + 1] - out[:, n + 1 :]) / (2.0 * delta[:, :, None])  # (P, n, m)
+    jac = (out[:, 1 : c + 1] - out[:, c + 1 :]) / (2.0 * delta[:, :, None])  # (P, c, m)
     return value, np.transpose(jac, (0, 2, 1))

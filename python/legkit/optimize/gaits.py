@@ -56,10 +56,12 @@ def amble_reference(robot: Quadruped, speed: float, period: float, intervals: in
 
 def guess_from_reference(problem: MultiphaseProblem, ref: GaitReference) -> Trajectory:
     """An initial guess on equal phases from a sampled reference whose samples fall on the collocation points:
-    states as sampled, torques and contact forces by `contact_inverse_dynamics` (least squares)."""
+    states and accelerations as sampled (kinematically consistent, so the defects start small), torques and
+    contact forces by `contact_inverse_dynamics` (least squares: the inverse-dynamics residual starts as the
+    reference's unbalanced base wrench)."""
     dynamics = contact_inverse_dynamics(problem.model, ref)
     names = list(problem.feet)
-    t, q, v, u, forces = [], [], [], [], []
+    t, q, v, u, forces, a = [], [], [], [], [], []
     start = 0
     for phase in problem.phases:
         rows = start + np.arange(2 * phase.intervals + 1)
@@ -67,8 +69,9 @@ def guess_from_reference(problem: MultiphaseProblem, ref: GaitReference) -> Traj
         t.append(ref.t[rows])
         q.append(ref.q[rows])
         v.append(ref.v[rows])
+        a.append(ref.a[rows])
         u.append(dynamics.torques[rows])
         forces.append(dynamics.forces[rows][:, columns])
         start = rows[-1]
     durations = np.array([t_k[-1] - t_k[0] for t_k in t])
-    return Trajectory(t, q, v, u, forces, durations)
+    return Trajectory(t, q, v, u, forces, durations, a=a)

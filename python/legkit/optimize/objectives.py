@@ -8,7 +8,26 @@ as objectives of a `MultiphaseProblem`; a problem sums its terms, each scaled by
     sqrt(x^2 + eps^2) and v the forward velocity of the centre of mass;
   - `effort`: int sum_i w_i u_i^2 dt (a plain control effort, e.g. for a pendulum swing-up).
 * `MinMaxStability`: J_s2 = -p1 with S_H(t) - p1 >= 0 at every knot and midpoint (eq. 11), S_H as published
-  (eq. 10, `legkit.stability.angular_momentum_stability(..., definition="paper")`).
+  (eq. 10, `legkit.stability.angular_momentum_stability(..., definition="paper")`) or, by default, a smooth
+  lower bound of it per phase (below), which IPOPT can converge on. The reported S_H is always the published.
+
+The smooth constraint (`MinMaxStability(smooth=True)`, phases of exactly two feet). The published S_H of a
+two-leg support has one edge, tipped over on one side chosen by a case switch, and on a diagonal edge the
+case "GCoM before the edge" (d > 0) adds the branch H - H_ref, which vanishes from the min once the GCoM has
+passed (d <= 0): S_H jumps there, and the switch makes the constraint non-smooth. Here the contact sequence
+fixes, per phase, the diagonal pair and the tipping side (a diagonal pair forward along the direction of
+travel, a lateral pair away from the GCoM of the model's neutral pose: the published rule applied once), and
+H_ref = m r |d| sqrt(2 g / (r + h)) (the published m r sqrt(2 g (r - h)), rise r - h = d^2 / (r + h)) is
+continued through d = 0 with its sign, H_ref,s = m r d sqrt(2 g / (r + h)). The constraints are then
+
+    lateral pair       H_ref,s - H - p1 >= 0                          (= S_H - p1 while d >= 0)
+    diagonal pair      H - H_ref,s - p1 >= 0,  H_max - H - p1 >= 0    (= S_H - p1 while d > 0; past the
+                                                                       edge the first only adds -H_ref,s >= 0)
+
+smooth in (q, v), and wherever the GCoM is on the published side they imply S_H - p1 >= 0 (for a diagonal
+pair the continued branch H + m r |d| sqrt(...) >= p1 is a small extra demand past the edge, where the
+published index drops it). So p1 stays a lower bound of the published worst case; the optimum's published
+S_H is re-evaluated and reported.
 """
 
 from __future__ import annotations
@@ -39,6 +58,7 @@ class Integral:
     integrand: Integrand
     per_distance: bool = False
     weight: float = 1.0
+    symbolic: Callable | None = None  # (problem, SymbolicModel, z casadi (nz,)) -> scalar: the same integrand for casadi
 
 
 @dataclass(frozen=True)
@@ -50,18 +70,27 @@ class MinMaxStability:
     diagonal_pairs: Sequence[tuple[str, str]] = ()
     direction: tuple[float, float, float] = (1.0, 0.0, 0.0)
     weight: float = 1.0
+    smooth: bool = True  # the smooth per-phase constraint of the module docstring; False: S_H as published
 
 
 def effort(weights: float | Sequence[float] = 1.0, weight: float = 1.0) -> Integral:
     """int sum_i weights_i u_i^2 dt."""
     w = np.asarray(weights, dtype=np.float64)
-    return Integral(lambda problem, z: np.sum(w * z[:, problem.nx : problem.nx + problem.nu] ** 2, axis=1), weight=weight)
+    return Integral(lambda problem, z: np.sum(w * z[:, problem.nx : problem.nx + problem.nu] ** 2, axis=1), weight=weight,
+                    symbolic=lambda problem, _, z: _weighted_squares(w, z[problem.nx : problem.nx + problem.nu]))
+
+
+def _weighted_squares(w: np.ndarray, u):
+    import casadi as ca
+
+    return ca.sum1(ca.DM(np.broadcast_to(w, (u.shape[0],)).copy()) * u**2)
 
 
 def joule_loss(resistance, gear_ratio, torque_constant, weight: float = 1.0) -> Integral:
     """J_e1 of eq. 12: (1 / d_S) int sum_i R_i (u_i / (G_i K_i))^2 dt, per actuated joint (arrays or scalars)."""
     w = np.asarray(resistance, dtype=np.float64) / (np.asarray(gear_ratio, dtype=np.float64) * np.asarray(torque_constant, dtype=np.float64)) ** 2
-    return Integral(effort(w).integrand, per_distance=True, weight=weight)
+    term = effort(w)
+    return Integral(term.integrand, per_distance=True, weight=weight, symbolic=term.symbolic)
 
 
 def specific_resistance(weight: float = 1.0) -> Integral:
@@ -142,22 +171,87 @@ def build_objective(problem: MultiphaseProblem, terms: Sequence) -> tuple[Callab
     return objective, gradient, blocks
 
 
+def published_stability(problem: MultiphaseProblem, k: int, term: MinMaxStability, z: np.ndarray) -> np.ndarray:
+    """S_H as published (eq. 10, `definition="paper"`) at phase k's point variables z (P, nz)."""
+    contacts = list(problem.phases[k].contacts)
+    pairs = np.array([(contacts.index(a), contacts.index(b)) for a, b in term.diagonal_pairs if a in contacts and b in contacts],
+                     dtype=np.int64).reshape(-1, 2)
+    q = z[:, : problem.nq]
+    return angular_momentum_stability_of_model(
+        problem.model, problem.configuration(q), z[:, problem.nq : problem.nx], problem.foot_positions(q, contacts),
+        v_tip_max=term.v_tip_max, definition="paper", direction=term.direction, diagonal_pairs=pairs)
+
+
+def _smooth_edge(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> tuple[list[str], bool]:
+    """Phase k's edge (start, end), ordered so that n = (dy, -dx) / |.| points to the side tipped over, and
+    whether it is diagonal (module docstring); the side is fixed from the model's neutral pose."""
+    contacts = list(problem.phases[k].contacts)
+    if len(contacts) != 2:
+        raise ValueError(f"MinMaxStability(smooth=True) needs exactly two feet on the ground per phase; phases[{k}] has "
+                         f"{contacts} (use smooth=False for S_H as published)")
+    diagonal = any(set(pair) == set(contacts) for pair in term.diagonal_pairs)
+    q = np.asarray(problem.model.neutral(), dtype=np.float64)[None]
+    start, end = problem.foot_positions(q, contacts)[0]
+    normal = np.array([end[1] - start[1], start[0] - end[0]])
+    if diagonal:  # tipped over forward
+        side = float(normal @ np.asarray(term.direction, dtype=np.float64)[:2])
+    else:  # away from the GCoM
+        side = -float(normal @ (np.asarray(lk.center_of_mass(problem.model, q))[0, :2] - start[:2]))
+    if side == 0.0:
+        raise ValueError(f"phases[{k}]: the edge {contacts} is parallel to the direction of travel or passes through the "
+                         "GCoM in the model's neutral pose; its tipping side is undefined")
+    return (contacts if side > 0.0 else contacts[::-1]), diagonal
+
+
+def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability):
+    """The smooth constraint rows (module docstring) as a function of (B, nx + 1) = [q, v, p1]."""
+    edge, diagonal = _smooth_edge(problem, k, term)
+    model, nq, nx = problem.model, problem.nq, problem.nx
+    m, g = model.total_mass, -float(model.gravity[2])
+
+    def rows(c, h, start, end, p1, sqrt, stack):
+        """The rows from COM c, centroidal momentum h = [P, k_G], the edge's feet and p1 (numpy or casadi)."""
+        dx, dy = end[0] - start[0], end[1] - start[1]
+        length = sqrt(dx * dx + dy * dy)
+        nx_, ny_ = dy / length, -dx / length
+        ax, ay = -ny_, nx_  # e_l = z x n
+        ox, oy, oz = c[0] - start[0], c[1] - start[1], c[2] - start[2]
+        d = -(nx_ * ox + ny_ * oy)
+        r = sqrt(d * d + oz * oz)
+        momentum = ax * (h[3] + oy * h[2] - oz * h[1]) + ay * (h[4] + oz * h[0] - ox * h[2])  # H = H_p . e_l
+        h_ref = m * r * d * sqrt(2.0 * g / (r + oz))  # eq. 10's H_ref, continued with the sign of d
+        if diagonal:
+            return stack([momentum - h_ref - p1, m * r * term.v_tip_max - momentum - p1])
+        return stack([h_ref - momentum - p1])
+
+    def margin(z: np.ndarray) -> np.ndarray:
+        q = problem.configuration(z[:, :nq])
+        c = np.asarray(lk.center_of_mass(model, q)).T
+        h = np.asarray(lk.centroidal_momentum(model, q, z[:, nq:nx])).T
+        feet = problem.foot_positions(z[:, :nq], edge)
+        return rows(c, h, feet[:, 0].T, feet[:, 1].T, z[:, nx], np.sqrt, lambda r: np.stack(r, axis=1))
+
+    feet = [(problem.foot_body[n], problem.foot_point[n]) for n in edge]
+
+    def symbolic(model, z):
+        import casadi as ca
+
+        q = z[:nq]
+        ends = model.points(q, feet)
+        return rows(model.center_of_mass(q), model.centroidal_momentum(q, z[nq:nx]), ends[:3], ends[3:], z[nx], ca.sqrt, lambda r: ca.vertcat(*r))
+
+    return margin, 2 if diagonal else 1, symbolic
+
+
 def _stability_block(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> Block:
-    """S_H(q, v) - p1 >= 0 at every point of phase k (eq. 11)."""
+    """S_H(q, v) - p1 >= 0 at every point of phase k (eq. 11): published, or its smooth lower bound."""
     contacts = list(problem.phases[k].contacts)
     if len(contacts) < 2:
         raise ValueError(f"MinMaxStability needs two feet on the ground in every phase (S_H, eq. 10); phases[{k}] has {contacts}")
-    pairs = np.array([(contacts.index(a), contacts.index(b)) for a, b in term.diagonal_pairs if a in contacts and b in contacts],
-                     dtype=np.int64).reshape(-1, 2)
-    nq, nx = problem.nq, problem.nx
-
-    def margin(z: np.ndarray) -> np.ndarray:
-        q = z[:, :nq]
-        s_h = angular_momentum_stability_of_model(
-            problem.model, problem.configuration(q), z[:, nq:nx], problem.foot_positions(q, contacts),
-            v_tip_max=term.v_tip_max, definition="paper", direction=term.direction, diagonal_pairs=pairs)
-        return (s_h - z[:, nx])[:, None]
-
     index = problem.point_index[k]
-    columns = np.concatenate([index[:, :nx], np.full((len(index), 1), problem.p1_index)], axis=1)
-    return Point(columns, margin, 1, 0.0, np.inf)
+    columns = np.concatenate([index[:, : problem.nx], np.full((len(index), 1), problem.p1_index)], axis=1)
+    if term.smooth:
+        margin, rows, symbolic = _smooth_margin(problem, k, term)
+        return Point(columns, margin, rows, 0.0, np.inf, symbolic=symbolic)
+    nx = problem.nx
+    return Point(columns, lambda z: (published_stability(problem, k, term, z) - z[:, nx])[:, None], 1, 0.0, np.inf)

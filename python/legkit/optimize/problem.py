@@ -7,9 +7,13 @@ and 4.1, on legkit's kernels:
 * per phase a grid of `intervals` Hermite–Simpson intervals (eq. 14: cubic states, linear controls); at every
   knot and midpoint the variables z = [q, v, u, lambda]: configuration, velocity, actuated torques and the
   world-frame contact forces of the phase's feet;
-* dynamics (eq. 1) as forward dynamics with the contact forces as variables: a = aba(q, v, B u, J_c^T lambda)
-  (legkit's batched ABA with the forces as external wrenches), the stance feet held on the ground at every
-  knot and midpoint (g_c(q) = 0 at position level), so lambda is whatever keeps them there;
+* dynamics (eq. 1), by default in inverse-dynamics form (`transcription="inverse"`): the accelerations a are
+  variables too (z = [q, v, u, lambda, a]), the state rate is [dq/dt(q, v), a], and at every point the RNEA
+  residual rnea(q, v, a, J_c^T lambda) - B u = 0 (legkit's batched RNEA with the forces as external wrenches)
+  closes the dynamics. `transcription="forward"` instead collocates a = aba(q, v, B u, J_c^T lambda). Either
+  way the stance feet are held on the ground at every knot and midpoint (g_c(q) = 0 at position level), so
+  lambda is whatever keeps them there. The inverse form converges better and its Jacobian is sparser (a
+  joint's torque depends on its own leg and the base only): docs/optimize.md has the measurements;
 * swing-tip height >= 0 (eq. 4), friction cone mu^2 F_z^2 - F_x^2 - F_y^2 >= 0 with F_z >= 0 (eq. 5, squared
   to stay smooth), the inelastic impact map at each touchdown (eq. 7, `lk.impact` with the new phase's feet),
   state/control bounds and the motor torque-speed line |u| <= (w_max - |w|) k (Sect. 2.3, split into its four
@@ -18,7 +22,8 @@ and 4.1, on legkit's kernels:
   or fixed initial/final states.
 
 Jacobians of the dynamics and of every nonlinear point constraint are coloured central differences over
-batched kernel calls (`point_jacobian`); the pattern is fixed before solving. Objectives: `objectives.py`.
+batched kernel calls (`point_jacobian`), except where they are exact and cheap (d rnea / d a = M from `crba`,
+d rnea / d u = -B); the pattern, from the model's tree, is fixed before solving. Objectives: `objectives.py`.
 """
 
 from __future__ import annotations
@@ -71,7 +76,8 @@ def rotation(quaternion: np.ndarray) -> np.ndarray:
 @dataclass
 class Trajectory:
     """The variables of a transcription, per phase: times t (P,), q (P, nq), v (P, nv), u (P, nu), forces
-    (P, c, 3) on the phase's feet (world frame), and the phase durations."""
+    (P, c, 3) on the phase's feet (world frame), the phase durations, and the accelerations a (P, nv) of the
+    inverse-dynamics transcription (None: `pack` takes them from the forward dynamics of q, v, u, forces)."""
 
     t: list[np.ndarray]
     q: list[np.ndarray]
@@ -80,6 +86,7 @@ class Trajectory:
     forces: list[np.ndarray]
     durations: np.ndarray
     stability_bound: float = 0.0  # p1 of the min-max objective J_s2 (0 when unused)
+    a: list[np.ndarray] | None = None
 
     def stacked(self) -> dict[str, np.ndarray]:
         """Every point of every phase in time order (the shared phase-boundary instants appear twice)."""
@@ -117,6 +124,7 @@ class MultiphaseProblem:
     u_bounds: tuple[np.ndarray, np.ndarray] | None = None
     torque_speed: TorqueSpeedLine | None = None
     continuous_controls: bool = False
+    transcription: str = "inverse"
 
     def __post_init__(self) -> None:
         self._validate()
@@ -127,11 +135,18 @@ class MultiphaseProblem:
         self.foot_names = list(self.feet)
         self.foot_body = {name: (model.names.index(b) if isinstance(b, str) else int(b)) for name, (b, _) in self.feet.items()}
         self.foot_point = {name: np.asarray(p, dtype=np.float64) for name, (_, p) in self.feet.items()}
-        # Variable layout: per phase a (P, nz) block of point variables, then the durations, then p1.
+        # Variable layout: per phase a (P, nz) block of point variables z = [q, v, u, forces, a] (a only in the
+        # inverse transcription), then the durations, then p1.
         self.point_index: list[np.ndarray] = []
+        self.force_columns: list[slice] = []
+        self.a_columns: list[slice] = []
+        inverse = self.transcription == "inverse"
         offset = 0
         for phase in self.phases:
-            nz = self.nx + self.nu + self.force_dims * len(phase.contacts)
+            forces = self.nx + self.nu + self.force_dims * len(phase.contacts)
+            nz = forces + (self.nv if inverse else 0)
+            self.force_columns.append(slice(self.nx + self.nu, forces))
+            self.a_columns.append(slice(forces, nz))
             points = 2 * phase.intervals + 1
             self.point_index.append(offset + np.arange(points * nz).reshape(points, nz))
             offset += points * nz
@@ -147,6 +162,8 @@ class MultiphaseProblem:
             raise TypeError(f"model must be a legkit.Model, got {type(model).__name__}")
         if len(self.phases) == 0:
             raise ValueError("phases must hold at least one Phase")
+        if self.transcription not in ("inverse", "forward"):
+            raise ValueError(f"transcription must be 'inverse' or 'forward', got {self.transcription!r}")
         if self.force_dims not in (1, 3):
             raise ValueError(f"force_dims must be 1 or 3, got {self.force_dims}")
         if not self.friction > 0.0:
@@ -248,23 +265,87 @@ class MultiphaseProblem:
             return forces
         return np.concatenate([np.zeros(forces.shape[:-1] + (2,)), forces], axis=-1)
 
+    def external_wrenches(self, q: np.ndarray, forces: np.ndarray, contacts: Sequence[str]) -> np.ndarray | None:
+        """Body-frame wrenches (B, nbodies, 6) of the world-frame foot forces (B, len(contacts) * force_dims) at
+        configurations q (B, nq, unit quaternion), as legkit's rnea/aba take them (None without contacts)."""
+        if not contacts:
+            return None
+        poses = np.asarray(lk.forward_kinematics(self.model, q))
+        world = self.world_forces(forces, len(contacts))
+        f_ext = np.zeros((len(q), self.model.nbodies, 6))
+        for c, name in enumerate(contacts):  # a few feet; each line is batched over all points
+            body = self.foot_body[name]
+            local = np.einsum("bji,bj->bi", poses[:, body, :3, :3], world[:, c])
+            f_ext[:, body, :3] += local
+            f_ext[:, body, 3:] += np.cross(self.foot_point[name], local)
+        return f_ext
+
+    def tau(self, u: np.ndarray) -> np.ndarray:
+        """Generalised forces B u (B, nv) of the actuated torques u (B, nu)."""
+        tau = np.zeros((len(u), self.nv))
+        tau[:, self.actuated] = u
+        return tau
+
     def state_rate(self, z: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
-        """[dq/dt, a] (B, nx) at point variables z (B, nz): eq. 1 with the forces as external wrenches."""
+        """[dq/dt, a] (B, nx) at point variables z (B, nz): eq. 1 forward, a = aba(q, v, B u, J_c^T lambda)."""
         q, v = self.configuration(z[:, : self.nq]), z[:, self.nq : self.nx]
-        tau = np.zeros((len(z), self.nv))
-        tau[:, self.actuated] = z[:, self.nx : self.nx + self.nu]
-        f_ext = None
-        if contacts:
-            poses = np.asarray(lk.forward_kinematics(self.model, q))
-            forces = self.world_forces(z[:, self.nx + self.nu :], len(contacts))
-            f_ext = np.zeros((len(z), self.model.nbodies, 6))
-            for c, name in enumerate(contacts):  # a few feet; each line is batched over all points
-                body = self.foot_body[name]
-                local = np.einsum("bji,bj->bi", poses[:, body, :3, :3], forces[:, c])
-                f_ext[:, body, :3] += local
-                f_ext[:, body, 3:] += np.cross(self.foot_point[name], local)
-        a = np.asarray(lk.aba(self.model, q, v, tau, f_ext))
+        start = self.nx + self.nu
+        f_ext = self.external_wrenches(q, z[:, start : start + self.force_dims * len(contacts)], contacts)
+        a = np.asarray(lk.aba(self.model, q, v, self.tau(z[:, self.nx : start]), f_ext))
         return np.concatenate([self.q_rate(z[:, : self.nq], v), a], axis=1)
+
+    def rate(self, z: np.ndarray, k: int) -> np.ndarray:
+        """The collocated state rate (B, nx) at phase k's point variables: forward dynamics, or [dq/dt, a] with
+        a the variables of the inverse transcription (whose dynamics are the RNEA residual rows)."""
+        if self.transcription == "forward":
+            return self.state_rate(z, self.phases[k].contacts)
+        return np.concatenate([self.q_rate(z[:, : self.nq], z[:, self.nq : self.nx]), z[:, self.a_columns[k]]], axis=1)
+
+    def rate_dependence(self, k: int) -> np.ndarray:
+        """(nx, nz) bool: which point variables each component of `rate` depends on (structurally)."""
+        nq, nx = self.nq, self.nx
+        nz = self.point_index[k].shape[1]
+        dependence = np.zeros((nx, nz), dtype=bool)
+        if self.model.floating_base:
+            dependence[0:3, 3:7] = dependence[0:3, nq : nq + 3] = True  # R(quaternion) v_lin
+            dependence[3:7, 3:7] = dependence[3:7, nq + 3 : nq + 6] = True  # quaternion (x) omega / 2
+            dependence[7:nq, nq + 6 : nx] = np.eye(nq - 7, dtype=bool)
+        else:
+            dependence[:nq, nq:nx] = np.eye(nq, dtype=bool)
+        if self.transcription == "forward":
+            dependence[nq:, :] = True
+        else:
+            dependence[nq:, self.a_columns[k]] = np.eye(self.nv, dtype=bool)
+        return dependence
+
+    def tree(self) -> tuple[list[set[int]], np.ndarray, np.ndarray]:
+        """(each body's ancestors including itself, the body of each q index, the body of each v index)."""
+        model = self.model
+        ancestors = []
+        for i in range(model.nbodies):
+            chain, j = {i}, model.parents[i]
+            while j >= 0:
+                chain.add(j)
+                j = model.parents[j]
+            ancestors.append(chain)
+        bodies = np.arange(model.nbodies)
+        return (ancestors, np.repeat(bodies, np.diff(list(model.idx_q) + [model.nq])),
+                np.repeat(bodies, np.diff(list(model.idx_v) + [model.nv])))
+
+    def tree_dependence(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """Structural dependence of the joint-space dynamics on the model's tree: (nv, nv) bool between v
+        indices whose bodies lie on one branch (one is an ancestor of the other), (nv, nq) the same for q
+        (a free-flyer's position excluded: uniform gravity), and per foot the (nv,) rows its force reaches
+        (the foot body's ancestors). A leg's joint torques never see another leg's joints or feet."""
+        model = self.model
+        bodies = model.nbodies
+        ancestors, q_body, v_body = self.tree()
+        related = np.array([[i in ancestors[j] or j in ancestors[i] for j in range(bodies)] for i in range(bodies)])
+        vv, vq = related[np.ix_(v_body, v_body)], related[np.ix_(v_body, q_body)]
+        if model.floating_base:
+            vq[:, :3] = False
+        reach = {name: np.isin(v_body, list(ancestors[body])) for name, body in self.foot_body.items()}
+        return vv, vq, reach
 
     # ------------------------------------------------------------------ NLP assembly
     def _build(self) -> None:
@@ -276,6 +357,8 @@ class MultiphaseProblem:
         for k, phase in enumerate(self.phases):
             index = self.point_index[k]
             blocks.append(_Defects(self, k))
+            if self.transcription == "inverse":
+                blocks.append(_InverseDynamics(self, k))
             u = slice(nx, nx + nu)
             if nu:  # linear controls on each interval (eq. 14): u_m = (u_k + u_k+1) / 2
                 rows = np.arange(phase.intervals * nu)
@@ -286,9 +369,16 @@ class MultiphaseProblem:
             after = (k + 1) % count
             end, start = self.point_index[k][-1], self.point_index[after][0]
             if self.periodic and after == 0 and self.travel_index is not None:
-                # q_start = q_end - speed * sum(T) on the travel coordinate, equal elsewhere.
-                keep = [i for i in range(nq) if i != self.travel_index]
+                # q_start = q_end - speed * sum(T) on the travel coordinate, equal elsewhere. The base quaternion's
+                # norm already follows from the first point's |q| = 1 through the defects, so only its direction
+                # wraps around (3 rows: equal 4 components would be a nearly redundant row, ill-conditioning
+                # the KKT system).
+                quaternion = [3, 4, 5, 6] if self.model.floating_base else []
+                keep = [i for i in range(nq) if i != self.travel_index and i not in quaternion]
                 blocks.append(equal(len(keep), start[keep], end[keep]))
+                if quaternion:
+                    blocks.append(Point(np.concatenate([start[3:7], end[3:7]])[None], _same_rotation, 3,
+                                        symbolic=lambda _, z: z[:3] / _norm(z[:4]) - z[4:7] / _norm(z[4:8])))
                 blocks.append(Linear(1, np.zeros(count + 2, dtype=np.int64),
                                      np.r_[start[self.travel_index], end[self.travel_index], self.duration_index],
                                      np.r_[1.0, -1.0, np.full(count, self.speed)]))
@@ -302,7 +392,8 @@ class MultiphaseProblem:
             blocks.append(Linear(1, np.zeros(count, dtype=np.int64), self.duration_index, np.ones(count), lower=lo, upper=hi))
         if self.model.floating_base:  # fixes the scale gauge of the quaternion (kernels normalise it)
             first = self.point_index[0][0]
-            blocks.append(Point(first[None, 3:7], lambda quat: np.sum(quat * quat, axis=1, keepdims=True) - 1.0, 1))
+            blocks.append(Point(first[None, 3:7], lambda quat: np.sum(quat * quat, axis=1, keepdims=True) - 1.0, 1,
+                                symbolic=lambda _, quat: quat.T @ quat - 1.0))
         if self.torque_speed is not None and nu:
             blocks.extend(self._torque_speed_blocks())
         objective, gradient, extra = build_objective(self, self.objectives)
@@ -321,23 +412,13 @@ class MultiphaseProblem:
 
     def _contact_blocks(self, k: int) -> list[Block]:
         phase, index = self.phases[k], self.point_index[k]
-        nq, start = self.nq, self.nx + self.nu
-        contacts, swing = list(phase.contacts), [n for n in self.foot_names if n not in phase.contacts]
-        blocks: list[Block] = []
-        if contacts:
-            blocks.append(Point(index[:, :nq], lambda q: self.foot_positions(q, contacts)[..., 2], len(contacts)))
-            if self.force_dims == 3 and len(index) > 1:  # the foothold stays where the phase began
-                pairs = np.concatenate([index[1:, :nq], np.repeat(index[:1, :nq], len(index) - 1, axis=0)], axis=1)
-                blocks.append(Point(pairs, lambda qq: (self.foot_positions(qq[:, :nq], contacts)
-                                                       - self.foot_positions(qq[:, nq:], contacts))[..., :2].reshape(len(qq), -1),
-                                    2 * len(contacts)))
-            if self.force_dims == 3:
-                mu2 = self.friction**2
-                blocks.append(Point(index[:, start:], lambda f: (mu2 * f.reshape(len(f), -1, 3)[..., 2] ** 2
-                                                               - np.sum(f.reshape(len(f), -1, 3)[..., :2] ** 2, axis=-1)),
-                                    len(contacts), 0.0, np.inf))
-        if swing:
-            blocks.append(Point(index[:, :nq], lambda q: self.foot_positions(q, swing)[..., 2], len(swing), 0.0, np.inf))
+        blocks: list[Block] = [_Feet(self, k)] if self.foot_names else []
+        if phase.contacts and self.force_dims == 3:  # friction cone (eq. 5), squared to stay smooth
+            mu2 = self.friction**2
+            blocks.append(Point(index[:, self.force_columns[k]], lambda f: (mu2 * f.reshape(len(f), -1, 3)[..., 2] ** 2
+                                                                          - np.sum(f.reshape(len(f), -1, 3)[..., :2] ** 2, axis=-1)),
+                                len(phase.contacts), 0.0, np.inf,
+                                symbolic=lambda _, f: mu2 * f[2::3] ** 2 - f[0::3] ** 2 - f[1::3] ** 2))
         return blocks
 
     def _velocity_transition(self, k: int, after: int) -> Block:
@@ -353,7 +434,8 @@ class MultiphaseProblem:
             v_plus, _ = lk.impact(self.model, self.configuration(z[:, :nq]), z[:, nq:nx], contacts)
             return z[:, nx:] - np.asarray(v_plus)
 
-        return Point(np.concatenate([end[:nx], start[nq:nx]])[None], jump, self.nv)
+        return Point(np.concatenate([end[:nx], start[nq:nx]])[None], jump, self.nv,
+                     symbolic=lambda model, z: z[nx:] - model.impact(z[:nq], z[nq:nx], contacts))
 
     def _torque_speed_blocks(self) -> list[Block]:
         """(w_max - |w|) k - |u| >= 0 as four linear faces per actuated joint and point."""
@@ -387,7 +469,7 @@ class MultiphaseProblem:
                 if bounds is not None:
                     lower[index[:, part]] = np.asarray(bounds[0], dtype=np.float64)
                     upper[index[:, part]] = np.asarray(bounds[1], dtype=np.float64)
-            normal = index[:, self.nx + self.nu + self.force_dims - 1 :: self.force_dims]
+            normal = index[:, self.force_columns[k]][:, self.force_dims - 1 :: self.force_dims]
             lower[normal] = 0.0  # unilateral contact (eq. 5)
             lower[self.duration_index[k]], upper[self.duration_index[k]] = phase.duration
         for state, point in ((self.initial, self.point_index[0][0]), (self.final, self.point_index[-1][-1])):
@@ -397,9 +479,26 @@ class MultiphaseProblem:
                     raise ValueError(f"initial/final must be (q (nq,), v (nv,)), got {values.shape[0]} values for nq + nv = {self.nx}")
                 fixed = ~np.isnan(values)
                 lower[point[: self.nx][fixed]] = upper[point[: self.nx][fixed]] = values[fixed]
+        if self.translation_gauge:
+            lower[self.point_index[0][0, :2]] = upper[self.point_index[0][0, :2]] = 0.0
         if not self.uses_p1:
             lower[self.p1_index] = upper[self.p1_index] = 0.0
         return lower, upper
+
+    @property
+    def translation_gauge(self) -> bool:
+        """A periodic free-flyer gait is invariant to horizontal translation (flat ground, feet free to land
+        anywhere): the base starts at x = y = 0, which makes its optimum isolated (`solve` moves the guess)."""
+        return self.periodic and self.model.floating_base and self.initial is None and self.final is None
+
+    def gauged(self, x: np.ndarray) -> np.ndarray:
+        """x translated horizontally so that the base starts at x = y = 0 (`translation_gauge`)."""
+        x = np.array(x, dtype=np.float64)
+        if self.translation_gauge:
+            shift = x[self.point_index[0][0, :2]].copy()
+            for index in self.point_index:
+                x[index[:, :2]] -= shift
+        return x
 
     def constraints(self, x: np.ndarray) -> np.ndarray:
         return np.concatenate([b.values(x) for b in self.blocks])
@@ -408,22 +507,39 @@ class MultiphaseProblem:
         values = np.concatenate([b.jacobian(x) for b in self.blocks])
         return np.bincount(self._entry, weights=values, minlength=len(self.jac_rows))
 
-    def nlp(self) -> NLP:
+    def nlp(self, derivatives: str = "legkit") -> NLP:
+        """The NLP. derivatives="legkit": legkit's kernels with coloured central differences (IPOPT then uses
+        L-BFGS); "exact": also its symbolic mirror (`legkit.optimize.symbolic`, built once per problem), with
+        which IPOPT has exact Jacobians and Hessians."""
+        if derivatives not in ("legkit", "exact"):
+            raise ValueError(f"derivatives must be 'legkit' or 'exact', got {derivatives!r}")
         lower, upper = self.bounds()
-        return NLP(lower, upper, np.concatenate([b.lower for b in self.blocks]), np.concatenate([b.upper for b in self.blocks]),
-                   self.objective, self.gradient, self.constraints, self.jacobian, self.jac_rows, self.jac_cols)
+        symbolic = None
+        if derivatives == "exact":
+            if getattr(self, "_symbolic", None) is None:
+                from legkit.optimize.symbolic import transcription
 
-    def solve(self, guess: Trajectory | np.ndarray, **options) -> tuple[Trajectory, SolveResult]:
-        """Solve from a guess (a Trajectory or a variable vector); options go to `legkit.optimize.solver.solve`."""
-        x0 = self.pack(guess) if isinstance(guess, Trajectory) else np.asarray(guess, dtype=np.float64)
-        result = solve(self.nlp(), x0, **options)
+                self._symbolic = transcription(self)
+            symbolic = self._symbolic
+        return NLP(lower, upper, np.concatenate([b.lower for b in self.blocks]), np.concatenate([b.upper for b in self.blocks]),
+                   self.objective, self.gradient, self.constraints, self.jacobian, self.jac_rows, self.jac_cols, symbolic)
+
+    def solve(self, guess: Trajectory | np.ndarray, derivatives: str = "exact", **options) -> tuple[Trajectory, SolveResult]:
+        """Solve from a guess (a Trajectory or a variable vector), with exact derivatives (default) or legkit's
+        differences (`nlp`); options go to `legkit.optimize.solver.solve`."""
+        x0 = self.gauged(self.pack(guess) if isinstance(guess, Trajectory) else guess)
+        result = solve(self.nlp(derivatives), x0, **options)
         return self.unpack(result.x), result
 
     def stability_index(self, x: np.ndarray) -> list[np.ndarray]:
-        """S_H (eq. 10) at every point of every phase, for a problem with a MinMaxStability objective."""
-        if not self.stability_blocks:
+        """S_H as published (eq. 10) at every point of every phase, for a problem with a MinMaxStability
+        objective (whatever form its constraint takes)."""
+        from legkit.optimize.objectives import MinMaxStability, published_stability
+
+        terms = [t for t in self.objectives if isinstance(t, MinMaxStability)]
+        if not terms:
             raise ValueError("stability_index needs a problem whose objectives hold a MinMaxStability term")
-        return [b.values(x) + x[self.p1_index] for b in self.stability_blocks]
+        return [published_stability(self, k, terms[0], x[index]) for k, index in enumerate(self.point_index)]
 
     # ------------------------------------------------------------------ packing
     def pack(self, trajectory: Trajectory) -> np.ndarray:
@@ -435,6 +551,9 @@ class MultiphaseProblem:
             forces = np.asarray(trajectory.forces[k], dtype=np.float64).reshape(len(index), count, 3)
             parts.append((forces if self.force_dims == 3 else forces[..., 2:]).reshape(len(index), -1))
             z = np.concatenate([np.asarray(p, dtype=np.float64).reshape(len(index), -1) for p in parts], axis=1)
+            if self.transcription == "inverse":
+                a = trajectory.a[k] if trajectory.a is not None else self.state_rate(z, self.phases[k].contacts)[:, self.nq :]
+                z = np.concatenate([z, np.asarray(a, dtype=np.float64).reshape(len(index), -1)], axis=1)
             if z.shape != index.shape:
                 raise ValueError(f"trajectory phase {k} has {z.shape} point values, the problem needs {index.shape}")
             x[index] = z
@@ -445,31 +564,43 @@ class MultiphaseProblem:
     def unpack(self, x: np.ndarray) -> Trajectory:
         durations = x[self.duration_index].copy()
         starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
-        t, q, v, u, forces = [], [], [], [], []
+        t, q, v, u, forces, a = [], [], [], [], [], []
         for k, index in enumerate(self.point_index):
             z = x[index]
             t.append(starts[k] + np.linspace(0.0, durations[k], len(index)))
             q.append(z[:, : self.nq])
             v.append(z[:, self.nq : self.nx])
             u.append(z[:, self.nx : self.nx + self.nu])
-            forces.append(self.world_forces(z[:, self.nx + self.nu :], len(self.phases[k].contacts)))
-        return Trajectory(t, q, v, u, forces, durations, float(x[self.p1_index]))
+            forces.append(self.world_forces(z[:, self.force_columns[k]], len(self.phases[k].contacts)))
+            a.append(self.rate(z, k)[:, self.nq :])
+        return Trajectory(t, q, v, u, forces, durations, float(x[self.p1_index]), a)
+
+
+def _norm(vector):
+    import casadi
+
+    return casadi.norm_2(vector)
+
+
+def _same_rotation(pair: np.ndarray) -> np.ndarray:
+    """(B, 3): vector parts of two [x, y, z, w] quaternions (B, 8), each normalised, subtracted."""
+    first, second = pair[:, :4], pair[:, 4:]
+    return first[:, :3] / np.linalg.norm(first, axis=1, keepdims=True) - second[:, :3] / np.linalg.norm(second, axis=1, keepdims=True)
 
 
 class _Defects:
     """The Hermite–Simpson defects of one phase (`collocation` docstring); h = T / intervals, T a variable."""
 
     def __init__(self, problem: MultiphaseProblem, k: int) -> None:
-        self.problem, self.contacts = problem, list(problem.phases[k].contacts)
+        self.problem, self.k = problem, k
         index = problem.point_index[k]
         self.index, self.duration, self.intervals = index, problem.duration_index[k], problem.phases[k].intervals
         nx, nz = problem.nx, index.shape[1]
         self.size = 2 * nx * self.intervals
         self.lower = self.upper = np.zeros(self.size)
         # Structural pattern of one interval: rows [interpolation; Simpson] x cols [z_a, z_m, z_b, T].
-        dependence = np.ones((nx, nz), dtype=bool)
-        dependence[: problem.nq, nx:] = False  # dq/dt does not depend on u or the forces
-        self.dependence = dependence
+        dependence = problem.rate_dependence(k)
+        self.columns = np.flatnonzero(dependence.any(axis=0))  # the inputs the rate is differentiated by
         select = np.zeros((nx, nz), dtype=bool)
         select[:, :nx] = np.eye(nx, dtype=bool)
         column = np.ones((nx, 1), dtype=bool)
@@ -483,21 +614,21 @@ class _Defects:
         self.cols = cols[:, c].ravel()
         self._r, self._c = r, c
 
-    def _split(self, x: np.ndarray, rates: np.ndarray):
-        z = x[self.index]
-        states = z[:, : self.problem.nx]
-        return states[0::2], states[1::2], rates[0::2], rates[1::2], x[self.duration] / self.intervals
-
     def values(self, x: np.ndarray) -> np.ndarray:
-        rates = self.problem.state_rate(x[self.index], self.contacts)
-        interpolation, simpson = hermite_simpson_defects(*self._split(x, rates))
+        z = x[self.index]
+        rates, states = self.problem.rate(z, self.k), z[:, : self.problem.nx]
+        interpolation, simpson = hermite_simpson_defects(states[0::2], states[1::2], rates[0::2], rates[1::2],
+                                                         x[self.duration] / self.intervals)
         return np.concatenate([interpolation, simpson], axis=1).ravel()
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         nx, n_int = self.problem.nx, self.intervals
-        rates, jac = point_jacobian(lambda z: self.problem.state_rate(z, self.contacts), x[self.index])
+        z = x[self.index]
+        rates, partial = point_jacobian(lambda zz: self.problem.rate(zz, self.k), z, columns=self.columns)
+        nz = z.shape[1]
+        jac = np.zeros((len(z), nx, nz))
+        jac[:, :, self.columns] = partial
         h = x[self.duration] / n_int
-        nz = jac.shape[2]
         eye = np.zeros((nx, nz))
         eye[:, :nx] = np.eye(nx)
         ja, jm, jb = jac[0:-1:2], jac[1::2], jac[2::2]
@@ -512,3 +643,126 @@ class _Defects:
         block[:, nx:, 2 * nz : 3 * nz] = eye - h / 6.0 * jb
         block[:, nx:, -1] = -(fa + 4.0 * fm + fb) / (6.0 * n_int)
         return block[:, self._r, self._c].ravel()
+
+
+class _InverseDynamics:
+    """Eq. 1 in inverse-dynamics form at every point of phase k: rnea(q, v, a, J_c^T lambda) - B u = 0 (nv rows
+    per point). d/d(q, v, lambda) by coloured central differences over one batched RNEA call; d/da = M(q)
+    (`crba`) and d/du = -B exactly. The pattern follows the tree (`MultiphaseProblem.tree_dependence`)."""
+
+    def __init__(self, problem: MultiphaseProblem, k: int) -> None:
+        self.problem, self.k = problem, k
+        self.contacts = list(problem.phases[k].contacts)
+        index = problem.point_index[k]
+        self.index = index
+        nq, nv, nx, nu = problem.nq, problem.nv, problem.nx, problem.nu
+        nz = index.shape[1]
+        self.size = len(index) * nv
+        self.lower = self.upper = np.zeros(self.size)
+        vv, vq, reach = problem.tree_dependence()
+        mask = np.zeros((nv, nz), dtype=bool)
+        mask[:, :nq], mask[:, nq:nx], mask[:, problem.a_columns[k]] = vq, vv, vv
+        mask[problem.actuated, nx + np.arange(nu)] = True
+        forces = np.arange(nz)[problem.force_columns[k]].reshape(len(self.contacts), problem.force_dims)
+        for c, name in enumerate(self.contacts):
+            mask[np.ix_(reach[name], forces[c])] = True
+        self.columns = np.r_[np.arange(nx), forces.ravel()]  # differenced; a and u are exact
+        r, c = np.nonzero(mask)
+        self._r, self._c = r, c
+        self.rows = (np.arange(len(index))[:, None] * nv + r[None]).ravel()
+        self.cols = index[:, c].ravel()
+
+    def residual(self, z: np.ndarray) -> np.ndarray:
+        problem = self.problem
+        q = problem.configuration(z[:, : problem.nq])
+        f_ext = problem.external_wrenches(q, z[:, problem.force_columns[self.k]], self.contacts)
+        generalized = np.asarray(lk.rnea(problem.model, q, z[:, problem.nq : problem.nx], z[:, problem.a_columns[self.k]], f_ext))
+        return generalized - problem.tau(z[:, problem.nx : problem.nx + problem.nu])
+
+    def values(self, x: np.ndarray) -> np.ndarray:
+        return self.residual(x[self.index]).ravel()
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        problem = self.problem
+        z = x[self.index]
+        _, partial = point_jacobian(self.residual, z, columns=self.columns)
+        jac = np.zeros((len(z), problem.nv, z.shape[1]))
+        jac[:, :, self.columns] = partial
+        jac[:, :, problem.a_columns[self.k]] = np.asarray(lk.crba(problem.model, problem.configuration(z[:, : problem.nq])))
+        jac[:, problem.actuated, problem.nx + np.arange(problem.nu)] = -1.0
+        return jac[:, self._r, self._c].ravel()
+
+
+class _Feet:
+    """The feet at every point of phase k, from one batched forward-kinematics difference over q: stance feet
+    on the ground (height 0) and, with 3-D forces, at the foothold where the phase began (x, y); swing tips at
+    or above the ground (eq. 4).
+
+    A phase's first point is the previous phase's last (the same q, up to the periodic shift along the ground),
+    so a foot's height there is stated once: a foot down on both sides of the boundary by the earlier phase,
+    a lifting foot by the earlier phase's height = 0, a landing foot by the later phase's height = 0. Stating
+    it twice would make the constraint Jacobian rank-deficient (LICQ fails; IPOPT's multipliers diverge)."""
+
+    def __init__(self, problem: MultiphaseProblem, k: int) -> None:
+        self.problem = problem
+        index = problem.point_index[k]
+        self.index = index[:, : problem.nq]
+        names = problem.foot_names
+        self.names = names
+        points, nq, count = len(index), problem.nq, len(names)
+        tree, q_body, _ = problem.tree()
+        ancestors = {name: tree[problem.foot_body[name]] for name in names}
+        rows, cols, source, sign, unilateral, output, anchor_output = [], [], [], [], [], [], []
+        row = 0
+
+        def add(point: int, foot: int, axis: int, above: bool, anchor: bool) -> None:
+            nonlocal row
+            reach = np.flatnonzero(np.isin(q_body, list(ancestors[names[foot]])))
+            flat = (point * count * 3 + foot * 3 + axis) * nq  # jac is (P, count * 3, nq)
+            rows.append(np.full(len(reach), row))
+            cols.append(index[point, reach])
+            source.append(flat + reach)
+            sign.append(np.ones(len(reach)))
+            if anchor:  # minus the same coordinate at the phase's first point
+                rows.append(np.full(len(reach), row))
+                cols.append(index[0, reach])
+                source.append((foot * 3 + axis) * nq + reach)
+                sign.append(-np.ones(len(reach)))
+            unilateral.append(above)
+            output.append(point * count * 3 + foot * 3 + axis)
+            anchor_output.append(foot * 3 + axis if anchor else -1)
+            row += 1
+
+        count_phases = len(problem.phases)
+        linked = problem.periodic and count_phases > 1
+        before = problem.phases[k - 1].contacts if (k > 0 or linked) else None
+        after = problem.phases[(k + 1) % count_phases].contacts if (k < count_phases - 1 or linked) else None
+        for point in range(points):
+            for foot, name in enumerate(names):
+                if (point == 0 and before is not None and name in before) or (point == points - 1 and after is not None
+                                                                              and name in after and name not in problem.phases[k].contacts):
+                    continue  # the height at this shared point is stated by the neighbouring phase
+                if name in problem.phases[k].contacts:
+                    add(point, foot, 2, False, False)
+                    if problem.force_dims == 3 and point > 0:
+                        add(point, foot, 0, False, True)
+                        add(point, foot, 1, False, True)
+                else:
+                    add(point, foot, 2, True, False)  # swing: height >= 0
+        self.size = row
+        self.rows, self.cols = np.concatenate(rows), np.concatenate(cols)
+        self._source, self._sign = np.concatenate(source), np.concatenate(sign)
+        self.lower = np.zeros(row)
+        self.upper = np.where(unilateral, np.inf, 0.0)
+        self._output, self._anchor = np.array(output), np.array(anchor_output)
+
+    def _positions(self, q: np.ndarray) -> np.ndarray:
+        return self.problem.foot_positions(q, self.names).reshape(len(q), -1)
+
+    def values(self, x: np.ndarray) -> np.ndarray:
+        positions = self._positions(x[self.index]).ravel()
+        return positions[self._output] - np.where(self._anchor >= 0, positions[np.maximum(self._anchor, 0)], 0.0)
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        _, jac = point_jacobian(self._positions, x[self.index])
+        return self._sign * jac.ravel()[self._source]

@@ -1,9 +1,11 @@
 """One small interface to a sparse NLP solver: IPOPT as bundled in the casadi wheel (pip alone installs it).
 
 The NLP is given as NumPy callbacks (objective, gradient, constraints, Jacobian values on a fixed sparsity
-pattern); casadi only carries them to IPOPT through `casadi.Callback`s, so the model's dynamics stay in
-legkit's batched kernels (no symbolic graph of the robot is ever built). The Hessian is IPOPT's L-BFGS
-approximation: the callbacks give first derivatives only.
+pattern), which casadi carries to IPOPT through `casadi.Callback`s so the model's dynamics stay in legkit's
+batched kernels; the Hessian is then IPOPT's L-BFGS approximation (the callbacks give first derivatives
+only). An NLP may also carry a symbolic form (`NLP.symbolic`: casadi x, f(x), g(x), see
+`legkit.optimize.symbolic`), which IPOPT then uses with exact first and second derivatives; the callbacks
+still define the problem (violations are re-evaluated by them).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ class NLP:
     jacobian: Callable[[np.ndarray], np.ndarray]
     jac_rows: np.ndarray
     jac_cols: np.ndarray
+    symbolic: tuple | None = None  # (x, f, g) casadi MX of the same NLP: exact derivatives, exact Hessian
 
     @property
     def n(self) -> int:
@@ -216,20 +219,29 @@ def solve(
                 progress(len(history) - 1, f, float(viol))
             return [0]
 
-    functions, iteration = Functions(), Iteration()
-    symbol = ca.MX.sym("x", n)
-    f_expr, g_expr = functions(symbol)
-    ipopt = {"tol": tol, "constr_viol_tol": tol, "max_iter": max_iter, "hessian_approximation": "limited-memory",
-             "print_level": 0, "sb": "yes", "mu_strategy": "adaptive"}
+    iteration = Iteration()
+    ipopt = {"tol": tol, "constr_viol_tol": tol, "max_iter": max_iter, "print_level": 0, "sb": "yes", "mu_strategy": "adaptive"}
+    if nlp.symbolic is None:
+        functions = Functions()
+        symbol = ca.MX.sym("x", n)
+        f_expr, g_expr = functions(symbol)
+        ipopt["hessian_approximation"] = "limited-memory"
+        extra = {}
+    else:
+        symbol, f_expr, g_expr = nlp.symbolic
+        extra = {"expand": True}  # one SX graph: casadi's virtual machine evaluates it without MX overhead
     ipopt.update(options or {})
     solver = ca.nlpsol("legkit", "ipopt", {"x": symbol, "f": f_expr, "g": g_expr},
-                       {"ipopt": ipopt, "print_time": False, "iteration_callback": iteration, "error_on_fail": False})
+                       {"ipopt": ipopt, "print_time": False, "iteration_callback": iteration, "error_on_fail": False, **extra})
     start = time.perf_counter()
     result = solver(x0=x0, lbx=nlp.x_lower, ubx=nlp.x_upper, lbg=nlp.g_lower, ubg=nlp.g_upper)
     wall = time.perf_counter() - start
     if timer.error is not None:
         raise timer.error
     stats = solver.stats()
+    evaluation = timer.seconds
+    if nlp.symbolic is not None:  # casadi times its own evaluations of f, g and their derivatives
+        evaluation = sum(stats.get(f"t_wall_{name}", 0.0) for name in ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l", "nlp_grad"))
     x = np.asarray(result["x"]).ravel()
     return SolveResult(x, float(result["f"]), stats["return_status"], bool(stats["success"]), int(stats["iter_count"]),
-                       wall, timer.seconds, nlp.violation(x), history, best[0], tol)
+                       wall, evaluation, nlp.violation(x), history, best[0], tol)

@@ -1,0 +1,377 @@
+"""A symbolic (casadi SX) mirror of the legkit kernels a transcription needs, for IPOPT's exact Hessian.
+
+Why it exists (docs/optimize.md, "Measured"): with the constraints evaluated by legkit's batched kernels and
+differentiated by coloured central differences, IPOPT only has first derivatives and must use L-BFGS, and on
+the amble (min-max S_H, eq. 11) L-BFGS crawls for hundreds of iterations. Second derivatives by differences
+of differences cost a second order of kernel calls. casadi's algorithmic differentiation of the same
+functions, written symbolically, gives exact Jacobians and Hessians at a small fraction of that cost, so the
+amble converges in tens of iterations. The price is a second implementation of the dynamics: every function
+here is checked against legkit's own kernels (`lk.rnea`, `lk.forward_kinematics`, `lk.center_of_mass`,
+`lk.centroidal_momentum`, `lk.impact`) in tests/test_optimize_symbolic.py, and legkit stays the reference:
+the solution is re-evaluated by the legkit kernels (`MultiphaseProblem.constraints`).
+
+Conventions are legkit's (DESIGN.md): a body's pose is parent pose x placement x joint motion; free-flyer
+q = [x, y, z, qx, qy, qz, qw], v = [v_lin, omega] in the base frame; spatial vectors here are linear-first
+([v, omega] and [f, n]) in body coordinates. RNEA is Featherstone's recursive Newton-Euler (file 003 eq. 1 as
+inverse dynamics: tau = M a + C v + g - sum J^T f_ext).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+import legkit as lk
+
+
+#: Relative regularisation of the impact's KKT system (see `SymbolicModel.impact`).
+IMPACT_REGULARISATION = 1e-12
+
+
+def _ca():
+    import casadi
+
+    return casadi
+
+
+def _skew(w):
+    ca = _ca()
+    return ca.vertcat(ca.horzcat(0, -w[2], w[1]), ca.horzcat(w[2], 0, -w[0]), ca.horzcat(-w[1], w[0], 0))
+
+
+def quaternion_matrix(quaternion):
+    """Rotation of an [x, y, z, w] quaternion, normalised (as legkit's `configuration` does)."""
+    ca = _ca()
+    quaternion = quaternion / ca.norm_2(quaternion)
+    x, y, z, w = quaternion[0], quaternion[1], quaternion[2], quaternion[3]
+    return ca.vertcat(
+        ca.horzcat(1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
+        ca.horzcat(2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)),
+        ca.horzcat(2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)),
+    )
+
+
+def _axis_rotation(axis: np.ndarray, angle):
+    ca = _ca()
+    k = _skew(ca.DM(axis))
+    return ca.DM.eye(3) + ca.sin(angle) * k + (1 - ca.cos(angle)) * (k @ k)
+
+
+class SymbolicModel:
+    """The kinematics and dynamics of a legkit Model as casadi SX expressions (module docstring)."""
+
+    def __init__(self, model: lk.Model) -> None:
+        self.model = model
+        self.nq, self.nv, self.bodies = model.nq, model.nv, model.nbodies
+        self.parents = list(model.parents)
+        self.idx_q, self.idx_v = list(model.idx_q), list(model.idx_v)
+        self.types = [model.joint_type(i) for i in range(self.bodies)]
+        unknown = {t for t in self.types if t not in ("free_flyer", "revolute", "prismatic", "fixed")}
+        if unknown:
+            raise ValueError(f"model: joint types {sorted(unknown)} have no symbolic form")
+        self.axes = [None if model.joint_axis(i) is None else np.asarray(model.joint_axis(i), dtype=np.float64) for i in range(self.bodies)]
+        self.placements = [np.asarray(model.placement(i), dtype=np.float64) for i in range(self.bodies)]
+        self.inertias = [model.body(i) for i in range(self.bodies)]
+        self.gravity = np.asarray(model.gravity, dtype=np.float64)
+        self.total_mass = float(model.total_mass)
+
+    # -------------------------------------------------------------- kinematics
+    def _joint(self, i: int, q):
+        """(R, p) of body i in its parent's frame, and the motion subspace S (6, k) in body coordinates."""
+        ca = _ca()
+        placement = self.placements[i]
+        r0, p0 = ca.DM(placement[:3, :3]), ca.DM(placement[:3, 3])
+        kind, qi = self.types[i], self.idx_q[i]
+        if kind == "free_flyer":
+            rotation = quaternion_matrix(q[qi + 3 : qi + 7])
+            return r0 @ rotation, p0 + r0 @ q[qi : qi + 3], ca.DM.eye(6)
+        if kind == "revolute":
+            axis = self.axes[i]
+            return r0 @ _axis_rotation(axis, q[qi]), p0, ca.DM(np.r_[np.zeros(3), axis]).reshape((6, 1))
+        if kind == "prismatic":
+            axis = self.axes[i]
+            return r0, p0 + r0 @ ca.DM(axis) * q[qi], ca.DM(np.r_[axis, np.zeros(3)]).reshape((6, 1))
+        return r0, p0, ca.DM(6, 0)
+
+    def _dofs(self, i: int) -> int:
+        return {"free_flyer": 6, "revolute": 1, "prismatic": 1, "fixed": 0}[self.types[i]]
+
+    def kinematics(self, q, v=None, a=None):
+        """Per body: world rotation, world position, and (with v, a) body-frame spatial velocity and
+        acceleration (gravity folded in as an upward acceleration of the world when a is given)."""
+        ca = _ca()
+        rotations, positions, velocities, accelerations, local = [], [], [], [], []
+        for i in range(self.bodies):
+            r, p, s = self._joint(i, q)
+            parent = self.parents[i]
+            k, vi = self._dofs(i), self.idx_v[i]
+            local.append((r, p, s))
+            if parent < 0:
+                rotations.append(r)
+                positions.append(p)
+            else:
+                rotations.append(rotations[parent] @ r)
+                positions.append(positions[parent] + rotations[parent] @ p)
+            if v is None:
+                continue
+            if parent < 0:
+                v_parent = ca.DM.zeros(6)
+                a_parent = ca.vertcat(ca.DM(-self.gravity), ca.DM.zeros(3)) if a is not None else None
+            else:
+                v_parent, a_parent = velocities[parent], accelerations[parent] if a is not None else None
+            vel = self._transform_motion(r, p, v_parent)
+            if k:
+                vel = vel + s @ v[vi : vi + k]
+            velocities.append(vel)
+            if a is not None:
+                acc = self._transform_motion(r, p, a_parent)
+                if k:
+                    acc = acc + s @ a[vi : vi + k] + self._cross_motion(vel, s @ v[vi : vi + k])
+                accelerations.append(acc)
+        return rotations, positions, velocities, accelerations, local
+
+    @staticmethod
+    def _transform_motion(r, p, motion):
+        """A parent-frame motion [v, w] at the parent origin, expressed at the child origin in child axes."""
+        ca = _ca()
+        v, w = motion[:3], motion[3:]
+        return ca.vertcat(r.T @ (v + ca.cross(w, p)), r.T @ w)
+
+    @staticmethod
+    def _cross_motion(m1, m2):
+        ca = _ca()
+        v, w = m1[:3], m1[3:]
+        return ca.vertcat(ca.cross(w, m2[:3]) + ca.cross(v, m2[3:]), ca.cross(w, m2[3:]))
+
+    def _momentum(self, i: int, motion):
+        """Body i's spatial momentum [h, k about the origin] in body coordinates for a motion [v, w]."""
+        ca = _ca()
+        body = self.inertias[i]
+        m, c, inertia = float(body.mass), ca.DM(np.asarray(body.com)), ca.DM(np.asarray(body.inertia))
+        v, w = motion[:3], motion[3:]
+        linear = m * (v + ca.cross(w, c))
+        return ca.vertcat(linear, inertia @ w + ca.cross(c, linear))
+
+    def rnea(self, q, v, a, wrenches: Sequence[tuple[int, object]] = ()):
+        """tau (nv,) = rnea(q, v, a, f_ext) with f_ext body-frame wrenches [f, n] as (body, 6-vector) pairs."""
+        ca = _ca()
+        rotations, positions, velocities, accelerations, local = self.kinematics(q, v, a)
+        forces = []
+        for i in range(self.bodies):
+            vel, acc = velocities[i], accelerations[i]
+            h = self._momentum(i, vel)
+            net = self._momentum(i, acc) + ca.vertcat(ca.cross(vel[3:], h[:3]), ca.cross(vel[3:], h[3:]) + ca.cross(vel[:3], h[:3]))
+            forces.append(net)
+        for body, wrench in wrenches:
+            forces[body] = forces[body] - wrench
+        tau = [None] * self.nv
+        for i in reversed(range(self.bodies)):
+            r, p, s = local[i]
+            k, vi = self._dofs(i), self.idx_v[i]
+            if k:
+                projected = s.T @ forces[i]
+                for j in range(k):
+                    tau[vi + j] = projected[j]
+            parent = self.parents[i]
+            if parent >= 0:
+                f, n = r @ forces[i][:3], r @ forces[i][3:]
+                forces[parent] = forces[parent] + ca.vertcat(f, n + ca.cross(p, f))
+        return ca.vertcat(*tau)
+
+    def foot_wrenches(self, q, feet: Sequence[tuple[int, np.ndarray]], world_forces):
+        """Body-frame wrenches of world forces (3 per foot, stacked) at foot points (body, point)."""
+        ca = _ca()
+        rotations = self.kinematics(q)[0]
+        wrenches = []
+        for c, (body, point) in enumerate(feet):
+            local = rotations[body].T @ world_forces[3 * c : 3 * c + 3]
+            wrenches.append((body, ca.vertcat(local, ca.cross(ca.DM(point), local))))
+        return wrenches
+
+    def points(self, q, feet: Sequence[tuple[int, np.ndarray]]):
+        """World positions (3 per point, stacked) of body points (body, point)."""
+        ca = _ca()
+        rotations, positions = self.kinematics(q)[:2]
+        return ca.vertcat(*[positions[b] + rotations[b] @ ca.DM(p) for b, p in feet])
+
+    def center_of_mass(self, q):
+        ca = _ca()
+        rotations, positions = self.kinematics(q)[:2]
+        total = 0
+        for i in range(self.bodies):
+            body = self.inertias[i]
+            if float(body.mass) > 0.0:
+                total = total + float(body.mass) * (positions[i] + rotations[i] @ ca.DM(np.asarray(body.com)))
+        return total / self.total_mass
+
+    def centroidal_momentum(self, q, v):
+        """[h_lin, h_ang about the COM], world-aligned (as `lk.centroidal_momentum`)."""
+        ca = _ca()
+        rotations, positions, velocities = self.kinematics(q, v)[:3]
+        com = self.center_of_mass(q)
+        linear, angular = ca.DM.zeros(3), ca.DM.zeros(3)
+        for i in range(self.bodies):
+            body = self.inertias[i]
+            if float(body.mass) == 0.0 and not np.any(np.asarray(body.inertia)):
+                continue
+            h = self._momentum(i, velocities[i])  # about the body origin, body axes
+            r = rotations[i]
+            h_world, k_world = r @ h[:3], r @ h[3:]
+            linear = linear + h_world
+            angular = angular + k_world + ca.cross(positions[i] - com, h_world)
+        return ca.vertcat(linear, angular)
+
+    def mass_matrix(self, q):
+        ca = _ca()
+        zero = ca.DM.zeros(self.nv)
+        bias = self.rnea_no_gravity(q, zero, zero)
+        return ca.horzcat(*[self.rnea_no_gravity(q, zero, ca.DM(np.eye(self.nv)[j])) - bias for j in range(self.nv)])
+
+    def rnea_no_gravity(self, q, v, a):
+        saved = self.gravity
+        self.gravity = np.zeros(3)
+        try:
+            return self.rnea(q, v, a)
+        finally:
+            self.gravity = saved
+
+    def impact(self, q, v_minus, feet: Sequence[tuple[int, np.ndarray]]):
+        """Perfectly inelastic impact (eq. 7): v+ with J v+ = 0 at the feet, M (v+ - v-) = J^T Lambda. The
+        KKT system carries IMPACT_REGULARISATION on its impulse block, so directions no joint can move along
+        (zero rows of J, e.g. a foot on a vertical slider) get no impulse instead of a singular system; for a
+        full-rank J it moves v+ by about that much relative (the differential test bounds it)."""
+        ca = _ca()
+        m = self.mass_matrix(q)
+        jac = ca.jacobian(self.points(q, feet), q) @ self.q_rate_matrix(q)
+        k = jac.shape[0]
+        kkt = ca.vertcat(ca.horzcat(m, -jac.T), ca.horzcat(jac, IMPACT_REGULARISATION * ca.DM.eye(k)))
+        return ca.solve(kkt, ca.vertcat(m @ v_minus, ca.DM.zeros(k)))[: self.nv]
+
+    def q_rate_matrix(self, q):
+        """dq/dt = Q(q) v (nq, nv): the base position rate R v_lin, the quaternion rate, joint rates."""
+        ca = _ca()
+        if not self.model.floating_base:
+            return ca.DM.eye(self.nv)
+        qx, qy, qz, qw = q[3], q[4], q[5], q[6]
+        quat = 0.5 * ca.vertcat(ca.horzcat(qw, -qz, qy), ca.horzcat(qz, qw, -qx), ca.horzcat(-qy, qx, qw), ca.horzcat(-qx, -qy, -qz))
+        top = ca.horzcat(quaternion_matrix(q[3:7]), ca.DM.zeros(3, self.nv - 3))
+        middle = ca.horzcat(ca.DM.zeros(4, 3), quat, ca.DM.zeros(4, self.nv - 6))
+        bottom = ca.horzcat(ca.DM.zeros(self.nq - 7, 6), ca.DM.eye(self.nv - 6))
+        return ca.vertcat(top, middle, bottom)
+
+
+# ------------------------------------------------------------------ the transcription, symbolically
+def transcription(problem) -> tuple:
+    """(x, f(x), g(x)) as casadi MX of a `MultiphaseProblem`'s NLP: the same rows in the same order as
+    `problem.constraints` (each per-point function a casadi Function mapped over the points) and the same
+    objective. Needs the inverse-dynamics transcription and symbolic forms of every Point block and integrand."""
+    ca = _ca()
+    from legkit.optimize import problem as transcribed
+    from legkit.optimize.blocks import Linear, Point
+
+    if problem.transcription != "inverse":
+        raise ValueError("the symbolic transcription needs transcription='inverse'")
+    model = SymbolicModel(problem.model)
+    x = ca.MX.sym("x", problem.n)
+    rows = []
+    for block in problem.blocks:
+        if isinstance(block, Linear):
+            rows.append(_sparse(block.size, problem.n, block.rows, block.cols, block.coefficients) @ x + ca.DM(block.offset))
+        elif isinstance(block, Point):
+            if block.symbolic is None:
+                raise ValueError(f"a constraint block ({block.function}) has no symbolic form")
+            z = ca.SX.sym("z", block.index.shape[1])
+            function = ca.Function("point", [z], [block.symbolic(model, z)])
+            rows.append(ca.vec(function.map(block.index.shape[0])(_gather(x, block.index))))
+        elif isinstance(block, transcribed._Defects):
+            rows.append(_defects(problem, model, block, x))
+        elif isinstance(block, transcribed._InverseDynamics):
+            z = ca.SX.sym("z", block.index.shape[1])
+            function = ca.Function("rnea", [z], [residual(problem, model, block.k, z)])
+            rows.append(ca.vec(function.map(block.index.shape[0])(_gather(x, block.index))))
+        elif isinstance(block, transcribed._Feet):
+            q = ca.SX.sym("q", problem.nq)
+            feet = [(problem.foot_body[n], problem.foot_point[n]) for n in block.names]
+            function = ca.Function("feet", [q], [model.points(q, feet)])
+            positions = ca.vec(function.map(block.index.shape[0])(_gather(x, block.index)))
+            anchored = block._anchor >= 0
+            value = positions[block._output.tolist()]
+            anchor = ca.MX.zeros(block.size)
+            if np.any(anchored):
+                selection = _sparse(block.size, positions.shape[0], np.flatnonzero(anchored), block._anchor[anchored], np.ones(int(anchored.sum())))
+                anchor = selection @ positions
+            rows.append(value - anchor)
+        else:
+            raise ValueError(f"no symbolic form for constraint block {type(block).__name__}")
+    return x, objective(problem, model, x), ca.vertcat(*rows)
+
+
+def residual(problem, model: SymbolicModel, k: int, z):
+    """rnea(q, v, a, J_c^T lambda) - B u at phase k's point variables z (the inverse-dynamics rows)."""
+    ca = _ca()
+    contacts = problem.phases[k].contacts
+    feet = [(problem.foot_body[n], problem.foot_point[n]) for n in contacts]
+    forces = z[problem.force_columns[k]]
+    if problem.force_dims == 1:
+        forces = ca.vertcat(*[ca.vertcat(0, 0, forces[c]) for c in range(len(contacts))])
+    q, v, a = z[: problem.nq], z[problem.nq : problem.nx], z[problem.a_columns[k]]
+    tau = model.rnea(q, v, a, model.foot_wrenches(q, feet, forces) if contacts else ())
+    actuation = np.zeros((problem.nv, problem.nu))
+    actuation[problem.actuated, np.arange(problem.nu)] = 1.0
+    return tau - ca.DM(actuation) @ z[problem.nx : problem.nx + problem.nu]
+
+
+def _gather(x, index: np.ndarray):
+    """(k, P) MX of the variables index (P, k), one column per point."""
+    ca = _ca()
+    return ca.reshape(x[np.asarray(index).ravel().tolist()], index.shape[1], index.shape[0])
+
+
+def _sparse(rows: int, columns: int, r, c, values):
+    ca = _ca()
+    from scipy.sparse import coo_matrix
+
+    matrix = coo_matrix((np.asarray(values, dtype=np.float64), (np.asarray(r), np.asarray(c))), shape=(rows, columns)).tocsc()
+    matrix.sum_duplicates()
+    return ca.DM(ca.Sparsity(rows, columns, matrix.indptr.tolist(), matrix.indices.tolist()), matrix.data.tolist())
+
+
+def _defects(problem, model: SymbolicModel, block, x):
+    ca = _ca()
+    z = ca.SX.sym("z", block.index.shape[1])
+    q, v = z[: problem.nq], z[problem.nq : problem.nx]
+    rate = ca.Function("rate", [z], [ca.vertcat(model.q_rate_matrix(q) @ v, z[problem.a_columns[block.k]])])
+    points = _gather(x, block.index)
+    rates = rate.map(block.index.shape[0])(points)
+    states = points[: problem.nx, :]
+    h = x[block.duration] / block.intervals
+    x0, xm, x1 = states[:, 0:-1:2], states[:, 1::2], states[:, 2::2]
+    f0, fm, f1 = rates[:, 0:-1:2], rates[:, 1::2], rates[:, 2::2]
+    interpolation = xm - 0.5 * (x0 + x1) - h * (f0 - f1) / 8.0  # eq. 14, as `hermite_simpson_defects`
+    simpson = x1 - x0 - h * (f0 + 4.0 * fm + f1) / 6.0
+    return ca.vec(ca.vertcat(interpolation, simpson))
+
+
+def objective(problem, model: SymbolicModel, x):
+    """The problem's summed objective terms (`objectives.build_objective`) as a casadi expression."""
+    ca = _ca()
+    from legkit.optimize.objectives import Integral, MinMaxStability, _simpson_weights
+
+    total = 0
+    for term in problem.objectives:
+        if isinstance(term, MinMaxStability):
+            total = total - term.weight * x[problem.p1_index]
+            continue
+        if not isinstance(term, Integral) or term.symbolic is None:
+            raise ValueError(f"objective term {term} has no symbolic form")
+        integral = 0
+        for k, index in enumerate(problem.point_index):
+            z = ca.SX.sym("z", index.shape[1])
+            integrand = ca.Function("integrand", [z], [term.symbolic(problem, model, z)]).map(index.shape[0])
+            weights = ca.DM(_simpson_weights(problem.phases[k].intervals) / (6.0 * problem.phases[k].intervals))
+            integral = integral + x[problem.duration_index[k]] * (integrand(_gather(x, index)) @ weights)
+        if term.per_distance:
+            integral = integral / (abs(problem.speed) * ca.sum1(x[problem.duration_index.tolist()]))
+        total = total + term.weight * integral
+    return total
