@@ -155,21 +155,60 @@ PLANTS = ("tree", "rapier", "free")
 DEFAULT_FRICTION = 0.8
 
 
-def make_plant(kind: str, model: lk.Model, q0: np.ndarray, dt: float, friction: float = DEFAULT_FRICTION) -> Plant:
+def make_plant(
+    kind: str, model: lk.Model, q0: np.ndarray, dt: float, friction: float = DEFAULT_FRICTION, ground: lk.Ground | None = None,
+) -> Plant:
     """A plant of ``kind`` (one of ``PLANTS``) for ``model``, starting at rest at ``q0``: "tree" and "rapier"
-    are ``lk.Simulation`` on that backend, on a ground plane with Coulomb coefficient ``friction``; "free" a
-    ``FreePlant`` (no ground)."""
+    are ``lk.Simulation`` on that backend, on ``ground`` (default: a plane with Coulomb coefficient
+    ``friction``); "free" a ``FreePlant`` (no ground)."""
     if kind == "free":
         return FreePlant(model, q0=q0, dt=dt)
     if kind in ("tree", "rapier"):
         # The same servo model as the free plant: rotor inertia and damping on every joint.
         simulation = lk.Simulation(
-            model, dt=dt, ground=lk.Ground.plane(friction=friction), backend=kind,
+            model, dt=dt, ground=lk.Ground.plane(friction=friction) if ground is None else ground, backend=kind,
             joint_damping=FreePlant.DEFAULT_DAMPING, joint_armature=FreePlant.DEFAULT_ARMATURE,
         )
         simulation.reset(q0, None)
         return simulation
     raise ValueError(f"plant: must be one of {PLANTS}, got {kind!r}")
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of ``run_balance`` when its runs are given explicitly: tree ``tree`` (an index into its
+    ``trees``) under the gain ``schedule``, starting from ``initial_angles(trees[tree], start_seed)``
+    (None: ``seed + tree``, as the default runs), on ``ground`` (None: a plane with ``run_balance``'s
+    ``friction``), its agents sensing every joint angle with independent Gaussian noise of standard
+    deviation ``noise`` (rad) drawn from a generator seeded with ``noise_seed`` (its own, so a run's noise
+    does not depend on the other runs of the call)."""
+
+    tree: int
+    schedule: GainSchedule
+    start_seed: int | None = None
+    ground: lk.Ground | None = None
+    noise: float = 0.0
+    noise_seed: int = 0
+
+
+class _SensorNoise:
+    """Each noisy run's angle noise, drawn ``NOISE_CHUNK`` control steps at a time from the run's own generator."""
+
+    def __init__(self, runs: Sequence[RunSpec], module_slices: Sequence[slice], n_modules: int):
+        self.noisy = [(i, r, module_slices[i], np.random.default_rng([r.noise_seed, 2])) for i, r in enumerate(runs) if r.noise > 0]
+        self.n_modules = n_modules
+        self.step = NOISE_CHUNK
+
+    def __call__(self, angles: np.ndarray) -> np.ndarray:
+        if not self.noisy:
+            return angles
+        if self.step == NOISE_CHUNK:  # one draw per run every NOISE_CHUNK steps, not one per run per step
+            self.chunk = np.zeros((NOISE_CHUNK, self.n_modules, 3))
+            for _, run, modules, rng in self.noisy:
+                self.chunk[:, modules] = rng.normal(0.0, run.noise, size=(NOISE_CHUNK, modules.stop - modules.start, 3))
+            self.step = 0
+        self.step += 1
+        return angles + self.chunk[self.step - 1]
 
 
 @dataclass
@@ -183,6 +222,8 @@ class RunResult:
     signed_offset: np.ndarray
     messages_per_module_second: float
     q: np.ndarray | None = None  # joint angles (samples, nq) at ``times``, for animations
+    energy: float = float("nan")  # J: the integral of sum_j |tau_j v_j| over the run (see ``run_balance``)
+    schedule: GainSchedule | None = None  # the run's gain schedule (scheme, c0, c1, base gains)
 
     @property
     def initial(self) -> float:
@@ -245,75 +286,119 @@ def initial_angles(tree: ModuleTree, seed: int) -> np.ndarray:
 def run_balance(
     trees: Sequence[ModuleTree], duration: float, dt: float = 1e-3, loss: float = 0.0, plant: str = "tree",
     seed: int = 0, sample_every: int = 10, progress: bool = True, rounds_per_step: int = 1,
-    friction: float = DEFAULT_FRICTION,
+    friction: float = DEFAULT_FRICTION, runs: Sequence[RunSpec] | None = None, bus: BusConfig | None = None,
 ) -> list[RunResult]:
-    """Simulate every tree under every scheme for ``duration`` s (see the module docstring).
+    """Simulate every tree under every scheme for ``duration`` s (see the module docstring), or the given ``runs``.
 
-    Tree i starts from ``initial_angles(tree, seed + i)`` at rest. ``loss`` > 0 runs the agents on the
-    asynchronous bus (one-tick delays, that loss probability, acknowledgements and retransmission), seeded
-    with ``seed``. The agents run ``rounds_per_step`` rounds of messages per control step. One plant per run; the agents of all runs share one vectorised network (the runs are not
-    connected, so they do not interact). Samples every ``sample_every`` steps."""
+    By default the runs are every tree under every scheme with the paper's gains (``GainSchedule.paper``),
+    tree i starting from ``initial_angles(tree, seed + i)`` at rest on a plane. ``runs`` (a sequence of
+    ``RunSpec``) sets each run's tree, gain schedule, start, ground and sensor noise instead. ``loss`` > 0
+    runs the agents on the asynchronous bus (one-tick delays, that loss probability, acknowledgements and
+    retransmission), seeded with ``seed``; ``bus`` (a ``BusConfig``) sets the bus outright instead. The bus
+    is shared: with lossy or delayed buses a run's losses are drawn from the one generator of the call, so
+    they depend on the other runs of the call (on the synchronous bus the runs are independent). The agents
+    run ``rounds_per_step`` rounds of messages per control step. One plant per run; the agents of all runs
+    share one vectorised network (the runs are not connected, so they do not interact). Samples every
+    ``sample_every`` steps. Each run's ``energy`` is the integral over the run of sum_j |tau_j v_j|, the
+    power of every joint's applied torque (``Simulation.applied_tau``; the commanded torque for other
+    plants) at the velocity it reached in that step, in J."""
     if not trees:
         raise ValueError("trees: need at least one tree")
     if not (np.isfinite(duration) and duration > 0):
         raise ValueError(f"duration: must be > 0, got {duration!r}")
     if not 0 <= loss < 1:
         raise ValueError(f"loss: must be in [0, 1), got {loss!r}")
-    runs = [(t, s) for t in range(len(trees)) for s in SCHEMES]
-    instances = [trees[t] for t, _ in runs]
+    if bus is not None and loss:
+        raise ValueError("bus: give either bus or loss, not both")
+    if bus is not None and not isinstance(bus, BusConfig):
+        raise TypeError(f"bus: must be a BusConfig, got {type(bus).__name__}")
+    if runs is None:
+        runs = [RunSpec(t, GainSchedule.paper(s)) for t in range(len(trees)) for s in SCHEMES]
+    runs = _checked_runs(runs, len(trees))
+    instances = [trees[r.tree] for r in runs]
     built = [tree.to_model() for tree in trees]
-    starts = [initial_angles(tree, seed + i) for i, tree in enumerate(trees)]
+    start_seeds = {(r.tree, seed + r.tree if r.start_seed is None else r.start_seed) for r in runs}
+    starts = {key: initial_angles(trees[key[0]], key[1]) for key in sorted(start_seeds)}
     plants = []
-    for t, _ in runs:
-        model, layout = built[t]
+    for r in runs:
+        model, layout = built[r.tree]
         q0 = np.zeros(model.nq)
-        q0[layout.joint_q] = starts[t]
-        plants.append(make_plant(plant, model, q0, dt, friction))
+        q0[layout.joint_q] = starts[(r.tree, seed + r.tree if r.start_seed is None else r.start_seed)]
+        plants.append(make_plant(plant, model, q0, dt, friction, r.ground))
     # Simulations step together, on every core; other plants one after another.
     batch = lk.SimulationBatch(plants) if all(isinstance(p, lk.Simulation) for p in plants) else None
     if batch is not None:
-        pose_on_ground(batch, [built[t][0] for t, _ in runs])
+        pose_on_ground(batch, [built[r.tree][0] for r in runs])
     origin = np.zeros(3)
     first_module = np.cumsum([0] + [tree.n_modules for tree in instances])[:-1]
+    n_modules = int(sum(tree.n_modules for tree in instances))
     ground = [GroundContact(int(m), 0, np.eye(3), origin, origin, np.array([0.0, 0.0, 1.0])) for m in first_module]
-    bus = BusConfig() if loss == 0 else BusConfig(mode="async", loss=loss, seed=seed)
-
-    def sensed_angles() -> np.ndarray:
-        return np.concatenate([built[t][1].module_angles(p.q) for (t, _), p in zip(runs, plants)])
-
-    network = AgentNetwork(instances, bus=bus, ground=ground, angles=sensed_angles())
-    network.run_until_quiescent()  # the agents agree on a leader and the mass properties before moving
-    schedules = [GainSchedule.paper(s) for (_, s), tree in zip(runs, instances) for _ in range(tree.n_modules)]
-    controller = BalanceController(network, schedules)
-    joint_index = [np.asarray(built[t][0].idx_v)[built[t][1].joint_bodies] for t, _ in runs]
-    messages_before = sum(c.sent_by_module for c in network.channels)
+    if bus is None:
+        bus = BusConfig() if loss == 0 else BusConfig(mode="async", loss=loss, seed=seed)
     module_slices = [slice(f, f + tree.n_modules) for f, tree in zip(first_module, instances)]
+    noise = _SensorNoise(runs, module_slices, n_modules)
+
+    # The plants' state in one call when they share their size (a gather of every run's joint angles), else plant by plant.
+    sizes = {(built[r.tree][0].nq, built[r.tree][0].nv) for r in runs}
+    shared = batch is not None and len(sizes) == 1
+    if shared:
+        nq, nv = sizes.pop()
+        angle_index = np.concatenate([i * nq + built[r.tree][1].joint_q.ravel() for i, r in enumerate(runs)])
+        tau_index = np.concatenate([i * nv + np.asarray(built[r.tree][0].idx_v)[built[r.tree][1].joint_bodies].ravel() for i, r in enumerate(runs)])
+
+    def states() -> list[np.ndarray] | np.ndarray:
+        return batch.q if shared else [p.q for p in plants]
+
+    def sensed_angles(q: list[np.ndarray] | np.ndarray) -> np.ndarray:
+        if shared:
+            angles = q.reshape(-1)[angle_index].reshape(-1, 3)
+        else:
+            angles = np.concatenate([built[r.tree][1].module_angles(q_run) for r, q_run in zip(runs, q)])
+        return noise(angles)
+
+    network = AgentNetwork(instances, bus=bus, ground=ground, angles=sensed_angles(states()))
+    network.run_until_quiescent()  # the agents agree on a leader and the mass properties before moving
+    schedules = [r.schedule for r, tree in zip(runs, instances) for _ in range(tree.n_modules)]
+    controller = BalanceController(network, schedules)
+    joint_index = [np.asarray(built[r.tree][0].idx_v)[built[r.tree][1].joint_bodies] for r in runs]
+    messages_before = sum(c.sent_by_module for c in network.channels)
 
     steps = int(round(duration / dt))
     samples = steps // sample_every + 1
     times = np.arange(samples) * sample_every * dt
     coms = np.zeros((samples, len(runs), 3))
-    qs = [np.zeros((samples, built[t][0].nq)) for t, _ in runs]
+    qs = [np.zeros((samples, built[r.tree][0].nq)) for r in runs]
+    energy = np.zeros(len(runs))
     for step in tqdm(range(steps + 1), desc="balance", unit="step", disable=not progress, mininterval=0.5):
+        q = states()
         if step % sample_every == 0:
-            for q_run, p in zip(qs, plants):
-                q_run[step // sample_every] = p.q
-            coms[step // sample_every] = [lk.center_of_mass(built[t][0], q_run[step // sample_every]) for (t, _), q_run in zip(runs, qs)]
+            for q_run, q_now in zip(qs, q):
+                q_run[step // sample_every] = q_now
+            coms[step // sample_every] = [lk.center_of_mass(built[r.tree][0], q_run[step // sample_every]) for r, q_run in zip(runs, qs)]
         if step == steps:
             break
-        network.observe(sensed_angles())
+        network.observe(sensed_angles(q))
         network.run(rounds_per_step)
         torque, _ = controller.torques(dt)
-        taus = []
-        for (t, _), index, modules in zip(runs, joint_index, module_slices):
-            tau = np.zeros(built[t][0].nv)
-            tau[index] = torque[modules]
-            taus.append(tau)
+        if shared:
+            taus = np.zeros((len(runs), nv))
+            taus.reshape(-1)[tau_index] = torque.reshape(-1)
+        else:
+            taus = []
+            for r, index, modules in zip(runs, joint_index, module_slices):
+                tau = np.zeros(built[r.tree][0].nv)
+                tau[index] = torque[modules]
+                taus.append(tau)
         if batch is not None:
             batch.step(taus)
+            if shared:
+                energy += np.abs(np.array([p.applied_tau for p in plants]) * batch.v).sum(axis=1) * dt
+            else:
+                energy += [np.abs(p.applied_tau * p.v).sum() * dt for p in plants]
         else:
             for p, tau in zip(plants, taus):
                 p.step(tau)
+            energy += [np.abs(tau * p.v).sum() * dt for p, tau in zip(plants, taus)]
 
     sent = sum(c.sent_by_module for c in network.channels) - messages_before
     width = trees[0].parameters.width
@@ -322,9 +407,31 @@ def run_balance(
     initial_direction = offsets[0] / np.maximum(np.linalg.norm(offsets[0], axis=-1, keepdims=True), 1e-300)
     signed = np.sum(offsets * initial_direction, axis=-1) / width
     return [
-        RunResult(t, scheme, times, distance[:, i], signed[:, i], float(sent[module_slices[i]].sum() / instances[i].n_modules / duration), qs[i])
-        for i, (t, scheme) in enumerate(runs)
+        RunResult(
+            r.tree, r.schedule.scheme, times, distance[:, i], signed[:, i],
+            float(sent[module_slices[i]].sum() / instances[i].n_modules / duration), qs[i], float(energy[i]), r.schedule,
+        )
+        for i, r in enumerate(runs)
     ]
+
+
+def _checked_runs(runs: Sequence[RunSpec], n_trees: int) -> list[RunSpec]:
+    """``runs`` as a list, each checked (ValueError or TypeError naming ``runs`` and the field)."""
+    runs = list(runs)
+    if not runs:
+        raise ValueError("runs: need at least one run")
+    for k, r in enumerate(runs):
+        if not isinstance(r, RunSpec):
+            raise TypeError(f"runs[{k}]: must be a RunSpec, got {type(r).__name__}")
+        if isinstance(r.tree, bool) or not isinstance(r.tree, (int, np.integer)) or not 0 <= r.tree < n_trees:
+            raise ValueError(f"runs[{k}].tree: must be an index into trees (0..{n_trees - 1}), got {r.tree!r}")
+        if not isinstance(r.schedule, GainSchedule):
+            raise TypeError(f"runs[{k}].schedule: must be a GainSchedule, got {type(r.schedule).__name__}")
+        if r.ground is not None and not isinstance(r.ground, lk.Ground):
+            raise TypeError(f"runs[{k}].ground: must be an lk.Ground or None, got {type(r.ground).__name__}")
+        if not (isinstance(r.noise, (int, float)) and np.isfinite(r.noise) and r.noise >= 0):
+            raise ValueError(f"runs[{k}].noise: must be a finite number >= 0 (rad), got {r.noise!r}")
+    return runs
 
 
 def write_csv(results: Sequence[RunResult], path: Path) -> None:
@@ -474,6 +581,7 @@ POSE_DURATION = 0.5
 ANIMATION_FPS = 20.0  # keyframes per second of motion in balance.html
 GIF_FPS = 10.0
 GIF_SIZE = (960, 540)
+NOISE_CHUNK = 256  # control steps of sensor noise drawn at a time
 
 if __name__ == "__main__":
     sys.exit(main())
