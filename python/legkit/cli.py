@@ -36,6 +36,8 @@ EXPERIMENTS = {
     "balance": ("legkit.experiments.balance", "distributed COM balancing of SuperBot trees (Moll et al. 2006)"),
     "strain": ("legkit.experiments.strain", "leg strain models and tripod body pose (Lin et al. 2003)"),
     "gait": ("legkit.experiments.gait", "stability and energy indices over a gait (Hardt & von Stryk 2002)"),
+    "sweep": ("legkit.sweeps.cli", "sweeps of the balance experiment, locally or on Ray, into Parquet"),
+    "tune": ("legkit.sweeps.tune", "tune the balance gain constants per scheme on random trees"),
 }
 
 

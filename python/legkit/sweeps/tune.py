@@ -1,0 +1,225 @@
+"""``legkit tune``: search the gain constants of each scheme on training trees, validate on held-out trees.
+
+The paper (Moll et al., IROS 2006, Sect. V) chose its gains by hand: K_P0 = 10, K_I0 = 0.1, K_D0 = 1e-4;
+c0, c1 = (1, 0) constant, (0, 0.1) distance, (0, 1) momentum. Here Optuna's TPE sampler (seeded) searches
+c0 and c1 of every scheme (the constant scheme has no c1), and with ``--base-gains`` K_P0, K_I0 and K_D0
+too, minimising over the training trees the mean of ``final + T10_WEIGHT * t10`` (final distance in module
+widths; t10 in s, a run that never gets within 10 % counting twice the duration). The paper's constants
+are the first trial of every scheme. Trials are evaluated in rounds: each round asks every scheme for
+``per_round`` trials and runs all their training runs together, in batches (many runs per ``run_balance``
+call) on the local workers or as Ray tasks (``--ray``; the sampler stays on the driver). Then the paper's and
+the tuned constants run on held-out trees (other seeds) and both are reported: median final distance and
+median t10% with their interquartile ranges (lower medians and quartiles: values of actual runs, so
+"never" stays a value), and the change of the medians.
+
+The defaults fit a few minutes on two cores (4 training trees, 6 held-out, 12 trials per scheme, 1 s
+runs). The full-size study (docs/sweeps.md):
+
+    legkit tune --train 32 --test 64 --trials 120 --per-round 8 --duration 2 --base-gains --ray auto
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from legkit.control.gains import KD0, KI0, KP0, SCHEMES, GainSchedule
+from legkit.sweeps.cli import median_quartiles
+from legkit.sweeps.execute import executor
+from legkit.sweeps.spec import RunParams
+
+#: Search ranges: (low, high, log scale).
+COEFFICIENT_RANGES = {
+    "constant": {"c0": (0.1, 10.0, True)},
+    "distance": {"c0": (0.0, 3.0, False), "c1": (0.0, 3.0, False)},
+    "momentum": {"c0": (0.0, 3.0, False), "c1": (0.0, 30.0, False)},
+}
+BASE_GAIN_RANGES = {"kp0": (1.0, 100.0, True), "ki0": (1e-3, 10.0, True), "kd0": (1e-5, 1e-1, True)}
+T10_WEIGHT = 0.1  # module widths per second of t10
+TRAIN_SEED0 = 1000
+TEST_SEED0 = 2000
+
+
+@dataclass
+class SchemeResult:
+    """One scheme's tuning: the paper's and the tuned constants, and the held-out runs of both (final
+    distance in module widths, t10 in s with never as inf)."""
+
+    scheme: str
+    paper: dict[str, float]
+    tuned: dict[str, float]
+    train_score_paper: float
+    train_score_tuned: float
+    test_final: dict[str, np.ndarray] = field(default_factory=dict)  # "paper" / "tuned" -> (n_test,)
+    test_t10: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def median(self, metric: str, which: str) -> float:
+        values = (self.test_final if metric == "final" else self.test_t10)[which]
+        return float(np.percentile(values, 50, method="lower"))
+
+    def improved(self) -> bool:
+        """The tuned constants beat the paper's on the held-out trees on both medians (t10 at least as good)."""
+        return self.median("final", "tuned") < self.median("final", "paper") and self.median("t10", "tuned") <= self.median("t10", "paper")
+
+
+def constants(schedule: GainSchedule) -> dict[str, float]:
+    return {"c0": schedule.c0, "c1": schedule.c1, "kp0": schedule.kp0, "ki0": schedule.ki0, "kd0": schedule.kd0}
+
+
+def score(rows: Sequence[dict[str, Any]], duration: float) -> float:
+    """The training objective: mean of final + T10_WEIGHT * t10 (never: twice the duration)."""
+    final = np.array([r["final"] for r in rows])
+    t10 = np.array([r["t10"] for r in rows], dtype=float)
+    return float(np.mean(final + T10_WEIGHT * np.where(np.isnan(t10), 2 * duration, t10)))
+
+
+def tune(
+    schemes: Sequence[str] = SCHEMES, train: int = 4, test: int = 6, trials: int = 12, per_round: int = 4,
+    duration: float = 1.0, modules: int = 20, branches: int = 4, base_gains: bool = False, seed: int = 0,
+    workers: int | None = 1, ray: str | None = None, batch_size: int = 48, progress: bool = True,
+) -> list[SchemeResult]:
+    """Tune every scheme of ``schemes`` (see the module docstring); returns one ``SchemeResult`` per scheme."""
+    import optuna
+
+    schemes = list(schemes)
+    for s in schemes:
+        if s not in SCHEMES:
+            raise ValueError(f"schemes: each must be one of {SCHEMES}, got {s!r}")
+    for name, value, low in (("train", train, 1), ("test", test, 1), ("trials", trials, 1), ("per_round", per_round, 1), ("batch_size", batch_size, 1), ("modules", modules, 1)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ValueError(f"{name}: must be an int >= {low}, got {value!r}")
+    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration: must be a number > 0, got {duration!r}")
+    spec_values = {"modules": modules, "branches": branches, "duration": float(duration), "dt": 1e-3}
+    train_seeds = [TRAIN_SEED0 + i for i in range(train)]
+    test_seeds = [TEST_SEED0 + i for i in range(test)]
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    studies = {s: optuna.create_study(sampler=optuna.samplers.TPESampler(seed=seed + k, multivariate=True)) for k, s in enumerate(schemes)}
+    for s, study in studies.items():
+        study.enqueue_trial({name: constants(GainSchedule.paper(s))[name] for name in _space(s, base_gains)})
+
+    def schedule_of(s: str, params: dict[str, float]) -> GainSchedule:
+        values = {**constants(GainSchedule.paper(s)), **params}
+        if s == "constant":
+            values["c1"] = 0.0
+        return GainSchedule(s, **values)
+
+    def evaluate(jobs: list[tuple[Any, GainSchedule, list[int]]]) -> dict[Any, list[dict]]:
+        """Run every (key, schedule, tree seeds) job, all in batches; rows per key."""
+        runs, keys = [], []
+        for key, schedule, seeds in jobs:
+            for tree in seeds:
+                runs.append(RunParams(tree, schedule.scheme, schedule.c0, schedule.c1, schedule.kp0, schedule.ki0, schedule.kd0, 0.0, 1, 0.0, 0.8, 0.0, 0))
+                keys.append(key)
+        parts = max(pool.parallelism, math.ceil(len(runs) / batch_size))
+        chunks = [list(c) for c in np.array_split(np.arange(len(runs)), parts) if len(c)]
+        out: dict[Any, list[dict]] = {}
+        rows_by_index: dict[int, dict] = {}
+        for chunk_index, rows in pool.map(spec_values, [(k, [runs[i] for i in chunk]) for k, chunk in enumerate(chunks)]):
+            rows_by_index.update(zip(chunks[chunk_index], rows))
+        for i in range(len(runs)):
+            out.setdefault(keys[i], []).append(rows_by_index[i])
+        return out
+
+    with executor(workers, ray) as pool:
+        rounds = math.ceil(trials / per_round)
+        for round_index in range(rounds):
+            asked = {s: [studies[s].ask() for _ in range(min(per_round, trials - round_index * per_round))] for s in schemes}
+            jobs = []
+            for s, trial_list in asked.items():
+                for trial in trial_list:
+                    params = {name: _suggest(trial, name, rng) for name, rng in _space(s, base_gains).items()}
+                    jobs.append(((s, trial.number), schedule_of(s, params), train_seeds))
+            rows = evaluate(jobs)
+            for s, trial_list in asked.items():
+                for trial in trial_list:
+                    studies[s].tell(trial, score(rows[(s, trial.number)], duration))
+            if progress:
+                best = ", ".join(f"{s} {studies[s].best_value:.3f}" for s in schemes)
+                print(f"round {round_index + 1}/{rounds}: best training score {best}", file=sys.stderr, flush=True)
+        results = []
+        jobs = []
+        for s in schemes:
+            tuned = schedule_of(s, studies[s].best_params)
+            paper = GainSchedule.paper(s)
+            jobs += [((s, "paper"), paper, test_seeds), ((s, "tuned"), tuned, test_seeds)]
+            results.append(SchemeResult(s, constants(paper), constants(tuned), studies[s].trials[0].value, studies[s].best_value))
+        rows = evaluate(jobs)
+    for result in results:
+        for which in ("paper", "tuned"):
+            got = rows[(result.scheme, which)]
+            result.test_final[which] = np.array([r["final"] for r in got])
+            t10 = np.array([r["t10"] for r in got], dtype=float)
+            result.test_t10[which] = np.where(np.isnan(t10), np.inf, t10)
+    return results
+
+
+def _space(scheme: str, base_gains: bool) -> dict[str, tuple[float, float, bool]]:
+    return {**COEFFICIENT_RANGES[scheme], **(BASE_GAIN_RANGES if base_gains else {})}
+
+
+def _suggest(trial, name: str, bounds: tuple[float, float, bool]) -> float:
+    low, high, log = bounds
+    return float(trial.suggest_float(name, low, high, log=log))
+
+
+def _change(paper: float, tuned: float) -> str:
+    if not np.isfinite(paper):
+        return "from never" if np.isfinite(tuned) else "never both"
+    return f"{100 * (tuned - paper) / paper:+.0f}%" if paper > 0 else "n/a"
+
+
+def report(results: Sequence[SchemeResult]) -> str:
+    """The tuned constants beside the paper's, and the held-out medians [quartiles] of both."""
+    lines = []
+    for r in results:
+        names = [n for n in ("c0", "c1", "kp0", "ki0", "kd0") if not (r.scheme == "constant" and n == "c1")]
+        lines.append(f"{r.scheme}:")
+        lines.append("  " + " ".join(f"{n:>10}" for n in ["", *names]))
+        for which, values in (("paper", r.paper), ("tuned", r.tuned)):
+            lines.append("  " + f"{which:>10}" + " ".join(f"{values[n]:>10.4g}" for n in names))
+        lines.append(f"  training score (mean final + {T10_WEIGHT} t10): paper {r.train_score_paper:.3f}, tuned {r.train_score_tuned:.3f}")
+        n = len(r.test_final["paper"])
+        lines.append(f"  held-out trees ({n}): median [quartiles]")
+        lines.append(f"    final distance (widths)  paper {median_quartiles(r.test_final['paper'])}  tuned {median_quartiles(r.test_final['tuned'])}  "
+                     f"change {_change(r.median('final', 'paper'), r.median('final', 'tuned'))}")
+        lines.append(f"    t10% (s)                 paper {median_quartiles(r.test_t10['paper'])}  tuned {median_quartiles(r.test_t10['tuned'])}  "
+                     f"change {_change(r.median('t10', 'paper'), r.median('t10', 'tuned'))}")
+        lines.append(f"    tuned beats the paper on both medians: {'yes' if r.improved() else 'no'}")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="legkit tune", description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n\n", 1)[1])
+    parser.add_argument("--schemes", nargs="+", default=list(SCHEMES), help="schemes to tune (default all)")
+    parser.add_argument("--train", type=int, default=4, help=f"training trees, seeds {TRAIN_SEED0}.. (default 4)")
+    parser.add_argument("--test", type=int, default=6, help=f"held-out trees, seeds {TEST_SEED0}.. (default 6)")
+    parser.add_argument("--trials", type=int, default=12, help="trials per scheme, the paper's first (default 12)")
+    parser.add_argument("--per-round", type=int, default=4, help="trials per scheme evaluated together (default 4)")
+    parser.add_argument("--duration", type=float, default=1.0, help="simulated seconds per run (default 1)")
+    parser.add_argument("--modules", type=int, default=20, help="modules per tree besides the root (default 20)")
+    parser.add_argument("--branches", type=int, default=4, help="branches off the root (default 4)")
+    parser.add_argument("--base-gains", action="store_true", help="search K_P0, K_I0, K_D0 too")
+    parser.add_argument("--seed", type=int, default=0, help="sampler seed (default 0)")
+    parser.add_argument("--workers", type=int, default=1, help="local worker processes (default 1: this process, physics on every core)")
+    parser.add_argument("--ray", metavar="ADDRESS", help="evaluate on Ray at ADDRESS ('auto', 'ray://host:10001', or 'local')")
+    args = parser.parse_args(argv)
+    try:
+        results = tune(
+            args.schemes, args.train, args.test, args.trials, args.per_round, args.duration, args.modules, args.branches,
+            args.base_gains, args.seed, args.workers, args.ray,
+        )
+    except (ValueError, TypeError) as error:
+        print(f"legkit tune: {error}", file=sys.stderr)
+        return 2
+    print(report(results))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
