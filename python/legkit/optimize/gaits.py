@@ -19,6 +19,10 @@ from legkit.experiments.gait import (
 from legkit.optimize.problem import MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
 from legkit.robots.quadruped import LEGS, Quadruped
 
+#: IPOPT options for the amble: the monotone barrier update (the adaptive one drove mu to 1e-11 within a few
+#: iterations of the J_s2 stage and then crawled along the constraints; docs/optimize.md).
+AMBLE_IPOPT = {"mu_strategy": "monotone"}
+
 #: The amble's support pairs in time order from t = 0 (file 003, Sect. 4.2).
 AMBLE_SUPPORT = (("lf", "lh"), ("lf", "rh"), ("rf", "rh"), ("rf", "lh"))
 
@@ -30,10 +34,12 @@ def torque_speed_line(motor: MotorParameters) -> TorqueSpeedLine:
 
 def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: float, intervals: int,
                   motor: MotorParameters, friction: float = 0.8, duration_range: tuple[float, float] = (0.5, 1.5),
-                  max_tilt: float = np.radians(15.0)) -> MultiphaseProblem:
+                  max_tilt: float = np.radians(15.0), joint_range: tuple[float, float, float] = (0.35, 1.8, 2.6)) -> MultiphaseProblem:
     """The amble at `speed` [m/s] over a fixed `period` [s]; each phase lasts between duration_range x period / 4.
     The state bounds of Sect. 2.3 keep the torso above the ground and its roll and pitch within about
-    max_tilt [rad] (|q_x|, |q_y| <= sin(max_tilt / 2)): unbounded, J_s2 pitches the torso by ~50 deg."""
+    max_tilt [rad] (|q_x|, |q_y| <= sin(max_tilt / 2)): unbounded, J_s2 pitches the torso by ~50 deg; and the
+    joints within joint_range [rad] = (|hip roll|, |hip pitch|, knee bent its own way by at most this):
+    unbounded, J_s2 swung the legs over the torso (swing feet 0.6 m up) and straightened the knees."""
     quarter = period / 4.0
     phases = [Phase(pair, intervals, (duration_range[0] * quarter, duration_range[1] * quarter)) for pair in AMBLE_SUPPORT]
     line = torque_speed_line(motor)
@@ -43,6 +49,12 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
     upper[3:5] = np.sin(0.5 * max_tilt)
     lower = -upper
     lower[2] = 0.02
+    roll, pitch, knee = joint_range
+    for leg_index, leg in enumerate(LEGS):  # joints ordered leg by leg: hip roll, hip pitch, knee
+        joints = 7 + 3 * leg_index
+        bend = robot.parameters.knee_direction[leg]
+        lower[joints : joints + 3] = [-roll, -pitch, min(0.0, bend * knee)]
+        upper[joints : joints + 3] = [roll, pitch, max(0.0, bend * knee)]
     return MultiphaseProblem(robot.model, phases, {leg: robot.feet[leg] for leg in LEGS}, objectives, speed=speed, period=period,
                              friction=friction, u_bounds=(np.full(nu, -stall), np.full(nu, stall)), torque_speed=line,
                              q_bounds=(lower, upper))

@@ -152,7 +152,17 @@ class MultiphaseProblem:
             offset += points * nz
         self.duration_index = offset + np.arange(len(self.phases))
         self.p1_index = offset + len(self.phases)
-        self.n = self.p1_index + 1
+        # Then the impulses (world frame, force_dims per foot of the new phase, like the forces) of every
+        # touchdown (eq. 7), by boundary.
+        offset = self.p1_index + 1
+        self.impulse_index: dict[int, np.ndarray] = {}
+        count = len(self.phases)
+        for k in range(count if self.periodic else count - 1):
+            after = self.phases[(k + 1) % count]
+            if set(after.contacts) - set(self.phases[k].contacts):
+                self.impulse_index[k] = offset + np.arange(self.force_dims * len(after.contacts))
+                offset += self.force_dims * len(after.contacts)
+        self.n = offset
         self._build()
 
     # ------------------------------------------------------------------ validation
@@ -421,21 +431,45 @@ class MultiphaseProblem:
                                 symbolic=lambda _, f: mu2 * f[2::3] ** 2 - f[0::3] ** 2 - f[1::3] ** 2))
         return blocks
 
+    def contact_jacobian(self, q: np.ndarray, contacts: Sequence[tuple[int, np.ndarray]]) -> np.ndarray:
+        """(B, force_dims k, nv): world-aligned linear Jacobians of the contact points (body, point) at q (B, nq),
+        the vertical rows only when force_dims is 1."""
+        q = self.configuration(q)
+        rows = slice(0, 3) if self.force_dims == 3 else slice(2, 3)
+        return np.concatenate([np.asarray(lk.jacobian(self.model, q, body, point, "local_world_aligned"))[:, rows] for body, point in contacts], axis=1)
+
+    def impact_rows(self, z: np.ndarray, contacts: Sequence[tuple[int, np.ndarray]]) -> np.ndarray:
+        """The inelastic impact (eq. 7, as `lk.impact`) in implicit form at z = [q-, v-, v+, Lambda] (B, .):
+        M(q) (v+ - v-) - J^T Lambda (nv rows) and J v+ (force_dims k rows), J = `contact_jacobian`."""
+        nq, nv = self.nq, self.nv
+        q, v_minus, v_plus, impulses = z[:, :nq], z[:, nq : nq + nv], z[:, nq + nv : nq + 2 * nv], z[:, nq + 2 * nv :]
+        mass = np.asarray(lk.crba(self.model, self.configuration(q)))
+        jac = self.contact_jacobian(q, contacts)
+        return np.concatenate([np.einsum("bij,bj->bi", mass, v_plus - v_minus) - np.einsum("bji,bj->bi", jac, impulses),
+                               np.einsum("bij,bj->bi", jac, v_plus)], axis=1)
+
     def _velocity_transition(self, k: int, after: int) -> Block:
-        """v after the boundary: the impact map (eq. 7) when feet touch down, else continuity."""
+        """v after the boundary: the impact map (eq. 7) when feet touch down, else continuity. The impact is
+        stated implicitly with the impulses as variables (`impact_rows`): the explicit map v+ = impact(q, v-)
+        solves a KKT system whose second derivatives are ~100x those of the implicit rows (the symbolic
+        Hessian of one explicit touchdown had 2.9 million instructions)."""
         end, start = self.point_index[k][-1], self.point_index[after][0]
-        nq, nx = self.nq, self.nx
-        landing = set(self.phases[after].contacts) - set(self.phases[k].contacts)
-        if not landing:
-            return equal(self.nv, start[nq:nx], end[nq:nx])
+        nq, nx, nv = self.nq, self.nx, self.nv
+        if k not in self.impulse_index:
+            return equal(nv, start[nq:nx], end[nq:nx])
         contacts = [(self.foot_body[n], self.foot_point[n]) for n in self.phases[after].contacts]
 
-        def jump(z: np.ndarray) -> np.ndarray:
-            v_plus, _ = lk.impact(self.model, self.configuration(z[:, :nq]), z[:, nq:nx], contacts)
-            return z[:, nx:] - np.asarray(v_plus)
+        def symbolic(model, z):
+            import casadi as ca
 
-        return Point(np.concatenate([end[:nx], start[nq:nx]])[None], jump, self.nv,
-                     symbolic=lambda model, z: z[nx:] - model.impact(z[:nq], z[nq:nx], contacts))
+            q, v_minus, v_plus, impulses = z[:nq], z[nq : nq + nv], z[nq + nv : nq + 2 * nv], z[nq + 2 * nv :]
+            jac = model.contact_jacobian(q, contacts)
+            if self.force_dims == 1:
+                jac = jac[2::3, :]
+            return ca.vertcat(model.mass_matrix(q) @ (v_plus - v_minus) - jac.T @ impulses, jac @ v_plus)
+
+        index = np.concatenate([end[:nx], start[nq:nx], self.impulse_index[k]])[None]
+        return Point(index, lambda z: self.impact_rows(z, contacts), nv + self.force_dims * len(contacts), symbolic=symbolic)
 
     def _torque_speed_blocks(self) -> list[Block]:
         """(w_max - |w|) k - |u| >= 0 as four linear faces per actuated joint and point."""
@@ -524,12 +558,30 @@ class MultiphaseProblem:
         return NLP(lower, upper, np.concatenate([b.lower for b in self.blocks]), np.concatenate([b.upper for b in self.blocks]),
                    self.objective, self.gradient, self.constraints, self.jacobian, self.jac_rows, self.jac_cols, symbolic)
 
-    def solve(self, guess: Trajectory | np.ndarray, derivatives: str = "exact", **options) -> tuple[Trajectory, SolveResult]:
+    def solve(self, guess: Trajectory | np.ndarray, derivatives: str = "exact", feasibility_first: bool = False,
+              **options) -> tuple[Trajectory, SolveResult]:
         """Solve from a guess (a Trajectory or a variable vector), with exact derivatives (default) or legkit's
-        differences (`nlp`); options go to `legkit.optimize.solver.solve`."""
+        differences (`nlp`); options go to `legkit.optimize.solver.solve`.
+
+        feasibility_first (problems with a MinMaxStability term): continuation in two IPOPT runs, first the
+        constraints alone with p1 held below every S_H row, then the objective from that feasible point with p1
+        at its worst S_H row. The result's iterations, times and history cover both runs."""
         x0 = self.gauged(self.pack(guess) if isinstance(guess, Trajectory) else guess)
-        result = solve(self.nlp(derivatives), x0, **options)
-        return self.unpack(result.x), result
+        nlp = self.nlp(derivatives)
+        if feasibility_first and self.uses_p1:
+            x0 = x0.copy()
+            x0[self.p1_index] = 0.0
+            x0[self.p1_index] = min(b.values(x0).min() for b in self.stability_blocks) - 1.0
+            fixed = self.nlp(derivatives)
+            fixed.x_lower[self.p1_index] = fixed.x_upper[self.p1_index] = x0[self.p1_index]
+            first = solve(fixed, x0, **options)
+            x0 = first.x.copy()
+            x0[self.p1_index] += min(b.values(x0).min() for b in self.stability_blocks)
+            result = solve(nlp, x0, **options)
+            result = result.after(first)
+        else:
+            result = solve(nlp, x0, **options)
+        return self.unpack(result.best()[0]), result
 
     def stability_index(self, x: np.ndarray) -> list[np.ndarray]:
         """S_H as published (eq. 10) at every point of every phase, for a problem with a MinMaxStability
@@ -559,6 +611,13 @@ class MultiphaseProblem:
             x[index] = z
         x[self.duration_index] = trajectory.durations
         x[self.p1_index] = trajectory.stability_bound
+        count = len(self.phases)
+        for k, index in self.impulse_index.items():  # least-squares impulses of the trajectory's own velocity jump
+            end, start = self.point_index[k][-1], self.point_index[(k + 1) % count][0]
+            contacts = [(self.foot_body[n], self.foot_point[n]) for n in self.phases[(k + 1) % count].contacts]
+            q = x[end[: self.nq]][None]
+            jump = np.asarray(lk.crba(self.model, self.configuration(q)))[0] @ (x[start[self.nq : self.nx]] - x[end[self.nq : self.nx]])
+            x[index] = np.linalg.lstsq(self.contact_jacobian(q, contacts)[0].T, jump, rcond=None)[0]
         return x
 
     def unpack(self, x: np.ndarray) -> Trajectory:

@@ -65,6 +65,16 @@ class SolveResult:
     best_feasible: tuple[int, float, np.ndarray] | None = None  # (iteration, objective, x) of the best iterate within tol
     tol: float = 1e-6
 
+    def after(self, first: SolveResult) -> SolveResult:
+        """This result as the second stage of a continuation that began with `first`: iterations, times and
+        history summed over both."""
+        offset = len(first.history)
+        history = first.history + [(i + offset, f, v) for i, f, v in self.history]
+        best = None if self.best_feasible is None else (self.best_feasible[0] + offset,) + self.best_feasible[1:]
+        return SolveResult(self.x, self.objective, self.status, self.success, first.iterations + self.iterations,
+                           first.wall_time + self.wall_time, first.evaluation_time + self.evaluation_time, self.violation,
+                           history, best, self.tol)
+
     def best(self) -> tuple[np.ndarray, float]:
         """(x, objective) of the returned point if IPOPT succeeded or it is the best feasible one, else of the
         best iterate within the tolerance: on a nonsmooth objective (S_H jumps, eq. 10) IPOPT's iterates need
@@ -176,8 +186,47 @@ def solve(
             self.jacobian_callback = Jacobian(name, opts)  # casadi holds a raw reference; keep it alive
             return self.jacobian_callback
 
+    ipopt = {"tol": tol, "constr_viol_tol": tol, "max_iter": max_iter, "print_level": 0, "sb": "yes", "mu_strategy": "adaptive"}
+    if nlp.symbolic is None:
+        ipopt["hessian_approximation"] = "limited-memory"
+    ipopt.update(options or {})
+    key = None
+    if nlp.symbolic is not None:  # building casadi's solver (SX expansion, Hessian graph) costs seconds: reuse it
+        key = (id(nlp.symbolic[0]), tuple(sorted((k, str(v)) for k, v in ipopt.items())))
+    if key is not None and key in _SOLVERS:
+        solver, state = _SOLVERS[key]
+    else:
+        state = {}
+        solver = _build(ca, nlp, ipopt, state, Functions)
+        if key is not None:
+            while len(_SOLVERS) >= 4:
+                _SOLVERS.pop(next(iter(_SOLVERS)))
+            _SOLVERS[key] = (solver, state)
     history: list[tuple[int, float, float]] = []
     best: list[tuple[int, float, np.ndarray] | None] = [None]
+    state.update(history=history, best=best, progress=progress, tol=tol, nlp=nlp)
+    start = time.perf_counter()
+    result = solver(x0=x0, lbx=nlp.x_lower, ubx=nlp.x_upper, lbg=nlp.g_lower, ubg=nlp.g_upper)
+    wall = time.perf_counter() - start
+    if timer.error is not None:
+        raise timer.error
+    stats = solver.stats()
+    evaluation = timer.seconds
+    if nlp.symbolic is not None:  # casadi times its own evaluations of f, g and their derivatives
+        evaluation = sum(stats.get(f"t_wall_{name}", 0.0) for name in ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l", "nlp_grad"))
+    x = np.asarray(result["x"]).ravel()
+    return SolveResult(x, float(result["f"]), stats["return_status"], bool(stats["success"]), int(stats["iter_count"]),
+                       wall, evaluation, nlp.violation(x), history, best[0], tol)
+
+
+#: Built casadi solvers of symbolic NLPs, by (transcription, IPOPT options): a continuation's stages and
+#: repeated solves of one problem (warm starts) reuse them; a few at most.
+_SOLVERS: dict = {}
+
+
+def _build(ca, nlp: NLP, ipopt: dict, state: dict, Functions):
+    """casadi's IPOPT solver of nlp; its iteration callback reports to `state` (history, best, progress)."""
+    n, m = nlp.n, nlp.m
 
     class Iteration(ca.Callback):
         def __init__(self) -> None:
@@ -210,38 +259,26 @@ def solve(
             f = float(arg[ca.nlpsol_out().index("f")])
             g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
             x = np.asarray(arg[ca.nlpsol_out().index("x")]).ravel()
-            viol = max(np.max(nlp.g_lower - g, initial=0.0), np.max(g - nlp.g_upper, initial=0.0),
-                       np.max(nlp.x_lower - x, initial=0.0), np.max(x - nlp.x_upper, initial=0.0))
+            bounds, history, best = state["nlp"], state["history"], state["best"]
+            viol = max(np.max(bounds.g_lower - g, initial=0.0), np.max(g - bounds.g_upper, initial=0.0),
+                       np.max(bounds.x_lower - x, initial=0.0), np.max(x - bounds.x_upper, initial=0.0))
             history.append((len(history), f, float(viol)))
-            if viol <= tol and (best[0] is None or f < best[0][1]):
+            if viol <= state["tol"] and (best[0] is None or f < best[0][1]):
                 best[0] = (len(history) - 1, f, x.copy())
-            if progress is not None:
-                progress(len(history) - 1, f, float(viol))
+            if state["progress"] is not None:
+                state["progress"](len(history) - 1, f, float(viol))
             return [0]
 
     iteration = Iteration()
-    ipopt = {"tol": tol, "constr_viol_tol": tol, "max_iter": max_iter, "print_level": 0, "sb": "yes", "mu_strategy": "adaptive"}
     if nlp.symbolic is None:
         functions = Functions()
         symbol = ca.MX.sym("x", n)
         f_expr, g_expr = functions(symbol)
-        ipopt["hessian_approximation"] = "limited-memory"
         extra = {}
     else:
         symbol, f_expr, g_expr = nlp.symbolic
         extra = {"expand": True}  # one SX graph: casadi's virtual machine evaluates it without MX overhead
-    ipopt.update(options or {})
     solver = ca.nlpsol("legkit", "ipopt", {"x": symbol, "f": f_expr, "g": g_expr},
                        {"ipopt": ipopt, "print_time": False, "iteration_callback": iteration, "error_on_fail": False, **extra})
-    start = time.perf_counter()
-    result = solver(x0=x0, lbx=nlp.x_lower, ubx=nlp.x_upper, lbg=nlp.g_lower, ubg=nlp.g_upper)
-    wall = time.perf_counter() - start
-    if timer.error is not None:
-        raise timer.error
-    stats = solver.stats()
-    evaluation = timer.seconds
-    if nlp.symbolic is not None:  # casadi times its own evaluations of f, g and their derivatives
-        evaluation = sum(stats.get(f"t_wall_{name}", 0.0) for name in ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l", "nlp_grad"))
-    x = np.asarray(result["x"]).ravel()
-    return SolveResult(x, float(result["f"]), stats["return_status"], bool(stats["success"]), int(stats["iter_count"]),
-                       wall, evaluation, nlp.violation(x), history, best[0], tol)
+    solver.keep_alive = (iteration, functions if nlp.symbolic is None else None)  # casadi holds raw references
+    return solver

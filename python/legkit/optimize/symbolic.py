@@ -243,10 +243,15 @@ class SymbolicModel:
         full-rank J it moves v+ by about that much relative (the differential test bounds it)."""
         ca = _ca()
         m = self.mass_matrix(q)
-        jac = ca.jacobian(self.points(q, feet), q) @ self.q_rate_matrix(q)
+        jac = self.contact_jacobian(q, feet)
         k = jac.shape[0]
         kkt = ca.vertcat(ca.horzcat(m, -jac.T), ca.horzcat(jac, IMPACT_REGULARISATION * ca.DM.eye(k)))
         return ca.solve(kkt, ca.vertcat(m @ v_minus, ca.DM.zeros(k)))[: self.nv]
+
+    def contact_jacobian(self, q, feet: Sequence[tuple[int, np.ndarray]]):
+        """(3 k, nv) world-aligned linear Jacobian of body points (body, point): d points / dq Q(q)."""
+        ca = _ca()
+        return ca.jacobian(self.points(q, feet), q) @ self.q_rate_matrix(q)
 
     def q_rate_matrix(self, q):
         """dq/dt = Q(q) v (nq, nv): the base position rate R v_lin, the quaternion rate, joint rates."""
