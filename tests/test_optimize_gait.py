@@ -36,7 +36,8 @@ def test_cli_optimize_prints_each_iteration_and_writes_csv_and_figure(tmp_path, 
     assert gait.main(["--robot", "quadruped", "--optimize", "--intervals", "1", "--max-iter", str(iterations),
                       "--replay-cycles", "1", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert sum(line.strip().startswith("iter ") for line in out.splitlines()) == iterations + 1  # IPOPT's iterate 0 too
+    # Two continuation stages (constraints first, then J_s2), each with IPOPT's iterate 0 too.
+    assert sum(line.strip().startswith("iter ") for line in out.splitlines()) == 2 * (iterations + 1)
     assert "replay: stayed upright" in out and "S_H min, reference" in out
     with (tmp_path / "gait_quadruped_optimized.csv").open() as handle:
         rows = list(csv.DictReader(handle))

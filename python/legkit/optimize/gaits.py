@@ -23,6 +23,9 @@ from legkit.robots.quadruped import LEGS, Quadruped
 #: iterations of the J_s2 stage and then crawled along the constraints; docs/optimize.md).
 AMBLE_IPOPT = {"mu_strategy": "monotone"}
 
+#: q indices of the quadruped's hip roll and hip pitch joints (leg by leg), for the replay's attitude feedback.
+AMBLE_ATTITUDE_JOINTS = ([7 + 3 * leg for leg in range(4)], [8 + 3 * leg for leg in range(4)])
+
 #: The amble's support pairs in time order from t = 0 (file 003, Sect. 4.2).
 AMBLE_SUPPORT = (("lf", "lh"), ("lf", "rh"), ("rf", "rh"), ("rf", "lh"))
 
@@ -34,12 +37,15 @@ def torque_speed_line(motor: MotorParameters) -> TorqueSpeedLine:
 
 def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: float, intervals: int,
                   motor: MotorParameters, friction: float = 0.8, duration_range: tuple[float, float] = (0.5, 1.5),
-                  max_tilt: float = np.radians(15.0), joint_range: tuple[float, float, float] = (0.35, 1.8, 2.6)) -> MultiphaseProblem:
+                  max_tilt: float = np.radians(15.0), joint_range: tuple[float, float, float] = (0.35, 1.8, 2.6),
+                  max_swing_height: float = 0.06) -> MultiphaseProblem:
     """The amble at `speed` [m/s] over a fixed `period` [s]; each phase lasts between duration_range x period / 4.
     The state bounds of Sect. 2.3 keep the torso above the ground and its roll and pitch within about
     max_tilt [rad] (|q_x|, |q_y| <= sin(max_tilt / 2)): unbounded, J_s2 pitches the torso by ~50 deg; and the
     joints within joint_range [rad] = (|hip roll|, |hip pitch|, knee bent its own way by at most this):
-    unbounded, J_s2 swung the legs over the torso (swing feet 0.6 m up) and straightened the knees."""
+    unbounded, J_s2 swung the legs over the torso (swing feet 0.6 m up) and straightened the knees; and the swing
+    tips below max_swing_height [m] (with the joint bounds alone they still rose 0.4 m, swinging the legs for
+    angular momentum, which no replay could track)."""
     quarter = period / 4.0
     phases = [Phase(pair, intervals, (duration_range[0] * quarter, duration_range[1] * quarter)) for pair in AMBLE_SUPPORT]
     line = torque_speed_line(motor)
@@ -57,7 +63,7 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
         upper[joints : joints + 3] = [roll, pitch, max(0.0, bend * knee)]
     return MultiphaseProblem(robot.model, phases, {leg: robot.feet[leg] for leg in LEGS}, objectives, speed=speed, period=period,
                              friction=friction, u_bounds=(np.full(nu, -stall), np.full(nu, stall)), torque_speed=line,
-                             q_bounds=(lower, upper))
+                             q_bounds=(lower, upper), max_swing_height=max_swing_height)
 
 
 def amble_reference(robot: Quadruped, speed: float, period: float, intervals: int) -> GaitReference:

@@ -125,6 +125,7 @@ class MultiphaseProblem:
     torque_speed: TorqueSpeedLine | None = None
     continuous_controls: bool = False
     transcription: str = "inverse"
+    max_swing_height: float = np.inf  # [m] swing tips stay between the ground (eq. 4) and this height
 
     def __post_init__(self) -> None:
         self._validate()
@@ -176,6 +177,8 @@ class MultiphaseProblem:
             raise ValueError(f"transcription must be 'inverse' or 'forward', got {self.transcription!r}")
         if self.force_dims not in (1, 3):
             raise ValueError(f"force_dims must be 1 or 3, got {self.force_dims}")
+        if not self.max_swing_height > 0.0:
+            raise ValueError(f"max_swing_height must be > 0, got {self.max_swing_height}")
         if not self.friction > 0.0:
             raise ValueError(f"friction must be > 0, got {self.friction}")
         for i, phase in enumerate(self.phases):
@@ -812,7 +815,7 @@ class _Feet:
         self.rows, self.cols = np.concatenate(rows), np.concatenate(cols)
         self._source, self._sign = np.concatenate(source), np.concatenate(sign)
         self.lower = np.zeros(row)
-        self.upper = np.where(unilateral, np.inf, 0.0)
+        self.upper = np.where(unilateral, problem.max_swing_height, 0.0)
         self._output, self._anchor = np.array(output), np.array(anchor_output)
 
     def _positions(self, q: np.ndarray) -> np.ndarray:

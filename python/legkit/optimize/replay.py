@@ -5,6 +5,7 @@ Fig. 4), over several cycles; reports the base drift from the plan and whether t
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -47,9 +48,16 @@ def periodic_samples(problem: MultiphaseProblem, trajectory: Trajectory, t: np.n
 
 
 def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, kp: float = 20.0, kd: float = 0.5,
-           foot_radius: float = 0.005, dt: float = 1e-3, control_every: int = 2, friction: float = 0.8) -> Replay:
+           foot_radius: float = 0.005, dt: float = 1e-3, control_every: int = 2, friction: float = 0.8,
+           attitude: tuple[Sequence[int], Sequence[int]] | None = None, attitude_gain: float = 1.0) -> Replay:
     """Simulate `cycles` cycles from the optimised initial state; only the feet (spheres of foot_radius whose
-    bottoms are the contact points when the leg hangs straight) and the base collide."""
+    bottoms are the contact points when the leg hangs straight) and the base collide.
+
+    attitude: (roll joints, pitch joints), q indices of joints turning about the torso's x and y axes (a
+    quadruped's hip roll and hip pitch). With it, the torso's roll and pitch error from the plan (small angles,
+    torso frame) times attitude_gain is added to those joints' targets: a stance leg then turns the torso back,
+    a swing leg aims its foot where the plan puts it in the world. Without it (None) the replay is open loop
+    in the torso's attitude, and a two-legged support's tipping mode grows from any small error."""
     model = problem.model
     shapes: dict[int | str, tuple | None] = {b: None for b in range(1, model.nbodies)}
     for name in problem.feet:
@@ -68,8 +76,15 @@ def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, 
     tau[:, problem.actuated] = planned_u
     simulated = np.empty_like(planned_q)
     simulated[0] = sim.q
+    planned_rotation = rotation(planned_q[:, 3:7]) if model.floating_base else None
     for i in range(steps):  # the targets change every control period; the engine steps in between
-        sim.set_servo(kp * gains, kd * gains, target_q=planned_q[i], target_v=planned_v[i])
+        target = planned_q[i]
+        if attitude is not None and model.floating_base:
+            error = planned_rotation[i].T @ rotation(np.asarray(sim.q)[3:7])
+            target = target.copy()
+            target[list(attitude[0])] += attitude_gain * 0.5 * (error[2, 1] - error[1, 2])
+            target[list(attitude[1])] += attitude_gain * 0.5 * (error[0, 2] - error[2, 0])
+        sim.set_servo(kp * gains, kd * gains, target_q=target, target_v=planned_v[i])
         sim.step(tau[i], control_every)
         simulated[i + 1] = sim.q
     standing = np.ones(len(t), dtype=bool)
