@@ -10,6 +10,9 @@ use crate::spatial::Transform;
 /// The most features a shape has: a cylinder's two lowest rim points and four rim points per cap.
 pub(super) const MAX_FEATURES: usize = 10;
 
+/// cos 30°: rim points this close in direction to a cylinder's lowest rim point are left out.
+const NEAR_LOWEST: f64 = 0.866_025_403_784_438_6;
+
 /// A point of a shape within `prediction` of the plane: its feature, the point on the shape's surface,
 /// and its height (negative below the plane).
 #[derive(Debug, Clone, Copy)]
@@ -48,16 +51,19 @@ pub(super) fn plane_points(kind: &ShapeKind, pose: &Transform, prediction: f64, 
         ShapeKind::Cylinder { half_height, radius } => {
             let (u, v, axis) = (pose.rotation.column(0).into_owned(), pose.rotation.column(1).into_owned(), pose.rotation.column(2).into_owned());
             // The lowest rim point of each cap, where the axis is tilted (a cylinder on its side touches
-            // along a line), and four rim points per cap (a cylinder on its end stands on them).
+            // along a line), and four rim points per cap (a cylinder on its end stands on them), but not
+            // those within 30 degrees of the lowest: near-duplicates of it that only slow the solver.
             let across = down - axis * down.dot(&axis);
-            let tilted = across.norm() > 1e-9;
+            let lowest = (across.norm() > 1e-9).then(|| across.normalize());
             for (cap, side) in [(0, -1.0), (1, 1.0)] {
                 let centre = pose.translation + axis * (side * half_height);
-                if tilted {
-                    point(cap, centre + across.normalize() * radius);
+                if let Some(lowest) = lowest {
+                    point(cap, centre + lowest * radius);
                 }
                 for (k, direction) in [u, -u, v, -v].into_iter().enumerate() {
-                    point(2 + 4 * cap + k, centre + direction * radius);
+                    if lowest.is_none_or(|l| direction.dot(&l) < NEAR_LOWEST) {
+                        point(2 + 4 * cap + k, centre + direction * radius);
+                    }
                 }
             }
         }
@@ -112,6 +118,11 @@ mod tests {
         let standing = collect(ShapeKind::Cylinder { half_height: 0.1, radius: 0.05 }, Transform::from_translation(Vector3::new(0.0, 0.0, 0.1)));
         assert_eq!(standing.len(), 4);
         let side = collect(ShapeKind::Cylinder { half_height: 0.1, radius: 0.05 }, Transform::new(lying, Vector3::new(0.0, 0.0, 0.05)));
-        assert!(side.iter().filter(|p| p.feature < 2).count() == 2 && side.iter().all(|p| p.height.abs() < 1e-12));
+        assert!(side.len() == 2 && side.iter().all(|p| p.feature < 2 && p.height.abs() < 1e-12), "{side:?}");
+        // Tilted on its end: the lowest rim point and the rim points away from it (none within 30 degrees).
+        let tilt = Rotation3::from_euler_angles(0.02, 0.0, 0.0).into_inner();
+        let tilted = collect(ShapeKind::Cylinder { half_height: 0.1, radius: 0.05 }, Transform::new(tilt, Vector3::new(0.0, 0.0, 0.1)));
+        let lowest = tilted.iter().find(|p| p.feature == 0).expect("the lowest rim point").surface;
+        assert!(tilted.iter().filter(|p| p.feature >= 2).all(|p| (p.surface - lowest).norm() > 0.05 * 0.5), "{tilted:?}");
     }
 }
