@@ -44,3 +44,26 @@ def test_cli_optimize_prints_each_iteration_and_writes_csv_and_figure(tmp_path, 
     assert len(rows) == 4 * 3  # four phases of three collocation points
     assert [rows[3 * k]["support"] for k in range(4)] == ["+".join(p).upper() for p in AMBLE_SUPPORT]
     assert (tmp_path / "gait_quadruped_optimized.png").stat().st_size > 10_000
+
+
+def test_smooth_stability_rows_bound_the_published_s_h_and_equal_it_before_a_diagonal_edge():
+    # The smooth J_s2 rows (objectives.py docstring) against S_H as published (eq. 10) along the reference amble:
+    # never above it, and equal wherever the published index takes the branch the smooth rows continue.
+    robot = build_quadruped(AMBLE_QUADRUPED)
+    problem = amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, 4, QUADRUPED_MOTOR)
+    x = problem.pack(guess_from_reference(problem, amble_reference(robot, 0.67, 1.25, 4)))
+    x[problem.p1_index] = 0.0
+    published = problem.stability_index(x)
+    equal = 0
+    for k, block in enumerate(problem.stability_blocks):
+        rows = block.values(x).reshape(len(published[k]), -1)
+        lateral = set(problem.phases[k].contacts) not in [set(p) for p in DIAGONAL_PAIRS]
+        if lateral:  # second row: d >= 0, the GCoM inside the lateral support line
+            assert np.all(rows[:, 1] > 0.0)
+        smooth = rows[:, 0] if lateral else rows.min(axis=1)
+        assert np.all(smooth <= published[k] + 1e-12)
+        equal += int(np.sum(np.isclose(smooth, published[k], rtol=1e-12, atol=1e-12)))
+        if lateral:
+            np.testing.assert_allclose(smooth, published[k], rtol=1e-12, atol=1e-12)  # lateral pairs: the same index
+    # Diagonal phases: equal for the first points (GCoM before the edge), a strict bound after it passes.
+    assert 18 + 2 * 4 <= equal < 36

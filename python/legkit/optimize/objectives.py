@@ -20,13 +20,16 @@ travel, a lateral pair away from the GCoM of the model's neutral pose: the publi
 H_ref = m r |d| sqrt(2 g / (r + h)) (the published m r sqrt(2 g (r - h)), rise r - h = d^2 / (r + h)) is
 continued through d = 0 with its sign, H_ref,s = m r d sqrt(2 g / (r + h)). The constraints are then
 
-    lateral pair       H_ref,s - H - p1 >= 0                          (= S_H - p1 while d >= 0)
+    lateral pair       H_ref,s - H - p1 >= 0, d >= 0                  (= S_H - p1: the second row keeps the
+                                                                       GCoM inside the support line, where
+                                                                       the published side is the outer one)
     diagonal pair      H - H_ref,s - p1 >= 0,  H_max - H - p1 >= 0    (= S_H - p1 while d > 0; past the
                                                                        edge the first only adds -H_ref,s >= 0)
 
-smooth in (q, v), and wherever the GCoM is on the published side they imply S_H - p1 >= 0 (for a diagonal
-pair the continued branch H + m r |d| sqrt(...) >= p1 is a small extra demand past the edge, where the
-published index drops it). So p1 stays a lower bound of the published worst case; the optimum's published
+smooth in (q, v), and they imply S_H - p1 >= 0 (for a diagonal pair the continued branch
+H + m r |d| sqrt(...) >= p1 is a small extra demand past the edge, where the published index drops it; a
+lateral pair without d >= 0 let the GCoM cross the support line, where the published index turns to the
+other side: measured S_H min -0.046 under p1 = 0.045). So p1 stays a lower bound of the published worst case; the optimum's published
 S_H is re-evaluated and reported.
 """
 
@@ -222,7 +225,7 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability):
         h_ref = m * r * d * sqrt(2.0 * g / (r + oz))  # eq. 10's H_ref, continued with the sign of d
         if diagonal:
             return stack([momentum - h_ref - p1, m * r * term.v_tip_max - momentum - p1])
-        return stack([h_ref - momentum - p1])
+        return stack([h_ref - momentum - p1, d])  # d >= 0: the GCoM stays on the side the published rule reads
 
     def margin(z: np.ndarray) -> np.ndarray:
         q = problem.configuration(z[:, :nq])
@@ -240,7 +243,7 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability):
         ends = model.points(q, feet)
         return rows(model.center_of_mass(q), model.centroidal_momentum(q, z[nq:nx]), ends[:3], ends[3:], z[nx], ca.sqrt, lambda r: ca.vertcat(*r))
 
-    return margin, 2 if diagonal else 1, symbolic
+    return margin, 2, symbolic
 
 
 def _stability_block(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> Block:
