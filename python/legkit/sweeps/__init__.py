@@ -7,11 +7,11 @@ it; ``tune`` searches the gain constants per scheme. ``legkit sweep`` and ``legk
 See docs/sweeps.md.
 """
 
-from legkit.sweeps.execute import METRICS, ResultStore, read_results, run_batch, run_sweep, terrain_ground
+from legkit.sweeps.execute import METRICS, LocalExecutor, RayExecutor, ResultStore, executor, read_results, run_batch, run_sweep, terrain_ground
 from legkit.sweeps.figures import summary_figures
 from legkit.sweeps.spec import AXES, RunParams, SweepSpec
 
 __all__ = [
-    "AXES", "METRICS", "ResultStore", "RunParams", "SweepSpec", "read_results", "run_batch", "run_sweep", "summary_figures",
-    "terrain_ground",
+    "AXES", "METRICS", "LocalExecutor", "RayExecutor", "ResultStore", "RunParams", "SweepSpec", "executor", "read_results",
+    "run_batch", "run_sweep", "summary_figures", "terrain_ground",
 ]

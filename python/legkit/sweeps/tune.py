@@ -1,21 +1,22 @@
 """``legkit tune``: search the gain constants of each scheme on training trees, validate on held-out trees.
 
 The paper (Moll et al., IROS 2006, Sect. V) chose its gains by hand: K_P0 = 10, K_I0 = 0.1, K_D0 = 1e-4;
-c0, c1 = (1, 0) constant, (0, 0.1) distance, (0, 1) momentum. Here Optuna's TPE sampler (seeded) searches
-c0 and c1 of every scheme (the constant scheme has no c1), and with ``--base-gains`` K_P0, K_I0 and K_D0
-too, minimising over the training trees the mean of ``final + T10_WEIGHT * t10`` (final distance in module
-widths; t10 in s, a run that never gets within 10 % counting twice the duration). The paper's constants
-are the first trial of every scheme. Trials are evaluated in rounds: each round asks every scheme for
+c0, c1 = (1, 0) constant, (0, 0.1) distance, (0, 1) momentum. Here Optuna's TPE sampler (seeded) searches,
+per scheme, c0 and c1 (the constant scheme has no c1) and the base gains K_P0, K_I0, K_D0
+(``--paper-base-gains`` keeps the paper's), minimising over the training trees the mean of
+``final + t10_weight * t10`` (final distance in module widths; t10 in s, a run that never gets within 10 %
+counting twice the duration; ``T10_WEIGHT`` = 1 width per second by default). The paper's constants are
+the first trial of every scheme. Trials are evaluated in rounds: each round asks every scheme for
 ``per_round`` trials and runs all their training runs together, in batches (many runs per ``run_balance``
 call) on the local workers or as Ray tasks (``--ray``; the sampler stays on the driver). Then the paper's and
 the tuned constants run on held-out trees (other seeds) and both are reported: median final distance and
 median t10% with their interquartile ranges (lower medians and quartiles: values of actual runs, so
 "never" stays a value), and the change of the medians.
 
-The defaults fit a few minutes on two cores (4 training trees, 6 held-out, 12 trials per scheme, 1 s
+The defaults fit a few minutes on two cores (4 training trees, 6 held-out, 16 trials per scheme, 1 s
 runs). The full-size study (docs/sweeps.md):
 
-    legkit tune --train 32 --test 64 --trials 120 --per-round 8 --duration 2 --base-gains --ray auto
+    legkit tune --train 32 --test 64 --trials 120 --per-round 8 --duration 2 --ray auto
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ COEFFICIENT_RANGES = {
     "momentum": {"c0": (0.0, 3.0, False), "c1": (0.0, 30.0, False)},
 }
 BASE_GAIN_RANGES = {"kp0": (1.0, 100.0, True), "ki0": (1e-3, 10.0, True), "kd0": (1e-5, 1e-1, True)}
-T10_WEIGHT = 0.1  # module widths per second of t10
+T10_WEIGHT = 1.0  # module widths per second of t10: 0.1 s of t10 weighs as much as 0.1 widths of final distance
 TRAIN_SEED0 = 1000
 TEST_SEED0 = 2000
 
@@ -55,6 +56,7 @@ class SchemeResult:
     tuned: dict[str, float]
     train_score_paper: float
     train_score_tuned: float
+    t10_weight: float
     test_final: dict[str, np.ndarray] = field(default_factory=dict)  # "paper" / "tuned" -> (n_test,)
     test_t10: dict[str, np.ndarray] = field(default_factory=dict)
 
@@ -71,17 +73,17 @@ def constants(schedule: GainSchedule) -> dict[str, float]:
     return {"c0": schedule.c0, "c1": schedule.c1, "kp0": schedule.kp0, "ki0": schedule.ki0, "kd0": schedule.kd0}
 
 
-def score(rows: Sequence[dict[str, Any]], duration: float) -> float:
-    """The training objective: mean of final + T10_WEIGHT * t10 (never: twice the duration)."""
+def score(rows: Sequence[dict[str, Any]], duration: float, t10_weight: float = T10_WEIGHT) -> float:
+    """The training objective: mean of final + t10_weight * t10 (never: twice the duration)."""
     final = np.array([r["final"] for r in rows])
     t10 = np.array([r["t10"] for r in rows], dtype=float)
-    return float(np.mean(final + T10_WEIGHT * np.where(np.isnan(t10), 2 * duration, t10)))
+    return float(np.mean(final + t10_weight * np.where(np.isnan(t10), 2 * duration, t10)))
 
 
 def tune(
-    schemes: Sequence[str] = SCHEMES, train: int = 4, test: int = 6, trials: int = 12, per_round: int = 4,
-    duration: float = 1.0, modules: int = 20, branches: int = 4, base_gains: bool = False, seed: int = 0,
-    workers: int | None = 1, ray: str | None = None, batch_size: int = 48, progress: bool = True,
+    schemes: Sequence[str] = SCHEMES, train: int = 4, test: int = 6, trials: int = 16, per_round: int = 4,
+    duration: float = 1.0, modules: int = 20, branches: int = 4, base_gains: bool = True, seed: int = 0,
+    workers: int | None = 1, ray: str | None = None, batch_size: int = 48, progress: bool = True, t10_weight: float = T10_WEIGHT,
 ) -> list[SchemeResult]:
     """Tune every scheme of ``schemes`` (see the module docstring); returns one ``SchemeResult`` per scheme."""
     import optuna
@@ -93,8 +95,9 @@ def tune(
     for name, value, low in (("train", train, 1), ("test", test, 1), ("trials", trials, 1), ("per_round", per_round, 1), ("batch_size", batch_size, 1), ("modules", modules, 1)):
         if isinstance(value, bool) or not isinstance(value, int) or value < low:
             raise ValueError(f"{name}: must be an int >= {low}, got {value!r}")
-    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
-        raise ValueError(f"duration: must be a number > 0, got {duration!r}")
+    for name, value in (("duration", duration), ("t10_weight", t10_weight)):
+        if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0) or (name == "duration" and value == 0):
+            raise ValueError(f"{name}: must be a finite number {'> 0' if name == 'duration' else '>= 0'}, got {value!r}")
     spec_values = {"modules": modules, "branches": branches, "duration": float(duration), "dt": 1e-3}
     train_seeds = [TRAIN_SEED0 + i for i in range(train)]
     test_seeds = [TEST_SEED0 + i for i in range(test)]
@@ -138,7 +141,7 @@ def tune(
             rows = evaluate(jobs)
             for s, trial_list in asked.items():
                 for trial in trial_list:
-                    studies[s].tell(trial, score(rows[(s, trial.number)], duration))
+                    studies[s].tell(trial, score(rows[(s, trial.number)], duration, t10_weight))
             if progress:
                 best = ", ".join(f"{s} {studies[s].best_value:.3f}" for s in schemes)
                 print(f"round {round_index + 1}/{rounds}: best training score {best}", file=sys.stderr, flush=True)
@@ -148,7 +151,7 @@ def tune(
             tuned = schedule_of(s, studies[s].best_params)
             paper = GainSchedule.paper(s)
             jobs += [((s, "paper"), paper, test_seeds), ((s, "tuned"), tuned, test_seeds)]
-            results.append(SchemeResult(s, constants(paper), constants(tuned), studies[s].trials[0].value, studies[s].best_value))
+            results.append(SchemeResult(s, constants(paper), constants(tuned), studies[s].trials[0].value, studies[s].best_value, t10_weight))
         rows = evaluate(jobs)
     for result in results:
         for which in ("paper", "tuned"):
@@ -183,7 +186,7 @@ def report(results: Sequence[SchemeResult]) -> str:
         lines.append("  " + " ".join(f"{n:>10}" for n in ["", *names]))
         for which, values in (("paper", r.paper), ("tuned", r.tuned)):
             lines.append("  " + f"{which:>10}" + " ".join(f"{values[n]:>10.4g}" for n in names))
-        lines.append(f"  training score (mean final + {T10_WEIGHT} t10): paper {r.train_score_paper:.3f}, tuned {r.train_score_tuned:.3f}")
+        lines.append(f"  training score (mean final + {r.t10_weight:g} t10): paper {r.train_score_paper:.3f}, tuned {r.train_score_tuned:.3f}")
         n = len(r.test_final["paper"])
         lines.append(f"  held-out trees ({n}): median [quartiles]")
         lines.append(f"    final distance (widths)  paper {median_quartiles(r.test_final['paper'])}  tuned {median_quartiles(r.test_final['tuned'])}  "
@@ -199,20 +202,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--schemes", nargs="+", default=list(SCHEMES), help="schemes to tune (default all)")
     parser.add_argument("--train", type=int, default=4, help=f"training trees, seeds {TRAIN_SEED0}.. (default 4)")
     parser.add_argument("--test", type=int, default=6, help=f"held-out trees, seeds {TEST_SEED0}.. (default 6)")
-    parser.add_argument("--trials", type=int, default=12, help="trials per scheme, the paper's first (default 12)")
+    parser.add_argument("--trials", type=int, default=16, help="trials per scheme, the paper's first (default 16)")
     parser.add_argument("--per-round", type=int, default=4, help="trials per scheme evaluated together (default 4)")
     parser.add_argument("--duration", type=float, default=1.0, help="simulated seconds per run (default 1)")
     parser.add_argument("--modules", type=int, default=20, help="modules per tree besides the root (default 20)")
     parser.add_argument("--branches", type=int, default=4, help="branches off the root (default 4)")
-    parser.add_argument("--base-gains", action="store_true", help="search K_P0, K_I0, K_D0 too")
+    parser.add_argument("--paper-base-gains", action="store_true", help="keep the paper's K_P0, K_I0, K_D0 (search c0, c1 only)")
     parser.add_argument("--seed", type=int, default=0, help="sampler seed (default 0)")
+    parser.add_argument("--t10-weight", type=float, default=T10_WEIGHT, help=f"module widths per second of t10 in the objective (default {T10_WEIGHT})")
     parser.add_argument("--workers", type=int, default=1, help="local worker processes (default 1: this process, physics on every core)")
     parser.add_argument("--ray", metavar="ADDRESS", help="evaluate on Ray at ADDRESS ('auto', 'ray://host:10001', or 'local')")
     args = parser.parse_args(argv)
     try:
         results = tune(
             args.schemes, args.train, args.test, args.trials, args.per_round, args.duration, args.modules, args.branches,
-            args.base_gains, args.seed, args.workers, args.ray,
+            not args.paper_base_gains, args.seed, args.workers, args.ray, t10_weight=args.t10_weight,
         )
     except (ValueError, TypeError) as error:
         print(f"legkit tune: {error}", file=sys.stderr)
