@@ -16,7 +16,7 @@ import time
 
 import legkit.optimize as lo
 from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR
-from legkit.optimize.gaits import AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference
+from legkit.optimize.gaits import AMBLE_DERIVATIVES, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
 
 
@@ -37,7 +37,7 @@ def main() -> None:
     parser.add_argument("--tol", type=float, default=1e-6)
     parser.add_argument("--speed", type=float, default=0.67)
     parser.add_argument("--neighbour", type=float, default=0.60, help="speed [m/s] whose optimum warm-starts --speed")
-    parser.add_argument("--derivatives", choices=("exact", "legkit"), default="exact")
+    parser.add_argument("--derivatives", choices=("exact", "legkit"), default=AMBLE_DERIVATIVES)
     args = parser.parse_args()
     robot = build_quadruped(AMBLE_QUADRUPED)
     objective = [lo.MinMaxStability(2.0, DIAGONAL_PAIRS)]

@@ -502,7 +502,9 @@ def run_optimized(args: argparse.Namespace) -> dict[str, float]:
     (S_H over the period with its worst case marked, beside the reference's), then replays the gait in
     `lk.Simulation` (PD tracking + feed-forward torques) over --replay-cycles cycles."""
     from legkit.optimize import MinMaxStability
-    from legkit.optimize.gaits import AMBLE_ATTITUDE_JOINTS, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference
+    from legkit.optimize.gaits import (
+        AMBLE_ATTITUDE_JOINTS, AMBLE_DERIVATIVES, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference,
+    )
     from legkit.optimize.replay import replay
 
     robot = build_quadruped(AMBLE_QUADRUPED)
@@ -517,9 +519,9 @@ def run_optimized(args: argparse.Namespace) -> dict[str, float]:
     def progress(iteration: int, objective: float, violation: float) -> None:
         print(f"  iter {iteration:4d}  J_s2 {objective: .6e}  max violation {violation:.2e}", flush=True)
 
-    # Exact derivatives (legkit.optimize.symbolic), the constraints first, then J_s2 (docs/optimize.md).
-    _, result = problem.solve(guess, feasibility_first=True, tol=args.tol, max_iter=args.max_iter, progress=progress,
-                              options=AMBLE_IPOPT)
+    # The constraints first, then J_s2 (docs/optimize.md).
+    _, result = problem.solve(guess, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, tol=args.tol, max_iter=args.max_iter,
+                              progress=progress, options=AMBLE_IPOPT)
     x, _ = result.best()
     kept = result.history[-1][0] if x is result.x else result.best_feasible[0]
     trajectory = problem.unpack(x)

@@ -23,6 +23,11 @@ from legkit.robots.quadruped import LEGS, Quadruped
 #: iterations of the J_s2 stage and then crawled along the constraints; docs/optimize.md).
 AMBLE_IPOPT = {"mu_strategy": "monotone"}
 
+#: Derivatives for the amble's J_s2: legkit's kernels with L-BFGS reached a higher worst-case S_H per second than
+#: the exact Hessian (p1 0.103 vs 0.036 after 150 J_s2 iterations, cold; docs/optimize.md), though the exact
+#: Hessian meets the constraints in fewer iterations (20 vs 78).
+AMBLE_DERIVATIVES = "legkit"
+
 #: q indices of the quadruped's hip roll and hip pitch joints (leg by leg), for the replay's attitude feedback.
 AMBLE_ATTITUDE_JOINTS = ([7 + 3 * leg for leg in range(4)], [8 + 3 * leg for leg in range(4)])
 
