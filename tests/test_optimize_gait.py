@@ -44,6 +44,13 @@ def test_cli_optimize_prints_each_iteration_and_writes_csv_and_figure(tmp_path, 
     assert len(rows) == 4 * 3  # four phases of three collocation points
     assert [rows[3 * k]["support"] for k in range(4)] == ["+".join(p).upper() for p in AMBLE_SUPPORT]
     assert (tmp_path / "gait_quadruped_optimized.png").stat().st_size > 10_000
+    # The replay's animation: meshcat's self-contained page, and a GIF of several frames.
+    page = (tmp_path / "gait_quadruped_optimized.html").read_text()
+    assert "the amble replayed in simulation" in page and len(page) > 500_000
+    from PIL import Image
+
+    with Image.open(tmp_path / "gait_quadruped_optimized.gif") as gif:
+        assert gif.n_frames > 5
 
 
 def test_smooth_stability_rows_bound_the_published_s_h_and_equal_it_before_a_diagonal_edge():

@@ -500,7 +500,8 @@ def run_optimized(args: argparse.Namespace) -> dict[str, float]:
     the worst-case S_H (J_s2, eq. 11) from the hand-built reference; one progress line per IPOPT iteration.
     Writes gait_quadruped_optimized.csv (every collocation point: t, phase, support, q, v, u, S_H) and .png
     (S_H over the period with its worst case marked, beside the reference's), then replays the gait in
-    `lk.Simulation` (PD tracking + feed-forward torques) over --replay-cycles cycles."""
+    `lk.Simulation` (PD tracking + feed-forward torques) over --replay-cycles cycles and, unless
+    --no-animation, writes the replay beside the plan as .html (meshcat) and .gif."""
     from legkit.optimize import MinMaxStability
     from legkit.optimize.gaits import (
         AMBLE_ATTITUDE_JOINTS, AMBLE_DERIVATIVES, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference,
@@ -540,6 +541,8 @@ def run_optimized(args: argparse.Namespace) -> dict[str, float]:
     _plot_optimized(args.out / "gait_quadruped_optimized.png", data["t"], columns["S_H"], guess.stacked()["t"], reference_s_h, labels, worst, worst_t,
                     f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}, iterate {kept} kept")
     simulated = replay(problem, trajectory, args.replay_cycles, kp=100.0, kd=1.0, control_every=1, attitude=AMBLE_ATTITUDE_JOINTS)
+    if not args.no_animation:
+        _animate_replay(args.out / "gait_quadruped_optimized", problem.model, simulated)
     return {
         "IPOPT iterations": result.iterations, "solve wall time [s]": result.wall_time,
         "function + Jacobian share of the solve [%]": 100.0 * result.evaluation_time / result.wall_time,
@@ -552,6 +555,19 @@ def run_optimized(args: argparse.Namespace) -> dict[str, float]:
         "replay: fell after [s] (inf: never)": simulated.fell_at,
         "solver succeeded (1 = yes)": float(result.success),
     }
+
+
+def _animate_replay(stem: Path, model: lk.Model, simulated) -> None:
+    """stem.html (meshcat) and stem.gif: the replay in simulation beside the optimised plan (grey, translucent in
+    the HTML)."""
+    from legkit import viewer
+
+    scene = viewer.Scene(title="legkit gait --optimize: the amble replayed in simulation",
+                         caption="coloured: simulated (PD tracking + feed-forward); grey: the optimised plan")
+    scene.add_robot(model, simulated.planned_q, simulated.t, name="planned", color=(0.55, 0.55, 0.6, 0.35), label="planned")
+    scene.add_robot(model, simulated.q, simulated.t, name="simulated", label="simulated")
+    scene.write_html(stem.with_suffix(".html"))
+    scene.write_gif(stem.with_suffix(".gif"))
 
 
 def _plot_optimized(path: Path, t: np.ndarray, s_h: np.ndarray, reference_t: np.ndarray, reference: np.ndarray, labels: list[str],
@@ -600,6 +616,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-iter", type=_positive_int, default=300, help="--optimize: IPOPT iteration limit (per continuation stage)")
     parser.add_argument("--tol", type=float, default=1e-6, help="--optimize: IPOPT tolerance")
     parser.add_argument("--replay-cycles", type=_positive_int, default=5, help="--optimize: cycles replayed in simulation")
+    parser.add_argument("--no-animation", action="store_true", help="--optimize: do not write the replay's .html and .gif")
     args = parser.parse_args(argv)
     if args.samples < 8:
         parser.error("--samples must be at least 8")
@@ -612,7 +629,7 @@ def main(argv: list[str] | None = None) -> int:
         width = max(len(k) for k in summary)
         for key, value in summary.items():
             print(f"{key:{width}}  {value:12.5g}")
-        print(f"wrote gait_quadruped_optimized.csv/.png to {args.out}")
+        print(f"wrote gait_quadruped_optimized.csv/.png{'' if args.no_animation else '/.html/.gif'} to {args.out}")
         return 0
     robots = ["quadruped", "biped"] if args.robot == "both" else [args.robot]
     with tqdm(total=5 * len(robots), desc="gait analysis", unit="stage") as progress:
