@@ -44,7 +44,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=96, help="runs of part 2 (default 96)")
     parser.add_argument("--duration", type=float, default=2.0, help="simulated seconds per run (default 2)")
-    parser.add_argument("--batch-sizes", type=int, nargs="+", default=[12, 24, 48], help="part 1's batch sizes (default 12 24 48)")
+    parser.add_argument("--batch-sizes", type=int, nargs="*", default=[12, 24, 48], help="part 1's batch sizes (default 12 24 48; none to skip part 1)")
     parser.add_argument("--sweep-batch", type=int, default=48, help="batch size of part 2 (default 48)")
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2], help="part 2's worker counts (default 1 2)")
     args = parser.parse_args()

@@ -17,7 +17,7 @@ import ray
 from legkit.control import SCHEMES, GainSchedule
 from legkit.experiments import balance
 from legkit.robots.superbot import random_tree
-from legkit.sweeps import SweepSpec, read_results, run_sweep
+from legkit.sweeps import SweepSpec, read_results, run_batch, run_sweep
 from legkit.sweeps import cli as sweep_cli
 from legkit.sweeps import tune as tuning
 
@@ -133,6 +133,18 @@ def test_zero_gains_spend_no_energy_and_noise_is_per_run():
     np.testing.assert_array_equal(together[1].distance, alone[0].distance)
     quiet = balance.run_balance(trees, 0.05, runs=[balance.RunSpec(0, GainSchedule.paper("distance"))], progress=False)
     assert not np.array_equal(quiet[0].distance, alone[0].distance)
+
+
+def test_a_run_on_the_reliable_bus_does_not_depend_on_its_batch():
+    """Terrain, noise, start angles and gains are the run's own: the same run alone or in a batch of other
+    trees and settings gives the same row."""
+    spec = SweepSpec(trees=[3, 5], modules=4, branches=2, duration=0.05, terrain=[0.0, 0.005], noise=[0.0, 0.02], seeds=2)
+    runs = [r for r in spec.runs() if r.scheme != "momentum"]
+    together = run_batch(spec.to_dict(), runs)
+    for k in (len(runs) - 1, len(runs) // 2):
+        (alone,) = run_batch(spec.to_dict(), [runs[k]])
+        assert alone.keys() == together[k].keys()
+        assert all(alone[c] == together[k][c] or np.isnan(alone[c]) and np.isnan(together[k][c]) for c in alone), (alone, together[k])
 
 
 def test_killed_sweep_resumes_to_the_uninterrupted_table(tmp_path, local_table, faults_spec):

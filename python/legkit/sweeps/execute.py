@@ -59,13 +59,10 @@ def run_batch(spec_values: dict[str, Any], runs: Sequence[RunParams], threads: i
     modules, branches = spec_values["modules"], spec_values["branches"]
     tree_seeds = sorted({r.tree_seed for r in runs})
     trees = [random_tree(modules, branches, s) for s in tree_seeds]
-    specs = [
-        RunSpec(
-            tree_seeds.index(r.tree_seed), r.schedule, start_seed=r.start_seed, ground=terrain_ground(r, trees[0]),
-            noise=r.noise, noise_seed=r.derived_seed(2),
-        )
-        for r in runs
-    ]
+    specs = []
+    for r in runs:
+        tree = tree_seeds.index(r.tree_seed)
+        specs.append(RunSpec(tree, r.schedule, start_seed=r.start_seed, ground=terrain_ground(r, trees[tree]), noise=r.noise, noise_seed=r.derived_seed(2)))
     loss, delay = runs[0].bus_key
     if any(r.bus_key != (loss, delay) for r in runs):
         raise ValueError("runs: a batch must share its bus configuration (loss, delay)")
