@@ -176,14 +176,18 @@ def test_killed_sweep_resumes_to_the_uninterrupted_table(tmp_path, local_table, 
         run_sweep(SweepSpec(**SMALL), out, workers=1, progress=False)
 
 
-def test_ray_and_local_pool_give_the_local_results(local_table, faults_spec, tmp_path):
+def test_ray_and_local_pool_give_the_local_results_and_tuning(local_table, faults_spec, tmp_path):
     _, local = local_table
+    tiny_tune = dict(schemes=["momentum"], train=2, test=1, trials=2, per_round=2, duration=0.03, modules=4, branches=2, progress=False)
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
         on_ray = run_sweep(faults_spec, tmp_path / "ray", progress=False, figures=False)
+        (tuned_on_ray,) = tuning.tune(**tiny_tune)  # its rounds as Ray tasks, two batches each
     finally:
         ray.shutdown()
     assert_same_table(on_ray, local)
+    (tuned_here,) = tuning.tune(**tiny_tune)
+    assert tuned_on_ray.tuned == tuned_here.tuned and tuned_on_ray.train_score_tuned == tuned_here.train_score_tuned
     pooled = run_sweep(faults_spec, tmp_path / "pool", workers=2, progress=False, figures=False)
     assert_same_table(pooled, local)
 
