@@ -2,7 +2,7 @@
 
 Checks that the synchronous agents converge in exactly `diameter` rounds (exact one round later is not
 enough: one round earlier some estimate must still be wrong), that the network is silent afterwards, and
-measures throughput against the issue's target of 200,000 module-updates per second:
+measures throughput against the target of 200,000 module-updates per second:
 
 * module-updates/s = modules x rounds / wall time of the rounds (every agent takes part in every round);
 * RecomputeMass calls/s = the agents that actually re-ran Algorithm 2 (their inputs changed) / wall time.

@@ -3,7 +3,7 @@
     PYTHONPATH=python python3 benches/balance_sweep.py                       # defaults below, ~10 min here
     PYTHONPATH=python python3 benches/balance_sweep.py --runs 48 --batch-sizes 12 24 --duration 1.0
 
-Runs are the issue's: 20-module random trees (4 branches), each under one scheme, ``--duration`` s of
+Runs are the sweep target's: 20-module random trees (4 branches), each under one scheme, ``--duration`` s of
 closed loop at 1 kHz (plus the 0.5 s of posing every batch starts with). Part 1 runs one batch of each size
 in this process (the agents and controller in Python on one core, the plants stepped by
 ``lk.SimulationBatch`` on every core); part 2 runs the same ``--runs`` runs with ``legkit.sweeps.run_sweep``

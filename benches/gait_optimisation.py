@@ -1,4 +1,4 @@
-"""Gait optimisation benchmark (issue 13): the Fig. 3 amble of file 003 (0.67 m/s, period 1.25 s, duty 0.5,
+"""Gait optimisation benchmark: the Fig. 3 amble of file 003 (0.67 m/s, period 1.25 s, duty 0.5,
 full 3D model, 19 configuration states) maximising the worst-case S_H (J_s2) on IPOPT.
 
 Prints, for a cold start (from `legkit gait`'s hand-built reference, feasibility first) and a warm start (from

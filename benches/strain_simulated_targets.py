@@ -1,4 +1,4 @@
-"""Issue 6's accuracy targets on the simulated RHex walk (tree engine): measured figures against the targets.
+"""The strain models' accuracy targets on the simulated RHex walk (tree engine): measured figures against the targets.
 
 For each speed and seed (3, 4, 5) prints the length and deflection NRMSE over all stance samples and the
 worst body height, roll and pitch errors over the first stride's single-tripod-support samples, then the

@@ -1,4 +1,4 @@
-"""RHex walking in the contact simulation (legkit.strain.simulated): leg springs, clock, gait, issue-6 targets."""
+"""RHex walking in the contact simulation (legkit.strain.simulated): leg springs, clock, gait, the strain models' accuracy targets."""
 
 from __future__ import annotations
 
@@ -208,10 +208,10 @@ def test_stream_is_self_consistent_and_deterministic(walk):
     assert np.array_equal(a.strain, b.strain) and np.array_equal(a.body_position, b.body_position)
 
 
-# --- issue 6 targets on simulated data (benches/strain_simulated_targets.py prints them for seeds 3-5) -----
+# --- the accuracy targets on simulated data (benches/strain_simulated_targets.py prints them for seeds 3-5) -----
 
 
-def test_issue6_targets(walk, calibrated):
+def test_accuracy_targets_on_the_simulated_walk(walk, calibrated):
     # NRMSE over all stance samples; pose errors over the first stride's single-tripod-support samples.
     estimate = estimate_body_pose(walk.hip_angle, walk.strain, calibrated, walk.stance_centre, walk.toe_radius)
     assert nrmse(walk.length[walk.stance], estimate.length[walk.stance]) <= 2.0

@@ -1,4 +1,4 @@
-"""Issue 7: the ZMP from the dynamics equals the CoP of the simulated contact forces (tree engine) within 5 mm.
+"""The ZMP from the dynamics equals the CoP of the simulated contact forces (tree engine) within 5 mm.
 
 A robot stands on a plane with position servos holding a pose, settles, then sways its torso over
 planted feet. At every step the ZMP comes from `legkit.stability.zmp` (centroidal momentum rate of the
@@ -25,7 +25,7 @@ from legkit.stability import ground_point, zmp
 from legkit.stability.simulated import ground_contact_wrench, simulated_center_of_pressure
 
 DT = 1e-3
-ZMP_COP_BOUND = 5e-3  # m, the issue's target
+ZMP_COP_BOUND = 5e-3  # m, the target
 FRICTION = 0.8
 QUADRUPED_FOOT_RADIUS = 0.01
 
@@ -164,7 +164,7 @@ def foot_slip_speed(run: Trajectory, feet: list[Foot]) -> np.ndarray:
 
 
 def check_zmp_equals_cop(run: Trajectory, feet: list[Foot], min_foot_load: float, settle_time: float) -> dict[str, float]:
-    """Assert the issue's target over every state (standing: landing, settling and still; swaying) and
+    """Assert the target over every state (standing: landing, settling and still; swaying) and
     the premises of the experiment once settled; return the measured figures [m]."""
     dynamic, cop, com = zmp_and_cop(run)
     error = np.linalg.norm((dynamic - cop)[:, :2], axis=1)

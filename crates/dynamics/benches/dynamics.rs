@@ -1,5 +1,5 @@
 //! ABA, RNEA, CRBA and M⁻¹ on the 63-DoF SuperBot-like modular tree, and ABA on revolute chains of 64 and
-//! 1024 links (target from the issue: ABA on the 63-DoF tree <= 5 µs; ABA linear in the number of bodies).
+//! 1024 links (targets: ABA on the 63-DoF tree <= 5 µs; ABA linear in the number of bodies).
 //!
 //! The models are those of `benches/models.py` (the Python comparison with Pinocchio), built here again:
 //! * tree: a fixed root module and 4 branches of 5 modules, each module 0.1 m long along its +x with three

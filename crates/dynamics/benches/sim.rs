@@ -1,5 +1,5 @@
 //! One 1 ms step of the simulation, legkit's tree engine and the Rapier reference, on the SuperBot-like trees
-//! of `benches/simulation_vs_mujoco.py` (issue 11's targets, measured against MuJoCo by that script: the
+//! of `benches/simulation_vs_mujoco.py` (the engine's targets, measured against MuJoCo by that script: the
 //! 21-module, 63-DoF tree with ground contact and position servos at ≤ 0.6x MuJoCo's step; a 101-module
 //! tree at ≥ 1x real time).
 //!

@@ -65,7 +65,7 @@ At duty 1/2 the arriving tripod, unloaded and so longer than the compressed depa
 during its fast recirculation and kicks the robot. The simulation stands for ``settle_time``, then walks
 ``warmup_periods`` gait periods before recording, so the stream starts in steady walking.
 
-Accuracy (issue 6 targets; ``benches/strain_simulated_targets.py``, seeds 3-5, worst case)
+Accuracy (the strain models' targets; ``benches/strain_simulated_targets.py``, seeds 3-5, worst case)
 -------------------------------------------------------------------------------------
 Length NRMSE 0.45 % (<= 2), deflection NRMSE 5.3 % (<= 10), body height 3.3 mm (<= 5), roll 1.0 deg and
 pitch 0.5 deg (<= 2); seeds 0, 1, 2 and 7 give the same figures within 0.4 mm and 0.2 %. The deflection
