@@ -92,7 +92,7 @@ impl Simulation {
     pub fn new(model: &Model, options: Options) -> Result<Self> {
         options.check(model)?;
         let engine: Box<dyn Engine> = match options.backend {
-            Backend::Tree => Box::new(tree::TreeSimulation::new(model, &options)),
+            Backend::Tree => Box::new(tree::TreeSimulation::new(model, &options)?),
             Backend::Rapier => Box::new(rapier::RapierSimulation::new(model, &options)?),
         };
         let (nq, nv) = (model.nq(), model.nv());

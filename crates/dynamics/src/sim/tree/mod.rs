@@ -93,15 +93,15 @@ pub(crate) struct TreeSimulation {
 }
 
 impl TreeSimulation {
-    pub(crate) fn new(model: &Model, options: &Options) -> Self {
+    pub(crate) fn new(model: &Model, options: &Options) -> Result<Self> {
         let nv = model.nv();
         let carrier = carriers(model);
-        let (fused, fused_body, offset) = fuse(model, &carrier);
+        let (fused, fused_body, offset) = fuse(model, &carrier)?;
         let limited = (1..model.nbodies())
             .filter(|&i| model.joint(i).nv() == 1 && model.limits(i).has_position_limits())
             .map(|i| LimitedJoint { body: fused_body[i], v: model.idx_v(i), q: model.idx_q(i), lower: model.limits(i).lower, upper: model.limits(i).upper })
             .collect();
-        TreeSimulation {
+        Ok(TreeSimulation {
             h: options.dt / options.substeps as f64,
             friction: options.ground.as_ref().map_or(DEFAULT_FRICTION, |g| g.friction()),
             data: Data::new(&fused),
@@ -132,7 +132,7 @@ impl TreeSimulation {
             u_before: vec![0.0; nv],
             q_start: vec![0.0; model.nq()],
             contacts: Vec::new(),
-        }
+        })
     }
 
     /// The actuation of step 1; `saturated` marks servos treated as saturated whatever their force.
@@ -348,7 +348,7 @@ fn carriers(model: &Model) -> Vec<usize> {
 /// `model` with every body on a fixed joint merged into its carrier (its mass properties moved into the
 /// carrier's frame), moving bodies kept in order so coordinates are unchanged; and for each body of
 /// `model`, its body in the fused model and its frame there.
-fn fuse(model: &Model, carrier: &[usize]) -> (Model, Vec<usize>, Vec<Transform>) {
+fn fuse(model: &Model, carrier: &[usize]) -> Result<(Model, Vec<usize>, Vec<Transform>)> {
     let n = model.nbodies();
     let mut offset = vec![Transform::identity(); n];
     let mut mass = vec![MassProperties::zero(); n];
@@ -365,12 +365,12 @@ fn fuse(model: &Model, carrier: &[usize]) -> (Model, Vec<usize>, Vec<Transform>)
         fused_body[i] = if carrier[i] == i {
             let parent = model.parent(i);
             let placement = offset[parent].compose(model.placement(i));
-            fused.add_body(fused_body[parent], *model.joint(i), placement, mass[i], model.name(i), *model.limits(i)).expect("a valid model's moving bodies form a valid model")
+            fused.add_body(fused_body[parent], *model.joint(i), placement, mass[i], model.name(i), *model.limits(i))?
         } else {
             fused_body[carrier[i]]
         };
     }
-    (fused, fused_body, offset)
+    Ok((fused, fused_body, offset))
 }
 
 /// The base's origin in the world: the origin of the frame `aba` works about.
