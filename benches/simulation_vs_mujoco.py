@@ -429,10 +429,11 @@ def quadruped_scene(trot: bool) -> Scene:
 # Real robots from example-robot-data's URDFs
 # ------------------------------------------------------------------------------------------------------
 
-# URDF file (under example-robot-data's robots folder), then a crouch: joint-name suffix -> angle per leg prefix.
+# URDF file (under example-robot-data's robots folder), a crouch (joint-name suffix -> angle for front and
+# hind legs), and the base height (m) that puts the crouched robot's lowest point 1 mm above the ground.
 ROBOTS = {
-    "go1": ("go1_description/urdf/go1.urdf", {"_thigh_joint": (0.9, 0.9), "_calf_joint": (-1.8, -1.8)}),
-    "anymal": ("anymal_c_simple_description/urdf/anymal.urdf", {"_HFE": (0.5, -0.5), "_KFE": (-1.0, 1.0)}),
+    "go1": ("go1_description/urdf/go1.urdf", {"_thigh_joint": (0.9, 0.9), "_calf_joint": (-1.8, -1.8)}, 0.286),
+    "anymal": ("anymal_c_simple_description/urdf/anymal.urdf", {"_HFE": (0.5, -0.5), "_KFE": (-1.0, 1.0)}, 0.516),
 }
 ROBOT_KP, ROBOT_KD = 60.0, 2.0  # N m/rad, N m s/rad: the servos holding the crouch
 FALL_KD = 0.5  # N m s/rad: limp joints while falling over
@@ -468,7 +469,7 @@ def robot_scene(robot: str, fall: bool) -> Scene:
     from importlib.metadata import distribution
 
     robots = Path(distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots"))
-    relative, crouch = ROBOTS[robot]
+    relative, crouch, stand_height = ROBOTS[robot]
     urdf = physical_urdf(robots / relative)
     child_of = {j.get("name"): j.find("child").get("link") for j in ET.parse(urdf).getroot().findall("joint")
                 if j.get("type") in ("revolute", "continuous")}
@@ -481,7 +482,7 @@ def robot_scene(robot: str, fall: bool) -> Scene:
     for joint, angle in angles.items():
         start[model.idx_q[model.names.index(child_of[joint])]] = angle
     roll = FALL_ROLL if fall else 0.0
-    start[2] = FALL_HEIGHT if fall else stand_height_of(model, start)
+    start[2] = FALL_HEIGHT if fall else stand_height
     start[3:7] = [np.sin(roll / 2), 0.0, 0.0, np.cos(roll / 2)]
     kp, kd = (0.0, FALL_KD) if fall else (ROBOT_KP, ROBOT_KD)
 
@@ -544,29 +545,6 @@ def robot_scene(robot: str, fall: bool) -> Scene:
         return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon), base)
 
     return Scene(f"{robot}-{'fall' if fall else 'stand'}", model.nv - 6, legkit_runner, mujoco_runner)
-
-
-def stand_height_of(model: lk.Model, q: np.ndarray) -> float:
-    """The base height that puts the lowest collision shape's lowest point on the ground at ``q`` (base at
-    height 0), plus 1 mm."""
-    q0 = q.copy()
-    q0[2] = 0.0
-    poses = lk.forward_kinematics(model, q0)
-    lowest = np.inf
-    for body, kind, size, placement in model.colliders():
-        pose = poses[body] @ placement
-        if kind == "sphere":
-            low = pose[2, 3] - size[0]
-        elif kind == "box":
-            corners = np.array([[sx, sy, sz] for sx in (-0.5, 0.5) for sy in (-0.5, 0.5) for sz in (-0.5, 0.5)]) * size
-            low = (pose[:3, :3] @ corners.T)[2].min() + pose[2, 3]
-        elif kind == "convex":
-            low = (pose[:3, :3] @ np.asarray(size).T)[2].min() + pose[2, 3]
-        else:  # capsule, cylinder along z: bounded by the axis end points and the radius
-            half, radius = size
-            low = pose[2, 3] - abs(pose[2, 2]) * half - radius
-        lowest = min(lowest, low)
-    return 1e-3 - lowest
 
 
 # ------------------------------------------------------------------------------------------------------

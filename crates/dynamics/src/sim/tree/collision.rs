@@ -26,8 +26,11 @@ pub(super) type Warm = [f64; 4];
 
 struct Collider {
     body: usize,
-    /// The nearest body at or above `body` whose joint moves (bodies on fixed joints move with it).
+    /// The body of the fused model that `body` moves with, and that body's parent.
     carrier: usize,
+    parent_carrier: usize,
+    /// It meets the ground through parry (a heightfield, or a convex mesh on the plane), not in closed form.
+    parry_ground: bool,
     kind: ShapeKind,
     /// Shape frame in the body frame.
     local: Transform,
@@ -68,17 +71,13 @@ pub(super) struct Found {
 
 pub(super) struct Collision {
     colliders: Vec<Collider>,
-    /// The ground as a parry shape, for the colliders that meet it through parry; None without ground.
+    /// The ground as a parry shape, for the colliders that meet it through parry; None if none does.
     ground: Option<(SharedShape, Pose)>,
     plane: bool,
-    /// Some collider meets the ground through parry (a heightfield, or a convex mesh on the plane).
-    parry_ground: bool,
     /// Impulses of each collider's features on the plane, from the last step.
     plane_warm: Vec<[Warm; MAX_FEATURES]>,
     ground_pairs: Vec<Pair>,
     self_collision: bool,
-    /// Each body's parent.
-    parents: Vec<usize>,
     /// Overlapping collider pairs (a < b) of the last step, sorted, with their manifolds.
     self_pairs: Vec<(u32, u32, Pair)>,
     poses: Vec<Pose>,
@@ -89,26 +88,35 @@ pub(super) struct Collision {
 }
 
 impl Collision {
-    /// The colliders of `options` on `model`, whose bodies move with `carrier` (see `TreeSimulation`).
-    pub(super) fn new(model: &Model, options: &Options, carrier: &[usize]) -> Self {
+    /// The colliders of `options` on `model`, body i moving with body `fused_body[i]` of `fused` (see
+    /// `TreeSimulation`).
+    pub(super) fn new(model: &Model, options: &Options, fused: &Model, fused_body: &[usize]) -> Self {
+        let plane = matches!(options.ground, Some(Ground::Plane { .. }));
         let colliders: Vec<Collider> = options
             .colliders(model)
             .map(|(i, shape, in_body)| {
                 let (shared, correction) = shape.shared_shape();
-                Collider { body: i, carrier: carrier[i], kind: shape.kind, local: in_body, shape: shared, parry_local: in_body.compose(&correction) }
+                let carrier = fused_body[i];
+                Collider {
+                    body: i,
+                    carrier,
+                    parent_carrier: if carrier == 0 { 0 } else { fused.parent(carrier) },
+                    parry_ground: options.ground.is_some() && (!plane || matches!(shape.kind, ShapeKind::Convex(_))),
+                    kind: shape.kind,
+                    local: in_body,
+                    shape: shared,
+                    parry_local: in_body.compose(&correction),
+                }
             })
             .collect();
         let n = colliders.len();
-        let plane = matches!(options.ground, Some(Ground::Plane { .. }));
         Collision {
-            ground: options.ground.as_ref().map(|g| g.shape()),
-            parry_ground: options.ground.is_some() && (!plane || colliders.iter().any(|c| matches!(c.kind, ShapeKind::Convex(_)))),
+            ground: options.ground.as_ref().filter(|_| colliders.iter().any(|c| c.parry_ground)).map(|g| g.shape()),
             plane,
             plane_warm: vec![[[0.0; 4]; MAX_FEATURES]; n],
             ground_pairs: (0..n).map(|_| Pair::default()).collect(),
             colliders,
             self_collision: options.self_collision,
-            parents: (0..model.nbodies()).map(|i| model.parent(i)).collect(),
             self_pairs: Vec::new(),
             poses: vec![Pose::IDENTITY; n],
             boxes: Vec::with_capacity(n),
@@ -126,7 +134,7 @@ impl Collision {
     }
 
     /// Finds the contacts of bodies at world poses `poses`, appending them to `out`.
-    pub(super) fn detect(&mut self, carrier: &[usize], poses: &[Transform], out: &mut Vec<Found>) {
+    pub(super) fn detect(&mut self, poses: &[Transform], out: &mut Vec<Found>) {
         if self.plane {
             let up = tangents(&Vector3::z());
             for (index, c) in self.colliders.iter().enumerate() {
@@ -153,17 +161,14 @@ impl Collision {
                 }
             }
         }
-        if !(self.self_collision || self.parry_ground) {
+        if !(self.self_collision || self.ground.is_some()) {
             return;
         }
         for (pose, c) in self.poses.iter_mut().zip(&self.colliders) {
             *pose = to_pose(&poses[c.body].compose(&c.parry_local));
         }
-        if let Some((ground, ground_pose)) = self.ground.as_ref().filter(|_| self.parry_ground) {
-            for (index, (c, pair)) in self.colliders.iter().zip(self.ground_pairs.iter_mut()).enumerate() {
-                if self.plane && !matches!(c.kind, ShapeKind::Convex(_)) {
-                    continue;
-                }
+        if let Some((ground, ground_pose)) = &self.ground {
+            for (index, (c, pair)) in self.colliders.iter().zip(self.ground_pairs.iter_mut()).enumerate().filter(|(_, (c, _))| c.parry_ground) {
                 let pos12 = ground_pose.inv_mul(&self.poses[index]);
                 let found = self.dispatcher.contact_manifolds(&pos12, ground.as_ref(), c.shape.as_ref(), PREDICTION, &mut pair.manifolds, &mut pair.workspace);
                 if found.is_err() {
@@ -173,11 +178,11 @@ impl Collision {
             }
         }
         if self.self_collision {
-            self.detect_self(carrier, out);
+            self.detect_self(out);
         }
     }
 
-    fn detect_self(&mut self, carrier: &[usize], out: &mut Vec<Found>) {
+    fn detect_self(&mut self, out: &mut Vec<Found>) {
         // Sweep and prune along x over bounding boxes grown by the prediction distance.
         self.boxes.clear();
         self.boxes.extend(self.colliders.iter().zip(&self.poses).map(|(c, p)| c.shape.compute_aabb(p).loosened(PREDICTION / 2.0)));
@@ -193,8 +198,8 @@ impl Collision {
                 }
                 let (ca, cb) = (&self.colliders[a as usize], &self.colliders[b as usize]);
                 let related = ca.carrier == cb.carrier
-                    || ca.carrier == carrier[self.parents[cb.carrier]] && cb.carrier != 0
-                    || cb.carrier == carrier[self.parents[ca.carrier]] && ca.carrier != 0;
+                    || ca.carrier == cb.parent_carrier && cb.carrier != 0
+                    || cb.carrier == ca.parent_carrier && ca.carrier != 0;
                 if !related && boxes[a as usize].intersects(&boxes[b as usize]) {
                     self.candidates.push((a.min(b), a.max(b)));
                 }

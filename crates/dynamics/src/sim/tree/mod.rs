@@ -54,7 +54,8 @@ pub(crate) struct TreeSimulation {
     /// The model with every body on a fixed joint merged into its carrier (as MuJoCo's `fusestatic`): the
     /// same coordinates, far fewer bodies on robots whose URDFs hang sensors and frames on fixed joints.
     fused: Arc<Model>,
-    /// Each body's body in `fused`, and its frame in that body's frame.
+    /// Each body's body in `fused` (the moving body it is carried by: bodies with one carrier share a
+    /// chain), and its frame in that body's frame.
     fused_body: Vec<usize>,
     offset: Vec<Transform>,
     options: Options,
@@ -74,8 +75,6 @@ pub(crate) struct TreeSimulation {
     entries: Vec<Entry>,
     groups: Vec<Group>,
     constraints: Vec<Constraint>,
-    /// The nearest body at or above each body whose joint moves: bodies with one carrier share a chain.
-    carrier: Vec<usize>,
     /// Sweeps of the contact solver in the last substep.
     sweeps: usize,
     poses: Vec<Transform>,
@@ -95,8 +94,8 @@ pub(crate) struct TreeSimulation {
 impl TreeSimulation {
     pub(crate) fn new(model: &Model, options: &Options) -> Result<Self> {
         let nv = model.nv();
-        let carrier = carriers(model);
-        let (fused, fused_body, offset) = fuse(model, &carrier)?;
+        let (fused, fused_body, offset) = fuse(model)?;
+        let collision = Collision::new(model, options, &fused, &fused_body);
         let limited = (1..model.nbodies())
             .filter(|&i| model.joint(i).nv() == 1 && model.limits(i).has_position_limits())
             .map(|i| LimitedJoint { body: fused_body[i], v: model.idx_v(i), q: model.idx_q(i), lower: model.limits(i).lower, upper: model.limits(i).upper })
@@ -109,7 +108,7 @@ impl TreeSimulation {
             fused: Arc::new(fused),
             fused_body,
             offset,
-            collision: Collision::new(model, options, &carrier),
+            collision,
             options: options.clone(),
             limited,
             limit_impulses: vec![[0.0; 2]; nv],
@@ -118,7 +117,6 @@ impl TreeSimulation {
             entries: Vec::new(),
             groups: Vec::new(),
             constraints: Vec::new(),
-            carrier,
             sweeps: 0,
             poses: vec![Transform::identity(); model.nbodies()],
             q_dof: vec![0.0; nv],
@@ -163,7 +161,7 @@ impl TreeSimulation {
         self.entries.clear();
         self.groups.clear();
         self.constraints.clear();
-        let key = |f: &Found| (self.carrier[f.body], f.other.map(|o| self.carrier[o]));
+        let key = |f: &Found| (self.fused_body[f.body], f.other.map(|o| self.fused_body[o]));
         let mut start = 0;
         while start < self.found.len() {
             let group_key = key(&self.found[start]);
@@ -231,10 +229,10 @@ impl TreeSimulation {
                     *pose = Transform::new(centred.rotation, centred.translation + origin).compose(offset);
                 }
                 self.found.clear();
-                self.collision.detect(&self.carrier, &self.poses, &mut self.found);
+                self.collision.detect(&self.poses, &mut self.found);
                 // Bodies fixed to a fixed base cannot move: their contacts carry no constraint.
                 if !model.floating_base() {
-                    let carrier = &self.carrier;
+                    let carrier = &self.fused_body;
                     self.found.retain(|f| carrier[f.body] != 0 || f.other.is_some_and(|o| carrier[o] != 0));
                 }
                 detected = true;
@@ -348,8 +346,9 @@ fn carriers(model: &Model) -> Vec<usize> {
 /// `model` with every body on a fixed joint merged into its carrier (its mass properties moved into the
 /// carrier's frame), moving bodies kept in order so coordinates are unchanged; and for each body of
 /// `model`, its body in the fused model and its frame there.
-fn fuse(model: &Model, carrier: &[usize]) -> Result<(Model, Vec<usize>, Vec<Transform>)> {
+fn fuse(model: &Model) -> Result<(Model, Vec<usize>, Vec<Transform>)> {
     let n = model.nbodies();
+    let carrier = carriers(model);
     let mut offset = vec![Transform::identity(); n];
     let mut mass = vec![MassProperties::zero(); n];
     for i in 0..n {
