@@ -14,7 +14,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import legkit as lk
+from conftest import examples
+
 from legkit.agents import AgentNetwork, BusConfig, Channel, GroundContact, moments
+from legkit.agents import bus as bus_module
 from legkit.robots import superbot as sb
 
 TOLERANCE = 1e-9
@@ -279,3 +282,101 @@ def test_channel_delivers_in_connector_order_and_keeps_the_newest():
     newest = np.isin(sender * 6 + sender_slot, modules[:2] * 6 + slots[:2])
     assert np.all(payload[newest] == 9.0) and np.array_equal(payload[~newest], np.stack([sender, sender_slot], axis=1)[~newest])
     assert channel.in_flight == 0 and channel.transmissions == modules.size + 2
+
+
+def grounded_roots(trees):
+    """A ground contact at the root of every tree of a network of ``trees`` (numbered tree after tree)."""
+    first = np.cumsum([0] + [t.n_modules for t in trees])[:-1]
+    return [GroundContact(int(m), 0, np.eye(3), np.zeros(3), np.zeros(3), np.array([0.0, 0.0, 1.0])) for m in first]
+
+
+@examples(10)
+@given(seeds=st.lists(st.integers(0, 10_000), min_size=2, max_size=3, unique=True), stream_seed=st.integers(0, 2**32))
+def test_a_tree_on_its_own_stream_does_not_depend_on_the_other_trees(seeds, stream_seed):
+    """With ``BusConfig.streams``, a tree's losses, duplicates, delays and delivery order are its own: the tree
+    in a network beside other trees (before or after them) sends what it sends alone."""
+    trees = [sb.random_tree(8, 2, s) for s in seeds]
+    bus = BusConfig(mode="async", delay_max=5, loss=0.3, duplication=0.2, retransmit_after=3)
+    own = stream_seed
+
+    def run(order):
+        network_trees = [trees[k] for k in order]
+        streams = tuple((t.n_modules, own if k == 0 else 1000 + k) for k, t in zip(order, network_trees))
+        network = AgentNetwork(network_trees, bus=dataclasses.replace(bus, streams=streams), ground=grounded_roots(network_trees))
+        network.run(30)
+        first = sum(t.n_modules for t in network_trees[:order.index(0)])
+        mine = slice(first, first + trees[0].n_modules)
+        return [c.sent_by_module[mine].copy() for c in network.channels], network.estimates_connector_frame[mine], network
+
+    alone_sent, alone_estimates, alone = run([0])
+    assert alone.mass_channel.lost > 0 and alone.mass_channel.duplicated > 0  # the bus does lose and duplicate
+    for order in ([0, *range(1, len(trees))], [*range(1, len(trees)), 0]):
+        sent, estimates, _ = run(order)
+        assert all(np.array_equal(a, b) for a, b in zip(sent, alone_sent))
+        assert np.array_equal(estimates, alone_estimates)
+    # Another stream seed gives the tree other losses (the streams are seeded, not shared).
+    bus = dataclasses.replace(bus, streams=((trees[0].n_modules, own + 1),))
+    other = AgentNetwork(trees[0], bus=bus, ground=grounded_roots(trees[:1]))
+    other.run(30)
+    assert any(not np.array_equal(c.sent_by_module, a) for c, a in zip(other.channels, alone_sent))
+
+
+@examples(20)
+@given(calls=st.lists(st.tuples(st.integers(0, 2), st.integers(0, 3000), st.integers(1, 4)), min_size=1, max_size=12))
+def test_stream_draws_are_each_generators_sequence_however_chunked(calls):
+    """Each stream hands out its generator's uniforms in order, whatever the calls' sizes (beyond a chunk
+    too) and the other streams' draws in the same calls."""
+    slots = 6
+    stream_of_module = np.array([0, 1, 1, 2])
+    draws = bus_module._Draws(stream_of_module, [np.random.default_rng(s) for s in (5, 6, 7)], slots)
+    got = {s: [] for s in range(3)}
+    rng = np.random.default_rng(len(calls))
+    for stream, count, width in calls:
+        # ``count`` messages on links of ``stream`` mixed with as many on the other streams' links.
+        mine = np.flatnonzero(np.repeat(stream_of_module, slots) == stream)
+        links = np.concatenate([rng.choice(mine, count), rng.integers(0, slots * 4, count)])
+        rng.shuffle(links)
+        values = draws(links, width)
+        assert values.shape == (links.size, width)
+        for s in range(3):
+            got[s].append(values[np.repeat(stream_of_module, slots)[links] == s].ravel())
+    for s, seed in enumerate((5, 6, 7)):
+        drawn = np.concatenate(got[s])
+        assert np.array_equal(drawn, np.random.default_rng(seed).random(drawn.size))
+
+
+def test_losses_and_duplicates_at_their_rates_and_delays_in_range():
+    tree = sb.random_tree(14, 4, 3)
+    partner, partner_slot, _ = tree.connector_table()
+    modules, slots = np.nonzero(partner >= 0)
+    bus = BusConfig(mode="async", delay_min=2, delay_max=5, loss=0.25, duplication=0.4, streams=((tree.n_modules, 9),))
+    channel = Channel(partner, partner_slot, 1, bus, np.random.default_rng(0))
+    delays = []
+    for now in range(400):
+        waiting = channel.in_flight
+        channel.send_changed(now, modules, slots, np.full((modules.size, 1), float(now)))
+        delays.append(channel._due[waiting:] - now)  # noqa: SLF001 - the messages this send put on the wire
+        channel.deliver(now)
+    sent = channel.transmissions + channel.acknowledgements
+    assert abs(channel.lost / sent - 0.25) < 0.02
+    assert abs(channel.duplicated / (sent - channel.lost) - 0.4) < 0.02
+    delays = np.concatenate(delays)
+    assert set(np.unique(delays)) == {2, 3, 4, 5}
+
+
+def test_bad_streams_are_rejected_naming_them():
+    trees = [sb.random_tree(4, 2, 0), sb.random_tree(3, 1, 1)]
+    a, b = (t.n_modules for t in trees)
+    with pytest.raises(ValueError, match=r"^streams\[0\]"):
+        BusConfig(mode="async", streams=((0, 1),))
+    with pytest.raises(TypeError, match=r"^streams\[1\]"):
+        BusConfig(mode="async", streams=((a, 1), (b, 1.5)))
+    with pytest.raises(TypeError, match="^streams"):
+        BusConfig(mode="async", streams=5)
+    with pytest.raises(ValueError, match=f"^bus: streams cover {a + b - 1} modules, the network has {a + b}"):
+        AgentNetwork(trees, bus=BusConfig(mode="async", streams=((a, 1), (b - 1, 2))))
+    with pytest.raises(ValueError, match="^bus: streams: modules .* linked"):
+        AgentNetwork(trees, bus=BusConfig(mode="async", streams=((a - 1, 1), (b + 1, 2))))
+    network = AgentNetwork(trees, bus=BusConfig(mode="async", streams=((a, 1), (b, 2))))
+    with pytest.raises(ValueError, match="^bus: the streams cannot change"):
+        network.reconfigure(BusConfig(mode="async", streams=((a, 1), (b, 3))))

@@ -135,10 +135,33 @@ def test_zero_gains_spend_no_energy_and_noise_is_per_run():
     assert not np.array_equal(quiet[0].distance, alone[0].distance)
 
 
-def test_a_run_on_the_reliable_bus_does_not_depend_on_its_batch():
-    """Terrain, noise, start angles and gains are the run's own: the same run alone or in a batch of other
-    trees and settings gives the same row."""
-    spec = SweepSpec(trees=[3, 5], modules=4, branches=2, duration=0.05, terrain=[0.0, 0.005], noise=[0.0, 0.02], seeds=2)
+def test_a_run_on_a_lossy_delayed_bus_does_not_depend_on_its_batch():
+    """On an asynchronous bus a run draws its losses, duplicates and delays from generators of its own
+    (RunSpec.bus_seed): the same RunSpec gives the same result alone and between other runs."""
+    trees = [random_tree(4, 2, 0), random_tree(6, 2, 1), random_tree(4, 2, 2)]
+    bus = balance.BusConfig(mode="async", loss=0.3, delay_max=4, duplication=0.1)
+    run = balance.RunSpec(1, GainSchedule.paper("distance"), bus_seed=11)
+    others = [balance.RunSpec(0, GainSchedule.paper("constant")), balance.RunSpec(2, GainSchedule.paper("momentum"), bus_seed=3)]
+    together = balance.run_balance(trees, 0.1, runs=[others[0], run, others[1]], bus=bus, progress=False)[1]
+    alone = balance.run_balance(trees, 0.1, runs=[run], bus=bus, progress=False)[0]
+    np.testing.assert_array_equal(together.distance, alone.distance)
+    assert (together.messages_per_module_second, together.energy) == (alone.messages_per_module_second, alone.energy)
+    # The faults are real: the reliable bus, or the same bus with another run seed, give other results.
+    reliable = balance.run_balance(trees, 0.1, runs=[run], progress=False)[0]
+    reseeded = balance.run_balance(trees, 0.1, runs=[balance.RunSpec(1, GainSchedule.paper("distance"), bus_seed=12)], bus=bus, progress=False)[0]
+    assert not np.array_equal(reliable.distance, alone.distance)
+    assert not np.array_equal(reseeded.distance, alone.distance)
+    with pytest.raises(ValueError, match="^bus: run_balance gives every run its own stream"):
+        balance.run_balance(trees, 0.1, runs=[run], bus=balance.BusConfig(mode="async", streams=((7, 0),)), progress=False)
+    with pytest.raises(ValueError, match=r"^runs\[0\].bus_seed"):
+        balance.run_balance(trees, 0.1, runs=[balance.RunSpec(0, GainSchedule(), bus_seed=-1)], bus=bus, progress=False)
+
+
+@pytest.mark.parametrize("loss, delay", [(0.0, 1), (0.2, 3)])
+def test_a_run_does_not_depend_on_its_batch(loss, delay):
+    """Terrain, noise, start angles, gains and bus faults are the run's own: the same run alone or in a batch
+    of other trees and settings gives the same row, on the reliable bus and on a lossy, delayed one."""
+    spec = SweepSpec(trees=[3, 5], modules=4, branches=2, duration=0.05, terrain=[0.0, 0.005], noise=[0.0, 0.02], seeds=2, loss=[loss], delay=[delay])
     runs = [r for r in spec.runs() if r.scheme != "momentum"]
     together = run_batch(spec.to_dict(), runs)
     for k in (len(runs) - 1, len(runs) // 2):

@@ -9,8 +9,12 @@ connector) pair, and a payload is addressed by its sending connector only (conne
 * ``BusConfig(mode="async", ...)``: each transmission is lost with probability ``loss``, otherwise delivered
   after a delay drawn uniformly from ``delay_min..delay_max`` ticks and, with probability ``duplication``, a
   second copy with its own delay; messages due at the same tick are delivered in a random order. Different
-  delays reorder messages on a link. All draws come from one ``numpy.random.Generator`` seeded with
-  ``seed``. Reliability on top: every data message carries a per-link sequence number; the receiver keeps
+  delays reorder messages on a link. Every transmission draws four uniforms (loss, duplication, the two
+  copies' delays) and every delivered message one (its place in the order), a chunk of ``DRAW_CHUNK`` at a
+  time. By default all draws come from the generator the network hands the channels (seeded with
+  ``seed``); with ``streams``, consecutive groups of modules that share no link (e.g. the separate robots of
+  a batch of runs) draw from generators of their own, seeded with the group's seed, so what one group's
+  messages go through does not depend on the other groups. Reliability on top: every data message carries a per-link sequence number; the receiver keeps
   only a message newer than the newest it accepted on that connector (so duplicates and overtaken messages
   are ignored) and acknowledges every data message it receives (acknowledgements travel through the same
   unreliable network); the sender retransmits its latest payload every ``retransmit_after`` ticks until
@@ -38,6 +42,8 @@ class BusConfig:
     duplication: float = 0.0
     retransmit_after: int = 8
     seed: int = 0
+    #: (modules, seed) per group of consecutive modules, covering the network; empty: one generator for all.
+    streams: tuple[tuple[int, int], ...] = ()
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -56,6 +62,21 @@ class BusConfig:
                 raise ValueError(f"{name}: must be a probability in [0, 1), got {value!r}")
         if self.mode == "sync" and (self.delay_max != 1 or self.loss or self.duplication):
             raise ValueError("mode: 'sync' is reliable with a delay of one tick; use mode='async' for delay, loss or duplication")
+        object.__setattr__(self, "streams", _checked_streams(self.streams))
+
+
+def _checked_streams(streams) -> tuple[tuple[int, int], ...]:
+    """``streams`` as a tuple of (modules >= 1, seed >= 0) int pairs; TypeError/ValueError naming ``streams``."""
+    try:
+        pairs = [tuple(pair) for pair in streams]
+    except TypeError:
+        raise TypeError(f"streams: must be a sequence of (modules, seed) pairs, got {streams!r}") from None
+    for k, pair in enumerate(pairs):
+        if len(pair) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) for v in pair):
+            raise TypeError(f"streams[{k}]: must be a (modules, seed) pair of ints, got {pair!r}")
+        if pair[0] < 1 or pair[1] < 0:
+            raise ValueError(f"streams[{k}]: need modules >= 1 and seed >= 0, got {pair!r}")
+    return tuple((int(m), int(seed)) for m, seed in pairs)
 
 
 class Channel:
@@ -72,8 +93,7 @@ class Channel:
     def __init__(self, partner: np.ndarray, partner_slot: np.ndarray, width: int, config: BusConfig, rng: np.random.Generator):
         self.partner = partner
         self.partner_slot = partner_slot
-        self.config = config
-        self.rng = rng
+        self._config = config
         self.reliable = config.mode == "sync"
         shape = partner.shape
         self.width = width
@@ -104,6 +124,17 @@ class Channel:
         self.retransmissions = 0
         self.lost = 0
         self.duplicated = 0
+        self._draws = _Draws(*_stream_generators(partner, config.streams, rng), shape[1])
+
+    @property
+    def config(self) -> BusConfig:
+        return self._config
+
+    @config.setter
+    def config(self, config: BusConfig) -> None:
+        if config.streams != self._config.streams:
+            raise ValueError("bus: the streams cannot change once the channel exists")
+        self._config = config
 
     @property
     def in_flight(self) -> int:
@@ -164,14 +195,16 @@ class Channel:
         if self.reliable:
             due = np.full(count, now + 1, dtype=np.int64)
         else:
-            keep = self.rng.random(count) >= self.config.loss
+            config = self.config
+            draws = self._draws(links, 4)  # loss, duplication, delay of the message, delay of its copy
+            keep = draws[:, 0] >= config.loss
+            extra = keep & (draws[:, 1] < config.duplication)
             self.lost += int(count - keep.sum())
-            copies = np.flatnonzero(keep)
-            extra = copies[self.rng.random(copies.size) < self.config.duplication]
-            self.duplicated += int(extra.size)
-            copies = np.concatenate([copies, extra])
+            self.duplicated += int(extra.sum())
+            delays = config.delay_min + (draws[:, 2:] * (config.delay_max - config.delay_min + 1)).astype(np.int64)
+            copies = np.concatenate([np.flatnonzero(keep), np.flatnonzero(extra)])
             links, seq, payload = links[copies], seq[copies], payload[copies]
-            due = now + self.rng.integers(self.config.delay_min, self.config.delay_max + 1, size=copies.size)
+            due = now + np.concatenate([delays[keep, 0], delays[extra, 1]])
         ack = np.full(links.size, acks)
         if self._due.size:
             self._due = np.concatenate([self._due, due])
@@ -213,8 +246,8 @@ class Channel:
                 return receiver, link, payload
         else:
             index = np.flatnonzero(ready)
-            if not self.reliable:
-                index = index[self.rng.permutation(index.size)]
+            if not self.reliable:  # a random order: by a uniform draw per message
+                index = index[np.argsort(self._draws(self._link.take(index), 1)[:, 0])]
             link, seq, ack, payload = self._link[index], self._seq[index], self._ack[index], self._payload[index]
             keep = ~ready
             self._due, self._link, self._seq, self._ack = self._due[keep], self._link[keep], self._seq[keep], self._ack[keep]
@@ -246,3 +279,77 @@ def _rows_differ(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     # Reduced component-major: numpy reduces a few long rows much faster than many short ones.
     differs = np.not_equal(a.T, b.T)
     return np.ascontiguousarray(differs).any(axis=0)
+
+
+DRAW_CHUNK = 4096  # uniforms drawn from a stream's generator at a time
+
+
+def _stream_generators(partner: np.ndarray, streams: tuple[tuple[int, int], ...], rng: np.random.Generator) -> tuple[np.ndarray, list[np.random.Generator]]:
+    """Each module's stream (N,) and the streams' generators: ``rng`` alone without ``streams``; else one per
+    stream, seeded with its seed and a salt drawn from ``rng`` (so the channels of one network, which share
+    ``rng``, draw differently, and equally in every network of the same ``BusConfig.seed``). ValueError
+    naming ``bus`` if the streams do not cover the modules or a link joins two streams."""
+    n = partner.shape[0]
+    if not streams:
+        return np.zeros(n, dtype=np.int64), [rng]
+    sizes = [modules for modules, _ in streams]
+    if sum(sizes) != n:
+        raise ValueError(f"bus: streams cover {sum(sizes)} modules, the network has {n}")
+    stream = np.repeat(np.arange(len(sizes)), sizes)
+    module, _ = np.nonzero(partner >= 0)
+    crossing = stream[module] != stream[partner[partner >= 0]]
+    if crossing.any():
+        k = int(np.flatnonzero(crossing)[0])
+        raise ValueError(f"bus: streams: modules {module[k]} and {partner[partner >= 0][k]} are linked but in different streams")
+    salt = int(rng.integers(2**63))
+    return stream, [np.random.default_rng([seed, salt]) for _, seed in streams]
+
+
+class _Draws:
+    """Uniform draws in [0, 1) for messages, each from the generator of its sending link's stream.
+
+    A call ``draws(links, width)`` gives message k the next ``width`` uniforms of its stream, messages of a
+    stream in the order they come in ``links``; so a stream's messages get the same numbers whatever the
+    other streams' messages in the same call. Each stream keeps a buffer of its generator's next uniforms,
+    refilled ``DRAW_CHUNK`` at a time (a loop over the streams that ran out, never over messages)."""
+
+    def __init__(self, stream_of_module: np.ndarray, generators: list[np.random.Generator], slots: int):
+        self._stream_of_link = np.repeat(stream_of_module, slots)
+        self._generators = generators
+        self._buffer = np.zeros((len(generators), DRAW_CHUNK))
+        self._used = np.full(len(generators), DRAW_CHUNK)  # uniforms of each buffer row already handed out
+
+    def __call__(self, links: np.ndarray, width: int) -> np.ndarray:
+        if len(self._generators) == 1:  # one stream: the next uniforms in order
+            needed = links.size * width
+            self._refill(np.array([needed]), np.zeros(1, dtype=np.int64))
+            start = self._used[0]
+            self._used[0] += needed
+            return self._buffer[0, start:start + needed].reshape(links.size, width)
+        stream = self._stream_of_link.take(links)
+        messages = np.bincount(stream, minlength=len(self._generators))
+        self._refill(messages * width, np.flatnonzero(messages))
+        # Each message's rank among its stream's messages in this call (a stable sort keeps their order).
+        order = np.argsort(stream, kind="stable")
+        rank = np.empty(links.size, dtype=np.int64)
+        rank[order] = np.arange(links.size) - np.repeat(np.cumsum(messages) - messages, messages)
+        start = self._used.take(stream) + rank * width
+        self._used += messages * width
+        return self._buffer[stream[:, None], start[:, None] + np.arange(width)]
+
+    def _refill(self, needed: np.ndarray, streams: np.ndarray) -> None:
+        """Make ``needed[s]`` unread uniforms available in the buffer of each stream s of ``streams``, keeping the
+        unread ones first (so a stream's numbers are its generator's sequence however they are chunked)."""
+        filled = self._buffer.shape[1]
+        short = streams[self._used[streams] + needed[streams] > filled]
+        if short.size == 0:
+            return
+        columns = max(DRAW_CHUNK, int(needed.max()))
+        if columns > filled:  # a burst larger than a buffer: widen them all, refill them all
+            self._buffer = np.pad(self._buffer, ((0, 0), (0, columns - filled)))
+            short = np.arange(len(self._generators))
+        for s in short:
+            unread = self._buffer[s, self._used[s]:filled].copy()
+            self._buffer[s, :unread.size] = unread
+            self._buffer[s, unread.size:] = self._generators[s].random(self._buffer.shape[1] - unread.size)
+            self._used[s] = 0

@@ -34,7 +34,7 @@ from __future__ import annotations
 import argparse
 import csv
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol, Sequence
 
@@ -181,7 +181,10 @@ class RunSpec:
     (None: ``seed + tree``, as the default runs), on ``ground`` (None: a plane with ``run_balance``'s
     ``friction``), its agents sensing every joint angle with independent Gaussian noise of standard
     deviation ``noise`` (rad) drawn from a generator seeded with ``noise_seed`` (its own, so a run's noise
-    does not depend on the other runs of the call)."""
+    does not depend on the other runs of the call). On an asynchronous bus the run's agents draw their
+    message losses, duplicates, delays and delivery order from generators of the run's own, seeded with
+    ``bus_seed`` (None: the run's start seed) and the bus's seed (``BusConfig.streams``), so these do not
+    depend on the other runs of the call either."""
 
     tree: int
     schedule: GainSchedule
@@ -189,6 +192,7 @@ class RunSpec:
     ground: lk.Ground | None = None
     noise: float = 0.0
     noise_seed: int = 0
+    bus_seed: int | None = None
 
 
 class _SensorNoise:
@@ -294,11 +298,12 @@ def run_balance(
     tree i starting from ``initial_angles(tree, seed + i)`` at rest on a plane. ``runs`` (a sequence of
     ``RunSpec``) sets each run's tree, gain schedule, start, ground and sensor noise instead. ``loss`` > 0
     runs the agents on the asynchronous bus (one-tick delays, that loss probability, acknowledgements and
-    retransmission), seeded with ``seed``; ``bus`` (a ``BusConfig``) sets the bus outright instead. The bus
-    is shared: with lossy or delayed buses a run's losses are drawn from the one generator of the call, so
-    they depend on the other runs of the call (on the synchronous bus the runs are independent). The agents
-    run ``rounds_per_step`` rounds of messages per control step. One plant per run; the agents of all runs
-    share one vectorised network (the runs are not connected, so they do not interact). Samples every
+    retransmission), seeded with ``seed``; ``bus`` (a ``BusConfig``, without ``streams``) sets the bus
+    outright instead. The runs share one bus but not its randomness: on an asynchronous bus each run draws
+    from generators of its own (``RunSpec.bus_seed``), so a run's result does not depend on the other runs
+    of the call, on any bus. The agents run ``rounds_per_step`` rounds of messages per control step. One
+    plant per run; the agents of all runs share one vectorised network (the runs are not connected, so they
+    do not interact). Samples every
     ``sample_every`` steps. Each run's ``energy`` is the integral over the run of sum_j |tau_j v_j|, the
     power of every joint's applied torque (``Simulation.applied_tau``; the commanded torque for other
     plants) at the velocity it reached in that step, in J."""
@@ -314,16 +319,21 @@ def run_balance(
         raise TypeError(f"bus: must be a BusConfig, got {type(bus).__name__}")
     if runs is None:
         runs = [RunSpec(t, GainSchedule.paper(s)) for t in range(len(trees)) for s in SCHEMES]
+    if bus is not None and bus.streams:
+        raise ValueError("bus: run_balance gives every run its own stream (RunSpec.bus_seed); leave BusConfig.streams empty")
     runs = _checked_runs(runs, len(trees))
     instances = [trees[r.tree] for r in runs]
     built = [tree.to_model() for tree in trees]
-    start_seeds = {(r.tree, seed + r.tree if r.start_seed is None else r.start_seed) for r in runs}
-    starts = {key: initial_angles(trees[key[0]], key[1]) for key in sorted(start_seeds)}
+
+    def start_seed(r: RunSpec) -> int:
+        return seed + r.tree if r.start_seed is None else r.start_seed
+
+    starts = {key: initial_angles(trees[key[0]], key[1]) for key in sorted({(r.tree, start_seed(r)) for r in runs})}
     plants = []
     for r in runs:
         model, layout = built[r.tree]
         q0 = np.zeros(model.nq)
-        q0[layout.joint_q] = starts[(r.tree, seed + r.tree if r.start_seed is None else r.start_seed)]
+        q0[layout.joint_q] = starts[(r.tree, start_seed(r))]
         plants.append(make_plant(plant, model, q0, dt, friction, r.ground))
     # Simulations step together, on every core; other plants one after another.
     batch = lk.SimulationBatch(plants) if all(isinstance(p, lk.Simulation) for p in plants) else None
@@ -335,6 +345,8 @@ def run_balance(
     ground = [GroundContact(int(m), 0, np.eye(3), origin, origin, np.array([0.0, 0.0, 1.0])) for m in first_module]
     if bus is None:
         bus = BusConfig() if loss == 0 else BusConfig(mode="async", loss=loss, seed=seed)
+    if bus.mode == "async":
+        bus = replace(bus, streams=tuple((tree.n_modules, start_seed(r) if r.bus_seed is None else r.bus_seed) for r, tree in zip(runs, instances)))
     module_slices = [slice(f, f + tree.n_modules) for f, tree in zip(first_module, instances)]
     noise = _SensorNoise(runs, module_slices, n_modules)
 
@@ -431,6 +443,8 @@ def _checked_runs(runs: Sequence[RunSpec], n_trees: int) -> list[RunSpec]:
             raise TypeError(f"runs[{k}].ground: must be an lk.Ground or None, got {type(r.ground).__name__}")
         if not (isinstance(r.noise, (int, float)) and np.isfinite(r.noise) and r.noise >= 0):
             raise ValueError(f"runs[{k}].noise: must be a finite number >= 0 (rad), got {r.noise!r}")
+        if r.bus_seed is not None and (isinstance(r.bus_seed, bool) or not isinstance(r.bus_seed, (int, np.integer)) or r.bus_seed < 0):
+            raise ValueError(f"runs[{k}].bus_seed: must be None or an int >= 0, got {r.bus_seed!r}")
     return runs
 
 

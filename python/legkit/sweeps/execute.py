@@ -62,14 +62,15 @@ def run_batch(spec_values: dict[str, Any], runs: Sequence[RunParams], threads: i
     specs = []
     for r in runs:
         tree = tree_seeds.index(r.tree_seed)
-        specs.append(RunSpec(tree, r.schedule, start_seed=r.start_seed, ground=terrain_ground(r, trees[tree]), noise=r.noise, noise_seed=r.derived_seed(2)))
+        specs.append(RunSpec(
+            tree, r.schedule, start_seed=r.start_seed, ground=terrain_ground(r, trees[tree]), noise=r.noise, noise_seed=r.derived_seed(2),
+            bus_seed=r.derived_seed(4),
+        ))
     loss, delay = runs[0].bus_key
     if any(r.bus_key != (loss, delay) for r in runs):
         raise ValueError("runs: a batch must share its bus configuration (loss, delay)")
-    bus = None
-    if loss > 0 or delay > 1:
-        seed = int(np.random.SeedSequence([r.derived_seed(4) for r in runs]).generate_state(1)[0])
-        bus = BusConfig(mode="async", loss=loss, delay_max=delay, seed=seed)
+    # Every batch's bus has the same seed: each run draws from its own streams (RunSpec.bus_seed).
+    bus = BusConfig(mode="async", loss=loss, delay_max=delay) if loss > 0 or delay > 1 else None
     results = run_balance(trees, spec_values["duration"], dt=spec_values["dt"], runs=specs, bus=bus, progress=False)
     rows = []
     for r, result in zip(runs, results):

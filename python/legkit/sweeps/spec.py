@@ -19,9 +19,9 @@ balance run (``legkit.experiments.balance.run_balance``) of ``duration`` s.
 Runs that share a bus configuration are cut, in grid order, into batches of ``batch_size`` runs; a batch is
 one ``run_balance`` call (its agents vectorised together, its plants stepped together on all cores), the
 unit of work of a worker. A run's id is a hash of its parameters (and the spec's duration, dt and tree
-size): the same run has the same id in every sweep. On the synchronous bus a run's result does not depend
-on its batch; on a lossy bus its losses come from its batch's generator (seeded from the batch's run ids),
-so results are deterministic for a given spec, batch size included.
+size): the same run has the same id in every sweep. A run's result does not depend on its batch: its start
+angles, terrain, sensor noise and, on a lossy or delayed bus, its message losses, duplicates and delays come
+from generators of its own (``derived_seed``).
 """
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ class RunParams:
         return (self.loss, self.delay)
 
     def derived_seed(self, stream: int) -> int:
-        """A seed of this run's own, for ``stream`` (1 start angles, 2 sensor noise, 3 terrain)."""
+        """A seed of this run's own, for ``stream`` (1 start angles, 2 sensor noise, 3 terrain, 4 bus)."""
         return int(np.random.SeedSequence([self.tree_seed, self.seed, stream]).generate_state(1)[0])
 
     @property
