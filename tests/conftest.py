@@ -1,13 +1,13 @@
 """Hypothesis profiles and shared strategies for the legkit tests.
 
 Profiles (select with the environment variable LEGKIT_HYPOTHESIS_PROFILE):
-  legkit   (default) 100 examples per property (hypothesis' default; tests asking for more or fewer via
-           `examples(n)` get n), no deadline, derandomized: the same examples every run, so CI is
-           reproducible;
-  quick    25 examples (n/4), for a fast local loop;
-  thorough 1000 examples (10 n), random ones, for occasional deep runs.
-These settings apply to every test module in this directory; they only relax the deadline and keep
-hypothesis' default example count, so other modules' explicit @settings are unaffected.
+  legkit   (default; what CI runs) derandomized: the same examples every run, so CI is reproducible; no
+           deadline; 100 examples per property (hypothesis' default), or exactly n for a test decorated
+           with `@examples(n)`;
+  quick    a quarter of that (at least min(n, 5)), for a fast local loop;
+  thorough ten times as many, random ones (not derandomized), for occasional deep runs.
+Every property test takes its example count from `examples(n)` (never a hard-coded
+`settings(max_examples=...)`), so the selected profile governs all of them.
 No example database is written (database=None) so test runs leave no files behind; a failing example is
 printed together with a @reproduce_failure blob.
 
@@ -45,9 +45,10 @@ settings.load_profile(PROFILE)
 _EXAMPLE_FACTOR = {"legkit": 1.0, "quick": 0.25, "thorough": 10.0}.get(PROFILE, 1.0)
 
 
-def examples(n: int):
-    """@settings for a test that wants n examples under the default profile (scaled for quick/thorough)."""
-    return settings(max_examples=max(5, int(n * _EXAMPLE_FACTOR)))
+def examples(n: int) -> settings:
+    """@settings for a property that runs n examples under the default profile: n/4 (at least min(n, 5))
+    under quick, 10 n under thorough. The other settings come from the selected profile."""
+    return settings(max_examples=max(min(n, 5), int(n * _EXAMPLE_FACTOR)))
 
 
 def reals(lo: float, hi: float):

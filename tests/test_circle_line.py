@@ -627,20 +627,21 @@ def test_rotation_toward_line_matches_brute_force(axis_point, axis_direction, po
     # the same question asked as a circle-line query
     cl = lk.circle_line(centre, axis_direction, radius, line_point, line_direction)
     assert abs(cl.distance - dist) <= tol
-    # where the minimiser is unique, well separated and not too flat, the angle itself must match:
-    # any angle whose distance is within tol of the minimum lies within sqrt(tol / k) of it, k the
-    # (conservatively estimated) curvature.
-    if radius <= 1e-3 * scale:
-        return
-    best = r_ref.angles[0]
-    second = r_ref.values[1] if len(r_ref.values) > 1 else np.inf
-    h = 1e-2
-    rise = min(distance_after_rotation(best + s, *args) for s in (-h, h)) - r_ref.distance
-    k = rise / h**2
-    if second - r_ref.distance > 1e-6 * scale and k > 1e-2 * scale:
-        dtheta = ref.angle_difference(theta, best)
-        allowed = 2 * np.sqrt(tol / k) + 1e-12
-        assert dtheta <= allowed, f"theta {theta!r} vs brute-force minimiser {best!r} (|diff| {dtheta:.3e} > {allowed:.3e})"
+    # where the minimiser is unique, well separated and not too flat (and the circle not vanishingly small),
+    # the angle itself must match: any angle whose distance is within tol of the minimum lies within
+    # sqrt(tol / k) of it, k the (conservatively estimated) curvature.
+    if radius > 1e-3 * scale:
+        best = r_ref.angles[0]
+        second = r_ref.values[1] if len(r_ref.values) > 1 else np.inf
+        h = 1e-2
+        rise = min(distance_after_rotation(best + s, *args) for s in (-h, h)) - r_ref.distance
+        k = rise / h**2
+        if second - r_ref.distance > 1e-6 * scale and k > 1e-2 * scale:
+            dtheta = ref.angle_difference(theta, best)
+            allowed = 2 * np.sqrt(tol / k) + 1e-12
+            assert dtheta <= allowed, (
+                f"theta {theta!r} vs brute-force minimiser {best!r} (|diff| {dtheta:.3e} > {allowed:.3e})"
+            )
 
 
 @examples(150)
@@ -656,8 +657,7 @@ def test_rotation_onto_a_line_that_crosses_the_circle(axis_point, axis_direction
     line_point = target + s * ref.unit(line_direction)
     args = (axis_point, axis_direction, point, line_point, line_direction)
     tol, scale, _, radius = rotation_tolerance(*args)
-    if radius < 1e-3 * (1 + np.linalg.norm(point - axis_point)):
-        return
+    assume(radius >= 1e-3 * (1 + np.linalg.norm(point - axis_point)))
     theta, dist = lk.rotation_toward_line(*args)
     achieved = distance_after_rotation(theta, *args)
     assert abs(dist) <= tol, f"distance {dist!r} should be ~0 (tol {tol:.3e}); args={[np.asarray(a).tolist() for a in args]}"

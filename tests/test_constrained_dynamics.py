@@ -6,10 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, given
 from hypothesis import strategies as st
 
 import legkit as lk
+from conftest import examples
 
 
 def random_rotation(rng: np.random.Generator) -> np.ndarray:
@@ -65,7 +66,7 @@ def point_velocity(model, q, v, body, point):
 seeds = st.integers(0, 2**32 - 1)
 
 
-@settings(max_examples=40)
+@examples(40)
 @given(seed=seeds, floating=st.booleans())
 def test_contact_points_do_not_accelerate(seed, floating):
     """Central differences of each contact point's velocity along (q, v, q̈) vanish to O(h²)."""
@@ -93,7 +94,7 @@ def test_contact_points_do_not_accelerate(seed, floating):
         assert np.abs(acceleration).max() <= 1e-5 * scale, acceleration
 
 
-@settings(max_examples=40)
+@examples(40)
 @given(seed=seeds, floating=st.booleans())
 def test_impact_stops_contact_points_and_never_adds_energy(seed, floating):
     rng = np.random.default_rng(seed)
@@ -112,7 +113,7 @@ def test_impact_stops_contact_points_and_never_adds_energy(seed, floating):
     assert np.abs(jump - applied).max() <= 1e-9 * max(1.0, np.abs(applied).max())
 
 
-@settings(max_examples=40)
+@examples(40)
 @given(seed=seeds, floating=st.booleans())
 def test_reduced_ode_agrees_with_the_constrained_solve(seed, floating):
     rng = np.random.default_rng(seed)

@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import legkit as lk
+from conftest import examples
 from legkit.agents import AgentNetwork, GroundContact
 from legkit.control import PID, BalanceController, GainSchedule
 from legkit.robots import superbot as sb
@@ -69,7 +70,7 @@ def test_tie_rule_picks_the_lowest_com():
     assert decisions.target[0, 0] == pytest.approx(sb.JOINT_LIMIT)  # pi clipped to the limit
 
 
-@settings(max_examples=25, deadline=None)
+@examples(25)
 @given(st.integers(1, 6), st.integers(0, 10_000), st.floats(-0.5, 0.5), st.floats(-0.5, 0.5))
 def test_every_joint_target_is_the_brute_force_optimum(n_modules, seed, line_x, line_y):
     tree = sb.random_tree(n_modules, min(n_modules, 3), seed)

@@ -21,10 +21,11 @@ import re
 import numpy as np
 import pinocchio as pin
 import pytest
-from hypothesis import assume, given, note, settings
+from hypothesis import assume, given, note
 from hypothesis import strategies as st
 
 import legkit as lk
+from conftest import examples
 from robots import Twin, body_counts, build_twin, rngs, twins
 
 RTOL = 1e-9
@@ -36,7 +37,7 @@ FRAMES = {
 
 
 def fast(n: int):
-    return settings(max_examples=n, deadline=None)
+    return examples(n)
 
 
 def assert_close(got, want, what: str = "") -> None:
@@ -465,7 +466,7 @@ def _row(args: dict, idx: tuple[int, ...]):
 @pytest.mark.parametrize("batch", [5, 300])
 @pytest.mark.parametrize("name", BATCHED)
 def test_batch_equals_rows(name, batch):
-    @settings(max_examples=4 if batch == 5 else 2, deadline=None)
+    @examples(4 if batch == 5 else 2)
     @given(com_twins(max_bodies=40), rngs())
     def check(tw: Twin, rng):
         if name in ("center_of_mass", "centroidal_momentum", "centroidal_momentum_rate"):

@@ -6,11 +6,12 @@ import csv
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, given
 from hypothesis import strategies as st
 
 import legkit as lk
 import legkit.stability as ls
+from conftest import examples
 from legkit.experiments import gait
 from legkit.robots.biped import BipedParameters, build_biped
 from legkit.robots.quadruped import LEGS, QuadrupedParameters, build_quadruped
@@ -49,7 +50,7 @@ def _permutation(built: lk.Model, loaded: lk.Model) -> tuple[np.ndarray, np.ndar
     return np.concatenate([np.arange(7), perm_v[6:] + 1]), perm_v
 
 
-@settings(max_examples=10, deadline=None)
+@examples(10)
 @given(st.sampled_from(sorted(BUILDERS)), st.integers(0, 2**32 - 1))
 def test_urdf_round_trip_gives_the_same_dynamics(kind, seed):
     robot = BUILDERS[kind]()
@@ -71,7 +72,7 @@ def _foot_world(model: lk.Model, q: np.ndarray, body: str, point: np.ndarray) ->
     return np.einsum("...ij,j->...i", pose[..., :3, :3], point) + pose[..., :3, 3]
 
 
-@settings(max_examples=30, deadline=None)
+@examples(30)
 @given(st.sampled_from(LEGS), st.floats(-0.07, 0.07), st.floats(-0.03, 0.03), st.floats(0.06, 0.12))
 def test_quadruped_leg_ik_reaches_the_target(leg, dx, dy, depth):
     robot = build_quadruped()
@@ -84,7 +85,7 @@ def test_quadruped_leg_ik_reaches_the_target(leg, dx, dy, depth):
     np.testing.assert_allclose(_foot_world(robot.model, q, body, point), target, atol=1e-12)
 
 
-@settings(max_examples=30, deadline=None)
+@examples(30)
 @given(st.sampled_from(["l", "r"]), st.floats(-0.3, 0.3), st.floats(-0.1, 0.1), st.floats(0.6, 0.8))
 def test_biped_leg_ik_reaches_the_target_with_a_flat_foot(side, dx, dy, depth):
     robot = build_biped()

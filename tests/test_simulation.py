@@ -4,10 +4,11 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import legkit as lk
+from conftest import examples
 
 G = 9.81
 
@@ -93,7 +94,7 @@ def test_free_tree_follows_aba_rk4_within_a_milliradian():
     assert errors[2] < 1e-3
 
 
-@settings(max_examples=40, deadline=None)
+@examples(40)
 @given(st.integers(1, 6), st.integers(0, 2**31 - 1))
 def test_first_step_from_rest_uses_the_aba_acceleration(links, seed):
     # From rest Coriolis and gyroscopic terms vanish, so the first velocity is exactly dt * aba(q, 0, tau).
@@ -374,7 +375,7 @@ def joint_excursion(sim, steps):
     return qs.max(), qs.min()
 
 
-@settings(max_examples=30, deadline=None)
+@examples(30)
 @given(st.floats(0.2, 1.2), st.floats(0.3, 0.95), st.sampled_from([1.0, -1.0]), st.sampled_from([1, 2, 4]))
 def test_falling_pendulum_stops_at_its_position_limit(limit, start_fraction, side, substeps):
     # Rapier's limit engages once the coordinate is past a bound, the tree engine's just before it (a

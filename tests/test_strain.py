@@ -6,9 +6,10 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
+from conftest import examples
 from legkit.strain.model import (
     LegModel,
     cross_validate,
@@ -18,7 +19,7 @@ from legkit.strain.model import (
     order_selection_table,
 )
 
-SETTINGS = settings(max_examples=100, deadline=None)
+SETTINGS = examples(100)
 
 
 def spread_strain(rng: np.random.Generator, count: int, scale: float) -> np.ndarray:

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
+from conftest import examples
 from legkit.strain.benchtop import (
     BenchtopSweep,
     CompliantFourBarLeg,
@@ -22,7 +23,7 @@ from legkit.strain.benchtop import (
 )
 from legkit.strain.model import LegModel, cross_validate, nrmse
 
-SETTINGS = settings(max_examples=60, deadline=None)
+SETTINGS = examples(60)
 RIGID_SECONDARY = CompliantFourBarLeg(axial_stiffness=np.inf, clamp_stiffness=np.inf)
 
 

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import legkit as lk
+from conftest import examples
 from legkit.experiments.strain import calibration_set, main
 from legkit.robots.rhex import LEG_LENGTH, TOTAL_MASS, TRIPODS, rhex_compliant_model, rhex_model
 from legkit.strain.benchtop import CompliantFourBarLeg, synthetic_benchtop
@@ -54,7 +55,7 @@ def single_tripod_support(stream, support):
 # --- the leg springs reproduce the four-bar compliance --------------------------------------------------
 
 
-@settings(max_examples=60, deadline=None)
+@examples(60)
 @given(
     a_r=st.floats(0.01, 0.08),
     a_d=st.floats(-0.4, 0.4),
@@ -97,7 +98,7 @@ def test_default_springs_match_the_documented_values():
     assert springs.flex_stiffness == pytest.approx(565.2, rel=2e-3)
 
 
-@settings(max_examples=60, deadline=None)
+@examples(60)
 @given(
     hips=st.lists(st.floats(-4.0, 4.0), min_size=6, max_size=6),
     flex=st.lists(st.floats(-0.3, 0.3), min_size=6, max_size=6),
@@ -125,7 +126,7 @@ def test_compliant_model_keeps_the_rigid_model_mass_and_rejects_bad_axes():
 # --- the clock -----------------------------------------------------------------------------------------
 
 
-@settings(max_examples=60, deadline=None)
+@examples(60)
 @given(sweep=st.floats(0.2, 1.5), centre=st.floats(-0.5, 0.5), phase=st.floats(-3.0, 3.0))
 def test_half_duty_clock_is_the_walking_clock(sweep, centre, phase):
     angle, _ = BuehlerClock(sweep, centre, 0.5).hip_targets(np.array([phase]), 1.0)
@@ -134,7 +135,7 @@ def test_half_duty_clock_is_the_walking_clock(sweep, centre, phase):
     np.testing.assert_allclose(np.angle(np.exp(1j * (wrapped - expected))), 0.0, atol=1e-12)
 
 
-@settings(max_examples=40, deadline=None)
+@examples(40)
 @given(duty=st.floats(0.5, 0.9), centre=st.floats(-0.4, 0.4), period=st.floats(0.2, 2.0))
 def test_clock_is_continuous_and_its_rate_is_the_derivative(duty, centre, period):
     clock = BuehlerClock(0.6, centre, duty)

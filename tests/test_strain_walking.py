@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
+from conftest import examples
 from legkit.experiments.strain import calibration_set, main
 from legkit.robots.rhex import LEG_LENGTH, TOTAL_MASS, TRIPODS, rhex_model
 from legkit.strain.benchtop import CompliantFourBarLeg, StrainSensor, leg_frame_loads, synthetic_benchtop
@@ -23,7 +24,7 @@ def calibrated() -> LegModel:
     return LegModel.fit(strain, length, deflection, order=1)
 
 
-@settings(max_examples=15, deadline=None)
+@examples(15)
 @given(
     speed=st.floats(0.1, 0.6),
     seed=st.integers(0, 2**32 - 1),
@@ -119,7 +120,7 @@ def test_pose_targets_with_the_leg_model_in_the_loop(calibrated: LegModel, speed
     assert np.ptp(stream.height) > 0.005 and np.ptp(stream.roll) > np.radians(2.0)
 
 
-@settings(max_examples=60, deadline=None)
+@examples(60)
 @given(
     theta=st.floats(-0.6, 0.6),
     length=st.floats(0.12, 0.2),

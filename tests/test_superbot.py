@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import legkit as lk
+from conftest import examples
 from legkit.robots import superbot as sb
 
 
@@ -52,7 +53,7 @@ def test_bad_argument_types_and_values():
         sb.random_tree(20, 4, 0.5)
 
 
-@settings(max_examples=40, deadline=None)
+@examples(40)
 @given(st.integers(1, 12), st.integers(1, 5), st.integers(0, 10_000), st.integers(0, 10_000))
 def test_model_places_mated_connectors_face_to_face(n_modules, branches, seed, angle_seed):
     branches = min(branches, n_modules)
@@ -92,8 +93,14 @@ def test_module_kinematics_rotates_each_joint_about_its_axis():
     centre = rotation[3] @ [0, 0, 1.625 * w] + translation[3]
     assert np.allclose(centre, [0, -0.875 * w, 0.75 * w], atol=1e-15)
     rotation, translation = sb.module_kinematics(np.array([0.0, 0.3, 0.0]), parameters)
-    # The roll joint turns B about the long axis: points on the axis stay.
+    # The roll joint turns B about the long axis: points on the axis stay, points off it turn by 0.3 about z.
     assert np.allclose(rotation[3] @ [0, 0, 2 * w] + translation[3], [0, 0, 2 * w], atol=1e-15)
+    turned = [0.5 * w * np.cos(0.3), 0.5 * w * np.sin(0.3), 2 * w]
+    assert np.allclose(rotation[3] @ [0.5 * w, 0, 2 * w] + translation[3], turned, atol=1e-15)
+    rotation, translation = sb.module_kinematics(np.array([0.0, 0.0, np.pi / 2]), parameters)
+    # Pitch 2 by 90 degrees about x at z = 1.25 w: B's centre goes to (0, -0.375 w, 1.25 w); the other parts stay.
+    assert np.allclose(rotation[3] @ [0, 0, 1.625 * w] + translation[3], [0, -0.375 * w, 1.25 * w], atol=1e-15)
+    assert np.allclose(rotation[:3], np.eye(3), atol=0) and np.allclose(translation[:3], 0.0, atol=0)
 
 
 def test_random_tree_matches_the_seed_experiment():

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
+from conftest import examples
 from legkit.robots.rhex import HIP_POSITIONS, LEG_LENGTH, TRIPODS
 from legkit.strain.pose import (
     coplanarity,
@@ -19,7 +20,7 @@ from legkit.strain.pose import (
     tripod_pose,
 )
 
-SETTINGS = settings(max_examples=100, deadline=None)
+SETTINGS = examples(100)
 
 
 def elementary(axis: int, angle: float) -> np.ndarray:
@@ -127,9 +128,10 @@ def test_batched_matches_single() -> None:
     batch = tripod_pose(toes)
     for index in np.ndindex(4, 5):
         single = tripod_pose(toes[index])
-        np.testing.assert_allclose(batch.rotation[index], single.rotation, atol=0)
-        np.testing.assert_allclose(batch.position[index], single.position, atol=0)
-        assert batch.roll[index] == single.roll and batch.yaw[index] == single.yaw
+        for field in ("rotation", "position", "support_frame", "origin"):
+            np.testing.assert_array_equal(getattr(batch, field)[index], getattr(single, field), err_msg=field)
+        for field in ("roll", "pitch", "yaw", "height", "alpha", "gamma", "beta"):
+            assert getattr(batch, field)[index] == getattr(single, field), field
     assert batch.rotation.shape == (4, 5, 3, 3) and batch.height.shape == (4, 5)
 
 

@@ -15,10 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import legkit as lk
+from conftest import examples
 from legkit.robots.biped import SIDES, build_biped
 from legkit.robots.quadruped import LEGS, build_quadruped
 from legkit.stability import ground_point, zmp
@@ -291,7 +292,7 @@ def test_simulated_cop_and_wrench_of_hand_made_contacts():
     np.testing.assert_allclose(moment, [0.949, -1.1, 0.2], rtol=0, atol=1e-13)
 
 
-@settings(max_examples=60, deadline=None)
+@examples(60)
 @given(st.integers(1, 8), st.integers(0, 2**32 - 1))
 def test_simulated_cop_of_contacts_on_the_plane_is_the_load_weighted_mean(count, seed):
     # Points on z = 0 with vertical normals: friction has no horizontal moment about the plane, so the CoP
