@@ -199,18 +199,31 @@ def test_killed_sweep_resumes_to_the_uninterrupted_table(tmp_path, local_table, 
         run_sweep(SweepSpec(**SMALL), out, workers=1, progress=False)
 
 
-def test_ray_and_local_pool_give_the_local_results_and_tuning(local_table, faults_spec, tmp_path):
+def test_ray_gives_the_local_results_and_tuning(local_table, faults_spec, tmp_path, capsys):
+    """The sweep on Ray tasks equals the local one; tuning on Ray Tune (OptunaSearch, the paper's constants
+    first, one sampled trial within TPE's random start-up) finds the constants and scores the local Optuna
+    search finds, and validates them on the same held-out runs."""
     _, local = local_table
-    tiny_tune = dict(schemes=["momentum"], train=2, test=1, trials=2, per_round=2, duration=0.03, modules=4, branches=2, progress=False)
+    tiny_tune = dict(schemes=["momentum"], train=2, test=1, trials=2, per_round=2, duration=0.03, modules=4, branches=2)
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
         on_ray = run_sweep(faults_spec, tmp_path / "ray", progress=False, figures=False)
-        (tuned_on_ray,) = tuning.tune(**tiny_tune)  # its rounds as Ray tasks, two batches each
+        capsys.readouterr()
+        (tuned_on_ray,) = tuning.tune(**tiny_tune, progress=True)
+        assert "momentum: 2 trials on Ray Tune" in capsys.readouterr().err
     finally:
         ray.shutdown()
     assert_same_table(on_ray, local)
-    (tuned_here,) = tuning.tune(**tiny_tune)
-    assert tuned_on_ray.tuned == tuned_here.tuned and tuned_on_ray.train_score_tuned == tuned_here.train_score_tuned
+    (tuned_here,) = tuning.tune(**tiny_tune, progress=False)
+    assert tuned_on_ray.tuned == tuned_here.tuned and tuned_on_ray.tuned != tuned_on_ray.paper
+    assert (tuned_on_ray.train_score_paper, tuned_on_ray.train_score_tuned) == (tuned_here.train_score_paper, tuned_here.train_score_tuned)
+    for which in ("paper", "tuned"):
+        np.testing.assert_array_equal(tuned_on_ray.test_final[which], tuned_here.test_final[which])
+        np.testing.assert_array_equal(tuned_on_ray.test_t10[which], tuned_here.test_t10[which])
+
+
+def test_local_pool_gives_the_in_process_results(local_table, faults_spec, tmp_path):
+    _, local = local_table
     pooled = run_sweep(faults_spec, tmp_path / "pool", workers=2, progress=False, figures=False)
     assert_same_table(pooled, local)
 

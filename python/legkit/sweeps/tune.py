@@ -6,9 +6,13 @@ per scheme, c0 and c1 (the constant scheme has no c1) and the base gains K_P0, K
 (``--paper-base-gains`` keeps the paper's), minimising over the training trees the mean of
 ``final + t10_weight * t10`` (final distance in module widths; t10 in s, a run that never gets within 10 %
 counting twice the duration; ``T10_WEIGHT`` = 1 width per second by default). The paper's constants are
-the first trial of every scheme. Trials are evaluated in rounds: each round asks every scheme for
-``per_round`` trials and runs all their training runs together, in batches (many runs per ``run_balance``
-call) on the local workers or as Ray tasks (``--ray``; the sampler stays on the driver). Then the paper's and
+the first trial of every scheme. Locally, Optuna evaluates trials in rounds: each round asks every scheme
+for ``per_round`` trials and runs all their training runs together, in batches (many runs per
+``run_balance`` call) on the local workers. With ``--ray`` (or Ray already initialised) each scheme is a
+Ray Tune experiment searched by the same sampler through ``ray.tune.search.optuna.OptunaSearch``, up to
+``per_round`` trials at once, each trial a task of one CPU running its training trees in batches; within
+TPE's random start-up (its first 10 trials) it proposes the same constants as the local search, later ones
+differ as trials finish in another order. Then the paper's and
 the tuned constants run on held-out trees (other seeds) and both are reported: median final distance and
 median t10% with their interquartile ranges (lower medians and quartiles: values of actual runs, so
 "never" stays a value), and the change of the medians.
@@ -22,8 +26,12 @@ runs). The full-size study (docs/sweeps.md):
 from __future__ import annotations
 
 import argparse
+import contextlib
+import functools
 import math
+import shutil
 import sys
+import tempfile
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
@@ -31,7 +39,7 @@ import numpy as np
 
 from legkit.control.gains import KD0, KI0, KP0, SCHEMES, GainSchedule
 from legkit.sweeps.cli import median_quartiles
-from legkit.sweeps.execute import executor
+from legkit.sweeps.execute import RayExecutor, executor, run_batch
 from legkit.sweeps.spec import RunParams
 
 #: Search ranges: (low, high, log scale).
@@ -86,8 +94,6 @@ def tune(
     workers: int | None = 1, ray: str | None = None, batch_size: int = 48, progress: bool = True, t10_weight: float = T10_WEIGHT,
 ) -> list[SchemeResult]:
     """Tune every scheme of ``schemes`` (see the module docstring); returns one ``SchemeResult`` per scheme."""
-    import optuna
-
     schemes = list(schemes)
     for s in schemes:
         if s not in SCHEMES:
@@ -98,61 +104,21 @@ def tune(
     for name, value in (("duration", duration), ("t10_weight", t10_weight)):
         if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0) or (name == "duration" and value == 0):
             raise ValueError(f"{name}: must be a finite number {'> 0' if name == 'duration' else '>= 0'}, got {value!r}")
-    spec_values = {"modules": modules, "branches": branches, "duration": float(duration), "dt": 1e-3}
-    train_seeds = [TRAIN_SEED0 + i for i in range(train)]
+    problem = _Problem(
+        {"modules": modules, "branches": branches, "duration": float(duration), "dt": 1e-3}, [TRAIN_SEED0 + i for i in range(train)],
+        base_gains, t10_weight, batch_size,
+    )
     test_seeds = [TEST_SEED0 + i for i in range(test)]
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    studies = {s: optuna.create_study(sampler=optuna.samplers.TPESampler(seed=seed + k, multivariate=True)) for k, s in enumerate(schemes)}
-    for s, study in studies.items():
-        study.enqueue_trial({name: constants(GainSchedule.paper(s))[name] for name in _space(s, base_gains)})
-
-    def schedule_of(s: str, params: dict[str, float]) -> GainSchedule:
-        values = {**constants(GainSchedule.paper(s)), **params}
-        if s == "constant":
-            values["c1"] = 0.0
-        return GainSchedule(s, **values)
-
-    def evaluate(jobs: list[tuple[Any, GainSchedule, list[int]]]) -> dict[Any, list[dict]]:
-        """Run every (key, schedule, tree seeds) job, all in batches; rows per key."""
-        runs, keys = [], []
-        for key, schedule, seeds in jobs:
-            for tree in seeds:
-                runs.append(RunParams(tree, schedule.scheme, schedule.c0, schedule.c1, schedule.kp0, schedule.ki0, schedule.kd0, 0.0, 1, 0.0, 0.8, 0.0, 0))
-                keys.append(key)
-        parts = max(pool.parallelism, math.ceil(len(runs) / batch_size))
-        chunks = [list(c) for c in np.array_split(np.arange(len(runs)), parts) if len(c)]
-        out: dict[Any, list[dict]] = {}
-        rows_by_index: dict[int, dict] = {}
-        for chunk_index, rows in pool.map(spec_values, [(k, [runs[i] for i in chunk]) for k, chunk in enumerate(chunks)]):
-            rows_by_index.update(zip(chunks[chunk_index], rows))
-        for i in range(len(runs)):
-            out.setdefault(keys[i], []).append(rows_by_index[i])
-        return out
-
     with executor(workers, ray) as pool:
-        rounds = math.ceil(trials / per_round)
-        for round_index in range(rounds):
-            asked = {s: [studies[s].ask() for _ in range(min(per_round, trials - round_index * per_round))] for s in schemes}
-            jobs = []
-            for s, trial_list in asked.items():
-                for trial in trial_list:
-                    params = {name: _suggest(trial, name, rng) for name, rng in _space(s, base_gains).items()}
-                    jobs.append(((s, trial.number), schedule_of(s, params), train_seeds))
-            rows = evaluate(jobs)
-            for s, trial_list in asked.items():
-                for trial in trial_list:
-                    studies[s].tell(trial, score(rows[(s, trial.number)], duration, t10_weight))
-            if progress:
-                best = ", ".join(f"{s} {studies[s].best_value:.3f}" for s in schemes)
-                print(f"round {round_index + 1}/{rounds}: best training score {best}", file=sys.stderr, flush=True)
-        results = []
-        jobs = []
+        search = _search_with_ray_tune if isinstance(pool, RayExecutor) else _search_with_optuna
+        found = search(pool, problem, schemes, trials, per_round, seed, progress)
+        results, jobs = [], []
         for s in schemes:
-            tuned = schedule_of(s, studies[s].best_params)
-            paper = GainSchedule.paper(s)
+            tuned, paper_score, tuned_score = found[s]
+            tuned, paper = _schedule_of(s, tuned), GainSchedule.paper(s)
             jobs += [((s, "paper"), paper, test_seeds), ((s, "tuned"), tuned, test_seeds)]
-            results.append(SchemeResult(s, constants(paper), constants(tuned), studies[s].trials[0].value, studies[s].best_value, t10_weight))
-        rows = evaluate(jobs)
+            results.append(SchemeResult(s, constants(paper), constants(tuned), paper_score, tuned_score, t10_weight))
+        rows = _evaluate(pool, problem, jobs)
     for result in results:
         for which in ("paper", "tuned"):
             got = rows[(result.scheme, which)]
@@ -162,8 +128,137 @@ def tune(
     return results
 
 
-def _space(scheme: str, base_gains: bool) -> dict[str, tuple[float, float, bool]]:
-    return {**COEFFICIENT_RANGES[scheme], **(BASE_GAIN_RANGES if base_gains else {})}
+@dataclass(frozen=True)
+class _Problem:
+    """What every trial shares: the runs' settings (``run_batch``'s spec values), the training trees, the
+    search space's extent, the objective's t10 weight and the runs per batch."""
+
+    spec_values: dict[str, Any]
+    train_seeds: list[int]
+    base_gains: bool
+    t10_weight: float
+    batch_size: int
+
+    def space(self, scheme: str) -> dict[str, tuple[float, float, bool]]:
+        return {**COEFFICIENT_RANGES[scheme], **(BASE_GAIN_RANGES if self.base_gains else {})}
+
+    def paper_point(self, scheme: str) -> dict[str, float]:
+        """The paper's constants as a point of the search space: every study's first trial."""
+        return {name: constants(GainSchedule.paper(scheme))[name] for name in self.space(scheme)}
+
+    def score(self, rows: Sequence[dict[str, Any]]) -> float:
+        return score(rows, self.spec_values["duration"], self.t10_weight)
+
+
+def _schedule_of(scheme: str, params: dict[str, float]) -> GainSchedule:
+    """The paper's schedule of ``scheme`` with ``params`` (a point of the search space) in place."""
+    values = {**constants(GainSchedule.paper(scheme)), **params}
+    if scheme == "constant":
+        values["c1"] = 0.0
+    return GainSchedule(scheme, **values)
+
+
+def _runs(schedule: GainSchedule, tree_seeds: Sequence[int]) -> list[RunParams]:
+    """``schedule`` on each tree, replicate 0, on the plane, reliable bus, no noise."""
+    return [RunParams(tree, schedule.scheme, schedule.c0, schedule.c1, schedule.kp0, schedule.ki0, schedule.kd0, 0.0, 1, 0.0, 0.8, 0.0, 0) for tree in tree_seeds]
+
+
+def _evaluate(pool, problem: _Problem, jobs: list[tuple[Any, GainSchedule, list[int]]]) -> dict[Any, list[dict]]:
+    """Run every (key, schedule, tree seeds) job on ``pool``, all in batches; rows per key."""
+    runs, keys = [], []
+    for key, schedule, seeds in jobs:
+        runs += _runs(schedule, seeds)
+        keys += [key] * len(seeds)
+    parts = max(pool.parallelism, math.ceil(len(runs) / problem.batch_size))
+    chunks = [list(c) for c in np.array_split(np.arange(len(runs)), parts) if len(c)]
+    rows_by_index: dict[int, dict] = {}
+    for chunk_index, rows in pool.map(problem.spec_values, [(k, [runs[i] for i in chunk]) for k, chunk in enumerate(chunks)]):
+        rows_by_index.update(zip(chunks[chunk_index], rows))
+    out: dict[Any, list[dict]] = {}
+    for i in range(len(runs)):
+        out.setdefault(keys[i], []).append(rows_by_index[i])
+    return out
+
+
+def _search_with_optuna(pool, problem: _Problem, schemes, trials: int, per_round: int, seed: int, progress: bool):
+    """Optuna in this process, trials evaluated in rounds on ``pool``: {scheme: (tuned point, paper's score, tuned score)}."""
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    studies = {s: optuna.create_study(sampler=_sampler(seed + k)) for k, s in enumerate(schemes)}
+    for s, study in studies.items():
+        study.enqueue_trial(problem.paper_point(s))
+    rounds = math.ceil(trials / per_round)
+    for round_index in range(rounds):
+        asked = {s: [studies[s].ask() for _ in range(min(per_round, trials - round_index * per_round))] for s in schemes}
+        jobs = [((s, trial.number), _schedule_of(s, _suggest_all(trial, problem.space(s))), problem.train_seeds) for s, trial_list in asked.items() for trial in trial_list]
+        rows = _evaluate(pool, problem, jobs)
+        for s, trial_list in asked.items():
+            for trial in trial_list:
+                studies[s].tell(trial, problem.score(rows[(s, trial.number)]))
+        if progress:
+            best = ", ".join(f"{s} {studies[s].best_value:.3f}" for s in schemes)
+            print(f"round {round_index + 1}/{rounds}: best training score {best}", file=sys.stderr, flush=True)
+    return {s: (studies[s].best_params, studies[s].trials[0].value, studies[s].best_value) for s in schemes}
+
+
+def _search_with_ray_tune(pool, problem: _Problem, schemes, trials: int, per_round: int, seed: int, progress: bool):
+    """Ray Tune on the Ray instance of ``pool``, one experiment per scheme, searched by Optuna's sampler through
+    ``OptunaSearch`` (the same space, sampler and first trial as ``_search_with_optuna``), ``per_round``
+    trials at a time, each trial a task of one CPU: {scheme: (tuned point, paper's score, tuned score)}."""
+    import optuna
+    from ray import tune as ray_tune
+    from ray.tune.search.optuna import OptunaSearch
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    found = {}
+    storage = tempfile.mkdtemp(prefix="legkit-tune-")  # Tune's experiment records; nothing in them is kept
+    try:
+        for k, s in enumerate(schemes):
+            space, paper = problem.space(s), problem.paper_point(s)
+            searcher = OptunaSearch(
+                space=functools.partial(_suggest_all, space=space), metric="score", mode="min", points_to_evaluate=[paper],
+                sampler=_sampler(seed + k),
+            )
+            tuner = ray_tune.Tuner(
+                ray_tune.with_parameters(_ray_tune_trial, scheme=s, problem=problem),
+                tune_config=ray_tune.TuneConfig(search_alg=searcher, num_samples=trials, max_concurrent_trials=per_round),
+                run_config=ray_tune.RunConfig(name=f"legkit-tune-{s}", storage_path=storage, verbose=0),
+            )
+            with contextlib.redirect_stdout(sys.stderr):  # Tune's banners; stdout is the report's
+                grid = tuner.fit()
+            if grid.errors:
+                raise RuntimeError(f"legkit tune: {len(grid.errors)} Ray Tune trial(s) of {s} failed: {grid.errors[0]}")
+            # In trial order: the first of equal scores wins, as in Optuna's best trial.
+            scored = [({name: result.config[name] for name in space}, result.metrics["score"]) for result in grid]
+            tuned, tuned_score = min(scored, key=lambda point_score: point_score[1])
+            (paper_score,) = [value for point, value in scored if point == paper]
+            found[s] = (tuned, paper_score, tuned_score)
+            if progress:
+                print(f"{s}: {len(scored)} trials on Ray Tune, best training score {tuned_score:.3f}", file=sys.stderr, flush=True)
+    finally:
+        shutil.rmtree(storage, ignore_errors=True)
+    return found
+
+
+def _ray_tune_trial(config: dict[str, float], scheme: str, problem: _Problem) -> None:
+    """One Ray Tune trial: the constants ``config`` on every training tree, in batches, on one physics thread."""
+    from ray import tune as ray_tune
+
+    runs = _runs(_schedule_of(scheme, config), problem.train_seeds)
+    rows = [row for i in range(0, len(runs), problem.batch_size) for row in run_batch(problem.spec_values, runs[i:i + problem.batch_size], threads=1)]
+    ray_tune.report({"score": problem.score(rows)})
+
+
+def _sampler(seed: int):
+    import optuna
+
+    return optuna.samplers.TPESampler(seed=seed, multivariate=True)
+
+
+def _suggest_all(trial, space: dict[str, tuple[float, float, bool]]) -> dict[str, float]:
+    """A point of ``space`` from ``trial`` (Optuna's, or Ray Tune's wrapper of it), its parameters in order."""
+    return {name: _suggest(trial, name, bounds) for name, bounds in space.items()}
 
 
 def _suggest(trial, name: str, bounds: tuple[float, float, bool]) -> float:
@@ -203,7 +298,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--train", type=int, default=4, help=f"training trees, seeds {TRAIN_SEED0}.. (default 4)")
     parser.add_argument("--test", type=int, default=6, help=f"held-out trees, seeds {TEST_SEED0}.. (default 6)")
     parser.add_argument("--trials", type=int, default=16, help="trials per scheme, the paper's first (default 16)")
-    parser.add_argument("--per-round", type=int, default=4, help="trials per scheme evaluated together (default 4)")
+    parser.add_argument("--per-round", type=int, default=4, help="trials per scheme evaluated together (on Ray Tune: at once) (default 4)")
     parser.add_argument("--duration", type=float, default=1.0, help="simulated seconds per run (default 1)")
     parser.add_argument("--modules", type=int, default=20, help="modules per tree besides the root (default 20)")
     parser.add_argument("--branches", type=int, default=4, help="branches off the root (default 4)")
@@ -211,7 +306,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="sampler seed (default 0)")
     parser.add_argument("--t10-weight", type=float, default=T10_WEIGHT, help=f"module widths per second of t10 in the objective (default {T10_WEIGHT})")
     parser.add_argument("--workers", type=int, default=1, help="local worker processes (default 1: this process, physics on every core)")
-    parser.add_argument("--ray", metavar="ADDRESS", help="evaluate on Ray at ADDRESS ('auto', 'ray://host:10001', or 'local')")
+    parser.add_argument("--ray", metavar="ADDRESS", help="tune with Ray Tune on Ray at ADDRESS ('auto', 'ray://host:10001', or 'local')")
     args = parser.parse_args(argv)
     try:
         results = tune(
