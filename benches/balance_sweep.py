@@ -1,17 +1,25 @@
-"""Throughput of balance sweeps (legkit.sweeps): runs per minute against batch size and worker count.
+"""Throughput of balance sweeps (legkit.sweeps): scaling from 1 to 2 local workers, and a 1,000-run sweep.
 
-    PYTHONPATH=python python3 benches/balance_sweep.py                       # defaults below, ~10 min here
-    PYTHONPATH=python python3 benches/balance_sweep.py --runs 48 --batch-sizes 12 24 --duration 1.0
+    PYTHONPATH=python python3 benches/balance_sweep.py                         # scaling, 3 repeats (~5 min idle)
+    PYTHONPATH=python python3 benches/balance_sweep.py --thousand             # and 1,000 runs with the defaults
+    PYTHONPATH=python python3 benches/balance_sweep.py --repeats 0 --batch-sizes 12 24 48   # one batch per size
 
 Runs are the sweep target's: 20-module random trees (4 branches), each under one scheme, ``--duration`` s of
-closed loop at 1 kHz (plus the 0.5 s of posing every batch starts with). Part 1 runs one batch of each size
-in this process (the agents and controller in Python on one core, the plants stepped by
-``lk.SimulationBatch`` on every core); part 2 runs the same ``--runs`` runs with ``legkit.sweeps.run_sweep``
-on 1 worker (this process, physics on every core), on 1 worker process with one physics thread, and on
-2 workers (2 processes, physics on cores // 2 threads each). Printed per line: wall time, runs per minute, CPU seconds per run (all processes;
-the wall time the machine would need per run per core if nothing else ran), and the time 1,000 runs would
-take at that rate. The machine's load average is printed too: other work on the same cores slows
-everything down.
+closed loop at 1 kHz (plus the 0.5 s of posing every batch starts with).
+
+* Part 1 (``--batch-sizes``): one batch of each size in this process (the agents and controller in Python on
+  one core, the plants stepped by ``lk.SimulationBatch`` on every core).
+* Part 2, scaling: the same ``--runs`` runs (batches of ``--sweep-batch``) with ``run_sweep`` on 1 worker
+  process with one physics thread, and on 2 worker processes with one physics thread each: the comparison
+  counted per core (a worker whose physics used both cores would already use part of the second core).
+  The two alternate, ``--repeats`` times, so that the other work on the machine weighs on both alike; the
+  medians and the ratio of the median rates are printed.
+* Part 3 (``--thousand``): 1,002 runs (334 trees x 3 schemes) with ``run_sweep``'s defaults (one worker per
+  core, physics on cores // workers threads each).
+
+Printed per line: wall time, runs per minute, CPU seconds per run (this process and its workers), the load
+average before and after, and the time 1,000 runs would take at that rate. CPU seconds per run do not depend
+on the other work on the machine (so much); the wall time and the rate do.
 """
 
 from __future__ import annotations
@@ -19,6 +27,7 @@ from __future__ import annotations
 import argparse
 import os
 import resource
+import statistics
 import tempfile
 import time
 
@@ -26,6 +35,7 @@ from legkit.sweeps import SweepSpec, run_batch, run_sweep
 
 
 def cpu_seconds() -> float:
+    """CPU time of this process and of its children that have ended (a sweep's workers end with it)."""
     own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
     return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
@@ -35,44 +45,61 @@ def spec_for(runs: int, duration: float, batch_size: int) -> SweepSpec:
     return SweepSpec(trees=trees, modules=20, branches=4, duration=duration, batch_size=batch_size)
 
 
-def line(label: str, runs: int, wall: float, cpu: float) -> str:
-    rate = 60.0 * runs / wall
-    return f"{label:<40} {runs:>5} runs {wall:>8.1f} s {rate:>8.1f} runs/min {cpu / runs:>7.2f} CPU s/run   1,000 runs: {1000 / rate:>6.1f} min"
+def measure(label: str, action) -> dict[str, float]:
+    """Run ``action`` (returns the number of runs), print its line and return its figures."""
+    load_before, cpu, start = os.getloadavg()[0], cpu_seconds(), time.perf_counter()
+    runs = action()
+    figures = {"runs": runs, "wall": time.perf_counter() - start, "cpu": cpu_seconds() - cpu, "load_before": load_before, "load_after": os.getloadavg()[0]}
+    print(line(label, figures), flush=True)
+    return figures
+
+
+def line(label: str, f: dict[str, float]) -> str:
+    rate = 60.0 * f["runs"] / f["wall"]
+    return (f"{label:<34} {f['runs']:>5.0f} runs {f['wall']:>7.1f} s {rate:>7.1f} runs/min {f['cpu'] / f['runs']:>6.2f} CPU s/run "
+            f"load {f['load_before']:>4.1f}-{f['load_after']:<4.1f}  1,000 runs: {1000 / rate:>5.1f} min")
+
+
+def sweep(spec: SweepSpec, workers: int | None, threads: int | None):
+    def action() -> int:
+        with tempfile.TemporaryDirectory() as out:
+            return run_sweep(spec, out, workers=workers, threads=threads, progress=False, figures=False).num_rows
+    return action
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=96, help="runs of part 2 (default 96)")
     parser.add_argument("--duration", type=float, default=2.0, help="simulated seconds per run (default 2)")
-    parser.add_argument("--batch-sizes", type=int, nargs="*", default=[12, 24, 48], help="part 1's batch sizes (default 12 24 48; none to skip part 1)")
-    parser.add_argument("--sweep-batch", type=int, default=48, help="batch size of part 2 (default 48)")
-    parser.add_argument("--workers", type=int, nargs="+", default=[1, 2], help="part 2's worker counts (default 1 2)")
+    parser.add_argument("--batch-sizes", type=int, nargs="*", default=[], help="part 1's batch sizes (default none)")
+    parser.add_argument("--sweep-batch", type=int, default=24, help="batch size of parts 2 and 3 (default 24)")
+    parser.add_argument("--repeats", type=int, default=3, help="repeats of part 2 (default 3; 0 skips it)")
+    parser.add_argument("--thousand", action="store_true", help="part 3: 1,002 runs with run_sweep's defaults (~10 min)")
     args = parser.parse_args()
-    print(f"{os.cpu_count()} cores; load average before: {os.getloadavg()[0]:.2f}")
-    print("part 1: one batch in this process")
+    print(f"{os.cpu_count()} cores; load average {os.getloadavg()[0]:.2f}")
     for size in args.batch_sizes:
         spec = spec_for(size, args.duration, size)
-        runs = spec.runs()[:size]
-        cpu, start = cpu_seconds(), time.perf_counter()
-        run_batch(spec.to_dict(), runs)
-        print(line(f"batch of {size}", size, time.perf_counter() - start, cpu_seconds() - cpu), flush=True)
-    print(f"part 2: run_sweep, batches of {args.sweep_batch}")
-    rates = {}
-    configurations = [(w, None) for w in args.workers]
-    if 1 in args.workers:
-        configurations.insert(1, (1, 1))  # one worker process on one core: the unit the scaling is counted in
-    for workers, threads in configurations:
-        spec = spec_for(args.runs, args.duration, args.sweep_batch)
-        with tempfile.TemporaryDirectory() as out:
-            cpu, start = cpu_seconds(), time.perf_counter()
-            table = run_sweep(spec, out, workers=workers, threads=threads, progress=False, figures=False)
-            wall = time.perf_counter() - start
-        rates[(workers, threads)] = 60.0 * table.num_rows / wall
-        label = f"{workers} worker(s), " + ("physics on all cores" if workers == 1 and threads is None else f"{threads or (os.cpu_count() or 1) // workers} thread(s) each")
-        print(line(label, table.num_rows, wall, cpu_seconds() - cpu), flush=True)
-    if (1, None) in rates and (2, None) in rates:
-        print(f"speed-up 1 -> 2 workers: {rates[(2, None)] / rates[(1, None)]:.2f}x (1 worker with the physics on all cores), "
-              f"{rates[(2, None)] / rates[(1, 1)]:.2f}x (1 worker on one core)")
+        measure(f"part 1: one batch of {size}", lambda: len(run_batch(spec.to_dict(), spec.runs()[:size])))
+
+    spec = spec_for(args.runs, args.duration, args.sweep_batch)
+    configurations = {"1 worker x 1 thread": 1, "2 workers x 1 thread": 2}
+    results: dict[str, list[dict[str, float]]] = {label: [] for label in configurations}
+    for repeat in range(args.repeats):
+        for label, workers in configurations.items():
+            results[label].append(measure(f"part 2 #{repeat + 1}: {label}", sweep(spec, workers, 1)))
+    if args.repeats:
+        rates = {}
+        for label, runs in results.items():
+            rates[label] = statistics.median(60.0 * f["runs"] / f["wall"] for f in runs)
+            cpu = statistics.median(f["cpu"] / f["runs"] for f in runs)
+            load = statistics.median(0.5 * (f["load_before"] + f["load_after"]) for f in runs)
+            print(f"median {label:<27} {rates[label]:>7.1f} runs/min {cpu:>6.2f} CPU s/run  load {load:.1f}")
+        pairs = [60.0 * b["runs"] / b["wall"] / (60.0 * a["runs"] / a["wall"]) for a, b in zip(*results.values())]
+        print(f"speed-up 1 -> 2 workers (1 physics thread each): {rates['2 workers x 1 thread'] / rates['1 worker x 1 thread']:.2f}x "
+              f"of the median rates; per repeat {', '.join(f'{p:.2f}x' for p in pairs)}")
+
+    if args.thousand:
+        measure("part 3: 1,002 runs, defaults", sweep(spec_for(1000, args.duration, args.sweep_batch), None, None))
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 
