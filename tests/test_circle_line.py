@@ -478,6 +478,7 @@ def test_regression_queries(case):
 # --------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @examples(200)
 @given(general_scene())
 def test_general_scene_matches_brute_force(scene):
@@ -498,6 +499,7 @@ def test_direction_lengths_and_signs_do_not_matter(scene, normal_factor, directi
     check_single_result_geometry(scaled, c, n, r, lp, ld, tol)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("family", FAMILIES)
 @examples(100)
 @given(data=st.data())
@@ -519,6 +521,7 @@ def test_radius_zero(center, normal, line_point, line_direction):
                                atol=tol + 8 * EPS * np.linalg.norm(line_point))
 
 
+@pytest.mark.slow
 @examples(150)
 @given(vectors(), directions(), directions(), directions(), reals(np.log(1e-12), np.log(1e-2)), reals(-100.0, 100.0),
        st.sampled_from([None, 1.0, -2.5]))
@@ -547,6 +550,7 @@ def test_radius_zero_line_passing_close_to_the_centre(center, normal, line_direc
 TILTS = [1e-6, 1e-8, 1e-10]
 
 
+@pytest.mark.slow
 @examples(200)
 @given(st.sampled_from(FAMILIES), st.sampled_from(TILTS), st.data())
 def test_nearly_degenerate_family(family, tilt, data):
@@ -564,6 +568,7 @@ def test_nearly_degenerate_family(family, tilt, data):
     check_scene(scene)
 
 
+@pytest.mark.slow
 @examples(100)
 @given(general_scene(), st.sampled_from([1e-6, 1e-8, 1e-10, 1e-13]))
 def test_nearly_zero_radius(scene, relative_radius):
@@ -572,6 +577,7 @@ def test_nearly_zero_radius(scene, relative_radius):
     check_scene(scene)
 
 
+@pytest.mark.slow
 @examples(150)
 @given(st.sampled_from(["general"] + FAMILIES), st.sampled_from([1e6, 1e9]), directions(), st.data())
 def test_large_coordinates(family, magnitude, offset_direction, data):
@@ -609,6 +615,7 @@ def distance_after_rotation(theta, axis_point, axis_direction, point, line_point
     return float(ref.point_line_distance(moved, line_point, line_direction))
 
 
+@pytest.mark.slow
 @examples(200)
 @given(vectors(), directions(), vectors(), vectors(), directions())
 def test_rotation_toward_line_matches_brute_force(axis_point, axis_direction, point, line_point, line_direction):

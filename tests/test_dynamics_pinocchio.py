@@ -110,6 +110,7 @@ def test_forward_kinematics(tw: Twin, rng):
     assert_close(lk.forward_kinematics(tw.model, q), tw.pin_world_poses(data), "forward_kinematics")
 
 
+@pytest.mark.slow
 @fast(60)
 @given(twins(), rngs())
 def test_rnea(tw: Twin, rng):
@@ -152,6 +153,7 @@ def test_aba_f_ext(tw: Twin, rng):
     assert_close(lk.aba(tw.model, q, v, tau, f), tw.v_lk(want), "aba with f_ext")
 
 
+@pytest.mark.slow
 @fast(60)
 @given(twins(), rngs())
 def test_crba(tw: Twin, rng):
@@ -257,6 +259,7 @@ def total_mass(tw: Twin) -> float:
     return sum(b[0] for b in tw.bodies if b is not None)
 
 
+@pytest.mark.slow
 @fast(60)
 @given(com_twins(), rngs())
 def test_center_of_mass(tw: Twin, rng):
@@ -301,6 +304,7 @@ def brute_force_subtrees(tw: Twin, q: np.ndarray):
     return m_out, c_out, i_out, data
 
 
+@pytest.mark.slow
 @fast(60)
 @given(com_twins(), rngs())
 def test_subtree_mass_properties(tw: Twin, rng):
@@ -327,6 +331,7 @@ def test_subtree_mass_properties(tw: Twin, rng):
         assert_close(com[i], data.oMi[j].act(data.com[j]), f"subtree com of body {i} (pin joint {j})")
 
 
+@pytest.mark.slow
 @fast(60)
 @given(com_twins(), rngs())
 def test_centroidal_momentum(tw: Twin, rng):
@@ -337,6 +342,7 @@ def test_centroidal_momentum(tw: Twin, rng):
     assert_close(lk.centroidal_momentum(tw.model, q, v), np.concatenate([hg.linear, hg.angular]), "centroidal_momentum")
 
 
+@pytest.mark.slow
 @fast(60)
 @given(com_twins(), rngs())
 def test_centroidal_momentum_rate(tw: Twin, rng):
@@ -382,6 +388,7 @@ def test_kinetic_energy(tw: Twin, rng):
     assert_close(got, 0.5 * v @ np.asarray(lk.crba(tw.model, q)) @ v, "kinetic_energy vs 1/2 v'Mv")
 
 
+@pytest.mark.slow
 @fast(60)
 @given(body_counts(), st.booleans(), st.integers(0, 2**32 - 1), rngs())
 def test_potential_energy(n, floating, seed, rng):

@@ -118,6 +118,7 @@ def test_periodic_lip_satisfies_the_pendulum_equation():
         np.testing.assert_allclose(com[:, column], amplitude * wave(w * t) / (1 + height / 9.81 * w * w), atol=1e-14)
 
 
+@pytest.mark.slow
 def test_gait_experiment_writes_results_and_its_biped_zmp_equals_the_cop(tmp_path, capsys):
     assert gait.main(["--out", str(tmp_path), "--samples", "96"]) == 0
     table = capsys.readouterr().out

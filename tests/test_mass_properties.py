@@ -194,6 +194,7 @@ def test_box_with_center_and_rotation_hand_values():
 GRID_N = 40
 
 
+@pytest.mark.slow
 @examples(40)
 @given(reals(0.01, 100.0), vectors(0.05, 5.0), vectors(), rotations())
 def test_box_matches_fine_grid_of_point_masses(mass, size, center, rotation):
@@ -269,6 +270,7 @@ def test_addition_is_not_the_mass_weighted_average_of_inertias():
     assert np.max(np.abs(s.inertia - shorthand)) > 0.5
 
 
+@pytest.mark.slow
 @given(bodies(), bodies())
 def test_addition_matches_union_of_point_clouds(a, b):
     """a + b is the body made of both: compare with the brute-force mass properties of the union of the
@@ -281,6 +283,7 @@ def test_addition_matches_union_of_point_clouds(a, b):
     assert_mp(s, m_ref, com_ref, inertia_ref, mass_scale=m_ref, com_scale=L, inertia_scale=m_ref * L**2)
 
 
+@pytest.mark.slow
 @given(bodies(), bodies())
 def test_addition_commutes(a, b):
     ab, ba = make(a) + make(b), make(b) + make(a)
@@ -289,6 +292,7 @@ def test_addition_commutes(a, b):
     assert_mp_pair(ab, ba, mass_scale=M, com_scale=L, inertia_scale=M * L**2)
 
 
+@pytest.mark.slow
 @given(bodies(), bodies(), bodies())
 def test_addition_associates(a, b, c):
     left = (make(a) + make(b)) + make(c)
@@ -301,6 +305,7 @@ def test_addition_associates(a, b, c):
 MODERATE = dict(mass_range=(0.5, 2.0), com_range=(-1.0, 1.0), length_range=(0.2, 1.0))
 
 
+@pytest.mark.slow
 @given(bodies(**MODERATE), bodies(**MODERATE), bodies(**MODERATE))
 def test_eq_operator_on_algebraic_identities_of_moderate_bodies(a, b, c):
     """The same identities through the public == (isclose with rtol=1e-9, atol=1e-12). Bodies are kept
@@ -367,6 +372,7 @@ def test_subtraction_inverts_addition(a, b):
     )
 
 
+@pytest.mark.slow
 @given(point_clouds(min_points=4, max_points=12), st.data())
 def test_subtraction_removes_a_sub_cloud(cloud, data):
     """from_points(all) - from_points(part) == brute-force mass properties of the rest."""
@@ -504,6 +510,7 @@ def test_from_points_matches_brute_force(cloud):
     assert_mp(got, m_ref, com_ref, inertia_ref, mass_scale=m_ref, com_scale=L, inertia_scale=m_ref * L**2)
 
 
+@pytest.mark.slow
 @given(point_clouds())
 def test_sum_of_points_equals_from_points(cloud):
     masses, positions = cloud
@@ -524,6 +531,7 @@ def test_from_points_hand_example_and_lists():
     np.testing.assert_allclose(c.inertia, 16.0 * np.eye(3), rtol=0, atol=1e-13)
 
 
+@pytest.mark.slow
 @given(point_clouds(), vectors(-20, 20))
 def test_inertia_about_point_matches_brute_force(cloud, point):
     masses, positions = cloud

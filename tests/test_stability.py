@@ -235,6 +235,7 @@ def test_collinear_contacts_make_one_segment_traversed_both_ways():
     assert ls.static_stability_margin(com, line) == pytest.approx(-d, abs=1e-15)
 
 
+@pytest.mark.slow
 @examples(100)
 @given(scenes(), st.integers(0, 5), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.tuples(coords, coords, coords))
 def test_a_copy_of_a_contact_within_rounding_changes_nothing(scene, which, jitter_x, jitter_y, momentum):
@@ -447,6 +448,7 @@ def _area(polygon: np.ndarray) -> float:
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
+@pytest.mark.slow
 @examples(25)
 @given(slanted_contacts(), st.floats(0.05, 1.0), st.floats(0.05, 1.0))
 def test_equilibrium_region_shrinks_as_mu_falls(contacts, mu_a, mu_b):
@@ -459,6 +461,7 @@ def test_equilibrium_region_shrinks_as_mu_falls(contacts, mu_a, mu_b):
     assert _area(small) <= _area(large) + 1e-9
 
 
+@pytest.mark.slow
 @examples(20)
 @given(slanted_contacts(), st.floats(0.3, 1.5), st.tuples(coords, coords))
 def test_single_com_lp_agrees_with_the_region(contacts, mu, xy):

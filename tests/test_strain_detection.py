@@ -24,6 +24,7 @@ def test_separation_by_hand() -> None:
         separation(scores, np.ones(5, dtype=bool))
 
 
+@pytest.mark.slow
 def test_plane_residual_detects_tripod_support_better_than_the_printed_rho() -> None:
     # Measured on a simulated walk at 0.2 m/s (docs/strain.md): the printed rho separates tripod support from
     # more toes down (AUC ~0.94) but depends on the body frame's origin; the plane residual does not (~0.99).

@@ -35,7 +35,8 @@ def calibrated() -> LegModel:
     return LegModel.fit(strain, length, deflection, order=1)
 
 
-@pytest.fixture(scope="module", params=[0.2, 0.45])
+# Two-second simulated walks: every test on them is slow.
+@pytest.fixture(scope="module", params=[pytest.param(speed, marks=pytest.mark.slow) for speed in (0.2, 0.45)])
 def walk(request):
     return simulated_walk(request.param, 2.0, seed=3)
 
@@ -233,6 +234,7 @@ def test_stance_toes_barely_sink(walk):
     assert stance_z.min() >= 0.0 and stance_z.max() <= walk.toe_radius + 1e-4
 
 
+@pytest.mark.slow
 def test_cli_simulated_source(tmp_path, capsys):
     assert main(["--source", "simulated", "--runs", "1", "--duration", "0.5", "--out", str(tmp_path)]) == 0
     printed = capsys.readouterr().out

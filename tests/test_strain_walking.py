@@ -168,6 +168,7 @@ def test_rhex_model_structure() -> None:
     assert all(model.joint_type(i) == "revolute" for i in range(1, 7))
 
 
+@pytest.mark.slow
 def test_experiment_main_writes_figure_and_tables(tmp_path, capsys) -> None:
     assert main(["--out", str(tmp_path), "--runs", "1", "--duration", "1.5"]) == 0
     printed = capsys.readouterr().out

@@ -97,6 +97,7 @@ def assert_close(got: np.ndarray, want: np.ndarray, what: str) -> None:
     assert error <= RTOL * scale, f"{what}: max error {error:.3e} > {RTOL:g} * {scale:.3e}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("floating", [False, True], ids=["fixed", "floating"])
 @pytest.mark.parametrize("path", FILES, ids=[str(f.relative_to(ROBOTS)) for f in FILES])
 def test_legkit_loads_what_pinocchio_loads_and_matches_its_dynamics(path: Path, floating: bool):

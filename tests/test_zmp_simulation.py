@@ -184,6 +184,7 @@ def check_zmp_equals_cop(run: Trajectory, feet: list[Foot], min_foot_load: float
     return figures
 
 
+@pytest.mark.slow
 def test_quadruped_zmp_equals_simulated_cop_standing_and_swaying():
     robot = build_quadruped()
     model, p = robot.model, robot.parameters
@@ -221,6 +222,7 @@ def test_quadruped_zmp_equals_simulated_cop_standing_and_swaying():
     print(f"quadruped max |ZMP - CoP|: standing {1e3 * figures['standing']:.4f} mm, swaying {1e3 * figures['swaying']:.4f} mm")
 
 
+@pytest.mark.slow
 def test_biped_zmp_equals_simulated_cop_standing_and_swaying():
     robot = build_biped()
     model, p = robot.model, robot.parameters
