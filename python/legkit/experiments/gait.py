@@ -32,12 +32,17 @@ Pipeline, per robot:
 Outputs in --out: gait_<robot>.csv (one row per sample) and gait_<robot>.png (S_H over the cycle, like the
 paper's Fig. 3: the published S_H, with the energy variant overlaid; the static and ZMP margins below). A short table is printed. Nothing is random: the
 same arguments give the same files.
+
+`--optimize` replaces the references by optimised gaits (`legkit.optimize`): the amble maximising the
+worst-case S_H (J_s2) and the biped walk minimising the Joule loss (J_e1) with a Fig.-6 torque-speed plot
+(`run_optimized_amble`, `run_optimized_walk`).
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -495,7 +500,7 @@ def run(robot_name: str, args: argparse.Namespace, progress: tqdm) -> GaitAnalys
     return analysis
 
 
-def run_optimized(args: argparse.Namespace) -> dict[str, float]:
+def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     """`--optimize`: the Fig. 3 amble optimised by multiphase collocation on IPOPT (`legkit.optimize`), maximising
     the worst-case S_H (J_s2, eq. 11) from the hand-built reference; one progress line per IPOPT iteration.
     Writes gait_quadruped_optimized.csv (every collocation point: t, phase, support, q, v, u, S_H) and .png
@@ -517,26 +522,16 @@ def run_optimized(args: argparse.Namespace) -> dict[str, float]:
     reference_s_h = np.concatenate(problem.stability_index(problem.pack(guess)))
     print(f"optimising the amble: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
 
-    def progress(iteration: int, objective: float, violation: float) -> None:
-        print(f"  iter {iteration:4d}  J_s2 {objective: .6e}  max violation {violation:.2e}", flush=True)
-
     # The constraints first, then J_s2 (docs/optimize.md).
     _, result = problem.solve(guess, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, tol=args.tol, max_iter=args.max_iter,
-                              progress=progress, options=AMBLE_IPOPT)
+                              progress=_iteration_printer("J_s2"), options=AMBLE_IPOPT)
     x, _ = result.best()
     kept = result.history[-1][0] if x is result.x else result.best_feasible[0]
     trajectory = problem.unpack(x)
-    s_h = problem.stability_index(x)
     data = trajectory.stacked()
     labels = ["+".join(leg.upper() for leg in problem.phases[k].contacts) for k in data["phase"]]
-    columns = {"t": data["t"], "phase": data["phase"].astype(float), "S_H": np.concatenate(s_h)}
-    for name, values in (("q", data["q"]), ("v", data["v"]), ("u", data["u"])):
-        columns.update({f"{name}{i}": values[:, i] for i in range(values.shape[1])})
-    with (args.out / "gait_quadruped_optimized.csv").open("w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(list(columns) + ["support"])
-        for row, label in zip(np.stack(list(columns.values()), axis=1), labels):
-            writer.writerow([f"{x:.9g}" for x in row] + [label])
+    columns = _write_trajectory_csv(args.out / "gait_quadruped_optimized.csv", trajectory, labels,
+                                    {"S_H": np.concatenate(problem.stability_index(x))})
     worst, worst_t = st.worst_case(columns["S_H"], data["t"])
     _plot_optimized(args.out / "gait_quadruped_optimized.png", data["t"], columns["S_H"], guess.stacked()["t"], reference_s_h, labels, worst, worst_t,
                     f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}, iterate {kept} kept")
@@ -555,6 +550,135 @@ def run_optimized(args: argparse.Namespace) -> dict[str, float]:
         "replay: fell after [s] (inf: never)": simulated.fell_at,
         "solver succeeded (1 = yes)": float(result.success),
     }
+
+
+def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
+    """`--optimize`: the biped walk at --biped-speed minimising J_e1 (eq. 12) under the motors' torque-speed lines
+    (Sect. 2.3 and 6 of file 003; `legkit.optimize.gaits.walk_problem`), its soles flat with eq. 6's torque
+    limits, from the hand-built reference (`biped_walk`); constraints first, then J_e1, one progress line per
+    IPOPT iteration. Writes gait_biped_optimized.csv (every collocation point: t, phase, support, q, v, u, the
+    feet's forces and torques) and gait_biped_torque_speed.png (Fig. 6: each joint's (speed, torque) points over
+    the period against the motor's characteristic lines for several gear ratios)."""
+    from legkit.optimize.gaits import guess_from_reference, walk_problem, walk_reference
+
+    robot = build_biped()
+    speed = args.biped_speed / 3.6
+    intervals = (max(1, args.biped_intervals // 4), args.biped_intervals)
+    problem = walk_problem(robot, speed, BIPED_MOTOR, intervals, args.mu)
+    guess = guess_from_reference(problem, walk_reference(robot, speed, intervals))
+    print(f"optimising the biped walk: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
+    cpu = time.process_time()
+    _, result = problem.solve(guess, derivatives="exact", feasibility_first=True, tol=args.tol, max_iter=args.max_iter,
+                              progress=_iteration_printer("J_e1"))
+    cpu = time.process_time() - cpu
+    x, objective = result.best()
+    trajectory = problem.unpack(x)
+    data = trajectory.stacked()
+    labels = ["+".join(problem.phases[k].contacts).upper() for k in data["phase"]]
+    wrenches = {}
+    for side in SIDES:  # zero while the foot is in the air
+        force, torque = np.zeros((len(data["t"]), 3)), np.zeros((len(data["t"]), 3))
+        rows = np.cumsum([0] + [len(t) for t in trajectory.t])
+        for k, phase in enumerate(problem.phases):
+            if side in phase.contacts:
+                force[rows[k] : rows[k + 1]] = trajectory.forces[k][:, phase.contacts.index(side)]
+                torque[rows[k] : rows[k + 1]] = trajectory.torques[k][:, problem.flat_contacts(phase.contacts).index(side)]
+        wrenches.update({f"{side}_F{axis}": force[:, i] for i, axis in enumerate("xyz")})
+        wrenches.update({f"{side}_T{axis}": torque[:, i] for i, axis in enumerate("xyz")})
+    _write_trajectory_csv(args.out / "gait_biped_optimized.csv", trajectory, labels, wrenches)
+    joint_speed = data["v"][:, problem.actuated]
+    plot_torque_speed(args.out / "gait_biped_torque_speed.png", robot, joint_speed, data["u"], BIPED_MOTOR,
+                      f"Optimised biped walk (J_e1), {args.biped_speed:g} km/h: IPOPT {result.status}")
+    return {
+        "IPOPT iterations (constraints, then J_e1)": result.iterations, "solve wall time [s]": result.wall_time,
+        "solve CPU time of this process [s]": cpu, "J_e1 (eq. 12) [J/m]": objective,
+        "max constraint violation (legkit dynamics)": problem.nlp().violation(x),
+        "max |rnea - B u| (lk.rnea) [N m]": float(np.max(np.abs(np.concatenate(inverse_dynamics_residuals(problem, x))))),
+        "period [s]": float(np.sum(trajectory.durations)), "step length [m]": 0.5 * speed * float(np.sum(trajectory.durations)),
+        **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d) for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
+        "torque-speed margin min (Sect. 2.3) [N m]": float(np.min(st.torque_speed_margin(
+            data["u"], joint_speed, BIPED_MOTOR.joint_max_speed, BIPED_MOTOR.gear_ratio, BIPED_MOTOR.efficiency, BIPED_MOTOR.slope))),
+        "solver succeeded (1 = yes)": float(result.success),
+    }
+
+
+def inverse_dynamics_residuals(problem, x: np.ndarray) -> list[np.ndarray]:
+    """Per phase (P, nv): rnea(q, v, a, f_ext) - B u recomputed from the solution by `lk.rnea`, the feet's forces
+    and flat feet's torques applied as body wrenches (eq. 1 in inverse form; zero for an exact solution)."""
+    trajectory = problem.unpack(x)
+    residuals = []
+    for k, phase in enumerate(problem.phases):
+        q = problem.configuration(trajectory.q[k])
+        forces = trajectory.forces[k].reshape(len(q), -1)
+        f_ext = problem.external_wrenches(q, forces, phase.contacts, trajectory.torques[k].reshape(len(q), -1))
+        residuals.append(np.asarray(lk.rnea(problem.model, q, trajectory.v[k], trajectory.a[k], f_ext)) - problem.tau(trajectory.u[k]))
+    return residuals
+
+
+#: Gear ratios drawn in the torque-speed figure: the paper's choice for its biped (Fig. 6, Sect. 6: 42 V motors with
+#: 66:1 gears), one between, and BIPED_MOTOR's own (the constraint).
+FIG6_GEAR_RATIOS = (66.0, 100.0, BIPED_MOTOR.gear_ratio)
+
+
+def plot_torque_speed(path: Path, robot: Biped, joint_speed: np.ndarray, torque: np.ndarray, motor: MotorParameters, title: str) -> None:
+    """Fig. 6 of file 003: per joint (left and right together), |torque| against |speed| [rpm] at every collocation
+    point, with the characteristic line |u| = (w_max - |w|) G^2 eta / m (Sect. 2.3) of `motor` at each gear ratio
+    in FIG6_GEAR_RATIOS (the motor's own ratio bounds the optimisation)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rpm = 60.0 / (2.0 * np.pi)
+    groups = {}
+    for i, name in enumerate(robot.model.names):
+        if robot.model.idx_v[i] >= 6 and name[:2] in ("l_", "r_") and robot.model.joint_type(i) == "revolute":
+            groups.setdefault(name[2:], []).append(robot.model.idx_v[i] - 6)
+    fig, axes = plt.subplots(2, (len(groups) + 1) // 2, figsize=(13, 6), sharex=True)
+    top = max(np.max(np.abs(torque)), 1e-9)
+    for axis, (name, columns) in zip(axes.ravel(), groups.items()):
+        for gear, style in zip(FIG6_GEAR_RATIOS, (":", "--", "-")):
+            w_max = motor.no_load_speed / gear
+            gain = gear**2 * motor.efficiency / motor.slope
+            axis.plot([0.0, w_max * rpm], [w_max * gain, 0.0], color="k", ls=style, lw=0.8, label=f"{gear:g}:1")
+        for column, side in zip(columns, ("left", "right")):
+            axis.plot(np.abs(joint_speed[:, column]) * rpm, np.abs(torque[:, column]), ".", ms=4, label=side)
+        axis.set_title(name.replace("_", " "), fontsize=9)
+        axis.set_ylim(0.0, 1.3 * top)
+        axis.set_xlim(0.0, motor.no_load_speed / FIG6_GEAR_RATIOS[-1] * rpm * 1.5)
+    for axis in axes[-1]:
+        axis.set_xlabel("|joint speed| [rpm]")
+    for axis in axes[:, 0]:
+        axis.set_ylabel("|joint torque| [N m]")
+    axes.ravel()[0].legend(fontsize=7, title="motor line, gear", title_fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _iteration_printer(name: str):
+    """progress(iteration, objective, violation) printing one line per IPOPT iteration."""
+
+    def progress(iteration: int, objective: float, violation: float) -> None:
+        print(f"  iter {iteration:4d}  {name} {objective: .6e}  max violation {violation:.2e}", flush=True)
+
+    return progress
+
+
+def _write_trajectory_csv(path: Path, trajectory, labels: list[str], extra: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Every collocation point of an optimised trajectory: t, phase, the `extra` columns, q, v, u, and the
+    support label; returns the numeric columns."""
+    data = trajectory.stacked()
+    columns = {"t": data["t"], "phase": data["phase"].astype(float), **extra}
+    for name, values in (("q", data["q"]), ("v", data["v"]), ("u", data["u"])):
+        columns.update({f"{name}{i}": values[:, i] for i in range(values.shape[1])})
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(list(columns) + ["support"])
+        for row, label in zip(np.stack(list(columns.values()), axis=1), labels):
+            writer.writerow([f"{x:.9g}" for x in row] + [label])
+    return columns
 
 
 def _animate_replay(stem: Path, model: lk.Model, simulated) -> None:
@@ -611,8 +735,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--biped-step", type=float, default=0.4, help="step length [m]")
     parser.add_argument("--biped-tip-speed", type=float, default=3.0, help="swing-foot speed limit v_tip_max [m/s]")
     parser.add_argument("--optimize", action="store_true", help="optimise the quadruped amble for the worst-case S_H "
-                        "(J_s2) on IPOPT, write its CSV/figure and replay it in simulation")
-    parser.add_argument("--intervals", type=_positive_int, default=4, help="--optimize: collocation intervals per phase")
+                        "(J_s2) on IPOPT, write its CSV/figure and replay it in simulation, and the biped walk for the "
+                        "Joule loss (J_e1), writing its CSV and torque-speed figure (--robot picks one or both)")
+    parser.add_argument("--intervals", type=_positive_int, default=4, help="--optimize: collocation intervals per amble phase")
+    parser.add_argument("--biped-intervals", type=_positive_int, default=4,
+                        help="--optimize: collocation intervals per biped single-support phase (a quarter, at least 1, per double support)")
     parser.add_argument("--max-iter", type=_positive_int, default=300, help="--optimize: IPOPT iteration limit (per continuation stage)")
     parser.add_argument("--tol", type=float, default=1e-6, help="--optimize: IPOPT tolerance")
     parser.add_argument("--replay-cycles", type=_positive_int, default=5, help="--optimize: cycles replayed in simulation")
@@ -624,14 +751,18 @@ def main(argv: list[str] | None = None) -> int:
         if not np.isfinite(getattr(args, name)) or getattr(args, name) <= 0.0:
             parser.error(f"--{name.replace('_', '-')} must be a positive number")
     args.out.mkdir(parents=True, exist_ok=True)
-    if args.optimize:
-        summary = run_optimized(args)
-        width = max(len(k) for k in summary)
-        for key, value in summary.items():
-            print(f"{key:{width}}  {value:12.5g}")
-        print(f"wrote gait_quadruped_optimized.csv/.png{'' if args.no_animation else '/.html/.gif'} to {args.out}")
-        return 0
     robots = ["quadruped", "biped"] if args.robot == "both" else [args.robot]
+    if args.optimize:
+        for name in robots:
+            summary = run_optimized_amble(args) if name == "quadruped" else run_optimized_walk(args)
+            width = max(len(k) for k in summary)
+            for key, value in summary.items():
+                print(f"{key:{width}}  {value:12.5g}")
+            if name == "quadruped":
+                print(f"wrote gait_quadruped_optimized.csv/.png{'' if args.no_animation else '/.html/.gif'} to {args.out}")
+            else:
+                print(f"wrote gait_biped_optimized.csv and gait_biped_torque_speed.png to {args.out}")
+        return 0
     with tqdm(total=5 * len(robots), desc="gait analysis", unit="stage") as progress:
         analyses = [run(name, args, progress) for name in robots]
     print_table(analyses)

@@ -2,15 +2,16 @@
 
 `MultiphaseProblem` transcribes a fixed contact sequence (`Phase`s) by Hermite–Simpson collocation over
 legkit's batched dynamics; `solve` runs IPOPT (the casadi wheel's) on any `NLP`; `objectives` holds the
-paper's performance indices J_s2, J_e1, J_e2 and a plain control effort.
+paper's performance indices J_s1, J_s2, J_e1, J_e2 and a plain control effort.
 """
 
 from legkit.optimize.collocation import hermite_simpson_defects, point_jacobian
-from legkit.optimize.objectives import Integral, MinMaxStability, effort, joule_loss, specific_resistance
-from legkit.optimize.problem import MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
+from legkit.optimize.objectives import Integral, MinMaxStability, effort, fri_deviation, joule_loss, specific_resistance
+from legkit.optimize.problem import FlatFoot, MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
 from legkit.optimize.solver import NLP, SolveResult, solve
 
 __all__ = [
+    "FlatFoot",
     "MultiphaseProblem",
     "Phase",
     "TorqueSpeedLine",
@@ -23,6 +24,7 @@ __all__ = [
     "Integral",
     "MinMaxStability",
     "effort",
+    "fri_deviation",
     "joule_loss",
     "specific_resistance",
 ]

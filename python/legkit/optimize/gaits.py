@@ -1,9 +1,13 @@
-"""The gaits of file 003 (../shared/seeds/003_8a51da06d878ba35.txt, Sect. 4.2) as `MultiphaseProblem`s, started
-from `legkit.experiments.gait`'s hand-built references.
+"""The gaits of file 003 (../shared/seeds/003_8a51da06d878ba35.txt, Sect. 4.2 and 6) as `MultiphaseProblem`s,
+started from `legkit.experiments.gait`'s hand-built references.
 
 The amble: duty factor 0.5, support order LF+LH, LF+RH, RF+RH, RF+LH (Sect. 4.2, read as in
 `legkit.experiments.gait.quadruped_amble`), a touchdown and a liftoff at every boundary, so every phase has
 two feet down and S_H (eq. 10) is defined throughout; the full cycle is transcribed (no mirror symmetry).
+
+The biped walk (Sect. 6: walking at up to 1.8 km/h, minimising J_e1 under the motors' torque-speed lines): the
+flat-footed walk of `legkit.experiments.gait.biped_walk`, double support, left stance, double support, right
+stance from the left touchdown at t = 0, each sole a `FlatFoot` (eq. 6); the full cycle is transcribed.
 """
 
 from __future__ import annotations
@@ -14,9 +18,11 @@ import numpy as np
 
 import legkit as lk
 from legkit.experiments.gait import (
-    AMBLE_HIP_HEIGHT, GaitReference, MotorParameters, contact_inverse_dynamics, quadruped_amble,
+    AMBLE_HIP_HEIGHT, GaitReference, MotorParameters, biped_walk, contact_inverse_dynamics, quadruped_amble,
 )
-from legkit.optimize.problem import MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
+from legkit.optimize.objectives import joule_loss
+from legkit.optimize.problem import FlatFoot, MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
+from legkit.robots.biped import SIDES, Biped
 from legkit.robots.quadruped import LEGS, Quadruped
 
 #: IPOPT options for the amble: the monotone barrier update (the adaptive one drove mu to 1e-11 within a few
@@ -77,24 +83,102 @@ def amble_reference(robot: Quadruped, speed: float, period: float, intervals: in
     return quadruped_amble(robot, speed, period, 8 * intervals, 2, 0.03, AMBLE_HIP_HEIGHT)
 
 
+#: The biped walk's supports in time order from the left touchdown at t = 0 (`biped_walk`'s contact sequence).
+WALK_SUPPORT = (("l", "r"), ("l",), ("l", "r"), ("r",))
+
+#: mu_d of eq. 6 [m] for the biped's soles; the paper gives no value (`walk_problem`).
+SOLE_TORSION = 0.04
+
+
+def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: tuple[int, int] = (1, 4),
+                 friction: float = 0.8, max_tilt: float = np.radians(10.0), max_swing_height: float = 0.15,
+                 double_support: tuple[float, float] = (0.04, 0.4), single_support: tuple[float, float] = (0.3, 1.0),
+                 period: float | tuple[float, float] | None = 1.6, objectives: Sequence | None = None) -> MultiphaseProblem:
+    """The biped walk at `speed` [m/s] minimising J_e1 (eq. 12) with `motor`'s resistance, gear and torque
+    constant at every joint (or the given `objectives`), under its torque-speed line (Sect. 2.3) and stall torque; the soles flat on the
+    ground in stance with eq. 6's torque limits. intervals: (per double-support phase, per single-support
+    phase); the phase durations [s] lie in double_support and single_support and sum to `period` [s] (fixed,
+    bounds, or None: free; the default is the reference's, a 0.4 m step).
+
+    Parameters the paper does not give, assumed here: the motor (legkit's `BIPED_MOTOR`: Fig. 6 names 42 V
+    motors with 66:1 gears for an 18 kg biped but no motor constants, and legkit's biped weighs 42 kg); mu_d =
+    `SOLE_TORSION` = 0.04 m (about mu times the sole's mean distance from its centre); the pelvis' roll and
+    pitch within max_tilt, joint ranges of a human-like leg (hip yaw +-0.3, hip roll +-0.4, hip pitch
+    [-1.2, 1.0], knee [0, 2.2], ankle pitch +-1.0, ankle roll +-0.4, shoulder pitch +-1.0, shoulder roll
+    [-0.5, 0.5] rad) and swing soles below max_swing_height [m]."""
+    p = robot.parameters
+    centre = np.array([0.5 * (p.foot_toe - p.foot_heel), 0.0, -p.ankle_height])
+    feet = {side: (f"{side}_foot", centre) for side in SIDES}
+    sole = FlatFoot(p.foot_toe + p.foot_heel, 2.0 * p.foot_half_width, SOLE_TORSION)
+    phases = [Phase(support, intervals[0] if len(support) == 2 else intervals[1], double_support if len(support) == 2 else single_support)
+              for support in WALK_SUPPORT]
+    line = torque_speed_line(motor)
+    stall = line.max_speed * line.gain
+    model = robot.model
+    nu = model.nv - 6
+    upper = np.full(model.nq, np.inf)
+    upper[3:5] = np.sin(0.5 * max_tilt)
+    lower = -upper
+    lower[2] = 0.3
+    leg = ([-0.3, -0.4, -1.2, 0.0, -1.0, -0.4], [0.3, 0.4, 1.0, 2.2, 1.0, 0.4])
+    for side in SIDES:
+        joints = robot.joint_slice(side)
+        lower[joints.start + 1 : joints.stop + 1], upper[joints.start + 1 : joints.stop + 1] = leg
+        arm = robot.joint_slice(side, "arm")
+        lower[arm.start + 1 : arm.stop + 1], upper[arm.start + 1 : arm.stop + 1] = [-1.0, -0.5], [1.0, 0.5]
+    if objectives is None:
+        objectives = [joule_loss(motor.resistance, motor.gear_ratio, motor.torque_constant)]
+    return MultiphaseProblem(model, phases, feet, objectives, speed=speed, period=period, friction=friction,
+                             u_bounds=(np.full(nu, -stall), np.full(nu, stall)), torque_speed=line, q_bounds=(lower, upper),
+                             max_swing_height=max_swing_height, flat_feet={side: sole for side in SIDES})
+
+
+def walk_reference(robot: Biped, speed: float, intervals: tuple[int, int] = (1, 4), step_length: float = 0.4) -> GaitReference:
+    """`biped_walk` (double support 20 % of the cycle, step_length [m]) on the collocation points of
+    `walk_problem`'s phases at their reference durations (0.1 and 0.4 of the period), one cycle and the next
+    cycle's first point. The walk is sampled finely (a common multiple of both phases' point spacings; its derivatives by periodic
+    differences on that grid) and the collocation points picked from it."""
+    double, single = intervals
+    if double < 1 or single < 1:
+        raise ValueError(f"intervals must be two positive counts, got {intervals}")
+    samples = 20 * double * single  # per cycle: the double-support points every 2 single, the single every 8 double samples
+    fine = biped_walk(robot, speed, step_length, samples, 2, 0.2, 0.05, 0.82, 0.3)
+    steps = [samples // (20 * double) if len(support) == 2 else samples // (5 * single) for support in WALK_SUPPORT]
+    rows = np.cumsum(np.concatenate([[0]] + [np.full(2 * (double if len(support) == 2 else single), step)
+                                             for support, step in zip(WALK_SUPPORT, steps)]))  # one cycle and its end
+    return GaitReference(fine.t[rows], fine.q[rows], fine.v[rows], fine.a[rows], fine.contacts, fine.active[rows],
+                         [fine.support_label[i] for i in rows], fine.distance, fine.feet, fine.zmp_tracking_error)
+
+
 def guess_from_reference(problem: MultiphaseProblem, ref: GaitReference) -> Trajectory:
-    """An initial guess on equal phases from a sampled reference whose samples fall on the collocation points:
-    states and accelerations as sampled (kinematically consistent, so the defects start small), torques and
-    contact forces by `contact_inverse_dynamics` (least squares: the inverse-dynamics residual starts as the
-    reference's unbalanced base wrench)."""
+    """An initial guess from a sampled reference whose samples fall on the collocation points: states and
+    accelerations as sampled (kinematically consistent, so the defects start small), torques and contact
+    forces by `contact_inverse_dynamics` (least squares: the inverse-dynamics residual starts as the
+    reference's unbalanced base wrench). The problem's feet are the reference's feet (`ref.feet`) in order; a
+    foot's force is the sum over its contact points, and a flat foot's torque their moment about its point."""
     dynamics = contact_inverse_dynamics(problem.model, ref)
     names = list(problem.feet)
-    t, q, v, u, forces, a = [], [], [], [], [], []
+    total = np.stack([dynamics.forces[:, group].sum(axis=1) for group in ref.feet], axis=1)  # (T, feet, 3)
+    flat = [names.index(n) for n in problem.flat_feet]
+    torque = np.zeros((len(ref.t), len(names), 3))
+    if flat:
+        poses = np.asarray(lk.forward_kinematics(problem.model, ref.q))
+        centres = problem.foot_positions(ref.q, names)
+        for j in flat:
+            group = ref.feet[j]
+            world = np.sum(np.cross(dynamics.points[:, group] - centres[:, j, None], dynamics.forces[:, group]), axis=1)
+            torque[:, j] = np.einsum("tji,tj->ti", poses[:, problem.foot_body[names[j]], :3, :3], world)
+    t, q, v, u, forces, a, torques = [], [], [], [], [], [], []
     start = 0
     for phase in problem.phases:
         rows = start + np.arange(2 * phase.intervals + 1)
-        columns = [names.index(c) for c in phase.contacts]
         t.append(ref.t[rows])
         q.append(ref.q[rows])
         v.append(ref.v[rows])
         a.append(ref.a[rows])
         u.append(dynamics.torques[rows])
-        forces.append(dynamics.forces[rows][:, columns])
+        forces.append(total[rows][:, [names.index(c) for c in phase.contacts]])
+        torques.append(torque[rows][:, [names.index(c) for c in problem.flat_contacts(phase.contacts)]])
         start = rows[-1]
     durations = np.array([t_k[-1] - t_k[0] for t_k in t])
-    return Trajectory(t, q, v, u, forces, durations, a=a)
+    return Trajectory(t, q, v, u, forces, durations, a=a, torques=torques)

@@ -6,7 +6,9 @@ as objectives of a `MultiphaseProblem`; a problem sums its terms, each scaled by
   - `joule_loss`: J_e1 = (1 / d_S) int sum_i R_i (u_i / (G_i K_i))^2 dt (eq. 12);
   - `specific_resistance`: J_e2 = int sum_i |u_i w_i| / (m g v) dt (eq. 13), with |.| smoothed as
     sqrt(x^2 + eps^2) and v the forward velocity of the centre of mass;
-  - `effort`: int sum_i w_i u_i^2 dt (a plain control effort, e.g. for a pendulum swing-up).
+  - `effort`: int sum_i w_i u_i^2 dt (a plain control effort, e.g. for a pendulum swing-up);
+  - `fri_deviation`: J_s1 = int (GCoM_x - S_x)^2 + (GCoM_y - S_y)^2 dt (eq. 9), S the FRI of the phase's feet
+    on the ground (eq. 8, `legkit.stability.foot_rotation_indicator`).
 * `MinMaxStability`: J_s2 = -p1 with S_H(t) - p1 >= 0 at every knot and midpoint (eq. 11), S_H as published
   (eq. 10, `legkit.stability.angular_momentum_stability(..., definition="paper")`) or, by default, a smooth
   lower bound of it per phase (below), which IPOPT can converge on. The reported S_H is always the published.
@@ -43,7 +45,7 @@ import numpy as np
 import legkit as lk
 from legkit.optimize.blocks import Block, Point
 from legkit.optimize.collocation import point_jacobian
-from legkit.stability import angular_momentum_stability_of_model
+from legkit.stability import angular_momentum_stability_of_model, foot_rotation_indicator
 
 if TYPE_CHECKING:
     from legkit.optimize.problem import MultiphaseProblem
@@ -51,17 +53,18 @@ if TYPE_CHECKING:
 #: Smoothing of |x| in J_e2 [W]: sqrt(x^2 + eps^2) keeps the integrand differentiable where a joint's power is 0.
 POWER_SMOOTHING = 1e-3
 
-Integrand = Callable[["MultiphaseProblem", np.ndarray], np.ndarray]
+Integrand = Callable[["MultiphaseProblem", np.ndarray, int], np.ndarray]
 
 
 @dataclass(frozen=True)
 class Integral:
-    """weight x int integrand dt (/ distance travelled if per_distance); integrand(problem, z (P, nz)) -> (P,)."""
+    """weight x int integrand dt (/ distance travelled if per_distance); integrand(problem, z (P, nz), k) -> (P,)
+    at phase k's point variables z."""
 
     integrand: Integrand
     per_distance: bool = False
     weight: float = 1.0
-    symbolic: Callable | None = None  # (problem, SymbolicModel, z casadi (nz,)) -> scalar: the same integrand for casadi
+    symbolic: Callable | None = None  # (problem, SymbolicModel, z casadi (nz,), k) -> scalar: the same integrand for casadi
 
 
 @dataclass(frozen=True)
@@ -79,8 +82,8 @@ class MinMaxStability:
 def effort(weights: float | Sequence[float] = 1.0, weight: float = 1.0) -> Integral:
     """int sum_i weights_i u_i^2 dt."""
     w = np.asarray(weights, dtype=np.float64)
-    return Integral(lambda problem, z: np.sum(w * z[:, problem.nx : problem.nx + problem.nu] ** 2, axis=1), weight=weight,
-                    symbolic=lambda problem, _, z: _weighted_squares(w, z[problem.nx : problem.nx + problem.nu]))
+    return Integral(lambda problem, z, _: np.sum(w * z[:, problem.nx : problem.nx + problem.nu] ** 2, axis=1), weight=weight,
+                    symbolic=lambda problem, _, z, __: _weighted_squares(w, z[problem.nx : problem.nx + problem.nu]))
 
 
 def _weighted_squares(w: np.ndarray, u):
@@ -99,7 +102,7 @@ def joule_loss(resistance, gear_ratio, torque_constant, weight: float = 1.0) -> 
 def specific_resistance(weight: float = 1.0) -> Integral:
     """J_e2 of eq. 13: int sum_i |u_i w_i| / (m g v) dt, v the COM's forward (x) velocity."""
 
-    def integrand(problem: MultiphaseProblem, z: np.ndarray) -> np.ndarray:
+    def integrand(problem: MultiphaseProblem, z: np.ndarray, _: int) -> np.ndarray:
         u = z[:, problem.nx : problem.nx + problem.nu]
         w = z[:, problem.nq + np.asarray(problem.actuated)]
         power = np.sum(np.sqrt((u * w) ** 2 + POWER_SMOOTHING**2), axis=1)
@@ -108,6 +111,60 @@ def specific_resistance(weight: float = 1.0) -> Integral:
         return power / (model.total_mass * -model.gravity[2] * momentum[:, 0] / model.total_mass)
 
     return Integral(integrand, weight=weight)
+
+
+def fri_deviation(weight: float = 1.0) -> Integral:
+    """J_s1 of eq. 9 (Stability Performance 1): int (GCoM_x - S_x)^2 + (GCoM_y - S_y)^2 dt [m^2 s], S the FRI
+    point of the feet on the ground in each phase (eq. 8), computed by `legkit.stability.foot_rotation_indicator`
+    from (q, v, a) at every collocation point, GCoM the ground projection of the centre of mass. As published:
+    the squared distance integrated, not divided by the period (the text says "average distance"). Eq. 8 is
+    taken with the feet's weight acting downwards (the published "- SG_j x m_j g" reads g as pointing up;
+    `legkit.stability.fri` docstring). Every phase needs a foot on the ground (S is undefined in flight)."""
+
+    def integrand(problem: MultiphaseProblem, z: np.ndarray, k: int) -> np.ndarray:
+        feet = _support_bodies(problem, k)
+        q, v = problem.configuration(z[:, : problem.nq]), z[:, problem.nq : problem.nx]
+        fri = foot_rotation_indicator(problem.model, q, v, problem.rate(z, k)[:, problem.nq :], feet)
+        gcom = np.asarray(lk.center_of_mass(problem.model, q))
+        return np.sum((gcom[:, :2] - fri[:, :2]) ** 2, axis=1)
+
+    def symbolic(problem: MultiphaseProblem, model, z, k: int):
+        q, v = z[: problem.nq], z[problem.nq : problem.nx]
+        fri = _symbolic_fri(problem, model, q, v, z[problem.a_columns[k]], _support_bodies(problem, k))
+        gcom = model.center_of_mass(q)
+        return (gcom[0] - fri[0]) ** 2 + (gcom[1] - fri[1]) ** 2
+
+    return Integral(integrand, weight=weight, symbolic=symbolic)
+
+
+def _support_bodies(problem: MultiphaseProblem, k: int) -> list[int]:
+    """The distinct bodies of phase k's feet on the ground: the feet of eq. 8."""
+    contacts = problem.phases[k].contacts
+    if not contacts:
+        raise ValueError(f"fri_deviation (J_s1, eq. 9) needs a foot on the ground in every phase; phases[{k}] has none")
+    return sorted({problem.foot_body[name] for name in contacts})
+
+
+def _symbolic_fri(problem: MultiphaseProblem, model, q, v, a, feet: list[int]):
+    """`foot_rotation_indicator` in casadi: the rest's momentum rate by the chain rule along (dq/dt, a)."""
+    import casadi as ca
+
+    from legkit.optimize.symbolic import SymbolicModel
+    from legkit.stability.fri import _without_mass_of
+
+    rest_model = _without_mass_of(problem.model, feet)
+    rest = SymbolicModel(rest_model)
+    momentum = rest.centroidal_momentum(q, v)
+    rate = ca.jacobian(momentum, q) @ (model.q_rate_matrix(q) @ v) + ca.jacobian(momentum, v) @ a
+    gravity = ca.DM(np.asarray(problem.model.gravity, dtype=np.float64))
+    rest_mass = problem.model.total_mass - sum(problem.model.body(i).mass for i in feet)
+    com = rest.center_of_mass(q)
+    moment = rate[3:] + ca.cross(com, rate[:3]) - ca.cross(com, rest_mass * gravity)
+    for body in feet:
+        foot_com = model.points(q, [(body, np.asarray(problem.model.body(body).com, dtype=np.float64))])
+        moment = moment - ca.cross(foot_com, problem.model.body(body).mass * gravity)
+    force = rate[:3] - problem.model.total_mass * gravity
+    return ca.vertcat(-moment[1] / force[2], moment[0] / force[2])
 
 
 def _simpson_weights(intervals: int) -> np.ndarray:
@@ -136,9 +193,9 @@ def build_objective(problem: MultiphaseProblem, terms: Sequence) -> tuple[Callab
             duration = x[problem.duration_index[k]]
             z = x[index]
             if gradient is None:
-                values = term.integrand(problem, z)
+                values = term.integrand(problem, z, k)
             else:
-                values, jac = point_jacobian(lambda zz: term.integrand(problem, zz)[:, None], z)
+                values, jac = point_jacobian(lambda zz: term.integrand(problem, zz, k)[:, None], z)
                 values = values[:, 0]
                 np.add.at(gradient, index, duration * weights[k][:, None] * jac[:, 0])
             by_duration[k] = weights[k] @ values

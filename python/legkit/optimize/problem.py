@@ -15,7 +15,8 @@ and 4.1, on legkit's kernels:
   lambda is whatever keeps them there. The inverse form converges better and its Jacobian is sparser (a
   joint's torque depends on its own leg and the base only): docs/optimize.md has the measurements;
 * swing-tip height >= 0 (eq. 4), friction cone mu^2 F_z^2 - F_x^2 - F_y^2 >= 0 with F_z >= 0 (eq. 5, squared
-  to stay smooth), the inelastic impact map at each touchdown (eq. 7, `lk.impact` with the new phase's feet),
+  to stay smooth), for flat feet (`FlatFoot`) a contact torque T about the sole's centre within the foot-torque
+  limits of eq. 6 and the whole sole held flat on the ground, the inelastic impact map at each touchdown (eq. 7, `lk.impact` with the new phase's feet),
   state/control bounds and the motor torque-speed line |u| <= (w_max - |w|) k (Sect. 2.3, split into its four
   linear faces);
 * periodicity (Sect. 2.3: q(t_f) = q(0) up to the travelled distance, velocity after the wrap-around impact)
@@ -49,6 +50,32 @@ class Phase:
 
 
 @dataclass(frozen=True)
+class FlatFoot:
+    """A flat sole lying on the ground in stance (file 003, Sect. 2.3, eq. 6). The foot's contact point (the
+    `feet` entry) is the centre of its sole, the sole's axes are the foot body's x (length l_x) and y (width l_y),
+    and besides the force F the ground puts a torque T (foot-body frame, about that point) on it, limited by
+
+        |T_x| <= 0.5 F_z l_y,   |T_y| <= 0.5 F_z l_x,   |T_z| <= mu_d F_z          (eq. 6, as published)
+
+    (the first two: the centre of pressure stays on the sole). mu_d multiplies a force to bound a torque, so
+    it is a length [m] although the paper calls it a friction coefficient. In stance the sole is held flat and
+    still (six rows: the centre's position, the heights of a toe and a side point, the toe's y), at a
+    touchdown the whole foot stops (eq. 7 with six impulse rows), and in swing those sole points stay above
+    the ground (eq. 4)."""
+
+    length: float  # l_x [m]
+    width: float  # l_y [m]
+    torsion: float  # mu_d [m]
+
+    def __post_init__(self) -> None:
+        for name in ("length", "width"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"FlatFoot.{name} must be > 0, got {getattr(self, name)}")
+        if not self.torsion >= 0.0:
+            raise ValueError(f"FlatFoot.torsion must be >= 0, got {self.torsion}")
+
+
+@dataclass(frozen=True)
 class TorqueSpeedLine:
     """|u_i| <= (max_speed_i - |w_i|) gain_i per actuated joint (file 003 Sect. 2.3: gain = G^2 eta / m)."""
 
@@ -76,8 +103,9 @@ def rotation(quaternion: np.ndarray) -> np.ndarray:
 @dataclass
 class Trajectory:
     """The variables of a transcription, per phase: times t (P,), q (P, nq), v (P, nv), u (P, nu), forces
-    (P, c, 3) on the phase's feet (world frame), the phase durations, and the accelerations a (P, nv) of the
-    inverse-dynamics transcription (None: `pack` takes them from the forward dynamics of q, v, u, forces)."""
+    (P, c, 3) on the phase's feet (world frame), the phase durations, the accelerations a (P, nv) of the
+    inverse-dynamics transcription (None: `pack` takes them from the forward dynamics of q, v, u, forces), and
+    the torques (P, c_flat, 3) on the phase's flat feet (`FlatFoot`, foot frame; None: zero)."""
 
     t: list[np.ndarray]
     q: list[np.ndarray]
@@ -87,6 +115,7 @@ class Trajectory:
     durations: np.ndarray
     stability_bound: float = 0.0  # p1 of the min-max objective J_s2 (0 when unused)
     a: list[np.ndarray] | None = None
+    torques: list[np.ndarray] | None = None
 
     def stacked(self) -> dict[str, np.ndarray]:
         """Every point of every phase in time order (the shared phase-boundary instants appear twice)."""
@@ -102,7 +131,8 @@ class MultiphaseProblem:
     joint, i.e. v[6:] for a free-flyer, all of v otherwise). periodic: q, v wrap around (the travel coordinate
     q[travel_index] advancing by speed x cycle time); otherwise initial/final (q, v) fix the ends (NaN: free).
     period: the cycle time, fixed (float) or bounded (lo, hi). force_dims: 3 (friction cone) or 1 (normal force
-    only, for models that cannot push sideways). q/v/u_bounds: (lower, upper) arrays.
+    only, for models that cannot push sideways). flat_feet: `FlatFoot` soles by foot name (eq. 6; needs
+    force_dims 3). q/v/u_bounds: (lower, upper) arrays.
     objectives: terms from `legkit.optimize.objectives`, summed.
     """
 
@@ -126,6 +156,7 @@ class MultiphaseProblem:
     continuous_controls: bool = False
     transcription: str = "inverse"
     max_swing_height: float = np.inf  # [m] swing tips stay between the ground (eq. 4) and this height
+    flat_feet: Mapping[str, FlatFoot] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self._validate()
@@ -136,18 +167,28 @@ class MultiphaseProblem:
         self.foot_names = list(self.feet)
         self.foot_body = {name: (model.names.index(b) if isinstance(b, str) else int(b)) for name, (b, _) in self.feet.items()}
         self.foot_point = {name: np.asarray(p, dtype=np.float64) for name, (_, p) in self.feet.items()}
-        # Variable layout: per phase a (P, nz) block of point variables z = [q, v, u, forces, a] (a only in the
-        # inverse transcription), then the durations, then p1.
+        # A flat sole's toe and side points (FlatFoot): with the centre they fix the sole's pose in stance.
+        self.sole_points: dict[str, str] = {}
+        for name, sole in self.flat_feet.items():
+            for label, offset in (("toe", [0.5 * sole.length, 0.0, 0.0]), ("side", [0.0, 0.5 * sole.width, 0.0])):
+                self.foot_body[f"{name}/{label}"] = self.foot_body[name]
+                self.foot_point[f"{name}/{label}"] = self.foot_point[name] + offset
+                self.sole_points[f"{name}/{label}"] = name
+        # Variable layout: per phase a (P, nz) block of point variables z = [q, v, u, forces, torques, a]
+        # (torques on flat feet only, a only in the inverse transcription), then the durations, then p1.
         self.point_index: list[np.ndarray] = []
         self.force_columns: list[slice] = []
+        self.torque_columns: list[slice] = []
         self.a_columns: list[slice] = []
         inverse = self.transcription == "inverse"
         offset = 0
         for phase in self.phases:
             forces = self.nx + self.nu + self.force_dims * len(phase.contacts)
-            nz = forces + (self.nv if inverse else 0)
+            torques = forces + 3 * len(self.flat_contacts(phase.contacts))
+            nz = torques + (self.nv if inverse else 0)
             self.force_columns.append(slice(self.nx + self.nu, forces))
-            self.a_columns.append(slice(forces, nz))
+            self.torque_columns.append(slice(forces, torques))
+            self.a_columns.append(slice(torques, nz))
             points = 2 * phase.intervals + 1
             self.point_index.append(offset + np.arange(points * nz).reshape(points, nz))
             offset += points * nz
@@ -161,8 +202,9 @@ class MultiphaseProblem:
         for k in range(count if self.periodic else count - 1):
             after = self.phases[(k + 1) % count]
             if set(after.contacts) - set(self.phases[k].contacts):
-                self.impulse_index[k] = offset + np.arange(self.force_dims * len(after.contacts))
-                offset += self.force_dims * len(after.contacts)
+                size = self.force_dims * len(after.contacts) + 3 * len(self.flat_contacts(after.contacts))  # `contact_rows`
+                self.impulse_index[k] = offset + np.arange(size)
+                offset += size
         self.n = offset
         self._build()
 
@@ -195,6 +237,13 @@ class MultiphaseProblem:
         for name, (body, _) in self.feet.items():
             if isinstance(body, str) and body not in model.names:
                 raise ValueError(f"feet[{name!r}] names body {body!r}, which the model does not have")
+        unknown = [name for name in self.flat_feet if name not in self.feet]
+        if unknown:
+            raise ValueError(f"flat_feet names unknown feet {unknown}; feet are {list(self.feet)}")
+        if self.flat_feet and self.force_dims != 3:
+            raise ValueError(f"flat_feet need force_dims 3 (eq. 6 bounds a torque by the friction of F), got {self.force_dims}")
+        if any(not isinstance(sole, FlatFoot) for sole in self.flat_feet.values()):
+            raise TypeError("flat_feet must map foot names to FlatFoot")
         sequence = [frozenset(p.contacts) for p in self.phases]
         pairs = [(i, i - 1) for i in range(1, len(sequence))]
         if self.periodic and len(sequence) > 1:
@@ -278,9 +327,15 @@ class MultiphaseProblem:
             return forces
         return np.concatenate([np.zeros(forces.shape[:-1] + (2,)), forces], axis=-1)
 
-    def external_wrenches(self, q: np.ndarray, forces: np.ndarray, contacts: Sequence[str]) -> np.ndarray | None:
-        """Body-frame wrenches (B, nbodies, 6) of the world-frame foot forces (B, len(contacts) * force_dims) at
-        configurations q (B, nq, unit quaternion), as legkit's rnea/aba take them (None without contacts)."""
+    def flat_contacts(self, contacts: Sequence[str]) -> list[str]:
+        """The flat feet (`FlatFoot`) among contacts, in their order: the owners of the torque variables."""
+        return [name for name in contacts if name in self.flat_feet]
+
+    def external_wrenches(self, q: np.ndarray, forces: np.ndarray, contacts: Sequence[str],
+                          torques: np.ndarray | None = None) -> np.ndarray | None:
+        """Body-frame wrenches (B, nbodies, 6) of the world-frame foot forces (B, len(contacts) * force_dims) and
+        the flat feet's foot-frame torques (B, 3 x their count) at configurations q (B, nq, unit quaternion), as
+        legkit's rnea/aba take them (None without contacts)."""
         if not contacts:
             return None
         poses = np.asarray(lk.forward_kinematics(self.model, q))
@@ -291,6 +346,8 @@ class MultiphaseProblem:
             local = np.einsum("bji,bj->bi", poses[:, body, :3, :3], world[:, c])
             f_ext[:, body, :3] += local
             f_ext[:, body, 3:] += np.cross(self.foot_point[name], local)
+        for c, name in enumerate(self.flat_contacts(contacts)):
+            f_ext[:, self.foot_body[name], 3:] += torques[:, 3 * c : 3 * c + 3]
         return f_ext
 
     def tau(self, u: np.ndarray) -> np.ndarray:
@@ -299,19 +356,20 @@ class MultiphaseProblem:
         tau[:, self.actuated] = u
         return tau
 
-    def state_rate(self, z: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
-        """[dq/dt, a] (B, nx) at point variables z (B, nz): eq. 1 forward, a = aba(q, v, B u, J_c^T lambda)."""
+    def state_rate(self, z: np.ndarray, k: int) -> np.ndarray:
+        """[dq/dt, a] (B, nx) at phase k's point variables z (B, nz, or without a): eq. 1 forward,
+        a = aba(q, v, B u, J_c^T lambda)."""
         q, v = self.configuration(z[:, : self.nq]), z[:, self.nq : self.nx]
-        start = self.nx + self.nu
-        f_ext = self.external_wrenches(q, z[:, start : start + self.force_dims * len(contacts)], contacts)
-        a = np.asarray(lk.aba(self.model, q, v, self.tau(z[:, self.nx : start]), f_ext))
+        contacts = self.phases[k].contacts
+        f_ext = self.external_wrenches(q, z[:, self.force_columns[k]], contacts, z[:, self.torque_columns[k]])
+        a = np.asarray(lk.aba(self.model, q, v, self.tau(z[:, self.nx : self.nx + self.nu]), f_ext))
         return np.concatenate([self.q_rate(z[:, : self.nq], v), a], axis=1)
 
     def rate(self, z: np.ndarray, k: int) -> np.ndarray:
         """The collocated state rate (B, nx) at phase k's point variables: forward dynamics, or [dq/dt, a] with
         a the variables of the inverse transcription (whose dynamics are the RNEA residual rows)."""
         if self.transcription == "forward":
-            return self.state_rate(z, self.phases[k].contacts)
+            return self.state_rate(z, k)
         return np.concatenate([self.q_rate(z[:, : self.nq], z[:, self.nq : self.nx]), z[:, self.a_columns[k]]], axis=1)
 
     def rate_dependence(self, k: int) -> np.ndarray:
@@ -432,16 +490,48 @@ class MultiphaseProblem:
                                                                           - np.sum(f.reshape(len(f), -1, 3)[..., :2] ** 2, axis=-1)),
                                 len(phase.contacts), 0.0, np.inf,
                                 symbolic=lambda _, f: mu2 * f[2::3] ** 2 - f[0::3] ** 2 - f[1::3] ** 2))
+        blocks.extend(self.foot_torque_blocks(k))
         return blocks
 
-    def contact_jacobian(self, q: np.ndarray, contacts: Sequence[tuple[int, np.ndarray]]) -> np.ndarray:
-        """(B, force_dims k, nv): world-aligned linear Jacobians of the contact points (body, point) at q (B, nq),
-        the vertical rows only when force_dims is 1."""
-        q = self.configuration(q)
-        rows = slice(0, 3) if self.force_dims == 3 else slice(2, 3)
-        return np.concatenate([np.asarray(lk.jacobian(self.model, q, body, point, "local_world_aligned"))[:, rows] for body, point in contacts], axis=1)
+    def foot_torque_blocks(self, k: int) -> list[Block]:
+        """Eq. 6 at every point of phase k, for each flat foot on the ground: c_i F_z - s T_i >= 0 for i = x, y, z
+        and s = +-1, with c = (0.5 l_y, 0.5 l_x, mu_d); linear in the force and torque variables."""
+        contacts = list(self.phases[k].contacts)
+        if not self.flat_contacts(contacts):
+            return []
+        index = self.point_index[k]
+        forces = index[:, self.force_columns[k]].reshape(len(index), -1, 3)
+        torques = index[:, self.torque_columns[k]].reshape(len(index), -1, 3)
+        blocks = []
+        for c, name in enumerate(self.flat_contacts(contacts)):
+            sole = self.flat_feet[name]
+            limit = np.array([0.5 * sole.width, 0.5 * sole.length, sole.torsion])
+            normal = forces[:, contacts.index(name), 2]
+            for sign in (1.0, -1.0):
+                rows = np.arange(3 * len(index))
+                blocks.append(Linear(len(rows), np.r_[rows, rows], np.r_[np.repeat(normal, 3), torques[:, c].ravel()],
+                                     np.r_[np.tile(limit, len(index)), np.full(len(rows), -sign)], lower=0.0, upper=np.inf))
+        return blocks
 
-    def impact_rows(self, z: np.ndarray, contacts: Sequence[tuple[int, np.ndarray]]) -> np.ndarray:
+    def contact_rows(self, contacts: Sequence[str]) -> list[tuple[int, np.ndarray, list[int]]]:
+        """(body, point, world axes) whose velocities a touchdown of `contacts` stops (eq. 7): each foot's point
+        (its vertical axis only when force_dims is 1), and for a flat foot its toe (y, z) and side (z) points,
+        which with the centre stop the whole sole (six independent rows)."""
+        rows = []
+        for name in contacts:
+            rows.append((self.foot_body[name], self.foot_point[name], [0, 1, 2] if self.force_dims == 3 else [2]))
+            if name in self.flat_feet:
+                rows.append((self.foot_body[name], self.foot_point[f"{name}/toe"], [1, 2]))
+                rows.append((self.foot_body[name], self.foot_point[f"{name}/side"], [2]))
+        return rows
+
+    def contact_jacobian(self, q: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
+        """(B, r, nv): the world-aligned linear Jacobians of the `contact_rows` of the named feet at q (B, nq)."""
+        q = self.configuration(q)
+        return np.concatenate([np.asarray(lk.jacobian(self.model, q, body, point, "local_world_aligned"))[:, axes]
+                               for body, point, axes in self.contact_rows(contacts)], axis=1)
+
+    def impact_rows(self, z: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
         """The inelastic impact (eq. 7, as `lk.impact`) in implicit form at z = [q-, v-, v+, Lambda] (B, .):
         M(q) (v+ - v-) - J^T Lambda (nv rows) and J v+ (force_dims k rows), J = `contact_jacobian`."""
         nq, nv = self.nq, self.nv
@@ -460,19 +550,18 @@ class MultiphaseProblem:
         nq, nx, nv = self.nq, self.nx, self.nv
         if k not in self.impulse_index:
             return equal(nv, start[nq:nx], end[nq:nx])
-        contacts = [(self.foot_body[n], self.foot_point[n]) for n in self.phases[after].contacts]
+        contacts = self.phases[after].contacts
+        rows = self.contact_rows(contacts)
 
         def symbolic(model, z):
             import casadi as ca
 
             q, v_minus, v_plus, impulses = z[:nq], z[nq : nq + nv], z[nq + nv : nq + 2 * nv], z[nq + 2 * nv :]
-            jac = model.contact_jacobian(q, contacts)
-            if self.force_dims == 1:
-                jac = jac[2::3, :]
+            jac = ca.vertcat(*[model.contact_jacobian(q, [(body, point)])[axes, :] for body, point, axes in rows])
             return ca.vertcat(model.mass_matrix(q) @ (v_plus - v_minus) - jac.T @ impulses, jac @ v_plus)
 
         index = np.concatenate([end[:nx], start[nq:nx], self.impulse_index[k]])[None]
-        return Point(index, lambda z: self.impact_rows(z, contacts), nv + self.force_dims * len(contacts), symbolic=symbolic)
+        return Point(index, lambda z: self.impact_rows(z, contacts), nv + len(self.impulse_index[k]), symbolic=symbolic)
 
     def _torque_speed_blocks(self) -> list[Block]:
         """(w_max - |w|) k - |u| >= 0 as four linear faces per actuated joint and point."""
@@ -544,10 +633,10 @@ class MultiphaseProblem:
         values = np.concatenate([b.jacobian(x) for b in self.blocks])
         return np.bincount(self._entry, weights=values, minlength=len(self.jac_rows))
 
-    def nlp(self, derivatives: str = "legkit") -> NLP:
+    def nlp(self, derivatives: str = "legkit", objective: bool = True) -> NLP:
         """The NLP. derivatives="legkit": legkit's kernels with coloured central differences (IPOPT then uses
         L-BFGS); "exact": also its symbolic mirror (`legkit.optimize.symbolic`, built once per problem), with
-        which IPOPT has exact Jacobians and Hessians."""
+        which IPOPT has exact Jacobians and Hessians. objective=False: the constraints alone (objective 0)."""
         if derivatives not in ("legkit", "exact"):
             raise ValueError(f"derivatives must be 'legkit' or 'exact', got {derivatives!r}")
         lower, upper = self.bounds()
@@ -556,19 +645,22 @@ class MultiphaseProblem:
             if getattr(self, "_symbolic", None) is None:
                 from legkit.optimize.symbolic import transcription
 
-                self._symbolic = transcription(self)
-            symbolic = self._symbolic
+                x, f, g = transcription(self)
+                self._symbolic = {True: (x, f, g), False: (x, 0.0 * x[0], g)}
+            symbolic = self._symbolic[objective]
+        f, gradient = (self.objective, self.gradient) if objective else (lambda x: 0.0, lambda x: np.zeros(self.n))
         return NLP(lower, upper, np.concatenate([b.lower for b in self.blocks]), np.concatenate([b.upper for b in self.blocks]),
-                   self.objective, self.gradient, self.constraints, self.jacobian, self.jac_rows, self.jac_cols, symbolic)
+                   f, gradient, self.constraints, self.jacobian, self.jac_rows, self.jac_cols, symbolic)
 
     def solve(self, guess: Trajectory | np.ndarray, derivatives: str = "exact", feasibility_first: bool = False,
               **options) -> tuple[Trajectory, SolveResult]:
         """Solve from a guess (a Trajectory or a variable vector), with exact derivatives (default) or legkit's
         differences (`nlp`); options go to `legkit.optimize.solver.solve`.
 
-        feasibility_first (problems with a MinMaxStability term): continuation in two IPOPT runs, first the
-        constraints alone with p1 held below every S_H row, then the objective from that feasible point with p1
-        at its worst S_H row. The result's iterations, times and history cover both runs."""
+        feasibility_first: continuation in two IPOPT runs, first the constraints alone, then the objective from
+        that feasible point. With a MinMaxStability term the first run holds p1 below every S_H row and the
+        second starts p1 at the worst S_H row; otherwise the first run's objective is 0. The result's
+        iterations, times and history cover both runs."""
         x0 = self.gauged(self.pack(guess) if isinstance(guess, Trajectory) else guess)
         nlp = self.nlp(derivatives)
         if feasibility_first and self.uses_p1:
@@ -582,6 +674,9 @@ class MultiphaseProblem:
             x0[self.p1_index] += min(b.values(x0).min() for b in self.stability_blocks)
             result = solve(nlp, x0, **options)
             result = result.after(first)
+        elif feasibility_first:
+            first = solve(self.nlp(derivatives, objective=False), x0, **options)
+            result = solve(nlp, first.x, **options).after(first)
         else:
             result = solve(nlp, x0, **options)
         return self.unpack(result.best()[0]), result
@@ -605,9 +700,11 @@ class MultiphaseProblem:
             count = len(self.phases[k].contacts)
             forces = np.asarray(trajectory.forces[k], dtype=np.float64).reshape(len(index), count, 3)
             parts.append((forces if self.force_dims == 3 else forces[..., 2:]).reshape(len(index), -1))
+            flat = len(self.flat_contacts(self.phases[k].contacts))
+            parts.append(np.zeros((len(index), 3 * flat)) if trajectory.torques is None else trajectory.torques[k])
             z = np.concatenate([np.asarray(p, dtype=np.float64).reshape(len(index), -1) for p in parts], axis=1)
             if self.transcription == "inverse":
-                a = trajectory.a[k] if trajectory.a is not None else self.state_rate(z, self.phases[k].contacts)[:, self.nq :]
+                a = trajectory.a[k] if trajectory.a is not None else self.state_rate(z, k)[:, self.nq :]
                 z = np.concatenate([z, np.asarray(a, dtype=np.float64).reshape(len(index), -1)], axis=1)
             if z.shape != index.shape:
                 raise ValueError(f"trajectory phase {k} has {z.shape} point values, the problem needs {index.shape}")
@@ -617,25 +714,25 @@ class MultiphaseProblem:
         count = len(self.phases)
         for k, index in self.impulse_index.items():  # least-squares impulses of the trajectory's own velocity jump
             end, start = self.point_index[k][-1], self.point_index[(k + 1) % count][0]
-            contacts = [(self.foot_body[n], self.foot_point[n]) for n in self.phases[(k + 1) % count].contacts]
             q = x[end[: self.nq]][None]
             jump = np.asarray(lk.crba(self.model, self.configuration(q)))[0] @ (x[start[self.nq : self.nx]] - x[end[self.nq : self.nx]])
-            x[index] = np.linalg.lstsq(self.contact_jacobian(q, contacts)[0].T, jump, rcond=None)[0]
+            x[index] = np.linalg.lstsq(self.contact_jacobian(q, self.phases[(k + 1) % count].contacts)[0].T, jump, rcond=None)[0]
         return x
 
     def unpack(self, x: np.ndarray) -> Trajectory:
         durations = x[self.duration_index].copy()
         starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
-        t, q, v, u, forces, a = [], [], [], [], [], []
+        t, q, v, u, forces, a, torques = [], [], [], [], [], [], []
         for k, index in enumerate(self.point_index):
             z = x[index]
+            torques.append(z[:, self.torque_columns[k]].reshape(len(z), -1, 3))
             t.append(starts[k] + np.linspace(0.0, durations[k], len(index)))
             q.append(z[:, : self.nq])
             v.append(z[:, self.nq : self.nx])
             u.append(z[:, self.nx : self.nx + self.nu])
             forces.append(self.world_forces(z[:, self.force_columns[k]], len(self.phases[k].contacts)))
             a.append(self.rate(z, k)[:, self.nq :])
-        return Trajectory(t, q, v, u, forces, durations, float(x[self.p1_index]), a)
+        return Trajectory(t, q, v, u, forces, durations, float(x[self.p1_index]), a, torques)
 
 
 def _norm(vector):
@@ -726,9 +823,12 @@ class _InverseDynamics:
         mask[:, :nq], mask[:, nq:nx], mask[:, problem.a_columns[k]] = vq, vv, vv
         mask[problem.actuated, nx + np.arange(nu)] = True
         forces = np.arange(nz)[problem.force_columns[k]].reshape(len(self.contacts), problem.force_dims)
+        torques = np.arange(nz)[problem.torque_columns[k]].reshape(-1, 3)
         for c, name in enumerate(self.contacts):
             mask[np.ix_(reach[name], forces[c])] = True
-        self.columns = np.r_[np.arange(nx), forces.ravel()]  # differenced; a and u are exact
+        for c, name in enumerate(problem.flat_contacts(self.contacts)):
+            mask[np.ix_(reach[name], torques[c])] = True
+        self.columns = np.r_[np.arange(nx), forces.ravel(), torques.ravel()]  # differenced; a and u are exact
         r, c = np.nonzero(mask)
         self._r, self._c = r, c
         self.rows = (np.arange(len(index))[:, None] * nv + r[None]).ravel()
@@ -737,7 +837,7 @@ class _InverseDynamics:
     def residual(self, z: np.ndarray) -> np.ndarray:
         problem = self.problem
         q = problem.configuration(z[:, : problem.nq])
-        f_ext = problem.external_wrenches(q, z[:, problem.force_columns[self.k]], self.contacts)
+        f_ext = problem.external_wrenches(q, z[:, problem.force_columns[self.k]], self.contacts, z[:, problem.torque_columns[self.k]])
         generalized = np.asarray(lk.rnea(problem.model, q, z[:, problem.nq : problem.nx], z[:, problem.a_columns[self.k]], f_ext))
         return generalized - problem.tau(z[:, problem.nx : problem.nx + problem.nu])
 
@@ -758,7 +858,8 @@ class _InverseDynamics:
 class _Feet:
     """The feet at every point of phase k, from one batched forward-kinematics difference over q: stance feet
     on the ground (height 0) and, with 3-D forces, at the foothold where the phase began (x, y); swing tips at
-    or above the ground (eq. 4).
+    or above the ground (eq. 4). A flat foot's toe and side points (`FlatFoot`) are at height 0 in stance, the
+    toe also at its first y (the sole flat and unturned), and at or above the ground in swing.
 
     A phase's first point is the previous phase's last (the same q, up to the periodic shift along the ground),
     so a foot's height there is stated once: a foot down on both sides of the boundary by the earlier phase,
@@ -769,7 +870,8 @@ class _Feet:
         self.problem = problem
         index = problem.point_index[k]
         self.index = index[:, : problem.nq]
-        names = problem.foot_names
+        names = problem.foot_names + list(problem.sole_points)
+        owner = [problem.sole_points.get(name, name) for name in names]  # the foot a sole point belongs to
         self.names = names
         points, nq, count = len(index), problem.nq, len(names)
         tree, q_body, _ = problem.tree()
@@ -800,14 +902,16 @@ class _Feet:
         before = problem.phases[k - 1].contacts if (k > 0 or linked) else None
         after = problem.phases[(k + 1) % count_phases].contacts if (k < count_phases - 1 or linked) else None
         for point in range(points):
-            for foot, name in enumerate(names):
-                if (point == 0 and before is not None and name in before) or (point == points - 1 and after is not None
-                                                                              and name in after and name not in problem.phases[k].contacts):
+            for foot, (name, foot_name) in enumerate(zip(names, owner)):
+                if (point == 0 and before is not None and foot_name in before) or (
+                        point == points - 1 and after is not None and foot_name in after and foot_name not in problem.phases[k].contacts):
                     continue  # the height at this shared point is stated by the neighbouring phase
-                if name in problem.phases[k].contacts:
+                if foot_name in problem.phases[k].contacts:
                     add(point, foot, 2, False, False)
-                    if problem.force_dims == 3 and point > 0:
+                    if name == foot_name and problem.force_dims == 3 and point > 0:
                         add(point, foot, 0, False, True)
+                        add(point, foot, 1, False, True)
+                    elif name.endswith("/toe") and point > 0:
                         add(point, foot, 1, False, True)
                 else:
                     add(point, foot, 2, True, False)  # swing: height >= 0

@@ -192,7 +192,7 @@ def solve(
     ipopt.update(options or {})
     key = None
     if nlp.symbolic is not None:  # building casadi's solver (SX expansion, Hessian graph) costs seconds: reuse it
-        key = (id(nlp.symbolic[0]), tuple(sorted((k, str(v)) for k, v in ipopt.items())))
+        key = (id(nlp.symbolic[0]), id(nlp.symbolic[1]), tuple(sorted((k, str(v)) for k, v in ipopt.items())))
     if key is not None and key in _SOLVERS:
         solver, state = _SOLVERS[key]
     else:

@@ -313,7 +313,8 @@ def transcription(problem) -> tuple:
 
 
 def residual(problem, model: SymbolicModel, k: int, z):
-    """rnea(q, v, a, J_c^T lambda) - B u at phase k's point variables z (the inverse-dynamics rows)."""
+    """rnea(q, v, a, J_c^T lambda) - B u at phase k's point variables z (the inverse-dynamics rows; lambda: the
+    feet's forces and the flat feet's torques)."""
     ca = _ca()
     contacts = problem.phases[k].contacts
     feet = [(problem.foot_body[n], problem.foot_point[n]) for n in contacts]
@@ -321,7 +322,11 @@ def residual(problem, model: SymbolicModel, k: int, z):
     if problem.force_dims == 1:
         forces = ca.vertcat(*[ca.vertcat(0, 0, forces[c]) for c in range(len(contacts))])
     q, v, a = z[: problem.nq], z[problem.nq : problem.nx], z[problem.a_columns[k]]
-    tau = model.rnea(q, v, a, model.foot_wrenches(q, feet, forces) if contacts else ())
+    wrenches = model.foot_wrenches(q, feet, forces) if contacts else []
+    torques = z[problem.torque_columns[k]]
+    for c, name in enumerate(problem.flat_contacts(contacts)):  # a flat foot's torque, foot frame (`FlatFoot`)
+        wrenches.append((problem.foot_body[name], ca.vertcat(0, 0, 0, torques[3 * c : 3 * c + 3])))
+    tau = model.rnea(q, v, a, wrenches)
     actuation = np.zeros((problem.nv, problem.nu))
     actuation[problem.actuated, np.arange(problem.nu)] = 1.0
     return tau - ca.DM(actuation) @ z[problem.nx : problem.nx + problem.nu]
@@ -373,7 +378,7 @@ def objective(problem, model: SymbolicModel, x):
         integral = 0
         for k, index in enumerate(problem.point_index):
             z = ca.SX.sym("z", index.shape[1])
-            integrand = ca.Function("integrand", [z], [term.symbolic(problem, model, z)]).map(index.shape[0])
+            integrand = ca.Function("integrand", [z], [term.symbolic(problem, model, z, k)]).map(index.shape[0])
             weights = ca.DM(_simpson_weights(problem.phases[k].intervals) / (6.0 * problem.phases[k].intervals))
             integral = integral + x[problem.duration_index[k]] * (integrand(_gather(x, index)) @ weights)
         if term.per_distance:
