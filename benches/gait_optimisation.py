@@ -1,5 +1,6 @@
 """Gait optimisation benchmark: the Fig. 3 amble of file 003 (0.67 m/s, period 1.25 s, duty 0.5,
-full 3D model, 19 configuration states) maximising the worst-case S_H (J_s2) on IPOPT.
+full 3D model, 19 configuration states) maximising the worst-case S_H (J_s2) on IPOPT, or (--gait walk) the
+biped walk of Sect. 6 at 1.8 km/h minimising J_e1.
 
 Prints, for a cold start (from `legkit gait`'s hand-built reference, feasibility first) and a warm start (from
 the optimum at a neighbouring speed): IPOPT status, iterations, the symbolic build time, wall time, the share
@@ -7,6 +8,12 @@ of it spent evaluating the functions and their derivatives, the largest constrai
 legkit's kernels, p1 and the worst published S_H (eq. 10).
 
     PYTHONPATH=python python3 benches/gait_optimisation.py [--intervals 4] [--max-iter 1000] [--neighbour 0.6]
+
+The walk (cold, from `legkit gait`'s hand-built walk, constraints first by `solve_walk`): status, iterations,
+wall and CPU time of the solve, the evaluation share, the violation re-evaluated by legkit's kernels, J_e1
+and the largest RNEA residual recomputed by `lk.rnea`.
+
+    PYTHONPATH=python python3 benches/gait_optimisation.py --gait walk [--intervals 4] [--max-iter 600]
 """
 
 from __future__ import annotations
@@ -14,9 +21,14 @@ from __future__ import annotations
 import argparse
 import time
 
+import numpy as np
+
 import legkit.optimize as lo
-from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR
-from legkit.optimize.gaits import AMBLE_DERIVATIVES, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference
+from legkit.experiments.gait import AMBLE_QUADRUPED, BIPED_MOTOR, QUADRUPED_MOTOR, inverse_dynamics_residuals
+from legkit.optimize.gaits import (
+    AMBLE_DERIVATIVES, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference, solve_walk, walk_problem, walk_reference,
+)
+from legkit.robots.biped import build_biped
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
 
 
@@ -30,15 +42,37 @@ def report(label: str, problem: lo.MultiphaseProblem, result: lo.SolveResult, bu
           f"{problem.nlp().violation(x):10.2e} {-objective:9.4g} {s_h:9.4g}", flush=True)
 
 
+def walk(args: argparse.Namespace) -> None:
+    """The biped walk at 0.5 m/s minimising J_e1, cold (module docstring)."""
+    robot = build_biped()
+    intervals = (max(1, args.intervals // 4), args.intervals)
+    problem = walk_problem(robot, 0.5, BIPED_MOTOR, intervals)
+    guess = guess_from_reference(problem, walk_reference(robot, 0.5, intervals))
+    print(f"biped walk, 1.8 km/h, intervals {intervals} per (double, single) support, tol {args.tol:g}: {problem.n} variables, "
+          f"{problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros; constraints (legkit, L-BFGS), then J_e1 (exact)")
+    cpu = time.process_time()
+    _, result = solve_walk(problem, guess, tol=args.tol, max_iter=args.max_iter)
+    cpu = time.process_time() - cpu
+    x, objective = result.best()
+    residual = max(np.abs(r).max() for r in inverse_dynamics_residuals(problem, x))
+    print(f"{'status':<28} {'iter':>6} {'wall [s]':>9} {'CPU [s]':>8} {'f+J [%]':>8} {'violation':>10} {'J_e1 [J/m]':>11} {'|rnea - Bu|':>12}")
+    print(f"{result.status:<28} {result.iterations:6d} {result.wall_time:9.2f} {cpu:8.2f} {100.0 * result.evaluation_time / result.wall_time:8.1f} "
+          f"{problem.nlp().violation(x):10.2e} {objective:11.5g} {residual:12.2e}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--intervals", type=int, default=4, help="collocation intervals per phase")
+    parser.add_argument("--gait", choices=("amble", "walk"), default="amble")
+    parser.add_argument("--intervals", type=int, default=4, help="collocation intervals per (amble / single-support) phase")
     parser.add_argument("--max-iter", type=int, default=300, help="IPOPT iteration limit (per continuation stage)")
     parser.add_argument("--tol", type=float, default=1e-6)
     parser.add_argument("--speed", type=float, default=0.67)
     parser.add_argument("--neighbour", type=float, default=0.60, help="speed [m/s] whose optimum warm-starts --speed")
     parser.add_argument("--derivatives", choices=("exact", "legkit"), default=AMBLE_DERIVATIVES)
     args = parser.parse_args()
+    if args.gait == "walk":
+        walk(args)
+        return
     robot = build_quadruped(AMBLE_QUADRUPED)
     objective = [lo.MinMaxStability(2.0, DIAGONAL_PAIRS)]
     options = {"tol": args.tol, "max_iter": args.max_iter, "derivatives": args.derivatives, "options": AMBLE_IPOPT}

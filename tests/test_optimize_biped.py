@@ -17,7 +17,6 @@ from legkit.experiments.gait import BIPED_MOTOR
 from legkit.optimize import FlatFoot, MultiphaseProblem, Phase, fri_deviation, joule_loss
 from legkit.optimize.gaits import SOLE_TORSION, WALK_SUPPORT, guess_from_reference, walk_problem, walk_reference
 from legkit.optimize.solver import solve
-from legkit.optimize.symbolic import transcription
 from legkit.robots.biped import SIDES, build_biped
 
 COARSE = (1, 1)  # intervals per double- and single-support phase: 12 collocation points per cycle
@@ -38,11 +37,10 @@ def walk(robot):
 
 
 @pytest.fixture(scope="module")
-def feasible(robot):
-    """The coarse J_e1 walk after IPOPT's constraint stage: a point that meets every constraint."""
-    problem = walk_problem(robot, SPEED, BIPED_MOTOR, COARSE)
-    x0 = problem.gauged(problem.pack(guess_from_reference(problem, walk_reference(robot, SPEED, COARSE))))
-    return problem, solve(problem.nlp("exact", objective=False), x0, max_iter=200)
+def feasible(walk):
+    """The coarse walk after the constraint stage of `solve_walk`: a point that meets every constraint."""
+    problem, x0 = walk
+    return problem, solve(problem.nlp("legkit", objective=False), x0, max_iter=200)
 
 
 def test_foot_torque_rows_are_eq6_and_keep_the_centre_of_pressure_on_the_sole(robot):
@@ -169,7 +167,7 @@ def test_derivatives_of_flat_feet_and_j_s1_match_central_differences(walk):
 
 def test_symbolic_transcription_of_flat_feet_and_j_s1_equals_the_legkit_one(walk):
     problem, x = walk
-    symbol, objective, rows = transcription(problem)
+    symbol, objective, rows = problem.nlp("exact").symbolic
     evaluate = ca.Function("nlp", [symbol], [objective, rows])
     f, g = evaluate(x)
     np.testing.assert_allclose(np.asarray(g).ravel(), problem.constraints(x), rtol=1e-9, atol=1e-8)

@@ -559,7 +559,7 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
     IPOPT iteration. Writes gait_biped_optimized.csv (every collocation point: t, phase, support, q, v, u, the
     feet's forces and torques) and gait_biped_torque_speed.png (Fig. 6: each joint's (speed, torque) points over
     the period against the motor's characteristic lines for several gear ratios)."""
-    from legkit.optimize.gaits import guess_from_reference, walk_problem, walk_reference
+    from legkit.optimize.gaits import guess_from_reference, solve_walk, walk_problem, walk_reference
 
     robot = build_biped()
     speed = args.biped_speed / 3.6
@@ -568,8 +568,7 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
     guess = guess_from_reference(problem, walk_reference(robot, speed, intervals))
     print(f"optimising the biped walk: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
     cpu = time.process_time()
-    _, result = problem.solve(guess, derivatives="exact", feasibility_first=True, tol=args.tol, max_iter=args.max_iter,
-                              progress=_iteration_printer("J_e1"))
+    _, result = solve_walk(problem, guess, tol=args.tol, max_iter=args.max_iter, progress=_iteration_printer("J_e1"))
     cpu = time.process_time() - cpu
     x, objective = result.best()
     trajectory = problem.unpack(x)

@@ -22,6 +22,7 @@ from legkit.experiments.gait import (
 )
 from legkit.optimize.objectives import joule_loss
 from legkit.optimize.problem import FlatFoot, MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
+from legkit.optimize.solver import SolveResult, solve
 from legkit.robots.biped import SIDES, Biped
 from legkit.robots.quadruped import LEGS, Quadruped
 
@@ -89,6 +90,10 @@ WALK_SUPPORT = (("l", "r"), ("l",), ("l", "r"), ("r",))
 #: mu_d of eq. 6 [m] for the biped's soles; the paper gives no value (`walk_problem`).
 SOLE_TORSION = 0.04
 
+#: IPOPT options for the walk's J_e1 stage: the monotone barrier update (from the same feasible point, adaptive
+#: reached J_e1 13.6 J/m in 300 iterations, monotone 8.7 J/m in 190; docs/optimize.md).
+WALK_IPOPT = {"mu_strategy": "monotone"}
+
 
 def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: tuple[int, int] = (1, 4),
                  friction: float = 0.8, max_tilt: float = np.radians(10.0), max_swing_height: float = 0.15,
@@ -131,6 +136,16 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
     return MultiphaseProblem(model, phases, feet, objectives, speed=speed, period=period, friction=friction,
                              u_bounds=(np.full(nu, -stall), np.full(nu, stall)), torque_speed=line, q_bounds=(lower, upper),
                              max_swing_height=max_swing_height, flat_feet={side: sole for side in SIDES})
+
+
+def solve_walk(problem: MultiphaseProblem, guess: Trajectory, **options) -> tuple[Trajectory, SolveResult]:
+    """The walk in two IPOPT runs: the constraints alone with legkit's derivatives and L-BFGS (on the coarse
+    walk 9 iterations, 0.7 s CPU; with the exact Hessian 97 iterations, 8.6 s, plus 4 s to build the symbolic
+    transcription), then the objective with exact derivatives (`WALK_IPOPT`) from that feasible point. options
+    go to `legkit.optimize.solver.solve` in both runs; the result covers both."""
+    first = solve(problem.nlp("legkit", objective=False), problem.gauged(problem.pack(guess)), **options)
+    trajectory, result = problem.solve(first.x, derivatives="exact", **{**options, "options": {**WALK_IPOPT, **options.get("options", {})}})
+    return trajectory, result.after(first)
 
 
 def walk_reference(robot: Biped, speed: float, intervals: tuple[int, int] = (1, 4), step_length: float = 0.4) -> GaitReference:

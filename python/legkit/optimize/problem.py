@@ -657,10 +657,9 @@ class MultiphaseProblem:
         """Solve from a guess (a Trajectory or a variable vector), with exact derivatives (default) or legkit's
         differences (`nlp`); options go to `legkit.optimize.solver.solve`.
 
-        feasibility_first: continuation in two IPOPT runs, first the constraints alone, then the objective from
-        that feasible point. With a MinMaxStability term the first run holds p1 below every S_H row and the
-        second starts p1 at the worst S_H row; otherwise the first run's objective is 0. The result's
-        iterations, times and history cover both runs."""
+        feasibility_first (problems with a MinMaxStability term): continuation in two IPOPT runs, first the
+        constraints alone with p1 held below every S_H row, then the objective from that feasible point with p1
+        at its worst S_H row. The result's iterations, times and history cover both runs."""
         x0 = self.gauged(self.pack(guess) if isinstance(guess, Trajectory) else guess)
         nlp = self.nlp(derivatives)
         if feasibility_first and self.uses_p1:
@@ -674,9 +673,6 @@ class MultiphaseProblem:
             x0[self.p1_index] += min(b.values(x0).min() for b in self.stability_blocks)
             result = solve(nlp, x0, **options)
             result = result.after(first)
-        elif feasibility_first:
-            first = solve(self.nlp(derivatives, objective=False), x0, **options)
-            result = solve(nlp, first.x, **options).after(first)
         else:
             result = solve(nlp, x0, **options)
         return self.unpack(result.best()[0]), result
