@@ -26,7 +26,8 @@ import numpy as np
 import legkit.optimize as lo
 from legkit.experiments.gait import AMBLE_QUADRUPED, BIPED_MOTOR, QUADRUPED_MOTOR, inverse_dynamics_residuals
 from legkit.optimize.gaits import (
-    AMBLE_DERIVATIVES, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference, solve_walk, walk_problem, walk_reference,
+    AMBLE_DERIVATIVES, AMBLE_IPOPT, WALK_DERIVATIVES, amble_problem, amble_reference, guess_from_reference, solve_walk, walk_problem,
+    walk_reference,
 )
 from legkit.robots.biped import build_biped
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
@@ -44,14 +45,15 @@ def report(label: str, problem: lo.MultiphaseProblem, result: lo.SolveResult, bu
 
 def walk(args: argparse.Namespace) -> None:
     """The biped walk at 0.5 m/s minimising J_e1, cold (module docstring)."""
+    derivatives = args.derivatives or WALK_DERIVATIVES
     robot = build_biped()
     intervals = (max(1, args.intervals // 4), args.intervals)
     problem = walk_problem(robot, 0.5, BIPED_MOTOR, intervals)
     guess = guess_from_reference(problem, walk_reference(robot, 0.5, intervals))
     print(f"biped walk, 1.8 km/h, intervals {intervals} per (double, single) support, tol {args.tol:g}: {problem.n} variables, "
-          f"{problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros; constraints (legkit, L-BFGS), then J_e1 (exact)")
+          f"{problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros; constraints (legkit, L-BFGS), then J_e1 ({derivatives})")
     cpu = time.process_time()
-    _, result = solve_walk(problem, guess, tol=args.tol, max_iter=args.max_iter)
+    _, result = solve_walk(problem, guess, derivatives, tol=args.tol, max_iter=args.max_iter)
     cpu = time.process_time() - cpu
     x, objective = result.best()
     residual = max(np.abs(r).max() for r in inverse_dynamics_residuals(problem, x))
@@ -68,11 +70,12 @@ def main() -> None:
     parser.add_argument("--tol", type=float, default=1e-6)
     parser.add_argument("--speed", type=float, default=0.67)
     parser.add_argument("--neighbour", type=float, default=0.60, help="speed [m/s] whose optimum warm-starts --speed")
-    parser.add_argument("--derivatives", choices=("exact", "legkit"), default=AMBLE_DERIVATIVES)
+    parser.add_argument("--derivatives", choices=("exact", "legkit"), help="default: the gait's (AMBLE_ / WALK_DERIVATIVES)")
     args = parser.parse_args()
     if args.gait == "walk":
         walk(args)
         return
+    args.derivatives = args.derivatives or AMBLE_DERIVATIVES
     robot = build_quadruped(AMBLE_QUADRUPED)
     objective = [lo.MinMaxStability(2.0, DIAGONAL_PAIRS)]
     options = {"tol": args.tol, "max_iter": args.max_iter, "derivatives": args.derivatives, "options": AMBLE_IPOPT}

@@ -51,7 +51,7 @@ from tqdm import tqdm
 
 import legkit as lk
 import legkit.stability as st
-from legkit.robots.biped import SIDES, Biped, build_biped
+from legkit.robots.biped import JOINT_LABELS, SIDES, Biped, build_biped
 from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, Quadruped, QuadrupedParameters, build_quadruped
 
 STANDARD_GRAVITY = 9.81
@@ -642,9 +642,9 @@ def plot_torque_speed(path: Path, robot: Biped, joint_speed: np.ndarray, torque:
             axis.plot([0.0, w_max * rpm], [w_max * gain, 0.0], color="k", ls=style, lw=0.8, label=f"{gear:g}:1")
         for column, side in zip(columns, ("left", "right")):
             axis.plot(np.abs(joint_speed[:, column]) * rpm, np.abs(torque[:, column]), ".", ms=4, label=side)
-        axis.set_title(name.replace("_", " "), fontsize=9)
+        axis.set_title(JOINT_LABELS[name], fontsize=9)
         axis.set_ylim(0.0, 1.3 * top)
-        axis.set_xlim(0.0, motor.no_load_speed / FIG6_GEAR_RATIOS[-1] * rpm * 1.5)
+        axis.set_xlim(0.0, 1.05 * motor.no_load_speed / min(FIG6_GEAR_RATIOS) * rpm)  # every line's no-load speed
     for axis in axes[-1]:
         axis.set_xlabel("|joint speed| [rpm]")
     for axis in axes[:, 0]:

@@ -90,9 +90,13 @@ WALK_SUPPORT = (("l", "r"), ("l",), ("l", "r"), ("r",))
 #: mu_d of eq. 6 [m] for the biped's soles; the paper gives no value (`walk_problem`).
 SOLE_TORSION = 0.04
 
-#: IPOPT options for the walk's J_e1 stage: the monotone barrier update (from the same feasible point, adaptive
-#: reached J_e1 13.6 J/m in 300 iterations, monotone 8.7 J/m in 190; docs/optimize.md).
+#: IPOPT options for the walk's J_e1 stage: the monotone barrier update (exact Hessian, from the same feasible
+#: point: adaptive reached J_e1 13.6 J/m in 300 iterations, monotone 8.7 J/m in 190; docs/optimize.md).
 WALK_IPOPT = {"mu_strategy": "monotone"}
+
+#: Derivatives for the walk's J_e1 stage: legkit's kernels with L-BFGS reached a lower J_e1 in a third of the CPU
+#: time of the exact Hessian (3.0 vs 6.9 J/m after 550-600 iterations, 92 vs 274 s CPU; docs/optimize.md).
+WALK_DERIVATIVES = "legkit"
 
 
 def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: tuple[int, int] = (1, 4),
@@ -138,13 +142,14 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
                              max_swing_height=max_swing_height, flat_feet={side: sole for side in SIDES})
 
 
-def solve_walk(problem: MultiphaseProblem, guess: Trajectory, **options) -> tuple[Trajectory, SolveResult]:
+def solve_walk(problem: MultiphaseProblem, guess: Trajectory, derivatives: str = WALK_DERIVATIVES,
+               **options) -> tuple[Trajectory, SolveResult]:
     """The walk in two IPOPT runs: the constraints alone with legkit's derivatives and L-BFGS (on the coarse
     walk 9 iterations, 0.7 s CPU; with the exact Hessian 97 iterations, 8.6 s, plus 4 s to build the symbolic
-    transcription), then the objective with exact derivatives (`WALK_IPOPT`) from that feasible point. options
+    transcription), then the objective with `derivatives` and `WALK_IPOPT` from that feasible point. options
     go to `legkit.optimize.solver.solve` in both runs; the result covers both."""
     first = solve(problem.nlp("legkit", objective=False), problem.gauged(problem.pack(guess)), **options)
-    trajectory, result = problem.solve(first.x, derivatives="exact", **{**options, "options": {**WALK_IPOPT, **options.get("options", {})}})
+    trajectory, result = problem.solve(first.x, derivatives=derivatives, **{**options, "options": {**WALK_IPOPT, **options.get("options", {})}})
     return trajectory, result.after(first)
 
 

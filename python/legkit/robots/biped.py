@@ -26,6 +26,9 @@ from legkit.robots.legs import limb_segment, model_to_urdf, roll_pitch_knee_ik
 
 SIDES = ("l", "r")
 LEG_JOINTS = ("hip_yaw", "hip_roll", "thigh", "shank", "ankle", "foot")  # body names after the side prefix
+#: The joint each body's revolute joint is, by body name after the side prefix (legs, then arms).
+JOINT_LABELS = {"hip_yaw": "hip yaw", "hip_roll": "hip roll", "thigh": "hip pitch", "shank": "knee", "ankle": "ankle pitch",
+                "foot": "ankle roll", "shoulder": "shoulder pitch", "arm": "shoulder roll"}
 
 
 @dataclass(frozen=True)
