@@ -14,11 +14,11 @@ connector) pair, and a payload is addressed by its sending connector only (conne
   time. By default all draws come from the generator the network hands the channels (seeded with
   ``seed``); with ``streams``, consecutive groups of modules that share no link (e.g. the separate robots of
   a batch of runs) draw from generators of their own, seeded with the group's seed, so what one group's
-  messages go through does not depend on the other groups. Reliability on top: every data message carries a per-link sequence number; the receiver keeps
-  only a message newer than the newest it accepted on that connector (so duplicates and overtaken messages
-  are ignored) and acknowledges every data message it receives (acknowledgements travel through the same
-  unreliable network); the sender retransmits its latest payload every ``retransmit_after`` ticks until
-  that payload's sequence number is acknowledged. So once losses stop, every link ends with its latest
+  messages go through does not depend on the other groups. Reliability on top: every data message carries
+  a per-link sequence number; the receiver keeps only a message newer than the newest it accepted on that
+  connector (so duplicates and overtaken messages are ignored) and acknowledges every data message it
+  receives (acknowledgements travel through the same unreliable network); the sender retransmits its
+  latest payload every ``retransmit_after`` ticks until that payload's sequence number is acknowledged. So once losses stop, every link ends with its latest
   payload delivered, and the network falls silent.
 """
 
@@ -85,6 +85,9 @@ class Channel:
     ``partner`` / ``partner_slot`` (N, S) give the module and connector mated to each connector (-1: free).
     Counters: ``transmissions`` (data messages put on the wire, including retransmissions; per sending module
     in ``sent_by_module``), ``acknowledgements``, ``retransmissions``, ``lost``, ``duplicated``.
+
+    ``rng`` is the network's generator: the asynchronous channel draws from it, or with ``config.streams``
+    seeds its streams' generators from it. The streams cannot change afterwards (``config`` may otherwise).
 
     Internally a connector is addressed by its link number ``module * S + slot``, so that the per-connector
     state is read and written with one flat index per message.
