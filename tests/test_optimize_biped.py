@@ -211,7 +211,7 @@ def test_walk_solution_meets_dynamics_feet_and_motor_limits_in_legkit_kernels(ro
 
 def test_cli_optimize_walks_the_biped_printing_each_iteration_and_writing_csv_and_figure(tmp_path, capsys):
     iterations = 2
-    assert gait.main(["--robot", "biped", "--optimize", "--biped-intervals", "1", "--max-iter", str(iterations), "--out", str(tmp_path)]) == 0
+    assert gait.main(["--robot", "biped", "--optimize", "--biped-intervals", "1", "--biped-max-iter", str(iterations), "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert sum(line.strip().startswith("iter ") and "J_e1" in line for line in out.splitlines()) == 2 * (iterations + 1)
     assert "J_e1 (eq. 12) [J/m]" in out and "max |rnea - B u| (lk.rnea)" in out
