@@ -45,7 +45,7 @@ Run: ``python benches/simulation_vs_mujoco.py [--modules 21 51 101] [--seconds 1
 simulated time timed per engine and scene (1.0: ten blocks of 100 steps); ``--quick`` is a smoke test
 (21 modules, five blocks of 50 steps, ~10 s); a full run takes about 3 minutes on 2 cores, most of it
 MuJoCo and legkit on the 101-module tree and Rapier within its budget. ``--solver-iterations`` sets the
-tree engine's contact-solver sweeps (its cost on contact-rich trees grows about linearly with them).
+tree engine's most contact-solver (Newton) iterations per step.
 At the default 0.3 s of settling the trees are still sagging and swaying (they come to rest after ~2 s
 in every engine); legkit's iterative contact solver stops early once converged, so its tree step time
 varies with the motion far more than MuJoCo's (see the block min-max); ``--settle 2`` times the resting
@@ -800,7 +800,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="untimed simulated seconds before timing (0.3: the trees are still sagging and swaying; "
                              "about 2 s brings them to rest)")
     parser.add_argument("--solver-iterations", type=int, default=SOLVER_ITERATIONS,
-                        help="legkit tree engine's most contact-solver sweeps per step (default: legkit's)")
+                        help="legkit tree engine's most contact-solver iterations per step (default: legkit's)")
     args = parser.parse_args(argv)
     SOLVER_ITERATIONS = args.solver_iterations
     args.block_steps = BLOCK_STEPS

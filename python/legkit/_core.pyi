@@ -200,8 +200,8 @@ class Simulation:
     @property
     def backend(self) -> Literal["tree", "rapier"]: ...
     @property
-    def solver_sweeps(self) -> int | None:
-        """Contact-solver sweeps of the last (sub)step (tree engine); None on Rapier."""
+    def last_solver_iterations(self) -> int | None:
+        """Newton iterations of the contact solver in the last (sub)step (tree engine); None on Rapier."""
     def step(self, tau: npt.ArrayLike | None = None, n: int = 1) -> None:
         """n steps with feed-forward tau (nv,) held over them; GIL released. RuntimeError (naming the step and
         the body) if the state would diverge; the last good state is kept."""

@@ -98,8 +98,8 @@ impl PyGround {
 /// else the uniform box with their mass and principal moments (massless bodies none).
 /// `joint_damping` (N m s/rad) acts on every joint, and `joint_armature` (kg m², a geared motor's
 /// reflected rotor inertia) adds to each joint. `backend` is "tree" (legkit's reduced-coordinate engine:
-/// O(n) dynamics, parry contacts, a warm-started Gauss–Seidel contact solver with at most
-/// `solver_iterations` sweeps, servos and damping integrated implicitly) or "rapier" (Rapier's multibody,
+/// O(n) dynamics, parry contacts, a warm-started Newton contact solver with at most `solver_iterations`
+/// iterations, servos and damping integrated implicitly) or "rapier" (Rapier's multibody,
 /// the reference). Both integrate semi-implicitly to first order in dt / `substeps`.
 /// The robot starts at `model.neutral()`, at rest, at time 0.
 #[pyclass(name = "Simulation", module = "legkit")]
@@ -242,11 +242,11 @@ impl PySimulation {
         Ok(PySimulation { sim })
     }
 
-    /// Contact-solver sweeps of the last (sub)step on the tree engine (it stops once the impulses
-    /// converge, or at `solver_iterations`); None on Rapier.
+    /// Newton iterations of the contact solver in the last (sub)step on the tree engine (it stops once
+    /// the velocities converge, or at `solver_iterations`); None on Rapier.
     #[getter]
-    fn solver_sweeps(&self) -> Option<usize> {
-        self.sim.solver_sweeps()
+    fn last_solver_iterations(&self) -> Option<usize> {
+        self.sim.last_solver_iterations()
     }
 
     /// "tree" or "rapier".

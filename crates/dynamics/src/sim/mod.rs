@@ -66,8 +66,8 @@ pub(crate) trait Engine: Send + Sync {
     fn contacts(&self) -> Vec<Contact>;
     /// Penetration the engine lets stand without correcting it (m).
     fn contact_tolerance(&self) -> f64;
-    /// Contact-solver sweeps of the last (sub)step, where the engine stops on convergence.
-    fn solver_sweeps(&self) -> Option<usize>;
+    /// Contact-solver iterations of the last (sub)step, where the engine stops on convergence.
+    fn solver_iterations(&self) -> Option<usize>;
 }
 
 pub struct Simulation {
@@ -161,9 +161,9 @@ impl Simulation {
         self.engine.contact_tolerance()
     }
 
-    /// Contact-solver sweeps of the last (sub)step (tree engine; None on Rapier, which runs a fixed number).
-    pub fn solver_sweeps(&self) -> Option<usize> {
-        self.engine.solver_sweeps()
+    /// Contact-solver iterations of the last (sub)step (tree engine; None on Rapier, which runs a fixed number).
+    pub fn last_solver_iterations(&self) -> Option<usize> {
+        self.engine.solver_iterations()
     }
 
     /// Moves the robot to (q, v) without touching time, servos or the contact history. Both are checked

@@ -17,7 +17,7 @@ use super::ground::Ground;
 
 /// Edges of default boxes are at least this long (m), so point masses and thin rods still collide.
 pub const MIN_DEFAULT_EDGE: f64 = 1e-3;
-/// Contact-solver sweeps per step of the tree engine unless asked otherwise.
+/// Most contact-solver (Newton) iterations per step of the tree engine unless asked otherwise.
 pub const DEFAULT_SOLVER_ITERATIONS: usize = 20;
 /// Friction coefficient of body-body contacts when there is no ground to take it from.
 pub const DEFAULT_FRICTION: f64 = 0.8;
@@ -215,7 +215,8 @@ pub struct Options {
     /// more accurately at a proportional cost.
     pub substeps: usize,
     pub backend: Backend,
-    /// Most contact-solver sweeps per (sub)step of the tree engine (it stops earlier once converged).
+    /// Most contact-solver (Newton) iterations per (sub)step of the tree engine (it stops earlier once
+    /// converged).
     pub solver_iterations: usize,
 }
 

@@ -92,7 +92,7 @@ impl Engine for RapierSimulation {
         self.world.integration_parameters.allowed_linear_error()
     }
 
-    fn solver_sweeps(&self) -> Option<usize> {
+    fn solver_iterations(&self) -> Option<usize> {
         None
     }
 }

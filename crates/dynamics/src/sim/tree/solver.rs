@@ -1,27 +1,33 @@
-//! The contact solver: projected Gauss–Seidel on soft, regularised constraints, warm-started, in the
-//! u = D^½ L v coordinates of `factor`, body by body.
+//! The contact solver: Newton's method on the primal of soft, regularised contacts (as MuJoCo's Newton
+//! solver, Todorov 2014), on the tree.
 //!
 //! Each constraint is a contact (normal row n and tangent rows t1, t2, one block) or a joint limit (one
 //! row). With A = J M̃⁻¹ Jᵀ its Delassus block and R = ε diag(A) the regularisation, the impulses λ solve
-//!   normal:   λ_n ≥ 0 ⊥ J_n v⁺ − b + R_n λ_n ≥ 0,
-//!   (friction regularised proximally, R_t (λ_t − λ_t,warm): no creep at rest, and the cone bounds it)
-//!   friction: λ_t in the disc |λ_t| ≤ μ λ_n (the elliptic Coulomb cone), sticking or opposing the slip,
-//! where b is the normal velocity the constraint asks for: the gap closed in one step while apart
-//! (speculative contact), a fraction of the penetration while overlapping
-//! (Baumgarte). The regularisation makes the problem strictly convex, so the impulses are unique even
-//! where contacts are redundant (four corners of a box on the ground), and keeps Gauss–Seidel converging.
+//!   min over λ in K of  ½ λᵀ (A + R) λ + λᵀ (J v_free − b),
+//! with K the elliptic Coulomb cone |λ_t| ≤ μ λ_n (λ_n ≥ 0 for a limit) and b the velocities asked for: for
+//! the normal row, the gap closed in one step while apart (speculative contact) or a fraction of the
+//! penetration while overlapping (Baumgarte); for the tangent rows R_t λ_t,warm, which regularises friction
+//! towards last step's (proximally: no creep at rest, and the cone bounds it). The regularisation makes the
+//! problem strictly convex, so the impulses are unique even where contacts are redundant (four corners of
+//! a box on the ground).
 //!
-//! Constraints come in groups that share a body (or a pair of bodies, or a joint coordinate): a group
-//! holds Φ (`factor::Entry`), its 6x6 W = Φᵀ Φ, and each constraint's rows as spatial forces F. A sweep
-//! visits each group once: its velocity w = Φᵀ u (O(depth)), then every constraint of the group in turn,
-//! each update moving w by W F Δλ (O(1)), and finally u += Φ Σ F Δλ (O(depth)). So a sweep costs twice the
-//! depth per body in contact, however many contacts the body has.
+//! Its primal, over the velocities v, is
+//!   min ½ (v − v_free)ᵀ M̃ (v − v_free) + Σ ½ |Π_K̂(−R^-½ (J v − b))|²,
+//! with λ = R^-½ Π_K̂(−R^-½ (J v − b)) and K̂ the cone in the scaled impulses R^½ λ: again a circular cone,
+//! of slope μ̂ = μ (R_t / R_n)^½, since R is the same on both tangent rows. Its Hessian is
+//! H = M̃ + Σ Jᵀ H_c J with each constraint's 3x3 H_c from the zone it is in (apart: 0; sticking: R⁻¹;
+//! sliding: the cone's projection Jacobian). A contact on body b adds Φ_bᵀ (F H_c Fᵀ) Φ_b, a 6x6 stiffness
+//! on b, so H keeps the tree's sparsity and the articulated-body recursion factors it in O(n)
+//! (`articulated`). Each Newton step then costs a few passes over the tree plus O(1) per contact, and an
+//! exact line search along it costs O(1) per contact. Newton converges in a few iterations where
+//! Gauss–Seidel needed hundreds of sweeps: contacts along a chain lying on the ground couple through the
+//! whole chain. A contact between two bodies couples their chains outside the tree's sparsity; its
+//! Hessian is taken on each body alone, which still gives a descent direction.
 
-use std::ops::Range;
+use nalgebra::{Matrix3, Matrix6, Matrix6x3, Vector3, Vector6};
 
-use nalgebra::{Matrix6, Vector6};
-
-use super::factor::Entry;
+use super::articulated::Articulated;
+use crate::model::{Data, Model};
 
 /// Regularisation, relative to the Delassus diagonal: R = ε A_ii. It bounds the impulses of contact sets
 /// that conflict (a body on one joint pressed into the ground at several points) by the velocity error
@@ -37,18 +43,15 @@ pub(super) const MAX_CORRECTION: f64 = 0.5;
 /// a resting body settles at once, its contact forces summing to its weight), so the regularisation's
 /// creep stops a few micrometres in; this bounds what impacts leave behind.
 pub(super) const TOLERANCE: f64 = 2e-4;
-/// Sweeps stop once the velocities' estimated remaining error is at most this fraction of the contacts'
-/// whole change (resting contact forces then sum to the weight within about 1e-7).
+/// Newton stops once its step is at most this fraction of the contacts' whole change of the velocities,
+/// both in the mass-matrix norm; it converges quadratically, so the error left is far smaller.
 pub(super) const CONVERGED: f64 = 1e-7;
-/// The largest contraction per sweep the error estimate assumes.
-const MAX_CONTRACTION: f64 = 0.999;
-/// A constraint whose Delassus diagonal is below this fraction of its group's scale (tr W |F|²) is
-/// immovable: the joints cannot move it along its normal.
+/// A row whose Delassus diagonal is below this fraction of its scale (tr Ω |F|², `Delassus`) is immovable:
+/// the joints cannot move the contact along it (a normal row: it carries nothing; tangent rows: no friction).
 const IMMOVABLE: f64 = 1e-12;
-/// Newton iterations and relative tolerance of a sliding contact's friction on the disc (it converges
-/// quadratically: three or four iterations reach the tolerance).
-const DISC_ITERATIONS: usize = 8;
-const DISC_TOLERANCE: f64 = 1e-12;
+/// The line search's most Newton steps on the slope, and its tolerance relative to the slope at 0.
+const LINE_ITERATIONS: usize = 30;
+const LINE_TOLERANCE: f64 = 1e-4;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Kind {
@@ -58,67 +61,50 @@ pub(super) enum Kind {
     Limit,
 }
 
+/// What a constraint's rows act on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Target {
+    /// A body, and opposite, another body: the rows are spatial forces on them.
+    Bodies(usize, Option<usize>),
+    /// A velocity coordinate: the normal row's first entry is the generalized force on it.
+    Coordinate(usize),
+}
+
 #[derive(Debug, Clone)]
 pub(super) struct Constraint {
     pub kind: Kind,
-    /// The normal velocity asked for (m/s or rad/s).
-    pub bias: f64,
+    target: Target,
     /// Impulses [λ_n, λ_t1, λ_t2] (N s or N m s); warm start in, solution out.
     pub lambda: [f64; 3],
-    /// The friction impulses of the warm start: friction is regularised towards them (proximally), so a
-    /// sticking contact holds its friction from step to step without creeping.
-    warm_friction: [f64; 2],
-    /// Its rows as forces on the group's columns: n, t1, t2.
+    /// Its rows as forces on its target: n, t1, t2.
     rows: [Vector6<f64>; 3],
-    /// W F of each row: how a unit impulse of the row moves the group's velocity.
-    moves: [Vector6<f64>; 3],
-    /// The normal row's coupling to the tangent rows, A_n1 and A_n2, and its regularisation R_n.
-    coupling: [f64; 2],
-    r_n: f64,
-    /// 1 / (A_nn + R_n); zero for an immovable contact.
-    normal_gain: f64,
-    /// The tangent block with its regularisation, Ã = [a b; b d] as [a, b, d], its inverse likewise (None
-    /// where the tangent rows move nothing, a contact the tree cannot slide), and R_t.
-    tangent: [f64; 3],
-    tangent_inverse: Option<[f64; 3]>,
-    r_t: f64,
+    /// The velocities asked for, b: [normal bias, R_t λ_t1,warm, R_t λ_t2,warm].
+    asked: [f64; 3],
+    /// The warm start's friction impulses.
+    held: [f64; 2],
+    /// R_n and R_t; R_n is zero for an immovable constraint (it carries nothing) and R_t for one whose
+    /// tangent rows move nothing (its friction idles at the warm start, within the cone).
+    r: [f64; 2],
+    /// R_n^-½ and R_t^-½ (zero where R is), and μ̂ = μ (R_t / R_n)^½, the slope of the cone in the scaled
+    /// impulses (zero for a limit or a contact without friction rows).
+    inverse_sqrt_r: [f64; 2],
+    cone_slope: f64,
+    /// J v − b at the solver's current velocities, and J d along its step.
+    residual: [f64; 3],
+    slope: [f64; 3],
 }
 
-#[derive(Debug, Clone)]
-pub(super) struct Group {
-    pub entries: Range<usize>,
-    pub constraints: Range<usize>,
-    /// W = Φᵀ Φ.
-    w: Matrix6<f64>,
-}
-
-impl Group {
-    pub(super) fn new(entries: Range<usize>, all: &[Entry]) -> Self {
-        let mut w = Matrix6::zeros();
-        for e in &all[entries.clone()] {
-            for c in 0..6 {
-                for r in c..6 {
-                    w[(r, c)] += e.value[r] * e.value[c];
-                }
-            }
-        }
-        w.fill_upper_triangle_with_lower_triangle();
-        Group { entries, constraints: 0..0, w }
-    }
-
-    /// A constraint of this group whose rows are the forces `rows`, with its warm-start impulses.
-    pub(super) fn constraint(&self, kind: Kind, rows: [Vector6<f64>; 3], bias: f64, warm: [f64; 3]) -> Constraint {
-        let moves = rows.map(|f| self.w * f);
-        // A = [W F_i · F_j]
-        let (nn, t11, t22) = (rows[0].dot(&moves[0]), rows[1].dot(&moves[1]), rows[2].dot(&moves[2]));
-        let (n1, n2, t12) = (rows[0].dot(&moves[1]), rows[0].dot(&moves[2]), rows[1].dot(&moves[2]));
-        let mut lambda = warm;
-        let r_n = REGULARISATION * nn;
-        let immovable = nn <= IMMOVABLE * self.w.trace() * rows[0].norm_squared();
-        if immovable {
-            // No joint moves the contact along its normal: it carries nothing (and so holds no friction).
-            lambda = [0.0; 3];
-        }
+impl Constraint {
+    /// A constraint on `target` whose rows are the forces `rows`, asking for the normal velocity `bias`,
+    /// with its warm-start impulses, its Delassus diagonal `diagonal` (A_ii per row) and the scale
+    /// below which a row counts as immovable (`Delassus`).
+    pub(super) fn new(kind: Kind, target: Target, rows: [Vector6<f64>; 3], bias: f64, warm: [f64; 3], diagonal: [f64; 3], scale: f64) -> Self {
+        let immovable = |a: f64, f: &Vector6<f64>| a <= IMMOVABLE * scale * f.norm_squared();
+        let r_n = if immovable(diagonal[0], &rows[0]) { 0.0 } else { REGULARISATION * diagonal[0] };
+        let tangents = diagonal[1] + diagonal[2];
+        let sliding = matches!(kind, Kind::Contact { .. }) && r_n > 0.0 && !immovable(tangents, &(rows[1] + rows[2]));
+        let r_t = if sliding { REGULARISATION * 0.5 * tangents } else { 0.0 };
+        let mut lambda = if r_n > 0.0 { warm } else { [0.0; 3] };
         lambda[0] = lambda[0].max(0.0);
         match kind {
             Kind::Contact { mu } => clamp_to_cone(&mut lambda, mu),
@@ -127,22 +113,21 @@ impl Group {
                 lambda[2] = 0.0;
             }
         }
-        let r_t = REGULARISATION * 0.5 * (t11 + t22);
-        let (a, b, d) = (t11 + r_t, t12, t22 + r_t);
-        let det = a * d - b * b;
         Constraint {
             kind,
-            bias,
+            target,
             lambda,
-            warm_friction: [lambda[1], lambda[2]],
             rows,
-            moves,
-            coupling: [n1, n2],
-            r_n,
-            normal_gain: if immovable { 0.0 } else { 1.0 / (nn + r_n) },
-            tangent: [a, b, d],
-            tangent_inverse: (det > 0.0).then(|| [d / det, -b / det, a / det]),
-            r_t,
+            asked: [bias, r_t * lambda[1], r_t * lambda[2]],
+            held: [lambda[1], lambda[2]],
+            r: [r_n, r_t],
+            inverse_sqrt_r: [r_n, r_t].map(|r| if r > 0.0 { 1.0 / r.sqrt() } else { 0.0 }),
+            cone_slope: match kind {
+                Kind::Contact { mu } if r_t > 0.0 => mu * (r_t / r_n).sqrt(),
+                _ => 0.0,
+            },
+            residual: [0.0; 3],
+            slope: [0.0; 3],
         }
     }
 }
@@ -157,159 +142,297 @@ fn clamp_to_cone(lambda: &mut [f64; 3], mu: f64) {
     }
 }
 
-/// The new impulses of one constraint given its rows' current velocities `dots`.
-#[inline]
-fn update(c: &Constraint, dots: [f64; 3]) -> [f64; 3] {
-    let old = c.lambda;
-    let normal = (old[0] - (dots[0] - c.bias + c.r_n * old[0]) * c.normal_gain).max(0.0);
-    let Kind::Contact { mu } = c.kind else { return [normal, 0.0, 0.0] };
-    // The tangential velocities after the normal update; then the exact minimiser of the 2x2 block's
-    // quadratic on the disc |λ_t| ≤ μ λ_n: the Newton step if it sticks, otherwise the point of the circle
-    // where friction opposes the (regularised) slip, maximal dissipation.
-    let dn = normal - old[0];
-    let g1 = dots[1] + c.coupling[0] * dn + c.r_t * (old[1] - c.warm_friction[0]);
-    let g2 = dots[2] + c.coupling[1] * dn + c.r_t * (old[2] - c.warm_friction[1]);
-    let Some([i11, i12, i22]) = c.tangent_inverse else {
-        // Friction idles where it can move nothing.
-        let mut held = [normal, old[1], old[2]];
-        clamp_to_cone(&mut held, mu);
-        return held;
-    };
-    let stick = [old[1] - (i11 * g1 + i12 * g2), old[2] - (i12 * g1 + i22 * g2)];
-    let radius = mu * normal;
-    if stick[0] * stick[0] + stick[1] * stick[1] <= radius * radius {
-        return [normal, stick[0], stick[1]];
-    }
-    let [a, b, d] = c.tangent;
-    let [x1, x2] = on_disc(a, b, d, [g1 - a * old[1] - b * old[2], g2 - b * old[1] - d * old[2]], radius);
-    [normal, x1, x2]
+/// Where a constraint's scaled impulse R^½ λ = Π_K̂(s), s = −R^-½ (J v − b), lies, and the impulse.
+enum Projection {
+    /// In the polar cone: no impulse.
+    Apart,
+    /// Inside the cone (sticking), or a normal row pressing: Π = s on the constraint's `rows` rows.
+    Held { rows: usize, s: [f64; 3] },
+    /// On the cone's surface (sliding): Π = c (1, μ̂ e), with e = s_t / |s_t|.
+    Sliding { c: f64, e: [f64; 2], t: f64 },
 }
 
-/// argmin ½ xᵀ [a b; b d] x + cᵀ x over |x| = r, for a minimiser of the unconstrained quadratic outside
-/// the disc: x = −(A + ν I)⁻¹ c with ν ≥ 0 such that |x| = r (the trust-region subproblem), ν by Newton
-/// on 1/|x(ν)| − 1/r, which rises monotonically to its root from ν = 0 (Moré and Sorensen 1983).
-fn on_disc(a: f64, b: f64, d: f64, c: [f64; 2], r: f64) -> [f64; 2] {
-    if r <= 0.0 {
-        return [0.0, 0.0];
+impl Constraint {
+    fn active(&self) -> bool {
+        self.r[0] > 0.0
     }
-    let mut nu = 0.0;
-    let mut x = [0.0; 2];
-    for _ in 0..DISC_ITERATIONS {
-        let (p, s) = (a + nu, d + nu);
-        let det = p * s - b * b;
-        x = [-(s * c[0] - b * c[1]) / det, -(p * c[1] - b * c[0]) / det];
-        let norm2 = x[0] * x[0] + x[1] * x[1];
-        let norm = norm2.sqrt();
-        if norm - r <= DISC_TOLERANCE * r {
-            break;
+
+    fn project(&self, y: [f64; 3]) -> Projection {
+        let [i_n, i_t] = self.inverse_sqrt_r;
+        let p = -y[0] * i_n;
+        let slope = self.cone_slope;
+        if slope == 0.0 {
+            return if p > 0.0 { Projection::Held { rows: 1, s: [p, 0.0, 0.0] } } else { Projection::Apart };
         }
-        // xᵀ (A + ν I)⁻¹ x
-        let curvature = (s * x[0] * x[0] - 2.0 * b * x[0] * x[1] + p * x[1] * x[1]) / det;
-        nu += (norm / r - 1.0) * norm2 / curvature;
+        let q = [-y[1] * i_t, -y[2] * i_t];
+        let t = (q[0] * q[0] + q[1] * q[1]).sqrt();
+        if t <= slope * p {
+            Projection::Held { rows: 3, s: [p, q[0], q[1]] }
+        } else if slope * t <= -p {
+            Projection::Apart
+        } else {
+            Projection::Sliding { c: (p + slope * t) / (1.0 + slope * slope), e: [q[0] / t, q[1] / t], t }
+        }
     }
-    let scale = r / (x[0] * x[0] + x[1] * x[1]).sqrt();
-    [x[0] * scale, x[1] * scale]
+
+    /// The impulses λ = R^-½ Π.
+    fn impulses(&self, projection: &Projection) -> [f64; 3] {
+        let [i_n, i_t] = self.inverse_sqrt_r;
+        match *projection {
+            Projection::Apart => [0.0; 3],
+            Projection::Held { s, .. } => [s[0] * i_n, s[1] * i_t, s[2] * i_t],
+            Projection::Sliding { c, e, .. } => [c * i_n, c * self.cone_slope * e[0] * i_t, c * self.cone_slope * e[1] * i_t],
+        }
+    }
+
+    /// H_c = ∂λ / ∂(−y) = R^-½ (∂Π / ∂s) R^-½.
+    fn hessian(&self, projection: &Projection) -> Matrix3<f64> {
+        let scale = Vector3::new(self.inverse_sqrt_r[0], self.inverse_sqrt_r[1], self.inverse_sqrt_r[1]);
+        let jacobian = match *projection {
+            Projection::Apart => return Matrix3::zeros(),
+            Projection::Held { rows: 1, .. } => Matrix3::from_diagonal(&Vector3::new(1.0, 0.0, 0.0)),
+            Projection::Held { .. } => Matrix3::identity(),
+            Projection::Sliding { c, e, t } => {
+                let slope = self.cone_slope;
+                let ray = Vector3::new(1.0, slope * e[0], slope * e[1]);
+                let bend = slope * c / t;
+                let mut jacobian = ray * ray.transpose() / (1.0 + slope * slope);
+                jacobian[(1, 1)] += bend * (1.0 - e[0] * e[0]);
+                jacobian[(2, 2)] += bend * (1.0 - e[1] * e[1]);
+                jacobian[(1, 2)] -= bend * e[0] * e[1];
+                jacobian[(2, 1)] -= bend * e[0] * e[1];
+                jacobian
+            }
+        };
+        Matrix3::from_diagonal(&scale) * jacobian * Matrix3::from_diagonal(&scale)
+    }
+
+    /// λ · dy and dyᵀ H_c dy at residual `y`, without forming H_c (the line search's inner loop).
+    fn along(&self, y: [f64; 3], dy: [f64; 3]) -> (f64, f64) {
+        let [i_n, i_t] = self.inverse_sqrt_r;
+        let ds = [dy[0] * i_n, dy[1] * i_t, dy[2] * i_t];
+        match self.project(y) {
+            Projection::Apart => (0.0, 0.0),
+            Projection::Held { rows: 1, s } => (s[0] * ds[0], ds[0] * ds[0]),
+            Projection::Held { s, .. } => (s[0] * ds[0] + s[1] * ds[1] + s[2] * ds[2], ds[0] * ds[0] + ds[1] * ds[1] + ds[2] * ds[2]),
+            Projection::Sliding { c, e, t } => {
+                let slope = self.cone_slope;
+                let along_ray = ds[0] + slope * (e[0] * ds[1] + e[1] * ds[2]);
+                let across = e[0] * ds[2] - e[1] * ds[1];
+                (c * along_ray, along_ray * along_ray / (1.0 + slope * slope) + slope * c / t * across * across)
+            }
+        }
+    }
+
+    /// The impulses at the solver's final residual; an immovable constraint carries nothing, and friction
+    /// that moves nothing keeps its warm start within the cone.
+    fn settle(&mut self) {
+        if !self.active() {
+            self.lambda = [0.0; 3];
+            return;
+        }
+        let mut lambda = self.impulses(&self.project(self.residual));
+        if let Kind::Contact { mu } = self.kind {
+            if self.r[1] == 0.0 {
+                lambda[1] = self.held[0];
+                lambda[2] = self.held[1];
+                clamp_to_cone(&mut lambda, mu);
+            }
+        }
+        self.lambda = lambda;
+    }
 }
 
-/// Solves for the impulses, updating `u` from u_free (in) to u_free + Σ Φ F λ (out); `free` and `before`
-/// are scratch of u's length. Returns the sweeps done.
-///
-/// Sweeps stop when the error left in u, estimated from the last sweep's change and contraction, is at
-/// most `CONVERGED` times the change all the impulses make (max |u − u_free|): the motion has converged. The impulses themselves may still be shifting inside
-/// the null space of statically indeterminate contact sets (a box's four corners, a tree lying on the
-/// ground), where regularisation lets them settle only slowly and the motion does not depend on them.
-pub(super) fn solve(
-    groups: &[Group],
-    constraints: &mut [Constraint],
-    entries: &[Entry],
-    u: &mut [f64],
-    free: &mut [f64],
-    before: &mut [f64],
-    max_sweeps: usize,
-) -> usize {
-    free.copy_from_slice(u);
-    for g in groups {
-        let force: Vector6<f64> = constraints[g.constraints.clone()].iter().map(|c| c.rows[0] * c.lambda[0] + c.rows[1] * c.lambda[1] + c.rows[2] * c.lambda[2]).sum();
-        scatter(&entries[g.entries.clone()], &force, u);
+/// The Newton solver's buffers, sized for one model.
+pub(super) struct Solver {
+    tree: Articulated,
+    /// v − v_free and M̃ (v − v_free).
+    change: Vec<f64>,
+    mass_change: Vec<f64>,
+    /// The descent direction's right-hand side, Jᵀ λ − M̃ (v − v_free) (minus the gradient).
+    descent: Vec<f64>,
+    /// The Newton step d and M̃ d.
+    step: Vec<f64>,
+    mass_step: Vec<f64>,
+}
+
+impl Solver {
+    pub(super) fn new(model: &Model) -> Self {
+        let nv = model.nv();
+        Solver {
+            tree: Articulated::new(model),
+            change: vec![0.0; nv],
+            mass_change: vec![0.0; nv],
+            descent: vec![0.0; nv],
+            step: vec![0.0; nv],
+            mass_step: vec![0.0; nv],
+        }
     }
-    let mut last = f64::INFINITY;
-    for sweep in 1..=max_sweeps {
-        before.copy_from_slice(u);
-        for g in groups {
-            let columns = &entries[g.entries.clone()];
-            let mut velocity = gather(columns, u);
-            let mut force = Vector6::zeros();
-            for c in &mut constraints[g.constraints.clone()] {
-                let dots = [c.rows[0].dot(&velocity), c.rows[1].dot(&velocity), c.rows[2].dot(&velocity)];
-                let next = update(c, dots);
-                if next != c.lambda {
-                    let delta = [next[0] - c.lambda[0], next[1] - c.lambda[1], next[2] - c.lambda[2]];
-                    velocity += c.moves[0] * delta[0] + c.moves[1] * delta[1] + c.moves[2] * delta[2];
-                    force += c.rows[0] * delta[0] + c.rows[1] * delta[1] + c.rows[2] * delta[2];
-                    c.lambda = next;
+
+    /// Solves for the impulses (warm start in `constraints`, solution out) and the velocities `v` they
+    /// leave from `v_free`, on the tree whose poses `aba_with_armature` left in `data` (with `armature`).
+    /// Returns the Newton iterations done, or None if the Newton matrix is not positive definite.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn solve(
+        &mut self,
+        model: &Model,
+        data: &Data,
+        armature: &[f64],
+        constraints: &mut [Constraint],
+        v_free: &[f64],
+        v: &mut [f64],
+        max_iterations: usize,
+    ) -> Option<usize> {
+        v.copy_from_slice(v_free);
+        if !constraints.iter().any(Constraint::active) {
+            constraints.iter_mut().for_each(Constraint::settle);
+            return Some(0);
+        }
+        let tree = &mut self.tree;
+        tree.update(model, data);
+        // Warm start: v = v_free + M̃⁻¹ Jᵀ λ_warm, so M̃ (v − v_free) = Jᵀ λ_warm.
+        impulses(tree, model, data, constraints, &mut self.mass_change);
+        tree.stiffness.fill(Matrix6::zeros());
+        tree.coordinate_stiffness.fill(0.0);
+        if !tree.factor(model, data, armature) {
+            return None;
+        }
+        tree.solve(model, data, &self.mass_change, &mut self.change);
+        for ((v, free), change) in v.iter_mut().zip(v_free).zip(&self.change) {
+            *v = free + change;
+        }
+        tree.motions(model, data, v);
+        for c in constraints.iter_mut().filter(|c| c.active()) {
+            let velocity = rows_times(c, &tree.motion, v);
+            c.residual = std::array::from_fn(|r| velocity[r] - c.asked[r]);
+        }
+        let mut iterations = 0;
+        while iterations < max_iterations {
+            iterations += 1;
+            tree.stiffness.fill(Matrix6::zeros());
+            tree.coordinate_stiffness.fill(0.0);
+            for c in constraints.iter_mut().filter(|c| c.active()) {
+                let projection = c.project(c.residual);
+                c.lambda = c.impulses(&projection);
+                let hessian = c.hessian(&projection);
+                match c.target {
+                    Target::Bodies(a, b) => {
+                        // Φ_aᵀ (F H_c Fᵀ) Φ_a, and likewise on b without the two chains' coupling.
+                        let rows = Matrix6x3::from_columns(&c.rows);
+                        let stiffness = rows * hessian * rows.transpose();
+                        tree.stiffness[a] += stiffness;
+                        if let Some(b) = b {
+                            tree.stiffness[b] += stiffness;
+                        }
+                    }
+                    Target::Coordinate(k) => tree.coordinate_stiffness[k] += hessian[(0, 0)] * c.rows[0][0] * c.rows[0][0],
                 }
             }
-            if force != Vector6::zeros() {
-                scatter(columns, &force, u);
+            impulses(tree, model, data, constraints, &mut self.descent);
+            for (descent, mass_change) in self.descent.iter_mut().zip(&self.mass_change) {
+                *descent -= mass_change;
+            }
+            if !tree.factor(model, data, armature) {
+                return None;
+            }
+            tree.solve(model, data, &self.descent, &mut self.step);
+            tree.motions(model, data, &self.step);
+            for c in constraints.iter_mut().filter(|c| c.active()) {
+                c.slope = rows_times(c, &tree.motion, &self.step);
+            }
+            tree.mass_times(model, data, armature, &self.step, &mut self.mass_step);
+            let curvature = dot(&self.step, &self.mass_step);
+            let start = dot(&self.mass_change, &self.step);
+            let initial = start - constraints.iter().filter(|c| c.active()).map(|c| dot(&c.lambda, &c.slope)).sum::<f64>();
+            let alpha = line_search(constraints, start, initial, curvature);
+            for k in 0..v.len() {
+                self.change[k] += alpha * self.step[k];
+                self.mass_change[k] += alpha * self.mass_step[k];
+                v[k] = v_free[k] + self.change[k];
+            }
+            for c in constraints.iter_mut().filter(|c| c.active()) {
+                c.residual = std::array::from_fn(|r| c.residual[r] + alpha * c.slope[r]);
+            }
+            if alpha == 0.0 || alpha * alpha * curvature <= CONVERGED * CONVERGED * dot(&self.change, &self.mass_change) {
+                break;
             }
         }
-        let (mut change, mut scale) = (0.0f64, 0.0f64);
-        for ((x, b), f) in u.iter().zip(before.iter()).zip(free.iter()) {
-            change = change.max((x - b).abs());
-            scale = scale.max((x - f).abs());
-        }
-        // Gauss–Seidel converges linearly: with the contraction ρ of the last sweep, the error left is
-        // about change ρ / (1 − ρ), which may well exceed the change itself.
-        let rho = (change / last).min(MAX_CONTRACTION);
-        last = change;
-        if change * (rho / (1.0 - rho)).max(1.0) <= CONVERGED * scale {
-            return sweep;
-        }
-    }
-    max_sweeps
-}
-
-/// Φᵀ u.
-#[inline]
-fn gather(columns: &[Entry], u: &[f64]) -> Vector6<f64> {
-    let mut sum = [0.0; 6];
-    for e in columns {
-        let x = u[e.index as usize];
-        for r in 0..6 {
-            sum[r] += e.value[r] * x;
-        }
-    }
-    Vector6::from(sum)
-}
-
-/// u += Φ f.
-#[inline]
-fn scatter(columns: &[Entry], force: &Vector6<f64>, u: &mut [f64]) {
-    for e in columns {
-        let v = &e.value;
-        u[e.index as usize] += (v[0] * force[0] + v[1] * force[1]) + (v[2] * force[2] + v[3] * force[3]) + (v[4] * force[4] + v[5] * force[5]);
+        constraints.iter_mut().for_each(Constraint::settle);
+        Some(iterations)
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::on_disc;
-
-    /// Against brute force: the quadratic's minimum over 100 000 points of the circle |x| = r.
-    #[test]
-    fn friction_on_the_disc_is_the_quadratics_minimum_on_the_circle() {
-        let cases = [(2.0, 0.3, 0.5, [1.0, -2.0], 0.1), (1.0, 0.0, 1.0, [0.3, 0.4], 0.2), (10.0, -2.9, 1.0, [-4.0, 1.0], 0.05), (0.01, 0.0, 5.0, [0.2, 0.2], 1.0)];
-        for (a, b, d, c, r) in cases {
-            let f = |x: [f64; 2]| 0.5 * (a * x[0] * x[0] + 2.0 * b * x[0] * x[1] + d * x[1] * x[1]) + c[0] * x[0] + c[1] * x[1];
-            let x = on_disc(a, b, d, c, r);
-            assert!(((x[0] * x[0] + x[1] * x[1]).sqrt() - r).abs() < 1e-12 * r);
-            let best = (0..100_000).map(|k| {
-                let t = k as f64 * std::f64::consts::TAU / 100_000.0;
-                f([r * t.cos(), r * t.sin()])
-            });
-            let best = best.fold(f64::INFINITY, f64::min);
-            assert!(f(x) <= best + 1e-12, "on_disc gives {} > brute force {best}", f(x));
-            assert!(f(x) >= best - 1e-6 * r * r * (a + d), "the circle's sampled minimum {best} is far below on_disc's {}", f(x));
+/// out = Jᵀ λ for the constraints' impulses.
+fn impulses(tree: &mut Articulated, model: &Model, data: &Data, constraints: &[Constraint], out: &mut [f64]) {
+    tree.force.fill(Vector6::zeros());
+    for c in constraints.iter().filter(|c| c.active()) {
+        if let Target::Bodies(a, b) = c.target {
+            let f = c.rows[0] * c.lambda[0] + c.rows[1] * c.lambda[1] + c.rows[2] * c.lambda[2];
+            tree.force[a] += f;
+            if let Some(b) = b {
+                tree.force[b] -= f;
+            }
         }
     }
+    tree.generalized(model, data, out);
+    for c in constraints.iter().filter(|c| c.active()) {
+        if let Target::Coordinate(k) = c.target {
+            out[k] += c.rows[0][0] * c.lambda[0];
+        }
+    }
+}
+
+/// J x for one constraint, given the bodies' spatial velocities `motion` under x.
+fn rows_times(c: &Constraint, motion: &[Vector6<f64>], x: &[f64]) -> [f64; 3] {
+    match c.target {
+        Target::Bodies(a, b) => {
+            let relative = b.map_or(motion[a], |b| motion[a] - motion[b]);
+            c.rows.map(|f| f.dot(&relative))
+        }
+        Target::Coordinate(k) => [c.rows[0][0] * x[k], 0.0, 0.0],
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// The step length α minimising the primal along the Newton step: φ'(α) = 0, by Newton on φ' kept
+/// inside a bracket of its sign change (φ is convex and piecewise smooth):
+/// φ'(α) = `start` + α `curvature` − Σ λ_c(α) · dy_c, φ''(α) = `curvature` + Σ dy_cᵀ H_c(α) dy_c, with
+/// `start` = (v − v_free)ᵀ M̃ d, `curvature` = dᵀ M̃ d, and φ'(0) = `initial` (from the impulses at v).
+fn line_search(constraints: &[Constraint], start: f64, initial: f64, curvature: f64) -> f64 {
+    if !(initial < 0.0) {
+        return 0.0;
+    }
+    let derivatives = |alpha: f64| {
+        let (mut slope, mut second) = (start + alpha * curvature, curvature);
+        for c in constraints.iter().filter(|c| c.active()) {
+            let (push, stiffness) = c.along(std::array::from_fn(|r| c.residual[r] + alpha * c.slope[r]), c.slope);
+            slope -= push;
+            second += stiffness;
+        }
+        (slope, second)
+    };
+    let (mut low, mut high, mut alpha) = (0.0, f64::INFINITY, 1.0);
+    for _ in 0..LINE_ITERATIONS {
+        let (slope, second) = derivatives(alpha);
+        if slope.abs() <= LINE_TOLERANCE * -initial {
+            break;
+        }
+        if slope < 0.0 {
+            low = alpha;
+        } else {
+            high = alpha;
+        }
+        let newton = alpha - slope / second;
+        alpha = if newton > low && newton < high {
+            newton
+        } else if high.is_finite() {
+            0.5 * (low + high)
+        } else {
+            2.0 * alpha
+        };
+    }
+    alpha
 }

@@ -1,0 +1,162 @@
+//! Products with, and solves against, the contact solver's Newton matrix on the tree, in O(n):
+//!   H = M̃ + Σ_b Φ_bᵀ K_b Φ_b + diag(c),
+//! with Φ_b the map from joint velocities to body b's spatial velocity, K_b a 6x6 stiffness on body b and
+//! c a stiffness on each coordinate. M̃ = Σ_b Φ_bᵀ I_b Φ_b + diag(armature) is linear in the bodies'
+//! inertias, so H is the mass matrix of the same tree with inertias I_b + K_b and armatures + c, and the
+//! articulated-body recursion without velocities (Featherstone, Table 7.1) factors and solves it with no
+//! fill-in. Everything is in the world's axes about the base origin, as `aba` leaves `Data`.
+
+use nalgebra::{Cholesky, Matrix6, U6};
+
+use crate::model::{Data, Joint, Model};
+use crate::spatial::{add_reduced_inertia, dot6, Force, Motion};
+
+pub(super) struct Articulated {
+    /// Each body's rigid inertia I_b.
+    rigid: Vec<Matrix6<f64>>,
+    /// Articulated inertias of H, and per one-degree-of-freedom joint U = I^A S and D⁻¹ (eq. 7.38–7.44).
+    inertia: Vec<Matrix6<f64>>,
+    u: Vec<Motion>,
+    d_inv: Vec<f64>,
+    base: Option<Cholesky<f64, U6>>,
+    /// u_k = r_k − S_kᵀ p_k of the last solve's backward pass, per velocity coordinate.
+    reduced: Vec<f64>,
+    /// K_b per body and c per coordinate: set by the caller before `factor`.
+    pub stiffness: Vec<Matrix6<f64>>,
+    pub coordinate_stiffness: Vec<f64>,
+    /// Body spatial velocities of the last `motions`; body forces for `generalized`.
+    pub motion: Vec<Motion>,
+    pub force: Vec<Force>,
+}
+
+impl Articulated {
+    pub(super) fn new(model: &Model) -> Self {
+        let (n, nv) = (model.nbodies(), model.nv());
+        Articulated {
+            rigid: vec![Matrix6::zeros(); n],
+            inertia: vec![Matrix6::zeros(); n],
+            u: vec![Motion::zeros(); n],
+            d_inv: vec![0.0; n],
+            base: None,
+            reduced: vec![0.0; nv],
+            stiffness: vec![Matrix6::zeros(); n],
+            coordinate_stiffness: vec![0.0; nv],
+            motion: vec![Motion::zeros(); n],
+            force: vec![Force::zeros(); n],
+        }
+    }
+
+    /// Reads the bodies' inertias at the poses `aba` left in `data`.
+    pub(super) fn update(&mut self, model: &Model, data: &Data) {
+        for (i, rigid) in self.rigid.iter_mut().enumerate() {
+            *rigid = data.o_m_i[i].act_rigid_inertia(model.inertia(i)).matrix();
+        }
+    }
+
+    /// Each body's spatial velocity Φ_b x, into `motion`.
+    pub(super) fn motions(&mut self, model: &Model, data: &Data, x: &[f64]) {
+        for i in 0..model.nbodies() {
+            let k = model.idx_v(i);
+            self.motion[i] = match model.joint(i) {
+                Joint::FreeFlyer => data.o_m_i[i].act_motion(&Motion::from_column_slice(&x[k..k + 6])),
+                Joint::Fixed if i == 0 => Motion::zeros(),
+                Joint::Fixed => self.motion[model.parent(i)],
+                Joint::Revolute(_) | Joint::Prismatic(_) => self.motion[model.parent(i)] + data.s[i] * x[k],
+            };
+        }
+    }
+
+    /// out = Σ_b Φ_bᵀ f_b for the body forces in `force` (which it accumulates into subtree sums).
+    pub(super) fn generalized(&mut self, model: &Model, data: &Data, out: &mut [f64]) {
+        for i in (0..model.nbodies()).rev() {
+            let k = model.idx_v(i);
+            match model.joint(i) {
+                Joint::FreeFlyer => out[k..k + 6].copy_from_slice(data.o_m_i[i].inv_act_force(&self.force[i]).as_slice()),
+                Joint::Fixed => {}
+                Joint::Revolute(_) | Joint::Prismatic(_) => out[k] = dot6(&data.s[i], self.force[i].as_slice()),
+            }
+            if i > 0 {
+                let f = self.force[i];
+                self.force[model.parent(i)] += f;
+            }
+        }
+    }
+
+    /// out = M̃ x.
+    pub(super) fn mass_times(&mut self, model: &Model, data: &Data, armature: &[f64], x: &[f64], out: &mut [f64]) {
+        self.motions(model, data, x);
+        for ((f, rigid), m) in self.force.iter_mut().zip(&self.rigid).zip(&self.motion) {
+            *f = rigid * m;
+        }
+        self.generalized(model, data, out);
+        for ((o, a), x) in out.iter_mut().zip(armature).zip(x) {
+            *o += a * x;
+        }
+    }
+
+    /// Factors H with the stiffnesses set; false if it is not positive definite.
+    pub(super) fn factor(&mut self, model: &Model, data: &Data, armature: &[f64]) -> bool {
+        for ((a, rigid), k) in self.inertia.iter_mut().zip(&self.rigid).zip(&self.stiffness) {
+            *a = rigid + k;
+        }
+        for i in (1..model.nbodies()).rev() {
+            let k = model.idx_v(i);
+            let w = if model.joint(i).nv() == 1 {
+                // eq. 7.39–7.40
+                let u = self.inertia[i] * data.s[i];
+                let d = dot6(&data.s[i], u.as_slice()) + armature[k] + self.coordinate_stiffness[k];
+                if !(d > 0.0) {
+                    return false;
+                }
+                self.u[i] = u;
+                self.d_inv[i] = 1.0 / d;
+                u / d
+            } else {
+                Motion::zeros()
+            };
+            let (head, tail) = self.inertia.split_at_mut(i);
+            add_reduced_inertia(&mut head[model.parent(i)], &tail[0], &self.u[i], &w);
+        }
+        self.base = match model.joint(0) {
+            Joint::FreeFlyer => Cholesky::new(self.inertia[0]),
+            _ => None,
+        };
+        !matches!(model.joint(0), Joint::FreeFlyer) || self.base.is_some()
+    }
+
+    /// out = H⁻¹ rhs, after `factor`.
+    pub(super) fn solve(&mut self, model: &Model, data: &Data, rhs: &[f64], out: &mut [f64]) {
+        self.force.iter_mut().for_each(|p| *p = Force::zeros());
+        // Backward: the bias forces p^A of the generalized forces alone (eq. 7.41–7.44).
+        for i in (1..model.nbodies()).rev() {
+            let k = model.idx_v(i);
+            let mut p = self.force[i];
+            if model.joint(i).nv() == 1 {
+                let reduced = rhs[k] - dot6(&data.s[i], p.as_slice());
+                p += self.u[i] * (reduced * self.d_inv[i]);
+                self.reduced[k] = reduced;
+            }
+            self.force[model.parent(i)] += p;
+        }
+        // Forward: accelerations from the root (eq. 7.45–7.47).
+        self.motion[0] = match (&self.base, model.joint(0)) {
+            (Some(c), Joint::FreeFlyer) => {
+                let pose = data.o_m_i[0];
+                let a = c.solve(&(pose.act_force(&Force::from_column_slice(&rhs[0..6])) - self.force[0]));
+                out[0..6].copy_from_slice(pose.inv_act_motion(&a).as_slice());
+                a
+            }
+            _ => Motion::zeros(),
+        };
+        for i in 1..model.nbodies() {
+            let (k, parent) = (model.idx_v(i), self.motion[model.parent(i)]);
+            self.motion[i] = if model.joint(i).nv() == 1 {
+                let x = (self.reduced[k] - dot6(&self.u[i], parent.as_slice())) * self.d_inv[i];
+                out[k] = x;
+                parent + data.s[i] * x
+            } else {
+                parent
+            };
+        }
+    }
+}

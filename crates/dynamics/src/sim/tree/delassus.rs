@@ -1,0 +1,97 @@
+//! Each constraint's Delassus diagonal A_ii = J_i M̃⁻¹ J_iᵀ, which sets its regularisation, from the
+//! factor `aba_with_armature` leaves in `Data`, in O(n) for all bodies plus O(1) per constraint.
+//!
+//! Ω_b = Φ_bᵀ M̃⁻¹ Φ_b is body b's apparent inverse inertia: its spatial acceleration under a unit spatial
+//! force on it alone (Φ_b maps joint velocities to its spatial velocity). The articulated-body algorithm
+//! passes a force on body i to its parent as P_iᵀ f and its parent's acceleration back as P_i a, with
+//! P_i = 1 − S_i D_i⁻¹ U_iᵀ (Featherstone, Table 7.1, eq. 7.41–7.47, without velocities), so
+//!   Ω_i = P_i Ω_λ(i) P_iᵀ + S_i D_i⁻¹ S_iᵀ,
+//! from Ω_0 = 0 for a fixed base or (I^A_0)⁻¹ for a free-flyer. A force on body a with its opposite on b
+//! couples the two through their nearest common ancestor c: Φ_aᵀ M̃⁻¹ Φ_b = T_a Ω_c T_bᵀ, with T_x the
+//! product of the P's from c down to x. A unit generalized force on joint k of body i gives
+//! (M̃⁻¹)_kk = D_i⁻¹ + w_iᵀ Ω_λ(i) w_i with w_i = U_i D_i⁻¹. Everything is in the world's axes about the
+//! base origin, as `aba` leaves it in `Data`.
+
+use nalgebra::{Matrix6, Vector6};
+
+use crate::model::{Data, Joint, Model};
+use crate::spatial::{dot6, Force};
+
+pub(super) struct Delassus {
+    /// Ω_b of each body.
+    omega: Vec<Matrix6<f64>>,
+}
+
+impl Delassus {
+    pub(super) fn new(model: &Model) -> Self {
+        Delassus { omega: vec![Matrix6::zeros(); model.nbodies()] }
+    }
+
+    /// Reads Ω of every body from the factor in `data`; false if a free-flyer base's articulated inertia is
+    /// not positive definite.
+    pub(super) fn update(&mut self, model: &Model, data: &Data) -> bool {
+        self.omega[0] = match model.joint(0) {
+            Joint::FreeFlyer => match data.inertia[0].cholesky() {
+                Some(c) => c.inverse(),
+                None => return false,
+            },
+            _ => Matrix6::zeros(),
+        };
+        for i in 1..model.nbodies() {
+            let parent = self.omega[model.parent(i)];
+            self.omega[i] = if model.joint(i).nv() == 1 {
+                // P Ω Pᵀ + S D⁻¹ Sᵀ with P = 1 − S wᵀ: Ω − S yᵀ − y Sᵀ + (wᵀ y + D⁻¹) S Sᵀ, y = Ω w.
+                let (s, w) = (data.s[i], data.u[i] * data.d_inv[i]);
+                let y = parent * w;
+                let through = w.dot(&y) + data.d_inv[i];
+                parent - s * y.transpose() - y * s.transpose() + s * s.transpose() * through
+            } else {
+                parent
+            };
+        }
+        true
+    }
+
+    /// The Delassus diagonal of rows `rows` (spatial forces on body `a`, and opposite on `b`), and its
+    /// scale (tr Ω |F|² per unit row), below which a row counts as immovable.
+    pub(super) fn bodies(&self, model: &Model, data: &Data, a: usize, b: Option<usize>, rows: &[Vector6<f64>; 3]) -> ([f64; 3], f64) {
+        let quadratic = |omega: &Matrix6<f64>, f: &Vector6<f64>| f.dot(&(omega * f));
+        let mut diagonal = rows.map(|f| quadratic(&self.omega[a], &f));
+        let mut trace = self.omega[a].trace();
+        if let Some(b) = b {
+            // + F Ω_b F − 2 F T_a Ω_c T_bᵀ F: each force passed up its chain to the common ancestor c.
+            let (mut on_a, mut on_b) = (*rows, *rows);
+            let (mut x, mut y) = (a, b);
+            while x != y {
+                if x > y {
+                    transmit(model, data, x, &mut on_a);
+                    x = model.parent(x);
+                } else {
+                    transmit(model, data, y, &mut on_b);
+                    y = model.parent(y);
+                }
+            }
+            for r in 0..3 {
+                diagonal[r] += quadratic(&self.omega[b], &rows[r]) - 2.0 * on_a[r].dot(&(self.omega[x] * on_b[r]));
+            }
+            trace += self.omega[b].trace();
+        }
+        (diagonal, trace)
+    }
+
+    /// (M̃⁻¹)_kk for the coordinate of body `i`'s one-degree-of-freedom joint.
+    pub(super) fn coordinate(&self, model: &Model, data: &Data, i: usize) -> f64 {
+        let w = data.u[i] * data.d_inv[i];
+        data.d_inv[i] + w.dot(&(self.omega[model.parent(i)] * w))
+    }
+}
+
+/// Forces on body `i` passed to its parent: f ← P_iᵀ f = f − w_i (S_iᵀ f).
+fn transmit(model: &Model, data: &Data, i: usize, forces: &mut [Force; 3]) {
+    if model.joint(i).nv() == 1 {
+        for f in forces.iter_mut() {
+            let through = dot6(&data.s[i], f.as_slice()) * data.d_inv[i];
+            *f -= data.u[i] * through;
+        }
+    }
+}
