@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs what the tests need (the package with its test extras, built from this checkout, into the
 # project's virtual environment: see venv.sh) and runs every test in three tiers, timing each:
-#   rust         the Rust unit tests (cargo test)
+#   rust         the Rust unit tests (cargo test, release optimisation without fat LTO)
 #   python-fast  the Python suite without the tests marked slow (pytest -m "not slow": the inner loop)
 #   python-slow  the tests marked slow (end-to-end experiments, simulations, browser rendering)
 # Every tier runs even when an earlier one fails; the wall times are printed at the end, and the exit status
@@ -34,7 +34,10 @@ setup() {
 }
 
 if tier setup setup; then
-    tier rust cargo test --release --workspace --exclude legkit-pybind
+    # Optimised like the release build but without its fat LTO and single codegen unit, which make every
+    # test binary slow to build; the wheel keeps them.
+    tier rust env CARGO_PROFILE_RELEASE_LTO=false CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 \
+        cargo test --release --workspace --exclude legkit-pybind
     tier python-fast python -m pytest tests -q -m "not slow"
     tier python-slow python -m pytest tests -q -m slow
 fi
