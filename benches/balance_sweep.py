@@ -17,9 +17,11 @@ closed loop at 1 kHz (plus the 0.5 s of posing every batch starts with).
 * Part 3 (``--thousand``): 1,002 runs (334 trees x 3 schemes) with ``run_sweep``'s defaults (one worker per
   core, physics on cores // workers threads each).
 
-Printed per line: wall time, runs per minute, CPU seconds per run (this process and its workers), the load
-average before and after, and the time 1,000 runs would take at that rate. CPU seconds per run do not depend
-on the other work on the machine (so much); the wall time and the rate do.
+Printed per line: wall time, runs per minute, CPU seconds per run (this process and its workers), the cores
+the sweep got on average (CPU time / wall time), the load average before and after, and the time 1,000 runs
+would take at that rate. CPU seconds per run depend little on the other work on the machine; the wall time,
+the rate and the cores the sweep gets do: a speed-up is the ratio of cores got times the ratio of CPU
+seconds per run.
 """
 
 from __future__ import annotations
@@ -57,7 +59,7 @@ def measure(label: str, action) -> dict[str, float]:
 def line(label: str, f: dict[str, float]) -> str:
     rate = 60.0 * f["runs"] / f["wall"]
     return (f"{label:<34} {f['runs']:>5.0f} runs {f['wall']:>7.1f} s {rate:>7.1f} runs/min {f['cpu'] / f['runs']:>6.2f} CPU s/run "
-            f"load {f['load_before']:>4.1f}-{f['load_after']:<4.1f}  1,000 runs: {1000 / rate:>5.1f} min")
+            f"{f['cpu'] / f['wall']:>5.2f} cores  load {f['load_before']:>4.1f}-{f['load_after']:<4.1f}  1,000 runs: {1000 / rate:>5.1f} min")
 
 
 def sweep(spec: SweepSpec, workers: int | None, threads: int | None):
@@ -92,8 +94,9 @@ def main() -> None:
         for label, runs in results.items():
             rates[label] = statistics.median(60.0 * f["runs"] / f["wall"] for f in runs)
             cpu = statistics.median(f["cpu"] / f["runs"] for f in runs)
+            cores = statistics.median(f["cpu"] / f["wall"] for f in runs)
             load = statistics.median(0.5 * (f["load_before"] + f["load_after"]) for f in runs)
-            print(f"median {label:<27} {rates[label]:>7.1f} runs/min {cpu:>6.2f} CPU s/run  load {load:.1f}")
+            print(f"median {label:<27} {rates[label]:>7.1f} runs/min {cpu:>6.2f} CPU s/run {cores:>5.2f} cores  load {load:.1f}")
         pairs = [60.0 * b["runs"] / b["wall"] / (60.0 * a["runs"] / a["wall"]) for a, b in zip(*results.values())]
         print(f"speed-up 1 -> 2 workers (1 physics thread each): {rates['2 workers x 1 thread'] / rates['1 worker x 1 thread']:.2f}x "
               f"of the median rates; per repeat {', '.join(f'{p:.2f}x' for p in pairs)}")
