@@ -24,7 +24,7 @@
 //! whole chain. A contact between two bodies couples their chains outside the tree's sparsity; its
 //! Hessian is taken on each body alone, which still gives a descent direction.
 
-use nalgebra::{Matrix3, Matrix6, Matrix6x3, Vector3, Vector6};
+use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
 
 use super::articulated::Articulated;
 use crate::model::{Data, Model};
@@ -314,12 +314,14 @@ impl Solver {
             for c in constraints.iter_mut().filter(|c| c.active()) {
                 let projection = c.project(c.residual);
                 c.lambda = c.impulses(&projection);
+                if matches!(projection, Projection::Apart) {
+                    continue;
+                }
                 let hessian = c.hessian(&projection);
                 match c.target {
                     Target::Bodies(a, b) => {
                         // Φ_aᵀ (F H_c Fᵀ) Φ_a, and likewise on b without the two chains' coupling.
-                        let rows = Matrix6x3::from_columns(&c.rows);
-                        let stiffness = rows * hessian * rows.transpose();
+                        let stiffness = spread(&c.rows, &hessian);
                         tree.stiffness[a] += stiffness;
                         if let Some(b) = b {
                             tree.stiffness[b] += stiffness;
@@ -365,7 +367,7 @@ impl Solver {
 /// out = Jᵀ λ for the constraints' impulses.
 fn impulses(tree: &mut Articulated, model: &Model, data: &Data, constraints: &[Constraint], out: &mut [f64]) {
     tree.force.fill(Vector6::zeros());
-    for c in constraints.iter().filter(|c| c.active()) {
+    for c in constraints.iter().filter(|c| c.lambda != [0.0; 3]) {
         if let Target::Bodies(a, b) = c.target {
             let f = c.rows[0] * c.lambda[0] + c.rows[1] * c.lambda[1] + c.rows[2] * c.lambda[2];
             tree.force[a] += f;
@@ -380,6 +382,12 @@ fn impulses(tree: &mut Articulated, model: &Model, data: &Data, constraints: &[C
             out[k] += c.rows[0][0] * c.lambda[0];
         }
     }
+}
+
+/// F H Fᵀ for the three rows F of a constraint and its 3x3 symmetric H.
+fn spread(rows: &[Vector6<f64>; 3], hessian: &Matrix3<f64>) -> Matrix6<f64> {
+    let weighted: [Vector6<f64>; 3] = std::array::from_fn(|j| rows[0] * hessian[(0, j)] + rows[1] * hessian[(1, j)] + rows[2] * hessian[(2, j)]);
+    Matrix6::from_fn(|r, c| weighted[0][r] * rows[0][c] + weighted[1][r] * rows[1][c] + weighted[2][r] * rows[2][c])
 }
 
 /// J x for one constraint, given the bodies' spatial velocities `motion` under x.
