@@ -16,7 +16,7 @@ fn rod(mass: f64, length: f64) -> MassProperties {
 
 /// A 10-link branching tree hanging from a fixed base: a chain of 5 with three side branches, joint axes
 /// not aligned with the links, one prismatic joint.
-fn ten_link_tree() -> Model {
+pub(crate) fn ten_link_tree() -> Model {
     let mut model = Model::new(false, MassProperties::cuboid(1.0, Vector3::new(0.1, 0.1, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap(), "base");
     let turn = |x: f64, y: f64, z: f64| Rotation3::from_euler_angles(x, y, z).into_inner();
     let along = |length: f64, r: Matrix3<f64>| Transform::new(r, Vector3::new(length, 0.0, 0.0));

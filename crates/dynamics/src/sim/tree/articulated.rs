@@ -1,7 +1,8 @@
 //! Products with, and solves against, the contact solver's Newton matrix on the tree, in O(n):
 //!   H = M̃ + Σ_b Φ_bᵀ K_b Φ_b + diag(c),
 //! with Φ_b the map from joint velocities to body b's spatial velocity, K_b a 6x6 stiffness on body b and
-//! c a stiffness on each coordinate. M̃ = Σ_b Φ_bᵀ I_b Φ_b + diag(armature) is linear in the bodies'
+//! c a stiffness on each joint coordinate (armature and c act on one-degree-of-freedom joints; a
+//! free-flyer base has neither, as in `aba_with_armature`). M̃ = Σ_b Φ_bᵀ I_b Φ_b + diag(armature) is linear in the bodies'
 //! inertias, so H is the mass matrix of the same tree with inertias I_b + K_b and armatures + c, and the
 //! articulated-body recursion without velocities (Featherstone, Table 7.1) factors and solves it with no
 //! fill-in. Everything is in the world's axes about the base origin, as `aba` leaves `Data`.

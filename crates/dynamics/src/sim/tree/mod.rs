@@ -23,6 +23,8 @@ mod collision;
 mod delassus;
 mod plane;
 mod solver;
+#[cfg(test)]
+mod tests;
 
 use std::sync::Arc;
 

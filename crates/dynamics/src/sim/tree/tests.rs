@@ -1,0 +1,142 @@
+//! The Newton solver's passes over the tree against dense linear algebra: M̃ x and H⁻¹ r (`articulated`)
+//! against the CRBA mass matrix, and the Delassus diagonals (`delassus`) against J M̃⁻¹ Jᵀ formed densely,
+//! on a fixed-base branching tree (revolute and prismatic joints) and on a floating one.
+
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Rotation3, UnitQuaternion, Vector3, Vector6};
+
+use super::articulated::Articulated;
+use super::delassus::Delassus;
+use crate::algorithms::{aba_with_armature, crba};
+use crate::model::{Data, Joint, JointLimits, Model};
+use crate::sim::tests::ten_link_tree;
+use crate::{MassProperties, Transform};
+
+/// A box base on a free-flyer with a chain of three and a side branch.
+fn floating_tree() -> Model {
+    let part = |m: f64| MassProperties::cuboid(m, Vector3::new(0.2, 0.05, 0.04), Vector3::new(0.1, 0.0, 0.0), &Matrix3::identity()).unwrap();
+    let mut model = Model::new(true, MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap(), "base");
+    let along = |r: Matrix3<f64>| Transform::new(r, Vector3::new(0.2, 0.0, 0.0));
+    let a = model.add_body(0, Joint::Revolute(Vector3::y()), along(Rotation3::from_euler_angles(0.0, 0.3, 0.0).into_inner()), part(0.5), "a", JointLimits::NONE).unwrap();
+    let b = model.add_body(a, Joint::Revolute(Vector3::new(0.3, 1.0, 0.0)), along(Matrix3::identity()), part(0.4), "b", JointLimits::NONE).unwrap();
+    model.add_body(b, Joint::Prismatic(Vector3::x()), along(Matrix3::identity()), part(0.3), "c", JointLimits::NONE).unwrap();
+    model.add_body(0, Joint::Revolute(Vector3::z()), along(Rotation3::from_euler_angles(0.0, 0.0, 2.0).into_inner()), part(0.6), "d", JointLimits::NONE).unwrap();
+    model
+}
+
+/// A configuration away from the neutral one (unit quaternion for a free-flyer).
+fn configuration(model: &Model) -> Vec<f64> {
+    let mut q: Vec<f64> = (0..model.nq()).map(|k| 0.4 * ((k as f64) * 1.3 + 0.2).sin()).collect();
+    if model.floating_base() {
+        let r = UnitQuaternion::from_euler_angles(0.3, -0.2, 0.7);
+        q[3..7].copy_from_slice(&[r.i, r.j, r.k, r.w]);
+    }
+    q
+}
+
+/// A deterministic symmetric positive semi-definite 6x6 (A Aᵀ of a pseudo-random A).
+fn stiffness(seed: usize) -> Matrix6<f64> {
+    let a = Matrix6::from_fn(|r, c| ((seed * 36 + r * 6 + c) as f64 * 0.618).sin());
+    a * a.transpose()
+}
+
+/// Dense M̃ = M + diag(armature), and Φ_b (6 x nv) of every body from `motions` of the unit vectors.
+fn dense(model: &Model, q: &[f64], armature: &[f64], tree: &mut Articulated, data: &Data) -> (DMatrix<f64>, Vec<DMatrix<f64>>) {
+    let nv = model.nv();
+    let mut mass = crba(model, &mut Data::new(model), q).clone();
+    for k in 0..nv {
+        mass[(k, k)] += armature[k];
+    }
+    let mut phi = vec![DMatrix::zeros(6, nv); model.nbodies()];
+    for k in 0..nv {
+        let unit: Vec<f64> = (0..nv).map(|j| if j == k { 1.0 } else { 0.0 }).collect();
+        tree.motions(model, data, &unit);
+        for (b, phi) in phi.iter_mut().enumerate() {
+            phi.set_column(k, &tree.motion[b]);
+        }
+    }
+    (mass, phi)
+}
+
+fn prepared(model: &Model) -> (Vec<f64>, Vec<f64>, Data, Articulated) {
+    let q = configuration(model);
+    // Armature is a joint's: a free-flyer's six coordinates have none (as in the simulation).
+    let armature: Vec<f64> = (0..model.nv()).map(|k| if k < base_coordinates(model) { 0.0 } else { 0.01 + 0.002 * k as f64 }).collect();
+    let mut data = Data::new(model);
+    let zeros = vec![0.0; model.nv()];
+    aba_with_armature(model, &mut data, &q, &zeros, &zeros, None, Some(&armature));
+    let mut tree = Articulated::new(model);
+    tree.update(model, &data);
+    (q, armature, data, tree)
+}
+
+fn base_coordinates(model: &Model) -> usize {
+    if model.floating_base() {
+        6
+    } else {
+        0
+    }
+}
+
+fn relative_error(a: &DVector<f64>, b: &DVector<f64>) -> f64 {
+    (a - b).amax() / b.amax().max(1e-300)
+}
+
+#[test]
+fn newton_matrix_products_and_solves_match_dense_algebra() {
+    for model in [ten_link_tree(), floating_tree()] {
+        let nv = model.nv();
+        let (q, armature, data, mut tree) = prepared(&model);
+        let (mass, phi) = dense(&model, &q, &armature, &mut tree, &data);
+        // M̃ x against CRBA: this also checks the Φ_b the rest of the test builds on.
+        let x = DVector::from_fn(nv, |k, _| (k as f64 * 0.7).cos());
+        let mut product = vec![0.0; nv];
+        tree.mass_times(&model, &data, &armature, x.as_slice(), &mut product);
+        assert!(relative_error(&DVector::from_vec(product), &(&mass * &x)) < 1e-12);
+        // H = M̃ + Σ Φ_bᵀ K_b Φ_b + diag(c): H⁻¹ r solves H x = r.
+        let mut h = mass.clone();
+        for b in 0..model.nbodies() {
+            tree.stiffness[b] = stiffness(b);
+            h += phi[b].transpose() * DMatrix::from_column_slice(6, 6, stiffness(b).as_slice()) * &phi[b];
+        }
+        for k in base_coordinates(&model)..nv {
+            tree.coordinate_stiffness[k] = 0.5 * k as f64;
+            h[(k, k)] += 0.5 * k as f64;
+        }
+        assert!(tree.factor(&model, &data, &armature));
+        let rhs = DVector::from_fn(nv, |k, _| (k as f64 * 1.9 + 0.3).sin());
+        let mut solution = vec![0.0; nv];
+        tree.solve(&model, &data, rhs.as_slice(), &mut solution);
+        assert!(relative_error(&(&h * DVector::from_vec(solution)), &rhs) < 1e-10, "floating base: {}", model.floating_base());
+    }
+}
+
+#[test]
+fn delassus_diagonals_match_dense_inverse_mass_matrix() {
+    for model in [ten_link_tree(), floating_tree()] {
+        let (q, armature, data, mut tree) = prepared(&model);
+        let (mass, phi) = dense(&model, &q, &armature, &mut tree, &data);
+        let inverse = mass.clone().try_inverse().expect("positive definite");
+        let mut delassus = Delassus::new(&model);
+        assert!(delassus.update(&model, &data));
+        let rows: [Vector6<f64>; 3] = std::array::from_fn(|r| Vector6::from_fn(|i, _| ((r * 6 + i) as f64 * 2.3 + 1.0).cos()));
+        let n = model.nbodies();
+        for a in 1..n {
+            for b in [None, Some(0), Some(1), Some(n - 1), Some(a / 2)] {
+                if b == Some(a) {
+                    continue;
+                }
+                let jacobian = b.map_or(phi[a].clone(), |b| &phi[a] - &phi[b]);
+                let (diagonal, _) = delassus.bodies(&model, &data, a, b, &rows);
+                for r in 0..3 {
+                    let row = jacobian.transpose() * DVector::from_column_slice(rows[r].as_slice());
+                    let expected = (row.transpose() * &inverse * &row)[(0, 0)];
+                    assert!((diagonal[r] - expected).abs() < 1e-10 * expected.abs().max(1e-12), "floating base {}: body {a} other {b:?} row {r}: {} vs {expected}", model.floating_base(), diagonal[r]);
+                }
+            }
+            if model.joint(a).nv() == 1 {
+                let k = model.idx_v(a);
+                assert!((delassus.coordinate(&model, &data, a) - inverse[(k, k)]).abs() < 1e-10 * inverse[(k, k)]);
+            }
+        }
+    }
+}
