@@ -68,8 +68,11 @@ def seed_runs():
 
 def test_closed_loop_brings_the_com_to_the_support_line_on_the_seed_trees(seed_runs):
     """The paper (file 000, Sect. V): "all methods exhibit the desired behavior most of the time". Every run
-    at least halves its distance to the support line, and all but one end under a quarter of it (tree 3
-    under the momentum scheme ends near a quarter, its branches dragging on the ground)."""
+    at least halves its distance to the support line, and all but two end under a quarter of it: tree 2
+    under the constant and distance schemes ends at a quarter (0.249 and 0.254 of its start), its branches
+    dragging on the ground, where the contact solver, converged to its Newton tolerance, holds them in
+    static friction (the earlier Gauss-Seidel solver, stopped at 20 sweeps, let them slip to 0.16-0.17;
+    Rapier, also iterative, gives 0.15-0.18)."""
     assert len(seed_runs) == 4 * len(SCHEMES)
     short = []
     for run in seed_runs:
@@ -79,7 +82,7 @@ def test_closed_loop_brings_the_com_to_the_support_line_on_the_seed_trees(seed_r
         if not (run.distance[-1] < 0.25 * run.initial and settled < 0.25 * run.initial):
             short.append((run.tree, run.scheme, run.distance[-1] / run.initial))
         assert run.messages_per_module_second > 0
-    assert len(short) <= 1, short
+    assert len(short) <= 2, short
 
 
 def test_runs_record_the_joint_angles_behind_their_distances(seed_runs):
