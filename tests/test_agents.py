@@ -10,7 +10,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import legkit as lk
@@ -80,7 +80,8 @@ trees = st.builds(
 )
 
 
-@settings(max_examples=60, deadline=None)
+@pytest.mark.slow
+@examples(60)
 @given(trees, st.integers(0, 10_000))
 def test_exact_after_diameter_rounds_then_silent(tree, angle_seed):
     model, layout = tree.to_model()
@@ -113,7 +114,7 @@ def test_single_module_network():
     assert network.estimate_errors(model, layout, q).largest < TOLERANCE
 
 
-@settings(max_examples=25, deadline=None)
+@examples(25)
 @given(trees, st.integers(0, 10_000), st.integers(0, 10_000))
 def test_estimates_track_moving_joints(tree, angle_seed, move_seed):
     model, layout = tree.to_model()
@@ -128,8 +129,9 @@ def test_estimates_track_moving_joints(tree, angle_seed, move_seed):
     assert_matches(network, brute_force(tree, model, layout, q))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("loss, duplication, delay_max", [(0.3, 0.2, 4), (0.0, 0.3, 7), (0.6, 0.0, 1)])
-@settings(max_examples=15, deadline=None)
+@examples(15)
 @given(tree=trees, angle_seed=st.integers(0, 10_000), bus_seed=st.integers(0, 10_000))
 def test_unreliable_bus_is_eventually_exact(loss, duplication, delay_max, tree, angle_seed, bus_seed):
     model, layout = tree.to_model()
@@ -179,7 +181,7 @@ def test_randomised_leader_election_among_ground_modules():
     assert leaders <= set(grounded) and len(leaders) > 1
 
 
-@settings(max_examples=60, deadline=None)
+@examples(60)
 @given(
     st.floats(0.01, 10), st.tuples(*[st.floats(-2, 2)] * 3), st.tuples(*[st.floats(0.01, 1)] * 3),
     st.tuples(*[st.floats(-1, 1)] * 4).filter(lambda v: np.linalg.norm(v) > 0.1), st.tuples(*[st.floats(-3, 3)] * 3),
@@ -290,6 +292,7 @@ def grounded_roots(trees):
     return [GroundContact(int(m), 0, np.eye(3), np.zeros(3), np.zeros(3), np.array([0.0, 0.0, 1.0])) for m in first]
 
 
+@pytest.mark.slow
 @examples(10)
 @given(seeds=st.lists(st.integers(0, 10_000), min_size=2, max_size=3, unique=True), stream_seed=st.integers(0, 2**32))
 def test_a_tree_on_its_own_stream_does_not_depend_on_the_other_trees(seeds, stream_seed):

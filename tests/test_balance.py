@@ -66,6 +66,7 @@ def seed_runs():
     return balance.run_balance(trees, balance.DEFAULT_DURATION, progress=False)
 
 
+@pytest.mark.slow
 def test_closed_loop_brings_the_com_to_the_support_line_on_the_seed_trees(seed_runs):
     """The paper (file 000, Sect. V): "all methods exhibit the desired behavior most of the time". Every run
     at least halves its distance to the support line, and all but two end under a quarter of it: tree 2
@@ -85,6 +86,7 @@ def test_closed_loop_brings_the_com_to_the_support_line_on_the_seed_trees(seed_r
     assert len(short) <= 2, short
 
 
+@pytest.mark.slow
 def test_runs_record_the_joint_angles_behind_their_distances(seed_runs):
     """RunResult.q (the animations' input) is the plant's state at each sample: the COM computed from it
     gives the recorded distance to the support line."""
@@ -97,6 +99,7 @@ def test_runs_record_the_joint_angles_behind_their_distances(seed_runs):
         np.testing.assert_allclose(np.hypot(com[:, 0], com[:, 1]) / width, run.distance, rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_closed_loop_holds_on_a_slippery_ground():
     """On a more slippery ground (mu 0.3 instead of 0.8) the branches lying on the ground slide more
     freely: every run of seed tree 0 ends within a quarter of its start."""
@@ -127,6 +130,7 @@ def test_simulated_runs_start_at_rest_out_of_the_ground(seed):
     assert np.hypot(*lk.center_of_mass(model, posed)[:2]) > 0.5 * width
 
 
+@pytest.mark.slow
 def test_cli_writes_csv_and_figure(tmp_path, capsys):
     out = tmp_path / "out"
     code = balance.main(["--trees", "2", "--modules", "4", "--branches", "2", "--duration", "0.05", "--out", str(out), "--loss", "0.1"])

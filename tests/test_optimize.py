@@ -74,6 +74,7 @@ def quadruped_problem(objectives) -> tuple[MultiphaseProblem, np.ndarray]:
     return problem, x
 
 
+@pytest.mark.slow
 def test_constraint_jacobian_and_gradient_match_central_differences():
     terms = [joule_loss(5.0, 60.0, 0.012), specific_resistance(0.1),
              MinMaxStability(2.0, diagonal_pairs=(("lf", "rh"), ("rf", "lh")))]

@@ -165,6 +165,7 @@ def test_derivatives_of_flat_feet_and_j_s1_match_central_differences(walk):
         assert gradient[j] == pytest.approx((problem.objective(plus) - problem.objective(minus)) / (2 * step), rel=1e-5, abs=1e-7)
 
 
+@pytest.mark.slow
 def test_symbolic_transcription_of_flat_feet_and_j_s1_equals_the_legkit_one(walk):
     problem, x = walk
     symbol, objective, rows = problem.nlp("exact").symbolic
@@ -209,6 +210,7 @@ def test_walk_solution_meets_dynamics_feet_and_motor_limits_in_legkit_kernels(ro
     assert np.sum(trajectory.durations) == pytest.approx(1.6)
 
 
+@pytest.mark.slow
 def test_cli_optimize_walks_the_biped_printing_each_iteration_and_writing_csv_and_figure(tmp_path, capsys):
     iterations = 2
     assert gait.main(["--robot", "biped", "--optimize", "--biped-intervals", "1", "--biped-max-iter", str(iterations), "--out", str(tmp_path)]) == 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 
 import numpy as np
+import pytest
 
 from legkit.experiments import gait
 from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR
@@ -31,6 +32,7 @@ def test_amble_guess_lies_on_the_reference_and_wraps_around_by_one_stride():
     np.testing.assert_allclose(u[1], u[0], atol=1e-12)
 
 
+@pytest.mark.slow
 def test_cli_optimize_prints_each_iteration_and_writes_csv_and_figure(tmp_path, capsys):
     iterations = 3
     assert gait.main(["--robot", "quadruped", "--optimize", "--intervals", "1", "--max-iter", str(iterations),

@@ -30,6 +30,7 @@ def slider_arm() -> lk.Model:
     return model
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("build", [lambda: build_quadruped().model, slider_arm])
 def test_symbolic_kernels_match_legkit(build):
     model = build()
@@ -66,6 +67,7 @@ def test_symbolic_kernels_match_legkit(build):
         np.testing.assert_allclose(np.asarray(functions["impact"](q, v)).ravel(), v_plus, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_symbolic_transcription_matches_the_legkit_one():
     # Every row of the symbolic NLP equals legkit's evaluation, and its exact Jacobian matches the coloured
     # central differences, on a three-phase quadruped problem with the smooth S_H rows and an impact.

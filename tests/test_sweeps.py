@@ -99,6 +99,7 @@ def local_table(faults_spec, tmp_path_factory):
     return out, table
 
 
+@pytest.mark.slow
 def test_sweep_writes_parquet_figures_and_the_paper_runs_of_legkit_balance(local_table, faults_spec):
     out, table = local_table
     assert table.num_rows == len(faults_spec.runs()) == 2 * 2 * 8
@@ -157,6 +158,7 @@ def test_a_run_on_a_lossy_delayed_bus_does_not_depend_on_its_batch():
         balance.run_balance(trees, 0.1, runs=[balance.RunSpec(0, GainSchedule(), bus_seed=-1)], bus=bus, progress=False)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("loss, delay", [(0.0, 1), (0.2, 3)])
 def test_a_run_does_not_depend_on_its_batch(loss, delay):
     """Terrain, noise, start angles, gains and bus faults are the run's own: the same run alone or in a batch
@@ -170,6 +172,7 @@ def test_a_run_does_not_depend_on_its_batch(loss, delay):
         assert all(alone[c] == together[k][c] or np.isnan(alone[c]) and np.isnan(together[k][c]) for c in alone), (alone, together[k])
 
 
+@pytest.mark.slow
 def test_killed_sweep_resumes_to_the_uninterrupted_table(tmp_path, local_table, faults_spec):
     _, uninterrupted = local_table
     out = tmp_path / "killed"
@@ -199,6 +202,7 @@ def test_killed_sweep_resumes_to_the_uninterrupted_table(tmp_path, local_table, 
         run_sweep(SweepSpec(**SMALL), out, workers=1, progress=False)
 
 
+@pytest.mark.slow
 def test_ray_gives_the_local_results_and_tuning(local_table, faults_spec, tmp_path, capsys):
     """The sweep on Ray tasks equals the local one; tuning on Ray Tune (OptunaSearch, the paper's constants
     first, one sampled trial within TPE's random start-up) finds the constants and scores the local Optuna
@@ -222,12 +226,14 @@ def test_ray_gives_the_local_results_and_tuning(local_table, faults_spec, tmp_pa
         np.testing.assert_array_equal(tuned_on_ray.test_t10[which], tuned_here.test_t10[which])
 
 
+@pytest.mark.slow
 def test_local_pool_gives_the_in_process_results(local_table, faults_spec, tmp_path):
     _, local = local_table
     pooled = run_sweep(faults_spec, tmp_path / "pool", workers=2, progress=False, figures=False)
     assert_same_table(pooled, local)
 
 
+@pytest.mark.slow
 def test_cli(tmp_path, capsys):
     assert sweep_cli.main(["--trees", "3", "--c0", "0:1:3", "--c1", "distance=0.1,0.2", "--dry-run"]) == 0
     # 3 trees x (constant 3 c0 + distance 3 c0 x 2 c1 + momentum 3 c0 x paper c1)
