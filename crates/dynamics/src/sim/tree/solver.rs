@@ -43,8 +43,9 @@ pub(super) const MAX_CORRECTION: f64 = 0.5;
 /// a resting body settles at once, its contact forces summing to its weight), so the regularisation's
 /// creep stops a few micrometres in; this bounds what impacts leave behind.
 pub(super) const TOLERANCE: f64 = 2e-4;
-/// Newton stops once its step is at most this fraction of the contacts' whole change of the velocities,
-/// both in the mass-matrix norm; it converges quadratically, so the error left is far smaller.
+/// Newton stops once the gradient is at most this fraction of the contacts' generalized impulses
+/// M̃ (v − v_free), or its step at most this fraction of the contacts' whole change of the velocities, both
+/// in the mass-matrix norm; it converges quadratically, so the error left is far smaller.
 pub(super) const CONVERGED: f64 = 1e-7;
 /// A row whose Delassus diagonal is below this fraction of its scale (tr Ω |F|², `Delassus`) is immovable:
 /// the joints cannot move the contact along it (a normal row: it carries nothing; tangent rows: no friction).
@@ -307,8 +308,7 @@ impl Solver {
             c.residual = std::array::from_fn(|r| velocity[r] - c.asked[r]);
         }
         let mut iterations = 0;
-        while iterations < max_iterations {
-            iterations += 1;
+        loop {
             tree.stiffness.fill(Matrix6::zeros());
             tree.coordinate_stiffness.fill(0.0);
             for c in constraints.iter_mut().filter(|c| c.active()) {
@@ -331,9 +331,18 @@ impl Solver {
                 }
             }
             impulses(tree, model, data, constraints, &mut self.descent);
+            let (mut gradient, mut scale) = (0.0f64, 0.0f64);
             for (descent, mass_change) in self.descent.iter_mut().zip(&self.mass_change) {
                 *descent -= mass_change;
+                gradient = gradient.max(descent.abs());
+                scale = scale.max(mass_change.abs());
             }
+            // Optimal already (a warm start that still holds, or a step that stayed within its zones,
+            // where the cost is quadratic and Newton's step exact): no step to take.
+            if gradient <= CONVERGED * scale || iterations == max_iterations {
+                break;
+            }
+            iterations += 1;
             if !tree.factor(model, data, armature) {
                 return None;
             }
