@@ -1,10 +1,8 @@
 //! Broadcasting of leading batch dimensions, and batch loops spread over all cores.
 //!
 //! Each argument has a core shape (a scalar, or a vector of known length); whatever dimensions lead it
-//! form its batch shape, and the batch shapes broadcast as in NumPy. Arguments that are contiguous and
-//! either unbatched or of the full batch shape are read in place; others are copied once.
-
-use std::borrow::Cow;
+//! form its batch shape, and the batch shapes broadcast as in NumPy. Every argument is copied once, with the
+//! GIL held, before the kernels run without it: another Python thread may write the array meanwhile.
 
 use legkit_dynamics::Error;
 use numpy::ndarray::{ArrayViewD, IxDyn};
@@ -21,14 +19,14 @@ pub type ArrayArg<'py> = crate::convert::Floats<'py>;
 /// The core shape of one argument (`&[]` for a scalar); the dimensions before it are its batch shape.
 pub type Core<'c> = &'c [usize];
 
-/// One argument's rows, one per batch element.
-pub struct Rows<'a> {
-    data: Cow<'a, [f64]>,
+/// One argument's rows, one per batch element: a copy of the argument, taken with the GIL held.
+pub struct Rows {
+    data: Vec<f64>,
     width: usize,
     shared: bool,
 }
 
-impl Rows<'_> {
+impl Rows {
     #[inline]
     pub fn row(&self, i: usize) -> &[f64] {
         let start = if self.shared { 0 } else { i * self.width };
@@ -41,13 +39,13 @@ impl Rows<'_> {
 pub type Shape = SmallVec<[usize; 4]>;
 
 /// The broadcast batch: its shape, its length, and every argument's rows.
-pub struct Batch<'a> {
+pub struct Batch {
     pub shape: Shape,
     pub len: usize,
-    pub rows: SmallVec<[Rows<'a>; 4]>,
+    pub rows: SmallVec<[Rows; 4]>,
 }
 
-impl Batch<'_> {
+impl Batch {
     /// The shape of an output with the given core dimensions.
     pub fn output_shape(&self, core: &[usize]) -> Shape {
         self.shape.iter().chain(core).copied().collect()
@@ -62,7 +60,7 @@ fn describe(core: Core) -> String {
     format!("(..., {})", dims.join(", "))
 }
 
-pub fn broadcast<'a>(arguments: &[(&str, &'a ArrayArg<'_>, Core)]) -> PyResult<Batch<'a>> {
+pub fn broadcast(arguments: &[(&str, &ArrayArg<'_>, Core)]) -> PyResult<Batch> {
     let mut shape = Shape::new();
     let mut arrays: SmallVec<[_; 4]> = SmallVec::new();
     for (name, argument, core) in arguments {
@@ -86,15 +84,16 @@ pub fn broadcast<'a>(arguments: &[(&str, &'a ArrayArg<'_>, Core)]) -> PyResult<B
         .map(|(array, batch_ndim, core)| {
             let batch = &array.shape()[..batch_ndim];
             let shared = batch.iter().product::<usize>() == 1;
-            // SAFETY: see `Floats`: nothing writes these arrays while the call runs.
+            // SAFETY: read here, with the GIL held, so no Python thread writes the array meanwhile (and no
+            // Rust code writes arguments); the kernels then run on this copy with the GIL released.
             let contiguous = unsafe { array.as_slice() }.ok();
             let data = match contiguous {
-                Some(slice) if shared || batch == shape.as_slice() => Cow::Borrowed(slice),
+                Some(slice) if shared || batch == shape.as_slice() => copied(slice),
                 _ => {
-                    let view: ArrayViewD<'a, f64> = unsafe { array.as_array() };
+                    let view: ArrayViewD<'_, f64> = unsafe { array.as_array() };
                     let full: Vec<usize> = shape.iter().chain(core.iter()).copied().collect();
                     let spread = if shared || batch == shape.as_slice() { Some(view) } else { view.broadcast(IxDyn(&full)) };
-                    Cow::Owned(spread.expect("shapes were checked to broadcast").iter().copied().collect())
+                    spread.expect("shapes were checked to broadcast").iter().copied().collect()
                 }
             };
             Rows { data, width: core.iter().product(), shared }
@@ -102,6 +101,16 @@ pub fn broadcast<'a>(arguments: &[(&str, &'a ArrayArg<'_>, Core)]) -> PyResult<B
         .collect();
     Ok(Batch { shape, len, rows })
 }
+
+/// `slice` copied on every core: large batches of cheap kernels would otherwise wait on a one-core copy.
+fn copied(slice: &[f64]) -> Vec<f64> {
+    let mut copy = vec![0.0; slice.len()];
+    copy.par_chunks_mut(COPY_CHUNK).zip(slice.par_chunks(COPY_CHUNK)).for_each(|(to, from)| to.copy_from_slice(from));
+    copy
+}
+
+/// Numbers per parallel copy task.
+const COPY_CHUNK: usize = 1 << 16;
 
 fn broadcast_shapes(a: &[usize], b: &[usize]) -> Option<Shape> {
     let n = a.len().max(b.len());

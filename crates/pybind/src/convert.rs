@@ -11,9 +11,9 @@ use pyo3::prelude::*;
 /// through `numpy.asarray`). Extraction never fails; `get` raises a failed conversion as a TypeError
 /// naming the argument.
 ///
-/// Arrays are read without rust-numpy's borrow tracking, whose bookkeeping costs more than a small
-/// kernel: like NumPy's own GIL-free loops, legkit assumes no other thread writes an array while a
-/// call that reads it is running.
+/// Arrays are read only while the GIL is held (and copied where a kernel then releases it), so another
+/// Python thread cannot write them meanwhile; rust-numpy's borrow tracking, which guards Rust borrows
+/// only, is not needed.
 pub struct Floats<'py>(Result<Bound<'py, PyArrayDyn<f64>>, String>);
 
 impl<'a, 'py> FromPyObject<'a, 'py> for Floats<'py> {
@@ -36,7 +36,7 @@ impl<'py> Floats<'py> {
     }
 
     pub fn get(&self, argument: &str) -> PyResult<ArrayViewD<'_, f64>> {
-        // SAFETY: no Rust code mutates these arrays, and (see above) neither may another thread.
+        // SAFETY: no Rust code mutates these arrays, and the view is used with the GIL held (see above).
         Ok(unsafe { self.array(argument)?.as_array() })
     }
 }

@@ -12,13 +12,13 @@ use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run};
 
 /// The batch of (q, v, x[, f_ext]) with cores (nq,), (nv,), (nv,) and (nbodies, 6).
-fn state_batch<'a>(
+fn state_batch(
     m: &Model,
-    q: &'a ArrayArg<'_>,
-    v: &'a ArrayArg<'_>,
-    (name, x): (&'static str, &'a ArrayArg<'_>),
-    f_ext: Option<&'a ArrayArg<'_>>,
-) -> PyResult<Batch<'a>> {
+    q: &ArrayArg<'_>,
+    v: &ArrayArg<'_>,
+    (name, x): (&'static str, &ArrayArg<'_>),
+    f_ext: Option<&ArrayArg<'_>>,
+) -> PyResult<Batch> {
     let (q_core, v_core, force_core) = ([m.nq()], [m.nv()], [m.nbodies(), 6]);
     let arguments = [("q", q, &q_core[..]), ("v", v, &v_core[..]), (name, x, &v_core[..])];
     match f_ext {

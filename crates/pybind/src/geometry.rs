@@ -14,7 +14,7 @@ use crate::convert::{batch_error, to_numpy, kernel_error};
 /// Queries per parallel task.
 const CHUNK: usize = 4096;
 
-fn vector(rows: &Rows<'_>, i: usize) -> Vector3<f64> {
+fn vector(rows: &Rows, i: usize) -> Vector3<f64> {
     Vector3::from_column_slice(rows.row(i))
 }
 
@@ -23,7 +23,7 @@ fn first_error(errors: impl ParallelIterator<Item = Option<(usize, Error)>>) -> 
     errors.flatten().min_by_key(|(i, _)| *i)
 }
 
-fn raise(batch: &Batch<'_>, (i, error): (usize, Error)) -> PyErr {
+fn raise(batch: &Batch, (i, error): (usize, Error)) -> PyErr {
     if batch.shape.is_empty() { kernel_error(error) } else { batch_error(error, i) }
 }
 

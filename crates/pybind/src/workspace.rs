@@ -54,7 +54,7 @@ impl Drop for Workspace<'_> {
 /// Runs `kernel(model, workspace, i, out)` over the batch, GIL released; returns `batch + out_core`,
 /// written in place into a new NumPy array. The array starts uninitialised: a kernel writes all of `out`
 /// or fails (and the array is dropped).
-pub fn run<'py, K>(py: Python<'py>, owner: &PyModel, batch: &Batch<'_>, out_core: &[usize], kernel: K) -> PyResult<Bound<'py, PyArrayDyn<f64>>>
+pub fn run<'py, K>(py: Python<'py>, owner: &PyModel, batch: &Batch, out_core: &[usize], kernel: K) -> PyResult<Bound<'py, PyArrayDyn<f64>>>
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
@@ -67,7 +67,7 @@ where
 }
 
 /// `run` with `width` numbers per row, left packed (see `unpack`).
-pub fn run_packed<K>(py: Python<'_>, owner: &PyModel, batch: &Batch<'_>, width: usize, kernel: K) -> PyResult<Vec<f64>>
+pub fn run_packed<K>(py: Python<'_>, owner: &PyModel, batch: &Batch, width: usize, kernel: K) -> PyResult<Vec<f64>>
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
@@ -76,7 +76,7 @@ where
     Ok(out)
 }
 
-fn fill<K>(py: Python<'_>, owner: &PyModel, batch: &Batch<'_>, out: &mut [f64], width: usize, kernel: K) -> PyResult<()>
+fn fill<K>(py: Python<'_>, owner: &PyModel, batch: &Batch, out: &mut [f64], width: usize, kernel: K) -> PyResult<()>
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
@@ -91,7 +91,7 @@ where
 }
 
 /// Splits rows packed as `[part 0 | part 1 | ...]` into one array per part, shaped `batch + core`.
-pub fn unpack<'py>(py: Python<'py>, batch: &Batch<'_>, packed: &[f64], cores: &[&[usize]]) -> Vec<Bound<'py, PyArrayDyn<f64>>> {
+pub fn unpack<'py>(py: Python<'py>, batch: &Batch, packed: &[f64], cores: &[&[usize]]) -> Vec<Bound<'py, PyArrayDyn<f64>>> {
     let widths: Vec<usize> = cores.iter().map(|c| c.iter().product()).collect();
     let width: usize = widths.iter().sum();
     let mut start = 0;
