@@ -118,14 +118,27 @@ impl Articulated {
             let (head, tail) = self.inertia.split_at_mut(i);
             add_reduced_inertia(&mut head[model.parent(i)], &tail[0], &self.u[i], &w);
         }
+        self.factor_base(model, self.inertia[0])
+    }
+
+    /// Takes the factor of M̃ itself (no stiffness) from the one `aba_with_armature` left in `data`; false
+    /// if a free-flyer base's articulated inertia is not positive definite.
+    pub(super) fn factor_of_aba(&mut self, model: &Model, data: &Data) -> bool {
+        self.u.copy_from_slice(&data.u);
+        self.d_inv.copy_from_slice(&data.d_inv);
+        self.factor_base(model, data.inertia[0])
+    }
+
+    /// A free-flyer base's block D_0 = I^A_0 = C Cᵀ; false if it is not positive definite.
+    fn factor_base(&mut self, model: &Model, inertia: Matrix6<f64>) -> bool {
         self.base = match model.joint(0) {
-            Joint::FreeFlyer => Cholesky::new(self.inertia[0]),
+            Joint::FreeFlyer => Cholesky::new(inertia),
             _ => None,
         };
         !matches!(model.joint(0), Joint::FreeFlyer) || self.base.is_some()
     }
 
-    /// out = H⁻¹ rhs, after `factor`.
+    /// out = H⁻¹ rhs, after `factor` or `factor_of_aba`.
     pub(super) fn solve(&mut self, model: &Model, data: &Data, rhs: &[f64], out: &mut [f64]) {
         self.force.iter_mut().for_each(|p| *p = Force::zeros());
         // Backward: the bias forces p^A of the generalized forces alone (eq. 7.41–7.44).

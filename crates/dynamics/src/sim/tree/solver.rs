@@ -83,54 +83,15 @@ pub(super) struct Constraint {
     asked: [f64; 3],
     /// The warm start's friction impulses.
     held: [f64; 2],
-    /// R_n and R_t; R_n is zero for an immovable constraint (it carries nothing) and R_t for one whose
-    /// tangent rows move nothing (its friction idles at the warm start, within the cone).
-    r: [f64; 2],
-    /// R_n^-½ and R_t^-½ (zero where R is), and μ̂ = μ (R_t / R_n)^½, the slope of the cone in the scaled
-    /// impulses (zero for a limit or a contact without friction rows).
+    /// R_n^-½ and R_t^-½, zero where R is: R_n for an immovable constraint (it carries nothing), R_t for one
+    /// whose tangent rows move nothing (its friction idles at the warm start, within the cone); and
+    /// μ̂ = μ (R_t / R_n)^½, the slope of the cone in the scaled impulses (zero for a limit or a contact
+    /// without friction rows).
     inverse_sqrt_r: [f64; 2],
     cone_slope: f64,
     /// J v − b at the solver's current velocities, and J d along its step.
     residual: [f64; 3],
     slope: [f64; 3],
-}
-
-impl Constraint {
-    /// A constraint on `target` whose rows are the forces `rows`, asking for the normal velocity `bias`,
-    /// with its warm-start impulses, its Delassus diagonal `diagonal` (A_ii per row) and the scale
-    /// below which a row counts as immovable (`Delassus`).
-    pub(super) fn new(kind: Kind, target: Target, rows: [Vector6<f64>; 3], bias: f64, warm: [f64; 3], diagonal: [f64; 3], scale: f64) -> Self {
-        let immovable = |a: f64, f: &Vector6<f64>| a <= IMMOVABLE * scale * f.norm_squared();
-        let r_n = if immovable(diagonal[0], &rows[0]) { 0.0 } else { REGULARISATION * diagonal[0] };
-        let tangents = diagonal[1] + diagonal[2];
-        let sliding = matches!(kind, Kind::Contact { .. }) && r_n > 0.0 && !immovable(tangents, &(rows[1] + rows[2]));
-        let r_t = if sliding { REGULARISATION * 0.5 * tangents } else { 0.0 };
-        let mut lambda = if r_n > 0.0 { warm } else { [0.0; 3] };
-        lambda[0] = lambda[0].max(0.0);
-        match kind {
-            Kind::Contact { mu } => clamp_to_cone(&mut lambda, mu),
-            Kind::Limit => {
-                lambda[1] = 0.0;
-                lambda[2] = 0.0;
-            }
-        }
-        Constraint {
-            kind,
-            target,
-            lambda,
-            rows,
-            asked: [bias, r_t * lambda[1], r_t * lambda[2]],
-            held: [lambda[1], lambda[2]],
-            r: [r_n, r_t],
-            inverse_sqrt_r: [r_n, r_t].map(|r| if r > 0.0 { 1.0 / r.sqrt() } else { 0.0 }),
-            cone_slope: match kind {
-                Kind::Contact { mu } if r_t > 0.0 => mu * (r_t / r_n).sqrt(),
-                _ => 0.0,
-            },
-            residual: [0.0; 3],
-            slope: [0.0; 3],
-        }
-    }
 }
 
 fn clamp_to_cone(lambda: &mut [f64; 3], mu: f64) {
@@ -154,8 +115,43 @@ enum Projection {
 }
 
 impl Constraint {
+    /// A constraint on `target` whose rows are the forces `rows`, asking for the normal velocity `bias`,
+    /// with its warm-start impulses, its Delassus diagonal `diagonal` (A_ii per row) and the scale
+    /// below which a row counts as immovable (`Delassus`).
+    pub(super) fn new(kind: Kind, target: Target, rows: [Vector6<f64>; 3], bias: f64, warm: [f64; 3], diagonal: [f64; 3], scale: f64) -> Self {
+        let immovable = |a: f64, f: &Vector6<f64>| a <= IMMOVABLE * scale * f.norm_squared();
+        let r_n = if immovable(diagonal[0], &rows[0]) { 0.0 } else { REGULARISATION * diagonal[0] };
+        let tangents = diagonal[1] + diagonal[2];
+        let friction = matches!(kind, Kind::Contact { .. }) && r_n > 0.0 && !immovable(tangents, &(rows[1] + rows[2]));
+        let r_t = if friction { REGULARISATION * 0.5 * tangents } else { 0.0 };
+        let mut lambda = if r_n > 0.0 { warm } else { [0.0; 3] };
+        lambda[0] = lambda[0].max(0.0);
+        match kind {
+            Kind::Contact { mu } => clamp_to_cone(&mut lambda, mu),
+            Kind::Limit => {
+                lambda[1] = 0.0;
+                lambda[2] = 0.0;
+            }
+        }
+        Constraint {
+            kind,
+            target,
+            lambda,
+            rows,
+            asked: [bias, r_t * lambda[1], r_t * lambda[2]],
+            held: [lambda[1], lambda[2]],
+            inverse_sqrt_r: [r_n, r_t].map(|r| if r > 0.0 { 1.0 / r.sqrt() } else { 0.0 }),
+            cone_slope: match kind {
+                Kind::Contact { mu } if r_t > 0.0 => mu * (r_t / r_n).sqrt(),
+                _ => 0.0,
+            },
+            residual: [0.0; 3],
+            slope: [0.0; 3],
+        }
+    }
+
     fn active(&self) -> bool {
-        self.r[0] > 0.0
+        self.inverse_sqrt_r[0] > 0.0
     }
 
     fn project(&self, y: [f64; 3]) -> Projection {
@@ -234,7 +230,7 @@ impl Constraint {
         }
         let mut lambda = self.impulses(&self.project(self.residual));
         if let Kind::Contact { mu } = self.kind {
-            if self.r[1] == 0.0 {
+            if self.inverse_sqrt_r[1] == 0.0 {
                 lambda[1] = self.held[0];
                 lambda[2] = self.held[1];
                 clamp_to_cone(&mut lambda, mu);
@@ -291,11 +287,9 @@ impl Solver {
         }
         let tree = &mut self.tree;
         tree.update(model, data);
-        // Warm start: v = v_free + M̃⁻¹ Jᵀ λ_warm, so M̃ (v − v_free) = Jᵀ λ_warm.
-        impulses(tree, model, data, constraints, &mut self.mass_change);
-        tree.stiffness.fill(Matrix6::zeros());
-        tree.coordinate_stiffness.fill(0.0);
-        if !tree.factor(model, data, armature) {
+        // Warm start: v = v_free + M̃⁻¹ Jᵀ λ_warm, so M̃ (v − v_free) = Jᵀ λ_warm, through ABA's own factor of M̃.
+        generalized_impulses(tree, model, data, constraints, &mut self.mass_change);
+        if !tree.factor_of_aba(model, data) {
             return None;
         }
         tree.solve(model, data, &self.mass_change, &mut self.change);
@@ -330,7 +324,7 @@ impl Solver {
                     Target::Coordinate(k) => tree.coordinate_stiffness[k] += hessian[(0, 0)] * c.rows[0][0] * c.rows[0][0],
                 }
             }
-            impulses(tree, model, data, constraints, &mut self.descent);
+            generalized_impulses(tree, model, data, constraints, &mut self.descent);
             let (mut gradient, mut scale) = (0.0f64, 0.0f64);
             for (descent, mass_change) in self.descent.iter_mut().zip(&self.mass_change) {
                 *descent -= mass_change;
@@ -374,7 +368,7 @@ impl Solver {
 }
 
 /// out = Jᵀ λ for the constraints' impulses.
-fn impulses(tree: &mut Articulated, model: &Model, data: &Data, constraints: &[Constraint], out: &mut [f64]) {
+fn generalized_impulses(tree: &mut Articulated, model: &Model, data: &Data, constraints: &[Constraint], out: &mut [f64]) {
     tree.force.fill(Vector6::zeros());
     for c in constraints.iter().filter(|c| c.lambda != [0.0; 3]) {
         if let Target::Bodies(a, b) = c.target {

@@ -1,4 +1,4 @@
-//! The Newton solver's passes over the tree against dense linear algebra: M̃ x and H⁻¹ r (`articulated`)
+//! The Newton solver's passes over the tree against dense linear algebra: M̃ x, M̃⁻¹ r and H⁻¹ r (`articulated`)
 //! against the CRBA mass matrix, and the Delassus diagonals (`delassus`) against J M̃⁻¹ Jᵀ formed densely,
 //! on a fixed-base branching tree (revolute and prismatic joints) and on a floating one.
 
@@ -92,6 +92,12 @@ fn newton_matrix_products_and_solves_match_dense_algebra() {
         let mut product = vec![0.0; nv];
         tree.mass_times(&model, &data, &armature, x.as_slice(), &mut product);
         assert!(relative_error(&DVector::from_vec(product), &(&mass * &x)) < 1e-12);
+        let rhs = DVector::from_fn(nv, |k, _| (k as f64 * 1.9 + 0.3).sin());
+        let mut solution = vec![0.0; nv];
+        // M̃⁻¹ r through the factor ABA left.
+        assert!(tree.factor_of_aba(&model, &data));
+        tree.solve(&model, &data, rhs.as_slice(), &mut solution);
+        assert!(relative_error(&(&mass * DVector::from_vec(solution.clone())), &rhs) < 1e-10, "floating base: {}", model.floating_base());
         // H = M̃ + Σ Φ_bᵀ K_b Φ_b + diag(c): H⁻¹ r solves H x = r.
         let mut h = mass.clone();
         for b in 0..model.nbodies() {
@@ -103,8 +109,6 @@ fn newton_matrix_products_and_solves_match_dense_algebra() {
             h[(k, k)] += 0.5 * k as f64;
         }
         assert!(tree.factor(&model, &data, &armature));
-        let rhs = DVector::from_fn(nv, |k, _| (k as f64 * 1.9 + 0.3).sin());
-        let mut solution = vec![0.0; nv];
         tree.solve(&model, &data, rhs.as_slice(), &mut solution);
         assert!(relative_error(&(&h * DVector::from_vec(solution)), &rhs) < 1e-10, "floating base: {}", model.floating_base());
     }
