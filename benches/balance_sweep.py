@@ -51,7 +51,10 @@ def measure(label: str, action) -> dict[str, float]:
     """Run ``action`` (returns the number of runs), print its line and return its figures."""
     load_before, cpu, start = os.getloadavg()[0], cpu_seconds(), time.perf_counter()
     runs = action()
-    figures = {"runs": runs, "wall": time.perf_counter() - start, "cpu": cpu_seconds() - cpu, "load_before": load_before, "load_after": os.getloadavg()[0]}
+    figures = {
+        "runs": runs, "wall": time.perf_counter() - start, "cpu": cpu_seconds() - cpu,
+        "load_before": load_before, "load_after": os.getloadavg()[0],
+    }
     print(line(label, figures), flush=True)
     return figures
 
@@ -81,7 +84,7 @@ def main() -> None:
     print(f"{os.cpu_count()} cores; load average {os.getloadavg()[0]:.2f}")
     for size in args.batch_sizes:
         spec = spec_for(size, args.duration, size)
-        measure(f"part 1: one batch of {size}", lambda: len(run_batch(spec.to_dict(), spec.runs()[:size])))
+        measure(f"part 1: one batch of {size}", lambda spec=spec, size=size: len(run_batch(spec.to_dict(), spec.runs()[:size])))
 
     spec = spec_for(args.runs, args.duration, args.sweep_batch)
     configurations = {"1 worker x 1 thread": 1, "2 workers x 1 thread": 2}

@@ -37,9 +37,9 @@ import resource
 import sys
 import time
 import timeit
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import pinocchio as pin

@@ -26,7 +26,14 @@ import numpy as np
 import legkit.optimize as lo
 from legkit.experiments.gait import AMBLE_QUADRUPED, BIPED_MOTOR, QUADRUPED_MOTOR, inverse_dynamics_residuals
 from legkit.optimize.gaits import (
-    AMBLE_DERIVATIVES, AMBLE_IPOPT, WALK_DERIVATIVES, amble_problem, amble_reference, guess_from_reference, solve_walk, walk_problem,
+    AMBLE_DERIVATIVES,
+    AMBLE_IPOPT,
+    WALK_DERIVATIVES,
+    amble_problem,
+    amble_reference,
+    guess_from_reference,
+    solve_walk,
+    walk_problem,
     walk_reference,
 )
 from legkit.robots.biped import build_biped

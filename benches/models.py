@@ -23,9 +23,9 @@ Models (`MODELS` maps a name to its builder):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
-from typing import Callable
 
 import numpy as np
 import pinocchio as pin

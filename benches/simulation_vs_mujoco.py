@@ -61,9 +61,9 @@ import statistics
 import tempfile
 import time
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -169,7 +169,9 @@ def mujoco_xml(parts: list[Part]) -> str:
     for index, part in enumerate(parts):
         children.setdefault(part.parent, []).append(index)
     half = PART_SIZE / 2
-    inertia = PART_MASS / 12 * np.array([PART_SIZE[1] ** 2 + PART_SIZE[2] ** 2, PART_SIZE[0] ** 2 + PART_SIZE[2] ** 2, PART_SIZE[0] ** 2 + PART_SIZE[1] ** 2])
+    inertia = PART_MASS / 12 * np.array(
+        [PART_SIZE[1] ** 2 + PART_SIZE[2] ** 2, PART_SIZE[0] ** 2 + PART_SIZE[2] ** 2, PART_SIZE[0] ** 2 + PART_SIZE[1] ** 2]
+    )
 
     def body(index: int) -> str:
         part = parts[index]
@@ -513,7 +515,8 @@ def robot_scene(robot: str, fall: bool) -> Scene:
         spec = mujoco.MjSpec.from_file(str(urdf))
         spec.compiler.discardvisual = True
         spec.compiler.balanceinertia = True
-        spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE  # links without <inertial> are massless, as in legkit and Pinocchio
+        # Links without <inertial> are massless, as in legkit and Pinocchio.
+        spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
         spec.option.timestep = DT
         spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
         spec.worldbody.first_body().add_freejoint()

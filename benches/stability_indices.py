@@ -28,7 +28,9 @@ def trajectory(rng: np.random.Generator) -> dict[str, np.ndarray]:
     return {
         "t": t, "points": points, "active": pairs[quarter], "com": com,
         "momentum": rng.normal(scale=0.05, size=(SAMPLES, 3)), "spin": rng.normal(scale=0.005, size=(SAMPLES, 3)),
-        "rate": np.column_stack([rng.normal(scale=0.3, size=(SAMPLES, 2)), rng.normal(scale=0.3, size=SAMPLES), rng.normal(scale=0.01, size=(SAMPLES, 3))]),
+        "rate": np.column_stack(
+            [rng.normal(scale=0.3, size=(SAMPLES, 2)), rng.normal(scale=0.3, size=SAMPLES), rng.normal(scale=0.01, size=(SAMPLES, 3))]
+        ),
         "inertia": np.broadcast_to(np.diag([0.004, 0.01, 0.012]), (SAMPLES, 3, 3)),
         "forces": np.abs(rng.normal(size=(SAMPLES, 4, 3))) * [0.2, 0.2, 4.0],
         "torques": rng.normal(scale=0.2, size=(SAMPLES, JOINTS)), "speeds": rng.normal(scale=3.0, size=(SAMPLES, JOINTS)),

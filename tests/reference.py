@@ -2,8 +2,8 @@
 
 Everything here is deliberately naive: point-mass sums written straight from the definitions, a
 fine-grid discretisation of a solid box, and circle/line distances found by dense angle sampling
-(4096 samples, then a 2048-sample zoom around each candidate) followed by golden-section refinement. None of it shares code or formulas with the implementation
-under test beyond the mathematical definitions themselves.
+(4096 samples, then a 2048-sample zoom around each candidate) followed by golden-section refinement. None of it
+shares code or formulas with the implementation under test beyond the mathematical definitions themselves.
 """
 
 from __future__ import annotations

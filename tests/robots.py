@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from hypothesis import event, strategies as st
+from hypothesis import event
+from hypothesis import strategies as st
 
 import legkit as lk
 

@@ -15,7 +15,6 @@ from hypothesis import strategies as st
 
 import legkit as lk
 from conftest import examples
-
 from legkit.agents import AgentNetwork, BusConfig, Channel, GroundContact, moments
 from legkit.agents import bus as bus_module
 from legkit.robots import superbot as sb

@@ -31,10 +31,9 @@ from hypothesis import strategies as st
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import legkit as lk  # noqa: E402
 import reference as ref  # noqa: E402
 from conftest import directions, examples, reals, rotations, vectors  # noqa: E402
-
-import legkit as lk  # noqa: E402
 
 EPS = ref.EPS
 NAN = float("nan")

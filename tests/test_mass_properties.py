@@ -27,10 +27,9 @@ from hypothesis import strategies as st
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import legkit as lk  # noqa: E402
 import reference as ref  # noqa: E402
 from conftest import bodies, examples, point_clouds, reals, rotations, vectors  # noqa: E402
-
-import legkit as lk  # noqa: E402
 
 MP = lk.MassProperties
 REL = 1e-10

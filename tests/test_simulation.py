@@ -50,10 +50,13 @@ def quadruped():
     """A floating 4 kg body on four hip/knee legs (axes y) with ball feet; thighs have no collider."""
     model = lk.Model(floating_base=True, base=lk.MassProperties.box(4.0, [0.4, 0.2, 0.06]))
     shapes = {}
-    segment = lambda m: lk.MassProperties.box(m, [0.03, 0.03, LEG_LENGTH], center=[0, 0, -LEG_LENGTH / 2])
+
+    def segment(m: float) -> lk.MassProperties:
+        return lk.MassProperties.box(m, [0.03, 0.03, LEG_LENGTH], center=[0, 0, -LEG_LENGTH / 2])
+
     for k, (x, y) in enumerate([(0.15, 0.08), (0.15, -0.08), (-0.15, 0.08), (-0.15, -0.08)]):
         thigh = model.add_revolute(0, [0, 1, 0], (np.eye(3), [x, y, -0.03]), segment(0.3), f"thigh{k}")
-        shin = model.add_revolute(thigh, [0, 1, 0], (np.eye(3), [0, 0, -LEG_LENGTH]), segment(0.2), f"shin{k}")
+        model.add_revolute(thigh, [0, 1, 0], (np.eye(3), [0, 0, -LEG_LENGTH]), segment(0.2), f"shin{k}")
         foot = np.eye(4)
         foot[2, 3] = -LEG_LENGTH
         shapes[thigh] = None
@@ -103,7 +106,9 @@ def test_first_step_from_rest_uses_the_aba_acceleration(links, seed):
     for i in range(1, links + 1):
         axis = rng.normal(size=3)
         placement = (rotation(rng.normal(size=3), rng.uniform(-3, 3)), rng.uniform(-0.3, 0.3, 3))
-        body = lk.MassProperties.box(rng.uniform(0.2, 2), rng.uniform(0.05, 0.4, 3), center=rng.uniform(-0.1, 0.1, 3), rotation=rotation(rng.normal(size=3), 1.0))
+        body = lk.MassProperties.box(
+            rng.uniform(0.2, 2), rng.uniform(0.05, 0.4, 3), center=rng.uniform(-0.1, 0.1, 3), rotation=rotation(rng.normal(size=3), 1.0)
+        )
         adder = model.add_prismatic if rng.uniform() < 0.2 else model.add_revolute
         adder(int(rng.integers(0, i)), axis, placement, body)
     q = model.neutral()

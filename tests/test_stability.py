@@ -185,7 +185,9 @@ def test_margins_invariant_to_rotation_about_vertical_and_translation(scene, ang
     lengths = np.linalg.norm(edges.end - edges.start, axis=-1)[edges.valid]
     if ls.distinct_contact_count(points) >= 2 and lengths.min() >= 1e-4:
         before = ls.angular_momentum_stability(com, p, k, inertia, 2.0, points, definition="energy")
-        after = ls.angular_momentum_stability(moved_com, rotation @ p, rotation @ k, rotation @ inertia @ rotation.T, 2.0, moved_points, definition="energy")
+        after = ls.angular_momentum_stability(
+            moved_com, rotation @ p, rotation @ k, rotation @ inertia @ rotation.T, 2.0, moved_points, definition="energy"
+        )
         assert after == pytest.approx(before, abs=1e-10)
     rate = np.concatenate([p, k])
     zmp = ls.zmp_from_momentum_rate(com, rate, 2.0, ground_height=0.0)
@@ -201,7 +203,9 @@ def test_near_duplicate_contacts_merge_so_s_h_is_invariant_to_rotation():
     inertia = np.diag([0.3, 0.2, 0.4])
     assert ls.distinct_contact_count(points) == 2
     before = ls.angular_momentum_stability(com, np.zeros(3), np.zeros(3), inertia, 2.0, points, definition="energy")
-    after = ls.angular_momentum_stability(rotation @ com + offset, np.zeros(3), np.zeros(3), rotation @ inertia @ rotation.T, 2.0, points @ rotation.T + offset, definition="energy")
+    after = ls.angular_momentum_stability(
+        rotation @ com + offset, np.zeros(3), np.zeros(3), rotation @ inertia @ rotation.T, 2.0, points @ rotation.T + offset, definition="energy"
+    )
     # The support is the segment (0,0)-(0,1) and the COM lies on its line: no rise to tip over it, S_H = 0.
     assert before == pytest.approx(0.0, abs=1e-12)
     assert after == pytest.approx(0.0, abs=1e-10)
@@ -510,8 +514,9 @@ def test_bad_input_raises_clear_errors():
         ls.joule_loss_index(np.ones((3, 2)), [0.0, 1.0, 1.0], 1.0, 1.0, 1.0, 1.0)
     with pytest.raises(TypeError, match="torques"):
         ls.joule_loss_power("abc", 1.0, 1.0, 1.0)
+    model = lk.Model(floating_base=True, base=lk.MassProperties.point(1.0, [0, 0, 0]))
     with pytest.raises(ValueError, match="foot"):
-        ls.foot_rotation_indicator(lk.Model(floating_base=True, base=lk.MassProperties.point(1.0, [0, 0, 0])), np.r_[0, 0, 1, 0, 0, 0, 1.0], np.zeros(6), np.zeros(6), "toe")
+        ls.foot_rotation_indicator(model, np.r_[0, 0, 1, 0, 0, 0, 1.0], np.zeros(6), np.zeros(6), "toe")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -679,8 +684,10 @@ def test_published_j_e2_is_an_integral_in_seconds_and_mean_its_time_mean():
     assert ls.specific_resistance(torques, speeds, t, [1.0, 2.0, 4.0], 2.0, definition="mean") == pytest.approx(integral / 2.0, rel=1e-12)
     # Twice the duration at the same state: the published integral doubles, the mean does not.
     long_t = 2.0 * t
-    assert ls.specific_resistance(torques, speeds, long_t, 1.0, 2.0) == pytest.approx(2.0 * ls.specific_resistance(torques, speeds, t, 1.0, 2.0), rel=1e-12)
-    assert ls.specific_resistance(torques, speeds, long_t, 1.0, 2.0, definition="mean") == pytest.approx(ls.specific_resistance(torques, speeds, t, 1.0, 2.0, definition="mean"), rel=1e-12)
+    resistance = ls.specific_resistance(torques, speeds, t, 1.0, 2.0)
+    assert ls.specific_resistance(torques, speeds, long_t, 1.0, 2.0) == pytest.approx(2.0 * resistance, rel=1e-12)
+    mean = ls.specific_resistance(torques, speeds, t, 1.0, 2.0, definition="mean")
+    assert ls.specific_resistance(torques, speeds, long_t, 1.0, 2.0, definition="mean") == pytest.approx(mean, rel=1e-12)
     with pytest.raises(ValueError, match="forward_velocity"):
         ls.specific_resistance(torques, speeds, t, [1.0, 0.0, 1.0], 2.0)
     with pytest.raises(ValueError, match="forward_velocity"):

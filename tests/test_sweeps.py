@@ -113,7 +113,8 @@ def test_sweep_writes_parquet_figures_and_the_paper_runs_of_legkit_balance(local
     # Replicate 0 on the plane, reliable bus, no noise, is the run of `legkit balance` with the same tree seed.
     reference = balance.run_balance([random_tree(4, 2, s) for s in range(2)], 0.1, progress=False)
     for expected in (e for e in reference if e.scheme in ("constant", "momentum")):
-        (row,) = [r for r in rows if (r["tree_seed"], r["scheme"], r["loss"], r["terrain"], r["noise"]) == (expected.tree, expected.scheme, 0.0, 0.0, 0.0)]
+        key = (expected.tree, expected.scheme, 0.0, 0.0, 0.0)
+        (row,) = [r for r in rows if (r["tree_seed"], r["scheme"], r["loss"], r["terrain"], r["noise"]) == key]
         assert (row["final"], row["overshoot"], row["energy"]) == (expected.final, expected.overshoot, expected.energy)
     # Each fault changes the outcome: lossy buses send more (retransmissions and acknowledgements aside,
     # data messages are retransmitted), noise and terrain move the COM elsewhere.

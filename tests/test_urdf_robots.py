@@ -151,7 +151,9 @@ def test_zero_effort_and_velocity_read_as_no_bound_with_a_warning():
         lk.Model.from_urdf(pendulum, strict=True)
 
 
-def stands_on_both_engines(model: lk.Model, q: np.ndarray, kp: float, kd: float, feet: set[str], legs: tuple[str, ...], rtol: float) -> dict[str, float]:
+def stands_on_both_engines(
+    model: lk.Model, q: np.ndarray, kp: float, kd: float, feet: set[str], legs: tuple[str, ...], rtol: float
+) -> dict[str, float]:
     """Servos holding ``q`` (the base free), 2 s on a plane: the robot touches the ground with ``feet`` (on
     Rapier, maybe also bodies ending in ``legs``), its contact lift is its weight within ``rtol``, its trunk is
     level; returns the base height per engine."""
@@ -227,7 +229,8 @@ def test_go1_trots_forward_under_pd_on_both_engines():
     thighs = [model.idx_q[b] for b in range(1, model.nbodies) if model.names[b].endswith("_thigh")]
     calves = [model.idx_q[b] for b in range(1, model.nbodies) if model.names[b].endswith("_calf")]
     # FL and RR swing together, FR and RL half a period later (the legs named in body order).
-    phase = np.array([0.0 if model.names[b].startswith(("FL", "RR")) else np.pi for b in range(1, model.nbodies) if model.names[b].endswith("_thigh")])
+    thigh_bodies = [b for b in range(1, model.nbodies) if model.names[b].endswith("_thigh")]
+    phase = np.array([0.0 if model.names[b].startswith(("FL", "RR")) else np.pi for b in thigh_bodies])
     times = np.arange(3000) * 1e-3
     angle = 2 * np.pi * 2.0 * times[:, None] + phase
     targets = np.repeat(q0[None], times.size, axis=0)

@@ -309,8 +309,8 @@ def test_simulated_cop_of_contacts_on_the_plane_is_the_load_weighted_mean(count,
         "normal_force": load,
         "tangential_force": np.c_[rng.normal(size=(count, 2)) * load[:, None], np.zeros(count)],
     }
-    expected_x = sum(l * p[0] for l, p in zip(load, points)) / sum(load)
-    expected_y = sum(l * p[1] for l, p in zip(load, points)) / sum(load)
+    expected_x = sum(w * p[0] for w, p in zip(load, points)) / sum(load)
+    expected_y = sum(w * p[1] for w, p in zip(load, points)) / sum(load)
     np.testing.assert_allclose(simulated_center_of_pressure(contacts), [expected_x, expected_y, 0.0], rtol=0, atol=1e-12)
 
 
