@@ -2,7 +2,8 @@
 
 import os
 import pathlib
-from typing import Any, Literal, Sequence
+from collections.abc import Sequence
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -100,7 +101,9 @@ class Model:
     def body(self, body: _Body) -> MassProperties: ...
     def placement(self, body: _Body) -> np.ndarray: ...
     def neutral(self) -> np.ndarray: ...
-    def colliders(self, shapes: dict[int | str, _ShapeSpec] | None = None) -> list[tuple[int, Literal["box", "sphere", "capsule", "cylinder", "convex"], tuple[float, ...] | np.ndarray, np.ndarray]]:
+    def colliders(
+        self, shapes: dict[int | str, _ShapeSpec] | None = None
+    ) -> list[tuple[int, Literal["box", "sphere", "capsule", "cylinder", "convex"], tuple[float, ...] | np.ndarray, np.ndarray]]:
         """What ``Simulation(model, shapes=shapes)`` collides with: (body, kind, size, placement (4, 4) in the body
         frame); size: box full edge lengths, sphere (radius,), capsule/cylinder (half_height, radius) along z,
         convex the hull's vertices (n, 3)."""

@@ -20,8 +20,8 @@ agent does not know its world pose yet (no leader heard of) holds its current an
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -138,10 +138,10 @@ class BalanceController:
         support_distance = _norm(offset - along * direction)
         target = np.minimum(np.maximum(net.angles + np.where(fixed == 1, -1.0, 1.0)[:, None] * theta, -self.limit), self.limit)
         target = np.where(known[:, None], target, net.angles)
-        # |m2 u x (p2 - q)|, the cross product as numpy's np.cross computes it: u_{i+1} l_{i+2} - u_{i+2} l_{i+1}.
-        u, l = np.concatenate([axis_direction, axis_direction[:2]]), np.concatenate([lever, lever[:2]])
-        cross = u[1:4] * l[2:5]
-        cross -= u[2:5] * l[1:4]
+        # |m2 u x (p2 - q)|, the cross product as numpy's np.cross computes it: u_{i+1} r_{i+2} - u_{i+2} r_{i+1}.
+        u, r = np.concatenate([axis_direction, axis_direction[:2]]), np.concatenate([lever, lever[:2]])
+        cross = u[1:4] * r[2:5]
+        cross -= u[2:5] * r[1:4]
         mass_moment = _norm(m2 * cross).T
         support_distance = np.where(known, support_distance, 0.0)
         return JointDecisions(theta, target, distance, np.broadcast_to(support_distance[:, None], (n, 3)), np.where(known[:, None], mass_moment, 0.0))
@@ -149,14 +149,17 @@ class BalanceController:
     def gain_factors(self, decisions: JointDecisions) -> np.ndarray:
         """(N, 3) gain factors from each module's schedule: constant c0, distance c0 + c1 d / width,
         momentum c0 + c1 |m2 u x (p2 - q)|."""
-        variable = np.where(self._distance_scheme, decisions.support_distance / self.width, np.where(self._momentum_scheme, decisions.mass_moment, 0.0))
+        variable = np.where(
+            self._distance_scheme, decisions.support_distance / self.width, np.where(self._momentum_scheme, decisions.mass_moment, 0.0)
+        )
         return self._c[:, :1] + self._c[:, 1:] * variable
 
     def torques(self, dt: float) -> tuple[np.ndarray, JointDecisions]:
         """Joint torques (N, 3) N m for the agents' current state, after a control period ``dt`` s, and the decisions."""
         decisions = self.decide()
         factor = self.gain_factors(decisions)
-        return self.pid(decisions.target - self.network.angles, dt, factor * self._k0[:, 0:1], factor * self._k0[:, 1:2], factor * self._k0[:, 2:3]), decisions
+        error = decisions.target - self.network.angles
+        return self.pid(error, dt, factor * self._k0[:, 0:1], factor * self._k0[:, 1:2], factor * self._k0[:, 2:3]), decisions
 
 
 def _norm(vectors: np.ndarray) -> np.ndarray:

@@ -43,7 +43,7 @@ class GainSchedule:
                 raise ValueError(f"{name}: must be a finite number >= 0, got {value!r}")
 
     @staticmethod
-    def paper(scheme: str) -> "GainSchedule":
+    def paper(scheme: str) -> GainSchedule:
         """The seed paper's values for ``scheme``."""
         coefficients = {"constant": (1.0, 0.0), "distance": (0.0, 0.1), "momentum": (0.0, 1.0)}
         if scheme not in coefficients:

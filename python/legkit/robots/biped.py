@@ -86,7 +86,9 @@ class Biped:
         foot frame [m])."""
         p = self.parameters
         z = -p.ankle_height
-        corners = [(-p.foot_heel, -p.foot_half_width), (-p.foot_heel, p.foot_half_width), (p.foot_toe, p.foot_half_width), (p.foot_toe, -p.foot_half_width)]
+        corners = [
+            (-p.foot_heel, -p.foot_half_width), (-p.foot_heel, p.foot_half_width), (p.foot_toe, p.foot_half_width), (p.foot_toe, -p.foot_half_width)
+        ]
         return {side: [(f"{side}_foot", np.array([x, y, z])) for x, y in corners] for side in SIDES}
 
     def contacts(self, sides: tuple[str, ...] = SIDES) -> list[tuple[int, np.ndarray]]:
@@ -131,7 +133,8 @@ def build_biped(parameters: BipedParameters | None = None) -> Biped:
         yaw = model.add_revolute("pelvis", z, (np.eye(3), [0.0, sign * p.hip_y, 0.0]), None, f"{side}_hip_yaw")
         roll = model.add_revolute(yaw, x, None, None, f"{side}_hip_roll")
         thigh = model.add_revolute(roll, y, None, limb_segment(p.thigh_mass, p.thigh_length, p.link_width), f"{side}_thigh")
-        shank = model.add_revolute(thigh, y, (np.eye(3), [0.0, 0.0, -p.thigh_length]), limb_segment(p.shank_mass, p.shank_length, p.link_width), f"{side}_shank")
+        shank_body = limb_segment(p.shank_mass, p.shank_length, p.link_width)
+        shank = model.add_revolute(thigh, y, (np.eye(3), [0.0, 0.0, -p.thigh_length]), shank_body, f"{side}_shank")
         ankle = model.add_revolute(shank, y, (np.eye(3), [0.0, 0.0, -p.shank_length]), None, f"{side}_ankle")
         model.add_revolute(ankle, x, None, foot_body, f"{side}_foot")
     for side in SIDES:

@@ -18,8 +18,9 @@ meshcat is imported only when HTML is written or a viewer starts (``import legki
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 import numpy.typing as npt
 

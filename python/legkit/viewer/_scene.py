@@ -6,16 +6,17 @@ import base64
 import html
 import math
 import os
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
 from legkit._validation import float_array
-from legkit.viewer._geometry import Shape, check_model, collision_shapes, shape_poses, visual_shapes
+from legkit.viewer._geometry import Shape, check_model, collision_shapes, visual_shapes
 
 # Colours of successive robots (RGB in [0, 1]): matplotlib's tab10, which the experiments' plots use too.
 PALETTE = (
