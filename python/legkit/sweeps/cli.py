@@ -17,12 +17,15 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from legkit.control.gains import SCHEMES
 from legkit.sweeps.spec import SweepSpec
+
+if TYPE_CHECKING:
+    import pyarrow as pa
 
 
 def parse_values(name: str, tokens: list[str], kind: type = float) -> list[Any]:
@@ -59,7 +62,10 @@ def parse_coefficients(name: str, tokens: list[str] | None) -> Any:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="legkit sweep", description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n\n", 1)[1])
+    parser = argparse.ArgumentParser(
+        prog="legkit sweep", description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=__doc__.split("\n\n", 1)[1],
+    )
     parser.add_argument("--spec", type=Path, help="a JSON file of SweepSpec arguments (the axis options below are then ignored)")
     parser.add_argument("--trees", nargs="+", default=["4"], help="number of random trees (seeds 0..n-1), or --tree-seeds")
     parser.add_argument("--tree-seeds", nargs="+", help="explicit tree seeds (values or a:b:n)")
@@ -105,7 +111,7 @@ def spec_from_args(args: argparse.Namespace) -> SweepSpec:
     )
 
 
-def summary(table) -> str:
+def summary(table: pa.Table) -> str:
     """Per scheme: runs, median final distance and t10% with their interquartile ranges."""
     columns = table.to_pydict()
     scheme = np.array(columns["scheme"])

@@ -22,21 +22,29 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict
 from multiprocessing import get_context
 from pathlib import Path
-from typing import Any, Callable, Iterator, Sequence
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from tqdm import tqdm
 
 from legkit.sweeps.spec import RunParams, SweepSpec
 
+if TYPE_CHECKING:
+    import pyarrow as pa
+
+    import legkit as lk
+    from legkit.robots.superbot import ModuleTree
+
 METRICS = ("initial", "final", "settled", "t10", "overshoot", "messages", "energy")
 
 
-def _pyarrow():
+def _pyarrow() -> ModuleType:
     try:
         import pyarrow
         import pyarrow.parquet
@@ -83,7 +91,7 @@ def run_batch(spec_values: dict[str, Any], runs: Sequence[RunParams], threads: i
     return rows
 
 
-def terrain_ground(run: RunParams, tree):
+def terrain_ground(run: RunParams, tree: ModuleTree) -> lk.Ground:
     """The run's ground: a plane of its friction, or for ``terrain`` d > 0 a heightfield of module-wide cells
     reaching three module widths past the tree's blocks at zero angles, every vertex dipped by a uniform depth
     in [0, d] drawn from the run's own generator (its tree seed and replicate)."""
@@ -130,7 +138,7 @@ class ResultStore:
         pa.parquet.write_table(table, temporary)
         os.replace(temporary, self.part(batch))
 
-    def table(self):
+    def table(self) -> pa.Table | None:
         """Every finished run, in grid order (a pyarrow Table)."""
         pa = _pyarrow()
         files = sorted(self.parts.glob("batch-*.parquet"))
@@ -146,7 +154,7 @@ def _atomic_write(path: Path, data: bytes) -> None:
     os.replace(temporary, path)
 
 
-def read_results(out: str | os.PathLike):
+def read_results(out: str | os.PathLike) -> pa.Table:
     """The runs of the sweep in ``out`` (finished or not), in grid order, as a pyarrow Table."""
     pa = _pyarrow()
     out = Path(out)
@@ -196,7 +204,7 @@ class LocalExecutor:
         if self._pool is not None:
             self._pool.shutdown(cancel_futures=True)
 
-    def __enter__(self) -> "LocalExecutor":
+    def __enter__(self) -> LocalExecutor:
         return self
 
     def __exit__(self, *_: Any) -> None:
@@ -219,7 +227,7 @@ class RayExecutor(LocalExecutor):
         self._pool = None
         self.parallelism = max(1, int(ray.cluster_resources().get("CPU", 1)))
 
-    def map(self, spec_values, batches):
+    def map(self, spec_values: dict[str, Any], batches: Sequence[tuple[Any, list[RunParams]]]) -> Iterator[tuple[Any, list[dict]]]:
         ray = self._ray
         pending = {self._remote.remote(spec_values, runs, 1): key for key, runs in batches}
         try:
@@ -246,14 +254,15 @@ def executor(workers: int | None = None, ray: str | None = None, threads: int | 
 def run_sweep(
     spec: SweepSpec, out: str | os.PathLike, workers: int | None = None, ray: str | None = None, progress: bool = True,
     figures: bool = True, max_batches: int | None = None, threads: int | None = None,
-):
+) -> pa.Table:
     """Run every batch of ``spec`` not yet in ``out`` and return the table of all runs (pyarrow, grid order).
 
     Locally on ``workers`` processes (default: one per core; 1 runs in this process with the physics on
-    every core; ``threads`` sets the physics threads of each worker, default cores // workers), or on Ray when ``ray`` is given: an address (``"auto"``, ``"ray://host:10001"``, or
-    ``"local"`` to start one here), or when Ray is already initialised. Finished batches are written as they
-    arrive (in any order); ``results.parquet`` and, with ``figures``, the summary figures once all are done.
-    ``max_batches`` stops after that many new batches (a partial sweep; the rest on the next call)."""
+    every core; ``threads`` sets the physics threads of each worker, default cores // workers), or on Ray when
+    ``ray`` is given: an address (``"auto"``, ``"ray://host:10001"``, or ``"local"`` to start one here), or when
+    Ray is already initialised. Finished batches are written as they arrive (in any order); ``results.parquet``
+    and, with ``figures``, the summary figures once all are done. ``max_batches`` stops after that many new
+    batches (a partial sweep; the rest on the next call)."""
     if not isinstance(spec, SweepSpec):
         raise TypeError(f"spec: must be a SweepSpec, got {type(spec).__name__}")
     if max_batches is not None and (isinstance(max_batches, bool) or not isinstance(max_batches, int) or max_batches < 1):
@@ -266,13 +275,17 @@ def run_sweep(
     done = total - sum(len(runs) for _, runs in todo)
     if max_batches is not None:
         todo = todo[:max_batches]
-    with executor(workers, ray, threads) as pool, tqdm(total=total, initial=done, desc="sweep", unit="run", disable=not progress, smoothing=0.0) as bar:
+    with (
+        executor(workers, ray, threads) as pool,
+        tqdm(total=total, initial=done, desc="sweep", unit="run", disable=not progress, smoothing=0.0) as bar,
+    ):
         for b, rows in pool.map(spec.to_dict(), todo):
             for run, row in zip(batches[b], rows):
                 row.update(run_id=spec.run_id(run), index=order[run], batch=b)
             store.write(b, rows)
             bar.update(len(rows))
     table = store.table()
+    assert table is not None  # a spec has at least one batch, and one is written by now
     if all(store.done(b) for b in range(len(batches))):
         pa = _pyarrow()
         pa.parquet.write_table(table, store.out / "results.parquet")

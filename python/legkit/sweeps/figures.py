@@ -3,20 +3,24 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from legkit.control.gains import SCHEMES
 
+if TYPE_CHECKING:
+    import pyarrow as pa
+
 #: Metrics drawn in ``distributions.png``: column, axis label.
 DISTRIBUTIONS = (("final", "final distance (module widths)"), ("t10", "t10% (s; runs that reach it)"), ("energy", "energy (J)"))
 
 
-def _columns(table) -> dict[str, np.ndarray]:
+def _columns(table: pa.Table) -> dict[str, np.ndarray]:
     return {name: np.asarray(table.column(name).to_pylist()) for name in table.column_names}
 
 
-def summary_figures(table, out: str | Path) -> list[Path]:
+def summary_figures(table: pa.Table, out: str | Path) -> list[Path]:
     """``distributions.png``: per scheme, box plots of the final distance, t10% and energy, one box per
     value of each swept fault/terrain/noise axis that varies (else one box per scheme); ``heatmap.png`` (only
     when c0 or c1 takes several values): per scheme, the median final distance over the c0–c1 grid.

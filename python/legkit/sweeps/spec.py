@@ -29,8 +29,9 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -118,7 +119,7 @@ class SweepSpec:
         return dict(self._normal)
 
     @staticmethod
-    def from_dict(values: Mapping[str, Any]) -> "SweepSpec":
+    def from_dict(values: Mapping[str, Any]) -> SweepSpec:
         names = {f.name for f in fields(SweepSpec) if f.init}
         unknown = sorted(set(values) - names)
         if unknown:
@@ -194,7 +195,7 @@ def _normalise(spec: SweepSpec) -> dict[str, Any]:
     return out
 
 
-def _sequence(name: str, value: Any) -> Sequence[Any]:
+def _sequence(name: str, value: Any) -> Sequence[Any] | np.ndarray:
     if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence, np.ndarray)):
         raise TypeError(f"{name}: must be a sequence of values, got {type(value).__name__}")
     if len(value) == 0:

@@ -32,15 +32,28 @@ import math
 import shutil
 import sys
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from legkit.control.gains import KD0, KI0, KP0, SCHEMES, GainSchedule
+from legkit.control.gains import SCHEMES, GainSchedule
 from legkit.sweeps.cli import median_quartiles
-from legkit.sweeps.execute import RayExecutor, executor, run_batch
+from legkit.sweeps.execute import LocalExecutor, RayExecutor, executor, run_batch
 from legkit.sweeps.spec import RunParams
+
+if TYPE_CHECKING:
+    import optuna
+
+#: Per scheme: (tuned point, the paper's training score, the tuned training score).
+_Found = dict[str, tuple[dict[str, Any], float, float]]
+
+
+class _Trial(Protocol):
+    """What the search space needs of a trial: Optuna's, or Ray Tune's wrapper of it."""
+
+    def suggest_float(self, name: str, low: float, high: float, *, log: bool = False) -> float: ...
 
 #: Search ranges: (low, high, log scale).
 COEFFICIENT_RANGES = {
@@ -98,12 +111,14 @@ def tune(
     for s in schemes:
         if s not in SCHEMES:
             raise ValueError(f"schemes: each must be one of {SCHEMES}, got {s!r}")
-    for name, value, low in (("train", train, 1), ("test", test, 1), ("trials", trials, 1), ("per_round", per_round, 1), ("batch_size", batch_size, 1), ("modules", modules, 1)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise ValueError(f"{name}: must be an int >= {low}, got {value!r}")
-    for name, value in (("duration", duration), ("t10_weight", t10_weight)):
-        if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0) or (name == "duration" and value == 0):
-            raise ValueError(f"{name}: must be a finite number {'> 0' if name == 'duration' else '>= 0'}, got {value!r}")
+    counts = (("train", train), ("test", test), ("trials", trials), ("per_round", per_round), ("batch_size", batch_size), ("modules", modules))
+    for name, value in counts:
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"{name}: must be an int >= 1, got {value!r}")
+    for name, number in (("duration", duration), ("t10_weight", t10_weight)):
+        finite_non_negative = isinstance(number, (int, float)) and math.isfinite(number) and number >= 0
+        if isinstance(number, bool) or not finite_non_negative or (name == "duration" and number == 0):
+            raise ValueError(f"{name}: must be a finite number {'> 0' if name == 'duration' else '>= 0'}, got {number!r}")
     problem = _Problem(
         {"modules": modules, "branches": branches, "duration": float(duration), "dt": 1e-3}, [TRAIN_SEED0 + i for i in range(train)],
         base_gains, t10_weight, batch_size,
@@ -114,8 +129,8 @@ def tune(
         found = search(pool, problem, schemes, trials, per_round, seed, progress)
         results, jobs = [], []
         for s in schemes:
-            tuned, paper_score, tuned_score = found[s]
-            tuned, paper = _schedule_of(s, tuned), GainSchedule.paper(s)
+            tuned_point, paper_score, tuned_score = found[s]
+            tuned, paper = _schedule_of(s, tuned_point), GainSchedule.paper(s)
             jobs += [((s, "paper"), paper, test_seeds), ((s, "tuned"), tuned, test_seeds)]
             results.append(SchemeResult(s, constants(paper), constants(tuned), paper_score, tuned_score, t10_weight))
         rows = _evaluate(pool, problem, jobs)
@@ -160,10 +175,11 @@ def _schedule_of(scheme: str, params: dict[str, float]) -> GainSchedule:
 
 def _runs(schedule: GainSchedule, tree_seeds: Sequence[int]) -> list[RunParams]:
     """``schedule`` on each tree, replicate 0, on the plane, reliable bus, no noise."""
-    return [RunParams(tree, schedule.scheme, schedule.c0, schedule.c1, schedule.kp0, schedule.ki0, schedule.kd0, 0.0, 1, 0.0, 0.8, 0.0, 0) for tree in tree_seeds]
+    s = schedule
+    return [RunParams(tree, s.scheme, s.c0, s.c1, s.kp0, s.ki0, s.kd0, 0.0, 1, 0.0, 0.8, 0.0, 0) for tree in tree_seeds]
 
 
-def _evaluate(pool, problem: _Problem, jobs: list[tuple[Any, GainSchedule, list[int]]]) -> dict[Any, list[dict]]:
+def _evaluate(pool: LocalExecutor, problem: _Problem, jobs: list[tuple[Any, GainSchedule, list[int]]]) -> dict[Any, list[dict]]:
     """Run every (key, schedule, tree seeds) job on ``pool``, all in batches; rows per key."""
     runs, keys = [], []
     for key, schedule, seeds in jobs:
@@ -180,7 +196,9 @@ def _evaluate(pool, problem: _Problem, jobs: list[tuple[Any, GainSchedule, list[
     return out
 
 
-def _search_with_optuna(pool, problem: _Problem, schemes, trials: int, per_round: int, seed: int, progress: bool):
+def _search_with_optuna(
+    pool: LocalExecutor, problem: _Problem, schemes: Sequence[str], trials: int, per_round: int, seed: int, progress: bool
+) -> _Found:
     """Optuna in this process, trials evaluated in rounds on ``pool``: {scheme: (tuned point, paper's score, tuned score)}."""
     import optuna
 
@@ -191,7 +209,11 @@ def _search_with_optuna(pool, problem: _Problem, schemes, trials: int, per_round
     rounds = math.ceil(trials / per_round)
     for round_index in range(rounds):
         asked = {s: [studies[s].ask() for _ in range(min(per_round, trials - round_index * per_round))] for s in schemes}
-        jobs = [((s, trial.number), _schedule_of(s, _suggest_all(trial, problem.space(s))), problem.train_seeds) for s, trial_list in asked.items() for trial in trial_list]
+        jobs = [
+            ((s, trial.number), _schedule_of(s, _suggest_all(trial, problem.space(s))), problem.train_seeds)
+            for s, trial_list in asked.items()
+            for trial in trial_list
+        ]
         rows = _evaluate(pool, problem, jobs)
         for s, trial_list in asked.items():
             for trial in trial_list:
@@ -199,10 +221,17 @@ def _search_with_optuna(pool, problem: _Problem, schemes, trials: int, per_round
         if progress:
             best = ", ".join(f"{s} {studies[s].best_value:.3f}" for s in schemes)
             print(f"round {round_index + 1}/{rounds}: best training score {best}", file=sys.stderr, flush=True)
-    return {s: (studies[s].best_params, studies[s].trials[0].value, studies[s].best_value) for s in schemes}
+    found: _Found = {}
+    for s in schemes:
+        paper_score = studies[s].trials[0].value  # the enqueued paper point, told its score in the first round
+        assert paper_score is not None
+        found[s] = (studies[s].best_params, paper_score, studies[s].best_value)
+    return found
 
 
-def _search_with_ray_tune(pool, problem: _Problem, schemes, trials: int, per_round: int, seed: int, progress: bool):
+def _search_with_ray_tune(
+    pool: LocalExecutor, problem: _Problem, schemes: Sequence[str], trials: int, per_round: int, seed: int, progress: bool
+) -> _Found:
     """Ray Tune on the Ray instance of ``pool``, one experiment per scheme, searched by Optuna's sampler through
     ``OptunaSearch`` (the same space, sampler and first trial as ``_search_with_optuna``), ``per_round``
     trials at a time, each trial a task of one CPU: {scheme: (tuned point, paper's score, tuned score)}."""
@@ -211,7 +240,7 @@ def _search_with_ray_tune(pool, problem: _Problem, schemes, trials: int, per_rou
     from ray.tune.search.optuna import OptunaSearch
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    found = {}
+    found: _Found = {}
     storage = tempfile.mkdtemp(prefix="legkit-tune-")  # Tune's experiment records; nothing in them is kept
     try:
         for k, s in enumerate(schemes):
@@ -230,7 +259,11 @@ def _search_with_ray_tune(pool, problem: _Problem, schemes, trials: int, per_rou
             if grid.errors:
                 raise RuntimeError(f"legkit tune: {len(grid.errors)} Ray Tune trial(s) of {s} failed: {grid.errors[0]}")
             # In trial order: the first of equal scores wins, as in Optuna's best trial.
-            scored = [({name: result.config[name] for name in space}, result.metrics["score"]) for result in grid]
+            scored = []
+            for i in range(len(grid)):  # ResultGrid is indexed (no __iter__: type checkers do not take it as iterable)
+                result = grid[i]
+                assert result.config is not None and result.metrics is not None  # set for every finished trial
+                scored.append(({name: result.config[name] for name in space}, result.metrics["score"]))
             tuned, tuned_score = min(scored, key=lambda point_score: point_score[1])
             (paper_score,) = [value for point, value in scored if point == paper]
             found[s] = (tuned, paper_score, tuned_score)
@@ -250,18 +283,18 @@ def _ray_tune_trial(config: dict[str, float], scheme: str, problem: _Problem) ->
     ray_tune.report({"score": problem.score(rows)})
 
 
-def _sampler(seed: int):
+def _sampler(seed: int) -> optuna.samplers.TPESampler:
     import optuna
 
     return optuna.samplers.TPESampler(seed=seed, multivariate=True)
 
 
-def _suggest_all(trial, space: dict[str, tuple[float, float, bool]]) -> dict[str, float]:
+def _suggest_all(trial: _Trial, space: dict[str, tuple[float, float, bool]]) -> dict[str, float]:
     """A point of ``space`` from ``trial`` (Optuna's, or Ray Tune's wrapper of it), its parameters in order."""
     return {name: _suggest(trial, name, bounds) for name, bounds in space.items()}
 
 
-def _suggest(trial, name: str, bounds: tuple[float, float, bool]) -> float:
+def _suggest(trial: _Trial, name: str, bounds: tuple[float, float, bool]) -> float:
     low, high, log = bounds
     return float(trial.suggest_float(name, low, high, log=log))
 
@@ -284,7 +317,8 @@ def report(results: Sequence[SchemeResult]) -> str:
         lines.append(f"  training score (mean final + {r.t10_weight:g} t10): paper {r.train_score_paper:.3f}, tuned {r.train_score_tuned:.3f}")
         n = len(r.test_final["paper"])
         lines.append(f"  held-out trees ({n}): median [quartiles]")
-        lines.append(f"    final distance (widths)  paper {median_quartiles(r.test_final['paper'])}  tuned {median_quartiles(r.test_final['tuned'])}  "
+        lines.append(f"    final distance (widths)  paper {median_quartiles(r.test_final['paper'])}  "
+                     f"tuned {median_quartiles(r.test_final['tuned'])}  "
                      f"change {_change(r.median('final', 'paper'), r.median('final', 'tuned'))}")
         lines.append(f"    t10% (s)                 paper {median_quartiles(r.test_t10['paper'])}  tuned {median_quartiles(r.test_t10['tuned'])}  "
                      f"change {_change(r.median('t10', 'paper'), r.median('t10', 'tuned'))}")
@@ -293,7 +327,10 @@ def report(results: Sequence[SchemeResult]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="legkit tune", description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n\n", 1)[1])
+    parser = argparse.ArgumentParser(
+        prog="legkit tune", description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=__doc__.split("\n\n", 1)[1],
+    )
     parser.add_argument("--schemes", nargs="+", default=list(SCHEMES), help="schemes to tune (default all)")
     parser.add_argument("--train", type=int, default=4, help=f"training trees, seeds {TRAIN_SEED0}.. (default 4)")
     parser.add_argument("--test", type=int, default=6, help=f"held-out trees, seeds {TEST_SEED0}.. (default 6)")
@@ -304,7 +341,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--branches", type=int, default=4, help="branches off the root (default 4)")
     parser.add_argument("--paper-base-gains", action="store_true", help="keep the paper's K_P0, K_I0, K_D0 (search c0, c1 only)")
     parser.add_argument("--seed", type=int, default=0, help="sampler seed (default 0)")
-    parser.add_argument("--t10-weight", type=float, default=T10_WEIGHT, help=f"module widths per second of t10 in the objective (default {T10_WEIGHT})")
+    parser.add_argument("--t10-weight", type=float, default=T10_WEIGHT,
+                        help=f"module widths per second of t10 in the objective (default {T10_WEIGHT})")
     parser.add_argument("--workers", type=int, default=1, help="local worker processes (default 1: this process, physics on every core)")
     parser.add_argument("--ray", metavar="ADDRESS", help="tune with Ray Tune on Ray at ADDRESS ('auto', 'ray://host:10001', or 'local')")
     args = parser.parse_args(argv)
