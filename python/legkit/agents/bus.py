@@ -18,13 +18,14 @@ connector) pair, and a payload is addressed by its sending connector only (conne
   a per-link sequence number; the receiver keeps only a message newer than the newest it accepted on that
   connector (so duplicates and overtaken messages are ignored) and acknowledges every data message it
   receives (acknowledgements travel through the same unreliable network); the sender retransmits its
-  latest payload every ``retransmit_after`` ticks until that payload's sequence number is acknowledged. So once losses stop, every link ends with its latest
-  payload delivered, and the network falls silent.
+  latest payload every ``retransmit_after`` ticks until that payload's sequence number is acknowledged. So once
+  losses stop, every link ends with its latest payload delivered, and the network falls silent.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, cast
 
 import numpy as np
 
@@ -65,7 +66,7 @@ class BusConfig:
         object.__setattr__(self, "streams", _checked_streams(self.streams))
 
 
-def _checked_streams(streams) -> tuple[tuple[int, int], ...]:
+def _checked_streams(streams: Any) -> tuple[tuple[int, int], ...]:
     """``streams`` as a tuple of (modules >= 1, seed >= 0) int pairs; TypeError/ValueError naming ``streams``."""
     try:
         pairs = [tuple(pair) for pair in streams]
@@ -252,9 +253,9 @@ class Channel:
             if not self.reliable:  # a random order: by a uniform draw per message
                 index = index[np.argsort(self._draws(self._link.take(index), 1)[:, 0])]
             link, seq, ack, payload = self._link[index], self._seq[index], self._ack[index], self._payload[index]
-            keep = ~ready
-            self._due, self._link, self._seq, self._ack = self._due[keep], self._link[keep], self._seq[keep], self._ack[keep]
-            self._payload = self._payload[keep]
+            waiting = ~ready
+            self._due, self._link, self._seq, self._ack = self._due[waiting], self._link[waiting], self._seq[waiting], self._ack[waiting]
+            self._payload = self._payload[waiting]
             receiver = self._partner_link.take(link)
 
         if not self.reliable:
@@ -281,13 +282,16 @@ def _rows_differ(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(k,) True where row k of ``a`` and ``b`` (k, w) differ anywhere (``!=``: -0.0 equals +0.0)."""
     # Reduced component-major: numpy reduces a few long rows much faster than many short ones.
     differs = np.not_equal(a.T, b.T)
-    return np.ascontiguousarray(differs).any(axis=0)
+    # numpy's stubs type any(axis=0) as a scalar or an array; over an axis of a 2-D array it is the (k,) array.
+    return cast(np.ndarray, np.ascontiguousarray(differs).any(axis=0))
 
 
 DRAW_CHUNK = 4096  # uniforms drawn from a stream's generator at a time
 
 
-def _stream_generators(partner: np.ndarray, streams: tuple[tuple[int, int], ...], rng: np.random.Generator) -> tuple[np.ndarray, list[np.random.Generator]]:
+def _stream_generators(
+    partner: np.ndarray, streams: tuple[tuple[int, int], ...], rng: np.random.Generator
+) -> tuple[np.ndarray, list[np.random.Generator]]:
     """Each module's stream (N,) and the streams' generators: ``rng`` alone without ``streams``; else one per
     stream, seeded with its seed and a salt drawn from ``rng`` (so the channels of one network, which share
     ``rng``, draw differently, and equally in every network of the same ``BusConfig.seed``). ValueError

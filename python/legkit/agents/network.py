@@ -45,8 +45,8 @@ results are reproducible bit for bit.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -114,11 +114,11 @@ class AgentNetwork:
             raise TypeError(f"bus: must be a BusConfig, got {type(bus).__name__}")
         self.parameters: ModuleParameters = parameters
         self.bus = bus
-        tables = [t.connector_table() for t in trees]
+        connector_tables = [t.connector_table() for t in trees]
         offsets = np.cumsum([0] + [t.n_modules for t in trees])
-        self.partner = np.concatenate([np.where(p >= 0, p + o, -1) for (p, _, _), o in zip(tables, offsets)])
-        self.partner_slot = np.concatenate([s for _, s, _ in tables])
-        self.mate = np.concatenate([m for _, _, m in tables])
+        self.partner = np.concatenate([np.where(p >= 0, p + o, -1) for (p, _, _), o in zip(connector_tables, offsets)])
+        self.partner_slot = np.concatenate([s for _, s, _ in connector_tables])
+        self.mate = np.concatenate([m for _, _, m in connector_tables])
         self.connected = self.partner >= 0
         self.n_modules = int(offsets[-1])
         self.ground = self._check_ground(ground)
@@ -327,7 +327,8 @@ class AgentNetwork:
         entries, signs, position_zero = self._block_b_entries, self._block_b_entry_signs, self._block_b_connector_position_zero
         if changed is not None:
             moved = changed.take(module)
-            connectors, module, entries, signs, position_zero = connectors[moved], module[moved], entries[:, moved], signs[:, moved], position_zero[:, moved]
+            connectors, module = connectors[moved], module[moved]
+            entries, signs, position_zero = entries[:, moved], signs[:, moved], position_zero[:, moved]
         turned = self._part_rotation.reshape(3, -1).take(entries, axis=1)  # (3, 3, k)
         turned *= signs
         turned += 0.0  # the matrix product this replaces gives +0.0 where the sign flip gives -0.0
@@ -601,7 +602,8 @@ class AgentNetwork:
             # A leader standing on block B: the block's pose composed with the inverse of part 3's.
             on_b = self._contact_block[contact] == 1
             if on_b.any():
-                n, block_rotation, block_translation = modules[leaders[on_b]], self._contact_rotation[contact[on_b]], self._contact_translation[contact[on_b]]
+                n = modules[leaders[on_b]]
+                block_rotation, block_translation = self._contact_rotation[contact[on_b]], self._contact_translation[contact[on_b]]
                 part_inverse_rotation, part_inverse_translation = moments.inverse_pose(
                     np.ascontiguousarray(self.part_rotation[n, 3]), self.part_translation[n, 3]
                 )
@@ -636,7 +638,7 @@ def unpack_pairs(connector_moments: np.ndarray, total_moments: np.ndarray) -> tu
     """Connector and total estimates unpacked and concatenated: (masses, COMs, inertias)."""
     a = moments.unpack(connector_moments)
     b = moments.unpack(total_moments)
-    return tuple(np.concatenate([x, y]) for x, y in zip(a, b))
+    return np.concatenate([a[0], b[0]]), np.concatenate([a[1], b[1]]), np.concatenate([a[2], b[2]])
 
 
 def reference_estimates(model: lk.Model, layout: ModelLayout, partner: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

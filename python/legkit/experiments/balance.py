@@ -34,9 +34,10 @@ from __future__ import annotations
 import argparse
 import csv
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol, Sequence
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from tqdm import tqdm
@@ -166,7 +167,8 @@ def make_plant(
     if kind in ("tree", "rapier"):
         # The same servo model as the free plant: rotor inertia and damping on every joint.
         simulation = lk.Simulation(
-            model, dt=dt, ground=lk.Ground.plane(friction=friction) if ground is None else ground, backend=kind,
+            model, dt=dt, ground=lk.Ground.plane(friction=friction) if ground is None else ground,
+            backend="tree" if kind == "tree" else "rapier",
             joint_damping=FreePlant.DEFAULT_DAMPING, joint_armature=FreePlant.DEFAULT_ARMATURE,
         )
         simulation.reset(q0, None)
@@ -336,7 +338,8 @@ def run_balance(
         q0[layout.joint_q] = starts[(r.tree, start_seed(r))]
         plants.append(make_plant(plant, model, q0, dt, friction, r.ground))
     # Simulations step together, on every core; other plants one after another.
-    batch = lk.SimulationBatch(plants) if all(isinstance(p, lk.Simulation) for p in plants) else None
+    simulations = [p for p in plants if isinstance(p, lk.Simulation)]
+    batch = lk.SimulationBatch(simulations) if len(simulations) == len(plants) else None
     if batch is not None:
         pose_on_ground(batch, [built[r.tree][0] for r in runs])
     origin = np.zeros(3)
@@ -352,17 +355,18 @@ def run_balance(
 
     # The plants' state in one call when they share their size (a gather of every run's joint angles), else plant by plant.
     sizes = {(built[r.tree][0].nq, built[r.tree][0].nv) for r in runs}
-    shared = batch is not None and len(sizes) == 1
+    shared_batch = batch if len(sizes) == 1 else None
+    shared = shared_batch is not None
     if shared:
         nq, nv = sizes.pop()
         angle_index = np.concatenate([i * nq + built[r.tree][1].joint_q.ravel() for i, r in enumerate(runs)])
         tau_index = np.concatenate([i * nv + np.asarray(built[r.tree][0].idx_v)[built[r.tree][1].joint_bodies].ravel() for i, r in enumerate(runs)])
 
     def states() -> list[np.ndarray] | np.ndarray:
-        return batch.q if shared else [p.q for p in plants]
+        return shared_batch.q if shared_batch is not None else [p.q for p in plants]
 
     def sensed_angles(q: list[np.ndarray] | np.ndarray) -> np.ndarray:
-        if shared:
+        if isinstance(q, np.ndarray):  # shared: the batch's (B, nq)
             angles = q.reshape(-1)[angle_index].reshape(-1, 3)
         else:
             angles = np.concatenate([built[r.tree][1].module_angles(q_run) for r, q_run in zip(runs, q)])
@@ -373,7 +377,11 @@ def run_balance(
     schedules = [r.schedule for r, tree in zip(runs, instances) for _ in range(tree.n_modules)]
     controller = BalanceController(network, schedules)
     joint_index = [np.asarray(built[r.tree][0].idx_v)[built[r.tree][1].joint_bodies] for r in runs]
-    messages_before = sum(c.sent_by_module for c in network.channels)
+    def messages_sent() -> np.ndarray:
+        mass, election, pose = network.channels
+        return mass.sent_by_module + election.sent_by_module + pose.sent_by_module
+
+    messages_before = messages_sent()
 
     steps = int(round(duration / dt))
     samples = steps // sample_every + 1
@@ -392,6 +400,7 @@ def run_balance(
         network.observe(sensed_angles(q))
         network.run(rounds_per_step)
         torque, _ = controller.torques(dt)
+        taus: np.ndarray | list[np.ndarray]
         if shared:
             taus = np.zeros((len(runs), nv))
             taus.reshape(-1)[tau_index] = torque.reshape(-1)
@@ -404,15 +413,15 @@ def run_balance(
         if batch is not None:
             batch.step(taus)
             if shared:
-                energy += np.abs(np.array([p.applied_tau for p in plants]) * batch.v).sum(axis=1) * dt
+                energy += np.abs(np.array([p.applied_tau for p in simulations]) * batch.v).sum(axis=1) * dt
             else:
-                energy += [np.abs(p.applied_tau * p.v).sum() * dt for p in plants]
+                energy += [np.abs(p.applied_tau * p.v).sum() * dt for p in simulations]
         else:
             for p, tau in zip(plants, taus):
                 p.step(tau)
             energy += [np.abs(tau * p.v).sum() * dt for p, tau in zip(plants, taus)]
 
-    sent = sum(c.sent_by_module for c in network.channels) - messages_before
+    sent = messages_sent() - messages_before
     width = trees[0].parameters.width
     offsets = coms[..., :2]
     distance = np.linalg.norm(offsets, axis=-1) / width
@@ -485,11 +494,14 @@ def animation_scene(trees: Sequence[ModuleTree], results: Sequence[RunResult]) -
     through the root) and its COM (a dark ball, with a disc where it projects on the ground)."""
     from legkit.viewer import Scene, Shape
 
-    if any(r.q is None for r in results):
-        raise ValueError("results: need the recorded joint angles (RunResult.q)")
+    angles: list[np.ndarray] = []
+    for r in results:
+        if r.q is None:
+            raise ValueError("results: need the recorded joint angles (RunResult.q)")
+        angles.append(r.q)
     models = [tree.to_model()[0] for tree in trees]
     width = trees[0].parameters.width
-    poses = {i: lk.forward_kinematics(models[r.tree], r.q)[..., :3, 3].reshape(-1, 3) for i, r in enumerate(results)}
+    poses = {i: lk.forward_kinematics(models[r.tree], angles[i])[..., :3, 3].reshape(-1, 3) for i, r in enumerate(results)}
     reach = max(float(np.max(np.linalg.norm(p[:, :2], axis=1))) for p in poses.values()) + width
     height = max(float(np.max(p[:, 2])) for p in poses.values()) + width
     spacing = 2.2 * reach
@@ -502,16 +514,16 @@ def animation_scene(trees: Sequence[ModuleTree], results: Sequence[RunResult]) -
     lift = np.eye(4)
     lift[2, 3] = height / 2
     support = [Shape(0, "cylinder", (height / 2, width / 20), lift)]
-    for r in results:
+    for r, q in zip(results, angles):
         offset = np.array([(r.tree - (len(trees) - 1) / 2) * spacing, (schemes.index(r.scheme) - (len(schemes) - 1) / 2) * spacing, 0.0])
         name = f"tree{r.tree + 1}_{r.scheme}"
         model = models[r.tree]
-        scene.add_robot(model, r.q, r.times, name=name, offset=offset, color=colors.get(r.scheme))
+        scene.add_robot(model, q, r.times, name=name, offset=offset, color=colors.get(r.scheme))
         if r.tree == len(trees) - 1:
             scene.add_label(r.scheme, offset - [0.5 * spacing, 0.0, 0.0])
         if r.scheme == schemes[0]:
             scene.add_label(f"tree {r.tree + 1}", offset - [0.0, 0.5 * spacing, 0.0])
-        com = lk.center_of_mass(model, r.q) + offset  # (samples, 3), one batched call
+        com = lk.center_of_mass(model, q) + offset  # (samples, 3), one batched call
         at_com = np.tile(np.eye(4), (len(r.times), 1, 1))
         at_com[:, :3, 3] = com
         on_ground = at_com.copy()

@@ -49,7 +49,7 @@ SOURCES: dict[str, tuple[WalkingSource, str]] = {
 }
 
 
-def calibration_set(data: BenchtopData, mu: float = 0.5, bins: tuple[int, int] = (25, 25)) -> tuple[np.ndarray, ...]:
+def calibration_set(data: BenchtopData, mu: float = 0.5, bins: tuple[int, int] = (25, 25)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(strain, length, deflection) for fitting: per-load means, physically relevant loads, grid-averaged."""
     _, (strain, length, deflection, normal, tangential) = average_by_group(
         data.configuration, data.strain, data.length, data.deflection, data.normal_force, data.tangential_force
@@ -188,7 +188,8 @@ def stance_detection(stream: WalkingStream, estimate: PoseEstimate) -> list[Stan
     for name, measure in DETECTION_MEASURES.items():
         scores = measure(estimate.toes[keep])
         auc, accuracy, threshold = separation(scores, tripod)
-        rows.append(StanceDetection(stream.speed, name, auc, accuracy, threshold, float(np.median(scores[tripod])), float(np.median(scores[~tripod]))))
+        median_tripod, median_other = float(np.median(scores[tripod])), float(np.median(scores[~tripod]))
+        rows.append(StanceDetection(stream.speed, name, auc, accuracy, threshold, median_tripod, median_other))
     return rows
 
 

@@ -78,7 +78,9 @@ def model_to_urdf(model: lk.Model, robot_name: str) -> str:
         ]
         if kind in ("revolute", "prismatic"):
             limit = np.pi if kind == "revolute" else 1.0
-            parts.append(f'<axis xyz="{_numbers(model.joint_axis(i))}"/>')
+            axis = model.joint_axis(i)
+            assert axis is not None  # revolute and prismatic joints have one
+            parts.append(f'<axis xyz="{_numbers(axis)}"/>')
             parts.append(f'<limit lower="{-float(limit)!r}" upper="{float(limit)!r}" effort="1000" velocity="100"/>')
         parts.append("</joint>")
         lines.append("".join(parts))

@@ -38,8 +38,8 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 
@@ -150,7 +150,7 @@ def module_kinematics_components(angles: np.ndarray, parameters: ModuleParameter
     products = trig[:, 0, None] * trig[::-1, 1]  # c1 s2, c1 c2; s1 s2, s1 c2
     entries = np.concatenate([cos[:2], sin[:1], minus_sin[:2], products.reshape(4, count)])
     entries += 0.0
-    rotations = np.zeros((9, 4, count))
+    rotations: np.ndarray = np.zeros((9, 4, count))
     rotations[_IDENTITY_ENTRIES, 0] = 1.0
     rotations[0, 1] = 1.0
     rotations[_PART_1_2_ENTRIES[0], _PART_1_2_ENTRIES[1]] = entries[_PART_1_2_VALUES]
@@ -326,7 +326,7 @@ class ModuleTree:
                     if v not in distance:
                         distance[v] = distance[u] + 1
                         queue.append(v)
-            far = max(distance, key=distance.get)
+            far = max(distance, key=distance.__getitem__)
             return far, distance[far]
 
         return farthest(farthest(0)[0])[1]
@@ -355,7 +355,10 @@ class ModuleTree:
         return np.rint(centres / w - [0.0, 0.0, 0.5]).astype(np.int64)
 
 
-def _child_module_pose(rotation_u, translation_u, rotation_c, position_c, own_u, own_v, angle):
+def _child_module_pose(
+    rotation_u: np.ndarray, translation_u: np.ndarray, rotation_c: np.ndarray, position_c: np.ndarray, own_u: int, own_v: int,
+    angle: int,
+) -> tuple[np.ndarray, np.ndarray]:
     """Module v's frame in the frame where module u's frame is (rotation_u, translation_u), at zero angles."""
     connector_rotation = rotation_u @ rotation_c[own_u]
     connector_position = translation_u + rotation_u @ position_c[own_u]
@@ -412,7 +415,7 @@ def build_model(trees: Sequence[ModuleTree], origins: np.ndarray, gravity: Seque
             # entering via B, parts 3..0 with origins p3, p3, p2, p1 (each body frame sits on its parent joint).
             chain, axis_sign = ([3, 2, 1, 0], -1.0) if reverse else ([0, 1, 2, 3], 1.0)
             origins_part = [_part_origin(points, part, reverse) for part in chain]
-            part_body = {}
+            part_body: dict[int, int] = {}
             for step, part in enumerate(chain):
                 body = parts[part].transformed(np.eye(3), -origins_part[step])
                 name = f"t{tree_index}m{n}p{part}"
@@ -479,7 +482,7 @@ def random_tree(
         # Poses in module widths at zero angles; the root stands at the origin.
         rotations = [np.eye(3)]
         translations = [np.zeros(3)]
-        occupied = {(0, 0, 0), (0, 0, 1)}
+        occupied: set[tuple[int, ...]] = {(0, 0, 0), (0, 0, 1)}
         free = {0: [1, 2, 3, 4, 5]}
         connections: list[Connection] = []
 

@@ -23,7 +23,7 @@ def bool_mask(value: npt.ArrayLike | None, name: str, shape: tuple[int, ...]) ->
         raise ValueError(f"{name} has shape {mask.shape}, which does not broadcast to {shape}") from error
 
 
-def positive_scalar(value: float, name: str, *, allow_zero: bool = False) -> float:
+def positive_scalar(value: object, name: str, *, allow_zero: bool = False) -> float:
     """A finite real scalar > 0 (or >= 0 with allow_zero)."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise TypeError(f"{name} must be a real number, got {type(value).__name__}")

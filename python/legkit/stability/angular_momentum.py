@@ -79,6 +79,7 @@ The paper's index depends on the direction of travel (rotate a scene about z and
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -157,8 +158,10 @@ class _Edges:
 
 
 def _edge_indices(
-    com, linear_momentum, angular_momentum, inertia, mass, contact_points, active, swing_tips, swing_active,
-    v_tip_max, gravity, definition, direction, diagonal_pairs,
+    com: npt.ArrayLike, linear_momentum: npt.ArrayLike, angular_momentum: npt.ArrayLike, inertia: npt.ArrayLike | None,
+    mass: float, contact_points: npt.ArrayLike, active: npt.ArrayLike | None, swing_tips: npt.ArrayLike | None,
+    swing_active: npt.ArrayLike | None, v_tip_max: float | None, gravity: float, definition: Definition,
+    direction: npt.ArrayLike | None, diagonal_pairs: npt.ArrayLike | None,
 ) -> np.ndarray:
     """(..., E) S_H^l per edge slot, +inf in slots that are not edges (or, for the paper's two-leg segments,
     the side not tipped over). Computed component by component in an (E, T) layout: e_l is horizontal, so
@@ -222,7 +225,7 @@ def _edge_indices(
         value = _paper(edges, m, g, v_tip_max, direction, diagonal_pairs, points.shape[-2], shape)
     else:
         value = _energy(edges, flat(inertia_g, (3, 3))[:, :, sample], m, g, swing_tips, swing_active, v_tip_max, shape, flat)
-    index = np.full(hull.valid.shape, np.inf)  # (E, T); slots that are not edges stay +inf
+    index: np.ndarray = np.full(hull.valid.shape, np.inf)  # (E, T); slots that are not edges stay +inf
     index[edge, sample] = value
     return np.moveaxis(index, -1, 0).reshape(shape + (index.shape[0],))
 
@@ -253,8 +256,8 @@ def _pair_table(diagonal_pairs: npt.ArrayLike | None, contacts: int) -> np.ndarr
     return table
 
 
-def _paper(edges: _Edges, m: float, g: float, v_tip_max: float | None, direction, diagonal_pairs, contacts: int,
-           shape: tuple[int, ...]) -> np.ndarray:
+def _paper(edges: _Edges, m: float, g: float, v_tip_max: float | None, direction: npt.ArrayLike | None,
+           diagonal_pairs: npt.ArrayLike | None, contacts: int, shape: tuple[int, ...]) -> np.ndarray:
     """S_H^l of definition="paper" per edge (module docstring), +inf on the side of a segment not tipped over."""
     tx, ty = _travel(direction)
     diagonal = _pair_table(diagonal_pairs, contacts)[edges.start_index, edges.end_index]
@@ -283,8 +286,9 @@ def _paper(edges: _Edges, m: float, g: float, v_tip_max: float | None, direction
     return np.where(other_side, np.inf, value)
 
 
-def _energy(edges: _Edges, inertia: np.ndarray, m: float, g: float, swing_tips, swing_active, v_tip_max,
-            shape: tuple[int, ...], flat) -> np.ndarray:
+def _energy(edges: _Edges, inertia: np.ndarray, m: float, g: float, swing_tips: npt.ArrayLike | None,
+            swing_active: npt.ArrayLike | None, v_tip_max: float | None, shape: tuple[int, ...],
+            flat: Callable[[np.ndarray, tuple[int, ...]], np.ndarray]) -> np.ndarray:
     """S_H^l of definition="energy" per edge (module docstring)."""
     ax, ay = -edges.ny, edges.nx
     inertia_edge = inertia[0, 0] * ax * ax + 2.0 * inertia[0, 1] * ax * ay + inertia[1, 1] * ay * ay + m * edges.r**2

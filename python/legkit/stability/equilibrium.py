@@ -23,6 +23,7 @@ suffice); friction only matters for contacts on slopes, steps and walls.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import cast
 
 import numpy as np
 import numpy.typing as npt
@@ -43,8 +44,9 @@ def _contact_arrays(contacts: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]]) -> 
     for entry in contacts:
         if not isinstance(entry, (tuple, list)) or len(entry) != 2:
             raise TypeError(f"each contact must be a (point, normal) pair, got {entry!r}")
-    points = float_array([p for p, _ in contacts], "contacts (points)", last=3)
-    normals = unit_vectors([n for _, n in contacts], "contacts (normals)")
+    # A list of array-likes is array-like; numpy's stubs cannot say so.
+    points = float_array(cast(npt.ArrayLike, [p for p, _ in contacts]), "contacts (points)", last=3)
+    normals = unit_vectors(cast(npt.ArrayLike, [n for _, n in contacts]), "contacts (normals)")
     return points.reshape(-1, 3), normals.reshape(-1, 3)
 
 
@@ -110,7 +112,9 @@ class _EquilibriumLP:
         return self._solve(np.zeros(3 * self.k + 2), bounds).status == 0
 
 
-def _check(contacts, mu, cone_sides) -> tuple[np.ndarray, np.ndarray, float, int]:
+def _check(
+    contacts: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]], mu: float, cone_sides: int
+) -> tuple[np.ndarray, np.ndarray, float, int]:
     points, normals = _contact_arrays(contacts)
     friction = friction_coefficient(mu)
     if friction.ndim != 0:

@@ -39,10 +39,13 @@ def _without_mass_of(model: lk.Model, bodies: list[int]) -> lk.Model:
     )
     for i in range(1, model.nbodies):
         kind, parent, placement = model.joint_type(i), model.parents[i], model.placement(i)
+        axis = model.joint_axis(i)  # None only for a fixed joint
         if kind == "revolute":
-            copy.add_revolute(parent, model.joint_axis(i), placement, mass_of(i), model.names[i])
+            assert axis is not None
+            copy.add_revolute(parent, axis, placement, mass_of(i), model.names[i])
         elif kind == "prismatic":
-            copy.add_prismatic(parent, model.joint_axis(i), placement, mass_of(i), model.names[i])
+            assert axis is not None
+            copy.add_prismatic(parent, axis, placement, mass_of(i), model.names[i])
         else:
             copy.add_fixed(parent, placement, mass_of(i), model.names[i])
     return copy

@@ -115,14 +115,14 @@ def _distinct(
     diameter = np.max(np.where(both, distance, 0.0), axis=(0, 1))
     magnitude = np.max(np.where(mask, np.maximum(np.abs(x), np.abs(y)), 0.0), axis=0)
     if tolerance is None:
-        tolerance = SUPPORT_TOLERANCE * diameter + _ROUNDING * magnitude + _ABSOLUTE_TOLERANCE
+        tau = SUPPORT_TOLERANCE * diameter + _ROUNDING * magnitude + _ABSOLUTE_TOLERANCE
     else:
-        tolerance = np.full(diameter.shape, tolerance)
+        tau = np.full(diameter.shape, tolerance)
     kept = mask.copy()
     for later in range(1, k):  # greedy in index order: k is the number of feet, vectorised over samples
-        near = kept[:later] & (distance[:later, later] <= tolerance)
+        near = kept[:later] & (distance[:later, later] <= tau)
         kept[later] &= ~np.any(near, axis=0)
-    return kept, tolerance
+    return kept, tau
 
 
 def _hull(x: np.ndarray, y: np.ndarray, mask: np.ndarray, tolerance: float | None = None) -> _Hull:
@@ -130,7 +130,7 @@ def _hull(x: np.ndarray, y: np.ndarray, mask: np.ndarray, tolerance: float | Non
 
     The side test runs once per unordered pair: j -> i sees every point on the opposite side of i -> j
     (cross products negate), so both directions come from one pass. `tolerance` [m] replaces tau if given."""
-    kept, tolerance = _distinct(x, y, mask, tolerance)
+    kept, tau = _distinct(x, y, mask, tolerance)
     k = x.shape[0]
     a, b = np.triu_indices(k, 1)
     sx, sy = x[a], y[a]
@@ -144,7 +144,7 @@ def _hull(x: np.ndarray, y: np.ndarray, mask: np.ndarray, tolerance: float | Non
         cross = dx * ry - dy * rx
         # Height of the triangle (start, end, other) over its longest side: the same for all three of its edges.
         longest = np.maximum(length, np.maximum(np.hypot(rx, ry), np.hypot(x[other] - x[b], y[other] - y[b])))
-        band = tolerance * longest
+        band = tau * longest
         along = dx * rx + dy * ry
         on_segment = (np.abs(cross) <= band) & (along >= 0.0) & (along <= length_sq)
         free = on_segment | ~kept[other]  # the end points themselves are on the segment

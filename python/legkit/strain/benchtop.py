@@ -45,6 +45,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from legkit._validation import float_array
 from legkit.robots.rhex import LEG_LENGTH
@@ -90,7 +91,7 @@ class CompliantFourBarLeg:
         secondary = np.diag([1.0 / self.axial_stiffness, 1.0 / self.clamp_stiffness])
         return np.outer(a, a) / self.linkage_stiffness + secondary
 
-    def deform(self, radial_force: object, hip_torque: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def deform(self, radial_force: npt.ArrayLike, hip_torque: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(length m, deflection rad, strain microstrain) under generalised loads (f_r N, tau N m), broadcast."""
         f_r = float_array(radial_force, "radial_force")
         tau = float_array(hip_torque, "hip_torque")
@@ -99,7 +100,7 @@ class CompliantFourBarLeg:
         deflection = self.linkage_deflection * phi + tau / self.clamp_stiffness
         return self.nominal_length - compression, deflection, self.gauge_gain * phi
 
-    def strain_from_displacement(self, length: object, deflection: object) -> np.ndarray:
+    def strain_from_displacement(self, length: npt.ArrayLike, deflection: npt.ArrayLike) -> np.ndarray:
         """Gauge strain (microstrain) for an imposed toe displacement (length m, deflection rad), broadcast.
 
         Inverts the compliance: (f_r, tau) = C^-1 (L0 - l, d), then sigma = g (a_r f_r + a_d tau) / k_link.
@@ -120,7 +121,7 @@ class CompliantFourBarLeg:
 
 
 def leg_frame_loads(
-    normal_force: object, tangential_force: object, leg_angle: object, nominal_length: float = LEG_LENGTH
+    normal_force: npt.ArrayLike, tangential_force: npt.ArrayLike, leg_angle: npt.ArrayLike, nominal_length: float = LEG_LENGTH
 ) -> tuple[np.ndarray, np.ndarray]:
     """Generalised leg loads (f_r N, tau N m) from ground-frame toe forces on a leg at ``leg_angle`` (rad).
 
@@ -133,7 +134,7 @@ def leg_frame_loads(
     return f_n * c + f_t * s, (f_n * s - f_t * c) * nominal_length
 
 
-def quantize(signal: object, bits: int, full_scale: tuple[float, float]) -> np.ndarray:
+def quantize(signal: npt.ArrayLike, bits: int, full_scale: tuple[float, float]) -> np.ndarray:
     """An n-bit ADC: clip to full_scale = (low, high) and round to the nearest of 2**bits evenly spaced levels."""
     values = float_array(signal, "signal")
     if isinstance(bits, bool) or not isinstance(bits, (int, np.integer)) or not 1 <= bits <= 32:
@@ -161,7 +162,7 @@ class StrainSensor:
             raise ValueError(f"rate must be finite and positive, got {self.rate}")
         quantize(0.0, self.bits, self.full_scale)  # validates bits and full_scale
 
-    def measure(self, strain: object, rng: np.random.Generator) -> np.ndarray:
+    def measure(self, strain: npt.ArrayLike, rng: np.random.Generator) -> np.ndarray:
         """Noisy, quantised readings of the true strain (any shape)."""
         true = float_array(strain, "strain")
         return quantize(true + self.noise_std * rng.standard_normal(true.shape), self.bits, self.full_scale)
@@ -237,7 +238,7 @@ def synthetic_benchtop(
     )
 
 
-def physically_relevant(normal_force: object, tangential_force: object, mu: float = 0.5) -> np.ndarray:
+def physically_relevant(normal_force: npt.ArrayLike, tangential_force: npt.ArrayLike, mu: float = 0.5) -> np.ndarray:
     """Boolean mask of loads the ground can apply: F_n > 0 and |F_t| < mu F_n (Coulomb friction, mu >= 0)."""
     f_n = float_array(normal_force, "normal_force")
     f_t = float_array(tangential_force, "tangential_force")
@@ -248,7 +249,7 @@ def physically_relevant(normal_force: object, tangential_force: object, mu: floa
     return (f_n > 0) & (np.abs(f_t) < mu * f_n)
 
 
-def average_by_group(groups: object, *values: object) -> tuple[np.ndarray, list[np.ndarray]]:
+def average_by_group(groups: npt.ArrayLike, *values: npt.ArrayLike) -> tuple[np.ndarray, list[np.ndarray]]:
     """Mean of each value array over the samples sharing a group id (e.g. a held benchtop load).
 
     Returns (sorted unique ids, [mean per id for each value array]).
@@ -267,7 +268,7 @@ def average_by_group(groups: object, *values: object) -> tuple[np.ndarray, list[
     return unique, means
 
 
-def configuration_cells(length: object, deflection: object, bins: tuple[int, int]) -> np.ndarray:
+def configuration_cells(length: npt.ArrayLike, deflection: npt.ArrayLike, bins: tuple[int, int]) -> np.ndarray:
     """Cell id of each sample on a regular bins[0] x bins[1] grid over the (length, deflection) bounding box."""
     ell = float_array(length, "length")
     d = float_array(deflection, "deflection")
@@ -287,7 +288,7 @@ def configuration_cells(length: object, deflection: object, bins: tuple[int, int
 
 
 def grid_average(
-    length: object, deflection: object, *values: object, bins: tuple[int, int] = (20, 20)
+    length: npt.ArrayLike, deflection: npt.ArrayLike, *values: npt.ArrayLike, bins: tuple[int, int] = (20, 20)
 ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """Average samples within each occupied cell of a regular grid over configuration space.
 
@@ -300,7 +301,7 @@ def grid_average(
 
 
 def resample_evenly(
-    length: object, deflection: object, bins: tuple[int, int] = (20, 20), per_cell: int = 1, seed: int = 0
+    length: npt.ArrayLike, deflection: npt.ArrayLike, bins: tuple[int, int] = (20, 20), per_cell: int = 1, seed: int = 0
 ) -> np.ndarray:
     """Indices of at most ``per_cell`` samples drawn at random from each occupied configuration-space cell.
 

@@ -54,6 +54,7 @@ from itertools import combinations
 from typing import Literal
 
 import numpy as np
+import numpy.typing as npt
 
 from legkit._validation import float_array
 from legkit.robots.rhex import HIP_POSITIONS
@@ -62,7 +63,7 @@ from legkit.robots.rhex import HIP_POSITIONS
 COLLINEAR_TOLERANCE = 1e-9
 
 
-def _leg_indices(leg_index: object) -> np.ndarray:
+def _leg_indices(leg_index: npt.ArrayLike) -> np.ndarray:
     try:
         index = np.asarray(leg_index)
     except (TypeError, ValueError) as exc:
@@ -81,7 +82,7 @@ def rotation_y(angle: np.ndarray) -> np.ndarray:
     return np.stack([np.stack([c, zero, s], -1), np.stack([zero, one, zero], -1), np.stack([-s, zero, c], -1)], -2)
 
 
-def hip_to_body(theta: object, leg_index: object) -> np.ndarray:
+def hip_to_body(theta: npt.ArrayLike, leg_index: npt.ArrayLike) -> np.ndarray:
     """The paper's h_i^theta: 4x4 transforms from leg i's frame to the body frame, x_body = R x_leg + t.
 
     Args:
@@ -101,7 +102,7 @@ def hip_to_body(theta: object, leg_index: object) -> np.ndarray:
     return transform
 
 
-def toe_in_leg(length: object, deflection: object) -> np.ndarray:
+def toe_in_leg(length: npt.ArrayLike, deflection: npt.ArrayLike) -> np.ndarray:
     """Toe position (..., 3) in the leg frame for leg length (m) and deflection (rad): (-l sin d, 0, -l cos d)."""
     ell = float_array(length, "length")
     d = float_array(deflection, "deflection")
@@ -109,7 +110,7 @@ def toe_in_leg(length: object, deflection: object) -> np.ndarray:
     return np.stack([-ell * np.sin(d), np.zeros_like(ell), -ell * np.cos(d)], -1)
 
 
-def toe_in_body(theta: object, length: object, deflection: object, leg_index: object) -> np.ndarray:
+def toe_in_body(theta: npt.ArrayLike, length: npt.ArrayLike, deflection: npt.ArrayLike, leg_index: npt.ArrayLike) -> np.ndarray:
     """Toe position (..., 3) in the body frame: h_i^theta applied to ``toe_in_leg(length, deflection)``.
 
     Equivalent to hip_i + Ry(theta + d) (0, 0, -l); all arguments broadcast together.
@@ -159,7 +160,7 @@ class TripodPose:
         return self.position[..., 2]
 
 
-def _check_toes(toes: object, minimum: int, exact: bool = False) -> np.ndarray:
+def _check_toes(toes: npt.ArrayLike, minimum: int, exact: bool = False) -> np.ndarray:
     points = float_array(toes, "toes")
     count_ok = points.ndim >= 2 and (points.shape[-2] == minimum if exact else points.shape[-2] >= minimum)
     if not count_ok or points.shape[-1] != 3:
@@ -168,7 +169,7 @@ def _check_toes(toes: object, minimum: int, exact: bool = False) -> np.ndarray:
     return points
 
 
-def tripod_pose(toes: object, orientation: Literal["paper", "body_side"] = "paper") -> TripodPose:
+def tripod_pose(toes: npt.ArrayLike, orientation: Literal["paper", "body_side"] = "paper") -> TripodPose:
     """Body pose from three stance toes (eq. 2-5 of file 002), vectorised over any batch shape.
 
     Args:
@@ -224,7 +225,7 @@ def tripod_pose(toes: object, orientation: Literal["paper", "body_side"] = "pape
     return TripodPose(position, rotation, roll, pitch, yaw, np.swapaxes(rotation, -1, -2), s0, alpha, gamma, beta)
 
 
-def euler_zyx(roll: object, pitch: object, yaw: object) -> np.ndarray:
+def euler_zyx(roll: npt.ArrayLike, pitch: npt.ArrayLike, yaw: npt.ArrayLike) -> np.ndarray:
     """Rotation Rz(yaw) Ry(pitch) Rx(roll), (..., 3, 3), the convention of ``tripod_pose``'s angles."""
     r, p, y = (float_array(v, name) for name, v in (("roll", roll), ("pitch", pitch), ("yaw", yaw)))
     r, p, y = np.broadcast_arrays(r, p, y)
@@ -239,7 +240,7 @@ def euler_zyx(roll: object, pitch: object, yaw: object) -> np.ndarray:
     )
 
 
-def coplanarity(toes: object, definition: Literal["paper", "determinant"] = "paper") -> np.ndarray:
+def coplanarity(toes: npt.ArrayLike, definition: Literal["paper", "determinant"] = "paper") -> np.ndarray:
     """A coplanarity measure rho of k toes (...,) (module docstring; small when the toes share a plane).
 
     definition="paper" (default): rho = sum_i s_i^T s_i - s_bar^T s_bar, s_bar = (1/k) sum_i s_i, as printed in
@@ -264,7 +265,7 @@ def coplanarity(toes: object, definition: Literal["paper", "determinant"] = "pap
     return best
 
 
-def plane_residual(toes: object) -> np.ndarray:
+def plane_residual(toes: npt.ArrayLike) -> np.ndarray:
     """Sum of squared distances (m^2) of k >= 3 toes to their least-squares plane, (...,).
 
     The smallest eigenvalue of the scatter matrix of the centred toes; zero iff the toes are coplanar.
@@ -275,7 +276,7 @@ def plane_residual(toes: object) -> np.ndarray:
     return np.maximum(np.linalg.eigvalsh(scatter)[..., 0], 0.0)
 
 
-def stance_intervals(rho: object, threshold: float, min_length: int = 1) -> np.ndarray:
+def stance_intervals(rho: npt.ArrayLike, threshold: float, min_length: int = 1) -> np.ndarray:
     """Maximal runs of samples with rho <= threshold, as an (n, 2) int array of [start, stop) indices.
 
     Args:

@@ -6,9 +6,10 @@ import math
 import os
 import warnings
 import xml.etree.ElementTree as ET
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -51,6 +52,8 @@ class Shape:
         if self.kind == "mesh" and self.mesh is None:
             raise ValueError("mesh: a mesh shape needs its file")
         if self.kind == "convex":
+            if self.vertices is None:
+                raise ValueError("vertices: a convex shape needs its vertices")
             vertices = float_array(self.vertices, "vertices")
             if vertices.ndim != 2 or vertices.shape[1] != 3 or vertices.shape[0] < 4:
                 raise ValueError(f"vertices: a convex shape takes (n >= 4, 3) vertices, got shape {vertices.shape}")
@@ -142,6 +145,11 @@ def _floats(text: str | None, count: int, default: Sequence[float], what: str) -
     return values
 
 
+def _rgba(text: str | None, what: str) -> tuple[float, float, float, float]:
+    r, g, b, a = (float(x) for x in _floats(text, 4, (1, 1, 1, 1), what))
+    return r, g, b, a
+
+
 def _origin(element: ET.Element | None, what: str) -> np.ndarray:
     """The 4x4 transform of a URDF <origin xyz rpy> (fixed-axis roll, pitch, yaw: R = Rz(y) Ry(p) Rx(r))."""
     transform = np.eye(4)
@@ -180,11 +188,11 @@ def visual_shapes(
     if not path.is_file():
         raise FileNotFoundError(f"urdf: no such file {str(urdf)!r}")
     root = ET.parse(path).getroot()
-    colors: dict[str, tuple[float, ...]] = {}
-    for material in root.findall("material"):
-        rgba = material.find("color")
-        if material.get("name") and rgba is not None:
-            colors[material.get("name", "")] = tuple(_floats(rgba.get("rgba"), 4, (1, 1, 1, 1), "material color"))
+    colors: dict[str, tuple[float, float, float, float]] = {}
+    for named in root.findall("material"):
+        rgba = named.find("color")
+        if named.get("name") and rgba is not None:
+            colors[named.get("name", "")] = _rgba(rgba.get("rgba"), "material color")
     bodies = {name: i for i, name in enumerate(model.names)}
     result: list[Shape] = []
     for link in root.findall("link"):
@@ -198,12 +206,12 @@ def visual_shapes(
         for visual in visuals:
             what = f"link {name!r} <visual>"
             placement = _origin(visual.find("origin"), what)
-            color = None
+            color: tuple[float, float, float, float] | None = None
             material = visual.find("material")
             if material is not None:
                 rgba = material.find("color")
                 if rgba is not None:
-                    color = tuple(_floats(rgba.get("rgba"), 4, (1, 1, 1, 1), f"{what} material color"))
+                    color = _rgba(rgba.get("rgba"), f"{what} material color")
                 else:
                     color = colors.get(material.get("name", ""))
             geometry = visual.find("geometry")

@@ -21,7 +21,9 @@ GROUND = (0.86, 0.87, 0.88)
 LIGHT = np.array([0.35, 0.25, 0.9]) / np.linalg.norm([0.35, 0.25, 0.9])
 
 
-def _sphere_polygons(radius: float, z0: float = 0.0, lat: tuple[float, float] = (-math.pi / 2, math.pi / 2), rings: int = 6, segments: int = 12) -> np.ndarray:
+def _sphere_polygons(
+    radius: float, z0: float = 0.0, lat: tuple[float, float] = (-math.pi / 2, math.pi / 2), rings: int = 6, segments: int = 12
+) -> np.ndarray:
     """Quads (n, 4, 3) of a sphere (or a band of it between latitudes ``lat``) centred at (0, 0, z0), outward."""
     phi = np.linspace(lat[0], lat[1], rings + 1)
     theta = np.linspace(0, 2 * math.pi, segments + 1)
@@ -79,7 +81,8 @@ def shape_polygons(shape: Shape) -> np.ndarray | None:
     if shape.kind == "sphere":
         return _sphere_polygons(shape.size[0])
     if shape.kind == "cylinder":
-        return _cylinder_polygons(*shape.size)
+        half, radius = shape.size
+        return _cylinder_polygons(half, radius)
     if shape.kind == "capsule":
         half, radius = shape.size
         return np.concatenate([
@@ -137,7 +140,7 @@ def render_frames(scene: Scene, times: np.ndarray, size: tuple[int, int] = (640,
 
     # Polygons of every shape in world coordinates at every frame: (F, P, 4, 3).
     local, owner, colors = [], [], []
-    poses = []
+    poses: list[np.ndarray] = []
     skipped = 0
     for robot in scene.robots:
         sample = np.zeros(times.size, dtype=int)
