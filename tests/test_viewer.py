@@ -271,6 +271,8 @@ def test_bad_input_names_the_argument(tmp_path):
         Shape(0, "box", (0.1, -0.1, 0.1))
     with pytest.raises(ValueError, match="placement"):
         Shape(0, "box", (0.1, 0.1, 0.1), np.eye(3))
+    with pytest.raises(ValueError, match="convex shape needs its vertices"):
+        Shape(0, "convex", ())
     with pytest.raises(ValueError, match="view"):
         Scene(view=(0.0, 90.0))
     with pytest.raises(ValueError, match="scene"):
