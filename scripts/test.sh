@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs what the tests need (the package with its test extras, built from this checkout, into the
-# project's virtual environment: see venv.sh) and runs every test in three tiers, timing each:
+# project's virtual environment: see venv.sh) and runs the linters and every test in four tiers, timing each:
+#   lint         ruff check and mypy on the Python package and its stub (configured in pyproject.toml)
 #   rust         the Rust unit tests (cargo test, release optimisation without fat LTO)
 #   python-fast  the Python suite without the tests marked slow (pytest -m "not slow": the inner loop)
 #   python-slow  the tests marked slow (end-to-end experiments, simulations, browser rendering)
@@ -33,7 +34,15 @@ setup() {
             { apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium >/dev/null; }; }
 }
 
+lint() {  # both linters run; the tier fails if either does
+    local rc=0
+    python -m ruff check || rc=1
+    python -m mypy || rc=1
+    return "$rc"
+}
+
 if tier setup setup; then
+    tier lint lint
     # Optimised like the release build but without its fat LTO and single codegen unit, which make every
     # test binary slow to build; the wheel keeps them.
     tier rust env CARGO_PROFILE_RELEASE_LTO=false CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 \
