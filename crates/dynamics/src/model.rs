@@ -374,6 +374,8 @@ pub struct Data {
     pub c: Vec<Motion>,
     /// Articulated-body inertias (ABA, Minv; world frame).
     pub inertia: Vec<Inertia>,
+    /// Each body's own rigid inertia (ABA; world frame).
+    pub rigid: Vec<Inertia>,
     /// Composite-rigid-body inertias (CRBA; world frame).
     pub composite: Vec<RigidInertia>,
     pub bias: Vec<Force>,
@@ -406,6 +408,7 @@ impl Data {
             f: vec![Force::zeros(); n],
             c: vec![Motion::zeros(); n],
             inertia: vec![Inertia::zeros(); n],
+            rigid: vec![Inertia::zeros(); n],
             composite: vec![RigidInertia::zeros(); n],
             bias: vec![Force::zeros(); n],
             s: vec![Motion::zeros(); n],

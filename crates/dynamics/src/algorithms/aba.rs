@@ -13,7 +13,7 @@ use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inert
 
 /// Joint accelerations for configuration `q`, velocity `v` and joint forces `tau`; `f_ext` as in `rnea`.
 /// Writes `data.ddq` and returns it. In the world's axes about the base's origin (see
-/// `kinematics::base_centred_kinematics`), `data.o_m_i` holds each body's pose, `data.v` its velocity and
+/// `kinematics::base_centred_kinematics`), `data.o_m_i` holds each body's pose, `data.rigid` its rigid inertia, `data.v` its velocity and
 /// `data.a` its acceleration with gravity as a base acceleration (§5.3).
 pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>) -> &'d DVector<f64> {
     aba_with_armature(model, data, q, v, tau, f_ext, None)
@@ -58,7 +58,8 @@ pub fn aba_with_armature<'d>(
         data.v[i] = v_parent + v_joint;
         data.c[i] = cross_motion(&v_parent, &v_joint);
         let inertia = pose.act_rigid_inertia(model.inertia(i));
-        data.inertia[i] = inertia.matrix();
+        data.rigid[i] = inertia.matrix();
+        data.inertia[i] = data.rigid[i];
         data.bias[i] = cross_force(&data.v[i], &inertia.apply(&data.v[i]));
         if let Some(f_ext) = f_ext {
             data.bias[i] -= pose.act_force(&f_ext[i]);

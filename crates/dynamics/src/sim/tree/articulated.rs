@@ -13,8 +13,6 @@ use crate::model::{Data, Joint, Model};
 use crate::spatial::{add_reduced_inertia, dot6, Force, Motion};
 
 pub(super) struct Articulated {
-    /// Each body's rigid inertia I_b.
-    rigid: Vec<Matrix6<f64>>,
     /// Articulated inertias of H, and per one-degree-of-freedom joint U = I^A S and D⁻¹ (eq. 7.38–7.44).
     inertia: Vec<Matrix6<f64>>,
     u: Vec<Motion>,
@@ -22,7 +20,8 @@ pub(super) struct Articulated {
     base: Option<Cholesky<f64, U6>>,
     /// u_k = r_k − S_kᵀ p_k of the last solve's backward pass, per velocity coordinate.
     reduced: Vec<f64>,
-    /// K_b per body and c per coordinate: set by the caller before `factor`.
+    /// K_b per body (symmetric: only its upper triangle is read) and c per coordinate: set by the caller
+    /// before `factor`.
     pub stiffness: Vec<Matrix6<f64>>,
     pub coordinate_stiffness: Vec<f64>,
     /// Body spatial velocities of the last `motions`; body forces for `generalized`.
@@ -34,7 +33,6 @@ impl Articulated {
     pub(super) fn new(model: &Model) -> Self {
         let (n, nv) = (model.nbodies(), model.nv());
         Articulated {
-            rigid: vec![Matrix6::zeros(); n],
             inertia: vec![Matrix6::zeros(); n],
             u: vec![Motion::zeros(); n],
             d_inv: vec![0.0; n],
@@ -44,13 +42,6 @@ impl Articulated {
             coordinate_stiffness: vec![0.0; nv],
             motion: vec![Motion::zeros(); n],
             force: vec![Force::zeros(); n],
-        }
-    }
-
-    /// Reads the bodies' inertias at the poses `aba` left in `data`.
-    pub(super) fn update(&mut self, model: &Model, data: &Data) {
-        for (i, rigid) in self.rigid.iter_mut().enumerate() {
-            *rigid = data.o_m_i[i].act_rigid_inertia(model.inertia(i)).matrix();
         }
     }
 
@@ -86,7 +77,7 @@ impl Articulated {
     /// out = M̃ x.
     pub(super) fn mass_times(&mut self, model: &Model, data: &Data, armature: &[f64], x: &[f64], out: &mut [f64]) {
         self.motions(model, data, x);
-        for ((f, rigid), m) in self.force.iter_mut().zip(&self.rigid).zip(&self.motion) {
+        for ((f, rigid), m) in self.force.iter_mut().zip(&data.rigid).zip(&self.motion) {
             *f = rigid * m;
         }
         self.generalized(model, data, out);
@@ -97,8 +88,13 @@ impl Articulated {
 
     /// Factors H with the stiffnesses set; false if it is not positive definite.
     pub(super) fn factor(&mut self, model: &Model, data: &Data, armature: &[f64]) -> bool {
-        for ((a, rigid), k) in self.inertia.iter_mut().zip(&self.rigid).zip(&self.stiffness) {
-            *a = rigid + k;
+        for ((a, rigid), k) in self.inertia.iter_mut().zip(&data.rigid).zip(&self.stiffness) {
+            let (a, rigid, k) = (&mut a.data.0, &rigid.data.0, &k.data.0);
+            for c in 0..6 {
+                for r in 0..6 {
+                    a[c][r] = rigid[c][r] + if r <= c { k[c][r] } else { k[r][c] };
+                }
+            }
         }
         for i in (1..model.nbodies()).rev() {
             let k = model.idx_v(i);

@@ -38,16 +38,20 @@ impl Delassus {
             _ => Matrix6::zeros(),
         };
         for i in 1..model.nbodies() {
-            let parent = self.omega[model.parent(i)];
-            self.omega[i] = if model.joint(i).nv() == 1 {
-                // P Ω Pᵀ + S D⁻¹ Sᵀ with P = 1 − S wᵀ: Ω − S yᵀ − y Sᵀ + (wᵀ y + D⁻¹) S Sᵀ, y = Ω w.
+            let mut omega = self.omega[model.parent(i)];
+            if model.joint(i).nv() == 1 {
+                // P Ω Pᵀ + S D⁻¹ Sᵀ with P = 1 − S wᵀ: Ω + S zᵀ − y Sᵀ, y = Ω w, z = (wᵀ y + D⁻¹) S − y.
                 let (s, w) = (data.s[i], data.u[i] * data.d_inv[i]);
-                let y = parent * w;
-                let through = w.dot(&y) + data.d_inv[i];
-                parent - s * y.transpose() - y * s.transpose() + s * s.transpose() * through
-            } else {
-                parent
-            };
+                let y = omega * w;
+                let z = s * (w.dot(&y) + data.d_inv[i]) - y;
+                let (o, s, y, z) = (&mut omega.data.0, &s.data.0[0], &y.data.0[0], &z.data.0[0]);
+                for c in 0..6 {
+                    for r in 0..6 {
+                        o[c][r] += s[r] * z[c] - y[r] * s[c];
+                    }
+                }
+            }
+            self.omega[i] = omega;
         }
         true
     }
@@ -55,7 +59,6 @@ impl Delassus {
     /// The Delassus diagonal of rows `rows` (spatial forces on body `a`, and opposite on `b`), and its
     /// scale (tr Ω |F|² per unit row), below which a row counts as immovable.
     pub(super) fn bodies(&self, model: &Model, data: &Data, a: usize, b: Option<usize>, rows: &[Vector6<f64>; 3]) -> ([f64; 3], f64) {
-        let quadratic = |omega: &Matrix6<f64>, f: &Vector6<f64>| f.dot(&(omega * f));
         let mut diagonal = rows.map(|f| quadratic(&self.omega[a], &f));
         let mut trace = self.omega[a].trace();
         if let Some(b) = b {
@@ -84,6 +87,20 @@ impl Delassus {
         let w = data.u[i] * data.d_inv[i];
         data.d_inv[i] + w.dot(&(self.omega[model.parent(i)] * w))
     }
+}
+
+/// fᵀ Ω f for a symmetric Ω, from its upper triangle.
+fn quadratic(omega: &Matrix6<f64>, f: &Vector6<f64>) -> f64 {
+    let (o, f) = (&omega.data.0, &f.data.0[0]);
+    let mut sum = 0.0;
+    for c in 0..6 {
+        let mut column = 0.5 * o[c][c] * f[c];
+        for r in 0..c {
+            column += o[c][r] * f[r];
+        }
+        sum += column * f[c];
+    }
+    2.0 * sum
 }
 
 /// Forces on body `i` passed to its parent: f ← P_iᵀ f = f − w_i (S_iᵀ f).

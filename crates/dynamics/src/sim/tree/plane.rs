@@ -29,6 +29,18 @@ pub(super) fn plane_points(kind: &ShapeKind, pose: &Transform, prediction: f64, 
             emit(PlanePoint { feature, surface, height: surface.z });
         }
     };
+    // Every point of the shape lies within `reach` of its frame's origin.
+    let reach = match *kind {
+        ShapeKind::Box(size) => 0.5 * size.norm(),
+        ShapeKind::Sphere(r) => r,
+        ShapeKind::Capsule { half_height, radius } => half_height + radius,
+        ShapeKind::Cylinder { half_height, radius } => half_height.hypot(radius),
+        // Convex meshes meet the plane through parry's manifolds (see `collision`).
+        ShapeKind::Convex(_) => return,
+    };
+    if pose.translation.z - reach > prediction {
+        return;
+    }
     let down = Vector3::new(0.0, 0.0, -1.0);
     match *kind {
         ShapeKind::Box(size) => {
@@ -67,7 +79,6 @@ pub(super) fn plane_points(kind: &ShapeKind, pose: &Transform, prediction: f64, 
                 }
             }
         }
-        // Convex meshes meet the plane through parry's manifolds (see `collision`).
         ShapeKind::Convex(_) => {}
     }
 }

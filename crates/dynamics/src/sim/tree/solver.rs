@@ -286,7 +286,6 @@ impl Solver {
             return Some(0);
         }
         let tree = &mut self.tree;
-        tree.update(model, data);
         // Warm start: v = v_free + M̃⁻¹ Jᵀ λ_warm, so M̃ (v − v_free) = Jᵀ λ_warm, through ABA's own factor of M̃.
         generalized_impulses(tree, model, data, constraints, &mut self.mass_change);
         if !tree.factor_of_aba(model, data) {
@@ -315,10 +314,9 @@ impl Solver {
                 match c.target {
                     Target::Bodies(a, b) => {
                         // Φ_aᵀ (F H_c Fᵀ) Φ_a, and likewise on b without the two chains' coupling.
-                        let stiffness = spread(&c.rows, &hessian);
-                        tree.stiffness[a] += stiffness;
+                        add_spread(&mut tree.stiffness[a], &c.rows, &hessian);
                         if let Some(b) = b {
-                            tree.stiffness[b] += stiffness;
+                            add_spread(&mut tree.stiffness[b], &c.rows, &hessian);
                         }
                     }
                     Target::Coordinate(k) => tree.coordinate_stiffness[k] += hessian[(0, 0)] * c.rows[0][0] * c.rows[0][0],
@@ -387,10 +385,18 @@ fn generalized_impulses(tree: &mut Articulated, model: &Model, data: &Data, cons
     }
 }
 
-/// F H Fᵀ for the three rows F of a constraint and its 3x3 symmetric H.
-fn spread(rows: &[Vector6<f64>; 3], hessian: &Matrix3<f64>) -> Matrix6<f64> {
-    let weighted: [Vector6<f64>; 3] = std::array::from_fn(|j| rows[0] * hessian[(0, j)] + rows[1] * hessian[(1, j)] + rows[2] * hessian[(2, j)]);
-    Matrix6::from_fn(|r, c| weighted[0][r] * rows[0][c] + weighted[1][r] * rows[1][c] + weighted[2][r] * rows[2][c])
+/// Adds F H Fᵀ, for the three rows F of a constraint and its 3x3 symmetric H, to the upper triangle of
+/// the symmetric `stiffness` (all that `Articulated::factor` reads).
+fn add_spread(stiffness: &mut Matrix6<f64>, rows: &[Vector6<f64>; 3], hessian: &Matrix3<f64>) {
+    let f = rows.each_ref().map(|f| &f.data.0[0]);
+    let h = &hessian.data.0;
+    let weighted: [[f64; 6]; 3] = std::array::from_fn(|j| std::array::from_fn(|r| f[0][r] * h[j][0] + f[1][r] * h[j][1] + f[2][r] * h[j][2]));
+    let k = &mut stiffness.data.0;
+    for c in 0..6 {
+        for r in 0..=c {
+            k[c][r] += weighted[0][r] * f[0][c] + weighted[1][r] * f[1][c] + weighted[2][r] * f[2][c];
+        }
+    }
 }
 
 /// J x for one constraint, given the bodies' spatial velocities `motion` under x.
