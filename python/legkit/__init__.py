@@ -6,6 +6,7 @@ and leading batch dimensions broadcast; batches run in Rust on all cores with th
 A floating base uses q = [x, y, z, qx, qy, qz, qw] and v = [v_lin, v_ang] in the base frame, as Pinocchio.
 """
 
+from legkit._build import check_cpu  # noqa: F401 (imported first: it checks the CPU before the extension loads)
 from legkit._core import (
     Ground,
     MassProperties,
