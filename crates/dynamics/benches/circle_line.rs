@@ -20,11 +20,7 @@ fn queries() -> Vec<(Circle, Line)> {
     let mut rng = StdRng::seed_from_u64(42);
     (0..QUERIES)
         .map(|_| {
-            let circle = Circle::new(
-                random_vector(&mut rng) * 10.0,
-                random_vector(&mut rng),
-                rng.random_range(0.1..5.0),
-            );
+            let circle = Circle::new(random_vector(&mut rng) * 10.0, random_vector(&mut rng), rng.random_range(0.1..5.0));
             let line = Line::new(random_vector(&mut rng) * 10.0, random_vector(&mut rng));
             // A zero vector has probability zero; unwrap documents that it cannot occur here.
             (circle.unwrap(), line.unwrap())

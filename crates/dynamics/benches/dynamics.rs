@@ -39,17 +39,8 @@ fn quarter_turn(axis: usize, turns: i32) -> Matrix3<f64> {
     r
 }
 
-fn revolute(
-    model: &mut Model,
-    parent: usize,
-    axis: Vector3<f64>,
-    placement: Transform,
-    body: MassProperties,
-    name: String,
-) -> usize {
-    model
-        .add_body(parent, Joint::Revolute(axis), placement, body, &name, JointLimits::NONE)
-        .expect("valid body")
+fn revolute(model: &mut Model, parent: usize, axis: Vector3<f64>, placement: Transform, body: MassProperties, name: String) -> usize {
+    model.add_body(parent, Joint::Revolute(axis), placement, body, &name, JointLimits::NONE).expect("valid body")
 }
 
 /// One SuperBot-like module entering at `placement` in body `parent`: returns its (first, last) end blocks.
@@ -57,22 +48,8 @@ fn module(model: &mut Model, parent: usize, placement: Transform, name: &str) ->
     let end_block = cuboid(0.05, [0.025, 0.05, 0.05], [0.0125, 0.0, 0.0]);
     let middle_block = cuboid(0.10, [0.05, 0.03, 0.03], [0.025, 0.0, 0.0]);
     let first = revolute(model, parent, Vector3::y(), placement, end_block, format!("{name}_j0"));
-    let middle = revolute(
-        model,
-        first,
-        Vector3::x(),
-        Transform::from_translation(Vector3::new(0.025, 0.0, 0.0)),
-        middle_block,
-        format!("{name}_j1"),
-    );
-    let last = revolute(
-        model,
-        middle,
-        Vector3::y(),
-        Transform::from_translation(Vector3::new(0.05, 0.0, 0.0)),
-        end_block,
-        format!("{name}_j2"),
-    );
+    let middle = revolute(model, first, Vector3::x(), Transform::from_translation(Vector3::new(0.025, 0.0, 0.0)), middle_block, format!("{name}_j1"));
+    let last = revolute(model, middle, Vector3::y(), Transform::from_translation(Vector3::new(0.05, 0.0, 0.0)), end_block, format!("{name}_j2"));
     (first, last)
 }
 
@@ -105,14 +82,7 @@ fn chain(n: usize) -> Model {
     let link = cuboid(0.5, [0.03, 0.03, 0.1], [0.0, 0.0, 0.05]);
     for i in 0..n {
         let offset = if i > 0 { 0.1 } else { 0.0 };
-        revolute(
-            &mut model,
-            i,
-            axes[i % 3],
-            Transform::from_translation(Vector3::new(0.0, 0.0, offset)),
-            link,
-            format!("link{i}"),
-        );
+        revolute(&mut model, i, axes[i % 3], Transform::from_translation(Vector3::new(0.0, 0.0, offset)), link, format!("link{i}"));
     }
     model
 }
@@ -120,9 +90,7 @@ fn chain(n: usize) -> Model {
 /// A random state (q, v, τ) for a fixed-base model of revolute joints.
 fn random_state(model: &Model, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let mut rng = StdRng::seed_from_u64(seed);
-    let q = (0..model.nq())
-        .map(|_| rng.random_range(-std::f64::consts::PI..std::f64::consts::PI))
-        .collect();
+    let q = (0..model.nq()).map(|_| rng.random_range(-std::f64::consts::PI..std::f64::consts::PI)).collect();
     // Standard normal by Box–Muller, to match the Python side's distribution (not its numbers).
     let mut normal = || {
         let (u1, u2): (f64, f64) = (rng.random_range(f64::EPSILON..1.0), rng.random());
@@ -138,12 +106,8 @@ fn tree(c: &mut Criterion) {
     let mut data = Data::new(&model);
     let (q, v, tau) = random_state(&model, 1);
     let mut group = c.benchmark_group("tree63");
-    group.bench_function("aba", |b| {
-        b.iter(|| aba(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None)[0])
-    });
-    group.bench_function("rnea", |b| {
-        b.iter(|| rnea(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None)[0])
-    });
+    group.bench_function("aba", |b| b.iter(|| aba(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None)[0]));
+    group.bench_function("rnea", |b| b.iter(|| rnea(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None)[0]));
     group.bench_function("crba", |b| b.iter(|| crba(&model, &mut data, black_box(&q))[(0, 0)]));
     group.bench_function("minv", |b| b.iter(|| minv(&model, &mut data, black_box(&q))[(0, 0)]));
     group.finish();

@@ -22,8 +22,13 @@ const MODULE_LENGTH: f64 = 0.17;
 const PART_MASS: f64 = 0.05 / 4.0;
 
 fn module_tree(n_modules: usize) -> Model {
-    let part = MassProperties::cuboid(PART_MASS, Vector3::new(0.06, 0.06, MODULE_LENGTH / 4.0), Vector3::new(0.0, 0.0, MODULE_LENGTH / 8.0), &Matrix3::identity())
-        .expect("valid box");
+    let part = MassProperties::cuboid(
+        PART_MASS,
+        Vector3::new(0.06, 0.06, MODULE_LENGTH / 4.0),
+        Vector3::new(0.0, 0.0, MODULE_LENGTH / 8.0),
+        &Matrix3::identity(),
+    )
+    .expect("valid box");
     let mut model = Model::new(false, MassProperties::zero(), "base");
     let step = Transform::from_translation(Vector3::new(0.0, 0.0, MODULE_LENGTH / 4.0));
     let add_module = |model: &mut Model, parent: usize, placement: Transform| -> usize {

@@ -102,10 +102,7 @@ impl MassProperties {
     /// Point masses `masses[i]` at `positions[i]`; each mass must be > 0.
     pub fn from_points(masses: &[f64], positions: &[Vector3<f64>]) -> Result<Self> {
         if masses.len() != positions.len() {
-            return Err(Error::invalid(
-                "positions",
-                format!("has {} points but masses has {}", positions.len(), masses.len()),
-            ));
+            return Err(Error::invalid("positions", format!("has {} points but masses has {}", positions.len(), masses.len())));
         }
         if masses.is_empty() {
             return Err(Error::invalid("masses", "needs at least one point"));
@@ -149,11 +146,7 @@ impl MassProperties {
         if self.is_zero() {
             return *self;
         }
-        Self {
-            mass: self.mass,
-            com: rotation * self.com + translation,
-            inertia: rotation * self.inertia * rotation.transpose(),
-        }
+        Self { mass: self.mass, com: rotation * self.com + translation, inertia: rotation * self.inertia * rotation.transpose() }
     }
 
     /// Equality within `rtol` relative to each quantity's magnitude plus `atol`.
@@ -178,14 +171,10 @@ impl MassProperties {
         }
         let mass = self.mass - other.mass;
         if !(mass > PHYSICAL_TOLERANCE * self.mass) {
-            return Err(Error::invalid(
-                "other",
-                format!("subtracting mass {} from {} leaves no positive mass", other.mass, self.mass),
-            ));
+            return Err(Error::invalid("other", format!("subtracting mass {} from {} leaves no positive mass", other.mass, self.mass)));
         }
         let com = (self.com * self.mass - other.com * other.mass) / mass;
-        let inertia =
-            self.inertia - other.inertia - point_inertia(&(com - other.com)) * (mass * other.mass / self.mass);
+        let inertia = self.inertia - other.inertia - point_inertia(&(com - other.com)) * (mass * other.mass / self.mass);
         check_inertia_scaled("other", &inertia, self.inertia.amax())
             .map_err(|e| Error::invalid("other", format!("the difference is not a physical body ({e})")))?;
         Ok(Self { mass, com, inertia: symmetrised(&inertia) })
@@ -250,19 +239,13 @@ fn check_inertia_scaled(argument: &'static str, inertia: &Matrix3<f64>, scale: f
     }
     let principal = SymmetricEigen::new(symmetrised(inertia)).eigenvalues;
     if principal.min() < -tolerance {
-        return Err(Error::invalid(
-            argument,
-            format!("must be positive semi-definite (principal moments {principal:?})"),
-        ));
+        return Err(Error::invalid(argument, format!("must be positive semi-definite (principal moments {principal:?})")));
     }
     let trace = principal.sum();
     if principal.iter().any(|&moment| moment > trace - moment + tolerance) {
         return Err(Error::invalid(
             argument,
-            format!(
-                "principal moments [{:.6e}, {:.6e}, {:.6e}] violate the triangle inequality",
-                principal[0], principal[1], principal[2]
-            ),
+            format!("principal moments [{:.6e}, {:.6e}, {:.6e}] violate the triangle inequality", principal[0], principal[1], principal[2]),
         ));
     }
     Ok(())
@@ -276,11 +259,7 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     fn random_rotation(rng: &mut StdRng) -> Matrix3<f64> {
-        let axis = Unit::new_normalize(Vector3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0) + 1e-3,
-        ));
+        let axis = Unit::new_normalize(Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0) + 1e-3));
         Rotation3::from_axis_angle(&axis, rng.random_range(-3.0..3.0)).into_inner()
     }
 
@@ -318,9 +297,8 @@ mod tests {
         let mut rng = StdRng::seed_from_u64(2);
         for n in 1..30 {
             let masses: Vec<f64> = (0..n).map(|_| rng.random_range(0.01..5.0)).collect();
-            let points: Vec<Vector3<f64>> = (0..n)
-                .map(|_| Vector3::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0)))
-                .collect();
+            let points: Vec<Vector3<f64>> =
+                (0..n).map(|_| Vector3::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0))).collect();
             let (m, c, inertia) = brute_force(&masses, &points);
             let expected = MassProperties::new(m, c, inertia).unwrap();
             assert!(MassProperties::from_points(&masses, &points).unwrap().is_close(&expected, 1e-11, 1e-12));

@@ -109,7 +109,10 @@ fn collada(text: &str) -> std::result::Result<Vec<Vector3<f64>>, String> {
     let doc = Document::parse(text).map_err(|e| format!("not valid XML: {e}"))?;
     let root = doc.root_element();
     let asset = child(root, "asset");
-    let meter = asset.and_then(|a| child(a, "unit")).and_then(|u| u.attribute("meter")).map_or(Ok(1.0), |m| m.trim().parse::<f64>().map_err(|_| format!("<unit meter={m:?}> is not a number")))?;
+    let meter = asset
+        .and_then(|a| child(a, "unit"))
+        .and_then(|u| u.attribute("meter"))
+        .map_or(Ok(1.0), |m| m.trim().parse::<f64>().map_err(|_| format!("<unit meter={m:?}> is not a number")))?;
     // Turn the file's up axis onto z.
     let up = match asset.and_then(|a| child(a, "up_axis")).and_then(|u| u.text()).map(str::trim) {
         Some("Y_UP") => Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0),
@@ -137,7 +140,11 @@ fn instances(doc: &Document, node: Node, parent: Matrix4<f64>, out: &mut Vec<Vec
     let mut transform = parent;
     for step in node.children().filter(Node::is_element) {
         let numbers = || -> std::result::Result<Vec<f64>, String> {
-            step.text().unwrap_or("").split_whitespace().map(|w| w.parse::<f64>().map_err(|_| format!("<{}> holds {w:?}", step.tag_name().name()))).collect()
+            step.text()
+                .unwrap_or("")
+                .split_whitespace()
+                .map(|w| w.parse::<f64>().map_err(|_| format!("<{}> holds {w:?}", step.tag_name().name())))
+                .collect()
         };
         let local = match step.tag_name().name() {
             "matrix" => {
@@ -181,7 +188,12 @@ fn positions(doc: &Document, geometry: Node, transform: &Matrix4<f64>, out: &mut
             for input in vertices.children().filter(|n| n.has_tag_name("input") && n.attribute("semantic") == Some("POSITION")) {
                 let id = input.attribute("source").unwrap_or("").trim_start_matches('#');
                 let array = by_id(doc, id).and_then(|s| child(s, "float_array")).ok_or(format!("POSITION source #{id} has no <float_array>"))?;
-                let floats: Vec<f64> = array.text().unwrap_or("").split_whitespace().map(|w| w.parse::<f64>().map_err(|_| format!("<float_array> holds {w:?}"))).collect::<std::result::Result<_, _>>()?;
+                let floats: Vec<f64> = array
+                    .text()
+                    .unwrap_or("")
+                    .split_whitespace()
+                    .map(|w| w.parse::<f64>().map_err(|_| format!("<float_array> holds {w:?}")))
+                    .collect::<std::result::Result<_, _>>()?;
                 if floats.len() % 3 != 0 {
                     return Err(format!("POSITION source #{id} has {} numbers, not a multiple of 3", floats.len()));
                 }
@@ -206,7 +218,8 @@ mod tests {
 
     const CUBE: [[f64; 3]; 8] = [[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [1., 1., 0.], [0., 0., 1.], [1., 0., 1.], [0., 1., 1.], [1., 1., 1.]];
     /// The cube's 12 triangles as vertex indices.
-    const FACES: [[usize; 3]; 12] = [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4], [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]];
+    const FACES: [[usize; 3]; 12] =
+        [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4], [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]];
 
     fn write(name: &str, bytes: &[u8]) -> PathBuf {
         let dir = std::env::temp_dir().join(format!("legkit-mesh-{}", std::process::id()));

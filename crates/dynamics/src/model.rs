@@ -89,8 +89,7 @@ pub struct JointLimits {
 
 impl JointLimits {
     /// No limit at all: the only limits a fixed joint or the base can have.
-    pub const NONE: JointLimits =
-        JointLimits { lower: f64::NEG_INFINITY, upper: f64::INFINITY, effort: f64::INFINITY, velocity: f64::INFINITY };
+    pub const NONE: JointLimits = JointLimits { lower: f64::NEG_INFINITY, upper: f64::INFINITY, effort: f64::INFINITY, velocity: f64::INFINITY };
 
     /// Checked limits: `lower` finite or −inf, `upper` finite or +inf, `lower <= upper`, `effort` and
     /// `velocity` > 0 (+inf allowed). Errors name the argument `"limits"`.
@@ -216,10 +215,7 @@ impl Model {
         limits: JointLimits,
     ) -> Result<usize> {
         if parent >= self.joints.len() {
-            return Err(Error::invalid(
-                "parent",
-                format!("body {parent} does not exist (the model has {} bodies)", self.joints.len()),
-            ));
+            return Err(Error::invalid("parent", format!("body {parent} does not exist (the model has {} bodies)", self.joints.len())));
         }
         let joint = match joint {
             Joint::Revolute(axis) => Joint::Revolute(direction("axis", axis)?),
@@ -333,10 +329,7 @@ impl Model {
         if self.floating_base() {
             let norm = q[3..7].iter().map(|x| x * x).sum::<f64>().sqrt();
             if (norm - 1.0).abs() > 1e-6 {
-                return Err(Error::invalid(
-                    "q",
-                    format!("the base quaternion q[3:7] must have unit norm, got {norm:.9}"),
-                ));
+                return Err(Error::invalid("q", format!("the base quaternion q[3:7] must have unit norm, got {norm:.9}")));
             }
         }
         Ok(())

@@ -79,11 +79,7 @@ impl Transform {
         let t = 1.0 - c;
         let (tx, ty, tz) = (t * x, t * y, t * z);
         let (sx, sy, sz) = (s * x, s * y, s * z);
-        Matrix3::new(
-            tx * x + c, tx * y - sz, tx * z + sy,
-            tx * y + sz, ty * y + c, ty * z - sx,
-            tx * z - sy, ty * z + sx, tz * z + c,
-        )
+        Matrix3::new(tx * x + c, tx * y - sz, tx * z + sy, tx * y + sz, ty * y + c, ty * z - sx, tx * z - sy, ty * z + sx, tz * z + c)
     }
 
     pub fn from_quaternion(translation: Vector3<f64>, rotation: &UnitQuaternion<f64>) -> Self {
@@ -93,10 +89,7 @@ impl Transform {
     /// `self ∘ other`: the pose of `other`'s child in `self`'s parent.
     #[inline(always)]
     pub fn compose(&self, other: &Transform) -> Transform {
-        Transform {
-            rotation: self.rotation * other.rotation,
-            translation: self.rotation * other.translation + self.translation,
-        }
+        Transform { rotation: self.rotation * other.rotation, translation: self.rotation * other.translation + self.translation }
     }
 
     #[inline(always)]
@@ -240,12 +233,42 @@ impl RigidInertia {
     pub fn matrix(&self) -> Inertia {
         let (m, h, i) = (self.mass, &self.first_moment, &self.rotational);
         Inertia::new(
-            m, 0.0, 0.0, 0.0, h.z, -h.y,
-            0.0, m, 0.0, -h.z, 0.0, h.x,
-            0.0, 0.0, m, h.y, -h.x, 0.0,
-            0.0, -h.z, h.y, i[(0, 0)], i[(0, 1)], i[(0, 2)],
-            h.z, 0.0, -h.x, i[(1, 0)], i[(1, 1)], i[(1, 2)],
-            -h.y, h.x, 0.0, i[(2, 0)], i[(2, 1)], i[(2, 2)],
+            m,
+            0.0,
+            0.0,
+            0.0,
+            h.z,
+            -h.y,
+            0.0,
+            m,
+            0.0,
+            -h.z,
+            0.0,
+            h.x,
+            0.0,
+            0.0,
+            m,
+            h.y,
+            -h.x,
+            0.0,
+            0.0,
+            -h.z,
+            h.y,
+            i[(0, 0)],
+            i[(0, 1)],
+            i[(0, 2)],
+            h.z,
+            0.0,
+            -h.x,
+            i[(1, 0)],
+            i[(1, 1)],
+            i[(1, 2)],
+            -h.y,
+            h.x,
+            0.0,
+            i[(2, 0)],
+            i[(2, 1)],
+            i[(2, 2)],
         )
     }
 }
@@ -272,11 +295,7 @@ impl Transform {
         let r = rotate_symmetric(&self.rotation, &inertia.rotational);
         let entry = |i: usize, j: usize| r[(i, j)] - p[i] * moment[j] - h[i] * p[j];
         let (xy, xz, yz) = (entry(0, 1), entry(0, 2), entry(1, 2));
-        let rotational = Matrix3::new(
-            entry(0, 0) + diagonal, xy, xz,
-            xy, entry(1, 1) + diagonal, yz,
-            xz, yz, entry(2, 2) + diagonal,
-        );
+        let rotational = Matrix3::new(entry(0, 0) + diagonal, xy, xz, xy, entry(1, 1) + diagonal, yz, xz, yz, entry(2, 2) + diagonal);
         RigidInertia { mass: m, first_moment: moment, rotational }
     }
 
@@ -341,8 +360,7 @@ mod tests {
         assert!((x.inv_act_motion(&x.act_motion(&m)) - m).amax() < 1e-14);
         assert!((x.act_force(&f) - xf * f).amax() < 1e-14);
         assert!((x.inv_act_force(&x.act_force(&f)) - f).amax() < 1e-14);
-        let body = MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::new(0.1, 0.2, -0.3), &Matrix3::identity())
-            .unwrap();
+        let body = MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::new(0.1, 0.2, -0.3), &Matrix3::identity()).unwrap();
         let rigid = RigidInertia::from_body(&body);
         let i = rigid.matrix();
         // X* I X⁻¹ (eq. 2.66) is the inertia of the transformed body; act_rigid_inertia gives both.
@@ -358,7 +376,8 @@ mod tests {
         assert!((sum.matrix() - (i + acted.matrix())).amax() < 1e-15);
         // A body whose rotational inertia about the frame origin is diagonal (centred, axis-aligned) takes
         // the diagonal shortcut of `rotate_symmetric`.
-        let centred = RigidInertia::from_body(&MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap());
+        let centred =
+            RigidInertia::from_body(&MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap());
         let r = &centred.rotational;
         assert!(r[(0, 1)] == 0.0 && r[(0, 2)] == 0.0 && r[(1, 2)] == 0.0);
         assert!((x.act_rigid_inertia(&centred).matrix() - act(&centred.matrix())).amax() < 1e-13);

@@ -85,8 +85,7 @@ pub fn load_urdf(path_or_xml: &str, options: &UrdfOptions) -> Result<Urdf> {
     if path_or_xml.trim_start().starts_with('<') {
         return parse_urdf(path_or_xml, options);
     }
-    let xml = std::fs::read_to_string(path_or_xml)
-        .map_err(|e| Error::invalid("path", format!("cannot read URDF file {path_or_xml:?}: {e}")))?;
+    let xml = std::fs::read_to_string(path_or_xml).map_err(|e| Error::invalid("path", format!("cannot read URDF file {path_or_xml:?}: {e}")))?;
     let folder = Path::new(path_or_xml).parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
     parse(&xml, options, folder)
 }
@@ -124,10 +123,7 @@ fn parse(xml: &str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf
     let doc = Document::parse(xml).map_err(|e| invalid(format!("not valid XML: {e}")))?;
     let robot = doc.root_element();
     if robot.tag_name().name() != "robot" {
-        return Err(invalid(format!(
-            "the root element must be <robot>, found <{}>",
-            robot.tag_name().name()
-        )));
+        return Err(invalid(format!("the root element must be <robot>, found <{}>", robot.tag_name().name())));
     }
 
     // Links, by name.
@@ -207,10 +203,7 @@ fn parse(xml: &str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf
     }
     // With one parent per link and a single root, a link not reached from the root lies on a cycle.
     if let Some(unreached) = body_of_link.iter().position(Option::is_none) {
-        return Err(invalid(format!(
-            "the joints form a cycle ({}), which is not a tree",
-            describe_cycle(&links, &joints, &parent_joint, unreached)
-        )));
+        return Err(invalid(format!("the joints form a cycle ({}), which is not a tree", describe_cycle(&links, &joints, &parent_joint, unreached))));
     }
     if links.iter().any(|link| !link.shapes.is_empty()) {
         let shapes = links.iter().zip(&body_of_link).flat_map(|(link, body)| {
@@ -351,7 +344,13 @@ fn inertial(link: Node, name: &str, accept: &mut dyn FnMut(String) -> Result<()>
 
 /// The `<collision>` shapes of a `<link>` in the link frame. A mesh that cannot be found or read leaves the
 /// link colliding as the box of its inertia (`Shape::default_box`), and `notes` says so.
-fn collisions(link: Node, name: &str, body: &MassProperties, (folder, package_dirs): (Option<&Path>, &[PathBuf]), notes: &mut Vec<String>) -> Result<Vec<Shape>> {
+fn collisions(
+    link: Node,
+    name: &str,
+    body: &MassProperties,
+    (folder, package_dirs): (Option<&Path>, &[PathBuf]),
+    notes: &mut Vec<String>,
+) -> Result<Vec<Shape>> {
     let owner = format!("link {name:?}");
     let mut shapes = Vec::new();
     let mut unread = Vec::new();
@@ -400,13 +399,8 @@ fn joint<'a>(
 ) -> Result<UrdfJoint<'a>> {
     let owner = format!("joint {name:?}");
     let link = |tag: &str| -> Result<usize> {
-        let link = element(node, tag)
-            .and_then(|e| e.attribute("link"))
-            .ok_or_else(|| invalid(format!("{owner}: missing <{tag} link=\"...\"/>")))?;
-        link_index
-            .get(link)
-            .copied()
-            .ok_or_else(|| invalid(format!("{owner}: unknown {tag} link {link:?}")))
+        let link = element(node, tag).and_then(|e| e.attribute("link")).ok_or_else(|| invalid(format!("{owner}: missing <{tag} link=\"...\"/>")))?;
+        link_index.get(link).copied().ok_or_else(|| invalid(format!("{owner}: unknown {tag} link {link:?}")))
     };
     let parent = link("parent")?;
     let child = link("child")?;
@@ -427,11 +421,7 @@ fn joint<'a>(
         Some("continuous") => (Joint::Revolute(axis()?), false),
         Some("prismatic") => (Joint::Prismatic(axis()?), true),
         Some("fixed") => (Joint::Fixed, false),
-        Some(other) => {
-            return Err(invalid(format!(
-                "{owner}: unsupported type {other:?} (supported: revolute, continuous, prismatic, fixed)"
-            )))
-        }
+        Some(other) => return Err(invalid(format!("{owner}: unsupported type {other:?} (supported: revolute, continuous, prismatic, fixed)"))),
         None => return Err(invalid(format!("{owner}: has no type attribute"))),
     };
     let limits = match element(node, "limit") {
@@ -451,11 +441,7 @@ fn limits(limit: Node, bounded: bool, owner: &str, accept: &mut dyn FnMut(String
             Ok(default)
         }
     };
-    let (lower, upper) = if bounded {
-        (optional("lower", 0.0)?, optional("upper", 0.0)?)
-    } else {
-        (f64::NEG_INFINITY, f64::INFINITY)
-    };
+    let (lower, upper) = if bounded { (optional("lower", 0.0)?, optional("upper", 0.0)?) } else { (f64::NEG_INFINITY, f64::INFINITY) };
     if lower > upper {
         return Err(invalid(format!("{owner}: <limit> lower ({lower}) must be <= upper ({upper})")));
     }
@@ -514,10 +500,7 @@ mod tests {
 
     /// Independent of `rpy_to_matrix`: nalgebra's Euler angles, checked against URDF's convention below.
     fn expected_placement(xyz: [f64; 3], rpy: [f64; 3]) -> Transform {
-        Transform::new(
-            Rotation3::from_euler_angles(rpy[0], rpy[1], rpy[2]).into_inner(),
-            Vector3::new(xyz[0], xyz[1], xyz[2]),
-        )
+        Transform::new(Rotation3::from_euler_angles(rpy[0], rpy[1], rpy[2]).into_inner(), Vector3::new(xyz[0], xyz[1], xyz[2]))
     }
 
     fn assert_placement(model: &Model, body: usize, expected: &Transform) {
@@ -539,15 +522,7 @@ mod tests {
     }
 
     fn inertia_attrs(i: &Matrix3<f64>) -> String {
-        format!(
-            r#"ixx="{}" ixy="{}" ixz="{}" iyy="{}" iyz="{}" izz="{}""#,
-            i[(0, 0)],
-            i[(0, 1)],
-            i[(0, 2)],
-            i[(1, 1)],
-            i[(1, 2)],
-            i[(2, 2)]
-        )
+        format!(r#"ixx="{}" ixy="{}" ixz="{}" iyy="{}" iyz="{}" izz="{}""#, i[(0, 0)], i[(0, 1)], i[(0, 2)], i[(1, 1)], i[(1, 2)], i[(2, 2)])
     }
 
     #[test]
@@ -571,12 +546,7 @@ mod tests {
     fn pendulum_xml() -> (String, Vector3<f64>, Matrix3<f64>, Matrix3<f64>, f64) {
         // The upper link's body is a cloud of point masses given in its inertial frame (COM at the origin).
         let masses = [1.0, 2.0, 0.5, 1.5];
-        let raw = [
-            Vector3::new(0.3, 0.1, -0.2),
-            Vector3::new(-0.1, 0.4, 0.05),
-            Vector3::new(0.2, -0.3, 0.6),
-            Vector3::new(-0.25, -0.1, -0.3),
-        ];
+        let raw = [Vector3::new(0.3, 0.1, -0.2), Vector3::new(-0.1, 0.4, 0.05), Vector3::new(0.2, -0.3, 0.6), Vector3::new(-0.25, -0.1, -0.3)];
         let (c, _) = point_cloud_inertia(&masses, &raw);
         let points: Vec<Vector3<f64>> = raw.iter().map(|p| p - c).collect();
         let (_, inertia_local) = point_cloud_inertia(&masses, &points);
@@ -676,8 +646,7 @@ mod tests {
                 parent = child;
             }
         }
-        let expected_parent: HashMap<String, String> =
-            joints.iter().map(|(_, _, parent, child)| (child.clone(), parent.clone())).collect();
+        let expected_parent: HashMap<String, String> = joints.iter().map(|(_, _, parent, child)| (child.clone(), parent.clone())).collect();
         // Scramble: links and joints deepest first, interleaved, with the root link in the middle.
         links.reverse();
         links.rotate_left(7);
@@ -856,22 +825,18 @@ mod tests {
             &joint_robot(r#"<joint name="knee" type="revolute"><parent link="a"/><child link="shin"/></joint>"#),
             &[r#"joint "knee": unknown child link "shin""#],
         );
-        assert_fails(
-            &joint_robot(r#"<joint name="knee" type="revolute"><child link="b"/></joint>"#),
-            &[r#"joint "knee": missing <parent"#],
-        );
-        assert_fails(
-            &joint_robot(r#"<joint name="knee" type="revolute"><parent link="a"/><child/></joint>"#),
-            &[r#"joint "knee": missing <child"#],
-        );
+        assert_fails(&joint_robot(r#"<joint name="knee" type="revolute"><child link="b"/></joint>"#), &[r#"joint "knee": missing <parent"#]);
+        assert_fails(&joint_robot(r#"<joint name="knee" type="revolute"><parent link="a"/><child/></joint>"#), &[r#"joint "knee": missing <child"#]);
     }
 
     #[test]
     fn non_tree_structures_are_errors() {
         // A link with two parents.
         assert_fails(
-            &robot(r#"<link name="c"/><joint name="j1" type="fixed"><parent link="a"/><child link="c"/></joint>
-                      <joint name="j2" type="fixed"><parent link="b"/><child link="c"/></joint>"#),
+            &robot(
+                r#"<link name="c"/><joint name="j1" type="fixed"><parent link="a"/><child link="c"/></joint>
+                      <joint name="j2" type="fixed"><parent link="b"/><child link="c"/></joint>"#,
+            ),
             &[r#"link "c" has two parents"#, r#""j1""#, r#""j2""#],
         );
         // A cycle beside a proper root.
@@ -935,9 +900,7 @@ mod tests {
         assert_eq!(*fixture.limits(2), JointLimits { lower: -2.5, upper: 2.5, effort: 10.0, velocity: 5.0 });
 
         let joint = |kind: &str, limit: &str| {
-            let xml = joint_robot(&format!(
-                r#"<joint name="knee" type="{kind}"><parent link="a"/><child link="b"/>{limit}</joint>"#
-            ));
+            let xml = joint_robot(&format!(r#"<joint name="knee" type="{kind}"><parent link="a"/><child link="b"/>{limit}</joint>"#));
             *parse_urdf(&xml, FIXED).unwrap().model.limits(1)
         };
         let inf = f64::INFINITY;
@@ -948,7 +911,10 @@ mod tests {
         );
         // lower and upper default to 0 (URDF specification); effort and velocity to no bound.
         assert_eq!(joint("revolute", r#"<limit effort="3"/>"#), JointLimits { lower: 0.0, upper: 0.0, effort: 3.0, velocity: inf });
-        assert_eq!(joint("prismatic", r#"<limit upper="0.25" velocity="0.5"/>"#), JointLimits { lower: 0.0, upper: 0.25, effort: inf, velocity: 0.5 });
+        assert_eq!(
+            joint("prismatic", r#"<limit upper="0.25" velocity="0.5"/>"#),
+            JointLimits { lower: 0.0, upper: 0.25, effort: inf, velocity: 0.5 }
+        );
         assert_eq!(joint("revolute", ""), JointLimits::NONE);
         // Limits on a fixed joint mean nothing and are ignored.
         assert_eq!(joint("fixed", r#"<limit lower="-1" upper="1" effort="1" velocity="1"/>"#), JointLimits::NONE);
@@ -957,9 +923,7 @@ mod tests {
     #[test]
     fn bad_limits_are_errors_naming_the_joint() {
         let joint = |kind: &str, limit: &str| {
-            joint_robot(&format!(
-                r#"<joint name="knee" type="{kind}"><parent link="a"/><child link="b"/><limit {limit}/></joint>"#
-            ))
+            joint_robot(&format!(r#"<joint name="knee" type="{kind}"><parent link="a"/><child link="b"/><limit {limit}/></joint>"#))
         };
         let knee = r#"joint "knee""#;
         assert_fails(&joint("revolute", r#"lower="1" upper="-1""#), &[knee, "lower (1) must be <= upper (-1)"]);
@@ -978,12 +942,16 @@ mod tests {
     fn what_exporters_write_loads_as_written_with_warnings() {
         let urdf = |xml: &str| parse_urdf(xml, FIXED).unwrap();
         // effort="0" and velocity="0" mean "unset".
-        let unset = urdf(&joint_robot(r#"<joint name="knee" type="revolute"><parent link="a"/><child link="b"/><limit lower="-1" upper="1" effort="0" velocity="0"/></joint>"#));
+        let unset = urdf(&joint_robot(
+            r#"<joint name="knee" type="revolute"><parent link="a"/><child link="b"/><limit lower="-1" upper="1" effort="0" velocity="0"/></joint>"#,
+        ));
         assert_eq!(*unset.model.limits(1), JointLimits { lower: -1.0, upper: 1.0, effort: f64::INFINITY, velocity: f64::INFINITY });
         assert_eq!(unset.warnings.len(), 2);
         assert!(unset.warnings.iter().all(|w| w.starts_with(r#"joint "knee": <limit>"#)), "{:?}", unset.warnings);
         // A non-physical inertia (moments 1, 1, 3) is kept as written, turned by the inertial frame.
-        let triangle = urdf(&inertial_robot(r#"<origin rpy="0 1.5707963267948966 0"/><mass value="2"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="3"/>"#));
+        let triangle = urdf(&inertial_robot(
+            r#"<origin rpy="0 1.5707963267948966 0"/><mass value="2"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="3"/>"#,
+        ));
         let body = triangle.model.body(0);
         assert!((body.inertia() - Matrix3::from_diagonal(&Vector3::new(3.0, 1.0, 1.0))).amax() < 1e-12);
         assert_eq!(body.mass(), 2.0);
@@ -992,9 +960,12 @@ mod tests {
         // Round-off passes silently: a written-out zero inertia with a 1e-35 term (iCub's head), and a
         // principal moment of -2e-22 beside real ones.
         assert!(urdf(&inertial_robot(r#"<mass value="1"/><inertia ixx="0" ixy="0" ixz="2.4e-35" iyy="0" iyz="0" izz="0"/>"#)).warnings.is_empty());
-        assert!(urdf(&inertial_robot(r#"<mass value="1"/><inertia ixx="1e-3" ixy="0" ixz="0" iyy="1e-3" iyz="0" izz="-2e-22"/>"#)).warnings.is_empty());
+        assert!(urdf(&inertial_robot(r#"<mass value="1"/><inertia ixx="1e-3" ixy="0" ixz="0" iyy="1e-3" iyz="0" izz="-2e-22"/>"#))
+            .warnings
+            .is_empty());
         // A massless link keeps its rotational inertia, as in Pinocchio.
-        let massless = urdf(&inertial_robot(r#"<origin xyz="1 2 3"/><mass value="0"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.3"/>"#));
+        let massless =
+            urdf(&inertial_robot(r#"<origin xyz="1 2 3"/><mass value="0"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.3"/>"#));
         let body = massless.model.body(0);
         assert_eq!(body.mass(), 0.0);
         assert!(!body.is_zero());
@@ -1053,7 +1024,9 @@ mod tests {
         let corners: Vec<[f64; 3]> = (0..8).map(|k| [(k & 1) as f64, (k >> 1 & 1) as f64, (k >> 2 & 1) as f64]).collect();
         let obj: String = corners.iter().chain([[0.5, 0.5, 0.5]].iter()).map(|c| format!("v {} {} {}\n", c[0], c[1], c[2])).collect();
         std::fs::write(root.join("bot/meshes/cube.obj"), obj).unwrap();
-        let link = |name: &str, filename: &str| format!(r#"<link name="{name}"><collision><geometry><mesh filename="{filename}" scale="0.1 0.2 0.3"/></geometry></collision></link>"#);
+        let link = |name: &str, filename: &str| {
+            format!(r#"<link name="{name}"><collision><geometry><mesh filename="{filename}" scale="0.1 0.2 0.3"/></geometry></collision></link>"#)
+        };
         let xml = format!(
             r#"<robot name="r">{}{}{}<joint name="j" type="fixed"><parent link="a"/><child link="b"/></joint><joint name="k" type="fixed"><parent link="a"/><child link="c"/></joint></robot>"#,
             link("a", "package://bot/meshes/cube.obj"),
@@ -1075,7 +1048,11 @@ mod tests {
         // The missing mesh: the inertia box (here none: a massless link) and a warning naming it.
         assert_eq!(shapes.len(), 2);
         assert_eq!(urdf.warnings.len(), 1);
-        assert!(urdf.warnings[0].contains(r#"link "c""#) && urdf.warnings[0].contains("missing.stl") && urdf.warnings[0].contains("package_dirs"), "{}", urdf.warnings[0]);
+        assert!(
+            urdf.warnings[0].contains(r#"link "c""#) && urdf.warnings[0].contains("missing.stl") && urdf.warnings[0].contains("package_dirs"),
+            "{}",
+            urdf.warnings[0]
+        );
         // Parsed from a string, package names still resolve through package_dirs.
         let options = UrdfOptions { package_dirs: vec![root.clone()], ..Default::default() };
         let from_text = parse_urdf(&xml, &options).unwrap();
@@ -1085,11 +1062,8 @@ mod tests {
 
     #[test]
     fn bad_joints_are_errors_naming_the_joint() {
-        let joint = |kind: &str, inner: &str| {
-            joint_robot(&format!(
-                r#"<joint name="knee" type="{kind}"><parent link="a"/><child link="b"/>{inner}</joint>"#
-            ))
-        };
+        let joint =
+            |kind: &str, inner: &str| joint_robot(&format!(r#"<joint name="knee" type="{kind}"><parent link="a"/><child link="b"/>{inner}</joint>"#));
         let knee = r#"joint "knee""#;
         assert_fails(&joint("revolute", r#"<origin xyz="1 2"/>"#), &[knee, "xyz", "expected 3 numbers, found 2"]);
         assert_fails(&joint("revolute", r#"<origin xyz="1 2 3 4"/>"#), &[knee, "expected 3 numbers, found 4"]);
@@ -1101,9 +1075,6 @@ mod tests {
         for kind in ["floating", "planar", "spherical", "REVOLUTE"] {
             assert_fails(&joint(kind, ""), &[knee, &format!("unsupported type {kind:?}")]);
         }
-        assert_fails(
-            &joint_robot(r#"<joint name="knee"><parent link="a"/><child link="b"/></joint>"#),
-            &[knee, "no type"],
-        );
+        assert_fails(&joint_robot(r#"<joint name="knee"><parent link="a"/><child link="b"/></joint>"#), &[knee, "no type"]);
     }
 }

@@ -45,10 +45,7 @@ pub fn rotation(argument: &'static str, r: &Matrix3<f64>) -> Result<()> {
     finite_matrix(argument, r)?;
     let orthogonality = (r.transpose() * r - Matrix3::identity()).abs().max();
     if orthogonality > 1e-9 || r.determinant() < 0.0 {
-        return Err(Error::invalid(
-            argument,
-            format!("must be a rotation matrix (R^T R = I, det R = +1); |R^T R - I| = {orthogonality:.3e}"),
-        ));
+        return Err(Error::invalid(argument, format!("must be a rotation matrix (R^T R = I, det R = +1); |R^T R - I| = {orthogonality:.3e}")));
     }
     Ok(())
 }

@@ -91,8 +91,19 @@ fn rnea_crba_aba_and_minv_agree() {
 fn kinematics_composes_placements_and_joint_motions() {
     let mut model = Model::new(false, MassProperties::zero(), "base");
     let upper = MassProperties::point(1.0, Vector3::new(0.0, 0.0, -0.5)).unwrap();
-    let shoulder = model.add_body(0, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.0, 0.0, 1.0)), upper, "upper", JointLimits::NONE).unwrap();
-    model.add_body(shoulder, Joint::Prismatic(Vector3::z()), Transform::from_translation(Vector3::new(0.0, 0.0, -1.0)), upper, "lower", JointLimits::NONE).unwrap();
+    let shoulder = model
+        .add_body(0, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.0, 0.0, 1.0)), upper, "upper", JointLimits::NONE)
+        .unwrap();
+    model
+        .add_body(
+            shoulder,
+            Joint::Prismatic(Vector3::z()),
+            Transform::from_translation(Vector3::new(0.0, 0.0, -1.0)),
+            upper,
+            "lower",
+            JointLimits::NONE,
+        )
+        .unwrap();
     let mut data = Data::new(&model);
     forward_kinematics(&model, &mut data, &[std::f64::consts::FRAC_PI_2, 0.25]);
     // Rotating +90° about y takes the local -z axis to -x; the prismatic joint slides along it by 0.25 after the

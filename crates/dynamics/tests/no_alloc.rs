@@ -4,8 +4,8 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use legkit_dynamics::algorithms::{
-    aba, center_of_mass, centroidal_momentum, centroidal_momentum_rate, crba, forward_kinematics, jacobian, kinetic_energy,
-    minv, potential_energy, rnea, subtree_mass_properties, Frame,
+    aba, center_of_mass, centroidal_momentum, centroidal_momentum_rate, crba, forward_kinematics, jacobian, kinetic_energy, minv, potential_energy,
+    rnea, subtree_mass_properties, Frame,
 };
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{Matrix3, Vector3};
@@ -81,10 +81,30 @@ fn tree_engine_steps_do_not_allocate_once_warm() {
     let mut options = Options::new(1e-3);
     options.ground = Some(Ground::plane(0.8).unwrap());
     for (k, (x, y)) in [(0.15, 0.08), (0.15, -0.08), (-0.15, 0.08), (-0.15, -0.08)].into_iter().enumerate() {
-        let hip = model.add_body(0, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(x, y, -0.03)), leg, &format!("thigh{k}"), JointLimits::NONE).unwrap();
-        let shin = model.add_body(hip, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)), leg, &format!("shin{k}"), JointLimits::position(-2.0, 2.0).unwrap()).unwrap();
+        let hip = model
+            .add_body(
+                0,
+                Joint::Revolute(Vector3::y()),
+                Transform::from_translation(Vector3::new(x, y, -0.03)),
+                leg,
+                &format!("thigh{k}"),
+                JointLimits::NONE,
+            )
+            .unwrap();
+        let shin = model
+            .add_body(
+                hip,
+                Joint::Revolute(Vector3::y()),
+                Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)),
+                leg,
+                &format!("shin{k}"),
+                JointLimits::position(-2.0, 2.0).unwrap(),
+            )
+            .unwrap();
         options.shapes.push((hip, None));
-        options.shapes.push((shin, Some(Shape::new(ShapeKind::Sphere(0.02), Some(Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)))).unwrap())));
+        options
+            .shapes
+            .push((shin, Some(Shape::new(ShapeKind::Sphere(0.02), Some(Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)))).unwrap())));
     }
     let nv = model.nv();
     let mut sim = Simulation::new(&model, options).unwrap();

@@ -67,15 +67,11 @@ pub fn broadcast(arguments: &[(&str, &ArrayArg<'_>, Core)]) -> PyResult<Batch> {
         let array = argument.array(name)?;
         let dims = array.shape();
         if dims.len() < core.len() || &dims[dims.len() - core.len()..] != *core {
-            return Err(PyValueError::new_err(format!(
-                "{name}: expected shape {}, got {dims:?}",
-                describe(core)
-            )));
+            return Err(PyValueError::new_err(format!("{name}: expected shape {}, got {dims:?}", describe(core))));
         }
         let batch = &dims[..dims.len() - core.len()];
-        shape = broadcast_shapes(&shape, batch).ok_or_else(|| {
-            PyValueError::new_err(format!("{name}: batch shape {batch:?} does not broadcast with {shape:?}"))
-        })?;
+        shape = broadcast_shapes(&shape, batch)
+            .ok_or_else(|| PyValueError::new_err(format!("{name}: batch shape {batch:?} does not broadcast with {shape:?}")))?;
         arrays.push((array, batch.len(), *core));
     }
     let len = shape.iter().product();

@@ -6,7 +6,7 @@ use numpy::{PyArray1, PyArray2, PyArrayDyn};
 use pyo3::prelude::*;
 
 use crate::batch::{broadcast, ArrayArg};
-use crate::convert::{to_numpy, kernel_error, vector3, Vector};
+use crate::convert::{kernel_error, to_numpy, vector3, Vector};
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run_packed, unpack};
 
@@ -14,9 +14,8 @@ use crate::workspace::{check_state, finite_result, run_packed, unpack};
 fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<Contact>> {
     let mut out = Vec::new();
     for item in value.try_iter()? {
-        let (body, point): (Bound<'_, PyAny>, Vector<'_>) = item?.extract().map_err(|_| {
-            pyo3::exceptions::PyTypeError::new_err("contacts: expected a sequence of (body, point) pairs")
-        })?;
+        let (body, point): (Bound<'_, PyAny>, Vector<'_>) =
+            item?.extract().map_err(|_| pyo3::exceptions::PyTypeError::new_err("contacts: expected a sequence of (body, point) pairs"))?;
         out.push(Contact { body: model.body_index(&body)?, point: vector3("contacts", &point)? });
     }
     algorithms::contact::check_contacts(&model.model, &out).map_err(kernel_error)?;

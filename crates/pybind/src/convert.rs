@@ -23,9 +23,8 @@ impl<'a, 'py> FromPyObject<'a, 'py> for Floats<'py> {
         if let Ok(array) = obj.cast::<PyArrayDyn<f64>>() {
             return Ok(Floats(Ok(array.to_owned())));
         }
-        let converted = numpy::get_array_module(obj.py())?
-            .call_method1("asarray", (obj, "float64"))
-            .and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?));
+        let converted =
+            numpy::get_array_module(obj.py())?.call_method1("asarray", (obj, "float64")).and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?));
         Ok(Floats(converted.map_err(|e| e.to_string())))
     }
 }
@@ -88,10 +87,7 @@ fn matrix3_view(argument: &str, view: ArrayViewD<'_, f64>) -> PyResult<Matrix3<f
 pub fn homogeneous_matrix(argument: &str, value: &Matrix<'_>) -> PyResult<(Matrix3<f64>, Vector3<f64>)> {
     let view = value.get(argument)?;
     if view.shape() != [4, 4] {
-        return Err(PyValueError::new_err(format!(
-            "{argument}: expected a 4x4 transform or an (R, t) pair, got shape {:?}",
-            view.shape()
-        )));
+        return Err(PyValueError::new_err(format!("{argument}: expected a 4x4 transform or an (R, t) pair, got shape {:?}", view.shape())));
     }
     if (0..4).any(|j| view[[3, j]] != if j == 3 { 1.0 } else { 0.0 }) {
         return Err(PyValueError::new_err(format!("{argument}: the last row of a 4x4 transform must be [0, 0, 0, 1]")));

@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use rayon::prelude::*;
 
 use crate::batch::{broadcast, ArrayArg, Batch, Rows};
-use crate::convert::{batch_error, to_numpy, kernel_error};
+use crate::convert::{batch_error, kernel_error, to_numpy};
 
 /// Queries per parallel task.
 const CHUNK: usize = 4096;
@@ -24,7 +24,11 @@ fn first_error(errors: impl ParallelIterator<Item = Option<(usize, Error)>>) -> 
 }
 
 fn raise(batch: &Batch, (i, error): (usize, Error)) -> PyErr {
-    if batch.shape.is_empty() { kernel_error(error) } else { batch_error(error, i) }
+    if batch.shape.is_empty() {
+        kernel_error(error)
+    } else {
+        batch_error(error, i)
+    }
 }
 
 type CircleLineArrays<'py> = (

@@ -35,9 +35,7 @@ fn frame(name: &str) -> PyResult<Frame> {
         "local" => Ok(Frame::Local),
         "world" => Ok(Frame::World),
         "local_world_aligned" => Ok(Frame::LocalWorldAligned),
-        other => Err(PyValueError::new_err(format!(
-            "frame: expected \"local\", \"world\" or \"local_world_aligned\", got {other:?}"
-        ))),
+        other => Err(PyValueError::new_err(format!("frame: expected \"local\", \"world\" or \"local_world_aligned\", got {other:?}"))),
     }
 }
 
@@ -112,7 +110,12 @@ pub fn subtree_mass_properties<'py>(
 
 /// Centroidal momentum [h_lin, h_ang about the COM], world-aligned: `(..., 6)`.
 #[pyfunction]
-pub fn centroidal_momentum<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>, v: ArrayArg<'_>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+pub fn centroidal_momentum<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()])])?;
     run(py, &model, &batch, &[6], |m, w, i, out| {

@@ -8,7 +8,7 @@ use pyo3::basic::CompareOp;
 use pyo3::prelude::*;
 use pyo3::types::PyInt;
 
-use crate::convert::{homogeneous_matrix, matrix3, matrix_to_numpy, rows3, kernel_error, vector3, vector_to_numpy, Matrix, Vector};
+use crate::convert::{homogeneous_matrix, kernel_error, matrix3, matrix_to_numpy, rows3, vector3, vector_to_numpy, Matrix, Vector};
 
 /// Mass, centre of mass and rotational inertia about the centre of mass, all in one frame.
 #[pyclass(name = "MassProperties", module = "legkit", frozen, from_py_object)]
@@ -115,8 +115,19 @@ impl PyMassProperties {
         let (c, i) = (self.0.com(), self.0.inertia());
         format!(
             "MassProperties(mass={}, com=[{}, {}, {}], inertia=[[{}, {}, {}], [{}, {}, {}], [{}, {}, {}]])",
-            self.0.mass(), c.x, c.y, c.z,
-            i[(0, 0)], i[(0, 1)], i[(0, 2)], i[(1, 0)], i[(1, 1)], i[(1, 2)], i[(2, 0)], i[(2, 1)], i[(2, 2)]
+            self.0.mass(),
+            c.x,
+            c.y,
+            c.z,
+            i[(0, 0)],
+            i[(0, 1)],
+            i[(0, 2)],
+            i[(1, 0)],
+            i[(1, 1)],
+            i[(1, 2)],
+            i[(2, 0)],
+            i[(2, 1)],
+            i[(2, 2)]
         )
     }
 }

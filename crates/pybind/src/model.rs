@@ -11,10 +11,15 @@ use pyo3::exceptions::{PyFileNotFoundError, PyIndexError, PyTypeError, PyUserWar
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
 
-use crate::convert::{homogeneous_matrix, matrix3, to_numpy, kernel_error, vector3, vector_to_numpy, Matrix, Vector};
+use crate::convert::{homogeneous_matrix, kernel_error, matrix3, to_numpy, vector3, vector_to_numpy, Matrix, Vector};
 use crate::mass::PyMassProperties;
 
-pyo3::create_exception!(legkit, UrdfWarning, PyUserWarning, "A URDF loaded as written although it is not quite valid (a non-physical inertia, effort=\"0\", ...); the message names the element.");
+pyo3::create_exception!(
+    legkit,
+    UrdfWarning,
+    PyUserWarning,
+    "A URDF loaded as written although it is not quite valid (a non-physical inertia, effort=\"0\", ...); the message names the element."
+);
 
 /// A kinematic tree: body 0 is the base (fixed to the world, or a free flyer with
 /// q = [x, y, z, qx, qy, qz, qw] and v = [v_lin, v_ang] in the base frame); every other body hangs off a
@@ -64,17 +69,11 @@ impl PyModel {
     pub fn body_index(&self, body: &Bound<'_, PyAny>) -> PyResult<usize> {
         if let Ok(name) = body.cast::<PyString>() {
             let name = name.to_str()?;
-            return self
-                .model
-                .body_index(name)
-                .ok_or_else(|| PyValueError::new_err(format!("body: no body is named {name:?}")));
+            return self.model.body_index(name).ok_or_else(|| PyValueError::new_err(format!("body: no body is named {name:?}")));
         }
         let index: i64 = body.extract().map_err(|_| PyTypeError::new_err("body: expected an index or a name"))?;
         if index < 0 || index as usize >= self.model.nbodies() {
-            return Err(PyIndexError::new_err(format!(
-                "body: index {index} is out of range for {} bodies",
-                self.model.nbodies()
-            )));
+            return Err(PyIndexError::new_err(format!("body: index {index} is out of range for {} bodies", self.model.nbodies())));
         }
         Ok(index as usize)
     }
@@ -108,20 +107,16 @@ fn joint_limits(value: Option<&Bound<'_, PyAny>>) -> PyResult<JointLimits> {
                 "upper" => &mut limits.upper,
                 "effort" => &mut limits.effort,
                 "velocity" => &mut limits.velocity,
-                other => {
-                    return Err(PyValueError::new_err(format!(
-                        "limits: unknown key {other:?} (expected lower, upper, effort, velocity)"
-                    )))
-                }
+                other => return Err(PyValueError::new_err(format!("limits: unknown key {other:?} (expected lower, upper, effort, velocity)"))),
             };
             *slot = item.extract().map_err(|_| PyTypeError::new_err(format!("limits: {key} must be a number")))?;
         }
         limits
     } else {
         // pyo3 refuses to read a str as a sequence of numbers.
-        let pair: Vec<f64> = value.extract().map_err(|_| {
-            PyTypeError::new_err("limits: expected None, a (lower, upper) pair or a dict with keys lower, upper, effort, velocity")
-        })?;
+        let pair: Vec<f64> = value
+            .extract()
+            .map_err(|_| PyTypeError::new_err("limits: expected None, a (lower, upper) pair or a dict with keys lower, upper, effort, velocity"))?;
         let [lower, upper] = pair[..] else {
             return Err(PyValueError::new_err(format!("limits: expected a (lower, upper) pair, got {} values", pair.len())));
         };
@@ -162,12 +157,20 @@ impl PyModel {
     /// the file's folder's ancestors (a mesh not found: a warning, and the link's inertia box).
     #[staticmethod]
     #[pyo3(signature = (path_or_xml, floating_base = false, strict = false, package_dirs = None))]
-    fn from_urdf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: bool, strict: bool, package_dirs: Option<Vec<std::path::PathBuf>>) -> PyResult<Self> {
+    fn from_urdf(
+        py: Python<'_>,
+        path_or_xml: &Bound<'_, PyAny>,
+        floating_base: bool,
+        strict: bool,
+        package_dirs: Option<Vec<std::path::PathBuf>>,
+    ) -> PyResult<Self> {
         let source: String = match path_or_xml.cast::<PyString>() {
             Ok(s) => s.to_str()?.to_owned(),
-            Err(_) => py.import("os")?.call_method1("fspath", (path_or_xml,))?.extract().map_err(|_| {
-                PyTypeError::new_err("path_or_xml: expected a path or an XML string")
-            })?,
+            Err(_) => py
+                .import("os")?
+                .call_method1("fspath", (path_or_xml,))?
+                .extract()
+                .map_err(|_| PyTypeError::new_err("path_or_xml: expected a path or an XML string"))?,
         };
         let options = UrdfOptions { floating_base, strict, package_dirs: package_dirs.unwrap_or_default() };
         let urdf = py.detach(|| load_urdf(&source, &options)).map_err(kernel_error)?;

@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use rayon::prelude::*;
 
-use crate::convert::{batch_error, to_numpy, kernel_error, Floats};
+use crate::convert::{batch_error, kernel_error, to_numpy, Floats};
 use crate::model::{homogeneous, transform, PyModel};
 
 /// Terrain for a `Simulation`: `Ground.plane(friction)` (the plane z = 0) or
@@ -115,10 +115,9 @@ fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
     if value.is_none() {
         return Ok(None);
     }
-    let tuple = value
-        .cast::<PyTuple>()
-        .map_err(|_| PyTypeError::new_err("shapes: each value must be a tuple like (\"box\", size) or None"))?;
-    let kind: String = tuple.get_item(0).and_then(|k| k.extract()).map_err(|_| PyTypeError::new_err("shapes: the first element must be a shape name"))?;
+    let tuple = value.cast::<PyTuple>().map_err(|_| PyTypeError::new_err("shapes: each value must be a tuple like (\"box\", size) or None"))?;
+    let kind: String =
+        tuple.get_item(0).and_then(|k| k.extract()).map_err(|_| PyTypeError::new_err("shapes: the first element must be a shape name"))?;
     let count = match kind.as_str() {
         "box" | "sphere" | "convex" => 1,
         "capsule" | "cylinder" => 2,
@@ -127,7 +126,9 @@ fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
     if tuple.len() != 1 + count && tuple.len() != 2 + count {
         return Err(shape_error(format!("{kind} takes {count} size parameter(s) and an optional placement, got {} values", tuple.len() - 1)));
     }
-    let number = |k: usize| -> PyResult<f64> { tuple.get_item(k)?.extract().map_err(|_| PyTypeError::new_err(format!("shapes: {kind} parameters must be numbers"))) };
+    let number = |k: usize| -> PyResult<f64> {
+        tuple.get_item(k)?.extract().map_err(|_| PyTypeError::new_err(format!("shapes: {kind} parameters must be numbers")))
+    };
     let shape_kind = match kind.as_str() {
         "box" => {
             let size: Floats<'_> = tuple.get_item(1)?.extract()?;
@@ -136,7 +137,8 @@ fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
         }
         "sphere" => ShapeKind::Sphere(number(1)?),
         "convex" => {
-            let points: numpy::PyReadonlyArray2<'_, f64> = tuple.get_item(1)?.extract().map_err(|_| PyTypeError::new_err("shapes: convex takes an (n, 3) array of points"))?;
+            let points: numpy::PyReadonlyArray2<'_, f64> =
+                tuple.get_item(1)?.extract().map_err(|_| PyTypeError::new_err("shapes: convex takes an (n, 3) array of points"))?;
             let view = points.as_array();
             if view.ncols() != 3 {
                 return Err(shape_error(format!("convex takes an (n, 3) array of points, got {:?}", view.shape())));
@@ -147,11 +149,8 @@ fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
         "capsule" => ShapeKind::Capsule { half_height: number(1)?, radius: number(2)? },
         _ => ShapeKind::Cylinder { half_height: number(1)?, radius: number(2)? },
     };
-    let placement: Option<Transform> = if tuple.len() == 2 + count {
-        Some(transform(&tuple.get_item(1 + count)?).map_err(|e| shape_error(e.to_string()))?)
-    } else {
-        None
-    };
+    let placement: Option<Transform> =
+        if tuple.len() == 2 + count { Some(transform(&tuple.get_item(1 + count)?).map_err(|e| shape_error(e.to_string()))?) } else { None };
     Shape::new(shape_kind, placement).map(Some).map_err(kernel_error)
 }
 
@@ -292,7 +291,8 @@ impl PySimulation {
         let (nq, nv, floating) = (model.nq(), model.nv(), model.floating_base());
         let kp = per_dof("kp", &kp, nv, floating, 0.0)?;
         let kd = kd.map(|k| per_dof("kd", &k, nv, floating, 0.0)).transpose()?.unwrap_or_else(|| vec![0.0; nv]);
-        let limit = torque_limit.map(|l| per_dof("torque_limit", &l, nv, floating, f64::INFINITY)).transpose()?.unwrap_or_else(|| vec![f64::INFINITY; nv]);
+        let limit =
+            torque_limit.map(|l| per_dof("torque_limit", &l, nv, floating, f64::INFINITY)).transpose()?.unwrap_or_else(|| vec![f64::INFINITY; nv]);
         let configuration = match target_q {
             Some(t) => {
                 let t = vector_argument("target_q", &t, nq)?;
@@ -372,7 +372,9 @@ impl PySimulation {
     fn contacts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let contacts = self.sim.contacts();
         let k = contacts.len();
-        let rows = |f: &dyn Fn(&legkit_dynamics::sim::Contact) -> Vector3<f64>| -> Vec<f64> { contacts.iter().flat_map(|c| f(c).as_slice().to_vec()).collect() };
+        let rows = |f: &dyn Fn(&legkit_dynamics::sim::Contact) -> Vector3<f64>| -> Vec<f64> {
+            contacts.iter().flat_map(|c| f(c).as_slice().to_vec()).collect()
+        };
         let out = PyDict::new(py);
         out.set_item("body", to_numpy(py, k, contacts.iter().map(|c| c.body as i64).collect::<Vec<i64>>()))?;
         out.set_item("other", to_numpy(py, k, contacts.iter().map(|c| c.other.map_or(-1, |o| o as i64)).collect::<Vec<i64>>()))?;
@@ -402,7 +404,14 @@ impl PySimulation {
 
     fn __repr__(&self) -> String {
         let model = self.sim.model();
-        format!("Simulation(nq={}, nv={}, dt={}, time={}, backend={:?})", model.nq(), model.nv(), self.sim.options().dt, self.sim.time(), self.backend())
+        format!(
+            "Simulation(nq={}, nv={}, dt={}, time={}, backend={:?})",
+            model.nq(),
+            model.nv(),
+            self.sim.options().dt,
+            self.sim.time(),
+            self.backend()
+        )
     }
 }
 
@@ -430,9 +439,12 @@ impl PySimulationBatch {
         }
         let mut members: Vec<Py<PySimulation>> = Vec::with_capacity(simulations.len());
         for (i, item) in simulations.iter().enumerate() {
-            let sim = item
-                .cast::<PySimulation>()
-                .map_err(|_| PyTypeError::new_err(format!("simulations[{i}]: expected a Simulation, got {}", item.get_type().name().map_or_else(|_| "?".into(), |n| n.to_string()))))?;
+            let sim = item.cast::<PySimulation>().map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "simulations[{i}]: expected a Simulation, got {}",
+                    item.get_type().name().map_or_else(|_| "?".into(), |n| n.to_string())
+                ))
+            })?;
             if members.iter().any(|m| m.is(sim)) {
                 return Err(PyValueError::new_err(format!("simulations[{i}]: the same Simulation appears twice")));
             }
@@ -458,7 +470,8 @@ impl PySimulationBatch {
             .collect::<PyResult<Vec<_>>>()?;
         let taus = self.torques(&guards, tau)?;
         let sims: Vec<&mut Simulation> = guards.iter_mut().map(|g| &mut g.sim).collect();
-        let outcomes: Vec<_> = py.detach(|| sims.into_par_iter().zip(taus.par_iter()).map(|(sim, tau)| sim.step(tau.as_deref(), n as usize)).collect());
+        let outcomes: Vec<_> =
+            py.detach(|| sims.into_par_iter().zip(taus.par_iter()).map(|(sim, tau)| sim.step(tau.as_deref(), n as usize)).collect());
         match outcomes.into_iter().enumerate().find_map(|(i, r)| r.err().map(|e| (i, e))) {
             Some((i, error)) => Err(batch_error(error, i)),
             None => Ok(()),
@@ -504,7 +517,14 @@ impl PySimulationBatch {
             }
             list.iter()
                 .enumerate()
-                .map(|(i, t)| t.as_ref().map(|t| vector_argument("tau", t, guards[i].sim.model().nv()).map_err(|e| PyValueError::new_err(format!("tau[{i}]: {}", e.value(tau.py())))) ).transpose())
+                .map(|(i, t)| {
+                    t.as_ref()
+                        .map(|t| {
+                            vector_argument("tau", t, guards[i].sim.model().nv())
+                                .map_err(|e| PyValueError::new_err(format!("tau[{i}]: {}", e.value(tau.py()))))
+                        })
+                        .transpose()
+                })
                 .collect::<PyResult<_>>()?
         } else {
             let array: Floats<'_> = tau.extract()?;

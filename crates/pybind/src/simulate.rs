@@ -11,7 +11,13 @@ use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
 
 /// `q ⊕ v dt`: joint coordinates add; a free-flyer base moves along exp(v dt) in its own frame: `(..., nq)`.
 #[pyfunction]
-pub fn integrate<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>, v: ArrayArg<'_>, dt: f64) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+pub fn integrate<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    dt: f64,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let m = &model.model;
     legkit_dynamics::validate::finite("dt", dt).map_err(crate::convert::kernel_error)?;
     let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()])])?;

@@ -122,4 +122,3 @@ pub fn check_state(model: &Model, q: &[f64], v: Option<&[f64]>) -> Result<(), Er
     }
     Ok(())
 }
-

@@ -69,7 +69,9 @@ fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[
     // a_point = R (a + α × r + ω × (v + ω × r)).
     for i in 0..model.nbodies() {
         let li = joint_placement(model, i, q);
-        let (v_parent, a_parent) = if i == 0 { (Motion::zeros(), Motion::zeros()) } else {
+        let (v_parent, a_parent) = if i == 0 {
+            (Motion::zeros(), Motion::zeros())
+        } else {
             let p = model.parent(i);
             (data.v[p], data.a[p])
         };
@@ -97,7 +99,12 @@ fn solve_spd(a: DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
 }
 
 /// M and the bias h = C q̇ + g at (q, v), and a Cholesky factor of M.
-fn mass_and_bias(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result<(DMatrix<f64>, nalgebra::Cholesky<f64, nalgebra::Dyn>, DVector<f64>)> {
+fn mass_and_bias(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+) -> Result<(DMatrix<f64>, nalgebra::Cholesky<f64, nalgebra::Dyn>, DVector<f64>)> {
     let mass = crba(model, data, q).clone();
     let bias = rnea(model, data, q, v, &vec![0.0; model.nv()], None).clone();
     let chol = mass.clone().cholesky().ok_or_else(|| Error::invalid("model", "the mass matrix is singular at this configuration"))?;
@@ -189,9 +196,10 @@ pub fn reduced_dynamics(
     let j_dependent = jc.select_columns(&dependent);
     let j_independent = jc.select_columns(&independent);
     let lu = j_dependent.lu();
-    let coupling = lu.solve(&j_independent).filter(|x| x.iter().all(|v| v.is_finite())).ok_or_else(|| {
-        Error::invalid("independent", "the constraint Jacobian is singular on the dependent coordinates")
-    })?;
+    let coupling = lu
+        .solve(&j_independent)
+        .filter(|x| x.iter().all(|v| v.is_finite()))
+        .ok_or_else(|| Error::invalid("independent", "the constraint Jacobian is singular on the dependent coordinates"))?;
     let drift = lu.solve(&gamma).expect("same factorisation");
     let mut basis = DMatrix::zeros(nv, independent.len());
     let mut offset = DVector::zeros(nv);
@@ -204,11 +212,8 @@ pub fn reduced_dynamics(
     }
     let reduced_mass = basis.transpose() * &mass * &basis;
     let force = basis.transpose() * (DVector::from_column_slice(tau) - bias - &mass * &offset);
-    let ddq_independent = reduced_mass
-        .clone()
-        .cholesky()
-        .ok_or_else(|| Error::invalid("contacts", "the reduced mass matrix is singular"))?
-        .solve(&force);
+    let ddq_independent =
+        reduced_mass.clone().cholesky().ok_or_else(|| Error::invalid("contacts", "the reduced mass matrix is singular"))?.solve(&force);
     let ddq = &basis * &ddq_independent + &offset;
     Ok(ReducedDynamics { independent, dependent, basis, offset, mass: reduced_mass, force, ddq_independent, ddq })
 }

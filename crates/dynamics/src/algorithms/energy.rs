@@ -17,7 +17,5 @@ pub fn kinetic_energy(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> f
 /// −Σ mᵢ gᵀ cᵢ: zero when every COM is at the world origin's height (for the default gravity).
 pub fn potential_energy(model: &Model, data: &mut Data, q: &[f64]) -> f64 {
     forward_kinematics(model, data, q);
-    (0..model.nbodies())
-        .map(|i| -model.body(i).mass() * model.gravity.dot(&data.o_m_i[i].transform_point(&model.body(i).com())))
-        .sum()
+    (0..model.nbodies()).map(|i| -model.body(i).mass() * model.gravity.dot(&data.o_m_i[i].transform_point(&model.body(i).com()))).sum()
 }

@@ -27,7 +27,6 @@ fn chunk(x: &[f64], column: usize) -> &[f64; 6] {
     x[6 * column..6 * column + 6].try_into().expect("a 6-vector chunk")
 }
 
-
 /// `out = base + x m`, 6-vectors.
 #[inline]
 fn axpy(out: &mut [f64; 6], base: &[f64; 6], x: &Vector6<f64>, m: f64) {

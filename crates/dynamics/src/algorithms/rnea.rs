@@ -13,7 +13,9 @@ pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f6
     // Forward pass: velocities, accelerations and the net force each body needs (eq. 5.7–5.9).
     for i in 0..model.nbodies() {
         let li = joint_placement(model, i, q);
-        let (v_parent, a_parent) = if i == 0 { (Motion::zeros(), gravity) } else {
+        let (v_parent, a_parent) = if i == 0 {
+            (Motion::zeros(), gravity)
+        } else {
             let p = model.parent(i);
             (data.v[p], data.a[p])
         };

@@ -167,11 +167,7 @@ pub fn rotation_toward_line(axis: &Line, point: &Vector3<f64>, line: &Line) -> (
     let radius = norm(&radial);
     // A point on the axis, given in rounded coordinates, leaves a radial residue at the rounding level of those
     // coordinates; at that radius the angle would be pure noise, so it counts as on the axis.
-    let radius = if radius <= 8.0 * EPS * (point.amax() + axis.point.amax()) {
-        0.0
-    } else {
-        radius
-    };
+    let radius = if radius <= 8.0 * EPS * (point.amax() + axis.point.amax()) { 0.0 } else { radius };
     // The line's offset from the rotation centre `axis.point + along n`, formed without rounding the centre's
     // absolute coordinates.
     let w = (line.point - axis.point) - n * along;
@@ -191,11 +187,7 @@ pub fn rotation_toward_line(axis: &Line, point: &Vector3<f64>, line: &Line) -> (
     let (theta, z) = rotation(solution.angles[0]);
     if solution.count == 2 {
         let (other_theta, other_z) = rotation(solution.angles[1]);
-        let other_wins = if (z - other_z).abs() <= 1e-12 {
-            other_theta.abs() < theta.abs()
-        } else {
-            other_z < z
-        };
+        let other_wins = if (z - other_z).abs() <= 1e-12 { other_theta.abs() < theta.abs() } else { other_z < z };
         if other_wins {
             return (other_theta, solution.distance);
         }
@@ -230,12 +222,7 @@ fn solve_in_range(n: &Vector3<f64>, r: f64, d: &Vector3<f64>, w: &Vector3<f64>, 
     // product with n, and u, are accurate to a few ε in direction however close d is to ±n.
     let cross = n.cross(&(d - n * 1f64.copysign(beta)));
     // Below this |n × d| ≤ 1e-100, so any in-plane u is perpendicular to d to far below rounding.
-    let u = if cross.norm_squared() > 1e-200 {
-        cross
-    } else {
-        perpendicular(n)
-    }
-    .normalize();
+    let u = if cross.norm_squared() > 1e-200 { cross } else { perpendicular(n) }.normalize();
     let v = n.cross(&u);
     let e2 = d.cross(&u);
     let (p1, p2) = (w.dot(&u), w.dot(&e2));
@@ -243,21 +230,10 @@ fn solve_in_range(n: &Vector3<f64>, r: f64, d: &Vector3<f64>, w: &Vector3<f64>, 
     // and of the coordinates w came from.
     let tol = ROUNDING * (r + w.amax()) + COORDINATE_ROUNDING * magnitude;
     // |β| within rounding of 0 is a flat ellipse (line parallel to the plane) and of 1 a circle.
-    let k = if beta.abs() <= ROUNDING {
-        0.0
-    } else {
-        beta.abs().min(1.0)
-    };
+    let k = if beta.abs() <= ROUNDING { 0.0 } else { beta.abs().min(1.0) };
 
     if r == 0.0 || (1.0 - k <= ROUNDING && p1.abs().max(p2.abs()) <= tol) {
-        return Solution {
-            u,
-            v,
-            distance: (r - p1).hypot(p2),
-            count: 1,
-            angles: [(1.0, 0.0); 2],
-            equidistant: true,
-        };
+        return Solution { u, v, distance: (r - p1).hypot(p2), count: 1, angles: [(1.0, 0.0); 2], equidistant: true };
     }
 
     let (y0, y1) = (p1.abs(), p2.abs());
@@ -330,11 +306,7 @@ fn halley(e: f64, y0: f64, y1: f64) -> (f64, f64) {
         // its O(δ³) angle error keeps the cubic convergence. Near an inflection of g (g1 → 0, e.g. at the
         // starting midpoint for a query near the centre) Halley's step shrinks to nothing instead of growing,
         // so there Newton's step (num = -g, den = 2 g1) is taken and left to the bracket test.
-        let (num, den) = if g1 > 0.0 && (g * g2).abs() <= g1 * g1 {
-            (-g * g1, 2.0 * g1 * g1 - g * g2)
-        } else {
-            (-g, 2.0 * g1)
-        };
+        let (num, den) = if g1 > 0.0 && (g * g2).abs() <= g1 * g1 { (-g * g1, 2.0 * g1 * g1 - g * g2) } else { (-g, 2.0 * g1) };
         let inverse = 1.0 / (den * den + num * num);
         let (a, b) = ((den - num) * (den + num) * inverse, 2.0 * num * den * inverse);
         let step = (a * c - b * s, a * s + b * c);
@@ -346,11 +318,7 @@ fn halley(e: f64, y0: f64, y1: f64) -> (f64, f64) {
             }
             break;
         }
-        (c, s) = if inside {
-            step
-        } else {
-            normalise(lo.0 + hi.0, lo.1 + hi.1)
-        };
+        (c, s) = if inside { step } else { normalise(lo.0 + hi.0, lo.1 + hi.1) };
         if cross(lo, hi) <= 4.0 * EPS {
             break;
         }
@@ -467,11 +435,7 @@ mod tests {
     /// most two local minima per turn; keeping four only matters when it is flat to rounding.
     fn local_minima(f: &impl Fn(f64) -> f64, angles: impl Iterator<Item = f64>) -> Vec<(f64, f64)> {
         let samples: Vec<(f64, f64)> = angles.map(|t| (t, f(t))).collect();
-        let mut minima: Vec<(f64, f64)> = samples
-            .windows(3)
-            .filter(|w| w[1].1 <= w[0].1 && w[1].1 <= w[2].1)
-            .map(|w| w[1])
-            .collect();
+        let mut minima: Vec<(f64, f64)> = samples.windows(3).filter(|w| w[1].1 <= w[0].1 && w[1].1 <= w[2].1).map(|w| w[1]).collect();
         minima.sort_by(|a, b| a.1.total_cmp(&b.1));
         minima.truncate(4);
         minima
@@ -487,9 +451,7 @@ mod tests {
         let mut minima = local_minima(&f, (-1..=SAMPLES).map(|i| i as f64 * step));
         while step > 1e-16 {
             step /= 4.0;
-            let zoomed = minima
-                .iter()
-                .flat_map(|&(t, _)| (-8..=8).map(move |j| t + j as f64 * step));
+            let zoomed = minima.iter().flat_map(|&(t, _)| (-8..=8).map(move |j| t + j as f64 * step));
             minima = local_minima(&f, zoomed.collect::<Vec<_>>().into_iter());
         }
         minima[0].1
@@ -502,17 +464,10 @@ mod tests {
         // The offset from the line is linear in (cos θ, sin θ) once projected perpendicular to the line; plain
         // arrays keep the sampling fast in debug builds.
         let project = |v: V| -> [f64; 3] { (v - line.direction * v.dot(&line.direction)).into() };
-        let (w, a, b) = (
-            project(circle.center - line.point),
-            project(e1 * circle.radius),
-            project(e2 * circle.radius),
-        );
+        let (w, a, b) = (project(circle.center - line.point), project(e1 * circle.radius), project(e2 * circle.radius));
         minimise(|t| {
             let (sin, cos) = t.sin_cos();
-            (0..3)
-                .map(|i| (w[i] + cos * a[i] + sin * b[i]).powi(2))
-                .sum::<f64>()
-                .sqrt()
+            (0..3).map(|i| (w[i] + cos * a[i] + sin * b[i]).powi(2)).sum::<f64>().sqrt()
         })
     }
 
@@ -538,22 +493,10 @@ mod tests {
         let tol = tol + 4.0 * EPS * (circle.center.amax() + line.point.amax());
         for (x, l) in result.circle_points.iter().zip(&result.line_points) {
             let radial = x - circle.center;
-            assert!(
-                (radial.norm() - circle.radius).abs() <= tol,
-                "off the circle: {result:?}"
-            );
-            assert!(
-                radial.dot(&circle.normal).abs() <= tol,
-                "off the circle's plane: {result:?}"
-            );
-            assert!(
-                (l - line.point).cross(&line.direction).norm() <= tol,
-                "off the line: {result:?}"
-            );
-            assert!(
-                ((x - l).norm() - result.distance).abs() <= tol,
-                "points do not realise the distance: {result:?}"
-            );
+            assert!((radial.norm() - circle.radius).abs() <= tol, "off the circle: {result:?}");
+            assert!(radial.dot(&circle.normal).abs() <= tol, "off the circle's plane: {result:?}");
+            assert!((l - line.point).cross(&line.direction).norm() <= tol, "off the line: {result:?}");
+            assert!(((x - l).norm() - result.distance).abs() <= tol, "points do not realise the distance: {result:?}");
         }
         result
     }
@@ -564,14 +507,8 @@ mod tests {
 
     /// The same problem shifted far from the origin must give the unshifted distance.
     fn check_shifted(circle: &Circle, line: &Line, shift: V) {
-        let far_circle = Circle {
-            center: circle.center + shift,
-            ..*circle
-        };
-        let far_line = Line {
-            point: line.point + shift,
-            ..*line
-        };
+        let far_circle = Circle { center: circle.center + shift, ..*circle };
+        let far_line = Line { point: line.point + shift, ..*line };
         check_against(&far_circle, &far_line, (circle, line), 8.0 * EPS * shift.norm());
     }
 
@@ -582,16 +519,7 @@ mod tests {
             .flat_map(|&angle| {
                 let tilt = random_perp(rng, &line.direction);
                 let shift = random_perp(rng, &line.direction) * angle * size;
-                [
-                    Line {
-                        direction: rotate(&line.direction, &tilt, angle),
-                        ..*line
-                    },
-                    Line {
-                        point: line.point + shift,
-                        ..*line
-                    },
-                ]
+                [Line { direction: rotate(&line.direction, &tilt, angle), ..*line }, Line { point: line.point + shift, ..*line }]
             })
             .collect()
     }
@@ -612,82 +540,24 @@ mod tests {
         let cusp_tilt: f64 = 0.7;
         let cusp_direction = n * cusp_tilt.cos() + m2 * cusp_tilt.sin();
         vec![
-            (
-                "zero radius",
-                circle(c.center, n, 0.0),
-                line(point(rng, 2.0), unit(rng)),
-                Some(1),
-            ),
+            ("zero radius", circle(c.center, n, 0.0), line(point(rng, 2.0), unit(rng)), Some(1)),
             ("along axis", c, line(c.center + n * t, n), Some(1)),
             ("along axis, reversed", c, line(c.center + n * t, -n), Some(1)),
-            (
-                "parallel to axis inside",
-                c,
-                line(c.center + m1 * (0.3 * r) + n * t, n),
-                Some(1),
-            ),
-            (
-                "parallel to axis on circle",
-                c,
-                line(c.center + m1 * r + n * t, n),
-                Some(1),
-            ),
-            (
-                "parallel to axis outside",
-                c,
-                line(c.center + m1 * (2.0 * r) + n * t, n),
-                Some(1),
-            ),
+            ("parallel to axis inside", c, line(c.center + m1 * (0.3 * r) + n * t, n), Some(1)),
+            ("parallel to axis on circle", c, line(c.center + m1 * r + n * t, n), Some(1)),
+            ("parallel to axis outside", c, line(c.center + m1 * (2.0 * r) + n * t, n), Some(1)),
             ("through centre", c, line(c.center + off_axis * t, off_axis), Some(2)),
-            (
-                "in plane crossing",
-                c,
-                line(c.center + m2 * (0.6 * r) + m1 * t, m1),
-                Some(2),
-            ),
+            ("in plane crossing", c, line(c.center + m2 * (0.6 * r) + m1 * t, m1), Some(2)),
             ("in plane through centre", c, line(c.center + m1 * t, m1), Some(2)),
-            (
-                "in plane outside",
-                c,
-                line(c.center + m2 * (1.5 * r) + m1 * t, m1),
-                Some(1),
-            ),
+            ("in plane outside", c, line(c.center + m2 * (1.5 * r) + m1 * t, m1), Some(1)),
             ("in plane tangent", c, line(c.center + m2 * r + m1 * t, m1), None),
-            (
-                "parallel to plane crossing",
-                c,
-                line(c.center + n * 0.4 + m2 * (0.5 * r) + m1 * t, m1),
-                Some(2),
-            ),
-            (
-                "parallel to plane outside",
-                c,
-                line(c.center + n * 0.4 + m2 * (1.5 * r) + m1 * t, m1),
-                Some(1),
-            ),
-            (
-                "tangent",
-                c,
-                line(c.center + m1 * r + (m2 + n * 0.7) * t, m2 + n * 0.7),
-                Some(1),
-            ),
-            (
-                "tangent, steep",
-                c,
-                line(c.center + m1 * r, (m2 * 0.01 + n).normalize()),
-                Some(1),
-            ),
+            ("parallel to plane crossing", c, line(c.center + n * 0.4 + m2 * (0.5 * r) + m1 * t, m1), Some(2)),
+            ("parallel to plane outside", c, line(c.center + n * 0.4 + m2 * (1.5 * r) + m1 * t, m1), Some(1)),
+            ("tangent", c, line(c.center + m1 * r + (m2 + n * 0.7) * t, m2 + n * 0.7), Some(1)),
+            ("tangent, steep", c, line(c.center + m1 * r, (m2 * 0.01 + n).normalize()), Some(1)),
             // Through the centre of curvature of the projected ellipse's vertex, the evolute's cusp, where the
             // closest point is about to split into a mirrored pair and the root of g is a triple one.
-            (
-                "evolute cusp",
-                c,
-                line(
-                    c.center + m1 * (r * cusp_tilt.sin().powi(2)) + cusp_direction * t,
-                    cusp_direction,
-                ),
-                None,
-            ),
+            ("evolute cusp", c, line(c.center + m1 * (r * cusp_tilt.sin().powi(2)) + cusp_direction * t, cusp_direction), None),
         ]
     }
 
@@ -756,10 +626,7 @@ mod tests {
                 n if n.contains("tangent") || n.contains("crossing") || n.contains("on circle") => 0.0,
                 _ => continue,
             };
-            assert!(
-                (result.distance - expected).abs() <= 1e-14 * (1.0 + r),
-                "{name}: {result:?}"
-            );
+            assert!((result.distance - expected).abs() <= 1e-14 * (1.0 + r), "{name}: {result:?}");
         }
     }
 
@@ -852,10 +719,7 @@ mod tests {
             let c = random_circle(&mut rng);
             let m = random_perp(&mut rng, &c.normal);
             let d = unit(&mut rng);
-            for line in [
-                line(c.center + d * 0.3, d),
-                line(c.center + c.normal.cross(&m) * (0.9 * c.radius), m),
-            ] {
+            for line in [line(c.center + d * 0.3, d), line(c.center + c.normal.cross(&m) * (0.9 * c.radius), m)] {
                 let result = check(&c, &line);
                 assert_eq!(result.count, 2, "{result:?}");
                 assert!((result.circle_points[0] - result.circle_points[1]).norm() > 1e-3 * c.radius);
@@ -894,9 +758,7 @@ mod tests {
         assert_eq!(rotation_toward_line(&on_axis, &V::new(0.0, y, 0.0), &on_axis), (0.0, y));
 
         let mut rng = StdRng::seed_from_u64(11);
-        let mut scenes: Vec<(Circle, Line)> = (0..200)
-            .map(|_| (random_circle(&mut rng), line(point(&mut rng, 2.0), unit(&mut rng))))
-            .collect();
+        let mut scenes: Vec<(Circle, Line)> = (0..200).map(|_| (random_circle(&mut rng), line(point(&mut rng, 2.0), unit(&mut rng)))).collect();
         scenes.extend(degenerate_cases(&mut rng).into_iter().map(|(_, c, l, _)| (c, l)));
         for (c, l) in scenes {
             let base = circle_line(&c, &l);
@@ -904,23 +766,10 @@ mod tests {
             let p = point(&mut rng, 2.0);
             let (base_theta, base_distance) = rotation_toward_line(&axis, &p, &l);
             for factor in [2f64.powi(-540), 2f64.powi(-1000), 2f64.powi(540), 2f64.powi(960)] {
-                let scaled = |l: &Line| Line {
-                    point: l.point * factor,
-                    ..*l
-                };
-                let result = circle_line(
-                    &Circle {
-                        center: c.center * factor,
-                        radius: c.radius * factor,
-                        ..c
-                    },
-                    &scaled(&l),
-                );
+                let scaled = |l: &Line| Line { point: l.point * factor, ..*l };
+                let result = circle_line(&Circle { center: c.center * factor, radius: c.radius * factor, ..c }, &scaled(&l));
                 let tol = 1e-12 * scale(&c, &l) * factor;
-                assert!(
-                    (result.distance - base.distance * factor).abs() <= tol,
-                    "factor {factor:e}: {result:?} vs {base:?}"
-                );
+                assert!((result.distance - base.distance * factor).abs() <= tol, "factor {factor:e}: {result:?} vs {base:?}");
                 assert_eq!((result.count, result.equidistant), (base.count, base.equidistant));
                 for (x, base_x) in result.circle_points.iter().zip(&base.circle_points) {
                     assert!((x - base_x * factor).amax() <= tol, "factor {factor:e}: {result:?} vs {base:?}");
@@ -961,10 +810,7 @@ mod tests {
         let tol = 1e-12 * (radius + distance_to(line, &(point - radial)));
         assert!(theta > -PI && theta <= PI, "theta {theta} out of range");
         assert!((distance - expected).abs() <= tol, "distance {distance} vs {expected}");
-        assert!(
-            f(theta) - expected <= tol + 1e-12 * radius,
-            "theta {theta} does not realise the distance"
-        );
+        assert!(f(theta) - expected <= tol + 1e-12 * radius, "theta {theta} does not realise the distance");
         theta
     }
 
@@ -973,11 +819,7 @@ mod tests {
         let mut rng = StdRng::seed_from_u64(6);
         for _ in 0..500 {
             let axis = line(point(&mut rng, 2.0), unit(&mut rng));
-            check_rotation(
-                &axis,
-                &point(&mut rng, 2.0),
-                &line(point(&mut rng, 2.0), unit(&mut rng)),
-            );
+            check_rotation(&axis, &point(&mut rng, 2.0), &line(point(&mut rng, 2.0), unit(&mut rng)));
         }
     }
 
@@ -989,10 +831,7 @@ mod tests {
         let theta = check_rotation(&axis, &start, &line(V::zeros(), V::new(1.0, 0.0, 1.0)));
         assert!((theta + FRAC_PI_2).abs() < 1e-12, "{theta}");
         // Line along (1, 1, 0): minimisers at y = ±1, both at z = 0; the unrotated point wins.
-        assert_eq!(
-            check_rotation(&axis, &start, &line(V::zeros(), V::new(1.0, 1.0, 0.0))),
-            0.0
-        );
+        assert_eq!(check_rotation(&axis, &start, &line(V::zeros(), V::new(1.0, 1.0, 0.0))), 0.0);
 
         let mut rng = StdRng::seed_from_u64(7);
         for _ in 0..200 {
@@ -1011,14 +850,8 @@ mod tests {
         for _ in 0..100 {
             let axis = line(point(&mut rng, 5.0), unit(&mut rng));
             let on_axis = axis.point + axis.direction * rng.random_range(-3.0..3.0);
-            assert_eq!(
-                check_rotation(&axis, &on_axis, &line(point(&mut rng, 2.0), unit(&mut rng))),
-                0.0
-            );
-            assert_eq!(
-                check_rotation(&axis, &point(&mut rng, 2.0), &line(axis.point, -axis.direction)),
-                0.0
-            );
+            assert_eq!(check_rotation(&axis, &on_axis, &line(point(&mut rng, 2.0), unit(&mut rng))), 0.0);
+            assert_eq!(check_rotation(&axis, &point(&mut rng, 2.0), &line(axis.point, -axis.direction)), 0.0);
         }
     }
 
@@ -1027,10 +860,7 @@ mod tests {
     #[test]
     fn rotation_about_an_axis_nearly_parallel_to_the_line() {
         let direction = V::new(1.3750669035920504e-69, 6.216527089015008e-08, 0.9999999999999981);
-        let target = line(
-            V::new(0.0, 0.0, 1.0),
-            V::new(1.463751099515076e-69, 6.617458639969246e-08, 1.0644944589178573),
-        );
+        let target = line(V::new(0.0, 0.0, 1.0), V::new(1.463751099515076e-69, 6.617458639969246e-08, 1.0644944589178573));
         let (theta, distance) = rotation_toward_line(&line(V::zeros(), direction), &V::zeros(), &target);
         assert_eq!(theta, 0.0);
         assert!((distance - 6.216527089015006e-08).abs() <= 8.0 * EPS, "{distance}");

@@ -2,9 +2,9 @@
 
 use nalgebra::DMatrix;
 use rapier3d_f64::math::{Pose, Rotation, Vector};
-use rapier3d_f64::prelude::{ColliderBuilder, SharedShape};
 use rapier3d_f64::parry::shape::HeightFieldFlags;
 use rapier3d_f64::parry::utils::Array2;
+use rapier3d_f64::prelude::{ColliderBuilder, SharedShape};
 
 use crate::validate::finite;
 use crate::{Error, Result};
@@ -36,10 +36,7 @@ impl Ground {
     /// A heightfield of at least 2 x 2 finite samples spaced `cell_size` (> 0) apart.
     pub fn heightfield(heights: DMatrix<f64>, cell_size: f64, friction: f64) -> Result<Self> {
         if heights.nrows() < 2 || heights.ncols() < 2 {
-            return Err(Error::invalid(
-                "heights",
-                format!("needs at least 2 x 2 samples, got {} x {}", heights.nrows(), heights.ncols()),
-            ));
+            return Err(Error::invalid("heights", format!("needs at least 2 x 2 samples, got {} x {}", heights.nrows(), heights.ncols())));
         }
         if let Some(bad) = heights.iter().find(|h| !h.is_finite()) {
             return Err(Error::invalid("heights", format!("must be finite, got {bad}")));

@@ -36,9 +36,15 @@ pub enum ShapeKind {
     Box(Vector3<f64>),
     Sphere(f64),
     /// Along the shape's z axis: half the length of the axis segment, and the radius.
-    Capsule { half_height: f64, radius: f64 },
+    Capsule {
+        half_height: f64,
+        radius: f64,
+    },
     /// Along the shape's z axis.
-    Cylinder { half_height: f64, radius: f64 },
+    Cylinder {
+        half_height: f64,
+        radius: f64,
+    },
     /// A convex polyhedron (a mesh's convex hull).
     Convex(Convex),
 }
@@ -56,7 +62,9 @@ impl Convex {
         for p in points {
             finite_vector("shapes", *p)?;
         }
-        let flat = || Error::invalid("shapes", format!("the convex hull of {} points has no volume (they lie in a plane or are fewer than 4)", points.len()));
+        let flat = || {
+            Error::invalid("shapes", format!("the convex hull of {} points has no volume (they lie in a plane or are fewer than 4)", points.len()))
+        };
         if !spans_volume(points) {
             return Err(flat());
         }
@@ -75,7 +83,8 @@ impl Convex {
 /// Some point lies off the plane through three others by more than 1e-9 of the points' extent.
 fn spans_volume(points: &[Vector3<f64>]) -> bool {
     let Some(first) = points.first() else { return false };
-    let farthest = |score: &dyn Fn(&Vector3<f64>) -> f64| points.iter().map(|p| (score(p), *p)).fold((0.0, *first), |a, b| if b.0 > a.0 { b } else { a });
+    let farthest =
+        |score: &dyn Fn(&Vector3<f64>) -> f64| points.iter().map(|p| (score(p), *p)).fold((0.0, *first), |a, b| if b.0 > a.0 { b } else { a });
     let (extent, second) = farthest(&|p| (p - first).norm());
     let along = (second - first) / extent.max(f64::MIN_POSITIVE);
     let (_, third) = farthest(&|p| (p - first).cross(&along).norm());
@@ -147,10 +156,7 @@ impl Shape {
             let squared = 6.0 * (moments[(k + 1) % 3] + moments[(k + 2) % 3] - moments[k]) / body.mass();
             squared.max(0.0).sqrt().max(MIN_DEFAULT_EDGE)
         };
-        Some(Shape {
-            kind: ShapeKind::Box(Vector3::new(edge(0), edge(1), edge(2))),
-            placement: Some(Transform::new(axes, body.com())),
-        })
+        Some(Shape { kind: ShapeKind::Box(Vector3::new(edge(0), edge(1), edge(2))), placement: Some(Transform::new(axes, body.com())) })
     }
 
     pub(crate) fn shared_shape(&self) -> (SharedShape, Transform) {
@@ -160,9 +166,7 @@ impl Shape {
             ShapeKind::Box(size) => (SharedShape::cuboid(size.x / 2.0, size.y / 2.0, size.z / 2.0), Transform::identity()),
             ShapeKind::Sphere(r) => (SharedShape::ball(*r), Transform::identity()),
             ShapeKind::Capsule { half_height, radius } => (SharedShape::capsule_z(*half_height, *radius), Transform::identity()),
-            ShapeKind::Cylinder { half_height, radius } => {
-                (SharedShape::cylinder(*half_height, *radius), Transform::new(y_to_z, Vector3::zeros()))
-            }
+            ShapeKind::Cylinder { half_height, radius } => (SharedShape::cylinder(*half_height, *radius), Transform::new(y_to_z, Vector3::zeros())),
             ShapeKind::Convex(convex) => (convex.shape.clone(), Transform::identity()),
         }
     }
@@ -248,7 +252,17 @@ impl Backend {
 
 impl Options {
     pub fn new(dt: f64) -> Self {
-        Options { dt, ground: None, shapes: Vec::new(), self_collision: false, joint_damping: 0.0, joint_armature: 0.0, substeps: 1, backend: Backend::Tree, solver_iterations: DEFAULT_SOLVER_ITERATIONS }
+        Options {
+            dt,
+            ground: None,
+            shapes: Vec::new(),
+            self_collision: false,
+            joint_damping: 0.0,
+            joint_armature: 0.0,
+            substeps: 1,
+            backend: Backend::Tree,
+            solver_iterations: DEFAULT_SOLVER_ITERATIONS,
+        }
     }
 
     /// Every collider, with the shape frame in the body frame: a body's shape given here (none where it
@@ -299,4 +313,3 @@ impl Options {
         Ok(())
     }
 }
-

@@ -4,9 +4,9 @@
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 
 use super::*;
-use crate::sim::options::Backend;
-use crate::model::JointLimits;
 use crate::algorithms::{simulate, Method};
+use crate::model::JointLimits;
+use crate::sim::options::Backend;
 use crate::{Data, MassProperties};
 
 fn rod(mass: f64, length: f64) -> MassProperties {
@@ -17,7 +17,8 @@ fn rod(mass: f64, length: f64) -> MassProperties {
 /// A 10-link branching tree hanging from a fixed base: a chain of 5 with three side branches, joint axes
 /// not aligned with the links, one prismatic joint.
 pub(crate) fn ten_link_tree() -> Model {
-    let mut model = Model::new(false, MassProperties::cuboid(1.0, Vector3::new(0.1, 0.1, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap(), "base");
+    let mut model =
+        Model::new(false, MassProperties::cuboid(1.0, Vector3::new(0.1, 0.1, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap(), "base");
     let turn = |x: f64, y: f64, z: f64| Rotation3::from_euler_angles(x, y, z).into_inner();
     let along = |length: f64, r: Matrix3<f64>| Transform::new(r, Vector3::new(length, 0.0, 0.0));
     let axes = [Vector3::y(), Vector3::new(0.0, 1.0, 0.3), Vector3::z(), Vector3::new(0.2, 1.0, 0.0), Vector3::y()];
@@ -25,13 +26,24 @@ pub(crate) fn ten_link_tree() -> Model {
     let mut chain = Vec::new();
     for (k, axis) in axes.iter().enumerate() {
         // The first link hangs down (body x onto world −z); the rest continue it with small bends.
-        let placement = if k == 0 { Transform::new(turn(0.0, std::f64::consts::FRAC_PI_2, 0.0), Vector3::zeros()) } else { along(0.25, turn(0.1 * k as f64, 0.0, 0.2)) };
-        parent = model.add_body(parent, Joint::Revolute(*axis), placement, rod(0.6 - 0.05 * k as f64, 0.25), &format!("chain{k}"), JointLimits::NONE).unwrap();
+        let placement = if k == 0 {
+            Transform::new(turn(0.0, std::f64::consts::FRAC_PI_2, 0.0), Vector3::zeros())
+        } else {
+            along(0.25, turn(0.1 * k as f64, 0.0, 0.2))
+        };
+        parent = model
+            .add_body(parent, Joint::Revolute(*axis), placement, rod(0.6 - 0.05 * k as f64, 0.25), &format!("chain{k}"), JointLimits::NONE)
+            .unwrap();
         chain.push(parent);
     }
-    let b = model.add_body(chain[1], Joint::Revolute(Vector3::x()), along(0.25, turn(0.0, 0.0, 1.2)), rod(0.3, 0.2), "side0", JointLimits::NONE).unwrap();
-    model.add_body(b, Joint::Revolute(Vector3::new(0.0, 0.4, 1.0)), along(0.2, turn(0.3, 0.0, 0.0)), rod(0.2, 0.15), "side1", JointLimits::NONE).unwrap();
-    let c = model.add_body(chain[2], Joint::Prismatic(Vector3::x()), along(0.25, turn(0.0, 0.5, -1.0)), rod(0.25, 0.2), "slider", JointLimits::NONE).unwrap();
+    let b =
+        model.add_body(chain[1], Joint::Revolute(Vector3::x()), along(0.25, turn(0.0, 0.0, 1.2)), rod(0.3, 0.2), "side0", JointLimits::NONE).unwrap();
+    model
+        .add_body(b, Joint::Revolute(Vector3::new(0.0, 0.4, 1.0)), along(0.2, turn(0.3, 0.0, 0.0)), rod(0.2, 0.15), "side1", JointLimits::NONE)
+        .unwrap();
+    let c = model
+        .add_body(chain[2], Joint::Prismatic(Vector3::x()), along(0.25, turn(0.0, 0.5, -1.0)), rod(0.25, 0.2), "slider", JointLimits::NONE)
+        .unwrap();
     model.add_body(c, Joint::Revolute(Vector3::y()), along(0.2, Matrix3::identity()), rod(0.2, 0.2), "side2", JointLimits::NONE).unwrap();
     model.add_body(chain[4], Joint::Revolute(Vector3::z()), along(0.25, turn(0.0, 0.0, -0.4)), rod(0.15, 0.15), "tip", JointLimits::NONE).unwrap();
     assert_eq!(model.nv(), 10);
@@ -114,8 +126,12 @@ fn floating_base_follows_aba_rk4(backend: Backend) {
     // A tumbling floating box with an off-centre COM and a two-link arm, thrown upward and spinning.
     let base = MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::new(0.03, -0.02, 0.01), &Matrix3::identity()).unwrap();
     let mut model = Model::new(true, base, "base");
-    let a = model.add_body(0, Joint::Revolute(Vector3::z()), Transform::from_translation(Vector3::new(0.15, 0.0, 0.05)), rod(0.4, 0.2), "a", JointLimits::NONE).unwrap();
-    model.add_body(a, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.2, 0.0, 0.0)), rod(0.3, 0.2), "b", JointLimits::NONE).unwrap();
+    let a = model
+        .add_body(0, Joint::Revolute(Vector3::z()), Transform::from_translation(Vector3::new(0.15, 0.0, 0.05)), rod(0.4, 0.2), "a", JointLimits::NONE)
+        .unwrap();
+    model
+        .add_body(a, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.2, 0.0, 0.0)), rod(0.3, 0.2), "b", JointLimits::NONE)
+        .unwrap();
     let rotation = nalgebra::UnitQuaternion::from_axis_angle(&Unit::new_normalize(Vector3::new(1.0, 2.0, 3.0)), 0.7);
     let q = vec![0.1, -0.2, 1.0, rotation.i, rotation.j, rotation.k, rotation.w, 0.4, -0.3];
     let v = vec![0.2, 0.1, 3.0, 1.0, -2.0, 0.5, 1.5, -1.0];
@@ -175,10 +191,29 @@ fn box_resting_on_the_plane_carries_its_weight(backend: Backend) {
 fn quadruped() -> (Model, Vec<(usize, Option<Shape>)>) {
     let mut model = floating_box(4.0, Vector3::new(0.4, 0.2, 0.06));
     let mut shapes = Vec::new();
-    let down = |mass: f64| MassProperties::cuboid(mass, Vector3::new(0.03, 0.03, 0.15), Vector3::new(0.0, 0.0, -0.075), &Matrix3::identity()).unwrap();
+    let down =
+        |mass: f64| MassProperties::cuboid(mass, Vector3::new(0.03, 0.03, 0.15), Vector3::new(0.0, 0.0, -0.075), &Matrix3::identity()).unwrap();
     for (k, (x, y)) in [(0.15, 0.08), (0.15, -0.08), (-0.15, 0.08), (-0.15, -0.08)].into_iter().enumerate() {
-        let hip = model.add_body(0, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(x, y, -0.03)), down(0.3), &format!("thigh{k}"), JointLimits::NONE).unwrap();
-        let shin = model.add_body(hip, Joint::Revolute(Vector3::y()), Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)), down(0.2), &format!("shin{k}"), JointLimits::NONE).unwrap();
+        let hip = model
+            .add_body(
+                0,
+                Joint::Revolute(Vector3::y()),
+                Transform::from_translation(Vector3::new(x, y, -0.03)),
+                down(0.3),
+                &format!("thigh{k}"),
+                JointLimits::NONE,
+            )
+            .unwrap();
+        let shin = model
+            .add_body(
+                hip,
+                Joint::Revolute(Vector3::y()),
+                Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)),
+                down(0.2),
+                &format!("shin{k}"),
+                JointLimits::NONE,
+            )
+            .unwrap();
         let foot = Shape::new(ShapeKind::Sphere(0.02), Some(Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)))).unwrap();
         shapes.push((hip, None));
         shapes.push((shin, Some(foot)));
@@ -257,7 +292,8 @@ fn bad_input_is_rejected_and_changes_nothing(backend: Backend) {
     assert_eq!(sim.set_state(Some(&[0.0; 3]), None).unwrap_err().argument(), "q");
     assert_eq!(sim.set_state(None, Some(&nan)).unwrap_err().argument(), "v");
     assert_eq!(sim.reset(&q, &[1.0]).unwrap_err().argument(), "v");
-    assert!(Servo::new(&model, vec![-1.0; model.nv()], vec![0.0; model.nv()], vec![1.0; model.nv()], vec![0.0; model.nv()], vec![0.0; model.nv()]).is_err());
+    assert!(Servo::new(&model, vec![-1.0; model.nv()], vec![0.0; model.nv()], vec![1.0; model.nv()], vec![0.0; model.nv()], vec![0.0; model.nv()])
+        .is_err());
     assert_eq!((sim.q(), sim.v(), sim.time()), (q.as_slice(), v.as_slice(), t));
     assert_eq!(Simulation::new(&model, opts(backend, 0.0)).err().unwrap().argument(), "dt");
     assert_eq!(Ground::heightfield(nalgebra::DMatrix::zeros(1, 5), 0.1, 0.8).unwrap_err().argument(), "heights");
@@ -273,8 +309,6 @@ fn reset_reproduces_a_fresh_simulation(backend: Backend) {
     reused.step(None, 200).unwrap();
     assert_eq!((fresh.q(), fresh.v(), fresh.time()), (reused.q(), reused.v(), reused.time()));
 }
-
-
 
 /// An inverted pendulum: a 1 kg, 0.5 m rod standing up from a fixed base on a revolute joint about y
 /// (q > 0 leans the tip toward +x, so gravity drives |q| up), with `limits`.
@@ -324,7 +358,12 @@ fn revolute_limit_stops_a_falling_pendulum(backend: Backend) {
             assert!(overshoot <= tolerance, "overshoot {overshoot} exceeds the one-substep bound {tolerance}");
             // It did reach the limit (unlimited, it would pass 0.5 within 0.3 s) and rests against it.
             assert!(overshoot > -1e-6, "the pendulum never reached the limit: overshoot {overshoot}");
-            assert!((sim.q()[0] - 0.5 * sign).abs() < 1e-4 && sim.v()[0].abs() < 1e-2, "not resting at the limit: q {}, v {}", sim.q()[0], sim.v()[0]);
+            assert!(
+                (sim.q()[0] - 0.5 * sign).abs() < 1e-4 && sim.v()[0].abs() < 1e-2,
+                "not resting at the limit: q {}, v {}",
+                sim.q()[0],
+                sim.v()[0]
+            );
         }
     }
     // Without limits the same release falls through 0.5 rad: the limit is what stopped it.
@@ -409,7 +448,8 @@ fn model_collision_shapes_replace_default_boxes(backend: Backend) {
 fn convex_mesh_rests_like_its_box(backend: Backend) {
     let size = Vector3::new(0.3, 0.2, 0.05);
     let mut model = floating_box(2.0, size);
-    let mut vertices: Vec<Vector3<f64>> = (0..8).map(|k| Vector3::new((k & 1) as f64 - 0.5, (k >> 1 & 1) as f64 - 0.5, (k >> 2 & 1) as f64 - 0.5).component_mul(&size)).collect();
+    let mut vertices: Vec<Vector3<f64>> =
+        (0..8).map(|k| Vector3::new((k & 1) as f64 - 0.5, (k >> 1 & 1) as f64 - 0.5, (k >> 2 & 1) as f64 - 0.5).component_mul(&size)).collect();
     vertices.push(Vector3::new(0.01, 0.02, 0.0));
     let hull = Convex::hull(&vertices).unwrap();
     assert_eq!(hull.vertices().len(), 8);
@@ -443,24 +483,29 @@ fn fixed_bodies_move_with_their_carrier(backend: Backend) {
     let boxed = |size: Vector3<f64>, at: Transform| Shape::new(ShapeKind::Box(size), Some(at)).unwrap();
     let mut split = Model::new(true, torso, "torso");
     let slab_body = split.add_body(0, Joint::Fixed, slab_at, slab, "slab", JointLimits::NONE).unwrap();
-    let arm_body = split.add_body(slab_body, Joint::Revolute(Vector3::y()), slab_at.inverse().compose(&arm_at), arm, "arm", JointLimits::NONE).unwrap();
+    let arm_body =
+        split.add_body(slab_body, Joint::Revolute(Vector3::y()), slab_at.inverse().compose(&arm_at), arm, "arm", JointLimits::NONE).unwrap();
     let tip_body = split.add_body(arm_body, Joint::Fixed, tip_at, tip, "tip", JointLimits::NONE).unwrap();
-    split.set_collision_shapes(vec![
-        (0, boxed(Vector3::new(0.3, 0.2, 0.1), Transform::identity())),
-        (slab_body, boxed(Vector3::new(0.2, 0.2, 0.04), Transform::identity())),
-        (arm_body, boxed(Vector3::new(0.3, 0.04, 0.04), Transform::from_translation(Vector3::new(0.15, 0.0, 0.0)))),
-        (tip_body, boxed(Vector3::new(0.06, 0.06, 0.06), Transform::identity())),
-    ]).unwrap();
+    split
+        .set_collision_shapes(vec![
+            (0, boxed(Vector3::new(0.3, 0.2, 0.1), Transform::identity())),
+            (slab_body, boxed(Vector3::new(0.2, 0.2, 0.04), Transform::identity())),
+            (arm_body, boxed(Vector3::new(0.3, 0.04, 0.04), Transform::from_translation(Vector3::new(0.15, 0.0, 0.0)))),
+            (tip_body, boxed(Vector3::new(0.06, 0.06, 0.06), Transform::identity())),
+        ])
+        .unwrap();
     let merged_torso = torso + slab.transformed(&slab_at.rotation, &slab_at.translation).unwrap();
     let merged_arm = arm + tip.transformed(&tip_at.rotation, &tip_at.translation).unwrap();
     let mut merged = Model::new(true, merged_torso, "torso");
     merged.add_body(0, Joint::Revolute(Vector3::y()), arm_at, merged_arm, "arm", JointLimits::NONE).unwrap();
-    merged.set_collision_shapes(vec![
-        (0, boxed(Vector3::new(0.3, 0.2, 0.1), Transform::identity())),
-        (0, boxed(Vector3::new(0.2, 0.2, 0.04), slab_at)),
-        (1, boxed(Vector3::new(0.3, 0.04, 0.04), Transform::from_translation(Vector3::new(0.15, 0.0, 0.0)))),
-        (1, boxed(Vector3::new(0.06, 0.06, 0.06), tip_at)),
-    ]).unwrap();
+    merged
+        .set_collision_shapes(vec![
+            (0, boxed(Vector3::new(0.3, 0.2, 0.1), Transform::identity())),
+            (0, boxed(Vector3::new(0.2, 0.2, 0.04), slab_at)),
+            (1, boxed(Vector3::new(0.3, 0.04, 0.04), Transform::from_translation(Vector3::new(0.15, 0.0, 0.0)))),
+            (1, boxed(Vector3::new(0.06, 0.06, 0.06), tip_at)),
+        ])
+        .unwrap();
     let run = |model: &Model| {
         let mut options = opts(backend, 1e-3);
         options.ground = Some(Ground::plane(0.8).unwrap());

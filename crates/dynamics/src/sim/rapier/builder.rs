@@ -11,8 +11,8 @@
 use nalgebra::{Matrix3, Vector3};
 use rapier3d_f64::math::{Matrix, Vector};
 use rapier3d_f64::prelude::{
-    ColliderBuilder, CoefficientCombineRule, FrictionModel, GenericJointBuilder, IntegrationParameters, JointAxesMask, JointAxis, MassProperties as RapierMass,
-    MultibodyJointHandle, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
+    CoefficientCombineRule, ColliderBuilder, FrictionModel, GenericJointBuilder, IntegrationParameters, JointAxesMask, JointAxis,
+    MassProperties as RapierMass, MultibodyJointHandle, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
 };
 
 use crate::model::{Joint, Model};
@@ -104,13 +104,8 @@ pub(crate) fn build(model: &Model, options: &Options) -> Result<(PhysicsWorld, L
         let pose = poses[i].compose(&offset[i].inverse());
         let builder = if r == 0 && !model.floating_base() { RigidBodyBuilder::fixed() } else { RigidBodyBuilder::dynamic() };
         let m = &mass[r];
-        let builder = builder
-            .pose(to_pose(&pose))
-            .can_sleep(false)
-            .linear_damping(0.0)
-            .angular_damping(0.0)
-            .ccd_enabled(false)
-            .gyroscopic_forces_enabled(true);
+        let builder =
+            builder.pose(to_pose(&pose)).can_sleep(false).linear_damping(0.0).angular_damping(0.0).ccd_enabled(false).gyroscopic_forces_enabled(true);
         let builder = if m.mass() > 0.0 {
             builder.additional_mass_properties(RapierMass::with_inertia_matrix(to_vector(&m.com()), m.mass(), to_matrix(&m.inertia())))
         } else {

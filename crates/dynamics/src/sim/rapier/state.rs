@@ -10,9 +10,9 @@ use rapier3d_f64::math::{Pose, Vector};
 use rapier3d_f64::prelude::{Multibody, PhysicsWorld};
 
 use super::builder::{Layout, GROUND_TAG};
+use crate::model::{Joint, Model};
 use crate::sim::options::{from_pose, from_vector, to_pose, to_vector};
 use crate::sim::Contact;
-use crate::model::{Joint, Model};
 use crate::spatial::Transform;
 
 pub(crate) fn multibody<'w>(world: &'w PhysicsWorld, layout: &Layout) -> Option<&'w Multibody> {

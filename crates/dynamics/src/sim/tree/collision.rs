@@ -170,7 +170,14 @@ impl Collision {
         if let Some((ground, ground_pose)) = &self.ground {
             for (index, (c, pair)) in self.colliders.iter().zip(self.ground_pairs.iter_mut()).enumerate().filter(|(_, (c, _))| c.parry_ground) {
                 let pos12 = ground_pose.inv_mul(&self.poses[index]);
-                let found = self.dispatcher.contact_manifolds(&pos12, ground.as_ref(), c.shape.as_ref(), PREDICTION, &mut pair.manifolds, &mut pair.workspace);
+                let found = self.dispatcher.contact_manifolds(
+                    &pos12,
+                    ground.as_ref(),
+                    c.shape.as_ref(),
+                    PREDICTION,
+                    &mut pair.manifolds,
+                    &mut pair.workspace,
+                );
                 if found.is_err() {
                     pair.manifolds.clear();
                 }
@@ -222,7 +229,14 @@ impl Collision {
         for (index, (a, b, pair)) in self.self_pairs.iter_mut().enumerate() {
             let (pa, pb) = (&self.poses[*a as usize], &self.poses[*b as usize]);
             let (ca, cb) = (&self.colliders[*a as usize], &self.colliders[*b as usize]);
-            let found = self.dispatcher.contact_manifolds(&pa.inv_mul(pb), ca.shape.as_ref(), cb.shape.as_ref(), PREDICTION, &mut pair.manifolds, &mut pair.workspace);
+            let found = self.dispatcher.contact_manifolds(
+                &pa.inv_mul(pb),
+                ca.shape.as_ref(),
+                cb.shape.as_ref(),
+                PREDICTION,
+                &mut pair.manifolds,
+                &mut pair.workspace,
+            );
             if found.is_err() {
                 pair.manifolds.clear();
             }

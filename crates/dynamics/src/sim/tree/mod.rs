@@ -99,7 +99,13 @@ impl TreeSimulation {
         let collision = Collision::new(model, options, &fused, &fused_body);
         let limited = (1..model.nbodies())
             .filter(|&i| model.joint(i).nv() == 1 && model.limits(i).has_position_limits())
-            .map(|i| LimitedJoint { body: fused_body[i], v: model.idx_v(i), q: model.idx_q(i), lower: model.limits(i).lower, upper: model.limits(i).upper })
+            .map(|i| LimitedJoint {
+                body: fused_body[i],
+                v: model.idx_v(i),
+                q: model.idx_q(i),
+                lower: model.limits(i).lower,
+                upper: model.limits(i).upper,
+            })
             .collect();
         Ok(TreeSimulation {
             h: options.dt / options.substeps as f64,
@@ -165,7 +171,15 @@ impl TreeSimulation {
             let warm_t = Vector3::new(f.warm[1], f.warm[2], f.warm[3]);
             let warm = [f.warm[0], warm_t.dot(&t1), warm_t.dot(&t2)];
             let kind = Kind::Contact { mu: self.friction };
-            self.constraints.push(Constraint::new(kind, Target::Bodies(body, other), rows, asked_normal_velocity(f.distance, h), warm, diagonal, scale));
+            self.constraints.push(Constraint::new(
+                kind,
+                Target::Bodies(body, other),
+                rows,
+                asked_normal_velocity(f.distance, h),
+                warm,
+                diagonal,
+                scale,
+            ));
         }
         self.limit_rows.clear();
         let unit = Vector6::new(1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
@@ -178,7 +192,15 @@ impl TreeSimulation {
                 let a = self.delassus.coordinate(model, &self.data, body);
                 let warm = [self.limit_impulses[k][side], 0.0, 0.0];
                 let zero = Vector6::zeros();
-                self.constraints.push(Constraint::new(Kind::Limit, Target::Coordinate(k), [unit * sign, zero, zero], asked_normal_velocity(gap, h), warm, [a, 0.0, 0.0], a));
+                self.constraints.push(Constraint::new(
+                    Kind::Limit,
+                    Target::Coordinate(k),
+                    [unit * sign, zero, zero],
+                    asked_normal_velocity(gap, h),
+                    warm,
+                    [a, 0.0, 0.0],
+                    a,
+                ));
                 self.limit_rows.push((k, side));
             }
         }

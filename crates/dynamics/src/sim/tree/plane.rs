@@ -99,7 +99,11 @@ mod tests {
         let points = collect(ShapeKind::Box(Vector3::new(0.4, 0.2, 0.1)), Transform::from_translation(Vector3::new(1.0, 2.0, 0.049)));
         assert_eq!(points.len(), 4);
         for p in &points {
-            assert!((p.height + 0.001).abs() < 1e-12 && ((p.surface.x - 1.0).abs() - 0.2).abs() < 1e-12 && ((p.surface.y - 2.0).abs() - 0.1).abs() < 1e-12);
+            assert!(
+                (p.height + 0.001).abs() < 1e-12
+                    && ((p.surface.x - 1.0).abs() - 0.2).abs() < 1e-12
+                    && ((p.surface.y - 2.0).abs() - 0.1).abs() < 1e-12
+            );
             assert!(p.feature & 4 == 0);
         }
     }
@@ -110,7 +114,16 @@ mod tests {
         let pose = Transform::new(rotation, Vector3::new(0.0, 0.0, 0.12));
         let points = collect(ShapeKind::Box(Vector3::new(0.2, 0.2, 0.2)), pose);
         // Brute force over the corners: the lowest one is the only one within 1 mm.
-        let corners: Vec<f64> = (0..8).map(|f| pose.transform_point(&Vector3::new(if f & 1 == 0 { -0.1 } else { 0.1 }, if f & 2 == 0 { -0.1 } else { 0.1 }, if f & 4 == 0 { -0.1 } else { 0.1 })).z).collect();
+        let corners: Vec<f64> = (0..8)
+            .map(|f| {
+                pose.transform_point(&Vector3::new(
+                    if f & 1 == 0 { -0.1 } else { 0.1 },
+                    if f & 2 == 0 { -0.1 } else { 0.1 },
+                    if f & 4 == 0 { -0.1 } else { 0.1 },
+                ))
+                .z
+            })
+            .collect();
         let lowest = corners.iter().cloned().fold(f64::INFINITY, f64::min);
         assert_eq!(points.len(), corners.iter().filter(|z| **z <= 1e-3).count());
         assert!(points.iter().any(|p| p.height == lowest));
@@ -124,7 +137,10 @@ mod tests {
         // A capsule lying along x touches at both ends; standing, only at its lower end.
         let lying = Rotation3::from_euler_angles(0.0, std::f64::consts::FRAC_PI_2, 0.0).into_inner();
         assert_eq!(collect(ShapeKind::Capsule { half_height: 0.1, radius: 0.02 }, Transform::new(lying, Vector3::new(0.0, 0.0, 0.02))).len(), 2);
-        assert_eq!(collect(ShapeKind::Capsule { half_height: 0.1, radius: 0.02 }, Transform::from_translation(Vector3::new(0.0, 0.0, 0.12))).len(), 1);
+        assert_eq!(
+            collect(ShapeKind::Capsule { half_height: 0.1, radius: 0.02 }, Transform::from_translation(Vector3::new(0.0, 0.0, 0.12))).len(),
+            1
+        );
         // A cylinder on its end stands on four rim points; on its side it touches along a line (two points).
         let standing = collect(ShapeKind::Cylinder { half_height: 0.1, radius: 0.05 }, Transform::from_translation(Vector3::new(0.0, 0.0, 0.1)));
         assert_eq!(standing.len(), 4);

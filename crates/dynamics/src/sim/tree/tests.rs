@@ -14,12 +14,31 @@ use crate::{MassProperties, Transform};
 /// A box base on a free-flyer with a chain of three and a side branch.
 fn floating_tree() -> Model {
     let part = |m: f64| MassProperties::cuboid(m, Vector3::new(0.2, 0.05, 0.04), Vector3::new(0.1, 0.0, 0.0), &Matrix3::identity()).unwrap();
-    let mut model = Model::new(true, MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap(), "base");
+    let mut model =
+        Model::new(true, MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap(), "base");
     let along = |r: Matrix3<f64>| Transform::new(r, Vector3::new(0.2, 0.0, 0.0));
-    let a = model.add_body(0, Joint::Revolute(Vector3::y()), along(Rotation3::from_euler_angles(0.0, 0.3, 0.0).into_inner()), part(0.5), "a", JointLimits::NONE).unwrap();
+    let a = model
+        .add_body(
+            0,
+            Joint::Revolute(Vector3::y()),
+            along(Rotation3::from_euler_angles(0.0, 0.3, 0.0).into_inner()),
+            part(0.5),
+            "a",
+            JointLimits::NONE,
+        )
+        .unwrap();
     let b = model.add_body(a, Joint::Revolute(Vector3::new(0.3, 1.0, 0.0)), along(Matrix3::identity()), part(0.4), "b", JointLimits::NONE).unwrap();
     model.add_body(b, Joint::Prismatic(Vector3::x()), along(Matrix3::identity()), part(0.3), "c", JointLimits::NONE).unwrap();
-    model.add_body(0, Joint::Revolute(Vector3::z()), along(Rotation3::from_euler_angles(0.0, 0.0, 2.0).into_inner()), part(0.6), "d", JointLimits::NONE).unwrap();
+    model
+        .add_body(
+            0,
+            Joint::Revolute(Vector3::z()),
+            along(Rotation3::from_euler_angles(0.0, 0.0, 2.0).into_inner()),
+            part(0.6),
+            "d",
+            JointLimits::NONE,
+        )
+        .unwrap();
     model
 }
 
@@ -132,7 +151,12 @@ fn delassus_diagonals_match_dense_inverse_mass_matrix() {
                 for r in 0..3 {
                     let row = jacobian.transpose() * DVector::from_column_slice(rows[r].as_slice());
                     let expected = (row.transpose() * &inverse * &row)[(0, 0)];
-                    assert!((diagonal[r] - expected).abs() < 1e-10 * expected.abs().max(1e-12), "floating base {}: body {a} other {b:?} row {r}: {} vs {expected}", model.floating_base(), diagonal[r]);
+                    assert!(
+                        (diagonal[r] - expected).abs() < 1e-10 * expected.abs().max(1e-12),
+                        "floating base {}: body {a} other {b:?} row {r}: {} vs {expected}",
+                        model.floating_base(),
+                        diagonal[r]
+                    );
                 }
             }
             if model.joint(a).nv() == 1 {
