@@ -7,11 +7,12 @@ import csv
 import numpy as np
 import pytest
 
+import legkit as lk
 from legkit.experiments import gait
 from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR
-from legkit.optimize import MinMaxStability
+from legkit.optimize import MinMaxStability, MultiphaseProblem, Phase, Trajectory, effort
 from legkit.optimize.gaits import AMBLE_SUPPORT, amble_problem, amble_reference, guess_from_reference
-from legkit.optimize.replay import periodic_samples
+from legkit.optimize.replay import clear_of_ground, periodic_samples, sphere_bottoms
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
 
 
@@ -76,3 +77,67 @@ def test_smooth_stability_rows_bound_the_published_s_h_and_equal_it_before_a_dia
             np.testing.assert_allclose(smooth, published[k], rtol=1e-12, atol=1e-12)  # lateral pairs: the same index
     # Diagonal phases: equal for the first points (GCoM before the edge), a strict bound after it passes.
     assert 18 + 2 * 4 <= equal < 36
+
+
+def test_periodic_samples_follow_the_collocation_cubic_and_keep_the_touchdown_jump():
+    # Brute-force reference: a pendulum trajectory whose angle is a cubic of time, its rate and acceleration the
+    # cubic's derivatives, given at the knots and midpoints; the samples between them are the cubic itself (the
+    # Hermite–Simpson interpolant is exact for cubic states, and v, a quadratic, is exact too).
+    model = lk.Model(floating_base=False)
+    model.add_revolute(0, [0.0, 1.0, 0.0], None, lk.MassProperties.point(1.0, [0.0, 0.0, -0.5]), "rod")
+    problem = MultiphaseProblem(model, [Phase((), 3, (0.9, 0.9))], objectives=[effort()], periodic=False,
+                                initial=([0.0], [0.0]), final=([1.0], [0.0]))
+    c = np.array([0.3, -1.2, 2.5, -0.7])
+    angle = lambda s: c[0] + c[1] * s + c[2] * s**2 + c[3] * s**3
+    rate = lambda s: c[1] + 2 * c[2] * s + 3 * c[3] * s**2
+    t = np.linspace(0.0, 0.9, 7)
+    trajectory = Trajectory([t], [angle(t)[:, None]], [rate(t)[:, None]], [np.sin(t)[:, None]], [np.zeros((7, 0, 3))],
+                            np.array([0.9]), a=[(2 * c[2] + 6 * c[3] * t)[:, None]])
+    s = np.linspace(0.0, 0.9, 101)[:-1]
+    q, v, u = periodic_samples(problem, trajectory, s)
+    np.testing.assert_allclose(q[:, 0], angle(s), atol=1e-12)
+    np.testing.assert_allclose(v[:, 0], rate(s), atol=1e-12)
+    np.testing.assert_allclose(u[:, 0], np.interp(s, t, np.sin(t)), atol=1e-12)  # linear controls
+    # The amble's guess: an instant on a phase boundary is the state after the touchdown, an instant just
+    # before it is the state before (the jump is not spread over the preceding interval).
+    robot = build_quadruped(AMBLE_QUADRUPED)
+    amble = amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, 2, QUADRUPED_MOTOR)
+    guess = guess_from_reference(amble, amble_reference(robot, 0.67, 1.25, 2))
+    guess.v[1][0] = guess.v[0][-1] + 1.0  # a velocity jump at the first touchdown
+    boundary = guess.t[1][0]
+    _, v, _ = periodic_samples(amble, guess, np.array([boundary - 1e-9, boundary]))
+    np.testing.assert_allclose(v[0], guess.v[0][-1], atol=1e-6)
+    np.testing.assert_allclose(v[1], guess.v[1][0], atol=1e-12)
+
+
+def test_replay_start_puts_the_lowest_foot_sphere_on_the_ground():
+    robot = build_quadruped(AMBLE_QUADRUPED)
+    problem = amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, 2, QUADRUPED_MOTOR)
+    q = amble_reference(robot, 0.67, 1.25, 2).q[0]
+    radius = 0.005
+    lifted = clear_of_ground(problem, q, radius)
+    np.testing.assert_array_equal(np.delete(lifted, 2), np.delete(q, 2))  # only the base height changes
+    # Brute force: points all over each sphere's surface, placed by forward kinematics.
+    directions = np.random.default_rng(0).normal(size=(20_000, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    for config, lowest in ((q, None), (lifted, 0.0)):
+        poses = np.asarray(lk.forward_kinematics(problem.model, config))
+        heights = [np.min((poses[problem.foot_body[n], :3, :3] @ (problem.foot_point[n] + [0.0, 0.0, radius])
+                           + poses[problem.foot_body[n], :3, 3])[2] + radius * directions[:, 2]) for n in problem.feet]
+        np.testing.assert_allclose(sphere_bottoms(problem, config, radius), heights, atol=1e-6)
+        if lowest is None:
+            assert min(heights) < -1e-4  # the tilted stance legs' spheres start below the ground
+        else:
+            assert abs(min(heights) - lowest) < 1e-6
+
+
+def test_max_impulse_bounds_every_touchdown_impulse():
+    robot = build_quadruped(AMBLE_QUADRUPED)
+    problem = amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, 1, QUADRUPED_MOTOR, max_impulse=0.05)
+    lower, upper = problem.bounds()
+    index = np.concatenate(list(problem.impulse_index.values()))
+    assert len(index) == 4 * 2 * 3  # four touchdowns, two feet, three components
+    np.testing.assert_array_equal(lower[index], -0.05)
+    np.testing.assert_array_equal(upper[index], 0.05)
+    with pytest.raises(ValueError, match="max_impulse"):
+        amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, 1, QUADRUPED_MOTOR, max_impulse=-1.0)

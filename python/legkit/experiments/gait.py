@@ -502,21 +502,22 @@ def run(robot_name: str, args: argparse.Namespace, progress: tqdm) -> GaitAnalys
 
 def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     """`--optimize`: the Fig. 3 amble optimised by multiphase collocation on IPOPT (`legkit.optimize`), maximising
-    the worst-case S_H (J_s2, eq. 11) from the hand-built reference; one progress line per IPOPT iteration.
+    the worst-case S_H (J_s2, eq. 11) from the hand-built reference, its touchdown impulses bounded by --max-impulse
+    (default 0: the feet land at rest; docs/optimize.md, replay); one progress line per IPOPT iteration.
     Writes gait_quadruped_optimized.csv (every collocation point: t, phase, support, q, v, u, S_H) and .png
     (S_H over the period with its worst case marked, beside the reference's), then replays the gait in
-    `lk.Simulation` (PD tracking + feed-forward torques) over --replay-cycles cycles and, unless
+    `lk.Simulation` (joint PD tracking with --replay-kp, --replay-kd + feed-forward torques) over --replay-cycles cycles and, unless
     --no-animation, writes the replay beside the plan as .html (meshcat) and .gif."""
     from legkit.optimize import MinMaxStability
     from legkit.optimize.gaits import (
-        AMBLE_ATTITUDE_JOINTS, AMBLE_DERIVATIVES, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference,
+        AMBLE_DERIVATIVES, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference,
     )
     from legkit.optimize.replay import replay
 
     robot = build_quadruped(AMBLE_QUADRUPED)
     speed, period = args.quadruped_speed, args.quadruped_period
     problem = amble_problem(robot, [MinMaxStability(args.quadruped_tip_speed, DIAGONAL_PAIRS)], speed, period,
-                            args.intervals, QUADRUPED_MOTOR, args.mu)
+                            args.intervals, QUADRUPED_MOTOR, args.mu, max_impulse=args.max_impulse)
     ref = amble_reference(robot, speed, period, args.intervals)
     guess = guess_from_reference(problem, ref)
     reference_s_h = np.concatenate(problem.stability_index(problem.pack(guess)))
@@ -535,7 +536,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     worst, worst_t = st.worst_case(columns["S_H"], data["t"])
     _plot_optimized(args.out / "gait_quadruped_optimized.png", data["t"], columns["S_H"], guess.stacked()["t"], reference_s_h, labels, worst, worst_t,
                     f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}, iterate {kept} kept")
-    simulated = replay(problem, trajectory, args.replay_cycles, kp=100.0, kd=1.0, control_every=1, attitude=AMBLE_ATTITUDE_JOINTS)
+    simulated = replay(problem, trajectory, args.replay_cycles, kp=args.replay_kp, kd=args.replay_kd, control_every=1)
     if not args.no_animation:
         _animate_replay(args.out / "gait_quadruped_optimized", problem.model, simulated)
     return {
@@ -744,6 +745,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="--optimize: IPOPT iteration limit for the biped walk (per stage; J_e1 still falls slowly after 1000)")
     parser.add_argument("--tol", type=float, default=1e-6, help="--optimize: IPOPT tolerance")
     parser.add_argument("--replay-cycles", type=_positive_int, default=5, help="--optimize: cycles replayed in simulation")
+    parser.add_argument("--replay-kp", type=float, default=50.0, help="--optimize: joint PD stiffness of the replay [N m/rad]")
+    parser.add_argument("--replay-kd", type=float, default=1.0, help="--optimize: joint PD damping of the replay [N m s/rad]")
+    parser.add_argument("--max-impulse", type=float, default=0.0,
+                        help="--optimize: bound on the amble's touchdown impulses [N s] (0: feet land at rest; inf: eq. 7 unbounded)")
     parser.add_argument("--no-animation", action="store_true", help="--optimize: do not write the replay's .html and .gif")
     args = parser.parse_args(argv)
     if args.samples < 8:

@@ -50,7 +50,7 @@ def torque_speed_line(motor: MotorParameters) -> TorqueSpeedLine:
 def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: float, intervals: int,
                   motor: MotorParameters, friction: float = 0.8, duration_range: tuple[float, float] = (0.5, 1.5),
                   max_tilt: float = np.radians(15.0), joint_range: tuple[float, float, float] = (0.35, 1.8, 2.6),
-                  max_swing_height: float = 0.06) -> MultiphaseProblem:
+                  max_swing_height: float = 0.06, max_impulse: float = np.inf) -> MultiphaseProblem:
     """The amble at `speed` [m/s] over a fixed `period` [s]; each phase lasts between duration_range x period / 4.
     The state bounds of Sect. 2.3 keep the torso above the ground and its roll and pitch within about
     max_tilt [rad] (|q_x|, |q_y| <= sin(max_tilt / 2)): unbounded, J_s2 pitches the torso by ~50 deg; and the
@@ -75,7 +75,7 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
         upper[joints : joints + 3] = [roll, pitch, max(0.0, bend * knee)]
     return MultiphaseProblem(robot.model, phases, {leg: robot.feet[leg] for leg in LEGS}, objectives, speed=speed, period=period,
                              friction=friction, u_bounds=(np.full(nu, -stall), np.full(nu, stall)), torque_speed=line,
-                             q_bounds=(lower, upper), max_swing_height=max_swing_height)
+                             q_bounds=(lower, upper), max_swing_height=max_swing_height, max_impulse=max_impulse)
 
 
 def amble_reference(robot: Quadruped, speed: float, period: float, intervals: int) -> GaitReference:

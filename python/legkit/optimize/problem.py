@@ -132,7 +132,10 @@ class MultiphaseProblem:
     q[travel_index] advancing by speed x cycle time); otherwise initial/final (q, v) fix the ends (NaN: free).
     period: the cycle time, fixed (float) or bounded (lo, hi). force_dims: 3 (friction cone) or 1 (normal force
     only, for models that cannot push sideways). flat_feet: `FlatFoot` soles by foot name (eq. 6; needs
-    force_dims 3). q/v/u_bounds: (lower, upper) arrays.
+    force_dims 3). q/v/u_bounds: (lower, upper) arrays. max_impulse: a bound [N s] on every component of every
+    touchdown impulse (eq. 7, the impulse variables); 0 makes every touchdown soft, the landing feet arriving at
+    rest and v continuous (a gait whose impacts carry the robot's momentum cannot be replayed by joint tracking:
+    docs/optimize.md).
     objectives: terms from `legkit.optimize.objectives`, summed.
     """
 
@@ -156,6 +159,7 @@ class MultiphaseProblem:
     continuous_controls: bool = False
     transcription: str = "inverse"
     max_swing_height: float = np.inf  # [m] swing tips stay between the ground (eq. 4) and this height
+    max_impulse: float = np.inf  # [N s] bound on every component of every touchdown impulse (0: feet land at rest)
     flat_feet: Mapping[str, FlatFoot] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -221,6 +225,8 @@ class MultiphaseProblem:
             raise ValueError(f"force_dims must be 1 or 3, got {self.force_dims}")
         if not self.max_swing_height > 0.0:
             raise ValueError(f"max_swing_height must be > 0, got {self.max_swing_height}")
+        if not self.max_impulse >= 0.0:
+            raise ValueError(f"max_impulse must be >= 0, got {self.max_impulse}")
         if not self.friction > 0.0:
             raise ValueError(f"friction must be > 0, got {self.friction}")
         for i, phase in enumerate(self.phases):
@@ -605,6 +611,8 @@ class MultiphaseProblem:
                     raise ValueError(f"initial/final must be (q (nq,), v (nv,)), got {values.shape[0]} values for nq + nv = {self.nx}")
                 fixed = ~np.isnan(values)
                 lower[point[: self.nx][fixed]] = upper[point[: self.nx][fixed]] = values[fixed]
+        for index in self.impulse_index.values():
+            lower[index], upper[index] = -self.max_impulse, self.max_impulse
         if self.translation_gauge:
             lower[self.point_index[0][0, :2]] = upper[self.point_index[0][0, :2]] = 0.0
         if not self.uses_p1:

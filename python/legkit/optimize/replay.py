@@ -29,26 +29,77 @@ class Replay:
 
 
 def periodic_samples(problem: MultiphaseProblem, trajectory: Trajectory, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(q, v, u) of the periodic optimised gait at times t (any number of cycles), piecewise linear between
-    the collocation points (exact for the linear controls); the travel coordinate advances by speed x period."""
-    data = trajectory.stacked()
+    """(q, v, u) of the periodic optimised gait at times t (any number of cycles), as the collocation itself
+    interpolates them: on each Hermite–Simpson interval (knot, midpoint, knot) the state is the cubic through
+    the knots with the collocated rates [dq/dt, a] there, the controls are linear. Each phase is interpolated on
+    its own, so an instant on a phase boundary belongs to the later phase: the state after the touchdown, whose
+    velocity jump (eq. 7) stays a jump instead of being spread over the interval before it. The travel
+    coordinate advances by speed x period."""
+    t = np.asarray(t, dtype=np.float64)
     period = float(np.sum(trajectory.durations))
-    # Keep the later of two points sharing a phase-boundary instant: the state after the touchdown.
-    keep = np.r_[np.diff(data["t"]) > 0.0, True]
-    times = data["t"][keep]
     cycle, phase_t = np.divmod(t, period)
-    q = np.stack([np.interp(phase_t, times, column) for column in data["q"][keep].T], axis=1)
-    v = np.stack([np.interp(phase_t, times, column) for column in data["v"][keep].T], axis=1)
-    u = np.stack([np.interp(phase_t, times, column) for column in data["u"][keep].T], axis=1)
+    x = problem.pack(trajectory)
+    nq, nx, nu = problem.nq, problem.nx, problem.nu
+    q, v, u = np.empty((len(t), nq)), np.empty((len(t), problem.nv)), np.empty((len(t), nu))
+    starts = np.concatenate([[0.0], np.cumsum(trajectory.durations)[:-1]])
+    which = np.clip(np.searchsorted(starts, phase_t, side="right") - 1, 0, len(starts) - 1)
+    for k in range(len(problem.phases)):
+        mine = which == k
+        if not np.any(mine):
+            continue
+        z = x[problem.point_index[k]]
+        rates = problem.rate(z, k)
+        times = trajectory.t[k]
+        knots = times[::2]
+        interval = np.clip(np.searchsorted(knots, phase_t[mine], side="right") - 1, 0, len(knots) - 2)
+        h = knots[interval + 1] - knots[interval]
+        s = ((phase_t[mine] - knots[interval]) / h)[:, None]
+        first, last = z[2 * interval, :nx], z[2 * interval + 2, :nx]
+        slope0, slope1 = h[:, None] * rates[2 * interval], h[:, None] * rates[2 * interval + 2]
+        state = ((2 * s**3 - 3 * s**2 + 1) * first + (s**3 - 2 * s**2 + s) * slope0
+                 + (-2 * s**3 + 3 * s**2) * last + (s**3 - s**2) * slope1)
+        q[mine], v[mine] = state[:, :nq], state[:, nq:]
+        controls = z[:, nx : nx + nu]
+        u[mine] = np.stack([np.interp(phase_t[mine], times, column) for column in controls.T], axis=1)
     if problem.travel_index is not None:
         q[:, problem.travel_index] += cycle * problem.speed * period
     if problem.model.floating_base:
         q[:, 3:7] /= np.linalg.norm(q[:, 3:7], axis=1, keepdims=True)
     return q, v, u
 
+def foot_spheres(problem: MultiphaseProblem, radius: float) -> dict[int | str, tuple | None]:
+    """`lk.Simulation` shapes: each foot a sphere of `radius` whose bottom is the foot's point when its body hangs
+    straight (centre `radius` above the point along the body's z axis); of the other bodies only the base collides
+    (its default box)."""
+    shapes: dict[int | str, tuple | None] = {b: None for b in range(1, problem.model.nbodies)}
+    for name in problem.feet:
+        frame = np.eye(4)
+        frame[:3, 3] = problem.foot_point[name] + [0.0, 0.0, radius]
+        shapes[problem.foot_body[name]] = ("sphere", radius, frame)
+    return shapes
+
+
+def sphere_bottoms(problem: MultiphaseProblem, q: np.ndarray, radius: float) -> np.ndarray:
+    """(..., feet) world height of the lowest point of each foot's sphere (`foot_spheres`) at configuration q."""
+    poses = np.asarray(lk.forward_kinematics(problem.model, q))
+    centres = np.stack([poses[..., problem.foot_body[n], 2, :3] @ (problem.foot_point[n] + [0.0, 0.0, radius])
+                        + poses[..., problem.foot_body[n], 2, 3] for n in problem.feet], axis=-1)
+    return centres - radius
+
+
+def clear_of_ground(problem: MultiphaseProblem, q: np.ndarray, radius: float) -> np.ndarray:
+    """q with a free-flyer base raised so that no foot sphere starts below the ground. On a leg tilted by theta a
+    sphere's bottom lies radius (1 - cos theta) below the plan's point foot: started on the plan itself, the amble's
+    stance spheres (legs tilted ~40 deg) began 1.2 mm deep with radius 5 mm, and the soft contacts pushed them out
+    with ~140 N each in the first step (8.5 body weights), throwing the robot off its feet."""
+    q = np.array(q, dtype=np.float64)
+    if problem.model.floating_base:
+        q[2] -= min(0.0, float(np.min(sphere_bottoms(problem, q, radius))))
+    return q
+
 
 def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, kp: float = 20.0, kd: float = 0.5,
-           foot_radius: float = 0.005, dt: float = 1e-3, control_every: int = 2, friction: float = 0.8,
+           foot_radius: float = 0.002, dt: float = 1e-3, control_every: int = 2, friction: float = 0.8,
            attitude: tuple[Sequence[int], Sequence[int]] | None = None, attitude_gain: float = 1.0) -> Replay:
     """Simulate `cycles` cycles from the optimised initial state; only the feet (spheres of foot_radius whose
     bottoms are the contact points when the leg hangs straight) and the base collide.
@@ -59,17 +110,12 @@ def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, 
     a swing leg aims its foot where the plan puts it in the world. Without it (None) the replay is open loop
     in the torso's attitude, and a two-legged support's tipping mode grows from any small error."""
     model = problem.model
-    shapes: dict[int | str, tuple | None] = {b: None for b in range(1, model.nbodies)}
-    for name in problem.feet:
-        frame = np.eye(4)
-        frame[:3, 3] = problem.foot_point[name] + [0.0, 0.0, foot_radius]
-        shapes[problem.foot_body[name]] = ("sphere", foot_radius, frame)
-    sim = lk.Simulation(model, dt=dt, ground=lk.Ground.plane(friction), shapes=shapes)
+    sim = lk.Simulation(model, dt=dt, ground=lk.Ground.plane(friction), shapes=foot_spheres(problem, foot_radius))
     period = float(np.sum(trajectory.durations))
     steps = int(round(cycles * period / (dt * control_every)))
     t = np.arange(steps + 1) * dt * control_every
     planned_q, planned_v, planned_u = periodic_samples(problem, trajectory, t)
-    sim.reset(planned_q[0], planned_v[0])
+    sim.reset(clear_of_ground(problem, planned_q[0], foot_radius), planned_v[0])
     gains = np.zeros(model.nv)
     gains[problem.actuated] = 1.0
     tau = np.zeros((len(t), model.nv))
