@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what the tests need (the package with its test extras, built from this checkout, into the
 # project's virtual environment: see venv.sh) and runs the linters and every test in four tiers, timing each:
-#   lint         ruff check and mypy on the Python package and its stub (configured in pyproject.toml)
+#   lint         rustfmt and clippy (warnings are errors) on the crates; ruff check and mypy on the Python
+#                package and its stub (configured in rustfmt.toml, Cargo.toml and pyproject.toml)
 #   rust         the Rust unit tests (cargo test, release optimisation without fat LTO)
 #   python-fast  the Python suite without the tests marked slow (pytest -m "not slow": the inner loop)
 #   python-slow  the tests marked slow (end-to-end experiments, simulations, browser rendering)
@@ -34,8 +35,12 @@ setup() {
             { apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium >/dev/null; }; }
 }
 
-lint() {  # both linters run; the tier fails if either does
+lint() {  # every linter runs; the tier fails if any does
     local rc=0
+    # A minimal rustup profile lacks them.
+    { cargo fmt --version && cargo clippy --version; } >/dev/null 2>&1 || rustup component add rustfmt clippy || rc=1
+    cargo fmt --all -- --check || rc=1
+    cargo clippy --quiet --workspace --all-targets -- -D warnings || rc=1
     python -m ruff check || rc=1
     python -m mypy || rc=1
     return "$rc"

@@ -194,7 +194,7 @@ fn positions(doc: &Document, geometry: Node, transform: &Matrix4<f64>, out: &mut
                     .split_whitespace()
                     .map(|w| w.parse::<f64>().map_err(|_| format!("<float_array> holds {w:?}")))
                     .collect::<std::result::Result<_, _>>()?;
-                if floats.len() % 3 != 0 {
+                if !floats.len().is_multiple_of(3) {
                     return Err(format!("POSITION source #{id} has {} numbers, not a multiple of 3", floats.len()));
                 }
                 out.extend(floats.chunks_exact(3).map(|p| (transform * Vector4::new(p[0], p[1], p[2], 1.0)).xyz()));
@@ -298,7 +298,7 @@ mod tests {
         let root = std::env::temp_dir().join(format!("legkit-mesh-{}", std::process::id()));
         std::fs::create_dir_all(root.join("pkg_a/meshes")).unwrap();
         std::fs::write(root.join("pkg_a/meshes/part.stl"), b"solid\nendsolid\n").unwrap();
-        let found = resolve_mesh("package://pkg_a/meshes/part.stl", None, &[root.clone()]).unwrap();
+        let found = resolve_mesh("package://pkg_a/meshes/part.stl", None, std::slice::from_ref(&root)).unwrap();
         assert_eq!(found, root.join("pkg_a/meshes/part.stl"));
         // The package folder itself as a search folder.
         assert_eq!(resolve_mesh("package://pkg_a/meshes/part.stl", None, &[root.join("pkg_a")]).unwrap(), found);

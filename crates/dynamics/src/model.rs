@@ -178,7 +178,7 @@ impl Model {
             names: vec![base_name.to_owned()],
             idx_q: vec![0],
             idx_v: vec![0],
-            subtree_columns: vec![if joint.nv() > 0 { vec![0..joint.nv()] } else { Vec::new() }],
+            subtree_columns: vec![(joint.nv() > 0).then(|| 0..joint.nv()).into_iter().collect()],
             nq: joint.nq(),
             nv: joint.nv(),
             gravity: Vector3::new(0.0, 0.0, -9.81),

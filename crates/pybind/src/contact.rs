@@ -2,11 +2,11 @@
 
 use legkit_dynamics::algorithms::{self, Contact};
 use legkit_dynamics::model::check_vector;
-use numpy::{PyArray1, PyArray2, PyArrayDyn};
+use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 
 use crate::batch::{broadcast, ArrayArg};
-use crate::convert::{kernel_error, to_numpy, vector3, Vector};
+use crate::convert::{kernel_error, to_numpy, vector3, FloatArray, Vector};
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run_packed, unpack};
 
@@ -32,7 +32,7 @@ pub fn contact_dynamics<'py>(
     v: ArrayArg<'_>,
     tau: ArrayArg<'_>,
     contacts: &Bound<'_, PyAny>,
-) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>)> {
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
     let contacts = self::contacts(&model, contacts)?;
     let (nv, k) = (model.model.nv(), contacts.len());
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("tau", &tau, &[nv])])?;
@@ -57,7 +57,7 @@ pub fn impact<'py>(
     q: ArrayArg<'_>,
     v: ArrayArg<'_>,
     contacts: &Bound<'_, PyAny>,
-) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>)> {
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
     let contacts = self::contacts(&model, contacts)?;
     let (nv, k) = (model.model.nv(), contacts.len());
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv])])?;

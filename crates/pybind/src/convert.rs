@@ -7,6 +7,9 @@ use numpy::{PyArray, PyArrayDyn, PyArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
+/// A NumPy float64 array returned to Python.
+pub type FloatArray<'py> = Bound<'py, PyArrayDyn<f64>>;
+
 /// A float64 array argument: anything NumPy converts (float64 arrays are used in place, anything else goes
 /// through `numpy.asarray`). Extraction never fails; `get` raises a failed conversion as a TypeError
 /// naming the argument.

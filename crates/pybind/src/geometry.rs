@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use rayon::prelude::*;
 
 use crate::batch::{broadcast, ArrayArg, Batch, Rows};
-use crate::convert::{batch_error, kernel_error, to_numpy};
+use crate::convert::{batch_error, kernel_error, to_numpy, FloatArray};
 
 /// Queries per parallel task.
 const CHUNK: usize = 4096;
@@ -111,7 +111,7 @@ pub fn rotation_toward_line<'py>(
     point: ArrayArg<'_>,
     line_point: ArrayArg<'_>,
     line_direction: ArrayArg<'_>,
-) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>)> {
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
     let batch = broadcast(&[
         ("axis_point", &axis_point, &[3]),
         ("axis_direction", &axis_direction, &[3]),

@@ -9,7 +9,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use crate::batch::{broadcast, ArrayArg};
-use crate::convert::{vector3, Vector};
+use crate::convert::{vector3, FloatArray, Vector};
 use crate::model::{homogeneous, PyModel};
 use crate::workspace::{check_state, run, run_packed, unpack};
 
@@ -89,7 +89,7 @@ pub fn subtree_mass_properties<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
     q: ArrayArg<'_>,
-) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>)> {
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>, FloatArray<'py>)> {
     let nb = model.model.nbodies();
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
     let packed = run_packed(py, &model, &batch, 13 * nb, |m, w, i, out| {

@@ -6,6 +6,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use crate::batch::{broadcast, ArrayArg};
+use crate::convert::FloatArray;
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
 
@@ -44,7 +45,7 @@ pub fn simulate<'py>(
     steps: usize,
     tau: Option<ArrayArg<'_>>,
     method: &str,
-) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>)> {
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
     let method = match method {
         "rk4" => Method::Rk4,
         "semi_implicit_euler" => Method::SemiImplicitEuler,

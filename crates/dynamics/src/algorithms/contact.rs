@@ -98,13 +98,11 @@ fn solve_spd(a: DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
     &eigen.eigenvectors * inverse.component_mul(&(eigen.eigenvectors.transpose() * b))
 }
 
+/// M, a Cholesky factor of M, and the bias h = C q̇ + g.
+type MassAndBias = (DMatrix<f64>, nalgebra::Cholesky<f64, nalgebra::Dyn>, DVector<f64>);
+
 /// M and the bias h = C q̇ + g at (q, v), and a Cholesky factor of M.
-fn mass_and_bias(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-) -> Result<(DMatrix<f64>, nalgebra::Cholesky<f64, nalgebra::Dyn>, DVector<f64>)> {
+fn mass_and_bias(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result<MassAndBias> {
     let mass = crba(model, data, q).clone();
     let bias = rnea(model, data, q, v, &vec![0.0; model.nv()], None).clone();
     let chol = mass.clone().cholesky().ok_or_else(|| Error::invalid("model", "the mass matrix is singular at this configuration"))?;

@@ -117,9 +117,9 @@ fn newton_matrix_products_and_solves_match_dense_algebra() {
         assert!(relative_error(&(&mass * DVector::from_vec(solution.clone())), &rhs) < 1e-10, "floating base: {}", model.floating_base());
         // H = M̃ + Σ Φ_bᵀ K_b Φ_b + diag(c): H⁻¹ r solves H x = r. Only K_b's upper triangle may be read.
         let mut h = mass.clone();
-        for b in 0..model.nbodies() {
+        for (b, phi) in phi.iter().enumerate() {
             tree.stiffness[b] = Matrix6::from_fn(|r, c| if r > c { f64::NAN } else { stiffness(b)[(r, c)] });
-            h += phi[b].transpose() * DMatrix::from_column_slice(6, 6, stiffness(b).as_slice()) * &phi[b];
+            h += phi.transpose() * DMatrix::from_column_slice(6, 6, stiffness(b).as_slice()) * phi;
         }
         for k in base_coordinates(&model)..nv {
             tree.coordinate_stiffness[k] = 0.5 * k as f64;
