@@ -12,7 +12,7 @@ from legkit.experiments import gait
 from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR
 from legkit.optimize import MinMaxStability, MultiphaseProblem, Phase, Trajectory, effort
 from legkit.optimize.gaits import AMBLE_SUPPORT, amble_problem, amble_reference, guess_from_reference
-from legkit.optimize.replay import clear_of_ground, periodic_samples, sphere_bottoms
+from legkit.optimize.replay import clear_of_ground, foot_bottoms, foot_shapes, periodic_samples
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
 
 
@@ -124,7 +124,7 @@ def test_replay_start_puts_the_lowest_foot_sphere_on_the_ground():
         poses = np.asarray(lk.forward_kinematics(problem.model, config))
         heights = [np.min((poses[problem.foot_body[n], :3, :3] @ (problem.foot_point[n] + [0.0, 0.0, radius])
                            + poses[problem.foot_body[n], :3, 3])[2] + radius * directions[:, 2]) for n in problem.feet]
-        np.testing.assert_allclose(sphere_bottoms(problem, config, radius), heights, atol=1e-6)
+        np.testing.assert_allclose(foot_bottoms(problem, config, radius), heights, atol=1e-6)
         if lowest is None:
             assert min(heights) < -1e-4  # the tilted stance legs' spheres start below the ground
         else:
@@ -141,3 +141,30 @@ def test_max_impulse_bounds_every_touchdown_impulse():
     np.testing.assert_array_equal(upper[index], 0.05)
     with pytest.raises(ValueError, match="max_impulse"):
         amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, 1, QUADRUPED_MOTOR, max_impulse=-1.0)
+
+
+def test_replay_soles_are_boxes_whose_lowest_corner_starts_on_the_ground():
+    # The biped's flat feet collide as boxes under their soles; against brute force: points all over each
+    # box's bottom face placed by forward kinematics, the walk's first point tilted so a sole starts below.
+    from legkit.experiments.gait import BIPED_MOTOR
+    from legkit.optimize.gaits import walk_problem
+    from legkit.robots.biped import build_biped
+
+    robot = build_biped()
+    problem = walk_problem(robot, 0.5, BIPED_MOTOR, (1, 1))
+    shapes = foot_shapes(problem, 0.002)
+    q = robot.model.neutral()
+    q[2] = 0.9
+    q[3:7] = [np.sin(0.05), 0.0, 0.0, np.cos(0.05)]  # rolled by 0.1 rad
+    grid = np.stack(np.meshgrid(np.linspace(-0.5, 0.5, 41), np.linspace(-0.5, 0.5, 41)), axis=-1).reshape(-1, 2)
+    for config in (q, clear_of_ground(problem, q, 0.002)):
+        poses = np.asarray(lk.forward_kinematics(problem.model, config))
+        heights = []
+        for name in problem.feet:
+            kind, size, frame = shapes[problem.foot_body[name]]
+            assert kind == "box" and np.isclose(size[0], problem.flat_feet[name].length)
+            bottom = frame[:3, 3] + np.c_[grid[:, 0] * size[0], grid[:, 1] * size[1], np.full(len(grid), -0.5 * size[2])]
+            pose = poses[problem.foot_body[name]]
+            heights.append(np.min((bottom @ pose[:3, :3].T + pose[:3, 3])[:, 2]))
+        np.testing.assert_allclose(foot_bottoms(problem, config, 0.002), heights, atol=1e-12)
+    assert min(heights) == pytest.approx(0.0, abs=1e-12)

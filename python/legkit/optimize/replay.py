@@ -86,42 +86,62 @@ def periodic_samples(problem: MultiphaseProblem, trajectory: Trajectory, t: np.n
         q[:, 3:7] /= np.linalg.norm(q[:, 3:7], axis=1, keepdims=True)
     return q, v, u
 
-def foot_spheres(problem: MultiphaseProblem, radius: float) -> dict[int | str, tuple | None]:
-    """`lk.Simulation` shapes: each foot a sphere of `radius` whose bottom is the foot's point when its body hangs
-    straight (centre `radius` above the point along the body's z axis); of the other bodies only the base collides
-    (its default box)."""
+#: Thickness [m] of the box a flat foot (`FlatFoot`) collides as in `foot_shapes`.
+SOLE_THICKNESS = 0.01
+
+
+def foot_shapes(problem: MultiphaseProblem, radius: float) -> dict[int | str, tuple | None]:
+    """`lk.Simulation` shapes: each point foot a sphere of `radius` whose bottom is the foot's point when its body
+    hangs straight (centre `radius` above the point along the body's z axis); each flat foot (`FlatFoot`) a box
+    of its sole's length and width, SOLE_THICKNESS thick, whose bottom face is the sole (centred on the foot's
+    point); of the other bodies only the base collides (its default box)."""
     shapes: dict[int | str, tuple | None] = {b: None for b in range(1, problem.model.nbodies)}
     for name in problem.feet:
         frame = np.eye(4)
-        frame[:3, 3] = problem.foot_point[name] + [0.0, 0.0, radius]
-        shapes[problem.foot_body[name]] = ("sphere", radius, frame)
+        if name in problem.flat_feet:
+            sole = problem.flat_feet[name]
+            frame[:3, 3] = problem.foot_point[name] + [0.0, 0.0, 0.5 * SOLE_THICKNESS]
+            shapes[problem.foot_body[name]] = ("box", [sole.length, sole.width, SOLE_THICKNESS], frame)
+        else:
+            frame[:3, 3] = problem.foot_point[name] + [0.0, 0.0, radius]
+            shapes[problem.foot_body[name]] = ("sphere", radius, frame)
     return shapes
 
 
-def sphere_bottoms(problem: MultiphaseProblem, q: np.ndarray, radius: float) -> np.ndarray:
-    """(..., feet) world height of the lowest point of each foot's sphere (`foot_spheres`) at configuration q."""
+def foot_bottoms(problem: MultiphaseProblem, q: np.ndarray, radius: float) -> np.ndarray:
+    """(..., feet) world height of the lowest point of each foot's shape (`foot_shapes`) at configuration q: a
+    sphere's centre height minus its radius, a sole's lowest corner."""
     poses = np.asarray(lk.forward_kinematics(problem.model, q))
-    centres = np.stack([poses[..., problem.foot_body[n], 2, :3] @ (problem.foot_point[n] + [0.0, 0.0, radius])
-                        + poses[..., problem.foot_body[n], 2, 3] for n in problem.feet], axis=-1)
-    return centres - radius
+    lowest = []
+    for name in problem.feet:
+        rotation_z, height = poses[..., problem.foot_body[name], 2, :3], poses[..., problem.foot_body[name], 2, 3]
+        if name in problem.flat_feet:
+            sole = problem.flat_feet[name]
+            corners = problem.foot_point[name] + 0.5 * np.array([[sx * sole.length, sy * sole.width, 0.0]
+                                                                   for sx in (-1, 1) for sy in (-1, 1)])
+            lowest.append(np.min(rotation_z @ corners.T, axis=-1) + height)
+        else:
+            lowest.append(rotation_z @ (problem.foot_point[name] + [0.0, 0.0, radius]) + height - radius)
+    return np.stack(lowest, axis=-1)
 
 
 def clear_of_ground(problem: MultiphaseProblem, q: np.ndarray, radius: float) -> np.ndarray:
-    """q with a free-flyer base raised so that no foot sphere starts below the ground. On a leg tilted by theta a
-    sphere's bottom lies radius (1 - cos theta) below the plan's point foot: started on the plan itself, the amble's
-    stance spheres (legs tilted ~40 deg) began 1.2 mm deep with radius 5 mm, and the soft contacts pushed them out
-    with ~140 N each in the first step (8.5 body weights), throwing the robot off its feet."""
+    """q with a free-flyer base raised so that no foot shape (`foot_shapes`) starts below the ground. On a leg
+    tilted by theta a sphere's bottom lies radius (1 - cos theta) below the plan's point foot: started on the plan
+    itself, the amble's stance spheres (legs tilted ~40 deg) began 1.2 mm deep with radius 5 mm, and the soft
+    contacts pushed them out with ~140 N each in the first step (8.5 body weights), throwing the robot off its feet."""
     q = np.array(q, dtype=np.float64)
     if problem.model.floating_base:
-        q[2] -= min(0.0, float(np.min(sphere_bottoms(problem, q, radius))))
+        q[2] -= min(0.0, float(np.min(foot_bottoms(problem, q, radius))))
     return q
 
 
-def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, kp: float = 20.0, kd: float = 0.5,
+def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, kp: float | np.ndarray = 20.0, kd: float | np.ndarray = 0.5,
            foot_radius: float = 0.002, dt: float = 1e-3, control_every: int = 2, friction: float = 0.8,
            attitude: tuple[Sequence[int], Sequence[int]] | None = None, attitude_gain: float = 1.0) -> Replay:
-    """Simulate `cycles` cycles from the optimised initial state; only the feet (spheres of foot_radius whose
-    bottoms are the contact points when the leg hangs straight) and the base collide.
+    """Simulate `cycles` cycles from the optimised initial state, its base raised until no foot starts below the
+    ground (`clear_of_ground`); only the feet (`foot_shapes`: spheres of foot_radius, flat soles as boxes) and the
+    base collide. kp, kd: joint PD gains, one for every actuated joint or one each (nu,).
 
     attitude: (roll joints, pitch joints), q indices of joints turning about the torso's x and y axes (a
     quadruped's hip roll and hip pitch). With it, the torso's roll and pitch error from the plan (small angles,
@@ -130,14 +150,14 @@ def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, 
     in the torso's attitude, and a two-legged support's tipping mode grows from any small error; with it the
     soft-touchdown amble fell sooner (3.2 s at kp 50, kd 1, against 5 cycles upright without; module docstring)."""
     model = problem.model
-    sim = lk.Simulation(model, dt=dt, ground=lk.Ground.plane(friction), shapes=foot_spheres(problem, foot_radius))
+    sim = lk.Simulation(model, dt=dt, ground=lk.Ground.plane(friction), shapes=foot_shapes(problem, foot_radius))
     period = float(np.sum(trajectory.durations))
     steps = int(round(cycles * period / (dt * control_every)))
     t = np.arange(steps + 1) * dt * control_every
     planned_q, planned_v, planned_u = periodic_samples(problem, trajectory, t)
     sim.reset(clear_of_ground(problem, planned_q[0], foot_radius), planned_v[0])
-    gains = np.zeros(model.nv)
-    gains[problem.actuated] = 1.0
+    stiffness, damping = np.zeros(model.nv), np.zeros(model.nv)
+    stiffness[problem.actuated], damping[problem.actuated] = kp, kd
     tau = np.zeros((len(t), model.nv))
     tau[:, problem.actuated] = planned_u
     simulated = np.empty_like(planned_q)
@@ -150,7 +170,7 @@ def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, 
             target = target.copy()
             target[list(attitude[0])] += attitude_gain * 0.5 * (error[2, 1] - error[1, 2])
             target[list(attitude[1])] += attitude_gain * 0.5 * (error[0, 2] - error[2, 0])
-        sim.set_servo(kp * gains, kd * gains, target_q=target, target_v=planned_v[i])
+        sim.set_servo(stiffness, damping, target_q=target, target_v=planned_v[i])
         sim.step(tau[i], control_every)
         simulated[i + 1] = sim.q
     standing = np.ones(len(t), dtype=bool)
