@@ -117,6 +117,28 @@ def test_controller_gain_factors_from_its_own_estimates():
         assert np.isclose(controller.gain_factors(decisions)[0, 0], expected, rtol=1e-12)
 
 
+def test_controller_evaluates_each_modules_own_schedule():
+    # Mixed schedules, one per module, with non-paper constants and base gains: the controller's (N, 3)
+    # factors and gains are, row by row, exactly what each module's GainSchedule gives for its estimates.
+    tree = sb.random_tree(5, 2, 3)
+    _, _, network = converged(tree, np.random.default_rng(3).uniform(-0.4, 0.4, 3 * tree.n_modules), (0.05, -0.02, 0.0))
+    schedules = [
+        GainSchedule("constant", 1.7, 0.4, 12.0, 0.2, 2e-4), GainSchedule("distance", 0.3, 0.7, 8.0, 0.05, 3e-4),
+        GainSchedule("momentum", 0.25, 1.5), GainSchedule.paper("distance"), GainSchedule.paper("momentum"),
+        GainSchedule.paper("constant"),
+    ]
+    controller = BalanceController(network, schedules)
+    decisions = controller.decide()
+    factors = controller.gain_factors(decisions)
+    assert np.all(decisions.mass_moment > 0) and np.all(decisions.support_distance > 0)
+    torques = []
+    for n, schedule in enumerate(schedules):
+        d, m = decisions.support_distance[n] / W, decisions.mass_moment[n]
+        assert np.array_equal(factors[n], schedule.factor(d, m))
+        torques.append(PID((3,))(decisions.target[n] - network.angles[n], 1e-3, *schedule.gains(d, m)))
+    assert np.array_equal(controller.torques(1e-3)[0], np.array(torques))
+
+
 def test_pid_arithmetic():
     pid = PID((2,))
     first = pid(np.array([1.0, -2.0]), 0.5, 10.0, 0.1, 1e-4)

@@ -27,7 +27,7 @@ import numpy as np
 
 from legkit.agents import moments
 from legkit.agents.network import AgentNetwork
-from legkit.control.gains import SCHEMES, GainSchedule
+from legkit.control.gains import GainSchedule, gain_factor, scaled_gains
 from legkit.control.pid import PID
 from legkit.geometry import rotation_toward_line
 from legkit.robots.superbot import JOINT_AXES, JOINT_Z
@@ -63,10 +63,10 @@ class BalanceController:
             raise ValueError(f"schedules: must be a GainSchedule or {n} of them (one per module)")
         self.network = network
         self.schedules = schedules
-        scheme = np.array([SCHEMES.index(s.scheme) for s in schedules])[:, None]
-        self._distance_scheme, self._momentum_scheme = scheme == 1, scheme == 2
-        self._c = np.array([[s.c0, s.c1] for s in schedules])
-        self._k0 = np.array([[s.kp0, s.ki0, s.kd0] for s in schedules])
+        # Every module's schedule as an (N, 1) column, evaluated for all joints at once by `gain_factor`.
+        self._scheme, self._c0, self._c1, self._kp0, self._ki0, self._kd0 = (
+            np.array([getattr(s, name) for s in schedules])[:, None] for name in ("scheme_index", "c0", "c1", "kp0", "ki0", "kd0")
+        )
         self.pid = PID((n, 3))
         parameters = network.parameters
         self.limit = parameters.joint_limit
@@ -147,19 +147,16 @@ class BalanceController:
         return JointDecisions(theta, target, distance, np.broadcast_to(support_distance[:, None], (n, 3)), np.where(known[:, None], mass_moment, 0.0))
 
     def gain_factors(self, decisions: JointDecisions) -> np.ndarray:
-        """(N, 3) gain factors from each module's schedule: constant c0, distance c0 + c1 d / width,
-        momentum c0 + c1 |m2 u x (p2 - q)|."""
-        variable = np.where(
-            self._distance_scheme, decisions.support_distance / self.width, np.where(self._momentum_scheme, decisions.mass_moment, 0.0)
-        )
-        return self._c[:, :1] + self._c[:, 1:] * variable
+        """(N, 3) gain factors from each module's schedule (`legkit.control.gains.gain_factor`), with the
+        support distance in module widths and the mass moment |m2 u x (p2 - q)|."""
+        return gain_factor(self._scheme, self._c0, self._c1, decisions.support_distance / self.width, decisions.mass_moment)
 
     def torques(self, dt: float) -> tuple[np.ndarray, JointDecisions]:
         """Joint torques (N, 3) N m for the agents' current state, after a control period ``dt`` s, and the decisions."""
         decisions = self.decide()
         factor = self.gain_factors(decisions)
         error = decisions.target - self.network.angles
-        return self.pid(error, dt, factor * self._k0[:, 0:1], factor * self._k0[:, 1:2], factor * self._k0[:, 2:3]), decisions
+        return self.pid(error, dt, *scaled_gains(factor, self._kp0, self._ki0, self._kd0)), decisions
 
 
 def _norm(vectors: np.ndarray) -> np.ndarray:

@@ -1,14 +1,21 @@
-"""Gain schedules of the seed paper (Moll et al., IROS 2006, §V): every PID gain is the base gain times a
-factor that each joint computes from its own agent's estimates.
+"""Gain schedules of the seed paper (Moll et al., IROS 2006; ../shared/seeds/000_213d0a35bbd6e04e.txt, §IV
+for the heuristics, §V for the constants): every PID gain is the base gain times a factor that each joint
+computes from its own agent's estimates.
 
-* constant:  K = K0
-* distance:  K = (c0 + c1 d) K0, d the distance from the estimated COM to the support line, in module widths
-* momentum:  K = (c0 + c1 |m2 u x (p2 - q)|) K0, m2 (kg) and p2 (m) the mass and COM of the part the joint
-  moves, u the unit joint axis and q a point on it (kg m): the mass moment the joint has to swing.
+* constant:  K = K0                         (the paper's default: identical gains on every module)
+* distance:  K = (c0 + c1 d) K0             (§IV, K_P = (c_0 + c_1 d_support) K_P0), d the distance from the
+  estimated COM to the support line, in module widths
+* momentum:  K = (c0 + c1 |m2 u x (p2 - q)|) K0   (§IV, K_P = (c_0 + c_1 ||v||) K_P0, v = m2 u x (p2 - q)),
+  m2 (kg) and p2 (m) the mass and COM of the part the joint moves, u the unit joint axis and q a point on
+  it (kg m): the mass moment the joint has to swing.
 
-Base gains K_P0 = 10, K_I0 = 0.1, K_D0 = 1e-4; distance c0 = 0, c1 = 0.1; momentum c0 = 0, c1 = 1.
+"The integral and derivative gain are adjusted analogously" (§IV): K_I and K_D take the same factor.
+Base gains K_P0 = 10, K_I0 = 0.1, K_D0 = 1e-4; distance c0 = 0, c1 = 0.1; momentum c0 = 0, c1 = 1 (§V).
 The paper does not state the unit of d; it is taken here in module widths, the unit its figures use for the
 distance, which puts the distance-based gains in the same range as the constant ones for the seed's trees.
+
+`gain_factor` and `scaled_gains` are the one implementation of the schedule: a `GainSchedule` evaluates it
+for itself, and the balance controller (``legkit.control.balance``) for every module's schedule at once.
 """
 
 from __future__ import annotations
@@ -16,11 +23,32 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 KP0 = 10.0
 KI0 = 0.1
 KD0 = 1e-4
 SCHEMES = ("constant", "distance", "momentum")
+CONSTANT, DISTANCE, MOMENTUM = range(len(SCHEMES))  # the schemes as indices into SCHEMES
+_PAPER_COEFFICIENTS = {"constant": (1.0, 0.0), "distance": (0.0, 0.1), "momentum": (0.0, 1.0)}  # (c0, c1), §V
+
+
+def gain_factor(
+    scheme: int | np.ndarray, c0: float | np.ndarray, c1: float | np.ndarray, distance_widths: npt.ArrayLike, mass_moment: npt.ArrayLike
+) -> np.ndarray:
+    """The factor K / K0 = c0 + c1 x of the schedule (module docstring): x the support distance
+    ``distance_widths`` (module widths) under DISTANCE, the mass moment ``mass_moment`` (kg m) under MOMENTUM,
+    0 under CONSTANT. ``scheme`` holds indices into SCHEMES; all arguments broadcast together (the balance
+    controller passes one (N, 1) row per module against (N, 3) joints)."""
+    variable = np.where(scheme == DISTANCE, distance_widths, np.where(scheme == MOMENTUM, mass_moment, 0.0))
+    return c0 + c1 * variable
+
+
+def scaled_gains(
+    factor: np.ndarray, kp0: float | np.ndarray, ki0: float | np.ndarray, kd0: float | np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(K_P, K_I, K_D) = factor (K_P0, K_I0, K_D0): all three gains take the same factor (§IV)."""
+    return factor * kp0, factor * ki0, factor * kd0
 
 
 @dataclass(frozen=True)
@@ -45,20 +73,19 @@ class GainSchedule:
     @staticmethod
     def paper(scheme: str) -> GainSchedule:
         """The seed paper's values for ``scheme``."""
-        coefficients = {"constant": (1.0, 0.0), "distance": (0.0, 0.1), "momentum": (0.0, 1.0)}
-        if scheme not in coefficients:
+        if scheme not in _PAPER_COEFFICIENTS:
             raise ValueError(f"scheme: must be one of {SCHEMES}, got {scheme!r}")
-        return GainSchedule(scheme, *coefficients[scheme])
+        return GainSchedule(scheme, *_PAPER_COEFFICIENTS[scheme])
 
-    def factor(self, distance_widths: np.ndarray, mass_moment: np.ndarray) -> np.ndarray:
+    @property
+    def scheme_index(self) -> int:
+        """The scheme as its index into SCHEMES (CONSTANT, DISTANCE or MOMENTUM)."""
+        return SCHEMES.index(self.scheme)
+
+    def factor(self, distance_widths: npt.ArrayLike, mass_moment: npt.ArrayLike) -> np.ndarray:
         """The gain factor per joint from the support distance (module widths) and the mass moment (kg m)."""
-        if self.scheme == "constant":
-            return np.full(np.shape(mass_moment), self.c0)
-        if self.scheme == "distance":
-            return self.c0 + self.c1 * np.asarray(distance_widths, dtype=float)
-        return self.c0 + self.c1 * np.asarray(mass_moment, dtype=float)
+        return gain_factor(self.scheme_index, self.c0, self.c1, distance_widths, mass_moment)
 
-    def gains(self, distance_widths: np.ndarray, mass_moment: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def gains(self, distance_widths: npt.ArrayLike, mass_moment: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(K_P, K_I, K_D) per joint."""
-        factor = self.factor(distance_widths, mass_moment)
-        return factor * self.kp0, factor * self.ki0, factor * self.kd0
+        return scaled_gains(self.factor(distance_widths, mass_moment), self.kp0, self.ki0, self.kd0)
