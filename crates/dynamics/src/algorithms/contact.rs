@@ -105,7 +105,10 @@ type MassAndBias = (DMatrix<f64>, nalgebra::Cholesky<f64, nalgebra::Dyn>, DVecto
 fn mass_and_bias(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result<MassAndBias> {
     let mass = crba(model, data, q).clone();
     let bias = rnea(model, data, q, v, &vec![0.0; model.nv()], None).clone();
-    let chol = mass.clone().cholesky().ok_or_else(|| Error::invalid("model", "the mass matrix is singular at this configuration"))?;
+    let chol = mass
+        .clone()
+        .cholesky()
+        .ok_or_else(|| Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint carrying no inertia?)"))?;
     Ok((mass, chol, bias))
 }
 

@@ -156,7 +156,7 @@ pub(crate) fn build(model: &Model, options: &Options) -> Result<(PhysicsWorld, L
         let handle = world
             .multibody_joints
             .insert(handles[carrier[p]], handles[r], joint, true)
-            .ok_or_else(|| Error::invalid("model", format!("Rapier refused the joint of body {i}")))?;
+            .ok_or_else(|| Error::numerical("model", format!("Rapier refused the joint of body {i}")))?;
         joint_handle = Some(handle);
     }
 
