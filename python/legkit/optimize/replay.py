@@ -10,8 +10,9 @@ What the amble's replay showed (measured on the Fig. 3 amble, 4 intervals per ph
   before it: `periodic_samples` interpolates each phase on its own Hermite-Simpson cubics.
 * The impacts: with eq. 7 unbounded, J_s2 lands with impulses of ~1 N s (the robot's whole momentum) and
   replays fell within 0.3-1.5 s at every gain tried (0 of 30 settings); with soft touchdowns
-  (`MultiphaseProblem.max_impulse` = 0) kp 50, kd 1 walks 5 cycles upright with 3.3 % drift, but only 14 of
-  135 (kp, kd) settings from kp 20-150, kd 0.25-2 pass.
+  (`MultiphaseProblem.max_impulse` = 0) kp 50, kd 1 walks 5 cycles upright with 3.3 % drift (10 cycles: 5.6 %),
+  but only 14 of 135 (kp, kd) settings from kp 20-150, kd 0.25-2 pass, and at kp 50, kd 1 a 0.5 ms step,
+  friction 0.7 or 1.0, or 1 or 5 mm spheres each make it fall after 3.2-5.5 s.
 * The tipping mode: two point feet put no moment on the robot about their line, and joint tracking fixes its
   shape, so it tips about that line as an unactuated inverted pendulum. On the optimiser's own contact model
   (feet held bilaterally by `lk.contact_dynamics`, touchdowns by `lk.impact`, the same PD + feed-forward) the
