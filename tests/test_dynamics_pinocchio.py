@@ -217,6 +217,7 @@ def test_floating_robot_far_from_the_origin_keeps_its_precision(n, seed, distanc
 
 
 def test_default_gravity():
+    assert lk.STANDARD_GRAVITY == 9.81  # the one Python name for the core's default (read from it)
     assert np.array_equal(np.asarray(lk.Model().gravity), np.array([0.0, 0.0, -9.81]))
     assert np.array_equal(np.asarray(lk.Model(floating_base=True, gravity=None).gravity), np.array([0.0, 0.0, -9.81]))
 

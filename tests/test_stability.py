@@ -12,7 +12,8 @@ import legkit as lk
 import legkit.stability as ls
 from conftest import examples
 
-G = 9.81
+G = lk.STANDARD_GRAVITY
+MOON = 1.62  # m/s^2: models built with gravity (0, 0, -MOON) check that an index takes the model's own gravity
 
 
 def rot_z(angle: float) -> np.ndarray:
@@ -108,18 +109,21 @@ def test_point_mass_over_triangle_margin_and_s_h():
 # --------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("g", [G, MOON])
 @pytest.mark.parametrize("factor", [0.98, 1.02])
-def test_pendulum_passes_the_edge_exactly_when_s_h_is_negative(factor):
+def test_pendulum_passes_the_edge_exactly_when_s_h_is_negative(factor, g):
     mass, d, h = 1.5, 0.1, 0.4  # point mass at (0, -d, h), the edge is the x axis
-    model = lk.Model(floating_base=False)
+    model = lk.Model(floating_base=False, gravity=[0.0, 0.0, -g])
     model.add_revolute(0, [1.0, 0.0, 0.0], None, lk.MassProperties.point(mass, [0.0, -d, h]), "pendulum")
     r = np.hypot(d, h)
-    h_ref = mass * r * np.sqrt(2.0 * G * (r - h))
+    h_ref = mass * r * np.sqrt(2.0 * g * (r - h))
     omega = -factor * h_ref / (mass * r * r)  # negative rotation about +x swings the mass toward +y
     support = np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, -5.0, 0.0]])  # the x axis is its nearest edge
     s_h = ls.angular_momentum_stability_of_model(model, [0.0], [omega], support, definition="energy")
     assert s_h == pytest.approx((1.0 - factor) * h_ref, rel=1e-9)
-    qs, _ = lk.simulate(model, [0.0], [omega], 1e-3, 1500)
+    paper = ls.angular_momentum_stability_of_model(model, [0.0], [omega], support)  # non-diagonal edge: H_ref - H
+    assert paper == pytest.approx((1.0 - factor) * h_ref, rel=1e-9)
+    qs, _ = lk.simulate(model, [0.0], [omega], 1e-3, round(1500 * np.sqrt(G / g)))  # time scales as 1 / sqrt(g)
     mass_y = -d * np.cos(qs[:, 0]) - h * np.sin(qs[:, 0])  # y of the mass after rotating by q about x
     passed = bool(np.any(mass_y > 0.0))
     assert passed == (s_h < 0.0)
@@ -334,19 +338,20 @@ def test_fri_equals_cop_while_the_feet_are_held_still(feet):
     )
 
 
-def test_fri_ignores_the_foot_inertia_but_keeps_its_weight():
+@pytest.mark.parametrize("g", [G, MOON])
+def test_fri_ignores_the_foot_inertia_but_keeps_its_weight(g):
     # A free box "foot" carrying a point mass on a slider along x at height h; state at rest, the foot
     # accelerating. Goswami's FRI ignores the foot's acceleration, the ZMP does not.
     m_foot, m_top, h, x0 = 2.0, 3.0, 0.5, 0.1
-    model = lk.Model(floating_base=True, base=lk.MassProperties.box(m_foot, [0.2, 0.1, 0.04]))
+    model = lk.Model(floating_base=True, base=lk.MassProperties.box(m_foot, [0.2, 0.1, 0.04]), gravity=[0.0, 0.0, -g])
     model.add_prismatic(0, [1.0, 0.0, 0.0], (np.eye(3), [0.0, 0.0, h]), lk.MassProperties.point(m_top, [0.0, 0.0, 0.0]), "top")
     q = np.array([0, 0, 0.02, 0, 0, 0, 1.0, x0])
     foot_acc, slide_acc = 0.8, 1.3
     a = np.array([foot_acc, 0, 0, 0, 0, 0, slide_acc])
     top_acc = foot_acc + slide_acc
     top_height = 0.02 + h
-    expected_fri = ((m_foot * 0.0 + m_top * x0) * G - m_top * top_height * top_acc) / ((m_foot + m_top) * G)
-    expected_zmp = expected_fri - m_foot * 0.02 * foot_acc / ((m_foot + m_top) * G)
+    expected_fri = ((m_foot * 0.0 + m_top * x0) * g - m_top * top_height * top_acc) / ((m_foot + m_top) * g)
+    expected_zmp = expected_fri - m_foot * 0.02 * foot_acc / ((m_foot + m_top) * g)
     fri = ls.foot_rotation_indicator(model, q, np.zeros(7), a, 0)
     zmp = ls.zmp(model, q, np.zeros(7), a)
     assert fri[0] == pytest.approx(expected_fri, abs=1e-12)

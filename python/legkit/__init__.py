@@ -1,7 +1,8 @@
 """legkit: Rust-accelerated physics for legged and modular robots.
 
-Conventions: SI units, right-handed frames with z up, gravity (0, 0, -9.81); a rigid transform maps child
-to parent coordinates, ``x_parent = R @ x_child + t``. Every array argument is float64 (lists accepted),
+Conventions: SI units, right-handed frames with z up, gravity (0, 0, -9.81)
+(``STANDARD_GRAVITY``) unless a Model is given another; a rigid transform maps child to parent coordinates,
+``x_parent = R @ x_child + t``. Every array argument is float64 (lists accepted),
 and leading batch dimensions broadcast; batches run in Rust on all cores with the GIL released.
 A floating base uses q = [x, y, z, qx, qy, qz, qw] and v = [v_lin, v_ang] in the base frame, as Pinocchio.
 """
@@ -35,7 +36,13 @@ from legkit._core import (
 )
 from legkit.geometry import CircleLineResult, circle_line, rotation_toward_line
 
+STANDARD_GRAVITY: float = float(-Model().gravity[2])
+"""Magnitude [m/s^2] of the core's default gravity (0, 0, -STANDARD_GRAVITY), read from a default ``Model``
+so that the number lives in one place. Code that has a Model uses ``model.gravity``; this is the default
+only where no model is at hand."""
+
 __all__ = [
+    "STANDARD_GRAVITY",
     "MassProperties",
     "Model",
     "UrdfWarning",

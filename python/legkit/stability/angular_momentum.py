@@ -107,7 +107,7 @@ def angular_momentum_stability(
     swing_tips: npt.ArrayLike | None = None,
     swing_active: npt.ArrayLike | None = None,
     v_tip_max: float | None = None,
-    gravity: float = 9.81,
+    gravity: float = lk.STANDARD_GRAVITY,
     *,
     definition: Definition = "paper",
     direction: npt.ArrayLike | None = None,

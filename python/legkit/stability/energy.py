@@ -15,6 +15,7 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
+import legkit as lk
 from legkit._validation import float_array
 from legkit.stability._validation import positive_scalar, time_grid
 
@@ -71,7 +72,7 @@ def specific_resistance(
     t: npt.ArrayLike,
     forward_velocity: npt.ArrayLike,
     mass: float,
-    gravity: float = 9.81,
+    gravity: float = lk.STANDARD_GRAVITY,
     *,
     definition: Literal["paper", "mean"] = "paper",
 ) -> float:
@@ -84,7 +85,8 @@ def specific_resistance(
     resistance itself, which at constant v is the work sum_i |u_i theta_dot_i| spent per m g and metre.
 
     torques, joint_velocities: (T, n) [N m], [rad/s]; t: (T,) [s]; forward_velocity v: scalar or (T,) forward
-    speed [m/s], > 0 (the integrand divides by it); mass > 0 [kg]. Trapezoidal rule. Negative joint work is
+    speed [m/s], > 0 (the integrand divides by it); mass > 0 [kg]; gravity > 0 [m/s^2] (for a model, the
+    magnitude of ``model.gravity``). Trapezoidal rule. Negative joint work is
     counted as spent (|.|): motors do not recover it.
     """
     if definition not in ("paper", "mean"):

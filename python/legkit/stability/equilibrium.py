@@ -29,11 +29,10 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import OptimizeResult, linprog
 
+import legkit as lk
 from legkit._validation import float_array
 from legkit.stability._validation import friction_coefficient, positive_scalar, unit_vectors
 from legkit.stability.support import convex_hull_2d, polygon_margin
-
-_GRAVITY = 9.81
 
 
 def _contact_arrays(contacts: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]]) -> tuple[np.ndarray, np.ndarray]:
@@ -63,7 +62,7 @@ class _EquilibriumLP:
     def __init__(self, points: np.ndarray, normals: np.ndarray, mu: float, cone_sides: int, bound: float):
         k = len(points)
         self.k = k
-        weight = _GRAVITY
+        weight = lk.STANDARD_GRAVITY  # any g > 0 along -z gives the same region (the forces scale with it)
         # Equalities: force balance (3 rows), moment balance (3 rows); c x (-w e_z) = (-w c_y, w c_x, 0).
         a_eq = np.zeros((6, 3 * k + 2))
         for i, r in enumerate(points):

@@ -42,15 +42,15 @@ def zmp_from_momentum_rate(
     com: npt.ArrayLike,
     momentum_rate: npt.ArrayLike,
     mass: float,
-    gravity: npt.ArrayLike = (0.0, 0.0, -9.81),
+    gravity: npt.ArrayLike = (0.0, 0.0, -lk.STANDARD_GRAVITY),
     ground_height: float = 0.0,
 ) -> np.ndarray:
     """ZMP (..., 3) [m] from the rate of centroidal momentum.
 
     com: (..., 3) world COM [m]; momentum_rate: (..., 6) [d/dt linear momentum (N), d/dt angular momentum
     about the COM (N m)], world-aligned, gravity *not* included (as `lk.centroidal_momentum_rate`);
-    mass [kg]; gravity (3,) [m/s^2]. The ground reaction is F = dh/dt - m g and its moment about the
-    COM is dk/dt, so about o: M_o = dk/dt + (c - o) x F.
+    mass [kg]; gravity (3,) [m/s^2] (for a model, ``model.gravity``, as `zmp` passes it). The ground reaction
+    is F = dh/dt - m g and its moment about the COM is dk/dt, so about o: M_o = dk/dt + (c - o) x F.
     """
     c = float_array(com, "com", last=3)
     rate = float_array(momentum_rate, "momentum_rate", last=6)

@@ -39,12 +39,12 @@ from typing import Protocol
 
 import numpy as np
 
+from legkit import STANDARD_GRAVITY
 from legkit.robots.rhex import LEG_LENGTH, TOTAL_MASS, TRIPODS
 from legkit.strain.benchtop import CompliantFourBarLeg, StrainSensor
 from legkit.strain.model import LegModel
 from legkit.strain.pose import TripodPose, euler_zyx, toe_in_body, tripod_pose
 
-GRAVITY = 9.81
 LEGS = np.arange(6)
 TRIPOD_LEGS = np.array(TRIPODS)  # (2, 3)
 STANCE_CENTRE = -0.1  # rad, default centre theta_0 of the stance sweep
@@ -198,7 +198,7 @@ def kinematic_walk(
     # Tripod A is in stance during the first half of its cycle.
     support = TRIPOD_LEGS[np.where(stance[:, TRIPOD_LEGS[0, 0]], 0, 1)]  # (T, 3) stance leg indices
     rows = np.arange(time.size)[:, None]
-    weight = TOTAL_MASS * GRAVITY
+    weight = TOTAL_MASS * STANDARD_GRAVITY
 
     length = np.full(theta.shape, leg.nominal_length)
     deflection = np.zeros(theta.shape)
