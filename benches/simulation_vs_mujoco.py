@@ -70,6 +70,7 @@ import numpy as np
 import legkit as lk
 
 DT = 1e-3
+GRAVITY = f"0 0 {-lk.STANDARD_GRAVITY}"  # MJCF <option gravity>: the legkit Models' default
 FRICTION = 0.8
 SETTLE_SECONDS = 0.3
 SOLVER_ITERATIONS: int | None = None  # None: legkit's default; --solver-iterations overrides
@@ -191,7 +192,7 @@ def mujoco_xml(parts: list[Part]) -> str:
         if part.axis is not None
     )
     return (
-        f'<mujoco><option timestep="{DT}" gravity="0 0 -9.81"/>'
+        f'<mujoco><option timestep="{DT}" gravity="{GRAVITY}"/>'
         f'<worldbody><geom type="plane" size="5 5 0.1" contype="2" conaffinity="1" friction="{FRICTION}"/>'
         f'{"".join(body(c) for c in children.get(-1, []))}</worldbody>'
         f"<actuator>{actuators}</actuator></mujoco>"
@@ -298,7 +299,7 @@ def quadruped_xml() -> str:
         for j in ("roll", "pitch", "knee")
     )
     return (
-        f'<mujoco><option timestep="{DT}" gravity="0 0 -9.81" integrator="implicitfast"/>'
+        f'<mujoco><option timestep="{DT}" gravity="{GRAVITY}" integrator="implicitfast"/>'
         f'<worldbody><geom type="plane" size="5 5 0.1" contype="2" conaffinity="1" friction="{FRICTION}"/>'
         f'<body name="torso" pos="0 0 {stand_height() + 0.005}"><freejoint/>'
         f'<inertial pos="0 0 0" mass="{TORSO_MASS}" diaginertia="{vec(box_diaginertia(TORSO_MASS, TORSO_SIZE))}"/>'

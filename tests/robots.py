@@ -265,7 +265,7 @@ def build_twin(
         raise ValueError("n_bodies must be >= 1")
     if depth_first is None:
         depth_first = bool(rng.random() < 0.3)
-    g = np.array([0.0, 0.0, -9.81]) if gravity is None else np.asarray(gravity, float)
+    g = np.asarray(lk.Model().gravity) if gravity is None else np.asarray(gravity, float)
 
     # ---- the random tree, in legkit body order ----------------------------------------------------
     if floating:

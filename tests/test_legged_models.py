@@ -115,7 +115,7 @@ def test_periodic_lip_satisfies_the_pendulum_equation():
     # Exact for these two harmonics: amplitude divided by 1 + (h/g) w^2.
     for column, harmonic, amplitude, wave in ((0, 1, 0.05, np.sin), (1, 2, 0.02, np.cos)):
         w = 2 * np.pi * harmonic / period
-        np.testing.assert_allclose(com[:, column], amplitude * wave(w * t) / (1 + height / 9.81 * w * w), atol=1e-14)
+        np.testing.assert_allclose(com[:, column], amplitude * wave(w * t) / (1 + height / lk.STANDARD_GRAVITY * w * w), atol=1e-14)
 
 
 @pytest.mark.slow

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 import legkit as lk
 from conftest import examples
 
-G = 9.81
+G = lk.STANDARD_GRAVITY
 
 
 def rotation(axis, angle):

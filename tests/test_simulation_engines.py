@@ -18,7 +18,7 @@ import legkit as lk
 from conftest import examples
 from test_simulation import FOOT_RADIUS, LEG_LENGTH, quadruped, rotation, ten_link_tree, total_contact_force
 
-G = 9.81
+G = lk.STANDARD_GRAVITY
 BACKENDS = ("tree", "rapier")
 
 

@@ -24,7 +24,7 @@ from legkit.strain.simulated import (
 )
 from legkit.strain.walking import ClockGait, estimate_body_pose
 
-G = 9.81
+G = lk.STANDARD_GRAVITY
 LEG = CompliantFourBarLeg()
 TRIPOD_ARRAY = np.array(TRIPODS)
 

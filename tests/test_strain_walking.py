@@ -8,6 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from conftest import examples
+from legkit import STANDARD_GRAVITY
 from legkit.experiments.strain import calibration_set, main
 from legkit.robots.rhex import LEG_LENGTH, TOTAL_MASS, TRIPODS, rhex_model
 from legkit.strain.benchtop import CompliantFourBarLeg, StrainSensor, leg_frame_loads, synthetic_benchtop
@@ -44,7 +45,7 @@ def test_ground_truth_is_physically_consistent(speed: float, seed: int, com: tup
     # Quasi-static equilibrium: the vertical stance forces carry the weight and their centre of pressure is
     # the centre of mass (body-frame offset (c_x, c_y, 0)) projected on the ground.
     forces = stream.normal_force[rows[:, None], support]
-    np.testing.assert_allclose(forces.sum(axis=1), TOTAL_MASS * 9.81, rtol=1e-12)
+    np.testing.assert_allclose(forces.sum(axis=1), TOTAL_MASS * STANDARD_GRAVITY, rtol=1e-12)
     stance_xy = world_toes[rows[:, None], support, :2]
     centre_of_pressure = np.einsum("tk,tki->ti", forces, stance_xy) / forces.sum(axis=1)[:, None]
     centre_of_mass = stream.body_position + stream.body_rotation @ np.array([com[0], com[1], 0.0])

@@ -218,7 +218,7 @@ def test_quadruped_zmp_equals_simulated_cop_standing_and_swaying():
     kp = np.r_[np.zeros(6), np.full(12, 20.0)]
     kd = np.r_[np.zeros(6), np.full(12, 0.02)]
     run = stand_and_sway(model, shapes, robot.contacts(), feet, stand, sway, kp, kd, retarget_time=0.3, sway_time=0.6, end_time=2.6)
-    figures = check_zmp_equals_cop(run, feet, min_foot_load=0.1 * model.total_mass * 9.81 / 4, settle_time=0.4)
+    figures = check_zmp_equals_cop(run, feet, min_foot_load=0.1 * model.total_mass * -model.gravity[2] / 4, settle_time=0.4)
     print(f"quadruped max |ZMP - CoP|: standing {1e3 * figures['standing']:.4f} mm, swaying {1e3 * figures['swaying']:.4f} mm")
 
 
@@ -265,7 +265,7 @@ def test_biped_zmp_equals_simulated_cop_standing_and_swaying():
         kd[robot.joint_slice(side, "arm")] = 5.0
 
     run = stand_and_sway(model, shapes, robot.contacts(), feet, stand, sway, kp, kd, retarget_time=0.3, sway_time=0.6, end_time=3.1)
-    figures = check_zmp_equals_cop(run, feet, min_foot_load=0.1 * model.total_mass * 9.81 / 2, settle_time=0.4)
+    figures = check_zmp_equals_cop(run, feet, min_foot_load=0.1 * model.total_mass * -model.gravity[2] / 2, settle_time=0.4)
     print(f"biped max |ZMP - CoP|: standing {1e3 * figures['standing']:.4f} mm, swaying {1e3 * figures['swaying']:.4f} mm")
 
 
