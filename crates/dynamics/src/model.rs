@@ -141,6 +141,9 @@ impl Default for JointLimits {
     }
 }
 
+/// Standard gravity (m/s²): a new model's gravity is (0, 0, −g).
+pub const STANDARD_GRAVITY: f64 = 9.81;
+
 #[derive(Debug, Clone)]
 pub struct Model {
     joints: Vec<Joint>,
@@ -181,7 +184,7 @@ impl Model {
             subtree_columns: vec![(joint.nv() > 0).then(|| 0..joint.nv()).into_iter().collect()],
             nq: joint.nq(),
             nv: joint.nv(),
-            gravity: Vector3::new(0.0, 0.0, -9.81),
+            gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
             collision: None,
         }
     }

@@ -5,7 +5,7 @@ use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 
 use super::*;
 use crate::algorithms::{simulate, Method};
-use crate::model::JointLimits;
+use crate::model::{JointLimits, STANDARD_GRAVITY};
 use crate::sim::options::Backend;
 use crate::{Data, MassProperties};
 
@@ -180,7 +180,7 @@ fn box_resting_on_the_plane_carries_its_weight(backend: Backend) {
     let contacts = sim.contacts();
     assert!(contacts.len() >= 4, "a box face on a plane has 4 contact points, got {}", contacts.len());
     let force = total_normal_force(&contacts);
-    let weight = 3.0 * 9.81;
+    let weight = 3.0 * STANDARD_GRAVITY;
     println!("box on plane: contact force {force:?}, weight {weight}");
     assert!((force.z - weight).abs() < 0.01 * weight, "vertical contact force {} vs weight {weight}", force.z);
     assert!(force.xy().norm() < 0.01 * weight);
@@ -245,7 +245,7 @@ fn quadruped_standing_on_servos_carries_its_weight(backend: Backend) {
     sim.step(None, 2000).unwrap();
     let contacts = sim.contacts();
     let force = total_normal_force(&contacts);
-    let weight = sim.model().total_mass() * 9.81;
+    let weight = sim.model().total_mass() * STANDARD_GRAVITY;
     println!("quadruped on plane: contact force {force:?}, weight {weight}, {} contacts", contacts.len());
     assert_eq!(contacts.len(), 4);
     assert!((force.z - weight).abs() < 0.01 * weight, "vertical contact force {} vs weight {weight}", force.z);
@@ -339,7 +339,7 @@ fn revolute_limit_stops_a_falling_pendulum(backend: Backend) {
     // the overshoot is at most ω h + α h², with ω the speed at the limit (energy conservation from
     // 0.4 rad; Rapier's integrator only loses energy) and α ≤ m g (L/2) / I the largest gravitational
     // acceleration.
-    let (m, length, g, dt): (f64, f64, f64, f64) = (1.0, 0.5, 9.81, 1e-3);
+    let (m, length, g, dt): (f64, f64, f64, f64) = (1.0, 0.5, STANDARD_GRAVITY, 1e-3);
     let inertia = m * (length * length + 0.04 * 0.04) / 12.0 + m * (length / 2.0).powi(2);
     let omega = (2.0 * m * g * (length / 2.0) * (0.4f64.cos() - 0.5f64.cos()) / inertia).sqrt();
     let alpha = m * g * (length / 2.0) / inertia;
@@ -375,7 +375,7 @@ fn revolute_limit_stops_a_falling_pendulum(backend: Backend) {
 fn prismatic_limit_stops_a_falling_slider(backend: Backend) {
     // A 2 kg block sliding along world z from 0 falls onto its lower limit at −0.2 m: speed at the limit
     // √(2 g 0.2), and the same one-step overshoot bound v dt + g dt².
-    let (g, dt) = (9.81, 1e-3);
+    let (g, dt) = (STANDARD_GRAVITY, 1e-3);
     let mut model = Model::new(false, MassProperties::zero(), "base");
     let block = MassProperties::cuboid(2.0, Vector3::new(0.1, 0.1, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap();
     model.add_body(0, Joint::Prismatic(Vector3::z()), Transform::identity(), block, "block", JointLimits::position(-0.2, 0.3).unwrap()).unwrap();
@@ -461,7 +461,7 @@ fn convex_mesh_rests_like_its_box(backend: Backend) {
     sim.step(None, 1000).unwrap();
     let height = sim.q()[2];
     assert!((height - 0.025).abs() <= 1e-3, "rests at {height} m, not on its hull's bottom face (0.025 m)");
-    let weight = 2.0 * 9.81;
+    let weight = 2.0 * STANDARD_GRAVITY;
     let force = total_normal_force(&sim.contacts());
     assert!((force.z - weight).abs() <= 1e-3 * weight && force.xy().norm() <= 1e-3 * weight, "contact force {force:?} vs weight {weight}");
     assert!(Convex::hull(&vertices[..4]).is_err(), "four corners of one face span no volume");
