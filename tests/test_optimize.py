@@ -14,7 +14,7 @@ from legkit.optimize import (
 )
 from legkit.robots.quadruped import LEGS, build_quadruped
 
-G = 9.81
+G = lk.STANDARD_GRAVITY
 MASS, LENGTH = 1.0, 0.5  # pendulum: point mass on a massless rod, inertia m l^2 about the pivot
 
 

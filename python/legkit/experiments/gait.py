@@ -54,8 +54,6 @@ import legkit.stability as st
 from legkit.robots.biped import JOINT_LABELS, SIDES, Biped, build_biped
 from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, Quadruped, QuadrupedParameters, build_quadruped
 
-STANDARD_GRAVITY = 9.81
-
 
 @dataclass(frozen=True)
 class MotorParameters:
@@ -139,14 +137,14 @@ def _periodic_derivatives(values: np.ndarray, dt: float) -> tuple[np.ndarray, np
     return first, second
 
 
-def periodic_lip(zmp_offset: np.ndarray, period: float, height: float) -> np.ndarray:
+def periodic_lip(zmp_offset: np.ndarray, period: float, height: float, gravity: float = lk.STANDARD_GRAVITY) -> np.ndarray:
     """The periodic COM path (N, 2) of the linear inverted pendulum c - (height / g) c'' = p for a periodic
     ZMP reference p (N, 2), both taken relative to the steady progression (speed t, 0).
 
     In Fourier terms C_k = P_k / (1 + (height / g) (2 pi k / period)^2): the unique periodic solution, so the
     gait's base motion starts and ends in the same state and the ZMP (in the LIP sense) follows p."""
     frequency = 2.0 * np.pi * np.fft.rfftfreq(zmp_offset.shape[0], d=period / zmp_offset.shape[0])
-    spectrum = np.fft.rfft(zmp_offset, axis=0) / (1.0 + height / STANDARD_GRAVITY * frequency**2)[:, None]
+    spectrum = np.fft.rfft(zmp_offset, axis=0) / (1.0 + height / gravity * frequency**2)[:, None]
     return np.fft.irfft(spectrum, n=zmp_offset.shape[0], axis=0)
 
 
@@ -160,10 +158,11 @@ def _base_on_zmp(model: lk.Model, t: np.ndarray, speed: float, zmp_ref: np.ndarr
     of iterative ZMP compensation. joints_for(base_xy) -> joint angles; states(base_xy, joints) -> (q, v, a)."""
     period = t[1] * len(t)
     progression = np.stack([speed * t, np.zeros_like(t)], axis=1)
-    base = periodic_lip(zmp_ref - progression, period, com_height)
+    g = -model.gravity[2]
+    base = periodic_lip(zmp_ref - progression, period, com_height, g)
     for _ in range(iterations):
         error = zmp_ref - st.zmp(model, *states(base, joints_for(base)))[:, :2]
-        base = base + periodic_lip(error, period, com_height)
+        base = base + periodic_lip(error, period, com_height, g)
     joints = joints_for(base)
     error = zmp_ref - st.zmp(model, *states(base, joints))[:, :2]
     return base, joints, float(np.max(np.linalg.norm(error, axis=1)))
@@ -368,7 +367,7 @@ def analyse(name: str, model: lk.Model, ref: GaitReference, motor: MotorParamete
         "torque_speed_margin": torque_speed, "joule_power": joule, "mechanical_power": mechanical,
     }
     worst, worst_t = st.worst_case(s_h, ref.t)
-    mass = model.total_mass
+    mass, g = model.total_mass, -model.gravity[2]
     summary = {
         "S_H min [N m s]": worst, "S_H min at [s]": worst_t, "S_H mean [N m s]": float(np.mean(s_h)),
         "S_H energy variant min [N m s]": float(np.min(s_h_energy)),
@@ -380,8 +379,8 @@ def analyse(name: str, model: lk.Model, ref: GaitReference, motor: MotorParamete
         "contact-dynamics |ddq - a_ref| max": gap,
         "friction margin min [N]": float(np.min(friction)), "torque-speed margin min [N m]": float(np.min(torque_speed)),
         "E1 Joule loss [J/m]": st.joule_loss_index(dyn.torques, ref.t, ref.distance, motor.resistance, motor.gear_ratio, motor.torque_constant),
-        "J_e2 (eq. 13) [s]": st.specific_resistance(dyn.torques, joint_v, ref.t, forward_speed, mass, STANDARD_GRAVITY),
-        "J_e2 time mean [-]": st.specific_resistance(dyn.torques, joint_v, ref.t, forward_speed, mass, STANDARD_GRAVITY, definition="mean"),
+        "J_e2 (eq. 13) [s]": st.specific_resistance(dyn.torques, joint_v, ref.t, forward_speed, mass, g),
+        "J_e2 time mean [-]": st.specific_resistance(dyn.torques, joint_v, ref.t, forward_speed, mass, g, definition="mean"),
     }
     return GaitAnalysis(name, ref, dyn, columns, summary)
 
