@@ -89,7 +89,8 @@ def main() -> None:
 
     def problem(speed: float) -> tuple[lo.MultiphaseProblem, float]:
         start = time.perf_counter()
-        p = amble_problem(robot, objective, speed, 1.25, args.intervals, QUADRUPED_MOTOR)
+        # Soft touchdowns, as `legkit gait --optimize` solves it (its --max-impulse default).
+        p = amble_problem(robot, objective, speed, 1.25, args.intervals, QUADRUPED_MOTOR, max_impulse=0.0)
         p.nlp(args.derivatives)  # builds (and keeps) the symbolic transcription
         return p, time.perf_counter() - start
 
