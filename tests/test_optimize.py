@@ -9,7 +9,13 @@ from scipy.integrate import solve_bvp
 
 import legkit as lk
 from legkit.optimize import (
-    MinMaxStability, MultiphaseProblem, Phase, Trajectory, effort, hermite_simpson_defects, joule_loss,
+    MinMaxStability,
+    MultiphaseProblem,
+    Phase,
+    Trajectory,
+    effort,
+    hermite_simpson_defects,
+    joule_loss,
     specific_resistance,
 )
 from legkit.robots.quadruped import LEGS, build_quadruped
@@ -36,8 +42,12 @@ def single_phase(t: np.ndarray, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> 
 def test_defects_vanish_for_cubics_and_converge_at_the_method_order():
     # A cubic is reproduced exactly by both defects.
     t = np.linspace(0.0, 1.0, 9)
-    x = lambda s: (1.0 + 2.0 * s - 3.0 * s**2 + 0.5 * s**3)[:, None]
-    f = lambda s: (2.0 - 6.0 * s + 1.5 * s**2)[:, None]
+    def x(s: np.ndarray) -> np.ndarray:
+        return (1.0 + 2.0 * s - 3.0 * s**2 + 0.5 * s**3)[:, None]
+
+    def f(s: np.ndarray) -> np.ndarray:
+        return (2.0 - 6.0 * s + 1.5 * s**2)[:, None]
+
     mid = 0.5 * (t[:-1] + t[1:])
     interpolation, simpson = hermite_simpson_defects(x(t), x(mid), f(t), f(mid), t[1] - t[0])
     assert np.max(np.abs(interpolation)) < 1e-14 and np.max(np.abs(simpson)) < 1e-14

@@ -88,8 +88,13 @@ def test_periodic_samples_follow_the_collocation_cubic_and_keep_the_touchdown_ju
     problem = MultiphaseProblem(model, [Phase((), 3, (0.9, 0.9))], objectives=[effort()], periodic=False,
                                 initial=([0.0], [0.0]), final=([1.0], [0.0]))
     c = np.array([0.3, -1.2, 2.5, -0.7])
-    angle = lambda s: c[0] + c[1] * s + c[2] * s**2 + c[3] * s**3
-    rate = lambda s: c[1] + 2 * c[2] * s + 3 * c[3] * s**2
+
+    def angle(s: np.ndarray) -> np.ndarray:
+        return c[0] + c[1] * s + c[2] * s**2 + c[3] * s**3
+
+    def rate(s: np.ndarray) -> np.ndarray:
+        return c[1] + 2 * c[2] * s + 3 * c[3] * s**2
+
     t = np.linspace(0.0, 0.9, 7)
     trajectory = Trajectory([t], [angle(t)[:, None]], [rate(t)[:, None]], [np.sin(t)[:, None]], [np.zeros((7, 0, 3))],
                             np.array([0.9]), a=[(2 * c[2] + 6 * c[3] * t)[:, None]])

@@ -30,8 +30,8 @@ Pipeline, per robot:
    (eq. 8, the point S) and J_s1 (eq. 9) of the GCoM about it.
 
 Outputs in --out: gait_<robot>.csv (one row per sample) and gait_<robot>.png (S_H over the cycle, like the
-paper's Fig. 3: the published S_H, with the energy variant overlaid; the static and ZMP margins below). A short table is printed. Nothing is random: the
-same arguments give the same files.
+paper's Fig. 3: the published S_H, with the energy variant overlaid; the static and ZMP margins below). A short table is printed.
+Nothing is random: the same arguments give the same files.
 
 `--optimize` replaces the references by optimised gaits (`legkit.optimize`): the amble maximising the
 worst-case S_H (J_s2) and the biped walk minimising the Joule loss (J_e1) with a Fig.-6 torque-speed plot
@@ -113,7 +113,8 @@ def _bump(s: np.ndarray) -> np.ndarray:
     return 64.0 * (s * (1.0 - s)) ** 3
 
 
-def _foot_track(samples: int, touchdown: int, stance_samples: int, dt: float, speed: float, step_height: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _foot_track(samples: int, touchdown: int, stance_samples: int, dt: float, speed: float,
+                step_height: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """World foot x (relative to where the body's nominal frame was at t = 0), lift and stance flag over one
     cycle of `samples` steps of dt. The foot touches down at sample `touchdown` half a stance ahead of its
     hip, stays put for `stance_samples`, then swings one stride (speed x cycle time) forward along a
@@ -356,7 +357,8 @@ def analyse(name: str, model: lk.Model, ref: GaitReference, motor: MotorParamete
     normals = np.broadcast_to([0.0, 0.0, 1.0], foot_forces.shape)
     friction = np.min(np.where(foot_on, st.friction_cone_margin(foot_forces, normals, mu), np.inf), axis=1)
     joint_v = ref.v[:, 6:]
-    torque_speed = np.min(st.torque_speed_margin(dyn.torques, joint_v, motor.joint_max_speed, motor.gear_ratio, motor.efficiency, motor.slope), axis=1)
+    torque_speed = np.min(st.torque_speed_margin(dyn.torques, joint_v, motor.joint_max_speed, motor.gear_ratio, motor.efficiency, motor.slope),
+                          axis=1)
     joule = st.joule_loss_power(dyn.torques, motor.resistance, motor.gear_ratio, motor.torque_constant)
     mechanical = np.sum(np.abs(dyn.torques * joint_v), axis=1)
     progress.update()
@@ -509,7 +511,11 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     --no-animation, writes the replay beside the plan as .html (meshcat) and .gif."""
     from legkit.optimize import MinMaxStability
     from legkit.optimize.gaits import (
-        AMBLE_DERIVATIVES, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference,
+        AMBLE_DERIVATIVES,
+        AMBLE_IPOPT,
+        amble_problem,
+        amble_reference,
+        guess_from_reference,
     )
     from legkit.optimize.replay import replay
 
@@ -544,7 +550,8 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
         "kept iterate (IPOPT's last unless a better one within tol)": float(kept),
         "max constraint violation (legkit dynamics)": problem.nlp().violation(x),
         "S_H min, optimised [N m s]": worst, "S_H min at [s]": worst_t, "S_H min, reference [N m s]": float(reference_s_h.min()),
-        **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d) for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
+        **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d)
+           for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
         f"replay: drift over {args.replay_cycles} cycles [% of distance]": 100.0 * simulated.drift_fraction,
         "replay: stayed upright (1 = yes)": float(simulated.upright),
         "replay: fell after [s] (inf: never)": simulated.fell_at,
@@ -594,7 +601,8 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
         "max constraint violation (legkit dynamics)": problem.nlp().violation(x),
         "max |rnea - B u| (lk.rnea) [N m]": float(np.max(np.abs(np.concatenate(inverse_dynamics_residuals(problem, x))))),
         "period [s]": float(np.sum(trajectory.durations)), "step length [m]": 0.5 * speed * float(np.sum(trajectory.durations)),
-        **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d) for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
+        **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d)
+           for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
         "torque-speed margin min (Sect. 2.3) [N m]": float(np.min(st.torque_speed_margin(
             data["u"], joint_speed, BIPED_MOTOR.joint_max_speed, BIPED_MOTOR.gear_ratio, BIPED_MOTOR.efficiency, BIPED_MOTOR.slope))),
         "solver succeeded (1 = yes)": float(result.success),
@@ -739,7 +747,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--intervals", type=_positive_int, default=4, help="--optimize: collocation intervals per amble phase")
     parser.add_argument("--biped-intervals", type=_positive_int, default=4,
                         help="--optimize: collocation intervals per biped single-support phase (a quarter, at least 1, per double support)")
-    parser.add_argument("--max-iter", type=_positive_int, default=300, help="--optimize: IPOPT iteration limit for the amble (per continuation stage)")
+    parser.add_argument("--max-iter", type=_positive_int, default=300,
+                        help="--optimize: IPOPT iteration limit for the amble (per continuation stage)")
     parser.add_argument("--biped-max-iter", type=_positive_int, default=1000,
                         help="--optimize: IPOPT iteration limit for the biped walk (per stage; J_e1 still falls slowly after 1000)")
     parser.add_argument("--tol", type=float, default=1e-6, help="--optimize: IPOPT tolerance")

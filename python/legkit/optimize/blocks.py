@@ -7,8 +7,9 @@ state), differentiated by `point_jacobian`'s coloured central differences.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Protocol
 
 import numpy as np
 

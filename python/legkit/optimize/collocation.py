@@ -13,7 +13,7 @@ For an exact trajectory the first is O(h^4) (Hermite interpolation error), the s
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

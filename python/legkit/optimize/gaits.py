@@ -12,13 +12,18 @@ stance from the left touchdown at t = 0, each sole a `FlatFoot` (eq. 6); the ful
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
 import legkit as lk
 from legkit.experiments.gait import (
-    AMBLE_HIP_HEIGHT, GaitReference, MotorParameters, biped_walk, contact_inverse_dynamics, quadruped_amble,
+    AMBLE_HIP_HEIGHT,
+    GaitReference,
+    MotorParameters,
+    biped_walk,
+    contact_inverse_dynamics,
+    quadruped_amble,
 )
 from legkit.optimize.objectives import joule_loss
 from legkit.optimize.problem import FlatFoot, MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory

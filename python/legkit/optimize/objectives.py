@@ -37,8 +37,9 @@ S_H is re-evaluated and reported.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -195,7 +196,7 @@ def build_objective(problem: MultiphaseProblem, terms: Sequence) -> tuple[Callab
             if gradient is None:
                 values = term.integrand(problem, z, k)
             else:
-                values, jac = point_jacobian(lambda zz: term.integrand(problem, zz, k)[:, None], z)
+                values, jac = point_jacobian(lambda zz, phase=k: term.integrand(problem, zz, phase)[:, None], z)
                 values = values[:, 0]
                 np.add.at(gradient, index, duration * weights[k][:, None] * jac[:, 0])
             by_duration[k] = weights[k] @ values

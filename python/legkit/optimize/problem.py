@@ -16,7 +16,8 @@ and 4.1, on legkit's kernels:
   joint's torque depends on its own leg and the base only): docs/optimize.md has the measurements;
 * swing-tip height >= 0 (eq. 4), friction cone mu^2 F_z^2 - F_x^2 - F_y^2 >= 0 with F_z >= 0 (eq. 5, squared
   to stay smooth), for flat feet (`FlatFoot`) a contact torque T about the sole's centre within the foot-torque
-  limits of eq. 6 and the whole sole held flat on the ground, the inelastic impact map at each touchdown (eq. 7, `lk.impact` with the new phase's feet),
+  limits of eq. 6 and the whole sole held flat on the ground, the inelastic impact map at each touchdown (eq. 7, `lk.impact` with the new
+  phase's feet),
   state/control bounds and the motor torque-speed line |u| <= (w_max - |w|) k (Sect. 2.3, split into its four
   linear faces);
 * periodicity (Sect. 2.3: q(t_f) = q(0) up to the travelled distance, velocity after the wrap-around impact)
@@ -29,8 +30,8 @@ d rnea / d u = -B); the pattern, from the model's tree, is fixed before solving.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -439,7 +440,8 @@ class MultiphaseProblem:
             u = slice(nx, nx + nu)
             if nu:  # linear controls on each interval (eq. 14): u_m = (u_k + u_k+1) / 2
                 rows = np.arange(phase.intervals * nu)
-                blocks.append(Linear(len(rows), np.tile(rows, 3), np.concatenate([index[1::2, u].ravel(), index[0:-1:2, u].ravel(), index[2::2, u].ravel()]),
+                blocks.append(Linear(len(rows), np.tile(rows, 3),
+                                     np.concatenate([index[1::2, u].ravel(), index[0:-1:2, u].ravel(), index[2::2, u].ravel()]),
                                      np.r_[np.ones(len(rows)), -0.5 * np.ones(2 * len(rows))]))
             blocks.extend(self._contact_blocks(k))
         for k in range(count if self.periodic else count - 1):

@@ -28,8 +28,8 @@ What the amble's replay showed (measured on the Fig. 3 amble, 4 intervals per ph
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 

@@ -11,8 +11,8 @@ still define the problem (violations are re-evaluated by them).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -48,7 +48,7 @@ class NLP:
         """Largest violation of the bounds and constraints at x (0 when feasible)."""
         g = self.constraints(x)
         parts = [self.x_lower - x, x - self.x_upper, self.g_lower - g, g - self.g_upper]
-        return float(max((np.max(p, initial=0.0) for p in parts)))
+        return float(max(np.max(p, initial=0.0) for p in parts))
 
 
 @dataclass

@@ -18,12 +18,11 @@ inverse dynamics: tau = M a + C v + g - sum J^T f_ext).
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
 import legkit as lk
-
 
 #: Relative regularisation of the impact's KKT system (see `SymbolicModel.impact`).
 IMPACT_REGULARISATION = 1e-12
