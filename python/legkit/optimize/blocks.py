@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from legkit.optimize.collocation import point_jacobian
 
@@ -33,7 +34,8 @@ class Block(Protocol):
 class Linear:
     """g = A x + offset with A given as triplets (duplicates summed)."""
 
-    def __init__(self, size: int, rows, cols, coefficients, offset=0.0, lower=0.0, upper=0.0) -> None:
+    def __init__(self, size: int, rows: ArrayLike, cols: ArrayLike, coefficients: ArrayLike, offset: ArrayLike = 0.0,
+                 lower: ArrayLike = 0.0, upper: ArrayLike = 0.0) -> None:
         self.size = size
         self.rows = np.asarray(rows, dtype=np.int64)
         self.cols = np.asarray(cols, dtype=np.int64)

@@ -13,6 +13,7 @@ stance from the left touchdown at t = 0, each sole a `FlatFoot` (eq. 6); the ful
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -148,7 +149,7 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
 
 
 def solve_walk(problem: MultiphaseProblem, guess: Trajectory, derivatives: str = WALK_DERIVATIVES,
-               **options) -> tuple[Trajectory, SolveResult]:
+               **options: Any) -> tuple[Trajectory, SolveResult]:
     """The walk in two IPOPT runs: the constraints alone with legkit's derivatives and L-BFGS (on the coarse
     walk 9 iterations, 0.7 s CPU; with the exact Hessian 97 iterations, 8.6 s, plus 4 s to build the symbolic
     transcription), then the objective with `derivatives` and `WALK_IPOPT` from that feasible point. options

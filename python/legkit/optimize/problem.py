@@ -142,7 +142,7 @@ class MultiphaseProblem:
 
     model: lk.Model
     phases: Sequence[Phase]
-    feet: Mapping[str, tuple[int | str, Sequence[float]]] = field(default_factory=dict)
+    feet: Mapping[str, tuple[int | str, Sequence[float] | np.ndarray]] = field(default_factory=dict)
     objectives: Sequence = ()
     actuated: Sequence[int] | None = None
     periodic: bool = True

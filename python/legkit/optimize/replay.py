@@ -171,6 +171,7 @@ def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, 
     for i in range(steps):  # the targets change every control period; the engine steps in between
         target = planned_q[i]
         if attitude is not None and model.floating_base:
+            assert planned_rotation is not None  # set whenever the model has a floating base
             error = planned_rotation[i].T @ rotation(np.asarray(sim.q)[3:7])
             target = target.copy()
             target[list(attitude[0])] += attitude_gain * 0.5 * (error[2, 1] - error[1, 2])

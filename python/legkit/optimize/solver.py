@@ -11,8 +11,9 @@ still define the problem (violations are re-evaluated by them).
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -94,7 +95,7 @@ class _Timer:
         self.error: BaseException | None = None
 
     def __call__(self, function: Callable) -> Callable:
-        def timed(*args):
+        def timed(*args: Any) -> Any:
             start = time.perf_counter()
             try:
                 return function(*args)
@@ -128,7 +129,7 @@ def solve(
     cache: dict = {}
 
     class Jacobian(ca.Callback):
-        def __init__(self, name: str, opts: dict) -> None:
+        def __init__(self, name: str, opts: Mapping[str, Any]) -> None:
             ca.Callback.__init__(self)
             self.construct(name, opts)
 
@@ -138,13 +139,13 @@ def solve(
         def get_n_out(self) -> int:
             return 2
 
-        def get_sparsity_in(self, i: int):
+        def get_sparsity_in(self, i: int) -> Any:
             return [ca.Sparsity.dense(n, 1), ca.Sparsity.dense(1, 1), ca.Sparsity.dense(m, 1)][i]
 
-        def get_sparsity_out(self, i: int):
+        def get_sparsity_out(self, i: int) -> Any:
             return ca.Sparsity.dense(1, n) if i == 0 else pattern
 
-        def eval(self, arg):
+        def eval(self, arg: Any) -> list[Any]:
             x = np.asarray(arg[0]).ravel()
             # casadi asks for the objective gradient and the constraint Jacobian in separate calls at one x.
             if cache.get("x") is None or not np.array_equal(cache["x"], x):
@@ -162,13 +163,13 @@ def solve(
         def get_n_out(self) -> int:
             return 2
 
-        def get_sparsity_in(self, i: int):
+        def get_sparsity_in(self, i: int) -> Any:
             return ca.Sparsity.dense(n, 1)
 
-        def get_sparsity_out(self, i: int):
+        def get_sparsity_out(self, i: int) -> Any:
             return ca.Sparsity.dense(1, 1) if i == 0 else ca.Sparsity.dense(m, 1)
 
-        def eval(self, arg):
+        def eval(self, arg: Any) -> list[Any]:
             x = np.asarray(arg[0]).ravel()
             return [objective(x), ca.DM(constraints(x))]
 
@@ -179,10 +180,10 @@ def solve(
         def has_jac_sparsity(self, oind: int, iind: int) -> bool:
             return True
 
-        def get_jac_sparsity(self, oind: int, iind: int, symmetric: bool):
+        def get_jac_sparsity(self, oind: int, iind: int, symmetric: bool) -> Any:
             return ca.Sparsity.dense(1, n) if oind == 0 else pattern
 
-        def get_jacobian(self, name, inames, onames, opts):
+        def get_jacobian(self, name: str, inames: Sequence[str], onames: Sequence[str], opts: Mapping[str, Any]) -> Any:
             self.jacobian_callback = Jacobian(name, opts)  # casadi holds a raw reference; keep it alive
             return self.jacobian_callback
 
@@ -224,7 +225,7 @@ def solve(
 _SOLVERS: dict = {}
 
 
-def _build(ca, nlp: NLP, ipopt: dict, state: dict, Functions):
+def _build(ca: Any, nlp: NLP, ipopt: dict, state: dict, Functions: type) -> Any:
     """casadi's IPOPT solver of nlp; its iteration callback reports to `state` (history, best, progress)."""
     n, m = nlp.n, nlp.m
 
@@ -245,7 +246,7 @@ def _build(ca, nlp: NLP, ipopt: dict, state: dict, Functions):
         def get_name_out(self, i: int) -> str:
             return "ret"
 
-        def get_sparsity_in(self, i: int):
+        def get_sparsity_in(self, i: int) -> Any:
             name = ca.nlpsol_out(i)
             if name == "f":
                 return ca.Sparsity.scalar()
@@ -255,7 +256,7 @@ def _build(ca, nlp: NLP, ipopt: dict, state: dict, Functions):
                 return ca.Sparsity.dense(m)
             return ca.Sparsity(0, 0)
 
-        def eval(self, arg):
+        def eval(self, arg: Any) -> list[Any]:
             f = float(arg[ca.nlpsol_out().index("f")])
             g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
             x = np.asarray(arg[ca.nlpsol_out().index("x")]).ravel()
