@@ -39,9 +39,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 import legkit as lk
 from legkit.optimize.blocks import Block, Point
@@ -50,6 +51,7 @@ from legkit.stability import angular_momentum_stability_of_model, foot_rotation_
 
 if TYPE_CHECKING:
     from legkit.optimize.problem import MultiphaseProblem
+    from legkit.optimize.symbolic import SymbolicModel
 
 #: Smoothing of |x| in J_e2 [W]: sqrt(x^2 + eps^2) keeps the integrand differentiable where a joint's power is 0.
 POWER_SMOOTHING = 1e-3
@@ -80,20 +82,20 @@ class MinMaxStability:
     smooth: bool = True  # the smooth per-phase constraint of the module docstring; False: S_H as published
 
 
-def effort(weights: float | Sequence[float] = 1.0, weight: float = 1.0) -> Integral:
+def effort(weights: ArrayLike = 1.0, weight: float = 1.0) -> Integral:
     """int sum_i weights_i u_i^2 dt."""
     w = np.asarray(weights, dtype=np.float64)
     return Integral(lambda problem, z, _: np.sum(w * z[:, problem.nx : problem.nx + problem.nu] ** 2, axis=1), weight=weight,
                     symbolic=lambda problem, _, z, __: _weighted_squares(w, z[problem.nx : problem.nx + problem.nu]))
 
 
-def _weighted_squares(w: np.ndarray, u):
+def _weighted_squares(w: np.ndarray, u: Any) -> Any:
     import casadi as ca
 
     return ca.sum1(ca.DM(np.broadcast_to(w, (u.shape[0],)).copy()) * u**2)
 
 
-def joule_loss(resistance, gear_ratio, torque_constant, weight: float = 1.0) -> Integral:
+def joule_loss(resistance: ArrayLike, gear_ratio: ArrayLike, torque_constant: ArrayLike, weight: float = 1.0) -> Integral:
     """J_e1 of eq. 12: (1 / d_S) int sum_i R_i (u_i / (G_i K_i))^2 dt, per actuated joint (arrays or scalars)."""
     w = np.asarray(resistance, dtype=np.float64) / (np.asarray(gear_ratio, dtype=np.float64) * np.asarray(torque_constant, dtype=np.float64)) ** 2
     term = effort(w)
@@ -129,7 +131,7 @@ def fri_deviation(weight: float = 1.0) -> Integral:
         gcom = np.asarray(lk.center_of_mass(problem.model, q))
         return np.sum((gcom[:, :2] - fri[:, :2]) ** 2, axis=1)
 
-    def symbolic(problem: MultiphaseProblem, model, z, k: int):
+    def symbolic(problem: MultiphaseProblem, model: SymbolicModel, z: Any, k: int) -> Any:
         q, v = z[: problem.nq], z[problem.nq : problem.nx]
         fri = _symbolic_fri(problem, model, q, v, z[problem.a_columns[k]], _support_bodies(problem, k))
         gcom = model.center_of_mass(q)
@@ -146,7 +148,7 @@ def _support_bodies(problem: MultiphaseProblem, k: int) -> list[int]:
     return sorted({problem.foot_body[name] for name in contacts})
 
 
-def _symbolic_fri(problem: MultiphaseProblem, model, q, v, a, feet: list[int]):
+def _symbolic_fri(problem: MultiphaseProblem, model: SymbolicModel, q: Any, v: Any, a: Any, feet: list[int]) -> Any:
     """`foot_rotation_indicator` in casadi: the rest's momentum rate by the chain rule along (dq/dt, a)."""
     import casadi as ca
 
@@ -196,7 +198,10 @@ def build_objective(problem: MultiphaseProblem, terms: Sequence) -> tuple[Callab
             if gradient is None:
                 values = term.integrand(problem, z, k)
             else:
-                values, jac = point_jacobian(lambda zz, phase=k: term.integrand(problem, zz, phase)[:, None], z)
+                def phase_integrand(zz: np.ndarray, phase: int = k) -> np.ndarray:
+                    return term.integrand(problem, zz, phase)[:, None]
+
+                values, jac = point_jacobian(phase_integrand, z)
                 values = values[:, 0]
                 np.add.at(gradient, index, duration * weights[k][:, None] * jac[:, 0])
             by_duration[k] = weights[k] @ values
@@ -224,8 +229,8 @@ def build_objective(problem: MultiphaseProblem, terms: Sequence) -> tuple[Callab
             part = np.zeros(problem.n)
             integral(term, x, part)
             total += part
-        for term in stability:
-            total[problem.p1_index] -= term.weight
+        for stable in stability:
+            total[problem.p1_index] -= stable.weight
         return total
 
     blocks = [_stability_block(problem, k, stability[0]) for k in range(len(problem.phases))] if stability else []
@@ -264,13 +269,13 @@ def _smooth_edge(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> t
     return (contacts if side > 0.0 else contacts[::-1]), diagonal
 
 
-def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability):
+def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> tuple[Callable, int, Callable]:
     """The smooth constraint rows (module docstring) as a function of (B, nx + 1) = [q, v, p1]."""
     edge, diagonal = _smooth_edge(problem, k, term)
     model, nq, nx = problem.model, problem.nq, problem.nx
     m, g = model.total_mass, -float(model.gravity[2])
 
-    def rows(c, h, start, end, p1, sqrt, stack):
+    def rows(c: Any, h: Any, start: Any, end: Any, p1: Any, sqrt: Callable, stack: Callable) -> Any:
         """The rows from COM c, centroidal momentum h = [P, k_G], the edge's feet and p1 (numpy or casadi)."""
         dx, dy = end[0] - start[0], end[1] - start[1]
         length = sqrt(dx * dx + dy * dy)
@@ -294,7 +299,7 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability):
 
     feet = [(problem.foot_body[n], problem.foot_point[n]) for n in edge]
 
-    def symbolic(model, z):
+    def symbolic(model: SymbolicModel, z: Any) -> Any:
         import casadi as ca
 
         q = z[:nq]
