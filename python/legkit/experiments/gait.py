@@ -43,8 +43,10 @@ from __future__ import annotations
 import argparse
 import csv
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from tqdm import tqdm
@@ -53,6 +55,10 @@ import legkit as lk
 import legkit.stability as st
 from legkit.robots.biped import JOINT_LABELS, SIDES, Biped, build_biped
 from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, Quadruped, QuadrupedParameters, build_quadruped
+
+if TYPE_CHECKING:  # legkit.optimize.gaits imports this module
+    from legkit.optimize.problem import MultiphaseProblem, Trajectory
+    from legkit.optimize.replay import Replay
 
 
 @dataclass(frozen=True)
@@ -149,8 +155,10 @@ def periodic_lip(zmp_offset: np.ndarray, period: float, height: float, gravity: 
     return np.fft.irfft(spectrum, n=zmp_offset.shape[0], axis=0)
 
 
-def _base_on_zmp(model: lk.Model, t: np.ndarray, speed: float, zmp_ref: np.ndarray, com_height: float, joints_for,
-                 states, iterations: int = 8) -> tuple[np.ndarray, np.ndarray, float]:
+def _base_on_zmp(model: lk.Model, t: np.ndarray, speed: float, zmp_ref: np.ndarray, com_height: float,
+                 joints_for: Callable[[np.ndarray], np.ndarray],
+                 states: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]],
+                 iterations: int = 8) -> tuple[np.ndarray, np.ndarray, float]:
     """Periodic base xy offsets (N, 2) whose whole-body ZMP follows zmp_ref (N, 2); also the joints (N, nj)
     and the remaining largest ZMP error [m].
 
@@ -223,7 +231,7 @@ def quadruped_amble(robot: Quadruped, speed: float, period: float, samples: int,
         base = np.stack([speed * t + base_xy[:, 0], base_xy[:, 1], np.full(samples, torso_z)], axis=-1)
         return np.concatenate([robot.leg_angles(leg, feet[:, n] - base) for n, leg in enumerate(LEGS)], axis=1)
 
-    def states(base_xy: np.ndarray, joints: np.ndarray):
+    def states(base_xy: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return _expand(robot.model, dt, 1, speed, base_xy, torso_z, joints, columns)[1:]
 
     base_xy, joints, zmp_error = _base_on_zmp(robot.model, t, speed, zmp_ref, torso_z + com_up, joints_for, states)
@@ -270,7 +278,7 @@ def biped_walk(robot: Biped, speed: float, step_length: float, samples: int, cyc
         legs = [robot.leg_angles(side, ankles[:, n] - base) for n, side in enumerate(SIDES)]
         return np.concatenate(legs + [arms], axis=1)
 
-    def states(base_xy: np.ndarray, joints: np.ndarray):
+    def states(base_xy: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return _expand(robot.model, dt, 1, speed, base_xy, hip_height, joints, columns)[1:]
 
     com_up = float(np.asarray(lk.center_of_mass(robot.model, robot.model.neutral()))[2])
@@ -445,7 +453,7 @@ def plot(path: Path, analysis: GaitAnalysis, title: str) -> None:
     t, labels = analysis.ref.t, analysis.ref.support_label
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     starts = [0] + [i for i in range(1, len(labels)) if labels[i] != labels[i - 1]] + [len(labels)]
-    shades = {}
+    shades: dict[str, str] = {}
     for a, b in zip(starts[:-1], starts[1:]):
         colour = shades.setdefault(labels[a], f"C{len(shades) + 2}")
         for axis in (top, bottom):
@@ -532,7 +540,11 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     _, result = problem.solve(guess, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, tol=args.tol, max_iter=args.max_iter,
                               progress=_iteration_printer("J_s2"), options=AMBLE_IPOPT)
     x, _ = result.best()
-    kept = result.history[-1][0] if x is result.x else result.best_feasible[0]
+    if x is result.x:
+        kept = result.history[-1][0]
+    else:
+        assert result.best_feasible is not None  # best() returns another point than IPOPT's only from best_feasible
+        kept = result.best_feasible[0]
     trajectory = problem.unpack(x)
     data = trajectory.stacked()
     labels = ["+".join(leg.upper() for leg in problem.phases[k].contacts) for k in data["phase"]]
@@ -588,6 +600,7 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
         for k, phase in enumerate(problem.phases):
             if side in phase.contacts:
                 force[rows[k] : rows[k + 1]] = trajectory.forces[k][:, phase.contacts.index(side)]
+                assert trajectory.torques is not None  # the walk's feet are flat: unpack gives their torques
                 torque[rows[k] : rows[k + 1]] = trajectory.torques[k][:, problem.flat_contacts(phase.contacts).index(side)]
         wrenches.update({f"{side}_F{axis}": force[:, i] for i, axis in enumerate("xyz")})
         wrenches.update({f"{side}_T{axis}": torque[:, i] for i, axis in enumerate("xyz")})
@@ -609,10 +622,11 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
     }
 
 
-def inverse_dynamics_residuals(problem, x: np.ndarray) -> list[np.ndarray]:
+def inverse_dynamics_residuals(problem: MultiphaseProblem, x: np.ndarray) -> list[np.ndarray]:
     """Per phase (P, nv): rnea(q, v, a, f_ext) - B u recomputed from the solution by `lk.rnea`, the feet's forces
     and flat feet's torques applied as body wrenches (eq. 1 in inverse form; zero for an exact solution)."""
     trajectory = problem.unpack(x)
+    assert trajectory.a is not None and trajectory.torques is not None  # unpack gives both
     residuals = []
     for k, phase in enumerate(problem.phases):
         q = problem.configuration(trajectory.q[k])
@@ -637,7 +651,7 @@ def plot_torque_speed(path: Path, robot: Biped, joint_speed: np.ndarray, torque:
     import matplotlib.pyplot as plt
 
     rpm = 60.0 / (2.0 * np.pi)
-    groups = {}
+    groups: dict[str, list[int]] = {}
     for i, name in enumerate(robot.model.names):
         if robot.model.idx_v[i] >= 6 and name[:2] in ("l_", "r_") and robot.model.joint_type(i) == "revolute":
             groups.setdefault(name[2:], []).append(robot.model.idx_v[i] - 6)
@@ -664,7 +678,7 @@ def plot_torque_speed(path: Path, robot: Biped, joint_speed: np.ndarray, torque:
     plt.close(fig)
 
 
-def _iteration_printer(name: str):
+def _iteration_printer(name: str) -> Callable[[int, float, float], None]:
     """progress(iteration, objective, violation) printing one line per IPOPT iteration."""
 
     def progress(iteration: int, objective: float, violation: float) -> None:
@@ -673,7 +687,7 @@ def _iteration_printer(name: str):
     return progress
 
 
-def _write_trajectory_csv(path: Path, trajectory, labels: list[str], extra: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+def _write_trajectory_csv(path: Path, trajectory: Trajectory, labels: list[str], extra: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Every collocation point of an optimised trajectory: t, phase, the `extra` columns, q, v, u, and the
     support label; returns the numeric columns."""
     data = trajectory.stacked()
@@ -688,7 +702,7 @@ def _write_trajectory_csv(path: Path, trajectory, labels: list[str], extra: dict
     return columns
 
 
-def _animate_replay(stem: Path, model: lk.Model, simulated) -> None:
+def _animate_replay(stem: Path, model: lk.Model, simulated: Replay) -> None:
     """stem.html (meshcat) and stem.gif: the replay in simulation beside the optimised plan (grey, translucent in
     the HTML)."""
     from legkit import viewer
