@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -39,6 +40,9 @@ import legkit as lk
 from legkit.optimize.blocks import Block, Linear, Point, equal
 from legkit.optimize.collocation import hermite_simpson_defects, point_jacobian
 from legkit.optimize.solver import NLP, SolveResult, solve
+
+if TYPE_CHECKING:
+    from legkit.optimize.symbolic import SymbolicModel
 
 
 @dataclass(frozen=True)
@@ -168,6 +172,7 @@ class MultiphaseProblem:
         model = self.model
         self.nq, self.nv = model.nq, model.nv
         self.nx = self.nq + self.nv
+        assert self.actuated is not None  # _validate makes it a list
         self.nu = len(self.actuated)
         self.foot_names = list(self.feet)
         self.foot_body = {name: (model.names.index(b) if isinstance(b, str) else int(b)) for name, (b, _) in self.feet.items()}
@@ -175,9 +180,9 @@ class MultiphaseProblem:
         # A flat sole's toe and side points (FlatFoot): with the centre they fix the sole's pose in stance.
         self.sole_points: dict[str, str] = {}
         for name, sole in self.flat_feet.items():
-            for label, offset in (("toe", [0.5 * sole.length, 0.0, 0.0]), ("side", [0.0, 0.5 * sole.width, 0.0])):
+            for label, shift in (("toe", [0.5 * sole.length, 0.0, 0.0]), ("side", [0.0, 0.5 * sole.width, 0.0])):
                 self.foot_body[f"{name}/{label}"] = self.foot_body[name]
-                self.foot_point[f"{name}/{label}"] = self.foot_point[name] + offset
+                self.foot_point[f"{name}/{label}"] = self.foot_point[name] + shift
                 self.sole_points[f"{name}/{label}"] = name
         # Variable layout: per phase a (P, nz) block of point variables z = [q, v, u, forces, torques, a]
         # (torques on flat feet only, a only in the inverse transcription), then the durations, then p1.
@@ -269,7 +274,7 @@ class MultiphaseProblem:
                 raise ValueError("speed needs a periodic problem with a travel_index (a free-flyer's x by default)")
             self._check_reach()
         if self.period is not None:
-            lo, hi = (self.period, self.period) if np.isscalar(self.period) else self.period
+            lo, hi = _period_bounds(self.period)
             if not 0.0 < lo <= hi:
                 raise ValueError(f"period must be > 0 (or bounds 0 < lower <= upper), got {self.period}")
             if sum(p.duration[1] for p in self.phases) < lo or sum(p.duration[0] for p in self.phases) > hi:
@@ -294,7 +299,8 @@ class MultiphaseProblem:
                 index = model.parents[index]
             # The shortest contiguous stance of this foot, the phase list read cyclically from a swing phase.
             first_swing = down.index(False)
-            runs, run = [], 0.0
+            runs: list[float] = []
+            run = 0.0
             for k in range(first_swing, first_swing + len(down) + 1):
                 phase = self.phases[k % len(down)]
                 if name in phase.contacts:
@@ -354,6 +360,7 @@ class MultiphaseProblem:
             f_ext[:, body, :3] += local
             f_ext[:, body, 3:] += np.cross(self.foot_point[name], local)
         for c, name in enumerate(self.flat_contacts(contacts)):
+            assert torques is not None, "flat feet on the ground need their torques"
             f_ext[:, self.foot_body[name], 3:] += torques[:, 3 * c : 3 * c + 3]
         return f_ext
 
@@ -467,7 +474,7 @@ class MultiphaseProblem:
             if self.continuous_controls and nu:
                 blocks.append(equal(nu, start[nx : nx + nu], end[nx : nx + nu]))
         if self.period is not None:
-            lo, hi = (self.period, self.period) if np.isscalar(self.period) else self.period
+            lo, hi = _period_bounds(self.period)
             blocks.append(Linear(1, np.zeros(count, dtype=np.int64), self.duration_index, np.ones(count), lower=lo, upper=hi))
         if self.model.floating_base:  # fixes the scale gauge of the quaternion (kernels normalise it)
             first = self.point_index[0][0]
@@ -510,7 +517,7 @@ class MultiphaseProblem:
         index = self.point_index[k]
         forces = index[:, self.force_columns[k]].reshape(len(index), -1, 3)
         torques = index[:, self.torque_columns[k]].reshape(len(index), -1, 3)
-        blocks = []
+        blocks: list[Block] = []
         for c, name in enumerate(self.flat_contacts(contacts)):
             sole = self.flat_feet[name]
             limit = np.array([0.5 * sole.width, 0.5 * sole.length, sole.torsion])
@@ -561,7 +568,7 @@ class MultiphaseProblem:
         contacts = self.phases[after].contacts
         rows = self.contact_rows(contacts)
 
-        def symbolic(model, z):
+        def symbolic(model: SymbolicModel, z: Any) -> Any:
             import casadi as ca
 
             q, v_minus, v_plus, impulses = z[:nq], z[nq : nq + nv], z[nq + nv : nq + 2 * nv], z[nq + 2 * nv :]
@@ -574,11 +581,12 @@ class MultiphaseProblem:
     def _torque_speed_blocks(self) -> list[Block]:
         """(w_max - |w|) k - |u| >= 0 as four linear faces per actuated joint and point."""
         line = self.torque_speed
+        assert line is not None  # built only with a torque-speed line
         w_max = np.broadcast_to(np.asarray(line.max_speed, dtype=np.float64), (self.nu,))
         gain = np.broadcast_to(np.asarray(line.gain, dtype=np.float64), (self.nu,))
         index = np.concatenate(self.point_index_u_w(), axis=0)  # (P, nu, 2): (u, w) columns
         points = len(index)
-        blocks = []
+        blocks: list[Block] = []
         for su in (1.0, -1.0):
             for sw in (1.0, -1.0):
                 rows = np.arange(points * self.nu)
@@ -663,7 +671,7 @@ class MultiphaseProblem:
                    f, gradient, self.constraints, self.jacobian, self.jac_rows, self.jac_cols, symbolic)
 
     def solve(self, guess: Trajectory | np.ndarray, derivatives: str = "exact", feasibility_first: bool = False,
-              **options) -> tuple[Trajectory, SolveResult]:
+              **options: Any) -> tuple[Trajectory, SolveResult]:
         """Solve from a guess (a Trajectory or a variable vector), with exact derivatives (default) or legkit's
         differences (`nlp`); options go to `legkit.optimize.solver.solve`.
 
@@ -741,7 +749,13 @@ class MultiphaseProblem:
         return Trajectory(t, q, v, u, forces, durations, float(x[self.p1_index]), a, torques)
 
 
-def _norm(vector):
+def _period_bounds(period: float | tuple[float, float]) -> tuple[float, float]:
+    """(lower, upper) of a period given as a value or as bounds."""
+    # np.isscalar does not narrow the union for mypy; the cast states what it guarantees.
+    return (cast(float, period), cast(float, period)) if np.isscalar(period) else cast(tuple[float, float], period)
+
+
+def _norm(vector: Any) -> Any:
     import casadi
 
     return casadi.norm_2(vector)
@@ -835,10 +849,10 @@ class _InverseDynamics:
         for c, name in enumerate(problem.flat_contacts(self.contacts)):
             mask[np.ix_(reach[name], torques[c])] = True
         self.columns = np.r_[np.arange(nx), forces.ravel(), torques.ravel()]  # differenced; a and u are exact
-        r, c = np.nonzero(mask)
-        self._r, self._c = r, c
+        r, nonzero_cols = np.nonzero(mask)
+        self._r, self._c = r, nonzero_cols
         self.rows = (np.arange(len(index))[:, None] * nv + r[None]).ravel()
-        self.cols = index[:, c].ravel()
+        self.cols = index[:, nonzero_cols].ravel()
 
     def residual(self, z: np.ndarray) -> np.ndarray:
         problem = self.problem
