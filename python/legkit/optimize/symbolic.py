@@ -19,27 +19,31 @@ inverse dynamics: tau = M a + C v + g - sum J^T f_ext).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 import legkit as lk
 
+if TYPE_CHECKING:
+    from legkit.optimize.problem import MultiphaseProblem
+
 #: Relative regularisation of the impact's KKT system (see `SymbolicModel.impact`).
 IMPACT_REGULARISATION = 1e-12
 
 
-def _ca():
+def _ca() -> Any:
     import casadi
 
     return casadi
 
 
-def _skew(w):
+def _skew(w: Any) -> Any:
     ca = _ca()
     return ca.vertcat(ca.horzcat(0, -w[2], w[1]), ca.horzcat(w[2], 0, -w[0]), ca.horzcat(-w[1], w[0], 0))
 
 
-def quaternion_matrix(quaternion):
+def quaternion_matrix(quaternion: Any) -> Any:
     """Rotation of an [x, y, z, w] quaternion, normalised (as legkit's `configuration` does)."""
     ca = _ca()
     quaternion = quaternion / ca.norm_2(quaternion)
@@ -51,7 +55,7 @@ def quaternion_matrix(quaternion):
     )
 
 
-def _axis_rotation(axis: np.ndarray, angle):
+def _axis_rotation(axis: np.ndarray, angle: Any) -> Any:
     ca = _ca()
     k = _skew(ca.DM(axis))
     return ca.DM.eye(3) + ca.sin(angle) * k + (1 - ca.cos(angle)) * (k @ k)
@@ -76,7 +80,7 @@ class SymbolicModel:
         self.total_mass = float(model.total_mass)
 
     # -------------------------------------------------------------- kinematics
-    def _joint(self, i: int, q):
+    def _joint(self, i: int, q: Any) -> Any:
         """(R, p) of body i in its parent's frame, and the motion subspace S (6, k) in body coordinates."""
         ca = _ca()
         placement = self.placements[i]
@@ -87,20 +91,26 @@ class SymbolicModel:
             return r0 @ rotation, p0 + r0 @ q[qi : qi + 3], ca.DM.eye(6)
         if kind == "revolute":
             axis = self.axes[i]
+            assert axis is not None  # a revolute joint has an axis
             return r0 @ _axis_rotation(axis, q[qi]), p0, ca.DM(np.r_[np.zeros(3), axis]).reshape((6, 1))
         if kind == "prismatic":
             axis = self.axes[i]
+            assert axis is not None  # a prismatic joint has an axis
             return r0, p0 + r0 @ ca.DM(axis) * q[qi], ca.DM(np.r_[axis, np.zeros(3)]).reshape((6, 1))
         return r0, p0, ca.DM(6, 0)
 
     def _dofs(self, i: int) -> int:
         return {"free_flyer": 6, "revolute": 1, "prismatic": 1, "fixed": 0}[self.types[i]]
 
-    def kinematics(self, q, v=None, a=None):
+    def kinematics(self, q: Any, v: Any = None, a: Any = None) -> Any:
         """Per body: world rotation, world position, and (with v, a) body-frame spatial velocity and
         acceleration (gravity folded in as an upward acceleration of the world when a is given)."""
         ca = _ca()
-        rotations, positions, velocities, accelerations, local = [], [], [], [], []
+        rotations: list[Any] = []
+        positions: list[Any] = []
+        velocities: list[Any] = []
+        accelerations: list[Any] = []
+        local: list[Any] = []
         for i in range(self.bodies):
             r, p, s = self._joint(i, q)
             parent = self.parents[i]
@@ -131,19 +141,19 @@ class SymbolicModel:
         return rotations, positions, velocities, accelerations, local
 
     @staticmethod
-    def _transform_motion(r, p, motion):
+    def _transform_motion(r: Any, p: Any, motion: Any) -> Any:
         """A parent-frame motion [v, w] at the parent origin, expressed at the child origin in child axes."""
         ca = _ca()
         v, w = motion[:3], motion[3:]
         return ca.vertcat(r.T @ (v + ca.cross(w, p)), r.T @ w)
 
     @staticmethod
-    def _cross_motion(m1, m2):
+    def _cross_motion(m1: Any, m2: Any) -> Any:
         ca = _ca()
         v, w = m1[:3], m1[3:]
         return ca.vertcat(ca.cross(w, m2[:3]) + ca.cross(v, m2[3:]), ca.cross(w, m2[3:]))
 
-    def _momentum(self, i: int, motion):
+    def _momentum(self, i: int, motion: Any) -> Any:
         """Body i's spatial momentum [h, k about the origin] in body coordinates for a motion [v, w]."""
         ca = _ca()
         body = self.inertias[i]
@@ -152,7 +162,7 @@ class SymbolicModel:
         linear = m * (v + ca.cross(w, c))
         return ca.vertcat(linear, inertia @ w + ca.cross(c, linear))
 
-    def rnea(self, q, v, a, wrenches: Sequence[tuple[int, object]] = ()):
+    def rnea(self, q: Any, v: Any, a: Any, wrenches: Sequence[tuple[int, object]] = ()) -> Any:
         """tau (nv,) = rnea(q, v, a, f_ext) with f_ext body-frame wrenches [f, n] as (body, 6-vector) pairs."""
         ca = _ca()
         rotations, positions, velocities, accelerations, local = self.kinematics(q, v, a)
@@ -178,7 +188,7 @@ class SymbolicModel:
                 forces[parent] = forces[parent] + ca.vertcat(f, n + ca.cross(p, f))
         return ca.vertcat(*tau)
 
-    def foot_wrenches(self, q, feet: Sequence[tuple[int, np.ndarray]], world_forces):
+    def foot_wrenches(self, q: Any, feet: Sequence[tuple[int, np.ndarray]], world_forces: Any) -> Any:
         """Body-frame wrenches of world forces (3 per foot, stacked) at foot points (body, point)."""
         ca = _ca()
         rotations = self.kinematics(q)[0]
@@ -188,13 +198,13 @@ class SymbolicModel:
             wrenches.append((body, ca.vertcat(local, ca.cross(ca.DM(point), local))))
         return wrenches
 
-    def points(self, q, feet: Sequence[tuple[int, np.ndarray]]):
+    def points(self, q: Any, feet: Sequence[tuple[int, np.ndarray]]) -> Any:
         """World positions (3 per point, stacked) of body points (body, point)."""
         ca = _ca()
         rotations, positions = self.kinematics(q)[:2]
         return ca.vertcat(*[positions[b] + rotations[b] @ ca.DM(p) for b, p in feet])
 
-    def center_of_mass(self, q):
+    def center_of_mass(self, q: Any) -> Any:
         ca = _ca()
         rotations, positions = self.kinematics(q)[:2]
         total = 0
@@ -204,7 +214,7 @@ class SymbolicModel:
                 total = total + float(body.mass) * (positions[i] + rotations[i] @ ca.DM(np.asarray(body.com)))
         return total / self.total_mass
 
-    def centroidal_momentum(self, q, v):
+    def centroidal_momentum(self, q: Any, v: Any) -> Any:
         """[h_lin, h_ang about the COM], world-aligned (as `lk.centroidal_momentum`)."""
         ca = _ca()
         rotations, positions, velocities = self.kinematics(q, v)[:3]
@@ -221,13 +231,13 @@ class SymbolicModel:
             angular = angular + k_world + ca.cross(positions[i] - com, h_world)
         return ca.vertcat(linear, angular)
 
-    def mass_matrix(self, q):
+    def mass_matrix(self, q: Any) -> Any:
         ca = _ca()
         zero = ca.DM.zeros(self.nv)
         bias = self.rnea_no_gravity(q, zero, zero)
         return ca.horzcat(*[self.rnea_no_gravity(q, zero, ca.DM(np.eye(self.nv)[j])) - bias for j in range(self.nv)])
 
-    def rnea_no_gravity(self, q, v, a):
+    def rnea_no_gravity(self, q: Any, v: Any, a: Any) -> Any:
         saved = self.gravity
         self.gravity = np.zeros(3)
         try:
@@ -235,7 +245,7 @@ class SymbolicModel:
         finally:
             self.gravity = saved
 
-    def impact(self, q, v_minus, feet: Sequence[tuple[int, np.ndarray]]):
+    def impact(self, q: Any, v_minus: Any, feet: Sequence[tuple[int, np.ndarray]]) -> Any:
         """Perfectly inelastic impact (eq. 7): v+ with J v+ = 0 at the feet, M (v+ - v-) = J^T Lambda. The
         KKT system carries IMPACT_REGULARISATION on its impulse block, so directions no joint can move along
         (zero rows of J, e.g. a foot on a vertical slider) get no impulse instead of a singular system; for a
@@ -247,12 +257,12 @@ class SymbolicModel:
         kkt = ca.vertcat(ca.horzcat(m, -jac.T), ca.horzcat(jac, IMPACT_REGULARISATION * ca.DM.eye(k)))
         return ca.solve(kkt, ca.vertcat(m @ v_minus, ca.DM.zeros(k)))[: self.nv]
 
-    def contact_jacobian(self, q, feet: Sequence[tuple[int, np.ndarray]]):
+    def contact_jacobian(self, q: Any, feet: Sequence[tuple[int, np.ndarray]]) -> Any:
         """(3 k, nv) world-aligned linear Jacobian of body points (body, point): d points / dq Q(q)."""
         ca = _ca()
         return ca.jacobian(self.points(q, feet), q) @ self.q_rate_matrix(q)
 
-    def q_rate_matrix(self, q):
+    def q_rate_matrix(self, q: Any) -> Any:
         """dq/dt = Q(q) v (nq, nv): the base position rate R v_lin, the quaternion rate, joint rates."""
         ca = _ca()
         if not self.model.floating_base:
@@ -266,7 +276,7 @@ class SymbolicModel:
 
 
 # ------------------------------------------------------------------ the transcription, symbolically
-def transcription(problem) -> tuple:
+def transcription(problem: MultiphaseProblem) -> tuple:
     """(x, f(x), g(x)) as casadi MX of a `MultiphaseProblem`'s NLP: the same rows in the same order as
     `problem.constraints` (each per-point function a casadi Function mapped over the points) and the same
     objective. Needs the inverse-dynamics transcription and symbolic forms of every Point block and integrand."""
@@ -311,7 +321,7 @@ def transcription(problem) -> tuple:
     return x, objective(problem, model, x), ca.vertcat(*rows)
 
 
-def residual(problem, model: SymbolicModel, k: int, z):
+def residual(problem: MultiphaseProblem, model: SymbolicModel, k: int, z: Any) -> Any:
     """rnea(q, v, a, J_c^T lambda) - B u at phase k's point variables z (the inverse-dynamics rows; lambda: the
     feet's forces and the flat feet's torques)."""
     ca = _ca()
@@ -331,13 +341,13 @@ def residual(problem, model: SymbolicModel, k: int, z):
     return tau - ca.DM(actuation) @ z[problem.nx : problem.nx + problem.nu]
 
 
-def _gather(x, index: np.ndarray):
+def _gather(x: Any, index: np.ndarray) -> Any:
     """(k, P) MX of the variables index (P, k), one column per point."""
     ca = _ca()
     return ca.reshape(x[np.asarray(index).ravel().tolist()], index.shape[1], index.shape[0])
 
 
-def _sparse(rows: int, columns: int, r, c, values):
+def _sparse(rows: int, columns: int, r: Any, c: Any, values: Any) -> Any:
     ca = _ca()
     from scipy.sparse import coo_matrix
 
@@ -346,7 +356,7 @@ def _sparse(rows: int, columns: int, r, c, values):
     return ca.DM(ca.Sparsity(rows, columns, matrix.indptr.tolist(), matrix.indices.tolist()), matrix.data.tolist())
 
 
-def _defects(problem, model: SymbolicModel, block, x):
+def _defects(problem: MultiphaseProblem, model: SymbolicModel, block: Any, x: Any) -> Any:
     ca = _ca()
     z = ca.SX.sym("z", block.index.shape[1])
     q, v = z[: problem.nq], z[problem.nq : problem.nx]
@@ -362,7 +372,7 @@ def _defects(problem, model: SymbolicModel, block, x):
     return ca.vec(ca.vertcat(interpolation, simpson))
 
 
-def objective(problem, model: SymbolicModel, x):
+def objective(problem: MultiphaseProblem, model: SymbolicModel, x: Any) -> Any:
     """The problem's summed objective terms (`objectives.build_objective`) as a casadi expression."""
     ca = _ca()
     from legkit.optimize.objectives import Integral, MinMaxStability, _simpson_weights
@@ -374,7 +384,7 @@ def objective(problem, model: SymbolicModel, x):
             continue
         if not isinstance(term, Integral) or term.symbolic is None:
             raise ValueError(f"objective term {term} has no symbolic form")
-        integral = 0
+        integral: Any = 0  # a casadi expression after the first phase
         for k, index in enumerate(problem.point_index):
             z = ca.SX.sym("z", index.shape[1])
             integrand = ca.Function("integrand", [z], [term.symbolic(problem, model, z, k)]).map(index.shape[0])
