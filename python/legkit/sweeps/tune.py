@@ -17,7 +17,7 @@ the tuned constants run on held-out trees (other seeds) and both are reported: m
 median t10% with their interquartile ranges (lower medians and quartiles: values of actual runs, so
 "never" stays a value), and the change of the medians.
 
-The defaults fit a few minutes on two cores (4 training trees, 6 held-out, 16 trials per scheme, 1 s
+The defaults fit a few minutes on two cores (4 training trees, 6 held-out, 32 trials per scheme, 1 s
 runs). The full-size study (docs/sweeps.md):
 
     legkit tune --train 32 --test 64 --trials 120 --per-round 8 --duration 2 --ray auto
@@ -62,7 +62,7 @@ COEFFICIENT_RANGES = {
     "momentum": {"c0": (0.0, 3.0, False), "c1": (0.0, 30.0, False)},
 }
 BASE_GAIN_RANGES = {"kp0": (1.0, 100.0, True), "ki0": (1e-3, 10.0, True), "kd0": (1e-5, 1e-1, True)}
-T10_WEIGHT = 1.0  # module widths per second of t10: 0.1 s of t10 weighs as much as 0.1 widths of final distance
+T10_WEIGHT = 2.0  # module widths per second of t10: 0.05 s of t10 weighs as much as 0.1 widths of final distance
 TRAIN_SEED0 = 1000
 TEST_SEED0 = 2000
 
@@ -102,7 +102,7 @@ def score(rows: Sequence[dict[str, Any]], duration: float, t10_weight: float = T
 
 
 def tune(
-    schemes: Sequence[str] = SCHEMES, train: int = 4, test: int = 6, trials: int = 16, per_round: int = 4,
+    schemes: Sequence[str] = SCHEMES, train: int = 4, test: int = 6, trials: int = 32, per_round: int = 4,
     duration: float = 1.0, modules: int = 20, branches: int = 4, base_gains: bool = True, seed: int = 0,
     workers: int | None = 1, ray: str | None = None, batch_size: int = 48, progress: bool = True, t10_weight: float = T10_WEIGHT,
 ) -> list[SchemeResult]:
@@ -334,7 +334,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--schemes", nargs="+", default=list(SCHEMES), help="schemes to tune (default all)")
     parser.add_argument("--train", type=int, default=4, help=f"training trees, seeds {TRAIN_SEED0}.. (default 4)")
     parser.add_argument("--test", type=int, default=6, help=f"held-out trees, seeds {TEST_SEED0}.. (default 6)")
-    parser.add_argument("--trials", type=int, default=16, help="trials per scheme, the paper's first (default 16)")
+    parser.add_argument("--trials", type=int, default=32, help="trials per scheme, the paper's first (default 32)")
     parser.add_argument("--per-round", type=int, default=4, help="trials per scheme evaluated together (on Ray Tune: at once) (default 4)")
     parser.add_argument("--duration", type=float, default=1.0, help="simulated seconds per run (default 1)")
     parser.add_argument("--modules", type=int, default=20, help="modules per tree besides the root (default 20)")
