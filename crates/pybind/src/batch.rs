@@ -6,13 +6,13 @@
 
 use legkit_dynamics::Error;
 use numpy::ndarray::{ArrayViewD, IxDyn};
-use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rayon::prelude::*;
 use smallvec::SmallVec;
 
-use crate::convert::batch_error;
+use crate::convert::{batch_error, FloatArray};
 
 pub type ArrayArg<'py> = crate::convert::Floats<'py>;
 
@@ -154,6 +154,6 @@ where
     }
 }
 
-pub fn to_numpy<'py>(py: Python<'py>, shape: Shape, data: Vec<f64>) -> Bound<'py, PyArrayDyn<f64>> {
+pub fn to_numpy<'py>(py: Python<'py>, shape: Shape, data: Vec<f64>) -> FloatArray<'py> {
     crate::convert::to_numpy(py, IxDyn(&shape), data)
 }

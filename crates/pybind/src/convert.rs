@@ -17,7 +17,7 @@ pub type FloatArray<'py> = Bound<'py, PyArrayDyn<f64>>;
 /// Arrays are read only while the GIL is held (and copied where a kernel then releases it), so another
 /// Python thread cannot write them meanwhile; rust-numpy's borrow tracking, which guards Rust borrows
 /// only, is not needed.
-pub struct Floats<'py>(Result<Bound<'py, PyArrayDyn<f64>>, String>);
+pub struct Floats<'py>(Result<FloatArray<'py>, String>);
 
 impl<'a, 'py> FromPyObject<'a, 'py> for Floats<'py> {
     type Error = PyErr;
@@ -33,7 +33,7 @@ impl<'a, 'py> FromPyObject<'a, 'py> for Floats<'py> {
 }
 
 impl<'py> Floats<'py> {
-    pub fn array(&self, argument: &str) -> PyResult<&Bound<'py, PyArrayDyn<f64>>> {
+    pub fn array(&self, argument: &str) -> PyResult<&FloatArray<'py>> {
         self.0.as_ref().map_err(|e| PyTypeError::new_err(format!("{argument}: expected an array of numbers ({e})")))
     }
 

@@ -4,8 +4,9 @@
 use legkit_dynamics::algorithms;
 use legkit_dynamics::model::check_vector;
 use legkit_dynamics::Model;
-use numpy::PyArrayDyn;
 use pyo3::prelude::*;
+
+use crate::convert::FloatArray;
 
 use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::model::PyModel;
@@ -38,7 +39,7 @@ pub fn rnea<'py>(
     v: ArrayArg<'_>,
     a: ArrayArg<'_>,
     f_ext: Option<ArrayArg<'_>>,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+) -> PyResult<FloatArray<'py>> {
     let nv = model.model.nv();
     let batch = state_batch(&model.model, &q, &v, ("a", &a), f_ext.as_ref())?;
     run(py, &model, &batch, &[nv], |m, w, i, out| {
@@ -61,7 +62,7 @@ pub fn aba<'py>(
     v: ArrayArg<'_>,
     tau: ArrayArg<'_>,
     f_ext: Option<ArrayArg<'_>>,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+) -> PyResult<FloatArray<'py>> {
     let nv = model.model.nv();
     let batch = state_batch(&model.model, &q, &v, ("tau", &tau), f_ext.as_ref())?;
     run(py, &model, &batch, &[nv], |m, w, i, out| {
@@ -76,7 +77,7 @@ pub fn aba<'py>(
 
 /// The joint-space mass matrix M(q) (composite-rigid-body algorithm): `(..., nv, nv)`.
 #[pyfunction]
-pub fn crba<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+pub fn crba<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()])])?;
     run(py, &model, &batch, &[m.nv(), m.nv()], |m, w, i, out| {
@@ -90,7 +91,7 @@ pub fn crba<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) ->
 
 /// M(q)⁻¹ by the O(n) articulated-body recursion, without forming or factorising M: `(..., nv, nv)`.
 #[pyfunction]
-pub fn minv<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+pub fn minv<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()])])?;
     run(py, &model, &batch, &[m.nv(), m.nv()], |m, w, i, out| {
@@ -104,7 +105,7 @@ pub fn minv<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) ->
 
 /// Kinetic energy ½ vᵀ M v: `(...)`.
 #[pyfunction]
-pub fn kinetic_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>, v: ArrayArg<'_>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+pub fn kinetic_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>, v: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()])])?;
     run(py, &model, &batch, &[], |m, w, i, out| {
@@ -117,7 +118,7 @@ pub fn kinetic_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayA
 
 /// Potential energy −Σ mᵢ gᵀ cᵢ: `(...)`.
 #[pyfunction]
-pub fn potential_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+pub fn potential_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
     run(py, &model, &batch, &[], |m, w, i, out| {
         let q = batch.rows[0].row(i);

@@ -31,13 +31,7 @@ fn raise(batch: &Batch, (i, error): (usize, Error)) -> PyErr {
     }
 }
 
-type CircleLineArrays<'py> = (
-    Bound<'py, PyArrayDyn<f64>>,
-    Bound<'py, PyArrayDyn<i64>>,
-    Bound<'py, PyArrayDyn<f64>>,
-    Bound<'py, PyArrayDyn<f64>>,
-    Bound<'py, PyArrayDyn<bool>>,
-);
+type CircleLineArrays<'py> = (FloatArray<'py>, Bound<'py, PyArrayDyn<i64>>, FloatArray<'py>, FloatArray<'py>, Bound<'py, PyArrayDyn<bool>>);
 
 /// (distance, count, circle_points (..., 2, 3), line_points (..., 2, 3), equidistant) over the batch.
 #[pyfunction]

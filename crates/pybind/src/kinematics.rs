@@ -4,7 +4,6 @@
 use legkit_dynamics::algorithms::{self, Frame};
 use legkit_dynamics::model::check_vector;
 use nalgebra::Vector3;
-use numpy::PyArrayDyn;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
@@ -15,7 +14,7 @@ use crate::workspace::{check_state, run, run_packed, unpack};
 
 /// World pose (4x4) of every body: `(..., nbodies, 4, 4)`.
 #[pyfunction]
-pub fn forward_kinematics<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+pub fn forward_kinematics<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()])])?;
     run(py, &model, &batch, &[m.nbodies(), 4, 4], |m, w, i, out| {
@@ -51,7 +50,7 @@ pub fn jacobian<'py>(
     body: &Bound<'_, PyAny>,
     point: Option<Vector<'_>>,
     frame: &str,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+) -> PyResult<FloatArray<'py>> {
     let (body, convention) = (model.body_index(body)?, self::frame(frame)?);
     let point = point.map(|p| vector3("point", &p)).transpose()?.unwrap_or_else(Vector3::zeros);
     legkit_dynamics::validate::finite_vector("point", point).map_err(crate::convert::kernel_error)?;
@@ -72,7 +71,7 @@ pub fn jacobian<'py>(
 
 /// The model's centre of mass in the world frame: `(..., 3)`.
 #[pyfunction]
-pub fn center_of_mass<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+pub fn center_of_mass<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
     run(py, &model, &batch, &[3], |m, w, i, out| {
         let q = batch.rows[0].row(i);
@@ -110,12 +109,7 @@ pub fn subtree_mass_properties<'py>(
 
 /// Centroidal momentum [h_lin, h_ang about the COM], world-aligned: `(..., 6)`.
 #[pyfunction]
-pub fn centroidal_momentum<'py>(
-    py: Python<'py>,
-    model: PyRef<'_, PyModel>,
-    q: ArrayArg<'_>,
-    v: ArrayArg<'_>,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+pub fn centroidal_momentum<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>, v: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()])])?;
     run(py, &model, &batch, &[6], |m, w, i, out| {
@@ -134,7 +128,7 @@ pub fn centroidal_momentum_rate<'py>(
     q: ArrayArg<'_>,
     v: ArrayArg<'_>,
     a: ArrayArg<'_>,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()]), ("a", &a, &[m.nv()])])?;
     run(py, &model, &batch, &[6], |m, w, i, out| {

@@ -1,7 +1,6 @@
 //! Free simulation (no contacts): configuration integration and trajectories.
 
 use legkit_dynamics::algorithms::{self, Method};
-use numpy::PyArrayDyn;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
@@ -12,13 +11,7 @@ use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
 
 /// `q ⊕ v dt`: joint coordinates add; a free-flyer base moves along exp(v dt) in its own frame: `(..., nq)`.
 #[pyfunction]
-pub fn integrate<'py>(
-    py: Python<'py>,
-    model: PyRef<'_, PyModel>,
-    q: ArrayArg<'_>,
-    v: ArrayArg<'_>,
-    dt: f64,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+pub fn integrate<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>, v: ArrayArg<'_>, dt: f64) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     legkit_dynamics::validate::finite("dt", dt).map_err(crate::convert::kernel_error)?;
     let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()])])?;

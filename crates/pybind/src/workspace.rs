@@ -6,6 +6,8 @@ use legkit_dynamics::{Data, Error, Model};
 use numpy::{IxDyn, PyArrayDyn, PyArrayMethods};
 use pyo3::prelude::*;
 
+use crate::convert::FloatArray;
+
 use crate::batch::{map_rows, to_numpy, Batch};
 use crate::model::PyModel;
 
@@ -54,7 +56,7 @@ impl Drop for Workspace<'_> {
 /// Runs `kernel(model, workspace, i, out)` over the batch, GIL released; returns `batch + out_core`,
 /// written in place into a new NumPy array. The array starts uninitialised: a kernel writes all of `out`
 /// or fails (and the array is dropped).
-pub fn run<'py, K>(py: Python<'py>, owner: &PyModel, batch: &Batch, out_core: &[usize], kernel: K) -> PyResult<Bound<'py, PyArrayDyn<f64>>>
+pub fn run<'py, K>(py: Python<'py>, owner: &PyModel, batch: &Batch, out_core: &[usize], kernel: K) -> PyResult<FloatArray<'py>>
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
@@ -91,7 +93,7 @@ where
 }
 
 /// Splits rows packed as `[part 0 | part 1 | ...]` into one array per part, shaped `batch + core`.
-pub fn unpack<'py>(py: Python<'py>, batch: &Batch, packed: &[f64], cores: &[&[usize]]) -> Vec<Bound<'py, PyArrayDyn<f64>>> {
+pub fn unpack<'py>(py: Python<'py>, batch: &Batch, packed: &[f64], cores: &[&[usize]]) -> Vec<FloatArray<'py>> {
     let widths: Vec<usize> = cores.iter().map(|c| c.iter().product()).collect();
     let width: usize = widths.iter().sum();
     let mut start = 0;
