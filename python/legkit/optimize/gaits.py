@@ -41,9 +41,6 @@ AMBLE_IPOPT = {"mu_strategy": "monotone"}
 #: Hessian meets the constraints in fewer iterations (20 vs 78).
 AMBLE_DERIVATIVES = "legkit"
 
-#: q indices of the quadruped's hip roll and hip pitch joints (leg by leg), for the replay's attitude feedback.
-AMBLE_ATTITUDE_JOINTS = ([7 + 3 * leg for leg in range(4)], [8 + 3 * leg for leg in range(4)])
-
 #: The amble's support pairs in time order from t = 0 (file 003, Sect. 4.2).
 AMBLE_SUPPORT = (("lf", "lh"), ("lf", "rh"), ("rf", "rh"), ("rf", "lh"))
 

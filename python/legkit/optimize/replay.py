@@ -17,7 +17,7 @@ What the amble's replay showed (measured on the Fig. 3 amble, 4 intervals per ph
   shape, so it tips about that line as an unactuated inverted pendulum. On the optimiser's own contact model
   (feet held bilaterally by `lk.contact_dynamics`, touchdowns by `lk.impact`, the same PD + feed-forward) the
   torso's tilt from the plan still grows from 0.1 to 3.0 deg in one 0.33 s diagonal support. Feeding the
-  torso's attitude error (and rate) to the hip targets (`attitude`), capture-point placement of the swing feet,
+  torso's attitude error (and rate) to the hip targets, capture-point placement of the swing feet,
   world-height tracking of the swing feet and stiffer swing legs were each tried at several gains on the
   soft-touchdown amble; none widened the passing set, most fell sooner, so the default stays the issue's plain
   PD + feed-forward.
@@ -28,7 +28,6 @@ What the amble's replay showed (measured on the Fig. 3 amble, 4 intervals per ph
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -142,18 +141,12 @@ def clear_of_ground(problem: MultiphaseProblem, q: np.ndarray, radius: float) ->
 
 
 def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, kp: float | np.ndarray = 20.0, kd: float | np.ndarray = 0.5,
-           foot_radius: float = 0.002, dt: float = 1e-3, control_every: int = 2, friction: float = 0.8,
-           attitude: tuple[Sequence[int], Sequence[int]] | None = None, attitude_gain: float = 1.0) -> Replay:
+           foot_radius: float = 0.002, dt: float = 1e-3, control_every: int = 2, friction: float = 0.8) -> Replay:
     """Simulate `cycles` cycles from the optimised initial state, its base raised until no foot starts below the
     ground (`clear_of_ground`); only the feet (`foot_shapes`: spheres of foot_radius, flat soles as boxes) and the
-    base collide. kp, kd: joint PD gains, one for every actuated joint or one each (nu,).
-
-    attitude: (roll joints, pitch joints), q indices of joints turning about the torso's x and y axes (a
-    quadruped's hip roll and hip pitch). With it, the torso's roll and pitch error from the plan (small angles,
-    torso frame) times attitude_gain is added to those joints' targets: a stance leg then turns the torso back,
-    a swing leg aims its foot where the plan puts it in the world. Without it (None) the replay is open loop
-    in the torso's attitude, and a two-legged support's tipping mode grows from any small error; with it the
-    soft-touchdown amble fell sooner (3.2 s at kp 50, kd 1, against 5 cycles upright without; module docstring)."""
+    base collide. kp, kd: joint PD gains, one for every actuated joint or one each (nu,). The replay is open
+    loop in the torso's attitude: a two-legged support's tipping mode grows from any small error (module
+    docstring: feeding the attitude error to the hip targets made the soft-touchdown amble fall sooner)."""
     model = problem.model
     sim = lk.Simulation(model, dt=dt, ground=lk.Ground.plane(friction), shapes=foot_shapes(problem, foot_radius))
     period = float(np.sum(trajectory.durations))
@@ -167,16 +160,8 @@ def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, 
     tau[:, problem.actuated] = planned_u
     simulated = np.empty_like(planned_q)
     simulated[0] = sim.q
-    planned_rotation = rotation(planned_q[:, 3:7]) if model.floating_base else None
     for i in range(steps):  # the targets change every control period; the engine steps in between
-        target = planned_q[i]
-        if attitude is not None and model.floating_base:
-            assert planned_rotation is not None  # set whenever the model has a floating base
-            error = planned_rotation[i].T @ rotation(np.asarray(sim.q)[3:7])
-            target = target.copy()
-            target[list(attitude[0])] += attitude_gain * 0.5 * (error[2, 1] - error[1, 2])
-            target[list(attitude[1])] += attitude_gain * 0.5 * (error[0, 2] - error[2, 0])
-        sim.set_servo(stiffness, damping, target_q=target, target_v=planned_v[i])
+        sim.set_servo(stiffness, damping, target_q=planned_q[i], target_v=planned_v[i])
         sim.step(tau[i], control_every)
         simulated[i + 1] = sim.q
     standing = np.ones(len(t), dtype=bool)
