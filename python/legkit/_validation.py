@@ -1,18 +1,57 @@
-"""Argument checks shared by the Python packages: every error names the offending argument."""
+"""Argument checks shared by the Python packages: every error names the offending argument.
+
+Wrong types raise TypeError and wrong values (shape, range, NaN/inf) ValueError; a check changes no state.
+"""
 
 from __future__ import annotations
+
+from typing import TypeGuard
 
 import numpy as np
 import numpy.typing as npt
 
+UNIT_TOLERANCE = 1e-6
 
-def float_array(value: npt.ArrayLike, name: str, *, last: int | None = None, min_ndim: int = 0) -> np.ndarray:
+
+def is_integer(value: object) -> TypeGuard[int | np.integer]:
+    """True for a Python or numpy integer; False for a bool, which Python counts as an int."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def integer(value: object, name: str) -> int:
+    """`value` as an int: TypeError unless it is a Python or numpy integer (bools refused)."""
+    if not is_integer(value):
+        raise TypeError(f"{name} must be an integer, got {type(value).__name__}")
+    return int(value)
+
+
+def is_real(value: object) -> TypeGuard[int | float | np.integer | np.floating]:
+    """True for a Python or numpy real scalar; False for a bool."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+
+
+def positive_scalar(value: object, name: str, *, allow_zero: bool = False) -> float:
+    """A finite real scalar > 0 (or >= 0 with allow_zero): TypeError if it is not a real number (bools refused)."""
+    if not is_real(value):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__}")
+    number = float(value)
+    if not np.isfinite(number) or number < 0.0 or (number == 0.0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be finite and {bound}, got {value}")
+    return number
+
+
+def float_array(
+    value: object, name: str, *, shape: tuple[int, ...] | None = None, last: int | None = None, min_ndim: int = 0
+) -> np.ndarray:
     """`value` as a finite float64 array: TypeError if it is not numeric, ValueError on a wrong shape
-    (fewer than `min_ndim` dimensions, or a last dimension other than `last`) or on NaN/inf."""
+    (other than `shape`, fewer than `min_ndim` dimensions, or a last dimension other than `last`) or on NaN/inf."""
     try:
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as error:
         raise TypeError(f"{name} must be an array of real numbers, got {type(value).__name__}") from error
+    if shape is not None and array.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got shape {array.shape}")
     if array.ndim < min_ndim:
         raise ValueError(f"{name} must have at least {min_ndim} dimensions, got shape {array.shape}")
     if last is not None and (array.ndim == 0 or array.shape[-1] != last):
@@ -20,3 +59,46 @@ def float_array(value: npt.ArrayLike, name: str, *, last: int | None = None, min
     if not np.all(np.isfinite(array)):
         raise ValueError(f"{name} contains a non-finite value (NaN or inf)")
     return array
+
+
+def bool_mask(value: npt.ArrayLike | None, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """A boolean mask broadcast to `shape` (all True when `value` is None)."""
+    if value is None:
+        return np.ones(shape, dtype=bool)
+    mask = np.asarray(value)
+    if mask.dtype != bool:
+        raise TypeError(f"{name} must be a boolean array, got dtype {mask.dtype}")
+    try:
+        return np.broadcast_to(mask, shape)
+    except ValueError as error:
+        raise ValueError(f"{name} has shape {mask.shape}, which does not broadcast to {shape}") from error
+
+
+def friction_coefficient(mu: npt.ArrayLike, name: str = "mu") -> np.ndarray:
+    """Friction coefficient(s): finite and >= 0."""
+    array = float_array(mu, name)
+    if np.any(array < 0.0):
+        raise ValueError(f"{name} must be >= 0, got {array.min()}")
+    return array
+
+
+def unit_vectors(value: npt.ArrayLike, name: str) -> np.ndarray:
+    """(..., 3) vectors that must already be unit length (to 1e-6): a non-unit normal is a caller bug."""
+    array = float_array(value, name, last=3)
+    norms = np.linalg.norm(array, axis=-1)
+    if np.any(np.abs(norms - 1.0) > UNIT_TOLERANCE):
+        worst = norms.flat[np.argmax(np.abs(norms - 1.0))]
+        raise ValueError(f"{name} must be unit vectors (|n| = 1 within {UNIT_TOLERANCE}), found |n| = {worst:.9g}")
+    return array
+
+
+def time_grid(t: npt.ArrayLike, samples: int, name: str = "t") -> np.ndarray:
+    """Strictly increasing sample times matching `samples` values along the first axis."""
+    times = float_array(t, name)
+    if times.ndim != 1 or times.shape[0] != samples:
+        raise ValueError(f"{name} must be 1-D with {samples} samples, got shape {times.shape}")
+    if samples < 2:
+        raise ValueError(f"{name} needs at least two samples to integrate over, got {samples}")
+    if np.any(np.diff(times) <= 0.0):
+        raise ValueError(f"{name} must be strictly increasing")
+    return times

@@ -87,8 +87,7 @@ import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
-from legkit._validation import float_array
-from legkit.stability._validation import bool_mask, positive_scalar
+from legkit._validation import bool_mask, float_array, positive_scalar
 from legkit.stability.support import _contacts, _hull
 
 Definition = Literal["paper", "energy"]

@@ -16,8 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
-from legkit._validation import float_array
-from legkit.stability._validation import positive_scalar, time_grid
+from legkit._validation import float_array, positive_scalar, time_grid
 
 
 def _per_joint(value: npt.ArrayLike, name: str, joints: int, *, allow_zero: bool = False) -> np.ndarray:

@@ -30,8 +30,7 @@ import numpy.typing as npt
 from scipy.optimize import OptimizeResult, linprog
 
 import legkit as lk
-from legkit._validation import float_array
-from legkit.stability._validation import friction_coefficient, positive_scalar, unit_vectors
+from legkit._validation import float_array, friction_coefficient, positive_scalar, unit_vectors
 from legkit.stability.support import convex_hull_2d, polygon_margin
 
 

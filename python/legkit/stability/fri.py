@@ -24,8 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
-from legkit._validation import float_array
-from legkit.stability._validation import time_grid
+from legkit._validation import float_array, time_grid
 from legkit.stability.zmp import ground_point
 
 

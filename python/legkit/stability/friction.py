@@ -9,8 +9,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from legkit._validation import float_array
-from legkit.stability._validation import friction_coefficient, unit_vectors
+from legkit._validation import float_array, friction_coefficient, unit_vectors
 
 
 def friction_cone_margin(forces: npt.ArrayLike, normals: npt.ArrayLike, mu: npt.ArrayLike) -> np.ndarray:

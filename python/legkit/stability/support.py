@@ -21,8 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from legkit._validation import float_array
-from legkit.stability._validation import bool_mask
+from legkit._validation import bool_mask, float_array
 
 # One tolerance tau, a distance [m] per sample, decides both which contacts are distinct and which are collinear:
 #     tau = SUPPORT_TOLERANCE * D + _ROUNDING * M + _ABSOLUTE_TOLERANCE,

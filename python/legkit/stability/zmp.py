@@ -15,8 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
-from legkit._validation import float_array
-from legkit.stability._validation import positive_scalar
+from legkit._validation import float_array, positive_scalar
 
 _MIN_NORMAL_FORCE = 1e-12
 
