@@ -29,6 +29,8 @@ from typing import Any, cast
 
 import numpy as np
 
+from legkit._validation import integer, is_integer
+
 MODES = ("sync", "async")
 
 
@@ -50,9 +52,7 @@ class BusConfig:
         if self.mode not in MODES:
             raise ValueError(f"mode: must be one of {MODES}, got {self.mode!r}")
         for name in ("delay_min", "delay_max", "retransmit_after", "seed"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-                raise TypeError(f"{name}: must be an int, got {type(value).__name__}")
+            integer(getattr(self, name), name)
         if self.delay_min < 1 or self.delay_max < self.delay_min:
             raise ValueError(f"delay_min, delay_max: need 1 <= delay_min <= delay_max, got {self.delay_min}, {self.delay_max}")
         if self.retransmit_after < 1:
@@ -73,7 +73,7 @@ def _checked_streams(streams: Any) -> tuple[tuple[int, int], ...]:
     except TypeError:
         raise TypeError(f"streams: must be a sequence of (modules, seed) pairs, got {streams!r}") from None
     for k, pair in enumerate(pairs):
-        if len(pair) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) for v in pair):
+        if len(pair) != 2 or not all(is_integer(v) for v in pair):
             raise TypeError(f"streams[{k}]: must be a (modules, seed) pair of ints, got {pair!r}")
         if pair[0] < 1 or pair[1] < 0:
             raise ValueError(f"streams[{k}]: need modules >= 1 and seed >= 0, got {pair!r}")

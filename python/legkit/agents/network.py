@@ -51,6 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import legkit as lk
+from legkit._validation import float_array
 from legkit.agents import moments
 from legkit.agents.bus import BusConfig, Channel
 from legkit.robots.superbot import CONNECTOR_BLOCK, ModelLayout, ModuleParameters, ModuleTree, module_kinematics_components
@@ -301,12 +302,7 @@ class AgentNetwork:
             self._sense(angles, changed)
 
     def _checked_angles(self, angles: np.ndarray) -> np.ndarray:
-        angles = np.asarray(angles, dtype=float)
-        if angles.shape != (self.n_modules, 3):
-            raise ValueError(f"angles: must have shape ({self.n_modules}, 3), got {angles.shape}")
-        if not np.all(np.isfinite(angles)):
-            raise ValueError("angles: must be finite")
-        return angles
+        return float_array(angles, "angles", shape=(self.n_modules, 3))
 
     def _sense(self, angles: np.ndarray, changed: np.ndarray | None) -> None:
         """The agents ``changed`` (N,) (all if None) take their ``angles``: part poses and moments, own mass, and

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from legkit._validation import positive_scalar
+
 KP0 = 10.0
 KI0 = 0.1
 KD0 = 1e-4
@@ -66,9 +68,7 @@ class GainSchedule:
         if self.scheme not in SCHEMES:
             raise ValueError(f"scheme: must be one of {SCHEMES}, got {self.scheme!r}")
         for name in ("c0", "c1", "kp0", "ki0", "kd0"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name}: must be a finite number >= 0, got {value!r}")
+            positive_scalar(getattr(self, name), name, allow_zero=True)
 
     @staticmethod
     def paper(scheme: str) -> GainSchedule:

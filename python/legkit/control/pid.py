@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from legkit._validation import float_array, positive_scalar
+
 
 class PID:
     """PID controllers for ``shape`` joints: ``u = K_P e + K_I sum(e dt) + K_D de/dt`` with e = target - angle
@@ -23,13 +25,8 @@ class PID:
 
     def __call__(self, error: np.ndarray, dt: float, kp: np.ndarray, ki: np.ndarray, kd: np.ndarray) -> np.ndarray:
         """Control effort for ``error`` (rad, of ``shape``) after a step of ``dt`` s; gains broadcast to ``shape``."""
-        error = np.asarray(error, dtype=float)
-        if error.shape != self.shape:
-            raise ValueError(f"error: must have shape {self.shape}, got {error.shape}")
-        if not np.all(np.isfinite(error)):
-            raise ValueError("error: must be finite")
-        if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt: must be a finite number > 0, got {dt!r}")
+        error = float_array(error, "error", shape=self.shape)
+        positive_scalar(dt, "dt")
         self.integral = self.integral + error * dt
         derivative = np.zeros(self.shape) if self.previous_error is None else (error - self.previous_error) / dt
         self.previous_error = error.copy()

@@ -43,6 +43,7 @@ import numpy as np
 from tqdm import tqdm
 
 import legkit as lk
+from legkit._validation import float_array, is_integer, positive_scalar
 from legkit.agents import AgentNetwork, BusConfig, GroundContact
 from legkit.control import SCHEMES, BalanceController, GainSchedule
 from legkit.robots.superbot import ModuleTree, random_tree
@@ -85,25 +86,14 @@ class FreePlant:
     ):
         if model.floating_base:
             raise ValueError("model: FreePlant integrates fixed-base models only")
-        for name, value, positive in (("dt", dt, True), ("armature", armature, False), ("damping", damping, False)):
-            if not (isinstance(value, (int, float)) and np.isfinite(value) and (value > 0 if positive else value >= 0)):
-                raise ValueError(f"{name}: must be a finite number {'> 0' if positive else '>= 0'}, got {value!r}")
         self.model = model
-        self.dt = float(dt)
-        self.armature = float(armature)
-        self.damping = float(damping)
-        self._q = self._vector("q0", model.neutral() if q0 is None else q0, model.nq)
-        self._v = self._vector("v0", np.zeros(model.nv) if v0 is None else v0, model.nv)
+        self.dt = positive_scalar(dt, "dt")
+        self.armature = positive_scalar(armature, "armature", allow_zero=True)
+        self.damping = positive_scalar(damping, "damping", allow_zero=True)
+        # Copies: the plant owns its state.
+        self._q = float_array(model.neutral() if q0 is None else q0, "q0", shape=(model.nq,)).copy()
+        self._v = float_array(np.zeros(model.nv) if v0 is None else v0, "v0", shape=(model.nv,)).copy()
         self._blocks = _independent_blocks(model)
-
-    @staticmethod
-    def _vector(name: str, value: np.ndarray, size: int) -> np.ndarray:
-        array = np.asarray(value, dtype=float)
-        if array.shape != (size,):
-            raise ValueError(f"{name}: must have shape ({size},), got {array.shape}")
-        if not np.all(np.isfinite(array)):
-            raise ValueError(f"{name}: must be finite")
-        return array.copy()
 
     @property
     def q(self) -> np.ndarray:
@@ -128,7 +118,7 @@ class FreePlant:
     def step(self, tau: np.ndarray) -> None:
         """Advance one step of ``dt`` under joint torques ``tau`` (nv,) N m; raises ValueError on bad input or if the
         state would stop being finite (the state is then left unchanged)."""
-        tau = self._vector("tau", tau, self.model.nv)
+        tau = float_array(tau, "tau", shape=(self.model.nv,))
         v = self._v + self.dt * self.acceleration(self._q, self._v, tau)
         q = self._q + self.dt * v
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
@@ -311,8 +301,7 @@ def run_balance(
     plants) at the velocity it reached in that step, in J."""
     if not trees:
         raise ValueError("trees: need at least one tree")
-    if not (np.isfinite(duration) and duration > 0):
-        raise ValueError(f"duration: must be > 0, got {duration!r}")
+    positive_scalar(duration, "duration")
     if not 0 <= loss < 1:
         raise ValueError(f"loss: must be in [0, 1), got {loss!r}")
     if bus is not None and loss:
@@ -444,15 +433,14 @@ def _checked_runs(runs: Sequence[RunSpec], n_trees: int) -> list[RunSpec]:
     for k, r in enumerate(runs):
         if not isinstance(r, RunSpec):
             raise TypeError(f"runs[{k}]: must be a RunSpec, got {type(r).__name__}")
-        if isinstance(r.tree, bool) or not isinstance(r.tree, (int, np.integer)) or not 0 <= r.tree < n_trees:
+        if not is_integer(r.tree) or not 0 <= r.tree < n_trees:
             raise ValueError(f"runs[{k}].tree: must be an index into trees (0..{n_trees - 1}), got {r.tree!r}")
         if not isinstance(r.schedule, GainSchedule):
             raise TypeError(f"runs[{k}].schedule: must be a GainSchedule, got {type(r.schedule).__name__}")
         if r.ground is not None and not isinstance(r.ground, lk.Ground):
             raise TypeError(f"runs[{k}].ground: must be an lk.Ground or None, got {type(r.ground).__name__}")
-        if not (isinstance(r.noise, (int, float)) and np.isfinite(r.noise) and r.noise >= 0):
-            raise ValueError(f"runs[{k}].noise: must be a finite number >= 0 (rad), got {r.noise!r}")
-        if r.bus_seed is not None and (isinstance(r.bus_seed, bool) or not isinstance(r.bus_seed, (int, np.integer)) or r.bus_seed < 0):
+        positive_scalar(r.noise, f"runs[{k}].noise", allow_zero=True)
+        if r.bus_seed is not None and (not is_integer(r.bus_seed) or r.bus_seed < 0):
             raise ValueError(f"runs[{k}].bus_seed: must be None or an int >= 0, got {r.bus_seed!r}")
     return runs
 

@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import legkit as lk
+from legkit._validation import float_array, integer, positive_scalar
 
 MODULE_WIDTH = 0.084
 REAL_MODULE_MASS = 0.5
@@ -97,9 +98,7 @@ class ModuleParameters:
 
     def __post_init__(self) -> None:
         for name in ("width", "mass", "joint_limit"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
-                raise ValueError(f"{name}: must be a finite number > 0, got {value!r}")
+            positive_scalar(getattr(self, name), name)
 
     @property
     def joint_points(self) -> np.ndarray:
@@ -239,9 +238,7 @@ class ModuleTree:
     parameters: ModuleParameters = field(default_factory=ModuleParameters)
 
     def __post_init__(self) -> None:
-        if isinstance(self.n_modules, bool) or not isinstance(self.n_modules, (int, np.integer)):
-            raise TypeError(f"n_modules: must be an int, got {type(self.n_modules).__name__}")
-        if self.n_modules < 1:
+        if integer(self.n_modules, "n_modules") < 1:
             raise ValueError(f"n_modules: must be >= 1, got {self.n_modules}")
         if not isinstance(self.parameters, ModuleParameters):
             raise TypeError(f"parameters: must be ModuleParameters, got {type(self.parameters).__name__}")
@@ -374,9 +371,7 @@ def build_model(trees: Sequence[ModuleTree], origins: np.ndarray, gravity: Seque
     their A_end face on z = 0. Body 0 is a massless ground anchor. Modules are numbered tree after tree in
     each tree's own numbering; bodies are added breadth first from each root (parents before children). The
     module angles phi equal the model's q of the corresponding joints."""
-    origins = np.asarray(origins, dtype=float)
-    if origins.shape != (len(trees), 2) or not np.all(np.isfinite(origins)):
-        raise ValueError(f"origins: must be a finite ({len(trees)}, 2) array, got shape {origins.shape}")
+    origins = float_array(origins, "origins", shape=(len(trees), 2))
     model = lk.Model(floating_base=False, gravity=gravity)
     total = sum(t.n_modules for t in trees)
     part_bodies = np.zeros((total, 4), dtype=np.int64)
@@ -457,8 +452,7 @@ def random_tree(
     zero configuration is physically valid. Deterministic for a given seed. ``branches`` must be 1..5 (the
     root has five free connectors)."""
     for name, value in (("n_modules", n_modules), ("branches", branches), ("seed", seed)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-            raise TypeError(f"{name}: must be an int, got {type(value).__name__}")
+        integer(value, name)
     if n_modules < 0:
         raise ValueError(f"n_modules: must be >= 0, got {n_modules}")
     if not 1 <= branches <= 5:

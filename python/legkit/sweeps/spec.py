@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from legkit._validation import integer, is_integer, is_real
 from legkit.control.gains import KD0, KI0, KP0, SCHEMES, GainSchedule
 
 #: The axes of the grid, in the order they vary (the last fastest).
@@ -210,22 +211,21 @@ def _unique(name: str, values: list[Any]) -> list[Any]:
 
 
 def _int(name: str, value: Any, low: int | None = None, high: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name}: must be an int, got {type(value).__name__}")
-    if (low is not None and value < low) or (high is not None and value > high):
+    number = integer(value, name)
+    if (low is not None and number < low) or (high is not None and number > high):
         bounds = f">= {low}" if high is None else f"in {low}..{high}"
         raise ValueError(f"{name}: must be {bounds}, got {value}")
-    return int(value)
+    return number
 
 
 def _ints(name: str, value: Any, low: int, count_ok: bool = False) -> list[int]:
-    if count_ok and isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+    if count_ok and is_integer(value):
         return list(range(_int(name, value, low=1)))
     return _unique(name, [_int(name, v, low=low) for v in _sequence(name, value)])
 
 
 def _float(name: str, value: Any, positive: bool = False, low: float | None = None, below: float | None = None) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+    if not is_real(value):
         raise TypeError(f"{name}: must be a number, got {type(value).__name__}")
     value = float(value)
     if not np.isfinite(value) or (positive and value <= 0) or (low is not None and value < low) or (below is not None and value >= below):

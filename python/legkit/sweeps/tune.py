@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
+from legkit._validation import positive_scalar
 from legkit.control.gains import SCHEMES, GainSchedule
 from legkit.sweeps.cli import median_quartiles
 from legkit.sweeps.execute import LocalExecutor, RayExecutor, executor, run_batch
@@ -115,10 +116,8 @@ def tune(
     for name, value in counts:
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise ValueError(f"{name}: must be an int >= 1, got {value!r}")
-    for name, number in (("duration", duration), ("t10_weight", t10_weight)):
-        finite_non_negative = isinstance(number, (int, float)) and math.isfinite(number) and number >= 0
-        if isinstance(number, bool) or not finite_non_negative or (name == "duration" and number == 0):
-            raise ValueError(f"{name}: must be a finite number {'> 0' if name == 'duration' else '>= 0'}, got {number!r}")
+    positive_scalar(duration, "duration")
+    positive_scalar(t10_weight, "t10_weight", allow_zero=True)
     problem = _Problem(
         {"modules": modules, "branches": branches, "duration": float(duration), "dt": 1e-3}, [TRAIN_SEED0 + i for i in range(train)],
         base_gains, t10_weight, batch_size,

@@ -134,10 +134,7 @@ class Scene:
         """A text drawn in pictures (GIF, PNG) centred under the world point ``position`` (3,)."""
         if not isinstance(text, str):
             raise TypeError(f"text: must be a string, got {type(text).__name__}")
-        point = float_array(position, "position")
-        if point.shape != (3,):
-            raise ValueError(f"position: must have shape (3,), got {point.shape}")
-        self.labels.append((text, point))
+        self.labels.append((text, float_array(position, "position", shape=(3,))))
 
     def add_robot(
         self, model: lk.Model, q: npt.ArrayLike, times: npt.ArrayLike | None = None, *, name: str | None = None,
