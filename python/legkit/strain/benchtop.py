@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from legkit._validation import float_array
+from legkit._validation import float_array, positive_scalar
 from legkit.robots.rhex import LEG_LENGTH
 
 
@@ -75,9 +75,7 @@ class CompliantFourBarLeg:
 
     def __post_init__(self) -> None:
         for name in ("nominal_length", "linkage_compression", "linkage_stiffness", "gauge_gain"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be finite and positive, got {value}")
+            positive_scalar(getattr(self, name), name)
         if not np.isfinite(self.linkage_deflection):
             raise ValueError(f"linkage_deflection must be finite, got {self.linkage_deflection}")
         for name in ("axial_stiffness", "clamp_stiffness"):
@@ -156,10 +154,8 @@ class StrainSensor:
     rate: float = 300.0
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.noise_std) and self.noise_std >= 0):
-            raise ValueError(f"noise_std must be finite and non-negative, got {self.noise_std}")
-        if not (np.isfinite(self.rate) and self.rate > 0):
-            raise ValueError(f"rate must be finite and positive, got {self.rate}")
+        positive_scalar(self.noise_std, "noise_std", allow_zero=True)
+        positive_scalar(self.rate, "rate")
         quantize(0.0, self.bits, self.full_scale)  # validates bits and full_scale
 
     def measure(self, strain: npt.ArrayLike, rng: np.random.Generator) -> np.ndarray:
@@ -244,8 +240,7 @@ def physically_relevant(normal_force: npt.ArrayLike, tangential_force: npt.Array
     f_t = float_array(tangential_force, "tangential_force")
     if f_n.shape != f_t.shape:
         raise ValueError(f"normal_force and tangential_force must have the same shape, got {f_n.shape} and {f_t.shape}")
-    if not (np.isfinite(mu) and mu >= 0):
-        raise ValueError(f"mu must be finite and non-negative, got {mu}")
+    positive_scalar(mu, "mu", allow_zero=True)
     return (f_n > 0) & (np.abs(f_t) < mu * f_n)
 
 

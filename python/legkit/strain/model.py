@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from legkit._validation import float_array, integer
+
 MAX_ORDER = 8
 
 
@@ -43,11 +45,10 @@ def _as_samples(name: str, values: object) -> np.ndarray:
 
 
 def _check_order(order: object) -> int:
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)):
-        raise TypeError(f"order must be an integer, got {type(order).__name__}")
-    if not 0 <= order <= MAX_ORDER:
+    number = integer(order, "order")
+    if not 0 <= number <= MAX_ORDER:
         raise ValueError(f"order must be between 0 and {MAX_ORDER}, got {order}")
-    return int(order)
+    return number
 
 
 def _check_training_data(
@@ -153,12 +154,7 @@ class LegModel:
 
         Raises ValueError on NaN/inf strain (a prediction from a missing reading would be silent garbage).
         """
-        try:
-            sigma = np.asarray(strain, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise TypeError(f"strain must be an array of numbers: {exc}") from exc
-        if not np.all(np.isfinite(sigma)):
-            raise ValueError("strain contains a non-finite value (NaN or inf)")
+        sigma = float_array(strain, "strain")
         # Horner's rule, highest power first.
         length = np.full(sigma.shape, self.length_coefficients[-1])
         deflection = np.full(sigma.shape, self.deflection_coefficients[-1])
@@ -241,9 +237,7 @@ def kfold_indices(n_samples: int, folds: int, seed: int) -> list[np.ndarray]:
 
     Raises ValueError unless 2 <= folds <= n_samples.
     """
-    if isinstance(folds, bool) or not isinstance(folds, (int, np.integer)):
-        raise TypeError(f"folds must be an integer, got {type(folds).__name__}")
-    if not 2 <= folds <= n_samples:
+    if not 2 <= integer(folds, "folds") <= n_samples:
         raise ValueError(f"folds must be between 2 and the number of samples ({n_samples}), got {folds}")
     permutation = np.random.default_rng(seed).permutation(n_samples)
     return [np.sort(part) for part in np.array_split(permutation, folds)]

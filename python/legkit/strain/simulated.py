@@ -86,7 +86,7 @@ import legkit as lk
 from legkit.robots.rhex import LEG_LENGTH, rhex_compliant_model
 from legkit.strain.benchtop import CompliantFourBarLeg, StrainSensor
 from legkit.strain.pose import toe_in_body
-from legkit.strain.walking import TRIPOD_LEGS, ClockGait, WalkingStream
+from legkit.strain.walking import TRIPOD_LEGS, ClockGait, WalkingStream, record_samples
 
 TOE_RADIUS = 0.006  # m, toe sphere; the leg model's toe is its centre (module docstring)
 HIP_BODIES = 1 + 3 * np.arange(6)  # body (and joint) index of each hip motor
@@ -279,12 +279,8 @@ def simulated_walk(
     sensor = sensor or StrainSensor()
     gait = gait or BuehlerClock()
     settings = settings or SimulationSettings()
-    if not (np.isfinite(duration) and duration > 0):
-        raise ValueError(f"duration must be finite and positive, got {duration}")
+    samples = record_samples(duration, sensor.rate)
     period = gait.period(speed)
-    samples = int(round(duration * sensor.rate))
-    if samples < 1:
-        raise ValueError(f"duration {duration} s is shorter than one sample at {sensor.rate} Hz")
     rng = np.random.default_rng(seed)
     start_phase = rng.uniform(0.0, 1.0)
 

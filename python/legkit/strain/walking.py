@@ -40,6 +40,7 @@ from typing import Protocol
 import numpy as np
 
 from legkit import STANDARD_GRAVITY
+from legkit._validation import positive_scalar
 from legkit.robots.rhex import LEG_LENGTH, TOTAL_MASS, TRIPODS
 from legkit.strain.benchtop import CompliantFourBarLeg, StrainSensor
 from legkit.strain.model import LegModel
@@ -116,8 +117,7 @@ class ClockGait:
 
     def period(self, speed: float) -> float:
         """Gait period (s) for a forward speed (m/s): T = 4 L0 sin(phi_s / 2) / speed."""
-        if not (np.isfinite(speed) and speed > 0):
-            raise ValueError(f"speed must be finite and positive, got {speed}")
+        positive_scalar(speed, "speed")
         return 4.0 * LEG_LENGTH * np.sin(self.stance_sweep / 2) / speed
 
     def hip_angles(self, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -133,6 +133,15 @@ class ClockGait:
             half + (2 * np.pi - self.stance_sweep) * ((within - 0.5) / 0.5),
         )
         return np.mod(theta + np.pi, 2 * np.pi) - np.pi, stance
+
+
+def record_samples(duration: float, rate: float) -> int:
+    """Samples in a record of ``duration`` s at ``rate`` Hz: ValueError unless the duration is finite, > 0 and
+    holds at least one sample."""
+    samples = int(round(positive_scalar(duration, "duration") * rate))
+    if samples < 1:
+        raise ValueError(f"duration {duration} s is shorter than one sample at {rate} Hz")
+    return samples
 
 
 def support_pose_truth(stance_toes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -181,8 +190,7 @@ def kinematic_walk(
     leg = leg or CompliantFourBarLeg()
     sensor = sensor or StrainSensor()
     gait = gait or ClockGait()
-    if not (np.isfinite(duration) and duration > 0):
-        raise ValueError(f"duration must be finite and positive, got {duration}")
+    samples = record_samples(duration, sensor.rate)
     period = gait.period(speed)
     rng = np.random.default_rng(seed)
     start_phase = rng.uniform(0.0, 1.0)
@@ -190,9 +198,6 @@ def kinematic_walk(
     if offset.shape != (2,) or not np.all(np.isfinite(offset)):
         raise ValueError(f"com_offset must be two finite numbers (c_x, c_y), got {com_offset}")
 
-    samples = int(round(duration * sensor.rate))
-    if samples < 1:
-        raise ValueError(f"duration {duration} s is shorter than one sample at {sensor.rate} Hz")
     time = np.arange(samples) / sensor.rate
     theta, stance = gait.hip_angles(start_phase + time / period)
     # Tripod A is in stance during the first half of its cycle.
@@ -300,8 +305,7 @@ def estimate_body_pose(
     sigma = np.asarray(strain, dtype=np.float64)
     if theta.shape != sigma.shape or theta.ndim != 2 or theta.shape[1] != 6:
         raise ValueError(f"hip_angle and strain must both have shape (T, 6), got {theta.shape} and {sigma.shape}")
-    if not (np.isfinite(toe_radius) and toe_radius >= 0):
-        raise ValueError(f"toe_radius must be finite and non-negative, got {toe_radius}")
+    positive_scalar(toe_radius, "toe_radius", allow_zero=True)
     length, deflection = model.predict(sigma)
     toes = toe_in_body(theta, length, deflection, LEGS)
     support = np.argmin(tripod_clock_signal(theta, stance_centre), axis=1)
