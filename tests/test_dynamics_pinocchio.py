@@ -153,27 +153,20 @@ def test_aba_f_ext(tw: Twin, rng):
     assert_close(lk.aba(tw.model, q, v, tau, f), tw.v_lk(want), "aba with f_ext")
 
 
-@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name, legkit_matrix, pinocchio_matrix",
+    [pytest.param("crba", lk.crba, pin.crba, marks=pytest.mark.slow), ("minv", lk.minv, pin.computeMinverse)],
+)
 @fast(60)
-@given(twins(), rngs())
-def test_crba(tw: Twin, rng):
+@given(tw=twins(), rng=rngs())
+def test_mass_matrix_and_its_inverse(name, legkit_matrix, pinocchio_matrix, tw: Twin, rng):
+    """The mass matrix (crba) and its inverse (minv) agree with Pinocchio's and are exactly symmetric."""
     q = tw.random_q(rng)
     note_case(tw, q=q)
-    want = tw.m_lk(pin_sym(pin.crba(tw.pin_model, tw.data(), tw.q_pin(q))))
-    got = lk.crba(tw.model, q)
-    assert_close(got, want, "crba")
-    assert np.array_equal(got, np.asarray(got).T), "crba must be exactly symmetric"
-
-
-@fast(60)
-@given(twins(), rngs())
-def test_minv(tw: Twin, rng):
-    q = tw.random_q(rng)
-    note_case(tw, q=q)
-    want = tw.m_lk(pin_sym(pin.computeMinverse(tw.pin_model, tw.data(), tw.q_pin(q))))
-    got = lk.minv(tw.model, q)
-    assert_close(got, want, "minv")
-    assert np.array_equal(got, np.asarray(got).T), "minv must be exactly symmetric"
+    want = tw.m_lk(pin_sym(pinocchio_matrix(tw.pin_model, tw.data(), tw.q_pin(q))))
+    got = legkit_matrix(tw.model, q)
+    assert_close(got, want, name)
+    assert np.array_equal(got, np.asarray(got).T), f"{name} must be exactly symmetric"
 
 
 @fast(60)
