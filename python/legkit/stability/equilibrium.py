@@ -30,7 +30,7 @@ import numpy.typing as npt
 from scipy.optimize import OptimizeResult, linprog
 
 import legkit as lk
-from legkit._validation import float_array, friction_coefficient, positive_scalar, unit_vectors
+from legkit._validation import float_array, friction_coefficient, integer, positive_scalar, unit_vectors
 from legkit.stability.support import convex_hull_2d, polygon_margin
 
 
@@ -117,11 +117,10 @@ def _check(
     friction = friction_coefficient(mu)
     if friction.ndim != 0:
         raise ValueError(f"mu must be a scalar, got shape {friction.shape}")
-    if isinstance(cone_sides, (bool, np.bool_)) or not isinstance(cone_sides, (int, np.integer)):
-        raise TypeError(f"cone_sides must be an integer, got {type(cone_sides).__name__}")
-    if cone_sides < 3:
+    sides = integer(cone_sides, "cone_sides")
+    if sides < 3:
         raise ValueError(f"cone_sides must be >= 3, got {cone_sides}")
-    return points, normals, float(friction), int(cone_sides)
+    return points, normals, float(friction), sides
 
 
 def static_equilibrium_region(

@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
-from legkit._validation import float_array, time_grid
+from legkit._validation import float_array, is_integer, time_grid
 from legkit.stability.zmp import ground_point
 
 
@@ -55,7 +55,7 @@ def _body_index(model: lk.Model, body: int | str) -> int:
         if body not in model.names:
             raise ValueError(f"foot {body!r} is not a body of the model (bodies: {model.names})")
         return model.names.index(body)
-    if isinstance(body, (bool, np.bool_)) or not isinstance(body, (int, np.integer)):
+    if not is_integer(body):
         raise TypeError(f"foot must be a body index or name, got {type(body).__name__}")
     if not 0 <= int(body) < model.nbodies:
         raise ValueError(f"foot index {body} is out of range for a model with {model.nbodies} bodies")

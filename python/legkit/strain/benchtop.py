@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from legkit._validation import float_array, positive_scalar
+from legkit._validation import float_array, is_integer, positive_scalar
 from legkit.robots.rhex import LEG_LENGTH
 
 
@@ -135,7 +135,7 @@ def leg_frame_loads(
 def quantize(signal: npt.ArrayLike, bits: int, full_scale: tuple[float, float]) -> np.ndarray:
     """An n-bit ADC: clip to full_scale = (low, high) and round to the nearest of 2**bits evenly spaced levels."""
     values = float_array(signal, "signal")
-    if isinstance(bits, bool) or not isinstance(bits, (int, np.integer)) or not 1 <= bits <= 32:
+    if not is_integer(bits) or not 1 <= bits <= 32:
         raise ValueError(f"bits must be an integer between 1 and 32, got {bits!r}")
     low, high = float(full_scale[0]), float(full_scale[1])
     if not (np.isfinite(low) and np.isfinite(high) and high > low):
@@ -302,7 +302,7 @@ def resample_evenly(
 
     The result is sorted; cells with fewer samples contribute all of them.
     """
-    if isinstance(per_cell, bool) or not isinstance(per_cell, (int, np.integer)) or per_cell < 1:
+    if not is_integer(per_cell) or per_cell < 1:
         raise ValueError(f"per_cell must be a positive integer, got {per_cell!r}")
     cells = configuration_cells(length, deflection, bins)
     shuffled = np.random.default_rng(seed).permutation(cells.size)

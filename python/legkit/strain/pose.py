@@ -56,7 +56,7 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from legkit._validation import float_array
+from legkit._validation import float_array, is_integer
 from legkit.robots.rhex import HIP_POSITIONS
 
 # Relative size below which three toes are treated as collinear: |cross| <= tol * (longest edge)^2.
@@ -289,7 +289,7 @@ def stance_intervals(rho: npt.ArrayLike, threshold: float, min_length: int = 1) 
         raise ValueError(f"rho must be one-dimensional, got shape {signal.shape}")
     if not np.isfinite(threshold):
         raise ValueError(f"threshold must be finite, got {threshold}")
-    if isinstance(min_length, bool) or not isinstance(min_length, (int, np.integer)) or min_length < 1:
+    if not is_integer(min_length) or min_length < 1:
         raise ValueError(f"min_length must be a positive integer, got {min_length!r}")
     inside = np.concatenate([[False], signal <= threshold, [False]]).astype(np.int8)
     change = np.diff(inside)
