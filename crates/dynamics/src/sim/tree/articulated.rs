@@ -20,8 +20,7 @@ pub(super) struct Articulated {
     base: Option<Cholesky<f64, U6>>,
     /// u_k = r_k − S_kᵀ p_k of the last solve's backward pass, per velocity coordinate.
     reduced: Vec<f64>,
-    /// K_b per body (symmetric: only its upper triangle is read) and c per coordinate: set by the caller
-    /// before `factor`.
+    /// K_b per body (symmetric) and c per coordinate: set by the caller before `factor`.
     pub stiffness: Vec<Matrix6<f64>>,
     pub coordinate_stiffness: Vec<f64>,
     /// Body spatial velocities of the last `motions`; body forces for `generalized`.
@@ -75,8 +74,14 @@ impl Articulated {
     }
 
     /// out = M̃ x.
+    #[cfg(test)]
     pub(super) fn mass_times(&mut self, model: &Model, data: &Data, armature: &[f64], x: &[f64], out: &mut [f64]) {
         self.motions(model, data, x);
+        self.mass_times_motions(model, data, armature, x, out);
+    }
+
+    /// out = M̃ x, with `motion` holding Φ_b x (from `motions`).
+    pub(super) fn mass_times_motions(&mut self, model: &Model, data: &Data, armature: &[f64], x: &[f64], out: &mut [f64]) {
         for ((f, rigid), m) in self.force.iter_mut().zip(&data.rigid).zip(&self.motion) {
             *f = rigid * m;
         }
@@ -89,12 +94,7 @@ impl Articulated {
     /// Factors H with the stiffnesses set; false if it is not positive definite.
     pub(super) fn factor(&mut self, model: &Model, data: &Data, armature: &[f64]) -> bool {
         for ((a, rigid), k) in self.inertia.iter_mut().zip(&data.rigid).zip(&self.stiffness) {
-            let (a, rigid, k) = (&mut a.data.0, &rigid.data.0, &k.data.0);
-            for c in 0..6 {
-                for r in 0..6 {
-                    a[c][r] = rigid[c][r] + if r <= c { k[c][r] } else { k[r][c] };
-                }
-            }
+            *a = rigid + k;
         }
         for i in (1..model.nbodies()).rev() {
             let k = model.idx_v(i);

@@ -89,18 +89,16 @@ impl Delassus {
     }
 }
 
-/// fᵀ Ω f for a symmetric Ω, from its upper triangle.
+/// fᵀ Ω f, as f · (Ω f) over Ω's columns (which vectorises, where the symmetric half would not).
 fn quadratic(omega: &Matrix6<f64>, f: &Vector6<f64>) -> f64 {
     let (o, f) = (&omega.data.0, &f.data.0[0]);
-    let mut sum = 0.0;
-    for c in 0..6 {
-        let mut column = 0.5 * o[c][c] * f[c];
-        for r in 0..c {
-            column += o[c][r] * f[r];
+    let mut product = [0.0; 6];
+    for (column, f_c) in o.iter().zip(f) {
+        for (p, o_rc) in product.iter_mut().zip(column) {
+            *p += o_rc * f_c;
         }
-        sum += column * f[c];
     }
-    2.0 * sum
+    product.iter().zip(f).map(|(p, f)| p * f).sum()
 }
 
 /// Forces on body `i` passed to its parent: f ← P_iᵀ f = f − w_i (S_iᵀ f).

@@ -170,7 +170,7 @@ impl TreeSimulation {
             let (diagonal, scale) = self.delassus.bodies(model, &self.data, body, other, &rows);
             let warm_t = Vector3::new(f.warm[1], f.warm[2], f.warm[3]);
             let warm = [f.warm[0], warm_t.dot(&t1), warm_t.dot(&t2)];
-            let kind = Kind::Contact { mu: self.friction };
+            let kind = Kind::Contact { mu: self.friction, arm: r };
             self.constraints.push(Constraint::new(
                 kind,
                 Target::Bodies(body, other),

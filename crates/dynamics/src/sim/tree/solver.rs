@@ -24,7 +24,7 @@
 //! whole chain. A contact between two bodies couples their chains outside the tree's sparsity; its
 //! Hessian is taken on each body alone, which still gives a descent direction.
 
-use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
+use nalgebra::{Matrix6, Vector3, Vector6};
 
 use super::articulated::Articulated;
 use crate::model::{Data, Model};
@@ -56,8 +56,9 @@ const LINE_TOLERANCE: f64 = 1e-4;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Kind {
-    /// A contact with friction coefficient μ.
-    Contact { mu: f64 },
+    /// A contact with friction coefficient μ at arm r from the origin: its rows are [d; r × d] for its
+    /// normal and tangents d (orthonormal).
+    Contact { mu: f64, arm: Vector3<f64> },
     /// A one-sided joint-limit row (normal only).
     Limit,
 }
@@ -105,6 +106,7 @@ fn clamp_to_cone(lambda: &mut [f64; 3], mu: f64) {
 }
 
 /// Where a constraint's scaled impulse R^½ λ = Π_K̂(s), s = −R^-½ (J v − b), lies, and the impulse.
+#[derive(Clone, Copy)]
 enum Projection {
     /// In the polar cone: no impulse.
     Apart,
@@ -127,7 +129,7 @@ impl Constraint {
         let mut lambda = if r_n > 0.0 { warm } else { [0.0; 3] };
         lambda[0] = lambda[0].max(0.0);
         match kind {
-            Kind::Contact { mu } => clamp_to_cone(&mut lambda, mu),
+            Kind::Contact { mu, .. } => clamp_to_cone(&mut lambda, mu),
             Kind::Limit => {
                 lambda[1] = 0.0;
                 lambda[2] = 0.0;
@@ -142,7 +144,7 @@ impl Constraint {
             held: [lambda[1], lambda[2]],
             inverse_sqrt_r: [r_n, r_t].map(|r| if r > 0.0 { 1.0 / r.sqrt() } else { 0.0 }),
             cone_slope: match kind {
-                Kind::Contact { mu } if r_t > 0.0 => mu * (r_t / r_n).sqrt(),
+                Kind::Contact { mu, .. } if r_t > 0.0 => mu * (r_t / r_n).sqrt(),
                 _ => 0.0,
             },
             residual: [0.0; 3],
@@ -182,26 +184,34 @@ impl Constraint {
         }
     }
 
-    /// H_c = ∂λ / ∂(−y) = R^-½ (∂Π / ∂s) R^-½.
-    fn hessian(&self, projection: &Projection) -> Matrix3<f64> {
-        let scale = Vector3::new(self.inverse_sqrt_r[0], self.inverse_sqrt_r[1], self.inverse_sqrt_r[1]);
-        let jacobian = match *projection {
-            Projection::Apart => return Matrix3::zeros(),
-            Projection::Held { rows: 1, .. } => Matrix3::from_diagonal(&Vector3::new(1.0, 0.0, 0.0)),
-            Projection::Held { .. } => Matrix3::identity(),
-            Projection::Sliding { c, e, t } => {
-                let slope = self.cone_slope;
-                let ray = Vector3::new(1.0, slope * e[0], slope * e[1]);
-                let bend = slope * c / t;
-                let mut jacobian = ray * ray.transpose() / (1.0 + slope * slope);
-                jacobian[(1, 1)] += bend * (1.0 - e[0] * e[0]);
-                jacobian[(2, 2)] += bend * (1.0 - e[1] * e[1]);
-                jacobian[(1, 2)] -= bend * e[0] * e[1];
-                jacobian[(2, 1)] -= bend * e[0] * e[1];
-                jacobian
+    /// Adds F H_c Fᵀ, for the rows F and H_c = ∂λ / ∂(−y) = R^-½ (∂Π / ∂s) R^-½, to `stiffness`. Held,
+    /// ∂Π / ∂s is the identity on the held rows: a sticking contact adds R_t⁻¹ F Fᵀ (a point's, from its
+    /// arm) plus (R_n⁻¹ − R_t⁻¹) on its normal row. Sliding, it is the cone's ray r rᵀ / (1 + μ̂²) plus
+    /// its bend across the sliding direction, (μ̂ c / t) e⊥ e⊥ᵀ: two rank-one terms.
+    fn add_stiffness(&self, projection: &Projection, stiffness: &mut Matrix6<f64>) {
+        let [i_n, i_t] = self.inverse_sqrt_r;
+        let f = &self.rows;
+        match (*projection, self.kind) {
+            (Projection::Apart, _) => {}
+            (Projection::Held { rows: 3, .. }, Kind::Contact { arm, .. }) => {
+                add_point(stiffness, i_t * i_t, &arm);
+                add_rank_one(stiffness, i_n * i_n - i_t * i_t, &f[0]);
             }
-        };
-        Matrix3::from_diagonal(&scale) * jacobian * Matrix3::from_diagonal(&scale)
+            (Projection::Held { .. }, _) => add_rank_one(stiffness, i_n * i_n, &f[0]),
+            (Projection::Sliding { c, e, t }, _) => {
+                let slope = self.cone_slope;
+                add_rank_one(stiffness, 1.0 / (1.0 + slope * slope), &(f[0] * i_n + (f[1] * e[0] + f[2] * e[1]) * (slope * i_t)));
+                add_rank_one(stiffness, slope * c / t, &((f[2] * e[0] - f[1] * e[1]) * i_t));
+            }
+        }
+    }
+
+    /// The diagonal entry H_c[0, 0] (a joint limit's stiffness on its coordinate, before the row's scale).
+    fn normal_stiffness(&self, projection: &Projection) -> f64 {
+        match projection {
+            Projection::Apart => 0.0,
+            _ => self.inverse_sqrt_r[0] * self.inverse_sqrt_r[0],
+        }
     }
 
     /// λ · dy and dyᵀ H_c dy at residual `y`, without forming H_c (the line search's inner loop).
@@ -229,7 +239,7 @@ impl Constraint {
             return;
         }
         let mut lambda = self.impulses(&self.project(self.residual));
-        if let Kind::Contact { mu } = self.kind {
+        if let Kind::Contact { mu, .. } = self.kind {
             if self.inverse_sqrt_r[1] == 0.0 {
                 lambda[1] = self.held[0];
                 lambda[2] = self.held[1];
@@ -302,25 +312,8 @@ impl Solver {
         }
         let mut iterations = 0;
         loop {
-            tree.stiffness.fill(Matrix6::zeros());
-            tree.coordinate_stiffness.fill(0.0);
             for c in constraints.iter_mut().filter(|c| c.active()) {
-                let projection = c.project(c.residual);
-                c.lambda = c.impulses(&projection);
-                if matches!(projection, Projection::Apart) {
-                    continue;
-                }
-                let hessian = c.hessian(&projection);
-                match c.target {
-                    Target::Bodies(a, b) => {
-                        // Φ_aᵀ (F H_c Fᵀ) Φ_a, and likewise on b without the two chains' coupling.
-                        add_spread(&mut tree.stiffness[a], &c.rows, &hessian);
-                        if let Some(b) = b {
-                            add_spread(&mut tree.stiffness[b], &c.rows, &hessian);
-                        }
-                    }
-                    Target::Coordinate(k) => tree.coordinate_stiffness[k] += hessian[(0, 0)] * c.rows[0][0] * c.rows[0][0],
-                }
+                c.lambda = c.impulses(&c.project(c.residual));
             }
             generalized_impulses(tree, model, data, constraints, &mut self.descent);
             let (mut gradient, mut scale) = (0.0f64, 0.0f64);
@@ -335,6 +328,21 @@ impl Solver {
                 break;
             }
             iterations += 1;
+            tree.stiffness.fill(Matrix6::zeros());
+            tree.coordinate_stiffness.fill(0.0);
+            for c in constraints.iter().filter(|c| c.active()) {
+                let projection = c.project(c.residual);
+                match c.target {
+                    // Φ_aᵀ (F H_c Fᵀ) Φ_a, and likewise on b without the two chains' coupling.
+                    Target::Bodies(a, b) => {
+                        c.add_stiffness(&projection, &mut tree.stiffness[a]);
+                        if let Some(b) = b {
+                            c.add_stiffness(&projection, &mut tree.stiffness[b]);
+                        }
+                    }
+                    Target::Coordinate(k) => tree.coordinate_stiffness[k] += c.normal_stiffness(&projection) * c.rows[0][0] * c.rows[0][0],
+                }
+            }
             if !tree.factor(model, data, armature) {
                 return None;
             }
@@ -343,7 +351,7 @@ impl Solver {
             for c in constraints.iter_mut().filter(|c| c.active()) {
                 c.slope = rows_times(c, &tree.motion, &self.step);
             }
-            tree.mass_times(model, data, armature, &self.step, &mut self.mass_step);
+            tree.mass_times_motions(model, data, armature, &self.step, &mut self.mass_step);
             let curvature = dot(&self.step, &self.mass_step);
             let start = dot(&self.mass_change, &self.step);
             let initial = start - constraints.iter().filter(|c| c.active()).map(|c| dot(&c.lambda, &c.slope)).sum::<f64>();
@@ -385,16 +393,34 @@ fn generalized_impulses(tree: &mut Articulated, model: &Model, data: &Data, cons
     }
 }
 
-/// Adds F H Fᵀ, for the three rows F of a constraint and its 3x3 symmetric H, to the upper triangle of
-/// the symmetric `stiffness` (all that `Articulated::factor` reads).
-fn add_spread(stiffness: &mut Matrix6<f64>, rows: &[Vector6<f64>; 3], hessian: &Matrix3<f64>) {
-    let f = rows.each_ref().map(|f| &f.data.0[0]);
-    let h = &hessian.data.0;
-    let weighted: [[f64; 6]; 3] = std::array::from_fn(|j| std::array::from_fn(|r| f[0][r] * h[j][0] + f[1][r] * h[j][1] + f[2][r] * h[j][2]));
-    let k = &mut stiffness.data.0;
-    for c in 0..6 {
-        for r in 0..=c {
-            k[c][r] += weighted[0][r] * f[0][c] + weighted[1][r] * f[1][c] + weighted[2][r] * f[2][c];
+/// stiffness += w [[I, [r]×ᵀ], [[r]×, |r|² I − r rᵀ]], which is w F Fᵀ for the rows F = [d; r × d] of a
+/// point at arm r along any orthonormal directions d.
+fn add_point(stiffness: &mut Matrix6<f64>, w: f64, r: &Vector3<f64>) {
+    let k = &mut stiffness.data.0; // k[column][row]
+    let (x, y, z) = (w * r.x, w * r.y, w * r.z);
+    // [r]× below the linear block, its transpose above.
+    for (column, row, value) in [(0, 4, z), (0, 5, -y), (1, 3, -z), (1, 5, x), (2, 3, y), (2, 4, -x)] {
+        k[column][row] += value;
+        k[row][column] += value;
+    }
+    let squared = w * r.norm_squared();
+    for (j, column) in k.iter_mut().enumerate().take(3) {
+        column[j] += w;
+    }
+    for (j, column) in k[3..].iter_mut().enumerate() {
+        for (i, entry) in column[3..].iter_mut().enumerate() {
+            *entry += if i == j { squared } else { 0.0 } - w * r[i] * r[j];
+        }
+    }
+}
+
+/// stiffness += w g gᵀ.
+fn add_rank_one(stiffness: &mut Matrix6<f64>, w: f64, g: &Vector6<f64>) {
+    let g = &g.data.0[0];
+    for (column, g_c) in stiffness.data.0.iter_mut().zip(g) {
+        let scale = w * g_c;
+        for (k, g_r) in column.iter_mut().zip(g) {
+            *k += scale * g_r;
         }
     }
 }
@@ -452,4 +478,65 @@ fn line_search(constraints: &[Constraint], start: f64, initial: f64, curvature: 
         };
     }
     alpha
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Matrix3, Matrix6x3};
+
+    use super::*;
+    use crate::spatial::spatial;
+
+    /// A contact at arm r along an orthonormal frame, with Delassus diagonal (2, 3, 5) and friction `mu`.
+    fn contact(mu: f64) -> Constraint {
+        let normal = Vector3::new(0.1, 0.2, 1.0).normalize();
+        let t1 = normal.cross(&Vector3::x()).normalize();
+        let t2 = normal.cross(&t1);
+        let r = Vector3::new(0.3, -0.2, 0.5);
+        let rows = [normal, t1, t2].map(|d| spatial(d, r.cross(&d)));
+        Constraint::new(Kind::Contact { mu, arm: r }, Target::Bodies(1, None), rows, 0.0, [0.0; 3], [2.0, 3.0, 5.0], 1.0)
+    }
+
+    /// ∂λ / ∂(−y) by central differences.
+    fn impulses_derivative(c: &Constraint, y: [f64; 3]) -> Matrix3<f64> {
+        let h = 1e-6;
+        Matrix3::from_fn(|r, j| {
+            let at = |sign: f64| {
+                let mut moved = y;
+                moved[j] -= sign * h;
+                c.impulses(&c.project(moved))[r]
+            };
+            (at(1.0) - at(-1.0)) / (2.0 * h)
+        })
+    }
+
+    #[test]
+    fn stiffness_and_line_search_terms_are_the_impulses_derivatives_in_every_zone() {
+        // (friction, residual y, the zone it is in)
+        let cases = [
+            (0.8, [1.0, 0.1, 0.0], "apart"),
+            (0.8, [-1.0, 0.1, -0.05], "sticking"),
+            (0.8, [-0.1, 2.0, 1.0], "sliding"),
+            (0.0, [-1.0, 0.3, 0.2], "pressing without friction"),
+        ];
+        for (mu, y, zone) in cases {
+            let c = contact(mu);
+            let projection = c.project(y);
+            let mut stiffness = Matrix6::zeros();
+            c.add_stiffness(&projection, &mut stiffness);
+            let hessian = impulses_derivative(&c, y);
+            let rows = Matrix6x3::from_columns(&c.rows);
+            let expected = rows * hessian * rows.transpose();
+            let error = (stiffness - expected).abs().max();
+            assert!(error <= 1e-6 * expected.abs().max().max(1.0), "{zone}: F H Fᵀ off by {error}\n{stiffness}\n{expected}");
+            // The line search's λ · dy and dyᵀ H dy, without H.
+            let dy = [0.3, -0.7, 0.2];
+            let (push, second) = c.along(y, dy);
+            let lambda = c.impulses(&projection);
+            let dy = Vector3::from(dy);
+            assert!((push - Vector3::from(lambda).dot(&dy)).abs() <= 1e-12 * push.abs().max(1.0), "{zone}: λ · dy");
+            let curvature = dy.dot(&(hessian * dy));
+            assert!((second - curvature).abs() <= 1e-6 * curvature.abs().max(1.0), "{zone}: dyᵀ H dy {second} vs {curvature}");
+        }
+    }
 }

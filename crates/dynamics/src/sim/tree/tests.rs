@@ -115,10 +115,10 @@ fn newton_matrix_products_and_solves_match_dense_algebra() {
         assert!(tree.factor_of_aba(&model, &data));
         tree.solve(&model, &data, rhs.as_slice(), &mut solution);
         assert!(relative_error(&(&mass * DVector::from_vec(solution.clone())), &rhs) < 1e-10, "floating base: {}", model.floating_base());
-        // H = M̃ + Σ Φ_bᵀ K_b Φ_b + diag(c): H⁻¹ r solves H x = r. Only K_b's upper triangle may be read.
+        // H = M̃ + Σ Φ_bᵀ K_b Φ_b + diag(c): H⁻¹ r solves H x = r.
         let mut h = mass.clone();
         for (b, phi) in phi.iter().enumerate() {
-            tree.stiffness[b] = Matrix6::from_fn(|r, c| if r > c { f64::NAN } else { stiffness(b)[(r, c)] });
+            tree.stiffness[b] = stiffness(b);
             h += phi.transpose() * DMatrix::from_column_slice(6, 6, stiffness(b).as_slice()) * phi;
         }
         for k in base_coordinates(&model)..nv {
