@@ -177,12 +177,10 @@ pub fn dot6(a: &Vector6<f64>, b: &[f64]) -> f64 {
 /// added to its parent's without storing it.
 #[inline(always)]
 pub fn add_reduced_inertia(parent: &mut Inertia, inertia: &Inertia, u: &Vector6<f64>, w: &Vector6<f64>) {
-    let parent: &mut [f64; 36] = parent.as_mut_slice().try_into().expect("6x6");
-    let entries: &[f64; 36] = inertia.as_slice().try_into().expect("6x6");
-    for ((p, column), &wc) in parent.chunks_exact_mut(6).zip(entries.chunks_exact(6)).zip(w.iter()) {
-        for r in 0..6 {
-            p[r] += column[r] - u[r] * wc;
-        }
+    let (parent, entries, u) = (&mut parent.data.0, &inertia.data.0, &u.data.0[0]);
+    // Whole fixed-size columns, which the compiler vectorises.
+    for ((p, column), &wc) in parent.iter_mut().zip(entries).zip(w.iter()) {
+        *p = std::array::from_fn(|r| p[r] + (column[r] - u[r] * wc));
     }
 }
 

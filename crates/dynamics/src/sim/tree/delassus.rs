@@ -45,10 +45,8 @@ impl Delassus {
                 let y = omega * w;
                 let z = s * (w.dot(&y) + data.d_inv[i]) - y;
                 let (o, s, y, z) = (&mut omega.data.0, &s.data.0[0], &y.data.0[0], &z.data.0[0]);
-                for c in 0..6 {
-                    for r in 0..6 {
-                        o[c][r] += s[r] * z[c] - y[r] * s[c];
-                    }
+                for ((column, z_c), s_c) in o.iter_mut().zip(z).zip(s) {
+                    *column = std::array::from_fn(|r| column[r] + (s[r] * z_c - y[r] * s_c));
                 }
             }
             self.omega[i] = omega;

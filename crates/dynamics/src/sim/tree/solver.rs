@@ -419,9 +419,7 @@ fn add_rank_one(stiffness: &mut Matrix6<f64>, w: f64, g: &Vector6<f64>) {
     let g = &g.data.0[0];
     for (column, g_c) in stiffness.data.0.iter_mut().zip(g) {
         let scale = w * g_c;
-        for (k, g_r) in column.iter_mut().zip(g) {
-            *k += scale * g_r;
-        }
+        *column = std::array::from_fn(|r| column[r] + scale * g[r]);
     }
 }
 
