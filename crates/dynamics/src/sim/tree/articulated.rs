@@ -13,15 +13,16 @@ use crate::model::{Data, Joint, Model};
 use crate::spatial::{add_reduced_inertia, dot6, Force, Motion};
 
 pub(super) struct Articulated {
-    /// Articulated inertias of H, and per one-degree-of-freedom joint U = I^A S and D⁻¹ (eq. 7.38–7.44).
-    inertia: Vec<Matrix6<f64>>,
+    /// Each body's I_b + K_b while H is assembled (`clear_stiffness`, then the caller adds K_b), which
+    /// `factor` turns into H's articulated inertias; and per one-degree-of-freedom joint U = I^A S and D⁻¹
+    /// (eq. 7.38–7.44).
+    pub inertia: Vec<Matrix6<f64>>,
     u: Vec<Motion>,
     d_inv: Vec<f64>,
     base: Option<Cholesky<f64, U6>>,
     /// u_k = r_k − S_kᵀ p_k of the last solve's backward pass, per velocity coordinate.
     reduced: Vec<f64>,
-    /// K_b per body (symmetric) and c per coordinate: set by the caller before `factor`.
-    pub stiffness: Vec<Matrix6<f64>>,
+    /// c per coordinate: set by the caller before `factor`.
     pub coordinate_stiffness: Vec<f64>,
     /// Body spatial velocities of the last `motions`; body forces for `generalized`.
     pub motion: Vec<Motion>,
@@ -37,7 +38,6 @@ impl Articulated {
             d_inv: vec![0.0; n],
             base: None,
             reduced: vec![0.0; nv],
-            stiffness: vec![Matrix6::zeros(); n],
             coordinate_stiffness: vec![0.0; nv],
             motion: vec![Motion::zeros(); n],
             force: vec![Force::zeros(); n],
@@ -91,11 +91,14 @@ impl Articulated {
         }
     }
 
-    /// Factors H with the stiffnesses set; false if it is not positive definite.
+    /// Starts assembling H: every body's `inertia` its rigid inertia, no coordinate stiffness.
+    pub(super) fn clear_stiffness(&mut self, data: &Data) {
+        self.inertia.copy_from_slice(&data.rigid);
+        self.coordinate_stiffness.fill(0.0);
+    }
+
+    /// Factors H, assembled in `inertia` and `coordinate_stiffness`; false if it is not positive definite.
     pub(super) fn factor(&mut self, model: &Model, data: &Data, armature: &[f64]) -> bool {
-        for ((a, rigid), k) in self.inertia.iter_mut().zip(&data.rigid).zip(&self.stiffness) {
-            *a = rigid + k;
-        }
         for i in (1..model.nbodies()).rev() {
             let k = model.idx_v(i);
             let w = if model.joint(i).nv() == 1 {

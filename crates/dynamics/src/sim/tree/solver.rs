@@ -120,6 +120,7 @@ impl Constraint {
     /// A constraint on `target` whose rows are the forces `rows`, asking for the normal velocity `bias`,
     /// with its warm-start impulses, its Delassus diagonal `diagonal` (A_ii per row) and the scale
     /// below which a row counts as immovable (`Delassus`).
+    #[inline]
     pub(super) fn new(kind: Kind, target: Target, rows: [Vector6<f64>; 3], bias: f64, warm: [f64; 3], diagonal: [f64; 3], scale: f64) -> Self {
         let immovable = |a: f64, f: &Vector6<f64>| a <= IMMOVABLE * scale * f.norm_squared();
         let r_n = if immovable(diagonal[0], &rows[0]) { 0.0 } else { REGULARISATION * diagonal[0] };
@@ -328,16 +329,15 @@ impl Solver {
                 break;
             }
             iterations += 1;
-            tree.stiffness.fill(Matrix6::zeros());
-            tree.coordinate_stiffness.fill(0.0);
+            tree.clear_stiffness(data);
             for c in constraints.iter().filter(|c| c.active()) {
                 let projection = c.project(c.residual);
                 match c.target {
                     // Φ_aᵀ (F H_c Fᵀ) Φ_a, and likewise on b without the two chains' coupling.
                     Target::Bodies(a, b) => {
-                        c.add_stiffness(&projection, &mut tree.stiffness[a]);
+                        c.add_stiffness(&projection, &mut tree.inertia[a]);
                         if let Some(b) = b {
-                            c.add_stiffness(&projection, &mut tree.stiffness[b]);
+                            c.add_stiffness(&projection, &mut tree.inertia[b]);
                         }
                     }
                     Target::Coordinate(k) => tree.coordinate_stiffness[k] += c.normal_stiffness(&projection) * c.rows[0][0] * c.rows[0][0],

@@ -117,8 +117,9 @@ fn newton_matrix_products_and_solves_match_dense_algebra() {
         assert!(relative_error(&(&mass * DVector::from_vec(solution.clone())), &rhs) < 1e-10, "floating base: {}", model.floating_base());
         // H = M̃ + Σ Φ_bᵀ K_b Φ_b + diag(c): H⁻¹ r solves H x = r.
         let mut h = mass.clone();
+        tree.clear_stiffness(&data);
         for (b, phi) in phi.iter().enumerate() {
-            tree.stiffness[b] = stiffness(b);
+            tree.inertia[b] += stiffness(b);
             h += phi.transpose() * DMatrix::from_column_slice(6, 6, stiffness(b).as_slice()) * phi;
         }
         for k in base_coordinates(&model)..nv {
