@@ -87,9 +87,10 @@ pub(super) struct Constraint {
     /// R_n^-½ and R_t^-½, zero where R is: R_n for an immovable constraint (it carries nothing), R_t for one
     /// whose tangent rows move nothing (its friction idles at the warm start, within the cone); and
     /// μ̂ = μ (R_t / R_n)^½, the slope of the cone in the scaled impulses (zero for a limit or a contact
-    /// without friction rows).
+    /// without friction rows), with 1 / (1 + μ̂²), the weight of the cone's ray.
     inverse_sqrt_r: [f64; 2],
     cone_slope: f64,
+    ray_weight: f64,
     /// J v − b at the solver's current velocities, and J d along its step.
     residual: [f64; 3],
     slope: [f64; 3],
@@ -112,8 +113,9 @@ enum Projection {
     Apart,
     /// Inside the cone (sticking), or a normal row pressing: Π = s on the constraint's `rows` rows.
     Held { rows: usize, s: [f64; 3] },
-    /// On the cone's surface (sliding): Π = c (1, μ̂ e), with e = s_t / |s_t|.
-    Sliding { c: f64, e: [f64; 2], t: f64 },
+    /// On the cone's surface (sliding): Π = c (1, μ̂ e), with e = s_t / |s_t|, and the bend μ̂ c / |s_t|
+    /// of the projection across e.
+    Sliding { c: f64, e: [f64; 2], bend: f64 },
 }
 
 impl Constraint {
@@ -136,6 +138,10 @@ impl Constraint {
                 lambda[2] = 0.0;
             }
         }
+        let cone_slope = match kind {
+            Kind::Contact { mu, .. } if r_t > 0.0 => mu * (r_t / r_n).sqrt(),
+            _ => 0.0,
+        };
         Constraint {
             kind,
             target,
@@ -144,10 +150,8 @@ impl Constraint {
             asked: [bias, r_t * lambda[1], r_t * lambda[2]],
             held: [lambda[1], lambda[2]],
             inverse_sqrt_r: [r_n, r_t].map(|r| if r > 0.0 { 1.0 / r.sqrt() } else { 0.0 }),
-            cone_slope: match kind {
-                Kind::Contact { mu, .. } if r_t > 0.0 => mu * (r_t / r_n).sqrt(),
-                _ => 0.0,
-            },
+            cone_slope,
+            ray_weight: 1.0 / (1.0 + cone_slope * cone_slope),
             residual: [0.0; 3],
             slope: [0.0; 3],
         }
@@ -171,7 +175,9 @@ impl Constraint {
         } else if slope * t <= -p {
             Projection::Apart
         } else {
-            Projection::Sliding { c: (p + slope * t) / (1.0 + slope * slope), e: [q[0] / t, q[1] / t], t }
+            let c = (p + slope * t) * self.ray_weight;
+            let inverse_t = 1.0 / t;
+            Projection::Sliding { c, e: [q[0] * inverse_t, q[1] * inverse_t], bend: slope * c * inverse_t }
         }
     }
 
@@ -199,10 +205,10 @@ impl Constraint {
                 add_rank_one(stiffness, i_n * i_n - i_t * i_t, &f[0]);
             }
             (Projection::Held { .. }, _) => add_rank_one(stiffness, i_n * i_n, &f[0]),
-            (Projection::Sliding { c, e, t }, _) => {
+            (Projection::Sliding { e, bend, .. }, _) => {
                 let slope = self.cone_slope;
-                add_rank_one(stiffness, 1.0 / (1.0 + slope * slope), &(f[0] * i_n + (f[1] * e[0] + f[2] * e[1]) * (slope * i_t)));
-                add_rank_one(stiffness, slope * c / t, &((f[2] * e[0] - f[1] * e[1]) * i_t));
+                add_rank_one(stiffness, self.ray_weight, &(f[0] * i_n + (f[1] * e[0] + f[2] * e[1]) * (slope * i_t)));
+                add_rank_one(stiffness, bend, &((f[2] * e[0] - f[1] * e[1]) * i_t));
             }
         }
     }
@@ -223,11 +229,11 @@ impl Constraint {
             Projection::Apart => (0.0, 0.0),
             Projection::Held { rows: 1, s } => (s[0] * ds[0], ds[0] * ds[0]),
             Projection::Held { s, .. } => (s[0] * ds[0] + s[1] * ds[1] + s[2] * ds[2], ds[0] * ds[0] + ds[1] * ds[1] + ds[2] * ds[2]),
-            Projection::Sliding { c, e, t } => {
+            Projection::Sliding { c, e, bend } => {
                 let slope = self.cone_slope;
                 let along_ray = ds[0] + slope * (e[0] * ds[1] + e[1] * ds[2]);
                 let across = e[0] * ds[2] - e[1] * ds[1];
-                (c * along_ray, along_ray * along_ray / (1.0 + slope * slope) + slope * c / t * across * across)
+                (c * along_ray, along_ray * along_ray * self.ray_weight + bend * across * across)
             }
         }
     }
