@@ -355,27 +355,38 @@ pub fn check_vector(argument: &'static str, x: &[f64], n: usize) -> Result<()> {
     Ok(())
 }
 
-/// Every intermediate of the algorithms, sized for one model. Per-body quantities are in body frames,
-/// except where an algorithm's documentation says world frame (ABA, CRBA, Minv).
+/// Every intermediate of the algorithms, sized for one model; each field has one meaning, whichever
+/// algorithm writes it. Per-body quantities are in body frames, except those named for the world (`o_`)
+/// and those of the world-frame recursions (ABA, CRBA, Minv), which work in the *centred* frame: the
+/// world's axes at the base's origin (`kinematics::base_centred_kinematics`).
 #[derive(Debug, Clone)]
 pub struct Data {
     /// Pose of each body in its parent (RNEA, centroidal momentum).
     pub li_m_i: Vec<Transform>,
     /// Pose of each body in the world.
     pub o_m_i: Vec<Transform>,
+    /// Pose of each body in the centred frame (ABA, CRBA, Minv).
+    pub centred_m_i: Vec<Transform>,
+    /// Velocity, acceleration and net force of each body in its own frame (RNEA, centroidal momentum,
+    /// energy, contact).
     pub v: Vec<Motion>,
     pub a: Vec<Motion>,
     pub f: Vec<Force>,
-    /// Velocity-product acceleration of each joint (the `c` of Table 7.1).
+    /// Velocity and acceleration of each body in the centred frame (ABA; the acceleration with gravity as
+    /// a base acceleration).
+    pub centred_v: Vec<Motion>,
+    pub centred_a: Vec<Motion>,
+    /// Velocity-product acceleration of each joint (the `c` of Table 7.1; centred frame).
     pub c: Vec<Motion>,
-    /// Articulated-body inertias (ABA, Minv; world frame).
+    /// Articulated-body inertias (ABA, Minv; centred frame).
     pub inertia: Vec<Inertia>,
-    /// Each body's own rigid inertia (ABA; world frame).
+    /// Each body's own rigid inertia (ABA; centred frame).
     pub rigid: Vec<Inertia>,
-    /// Composite-rigid-body inertias (CRBA; world frame).
+    /// Composite-rigid-body inertias (CRBA; centred frame).
     pub composite: Vec<RigidInertia>,
+    /// Articulated bias forces (ABA; centred frame).
     pub bias: Vec<Force>,
-    /// Motion subspace of each one-degree-of-freedom joint in world coordinates (ABA, CRBA, Minv).
+    /// Motion subspace of each one-degree-of-freedom joint in the centred frame (ABA, CRBA, Minv).
     pub s: Vec<Motion>,
     /// `U = I^A S` and `D⁻¹ = (Sᵀ U)⁻¹` of one-degree-of-freedom joints.
     pub u: Vec<Vector6<f64>>,
@@ -399,9 +410,12 @@ impl Data {
         Data {
             li_m_i: vec![Transform::identity(); n],
             o_m_i: vec![Transform::identity(); n],
+            centred_m_i: vec![Transform::identity(); n],
             v: vec![Motion::zeros(); n],
             a: vec![Motion::zeros(); n],
             f: vec![Force::zeros(); n],
+            centred_v: vec![Motion::zeros(); n],
+            centred_a: vec![Motion::zeros(); n],
             c: vec![Motion::zeros(); n],
             inertia: vec![Inertia::zeros(); n],
             rigid: vec![Inertia::zeros(); n],

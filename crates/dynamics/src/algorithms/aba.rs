@@ -13,8 +13,9 @@ use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inert
 
 /// Joint accelerations for configuration `q`, velocity `v` and joint forces `tau`; `f_ext` as in `rnea`.
 /// Writes `data.ddq` and returns it. In the world's axes about the base's origin (see
-/// `kinematics::base_centred_kinematics`), `data.o_m_i` holds each body's pose, `data.rigid` its rigid inertia, `data.v` its velocity and
-/// `data.a` its acceleration with gravity as a base acceleration (§5.3).
+/// `kinematics::base_centred_kinematics`), `data.centred_m_i` holds each body's pose, `data.rigid` its rigid
+/// inertia, `data.centred_v` its velocity and `data.centred_a` its acceleration with gravity as a base
+/// acceleration (§5.3).
 pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>) -> &'d DVector<f64> {
     aba_with_armature(model, data, q, v, tau, f_ext, None)
 }
@@ -40,7 +41,7 @@ pub fn aba_with_armature<'d>(
     for i in 0..n {
         let (pose, v_parent) = match i {
             0 => (base_centred_root(model, q), Motion::zeros()),
-            _ => (world_pose(model, i, &data.o_m_i[model.parent(i)], q), data.v[model.parent(i)]),
+            _ => (world_pose(model, i, &data.centred_m_i[model.parent(i)], q), data.centred_v[model.parent(i)]),
         };
         let k = model.idx_v(i);
         let v_joint = match model.joint(i) {
@@ -54,13 +55,13 @@ pub fn aba_with_armature<'d>(
                 data.s[i] * v[k]
             }
         };
-        data.o_m_i[i] = pose;
-        data.v[i] = v_parent + v_joint;
+        data.centred_m_i[i] = pose;
+        data.centred_v[i] = v_parent + v_joint;
         data.c[i] = cross_motion(&v_parent, &v_joint);
         let inertia = pose.act_rigid_inertia(model.inertia(i));
         data.rigid[i] = inertia.matrix();
         data.inertia[i] = data.rigid[i];
-        data.bias[i] = cross_force(&data.v[i], &inertia.apply(&data.v[i]));
+        data.bias[i] = cross_force(&data.centred_v[i], &inertia.apply(&data.centred_v[i]));
         if let Some(f_ext) = f_ext {
             data.bias[i] -= pose.act_force(&f_ext[i]);
         }
@@ -93,11 +94,11 @@ pub fn aba_with_armature<'d>(
     let gravity = model.gravity_bias();
     for i in 0..n {
         let k = model.idx_v(i);
-        let a_prime = if i == 0 { gravity } else { data.a[model.parent(i)] + data.c[i] };
-        data.a[i] = match model.joint(i) {
+        let a_prime = if i == 0 { gravity } else { data.centred_a[model.parent(i)] + data.c[i] };
+        data.centred_a[i] = match model.joint(i) {
             Joint::FreeFlyer => {
                 // The base's joint force, and its acceleration, are spatial vectors in its own frame.
-                let pose = data.o_m_i[i];
+                let pose = data.centred_m_i[i];
                 let rhs = pose.act_force(&Force::from_column_slice(&tau[k..k + 6])) - data.bias[i];
                 let a = data.inertia[i].cholesky().map(|c| c.solve(&rhs)).unwrap_or_else(|| Motion::repeat(f64::NAN));
                 data.ddq.rows_mut(k, 6).copy_from(&pose.inv_act_motion(&(a - a_prime)));

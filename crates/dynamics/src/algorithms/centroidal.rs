@@ -3,9 +3,9 @@
 
 use nalgebra::{Vector3, Vector6};
 
-use super::{joint_motion, joint_placement};
+use super::kinematics::body_motions;
 use crate::model::{Data, Model};
-use crate::spatial::{angular, cross_force, cross_motion, linear, spatial, Motion};
+use crate::spatial::{angular, cross_force, linear, spatial, Motion};
 use crate::MassProperties;
 
 /// Body velocities, accelerations (without gravity) and poses; returns the spatial momentum and its rate
@@ -13,24 +13,15 @@ use crate::MassProperties;
 fn world_momentum(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Option<&[f64]>) -> (Vector6<f64>, Vector6<f64>, Vector3<f64>) {
     let (mut momentum, mut rate) = (Vector6::zeros(), Vector6::zeros());
     let mut total = MassProperties::zero();
+    body_motions(model, data, q, v, a, Motion::zeros());
     for i in 0..model.nbodies() {
-        let li = joint_placement(model, i, q);
-        data.li_m_i[i] = li;
-        let (v_parent, a_parent, o_parent) = if i == 0 {
-            (Motion::zeros(), Motion::zeros(), crate::Transform::identity())
-        } else {
-            let p = model.parent(i);
-            (data.v[p], data.a[p], data.o_m_i[p])
-        };
-        data.o_m_i[i] = o_parent.compose(&li);
+        let o_parent = if i == 0 { crate::Transform::identity() } else { data.o_m_i[model.parent(i)] };
+        data.o_m_i[i] = o_parent.compose(&data.li_m_i[i]);
         total = total + model.body(i).transformed_unchecked(&data.o_m_i[i].rotation, &data.o_m_i[i].translation);
-        let v_joint = joint_motion(model, i, v);
-        data.v[i] = li.inv_act_motion(&v_parent) + v_joint;
         let inertia = model.inertia(i);
         let h = inertia.apply(&data.v[i]);
         momentum += data.o_m_i[i].act_force(&h);
-        if let Some(a) = a {
-            data.a[i] = li.inv_act_motion(&a_parent) + joint_motion(model, i, a) + cross_motion(&data.v[i], &v_joint);
+        if a.is_some() {
             rate += data.o_m_i[i].act_force(&(inertia.apply(&data.a[i]) + cross_force(&data.v[i], &h)));
         }
     }

@@ -15,10 +15,10 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
     let n = model.nbodies();
     base_centred_kinematics(model, data, q);
     // A fixed base's composite inertia is not needed.
-    data.composite[0] = if model.floating_base() { data.o_m_i[0].act_rigid_inertia(model.inertia(0)) } else { RigidInertia::zeros() };
+    data.composite[0] = if model.floating_base() { data.centred_m_i[0].act_rigid_inertia(model.inertia(0)) } else { RigidInertia::zeros() };
     for i in 1..n {
-        data.composite[i] = data.o_m_i[i].act_rigid_inertia(model.inertia(i));
-        if let Some(s) = data.o_m_i[i].act_axis(model.joint(i)) {
+        data.composite[i] = data.centred_m_i[i].act_rigid_inertia(model.inertia(i));
+        if let Some(s) = data.centred_m_i[i].act_axis(model.joint(i)) {
             data.s[i] = s;
         }
     }
@@ -31,7 +31,7 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
         match model.joint(i) {
             // The base's subspace is its own frame: M_00 is the composite inertia expressed there.
             Joint::FreeFlyer => {
-                let local = data.o_m_i[0].inverse().act_rigid_inertia(&composite).matrix();
+                let local = data.centred_m_i[0].inverse().act_rigid_inertia(&composite).matrix();
                 data.mass_matrix.view_mut((k, k), (6, 6)).copy_from(&local);
             }
             Joint::Fixed => {}
@@ -45,7 +45,7 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
                     let kj = model.idx_v(j);
                     match model.joint(j) {
                         Joint::FreeFlyer => {
-                            let local = data.o_m_i[0].inv_act_force(&force);
+                            let local = data.centred_m_i[0].inv_act_force(&force);
                             data.mass_matrix.view_mut((kj, k), (6, 1)).copy_from(&local);
                             data.mass_matrix.view_mut((k, kj), (1, 6)).copy_from(&local.transpose());
                         }

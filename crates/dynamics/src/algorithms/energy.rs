@@ -1,17 +1,14 @@
 //! Kinetic and potential energy.
 
-use super::{forward_kinematics, joint_motion, joint_placement};
+use super::forward_kinematics;
+use super::kinematics::body_motions;
 use crate::model::{Data, Model};
+use crate::spatial::Motion;
 
 /// ½ Σ vᵢᵀ Iᵢ vᵢ over the bodies (equal to ½ q̇ᵀ M q̇).
 pub fn kinetic_energy(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> f64 {
-    let mut energy = 0.0;
-    for i in 0..model.nbodies() {
-        let v_parent = if i == 0 { crate::spatial::Motion::zeros() } else { data.v[model.parent(i)] };
-        data.v[i] = joint_placement(model, i, q).inv_act_motion(&v_parent) + joint_motion(model, i, v);
-        energy += 0.5 * data.v[i].dot(&model.inertia(i).apply(&data.v[i]));
-    }
-    energy
+    body_motions(model, data, q, v, None, Motion::zeros());
+    (0..model.nbodies()).map(|i| 0.5 * data.v[i].dot(&model.inertia(i).apply(&data.v[i]))).sum()
 }
 
 /// −Σ mᵢ gᵀ cᵢ: zero when every COM is at the world origin's height (for the default gravity).

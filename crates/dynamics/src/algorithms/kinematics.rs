@@ -2,21 +2,21 @@
 
 use nalgebra::Vector3;
 
-use super::{joint_placement, world_pose};
+use super::{joint_motion, joint_placement, world_pose};
 use crate::model::{Data, Model};
-use crate::spatial::Transform;
+use crate::spatial::{cross_motion, Motion, Transform};
 
 /// Writes each body's pose in the world to `data.o_m_i`.
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
-    poses_from(model, data, q, joint_placement(model, 0, q));
+    poses_from(model, &mut data.o_m_i, q, joint_placement(model, 0, q));
 }
 
-/// Writes each body's pose in the world's axes about the base's origin to `data.o_m_i`: the frame of the
+/// Writes each body's pose in the world's axes about the base's origin to `data.centred_m_i`: the frame of the
 /// world-frame recursions (ABA, CRBA, Minv). Their results do not depend on the origin, but the spatial
 /// inertias of a floating robot far from the world's origin carry m|p|² terms that swamp its own inertia
 /// and cost digits (a 0.2 kg body 3 m out lost five).
 pub(crate) fn base_centred_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
-    poses_from(model, data, q, base_centred_root(model, q));
+    poses_from(model, &mut data.centred_m_i, q, base_centred_root(model, q));
 }
 
 /// The base's pose with its translation dropped.
@@ -24,9 +24,30 @@ pub(crate) fn base_centred_root(model: &Model, q: &[f64]) -> Transform {
     Transform::new(joint_placement(model, 0, q).rotation, Vector3::zeros())
 }
 
-fn poses_from(model: &Model, data: &mut Data, q: &[f64], root: Transform) {
-    data.o_m_i[0] = root;
+/// The body-frame forward pass (Featherstone eq. 5.7–5.8) shared by RNEA, the centroidal momentum, the
+/// kinetic energy and the contact constraints: each body's pose in its parent (`data.li_m_i`) and its
+/// velocity and acceleration in its own frame (`data.v`, `data.a`) under joint velocities `v` and
+/// accelerations `a` (None: zero), the base accelerating with `base_acceleration`.
+pub(crate) fn body_motions(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Option<&[f64]>, base_acceleration: Motion) {
+    for i in 0..model.nbodies() {
+        let li = joint_placement(model, i, q);
+        let (v_parent, a_parent) = if i == 0 {
+            (Motion::zeros(), base_acceleration)
+        } else {
+            let p = model.parent(i);
+            (data.v[p], data.a[p])
+        };
+        let v_joint = joint_motion(model, i, v);
+        let a_joint = a.map_or_else(Motion::zeros, |a| joint_motion(model, i, a));
+        data.li_m_i[i] = li;
+        data.v[i] = li.inv_act_motion(&v_parent) + v_joint;
+        data.a[i] = li.inv_act_motion(&a_parent) + a_joint + cross_motion(&data.v[i], &v_joint);
+    }
+}
+
+fn poses_from(model: &Model, poses: &mut [Transform], q: &[f64], root: Transform) {
+    poses[0] = root;
     for i in 1..model.nbodies() {
-        data.o_m_i[i] = world_pose(model, i, &data.o_m_i[model.parent(i)], q);
+        poses[i] = world_pose(model, i, &poses[model.parent(i)], q);
     }
 }

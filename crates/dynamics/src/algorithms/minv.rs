@@ -43,8 +43,8 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
     }
     base_centred_kinematics(model, data, q);
     for i in 0..n {
-        data.inertia[i] = data.o_m_i[i].act_rigid_inertia(model.inertia(i)).matrix();
-        data.s[i] = data.o_m_i[i].act_axis(model.joint(i)).unwrap_or_else(Vector6::zeros);
+        data.inertia[i] = data.centred_m_i[i].act_rigid_inertia(model.inertia(i)).matrix();
+        data.s[i] = data.centred_m_i[i].act_axis(model.joint(i)).unwrap_or_else(Vector6::zeros);
     }
     // Backward pass: the rows' subtree parts D⁻¹(e_i − Sᵀ F_i); F_i + U M⁻¹_i goes to the parent together
     // with the articulated inertia I^A − U D⁻¹ Uᵀ.
@@ -54,7 +54,7 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
             // S = X_0 (the base frame to the world), so D⁻¹ Sᵀ = X_0⁻¹ I^A⁻¹: the base rows of column c are
             // X_0⁻¹ I^A⁻¹ (X_0⁻ᵀ e_c) for the base's own columns and −X_0⁻¹ I^A⁻¹ F_0[c] for the others, and
             // the base's motion set P_0[c] = S M⁻¹_0[c] is the world-frame solve itself.
-            let base = data.o_m_i[0];
+            let base = data.centred_m_i[0];
             // One inverse, then independent products (the solves would each be a chain of divisions).
             let inverse = data.inertia[0].cholesky().map_or(Inertia::repeat(f64::NAN), |c| c.inverse());
             for col in 0..nv {

@@ -2,27 +2,17 @@
 
 use nalgebra::DVector;
 
-use super::{joint_motion, joint_placement};
+use super::kinematics::body_motions;
 use crate::model::{Data, Joint, Model};
-use crate::spatial::{cross_force, cross_motion, Force, Motion};
+use crate::spatial::{cross_force, Force};
 
 /// Joint forces for configuration `q`, velocity `v` and acceleration `a`. `f_ext`, when given, holds one
 /// external force `[f; n]` per body, acting on that body and expressed in its frame.
 pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64], f_ext: Option<&[Force]>) -> &'d DVector<f64> {
-    let gravity = model.gravity_bias();
-    // Forward pass: velocities, accelerations and the net force each body needs (eq. 5.7–5.9).
+    // Forward pass: velocities, accelerations (gravity as a base acceleration) and the net force each body
+    // needs (eq. 5.7–5.9).
+    body_motions(model, data, q, v, Some(a), model.gravity_bias());
     for i in 0..model.nbodies() {
-        let li = joint_placement(model, i, q);
-        let (v_parent, a_parent) = if i == 0 {
-            (Motion::zeros(), gravity)
-        } else {
-            let p = model.parent(i);
-            (data.v[p], data.a[p])
-        };
-        let v_joint = joint_motion(model, i, v);
-        data.li_m_i[i] = li;
-        data.v[i] = li.inv_act_motion(&v_parent) + v_joint;
-        data.a[i] = li.inv_act_motion(&a_parent) + joint_motion(model, i, a) + cross_motion(&data.v[i], &v_joint);
         let inertia = model.inertia(i);
         data.f[i] = inertia.apply(&data.a[i]) + cross_force(&data.v[i], &inertia.apply(&data.v[i]));
         if let Some(f_ext) = f_ext {

@@ -49,7 +49,7 @@ impl Articulated {
         for i in 0..model.nbodies() {
             let k = model.idx_v(i);
             self.motion[i] = match model.joint(i) {
-                Joint::FreeFlyer => data.o_m_i[i].act_motion(&Motion::from_column_slice(&x[k..k + 6])),
+                Joint::FreeFlyer => data.centred_m_i[i].act_motion(&Motion::from_column_slice(&x[k..k + 6])),
                 Joint::Fixed if i == 0 => Motion::zeros(),
                 Joint::Fixed => self.motion[model.parent(i)],
                 Joint::Revolute(_) | Joint::Prismatic(_) => self.motion[model.parent(i)] + data.s[i] * x[k],
@@ -62,7 +62,7 @@ impl Articulated {
         for i in (0..model.nbodies()).rev() {
             let k = model.idx_v(i);
             match model.joint(i) {
-                Joint::FreeFlyer => out[k..k + 6].copy_from_slice(data.o_m_i[i].inv_act_force(&self.force[i]).as_slice()),
+                Joint::FreeFlyer => out[k..k + 6].copy_from_slice(data.centred_m_i[i].inv_act_force(&self.force[i]).as_slice()),
                 Joint::Fixed => {}
                 Joint::Revolute(_) | Joint::Prismatic(_) => out[k] = dot6(&data.s[i], self.force[i].as_slice()),
             }
@@ -154,7 +154,7 @@ impl Articulated {
         // Forward: accelerations from the root (eq. 7.45–7.47).
         self.motion[0] = match (&self.base, model.joint(0)) {
             (Some(c), Joint::FreeFlyer) => {
-                let pose = data.o_m_i[0];
+                let pose = data.centred_m_i[0];
                 let a = c.solve(&(pose.act_force(&Force::from_column_slice(&rhs[0..6])) - self.force[0]));
                 out[0..6].copy_from_slice(pose.inv_act_motion(&a).as_slice());
                 a

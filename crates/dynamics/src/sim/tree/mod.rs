@@ -225,7 +225,7 @@ impl TreeSimulation {
             if !detected {
                 let origin = base_origin(model, q);
                 for ((pose, &body), offset) in self.poses.iter_mut().zip(&self.fused_body).zip(&self.offset) {
-                    let centred = &self.data.o_m_i[body];
+                    let centred = &self.data.centred_m_i[body];
                     *pose = Transform::new(centred.rotation, centred.translation + origin).compose(offset);
                 }
                 self.found.clear();
