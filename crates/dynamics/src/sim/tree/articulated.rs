@@ -20,6 +20,8 @@ pub(super) struct Articulated {
     u: Vec<Motion>,
     d_inv: Vec<f64>,
     base: Option<Cholesky<f64, U6>>,
+    /// `solve` uses the factor ABA left in `Data` (`factor_of_aba`) rather than `u` and `d_inv`.
+    of_aba: bool,
     /// u_k = r_k − S_kᵀ p_k of the last solve's backward pass, per velocity coordinate.
     reduced: Vec<f64>,
     /// c per coordinate: set by the caller before `factor`.
@@ -37,6 +39,7 @@ impl Articulated {
             u: vec![Motion::zeros(); n],
             d_inv: vec![0.0; n],
             base: None,
+            of_aba: false,
             reduced: vec![0.0; nv],
             coordinate_stiffness: vec![0.0; nv],
             motion: vec![Motion::zeros(); n],
@@ -99,6 +102,7 @@ impl Articulated {
 
     /// Factors H, assembled in `inertia` and `coordinate_stiffness`; false if it is not positive definite.
     pub(super) fn factor(&mut self, model: &Model, data: &Data, armature: &[f64]) -> bool {
+        self.of_aba = false;
         for i in (1..model.nbodies()).rev() {
             let k = model.idx_v(i);
             let w = if model.joint(i).nv() == 1 {
@@ -123,8 +127,7 @@ impl Articulated {
     /// Takes the factor of M̃ itself (no stiffness) from the one `aba_with_armature` left in `data`; false
     /// if a free-flyer base's articulated inertia is not positive definite.
     pub(super) fn factor_of_aba(&mut self, model: &Model, data: &Data) -> bool {
-        self.u.copy_from_slice(&data.u);
-        self.d_inv.copy_from_slice(&data.d_inv);
+        self.of_aba = true;
         self.factor_base(model, data.inertia[0])
     }
 
@@ -139,6 +142,7 @@ impl Articulated {
 
     /// out = H⁻¹ rhs, after `factor` or `factor_of_aba`.
     pub(super) fn solve(&mut self, model: &Model, data: &Data, rhs: &[f64], out: &mut [f64]) {
+        let (u, d_inv) = if self.of_aba { (&data.u, &data.d_inv) } else { (&self.u, &self.d_inv) };
         self.force.iter_mut().for_each(|p| *p = Force::zeros());
         // Backward: the bias forces p^A of the generalized forces alone (eq. 7.41–7.44).
         for i in (1..model.nbodies()).rev() {
@@ -146,7 +150,7 @@ impl Articulated {
             let mut p = self.force[i];
             if model.joint(i).nv() == 1 {
                 let reduced = rhs[k] - dot6(&data.s[i], p.as_slice());
-                p += self.u[i] * (reduced * self.d_inv[i]);
+                p += u[i] * (reduced * d_inv[i]);
                 self.reduced[k] = reduced;
             }
             self.force[model.parent(i)] += p;
@@ -164,7 +168,7 @@ impl Articulated {
         for i in 1..model.nbodies() {
             let (k, parent) = (model.idx_v(i), self.motion[model.parent(i)]);
             self.motion[i] = if model.joint(i).nv() == 1 {
-                let x = (self.reduced[k] - dot6(&self.u[i], parent.as_slice())) * self.d_inv[i];
+                let x = (self.reduced[k] - dot6(&u[i], parent.as_slice())) * d_inv[i];
                 out[k] = x;
                 parent + data.s[i] * x
             } else {
