@@ -69,7 +69,7 @@ class Box:
     center: tuple[float, float, float]
 
     def legkit(self) -> lk.MassProperties:
-        return lk.MassProperties.box(self.mass, np.array(self.size), center=np.array(self.center))
+        return lk.MassProperties.solid_box(self.mass, np.array(self.size), center=np.array(self.center))
 
     def pinocchio(self) -> pin.Inertia:
         a, b, c = self.size

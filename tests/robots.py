@@ -276,7 +276,7 @@ def build_twin(
         if massive_fixed_base is None:
             massive_fixed_base = bool(rng.random() < 0.5)
         base = random_body(rng) if massive_fixed_base else None
-    parents, kinds, axes, units = [-1], ["base"], [None], [None]
+    parents, kinds, axes, units = [0], ["base"], [None], [None]  # the base is its own parent, as in lk and pin
     placements, bodies, as_tuple = [np.eye(4)], [base], [False]
     anchored = [not floating]  # welded to the (fixed) world
     path = [0]  # the current root-to-last-body path (for depth-first numbering)

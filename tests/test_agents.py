@@ -192,7 +192,7 @@ def test_moment_algebra_matches_mass_properties(mass, centre, size, quaternion, 
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
     ])
-    body = lk.MassProperties.box(mass, size, center=centre, rotation=rotation)
+    body = lk.MassProperties.solid_box(mass, size, center=centre, rotation=rotation)
     packed = moments.pack(body.mass, body.com, body.inertia)
     moved = body.transformed(rotation, translation)
     m, c, inertia = moments.unpack(moments.transform(rotation, np.array(translation), packed))

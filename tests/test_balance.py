@@ -24,7 +24,7 @@ def test_free_plant_without_servo_terms_is_the_cores_semi_implicit_euler():
     plant = balance.FreePlant(model, q0, v0, dt=1e-3, armature=0.0, damping=0.0)
     for _ in range(20):
         plant.step(tau)
-    qs, vs = lk.simulate(model, q0, v0, 1e-3, 20, tau, method="semi_implicit_euler")
+    qs, vs = lk.free_rollout(model, q0, v0, 1e-3, 20, tau, method="semi_implicit_euler")
     assert np.allclose(plant.q, qs[-1], atol=1e-9) and np.allclose(plant.v, vs[-1], atol=1e-9)
 
 

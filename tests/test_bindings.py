@@ -13,7 +13,7 @@ import legkit as lk
 
 def chain(n_bodies: int) -> lk.Model:
     model = lk.Model(floating_base=False, base=None)
-    link = lk.MassProperties.box(0.5, [0.1, 0.04, 0.04], center=[0.05, 0.0, 0.0])
+    link = lk.MassProperties.solid_box(0.5, [0.1, 0.04, 0.04], center=[0.05, 0.0, 0.0])
     for body in range(n_bodies):
         model.add_revolute(body, [0.0, 1.0, 0.2 * (body % 3)], (np.eye(3), [0.1, 0.0, 0.0]), link, f"link{body}")
     return model

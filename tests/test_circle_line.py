@@ -1018,8 +1018,8 @@ def test_interpreter_survives_bad_input_in_a_fresh_process():
             lambda: lk.MassProperties(nan, [0, 0, 0], np.eye(3)),
             lambda: lk.MassProperties(1.0, [0, 0, 0], np.diag([1.0, 1.0, 3.0])),
             lambda: lk.MassProperties(1.0, [0, 0], np.eye(3)),
-            lambda: lk.MassProperties.box(1.0, [1, 1, 1]) - lk.MassProperties.point(2.0, [0, 0, 0]),
-            lambda: lk.MassProperties.box(1.0, [1, 1, 1]).transformed(np.diag([1.0, 1.0, -1.0]), [0, 0, 0]),
+            lambda: lk.MassProperties.solid_box(1.0, [1, 1, 1]) - lk.MassProperties.point(2.0, [0, 0, 0]),
+            lambda: lk.MassProperties.solid_box(1.0, [1, 1, 1]).transformed(np.diag([1.0, 1.0, -1.0]), [0, 0, 0]),
             lambda: lk.MassProperties.from_points([1.0, 2.0], np.zeros((3, 3))),
             lambda: lk.MassProperties("x", [0, 0, 0], np.eye(3)),
         ]

@@ -16,7 +16,7 @@ URDF = """<robot name="r">
 def test_default_boxes_have_the_bodys_inertia():
     # A uniform box's inertia gives back its edges, centred on its COM, with the body's axes.
     model = lk.Model()
-    model.add_revolute(0, [0, 0, 1], body=lk.MassProperties.box(2.0, [0.1, 0.2, 0.3], center=[0.0, 0.0, 0.4]))
+    model.add_revolute(0, [0, 0, 1], body=lk.MassProperties.solid_box(2.0, [0.1, 0.2, 0.3], center=[0.0, 0.0, 0.4]))
     [(body, kind, size, placement)] = model.colliders()
     assert (body, kind) == (1, "box")
     np.testing.assert_allclose(size, [0.1, 0.2, 0.3], rtol=1e-12)
@@ -49,7 +49,7 @@ def test_convex_shapes_keep_their_hull_and_urdf_meshes_resolve_through_package_d
     corners = np.array([[x, y, z] for x in (-0.1, 0.1) for y in (-0.05, 0.05) for z in (0.0, 0.2)])
     points = np.vstack([corners, [[0.0, 0.0, 0.1]]])  # an interior point is no hull vertex
     model = lk.Model()
-    model.add_revolute(0, [0, 0, 1], body=lk.MassProperties.box(1.0, [0.2, 0.1, 0.2]))
+    model.add_revolute(0, [0, 0, 1], body=lk.MassProperties.solid_box(1.0, [0.2, 0.1, 0.2]))
     [(_, kind, vertices, _)] = model.colliders({1: ("convex", points)})
     assert kind == "convex"
     assert sorted(map(tuple, np.round(vertices, 12))) == sorted(map(tuple, corners))

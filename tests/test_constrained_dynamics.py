@@ -1,4 +1,4 @@
-"""Contact-constrained dynamics, impacts, the reduced ODE and free simulation, checked against physics that
+"""Contact-constrained dynamics, impacts, the reduced ODE and free rollouts, checked against physics that
 does not reuse the code under test: finite differences of the contact points' motion, energy and momentum
 balances, and the full constrained solve."""
 
@@ -27,7 +27,7 @@ def random_rotation(rng: np.random.Generator) -> np.ndarray:
 
 
 def random_tree(rng: np.random.Generator, n: int, floating: bool, chain: bool = False) -> lk.Model:
-    body = lambda: lk.MassProperties.box(  # noqa: E731
+    body = lambda: lk.MassProperties.solid_box(  # noqa: E731
         rng.uniform(0.2, 2.0), rng.uniform(0.05, 0.4, 3), center=rng.uniform(-0.2, 0.2, 3), rotation=random_rotation(rng)
     )
     model = lk.Model(floating_base=floating, base=body())
@@ -139,7 +139,7 @@ def test_reduced_ode_agrees_with_the_constrained_solve(seed, floating):
 def test_a_box_on_four_feet_stands_still_on_redundant_contacts():
     """Twelve constraints on a 6-DoF body: the minimum-norm forces carry the weight, evenly by symmetry."""
     mass, size = 3.0, np.array([0.4, 0.2, 0.1])
-    model = lk.Model(floating_base=True, base=lk.MassProperties.box(mass, size))
+    model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(mass, size))
     q = model.neutral()
     q[:3] = [0.3, -0.2, 0.05]
     corners = [np.array([sx * 0.2, sy * 0.1, -0.05]) for sx in (-1, 1) for sy in (-1, 1)]
@@ -165,7 +165,7 @@ def test_energy_is_conserved_by_rk4_over_five_seconds():
     rng = np.random.default_rng(20)
     model = random_tree(rng, 20, False)
     q, v = random_state(rng, model, speed=0.5)
-    qs, vs = lk.simulate(model, q, v, dt=1e-3, steps=5000, method="rk4")
+    qs, vs = lk.free_rollout(model, q, v, dt=1e-3, steps=5000, method="rk4")
     energy = lk.kinetic_energy(model, qs, vs) + lk.potential_energy(model, qs)
     # Relative to the energy sloshing between kinetic and potential (the total's own scale is arbitrary).
     scale = np.ptp(lk.kinetic_energy(model, qs, vs))
@@ -187,7 +187,7 @@ def test_momentum_is_conserved_for_a_floating_base_without_gravity():
     tau = np.zeros(weightless.nv)
     rate = lk.centroidal_momentum_rate(weightless, q, v, lk.aba(weightless, q, v, tau))
     assert np.abs(rate).max() <= 1e-9 * max(1.0, np.abs(lk.centroidal_momentum(weightless, q, v)).max())
-    qs, vs = lk.simulate(weightless, q, v, dt=1e-3, steps=2000, method="rk4")
+    qs, vs = lk.free_rollout(weightless, q, v, dt=1e-3, steps=2000, method="rk4")
     momentum = lk.centroidal_momentum(weightless, qs, vs)
     assert np.abs(momentum - momentum[0]).max() <= 1e-6 * np.abs(momentum[0]).max()
 
@@ -197,16 +197,16 @@ def test_semi_implicit_euler_is_first_order():
     rng = np.random.default_rng(8)
     model = random_tree(rng, 5, False, chain=True)
     q, v = random_state(rng, model, speed=0.5)
-    reference, _ = lk.simulate(model, q, v, dt=1e-4, steps=2000, method="rk4")
+    reference, _ = lk.free_rollout(model, q, v, dt=1e-4, steps=2000, method="rk4")
     errors = []
     for dt in (2e-3, 1e-3):
         steps = int(round(0.2 / dt))
-        qs, _ = lk.simulate(model, q, v, dt=dt, steps=steps, method="semi_implicit_euler")
+        qs, _ = lk.free_rollout(model, q, v, dt=dt, steps=steps, method="semi_implicit_euler")
         errors.append(np.abs(qs[-1] - reference[-1]).max())
     assert 1.6 < errors[0] / errors[1] < 2.5, errors
 
 
-def test_bad_contact_and_simulation_input_names_the_argument():
+def test_bad_contact_and_rollout_input_names_the_argument():
     model = random_tree(np.random.default_rng(1), 3, False)
     q, v, tau = np.zeros(model.nq), np.zeros(model.nv), np.zeros(model.nv)
     with pytest.raises(ValueError, match="contacts"):
@@ -218,11 +218,11 @@ def test_bad_contact_and_simulation_input_names_the_argument():
     with pytest.raises(TypeError, match="contacts"):
         lk.impact(model, q, v, [1, 2])
     with pytest.raises(ValueError, match="dt"):
-        lk.simulate(model, q, v, dt=0.0, steps=3)
+        lk.free_rollout(model, q, v, dt=0.0, steps=3)
     with pytest.raises(ValueError, match="tau"):
-        lk.simulate(model, q, v, dt=1e-3, steps=3, tau=np.ones(model.nv + 1))
+        lk.free_rollout(model, q, v, dt=1e-3, steps=3, tau=np.ones(model.nv + 1))
     with pytest.raises(ValueError, match="method"):
-        lk.simulate(model, q, v, dt=1e-3, steps=3, method="euler")
+        lk.free_rollout(model, q, v, dt=1e-3, steps=3, method="euler")
     with pytest.raises(ValueError, match="independent"):
         lk.reduced_dynamics(model, q, v, tau, [(1, [0, 0, 0])], independent=[9])
 

@@ -278,10 +278,10 @@ def brute_force_subtrees(tw: Twin, q: np.ndarray):
         masses[i], coms[i], inertias[i] = b[0], R @ b[1] + t, R @ b[2] @ R.T
     members = [[i] for i in range(n)]
     for i in range(n):
-        p = tw.parents[i]
-        while p >= 0:
-            members[p].append(i)
+        p = i
+        while p > 0:
             p = tw.parents[p]
+            members[p].append(i)
     m_out, c_out, i_out = np.zeros(n), np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)
     for k in range(n):
         idx = members[k]

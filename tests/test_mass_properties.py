@@ -172,7 +172,7 @@ def test_zero():
 
 def test_box_axis_aligned_hand_values():
     # m = 12, size (1, 2, 3): I_xx = 12 (4 + 9) / 12 = 13, I_yy = 12 (1 + 9) / 12 = 10, I_zz = 12 (1 + 4) / 12 = 5
-    b = MP.box(12.0, [1.0, 2.0, 3.0])
+    b = MP.solid_box(12.0, [1.0, 2.0, 3.0])
     assert b.mass == 12.0
     np.testing.assert_array_equal(b.com, [0.0, 0.0, 0.0])
     np.testing.assert_allclose(b.inertia, np.diag([13.0, 10.0, 5.0]), rtol=0, atol=1e-14)
@@ -182,11 +182,11 @@ def test_box_with_center_and_rotation_hand_values():
     # Rotating the box frame by +90 deg about z maps box-x to parent-y: the long-in-x moment (13) now
     # belongs to the parent y axis: I = R diag(13, 10, 5) R^T = diag(10, 13, 5).
     rz = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-    b = MP.box(12.0, [1.0, 2.0, 3.0], center=[1.0, 2.0, 3.0], rotation=rz)
+    b = MP.solid_box(12.0, [1.0, 2.0, 3.0], center=[1.0, 2.0, 3.0], rotation=rz)
     np.testing.assert_array_equal(b.com, [1.0, 2.0, 3.0])
     np.testing.assert_allclose(b.inertia, np.diag([10.0, 13.0, 5.0]), rtol=0, atol=1e-14)
     # a cube's inertia is isotropic: any rotation leaves it m s^2/6 E
-    cube = MP.box(6.0, [2.0, 2.0, 2.0], center=[0, 0, 0], rotation=ref.rodrigues([1, 1, 0], 0.3))
+    cube = MP.solid_box(6.0, [2.0, 2.0, 2.0], center=[0, 0, 0], rotation=ref.rodrigues([1, 1, 0], 0.3))
     np.testing.assert_allclose(cube.inertia, 4.0 * np.eye(3), rtol=0, atol=1e-14)
 
 
@@ -204,7 +204,7 @@ def test_box_matches_fine_grid_of_point_masses(mass, size, center, rotation):
     (a) the box is within that analytic bias of the grid (plus rounding), and
     (b) the box equals grid + analytic bias to REL of m |size|^2: a tight check of the formula.
     """
-    b = MP.box(mass, size, center=center, rotation=rotation)
+    b = MP.solid_box(mass, size, center=center, rotation=rotation)
     masses, positions = ref.box_grid(mass, size, center, rotation, GRID_N)
     m_ref, com_ref, inertia_grid = ref.point_cloud_mass_properties(masses, positions, vectorised=True)
     bias = rotation @ ref.box_grid_bias(mass, size, GRID_N) @ rotation.T
@@ -225,14 +225,14 @@ def test_box_matches_fine_grid_of_point_masses(mass, size, center, rotation):
 
 @given(reals(0.01, 100.0), vectors(0.05, 5.0), vectors(), rotations())
 def test_box_pose_equals_transformed_box(mass, size, center, rotation):
-    posed = MP.box(mass, size, center=center, rotation=rotation)
-    moved = MP.box(mass, size).transformed(rotation, center)
+    posed = MP.solid_box(mass, size, center=center, rotation=rotation)
+    moved = MP.solid_box(mass, size).transformed(rotation, center)
     L = np.linalg.norm(center) + np.linalg.norm(size)
     assert_mp_pair(posed, moved, mass_scale=mass, com_scale=L, inertia_scale=mass * L**2)
 
 
 def test_box_default_center_and_rotation():
-    assert MP.box(3.0, [1.0, 2.0, 0.5]) == MP.box(3.0, [1.0, 2.0, 0.5], center=[0, 0, 0], rotation=np.eye(3))
+    assert MP.solid_box(3.0, [1.0, 2.0, 0.5]) == MP.solid_box(3.0, [1.0, 2.0, 0.5], center=[0, 0, 0], rotation=np.eye(3))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -261,7 +261,7 @@ def test_addition_is_not_the_mass_weighted_average_of_inertias():
     np.testing.assert_allclose(s.inertia, np.diag([0.0, 2.0, 2.0]), rtol=0, atol=1e-14)
     assert np.max(np.abs(s.inertia - shorthand)) > 1.0
 
-    cube = MP.box(6.0, [1.0, 1.0, 1.0], center=[0.3, 0.2, 0.1])  # I = 6 * 2/12 E = E
+    cube = MP.solid_box(6.0, [1.0, 1.0, 1.0], center=[0.3, 0.2, 0.1])  # I = 6 * 2/12 E = E
     shorthand = (cube.mass * cube.inertia + cube.mass * cube.inertia) / (2 * cube.mass)
     s = cube + cube
     np.testing.assert_allclose(s.inertia, 2.0 * np.eye(3), rtol=0, atol=1e-14)
@@ -404,7 +404,7 @@ def test_subtraction_leaving_a_point_mass():
 
 
 def test_subtraction_rejects_negative_or_zero_mass():
-    big = MP.box(1.0, [1.0, 1.0, 1.0])
+    big = MP.solid_box(1.0, [1.0, 1.0, 1.0])
     heavier = MP.point(2.0, [0.0, 0.0, 0.0])
     with pytest.raises(ValueError):
         big - heavier
@@ -415,8 +415,8 @@ def test_subtraction_rejects_negative_or_zero_mass():
 
 def test_subtraction_rejects_non_physical_inertia():
     # Same centre; masses 2 - 1 = 1 > 0, but inertias 2 (1 + 1)/12 = 1/3 minus 1 (4 + 4)/12 = 2/3 < 0.
-    a = MP.box(2.0, [1.0, 1.0, 1.0])
-    b = MP.box(1.0, [2.0, 2.0, 2.0])
+    a = MP.solid_box(2.0, [1.0, 1.0, 1.0])
+    b = MP.solid_box(1.0, [2.0, 2.0, 2.0])
     with pytest.raises(ValueError):
         a - b
     # Triangle inequality violated but PSD: a flat plate (principal moments 1, 1, 2) minus a rod along z
@@ -435,7 +435,7 @@ def test_subtraction_rejects_non_physical_inertia():
 def test_transformed_hand_example():
     # box diag(13, 10, 5) at the origin; rotate +90 deg about z and translate by (1, 2, 3)
     rz = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-    b = MP.box(12.0, [1.0, 2.0, 3.0]).transformed(rz, [1.0, 2.0, 3.0])
+    b = MP.solid_box(12.0, [1.0, 2.0, 3.0]).transformed(rz, [1.0, 2.0, 3.0])
     assert b.mass == 12.0
     np.testing.assert_allclose(b.com, [1.0, 2.0, 3.0], rtol=0, atol=1e-15)
     np.testing.assert_allclose(b.inertia, np.diag([10.0, 13.0, 5.0]), rtol=0, atol=1e-14)
@@ -490,7 +490,7 @@ def test_transformed_accepts_a_4x4_homogeneous_matrix(body, rotation, translatio
 def test_transformed_4x4_hand_example():
     rz = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     t = ref.homogeneous(rz, [1.0, 2.0, 3.0])
-    b = MP.box(12.0, [1.0, 2.0, 3.0], center=[1.0, 0.0, 0.0]).transformed(t)
+    b = MP.solid_box(12.0, [1.0, 2.0, 3.0], center=[1.0, 0.0, 0.0]).transformed(t)
     np.testing.assert_allclose(b.com, [1.0, 3.0, 3.0], rtol=0, atol=1e-15)
     np.testing.assert_allclose(b.inertia, np.diag([10.0, 13.0, 5.0]), rtol=0, atol=1e-14)
 
@@ -603,7 +603,7 @@ def test_bad_mass_raises_value_error_naming_mass(mass):
     with arg_error(ValueError, "mass"):
         MP.point(mass, GOOD_COM)
     with arg_error(ValueError, "mass"):
-        MP.box(mass, [1.0, 1.0, 1.0])
+        MP.solid_box(mass, [1.0, 1.0, 1.0])
 
 
 @pytest.mark.parametrize(
@@ -654,15 +654,15 @@ def test_bad_inertia_raises_value_error_naming_inertia(inertia):
     ids=["scaled", "reflection", "minus-identity", "perturbed", "nan", "zeros", "2x2"],
 )
 def test_bad_rotation_raises_value_error_naming_rotation(rotation):
-    a = MP.box(1.0, [1.0, 2.0, 3.0])
+    a = MP.solid_box(1.0, [1.0, 2.0, 3.0])
     with arg_error(ValueError, "rotation"):
         a.transformed(rotation, [0.0, 0.0, 0.0])
     with arg_error(ValueError, "rotation"):
-        MP.box(1.0, [1.0, 2.0, 3.0], rotation=rotation)
+        MP.solid_box(1.0, [1.0, 2.0, 3.0], rotation=rotation)
 
 
 def test_bad_translation_and_homogeneous_matrix():
-    a = MP.box(1.0, [1.0, 2.0, 3.0])
+    a = MP.solid_box(1.0, [1.0, 2.0, 3.0])
     with arg_error(ValueError, "translation"):
         a.transformed(np.eye(3), [0.0, NAN, 0.0])
     with arg_error(ValueError, "translation"):
@@ -688,13 +688,13 @@ def test_bad_from_points():
         MP.from_points([1.0, 2.0], [[0.0, 0.0, 0.0], [0.0, INF, 0.0]])
 
 
-BOX = MP.box(1.0, [1.0, 1.0, 1.0])
+BOX = MP.solid_box(1.0, [1.0, 1.0, 1.0])
 OTHER_BAD_CALLS = {
-    "box-negative-size": lambda: MP.box(1.0, [1.0, -1.0, 1.0]),
-    "box-size-shape": lambda: MP.box(1.0, [1.0, 1.0]),
-    "box-size-nan": lambda: MP.box(1.0, [1.0, 1.0, NAN]),
-    "box-center-nan": lambda: MP.box(1.0, [1.0, 1.0, 1.0], center=[0.0, NAN, 0.0]),
-    "box-center-shape": lambda: MP.box(1.0, [1.0, 1.0, 1.0], center=[0.0, 0.0]),
+    "box-negative-size": lambda: MP.solid_box(1.0, [1.0, -1.0, 1.0]),
+    "box-size-shape": lambda: MP.solid_box(1.0, [1.0, 1.0]),
+    "box-size-nan": lambda: MP.solid_box(1.0, [1.0, 1.0, NAN]),
+    "box-center-nan": lambda: MP.solid_box(1.0, [1.0, 1.0, 1.0], center=[0.0, NAN, 0.0]),
+    "box-center-shape": lambda: MP.solid_box(1.0, [1.0, 1.0, 1.0], center=[0.0, 0.0]),
     "inertia_about-nan": lambda: BOX.inertia_about([0.0, NAN, 0.0]),
     "inertia_about-inf": lambda: BOX.inertia_about([INF, 0.0, 0.0]),
     "inertia_about-shape": lambda: BOX.inertia_about([0.0, 0.0]),
@@ -718,7 +718,7 @@ def test_non_numeric_arguments_raise_type_or_value_error():
         MP(1.0, GOOD_COM, "identity")
     with pytest.raises((TypeError, ValueError)):
         MP(None, GOOD_COM, GOOD_INERTIA)
-    a = MP.box(1.0, [1.0, 1.0, 1.0])
+    a = MP.solid_box(1.0, [1.0, 1.0, 1.0])
     with pytest.raises(TypeError):
         a + "body"
     with pytest.raises(TypeError):

@@ -24,9 +24,9 @@ def slider_arm() -> lk.Model:
     """Fixed base, a prismatic joint, a revolute joint and a fixed body with an off-axis COM."""
     model = lk.Model(floating_base=False)
     rotation = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-    slider = model.add_prismatic(0, [0.0, 0.0, 1.0], None, lk.MassProperties.box(1.0, [0.1, 0.2, 0.3], center=[0.01, 0.0, 0.02]), "slider")
+    slider = model.add_prismatic(0, [0.0, 0.0, 1.0], None, lk.MassProperties.solid_box(1.0, [0.1, 0.2, 0.3], center=[0.01, 0.0, 0.02]), "slider")
     arm = model.add_revolute(slider, [0.0, 1.0, 0.0], (rotation, [0.1, 0.0, 0.0]),
-                             lk.MassProperties.box(0.5, [0.3, 0.05, 0.05], center=[0.15, 0.0, 0.0]), "arm")
+                             lk.MassProperties.solid_box(0.5, [0.3, 0.05, 0.05], center=[0.15, 0.0, 0.0]), "arm")
     model.add_fixed(arm, (np.eye(3), [0.3, 0.0, 0.0]), lk.MassProperties.point(0.2, [0.0, 0.01, 0.0]), "tip")
     return model
 

@@ -22,12 +22,12 @@ def rotation(axis, angle):
 
 def rod(mass, length):
     """A 4 cm square bar along the body x axis, starting at the joint."""
-    return lk.MassProperties.box(mass, [length, 0.04, 0.04], center=[length / 2, 0, 0])
+    return lk.MassProperties.solid_box(mass, [length, 0.04, 0.04], center=[length / 2, 0, 0])
 
 
 def ten_link_tree():
     """A 10-link tree hanging from a fixed base: chain of 5 plus side branches, one prismatic joint."""
-    model = lk.Model(floating_base=False, base=lk.MassProperties.box(1.0, [0.1, 0.1, 0.1]))
+    model = lk.Model(floating_base=False, base=lk.MassProperties.solid_box(1.0, [0.1, 0.1, 0.1]))
     axes = [[0, 1, 0], [0, 1, 0.3], [0, 0, 1], [0.2, 1, 0], [0, 1, 0]]
     chain, parent = [], 0
     for k, axis in enumerate(axes):
@@ -48,11 +48,11 @@ FOOT_RADIUS = 0.02
 
 def quadruped():
     """A floating 4 kg body on four hip/knee legs (axes y) with ball feet; thighs have no collider."""
-    model = lk.Model(floating_base=True, base=lk.MassProperties.box(4.0, [0.4, 0.2, 0.06]))
+    model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(4.0, [0.4, 0.2, 0.06]))
     shapes = {}
 
     def segment(m: float) -> lk.MassProperties:
-        return lk.MassProperties.box(m, [0.03, 0.03, LEG_LENGTH], center=[0, 0, -LEG_LENGTH / 2])
+        return lk.MassProperties.solid_box(m, [0.03, 0.03, LEG_LENGTH], center=[0, 0, -LEG_LENGTH / 2])
 
     for k, (x, y) in enumerate([(0.15, 0.08), (0.15, -0.08), (-0.15, 0.08), (-0.15, -0.08)]):
         thigh = model.add_revolute(0, [0, 1, 0], (np.eye(3), [x, y, -0.03]), segment(0.3), f"thigh{k}")
@@ -83,7 +83,7 @@ def test_free_tree_follows_aba_rk4_within_a_milliradian():
     model = ten_link_tree()
     q0 = 0.3 * np.sin(1.7 * np.arange(model.nq))
     v0 = np.zeros(model.nv)
-    qs, _ = lk.simulate(model, q0, v0, 1e-3, 1000, method="rk4")
+    qs, _ = lk.free_rollout(model, q0, v0, 1e-3, 1000, method="rk4")
     errors = []
     for substeps in (1, 8, 32):
         sim = lk.Simulation(model, dt=1e-3, substeps=substeps)
@@ -102,11 +102,12 @@ def test_free_tree_follows_aba_rk4_within_a_milliradian():
 def test_first_step_from_rest_uses_the_aba_acceleration(links, seed):
     # From rest Coriolis and gyroscopic terms vanish, so the first velocity is exactly dt * aba(q, 0, tau).
     rng = np.random.default_rng(seed)
-    model = lk.Model(floating_base=bool(seed % 2), base=lk.MassProperties.box(2.0, rng.uniform(0.1, 0.4, 3), center=rng.uniform(-0.05, 0.05, 3)))
+    base = lk.MassProperties.solid_box(2.0, rng.uniform(0.1, 0.4, 3), center=rng.uniform(-0.05, 0.05, 3))
+    model = lk.Model(floating_base=bool(seed % 2), base=base)
     for i in range(1, links + 1):
         axis = rng.normal(size=3)
         placement = (rotation(rng.normal(size=3), rng.uniform(-3, 3)), rng.uniform(-0.3, 0.3, 3))
-        body = lk.MassProperties.box(
+        body = lk.MassProperties.solid_box(
             rng.uniform(0.2, 2), rng.uniform(0.05, 0.4, 3), center=rng.uniform(-0.1, 0.1, 3), rotation=rotation(rng.normal(size=3), 1.0)
         )
         adder = model.add_prismatic if rng.uniform() < 0.2 else model.add_revolute
@@ -130,7 +131,7 @@ def test_joint_armature_adds_to_the_mass_matrix_diagonal():
     model = lk.Model()
     parent = 0
     for i in range(3):
-        body = lk.MassProperties.box(0.3, [0.2, 0.04, 0.04], center=[0.1, 0.0, 0.0])
+        body = lk.MassProperties.solid_box(0.3, [0.2, 0.04, 0.04], center=[0.1, 0.0, 0.0])
         parent = model.add_revolute(parent, [0.0, 1.0, 0.0] if i % 2 == 0 else [0.0, 0.0, 1.0], (np.eye(3), [0.2 * (i > 0), 0.0, 0.0]), body)
     q, tau, armature = np.array([0.4, -0.3, 0.7]), np.array([0.2, -0.1, 0.05]), 0.01
     sim = lk.Simulation(model, dt=1e-4, joint_armature=armature)
@@ -193,7 +194,7 @@ def test_box_at_rest_on_a_slope_is_held_by_friction():
     slope = 0.2
     x = (np.arange(41) - 20) * 0.05
     heights = np.tile(slope * x[:, None], (1, 41))
-    model = lk.Model(floating_base=True, base=lk.MassProperties.box(2.0, [0.2, 0.2, 0.1]))
+    model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(2.0, [0.2, 0.2, 0.1]))
     sim = lk.Simulation(model, ground=lk.Ground.heightfield(heights, 0.05, friction=0.9))
     angle = math.atan(slope)
     half = math.sin(angle / 2)

@@ -28,7 +28,7 @@ def quaternion_about_y(angle):
 
 
 def free_box(mass, size, backend, ground, gravity=None, shapes=None, dt=1e-3):
-    model = lk.Model(floating_base=True, base=lk.MassProperties.box(mass, list(size)), gravity=gravity)
+    model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(mass, list(size)), gravity=gravity)
     return model, lk.Simulation(model, dt=dt, ground=ground, shapes=shapes, backend=backend)
 
 
@@ -304,14 +304,14 @@ def random_chain(seed):
     parent = 0
     for _ in range(links):
         placement = (rotation(rng.normal(size=3), rng.uniform(-1, 1)), rng.uniform(-0.3, 0.3, 3))
-        body = lk.MassProperties.box(rng.uniform(0.2, 2), rng.uniform(0.05, 0.4, 3), center=rng.uniform(-0.15, 0.15, 3))
+        body = lk.MassProperties.solid_box(rng.uniform(0.2, 2), rng.uniform(0.05, 0.4, 3), center=rng.uniform(-0.15, 0.15, 3))
         parent = model.add_revolute(parent, rng.normal(size=3), placement, body)
     return model, rng.uniform(-1.5, 1.5, links), rng.uniform(-1, 1, links)
 
 
 def errors_against_rk4(model, q0, v0, seconds, substeps_list=(1,), dts=(1e-3,)):
     """Final-configuration error of the tree engine against a fine RK4 run, for each (dt, substeps)."""
-    reference, _ = lk.simulate(model, q0, v0, 1e-4, int(round(seconds / 1e-4)), method="rk4")
+    reference, _ = lk.free_rollout(model, q0, v0, 1e-4, int(round(seconds / 1e-4)), method="rk4")
     errors = []
     for dt in dts:
         for substeps in substeps_list:
@@ -327,8 +327,8 @@ def test_free_tree_converges_to_aba_rk4_at_first_order_in_dt_and_in_substeps():
     q0 = 0.3 * np.sin(1.7 * np.arange(model.nq))
     v0 = np.zeros(model.nv)
     # RK4 at 1e-4 s is many orders more accurate than a first-order step of 1e-3 / 32.
-    fine, _ = lk.simulate(model, q0, v0, 1e-4, 5000, method="rk4")
-    finer, _ = lk.simulate(model, q0, v0, 5e-5, 10000, method="rk4")
+    fine, _ = lk.free_rollout(model, q0, v0, 1e-4, 5000, method="rk4")
+    finer, _ = lk.free_rollout(model, q0, v0, 5e-5, 10000, method="rk4")
     assert np.abs(fine[-1] - finer[-1]).max() < 1e-9
     by_substeps = errors_against_rk4(model, q0, v0, 0.5, substeps_list=(1, 2, 4, 8, 16, 32))
     by_dt = errors_against_rk4(model, q0, v0, 0.5, dts=(2e-3, 1e-3, 5e-4, 2.5e-4))
@@ -355,7 +355,7 @@ def test_random_free_chain_error_halves_with_the_substep(seed):
 def small_pendulum(backend):
     """A 0.1 kg, 0.1 m rod on a hinge about y: inertia about the hinge ~3.3e-4 kg m^2."""
     model = lk.Model(floating_base=False)
-    model.add_revolute(0, [0, 1, 0], None, lk.MassProperties.box(0.1, [0.1, 0.01, 0.01], center=[0.05, 0, 0]), "rod")
+    model.add_revolute(0, [0, 1, 0], None, lk.MassProperties.solid_box(0.1, [0.1, 0.01, 0.01], center=[0.05, 0, 0]), "rod")
     sim = lk.Simulation(model, backend=backend)
     sim.q = [0.3]
     return sim
@@ -585,8 +585,8 @@ ARM_LENGTH, ARM_RADIUS, ARM_OFFSET = 0.3, 0.02, 0.1
 
 def two_arms(self_collision):
     """Two capsule arms hanging from x = -0.1 ("a", held by a stiff servo) and x = +0.1 ("b", thrown toward a)."""
-    model = lk.Model(floating_base=False, base=lk.MassProperties.box(1.0, [0.3, 0.1, 0.05]))
-    arm = lk.MassProperties.box(0.5, [0.04, 0.04, ARM_LENGTH], center=[0, 0, -ARM_LENGTH / 2])
+    model = lk.Model(floating_base=False, base=lk.MassProperties.solid_box(1.0, [0.3, 0.1, 0.05]))
+    arm = lk.MassProperties.solid_box(0.5, [0.04, 0.04, ARM_LENGTH], center=[0, 0, -ARM_LENGTH / 2])
     model.add_revolute(0, [0, 1, 0], (np.eye(3), [-ARM_OFFSET, 0, 0]), arm, "a")
     model.add_revolute(0, [0, 1, 0], (np.eye(3), [ARM_OFFSET, 0, 0]), arm, "b")
     placement = np.eye(4)

@@ -123,7 +123,7 @@ def test_pendulum_passes_the_edge_exactly_when_s_h_is_negative(factor, g):
     assert s_h == pytest.approx((1.0 - factor) * h_ref, rel=1e-9)
     paper = ls.angular_momentum_stability_of_model(model, [0.0], [omega], support)  # non-diagonal edge: H_ref - H
     assert paper == pytest.approx((1.0 - factor) * h_ref, rel=1e-9)
-    qs, _ = lk.simulate(model, [0.0], [omega], 1e-3, round(1500 * np.sqrt(G / g)))  # time scales as 1 / sqrt(g)
+    qs, _ = lk.free_rollout(model, [0.0], [omega], 1e-3, round(1500 * np.sqrt(G / g)))  # time scales as 1 / sqrt(g)
     mass_y = -d * np.cos(qs[:, 0]) - h * np.sin(qs[:, 0])  # y of the mass after rotating by q about x
     passed = bool(np.any(mass_y > 0.0))
     assert passed == (s_h < 0.0)
@@ -343,7 +343,7 @@ def test_fri_ignores_the_foot_inertia_but_keeps_its_weight(g):
     # A free box "foot" carrying a point mass on a slider along x at height h; state at rest, the foot
     # accelerating. Goswami's FRI ignores the foot's acceleration, the ZMP does not.
     m_foot, m_top, h, x0 = 2.0, 3.0, 0.5, 0.1
-    model = lk.Model(floating_base=True, base=lk.MassProperties.box(m_foot, [0.2, 0.1, 0.04]), gravity=[0.0, 0.0, -g])
+    model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(m_foot, [0.2, 0.1, 0.04]), gravity=[0.0, 0.0, -g])
     model.add_prismatic(0, [1.0, 0.0, 0.0], (np.eye(3), [0.0, 0.0, h]), lk.MassProperties.point(m_top, [0.0, 0.0, 0.0]), "top")
     q = np.array([0, 0, 0.02, 0, 0, 0, 1.0, x0])
     foot_acc, slide_acc = 0.8, 1.3

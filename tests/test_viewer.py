@@ -49,7 +49,7 @@ def chain(rng: np.random.Generator) -> tuple[lk.Model, list[tuple[int, np.ndarra
     for body, parent in enumerate([0, 1, 2, 1], start=1):
         placement, axis = random_transform(rng), rng.normal(size=3)
         axis /= np.linalg.norm(axis)
-        model.add_revolute(parent, axis, placement, lk.MassProperties.box(1.0, [0.1, 0.2, 0.3]), f"b{body}")
+        model.add_revolute(parent, axis, placement, lk.MassProperties.solid_box(1.0, [0.1, 0.2, 0.3]), f"b{body}")
         joints.append((parent, placement, axis))
     return model, joints
 

@@ -22,6 +22,7 @@ from legkit._core import (
     contact_dynamics,
     crba,
     forward_kinematics,
+    free_rollout,
     impact,
     integrate,
     jacobian,
@@ -31,7 +32,6 @@ from legkit._core import (
     reduced_dynamics,
     resolve_mesh,
     rnea,
-    simulate,
     subtree_mass_properties,
 )
 from legkit.geometry import CircleLineResult, circle_line, rotation_toward_line
@@ -66,7 +66,7 @@ __all__ = [
     "impact",
     "reduced_dynamics",
     "integrate",
-    "simulate",
+    "free_rollout",
     "Simulation",
     "SimulationBatch",
     "Ground",

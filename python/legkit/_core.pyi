@@ -25,8 +25,8 @@ class MassProperties:
     @staticmethod
     def point(mass: float, position: _Vector) -> MassProperties: ...
     @staticmethod
-    def box(mass: float, size: _Vector, center: _Vector | None = None, rotation: _Matrix | None = None) -> MassProperties:
-        """A solid cuboid with full edge lengths ``size``, centred at ``center``, rotated by ``rotation``."""
+    def solid_box(mass: float, size: _Vector, center: _Vector | None = None, rotation: _Matrix | None = None) -> MassProperties:
+        """A solid box of uniform density with full edge lengths ``size``, centred at ``center``, rotated by ``rotation``."""
     @staticmethod
     def from_points(masses: _Vector, positions: _Matrix) -> MassProperties: ...
     @property
@@ -83,7 +83,7 @@ class Model:
     def floating_base(self) -> bool: ...
     @property
     def parents(self) -> list[int]:
-        """Parent of each body; -1 for the base."""
+        """Parent of each body; the base is its own parent (``parents[0] == 0``), as in Pinocchio."""
     @property
     def names(self) -> list[str]: ...
     @property
@@ -137,7 +137,7 @@ def crba(model: Model, q: npt.ArrayLike) -> np.ndarray:
 def minv(model: Model, q: npt.ArrayLike) -> np.ndarray:
     """M(q)^-1 by the O(n) articulated-body recursion: (..., nv, nv)."""
 _Frame = Literal["local", "world", "local_world_aligned"]
-_Contacts = Sequence[tuple[_Body, npt.ArrayLike]]
+_ContactPoints = Sequence[tuple[_Body, npt.ArrayLike]]
 
 def jacobian(model: Model, q: npt.ArrayLike, body: _Body, point: npt.ArrayLike | None = None, frame: _Frame = "local_world_aligned") -> np.ndarray:
     """6 x nv Jacobian (rows [linear; angular]) of the frame at `point` on `body`: (..., 6, nv)."""
@@ -151,21 +151,22 @@ def centroidal_momentum_rate(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a
     """Time derivative of the centroidal momentum (gravity excluded): (..., 6)."""
 def kinetic_energy(model: Model, q: npt.ArrayLike, v: npt.ArrayLike) -> np.ndarray: ...
 def potential_energy(model: Model, q: npt.ArrayLike) -> np.ndarray: ...
-def contact_dynamics(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _Contacts) -> tuple[np.ndarray, np.ndarray]:
+def contact_dynamics(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _ContactPoints) -> tuple[np.ndarray, np.ndarray]:
     """(ddq (..., nv), forces (..., k, 3)) with each contact point (body, point in body frame) held still."""
-def impact(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, contacts: _Contacts) -> tuple[np.ndarray, np.ndarray]:
+def impact(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, contacts: _ContactPoints) -> tuple[np.ndarray, np.ndarray]:
     """(v_plus (..., nv), impulses (..., k, 3)) of a perfectly inelastic impact at the contacts."""
 def reduced_dynamics(
-    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _Contacts, independent: Sequence[int] | None = None
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _ContactPoints, independent: Sequence[int] | None = None
 ) -> tuple[np.ndarray, list[int], list[int], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(ddq, independent, dependent, basis N, reduced mass N^T M N, reduced force, offset) for one state."""
 def integrate(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, dt: float) -> np.ndarray:
     """q (+) v dt: (..., nq)."""
-def simulate(
+def free_rollout(
     model: Model, q: npt.ArrayLike, v: npt.ArrayLike, dt: float, steps: int, tau: npt.ArrayLike | None = None,
     method: Literal["rk4", "semi_implicit_euler"] = "rk4",
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(qs (..., steps + 1, nq), vs (..., steps + 1, nv)) of a free simulation (no contacts)."""
+    """(qs (..., steps + 1, nq), vs (..., steps + 1, nv)) of the free dynamics (ABA: no contacts, no ground, no joint
+    limits) rolled out from (q, v); contact simulation is ``Simulation``."""
 def circle_line(
     center: npt.ArrayLike, normal: npt.ArrayLike, radius: npt.ArrayLike, line_point: npt.ArrayLike, line_direction: npt.ArrayLike
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...

@@ -13,8 +13,8 @@ import legkit as lk
 
 def demo(_: argparse.Namespace) -> int:
     """A composite mass and a circle–line query: the two quantities the balancing controller builds on."""
-    module = lk.MassProperties.box(0.25, [0.084, 0.084, 0.084], center=[0.0, 0.0, 0.042])
-    arm = lk.MassProperties.box(0.10, [0.3, 0.03, 0.03], center=[0.15, 0.0, 0.1])
+    module = lk.MassProperties.solid_box(0.25, [0.084, 0.084, 0.084], center=[0.0, 0.0, 0.042])
+    arm = lk.MassProperties.solid_box(0.10, [0.3, 0.03, 0.03], center=[0.15, 0.0, 0.1])
     tip = lk.MassProperties.point(0.05, [0.3, 0.0, 0.1])
     total = sum([module, arm, tip], lk.MassProperties.zero())
     np.set_printoptions(precision=6, suppress=True)

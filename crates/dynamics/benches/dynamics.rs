@@ -22,8 +22,8 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 /// A solid box of `mass`, edge lengths `size`, centred at `center` in its body frame.
-fn cuboid(mass: f64, size: [f64; 3], center: [f64; 3]) -> MassProperties {
-    MassProperties::cuboid(mass, Vector3::from(size), Vector3::from(center), &Matrix3::identity()).expect("valid box")
+fn solid_box(mass: f64, size: [f64; 3], center: [f64; 3]) -> MassProperties {
+    MassProperties::solid_box(mass, Vector3::from(size), Vector3::from(center), &Matrix3::identity()).expect("valid box")
 }
 
 /// A quarter-turn rotation (`turns` × 90°) about coordinate axis `axis` (0 = x, 1 = y, 2 = z), exact.
@@ -45,8 +45,8 @@ fn revolute(model: &mut Model, parent: usize, axis: Vector3<f64>, placement: Tra
 
 /// One SuperBot-like module entering at `placement` in body `parent`: returns its (first, last) end blocks.
 fn module(model: &mut Model, parent: usize, placement: Transform, name: &str) -> (usize, usize) {
-    let end_block = cuboid(0.05, [0.025, 0.05, 0.05], [0.0125, 0.0, 0.0]);
-    let middle_block = cuboid(0.10, [0.05, 0.03, 0.03], [0.025, 0.0, 0.0]);
+    let end_block = solid_box(0.05, [0.025, 0.05, 0.05], [0.0125, 0.0, 0.0]);
+    let middle_block = solid_box(0.10, [0.05, 0.03, 0.03], [0.025, 0.0, 0.0]);
     let first = revolute(model, parent, Vector3::y(), placement, end_block, format!("{name}_j0"));
     let middle = revolute(model, first, Vector3::x(), Transform::from_translation(Vector3::new(0.025, 0.0, 0.0)), middle_block, format!("{name}_j1"));
     let last = revolute(model, middle, Vector3::y(), Transform::from_translation(Vector3::new(0.05, 0.0, 0.0)), end_block, format!("{name}_j2"));
@@ -79,7 +79,7 @@ fn superbot_tree() -> Model {
 fn chain(n: usize) -> Model {
     let mut model = Model::new(false, MassProperties::zero(), "base");
     let axes = [Vector3::y(), Vector3::x(), Vector3::z()];
-    let link = cuboid(0.5, [0.03, 0.03, 0.1], [0.0, 0.0, 0.05]);
+    let link = solid_box(0.5, [0.03, 0.03, 0.1], [0.0, 0.0, 0.05]);
     for i in 0..n {
         let offset = if i > 0 { 0.1 } else { 0.0 };
         revolute(&mut model, i, axes[i % 3], Transform::from_translation(Vector3::new(0.0, 0.0, offset)), link, format!("link{i}"));

@@ -18,7 +18,7 @@ fn bodies(seed: f64) -> Vec<MassProperties> {
             let rotation = Rotation3::from_euler_angles(x.sin(), x.cos(), 0.5 * x).into_inner();
             let size = Vector3::new(0.1 + 0.05 * x.sin().abs(), 0.2, 0.3);
             let center = Vector3::new(x.cos(), (2.0 * x).sin(), 0.3 * x.sin());
-            MassProperties::cuboid(1.0 + x.sin().abs(), size, center, &rotation).unwrap()
+            MassProperties::solid_box(1.0 + x.sin().abs(), size, center, &rotation).unwrap()
         })
         .collect()
 }

@@ -22,7 +22,7 @@ const MODULE_LENGTH: f64 = 0.17;
 const PART_MASS: f64 = 0.05 / 4.0;
 
 fn module_tree(n_modules: usize) -> Model {
-    let part = MassProperties::cuboid(
+    let part = MassProperties::solid_box(
         PART_MASS,
         Vector3::new(0.06, 0.06, MODULE_LENGTH / 4.0),
         Vector3::new(0.0, 0.0, MODULE_LENGTH / 8.0),

@@ -87,8 +87,10 @@ impl MassProperties {
         Self::new(mass, position, Matrix3::zeros())
     }
 
-    /// A solid cuboid with full edge lengths `size`, centred at `center` and rotated by `rotation`.
-    pub fn cuboid(mass: f64, size: Vector3<f64>, center: Vector3<f64>, rotation: &Matrix3<f64>) -> Result<Self> {
+    /// A solid box of uniform density with full edge lengths `size`, centred at `center` and rotated by
+    /// `rotation`. Named `solid_box` in Rust and Python alike (`box` is a Rust keyword): "box" is the word the
+    /// collision shapes, URDF and MuJoCo use for the same geometry, and "solid" says the mass fills it.
+    pub fn solid_box(mass: f64, size: Vector3<f64>, center: Vector3<f64>, rotation: &Matrix3<f64>) -> Result<Self> {
         finite_vector("size", size)?;
         if size.iter().any(|&s| s < 0.0) {
             return Err(Error::invalid("size", "edge lengths must be >= 0"));
@@ -266,7 +268,7 @@ mod tests {
     fn random_body(rng: &mut StdRng) -> MassProperties {
         let size = Vector3::new(rng.random_range(0.0..2.0), rng.random_range(0.0..2.0), rng.random_range(0.0..2.0));
         let center = Vector3::new(rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0), rng.random_range(-5.0..5.0));
-        MassProperties::cuboid(rng.random_range(0.1..10.0), size, center, &random_rotation(rng)).unwrap()
+        MassProperties::solid_box(rng.random_range(0.1..10.0), size, center, &random_rotation(rng)).unwrap()
     }
 
     /// Brute force: Σ m (|r − c|² 1 − (r − c)(r − c)ᵀ) over the points.

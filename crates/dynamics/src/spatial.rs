@@ -358,7 +358,7 @@ mod tests {
         assert!((x.inv_act_motion(&x.act_motion(&m)) - m).amax() < 1e-14);
         assert!((x.act_force(&f) - xf * f).amax() < 1e-14);
         assert!((x.inv_act_force(&x.act_force(&f)) - f).amax() < 1e-14);
-        let body = MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::new(0.1, 0.2, -0.3), &Matrix3::identity()).unwrap();
+        let body = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::new(0.1, 0.2, -0.3), &Matrix3::identity()).unwrap();
         let rigid = RigidInertia::from_body(&body);
         let i = rigid.matrix();
         // X* I X⁻¹ (eq. 2.66) is the inertia of the transformed body; act_rigid_inertia gives both.
@@ -375,7 +375,7 @@ mod tests {
         // A body whose rotational inertia about the frame origin is diagonal (centred, axis-aligned) takes
         // the diagonal shortcut of `rotate_symmetric`.
         let centred =
-            RigidInertia::from_body(&MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap());
+            RigidInertia::from_body(&MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap());
         let r = &centred.rotational;
         assert!(r[(0, 1)] == 0.0 && r[(0, 2)] == 0.0 && r[(1, 2)] == 0.0);
         assert!((x.act_rigid_inertia(&centred).matrix() - act(&centred.matrix())).amax() < 1e-13);

@@ -20,7 +20,7 @@ fn random_body(rng: &mut StdRng) -> MassProperties {
     let size = Vector3::new(rng.random_range(0.05..0.5), rng.random_range(0.05..0.5), rng.random_range(0.05..0.5));
     let center = Vector3::new(rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2));
     let rotation = Rotation3::from_axis_angle(&Unit::new_normalize(unit(rng)), rng.random_range(-3.0..3.0)).into_inner();
-    MassProperties::cuboid(rng.random_range(0.1..3.0), size, center, &rotation).unwrap()
+    MassProperties::solid_box(rng.random_range(0.1..3.0), size, center, &rotation).unwrap()
 }
 
 fn random_tree(rng: &mut StdRng, n: usize, floating: bool) -> Model {

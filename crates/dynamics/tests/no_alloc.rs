@@ -40,7 +40,7 @@ fn allocations_during(f: impl FnOnce()) -> usize {
 
 #[test]
 fn algorithms_do_not_allocate() {
-    let body = MassProperties::cuboid(1.0, Vector3::new(0.1, 0.2, 0.3), Vector3::new(0.0, 0.0, 0.1), &Matrix3::identity()).unwrap();
+    let body = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.2, 0.3), Vector3::new(0.0, 0.0, 0.1), &Matrix3::identity()).unwrap();
     let mut model = Model::new(true, body, "base");
     for i in 1..30 {
         let joint = if i % 4 == 0 { Joint::Prismatic(Vector3::z()) } else { Joint::Revolute(Vector3::new(1.0, 2.0, 0.5)) };
@@ -75,8 +75,8 @@ fn tree_engine_steps_do_not_allocate_once_warm() {
     // A floating box on four legs with ball feet, on servos, standing on the plane: after the buffers have
     // grown to the contact set, steps allocate nothing.
     use legkit_dynamics::sim::{Ground, Options, Servo, Shape, ShapeKind, Simulation};
-    let base = MassProperties::cuboid(4.0, Vector3::new(0.4, 0.2, 0.06), Vector3::zeros(), &Matrix3::identity()).unwrap();
-    let leg = MassProperties::cuboid(0.3, Vector3::new(0.03, 0.03, 0.15), Vector3::new(0.0, 0.0, -0.075), &Matrix3::identity()).unwrap();
+    let base = MassProperties::solid_box(4.0, Vector3::new(0.4, 0.2, 0.06), Vector3::zeros(), &Matrix3::identity()).unwrap();
+    let leg = MassProperties::solid_box(0.3, Vector3::new(0.03, 0.03, 0.15), Vector3::new(0.0, 0.0, -0.075), &Matrix3::identity()).unwrap();
     let mut model = Model::new(true, base, "base");
     let mut options = Options::new(1e-3);
     options.ground = Some(Ground::plane(0.8).unwrap());

@@ -1,6 +1,6 @@
 //! Contact-constrained dynamics, the reduced ODE and impacts.
 
-use legkit_dynamics::algorithms::{self, Contact};
+use legkit_dynamics::algorithms::{self, ContactPoint};
 use legkit_dynamics::model::check_vector;
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
@@ -10,13 +10,13 @@ use crate::convert::{kernel_error, to_numpy, vector3, FloatArray, Vector};
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run_packed, unpack};
 
-/// Contacts from a sequence of (body, point) pairs: body index or name, point in the body's frame.
-fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<Contact>> {
+/// Contact points from a sequence of (body, point) pairs: body index or name, point in the body's frame.
+fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<ContactPoint>> {
     let mut out = Vec::new();
     for item in value.try_iter()? {
         let (body, point): (Bound<'_, PyAny>, Vector<'_>) =
             item?.extract().map_err(|_| pyo3::exceptions::PyTypeError::new_err("contacts: expected a sequence of (body, point) pairs"))?;
-        out.push(Contact { body: model.body_index(&body)?, point: vector3("contacts", &point)? });
+        out.push(ContactPoint { body: model.body_index(&body)?, point: vector3("contacts", &point)? });
     }
     algorithms::contact::check_contacts(&model.model, &out).map_err(kernel_error)?;
     Ok(out)

@@ -6,11 +6,11 @@ mod contact;
 mod convert;
 mod dynamics;
 mod geometry;
+mod integrate;
 mod kinematics;
 mod mass;
 mod model;
 mod sim;
-mod simulate;
 mod workspace;
 
 use pyo3::prelude::*;
@@ -39,8 +39,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(contact::contact_dynamics, m)?)?;
     m.add_function(wrap_pyfunction!(contact::impact, m)?)?;
     m.add_function(wrap_pyfunction!(contact::reduced_dynamics, m)?)?;
-    m.add_function(wrap_pyfunction!(simulate::integrate, m)?)?;
-    m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(integrate::integrate, m)?)?;
+    m.add_function(wrap_pyfunction!(integrate::free_rollout, m)?)?;
     m.add_function(wrap_pyfunction!(geometry::circle_line, m)?)?;
     m.add_function(wrap_pyfunction!(geometry::rotation_toward_line, m)?)?;
     Ok(())

@@ -36,10 +36,10 @@ impl PyMassProperties {
 
     #[staticmethod]
     #[pyo3(signature = (mass, size, center = None, rotation = None))]
-    fn r#box(mass: f64, size: Vector<'_>, center: Option<Vector<'_>>, rotation: Option<Matrix<'_>>) -> PyResult<Self> {
+    fn solid_box(mass: f64, size: Vector<'_>, center: Option<Vector<'_>>, rotation: Option<Matrix<'_>>) -> PyResult<Self> {
         let center = center.map(|c| vector3("center", &c)).transpose()?.unwrap_or_else(Vector3::zeros);
         let rotation = rotation.map(|r| matrix3("rotation", &r)).transpose()?.unwrap_or_else(Matrix3::identity);
-        MassProperties::cuboid(mass, vector3("size", &size)?, center, &rotation).map(Self).map_err(kernel_error)
+        MassProperties::solid_box(mass, vector3("size", &size)?, center, &rotation).map(Self).map_err(kernel_error)
     }
 
     #[staticmethod]

@@ -245,10 +245,11 @@ impl PyModel {
     fn floating_base(&self) -> bool {
         self.model.floating_base()
     }
-    /// Parent index of each body; -1 for the base.
+    /// Parent index of each body; the base is its own parent (`parents[0] == 0`), as in Pinocchio and Rust's
+    /// `Model::parent`.
     #[getter]
-    fn parents(&self) -> Vec<i64> {
-        (0..self.model.nbodies()).map(|i| if i == 0 { -1 } else { self.model.parent(i) as i64 }).collect()
+    fn parents(&self) -> Vec<usize> {
+        (0..self.model.nbodies()).map(|i| self.model.parent(i)).collect()
     }
     #[getter]
     fn names(&self) -> Vec<String> {

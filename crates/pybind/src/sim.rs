@@ -349,7 +349,8 @@ impl PySimulation {
     /// servo's torque limit and the joint's effort limit.
     #[getter]
     fn applied_tau<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        to_numpy(py, self.sim.applied_torques().len(), self.sim.applied_torques().to_vec())
+        let tau = self.sim.applied_tau();
+        to_numpy(py, tau.len(), tau.to_vec())
     }
 
     /// Penetration (m) the engine leaves uncorrected: the contact tolerance.

@@ -408,10 +408,10 @@ class MultiphaseProblem:
         model = self.model
         ancestors = []
         for i in range(model.nbodies):
-            chain, j = {i}, model.parents[i]
-            while j >= 0:
-                chain.add(j)
+            chain, j = {i}, i
+            while j > 0:
                 j = model.parents[j]
+                chain.add(j)
             ancestors.append(chain)
         bodies = np.arange(model.nbodies)
         return (ancestors, np.repeat(bodies, np.diff(list(model.idx_q) + [model.nq])),

@@ -116,7 +116,7 @@ class SymbolicModel:
             parent = self.parents[i]
             k, vi = self._dofs(i), self.idx_v[i]
             local.append((r, p, s))
-            if parent < 0:
+            if i == 0:
                 rotations.append(r)
                 positions.append(p)
             else:
@@ -124,7 +124,7 @@ class SymbolicModel:
                 positions.append(positions[parent] + rotations[parent] @ p)
             if v is None:
                 continue
-            if parent < 0:
+            if i == 0:
                 v_parent = ca.DM.zeros(6)
                 a_parent = ca.vertcat(ca.DM(-self.gravity), ca.DM.zeros(3)) if a is not None else None
             else:
@@ -183,7 +183,7 @@ class SymbolicModel:
                 for j in range(k):
                     tau[vi + j] = projected[j]
             parent = self.parents[i]
-            if parent >= 0:
+            if i > 0:
                 f, n = r @ forces[i][:3], r @ forces[i][3:]
                 forces[parent] = forces[parent] + ca.vertcat(f, n + ca.cross(p, f))
         return ca.vertcat(*tau)

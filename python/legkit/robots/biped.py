@@ -120,10 +120,10 @@ class Biped:
 def build_biped(parameters: BipedParameters | None = None) -> Biped:
     """The biped of the module docstring as an `lk.Model` with a free-flyer pelvis."""
     p = parameters or BipedParameters()
-    model = lk.Model(floating_base=True, base=lk.MassProperties.box(p.pelvis_mass, list(p.pelvis_size)), base_name="pelvis")
-    model.add_fixed("pelvis", (np.eye(3), list(p.torso_position)), lk.MassProperties.box(p.torso_mass, list(p.torso_size)), "torso")
+    model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(p.pelvis_mass, list(p.pelvis_size)), base_name="pelvis")
+    model.add_fixed("pelvis", (np.eye(3), list(p.torso_position)), lk.MassProperties.solid_box(p.torso_mass, list(p.torso_size)), "torso")
     foot_length = p.foot_toe + p.foot_heel
-    foot_body = lk.MassProperties.box(
+    foot_body = lk.MassProperties.solid_box(
         p.foot_mass, [foot_length, 2.0 * p.foot_half_width, p.ankle_height],
         center=[0.5 * (p.foot_toe - p.foot_heel), 0.0, -0.5 * p.ankle_height],
     )

@@ -12,7 +12,7 @@ import legkit as lk
 
 def limb_segment(mass: float, length: float, width: float) -> lk.MassProperties:
     """A uniform box limb of `length` hanging from its joint along -z."""
-    return lk.MassProperties.box(mass, [width, width, length], center=[0.0, 0.0, -length / 2.0])
+    return lk.MassProperties.solid_box(mass, [width, width, length], center=[0.0, 0.0, -length / 2.0])
 
 
 def roll_pitch_knee_ik(foot: npt.ArrayLike, upper: float, lower: float, knee_direction: float) -> np.ndarray:

@@ -110,8 +110,8 @@ class Quadruped:
 def build_quadruped(parameters: QuadrupedParameters | None = None) -> Quadruped:
     """The quadruped of the module docstring as an `lk.Model` with a free-flyer torso."""
     p = parameters or QuadrupedParameters()
-    model = lk.Model(floating_base=True, base=lk.MassProperties.box(p.torso_mass, list(p.torso_size)), base_name="torso")
-    model.add_fixed("torso", (np.eye(3), list(p.head_position)), lk.MassProperties.box(p.head_mass, list(p.head_size)), "head")
+    model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(p.torso_mass, list(p.torso_size)), base_name="torso")
+    model.add_fixed("torso", (np.eye(3), list(p.head_position)), lk.MassProperties.solid_box(p.head_mass, list(p.head_size)), "head")
     knee = (np.eye(3), [0.0, 0.0, -p.thigh_length])
     for leg in LEGS:
         hip = model.add_revolute("torso", [1.0, 0.0, 0.0], (np.eye(3), p.hip_position(leg)), None, f"{leg}_hip")

@@ -55,7 +55,7 @@ HIP_AXIS.setflags(write=False)
 
 def leg_mass_properties() -> lk.MassProperties:
     """One leg as a thin slab from the hip (origin) down to the unloaded toe, in the leg's own frame."""
-    return lk.MassProperties.box(LEG_MASS, [0.02, 0.03, LEG_LENGTH], center=[0.0, 0.0, -LEG_LENGTH / 2])
+    return lk.MassProperties.solid_box(LEG_MASS, [0.02, 0.03, LEG_LENGTH], center=[0.0, 0.0, -LEG_LENGTH / 2])
 
 
 def rhex_model() -> lk.Model:
@@ -65,7 +65,7 @@ def rhex_model() -> lk.Model:
     zero (q = neutral) is every leg pointing straight down. The leg compliance is not part of the rigid
     model: it lives in ``legkit.strain.benchtop.CompliantFourBarLeg``.
     """
-    body = lk.MassProperties.box(BODY_MASS, [BODY_LENGTH, BODY_WIDTH, BODY_THICKNESS])
+    body = lk.MassProperties.solid_box(BODY_MASS, [BODY_LENGTH, BODY_WIDTH, BODY_THICKNESS])
     model = lk.Model(floating_base=True, base=body, base_name="body")
     for name, hip in zip(LEG_NAMES, HIP_POSITIONS):
         model.add_revolute(0, HIP_AXIS, placement=(np.eye(3), hip), body=leg_mass_properties(), name=name)
@@ -107,11 +107,11 @@ def rhex_compliant_model(spring_axis: object) -> lk.Model:
     rotor = 0.5 * HIP_ROTOR_INERTIA
     clamp = lk.MassProperties(clamp_mass, np.zeros(3), np.diag([rotor, HIP_ROTOR_INERTIA, rotor]))
     shin = SHIN_FRACTION * LEG_LENGTH
-    members = lk.MassProperties.box(
+    members = lk.MassProperties.solid_box(
         member_mass, [0.02, 0.03, LEG_LENGTH - shin], center=[0.0, 0.0, -(LEG_LENGTH - shin) / 2]
     )
-    toe = lk.MassProperties.box(shin_mass, [0.02, 0.03, shin], center=[0.0, 0.0, -LEG_LENGTH + shin / 2])
-    body = lk.MassProperties.box(BODY_MASS, [BODY_LENGTH, BODY_WIDTH, BODY_THICKNESS])
+    toe = lk.MassProperties.solid_box(shin_mass, [0.02, 0.03, shin], center=[0.0, 0.0, -LEG_LENGTH + shin / 2])
+    body = lk.MassProperties.solid_box(BODY_MASS, [BODY_LENGTH, BODY_WIDTH, BODY_THICKNESS])
     model = lk.Model(floating_base=True, base=body, base_name="body")
     for name, hip in zip(LEG_NAMES, HIP_POSITIONS):
         hip_body = model.add_revolute(0, HIP_AXIS, placement=(np.eye(3), hip), body=clamp, name=f"{name}_hip")

@@ -111,7 +111,7 @@ class ModuleParameters:
         parts = []
         for z0, z1 in PART_Z:
             length = (z1 - z0) * w
-            parts.append(lk.MassProperties.box(self.mass * (z1 - z0) / 2.0, [w, w, length], center=[0, 0, 0.5 * (z0 + z1) * w]))
+            parts.append(lk.MassProperties.solid_box(self.mass * (z1 - z0) / 2.0, [w, w, length], center=[0, 0, 0.5 * (z0 + z1) * w]))
         return parts
 
     def connector_frames(self) -> tuple[np.ndarray, np.ndarray]:

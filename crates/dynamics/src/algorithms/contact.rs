@@ -13,9 +13,10 @@ use crate::model::{Data, Model};
 use crate::spatial::{angular, cross_motion, linear, Motion};
 use crate::{Error, Result};
 
-/// A point on a body, in the body's frame.
+/// A point on a body, in the body's frame, held still by `contact_dynamics`, `reduced_dynamics` and `impact` (their
+/// input). Not to be confused with `sim::Contact`, a contact the simulation reports with its forces.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Contact {
+pub struct ContactPoint {
     pub body: usize,
     pub point: Vector3<f64>,
 }
@@ -44,7 +45,7 @@ pub struct ReducedDynamics {
     pub ddq: DVector<f64>,
 }
 
-pub fn check_contacts(model: &Model, contacts: &[Contact]) -> Result<()> {
+pub fn check_contacts(model: &Model, contacts: &[ContactPoint]) -> Result<()> {
     if contacts.is_empty() {
         return Err(Error::invalid("contacts", "needs at least one contact"));
     }
@@ -58,7 +59,7 @@ pub fn check_contacts(model: &Model, contacts: &[Contact]) -> Result<()> {
 }
 
 /// J_c (3k x nv) and γ (3k) at (q, v).
-fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[Contact]) -> (DMatrix<f64>, DVector<f64>) {
+fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint]) -> (DMatrix<f64>, DVector<f64>) {
     let nv = model.nv();
     let mut jc = DMatrix::zeros(3 * contacts.len(), nv);
     for (c, contact) in contacts.iter().enumerate() {
@@ -114,7 +115,7 @@ fn mass_and_bias(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result
 
 /// Constrained forward dynamics: [M −Jᵀ; J 0] [q̈; λ] = [τ − h; −γ], by the Schur complement
 /// (J M⁻¹ Jᵀ) λ = −γ − J M⁻¹ (τ − h).
-pub fn contact_dynamics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64], contacts: &[Contact]) -> Result<ContactDynamics> {
+pub fn contact_dynamics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64], contacts: &[ContactPoint]) -> Result<ContactDynamics> {
     check_contacts(model, contacts)?;
     let (_, chol, bias) = mass_and_bias(model, data, q, v)?;
     let (jc, gamma) = constraint(model, data, q, v, contacts);
@@ -127,7 +128,7 @@ pub fn contact_dynamics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], ta
 
 /// Post-impact velocities of a perfectly inelastic impact at the contacts: M (v⁺ − v⁻) = Jᵀ Λ, J v⁺ = 0.
 /// Returns (v⁺, the 3k impulses Λ).
-pub fn impact(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[Contact]) -> Result<(DVector<f64>, DVector<f64>)> {
+pub fn impact(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint]) -> Result<(DVector<f64>, DVector<f64>)> {
     check_contacts(model, contacts)?;
     let (_, chol, _) = mass_and_bias(model, data, q, v)?;
     let (jc, _) = constraint(model, data, q, v, contacts);
@@ -171,7 +172,7 @@ pub fn reduced_dynamics(
     q: &[f64],
     v: &[f64],
     tau: &[f64],
-    contacts: &[Contact],
+    contacts: &[ContactPoint],
     independent: Option<&[usize]>,
 ) -> Result<ReducedDynamics> {
     check_contacts(model, contacts)?;

@@ -1,4 +1,5 @@
-//! Free simulation (no contacts) over the articulated-body algorithm: semi-implicit Euler and RK4.
+//! Free dynamics (no contacts, no ground) integrated over the articulated-body algorithm: semi-implicit Euler
+//! and RK4. `free_rollout` is the trajectory of it; contact simulation is `sim::Simulation`.
 
 use nalgebra::{DVector, Quaternion, UnitQuaternion, Vector3};
 
@@ -105,10 +106,12 @@ impl Integrator {
     }
 }
 
-/// Simulates `steps` steps from (q0, v0), with `tau` constant (nv numbers) or per step (steps x nv).
-/// Writes (steps + 1) x nq configurations and (steps + 1) x nv velocities, row by row.
+/// Rolls the free dynamics (ABA, no contacts, no joint limits) out for `steps` steps from (q0, v0), with `tau`
+/// constant (nv numbers) or per step (steps x nv). Writes (steps + 1) x nq configurations and (steps + 1) x nv
+/// velocities, row by row. "Rollout" as in MuJoCo's `rollout`; "free" to keep it apart from the contact
+/// `sim::Simulation`.
 #[allow(clippy::too_many_arguments)]
-pub fn simulate(
+pub fn free_rollout(
     model: &Model,
     data: &mut Data,
     q0: &[f64],

@@ -10,6 +10,7 @@
 //! good state. The same inputs give bit-identical trajectories on either backend.
 
 mod actuation;
+mod batch;
 mod ground;
 mod options;
 mod rapier;
@@ -18,6 +19,7 @@ mod tests;
 mod tree;
 
 pub use actuation::{dof_coordinates, Servo};
+pub use batch::step_all;
 pub use ground::Ground;
 pub use options::{Backend, Convex, Options, Shape, ShapeKind, DEFAULT_SOLVER_ITERATIONS, MIN_DEFAULT_EDGE};
 
@@ -139,8 +141,9 @@ impl Simulation {
     }
 
     /// Generalized forces applied during the last step (servo plus feed-forward, within the tighter of
-    /// the servo's limit and the joint's effort bound), per velocity coordinate.
-    pub fn applied_torques(&self) -> &[f64] {
+    /// the servo's limit and the joint's effort bound), per velocity coordinate. Named `tau` as everywhere
+    /// in legkit (Pinocchio's convention), the same name as the Python property `Simulation.applied_tau`.
+    pub fn applied_tau(&self) -> &[f64] {
         &self.applied
     }
 

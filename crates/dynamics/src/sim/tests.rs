@@ -4,21 +4,21 @@
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 
 use super::*;
-use crate::algorithms::{simulate, Method};
+use crate::algorithms::{free_rollout, Method};
 use crate::model::{JointLimits, STANDARD_GRAVITY};
 use crate::sim::options::Backend;
 use crate::{Data, MassProperties};
 
 fn rod(mass: f64, length: f64) -> MassProperties {
     // A 4 cm square bar along the body's x axis, starting at the joint.
-    MassProperties::cuboid(mass, Vector3::new(length, 0.04, 0.04), Vector3::new(length / 2.0, 0.0, 0.0), &Matrix3::identity()).unwrap()
+    MassProperties::solid_box(mass, Vector3::new(length, 0.04, 0.04), Vector3::new(length / 2.0, 0.0, 0.0), &Matrix3::identity()).unwrap()
 }
 
 /// A 10-link branching tree hanging from a fixed base: a chain of 5 with three side branches, joint axes
 /// not aligned with the links, one prismatic joint.
 pub(crate) fn ten_link_tree() -> Model {
     let mut model =
-        Model::new(false, MassProperties::cuboid(1.0, Vector3::new(0.1, 0.1, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap(), "base");
+        Model::new(false, MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap(), "base");
     let turn = |x: f64, y: f64, z: f64| Rotation3::from_euler_angles(x, y, z).into_inner();
     let along = |length: f64, r: Matrix3<f64>| Transform::new(r, Vector3::new(length, 0.0, 0.0));
     let axes = [Vector3::y(), Vector3::new(0.0, 1.0, 0.3), Vector3::z(), Vector3::new(0.2, 1.0, 0.0), Vector3::y()];
@@ -60,7 +60,7 @@ fn reference(model: &Model, q: &[f64], v: &[f64], dt: f64, steps: usize) -> (Vec
     let (nq, nv) = (model.nq(), model.nv());
     let mut qs = vec![0.0; (steps + 1) * nq];
     let mut vs = vec![0.0; (steps + 1) * nv];
-    simulate(model, &mut Data::new(model), q, v, &vec![0.0; nv], dt, steps, Method::Rk4, &mut qs, &mut vs).unwrap();
+    free_rollout(model, &mut Data::new(model), q, v, &vec![0.0; nv], dt, steps, Method::Rk4, &mut qs, &mut vs).unwrap();
     (qs[steps * nq..].to_vec(), vs[steps * nv..].to_vec())
 }
 
@@ -124,7 +124,7 @@ fn free_tree_follows_aba_rk4(backend: Backend) {
 
 fn floating_base_follows_aba_rk4(backend: Backend) {
     // A tumbling floating box with an off-centre COM and a two-link arm, thrown upward and spinning.
-    let base = MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::new(0.03, -0.02, 0.01), &Matrix3::identity()).unwrap();
+    let base = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::new(0.03, -0.02, 0.01), &Matrix3::identity()).unwrap();
     let mut model = Model::new(true, base, "base");
     let a = model
         .add_body(0, Joint::Revolute(Vector3::z()), Transform::from_translation(Vector3::new(0.15, 0.0, 0.05)), rod(0.4, 0.2), "a", JointLimits::NONE)
@@ -163,7 +163,7 @@ fn joint_torques_match_aba_accelerations(backend: Backend) {
 }
 
 fn floating_box(mass: f64, size: Vector3<f64>) -> Model {
-    Model::new(true, MassProperties::cuboid(mass, size, Vector3::zeros(), &Matrix3::identity()).unwrap(), "box")
+    Model::new(true, MassProperties::solid_box(mass, size, Vector3::zeros(), &Matrix3::identity()).unwrap(), "box")
 }
 
 fn total_normal_force(contacts: &[Contact]) -> Vector3<f64> {
@@ -192,7 +192,7 @@ fn quadruped() -> (Model, Vec<(usize, Option<Shape>)>) {
     let mut model = floating_box(4.0, Vector3::new(0.4, 0.2, 0.06));
     let mut shapes = Vec::new();
     let down =
-        |mass: f64| MassProperties::cuboid(mass, Vector3::new(0.03, 0.03, 0.15), Vector3::new(0.0, 0.0, -0.075), &Matrix3::identity()).unwrap();
+        |mass: f64| MassProperties::solid_box(mass, Vector3::new(0.03, 0.03, 0.15), Vector3::new(0.0, 0.0, -0.075), &Matrix3::identity()).unwrap();
     for (k, (x, y)) in [(0.15, 0.08), (0.15, -0.08), (-0.15, 0.08), (-0.15, -0.08)].into_iter().enumerate() {
         let hip = model
             .add_body(
@@ -274,7 +274,7 @@ fn servo_torques_respect_limits_and_hold_targets(backend: Backend) {
     let mut peak: f64 = 0.0;
     for _ in 0..2000 {
         sim.step(Some(&vec![3.0; nv]), 1).unwrap();
-        peak = peak.max(sim.applied_torques().iter().fold(0.0, |m, t| m.max(t.abs())));
+        peak = peak.max(sim.applied_tau().iter().fold(0.0, |m, t| m.max(t.abs())));
     }
     assert!(peak <= 1.5, "peak torque {peak} exceeds the 1.5 limit");
     assert!(peak == 1.5, "the feed-forward of 3 must saturate");
@@ -377,7 +377,7 @@ fn prismatic_limit_stops_a_falling_slider(backend: Backend) {
     // √(2 g 0.2), and the same one-step overshoot bound v dt + g dt².
     let (g, dt) = (STANDARD_GRAVITY, 1e-3);
     let mut model = Model::new(false, MassProperties::zero(), "base");
-    let block = MassProperties::cuboid(2.0, Vector3::new(0.1, 0.1, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap();
+    let block = MassProperties::solid_box(2.0, Vector3::new(0.1, 0.1, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap();
     model.add_body(0, Joint::Prismatic(Vector3::z()), Transform::identity(), block, "block", JointLimits::position(-0.2, 0.3).unwrap()).unwrap();
     let mut sim = Simulation::new(&model, opts(backend, dt)).unwrap();
     let (_, low) = excursion(&mut sim, 1000);
@@ -407,15 +407,15 @@ fn effort_limit_clips_actuation(backend: Backend) {
     let limited = inverted_pendulum(JointLimits::new(f64::NEG_INFINITY, f64::INFINITY, 1.5, f64::INFINITY).unwrap());
     let mut sim = Simulation::new(&limited, opts(backend, 1e-3)).unwrap();
     sim.step(Some(&[10.0]), 1).unwrap();
-    assert_eq!(sim.applied_torques(), &[1.5]);
+    assert_eq!(sim.applied_tau(), &[1.5]);
     sim.step(Some(&[-10.0]), 1).unwrap();
-    assert_eq!(sim.applied_torques(), &[-1.5]);
+    assert_eq!(sim.applied_tau(), &[-1.5]);
     sim.set_servo(Servo::new(&limited, vec![5.0], vec![0.0], vec![3.0], vec![0.0], vec![0.0]).unwrap()).unwrap();
     sim.step(Some(&[10.0]), 1).unwrap();
-    assert_eq!(sim.applied_torques(), &[1.5]);
+    assert_eq!(sim.applied_tau(), &[1.5]);
     sim.set_servo(Servo::new(&limited, vec![5.0], vec![0.0], vec![1.0], vec![0.0], vec![0.0]).unwrap()).unwrap();
     sim.step(Some(&[10.0]), 1).unwrap();
-    assert_eq!(sim.applied_torques(), &[1.0]);
+    assert_eq!(sim.applied_tau(), &[1.0]);
     // The clipped torque is what drives the joint: the same motion as commanding 1.5 without a bound.
     let mut bounded = Simulation::new(&limited, opts(backend, 1e-3)).unwrap();
     let mut unbounded = Simulation::new(&inverted_pendulum(JointLimits::NONE), opts(backend, 1e-3)).unwrap();
@@ -475,10 +475,10 @@ fn fixed_bodies_move_with_their_carrier(backend: Backend) {
     let turn = Rotation3::from_euler_angles(0.3, -0.2, 0.5).into_inner();
     let slab_at = Transform::new(turn, Vector3::new(0.05, -0.1, -0.08));
     let tip_at = Transform::new(Rotation3::from_euler_angles(0.0, 0.4, 0.0).into_inner(), Vector3::new(0.3, 0.0, 0.0));
-    let torso = MassProperties::cuboid(3.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap();
-    let slab = MassProperties::cuboid(1.0, Vector3::new(0.2, 0.2, 0.04), Vector3::zeros(), &Matrix3::identity()).unwrap();
+    let torso = MassProperties::solid_box(3.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap();
+    let slab = MassProperties::solid_box(1.0, Vector3::new(0.2, 0.2, 0.04), Vector3::zeros(), &Matrix3::identity()).unwrap();
     let arm = rod(0.5, 0.3);
-    let tip = MassProperties::cuboid(0.2, Vector3::new(0.06, 0.06, 0.06), Vector3::zeros(), &Matrix3::identity()).unwrap();
+    let tip = MassProperties::solid_box(0.2, Vector3::new(0.06, 0.06, 0.06), Vector3::zeros(), &Matrix3::identity()).unwrap();
     let arm_at = Transform::from_translation(Vector3::new(0.15, 0.0, 0.0));
     let boxed = |size: Vector3<f64>, at: Transform| Shape::new(ShapeKind::Box(size), Some(at)).unwrap();
     let mut split = Model::new(true, torso, "torso");
@@ -527,7 +527,7 @@ fn fixed_bodies_move_with_their_carrier(backend: Backend) {
 #[test]
 fn immovable_contacts_carry_nothing() {
     let mut model = Model::new(false, MassProperties::zero(), "ground");
-    let plate = MassProperties::cuboid(0.5, Vector3::new(0.2, 0.1, 0.1), Vector3::new(0.3, 0.0, 0.0499), &Matrix3::identity()).unwrap();
+    let plate = MassProperties::solid_box(0.5, Vector3::new(0.2, 0.1, 0.1), Vector3::new(0.3, 0.0, 0.0499), &Matrix3::identity()).unwrap();
     model.add_body(0, Joint::Revolute(Vector3::z()), Transform::identity(), plate, "table", JointLimits::NONE).unwrap();
     let mut on_ground = Options::new(1e-3);
     on_ground.ground = Some(Ground::plane(0.8).unwrap());

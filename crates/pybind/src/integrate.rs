@@ -1,4 +1,4 @@
-//! Free simulation (no contacts): configuration integration and trajectories.
+//! Free dynamics (no contacts): configuration integration and rollouts.
 
 use legkit_dynamics::algorithms::{self, Method};
 use pyo3::exceptions::PyValueError;
@@ -23,13 +23,14 @@ pub fn integrate<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_
     })
 }
 
-/// Simulates `steps` steps of `dt` from (q, v) under joint forces `tau` (constant (nv,), per step
-/// (steps, nv), or None for zero) with "rk4" or "semi_implicit_euler". Returns (qs (..., steps + 1, nq),
-/// vs (..., steps + 1, nv)). Leading dimensions of q and v run independent simulations on all cores.
+/// Rolls the free dynamics (ABA: no contacts, no ground, no joint limits) out for `steps` steps of `dt` from
+/// (q, v) under joint forces `tau` (constant (nv,), per step (steps, nv), or None for zero) with "rk4" or
+/// "semi_implicit_euler". Returns (qs (..., steps + 1, nq), vs (..., steps + 1, nv)). Leading dimensions of
+/// q and v run independent rollouts on all cores. Contact simulation is `Simulation`.
 #[pyfunction]
 #[pyo3(signature = (model, q, v, dt, steps, tau = None, method = "rk4"))]
 #[allow(clippy::too_many_arguments)]
-pub fn simulate<'py>(
+pub fn free_rollout<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
     q: ArrayArg<'_>,
@@ -58,7 +59,7 @@ pub fn simulate<'py>(
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
         let (qs, vs) = out.split_at_mut((steps + 1) * nq);
-        algorithms::simulate(m, w.data(), q, v, &tau, dt, steps, method, qs, vs)?;
+        algorithms::free_rollout(m, w.data(), q, v, &tau, dt, steps, method, qs, vs)?;
         finite_result(&*out)
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[steps + 1, nq], &[steps + 1, nv]]).into_iter();
