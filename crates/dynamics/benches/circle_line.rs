@@ -5,7 +5,7 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use legkit_dynamics::{circle_line, Circle, Line};
+use legkit_dynamics::{circle_line, Circle, CircleLineColumns, Line};
 use nalgebra::Vector3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -45,16 +45,16 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             let (mut distance, mut count, mut equidistant) = (vec![0.0; QUERIES], vec![0i64; QUERIES], vec![false; QUERIES]);
             let (mut circle_points, mut line_points) = (vec![0.0; 6 * QUERIES], vec![0.0; 6 * QUERIES]);
+            let mut columns = CircleLineColumns {
+                distance: &mut distance,
+                count: &mut count,
+                circle_points: &mut circle_points,
+                line_points: &mut line_points,
+                equidistant: &mut equidistant,
+            };
             for (i, ([center, normal, point, direction], radius)) in raw.iter().zip(&radii).enumerate() {
                 let circle = Circle::new(*center, *normal, *radius).unwrap();
-                let result = circle_line(&circle, &Line::new(*point, *direction).unwrap());
-                distance[i] = result.distance;
-                count[i] = result.count as i64;
-                equidistant[i] = result.equidistant;
-                for k in 0..2 {
-                    circle_points[6 * i + 3 * k..6 * i + 3 * k + 3].copy_from_slice(result.circle_points[k].as_slice());
-                    line_points[6 * i + 3 * k..6 * i + 3 * k + 3].copy_from_slice(result.line_points[k].as_slice());
-                }
+                columns.set(i, &circle_line(&circle, &Line::new(*point, *direction).unwrap()));
             }
             black_box((distance, count, equidistant, circle_points, line_points))
         })

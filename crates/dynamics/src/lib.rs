@@ -15,7 +15,7 @@ pub mod urdf;
 pub mod validate;
 
 pub use error::{Error, Result};
-pub use geometry::circle_line::{circle_line, rotation_toward_line, Circle, CircleLine, Line};
+pub use geometry::circle_line::{circle_line, rotation_toward_line, Circle, CircleLine, CircleLineColumns, Line};
 pub use mass::MassProperties;
 pub use model::{Data, Joint, JointLimits, Model, STANDARD_GRAVITY};
 pub use spatial::Transform;

@@ -254,7 +254,7 @@ fn check_inertia_scaled(argument: &'static str, inertia: &Matrix3<f64>, scale: f
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use nalgebra::{Rotation3, Unit};
     use rand::rngs::StdRng;
@@ -271,8 +271,8 @@ mod tests {
         MassProperties::solid_box(rng.random_range(0.1..10.0), size, center, &random_rotation(rng)).unwrap()
     }
 
-    /// Brute force: Σ m (|r − c|² 1 − (r − c)(r − c)ᵀ) over the points.
-    fn brute_force(masses: &[f64], points: &[Vector3<f64>]) -> (f64, Vector3<f64>, Matrix3<f64>) {
+    /// Brute force: Σ m (|r − c|² 1 − (r − c)(r − c)ᵀ) over the points (also the URDF tests' point clouds).
+    pub(crate) fn brute_force(masses: &[f64], points: &[Vector3<f64>]) -> (f64, Vector3<f64>, Matrix3<f64>) {
         let m: f64 = masses.iter().sum();
         let c = masses.iter().zip(points).map(|(&mi, p)| p * mi).sum::<Vector3<f64>>() / m;
         let mut inertia = Matrix3::zeros();

@@ -482,6 +482,7 @@ fn describe_cycle(links: &[Link], joints: &[UrdfJoint], parent_joint: &[Option<u
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mass::tests::brute_force;
     use nalgebra::{Rotation3, Unit};
     use std::f64::consts::FRAC_PI_2;
 
@@ -507,18 +508,6 @@ mod tests {
         let p = model.placement(body);
         assert!(close(&p.rotation, &expected.rotation, TOL), "body {body}: {:?} vs {:?}", p.rotation, expected.rotation);
         assert!(close3(&p.translation, &expected.translation, TOL), "body {body}: {:?}", p.translation);
-    }
-
-    /// Brute-force inertia about the centre of mass of point masses.
-    fn point_cloud_inertia(masses: &[f64], points: &[Vector3<f64>]) -> (Vector3<f64>, Matrix3<f64>) {
-        let m: f64 = masses.iter().sum();
-        let c = masses.iter().zip(points).map(|(&mi, p)| p * mi).sum::<Vector3<f64>>() / m;
-        let mut inertia = Matrix3::zeros();
-        for (&mi, p) in masses.iter().zip(points) {
-            let r = p - c;
-            inertia += (Matrix3::identity() * r.dot(&r) - r * r.transpose()) * mi;
-        }
-        (c, inertia)
     }
 
     fn inertia_attrs(i: &Matrix3<f64>) -> String {
@@ -547,15 +536,15 @@ mod tests {
         // The upper link's body is a cloud of point masses given in its inertial frame (COM at the origin).
         let masses = [1.0, 2.0, 0.5, 1.5];
         let raw = [Vector3::new(0.3, 0.1, -0.2), Vector3::new(-0.1, 0.4, 0.05), Vector3::new(0.2, -0.3, 0.6), Vector3::new(-0.25, -0.1, -0.3)];
-        let (c, _) = point_cloud_inertia(&masses, &raw);
+        let (_, c, _) = brute_force(&masses, &raw);
         let points: Vec<Vector3<f64>> = raw.iter().map(|p| p - c).collect();
-        let (_, inertia_local) = point_cloud_inertia(&masses, &points);
+        let (_, _, inertia_local) = brute_force(&masses, &points);
         let mass: f64 = masses.iter().sum();
         // Brute force in the link frame: move every point by the inertial origin and recompute.
         let (rpy, xyz) = ([0.3, -0.7, 1.1], Vector3::new(0.1, -0.2, 0.3));
         let rot = Rotation3::from_euler_angles(rpy[0], rpy[1], rpy[2]).into_inner();
         let moved: Vec<Vector3<f64>> = points.iter().map(|p| rot * p + xyz).collect();
-        let (com_link, inertia_link) = point_cloud_inertia(&masses, &moved);
+        let (_, com_link, inertia_link) = brute_force(&masses, &moved);
         let xml = format!(
             r#"<?xml version="1.0"?>
             <robot name="pendulum">

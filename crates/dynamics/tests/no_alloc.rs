@@ -7,8 +7,12 @@ use legkit_dynamics::algorithms::{
     aba, center_of_mass, centroidal_momentum, centroidal_momentum_rate, crba, forward_kinematics, jacobian, kinetic_energy, minv, potential_energy,
     rnea, subtree_mass_properties, Frame,
 };
+use legkit_dynamics::sim::{Shape, ShapeKind};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{Matrix3, Vector3};
+
+#[path = "fixtures/quadruped.rs"]
+mod fixture;
 
 struct Counting;
 
@@ -74,38 +78,11 @@ fn algorithms_do_not_allocate() {
 fn tree_engine_steps_do_not_allocate_once_warm() {
     // A floating box on four legs with ball feet, on servos, standing on the plane: after the buffers have
     // grown to the contact set, steps allocate nothing.
-    use legkit_dynamics::sim::{Ground, Options, Servo, Shape, ShapeKind, Simulation};
-    let base = MassProperties::solid_box(4.0, Vector3::new(0.4, 0.2, 0.06), Vector3::zeros(), &Matrix3::identity()).unwrap();
-    let leg = MassProperties::solid_box(0.3, Vector3::new(0.03, 0.03, 0.15), Vector3::new(0.0, 0.0, -0.075), &Matrix3::identity()).unwrap();
-    let mut model = Model::new(true, base, "base");
+    use legkit_dynamics::sim::{Ground, Options, Servo, Simulation};
+    let (model, shapes) = fixture::quadruped(0.3, JointLimits::position(-2.0, 2.0).unwrap());
     let mut options = Options::new(1e-3);
     options.ground = Some(Ground::plane(0.8).unwrap());
-    for (k, (x, y)) in [(0.15, 0.08), (0.15, -0.08), (-0.15, 0.08), (-0.15, -0.08)].into_iter().enumerate() {
-        let hip = model
-            .add_body(
-                0,
-                Joint::Revolute(Vector3::y()),
-                Transform::from_translation(Vector3::new(x, y, -0.03)),
-                leg,
-                &format!("thigh{k}"),
-                JointLimits::NONE,
-            )
-            .unwrap();
-        let shin = model
-            .add_body(
-                hip,
-                Joint::Revolute(Vector3::y()),
-                Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)),
-                leg,
-                &format!("shin{k}"),
-                JointLimits::position(-2.0, 2.0).unwrap(),
-            )
-            .unwrap();
-        options.shapes.push((hip, None));
-        options
-            .shapes
-            .push((shin, Some(Shape::new(ShapeKind::Sphere(0.02), Some(Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)))).unwrap())));
-    }
+    options.shapes = shapes;
     let nv = model.nv();
     let mut sim = Simulation::new(&model, options).unwrap();
     let mut q = model.neutral().as_slice().to_vec();

@@ -2,10 +2,12 @@
 
 use legkit_dynamics::algorithms::{self, ContactPoint};
 use legkit_dynamics::model::check_vector;
+use legkit_dynamics::{Data, Error, Model};
+use nalgebra::DVector;
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 
-use crate::batch::{broadcast, ArrayArg};
+use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::convert::{kernel_error, to_numpy, vector3, FloatArray, Vector};
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run_packed, unpack};
@@ -22,6 +24,23 @@ fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<ContactPo
     Ok(out)
 }
 
+/// Runs `kernel(model, data, i)`, which returns (nv numbers, 3 per contact), over the batch: the arrays
+/// `(..., nv)` and `(..., k, 3)`; a result that is not finite is a ValueError.
+fn per_state<'py, K>(py: Python<'py>, model: &PyModel, batch: &Batch, k: usize, kernel: K) -> PyResult<(FloatArray<'py>, FloatArray<'py>)>
+where
+    K: Fn(&Model, &mut Data, usize) -> Result<(DVector<f64>, DVector<f64>), Error> + Sync,
+{
+    let nv = model.model.nv();
+    let packed = run_packed(py, model, batch, nv + 3 * k, |m, w, i, out| {
+        let (generalized, per_contact) = kernel(m, w.data(), i)?;
+        out[..nv].copy_from_slice(generalized.as_slice());
+        out[nv..].copy_from_slice(per_contact.as_slice());
+        finite_result(&*out)
+    })?;
+    let mut parts = unpack(py, batch, &packed, &[&[nv], &[k, 3]]).into_iter();
+    Ok((parts.next().unwrap(), parts.next().unwrap()))
+}
+
 /// Forward dynamics with the contact points held still (Hardt & von Stryk eq. 1–3):
 /// returns (ddq (..., nv), forces (..., k, 3)), the forces on the robot at the contacts in world axes.
 #[pyfunction]
@@ -34,19 +53,15 @@ pub fn contact_dynamics<'py>(
     contacts: &Bound<'_, PyAny>,
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
     let contacts = self::contacts(&model, contacts)?;
-    let (nv, k) = (model.model.nv(), contacts.len());
+    let nv = model.model.nv();
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("tau", &tau, &[nv])])?;
-    let packed = run_packed(py, &model, &batch, nv + 3 * k, |m, w, i, out| {
+    per_state(py, &model, &batch, contacts.len(), |m, data, i| {
         let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("tau", tau, nv)?;
-        let solution = algorithms::contact_dynamics(m, w.data(), q, v, tau, &contacts)?;
-        out[..nv].copy_from_slice(solution.ddq.as_slice());
-        out[nv..].copy_from_slice(solution.forces.as_slice());
-        finite_result(&*out)
-    })?;
-    let mut parts = unpack(py, &batch, &packed, &[&[nv], &[k, 3]]).into_iter();
-    Ok((parts.next().unwrap(), parts.next().unwrap()))
+        let solution = algorithms::contact_dynamics(m, data, q, v, tau, &contacts)?;
+        Ok((solution.ddq, solution.forces))
+    })
 }
 
 /// Perfectly inelastic impact at the contacts: returns (v_plus (..., nv), impulses (..., k, 3)).
@@ -59,18 +74,12 @@ pub fn impact<'py>(
     contacts: &Bound<'_, PyAny>,
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
     let contacts = self::contacts(&model, contacts)?;
-    let (nv, k) = (model.model.nv(), contacts.len());
-    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv])])?;
-    let packed = run_packed(py, &model, &batch, nv + 3 * k, |m, w, i, out| {
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[model.model.nv()])])?;
+    per_state(py, &model, &batch, contacts.len(), |m, data, i| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
-        let (v_plus, impulses) = algorithms::impact(m, w.data(), q, v, &contacts)?;
-        out[..nv].copy_from_slice(v_plus.as_slice());
-        out[nv..].copy_from_slice(impulses.as_slice());
-        finite_result(&*out)
-    })?;
-    let mut parts = unpack(py, &batch, &packed, &[&[nv], &[k, 3]]).into_iter();
-    Ok((parts.next().unwrap(), parts.next().unwrap()))
+        algorithms::impact(m, data, q, v, &contacts)
+    })
 }
 
 type Reduced<'py> = (

@@ -2,7 +2,7 @@
 //! chunks with the GIL released.
 
 use legkit_dynamics::validate::finite_vector;
-use legkit_dynamics::{circle_line as circle_line_query, rotation_toward_line as rotation_query, Circle, Error, Line};
+use legkit_dynamics::{circle_line as circle_line_query, rotation_toward_line as rotation_query, Circle, CircleLineColumns, Error, Line};
 use nalgebra::Vector3;
 use numpy::{IxDyn, PyArrayDyn};
 use pyo3::prelude::*;
@@ -63,7 +63,8 @@ pub fn circle_line<'py>(
             .zip(line_points.par_chunks_mut(6 * CHUNK))
             .enumerate();
         first_error(chunks.map(|(c, ((((distance, count), equidistant), circle_points), line_points))| {
-            for j in 0..distance.len() {
+            let mut columns = CircleLineColumns { distance, count, circle_points, line_points, equidistant };
+            for j in 0..columns.distance.len() {
                 let i = c * CHUNK + j;
                 let query = Circle::new(vector(&r[0], i), vector(&r[1], i), r[2].row(i)[0])
                     .and_then(|circle| Ok((circle, Line::new(vector(&r[3], i), vector(&r[4], i))?)));
@@ -71,14 +72,7 @@ pub fn circle_line<'py>(
                     Ok(q) => q,
                     Err(e) => return Some((i, e)),
                 };
-                let result = circle_line_query(&circle, &line);
-                distance[j] = result.distance;
-                count[j] = result.count as i64;
-                equidistant[j] = result.equidistant;
-                for k in 0..2 {
-                    circle_points[6 * j + 3 * k..6 * j + 3 * k + 3].copy_from_slice(result.circle_points[k].as_slice());
-                    line_points[6 * j + 3 * k..6 * j + 3 * k + 3].copy_from_slice(result.line_points[k].as_slice());
-                }
+                columns.set(j, &circle_line_query(&circle, &line));
             }
             None
         }))

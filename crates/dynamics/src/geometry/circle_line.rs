@@ -116,6 +116,31 @@ pub struct CircleLine {
     pub equidistant: bool,
 }
 
+/// Results stored column by column, row `i` of each (a structure of arrays): what a batch of queries fills,
+/// the Python binding's output arrays and the batch benchmark alike.
+pub struct CircleLineColumns<'a> {
+    pub distance: &'a mut [f64],
+    pub count: &'a mut [i64],
+    /// Six numbers a row: the two minimising circle points.
+    pub circle_points: &'a mut [f64],
+    /// Six numbers a row: the line point closest to each circle point.
+    pub line_points: &'a mut [f64],
+    pub equidistant: &'a mut [bool],
+}
+
+impl CircleLineColumns<'_> {
+    /// Stores `result` as row `i`.
+    pub fn set(&mut self, i: usize, result: &CircleLine) {
+        self.distance[i] = result.distance;
+        self.count[i] = result.count as i64;
+        self.equidistant[i] = result.equidistant;
+        for k in 0..2 {
+            self.circle_points[6 * i + 3 * k..6 * i + 3 * k + 3].copy_from_slice(result.circle_points[k].as_slice());
+            self.line_points[6 * i + 3 * k..6 * i + 3 * k + 3].copy_from_slice(result.line_points[k].as_slice());
+        }
+    }
+}
+
 /// The minimisers in the circle's own frame, before they are mapped to 3D points.
 struct Solution {
     /// In-plane unit vectors: a circle point is `C + r (cos θ u + sin θ v)`.

@@ -187,42 +187,12 @@ fn box_resting_on_the_plane_carries_its_weight(backend: Backend) {
     assert!(contacts.iter().all(|c| c.body == 0 && c.other.is_none() && (c.normal - Vector3::z()).norm() < 1e-9 && c.point.z.abs() < 2e-3));
 }
 
-/// A floating 4 kg body on four two-joint legs (hip and knee about y) with ball feet, standing straight.
-fn quadruped() -> (Model, Vec<(usize, Option<Shape>)>) {
-    let mut model = floating_box(4.0, Vector3::new(0.4, 0.2, 0.06));
-    let mut shapes = Vec::new();
-    let down =
-        |mass: f64| MassProperties::solid_box(mass, Vector3::new(0.03, 0.03, 0.15), Vector3::new(0.0, 0.0, -0.075), &Matrix3::identity()).unwrap();
-    for (k, (x, y)) in [(0.15, 0.08), (0.15, -0.08), (-0.15, 0.08), (-0.15, -0.08)].into_iter().enumerate() {
-        let hip = model
-            .add_body(
-                0,
-                Joint::Revolute(Vector3::y()),
-                Transform::from_translation(Vector3::new(x, y, -0.03)),
-                down(0.3),
-                &format!("thigh{k}"),
-                JointLimits::NONE,
-            )
-            .unwrap();
-        let shin = model
-            .add_body(
-                hip,
-                Joint::Revolute(Vector3::y()),
-                Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)),
-                down(0.2),
-                &format!("shin{k}"),
-                JointLimits::NONE,
-            )
-            .unwrap();
-        let foot = Shape::new(ShapeKind::Sphere(0.02), Some(Transform::from_translation(Vector3::new(0.0, 0.0, -0.15)))).unwrap();
-        shapes.push((hip, None));
-        shapes.push((shin, Some(foot)));
-    }
-    (model, shapes)
-}
+#[path = "../../tests/fixtures/quadruped.rs"]
+mod fixture;
 
+/// The fixture's quadruped (0.2 kg shins, knees unlimited) on the plane, standing on its servos.
 fn quadruped_on_plane(substeps: usize, backend: Backend) -> Simulation {
-    let (model, shapes) = quadruped();
+    let (model, shapes) = fixture::quadruped(0.2, JointLimits::NONE);
     let mut options = opts(backend, 1e-3);
     options.ground = Some(Ground::plane(0.8).unwrap());
     options.shapes = shapes;
