@@ -10,7 +10,6 @@
 //! good state. The same inputs give bit-identical trajectories on either backend.
 
 mod actuation;
-mod batch;
 mod ground;
 mod options;
 mod rapier;
@@ -19,7 +18,6 @@ mod tests;
 mod tree;
 
 pub use actuation::{dof_coordinates, Servo};
-pub use batch::step_all;
 pub use ground::Ground;
 pub use options::{Backend, Convex, Options, Shape, ShapeKind, DEFAULT_SOLVER_ITERATIONS, MIN_DEFAULT_EDGE};
 
