@@ -13,9 +13,9 @@ use crate::{MassProperties, Transform};
 
 /// A box base on a free-flyer with a chain of three and a side branch.
 fn floating_tree() -> Model {
-    let part = |m: f64| MassProperties::cuboid(m, Vector3::new(0.2, 0.05, 0.04), Vector3::new(0.1, 0.0, 0.0), &Matrix3::identity()).unwrap();
+    let part = |m: f64| MassProperties::solid_box(m, Vector3::new(0.2, 0.05, 0.04), Vector3::new(0.1, 0.0, 0.0), &Matrix3::identity()).unwrap();
     let mut model =
-        Model::new(true, MassProperties::cuboid(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap(), "base");
+        Model::new(true, MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap(), "base");
     let along = |r: Matrix3<f64>| Transform::new(r, Vector3::new(0.2, 0.0, 0.0));
     let a = model
         .add_body(
