@@ -522,6 +522,8 @@ def test_bad_input_raises_clear_errors():
     model = lk.Model(floating_base=True, base=lk.MassProperties.point(1.0, [0, 0, 0]))
     with pytest.raises(ValueError, match="foot"):
         ls.foot_rotation_indicator(model, np.r_[0, 0, 1, 0, 0, 0, 1.0], np.zeros(6), np.zeros(6), "toe")
+    with pytest.raises(IndexError, match="foot index 1"):
+        ls.foot_rotation_indicator(model, np.r_[0, 0, 1, 0, 0, 0, 1.0], np.zeros(6), np.zeros(6), 1)
 
 
 # --------------------------------------------------------------------------------------------------

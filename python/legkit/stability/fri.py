@@ -58,7 +58,7 @@ def _body_index(model: lk.Model, body: int | str) -> int:
     if not is_integer(body):
         raise TypeError(f"foot must be a body index or name, got {type(body).__name__}")
     if not 0 <= int(body) < model.nbodies:
-        raise ValueError(f"foot index {body} is out of range for a model with {model.nbodies} bodies")
+        raise IndexError(f"foot index {body} is out of range for a model with {model.nbodies} bodies")
     return int(body)
 
 
