@@ -8,9 +8,10 @@
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
-use super::{crba, jacobian, joint_motion, joint_placement, rnea, Frame};
+use super::kinematics::body_motions;
+use super::{crba, jacobian, rnea, Frame};
 use crate::model::{Data, Model};
-use crate::spatial::{angular, cross_motion, linear, Motion};
+use crate::spatial::{angular, linear, Motion};
 use crate::{Error, Result};
 
 /// A point on a body, in the body's frame, held still by `contact_dynamics`, `reduced_dynamics` and `impact` (their
@@ -68,18 +69,7 @@ fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[
     }
     // Velocity-product accelerations of the bodies (q̈ = 0, no gravity), then of the points:
     // a_point = R (a + α × r + ω × (v + ω × r)).
-    for i in 0..model.nbodies() {
-        let li = joint_placement(model, i, q);
-        let (v_parent, a_parent) = if i == 0 {
-            (Motion::zeros(), Motion::zeros())
-        } else {
-            let p = model.parent(i);
-            (data.v[p], data.a[p])
-        };
-        let v_joint = joint_motion(model, i, v);
-        data.v[i] = li.inv_act_motion(&v_parent) + v_joint;
-        data.a[i] = li.inv_act_motion(&a_parent) + cross_motion(&data.v[i], &v_joint);
-    }
+    body_motions(model, data, q, v, None, Motion::zeros());
     let mut gamma = DVector::zeros(3 * contacts.len());
     for (c, contact) in contacts.iter().enumerate() {
         let (vb, ab, r) = (&data.v[contact.body], &data.a[contact.body], contact.point);
