@@ -139,7 +139,7 @@ def module_tree(n_modules: int) -> list[Part]:
 
 
 def legkit_model(parts: list[Part]) -> lk.Model:
-    inertia = lk.MassProperties.box(PART_MASS, PART_SIZE, center=[0, 0, PART_SIZE[2] / 2])
+    inertia = lk.MassProperties.solid_box(PART_MASS, PART_SIZE, center=[0, 0, PART_SIZE[2] / 2])
     model = lk.Model(floating_base=False, base=None)
     for index, part in enumerate(parts):
         parent = part.parent + 1  # body 0 is the world-fixed base
@@ -251,19 +251,19 @@ def quadruped_start() -> np.ndarray:
 def link_inertia() -> tuple[lk.MassProperties, lk.MassProperties]:
     size = [LINK_WIDTH, LINK_WIDTH, LINK_LENGTH]
     centre = [0.0, 0.0, -LINK_LENGTH / 2]
-    return lk.MassProperties.box(THIGH_MASS, size, center=centre), lk.MassProperties.box(SHANK_MASS, size, center=centre)
+    return lk.MassProperties.solid_box(THIGH_MASS, size, center=centre), lk.MassProperties.solid_box(SHANK_MASS, size, center=centre)
 
 
 def quadruped_legkit() -> tuple[lk.Model, dict]:
     """The model and its `shapes`: the sphere foot replaces the shank's default box; every other body keeps
     its default box (torso, hip block and thigh: the same boxes as the MJCF geoms)."""
-    model = lk.Model(floating_base=True, base=lk.MassProperties.box(TORSO_MASS, TORSO_SIZE), base_name="torso")
+    model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(TORSO_MASS, TORSO_SIZE), base_name="torso")
     thigh, shank = link_inertia()
     foot = np.eye(4)
     foot[2, 3] = -LINK_LENGTH
     shapes: dict = {}
     for leg in LEGS:
-        hip = model.add_revolute("torso", [1.0, 0.0, 0.0], (np.eye(3), hip_position(leg)), lk.MassProperties.box(HIP_MASS, HIP_SIZE), f"{leg}_hip")
+        hip = model.add_revolute("torso", [1.0, 0.0, 0.0], (np.eye(3), hip_position(leg)), lk.MassProperties.solid_box(HIP_MASS, HIP_SIZE), f"{leg}_hip")
         upper = model.add_revolute(hip, [0.0, 1.0, 0.0], None, thigh, f"{leg}_thigh")
         model.add_revolute(upper, [0.0, 1.0, 0.0], (np.eye(3), [0.0, 0.0, -LINK_LENGTH]), shank, f"{leg}_shank")
         shapes[f"{leg}_shank"] = ("sphere", FOOT_RADIUS, foot)
