@@ -262,8 +262,9 @@ def quadruped_legkit() -> tuple[lk.Model, dict]:
     foot = np.eye(4)
     foot[2, 3] = -LINK_LENGTH
     shapes: dict = {}
+    hip_inertia = lk.MassProperties.solid_box(HIP_MASS, HIP_SIZE)
     for leg in LEGS:
-        hip = model.add_revolute("torso", [1.0, 0.0, 0.0], (np.eye(3), hip_position(leg)), lk.MassProperties.solid_box(HIP_MASS, HIP_SIZE), f"{leg}_hip")
+        hip = model.add_revolute("torso", [1.0, 0.0, 0.0], (np.eye(3), hip_position(leg)), hip_inertia, f"{leg}_hip")
         upper = model.add_revolute(hip, [0.0, 1.0, 0.0], None, thigh, f"{leg}_thigh")
         model.add_revolute(upper, [0.0, 1.0, 0.0], (np.eye(3), [0.0, 0.0, -LINK_LENGTH]), shank, f"{leg}_shank")
         shapes[f"{leg}_shank"] = ("sphere", FOOT_RADIUS, foot)
