@@ -9,6 +9,7 @@ from scipy.integrate import solve_bvp
 
 import legkit as lk
 from legkit.optimize import (
+    InputPower,
     MinMaxStability,
     MultiphaseProblem,
     Phase,
@@ -152,6 +153,48 @@ def test_pendulum_swing_up_reaches_the_known_optimum():
     assert result.success and result.violation < 1e-6
     assert result.objective == pytest.approx(optimum, rel=2e-3)
     np.testing.assert_allclose(trajectory.u[0][:, 0], bvp.sol(trajectory.t[0])[2], atol=0.02 * np.max(np.abs(bvp.sol(fine)[2])))
+
+
+@pytest.mark.parametrize("derivatives", ["exact", "legkit"])
+def test_input_power_limit_holds_binds_and_costs_effort(derivatives):
+    # The gravity-free swing-up's optimum, u = I (6 pi / T^2)(1 - 2 t / T) at w = (6 pi / T^2)(t - t^2 / T), draws
+    # R (u / (G K))^2 + u w of up to 1.69 W from these motor constants; a 1.2 W limit must bind and cost effort.
+    duration, inertia, limit = 2.0, MASS * LENGTH**2, 1.2
+    resistance, gear, constant = 1.0, 10.0, 0.1
+    problem = swing_up(pendulum(0.0), 16, duration)
+    limited = MultiphaseProblem(problem.model, problem.phases, objectives=[effort()], periodic=False,
+                                initial=([0.0], [0.0]), final=([np.pi], [0.0]),
+                                input_power=InputPower(limit, resistance, gear, constant))
+    trajectory, result = limited.solve(pendulum_guess(16, duration), derivatives=derivatives)
+    assert result.success and result.violation < 1e-6
+    u, w = trajectory.u[0][:, 0], trajectory.v[0][:, 0]
+    power = resistance * (u / (gear * constant)) ** 2 + u * w
+    assert power.max() <= limit + 1e-6
+    assert power.max() >= limit - 1e-4  # the limit binds
+    assert result.objective > 1.01 * 12.0 * inertia**2 * np.pi**2 / duration**3  # above the free optimum
+    # Its rows' Jacobian against central differences at a random point.
+    rng = np.random.default_rng(5)
+    x = rng.normal(0.0, 1.0, limited.n)
+    rows = slice(limited.m - sum(b.size for b in limited.blocks[-1:]), limited.m)
+    dense = np.zeros((limited.m, limited.n))
+    dense[limited.jac_rows, limited.jac_cols] = limited.jacobian(x)
+    for j in range(limited.n):
+        step = 1e-6 * max(1.0, abs(x[j]))
+        plus, minus = x.copy(), x.copy()
+        plus[j] += step
+        minus[j] -= step
+        expected = (limited.constraints(plus)[rows] - limited.constraints(minus)[rows]) / (2 * step)
+        np.testing.assert_allclose(dense[rows, j], expected, rtol=1e-6, atol=1e-7)
+
+
+def test_input_power_rejects_bad_motor_constants():
+    model = pendulum(0.0)
+    with pytest.raises(ValueError, match="input_power.limit"):
+        MultiphaseProblem(model, [Phase((), 2, (1.0, 1.0))], objectives=[effort()], periodic=False,
+                          input_power=InputPower(0.0, 1.0, 10.0, 0.1))
+    with pytest.raises(ValueError, match="input_power.resistance"):
+        MultiphaseProblem(model, [Phase((), 2, (1.0, 1.0))], objectives=[effort()], periodic=False,
+                          input_power=InputPower(1.0, -1.0, 10.0, 0.1))
 
 
 BODY, FOOT, PERIOD = 1.0, 0.1, 0.5  # hopper masses [kg] and cycle time [s]

@@ -583,7 +583,7 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
     robot = build_biped()
     speed = args.biped_speed / 3.6
     intervals = (max(1, args.biped_intervals // 4), args.biped_intervals)
-    problem = walk_problem(robot, speed, BIPED_MOTOR, intervals, args.mu)
+    problem = walk_problem(robot, speed, BIPED_MOTOR, intervals, args.mu, max_input_power=args.biped_max_power)
     guess = guess_from_reference(problem, walk_reference(robot, speed, intervals))
     print(f"optimising the biped walk: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
     cpu = time.process_time()
@@ -766,6 +766,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--biped-max-iter", type=_positive_int, default=1000,
                         help="--optimize: IPOPT iteration limit for the biped walk (per stage; J_e1 still falls slowly after 1000)")
     parser.add_argument("--tol", type=float, default=1e-6, help="--optimize: IPOPT tolerance")
+    parser.add_argument("--biped-max-power", type=float, default=None,
+                        help="--optimize: each biped motor's input power limit [W] (Sect. 6; default: none)")
     parser.add_argument("--replay-cycles", type=_positive_int, default=5, help="--optimize: cycles replayed in simulation")
     parser.add_argument("--replay-kp", type=float, default=50.0, help="--optimize: joint PD stiffness of the replay [N m/rad]")
     parser.add_argument("--replay-kd", type=float, default=1.0, help="--optimize: joint PD damping of the replay [N m s/rad]")
@@ -778,6 +780,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("mu", "quadruped_speed", "quadruped_period", "quadruped_tip_speed", "biped_speed", "biped_step", "biped_tip_speed"):
         if not np.isfinite(getattr(args, name)) or getattr(args, name) <= 0.0:
             parser.error(f"--{name.replace('_', '-')} must be a positive number")
+    if args.biped_max_power is not None and not (np.isfinite(args.biped_max_power) and args.biped_max_power > 0.0):
+        parser.error("--biped-max-power must be a positive number")
     args.out.mkdir(parents=True, exist_ok=True)
     robots = ["quadruped", "biped"] if args.robot == "both" else [args.robot]
     if args.optimize:

@@ -7,11 +7,12 @@ paper's performance indices J_s1, J_s2, J_e1, J_e2 and a plain control effort.
 
 from legkit.optimize.collocation import hermite_simpson_defects, point_jacobian
 from legkit.optimize.objectives import Integral, MinMaxStability, effort, fri_deviation, joule_loss, specific_resistance
-from legkit.optimize.problem import FlatFoot, MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
+from legkit.optimize.problem import FlatFoot, InputPower, MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
 from legkit.optimize.solver import NLP, SolveResult, solve
 
 __all__ = [
     "FlatFoot",
+    "InputPower",
     "MultiphaseProblem",
     "Phase",
     "TorqueSpeedLine",

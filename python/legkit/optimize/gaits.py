@@ -27,7 +27,7 @@ from legkit.experiments.gait import (
     quadruped_amble,
 )
 from legkit.optimize.objectives import joule_loss
-from legkit.optimize.problem import FlatFoot, MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
+from legkit.optimize.problem import FlatFoot, InputPower, MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
 from legkit.optimize.solver import SolveResult, solve
 from legkit.robots.biped import SIDES, Biped
 from legkit.robots.quadruped import LEGS, Quadruped
@@ -105,12 +105,14 @@ WALK_DERIVATIVES = "legkit"
 def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: tuple[int, int] = (1, 4),
                  friction: float = 0.8, max_tilt: float = np.radians(10.0), max_swing_height: float = 0.15,
                  double_support: tuple[float, float] = (0.04, 0.4), single_support: tuple[float, float] = (0.3, 1.0),
-                 period: float | tuple[float, float] | None = 1.6, objectives: Sequence | None = None) -> MultiphaseProblem:
+                 period: float | tuple[float, float] | None = 1.6, objectives: Sequence | None = None,
+                 max_input_power: float | None = None) -> MultiphaseProblem:
     """The biped walk at `speed` [m/s] minimising J_e1 (eq. 12) with `motor`'s resistance, gear and torque
     constant at every joint (or the given `objectives`), under its torque-speed line (Sect. 2.3) and stall torque; the soles flat on the
     ground in stance with eq. 6's torque limits. intervals: (per double-support phase, per single-support
     phase); the phase durations [s] lie in double_support and single_support and sum to `period` [s] (fixed,
-    bounds, or None: free; the default is the reference's, a 0.4 m step).
+    bounds, or None: free; the default is the reference's, a 0.4 m step). max_input_power [W]: each motor's input
+    power bound (`InputPower`, Sect. 6's "maximum input power constraints"; None: unbounded).
 
     Parameters the paper does not give, assumed here: the motor (legkit's `BIPED_MOTOR`: Fig. 6 names 42 V
     motors with 66:1 gears for an 18 kg biped but no motor constants, and legkit's biped weighs 42 kg); mu_d =
@@ -142,7 +144,9 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
         objectives = [joule_loss(motor.resistance, motor.gear_ratio, motor.torque_constant)]
     return MultiphaseProblem(model, phases, feet, objectives, speed=speed, period=period, friction=friction,
                              u_bounds=(np.full(nu, -stall), np.full(nu, stall)), torque_speed=line, q_bounds=(lower, upper),
-                             max_swing_height=max_swing_height, flat_feet={side: sole for side in SIDES})
+                             max_swing_height=max_swing_height, flat_feet={side: sole for side in SIDES},
+                             input_power=None if max_input_power is None else
+                             InputPower(max_input_power, motor.resistance, motor.gear_ratio, motor.torque_constant))
 
 
 def solve_walk(problem: MultiphaseProblem, guess: Trajectory, derivatives: str = WALK_DERIVATIVES,

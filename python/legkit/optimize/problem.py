@@ -19,7 +19,7 @@ and 4.1, on legkit's kernels:
   limits of eq. 6 and the whole sole held flat on the ground, the inelastic impact map at each touchdown (eq. 7, `lk.impact` with the new
   phase's feet),
   state/control bounds and the motor torque-speed line |u| <= (w_max - |w|) k (Sect. 2.3, split into its four
-  linear faces);
+  linear faces); optionally each motor's input power within a limit (`InputPower`, Sect. 6);
 * periodicity (Sect. 2.3: q(t_f) = q(0) up to the travelled distance, velocity after the wrap-around impact)
   or fixed initial/final states.
 
@@ -30,7 +30,7 @@ d rnea / d u = -B); the pattern, from the model's tree, is fixed before solving.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, cast
 
@@ -86,6 +86,19 @@ class TorqueSpeedLine:
 
     max_speed: np.ndarray | float  # [rad/s]
     gain: np.ndarray | float  # [N m s / rad]
+
+
+@dataclass(frozen=True)
+class InputPower:
+    """Each actuated joint's motor draws at most ``limit_i`` [W] (file 003 Sect. 6: the humanoid's "maximum input
+    power constraints"). Its input power is U I = R I^2 + u w with the motor current I = u / (G K) of eq. 12: the
+    Joule loss plus the mechanical power, R_i (u_i / (G_i K_i))^2 + u_i w_i <= limit_i at every collocation point.
+    A braking joint (u w < 0) may feed power back; the bound is on what the motor draws."""
+
+    limit: np.ndarray | float  # [W]
+    resistance: np.ndarray | float  # [ohm]
+    gear_ratio: np.ndarray | float
+    torque_constant: np.ndarray | float  # [N m / A]
 
 
 def quaternion_rate(quaternion: np.ndarray, omega: np.ndarray) -> np.ndarray:
@@ -161,6 +174,7 @@ class MultiphaseProblem:
     v_bounds: tuple[np.ndarray, np.ndarray] | None = None
     u_bounds: tuple[np.ndarray, np.ndarray] | None = None
     torque_speed: TorqueSpeedLine | None = None
+    input_power: InputPower | None = None
     continuous_controls: bool = False
     transcription: str = "inverse"
     max_swing_height: float = np.inf  # [m] swing tips stay between the ground (eq. 4) and this height
@@ -235,6 +249,13 @@ class MultiphaseProblem:
             raise ValueError(f"max_impulse must be >= 0, got {self.max_impulse}")
         if not self.friction > 0.0:
             raise ValueError(f"friction must be > 0, got {self.friction}")
+        if self.input_power is not None:
+            power = self.input_power
+            for name in ("limit", "resistance", "gear_ratio", "torque_constant"):
+                values = np.asarray(getattr(power, name), dtype=np.float64)
+                if not (np.all(np.isfinite(values)) and np.all(values >= 0.0 if name == "resistance" else values > 0.0)):
+                    bound = ">= 0" if name == "resistance" else "> 0"
+                    raise ValueError(f"input_power.{name} must be finite and {bound}, got {getattr(power, name)!r}")
         for i, phase in enumerate(self.phases):
             if phase.intervals < 1:
                 raise ValueError(f"phases[{i}].intervals must be >= 1, got {phase.intervals}")
@@ -482,6 +503,8 @@ class MultiphaseProblem:
                                 symbolic=lambda _, quat: quat.T @ quat - 1.0))
         if self.torque_speed is not None and nu:
             blocks.extend(self._torque_speed_blocks())
+        if self.input_power is not None and nu:
+            blocks.extend(self._input_power_blocks())
         objective, gradient, extra = build_objective(self, self.objectives)
         self.uses_p1 = bool(extra)
         self.stability_blocks = extra
@@ -595,6 +618,22 @@ class MultiphaseProblem:
                 blocks.append(Linear(len(rows), np.r_[rows, rows], np.r_[index[..., 0].ravel(), index[..., 1].ravel()],
                                      np.r_[coeff_u, coeff_w], offset=np.tile(w_max * gain, points), lower=0.0, upper=np.inf))
         return blocks
+
+    def _input_power_blocks(self) -> list[Block]:
+        """R (u / (G K))^2 + u w <= limit per actuated joint and point: one block per joint, whose coefficients
+        are its own (a point block's function is applied to batches of points of one kind)."""
+        power = self.input_power
+        assert power is not None  # built only with an input-power limit
+
+        def per_joint(value: np.ndarray | float) -> np.ndarray:
+            return np.broadcast_to(np.asarray(value, dtype=np.float64), (self.nu,))
+
+        limit = per_joint(power.limit)
+        loss = per_joint(power.resistance) / (per_joint(power.gear_ratio) * per_joint(power.torque_constant)) ** 2
+        index = np.concatenate(self.point_index_u_w(), axis=0)  # (P, nu, 2): (u, w) columns
+        return [Point(index[:, i], _input_power(float(loss[i])), 1, lower_bound=-np.inf, upper_bound=float(limit[i]),
+                      symbolic=_input_power_symbolic(float(loss[i])))
+                for i in range(self.nu)]
 
     def point_index_u_w(self) -> list[np.ndarray]:
         """Per phase (P, nu, 2): the variable of each actuated torque and of its joint's velocity."""
@@ -952,3 +991,15 @@ class _Feet:
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         _, jac = point_jacobian(self._positions, x[self.index])
         return self._sign * jac.ravel()[self._source]
+
+
+def _input_power(loss: float) -> Callable[[np.ndarray], np.ndarray]:
+    """(B, 2) points (u, w) -> (B, 1) input powers loss u^2 + u w [W]."""
+    def power(z: np.ndarray) -> np.ndarray:
+        return (loss * z[:, 0] ** 2 + z[:, 0] * z[:, 1])[:, None]
+    return power
+
+
+def _input_power_symbolic(loss: float) -> Callable[[Any, Any], Any]:
+    """`_input_power` on a casadi point (u, w)."""
+    return lambda _, z: loss * z[0] ** 2 + z[0] * z[1]
