@@ -274,6 +274,7 @@ impl TreeSimulation {
     /// Keeps the impulses for the next step's warm start and reports the contacts.
     fn report(&mut self, h: f64) {
         self.contacts.clear();
+        let per_second = 1.0 / h;
         for (f, c) in self.found.iter().zip(&self.constraints) {
             let [t1, t2] = f.tangents;
             let friction = t1 * c.lambda[1] + t2 * c.lambda[2];
@@ -283,8 +284,8 @@ impl TreeSimulation {
                 other: f.other,
                 point: f.point,
                 normal: f.normal,
-                normal_force: c.lambda[0] / h,
-                tangential_force: friction / h,
+                normal_force: c.lambda[0] * per_second,
+                tangential_force: friction * per_second,
                 depth: (-f.distance).max(0.0),
             });
         }

@@ -91,6 +91,8 @@ pub(super) struct Constraint {
     inverse_sqrt_r: [f64; 2],
     cone_slope: f64,
     ray_weight: f64,
+    /// Where the impulses lie at `residual`, kept from the Newton iteration's impulses for its stiffness.
+    projection: Projection,
     /// J v − b at the solver's current velocities, and J d along its step.
     residual: [f64; 3],
     slope: [f64; 3],
@@ -107,7 +109,7 @@ fn clamp_to_cone(lambda: &mut [f64; 3], mu: f64) {
 }
 
 /// Where a constraint's scaled impulse R^½ λ = Π_K̂(s), s = −R^-½ (J v − b), lies, and the impulse.
-#[derive(Clone, Copy)]
+#[derive(Debug, Clone, Copy)]
 enum Projection {
     /// In the polar cone: no impulse.
     Apart,
@@ -129,6 +131,22 @@ impl Constraint {
         let tangents = diagonal[1] + diagonal[2];
         let friction = matches!(kind, Kind::Contact { .. }) && r_n > 0.0 && !immovable(tangents, &(rows[1] + rows[2]));
         let r_t = if friction { REGULARISATION * 0.5 * tangents } else { 0.0 };
+        let mu = match kind {
+            Kind::Contact { mu, .. } if r_t > 0.0 => mu,
+            _ => 0.0,
+        };
+        // R_n^-½, R_t^-½, μ̂ = μ (R_t / R_n)^½ and 1 / (1 + μ̂²) = R_n / (R_n + μ² R_t), through one division.
+        let (sqrt_n, sqrt_t) = (r_n.sqrt(), r_t.sqrt());
+        let (inverse_sqrt_r, cone_slope, ray_weight) = match (r_n > 0.0, r_t > 0.0) {
+            (true, true) => {
+                let sum = r_n + mu * mu * r_t;
+                let inverse = 1.0 / (sqrt_n * sqrt_t * sum);
+                let (i_n, i_t) = (sqrt_t * sum * inverse, sqrt_n * sum * inverse);
+                ([i_n, i_t], mu * sqrt_t * i_n, r_n * sqrt_n * sqrt_t * inverse)
+            }
+            (true, false) => ([1.0 / sqrt_n, 0.0], 0.0, 1.0),
+            _ => ([0.0; 2], 0.0, 1.0),
+        };
         let mut lambda = if r_n > 0.0 { warm } else { [0.0; 3] };
         lambda[0] = lambda[0].max(0.0);
         match kind {
@@ -138,10 +156,6 @@ impl Constraint {
                 lambda[2] = 0.0;
             }
         }
-        let cone_slope = match kind {
-            Kind::Contact { mu, .. } if r_t > 0.0 => mu * (r_t / r_n).sqrt(),
-            _ => 0.0,
-        };
         Constraint {
             kind,
             target,
@@ -149,9 +163,10 @@ impl Constraint {
             rows,
             asked: [bias, r_t * lambda[1], r_t * lambda[2]],
             held: [lambda[1], lambda[2]],
-            inverse_sqrt_r: [r_n, r_t].map(|r| if r > 0.0 { 1.0 / r.sqrt() } else { 0.0 }),
+            inverse_sqrt_r,
             cone_slope,
-            ray_weight: 1.0 / (1.0 + cone_slope * cone_slope),
+            ray_weight,
+            projection: Projection::Apart,
             residual: [0.0; 3],
             slope: [0.0; 3],
         }
@@ -320,7 +335,8 @@ impl Solver {
         let mut iterations = 0;
         loop {
             for c in constraints.iter_mut().filter(|c| c.active()) {
-                c.lambda = c.impulses(&c.project(c.residual));
+                c.projection = c.project(c.residual);
+                c.lambda = c.impulses(&c.projection);
             }
             generalized_impulses(tree, model, data, constraints, &mut self.descent);
             let (mut gradient, mut scale) = (0.0f64, 0.0f64);
@@ -337,16 +353,16 @@ impl Solver {
             iterations += 1;
             tree.clear_stiffness(data);
             for c in constraints.iter().filter(|c| c.active()) {
-                let projection = c.project(c.residual);
+                let projection = &c.projection;
                 match c.target {
                     // Φ_aᵀ (F H_c Fᵀ) Φ_a, and likewise on b without the two chains' coupling.
                     Target::Bodies(a, b) => {
-                        c.add_stiffness(&projection, &mut tree.inertia[a]);
+                        c.add_stiffness(projection, &mut tree.inertia[a]);
                         if let Some(b) = b {
-                            c.add_stiffness(&projection, &mut tree.inertia[b]);
+                            c.add_stiffness(projection, &mut tree.inertia[b]);
                         }
                     }
-                    Target::Coordinate(k) => tree.coordinate_stiffness[k] += c.normal_stiffness(&projection) * c.rows[0][0] * c.rows[0][0],
+                    Target::Coordinate(k) => tree.coordinate_stiffness[k] += c.normal_stiffness(projection) * c.rows[0][0] * c.rows[0][0],
                 }
             }
             if !tree.factor(model, data, armature) {
