@@ -127,6 +127,7 @@ def solve(
     constraints, jacobian = timer(nlp.constraints), timer(nlp.jacobian)
     n, m = nlp.n, nlp.m
     cache: dict = {}
+    values: dict = {}
 
     class Jacobian(ca.Callback):
         def __init__(self, name: str, opts: Mapping[str, Any]) -> None:
@@ -171,7 +172,10 @@ def solve(
 
         def eval(self, arg: Any) -> list[Any]:
             x = np.asarray(arg[0]).ravel()
-            return [objective(x), ca.DM(constraints(x))]
+            # casadi asks for f and g in separate calls at one x (and again around each Jacobian).
+            if values.get("x") is None or not np.array_equal(values["x"], x):
+                values.update(x=x, out=[objective(x), ca.DM(constraints(x))])
+            return values["out"]
 
         def has_jacobian(self) -> bool:
             return True
