@@ -59,9 +59,9 @@ pub(crate) struct TreeSimulation {
     /// same coordinates, far fewer bodies on robots whose URDFs hang sensors and frames on fixed joints.
     fused: Arc<Model>,
     /// Each body's body in `fused` (the moving body it is carried by: bodies with one carrier share a
-    /// chain), and its frame in that body's frame.
+    /// chain), and its frame in that body's frame (None where the frames coincide: the body is its carrier).
     fused_body: Vec<usize>,
-    offset: Vec<Transform>,
+    offset: Vec<Option<Transform>>,
     options: Options,
     /// Substep length (s).
     h: f64,
@@ -115,7 +115,7 @@ impl TreeSimulation {
             solver: Solver::new(&fused),
             fused: Arc::new(fused),
             fused_body,
-            offset,
+            offset: offset.into_iter().map(|o| (o != Transform::identity()).then_some(o)).collect(),
             collision,
             options: options.clone(),
             limited,
@@ -226,7 +226,10 @@ impl TreeSimulation {
                 let origin = base_origin(model, q);
                 for ((pose, &body), offset) in self.poses.iter_mut().zip(&self.fused_body).zip(&self.offset) {
                     let centred = &self.data.centred_m_i[body];
-                    *pose = Transform::new(centred.rotation, centred.translation + origin).compose(offset);
+                    *pose = Transform::new(centred.rotation, centred.translation + origin);
+                    if let Some(offset) = offset {
+                        *pose = pose.compose(offset);
+                    }
                 }
                 self.found.clear();
                 self.collision.detect(&self.poses, &mut self.found);
