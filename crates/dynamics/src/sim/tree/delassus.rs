@@ -12,7 +12,7 @@
 //! (M̃⁻¹)_kk = D_i⁻¹ + w_iᵀ Ω_λ(i) w_i with w_i = U_i D_i⁻¹. Everything is in the world's axes about the
 //! base origin, as `aba` leaves it in `Data`.
 
-use nalgebra::{Matrix6, Vector6};
+use nalgebra::{Matrix6, Vector3, Vector6};
 
 use crate::model::{Data, Joint, Model};
 use crate::spatial::{dot6, Force};
@@ -54,10 +54,19 @@ impl Delassus {
         true
     }
 
-    /// The Delassus diagonal of rows `rows` (spatial forces on body `a`, and opposite on `b`), and its
-    /// scale (tr Ω |F|² per unit row), below which a row counts as immovable.
-    pub(super) fn bodies(&self, model: &Model, data: &Data, a: usize, b: Option<usize>, rows: &[Vector6<f64>; 3]) -> ([f64; 3], f64) {
-        let mut diagonal = rows.map(|f| quadratic(&self.omega[a], &f));
+    /// A contact's Delassus diagonal, as [its normal row's, the sum of its two tangent rows'], and its scale
+    /// (tr Ω |F|² per unit row), below which a row counts as immovable. `rows` are the forces [d; r × d] on
+    /// body `a` (and opposite on `b`) of an orthonormal frame d = n, t1, t2 at arm `arm`.
+    pub(super) fn contact(
+        &self,
+        model: &Model,
+        data: &Data,
+        a: usize,
+        b: Option<usize>,
+        rows: &[Vector6<f64>; 3],
+        arm: &Vector3<f64>,
+    ) -> ([f64; 2], f64) {
+        let mut diagonal = point(&self.omega[a], &rows[0], arm);
         let mut trace = self.omega[a].trace();
         if let Some(b) = b {
             // + F Ω_b F − 2 F T_a Ω_c T_bᵀ F: each force passed up its chain to the common ancestor c.
@@ -72,9 +81,10 @@ impl Delassus {
                     y = model.parent(y);
                 }
             }
-            for r in 0..3 {
-                diagonal[r] += quadratic(&self.omega[b], &rows[r]) - 2.0 * on_a[r].dot(&(self.omega[x] * on_b[r]));
-            }
+            let coupling: [f64; 3] = std::array::from_fn(|r| on_a[r].dot(&(self.omega[x] * on_b[r])));
+            let [normal, tangents] = point(&self.omega[b], &rows[0], arm);
+            diagonal[0] += normal - 2.0 * coupling[0];
+            diagonal[1] += tangents - 2.0 * (coupling[1] + coupling[2]);
             trace += self.omega[b].trace();
         }
         (diagonal, trace)
@@ -85,6 +95,19 @@ impl Delassus {
         let w = data.u[i] * data.d_inv[i];
         data.d_inv[i] + w.dot(&(self.omega[model.parent(i)] * w))
     }
+}
+
+/// [fᵀ Ω f for the normal row f = [n; r × n], the same summed over the two tangent rows]. The three rows are
+/// P d for the frame's directions d, with P = [1; [r]×], so the sum over all three is tr(Pᵀ Ω P) =
+/// tr Ω_ll + 2 tr(Ω_la [r]×) + |r|² tr Ω_aa − rᵀ Ω_aa r (Ω symmetric): the tangents' sum without their rows.
+fn point(omega: &Matrix6<f64>, normal_row: &Vector6<f64>, r: &Vector3<f64>) -> [f64; 2] {
+    let o = omega;
+    let normal = quadratic(o, normal_row);
+    let linear = o[(0, 0)] + o[(1, 1)] + o[(2, 2)];
+    let coupling = r.z * (o[(0, 4)] - o[(1, 3)]) + r.y * (o[(2, 3)] - o[(0, 5)]) + r.x * (o[(1, 5)] - o[(2, 4)]);
+    let angular = o.fixed_view::<3, 3>(3, 3);
+    let arm = r.norm_squared() * angular.trace() - r.dot(&(angular * r));
+    [normal, linear + 2.0 * coupling + arm - normal]
 }
 
 /// fᵀ Ω f, as f · (Ω f) over Ω's columns (which vectorises, where the symmetric half would not).

@@ -167,7 +167,7 @@ impl TreeSimulation {
             let [t1, t2] = f.tangents;
             let r = f.point - origin;
             let rows = [f.normal, t1, t2].map(|d| spatial(d, r.cross(&d)));
-            let (diagonal, scale) = self.delassus.bodies(model, &self.data, body, other, &rows);
+            let (diagonal, scale) = self.delassus.contact(model, &self.data, body, other, &rows, &r);
             let warm_t = Vector3::new(f.warm[1], f.warm[2], f.warm[3]);
             let warm = [f.warm[0], warm_t.dot(&t1), warm_t.dot(&t2)];
             let kind = Kind::Contact { mu: self.friction, arm: r };
@@ -198,7 +198,7 @@ impl TreeSimulation {
                     [unit * sign, zero, zero],
                     asked_normal_velocity(gap, h),
                     warm,
-                    [a, 0.0, 0.0],
+                    [a, 0.0],
                     a,
                 ));
                 self.limit_rows.push((k, side));

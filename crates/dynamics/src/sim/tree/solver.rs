@@ -122,13 +122,13 @@ enum Projection {
 
 impl Constraint {
     /// A constraint on `target` whose rows are the forces `rows`, asking for the normal velocity `bias`,
-    /// with its warm-start impulses, its Delassus diagonal `diagonal` (A_ii per row) and the scale
-    /// below which a row counts as immovable (`Delassus`).
+    /// with its warm-start impulses, its Delassus diagonal `diagonal` (A_ii of the normal row, and summed
+    /// over the two tangent rows) and the scale below which a row counts as immovable (`Delassus`).
     #[inline]
-    pub(super) fn new(kind: Kind, target: Target, rows: [Vector6<f64>; 3], bias: f64, warm: [f64; 3], diagonal: [f64; 3], scale: f64) -> Self {
+    pub(super) fn new(kind: Kind, target: Target, rows: [Vector6<f64>; 3], bias: f64, warm: [f64; 3], diagonal: [f64; 2], scale: f64) -> Self {
         let immovable = |a: f64, f: &Vector6<f64>| a <= IMMOVABLE * scale * f.norm_squared();
         let r_n = if immovable(diagonal[0], &rows[0]) { 0.0 } else { REGULARISATION * diagonal[0] };
-        let tangents = diagonal[1] + diagonal[2];
+        let tangents = diagonal[1];
         let friction = matches!(kind, Kind::Contact { .. }) && r_n > 0.0 && !immovable(tangents, &(rows[1] + rows[2]));
         let r_t = if friction { REGULARISATION * 0.5 * tangents } else { 0.0 };
         let mu = match kind {
@@ -507,14 +507,14 @@ mod tests {
     use super::*;
     use crate::spatial::spatial;
 
-    /// A contact at arm r along an orthonormal frame, with Delassus diagonal (2, 3, 5) and friction `mu`.
+    /// A contact at arm r along an orthonormal frame, with Delassus diagonal 2 (normal) and 3 + 5 (tangents) and friction `mu`.
     fn contact(mu: f64) -> Constraint {
         let normal = Vector3::new(0.1, 0.2, 1.0).normalize();
         let t1 = normal.cross(&Vector3::x()).normalize();
         let t2 = normal.cross(&t1);
         let r = Vector3::new(0.3, -0.2, 0.5);
         let rows = [normal, t1, t2].map(|d| spatial(d, r.cross(&d)));
-        Constraint::new(Kind::Contact { mu, arm: r }, Target::Bodies(1, None), rows, 0.0, [0.0; 3], [2.0, 3.0, 5.0], 1.0)
+        Constraint::new(Kind::Contact { mu, arm: r }, Target::Bodies(1, None), rows, 0.0, [0.0; 3], [2.0, 8.0], 1.0)
     }
 
     /// ∂λ / ∂(−y) by central differences.
