@@ -81,8 +81,9 @@ pub fn broadcast(arguments: &[(&str, &ArrayArg<'_>, Core)]) -> PyResult<Batch> {
             let batch = &array.shape()[..batch_ndim];
             let shared = batch.iter().product::<usize>() == 1;
             // SAFETY: read here, with the GIL held, so no Python thread writes the array meanwhile (and no
-            // Rust code writes arguments); the kernels then run on this copy with the GIL released.
-            let contiguous = unsafe { array.as_slice() }.ok();
+            // Rust code writes arguments); the kernels then run on this copy with the GIL released. Only a
+            // C-ordered array is its rows in order: `as_slice` also takes a Fortran-ordered one (a transpose).
+            let contiguous = if array.is_c_contiguous() { unsafe { array.as_slice() }.ok() } else { None };
             let data = match contiguous {
                 Some(slice) if shared || batch == shape.as_slice() => copied(slice),
                 _ => {
