@@ -11,6 +11,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rayon::prelude::*;
 use smallvec::SmallVec;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
 
 use crate::convert::{batch_error, FloatArray};
 
@@ -125,9 +127,9 @@ fn broadcast_shapes(a: &[usize], b: &[usize]) -> Option<Shape> {
 /// Rows per parallel task: large enough that a task's setup (e.g. a fresh workspace) is amortised.
 const MIN_ROWS_PER_TASK: usize = 64;
 
-/// Evaluates `kernel(state, i, row)` for each batch row `i` of `out` (`width` numbers per row), in parallel
-/// over the available cores (each task with its own `state` from `init`). A failure names the lowest
-/// failing row, so the message does not depend on scheduling.
+/// Evaluates `kernel(state, i, row)` for each batch row `i` of `out` (`width` numbers per row), in tasks of
+/// rows shared by the calling thread and the pool's other threads (`on_all_threads`; each thread with its own
+/// `state` from `init`). A failure names the lowest failing row, so the message does not depend on scheduling.
 pub fn map_rows<S, I, K>(out: &mut [f64], width: usize, init: I, kernel: K) -> PyResult<()>
 where
     I: Fn() -> S + Sync,
@@ -137,22 +139,47 @@ where
         return Ok(());
     }
     let len = out.len() / width;
+    let first_failure = |state: &mut S, first_row: usize, rows: &mut [f64]| {
+        rows.chunks_mut(width).enumerate().find_map(|(j, row)| kernel(state, first_row + j, row).err().map(|e| (first_row + j, e)))
+    };
     let failure = if len < 2 * MIN_ROWS_PER_TASK {
-        let mut state = init();
-        out.chunks_mut(width).enumerate().find_map(|(i, row)| kernel(&mut state, i, row).err().map(|e| (i, e)))
+        first_failure(&mut init(), 0, out)
     } else {
-        out.par_chunks_mut(width)
-            .enumerate()
-            .with_min_len(MIN_ROWS_PER_TASK)
-            .map_init(&init, |state, (i, row)| kernel(state, i, row).err().map(|e| (i, e)))
-            .flatten()
-            .min_by_key(|(i, _)| *i)
+        let tasks: Vec<&mut [f64]> = out.chunks_mut(MIN_ROWS_PER_TASK * width).collect();
+        on_all_threads(tasks, &init, |state, k, rows| first_failure(state, k * MIN_ROWS_PER_TASK, rows)).into_iter().flatten().min_by_key(|(i, _)| *i)
     };
     match failure {
         Some((_, e)) if len == 1 => Err(crate::convert::kernel_error(e)),
         Some((i, e)) => Err(batch_error(e, i)),
         None => Ok(()),
     }
+}
+
+/// `task(state, k, item)` for every item `k`, on the calling thread and the pool's other threads together,
+/// each taking the next item no one has taken (each thread with its own `state` from `init`); the outputs in
+/// the items' order. The caller starts at once: in a closed loop that runs Python between calls the pool's
+/// threads are asleep, and waking one costs 0.3-0.4 ms on this kind of machine, so it joins for whatever is
+/// left (handing all the work to the pool, as a parallel iterator does, waits for the wake-up first).
+pub fn on_all_threads<T: Send, S, R: Send>(items: Vec<T>, init: impl Fn() -> S + Sync, task: impl Fn(&mut S, usize, T) -> R + Sync) -> Vec<R> {
+    let slots: Vec<Mutex<(Option<T>, Option<R>)>> = items.into_iter().map(|item| Mutex::new((Some(item), None))).collect();
+    let next = AtomicUsize::new(0);
+    let work = || {
+        let mut state = None;
+        loop {
+            let k = next.fetch_add(1, Ordering::Relaxed);
+            let Some(slot) = slots.get(k) else { break };
+            let mut slot = slot.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+            let item = slot.0.take().expect("each item is taken once");
+            slot.1 = Some(task(state.get_or_insert_with(&init), k, item));
+        }
+    };
+    rayon::in_place_scope(|scope| {
+        for _ in 1..rayon::current_num_threads().min(slots.len()) {
+            scope.spawn(|_| work());
+        }
+        work();
+    });
+    slots.into_iter().map(|slot| slot.into_inner().unwrap_or_else(|poisoned| poisoned.into_inner()).1.expect("every item is done")).collect()
 }
 
 pub fn to_numpy<'py>(py: Python<'py>, shape: Shape, data: Vec<f64>) -> FloatArray<'py> {

@@ -8,9 +8,8 @@ use numpy::{PyArray1, PyArray2, PyArray3};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
 
+use crate::batch::on_all_threads;
 use crate::convert::{batch_error, kernel_error, to_numpy, Floats};
 use crate::model::{homogeneous, transform, PyModel};
 
@@ -432,36 +431,6 @@ pub struct PySimulationBatch {
     members: Vec<Py<PySimulation>>,
 }
 
-/// A batch member's step: Ok, or the error that stopped it.
-type Outcome = legkit_dynamics::Result<()>;
-
-/// Steps every simulation `n` steps on the calling thread and the pool's other threads together, each
-/// taking the next simulation no one has taken. The caller starts at once: in a closed loop that runs
-/// Python between steps the pool's threads are asleep, and waking one costs 0.3-0.4 ms on this kind of
-/// machine, so it joins for whatever is left (handing all the work to the pool, as a parallel iterator
-/// does, waited for the wake-up first). Each simulation is stepped by one thread, so the results do not
-/// depend on which.
-fn step_together(sims: Vec<&mut Simulation>, taus: &[Option<Vec<f64>>], n: usize) -> Vec<Outcome> {
-    let slots: Vec<Mutex<(&mut Simulation, Option<Outcome>)>> = sims.into_iter().map(|sim| Mutex::new((sim, None))).collect();
-    let next = AtomicUsize::new(0);
-    let work = || loop {
-        let i = next.fetch_add(1, Ordering::Relaxed);
-        let Some(slot) = slots.get(i) else { break };
-        let mut slot = slot.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        slot.1 = Some(slot.0.step(taus[i].as_deref(), n));
-    };
-    rayon::in_place_scope(|scope| {
-        for _ in 1..rayon::current_num_threads().min(slots.len()) {
-            scope.spawn(|_| work());
-        }
-        work();
-    });
-    slots
-        .into_iter()
-        .map(|slot| slot.into_inner().unwrap_or_else(|poisoned| poisoned.into_inner()).1.expect("every simulation is taken once"))
-        .collect()
-}
-
 #[pymethods]
 impl PySimulationBatch {
     #[new]
@@ -502,7 +471,9 @@ impl PySimulationBatch {
             .collect::<PyResult<Vec<_>>>()?;
         let taus = self.torques(&guards, tau)?;
         let sims: Vec<&mut Simulation> = guards.iter_mut().map(|g| &mut g.sim).collect();
-        let outcomes = py.detach(|| step_together(sims, &taus, n as usize));
+        // Each simulation is stepped by one thread, so the results do not depend on which.
+        let items: Vec<_> = sims.into_iter().zip(&taus).collect();
+        let outcomes = py.detach(|| on_all_threads(items, || (), |_, _, (sim, tau)| sim.step(tau.as_deref(), n as usize)));
         match outcomes.into_iter().enumerate().find_map(|(i, r)| r.err().map(|e| (i, e))) {
             Some((i, error)) => Err(batch_error(error, i)),
             None => Ok(()),
