@@ -126,8 +126,9 @@ def solve(
     objective, gradient = timer(nlp.objective), timer(nlp.gradient)
     constraints, jacobian = timer(nlp.constraints), timer(nlp.jacobian)
     n, m = nlp.n, nlp.m
-    cache: dict = {}
-    values: dict = {}
+    # casadi asks for f and g, and for the gradient and the Jacobian, in separate calls at one x.
+    derivatives_at = _LastPoint(lambda x: [ca.DM(gradient(x)).T, ca.DM(pattern, jacobian(x)[order])])
+    values_at = _LastPoint(lambda x: [objective(x), ca.DM(constraints(x))])
 
     class Jacobian(ca.Callback):
         def __init__(self, name: str, opts: Mapping[str, Any]) -> None:
@@ -147,11 +148,7 @@ def solve(
             return ca.Sparsity.dense(1, n) if i == 0 else pattern
 
         def eval(self, arg: Any) -> list[Any]:
-            x = np.asarray(arg[0]).ravel()
-            # casadi asks for the objective gradient and the constraint Jacobian in separate calls at one x.
-            if cache.get("x") is None or not np.array_equal(cache["x"], x):
-                cache.update(x=x, out=[ca.DM(gradient(x)).T, ca.DM(pattern, jacobian(x)[order])])
-            return cache["out"]
+            return derivatives_at(np.asarray(arg[0]).ravel())
 
     class Functions(ca.Callback):
         def __init__(self) -> None:
@@ -171,11 +168,7 @@ def solve(
             return ca.Sparsity.dense(1, 1) if i == 0 else ca.Sparsity.dense(m, 1)
 
         def eval(self, arg: Any) -> list[Any]:
-            x = np.asarray(arg[0]).ravel()
-            # casadi asks for f and g in separate calls at one x (and again around each Jacobian).
-            if values.get("x") is None or not np.array_equal(values["x"], x):
-                values.update(x=x, out=[objective(x), ca.DM(constraints(x))])
-            return values["out"]
+            return values_at(np.asarray(arg[0]).ravel())
 
         def has_jacobian(self) -> bool:
             return True
@@ -222,6 +215,20 @@ def solve(
     x = np.asarray(result["x"]).ravel()
     return SolveResult(x, float(result["f"]), stats["return_status"], bool(stats["success"]), int(stats["iter_count"]),
                        wall, evaluation, nlp.violation(x), history, best[0], tol)
+
+
+class _LastPoint:
+    """`compute(x)`, kept for the last x it was asked at: asked again there, it returns the same outputs."""
+
+    def __init__(self, compute: Callable[[np.ndarray], list[Any]]) -> None:
+        self.compute = compute
+        self.x: np.ndarray | None = None
+        self.out: list[Any] = []
+
+    def __call__(self, x: np.ndarray) -> list[Any]:
+        if self.x is None or not np.array_equal(self.x, x):
+            self.x, self.out = x, self.compute(x)
+        return self.out
 
 
 #: Built casadi solvers of symbolic NLPs, by (transcription, IPOPT options): a continuation's stages and
