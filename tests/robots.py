@@ -6,7 +6,8 @@ and once as a `pinocchio.Model`. The mapping is:
 * legkit floating base -> `JointModelFreeFlyer` as pin joint 1 carrying the base inertia; a fixed base
   -> pin's universe (joint 0), whose inertia pin ignores (legkit: "its mass is irrelevant").
 * every revolute / prismatic body -> one pin joint (RX/RY/RZ, PX/PY/PZ when the axis is exactly +x/+y/+z,
-  otherwise the *Unaligned joint with the normalised axis). Pinocchio's CRBA and Minverse assume that every
+  otherwise the *Unaligned joint with the normalised axis); every helical body -> JointModelHelicalUnaligned
+  with the normalised axis and the same pitch. Pinocchio's CRBA and Minverse assume that every
   joint's subtree occupies a contiguous range of v (depth-first joint order), while legkit accepts any
   parent-before-child numbering; so pin joints are added in depth-first pre-order of the legkit tree and
   the twin records the permutation (`perm_q`, `perm_v`, and the converters q_pin / v_pin / v_lk / m_lk /
@@ -111,7 +112,7 @@ class Twin:
     pin_model: pin.Model
     floating: bool
     parents: list[int]
-    kinds: list[str]  # "base", "revolute", "prismatic", "fixed"
+    kinds: list[str]  # "base", "revolute", "prismatic", "helical", "fixed"
     axes: list[np.ndarray | None]  # as given to legkit (possibly non-unit)
     placements: list[np.ndarray]  # 4x4 joint placement in the parent body frame (identity for the base)
     bodies: list[tuple[float, np.ndarray, np.ndarray] | None]  # (mass, com, inertia) or None (massless)
@@ -123,9 +124,10 @@ class Twin:
     perm_v: np.ndarray  # pin v = legkit v[perm_v]
     depth_first: bool
     lk_iv: list[int]  # legkit velocity index of each movable body (0 for the base / fixed bodies)
+    pitches: list[float]  # m/rad, of the helical joints (0 for the other bodies)
 
     def __repr__(self) -> str:  # short: the full model is in describe(), noted by the tests on failure
-        kinds = "".join({"base": "B", "revolute": "R", "prismatic": "P", "fixed": "F"}[k] for k in self.kinds)
+        kinds = "".join({"base": "B", "revolute": "R", "prismatic": "P", "helical": "H", "fixed": "F"}[k] for k in self.kinds)
         return f"Twin(nbodies={self.nbodies}, floating={self.floating}, depth_first={self.depth_first}, kinds={kinds})"
 
     # ---- sizes -------------------------------------------------------------------------------------
@@ -238,7 +240,8 @@ class Twin:
                 lines.append(f"model.add_fixed({self.parents[i]}, {pl}, {mp(self.bodies[i])}, 'b{i}')")
             else:
                 axis, body = arr(self.axes[i]), mp(self.bodies[i])
-                lines.append(f"model.add_{self.kinds[i]}({self.parents[i]}, {axis}, {pl}, {body}, 'b{i}')")
+                pitch = f"{self.pitches[i]!r}, " if self.kinds[i] == "helical" else ""
+                lines.append(f"model.add_{self.kinds[i]}({self.parents[i]}, {axis}, {pitch}{pl}, {body}, 'b{i}')")
         return "\n".join(lines)
 
 
@@ -276,7 +279,7 @@ def build_twin(
         if massive_fixed_base is None:
             massive_fixed_base = bool(rng.random() < 0.5)
         base = random_body(rng) if massive_fixed_base else None
-    parents, kinds, axes, units = [0], ["base"], [None], [None]  # the base is its own parent, as in lk and pin
+    parents, kinds, axes, units, pitches = [0], ["base"], [None], [None], [0.0]  # the base is its own parent, as in lk and pin
     placements, bodies, as_tuple = [np.eye(4)], [base], [False]
     anchored = [not floating]  # welded to the (fixed) world
     path = [0]  # the current root-to-last-body path (for depth-first numbering)
@@ -291,7 +294,7 @@ def build_twin(
         else:
             parent = int(rng.integers(0, i))
         u = rng.random()
-        kind = "revolute" if u < 0.7 else ("prismatic" if u < 0.9 else "fixed")
+        kind = "revolute" if u < 0.6 else "prismatic" if u < 0.75 else "helical" if u < 0.9 else "fixed"
         body = random_body(rng)
         if kind == "fixed" and (rng.random() < 0.3 or (anchored[parent] and not anchored_mass)):
             body = None  # a massless marker frame
@@ -301,6 +304,7 @@ def build_twin(
             axis, unit = random_axis(rng)
         parents.append(parent)
         kinds.append(kind)
+        pitches.append(float(rng.uniform(-0.2, 0.2)) if kind == "helical" else 0.0)
         axes.append(axis)
         units.append(unit)
         placements.append(random_placement(rng))
@@ -321,8 +325,11 @@ def build_twin(
         if kinds[i] == "fixed":
             idx = model.add_fixed(parents[i], placement, mp(bodies[i]), f"b{i}")
         else:
-            add = model.add_revolute if kinds[i] == "revolute" else model.add_prismatic
-            idx = add(parents[i], axes[i], placement, mp(bodies[i]), f"b{i}")
+            if kinds[i] == "helical":
+                idx = model.add_helical(parents[i], axes[i], pitches[i], placement, mp(bodies[i]), f"b{i}")
+            else:
+                add = model.add_revolute if kinds[i] == "revolute" else model.add_prismatic
+                idx = add(parents[i], axes[i], placement, mp(bodies[i]), f"b{i}")
             lk_iv[i] = nv
             nv += 1
         assert idx == i, (idx, i)
@@ -363,7 +370,9 @@ def build_twin(
             continue
         unit = units[i]
         aligned = [k for k in range(3) if np.array_equal(unit, UNIT_AXES[k])]
-        if kinds[i] == "revolute":
+        if kinds[i] == "helical":
+            jm = pin.JointModelHelicalUnaligned(unit, pitches[i])
+        elif kinds[i] == "revolute":
             jm = REVOLUTE[aligned[0]]() if aligned else pin.JointModelRevoluteUnaligned(unit)
         else:
             jm = PRISMATIC[aligned[0]]() if aligned else pin.JointModelPrismaticUnaligned(unit)
@@ -375,7 +384,7 @@ def build_twin(
 
     twin = Twin(
         model, pin_model, floating, parents, kinds, axes, placements, bodies, body_joint, body_in_joint, g, as_tuple,
-        np.array(perm_q, dtype=int), np.array(perm_v, dtype=int), depth_first, lk_iv,
+        np.array(perm_q, dtype=int), np.array(perm_v, dtype=int), depth_first, lk_iv, pitches,
     )
     assert model.nq == pin_model.nq and model.nv == pin_model.nv == nv, (model.nq, pin_model.nq, model.nv, pin_model.nv)
     assert model.nbodies == n_bodies

@@ -75,7 +75,7 @@ def state(tw: Twin, rng: np.random.Generator):
 @given(twins())
 def test_model_layout(tw: Twin):
     m = tw.model
-    nv_joints = sum(k in ("revolute", "prismatic") for k in tw.kinds)
+    nv_joints = sum(k in ("revolute", "prismatic", "helical") for k in tw.kinds)
     assert m.nv == nv_joints + (6 if tw.floating else 0)
     assert m.nq == nv_joints + (7 if tw.floating else 0)
     assert m.nbodies == tw.nbodies
@@ -84,7 +84,11 @@ def test_model_layout(tw: Twin):
     assert m.floating_base == tw.floating
     off_q = 1 if tw.floating else 0
     for i, kind in enumerate(tw.kinds):
-        if kind in ("revolute", "prismatic"):
+        if kind != "base":
+            assert m.joint_type(i) == kind
+        if kind in ("revolute", "prismatic", "helical"):
+            assert np.allclose(m.joint_axis(i), tw.axes[i] / np.linalg.norm(tw.axes[i]), rtol=0, atol=1e-15)
+            assert m.joint_pitch(i) == (tw.pitches[i] if kind == "helical" else None)
             assert m.idx_v[i] == tw.lk_iv[i], (i, m.idx_v)
             assert m.idx_q[i] == tw.lk_iv[i] + off_q, (i, m.idx_q)
     neutral = np.asarray(m.neutral())
@@ -621,6 +625,8 @@ def test_bad_call_raises(case, call, names):
 BAD_BUILDS = [
     ("revolute zero axis", lambda m: m.add_revolute(0, np.zeros(3), np.eye(4), _MP, "x"), ("axis",)),
     ("prismatic zero axis", lambda m: m.add_prismatic(0, [0.0, 0.0, 0.0], np.eye(4), _MP, "x"), ("axis",)),
+    ("helical zero axis", lambda m: m.add_helical(0, np.zeros(3), 0.1, np.eye(4), _MP, "x"), ("axis",)),
+    ("helical nan pitch", lambda m: m.add_helical(0, _Z, np.nan, np.eye(4), _MP, "x"), ("pitch",)),
     ("revolute nan axis", lambda m: m.add_revolute(0, [np.nan, 0.0, 1.0], np.eye(4), _MP, "x"), ("axis",)),
     ("revolute axis shape", lambda m: m.add_revolute(0, [0.0, 1.0], np.eye(4), _MP, "x"), ("axis",)),
     ("revolute unknown parent", lambda m: m.add_revolute(99, [0.0, 0.0, 1.0], np.eye(4), _MP, "x"), ("parent", "body")),

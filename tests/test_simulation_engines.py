@@ -297,7 +297,8 @@ def test_box_sliding_down_an_inclined_heightfield_accelerates_at_g_sin_minus_mu_
 # ------------------------------------------------------------------------------------------------------
 
 
-def random_chain(seed):
+def random_chain(seed, helical=False):
+    """A chain of 2-6 revolute joints on random axes; with ``helical``, about half of them helical instead."""
     rng = np.random.default_rng(seed)
     links = int(rng.integers(2, 7))
     model = lk.Model(floating_base=False)
@@ -305,7 +306,10 @@ def random_chain(seed):
     for _ in range(links):
         placement = (rotation(rng.normal(size=3), rng.uniform(-1, 1)), rng.uniform(-0.3, 0.3, 3))
         body = lk.MassProperties.solid_box(rng.uniform(0.2, 2), rng.uniform(0.05, 0.4, 3), center=rng.uniform(-0.15, 0.15, 3))
-        parent = model.add_revolute(parent, rng.normal(size=3), placement, body)
+        if helical and rng.random() < 0.5:
+            parent = model.add_helical(parent, rng.normal(size=3), rng.uniform(-0.1, 0.1), placement, body)
+        else:
+            parent = model.add_revolute(parent, rng.normal(size=3), placement, body)
     return model, rng.uniform(-1.5, 1.5, links), rng.uniform(-1, 1, links)
 
 
@@ -339,12 +343,21 @@ def test_free_tree_converges_to_aba_rk4_at_first_order_in_dt_and_in_substeps():
 
 
 @examples(5)
-@given(st.integers(0, 2**31 - 1))
-def test_random_free_chain_error_halves_with_the_substep(seed):
-    model, q0, v0 = random_chain(seed)
+@given(st.integers(0, 2**31 - 1), st.booleans())
+def test_random_free_chain_error_halves_with_the_substep(seed, helical):
+    model, q0, v0 = random_chain(seed, helical)
     errors = errors_against_rk4(model, q0, v0, 0.3, substeps_list=(4, 8, 16, 32))
     ratios = errors[:-1] / errors[1:]
     assert np.all((ratios > 1.8) & (ratios < 2.2)), f"errors {errors}, ratios {ratios}"
+
+
+def test_rapier_refuses_a_helical_joint_with_a_runtime_error_naming_it():
+    model = lk.Model(floating_base=False)
+    model.add_revolute(0, [0, 1, 0], None, lk.MassProperties.solid_box(0.5, [0.1, 0.1, 0.1]), "arm")
+    model.add_helical("arm", [0, 0, 1], 0.01, None, lk.MassProperties.solid_box(0.2, [0.05, 0.05, 0.05]), "screw")
+    lk.Simulation(model, backend="tree").step(n=3)
+    with pytest.raises(RuntimeError, match="helical joint \\(body 2\\)"):
+        lk.Simulation(model, backend="rapier")
 
 
 # ------------------------------------------------------------------------------------------------------

@@ -52,7 +52,7 @@ _Limits = tuple[float, float] | Sequence[float] | dict[str, float]
 class Model:
     """A kinematic tree. Body 0 is the base: fixed to the world, or a free flyer with
     q = [x, y, z, qx, qy, qz, qw] and v = [v_lin, v_ang] in the base frame. Every other body hangs off a
-    revolute, prismatic or fixed joint whose frame is placed (4x4, or (R, t)) in its parent's frame; the
+    revolute, prismatic, helical or fixed joint whose frame is placed (4x4, or (R, t)) in its parent's frame; the
     body's frame is the joint frame after the joint's motion. Bodies are numbered parent first."""
 
     def __init__(
@@ -70,6 +70,12 @@ class Model:
         name: str | None = None, limits: _Limits | None = None,
     ) -> int:
         """limits as for add_revolute, in m, N and m/s."""
+    def add_helical(
+        self, parent: _Body, axis: _Vector, pitch: float, placement: _Placement | None = None, body: MassProperties | None = None,
+        name: str | None = None, limits: _Limits | None = None,
+    ) -> int:
+        """Turns by q about axis and moves pitch * q (m/rad) along it; limits as for add_revolute. The tree engine
+        simulates it; backend="rapier" refuses it (RuntimeError)."""
     def add_fixed(
         self, parent: _Body, placement: _Placement | None = None, body: MassProperties | None = None, name: str | None = None
     ) -> int: ...
@@ -96,6 +102,9 @@ class Model:
     def idx_v(self) -> list[int]: ...
     def joint_type(self, body: _Body) -> str: ...
     def joint_axis(self, body: _Body) -> np.ndarray | None: ...
+    def joint_pitch(self, body: _Body) -> float | None: ...
+    def with_body(self, body: _Body, mass_properties: MassProperties) -> Model:
+        """A copy in which body has these mass properties (own frame); joints, placements, limits, shapes unchanged."""
     def limits(self, body: _Body) -> dict[str, float] | None:
         """{lower, upper, effort, velocity} of the body's joint (+-inf where unbounded), None if it has no limits."""
     def body(self, body: _Body) -> MassProperties: ...

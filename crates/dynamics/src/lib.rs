@@ -6,6 +6,7 @@
 pub mod algorithms;
 pub mod error;
 pub mod geometry;
+pub mod joint;
 pub mod mass;
 pub mod mesh;
 pub mod model;
@@ -16,6 +17,7 @@ pub mod validate;
 
 pub use error::{Error, Result};
 pub use geometry::circle_line::{circle_line, rotation_toward_line, Circle, CircleLine, CircleLineColumns, Line};
+pub use joint::{Dofs, Joint};
 pub use mass::MassProperties;
-pub use model::{Data, Joint, JointLimits, Model, STANDARD_GRAVITY};
+pub use model::{Data, JointLimits, Model, STANDARD_GRAVITY};
 pub use spatial::Transform;

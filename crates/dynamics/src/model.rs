@@ -3,8 +3,9 @@
 //!
 //! Body 0 is the base: fixed to the world, or moved by a free-flyer joint with configuration
 //! `[x, y, z, qx, qy, qz, qw]` and velocity `[v; ω]` in the base frame. Every other body hangs off a
-//! revolute, prismatic or fixed joint whose frame is placed in its parent body's frame; the body's frame is
-//! the joint frame after the joint's motion. Bodies are numbered parent before child.
+//! one-degree-of-freedom or fixed joint ([`Joint`], in `joint.rs`) whose frame is placed in its parent
+//! body's frame; the body's frame is the joint frame after the joint's motion. Bodies are numbered parent
+//! before child.
 //!
 //! Each joint may carry [`JointLimits`] (position range, effort and velocity bounds). The dynamics
 //! algorithms ignore them: they describe the mechanism for the simulation (which enforces the position
@@ -12,66 +13,13 @@
 
 use std::ops::Range;
 
-use nalgebra::{DMatrix, DVector, Matrix6xX, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Matrix6xX, Vector3, Vector6};
 
+use crate::joint::Joint;
 use crate::sim::Shape;
 use crate::spatial::{spatial, Force, Inertia, Motion, RigidInertia, Transform};
-use crate::validate::{direction, finite_vector, rotation};
+use crate::validate::{finite_vector, rotation};
 use crate::{Error, MassProperties, Result};
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Joint {
-    /// The base of a floating-base model: 7 configuration and 6 velocity coordinates.
-    FreeFlyer,
-    /// The base of a fixed-base model, or a rigid attachment: no coordinates.
-    Fixed,
-    /// Rotation about a unit axis of the joint frame.
-    Revolute(Vector3<f64>),
-    /// Translation along a unit axis of the joint frame.
-    Prismatic(Vector3<f64>),
-}
-
-impl Joint {
-    pub fn nq(&self) -> usize {
-        match self {
-            Joint::FreeFlyer => 7,
-            Joint::Fixed => 0,
-            Joint::Revolute(_) | Joint::Prismatic(_) => 1,
-        }
-    }
-
-    pub fn nv(&self) -> usize {
-        match self {
-            Joint::FreeFlyer => 6,
-            Joint::Fixed => 0,
-            Joint::Revolute(_) | Joint::Prismatic(_) => 1,
-        }
-    }
-
-    /// The motion subspace of a one-degree-of-freedom joint (Table 4.1), in the body frame.
-    #[inline]
-    pub fn axis_motion(&self) -> Option<Motion> {
-        match *self {
-            Joint::Revolute(a) => Some(spatial(Vector3::zeros(), a)),
-            Joint::Prismatic(a) => Some(spatial(a, Vector3::zeros())),
-            Joint::FreeFlyer | Joint::Fixed => None,
-        }
-    }
-
-    /// The joint's own transform for configuration `q` (its `nq` coordinates).
-    #[inline]
-    pub fn transform(&self, q: &[f64]) -> Transform {
-        match *self {
-            Joint::Revolute(a) => Transform::new(Transform::rotation_about(&a, q[0]), Vector3::zeros()),
-            Joint::Prismatic(a) => Transform::from_translation(a * q[0]),
-            Joint::FreeFlyer => Transform::from_quaternion(
-                Vector3::new(q[0], q[1], q[2]),
-                &UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[6], q[3], q[4], q[5])),
-            ),
-            Joint::Fixed => Transform::identity(),
-        }
-    }
-}
 
 /// Limits of a revolute or prismatic joint, in the joint's coordinate: position range `lower..=upper`
 /// (rad or m; ±inf where unbounded), and bounds on the magnitude of its generalized force `effort`
@@ -220,12 +168,7 @@ impl Model {
         if parent >= self.joints.len() {
             return Err(Error::invalid("parent", format!("body {parent} does not exist (the model has {} bodies)", self.joints.len())));
         }
-        let joint = match joint {
-            Joint::Revolute(axis) => Joint::Revolute(direction("axis", axis)?),
-            Joint::Prismatic(axis) => Joint::Prismatic(direction("axis", axis)?),
-            Joint::Fixed => Joint::Fixed,
-            Joint::FreeFlyer => return Err(Error::invalid("joint", "a free-flyer joint can only be the base")),
-        };
+        let joint = joint.checked_below_base()?;
         rotation("placement", &placement.rotation)?;
         finite_vector("placement", placement.translation)?;
         limits.check()?;
@@ -313,6 +256,14 @@ impl Model {
     pub fn subtree_columns(&self, i: usize) -> &[Range<usize>] {
         &self.subtree_columns[i]
     }
+    /// A copy of the model in which body `i` (which must exist) has the mass properties `body`.
+    pub fn with_body(&self, i: usize, body: MassProperties) -> Model {
+        let mut model = self.clone();
+        model.bodies[i] = body;
+        model.inertias[i] = RigidInertia::from_body(&body);
+        model
+    }
+
     pub fn total_mass(&self) -> f64 {
         self.bodies.iter().map(|b| b.mass()).sum()
     }

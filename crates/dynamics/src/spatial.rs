@@ -8,7 +8,6 @@
 
 use nalgebra::{Matrix3, Matrix6, UnitQuaternion, Vector3, Vector6};
 
-use crate::model::Joint;
 use crate::MassProperties;
 
 pub type Motion = Vector6<f64>;
@@ -108,20 +107,6 @@ impl Transform {
     pub fn act_motion(&self, m: &Motion) -> Motion {
         let w = self.rotation * angular(m);
         spatial(self.rotation * linear(m) + self.translation.cross(&w), w)
-    }
-
-    /// A one-degree-of-freedom joint's motion subspace (Table 4.1) from child to parent coordinates:
-    /// `act_motion` of `[0; a]` (revolute) or `[a; 0]` (prismatic), without the products by zero.
-    #[inline(always)]
-    pub fn act_axis(&self, joint: &Joint) -> Option<Motion> {
-        match joint {
-            Joint::Revolute(a) => {
-                let w = self.rotation * a;
-                Some(spatial(self.translation.cross(&w), w))
-            }
-            Joint::Prismatic(a) => Some(spatial(self.rotation * a, Vector3::zeros())),
-            Joint::FreeFlyer | Joint::Fixed => None,
-        }
     }
 
     /// Motion from parent to child coordinates.

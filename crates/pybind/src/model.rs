@@ -54,9 +54,10 @@ impl PyModel {
         placement: Option<&Bound<'_, PyAny>>,
         body: Option<PyMassProperties>,
         name: Option<String>,
-        limits: JointLimits,
+        limits: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<usize> {
         let parent = self.body_index(parent)?;
+        let limits = joint_limits(limits)?;
         let placement = placement.map(transform).transpose()?.unwrap_or_default();
         let body = body.map_or_else(MassProperties::zero, |b| b.0);
         let name = name.unwrap_or_else(|| format!("body{}", self.model.nbodies()));
@@ -195,9 +196,7 @@ impl PyModel {
         name: Option<String>,
         limits: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<usize> {
-        let axis = vector3("axis", &axis)?;
-        let limits = joint_limits(limits)?;
-        self.add(parent, Joint::Revolute(axis), placement, body, name, limits)
+        self.add(parent, Joint::Revolute(vector3("axis", &axis)?), placement, body, name, limits)
     }
 
     /// Adds a body on a prismatic joint along `axis` (in the joint frame); returns its index. `limits` as
@@ -212,9 +211,25 @@ impl PyModel {
         name: Option<String>,
         limits: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<usize> {
-        let axis = vector3("axis", &axis)?;
-        let limits = joint_limits(limits)?;
-        self.add(parent, Joint::Prismatic(axis), placement, body, name, limits)
+        self.add(parent, Joint::Prismatic(vector3("axis", &axis)?), placement, body, name, limits)
+    }
+
+    /// Adds a body on a helical joint about `axis` (in the joint frame) with `pitch` (m/rad): the body turns
+    /// by q about the axis and moves pitch q along it. Returns its index; `limits` as for `add_revolute`
+    /// (rad, N m, rad/s). The tree engine simulates it; Rapier's multibody has no such joint.
+    #[pyo3(signature = (parent, axis, pitch, placement = None, body = None, name = None, limits = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn add_helical(
+        &mut self,
+        parent: &Bound<'_, PyAny>,
+        axis: Vector<'_>,
+        pitch: f64,
+        placement: Option<&Bound<'_, PyAny>>,
+        body: Option<PyMassProperties>,
+        name: Option<String>,
+        limits: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<usize> {
+        self.add(parent, Joint::Helical { axis: vector3("axis", &axis)?, pitch }, placement, body, name, limits)
     }
 
     /// Adds a body rigidly attached to `parent`; returns its index.
@@ -226,7 +241,7 @@ impl PyModel {
         body: Option<PyMassProperties>,
         name: Option<String>,
     ) -> PyResult<usize> {
-        self.add(parent, Joint::Fixed, placement, body, name, JointLimits::NONE)
+        self.add(parent, Joint::Fixed, placement, body, name, None)
     }
 
     #[getter]
@@ -274,20 +289,20 @@ impl PyModel {
         (0..self.model.nbodies()).map(|i| self.model.idx_v(i)).collect()
     }
 
-    /// "free_flyer", "fixed", "revolute" or "prismatic".
+    /// "free_flyer", "fixed", "revolute", "prismatic" or "helical".
     fn joint_type(&self, body: &Bound<'_, PyAny>) -> PyResult<&'static str> {
-        Ok(match self.model.joint(self.body_index(body)?) {
-            Joint::FreeFlyer => "free_flyer",
-            Joint::Fixed => "fixed",
-            Joint::Revolute(_) => "revolute",
-            Joint::Prismatic(_) => "prismatic",
-        })
+        Ok(self.model.joint(self.body_index(body)?).kind())
     }
 
-    /// The unit axis of a revolute or prismatic joint, None otherwise.
+    /// The unit axis of a revolute, prismatic or helical joint, None otherwise.
     fn joint_axis<'py>(&self, py: Python<'py>, body: &Bound<'py, PyAny>) -> PyResult<Option<Bound<'py, PyArray1<f64>>>> {
-        Ok(match self.model.joint(self.body_index(body)?) {
-            Joint::Revolute(a) | Joint::Prismatic(a) => Some(vector_to_numpy(py, a)),
+        Ok(self.model.joint(self.body_index(body)?).axis().map(|a| vector_to_numpy(py, &a)))
+    }
+
+    /// The pitch (m/rad) of a helical joint, None otherwise.
+    fn joint_pitch(&self, body: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
+        Ok(match *self.model.joint(self.body_index(body)?) {
+            Joint::Helical { pitch, .. } => Some(pitch),
             _ => None,
         })
     }
@@ -310,6 +325,12 @@ impl PyModel {
     /// The body's mass properties in its own frame.
     fn body(&self, body: &Bound<'_, PyAny>) -> PyResult<PyMassProperties> {
         Ok(PyMassProperties(*self.model.body(self.body_index(body)?)))
+    }
+
+    /// A copy of the model in which `body` has the mass properties `mass_properties` (its own frame); joints,
+    /// placements, limits and collision shapes unchanged.
+    fn with_body(&self, body: &Bound<'_, PyAny>, mass_properties: PyMassProperties) -> PyResult<Self> {
+        Ok(Self::wrap(self.model.with_body(self.body_index(body)?, mass_properties.0)))
     }
 
     /// The 4x4 placement of the body's joint frame in its parent's frame.

@@ -29,25 +29,10 @@ from legkit.stability.zmp import ground_point
 
 
 def _without_mass_of(model: lk.Model, bodies: list[int]) -> lk.Model:
-    """Copy of `model` (same bodies, joints, placements, gravity) in which `bodies` carry no mass."""
-    def mass_of(i: int) -> lk.MassProperties:
-        return lk.MassProperties.zero() if i in bodies else model.body(i)
-
-    copy = lk.Model(
-        floating_base=model.floating_base, base=mass_of(0), base_name=model.names[0], gravity=model.gravity
-    )
-    for i in range(1, model.nbodies):
-        kind, parent, placement = model.joint_type(i), model.parents[i], model.placement(i)
-        axis = model.joint_axis(i)  # None only for a fixed joint
-        if kind == "revolute":
-            assert axis is not None
-            copy.add_revolute(parent, axis, placement, mass_of(i), model.names[i])
-        elif kind == "prismatic":
-            assert axis is not None
-            copy.add_prismatic(parent, axis, placement, mass_of(i), model.names[i])
-        else:
-            copy.add_fixed(parent, placement, mass_of(i), model.names[i])
-    return copy
+    """Copy of `model` in which `bodies` carry no mass."""
+    for body in bodies:
+        model = model.with_body(body, lk.MassProperties.zero())
+    return model
 
 
 def _body_index(model: lk.Model, body: int | str) -> int:

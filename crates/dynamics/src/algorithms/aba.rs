@@ -8,7 +8,8 @@ use nalgebra::DVector;
 
 use super::kinematics::base_centred_root;
 use super::world_pose;
-use crate::model::{Data, Joint, Model};
+use crate::joint::Dofs;
+use crate::model::{Data, Model};
 use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inertia_times_pair, Force, Motion};
 
 /// Joint accelerations for configuration `q`, velocity `v` and joint forces `tau`; `f_ext` as in `rnea`.
@@ -44,14 +45,14 @@ pub fn aba_with_armature<'d>(
             _ => (world_pose(model, i, &data.centred_m_i[model.parent(i)], q), data.centred_v[model.parent(i)]),
         };
         let k = model.idx_v(i);
-        let v_joint = match model.joint(i) {
-            Joint::FreeFlyer => pose.act_motion(&Motion::from_column_slice(&v[k..k + 6])),
-            Joint::Fixed => {
+        let v_joint = match model.joint(i).dofs() {
+            Dofs::Free => pose.act_motion(&Motion::from_column_slice(&v[k..k + 6])),
+            Dofs::Zero => {
                 data.s[i] = Motion::zeros();
                 Motion::zeros()
             }
-            joint => {
-                data.s[i] = pose.act_axis(joint).expect("one-degree-of-freedom joint");
+            Dofs::One(_) => {
+                data.s[i] = model.joint(i).subspace_in(&pose);
                 data.s[i] * v[k]
             }
         };
@@ -95,8 +96,8 @@ pub fn aba_with_armature<'d>(
     for i in 0..n {
         let k = model.idx_v(i);
         let a_prime = if i == 0 { gravity } else { data.centred_a[model.parent(i)] + data.c[i] };
-        data.centred_a[i] = match model.joint(i) {
-            Joint::FreeFlyer => {
+        data.centred_a[i] = match model.joint(i).dofs() {
+            Dofs::Free => {
                 // The base's joint force, and its acceleration, are spatial vectors in its own frame.
                 let pose = data.centred_m_i[i];
                 let rhs = pose.act_force(&Force::from_column_slice(&tau[k..k + 6])) - data.bias[i];
@@ -104,8 +105,8 @@ pub fn aba_with_armature<'d>(
                 data.ddq.rows_mut(k, 6).copy_from(&pose.inv_act_motion(&(a - a_prime)));
                 a
             }
-            Joint::Fixed => a_prime,
-            Joint::Revolute(_) | Joint::Prismatic(_) => {
+            Dofs::Zero => a_prime,
+            Dofs::One(_) => {
                 let qdd = (data.ddq[k] - dot6(&data.u[i], a_prime.as_slice())) * data.d_inv[i];
                 data.ddq[k] = qdd;
                 a_prime + data.s[i] * qdd

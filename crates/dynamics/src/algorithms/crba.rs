@@ -7,7 +7,8 @@
 use nalgebra::DMatrix;
 
 use super::kinematics::base_centred_kinematics;
-use crate::model::{Data, Joint, Model};
+use crate::joint::Dofs;
+use crate::model::{Data, Model};
 use crate::spatial::RigidInertia;
 
 /// Fills `data.mass_matrix` (both triangles, each entry as it is found) and returns it. Works for any parent-before-child order.
@@ -18,9 +19,7 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
     data.composite[0] = if model.floating_base() { data.centred_m_i[0].act_rigid_inertia(model.inertia(0)) } else { RigidInertia::zeros() };
     for i in 1..n {
         data.composite[i] = data.centred_m_i[i].act_rigid_inertia(model.inertia(i));
-        if let Some(s) = data.centred_m_i[i].act_axis(model.joint(i)) {
-            data.s[i] = s;
-        }
+        data.s[i] = model.joint(i).subspace_in(&data.centred_m_i[i]);
     }
     for i in (0..n).rev() {
         let composite = data.composite[i];
@@ -28,14 +27,14 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
             data.composite[model.parent(i)] += composite;
         }
         let k = model.idx_v(i);
-        match model.joint(i) {
+        match model.joint(i).dofs() {
             // The base's subspace is its own frame: M_00 is the composite inertia expressed there.
-            Joint::FreeFlyer => {
+            Dofs::Free => {
                 let local = data.centred_m_i[0].inverse().act_rigid_inertia(&composite).matrix();
                 data.mass_matrix.view_mut((k, k), (6, 6)).copy_from(&local);
             }
-            Joint::Fixed => {}
-            Joint::Revolute(_) | Joint::Prismatic(_) => {
+            Dofs::Zero => {}
+            Dofs::One(_) => {
                 // F = I^c S (eq. 6.17), then M_ji = S_jᵀ F up the ancestors (eq. 6.18).
                 let force = composite.apply(&data.s[i]);
                 data.mass_matrix[(k, k)] = data.s[i].dot(&force);
@@ -43,14 +42,14 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
                 while j != 0 {
                     j = model.parent(j);
                     let kj = model.idx_v(j);
-                    match model.joint(j) {
-                        Joint::FreeFlyer => {
+                    match model.joint(j).dofs() {
+                        Dofs::Free => {
                             let local = data.centred_m_i[0].inv_act_force(&force);
                             data.mass_matrix.view_mut((kj, k), (6, 1)).copy_from(&local);
                             data.mass_matrix.view_mut((k, kj), (1, 6)).copy_from(&local.transpose());
                         }
-                        Joint::Fixed => {}
-                        Joint::Revolute(_) | Joint::Prismatic(_) => {
+                        Dofs::Zero => {}
+                        Dofs::One(_) => {
                             let entry = data.s[j].dot(&force);
                             data.mass_matrix[(kj, k)] = entry;
                             data.mass_matrix[(k, kj)] = entry;

@@ -1,10 +1,10 @@
 //! Free dynamics (no contacts, no ground) integrated over the articulated-body algorithm: semi-implicit Euler
 //! and RK4. `free_rollout` is the trajectory of it; contact simulation is `sim::Simulation`.
 
-use nalgebra::{DVector, Quaternion, UnitQuaternion, Vector3};
+use nalgebra::DVector;
 
 use super::aba;
-use crate::model::{Data, Joint, Model};
+use crate::model::{Data, Model};
 use crate::Result;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -15,40 +15,13 @@ pub enum Method {
     Rk4,
 }
 
-/// `q ⊕ v dt`: joint coordinates add; the free-flyer base moves along the screw exp(v dt) in its own
-/// frame (Pinocchio's `integrate`), keeping the quaternion unit.
+/// `q ⊕ v dt`, joint by joint (`Joint::integrate`).
 pub fn integrate(model: &Model, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
-    out.copy_from_slice(q);
     for i in 0..model.nbodies() {
-        let (kq, kv) = (model.idx_q(i), model.idx_v(i));
-        match model.joint(i) {
-            Joint::FreeFlyer => {
-                let rotation = UnitQuaternion::from_quaternion(Quaternion::new(q[kq + 6], q[kq + 3], q[kq + 4], q[kq + 5]));
-                let linear = Vector3::from_column_slice(&v[kv..kv + 3]) * dt;
-                let angular = Vector3::from_column_slice(&v[kv + 3..kv + 6]) * dt;
-                let translation = Vector3::from_column_slice(&q[kq..kq + 3]) + rotation * (left_jacobian(&angular) * linear);
-                let turned = rotation * UnitQuaternion::from_scaled_axis(angular);
-                out[kq..kq + 3].copy_from_slice(translation.as_slice());
-                out[kq + 3..kq + 7].copy_from_slice(&[turned.i, turned.j, turned.k, turned.w]);
-            }
-            Joint::Fixed => {}
-            Joint::Revolute(_) | Joint::Prismatic(_) => out[kq] += v[kv] * dt,
-        }
+        let (joint, kq, kv) = (model.joint(i), model.idx_q(i), model.idx_v(i));
+        let (nq, nv) = (joint.nq(), joint.nv());
+        joint.integrate(&q[kq..kq + nq], &v[kv..kv + nv], dt, &mut out[kq..kq + nq]);
     }
-}
-
-/// The SO(3) left Jacobian V(ω) = 1 + (1 − cos θ)/θ² ω̂ + (θ − sin θ)/θ³ ω̂², so exp of the twist (ν, ω)
-/// translates by V ν.
-fn left_jacobian(w: &Vector3<f64>) -> nalgebra::Matrix3<f64> {
-    let theta2 = w.norm_squared();
-    let (a, b) = if theta2 < 1e-8 {
-        (0.5 - theta2 / 24.0, 1.0 / 6.0 - theta2 / 120.0)
-    } else {
-        let theta = theta2.sqrt();
-        ((1.0 - theta.cos()) / theta2, (theta - theta.sin()) / (theta2 * theta))
-    };
-    let k = w.cross_matrix();
-    nalgebra::Matrix3::identity() + k * a + k * k * b
 }
 
 /// Buffers for stepping one model (allocated once).

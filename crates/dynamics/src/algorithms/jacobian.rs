@@ -3,7 +3,8 @@
 use nalgebra::{Matrix6xX, Vector3};
 
 use super::forward_kinematics;
-use crate::model::{Data, Joint, Model};
+use crate::joint::Dofs;
+use crate::model::{Data, Model};
 use crate::spatial::{angular, linear, spatial, Motion, Transform};
 
 /// The frame a Jacobian's rows are expressed in (Pinocchio's `ReferenceFrame`).
@@ -27,14 +28,14 @@ pub fn jacobian<'d>(model: &Model, data: &'d mut Data, q: &[f64], body: usize, p
     loop {
         let k = model.idx_v(j);
         let pose = data.o_m_i[j];
-        match model.joint(j) {
-            Joint::FreeFlyer => {
+        match model.joint(j).dofs() {
+            Dofs::Free => {
                 for c in 0..6 {
                     data.jacobian.set_column(k + c, &pose.act_motion(&Motion::from_fn(|r, _| if r == c { 1.0 } else { 0.0 })));
                 }
             }
-            Joint::Fixed => {}
-            joint => data.jacobian.set_column(k, &pose.act_motion(&joint.axis_motion().expect("one-degree-of-freedom joint"))),
+            Dofs::Zero => {}
+            Dofs::One(_) => data.jacobian.set_column(k, &model.joint(j).subspace_in(&pose)),
         }
         if j == 0 {
             break;

@@ -13,7 +13,8 @@
 use nalgebra::{DMatrix, Matrix6xX, Vector6};
 
 use super::kinematics::base_centred_kinematics;
-use crate::model::{Data, Joint, Model};
+use crate::joint::Dofs;
+use crate::model::{Data, Model};
 use crate::spatial::{add_reduced_inertia, dot6, Inertia};
 
 /// Body `i`'s set and its parent's (`parent < i`), as 6-vector chunks, one per column.
@@ -44,13 +45,13 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
     base_centred_kinematics(model, data, q);
     for i in 0..n {
         data.inertia[i] = data.centred_m_i[i].act_rigid_inertia(model.inertia(i)).matrix();
-        data.s[i] = data.centred_m_i[i].act_axis(model.joint(i)).unwrap_or_else(Vector6::zeros);
+        data.s[i] = model.joint(i).subspace_in(&data.centred_m_i[i]);
     }
     // Backward pass: the rows' subtree parts D⁻¹(e_i − Sᵀ F_i); F_i + U M⁻¹_i goes to the parent together
     // with the articulated inertia I^A − U D⁻¹ Uᵀ.
     for i in (0..n).rev() {
         let k = model.idx_v(i);
-        if let Joint::FreeFlyer = model.joint(i) {
+        if let Dofs::Free = model.joint(i).dofs() {
             // S = X_0 (the base frame to the world), so D⁻¹ Sᵀ = X_0⁻¹ I^A⁻¹: the base rows of column c are
             // X_0⁻¹ I^A⁻¹ (X_0⁻ᵀ e_c) for the base's own columns and −X_0⁻¹ I^A⁻¹ F_0[c] for the others, and
             // the base's motion set P_0[c] = S M⁻¹_0[c] is the world-frame solve itself.
@@ -108,14 +109,14 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
     // Forward pass: subtract D⁻¹ Uᵀ P_parent, then P_i = S M⁻¹_i + P_parent (reusing the sets' storage).
     for i in 0..n {
         let k = model.idx_v(i);
-        match model.joint(i) {
+        match model.joint(i).dofs() {
             // The backward pass left P_0.
-            Joint::FreeFlyer => {}
-            Joint::Fixed if i == 0 => data.force_sets[0].fill(0.0),
-            joint => {
+            Dofs::Free => {}
+            Dofs::Zero if i == 0 => data.force_sets[0].fill(0.0),
+            dofs => {
                 let (p, s, u, dinv) = (model.parent(i), data.s[i], data.u[i], data.d_inv[i]);
                 let (pp, pi) = sets(&mut data.force_sets, p, i);
-                if matches!(joint, Joint::Fixed) {
+                if dofs == Dofs::Zero {
                     pi[6 * k..].copy_from_slice(&pp[6 * k..]);
                     continue;
                 }

@@ -26,30 +26,25 @@ pub use kinematics::forward_kinematics;
 pub use minv::minv;
 pub use rnea::rnea;
 
-use crate::model::{Joint, Model};
+use crate::joint::Dofs;
+use crate::model::Model;
 use crate::spatial::{Motion, Transform};
 
 /// The motion across joint `i` for joint velocity `v` (the model's full velocity vector), in body `i`'s frame.
 #[inline(always)]
 pub(crate) fn joint_motion(model: &Model, i: usize, v: &[f64]) -> Motion {
     let k = model.idx_v(i);
-    match model.joint(i) {
-        Joint::FreeFlyer => Motion::from_column_slice(&v[k..k + 6]),
-        Joint::Fixed => Motion::zeros(),
-        joint => joint.axis_motion().expect("one-degree-of-freedom joint") * v[k],
+    match model.joint(i).dofs() {
+        Dofs::Free => Motion::from_column_slice(&v[k..k + 6]),
+        Dofs::Zero => Motion::zeros(),
+        Dofs::One(s) => s * v[k],
     }
 }
 
 /// `pose` followed by joint `i`'s motion for configuration `q`.
 #[inline(always)]
 fn after_joint(model: &Model, i: usize, pose: Transform, q: &[f64]) -> Transform {
-    let k = model.idx_q(i);
-    match *model.joint(i) {
-        Joint::Revolute(axis) => pose.rotated_about(&axis, q[k]),
-        Joint::Prismatic(axis) => Transform::new(pose.rotation, pose.transform_point(&(axis * q[k]))),
-        Joint::Fixed => pose,
-        joint @ Joint::FreeFlyer => pose.compose(&joint.transform(&q[k..k + 7])),
-    }
+    model.joint(i).after(pose, &q[model.idx_q(i)..])
 }
 
 /// Pose of body `i` in its parent for configuration `q`: its placement followed by the joint's motion.

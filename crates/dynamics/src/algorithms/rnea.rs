@@ -3,7 +3,8 @@
 use nalgebra::DVector;
 
 use super::kinematics::body_motions;
-use crate::model::{Data, Joint, Model};
+use crate::joint::Dofs;
+use crate::model::{Data, Model};
 use crate::spatial::{cross_force, Force};
 
 /// Joint forces for configuration `q`, velocity `v` and acceleration `a`. `f_ext`, when given, holds one
@@ -23,10 +24,10 @@ pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f6
     for i in (0..model.nbodies()).rev() {
         let k = model.idx_v(i);
         let f = data.f[i];
-        match model.joint(i) {
-            Joint::FreeFlyer => data.tau.rows_mut(k, 6).copy_from(&f),
-            Joint::Fixed => {}
-            joint => data.tau[k] = joint.axis_motion().expect("one-degree-of-freedom joint").dot(&f),
+        match model.joint(i).dofs() {
+            Dofs::Free => data.tau.rows_mut(k, 6).copy_from(&f),
+            Dofs::Zero => {}
+            Dofs::One(s) => data.tau[k] = s.dot(&f),
         }
         if i > 0 {
             let p = model.parent(i);

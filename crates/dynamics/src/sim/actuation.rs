@@ -5,7 +5,7 @@
 //! (`JointLimits::effort`). Rapier holds it over the step (a servo sampled at 1/dt); the tree engine
 //! integrates the PD terms of an unsaturated servo implicitly (`sim::tree`).
 
-use crate::model::{Joint, Model};
+use crate::model::Model;
 use crate::{Error, Result};
 
 /// Servo gains, limits and targets, one entry per velocity coordinate. The free-flyer base is not
@@ -62,7 +62,7 @@ impl Servo {
 pub fn dof_coordinates(model: &Model, q: &[f64], out: &mut [f64]) {
     out.fill(0.0);
     for i in 1..model.nbodies() {
-        if matches!(model.joint(i), Joint::Revolute(_) | Joint::Prismatic(_)) {
+        if model.joint(i).nv() == 1 {
             out[model.idx_v(i)] = q[model.idx_q(i)];
         }
     }

@@ -23,7 +23,7 @@ pub use options::{Backend, Convex, Options, Shape, ShapeKind, DEFAULT_SOLVER_ITE
 
 use nalgebra::Vector3;
 
-use crate::model::{check_vector, Joint, Model};
+use crate::model::{check_vector, Model};
 use crate::spatial::Transform;
 use crate::{Error, Result};
 use actuation::{effort_bounds, Actuation};
@@ -248,11 +248,7 @@ fn divergence(model: &Model, q: &[f64], v: &[f64], applied: &[f64], step: u64, d
         let speeds = &v[kv..kv + joint.nv()];
         let actuation = &applied[kv..kv + joint.nv()];
         let coordinates = &q[kq..kq + joint.nq()];
-        let positions = match joint {
-            Joint::FreeFlyer => &coordinates[..3],
-            Joint::Prismatic(_) => coordinates,
-            Joint::Revolute(_) | Joint::Fixed => &[],
-        };
+        let positions = &coordinates[joint.length_coordinates()];
         let exploded = |x: &f64| !(x.abs() <= DIVERGENCE_BOUND);
         let what = if coordinates.iter().chain(speeds).any(|x| !x.is_finite()) {
             "its state is not finite"

@@ -7,6 +7,7 @@ use super::*;
 use crate::algorithms::{free_rollout, Method};
 use crate::model::{JointLimits, STANDARD_GRAVITY};
 use crate::sim::options::Backend;
+use crate::Joint;
 use crate::{Data, MassProperties};
 
 fn rod(mass: f64, length: f64) -> MassProperties {

@@ -15,8 +15,9 @@ use rapier3d_f64::prelude::{
     MassProperties as RapierMass, MultibodyJointHandle, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
 };
 
-use crate::model::{Joint, Model};
-use crate::spatial::Transform;
+use crate::joint::{Dofs, Joint};
+use crate::model::Model;
+use crate::spatial::{angular, linear, Transform};
 use crate::{Error, MassProperties, Result};
 
 use crate::sim::options::{to_pose, to_vector, Options, DEFAULT_FRICTION};
@@ -24,6 +25,33 @@ use crate::sim::Ground;
 
 /// Marks the ground collider in `Collider::user_data` (bodies store their legkit index).
 pub const GROUND_TAG: u128 = u128::MAX;
+
+/// A one-degree-of-freedom joint as Rapier's multibody has it, read from the joint's motion subspace:
+/// rotation about an axis (Rapier's revolute joint) or translation along it (prismatic).
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum RapierAxis {
+    Angular(Vector3<f64>),
+    Linear(Vector3<f64>),
+}
+
+impl RapierAxis {
+    /// The joint's Rapier axis; None for a joint Rapier's multibody does not have (or with no coordinate).
+    pub(crate) fn of(joint: &Joint) -> Option<RapierAxis> {
+        match joint.dofs() {
+            Dofs::One(s) if linear(&s) == Vector3::zeros() => Some(RapierAxis::Angular(angular(&s))),
+            Dofs::One(s) if angular(&s) == Vector3::zeros() => Some(RapierAxis::Linear(linear(&s))),
+            _ => None,
+        }
+    }
+
+    /// Where the joint's coordinate is among the Rapier joint's six (angular x or linear x).
+    pub(crate) fn coordinate(&self) -> usize {
+        match self {
+            RapierAxis::Angular(_) => 3,
+            RapierAxis::Linear(_) => 0,
+        }
+    }
+}
 
 /// A rotation taking the x axis onto the unit vector `axis` (Rapier's one-axis joints move along x).
 fn x_onto(axis: &Vector3<f64>) -> Matrix3<f64> {
@@ -56,7 +84,7 @@ pub(crate) fn build(model: &Model, options: &Options) -> Result<(PhysicsWorld, L
     let mut offset = vec![Transform::identity(); n];
     let mut owner = vec![0usize]; // legkit body defining each Rapier body
     for i in 1..n {
-        if *model.joint(i) == Joint::Fixed {
+        if model.joint(i).nv() == 0 {
             let p = model.parent(i);
             carrier[i] = carrier[p];
             offset[i] = offset[p].compose(model.placement(i));
@@ -133,10 +161,13 @@ pub(crate) fn build(model: &Model, options: &Options) -> Result<(PhysicsWorld, L
     for (r, &i) in owner.iter().enumerate().skip(1) {
         let p = model.parent(i);
         let frame_in_parent = offset[p].compose(model.placement(i));
-        let (axis, locked, free) = match *model.joint(i) {
-            Joint::Revolute(a) => (a, JointAxesMask::LOCKED_REVOLUTE_AXES, JointAxis::AngX),
-            Joint::Prismatic(a) => (a, JointAxesMask::LOCKED_PRISMATIC_AXES, JointAxis::LinX),
-            Joint::Fixed | Joint::FreeFlyer => unreachable!("only one-degree-of-freedom joints define Rapier bodies"),
+        let (axis, locked, free) = match RapierAxis::of(model.joint(i)) {
+            Some(RapierAxis::Angular(a)) => (a, JointAxesMask::LOCKED_REVOLUTE_AXES, JointAxis::AngX),
+            Some(RapierAxis::Linear(a)) => (a, JointAxesMask::LOCKED_PRISMATIC_AXES, JointAxis::LinX),
+            None => {
+                let kind = model.joint(i).kind();
+                return Err(Error::numerical("model", format!("Rapier's multibody has no {kind} joint (body {i}); the tree backend has")));
+            }
         };
         let to_axis = Transform::new(x_onto(&axis), Vector3::zeros());
         let mut joint = GenericJointBuilder::new(locked)

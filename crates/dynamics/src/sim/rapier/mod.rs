@@ -22,10 +22,11 @@ mod state;
 use nalgebra::Vector3;
 use rapier3d_f64::prelude::PhysicsWorld;
 
-use crate::model::{Joint, Model};
+use crate::joint::Dofs;
+use crate::model::Model;
 use crate::spatial::Transform;
 use crate::Result;
-use builder::Layout;
+use builder::{Layout, RapierAxis};
 
 use super::actuation::{dof_coordinates, Actuation};
 use super::options::{from_pose, to_vector, Options};
@@ -105,27 +106,24 @@ impl RapierSimulation {
         self.pushes.clear();
         for i in 0..model.nbodies() {
             let k = model.idx_v(i);
-            match *model.joint(i) {
-                Joint::FreeFlyer => {
+            let axis = match model.joint(i).dofs() {
+                Dofs::Free => {
                     let base = carrier_pose(0).compose(&layout.offset[0]);
                     let (f, n) = (Vector3::new(applied[0], applied[1], applied[2]), Vector3::new(applied[3], applied[4], applied[5]));
                     if f != Vector3::zeros() || n != Vector3::zeros() {
                         self.pushes.push(Push::Base { force: base.rotation * f, point: base.translation, torque: base.rotation * n });
                     }
+                    continue;
                 }
-                Joint::Fixed => {}
-                Joint::Revolute(axis) | Joint::Prismatic(axis) if applied[k] != 0.0 => {
-                    let (child, parent) = (layout.carrier[i], layout.carrier[model.parent(i)]);
-                    let pose = carrier_pose(child);
-                    let direction = pose.rotation * axis * applied[k];
-                    self.pushes.push(if matches!(model.joint(i), Joint::Revolute(_)) {
-                        Push::Couple { child, parent, torque: direction }
-                    } else {
-                        Push::Force { child, parent, force: direction, point: pose.translation }
-                    });
-                }
-                Joint::Revolute(_) | Joint::Prismatic(_) => {}
-            }
+                Dofs::One(_) if applied[k] != 0.0 => RapierAxis::of(model.joint(i)).expect("the builder takes no other joint"),
+                Dofs::One(_) | Dofs::Zero => continue,
+            };
+            let (child, parent) = (layout.carrier[i], layout.carrier[model.parent(i)]);
+            let pose = carrier_pose(child);
+            self.pushes.push(match axis {
+                RapierAxis::Angular(a) => Push::Couple { child, parent, torque: pose.rotation * a * applied[k] },
+                RapierAxis::Linear(a) => Push::Force { child, parent, force: pose.rotation * a * applied[k], point: pose.translation },
+            });
         }
         let coms: Vec<Vector3<f64>> = (0..layout.handles.len()).map(|r| carrier_pose(r).transform_point(&layout.local_com[r])).collect();
         for handle in &layout.handles {

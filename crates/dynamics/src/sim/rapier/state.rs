@@ -9,8 +9,8 @@ use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use rapier3d_f64::math::{Pose, Vector};
 use rapier3d_f64::prelude::{Multibody, PhysicsWorld};
 
-use super::builder::{Layout, GROUND_TAG};
-use crate::model::{Joint, Model};
+use super::builder::{Layout, RapierAxis, GROUND_TAG};
+use crate::model::Model;
 use crate::sim::options::{from_pose, from_vector, to_pose, to_vector};
 use crate::sim::Contact;
 use crate::spatial::Transform;
@@ -67,11 +67,8 @@ pub(crate) fn read(world: &PhysicsWorld, layout: &Layout, model: &Model, q: &mut
     let (Some(mb), Some(links)) = (multibody(world, layout), &layout.links) else { return };
     let g = mb.generalized_velocity();
     for i in 1..model.nbodies() {
-        let coordinate = match model.joint(i) {
-            Joint::Revolute(_) => 3,
-            Joint::Prismatic(_) => 0,
-            Joint::Fixed | Joint::FreeFlyer => continue,
-        };
+        let Some(axis) = RapierAxis::of(model.joint(i)) else { continue };
+        let coordinate = axis.coordinate();
         let link = mb.link(links[layout.carrier[i]]).expect("link exists");
         q[model.idx_q(i)] = link.joint().coords()[coordinate];
         v[model.idx_v(i)] = g[link.assembly_id()];
@@ -99,11 +96,9 @@ pub(crate) fn write(world: &mut PhysicsWorld, layout: &Layout, model: &Model, q:
     let PhysicsWorld { multibody_joints, bodies, .. } = world;
     let (mb, _) = multibody_joints.get_mut(handle).expect("joint handle is valid");
     for i in 1..model.nbodies() {
-        if !matches!(model.joint(i), Joint::Revolute(_) | Joint::Prismatic(_)) {
-            continue;
-        }
+        let Some(axis) = RapierAxis::of(model.joint(i)) else { continue };
         let joint = &mut mb.link_mut(links[layout.carrier[i]]).expect("link exists").joint;
-        let coordinate = if matches!(model.joint(i), Joint::Revolute(_)) { 3 } else { 0 };
+        let coordinate = axis.coordinate();
         // x + (−x) is exactly 0 and 0 + q exactly q, so the coordinate is set bit for bit.
         joint.apply_displacement(&[-joint.coords()[coordinate]]);
         joint.apply_displacement(&[q[model.idx_q(i)]]);
@@ -111,7 +106,7 @@ pub(crate) fn write(world: &mut PhysicsWorld, layout: &Layout, model: &Model, q:
     mb.forward_kinematics(bodies, true);
     mb.update_rigid_bodies(bodies, true);
     let assembly: Vec<(usize, usize)> = (1..model.nbodies())
-        .filter(|&i| matches!(model.joint(i), Joint::Revolute(_) | Joint::Prismatic(_)))
+        .filter(|&i| RapierAxis::of(model.joint(i)).is_some())
         .map(|i| (mb.link(links[layout.carrier[i]]).expect("link exists").assembly_id(), model.idx_v(i)))
         .collect();
     let mut g = mb.generalized_velocity_mut();

@@ -9,7 +9,8 @@
 
 use nalgebra::{Cholesky, Matrix6, U6};
 
-use crate::model::{Data, Joint, Model};
+use crate::joint::Dofs;
+use crate::model::{Data, Model};
 use crate::spatial::{add_reduced_inertia, dot6, Force, Motion};
 
 pub(super) struct Articulated {
@@ -51,11 +52,11 @@ impl Articulated {
     pub(super) fn motions(&mut self, model: &Model, data: &Data, x: &[f64]) {
         for i in 0..model.nbodies() {
             let k = model.idx_v(i);
-            self.motion[i] = match model.joint(i) {
-                Joint::FreeFlyer => data.centred_m_i[i].act_motion(&Motion::from_column_slice(&x[k..k + 6])),
-                Joint::Fixed if i == 0 => Motion::zeros(),
-                Joint::Fixed => self.motion[model.parent(i)],
-                Joint::Revolute(_) | Joint::Prismatic(_) => self.motion[model.parent(i)] + data.s[i] * x[k],
+            self.motion[i] = match model.joint(i).dofs() {
+                Dofs::Free => data.centred_m_i[i].act_motion(&Motion::from_column_slice(&x[k..k + 6])),
+                Dofs::Zero if i == 0 => Motion::zeros(),
+                Dofs::Zero => self.motion[model.parent(i)],
+                Dofs::One(_) => self.motion[model.parent(i)] + data.s[i] * x[k],
             };
         }
     }
@@ -64,10 +65,10 @@ impl Articulated {
     pub(super) fn generalized(&mut self, model: &Model, data: &Data, out: &mut [f64]) {
         for i in (0..model.nbodies()).rev() {
             let k = model.idx_v(i);
-            match model.joint(i) {
-                Joint::FreeFlyer => out[k..k + 6].copy_from_slice(data.centred_m_i[i].inv_act_force(&self.force[i]).as_slice()),
-                Joint::Fixed => {}
-                Joint::Revolute(_) | Joint::Prismatic(_) => out[k] = dot6(&data.s[i], self.force[i].as_slice()),
+            match model.joint(i).dofs() {
+                Dofs::Free => out[k..k + 6].copy_from_slice(data.centred_m_i[i].inv_act_force(&self.force[i]).as_slice()),
+                Dofs::Zero => {}
+                Dofs::One(_) => out[k] = dot6(&data.s[i], self.force[i].as_slice()),
             }
             if i > 0 {
                 let f = self.force[i];
@@ -133,11 +134,8 @@ impl Articulated {
 
     /// A free-flyer base's block D_0 = I^A_0 = C Cᵀ; false if it is not positive definite.
     fn factor_base(&mut self, model: &Model, inertia: Matrix6<f64>) -> bool {
-        self.base = match model.joint(0) {
-            Joint::FreeFlyer => Cholesky::new(inertia),
-            _ => None,
-        };
-        !matches!(model.joint(0), Joint::FreeFlyer) || self.base.is_some()
+        self.base = if model.floating_base() { Cholesky::new(inertia) } else { None };
+        !model.floating_base() || self.base.is_some()
     }
 
     /// out = H⁻¹ rhs, after `factor` or `factor_of_aba`.
@@ -156,8 +154,8 @@ impl Articulated {
             self.force[model.parent(i)] += p;
         }
         // Forward: accelerations from the root (eq. 7.45–7.47).
-        self.motion[0] = match (&self.base, model.joint(0)) {
-            (Some(c), Joint::FreeFlyer) => {
+        self.motion[0] = match &self.base {
+            Some(c) => {
                 let pose = data.centred_m_i[0];
                 let a = c.solve(&(pose.act_force(&Force::from_column_slice(&rhs[0..6])) - self.force[0]));
                 out[0..6].copy_from_slice(pose.inv_act_motion(&a).as_slice());

@@ -14,7 +14,7 @@
 
 use nalgebra::{Matrix6, Vector3, Vector6};
 
-use crate::model::{Data, Joint, Model};
+use crate::model::{Data, Model};
 use crate::spatial::{dot6, Force};
 
 pub(super) struct Delassus {
@@ -30,12 +30,13 @@ impl Delassus {
     /// Reads Ω of every body from the factor in `data`; false if a free-flyer base's articulated inertia is
     /// not positive definite.
     pub(super) fn update(&mut self, model: &Model, data: &Data) -> bool {
-        self.omega[0] = match model.joint(0) {
-            Joint::FreeFlyer => match data.inertia[0].cholesky() {
+        self.omega[0] = if model.floating_base() {
+            match data.inertia[0].cholesky() {
                 Some(c) => c.inverse(),
                 None => return false,
-            },
-            _ => Matrix6::zeros(),
+            }
+        } else {
+            Matrix6::zeros()
         };
         for i in 1..model.nbodies() {
             let mut omega = self.omega[model.parent(i)];

@@ -7,9 +7,10 @@ use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Rotation3, UnitQuaternion, Ve
 use super::articulated::Articulated;
 use super::delassus::Delassus;
 use crate::algorithms::{aba_with_armature, crba};
-use crate::model::{Data, Joint, JointLimits, Model};
+use crate::model::{Data, JointLimits, Model};
 use crate::sim::tests::ten_link_tree;
 use crate::spatial::spatial;
+use crate::Joint;
 use crate::{MassProperties, Transform};
 
 /// A box base on a free-flyer with a chain of three and a side branch.

@@ -1,0 +1,266 @@
+//! Joint kinds, each with its coordinates, motion subspace (Featherstone Table 4.1), transform and
+//! integration: the one place that knows what a kind of joint is (as Pinocchio's `JointModel`). The
+//! algorithms ask a joint for its [`Dofs`] and never match on its kind, so a new kind of joint is added here.
+
+use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
+
+use crate::spatial::{spatial, Motion, Transform};
+use crate::validate::{direction, finite};
+use crate::{Error, Result};
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Joint {
+    /// The base of a floating-base model: 7 configuration and 6 velocity coordinates.
+    FreeFlyer,
+    /// The base of a fixed-base model, or a rigid attachment: no coordinates.
+    Fixed,
+    /// Rotation about a unit axis of the joint frame.
+    Revolute(Vector3<f64>),
+    /// Translation along a unit axis of the joint frame.
+    Prismatic(Vector3<f64>),
+    /// Rotation by q about a unit axis of the joint frame with translation `pitch` q along it (m/rad).
+    Helical { axis: Vector3<f64>, pitch: f64 },
+}
+
+/// How a joint moves, as the algorithms see it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Dofs {
+    /// The free-flyer base: velocity `[v; ω]` in its own frame.
+    Free,
+    /// No motion.
+    Zero,
+    /// One coordinate along the motion subspace S, in the joint's child frame.
+    One(Motion),
+}
+
+impl Joint {
+    pub fn nq(&self) -> usize {
+        match self.dofs() {
+            Dofs::Free => 7,
+            Dofs::Zero => 0,
+            Dofs::One(_) => 1,
+        }
+    }
+
+    pub fn nv(&self) -> usize {
+        match self.dofs() {
+            Dofs::Free => 6,
+            Dofs::Zero => 0,
+            Dofs::One(_) => 1,
+        }
+    }
+
+    /// The joint's degrees of freedom; S of a one-degree-of-freedom joint is Table 4.1's.
+    #[inline(always)]
+    pub fn dofs(&self) -> Dofs {
+        match *self {
+            Joint::FreeFlyer => Dofs::Free,
+            Joint::Fixed => Dofs::Zero,
+            Joint::Revolute(a) => Dofs::One(spatial(Vector3::zeros(), a)),
+            Joint::Prismatic(a) => Dofs::One(spatial(a, Vector3::zeros())),
+            Joint::Helical { axis, pitch } => Dofs::One(spatial(axis * pitch, axis)),
+        }
+    }
+
+    /// S of a one-degree-of-freedom joint carried from its child frame by `pose` (`pose.act_motion(S)`,
+    /// without the products by zero); zero for the other joints, whose motion the algorithms treat apart.
+    #[inline(always)]
+    pub fn subspace_in(&self, pose: &Transform) -> Motion {
+        match *self {
+            Joint::Revolute(a) => {
+                let w = pose.rotation * a;
+                spatial(pose.translation.cross(&w), w)
+            }
+            Joint::Prismatic(a) => spatial(pose.rotation * a, Vector3::zeros()),
+            Joint::Helical { axis, pitch } => {
+                let w = pose.rotation * axis;
+                spatial(pose.translation.cross(&w) + w * pitch, w)
+            }
+            Joint::FreeFlyer | Joint::Fixed => Motion::zeros(),
+        }
+    }
+
+    /// The joint's own transform for configuration `q` (its `nq` coordinates).
+    #[inline]
+    pub fn transform(&self, q: &[f64]) -> Transform {
+        self.after(Transform::identity(), q)
+    }
+
+    /// `pose` followed by the joint's transform for configuration `q` (its `nq` coordinates).
+    #[inline(always)]
+    pub fn after(&self, pose: Transform, q: &[f64]) -> Transform {
+        match *self {
+            Joint::Revolute(axis) => pose.rotated_about(&axis, q[0]),
+            Joint::Prismatic(axis) => Transform::new(pose.rotation, pose.transform_point(&(axis * q[0]))),
+            // The translation runs along the axis, which the rotation leaves in place: the two commute.
+            Joint::Helical { axis, pitch } => {
+                let turned = pose.rotated_about(&axis, q[0]);
+                Transform::new(turned.rotation, pose.transform_point(&(axis * (pitch * q[0]))))
+            }
+            Joint::Fixed => pose,
+            Joint::FreeFlyer => pose.compose(&Transform::from_quaternion(Vector3::new(q[0], q[1], q[2]), &unit_quaternion(q))),
+        }
+    }
+
+    /// `q ⊕ v dt` on the joint's own coordinates `q` (nq) and velocity `v` (nv), into `out` (nq): the
+    /// free-flyer base moves along the screw exp(v dt) in its own frame (Pinocchio's `integrate`), keeping
+    /// the quaternion unit; the other coordinates add.
+    #[inline]
+    pub fn integrate(&self, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
+        match self.dofs() {
+            Dofs::Free => {
+                let rotation = unit_quaternion(q);
+                let linear = Vector3::from_column_slice(&v[..3]) * dt;
+                let angular = Vector3::from_column_slice(&v[3..6]) * dt;
+                let translation = Vector3::from_column_slice(&q[..3]) + rotation * (left_jacobian(&angular) * linear);
+                let turned = rotation * UnitQuaternion::from_scaled_axis(angular);
+                out[..3].copy_from_slice(translation.as_slice());
+                out[3..7].copy_from_slice(&[turned.i, turned.j, turned.k, turned.w]);
+            }
+            Dofs::Zero => {}
+            Dofs::One(_) => out[0] = q[0] + v[0] * dt,
+        }
+    }
+
+    /// The configuration coordinates that are lengths (m): the base's position, a prismatic joint's.
+    pub fn length_coordinates(&self) -> std::ops::Range<usize> {
+        match self {
+            Joint::FreeFlyer => 0..3,
+            Joint::Prismatic(_) => 0..1,
+            Joint::Revolute(_) | Joint::Helical { .. } | Joint::Fixed => 0..0,
+        }
+    }
+
+    /// The kind's name, as the Python API spells it.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Joint::FreeFlyer => "free_flyer",
+            Joint::Fixed => "fixed",
+            Joint::Revolute(_) => "revolute",
+            Joint::Prismatic(_) => "prismatic",
+            Joint::Helical { .. } => "helical",
+        }
+    }
+
+    /// The joint's axis (joint frame), if it has one.
+    pub fn axis(&self) -> Option<Vector3<f64>> {
+        match *self {
+            Joint::Revolute(a) | Joint::Prismatic(a) | Joint::Helical { axis: a, .. } => Some(a),
+            Joint::FreeFlyer | Joint::Fixed => None,
+        }
+    }
+
+    /// The joint as a body's joint below the base: its axis normalised; a zero or non-finite axis, a
+    /// non-finite pitch or a free flyer are errors.
+    pub(crate) fn checked_below_base(self) -> Result<Joint> {
+        Ok(match self {
+            Joint::Revolute(axis) => Joint::Revolute(direction("axis", axis)?),
+            Joint::Prismatic(axis) => Joint::Prismatic(direction("axis", axis)?),
+            Joint::Helical { axis, pitch } => Joint::Helical { axis: direction("axis", axis)?, pitch: finite("pitch", pitch)? },
+            Joint::Fixed => Joint::Fixed,
+            Joint::FreeFlyer => return Err(Error::invalid("joint", "a free-flyer joint can only be the base")),
+        })
+    }
+}
+
+/// The free flyer's orientation from its coordinates `[x, y, z, qx, qy, qz, qw]`.
+#[inline(always)]
+fn unit_quaternion(q: &[f64]) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5]))
+}
+
+/// The SO(3) left Jacobian V(ω) = 1 + (1 − cos θ)/θ² ω̂ + (θ − sin θ)/θ³ ω̂², so exp of the twist (ν, ω)
+/// translates by V ν.
+fn left_jacobian(w: &Vector3<f64>) -> Matrix3<f64> {
+    let theta2 = w.norm_squared();
+    let (a, b) = if theta2 < 1e-8 {
+        (0.5 - theta2 / 24.0, 1.0 / 6.0 - theta2 / 120.0)
+    } else {
+        let theta = theta2.sqrt();
+        ((1.0 - theta.cos()) / theta2, (theta - theta.sin()) / (theta2 * theta))
+    };
+    let k = w.cross_matrix();
+    Matrix3::identity() + k * a + k * k * b
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn kinds() -> [Joint; 5] {
+        let axis = Vector3::new(0.3, -0.4, 0.5).normalize();
+        [Joint::FreeFlyer, Joint::Fixed, Joint::Revolute(axis), Joint::Prismatic(axis), Joint::Helical { axis, pitch: 0.07 }]
+    }
+
+    fn sample_q(joint: &Joint) -> Vec<f64> {
+        match joint.nq() {
+            7 => {
+                let r = UnitQuaternion::from_euler_angles(0.3, -0.2, 0.9);
+                vec![0.1, -0.4, 0.25, r.i, r.j, r.k, r.w]
+            }
+            n => vec![0.8; n],
+        }
+    }
+
+    /// S = d/dε X_J(q + ε) X_J(q)⁻¹, by central differences, in the child frame (Table 4.1's definition).
+    #[test]
+    fn subspace_is_the_derivative_of_the_transform() {
+        for joint in kinds() {
+            let Dofs::One(s) = joint.dofs() else { continue };
+            let (q, eps) = (sample_q(&joint), 1e-6);
+            let x = joint.transform(&q);
+            let (plus, minus) = (joint.transform(&[q[0] + eps]), joint.transform(&[q[0] - eps]));
+            // In the child frame: Xᵀ dX.
+            let rotation_rate = x.rotation.transpose() * (plus.rotation - minus.rotation) / (2.0 * eps);
+            let velocity = x.rotation.transpose() * (plus.translation - minus.translation) / (2.0 * eps);
+            let w = Vector3::new(rotation_rate[(2, 1)], rotation_rate[(0, 2)], rotation_rate[(1, 0)]);
+            // The child origin's velocity, expressed at that origin (which moves with it).
+            let expected = spatial(velocity, w);
+            assert!((s - expected).amax() < 1e-8, "{joint:?}: {s:?} vs {expected:?}");
+        }
+    }
+
+    #[test]
+    fn after_composes_and_subspace_in_carries() {
+        let pose = Transform::new(Transform::rotation_about(&Vector3::new(1.0, 2.0, 0.5).normalize(), 0.6), Vector3::new(0.2, -0.3, 0.4));
+        for joint in kinds() {
+            let q = sample_q(&joint);
+            let (got, expected) = (joint.after(pose, &q), pose.compose(&joint.transform(&q)));
+            assert!((got.rotation - expected.rotation).amax() < 1e-15 && (got.translation - expected.translation).amax() < 1e-15, "{joint:?}");
+            let carried = match joint.dofs() {
+                Dofs::One(s) => pose.act_motion(&s),
+                Dofs::Free | Dofs::Zero => Motion::zeros(),
+            };
+            assert!((joint.subspace_in(&pose) - carried).amax() < 1e-15, "{joint:?}");
+        }
+    }
+
+    #[test]
+    fn integration_moves_along_the_subspace() {
+        for joint in kinds() {
+            let q = sample_q(&joint);
+            let v = vec![0.3; joint.nv()];
+            let mut out = vec![0.0; joint.nq()];
+            joint.integrate(&q, &v, 1e-3, &mut out);
+            if let Dofs::One(_) = joint.dofs() {
+                assert_eq!(out[0], q[0] + 0.3e-3);
+            }
+            if joint == Joint::FreeFlyer {
+                // The twist integrated over dt, in the base frame: translation R V(ω dt) ν dt.
+                let turned = unit_quaternion(&out);
+                assert!((turned.norm() - 1.0).abs() < 1e-15);
+                let expected = unit_quaternion(&q) * UnitQuaternion::from_scaled_axis(Vector3::repeat(0.3e-3));
+                assert!(turned.angle_to(&expected) < 1e-15);
+            }
+        }
+    }
+
+    #[test]
+    fn below_the_base_axes_are_normalised_and_bad_joints_refused() {
+        let helical = Joint::Helical { axis: Vector3::new(0.0, 0.0, 2.0), pitch: 0.1 }.checked_below_base().unwrap();
+        assert_eq!(helical, Joint::Helical { axis: Vector3::z(), pitch: 0.1 });
+        assert_eq!(Joint::FreeFlyer.checked_below_base().unwrap_err().argument(), "joint");
+        assert_eq!(Joint::Revolute(Vector3::zeros()).checked_below_base().unwrap_err().argument(), "axis");
+        assert_eq!(Joint::Helical { axis: Vector3::x(), pitch: f64::NAN }.checked_below_base().unwrap_err().argument(), "pitch");
+    }
+}
