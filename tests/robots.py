@@ -13,6 +13,7 @@ and once as a `pinocchio.Model`. The mapping is:
   the twin records the permutation (`perm_q`, `perm_v`, and the converters q_pin / v_pin / v_lk / m_lk /
   cols_lk). When the legkit bodies are themselves numbered depth-first (`depth_first=True`) the
   permutation is the identity and the q/v vectors are literally identical.
+* half the trees carry a random armature on their joints, set on both models (pin's in its v order).
 * every fixed body -> no pin joint: its inertia is appended (`appendBodyToJoint`) to the pin joint of its
   nearest movable ancestor, with the composed placement, and `body_joint[i]`, `body_in_joint[i]` record
   which pin joint carries legkit body i and where the body frame sits in that joint frame.
@@ -382,6 +383,11 @@ def build_twin(
         perm_v.append(lk_iv[i])
         perm_q.append(lk_iv[i] + offset_q)
 
+    # Half the trees carry armature on their joints (Pinocchio's model.armature, in its own v order).
+    if rng.random() < 0.5:
+        armature = np.where(np.arange(nv) < (6 if floating else 0), 0.0, rng.uniform(0.0, 0.3, nv))
+        model.armature = armature
+        pin_model.armature = armature[np.array(perm_v, dtype=int)]
     twin = Twin(
         model, pin_model, floating, parents, kinds, axes, placements, bodies, body_joint, body_in_joint, g, as_tuple,
         np.array(perm_q, dtype=int), np.array(perm_v, dtype=int), depth_first, lk_iv, pitches,

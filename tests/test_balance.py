@@ -16,12 +16,12 @@ from legkit.robots import superbot as sb
 
 
 def test_free_plant_without_servo_terms_is_the_cores_semi_implicit_euler():
-    tree = sb.random_tree(6, 2, 0)
+    tree = sb.random_tree(6, 2, 0, sb.ModuleParameters(servo_armature=0.0, servo_damping=0.0))
     model, _ = tree.to_model()
     rng = np.random.default_rng(0)
     q0, v0 = rng.uniform(-1, 1, model.nq), rng.uniform(-1, 1, model.nv)
     tau = rng.uniform(-0.2, 0.2, model.nv)
-    plant = balance.FreePlant(model, q0, v0, dt=1e-3, armature=0.0, damping=0.0)
+    plant = balance.FreePlant(model, q0, v0, dt=1e-3)
     for _ in range(20):
         plant.step(tau)
     qs, vs = lk.free_rollout(model, q0, v0, 1e-3, 20, tau, method="semi_implicit_euler")
@@ -29,16 +29,15 @@ def test_free_plant_without_servo_terms_is_the_cores_semi_implicit_euler():
 
 
 def test_free_plant_servo_terms():
-    # One module standing upright, not moving: with armature a and damping b, a joint's acceleration under
-    # a torque tau from rest at a configuration in equilibrium is (M + a I)^-1 tau.
-    model, _ = sb.ModuleTree(1, []).to_model()
-    plant = balance.FreePlant(model, dt=1e-3, armature=0.02, damping=0.3)
-    tau = np.array([0.0, 0.01, 0.0])
-    expected = np.linalg.solve(lk.crba(model, np.zeros(3)) + 0.02 * np.eye(3), tau - lk.rnea(model, np.zeros(3), np.zeros(3), np.zeros(3)))
-    assert np.allclose(plant.acceleration(np.zeros(3), np.zeros(3), tau), expected, atol=1e-15)
-    # Damping opposes velocity.
-    moving = plant.acceleration(np.zeros(3), np.array([0.0, 1.0, 0.0]), np.zeros(3))
-    assert moving[1] < 0
+    # One module standing upright: with its servos' armature a and damping b, a joint's acceleration is
+    # (M + a I)^-1 (tau - b v - bias), M and bias those of the rigid bodies.
+    rigid, _ = sb.ModuleTree(1, [], sb.ModuleParameters(servo_armature=0.0, servo_damping=0.0)).to_model()
+    model, _ = sb.ModuleTree(1, [], sb.ModuleParameters(servo_armature=0.02, servo_damping=0.3)).to_model()
+    assert np.array_equal(model.armature, np.full(3, 0.02)) and np.array_equal(model.damping, np.full(3, 0.3))
+    plant = balance.FreePlant(model, dt=1e-3)
+    q, v, tau = np.array([0.1, -0.2, 0.3]), np.array([0.0, 1.0, -0.5]), np.array([0.0, 0.01, 0.0])
+    expected = np.linalg.solve(lk.crba(rigid, q) + 0.02 * np.eye(3), tau - 0.3 * v - lk.rnea(rigid, q, v, np.zeros(3)))
+    np.testing.assert_allclose(plant.acceleration(q, v, tau), expected, rtol=1e-12, atol=1e-15)
 
 
 def test_free_plant_rejects_bad_input_and_keeps_its_state():
@@ -52,8 +51,8 @@ def test_free_plant_rejects_bad_input_and_keeps_its_state():
     assert np.array_equal(plant.q, q) and np.array_equal(plant.v, v)
     with pytest.raises(ValueError, match="dt"):
         balance.FreePlant(model, dt=0.0)
-    with pytest.raises(ValueError, match="armature"):
-        balance.FreePlant(model, armature=-1.0)
+    with pytest.raises(ValueError, match="servo_armature"):
+        sb.ModuleParameters(servo_armature=-1.0)
     with pytest.raises(ValueError, match="plant"):
         balance.make_plant("mujoco", model, np.zeros(model.nq), 1e-3)
 

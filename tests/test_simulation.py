@@ -125,24 +125,42 @@ def test_first_step_from_rest_uses_the_aba_acceleration(links, seed):
     np.testing.assert_allclose(sim.v / 1e-4, expected, rtol=1e-6, atol=1e-6 * np.abs(expected).max())
 
 
-def test_joint_armature_adds_to_the_mass_matrix_diagonal():
-    # From rest the first step's velocity is dt * (M + a 1_joints)^-1 (tau - g), the fixed-base ABA with a
-    # rotor inertia a on every joint; the simulation step must agree, and must differ from a = 0.
+@pytest.mark.parametrize("backend", ["tree", "rapier"])
+def test_model_armature_adds_to_the_mass_matrix_diagonal_joint_by_joint(backend):
+    # From rest the first step's velocity is dt * (M + diag(a))^-1 (tau - g); the armature a is the model's,
+    # one value per joint, so every dynamics function and both backends must agree with it.
     model = lk.Model()
     parent = 0
     for i in range(3):
         body = lk.MassProperties.solid_box(0.3, [0.2, 0.04, 0.04], center=[0.1, 0.0, 0.0])
         parent = model.add_revolute(parent, [0.0, 1.0, 0.0] if i % 2 == 0 else [0.0, 0.0, 1.0], (np.eye(3), [0.2 * (i > 0), 0.0, 0.0]), body)
-    q, tau, armature = np.array([0.4, -0.3, 0.7]), np.array([0.2, -0.1, 0.05]), 0.01
-    sim = lk.Simulation(model, dt=1e-4, joint_armature=armature)
+    q, tau, armature = np.array([0.4, -0.3, 0.7]), np.array([0.2, -0.1, 0.05]), np.array([0.01, 0.0, 0.03])
+    rigid = lk.crba(model, q)
+    bias = lk.rnea(model, q, np.zeros(3), np.zeros(3))
+    model.armature = armature
+    expected = np.linalg.solve(rigid + np.diag(armature), tau - bias)
+    np.testing.assert_allclose(lk.crba(model, q), rigid + np.diag(armature), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(lk.aba(model, q, np.zeros(3), tau), expected, rtol=1e-12)
+    np.testing.assert_allclose(lk.rnea(model, q, np.zeros(3), expected), tau, rtol=1e-12)
+    np.testing.assert_allclose(lk.minv(model, q), np.linalg.inv(rigid + np.diag(armature)), rtol=1e-10)
+    assert np.abs(expected - np.linalg.solve(rigid, tau - bias)).max() > 1e-3
+    sim = lk.Simulation(model, dt=1e-4, backend=backend)
     sim.q = q
     sim.step(tau)
-    bias = lk.rnea(model, q, np.zeros(3), np.zeros(3))
-    expected = np.linalg.solve(lk.crba(model, q) + armature * np.eye(3), tau - bias)
     np.testing.assert_allclose(sim.v / 1e-4, expected, rtol=1e-6, atol=1e-9)
-    assert np.abs(expected - lk.aba(model, q, np.zeros(3), tau)).max() > 1e-3
-    with pytest.raises(ValueError, match="joint_armature"):
-        lk.Simulation(model, joint_armature=-1.0)
+
+
+def test_armature_and_damping_are_set_whole_and_checked():
+    model, _ = quadruped()  # floating: the base's six coordinates have neither
+    model.armature = 0.02
+    assert np.array_equal(model.armature, np.r_[np.zeros(6), np.full(model.nv - 6, 0.02)])
+    with pytest.raises(ValueError, match="read-only"):
+        model.damping[7] = 1.0
+    for bad in (-1.0, np.nan, np.ones(model.nv), np.zeros(model.nv + 1)):
+        for name in ("armature", "damping"):
+            with pytest.raises(ValueError, match=name):
+                setattr(model, name, bad)
+    assert np.array_equal(model.armature, np.r_[np.zeros(6), np.full(model.nv - 6, 0.02)]) and not model.damping.any()
 
 
 def test_identical_inputs_give_bit_identical_trajectories():
@@ -332,8 +350,6 @@ def test_bad_construction_arguments_name_the_argument():
         lk.Simulation(model, shapes={1: ("cone", 0.1)})
     with pytest.raises(ValueError, match="shapes"):
         lk.Simulation(model, shapes={"nope": ("sphere", 0.1)})
-    with pytest.raises(ValueError, match="joint_damping"):
-        lk.Simulation(model, joint_damping=-1.0)
     with pytest.raises(ValueError, match="substeps"):
         lk.Simulation(model, substeps=0)
     with pytest.raises(ValueError, match="kp"):
@@ -348,7 +364,8 @@ def test_joint_damping_dissipates_and_is_absent_by_default():
     model.add_revolute(0, [0, 1, 0], None, rod(1.0, 0.5))
     energies = []
     for damping in (0.0, 0.05):
-        sim = lk.Simulation(model, joint_damping=damping, substeps=4)
+        model.damping = damping
+        sim = lk.Simulation(model, substeps=4)
         sim.q = [1.0]
         e0 = lk.kinetic_energy(model, sim.q, sim.v) + lk.potential_energy(model, sim.q)
         sim.step(n=3000)

@@ -95,6 +95,18 @@ class Model:
     @property
     def gravity(self) -> np.ndarray: ...
     @property
+    def armature(self) -> np.ndarray:
+        """(nv,) read-only: reflected rotor inertia per velocity coordinate (Pinocchio's model.armature); RNEA, CRBA, kinetic energy,
+        ABA, Minv and Simulation use M + diag(armature). Set whole: an (nv,) array, or one number for every joint."""
+    @armature.setter
+    def armature(self, value: npt.ArrayLike) -> None: ...
+    @property
+    def damping(self) -> np.ndarray:
+        """(nv,) read-only: viscous damping per velocity coordinate; Simulation applies -damping v, the dynamics
+        functions ignore it (as Pinocchio's). Set as armature."""
+    @damping.setter
+    def damping(self, value: npt.ArrayLike) -> None: ...
+    @property
     def total_mass(self) -> float: ...
     @property
     def idx_q(self) -> list[int]: ...
@@ -207,7 +219,7 @@ class Simulation:
     (backend="rapier", the reference)."""
     def __init__(
         self, model: Model, dt: float = 1e-3, ground: Ground | None = None, shapes: dict[int | str, _ShapeSpec] | None = None,
-        self_collision: bool = False, joint_damping: float = 0.0, joint_armature: float = 0.0, substeps: int = 1,
+        self_collision: bool = False, substeps: int = 1,
         backend: Literal["tree", "rapier"] = "tree", solver_iterations: int = 20,
     ) -> None: ...
     @property

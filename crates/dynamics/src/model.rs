@@ -110,6 +110,9 @@ pub struct Model {
     nv: usize,
     /// Gravity in the world frame.
     pub gravity: Vector3<f64>,
+    /// Per velocity coordinate: reflected rotor inertia and viscous damping (see `armature`, `damping`).
+    armature: Vec<f64>,
+    damping: Vec<f64>,
     /// The collision geometry the model was described with (URDF `<collision>`s), several shapes per
     /// body allowed; None when it has none (a simulation then gives every body a default box).
     collision: Option<Vec<(usize, Shape)>>,
@@ -133,6 +136,8 @@ impl Model {
             nq: joint.nq(),
             nv: joint.nv(),
             gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
+            armature: vec![0.0; joint.nv()],
+            damping: vec![0.0; joint.nv()],
             collision: None,
         }
     }
@@ -189,6 +194,8 @@ impl Model {
         self.idx_v.push(self.nv);
         self.nq += joint.nq();
         self.nv += joint.nv();
+        self.armature.resize(self.nv, 0.0);
+        self.damping.resize(self.nv, 0.0);
         let columns = self.nv - joint.nv()..self.nv;
         self.subtree_columns.push(if columns.is_empty() { Vec::new() } else { vec![columns.clone()] });
         let mut ancestor = parent;
@@ -262,6 +269,43 @@ impl Model {
         model.bodies[i] = body;
         model.inertias[i] = RigidInertia::from_body(&body);
         model
+    }
+
+    /// Each velocity coordinate's armature (kg m² or kg): a geared motor's rotor inertia reflected through
+    /// its gearbox, Pinocchio's `Model::armature`. RNEA, CRBA, ABA, Minv and the kinetic energy work with
+    /// M + diag(armature); the centroidal quantities, which are the rigid bodies', do not. Zero by default.
+    pub fn armature(&self) -> &[f64] {
+        &self.armature
+    }
+
+    /// Each velocity coordinate's viscous damping (N m s/rad or N s/m): the simulation applies the passive
+    /// force −damping v (implicitly); the dynamics algorithms ignore it, as Pinocchio's do. Zero by default.
+    pub fn damping(&self) -> &[f64] {
+        &self.damping
+    }
+
+    /// Sets every velocity coordinate's armature (length nv, each finite and >= 0; zero on a free-flyer
+    /// base, whose six coordinates have none).
+    pub fn set_armature(&mut self, armature: &[f64]) -> Result<()> {
+        self.armature = self.joint_coefficients("armature", armature)?;
+        Ok(())
+    }
+
+    /// Sets every velocity coordinate's damping (as `set_armature`).
+    pub fn set_damping(&mut self, damping: &[f64]) -> Result<()> {
+        self.damping = self.joint_coefficients("damping", damping)?;
+        Ok(())
+    }
+
+    fn joint_coefficients(&self, argument: &'static str, values: &[f64]) -> Result<Vec<f64>> {
+        check_vector(argument, values, self.nv)?;
+        if let Some(k) = values.iter().position(|x| *x < 0.0) {
+            return Err(Error::invalid(argument, format!("element {k} is negative ({})", values[k])));
+        }
+        if self.floating_base() && values[..6].iter().any(|x| *x != 0.0) {
+            return Err(Error::invalid(argument, "the free-flyer base's six coordinates have none: they must be 0"));
+        }
+        Ok(values.to_vec())
     }
 
     pub fn total_mass(&self) -> f64 {
@@ -459,5 +503,29 @@ mod tests {
         let fixed = one_joint_model(Joint::Fixed, JointLimits::position(-1.0, 1.0).unwrap()).unwrap_err();
         assert_eq!(fixed.argument(), "limits");
         assert!(one_joint_model(Joint::Fixed, JointLimits::NONE).is_ok());
+    }
+
+    #[test]
+    fn armature_and_damping_are_per_coordinate_non_negative_and_none_on_the_base() {
+        let mut model = Model::new(true, MassProperties::zero(), "base");
+        model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), MassProperties::zero(), "a", JointLimits::NONE).unwrap();
+        assert_eq!(model.armature(), &[0.0; 7]);
+        let mut values = [0.0; 7];
+        values[6] = 0.25;
+        model.set_armature(&values).unwrap();
+        model.set_damping(&values).unwrap();
+        assert_eq!((model.armature()[6], model.damping()[6]), (0.25, 0.25));
+        model.add_body(1, Joint::Prismatic(Vector3::x()), Transform::identity(), MassProperties::zero(), "b", JointLimits::NONE).unwrap();
+        assert_eq!(model.armature().len(), 8);
+        assert_eq!(model.armature()[7], 0.0);
+        for bad in [vec![0.0; 7], vec![-1.0; 8], vec![f64::NAN; 8], {
+            let mut v = vec![0.0; 8];
+            v[0] = 1.0;
+            v
+        }] {
+            assert_eq!(model.set_armature(&bad).unwrap_err().argument(), "armature");
+            assert_eq!(model.set_damping(&bad).unwrap_err().argument(), "damping");
+        }
+        assert_eq!(model.armature()[6], 0.25, "a refused value leaves the model as it was");
     }
 }

@@ -1,5 +1,5 @@
-//! Self-consistency of the dynamics algorithms on random trees: RNEA inverts ABA, CRBA agrees with RNEA
-//! column by column, Minv inverts CRBA. (Differential tests against Pinocchio are in the Python suite.)
+//! Self-consistency of the dynamics algorithms on random trees (every joint kind, with and without
+//! armature): RNEA inverts ABA, CRBA agrees with RNEA column by column, Minv inverts CRBA. (Differential tests against Pinocchio are in the Python suite.)
 
 use legkit_dynamics::algorithms::{aba, crba, forward_kinematics, minv, rnea};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
@@ -30,11 +30,17 @@ fn random_tree(rng: &mut StdRng, n: usize, floating: bool) -> Model {
         let joint = match rng.random_range(0..10) {
             0 => Joint::Fixed,
             1 | 2 => Joint::Prismatic(unit(rng)),
+            3 => Joint::Helical { axis: unit(rng), pitch: rng.random_range(-0.2..0.2) },
             _ => Joint::Revolute(unit(rng)),
         };
         let rotation = Rotation3::from_axis_angle(&Unit::new_normalize(unit(rng)), rng.random_range(-3.0..3.0)).into_inner();
         let placement = Transform::new(rotation, unit(rng) * rng.random_range(0.0..0.5));
         model.add_body(parent, joint, placement, random_body(rng), &format!("body{i}"), JointLimits::NONE).unwrap();
+    }
+    if rng.random_bool(0.5) {
+        let base = if floating { 6 } else { 0 };
+        let armature: Vec<f64> = (0..model.nv()).map(|k| if k < base { 0.0 } else { rng.random_range(0.0..0.5) }).collect();
+        model.set_armature(&armature).unwrap();
     }
     model
 }

@@ -11,7 +11,7 @@ use pyo3::exceptions::{PyFileNotFoundError, PyIndexError, PyTypeError, PyUserWar
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
 
-use crate::convert::{homogeneous_matrix, kernel_error, matrix3, to_numpy, vector3, vector_to_numpy, Matrix, Vector};
+use crate::convert::{homogeneous_matrix, kernel_error, matrix3, to_numpy, vector3, vector_to_numpy, Floats, Matrix, Vector};
 use crate::mass::PyMassProperties;
 
 pyo3::create_exception!(
@@ -64,6 +64,21 @@ impl PyModel {
         let index = self.model.add_body(parent, joint, placement, body, &name, limits).map_err(kernel_error)?;
         *self.workspace.get_mut().unwrap_or_else(|e| e.into_inner()) = None;
         Ok(index)
+    }
+
+    /// One value per velocity coordinate from an array (nv,), or from one number for every joint's (zero on
+    /// a free-flyer base).
+    fn per_coordinate(&self, argument: &str, value: &Floats<'_>) -> PyResult<Vec<f64>> {
+        let values = value.get(argument)?;
+        let nv = self.model.nv();
+        match values.shape() {
+            [] => {
+                let (base, value) = (if self.model.floating_base() { 6 } else { 0 }, *values.first().expect("a 0-d array holds one number"));
+                Ok((0..nv).map(|k| if k < base { 0.0 } else { value }).collect())
+            }
+            [n] if *n == nv => Ok(values.iter().copied().collect()),
+            shape => Err(PyValueError::new_err(format!("{argument}: expected one number or shape ({nv},), got {shape:?}"))),
+        }
     }
 
     /// A body given by index or by name.
@@ -124,6 +139,13 @@ fn joint_limits(value: Option<&Bound<'_, PyAny>>) -> PyResult<JointLimits> {
         JointLimits { lower, upper, ..JointLimits::NONE }
     };
     JointLimits::new(limits.lower, limits.upper, limits.effort, limits.velocity).map_err(kernel_error)
+}
+
+/// A read-only NumPy copy of `values`, so that writing into it fails instead of changing nothing.
+fn read_only<'py>(py: Python<'py>, values: &[f64]) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let array = PyArray1::from_slice(py, values);
+    array.call_method1("setflags", (false,))?;
+    Ok(array)
 }
 
 pub fn homogeneous(x: &Transform) -> [f64; 16] {
@@ -273,6 +295,30 @@ impl PyModel {
     #[getter]
     fn gravity<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         vector_to_numpy(py, &self.model.gravity)
+    }
+    /// Each velocity coordinate's armature (kg m² or kg), as Pinocchio's `model.armature`: a geared motor's
+    /// rotor inertia reflected through its gearbox. RNEA, CRBA, ABA, Minv, the kinetic energy and `Simulation` use
+    /// M + diag(armature). Read-only; set it whole: an array (nv,), or one number for every joint (a
+    /// free-flyer base's six coordinates have none and stay 0). Zero by default.
+    #[getter]
+    fn armature<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        read_only(py, self.model.armature())
+    }
+    #[setter]
+    fn set_armature(&mut self, value: Floats<'_>) -> PyResult<()> {
+        let values = self.per_coordinate("armature", &value)?;
+        self.model.set_armature(&values).map_err(kernel_error)
+    }
+    /// Each velocity coordinate's viscous damping (N m s/rad or N s/m): `Simulation` applies −damping v
+    /// (implicitly); the dynamics functions ignore it, as Pinocchio's. Set as `armature`. Zero by default.
+    #[getter]
+    fn damping<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        read_only(py, self.model.damping())
+    }
+    #[setter]
+    fn set_damping(&mut self, value: Floats<'_>) -> PyResult<()> {
+        let values = self.per_coordinate("damping", &value)?;
+        self.model.set_damping(&values).map_err(kernel_error)
     }
     #[getter]
     fn total_mass(&self) -> f64 {

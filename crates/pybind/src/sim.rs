@@ -89,15 +89,15 @@ impl PyGround {
 
 /// A contact simulation of a `Model`.
 ///
-/// `Simulation(model, dt=1e-3, ground=None, shapes=None, self_collision=False, joint_damping=0.0,
-/// joint_armature=0.0, substeps=1, backend="tree", solver_iterations=20)`: `ground` a `Ground` or None;
+/// `Simulation(model, dt=1e-3, ground=None, shapes=None, self_collision=False, substeps=1, backend="tree",
+/// solver_iterations=20)`: `ground` a `Ground` or None;
 /// `shapes` maps bodies (index or name) to ("box", (sx, sy, sz)) full edge lengths, ("sphere", r),
 /// ("capsule", half_height, r), ("cylinder", half_height, r) along z or ("convex", points (n, 3)) (their
 /// convex hull), each optionally followed by a 4x4 placement in the body frame (default: at the body's
 /// COM, body axes), or to None for no collider; unlisted bodies get the model's URDF collision shapes,
 /// else the uniform box with their mass and principal moments (massless bodies none).
-/// `joint_damping` (N m s/rad) acts on every joint, and `joint_armature` (kg m², a geared motor's
-/// reflected rotor inertia) adds to each joint. `backend` is "tree" (legkit's reduced-coordinate engine:
+/// The model's `damping` (N m s/rad) acts on each joint, and its `armature` (kg m², a geared motor's
+/// reflected rotor inertia) adds to each joint's inertia. `backend` is "tree" (legkit's reduced-coordinate engine:
 /// O(n) dynamics, parry contacts, a warm-started Newton contact solver with at most `solver_iterations`
 /// iterations, servos and damping integrated implicitly) or "rapier" (Rapier's multibody,
 /// the reference). Both integrate semi-implicitly to first order in dt / `substeps`.
@@ -214,7 +214,7 @@ fn vector_argument(argument: &'static str, value: &Floats<'_>, n: usize) -> PyRe
 #[pymethods]
 impl PySimulation {
     #[new]
-    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, joint_damping = 0.0, joint_armature = 0.0, substeps = 1, backend = "tree", solver_iterations = DEFAULT_SOLVER_ITERATIONS as i64))]
+    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, substeps = 1, backend = "tree", solver_iterations = DEFAULT_SOLVER_ITERATIONS as i64))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         model: PyRef<'_, PyModel>,
@@ -222,8 +222,6 @@ impl PySimulation {
         ground: Option<PyRef<'_, PyGround>>,
         shapes: Option<Bound<'_, PyDict>>,
         self_collision: bool,
-        joint_damping: f64,
-        joint_armature: f64,
         substeps: i64,
         backend: &str,
         solver_iterations: i64,
@@ -231,8 +229,6 @@ impl PySimulation {
         let mut options = Options::new(dt);
         options.ground = ground.map(|g| g.ground.clone());
         options.self_collision = self_collision;
-        options.joint_damping = joint_damping;
-        options.joint_armature = joint_armature;
         options.substeps = at_least_one("substeps", substeps)?;
         options.solver_iterations = at_least_one("solver_iterations", solver_iterations)?;
         options.backend = Backend::parse(backend).map_err(kernel_error)?;

@@ -14,7 +14,7 @@ which cannot both hold with a root; legkit reads the branches literally and adds
 Each run has its own plant; the agents of all runs share one vectorised network (the runs are separate
 trees of it), which batches their rounds over every run at once. The plant is a parameter:
 anything with ``step(tau)``, ``q`` and ``v``. The default, ``--plant tree``, is ``lk.Simulation`` (legkit's
-tree engine) on a ground plane, with the joints driven through geared servos (rotor inertia and damping on
+tree engine) on a ground plane, with the joints driven through geared servos (the model's armature and damping on
 every joint), all runs stepped together by ``lk.SimulationBatch`` on every core; ``--plant rapier`` is the
 same on Rapier's multibody (the reference backend); ``--plant free`` integrates the same fixed-base model
 and servos with the core's dynamics and no contacts (the seed's root is fixed, and nothing else is meant to
@@ -64,36 +64,20 @@ class Plant(Protocol):
 
 
 class FreePlant:
-    """A fixed-base legkit model without contacts, driven through geared servos, stepped by semi-implicit Euler.
+    """A fixed-base legkit model without contacts, driven through its joints' servos, stepped by semi-implicit
+    Euler: ``a = lk.aba(model, q, v, tau - damping v)`` (ABA with the model's armature, ``Model.armature``,
+    and its damping, ``Model.damping``: for SuperBot trees the geared servos of ``legkit.robots.superbot``);
+    then ``v += dt a`` and ``q += dt v``."""
 
-    Each joint's servo adds its reflected rotor inertia (``armature``, kg m^2) and viscous back-EMF damping
-    (``damping``, N m s / rad): ``(M(q) + armature I) a = tau - damping v - b(q, v)`` with M from ``lk.crba``
-    and the bias b (Coriolis, centrifugal, gravity) from ``lk.rnea``; then ``v += dt a`` and ``q += dt v``.
-    The mass matrix is block diagonal over the subtrees hanging off the fixed base (independent robots side
-    by side), so it is solved block by block.
-
-    Defaults: armature 0.01 kg m^2 and damping 0.1 N m s / rad, the order of magnitude of a small geared
-    servo (rotor ~2e-7 kg m^2 behind a ~1:250 gearbox; ~1 N m stall torque over ~6 rad/s no-load speed),
-    approximate figures, not SuperBot's datasheet. Without them the seed's 5 g middle links under
-    K_P = 10 N m/rad would ring at ~1.4e3 rad/s, beyond what a 1 kHz torque loop can control."""
-
-    DEFAULT_ARMATURE = 0.01
-    DEFAULT_DAMPING = 0.1
-
-    def __init__(
-        self, model: lk.Model, q0: np.ndarray | None = None, v0: np.ndarray | None = None, dt: float = 1e-3,
-        armature: float = DEFAULT_ARMATURE, damping: float = DEFAULT_DAMPING,
-    ):
+    def __init__(self, model: lk.Model, q0: np.ndarray | None = None, v0: np.ndarray | None = None, dt: float = 1e-3):
         if model.floating_base:
             raise ValueError("model: FreePlant integrates fixed-base models only")
         self.model = model
         self.dt = positive_scalar(dt, "dt")
-        self.armature = positive_scalar(armature, "armature", allow_zero=True)
-        self.damping = positive_scalar(damping, "damping", allow_zero=True)
+        self._damping = model.damping
         # Copies: the plant owns its state.
         self._q = float_array(model.neutral() if q0 is None else q0, "q0", shape=(model.nq,)).copy()
         self._v = float_array(np.zeros(model.nv) if v0 is None else v0, "v0", shape=(model.nv,)).copy()
-        self._blocks = _independent_blocks(model)
 
     @property
     def q(self) -> np.ndarray:
@@ -107,37 +91,17 @@ class FreePlant:
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Joint accelerations (nv,) rad/s^2 of the servo-driven model."""
-        mass = lk.crba(self.model, q)
-        force = tau - self.damping * v - lk.rnea(self.model, q, v, np.zeros(self.model.nv))
-        acceleration = np.zeros(self.model.nv)
-        for block in self._blocks:
-            matrix = mass[np.ix_(block, block)] + self.armature * np.eye(block.size)
-            acceleration[block] = np.linalg.solve(matrix, force[block])
-        return acceleration
+        return lk.aba(self.model, q, v, tau - self._damping * v)
 
     def step(self, tau: np.ndarray) -> None:
-        """Advance one step of ``dt`` under joint torques ``tau`` (nv,) N m; raises ValueError on bad input or if the
-        state would stop being finite (the state is then left unchanged)."""
+        """Advance one step of ``dt`` under joint torques ``tau`` (nv,) N m; raises ValueError on bad input, and
+        RuntimeError if the state would stop being finite (the state is then left unchanged)."""
         tau = float_array(tau, "tau", shape=(self.model.nv,))
         v = self._v + self.dt * self.acceleration(self._q, self._v, tau)
         q = self._q + self.dt * v
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-            raise ValueError("tau: the step diverged (non-finite state); the plant state is unchanged")
+            raise RuntimeError("step: the state would stop being finite; the plant state is unchanged")
         self._q, self._v = q, v
-
-
-def _independent_blocks(model: lk.Model) -> list[np.ndarray]:
-    """Velocity indices of each subtree hanging off the fixed base: the mass matrix's diagonal blocks."""
-    parents = model.parents
-    top = np.arange(model.nbodies)
-    for body in range(1, model.nbodies):  # parents come first, so a parent's top is already final
-        top[body] = body if parents[body] == 0 else top[parents[body]]
-    idx_v = model.idx_v
-    blocks: dict[int, list[int]] = {}
-    for body in range(1, model.nbodies):
-        if model.joint_type(body) != "fixed":
-            blocks.setdefault(int(top[body]), []).append(idx_v[body])
-    return [np.array(b) for b in blocks.values()]
 
 
 PLANTS = ("tree", "rapier", "free")
@@ -155,11 +119,10 @@ def make_plant(
     if kind == "free":
         return FreePlant(model, q0=q0, dt=dt)
     if kind in ("tree", "rapier"):
-        # The same servo model as the free plant: rotor inertia and damping on every joint.
+        # The servos (armature and damping) are the model's, as for the free plant.
         simulation = lk.Simulation(
             model, dt=dt, ground=lk.Ground.plane(friction=friction) if ground is None else ground,
             backend="tree" if kind == "tree" else "rapier",
-            joint_damping=FreePlant.DEFAULT_DAMPING, joint_armature=FreePlant.DEFAULT_ARMATURE,
         )
         simulation.reset(q0, None)
         return simulation

@@ -32,6 +32,13 @@ Default figures (approximate; the published SuperBot module is about 84 mm x 84 
 0.5 kg): ``MODULE_WIDTH = 0.084`` m and ``REAL_MODULE_MASS = 0.5`` kg. The seed experiment (Moll et al.,
 IROS 2006) simulates modules at 10 % of the real mass, so ``MODULE_MASS = 0.05`` kg. Joint limits are taken
 as +-90 degrees for all three joints (approximate).
+
+Every joint is driven by a geared servo: the model carries its reflected rotor inertia (``Model.armature``,
+``SERVO_ARMATURE`` = 0.01 kg m^2) and viscous back-EMF damping (``Model.damping``, ``SERVO_DAMPING`` =
+0.1 N m s/rad), the order of magnitude of a small geared servo (rotor ~2e-7 kg m^2 behind a ~1:250 gearbox;
+~1 N m stall torque over ~6 rad/s no-load speed): approximate figures, not SuperBot's datasheet. Without
+them the seed's 5 g middle links under K_P = 10 N m/rad would ring at ~1.4e3 rad/s, beyond what a 1 kHz
+torque loop can control.
 """
 
 from __future__ import annotations
@@ -51,6 +58,8 @@ REAL_MODULE_MASS = 0.5
 SIMULATED_MASS_FRACTION = 0.1
 MODULE_MASS = REAL_MODULE_MASS * SIMULATED_MASS_FRACTION
 JOINT_LIMIT = np.pi / 2
+SERVO_ARMATURE = 0.01
+SERVO_DAMPING = 0.1
 
 CONNECTOR_NAMES = ("A_end", "A_left", "A_right", "B_end", "B_left", "B_right")
 CONNECTOR_BLOCK = np.array([0, 0, 0, 1, 1, 1])  # 0: on block A (part 0), 1: on block B (part 3)
@@ -90,15 +99,20 @@ def mate_rotation(angle_deg: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class ModuleParameters:
-    """Size and mass of one module: ``width`` (m, the end blocks' edge) and ``mass`` (kg, whole module)."""
+    """Size and mass of one module: ``width`` (m, the end blocks' edge) and ``mass`` (kg, whole module); its
+    joints' ``joint_limit`` (rad) and servos' ``servo_armature`` (kg m^2) and ``servo_damping`` (N m s/rad)."""
 
     width: float = MODULE_WIDTH
     mass: float = MODULE_MASS
     joint_limit: float = JOINT_LIMIT
+    servo_armature: float = SERVO_ARMATURE
+    servo_damping: float = SERVO_DAMPING
 
     def __post_init__(self) -> None:
         for name in ("width", "mass", "joint_limit"):
             positive_scalar(getattr(self, name), name)
+        for name in ("servo_armature", "servo_damping"):
+            positive_scalar(getattr(self, name), name, allow_zero=True)
 
     @property
     def joint_points(self) -> np.ndarray:
@@ -426,6 +440,12 @@ def build_model(trees: Sequence[ModuleTree], origins: np.ndarray, gravity: Seque
             reversed_module[g] = reverse
             module_offset[g] = -_part_origin(points, 0, reverse)
         first += tree.n_modules
+    # Each joint's servo, from its tree's parameters.
+    armature, damping = np.zeros(model.nv), np.zeros(model.nv)
+    for tree, bodies in zip(trees, np.split(joint_bodies, np.cumsum([t.n_modules for t in trees])[:-1])):
+        columns = np.array(model.idx_v)[bodies]
+        armature[columns], damping[columns] = tree.parameters.servo_armature, tree.parameters.servo_damping
+    model.armature, model.damping = armature, damping
     joint_q = np.array(model.idx_q)[joint_bodies]
     layout = ModelLayout(part_bodies, joint_bodies, joint_q, module_offset, tree_of_module, np.array(roots), origins)
     return model, layout

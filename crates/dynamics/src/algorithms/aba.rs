@@ -12,18 +12,18 @@ use crate::joint::Dofs;
 use crate::model::{Data, Model};
 use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inertia_times_pair, Force, Motion};
 
-/// Joint accelerations for configuration `q`, velocity `v` and joint forces `tau`; `f_ext` as in `rnea`.
-/// Writes `data.ddq` and returns it. In the world's axes about the base's origin (see
+/// Joint accelerations for configuration `q`, velocity `v` and joint forces `tau`, with the model's
+/// armature (`Model::armature`); `f_ext` as in `rnea`. Writes `data.ddq` and returns it. In the world's axes about the base's origin (see
 /// `kinematics::base_centred_kinematics`), `data.centred_m_i` holds each body's pose, `data.rigid` its rigid
 /// inertia, `data.centred_v` its velocity and `data.centred_a` its acceleration with gravity as a base
 /// acceleration (§5.3).
 pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>) -> &'d DVector<f64> {
-    aba_with_armature(model, data, q, v, tau, f_ext, None)
+    aba_with_armature(model, data, q, v, tau, f_ext, model.armature())
 }
 
 /// `aba` for the mass matrix M + diag(armature) (one non-negative entry per velocity coordinate; the
-/// free-flyer base's six are ignored): each joint's D = Sᵀ I^A S + armature, as Pinocchio's armature. The
-/// simulation adds a geared motor's rotor inertia and its implicit servo and damping terms this way. The
+/// free-flyer base's six are ignored) in place of the model's armature: each joint's D = Sᵀ I^A S +
+/// armature, as Pinocchio's. The simulation adds the implicit servo and damping terms this way. The
 /// joints' `data.u`, `data.d_inv` and the base's articulated inertia `data.inertia[0]` are then the
 /// factors of M + diag(armature) = Lᵀ D L (L_ki = D_k⁻¹ U_kᵀ S_i for each ancestor i of k).
 #[inline(always)]
@@ -34,7 +34,7 @@ pub fn aba_with_armature<'d>(
     v: &[f64],
     tau: &[f64],
     f_ext: Option<&[Force]>,
-    armature: Option<&[f64]>,
+    armature: &[f64],
 ) -> &'d DVector<f64> {
     let n = model.nbodies();
     // Pass 1: poses, velocities v_i = v_λ + S q̇, velocity-product accelerations c_i = v_λ × S q̇ and bias
@@ -76,7 +76,7 @@ pub fn aba_with_armature<'d>(
         let mut pa = data.bias[i] + ia_c;
         let w = if model.joint(i).nv() == 1 {
             // One division per joint, off the accelerations' dependency chain.
-            let d_inv = 1.0 / (dot6(&s, u.as_slice()) + armature.map_or(0.0, |a| a[k]));
+            let d_inv = 1.0 / (dot6(&s, u.as_slice()) + armature[k]);
             let u_scalar = tau[k] - dot6(&s, data.bias[i].as_slice());
             let w = u * d_inv;
             pa += w * (u_scalar - dot6(&u, c.as_slice()));

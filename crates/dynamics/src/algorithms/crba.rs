@@ -37,7 +37,7 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
             Dofs::One(_) => {
                 // F = I^c S (eq. 6.17), then M_ji = S_jᵀ F up the ancestors (eq. 6.18).
                 let force = composite.apply(&data.s[i]);
-                data.mass_matrix[(k, k)] = data.s[i].dot(&force);
+                data.mass_matrix[(k, k)] = data.s[i].dot(&force) + model.armature()[k];
                 let mut j = i;
                 while j != 0 {
                     j = model.parent(j);

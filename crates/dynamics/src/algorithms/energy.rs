@@ -5,10 +5,12 @@ use super::kinematics::body_motions;
 use crate::model::{Data, Model};
 use crate::spatial::Motion;
 
-/// ½ Σ vᵢᵀ Iᵢ vᵢ over the bodies (equal to ½ q̇ᵀ M q̇).
+/// ½ Σ vᵢᵀ Iᵢ vᵢ over the bodies plus the rotors' ½ Σ armature_k v_k² (equal to ½ q̇ᵀ M q̇ with M from
+/// `crba`, as Pinocchio's).
 pub fn kinetic_energy(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> f64 {
     body_motions(model, data, q, v, None, Motion::zeros());
-    (0..model.nbodies()).map(|i| 0.5 * data.v[i].dot(&model.inertia(i).apply(&data.v[i]))).sum()
+    let bodies: f64 = (0..model.nbodies()).map(|i| 0.5 * data.v[i].dot(&model.inertia(i).apply(&data.v[i]))).sum();
+    bodies + model.armature().iter().zip(v).map(|(a, v)| 0.5 * a * v * v).sum::<f64>()
 }
 
 /// −Σ mᵢ gᵀ cᵢ: zero when every COM is at the world origin's height (for the default gravity).

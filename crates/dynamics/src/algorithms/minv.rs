@@ -75,7 +75,7 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
         }
         let (s, u) = (data.s[i], data.inertia[i] * data.s[i]);
         let one_dof = model.joint(i).nv() == 1;
-        let dinv = if one_dof { 1.0 / s.dot(&u) } else { 0.0 };
+        let dinv = if one_dof { 1.0 / (s.dot(&u) + model.armature()[k]) } else { 0.0 };
         if one_dof {
             // Beyond the subtree this row is zero until the forward pass.
             data.minv.as_mut_slice()[k * nv + k..(k + 1) * nv].fill(0.0);

@@ -27,7 +27,7 @@ pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f6
         match model.joint(i).dofs() {
             Dofs::Free => data.tau.rows_mut(k, 6).copy_from(&f),
             Dofs::Zero => {}
-            Dofs::One(s) => data.tau[k] = s.dot(&f),
+            Dofs::One(s) => data.tau[k] = s.dot(&f) + model.armature()[k] * a[k],
         }
         if i > 0 {
             let p = model.parent(i);

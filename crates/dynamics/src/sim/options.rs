@@ -1,5 +1,5 @@
-//! Construction options shared by both backends: step, ground, collision shapes, joint damping and
-//! armature, and the backend itself; collision shapes as parry shapes; conversions between nalgebra and
+//! Construction options shared by both backends: step, ground, collision shapes and the backend itself
+//! (joint damping and armature are the model's: `Model::damping`, `Model::armature`); collision shapes as parry shapes; conversions between nalgebra and
 //! parry's math types.
 
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
@@ -209,11 +209,6 @@ pub struct Options {
     pub shapes: Vec<(usize, Option<Shape>)>,
     /// Contacts between bodies of the robot (never between a body and its parent).
     pub self_collision: bool,
-    /// Viscous damping (N m s/rad or N s/m) on every revolute and prismatic joint, integrated implicitly.
-    pub joint_damping: f64,
-    /// Reflected rotor inertia (kg m² or kg) added on every revolute and prismatic joint, as a geared
-    /// servo's motor adds to the joint's diagonal of the mass matrix.
-    pub joint_armature: f64,
     /// Substeps per step: the tree engine takes `substeps` steps of dt / substeps; Rapier runs that many
     /// solver iterations, each re-evaluating the multibody dynamics. Either way more substeps integrate
     /// more accurately at a proportional cost.
@@ -257,8 +252,6 @@ impl Options {
             ground: None,
             shapes: Vec::new(),
             self_collision: false,
-            joint_damping: 0.0,
-            joint_armature: 0.0,
             substeps: 1,
             backend: Backend::Tree,
             solver_iterations: DEFAULT_SOLVER_ITERATIONS,
@@ -288,12 +281,6 @@ impl Options {
     pub fn check(&self, model: &Model) -> Result<()> {
         if finite("dt", self.dt)? <= 0.0 {
             return Err(Error::invalid("dt", format!("must be > 0, got {}", self.dt)));
-        }
-        if finite("joint_damping", self.joint_damping)? < 0.0 {
-            return Err(Error::invalid("joint_damping", format!("must be >= 0, got {}", self.joint_damping)));
-        }
-        if finite("joint_armature", self.joint_armature)? < 0.0 {
-            return Err(Error::invalid("joint_armature", format!("must be >= 0, got {}", self.joint_armature)));
         }
         if self.substeps == 0 {
             return Err(Error::invalid("substeps", "must be >= 1"));

@@ -199,14 +199,16 @@ pub(crate) fn build(model: &Model, options: &Options) -> Result<(PhysicsWorld, L
             .ok_or_else(|| Error::invalid("model", "a body is missing from the Rapier multibody"))?;
         let (multibody, _) = world.multibody_joints.get_mut(handle).expect("inserted above");
         multibody.set_self_contacts_enabled(options.self_collision);
-        // Settle the root's degrees of freedom (fixed or free), then set exact joint dynamics: no damping
-        // (Rapier defaults to 0.1 on angular ones) and no armature other than requested, no friction.
+        // Settle the root's degrees of freedom (fixed or free), then set exact joint dynamics: the model's
+        // damping (Rapier defaults to 0.1 on angular ones) and armature, no friction.
         multibody.forward_kinematics(&world.bodies, true);
-        let root_dofs = multibody.ndofs() - (model.nv() - if model.floating_base() { 6 } else { 0 });
-        for k in 0..multibody.ndofs() {
-            multibody.damping_mut()[k] = if k < root_dofs { 0.0 } else { options.joint_damping };
-            multibody.armature_mut()[k] = if k < root_dofs { 0.0 } else { options.joint_armature };
-            multibody.frictions_mut()[k] = 0.0;
+        multibody.damping_mut().fill(0.0);
+        multibody.armature_mut().fill(0.0);
+        multibody.frictions_mut().fill(0.0);
+        for &i in &owner[1..] {
+            let (k, dof) = (model.idx_v(i), multibody.link(links[carrier[i]]).expect("link exists").assembly_id());
+            multibody.damping_mut()[dof] = model.damping()[k];
+            multibody.armature_mut()[dof] = model.armature()[k];
         }
         multibody.update_rigid_bodies(&mut world.bodies, true);
         Some(links)

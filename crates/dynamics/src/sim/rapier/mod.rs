@@ -2,8 +2,8 @@
 //!
 //! The model becomes one Rapier multibody (see `builder`): revolute and prismatic joints become
 //! multibody joints, bodies on fixed joints are merged into their parents, and every body gets a collider
-//! (a box matching its inertia unless a shape is given). Joint dynamics are exact: no damping, armature or
-//! joint friction unless `joint_damping` asks for it; gravity is the model's.
+//! (a box matching its inertia unless a shape is given). Joint dynamics are exact: the model's damping and
+//! armature, no joint friction; gravity is the model's.
 //!
 //! The model's joint limits (`Model::limits`) are enforced: the position range by Rapier joint limits,
 //! the effort bound by clipping the actuation (servo plus feed-forward) of that joint. Velocity bounds

@@ -140,9 +140,8 @@ impl TreeSimulation {
     /// The actuation of step 1; `saturated` marks servos treated as saturated whatever their force.
     fn actuate(&mut self, model: &Model, actuation: &Actuation<'_>, v: &[f64]) {
         let h = self.h;
-        let base = if model.floating_base() { 6 } else { 0 };
         for k in 0..model.nv() {
-            let (damping, armature) = if k < base { (0.0, 0.0) } else { (self.options.joint_damping, self.options.joint_armature) };
+            let (damping, armature) = (model.damping()[k], model.armature()[k]);
             let (kp, kd) = (actuation.servo.kp[k], actuation.servo.kd[k]);
             let (raw, bound) = (actuation.raw(k, &self.q_dof, v), actuation.bound(k));
             let implicit = !self.saturated[k] && raw.abs() <= bound && (kp > 0.0 || kd > 0.0);
@@ -215,7 +214,7 @@ impl TreeSimulation {
         let mut detected = false;
         loop {
             self.actuate(model, actuation, v);
-            let ddq = aba_with_armature(model, &mut self.data, q, v, &self.tau, None, Some(&self.armature));
+            let ddq = aba_with_armature(model, &mut self.data, q, v, &self.tau, None, &self.armature);
             for k in 0..nv {
                 self.v_free[k] = v[k] + h * ddq[k];
             }
@@ -374,6 +373,8 @@ fn fuse(model: &Model) -> Result<(Model, Vec<usize>, Vec<Transform>)> {
             fused_body[carrier[i]]
         };
     }
+    fused.set_armature(model.armature())?;
+    fused.set_damping(model.damping())?;
     Ok((fused, fused_body, offset))
 }
 

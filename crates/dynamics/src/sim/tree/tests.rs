@@ -84,7 +84,7 @@ fn prepared(model: &Model) -> (Vec<f64>, Vec<f64>, Data, Articulated) {
     let armature: Vec<f64> = (0..model.nv()).map(|k| if k < base_coordinates(model) { 0.0 } else { 0.01 + 0.002 * k as f64 }).collect();
     let mut data = Data::new(model);
     let zeros = vec![0.0; model.nv()];
-    aba_with_armature(model, &mut data, &q, &zeros, &zeros, None, Some(&armature));
+    aba_with_armature(model, &mut data, &q, &zeros, &zeros, None, &armature);
     (q, armature, data, Articulated::new(model))
 }
 
