@@ -8,31 +8,19 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from conftest import examples
-from legkit.strain.benchtop import (
-    BenchtopSweep,
-    CompliantFourBarLeg,
-    StrainSensor,
-    average_by_group,
-    configuration_cells,
-    grid_average,
-    leg_frame_loads,
-    physically_relevant,
-    quantize,
-    resample_evenly,
-    synthetic_benchtop,
-)
+from legkit.strain import benchtop
 from legkit.strain.model import LegModel, cross_validate, nrmse
 
 SETTINGS = examples(60)
-RIGID_SECONDARY = CompliantFourBarLeg(axial_stiffness=np.inf, clamp_stiffness=np.inf)
+RIGID_SECONDARY = benchtop.CompliantFourBarLeg(axial_stiffness=np.inf, clamp_stiffness=np.inf)
 
 
 def per_load_relevant(data, mu=0.5):
     """Per-load means of (strain, length, deflection) for the physically relevant loads."""
-    _, (strain, length, deflection, normal, tangential) = average_by_group(
+    _, (strain, length, deflection, normal, tangential) = benchtop.average_by_group(
         data.configuration, data.strain, data.length, data.deflection, data.normal_force, data.tangential_force
     )
-    keep = physically_relevant(normal, tangential, mu)
+    keep = benchtop.physically_relevant(normal, tangential, mu)
     return strain[keep], length[keep], deflection[keep]
 
 
@@ -43,7 +31,7 @@ def per_load_relevant(data, mu=0.5):
 
 def test_pure_radial_load_hand_computation() -> None:
     # Rigid secondary modes, radial load f: phi = a_r f / k, c = a_r phi, d = a_d phi, sigma = g phi.
-    leg = CompliantFourBarLeg(
+    leg = benchtop.CompliantFourBarLeg(
         linkage_compression=0.05, linkage_deflection=0.3, linkage_stiffness=5.0,
         axial_stiffness=np.inf, clamp_stiffness=np.inf, gauge_gain=1000.0,
     )
@@ -55,8 +43,8 @@ def test_pure_radial_load_hand_computation() -> None:
 
 def test_series_secondary_modes_hand_computation() -> None:
     # Pure hip torque tau: phi = a_d tau / k, c = a_r phi, d = a_d phi + tau / k_clamp; no axial load.
-    leg = CompliantFourBarLeg(linkage_compression=0.04, linkage_deflection=0.2, linkage_stiffness=4.0,
-                              axial_stiffness=1e4, clamp_stiffness=100.0)
+    leg = benchtop.CompliantFourBarLeg(linkage_compression=0.04, linkage_deflection=0.2, linkage_stiffness=4.0,
+                                       axial_stiffness=1e4, clamp_stiffness=100.0)
     length, deflection, strain = leg.deform(0.0, 2.0)
     assert leg.nominal_length - length == pytest.approx(0.04 * 0.1, abs=1e-15)
     assert deflection == pytest.approx(0.2 * 0.1 + 0.02, abs=1e-15)
@@ -66,7 +54,7 @@ def test_series_secondary_modes_hand_computation() -> None:
 @SETTINGS
 @given(radial=st.floats(-50, 80), torque=st.floats(-5, 5))
 def test_displacement_and_strain_consistent_with_compliance(radial: float, torque: float) -> None:
-    leg = CompliantFourBarLeg()
+    leg = benchtop.CompliantFourBarLeg()
     length, deflection, strain = leg.deform(radial, torque)
     compliance = leg.compliance()
     np.testing.assert_allclose([leg.nominal_length - length, deflection], compliance @ [radial, torque], atol=1e-14)
@@ -77,19 +65,19 @@ def test_displacement_and_strain_consistent_with_compliance(radial: float, torqu
 
 def test_leg_parameter_validation() -> None:
     with pytest.raises(ValueError, match="linkage_stiffness"):
-        CompliantFourBarLeg(linkage_stiffness=0.0)
+        benchtop.CompliantFourBarLeg(linkage_stiffness=0.0)
     with pytest.raises(ValueError, match="clamp_stiffness"):
-        CompliantFourBarLeg(clamp_stiffness=np.nan)
+        benchtop.CompliantFourBarLeg(clamp_stiffness=np.nan)
     with pytest.raises(ValueError, match="radial_force contains a non-finite"):
-        CompliantFourBarLeg().deform(np.nan, 0.0)
+        benchtop.CompliantFourBarLeg().deform(np.nan, 0.0)
 
 
 def test_leg_frame_loads_hand_cases() -> None:
     # Leg straight down: the normal force is purely radial; a forward tangential force pushes toward -d.
-    radial, torque = leg_frame_loads(10.0, 2.0, 0.0, nominal_length=0.2)
+    radial, torque = benchtop.leg_frame_loads(10.0, 2.0, 0.0, nominal_length=0.2)
     assert radial == pytest.approx(10.0) and torque == pytest.approx(-0.4)
     # Leg swung back a quarter turn (horizontal, toe behind the hip): the normal force is tangential.
-    radial, torque = leg_frame_loads(10.0, 0.0, np.pi / 2, nominal_length=0.2)
+    radial, torque = benchtop.leg_frame_loads(10.0, 0.0, np.pi / 2, nominal_length=0.2)
     assert radial == pytest.approx(0.0, abs=1e-14) and torque == pytest.approx(2.0)
 
 
@@ -104,7 +92,7 @@ def test_quantize_levels_and_error(values: list[float], bits: int) -> None:
     low, high = -1000.0, 3000.0
     step = (high - low) / (2**bits - 1)
     signal = np.array(values)
-    out = quantize(signal, bits, (low, high))
+    out = benchtop.quantize(signal, bits, (low, high))
     levels = (out - low) / step
     np.testing.assert_allclose(levels, np.round(levels), atol=1e-9)
     assert np.all((out >= low - 1e-9) & (out <= high + 1e-9))
@@ -114,7 +102,7 @@ def test_quantize_levels_and_error(values: list[float], bits: int) -> None:
 
 
 def test_six_bit_sensor_has_64_levels() -> None:
-    sensor = StrainSensor(noise_std=0.0, bits=6, full_scale=(0.0, 63.0))
+    sensor = benchtop.StrainSensor(noise_std=0.0, bits=6, full_scale=(0.0, 63.0))
     readings = sensor.measure(np.linspace(-5, 70, 10000), np.random.default_rng(0))
     np.testing.assert_array_equal(np.unique(readings), np.arange(64.0))
 
@@ -122,12 +110,12 @@ def test_six_bit_sensor_has_64_levels() -> None:
 def test_physically_relevant_hand_cases() -> None:
     normal = np.array([10.0, 10.0, 10.0, 0.0, -5.0, 10.0])
     tangential = np.array([0.0, 4.9, -5.0, 0.0, 0.0, -4.9])
-    np.testing.assert_array_equal(physically_relevant(normal, tangential), [True, True, False, False, False, True])
-    np.testing.assert_array_equal(physically_relevant(normal, tangential, mu=0.6)[2], True)
+    np.testing.assert_array_equal(benchtop.physically_relevant(normal, tangential), [True, True, False, False, False, True])
+    np.testing.assert_array_equal(benchtop.physically_relevant(normal, tangential, mu=0.6)[2], True)
     with pytest.raises(ValueError, match="mu"):
-        physically_relevant(normal, tangential, mu=-1.0)
+        benchtop.physically_relevant(normal, tangential, mu=-1.0)
     with pytest.raises(ValueError, match="same shape"):
-        physically_relevant(normal, tangential[:2])
+        benchtop.physically_relevant(normal, tangential[:2])
 
 
 @SETTINGS
@@ -136,7 +124,7 @@ def test_average_by_group_matches_a_loop(seed: int, n: int) -> None:
     rng = np.random.default_rng(seed)
     groups = rng.integers(0, 10, n)
     values = rng.normal(size=n)
-    ids, (means,) = average_by_group(groups, values)
+    ids, (means,) = benchtop.average_by_group(groups, values)
     for group, mean in zip(ids, means):
         assert mean == pytest.approx(np.mean([v for g, v in zip(groups, values) if g == group]), abs=1e-12)
     assert sorted(set(groups.tolist())) == ids.tolist()
@@ -149,20 +137,20 @@ def test_resample_evenly_takes_at_most_per_cell_from_every_occupied_cell(seed: i
     # Deliberately uneven: most samples crowd one corner of the configuration space.
     length = np.concatenate([rng.uniform(0.16, 0.17, n), rng.uniform(0.13, 0.17, 5)])
     deflection = np.concatenate([rng.uniform(0.0, 0.02, n), rng.uniform(-0.2, 0.2, 5)])
-    chosen = resample_evenly(length, deflection, bins=(6, 6), per_cell=per_cell, seed=seed)
-    cells = configuration_cells(length, deflection, (6, 6))
+    chosen = benchtop.resample_evenly(length, deflection, bins=(6, 6), per_cell=per_cell, seed=seed)
+    cells = benchtop.configuration_cells(length, deflection, (6, 6))
     assert np.all(np.diff(chosen) > 0)
     counts = np.bincount(cells[chosen], minlength=36)
     available = np.bincount(cells, minlength=36)
     np.testing.assert_array_equal(counts, np.minimum(available, per_cell))
-    np.testing.assert_array_equal(resample_evenly(length, deflection, (6, 6), per_cell, seed), chosen)
+    np.testing.assert_array_equal(benchtop.resample_evenly(length, deflection, (6, 6), per_cell, seed), chosen)
 
 
 def test_grid_average_one_point_per_occupied_cell() -> None:
     length = np.array([0.10, 0.101, 0.2, 0.199, 0.16])
     deflection = np.array([0.0, 0.001, 1.0, 0.999, 0.6])
     strain = np.array([1.0, 3.0, 10.0, 20.0, 7.0])
-    cell_length, cell_deflection, (cell_strain,) = grid_average(length, deflection, strain, bins=(2, 2))
+    cell_length, cell_deflection, (cell_strain,) = benchtop.grid_average(length, deflection, strain, bins=(2, 2))
     # Cells: (low, low) holds samples 0, 1; (high, high) holds 2, 3, 4 (0.16 and 0.6 are in the upper halves).
     np.testing.assert_allclose(cell_strain, [2.0, 37.0 / 3])
     np.testing.assert_allclose(cell_length, [0.1005, (0.2 + 0.199 + 0.16) / 3])
@@ -179,8 +167,8 @@ def test_linear_model_recovers_generating_coefficients(seed: int) -> None:
     # With rigid secondary modes the configuration is exactly linear in strain; the only error is the
     # sensor (noise, 6-bit quantisation). Recovery within 4 standard errors, and the fitted map within half
     # an ADC step (in configuration units) of the generating map over the calibrated range.
-    sensor = StrainSensor()
-    strain, length, deflection = per_load_relevant(synthetic_benchtop(RIGID_SECONDARY, sensor=sensor, seed=seed))
+    sensor = benchtop.StrainSensor()
+    strain, length, deflection = per_load_relevant(benchtop.synthetic_benchtop(RIGID_SECONDARY, sensor=sensor, seed=seed))
     model = LegModel.fit(strain, length, deflection, order=1)
     n1, n2 = RIGID_SECONDARY.generating_coefficients()
     assert np.all(np.abs(model.length_coefficients - n1) <= 4 * model.length_standard_errors)
@@ -193,7 +181,7 @@ def test_linear_model_recovers_generating_coefficients(seed: int) -> None:
 
 
 def test_default_leg_meets_paper_error_levels() -> None:
-    strain, length, deflection = per_load_relevant(synthetic_benchtop(CompliantFourBarLeg(), seed=4))
+    strain, length, deflection = per_load_relevant(benchtop.synthetic_benchtop(benchtop.CompliantFourBarLeg(), seed=4))
     cv = cross_validate(strain, length, deflection, order=1, folds=5, seed=0)
     assert cv.length_error <= 2.0 and cv.deflection_error <= 10.0
     # The unmodelled secondary modes matter: deflection is clearly harder than length.
@@ -201,8 +189,8 @@ def test_default_leg_meets_paper_error_levels() -> None:
 
 
 def test_filter_removes_pulling_and_slipping_loads() -> None:
-    data = synthetic_benchtop(sweep=BenchtopSweep(hold_samples=2), seed=0)
-    keep = physically_relevant(data.normal_force, data.tangential_force)
+    data = benchtop.synthetic_benchtop(sweep=benchtop.BenchtopSweep(hold_samples=2), seed=0)
+    keep = benchtop.physically_relevant(data.normal_force, data.tangential_force)
     assert 0 < keep.sum() < keep.size
     assert np.all(data.normal_force[keep] > 0)
     assert np.all(np.abs(data.tangential_force[keep]) < 0.5 * data.normal_force[keep])
@@ -212,8 +200,8 @@ def test_filter_removes_pulling_and_slipping_loads() -> None:
 
 
 def test_benchtop_is_deterministic_per_seed() -> None:
-    sweep = BenchtopSweep(hold_samples=3)
-    a, b = synthetic_benchtop(sweep=sweep, seed=5), synthetic_benchtop(sweep=sweep, seed=5)
+    sweep = benchtop.BenchtopSweep(hold_samples=3)
+    a, b = benchtop.synthetic_benchtop(sweep=sweep, seed=5), benchtop.synthetic_benchtop(sweep=sweep, seed=5)
     np.testing.assert_array_equal(a.strain, b.strain)
-    assert not np.array_equal(a.strain, synthetic_benchtop(sweep=sweep, seed=6).strain)
+    assert not np.array_equal(a.strain, benchtop.synthetic_benchtop(sweep=sweep, seed=6).strain)
     assert nrmse(a.length, b.length) == 0.0

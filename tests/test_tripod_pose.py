@@ -9,16 +9,7 @@ from hypothesis import strategies as st
 
 from conftest import examples
 from legkit.robots.rhex import HIP_POSITIONS, LEG_LENGTH, TRIPODS
-from legkit.strain.pose import (
-    coplanarity,
-    euler_zyx,
-    hip_to_body,
-    plane_residual,
-    stance_intervals,
-    toe_in_body,
-    toe_in_leg,
-    tripod_pose,
-)
+from legkit.strain.pose import coplanarity, euler_zyx, hip_to_body, plane_residual, stance_intervals, toe_in_body, toe_in_leg, tripod_pose
 
 SETTINGS = examples(100)
 

@@ -36,7 +36,7 @@ from legkit.strain.benchtop import (
     physically_relevant,
     synthetic_benchtop,
 )
-from legkit.strain.model import LegModel, format_order_table, nrmse, order_selection_table
+from legkit.strain.model import LegModel, format_order_table, nrmse, order_selection_table, text_table
 from legkit.strain.pose import coplanarity, plane_residual
 from legkit.strain.simulated import simulated_walk
 from legkit.strain.walking import PoseEstimate, WalkingSource, WalkingStream, estimate_body_pose, kinematic_walk
@@ -90,12 +90,11 @@ def evaluate_run(stream: WalkingStream, model: LegModel, seed: int) -> tuple[Run
 
 def format_walking_table(results: list[RunResult]) -> str:
     """Table-2 analogue: mean +- std over runs of the NRMSEs, and the worst pose errors, per speed."""
-    lines = [
+    header = (
         "speed m/s | runs | length NRMSE %  | deflection NRMSE % | max height err mm | max roll err deg "
-        "| max pitch err deg",
-        "----------+------+-----------------+--------------------+-------------------+------------------"
-        "+------------------",
-    ]
+        "| max pitch err deg"
+    )
+    lines = []
     for speed in sorted({r.speed for r in results}):
         rows = [r for r in results if r.speed == speed]
         length = np.array([r.length_nrmse for r in rows])
@@ -107,7 +106,7 @@ def format_walking_table(results: list[RunResult]) -> str:
             f"{np.degrees(max(r.roll_error for r in rows)):16.3f} | "
             f"{np.degrees(max(r.pitch_error for r in rows)):17.3f}"
         )
-    return "\n".join(lines)
+    return text_table(header, lines)
 
 
 def plot_stride(stream: WalkingStream, estimate: PoseEstimate, path: Path, source_label: str = "kinematic walking generator") -> None:
@@ -194,16 +193,14 @@ def stance_detection(stream: WalkingStream, estimate: PoseEstimate) -> list[Stan
 
 
 def format_detection_table(rows: list[StanceDetection]) -> str:
-    lines = [
+    return text_table(
         "speed m/s | measure                    |   AUC | balanced acc. | threshold  | median tripod | median >3 toes",
-        "----------+----------------------------+-------+---------------+------------+---------------+---------------",
-    ]
-    for r in rows:
-        lines.append(
+        [
             f"{r.speed:9.2f} | {r.measure:26s} | {r.auc:5.3f} | {r.balanced_accuracy:13.3f} | {r.threshold:10.3g} | "
             f"{r.tripod_median:13.3g} | {r.more_toes_median:14.3g}"
-        )
-    return "\n".join(lines)
+            for r in rows
+        ],
+    )
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -323,15 +324,19 @@ def order_selection_table(
     return rows
 
 
+def text_table(header: str, rows: Iterable[str]) -> str:
+    """A plain-text table: the header, a rule under it ('+' below each '|', '-' elsewhere), then one line per row."""
+    rule = "".join("+" if char == "|" else "-" for char in header)
+    return "\n".join([header, rule, *rows])
+
+
 def format_order_table(rows: list[OrderSelectionRow]) -> str:
     """Plain-text rendering of ``order_selection_table`` (percent NRMSE)."""
-    lines = [
+    return text_table(
         "order | fit length % | fit deflection % | CV length % | CV deflection %",
-        "------+--------------+------------------+-------------+----------------",
-    ]
-    for row in rows:
-        lines.append(
+        [
             f"{row.order:5d} | {row.fit_length:12.3f} | {row.fit_deflection:16.3f} | "
             f"{row.cv_length:11.3f} | {row.cv_deflection:15.3f}"
-        )
-    return "\n".join(lines)
+            for row in rows
+        ],
+    )

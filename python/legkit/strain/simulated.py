@@ -86,7 +86,7 @@ import legkit as lk
 from legkit.robots.rhex import LEG_LENGTH, rhex_compliant_model
 from legkit.strain.benchtop import CompliantFourBarLeg, StrainSensor
 from legkit.strain.pose import toe_in_body
-from legkit.strain.walking import TRIPOD_LEGS, ClockGait, WalkingStream, record_samples
+from legkit.strain.walking import TRIPOD_LEGS, ClockGait, WalkingStream, start_record
 
 TOE_RADIUS = 0.006  # m, toe sphere; the leg model's toe is its centre (module docstring)
 HIP_BODIES = 1 + 3 * np.arange(6)  # body (and joint) index of each hip motor
@@ -279,10 +279,7 @@ def simulated_walk(
     sensor = sensor or StrainSensor()
     gait = gait or BuehlerClock()
     settings = settings or SimulationSettings()
-    samples = record_samples(duration, sensor.rate)
-    period = gait.period(speed)
-    rng = np.random.default_rng(seed)
-    start_phase = rng.uniform(0.0, 1.0)
+    samples, period, rng, start_phase = start_record(speed, duration, seed, sensor.rate, gait)
 
     sample_time = 1.0 / sensor.rate
     dt = sample_time / settings.steps_per_sample

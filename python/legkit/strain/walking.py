@@ -102,6 +102,12 @@ class WalkingSource(Protocol):
     def __call__(self, speed: float, duration: float, seed: int) -> WalkingStream: ...
 
 
+class GaitClock(Protocol):
+    """A walking source's clock (``ClockGait``, ``simulated.BuehlerClock``), as ``start_record`` uses it."""
+
+    def period(self, speed: float) -> float: ...
+
+
 @dataclass(frozen=True)
 class ClockGait:
     """Alternating-tripod Buehler clock at duty factor 1/2 (see the module docstring)."""
@@ -142,6 +148,16 @@ def record_samples(duration: float, rate: float) -> int:
     if samples < 1:
         raise ValueError(f"duration {duration} s is shorter than one sample at {rate} Hz")
     return samples
+
+
+def start_record(
+    speed: float, duration: float, seed: int, rate: float, gait: GaitClock
+) -> tuple[int, float, np.random.Generator, float]:
+    """(samples, gait period s, generator seeded with ``seed``, start phase: its first draw) of a walking record."""
+    samples = record_samples(duration, rate)
+    period = gait.period(speed)
+    rng = np.random.default_rng(seed)
+    return samples, period, rng, rng.uniform(0.0, 1.0)
 
 
 def support_pose_truth(stance_toes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -190,10 +206,7 @@ def kinematic_walk(
     leg = leg or CompliantFourBarLeg()
     sensor = sensor or StrainSensor()
     gait = gait or ClockGait()
-    samples = record_samples(duration, sensor.rate)
-    period = gait.period(speed)
-    rng = np.random.default_rng(seed)
-    start_phase = rng.uniform(0.0, 1.0)
+    samples, period, rng, start_phase = start_record(speed, duration, seed, sensor.rate, gait)
     offset = rng.uniform(-0.01, 0.01, 2) if com_offset is None else np.asarray(com_offset, dtype=np.float64)
     if offset.shape != (2,) or not np.all(np.isfinite(offset)):
         raise ValueError(f"com_offset must be two finite numbers (c_x, c_y), got {com_offset}")
