@@ -66,6 +66,10 @@ impl PyModel {
         Ok(index)
     }
 
+    fn per_body<T>(&self, value: impl Fn(&Model, usize) -> T) -> Vec<T> {
+        (0..self.model.nbodies()).map(|i| value(&self.model, i)).collect()
+    }
+
     /// One value per velocity coordinate from an array (nv,), or from one number for every joint's (zero on
     /// a free-flyer base).
     fn per_coordinate(&self, argument: &str, value: &Floats<'_>) -> PyResult<Vec<f64>> {
@@ -286,11 +290,11 @@ impl PyModel {
     /// `Model::parent`.
     #[getter]
     fn parents(&self) -> Vec<usize> {
-        (0..self.model.nbodies()).map(|i| self.model.parent(i)).collect()
+        self.per_body(Model::parent)
     }
     #[getter]
     fn names(&self) -> Vec<String> {
-        (0..self.model.nbodies()).map(|i| self.model.name(i).to_owned()).collect()
+        self.per_body(|model, i| model.name(i).to_owned())
     }
     #[getter]
     fn gravity<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
@@ -327,12 +331,12 @@ impl PyModel {
     /// Index of each body's first configuration coordinate.
     #[getter]
     fn idx_q(&self) -> Vec<usize> {
-        (0..self.model.nbodies()).map(|i| self.model.idx_q(i)).collect()
+        self.per_body(Model::idx_q)
     }
     /// Index of each body's first velocity coordinate.
     #[getter]
     fn idx_v(&self) -> Vec<usize> {
-        (0..self.model.nbodies()).map(|i| self.model.idx_v(i)).collect()
+        self.per_body(Model::idx_v)
     }
 
     /// "free_flyer", "fixed", "revolute", "prismatic" or "helical".
