@@ -107,6 +107,8 @@ def test_legkit_loads_what_pinocchio_loads_and_matches_its_dynamics(path: Path, 
             legkit_model(path, floating)
         return
     twin = Twin(legkit_model(path, floating), reference)
+    # Both read <dynamics damping> per joint (pin's free flyer has none either).
+    assert np.array_equal(twin.model.damping, twin.to_lk_v(np.asarray(reference.damping)))
     data = reference.createData()
     rng = np.random.default_rng(len(path.name))
     for _ in range(2):

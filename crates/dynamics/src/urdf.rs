@@ -31,7 +31,11 @@
 //!   ([`crate::mesh::resolve_mesh`]). A mesh that cannot be found or read leaves its link colliding as the
 //!   box of its inertia, with a warning (`strict` does not refuse it).
 //!
-//! Everything else (`<visual>`, `<dynamics>`, `<safety_controller>`, `<mimic>`, `<material>`,
+//! - `<dynamics damping>` of a moving joint becomes its damping ([`Model::damping`], as Pinocchio's and
+//!   MuJoCo's importers read it; 0 if absent); a negative or non-finite value is an error naming the joint.
+//!   `friction` (Coulomb joint friction) is not modelled and is ignored.
+//!
+//! Everything else (`<visual>`, `<safety_controller>`, `<mimic>`, `<material>`,
 //! `<transmission>`, `<gazebo>`, ...) is ignored; joint names are checked for uniqueness but not kept.
 //!
 //! Naming and ordering: the tree's single root link (the one link that is no joint's child) becomes the
@@ -205,6 +209,11 @@ fn parse(xml: &str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf
     if let Some(unreached) = body_of_link.iter().position(Option::is_none) {
         return Err(invalid(format!("the joints form a cycle ({}), which is not a tree", describe_cycle(&links, &joints, &parent_joint, unreached))));
     }
+    let mut damping = model.damping().to_vec();
+    for joint in joints.iter().filter(|j| j.joint.nv() == 1) {
+        damping[model.idx_v(body_of_link[joint.child].expect("every link has a body"))] = joint.damping;
+    }
+    model.set_damping(&damping)?;
     if links.iter().any(|link| !link.shapes.is_empty()) {
         let shapes = links.iter().zip(&body_of_link).flat_map(|(link, body)| {
             let body = body.expect("every link has a body");
@@ -243,6 +252,7 @@ struct UrdfJoint<'a> {
     child: usize,
     placement: Transform,
     limits: JointLimits,
+    damping: f64,
 }
 
 fn invalid(reason: String) -> Error {
@@ -428,7 +438,17 @@ fn joint<'a>(
         Some(limit) if joint != Joint::Fixed => limits(limit, bounded, &owner, accept)?,
         _ => JointLimits::NONE,
     };
-    Ok(UrdfJoint { name, joint, parent, child, placement, limits })
+    let damping = match element(node, "dynamics") {
+        Some(dynamics) if joint != Joint::Fixed && dynamics.attribute("damping").is_some() => {
+            let damping = scalar(dynamics, "damping", &owner)?;
+            if damping < 0.0 {
+                return Err(invalid(format!("{owner}: <dynamics damping> must be >= 0, got {damping}")));
+            }
+            damping
+        }
+        _ => 0.0,
+    };
+    Ok(UrdfJoint { name, joint, parent, child, placement, limits, damping })
 }
 
 /// A moving joint's `<limit>`: the position range if `bounded` (attributes default to 0, as URDF says),
@@ -907,6 +927,22 @@ mod tests {
         assert_eq!(joint("revolute", ""), JointLimits::NONE);
         // Limits on a fixed joint mean nothing and are ignored.
         assert_eq!(joint("fixed", r#"<limit lower="-1" upper="1" effort="1" velocity="1"/>"#), JointLimits::NONE);
+    }
+
+    #[test]
+    fn dynamics_damping_is_read_per_moving_joint() {
+        let damping = |kind: &str, dynamics: &str| {
+            let xml = joint_robot(&format!(r#"<joint name="knee" type="{kind}"><parent link="a"/><child link="b"/>{dynamics}</joint>"#));
+            parse_urdf(&xml, FIXED).map(|urdf| urdf.model.damping().to_vec())
+        };
+        assert_eq!(damping("revolute", r#"<dynamics damping="0.25" friction="0.2"/>"#).unwrap(), vec![0.25]);
+        assert_eq!(damping("prismatic", r#"<dynamics friction="0.2"/>"#).unwrap(), vec![0.0]);
+        assert_eq!(damping("fixed", r#"<dynamics damping="0.25"/>"#).unwrap(), Vec::<f64>::new());
+        let knee = r#"joint "knee""#;
+        let error = damping("revolute", r#"<dynamics damping="-1"/>"#).unwrap_err().to_string();
+        assert!(error.contains(knee) && error.contains("damping> must be >= 0"), "{error}");
+        let error = damping("continuous", r#"<dynamics damping="nan"/>"#).unwrap_err().to_string();
+        assert!(error.contains(knee), "{error}");
     }
 
     #[test]
