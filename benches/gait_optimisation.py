@@ -55,7 +55,7 @@ def walk(args: argparse.Namespace) -> None:
     derivatives = args.derivatives or WALK_DERIVATIVES
     robot = build_biped()
     intervals = (max(1, args.intervals // 4), args.intervals)
-    problem = walk_problem(robot, 0.5, BIPED_MOTOR, intervals)
+    problem = walk_problem(robot, 0.5, BIPED_MOTOR, intervals, mirror=args.mirror)
     guess = guess_from_reference(problem, walk_reference(robot, 0.5, intervals))
     print(f"biped walk, 1.8 km/h, intervals {intervals} per (double, single) support, tol {args.tol:g}: {problem.n} variables, "
           f"{problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros; constraints (legkit, L-BFGS), then J_e1 ({derivatives})")
@@ -78,6 +78,7 @@ def main() -> None:
     parser.add_argument("--speed", type=float, default=0.67)
     parser.add_argument("--neighbour", type=float, default=0.60, help="speed [m/s] whose optimum warm-starts --speed")
     parser.add_argument("--derivatives", choices=("exact", "legkit"), help="default: the gait's (AMBLE_ / WALK_DERIVATIVES)")
+    parser.add_argument("--mirror", action="store_true", help="transcribe half the cycle, the other half its mirror image")
     args = parser.parse_args()
     if args.gait == "walk":
         walk(args)
@@ -90,7 +91,7 @@ def main() -> None:
     def problem(speed: float) -> tuple[lo.MultiphaseProblem, float]:
         start = time.perf_counter()
         # Soft touchdowns, as `legkit gait --optimize` solves it (its --max-impulse default).
-        p = amble_problem(robot, objective, speed, 1.25, args.intervals, QUADRUPED_MOTOR, max_impulse=0.0)
+        p = amble_problem(robot, objective, speed, 1.25, args.intervals, QUADRUPED_MOTOR, max_impulse=0.0, mirror=args.mirror)
         p.nlp(args.derivatives)  # builds (and keeps) the symbolic transcription
         return p, time.perf_counter() - start
 

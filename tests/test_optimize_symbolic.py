@@ -9,6 +9,7 @@ import pytest
 
 import legkit as lk
 from legkit.optimize import MinMaxStability, MultiphaseProblem, Phase, effort
+from legkit.optimize.mirror import side_mirror
 from legkit.optimize.symbolic import SymbolicModel
 from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, build_quadruped
 
@@ -69,13 +70,17 @@ def test_symbolic_kernels_match_legkit(build):
 
 
 @pytest.mark.slow
-def test_symbolic_transcription_matches_the_legkit_one():
+@pytest.mark.parametrize("mirrored", [False, True], ids=["three_phases", "mirrored_half_cycle"])
+def test_symbolic_transcription_matches_the_legkit_one(mirrored):
     # Every row of the symbolic NLP equals legkit's evaluation, and its exact Jacobian matches the coloured
-    # central differences, on a three-phase quadruped problem with the smooth S_H rows and an impact.
+    # central differences, on a three-phase quadruped problem with the smooth S_H rows and an impact; or on
+    # two phases wrapping around to their mirror image (a touchdown of the mirrored feet).
     robot = build_quadruped()
     phases = [Phase(("lf", "lh"), 1, (0.1, 0.5)), Phase(("lf", "rh"), 1, (0.1, 0.5)), Phase(("rf", "rh"), 1, (0.1, 0.5))]
-    problem = MultiphaseProblem(robot.model, phases, {leg: robot.feet[leg] for leg in LEGS},
-                                [MinMaxStability(2.0, DIAGONAL_PAIRS), effort(weight=0.1)], speed=0.3)
+    mirror = side_mirror(robot.model, {"lf": "rf", "lh": "rh"}) if mirrored else None
+    problem = MultiphaseProblem(robot.model, phases[:2] if mirrored else phases, {leg: robot.feet[leg] for leg in LEGS},
+                                [MinMaxStability(2.0, DIAGONAL_PAIRS), effort(weight=0.1)], speed=0.3, mirror=mirror)
+    assert mirror is None or problem.impulse_index.keys() == {0, 1}
     rng = np.random.default_rng(5)
     x = rng.normal(0.0, 0.3, problem.n)
     for index in problem.point_index:

@@ -530,7 +530,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     robot = build_quadruped(AMBLE_QUADRUPED)
     speed, period = args.quadruped_speed, args.quadruped_period
     problem = amble_problem(robot, [MinMaxStability(args.quadruped_tip_speed, DIAGONAL_PAIRS)], speed, period,
-                            args.intervals, QUADRUPED_MOTOR, args.mu, max_impulse=args.max_impulse)
+                            args.intervals, QUADRUPED_MOTOR, args.mu, max_impulse=args.max_impulse, mirror=args.mirror)
     ref = amble_reference(robot, speed, period, args.intervals)
     guess = guess_from_reference(problem, ref)
     reference_s_h = np.concatenate(problem.stability_index(problem.pack(guess)))
@@ -545,6 +545,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     else:
         assert result.best_feasible is not None  # best() returns another point than IPOPT's only from best_feasible
         kept = result.best_feasible[0]
+    problem, x = _whole_cycle(problem, x)
     trajectory = problem.unpack(x)
     data = trajectory.stacked()
     labels = ["+".join(leg.upper() for leg in problem.phases[k].contacts) for k in data["phase"]]
@@ -583,13 +584,14 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
     robot = build_biped()
     speed = args.biped_speed / 3.6
     intervals = (max(1, args.biped_intervals // 4), args.biped_intervals)
-    problem = walk_problem(robot, speed, BIPED_MOTOR, intervals, args.mu, max_input_power=args.biped_max_power)
+    problem = walk_problem(robot, speed, BIPED_MOTOR, intervals, args.mu, max_input_power=args.biped_max_power, mirror=args.mirror)
     guess = guess_from_reference(problem, walk_reference(robot, speed, intervals))
     print(f"optimising the biped walk: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
     cpu = time.process_time()
     _, result = solve_walk(problem, guess, tol=args.tol, max_iter=args.biped_max_iter, progress=_iteration_printer("J_e1"))
     cpu = time.process_time() - cpu
     x, objective = result.best()
+    problem, x = _whole_cycle(problem, x)
     trajectory = problem.unpack(x)
     data = trajectory.stacked()
     labels = ["+".join(problem.phases[k].contacts).upper() for k in data["phase"]]
@@ -620,6 +622,15 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
             data["u"], joint_speed, BIPED_MOTOR.joint_max_speed, BIPED_MOTOR.gear_ratio, BIPED_MOTOR.efficiency, BIPED_MOTOR.slope))),
         "solver succeeded (1 = yes)": float(result.success),
     }
+
+
+def _whole_cycle(problem: MultiphaseProblem, x: np.ndarray) -> tuple[MultiphaseProblem, np.ndarray]:
+    """A solution as the whole cycle's problem and variables: unrolled if the problem is a mirrored half cycle,
+    so that everything after (CSV, figures, the violation re-evaluated, the replay) sees the whole gait."""
+    if problem.mirror is None:
+        return problem, x
+    whole = problem.full_cycle()
+    return whole, whole.pack(problem.unroll(problem.unpack(x)))
 
 
 def inverse_dynamics_residuals(problem: MultiphaseProblem, x: np.ndarray) -> list[np.ndarray]:
@@ -774,6 +785,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-impulse", type=float, default=0.0,
                         help="--optimize: bound on the amble's touchdown impulses [N s] (0: feet land at rest; inf: eq. 7 unbounded)")
     parser.add_argument("--no-animation", action="store_true", help="--optimize: do not write the replay's .html and .gif")
+    parser.add_argument("--mirror", action="store_true",
+                        help="--optimize: transcribe half of each gait's cycle, the other half its mirror image (mirror periodicity)")
     args = parser.parse_args(argv)
     if args.samples < 8:
         parser.error("--samples must be at least 8")

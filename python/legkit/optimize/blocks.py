@@ -51,11 +51,12 @@ class Linear:
         return self.coefficients
 
 
-def equal(size: int, left: np.ndarray, right: np.ndarray) -> Linear:
-    """x[left] - x[right] = 0 elementwise (continuity, periodicity)."""
+def equal(size: int, left: np.ndarray, right: np.ndarray, signs: ArrayLike = 1.0) -> Linear:
+    """signs * x[left] - x[right] = 0 elementwise (continuity, periodicity, mirror periodicity)."""
     left, right = np.ravel(left), np.ravel(right)
     rows = np.arange(size)
-    return Linear(size, np.concatenate([rows, rows]), np.concatenate([left, right]), np.r_[np.ones(size), -np.ones(size)])
+    return Linear(size, np.concatenate([rows, rows]), np.concatenate([left, right]),
+                  np.r_[np.broadcast_to(np.asarray(signs, dtype=np.float64), (size,)), -np.ones(size)])
 
 
 @dataclass

@@ -3,11 +3,13 @@ started from `legkit.experiments.gait`'s hand-built references.
 
 The amble: duty factor 0.5, support order LF+LH, LF+RH, RF+RH, RF+LH (Sect. 4.2, read as in
 `legkit.experiments.gait.quadruped_amble`), a touchdown and a liftoff at every boundary, so every phase has
-two feet down and S_H (eq. 10) is defined throughout; the full cycle is transcribed (no mirror symmetry).
+two feet down and S_H (eq. 10) is defined throughout; the full cycle is transcribed, or with `mirror=True` its
+first half, the second being its mirror image (`legkit.optimize.mirror`).
 
 The biped walk (Sect. 6: walking at up to 1.8 km/h, minimising J_e1 under the motors' torque-speed lines): the
 flat-footed walk of `legkit.experiments.gait.biped_walk`, double support, left stance, double support, right
-stance from the left touchdown at t = 0, each sole a `FlatFoot` (eq. 6); the full cycle is transcribed.
+stance from the left touchdown at t = 0, each sole a `FlatFoot` (eq. 6); the full cycle is transcribed, or with
+`mirror=True` its first half (double support, left stance), the second being its mirror image.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from legkit.experiments.gait import (
     contact_inverse_dynamics,
     quadruped_amble,
 )
+from legkit.optimize.mirror import side_mirror
 from legkit.optimize.objectives import joule_loss
 from legkit.optimize.problem import FlatFoot, InputPower, MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
 from legkit.optimize.solver import SolveResult, solve
@@ -53,16 +56,17 @@ def torque_speed_line(motor: MotorParameters) -> TorqueSpeedLine:
 def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: float, intervals: int,
                   motor: MotorParameters, friction: float = 0.8, duration_range: tuple[float, float] = (0.5, 1.5),
                   max_tilt: float = np.radians(15.0), joint_range: tuple[float, float, float] = (0.35, 1.8, 2.6),
-                  max_swing_height: float = 0.06, max_impulse: float = np.inf) -> MultiphaseProblem:
+                  max_swing_height: float = 0.06, max_impulse: float = np.inf, mirror: bool = False) -> MultiphaseProblem:
     """The amble at `speed` [m/s] over a fixed `period` [s]; each phase lasts between duration_range x period / 4.
     The state bounds of Sect. 2.3 keep the torso above the ground and its roll and pitch within about
     max_tilt [rad] (|q_x|, |q_y| <= sin(max_tilt / 2)): unbounded, J_s2 pitches the torso by ~50 deg; and the
     joints within joint_range [rad] = (|hip roll|, |hip pitch|, knee bent its own way by at most this):
     unbounded, J_s2 swung the legs over the torso (swing feet 0.6 m up) and straightened the knees; and the swing
     tips below max_swing_height [m] (with the joint bounds alone they still rose 0.4 m, swinging the legs for
-    angular momentum, which no replay could track)."""
+    angular momentum, which no replay could track). mirror: transcribe half the cycle (module docstring)."""
     quarter = period / 4.0
-    phases = [Phase(pair, intervals, (duration_range[0] * quarter, duration_range[1] * quarter)) for pair in AMBLE_SUPPORT]
+    support = AMBLE_SUPPORT[:2] if mirror else AMBLE_SUPPORT
+    phases = [Phase(pair, intervals, (duration_range[0] * quarter, duration_range[1] * quarter)) for pair in support]
     line = torque_speed_line(motor)
     stall = line.max_speed * line.gain
     nu = robot.model.nv - 6
@@ -78,7 +82,8 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
         upper[joints : joints + 3] = [roll, pitch, max(0.0, bend * knee)]
     return MultiphaseProblem(robot.model, phases, {leg: robot.feet[leg] for leg in LEGS}, objectives, speed=speed, period=period,
                              friction=friction, u_bounds=(np.full(nu, -stall), np.full(nu, stall)), torque_speed=line,
-                             q_bounds=(lower, upper), max_swing_height=max_swing_height, max_impulse=max_impulse)
+                             q_bounds=(lower, upper), max_swing_height=max_swing_height, max_impulse=max_impulse,
+                             mirror=side_mirror(robot.model, {"lf": "rf", "lh": "rh"}) if mirror else None)
 
 
 def amble_reference(robot: Quadruped, speed: float, period: float, intervals: int) -> GaitReference:
@@ -106,13 +111,14 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
                  friction: float = 0.8, max_tilt: float = np.radians(10.0), max_swing_height: float = 0.15,
                  double_support: tuple[float, float] = (0.04, 0.4), single_support: tuple[float, float] = (0.3, 1.0),
                  period: float | tuple[float, float] | None = 1.6, objectives: Sequence | None = None,
-                 max_input_power: float | None = None) -> MultiphaseProblem:
+                 max_input_power: float | None = None, mirror: bool = False) -> MultiphaseProblem:
     """The biped walk at `speed` [m/s] minimising J_e1 (eq. 12) with `motor`'s resistance, gear and torque
     constant at every joint (or the given `objectives`), under its torque-speed line (Sect. 2.3) and stall torque; the soles flat on the
     ground in stance with eq. 6's torque limits. intervals: (per double-support phase, per single-support
     phase); the phase durations [s] lie in double_support and single_support and sum to `period` [s] (fixed,
     bounds, or None: free; the default is the reference's, a 0.4 m step). max_input_power [W]: each motor's input
-    power bound (`InputPower`, Sect. 6's "maximum input power constraints"; None: unbounded).
+    power bound (`InputPower`, Sect. 6's "maximum input power constraints"; None: unbounded). mirror: transcribe
+    half the cycle (module docstring).
 
     Parameters the paper does not give, assumed here: the motor (legkit's `BIPED_MOTOR`: Fig. 6 names 42 V
     motors with 66:1 gears for an 18 kg biped but no motor constants, and legkit's biped weighs 42 kg); mu_d =
@@ -125,7 +131,7 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
     feet = {side: (f"{side}_foot", centre) for side in SIDES}
     sole = FlatFoot(p.foot_toe + p.foot_heel, 2.0 * p.foot_half_width, SOLE_TORSION)
     phases = [Phase(support, intervals[0] if len(support) == 2 else intervals[1], double_support if len(support) == 2 else single_support)
-              for support in WALK_SUPPORT]
+              for support in (WALK_SUPPORT[:2] if mirror else WALK_SUPPORT)]
     line = torque_speed_line(motor)
     stall = line.max_speed * line.gain
     model = robot.model
@@ -146,7 +152,8 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
                              u_bounds=(np.full(nu, -stall), np.full(nu, stall)), torque_speed=line, q_bounds=(lower, upper),
                              max_swing_height=max_swing_height, flat_feet={side: sole for side in SIDES},
                              input_power=None if max_input_power is None else
-                             InputPower(max_input_power, motor.resistance, motor.gear_ratio, motor.torque_constant))
+                             InputPower(max_input_power, motor.resistance, motor.gear_ratio, motor.torque_constant),
+                             mirror=side_mirror(model, {"l": "r"}) if mirror else None)
 
 
 def solve_walk(problem: MultiphaseProblem, guess: Trajectory, derivatives: str = WALK_DERIVATIVES,

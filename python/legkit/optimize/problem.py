@@ -20,8 +20,10 @@ and 4.1, on legkit's kernels:
   phase's feet),
   state/control bounds and the motor torque-speed line |u| <= (w_max - |w|) k (Sect. 2.3, split into its four
   linear faces); optionally each motor's input power within a limit (`InputPower`, Sect. 6);
-* periodicity (Sect. 2.3: q(t_f) = q(0) up to the travelled distance, velocity after the wrap-around impact)
-  or fixed initial/final states.
+* periodicity (Sect. 2.3: q(t_f) = q(0) up to the travelled distance, velocity after the wrap-around impact),
+  or mirror periodicity over half a cycle for symmetric gaits (`mirror`: the phases are the first half, and
+  the second half, the first's mirror image, begins where it ends: q(t_f) = mirror(q(0)) up to the travelled
+  distance; `full_cycle` unrolls a solution), or fixed initial/final states.
 
 Jacobians of the dynamics and of every nonlinear point constraint are coloured central differences over
 batched kernel calls (`point_jacobian`), except where they are exact and cheap (d rnea / d a = M from `crba`,
@@ -31,7 +33,7 @@ d rnea / d u = -B); the pattern, from the model's tree, is fixed before solving.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
@@ -39,6 +41,7 @@ import numpy as np
 import legkit as lk
 from legkit.optimize.blocks import Block, Linear, Point, equal
 from legkit.optimize.collocation import hermite_simpson_defects, point_jacobian
+from legkit.optimize.mirror import Mirror
 from legkit.optimize.solver import NLP, SolveResult, solve
 
 if TYPE_CHECKING:
@@ -148,12 +151,13 @@ class MultiphaseProblem:
     feet: contact points by name, (body, point in body frame). actuated: v indices driven by u (default: every
     joint, i.e. v[6:] for a free-flyer, all of v otherwise). periodic: q, v wrap around (the travel coordinate
     q[travel_index] advancing by speed x cycle time); otherwise initial/final (q, v) fix the ends (NaN: free).
-    period: the cycle time, fixed (float) or bounded (lo, hi). force_dims: 3 (friction cone) or 1 (normal force
-    only, for models that cannot push sideways). flat_feet: `FlatFoot` soles by foot name (eq. 6; needs
-    force_dims 3). q/v/u_bounds: (lower, upper) arrays. max_impulse: a bound [N s] on every component of every
-    touchdown impulse (eq. 7, the impulse variables); 0 makes every touchdown soft, the landing feet arriving at
-    rest and v continuous (a gait whose impacts carry the robot's momentum cannot be replayed by joint tracking:
-    docs/optimize.md).
+    mirror (periodic problems; `legkit.optimize.mirror`): the phases are half a cycle, the other half their
+    mirror image. period: the cycle time (the whole cycle's, with a mirror), fixed (float) or bounded (lo, hi).
+    force_dims: 3 (friction cone) or 1 (normal force only, for models that cannot push sideways). flat_feet:
+    `FlatFoot` soles by foot name (eq. 6; needs force_dims 3). q/v/u_bounds: (lower, upper) arrays.
+    max_impulse: a bound [N s] on every component of every touchdown impulse (eq. 7, the impulse variables); 0
+    makes every touchdown soft, the landing feet arriving at rest and v continuous (a gait whose impacts carry
+    the robot's momentum cannot be replayed by joint tracking: docs/optimize.md).
     objectives: terms from `legkit.optimize.objectives`, summed.
     """
 
@@ -180,6 +184,7 @@ class MultiphaseProblem:
     max_swing_height: float = np.inf  # [m] swing tips stay between the ground (eq. 4) and this height
     max_impulse: float = np.inf  # [N s] bound on every component of every touchdown impulse (0: feet land at rest)
     flat_feet: Mapping[str, FlatFoot] = field(default_factory=dict)
+    mirror: Mirror | None = None
 
     def __post_init__(self) -> None:
         self._validate()
@@ -224,9 +229,9 @@ class MultiphaseProblem:
         self.impulse_index: dict[int, np.ndarray] = {}
         count = len(self.phases)
         for k in range(count if self.periodic else count - 1):
-            after = self.phases[(k + 1) % count]
-            if set(after.contacts) - set(self.phases[k].contacts):
-                size = self.force_dims * len(after.contacts) + 3 * len(self.flat_contacts(after.contacts))  # `contact_rows`
+            after = self.contacts_after(k)
+            if set(after) - set(self.phases[k].contacts):
+                size = self.force_dims * len(after) + 3 * len(self.flat_contacts(after))  # `contact_rows`
                 self.impulse_index[k] = offset + np.arange(size)
                 offset += size
         self.n = offset
@@ -277,7 +282,9 @@ class MultiphaseProblem:
             raise ValueError(f"flat_feet need force_dims 3 (eq. 6 bounds a torque by the friction of F), got {self.force_dims}")
         if any(not isinstance(sole, FlatFoot) for sole in self.flat_feet.values()):
             raise TypeError("flat_feet must map foot names to FlatFoot")
-        sequence = [frozenset(p.contacts) for p in self.phases]
+        if self.mirror is not None:
+            self._validate_mirror()
+        sequence = [frozenset(p.contacts) for p in self.cycle_phases()]
         pairs = [(i, i - 1) for i in range(1, len(sequence))]
         if self.periodic and len(sequence) > 1:
             pairs.append((0, len(sequence) - 1))  # the cycle wraps around
@@ -298,18 +305,59 @@ class MultiphaseProblem:
             lo, hi = _period_bounds(self.period)
             if not 0.0 < lo <= hi:
                 raise ValueError(f"period must be > 0 (or bounds 0 < lower <= upper), got {self.period}")
-            if sum(p.duration[1] for p in self.phases) < lo or sum(p.duration[0] for p in self.phases) > hi:
+            cycle = self.cycle_phases()
+            if sum(p.duration[1] for p in cycle) < lo or sum(p.duration[0] for p in cycle) > hi:
                 raise ValueError(f"period {self.period} cannot be met by the phases' duration bounds "
-                                 f"(their sums lie in [{sum(p.duration[0] for p in self.phases)}, {sum(p.duration[1] for p in self.phases)}])")
+                                 f"(their sums over the cycle lie in [{sum(p.duration[0] for p in cycle)}, {sum(p.duration[1] for p in cycle)}])")
         if not self.periodic and (self.initial is None and self.final is None):
             raise ValueError("a non-periodic problem needs initial and/or final states")
+
+    def _validate_mirror(self) -> None:
+        mirror = self.mirror
+        if not isinstance(mirror, Mirror):
+            raise TypeError(f"mirror must be a legkit.optimize.mirror.Mirror, got {type(mirror).__name__}")
+        if not self.periodic:
+            raise ValueError("mirror needs a periodic problem (it links the half cycle's end to its mirrored start)")
+        if mirror.q_order.shape != (self.model.nq,) or mirror.v_order.shape != (self.model.nv,):
+            raise ValueError(f"mirror is for a model with nq = {len(mirror.q_order)}, nv = {len(mirror.v_order)}; "
+                             f"this one has {self.model.nq}, {self.model.nv}")
+        unpaired = [name for name in self.feet if mirror.feet.get(name) not in self.feet]
+        if unpaired:
+            raise ValueError(f"mirror.feet must pair every foot with a foot; {unpaired} are not")
+        actuated = set(self.actuated if self.actuated is not None else range(6 if self.model.floating_base else 0, self.model.nv))
+        if {int(mirror.v_order[i]) for i in actuated} != actuated:
+            raise ValueError("actuated: the mirror of an actuated joint must be actuated")
+        travel = self.travel_index if self.travel_index is not None else (0 if self.model.floating_base else None)
+        if travel is not None and (mirror.q_order[travel] != travel or mirror.q_sign[travel] != 1.0):
+            raise ValueError(f"mirror must keep the travel coordinate q[{travel}] (a sagittal mirror keeps x)")
+
+    def cycle_phases(self) -> list[Phase]:
+        """The phases of a whole cycle: the problem's, then with a mirror their mirror images."""
+        if self.mirror is None:
+            return list(self.phases)
+        return list(self.phases) + [Phase(self.mirror.contacts(p.contacts), p.intervals, p.duration) for p in self.phases]
+
+    def contacts_after(self, k: int) -> tuple[str, ...]:
+        """The feet down after the boundary that ends phase k, named as phase k sees them: at the wrap-around
+        of a mirrored half cycle, the mirror of the first phase's."""
+        after = (k + 1) % len(self.phases)
+        if after == 0 and self.mirror is not None:
+            return self.mirror.contacts(self.phases[0].contacts)
+        return tuple(self.phases[after].contacts)
+
+    def contacts_before(self, k: int) -> tuple[str, ...]:
+        """The feet down before the boundary that starts phase k, named as phase k sees them."""
+        if k == 0 and self.mirror is not None:
+            return self.mirror.contacts(self.phases[-1].contacts)
+        return tuple(self.phases[k - 1].contacts)
 
     def _check_reach(self) -> None:
         """A foot on the ground for a time T lets its hip travel speed x T under it; more than the leg's
         diameter of reach (twice the length of the chain from the base to the foot) is unreachable."""
         model = self.model
         for name, (body, point) in self.feet.items():
-            down = [name in p.contacts for p in self.phases]
+            cycle = self.cycle_phases()
+            down = [name in p.contacts for p in cycle]
             if all(down):
                 raise ValueError(f"speed {self.speed} m/s is unreachable: foot {name!r} never leaves the ground in phases, "
                                  "so it cannot move with the body (an inconsistent contact sequence for a moving gait)")
@@ -323,7 +371,7 @@ class MultiphaseProblem:
             runs: list[float] = []
             run = 0.0
             for k in range(first_swing, first_swing + len(down) + 1):
-                phase = self.phases[k % len(down)]
+                phase = cycle[k % len(down)]
                 if name in phase.contacts:
                     run += phase.duration[0]
                 elif run > 0.0:
@@ -473,30 +521,29 @@ class MultiphaseProblem:
                                      np.r_[np.ones(len(rows)), -0.5 * np.ones(2 * len(rows))]))
             blocks.extend(self._contact_blocks(k))
         for k in range(count if self.periodic else count - 1):
-            after = (k + 1) % count
-            end, start = self.point_index[k][-1], self.point_index[after][0]
-            if self.periodic and after == 0 and self.travel_index is not None:
+            end, start = self.point_index[k][-1], self._start_seen_from(k)
+            if self.periodic and (k + 1) % count == 0 and self.travel_index is not None:
                 # q_start = q_end - speed * sum(T) on the travel coordinate, equal elsewhere. The base quaternion's
                 # norm already follows from the first point's |q| = 1 through the defects, so only its direction
                 # wraps around (3 rows: equal 4 components would be a nearly redundant row, ill-conditioning
                 # the KKT system).
                 quaternion = [3, 4, 5, 6] if self.model.floating_base else []
                 keep = [i for i in range(nq) if i != self.travel_index and i not in quaternion]
-                blocks.append(equal(len(keep), start[keep], end[keep]))
+                blocks.append(equal(len(keep), start.q[keep], end[keep], start.q_sign[keep]))
                 if quaternion:
-                    blocks.append(Point(np.concatenate([start[3:7], end[3:7]])[None], _same_rotation, 3,
-                                        symbolic=lambda _, z: z[:3] / _norm(z[:4]) - z[4:7] / _norm(z[4:8])))
+                    blocks.append(_same_rotation_block(np.concatenate([start.q[3:7], end[3:7]]), np.r_[start.q_sign[3:7], np.ones(4)]))
                 blocks.append(Linear(1, np.zeros(count + 2, dtype=np.int64),
-                                     np.r_[start[self.travel_index], end[self.travel_index], self.duration_index],
+                                     np.r_[start.q[self.travel_index], end[self.travel_index], self.duration_index],
                                      np.r_[1.0, -1.0, np.full(count, self.speed)]))
             else:
-                blocks.append(equal(nq, start[:nq], end[:nq]))
-            blocks.append(self._velocity_transition(k, after))
+                blocks.append(equal(nq, start.q, end[:nq], start.q_sign))
+            blocks.append(self._velocity_transition(k, start))
             if self.continuous_controls and nu:
-                blocks.append(equal(nu, start[nx : nx + nu], end[nx : nx + nu]))
+                blocks.append(equal(nu, start.u, end[nx : nx + nu], start.u_sign))
         if self.period is not None:
             lo, hi = _period_bounds(self.period)
-            blocks.append(Linear(1, np.zeros(count, dtype=np.int64), self.duration_index, np.ones(count), lower=lo, upper=hi))
+            halves = 1.0 if self.mirror is None else 2.0  # the phases are half the cycle
+            blocks.append(Linear(1, np.zeros(count, dtype=np.int64), self.duration_index, np.full(count, halves), lower=lo, upper=hi))
         if self.model.floating_base:  # fixes the scale gauge of the quaternion (kernels normalise it)
             first = self.point_index[0][0]
             blocks.append(Point(first[None, 3:7], lambda quat: np.sum(quat * quat, axis=1, keepdims=True) - 1.0, 1,
@@ -579,27 +626,42 @@ class MultiphaseProblem:
         return np.concatenate([np.einsum("bij,bj->bi", mass, v_plus - v_minus) - np.einsum("bji,bj->bi", jac, impulses),
                                np.einsum("bij,bj->bi", jac, v_plus)], axis=1)
 
-    def _velocity_transition(self, k: int, after: int) -> Block:
+    def _start_seen_from(self, k: int) -> _Start:
+        """The variables of the point after the boundary that ends phase k, as phase k's end sees them (`_Start`)."""
+        start = self.point_index[(k + 1) % len(self.phases)][0]
+        nq, nx = self.nq, self.nx
+        actuated = np.asarray(self.actuated)
+        if (k + 1) % len(self.phases) or self.mirror is None:
+            return _Start(start[:nq], np.ones(nq), start[nq:nx], np.ones(self.nv), start[nx : nx + self.nu], np.ones(self.nu))
+        mirror = self.mirror
+        column = {int(v): j for j, v in enumerate(actuated)}  # u column of each actuated v index
+        u_order = np.array([column[int(mirror.v_order[v])] for v in actuated], dtype=np.int64)
+        return _Start(start[mirror.q_order], mirror.q_sign, start[nq + mirror.v_order], mirror.v_sign,
+                      start[nx + u_order], mirror.v_sign[actuated])
+
+    def _velocity_transition(self, k: int, start: _Start) -> Block:
         """v after the boundary: the impact map (eq. 7) when feet touch down, else continuity. The impact is
         stated implicitly with the impulses as variables (`impact_rows`): the explicit map v+ = impact(q, v-)
         solves a KKT system whose second derivatives are ~100x those of the implicit rows (the symbolic
         Hessian of one explicit touchdown had 2.9 million instructions)."""
-        end, start = self.point_index[k][-1], self.point_index[after][0]
+        end = self.point_index[k][-1]
         nq, nx, nv = self.nq, self.nx, self.nv
         if k not in self.impulse_index:
-            return equal(nv, start[nq:nx], end[nq:nx])
-        contacts = self.phases[after].contacts
+            return equal(nv, start.v, end[nq:nx], start.v_sign)
+        contacts = self.contacts_after(k)
         rows = self.contact_rows(contacts)
+        signs = np.r_[np.ones(nx), start.v_sign, np.ones(len(self.impulse_index[k]))]
 
         def symbolic(model: SymbolicModel, z: Any) -> Any:
             import casadi as ca
 
+            z = z * ca.DM(signs)
             q, v_minus, v_plus, impulses = z[:nq], z[nq : nq + nv], z[nq + nv : nq + 2 * nv], z[nq + 2 * nv :]
             jac = ca.vertcat(*[model.contact_jacobian(q, [(body, point)])[axes, :] for body, point, axes in rows])
             return ca.vertcat(model.mass_matrix(q) @ (v_plus - v_minus) - jac.T @ impulses, jac @ v_plus)
 
-        index = np.concatenate([end[:nx], start[nq:nx], self.impulse_index[k]])[None]
-        return Point(index, lambda z: self.impact_rows(z, contacts), nv + len(self.impulse_index[k]), symbolic=symbolic)
+        index = np.concatenate([end[:nx], start.v, self.impulse_index[k]])[None]
+        return Point(index, lambda z: self.impact_rows(signs * z, contacts), nv + len(self.impulse_index[k]), symbolic=symbolic)
 
     def _torque_speed_blocks(self) -> list[Block]:
         """(w_max - |w|) k - |u| >= 0 as four linear faces per actuated joint and point."""
@@ -744,6 +806,42 @@ class MultiphaseProblem:
             raise ValueError("stability_index needs a problem whose objectives hold a MinMaxStability term")
         return [published_stability(self, k, terms[0], x[index]) for k, index in enumerate(self.point_index)]
 
+    # ------------------------------------------------------------------ mirror periodicity
+    def full_cycle(self) -> MultiphaseProblem:
+        """The same gait over its whole cycle without a mirror (self when there is none): what `unroll`'s
+        trajectories are solutions of."""
+        if self.mirror is None:
+            return self
+        return replace(self, phases=self.cycle_phases(), mirror=None)
+
+    def unroll(self, trajectory: Trajectory) -> Trajectory:
+        """A mirrored half cycle followed by its mirror image, moved on by the half cycle's time and travel: the
+        whole cycle, as `full_cycle()` transcribes it (the trajectory itself when there is no mirror)."""
+        mirror = self.mirror
+        if mirror is None:
+            return trajectory
+        half = float(np.sum(trajectory.durations))
+        shift = np.zeros(self.nq)
+        if self.travel_index is not None:
+            shift[self.travel_index] = self.speed * half
+        actuated = np.asarray(self.actuated)
+        column = {int(v): j for j, v in enumerate(actuated)}
+        u_order = np.array([column[int(mirror.v_order[v])] for v in actuated], dtype=np.int64)
+
+        def twice(parts: list[np.ndarray], mirrored: Callable[[np.ndarray], np.ndarray]) -> list[np.ndarray]:
+            return list(parts) + [mirrored(np.asarray(p)) for p in parts]
+
+        def controls(u: np.ndarray) -> np.ndarray:
+            return mirror.v_sign[actuated] * u[..., u_order]
+
+        a, torques = trajectory.a, trajectory.torques
+        return Trajectory(
+            twice(trajectory.t, lambda t: t + half), twice(trajectory.q, lambda q: mirror.q(q) + shift),
+            twice(trajectory.v, mirror.v), twice(trajectory.u, controls), twice(trajectory.forces, Mirror.vectors),
+            np.concatenate([trajectory.durations, trajectory.durations]), trajectory.stability_bound,
+            None if a is None else twice(a, mirror.v), None if torques is None else twice(torques, Mirror.axial),
+        )
+
     # ------------------------------------------------------------------ packing
     def pack(self, trajectory: Trajectory) -> np.ndarray:
         """The variable vector of a trajectory (an initial guess or a neighbouring problem's solution)."""
@@ -764,12 +862,11 @@ class MultiphaseProblem:
             x[index] = z
         x[self.duration_index] = trajectory.durations
         x[self.p1_index] = trajectory.stability_bound
-        count = len(self.phases)
         for k, index in self.impulse_index.items():  # least-squares impulses of the trajectory's own velocity jump
-            end, start = self.point_index[k][-1], self.point_index[(k + 1) % count][0]
+            end, start = self.point_index[k][-1], self._start_seen_from(k)
             q = x[end[: self.nq]][None]
-            jump = np.asarray(lk.crba(self.model, self.configuration(q)))[0] @ (x[start[self.nq : self.nx]] - x[end[self.nq : self.nx]])
-            x[index] = np.linalg.lstsq(self.contact_jacobian(q, self.phases[(k + 1) % count].contacts)[0].T, jump, rcond=None)[0]
+            jump = np.asarray(lk.crba(self.model, self.configuration(q)))[0] @ (start.v_sign * x[start.v] - x[end[self.nq : self.nx]])
+            x[index] = np.linalg.lstsq(self.contact_jacobian(q, self.contacts_after(k))[0].T, jump, rcond=None)[0]
         return x
 
     def unpack(self, x: np.ndarray) -> Trajectory:
@@ -804,6 +901,31 @@ def _same_rotation(pair: np.ndarray) -> np.ndarray:
     """(B, 3): vector parts of two [x, y, z, w] quaternions (B, 8), each normalised, subtracted."""
     first, second = pair[:, :4], pair[:, 4:]
     return first[:, :3] / np.linalg.norm(first, axis=1, keepdims=True) - second[:, :3] / np.linalg.norm(second, axis=1, keepdims=True)
+
+
+def _same_rotation_block(index: np.ndarray, signs: np.ndarray) -> Point:
+    """`_same_rotation` of the quaternion pair x[index] (8,), each component times its sign first."""
+    def symbolic(_: Any, z: Any) -> Any:
+        import casadi
+
+        z = casadi.DM(signs) * z
+        return z[:3] / _norm(z[:4]) - z[4:7] / _norm(z[4:8])
+
+    return Point(index[None], lambda pair: _same_rotation(signs * pair), 3, symbolic=symbolic)
+
+
+@dataclass(frozen=True)
+class _Start:
+    """The point after a phase boundary, as the phase before sees it: the variables of its q, v and u and the
+    signs that turn them into the earlier phase's frame (all 1, except across the wrap-around of a mirrored
+    half cycle, where q_sign * x[q] is the mirror of the start's configuration, and so on)."""
+
+    q: np.ndarray
+    q_sign: np.ndarray
+    v: np.ndarray
+    v_sign: np.ndarray
+    u: np.ndarray
+    u_sign: np.ndarray
 
 
 class _Defects:
@@ -958,8 +1080,8 @@ class _Feet:
 
         count_phases = len(problem.phases)
         linked = problem.periodic and count_phases > 1
-        before = problem.phases[k - 1].contacts if (k > 0 or linked) else None
-        after = problem.phases[(k + 1) % count_phases].contacts if (k < count_phases - 1 or linked) else None
+        before = problem.contacts_before(k) if (k > 0 or linked) else None
+        after = problem.contacts_after(k) if (k < count_phases - 1 or linked) else None
         for point in range(points):
             for foot, (name, foot_name) in enumerate(zip(names, owner)):
                 if (point == 0 and before is not None and foot_name in before) or (
