@@ -62,6 +62,7 @@ use roxmltree::{Document, Node};
 
 use crate::mesh::{mesh_vertices, resolve_mesh};
 use crate::sim::{Convex, Shape, ShapeKind};
+use crate::validate::direction;
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
 /// How a URDF becomes a model.
@@ -420,11 +421,7 @@ fn joint<'a>(
             Some(axis) => vector3(axis, "xyz", Vector3::x(), &owner)?,
             None => Vector3::x(),
         };
-        let norm = axis.norm();
-        if !(norm > 0.0 && norm.is_finite()) {
-            return Err(invalid(format!("{owner}: <axis> must be a non-zero vector, got {:?}", axis.as_slice())));
-        }
-        Ok(axis / norm)
+        direction("axis", axis).map_err(|e| invalid(format!("{owner}: <axis xyz=\"{} {} {}\">: {e}", axis.x, axis.y, axis.z)))
     };
     let (joint, bounded) = match node.attribute("type") {
         Some("revolute") => (Joint::Revolute(axis()?), true),
@@ -462,14 +459,9 @@ fn limits(limit: Node, bounded: bool, owner: &str, accept: &mut dyn FnMut(String
         }
     };
     let (lower, upper) = if bounded { (optional("lower", 0.0)?, optional("upper", 0.0)?) } else { (f64::NEG_INFINITY, f64::INFINITY) };
-    if lower > upper {
-        return Err(invalid(format!("{owner}: <limit> lower ({lower}) must be <= upper ({upper})")));
-    }
+    // A zero bound is an exporter's "unset"; anything else `JointLimits::new` checks.
     let mut bound = |attr: &str| -> Result<f64> {
         let value = optional(attr, f64::INFINITY)?;
-        if value < 0.0 {
-            return Err(invalid(format!("{owner}: <limit> {attr} must be >= 0 (omit it for no bound), got {value}")));
-        }
         if value == 0.0 {
             accept(format!("{owner}: <limit> {attr}=\"0\" read as no bound"))?;
             return Ok(f64::INFINITY);
@@ -953,8 +945,8 @@ mod tests {
         let knee = r#"joint "knee""#;
         assert_fails(&joint("revolute", r#"lower="1" upper="-1""#), &[knee, "lower (1) must be <= upper (-1)"]);
         assert_fails(&joint("prismatic", r#"lower="0.5""#), &[knee, "lower (0.5) must be <= upper (0)"]);
-        assert_fails(&joint("revolute", r#"lower="-1" upper="1" effort="-1""#), &[knee, "effort must be >= 0", "got -1"]);
-        assert_fails(&joint("continuous", r#"velocity="-2""#), &[knee, "velocity must be >= 0", "got -2"]);
+        assert_fails(&joint("revolute", r#"lower="-1" upper="1" effort="-1""#), &[knee, "effort must be > 0", "got -1"]);
+        assert_fails(&joint("continuous", r#"velocity="-2""#), &[knee, "velocity must be > 0", "got -2"]);
         // What exporters write for "unset": no bound with a warning, an error only when strict.
         assert_fails(&joint("revolute", r#"lower="-1" upper="1" effort="0""#), &[knee, r#"effort="0" read as no bound"#, "strict"]);
         assert_fails(&joint("revolute", r#"lower="low" upper="1""#), &[knee, "lower", r#""low" is not a number"#]);
@@ -1094,8 +1086,8 @@ mod tests {
         assert_fails(&joint("revolute", r#"<origin xyz="1 2 3 4"/>"#), &[knee, "expected 3 numbers, found 4"]);
         assert_fails(&joint("revolute", r#"<origin xyz="1 2 x"/>"#), &[knee, r#""x" is not a number"#]);
         assert_fails(&joint("revolute", r#"<origin rpy="0 0 inf"/>"#), &[knee, "rpy", "not finite"]);
-        assert_fails(&joint("revolute", r#"<axis xyz="0 0 0"/>"#), &[knee, "<axis> must be a non-zero"]);
-        assert_fails(&joint("prismatic", r#"<axis xyz="0 0 0"/>"#), &[knee, "<axis> must be a non-zero"]);
+        assert_fails(&joint("revolute", r#"<axis xyz="0 0 0"/>"#), &[knee, "<axis", "must be a non-zero direction"]);
+        assert_fails(&joint("prismatic", r#"<axis xyz="0 0 0"/>"#), &[knee, "<axis", "must be a non-zero direction"]);
         assert_fails(&joint("continuous", r#"<axis xyz="0 1"/>"#), &[knee, "axis", "expected 3 numbers"]);
         for kind in ["floating", "planar", "spherical", "REVOLUTE"] {
             assert_fails(&joint(kind, ""), &[knee, &format!("unsupported type {kind:?}")]);
