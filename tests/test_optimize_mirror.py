@@ -13,6 +13,7 @@ from legkit.experiments.gait import AMBLE_QUADRUPED, BIPED_MOTOR, QUADRUPED_MOTO
 from legkit.optimize import MinMaxStability, MultiphaseProblem
 from legkit.optimize.gaits import amble_problem, amble_reference, guess_from_reference, walk_problem, walk_reference
 from legkit.optimize.mirror import REFLECTION, Mirror, sagittal_mirror, side_mirror
+from legkit.optimize.solver import solve
 from legkit.robots.biped import build_biped
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
 
@@ -114,6 +115,16 @@ def test_a_half_cycle_unrolled_violates_the_full_cycle_exactly_twice_as_much(nam
     # The mirror image starts where the half cycle ends, one half period and half a stride on.
     assert np.isclose(unrolled.t[len(half.phases)][0], unrolled.t[len(half.phases) - 1][-1])
     np.testing.assert_allclose(unrolled.q[len(half.phases)][0, 0] - unrolled.q[0][0, 0], half.speed * np.sum(x_half[half.duration_index]))
+
+
+def test_a_solved_half_cycle_unrolled_meets_the_whole_cycles_constraints():
+    # A few IPOPT iterations on the half walk's constraints (its quaternion norm drifts off 1 within the
+    # defects' error): the whole cycle, unrolled, violates no row more than the half did.
+    half, _, reference = gait_problems("biped")
+    result = solve(half.nlp("legkit", objective=False), half.gauged(half.pack(guess_from_reference(half, reference))), tol=1e-6, max_iter=8)
+    whole = half.full_cycle()
+    x_full = whole.pack(half.unroll(half.unpack(result.x)))
+    assert violation(whole, x_full).max() <= 1.0001 * violation(half, result.x).max() < 1e-3
 
 
 def test_a_wrong_mirror_breaks_the_identity():

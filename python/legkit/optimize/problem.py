@@ -821,9 +821,13 @@ class MultiphaseProblem:
         if mirror is None:
             return trajectory
         half = float(np.sum(trajectory.durations))
-        shift = np.zeros(self.nq)
+        shift, scale = np.zeros(self.nq), np.ones(self.nq)
         if self.travel_index is not None:
             shift[self.travel_index] = self.speed * half
+        if self.model.floating_base:
+            # The half cycle's wrap-around states the quaternion by direction (its norm drifts within the defects'
+            # error), the whole cycle's middle boundary all four components: the mirror image takes the end's norm.
+            scale[3:7] = np.linalg.norm(trajectory.q[-1][-1, 3:7]) / np.linalg.norm(trajectory.q[0][0, 3:7])
         actuated = np.asarray(self.actuated)
         column = {int(v): j for j, v in enumerate(actuated)}
         u_order = np.array([column[int(mirror.v_order[v])] for v in actuated], dtype=np.int64)
@@ -836,7 +840,7 @@ class MultiphaseProblem:
 
         a, torques = trajectory.a, trajectory.torques
         return Trajectory(
-            twice(trajectory.t, lambda t: t + half), twice(trajectory.q, lambda q: mirror.q(q) + shift),
+            twice(trajectory.t, lambda t: t + half), twice(trajectory.q, lambda q: scale * mirror.q(q) + shift),
             twice(trajectory.v, mirror.v), twice(trajectory.u, controls), twice(trajectory.forces, Mirror.vectors),
             np.concatenate([trajectory.durations, trajectory.durations]), trajectory.stability_bound,
             None if a is None else twice(a, mirror.v), None if torques is None else twice(torques, Mirror.axial),
