@@ -202,6 +202,30 @@ def test_floating_robot_far_from_the_origin_keeps_its_precision(n, seed, distanc
     assert_close(lk.aba(tw.model, far, v, tau), lk.aba(tw.model, q, v, tau), "aba far out vs near")
 
 
+@fast(30)
+@given(twins(), rngs())
+def test_with_body_replaces_one_body_and_matches_pinocchio_with_that_inertia(tw: Twin, rng):
+    body = int(rng.integers(tw.nbodies))
+    assume(body > 0 or tw.floating)  # pin ignores a fixed base's inertia
+    assume(tw.body_in_joint[body] is not None)
+    new = lk.MassProperties.solid_box(rng.uniform(0.1, 3.0), rng.uniform(0.05, 0.5, 3), center=rng.uniform(-0.2, 0.2, 3))
+    copy = tw.model.with_body(body, new)
+    assert copy.body(body).mass == new.mass and tw.model.body(body).mass != new.mass  # the original is untouched
+    for name in ("parents", "names", "idx_q", "idx_v", "armature", "damping", "gravity"):
+        assert np.array_equal(np.asarray(getattr(copy, name)), np.asarray(getattr(tw.model, name))), name
+    assert all(copy.joint_type(i) == tw.model.joint_type(i) for i in range(tw.nbodies))
+    # The same body replaced in pin: its joint's inertia loses the old body (in the joint frame) and gains the new.
+    reference = pin.Model(tw.pin_model)
+    place = tw.body_in_joint[body]
+    old = tw.model.body(body)
+    joint = tw.body_joint[body]
+    reference.inertias[joint] = (reference.inertias[joint] - place.act(pin.Inertia(old.mass, old.com, old.inertia))
+                                 + place.act(pin.Inertia(new.mass, new.com, new.inertia)))
+    q, v, a = state(tw, rng)
+    want = pin.rnea(reference, reference.createData(), tw.q_pin(q), tw.v_pin(v), tw.v_pin(a))
+    assert_close(lk.rnea(copy, q, v, a), tw.v_lk(want), "rnea of the copy")
+
+
 def test_default_gravity():
     assert lk.STANDARD_GRAVITY == 9.81  # the one Python name for the core's default (read from it)
     assert np.array_equal(np.asarray(lk.Model().gravity), np.array([0.0, 0.0, -9.81]))
