@@ -14,6 +14,7 @@ import legkit.stability as ls
 from conftest import examples
 from legkit.experiments import gait
 from legkit.robots.biped import BipedParameters, build_biped
+from legkit.robots.legs import model_to_urdf
 from legkit.robots.quadruped import LEGS, QuadrupedParameters, build_quadruped
 
 BUILDERS = {"quadruped": build_quadruped, "biped": build_biped}
@@ -70,6 +71,14 @@ def test_urdf_round_trip_gives_the_same_dynamics(kind, seed):
 def _foot_world(model: lk.Model, q: np.ndarray, body: str, point: np.ndarray) -> np.ndarray:
     pose = lk.forward_kinematics(model, q)[..., model.names.index(body), :, :]
     return np.einsum("...ij,j->...i", pose[..., :3, :3], point) + pose[..., :3, 3]
+
+
+def test_urdf_export_refuses_a_joint_urdf_cannot_describe():
+    model = lk.Model()
+    model.add_revolute(0, [0, 1, 0], None, lk.MassProperties.solid_box(1.0, [0.1, 0.1, 0.3]), "arm")
+    model.add_helical("arm", [0, 0, 1], 0.01, None, lk.MassProperties.solid_box(0.2, [0.05, 0.05, 0.05]), "screw")
+    with pytest.raises(ValueError, match="helical joint \\(body 'screw'\\)"):
+        model_to_urdf(model, "screw_arm")
 
 
 @examples(30)

@@ -63,7 +63,11 @@ def _inertial(body: lk.MassProperties) -> str:
 def model_to_urdf(model: lk.Model, robot_name: str) -> str:
     """URDF text of any legkit model: one link per body (named as the body, with its inertia), one joint
     `<body>_joint` per non-base body (revolute with +-pi limits, prismatic with +-1 m, or fixed). A floating
-    base is not written as a joint (URDF has none): load with Model.from_urdf(xml, floating_base=True)."""
+    base is not written as a joint (URDF has none): load with Model.from_urdf(xml, floating_base=True). A joint
+    URDF has no type for (helical) is a ValueError naming its body."""
+    for i in range(1, model.nbodies):
+        if model.joint_type(i) not in ("revolute", "prismatic", "fixed"):
+            raise ValueError(f"model: URDF has no {model.joint_type(i)} joint (body {model.names[i]!r})")
     lines = ['<?xml version="1.0"?>', f"<robot name={quoteattr(robot_name)}>"]
     for i, name in enumerate(model.names):
         lines.append(f"  <link name={quoteattr(name)}>{_inertial(model.body(i))}</link>")
