@@ -34,6 +34,7 @@ pub enum Dofs {
 }
 
 impl Joint {
+    #[inline(always)]
     pub fn nq(&self) -> usize {
         match self.dofs() {
             Dofs::Free => 7,
@@ -42,6 +43,7 @@ impl Joint {
         }
     }
 
+    #[inline(always)]
     pub fn nv(&self) -> usize {
         match self.dofs() {
             Dofs::Free => 6,
@@ -78,12 +80,6 @@ impl Joint {
             }
             Joint::FreeFlyer | Joint::Fixed => Motion::zeros(),
         }
-    }
-
-    /// The joint's own transform for configuration `q` (its `nq` coordinates).
-    #[inline]
-    pub fn transform(&self, q: &[f64]) -> Transform {
-        self.after(Transform::identity(), q)
     }
 
     /// `pose` followed by the joint's transform for configuration `q` (its `nq` coordinates).
@@ -208,8 +204,8 @@ mod tests {
         for joint in kinds() {
             let Dofs::One(s) = joint.dofs() else { continue };
             let (q, eps) = (sample_q(&joint), 1e-6);
-            let x = joint.transform(&q);
-            let (plus, minus) = (joint.transform(&[q[0] + eps]), joint.transform(&[q[0] - eps]));
+            let x = joint.after(Transform::identity(), &q);
+            let (plus, minus) = (joint.after(Transform::identity(), &[q[0] + eps]), joint.after(Transform::identity(), &[q[0] - eps]));
             // In the child frame: Xᵀ dX.
             let rotation_rate = x.rotation.transpose() * (plus.rotation - minus.rotation) / (2.0 * eps);
             let velocity = x.rotation.transpose() * (plus.translation - minus.translation) / (2.0 * eps);
@@ -225,7 +221,7 @@ mod tests {
         let pose = Transform::new(Transform::rotation_about(&Vector3::new(1.0, 2.0, 0.5).normalize(), 0.6), Vector3::new(0.2, -0.3, 0.4));
         for joint in kinds() {
             let q = sample_q(&joint);
-            let (got, expected) = (joint.after(pose, &q), pose.compose(&joint.transform(&q)));
+            let (got, expected) = (joint.after(pose, &q), pose.compose(&joint.after(Transform::identity(), &q)));
             assert!((got.rotation - expected.rotation).amax() < 1e-15 && (got.translation - expected.translation).amax() < 1e-15, "{joint:?}");
             let carried = match joint.dofs() {
                 Dofs::One(s) => pose.act_motion(&s),

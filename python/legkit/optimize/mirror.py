@@ -41,6 +41,12 @@ class Mirror:
         """Mirrored velocities or accelerations (..., nv)."""
         return self.v_sign * np.asarray(v)[..., self.v_order]
 
+    def control_order(self, actuated: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(order, sign): mirrored controls are ``sign * u[..., order]`` for controls u of the velocity
+        coordinates ``actuated`` (which the mirror must map onto themselves)."""
+        column = {int(v): j for j, v in enumerate(actuated)}
+        return np.array([column[int(self.v_order[v])] for v in actuated], dtype=np.int64), self.v_sign[actuated]
+
     def contacts(self, contacts: Sequence[str]) -> tuple[str, ...]:
         """The mirrored feet, in the same order."""
         return tuple(self.feet[name] for name in contacts)
@@ -65,8 +71,7 @@ def sagittal_mirror(model: lk.Model, bodies: Mapping[str, str], feet: Mapping[st
     which neither sign is, or a whole random configuration whose mirror is not the mirror image, raises
     ValueError (the model is not symmetric under `bodies`)."""
     names = list(model.names)
-    pairs = dict(bodies)
-    pairs.update({b: a for a, b in bodies.items()})
+    pairs = _involution(bodies)
     unknown = sorted(set(pairs) - set(names))
     if unknown:
         raise ValueError(f"bodies: the model has no bodies {unknown}")

@@ -282,6 +282,11 @@ class MultiphaseProblem:
             raise ValueError(f"flat_feet need force_dims 3 (eq. 6 bounds a torque by the friction of F), got {self.force_dims}")
         if any(not isinstance(sole, FlatFoot) for sole in self.flat_feet.values()):
             raise TypeError("flat_feet must map foot names to FlatFoot")
+        self.actuated = list(range(6 if model.floating_base else 0, model.nv)) if self.actuated is None else [int(i) for i in self.actuated]
+        if any(not 0 <= i < model.nv for i in self.actuated) or len(set(self.actuated)) != len(self.actuated):
+            raise ValueError(f"actuated must list distinct v indices in [0, {model.nv}), got {self.actuated}")
+        if self.travel_index is None and model.floating_base:
+            self.travel_index = 0
         if self.mirror is not None:
             self._validate_mirror()
         sequence = [frozenset(p.contacts) for p in self.cycle_phases()]
@@ -292,11 +297,6 @@ class MultiphaseProblem:
             if sequence[i] == sequence[j]:
                 raise ValueError(f"phases[{i}] has the same contacts as phases[{j}]: an inconsistent contact sequence "
                                  "(a phase boundary must change the contacts; merge the two phases)")
-        self.actuated = list(range(6 if model.floating_base else 0, model.nv)) if self.actuated is None else [int(i) for i in self.actuated]
-        if any(not 0 <= i < model.nv for i in self.actuated) or len(set(self.actuated)) != len(self.actuated):
-            raise ValueError(f"actuated must list distinct v indices in [0, {model.nv}), got {self.actuated}")
-        if self.travel_index is None and model.floating_base:
-            self.travel_index = 0
         if self.speed != 0.0:
             if not self.periodic or self.travel_index is None:
                 raise ValueError("speed needs a periodic problem with a travel_index (a free-flyer's x by default)")
@@ -324,10 +324,10 @@ class MultiphaseProblem:
         unpaired = [name for name in self.feet if mirror.feet.get(name) not in self.feet]
         if unpaired:
             raise ValueError(f"mirror.feet must pair every foot with a foot; {unpaired} are not")
-        actuated = set(self.actuated if self.actuated is not None else range(6 if self.model.floating_base else 0, self.model.nv))
-        if {int(mirror.v_order[i]) for i in actuated} != actuated:
+        assert self.actuated is not None  # _validate made it a list
+        if {int(mirror.v_order[i]) for i in self.actuated} != set(self.actuated):
             raise ValueError("actuated: the mirror of an actuated joint must be actuated")
-        travel = self.travel_index if self.travel_index is not None else (0 if self.model.floating_base else None)
+        travel = self.travel_index
         if travel is not None and (mirror.q_order[travel] != travel or mirror.q_sign[travel] != 1.0):
             raise ValueError(f"mirror must keep the travel coordinate q[{travel}] (a sagittal mirror keeps x)")
 
@@ -630,14 +630,11 @@ class MultiphaseProblem:
         """The variables of the point after the boundary that ends phase k, as phase k's end sees them (`_Start`)."""
         start = self.point_index[(k + 1) % len(self.phases)][0]
         nq, nx = self.nq, self.nx
-        actuated = np.asarray(self.actuated)
         if (k + 1) % len(self.phases) or self.mirror is None:
             return _Start(start[:nq], np.ones(nq), start[nq:nx], np.ones(self.nv), start[nx : nx + self.nu], np.ones(self.nu))
         mirror = self.mirror
-        column = {int(v): j for j, v in enumerate(actuated)}  # u column of each actuated v index
-        u_order = np.array([column[int(mirror.v_order[v])] for v in actuated], dtype=np.int64)
-        return _Start(start[mirror.q_order], mirror.q_sign, start[nq + mirror.v_order], mirror.v_sign,
-                      start[nx + u_order], mirror.v_sign[actuated])
+        u_order, u_sign = mirror.control_order(np.asarray(self.actuated, dtype=np.int64))
+        return _Start(start[mirror.q_order], mirror.q_sign, start[nq + mirror.v_order], mirror.v_sign, start[nx + u_order], u_sign)
 
     def _velocity_transition(self, k: int, start: _Start) -> Block:
         """v after the boundary: the impact map (eq. 7) when feet touch down, else continuity. The impact is
@@ -828,15 +825,13 @@ class MultiphaseProblem:
             # The half cycle's wrap-around states the quaternion by direction (its norm drifts within the defects'
             # error), the whole cycle's middle boundary all four components: the mirror image takes the end's norm.
             scale[3:7] = np.linalg.norm(trajectory.q[-1][-1, 3:7]) / np.linalg.norm(trajectory.q[0][0, 3:7])
-        actuated = np.asarray(self.actuated)
-        column = {int(v): j for j, v in enumerate(actuated)}
-        u_order = np.array([column[int(mirror.v_order[v])] for v in actuated], dtype=np.int64)
+        u_order, u_sign = mirror.control_order(np.asarray(self.actuated, dtype=np.int64))
 
         def twice(parts: list[np.ndarray], mirrored: Callable[[np.ndarray], np.ndarray]) -> list[np.ndarray]:
             return list(parts) + [mirrored(np.asarray(p)) for p in parts]
 
         def controls(u: np.ndarray) -> np.ndarray:
-            return mirror.v_sign[actuated] * u[..., u_order]
+            return u_sign * u[..., u_order]
 
         a, torques = trajectory.a, trajectory.torques
         return Trajectory(
