@@ -3,6 +3,7 @@
 //! Conventions (see DESIGN.md): SI units, right-handed frames with z up, and rigid transforms that map
 //! child to parent coordinates, `x_parent = R x_child + t`.
 
+pub mod agents;
 pub mod algorithms;
 pub mod error;
 pub mod geometry;

@@ -1,6 +1,7 @@
 //! `legkit._core`: the compiled half of the `legkit` Python package. Conversions and error mapping only;
 //! every computation lives in `legkit-dynamics`.
 
+mod agents;
 mod batch;
 mod contact;
 mod convert;
@@ -23,6 +24,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<sim::PySimulation>()?;
     m.add_class::<sim::PyGround>()?;
     m.add_class::<sim::PySimulationBatch>()?;
+    m.add_class::<agents::PyBalanceKernel>()?;
     m.add_function(wrap_pyfunction!(model::resolve_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::forward_kinematics, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::jacobian, m)?)?;

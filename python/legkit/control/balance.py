@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from legkit import _core
+from legkit._validation import float_array, integer, positive_scalar
 from legkit.agents import moments
 from legkit.agents.network import AgentNetwork
 from legkit.control.gains import GainSchedule, gain_factor, scaled_gains
@@ -163,3 +165,72 @@ def _norm(vectors: np.ndarray) -> np.ndarray:
     """Euclidean norms of component-major vectors (3, ...), summed as ``np.linalg.norm`` sums them."""
     squares = vectors * vectors
     return np.sqrt(squares[0] + squares[1] + squares[2])
+
+
+class BalanceKernel:
+    """``controller`` and its ``AgentNetwork`` on the synchronous bus as one compiled kernel
+    (``legkit._core.BalanceKernel``, Rust): a control step (the agents read their angles, run their rounds,
+    and every joint computes its torque) is one call, over every module of every tree at once.
+
+    The same algorithms as the Python network and controller, message for message (the same messages are
+    sent, in the same rounds); the arithmetic is in another order, so values agree to rounding, not bit for
+    bit. Built from a network on which no round has run yet (it starts from the same state: round 0's
+    messages on the wire); the Python objects are not advanced by the kernel. The asynchronous bus is only
+    in the Python network."""
+
+    def __init__(self, controller: BalanceController):
+        if not isinstance(controller, BalanceController):
+            raise TypeError(f"controller: must be a BalanceController, got {type(controller).__name__}")
+        net = controller.network
+        if net.bus.mode != "sync":
+            raise ValueError(f"controller: the kernel runs the synchronous bus only, the network's is {net.bus.mode!r}")
+        if net.now != 0:
+            raise ValueError("controller: the network has run rounds already; build the kernel from a fresh one")
+        parameters = net.parameters
+        parts = parameters.part_mass_properties()
+        connector_rotation, connector_position = parameters.connector_frames()
+        modules = [c.module for c in net.ground]
+        ground_pose = np.concatenate([[c.rotation for c in net.ground], np.array([c.translation for c in net.ground])[..., None]], axis=-1)
+        schedules = controller.schedules
+        self.n_modules = net.n_modules
+        self._core = _core.BalanceKernel(
+            np.where(net.partner >= 0, net.partner * 6 + net.partner_slot, -1).ravel().tolist(), net.mate.reshape(-1, 3, 3),
+            moments.pack(np.array([p.mass for p in parts]), np.array([p.com for p in parts]), np.array([p.inertia for p in parts])),
+            connector_rotation, connector_position, np.argmax(JOINT_AXES, axis=1).tolist(), (JOINT_Z * parameters.width).tolist(),
+            modules, [c.block for c in net.ground], ground_pose.reshape(-1, 3, 4), net.line[modules].reshape(-1, 6),
+            net.leader_key[modules].tolist(), net.angles, [s.scheme_index for s in schedules],
+            [[s.c0, s.c1, s.kp0, s.ki0, s.kd0] for s in schedules], parameters.joint_limit, parameters.width,
+        )
+
+    def run_until_quiescent(self, max_rounds: int = 100_000) -> int:
+        """Run rounds until nothing is pending or on the wire; returns the rounds run (RuntimeError after
+        ``max_rounds``), as ``AgentNetwork.run_until_quiescent``."""
+        return int(self._core.run_until_quiescent(_count(max_rounds, "max_rounds")))
+
+    def step(self, angles: np.ndarray, dt: float, rounds: int = 1) -> np.ndarray:
+        """One control step: every agent reads its joint angles (N, 3) rad (``AgentNetwork.observe``), the
+        network runs ``rounds`` rounds, and every joint computes its torque after ``dt`` s
+        (``BalanceController.torques``). Returns the torques (N, 3) N m."""
+        angles = float_array(angles, "angles", shape=(self.n_modules, 3))
+        return self._core.step(angles, positive_scalar(dt, "dt"), _count(rounds, "rounds"))
+
+    @property
+    def sent_by_module(self) -> np.ndarray:
+        """(N,) data messages sent by each module so far, all channels (as the channels' ``sent_by_module``)."""
+        return self._core.sent_by_module
+
+    def connector_estimates(self) -> np.ndarray:
+        """(N, 6, 13) as ``AgentNetwork.current_connector_estimates``."""
+        return self._core.estimates()
+
+    def world_poses(self) -> tuple[np.ndarray, np.ndarray]:
+        """(rotations (N, 3, 3), translations (N, 3)) as ``AgentNetwork.world_poses``."""
+        return self._core.world_poses()
+
+
+def _count(value: object, name: str) -> int:
+    """``value`` as an int >= 0 (TypeError or ValueError naming ``name``)."""
+    count = integer(value, name)
+    if count < 0:
+        raise ValueError(f"{name}: must be >= 0, got {count}")
+    return count

@@ -45,7 +45,7 @@ from tqdm import tqdm
 import legkit as lk
 from legkit._validation import float_array, is_integer, positive_scalar
 from legkit.agents import AgentNetwork, BusConfig, GroundContact
-from legkit.control import SCHEMES, BalanceController, GainSchedule
+from legkit.control import SCHEMES, BalanceController, BalanceKernel, GainSchedule
 from legkit.robots.superbot import ModuleTree, random_tree
 
 if TYPE_CHECKING:
@@ -325,13 +325,25 @@ def run_balance(
         return noise(angles)
 
     network = AgentNetwork(instances, bus=bus, ground=ground, angles=sensed_angles(states()))
-    network.run_until_quiescent()  # the agents agree on a leader and the mass properties before moving
     schedules = [r.schedule for r, tree in zip(runs, instances) for _ in range(tree.n_modules)]
     controller = BalanceController(network, schedules)
+    # On the synchronous bus the agents and controller run compiled, one call per step; else in Python.
+    kernel = BalanceKernel(controller) if network.bus.mode == "sync" else None
+    (kernel or network).run_until_quiescent()  # the agents agree on a leader and the mass properties before moving
     joint_index = [np.asarray(built[r.tree][0].idx_v)[built[r.tree][1].joint_bodies] for r in runs]
+
     def messages_sent() -> np.ndarray:
+        if kernel is not None:
+            return kernel.sent_by_module
         mass, election, pose = network.channels
         return mass.sent_by_module + election.sent_by_module + pose.sent_by_module
+
+    def control(angles: np.ndarray) -> np.ndarray:
+        if kernel is not None:
+            return kernel.step(angles, dt, rounds_per_step)
+        network.observe(angles)
+        network.run(rounds_per_step)
+        return controller.torques(dt)[0]
 
     messages_before = messages_sent()
 
@@ -349,9 +361,7 @@ def run_balance(
             coms[step // sample_every] = [lk.center_of_mass(built[r.tree][0], q_run[step // sample_every]) for r, q_run in zip(runs, qs)]
         if step == steps:
             break
-        network.observe(sensed_angles(q))
-        network.run(rounds_per_step)
-        torque, _ = controller.torques(dt)
+        torque = control(sensed_angles(q))
         taus: np.ndarray | list[np.ndarray]
         if shared:
             taus = np.zeros((len(runs), nv))
