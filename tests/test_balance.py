@@ -132,7 +132,7 @@ def test_simulated_runs_start_at_rest_out_of_the_ground(seed):
 @pytest.mark.slow
 def test_cli_writes_csv_and_figure(tmp_path, capsys):
     out = tmp_path / "out"
-    code = balance.main(["--trees", "2", "--modules", "4", "--branches", "2", "--duration", "0.05", "--out", str(out), "--loss", "0.1"])
+    code = balance.main(["--trees", "2", "--modules", "4", "--branches", "2", "--duration", "0.05", "--out", str(out), "--loss", "0.1", "--gif"])
     assert code == 0
     with open(out / "balance.csv") as handle:
         rows = list(csv.DictReader(handle))
@@ -146,6 +146,9 @@ def test_cli_writes_csv_and_figure(tmp_path, capsys):
     quiet = tmp_path / "quiet"
     assert balance.main(["--trees", "1", "--modules", "2", "--branches", "2", "--duration", "0.02", "--out", str(quiet), "--no-animation"]) == 0
     assert sorted(p.name for p in quiet.iterdir()) == ["balance.csv", "balance.png"]
+    plain = tmp_path / "plain"
+    assert balance.main(["--trees", "1", "--modules", "2", "--branches", "2", "--duration", "0.02", "--out", str(plain)]) == 0
+    assert sorted(p.name for p in plain.iterdir()) == ["balance.csv", "balance.html", "balance.png"]
     with pytest.raises(SystemExit):
         balance.main(["--loss", "1.5"])
     assert balance.main(["--modules", "3", "--branches", "5", "--out", str(out)]) == 2  # clear error, no traceback

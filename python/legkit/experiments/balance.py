@@ -26,7 +26,8 @@ Recorded: the horizontal distance between each run's COM and its support line, i
 per run: the final distance, the time to reach 10 % of the initial distance, the overshoot (how far, as a
 fraction of the initial distance, the COM went past the line along the initial offset direction), and
 the data messages per module per second. The joint angles are recorded at the same samples
-(``RunResult.q``): ``legkit balance`` animates every run side by side (``balance.html``, meshcat; ``balance.gif``).
+(``RunResult.q``): ``legkit balance`` animates every run side by side (``balance.html``, meshcat; with ``--gif``
+also ``balance.gif``, which takes about 1.2 s to render).
 """
 
 from __future__ import annotations
@@ -498,7 +499,7 @@ def animation_scene(trees: Sequence[ModuleTree], results: Sequence[RunResult]) -
 
 
 def write_animation(trees: Sequence[ModuleTree], results: Sequence[RunResult], html_path: Path, gif_path: Path | None) -> None:
-    """``balance.html`` (meshcat, self-contained) and ``balance.gif`` of ``animation_scene``."""
+    """``balance.html`` (meshcat, self-contained) of ``animation_scene``, and ``gif_path`` (a GIF) unless None."""
     scene = animation_scene(trees, results)
     scene.write_html(html_path, max_fps=ANIMATION_FPS)
     if gif_path is not None:
@@ -521,8 +522,8 @@ def table(results: Sequence[RunResult]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``legkit balance``: run the experiment, write ``balance.csv``, ``balance.png`` and (unless ``--no-animation``)
-    ``balance.html`` and ``balance.gif`` to ``--out``, print the table."""
+    """``legkit balance``: run the experiment, write ``balance.csv``, ``balance.png``, ``balance.html`` (unless
+    ``--no-animation``) and ``balance.gif`` (with ``--gif``) to ``--out``, print the table."""
     parser = argparse.ArgumentParser(prog="legkit balance", description=__doc__.split("\n\n")[0])
     parser.add_argument("--trees", type=int, default=4, help="number of random trees (default 4)")
     parser.add_argument("--modules", type=int, default=20, help="modules per tree besides the root (default 20)")
@@ -533,7 +534,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--friction", type=float, default=DEFAULT_FRICTION, help=f"ground friction coefficient (default {DEFAULT_FRICTION})")
     parser.add_argument("--out", type=Path, default=Path("balance-out"), help="output folder (default ./balance-out)")
     parser.add_argument("--plant", choices=PLANTS, default="tree", help="simulator: legkit's tree engine (default), Rapier, or free (no contacts)")
-    parser.add_argument("--no-animation", action="store_true", help="do not write balance.html and balance.gif")
+    parser.add_argument("--no-animation", action="store_true", help="do not write balance.html (or balance.gif)")
+    parser.add_argument("--gif", action="store_true", help="also write balance.gif, the animation as a picture (about 1.2 s to render)")
     args = parser.parse_args(argv)
     if args.trees < 1:
         parser.error("--trees: must be >= 1")
@@ -552,8 +554,9 @@ def main(argv: list[str] | None = None) -> int:
     plot(results, args.out / "balance.png")
     written = [args.out / "balance.csv", args.out / "balance.png"]
     if not args.no_animation:
-        write_animation(trees, results, args.out / "balance.html", args.out / "balance.gif")
-        written += [args.out / "balance.html", args.out / "balance.gif"]
+        gif = args.out / "balance.gif" if args.gif else None
+        write_animation(trees, results, args.out / "balance.html", gif)
+        written += [args.out / "balance.html"] + ([gif] if gif else [])
     print(table(results))
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
