@@ -69,6 +69,8 @@ class Point:
     lower_bound: float | np.ndarray = 0.0
     upper_bound: float | np.ndarray = 0.0
     symbolic: Callable | None = None  # (SymbolicModel, z casadi (k,)) -> (outputs,): the same function for casadi
+    #: (P, k) -> (P, outputs, k): the function's Jacobian where it has a cheaper form; else `point_jacobian`'s.
+    derivative: Callable[[np.ndarray], np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         points, k = self.index.shape
@@ -82,4 +84,6 @@ class Point:
         return np.asarray(self.function(x[self.index])).ravel()
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
+        if self.derivative is not None:
+            return np.asarray(self.derivative(x[self.index])).ravel()
         return point_jacobian(self.function, x[self.index])[1].ravel()

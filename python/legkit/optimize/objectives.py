@@ -269,8 +269,9 @@ def _smooth_edge(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> t
     return (contacts if side > 0.0 else contacts[::-1]), diagonal
 
 
-def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> tuple[Callable, int, Callable]:
-    """The smooth constraint rows (module docstring) as a function of (B, nx + 1) = [q, v, p1]."""
+def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> tuple[Callable, int, Callable, Callable]:
+    """The smooth constraint rows (module docstring) as a function of (B, nx + 1) = [q, v, p1], their number,
+    their casadi form, and their Jacobian (B, rows, nx + 1)."""
     edge, diagonal = _smooth_edge(problem, k, term)
     model, nq, nx = problem.model, problem.nq, problem.nx
     m, g = model.total_mass, -float(model.gravity[2])
@@ -290,12 +291,31 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
             return stack([momentum - h_ref - p1, m * r * term.v_tip_max - momentum - p1])
         return stack([h_ref - momentum - p1, d])  # d >= 0: the GCoM stays on the side the published rule reads
 
+    def stacked(r: list) -> np.ndarray:
+        return np.stack(np.broadcast_arrays(*r), axis=1)
+
     def margin(z: np.ndarray) -> np.ndarray:
         q = problem.configuration(z[:, :nq])
         c = np.asarray(lk.center_of_mass(model, q)).T
         h = np.asarray(lk.centroidal_momentum(model, q, z[:, nq:nx])).T
         feet = problem.foot_positions(z[:, :nq], edge)
-        return rows(c, h, feet[:, 0].T, feet[:, 1].T, z[:, nx], np.sqrt, lambda r: np.stack(r, axis=1))
+        return rows(c, h, feet[:, 0].T, feet[:, 1].T, z[:, nx], np.sqrt, stacked)
+
+    def derivative(z: np.ndarray) -> np.ndarray:
+        """d/dq by central differences; d/dv and d/dp1 exactly: the rows are affine in p1 and in h, and
+        h = A_G(q) v (the centroidal momentum matrix, one batched call with v the unit vectors)."""
+        points, nv = len(z), nx - nq
+        _, by_q = point_jacobian(margin, z, columns=np.arange(nq))
+        q = problem.configuration(z[:, :nq])
+        c = np.asarray(lk.center_of_mass(model, q)).T
+        feet = problem.foot_positions(z[:, :nq], edge)
+        start, end = feet[:, 0].T, feet[:, 1].T
+        unit = np.eye(7)[:, :, None]  # h = e_0..e_5 and p1 = 1, each against zeros (unit[6])
+        base = rows(c, np.zeros(6), start, end, 0.0, np.sqrt, stacked)
+        slopes = np.stack([rows(c, unit[j, :6], start, end, unit[j, 6], np.sqrt, stacked) - base for j in range(7)], axis=-1)
+        centroidal_map = np.asarray(lk.centroidal_momentum(model, np.repeat(q, nv, axis=0), np.tile(np.eye(nv), (points, 1))))
+        by_v = slopes[..., :6] @ centroidal_map.reshape(points, nv, 6).transpose(0, 2, 1)
+        return np.concatenate([by_q, by_v, slopes[..., 6:]], axis=2)
 
     feet = [(problem.foot_body[n], problem.foot_point[n]) for n in edge]
 
@@ -306,7 +326,7 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
         ends = model.points(q, feet)
         return rows(model.center_of_mass(q), model.centroidal_momentum(q, z[nq:nx]), ends[:3], ends[3:], z[nx], ca.sqrt, lambda r: ca.vertcat(*r))
 
-    return margin, 2, symbolic
+    return margin, 2, symbolic, derivative
 
 
 def _stability_block(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> Block:
@@ -317,7 +337,7 @@ def _stability_block(problem: MultiphaseProblem, k: int, term: MinMaxStability) 
     index = problem.point_index[k]
     columns = np.concatenate([index[:, : problem.nx], np.full((len(index), 1), problem.p1_index)], axis=1)
     if term.smooth:
-        margin, rows, symbolic = _smooth_margin(problem, k, term)
-        return Point(columns, margin, rows, 0.0, np.inf, symbolic=symbolic)
+        margin, rows, symbolic, derivative = _smooth_margin(problem, k, term)
+        return Point(columns, margin, rows, 0.0, np.inf, symbolic=symbolic, derivative=derivative)
     nx = problem.nx
     return Point(columns, lambda z: (published_stability(problem, k, term, z) - z[:, nx])[:, None], 1, 0.0, np.inf)

@@ -3,21 +3,19 @@
 
 use nalgebra::{Vector3, Vector6};
 
+use super::com::world_com;
 use super::kinematics::body_motions;
 use crate::model::{Data, Model};
 use crate::spatial::{angular, cross_force, linear, spatial, Motion};
-use crate::MassProperties;
 
 /// Body velocities, accelerations (without gravity) and poses; returns the spatial momentum and its rate
 /// about the world origin in world coordinates, and the centre of mass.
 fn world_momentum(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Option<&[f64]>) -> (Vector6<f64>, Vector6<f64>, Vector3<f64>) {
     let (mut momentum, mut rate) = (Vector6::zeros(), Vector6::zeros());
-    let mut total = MassProperties::zero();
     body_motions(model, data, q, v, a, Motion::zeros());
     for i in 0..model.nbodies() {
         let o_parent = if i == 0 { crate::Transform::identity() } else { data.o_m_i[model.parent(i)] };
         data.o_m_i[i] = o_parent.compose(&data.li_m_i[i]);
-        total = total + model.body(i).transformed_unchecked(&data.o_m_i[i].rotation, &data.o_m_i[i].translation);
         let inertia = model.inertia(i);
         let h = inertia.apply(&data.v[i]);
         momentum += data.o_m_i[i].act_force(&h);
@@ -25,7 +23,7 @@ fn world_momentum(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Optio
             rate += data.o_m_i[i].act_force(&(inertia.apply(&data.a[i]) + cross_force(&data.v[i], &h)));
         }
     }
-    (momentum, rate, total.com())
+    (momentum, rate, world_com(model, data))
 }
 
 /// `[h_lin; h_ang]`: linear momentum and angular momentum about the COM, world-aligned.

@@ -23,5 +23,22 @@ pub fn subtree_mass_properties<'d>(model: &Model, data: &'d mut Data, q: &[f64])
 
 /// The whole model's centre of mass in the world frame.
 pub fn center_of_mass(model: &Model, data: &mut Data, q: &[f64]) -> Vector3<f64> {
-    subtree_mass_properties(model, data, q)[0].com()
+    forward_kinematics(model, data, q);
+    world_com(model, data)
+}
+
+/// The centre of mass at the bodies' world poses in `data.o_m_i`: sum m_i c_i / M, without the inertias that
+/// `subtree_mass_properties` carries (zeros for a massless model).
+pub(crate) fn world_com(model: &Model, data: &Data) -> Vector3<f64> {
+    let (mut first, mut mass) = (Vector3::zeros(), 0.0);
+    for (i, pose) in data.o_m_i.iter().enumerate().take(model.nbodies()) {
+        let body = model.body(i);
+        first += (pose.rotation * body.com() + pose.translation) * body.mass();
+        mass += body.mass();
+    }
+    if mass > 0.0 {
+        first / mass
+    } else {
+        Vector3::zeros()
+    }
 }
