@@ -68,11 +68,11 @@ def test_defects_vanish_for_cubics_and_converge_at_the_method_order():
     assert 26.0 < ratio[1] < 38.0, ratio
 
 
-def quadruped_problem(objectives) -> tuple[MultiphaseProblem, np.ndarray]:
+def quadruped_problem(objectives, transcription: str = "inverse") -> tuple[MultiphaseProblem, np.ndarray]:
     robot = build_quadruped()
     feet = {leg: robot.feet[leg] for leg in LEGS}
     phases = [Phase(("lf", "lh"), 1, (0.1, 0.5)), Phase(("lf", "rh"), 1, (0.1, 0.5)), Phase(("rf", "rh"), 1, (0.1, 0.5))]
-    problem = MultiphaseProblem(robot.model, phases, feet, objectives, speed=0.3)
+    problem = MultiphaseProblem(robot.model, phases, feet, objectives, speed=0.3, transcription=transcription)
     rng = np.random.default_rng(3)
     x = rng.normal(0.0, 0.3, problem.n)
     for index in problem.point_index:
@@ -86,10 +86,11 @@ def quadruped_problem(objectives) -> tuple[MultiphaseProblem, np.ndarray]:
 
 
 @pytest.mark.slow
-def test_constraint_jacobian_and_gradient_match_central_differences():
+@pytest.mark.parametrize("transcription", ["inverse", "forward"])
+def test_constraint_jacobian_and_gradient_match_central_differences(transcription):
     terms = [joule_loss(5.0, 60.0, 0.012), specific_resistance(0.1),
              MinMaxStability(2.0, diagonal_pairs=(("lf", "rh"), ("rf", "lh")))]
-    problem, x = quadruped_problem(terms)
+    problem, x = quadruped_problem(terms, transcription)
     dense = np.zeros((problem.m, problem.n))
     dense[problem.jac_rows, problem.jac_cols] = problem.jacobian(x)
     reference = np.zeros_like(dense)

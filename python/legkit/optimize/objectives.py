@@ -275,6 +275,7 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
     edge, diagonal = _smooth_edge(problem, k, term)
     model, nq, nx = problem.model, problem.nq, problem.nx
     m, g = model.total_mass, -float(model.gravity[2])
+    outputs = 2  # rows per point, on either kind of pair
 
     def rows(c: Any, h: Any, start: Any, end: Any, p1: Any, sqrt: Callable, stack: Callable) -> Any:
         """The rows from COM c, centroidal momentum h = [P, k_G], the edge's feet and p1 (numpy or casadi)."""
@@ -302,10 +303,14 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
         return rows(c, h, feet[:, 0].T, feet[:, 1].T, z[:, nx], np.sqrt, stacked)
 
     def derivative(z: np.ndarray) -> np.ndarray:
-        """d/dq by central differences; d/dv and d/dp1 exactly: the rows are affine in p1 and in h, and
-        h = A_G(q) v (the centroidal momentum matrix, one batched call with v the unit vectors)."""
+        """d/dq by central differences (but for a free-flyer's position, which the rows do not see: they
+        depend on the COM and the feet through their differences only); d/dv and d/dp1 exactly: the rows are
+        affine in p1 and in h, and h = A_G(q) v (the centroidal momentum matrix, one batched call with v the
+        unit vectors)."""
         points, nv = len(z), nx - nq
-        _, by_q = point_jacobian(margin, z, columns=np.arange(nq))
+        by_q = np.zeros((points, outputs, nq))
+        moving = problem.q_without_translation
+        by_q[..., moving] = point_jacobian(margin, z, columns=moving)[1]
         q = problem.configuration(z[:, :nq])
         c = np.asarray(lk.center_of_mass(model, q)).T
         feet = problem.foot_positions(z[:, :nq], edge)
@@ -326,7 +331,7 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
         ends = model.points(q, feet)
         return rows(model.center_of_mass(q), model.centroidal_momentum(q, z[nq:nx]), ends[:3], ends[3:], z[nx], ca.sqrt, lambda r: ca.vertcat(*r))
 
-    return margin, 2, symbolic, derivative
+    return margin, outputs, symbolic, derivative
 
 
 def _stability_block(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> Block:

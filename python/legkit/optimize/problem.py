@@ -191,6 +191,9 @@ class MultiphaseProblem:
         model = self.model
         self.nq, self.nv = model.nq, model.nv
         self.nx = self.nq + self.nv
+        # The q a point's dynamics, momentum and impact depend on: all but a free-flyer's position, as they
+        # (and the feet's positions relative to each other and to the COM) are the same wherever the robot is.
+        self.q_without_translation = np.arange(3 if model.floating_base else 0, self.nq)
         assert self.actuated is not None  # _validate makes it a list
         self.nu = len(self.actuated)
         self.foot_names = list(self.feet)
@@ -455,22 +458,24 @@ class MultiphaseProblem:
             return self.state_rate(z, k)
         return np.concatenate([self.q_rate(z[:, : self.nq], z[:, self.nq : self.nx]), z[:, self.a_columns[k]]], axis=1)
 
-    def rate_dependence(self, k: int) -> np.ndarray:
-        """(nx, nz) bool: which point variables each component of `rate` depends on (structurally)."""
+    def rate_dependence(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """(nx, nz) bool twice: which point variables each component of `rate` depends on (structurally), and
+        which of those it equals (a joint's q rate its v, in the inverse transcription the v rate its a)."""
         nq, nx = self.nq, self.nx
         nz = self.point_index[k].shape[1]
         dependence = np.zeros((nx, nz), dtype=bool)
+        identity = np.zeros((nx, nz), dtype=bool)
         if self.model.floating_base:
             dependence[0:3, 3:7] = dependence[0:3, nq : nq + 3] = True  # R(quaternion) v_lin
             dependence[3:7, 3:7] = dependence[3:7, nq + 3 : nq + 6] = True  # quaternion (x) omega / 2
-            dependence[7:nq, nq + 6 : nx] = np.eye(nq - 7, dtype=bool)
+            identity[7:nq, nq + 6 : nx] = np.eye(nq - 7, dtype=bool)
         else:
-            dependence[:nq, nq:nx] = np.eye(nq, dtype=bool)
+            identity[:nq, nq:nx] = np.eye(nq, dtype=bool)
         if self.transcription == "forward":
             dependence[nq:, :] = True
         else:
-            dependence[nq:, self.a_columns[k]] = np.eye(self.nv, dtype=bool)
-        return dependence
+            identity[nq:, self.a_columns[k]] = np.eye(self.nv, dtype=bool)
+        return dependence | identity, identity
 
     def tree(self) -> tuple[list[set[int]], np.ndarray, np.ndarray]:
         """(each body's ancestors including itself, the body of each q index, the body of each v index)."""
@@ -626,6 +631,20 @@ class MultiphaseProblem:
         return np.concatenate([np.einsum("bij,bj->bi", mass, v_plus - v_minus) - np.einsum("bji,bj->bi", jac, impulses),
                                np.einsum("bij,bj->bi", jac, v_plus)], axis=1)
 
+    def impact_derivative(self, z: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
+        """The Jacobian (B, rows, columns of z) of `impact_rows`: d/dq by central differences, the rest exactly
+        (the rows are affine in v-, v+ and Lambda: -M, [M; J] and -J^T)."""
+        nq, nv = self.nq, self.nv
+        jac = np.zeros((len(z), nv + z.shape[1] - nq - 2 * nv, z.shape[1]))
+        jac[:, :, self.q_without_translation] = point_jacobian(lambda zz: self.impact_rows(zz, contacts), z, columns=self.q_without_translation)[1]
+        q = self.configuration(z[:, :nq])
+        mass, contact = np.asarray(lk.crba(self.model, q)), self.contact_jacobian(q, contacts)
+        jac[:, :nv, nq : nq + nv] = -mass
+        jac[:, :nv, nq + nv : nq + 2 * nv] = mass
+        jac[:, nv:, nq + nv : nq + 2 * nv] = contact
+        jac[:, :nv, nq + 2 * nv :] = -contact.transpose(0, 2, 1)
+        return jac
+
     def _start_seen_from(self, k: int) -> _Start:
         """The variables of the point after the boundary that ends phase k, as phase k's end sees them (`_Start`)."""
         start = self.point_index[(k + 1) % len(self.phases)][0]
@@ -658,7 +677,8 @@ class MultiphaseProblem:
             return ca.vertcat(model.mass_matrix(q) @ (v_plus - v_minus) - jac.T @ impulses, jac @ v_plus)
 
         index = np.concatenate([end[:nx], start.v, self.impulse_index[k]])[None]
-        return Point(index, lambda z: self.impact_rows(signs * z, contacts), nv + len(self.impulse_index[k]), symbolic=symbolic)
+        return Point(index, lambda z: self.impact_rows(signs * z, contacts), nv + len(self.impulse_index[k]), symbolic=symbolic,
+                     derivative=lambda z: self.impact_derivative(signs * z, contacts) * signs)
 
     def _torque_speed_blocks(self) -> list[Block]:
         """(w_max - |w|) k - |u| >= 0 as four linear faces per actuated joint and point."""
@@ -938,8 +958,9 @@ class _Defects:
         self.size = 2 * nx * self.intervals
         self.lower = self.upper = np.zeros(self.size)
         # Structural pattern of one interval: rows [interpolation; Simpson] x cols [z_a, z_m, z_b, T].
-        dependence = problem.rate_dependence(k)
-        self.columns = np.flatnonzero(dependence.any(axis=0))  # the inputs the rate is differentiated by
+        dependence, self.identity = problem.rate_dependence(k)
+        # The inputs the rate is differenced by: those it depends on other than as an identity.
+        self.columns = np.flatnonzero((dependence & ~self.identity).any(axis=0))
         select = np.zeros((nx, nz), dtype=bool)
         select[:, :nx] = np.eye(nx, dtype=bool)
         column = np.ones((nx, 1), dtype=bool)
@@ -967,6 +988,7 @@ class _Defects:
         nz = z.shape[1]
         jac = np.zeros((len(z), nx, nz))
         jac[:, :, self.columns] = partial
+        jac[:, self.identity] = 1.0
         h = x[self.duration] / n_int
         eye = np.zeros((nx, nz))
         eye[:, :nx] = np.eye(nx)
@@ -986,8 +1008,11 @@ class _Defects:
 
 class _InverseDynamics:
     """Eq. 1 in inverse-dynamics form at every point of phase k: rnea(q, v, a, J_c^T lambda) - B u = 0 (nv rows
-    per point). d/d(q, v, lambda) by coloured central differences over one batched RNEA call; d/da = M(q)
-    (`crba`) and d/du = -B exactly. The pattern follows the tree (`MultiphaseProblem.tree_dependence`)."""
+    per point). d/d(q, v) by coloured central differences over one batched RNEA call (a free-flyer's position
+    left out: no row depends on it); the rows are affine in a, u and the foot loads, so d/da = M(q) (`crba`),
+    d/du = -B, d/dlambda = -J^T (each foot point's world-aligned linear Jacobian) and, for a flat foot's
+    torques, -J_w^T (its body's angular Jacobian in the body frame) exactly. The pattern follows the tree
+    (`MultiphaseProblem.tree_dependence`)."""
 
     def __init__(self, problem: MultiphaseProblem, k: int) -> None:
         self.problem, self.k = problem, k
@@ -1008,7 +1033,8 @@ class _InverseDynamics:
             mask[np.ix_(reach[name], forces[c])] = True
         for c, name in enumerate(problem.flat_contacts(self.contacts)):
             mask[np.ix_(reach[name], torques[c])] = True
-        self.columns = np.r_[np.arange(nx), forces.ravel(), torques.ravel()]  # differenced; a and u are exact
+        self.forces, self.torques = forces, torques
+        self.columns = np.r_[problem.q_without_translation, nq:nx]  # differenced; the rest is exact
         r, nonzero_cols = np.nonzero(mask)
         self._r, self._c = r, nonzero_cols
         self.rows = (np.arange(len(index))[:, None] * nv + r[None]).ravel()
@@ -1030,8 +1056,16 @@ class _InverseDynamics:
         _, partial = point_jacobian(self.residual, z, columns=self.columns)
         jac = np.zeros((len(z), problem.nv, z.shape[1]))
         jac[:, :, self.columns] = partial
-        jac[:, :, problem.a_columns[self.k]] = np.asarray(lk.crba(problem.model, problem.configuration(z[:, : problem.nq])))
+        q = problem.configuration(z[:, : problem.nq])
+        jac[:, :, problem.a_columns[self.k]] = np.asarray(lk.crba(problem.model, q))
         jac[:, problem.actuated, problem.nx + np.arange(problem.nu)] = -1.0
+        axes = slice(3 - problem.force_dims, 3)  # the world axes the force variables hold
+        for c, name in enumerate(self.contacts):
+            linear = np.asarray(lk.jacobian(problem.model, q, problem.foot_body[name], problem.foot_point[name], "local_world_aligned"))
+            jac[:, :, self.forces[c]] = -linear[:, axes].transpose(0, 2, 1)
+        for c, name in enumerate(problem.flat_contacts(self.contacts)):
+            angular = np.asarray(lk.jacobian(problem.model, q, problem.foot_body[name], None, "local"))
+            jac[:, :, self.torques[c]] = -angular[:, 3:].transpose(0, 2, 1)
         return jac[:, self._r, self._c].ravel()
 
 
