@@ -360,6 +360,19 @@ def test_centroidal_momentum(rate: bool, tw: Twin, rng):
     assert_close(got, np.concatenate([h.linear, h.angular]), "centroidal_momentum_rate" if rate else "centroidal_momentum")
 
 
+@pytest.mark.slow
+@fast(60)
+@given(tw=com_twins(), rng=rngs())
+def test_centroidal_map(tw: Twin, rng):
+    assume(total_mass(tw) > 0)
+    q, _, _ = state(tw, rng)
+    note_case(tw, q=q)
+    pin_map = pin.computeCentroidalMap(tw.pin_model, tw.data(), tw.q_pin(q))
+    # Column j is the momentum of legkit's unit velocity e_j, which pin reads as v_pin(e_j).
+    want = np.stack([pin_map @ tw.v_pin(e) for e in np.eye(tw.model.nv)], axis=1)
+    assert_close(lk.centroidal_map(tw.model, q), want, "centroidal_map")
+
+
 @fast(60)
 @given(twins(), rngs())
 def test_jacobian(tw: Twin, rng):

@@ -168,6 +168,8 @@ def subtree_mass_properties(model: Model, q: npt.ArrayLike) -> tuple[np.ndarray,
     """Per-body subtree (mass (..., nb), com (..., nb, 3), inertia about the subtree COM (..., nb, 3, 3)), world frame."""
 def centroidal_momentum(model: Model, q: npt.ArrayLike, v: npt.ArrayLike) -> np.ndarray:
     """[h_lin, h_ang about the COM], world-aligned: (..., 6)."""
+def centroidal_map(model: Model, q: npt.ArrayLike) -> np.ndarray:
+    """The centroidal momentum matrix A_G, centroidal_momentum(q, v) = A_G(q) v: (..., 6, nv)."""
 def centroidal_momentum_rate(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike) -> np.ndarray:
     """Time derivative of the centroidal momentum (gravity excluded): (..., 6)."""
 def kinetic_energy(model: Model, q: npt.ArrayLike, v: npt.ArrayLike) -> np.ndarray: ...

@@ -390,6 +390,8 @@ pub struct Data {
     pub subtree: Vec<MassProperties>,
     /// A frame Jacobian, 6 x nv.
     pub jacobian: Matrix6xX<f64>,
+    /// The centroidal momentum matrix A_G, 6 x nv.
+    pub centroidal_map: Matrix6xX<f64>,
     pub tau: DVector<f64>,
     pub ddq: DVector<f64>,
     pub mass_matrix: DMatrix<f64>,
@@ -421,6 +423,7 @@ impl Data {
             d_inv: vec![0.0; n],
             subtree: vec![MassProperties::zero(); n],
             jacobian: Matrix6xX::zeros(model.nv()),
+            centroidal_map: Matrix6xX::zeros(model.nv()),
             tau: DVector::zeros(model.nv()),
             ddq: DVector::zeros(model.nv()),
             mass_matrix: DMatrix::zeros(model.nv(), model.nv()),

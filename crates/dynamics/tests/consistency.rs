@@ -1,7 +1,8 @@
 //! Self-consistency of the dynamics algorithms on random trees (every joint kind, with and without
-//! armature): RNEA inverts ABA, CRBA agrees with RNEA column by column, Minv inverts CRBA. (Differential tests against Pinocchio are in the Python suite.)
+//! armature): RNEA inverts ABA, CRBA agrees with RNEA column by column, Minv inverts CRBA, A_G v is the
+//! centroidal momentum. (Differential tests against Pinocchio are in the Python suite.)
 
-use legkit_dynamics::algorithms::{aba, crba, forward_kinematics, minv, rnea};
+use legkit_dynamics::algorithms::{aba, centroidal_map, centroidal_momentum, crba, forward_kinematics, minv, rnea};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{DMatrix, DVector, Rotation3, Unit, Vector3};
 use rand::rngs::StdRng;
@@ -90,6 +91,20 @@ fn rnea_crba_aba_and_minv_agree() {
         let inverse = minv(&model, &mut data, q.as_slice()).clone();
         let identity = DMatrix::identity(nv, nv);
         assert!(relative_error(&(&inverse * &mass_matrix), &identity) < 1e-9, "case {case}: Minv M != I");
+    }
+}
+
+#[test]
+fn centroidal_map_times_v_is_the_centroidal_momentum() {
+    let mut rng = StdRng::seed_from_u64(11);
+    for case in 0..40 {
+        let model = random_tree(&mut rng, 1 + case % 25, case % 2 == 0);
+        let mut data = Data::new(&model);
+        let (q, v) = random_state(&mut rng, &model);
+        let map = centroidal_map(&model, &mut data, q.as_slice()).clone();
+        let momentum = centroidal_momentum(&model, &mut data, q.as_slice(), v.as_slice());
+        let product = &map * &v;
+        assert!((product - momentum).amax() < 1e-10 * momentum.amax().max(1.0), "case {case}: A_G v != h");
     }
 }
 

@@ -4,8 +4,8 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use legkit_dynamics::algorithms::{
-    aba, center_of_mass, centroidal_momentum, centroidal_momentum_rate, crba, forward_kinematics, jacobian, kinetic_energy, minv, potential_energy,
-    rnea, subtree_mass_properties, Frame,
+    aba, center_of_mass, centroidal_map, centroidal_momentum, centroidal_momentum_rate, crba, forward_kinematics, jacobian, kinetic_energy, minv,
+    potential_energy, rnea, subtree_mass_properties, Frame,
 };
 use legkit_dynamics::sim::{Shape, ShapeKind};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
@@ -67,6 +67,7 @@ fn algorithms_do_not_allocate() {
         center_of_mass(&model, &mut data, &q);
         subtree_mass_properties(&model, &mut data, &q);
         centroidal_momentum(&model, &mut data, &q, &v);
+        centroidal_map(&model, &mut data, &q);
         centroidal_momentum_rate(&model, &mut data, &q, &v, &tau);
         kinetic_energy(&model, &mut data, &q, &v);
         potential_energy(&model, &mut data, &q);

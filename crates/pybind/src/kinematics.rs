@@ -3,7 +3,7 @@
 
 use legkit_dynamics::algorithms::{self, Frame};
 use legkit_dynamics::model::check_vector;
-use nalgebra::Vector3;
+use nalgebra::{Matrix6xX, Vector3};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
@@ -59,12 +59,7 @@ pub fn jacobian<'py>(
     run(py, &model, &batch, &[6, nv], |m, w, i, out| {
         let q = batch.rows[0].row(i);
         check_state(m, q, None)?;
-        let j = algorithms::jacobian(m, w.data(), q, body, &point, convention);
-        for (r, row) in out.chunks_exact_mut(nv).enumerate() {
-            for (c, x) in row.iter_mut().enumerate() {
-                *x = j[(r, c)];
-            }
-        }
+        row_major(algorithms::jacobian(m, w.data(), q, body, &point, convention), out);
         Ok(())
     })
 }
@@ -120,6 +115,19 @@ pub fn centroidal_momentum<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: A
     })
 }
 
+/// The centroidal momentum matrix A_G, `centroidal_momentum(q, v) = A_G(q) v`: `(..., 6, nv)`.
+#[pyfunction]
+pub fn centroidal_map<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
+    let nv = model.model.nv();
+    let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
+    run(py, &model, &batch, &[6, nv], |m, w, i, out| {
+        let q = batch.rows[0].row(i);
+        check_state(m, q, None)?;
+        row_major(algorithms::centroidal_map(m, w.data(), q), out);
+        Ok(())
+    })
+}
+
 /// Time derivative of the centroidal momentum for joint accelerations `a` (gravity excluded): `(..., 6)`.
 #[pyfunction]
 pub fn centroidal_momentum_rate<'py>(
@@ -138,4 +146,13 @@ pub fn centroidal_momentum_rate<'py>(
         out.copy_from_slice(algorithms::centroidal_momentum_rate(m, w.data(), q, v, a).as_slice());
         Ok(())
     })
+}
+
+/// A 6 x nv matrix (column-major, as nalgebra stores it) written row by row, as NumPy reads it.
+fn row_major(matrix: &Matrix6xX<f64>, out: &mut [f64]) {
+    for (r, row) in out.chunks_exact_mut(matrix.ncols()).enumerate() {
+        for (c, x) in row.iter_mut().enumerate() {
+            *x = matrix[(r, c)];
+        }
+    }
 }

@@ -31,6 +31,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(kinematics::center_of_mass, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::subtree_mass_properties, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::centroidal_momentum, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::centroidal_map, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::centroidal_momentum_rate, m)?)?;
     m.add_function(wrap_pyfunction!(dynamics::rnea, m)?)?;
     m.add_function(wrap_pyfunction!(dynamics::aba, m)?)?;

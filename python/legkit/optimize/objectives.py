@@ -305,10 +305,8 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
     def derivative(z: np.ndarray) -> np.ndarray:
         """d/dq by central differences (but for a free-flyer's position, which the rows do not see: they
         depend on the COM and the feet through their differences only); d/dv and d/dp1 exactly: the rows are
-        affine in p1 and in h, and h = A_G(q) v (the centroidal momentum matrix, one batched call with v the
-        unit vectors)."""
-        points, nv = len(z), nx - nq
-        by_q = np.zeros((points, outputs, nq))
+        affine in p1 and in h, and h = A_G(q) v (`lk.centroidal_map`)."""
+        by_q = np.zeros((len(z), outputs, nq))
         moving = problem.q_without_translation
         by_q[..., moving] = point_jacobian(margin, z, columns=moving)[1]
         q = problem.configuration(z[:, :nq])
@@ -318,8 +316,7 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
         unit = np.eye(7)[:, :, None]  # h = e_0..e_5 and p1 = 1, each against zeros (unit[6])
         base = rows(c, np.zeros(6), start, end, 0.0, np.sqrt, stacked)
         slopes = np.stack([rows(c, unit[j, :6], start, end, unit[j, 6], np.sqrt, stacked) - base for j in range(7)], axis=-1)
-        centroidal_map = np.asarray(lk.centroidal_momentum(model, np.repeat(q, nv, axis=0), np.tile(np.eye(nv), (points, 1))))
-        by_v = slopes[..., :6] @ centroidal_map.reshape(points, nv, 6).transpose(0, 2, 1)
+        by_v = slopes[..., :6] @ np.asarray(lk.centroidal_map(model, q))
         return np.concatenate([by_q, by_v, slopes[..., 6:]], axis=2)
 
     feet = [(problem.foot_body[n], problem.foot_point[n]) for n in edge]

@@ -1,12 +1,13 @@
 //! Centroidal momentum (Orin & Goswami): the robot's linear momentum and its angular momentum about the
-//! centre of mass, in world-aligned axes, and its time derivative.
+//! centre of mass, in world-aligned axes, its time derivative, and the centroidal momentum matrix A_G.
 
-use nalgebra::{Vector3, Vector6};
+use nalgebra::{Matrix6xX, Vector3, Vector6};
 
 use super::com::world_com;
-use super::kinematics::body_motions;
+use super::kinematics::{base_centred_kinematics, body_motions};
+use crate::joint::Dofs;
 use crate::model::{Data, Model};
-use crate::spatial::{angular, cross_force, linear, spatial, Motion};
+use crate::spatial::{angular, cross_force, linear, spatial, Force, Motion};
 
 /// Body velocities, accelerations (without gravity) and poses; returns the spatial momentum and its rate
 /// about the world origin in world coordinates, and the centre of mass.
@@ -38,4 +39,40 @@ pub fn centroidal_momentum(model: &Model, data: &mut Data, q: &[f64], v: &[f64])
 pub fn centroidal_momentum_rate(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Vector6<f64> {
     let (_, rate, com) = world_momentum(model, data, q, v, Some(a));
     spatial(linear(&rate), angular(&rate) - com.cross(&linear(&rate)))
+}
+
+/// The centroidal momentum matrix A_G (6 x nv, `h = A_G(q) v`, rows as `centroidal_momentum`'s) in
+/// `data.centroidal_map`. As CRBA (Table 6.2) in the centred frame: a joint moves its subtree as one rigid
+/// body, so its column is the subtree's composite inertia times its motion subspace (eq. 6.17's F), whose
+/// moment is then taken about the COM.
+pub fn centroidal_map<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d Matrix6xX<f64> {
+    let n = model.nbodies();
+    base_centred_kinematics(model, data, q);
+    for i in 0..n {
+        data.composite[i] = data.centred_m_i[i].act_rigid_inertia(model.inertia(i));
+    }
+    for i in (1..n).rev() {
+        let composite = data.composite[i];
+        data.composite[model.parent(i)] += composite;
+    }
+    let whole = data.composite[0];
+    let com = if whole.mass > 0.0 { whole.first_moment / whole.mass } else { Vector3::zeros() };
+    let about_com = |f: Force| spatial(linear(&f), angular(&f) - com.cross(&linear(&f)));
+    for i in 0..n {
+        let k = model.idx_v(i);
+        match model.joint(i).dofs() {
+            Dofs::Free => {
+                for j in 0..6 {
+                    let motion = data.centred_m_i[0].act_motion(&Motion::ith(j, 1.0));
+                    data.centroidal_map.set_column(k + j, &about_com(whole.apply(&motion)));
+                }
+            }
+            Dofs::Zero => {}
+            Dofs::One(_) => {
+                let s = model.joint(i).subspace_in(&data.centred_m_i[i]);
+                data.centroidal_map.set_column(k, &about_com(data.composite[i].apply(&s)));
+            }
+        }
+    }
+    &data.centroidal_map
 }

@@ -15,7 +15,7 @@ pub mod minv;
 pub mod rnea;
 
 pub use aba::{aba, aba_with_armature};
-pub use centroidal::{centroidal_momentum, centroidal_momentum_rate};
+pub use centroidal::{centroidal_map, centroidal_momentum, centroidal_momentum_rate};
 pub use com::{center_of_mass, subtree_mass_properties};
 pub use contact::{contact_dynamics, impact, reduced_dynamics, ContactDynamics, ContactPoint, ReducedDynamics};
 pub use crba::crba;
