@@ -54,7 +54,7 @@ def test_a_writer_thread_cannot_change_a_batched_call_while_it_runs():
 
 
 def test_batched_calls_read_arrays_in_any_memory_order():
-    """Fortran-ordered arrays (a transpose's layout), strided views and C-ordered copies of the same numbers give
+    """Fortran-ordered arrays (a transpose's layout), strided views, column slices and C-ordered copies of the same numbers give
     the same results bit for bit. Fortran order used to be read as if it were C order: wrong numbers, silently."""
     model = chain(6)
     rng = np.random.default_rng(7)
@@ -63,6 +63,7 @@ def test_batched_calls_read_arrays_in_any_memory_order():
         "fortran": np.asfortranarray,
         "transposed copy": lambda x: np.ascontiguousarray(x.T).T,
         "strided": lambda x: np.repeat(x, 2, axis=0)[::2],
+        "column slice": lambda x: np.concatenate([x, -x], axis=1)[:, : x.shape[1]],  # rows contiguous, apart
     }
     points = [rng.normal(size=(5, 3)) for _ in range(5)]
 

@@ -5,7 +5,7 @@
 //! GIL held, before the kernels run without it: another Python thread may write the array meanwhile.
 
 use legkit_dynamics::Error;
-use numpy::ndarray::{ArrayViewD, IxDyn};
+use numpy::ndarray::{ArrayViewD, Axis, IxDyn};
 use numpy::{PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -92,13 +92,27 @@ pub fn broadcast(arguments: &[(&str, &ArrayArg<'_>, Core)]) -> PyResult<Batch> {
                     let view: ArrayViewD<'_, f64> = unsafe { array.as_array() };
                     let full: Vec<usize> = shape.iter().chain(core.iter()).copied().collect();
                     let spread = if shared || batch == shape.as_slice() { Some(view) } else { view.broadcast(IxDyn(&full)) };
-                    spread.expect("shapes were checked to broadcast").iter().copied().collect()
+                    row_major(spread.expect("shapes were checked to broadcast"))
                 }
             };
             Rows { data, width: core.iter().product(), shared }
         })
         .collect();
     Ok(Batch { shape, len, rows })
+}
+
+/// A view's numbers in row-major order, a row at a time where its last axis is contiguous (a column slice such
+/// as `z[:, a:b]`, which the element iterator copied at a third of the speed: 2 ms of a 3.6 ms RNEA call).
+fn row_major(view: ArrayViewD<'_, f64>) -> Vec<f64> {
+    let Some(last) = view.ndim().checked_sub(1) else { return view.iter().copied().collect() };
+    let mut data = Vec::with_capacity(view.len());
+    for lane in view.lanes(Axis(last)) {
+        match lane.as_slice() {
+            Some(row) => data.extend_from_slice(row),
+            None => data.extend(lane.iter().copied()),
+        }
+    }
+    data
 }
 
 /// `slice` copied on every core: large batches of cheap kernels would otherwise wait on a one-core copy.
