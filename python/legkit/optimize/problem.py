@@ -421,19 +421,37 @@ class MultiphaseProblem:
         """Body-frame wrenches (B, nbodies, 6) of the world-frame foot forces (B, len(contacts) * force_dims) and
         the flat feet's foot-frame torques (B, 3 x their count) at configurations q (B, nq, unit quaternion), as
         legkit's rnea/aba take them (None without contacts)."""
-        if not contacts:
+        feet, flat = self.contact_points([contacts] * len(q))
+        return self.point_wrenches(q, forces, feet, flat, torques)
+
+    def contact_points(self, contacts: Sequence[Sequence[str]]) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        """Per row of a batch, its feet on the ground (`contacts`, one sequence per row, all of one length and
+        with as many flat feet): ({"bodies": (B, count), "points": (B, count, 3)}, the flat feet's bodies
+        (B, flat count)), as `point_wrenches` takes them."""
+        bodies = np.array([[self.foot_body[name] for name in row] for row in contacts], dtype=np.int64).reshape(len(contacts), -1)
+        points = np.array([[self.foot_point[name] for name in row] for row in contacts]).reshape(len(contacts), -1, 3)
+        flat = np.array([[self.foot_body[name] for name in self.flat_contacts(row)] for row in contacts], dtype=np.int64)
+        return {"bodies": bodies, "points": points}, flat.reshape(len(contacts), -1)
+
+    def point_wrenches(self, q: np.ndarray, forces: np.ndarray, feet: dict[str, np.ndarray], flat: np.ndarray,
+                       torques: np.ndarray | None = None) -> np.ndarray | None:
+        """`external_wrenches` with each row's feet as `contact_points` gives them (rows may differ in which
+        feet are down)."""
+        count = feet["bodies"].shape[1]
+        if count == 0:
             return None
         poses = np.asarray(lk.forward_kinematics(self.model, q))
-        world = self.world_forces(forces, len(contacts))
+        world = self.world_forces(forces, count)
         f_ext = np.zeros((len(q), self.model.nbodies, 6))
-        for c, name in enumerate(contacts):  # a few feet; each line is batched over all points
-            body = self.foot_body[name]
-            local = np.einsum("bji,bj->bi", poses[:, body, :3, :3], world[:, c])
-            f_ext[:, body, :3] += local
-            f_ext[:, body, 3:] += np.cross(self.foot_point[name], local)
-        for c, name in enumerate(self.flat_contacts(contacts)):
+        rows = np.arange(len(q))
+        for c in range(count):  # a few feet; each line is batched over all points
+            body = feet["bodies"][:, c]
+            local = np.einsum("bji,bj->bi", poses[rows, body, :3, :3], world[:, c])
+            f_ext[rows, body, :3] += local
+            f_ext[rows, body, 3:] += np.cross(feet["points"][:, c], local)
+        for c in range(flat.shape[1]):
             assert torques is not None, "flat feet on the ground need their torques"
-            f_ext[:, self.foot_body[name], 3:] += torques[:, 3 * c : 3 * c + 3]
+            f_ext[rows, flat[:, c], 3:] += torques[:, 3 * c : 3 * c + 3]
         return f_ext
 
     def tau(self, u: np.ndarray) -> np.ndarray:
@@ -516,8 +534,6 @@ class MultiphaseProblem:
         for k, phase in enumerate(self.phases):
             index = self.point_index[k]
             blocks.append(_Defects(self, k))
-            if self.transcription == "inverse":
-                blocks.append(_InverseDynamics(self, k))
             u = slice(nx, nx + nu)
             if nu:  # linear controls on each interval (eq. 14): u_m = (u_k + u_k+1) / 2
                 rows = np.arange(phase.intervals * nu)
@@ -525,6 +541,11 @@ class MultiphaseProblem:
                                      np.concatenate([index[1::2, u].ravel(), index[0:-1:2, u].ravel(), index[2::2, u].ravel()]),
                                      np.r_[np.ones(len(rows)), -0.5 * np.ones(2 * len(rows))]))
             blocks.extend(self._contact_blocks(k))
+        if self.transcription == "inverse":  # one block, one RNEA call, per layout of the point variables
+            layouts: dict[tuple[int, int], list[int]] = {}
+            for k, phase in enumerate(self.phases):
+                layouts.setdefault((len(phase.contacts), len(self.flat_contacts(phase.contacts))), []).append(k)
+            blocks.extend(_InverseDynamics(self, ks) for ks in layouts.values())
         for k in range(count if self.periodic else count - 1):
             end, start = self.point_index[k][-1], self._start_seen_from(k)
             if self.periodic and (k + 1) % count == 0 and self.travel_index is not None:
@@ -1007,66 +1028,87 @@ class _Defects:
 
 
 class _InverseDynamics:
-    """Eq. 1 in inverse-dynamics form at every point of phase k: rnea(q, v, a, J_c^T lambda) - B u = 0 (nv rows
-    per point). d/d(q, v) by coloured central differences over one batched RNEA call (a free-flyer's position
-    left out: no row depends on it); the rows are affine in a, u and the foot loads, so d/da = M(q) (`crba`),
-    d/du = -B, d/dlambda = -J^T (each foot point's world-aligned linear Jacobian) and, for a flat foot's
-    torques, -J_w^T (its body's angular Jacobian in the body frame) exactly. The pattern follows the tree
-    (`MultiphaseProblem.tree_dependence`)."""
+    """Eq. 1 in inverse-dynamics form at every point of the phases ks (phases with one layout of the point
+    variables: as many feet, and flat feet, on the ground): rnea(q, v, a, J_c^T lambda) - B u = 0 (nv rows per
+    point). d/d(q, v) by coloured central differences over one batched RNEA call for all of them (a free-
+    flyer's position left out: no row depends on it); the rows are affine in a, u and the foot loads, so
+    d/da = M(q) (`crba`), d/du = -B, d/dlambda = -J^T (each foot point's world-aligned linear Jacobian) and,
+    for a flat foot's torques, -J_w^T (its body's angular Jacobian in the body frame) exactly. The pattern
+    follows the tree (`MultiphaseProblem.tree_dependence`)."""
 
-    def __init__(self, problem: MultiphaseProblem, k: int) -> None:
-        self.problem, self.k = problem, k
-        self.contacts = list(problem.phases[k].contacts)
-        index = problem.point_index[k]
-        self.index = index
+    def __init__(self, problem: MultiphaseProblem, ks: Sequence[int]) -> None:
+        self.problem, self.ks = problem, list(ks)
         nq, nv, nx, nu = problem.nq, problem.nv, problem.nx, problem.nu
-        nz = index.shape[1]
-        self.size = len(index) * nv
+        self.index = np.concatenate([problem.point_index[k] for k in self.ks])
+        points, nz = self.index.shape
+        self.size = points * nv
         self.lower = self.upper = np.zeros(self.size)
+        first = self.ks[0]  # the layout is the same in every phase of the block
+        self.force_columns, self.torque_columns = problem.force_columns[first], problem.torque_columns[first]
+        self.a_columns = problem.a_columns[first]
         vv, vq, reach = problem.tree_dependence()
-        mask = np.zeros((nv, nz), dtype=bool)
-        mask[:, :nq], mask[:, nq:nx], mask[:, problem.a_columns[k]] = vq, vv, vv
-        mask[problem.actuated, nx + np.arange(nu)] = True
-        forces = np.arange(nz)[problem.force_columns[k]].reshape(len(self.contacts), problem.force_dims)
-        torques = np.arange(nz)[problem.torque_columns[k]].reshape(-1, 3)
-        for c, name in enumerate(self.contacts):
-            mask[np.ix_(reach[name], forces[c])] = True
-        for c, name in enumerate(problem.flat_contacts(self.contacts)):
-            mask[np.ix_(reach[name], torques[c])] = True
+        forces = np.arange(nz)[self.force_columns].reshape(-1, problem.force_dims)
+        torques = np.arange(nz)[self.torque_columns].reshape(-1, 3)
         self.forces, self.torques = forces, torques
         self.columns = np.r_[problem.q_without_translation, nq:nx]  # differenced; the rest is exact
-        r, nonzero_cols = np.nonzero(mask)
-        self._r, self._c = r, nonzero_cols
-        self.rows = (np.arange(len(index))[:, None] * nv + r[None]).ravel()
-        self.cols = index[:, nonzero_cols].ravel()
+        # Per phase: its points in the block, its contacts and the nonzeros (r, c) of one point's rows.
+        self._parts: list[tuple[slice, tuple[str, ...], np.ndarray, np.ndarray]] = []
+        rows, cols, contacts = [], [], []
+        start = 0
+        for k in self.ks:
+            phase_contacts = problem.phases[k].contacts
+            mask = np.zeros((nv, nz), dtype=bool)
+            mask[:, :nq], mask[:, nq:nx], mask[:, self.a_columns] = vq, vv, vv
+            mask[problem.actuated, nx + np.arange(nu)] = True
+            for c, name in enumerate(phase_contacts):
+                mask[np.ix_(reach[name], forces[c])] = True
+            for c, name in enumerate(problem.flat_contacts(phase_contacts)):
+                mask[np.ix_(reach[name], torques[c])] = True
+            r, nonzero_cols = np.nonzero(mask)
+            count = len(problem.point_index[k])
+            rows.append(((start + np.arange(count))[:, None] * nv + r[None]).ravel())
+            cols.append(problem.point_index[k][:, nonzero_cols].ravel())
+            self._parts.append((slice(start, start + count), phase_contacts, r, nonzero_cols))
+            contacts += [phase_contacts] * count
+            start += count
+        self.rows, self.cols = np.concatenate(rows), np.concatenate(cols)
+        self.feet, self.flat = problem.contact_points(contacts)
+        # The same, row by row, for `point_jacobian`'s batch (each point followed by its perturbations).
+        copies = 2 * len(self.columns) + 1
+        self._batch_feet = {key: np.repeat(value, copies, axis=0) for key, value in self.feet.items()}
+        self._batch_flat = np.repeat(self.flat, copies, axis=0)
 
-    def residual(self, z: np.ndarray) -> np.ndarray:
+    def residual(self, z: np.ndarray, feet: dict[str, np.ndarray], flat: np.ndarray) -> np.ndarray:
+        """The rows at the block's point variables z (B, nz), row b with the feet feet[.][b], flat[b] down."""
         problem = self.problem
         q = problem.configuration(z[:, : problem.nq])
-        f_ext = problem.external_wrenches(q, z[:, problem.force_columns[self.k]], self.contacts, z[:, problem.torque_columns[self.k]])
-        generalized = np.asarray(lk.rnea(problem.model, q, z[:, problem.nq : problem.nx], z[:, problem.a_columns[self.k]], f_ext))
+        f_ext = problem.point_wrenches(q, z[:, self.force_columns], feet, flat, z[:, self.torque_columns])
+        generalized = np.asarray(lk.rnea(problem.model, q, z[:, problem.nq : problem.nx], z[:, self.a_columns], f_ext))
         return generalized - problem.tau(z[:, problem.nx : problem.nx + problem.nu])
 
     def values(self, x: np.ndarray) -> np.ndarray:
-        return self.residual(x[self.index]).ravel()
+        return self.residual(x[self.index], self.feet, self.flat).ravel()
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         problem = self.problem
         z = x[self.index]
-        _, partial = point_jacobian(self.residual, z, columns=self.columns)
+        _, partial = point_jacobian(lambda batch: self.residual(batch, self._batch_feet, self._batch_flat), z, columns=self.columns)
         jac = np.zeros((len(z), problem.nv, z.shape[1]))
         jac[:, :, self.columns] = partial
         q = problem.configuration(z[:, : problem.nq])
-        jac[:, :, problem.a_columns[self.k]] = np.asarray(lk.crba(problem.model, q))
+        jac[:, :, self.a_columns] = np.asarray(lk.crba(problem.model, q))
         jac[:, problem.actuated, problem.nx + np.arange(problem.nu)] = -1.0
         axes = slice(3 - problem.force_dims, 3)  # the world axes the force variables hold
-        for c, name in enumerate(self.contacts):
-            linear = np.asarray(lk.jacobian(problem.model, q, problem.foot_body[name], problem.foot_point[name], "local_world_aligned"))
-            jac[:, :, self.forces[c]] = -linear[:, axes].transpose(0, 2, 1)
-        for c, name in enumerate(problem.flat_contacts(self.contacts)):
-            angular = np.asarray(lk.jacobian(problem.model, q, problem.foot_body[name], None, "local"))
-            jac[:, :, self.torques[c]] = -angular[:, 3:].transpose(0, 2, 1)
-        return jac[:, self._r, self._c].ravel()
+        values = []
+        for points, contacts, r, c in self._parts:
+            for foot, name in enumerate(contacts):
+                linear = np.asarray(lk.jacobian(problem.model, q[points], problem.foot_body[name], problem.foot_point[name], "local_world_aligned"))
+                jac[points, :, self.forces[foot]] = -linear[:, axes].transpose(0, 2, 1)
+            for foot, name in enumerate(problem.flat_contacts(contacts)):
+                angular = np.asarray(lk.jacobian(problem.model, q[points], problem.foot_body[name], None, "local"))
+                jac[points, :, self.torques[foot]] = -angular[:, 3:].transpose(0, 2, 1)
+            values.append(jac[points][:, r, c].ravel())
+        return np.concatenate(values)
 
 
 class _Feet:

@@ -302,8 +302,9 @@ def transcription(problem: MultiphaseProblem) -> tuple:
             rows.append(_defects(problem, model, block, x))
         elif isinstance(block, transcribed._InverseDynamics):
             z = ca.SX.sym("z", block.index.shape[1])
-            function = ca.Function("rnea", [z], [residual(problem, model, block.k, z)])
-            rows.append(ca.vec(function.map(block.index.shape[0])(_gather(x, block.index))))
+            for k in block.ks:  # the block's rows phase by phase, point-major
+                function = ca.Function("rnea", [z], [residual(problem, model, k, z)])
+                rows.append(ca.vec(function.map(len(problem.point_index[k]))(_gather(x, problem.point_index[k]))))
         elif isinstance(block, transcribed._Feet):
             q = ca.SX.sym("q", problem.nq)
             feet = [(problem.foot_body[n], problem.foot_point[n]) for n in block.names]
