@@ -31,6 +31,10 @@ def pendulum(gravity: float) -> lk.Model:
     return model
 
 
+#: IPOPT iterations per run in the polish test: too few for L-BFGS, enough for the exact Hessian.
+POLISH_BUDGET = 3
+
+
 def swing_up(model: lk.Model, intervals: int, duration: float) -> MultiphaseProblem:
     return MultiphaseProblem(model, [Phase((), intervals, (duration, duration))], objectives=[effort()], periodic=False,
                              initial=([0.0], [0.0]), final=([np.pi], [0.0]))
@@ -118,6 +122,22 @@ def test_constraint_jacobian_and_gradient_match_central_differences(transcriptio
 def pendulum_guess(intervals: int, duration: float) -> Trajectory:
     s = np.linspace(0.0, duration, 2 * intervals + 1)
     return single_phase(s, np.pi * s[:, None] / duration, np.full((len(s), 1), np.pi / duration), np.zeros((len(s), 1)))
+
+
+def test_polish_finishes_an_l_bfgs_run_with_the_exact_hessian():
+    # Without gravity the swing-up's optimum is J = 12 I^2 pi^2 / T^3. A few L-BFGS iterations stop short of it;
+    # polished from their best point with the exact Hessian, the same budget reaches it.
+    duration, inertia = 2.0, MASS * LENGTH**2
+    problem = swing_up(pendulum(0.0), 10, duration)
+    optimum = 12.0 * inertia**2 * np.pi**2 / duration**3
+    _, short = problem.solve(pendulum_guess(10, duration), derivatives="legkit", max_iter=POLISH_BUDGET)
+    assert not short.success and short.objective > optimum * (1.0 + 1e-5)
+    _, polished = problem.solve(pendulum_guess(10, duration), derivatives="legkit", polish=True, max_iter=POLISH_BUDGET)
+    assert polished.success
+    assert polished.objective == pytest.approx(optimum, rel=1e-7)
+    assert polished.iterations > short.iterations  # the result covers both runs
+    with pytest.raises(ValueError, match="polish"):
+        problem.solve(pendulum_guess(10, duration), derivatives="exact", polish=True)
 
 
 def test_pendulum_swing_up_reaches_the_known_optimum():

@@ -34,22 +34,25 @@ def test_amble_guess_lies_on_the_reference_and_wraps_around_by_one_stride():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("mirror", [False, True], ids=["whole_cycle", "mirrored_half"])
-def test_cli_optimize_prints_each_iteration_and_writes_csv_and_figure(tmp_path, capsys, mirror):
+@pytest.mark.parametrize("mode", ["whole_cycle", "mirrored_half", "polished"])
+def test_cli_optimize_prints_each_iteration_and_writes_csv_and_figure(tmp_path, capsys, mode):
     # With --mirror the half cycle is optimised and everything after sees the whole cycle, unrolled.
     iterations = 3
+    flags = {"whole_cycle": [], "mirrored_half": ["--mirror", "--no-animation"], "polished": ["--polish", "--no-animation"]}[mode]
     assert gait.main(["--robot", "quadruped", "--optimize", "--intervals", "1", "--max-iter", str(iterations),
-                      "--replay-cycles", "1", "--out", str(tmp_path)] + (["--mirror", "--no-animation"] if mirror else [])) == 0
+                      "--replay-cycles", "1", "--out", str(tmp_path)] + flags) == 0
     out = capsys.readouterr().out
-    # Two continuation stages (constraints first, then J_s2), each with IPOPT's iterate 0 too.
-    assert sum(line.strip().startswith("iter ") for line in out.splitlines()) == 2 * (iterations + 1)
+    # Two continuation stages (constraints first, then J_s2), with --polish a third (the exact Hessian), each with
+    # IPOPT's iterate 0 too.
+    stages = 3 if mode == "polished" else 2
+    assert sum(line.strip().startswith("iter ") for line in out.splitlines()) == stages * (iterations + 1)
     assert "replay: stayed upright" in out and "S_H min, reference" in out
     with (tmp_path / "gait_quadruped_optimized.csv").open() as handle:
         rows = list(csv.DictReader(handle))
     assert len(rows) == 4 * 3  # four phases of three collocation points
     assert [rows[3 * k]["support"] for k in range(4)] == ["+".join(p).upper() for p in AMBLE_SUPPORT]
     assert (tmp_path / "gait_quadruped_optimized.png").stat().st_size > 10_000
-    if mirror:
+    if mode != "whole_cycle":
         return
     # The replay's animation: meshcat's self-contained page, and a GIF of several frames.
     page = (tmp_path / "gait_quadruped_optimized.html").read_text()
