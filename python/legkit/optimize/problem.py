@@ -427,23 +427,24 @@ class MultiphaseProblem:
         """Body-frame wrenches (B, nbodies, 6) of the world-frame foot forces (B, len(contacts) * force_dims) and
         the flat feet's foot-frame torques (B, 3 x their count) at configurations q (B, nq, unit quaternion), as
         legkit's rnea/aba take them (None without contacts)."""
-        feet, flat = self.contact_points([contacts] * len(q))
-        return self.point_wrenches(q, forces, feet, flat, torques)
+        # One row of feet, broadcast over the batch.
+        return self.point_wrenches(q, forces, *self.contact_points([contacts]), torques)
 
-    def contact_points(self, contacts: Sequence[Sequence[str]]) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    def contact_points(self, contacts: Sequence[Sequence[str]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per row of a batch, its feet on the ground (`contacts`, one sequence per row, all of one length and
-        with as many flat feet): ({"bodies": (B, count), "points": (B, count, 3)}, the flat feet's bodies
-        (B, flat count)), as `point_wrenches` takes them."""
-        bodies = np.array([[self.foot_body[name] for name in row] for row in contacts], dtype=np.int64).reshape(len(contacts), -1)
-        points = np.array([[self.foot_point[name] for name in row] for row in contacts]).reshape(len(contacts), -1, 3)
+        with as many flat feet): their bodies (B, count), points (B, count, 3) and the flat feet's bodies
+        (B, flat count), as `point_wrenches` takes them."""
+        rows = len(contacts)
+        bodies = np.array([[self.foot_body[name] for name in row] for row in contacts], dtype=np.int64).reshape(rows, -1)
+        points = np.array([[self.foot_point[name] for name in row] for row in contacts]).reshape(rows, -1, 3)
         flat = np.array([[self.foot_body[name] for name in self.flat_contacts(row)] for row in contacts], dtype=np.int64)
-        return {"bodies": bodies, "points": points}, flat.reshape(len(contacts), -1)
+        return bodies, points, flat.reshape(rows, -1)
 
-    def point_wrenches(self, q: np.ndarray, forces: np.ndarray, feet: dict[str, np.ndarray], flat: np.ndarray,
+    def point_wrenches(self, q: np.ndarray, forces: np.ndarray, bodies: np.ndarray, points: np.ndarray, flat: np.ndarray,
                        torques: np.ndarray | None = None) -> np.ndarray | None:
         """`external_wrenches` with each row's feet as `contact_points` gives them (rows may differ in which
-        feet are down)."""
-        count = feet["bodies"].shape[1]
+        feet are down; one row of feet broadcasts over q's)."""
+        count = bodies.shape[1]
         if count == 0:
             return None
         poses = np.asarray(lk.forward_kinematics(self.model, q))
@@ -451,10 +452,10 @@ class MultiphaseProblem:
         f_ext = np.zeros((len(q), self.model.nbodies, 6))
         rows = np.arange(len(q))
         for c in range(count):  # a few feet; each line is batched over all points
-            body = feet["bodies"][:, c]
+            body = bodies[:, c]
             local = np.einsum("bji,bj->bi", poses[rows, body, :3, :3], world[:, c])
             f_ext[rows, body, :3] += local
-            f_ext[rows, body, 3:] += np.cross(feet["points"][:, c], local)
+            f_ext[rows, body, 3:] += np.cross(points[:, c], local)
         for c in range(flat.shape[1]):
             assert torques is not None, "flat feet on the ground need their torques"
             f_ext[rows, flat[:, c], 3:] += torques[:, 3 * c : 3 * c + 3]
@@ -1087,27 +1088,28 @@ class _InverseDynamics:
             contacts += [phase_contacts] * count
             start += count
         self.rows, self.cols = np.concatenate(rows), np.concatenate(cols)
-        self.feet, self.flat = problem.contact_points(contacts)
+        self.feet = problem.contact_points(contacts)
         # The same, row by row, for `point_jacobian`'s batch (each point followed by its perturbations).
         copies = 2 * len(self.columns) + 1
-        self._batch_feet = {key: np.repeat(value, copies, axis=0) for key, value in self.feet.items()}
-        self._batch_flat = np.repeat(self.flat, copies, axis=0)
+        bodies, points, flat = self.feet
+        self._batch_feet = (np.repeat(bodies, copies, axis=0), np.repeat(points, copies, axis=0), np.repeat(flat, copies, axis=0))
 
-    def residual(self, z: np.ndarray, feet: dict[str, np.ndarray], flat: np.ndarray) -> np.ndarray:
-        """The rows at the block's point variables z (B, nz), row b with the feet feet[.][b], flat[b] down."""
+    def residual(self, z: np.ndarray, feet: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
+        """The rows at the block's point variables z (B, nz), row b with the feet of row b of `feet`
+        (`MultiphaseProblem.contact_points`) down."""
         problem = self.problem
         q = problem.configuration(z[:, : problem.nq])
-        f_ext = problem.point_wrenches(q, z[:, self.force_columns], feet, flat, z[:, self.torque_columns])
+        f_ext = problem.point_wrenches(q, z[:, self.force_columns], *feet, z[:, self.torque_columns])
         generalized = np.asarray(lk.rnea(problem.model, q, z[:, problem.nq : problem.nx], z[:, self.a_columns], f_ext))
         return generalized - problem.tau(z[:, problem.nx : problem.nx + problem.nu])
 
     def values(self, x: np.ndarray) -> np.ndarray:
-        return self.residual(x[self.index], self.feet, self.flat).ravel()
+        return self.residual(x[self.index], self.feet).ravel()
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         problem = self.problem
         z = x[self.index]
-        _, partial = point_jacobian(lambda batch: self.residual(batch, self._batch_feet, self._batch_flat), z, columns=self.columns)
+        _, partial = point_jacobian(lambda batch: self.residual(batch, self._batch_feet), z, columns=self.columns)
         jac = np.zeros((len(z), problem.nv, z.shape[1]))
         jac[:, :, self.columns] = partial
         q = problem.configuration(z[:, : problem.nq])
