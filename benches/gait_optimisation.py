@@ -2,13 +2,14 @@
 full 3D model, 19 configuration states) maximising the worst-case S_H (J_s2) on IPOPT, or (--gait walk) the
 biped walk of Sect. 6 at 1.8 km/h minimising J_e1.
 
-Prints, for a cold start (from `legkit gait`'s hand-built reference, feasibility first) and a warm start (from
-the optimum at a neighbouring speed): IPOPT status, iterations, the symbolic build time, IPOPT's wall time, the
+Prints, for a cold start (from `legkit gait`'s hand-built reference, feasibility first, then J_s2 with L-BFGS,
+optionally polished with the exact Hessian) and a warm start (the exact Hessian from the point and multipliers
+of the solve at a neighbouring speed, `MultiphaseProblem.solve(result)`): IPOPT status, iterations, the symbolic build time, IPOPT's wall time, the
 solve call's total time (with casadi's solver build for an exact-Hessian --polish), the share
 of it spent evaluating the functions and their derivatives, the largest constraint violation re-evaluated by
 legkit's kernels, p1 and the worst published S_H (eq. 10).
 
-    PYTHONPATH=python python3 benches/gait_optimisation.py [--intervals 4] [--max-iter 1000] [--neighbour 0.6] [--polish]
+    PYTHONPATH=python python3 benches/gait_optimisation.py [--intervals 4] [--max-iter 300] [--neighbour 0.6] [--polish]
 
 The walk (cold, from `legkit gait`'s hand-built walk, constraints first by `solve_walk`): status, iterations,
 wall and CPU time of the solve, the evaluation share, the violation re-evaluated by legkit's kernels, J_e1
@@ -82,6 +83,7 @@ def main() -> None:
     parser.add_argument("--derivatives", choices=("exact", "legkit"), help="default: the gait's (AMBLE_ / WALK_DERIVATIVES)")
     parser.add_argument("--mirror", action="store_true", help="transcribe half the cycle, the other half its mirror image")
     parser.add_argument("--polish", action="store_true", help="amble: after legkit's L-BFGS runs, an exact-Hessian polish")
+    parser.add_argument("--polish-max-iter", type=int, default=1000, help="amble: IPOPT iteration limit of the polish and of the warm start")
     args = parser.parse_args()
     if args.gait == "walk":
         walk(args)
@@ -89,7 +91,8 @@ def main() -> None:
     args.derivatives = args.derivatives or AMBLE_DERIVATIVES
     robot = build_quadruped(AMBLE_QUADRUPED)
     objective = [lo.MinMaxStability(2.0, DIAGONAL_PAIRS)]
-    options = {"tol": args.tol, "max_iter": args.max_iter, "derivatives": args.derivatives, "options": AMBLE_IPOPT, "polish": args.polish}
+    options = {"tol": args.tol, "max_iter": args.max_iter, "derivatives": args.derivatives, "options": AMBLE_IPOPT, "polish": args.polish,
+               "polish_max_iter": args.polish_max_iter}
 
     def problem(speed: float) -> tuple[lo.MultiphaseProblem, float]:
         start = time.perf_counter()
@@ -115,8 +118,8 @@ def main() -> None:
     other, neighbour, build, total = cold(args.neighbour)
     report(f"cold, {args.neighbour:g} m/s (the neighbour)", other, neighbour, build, total)
     start = time.perf_counter()
-    warm = target.solve(neighbour.best()[0], **options)[1]  # primal start only
-    report(f"warm from {args.neighbour:g} m/s", target, warm, 0.0, time.perf_counter() - start)
+    warm = target.solve(neighbour, derivatives="exact", tol=args.tol, max_iter=args.polish_max_iter, options=AMBLE_IPOPT)[1]
+    report(f"warm from {args.neighbour:g} m/s, exact", target, warm, 0.0, time.perf_counter() - start)
 
 
 if __name__ == "__main__":

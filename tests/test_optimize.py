@@ -3,6 +3,8 @@ optimal control problems whose optima are derived here by hand."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.integrate import solve_bvp
@@ -19,6 +21,7 @@ from legkit.optimize import (
     joule_loss,
     specific_resistance,
 )
+from legkit.optimize.solver import prepare, solve
 from legkit.robots.quadruped import LEGS, build_quadruped
 
 G = lk.STANDARD_GRAVITY
@@ -138,6 +141,49 @@ def test_polish_finishes_an_l_bfgs_run_with_the_exact_hessian():
     assert polished.iterations > short.iterations  # the result covers both runs
     with pytest.raises(ValueError, match="polish"):
         problem.solve(pendulum_guess(10, duration), derivatives="exact", polish=True)
+
+
+def test_warm_start_from_a_solve_result_carries_its_multipliers():
+    # The gravity-free swing-up with |u| <= 1 N m (binding: the free optimum peaks at 1.18 N m) at T = 2.0 s, then
+    # at T = 2.1 s from that optimum: with its multipliers IPOPT keeps the active bounds' multipliers and the
+    # point on its bounds, and converges in fewer iterations than from the point alone, to the same optimum; from
+    # the optimum of the same problem with its multipliers, in at most two.
+    def bounded(duration: float) -> MultiphaseProblem:
+        return replace(swing_up(pendulum(0.0), 10, duration), u_bounds=(np.array([-1.0]), np.array([1.0])))
+
+    near, far = bounded(2.0), bounded(2.1)
+    _, neighbour = near.solve(pendulum_guess(10, 2.0))
+    assert neighbour.success and neighbour.multipliers is not None
+    assert max(np.abs(u).max() for u in near.unpack(neighbour.x).u) == pytest.approx(1.0, abs=1e-6)
+    _, primal = far.solve(neighbour.x)
+    _, warm = far.solve(neighbour)
+    assert primal.success and warm.success
+    assert warm.objective == pytest.approx(primal.objective, rel=1e-6)
+    assert warm.iterations < primal.iterations
+    _, unmoved = near.solve(neighbour, max_iter=0)  # IPOPT returns its start: the multipliers given, bounds' pushed by 1e-6
+    np.testing.assert_allclose(unmoved.multipliers[1], neighbour.multipliers[1], atol=1e-12)
+    np.testing.assert_allclose(unmoved.multipliers[0], neighbour.multipliers[0], atol=2e-6)
+    _, again = near.solve(neighbour)
+    assert again.success and again.iterations <= 2
+    assert again.objective == pytest.approx(neighbour.objective, rel=1e-6)
+    with pytest.raises(ValueError, match="feasibility_first"):
+        far.solve(neighbour, feasibility_first=True)
+    lam_x, lam_g = neighbour.multipliers
+    with pytest.raises(ValueError, match="multipliers"):
+        solve(far.nlp("exact"), neighbour.x, multipliers=(lam_x, lam_g[:-1]))
+    with pytest.raises(ValueError, match="symbolic"):
+        prepare(far.nlp("legkit"))
+
+
+def test_stall_ends_a_run_once_its_objective_stops_improving():
+    problem = swing_up(pendulum(0.0), 10, 2.0)
+    nlp, x0 = problem.nlp("legkit"), problem.pack(pendulum_guess(10, 2.0))
+    full = solve(nlp, x0)
+    assert full.success and full.iterations > 3
+    stopped = solve(nlp, x0, stall=(3, np.inf))  # every gain falls short of an infinite one: stop at the first chance
+    assert stopped.status == "User_Requested_Stop" and stopped.iterations == 3 and len(stopped.history) == 4
+    never = solve(nlp, x0, stall=(3, -np.inf))
+    assert never.success and never.iterations == full.iterations
 
 
 def test_pendulum_swing_up_reaches_the_known_optimum():

@@ -537,8 +537,9 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     print(f"optimising the amble: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
 
     # The constraints first, then J_s2, optionally polished with the exact Hessian (docs/optimize.md).
-    _, result = problem.solve(guess, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=args.polish, tol=args.tol,
-                              max_iter=args.max_iter, progress=_iteration_printer("J_s2"), options=AMBLE_IPOPT)
+    _, result = problem.solve(guess, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=args.polish,
+                              polish_max_iter=args.polish_max_iter, tol=args.tol, max_iter=args.max_iter,
+                              progress=_iteration_printer("J_s2"), options=AMBLE_IPOPT)
     x, _ = result.best()
     if x is result.x:
         kept = result.history[-1][0]
@@ -787,9 +788,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-animation", action="store_true", help="--optimize: do not write the replay's .html and .gif")
     parser.add_argument("--mirror", action="store_true",
                         help="--optimize: transcribe half of each gait's cycle, the other half its mirror image (mirror periodicity)")
-    parser.add_argument("--polish", action="store_true",
-                        help="--optimize: after the amble's L-BFGS runs, IPOPT with the exact Hessian from their best point, which "
-                             "converges J_s2 (with --max-iter 600: p1 0.196, Solve_Succeeded, about 100 s; docs/optimize.md)")
+    parser.add_argument("--polish", action=argparse.BooleanOptionalAction, default=True,
+                        help="--optimize: after the amble's L-BFGS runs (J_s2's ended once it stalls), IPOPT with the exact Hessian "
+                             "from their best point, which converges J_s2 (docs/optimize.md)")
+    parser.add_argument("--polish-max-iter", type=_positive_int, default=1000, help="--optimize: IPOPT iteration limit of the amble's polish")
     args = parser.parse_args(argv)
     if args.samples < 8:
         parser.error("--samples must be at least 8")

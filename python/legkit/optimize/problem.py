@@ -33,6 +33,7 @@ d rnea / d u = -B); the pattern, from the model's tree, is fixed before solving.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, cast
 
@@ -42,7 +43,7 @@ import legkit as lk
 from legkit.optimize.blocks import Block, Linear, Point, equal
 from legkit.optimize.collocation import hermite_simpson_defects, point_jacobian
 from legkit.optimize.mirror import Mirror
-from legkit.optimize.solver import NLP, SolveResult, solve
+from legkit.optimize.solver import NLP, SolveResult, prepare, solve
 
 if TYPE_CHECKING:
     from legkit.optimize.symbolic import SymbolicModel
@@ -52,6 +53,12 @@ if TYPE_CHECKING:
 #: 600 L-BFGS J_s2 iterations the exact Hessian converged in 56 iterations with it; from the constraint
 #: stage's point, in 326 (docs/optimize.md).
 POLISH_MU_INIT = 1e-6
+
+
+#: `MultiphaseProblem.solve(polish=True)` ends the L-BFGS run on the objective once its best point has improved
+#: by less than this (second) over this many (first) iterations, and polishes from there: L-BFGS on the amble's
+#: J_s2 either climbs quickly and then slowly, or crawls (p1 +1.5e-7 per iteration); measured in docs/optimize.md.
+POLISH_SWITCH = (20, 5e-3)
 
 
 @dataclass(frozen=True)
@@ -816,22 +823,38 @@ class MultiphaseProblem:
         return NLP(lower, upper, np.concatenate([b.lower for b in self.blocks]), np.concatenate([b.upper for b in self.blocks]),
                    f, gradient, self.constraints, self.jacobian, self.jac_rows, self.jac_cols, symbolic)
 
-    def solve(self, guess: Trajectory | np.ndarray, derivatives: str = "exact", feasibility_first: bool = False,
-              polish: bool = False, **options: Any) -> tuple[Trajectory, SolveResult]:
-        """Solve from a guess (a Trajectory or a variable vector), with exact derivatives (default) or legkit's
-        differences (`nlp`); options go to `legkit.optimize.solver.solve`.
+    def solve(self, guess: Trajectory | np.ndarray | SolveResult, derivatives: str = "exact", feasibility_first: bool = False,
+              polish: bool = False, polish_max_iter: int = 1000, **options: Any) -> tuple[Trajectory, SolveResult]:
+        """Solve from a guess (a Trajectory, a variable vector, or the `SolveResult` of a problem with the same
+        layout, e.g. the gait at a neighbouring speed: its point and multipliers, a primal-dual warm start
+        (`legkit.optimize.solver.WARM_START`)), with exact derivatives (default) or legkit's differences (`nlp`);
+        options go to `legkit.optimize.solver.solve`.
 
         feasibility_first (problems with a MinMaxStability term): continuation in two IPOPT runs, first the
         constraints alone with p1 held below every S_H row, then the objective from that feasible point with p1
-        at its worst S_H row. polish (with derivatives="legkit"): then once more from the best point, with the
-        exact Hessian and a small initial barrier parameter (`POLISH_MU_INIT`: the start is feasible and near a
-        local optimum). L-BFGS keeps climbing where the exact Hessian converges in a few dozen iterations
-        (docs/optimize.md). The result's iterations, times and history cover every run; its times exclude
-        building the symbolic transcription and casadi's solver for the polish."""
+        at its worst S_H row. polish (with derivatives="legkit"): the L-BFGS run on the objective ends once it
+        stalls (`POLISH_SWITCH`), then IPOPT runs once more from the best point, with the exact Hessian and a
+        small initial barrier parameter (`POLISH_MU_INIT`: the start is feasible and near a local optimum), within
+        polish_max_iter iterations (the L-BFGS runs take options' max_iter); its solver is built in a thread
+        while the L-BFGS runs go on. L-BFGS keeps climbing where the exact Hessian converges (docs/optimize.md).
+        The result's iterations, times and history cover every run; its times are IPOPT's, without the builds."""
         if polish and derivatives != "legkit":
             raise ValueError(f"polish follows a solve with derivatives='legkit', got derivatives={derivatives!r}")
+        if isinstance(guess, SolveResult):
+            if feasibility_first:
+                raise ValueError("feasibility_first does not apply to a warm start from a SolveResult")
+            multipliers = guess.multipliers
+            guess = guess.x
+        else:
+            multipliers = None
         x0 = self.gauged(self.pack(guess) if isinstance(guess, Trajectory) else guess)
         nlp = self.nlp(derivatives)
+        switch: dict[str, Any] = {"stall": POLISH_SWITCH} if polish and "stall" not in options else {}
+        if polish:  # casadi builds the polish's solver (~10 s for the amble) while the L-BFGS runs go on
+            exact = {**options, "max_iter": polish_max_iter, "options": {**(options.get("options") or {}), "mu_init": POLISH_MU_INIT}}
+            builder = ThreadPoolExecutor(1)
+            built = builder.submit(lambda: prepare(self.nlp("exact"), **{k: exact[k] for k in ("tol", "max_iter", "options") if k in exact}))
+            builder.shutdown(wait=False)
         if feasibility_first and self.uses_p1:
             x0 = x0.copy()
             x0[self.p1_index] = 0.0
@@ -841,13 +864,13 @@ class MultiphaseProblem:
             first = solve(fixed, x0, **options)
             x0 = first.x.copy()
             x0[self.p1_index] += min(b.values(x0).min() for b in self.stability_blocks)
-            result = solve(nlp, x0, **options)
+            result = solve(nlp, x0, **switch, **options)
             result = result.after(first)
         else:
-            result = solve(nlp, x0, **options)
+            result = solve(nlp, x0, multipliers=multipliers, **switch, **options)
         if polish:
-            exact = {**options, "options": {**(options.get("options") or {}), "mu_init": POLISH_MU_INIT}}
-            result = solve(self.nlp("exact"), result.best()[0], **exact).after(result)
+            built.result()
+            result = solve(self.nlp("exact"), result.x if result.status == "User_Requested_Stop" else result.best()[0], **exact).after(result)
         return self.unpack(result.best()[0]), result
 
     def stability_index(self, x: np.ndarray) -> list[np.ndarray]:

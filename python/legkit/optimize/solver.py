@@ -19,6 +19,12 @@ import numpy as np
 
 Progress = Callable[[int, float, float], None]
 
+#: IPOPT options of a primal-dual warm start (`solve(..., multipliers=)`): the start kept within 1e-6 of its bounds
+#: and a small initial barrier parameter. From the converged 0.60 m/s amble, with its multipliers, the 0.67 m/s
+#: J_s2 converged in 126 iterations (13.4 s) against 323 (42.6 s) from its point alone; mu_init 1e-6 took 280,
+#: 1e-3 and 1e-2 took 193 (docs/optimize.md).
+WARM_START = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6, "mu_init": 1e-4}
+
 
 @dataclass
 class NLP:
@@ -65,6 +71,7 @@ class SolveResult:
     history: list[tuple[int, float, float]] = field(default_factory=list)  # (iteration, objective, violation)
     best_feasible: tuple[int, float, np.ndarray] | None = None  # (iteration, objective, x) of the best iterate within tol
     tol: float = 1e-6
+    multipliers: tuple[np.ndarray, np.ndarray] | None = None  # IPOPT's (bound, constraint) multipliers at x
 
     def after(self, first: SolveResult) -> SolveResult:
         """This result as the second stage of a continuation that began with `first`: iterations, times and
@@ -74,7 +81,7 @@ class SolveResult:
         best = None if self.best_feasible is None else (self.best_feasible[0] + offset,) + self.best_feasible[1:]
         return SolveResult(self.x, self.objective, self.status, self.success, first.iterations + self.iterations,
                            first.wall_time + self.wall_time, first.evaluation_time + self.evaluation_time, self.violation,
-                           history, best, self.tol)
+                           history, best, self.tol, self.multipliers)
 
     def best(self) -> tuple[np.ndarray, float]:
         """(x, objective) of the returned point if IPOPT succeeded or it is the best feasible one, else of the
@@ -110,15 +117,26 @@ class _Timer:
 
 def solve(
     nlp: NLP, x0: np.ndarray, *, tol: float = 1e-6, max_iter: int = 3000, progress: Progress | None = None,
-    options: dict | None = None,
+    options: dict | None = None, multipliers: tuple[np.ndarray, np.ndarray] | None = None, stall: tuple[int, float] | None = None,
 ) -> SolveResult:
     """Solve `nlp` from x0 with IPOPT (L-BFGS Hessian, MUMPS). progress(iteration, objective, violation) is
-    called once per IPOPT iteration. options: extra IPOPT options (without the "ipopt." prefix)."""
+    called once per IPOPT iteration. options: extra IPOPT options (without the "ipopt." prefix). multipliers:
+    (bound, constraint) multipliers to start from with x0, e.g. a neighbouring problem's
+    `SolveResult.multipliers`: a primal-dual warm start with `WARM_START`'s options (options override them).
+    stall (window, gain): stop (status "User_Requested_Stop") at an iterate whose objective is less than gain
+    below that of the iterate window iterations before."""
     import casadi as ca
 
     x0 = np.asarray(x0, dtype=np.float64)
     if x0.shape != (nlp.n,):
         raise ValueError(f"x0 must have shape ({nlp.n},), got {x0.shape}")
+    start_duals = {}
+    if multipliers is not None:
+        lam_x, lam_g = (np.asarray(lam, dtype=np.float64) for lam in multipliers)
+        if lam_x.shape != (nlp.n,) or lam_g.shape != (nlp.m,):
+            raise ValueError(f"multipliers must have shapes ({nlp.n},) and ({nlp.m},), got {lam_x.shape} and {lam_g.shape}")
+        start_duals = {"lam_x0": lam_x, "lam_g0": lam_g}
+        options = {**WARM_START, **(options or {})}
     timer = _Timer()
     pattern = ca.Sparsity.triplet(nlp.m, nlp.n, nlp.jac_rows.tolist(), nlp.jac_cols.tolist())
     # casadi stores column-compressed; order our (row, col) values to match once.
@@ -184,30 +202,12 @@ def solve(
             self.jacobian_callback = Jacobian(name, opts)  # casadi holds a raw reference; keep it alive
             return self.jacobian_callback
 
-    # MUMPS with METIS ordering: the amble's constraint stage from the reference at seven speeds took 23-44
-    # iterations (1.9-3.5 s) against 19-200+ (2.6-28+ s) with the default ordering (docs/optimize.md).
-    ipopt = {"tol": tol, "constr_viol_tol": tol, "max_iter": max_iter, "print_level": 0, "sb": "yes", "mu_strategy": "adaptive",
-             "mumps_pivot_order": 5}
-    if nlp.symbolic is None:
-        ipopt["hessian_approximation"] = "limited-memory"
-    ipopt.update(options or {})
-    key = None
-    if nlp.symbolic is not None:  # building casadi's solver (SX expansion, Hessian graph) costs seconds: reuse it
-        key = (id(nlp.symbolic[0]), id(nlp.symbolic[1]), tuple(sorted((k, str(v)) for k, v in ipopt.items())))
-    if key is not None and key in _SOLVERS:
-        solver, state = _SOLVERS[key]
-    else:
-        state = {}
-        solver = _build(ca, nlp, ipopt, state, Functions)
-        if key is not None:
-            while len(_SOLVERS) >= 4:
-                _SOLVERS.pop(next(iter(_SOLVERS)))
-            _SOLVERS[key] = (solver, state)
+    solver, state = _casadi_solver(ca, nlp, _ipopt_options(nlp, tol, max_iter, options), Functions)
     history: list[tuple[int, float, float]] = []
     best: list[tuple[int, float, np.ndarray] | None] = [None]
-    state.update(history=history, best=best, progress=progress, tol=tol, nlp=nlp)
+    state.update(history=history, best=best, progress=progress, tol=tol, nlp=nlp, stall=stall)
     start = time.perf_counter()
-    result = solver(x0=x0, lbx=nlp.x_lower, ubx=nlp.x_upper, lbg=nlp.g_lower, ubg=nlp.g_upper)
+    result = solver(x0=x0, lbx=nlp.x_lower, ubx=nlp.x_upper, lbg=nlp.g_lower, ubg=nlp.g_upper, **start_duals)
     wall = time.perf_counter() - start
     if timer.error is not None:
         raise timer.error
@@ -217,7 +217,46 @@ def solve(
         evaluation = sum(stats.get(f"t_wall_{name}", 0.0) for name in ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l", "nlp_grad"))
     x = np.asarray(result["x"]).ravel()
     return SolveResult(x, float(result["f"]), stats["return_status"], bool(stats["success"]), int(stats["iter_count"]),
-                       wall, evaluation, nlp.violation(x), history, best[0], tol)
+                       wall, evaluation, nlp.violation(x), history, best[0], tol,
+                       (np.asarray(result["lam_x"]).ravel(), np.asarray(result["lam_g"]).ravel()))
+
+
+def prepare(nlp: NLP, *, tol: float = 1e-6, max_iter: int = 3000, options: dict | None = None) -> None:
+    """Build and keep the IPOPT solver of a symbolic NLP (`NLP.symbolic`) that `solve` with the same arguments
+    uses. casadi builds it without holding the GIL (~10 s for the amble, its Hessian of the Lagrangian), so a
+    thread can build the next stage's solver while another solve runs."""
+    import casadi as ca
+
+    if nlp.symbolic is None:
+        raise ValueError("prepare builds the solver of an NLP with a symbolic form (nlp.symbolic is None)")
+    _casadi_solver(ca, nlp, _ipopt_options(nlp, tol, max_iter, options), None)
+
+
+def _ipopt_options(nlp: NLP, tol: float, max_iter: int, options: dict | None) -> dict:
+    # MUMPS with METIS ordering: the amble's constraint stage from the reference at seven speeds took 23-44
+    # iterations (1.9-3.5 s) against 19-200+ (2.6-28+ s) with the default ordering (docs/optimize.md).
+    ipopt = {"tol": tol, "constr_viol_tol": tol, "max_iter": max_iter, "print_level": 0, "sb": "yes", "mu_strategy": "adaptive",
+             "mumps_pivot_order": 5}
+    if nlp.symbolic is None:
+        ipopt["hessian_approximation"] = "limited-memory"
+    ipopt.update(options or {})
+    return ipopt
+
+
+def _casadi_solver(ca: Any, nlp: NLP, ipopt: dict, Functions: type | None) -> tuple[Any, dict]:
+    """(casadi solver, its iteration callback's state) for nlp with these IPOPT options; a symbolic NLP's is
+    built once (SX expansion, Hessian graph: seconds) and kept."""
+    if nlp.symbolic is None:
+        state: dict = {}
+        return _build(ca, nlp, ipopt, state, Functions), state
+    key = (id(nlp.symbolic), tuple(sorted((k, str(v)) for k, v in ipopt.items())))
+    if key not in _SOLVERS:
+        state = {}
+        solver = _build(ca, nlp, ipopt, state, Functions)
+        while len(_SOLVERS) >= 4:
+            _SOLVERS.pop(next(iter(_SOLVERS)))
+        _SOLVERS[key] = (solver, state, nlp.symbolic)  # the transcription kept with it, so its id stays its own
+    return _SOLVERS[key][:2]
 
 
 class _LastPoint:
@@ -234,12 +273,16 @@ class _LastPoint:
         return self.out
 
 
-#: Built casadi solvers of symbolic NLPs, by (transcription, IPOPT options): a continuation's stages and
-#: repeated solves of one problem (warm starts) reuse them; a few at most.
+#: Built casadi solvers of symbolic NLPs, by (transcription's id, IPOPT options): (solver, state, transcription);
+#: a continuation's stages and repeated solves of one problem (warm starts) reuse them; a few at most.
 _SOLVERS: dict = {}
 
+#: casadi's derivative functions of symbolic NLPs, by the transcription's id (kept with it, so the id stays its
+#: own): (symbolic, {nlpsol option: function}); a few at most.
+_DERIVATIVES: dict = {}
 
-def _build(ca: Any, nlp: NLP, ipopt: dict, state: dict, Functions: type) -> Any:
+
+def _build(ca: Any, nlp: NLP, ipopt: dict, state: dict, Functions: type | None) -> Any:
     """casadi's IPOPT solver of nlp; its iteration callback reports to `state` (history, best, progress)."""
     n, m = nlp.n, nlp.m
 
@@ -282,18 +325,28 @@ def _build(ca: Any, nlp: NLP, ipopt: dict, state: dict, Functions: type) -> Any:
                 best[0] = (len(history) - 1, f, x.copy())
             if state["progress"] is not None:
                 state["progress"](len(history) - 1, f, float(viol))
-            return [0]
+            window = state["stall"]
+            return [int(window is not None and len(history) > window[0] and history[-1 - window[0]][1] - f < window[1])]
 
     iteration = Iteration()
     if nlp.symbolic is None:
+        assert Functions is not None  # a callback NLP's solver is built by `solve`, which passes them
         functions = Functions()
         symbol = ca.MX.sym("x", n)
         f_expr, g_expr = functions(symbol)
         extra = {}
     else:
         symbol, f_expr, g_expr = nlp.symbolic
-        extra = {"expand": True}  # one SX graph: casadi's virtual machine evaluates it without MX overhead
+        # One SX graph: casadi's virtual machine evaluates it without MX overhead. Its derivatives (the Hessian
+        # of the Lagrangian above all) take ~9 s to generate for the amble; solvers of the same NLP with other
+        # options share them (~1 s to build).
+        extra = {"expand": True, **_DERIVATIVES.get(id(nlp.symbolic), (None, {}))[1]}
     solver = ca.nlpsol("legkit", "ipopt", {"x": symbol, "f": f_expr, "g": g_expr},
                        {"ipopt": ipopt, "print_time": False, "iteration_callback": iteration, "error_on_fail": False, **extra})
     solver.keep_alive = (iteration, functions if nlp.symbolic is None else None)  # casadi holds raw references
+    if nlp.symbolic is not None and id(nlp.symbolic) not in _DERIVATIVES:
+        while len(_DERIVATIVES) >= 4:
+            _DERIVATIVES.pop(next(iter(_DERIVATIVES)))
+        _DERIVATIVES[id(nlp.symbolic)] = (nlp.symbolic, {option: solver.get_function(name) for option, name in
+                                                         (("hess_lag", "nlp_hess_l"), ("jac_g", "nlp_jac_g"), ("grad_f", "nlp_grad_f"))})
     return solver
