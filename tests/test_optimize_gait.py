@@ -13,7 +13,7 @@ from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR
 from legkit.optimize import MinMaxStability, MultiphaseProblem, Phase, Trajectory, effort
 from legkit.optimize.gaits import AMBLE_SUPPORT, amble_problem, amble_reference, guess_from_reference
 from legkit.optimize.replay import clear_of_ground, foot_bottoms, foot_shapes, periodic_samples
-from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
+from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, build_quadruped
 
 
 def test_amble_guess_lies_on_the_reference_and_wraps_around_by_one_stride():
@@ -61,6 +61,26 @@ def test_cli_optimize_prints_each_iteration_and_writes_csv_and_figure(tmp_path, 
 
     with Image.open(tmp_path / "gait_quadruped_optimized.gif") as gif:
         assert gif.n_frames > 5
+
+
+def test_swing_clearance_rows_are_the_swing_heights_on_the_replayed_cubics():
+    # The rows of eq. 4 between the collocation points against the swing tips' heights where `periodic_samples`
+    # (the replay's own interpolation) puts them, on the reference amble.
+    robot = build_quadruped(AMBLE_QUADRUPED)
+    problem = amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, 2, QUADRUPED_MOTOR)
+    guess = guess_from_reference(problem, amble_reference(robot, 0.67, 1.25, 2))
+    x = problem.pack(guess)
+    fractions = np.array(problem.CLEARANCE_FRACTIONS)
+    start = 0.0
+    for k, phase in enumerate(problem.phases):
+        (block,) = problem.swing_clearance_blocks(k)
+        swing = [leg for leg in LEGS if leg not in phase.contacts]
+        h = guess.durations[k] / phase.intervals
+        t = start + h * (np.arange(phase.intervals)[:, None] + fractions[None, :])
+        q, _, _ = periodic_samples(problem, guess, t.ravel())
+        expected = problem.foot_positions(q, swing)[..., 2].reshape(phase.intervals, -1)
+        np.testing.assert_allclose(block.values(x).reshape(phase.intervals, -1), expected, atol=1e-12)
+        start += guess.durations[k]
 
 
 def test_smooth_stability_rows_bound_the_published_s_h_and_equal_it_before_a_diagonal_edge():

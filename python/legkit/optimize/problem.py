@@ -14,7 +14,8 @@ and 4.1, on legkit's kernels:
   way the stance feet are held on the ground at every knot and midpoint (g_c(q) = 0 at position level), so
   lambda is whatever keeps them there. The inverse form converges better and its Jacobian is sparser (a
   joint's torque depends on its own leg and the base only): docs/optimize.md has the measurements;
-* swing-tip height >= 0 (eq. 4), friction cone mu^2 F_z^2 - F_x^2 - F_y^2 >= 0 with F_z >= 0 (eq. 5, squared
+* swing-tip height >= 0 (eq. 4) at the points and at fractions of every interval between them
+  (`swing_clearance_blocks`), friction cone mu^2 F_z^2 - F_x^2 - F_y^2 >= 0 with F_z >= 0 (eq. 5, squared
   to stay smooth), for flat feet (`FlatFoot`) a contact torque T about the sole's centre within the foot-torque
   limits of eq. 6 and the whole sole held flat on the ground, the inelastic impact map at each touchdown (eq. 7, `lk.impact` with the new
   phase's feet),
@@ -609,6 +610,7 @@ class MultiphaseProblem:
     def _contact_blocks(self, k: int) -> list[Block]:
         phase, index = self.phases[k], self.point_index[k]
         blocks: list[Block] = [_Feet(self, k)] if self.foot_names else []
+        blocks.extend(self.swing_clearance_blocks(k))
         if phase.contacts and self.force_dims == 3:  # friction cone (eq. 5), squared to stay smooth
             mu2 = self.friction**2
             blocks.append(Point(index[:, self.force_columns[k]], lambda f: (mu2 * f.reshape(len(f), -1, 3)[..., 2] ** 2
@@ -617,6 +619,56 @@ class MultiphaseProblem:
                                 symbolic=lambda _, f: mu2 * f[2::3] ** 2 - f[0::3] ** 2 - f[1::3] ** 2))
         blocks.extend(self.foot_torque_blocks(k))
         return blocks
+
+    #: Where on each interval (fractions of it) `swing_clearance_blocks` holds the swing tips above the ground.
+    CLEARANCE_FRACTIONS = (0.25, 0.75)
+
+    def swing_clearance_blocks(self, k: int) -> list[Block]:
+        """Eq. 4 between the collocation points of phase k: each swing tip (and sole point) at or above the ground
+        at `CLEARANCE_FRACTIONS` of every interval, on the state's Hermite cubic through the interval's knots
+        with their rates [dq/dt] scaled by the interval's length (the curve `legkit.optimize.replay` samples).
+        At the points alone, the converged amble's swing feet dipped up to 11 mm below the ground between them,
+        and a replay stumbled on them (docs/optimize.md)."""
+        contacts = self.phases[k].contacts
+        swing = [n for n in self.foot_names + list(self.sole_points) if self.sole_points.get(n, n) not in contacts]
+        if not swing:
+            return []
+        nq, nv, intervals = self.nq, self.nv, self.phases[k].intervals
+        q_columns = np.arange(2 if self.model.floating_base else 0, nq)  # a height is the same wherever in x, y
+        index = self.point_index[k]
+        groups = np.concatenate([index[0:-1:2][:, q_columns], index[0:-1:2, nq : nq + nv], index[2::2][:, q_columns],
+                                 index[2::2, nq : nq + nv], np.full((intervals, 1), self.duration_index[k])], axis=1)
+        width = len(q_columns) + nv
+        basis = np.array([[2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2] for s in self.CLEARANCE_FRACTIONS])
+
+        c = len(q_columns)
+        spans = ((0, c), (c, width), (width, width + c), (width + c, 2 * width))  # q0, v0, q1, v1; then the duration
+
+        def heights(g: np.ndarray) -> np.ndarray:
+            def full(q: np.ndarray) -> np.ndarray:  # x, y = 0
+                out = np.zeros((len(q), nq))
+                out[:, q_columns] = q
+                return out
+
+            q0, v0, q1, v1 = (g[:, a:b] for a, b in spans)
+            q0, q1, h = full(q0), full(q1), g[:, -1:] / intervals
+            r0, r1 = h * self.q_rate(q0, v0), h * self.q_rate(q1, v1)
+            q = np.stack([b[0] * q0 + b[1] * r0 + b[2] * q1 + b[3] * r1 for b in basis], axis=1)  # (B, fractions, nq)
+            return self.foot_positions(q, swing)[..., 2].reshape(len(g), -1)
+
+        def symbolic(model: SymbolicModel, g: Any) -> Any:
+            import casadi as ca
+
+            def full(q: Any) -> Any:
+                return ca.vertcat(ca.DM.zeros(nq - len(q_columns), 1), q)
+
+            q0, v0, q1, v1 = (g[a:b] for a, b in spans)
+            q0, q1, h = full(q0), full(q1), g[-1] / intervals
+            r0, r1 = h * (model.q_rate_matrix(q0) @ v0), h * (model.q_rate_matrix(q1) @ v1)
+            feet = [(self.foot_body[n], self.foot_point[n]) for n in swing]
+            return ca.vertcat(*[model.points(b[0] * q0 + b[1] * r0 + b[2] * q1 + b[3] * r1, feet)[2::3] for b in basis])
+
+        return [Point(groups, heights, len(basis) * len(swing), 0.0, np.inf, symbolic=symbolic)]
 
     def foot_torque_blocks(self, k: int) -> list[Block]:
         """Eq. 6 at every point of phase k, for each flat foot on the ground: c_i F_z - s T_i >= 0 for i = x, y, z
