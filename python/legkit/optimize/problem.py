@@ -885,10 +885,11 @@ class MultiphaseProblem:
         feasibility_first (problems with a MinMaxStability term): continuation in two IPOPT runs, first the
         constraints alone with p1 held below every S_H row, then the objective from that feasible point with p1
         at its worst S_H row. polish (with derivatives="legkit"): the L-BFGS run on the objective ends once it
-        stalls (`POLISH_SWITCH`), then IPOPT runs once more from the best point, with the exact Hessian and a
-        small initial barrier parameter (`POLISH_MU_INIT`: the start is feasible and near a local optimum), within
-        polish_max_iter iterations (the L-BFGS runs take options' max_iter); its solver is built in a thread
-        while the L-BFGS runs go on. L-BFGS keeps climbing where the exact Hessian converges (docs/optimize.md).
+        stalls (`POLISH_SWITCH`; options' stall replaces it, and applies to the objective's run only), then IPOPT
+        runs once more from its best point (its last after a stall), with the exact Hessian and a small initial
+        barrier parameter (`POLISH_MU_INIT`), within polish_max_iter iterations (the L-BFGS runs take options'
+        max_iter); its solver is built in a thread while the L-BFGS runs go on. L-BFGS keeps climbing where the
+        exact Hessian converges (docs/optimize.md).
         The result's iterations, times and history cover every run; its times are IPOPT's, without the builds."""
         if polish and derivatives != "legkit":
             raise ValueError(f"polish follows a solve with derivatives='legkit', got derivatives={derivatives!r}")
@@ -901,7 +902,7 @@ class MultiphaseProblem:
             multipliers = None
         x0 = self.gauged(self.pack(guess) if isinstance(guess, Trajectory) else guess)
         nlp = self.nlp(derivatives)
-        switch: dict[str, Any] = {"stall": POLISH_SWITCH} if polish and "stall" not in options else {}
+        stall = options.pop("stall", POLISH_SWITCH if polish else None)  # on the objective's run only
         if polish:  # casadi builds the polish's solver (~10 s for the amble) while the L-BFGS runs go on
             exact = {**options, "max_iter": polish_max_iter, "options": {**(options.get("options") or {}), "mu_init": POLISH_MU_INIT}}
             builder = ThreadPoolExecutor(1)
@@ -916,10 +917,10 @@ class MultiphaseProblem:
             first = solve(fixed, x0, **options)
             x0 = first.x.copy()
             x0[self.p1_index] += min(b.values(x0).min() for b in self.stability_blocks)
-            result = solve(nlp, x0, **switch, **options)
+            result = solve(nlp, x0, stall=stall, **options)
             result = result.after(first)
         else:
-            result = solve(nlp, x0, multipliers=multipliers, **switch, **options)
+            result = solve(nlp, x0, multipliers=multipliers, stall=stall, **options)
         if polish:
             built.result()
             result = solve(self.nlp("exact"), result.x if result.status == "User_Requested_Stop" else result.best()[0], **exact).after(result)
