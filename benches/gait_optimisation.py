@@ -4,7 +4,8 @@ biped walk of Sect. 6 at 1.8 km/h minimising J_e1.
 
 Prints, for a cold start (from `legkit gait`'s hand-built reference, feasibility first, then J_s2 with L-BFGS,
 optionally polished with the exact Hessian) and a warm start (the exact Hessian from the point and multipliers
-of the solve at a neighbouring speed, `MultiphaseProblem.solve(result)`): IPOPT status, iterations, the symbolic build time, IPOPT's wall time, the
+of the solve at a neighbouring speed, its travel stretched to the new speed: `problem.solve(problem.continued(
+result, speed))`): IPOPT status, iterations, the symbolic build time, IPOPT's wall time, the
 solve call's total time (with casadi's solver build for an exact-Hessian --polish), the share
 of it spent evaluating the functions and their derivatives, the largest constraint violation re-evaluated by
 legkit's kernels, p1 and the worst published S_H (eq. 10).
@@ -118,7 +119,8 @@ def main() -> None:
     other, neighbour, build, total = cold(args.neighbour)
     report(f"cold, {args.neighbour:g} m/s (the neighbour)", other, neighbour, build, total)
     start = time.perf_counter()
-    warm = target.solve(neighbour, derivatives="exact", tol=args.tol, max_iter=args.polish_max_iter, options=AMBLE_IPOPT)[1]
+    warm = target.solve(target.continued(neighbour, args.neighbour), derivatives="exact", tol=args.tol, max_iter=args.polish_max_iter,
+                        options=AMBLE_IPOPT)[1]
     report(f"warm from {args.neighbour:g} m/s, exact", target, warm, 0.0, time.perf_counter() - start)
 
 

@@ -10,7 +10,7 @@ import pytest
 import legkit as lk
 from legkit.experiments import gait
 from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR
-from legkit.optimize import MinMaxStability, MultiphaseProblem, Phase, Trajectory, effort
+from legkit.optimize import MinMaxStability, MultiphaseProblem, Phase, SolveResult, Trajectory, effort
 from legkit.optimize.gaits import AMBLE_SUPPORT, amble_problem, amble_reference, guess_from_reference
 from legkit.optimize.replay import clear_of_ground, foot_bottoms, foot_shapes, periodic_samples
 from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, build_quadruped
@@ -81,6 +81,23 @@ def test_swing_clearance_rows_are_the_swing_heights_on_the_replayed_cubics():
         expected = problem.foot_positions(q, swing)[..., 2].reshape(phase.intervals, -1)
         np.testing.assert_allclose(block.values(x).reshape(phase.intervals, -1), expected, atol=1e-12)
         start += guess.durations[k]
+
+
+def test_continued_stretches_the_travel_and_keeps_the_multipliers():
+    robot = build_quadruped(AMBLE_QUADRUPED)
+    slow, fast = (amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], speed, 1.25, 2, QUADRUPED_MOTOR) for speed in (0.6, 0.75))
+    x = slow.pack(guess_from_reference(slow, amble_reference(robot, 0.6, 1.25, 2)))
+    multipliers = (np.arange(slow.n, dtype=float), np.arange(slow.m, dtype=float))
+    result = SolveResult(x, 0.0, "Solve_Succeeded", True, 0, 0.0, 0.0, 0.0, multipliers=multipliers)
+    moved = fast.continued(result, 0.6)
+    stretched = np.zeros(fast.n, dtype=bool)
+    for index in fast.point_index:
+        stretched[index[:, [0, fast.nq]]] = True  # base x and its body-frame rate
+    np.testing.assert_allclose(moved.x[stretched], 1.25 * x[stretched], rtol=1e-15)
+    np.testing.assert_array_equal(moved.x[~stretched], x[~stretched])
+    assert moved.multipliers is multipliers and result.x is x
+    with pytest.raises(ValueError, match="speed"):
+        fast.continued(result, 0.0)
 
 
 def test_smooth_stability_rows_bound_the_published_s_h_and_equal_it_before_a_diagonal_edge():
