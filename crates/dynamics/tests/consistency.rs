@@ -56,6 +56,14 @@ fn random_state(rng: &mut StdRng, model: &Model) -> (DVector<f64>, DVector<f64>)
     (q, v)
 }
 
+/// Case `case` of a randomised sweep: a tree of 1..=25 bodies, floating on even cases, its workspace and a state.
+fn random_case(rng: &mut StdRng, case: usize) -> (Model, Data, DVector<f64>, DVector<f64>) {
+    let model = random_tree(rng, 1 + case % 25, case.is_multiple_of(2));
+    let data = Data::new(&model);
+    let (q, v) = random_state(rng, &model);
+    (model, data, q, v)
+}
+
 fn relative_error(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
     (a - b).amax() / b.amax().max(1.0)
 }
@@ -64,9 +72,7 @@ fn relative_error(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
 fn rnea_crba_aba_and_minv_agree() {
     let mut rng = StdRng::seed_from_u64(7);
     for case in 0..60 {
-        let model = random_tree(&mut rng, 1 + case % 25, case % 2 == 0);
-        let mut data = Data::new(&model);
-        let (q, v) = random_state(&mut rng, &model);
+        let (model, mut data, q, v) = random_case(&mut rng, case);
         let tau = DVector::from_fn(model.nv(), |_, _| rng.random_range(-5.0..5.0));
         let nv = model.nv();
 
@@ -98,9 +104,7 @@ fn rnea_crba_aba_and_minv_agree() {
 fn centroidal_map_times_v_is_the_centroidal_momentum() {
     let mut rng = StdRng::seed_from_u64(11);
     for case in 0..40 {
-        let model = random_tree(&mut rng, 1 + case % 25, case % 2 == 0);
-        let mut data = Data::new(&model);
-        let (q, v) = random_state(&mut rng, &model);
+        let (model, mut data, q, v) = random_case(&mut rng, case);
         let map = centroidal_map(&model, &mut data, q.as_slice()).clone();
         let momentum = centroidal_momentum(&model, &mut data, q.as_slice(), v.as_slice());
         let product = &map * &v;

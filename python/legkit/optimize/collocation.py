@@ -14,11 +14,18 @@ For an exact trajectory the first is O(h^4) (Hermite interpolation error), the s
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 #: Relative central-difference step: the cube root of the float64 epsilon balances truncation and rounding.
 FD_STEP = 6e-6
+
+
+def hermite_basis(s: Any) -> tuple[Any, Any, Any, Any]:
+    """Weights of (x_k, h f_k, x_k+1, h f_k+1) in the interval's cubic at s in [0, 1] (eq. 14's states): numbers,
+    arrays or casadi expressions."""
+    return 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
 
 
 def hermite_simpson_defects(

@@ -42,7 +42,7 @@ import numpy as np
 
 import legkit as lk
 from legkit.optimize.blocks import Block, Linear, Point, equal
-from legkit.optimize.collocation import hermite_simpson_defects, point_jacobian
+from legkit.optimize.collocation import hermite_basis, hermite_simpson_defects, point_jacobian
 from legkit.optimize.mirror import Mirror
 from legkit.optimize.solver import NLP, SolveResult, prepare, solve
 
@@ -638,11 +638,9 @@ class MultiphaseProblem:
         index = self.point_index[k]
         groups = np.concatenate([index[0:-1:2][:, q_columns], index[0:-1:2, nq : nq + nv], index[2::2][:, q_columns],
                                  index[2::2, nq : nq + nv], np.full((intervals, 1), self.duration_index[k])], axis=1)
-        width = len(q_columns) + nv
-        basis = np.array([[2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2] for s in self.CLEARANCE_FRACTIONS])
-
         c = len(q_columns)
-        spans = ((0, c), (c, width), (width, width + c), (width + c, 2 * width))  # q0, v0, q1, v1; then the duration
+        spans = ((0, c), (c, c + nv), (c + nv, 2 * c + nv), (2 * c + nv, 2 * (c + nv)))  # q0, v0, q1, v1; then the duration
+        basis = [hermite_basis(s) for s in self.CLEARANCE_FRACTIONS]
 
         def heights(g: np.ndarray) -> np.ndarray:
             def full(q: np.ndarray) -> np.ndarray:  # x, y = 0
@@ -660,7 +658,7 @@ class MultiphaseProblem:
             import casadi as ca
 
             def full(q: Any) -> Any:
-                return ca.vertcat(ca.DM.zeros(nq - len(q_columns), 1), q)
+                return ca.vertcat(ca.DM.zeros(nq - c, 1), q)
 
             q0, v0, q1, v1 = (g[a:b] for a, b in spans)
             q0, q1, h = full(q0), full(q1), g[-1] / intervals

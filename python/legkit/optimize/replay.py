@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import legkit as lk
+from legkit.optimize.collocation import hermite_basis
 from legkit.optimize.problem import MultiphaseProblem, Trajectory, rotation
 
 
@@ -79,8 +80,8 @@ def periodic_samples(problem: MultiphaseProblem, trajectory: Trajectory, t: np.n
         s = ((phase_t[mine] - knots[interval]) / h)[:, None]
         first, last = z[2 * interval, :nx], z[2 * interval + 2, :nx]
         slope0, slope1 = h[:, None] * rates[2 * interval], h[:, None] * rates[2 * interval + 2]
-        state = ((2 * s**3 - 3 * s**2 + 1) * first + (s**3 - 2 * s**2 + s) * slope0
-                 + (-2 * s**3 + 3 * s**2) * last + (s**3 - s**2) * slope1)
+        w0, w1, w2, w3 = hermite_basis(s)
+        state = w0 * first + w1 * slope0 + w2 * last + w3 * slope1
         q[mine], v[mine] = state[:, :nq], state[:, nq:]
         controls = z[:, nx : nx + nu]
         u[mine] = np.stack([np.interp(phase_t[mine], times, column) for column in controls.T], axis=1)

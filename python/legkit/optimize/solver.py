@@ -253,9 +253,7 @@ def _casadi_solver(ca: Any, nlp: NLP, ipopt: dict, Functions: type | None) -> tu
     if key not in _SOLVERS:
         state = {}
         solver = _build(ca, nlp, ipopt, state, Functions)
-        while len(_SOLVERS) >= 4:
-            _SOLVERS.pop(next(iter(_SOLVERS)))
-        _SOLVERS[key] = (solver, state, nlp.symbolic)  # the transcription kept with it, so its id stays its own
+        _keep(_SOLVERS, key, (solver, state, nlp.symbolic))  # the transcription kept with it, so its id stays its own
     return _SOLVERS[key][:2]
 
 
@@ -276,6 +274,13 @@ class _LastPoint:
 #: Built casadi solvers of symbolic NLPs, by (transcription's id, IPOPT options): (solver, state, transcription);
 #: a continuation's stages and repeated solves of one problem (warm starts) reuse them; a few at most.
 _SOLVERS: dict = {}
+
+def _keep(cache: dict, key: Any, value: Any) -> None:
+    """cache[key] = value, dropping the oldest entries beyond a few."""
+    while len(cache) >= 4:
+        cache.pop(next(iter(cache)))
+    cache[key] = value
+
 
 #: casadi's derivative functions of symbolic NLPs, by the transcription's id (kept with it, so the id stays its
 #: own): (symbolic, {nlpsol option: function}); a few at most.
@@ -345,8 +350,6 @@ def _build(ca: Any, nlp: NLP, ipopt: dict, state: dict, Functions: type | None) 
                        {"ipopt": ipopt, "print_time": False, "iteration_callback": iteration, "error_on_fail": False, **extra})
     solver.keep_alive = (iteration, functions if nlp.symbolic is None else None)  # casadi holds raw references
     if nlp.symbolic is not None and id(nlp.symbolic) not in _DERIVATIVES:
-        while len(_DERIVATIVES) >= 4:
-            _DERIVATIVES.pop(next(iter(_DERIVATIVES)))
-        _DERIVATIVES[id(nlp.symbolic)] = (nlp.symbolic, {option: solver.get_function(name) for option, name in
-                                                         (("hess_lag", "nlp_hess_l"), ("jac_g", "nlp_jac_g"), ("grad_f", "nlp_grad_f"))})
+        _keep(_DERIVATIVES, id(nlp.symbolic), (nlp.symbolic, {option: solver.get_function(name) for option, name in
+                                                              (("hess_lag", "nlp_hess_l"), ("jac_g", "nlp_jac_g"), ("grad_f", "nlp_grad_f"))}))
     return solver
