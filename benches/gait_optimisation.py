@@ -8,7 +8,8 @@ of the solve at a neighbouring speed, its travel stretched to the new speed: `pr
 result, speed))`): IPOPT status, iterations, the symbolic build time, IPOPT's wall time, the
 solve call's total time (with casadi's solver build for an exact-Hessian --polish), the share
 of it spent evaluating the functions and their derivatives, the largest constraint violation re-evaluated by
-legkit's kernels, p1 and the worst published S_H (eq. 10).
+legkit's kernels, p1, the worst published S_H (eq. 10) and the largest stance-foot acceleration of the plan
+(`MultiphaseProblem.stance_accelerations`; zero on a motion, docs/optimize.md).
 
     PYTHONPATH=python python3 benches/gait_optimisation.py [--intervals 4] [--max-iter 300] [--neighbour 0.6] [--polish]
 
@@ -50,8 +51,9 @@ def report(label: str, problem: lo.MultiphaseProblem, result: lo.SolveResult, bu
     share = 100.0 * result.evaluation_time / result.wall_time
     x, objective = result.best()
     s_h = min(s.min() for s in problem.stability_index(x))
+    stance = max(float(np.linalg.norm(a, axis=-1).max(initial=0.0)) for a in problem.stance_accelerations(x))
     print(f"{label:<30} {result.status:<28} {result.iterations:6d} {build:7.1f} {result.wall_time:9.2f} {total:9.2f} {share:8.1f} "
-          f"{problem.nlp().violation(x):10.2e} {-objective:9.4g} {s_h:9.4g}", flush=True)
+          f"{problem.nlp().violation(x):10.2e} {-objective:9.4g} {s_h:9.4g} {stance:10.3g}", flush=True)
 
 
 def walk(args: argparse.Namespace) -> None:
@@ -112,7 +114,7 @@ def main() -> None:
     print(f"amble, {args.intervals} intervals per phase, tol {args.tol:g}; IPOPT (casadi {__import__('casadi').__version__}), "
           f"MUMPS, {args.derivatives} derivatives; cold: feasibility first, then J_s2" + (", then an exact-Hessian polish" if args.polish else ""))
     print(f"{'run':<30} {'status':<28} {'iter':>6} {'build':>7} {'wall [s]':>9} {'total [s]':>9} {'f+J [%]':>8} {'violation':>10} "
-          f"{'p1':>9} {'S_H min':>9}")
+          f"{'p1':>9} {'S_H min':>9} {'foot acc':>10}")
     target, result, build, total = cold(args.speed)
     print(f"  ({target.n} variables, {target.m} constraints, {len(target.jac_rows)} Jacobian nonzeros)")
     report(f"cold, {args.speed:g} m/s", target, result, build, total)

@@ -46,7 +46,7 @@ def test_cli_optimize_prints_each_iteration_and_writes_csv_and_figure(tmp_path, 
     # with IPOPT's iterate 0 too.
     stages = 2 if mode == "no_polish" else 3
     assert sum(line.strip().startswith("iter ") for line in out.splitlines()) == stages * (iterations + 1)
-    assert "replay: stayed upright" in out and "S_H min, reference" in out
+    assert "replay: stayed upright" in out and "S_H min, reference" in out and "largest stance-foot acceleration" in out
     with (tmp_path / "gait_quadruped_optimized.csv").open() as handle:
         rows = list(csv.DictReader(handle))
     assert len(rows) == 4 * 3  # four phases of three collocation points
@@ -217,3 +217,22 @@ def test_replay_soles_are_boxes_whose_lowest_corner_starts_on_the_ground():
             heights.append(np.min((bottom @ pose[:3, :3].T + pose[:3, 3])[:, 2]))
         np.testing.assert_allclose(foot_bottoms(problem, config, 0.002), heights, atol=1e-12)
     assert min(heights) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_stance_accelerations_are_the_feet_second_derivatives_along_the_points_motion():
+    # Brute force: each stance foot's world position along q(t) = q (+) (v t + a t^2 / 2), whose velocity and
+    # acceleration at t = 0 are the point's v and a, differentiated twice by central differences.
+    robot = build_quadruped(AMBLE_QUADRUPED)
+    problem = amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, 2, QUADRUPED_MOTOR)
+    x = problem.pack(guess_from_reference(problem, amble_reference(robot, 0.67, 1.25, 2)))
+    rng = np.random.default_rng(3)
+    for k, index in enumerate(problem.point_index):
+        x[index[:, problem.a_columns[k]]] += rng.normal(scale=20.0, size=(len(index), problem.nv))
+    step = 1e-4
+    for k, (phase, accelerations) in enumerate(zip(problem.phases, problem.stance_accelerations(x))):
+        z = x[problem.point_index[k]]
+        q, v, a = problem.configuration(z[:, : problem.nq]), z[:, problem.nq : problem.nx], z[:, problem.a_columns[k]]
+        feet = [problem.foot_positions(lk.integrate(problem.model, q, v * t + 0.5 * a * t * t, 1.0), phase.contacts) for t in (-step, 0.0, step)]
+        expected = (feet[0] - 2.0 * feet[1] + feet[2]) / step**2
+        assert np.abs(expected).max() > 10.0
+        np.testing.assert_allclose(accelerations, expected, atol=1e-4 * np.abs(expected).max())

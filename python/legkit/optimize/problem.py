@@ -12,7 +12,8 @@ and 4.1, on legkit's kernels:
   residual rnea(q, v, a, J_c^T lambda) - B u = 0 (legkit's batched RNEA with the forces as external wrenches)
   closes the dynamics. `transcription="forward"` instead collocates a = aba(q, v, B u, J_c^T lambda). Either
   way the stance feet are held on the ground at every knot and midpoint (g_c(q) = 0 at position level), so
-  lambda is whatever keeps them there. The inverse form converges better and its Jacobian is sparser (a
+  lambda is whatever keeps them there at the points: a force pattern alternating between knots and midpoints
+  is left free by that (`stance_accelerations`, docs/optimize.md). The inverse form converges better and its Jacobian is sparser (a
   joint's torque depends on its own leg and the base only): docs/optimize.md has the measurements;
 * swing-tip height >= 0 (eq. 4) at the points and at fractions of every interval between them
   (`swing_clearance_blocks`), friction cone mu^2 F_z^2 - F_x^2 - F_y^2 >= 0 with F_z >= 0 (eq. 5, squared
@@ -941,6 +942,26 @@ class MultiphaseProblem:
         for index in self.point_index:
             x[index[:, [travel, self.nq + rate]]] *= self.speed / speed
         return replace(result, x=x)
+
+    def stance_accelerations(self, x: np.ndarray) -> list[np.ndarray]:
+        """Per phase (points, stance feet, 3): the world acceleration J a + dJ/dt v of each stance foot's point
+        implied by the point's accelerations a (`rate`), computed as J (a - a_held) with a_held from
+        `lk.contact_dynamics` under the same torques, which holds those points still (J a_held + dJ/dt v = 0).
+        A motion holds its stance feet at rest, so these are zero on it; the transcription holds the feet at
+        position level at the points only, which does not make them zero (docs/optimize.md)."""
+        out = []
+        for k, phase in enumerate(self.phases):
+            z = x[self.point_index[k]]
+            q, v = self.configuration(z[:, : self.nq]), z[:, self.nq : self.nx]
+            held = [(self.foot_body[name], self.foot_point[name]) for name in phase.contacts]
+            if not held:
+                out.append(np.zeros((len(z), 0, 3)))
+                continue
+            a_held, _ = lk.contact_dynamics(self.model, q, v, self.tau(z[:, self.nx : self.nx + self.nu]), held)
+            gap = self.rate(z, k)[:, self.nq :] - np.asarray(a_held)
+            jac = np.stack([np.asarray(lk.jacobian(self.model, q, body, point, "local_world_aligned"))[:, :3] for body, point in held], axis=1)
+            out.append(np.einsum("bfij,bj->bfi", jac, gap))
+        return out
 
     def stability_index(self, x: np.ndarray) -> list[np.ndarray]:
         """S_H as published (eq. 10) at every point of every phase, for a problem with a MinMaxStability

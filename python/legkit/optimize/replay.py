@@ -2,6 +2,10 @@
 rates plus the optimised torques as feed-forward (the trajectory-following control of file 003, Sect. 5,
 Fig. 4), over several cycles; reports the base drift from the plan and whether the robot stayed upright.
 
+Every finding below was measured on plans whose stance forces ring between knots and midpoints
+(`MultiphaseProblem.stance_accelerations`, docs/optimize.md): their torques do not produce their motion, so
+the feed-forward is not the torque of the motion tracked.
+
 What the amble's replay showed (measured on the Fig. 3 amble, 4 intervals per phase, 300 + 300 IPOPT iterations):
 
 * The start: sphere feet on tilted legs begin below the ground (r (1 - cos theta); 1.2 mm for 5 mm spheres at
