@@ -396,6 +396,26 @@ def test_jacobian(tw: Twin, rng):
 
 @fast(60)
 @given(twins(), rngs())
+def test_point_accelerations(tw: Twin, rng):
+    q, v, a = state(tw, rng)
+    bodies = rng.integers(tw.nbodies, size=2)
+    points = rng.uniform(-0.5, 0.5, size=(2, 3))
+    note_case(tw, q=q, v=v, a=a)
+    note(f"bodies={bodies.tolist()}, points={points.tolist()!r}")
+    data = tw.data()
+    want = []
+    for body, point in zip(bodies, points):
+        fid = tw.add_pin_frame(int(body), point)
+        data = tw.data()
+        pin.forwardKinematics(tw.pin_model, data, tw.q_pin(q), tw.v_pin(v), tw.v_pin(a))
+        pin.updateFramePlacements(tw.pin_model, data)
+        want.append(pin.getFrameClassicalAcceleration(tw.pin_model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED).linear)
+    got = lk.point_accelerations(tw.model, q, v, a, [(int(b), p) for b, p in zip(bodies, points)])
+    assert_close(got, np.array(want), "point accelerations")
+
+
+@fast(60)
+@given(twins(), rngs())
 def test_kinetic_energy(tw: Twin, rng):
     q, v, _ = state(tw, rng)
     note_case(tw, q=q, v=v)
@@ -633,6 +653,8 @@ BAD_CALLS = [
     ("momentum rate a short", lambda m, q, v, a: lk.centroidal_momentum_rate(m, q, v, a[:-1]), ("a",)),
     ("kinetic v nan", lambda m, q, v, a: lk.kinetic_energy(m, q, _with_nan(v)), ("v",)),
     ("potential q short", lambda m, q, v, a: lk.potential_energy(m, q[:-1]), ("q",)),
+    ("point accelerations a short", lambda m, q, v, a: lk.point_accelerations(m, q, v, a[:-1], [(1, np.zeros(3))]), ("a",)),
+    ("point accelerations body", lambda m, q, v, a: lk.point_accelerations(m, q, v, a, [(m.nbodies, np.zeros(3))]), ("body",)),
 ]
 
 

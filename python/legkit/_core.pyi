@@ -178,6 +178,9 @@ def contact_dynamics(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.
     """(ddq (..., nv), forces (..., k, 3)) with each contact point (body, point in body frame) held still."""
 def impact(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, contacts: _ContactPoints) -> tuple[np.ndarray, np.ndarray]:
     """(v_plus (..., nv), impulses (..., k, 3)) of a perfectly inelastic impact at the contacts."""
+def point_accelerations(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike, contacts: _ContactPoints) -> np.ndarray:
+    """World-axes (classical) acceleration J ddq + dJ/dt dq of each (body, point in body frame): (..., k, 3); zero for
+    the points `contact_dynamics` holds, at its ddq."""
 def reduced_dynamics(
     model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _ContactPoints, independent: Sequence[int] | None = None
 ) -> tuple[np.ndarray, list[int], list[int], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -82,6 +82,30 @@ pub fn impact<'py>(
     })
 }
 
+/// World-axes (classical) acceleration of each contact point (body, point in the body's frame) at (q, v, a):
+/// J q̈ + J̇ q̇ per point, `(..., k, 3)`; zero for the points `contact_dynamics` holds, at its q̈.
+#[pyfunction]
+pub fn point_accelerations<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    a: ArrayArg<'_>,
+    contacts: &Bound<'_, PyAny>,
+) -> PyResult<FloatArray<'py>> {
+    let points = self::contacts(&model, contacts)?;
+    let nv = model.model.nv();
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("a", &a, &[nv])])?;
+    let packed = run_packed(py, &model, &batch, 3 * points.len(), |m, w, i, out| {
+        let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
+        check_state(m, q, Some(v))?;
+        check_vector("a", a, nv)?;
+        out.copy_from_slice(algorithms::point_accelerations(m, w.data(), q, v, Some(a), &points).as_slice());
+        Ok(())
+    })?;
+    Ok(unpack(py, &batch, &packed, &[&[points.len(), 3]]).into_iter().next().unwrap())
+}
+
 type Reduced<'py> = (
     Bound<'py, PyArray1<f64>>,
     Vec<usize>,

@@ -41,6 +41,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(dynamics::potential_energy, m)?)?;
     m.add_function(wrap_pyfunction!(contact::contact_dynamics, m)?)?;
     m.add_function(wrap_pyfunction!(contact::impact, m)?)?;
+    m.add_function(wrap_pyfunction!(contact::point_accelerations, m)?)?;
     m.add_function(wrap_pyfunction!(contact::reduced_dynamics, m)?)?;
     m.add_function(wrap_pyfunction!(integrate::integrate, m)?)?;
     m.add_function(wrap_pyfunction!(integrate::free_rollout, m)?)?;

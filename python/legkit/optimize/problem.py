@@ -944,23 +944,18 @@ class MultiphaseProblem:
         return replace(result, x=x)
 
     def stance_accelerations(self, x: np.ndarray) -> list[np.ndarray]:
-        """Per phase (points, stance feet, 3): the world acceleration J a + dJ/dt v of each stance foot's point
-        implied by the point's accelerations a (`rate`), computed as J (a - a_held) with a_held from
-        `lk.contact_dynamics` under the same torques, which holds those points still (J a_held + dJ/dt v = 0).
-        A motion holds its stance feet at rest, so these are zero on it; the transcription holds the feet at
-        position level at the points only, which does not make them zero (docs/optimize.md)."""
+        """Per phase (points, stance feet, 3): the world acceleration J a + dJ/dt v (`lk.point_accelerations`) of
+        each stance foot's point at the point's state and accelerations a (`rate`). A motion holds its stance
+        feet at rest, so these are zero on it (docs/optimize.md)."""
         out = []
         for k, phase in enumerate(self.phases):
             z = x[self.point_index[k]]
-            q, v = self.configuration(z[:, : self.nq]), z[:, self.nq : self.nx]
             held = [(self.foot_body[name], self.foot_point[name]) for name in phase.contacts]
             if not held:
                 out.append(np.zeros((len(z), 0, 3)))
                 continue
-            a_held, _ = lk.contact_dynamics(self.model, q, v, self.tau(z[:, self.nx : self.nx + self.nu]), held)
-            gap = self.rate(z, k)[:, self.nq :] - np.asarray(a_held)
-            jac = np.stack([np.asarray(lk.jacobian(self.model, q, body, point, "local_world_aligned"))[:, :3] for body, point in held], axis=1)
-            out.append(np.einsum("bfij,bj->bfi", jac, gap))
+            q, v = self.configuration(z[:, : self.nq]), z[:, self.nq : self.nx]
+            out.append(np.asarray(lk.point_accelerations(self.model, q, v, self.rate(z, k)[:, self.nq :], held)))
         return out
 
     def stability_index(self, x: np.ndarray) -> list[np.ndarray]:

@@ -67,17 +67,23 @@ fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[
         let j = jacobian(model, data, q, contact.body, &contact.point, Frame::LocalWorldAligned);
         jc.view_mut((3 * c, 0), (3, nv)).copy_from(&j.rows(0, 3));
     }
-    // Velocity-product accelerations of the bodies (q̈ = 0, no gravity), then of the points:
-    // a_point = R (a + α × r + ω × (v + ω × r)).
-    body_motions(model, data, q, v, None, Motion::zeros());
-    let mut gamma = DVector::zeros(3 * contacts.len());
-    for (c, contact) in contacts.iter().enumerate() {
-        let (vb, ab, r) = (&data.v[contact.body], &data.a[contact.body], contact.point);
+    (jc, point_accelerations(model, data, q, v, None, contacts))
+}
+
+/// The world-axes (classical) acceleration of each point, 3k: J_c q̈ + J̇_c q̇ at (q, v, q̈), or with
+/// q̈ None the velocity-product term γ = J̇_c q̇ alone. Runs forward kinematics.
+pub fn point_accelerations(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Option<&[f64]>, points: &[ContactPoint]) -> DVector<f64> {
+    super::forward_kinematics(model, data, q);
+    // The bodies' spatial accelerations (no gravity), then the points': a_point = R (a + α × r + ω × (v + ω × r)).
+    body_motions(model, data, q, v, a, Motion::zeros());
+    let mut out = DVector::zeros(3 * points.len());
+    for (c, point) in points.iter().enumerate() {
+        let (vb, ab, r) = (&data.v[point.body], &data.a[point.body], point.point);
         let w = angular(vb);
         let local = linear(ab) + angular(ab).cross(&r) + w.cross(&(linear(vb) + w.cross(&r)));
-        gamma.rows_mut(3 * c, 3).copy_from(&(data.o_m_i[contact.body].rotation * local));
+        out.rows_mut(3 * c, 3).copy_from(&(data.o_m_i[point.body].rotation * local));
     }
-    (jc, gamma)
+    out
 }
 
 /// Solves the symmetric positive semi-definite system `a x = b` in the least-squares, minimum-norm sense:

@@ -17,7 +17,7 @@ pub mod rnea;
 pub use aba::{aba, aba_with_armature};
 pub use centroidal::{centroidal_map, centroidal_momentum, centroidal_momentum_rate};
 pub use com::{center_of_mass, subtree_mass_properties};
-pub use contact::{contact_dynamics, impact, reduced_dynamics, ContactDynamics, ContactPoint, ReducedDynamics};
+pub use contact::{contact_dynamics, impact, point_accelerations, reduced_dynamics, ContactDynamics, ContactPoint, ReducedDynamics};
 pub use crba::crba;
 pub use energy::{kinetic_energy, potential_energy};
 pub use integrate::{free_rollout, integrate, Integrator, Method};
