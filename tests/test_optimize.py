@@ -88,6 +88,10 @@ def quadruped_problem(objectives, transcription: str = "inverse") -> tuple[Multi
         x[index[:, problem.nq]] = 0.3  # forward body velocity, so J_e2's 1 / v stays finite
         x[index[:, problem.nx + problem.nu :: 3] ] = 0.1
         x[index[:, problem.nx + problem.nu + 2 :: 3]] = 5.0
+    for k, index in enumerate(problem.point_index):  # the slack: zero at the knots (its bounds), small at the midpoints
+        slack = index[:, problem.slack_columns[k]]
+        x[slack[0::2]] = 0.0
+        x[slack[1::2]] = rng.normal(0.0, 0.05, slack[1::2].shape)
     x[problem.duration_index] = 0.25
     return problem, x
 
@@ -101,8 +105,8 @@ def test_constraint_jacobian_and_gradient_match_central_differences(transcriptio
     dense = np.zeros((problem.m, problem.n))
     dense[problem.jac_rows, problem.jac_cols] = problem.jacobian(x)
     reference = np.zeros_like(dense)
-    for j in range(problem.n):  # plain central differences, column by column
-        step = 1e-6 * max(1.0, abs(x[j]))
+    for j in range(problem.n):  # plain central differences, column by column (at 1e-6 the forward rows' large
+        step = 1e-5 * max(1.0, abs(x[j]))  # accelerations put ~2e-5 of rounding into the reference itself)
         plus, minus = x.copy(), x.copy()
         plus[j] += step
         minus[j] -= step

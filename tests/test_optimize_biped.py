@@ -182,6 +182,8 @@ def test_walk_solution_meets_dynamics_feet_and_motor_limits_in_legkit_kernels(ro
     assert result.success and result.violation < 1e-6
     trajectory = problem.unpack(result.x)
     model = problem.model
+    for accelerations in problem.stance_accelerations(result.x):  # the stance soles at rest at the knots
+        np.testing.assert_allclose(accelerations[0::2], 0.0, atol=1e-6)
     for k, phase in enumerate(problem.phases):
         q, v, a, u = problem.configuration(trajectory.q[k]), trajectory.v[k], trajectory.a[k], trajectory.u[k]
         poses = np.asarray(lk.forward_kinematics(model, q))
@@ -193,10 +195,14 @@ def test_walk_solution_meets_dynamics_feet_and_motor_limits_in_legkit_kernels(ro
             centre = problem.foot_point[side]
             f_ext[:, body, :3] += local
             f_ext[:, body, 3:] += np.cross(centre, local) + trajectory.torques[k][:, c]
-            # The sole's four corners on the ground, the wrench within eq. 6 and the friction cone (eq. 5).
+            # The sole's four corners on the ground and the sole at rest at the knots (the midpoints lie on the
+            # collocation cubics, which the slack frees from the ground: `MultiphaseProblem.rate`); the wrench
+            # within eq. 6 and the friction cone (eq. 5).
             for corner in (centre + [sx * half_length, sy * half_width, 0.0] for sx in (-1, 1) for sy in (-1, 1)):
                 height = np.einsum("pij,j->pi", rotation, corner)[:, 2] + poses[:, body, 2, 3]
-                np.testing.assert_allclose(height, 0.0, atol=1e-6)
+                np.testing.assert_allclose(height[0::2], 0.0, atol=1e-6)
+            sole_motion = np.asarray(lk.jacobian(model, q[0::2], body, centre, "local_world_aligned"))
+            np.testing.assert_allclose(np.einsum("pij,pj->pi", sole_motion, v[0::2]), 0.0, atol=1e-6)
             torque = trajectory.torques[k][:, c]  # foot frame, about the sole's centre
             sole = (-half_length, half_length, -half_width, half_width)
             assert np.min(st.foot_torque_margin(local, torque, sole)) > -1e-6

@@ -5,16 +5,18 @@ and 4.1, on legkit's kernels:
 
 * phases with fixed contact sets (the discrete state d(t) of Sect. 4.1), each with its duration as a variable;
 * per phase a grid of `intervals` Hermite–Simpson intervals (eq. 14: cubic states, linear controls); at every
-  knot and midpoint the variables z = [q, v, u, lambda]: configuration, velocity, actuated torques and the
-  world-frame contact forces of the phase's feet;
+  knot and midpoint the variables z = [q, v, u, lambda, slack]: configuration, velocity, actuated torques,
+  the world-frame contact forces of the phase's feet and the stance feet's slack (below);
 * dynamics (eq. 1), by default in inverse-dynamics form (`transcription="inverse"`): the accelerations a are
-  variables too (z = [q, v, u, lambda, a]), the state rate is [dq/dt(q, v), a], and at every point the RNEA
+  variables too (z = [q, v, u, lambda, a, slack]), the state rate is [dq/dt(q, v), a], and at every point the RNEA
   residual rnea(q, v, a, J_c^T lambda) - B u = 0 (legkit's batched RNEA with the forces as external wrenches)
   closes the dynamics. `transcription="forward"` instead collocates a = aba(q, v, B u, J_c^T lambda). Either
-  way the stance feet are held on the ground at every knot and midpoint (g_c(q) = 0 at position level), so
-  lambda is whatever keeps them there at the points: a force pattern alternating between knots and midpoints
-  is left free by that (`stance_accelerations`, docs/optimize.md). The inverse form converges better and its Jacobian is sparser (a
-  joint's torque depends on its own leg and the base only): docs/optimize.md has the measurements;
+  way the stance feet are held in DIRCON's form (Posa, Kuindersma & Tedrake 2016): at every knot on the
+  ground, at rest and not accelerating (`stance_blocks`), the midpoints freed from the contact manifold by a
+  slack in the configuration rate (`rate`). Held at position level at every point instead, the forces were
+  free to alternate between knots and midpoints (`stance_accelerations`, docs/optimize.md). The inverse form
+  converges better and its Jacobian is sparser (a joint's torque depends on its own leg and the base only):
+  docs/optimize.md has the measurements;
 * swing-tip height >= 0 (eq. 4) at the points and at fractions of every interval between them
   (`swing_clearance_blocks`), friction cone mu^2 F_z^2 - F_x^2 - F_y^2 >= 0 with F_z >= 0 (eq. 5, squared
   to stay smooth), for flat feet (`FlatFoot`) a contact torque T about the sole's centre within the foot-torque
@@ -141,7 +143,8 @@ class Trajectory:
     """The variables of a transcription, per phase: times t (P,), q (P, nq), v (P, nv), u (P, nu), forces
     (P, c, 3) on the phase's feet (world frame), the phase durations, the accelerations a (P, nv) of the
     inverse-dynamics transcription (None: `pack` takes them from the forward dynamics of q, v, u, forces), and
-    the torques (P, c_flat, 3) on the phase's flat feet (`FlatFoot`, foot frame; None: zero)."""
+    the torques (P, c_flat, 3) on the phase's flat feet (`FlatFoot`, foot frame; None: zero), and the slack (P, r) of
+    the phase's `contact_rows` (`MultiphaseProblem.rate`; None: zero)."""
 
     t: list[np.ndarray]
     q: list[np.ndarray]
@@ -152,6 +155,7 @@ class Trajectory:
     stability_bound: float = 0.0  # p1 of the min-max objective J_s2 (0 when unused)
     a: list[np.ndarray] | None = None
     torques: list[np.ndarray] | None = None
+    slack: list[np.ndarray] | None = None
 
     def stacked(self) -> dict[str, np.ndarray]:
         """Every point of every phase in time order (the shared phase-boundary instants appear twice)."""
@@ -221,21 +225,25 @@ class MultiphaseProblem:
                 self.foot_body[f"{name}/{label}"] = self.foot_body[name]
                 self.foot_point[f"{name}/{label}"] = self.foot_point[name] + shift
                 self.sole_points[f"{name}/{label}"] = name
-        # Variable layout: per phase a (P, nz) block of point variables z = [q, v, u, forces, torques, a]
-        # (torques on flat feet only, a only in the inverse transcription), then the durations, then p1.
+        # Variable layout: per phase a (P, nz) block of point variables z = [q, v, u, forces, torques, a, slack]
+        # (torques on flat feet only, a only in the inverse transcription, slack: one per `contact_rows` row,
+        # used at the midpoints only: `rate`), then the durations, then p1.
         self.point_index: list[np.ndarray] = []
         self.force_columns: list[slice] = []
         self.torque_columns: list[slice] = []
         self.a_columns: list[slice] = []
+        self.slack_columns: list[slice] = []
         inverse = self.transcription == "inverse"
         offset = 0
         for phase in self.phases:
             forces = self.nx + self.nu + self.force_dims * len(phase.contacts)
             torques = forces + 3 * len(self.flat_contacts(phase.contacts))
-            nz = torques + (self.nv if inverse else 0)
+            accelerations = torques + (self.nv if inverse else 0)
+            nz = accelerations + sum(len(axes) for _, _, axes in self.contact_rows(phase.contacts))
             self.force_columns.append(slice(self.nx + self.nu, forces))
             self.torque_columns.append(slice(forces, torques))
-            self.a_columns.append(slice(torques, nz))
+            self.a_columns.append(slice(torques, accelerations))
+            self.slack_columns.append(slice(accelerations, nz))
             points = 2 * phase.intervals + 1
             self.point_index.append(offset + np.arange(points * nz).reshape(points, nz))
             offset += points * nz
@@ -486,11 +494,17 @@ class MultiphaseProblem:
         return np.concatenate([self.q_rate(z[:, : self.nq], v), a], axis=1)
 
     def rate(self, z: np.ndarray, k: int) -> np.ndarray:
-        """The collocated state rate (B, nx) at phase k's point variables: forward dynamics, or [dq/dt, a] with
-        a the variables of the inverse transcription (whose dynamics are the RNEA residual rows)."""
-        if self.transcription == "forward":
-            return self.state_rate(z, k)
-        return np.concatenate([self.q_rate(z[:, : self.nq], z[:, self.nq : self.nx]), z[:, self.a_columns[k]]], axis=1)
+        """The collocated state rate (B, nx) at phase k's point variables: [dq/dt, a] with a the forward dynamics,
+        or the variables of the inverse transcription (whose dynamics are the RNEA residual rows). dq/dt is that
+        of v + J_c^T slack, J_c the phase's `contact_rows`: the slack (zero at the knots, free at the midpoints)
+        lets the stance feet be held at position, velocity and acceleration level at every knot without
+        over-determining the collocation (Posa, Kuindersma & Tedrake 2016, DIRCON)."""
+        q, v = z[:, : self.nq], z[:, self.nq : self.nx]
+        slack = z[:, self.slack_columns[k]]
+        if slack.shape[1]:
+            v = v + np.einsum("bri,br->bi", self.contact_jacobian(q, self.phases[k].contacts), slack)
+        a = self.state_rate(z, k)[:, self.nq :] if self.transcription == "forward" else z[:, self.a_columns[k]]
+        return np.concatenate([self.q_rate(q, v), a], axis=1)
 
     def rate_dependence(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """(nx, nz) bool twice: which point variables each component of `rate` depends on (structurally), and
@@ -509,6 +523,14 @@ class MultiphaseProblem:
             dependence[nq:, :] = True
         else:
             identity[nq:, self.a_columns[k]] = np.eye(self.nv, dtype=bool)
+        # The slack's J_c^T slack moves the q rates of each held point's chain, through its q (not a free-flyer's position).
+        ancestors, q_body, _ = self.tree()
+        column = self.slack_columns[k].start
+        for body, _, axes in self.contact_rows(self.phases[k].contacts):
+            chain = list(ancestors[body])
+            q_columns = self.q_without_translation[np.isin(q_body[self.q_without_translation], chain)]
+            dependence[np.ix_(np.flatnonzero(np.isin(q_body, chain)), np.r_[q_columns, column + np.arange(len(axes))])] = True
+            column += len(axes)
         return dependence | identity, identity
 
     def tree(self) -> tuple[list[set[int]], np.ndarray, np.ndarray]:
@@ -611,6 +633,7 @@ class MultiphaseProblem:
     def _contact_blocks(self, k: int) -> list[Block]:
         phase, index = self.phases[k], self.point_index[k]
         blocks: list[Block] = [_Feet(self, k)] if self.foot_names else []
+        blocks.extend(self.stance_blocks(k))
         blocks.extend(self.swing_clearance_blocks(k))
         if phase.contacts and self.force_dims == 3:  # friction cone (eq. 5), squared to stay smooth
             mu2 = self.friction**2
@@ -619,6 +642,81 @@ class MultiphaseProblem:
                                 len(phase.contacts), 0.0, np.inf,
                                 symbolic=lambda _, f: mu2 * f[2::3] ** 2 - f[0::3] ** 2 - f[1::3] ** 2))
         blocks.extend(self.foot_torque_blocks(k))
+        return blocks
+
+    def stance_blocks(self, k: int) -> list[Block]:
+        """The stance feet of phase k held at velocity and acceleration level at the knots (their positions:
+        `_Feet`): J_c v = 0 and J_c a + dJ_c/dt v = 0 (`lk.point_accelerations`) for each foot's `contact_rows`,
+        one block each per foot over its leg's and the base's columns. With the midpoints freed by the slack
+        (`rate`), this is DIRCON's form of the contact constraint (Posa, Kuindersma & Tedrake 2016). Held at
+        position level at every point instead, the forces were free to alternate between knots and midpoints
+        (docs/optimize.md). A knot's velocity is stated once: not at a phase's first knot (the impact map or the
+        previous phase's last knot states it), nor at its last for a foot that stays down through a soft
+        touchdown (max_impulse 0: v is continuous there, and the impact map states it), nor where
+        `initial`/`final` fix the state."""
+        nq, nx = self.nq, self.nx
+        index = self.point_index[k]
+        knots = np.arange(0, len(index), 2)
+        count = len(self.phases)
+        linked = self.periodic and count > 1
+        ancestors, q_body, v_body = self.tree()
+        width = index.shape[1]
+        blocks: list[Block] = []
+        for name in self.phases[k].contacts:
+            rows = self.contact_rows([name])
+            points = [(body, point) for body, point, _ in rows]
+            axes = np.concatenate([3 * i + np.asarray(a) for i, (_, _, a) in enumerate(rows)])
+            reach = list(ancestors[self.foot_body[name]])
+            q_columns = self.q_without_translation[np.isin(q_body[self.q_without_translation], reach)]
+            v_columns = np.flatnonzero(np.isin(v_body, reach))
+            velocity_columns = np.concatenate([q_columns, nq + v_columns])
+            if self.transcription == "inverse":  # a foot's acceleration depends on its leg and the base only
+                acceleration_columns = np.concatenate([velocity_columns, self.a_columns[k].start + v_columns])
+            else:  # a = aba(...) depends on everything at the point
+                acceleration_columns = np.concatenate([self.q_without_translation, np.arange(nq, self.slack_columns[k].start)])
+
+            def full(g: np.ndarray, columns: np.ndarray) -> np.ndarray:
+                z = np.zeros((len(g), width))
+                z[:, columns] = g
+                return z
+
+            def velocities(g: np.ndarray, columns: np.ndarray = velocity_columns, name: str = name) -> np.ndarray:
+                z = full(g, columns)
+                return np.einsum("bri,bi->br", self.contact_jacobian(z[:, :nq], [name]), z[:, nq:nx])
+
+            def accelerations(g: np.ndarray, columns: np.ndarray = acceleration_columns, points: list = points,
+                              axes: np.ndarray = axes) -> np.ndarray:
+                z = full(g, columns)
+                a = self.rate(z, k)[:, nq:]
+                values = np.asarray(lk.point_accelerations(self.model, self.configuration(z[:, :nq]), z[:, nq:nx], a, points))
+                return values.reshape(len(g), -1)[:, axes]
+
+            def symbolic_full(g: Any, columns: np.ndarray) -> Any:
+                import casadi as ca
+
+                z = ca.SX.zeros(width)
+                z[columns.tolist()] = g
+                return z
+
+            def symbolic_velocities(model: SymbolicModel, g: Any, columns: np.ndarray = velocity_columns, rows: list = rows) -> Any:
+                z = symbolic_full(g, columns)
+                return model.contact_rows_jacobian(z[:nq], rows) @ z[nq:nx]
+
+            def symbolic_accelerations(model: SymbolicModel, g: Any, columns: np.ndarray = acceleration_columns, points: list = points,
+                                       axes: np.ndarray = axes) -> Any:
+                z = symbolic_full(g, columns)
+                return model.point_accelerations(z[:nq], z[nq:nx], z[self.a_columns[k]], points)[axes.tolist()]
+
+            held = knots
+            if (k > 0 or linked) or self.initial is not None:
+                held = held[held > 0]
+            last = len(index) - 1
+            soft_touchdown = (k < count - 1 or linked) and k in self.impulse_index and self.max_impulse == 0.0
+            if (soft_touchdown and name in self.contacts_after(k)) or (k == count - 1 and self.final is not None):
+                held = held[held < last]
+            if len(held):
+                blocks.append(Point(index[np.ix_(held, velocity_columns)], velocities, len(axes), symbolic=symbolic_velocities))
+            blocks.append(Point(index[np.ix_(knots, acceleration_columns)], accelerations, len(axes), symbolic=symbolic_accelerations))
         return blocks
 
     #: Where on each interval (fractions of it) `swing_clearance_blocks` holds the swing tips above the ground.
@@ -759,7 +857,7 @@ class MultiphaseProblem:
 
             z = z * ca.DM(signs)
             q, v_minus, v_plus, impulses = z[:nq], z[nq : nq + nv], z[nq + nv : nq + 2 * nv], z[nq + 2 * nv :]
-            jac = ca.vertcat(*[model.contact_jacobian(q, [(body, point)])[axes, :] for body, point, axes in rows])
+            jac = model.contact_rows_jacobian(q, rows)
             return ca.vertcat(model.mass_matrix(q) @ (v_plus - v_minus) - jac.T @ impulses, jac @ v_plus)
 
         index = np.concatenate([end[:nx], start.v, self.impulse_index[k]])[None]
@@ -817,6 +915,7 @@ class MultiphaseProblem:
                     upper[index[:, part]] = np.asarray(bounds[1], dtype=np.float64)
             normal = index[:, self.force_columns[k]][:, self.force_dims - 1 :: self.force_dims]
             lower[normal] = 0.0  # unilateral contact (eq. 5)
+            lower[index[0::2, self.slack_columns[k]]] = upper[index[0::2, self.slack_columns[k]]] = 0.0  # the slack acts at the midpoints
             lower[self.duration_index[k]], upper[self.duration_index[k]] = phase.duration
         for state, point in ((self.initial, self.point_index[0][0]), (self.final, self.point_index[-1][-1])):
             if state is not None:
@@ -998,12 +1097,20 @@ class MultiphaseProblem:
         def controls(u: np.ndarray) -> np.ndarray:
             return u_sign * u[..., u_order]
 
-        a, torques = trajectory.a, trajectory.torques
+        a, torques, slack = trajectory.a, trajectory.torques, trajectory.slack
+        q = twice(trajectory.q, lambda q: scale * mirror.q(q) + shift)
+        if slack is not None:  # the mirror image of the correction J_c^T slack, in the mirrored feet's rows
+            slack = list(slack)
+            for k, phase in enumerate(self.phases):
+                mirrored = mirror.contacts(phase.contacts)
+                correction = mirror.v(np.einsum("bri,br->bi", self.contact_jacobian(trajectory.q[k], phase.contacts), slack[k]))
+                rows = self.contact_jacobian(q[len(self.phases) + k], mirrored)
+                slack.append(np.stack([np.linalg.lstsq(j.T, c, rcond=None)[0] for j, c in zip(rows, correction)]))
         return Trajectory(
-            twice(trajectory.t, lambda t: t + half), twice(trajectory.q, lambda q: scale * mirror.q(q) + shift),
+            twice(trajectory.t, lambda t: t + half), q,
             twice(trajectory.v, mirror.v), twice(trajectory.u, controls), twice(trajectory.forces, Mirror.vectors),
             np.concatenate([trajectory.durations, trajectory.durations]), trajectory.stability_bound,
-            None if a is None else twice(a, mirror.v), None if torques is None else twice(torques, Mirror.axial),
+            None if a is None else twice(a, mirror.v), None if torques is None else twice(torques, Mirror.axial), slack,
         )
 
     # ------------------------------------------------------------------ packing
@@ -1021,6 +1128,8 @@ class MultiphaseProblem:
             if self.transcription == "inverse":
                 a = trajectory.a[k] if trajectory.a is not None else self.state_rate(z, k)[:, self.nq :]
                 z = np.concatenate([z, np.asarray(a, dtype=np.float64).reshape(len(index), -1)], axis=1)
+            slack = np.zeros((len(index), index.shape[1] - z.shape[1])) if trajectory.slack is None else trajectory.slack[k]
+            z = np.concatenate([z, np.asarray(slack, dtype=np.float64).reshape(len(index), -1)], axis=1)
             if z.shape != index.shape:
                 raise ValueError(f"trajectory phase {k} has {z.shape} point values, the problem needs {index.shape}")
             x[index] = z
@@ -1036,17 +1145,18 @@ class MultiphaseProblem:
     def unpack(self, x: np.ndarray) -> Trajectory:
         durations = x[self.duration_index].copy()
         starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
-        t, q, v, u, forces, a, torques = [], [], [], [], [], [], []
+        t, q, v, u, forces, a, torques, slack = [], [], [], [], [], [], [], []
         for k, index in enumerate(self.point_index):
             z = x[index]
             torques.append(z[:, self.torque_columns[k]].reshape(len(z), -1, 3))
+            slack.append(z[:, self.slack_columns[k]])
             t.append(starts[k] + np.linspace(0.0, durations[k], len(index)))
             q.append(z[:, : self.nq])
             v.append(z[:, self.nq : self.nx])
             u.append(z[:, self.nx : self.nx + self.nu])
             forces.append(self.world_forces(z[:, self.force_columns[k]], len(self.phases[k].contacts)))
             a.append(self.rate(z, k)[:, self.nq :])
-        return Trajectory(t, q, v, u, forces, durations, float(x[self.p1_index]), a, torques)
+        return Trajectory(t, q, v, u, forces, durations, float(x[self.p1_index]), a, torques, slack)
 
 
 def _period_bounds(period: float | tuple[float, float]) -> tuple[float, float]:
@@ -1237,9 +1347,10 @@ class _InverseDynamics:
 
 
 class _Feet:
-    """The feet at every point of phase k, from one batched forward-kinematics difference over q: stance feet
-    on the ground (height 0) and, with 3-D forces, at the foothold where the phase began (x, y); swing tips at
-    or above the ground (eq. 4). A flat foot's toe and side points (`FlatFoot`) are at height 0 in stance, the
+    """The feet at the points of phase k, from one batched forward-kinematics difference over q: stance feet
+    on the ground (height 0) and, with 3-D forces, at the foothold where the phase began (x, y) at every knot
+    (with their velocities and accelerations: `stance_blocks`); swing tips at or above the ground (eq. 4) at
+    every point. A flat foot's toe and side points (`FlatFoot`) are at height 0 in stance, the
     toe also at its first y (the sole flat and unturned), and at or above the ground in swing.
 
     A phase's first point is the previous phase's last (the same q, up to the periodic shift along the ground),
@@ -1288,6 +1399,8 @@ class _Feet:
                         point == points - 1 and after is not None and foot_name in after and foot_name not in problem.phases[k].contacts):
                     continue  # the height at this shared point is stated by the neighbouring phase
                 if foot_name in problem.phases[k].contacts:
+                    if point % 2:  # a midpoint: the slack frees it (`MultiphaseProblem.rate`)
+                        continue
                     add(point, foot, 2, False, False)
                     if name == foot_name and problem.force_dims == 3 and point > 0:
                         add(point, foot, 0, False, True)

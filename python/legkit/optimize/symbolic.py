@@ -18,7 +18,8 @@ inverse dynamics: tau = M a + C v + g - sum J^T f_ext).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -237,13 +238,32 @@ class SymbolicModel:
         bias = self.rnea_no_gravity(q, zero, zero)
         return ca.horzcat(*[self.rnea_no_gravity(q, zero, ca.DM(np.eye(self.nv)[j])) - bias for j in range(self.nv)])
 
-    def rnea_no_gravity(self, q: Any, v: Any, a: Any) -> Any:
+    @contextmanager
+    def _without_gravity(self) -> Iterator[None]:
         saved = self.gravity
         self.gravity = np.zeros(3)
         try:
-            return self.rnea(q, v, a)
+            yield
         finally:
             self.gravity = saved
+
+    def rnea_no_gravity(self, q: Any, v: Any, a: Any) -> Any:
+        with self._without_gravity():
+            return self.rnea(q, v, a)
+
+    def point_accelerations(self, q: Any, v: Any, a: Any, feet: Sequence[tuple[int, np.ndarray]]) -> Any:
+        """World-axes acceleration J a + dJ/dt v (3 per point, stacked) of body points (body, point), as
+        `lk.point_accelerations`: R (a_lin + alpha x r + w x (v_lin + w x r)) from the body's spatial motion."""
+        ca = _ca()
+        with self._without_gravity():
+            rotations, _, velocities, accelerations, _ = self.kinematics(q, v, a)
+        out = []
+        for body, point in feet:
+            r, velocity, acceleration = ca.DM(point), velocities[body], accelerations[body]
+            w = velocity[3:]
+            local = acceleration[:3] + ca.cross(acceleration[3:], r) + ca.cross(w, velocity[:3] + ca.cross(w, r))
+            out.append(rotations[body] @ local)
+        return ca.vertcat(*out)
 
     def impact(self, q: Any, v_minus: Any, feet: Sequence[tuple[int, np.ndarray]]) -> Any:
         """Perfectly inelastic impact (eq. 7): v+ with J v+ = 0 at the feet, M (v+ - v-) = J^T Lambda. The
@@ -258,9 +278,17 @@ class SymbolicModel:
         return ca.solve(kkt, ca.vertcat(m @ v_minus, ca.DM.zeros(k)))[: self.nv]
 
     def contact_jacobian(self, q: Any, feet: Sequence[tuple[int, np.ndarray]]) -> Any:
-        """(3 k, nv) world-aligned linear Jacobian of body points (body, point): d points / dq Q(q)."""
+        """(3 k, nv) world-aligned linear Jacobian of body points (body, point): d points / dq Q(q), at any q
+        expression (differentiated at a symbol, then called at q)."""
         ca = _ca()
-        return ca.jacobian(self.points(q, feet), q) @ self.q_rate_matrix(q)
+        symbol = ca.SX.sym("q", self.nq)
+        jacobian = ca.Function("contact_jacobian", [symbol], [ca.jacobian(self.points(symbol, feet), symbol) @ self.q_rate_matrix(symbol)])
+        return jacobian(q)
+
+    def contact_rows_jacobian(self, q: Any, rows: Sequence[tuple[int, np.ndarray, Sequence[int]]]) -> Any:
+        """(r, nv): the world axes `axes` of each (body, point, axes) of `MultiphaseProblem.contact_rows`."""
+        ca = _ca()
+        return ca.vertcat(*[self.contact_jacobian(q, [(body, point)])[list(axes), :] for body, point, axes in rows])
 
     def q_rate_matrix(self, q: Any) -> Any:
         """dq/dt = Q(q) v (nq, nv): the base position rate R v_lin, the quaternion rate, joint rates."""
@@ -361,6 +389,9 @@ def _defects(problem: MultiphaseProblem, model: SymbolicModel, block: Any, x: An
     ca = _ca()
     z = ca.SX.sym("z", block.index.shape[1])
     q, v = z[: problem.nq], z[problem.nq : problem.nx]
+    rows = problem.contact_rows(problem.phases[block.k].contacts)
+    if rows:  # the slack's correction (`MultiphaseProblem.rate`)
+        v = v + model.contact_rows_jacobian(q, rows).T @ z[problem.slack_columns[block.k]]
     rate = ca.Function("rate", [z], [ca.vertcat(model.q_rate_matrix(q) @ v, z[problem.a_columns[block.k]])])
     points = _gather(x, block.index)
     rates = rate.map(block.index.shape[0])(points)
