@@ -2,9 +2,10 @@
 rates plus the optimised torques as feed-forward (the trajectory-following control of file 003, Sect. 5,
 Fig. 4), over several cycles; reports the base drift from the plan and whether the robot stayed upright.
 
-Every finding below was measured on plans whose stance forces ring between knots and midpoints
-(`MultiphaseProblem.stance_accelerations`, docs/optimize.md): their torques do not produce their motion, so
-the feed-forward is not the torque of the motion tracked.
+Every finding below was measured on plans whose stance forces rang between knots and midpoints
+(`MultiphaseProblem.stance_accelerations`, docs/optimize.md): their torques did not produce their motion.
+The transcription now holds the stance feet in DIRCON's form; its amble plans still fall in the first
+diagonal support at every gain tried (docs/optimize.md).
 
 What the amble's replay showed (measured on the Fig. 3 amble, 4 intervals per phase, 300 + 300 IPOPT iterations):
 
