@@ -661,6 +661,19 @@ class MultiphaseProblem:
         linked = self.periodic and count > 1
         ancestors, q_body, v_body = self.tree()
         width = index.shape[1]
+
+        def full(g: np.ndarray, columns: np.ndarray) -> np.ndarray:  # the point variables, zero outside columns
+            z = np.zeros((len(g), width))
+            z[:, columns] = g
+            return z
+
+        def symbolic_full(g: Any, columns: np.ndarray) -> Any:
+            import casadi as ca
+
+            z = ca.SX.zeros(width)
+            z[columns.tolist()] = g
+            return z
+
         blocks: list[Block] = []
         for name in self.phases[k].contacts:
             rows = self.contact_rows([name])
@@ -675,11 +688,6 @@ class MultiphaseProblem:
             else:  # a = aba(...) depends on everything at the point
                 acceleration_columns = np.concatenate([self.q_without_translation, np.arange(nq, self.slack_columns[k].start)])
 
-            def full(g: np.ndarray, columns: np.ndarray) -> np.ndarray:
-                z = np.zeros((len(g), width))
-                z[:, columns] = g
-                return z
-
             def velocities(g: np.ndarray, columns: np.ndarray = velocity_columns, name: str = name) -> np.ndarray:
                 z = full(g, columns)
                 return np.einsum("bri,bi->br", self.contact_jacobian(z[:, :nq], [name]), z[:, nq:nx])
@@ -691,13 +699,6 @@ class MultiphaseProblem:
                 values = np.asarray(lk.point_accelerations(self.model, self.configuration(z[:, :nq]), z[:, nq:nx], a, points))
                 return values.reshape(len(g), -1)[:, axes]
 
-            def symbolic_full(g: Any, columns: np.ndarray) -> Any:
-                import casadi as ca
-
-                z = ca.SX.zeros(width)
-                z[columns.tolist()] = g
-                return z
-
             def symbolic_velocities(model: SymbolicModel, g: Any, columns: np.ndarray = velocity_columns, rows: list = rows) -> Any:
                 z = symbolic_full(g, columns)
                 return model.contact_rows_jacobian(z[:nq], rows) @ z[nq:nx]
@@ -708,7 +709,7 @@ class MultiphaseProblem:
                 return model.point_accelerations(z[:nq], z[nq:nx], z[self.a_columns[k]], points)[axes.tolist()]
 
             held = knots
-            if (k > 0 or linked) or self.initial is not None:
+            if k > 0 or linked or self.initial is not None:
                 held = held[held > 0]
             last = len(index) - 1
             soft_touchdown = (k < count - 1 or linked) and k in self.impulse_index and self.max_impulse == 0.0
