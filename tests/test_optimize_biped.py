@@ -184,6 +184,11 @@ def test_walk_solution_meets_dynamics_feet_and_motor_limits_in_legkit_kernels(ro
     model = problem.model
     for accelerations in problem.stance_accelerations(result.x):  # the stance soles at rest at the knots
         np.testing.assert_allclose(accelerations[0::2], 0.0, atol=1e-6)
+    for k, phase in enumerate(problem.phases):  # and the plan's accelerations there are its torques' motion
+        held = [(body, point) for body, point, _ in problem.contact_rows(phase.contacts)]
+        knots = problem.configuration(trajectory.q[k][0::2]), trajectory.v[k][0::2]
+        driven, _ = lk.contact_dynamics(problem.model, *knots, problem.tau(trajectory.u[k][0::2]), held)
+        np.testing.assert_allclose(trajectory.a[k][0::2], driven, atol=1e-4 * np.abs(driven).max())
     for k, phase in enumerate(problem.phases):
         q, v, a, u = problem.configuration(trajectory.q[k]), trajectory.v[k], trajectory.a[k], trajectory.u[k]
         poses = np.asarray(lk.forward_kinematics(model, q))
