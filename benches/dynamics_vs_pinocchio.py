@@ -5,9 +5,13 @@ floating-base quadruped) the script first checks that both libraries agree (ABA,
 random state, to 1e-8 relative; it aborts otherwise), then times one call of each algorithm from Python,
 same state, same process, interleaved:
 
-    legkit:    lk.aba(model, q, v, tau), lk.rnea(model, q, v, a), lk.crba(model, q), lk.minv(model, q)
+    legkit:    lk.aba(model, q, v, tau), lk.rnea(model, q, v, a), lk.crba(model, q), lk.minv(model, q),
+               lk.point_accelerations(model, q, v, a, [(last body, point)])
     pinocchio: pin.aba(model, data, q, v, tau), pin.rnea(...), pin.crba(model, data, q),
-               pin.computeMinverse(model, data, q)            (one preallocated pin.Data per model)
+               pin.computeMinverse(model, data, q)            (one preallocated pin.Data per model),
+               pin.forwardKinematics(model, data, q, v, a) then pin.getFrameClassicalAcceleration(model, data,
+               frame, LOCAL_WORLD_ALIGNED), the frame at the same point (PointAcc: two Python calls for
+               Pinocchio, as its users make them)
 
 Each figure is the median over `timeit` repeats (7, or 3 with --quick) of the mean per-call time of a repeat,
 the number of calls per repeat chosen so that a repeat lasts ~0.15 s; legkit's and Pinocchio's repeats are
@@ -49,7 +53,9 @@ import legkit as lk
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from models import MODELS, random_state, superbot_tree  # noqa: E402
 
-ALGORITHMS = ("ABA", "RNEA", "CRBA", "Minv")
+ALGORITHMS = ("ABA", "RNEA", "CRBA", "Minv", "PointAcc")
+#: The point (last body's frame) whose classical acceleration PointAcc times.
+POINT = np.array([0.05, 0.02, -0.1])
 RTOL = 1e-8
 TARGET_RATIO = 0.8
 TARGET_LINEARITY = 18.0
@@ -136,13 +142,20 @@ def relative_error(x: np.ndarray, reference: np.ndarray) -> float:
     return float(np.max(np.abs(x - reference)) / max(float(np.max(np.abs(reference))), 1e-300))
 
 
-def check_equivalence(name: str, lk_model, pin_model, pin_data, state) -> dict[str, float]:
+def pin_point_acceleration(pin_model, pin_data, frame: int, q, v, acc) -> np.ndarray:
+    pin.forwardKinematics(pin_model, pin_data, q, v, acc)
+    return pin.getFrameClassicalAcceleration(pin_model, pin_data, frame, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED).linear
+
+
+def check_equivalence(name: str, lk_model, pin_model, pin_data, frame: int, state) -> dict[str, float]:
     q, v, tau, acc = state
     pairs = {
         "ABA": (lk.aba(lk_model, q, v, tau), pin.aba(pin_model, pin_data, q, v, tau).copy()),
         "RNEA": (lk.rnea(lk_model, q, v, acc), pin.rnea(pin_model, pin_data, q, v, acc).copy()),
         "CRBA": (lk.crba(lk_model, q), symmetrised_upper(pin.crba(pin_model, pin_data, q).copy())),
         "Minv": (lk.minv(lk_model, q), symmetrised_upper(pin.computeMinverse(pin_model, pin_data, q).copy())),
+        "PointAcc": (lk.point_accelerations(lk_model, q, v, acc, [(lk_model.nbodies - 1, POINT)])[0],
+                     pin_point_acceleration(pin_model, pin_data, frame, q, v, acc).copy()),
     }
     errors = {}
     for algorithm, (ours, theirs) in pairs.items():
@@ -174,19 +187,21 @@ class ModelResult:
     aba_calls: tuple[tuple, tuple | None] | None = None
 
 
-def calls(lk_model, pin_model, pin_data, state) -> dict[str, tuple[tuple, tuple | None]]:
+def calls(lk_model, pin_model, pin_data, frame: int, state) -> dict[str, tuple[tuple, tuple | None]]:
     q, v, tau, acc = state
     lk_calls = {
         "ABA": (lk.aba, (lk_model, q, v, tau)),
         "RNEA": (lk.rnea, (lk_model, q, v, acc)),
         "CRBA": (lk.crba, (lk_model, q)),
         "Minv": (lk.minv, (lk_model, q)),
+        "PointAcc": (lk.point_accelerations, (lk_model, q, v, acc, [(lk_model.nbodies - 1, POINT)])),
     }
     pin_calls = {
         "ABA": (pin.aba, (pin_model, pin_data, q, v, tau)),
         "RNEA": (pin.rnea, (pin_model, pin_data, q, v, acc)),
         "CRBA": (pin.crba, (pin_model, pin_data, q)),
         "Minv": (pin.computeMinverse, (pin_model, pin_data, q)),
+        "PointAcc": (pin_point_acceleration, (pin_model, pin_data, frame, q, v, acc)),
     }
     return {a: (lk_calls[a], pin_calls[a] if pin_data is not None else None) for a in ALGORITHMS}
 
@@ -211,10 +226,12 @@ def run_model(name: str, settings: Settings, rng: np.random.Generator) -> ModelR
     q, v, tau = random_state(lk_model, rng)
     acc = rng.normal(size=lk_model.nv)
     state = (q, v, tau, acc)
+    # legkit's last body is Pinocchio's last joint (`models.build`: joint frames are body frames).
+    frame = pin_model.addFrame(pin.Frame("point", pin_model.njoints - 1, pin.SE3(np.eye(3), POINT), pin.FrameType.OP_FRAME))
     pin_data = pin_model.createData() if pin_model.njoints <= PIN_MAX_JOINTS else None
     if pin_data is not None:
-        result.max_error = max(check_equivalence(name, lk_model, pin_model, pin_data, state).values())
-    for algorithm, ((lk_f, lk_args), pin_call) in calls(lk_model, pin_model, pin_data, state).items():
+        result.max_error = max(check_equivalence(name, lk_model, pin_model, pin_data, frame, state).values())
+    for algorithm, ((lk_f, lk_args), pin_call) in calls(lk_model, pin_model, pin_data, frame, state).items():
         if pin_call is None:
             result.lk[algorithm], result.pin[algorithm] = time_call(lk_f, lk_args, settings), None
         else:

@@ -6,7 +6,7 @@
 //! Contact forces are 3-vectors in world axes acting on the robot at the points. These functions
 //! allocate their k-dependent matrices on each call.
 
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 use super::kinematics::body_motions;
 use super::{crba, jacobian, rnea, Frame};
@@ -71,9 +71,8 @@ fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[
 }
 
 /// The world-axes (classical) acceleration of each point, 3k: J_c q̈ + J̇_c q̇ at (q, v, q̈), or with
-/// q̈ None the velocity-product term γ = J̇_c q̇ alone. Runs forward kinematics.
+/// q̈ None the velocity-product term γ = J̇_c q̇ alone.
 pub fn point_accelerations(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Option<&[f64]>, points: &[ContactPoint]) -> DVector<f64> {
-    super::forward_kinematics(model, data, q);
     // The bodies' spatial accelerations (no gravity), then the points': a_point = R (a + α × r + ω × (v + ω × r)).
     body_motions(model, data, q, v, a, Motion::zeros());
     let mut out = DVector::zeros(3 * points.len());
@@ -81,9 +80,21 @@ pub fn point_accelerations(model: &Model, data: &mut Data, q: &[f64], v: &[f64],
         let (vb, ab, r) = (&data.v[point.body], &data.a[point.body], point.point);
         let w = angular(vb);
         let local = linear(ab) + angular(ab).cross(&r) + w.cross(&(linear(vb) + w.cross(&r)));
-        out.rows_mut(3 * c, 3).copy_from(&(data.o_m_i[point.body].rotation * local));
+        out.rows_mut(3 * c, 3).copy_from(&(world_rotation(model, data, point.body) * local));
     }
     out
+}
+
+/// A body's orientation in the world from the parent-frame poses `body_motions` leaves in `data.li_m_i`
+/// (its chain only, rather than forward kinematics over the whole tree).
+fn world_rotation(model: &Model, data: &Data, body: usize) -> Matrix3<f64> {
+    let mut rotation = data.li_m_i[body].rotation;
+    let mut j = body;
+    while j > 0 {
+        j = model.parent(j);
+        rotation = data.li_m_i[j].rotation * rotation;
+    }
+    rotation
 }
 
 /// Solves the symmetric positive semi-definite system `a x = b` in the least-squares, minimum-norm sense:
