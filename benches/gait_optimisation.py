@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 import legkit.optimize as lo
-from legkit.experiments.gait import AMBLE_QUADRUPED, BIPED_MOTOR, QUADRUPED_MOTOR, inverse_dynamics_residuals
+from legkit.experiments.gait import AMBLE_QUADRUPED, BIPED_MOTOR, QUADRUPED_MOTOR, inverse_dynamics_residuals, midpoint_stance_acceleration
 from legkit.optimize.gaits import (
     AMBLE_DERIVATIVES,
     AMBLE_IPOPT,
@@ -51,7 +51,7 @@ def report(label: str, problem: lo.MultiphaseProblem, result: lo.SolveResult, bu
     share = 100.0 * result.evaluation_time / result.wall_time
     x, objective = result.best()
     s_h = min(s.min() for s in problem.stability_index(x))
-    stance = max(float(np.linalg.norm(a[1::2], axis=-1).max(initial=0.0)) for a in problem.stance_accelerations(x))
+    stance = midpoint_stance_acceleration(problem, x)
     print(f"{label:<30} {result.status:<28} {result.iterations:6d} {build:7.1f} {result.wall_time:9.2f} {total:9.2f} {share:8.1f} "
           f"{problem.nlp().violation(x):10.2e} {-objective:9.4g} {s_h:9.4g} {stance:10.3g}", flush=True)
 

@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::convert::{kernel_error, to_numpy, vector3, FloatArray, Vector};
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_result, run_packed, unpack};
+use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
 
 /// Contact points from a sequence of (body, point) pairs: body index or name, point in the body's frame.
 fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<ContactPoint>> {
@@ -96,14 +96,13 @@ pub fn point_accelerations<'py>(
     let points = self::contacts(&model, contacts)?;
     let nv = model.model.nv();
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("a", &a, &[nv])])?;
-    let packed = run_packed(py, &model, &batch, 3 * points.len(), |m, w, i, out| {
+    run(py, &model, &batch, &[points.len(), 3], |m, w, i, out| {
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("a", a, nv)?;
-        out.copy_from_slice(algorithms::point_accelerations(m, w.data(), q, v, Some(a), &points).as_slice());
+        algorithms::point_accelerations(m, w.data(), q, v, Some(a), &points, out);
         Ok(())
-    })?;
-    Ok(unpack(py, &batch, &packed, &[&[points.len(), 3]]).into_iter().next().unwrap())
+    })
 }
 
 type Reduced<'py> = (

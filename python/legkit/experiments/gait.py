@@ -563,8 +563,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
         "function + Jacobian share of the solve [%]": 100.0 * result.evaluation_time / result.wall_time,
         "kept iterate (IPOPT's last unless a better one within tol)": float(kept),
         "max constraint violation (legkit dynamics)": problem.nlp().violation(x),
-        "largest stance-foot acceleration at the midpoints [m/s^2] (the knots hold 0)": max(float(np.linalg.norm(a[1::2], axis=-1).max(initial=0.0))
-                                                                                         for a in problem.stance_accelerations(x)),
+        "largest stance-foot acceleration at the midpoints [m/s^2] (the knots hold 0)": midpoint_stance_acceleration(problem, x),
         "S_H min, optimised [N m s]": worst, "S_H min at [s]": worst_t, "S_H min, reference [N m s]": float(reference_s_h.min()),
         **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d)
            for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
@@ -625,6 +624,12 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
             data["u"], joint_speed, BIPED_MOTOR.joint_max_speed, BIPED_MOTOR.gear_ratio, BIPED_MOTOR.efficiency, BIPED_MOTOR.slope))),
         "solver succeeded (1 = yes)": float(result.success),
     }
+
+
+def midpoint_stance_acceleration(problem: MultiphaseProblem, x: np.ndarray) -> float:
+    """The largest stance-foot acceleration [m/s^2] at the midpoints (`MultiphaseProblem.stance_accelerations`;
+    the knots hold it at 0): how far the collocation cubics between the knots are from a motion."""
+    return max(float(np.linalg.norm(a[1::2], axis=-1).max(initial=0.0)) for a in problem.stance_accelerations(x))
 
 
 def _whole_cycle(problem: MultiphaseProblem, x: np.ndarray) -> tuple[MultiphaseProblem, np.ndarray]:

@@ -127,7 +127,7 @@ def fri_deviation(weight: float = 1.0) -> Integral:
     def integrand(problem: MultiphaseProblem, z: np.ndarray, k: int) -> np.ndarray:
         feet = _support_bodies(problem, k)
         q, v = problem.configuration(z[:, : problem.nq]), z[:, problem.nq : problem.nx]
-        fri = foot_rotation_indicator(problem.model, q, v, problem.rate(z, k)[:, problem.nq :], feet)
+        fri = foot_rotation_indicator(problem.model, q, v, problem.accelerations(z, k), feet)
         gcom = np.asarray(lk.center_of_mass(problem.model, q))
         return np.sum((gcom[:, :2] - fri[:, :2]) ** 2, axis=1)
 

@@ -503,8 +503,11 @@ class MultiphaseProblem:
         slack = z[:, self.slack_columns[k]]
         if slack.shape[1]:
             v = v + np.einsum("bri,br->bi", self.contact_jacobian(q, self.phases[k].contacts), slack)
-        a = self.state_rate(z, k)[:, self.nq :] if self.transcription == "forward" else z[:, self.a_columns[k]]
-        return np.concatenate([self.q_rate(q, v), a], axis=1)
+        return np.concatenate([self.q_rate(q, v), self.accelerations(z, k)], axis=1)
+
+    def accelerations(self, z: np.ndarray, k: int) -> np.ndarray:
+        """a (B, nv) at phase k's point variables: the forward dynamics, or the inverse transcription's variables."""
+        return self.state_rate(z, k)[:, self.nq :] if self.transcription == "forward" else z[:, self.a_columns[k]]
 
     def rate_dependence(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """(nx, nz) bool twice: which point variables each component of `rate` depends on (structurally), and
@@ -695,7 +698,7 @@ class MultiphaseProblem:
             def accelerations(g: np.ndarray, columns: np.ndarray = acceleration_columns, points: list = points,
                               axes: np.ndarray = axes) -> np.ndarray:
                 z = full(g, columns)
-                a = self.rate(z, k)[:, nq:]
+                a = self.accelerations(z, k)
                 values = np.asarray(lk.point_accelerations(self.model, self.configuration(z[:, :nq]), z[:, nq:nx], a, points))
                 return values.reshape(len(g), -1)[:, axes]
 
@@ -1045,7 +1048,7 @@ class MultiphaseProblem:
 
     def stance_accelerations(self, x: np.ndarray) -> list[np.ndarray]:
         """Per phase (points, stance feet, 3): the world acceleration J a + dJ/dt v (`lk.point_accelerations`) of
-        each stance foot's point at the point's state and accelerations a (`rate`). A motion holds its stance
+        each stance foot's point at the point's state and accelerations a (`accelerations`). A motion holds its stance
         feet at rest, so these are zero on it (docs/optimize.md)."""
         out = []
         for k, phase in enumerate(self.phases):
@@ -1055,7 +1058,7 @@ class MultiphaseProblem:
                 out.append(np.zeros((len(z), 0, 3)))
                 continue
             q, v = self.configuration(z[:, : self.nq]), z[:, self.nq : self.nx]
-            out.append(np.asarray(lk.point_accelerations(self.model, q, v, self.rate(z, k)[:, self.nq :], held)))
+            out.append(np.asarray(lk.point_accelerations(self.model, q, v, self.accelerations(z, k), held)))
         return out
 
     def stability_index(self, x: np.ndarray) -> list[np.ndarray]:
@@ -1106,7 +1109,7 @@ class MultiphaseProblem:
                 mirrored = mirror.contacts(phase.contacts)
                 correction = mirror.v(np.einsum("bri,br->bi", self.contact_jacobian(trajectory.q[k], phase.contacts), slack[k]))
                 rows = self.contact_jacobian(q[len(self.phases) + k], mirrored)
-                slack.append(np.stack([np.linalg.lstsq(j.T, c, rcond=None)[0] for j, c in zip(rows, correction)]))
+                slack.append(np.einsum("bri,bi->br", np.linalg.pinv(np.swapaxes(rows, 1, 2)), correction))
         return Trajectory(
             twice(trajectory.t, lambda t: t + half), q,
             twice(trajectory.v, mirror.v), twice(trajectory.u, controls), twice(trajectory.forces, Mirror.vectors),
@@ -1156,7 +1159,7 @@ class MultiphaseProblem:
             v.append(z[:, self.nq : self.nx])
             u.append(z[:, self.nx : self.nx + self.nu])
             forces.append(self.world_forces(z[:, self.force_columns[k]], len(self.phases[k].contacts)))
-            a.append(self.rate(z, k)[:, self.nq :])
+            a.append(self.accelerations(z, k))
         return Trajectory(t, q, v, u, forces, durations, float(x[self.p1_index]), a, torques, slack)
 
 

@@ -67,22 +67,22 @@ fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[
         let j = jacobian(model, data, q, contact.body, &contact.point, Frame::LocalWorldAligned);
         jc.view_mut((3 * c, 0), (3, nv)).copy_from(&j.rows(0, 3));
     }
-    (jc, point_accelerations(model, data, q, v, None, contacts))
+    let mut gamma = DVector::zeros(3 * contacts.len());
+    point_accelerations(model, data, q, v, None, contacts, gamma.as_mut_slice());
+    (jc, gamma)
 }
 
-/// The world-axes (classical) acceleration of each point, 3k: J_c q̈ + J̇_c q̇ at (q, v, q̈), or with
-/// q̈ None the velocity-product term γ = J̇_c q̇ alone.
-pub fn point_accelerations(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Option<&[f64]>, points: &[ContactPoint]) -> DVector<f64> {
+/// Writes the world-axes (classical) acceleration of each point to `out` (3k): J_c q̈ + J̇_c q̇ at (q, v, q̈),
+/// or with q̈ None the velocity-product term γ = J̇_c q̇ alone.
+pub fn point_accelerations(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Option<&[f64]>, points: &[ContactPoint], out: &mut [f64]) {
     // The bodies' spatial accelerations (no gravity), then the points': a_point = R (a + α × r + ω × (v + ω × r)).
     body_motions(model, data, q, v, a, Motion::zeros());
-    let mut out = DVector::zeros(3 * points.len());
-    for (c, point) in points.iter().enumerate() {
+    for (point, chunk) in points.iter().zip(out.chunks_exact_mut(3)) {
         let (vb, ab, r) = (&data.v[point.body], &data.a[point.body], point.point);
         let w = angular(vb);
         let local = linear(ab) + angular(ab).cross(&r) + w.cross(&(linear(vb) + w.cross(&r)));
-        out.rows_mut(3 * c, 3).copy_from(&(world_rotation(model, data, point.body) * local));
+        chunk.copy_from_slice((world_rotation(model, data, point.body) * local).as_slice());
     }
-    out
 }
 
 /// A body's orientation in the world from the parent-frame poses `body_motions` leaves in `data.li_m_i`
