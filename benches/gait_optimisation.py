@@ -1,17 +1,18 @@
 """Gait optimisation benchmark: the Fig. 3 amble of file 003 (0.67 m/s, period 1.25 s, duty 0.5,
 full 3D model, 19 configuration states) maximising the worst-case S_H (J_s2) on IPOPT, or (--gait walk) the
-biped walk of Sect. 6 at 1.8 km/h minimising J_e1.
+biped walk of Sect. 6 at 1.8 km/h minimising J_e1. Both gaits are symmetric: by default half the cycle is
+transcribed, the other half its mirror image (--no-mirror: the whole cycle).
 
 Prints, for a cold start (from `legkit gait`'s hand-built reference, feasibility first, then J_s2 with L-BFGS,
-optionally polished with the exact Hessian) and a warm start (the exact Hessian from the point and multipliers
-of the solve at a neighbouring speed, its travel stretched to the new speed: `problem.solve(problem.continued(
-result, speed))`): IPOPT status, iterations, the symbolic build time, IPOPT's wall time, the
-solve call's total time (with casadi's solver build for an exact-Hessian --polish), the share
-of it spent evaluating the functions and their derivatives, the largest constraint violation re-evaluated by
-legkit's kernels, p1, the worst published S_H (eq. 10) and the largest stance-foot acceleration at the
+polished with the exact Hessian, durations held then free; --no-polish: L-BFGS only) and a warm start (the exact
+Hessian from the point and multipliers of the solve at a neighbouring speed, its travel stretched to the new
+speed: `problem.solve(problem.continued(result, speed))`): IPOPT status, iterations, the symbolic build time,
+IPOPT's wall time, the solve call's total time (with casadi's solver build for an exact-Hessian --polish), the
+share of it spent evaluating the functions and their derivatives, the largest constraint violation re-evaluated
+by legkit's kernels, p1, the worst published S_H (eq. 10) and the largest stance-foot acceleration at the
 midpoints (`MultiphaseProblem.stance_accelerations`; the knots hold it at 0, docs/optimize.md).
 
-    PYTHONPATH=python python3 benches/gait_optimisation.py [--intervals 4] [--max-iter 300] [--neighbour 0.6] [--polish]
+    PYTHONPATH=python python3 benches/gait_optimisation.py [--intervals 4] [--max-iter 300] [--neighbour 0.6] [--no-mirror] [--no-polish]
 
 The walk (cold, from `legkit gait`'s hand-built walk, constraints first by `solve_walk`): status, iterations,
 wall and CPU time of the solve, the evaluation share, the violation re-evaluated by legkit's kernels, J_e1
@@ -64,7 +65,8 @@ def walk(args: argparse.Namespace) -> None:
     problem = walk_problem(robot, 0.5, BIPED_MOTOR, intervals, mirror=args.mirror)
     guess = guess_from_reference(problem, walk_reference(robot, 0.5, intervals))
     print(f"biped walk, 1.8 km/h, intervals {intervals} per (double, single) support, tol {args.tol:g}: {problem.n} variables, "
-          f"{problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros; constraints (legkit, L-BFGS), then J_e1 ({derivatives})")
+          f"{problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros ({'mirrored half' if args.mirror else 'whole'} cycle); "
+          f"constraints (legkit, L-BFGS), then J_e1 ({derivatives})")
     cpu = time.process_time()
     _, result = solve_walk(problem, guess, derivatives, tol=args.tol, max_iter=args.max_iter)
     cpu = time.process_time() - cpu
@@ -84,8 +86,10 @@ def main() -> None:
     parser.add_argument("--speed", type=float, default=0.67)
     parser.add_argument("--neighbour", type=float, default=0.60, help="speed [m/s] whose optimum warm-starts --speed")
     parser.add_argument("--derivatives", choices=("exact", "legkit"), help="default: the gait's (AMBLE_ / WALK_DERIVATIVES)")
-    parser.add_argument("--mirror", action="store_true", help="transcribe half the cycle, the other half its mirror image")
-    parser.add_argument("--polish", action="store_true", help="amble: after legkit's L-BFGS runs, an exact-Hessian polish")
+    parser.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=True,
+                        help="transcribe half the cycle, the other half its mirror image (--no-mirror: the whole cycle)")
+    parser.add_argument("--polish", action=argparse.BooleanOptionalAction, default=True,
+                        help="amble: after legkit's L-BFGS runs, an exact-Hessian polish (durations held, then free)")
     parser.add_argument("--polish-max-iter", type=int, default=1000, help="amble: IPOPT iteration limit of the polish and of the warm start")
     args = parser.parse_args()
     if args.gait == "walk":
@@ -112,7 +116,8 @@ def main() -> None:
         return p, result, build, time.perf_counter() - start
 
     print(f"amble, {args.intervals} intervals per phase, tol {args.tol:g}; IPOPT (casadi {__import__('casadi').__version__}), "
-          f"MUMPS, {args.derivatives} derivatives; cold: feasibility first, then J_s2" + (", then an exact-Hessian polish" if args.polish else ""))
+          f"MUMPS, {args.derivatives} derivatives, {'mirrored half' if args.mirror else 'whole'} cycle; cold: feasibility first, then J_s2"
+          + (", then an exact-Hessian polish" if args.polish else ""))
     print(f"{'run':<30} {'status':<28} {'iter':>6} {'build':>7} {'wall [s]':>9} {'total [s]':>9} {'f+J [%]':>8} {'violation':>10} "
           f"{'p1':>9} {'S_H min':>9} {'foot acc':>10}")
     target, result, build, total = cold(args.speed)

@@ -36,15 +36,15 @@ def test_amble_guess_lies_on_the_reference_and_wraps_around_by_one_stride():
 @pytest.mark.slow
 @pytest.mark.parametrize("mode", ["whole_cycle", "mirrored_half", "no_polish"])
 def test_cli_optimize_prints_each_iteration_and_writes_csv_and_figure(tmp_path, capsys, mode):
-    # With --mirror the half cycle is optimised and everything after sees the whole cycle, unrolled.
+    # By default (--mirror) the half cycle is optimised and everything after sees the whole cycle, unrolled.
     iterations = 3
-    flags = {"whole_cycle": [], "mirrored_half": ["--mirror", "--no-animation"], "no_polish": ["--no-polish", "--no-animation"]}[mode]
+    flags = {"whole_cycle": ["--no-mirror"], "mirrored_half": ["--no-animation"], "no_polish": ["--no-polish", "--no-animation"]}[mode]
     assert gait.main(["--robot", "quadruped", "--optimize", "--intervals", "1", "--max-iter", str(iterations), "--polish-max-iter",
                       str(iterations), "--replay-cycles", "1", "--out", str(tmp_path)] + flags) == 0
     out = capsys.readouterr().out
-    # Two continuation stages (constraints first, then J_s2), by default a third (the exact-Hessian polish), each
-    # with IPOPT's iterate 0 too.
-    stages = 2 if mode == "no_polish" else 3
+    # Two continuation stages (constraints first, then J_s2), by default two more (the exact-Hessian polish with the
+    # phase durations held, then free), each with IPOPT's iterate 0 too.
+    stages = 2 if mode == "no_polish" else 4
     assert sum(line.strip().startswith("iter ") for line in out.splitlines()) == stages * (iterations + 1)
     assert "replay: stayed upright" in out and "S_H min, reference" in out and "largest stance-foot acceleration" in out
     with (tmp_path / "gait_quadruped_optimized.csv").open() as handle:

@@ -988,10 +988,13 @@ class MultiphaseProblem:
         constraints alone with p1 held below every S_H row, then the objective from that feasible point with p1
         at its worst S_H row. polish (with derivatives="legkit"): the L-BFGS run on the objective ends once it
         stalls (`POLISH_SWITCH`; options' stall replaces it, and applies to the objective's run only), then IPOPT
-        runs once more from its best point (its last after a stall), with the exact Hessian and a small initial
-        barrier parameter (`POLISH_MU_INIT`), within polish_max_iter iterations (the L-BFGS runs take options'
-        max_iter); its solver is built in a thread while the L-BFGS runs go on. L-BFGS keeps climbing where the
-        exact Hessian converges (docs/optimize.md).
+        runs twice more from its best point (its last after a stall), with the exact Hessian and a small initial
+        barrier parameter (`POLISH_MU_INIT`), each within polish_max_iter iterations (the L-BFGS runs take options'
+        max_iter): first with the phase durations held at that point's, then with them free, from the held run's
+        point and multipliers. The durations are the slow variables: released at once, they crept to their
+        optimum over ~1000 iterations on the mirrored amble at 0.60 m/s; held first, 116 + 180 (docs/optimize.md).
+        Its solver is built in a thread while the L-BFGS runs go on. L-BFGS keeps climbing where the exact Hessian
+        converges (docs/optimize.md).
         The result's iterations, times and history cover every run; its times are IPOPT's, without the builds."""
         if polish and derivatives != "legkit":
             raise ValueError(f"polish follows a solve with derivatives='legkit', got derivatives={derivatives!r}")
@@ -1025,7 +1028,11 @@ class MultiphaseProblem:
             result = solve(nlp, x0, multipliers=multipliers, stall=stall, **options)
         if polish:
             built.result()
-            result = solve(self.nlp("exact"), result.x if result.status == "User_Requested_Stop" else result.best()[0], **exact).after(result)
+            start = result.x if result.status == "User_Requested_Stop" else result.best()[0]
+            held = self.nlp("exact")  # the phase durations held where L-BFGS left them
+            held.x_lower[self.duration_index] = held.x_upper[self.duration_index] = start[self.duration_index]
+            result = solve(held, start, **exact).after(result)
+            result = solve(self.nlp("exact"), result.x, multipliers=result.multipliers, **exact).after(result)
         return self.unpack(result.best()[0]), result
 
     def continued(self, result: SolveResult, speed: float) -> SolveResult:

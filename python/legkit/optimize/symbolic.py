@@ -79,6 +79,7 @@ class SymbolicModel:
         self.inertias = [model.body(i) for i in range(self.bodies)]
         self.gravity = np.asarray(model.gravity, dtype=np.float64)
         self.total_mass = float(model.total_mass)
+        self._recent: list[tuple[tuple, Any]] = []  # `_shared`'s last few passes
 
     # -------------------------------------------------------------- kinematics
     def _joint(self, i: int, q: Any) -> Any:
@@ -107,39 +108,63 @@ class SymbolicModel:
         """Per body: world rotation, world position, and (with v, a) body-frame spatial velocity and
         acceleration (gravity folded in as an upward acceleration of the world when a is given)."""
         ca = _ca()
-        rotations: list[Any] = []
-        positions: list[Any] = []
-        velocities: list[Any] = []
+        rotations, positions, local = self._placements(q)
+        if v is None:
+            return rotations, positions, [], [], local
+        velocities = self._velocities(q, v)
         accelerations: list[Any] = []
-        local: list[Any] = []
-        for i in range(self.bodies):
-            r, p, s = self._joint(i, q)
-            parent = self.parents[i]
-            k, vi = self._dofs(i), self.idx_v[i]
-            local.append((r, p, s))
-            if i == 0:
-                rotations.append(r)
-                positions.append(p)
-            else:
-                rotations.append(rotations[parent] @ r)
-                positions.append(positions[parent] + rotations[parent] @ p)
-            if v is None:
-                continue
-            if i == 0:
-                v_parent = ca.DM.zeros(6)
-                a_parent = ca.vertcat(ca.DM(-self.gravity), ca.DM.zeros(3)) if a is not None else None
-            else:
-                v_parent, a_parent = velocities[parent], accelerations[parent] if a is not None else None
-            vel = self._transform_motion(r, p, v_parent)
-            if k:
-                vel = vel + s @ v[vi : vi + k]
-            velocities.append(vel)
-            if a is not None:
-                acc = self._transform_motion(r, p, a_parent)
+        if a is not None:
+            for i in range(self.bodies):
+                r, p, s = local[i]
+                k, vi = self._dofs(i), self.idx_v[i]
+                parent = ca.vertcat(ca.DM(-self.gravity), ca.DM.zeros(3)) if i == 0 else accelerations[self.parents[i]]
+                acc = self._transform_motion(r, p, parent)
                 if k:
-                    acc = acc + s @ a[vi : vi + k] + self._cross_motion(vel, s @ v[vi : vi + k])
+                    acc = acc + s @ a[vi : vi + k] + self._cross_motion(velocities[i], s @ v[vi : vi + k])
                 accelerations.append(acc)
         return rotations, positions, velocities, accelerations, local
+
+    def _shared(self, inputs: tuple, compute: Any) -> Any:
+        """compute(), or its value from an earlier call on the same SX nodes. A point function asks for the
+        same kinematics several times (the COM, the momentum, the feet, the wrenches); sharing one pass keeps
+        the graph, and above all its Hessian, free of copies (the S_H rows' Hessian: 2.6 M -> instructions)."""
+        ca = _ca()
+        for key, value in self._recent:
+            if len(key) == len(inputs) and all(ca.is_equal(x, y, 0) for x, y in zip(key, inputs, strict=True)):
+                return value
+        value = compute()
+        self._recent = [(inputs, value), *self._recent[:3]]
+        return value
+
+    def _placements(self, q: Any) -> Any:
+        """Per body: world rotation and position, and its joint's (R, p, S) in the parent frame."""
+
+        def compute() -> Any:
+            local = [self._joint(i, q) for i in range(self.bodies)]
+            rotations: list[Any] = []
+            positions: list[Any] = []
+            for i, (r, p, _) in enumerate(local):
+                parent = self.parents[i]
+                rotations.append(r if i == 0 else rotations[parent] @ r)
+                positions.append(p if i == 0 else positions[parent] + rotations[parent] @ p)
+            return rotations, positions, local
+
+        return self._shared((q,), compute)
+
+    def _velocities(self, q: Any, v: Any) -> list[Any]:
+        """Per body: body-frame spatial velocity."""
+        ca = _ca()
+        local = self._placements(q)[2]
+
+        def compute() -> list[Any]:
+            velocities: list[Any] = []
+            for i, (r, p, s) in enumerate(local):
+                k, vi = self._dofs(i), self.idx_v[i]
+                vel = self._transform_motion(r, p, ca.DM.zeros(6) if i == 0 else velocities[self.parents[i]])
+                velocities.append(vel + s @ v[vi : vi + k] if k else vel)
+            return velocities
+
+        return self._shared((q, v), compute)
 
     @staticmethod
     def _transform_motion(r: Any, p: Any, motion: Any) -> Any:
