@@ -795,7 +795,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-animation", action="store_true", help="--optimize: do not write the replay's .html and .gif")
     parser.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=True,
                         help="--optimize: transcribe half of each gait's cycle, the other half its mirror image (mirror periodicity; "
-                             "the amble converges 3-6x faster than its whole cycle, docs/optimize.md); --no-mirror: the whole cycle")
+                             "the amble converged 2-6x faster than its whole cycle, docs/optimize.md); --no-mirror: the whole cycle")
     parser.add_argument("--polish", action=argparse.BooleanOptionalAction, default=True,
                         help="--optimize: after the amble's L-BFGS runs (J_s2's ended once it stalls), IPOPT with the exact Hessian "
                              "from their best point, first with the phase durations held, then free, which converges J_s2 (docs/optimize.md)")
