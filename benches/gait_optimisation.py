@@ -1,7 +1,7 @@
 """Gait optimisation benchmark: the Fig. 3 amble of file 003 (0.67 m/s, period 1.25 s, duty 0.5,
 full 3D model, 19 configuration states) maximising the worst-case S_H (J_s2) on IPOPT, or (--gait walk) the
-biped walk of Sect. 6 at 1.8 km/h minimising J_e1. Both gaits are symmetric: by default half the cycle is
-transcribed, the other half its mirror image (--no-mirror: the whole cycle).
+biped walk of Sect. 6 at 1.8 km/h minimising J_e1. By default the amble's half cycle is transcribed, the other
+half its mirror image, and the walk's whole cycle (`AMBLE_MIRROR`, `WALK_MIRROR`; --mirror / --no-mirror).
 
 Prints, for a cold start (from `legkit gait`'s hand-built reference, feasibility first, then J_s2 with L-BFGS,
 polished with the exact Hessian, durations held then free; --no-polish: L-BFGS only) and a warm start (the exact
@@ -33,7 +33,9 @@ from legkit.experiments.gait import AMBLE_QUADRUPED, BIPED_MOTOR, QUADRUPED_MOTO
 from legkit.optimize.gaits import (
     AMBLE_DERIVATIVES,
     AMBLE_IPOPT,
+    AMBLE_MIRROR,
     WALK_DERIVATIVES,
+    WALK_MIRROR,
     amble_problem,
     amble_reference,
     guess_from_reference,
@@ -86,16 +88,19 @@ def main() -> None:
     parser.add_argument("--speed", type=float, default=0.67)
     parser.add_argument("--neighbour", type=float, default=0.60, help="speed [m/s] whose optimum warm-starts --speed")
     parser.add_argument("--derivatives", choices=("exact", "legkit"), help="default: the gait's (AMBLE_ / WALK_DERIVATIVES)")
-    parser.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=True,
-                        help="transcribe half the cycle, the other half its mirror image (--no-mirror: the whole cycle)")
+    parser.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None,
+                        help="transcribe half the cycle, the other half its mirror image (--no-mirror: the whole cycle); default: the gait's "
+                             "(AMBLE_ / WALK_MIRROR)")
     parser.add_argument("--polish", action=argparse.BooleanOptionalAction, default=True,
                         help="amble: after legkit's L-BFGS runs, an exact-Hessian polish (durations held, then free)")
     parser.add_argument("--polish-max-iter", type=int, default=1000, help="amble: IPOPT iteration limit of the polish and of the warm start")
     args = parser.parse_args()
     if args.gait == "walk":
+        args.mirror = WALK_MIRROR if args.mirror is None else args.mirror
         walk(args)
         return
     args.derivatives = args.derivatives or AMBLE_DERIVATIVES
+    args.mirror = AMBLE_MIRROR if args.mirror is None else args.mirror
     robot = build_quadruped(AMBLE_QUADRUPED)
     objective = [lo.MinMaxStability(2.0, DIAGONAL_PAIRS)]
     options = {"tol": args.tol, "max_iter": args.max_iter, "derivatives": args.derivatives, "options": AMBLE_IPOPT, "polish": args.polish,

@@ -521,6 +521,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     from legkit.optimize.gaits import (
         AMBLE_DERIVATIVES,
         AMBLE_IPOPT,
+        AMBLE_MIRROR,
         amble_problem,
         amble_reference,
         guess_from_reference,
@@ -530,7 +531,8 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     robot = build_quadruped(AMBLE_QUADRUPED)
     speed, period = args.quadruped_speed, args.quadruped_period
     problem = amble_problem(robot, [MinMaxStability(args.quadruped_tip_speed, DIAGONAL_PAIRS)], speed, period,
-                            args.intervals, QUADRUPED_MOTOR, args.mu, max_impulse=args.max_impulse, mirror=args.mirror)
+                            args.intervals, QUADRUPED_MOTOR, args.mu, max_impulse=args.max_impulse,
+                            mirror=AMBLE_MIRROR if args.mirror is None else args.mirror)
     ref = amble_reference(robot, speed, period, args.intervals)
     guess = guess_from_reference(problem, ref)
     reference_s_h = np.concatenate(problem.stability_index(problem.pack(guess)))
@@ -581,12 +583,13 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
     IPOPT iteration. Writes gait_biped_optimized.csv (every collocation point: t, phase, support, q, v, u, the
     feet's forces and torques) and gait_biped_torque_speed.png (Fig. 6: each joint's (speed, torque) points over
     the period against the motor's characteristic lines for several gear ratios)."""
-    from legkit.optimize.gaits import guess_from_reference, solve_walk, walk_problem, walk_reference
+    from legkit.optimize.gaits import WALK_MIRROR, guess_from_reference, solve_walk, walk_problem, walk_reference
 
     robot = build_biped()
     speed = args.biped_speed / 3.6
     intervals = (max(1, args.biped_intervals // 4), args.biped_intervals)
-    problem = walk_problem(robot, speed, BIPED_MOTOR, intervals, args.mu, max_input_power=args.biped_max_power, mirror=args.mirror)
+    problem = walk_problem(robot, speed, BIPED_MOTOR, intervals, args.mu, max_input_power=args.biped_max_power,
+                           mirror=WALK_MIRROR if args.mirror is None else args.mirror)
     guess = guess_from_reference(problem, walk_reference(robot, speed, intervals))
     print(f"optimising the biped walk: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
     cpu = time.process_time()
@@ -793,9 +796,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-impulse", type=float, default=0.0,
                         help="--optimize: bound on the amble's touchdown impulses [N s] (0: feet land at rest; inf: eq. 7 unbounded)")
     parser.add_argument("--no-animation", action="store_true", help="--optimize: do not write the replay's .html and .gif")
-    parser.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=True,
-                        help="--optimize: transcribe half of each gait's cycle, the other half its mirror image (mirror periodicity; "
-                             "the amble converged 2-6x faster than its whole cycle, docs/optimize.md); --no-mirror: the whole cycle")
+    parser.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None,
+                        help="--optimize: transcribe half of each gait's cycle, the other half its mirror image (mirror periodicity), "
+                             "or (--no-mirror) the whole cycle; default: the amble's half (AMBLE_MIRROR), the walk's whole cycle (WALK_MIRROR)")
     parser.add_argument("--polish", action=argparse.BooleanOptionalAction, default=True,
                         help="--optimize: after the amble's L-BFGS runs (J_s2's ended once it stalls), IPOPT with the exact Hessian "
                              "from their best point, first with the phase durations held, then free, which converges J_s2 (docs/optimize.md)")

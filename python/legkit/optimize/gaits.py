@@ -44,6 +44,10 @@ AMBLE_IPOPT = {"mu_strategy": "monotone"}
 #: Hessian meets the constraints in fewer iterations (20 vs 78).
 AMBLE_DERIVATIVES = "legkit"
 
+#: The amble is transcribed as a mirrored half cycle by default: with the polish's durations held first it
+#: converges 2-6x faster than its whole cycle, to the same worst-case S_H (docs/optimize.md).
+AMBLE_MIRROR = True
+
 #: The amble's support pairs in time order from t = 0 (file 003, Sect. 4.2).
 AMBLE_SUPPORT = (("lf", "lh"), ("lf", "rh"), ("rf", "rh"), ("rf", "lh"))
 
@@ -105,6 +109,11 @@ WALK_IPOPT = {"mu_strategy": "monotone"}
 #: Derivatives for the walk's J_e1 stage: legkit's kernels with L-BFGS reached a lower J_e1 in a third of the CPU
 #: time of the exact Hessian (3.0 vs 6.9 J/m after 550-600 iterations, 92 vs 274 s CPU; docs/optimize.md).
 WALK_DERIVATIVES = "legkit"
+
+#: The walk is transcribed over its whole cycle by default: its mirrored half (28 s instead of 40 s) holds the
+#: torso's roll at its bound on the quaternion's x, and the mirror image, scaled to the quaternion norm the
+#: collocation drifted to over the half (1.0017), exceeds that bound by 1.5e-4 in the whole cycle (docs/optimize.md).
+WALK_MIRROR = False
 
 
 def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: tuple[int, int] = (1, 4),
