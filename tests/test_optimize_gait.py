@@ -47,6 +47,7 @@ def test_cli_optimize_prints_each_iteration_and_writes_csv_and_figure(tmp_path, 
     stages = 2 if mode == "no_polish" else 4
     assert sum(line.strip().startswith("iter ") for line in out.splitlines()) == stages * (iterations + 1)
     assert "replay: stayed upright" in out and "S_H min, reference" in out and "largest stance-foot acceleration" in out
+    assert "largest drift over one interval, attitude [deg]" in out
     with (tmp_path / "gait_quadruped_optimized.csv").open() as handle:
         rows = list(csv.DictReader(handle))
     assert len(rows) == 4 * 3  # four phases of three collocation points

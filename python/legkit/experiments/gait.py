@@ -566,6 +566,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
         "kept iterate (IPOPT's last unless a better one within tol)": float(kept),
         "max constraint violation (legkit dynamics)": problem.nlp().violation(x),
         "largest stance-foot acceleration at the midpoints [m/s^2] (the knots hold 0)": midpoint_stance_acceleration(problem, x),
+        **interval_drift_summary(problem, x),
         "S_H min, optimised [N m s]": worst, "S_H min at [s]": worst_t, "S_H min, reference [N m s]": float(reference_s_h.min()),
         **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d)
            for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
@@ -620,6 +621,7 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
         "solve CPU time of this process [s]": cpu, "J_e1 (eq. 12) [J/m]": objective,
         "max constraint violation (legkit dynamics)": problem.nlp().violation(x),
         "max |rnea - B u| (lk.rnea) [N m]": float(np.max(np.abs(np.concatenate(inverse_dynamics_residuals(problem, x))))),
+        **interval_drift_summary(problem, x),
         "period [s]": float(np.sum(trajectory.durations)), "step length [m]": 0.5 * speed * float(np.sum(trajectory.durations)),
         **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d)
            for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
@@ -627,6 +629,17 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
             data["u"], joint_speed, BIPED_MOTOR.joint_max_speed, BIPED_MOTOR.gear_ratio, BIPED_MOTOR.efficiency, BIPED_MOTOR.slope))),
         "solver succeeded (1 = yes)": float(result.success),
     }
+
+
+def interval_drift_summary(problem: MultiphaseProblem, x: np.ndarray) -> dict[str, float]:
+    """The largest drift of the model's own dynamics over one collocation interval (`legkit.optimize.shooting`):
+    how far the mesh is from a motion. Large values (degrees of attitude, tenths of a radian) ask for more
+    intervals (--intervals, --biped-intervals)."""
+    from legkit.optimize import interval_drift
+
+    worst = interval_drift(problem, x).worst(problem.model.floating_base)
+    return {f"largest drift over one interval, {name}": value for name, value in worst.items()
+            if name in ("attitude [deg]", "joints", "joint rates")}
 
 
 def midpoint_stance_acceleration(problem: MultiphaseProblem, x: np.ndarray) -> float:
