@@ -170,6 +170,10 @@ def test_gait_cli_rejects_bad_arguments():
         gait.main(["--robot", "hexapod"])
     with pytest.raises(SystemExit):
         gait.main(["--mu", "-1"])
+    with pytest.raises(SystemExit):
+        gait.main(["--min-normal-force", "-1"])
+    with pytest.raises(SystemExit):
+        gait.main(["--replay-controller", "lqr"])
 
 
 def test_gait_defaults_are_the_published_amble(tmp_path):

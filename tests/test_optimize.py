@@ -304,6 +304,18 @@ def test_single_leg_hop_reaches_the_known_optimum():
     assert np.all(trajectory.forces[0][..., 2] > 0.0) and np.all(trajectory.q[1].sum(axis=1) >= -1e-8)
 
 
+def test_min_normal_force_bounds_every_stance_normal_force_and_nothing_else():
+    problem, _ = quadruped_problem([effort()])
+    floored, _ = quadruped_problem([effort()])
+    floored = replace(floored, min_normal_force=2.5)
+    (lower, upper), (floored_lower, floored_upper) = problem.bounds(), floored.bounds()
+    normal = np.concatenate([index[:, problem.force_columns[k]][:, 2::3].ravel() for k, index in enumerate(problem.point_index)])
+    assert np.all(lower[normal] == 0.0) and np.all(floored_lower[normal] == 2.5)
+    others = np.setdiff1d(np.arange(problem.n), normal)
+    np.testing.assert_array_equal(floored_lower[others], lower[others])
+    np.testing.assert_array_equal(floored_upper, upper)
+
+
 @pytest.mark.parametrize("change, message", [
     ({"phases": []}, "phases must hold"),
     ({"phases": [Phase(("lf", "lh")), Phase(("lf", "lh"))]}, r"phases\[1\] has the same contacts"),
@@ -315,6 +327,7 @@ def test_single_leg_hop_reaches_the_known_optimum():
     ({"period": (5.0, 6.0)}, "period .* cannot be met"),
     ({"force_dims": 2}, "force_dims must be 1 or 3"),
     ({"friction": 0.0}, "friction must be > 0"),
+    ({"min_normal_force": -1.0}, "min_normal_force must be finite and >= 0"),
     ({"actuated": [3, 3]}, "actuated must list distinct"),
     ({"objectives": [MinMaxStability(2.0)], "phases": [Phase(("lf",)), Phase(("rf", "rh"))]}, "MinMaxStability needs two feet"),
 ])

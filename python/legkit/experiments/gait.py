@@ -515,7 +515,8 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     (default 0: the feet land at rest; docs/optimize.md, replay); one progress line per IPOPT iteration.
     Writes gait_quadruped_optimized.csv (every collocation point: t, phase, support, q, v, u, S_H) and .png
     (S_H over the period with its worst case marked, beside the reference's), then replays the gait in
-    `lk.Simulation` (joint PD tracking with --replay-kp, --replay-kd + feed-forward torques) over --replay-cycles cycles and, unless
+    `lk.Simulation` (joint PD tracking with --replay-kp, --replay-kd + feed-forward torques, or with --replay-controller
+    mpc the contact-constrained MPC of `legkit.optimize.tracking`) over --replay-cycles cycles and, unless
     --no-animation, writes the replay beside the plan as .html (meshcat) and .gif."""
     from legkit.optimize import MinMaxStability
     from legkit.optimize.gaits import (
@@ -527,12 +528,13 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
         guess_from_reference,
     )
     from legkit.optimize.replay import replay
+    from legkit.optimize.tracking import track
 
     robot = build_quadruped(AMBLE_QUADRUPED)
     speed, period = args.quadruped_speed, args.quadruped_period
     problem = amble_problem(robot, [MinMaxStability(args.quadruped_tip_speed, DIAGONAL_PAIRS)], speed, period,
                             args.intervals, QUADRUPED_MOTOR, args.mu, max_impulse=args.max_impulse,
-                            mirror=AMBLE_MIRROR if args.mirror is None else args.mirror)
+                            mirror=AMBLE_MIRROR if args.mirror is None else args.mirror, min_normal_force=args.min_normal_force)
     ref = amble_reference(robot, speed, period, args.intervals)
     guess = guess_from_reference(problem, ref)
     reference_s_h = np.concatenate(problem.stability_index(problem.pack(guess)))
@@ -557,7 +559,10 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     worst, worst_t = st.worst_case(columns["S_H"], data["t"])
     _plot_optimized(args.out / "gait_quadruped_optimized.png", data["t"], columns["S_H"], guess.stacked()["t"], reference_s_h, labels, worst, worst_t,
                     f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}, iterate {kept} kept")
-    simulated = replay(problem, trajectory, args.replay_cycles, kp=args.replay_kp, kd=args.replay_kd, control_every=1)
+    if args.replay_controller == "mpc":
+        simulated = track(problem, trajectory, args.replay_cycles)
+    else:
+        simulated = replay(problem, trajectory, args.replay_cycles, kp=args.replay_kp, kd=args.replay_kd, control_every=1)
     if not args.no_animation:
         _animate_replay(args.out / "gait_quadruped_optimized", problem.model, simulated)
     return {
@@ -806,6 +811,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--replay-cycles", type=_positive_int, default=5, help="--optimize: cycles replayed in simulation")
     parser.add_argument("--replay-kp", type=float, default=50.0, help="--optimize: joint PD stiffness of the replay [N m/rad]")
     parser.add_argument("--replay-kd", type=float, default=1.0, help="--optimize: joint PD damping of the replay [N m s/rad]")
+    parser.add_argument("--replay-controller", choices=("pd", "mpc"), default="pd",
+                        help="--optimize: the amble's replay: joint PD + feed-forward (pd), or the contact-constrained model-predictive "
+                             "tracking of legkit.optimize.tracking (mpc; its plan needs a fine mesh and a force floor: --intervals 16 "
+                             "--min-normal-force 3 --mu 0.6, docs/optimize.md)")
+    parser.add_argument("--min-normal-force", type=float, default=0.0,
+                        help="--optimize: floor on every stance normal force of the amble's plan [N] (0: eq. 5 as published)")
     parser.add_argument("--max-impulse", type=float, default=0.0,
                         help="--optimize: bound on the amble's touchdown impulses [N s] (0: feet land at rest; inf: eq. 7 unbounded)")
     parser.add_argument("--no-animation", action="store_true", help="--optimize: do not write the replay's .html and .gif")
@@ -824,6 +835,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--{name.replace('_', '-')} must be a positive number")
     if args.biped_max_power is not None and not (np.isfinite(args.biped_max_power) and args.biped_max_power > 0.0):
         parser.error("--biped-max-power must be a positive number")
+    if not (np.isfinite(args.min_normal_force) and args.min_normal_force >= 0.0):
+        parser.error("--min-normal-force must be a non-negative number")
     args.out.mkdir(parents=True, exist_ok=True)
     robots = ["quadruped", "biped"] if args.robot == "both" else [args.robot]
     if args.optimize:

@@ -176,7 +176,9 @@ class MultiphaseProblem:
     `FlatFoot` soles by foot name (eq. 6; needs force_dims 3). q/v/u_bounds: (lower, upper) arrays.
     max_impulse: a bound [N s] on every component of every touchdown impulse (eq. 7, the impulse variables); 0
     makes every touchdown soft, the landing feet arriving at rest and v continuous (a gait whose impacts carry
-    the robot's momentum cannot be replayed by joint tracking: docs/optimize.md).
+    the robot's momentum cannot be replayed by joint tracking: docs/optimize.md). min_normal_force [N]: a floor
+    on every stance foot's normal force at every point (eq. 5 with a margin: the min-max S_H optimum otherwise
+    balances on one foot of two, leaving a tracking controller nothing to push with on the other).
     objectives: terms from `legkit.optimize.objectives`, summed.
     """
 
@@ -202,6 +204,7 @@ class MultiphaseProblem:
     transcription: str = "inverse"
     max_swing_height: float = np.inf  # [m] swing tips stay between the ground (eq. 4) and this height
     max_impulse: float = np.inf  # [N s] bound on every component of every touchdown impulse (0: feet land at rest)
+    min_normal_force: float = 0.0  # [N] floor on every stance normal force
     flat_feet: Mapping[str, FlatFoot] = field(default_factory=dict)
     mirror: Mirror | None = None
 
@@ -278,6 +281,8 @@ class MultiphaseProblem:
             raise ValueError(f"max_swing_height must be > 0, got {self.max_swing_height}")
         if not self.max_impulse >= 0.0:
             raise ValueError(f"max_impulse must be >= 0, got {self.max_impulse}")
+        if not 0.0 <= self.min_normal_force < np.inf:
+            raise ValueError(f"min_normal_force must be finite and >= 0, got {self.min_normal_force}")
         if not self.friction > 0.0:
             raise ValueError(f"friction must be > 0, got {self.friction}")
         if self.input_power is not None:
@@ -918,7 +923,7 @@ class MultiphaseProblem:
                     lower[index[:, part]] = np.asarray(bounds[0], dtype=np.float64)
                     upper[index[:, part]] = np.asarray(bounds[1], dtype=np.float64)
             normal = index[:, self.force_columns[k]][:, self.force_dims - 1 :: self.force_dims]
-            lower[normal] = 0.0  # unilateral contact (eq. 5)
+            lower[normal] = self.min_normal_force  # unilateral contact (eq. 5), with its margin
             lower[index[0::2, self.slack_columns[k]]] = upper[index[0::2, self.slack_columns[k]]] = 0.0  # the slack acts at the midpoints
             lower[self.duration_index[k]], upper[self.duration_index[k]] = phase.duration
         for state, point in ((self.initial, self.point_index[0][0]), (self.final, self.point_index[-1][-1])):

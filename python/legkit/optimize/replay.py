@@ -172,6 +172,12 @@ def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, 
         sim.set_servo(stiffness, damping, target_q=planned_q[i], target_v=planned_v[i])
         sim.step(tau[i], control_every)
         simulated[i + 1] = sim.q
+    return outcome(problem, t, simulated, planned_q)
+
+
+def outcome(problem: MultiphaseProblem, t: np.ndarray, simulated: np.ndarray, planned_q: np.ndarray) -> Replay:
+    """A simulated run judged against the plan at the same instants (`Replay`)."""
+    model = problem.model
     standing = np.ones(len(t), dtype=bool)
     if model.floating_base:  # judged against the plan, whose torso may itself lean
         tilt = np.einsum("si,si->s", rotation(simulated[:, 3:7])[:, :, 2], rotation(planned_q[:, 3:7])[:, :, 2])

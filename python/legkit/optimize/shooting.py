@@ -77,6 +77,17 @@ def tangent_difference(problem: MultiphaseProblem, q: np.ndarray, reference: np.
     return np.concatenate([q[:, :3] - reference[:, :3], Rotation.from_matrix(relative).as_rotvec(), q[:, 7:] - reference[:, 7:]], axis=1)
 
 
+def tangent_add(problem: MultiphaseProblem, reference: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """(B, nq): reference moved by d (B, nv) in the tangent space; the inverse of `tangent_difference`."""
+    if not problem.model.floating_base:
+        return reference + d
+    q = np.array(np.broadcast_to(reference, d.shape[:-1] + reference.shape[-1:]), dtype=np.float64)
+    q[:, :3] += d[:, :3]
+    q[:, 3:7] = Rotation.from_matrix(rotation(q[:, 3:7]) @ Rotation.from_rotvec(d[:, 3:6]).as_matrix()).as_quat()
+    q[:, 7:] += d[:, 6:]
+    return q
+
+
 def interval_drift(problem: MultiphaseProblem, x: np.ndarray, substeps: int = 32) -> IntervalDrift:
     """Integrate each interval of solution x from its first knot (classical Runge-Kutta, `substeps` steps, all
     intervals of a phase at once; q advanced by `lk.integrate`) and compare with its last knot; inf for an
