@@ -20,7 +20,7 @@ def amble():
     robot = build_quadruped(AMBLE_QUADRUPED)
     problem = amble_problem(robot, [effort()], 0.67, 1.25, 2, QUADRUPED_MOTOR, max_impulse=0.0)
     trajectory = problem.unpack(problem.pack(guess_from_reference(problem, amble_reference(robot, 0.67, 1.25, 2))))
-    return problem, trajectory, TrackingModel.build(problem, trajectory, DT)
+    return problem, trajectory, TrackingModel.build(problem, trajectory, DT, progress=False)
 
 
 def test_the_linearisation_predicts_the_contact_model_to_second_order(amble):

@@ -8,6 +8,8 @@ The transcription now holds the stance feet in DIRCON's form; its amble plans st
 diagonal support at every gain tried (docs/optimize.md). At the default 4 intervals per phase the amble's long
 supports are not motions of the model at all (`legkit.optimize.shooting.interval_drift`: 60 deg of attitude within
 one 0.117 s interval); 16 intervals per phase bring that under 1 deg, and those plans fall too (0.6-1.2 s).
+`legkit.optimize.tracking` tracks such a plan (with a stance-force floor) 5 cycles upright by a contact-constrained
+MPC instead.
 
 What the amble's replay showed (measured on the Fig. 3 amble, 4 intervals per phase, 300 + 300 IPOPT iterations):
 

@@ -31,7 +31,7 @@ from legkit.optimize.shooting import tangent_add, tangent_difference
 
 #: Deviation weights of the LQR cost: the free-flyer base's position and attitude (rotation vector), each joint
 #: angle, the base's linear and angular velocity, each joint rate; and each joint torque correction.
-BASE_WEIGHTS = (1.0, 1.0, 10.0, 100.0, 100.0, 10.0)
+BASE_WEIGHTS = (10.0, 10.0, 10.0, 100.0, 100.0, 10.0)
 JOINT_WEIGHT = 10.0
 BASE_RATE_WEIGHTS = (0.1, 0.1, 1.0, 1.0, 1.0, 1.0)
 JOINT_RATE_WEIGHT = 0.1
@@ -113,7 +113,7 @@ class TrackingModel:
 
     @classmethod
     def build(cls, problem: MultiphaseProblem, trajectory: Trajectory, dt: float = 2e-3, swing_clearance: float = 0.01,
-              substeps: int = 4, step: float = 1e-6) -> TrackingModel:
+              substeps: int = 4, step: float = 1e-6, progress: bool = True) -> TrackingModel:
         if not problem.model.floating_base or not problem.periodic:
             raise ValueError("TrackingModel needs a periodic free-flyer gait")
         if not dt > 0.0 or substeps < 1:
@@ -134,7 +134,7 @@ class TrackingModel:
         forces, force_state, force_input = [], [], []
         heights, height_state = np.empty((count, len(names))), np.zeros((count, len(names), n))
         swing = np.array([[name not in problem.phases[phase[i]].contacts for name in names] for i in range(count)])
-        for i in tqdm(range(count), desc="linearising the plan", unit="sample", leave=False):
+        for i in tqdm(range(count), desc="linearising the plan", unit="sample", leave=False, disable=not progress, mininterval=0.5):
             qi = tangent_add(problem, q[i][None], perturb[:, :nv])
             vi = v[i] + perturb[:, nv:n]
             tau = np.zeros((len(perturb), nv))
@@ -290,12 +290,13 @@ def _pyramid(feet: int, friction: float) -> np.ndarray:
 
 def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, foot_radius: float = 0.002, dt: float = 1e-3,
           control_every: int = 2, friction: float = 0.8, swing_clearance: float = 0.01, model: TrackingModel | None = None,
-          joint_offset: np.ndarray | None = None, **mpc: float) -> Replay:
+          joint_offset: np.ndarray | None = None, progress: bool = True, **mpc: float) -> Replay:
     """Simulate `cycles` cycles under `MPC` (its keyword arguments in **mpc), from the plan's first state with the
     base raised clear of the ground (`clear_of_ground`); the feet as in `replay`. model: a `TrackingModel` built
     for this plan and control period (built here otherwise). joint_offset (nu,): added to the first state's joint
-    angles, a perturbed start. Stops stepping once the robot has fallen."""
-    model = model if model is not None else TrackingModel.build(problem, trajectory, dt * control_every, swing_clearance)
+    angles, a perturbed start. progress: progress bars (linearisation, simulation). Stops stepping once the robot
+    has fallen."""
+    model = model if model is not None else TrackingModel.build(problem, trajectory, dt * control_every, swing_clearance, progress=progress)
     if not np.isclose(model.dt, dt * control_every):
         raise ValueError(f"the TrackingModel's control period {model.dt} differs from dt x control_every = {dt * control_every}")
     controller = MPC(model, **mpc)  # type: ignore[arg-type]
@@ -310,7 +311,7 @@ def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, f
     simulated = np.empty_like(planned_q)
     simulated[0] = sim.q
     tau = np.zeros(problem.nv)
-    for i in tqdm(range(steps), desc="tracking in simulation", unit="step", leave=False):
+    for i in tqdm(range(steps), desc="tracking in simulation", unit="step", leave=False, disable=not progress, mininterval=0.5):
         e = np.concatenate([tangent_difference(problem, sim.q[None], planned_q[i][None])[0], sim.v - planned_v[i]])
         tau[problem.actuated] = model.u[i % len(model.A)] + controller.correction(i, e)
         try:
