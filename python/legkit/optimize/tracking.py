@@ -67,13 +67,17 @@ def sampled_reference(problem: MultiphaseProblem, trajectory: Trajectory, t: np.
             continue
         first = next(k for k in swing if (k - 1) % count not in swing)
         s = np.mod(t - starts[first], period) / float(np.sum(durations[swing]))
-        for i in np.flatnonzero(s < 1.0):
-            jac = np.asarray(lk.jacobian(problem.model, q[i], problem.foot_body[name], problem.foot_point[name], "local_world_aligned"))[:3]
-            leg = np.flatnonzero(np.any(jac[:, problem.actuated] != 0.0, axis=0))
-            columns = np.asarray(problem.actuated)[leg]
-            block = jac[:, columns]
-            rise = np.array([0.0, 0.0, swing_clearance * np.sin(np.pi * s[i])])
-            raised[i, columns + (problem.nq - problem.nv)] += block.T @ np.linalg.solve(block @ block.T + 1e-3 * np.eye(3), rise)
+        swinging = np.flatnonzero(s < 1.0)
+        if not len(swinging):
+            continue
+        jac = np.asarray(lk.jacobian(problem.model, q[swinging], problem.foot_body[name], problem.foot_point[name], "local_world_aligned"))[:, :3]
+        columns = np.asarray(problem.actuated)[np.any(jac[..., problem.actuated] != 0.0, axis=(0, 1))]  # the foot's leg
+        block = jac[..., columns]
+        rise = np.zeros((len(swinging), 3, 1))
+        rise[:, 2, 0] = swing_clearance * np.sin(np.pi * s[swinging])
+        # Damped least squares: swing legs pass near full extension.
+        step = np.swapaxes(block, 1, 2) @ np.linalg.solve(block @ np.swapaxes(block, 1, 2) + 1e-3 * np.eye(3), rise)
+        raised[swinging[:, None], columns + (problem.nq - problem.nv)] += step[..., 0]
     v = v.copy()
     joints = slice(problem.nq - problem.nv + (6 if problem.model.floating_base else 0), problem.nq)
     v[:, problem.nv - (joints.stop - joints.start):] += np.gradient(raised[:, joints] - q[:, joints], t, axis=0)
