@@ -210,7 +210,7 @@ class MPC:
     """The controller of the module docstring: `correction(i, e)` is the torque correction (nu,) at control instant
     i (any cycle) for the deviation e (2 nv) from the reference there."""
 
-    def __init__(self, model: TrackingModel, horizon: int = 40, block: int = 5, min_normal_force: float = 0.5,
+    def __init__(self, model: TrackingModel, horizon: int = 60, block: int = 6, min_normal_force: float = 0.5,
                  friction: float = 0.6, min_swing_height: float = 0.003, slack_weight: float = 1e6) -> None:
         import casadi as ca
 
