@@ -9,8 +9,9 @@ import pytest
 from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR, build_quadruped
 from legkit.optimize import effort
 from legkit.optimize.gaits import amble_problem, amble_reference, guess_from_reference
+from legkit.optimize.replay import phase_of
 from legkit.optimize.shooting import tangent_add, tangent_difference
-from legkit.optimize.tracking import MPC, TrackingModel, _pyramid, held_step, phase_of, sampled_reference
+from legkit.optimize.tracking import MPC, TrackingModel, _pyramid, held_step, sampled_reference
 
 DT = 0.01  # a coarse control period keeps the linearisation short
 

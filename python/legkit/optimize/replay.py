@@ -61,6 +61,13 @@ class Replay:
         return self.drift / self.distance if self.distance > 0.0 else np.inf
 
 
+def phase_of(trajectory: Trajectory, t: np.ndarray) -> np.ndarray:
+    """(S,) the phase each instant t (any number of cycles) belongs to; an instant on a boundary to the later phase."""
+    durations = np.asarray(trajectory.durations)
+    starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
+    return np.clip(np.searchsorted(starts, np.mod(t, np.sum(durations)), side="right") - 1, 0, len(durations) - 1)
+
+
 def periodic_samples(problem: MultiphaseProblem, trajectory: Trajectory, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(q, v, u) of the periodic optimised gait at times t (any number of cycles), as the collocation itself
     interpolates them: on each Hermite–Simpson interval (knot, midpoint, knot) the state is the cubic through
@@ -74,8 +81,7 @@ def periodic_samples(problem: MultiphaseProblem, trajectory: Trajectory, t: np.n
     x = problem.pack(trajectory)
     nq, nx, nu = problem.nq, problem.nx, problem.nu
     q, v, u = np.empty((len(t), nq)), np.empty((len(t), problem.nv)), np.empty((len(t), nu))
-    starts = np.concatenate([[0.0], np.cumsum(trajectory.durations)[:-1]])
-    which = np.clip(np.searchsorted(starts, phase_t, side="right") - 1, 0, len(starts) - 1)
+    which = phase_of(trajectory, t)
     for k in range(len(problem.phases)):
         mine = which == k
         if not np.any(mine):

@@ -26,7 +26,7 @@ from tqdm import tqdm
 
 import legkit as lk
 from legkit.optimize.problem import MultiphaseProblem, Trajectory
-from legkit.optimize.replay import Replay, clear_of_ground, foot_shapes, outcome, periodic_samples
+from legkit.optimize.replay import Replay, clear_of_ground, foot_shapes, outcome, periodic_samples, phase_of
 from legkit.optimize.shooting import tangent_add, tangent_difference
 
 #: Deviation weights of the LQR cost: the free-flyer base's position and attitude (rotation vector), each joint
@@ -42,13 +42,6 @@ def state_weights(problem: MultiphaseProblem) -> np.ndarray:
     """(2 nv,) the diagonal of the LQR's state cost on a free-flyer robot."""
     joints = problem.nv - 6
     return np.concatenate([BASE_WEIGHTS, np.full(joints, JOINT_WEIGHT), BASE_RATE_WEIGHTS, np.full(joints, JOINT_RATE_WEIGHT)])
-
-
-def phase_of(trajectory: Trajectory, t: np.ndarray) -> np.ndarray:
-    """(S,) the phase each instant belongs to (a boundary instant to the later phase), any number of cycles."""
-    durations = np.asarray(trajectory.durations)
-    starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
-    return np.clip(np.searchsorted(starts, np.mod(t, np.sum(durations)) + 1e-12, side="right") - 1, 0, len(durations) - 1)
 
 
 def sampled_reference(problem: MultiphaseProblem, trajectory: Trajectory, t: np.ndarray,
@@ -78,9 +71,9 @@ def sampled_reference(problem: MultiphaseProblem, trajectory: Trajectory, t: np.
         # Damped least squares: swing legs pass near full extension.
         step = np.swapaxes(block, 1, 2) @ np.linalg.solve(block @ np.swapaxes(block, 1, 2) + 1e-3 * np.eye(3), rise)
         raised[swinging[:, None], columns + (problem.nq - problem.nv)] += step[..., 0]
+    actuated = np.asarray(problem.actuated)
     v = v.copy()
-    joints = slice(problem.nq - problem.nv + (6 if problem.model.floating_base else 0), problem.nq)
-    v[:, problem.nv - (joints.stop - joints.start):] += np.gradient(raised[:, joints] - q[:, joints], t, axis=0)
+    v[:, actuated] += np.gradient(raised[:, actuated + (problem.nq - problem.nv)] - q[:, actuated + (problem.nq - problem.nv)], t, axis=0)
     return raised, v, u
 
 
@@ -152,7 +145,7 @@ class TrackingModel:
             residual[i] = e[0]
             central = (e[1 : 1 + n + nu] - e[1 + n + nu :]).T / (2.0 * step)
             A[i], B[i] = central[:, :n], central[:, n:]
-            z = _heights(problem, tangent_add(problem, q[i][None], moved), names)
+            z = problem.foot_positions(problem.configuration(tangent_add(problem, q[i][None], moved)), names)[..., 2]
             heights[i] = z[0]
             height_state[i, :, :nv] = (z[1 : 1 + nv] - z[1 + nv :]).T / (2.0 * step)
         weights, torque_weights = state_weights(problem), np.full(nu, TORQUE_WEIGHT)
@@ -182,11 +175,6 @@ def held_step(problem: MultiphaseProblem, phase: int, next_phase: int, q: np.nda
         landing = [(problem.foot_body[name], problem.foot_point[name]) for name in problem.phases[next_phase].contacts]
         v = np.asarray(lk.impact(problem.model, q, v, landing)[0])
     return q, v, start
-
-
-def _heights(problem: MultiphaseProblem, q: np.ndarray, names: list[str]) -> np.ndarray:
-    """(B, feet) world heights of the named feet's points."""
-    return problem.foot_positions(problem.configuration(q), names)[..., 2]
 
 
 def periodic_cost_to_go(A: np.ndarray, B: np.ndarray, weights: np.ndarray, torque_weights: np.ndarray, sweeps: int = 4) -> np.ndarray:
@@ -233,12 +221,13 @@ class MPC:
         self.solver = ca.conic("tracking", "qpoases", {"h": ca.Sparsity.dense(columns, columns), "a": ca.Sparsity.dense(rows, columns)},
                                {"printLevel": "none", "error_on_fail": False})
         self.gains = model.gains()
+        self.state_cost, self.torque_cost = np.diag(model.state_weights), np.diag(model.torque_weights)
         self.failures = 0
 
     def correction(self, i: int, e: np.ndarray) -> np.ndarray:
         m = self.model
         nu, n = m.B.shape[2], m.A.shape[1]
-        Q, R = np.diag(m.state_weights), np.diag(m.torque_weights)
+        Q, R = self.state_cost, self.torque_cost
         S, T, c = np.eye(n), np.zeros((n, self.variables)), np.zeros(n)  # e_j = S e + T U + c
         hessian, gradient = np.zeros((self.variables, self.variables)), np.zeros(self.variables)
         force_a, force_b, height_a, height_b = [], [], [], []
