@@ -43,6 +43,7 @@ from legkit.optimize.gaits import (
     walk_problem,
     walk_reference,
 )
+from legkit.optimize.problem import DERIVATIVES
 from legkit.robots.biped import build_biped
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
 
@@ -87,7 +88,7 @@ def main() -> None:
     parser.add_argument("--tol", type=float, default=1e-6)
     parser.add_argument("--speed", type=float, default=0.67)
     parser.add_argument("--neighbour", type=float, default=0.60, help="speed [m/s] whose optimum warm-starts --speed")
-    parser.add_argument("--derivatives", choices=("exact", "legkit"), help="default: the gait's (AMBLE_ / WALK_DERIVATIVES)")
+    parser.add_argument("--derivatives", choices=DERIVATIVES, help="default: the gait's (AMBLE_ / WALK_DERIVATIVES)")
     parser.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None,
                         help="transcribe half the cycle, the other half its mirror image (--no-mirror: the whole cycle); default: the gait's "
                              "(AMBLE_ / WALK_MIRROR)")

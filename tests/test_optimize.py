@@ -131,15 +131,17 @@ def pendulum_guess(intervals: int, duration: float) -> Trajectory:
     return single_phase(s, np.pi * s[:, None] / duration, np.full((len(s), 1), np.pi / duration), np.zeros((len(s), 1)))
 
 
-def test_polish_finishes_an_l_bfgs_run_with_the_exact_hessian():
-    # Without gravity the swing-up's optimum is J = 12 I^2 pi^2 / T^3. A few L-BFGS iterations stop short of it;
-    # polished from their best point with the exact Hessian, the same budget reaches it.
+@pytest.mark.parametrize("derivatives", ["legkit", "lbfgs"])
+def test_polish_finishes_an_l_bfgs_run_with_the_exact_hessian(derivatives):
+    # Without gravity the swing-up's optimum is J = 12 I^2 pi^2 / T^3. A few L-BFGS iterations (on differenced or
+    # exact first derivatives) stop short of it; polished from their best point with the exact Hessian, the same
+    # budget reaches it.
     duration, inertia = 2.0, MASS * LENGTH**2
     problem = swing_up(pendulum(0.0), 10, duration)
     optimum = 12.0 * inertia**2 * np.pi**2 / duration**3
-    _, short = problem.solve(pendulum_guess(10, duration), derivatives="legkit", max_iter=POLISH_BUDGET)
+    _, short = problem.solve(pendulum_guess(10, duration), derivatives=derivatives, max_iter=POLISH_BUDGET)
     assert not short.success and short.objective > optimum * (1.0 + 1e-5)
-    _, polished = problem.solve(pendulum_guess(10, duration), derivatives="legkit", polish=True, max_iter=POLISH_BUDGET)
+    _, polished = problem.solve(pendulum_guess(10, duration), derivatives=derivatives, polish=True, max_iter=POLISH_BUDGET)
     assert polished.success
     assert polished.objective == pytest.approx(optimum, rel=1e-7)
     assert polished.iterations > short.iterations  # the result covers both runs
@@ -226,7 +228,7 @@ def test_pendulum_swing_up_reaches_the_known_optimum():
     np.testing.assert_allclose(trajectory.u[0][:, 0], bvp.sol(trajectory.t[0])[2], atol=0.02 * np.max(np.abs(bvp.sol(fine)[2])))
 
 
-@pytest.mark.parametrize("derivatives", ["exact", "legkit"])
+@pytest.mark.parametrize("derivatives", ["exact", "legkit", "lbfgs"])
 def test_input_power_limit_holds_binds_and_costs_effort(derivatives):
     # The gravity-free swing-up's optimum, u = I (6 pi / T^2)(1 - 2 t / T) at w = (6 pi / T^2)(t - t^2 / T), draws
     # R (u / (G K))^2 + u w of up to 1.69 W from these motor constants; a 1.2 W limit must bind and cost effort.

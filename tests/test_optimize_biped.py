@@ -168,7 +168,8 @@ def test_derivatives_of_flat_feet_and_j_s1_match_central_differences(walk):
 @pytest.mark.slow
 def test_symbolic_transcription_of_flat_feet_and_j_s1_equals_the_legkit_one(walk):
     problem, x = walk
-    symbol, objective, rows = problem.nlp("exact").symbolic
+    transcribed = problem.nlp("exact").symbolic
+    symbol, objective, rows = transcribed.x, transcribed.f, transcribed.g
     evaluate = ca.Function("nlp", [symbol], [objective, rows])
     f, g = evaluate(x)
     np.testing.assert_allclose(np.asarray(g).ravel(), problem.constraints(x), rtol=1e-9, atol=1e-8)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import legkit as lk
-from legkit.optimize import MinMaxStability, MultiphaseProblem, Phase, effort
+from legkit.optimize import MinMaxStability, MultiphaseProblem, Phase, effort, pointwise
 from legkit.optimize.mirror import side_mirror
 from legkit.optimize.symbolic import SymbolicModel
 from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, build_quadruped
@@ -72,8 +72,9 @@ def test_symbolic_kernels_match_legkit(build):
 @pytest.mark.slow
 @pytest.mark.parametrize("mirrored", [False, True], ids=["three_phases", "mirrored_half_cycle"])
 def test_symbolic_transcription_matches_the_legkit_one(mirrored):
-    # Every row of the symbolic NLP equals legkit's evaluation, and its exact Jacobian matches the coloured
-    # central differences, on a three-phase quadruped problem with the smooth S_H rows and an impact; or on
+    # Every row of the symbolic NLP equals legkit's evaluation, its exact Jacobian matches the coloured
+    # central differences, and the derivatives assembled point by point match casadi's of the whole graph,
+    # on a three-phase quadruped problem with the smooth S_H rows and an impact; or on
     # two phases wrapping around to their mirror image (a touchdown of the mirrored feet).
     robot = build_quadruped()
     phases = [Phase(("lf", "lh"), 1, (0.1, 0.5)), Phase(("lf", "rh"), 1, (0.1, 0.5)), Phase(("rf", "rh"), 1, (0.1, 0.5))]
@@ -87,7 +88,8 @@ def test_symbolic_transcription_matches_the_legkit_one(mirrored):
         x[index[:, 2]] = 0.2
         x[index[:, 3:7]] = [0.05, -0.03, 0.02, 1.0]
     x[problem.duration_index] = 0.25
-    symbol, f, g = problem.nlp("exact").symbolic
+    transcribed = problem.nlp("exact").symbolic
+    symbol, f, g = transcribed.x, transcribed.f, transcribed.g
     evaluate = ca.Function("nlp", [symbol], [f, g, ca.jacobian(g, symbol)])
     f_value, g_value, jacobian = evaluate(x)
     assert float(f_value) == pytest.approx(problem.objective(x), rel=1e-12)
@@ -97,3 +99,12 @@ def test_symbolic_transcription_matches_the_legkit_one(mirrored):
     dense[problem.jac_rows, problem.jac_cols] = problem.jacobian(x)
     exact = np.asarray(ca.DM(jacobian))
     assert np.max(np.abs(dense - exact) / np.maximum(1.0, np.abs(exact))) < 1e-6
+    # The point-by-point derivatives IPOPT is given (`pointwise`, compiled pieces) equal casadi's of the whole graph.
+    derivatives = pointwise.derivatives(transcribed)
+    lam_f, lam_g = 0.7, rng.normal(size=problem.m)
+    lagrangian = lam_f * f + ca.dot(ca.DM(lam_g), g)
+    whole = ca.Function("whole", [symbol], [ca.triu(ca.hessian(lagrangian, symbol)[0])])
+    np.testing.assert_allclose(np.asarray(ca.DM(derivatives["jac_g"](x, [])[1])), exact, rtol=1e-12, atol=1e-12)
+    hessian = np.asarray(ca.DM(whole(x)))
+    assembled = np.asarray(ca.DM(derivatives["hess_lag"](x, [], lam_f, lam_g)))
+    np.testing.assert_allclose(assembled, hessian, rtol=1e-10, atol=1e-10 * np.abs(hessian).max())

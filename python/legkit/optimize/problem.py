@@ -53,6 +53,11 @@ if TYPE_CHECKING:
     from legkit.optimize.symbolic import SymbolicModel
 
 
+#: `MultiphaseProblem.nlp`'s derivatives: legkit's kernels differenced, the symbolic mirror's exact ones, or its
+#: exact Jacobian with an L-BFGS Hessian.
+DERIVATIVES = ("legkit", "exact", "lbfgs")
+
+
 #: IPOPT's initial barrier parameter for `MultiphaseProblem.solve(polish=True)`. From the amble's point after
 #: 600 L-BFGS J_s2 iterations the exact Hessian converged in 56 iterations with it; from the constraint
 #: stage's point, in 326 (docs/optimize.md).
@@ -966,21 +971,22 @@ class MultiphaseProblem:
     def nlp(self, derivatives: str = "legkit", objective: bool = True) -> NLP:
         """The NLP. derivatives="legkit": legkit's kernels with coloured central differences (IPOPT then uses
         L-BFGS); "exact": also its symbolic mirror (`legkit.optimize.symbolic`, built once per problem), with
-        which IPOPT has exact Jacobians and Hessians. objective=False: the constraints alone (objective 0)."""
-        if derivatives not in ("legkit", "exact"):
-            raise ValueError(f"derivatives must be 'legkit' or 'exact', got {derivatives!r}")
+        which IPOPT has exact Jacobians and Hessians; "lbfgs": the symbolic mirror's exact Jacobian with IPOPT's
+        L-BFGS Hessian. objective=False: the constraints alone (objective 0)."""
+        if derivatives not in DERIVATIVES:
+            raise ValueError(f"derivatives must be one of {DERIVATIVES}, got {derivatives!r}")
         lower, upper = self.bounds()
         symbolic = None
-        if derivatives == "exact":
+        if derivatives != "legkit":
             if getattr(self, "_symbolic", None) is None:
                 from legkit.optimize.symbolic import transcription
 
-                x, f, g = transcription(self)
-                self._symbolic = {True: (x, f, g), False: (x, 0.0 * x[0], g)}
+                whole = transcription(self)
+                self._symbolic = {True: whole, False: whole.without_objective()}
             symbolic = self._symbolic[objective]
         f, gradient = (self.objective, self.gradient) if objective else (lambda x: 0.0, lambda x: np.zeros(self.n))
         return NLP(lower, upper, np.concatenate([b.lower for b in self.blocks]), np.concatenate([b.upper for b in self.blocks]),
-                   f, gradient, self.constraints, self.jacobian, self.jac_rows, self.jac_cols, symbolic)
+                   f, gradient, self.constraints, self.jacobian, self.jac_rows, self.jac_cols, symbolic, derivatives == "lbfgs")
 
     def solve(self, guess: Trajectory | np.ndarray | SolveResult, derivatives: str = "exact", feasibility_first: bool = False,
               polish: bool = False, polish_max_iter: int = 1000, **options: Any) -> tuple[Trajectory, SolveResult]:
@@ -1001,8 +1007,8 @@ class MultiphaseProblem:
         Its solver is built in a thread while the L-BFGS runs go on. L-BFGS keeps climbing where the exact Hessian
         converges (docs/optimize.md).
         The result's iterations, times and history cover every run; its times are IPOPT's, without the builds."""
-        if polish and derivatives != "legkit":
-            raise ValueError(f"polish follows a solve with derivatives='legkit', got derivatives={derivatives!r}")
+        if polish and derivatives == "exact":
+            raise ValueError("polish follows an L-BFGS solve (derivatives 'legkit' or 'lbfgs'), got derivatives='exact'")
         if isinstance(guess, SolveResult):
             if feasibility_first:
                 raise ValueError("feasibility_first does not apply to a warm start from a SolveResult")

@@ -4,18 +4,25 @@ The NLP is given as NumPy callbacks (objective, gradient, constraints, Jacobian 
 pattern), which casadi carries to IPOPT through `casadi.Callback`s so the model's dynamics stay in legkit's
 batched kernels; the Hessian is then IPOPT's L-BFGS approximation (the callbacks give first derivatives
 only). An NLP may also carry a symbolic form (`NLP.symbolic`: casadi x, f(x), g(x), see
-`legkit.optimize.symbolic`), which IPOPT then uses with exact first and second derivatives; the callbacks
-still define the problem (violations are re-evaluated by them).
+`legkit.optimize.symbolic`), which IPOPT then uses with exact first derivatives and exact second derivatives
+(or, `NLP.limited_memory`, L-BFGS), assembled point by point from compiled pieces (`legkit.optimize.pointwise`);
+the callbacks still define the problem (violations are re-evaluated by them).
 """
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from legkit.optimize import pointwise
+
+if TYPE_CHECKING:
+    from legkit.optimize.symbolic import Transcription
 
 Progress = Callable[[int, float, float], None]
 
@@ -41,7 +48,8 @@ class NLP:
     jacobian: Callable[[np.ndarray], np.ndarray]
     jac_rows: np.ndarray
     jac_cols: np.ndarray
-    symbolic: tuple | None = None  # (x, f, g) casadi MX of the same NLP: exact derivatives, exact Hessian
+    symbolic: Transcription | None = None  # the same NLP in casadi MX: exact derivatives, exact Hessian
+    limited_memory: bool = False  # with a symbolic form: its exact first derivatives, IPOPT's L-BFGS Hessian
 
     @property
     def n(self) -> int:
@@ -237,7 +245,7 @@ def _ipopt_options(nlp: NLP, tol: float, max_iter: int, options: dict | None) ->
     # iterations (1.9-3.5 s) against 19-200+ (2.6-28+ s) with the default ordering (docs/optimize.md).
     ipopt = {"tol": tol, "constr_viol_tol": tol, "max_iter": max_iter, "print_level": 0, "sb": "yes", "mu_strategy": "adaptive",
              "mumps_pivot_order": 5}
-    if nlp.symbolic is None:
+    if nlp.symbolic is None or nlp.limited_memory:
         ipopt["hessian_approximation"] = "limited-memory"
     ipopt.update(options or {})
     return ipopt
@@ -282,9 +290,10 @@ def _keep(cache: dict, key: Any, value: Any) -> None:
     cache[key] = value
 
 
-#: casadi's derivative functions of symbolic NLPs, by the transcription's id (kept with it, so the id stays its
-#: own): (symbolic, {nlpsol option: function}); a few at most.
+#: The derivative functions of symbolic NLPs (`pointwise.derivatives`), by the transcription's id (kept with it,
+#: so the id stays its own): (transcription, {nlpsol option: function}); a few at most.
 _DERIVATIVES: dict = {}
+_DERIVATIVES_LOCK = threading.Lock()
 
 
 def _build(ca: Any, nlp: NLP, ipopt: dict, state: dict, Functions: type | None) -> Any:
@@ -341,15 +350,16 @@ def _build(ca: Any, nlp: NLP, ipopt: dict, state: dict, Functions: type | None) 
         f_expr, g_expr = functions(symbol)
         extra = {}
     else:
-        symbol, f_expr, g_expr = nlp.symbolic
-        # One SX graph: casadi's virtual machine evaluates it without MX overhead. Its derivatives (the Hessian
-        # of the Lagrangian above all) take ~9 s to generate for the amble; solvers of the same NLP with other
-        # options share them (~1 s to build).
-        extra = {"expand": True, **_DERIVATIVES.get(id(nlp.symbolic), (None, {}))[1]}
+        symbol, f_expr, g_expr = nlp.symbolic.x, nlp.symbolic.f, nlp.symbolic.g
+        # f and g as one SX graph (casadi's virtual machine evaluates it without MX overhead); the Jacobian and the
+        # Hessian of the Lagrangian assembled point by point from compiled pieces (`pointwise`), built once per NLP.
+        with _DERIVATIVES_LOCK:  # a polish's solver is prepared in a thread while the first runs build theirs
+            if id(nlp.symbolic) not in _DERIVATIVES:
+                _keep(_DERIVATIVES, id(nlp.symbolic), (nlp.symbolic, pointwise.derivatives(nlp.symbolic)))
+            extra = {"expand": True, **_DERIVATIVES[id(nlp.symbolic)][1]}
+        if nlp.limited_memory:
+            del extra["hess_lag"]
     solver = ca.nlpsol("legkit", "ipopt", {"x": symbol, "f": f_expr, "g": g_expr},
                        {"ipopt": ipopt, "print_time": False, "iteration_callback": iteration, "error_on_fail": False, **extra})
     solver.keep_alive = (iteration, functions if nlp.symbolic is None else None)  # casadi holds raw references
-    if nlp.symbolic is not None and id(nlp.symbolic) not in _DERIVATIVES:
-        _keep(_DERIVATIVES, id(nlp.symbolic), (nlp.symbolic, {option: solver.get_function(name) for option, name in
-                                                              (("hess_lag", "nlp_hess_l"), ("jac_g", "nlp_jac_g"), ("grad_f", "nlp_grad_f"))}))
     return solver

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -329,11 +330,61 @@ class SymbolicModel:
 
 
 # ------------------------------------------------------------------ the transcription, symbolically
-def transcription(problem: MultiphaseProblem) -> tuple:
-    """(x, f(x), g(x)) as casadi MX of a `MultiphaseProblem`'s NLP: the same rows in the same order as
-    `problem.constraints` (each per-point function a casadi Function mapped over the points) and the same
-    objective. Needs the inverse-dynamics transcription and symbolic forms of every Point block and integrand."""
+@dataclass(frozen=True)
+class Mapped:
+    """Constraint rows selection @ vec(F(z_1), ..., F(z_P)) (without a selection: the outputs themselves, point-
+    major), F a casadi SX Function of one point's variables z_p = x[index[p]]."""
+
+    function: Any
+    index: np.ndarray  # (P, k)
+    selection: Any = None  # scipy sparse (rows, P * F's outputs) or None
+
+    @property
+    def size(self) -> int:
+        return self.index.shape[0] * self.function.size1_out(0) if self.selection is None else self.selection.shape[0]
+
+    def rows(self, x: Any) -> Any:
+        ca = _ca()
+        outputs = ca.vec(self.function.map(self.index.shape[0])(gather(x, self.index)))
+        return outputs if self.selection is None else casadi_sparse(self.selection) @ outputs
+
+
+@dataclass(frozen=True)
+class LinearRows:
+    """Constraint rows matrix @ x + offset (matrix scipy sparse)."""
+
+    matrix: Any
+    offset: np.ndarray
+
+    @property
+    def size(self) -> int:
+        return self.matrix.shape[0]
+
+    def rows(self, x: Any) -> Any:
+        return casadi_sparse(self.matrix) @ x + _ca().DM(self.offset)
+
+
+@dataclass(frozen=True)
+class Transcription:
+    """A `MultiphaseProblem`'s NLP as casadi MX: x, f(x), g(x); g's rows in `pieces` (in order), each `Mapped`
+    or `LinearRows`."""
+
+    x: Any
+    f: Any
+    g: Any
+    pieces: tuple
+
+    def without_objective(self) -> Transcription:
+        return Transcription(self.x, 0.0 * self.x[0], self.g, self.pieces)
+
+
+def transcription(problem: MultiphaseProblem) -> Transcription:
+    """A `MultiphaseProblem`'s NLP as casadi MX: the same rows in the same order as `problem.constraints` (each
+    per-point function a casadi Function mapped over the points) and the same objective. Needs the inverse-
+    dynamics transcription and symbolic forms of every Point block and integrand."""
     ca = _ca()
+    from scipy.sparse import coo_matrix
+
     from legkit.optimize import problem as transcribed
     from legkit.optimize.blocks import Linear, Point
 
@@ -341,38 +392,34 @@ def transcription(problem: MultiphaseProblem) -> tuple:
         raise ValueError("the symbolic transcription needs transcription='inverse'")
     model = SymbolicModel(problem.model)
     x = ca.MX.sym("x", problem.n)
-    rows = []
+    pieces: list = []
     for block in problem.blocks:
         if isinstance(block, Linear):
-            rows.append(_sparse(block.size, problem.n, block.rows, block.cols, block.coefficients) @ x + ca.DM(block.offset))
+            pieces.append(LinearRows(_scipy_sparse(block.size, problem.n, block.rows, block.cols, block.coefficients), block.offset))
         elif isinstance(block, Point):
             if block.symbolic is None:
                 raise ValueError(f"a constraint block ({block.function}) has no symbolic form")
             z = ca.SX.sym("z", block.index.shape[1])
-            function = ca.Function("point", [z], [block.symbolic(model, z)])
-            rows.append(ca.vec(function.map(block.index.shape[0])(_gather(x, block.index))))
+            pieces.append(Mapped(ca.Function("point", [z], [block.symbolic(model, z)]), block.index))
         elif isinstance(block, transcribed._Defects):
-            rows.append(_defects(problem, model, block, x))
+            pieces.append(_defects(problem, model, block))
         elif isinstance(block, transcribed._InverseDynamics):
             z = ca.SX.sym("z", block.index.shape[1])
             for k in block.ks:  # the block's rows phase by phase, point-major
-                function = ca.Function("rnea", [z], [residual(problem, model, k, z)])
-                rows.append(ca.vec(function.map(len(problem.point_index[k]))(_gather(x, problem.point_index[k]))))
+                pieces.append(Mapped(ca.Function("rnea", [z], [residual(problem, model, k, z)]), problem.point_index[k]))
         elif isinstance(block, transcribed._Feet):
             q = ca.SX.sym("q", problem.nq)
             feet = [(problem.foot_body[n], problem.foot_point[n]) for n in block.names]
-            function = ca.Function("feet", [q], [model.points(q, feet)])
-            positions = ca.vec(function.map(block.index.shape[0])(_gather(x, block.index)))
-            anchored = block._anchor >= 0
-            value = positions[block._output.tolist()]
-            anchor = ca.MX.zeros(block.size)
-            if np.any(anchored):
-                selection = _sparse(block.size, positions.shape[0], np.flatnonzero(anchored), block._anchor[anchored], np.ones(int(anchored.sum())))
-                anchor = selection @ positions
-            rows.append(value - anchor)
+            outputs = block.index.shape[0] * 3 * len(feet)
+            anchored = np.flatnonzero(block._anchor >= 0)
+            rows = np.r_[np.arange(block.size), anchored]
+            cols = np.r_[block._output, block._anchor[anchored]]
+            selection = coo_matrix((np.r_[np.ones(block.size), -np.ones(len(anchored))], (rows, cols)), shape=(block.size, outputs)).tocsr()
+            pieces.append(Mapped(ca.Function("feet", [q], [model.points(q, feet)]), block.index, selection))
         else:
             raise ValueError(f"no symbolic form for constraint block {type(block).__name__}")
-    return x, objective(problem, model, x), ca.vertcat(*rows)
+    g = ca.vertcat(*[piece.rows(x) for piece in pieces])
+    return Transcription(x, objective(problem, model, x), g, tuple(pieces))
 
 
 def residual(problem: MultiphaseProblem, model: SymbolicModel, k: int, z: Any) -> Any:
@@ -395,38 +442,51 @@ def residual(problem: MultiphaseProblem, model: SymbolicModel, k: int, z: Any) -
     return tau - ca.DM(actuation) @ z[problem.nx : problem.nx + problem.nu]
 
 
-def _gather(x: Any, index: np.ndarray) -> Any:
+def gather(x: Any, index: np.ndarray) -> Any:
     """(k, P) MX of the variables index (P, k), one column per point."""
     ca = _ca()
     return ca.reshape(x[np.asarray(index).ravel().tolist()], index.shape[1], index.shape[0])
 
 
-def _sparse(rows: int, columns: int, r: Any, c: Any, values: Any) -> Any:
-    ca = _ca()
+def _scipy_sparse(rows: int, columns: int, r: Any, c: Any, values: Any) -> Any:
+    """(rows, columns) scipy CSC matrix of triplets, duplicates summed."""
     from scipy.sparse import coo_matrix
 
     matrix = coo_matrix((np.asarray(values, dtype=np.float64), (np.asarray(r), np.asarray(c))), shape=(rows, columns)).tocsc()
     matrix.sum_duplicates()
-    return ca.DM(ca.Sparsity(rows, columns, matrix.indptr.tolist(), matrix.indices.tolist()), matrix.data.tolist())
+    return matrix
 
 
-def _defects(problem: MultiphaseProblem, model: SymbolicModel, block: Any, x: Any) -> Any:
+def casadi_sparse(matrix: Any) -> Any:
+    """casadi DM of a scipy sparse matrix."""
     ca = _ca()
-    z = ca.SX.sym("z", block.index.shape[1])
-    q, v = z[: problem.nq], z[problem.nq : problem.nx]
+    matrix = matrix.tocsc()
+    matrix.sum_duplicates()
+    return ca.DM(ca.Sparsity(*matrix.shape, matrix.indptr.tolist(), matrix.indices.tolist()), matrix.data.tolist())
+
+
+def _defects(problem: MultiphaseProblem, model: SymbolicModel, block: Any) -> Mapped:
+    """Phase block.k's Hermite-Simpson defects interval by interval: [interpolation; Simpson] (eq. 14, as
+    `hermite_simpson_defects`) of an interval's knot, midpoint and knot variables and the phase's duration."""
+    ca = _ca()
+    nz, nx = block.index.shape[1], problem.nx
     rows = problem.contact_rows(problem.phases[block.k].contacts)
-    if rows:  # the slack's correction (`MultiphaseProblem.rate`)
-        v = v + model.contact_rows_jacobian(q, rows).T @ z[problem.slack_columns[block.k]]
-    rate = ca.Function("rate", [z], [ca.vertcat(model.q_rate_matrix(q) @ v, z[problem.a_columns[block.k]])])
-    points = _gather(x, block.index)
-    rates = rate.map(block.index.shape[0])(points)
-    states = points[: problem.nx, :]
-    h = x[block.duration] / block.intervals
-    x0, xm, x1 = states[:, 0:-1:2], states[:, 1::2], states[:, 2::2]
-    f0, fm, f1 = rates[:, 0:-1:2], rates[:, 1::2], rates[:, 2::2]
-    interpolation = xm - 0.5 * (x0 + x1) - h * (f0 - f1) / 8.0  # eq. 14, as `hermite_simpson_defects`
+
+    def state_and_rate(z: Any) -> tuple[Any, Any]:
+        q, v = z[: problem.nq], z[problem.nq : nx]
+        if rows:  # the slack's correction (`MultiphaseProblem.rate`)
+            v = v + model.contact_rows_jacobian(q, rows).T @ z[problem.slack_columns[block.k]]
+        return z[:nx], ca.vertcat(model.q_rate_matrix(q) @ v, z[problem.a_columns[block.k]])
+
+    w = ca.SX.sym("w", 3 * nz + 1)
+    (x0, f0), (xm, fm), (x1, f1) = (state_and_rate(w[i * nz : (i + 1) * nz]) for i in range(3))
+    h = w[3 * nz] / block.intervals
+    interpolation = xm - 0.5 * (x0 + x1) - h * (f0 - f1) / 8.0
     simpson = x1 - x0 - h * (f0 + 4.0 * fm + f1) / 6.0
-    return ca.vec(ca.vertcat(interpolation, simpson))
+    interval = np.arange(block.intervals)
+    index = np.concatenate([block.index[2 * interval], block.index[2 * interval + 1], block.index[2 * interval + 2],
+                            np.full((block.intervals, 1), block.duration)], axis=1)
+    return Mapped(ca.Function("defects", [w], [ca.vertcat(interpolation, simpson)]), index)
 
 
 def objective(problem: MultiphaseProblem, model: SymbolicModel, x: Any) -> Any:
@@ -446,7 +506,7 @@ def objective(problem: MultiphaseProblem, model: SymbolicModel, x: Any) -> Any:
             z = ca.SX.sym("z", index.shape[1])
             integrand = ca.Function("integrand", [z], [term.symbolic(problem, model, z, k)]).map(index.shape[0])
             weights = ca.DM(_simpson_weights(problem.phases[k].intervals) / (6.0 * problem.phases[k].intervals))
-            integral = integral + x[problem.duration_index[k]] * (integrand(_gather(x, index)) @ weights)
+            integral = integral + x[problem.duration_index[k]] * (integrand(gather(x, index)) @ weights)
         if term.per_distance:
             integral = integral / (abs(problem.speed) * ca.sum1(x[problem.duration_index.tolist()]))
         total = total + term.weight * integral
