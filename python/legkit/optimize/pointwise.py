@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.sparse import coo_matrix
+from tqdm import tqdm
 
 from legkit.optimize.symbolic import Mapped, casadi_sparse, gather
 
@@ -196,8 +197,11 @@ def compile_functions(derivatives: list[PointDerivatives]) -> list[PointDerivati
         if not library.exists():
             jobs.append(([ca.Function(name, f.sx_in(), f.call(f.sx_in())) for name, f in zip(names, pair)], library))
         out.append((derivative, (names, library)))
-    with ThreadPoolExecutor(os.cpu_count()) as pool:  # the compiler runs outside the GIL
-        list(pool.map(lambda job: _compile(ca, compiler, *job), jobs))
+    # The first solve on a machine waits for this (the amble's 17 pieces: 51 s on two cores): say so.
+    with ThreadPoolExecutor(os.cpu_count()) as pool, tqdm(total=len(jobs), desc=f"compiling derivatives into {cache}", unit="piece",
+                                                          disable=not jobs, leave=False) as bar:
+        for _ in pool.map(lambda job: _compile(ca, compiler, *job), jobs):  # the compiler runs outside the GIL
+            bar.update()
     return [derivative if built is None or not built[1].exists() else
             replace(derivative, jacobian=ca.external(built[0][0], str(built[1])), hessian=ca.external(built[0][1], str(built[1])))
             for derivative, built in out]
