@@ -992,12 +992,12 @@ class MultiphaseProblem:
               polish: bool = False, polish_max_iter: int = 1000, **options: Any) -> tuple[Trajectory, SolveResult]:
         """Solve from a guess (a Trajectory, a variable vector, or the `SolveResult` of a problem with the same
         layout, e.g. the gait at a neighbouring speed: its point and multipliers, a primal-dual warm start
-        (`legkit.optimize.solver.WARM_START`)), with exact derivatives (default) or legkit's differences (`nlp`);
+        (`legkit.optimize.solver.WARM_START`)), with exact derivatives (default), the exact Jacobian with L-BFGS or legkit's differences (`nlp`);
         options go to `legkit.optimize.solver.solve`.
 
         feasibility_first (problems with a MinMaxStability term): continuation in two IPOPT runs, first the
         constraints alone with p1 held below every S_H row, then the objective from that feasible point with p1
-        at its worst S_H row. polish (with derivatives="legkit"): the L-BFGS run on the objective ends once it
+        at its worst S_H row. polish (with derivatives "legkit" or "lbfgs"): the L-BFGS run on the objective ends once it
         stalls (`POLISH_SWITCH`; options' stall replaces it, and applies to the objective's run only), then IPOPT
         runs twice more from its best point (its last after a stall), with the exact Hessian and a small initial
         barrier parameter (`POLISH_MU_INIT`), each within polish_max_iter iterations (the L-BFGS runs take options'
