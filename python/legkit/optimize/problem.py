@@ -1019,7 +1019,7 @@ class MultiphaseProblem:
         x0 = self.gauged(self.pack(guess) if isinstance(guess, Trajectory) else guess)
         nlp = self.nlp(derivatives)
         stall = options.pop("stall", POLISH_SWITCH if polish else None)  # on the objective's run only
-        if polish:  # casadi builds the polish's solver (~10 s for the amble) while the L-BFGS runs go on
+        if polish:  # the polish's solver is built (`prepare`) while the L-BFGS runs go on
             exact = {**options, "max_iter": polish_max_iter, "options": {**(options.get("options") or {}), "mu_init": POLISH_MU_INIT}}
             builder = ThreadPoolExecutor(1)
             built = builder.submit(lambda: prepare(self.nlp("exact"), **{k: exact[k] for k in ("tol", "max_iter", "options") if k in exact}))

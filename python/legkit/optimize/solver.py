@@ -231,8 +231,9 @@ def solve(
 
 def prepare(nlp: NLP, *, tol: float = 1e-6, max_iter: int = 3000, options: dict | None = None) -> None:
     """Build and keep the IPOPT solver of a symbolic NLP (`NLP.symbolic`) that `solve` with the same arguments
-    uses. casadi builds it without holding the GIL (~10 s for the amble, its Hessian of the Lagrangian), so a
-    thread can build the next stage's solver while another solve runs."""
+    uses. Building it mostly runs outside the GIL (casadi's expansion, the compiler: 1-2 s for the amble once its
+    pieces are compiled, a minute on a machine's first solve), so a thread can build the next stage's solver
+    while another solve runs."""
     import casadi as ca
 
     if nlp.symbolic is None:
@@ -253,7 +254,7 @@ def _ipopt_options(nlp: NLP, tol: float, max_iter: int, options: dict | None) ->
 
 def _casadi_solver(ca: Any, nlp: NLP, ipopt: dict, Functions: type | None) -> tuple[Any, dict]:
     """(casadi solver, its iteration callback's state) for nlp with these IPOPT options; a symbolic NLP's is
-    built once (SX expansion, Hessian graph: seconds) and kept."""
+    built once (SX expansion, `pointwise.derivatives`: seconds) and kept."""
     if nlp.symbolic is None:
         state: dict = {}
         return _build(ca, nlp, ipopt, state, Functions), state
