@@ -33,11 +33,11 @@ if TYPE_CHECKING:
     from legkit.optimize.symbolic import Transcription
 
 #: A piece is compiled when its Jacobian and Hessian would cost at least this many virtual-machine instructions per
-#: evaluation (points x instructions, ~5 ns each): the amble then compiles 17 pieces (51 s on two cores, once).
+#: evaluation (points x instructions, ~5 ns each): the amble then compiles 20 pieces (30 s on two cores, once).
 COMPILE_ABOVE = 20_000
-#: Compiler flags: -O1 compiled the amble's RNEA-residual Hessian in 9 s and evaluated it in 17 us a point
-#: (casadi's virtual machine: 224 us); -O2 took twice as long to compile for 14 us.
-FLAGS = ("-O1", "-shared", "-fPIC")
+#: Compiler flags: gcc -Og compiled the amble's RNEA-residual Hessian (200 points) in 2.2 s for 14 us a point; -O1
+#: took 8.2 s for the same speed, -O0 gave 35 us, casadi's virtual machine 224 us.
+FLAGS = ("-Og", "-shared", "-fPIC")
 
 
 @dataclass
@@ -197,7 +197,7 @@ def compile_functions(derivatives: list[PointDerivatives]) -> list[PointDerivati
         if not library.exists():
             jobs.append(([ca.Function(name, f.sx_in(), f.call(f.sx_in())) for name, f in zip(names, pair)], library))
         out.append((derivative, (names, library)))
-    # The first solve on a machine waits for this (the amble's 17 pieces: 51 s on two cores): say so.
+    # The first solve on a machine waits for this (the amble's 20 pieces: 30 s on two cores): say so.
     with ThreadPoolExecutor(os.cpu_count()) as pool, tqdm(total=len(jobs), desc=f"compiling derivatives into {cache}", unit="piece",
                                                           disable=not jobs, leave=False) as bar:
         for _ in pool.map(lambda job: _compile(ca, compiler, *job), jobs):  # the compiler runs outside the GIL
