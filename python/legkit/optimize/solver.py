@@ -232,7 +232,7 @@ def solve(
 def prepare(nlp: NLP, *, tol: float = 1e-6, max_iter: int = 3000, options: dict | None = None) -> None:
     """Build and keep the IPOPT solver of a symbolic NLP (`NLP.symbolic`) that `solve` with the same arguments
     uses. Building it mostly runs outside the GIL (casadi's expansion, the compiler: 1-2 s for the amble once its
-    pieces are compiled, a minute on a machine's first solve), so a thread can build the next stage's solver
+    pieces are compiled, 30 s more on a machine's first solve), so a thread can build the next stage's solver
     while another solve runs."""
     import casadi as ca
 

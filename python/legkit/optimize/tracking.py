@@ -128,26 +128,33 @@ class TrackingModel:
         perturb = np.concatenate([np.zeros((1, n + nu)), step * np.eye(n + nu), -step * np.eye(n + nu)])
         moved = np.concatenate([np.zeros((1, nv)), step * np.eye(nv), -step * np.eye(nv)])
         A, B, residual = np.empty((count, n, n)), np.empty((count, n, nu)), np.empty((count, n))
-        forces, force_state, force_input = [], [], []
-        heights, height_state = np.empty((count, len(names))), np.zeros((count, len(names), n))
+        forces: list[np.ndarray] = [np.empty(0)] * count
+        force_state: list[np.ndarray] = [np.empty(0)] * count
+        force_input: list[np.ndarray] = [np.empty(0)] * count
         swing = np.array([[name not in problem.phases[phase[i]].contacts for name in names] for i in range(count)])
-        for i in tqdm(range(count), desc="linearising the plan", unit="sample", leave=False, disable=not progress, mininterval=0.5):
-            qi = tangent_add(problem, q[i][None], perturb[:, :nv])
-            vi = v[i] + perturb[:, nv:n]
-            tau = np.zeros((len(perturb), nv))
-            tau[:, problem.actuated] = u[i] + perturb[:, n:]
-            qi, vi, f = held_step(problem, phase[i], phase[i + 1], qi, vi, tau, dt, substeps)
-            forces.append(f[0])
-            central = (f[1 : 1 + n + nu] - f[1 + n + nu :]).T / (2.0 * step)
-            force_state.append(central[:, :n])
-            force_input.append(central[:, n:])
-            e = np.concatenate([tangent_difference(problem, problem.configuration(qi), np.broadcast_to(q[i + 1], qi.shape)), vi - v[i + 1]], axis=1)
-            residual[i] = e[0]
-            central = (e[1 : 1 + n + nu] - e[1 + n + nu :]).T / (2.0 * step)
-            A[i], B[i] = central[:, :n], central[:, n:]
-            z = problem.foot_positions(problem.configuration(tangent_add(problem, q[i][None], moved)), names)[..., 2]
-            heights[i] = z[0]
-            height_state[i, :, :nv] = (z[1 : 1 + nv] - z[1 + nv :]).T / (2.0 * step)
+        # One batched step per run of samples with the same (phase, next phase): every perturbation of every sample.
+        runs = np.flatnonzero((np.diff(phase[:count]) != 0) | (np.diff(phase[1:]) != 0)) + 1
+        for samples in tqdm(np.split(np.arange(count), runs), desc="linearising the plan", unit="run", leave=False, disable=not progress):
+            rows = len(perturb)
+            qi = tangent_add(problem, np.repeat(q[samples], rows, axis=0), np.tile(perturb[:, :nv], (len(samples), 1)))
+            vi = np.repeat(v[samples], rows, axis=0) + np.tile(perturb[:, nv:n], (len(samples), 1))
+            tau = np.zeros((len(qi), nv))
+            tau[:, problem.actuated] = np.repeat(u[samples], rows, axis=0) + np.tile(perturb[:, n:], (len(samples), 1))
+            qi, vi, f = held_step(problem, phase[samples[0]], phase[samples[0] + 1], qi, vi, tau, dt, substeps)
+            after = np.repeat(q[samples + 1], rows, axis=0)
+            e = np.concatenate([tangent_difference(problem, problem.configuration(qi), after), vi - np.repeat(v[samples + 1], rows, axis=0)], axis=1)
+            e, f = e.reshape(len(samples), rows, n), f.reshape(len(samples), rows, -1)
+            residual[samples] = e[:, 0]
+            central = np.swapaxes(e[:, 1 : 1 + n + nu] - e[:, 1 + n + nu :], 1, 2) / (2.0 * step)
+            A[samples], B[samples] = central[..., :n], central[..., n:]
+            central = np.swapaxes(f[:, 1 : 1 + n + nu] - f[:, 1 + n + nu :], 1, 2) / (2.0 * step)
+            for j, i in enumerate(samples):
+                forces[i], force_state[i], force_input[i] = f[j, 0], central[j, :, :n], central[j, :, n:]
+        moved_q = tangent_add(problem, np.repeat(q[:count], len(moved), axis=0), np.tile(moved, (count, 1)))
+        z = problem.foot_positions(problem.configuration(moved_q), names)[..., 2].reshape(count, len(moved), len(names))
+        heights = z[:, 0]
+        height_state = np.zeros((count, len(names), n))
+        height_state[..., :nv] = np.swapaxes(z[:, 1 : 1 + nv] - z[:, 1 + nv :], 1, 2) / (2.0 * step)
         weights, torque_weights = state_weights(problem), np.full(nu, TORQUE_WEIGHT)
         return cls(problem, trajectory, dt, swing_clearance, t, q, v, u, phase, A, B, residual, forces, force_state, force_input,
                    heights, height_state, swing, weights, torque_weights, periodic_cost_to_go(A, B, weights, torque_weights))
