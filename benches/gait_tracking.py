@@ -1,13 +1,14 @@
 """Replay benchmark of issue 13: the Fig. 3 amble (0.67 m/s, period 1.25 s, mirrored half cycle, J_s2 with the
 exact-Hessian polish) planned on a mesh fine enough to be a motion of its model (--intervals 16: every interval's
 drift under 1 deg, `legkit.optimize.interval_drift`) with a floor on the stance normal forces (--min-normal-force)
-against a narrower friction cone than the simulation's (--mu), then simulated in `lk.Simulation` for --cycles cycles
+against a narrower friction cone than the simulation's (--mu) and within (1 - --torque-margin) of the motors' torque,
+then simulated in `lk.Simulation` for --cycles cycles
 (2 mm sphere feet, friction 0.8) under joint PD + feed-forward (kp 50, kd 1) and under the contact-constrained
 model-predictive tracking of `legkit.optimize.tracking`, from the plan's start and from starts with the joint
 angles perturbed (--perturbations of --perturbation rad, normal). Prints the solve, the drift of the mesh, and per
 run: upright, when it fell, and the base drift as a share of the distance.
 
-    PYTHONPATH=python python3 benches/gait_tracking.py [--intervals 16] [--min-normal-force 3] [--mu 0.6] [--cycles 5]
+    PYTHONPATH=python python3 benches/gait_tracking.py [--intervals 16] [--min-normal-force 3] [--mu 0.6] [--torque-margin 0.3] [--cycles 5]
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 
 from legkit.experiments.gait import AMBLE_QUADRUPED, DIAGONAL_PAIRS, QUADRUPED_MOTOR, build_quadruped
 from legkit.optimize import MinMaxStability, interval_drift
-from legkit.optimize.gaits import AMBLE_DERIVATIVES, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference
+from legkit.optimize.gaits import AMBLE_DERIVATIVES, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference, stall_torque_bounds
 from legkit.optimize.replay import replay
 from legkit.optimize.tracking import TrackingModel, track
 
@@ -29,6 +30,7 @@ def main() -> None:
     parser.add_argument("--intervals", type=int, default=16)
     parser.add_argument("--min-normal-force", type=float, default=3.0)
     parser.add_argument("--mu", type=float, default=0.6)
+    parser.add_argument("--torque-margin", type=float, default=0.3)
     parser.add_argument("--cycles", type=int, default=5)
     parser.add_argument("--perturbations", type=int, default=2)
     parser.add_argument("--perturbation", type=float, default=0.01)
@@ -36,7 +38,7 @@ def main() -> None:
 
     robot = build_quadruped(AMBLE_QUADRUPED)
     half = amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, args.intervals, QUADRUPED_MOTOR, args.mu,
-                         max_impulse=0.0, mirror=True, min_normal_force=args.min_normal_force)
+                         max_impulse=0.0, mirror=True, min_normal_force=args.min_normal_force, torque_margin=args.torque_margin)
     guess = guess_from_reference(half, amble_reference(robot, 0.67, 1.25, args.intervals))
     start = time.perf_counter()
     _, result = half.solve(guess, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=True, options=AMBLE_IPOPT)
@@ -46,7 +48,8 @@ def main() -> None:
     x = problem.pack(half.unroll(half.unpack(x)))
     trajectory = problem.unpack(x)
     drift = interval_drift(problem, x).worst(True)
-    print(f"plan: {args.intervals} intervals per phase, stance force >= {args.min_normal_force} N, mu {args.mu}: {result.status}, "
+    print(f"plan: {args.intervals} intervals per phase, stance force >= {args.min_normal_force} N, mu {args.mu}, "
+          f"torque margin {args.torque_margin}: {result.status}, "
           f"{result.iterations} iterations, {result.wall_time:.1f} s ({total:.1f} s in all), violation {problem.nlp().violation(x):.1e}, "
           f"S_H min {min(np.concatenate(problem.stability_index(x))):.3f}, durations {np.round(trajectory.durations[:2], 3)} s")
     print(f"largest drift over one interval: {drift['attitude [deg]']:.2f} deg, {drift['joints']:.3f} rad, {drift['joint rates']:.2f} rad/s")
@@ -58,9 +61,10 @@ def main() -> None:
     print(f"tracking model: {len(model.A)} samples linearised in {time.perf_counter() - start:.1f} s")
     rng = np.random.default_rng(0)
     offsets = [None] + [rng.normal(0.0, args.perturbation, problem.nu) for _ in range(args.perturbations)]
+    motors = stall_torque_bounds(QUADRUPED_MOTOR, problem.nu)  # the plan keeps torque_margin of them to the MPC
     for offset in offsets:
         start = time.perf_counter()
-        run = track(problem, trajectory, args.cycles, model=model, joint_offset=offset)
+        run = track(problem, trajectory, args.cycles, model=model, joint_offset=offset, torque_bounds=motors)
         label = "plan's start" if offset is None else f"joints perturbed by {np.abs(offset).max():.4f} rad at most"
         print(f"MPC tracking, {label}: upright {run.upright}, fell at {run.fell_at:.3f} s, drift {100 * run.drift_fraction:.1f} % "
               f"of {run.distance:.2f} m, {time.perf_counter() - start:.1f} s")

@@ -172,6 +172,9 @@ def test_gait_cli_rejects_bad_arguments():
         gait.main(["--mu", "-1"])
     with pytest.raises(SystemExit):
         gait.main(["--min-normal-force", "-1"])
+    for margin in ("-0.1", "1"):
+        with pytest.raises(SystemExit):
+            gait.main(["--torque-margin", margin])
     with pytest.raises(SystemExit):
         gait.main(["--replay-controller", "lqr"])
 

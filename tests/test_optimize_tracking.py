@@ -86,11 +86,50 @@ def test_mpc_keeps_the_predicted_forces_where_the_lqr_would_pull(amble):
     assert checked >= 3 and mpc.failures == 0
 
 
+def test_mpc_corrections_stay_within_the_actuators_torque_bounds_not_the_plans(amble):
+    """A plan kept to 70 % of the motors (amble_problem(torque_margin=0.3)) at its bounds: the correction may use the
+    motors' remaining 30 % and no more."""
+    problem, _, model = amble
+    lower, upper = problem.u_bounds
+    motors = (lower / 0.7, upper / 0.7)
+    mpc = MPC(model, horizon=10, block=5, torque_bounds=motors)
+    plain = MPC(model, horizon=10, block=5)
+    rng = np.random.default_rng(2)
+    solved = beyond = 0
+    for i in range(0, len(model.A), 5):
+        e = 0.2 * rng.normal(size=2 * problem.nv)
+        failures = (mpc.failures, plain.failures)
+        torque, planned = model.u[i] + mpc.correction(i, e), model.u[i] + plain.correction(i, e)
+        if (mpc.failures, plain.failures) != failures:  # an infeasible QP falls back to the unconstrained LQR
+            continue
+        solved += 1
+        assert np.all(torque >= motors[0] - 1e-6) and np.all(torque <= motors[1] + 1e-6), i
+        assert np.all(planned >= lower - 1e-6) and np.all(planned <= upper + 1e-6), i
+        beyond += int(np.any((torque < lower - 1e-3) | (torque > upper + 1e-3)))
+    assert solved >= 10 and beyond >= 3, (solved, beyond)
+
+
+def test_torque_margin_scales_the_plans_bounds_and_characteristic_line():
+    robot = build_quadruped(AMBLE_QUADRUPED)
+    full = amble_problem(robot, [effort()], 0.67, 1.25, 1, QUADRUPED_MOTOR)
+    kept = amble_problem(robot, [effort()], 0.67, 1.25, 1, QUADRUPED_MOTOR, torque_margin=0.25)
+    np.testing.assert_allclose(kept.u_bounds[1], 0.75 * full.u_bounds[1], rtol=1e-15)
+    np.testing.assert_allclose(kept.torque_speed.gain, 0.75 * full.torque_speed.gain, rtol=1e-15)
+    assert kept.torque_speed.max_speed == full.torque_speed.max_speed
+    for margin in (-0.1, 1.0):
+        with pytest.raises(ValueError, match="torque_margin"):
+            amble_problem(robot, [effort()], 0.67, 1.25, 1, QUADRUPED_MOTOR, torque_margin=margin)
+
+
 def test_bad_arguments_fail_naming_them(amble):
     problem, trajectory, model = amble
     with pytest.raises(ValueError, match="horizon"):
         MPC(model, horizon=12, block=5)
     with pytest.raises(ValueError, match="friction"):
         MPC(model, friction=0.0)
+    with pytest.raises(ValueError, match="torque_bounds"):
+        MPC(model, torque_bounds=(np.ones(problem.nu), -np.ones(problem.nu)))
+    with pytest.raises(ValueError, match="torque_bounds"):
+        MPC(model, torque_bounds=(-np.ones(3), np.ones(3)))
     with pytest.raises(ValueError, match="dt"):
         TrackingModel.build(problem, trajectory, -1.0)

@@ -526,6 +526,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
         amble_problem,
         amble_reference,
         guess_from_reference,
+        stall_torque_bounds,
     )
     from legkit.optimize.replay import replay
     from legkit.optimize.tracking import track
@@ -534,7 +535,8 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     speed, period = args.quadruped_speed, args.quadruped_period
     problem = amble_problem(robot, [MinMaxStability(args.quadruped_tip_speed, DIAGONAL_PAIRS)], speed, period,
                             args.intervals, QUADRUPED_MOTOR, args.mu, max_impulse=args.max_impulse,
-                            mirror=AMBLE_MIRROR if args.mirror is None else args.mirror, min_normal_force=args.min_normal_force)
+                            mirror=AMBLE_MIRROR if args.mirror is None else args.mirror, min_normal_force=args.min_normal_force,
+                            torque_margin=args.torque_margin)
     ref = amble_reference(robot, speed, period, args.intervals)
     guess = guess_from_reference(problem, ref)
     reference_s_h = np.concatenate(problem.stability_index(problem.pack(guess)))
@@ -560,7 +562,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     _plot_optimized(args.out / "gait_quadruped_optimized.png", data["t"], columns["S_H"], guess.stacked()["t"], reference_s_h, labels, worst, worst_t,
                     f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}, iterate {kept} kept")
     if args.replay_controller == "mpc":
-        simulated = track(problem, trajectory, args.replay_cycles)
+        simulated = track(problem, trajectory, args.replay_cycles, torque_bounds=stall_torque_bounds(QUADRUPED_MOTOR, problem.nu))
     else:
         simulated = replay(problem, trajectory, args.replay_cycles, kp=args.replay_kp, kd=args.replay_kd, control_every=1)
     if not args.no_animation:
@@ -813,10 +815,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--replay-kd", type=float, default=1.0, help="--optimize: joint PD damping of the replay [N m s/rad]")
     parser.add_argument("--replay-controller", choices=("pd", "mpc"), default="pd",
                         help="--optimize: the amble's replay: joint PD + feed-forward (pd), or the contact-constrained model-predictive "
-                             "tracking of legkit.optimize.tracking (mpc; its plan needs a fine mesh and a force floor: --intervals 16 "
-                             "--min-normal-force 3 --mu 0.6, docs/optimize.md)")
+                             "tracking of legkit.optimize.tracking (mpc; its plan needs a fine mesh, a force floor and a torque margin: "
+                             "--intervals 16 --min-normal-force 3 --mu 0.6 --torque-margin 0.3, docs/optimize.md)")
     parser.add_argument("--min-normal-force", type=float, default=0.0,
                         help="--optimize: floor on every stance normal force of the amble's plan [N] (0: eq. 5 as published)")
+    parser.add_argument("--torque-margin", type=float, default=0.0,
+                        help="--optimize: fraction of the motors' torque the amble's plan leaves to feedback (0: the full line)")
     parser.add_argument("--max-impulse", type=float, default=0.0,
                         help="--optimize: bound on the amble's touchdown impulses [N s] (0: feet land at rest; inf: eq. 7 unbounded)")
     parser.add_argument("--no-animation", action="store_true", help="--optimize: do not write the replay's .html and .gif")
@@ -837,6 +841,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--biped-max-power must be a positive number")
     if not (np.isfinite(args.min_normal_force) and args.min_normal_force >= 0.0):
         parser.error("--min-normal-force must be a non-negative number")
+    if not 0.0 <= args.torque_margin < 1.0:
+        parser.error("--torque-margin must be in [0, 1)")
     args.out.mkdir(parents=True, exist_ok=True)
     robots = ["quadruped", "biped"] if args.robot == "both" else [args.robot]
     if args.optimize:

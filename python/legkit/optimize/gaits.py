@@ -59,11 +59,18 @@ def torque_speed_line(motor: MotorParameters) -> TorqueSpeedLine:
     return TorqueSpeedLine(motor.joint_max_speed, motor.gear_ratio**2 * motor.efficiency / motor.slope)
 
 
+def stall_torque_bounds(motor: MotorParameters, nu: int, fraction: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper), each (nu,): fraction of the joint torque at stall, the characteristic line at zero speed."""
+    line = torque_speed_line(motor)
+    stall = fraction * line.max_speed * line.gain
+    return np.full(nu, -stall), np.full(nu, stall)
+
+
 def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: float, intervals: int,
                   motor: MotorParameters, friction: float = 0.8, duration_range: tuple[float, float] = (0.5, 1.5),
                   max_tilt: float = np.radians(15.0), joint_range: tuple[float, float, float] = (0.35, 1.8, 2.6),
                   max_swing_height: float = 0.06, max_impulse: float = np.inf, mirror: bool = False,
-                  min_normal_force: float = 0.0) -> MultiphaseProblem:
+                  min_normal_force: float = 0.0, torque_margin: float = 0.0) -> MultiphaseProblem:
     """The amble at `speed` [m/s] over a fixed `period` [s]; each phase lasts between duration_range x period / 4.
     The state bounds of Sect. 2.3 keep the torso above the ground and its roll and pitch within about
     max_tilt [rad] (|q_x|, |q_y| <= sin(max_tilt / 2)): unbounded, J_s2 pitches the torso by ~50 deg; and the
@@ -71,12 +78,16 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
     unbounded, J_s2 swung the legs over the torso (swing feet 0.6 m up) and straightened the knees; and the swing
     tips below max_swing_height [m] (with the joint bounds alone they still rose 0.4 m, swinging the legs for
     angular momentum, which no replay could track). mirror: transcribe half the cycle (module docstring).
-    min_normal_force [N]: the stance force floor (`MultiphaseProblem`; `legkit.optimize.tracking` needs one)."""
+    min_normal_force [N]: the stance force floor (`MultiphaseProblem`; `legkit.optimize.tracking` needs one).
+    torque_margin in [0, 1): the fraction of the motors' torque (bounds and characteristic line) the plan leaves to
+    feedback; `legkit.optimize.tracking` needs one where the plan rides the stall torque (docs/optimize.md)."""
+    if not 0.0 <= torque_margin < 1.0:
+        raise ValueError(f"torque_margin must be in [0, 1), got {torque_margin}")
     quarter = period / 4.0
     support = AMBLE_SUPPORT[:2] if mirror else AMBLE_SUPPORT
     phases = [Phase(pair, intervals, (duration_range[0] * quarter, duration_range[1] * quarter)) for pair in support]
-    line = torque_speed_line(motor)
-    stall = line.max_speed * line.gain
+    full = torque_speed_line(motor)
+    line = TorqueSpeedLine(full.max_speed, full.gain * (1.0 - torque_margin))
     nu = robot.model.nv - 6
     upper = np.full(robot.model.nq, np.inf)
     upper[3:5] = np.sin(0.5 * max_tilt)
@@ -89,7 +100,7 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
         lower[joints : joints + 3] = [-roll, -pitch, min(0.0, bend * knee)]
         upper[joints : joints + 3] = [roll, pitch, max(0.0, bend * knee)]
     return MultiphaseProblem(robot.model, phases, {leg: robot.feet[leg] for leg in LEGS}, objectives, speed=speed, period=period,
-                             friction=friction, u_bounds=(np.full(nu, -stall), np.full(nu, stall)), torque_speed=line,
+                             friction=friction, u_bounds=stall_torque_bounds(motor, nu, 1.0 - torque_margin), torque_speed=line,
                              q_bounds=(lower, upper), max_swing_height=max_swing_height, max_impulse=max_impulse,
                              min_normal_force=min_normal_force,
                              mirror=side_mirror(robot.model, {"lf": "rf", "lh": "rh"}) if mirror else None)

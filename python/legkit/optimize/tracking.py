@@ -20,6 +20,7 @@ The first correction is applied. `track` runs it in `lk.Simulation`, the PD serv
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -206,7 +207,11 @@ class MPC:
     i (any cycle) for the deviation e (2 nv) from the reference there."""
 
     def __init__(self, model: TrackingModel, horizon: int = 60, block: int = 6, min_normal_force: float = 0.5,
-                 friction: float = 0.6, min_swing_height: float = 0.003, slack_weight: float = 1e6) -> None:
+                 friction: float = 0.6, min_swing_height: float = 0.003, slack_weight: float = 1e6,
+                 torque_bounds: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """torque_bounds (lower, upper), each (nu,): the actuators' torques, which bound plan + correction; default the
+        plan's (`problem.u_bounds`). A plan kept inside its motors (`amble_problem(torque_margin=)`) leaves the
+        difference to the correction."""
         import casadi as ca
 
         if horizon < 1 or block < 1 or horizon % block:
@@ -230,6 +235,11 @@ class MPC:
         self.gains = model.gains()
         self.state_cost, self.torque_cost = np.diag(model.state_weights), np.diag(model.torque_weights)
         self.failures = 0
+        planned = (np.full(nu, -np.inf), np.full(nu, np.inf)) if model.problem.u_bounds is None else model.problem.u_bounds
+        lower, upper = (np.asarray(b, dtype=np.float64) for b in (torque_bounds if torque_bounds is not None else planned))
+        if lower.shape != (nu,) or upper.shape != (nu,) or not np.all(lower < upper):
+            raise ValueError(f"torque_bounds must be two ({nu},) arrays with lower < upper, got shapes {lower.shape}, {upper.shape}")
+        self.torque_lower, self.torque_upper = lower, upper
 
     def correction(self, i: int, e: np.ndarray) -> np.ndarray:
         m = self.model
@@ -267,7 +277,7 @@ class MPC:
         h[: self.variables, : self.variables] = 0.5 * (hessian + hessian.T)
         h[self.variables :, self.variables :] = self.slack_weight * np.eye(self.slacks)
         u = m.u[i % self.count]
-        lo, hi = self.model.problem.u_bounds if self.model.problem.u_bounds is not None else (np.full(nu, -np.inf), np.full(nu, np.inf))
+        lo, hi = self.torque_lower, self.torque_upper
         solution = self.solver(h=h, g=np.concatenate([gradient, np.zeros(self.slacks)]), a=a, lba=lower, uba=np.full(rows, np.inf),
                                lbx=np.concatenate([np.tile(lo - u, self.variables // nu), np.zeros(self.slacks)]),
                                ubx=np.concatenate([np.tile(hi - u, self.variables // nu), np.full(self.slacks, np.inf)]))
@@ -290,7 +300,7 @@ def _pyramid(feet: int, friction: float) -> np.ndarray:
 
 def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, foot_radius: float = 0.002, dt: float = 1e-3,
           control_every: int = 2, friction: float = 0.8, swing_clearance: float = 0.01, model: TrackingModel | None = None,
-          joint_offset: np.ndarray | None = None, progress: bool = True, **mpc: float) -> Replay:
+          joint_offset: np.ndarray | None = None, progress: bool = True, **mpc: Any) -> Replay:
     """Simulate `cycles` cycles under `MPC` (its keyword arguments in **mpc), from the plan's first state with the
     base raised clear of the ground (`clear_of_ground`); the feet as in `replay`. model: a `TrackingModel` built
     for this plan and control period (built here otherwise). joint_offset (nu,): added to the first state's joint
@@ -299,7 +309,7 @@ def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, f
     model = model if model is not None else TrackingModel.build(problem, trajectory, dt * control_every, swing_clearance, progress=progress)
     if not np.isclose(model.dt, dt * control_every):
         raise ValueError(f"the TrackingModel's control period {model.dt} differs from dt x control_every = {dt * control_every}")
-    controller = MPC(model, **mpc)  # type: ignore[arg-type]
+    controller = MPC(model, **mpc)
     sim = lk.Simulation(problem.model, dt=dt, ground=lk.Ground.plane(friction), shapes=foot_shapes(problem, foot_radius))
     steps = cycles * len(model.A)
     t = np.arange(steps + 1) * model.dt
