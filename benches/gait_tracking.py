@@ -8,7 +8,7 @@ model-predictive tracking of `legkit.optimize.tracking`, from the plan's start a
 angles perturbed (--perturbations of --perturbation rad, normal). Prints the solve, the drift of the mesh, and per
 run: upright, when it fell, and the base drift as a share of the distance.
 
-    PYTHONPATH=python python3 benches/gait_tracking.py [--intervals 16] [--min-normal-force 3] [--mu 0.6] [--torque-margin 0.3] [--cycles 5]
+    PYTHONPATH=python python3 benches/gait_tracking.py [--intervals 16] [--min-normal-force 3] [--mu 0.6] [--torque-margin 0] [--cycles 5]
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ def main() -> None:
     parser.add_argument("--intervals", type=int, default=16)
     parser.add_argument("--min-normal-force", type=float, default=3.0)
     parser.add_argument("--mu", type=float, default=0.6)
-    parser.add_argument("--torque-margin", type=float, default=0.3)
+    parser.add_argument("--torque-margin", type=float, default=0.0)
     parser.add_argument("--cycles", type=int, default=5)
     parser.add_argument("--perturbations", type=int, default=2)
     parser.add_argument("--perturbation", type=float, default=0.01)

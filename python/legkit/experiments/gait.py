@@ -815,8 +815,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--replay-kd", type=float, default=1.0, help="--optimize: joint PD damping of the replay [N m s/rad]")
     parser.add_argument("--replay-controller", choices=("pd", "mpc"), default="pd",
                         help="--optimize: the amble's replay: joint PD + feed-forward (pd), or the contact-constrained model-predictive "
-                             "tracking of legkit.optimize.tracking (mpc; its plan needs a fine mesh, a force floor and a torque margin: "
-                             "--intervals 16 --min-normal-force 3 --mu 0.6 --torque-margin 0.3, docs/optimize.md)")
+                             "tracking of legkit.optimize.tracking (mpc; its plan needs a fine mesh and a force floor: --intervals 16 "
+                             "--min-normal-force 3 --mu 0.6, docs/optimize.md)")
     parser.add_argument("--min-normal-force", type=float, default=0.0,
                         help="--optimize: floor on every stance normal force of the amble's plan [N] (0: eq. 5 as published)")
     parser.add_argument("--torque-margin", type=float, default=0.0,

@@ -80,7 +80,8 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
     angular momentum, which no replay could track). mirror: transcribe half the cycle (module docstring).
     min_normal_force [N]: the stance force floor (`MultiphaseProblem`; `legkit.optimize.tracking` needs one).
     torque_margin in [0, 1): the fraction of the motors' torque (bounds and characteristic line) the plan leaves to
-    feedback; `legkit.optimize.tracking` needs one where the plan rides the stall torque (docs/optimize.md)."""
+    feedback: headroom for `legkit.optimize.tracking`'s corrections where a plan rides the stall torque (the MPC held
+    some plans only with one and others only without; docs/optimize.md)."""
     if not 0.0 <= torque_margin < 1.0:
         raise ValueError(f"torque_margin must be in [0, 1), got {torque_margin}")
     quarter = period / 4.0
@@ -159,7 +160,6 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
     phases = [Phase(support, intervals[0] if len(support) == 2 else intervals[1], double_support if len(support) == 2 else single_support)
               for support in (WALK_SUPPORT[:2] if mirror else WALK_SUPPORT)]
     line = torque_speed_line(motor)
-    stall = line.max_speed * line.gain
     model = robot.model
     nu = model.nv - 6
     upper = np.full(model.nq, np.inf)
@@ -175,7 +175,7 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
     if objectives is None:
         objectives = [joule_loss(motor.resistance, motor.gear_ratio, motor.torque_constant)]
     return MultiphaseProblem(model, phases, feet, objectives, speed=speed, period=period, friction=friction,
-                             u_bounds=(np.full(nu, -stall), np.full(nu, stall)), torque_speed=line, q_bounds=(lower, upper),
+                             u_bounds=stall_torque_bounds(motor, nu), torque_speed=line, q_bounds=(lower, upper),
                              max_swing_height=max_swing_height, flat_feet={side: sole for side in SIDES},
                              input_power=None if max_input_power is None else
                              InputPower(max_input_power, motor.resistance, motor.gear_ratio, motor.torque_constant),
