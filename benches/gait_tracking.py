@@ -1,5 +1,6 @@
 """Replay benchmark of issue 13: the Fig. 3 amble (0.67 m/s, period 1.25 s, mirrored half cycle, J_s2 with the
-exact-Hessian polish) planned on a mesh fine enough to be a motion of its model (--intervals 16: every interval's
+exact-Hessian polish; with --coarse-intervals solved on that mesh, then refined onto --intervals by
+`MultiphaseProblem.refine`) planned on a mesh fine enough to be a motion of its model (--intervals 16: every interval's
 drift under 1 deg, `legkit.optimize.interval_drift`) with a floor on the stance normal forces (--min-normal-force)
 against a narrower friction cone than the simulation's (--mu) and within (1 - --torque-margin) of the motors' torque,
 then simulated in `lk.Simulation` for --cycles cycles
@@ -8,7 +9,8 @@ model-predictive tracking of `legkit.optimize.tracking`, from the plan's start a
 angles perturbed (--perturbations of --perturbation rad, normal). Prints the solve, the drift of the mesh, and per
 run: upright, when it fell, and the base drift as a share of the distance.
 
-    PYTHONPATH=python python3 benches/gait_tracking.py [--intervals 16] [--min-normal-force 3] [--mu 0.6] [--torque-margin 0] [--cycles 5]
+    PYTHONPATH=python python3 benches/gait_tracking.py [--intervals 16] [--coarse-intervals 4] [--min-normal-force 3] [--mu 0.6]
+        [--torque-margin 0] [--cycles 5]
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import time
 import numpy as np
 
 from legkit.experiments.gait import AMBLE_QUADRUPED, DIAGONAL_PAIRS, QUADRUPED_MOTOR, build_quadruped
-from legkit.optimize import MinMaxStability, interval_drift
+from legkit.optimize import MinMaxStability, MultiphaseProblem, interval_drift
 from legkit.optimize.gaits import AMBLE_DERIVATIVES, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference, stall_torque_bounds
 from legkit.optimize.replay import replay
 from legkit.optimize.tracking import TrackingModel, track
@@ -28,6 +30,7 @@ from legkit.optimize.tracking import TrackingModel, track
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--intervals", type=int, default=16)
+    parser.add_argument("--coarse-intervals", type=int, default=None, help="solve on this mesh first, then refine onto --intervals")
     parser.add_argument("--min-normal-force", type=float, default=3.0)
     parser.add_argument("--mu", type=float, default=0.6)
     parser.add_argument("--torque-margin", type=float, default=0.0)
@@ -37,18 +40,26 @@ def main() -> None:
     args = parser.parse_args()
 
     robot = build_quadruped(AMBLE_QUADRUPED)
-    half = amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, args.intervals, QUADRUPED_MOTOR, args.mu,
-                         max_impulse=0.0, mirror=True, min_normal_force=args.min_normal_force, torque_margin=args.torque_margin)
-    guess = guess_from_reference(half, amble_reference(robot, 0.67, 1.25, args.intervals))
+
+    def amble(intervals: int) -> MultiphaseProblem:
+        return amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, intervals, QUADRUPED_MOTOR, args.mu,
+                             max_impulse=0.0, mirror=True, min_normal_force=args.min_normal_force, torque_margin=args.torque_margin)
+
+    half = amble(args.intervals)
+    solved = amble(args.coarse_intervals) if args.coarse_intervals else half
+    guess = guess_from_reference(solved, amble_reference(robot, 0.67, 1.25, solved.phases[0].intervals))
     start = time.perf_counter()
-    _, result = half.solve(guess, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=True, options=AMBLE_IPOPT)
+    _, result = solved.solve(guess, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=True, options=AMBLE_IPOPT)
+    if solved is not half:
+        _, result = half.refine(solved, result, options=AMBLE_IPOPT)
     total = time.perf_counter() - start
     x, _ = result.best()
     problem = half.full_cycle()
     x = problem.pack(half.unroll(half.unpack(x)))
     trajectory = problem.unpack(x)
     drift = interval_drift(problem, x).worst(True)
-    print(f"plan: {args.intervals} intervals per phase, stance force >= {args.min_normal_force} N, mu {args.mu}, "
+    refined = f" (refined from {args.coarse_intervals})" if args.coarse_intervals else ""
+    print(f"plan: {args.intervals} intervals per phase{refined}, stance force >= {args.min_normal_force} N, mu {args.mu}, "
           f"torque margin {args.torque_margin}: {result.status}, "
           f"{result.iterations} iterations, {result.wall_time:.1f} s ({total:.1f} s in all), violation {problem.nlp().violation(x):.1e}, "
           f"S_H min {min(np.concatenate(problem.stability_index(x))):.3f}, durations {np.round(trajectory.durations[:2], 3)} s")

@@ -512,7 +512,8 @@ def run(robot_name: str, args: argparse.Namespace, progress: tqdm) -> GaitAnalys
 def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     """`--optimize`: the Fig. 3 amble optimised by multiphase collocation on IPOPT (`legkit.optimize`), maximising
     the worst-case S_H (J_s2, eq. 11) from the hand-built reference, its touchdown impulses bounded by --max-impulse
-    (default 0: the feet land at rest; docs/optimize.md, replay); one progress line per IPOPT iteration.
+    (default 0: the feet land at rest; docs/optimize.md, replay); one progress line per IPOPT iteration. With
+    --coarse-intervals, J_s2 is solved on that mesh and the optimum refined onto --intervals (`MultiphaseProblem.refine`).
     Writes gait_quadruped_optimized.csv (every collocation point: t, phase, support, q, v, u, S_H) and .png
     (S_H over the period with its worst case marked, beside the reference's), then replays the gait in
     `lk.Simulation` (joint PD tracking with --replay-kp, --replay-kd + feed-forward torques, or with --replay-controller
@@ -533,19 +534,28 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
 
     robot = build_quadruped(AMBLE_QUADRUPED)
     speed, period = args.quadruped_speed, args.quadruped_period
-    problem = amble_problem(robot, [MinMaxStability(args.quadruped_tip_speed, DIAGONAL_PAIRS)], speed, period,
-                            args.intervals, QUADRUPED_MOTOR, args.mu, max_impulse=args.max_impulse,
-                            mirror=AMBLE_MIRROR if args.mirror is None else args.mirror, min_normal_force=args.min_normal_force,
-                            torque_margin=args.torque_margin)
-    ref = amble_reference(robot, speed, period, args.intervals)
-    guess = guess_from_reference(problem, ref)
-    reference_s_h = np.concatenate(problem.stability_index(problem.pack(guess)))
-    print(f"optimising the amble: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
 
-    # The constraints first, then J_s2, optionally polished with the exact Hessian (docs/optimize.md).
-    _, result = problem.solve(guess, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=args.polish,
-                              polish_max_iter=args.polish_max_iter, tol=args.tol, max_iter=args.max_iter,
-                              progress=_iteration_printer("J_s2"), options=AMBLE_IPOPT)
+    def amble(intervals: int) -> tuple[MultiphaseProblem, Trajectory]:
+        problem = amble_problem(robot, [MinMaxStability(args.quadruped_tip_speed, DIAGONAL_PAIRS)], speed, period,
+                                intervals, QUADRUPED_MOTOR, args.mu, max_impulse=args.max_impulse,
+                                mirror=AMBLE_MIRROR if args.mirror is None else args.mirror, min_normal_force=args.min_normal_force,
+                                torque_margin=args.torque_margin)
+        return problem, guess_from_reference(problem, amble_reference(robot, speed, period, intervals))
+
+    problem, guess = amble(args.intervals)
+    reference_s_h = np.concatenate(problem.stability_index(problem.pack(guess)))
+    print(f"optimising the amble: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros"
+          + (f", from {args.coarse_intervals} intervals per phase" if args.coarse_intervals else ""))
+
+    # The constraints first, then J_s2, optionally polished with the exact Hessian; with --coarse-intervals on the
+    # coarse mesh, then refined onto --intervals (docs/optimize.md).
+    solved, solved_guess = amble(args.coarse_intervals) if args.coarse_intervals else (problem, guess)
+    _, result = solved.solve(solved_guess, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=args.polish,
+                             polish_max_iter=args.polish_max_iter, tol=args.tol, max_iter=args.max_iter,
+                             progress=_iteration_printer("J_s2"), options=AMBLE_IPOPT)
+    if solved is not problem:
+        _, result = problem.refine(solved, result, tol=args.tol, max_iter=args.max_iter, progress=_iteration_printer("refine"),
+                                   options=AMBLE_IPOPT)
     x, _ = result.best()
     if x is result.x:
         kept = result.history[-1][0]
@@ -560,7 +570,8 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
                                     {"S_H": np.concatenate(problem.stability_index(x))})
     worst, worst_t = st.worst_case(columns["S_H"], data["t"])
     _plot_optimized(args.out / "gait_quadruped_optimized.png", data["t"], columns["S_H"], guess.stacked()["t"], reference_s_h, labels, worst, worst_t,
-                    f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}, iterate {kept} kept")
+                    f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}, iterate {kept} kept"
+                    + (f", refined from {args.coarse_intervals} intervals" if args.coarse_intervals else ""))
     if args.replay_controller == "mpc":
         simulated = track(problem, trajectory, args.replay_cycles, torque_bounds=stall_torque_bounds(QUADRUPED_MOTOR, problem.nu))
     else:
@@ -801,6 +812,9 @@ def main(argv: list[str] | None = None) -> int:
                         "(J_s2) on IPOPT, write its CSV/figure and replay it in simulation, and the biped walk for the "
                         "Joule loss (J_e1), writing its CSV and torque-speed figure (--robot picks one or both)")
     parser.add_argument("--intervals", type=_positive_int, default=4, help="--optimize: collocation intervals per amble phase")
+    parser.add_argument("--coarse-intervals", type=_positive_int, default=None,
+                        help="--optimize: solve the amble on this many intervals per phase first, then refine it onto --intervals with its "
+                             "worst-case S_H held at a fraction of the coarse optimum's (MultiphaseProblem.refine; default: solve on --intervals)")
     parser.add_argument("--biped-intervals", type=_positive_int, default=4,
                         help="--optimize: collocation intervals per biped single-support phase (a quarter, at least 1, per double support)")
     parser.add_argument("--max-iter", type=_positive_int, default=300,
@@ -815,8 +829,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--replay-kd", type=float, default=1.0, help="--optimize: joint PD damping of the replay [N m s/rad]")
     parser.add_argument("--replay-controller", choices=("pd", "mpc"), default="pd",
                         help="--optimize: the amble's replay: joint PD + feed-forward (pd), or the contact-constrained model-predictive "
-                             "tracking of legkit.optimize.tracking (mpc; its plan needs a fine mesh and a force floor: --intervals 16 "
-                             "--min-normal-force 3 --mu 0.6, docs/optimize.md)")
+                             "tracking of legkit.optimize.tracking (mpc; its plan needs a fine mesh and a force floor: --coarse-intervals 4 "
+                             "--intervals 16 --min-normal-force 3 --mu 0.6, docs/optimize.md)")
     parser.add_argument("--min-normal-force", type=float, default=0.0,
                         help="--optimize: floor on every stance normal force of the amble's plan [N] (0: eq. 5 as published)")
     parser.add_argument("--torque-margin", type=float, default=0.0,
@@ -841,6 +855,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--biped-max-power must be a positive number")
     if not (np.isfinite(args.min_normal_force) and args.min_normal_force >= 0.0):
         parser.error("--min-normal-force must be a non-negative number")
+    if args.coarse_intervals is not None and args.coarse_intervals >= args.intervals:
+        parser.error(f"--coarse-intervals must be fewer than --intervals ({args.intervals})")
     if not 0.0 <= args.torque_margin < 1.0:
         parser.error("--torque-margin must be in [0, 1)")
     args.out.mkdir(parents=True, exist_ok=True)

@@ -3,6 +3,7 @@
 `MultiphaseProblem` transcribes a fixed contact sequence (`Phase`s) by Hermite–Simpson collocation over
 legkit's batched dynamics, a whole cycle or, with a `Mirror` (`side_mirror`, `sagittal_mirror`), half of one;
 `solve` runs IPOPT (the casadi wheel's) on any `NLP` (`prepare` builds its solver ahead, in a thread);
+`MultiphaseProblem.refine` carries a solution onto a finer mesh;
 `objectives` holds the paper's performance indices J_s1, J_s2, J_e1, J_e2 and a plain control effort;
 `interval_drift` measures how far a solution's intervals are from motions of its model.
 """

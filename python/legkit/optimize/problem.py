@@ -69,6 +69,11 @@ POLISH_MU_INIT = 1e-6
 #: J_s2 either climbs quickly and then slowly, or crawls (p1 +1.5e-7 per iteration); measured in docs/optimize.md.
 POLISH_SWITCH = (20, 5e-3)
 
+#: `MultiphaseProblem.refine` holds J_s2's p1 at this fraction of the coarse optimum's. The 0.67 m/s amble (3 N
+#: floor, mu 0.6) from 4 onto 16 intervals per phase: 0.1, 0.2, 0.3 converged in 55, 40, 54 iterations (S_H min
+#: 0.042, 0.044, 0.063); 0.5 and 0.8 did not in 300 (docs/optimize.md).
+REFINE_STABILITY = 0.2
+
 
 @dataclass(frozen=True)
 class Phase:
@@ -1028,9 +1033,7 @@ class MultiphaseProblem:
             x0 = x0.copy()
             x0[self.p1_index] = 0.0
             x0[self.p1_index] = min(b.values(x0).min() for b in self.stability_blocks) - 1.0
-            fixed = self.nlp(derivatives)
-            fixed.x_lower[self.p1_index] = fixed.x_upper[self.p1_index] = x0[self.p1_index]
-            first = solve(fixed, x0, **options)
+            first = solve(self._p1_held(derivatives, x0[self.p1_index]), x0, **options)
             x0 = first.x.copy()
             x0[self.p1_index] += min(b.values(x0).min() for b in self.stability_blocks)
             result = solve(nlp, x0, stall=stall, **options)
@@ -1045,6 +1048,51 @@ class MultiphaseProblem:
             result = solve(held, start, **exact).after(result)
             result = solve(self.nlp("exact"), result.x, multipliers=result.multipliers, **exact).after(result)
         return self.unpack(result.best()[0]), result
+
+    def _p1_held(self, derivatives: str, p1: float) -> NLP:
+        """The NLP with p1 held at `p1`: the constraints, every S_H row at least p1 (J_s2 then constant)."""
+        nlp = self.nlp(derivatives)
+        nlp.x_lower[self.p1_index] = nlp.x_upper[self.p1_index] = p1
+        return nlp
+
+    def refined(self, coarse: MultiphaseProblem, x: np.ndarray) -> np.ndarray:
+        """`x`, a point of `coarse` (the same problem on other intervals per phase), on this problem's mesh: each
+        phase's point variables (knots and midpoints, evenly spaced in the phase's time) interpolated linearly, the
+        durations, p1 and touchdown impulses copied, gauged (`gauged`)."""
+        same = (len(coarse.phases) == len(self.phases) and coarse.n - coarse.p1_index == self.n - self.p1_index
+                and all(a.contacts == b.contacts for a, b in zip(coarse.phases, self.phases))
+                and all(a.shape[1] == b.shape[1] for a, b in zip(coarse.point_index, self.point_index)))
+        if not same:
+            raise ValueError("coarse must be this problem with other intervals per phase (the same phases, contacts and variables per point)")
+        x = np.asarray(x, dtype=np.float64)
+        if x.shape != (coarse.n,):
+            raise ValueError(f"x must have coarse's shape ({coarse.n},), got {x.shape}")
+        fine = np.empty(self.n)
+        for index, coarse_index in zip(self.point_index, coarse.point_index):
+            s, s_coarse = np.linspace(0.0, 1.0, len(index)), np.linspace(0.0, 1.0, len(coarse_index))
+            values = x[coarse_index]
+            fine[index] = np.stack([np.interp(s, s_coarse, column) for column in values.T], axis=1)
+        fine[self.duration_index[0]:] = x[coarse.duration_index[0]:]  # durations, p1, impulses: the same layout
+        return self.gauged(fine)
+
+    def refine(self, coarse: MultiphaseProblem, result: SolveResult, stability_fraction: float = REFINE_STABILITY,
+               derivatives: str = "exact", **options: Any) -> tuple[Trajectory, SolveResult]:
+        """Mesh refinement: `result`, solved on `coarse` (this problem on fewer intervals per phase), made a
+        solution of this problem from its interpolation (`refined`). With J_s2 (MinMaxStability) p1 is held at
+        stability_fraction x the coarse optimum's, so the worst-case S_H stays at least that and the run is a
+        feasibility problem; other objective terms are minimised. Optimising p1 on the fine mesh instead costs as
+        many iterations as a cold solve (16 intervals per phase: ~700, 125 s; `REFINE_STABILITY`,
+        docs/optimize.md). Options go to `legkit.optimize.solver.solve`; the result covers both solves."""
+        if not 0.0 <= stability_fraction <= 1.0:
+            raise ValueError(f"stability_fraction must be in [0, 1], got {stability_fraction}")
+        x0 = self.refined(coarse, result.best()[0])
+        if self.uses_p1:
+            x0[self.p1_index] *= stability_fraction
+            nlp = self._p1_held(derivatives, x0[self.p1_index])
+        else:
+            nlp = self.nlp(derivatives)
+        fine = solve(nlp, x0, **options).after(result)
+        return self.unpack(fine.best()[0]), fine
 
     def continued(self, result: SolveResult, speed: float) -> SolveResult:
         """`result`, solved at `speed` [m/s], as a warm start at this problem's speed (`solve(problem.continued(
