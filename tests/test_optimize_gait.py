@@ -34,24 +34,26 @@ def test_amble_guess_lies_on_the_reference_and_wraps_around_by_one_stride():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("mode", ["whole_cycle", "mirrored_half", "no_polish"])
+@pytest.mark.parametrize("mode", ["whole_cycle", "mirrored_half", "no_polish", "refined"])
 def test_cli_optimize_prints_each_iteration_and_writes_csv_and_figure(tmp_path, capsys, mode):
     # By default (--mirror) the half cycle is optimised and everything after sees the whole cycle, unrolled.
-    iterations = 3
-    flags = {"whole_cycle": ["--no-mirror"], "mirrored_half": ["--no-animation"], "no_polish": ["--no-polish", "--no-animation"]}[mode]
-    assert gait.main(["--robot", "quadruped", "--optimize", "--intervals", "1", "--max-iter", str(iterations), "--polish-max-iter",
+    iterations, intervals = 3, 2 if mode == "refined" else 1
+    flags = {"whole_cycle": ["--no-mirror"], "mirrored_half": ["--no-animation"], "no_polish": ["--no-polish", "--no-animation"],
+             "refined": ["--coarse-intervals", "1", "--no-animation"]}[mode]
+    assert gait.main(["--robot", "quadruped", "--optimize", "--intervals", str(intervals), "--max-iter", str(iterations), "--polish-max-iter",
                       str(iterations), "--replay-cycles", "1", "--out", str(tmp_path)] + flags) == 0
     out = capsys.readouterr().out
     # Two continuation stages (constraints first, then J_s2), by default two more (the exact-Hessian polish with the
-    # phase durations held, then free), each with IPOPT's iterate 0 too.
-    stages = 2 if mode == "no_polish" else 4
+    # phase durations held, then free), with --coarse-intervals one more (the refinement), each with IPOPT's iterate 0 too.
+    stages = {"no_polish": 2, "refined": 5}.get(mode, 4)
     assert sum(line.strip().startswith("iter ") for line in out.splitlines()) == stages * (iterations + 1)
+    assert sum(" refine " in line for line in out.splitlines()) == (iterations + 1 if mode == "refined" else 0)
     assert "replay: stayed upright" in out and "S_H min, reference" in out and "largest stance-foot acceleration" in out
     assert "largest drift over one interval, attitude [deg]" in out
     with (tmp_path / "gait_quadruped_optimized.csv").open() as handle:
         rows = list(csv.DictReader(handle))
-    assert len(rows) == 4 * 3  # four phases of three collocation points
-    assert [rows[3 * k]["support"] for k in range(4)] == ["+".join(p).upper() for p in AMBLE_SUPPORT]
+    assert len(rows) == 4 * (2 * intervals + 1)  # four phases of their knots and midpoints
+    assert [rows[(2 * intervals + 1) * k]["support"] for k in range(4)] == ["+".join(p).upper() for p in AMBLE_SUPPORT]
     assert (tmp_path / "gait_quadruped_optimized.png").stat().st_size > 10_000
     if mode != "whole_cycle":
         return

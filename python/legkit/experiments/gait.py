@@ -554,6 +554,8 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
                              polish_max_iter=args.polish_max_iter, tol=args.tol, max_iter=args.max_iter,
                              progress=_iteration_printer("J_s2"), options=AMBLE_IPOPT)
     if solved is not problem:
+        if not result.success:
+            print(f"the {args.coarse_intervals}-interval solve ended with {result.status}; refining its best point")
         _, result = problem.refine(solved, result, tol=args.tol, max_iter=args.max_iter, progress=_iteration_printer("refine"),
                                    options=AMBLE_IPOPT)
     x, _ = result.best()
