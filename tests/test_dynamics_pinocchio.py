@@ -464,6 +464,10 @@ def _call(name: str, tw: Twin, args: dict):
         return lk.aba(m, args["q"], args["v"], args["tau"])
     if name == "aba_f_ext":
         return lk.aba(m, args["q"], args["v"], args["tau"], args["f"])
+    if name == "rnea_derivatives":
+        return lk.rnea_derivatives(m, args["q"], args["v"], args["a"], args["f"])
+    if name == "aba_derivatives":
+        return lk.aba_derivatives(m, args["q"], args["v"], args["tau"], args["f"])
     if name == "crba":
         return lk.crba(m, args["q"])
     if name == "minv":
@@ -488,7 +492,7 @@ def _call(name: str, tw: Twin, args: dict):
 BATCHED = [
     "forward_kinematics", "rnea", "rnea_f_ext", "aba", "aba_f_ext", "crba", "minv", "center_of_mass",
     "subtree_mass_properties", "centroidal_momentum", "centroidal_momentum_rate", "jacobian", "kinetic_energy",
-    "potential_energy",
+    "potential_energy", "rnea_derivatives", "aba_derivatives",
 ]  # fmt: skip
 
 
@@ -656,6 +660,12 @@ BAD_CALLS = [
     ("potential q short", lambda m, q, v, a: lk.potential_energy(m, q[:-1]), ("q",)),
     ("point accelerations a short", lambda m, q, v, a: lk.point_accelerations(m, q, v, a[:-1], [(1, np.zeros(3))]), ("a",)),
     ("point accelerations body", lambda m, q, v, a: lk.point_accelerations(m, q, v, a, [(m.nbodies, np.zeros(3))]), ("body",)),
+    ("rnea_derivatives q quat", lambda m, q, v, a: lk.rnea_derivatives(m, _bad_q(q), v, a), ("q",)),
+    ("rnea_derivatives a short", lambda m, q, v, a: lk.rnea_derivatives(m, q, v, a[:-1]), ("a",)),
+    ("rnea_derivatives f_ext rows", lambda m, q, v, a: lk.rnea_derivatives(m, q, v, a, np.zeros((m.nbodies - 1, 6))), ("f_ext",)),
+    ("aba_derivatives v nan", lambda m, q, v, a: lk.aba_derivatives(m, q, _with_nan(v, 3), a), ("v",)),
+    ("aba_derivatives tau short", lambda m, q, v, a: lk.aba_derivatives(m, q, v, a[:-1]), ("tau",)),
+    ("aba_derivatives batch mismatch", lambda m, q, v, a: lk.aba_derivatives(m, _tile(q, 3), _tile(v, 4), a), ("q", "v")),
 ]
 
 

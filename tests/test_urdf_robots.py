@@ -84,17 +84,23 @@ class Twin:
         out[self.pin_v] = v[self.lk_v]
         return out
 
+    def to_lk_m(self, m_pin: np.ndarray) -> np.ndarray:
+        """An nv x nv matrix in Pinocchio's velocity order, in legkit's."""
+        out = np.zeros((self.model.nv, self.model.nv))
+        out[np.ix_(self.lk_v, self.lk_v)] = m_pin[np.ix_(self.pin_v, self.pin_v)]
+        return out
+
     def to_lk_v(self, v_pin: np.ndarray) -> np.ndarray:
         out = np.zeros(self.model.nv)
         out[self.lk_v] = v_pin[self.pin_v]
         return out
 
 
-def assert_close(got: np.ndarray, want: np.ndarray, what: str) -> None:
+def assert_close(got: np.ndarray, want: np.ndarray, what: str, rtol: float = RTOL) -> None:
     assert np.all(np.isfinite(got)), f"{what}: non-finite values"
     scale = max(1.0, float(np.abs(want).max(initial=0.0)))
     error = float(np.abs(got - want).max(initial=0.0))
-    assert error <= RTOL * scale, f"{what}: max error {error:.3e} > {RTOL:g} * {scale:.3e}"
+    assert error <= rtol * scale, f"{what}: max error {error:.3e} > {rtol:g} * {scale:.3e}"
 
 
 @pytest.mark.slow
@@ -118,15 +124,34 @@ def test_legkit_loads_what_pinocchio_loads_and_matches_its_dynamics(path: Path, 
         assert_close(lk.rnea(twin.model, q, v, a), twin.to_lk_v(pin.rnea(reference, data, q_pin, v_pin, a_pin)), "rnea")
         mass = pin.crba(reference, data, q_pin)
         mass = np.triu(mass) + np.triu(mass, 1).T
-        expected = np.zeros_like(mass)
-        expected[np.ix_(twin.lk_v, twin.lk_v)] = mass[np.ix_(twin.pin_v, twin.pin_v)]
-        assert_close(lk.crba(twin.model, q), expected, "crba")
+        assert_close(lk.crba(twin.model, q), twin.to_lk_m(mass), "crba")
         singular = mass.size > 0 and np.linalg.eigvalsh(mass).min() <= 1e-12 * np.abs(mass).max()
         assert singular == (path.name in SINGULAR_MASS_MATRIX)
         if not singular:
             tau = rng.normal(size=twin.model.nv)
             expected_a = twin.to_lk_v(pin.aba(reference, data, q_pin, v_pin, twin.to_pin_v(tau)))
             assert_close(lk.aba(twin.model, q, v, tau), expected_a, "aba")
+            # Pinocchio's derivative arrays are views of `data`: copied before the next call overwrites them.
+            expected_d = [np.array(x) for x in pin.computeABADerivatives(reference, data, q_pin, v_pin, twin.to_pin_v(tau))]
+            expected_d[2] = np.triu(expected_d[2]) + np.triu(expected_d[2], 1).T
+            got_d = lk.aba_derivatives(twin.model, q, v, tau)
+            # Pinocchio multiplies by a formed M^-1, whose error grows with M's condition number (2e9 for iCub: it is
+            # off by 1e-9 of the largest entry there, where legkit's solve leaves M X + dtau/dq at 1e-19 of |M| |X|):
+            # compared at 1e-9 up to a condition number of 1e6, and in proportion beyond (its condition number is
+            # the same in either order).
+            tolerance = RTOL * max(1.0, np.linalg.cond(mass) / 1e6 if mass.size else 1.0)
+            for got, want, what in zip(got_d, expected_d, ["dddq/dq", "dddq/dv", "dddq/dtau"]):
+                assert_close(got, twin.to_lk_m(want), what, tolerance)
+            # Exactly: M dddq/dq = -dtau/dq and M dddq/dv = -dtau/dv at the accelerations aba gives.
+            dtau = lk.rnea_derivatives(twin.model, q, v, lk.aba(twin.model, q, v, tau))
+            m = lk.crba(twin.model, q)
+            for got, minus, what in zip(got_d, dtau, ["dddq/dq", "dddq/dv"]):
+                residual = np.abs(m @ got + minus).max(initial=0.0)
+                bound = 1e-12 * np.abs(m).max(initial=0.0) * np.abs(got).max(initial=0.0)
+                assert residual <= bound, f"{what}: M X + dtau = {residual:.3e}"
+        expected_d = [np.array(x) for x in pin.computeRNEADerivatives(reference, data, q_pin, v_pin, a_pin)]
+        for got, want, what in zip(lk.rnea_derivatives(twin.model, q, v, a), expected_d, ["dtau/dq", "dtau/dv"]):
+            assert_close(got, twin.to_lk_m(want), what)
 
 
 def test_a_non_physical_inertia_loads_as_written_with_a_warning_and_strict_refuses_it():

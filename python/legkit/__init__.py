@@ -16,6 +16,7 @@ from legkit._core import (
     SimulationBatch,
     UrdfWarning,
     aba,
+    aba_derivatives,
     center_of_mass,
     centroidal_map,
     centroidal_momentum,
@@ -34,6 +35,7 @@ from legkit._core import (
     reduced_dynamics,
     resolve_mesh,
     rnea,
+    rnea_derivatives,
     subtree_mass_properties,
 )
 from legkit.geometry import CircleLineResult, circle_line, rotation_toward_line
@@ -56,6 +58,8 @@ __all__ = [
     "rnea",
     "crba",
     "aba",
+    "rnea_derivatives",
+    "aba_derivatives",
     "minv",
     "jacobian",
     "center_of_mass",

@@ -153,6 +153,17 @@ def rnea(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike, f_e
     """Inverse dynamics tau = M a + C v + g - sum J^T f_ext; f_ext is (..., nbodies, 6), [f, n] in each body's frame."""
 def aba(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, f_ext: npt.ArrayLike | None = None) -> np.ndarray:
     """Forward dynamics by the O(n) articulated-body algorithm: (..., nv)."""
+def rnea_derivatives(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike, f_ext: npt.ArrayLike | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(dtau/dq, dtau/dv) of ``rnea``, each (..., nv, nv); q on its tangent space (a free-flyer base perturbed as
+    q (+) dq with dq = [dv_lin, dw] in the base frame, as ``integrate``), as Pinocchio's computeRNEADerivatives.
+    dtau/da is ``crba``."""
+def aba_derivatives(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, f_ext: npt.ArrayLike | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(da/dq, da/dv, da/dtau = M^-1) of ``aba``, each (..., nv, nv); q on its tangent space, as Pinocchio's
+    computeABADerivatives. A singular mass matrix raises as in ``aba``."""
 def crba(model: Model, q: npt.ArrayLike) -> np.ndarray:
     """Joint-space mass matrix M(q): (..., nv, nv)."""
 def minv(model: Model, q: npt.ArrayLike) -> np.ndarray:

@@ -1,5 +1,7 @@
-//! ABA, RNEA, CRBA and M⁻¹ on the 63-DoF SuperBot-like modular tree, and ABA on revolute chains of 64 and
-//! 1024 links (targets: ABA on the 63-DoF tree <= 5 µs; ABA linear in the number of bodies).
+//! ABA, RNEA, CRBA and M⁻¹ on the 63-DoF SuperBot-like modular tree, ABA on revolute chains of 64 and 1024 links
+//! (targets: ABA on the 63-DoF tree <= 5 µs; ABA linear in the number of bodies), and the RNEA and ABA derivatives
+//! on the tree and on chains of 64 and 512 links (`benches/derivatives_vs_pinocchio.py` compares them with
+//! Pinocchio's).
 //!
 //! The models are those of `benches/models.py` (the Python comparison with Pinocchio), built here again:
 //! * tree: a fixed root module and 4 branches of 5 modules, each module 0.1 m long along its +x with three
@@ -15,7 +17,7 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use legkit_dynamics::algorithms::{aba, crba, minv, rnea};
+use legkit_dynamics::algorithms::{aba, aba_derivatives, crba, minv, rnea, rnea_derivatives};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{Matrix3, Vector3};
 use rand::rngs::StdRng;
@@ -126,5 +128,20 @@ fn chains(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, tree, chains);
+fn derivatives(c: &mut Criterion) {
+    let mut group = c.benchmark_group("derivatives");
+    for (name, model) in [("tree63", superbot_tree()), ("chain64", chain(64)), ("chain512", chain(512))] {
+        let mut data = Data::new(&model);
+        let (q, v, tau) = random_state(&model, model.nv() as u64);
+        group.bench_function(BenchmarkId::new("rnea", name), |b| {
+            b.iter(|| rnea_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None).0[(0, 0)])
+        });
+        group.bench_function(BenchmarkId::new("aba", name), |b| {
+            b.iter(|| aba_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None).0[(0, 0)])
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, tree, chains, derivatives);
 criterion_main!(benches);

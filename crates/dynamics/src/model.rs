@@ -15,9 +15,10 @@ use std::ops::Range;
 
 use nalgebra::{DMatrix, DVector, Matrix6xX, Vector3, Vector6};
 
+use crate::algorithms::aba::{Block6, BLOCK};
 use crate::joint::Joint;
 use crate::sim::Shape;
-use crate::spatial::{spatial, Force, Inertia, Motion, RigidInertia, Transform};
+use crate::spatial::{spatial, Force, Inertia, Motion, RateMatrix, RigidInertia, Transform};
 use crate::validate::{finite_vector, rotation};
 use crate::{Error, MassProperties, Result};
 
@@ -394,11 +395,93 @@ pub struct Data {
     pub centroidal_map: Matrix6xX<f64>,
     pub tau: DVector<f64>,
     pub ddq: DVector<f64>,
+    /// M and M⁻¹ (nv x nv), sized by the first `crba` and `minv` call: the O(n) algorithms need neither, and a
+    /// large model should not hold them (a 20,000-link chain's would take 6.4 GB).
     pub mass_matrix: DMatrix<f64>,
     pub minv: DMatrix<f64>,
     /// Per-body 6 x nv force (then motion) sets of the inverse-mass-matrix recursion; sized by its
     /// first call, since only `minv` needs these O(n nv) numbers.
     pub force_sets: Vec<Matrix6xX<f64>>,
+    /// The derivative algorithms' workspace and outputs, sized by their first call.
+    pub derivatives: Derivatives,
+}
+
+/// The workspace and outputs of the derivative algorithms (`rnea_derivatives`, `aba_derivatives`), in the centred
+/// frame (see `Data`). Empty until their first call sizes it, so that a model that is never differentiated does not
+/// hold its nv x nv outputs.
+#[derive(Debug, Clone, Default)]
+pub struct Derivatives {
+    /// Per body: velocity, acceleration with gravity as a base acceleration, and (after the backward pass) the net
+    /// force on its subtree less the external forces.
+    pub velocity: Vec<Motion>,
+    pub acceleration: Vec<Motion>,
+    pub force: Vec<Force>,
+    /// Per body: the subtree's composite rigid inertia and the sum of its bodies' `RigidInertia::rate_matrix`.
+    pub composite: Vec<RigidInertia>,
+    pub rate: Vec<RateMatrix>,
+    /// Per velocity coordinate (6 x nv): its joint's motion S in the centred frame (a column of the world Jacobian
+    /// J), and what a change of that coordinate does to its body: ∂v/∂q, ∂a/∂q, ∂a/∂q̇ (less the rigid motion of
+    /// the subtree, which the backward pass adds as J ×*).
+    pub subspace: Matrix6xX<f64>,
+    pub dv_dq: Matrix6xX<f64>,
+    pub da_dq: Matrix6xX<f64>,
+    pub da_dv: Matrix6xX<f64>,
+    /// Per velocity coordinate (6 x nv): the change of its joint's subtree force with q, q̇ and q̈, and Bᵀ S.
+    pub df_dq: Matrix6xX<f64>,
+    pub df_dv: Matrix6xX<f64>,
+    pub df_da: Matrix6xX<f64>,
+    pub rate_subspace: Matrix6xX<f64>,
+    /// ∂τ/∂q, ∂τ/∂q̇ (RNEA) and ∂q̈/∂q, ∂q̈/∂q̇ (ABA), nv x nv; q on the tangent space.
+    pub dtau_dq: DMatrix<f64>,
+    pub dtau_dv: DMatrix<f64>,
+    pub ddq_dq: DMatrix<f64>,
+    pub ddq_dv: DMatrix<f64>,
+    /// The solves by M (`aba::solve_columns`): a block of right-hand sides row by row (nv), and its bias forces and
+    /// accelerations per body.
+    pub block_rows: Vec<[f64; BLOCK]>,
+    pub block_forces: Vec<Block6>,
+    pub block_accelerations: Vec<Block6>,
+}
+
+/// Sizes `matrix` n x n unless it already is (its numbers are then to be overwritten).
+pub(crate) fn reserve_square(matrix: &mut DMatrix<f64>, n: usize) {
+    if matrix.shape() != (n, n) {
+        *matrix = DMatrix::zeros(n, n);
+    }
+}
+
+impl Derivatives {
+    /// Sizes the workspace for `model` unless it already is.
+    pub(crate) fn reserve(&mut self, model: &Model) {
+        let (n, nv) = (model.nbodies(), model.nv());
+        if self.velocity.len() == n && self.dtau_dq.nrows() == nv {
+            return;
+        }
+        let columns = || Matrix6xX::zeros(nv);
+        let square = || DMatrix::zeros(nv, nv);
+        *self = Derivatives {
+            velocity: vec![Motion::zeros(); n],
+            acceleration: vec![Motion::zeros(); n],
+            force: vec![Force::zeros(); n],
+            composite: vec![RigidInertia::zeros(); n],
+            rate: vec![RateMatrix::zeros(); n],
+            subspace: columns(),
+            dv_dq: columns(),
+            da_dq: columns(),
+            da_dv: columns(),
+            df_dq: columns(),
+            df_dv: columns(),
+            df_da: columns(),
+            rate_subspace: columns(),
+            dtau_dq: square(),
+            dtau_dv: square(),
+            ddq_dq: square(),
+            ddq_dv: square(),
+            block_rows: vec![[0.0; BLOCK]; nv],
+            block_forces: vec![[[0.0; BLOCK]; 6]; n],
+            block_accelerations: vec![[[0.0; BLOCK]; 6]; n],
+        };
+    }
 }
 
 impl Data {
@@ -426,9 +509,10 @@ impl Data {
             centroidal_map: Matrix6xX::zeros(model.nv()),
             tau: DVector::zeros(model.nv()),
             ddq: DVector::zeros(model.nv()),
-            mass_matrix: DMatrix::zeros(model.nv(), model.nv()),
-            minv: DMatrix::zeros(model.nv(), model.nv()),
+            mass_matrix: DMatrix::zeros(0, 0),
+            minv: DMatrix::zeros(0, 0),
             force_sets: Vec::new(),
+            derivatives: Derivatives::default(),
         }
     }
 }

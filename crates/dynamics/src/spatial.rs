@@ -256,6 +256,66 @@ impl RigidInertia {
     }
 }
 
+/// The matrix B(v) = v ×* I − I v× + (I v)×̄ of a rigid body of inertia I moving with velocity v, where
+/// (h)×̄ m = m ×* h: when the body's velocity changes by δv and its acceleration by δa − v × δv, its net force
+/// I a + v ×* I v changes by I δa + B δv (Carpentier & Mansard, RSS 2018, the Ẏ + h×̄ of their backward pass).
+/// For I = [m 1, −ĥ; ĥ, I_O] and v = [u; ω] it is [0, −2p̂; 0, C] with p = m u + ω × h the linear momentum and
+/// C = ω̂ I_O − I_O ω̂ − (ûĥ + ĥû) − L̂, L = I_O ω + h × u: only its angular columns, 12 numbers, which add.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RateMatrix {
+    pub momentum: Vector3<f64>,
+    pub angular: Matrix3<f64>,
+}
+
+impl RateMatrix {
+    pub fn zeros() -> Self {
+        Self { momentum: Vector3::zeros(), angular: Matrix3::zeros() }
+    }
+
+    /// B x.
+    #[inline(always)]
+    pub fn apply(&self, x: &Motion) -> Force {
+        let w = angular(x);
+        spatial(-2.0 * self.momentum.cross(&w), self.angular * w)
+    }
+
+    /// Bᵀ x (its linear half is zero).
+    #[inline(always)]
+    pub fn transpose_apply(&self, x: &Motion) -> Vector6<f64> {
+        spatial(Vector3::zeros(), 2.0 * self.momentum.cross(&linear(x)) + self.angular.tr_mul(&angular(x)))
+    }
+
+    /// The full 6x6 matrix.
+    pub fn matrix(&self) -> Matrix6<f64> {
+        let mut b = Matrix6::zeros();
+        b.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-2.0 * self.momentum.cross_matrix()));
+        b.fixed_view_mut::<3, 3>(3, 3).copy_from(&self.angular);
+        b
+    }
+}
+
+impl std::ops::AddAssign for RateMatrix {
+    #[inline(always)]
+    fn add_assign(&mut self, other: Self) {
+        self.momentum += other.momentum;
+        self.angular += other.angular;
+    }
+}
+
+impl RigidInertia {
+    /// B(v) (see `RateMatrix`) of this body moving with velocity `v`.
+    #[inline(always)]
+    pub fn rate_matrix(&self, v: &Motion) -> RateMatrix {
+        let (u, w, h, i) = (linear(v), angular(v), &self.first_moment, &self.rotational);
+        let momentum = u * self.mass + w.cross(h);
+        let spin = i * w + h.cross(&u);
+        let w_hat = w.cross_matrix();
+        // ûĥ + ĥû = h uᵀ + u hᵀ − 2 (u·h) 1.
+        let symmetric = h * u.transpose() + u * h.transpose() - Matrix3::identity() * (2.0 * u.dot(h));
+        RateMatrix { momentum, angular: w_hat * i - i * w_hat - symmetric - spin.cross_matrix() }
+    }
+}
+
 impl std::ops::AddAssign for RigidInertia {
     #[inline(always)]
     fn add_assign(&mut self, other: Self) {
@@ -323,6 +383,16 @@ mod tests {
         Transform::new(Rotation3::from_euler_angles(0.3, -1.2, 2.0).into_inner(), Vector3::new(0.4, -0.7, 1.1))
     }
 
+    /// The 6x6 matrix of `v ×` (eq. 2.31), `[ω̂, v̂; 0, ω̂]`; `v ×*` is minus its transpose.
+    fn motion_cross_matrix(v: &Motion) -> Matrix6<f64> {
+        let (vl, w) = (linear(v).cross_matrix(), angular(v).cross_matrix());
+        let mut m = Matrix6::zeros();
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&w);
+        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&vl);
+        m.fixed_view_mut::<3, 3>(3, 3).copy_from(&w);
+        m
+    }
+
     /// The 6x6 motion transform written out (eq. 2.24, reordered to [linear; angular]).
     fn motion_matrix(x: &Transform) -> Matrix6<f64> {
         let mut m = Matrix6::zeros();
@@ -364,6 +434,23 @@ mod tests {
         let r = &centred.rotational;
         assert!(r[(0, 1)] == 0.0 && r[(0, 2)] == 0.0 && r[(1, 2)] == 0.0);
         assert!((x.act_rigid_inertia(&centred).matrix() - act(&centred.matrix())).amax() < 1e-13);
+    }
+
+    #[test]
+    fn rate_matrix_is_the_written_out_product() {
+        let body = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::new(0.1, 0.2, -0.3), &Matrix3::identity()).unwrap();
+        let inertia = sample_transform().act_rigid_inertia(&RigidInertia::from_body(&body));
+        let v = Motion::new(0.3, 0.1, -0.2, 0.5, -0.6, 0.2);
+        let (i, cross) = (inertia.matrix(), motion_cross_matrix(&v));
+        // v ×* I − I v× + (I v)×̄, with (h)×̄ m = m ×* h written column by column.
+        let h = inertia.apply(&v);
+        let h_bar = Matrix6::from_fn(|r, c| cross_force(&Motion::ith(c, 1.0), &h)[r]);
+        let expected = -(cross.transpose() * i) - i * cross + h_bar;
+        let rate = inertia.rate_matrix(&v);
+        assert!((rate.matrix() - expected).amax() < 1e-14);
+        let x = Motion::new(-0.4, 0.8, 0.1, 0.2, 0.3, -0.9);
+        assert!((rate.apply(&x) - expected * x).amax() < 1e-14);
+        assert!((rate.transpose_apply(&x) - expected.transpose() * x).amax() < 1e-14);
     }
 
     #[test]

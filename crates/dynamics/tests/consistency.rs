@@ -4,65 +4,13 @@
 
 use legkit_dynamics::algorithms::{aba, centroidal_map, centroidal_momentum, crba, forward_kinematics, minv, rnea};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
-use nalgebra::{DMatrix, DVector, Rotation3, Unit, Vector3};
+use nalgebra::{DMatrix, DVector, Vector3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-fn unit(rng: &mut StdRng) -> Vector3<f64> {
-    loop {
-        let v = Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
-        if v.norm() > 0.1 {
-            return v.normalize();
-        }
-    }
-}
-
-fn random_body(rng: &mut StdRng) -> MassProperties {
-    let size = Vector3::new(rng.random_range(0.05..0.5), rng.random_range(0.05..0.5), rng.random_range(0.05..0.5));
-    let center = Vector3::new(rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2));
-    let rotation = Rotation3::from_axis_angle(&Unit::new_normalize(unit(rng)), rng.random_range(-3.0..3.0)).into_inner();
-    MassProperties::solid_box(rng.random_range(0.1..3.0), size, center, &rotation).unwrap()
-}
-
-fn random_tree(rng: &mut StdRng, n: usize, floating: bool) -> Model {
-    let mut model = Model::new(floating, random_body(rng), "base");
-    for i in 1..=n {
-        let parent = rng.random_range(0..i);
-        let joint = match rng.random_range(0..10) {
-            0 => Joint::Fixed,
-            1 | 2 => Joint::Prismatic(unit(rng)),
-            3 => Joint::Helical { axis: unit(rng), pitch: rng.random_range(-0.2..0.2) },
-            _ => Joint::Revolute(unit(rng)),
-        };
-        let rotation = Rotation3::from_axis_angle(&Unit::new_normalize(unit(rng)), rng.random_range(-3.0..3.0)).into_inner();
-        let placement = Transform::new(rotation, unit(rng) * rng.random_range(0.0..0.5));
-        model.add_body(parent, joint, placement, random_body(rng), &format!("body{i}"), JointLimits::NONE).unwrap();
-    }
-    if rng.random_bool(0.5) {
-        let base = if floating { 6 } else { 0 };
-        let armature: Vec<f64> = (0..model.nv()).map(|k| if k < base { 0.0 } else { rng.random_range(0.0..0.5) }).collect();
-        model.set_armature(&armature).unwrap();
-    }
-    model
-}
-
-fn random_state(rng: &mut StdRng, model: &Model) -> (DVector<f64>, DVector<f64>) {
-    let mut q = DVector::from_fn(model.nq(), |_, _| rng.random_range(-2.0..2.0));
-    if model.floating_base() {
-        let quat = nalgebra::UnitQuaternion::from_axis_angle(&Unit::new_normalize(unit(rng)), rng.random_range(-3.0..3.0));
-        q.rows_mut(3, 4).copy_from_slice(&[quat.i, quat.j, quat.k, quat.w]);
-    }
-    let v = DVector::from_fn(model.nv(), |_, _| rng.random_range(-2.0..2.0));
-    (q, v)
-}
-
-/// Case `case` of a randomised sweep: a tree of 1..=25 bodies, floating on even cases, its workspace and a state.
-fn random_case(rng: &mut StdRng, case: usize) -> (Model, Data, DVector<f64>, DVector<f64>) {
-    let model = random_tree(rng, 1 + case % 25, case.is_multiple_of(2));
-    let data = Data::new(&model);
-    let (q, v) = random_state(rng, &model);
-    (model, data, q, v)
-}
+#[path = "fixtures/trees.rs"]
+mod trees;
+use trees::random_case;
 
 fn relative_error(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
     (a - b).amax() / b.amax().max(1.0)

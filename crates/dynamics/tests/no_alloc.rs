@@ -4,8 +4,8 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use legkit_dynamics::algorithms::{
-    aba, center_of_mass, centroidal_map, centroidal_momentum, centroidal_momentum_rate, crba, forward_kinematics, jacobian, kinetic_energy, minv,
-    potential_energy, rnea, subtree_mass_properties, Frame,
+    aba, aba_derivatives, center_of_mass, centroidal_map, centroidal_momentum, centroidal_momentum_rate, crba, forward_kinematics, jacobian,
+    kinetic_energy, minv, potential_energy, rnea, rnea_derivatives, subtree_mass_properties, Frame,
 };
 use legkit_dynamics::sim::{Shape, ShapeKind};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
@@ -56,7 +56,10 @@ fn algorithms_do_not_allocate() {
     q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
     let v = vec![0.2; model.nv()];
     let tau = vec![0.3; model.nv()];
-    minv(&model, &mut data, &q); // sizes its force sets on the first call
+    // The first calls size M, M⁻¹ and minv's force sets, and the derivatives' workspace.
+    crba(&model, &mut data, &q);
+    minv(&model, &mut data, &q);
+    aba_derivatives(&model, &mut data, &q, &v, &tau, None);
     let count = allocations_during(|| {
         forward_kinematics(&model, &mut data, &q);
         rnea(&model, &mut data, &q, &v, &tau, None);
@@ -71,6 +74,8 @@ fn algorithms_do_not_allocate() {
         centroidal_momentum_rate(&model, &mut data, &q, &v, &tau);
         kinetic_energy(&model, &mut data, &q, &v);
         potential_energy(&model, &mut data, &q);
+        rnea_derivatives(&model, &mut data, &q, &v, &tau, None);
+        aba_derivatives(&model, &mut data, &q, &v, &tau, None);
     });
     assert_eq!(count, 0, "the algorithms allocated {count} times");
 }

@@ -13,7 +13,7 @@ use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run};
 
 /// The batch of (q, v, x[, f_ext]) with cores (nq,), (nv,), (nv,) and (nbodies, 6).
-fn state_batch(
+pub(crate) fn state_batch(
     m: &Model,
     q: &ArrayArg<'_>,
     v: &ArrayArg<'_>,

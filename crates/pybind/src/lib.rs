@@ -5,6 +5,7 @@ mod agents;
 mod batch;
 mod contact;
 mod convert;
+mod derivatives;
 mod dynamics;
 mod geometry;
 mod integrate;
@@ -35,6 +36,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(kinematics::centroidal_momentum_rate, m)?)?;
     m.add_function(wrap_pyfunction!(dynamics::rnea, m)?)?;
     m.add_function(wrap_pyfunction!(dynamics::aba, m)?)?;
+    m.add_function(wrap_pyfunction!(derivatives::rnea_derivatives, m)?)?;
+    m.add_function(wrap_pyfunction!(derivatives::aba_derivatives, m)?)?;
     m.add_function(wrap_pyfunction!(dynamics::crba, m)?)?;
     m.add_function(wrap_pyfunction!(dynamics::minv, m)?)?;
     m.add_function(wrap_pyfunction!(dynamics::kinetic_energy, m)?)?;

@@ -10,7 +10,9 @@ use super::kinematics::base_centred_root;
 use super::world_pose;
 use crate::joint::Dofs;
 use crate::model::{Data, Model};
-use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inertia_times_pair, Force, Motion};
+use nalgebra::Vector6;
+
+use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inertia_times_pair, Force, Inertia, Motion, Transform};
 
 /// Joint accelerations for configuration `q`, velocity `v` and joint forces `tau`, with the model's
 /// armature (`Model::armature`); `f_ext` as in `rnea`. Writes `data.ddq` and returns it. In the world's axes about the base's origin (see
@@ -114,4 +116,123 @@ pub fn aba_with_armature<'d>(
         };
     }
     &data.ddq
+}
+
+/// The factors of M + diag(armature) that `aba_with_armature` leaves in `Data` (centred frame): each body's pose,
+/// articulated inertia, joint subspace, U = I^A S and D⁻¹.
+pub(crate) struct Factors<'a> {
+    pub poses: &'a [Transform],
+    pub inertia: &'a [Inertia],
+    pub s: &'a [Motion],
+    pub u: &'a [Vector6<f64>],
+    pub d_inv: &'a [f64],
+}
+
+/// Right-hand sides `solve_columns` takes at once: its per-body work runs across them as short vectors.
+pub(crate) const BLOCK: usize = 8;
+
+/// A 6-vector per column of a block, stored row by row.
+pub(crate) type Block6 = [[f64; BLOCK]; 6];
+
+/// Solves (M + diag(armature)) x = b in place for every column b of `columns` (column-major, nv rows each) with
+/// `factors`: Table 7.1's passes 2 and 3 with q̇ = 0 and no gravity, O(n) per column, so M⁻¹ B costs O(n nv) for
+/// nv columns where a dense product costs O(nv³). Columns go `BLOCK` at a time; `rows` (nv) holds a block row by row
+/// and `forces` and `accelerations` (one per body) its bias forces and accelerations.
+pub(crate) fn solve_columns(
+    model: &Model,
+    factors: &Factors<'_>,
+    columns: &mut [f64],
+    rows: &mut [[f64; BLOCK]],
+    forces: &mut [Block6],
+    accelerations: &mut [Block6],
+) {
+    let (n, nv) = (model.nbodies(), model.nv());
+    if nv == 0 {
+        return;
+    }
+    let base_inverse = match model.joint(0).dofs() {
+        Dofs::Free => factors.inertia[0].cholesky().map_or(Inertia::repeat(f64::NAN), |c| c.inverse()),
+        _ => Inertia::zeros(),
+    };
+    let count = columns.len() / nv;
+    // Each pass leaves every body's bias force zero for the next block.
+    forces.fill([[0.0; BLOCK]; 6]);
+    for start in (0..count).step_by(BLOCK) {
+        let width = BLOCK.min(count - start);
+        let block = &mut columns[start * nv..(start + width) * nv];
+        for (k, row) in rows.iter_mut().enumerate() {
+            *row = std::array::from_fn(|c| if c < width { block[c * nv + k] } else { 0.0 });
+        }
+        // Pass 2 on the bias forces alone (eq. 7.41–7.44): u = b − Sᵀ p^A, and p^A + U D⁻¹ u to the parent.
+        for i in (1..n).rev() {
+            let (head, tail) = forces.split_at_mut(i);
+            let (to, from) = (&mut head[model.parent(i)], &mut tail[0]);
+            if model.joint(i).nv() == 1 {
+                let k = model.idx_v(i);
+                let (s, w) = (&factors.s[i], factors.u[i] * factors.d_inv[i]);
+                let mut u = rows[k];
+                for r in 0..6 {
+                    for c in 0..BLOCK {
+                        u[c] -= s[r] * from[r][c];
+                    }
+                }
+                for r in 0..6 {
+                    for c in 0..BLOCK {
+                        to[r][c] += from[r][c] + w[r] * u[c];
+                    }
+                }
+                rows[k] = u;
+            } else {
+                for r in 0..6 {
+                    for c in 0..BLOCK {
+                        to[r][c] += from[r][c];
+                    }
+                }
+            }
+            *from = [[0.0; BLOCK]; 6];
+        }
+        // Pass 3 (eq. 7.45–7.47).
+        accelerations[0] = [[0.0; BLOCK]; 6];
+        if let Dofs::Free = model.joint(0).dofs() {
+            let pose = factors.poses[0];
+            for c in 0..BLOCK {
+                let rhs = pose.act_force(&Force::from_fn(|r, _| rows[r][c])) - Force::from_fn(|r, _| forces[0][r][c]);
+                let acceleration = base_inverse * rhs;
+                let ddq = pose.inv_act_motion(&acceleration);
+                for r in 0..6 {
+                    accelerations[0][r][c] = acceleration[r];
+                    rows[r][c] = ddq[r];
+                }
+            }
+        }
+        forces[0] = [[0.0; BLOCK]; 6];
+        for i in 1..n {
+            let (head, tail) = accelerations.split_at_mut(i);
+            let (from, to) = (&head[model.parent(i)], &mut tail[0]);
+            if model.joint(i).nv() == 1 {
+                let k = model.idx_v(i);
+                let (s, u, d_inv) = (&factors.s[i], &factors.u[i], factors.d_inv[i]);
+                let mut qdd = rows[k];
+                for r in 0..6 {
+                    for c in 0..BLOCK {
+                        qdd[c] -= u[r] * from[r][c];
+                    }
+                }
+                qdd = qdd.map(|x| x * d_inv);
+                for r in 0..6 {
+                    for c in 0..BLOCK {
+                        to[r][c] = from[r][c] + s[r] * qdd[c];
+                    }
+                }
+                rows[k] = qdd;
+            } else {
+                *to = *from;
+            }
+        }
+        for (k, row) in rows.iter().enumerate() {
+            for c in 0..width {
+                block[c * nv + k] = row[c];
+            }
+        }
+    }
 }

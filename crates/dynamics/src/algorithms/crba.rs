@@ -8,12 +8,13 @@ use nalgebra::DMatrix;
 
 use super::kinematics::base_centred_kinematics;
 use crate::joint::Dofs;
-use crate::model::{Data, Model};
+use crate::model::{reserve_square, Data, Model};
 use crate::spatial::RigidInertia;
 
 /// Fills `data.mass_matrix` (both triangles, each entry as it is found) and returns it. Works for any parent-before-child order.
 pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64> {
     let n = model.nbodies();
+    reserve_square(&mut data.mass_matrix, model.nv());
     base_centred_kinematics(model, data, q);
     // A fixed base's composite inertia is not needed.
     data.composite[0] = if model.floating_base() { data.centred_m_i[0].act_rigid_inertia(model.inertia(0)) } else { RigidInertia::zeros() };

@@ -14,7 +14,7 @@ use nalgebra::{DMatrix, Matrix6xX, Vector6};
 
 use super::kinematics::base_centred_kinematics;
 use crate::joint::Dofs;
-use crate::model::{Data, Model};
+use crate::model::{reserve_square, Data, Model};
 use crate::spatial::{add_reduced_inertia, dot6, Inertia};
 
 /// Body `i`'s set and its parent's (`parent < i`), as 6-vector chunks, one per column.
@@ -42,6 +42,7 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
     if data.force_sets.len() != n {
         data.force_sets = vec![Matrix6xX::zeros(nv); n];
     }
+    reserve_square(&mut data.minv, nv);
     base_centred_kinematics(model, data, q);
     for i in 0..n {
         data.inertia[i] = data.centred_m_i[i].act_rigid_inertia(model.inertia(i)).matrix();

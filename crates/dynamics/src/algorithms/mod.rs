@@ -3,6 +3,7 @@
 //! `check_vector`); the bindings check them.
 
 pub mod aba;
+pub mod aba_derivatives;
 pub mod centroidal;
 pub mod com;
 pub mod contact;
@@ -13,8 +14,10 @@ pub mod jacobian;
 pub mod kinematics;
 pub mod minv;
 pub mod rnea;
+pub mod rnea_derivatives;
 
 pub use aba::{aba, aba_with_armature};
+pub use aba_derivatives::aba_derivatives;
 pub use centroidal::{centroidal_map, centroidal_momentum, centroidal_momentum_rate};
 pub use com::{center_of_mass, subtree_mass_properties};
 pub use contact::{contact_dynamics, impact, point_accelerations, reduced_dynamics, ContactDynamics, ContactPoint, ReducedDynamics};
@@ -25,6 +28,7 @@ pub use jacobian::{jacobian, Frame};
 pub use kinematics::forward_kinematics;
 pub use minv::minv;
 pub use rnea::rnea;
+pub use rnea_derivatives::rnea_derivatives;
 
 use crate::joint::Dofs;
 use crate::model::Model;

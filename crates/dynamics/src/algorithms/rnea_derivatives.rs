@@ -1,0 +1,134 @@
+//! Analytic derivatives of inverse dynamics (Carpentier & Mansard, RSS 2018; Pinocchio's
+//! `computeRNEADerivatives`): ∂τ/∂q and ∂τ/∂q̇ of τ = RNEA(q, q̇, q̈, f_ext), with q on its tangent space (the free
+//! flyer perturbed as q ⊕ δq, δq in its own frame, as `integrate` moves it). ∂τ/∂q̈ is M (`crba`).
+//!
+//! Worked in the centred frame (`kinematics::base_centred_kinematics`). A change of joint j's coordinate moves j's
+//! subtree rigidly about its motion S_j: the subtree's force turns with it (S_j ×* f, which leaves the subtree's own
+//! joint torques Sᵀ f unchanged), and the velocities and accelerations it sees change by ∂v/∂q = v_λ × S_j and
+//! ∂a/∂q = a_λ × S_j + v_λ × ∂v/∂q. Each body's force then changes by I ∂a + B ∂v (`RigidInertia::rate_matrix`),
+//! summed over subtrees as composite I and B. O(n d) for n bodies of depth d; allocates nothing once sized.
+
+use nalgebra::{DMatrix, Matrix6xX, Vector6};
+
+use super::kinematics::base_centred_root;
+use super::world_pose;
+use crate::joint::Dofs;
+use crate::model::{Data, Model};
+use crate::spatial::{cross_force, cross_motion, dot6, Force, Motion};
+
+#[inline(always)]
+pub(crate) fn column(m: &Matrix6xX<f64>, c: usize) -> Vector6<f64> {
+    Vector6::from_column_slice(&m.as_slice()[6 * c..6 * c + 6])
+}
+
+#[inline(always)]
+pub(crate) fn set_column(m: &mut Matrix6xX<f64>, c: usize, x: &Vector6<f64>) {
+    m.as_mut_slice()[6 * c..6 * c + 6].copy_from_slice(x.as_slice());
+}
+
+/// ∂τ/∂q and ∂τ/∂q̇ (nv x nv) at configuration `q`, velocity `v` and acceleration `a`, with `f_ext` as in `rnea`
+/// (forces fixed in their bodies' frames). Writes `data.derivatives.dtau_dq` and `dtau_dv` and returns them.
+pub fn rnea_derivatives<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    f_ext: Option<&[Force]>,
+) -> (&'d DMatrix<f64>, &'d DMatrix<f64>) {
+    let n = model.nbodies();
+    data.derivatives.reserve(model);
+    let Data { centred_m_i: poses, derivatives: d, .. } = data;
+    // Forward pass: poses, velocities, accelerations (gravity as a base acceleration), each body's force, and
+    // each joint's columns S, ∂v/∂q, ∂a/∂q, ∂a/∂q̇ (Carpentier & Mansard, Alg. 1, forward pass).
+    for i in 0..n {
+        let (pose, v_parent, a_parent) = match i {
+            0 => (base_centred_root(model, q), Motion::zeros(), model.gravity_bias()),
+            _ => {
+                let p = model.parent(i);
+                (world_pose(model, i, &poses[p], q), d.velocity[p], d.acceleration[p])
+            }
+        };
+        poses[i] = pose;
+        let k = model.idx_v(i);
+        let columns = k..k + model.joint(i).nv();
+        match model.joint(i).dofs() {
+            Dofs::Free => {
+                for c in 0..6 {
+                    set_column(&mut d.subspace, k + c, &pose.act_motion(&Motion::ith(c, 1.0)));
+                }
+            }
+            Dofs::Zero => {}
+            Dofs::One(_) => set_column(&mut d.subspace, k, &model.joint(i).subspace_in(&pose)),
+        }
+        let (mut v_joint, mut a_joint) = (Motion::zeros(), Motion::zeros());
+        for c in columns.clone() {
+            let s = column(&d.subspace, c);
+            v_joint += s * v[c];
+            a_joint += s * a[c];
+        }
+        let velocity = v_parent + v_joint;
+        d.velocity[i] = velocity;
+        d.acceleration[i] = a_parent + a_joint + cross_motion(&v_parent, &v_joint);
+        for c in columns {
+            let s = column(&d.subspace, c);
+            let dv_dq = cross_motion(&v_parent, &s);
+            set_column(&mut d.dv_dq, c, &dv_dq);
+            set_column(&mut d.da_dq, c, &(cross_motion(&a_parent, &s) + cross_motion(&v_parent, &dv_dq)));
+            set_column(&mut d.da_dv, c, &(cross_motion(&velocity, &s) + dv_dq));
+        }
+        let inertia = pose.act_rigid_inertia(model.inertia(i));
+        d.force[i] = inertia.apply(&d.acceleration[i]) + cross_force(&velocity, &inertia.apply(&velocity));
+        if let Some(f_ext) = f_ext {
+            d.force[i] -= pose.act_force(&f_ext[i]);
+        }
+        d.composite[i] = inertia;
+        d.rate[i] = inertia.rate_matrix(&velocity);
+    }
+    // Backward pass: each joint's subtree force derivatives, its rows τ_j = S_jᵀ f over its subtree's columns,
+    // and its column in its descendants' rows (Alg. 1, backward pass).
+    let nv = model.nv();
+    d.dtau_dq.fill(0.0);
+    d.dtau_dv.fill(0.0);
+    for i in (0..n).rev() {
+        let k = model.idx_v(i);
+        let own = k..k + model.joint(i).nv();
+        let (composite, rate) = (d.composite[i], d.rate[i]);
+        for c in own.clone() {
+            let s = column(&d.subspace, c);
+            set_column(&mut d.df_da, c, &composite.apply(&s));
+            set_column(&mut d.df_dq, c, &(rate.apply(&column(&d.dv_dq, c)) + composite.apply(&column(&d.da_dq, c))));
+            set_column(&mut d.df_dv, c, &(rate.apply(&s) + composite.apply(&column(&d.da_dv, c))));
+            set_column(&mut d.rate_subspace, c, &rate.transpose_apply(&s));
+        }
+        let (dtau_dq, dtau_dv) = (d.dtau_dq.as_mut_slice(), d.dtau_dv.as_mut_slice());
+        let (df_da, df_dq, df_dv, rate_s) = (d.df_da.as_slice(), d.df_dq.as_slice(), d.df_dv.as_slice(), d.rate_subspace.as_slice());
+        for c in own.clone() {
+            let (s, dv_dq, da_dq, da_dv) = (column(&d.subspace, c), column(&d.dv_dq, c), column(&d.da_dq, c), column(&d.da_dv, c));
+            for columns in model.subtree_columns(i) {
+                for col in columns.clone() {
+                    let chunk = 6 * col..6 * col + 6;
+                    if !own.contains(&col) {
+                        // A descendant's torque: only the non-rigid change of its subtree's force counts.
+                        dtau_dq[c * nv + col] = dot6(&da_dq, &df_da[chunk.clone()]) + dot6(&dv_dq, &rate_s[chunk.clone()]);
+                        dtau_dv[c * nv + col] = dot6(&da_dv, &df_da[chunk.clone()]) + dot6(&s, &rate_s[chunk.clone()]);
+                    }
+                    dtau_dq[col * nv + c] = dot6(&s, &df_dq[chunk.clone()]);
+                    dtau_dv[col * nv + c] = dot6(&s, &df_dv[chunk]);
+                }
+            }
+        }
+        let force = d.force[i];
+        for c in own {
+            let turned = column(&d.df_dq, c) + cross_force(&column(&d.subspace, c), &force);
+            set_column(&mut d.df_dq, c, &turned);
+        }
+        if i > 0 {
+            let p = model.parent(i);
+            d.composite[p] += composite;
+            d.rate[p] += rate;
+            d.force[p] += force;
+        }
+    }
+    (&d.dtau_dq, &d.dtau_dv)
+}

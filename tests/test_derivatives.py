@@ -1,0 +1,155 @@
+"""The analytic derivatives of the dynamics (``lk.rnea_derivatives``, ``lk.aba_derivatives``).
+
+Differential tests against Pinocchio's ``computeRNEADerivatives`` and ``computeABADerivatives`` on random trees
+(tests/robots.py: every joint kind, helical included, fixed and free-flyer bases, armature on half of them, external
+forces), at 1e-9 relative as the other dynamics; and, without Pinocchio, against central differences of legkit's own
+``rnea`` and ``aba`` (the five-point stencil, h = 1e-4, so that the rounding of large accelerations stays below the
+tolerance), with q stepped on its tangent space by ``lk.integrate`` (q (+) h e_j), at 1e-6 relative.
+The robots of example-robot-data are compared in tests/test_urdf_robots.py.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from hypothesis import given
+
+import legkit as lk
+from conftest import examples
+from robots import Twin, rngs, twins
+from test_dynamics_pinocchio import assert_close, note_case, pin_f_ext, pin_sym, state
+
+STEP = 1e-4
+FD_RTOL = 1e-6
+
+
+def pinocchio(function, tw: Twin, *args) -> tuple[np.ndarray, ...]:
+    """Pinocchio's derivatives, copied while their Data lives: the arrays Pinocchio's Python bindings return are views
+    of the Data's own matrices, which a temporary Data frees as soon as the call returns."""
+    data = tw.data()
+    return tuple(np.array(x) for x in function(tw.pin_model, data, *args))
+
+
+def differences(f, x: np.ndarray, step) -> np.ndarray:
+    """Column j is f's slope along step(x, j, h), by the five-point stencil (error O(h^4)); f has as many outputs as
+    there are steps (square here)."""
+    n = len(f(x))
+
+    def slope(j: int) -> np.ndarray:
+        at = [f(step(x, j, k * STEP)) for k in (-2, -1, 1, 2)]
+        return (at[0] - 8 * at[1] + 8 * at[2] - at[3]) / (12 * STEP)
+
+    return np.array([slope(j) for j in range(n)]).reshape(n, n).T
+
+
+def tangent_differences(model: lk.Model, f, q: np.ndarray) -> np.ndarray:
+    """Central differences of f (with nv outputs) along q (+) h e_j for each velocity coordinate j."""
+    return differences(f, q, lambda x, j, h: lk.integrate(model, x, np.eye(model.nv)[j], h))
+
+
+def coordinate_differences(f, x: np.ndarray) -> np.ndarray:
+    """Central differences of f (as many outputs as x has entries) along each coordinate of x."""
+    return differences(f, x, lambda x, j, h: x + h * np.eye(len(x))[j])
+
+
+def assert_slopes(got, want, what: str) -> None:
+    scale = max(1.0, float(np.abs(want).max(initial=0.0)))
+    error = float(np.abs(np.asarray(got) - want).max(initial=0.0))
+    assert error <= FD_RTOL * scale, f"{what}: max error {error:.3e} > {FD_RTOL:g} * {scale:.3e}"
+
+
+@pytest.mark.parametrize("with_f_ext", [False, True], ids=["no_f_ext", "f_ext"])
+@examples(60)
+@given(tw=twins(), rng=rngs())
+def test_rnea_derivatives_match_pinocchio(with_f_ext, tw: Twin, rng):
+    q, v, a = state(tw, rng)
+    f = tw.random_f_ext(rng) if with_f_ext else None
+    note_case(tw, q=q, v=v, a=a, f_ext=f)
+    dq, dv, _ = pinocchio(pin.computeRNEADerivatives, tw, tw.q_pin(q), tw.v_pin(v), tw.v_pin(a), *pin_f_ext(tw, f))
+    got_dq, got_dv = lk.rnea_derivatives(tw.model, q, v, a, f)
+    assert_close(got_dq, tw.m_lk(dq), "dtau/dq")
+    assert_close(got_dv, tw.m_lk(dv), "dtau/dv")
+
+
+@pytest.mark.parametrize("with_f_ext", [False, True], ids=["no_f_ext", "f_ext"])
+@examples(60)
+@given(tw=twins(), rng=rngs())
+def test_aba_derivatives_match_pinocchio(with_f_ext, tw: Twin, rng):
+    q, v, _ = state(tw, rng)
+    tau = rng.uniform(-20.0, 20.0, size=tw.nv)
+    f = tw.random_f_ext(rng) if with_f_ext else None
+    note_case(tw, q=q, v=v, tau=tau, f_ext=f)
+    dq, dv, dtau = pinocchio(pin.computeABADerivatives, tw, tw.q_pin(q), tw.v_pin(v), tw.v_pin(tau), *pin_f_ext(tw, f))
+    got_dq, got_dv, got_dtau = lk.aba_derivatives(tw.model, q, v, tau, f)
+    assert_close(got_dq, tw.m_lk(dq), "dddq/dq")
+    assert_close(got_dv, tw.m_lk(dv), "dddq/dv")
+    assert_close(got_dtau, tw.m_lk(pin_sym(dtau)), "dddq/dtau")
+
+
+@examples(40)
+@given(tw=twins(max_bodies=30), rng=rngs())
+def test_rnea_derivatives_are_the_slopes_of_rnea(tw: Twin, rng):
+    q, v, a = state(tw, rng)
+    f = tw.random_f_ext(rng)
+    note_case(tw, q=q, v=v, a=a, f_ext=f)
+    dq, dv = lk.rnea_derivatives(tw.model, q, v, a, f)
+    assert_slopes(dq, tangent_differences(tw.model, lambda x: lk.rnea(tw.model, x, v, a, f), q), "dtau/dq")
+    assert_slopes(dv, coordinate_differences(lambda x: lk.rnea(tw.model, q, x, a, f), v), "dtau/dv")
+    # dtau/da is the mass matrix.
+    assert_slopes(lk.crba(tw.model, q), coordinate_differences(lambda x: lk.rnea(tw.model, q, v, x, f), a), "dtau/da")
+
+
+@examples(40)
+@given(tw=twins(max_bodies=30), rng=rngs())
+def test_aba_derivatives_are_the_slopes_of_aba(tw: Twin, rng):
+    q, v, _ = state(tw, rng)
+    tau = rng.uniform(-20.0, 20.0, size=tw.nv)
+    f = tw.random_f_ext(rng)
+    note_case(tw, q=q, v=v, tau=tau, f_ext=f)
+    dq, dv, dtau = lk.aba_derivatives(tw.model, q, v, tau, f)
+    assert_slopes(dq, tangent_differences(tw.model, lambda x: lk.aba(tw.model, x, v, tau, f), q), "dddq/dq")
+    assert_slopes(dv, coordinate_differences(lambda x: lk.aba(tw.model, q, x, tau, f), v), "dddq/dv")
+    assert_slopes(dtau, coordinate_differences(lambda x: lk.aba(tw.model, q, v, x, f), tau), "dddq/dtau")
+
+
+def test_pendulum_derivatives_in_closed_form():
+    """A point mass m on a massless rod of length l about y: tau = m l^2 a + m g l sin(q), so dtau/dq = m g l cos(q),
+    dtau/dv = 0, and da/dq = -g cos(q) / l, da/dtau = 1 / (m l^2)."""
+    m, l, g = 2.0, 0.7, lk.STANDARD_GRAVITY
+    model = lk.Model(floating_base=False)
+    model.add_revolute(0, [0.0, 1.0, 0.0], np.eye(4), lk.MassProperties.point(m, [0.0, 0.0, -l]), "bob")
+    q, v = np.array([0.4]), np.array([1.3])
+    dq, dv = lk.rnea_derivatives(model, q, v, [0.5])
+    # Turning about +y by q moves the bob to (-l sin q, 0, -l cos q): gravity's torque about +y is -m g l sin q.
+    assert np.allclose(dq, [[m * g * l * np.cos(q[0])]], rtol=1e-14)
+    assert np.allclose(dv, [[0.0]], atol=1e-15)
+    add, adv, adtau = lk.aba_derivatives(model, q, v, [0.0])
+    assert np.allclose(add, [[-g * np.cos(q[0]) / l]], rtol=1e-14)
+    assert np.allclose(adv, [[0.0]], atol=1e-15)
+    assert np.allclose(adtau, [[1.0 / (m * l * l)]], rtol=1e-14)
+
+
+def test_outputs_are_fresh_arrays_with_batch_shapes():
+    model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(2.0, [0.3, 0.2, 0.1]))
+    model.add_revolute(0, [1.0, 0.0, 0.0], np.eye(4), lk.MassProperties.point(1.0, [0.0, 0.0, -0.3]), "leg")
+    q = np.tile(np.r_[np.zeros(6), 1.0, 0.0], (4, 1, 1))
+    v, a = np.zeros((1, 3, model.nv)), np.zeros(model.nv)
+    dq, dv = lk.rnea_derivatives(model, q, v, a)
+    assert dq.shape == dv.shape == (4, 3, model.nv, model.nv)
+    dq[...] = 1.0  # each output owns its numbers
+    assert not np.any(dv == 1.0)
+    outputs = lk.aba_derivatives(model, q, v, a)
+    assert [x.shape for x in outputs] == [(4, 3, model.nv, model.nv)] * 3
+
+
+def test_a_singular_mass_matrix_is_refused():
+    """A massless chain has a singular mass matrix: aba_derivatives raises as aba does, rnea_derivatives does not need M."""
+    model = lk.Model(floating_base=False)
+    model.add_revolute(0, [0.0, 0.0, 1.0], np.eye(4), lk.MassProperties.zero(), "massless")
+    with pytest.raises(ValueError, match="singular"):
+        lk.aba(model, [0.1], [0.0], [0.0])
+    with pytest.raises(ValueError, match="singular"):
+        lk.aba_derivatives(model, [0.1], [0.0], [0.0])
+    dq, dv = lk.rnea_derivatives(model, [0.1], [0.0], [0.0])
+    assert np.array_equal(dq, [[0.0]]) and np.array_equal(dv, [[0.0]])
