@@ -114,20 +114,20 @@ def test_aba_derivatives_are_the_slopes_of_aba(tw: Twin, rng):
 
 
 def test_pendulum_derivatives_in_closed_form():
-    """A point mass m on a massless rod of length l about y: tau = m l^2 a + m g l sin(q), so dtau/dq = m g l cos(q),
-    dtau/dv = 0, and da/dq = -g cos(q) / l, da/dtau = 1 / (m l^2)."""
-    m, l, g = 2.0, 0.7, lk.STANDARD_GRAVITY
+    """A point mass m on a massless rod of length r about y: tau = m r^2 a + m g r sin(q), so dtau/dq = m g r cos(q),
+    dtau/dv = 0, and da/dq = -g cos(q) / r, da/dtau = 1 / (m r^2)."""
+    m, r, g = 2.0, 0.7, lk.STANDARD_GRAVITY
     model = lk.Model(floating_base=False)
-    model.add_revolute(0, [0.0, 1.0, 0.0], np.eye(4), lk.MassProperties.point(m, [0.0, 0.0, -l]), "bob")
+    model.add_revolute(0, [0.0, 1.0, 0.0], np.eye(4), lk.MassProperties.point(m, [0.0, 0.0, -r]), "bob")
     q, v = np.array([0.4]), np.array([1.3])
     dq, dv = lk.rnea_derivatives(model, q, v, [0.5])
     # Turning about +y by q moves the bob to (-l sin q, 0, -l cos q): gravity's torque about +y is -m g l sin q.
-    assert np.allclose(dq, [[m * g * l * np.cos(q[0])]], rtol=1e-14)
+    assert np.allclose(dq, [[m * g * r * np.cos(q[0])]], rtol=1e-14)
     assert np.allclose(dv, [[0.0]], atol=1e-15)
     add, adv, adtau = lk.aba_derivatives(model, q, v, [0.0])
-    assert np.allclose(add, [[-g * np.cos(q[0]) / l]], rtol=1e-14)
+    assert np.allclose(add, [[-g * np.cos(q[0]) / r]], rtol=1e-14)
     assert np.allclose(adv, [[0.0]], atol=1e-15)
-    assert np.allclose(adtau, [[1.0 / (m * l * l)]], rtol=1e-14)
+    assert np.allclose(adtau, [[1.0 / (m * r * r)]], rtol=1e-14)
 
 
 def test_outputs_are_fresh_arrays_with_batch_shapes():

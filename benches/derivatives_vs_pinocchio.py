@@ -1,0 +1,87 @@
+"""Side-by-side timing of legkit's and Pinocchio's analytic derivatives, called from Python, on identical models.
+
+For each model (`models.MODELS`: the 18-DoF floating quadruped, the 63-DoF SuperBot-like tree, revolute chains of 64
+and 512 links) the script first compares the two libraries at one random state (max |difference| / max |Pinocchio|,
+printed; for the ABA derivatives also the residual max |M X + dtau/dx| / (max |M| max |X|) of each side, which shows
+whose error it is where the mass matrix is ill-conditioned), then times one call of each, interleaved, in one process:
+
+    legkit:    lk.rnea_derivatives(model, q, v, a)      lk.aba_derivatives(model, q, v, tau)
+    pinocchio: pin.computeRNEADerivatives(model, data, q, v, a)
+               pin.computeABADerivatives(model, data, q, v, tau)      (one preallocated pin.Data per model)
+
+Each figure is the median of `timeit` repeats (7, or 3 with --quick), as benches/dynamics_vs_pinocchio.py times them.
+Both return new arrays: legkit's (dq, dv[, M^-1]), Pinocchio's views of its Data. Target: legkit / pin <= 0.7 on
+every row (printed, never asserted).
+
+Run from the repository root:  python benches/derivatives_vs_pinocchio.py [--quick] [--models quadruped tree ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+import legkit as lk
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from dynamics_vs_pinocchio import Settings, relative_error, symmetrised_upper, time_calls  # noqa: E402
+from models import MODELS, random_state  # noqa: E402
+
+TARGET_RATIO = 0.7
+DEFAULT_MODELS = ("quadruped", "tree", "chain64", "chain512")
+
+
+def residual(mass: np.ndarray, x: np.ndarray, dtau: np.ndarray) -> float:
+    """max |M X + dtau| / (max |M| max |X|): zero for the exact -M^-1 dtau."""
+    return float(np.abs(mass @ x + dtau).max() / (np.abs(mass).max() * np.abs(x).max()))
+
+
+def compare(lk_model, pin_model, pin_data, q, v, tau, acc) -> str:
+    pin_rnea = [np.array(x) for x in pin.computeRNEADerivatives(pin_model, pin_data, q, v, acc)[:2]]
+    rnea_error = max(relative_error(ours, theirs) for ours, theirs in zip(lk.rnea_derivatives(lk_model, q, v, acc), pin_rnea))
+    pin_aba = [np.array(x) for x in pin.computeABADerivatives(pin_model, pin_data, q, v, tau)]
+    pin_aba[2] = symmetrised_upper(pin_aba[2])
+    ours = lk.aba_derivatives(lk_model, q, v, tau)
+    aba_error = max(relative_error(a, b) for a, b in zip(ours, pin_aba))
+    mass, dtau = lk.crba(lk_model, q), lk.rnea_derivatives(lk_model, q, v, lk.aba(lk_model, q, v, tau))[0]
+    return (
+        f"rnea_d {rnea_error:.1e}  aba_d {aba_error:.1e}  "
+        f"(residual legkit {residual(mass, ours[0], dtau):.0e}, pin {residual(mass, pin_aba[0], dtau):.0e})"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="3 repeats instead of 7")
+    parser.add_argument("--models", nargs="+", default=list(DEFAULT_MODELS), choices=sorted(MODELS))
+    args = parser.parse_args()
+    settings = Settings(repeat=3 if args.quick else 7)
+    rng = np.random.default_rng(0)
+    print(f"pinocchio {pin.__version__}; medians of {settings.repeat} repeats; target legkit/pin <= {TARGET_RATIO}")
+    header = f"{'rnea_d legkit':>13s} {'pin':>10s} {'ratio':>6s} | {'aba_d legkit':>13s} {'pin':>10s} {'ratio':>6s}"
+    print(f"{'model':10s} {'nv':>4s} | {header} | agreement")
+    for name in args.models:
+        lk_model, pin_model = MODELS[name]()
+        pin_data = pin_model.createData()
+        q, v, tau = random_state(lk_model, rng)
+        acc = rng.normal(size=lk_model.nv)
+        agreement = compare(lk_model, pin_model, pin_data, q, v, tau, acc)
+        timings = time_calls(
+            [
+                (lk.rnea_derivatives, (lk_model, q, v, acc)),
+                (pin.computeRNEADerivatives, (pin_model, pin_data, q, v, acc)),
+                (lk.aba_derivatives, (lk_model, q, v, tau)),
+                (pin.computeABADerivatives, (pin_model, pin_data, q, v, tau)),
+            ],
+            settings,
+        )
+        rl, rp, al, ap = (t.median_us for t in timings)
+        print(f"{name:10s} {lk_model.nv:4d} | {rl:11.1f}us {rp:8.1f}us {rl / rp:6.2f} | {al:11.1f}us {ap:8.1f}us {al / ap:6.2f} | {agreement}")
+
+
+if __name__ == "__main__":
+    main()
