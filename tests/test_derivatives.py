@@ -137,7 +137,7 @@ def test_outputs_are_fresh_arrays_with_batch_shapes():
     v, a = np.zeros((1, 3, model.nv)), np.zeros(model.nv)
     dq, dv = lk.rnea_derivatives(model, q, v, a)
     assert dq.shape == dv.shape == (4, 3, model.nv, model.nv)
-    dq[...] = 1.0  # each output owns its numbers
+    dq[...] = 1.0  # the outputs do not overlap
     assert not np.any(dv == 1.0)
     outputs = lk.aba_derivatives(model, q, v, a)
     assert [x.shape for x in outputs] == [(4, 3, model.nv, model.nv)] * 3

@@ -4,14 +4,12 @@
 //! coordinates: each body's rigid inertia moves to the world once, in its 10-parameter form, and articulated
 //! inertias and bias forces then pass to the parent without a transform.
 
-use nalgebra::DVector;
+use nalgebra::{DVector, Vector6};
 
 use super::kinematics::base_centred_root;
 use super::world_pose;
 use crate::joint::Dofs;
 use crate::model::{Data, Model};
-use nalgebra::Vector6;
-
 use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inertia_times_pair, Force, Inertia, Motion, Transform};
 
 /// Joint accelerations for configuration `q`, velocity `v` and joint forces `tau`, with the model's
