@@ -441,6 +441,14 @@ pub struct Derivatives {
     pub block_rows: Vec<[f64; BLOCK]>,
     pub block_forces: Vec<Block6>,
     pub block_accelerations: Vec<Block6>,
+    /// A frame's ∂v/∂q, ∂v/∂q̇ and ∂a/∂q, ∂a/∂q̇, ∂a/∂q̈, and its Jacobian's time derivative (6 x nv each;
+    /// `kinematics_derivatives`).
+    pub frame_velocity_dq: Matrix6xX<f64>,
+    pub frame_velocity_dv: Matrix6xX<f64>,
+    pub frame_acceleration_dq: Matrix6xX<f64>,
+    pub frame_acceleration_dv: Matrix6xX<f64>,
+    pub frame_acceleration_da: Matrix6xX<f64>,
+    pub jacobian_rate: Matrix6xX<f64>,
 }
 
 /// Sizes `matrix` n x n unless it already is (its numbers are then to be overwritten).
@@ -480,6 +488,12 @@ impl Derivatives {
             block_rows: vec![[0.0; BLOCK]; nv],
             block_forces: vec![[[0.0; BLOCK]; 6]; n],
             block_accelerations: vec![[[0.0; BLOCK]; 6]; n],
+            frame_velocity_dq: columns(),
+            frame_velocity_dv: columns(),
+            frame_acceleration_dq: columns(),
+            frame_acceleration_dv: columns(),
+            frame_acceleration_da: columns(),
+            jacobian_rate: columns(),
         };
     }
 }

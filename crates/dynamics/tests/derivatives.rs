@@ -2,10 +2,14 @@
 //! (every joint kind, fixed and floating bases, armature, external forces), q stepped on its tangent space
 //! (q ⊕ ε e_j, as `integrate`). The differential tests against Pinocchio are in the Python suite.
 
-use legkit_dynamics::algorithms::{aba, aba_derivatives, integrate, rnea, rnea_derivatives};
+use legkit_dynamics::algorithms::{
+    aba, aba_derivatives, contact_dynamics, contact_dynamics_derivatives, frame_acceleration, frame_acceleration_derivatives, frame_velocity,
+    frame_velocity_derivatives, impact, impact_derivatives, integrate, jacobian, jacobian_time_variation, rnea, rnea_derivatives, ContactPoint,
+    Frame,
+};
 use legkit_dynamics::spatial::Force;
 use legkit_dynamics::{Data, Model};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Matrix6xX, Vector3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
@@ -13,15 +17,15 @@ use rand::{Rng, SeedableRng};
 mod trees;
 use trees::random_case;
 
-const STEP: f64 = 1e-6;
+/// Large enough that rounding stays below the tolerance where the dynamics are ill-conditioned (contacts), small enough
+/// for the stencil's O(h⁴) error.
+const STEP: f64 = 1e-4;
 
-/// Column j is (f(x + h e_j) − f(x − h e_j)) / 2h, where `f(j, h)` evaluates at the step.
-fn central_differences(nv: usize, mut f: impl FnMut(usize, f64) -> DVector<f64>) -> DMatrix<f64> {
-    let mut out = DMatrix::zeros(nv, nv);
-    for j in 0..nv {
-        out.set_column(j, &((f(j, STEP) - f(j, -STEP)) / (2.0 * STEP)));
-    }
-    out
+/// Column j (of n) is f's slope along e_j by the five-point stencil, where `f(j, h)` evaluates at x + h e_j.
+fn central_differences(n: usize, mut f: impl FnMut(usize, f64) -> DVector<f64>) -> DMatrix<f64> {
+    let mut slope = |j: usize| (f(j, -2.0 * STEP) - f(j, -STEP) * 8.0 + f(j, STEP) * 8.0 - f(j, 2.0 * STEP)) / (12.0 * STEP);
+    let columns: Vec<DVector<f64>> = (0..n).map(&mut slope).collect();
+    DMatrix::from_columns(&columns)
 }
 
 fn stepped(x: &[f64], j: usize, h: f64) -> Vec<f64> {
@@ -42,7 +46,12 @@ fn random_forces(rng: &mut StdRng, model: &Model) -> Vec<Force> {
 }
 
 fn assert_close(got: &DMatrix<f64>, want: &DMatrix<f64>, what: &str) {
-    let scale = want.amax().max(1.0);
+    assert_close_conditioned(got, want, 1.0, what);
+}
+
+/// `assert_close` for a problem with condition number `condition`, which costs digits beyond 1e6.
+fn assert_close_conditioned(got: &DMatrix<f64>, want: &DMatrix<f64>, condition: f64, what: &str) {
+    let scale = want.amax().max(1.0) * (condition / 1e6).max(1.0);
     let error = (got - want).amax();
     assert!(error < 1e-6 * scale, "{what}: error {error:.3e} (scale {scale:.3e})\ngot {got:.6}\nwant {want:.6}");
 }
@@ -89,4 +98,176 @@ fn aba_derivatives_are_the_slopes_of_aba() {
         assert_close(&dv, &want_dv, &format!("case {case}: dddq/dv"));
         assert_close(&dtau, &want_dtau, &format!("case {case}: dddq/dtau"));
     }
+}
+
+const FRAMES: [Frame; 3] = [Frame::Local, Frame::World, Frame::LocalWorldAligned];
+
+fn dense(m: &Matrix6xX<f64>) -> DMatrix<f64> {
+    DMatrix::from_column_slice(6, m.ncols(), m.as_slice())
+}
+
+/// A random body of `model` and a point on it.
+fn random_frame(rng: &mut StdRng, model: &Model) -> (usize, Vector3<f64>) {
+    (rng.random_range(0..model.nbodies()), Vector3::from_fn(|_, _| rng.random_range(-0.5..0.5)))
+}
+
+#[test]
+fn frame_velocity_and_acceleration_derivatives_are_their_slopes() {
+    let mut rng = StdRng::seed_from_u64(7);
+    for case in 0..40 {
+        let (model, mut data, q, v) = random_case(&mut rng, case);
+        let nv = model.nv();
+        let a: Vec<f64> = (0..nv).map(|_| rng.random_range(-3.0..3.0)).collect();
+        let (body, point) = random_frame(&mut rng, &model);
+        let (q, v, point) = (q.as_slice(), v.as_slice(), &point);
+        let mut scratch = Data::new(&model);
+        for frame in FRAMES {
+            let what = |name: &str| format!("case {case}, body {body}, {frame:?}: {name}");
+            let (v_dq, v_dv) = frame_velocity_derivatives(&model, &mut data, q, v, body, point, frame);
+            let (v_dq, v_dv) = (dense(v_dq), dense(v_dv));
+            let mut velocity =
+                |q: &[f64], v: &[f64]| DVector::from_column_slice(frame_velocity(&model, &mut scratch, q, v, body, point, frame).as_slice());
+            assert_close(&v_dq, &central_differences(nv, |j, h| velocity(&stepped_q(&model, q, j, h), v)), &what("dv/dq"));
+            assert_close(&v_dv, &central_differences(nv, |j, h| velocity(q, &stepped(v, j, h))), &what("dv/dv"));
+            let j = dense(jacobian(&model, &mut scratch, q, body, point, frame));
+            assert_close(&v_dv, &j, &what("dv/dv = J"));
+
+            let (a_v_dq, a_dq, a_dv, a_da) = frame_acceleration_derivatives(&model, &mut data, q, v, &a, body, point, frame);
+            let (a_v_dq, a_dq, a_dv, a_da) = (dense(a_v_dq), dense(a_dq), dense(a_dv), dense(a_da));
+            assert_close(&a_v_dq, &v_dq, &what("dv/dq beside the acceleration's"));
+            let mut acceleration = |q: &[f64], v: &[f64], a: &[f64]| {
+                DVector::from_column_slice(frame_acceleration(&model, &mut scratch, q, v, a, body, point, frame).as_slice())
+            };
+            assert_close(&a_dq, &central_differences(nv, |j, h| acceleration(&stepped_q(&model, q, j, h), v, &a)), &what("da/dq"));
+            assert_close(&a_dv, &central_differences(nv, |j, h| acceleration(q, &stepped(v, j, h), &a)), &what("da/dv"));
+            assert_close(&a_da, &central_differences(nv, |j, h| acceleration(q, v, &stepped(&a, j, h))), &what("da/da"));
+        }
+    }
+}
+
+#[test]
+fn the_jacobian_time_variation_is_the_jacobians_slope_along_the_velocity() {
+    let mut rng = StdRng::seed_from_u64(11);
+    for case in 0..40 {
+        let (model, mut data, q, v) = random_case(&mut rng, case);
+        let (body, point) = random_frame(&mut rng, &model);
+        let (q, v) = (q.as_slice(), v.as_slice());
+        let mut scratch = Data::new(&model);
+        for frame in FRAMES {
+            let rate = dense(jacobian_time_variation(&model, &mut data, q, v, body, &point, frame));
+            let mut along = |h: f64| {
+                let mut moved = vec![0.0; model.nq()];
+                integrate(&model, q, v, h, &mut moved);
+                dense(jacobian(&model, &mut scratch, &moved, body, &point, frame))
+            };
+            let want = (along(-2.0 * STEP) - along(-STEP) * 8.0 + along(STEP) * 8.0 - along(2.0 * STEP)) / (12.0 * STEP);
+            assert_close(&rate, &want, &format!("case {case}, body {body}, {frame:?}: dJ/dt"));
+        }
+    }
+}
+
+/// Up to three contact points on distinct random bodies of `model` (3 per contact, at most nv rows).
+fn random_contacts(rng: &mut StdRng, model: &Model) -> Vec<ContactPoint> {
+    let count = rng.random_range(1..=3).min(model.nv() / 3).min(model.nbodies());
+    let mut bodies: Vec<usize> = (0..model.nbodies()).collect();
+    (0..count)
+        .map(|_| {
+            let body = bodies.swap_remove(rng.random_range(0..bodies.len()));
+            ContactPoint { body, point: Vector3::from_fn(|_, _| rng.random_range(-0.5..0.5)) }
+        })
+        .collect()
+}
+
+/// The condition number of J M⁻¹ Jᵀ, the contacts' KKT system's Schur complement.
+fn contact_condition(model: &Model, q: &[f64], contacts: &[ContactPoint]) -> f64 {
+    let mut data = Data::new(model);
+    let rows: Vec<DMatrix<f64>> =
+        contacts.iter().map(|c| dense(jacobian(model, &mut data, q, c.body, &c.point, Frame::LocalWorldAligned)).rows(0, 3).into_owned()).collect();
+    let j = DMatrix::from_rows(&rows.iter().flat_map(|r| r.row_iter().map(|x| x.into_owned()).collect::<Vec<_>>()).collect::<Vec<_>>());
+    let mass = legkit_dynamics::algorithms::crba(model, &mut data, q).clone();
+    let schur = &j * mass.cholesky().unwrap().solve(&j.transpose());
+    let eigenvalues = schur.symmetric_eigen().eigenvalues;
+    eigenvalues.max() / eigenvalues.min()
+}
+
+fn stacked(a: &DVector<f64>, b: &DVector<f64>) -> DVector<f64> {
+    DVector::from_iterator(a.len() + b.len(), a.iter().chain(b.iter()).copied())
+}
+
+#[test]
+fn contact_dynamics_derivatives_are_its_slopes() {
+    let mut rng = StdRng::seed_from_u64(13);
+    let mut checked = 0;
+    for case in 0..80 {
+        let (model, mut data, q, v) = random_case(&mut rng, case);
+        let nv = model.nv();
+        let contacts = random_contacts(&mut rng, &model);
+        if contacts.is_empty() {
+            continue;
+        }
+        let tau: Vec<f64> = (0..nv).map(|_| rng.random_range(-3.0..3.0)).collect();
+        let (q, v) = (q.as_slice(), v.as_slice());
+        // Dependent contacts are refused; independent ones are most.
+        let Ok(got) = contact_dynamics_derivatives(&model, &mut data, q, v, &tau, &contacts) else { continue };
+        checked += 1;
+        let mut scratch = Data::new(&model);
+        let solved = contact_dynamics(&model, &mut scratch, q, v, &tau, &contacts).unwrap();
+        let condition = contact_condition(&model, q, &contacts);
+        let what = |name: &str| format!("case {case}, {} contacts (condition {condition:.1e}): {name}", contacts.len());
+        assert_close(&DMatrix::from_column_slice(nv, 1, got.ddq.as_slice()), &DMatrix::from_column_slice(nv, 1, solved.ddq.as_slice()), &what("ddq"));
+        let mut both = |q: &[f64], v: &[f64], tau: &[f64]| {
+            let s = contact_dynamics(&model, &mut scratch, q, v, tau, &contacts).unwrap();
+            stacked(&s.ddq, &s.forces)
+        };
+        let want_dq = central_differences(nv, |j, h| both(&stepped_q(&model, q, j, h), v, &tau));
+        let want_dv = central_differences(nv, |j, h| both(q, &stepped(v, j, h), &tau));
+        let want_dtau = central_differences(nv, |j, h| both(q, v, &stepped(&tau, j, h)));
+        for (got_ddq, got_forces, want, name) in [
+            (&got.ddq_dq, &got.forces_dq, want_dq, "q"),
+            (&got.ddq_dv, &got.forces_dv, want_dv, "v"),
+            (&got.ddq_dtau, &got.forces_dtau, want_dtau, "tau"),
+        ] {
+            assert_close_conditioned(got_ddq, &want.rows(0, nv).into_owned(), condition, &what(&format!("ddq/d{name}")));
+            assert_close_conditioned(got_forces, &want.rows(nv, want.nrows() - nv).into_owned(), condition, &what(&format!("forces/d{name}")));
+        }
+    }
+    assert!(checked >= 35, "only {checked} cases had independent contacts");
+}
+
+#[test]
+fn impact_derivatives_are_its_slopes() {
+    let mut rng = StdRng::seed_from_u64(17);
+    let mut checked = 0;
+    for case in 0..80 {
+        let (model, mut data, q, v) = random_case(&mut rng, case);
+        let nv = model.nv();
+        let contacts = random_contacts(&mut rng, &model);
+        if contacts.is_empty() {
+            continue;
+        }
+        let (q, v) = (q.as_slice(), v.as_slice());
+        let Ok(got) = impact_derivatives(&model, &mut data, q, v, &contacts) else { continue };
+        checked += 1;
+        let mut scratch = Data::new(&model);
+        let mut both = |q: &[f64], v: &[f64]| {
+            let (after, impulses) = impact(&model, &mut scratch, q, v, &contacts).unwrap();
+            stacked(&after, &impulses)
+        };
+        let at = both(q, v);
+        let what = |name: &str| format!("case {case}, {} contacts: {name}", contacts.len());
+        assert_close(
+            &DMatrix::from_column_slice(nv, 1, got.velocity.as_slice()),
+            &DMatrix::from_column_slice(nv, 1, &at.as_slice()[..nv]),
+            &what("v+"),
+        );
+        let want_dq = central_differences(nv, |j, h| both(&stepped_q(&model, q, j, h), v));
+        let want_dv = central_differences(nv, |j, h| both(q, &stepped(v, j, h)));
+        for (got_v, got_impulses, want, name) in
+            [(&got.velocity_dq, &got.impulses_dq, want_dq, "q"), (&got.velocity_dv, &got.impulses_dv, want_dv, "v")]
+        {
+            assert_close(got_v, &want.rows(0, nv).into_owned(), &what(&format!("v+/d{name}")));
+            assert_close(got_impulses, &want.rows(nv, want.nrows() - nv).into_owned(), &what(&format!("impulses/d{name}")));
+        }
+    }
+    assert!(checked >= 35, "only {checked} cases had independent contacts");
 }

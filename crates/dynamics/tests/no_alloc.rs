@@ -4,7 +4,8 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use legkit_dynamics::algorithms::{
-    aba, aba_derivatives, center_of_mass, centroidal_map, centroidal_momentum, centroidal_momentum_rate, crba, forward_kinematics, jacobian,
+    aba, aba_derivatives, center_of_mass, centroidal_map, centroidal_momentum, centroidal_momentum_rate, crba, forward_kinematics,
+    frame_acceleration, frame_acceleration_derivatives, frame_velocity, frame_velocity_derivatives, jacobian, jacobian_time_variation,
     kinetic_energy, minv, potential_energy, rnea, rnea_derivatives, subtree_mass_properties, Frame,
 };
 use legkit_dynamics::sim::{Shape, ShapeKind};
@@ -76,6 +77,12 @@ fn algorithms_do_not_allocate() {
         potential_energy(&model, &mut data, &q);
         rnea_derivatives(&model, &mut data, &q, &v, &tau, None);
         aba_derivatives(&model, &mut data, &q, &v, &tau, None);
+        let point = Vector3::new(0.1, 0.0, 0.0);
+        frame_velocity(&model, &mut data, &q, &v, 17, &point, Frame::World);
+        frame_acceleration(&model, &mut data, &q, &v, &tau, 17, &point, Frame::Local);
+        frame_velocity_derivatives(&model, &mut data, &q, &v, 17, &point, Frame::LocalWorldAligned);
+        frame_acceleration_derivatives(&model, &mut data, &q, &v, &tau, 17, &point, Frame::World);
+        jacobian_time_variation(&model, &mut data, &q, &v, 17, &point, Frame::Local);
     });
     assert_eq!(count, 0, "the algorithms allocated {count} times");
 }

@@ -36,47 +36,26 @@ pub fn rnea_derivatives<'d>(
     a: &[f64],
     f_ext: Option<&[Force]>,
 ) -> (&'d DMatrix<f64>, &'d DMatrix<f64>) {
+    derivatives_with_base_acceleration(model, data, q, v, a, f_ext, model.gravity_bias())
+}
+
+/// `rnea_derivatives` with the base accelerating at `base_acceleration` instead of against gravity (zero: the
+/// derivatives of M(q) a alone, as an impact's need).
+pub(crate) fn derivatives_with_base_acceleration<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    f_ext: Option<&[Force]>,
+    base_acceleration: Motion,
+) -> (&'d DMatrix<f64>, &'d DMatrix<f64>) {
     let n = model.nbodies();
-    data.derivatives.reserve(model);
+    motion_derivatives(model, data, q, v, Some(a), base_acceleration);
     let Data { centred_m_i: poses, derivatives: d, .. } = data;
-    // Forward pass: poses, velocities, accelerations (gravity as a base acceleration), each body's force, and
-    // each joint's columns S, ∂v/∂q, ∂a/∂q, ∂a/∂q̇ (Carpentier & Mansard, Alg. 1, forward pass).
+    // Each body's force, inertia and rate matrix (Alg. 1, forward pass, last line).
     for i in 0..n {
-        let (pose, v_parent, a_parent) = match i {
-            0 => (base_centred_root(model, q), Motion::zeros(), model.gravity_bias()),
-            _ => {
-                let p = model.parent(i);
-                (world_pose(model, i, &poses[p], q), d.velocity[p], d.acceleration[p])
-            }
-        };
-        poses[i] = pose;
-        let k = model.idx_v(i);
-        let columns = k..k + model.joint(i).nv();
-        match model.joint(i).dofs() {
-            Dofs::Free => {
-                for c in 0..6 {
-                    set_column(&mut d.subspace, k + c, &pose.act_motion(&Motion::ith(c, 1.0)));
-                }
-            }
-            Dofs::Zero => {}
-            Dofs::One(_) => set_column(&mut d.subspace, k, &model.joint(i).subspace_in(&pose)),
-        }
-        let (mut v_joint, mut a_joint) = (Motion::zeros(), Motion::zeros());
-        for c in columns.clone() {
-            let s = column(&d.subspace, c);
-            v_joint += s * v[c];
-            a_joint += s * a[c];
-        }
-        let velocity = v_parent + v_joint;
-        d.velocity[i] = velocity;
-        d.acceleration[i] = a_parent + a_joint + cross_motion(&v_parent, &v_joint);
-        for c in columns {
-            let s = column(&d.subspace, c);
-            let dv_dq = cross_motion(&v_parent, &s);
-            set_column(&mut d.dv_dq, c, &dv_dq);
-            set_column(&mut d.da_dq, c, &(cross_motion(&a_parent, &s) + cross_motion(&v_parent, &dv_dq)));
-            set_column(&mut d.da_dv, c, &(cross_motion(&velocity, &s) + dv_dq));
-        }
+        let (pose, velocity) = (poses[i], d.velocity[i]);
         let inertia = pose.act_rigid_inertia(model.inertia(i));
         d.force[i] = inertia.apply(&d.acceleration[i]) + cross_force(&velocity, &inertia.apply(&velocity));
         if let Some(f_ext) = f_ext {
@@ -131,4 +110,52 @@ pub fn rnea_derivatives<'d>(
         }
     }
     (&d.dtau_dq, &d.dtau_dv)
+}
+
+/// The forward pass of the derivative algorithms (Carpentier & Mansard, Alg. 1, forward pass; Pinocchio's
+/// `computeForwardKinematicsDerivatives`), in the centred frame: each body's pose (`data.centred_m_i`), velocity and
+/// acceleration (joint accelerations `a`, None for zero; the base accelerating with `base_acceleration`), and each velocity coordinate's column of S, ∂v/∂q,
+/// ∂a/∂q and ∂a/∂q̇ in `data.derivatives` (sized here).
+pub(crate) fn motion_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Option<&[f64]>, base_acceleration: Motion) {
+    data.derivatives.reserve(model);
+    let Data { centred_m_i: poses, derivatives: d, .. } = data;
+    for i in 0..model.nbodies() {
+        let (pose, v_parent, a_parent) = match i {
+            0 => (base_centred_root(model, q), Motion::zeros(), base_acceleration),
+            _ => {
+                let p = model.parent(i);
+                (world_pose(model, i, &poses[p], q), d.velocity[p], d.acceleration[p])
+            }
+        };
+        poses[i] = pose;
+        let k = model.idx_v(i);
+        let columns = k..k + model.joint(i).nv();
+        match model.joint(i).dofs() {
+            Dofs::Free => {
+                for c in 0..6 {
+                    set_column(&mut d.subspace, k + c, &pose.act_motion(&Motion::ith(c, 1.0)));
+                }
+            }
+            Dofs::Zero => {}
+            Dofs::One(_) => set_column(&mut d.subspace, k, &model.joint(i).subspace_in(&pose)),
+        }
+        let (mut v_joint, mut a_joint) = (Motion::zeros(), Motion::zeros());
+        for c in columns.clone() {
+            let s = column(&d.subspace, c);
+            v_joint += s * v[c];
+            if let Some(a) = a {
+                a_joint += s * a[c];
+            }
+        }
+        let velocity = v_parent + v_joint;
+        d.velocity[i] = velocity;
+        d.acceleration[i] = a_parent + a_joint + cross_motion(&v_parent, &v_joint);
+        for c in columns {
+            let s = column(&d.subspace, c);
+            let dv_dq = cross_motion(&v_parent, &s);
+            set_column(&mut d.dv_dq, c, &dv_dq);
+            set_column(&mut d.da_dq, c, &(cross_motion(&a_parent, &s) + cross_motion(&v_parent, &dv_dq)));
+            set_column(&mut d.da_dv, c, &(cross_motion(&velocity, &s) + dv_dq));
+        }
+    }
 }

@@ -1,0 +1,218 @@
+//! Analytic derivatives of the contact dynamics and of impacts (`contact::contact_dynamics`, `contact::impact`;
+//! Pinocchio's `computeConstraintDynamicsDerivatives` and `computeImpulseDynamicsDerivatives` for 3-D contacts in
+//! `LOCAL_WORLD_ALIGNED`), q on its tangent space.
+//!
+//! Both solve a KKT system [M −Jᵀ; J 0] [x; λ] = [a; b]. Differentiating its rows at the solution gives the same
+//! system for the derivatives, with the rows' own partial derivatives as right-hand sides: those of inverse dynamics
+//! (`rnea_derivatives` with the contact forces as external forces) and of the contact points' accelerations or
+//! velocities (`kinematics_derivatives`). The contact forces are fixed in world axes, not in their bodies, so a joint
+//! that turns a body also turns its forces against it: ∂τ/∂q gains −J_pᵀ [λ]× J_ω. The derivatives exist where the
+//! contacts are independent (J of full row rank); redundant contacts are refused.
+//!
+//! Dense O(nv³ + k³) linear algebra, allocating its k-dependent matrices on each call, as `contact.rs`.
+
+use nalgebra::{Cholesky, DMatrix, DVector, Dyn, Matrix3};
+
+use super::contact::{check_contacts, mass_and_bias, ContactPoint};
+use super::jacobian::Frame;
+use super::kinematics_derivatives::{frame_derivative_columns, FramePoint};
+use super::rnea_derivatives::{column, derivatives_with_base_acceleration, motion_derivatives, rnea_derivatives};
+use crate::model::{Data, Model};
+use crate::spatial::{angular, linear, spatial, Force, Motion};
+use crate::{Error, Result};
+
+/// `contact_dynamics`' solution and its derivatives (q on its tangent space; forces 3 per contact, world axes).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactDynamicsDerivatives {
+    pub ddq: DVector<f64>,
+    pub forces: DVector<f64>,
+    /// nv x nv each.
+    pub ddq_dq: DMatrix<f64>,
+    pub ddq_dv: DMatrix<f64>,
+    pub ddq_dtau: DMatrix<f64>,
+    /// 3k x nv each.
+    pub forces_dq: DMatrix<f64>,
+    pub forces_dv: DMatrix<f64>,
+    pub forces_dtau: DMatrix<f64>,
+}
+
+/// `impact`'s solution and its derivatives with respect to q (tangent space) and the velocity before the impact.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImpactDerivatives {
+    pub velocity: DVector<f64>,
+    pub impulses: DVector<f64>,
+    /// nv x nv each.
+    pub velocity_dq: DMatrix<f64>,
+    pub velocity_dv: DMatrix<f64>,
+    /// 3k x nv each.
+    pub impulses_dq: DMatrix<f64>,
+    pub impulses_dv: DMatrix<f64>,
+}
+
+/// The contact points' rows: J (3k x nv, their velocities in world axes), J_ω (3k x nv, their bodies' angular
+/// velocities) and γ (3k, their classical accelerations at q̈ = 0).
+struct Constraint {
+    linear: DMatrix<f64>,
+    angular: DMatrix<f64>,
+    drift: DVector<f64>,
+}
+
+fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint]) -> Constraint {
+    motion_derivatives(model, data, q, v, None, Motion::zeros());
+    let (rows, nv) = (3 * contacts.len(), model.nv());
+    let mut out = Constraint { linear: DMatrix::zeros(rows, nv), angular: DMatrix::zeros(rows, nv), drift: DVector::zeros(rows) };
+    for (k, contact) in contacts.iter().enumerate() {
+        let at = FramePoint::new(model, data, q, contact.body, &contact.point);
+        at.support(model, |c, _| {
+            let s = at.jacobian_column(&data.derivatives.subspace, c);
+            out.linear.view_mut((3 * k, c), (3, 1)).copy_from(&linear(&s));
+            out.angular.view_mut((3 * k, c), (3, 1)).copy_from(&angular(&s));
+        });
+        let (velocity, omega) = (linear(&at.velocity), angular(&at.velocity));
+        out.drift.rows_mut(3 * k, 3).copy_from(&(linear(&at.acceleration) + omega.cross(&velocity)));
+    }
+    out
+}
+
+/// The KKT system [M −Jᵀ; J 0] by its Schur complement J M⁻¹ Jᵀ.
+struct Kkt {
+    mass: Cholesky<f64, Dyn>,
+    minv_jt: DMatrix<f64>,
+    schur: Cholesky<f64, Dyn>,
+}
+
+impl Kkt {
+    fn new(mass: Cholesky<f64, Dyn>, j: &DMatrix<f64>) -> Result<Self> {
+        let minv_jt = mass.solve(&j.transpose());
+        let schur = j * &minv_jt;
+        let redundant = || {
+            Error::invalid(
+                "contacts",
+                "the contacts are not independent (J M⁻¹ Jᵀ is singular): their forces, and so the derivatives, are not unique",
+            )
+        };
+        // The rank `contact_dynamics` sees (`solve_spd`): an eigenvalue below 1e-12 of the largest is zero.
+        let eigenvalues = schur.clone().symmetric_eigen().eigenvalues;
+        if eigenvalues.min() <= 1e-12 * eigenvalues.max() {
+            return Err(redundant());
+        }
+        let schur = schur.cholesky().ok_or_else(redundant)?;
+        Ok(Kkt { mass, minv_jt, schur })
+    }
+
+    /// Solves M x − Jᵀ y = a, J x = b, column by column: y = (J M⁻¹ Jᵀ)⁻¹ (b − J M⁻¹ a), x = M⁻¹ (a + Jᵀ y).
+    fn solve(&self, j: &DMatrix<f64>, a: &DMatrix<f64>, b: &DMatrix<f64>) -> (DMatrix<f64>, DMatrix<f64>) {
+        let free = self.mass.solve(a);
+        let y = self.schur.solve(&(b - j * &free));
+        (free + &self.minv_jt * &y, y)
+    }
+}
+
+/// The contact forces (3 per contact, world axes) as forces on their bodies, fixed in the bodies' frames (`rnea`'s
+/// f_ext), from the poses `motion_derivatives` leaves.
+fn body_forces(model: &Model, data: &Data, contacts: &[ContactPoint], forces: &DVector<f64>) -> Vec<Force> {
+    let mut out = vec![Force::zeros(); model.nbodies()];
+    for (k, contact) in contacts.iter().enumerate() {
+        let f = data.centred_m_i[contact.body].rotation.tr_mul(&forces.fixed_rows::<3>(3 * k));
+        out[contact.body] += spatial(f, contact.point.cross(&f));
+    }
+    out
+}
+
+/// ∂τ/∂q of `rnea_derivatives`, whose external forces turn with their bodies, for the same forces fixed in world axes
+/// instead: less J_pᵀ [f]× J_ω per contact (a turn ω of the body turns a body-fixed force f by ω × f).
+fn hold_forces_in_world_axes(dtau_dq: &mut DMatrix<f64>, rows: &Constraint, forces: &DVector<f64>) {
+    for k in 0..forces.len() / 3 {
+        let f = forces.fixed_rows::<3>(3 * k);
+        let f_cross = Matrix3::new(0.0, -f[2], f[1], f[2], 0.0, -f[0], -f[1], f[0], 0.0);
+        let turned = f_cross * rows.angular.rows(3 * k, 3);
+        dtau_dq.gemm_tr(-1.0, &rows.linear.rows(3 * k, 3), &turned, 1.0);
+    }
+}
+
+/// Rows of the contact points' classical accelerations a + ω × v (world axes) differentiated with respect to q and q̇,
+/// after `motion_derivatives` at the state (gravity in the base's acceleration adds a constant and changes nothing).
+fn acceleration_rows(model: &Model, data: &mut Data, q: &[f64], contacts: &[ContactPoint]) -> (DMatrix<f64>, DMatrix<f64>) {
+    let (rows, nv) = (3 * contacts.len(), model.nv());
+    let (mut dq, mut dv) = (DMatrix::zeros(rows, nv), DMatrix::zeros(rows, nv));
+    for (k, contact) in contacts.iter().enumerate() {
+        let at = FramePoint::new(model, data, q, contact.body, &contact.point);
+        frame_derivative_columns(model, data, &at, Frame::LocalWorldAligned);
+        let (velocity, omega) = (linear(&at.velocity), angular(&at.velocity));
+        let d = &data.derivatives;
+        at.support(model, |c, _| {
+            let (v_dq, a_dq) = (column(&d.frame_velocity_dq, c), column(&d.frame_acceleration_dq, c));
+            let (a_dv, s) = (column(&d.frame_acceleration_dv, c), column(&d.frame_acceleration_da, c));
+            // ∂(a + ω × v) = ∂a + ∂ω × v + ω × ∂v, with ∂/∂q̇ of (v, ω) the Jacobian's columns.
+            let along_q = linear(&a_dq) + angular(&v_dq).cross(&velocity) + omega.cross(&linear(&v_dq));
+            let along_v = linear(&a_dv) + angular(&s).cross(&velocity) + omega.cross(&linear(&s));
+            dq.view_mut((3 * k, c), (3, 1)).copy_from(&along_q);
+            dv.view_mut((3 * k, c), (3, 1)).copy_from(&along_v);
+        });
+    }
+    (dq, dv)
+}
+
+/// `contact_dynamics` (q̈ and the contact forces at configuration `q`, velocity `v`, joint forces `tau`, the
+/// `contacts` held still) and its derivatives with respect to q, q̇ and τ. An error if M is singular or the contacts are
+/// not independent.
+pub fn contact_dynamics_derivatives(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    contacts: &[ContactPoint],
+) -> Result<ContactDynamicsDerivatives> {
+    check_contacts(model, contacts)?;
+    let (_, chol, bias) = mass_and_bias(model, data, q, v)?;
+    let rows = constraint(model, data, q, v, contacts);
+    let kkt = Kkt::new(chol, &rows.linear)?;
+    let column = |x: DVector<f64>| DMatrix::from_column_slice(x.len(), 1, x.as_slice());
+    let (ddq, forces) = kkt.solve(&rows.linear, &column(DVector::from_column_slice(tau) - bias), &column(-&rows.drift));
+    let (ddq, forces) = (DVector::from_column_slice(ddq.as_slice()), DVector::from_column_slice(forces.as_slice()));
+    // The rows' partial derivatives: M q̈ + h − Jᵀλ − τ (inverse dynamics with the forces applied) and J q̈ + γ.
+    let f_ext = body_forces(model, data, contacts, &forces);
+    let (dtau_dq, dtau_dv) = rnea_derivatives(model, data, q, v, ddq.as_slice(), Some(&f_ext));
+    let (mut dtau_dq, dtau_dv) = (dtau_dq.clone(), dtau_dv.clone());
+    hold_forces_in_world_axes(&mut dtau_dq, &rows, &forces);
+    let (da_dq, da_dv) = acceleration_rows(model, data, q, contacts);
+    let (ddq_dq, forces_dq) = kkt.solve(&rows.linear, &-dtau_dq, &-da_dq);
+    let (ddq_dv, forces_dv) = kkt.solve(&rows.linear, &-dtau_dv, &-da_dv);
+    let nv = model.nv();
+    let (ddq_dtau, forces_dtau) = kkt.solve(&rows.linear, &DMatrix::identity(nv, nv), &DMatrix::zeros(3 * contacts.len(), nv));
+    Ok(ContactDynamicsDerivatives { ddq, forces, ddq_dq, ddq_dv, ddq_dtau, forces_dq, forces_dv, forces_dtau })
+}
+
+/// `impact` (the velocity after a perfectly inelastic impact at the contacts, and its impulses, at configuration `q`
+/// and velocity `v` before it) and its derivatives with respect to q and that velocity.
+pub fn impact_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint]) -> Result<ImpactDerivatives> {
+    check_contacts(model, contacts)?;
+    let (mass, chol, _) = mass_and_bias(model, data, q, v)?;
+    let rows = constraint(model, data, q, v, contacts);
+    let kkt = Kkt::new(chol, &rows.linear)?;
+    let (nv, k3) = (model.nv(), 3 * contacts.len());
+    let before = DMatrix::from_column_slice(nv, 1, v);
+    // M (v⁺ − v) − Jᵀ Λ = 0, J v⁺ = 0.
+    let (change, impulses) = kkt.solve(&rows.linear, &DMatrix::zeros(nv, 1), &-(&rows.linear * &before));
+    let velocity = DVector::from_column_slice((before + change.clone()).as_slice());
+    let impulses = DVector::from_column_slice(impulses.as_slice());
+    // ∂(J v⁺)/∂q: the points' velocities at v⁺.
+    motion_derivatives(model, data, q, velocity.as_slice(), None, Motion::zeros());
+    let mut dvelocity_dq = DMatrix::zeros(k3, nv);
+    for (k, contact) in contacts.iter().enumerate() {
+        let at = FramePoint::new(model, data, q, contact.body, &contact.point);
+        frame_derivative_columns(model, data, &at, Frame::LocalWorldAligned);
+        let d = &data.derivatives;
+        at.support(model, |c, _| dvelocity_dq.view_mut((3 * k, c), (3, 1)).copy_from(&linear(&column(&d.frame_velocity_dq, c))));
+    }
+    // ∂(M (v⁺ − v) − Jᵀ Λ)/∂q: inverse dynamics at rest, accelerating by the change, without gravity.
+    let zero = vec![0.0; nv];
+    let f_ext = body_forces(model, data, contacts, &impulses);
+    let (dq, _) = derivatives_with_base_acceleration(model, data, q, &zero, change.as_slice(), Some(&f_ext), Motion::zeros());
+    let mut dresidual_dq = dq.clone();
+    hold_forces_in_world_axes(&mut dresidual_dq, &rows, &impulses);
+    let (velocity_dq, impulses_dq) = kkt.solve(&rows.linear, &-dresidual_dq, &-dvelocity_dq);
+    let (velocity_dv, impulses_dv) = kkt.solve(&rows.linear, &mass, &DMatrix::zeros(k3, nv));
+    Ok(ImpactDerivatives { velocity, impulses, velocity_dq, velocity_dv, impulses_dq, impulses_dv })
+}

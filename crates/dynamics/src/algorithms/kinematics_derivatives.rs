@@ -1,0 +1,228 @@
+//! Analytic derivatives of a frame's kinematics (Pinocchio's `getFrameVelocityDerivatives`,
+//! `getFrameAccelerationDerivatives` and `getFrameJacobianTimeVariation`): the velocity and spatial acceleration of a
+//! frame fixed to a body, differentiated with respect to q (on its tangent space, as `rnea_derivatives`), q̇ and q̈,
+//! and the time derivative J̇ of its Jacobian (a contact's acceleration is J q̈ + J̇ q̇ + ω × v). The derivative of
+//! the frame's placement on the tangent space is its Jacobian in `Frame::Local` (`jacobian`).
+//!
+//! From the forward pass the RNEA derivatives share (`motion_derivatives`): a change of joint j's coordinate moves the
+//! body's frame rigidly about S_j and changes its world velocity and acceleration, apart from that motion, by the
+//! columns ∂v/∂q and ∂a/∂q − v × ∂v/∂q (Carpentier & Mansard, eq. 9–10). Each frame's result is the derivative of what
+//! `frame_velocity` and `frame_acceleration` return. Pinocchio's `LOCAL_WORLD_ALIGNED` q-derivatives differ from
+//! these in the linear rows, by ω × J_lin for the velocity and α × J_lin for the acceleration: they hold the frame's
+//! origin still.
+
+use nalgebra::{Matrix6xX, Vector3};
+
+use super::jacobian::Frame;
+use super::joint_placement;
+use super::rnea_derivatives::{column, motion_derivatives, set_column};
+use crate::model::{Data, Model};
+use crate::spatial::{angular, cross_motion, linear, spatial, Motion, Transform};
+
+/// A frame at `point` on a body after `motion_derivatives`: its pose in the centred frame, its origin in the world,
+/// and its velocity and acceleration (world axes, about its origin: `Frame::LocalWorldAligned`).
+pub(crate) struct FramePoint {
+    pub body: usize,
+    pub pose: Transform,
+    pub origin: Vector3<f64>,
+    pub velocity: Motion,
+    pub acceleration: Motion,
+}
+
+/// A motion about the centred frame's origin, taken about `point` (centred coordinates) instead.
+#[inline(always)]
+fn about(m: &Motion, point: &Vector3<f64>) -> Motion {
+    spatial(linear(m) + angular(m).cross(point), angular(m))
+}
+
+impl FramePoint {
+    pub(crate) fn new(model: &Model, data: &Data, q: &[f64], body: usize, point: &Vector3<f64>) -> Self {
+        let body_pose = data.centred_m_i[body];
+        let centred = body_pose.transform_point(point);
+        let d = &data.derivatives;
+        FramePoint {
+            body,
+            pose: Transform::new(body_pose.rotation, centred),
+            // The centred frame sits at the base's origin, in world axes.
+            origin: centred + joint_placement(model, 0, q).translation,
+            velocity: about(&d.velocity[body], &centred),
+            acceleration: about(&d.acceleration[body], &centred),
+        }
+    }
+
+    /// `value` (world axes, about the frame's origin) in `frame`.
+    pub(crate) fn express(&self, value: &Motion, frame: Frame) -> Motion {
+        match frame {
+            Frame::LocalWorldAligned => *value,
+            Frame::Local => self.rotated_back(value),
+            Frame::World => spatial(linear(value) - angular(value).cross(&self.origin), angular(value)),
+        }
+    }
+
+    fn rotated_back(&self, m: &Motion) -> Motion {
+        let r = &self.pose.rotation;
+        spatial(r.tr_mul(&linear(m)), r.tr_mul(&angular(m)))
+    }
+
+    /// A derivative column in `frame`: `change` (centred coordinates) is the change of a quantity apart from the rigid
+    /// motion of the frame, `value` the quantity (world axes, about the frame's origin), and the change of coordinates
+    /// turns the frame at `turn` and moves its origin at `travel` (both zero for a change of q̇ or q̈). World-aligned
+    /// axes stay while the frame turns, so the value's turn adds to the change there; the world's origin stays while
+    /// the frame's moves, so the moment arm's change adds there too.
+    pub(crate) fn derivative(&self, change: &Motion, value: &Motion, turn: &Vector3<f64>, travel: &Vector3<f64>, frame: Frame) -> Motion {
+        let shifted = about(change, &self.pose.translation);
+        if frame == Frame::Local {
+            return self.rotated_back(&shifted);
+        }
+        let aligned = shifted + spatial(turn.cross(&linear(value)), turn.cross(&angular(value)));
+        match frame {
+            Frame::World => spatial(linear(&aligned) - angular(value).cross(travel) - angular(&aligned).cross(&self.origin), angular(&aligned)),
+            _ => aligned,
+        }
+    }
+
+    /// Calls `visit(column, body)` for each velocity coordinate that moves the frame (its body's support), from the
+    /// body to the root.
+    pub(crate) fn support(&self, model: &Model, mut visit: impl FnMut(usize, usize)) {
+        let mut j = self.body;
+        loop {
+            let k = model.idx_v(j);
+            for c in k..k + model.joint(j).nv() {
+                visit(c, j);
+            }
+            if j == 0 {
+                break;
+            }
+            j = model.parent(j);
+        }
+    }
+
+    /// Column `c` of the frame's Jacobian (world axes, about its origin) from the joints' columns `subspace`.
+    pub(crate) fn jacobian_column(&self, subspace: &Matrix6xX<f64>, c: usize) -> Motion {
+        about(&column(subspace, c), &self.pose.translation)
+    }
+}
+
+/// The velocity (rows `[linear; angular]`) of the frame at `point` (body coordinates) on `body`, in `frame`, at
+/// configuration `q` and velocity `v` (Pinocchio's `getFrameVelocity`).
+pub fn frame_velocity(model: &Model, data: &mut Data, q: &[f64], v: &[f64], body: usize, point: &Vector3<f64>, frame: Frame) -> Motion {
+    motion_derivatives(model, data, q, v, None, Motion::zeros());
+    let at = FramePoint::new(model, data, q, body, point);
+    at.express(&at.velocity, frame)
+}
+
+/// The spatial acceleration (gravity excluded; rows `[linear; angular]`) of the frame at `point` on `body`, in `frame`,
+/// for joint accelerations `a` (Pinocchio's `getFrameAcceleration`). The classical acceleration of the frame's origin
+/// is the world-aligned linear part plus ω × v.
+#[allow(clippy::too_many_arguments)]
+pub fn frame_acceleration(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    frame: Frame,
+) -> Motion {
+    motion_derivatives(model, data, q, v, Some(a), Motion::zeros());
+    let at = FramePoint::new(model, data, q, body, point);
+    at.express(&at.acceleration, frame)
+}
+
+/// ∂v/∂q and ∂v/∂q̇ (6 x nv each; the second is the frame's Jacobian) of `frame_velocity`. Writes
+/// `data.derivatives.frame_velocity_dq` and `frame_velocity_dv` and returns them.
+pub fn frame_velocity_derivatives<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    v: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    frame: Frame,
+) -> (&'d Matrix6xX<f64>, &'d Matrix6xX<f64>) {
+    motion_derivatives(model, data, q, v, None, Motion::zeros());
+    let at = FramePoint::new(model, data, q, body, point);
+    let d = &mut data.derivatives;
+    d.frame_velocity_dq.fill(0.0);
+    d.frame_velocity_dv.fill(0.0);
+    at.support(model, |c, _| {
+        let s = at.jacobian_column(&d.subspace, c);
+        let (turn, travel) = (angular(&s), linear(&s));
+        set_column(&mut d.frame_velocity_dq, c, &at.derivative(&column(&d.dv_dq, c), &at.velocity, &turn, &travel, frame));
+        set_column(&mut d.frame_velocity_dv, c, &at.express(&s, frame));
+    });
+    (&d.frame_velocity_dq, &d.frame_velocity_dv)
+}
+
+/// ∂v/∂q, ∂a/∂q, ∂a/∂q̇ and ∂a/∂q̈ (6 x nv each; the last is the frame's Jacobian) of `frame_velocity` and
+/// `frame_acceleration`. Writes them to `data.derivatives` (`frame_velocity_dq`, `frame_acceleration_dq`, `_dv`,
+/// `_da`) and returns them.
+#[allow(clippy::too_many_arguments)]
+pub fn frame_acceleration_derivatives<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    frame: Frame,
+) -> FrameAccelerationDerivatives<'d> {
+    motion_derivatives(model, data, q, v, Some(a), Motion::zeros());
+    let at = FramePoint::new(model, data, q, body, point);
+    frame_derivative_columns(model, data, &at, frame);
+    let d = &data.derivatives;
+    (&d.frame_velocity_dq, &d.frame_acceleration_dq, &d.frame_acceleration_dv, &d.frame_acceleration_da)
+}
+
+/// ∂v/∂q, ∂a/∂q, ∂a/∂q̇, ∂a/∂q̈ of a frame.
+pub type FrameAccelerationDerivatives<'d> = (&'d Matrix6xX<f64>, &'d Matrix6xX<f64>, &'d Matrix6xX<f64>, &'d Matrix6xX<f64>);
+
+/// Writes the frame's velocity and acceleration derivatives after `motion_derivatives` (eq. 9–10, their non-rigid
+/// parts: the body's own velocity adds v × ∂v/∂q to ∂a/∂q and v × S to ∂a/∂q̇).
+pub(crate) fn frame_derivative_columns(model: &Model, data: &mut Data, at: &FramePoint, frame: Frame) {
+    let d = &mut data.derivatives;
+    let body_velocity = d.velocity[at.body];
+    for out in [&mut d.frame_velocity_dq, &mut d.frame_acceleration_dq, &mut d.frame_acceleration_dv, &mut d.frame_acceleration_da] {
+        out.fill(0.0);
+    }
+    let zero = Vector3::zeros();
+    at.support(model, |c, _| {
+        let (subspace, dv_dq) = (column(&d.subspace, c), column(&d.dv_dq, c));
+        let s = at.jacobian_column(&d.subspace, c);
+        let (turn, travel) = (angular(&s), linear(&s));
+        let da_dq = column(&d.da_dq, c) - cross_motion(&body_velocity, &dv_dq);
+        let da_dv = column(&d.da_dv, c) - cross_motion(&body_velocity, &subspace);
+        set_column(&mut d.frame_velocity_dq, c, &at.derivative(&dv_dq, &at.velocity, &turn, &travel, frame));
+        set_column(&mut d.frame_acceleration_dq, c, &at.derivative(&da_dq, &at.acceleration, &turn, &travel, frame));
+        set_column(&mut d.frame_acceleration_dv, c, &at.derivative(&da_dv, &at.acceleration, &zero, &zero, frame));
+        set_column(&mut d.frame_acceleration_da, c, &at.express(&s, frame));
+    });
+}
+
+/// J̇ (6 x nv), the time derivative of the frame's Jacobian (`jacobian`) along q̇ = `v` (Pinocchio's
+/// `getFrameJacobianTimeVariation`): column c is joint c's motion S_c carried by its body's velocity v_j × S_c, less the
+/// frame's own turn. Writes `data.derivatives.jacobian_rate` and returns it.
+pub fn jacobian_time_variation<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    v: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    frame: Frame,
+) -> &'d Matrix6xX<f64> {
+    motion_derivatives(model, data, q, v, None, Motion::zeros());
+    let at = FramePoint::new(model, data, q, body, point);
+    let d = &mut data.derivatives;
+    d.jacobian_rate.fill(0.0);
+    let (body_velocity, turn, travel) = (d.velocity[at.body], angular(&at.velocity), linear(&at.velocity));
+    at.support(model, |c, j| {
+        let subspace = column(&d.subspace, c);
+        let change = cross_motion(&(d.velocity[j] - body_velocity), &subspace);
+        let s = at.jacobian_column(&d.subspace, c);
+        set_column(&mut d.jacobian_rate, c, &at.derivative(&change, &s, &turn, &travel, frame));
+    });
+    &d.jacobian_rate
+}
