@@ -172,7 +172,35 @@ _Frame = Literal["local", "world", "local_world_aligned"]
 _ContactPoints = Sequence[tuple[_Body, npt.ArrayLike]]
 
 def jacobian(model: Model, q: npt.ArrayLike, body: _Body, point: npt.ArrayLike | None = None, frame: _Frame = "local_world_aligned") -> np.ndarray:
-    """6 x nv Jacobian (rows [linear; angular]) of the frame at `point` on `body`: (..., 6, nv)."""
+    """6 x nv Jacobian (rows [linear; angular]) of the frame at `point` on `body`: (..., 6, nv). On q's tangent space, the
+    "local" Jacobian is also the derivative of the frame's placement."""
+def jacobian_time_variation(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, body: _Body, point: npt.ArrayLike | None = None, frame: _Frame = "local_world_aligned"
+) -> np.ndarray:
+    """dJ/dt of ``jacobian`` along the velocity v (Pinocchio's getFrameJacobianTimeVariation): (..., 6, nv). In
+    "local_world_aligned" the point's classical acceleration is J a + dJ/dt v + w x v_point."""
+def frame_velocity(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, body: _Body, point: npt.ArrayLike | None = None, frame: _Frame = "local_world_aligned"
+) -> np.ndarray:
+    """Velocity [linear; angular] of the frame at `point` on `body` (Pinocchio's getFrameVelocity): (..., 6)."""
+def frame_acceleration(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike, body: _Body, point: npt.ArrayLike | None = None,
+    frame: _Frame = "local_world_aligned",
+) -> np.ndarray:
+    """Spatial acceleration [linear; angular] of the frame, gravity excluded (Pinocchio's getFrameAcceleration): (..., 6).
+    The point's classical acceleration is the "local_world_aligned" linear part plus w x v."""
+def frame_velocity_derivatives(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, body: _Body, point: npt.ArrayLike | None = None, frame: _Frame = "local_world_aligned"
+) -> tuple[np.ndarray, np.ndarray]:
+    """(dv/dq, dv/dv) of ``frame_velocity``, each (..., 6, nv), q on its tangent space (Pinocchio's
+    getFrameVelocityDerivatives; in "local_world_aligned" Pinocchio holds the frame's origin still, and its dv/dq lacks
+    w x J_lin in the linear rows)."""
+def frame_acceleration_derivatives(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike, body: _Body, point: npt.ArrayLike | None = None,
+    frame: _Frame = "local_world_aligned",
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(dv/dq, da/dq, da/dv, da/da) of ``frame_velocity`` and ``frame_acceleration``, each (..., 6, nv) (Pinocchio's
+    getFrameAccelerationDerivatives; in "local_world_aligned" its da/dq also lacks alpha x J_lin)."""
 def center_of_mass(model: Model, q: npt.ArrayLike) -> np.ndarray:
     """World centre of mass: (..., 3)."""
 def subtree_mass_properties(model: Model, q: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -189,6 +217,17 @@ def contact_dynamics(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.
     """(ddq (..., nv), forces (..., k, 3)) with each contact point (body, point in body frame) held still."""
 def impact(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, contacts: _ContactPoints) -> tuple[np.ndarray, np.ndarray]:
     """(v_plus (..., nv), impulses (..., k, 3)) of a perfectly inelastic impact at the contacts."""
+def contact_dynamics_derivatives(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _ContactPoints
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(ddq/dq, ddq/dv, ddq/dtau) each (..., nv, nv) and (forces/dq, forces/dv, forces/dtau) each (..., k, 3, nv) of
+    ``contact_dynamics``, q on its tangent space (Pinocchio's computeConstraintDynamicsDerivatives, 3-D contacts in
+    LOCAL_WORLD_ALIGNED). Dependent contacts raise ValueError: their forces are not unique."""
+def impact_derivatives(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, contacts: _ContactPoints
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(v_plus/dq, v_plus/dv) each (..., nv, nv) and (impulses/dq, impulses/dv) each (..., k, 3, nv) of ``impact``
+    (Pinocchio's computeImpulseDynamicsDerivatives without restitution). Dependent contacts raise ValueError."""
 def point_accelerations(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike, contacts: _ContactPoints) -> np.ndarray:
     """World-axes (classical) acceleration J ddq + dJ/dt dq of each (body, point in body frame): (..., k, 3); zero for
     the points `contact_dynamics` holds, at its ddq."""

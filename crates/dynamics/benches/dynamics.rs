@@ -11,13 +11,17 @@
 //!   branch a module plugs into the previous one's exit face, turned 90° about that face's normal (x) at
 //!   every other connection.
 //! * chain n: n box links of 0.5 kg, 0.1 m along z, joint axes cycling y, x, z.
+//! * quadruped: a free-flyer 8 kg torso (0.5 x 0.25 x 0.1 m) and 4 legs of hip abduction (x), hip flexion (y) and
+//!   knee (y), with the contact dynamics' and impacts' derivatives at a point on each shank (`contacts` group).
 //!
 //! States are random (joint angles in [-π, π], v and τ standard normal), fixed by a seed.
 
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use legkit_dynamics::algorithms::{aba, aba_derivatives, crba, minv, rnea, rnea_derivatives};
+use legkit_dynamics::algorithms::{
+    aba, aba_derivatives, contact_dynamics, contact_dynamics_derivatives, crba, impact_derivatives, minv, rnea, rnea_derivatives, ContactPoint,
+};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{Matrix3, Vector3};
 use rand::rngs::StdRng;
@@ -89,6 +93,41 @@ fn chain(n: usize) -> Model {
     model
 }
 
+/// The 18-DoF floating quadruped, and a contact point on each shank (0.22 m below its knee).
+fn quadruped() -> (Model, Vec<ContactPoint>) {
+    let mut model = Model::new(true, solid_box(8.0, [0.5, 0.25, 0.1], [0.0; 3]), "torso");
+    let mut feet = Vec::new();
+    for (name, sx, sy) in [("fl", 1.0, 1.0), ("fr", 1.0, -1.0), ("hl", -1.0, 1.0), ("hr", -1.0, -1.0)] {
+        let at = |x: f64, y: f64, z: f64| Transform::from_translation(Vector3::new(x, y, z));
+        let hip = revolute(
+            &mut model,
+            0,
+            Vector3::x(),
+            at(0.22 * sx, 0.09 * sy, 0.0),
+            solid_box(0.6, [0.08, 0.06, 0.06], [0.0; 3]),
+            format!("{name}_hip_abad"),
+        );
+        let thigh = revolute(
+            &mut model,
+            hip,
+            Vector3::y(),
+            at(0.0, 0.07 * sy, 0.0),
+            solid_box(1.0, [0.04, 0.04, 0.22], [0.0, 0.0, -0.11]),
+            format!("{name}_hip_flex"),
+        );
+        let shank = revolute(
+            &mut model,
+            thigh,
+            Vector3::y(),
+            at(0.0, 0.0, -0.22),
+            solid_box(0.25, [0.025, 0.025, 0.22], [0.0, 0.0, -0.11]),
+            format!("{name}_knee"),
+        );
+        feet.push(ContactPoint { body: shank, point: Vector3::new(0.0, 0.0, -0.22) });
+    }
+    (model, feet)
+}
+
 /// A random state (q, v, τ) for a fixed-base model of revolute joints.
 fn random_state(model: &Model, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let mut rng = StdRng::seed_from_u64(seed);
@@ -143,5 +182,25 @@ fn derivatives(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, tree, chains, derivatives);
+fn contacts(c: &mut Criterion) {
+    let (model, feet) = quadruped();
+    let mut data = Data::new(&model);
+    let (mut q, v, tau) = random_state(&model, 4);
+    q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
+    let mut group = c.benchmark_group("contacts");
+    group.bench_function("contact_dynamics/quadruped", |b| {
+        b.iter(|| contact_dynamics(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), &feet).expect("independent").ddq[0])
+    });
+    group.bench_function("contact_dynamics_derivatives/quadruped", |b| {
+        b.iter(|| {
+            contact_dynamics_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), &feet).expect("independent").ddq_dq[(0, 0)]
+        })
+    });
+    group.bench_function("impact_derivatives/quadruped", |b| {
+        b.iter(|| impact_derivatives(&model, &mut data, black_box(&q), black_box(&v), &feet).expect("independent").velocity_dq[(0, 0)])
+    });
+    group.finish();
+}
+
+criterion_group!(benches, tree, chains, derivatives, contacts);
 criterion_main!(benches);

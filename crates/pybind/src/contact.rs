@@ -3,9 +3,10 @@
 use legkit_dynamics::algorithms::{self, ContactPoint};
 use legkit_dynamics::model::check_vector;
 use legkit_dynamics::{Data, Error, Model};
-use nalgebra::DVector;
+use nalgebra::{DMatrix, DVector};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
+use pyo3::types::PyTuple;
 
 use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::convert::{kernel_error, to_numpy, vector3, FloatArray, Vector};
@@ -149,4 +150,70 @@ pub fn reduced_dynamics<'py>(
         to_numpy(py, r.force.len(), r.force.as_slice().to_vec()),
         to_numpy(py, r.offset.len(), r.offset.as_slice().to_vec()),
     ))
+}
+
+/// `matrices` one after the other, each row by row (as NumPy reads them), into `out`.
+fn write_rows(matrices: &[&DMatrix<f64>], out: &mut [f64]) {
+    let mut at = 0;
+    for matrix in matrices {
+        for r in 0..matrix.nrows() {
+            for c in 0..matrix.ncols() {
+                out[at] = matrix[(r, c)];
+                at += 1;
+            }
+        }
+    }
+}
+
+/// The derivatives of `contact_dynamics` with respect to q (its tangent space), v and tau: (ddq_dq, ddq_dv, ddq_dtau)
+/// each `(..., nv, nv)` and (forces_dq, forces_dv, forces_dtau) each `(..., k, 3, nv)`, the forces in world axes
+/// (Pinocchio's `computeConstraintDynamicsDerivatives` for 3-D contacts in `LOCAL_WORLD_ALIGNED`). The contacts must be
+/// independent (a ValueError otherwise: their forces, and so the derivatives, would not be unique).
+#[pyfunction]
+pub fn contact_dynamics_derivatives<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    tau: ArrayArg<'_>,
+    contacts: &Bound<'_, PyAny>,
+) -> PyResult<Bound<'py, PyTuple>> {
+    let contacts = self::contacts(&model, contacts)?;
+    let (nv, k) = (model.model.nv(), contacts.len());
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("tau", &tau, &[nv])])?;
+    let packed = run_packed(py, &model, &batch, 3 * nv * (nv + 3 * k), |m, w, i, out| {
+        let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
+        check_state(m, q, Some(v))?;
+        check_vector("tau", tau, nv)?;
+        let d = algorithms::contact_dynamics_derivatives(m, w.data(), q, v, tau, &contacts)?;
+        write_rows(&[&d.ddq_dq, &d.ddq_dv, &d.ddq_dtau, &d.forces_dq, &d.forces_dv, &d.forces_dtau], out);
+        finite_result(&*out)
+    })?;
+    let (square, per_contact): (&[usize], &[usize]) = (&[nv, nv], &[k, 3, nv]);
+    PyTuple::new(py, unpack(py, &batch, &packed, &[square, square, square, per_contact, per_contact, per_contact]))
+}
+
+/// The derivatives of `impact` with respect to q (its tangent space) and the velocity before it: (v_plus_dq,
+/// v_plus_dv) each `(..., nv, nv)` and (impulses_dq, impulses_dv) each `(..., k, 3, nv)` (Pinocchio's
+/// `computeImpulseDynamicsDerivatives` with no restitution). The contacts must be independent.
+#[pyfunction]
+pub fn impact_derivatives<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    contacts: &Bound<'_, PyAny>,
+) -> PyResult<Bound<'py, PyTuple>> {
+    let contacts = self::contacts(&model, contacts)?;
+    let (nv, k) = (model.model.nv(), contacts.len());
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv])])?;
+    let packed = run_packed(py, &model, &batch, 2 * nv * (nv + 3 * k), |m, w, i, out| {
+        let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
+        check_state(m, q, Some(v))?;
+        let d = algorithms::impact_derivatives(m, w.data(), q, v, &contacts)?;
+        write_rows(&[&d.velocity_dq, &d.velocity_dv, &d.impulses_dq, &d.impulses_dv], out);
+        finite_result(&*out)
+    })?;
+    let (square, per_contact): (&[usize], &[usize]) = (&[nv, nv], &[k, 3, nv]);
+    PyTuple::new(py, unpack(py, &batch, &packed, &[square, square, per_contact, per_contact]))
 }

@@ -38,6 +38,14 @@ fn frame(name: &str) -> PyResult<Frame> {
     }
 }
 
+/// The body index, point (default the origin) and convention of a frame argument.
+fn frame_arguments(model: &PyModel, body: &Bound<'_, PyAny>, point: Option<Vector<'_>>, frame: &str) -> PyResult<(usize, Vector3<f64>, Frame)> {
+    let (body, convention) = (model.body_index(body)?, self::frame(frame)?);
+    let point = point.map(|p| vector3("point", &p)).transpose()?.unwrap_or_else(Vector3::zeros);
+    legkit_dynamics::validate::finite_vector("point", point).map_err(crate::convert::kernel_error)?;
+    Ok((body, point, convention))
+}
+
 /// The 6 x nv Jacobian (rows [linear; angular]) of the frame at `point` (body coordinates, default the
 /// origin) on `body` (index or name), in Pinocchio's `frame` convention: "local", "world" or
 /// "local_world_aligned" (the point's velocity in world axes). `(..., 6, nv)`.
@@ -51,9 +59,7 @@ pub fn jacobian<'py>(
     point: Option<Vector<'_>>,
     frame: &str,
 ) -> PyResult<FloatArray<'py>> {
-    let (body, convention) = (model.body_index(body)?, self::frame(frame)?);
-    let point = point.map(|p| vector3("point", &p)).transpose()?.unwrap_or_else(Vector3::zeros);
-    legkit_dynamics::validate::finite_vector("point", point).map_err(crate::convert::kernel_error)?;
+    let (body, point, convention) = frame_arguments(&model, body, point, frame)?;
     let nv = model.model.nv();
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
     run(py, &model, &batch, &[6, nv], |m, w, i, out| {
@@ -155,4 +161,143 @@ fn row_major(matrix: &Matrix6xX<f64>, out: &mut [f64]) {
             *x = matrix[(r, c)];
         }
     }
+}
+
+/// The velocity `[linear; angular]` of the frame at `point` on `body` in `frame` (Pinocchio's `getFrameVelocity`):
+/// `(..., 6)`.
+#[pyfunction]
+#[pyo3(signature = (model, q, v, body, point = None, frame = "local_world_aligned"))]
+pub fn frame_velocity<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    body: &Bound<'_, PyAny>,
+    point: Option<Vector<'_>>,
+    frame: &str,
+) -> PyResult<FloatArray<'py>> {
+    let (body, point, convention) = frame_arguments(&model, body, point, frame)?;
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[model.model.nv()])])?;
+    run(py, &model, &batch, &[6], |m, w, i, out| {
+        let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
+        check_state(m, q, Some(v))?;
+        out.copy_from_slice(algorithms::frame_velocity(m, w.data(), q, v, body, &point, convention).as_slice());
+        Ok(())
+    })
+}
+
+/// The spatial acceleration `[linear; angular]` of the frame at `point` on `body` in `frame` for joint accelerations
+/// `a`, gravity excluded (Pinocchio's `getFrameAcceleration`; the classical acceleration of the point is the
+/// "local_world_aligned" linear part plus ω × v): `(..., 6)`.
+#[pyfunction]
+#[pyo3(signature = (model, q, v, a, body, point = None, frame = "local_world_aligned"))]
+#[allow(clippy::too_many_arguments)]
+pub fn frame_acceleration<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    a: ArrayArg<'_>,
+    body: &Bound<'_, PyAny>,
+    point: Option<Vector<'_>>,
+    frame: &str,
+) -> PyResult<FloatArray<'py>> {
+    let (body, point, convention) = frame_arguments(&model, body, point, frame)?;
+    let nv = model.model.nv();
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("a", &a, &[nv])])?;
+    run(py, &model, &batch, &[6], |m, w, i, out| {
+        let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
+        check_state(m, q, Some(v))?;
+        check_vector("a", a, nv)?;
+        out.copy_from_slice(algorithms::frame_acceleration(m, w.data(), q, v, a, body, &point, convention).as_slice());
+        Ok(())
+    })
+}
+
+/// ∂v/∂q and ∂v/∂v (the Jacobian) of `frame_velocity`, q on its tangent space: each `(..., 6, nv)`. Pinocchio's
+/// `getFrameVelocityDerivatives`, except in "local_world_aligned", where Pinocchio holds the frame's origin still and
+/// its ∂v/∂q lacks ω × J_lin in the linear rows.
+#[pyfunction]
+#[pyo3(signature = (model, q, v, body, point = None, frame = "local_world_aligned"))]
+pub fn frame_velocity_derivatives<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    body: &Bound<'_, PyAny>,
+    point: Option<Vector<'_>>,
+    frame: &str,
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
+    let (body, point, convention) = frame_arguments(&model, body, point, frame)?;
+    let nv = model.model.nv();
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv])])?;
+    let packed = run_packed(py, &model, &batch, 12 * nv, |m, w, i, out| {
+        let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
+        check_state(m, q, Some(v))?;
+        let (dq, dv) = algorithms::frame_velocity_derivatives(m, w.data(), q, v, body, &point, convention);
+        for (matrix, chunk) in [dq, dv].into_iter().zip(out.chunks_exact_mut(6 * nv)) {
+            row_major(matrix, chunk);
+        }
+        Ok(())
+    })?;
+    let mut parts = unpack(py, &batch, &packed, &[&[6, nv], &[6, nv]]).into_iter();
+    Ok((parts.next().expect("two"), parts.next().expect("two")))
+}
+
+/// ∂v/∂q, ∂a/∂q, ∂a/∂v and ∂a/∂a (the Jacobian) of `frame_velocity` and `frame_acceleration`, q on its tangent space:
+/// each `(..., 6, nv)` (Pinocchio's `getFrameAccelerationDerivatives`, except as `frame_velocity_derivatives` says in
+/// "local_world_aligned", where Pinocchio's ∂a/∂q also lacks α × J_lin).
+#[pyfunction]
+#[pyo3(signature = (model, q, v, a, body, point = None, frame = "local_world_aligned"))]
+#[allow(clippy::too_many_arguments)]
+pub fn frame_acceleration_derivatives<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    a: ArrayArg<'_>,
+    body: &Bound<'_, PyAny>,
+    point: Option<Vector<'_>>,
+    frame: &str,
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>, FloatArray<'py>, FloatArray<'py>)> {
+    let (body, point, convention) = frame_arguments(&model, body, point, frame)?;
+    let nv = model.model.nv();
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("a", &a, &[nv])])?;
+    let packed = run_packed(py, &model, &batch, 24 * nv, |m, w, i, out| {
+        let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
+        check_state(m, q, Some(v))?;
+        check_vector("a", a, nv)?;
+        let (v_dq, a_dq, a_dv, a_da) = algorithms::frame_acceleration_derivatives(m, w.data(), q, v, a, body, &point, convention);
+        for (matrix, chunk) in [v_dq, a_dq, a_dv, a_da].into_iter().zip(out.chunks_exact_mut(6 * nv)) {
+            row_major(matrix, chunk);
+        }
+        Ok(())
+    })?;
+    let mut parts = unpack(py, &batch, &packed, &[&[6, nv], &[6, nv], &[6, nv], &[6, nv]]).into_iter();
+    let mut next = || parts.next().expect("four");
+    Ok((next(), next(), next(), next()))
+}
+
+/// The time derivative of the frame's Jacobian along the velocity `v` (Pinocchio's `getFrameJacobianTimeVariation`):
+/// `(..., 6, nv)`. In "local_world_aligned", the point's classical acceleration is J a + J̇ v + ω × v_point.
+#[pyfunction]
+#[pyo3(signature = (model, q, v, body, point = None, frame = "local_world_aligned"))]
+pub fn jacobian_time_variation<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    body: &Bound<'_, PyAny>,
+    point: Option<Vector<'_>>,
+    frame: &str,
+) -> PyResult<FloatArray<'py>> {
+    let (body, point, convention) = frame_arguments(&model, body, point, frame)?;
+    let nv = model.model.nv();
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv])])?;
+    run(py, &model, &batch, &[6, nv], |m, w, i, out| {
+        let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
+        check_state(m, q, Some(v))?;
+        row_major(algorithms::jacobian_time_variation(m, w.data(), q, v, body, &point, convention), out);
+        Ok(())
+    })
 }

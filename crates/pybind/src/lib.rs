@@ -29,6 +29,11 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(model::resolve_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::forward_kinematics, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::jacobian, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::jacobian_time_variation, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::frame_velocity, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::frame_acceleration, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::frame_velocity_derivatives, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::frame_acceleration_derivatives, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::center_of_mass, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::subtree_mass_properties, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::centroidal_momentum, m)?)?;
@@ -44,6 +49,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(dynamics::potential_energy, m)?)?;
     m.add_function(wrap_pyfunction!(contact::contact_dynamics, m)?)?;
     m.add_function(wrap_pyfunction!(contact::impact, m)?)?;
+    m.add_function(wrap_pyfunction!(contact::contact_dynamics_derivatives, m)?)?;
+    m.add_function(wrap_pyfunction!(contact::impact_derivatives, m)?)?;
     m.add_function(wrap_pyfunction!(contact::point_accelerations, m)?)?;
     m.add_function(wrap_pyfunction!(contact::reduced_dynamics, m)?)?;
     m.add_function(wrap_pyfunction!(integrate::integrate, m)?)?;

@@ -107,10 +107,10 @@ fn solve_spd(a: DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
 }
 
 /// M, a Cholesky factor of M, and the bias h = C q̇ + g.
-pub(crate) type MassAndBias = (DMatrix<f64>, nalgebra::Cholesky<f64, nalgebra::Dyn>, DVector<f64>);
+type MassAndBias = (DMatrix<f64>, nalgebra::Cholesky<f64, nalgebra::Dyn>, DVector<f64>);
 
 /// M and the bias h = C q̇ + g at (q, v), and a Cholesky factor of M.
-pub(crate) fn mass_and_bias(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result<MassAndBias> {
+fn mass_and_bias(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result<MassAndBias> {
     let mass = crba(model, data, q).clone();
     let bias = rnea(model, data, q, v, &vec![0.0; model.nv()], None).clone();
     let chol = mass

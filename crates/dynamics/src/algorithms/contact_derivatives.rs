@@ -11,12 +11,13 @@
 //!
 //! Dense O(nv³ + k³) linear algebra, allocating its k-dependent matrices on each call, as `contact.rs`.
 
-use nalgebra::{Cholesky, DMatrix, DVector, Dyn, Matrix3};
+use nalgebra::{DMatrix, DVector, Matrix3};
 
-use super::contact::{check_contacts, mass_and_bias, ContactPoint};
+use super::contact::{check_contacts, ContactPoint};
 use super::jacobian::Frame;
-use super::kinematics_derivatives::{frame_derivative_columns, FramePoint};
-use super::rnea_derivatives::{column, derivatives_with_base_acceleration, motion_derivatives, rnea_derivatives};
+use super::kinematics_derivatives::{for_each_frame_derivative, FramePoint};
+use super::rnea_derivatives::{derivatives_with_base_acceleration, motion_derivatives, rnea_derivatives};
+use super::{minv, rnea};
 use crate::model::{Data, Model};
 use crate::spatial::{angular, linear, spatial, Force, Motion};
 use crate::{Error, Result};
@@ -74,16 +75,22 @@ fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[
     out
 }
 
-/// The KKT system [M −Jᵀ; J 0] by its Schur complement J M⁻¹ Jᵀ.
+/// The KKT system [M −Jᵀ; J 0] by its Schur complement J M⁻¹ Jᵀ, with M⁻¹ and the complement's inverse dense (nv
+/// and 3k are small where contacts are used, and products then run as matrix multiplications).
 struct Kkt {
-    mass: Cholesky<f64, Dyn>,
+    minv: DMatrix<f64>,
     minv_jt: DMatrix<f64>,
-    schur: Cholesky<f64, Dyn>,
+    schur_inverse: DMatrix<f64>,
 }
 
 impl Kkt {
-    fn new(mass: Cholesky<f64, Dyn>, j: &DMatrix<f64>) -> Result<Self> {
-        let minv_jt = mass.solve(&j.transpose());
+    /// From M⁻¹ at q (`minv`, the model's armature included) and the contact rows J.
+    fn new(model: &Model, data: &mut Data, q: &[f64], j: &DMatrix<f64>) -> Result<Self> {
+        let minv = minv(model, data, q).clone();
+        if !minv.diagonal().iter().all(|x| x.is_finite() && *x > 0.0) {
+            return Err(Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint carrying no inertia?)"));
+        }
+        let minv_jt = &minv * j.transpose();
         let schur = j * &minv_jt;
         let redundant = || {
             Error::invalid(
@@ -91,20 +98,27 @@ impl Kkt {
                 "the contacts are not independent (J M⁻¹ Jᵀ is singular): their forces, and so the derivatives, are not unique",
             )
         };
-        // The rank `contact_dynamics` sees (`solve_spd`): an eigenvalue below 1e-12 of the largest is zero.
-        let eigenvalues = schur.clone().symmetric_eigen().eigenvalues;
-        if eigenvalues.min() <= 1e-12 * eigenvalues.max() {
+        let diagonal = schur.diagonal();
+        let factor = schur.cholesky().ok_or_else(redundant)?;
+        // A pivot that lost all but 1e-10 of its diagonal entry is a rank deficiency in rounding.
+        if factor.l_dirty().diagonal().iter().zip(diagonal.iter()).any(|(l, d)| l * l <= 1e-10 * d) {
             return Err(redundant());
         }
-        let schur = schur.cholesky().ok_or_else(redundant)?;
-        Ok(Kkt { mass, minv_jt, schur })
+        Ok(Kkt { minv, minv_jt, schur_inverse: factor.inverse() })
     }
 
-    /// Solves M x − Jᵀ y = a, J x = b, column by column: y = (J M⁻¹ Jᵀ)⁻¹ (b − J M⁻¹ a), x = M⁻¹ (a + Jᵀ y).
+    /// Solves M x − Jᵀ y = a, J x = b, column by column: y = (J M⁻¹ Jᵀ)⁻¹ (b − J M⁻¹ a), x = M⁻¹ a + M⁻¹ Jᵀ y.
     fn solve(&self, j: &DMatrix<f64>, a: &DMatrix<f64>, b: &DMatrix<f64>) -> (DMatrix<f64>, DMatrix<f64>) {
-        let free = self.mass.solve(a);
-        let y = self.schur.solve(&(b - j * &free));
+        let free = &self.minv * a;
+        let y = &self.schur_inverse * (b - j * &free);
         (free + &self.minv_jt * &y, y)
+    }
+
+    /// The solution's derivative with respect to the right-hand side a (b fixed): x = M⁻¹ − M⁻¹ Jᵀ S⁻¹ J M⁻¹ and
+    /// y = −S⁻¹ J M⁻¹, with J M⁻¹ = (M⁻¹ Jᵀ)ᵀ.
+    fn along_a(&self) -> (DMatrix<f64>, DMatrix<f64>) {
+        let y = -(&self.schur_inverse * self.minv_jt.transpose());
+        (&self.minv + &self.minv_jt * &y, y)
     }
 }
 
@@ -132,20 +146,16 @@ fn hold_forces_in_world_axes(dtau_dq: &mut DMatrix<f64>, rows: &Constraint, forc
 
 /// Rows of the contact points' classical accelerations a + ω × v (world axes) differentiated with respect to q and q̇,
 /// after `motion_derivatives` at the state (gravity in the base's acceleration adds a constant and changes nothing).
-fn acceleration_rows(model: &Model, data: &mut Data, q: &[f64], contacts: &[ContactPoint]) -> (DMatrix<f64>, DMatrix<f64>) {
+fn acceleration_rows(model: &Model, data: &Data, q: &[f64], contacts: &[ContactPoint]) -> (DMatrix<f64>, DMatrix<f64>) {
     let (rows, nv) = (3 * contacts.len(), model.nv());
     let (mut dq, mut dv) = (DMatrix::zeros(rows, nv), DMatrix::zeros(rows, nv));
     for (k, contact) in contacts.iter().enumerate() {
         let at = FramePoint::new(model, data, q, contact.body, &contact.point);
-        frame_derivative_columns(model, data, &at, Frame::LocalWorldAligned);
         let (velocity, omega) = (linear(&at.velocity), angular(&at.velocity));
-        let d = &data.derivatives;
-        at.support(model, |c, _| {
-            let (v_dq, a_dq) = (column(&d.frame_velocity_dq, c), column(&d.frame_acceleration_dq, c));
-            let (a_dv, s) = (column(&d.frame_acceleration_dv, c), column(&d.frame_acceleration_da, c));
+        for_each_frame_derivative(model, data, &at, Frame::LocalWorldAligned, |c, d| {
             // ∂(a + ω × v) = ∂a + ∂ω × v + ω × ∂v, with ∂/∂q̇ of (v, ω) the Jacobian's columns.
-            let along_q = linear(&a_dq) + angular(&v_dq).cross(&velocity) + omega.cross(&linear(&v_dq));
-            let along_v = linear(&a_dv) + angular(&s).cross(&velocity) + omega.cross(&linear(&s));
+            let along_q = linear(&d.acceleration_dq) + angular(&d.velocity_dq).cross(&velocity) + omega.cross(&linear(&d.velocity_dq));
+            let along_v = linear(&d.acceleration_dv) + angular(&d.jacobian).cross(&velocity) + omega.cross(&linear(&d.jacobian));
             dq.view_mut((3 * k, c), (3, 1)).copy_from(&along_q);
             dv.view_mut((3 * k, c), (3, 1)).copy_from(&along_v);
         });
@@ -165,9 +175,9 @@ pub fn contact_dynamics_derivatives(
     contacts: &[ContactPoint],
 ) -> Result<ContactDynamicsDerivatives> {
     check_contacts(model, contacts)?;
-    let (_, chol, bias) = mass_and_bias(model, data, q, v)?;
     let rows = constraint(model, data, q, v, contacts);
-    let kkt = Kkt::new(chol, &rows.linear)?;
+    let kkt = Kkt::new(model, data, q, &rows.linear)?;
+    let bias = DVector::from_column_slice(rnea(model, data, q, v, &vec![0.0; model.nv()], None).as_slice());
     let column = |x: DVector<f64>| DMatrix::from_column_slice(x.len(), 1, x.as_slice());
     let (ddq, forces) = kkt.solve(&rows.linear, &column(DVector::from_column_slice(tau) - bias), &column(-&rows.drift));
     let (ddq, forces) = (DVector::from_column_slice(ddq.as_slice()), DVector::from_column_slice(forces.as_slice()));
@@ -179,8 +189,7 @@ pub fn contact_dynamics_derivatives(
     let (da_dq, da_dv) = acceleration_rows(model, data, q, contacts);
     let (ddq_dq, forces_dq) = kkt.solve(&rows.linear, &-dtau_dq, &-da_dq);
     let (ddq_dv, forces_dv) = kkt.solve(&rows.linear, &-dtau_dv, &-da_dv);
-    let nv = model.nv();
-    let (ddq_dtau, forces_dtau) = kkt.solve(&rows.linear, &DMatrix::identity(nv, nv), &DMatrix::zeros(3 * contacts.len(), nv));
+    let (ddq_dtau, forces_dtau) = kkt.along_a();
     Ok(ContactDynamicsDerivatives { ddq, forces, ddq_dq, ddq_dv, ddq_dtau, forces_dq, forces_dv, forces_dtau })
 }
 
@@ -188,9 +197,8 @@ pub fn contact_dynamics_derivatives(
 /// and velocity `v` before it) and its derivatives with respect to q and that velocity.
 pub fn impact_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint]) -> Result<ImpactDerivatives> {
     check_contacts(model, contacts)?;
-    let (mass, chol, _) = mass_and_bias(model, data, q, v)?;
     let rows = constraint(model, data, q, v, contacts);
-    let kkt = Kkt::new(chol, &rows.linear)?;
+    let kkt = Kkt::new(model, data, q, &rows.linear)?;
     let (nv, k3) = (model.nv(), 3 * contacts.len());
     let before = DMatrix::from_column_slice(nv, 1, v);
     // M (v⁺ − v) − Jᵀ Λ = 0, J v⁺ = 0.
@@ -202,9 +210,9 @@ pub fn impact_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], 
     let mut dvelocity_dq = DMatrix::zeros(k3, nv);
     for (k, contact) in contacts.iter().enumerate() {
         let at = FramePoint::new(model, data, q, contact.body, &contact.point);
-        frame_derivative_columns(model, data, &at, Frame::LocalWorldAligned);
-        let d = &data.derivatives;
-        at.support(model, |c, _| dvelocity_dq.view_mut((3 * k, c), (3, 1)).copy_from(&linear(&column(&d.frame_velocity_dq, c))));
+        for_each_frame_derivative(model, data, &at, Frame::LocalWorldAligned, |c, d| {
+            dvelocity_dq.view_mut((3 * k, c), (3, 1)).copy_from(&linear(&d.velocity_dq));
+        });
     }
     // ∂(M (v⁺ − v) − Jᵀ Λ)/∂q: inverse dynamics at rest, accelerating by the change, without gravity.
     let zero = vec![0.0; nv];
@@ -213,6 +221,8 @@ pub fn impact_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], 
     let mut dresidual_dq = dq.clone();
     hold_forces_in_world_axes(&mut dresidual_dq, &rows, &impulses);
     let (velocity_dq, impulses_dq) = kkt.solve(&rows.linear, &-dresidual_dq, &-dvelocity_dq);
-    let (velocity_dv, impulses_dv) = kkt.solve(&rows.linear, &mass, &DMatrix::zeros(k3, nv));
+    // Along v: M ∂v⁺ − Jᵀ ∂Λ = M, so ∂v⁺ = I + M⁻¹ Jᵀ ∂Λ with ∂Λ = −S⁻¹ J.
+    let impulses_dv = -(&kkt.schur_inverse * &rows.linear);
+    let velocity_dv = DMatrix::identity(nv, nv) + &kkt.minv_jt * &impulses_dv;
     Ok(ImpactDerivatives { velocity, impulses, velocity_dq, velocity_dv, impulses_dq, impulses_dv })
 }

@@ -171,22 +171,38 @@ pub fn frame_acceleration_derivatives<'d>(
 ) -> FrameAccelerationDerivatives<'d> {
     motion_derivatives(model, data, q, v, Some(a), Motion::zeros());
     let at = FramePoint::new(model, data, q, body, point);
-    frame_derivative_columns(model, data, &at, frame);
-    let d = &data.derivatives;
+    // Out of `data` while the pass's columns are read.
+    let d = &mut data.derivatives;
+    let mut out =
+        [&mut d.frame_velocity_dq, &mut d.frame_acceleration_dq, &mut d.frame_acceleration_dv, &mut d.frame_acceleration_da].map(std::mem::take);
+    out.iter_mut().for_each(|m| m.fill(0.0));
+    for_each_frame_derivative(model, data, &at, frame, |c, x| {
+        for (m, column) in out.iter_mut().zip([x.velocity_dq, x.acceleration_dq, x.acceleration_dv, x.jacobian]) {
+            set_column(m, c, &column);
+        }
+    });
+    let d = &mut data.derivatives;
+    [d.frame_velocity_dq, d.frame_acceleration_dq, d.frame_acceleration_dv, d.frame_acceleration_da] = out;
     (&d.frame_velocity_dq, &d.frame_acceleration_dq, &d.frame_acceleration_dv, &d.frame_acceleration_da)
 }
 
 /// ∂v/∂q, ∂a/∂q, ∂a/∂q̇, ∂a/∂q̈ of a frame.
 pub type FrameAccelerationDerivatives<'d> = (&'d Matrix6xX<f64>, &'d Matrix6xX<f64>, &'d Matrix6xX<f64>, &'d Matrix6xX<f64>);
 
-/// Writes the frame's velocity and acceleration derivatives after `motion_derivatives` (eq. 9–10, their non-rigid
-/// parts: the body's own velocity adds v × ∂v/∂q to ∂a/∂q and v × S to ∂a/∂q̇).
-pub(crate) fn frame_derivative_columns(model: &Model, data: &mut Data, at: &FramePoint, frame: Frame) {
-    let d = &mut data.derivatives;
+/// One velocity coordinate's column of a frame's derivatives.
+pub(crate) struct FrameDerivative {
+    pub velocity_dq: Motion,
+    pub acceleration_dq: Motion,
+    pub acceleration_dv: Motion,
+    /// ∂v/∂q̇ = ∂a/∂q̈.
+    pub jacobian: Motion,
+}
+
+/// Calls `visit(c, derivative)` for each velocity coordinate c that moves the frame, after `motion_derivatives`
+/// (eq. 9–10, their non-rigid parts: the body's own velocity adds v × ∂v/∂q to ∂a/∂q and v × S to ∂a/∂q̇).
+pub(crate) fn for_each_frame_derivative(model: &Model, data: &Data, at: &FramePoint, frame: Frame, mut visit: impl FnMut(usize, FrameDerivative)) {
+    let d = &data.derivatives;
     let body_velocity = d.velocity[at.body];
-    for out in [&mut d.frame_velocity_dq, &mut d.frame_acceleration_dq, &mut d.frame_acceleration_dv, &mut d.frame_acceleration_da] {
-        out.fill(0.0);
-    }
     let zero = Vector3::zeros();
     at.support(model, |c, _| {
         let (subspace, dv_dq) = (column(&d.subspace, c), column(&d.dv_dq, c));
@@ -194,10 +210,15 @@ pub(crate) fn frame_derivative_columns(model: &Model, data: &mut Data, at: &Fram
         let (turn, travel) = (angular(&s), linear(&s));
         let da_dq = column(&d.da_dq, c) - cross_motion(&body_velocity, &dv_dq);
         let da_dv = column(&d.da_dv, c) - cross_motion(&body_velocity, &subspace);
-        set_column(&mut d.frame_velocity_dq, c, &at.derivative(&dv_dq, &at.velocity, &turn, &travel, frame));
-        set_column(&mut d.frame_acceleration_dq, c, &at.derivative(&da_dq, &at.acceleration, &turn, &travel, frame));
-        set_column(&mut d.frame_acceleration_dv, c, &at.derivative(&da_dv, &at.acceleration, &zero, &zero, frame));
-        set_column(&mut d.frame_acceleration_da, c, &at.express(&s, frame));
+        visit(
+            c,
+            FrameDerivative {
+                velocity_dq: at.derivative(&dv_dq, &at.velocity, &turn, &travel, frame),
+                acceleration_dq: at.derivative(&da_dq, &at.acceleration, &turn, &travel, frame),
+                acceleration_dv: at.derivative(&da_dv, &at.acceleration, &zero, &zero, frame),
+                jacobian: at.express(&s, frame),
+            },
+        );
     });
 }
 
