@@ -11,7 +11,7 @@
 //!
 //! Dense O(nv³ + k³) linear algebra, allocating its k-dependent matrices on each call, as `contact.rs`.
 
-use nalgebra::{DMatrix, DVector, Matrix3};
+use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::contact::{check_contacts, ContactPoint};
 use super::jacobian::Frame;
@@ -75,51 +75,83 @@ fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[
     out
 }
 
-/// The KKT system [M −Jᵀ; J 0] by its Schur complement J M⁻¹ Jᵀ, with M⁻¹ and the complement's inverse dense (nv
-/// and 3k are small where contacts are used, and products then run as matrix multiplications).
+/// The KKT system [M −Jᵀ; J 0] solved through the Schur complement S = J M⁻¹ Jᵀ, with its inverse in dense blocks:
+/// x = (M⁻¹ − M⁻¹ Jᵀ G) a + Gᵀ b and y = S⁻¹ b − G a, where G = S⁻¹ J M⁻¹ (nv and 3k are small where contacts are used,
+/// and the solves then run as matrix products).
 struct Kkt {
-    minv: DMatrix<f64>,
+    /// M⁻¹ Jᵀ (nv x 3k).
     minv_jt: DMatrix<f64>,
     schur_inverse: DMatrix<f64>,
+    /// G (3k x nv): minus y's derivative with respect to a; and Gᵀ = M⁻¹ Jᵀ S⁻¹, x's with respect to b.
+    gain: DMatrix<f64>,
+    gain_t: DMatrix<f64>,
+    /// M⁻¹ − M⁻¹ Jᵀ G (nv x nv): x's derivative with respect to a.
+    projected: DMatrix<f64>,
 }
 
 impl Kkt {
     /// From M⁻¹ at q (`minv`, the model's armature included) and the contact rows J.
     fn new(model: &Model, data: &mut Data, q: &[f64], j: &DMatrix<f64>) -> Result<Self> {
-        let minv = minv(model, data, q).clone();
+        let minv = minv(model, data, q);
         if !minv.diagonal().iter().all(|x| x.is_finite() && *x > 0.0) {
             return Err(Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint carrying no inertia?)"));
         }
-        let minv_jt = &minv * j.transpose();
-        let schur = j * &minv_jt;
-        let redundant = || {
+        let minv_jt = minv * j.transpose();
+        let schur_inverse = spd_inverse(&(j * &minv_jt)).ok_or_else(|| {
             Error::invalid(
                 "contacts",
                 "the contacts are not independent (J M⁻¹ Jᵀ is singular): their forces, and so the derivatives, are not unique",
             )
-        };
-        let diagonal = schur.diagonal();
-        let factor = schur.cholesky().ok_or_else(redundant)?;
-        // A pivot that lost all but 1e-10 of its diagonal entry is a rank deficiency in rounding.
-        if factor.l_dirty().diagonal().iter().zip(diagonal.iter()).any(|(l, d)| l * l <= 1e-10 * d) {
-            return Err(redundant());
+        })?;
+        let gain_t = &minv_jt * &schur_inverse;
+        let gain = gain_t.transpose();
+        let projected = minv - &minv_jt * &gain;
+        Ok(Kkt { minv_jt, schur_inverse, gain, gain_t, projected })
+    }
+
+    /// Solves M x − Jᵀ y = a, J x = b for each column of a and b.
+    fn solve(&self, a: &DMatrix<f64>, b: &DMatrix<f64>) -> (DMatrix<f64>, DMatrix<f64>) {
+        let mut x = &self.projected * a;
+        x.gemm(1.0, &self.gain_t, b, 1.0);
+        let mut y = &self.schur_inverse * b;
+        y.gemm(-1.0, &self.gain, a, 1.0);
+        (x, y)
+    }
+}
+
+/// [a b], side by side.
+fn stack_columns(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
+    let mut out = DMatrix::zeros(a.nrows(), a.ncols() + b.ncols());
+    out.columns_mut(0, a.ncols()).copy_from(a);
+    out.columns_mut(a.ncols(), b.ncols()).copy_from(b);
+    out
+}
+
+/// The inverse of a symmetric positive definite matrix by its Cholesky factor L (S⁻¹ = L⁻ᵀ L⁻¹), in plain loops (the
+/// matrices are 3k x 3k); None if a pivot keeps no more than 1e-10 of its diagonal entry (a rank deficiency in
+/// rounding) or the matrix is not positive definite.
+fn spd_inverse(s: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let n = s.nrows();
+    let mut l = DMatrix::zeros(n, n);
+    for j in 0..n {
+        let pivot = s[(j, j)] - (0..j).map(|k| l[(j, k)] * l[(j, k)]).sum::<f64>();
+        if !(pivot > 1e-10 * s[(j, j)]) {
+            return None;
         }
-        Ok(Kkt { minv, minv_jt, schur_inverse: factor.inverse() })
+        l[(j, j)] = pivot.sqrt();
+        for i in j + 1..n {
+            l[(i, j)] = (s[(i, j)] - (0..j).map(|k| l[(i, k)] * l[(j, k)]).sum::<f64>()) / l[(j, j)];
+        }
     }
-
-    /// Solves M x − Jᵀ y = a, J x = b, column by column: y = (J M⁻¹ Jᵀ)⁻¹ (b − J M⁻¹ a), x = M⁻¹ a + M⁻¹ Jᵀ y.
-    fn solve(&self, j: &DMatrix<f64>, a: &DMatrix<f64>, b: &DMatrix<f64>) -> (DMatrix<f64>, DMatrix<f64>) {
-        let free = &self.minv * a;
-        let y = &self.schur_inverse * (b - j * &free);
-        (free + &self.minv_jt * &y, y)
+    // L⁻¹, lower triangular, column by column.
+    let mut inverse_l = DMatrix::zeros(n, n);
+    for j in 0..n {
+        inverse_l[(j, j)] = 1.0 / l[(j, j)];
+        for i in j + 1..n {
+            inverse_l[(i, j)] = -(j..i).map(|k| l[(i, k)] * inverse_l[(k, j)]).sum::<f64>() / l[(i, i)];
+        }
     }
-
-    /// The solution's derivative with respect to the right-hand side a (b fixed): x = M⁻¹ − M⁻¹ Jᵀ S⁻¹ J M⁻¹ and
-    /// y = −S⁻¹ J M⁻¹, with J M⁻¹ = (M⁻¹ Jᵀ)ᵀ.
-    fn along_a(&self) -> (DMatrix<f64>, DMatrix<f64>) {
-        let y = -(&self.schur_inverse * self.minv_jt.transpose());
-        (&self.minv + &self.minv_jt * &y, y)
-    }
+    Some(inverse_l.tr_mul(&inverse_l))
 }
 
 /// The contact forces (3 per contact, world axes) as forces on their bodies, fixed in the bodies' frames (`rnea`'s
@@ -137,10 +169,19 @@ fn body_forces(model: &Model, data: &Data, contacts: &[ContactPoint], forces: &D
 /// instead: less J_pᵀ [f]× J_ω per contact (a turn ω of the body turns a body-fixed force f by ω × f).
 fn hold_forces_in_world_axes(dtau_dq: &mut DMatrix<f64>, rows: &Constraint, forces: &DVector<f64>) {
     for k in 0..forces.len() / 3 {
-        let f = forces.fixed_rows::<3>(3 * k);
-        let f_cross = Matrix3::new(0.0, -f[2], f[1], f[2], 0.0, -f[0], -f[1], f[0], 0.0);
-        let turned = f_cross * rows.angular.rows(3 * k, 3);
-        dtau_dq.gemm_tr(-1.0, &rows.linear.rows(3 * k, 3), &turned, 1.0);
+        let f = Vector3::new(forces[3 * k], forces[3 * k + 1], forces[3 * k + 2]);
+        let column = |m: &DMatrix<f64>, c: usize| Vector3::new(m[(3 * k, c)], m[(3 * k + 1, c)], m[(3 * k + 2, c)]);
+        for c in 0..dtau_dq.ncols() {
+            let w = column(&rows.angular, c);
+            // Only the contact's support turns it.
+            if w == Vector3::zeros() {
+                continue;
+            }
+            let change = f.cross(&w);
+            for r in 0..dtau_dq.nrows() {
+                dtau_dq[(r, c)] -= column(&rows.linear, r).dot(&change);
+            }
+        }
     }
 }
 
@@ -179,7 +220,7 @@ pub fn contact_dynamics_derivatives(
     let kkt = Kkt::new(model, data, q, &rows.linear)?;
     let bias = DVector::from_column_slice(rnea(model, data, q, v, &vec![0.0; model.nv()], None).as_slice());
     let column = |x: DVector<f64>| DMatrix::from_column_slice(x.len(), 1, x.as_slice());
-    let (ddq, forces) = kkt.solve(&rows.linear, &column(DVector::from_column_slice(tau) - bias), &column(-&rows.drift));
+    let (ddq, forces) = kkt.solve(&column(DVector::from_column_slice(tau) - bias), &column(-&rows.drift));
     let (ddq, forces) = (DVector::from_column_slice(ddq.as_slice()), DVector::from_column_slice(forces.as_slice()));
     // The rows' partial derivatives: M q̈ + h − Jᵀλ − τ (inverse dynamics with the forces applied) and J q̈ + γ.
     let f_ext = body_forces(model, data, contacts, &forces);
@@ -187,9 +228,12 @@ pub fn contact_dynamics_derivatives(
     let (mut dtau_dq, dtau_dv) = (dtau_dq.clone(), dtau_dv.clone());
     hold_forces_in_world_axes(&mut dtau_dq, &rows, &forces);
     let (da_dq, da_dv) = acceleration_rows(model, data, q, contacts);
-    let (ddq_dq, forces_dq) = kkt.solve(&rows.linear, &-dtau_dq, &-da_dq);
-    let (ddq_dv, forces_dv) = kkt.solve(&rows.linear, &-dtau_dv, &-da_dv);
-    let (ddq_dtau, forces_dtau) = kkt.along_a();
+    // One solve for q and q̇ side by side (fewer, larger products).
+    let nv = model.nv();
+    let (ddq_dx, forces_dx) = kkt.solve(&-stack_columns(&dtau_dq, &dtau_dv), &-stack_columns(&da_dq, &da_dv));
+    let (ddq_dq, ddq_dv) = (ddq_dx.columns(0, nv).into_owned(), ddq_dx.columns(nv, nv).into_owned());
+    let (forces_dq, forces_dv) = (forces_dx.columns(0, nv).into_owned(), forces_dx.columns(nv, nv).into_owned());
+    let (ddq_dtau, forces_dtau) = (kkt.projected, -kkt.gain);
     Ok(ContactDynamicsDerivatives { ddq, forces, ddq_dq, ddq_dv, ddq_dtau, forces_dq, forces_dv, forces_dtau })
 }
 
@@ -202,7 +246,7 @@ pub fn impact_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], 
     let (nv, k3) = (model.nv(), 3 * contacts.len());
     let before = DMatrix::from_column_slice(nv, 1, v);
     // M (v⁺ − v) − Jᵀ Λ = 0, J v⁺ = 0.
-    let (change, impulses) = kkt.solve(&rows.linear, &DMatrix::zeros(nv, 1), &-(&rows.linear * &before));
+    let (change, impulses) = kkt.solve(&DMatrix::zeros(nv, 1), &-(&rows.linear * &before));
     let velocity = DVector::from_column_slice((before + change.clone()).as_slice());
     let impulses = DVector::from_column_slice(impulses.as_slice());
     // ∂(J v⁺)/∂q: the points' velocities at v⁺.
@@ -220,7 +264,7 @@ pub fn impact_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], 
     let (dq, _) = derivatives_with_base_acceleration(model, data, q, &zero, change.as_slice(), Some(&f_ext), Motion::zeros());
     let mut dresidual_dq = dq.clone();
     hold_forces_in_world_axes(&mut dresidual_dq, &rows, &impulses);
-    let (velocity_dq, impulses_dq) = kkt.solve(&rows.linear, &-dresidual_dq, &-dvelocity_dq);
+    let (velocity_dq, impulses_dq) = kkt.solve(&-dresidual_dq, &-dvelocity_dq);
     // Along v: M ∂v⁺ − Jᵀ ∂Λ = M, so ∂v⁺ = I + M⁻¹ Jᵀ ∂Λ with ∂Λ = −S⁻¹ J.
     let impulses_dv = -(&kkt.schur_inverse * &rows.linear);
     let velocity_dv = DMatrix::identity(nv, nv) + &kkt.minv_jt * &impulses_dv;
