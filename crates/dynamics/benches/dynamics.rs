@@ -169,9 +169,12 @@ fn chains(c: &mut Criterion) {
 
 fn derivatives(c: &mut Criterion) {
     let mut group = c.benchmark_group("derivatives");
-    for (name, model) in [("tree63", superbot_tree()), ("chain64", chain(64)), ("chain512", chain(512))] {
+    for (name, model) in [("quadruped", quadruped().0), ("tree63", superbot_tree()), ("chain64", chain(64)), ("chain512", chain(512))] {
         let mut data = Data::new(&model);
-        let (q, v, tau) = random_state(&model, model.nv() as u64);
+        let (mut q, v, tau) = random_state(&model, model.nv() as u64);
+        if model.floating_base() {
+            q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
+        }
         group.bench_function(BenchmarkId::new("rnea", name), |b| {
             b.iter(|| rnea_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None).0[(0, 0)])
         });
@@ -186,7 +189,7 @@ fn contacts(c: &mut Criterion) {
     let (model, feet) = quadruped();
     let mut data = Data::new(&model);
     let (mut q, v, tau) = random_state(&model, 4);
-    q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
+    q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]); // the base upright
     let mut group = c.benchmark_group("contacts");
     group.bench_function("contact_dynamics/quadruped", |b| {
         b.iter(|| contact_dynamics(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), &feet).expect("independent").ddq[0])

@@ -10,7 +10,7 @@ use super::kinematics::base_centred_root;
 use super::world_pose;
 use crate::joint::Dofs;
 use crate::model::{Data, Model};
-use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inertia_times_pair, Force, Inertia, Motion, Transform};
+use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inertia_times_pair, spd_inverse6, Force, Inertia, Motion, Transform};
 
 /// Joint accelerations for configuration `q`, velocity `v` and joint forces `tau`, with the model's
 /// armature (`Model::armature`); `f_ext` as in `rnea`. Writes `data.ddq` and returns it. In the world's axes about the base's origin (see
@@ -149,7 +149,7 @@ pub(crate) fn solve_columns(
         return;
     }
     let base_inverse = match model.joint(0).dofs() {
-        Dofs::Free => factors.inertia[0].cholesky().map_or(Inertia::repeat(f64::NAN), |c| c.inverse()),
+        Dofs::Free => spd_inverse6(&factors.inertia[0]),
         _ => Inertia::zeros(),
     };
     let count = columns.len() / nv;

@@ -15,7 +15,7 @@ use nalgebra::{DMatrix, Matrix6xX, Vector6};
 use super::kinematics::base_centred_kinematics;
 use crate::joint::Dofs;
 use crate::model::{reserve_square, Data, Model};
-use crate::spatial::{add_reduced_inertia, dot6, Inertia};
+use crate::spatial::{add_reduced_inertia, dot6, spd_inverse6};
 
 /// Body `i`'s set and its parent's (`parent < i`), as 6-vector chunks, one per column.
 fn sets(data: &mut [Matrix6xX<f64>], parent: usize, i: usize) -> (&mut [f64], &mut [f64]) {
@@ -58,7 +58,7 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
             // the base's motion set P_0[c] = S M⁻¹_0[c] is the world-frame solve itself.
             let base = data.centred_m_i[0];
             // One inverse, then independent products (the solves would each be a chain of divisions).
-            let inverse = data.inertia[0].cholesky().map_or(Inertia::repeat(f64::NAN), |c| c.inverse());
+            let inverse = spd_inverse6(&data.inertia[0]);
             for col in 0..nv {
                 let motion = if col < 6 {
                     inverse * base.act_force(&Vector6::ith(col, 1.0))
