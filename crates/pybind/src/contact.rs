@@ -154,14 +154,16 @@ pub fn reduced_dynamics<'py>(
 
 /// `matrices` one after the other, each row by row (as NumPy reads them), into `out`.
 fn write_rows(matrices: &[&DMatrix<f64>], out: &mut [f64]) {
-    let mut at = 0;
+    let mut rest = out;
     for matrix in matrices {
-        for r in 0..matrix.nrows() {
-            for c in 0..matrix.ncols() {
-                out[at] = matrix[(r, c)];
-                at += 1;
+        let (rows, columns) = matrix.shape();
+        let (chunk, tail) = rest.split_at_mut(rows * columns);
+        for (c, column) in matrix.as_slice().chunks_exact(rows.max(1)).enumerate() {
+            for (r, x) in column.iter().enumerate() {
+                chunk[r * columns + c] = *x;
             }
         }
+        rest = tail;
     }
 }
 

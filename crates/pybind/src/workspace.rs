@@ -101,7 +101,10 @@ pub fn unpack<'py>(py: Python<'py>, batch: &Batch, packed: &[f64], cores: &[&[us
         .iter()
         .zip(&widths)
         .map(|(core, &w)| {
-            let part = packed.chunks_exact(width.max(1)).flat_map(|row| &row[start..start + w]).copied().collect();
+            let mut part = Vec::with_capacity(batch.len * w);
+            for row in packed.chunks_exact(width.max(1)) {
+                part.extend_from_slice(&row[start..start + w]);
+            }
             start += w;
             to_numpy(py, batch.output_shape(core), part)
         })

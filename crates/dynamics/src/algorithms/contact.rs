@@ -9,7 +9,9 @@
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 use super::kinematics::body_motions;
-use super::{crba, jacobian, rnea, Frame};
+use super::kinematics_derivatives::FramePoint;
+use super::rnea_derivatives::motion_derivatives;
+use super::{crba, minv, rnea};
 use crate::model::{Data, Model};
 use crate::spatial::{angular, linear, Motion};
 use crate::{Error, Result};
@@ -59,17 +61,29 @@ pub fn check_contacts(model: &Model, contacts: &[ContactPoint]) -> Result<()> {
     Ok(())
 }
 
-/// J_c (3k x nv) and γ (3k) at (q, v).
-fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint]) -> (DMatrix<f64>, DVector<f64>) {
-    let nv = model.nv();
-    let mut jc = DMatrix::zeros(3 * contacts.len(), nv);
-    for (c, contact) in contacts.iter().enumerate() {
-        let j = jacobian(model, data, q, contact.body, &contact.point, Frame::LocalWorldAligned);
-        jc.view_mut((3 * c, 0), (3, nv)).copy_from(&j.rows(0, 3));
+/// The contact points' rows: J (3k x nv, their velocities in world axes), J_ω (3k x nv, their bodies' angular
+/// velocities) and γ (3k, their classical accelerations at q̈ = 0).
+pub(crate) struct Constraint {
+    pub linear: DMatrix<f64>,
+    pub angular: DMatrix<f64>,
+    pub drift: DVector<f64>,
+}
+
+pub(crate) fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint]) -> Constraint {
+    motion_derivatives(model, data, q, v, None, Motion::zeros());
+    let (rows, nv) = (3 * contacts.len(), model.nv());
+    let mut out = Constraint { linear: DMatrix::zeros(rows, nv), angular: DMatrix::zeros(rows, nv), drift: DVector::zeros(rows) };
+    for (k, contact) in contacts.iter().enumerate() {
+        let at = FramePoint::new(model, data, q, contact.body, &contact.point);
+        at.support(model, |c, _| {
+            let s = at.jacobian_column(&data.derivatives.subspace, c);
+            out.linear.view_mut((3 * k, c), (3, 1)).copy_from(&linear(&s));
+            out.angular.view_mut((3 * k, c), (3, 1)).copy_from(&angular(&s));
+        });
+        let (velocity, omega) = (linear(&at.velocity), angular(&at.velocity));
+        out.drift.rows_mut(3 * k, 3).copy_from(&(linear(&at.acceleration) + omega.cross(&velocity)));
     }
-    let mut gamma = DVector::zeros(3 * contacts.len());
-    point_accelerations(model, data, q, v, None, contacts, gamma.as_mut_slice());
-    (jc, gamma)
+    out
 }
 
 /// Writes the world-axes (classical) acceleration of each point to `out` (3k): J_c q̈ + J̇_c q̇ at (q, v, q̈),
@@ -95,6 +109,101 @@ fn world_rotation(model: &Model, data: &Data, body: usize) -> Matrix3<f64> {
         rotation = data.li_m_i[j].rotation * rotation;
     }
     rotation
+}
+
+/// The KKT system [M −Jᵀ; J 0] solved through the Schur complement S = J M⁻¹ Jᵀ, with its inverse in dense blocks:
+/// x = (M⁻¹ − M⁻¹ Jᵀ G) a + Gᵀ b and y = S⁻¹ b − G a, where G = S⁻¹ J M⁻¹ (nv and 3k are small where contacts are used,
+/// and the solves then run as matrix products).
+pub(crate) struct Kkt {
+    /// M⁻¹ Jᵀ (nv x 3k).
+    pub minv_jt: DMatrix<f64>,
+    pub schur_inverse: DMatrix<f64>,
+    /// G (3k x nv): minus y's derivative with respect to a; and Gᵀ = M⁻¹ Jᵀ S⁻¹, x's with respect to b.
+    pub gain: DMatrix<f64>,
+    gain_t: DMatrix<f64>,
+    /// M⁻¹ − M⁻¹ Jᵀ G (nv x nv): x's derivative with respect to a.
+    pub projected: DMatrix<f64>,
+}
+
+impl Kkt {
+    /// From M⁻¹ at q and the contact rows J; the pieces back if the contacts are not independent.
+    fn new(minv: DMatrix<f64>, j: &DMatrix<f64>) -> std::result::Result<Self, Dependent> {
+        let minv_jt = &minv * j.transpose();
+        let schur = j * &minv_jt;
+        let Some(schur_inverse) = spd_inverse(&schur) else { return Err(Dependent { minv, minv_jt, schur }) };
+        let gain_t = &minv_jt * &schur_inverse;
+        let gain = gain_t.transpose();
+        let projected = minv - &minv_jt * &gain;
+        Ok(Kkt { minv_jt, schur_inverse, gain, gain_t, projected })
+    }
+
+    /// Solves M x − Jᵀ y = a, J x = b for each column of a and b.
+    pub fn solve(&self, a: &DMatrix<f64>, b: &DMatrix<f64>) -> (DMatrix<f64>, DMatrix<f64>) {
+        let mut x = &self.projected * a;
+        x.gemm(1.0, &self.gain_t, b, 1.0);
+        let mut y = &self.schur_inverse * b;
+        y.gemm(-1.0, &self.gain, a, 1.0);
+        (x, y)
+    }
+}
+
+/// The inverse of a symmetric positive definite matrix by its Cholesky factor L (S⁻¹ = L⁻ᵀ L⁻¹), in plain loops (the
+/// matrices are 3k x 3k); None if a pivot keeps no more than 1e-10 of its diagonal entry (a rank deficiency in
+/// rounding) or the matrix is not positive definite.
+fn spd_inverse(s: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let n = s.nrows();
+    let mut l = DMatrix::zeros(n, n);
+    for j in 0..n {
+        let pivot = s[(j, j)] - (0..j).map(|k| l[(j, k)] * l[(j, k)]).sum::<f64>();
+        if !(pivot > 1e-10 * s[(j, j)]) {
+            return None;
+        }
+        l[(j, j)] = pivot.sqrt();
+        for i in j + 1..n {
+            l[(i, j)] = (s[(i, j)] - (0..j).map(|k| l[(i, k)] * l[(j, k)]).sum::<f64>()) / l[(j, j)];
+        }
+    }
+    // L⁻¹, lower triangular, column by column.
+    let mut inverse_l = DMatrix::zeros(n, n);
+    for j in 0..n {
+        inverse_l[(j, j)] = 1.0 / l[(j, j)];
+        for i in j + 1..n {
+            inverse_l[(i, j)] = -(j..i).map(|k| l[(i, k)] * inverse_l[(k, j)]).sum::<f64>() / l[(i, i)];
+        }
+    }
+    Some(inverse_l.tr_mul(&inverse_l))
+}
+
+/// M⁻¹, M⁻¹ Jᵀ and J M⁻¹ Jᵀ of contacts that are not independent.
+pub(crate) struct Dependent {
+    minv: DMatrix<f64>,
+    minv_jt: DMatrix<f64>,
+    schur: DMatrix<f64>,
+}
+
+/// The KKT system of the `contacts` at q (`Kkt` if they are independent); an error if M is singular.
+pub(crate) fn kkt(model: &Model, data: &mut Data, q: &[f64], j: &DMatrix<f64>) -> Result<std::result::Result<Kkt, Dependent>> {
+    let minv = minv(model, data, q);
+    if !minv.diagonal().iter().all(|x| x.is_finite() && *x > 0.0) {
+        return Err(Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint carrying no inertia?)"));
+    }
+    Ok(Kkt::new(minv.clone(), j))
+}
+
+/// Solves M x − Jᵀ y = a, J x = b for vectors a and b: by `Kkt`, or for dependent contacts in the least-squares,
+/// minimum-norm sense (the smallest forces that do the job).
+fn solve_vectors(system: &std::result::Result<Kkt, Dependent>, j: &DMatrix<f64>, a: DVector<f64>, b: DVector<f64>) -> (DVector<f64>, DVector<f64>) {
+    match system {
+        Ok(kkt) => {
+            let (x, y) = kkt.solve(&DMatrix::from_column_slice(a.len(), 1, a.as_slice()), &DMatrix::from_column_slice(b.len(), 1, b.as_slice()));
+            (DVector::from_column_slice(x.as_slice()), DVector::from_column_slice(y.as_slice()))
+        }
+        Err(Dependent { minv, minv_jt, schur }) => {
+            let free = minv * a;
+            let y = solve_spd(schur.clone(), &(b - j * &free));
+            (free + minv_jt * &y, y)
+        }
+    }
 }
 
 /// Solves the symmetric positive semi-definite system `a x = b` in the least-squares, minimum-norm sense:
@@ -124,12 +233,10 @@ fn mass_and_bias(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result
 /// (J M⁻¹ Jᵀ) λ = −γ − J M⁻¹ (τ − h).
 pub fn contact_dynamics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64], contacts: &[ContactPoint]) -> Result<ContactDynamics> {
     check_contacts(model, contacts)?;
-    let (_, chol, bias) = mass_and_bias(model, data, q, v)?;
-    let (jc, gamma) = constraint(model, data, q, v, contacts);
-    let free = chol.solve(&(DVector::from_column_slice(tau) - bias));
-    let minv_jt = chol.solve(&jc.transpose());
-    let forces = solve_spd(&jc * &minv_jt, &(-&gamma - &jc * &free));
-    let ddq = free + minv_jt * &forces;
+    let rows = constraint(model, data, q, v, contacts);
+    let bias = DVector::from_column_slice(rnea(model, data, q, v, &vec![0.0; model.nv()], None).as_slice());
+    let system = kkt(model, data, q, &rows.linear)?;
+    let (ddq, forces) = solve_vectors(&system, &rows.linear, DVector::from_column_slice(tau) - bias, -&rows.drift);
     Ok(ContactDynamics { ddq, forces })
 }
 
@@ -137,12 +244,11 @@ pub fn contact_dynamics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], ta
 /// Returns (v⁺, the 3k impulses Λ).
 pub fn impact(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint]) -> Result<(DVector<f64>, DVector<f64>)> {
     check_contacts(model, contacts)?;
-    let (_, chol, _) = mass_and_bias(model, data, q, v)?;
-    let (jc, _) = constraint(model, data, q, v, contacts);
+    let rows = constraint(model, data, q, v, contacts);
+    let system = kkt(model, data, q, &rows.linear)?;
     let v_minus = DVector::from_column_slice(v);
-    let minv_jt = chol.solve(&jc.transpose());
-    let impulses = solve_spd(&jc * &minv_jt, &(-(&jc * &v_minus)));
-    Ok((v_minus + minv_jt * &impulses, impulses))
+    let (change, impulses) = solve_vectors(&system, &rows.linear, DVector::zeros(model.nv()), -(&rows.linear * &v_minus));
+    Ok((v_minus + change, impulses))
 }
 
 /// Picks `rank` columns of `j` that are linearly independent (greedy pivoting on the residual norms).
@@ -185,7 +291,7 @@ pub fn reduced_dynamics(
     check_contacts(model, contacts)?;
     let nv = model.nv();
     let (mass, _, bias) = mass_and_bias(model, data, q, v)?;
-    let (jc, gamma) = constraint(model, data, q, v, contacts);
+    let Constraint { linear: jc, drift: gamma, .. } = constraint(model, data, q, v, contacts);
     let dependent: Vec<usize> = match independent {
         Some(ind) => {
             if let Some(&bad) = ind.iter().find(|&&i| i >= nv) {

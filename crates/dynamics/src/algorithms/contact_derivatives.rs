@@ -13,11 +13,11 @@
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
-use super::contact::{check_contacts, ContactPoint};
+use super::contact::{check_contacts, constraint, kkt, Constraint, ContactPoint, Dependent, Kkt};
 use super::jacobian::Frame;
 use super::kinematics_derivatives::{for_each_frame_derivative, FramePoint};
+use super::rnea;
 use super::rnea_derivatives::{derivatives_with_base_acceleration, motion_derivatives, rnea_derivatives};
-use super::{minv, rnea};
 use crate::model::{Data, Model};
 use crate::spatial::{angular, linear, spatial, Force, Motion};
 use crate::{Error, Result};
@@ -50,75 +50,6 @@ pub struct ImpactDerivatives {
     pub impulses_dv: DMatrix<f64>,
 }
 
-/// The contact points' rows: J (3k x nv, their velocities in world axes), J_ω (3k x nv, their bodies' angular
-/// velocities) and γ (3k, their classical accelerations at q̈ = 0).
-struct Constraint {
-    linear: DMatrix<f64>,
-    angular: DMatrix<f64>,
-    drift: DVector<f64>,
-}
-
-fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint]) -> Constraint {
-    motion_derivatives(model, data, q, v, None, Motion::zeros());
-    let (rows, nv) = (3 * contacts.len(), model.nv());
-    let mut out = Constraint { linear: DMatrix::zeros(rows, nv), angular: DMatrix::zeros(rows, nv), drift: DVector::zeros(rows) };
-    for (k, contact) in contacts.iter().enumerate() {
-        let at = FramePoint::new(model, data, q, contact.body, &contact.point);
-        at.support(model, |c, _| {
-            let s = at.jacobian_column(&data.derivatives.subspace, c);
-            out.linear.view_mut((3 * k, c), (3, 1)).copy_from(&linear(&s));
-            out.angular.view_mut((3 * k, c), (3, 1)).copy_from(&angular(&s));
-        });
-        let (velocity, omega) = (linear(&at.velocity), angular(&at.velocity));
-        out.drift.rows_mut(3 * k, 3).copy_from(&(linear(&at.acceleration) + omega.cross(&velocity)));
-    }
-    out
-}
-
-/// The KKT system [M −Jᵀ; J 0] solved through the Schur complement S = J M⁻¹ Jᵀ, with its inverse in dense blocks:
-/// x = (M⁻¹ − M⁻¹ Jᵀ G) a + Gᵀ b and y = S⁻¹ b − G a, where G = S⁻¹ J M⁻¹ (nv and 3k are small where contacts are used,
-/// and the solves then run as matrix products).
-struct Kkt {
-    /// M⁻¹ Jᵀ (nv x 3k).
-    minv_jt: DMatrix<f64>,
-    schur_inverse: DMatrix<f64>,
-    /// G (3k x nv): minus y's derivative with respect to a; and Gᵀ = M⁻¹ Jᵀ S⁻¹, x's with respect to b.
-    gain: DMatrix<f64>,
-    gain_t: DMatrix<f64>,
-    /// M⁻¹ − M⁻¹ Jᵀ G (nv x nv): x's derivative with respect to a.
-    projected: DMatrix<f64>,
-}
-
-impl Kkt {
-    /// From M⁻¹ at q (`minv`, the model's armature included) and the contact rows J.
-    fn new(model: &Model, data: &mut Data, q: &[f64], j: &DMatrix<f64>) -> Result<Self> {
-        let minv = minv(model, data, q);
-        if !minv.diagonal().iter().all(|x| x.is_finite() && *x > 0.0) {
-            return Err(Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint carrying no inertia?)"));
-        }
-        let minv_jt = minv * j.transpose();
-        let schur_inverse = spd_inverse(&(j * &minv_jt)).ok_or_else(|| {
-            Error::invalid(
-                "contacts",
-                "the contacts are not independent (J M⁻¹ Jᵀ is singular): their forces, and so the derivatives, are not unique",
-            )
-        })?;
-        let gain_t = &minv_jt * &schur_inverse;
-        let gain = gain_t.transpose();
-        let projected = minv - &minv_jt * &gain;
-        Ok(Kkt { minv_jt, schur_inverse, gain, gain_t, projected })
-    }
-
-    /// Solves M x − Jᵀ y = a, J x = b for each column of a and b.
-    fn solve(&self, a: &DMatrix<f64>, b: &DMatrix<f64>) -> (DMatrix<f64>, DMatrix<f64>) {
-        let mut x = &self.projected * a;
-        x.gemm(1.0, &self.gain_t, b, 1.0);
-        let mut y = &self.schur_inverse * b;
-        y.gemm(-1.0, &self.gain, a, 1.0);
-        (x, y)
-    }
-}
-
 /// [a b], side by side.
 fn stack_columns(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
     let mut out = DMatrix::zeros(a.nrows(), a.ncols() + b.ncols());
@@ -127,31 +58,11 @@ fn stack_columns(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
     out
 }
 
-/// The inverse of a symmetric positive definite matrix by its Cholesky factor L (S⁻¹ = L⁻ᵀ L⁻¹), in plain loops (the
-/// matrices are 3k x 3k); None if a pivot keeps no more than 1e-10 of its diagonal entry (a rank deficiency in
-/// rounding) or the matrix is not positive definite.
-fn spd_inverse(s: &DMatrix<f64>) -> Option<DMatrix<f64>> {
-    let n = s.nrows();
-    let mut l = DMatrix::zeros(n, n);
-    for j in 0..n {
-        let pivot = s[(j, j)] - (0..j).map(|k| l[(j, k)] * l[(j, k)]).sum::<f64>();
-        if !(pivot > 1e-10 * s[(j, j)]) {
-            return None;
-        }
-        l[(j, j)] = pivot.sqrt();
-        for i in j + 1..n {
-            l[(i, j)] = (s[(i, j)] - (0..j).map(|k| l[(i, k)] * l[(j, k)]).sum::<f64>()) / l[(j, j)];
-        }
-    }
-    // L⁻¹, lower triangular, column by column.
-    let mut inverse_l = DMatrix::zeros(n, n);
-    for j in 0..n {
-        inverse_l[(j, j)] = 1.0 / l[(j, j)];
-        for i in j + 1..n {
-            inverse_l[(i, j)] = -(j..i).map(|k| l[(i, k)] * inverse_l[(k, j)]).sum::<f64>() / l[(i, i)];
-        }
-    }
-    Some(inverse_l.tr_mul(&inverse_l))
+/// The KKT system of independent contacts, or the error of dependent ones.
+fn independent(system: std::result::Result<Kkt, Dependent>) -> Result<Kkt> {
+    system.map_err(|_| {
+        Error::invalid("contacts", "the contacts are not independent (J M⁻¹ Jᵀ is singular): their forces, and so the derivatives, are not unique")
+    })
 }
 
 /// The contact forces (3 per contact, world axes) as forces on their bodies, fixed in the bodies' frames (`rnea`'s
@@ -217,8 +128,8 @@ pub fn contact_dynamics_derivatives(
 ) -> Result<ContactDynamicsDerivatives> {
     check_contacts(model, contacts)?;
     let rows = constraint(model, data, q, v, contacts);
-    let kkt = Kkt::new(model, data, q, &rows.linear)?;
     let bias = DVector::from_column_slice(rnea(model, data, q, v, &vec![0.0; model.nv()], None).as_slice());
+    let kkt = independent(kkt(model, data, q, &rows.linear)?)?;
     let column = |x: DVector<f64>| DMatrix::from_column_slice(x.len(), 1, x.as_slice());
     let (ddq, forces) = kkt.solve(&column(DVector::from_column_slice(tau) - bias), &column(-&rows.drift));
     let (ddq, forces) = (DVector::from_column_slice(ddq.as_slice()), DVector::from_column_slice(forces.as_slice()));
@@ -242,7 +153,7 @@ pub fn contact_dynamics_derivatives(
 pub fn impact_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint]) -> Result<ImpactDerivatives> {
     check_contacts(model, contacts)?;
     let rows = constraint(model, data, q, v, contacts);
-    let kkt = Kkt::new(model, data, q, &rows.linear)?;
+    let kkt = independent(kkt(model, data, q, &rows.linear)?)?;
     let (nv, k3) = (model.nv(), 3 * contacts.len());
     let before = DMatrix::from_column_slice(nv, 1, v);
     // M (v⁺ − v) − Jᵀ Λ = 0, J v⁺ = 0.
