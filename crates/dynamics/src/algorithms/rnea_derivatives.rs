@@ -38,52 +38,12 @@ pub fn rnea_derivatives<'d>(
 ) -> (&'d DMatrix<f64>, &'d DMatrix<f64>) {
     let n = model.nbodies();
     data.derivatives.reserve(model);
+    forward_pass(model, data, q, v, a, model.gravity_bias());
     let Data { centred_m_i: poses, derivatives: d, .. } = data;
-    // Forward pass: poses, velocities, accelerations (gravity as a base acceleration), each body's force, and
-    // each joint's columns S, ∂v/∂q, ∂a/∂q, ∂a/∂q̇ (Carpentier & Mansard, Alg. 1, forward pass).
-    for i in 0..n {
-        let (pose, v_parent, a_parent) = match i {
-            0 => (base_centred_root(model, q), Motion::zeros(), model.gravity_bias()),
-            _ => {
-                let p = model.parent(i);
-                (world_pose(model, i, &poses[p], q), d.velocity[p], d.acceleration[p])
-            }
-        };
-        poses[i] = pose;
-        let k = model.idx_v(i);
-        let columns = k..k + model.joint(i).nv();
-        match model.joint(i).dofs() {
-            Dofs::Free => {
-                for c in 0..6 {
-                    set_column(&mut d.subspace, k + c, &pose.act_motion(&Motion::ith(c, 1.0)));
-                }
-            }
-            Dofs::Zero => {}
-            Dofs::One(_) => set_column(&mut d.subspace, k, &model.joint(i).subspace_in(&pose)),
+    if let Some(f_ext) = f_ext {
+        for i in 0..n {
+            d.force[i] -= poses[i].act_force(&f_ext[i]);
         }
-        let (mut v_joint, mut a_joint) = (Motion::zeros(), Motion::zeros());
-        for c in columns.clone() {
-            let s = column(&d.subspace, c);
-            v_joint += s * v[c];
-            a_joint += s * a[c];
-        }
-        let velocity = v_parent + v_joint;
-        d.velocity[i] = velocity;
-        d.acceleration[i] = a_parent + a_joint + cross_motion(&v_parent, &v_joint);
-        for c in columns {
-            let s = column(&d.subspace, c);
-            let dv_dq = cross_motion(&v_parent, &s);
-            set_column(&mut d.dv_dq, c, &dv_dq);
-            set_column(&mut d.da_dq, c, &(cross_motion(&a_parent, &s) + cross_motion(&v_parent, &dv_dq)));
-            set_column(&mut d.da_dv, c, &(cross_motion(&velocity, &s) + dv_dq));
-        }
-        let inertia = pose.act_rigid_inertia(model.inertia(i));
-        d.force[i] = inertia.apply(&d.acceleration[i]) + cross_force(&velocity, &inertia.apply(&velocity));
-        if let Some(f_ext) = f_ext {
-            d.force[i] -= pose.act_force(&f_ext[i]);
-        }
-        d.composite[i] = inertia;
-        d.rate[i] = inertia.rate_matrix(&velocity);
     }
     // Backward pass: each joint's subtree force derivatives, its rows τ_j = S_jᵀ f over its subtree's columns,
     // and its column in its descendants' rows (Alg. 1, backward pass).
@@ -131,4 +91,55 @@ pub fn rnea_derivatives<'d>(
         }
     }
     (&d.dtau_dq, &d.dtau_dv)
+}
+
+/// The forward pass shared with the centroidal derivatives (Carpentier & Mansard, Alg. 1, forward pass): poses,
+/// velocities, accelerations (`base_acceleration` at the base: gravity for RNEA, none for the momentum rate), each
+/// body's momentum I v and force I a + v ×* I v, its inertia and `rate_matrix` (the backward pass's subtree sums
+/// start from them), and each joint's columns S, ∂v/∂q, ∂a/∂q, ∂a/∂q̇. `data.derivatives` must be reserved.
+pub(crate) fn forward_pass(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64], base_acceleration: Motion) {
+    let Data { centred_m_i: poses, derivatives: d, .. } = data;
+    for i in 0..model.nbodies() {
+        let (pose, v_parent, a_parent) = match i {
+            0 => (base_centred_root(model, q), Motion::zeros(), base_acceleration),
+            _ => {
+                let p = model.parent(i);
+                (world_pose(model, i, &poses[p], q), d.velocity[p], d.acceleration[p])
+            }
+        };
+        poses[i] = pose;
+        let k = model.idx_v(i);
+        let columns = k..k + model.joint(i).nv();
+        match model.joint(i).dofs() {
+            Dofs::Free => {
+                for c in 0..6 {
+                    set_column(&mut d.subspace, k + c, &pose.act_motion(&Motion::ith(c, 1.0)));
+                }
+            }
+            Dofs::Zero => {}
+            Dofs::One(_) => set_column(&mut d.subspace, k, &model.joint(i).subspace_in(&pose)),
+        }
+        let (mut v_joint, mut a_joint) = (Motion::zeros(), Motion::zeros());
+        for c in columns.clone() {
+            let s = column(&d.subspace, c);
+            v_joint += s * v[c];
+            a_joint += s * a[c];
+        }
+        let velocity = v_parent + v_joint;
+        d.velocity[i] = velocity;
+        d.acceleration[i] = a_parent + a_joint + cross_motion(&v_parent, &v_joint);
+        for c in columns {
+            let s = column(&d.subspace, c);
+            let dv_dq = cross_motion(&v_parent, &s);
+            set_column(&mut d.dv_dq, c, &dv_dq);
+            set_column(&mut d.da_dq, c, &(cross_motion(&a_parent, &s) + cross_motion(&v_parent, &dv_dq)));
+            set_column(&mut d.da_dv, c, &(cross_motion(&velocity, &s) + dv_dq));
+        }
+        let inertia = pose.act_rigid_inertia(model.inertia(i));
+        let momentum = inertia.apply(&velocity);
+        d.momentum[i] = momentum;
+        d.force[i] = inertia.apply(&d.acceleration[i]) + cross_force(&velocity, &momentum);
+        d.composite[i] = inertia;
+        d.rate[i] = inertia.rate_matrix(&velocity);
+    }
 }
