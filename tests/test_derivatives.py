@@ -31,26 +31,24 @@ def pinocchio(function, tw: Twin, *args) -> tuple[np.ndarray, ...]:
     return tuple(np.array(x) for x in function(tw.pin_model, data, *args))
 
 
-def differences(f, x: np.ndarray, step) -> np.ndarray:
-    """Column j is f's slope along step(x, j, h), by the five-point stencil (error O(h^4)); f has as many outputs as
-    there are steps (square here)."""
-    n = len(f(x))
+def differences(f, x: np.ndarray, step, n: int) -> np.ndarray:
+    """Column j < n is f's slope along step(x, j, h), by the five-point stencil (error O(h^4))."""
 
     def slope(j: int) -> np.ndarray:
         at = [f(step(x, j, k * STEP)) for k in (-2, -1, 1, 2)]
         return (at[0] - 8 * at[1] + 8 * at[2] - at[3]) / (12 * STEP)
 
-    return np.array([slope(j) for j in range(n)]).reshape(n, n).T
+    return np.array([slope(j) for j in range(n)]).reshape(n, len(f(x))).T
 
 
 def tangent_differences(model: lk.Model, f, q: np.ndarray) -> np.ndarray:
-    """Central differences of f (with nv outputs) along q (+) h e_j for each velocity coordinate j."""
-    return differences(f, q, lambda x, j, h: lk.integrate(model, x, np.eye(model.nv)[j], h))
+    """Central differences of f along q (+) h e_j for each velocity coordinate j."""
+    return differences(f, q, lambda x, j, h: lk.integrate(model, x, np.eye(model.nv)[j], h), model.nv)
 
 
 def coordinate_differences(f, x: np.ndarray) -> np.ndarray:
-    """Central differences of f (as many outputs as x has entries) along each coordinate of x."""
-    return differences(f, x, lambda x, j, h: x + h * np.eye(len(x))[j])
+    """Central differences of f along each coordinate of x."""
+    return differences(f, x, lambda x, j, h: x + h * np.eye(len(x))[j], len(x))
 
 
 def assert_slopes(got, want, what: str) -> None:
