@@ -6,12 +6,14 @@ printed; for the ABA derivatives also the residual max |M X + dtau/dx| / (max |M
 whose error it is where the mass matrix is ill-conditioned), then times one call of each, interleaved, in one process:
 
     legkit:    lk.rnea_derivatives(model, q, v, a)      lk.aba_derivatives(model, q, v, tau)
+               lk.centroidal_derivatives(model, q, v, a)
     pinocchio: pin.computeRNEADerivatives(model, data, q, v, a)
-               pin.computeABADerivatives(model, data, q, v, tau)      (one preallocated pin.Data per model)
+               pin.computeABADerivatives(model, data, q, v, tau)
+               pin.computeCentroidalDynamicsDerivatives(model, data, q, v, a)   (one preallocated pin.Data per model)
 
 Each figure is the median of `timeit` repeats (7, or 3 with --quick), as benches/dynamics_vs_pinocchio.py times them.
-Both return new arrays: legkit's (dq, dv[, M^-1]), Pinocchio's views of its Data. Target: legkit / pin <= 0.7 on
-every row (printed, never asserted).
+Both return new arrays: legkit's (dq, dv[, M^-1]) and its four centroidal ones, Pinocchio's views of its Data (RNEA,
+ABA) and four new 6 x nv matrices (centroidal). Target: legkit / pin <= 0.7 on every row (printed, never asserted).
 
 Run from the repository root:  python benches/derivatives_vs_pinocchio.py [--quick] [--models quadruped tree ...]
 """
@@ -47,9 +49,11 @@ def compare(lk_model, pin_model, pin_data, q, v, tau, acc) -> str:
     pin_aba[2] = symmetrised_upper(pin_aba[2])
     ours = lk.aba_derivatives(lk_model, q, v, tau)
     aba_error = max(relative_error(a, b) for a, b in zip(ours, pin_aba))
+    pin_centroidal = [np.array(x) for x in pin.computeCentroidalDynamicsDerivatives(pin_model, pin_data, q, v, acc)]
+    centroidal_error = max(relative_error(a, b) for a, b in zip(lk.centroidal_derivatives(lk_model, q, v, acc), pin_centroidal))
     mass, dtau = lk.crba(lk_model, q), lk.rnea_derivatives(lk_model, q, v, lk.aba(lk_model, q, v, tau))[0]
     return (
-        f"rnea_d {rnea_error:.1e}  aba_d {aba_error:.1e}  "
+        f"rnea_d {rnea_error:.1e}  aba_d {aba_error:.1e}  centroidal_d {centroidal_error:.1e}  "
         f"(residual legkit {residual(mass, ours[0], dtau):.0e}, pin {residual(mass, pin_aba[0], dtau):.0e})"
     )
 
@@ -62,7 +66,7 @@ def main() -> None:
     settings = Settings(repeat=3 if args.quick else 7)
     rng = np.random.default_rng(0)
     print(f"pinocchio {pin.__version__}; medians of {settings.repeat} repeats; target legkit/pin <= {TARGET_RATIO}")
-    header = f"{'rnea_d legkit':>13s} {'pin':>10s} {'ratio':>6s} | {'aba_d legkit':>13s} {'pin':>10s} {'ratio':>6s}"
+    header = " | ".join(f"{name + ' legkit':>13s} {'pin':>10s} {'ratio':>6s}" for name in ("rnea_d", "aba_d", "cent_d"))
     print(f"{'model':10s} {'nv':>4s} | {header} | agreement")
     for name in args.models:
         lk_model, pin_model = MODELS[name]()
@@ -76,11 +80,14 @@ def main() -> None:
                 (pin.computeRNEADerivatives, (pin_model, pin_data, q, v, acc)),
                 (lk.aba_derivatives, (lk_model, q, v, tau)),
                 (pin.computeABADerivatives, (pin_model, pin_data, q, v, tau)),
+                (lk.centroidal_derivatives, (lk_model, q, v, acc)),
+                (pin.computeCentroidalDynamicsDerivatives, (pin_model, pin_data, q, v, acc)),
             ],
             settings,
         )
-        rl, rp, al, ap = (t.median_us for t in timings)
-        print(f"{name:10s} {lk_model.nv:4d} | {rl:11.1f}us {rp:8.1f}us {rl / rp:6.2f} | {al:11.1f}us {ap:8.1f}us {al / ap:6.2f} | {agreement}")
+        medians = [t.median_us for t in timings]
+        pairs = " | ".join(f"{ours:11.1f}us {theirs:8.1f}us {ours / theirs:6.2f}" for ours, theirs in zip(medians[::2], medians[1::2]))
+        print(f"{name:10s} {lk_model.nv:4d} | {pairs} | {agreement}")
 
 
 if __name__ == "__main__":

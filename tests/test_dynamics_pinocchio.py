@@ -468,6 +468,10 @@ def _call(name: str, tw: Twin, args: dict):
         return lk.rnea_derivatives(m, args["q"], args["v"], args["a"], args["f"])
     if name == "aba_derivatives":
         return lk.aba_derivatives(m, args["q"], args["v"], args["tau"], args["f"])
+    if name == "centroidal_derivatives":
+        return lk.centroidal_derivatives(m, args["q"], args["v"], args["a"])
+    if name == "center_of_mass_jacobian":
+        return lk.center_of_mass_jacobian(m, args["q"])
     if name == "crba":
         return lk.crba(m, args["q"])
     if name == "minv":
@@ -492,7 +496,7 @@ def _call(name: str, tw: Twin, args: dict):
 BATCHED = [
     "forward_kinematics", "rnea", "rnea_f_ext", "aba", "aba_f_ext", "crba", "minv", "center_of_mass",
     "subtree_mass_properties", "centroidal_momentum", "centroidal_momentum_rate", "jacobian", "kinetic_energy",
-    "potential_energy", "rnea_derivatives", "aba_derivatives",
+    "potential_energy", "rnea_derivatives", "aba_derivatives", "centroidal_derivatives", "center_of_mass_jacobian",
 ]  # fmt: skip
 
 
@@ -666,6 +670,13 @@ BAD_CALLS = [
     ("aba_derivatives v nan", lambda m, q, v, a: lk.aba_derivatives(m, q, _with_nan(v, 3), a), ("v",)),
     ("aba_derivatives tau short", lambda m, q, v, a: lk.aba_derivatives(m, q, v, a[:-1]), ("tau",)),
     ("aba_derivatives batch mismatch", lambda m, q, v, a: lk.aba_derivatives(m, _tile(q, 3), _tile(v, 4), a), ("q", "v")),
+    ("centroidal_derivatives q quat", lambda m, q, v, a: lk.centroidal_derivatives(m, _bad_q(q), v, a), ("q",)),
+    ("centroidal_derivatives v nan", lambda m, q, v, a: lk.centroidal_derivatives(m, q, _with_nan(v, 3), a), ("v",)),
+    ("centroidal_derivatives a short", lambda m, q, v, a: lk.centroidal_derivatives(m, q, v, a[:-1]), ("a",)),
+    ("centroidal_derivatives a string", lambda m, q, v, a: lk.centroidal_derivatives(m, q, v, "abc"), ("a",)),
+    ("centroidal_derivatives batch mismatch", lambda m, q, v, a: lk.centroidal_derivatives(m, _tile(q, 3), v, _tile(a, 4)), ("q", "a")),
+    ("center_of_mass_jacobian q short", lambda m, q, v, a: lk.center_of_mass_jacobian(m, q[:-1]), ("q",)),
+    ("center_of_mass_jacobian q quat", lambda m, q, v, a: lk.center_of_mass_jacobian(m, _bad_q(q)), ("q",)),
 ]
 
 

@@ -1,8 +1,9 @@
 """Every URDF that ships with example-robot-data, loaded by legkit and by Pinocchio.
 
 legkit must load every file Pinocchio loads (what exporters write slightly wrong loads as written, with a
-`lk.UrdfWarning`), refuse what Pinocchio refuses, and agree with Pinocchio's RNEA, CRBA and ABA to 1e-9
-(relative to max(1, max|want|)) on random states, with a fixed and with a floating base.
+`lk.UrdfWarning`), refuse what Pinocchio refuses, and agree with Pinocchio's RNEA, CRBA and ABA and their derivatives to
+1e-9 (relative to max(1, max|want|)) on random states, with a fixed and with a floating base (the centroidal derivatives
+with a floating base: a fixed base's root link counts in legkit's centre of mass and not in Pinocchio's).
 
 The two number joints differently: legkit's bodies are the links, breadth first, and fixed joints are
 bodies too; Pinocchio's joints are the moving joints, depth first, and a continuous joint has q = (cos, sin).
@@ -90,6 +91,12 @@ class Twin:
         out[np.ix_(self.lk_v, self.lk_v)] = m_pin[np.ix_(self.pin_v, self.pin_v)]
         return out
 
+    def to_lk_columns(self, m_pin: np.ndarray) -> np.ndarray:
+        """A (k, nv) matrix with its columns in Pinocchio's velocity order, in legkit's."""
+        out = np.zeros((m_pin.shape[0], self.model.nv))
+        out[:, self.lk_v] = m_pin[:, self.pin_v]
+        return out
+
     def to_lk_v(self, v_pin: np.ndarray) -> np.ndarray:
         out = np.zeros(self.model.nv)
         out[self.lk_v] = v_pin[self.pin_v]
@@ -152,6 +159,10 @@ def test_legkit_loads_what_pinocchio_loads_and_matches_its_dynamics(path: Path, 
         expected_d = [np.array(x) for x in pin.computeRNEADerivatives(reference, data, q_pin, v_pin, a_pin)]
         for got, want, what in zip(lk.rnea_derivatives(twin.model, q, v, a), expected_d, ["dtau/dq", "dtau/dv"]):
             assert_close(got, twin.to_lk_m(want), what)
+        if floating:  # a fixed base's root link counts in legkit's COM, not in Pinocchio's (its universe's)
+            expected_d = pin.computeCentroidalDynamicsDerivatives(reference, data, q_pin, v_pin, a_pin)
+            for got, want, what in zip(lk.centroidal_derivatives(twin.model, q, v, a), expected_d, ["dh/dq", "dhdot/dq", "dhdot/dv", "dhdot/da"]):
+                assert_close(got, twin.to_lk_columns(np.array(want).reshape(6, -1)), what)
 
 
 def test_a_non_physical_inertia_loads_as_written_with_a_warning_and_strict_refuses_it():

@@ -164,6 +164,14 @@ def aba_derivatives(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(da/dq, da/dv, da/dtau = M^-1) of ``aba``, each (..., nv, nv); q on its tangent space, as Pinocchio's
     computeABADerivatives. A singular mass matrix raises as in ``aba``."""
+def centroidal_derivatives(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(dh/dq, dhdot/dq, dhdot/dv, dhdot/da = dh/dv = A_G) of ``centroidal_momentum`` h and ``centroidal_momentum_rate``
+    hdot (gravity excluded, as Pinocchio's), each (..., 6, nv), rows [linear; angular about the COM] in world axes; q on
+    its tangent space as in ``rnea_derivatives``, as Pinocchio's computeCentroidalDynamicsDerivatives."""
+def center_of_mass_jacobian(model: Model, q: npt.ArrayLike) -> np.ndarray:
+    """d(center_of_mass)/dq, (..., 3, nv) in world axes, q on its tangent space (Pinocchio's jacobianCenterOfMass)."""
 def crba(model: Model, q: npt.ArrayLike) -> np.ndarray:
     """Joint-space mass matrix M(q): (..., nv, nv)."""
 def minv(model: Model, q: npt.ArrayLike) -> np.ndarray:

@@ -1,6 +1,6 @@
 //! ABA, RNEA, CRBA and M⁻¹ on the 63-DoF SuperBot-like modular tree, ABA on revolute chains of 64 and 1024 links
-//! (targets: ABA on the 63-DoF tree <= 5 µs; ABA linear in the number of bodies), and the RNEA and ABA derivatives
-//! on the tree and on chains of 64 and 512 links (`benches/derivatives_vs_pinocchio.py` compares them with
+//! (targets: ABA on the 63-DoF tree <= 5 µs; ABA linear in the number of bodies), and the RNEA, ABA and centroidal
+//! derivatives on the tree and on chains of 64 and 512 links (`benches/derivatives_vs_pinocchio.py` compares them with
 //! Pinocchio's).
 //!
 //! The models are those of `benches/models.py` (the Python comparison with Pinocchio), built here again:
@@ -20,7 +20,8 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use legkit_dynamics::algorithms::{
-    aba, aba_derivatives, contact_dynamics, contact_dynamics_derivatives, crba, impact_derivatives, minv, rnea, rnea_derivatives, ContactPoint,
+    aba, aba_derivatives, centroidal_derivatives, contact_dynamics, contact_dynamics_derivatives, crba, impact_derivatives, minv, rnea,
+    rnea_derivatives, ContactPoint,
 };
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{Matrix3, Vector3};
@@ -180,6 +181,9 @@ fn derivatives(c: &mut Criterion) {
         });
         group.bench_function(BenchmarkId::new("aba", name), |b| {
             b.iter(|| aba_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None).0[(0, 0)])
+        });
+        group.bench_function(BenchmarkId::new("centroidal", name), |b| {
+            b.iter(|| centroidal_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau)).0[(0, 0)])
         });
     }
     group.finish();

@@ -13,7 +13,7 @@
 
 use std::ops::Range;
 
-use nalgebra::{DMatrix, DVector, Matrix6xX, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Matrix3xX, Matrix6xX, Vector3, Vector6};
 
 use crate::algorithms::aba::{Block6, BLOCK};
 use crate::joint::Joint;
@@ -393,6 +393,8 @@ pub struct Data {
     pub jacobian: Matrix6xX<f64>,
     /// The centroidal momentum matrix A_G, 6 x nv.
     pub centroidal_map: Matrix6xX<f64>,
+    /// The centre of mass's Jacobian ∂c/∂q, 3 x nv (world axes, q on its tangent space).
+    pub com_jacobian: Matrix3xX<f64>,
     pub tau: DVector<f64>,
     pub ddq: DVector<f64>,
     /// M and M⁻¹ (nv x nv), sized by the first `crba` and `minv` call: the O(n) algorithms need neither, and a
@@ -449,6 +451,12 @@ pub struct Derivatives {
     pub frame_acceleration_dv: Matrix6xX<f64>,
     pub frame_acceleration_da: Matrix6xX<f64>,
     pub jacobian_rate: Matrix6xX<f64>,
+    /// The centroidal derivatives (`centroidal_derivatives`): per body its momentum I v (after the backward pass its
+    /// subtree's), and ∂h/∂q, ∂ḣ/∂q, ∂ḣ/∂q̇ (6 x nv, about the centre of mass; ∂ḣ/∂q̈ = A_G is `Data::centroidal_map`).
+    pub momentum: Vec<Force>,
+    pub dh_dq: Matrix6xX<f64>,
+    pub dhdot_dq: Matrix6xX<f64>,
+    pub dhdot_dv: Matrix6xX<f64>,
 }
 
 /// Sizes `matrix` n x n unless it already is (its numbers are then to be overwritten).
@@ -494,6 +502,10 @@ impl Derivatives {
             frame_acceleration_dv: columns(),
             frame_acceleration_da: columns(),
             jacobian_rate: columns(),
+            momentum: vec![Force::zeros(); n],
+            dh_dq: columns(),
+            dhdot_dq: columns(),
+            dhdot_dv: columns(),
         };
     }
 }
@@ -521,6 +533,7 @@ impl Data {
             subtree: vec![MassProperties::zero(); n],
             jacobian: Matrix6xX::zeros(model.nv()),
             centroidal_map: Matrix6xX::zeros(model.nv()),
+            com_jacobian: Matrix3xX::zeros(model.nv()),
             tau: DVector::zeros(model.nv()),
             ddq: DVector::zeros(model.nv()),
             mass_matrix: DMatrix::zeros(0, 0),

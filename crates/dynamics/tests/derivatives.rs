@@ -17,43 +17,12 @@ use rand::{Rng, SeedableRng};
 mod trees;
 use trees::random_case;
 
-/// Large enough that rounding stays below the tolerance where the dynamics are ill-conditioned (contacts), small enough
-/// for the stencil's O(h⁴) error.
-const STEP: f64 = 1e-4;
-
-/// Column j (of n) is f's slope along e_j by the five-point stencil, where `f(j, h)` evaluates at x + h e_j.
-fn central_differences(n: usize, mut f: impl FnMut(usize, f64) -> DVector<f64>) -> DMatrix<f64> {
-    let mut slope = |j: usize| (f(j, -2.0 * STEP) - f(j, -STEP) * 8.0 + f(j, STEP) * 8.0 - f(j, 2.0 * STEP)) / (12.0 * STEP);
-    let columns: Vec<DVector<f64>> = (0..n).map(&mut slope).collect();
-    DMatrix::from_columns(&columns)
-}
-
-fn stepped(x: &[f64], j: usize, h: f64) -> Vec<f64> {
-    let mut out = x.to_vec();
-    out[j] += h;
-    out
-}
-
-/// q ⊕ h e_j.
-fn stepped_q(model: &Model, q: &[f64], j: usize, h: f64) -> Vec<f64> {
-    let mut out = vec![0.0; model.nq()];
-    integrate(model, q, &stepped(&vec![0.0; model.nv()], j, 1.0), h, &mut out);
-    out
-}
+#[path = "fixtures/slopes.rs"]
+mod slopes;
+use slopes::{assert_close, assert_close_conditioned, central_differences, stepped, stepped_q, STEP};
 
 fn random_forces(rng: &mut StdRng, model: &Model) -> Vec<Force> {
     (0..model.nbodies()).map(|_| Force::from_fn(|_, _| rng.random_range(-5.0..5.0))).collect()
-}
-
-fn assert_close(got: &DMatrix<f64>, want: &DMatrix<f64>, what: &str) {
-    assert_close_conditioned(got, want, 1.0, what);
-}
-
-/// `assert_close` for a problem with condition number `condition`, which costs digits beyond 1e6.
-fn assert_close_conditioned(got: &DMatrix<f64>, want: &DMatrix<f64>, condition: f64, what: &str) {
-    let scale = want.amax().max(1.0) * (condition / 1e6).max(1.0);
-    let error = (got - want).amax();
-    assert!(error < 1e-6 * scale, "{what}: error {error:.3e} (scale {scale:.3e})\ngot {got:.6}\nwant {want:.6}");
 }
 
 #[test]

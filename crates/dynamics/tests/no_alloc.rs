@@ -4,9 +4,10 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use legkit_dynamics::algorithms::{
-    aba, aba_derivatives, center_of_mass, centroidal_map, centroidal_momentum, centroidal_momentum_rate, crba, forward_kinematics,
-    frame_acceleration, frame_acceleration_derivatives, frame_velocity, frame_velocity_derivatives, jacobian, jacobian_time_variation,
-    kinetic_energy, minv, potential_energy, rnea, rnea_derivatives, subtree_mass_properties, Frame,
+    aba, aba_derivatives, center_of_mass, center_of_mass_jacobian, centroidal_derivatives, centroidal_map, centroidal_momentum,
+    centroidal_momentum_rate, crba, forward_kinematics, frame_acceleration, frame_acceleration_derivatives, frame_velocity,
+    frame_velocity_derivatives, jacobian, jacobian_time_variation, kinetic_energy, minv, potential_energy, rnea, rnea_derivatives,
+    subtree_mass_properties, Frame,
 };
 use legkit_dynamics::sim::{Shape, ShapeKind};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
@@ -69,6 +70,7 @@ fn algorithms_do_not_allocate() {
         minv(&model, &mut data, &q);
         jacobian(&model, &mut data, &q, 17, &Vector3::new(0.1, 0.0, 0.0), Frame::LocalWorldAligned);
         center_of_mass(&model, &mut data, &q);
+        center_of_mass_jacobian(&model, &mut data, &q);
         subtree_mass_properties(&model, &mut data, &q);
         centroidal_momentum(&model, &mut data, &q, &v);
         centroidal_map(&model, &mut data, &q);
@@ -83,6 +85,7 @@ fn algorithms_do_not_allocate() {
         frame_velocity_derivatives(&model, &mut data, &q, &v, 17, &point, Frame::LocalWorldAligned);
         frame_acceleration_derivatives(&model, &mut data, &q, &v, &tau, 17, &point, Frame::World);
         jacobian_time_variation(&model, &mut data, &q, &v, 17, &point, Frame::Local);
+        centroidal_derivatives(&model, &mut data, &q, &v, &tau);
     });
     assert_eq!(count, 0, "the algorithms allocated {count} times");
 }

@@ -7,9 +7,10 @@ use numpy::PyArrayDyn;
 use pyo3::prelude::*;
 use pyo3::types::PySlice;
 
-use crate::batch::ArrayArg;
+use crate::batch::{broadcast, ArrayArg};
 use crate::convert::FloatArray;
 use crate::dynamics::state_batch;
+use crate::kinematics::row_major;
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run};
 
@@ -32,7 +33,7 @@ fn write_row_major(matrices: &[&DMatrix<f64>], out: &mut [f64]) {
     }
 }
 
-/// The views `out[..., k, :, :]` of an array shaped `(..., count, nv, nv)`: one array per matrix.
+/// The views `out[..., k, :, :]` of an array shaped `(..., count, rows, nv)`: one array per matrix.
 fn split<'py>(out: FloatArray<'py>, count: usize) -> PyResult<Vec<FloatArray<'py>>> {
     let py = out.py();
     (0..count).map(|k| Ok(out.get_item((py.Ellipsis(), k, PySlice::full(py), PySlice::full(py)))?.cast_into::<PyArrayDyn<f64>>()?)).collect()
@@ -91,4 +92,45 @@ pub fn aba_derivatives<'py>(
     })?;
     let mut parts = split(out, 3)?.into_iter();
     Ok((parts.next().expect("three"), parts.next().expect("three"), parts.next().expect("three")))
+}
+
+/// ∂h/∂q, ∂ḣ/∂q, ∂ḣ/∂v and ∂ḣ/∂a = ∂h/∂v = A_G of the centroidal momentum h (`centroidal_momentum`) and its rate ḣ
+/// (`centroidal_momentum_rate`, gravity excluded), each `(..., 6, nv)`, q on its tangent space (Pinocchio's
+/// `computeCentroidalDynamicsDerivatives`).
+#[pyfunction]
+pub fn centroidal_derivatives<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    a: ArrayArg<'_>,
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>, FloatArray<'py>, FloatArray<'py>)> {
+    let nv = model.model.nv();
+    let batch = state_batch(&model.model, &q, &v, ("a", &a), None)?;
+    let out = run(py, &model, &batch, &[4, 6, nv], |m, w, i, out| {
+        let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
+        check_state(m, q, Some(v))?;
+        check_vector("a", a, m.nv())?;
+        let (dh_dq, dhdot_dq, dhdot_dv, dhdot_da) = algorithms::centroidal_derivatives(m, w.data(), q, v, a);
+        for (matrix, chunk) in [dh_dq, dhdot_dq, dhdot_dv, dhdot_da].into_iter().zip(out.chunks_exact_mut((6 * nv).max(1))) {
+            row_major(matrix, chunk);
+        }
+        Ok(())
+    })?;
+    let mut parts = split(out, 4)?.into_iter();
+    Ok((parts.next().expect("four"), parts.next().expect("four"), parts.next().expect("four"), parts.next().expect("four")))
+}
+
+/// The centre of mass's Jacobian ∂c/∂q, `(..., 3, nv)`, world axes, q on its tangent space (Pinocchio's
+/// `jacobianCenterOfMass`).
+#[pyfunction]
+pub fn center_of_mass_jacobian<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
+    let nv = model.model.nv();
+    let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
+    run(py, &model, &batch, &[3, nv], |m, w, i, out| {
+        let q = batch.rows[0].row(i);
+        check_state(m, q, None)?;
+        row_major(algorithms::center_of_mass_jacobian(m, w.data(), q), out);
+        Ok(())
+    })
 }

@@ -3,7 +3,7 @@
 
 use legkit_dynamics::algorithms::{self, Frame};
 use legkit_dynamics::model::check_vector;
-use nalgebra::{Matrix6xX, Vector3};
+use nalgebra::{Dim, Dyn, Matrix, RawStorage, Vector3};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
@@ -154,8 +154,8 @@ pub fn centroidal_momentum_rate<'py>(
     })
 }
 
-/// A 6 x nv matrix (column-major, as nalgebra stores it) written row by row, as NumPy reads it.
-fn row_major(matrix: &Matrix6xX<f64>, out: &mut [f64]) {
+/// A k x nv matrix (column-major, as nalgebra stores it) written row by row, as NumPy reads it.
+pub(crate) fn row_major<R: Dim, S: RawStorage<f64, R, Dyn>>(matrix: &Matrix<f64, R, Dyn, S>, out: &mut [f64]) {
     for (r, row) in out.chunks_exact_mut(matrix.ncols()).enumerate() {
         for (c, x) in row.iter_mut().enumerate() {
             *x = matrix[(r, c)];

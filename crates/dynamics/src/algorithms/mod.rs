@@ -5,6 +5,7 @@
 pub mod aba;
 pub mod aba_derivatives;
 pub mod centroidal;
+pub mod centroidal_derivatives;
 pub mod com;
 pub mod contact;
 pub mod contact_derivatives;
@@ -21,7 +22,8 @@ pub mod rnea_derivatives;
 pub use aba::{aba, aba_with_armature};
 pub use aba_derivatives::aba_derivatives;
 pub use centroidal::{centroidal_map, centroidal_momentum, centroidal_momentum_rate};
-pub use com::{center_of_mass, subtree_mass_properties};
+pub use centroidal_derivatives::centroidal_derivatives;
+pub use com::{center_of_mass, center_of_mass_jacobian, subtree_mass_properties};
 pub use contact::{contact_dynamics, impact, point_accelerations, reduced_dynamics, ContactDynamics, ContactPoint, ReducedDynamics};
 pub use contact_derivatives::{contact_dynamics_derivatives, impact_derivatives, ContactDynamicsDerivatives, ImpactDerivatives};
 pub use crba::crba;
