@@ -2,7 +2,7 @@
 //! difference and their Jacobians: the one place that knows what a kind of joint is (as Pinocchio's `JointModel`). The
 //! algorithms ask a joint for its [`Dofs`] and never match on its kind, so a new kind of joint is added here.
 
-use nalgebra::{Dyn, Matrix, Quaternion, StorageMut, UnitQuaternion, Vector3};
+use nalgebra::{DMatrixViewMut, Quaternion, UnitQuaternion, Vector3};
 
 use crate::explog::{exp6, inverse_adjoint, jexp6, jlog6, log6};
 use crate::spatial::{spatial, Motion, Transform};
@@ -136,13 +136,7 @@ impl Joint {
     /// `dIntegrate` at v dt, ARG0 and dt times ARG1): for the free flyer Ad(exp(v dt))⁻¹, which carries a
     /// perturbation of q into the frame of q ⊕ v dt, and dt J_r(v dt); 1 and dt for one coordinate. Neither depends
     /// on q: each joint's configurations form a group, whose ⊕ is its product on the right.
-    pub fn integrate_jacobians<S: StorageMut<f64, Dyn, Dyn>>(
-        &self,
-        v: &[f64],
-        dt: f64,
-        dq: &mut Matrix<f64, Dyn, Dyn, S>,
-        dv: &mut Matrix<f64, Dyn, Dyn, S>,
-    ) {
+    pub fn integrate_jacobians(&self, v: &[f64], dt: f64, dq: &mut DMatrixViewMut<'_, f64>, dv: &mut DMatrixViewMut<'_, f64>) {
         match self.dofs() {
             Dofs::Free => {
                 let step = Motion::from_column_slice(v) * dt;
@@ -161,13 +155,7 @@ impl Joint {
     /// ∂(q1 ⊖ q0)/∂q0 and ∂(q1 ⊖ q0)/∂q1 (nv x nv each) on the tangent spaces, into `d0` and `d1` (Pinocchio's
     /// `dDifference`, ARG0 and ARG1): for the free flyer −J_r(ξ)⁻¹ Ad(M0⁻¹ M1)⁻¹ and J_r(ξ)⁻¹ at ξ = log(M0⁻¹ M1)
     /// (perturbing M0 by δ perturbs M0⁻¹ M1 by −Ad(M0⁻¹ M1)⁻¹ δ on its right); −1 and 1 for one coordinate.
-    pub fn difference_jacobians<S: StorageMut<f64, Dyn, Dyn>>(
-        &self,
-        q0: &[f64],
-        q1: &[f64],
-        d0: &mut Matrix<f64, Dyn, Dyn, S>,
-        d1: &mut Matrix<f64, Dyn, Dyn, S>,
-    ) {
+    pub fn difference_jacobians(&self, q0: &[f64], q1: &[f64], d0: &mut DMatrixViewMut<'_, f64>, d1: &mut DMatrixViewMut<'_, f64>) {
         match self.dofs() {
             Dofs::Free => {
                 let (rotation, translation) = relative_pose(q0, q1);

@@ -5,7 +5,7 @@
 
 use std::ops::Range;
 
-use nalgebra::{Dyn, Matrix, MatrixViewMut, RawStorage, StorageMut};
+use nalgebra::{DMatrix, DMatrixViewMut};
 
 use crate::joint::Joint;
 use crate::model::Model;
@@ -32,44 +32,29 @@ pub fn difference(model: &Model, q0: &[f64], q1: &[f64], out: &mut [f64]) {
     }
 }
 
-/// ∂(q ⊕ v dt)/∂q and ∂(q ⊕ v dt)/∂v into `dq` and `dv` (nv x nv, any storage: a `DMatrix`, or a view such as a
-/// row-major one): Pinocchio's `dIntegrate(model, q, v dt, ARG0)` and dt `dIntegrate(model, q, v dt, ARG1)`. They
-/// do not depend on q (`Joint::integrate_jacobians`).
-pub fn integrate_jacobians<S: StorageMut<f64, Dyn, Dyn>>(
-    model: &Model,
-    v: &[f64],
-    dt: f64,
-    dq: &mut Matrix<f64, Dyn, Dyn, S>,
-    dv: &mut Matrix<f64, Dyn, Dyn, S>,
-) {
+/// ∂(q ⊕ v dt)/∂q and ∂(q ⊕ v dt)/∂v into `dq` and `dv` (nv x nv): Pinocchio's `dIntegrate(model, q, v dt, ARG0)`
+/// and dt `dIntegrate(model, q, v dt, ARG1)`. They do not depend on q (`Joint::integrate_jacobians`).
+pub fn integrate_jacobians(model: &Model, v: &[f64], dt: f64, dq: &mut DMatrix<f64>, dv: &mut DMatrix<f64>) {
     block_diagonal(model, dq, dv, |joint, _, cv, dq, dv| joint.integrate_jacobians(&v[cv], dt, dq, dv));
 }
 
-/// ∂(q1 ⊖ q0)/∂q0 and ∂(q1 ⊖ q0)/∂q1 into `d0` and `d1` (nv x nv, any storage): Pinocchio's
-/// `dDifference(model, q0, q1, ARG0)` and `(..., ARG1)`.
-pub fn difference_jacobians<S: StorageMut<f64, Dyn, Dyn>>(
-    model: &Model,
-    q0: &[f64],
-    q1: &[f64],
-    d0: &mut Matrix<f64, Dyn, Dyn, S>,
-    d1: &mut Matrix<f64, Dyn, Dyn, S>,
-) {
+/// ∂(q1 ⊖ q0)/∂q0 and ∂(q1 ⊖ q0)/∂q1 into `d0` and `d1` (nv x nv): Pinocchio's `dDifference(model, q0, q1, ARG0)`
+/// and `(..., ARG1)`.
+pub fn difference_jacobians(model: &Model, q0: &[f64], q1: &[f64], d0: &mut DMatrix<f64>, d1: &mut DMatrix<f64>) {
     block_diagonal(model, d0, d1, |joint, cq, _, d0, d1| joint.difference_jacobians(&q0[cq.clone()], &q1[cq], d0, d1));
 }
 
-/// One joint's diagonal block of an nv x nv matrix of storage `S`.
-type Block<'a, S> = MatrixViewMut<'a, f64, Dyn, Dyn, <S as RawStorage<f64, Dyn, Dyn>>::RStride, <S as RawStorage<f64, Dyn, Dyn>>::CStride>;
-
-/// Zeroes `a` and `b`, then has `write` fill each joint's diagonal blocks of them, given the joint and its ranges in
-/// q and v.
-fn block_diagonal<S: StorageMut<f64, Dyn, Dyn>>(
+/// Zeroes `a` and `b` (nv x nv), then has `write` fill each joint's diagonal blocks of them, given the joint and its
+/// ranges in q and v.
+fn block_diagonal(
     model: &Model,
-    a: &mut Matrix<f64, Dyn, Dyn, S>,
-    b: &mut Matrix<f64, Dyn, Dyn, S>,
-    mut write: impl for<'b> FnMut(&Joint, Range<usize>, Range<usize>, &mut Block<'b, S>, &mut Block<'b, S>),
+    a: &mut DMatrix<f64>,
+    b: &mut DMatrix<f64>,
+    mut write: impl FnMut(&Joint, Range<usize>, Range<usize>, &mut DMatrixViewMut<'_, f64>, &mut DMatrixViewMut<'_, f64>),
 ) {
-    a.fill(0.0);
-    b.fill(0.0);
+    // As slices, a memset: nalgebra's element-wise `fill` took 0.8 µs of 1.2 µs on an 18-DoF free-flying tree.
+    a.as_mut_slice().fill(0.0);
+    b.as_mut_slice().fill(0.0);
     for (joint, cq, cv) in joints(model) {
         let (k, n) = (cv.start, cv.len());
         write(joint, cq, cv, &mut a.view_mut((k, k), (n, n)), &mut b.view_mut((k, k), (n, n)));
