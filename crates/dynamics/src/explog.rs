@@ -6,10 +6,11 @@
 //! 2018; [Solà]), eqs. 143-146 for SO(3) and App. D for SE(3), and Barfoot & Furgale, "Associating uncertainty with
 //! three-dimensional poses" (T-RO 2014; [Barfoot]), eq. 102, for the coupling block Q of the SE(3) Jacobians.
 //!
-//! Every coefficient below is a ratio of θ-powers whose closed form cancels as the angle θ goes to 0 (ε/θ⁴ for the
-//! worst, d in `coupling`, whose term is O(θ³)); below `SERIES_BELOW` its Taylor series to θ⁶ replaces it. At the
-//! switch the truncation below and the cancellation above each cost the Jacobians a few ulps (tested). Only
-//! J_r(ω)⁻¹ divides by a trigonometric function, as cot(θ/2): finite on the logarithm's range θ ≤ π, 0 at π.
+//! Every coefficient below is a trigonometric expression over a power of the angle θ whose closed form cancels as θ
+//! goes to 0 (by up to ε/θ⁴ for d in `coupling`, whose term is O(θ³)); below `SERIES_BELOW` its Taylor series to θ⁶
+//! replaces it. At the switch the truncation below and the cancellation above each cost the Jacobians a few ulps
+//! (tested). Only J_r(ω)⁻¹ divides by a trigonometric function, as cot(θ/2): finite on the logarithm's range θ ≤ π,
+//! 0 at π.
 
 use nalgebra::{Matrix3, Matrix6, UnitQuaternion, Vector3};
 
@@ -71,7 +72,8 @@ fn right_jacobian_inverse(w: &Vector3<f64>) -> Matrix3<f64> {
 
 /// Q(ρ, φ) [Barfoot, eq. 102], the coupling block of the SE(3) left Jacobian [[V(φ), Q], [0, V(φ)]]:
 /// Q = ½ ρ̂ + b (φ̂ρ̂ + ρ̂φ̂ + φ̂ρ̂φ̂) + c (φ̂²ρ̂ + ρ̂φ̂² − 3 φ̂ρ̂φ̂) + d (φ̂ρ̂φ̂² + φ̂²ρ̂φ̂), with b = (θ − sin θ)/θ³,
-/// c = (θ² + 2 cos θ − 2)/(2θ⁴) and d = (2θ − 3 sin θ + θ cos θ)/(2θ⁵) [Solà, App. D].
+/// c = (θ² + 2 cos θ − 2)/(2θ⁴) (as θ² − 2 versin θ, which cancels less) and d = (2θ − 3 sin θ + θ cos θ)/(2θ⁵)
+/// [Solà, App. D].
 fn coupling(rho: &Vector3<f64>, phi: &Vector3<f64>) -> Matrix3<f64> {
     let theta2 = phi.norm_squared();
     let (_, b) = rodrigues_coefficients(theta2);
