@@ -15,6 +15,9 @@ Each figure is the median of `timeit` repeats (7, or 3 with --quick), as benches
 Both return new arrays: legkit's (dq, dv[, M^-1]) and its four centroidal ones, Pinocchio's views of its Data (RNEA,
 ABA) and four new 6 x nv matrices (centroidal). Target: legkit / pin <= 0.7 on every row (printed, never asserted).
 
+Last, the configuration space's Jacobians on the quadruped: lk.difference_jacobians(model, q0, q1), both in one call,
+against pin.dDifference(model, q0, q1, ARG0) and (..., ARG1), two calls, summed.
+
 Run from the repository root:  python benches/derivatives_vs_pinocchio.py [--quick] [--models quadruped tree ...]
 """
 
@@ -58,6 +61,20 @@ def compare(lk_model, pin_model, pin_data, q, v, tau, acc) -> str:
     )
 
 
+def difference_jacobians_row(settings: Settings, rng: np.random.Generator) -> None:
+    lk_model, pin_model = MODELS["quadruped"]()
+    q0, q1 = random_state(lk_model, rng)[0], random_state(lk_model, rng)[0]
+    arguments = (pin.ArgumentPosition.ARG0, pin.ArgumentPosition.ARG1)
+    ours = lk.difference_jacobians(lk_model, q0, q1)
+    error = max(relative_error(a, np.array(pin.dDifference(pin_model, q0, q1, arg))) for a, arg in zip(ours, arguments))
+    calls = [(lk.difference_jacobians, (lk_model, q0, q1))] + [(pin.dDifference, (pin_model, q0, q1, arg)) for arg in arguments]
+    legkit, arg0, arg1 = (t.median_us for t in time_calls(calls, settings))
+    print(
+        f"difference_jacobians, quadruped (nv {lk_model.nv}): legkit {legkit:.1f}us, pin dDifference ARG0 + ARG1 "
+        f"{arg0:.1f} + {arg1:.1f} = {arg0 + arg1:.1f}us, ratio {legkit / (arg0 + arg1):.2f}; max rel. difference {error:.0e}"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="3 repeats instead of 7")
@@ -88,6 +105,7 @@ def main() -> None:
         medians = [t.median_us for t in timings]
         pairs = " | ".join(f"{ours:11.1f}us {theirs:8.1f}us {ours / theirs:6.2f}" for ours, theirs in zip(medians[::2], medians[1::2]))
         print(f"{name:10s} {lk_model.nv:4d} | {pairs} | {agreement}")
+    difference_jacobians_row(settings, rng)
 
 
 if __name__ == "__main__":

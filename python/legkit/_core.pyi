@@ -245,6 +245,23 @@ def reduced_dynamics(
     """(ddq, independent, dependent, basis N, reduced mass N^T M N, reduced force, offset) for one state."""
 def integrate(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, dt: float) -> np.ndarray:
     """q (+) v dt: (..., nq)."""
+def difference(model: Model, q0: npt.ArrayLike, q1: npt.ArrayLike) -> np.ndarray:
+    """q1 (-) q0, the velocity v with integrate(q0, v, 1) = q1, as Pinocchio's difference: (..., nv). A free-flyer base's
+    part is the SE(3) log of q0's pose to q1's, [v_lin, w] in the base frame at q0, of angle <= pi; the other
+    coordinates subtract."""
+def integrate_jacobians(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, dt: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(d(q (+) v dt)/dq, d(q (+) v dt)/dv), each (..., nv, nv), block diagonal, on the tangent spaces (the input
+    perturbed as q (+) dq, the output measured by ``difference`` from q (+) v dt): Pinocchio's dIntegrate(q, v dt) for
+    ARG0 and dt times it for ARG1. A free-flyer base's blocks are Ad(exp(v dt))^-1 and dt J_r(v dt) (the right
+    Jacobian of SE(3)'s exp); the other coordinates' are 1 and dt. Neither depends on q (checked as in
+    ``integrate``)."""
+def difference_jacobians(model: Model, q0: npt.ArrayLike, q1: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """(d(q1 (-) q0)/dq0, d(q1 (-) q0)/dq1), each (..., nv, nv), block diagonal, on the tangent spaces: Pinocchio's
+    dDifference for ARG0 and ARG1. A free-flyer base's blocks are -J_r(x)^-1 Ad(M0^-1 M1)^-1 and J_r(x)^-1 (Jlog6)
+    at x = q1 (-) q0; the other coordinates' are -1 and 1. With q1 = q0 (+) v, d1 @ dv = I from
+    ``integrate_jacobians(q0, v)`` while v's angle is below pi."""
 def free_rollout(
     model: Model, q: npt.ArrayLike, v: npt.ArrayLike, dt: float, steps: int, tau: npt.ArrayLike | None = None,
     method: Literal["rk4", "semi_implicit_euler"] = "rk4",

@@ -1,9 +1,10 @@
-//! Joint kinds, each with its coordinates, motion subspace (Featherstone Table 4.1), transform and
-//! integration: the one place that knows what a kind of joint is (as Pinocchio's `JointModel`). The
+//! Joint kinds, each with its coordinates, motion subspace (Featherstone Table 4.1), transform, integration,
+//! difference and their Jacobians: the one place that knows what a kind of joint is (as Pinocchio's `JointModel`). The
 //! algorithms ask a joint for its [`Dofs`] and never match on its kind, so a new kind of joint is added here.
 
-use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
+use nalgebra::{DMatrixViewMut, Quaternion, UnitQuaternion, Vector3};
 
+use crate::explog::{exp6, inverse_adjoint, jexp6, jlog6, log6};
 use crate::spatial::{spatial, Motion, Transform};
 use crate::validate::{direction, finite};
 use crate::{Error, Result};
@@ -94,7 +95,7 @@ impl Joint {
                 Transform::new(turned.rotation, pose.transform_point(&(axis * (pitch * q[0]))))
             }
             Joint::Fixed => pose,
-            Joint::FreeFlyer => pose.compose(&Transform::from_quaternion(Vector3::new(q[0], q[1], q[2]), &unit_quaternion(q))),
+            Joint::FreeFlyer => pose.compose(&Transform::from_quaternion(position(q), &unit_quaternion(q))),
         }
     }
 
@@ -106,15 +107,67 @@ impl Joint {
         match self.dofs() {
             Dofs::Free => {
                 let rotation = unit_quaternion(q);
-                let linear = Vector3::from_column_slice(&v[..3]) * dt;
-                let angular = Vector3::from_column_slice(&v[3..6]) * dt;
-                let translation = Vector3::from_column_slice(&q[..3]) + rotation * (left_jacobian(&angular) * linear);
-                let turned = rotation * UnitQuaternion::from_scaled_axis(angular);
-                out[..3].copy_from_slice(translation.as_slice());
+                let (turn, shift) = exp6(&(Motion::from_column_slice(v) * dt));
+                let turned = rotation * turn;
+                out[..3].copy_from_slice((position(q) + rotation * shift).as_slice());
                 out[3..7].copy_from_slice(&[turned.i, turned.j, turned.k, turned.w]);
             }
             Dofs::Zero => {}
             Dofs::One(_) => out[0] = q[0] + v[0] * dt,
+        }
+    }
+
+    /// `q1 ⊖ q0`: the velocity (nv) that `integrate` takes from `q0` to `q1` in unit time, into `out` (Pinocchio's
+    /// `difference`): for the free flyer the SE(3) log of M0⁻¹ M1, in the base's own frame and of angle ≤ π; the
+    /// other coordinates subtract.
+    #[inline]
+    pub fn difference(&self, q0: &[f64], q1: &[f64], out: &mut [f64]) {
+        match self.dofs() {
+            Dofs::Free => {
+                let (rotation, translation) = relative_pose(q0, q1);
+                out.copy_from_slice(log6(&rotation, &translation).as_slice());
+            }
+            Dofs::Zero => {}
+            Dofs::One(_) => out[0] = q1[0] - q0[0],
+        }
+    }
+
+    /// ∂(q ⊕ v dt)/∂q and ∂(q ⊕ v dt)/∂v (nv x nv each) on the tangent spaces, into `dq` and `dv` (Pinocchio's
+    /// `dIntegrate` at v dt, ARG0 and dt times ARG1): for the free flyer Ad(exp(v dt))⁻¹, which carries a
+    /// perturbation of q into the frame of q ⊕ v dt, and dt J_r(v dt); 1 and dt for one coordinate. Neither depends
+    /// on q: each joint's configurations form a group, whose ⊕ is its product on the right.
+    pub fn integrate_jacobians(&self, v: &[f64], dt: f64, dq: &mut DMatrixViewMut<'_, f64>, dv: &mut DMatrixViewMut<'_, f64>) {
+        match self.dofs() {
+            Dofs::Free => {
+                let step = Motion::from_column_slice(v) * dt;
+                let (turn, shift) = exp6(&step);
+                dq.copy_from(&inverse_adjoint(&turn, &shift));
+                dv.copy_from(&(jexp6(&step) * dt));
+            }
+            Dofs::Zero => {}
+            Dofs::One(_) => {
+                dq[(0, 0)] = 1.0;
+                dv[(0, 0)] = dt;
+            }
+        }
+    }
+
+    /// ∂(q1 ⊖ q0)/∂q0 and ∂(q1 ⊖ q0)/∂q1 (nv x nv each) on the tangent spaces, into `d0` and `d1` (Pinocchio's
+    /// `dDifference`, ARG0 and ARG1): for the free flyer −J_r(ξ)⁻¹ Ad(M0⁻¹ M1)⁻¹ and J_r(ξ)⁻¹ at ξ = log(M0⁻¹ M1)
+    /// (perturbing M0 by δ perturbs M0⁻¹ M1 by −Ad(M0⁻¹ M1)⁻¹ δ on its right); −1 and 1 for one coordinate.
+    pub fn difference_jacobians(&self, q0: &[f64], q1: &[f64], d0: &mut DMatrixViewMut<'_, f64>, d1: &mut DMatrixViewMut<'_, f64>) {
+        match self.dofs() {
+            Dofs::Free => {
+                let (rotation, translation) = relative_pose(q0, q1);
+                let jlog = jlog6(&log6(&rotation, &translation));
+                d0.copy_from(&(-jlog * inverse_adjoint(&rotation, &translation)));
+                d1.copy_from(&jlog);
+            }
+            Dofs::Zero => {}
+            Dofs::One(_) => {
+                d0[(0, 0)] = -1.0;
+                d1[(0, 0)] = 1.0;
+            }
         }
     }
 
@@ -165,18 +218,16 @@ fn unit_quaternion(q: &[f64]) -> UnitQuaternion<f64> {
     UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5]))
 }
 
-/// The SO(3) left Jacobian V(ω) = 1 + (1 − cos θ)/θ² ω̂ + (θ − sin θ)/θ³ ω̂², so exp of the twist (ν, ω)
-/// translates by V ν.
-fn left_jacobian(w: &Vector3<f64>) -> Matrix3<f64> {
-    let theta2 = w.norm_squared();
-    let (a, b) = if theta2 < 1e-8 {
-        (0.5 - theta2 / 24.0, 1.0 / 6.0 - theta2 / 120.0)
-    } else {
-        let theta = theta2.sqrt();
-        ((1.0 - theta.cos()) / theta2, (theta - theta.sin()) / (theta2 * theta))
-    };
-    let k = w.cross_matrix();
-    Matrix3::identity() + k * a + k * k * b
+/// The free flyer's position from its coordinates.
+#[inline(always)]
+fn position(q: &[f64]) -> Vector3<f64> {
+    Vector3::from_column_slice(&q[..3])
+}
+
+/// M0⁻¹ M1 for the free-flyer configurations `q0` and `q1`, as (rotation, translation).
+fn relative_pose(q0: &[f64], q1: &[f64]) -> (UnitQuaternion<f64>, Vector3<f64>) {
+    let inverse = unit_quaternion(q0).inverse();
+    (inverse * unit_quaternion(q1), inverse * (position(q1) - position(q0)))
 }
 
 #[cfg(test)]

@@ -6,6 +6,7 @@
 pub mod agents;
 pub mod algorithms;
 pub mod error;
+mod explog;
 pub mod geometry;
 pub mod joint;
 pub mod mass;

@@ -324,11 +324,16 @@ impl Model {
 
     /// Checks a configuration: length `nq`, finite, and a unit base quaternion (to 1e-6).
     pub fn check_configuration(&self, q: &[f64]) -> Result<()> {
-        check_vector("q", q, self.nq)?;
+        self.check_configuration_named("q", q)
+    }
+
+    /// `check_configuration` of the argument named `argument` (e.g. "q0").
+    pub fn check_configuration_named(&self, argument: &'static str, q: &[f64]) -> Result<()> {
+        check_vector(argument, q, self.nq)?;
         if self.floating_base() {
             let norm = q[3..7].iter().map(|x| x * x).sum::<f64>().sqrt();
             if (norm - 1.0).abs() > 1e-6 {
-                return Err(Error::invalid("q", format!("the base quaternion q[3:7] must have unit norm, got {norm:.9}")));
+                return Err(Error::invalid(argument, format!("the base quaternion {argument}[3:7] must have unit norm, got {norm:.9}")));
             }
         }
         Ok(())

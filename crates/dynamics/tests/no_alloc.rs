@@ -5,13 +5,13 @@ use std::cell::Cell;
 
 use legkit_dynamics::algorithms::{
     aba, aba_derivatives, center_of_mass, center_of_mass_jacobian, centroidal_derivatives, centroidal_map, centroidal_momentum,
-    centroidal_momentum_rate, crba, forward_kinematics, frame_acceleration, frame_acceleration_derivatives, frame_velocity,
-    frame_velocity_derivatives, jacobian, jacobian_time_variation, kinetic_energy, minv, potential_energy, rnea, rnea_derivatives,
-    subtree_mass_properties, Frame,
+    centroidal_momentum_rate, crba, difference, difference_jacobians, forward_kinematics, frame_acceleration, frame_acceleration_derivatives,
+    frame_velocity, frame_velocity_derivatives, integrate, integrate_jacobians, jacobian, jacobian_time_variation, kinetic_energy, minv,
+    potential_energy, rnea, rnea_derivatives, subtree_mass_properties, Frame,
 };
 use legkit_dynamics::sim::{Shape, ShapeKind};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{DMatrix, Matrix3, Vector3};
 
 #[path = "fixtures/quadruped.rs"]
 mod fixture;
@@ -62,6 +62,8 @@ fn algorithms_do_not_allocate() {
     crba(&model, &mut data, &q);
     minv(&model, &mut data, &q);
     aba_derivatives(&model, &mut data, &q, &v, &tau, None);
+    let (mut q1, mut dv) = (vec![0.0; model.nq()], vec![0.0; model.nv()]);
+    let (mut jacobian_a, mut jacobian_b) = (DMatrix::zeros(model.nv(), model.nv()), DMatrix::zeros(model.nv(), model.nv()));
     let count = allocations_during(|| {
         forward_kinematics(&model, &mut data, &q);
         rnea(&model, &mut data, &q, &v, &tau, None);
@@ -86,6 +88,10 @@ fn algorithms_do_not_allocate() {
         frame_acceleration_derivatives(&model, &mut data, &q, &v, &tau, 17, &point, Frame::World);
         jacobian_time_variation(&model, &mut data, &q, &v, 17, &point, Frame::Local);
         centroidal_derivatives(&model, &mut data, &q, &v, &tau);
+        integrate(&model, &q, &v, 0.1, &mut q1);
+        difference(&model, &q, &q1, &mut dv);
+        integrate_jacobians(&model, &v, 0.1, &mut jacobian_a, &mut jacobian_b);
+        difference_jacobians(&model, &q, &q1, &mut jacobian_a, &mut jacobian_b);
     });
     assert_eq!(count, 0, "the algorithms allocated {count} times");
 }

@@ -3,7 +3,7 @@
 use legkit_dynamics::algorithms;
 use legkit_dynamics::model::check_vector;
 use nalgebra::DMatrix;
-use numpy::PyArrayDyn;
+use numpy::{PyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PySlice;
 
@@ -16,7 +16,7 @@ use crate::workspace::{check_state, finite_result, run};
 
 /// Writes `matrices` (nv x nv each, column-major) one after the other, row-major, into `out`: transposed in
 /// tiles, so that a large matrix is read and written a cache line at a time.
-fn write_row_major(matrices: &[&DMatrix<f64>], out: &mut [f64]) {
+pub(crate) fn write_row_major(matrices: &[&DMatrix<f64>], out: &mut [f64]) {
     const TILE: usize = 16;
     let Some(n) = matrices.first().map(|m| m.nrows()) else { return };
     for (matrix, chunk) in matrices.iter().zip(out.chunks_exact_mut((n * n).max(1))) {
@@ -33,10 +33,18 @@ fn write_row_major(matrices: &[&DMatrix<f64>], out: &mut [f64]) {
     }
 }
 
-/// The views `out[..., k, :, :]` of an array shaped `(..., count, rows, nv)`: one array per matrix.
+/// The views `out[..., k, :, :]` of an array shaped `(..., count, rows, nv)`: one array per matrix. Without batch
+/// dimensions `out[k]`, which NumPy indexes in half the time.
 fn split<'py>(out: FloatArray<'py>, count: usize) -> PyResult<Vec<FloatArray<'py>>> {
     let py = out.py();
-    (0..count).map(|k| Ok(out.get_item((py.Ellipsis(), k, PySlice::full(py), PySlice::full(py)))?.cast_into::<PyArrayDyn<f64>>()?)).collect()
+    let view = |k: usize| if out.ndim() == 3 { out.get_item(k) } else { out.get_item((py.Ellipsis(), k, PySlice::full(py), PySlice::full(py))) };
+    (0..count).map(|k| Ok(view(k)?.cast_into::<PyArrayDyn<f64>>()?)).collect()
+}
+
+/// `split` of an array shaped `(..., 2, nv, nv)`, as a pair.
+pub(crate) fn split_pair(out: FloatArray<'_>) -> PyResult<(FloatArray<'_>, FloatArray<'_>)> {
+    let mut parts = split(out, 2)?.into_iter();
+    Ok((parts.next().expect("two"), parts.next().expect("two")))
 }
 
 /// ∂τ/∂q and ∂τ/∂v of inverse dynamics (`rnea`), each `(..., nv, nv)`, q on its tangent space (Carpentier &
@@ -62,8 +70,7 @@ pub fn rnea_derivatives<'py>(
         write_row_major(&[dq, dv], out);
         Ok(())
     })?;
-    let mut parts = split(out, 2)?.into_iter();
-    Ok((parts.next().expect("two"), parts.next().expect("two")))
+    split_pair(out)
 }
 
 /// ∂a/∂q, ∂a/∂v and ∂a/∂τ = M⁻¹ of forward dynamics (`aba`), each `(..., nv, nv)`, q on its tangent space

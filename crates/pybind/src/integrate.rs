@@ -1,11 +1,14 @@
-//! Free dynamics (no contacts): configuration integration and rollouts.
+//! The configuration space (integration, difference and their Jacobians) and free dynamics (no contacts): rollouts.
 
 use legkit_dynamics::algorithms::{self, Method};
+use legkit_dynamics::{Error, Model};
+use nalgebra::DMatrix;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
-use crate::batch::{broadcast, ArrayArg};
+use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::convert::FloatArray;
+use crate::derivatives::{split_pair, write_row_major};
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
 
@@ -64,4 +67,80 @@ pub fn free_rollout<'py>(
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[steps + 1, nq], &[steps + 1, nv]]).into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap()))
+}
+
+/// `q1 ⊖ q0`: the velocity v with `integrate(q0, v, 1) = q1` (Pinocchio's `difference`); a free-flyer base's part is
+/// the SE(3) log of its relative pose, in the base frame at q0: `(..., nv)`.
+#[pyfunction]
+pub fn difference<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q0: ArrayArg<'_>, q1: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
+    let nq = model.model.nq();
+    let batch = broadcast(&[("q0", &q0, &[nq]), ("q1", &q1, &[nq])])?;
+    run(py, &model, &batch, &[model.model.nv()], |m, _, i, out| {
+        let (q0, q1) = configuration_pair(m, &batch, i)?;
+        algorithms::difference(m, q0, q1, out);
+        Ok(())
+    })
+}
+
+/// (∂(q ⊕ v dt)/∂q, ∂(q ⊕ v dt)/∂v), each `(..., nv, nv)`, on the tangent spaces: Pinocchio's `dIntegrate` at v dt,
+/// ARG0 and dt times ARG1. Block diagonal; they do not depend on q, which is checked as in `integrate`.
+#[pyfunction]
+#[pyo3(signature = (model, q, v, dt = 1.0))]
+pub fn integrate_jacobians<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    dt: f64,
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
+    let (nq, nv) = (model.model.nq(), model.model.nv());
+    legkit_dynamics::validate::finite("dt", dt).map_err(crate::convert::kernel_error)?;
+    let batch = broadcast(&[("q", &q, &[nq]), ("v", &v, &[nv])])?;
+    run_matrix_pair(py, &model, &batch, |m, i, dq, dv| {
+        let v = batch.rows[1].row(i);
+        check_state(m, batch.rows[0].row(i), Some(v))?;
+        algorithms::integrate_jacobians(m, v, dt, dq, dv);
+        Ok(())
+    })
+}
+
+/// (∂(q1 ⊖ q0)/∂q0, ∂(q1 ⊖ q0)/∂q1), each `(..., nv, nv)`, on the tangent spaces: Pinocchio's `dDifference`, ARG0
+/// and ARG1. Block diagonal.
+#[pyfunction]
+pub fn difference_jacobians<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q0: ArrayArg<'_>,
+    q1: ArrayArg<'_>,
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
+    let nq = model.model.nq();
+    let batch = broadcast(&[("q0", &q0, &[nq]), ("q1", &q1, &[nq])])?;
+    run_matrix_pair(py, &model, &batch, |m, i, d0, d1| {
+        let (q0, q1) = configuration_pair(m, &batch, i)?;
+        algorithms::difference_jacobians(m, q0, q1, d0, d1);
+        Ok(())
+    })
+}
+
+/// Row `i` of a batch of (q0, q1), each checked as a configuration.
+fn configuration_pair<'b>(m: &Model, batch: &'b Batch, i: usize) -> Result<(&'b [f64], &'b [f64]), Error> {
+    let (q0, q1) = (batch.rows[0].row(i), batch.rows[1].row(i));
+    m.check_configuration_named("q0", q0)?;
+    m.check_configuration_named("q1", q1)?;
+    Ok((q0, q1))
+}
+
+/// Runs `kernel(model, row, a, b)`, which writes two nv x nv matrices, over the batch: `(..., nv, nv)` each.
+fn run_matrix_pair<'py, K>(py: Python<'py>, owner: &PyModel, batch: &Batch, kernel: K) -> PyResult<(FloatArray<'py>, FloatArray<'py>)>
+where
+    K: Fn(&Model, usize, &mut DMatrix<f64>, &mut DMatrix<f64>) -> Result<(), Error> + Sync,
+{
+    let nv = owner.model.nv();
+    let out = run(py, owner, batch, &[2, nv, nv], |m, w, i, out| {
+        let (a, b) = w.matrix_pair(nv);
+        kernel(m, i, a, b)?;
+        write_row_major(&[a, b], out);
+        Ok(())
+    })?;
+    split_pair(out)
 }

@@ -56,6 +56,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(contact::point_accelerations, m)?)?;
     m.add_function(wrap_pyfunction!(contact::reduced_dynamics, m)?)?;
     m.add_function(wrap_pyfunction!(integrate::integrate, m)?)?;
+    m.add_function(wrap_pyfunction!(integrate::difference, m)?)?;
+    m.add_function(wrap_pyfunction!(integrate::integrate_jacobians, m)?)?;
+    m.add_function(wrap_pyfunction!(integrate::difference_jacobians, m)?)?;
     m.add_function(wrap_pyfunction!(integrate::free_rollout, m)?)?;
     m.add_function(wrap_pyfunction!(geometry::circle_line, m)?)?;
     m.add_function(wrap_pyfunction!(geometry::rotation_toward_line, m)?)?;

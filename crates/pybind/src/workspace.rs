@@ -3,6 +3,7 @@
 use legkit_dynamics::model::check_vector;
 use legkit_dynamics::spatial::Force;
 use legkit_dynamics::{Data, Error, Model};
+use nalgebra::DMatrix;
 use numpy::{IxDyn, PyArrayDyn, PyArrayMethods};
 use pyo3::prelude::*;
 
@@ -20,11 +21,13 @@ pub struct Workspace<'m> {
     /// Boxed, so that taking and handing back a workspace moves a pointer.
     data: Option<Box<Data>>,
     forces: Vec<Force>,
+    /// Two square matrices for kernels that write a pair of them (`matrix_pair`).
+    matrices: (DMatrix<f64>, DMatrix<f64>),
 }
 
 impl<'m> Workspace<'m> {
     fn new(owner: &'m PyModel) -> Self {
-        Self { owner, data: Some(owner.take_workspace()), forces: Vec::new() }
+        Self { owner, data: Some(owner.take_workspace()), forces: Vec::new(), matrices: (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0)) }
     }
 
     pub fn data(&mut self) -> &mut Data {
@@ -42,6 +45,14 @@ impl<'m> Workspace<'m> {
             force.copy_from_slice(values);
         }
         Ok((data, Some(&self.forces)))
+    }
+
+    /// Two n x n matrices, allocated by the task's first row and reused by the others.
+    pub fn matrix_pair(&mut self, n: usize) -> (&mut DMatrix<f64>, &mut DMatrix<f64>) {
+        if self.matrices.0.nrows() != n {
+            self.matrices = (DMatrix::zeros(n, n), DMatrix::zeros(n, n));
+        }
+        (&mut self.matrices.0, &mut self.matrices.1)
     }
 }
 

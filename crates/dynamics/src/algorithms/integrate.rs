@@ -3,7 +3,7 @@
 
 use nalgebra::DVector;
 
-use super::aba;
+use super::{aba, integrate};
 use crate::model::{Data, Model};
 use crate::Result;
 
@@ -13,15 +13,6 @@ pub enum Method {
     SemiImplicitEuler,
     /// Classical fourth-order Runge–Kutta, stages combined in the tangent space.
     Rk4,
-}
-
-/// `q ⊕ v dt`, joint by joint (`Joint::integrate`).
-pub fn integrate(model: &Model, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
-    for i in 0..model.nbodies() {
-        let (joint, kq, kv) = (model.joint(i), model.idx_q(i), model.idx_v(i));
-        let (nq, nv) = (joint.nq(), joint.nv());
-        joint.integrate(&q[kq..kq + nq], &v[kv..kv + nv], dt, &mut out[kq..kq + nq]);
-    }
 }
 
 /// Buffers for stepping one model (allocated once).
