@@ -2,48 +2,60 @@
 
 use legkit_dynamics::algorithms;
 use legkit_dynamics::model::check_vector;
-use nalgebra::DMatrix;
-use numpy::{PyArrayDyn, PyUntypedArrayMethods};
+use legkit_dynamics::{Error, Model};
+use numpy::ndarray::Axis;
+use numpy::{PyArrayDyn, PyArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::PySlice;
 
-use crate::batch::{broadcast, ArrayArg};
+use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::convert::FloatArray;
 use crate::dynamics::state_batch;
 use crate::kinematics::row_major;
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_result, run};
+use crate::workspace::{check_state, finite_result, run, Workspace};
 
-/// Writes `matrices` (nv x nv each, column-major) one after the other, row-major, into `out`: transposed in
-/// tiles, so that a large matrix is read and written a cache line at a time.
-pub(crate) fn write_row_major(matrices: &[&DMatrix<f64>], out: &mut [f64]) {
-    const TILE: usize = 16;
-    let Some(n) = matrices.first().map(|m| m.nrows()) else { return };
-    for (matrix, chunk) in matrices.iter().zip(out.chunks_exact_mut((n * n).max(1))) {
-        let from = matrix.as_slice();
-        for r0 in (0..n).step_by(TILE) {
-            for c0 in (0..n).step_by(TILE) {
-                for c in c0..(c0 + TILE).min(n) {
-                    for r in r0..(r0 + TILE).min(n) {
-                        chunk[r * n + c] = from[c * n + r];
-                    }
-                }
-            }
-        }
+/// Copies `matrices` (column-major, as nalgebra stores them) one after the other into `out`.
+pub(crate) fn write_columns(matrices: &[&[f64]], out: &mut [f64]) {
+    let mut rest = out;
+    for matrix in matrices {
+        let (chunk, tail) = rest.split_at_mut(matrix.len());
+        chunk.copy_from_slice(matrix);
+        rest = tail;
     }
 }
 
-/// The views `out[..., k, :, :]` of an array shaped `(..., count, rows, nv)`: one array per matrix. Without batch
-/// dimensions `out[k]`, which NumPy indexes in half the time.
-fn split<'py>(out: FloatArray<'py>, count: usize) -> PyResult<Vec<FloatArray<'py>>> {
-    let py = out.py();
-    let view = |k: usize| if out.ndim() == 3 { out.get_item(k) } else { out.get_item((py.Ellipsis(), k, PySlice::full(py), PySlice::full(py))) };
-    (0..count).map(|k| Ok(view(k)?.cast_into::<PyArrayDyn<f64>>()?)).collect()
+/// Runs `kernel(model, workspace, i, out)` over the batch, which writes `count` matrices of `rows` x nv column-major
+/// one after the other into `out` (`write_columns`); returns one array per matrix, `(..., rows, nv)`: column-major
+/// views of one buffer (as Pinocchio's, which are Eigen's), so that nothing is transposed. (Transposing chain512's two
+/// 512 x 512 matrices into row-major arrays took as long as computing them.)
+pub(crate) fn run_matrices<'py, K>(
+    py: Python<'py>,
+    owner: &PyModel,
+    batch: &Batch,
+    count: usize,
+    rows: usize,
+    kernel: K,
+) -> PyResult<Vec<FloatArray<'py>>>
+where
+    K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
+{
+    let out = run(py, owner, batch, &[count, owner.model.nv(), rows], kernel)?;
+    // SAFETY: the array was just filled and nothing else refers to it; the views keep it alive as their base.
+    let buffer = unsafe { out.as_array() };
+    let axis = Axis(buffer.ndim() - 3);
+    Ok((0..count)
+        .map(|k| {
+            let mut view = buffer.index_axis(axis, k);
+            let n = view.ndim();
+            view.swap_axes(n - 2, n - 1);
+            unsafe { PyArrayDyn::borrow_from_array(&view, out.clone().into_any()) }
+        })
+        .collect())
 }
 
-/// `split` of an array shaped `(..., 2, nv, nv)`, as a pair.
-pub(crate) fn split_pair(out: FloatArray<'_>) -> PyResult<(FloatArray<'_>, FloatArray<'_>)> {
-    let mut parts = split(out, 2)?.into_iter();
+/// The two arrays of a pair.
+pub(crate) fn pair(parts: Vec<FloatArray<'_>>) -> PyResult<(FloatArray<'_>, FloatArray<'_>)> {
+    let mut parts = parts.into_iter();
     Ok((parts.next().expect("two"), parts.next().expect("two")))
 }
 
@@ -61,16 +73,16 @@ pub fn rnea_derivatives<'py>(
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
     let nv = model.model.nv();
     let batch = state_batch(&model.model, &q, &v, ("a", &a), f_ext.as_ref())?;
-    let out = run(py, &model, &batch, &[2, nv, nv], |m, w, i, out| {
+    let parts = run_matrices(py, &model, &batch, 2, nv, |m, w, i, out| {
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("a", a, m.nv())?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         let (dq, dv) = algorithms::rnea_derivatives(m, data, q, v, a, forces);
-        write_row_major(&[dq, dv], out);
+        write_columns(&[dq.as_slice(), dv.as_slice()], out);
         Ok(())
     })?;
-    split_pair(out)
+    pair(parts)
 }
 
 /// ∂a/∂q, ∂a/∂v and ∂a/∂τ = M⁻¹ of forward dynamics (`aba`), each `(..., nv, nv)`, q on its tangent space
@@ -87,17 +99,17 @@ pub fn aba_derivatives<'py>(
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>, FloatArray<'py>)> {
     let nv = model.model.nv();
     let batch = state_batch(&model.model, &q, &v, ("tau", &tau), f_ext.as_ref())?;
-    let out = run(py, &model, &batch, &[3, nv, nv], |m, w, i, out| {
+    let parts = run_matrices(py, &model, &batch, 3, nv, |m, w, i, out| {
         let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("tau", tau, m.nv())?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         let (dq, dv, minv) = algorithms::aba_derivatives(m, data, q, v, tau, forces);
-        write_row_major(&[dq, dv, minv], out);
+        write_columns(&[dq.as_slice(), dv.as_slice(), minv.as_slice()], out);
         // M⁻¹ is positive definite: a singular M shows on its diagonal, and spreads to the other two.
         finite_result(&*out)
     })?;
-    let mut parts = split(out, 3)?.into_iter();
+    let mut parts = parts.into_iter();
     Ok((parts.next().expect("three"), parts.next().expect("three"), parts.next().expect("three")))
 }
 
@@ -112,19 +124,16 @@ pub fn centroidal_derivatives<'py>(
     v: ArrayArg<'_>,
     a: ArrayArg<'_>,
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>, FloatArray<'py>, FloatArray<'py>)> {
-    let nv = model.model.nv();
     let batch = state_batch(&model.model, &q, &v, ("a", &a), None)?;
-    let out = run(py, &model, &batch, &[4, 6, nv], |m, w, i, out| {
+    let parts = run_matrices(py, &model, &batch, 4, 6, |m, w, i, out| {
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("a", a, m.nv())?;
         let (dh_dq, dhdot_dq, dhdot_dv, dhdot_da) = algorithms::centroidal_derivatives(m, w.data(), q, v, a);
-        for (matrix, chunk) in [dh_dq, dhdot_dq, dhdot_dv, dhdot_da].into_iter().zip(out.chunks_exact_mut((6 * nv).max(1))) {
-            row_major(matrix, chunk);
-        }
+        write_columns(&[dh_dq.as_slice(), dhdot_dq.as_slice(), dhdot_dv.as_slice(), dhdot_da.as_slice()], out);
         Ok(())
     })?;
-    let mut parts = split(out, 4)?.into_iter();
+    let mut parts = parts.into_iter();
     Ok((parts.next().expect("four"), parts.next().expect("four"), parts.next().expect("four"), parts.next().expect("four")))
 }
 

@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 
 use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::convert::FloatArray;
-use crate::derivatives::{split_pair, write_row_major};
+use crate::derivatives::{pair, run_matrices, write_columns};
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
 
@@ -136,11 +136,11 @@ where
     K: Fn(&Model, usize, &mut DMatrix<f64>, &mut DMatrix<f64>) -> Result<(), Error> + Sync,
 {
     let nv = owner.model.nv();
-    let out = run(py, owner, batch, &[2, nv, nv], |m, w, i, out| {
+    let parts = run_matrices(py, owner, batch, 2, nv, |m, w, i, out| {
         let (a, b) = w.matrix_pair(nv);
         kernel(m, i, a, b)?;
-        write_row_major(&[a, b], out);
+        write_columns(&[a.as_slice(), b.as_slice()], out);
         Ok(())
     })?;
-    split_pair(out)
+    pair(parts)
 }
