@@ -472,14 +472,15 @@ pub(crate) fn reserve_square(matrix: &mut DMatrix<f64>, n: usize) {
 }
 
 impl Derivatives {
-    /// Sizes the workspace for `model` unless it already is.
+    /// Sizes the workspace for `model` unless it already is, all but the nv x nv outputs, which the RNEA and ABA
+    /// derivatives size on their first call (`reserve_square`): the frame and centroidal derivatives need O(n nv).
     pub(crate) fn reserve(&mut self, model: &Model) {
         let (n, nv) = (model.nbodies(), model.nv());
-        if self.velocity.len() == n && self.dtau_dq.nrows() == nv {
+        if self.velocity.len() == n && self.subspace.ncols() == nv {
             return;
         }
         let columns = || Matrix6xX::zeros(nv);
-        let square = || DMatrix::zeros(nv, nv);
+        let empty = || DMatrix::zeros(0, 0);
         *self = Derivatives {
             velocity: vec![Motion::zeros(); n],
             acceleration: vec![Motion::zeros(); n],
@@ -494,10 +495,10 @@ impl Derivatives {
             df_dv: columns(),
             df_da: columns(),
             rate_subspace: columns(),
-            dtau_dq: square(),
-            dtau_dv: square(),
-            ddq_dq: square(),
-            ddq_dv: square(),
+            dtau_dq: empty(),
+            dtau_dv: empty(),
+            ddq_dq: empty(),
+            ddq_dv: empty(),
             block_rows: vec![[0.0; BLOCK]; nv],
             block_forces: vec![[[0.0; BLOCK]; 6]; n],
             block_accelerations: vec![[[0.0; BLOCK]; 6]; n],

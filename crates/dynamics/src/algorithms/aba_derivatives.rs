@@ -11,7 +11,7 @@ use nalgebra::{DMatrix, DVector};
 
 use super::aba::{solve_columns, Factors};
 use super::{aba, minv, rnea_derivatives};
-use crate::model::{Data, Model};
+use crate::model::{reserve_square, Data, Model};
 use crate::spatial::Force;
 
 /// Criterion `derivatives/aba`: with the dense products the quadruped (nv 18) took 0.70x the solves' time, the 63-DoF
@@ -34,6 +34,8 @@ pub fn aba_derivatives<'d>(
     let ddq = std::mem::replace(&mut data.ddq, DVector::zeros(0));
     rnea_derivatives(model, data, q, v, ddq.as_slice(), f_ext);
     data.ddq = ddq;
+    reserve_square(&mut data.derivatives.ddq_dq, model.nv());
+    reserve_square(&mut data.derivatives.ddq_dv, model.nv());
     if model.nv() <= DENSE_LIMIT {
         minv(model, data, q);
         let d = &mut data.derivatives;

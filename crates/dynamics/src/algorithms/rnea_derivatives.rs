@@ -13,7 +13,7 @@ use nalgebra::{DMatrix, Matrix6xX, Vector6};
 use super::kinematics::base_centred_root;
 use super::world_pose;
 use crate::joint::Dofs;
-use crate::model::{Data, Model};
+use crate::model::{reserve_square, Data, Model};
 use crate::spatial::{cross_force, cross_motion, dot6, Force, Motion};
 
 #[inline(always)]
@@ -52,6 +52,8 @@ pub(crate) fn derivatives_with_base_acceleration<'d>(
 ) -> (&'d DMatrix<f64>, &'d DMatrix<f64>) {
     let n = model.nbodies();
     forward_pass(model, data, q, v, a, base_acceleration);
+    reserve_square(&mut data.derivatives.dtau_dq, model.nv());
+    reserve_square(&mut data.derivatives.dtau_dv, model.nv());
     let Data { centred_m_i: poses, derivatives: d, .. } = data;
     if let Some(f_ext) = f_ext {
         for i in 0..n {
