@@ -6,9 +6,8 @@
 //! Contact forces are 3-vectors in world axes acting on the robot at the points. These functions
 //! allocate their k-dependent matrices on each call.
 
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Vector3};
 
-use super::kinematics::body_motions;
 use super::kinematics_derivatives::FramePoint;
 use super::rnea_derivatives::motion_derivatives;
 use super::{crba, minv, rnea};
@@ -80,8 +79,7 @@ pub(crate) fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], c
             out.linear.view_mut((3 * k, c), (3, 1)).copy_from(&linear(&s));
             out.angular.view_mut((3 * k, c), (3, 1)).copy_from(&angular(&s));
         });
-        let (velocity, omega) = (linear(&at.velocity), angular(&at.velocity));
-        out.drift.rows_mut(3 * k, 3).copy_from(&(linear(&at.acceleration) + omega.cross(&velocity)));
+        out.drift.rows_mut(3 * k, 3).copy_from(&at.classical_acceleration());
     }
     out
 }
@@ -89,26 +87,10 @@ pub(crate) fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], c
 /// Writes the world-axes (classical) acceleration of each point to `out` (3k): J_c q̈ + J̇_c q̇ at (q, v, q̈),
 /// or with q̈ None the velocity-product term γ = J̇_c q̇ alone.
 pub fn point_accelerations(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Option<&[f64]>, points: &[ContactPoint], out: &mut [f64]) {
-    // The bodies' spatial accelerations (no gravity), then the points': a_point = R (a + α × r + ω × (v + ω × r)).
-    body_motions(model, data, q, v, a, Motion::zeros());
+    motion_derivatives(model, data, q, v, a, Motion::zeros());
     for (point, chunk) in points.iter().zip(out.chunks_exact_mut(3)) {
-        let (vb, ab, r) = (&data.v[point.body], &data.a[point.body], point.point);
-        let w = angular(vb);
-        let local = linear(ab) + angular(ab).cross(&r) + w.cross(&(linear(vb) + w.cross(&r)));
-        chunk.copy_from_slice((world_rotation(model, data, point.body) * local).as_slice());
+        chunk.copy_from_slice(FramePoint::new(model, data, q, point.body, &point.point).classical_acceleration().as_slice());
     }
-}
-
-/// A body's orientation in the world from the parent-frame poses `body_motions` leaves in `data.li_m_i`
-/// (its chain only, rather than forward kinematics over the whole tree).
-fn world_rotation(model: &Model, data: &Data, body: usize) -> Matrix3<f64> {
-    let mut rotation = data.li_m_i[body].rotation;
-    let mut j = body;
-    while j > 0 {
-        j = model.parent(j);
-        rotation = data.li_m_i[j].rotation * rotation;
-    }
-    rotation
 }
 
 /// The KKT system [M −Jᵀ; J 0] solved through the Schur complement S = J M⁻¹ Jᵀ, with its inverse in dense blocks:

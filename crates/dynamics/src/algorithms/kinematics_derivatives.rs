@@ -50,6 +50,11 @@ impl FramePoint {
         }
     }
 
+    /// The classical acceleration of the frame's origin, world axes: the spatial acceleration's linear part plus ω × v.
+    pub(crate) fn classical_acceleration(&self) -> Vector3<f64> {
+        linear(&self.acceleration) + angular(&self.velocity).cross(&linear(&self.velocity))
+    }
+
     /// `value` (world axes, about the frame's origin) in `frame`.
     pub(crate) fn express(&self, value: &Motion, frame: Frame) -> Motion {
         match frame {
