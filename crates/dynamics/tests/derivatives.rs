@@ -15,7 +15,7 @@ use rand::{Rng, SeedableRng};
 
 #[path = "fixtures/trees.rs"]
 mod trees;
-use trees::random_case;
+use trees::{random_case, random_state, random_tree};
 
 #[path = "fixtures/slopes.rs"]
 mod slopes;
@@ -45,27 +45,43 @@ fn rnea_derivatives_are_the_slopes_of_rnea() {
     }
 }
 
+/// `aba_derivatives` against central differences of `aba` for one case.
+fn check_aba_derivatives(rng: &mut StdRng, case: usize, model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {
+    let nv = model.nv();
+    let tau: Vec<f64> = (0..nv).map(|_| rng.random_range(-3.0..3.0)).collect();
+    let forces = random_forces(rng, model);
+    let f_ext = (case % 3 == 1).then_some(forces.as_slice());
+    let (dq, dv, dtau) = aba_derivatives(model, data, q, v, &tau, f_ext);
+    let (dq, dv, dtau) = (dq.clone(), dv.clone(), dtau.clone());
+    let mut scratch = Data::new(model);
+    let ddq = aba(model, &mut scratch, q, v, &tau, f_ext).clone();
+    assert_eq!(data.ddq, ddq, "case {case}: aba_derivatives leaves q̈ in data.ddq");
+    let want_dq = central_differences(nv, |j, h| aba(model, &mut scratch, &stepped_q(model, q, j, h), v, &tau, f_ext).clone());
+    let want_dv = central_differences(nv, |j, h| aba(model, &mut scratch, q, &stepped(v, j, h), &tau, f_ext).clone());
+    let want_dtau = central_differences(nv, |j, h| aba(model, &mut scratch, q, v, &stepped(&tau, j, h), f_ext).clone());
+    assert_close(&dq, &want_dq, &format!("case {case}: dddq/dq"));
+    assert_close(&dv, &want_dv, &format!("case {case}: dddq/dv"));
+    assert_close(&dtau, &want_dtau, &format!("case {case}: dddq/dtau"));
+}
+
 #[test]
 fn aba_derivatives_are_the_slopes_of_aba() {
     let mut rng = StdRng::seed_from_u64(5);
     for case in 0..40 {
         let (model, mut data, q, v) = random_case(&mut rng, case);
-        let nv = model.nv();
-        let tau: Vec<f64> = (0..nv).map(|_| rng.random_range(-3.0..3.0)).collect();
-        let forces = random_forces(&mut rng, &model);
-        let f_ext = (case % 3 == 1).then_some(forces.as_slice());
-        let (q, v) = (q.as_slice(), v.as_slice());
-        let (dq, dv, dtau) = aba_derivatives(&model, &mut data, q, v, &tau, f_ext);
-        let (dq, dv, dtau) = (dq.clone(), dv.clone(), dtau.clone());
-        let mut scratch = Data::new(&model);
-        let ddq = aba(&model, &mut scratch, q, v, &tau, f_ext).clone();
-        assert_eq!(data.ddq, ddq, "case {case}: aba_derivatives leaves q̈ in data.ddq");
-        let want_dq = central_differences(nv, |j, h| aba(&model, &mut scratch, &stepped_q(&model, q, j, h), v, &tau, f_ext).clone());
-        let want_dv = central_differences(nv, |j, h| aba(&model, &mut scratch, q, &stepped(v, j, h), &tau, f_ext).clone());
-        let want_dtau = central_differences(nv, |j, h| aba(&model, &mut scratch, q, v, &stepped(&tau, j, h), f_ext).clone());
-        assert_close(&dq, &want_dq, &format!("case {case}: dddq/dq"));
-        assert_close(&dv, &want_dv, &format!("case {case}: dddq/dv"));
-        assert_close(&dtau, &want_dtau, &format!("case {case}: dddq/dtau"));
+        check_aba_derivatives(&mut rng, case, &model, &mut data, q.as_slice(), v.as_slice());
+    }
+}
+
+/// Beyond 32 degrees of freedom the products by M⁻¹ are solves with the articulated-body factors.
+#[test]
+fn aba_derivatives_on_large_trees_are_the_slopes_of_aba() {
+    let mut rng = StdRng::seed_from_u64(6);
+    for case in 0..4 {
+        let model = random_tree(&mut rng, 45, case % 2 == 0);
+        assert!(model.nv() > 32, "case {case}: nv {}", model.nv());
+        let (q, v) = random_state(&mut rng, &model);
+        check_aba_derivatives(&mut rng, case, &model, &mut Data::new(&model), q.as_slice(), v.as_slice());
     }
 }
 
