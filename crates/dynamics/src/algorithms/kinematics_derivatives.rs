@@ -4,9 +4,9 @@
 //! and the time derivative J̇ of its Jacobian (a contact's acceleration is J q̈ + J̇ q̇ + ω × v). The derivative of
 //! the frame's placement on the tangent space is its Jacobian in `Frame::Local` (`jacobian`).
 //!
-//! From the forward pass the RNEA derivatives share (`motion_derivatives`): a change of joint j's coordinate moves the
-//! body's frame rigidly about S_j and changes its world velocity and acceleration, apart from that motion, by the
-//! columns ∂v/∂q and ∂a/∂q − v × ∂v/∂q (Carpentier & Mansard, eq. 9–10). Each frame's result is the derivative of what
+//! From the forward pass the RNEA derivatives share (`motion_derivatives`; Carpentier & Mansard, RSS 2018): a change of
+//! joint j's coordinate moves the body's frame rigidly about S_j and changes its world velocity and acceleration, apart
+//! from that motion, by the columns ∂v/∂q and ∂a/∂q − v × ∂v/∂q. Each frame's result is the derivative of what
 //! `frame_velocity` and `frame_acceleration` return. Pinocchio's `LOCAL_WORLD_ALIGNED` q-derivatives differ from
 //! these in the linear rows, by ω × J_lin for the velocity and α × J_lin for the acceleration: they hold the frame's
 //! origin still.
@@ -204,7 +204,7 @@ pub(crate) struct FrameDerivative {
 }
 
 /// Calls `visit(c, derivative)` for each velocity coordinate c that moves the frame, after `motion_derivatives`
-/// (eq. 9–10, their non-rigid parts: the body's own velocity adds v × ∂v/∂q to ∂a/∂q and v × S to ∂a/∂q̇).
+/// (their non-rigid parts: the body's own velocity adds v × ∂v/∂q to ∂a/∂q and v × S to ∂a/∂q̇).
 pub(crate) fn for_each_frame_derivative(model: &Model, data: &Data, at: &FramePoint, frame: Frame, mut visit: impl FnMut(usize, FrameDerivative)) {
     let d = &data.derivatives;
     let body_velocity = d.velocity[at.body];
