@@ -3,7 +3,7 @@
 //! differentiates: exp(ξ + δ) ≈ exp(ξ) exp(J_r(ξ) δ) and log(M exp(δ)) ≈ log(M) + J_r(log M)⁻¹ δ.
 //!
 //! Formulas from Solà, Deray & Atchuthan, "A micro Lie theory for state estimation in robotics" (arXiv:1812.01537,
-//! 2018; [Solà]), eqs. 143-146 for SO(3) and App. D for SE(3), and Barfoot & Furgale, "Associating uncertainty with
+//! 2018; [Solà]), its SO(3) Jacobians (eq. 143 and the closed forms beside it) and App. D for SE(3), and Barfoot & Furgale, "Associating uncertainty with
 //! three-dimensional poses" (T-RO 2014; [Barfoot]), eq. 102, for the coupling block Q of the SE(3) Jacobians.
 //!
 //! Every coefficient below is a trigonometric expression over a power of the angle θ whose closed form cancels as θ
@@ -56,7 +56,7 @@ fn inverse_coefficient(theta2: f64) -> f64 {
     }
 }
 
-/// The SO(3) left Jacobian V(ω) = 1 + (1 − cos θ)/θ² ω̂ + (θ − sin θ)/θ³ ω̂² [Solà, eq. 145]: exp of the twist
+/// The SO(3) left Jacobian V(ω) = 1 + (1 − cos θ)/θ² ω̂ + (θ − sin θ)/θ³ ω̂² [Solà, beside eq. 143]: exp of the twist
 /// (ρ, ω) translates by V ρ. The right Jacobian is J_r(ω) = V(−ω) = V(ω)ᵀ [eq. 143].
 fn left_jacobian(w: &Vector3<f64>) -> Matrix3<f64> {
     let (a, b) = rodrigues_coefficients(w.norm_squared());
@@ -64,7 +64,7 @@ fn left_jacobian(w: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::identity() + k * a + k * k * b
 }
 
-/// J_r(ω)⁻¹ = 1 + ½ ω̂ + (1/θ² − cot(θ/2)/(2θ)) ω̂² [Solà, eq. 144]; V(ω)⁻¹ is this at −ω.
+/// J_r(ω)⁻¹ = 1 + ½ ω̂ + (1/θ² − cot(θ/2)/(2θ)) ω̂² [Solà, beside eq. 143]; V(ω)⁻¹ is this at −ω.
 fn right_jacobian_inverse(w: &Vector3<f64>) -> Matrix3<f64> {
     let k = w.cross_matrix();
     Matrix3::identity() + k * 0.5 + k * k * inverse_coefficient(w.norm_squared())
