@@ -3,8 +3,9 @@
 //! differentiates: exp(ξ + δ) ≈ exp(ξ) exp(J_r(ξ) δ) and log(M exp(δ)) ≈ log(M) + J_r(log M)⁻¹ δ.
 //!
 //! Formulas from Solà, Deray & Atchuthan, "A micro Lie theory for state estimation in robotics" (arXiv:1812.01537,
-//! 2018; [Solà]), its SO(3) Jacobians (eq. 143 and the closed forms beside it) and App. D for SE(3), and Barfoot & Furgale, "Associating uncertainty with
-//! three-dimensional poses" (T-RO 2014; [Barfoot]), eq. 102, for the coupling block Q of the SE(3) Jacobians.
+//! 2018; [Solà]), its SO(3) Jacobians (eq. 143 and the closed forms beside it) and App. D for SE(3), and Barfoot &
+//! Furgale, "Associating uncertainty with three-dimensional poses" (T-RO 2014; [Barfoot]), eq. 102, for the coupling
+//! block Q of the SE(3) Jacobians.
 //!
 //! Every coefficient below is a trigonometric expression over a power of the angle θ whose closed form cancels as θ
 //! goes to 0 (by up to ε/θ⁴ for d in `coupling`, whose term is O(θ³)); below `SERIES_BELOW` its Taylor series to θ⁶
