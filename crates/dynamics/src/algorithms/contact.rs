@@ -127,6 +127,11 @@ impl Kkt {
         y.gemm(-1.0, &self.gain, a, 1.0);
         (x, y)
     }
+
+    /// `solve` for one right-hand side.
+    pub fn solve_vectors(&self, a: &DVector<f64>, b: &DVector<f64>) -> (DVector<f64>, DVector<f64>) {
+        (&self.projected * a + &self.gain_t * b, &self.schur_inverse * b - &self.gain * a)
+    }
 }
 
 /// The inverse of a symmetric positive definite matrix by its Cholesky factor L (S⁻¹ = L⁻ᵀ L⁻¹), in plain loops (the
@@ -176,10 +181,7 @@ pub(crate) fn kkt(model: &Model, data: &mut Data, q: &[f64], j: &DMatrix<f64>) -
 /// minimum-norm sense (the smallest forces that do the job).
 fn solve_vectors(system: &std::result::Result<Kkt, Dependent>, j: &DMatrix<f64>, a: DVector<f64>, b: DVector<f64>) -> (DVector<f64>, DVector<f64>) {
     match system {
-        Ok(kkt) => {
-            let (x, y) = kkt.solve(&DMatrix::from_column_slice(a.len(), 1, a.as_slice()), &DMatrix::from_column_slice(b.len(), 1, b.as_slice()));
-            (DVector::from_column_slice(x.as_slice()), DVector::from_column_slice(y.as_slice()))
-        }
+        Ok(kkt) => kkt.solve_vectors(&a, &b),
         Err(Dependent { minv, minv_jt, schur }) => {
             let free = minv * a;
             let y = solve_spd(schur.clone(), &(b - j * &free));

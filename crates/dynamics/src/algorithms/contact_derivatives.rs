@@ -130,9 +130,7 @@ pub fn contact_dynamics_derivatives(
     let rows = constraint(model, data, q, v, contacts);
     let bias = DVector::from_column_slice(rnea(model, data, q, v, &vec![0.0; model.nv()], None).as_slice());
     let kkt = independent(kkt(model, data, q, &rows.linear)?)?;
-    let column = |x: DVector<f64>| DMatrix::from_column_slice(x.len(), 1, x.as_slice());
-    let (ddq, forces) = kkt.solve(&column(DVector::from_column_slice(tau) - bias), &column(-&rows.drift));
-    let (ddq, forces) = (DVector::from_column_slice(ddq.as_slice()), DVector::from_column_slice(forces.as_slice()));
+    let (ddq, forces) = kkt.solve_vectors(&(DVector::from_column_slice(tau) - bias), &-&rows.drift);
     // The rows' partial derivatives: M q̈ + h − Jᵀλ − τ (inverse dynamics with the forces applied) and J q̈ + γ.
     let f_ext = body_forces(model, data, contacts, &forces);
     let (dtau_dq, dtau_dv) = rnea_derivatives(model, data, q, v, ddq.as_slice(), Some(&f_ext));
@@ -155,11 +153,10 @@ pub fn impact_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], 
     let rows = constraint(model, data, q, v, contacts);
     let kkt = independent(kkt(model, data, q, &rows.linear)?)?;
     let (nv, k3) = (model.nv(), 3 * contacts.len());
-    let before = DMatrix::from_column_slice(nv, 1, v);
+    let before = DVector::from_column_slice(v);
     // M (v⁺ − v) − Jᵀ Λ = 0, J v⁺ = 0.
-    let (change, impulses) = kkt.solve(&DMatrix::zeros(nv, 1), &-(&rows.linear * &before));
-    let velocity = DVector::from_column_slice((before + change.clone()).as_slice());
-    let impulses = DVector::from_column_slice(impulses.as_slice());
+    let (change, impulses) = kkt.solve_vectors(&DVector::zeros(nv), &-(&rows.linear * &before));
+    let velocity = before + &change;
     // ∂(J v⁺)/∂q: the points' velocities at v⁺.
     motion_derivatives(model, data, q, velocity.as_slice(), None, Motion::zeros());
     let mut dvelocity_dq = DMatrix::zeros(k3, nv);
