@@ -179,32 +179,37 @@ fn stacked(a: &DVector<f64>, b: &DVector<f64>) -> DVector<f64> {
     DVector::from_iterator(a.len() + b.len(), a.iter().chain(b.iter()).copied())
 }
 
-#[test]
-fn contact_dynamics_derivatives_are_its_slopes() {
-    let mut rng = StdRng::seed_from_u64(13);
+/// Runs `check(rng, case, model, data, q, v, contacts)` on 80 random trees with up to three random contact points each;
+/// it returns false for dependent contacts, which the derivatives refuse, and most are independent.
+fn for_contact_cases(seed: u64, mut check: impl FnMut(&mut StdRng, usize, &Model, &mut Data, &[f64], &[f64], &[ContactPoint]) -> bool) {
+    let mut rng = StdRng::seed_from_u64(seed);
     let mut checked = 0;
     for case in 0..80 {
         let (model, mut data, q, v) = random_case(&mut rng, case);
-        let nv = model.nv();
         let contacts = random_contacts(&mut rng, &model);
-        if contacts.is_empty() {
-            continue;
+        if !contacts.is_empty() && check(&mut rng, case, &model, &mut data, q.as_slice(), v.as_slice(), &contacts) {
+            checked += 1;
         }
+    }
+    assert!(checked >= 35, "only {checked} cases had independent contacts");
+}
+
+#[test]
+fn contact_dynamics_derivatives_are_its_slopes() {
+    for_contact_cases(13, |rng, case, model, data, q, v, contacts| {
+        let nv = model.nv();
         let tau: Vec<f64> = (0..nv).map(|_| rng.random_range(-3.0..3.0)).collect();
-        let (q, v) = (q.as_slice(), v.as_slice());
-        // Dependent contacts are refused; independent ones are most.
-        let Ok(got) = contact_dynamics_derivatives(&model, &mut data, q, v, &tau, &contacts) else { continue };
-        checked += 1;
-        let mut scratch = Data::new(&model);
-        let solved = contact_dynamics(&model, &mut scratch, q, v, &tau, &contacts).unwrap();
-        let condition = contact_condition(&model, q, &contacts);
+        let Ok(got) = contact_dynamics_derivatives(model, data, q, v, &tau, contacts) else { return false };
+        let mut scratch = Data::new(model);
+        let solved = contact_dynamics(model, &mut scratch, q, v, &tau, contacts).unwrap();
+        let condition = contact_condition(model, q, contacts);
         let what = |name: &str| format!("case {case}, {} contacts (condition {condition:.1e}): {name}", contacts.len());
         assert_close(&DMatrix::from_column_slice(nv, 1, got.ddq.as_slice()), &DMatrix::from_column_slice(nv, 1, solved.ddq.as_slice()), &what("ddq"));
         let mut both = |q: &[f64], v: &[f64], tau: &[f64]| {
-            let s = contact_dynamics(&model, &mut scratch, q, v, tau, &contacts).unwrap();
+            let s = contact_dynamics(model, &mut scratch, q, v, tau, contacts).unwrap();
             stacked(&s.ddq, &s.forces)
         };
-        let want_dq = central_differences(nv, |j, h| both(&stepped_q(&model, q, j, h), v, &tau));
+        let want_dq = central_differences(nv, |j, h| both(&stepped_q(model, q, j, h), v, &tau));
         let want_dv = central_differences(nv, |j, h| both(q, &stepped(v, j, h), &tau));
         let want_dtau = central_differences(nv, |j, h| both(q, v, &stepped(&tau, j, h)));
         for (got_ddq, got_forces, want, name) in [
@@ -215,27 +220,18 @@ fn contact_dynamics_derivatives_are_its_slopes() {
             assert_close_conditioned(got_ddq, &want.rows(0, nv).into_owned(), condition, &what(&format!("ddq/d{name}")));
             assert_close_conditioned(got_forces, &want.rows(nv, want.nrows() - nv).into_owned(), condition, &what(&format!("forces/d{name}")));
         }
-    }
-    assert!(checked >= 35, "only {checked} cases had independent contacts");
+        true
+    });
 }
 
 #[test]
 fn impact_derivatives_are_its_slopes() {
-    let mut rng = StdRng::seed_from_u64(17);
-    let mut checked = 0;
-    for case in 0..80 {
-        let (model, mut data, q, v) = random_case(&mut rng, case);
+    for_contact_cases(17, |_, case, model, data, q, v, contacts| {
         let nv = model.nv();
-        let contacts = random_contacts(&mut rng, &model);
-        if contacts.is_empty() {
-            continue;
-        }
-        let (q, v) = (q.as_slice(), v.as_slice());
-        let Ok(got) = impact_derivatives(&model, &mut data, q, v, &contacts) else { continue };
-        checked += 1;
-        let mut scratch = Data::new(&model);
+        let Ok(got) = impact_derivatives(model, data, q, v, contacts) else { return false };
+        let mut scratch = Data::new(model);
         let mut both = |q: &[f64], v: &[f64]| {
-            let (after, impulses) = impact(&model, &mut scratch, q, v, &contacts).unwrap();
+            let (after, impulses) = impact(model, &mut scratch, q, v, contacts).unwrap();
             stacked(&after, &impulses)
         };
         let at = both(q, v);
@@ -245,7 +241,7 @@ fn impact_derivatives_are_its_slopes() {
             &DMatrix::from_column_slice(nv, 1, &at.as_slice()[..nv]),
             &what("v+"),
         );
-        let want_dq = central_differences(nv, |j, h| both(&stepped_q(&model, q, j, h), v));
+        let want_dq = central_differences(nv, |j, h| both(&stepped_q(model, q, j, h), v));
         let want_dv = central_differences(nv, |j, h| both(q, &stepped(v, j, h)));
         for (got_v, got_impulses, want, name) in
             [(&got.velocity_dq, &got.impulses_dq, want_dq, "q"), (&got.velocity_dv, &got.impulses_dv, want_dv, "v")]
@@ -253,6 +249,6 @@ fn impact_derivatives_are_its_slopes() {
             assert_close(got_v, &want.rows(0, nv).into_owned(), &what(&format!("v+/d{name}")));
             assert_close(got_impulses, &want.rows(nv, want.nrows() - nv).into_owned(), &what(&format!("impulses/d{name}")));
         }
-    }
-    assert!(checked >= 35, "only {checked} cases had independent contacts");
+        true
+    });
 }
