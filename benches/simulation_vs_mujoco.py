@@ -322,6 +322,10 @@ class Runner:
     base: Callable[[], np.ndarray] | None = None  # quadrupeds: [x, y, z, up_z] of the torso
     state: Callable[[], tuple[np.ndarray, np.ndarray, int]] | None = None  # legkit: (q, v, steps done)
     restore: Callable[[np.ndarray, np.ndarray, int], None] | None = None
+    # The transition Jacobians of one step at the current state (legkit's tree engine: `transition_jacobians`;
+    # MuJoCo: `mjd_transitionFD`, forward differences), returning (A, B): benches/transition_vs_mujoco.py.
+    jacobians: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None
+    simulation: lk.Simulation | None = None  # legkit's
 
 
 @dataclass
@@ -351,14 +355,15 @@ def tree_scene(n_modules: int) -> Scene:
             sim.reset(q, v)
             done[0] = steps
 
-        return Runner(advance, lambda: len(sim.contacts()["body"]), state=lambda: (sim.q, sim.v, done[0]), restore=restore)
+        return Runner(advance, lambda: len(sim.contacts()["body"]), state=lambda: (sim.q, sim.v, done[0]), restore=restore,
+                      jacobians=sim.transition_jacobians, simulation=sim)
 
     def mujoco_runner() -> Runner:
         import mujoco
 
         m = mujoco.MjModel.from_xml_string(mujoco_xml(parts))
         d = mujoco.MjData(m)
-        return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon))
+        return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon), jacobians=mujoco_jacobians(m, d))
 
     return Scene(f"tree-{modules}", dof, legkit_runner, mujoco_runner)
 
@@ -509,7 +514,8 @@ def robot_scene(robot: str, fall: bool) -> Scene:
             sim.reset(q0, v0)
             done[0] = steps
 
-        return Runner(advance, lambda: len(sim.contacts()["body"]), base, lambda: (sim.q, sim.v, done[0]), restore)
+        return Runner(advance, lambda: len(sim.contacts()["body"]), base, lambda: (sim.q, sim.v, done[0]), restore,
+                      jacobians=sim.transition_jacobians, simulation=sim)
 
     def mujoco_runner() -> Runner:
         import mujoco
@@ -547,9 +553,23 @@ def robot_scene(robot: str, fall: bool) -> Scene:
             _, x, y, _ = d.qpos[3:7]
             return np.array([*d.qpos[:3], 1 - 2 * (x * x + y * y)])
 
-        return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon), base)
+        return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon), base, jacobians=mujoco_jacobians(m, d))
 
     return Scene(f"{robot}-{'fall' if fall else 'stand'}", model.nv - 6, legkit_runner, mujoco_runner)
+
+
+def mujoco_jacobians(m, d) -> Callable[[], tuple[np.ndarray, np.ndarray]]:
+    """MuJoCo's `mjd_transitionFD` at the current state: forward differences (its default) with eps = 1e-6."""
+    import mujoco
+
+    a = np.zeros((2 * m.nv + m.na, 2 * m.nv + m.na))
+    b = np.zeros((2 * m.nv + m.na, m.nu))
+
+    def jacobians() -> tuple[np.ndarray, np.ndarray]:
+        mujoco.mjd_transitionFD(m, d, 1e-6, False, a, b, None, None)
+        return a, b
+
+    return jacobians
 
 
 # ------------------------------------------------------------------------------------------------------

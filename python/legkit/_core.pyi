@@ -303,6 +303,8 @@ class Simulation:
         backend: Literal["tree", "rapier"] = "tree", solver_iterations: int = 20,
     ) -> None: ...
     @property
+    def model(self) -> Model: ...
+    @property
     def backend(self) -> Literal["tree", "rapier"]: ...
     @property
     def last_solver_iterations(self) -> int | None:
@@ -310,6 +312,10 @@ class Simulation:
     def step(self, tau: npt.ArrayLike | None = None, n: int = 1) -> None:
         """n steps with feed-forward tau (nv,) held over them; GIL released. RuntimeError (naming the step and
         the body) if the state would diverge; the last good state is kept."""
+    def transition_jacobians(self, tau: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """A = dx+/dx (2nv, 2nv) and B = dx+/du (2nv, 3nv) of one step from the current state, x = (dq on q's
+        tangent space, v), u = (tau, servo target_q per velocity coordinate, servo target_v); changes nothing.
+        The step's contacts, their zones, saturated servos and active limits are held. Tree backend, substeps=1."""
     def set_servo(
         self, kp: npt.ArrayLike, kd: npt.ArrayLike | None = None, torque_limit: npt.ArrayLike | None = None,
         target_q: npt.ArrayLike | None = None, target_v: npt.ArrayLike | None = None,

@@ -105,6 +105,8 @@ impl PyGround {
 #[pyclass(name = "Simulation", module = "legkit")]
 pub struct PySimulation {
     sim: Simulation,
+    /// The Model it was built from (its description; the simulation holds its own copy).
+    model: Py<PyModel>,
 }
 
 fn shape_error(reason: impl std::fmt::Display) -> PyErr {
@@ -234,7 +236,13 @@ impl PySimulation {
         options.backend = Backend::parse(backend).map_err(kernel_error)?;
         options.shapes = shape_overrides(&model, shapes.as_ref())?;
         let sim = Simulation::new(&model.model, options).map_err(kernel_error)?;
-        Ok(PySimulation { sim })
+        Ok(PySimulation { sim, model: model.into() })
+    }
+
+    /// The Model simulated.
+    #[getter]
+    fn model(&self, py: Python<'_>) -> Py<PyModel> {
+        self.model.clone_ref(py)
     }
 
     /// Newton iterations of the contact solver in the last (sub)step on the tree engine (it stops once
@@ -265,6 +273,24 @@ impl PySimulation {
         let tau = tau.map(|t| vector_argument("tau", &t, self.sim.model().nv())).transpose()?;
         let sim = &mut self.sim;
         py.detach(|| sim.step(tau.as_deref(), n as usize)).map_err(kernel_error)
+    }
+
+    /// The transition Jacobians of one step from the current state (GIL released), as MuJoCo's
+    /// `mjd_transitionFD`: A = ∂x⁺/∂x (2 nv, 2 nv) and B = ∂x⁺/∂u (2 nv, 3 nv), for the state x = (δq, v), q
+    /// on its tangent space (q ⊕ δq, as `integrate`), and the controls u = (tau, target_q, target_v): B's columns are
+    /// the feed-forward tau (nv), the servos' position targets and their velocity targets (nv each, per
+    /// velocity coordinate; zero on a floating base's six). Analytic through the converged contact solve;
+    /// the step's contact set, contact zones (apart, sticking, sliding), saturated servos and active limits
+    /// are held. Nothing changes (state, time, contact history, `contacts()`). Tree backend, substeps=1.
+    #[pyo3(signature = (tau = None))]
+    fn transition_jacobians<'py>(&mut self, py: Python<'py>, tau: Option<Floats<'_>>) -> PyResult<Bound<'py, PyTuple>> {
+        let nv = self.sim.model().nv();
+        let tau = tau.map(|t| vector_argument("tau", &t, nv)).transpose()?;
+        let sim = &mut self.sim;
+        let (mut a, mut b) = (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0));
+        py.detach(|| sim.transition_jacobians(tau.as_deref(), &mut a, &mut b)).map_err(kernel_error)?;
+        let row_major = |m: &DMatrix<f64>| m.transpose().as_slice().to_vec();
+        PyTuple::new(py, [to_numpy(py, (2 * nv, 2 * nv), row_major(&a)), to_numpy(py, (2 * nv, 3 * nv), row_major(&b))])
     }
 
     /// Position/velocity servos, evaluated every step in Rust:

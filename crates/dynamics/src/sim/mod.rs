@@ -21,7 +21,7 @@ pub use actuation::{dof_coordinates, Servo};
 pub use ground::Ground;
 pub use options::{Backend, Convex, Options, Shape, ShapeKind, DEFAULT_SOLVER_ITERATIONS, MIN_DEFAULT_EDGE};
 
-use nalgebra::Vector3;
+use nalgebra::{DMatrix, Vector3};
 
 use crate::model::{check_vector, Model};
 use crate::spatial::Transform;
@@ -68,6 +68,16 @@ pub(crate) trait Engine: Send + Sync {
     fn contact_tolerance(&self) -> f64;
     /// Contact-solver iterations of the last (sub)step, where the engine stops on convergence.
     fn solver_iterations(&self) -> Option<usize>;
+    /// ∂x⁺/∂x and ∂x⁺/∂u of one step from (q, v), changing nothing (see `Simulation::transition_jacobians`).
+    fn transition_jacobians(
+        &mut self,
+        model: &Model,
+        actuation: &Actuation<'_>,
+        q: &[f64],
+        v: &[f64],
+        a: &mut DMatrix<f64>,
+        b: &mut DMatrix<f64>,
+    ) -> Result<()>;
 }
 
 pub struct Simulation {
@@ -226,6 +236,25 @@ impl Simulation {
             self.steps += 1;
         }
         Ok(())
+    }
+
+    /// The transition Jacobians of one step from the current state with feed-forward `tau` (None for zero)
+    /// and the current servos: A = ∂x⁺/∂x (2 nv x 2 nv) and B = ∂x⁺/∂u (2 nv x 3 nv) into `a` and `b`, for the
+    /// state x = (q on its tangent space, as q ⊕ δq; v) and the controls u = (τ_ff, target_q, target_v), as
+    /// MuJoCo's `mjd_transitionFD`. Nothing changes: not the state, time, contact history nor what
+    /// `contacts` reports. The step's contact set and each contact's zone (apart, sticking, sliding), its
+    /// saturated servos and active joint limits are held: the Jacobians are the step's away from switches
+    /// between them. Tree engine with one substep only (`Error::Invalid` otherwise).
+    pub fn transition_jacobians(&mut self, tau: Option<&[f64]>, a: &mut DMatrix<f64>, b: &mut DMatrix<f64>) -> Result<()> {
+        match tau {
+            Some(t) => {
+                check_vector("tau", t, self.model.nv())?;
+                self.tau_ff.copy_from_slice(t);
+            }
+            None => self.tau_ff.fill(0.0),
+        }
+        let actuation = Actuation { servo: &self.servo, effort: &self.effort, tau_ff: &self.tau_ff };
+        self.engine.transition_jacobians(&self.model, &actuation, &self.q, &self.v, a, b)
     }
 
     /// World pose of every body.

@@ -19,13 +19,13 @@
 mod builder;
 mod state;
 
-use nalgebra::Vector3;
+use nalgebra::{DMatrix, Vector3};
 use rapier3d_f64::prelude::PhysicsWorld;
 
 use crate::joint::Dofs;
 use crate::model::Model;
 use crate::spatial::Transform;
-use crate::Result;
+use crate::{Error, Result};
 use builder::{Layout, RapierAxis};
 
 use super::actuation::{dof_coordinates, Actuation};
@@ -95,6 +95,18 @@ impl Engine for RapierSimulation {
 
     fn solver_iterations(&self) -> Option<usize> {
         None
+    }
+
+    fn transition_jacobians(
+        &mut self,
+        _model: &Model,
+        _actuation: &Actuation<'_>,
+        _q: &[f64],
+        _v: &[f64],
+        _a: &mut DMatrix<f64>,
+        _b: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        Err(Error::invalid("backend", "transition Jacobians are those of legkit's tree engine (backend='tree'); Rapier's step is not differentiated"))
     }
 }
 

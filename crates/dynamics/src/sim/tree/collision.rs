@@ -24,6 +24,7 @@ pub(super) const PREDICTION: f64 = 1e-3;
 /// What a contact point carries from one step to the next: the impulses [λ_n, λ_t (world, 3)].
 pub(super) type Warm = [f64; 4];
 
+#[derive(Clone)]
 struct Collider {
     body: usize,
     /// The body of the fused model that `body` moves with, and that body's parent.
@@ -48,7 +49,7 @@ pub(super) enum Source {
     Manifold(u32, u32, u32),
 }
 
-#[derive(Default)]
+#[derive(Default, Clone)]
 pub(super) struct Pair {
     pub manifolds: Vec<ContactManifold<(), Warm>>,
     workspace: Option<ContactManifoldsWorkspace>,
@@ -69,6 +70,7 @@ pub(super) struct Found {
     pub source: Source,
 }
 
+#[derive(Clone)]
 pub(super) struct Collision {
     colliders: Vec<Collider>,
     /// The ground as a parry shape, for the colliders that meet it through parry; None if none does.
@@ -243,6 +245,58 @@ impl Collision {
             // The normal points from a to b: the force along it acts on b.
             collect(pair, pa, pb, cb.body, Some(ca.body), base + index as u32, out);
         }
+    }
+
+    /// Contact `f` of the last detection, its shapes moved to the bodies' world poses `poses`, keeping its
+    /// source and warm start: a plane contact is the same feature of its shape, re-evaluated in closed form;
+    /// a contact from parry's manifolds keeps its points on their shapes and its normal on the first shape,
+    /// parry not re-run, a face's point the other shape's vertex projected onto it: exact for a vertex on a
+    /// face or on the ground, first-order in the points' sliding for other features. Used to differentiate a
+    /// step's contacts with respect to the configuration (`transition`).
+    pub(super) fn moved(&self, f: &Found, poses: &[Transform]) -> Found {
+        let mut moved = *f;
+        match f.source {
+            Source::Plane(index, feature) => {
+                let c = &self.colliders[index as usize];
+                plane_points(&c.kind, &poses[c.body].compose(&c.local), f64::INFINITY, |p| {
+                    if p.feature == feature as usize {
+                        moved.point = Vector3::new(p.surface.x, p.surface.y, 0.5 * p.height);
+                        moved.distance = p.height;
+                    }
+                });
+            }
+            Source::Manifold(pair, manifold, point) => {
+                let n = self.colliders.len();
+                let (pose1, pose2, pair, ground) = match self.ground_pairs.get(pair as usize) {
+                    Some(p) => {
+                        let c = &self.colliders[pair as usize];
+                        (self.ground.as_ref().expect("a ground pair has the ground").1, to_pose(&poses[c.body].compose(&c.parry_local)), p, true)
+                    }
+                    None => {
+                        let (a, b, p) = &self.self_pairs[pair as usize - n];
+                        let (ca, cb) = (&self.colliders[*a as usize], &self.colliders[*b as usize]);
+                        (to_pose(&poses[ca.body].compose(&ca.parry_local)), to_pose(&poses[cb.body].compose(&cb.parry_local)), p, false)
+                    }
+                };
+                let manifold = &pair.manifolds[manifold as usize];
+                let frame1 = manifold.subshape_pos1().map_or(pose1, |s| pose1 * *s);
+                let frame2 = manifold.subshape_pos2().map_or(pose2, |s| pose2 * *s);
+                let contact = &manifold.points[point as usize];
+                let (mut p1, mut p2) = (from_vector(frame1 * contact.local_p1), from_vector(frame2 * contact.local_p2));
+                moved.normal = from_vector(frame1.rotation * manifold.local_n1);
+                // A face's point is the other shape's vertex projected onto it (the ground's: the body's).
+                let gap = (p2 - p1).dot(&moved.normal);
+                if ground || contact.fid1.is_face() && contact.fid2.is_vertex() {
+                    p1 = p2 - moved.normal * gap;
+                } else if contact.fid2.is_face() && contact.fid1.is_vertex() {
+                    p2 = p1 + moved.normal * gap;
+                }
+                moved.tangents = tangents(&moved.normal);
+                moved.point = (p1 + p2) * 0.5;
+                moved.distance = gap;
+            }
+        }
+        moved
     }
 
     /// Stores the impulses of the contact at `source` for the next step's warm start.

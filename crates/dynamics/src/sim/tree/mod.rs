@@ -25,10 +25,11 @@ mod plane;
 mod solver;
 #[cfg(test)]
 mod tests;
+mod transition;
 
 use std::sync::Arc;
 
-use nalgebra::{Vector3, Vector6};
+use nalgebra::{DMatrix, Vector3, Vector6};
 
 use super::actuation::{dof_coordinates, Actuation};
 use super::options::{Options, DEFAULT_FRICTION};
@@ -40,6 +41,7 @@ use crate::{Error, MassProperties, Result};
 use collision::{Collision, Found};
 use delassus::Delassus;
 use solver::{Constraint, Kind, Solver, Target, BAUMGARTE, MAX_CORRECTION, TOLERANCE};
+use transition::Transition;
 
 /// Joint limits are watched from this far off (rad or m), beyond the step's own travel.
 const LIMIT_MARGIN: f64 = 1e-3;
@@ -74,7 +76,7 @@ pub(crate) struct TreeSimulation {
     /// Last step's limit impulses per velocity coordinate: [at the lower bound, at the upper bound].
     limit_impulses: Vec<[f64; 2]>,
     found: Vec<Found>,
-    /// For each limit constraint of this step: (velocity coordinate, 0 for lower or 1 for upper).
+    /// For each limit constraint of this step: (its joint in `limited`, 0 for lower or 1 for upper).
     limit_rows: Vec<(usize, usize)>,
     constraints: Vec<Constraint>,
     solver: Solver,
@@ -90,6 +92,8 @@ pub(crate) struct TreeSimulation {
     v_next: Vec<f64>,
     q_start: Vec<f64>,
     contacts: Vec<Contact>,
+    /// The transition Jacobians' buffers, once asked for.
+    transition: Option<Box<Transition>>,
 }
 
 impl TreeSimulation {
@@ -134,6 +138,7 @@ impl TreeSimulation {
             v_next: vec![0.0; nv],
             q_start: vec![0.0; model.nq()],
             contacts: Vec::new(),
+            transition: None,
         })
     }
 
@@ -158,49 +163,44 @@ impl TreeSimulation {
 
     /// Step 3: the constraints of this step, contacts first, in the order found; `model` is the fused model.
     fn constrain(&mut self, model: &Model, q: &[f64]) {
-        let h = self.h;
         let origin = base_origin(model, q);
         self.constraints.clear();
         for f in &self.found {
-            let (body, other) = (self.fused_body[f.body], f.other.map(|o| self.fused_body[o]));
-            let [t1, t2] = f.tangents;
-            let r = f.point - origin;
-            let rows = [f.normal, t1, t2].map(|d| spatial(d, r.cross(&d)));
-            let (diagonal, scale) = self.delassus.contact(model, &self.data, body, other, &rows, &r);
-            let warm_t = Vector3::new(f.warm[1], f.warm[2], f.warm[3]);
-            let warm = [f.warm[0], warm_t.dot(&t1), warm_t.dot(&t2)];
-            let kind = Kind::Contact { mu: self.friction, arm: r };
-            self.constraints.push(Constraint::new(
-                kind,
-                Target::Bodies(body, other),
-                rows,
-                asked_normal_velocity(f.distance, h),
-                warm,
-                diagonal,
-                scale,
+            self.constraints.push(contact_constraint(
+                model,
+                &self.data,
+                &self.delassus,
+                &self.fused_body,
+                self.friction,
+                self.h,
+                f,
+                f.distance,
+                &origin,
             ));
         }
         self.limit_rows.clear();
-        let unit = Vector6::new(1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-        for &LimitedJoint { body, v: k, q: kq, lower, upper } in &self.limited {
-            let travel = h * self.v_free[k];
-            for (side, gap, sign) in [(0, q[kq] - lower, 1.0), (1, upper - q[kq], -1.0)] {
+        for (index, joint) in self.limited.iter().enumerate() {
+            let travel = self.h * self.v_free[joint.v];
+            for (side, gap, sign) in [(0, q[joint.q] - joint.lower, 1.0), (1, joint.upper - q[joint.q], -1.0)] {
                 if gap >= LIMIT_MARGIN + (-sign * travel).max(0.0) {
                     continue;
                 }
-                let a = self.delassus.coordinate(model, &self.data, body);
-                let warm = [self.limit_impulses[k][side], 0.0, 0.0];
-                let zero = Vector6::zeros();
-                self.constraints.push(Constraint::new(
-                    Kind::Limit,
-                    Target::Coordinate(k),
-                    [unit * sign, zero, zero],
-                    asked_normal_velocity(gap, h),
-                    warm,
-                    [a, 0.0],
-                    a,
-                ));
-                self.limit_rows.push((k, side));
+                let warm = self.limit_impulses[joint.v][side];
+                self.constraints.push(limit_constraint(model, &self.data, &self.delassus, self.h, joint, side, q, q, warm));
+                self.limit_rows.push((index, side));
+            }
+        }
+    }
+
+    /// The world poses of the original model's bodies from the fused model's, which `data` holds about the
+    /// base origin of `q`, into `poses`.
+    fn collision_poses(&self, data: &Data, q: &[f64], poses: &mut [Transform]) {
+        let origin = base_origin(&self.fused, q);
+        for ((pose, &body), offset) in poses.iter_mut().zip(&self.fused_body).zip(&self.offset) {
+            let centred = &data.centred_m_i[body];
+            *pose = Transform::new(centred.rotation, centred.translation + origin);
+            if let Some(offset) = offset {
+                *pose = pose.compose(offset);
             }
         }
     }
@@ -222,14 +222,9 @@ impl TreeSimulation {
                 return Err(Error::numerical("step", "the mass matrix stopped being positive definite (a massless body on a joint?)"));
             }
             if !detected {
-                let origin = base_origin(model, q);
-                for ((pose, &body), offset) in self.poses.iter_mut().zip(&self.fused_body).zip(&self.offset) {
-                    let centred = &self.data.centred_m_i[body];
-                    *pose = Transform::new(centred.rotation, centred.translation + origin);
-                    if let Some(offset) = offset {
-                        *pose = pose.compose(offset);
-                    }
-                }
+                let mut poses = std::mem::take(&mut self.poses);
+                self.collision_poses(&self.data, q, &mut poses);
+                self.poses = poses;
                 self.found.clear();
                 self.collision.detect(&self.poses, &mut self.found);
                 // Bodies fixed to a fixed base cannot move: their contacts carry no constraint.
@@ -294,8 +289,8 @@ impl TreeSimulation {
         for impulses in self.limit_impulses.iter_mut() {
             *impulses = [0.0; 2];
         }
-        for (&(k, side), c) in self.limit_rows.iter().zip(&self.constraints[self.found.len()..]) {
-            self.limit_impulses[k][side] = c.lambda[0];
+        for (&(index, side), c) in self.limit_rows.iter().zip(&self.constraints[self.found.len()..]) {
+            self.limit_impulses[self.limited[index].v][side] = c.lambda[0];
         }
     }
 }
@@ -336,6 +331,18 @@ impl Engine for TreeSimulation {
 
     fn solver_iterations(&self) -> Option<usize> {
         Some(self.iterations)
+    }
+
+    fn transition_jacobians(
+        &mut self,
+        _model: &Model,
+        actuation: &Actuation<'_>,
+        q: &[f64],
+        v: &[f64],
+        a: &mut DMatrix<f64>,
+        b: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        TreeSimulation::transition_jacobians(self, actuation, q, v, a, b)
     }
 }
 
@@ -378,13 +385,81 @@ fn fuse(model: &Model) -> Result<(Model, Vec<usize>, Vec<Transform>)> {
     Ok((fused, fused_body, offset))
 }
 
+/// The constraint of contact `f` (on the original model's bodies, `fused_body` mapping them to the fused
+/// `model`, whose factor `data` and `delassus` hold) for a step of `h` with friction `mu`, its normal velocity
+/// asked on the piece of gap `piece` (`asked_normal_velocity`).
+#[allow(clippy::too_many_arguments)]
+fn contact_constraint(
+    model: &Model,
+    data: &Data,
+    delassus: &Delassus,
+    fused_body: &[usize],
+    mu: f64,
+    h: f64,
+    f: &Found,
+    piece: f64,
+    origin: &Vector3<f64>,
+) -> Constraint {
+    let (body, other) = (fused_body[f.body], f.other.map(|o| fused_body[o]));
+    let [t1, t2] = f.tangents;
+    let r = f.point - origin;
+    let rows = [f.normal, t1, t2].map(|d| spatial(d, r.cross(&d)));
+    let (diagonal, scale) = delassus.contact(model, data, body, other, &rows, &r);
+    let warm_t = Vector3::new(f.warm[1], f.warm[2], f.warm[3]);
+    let warm = [f.warm[0], warm_t.dot(&t1), warm_t.dot(&t2)];
+    Constraint::new(
+        Kind::Contact { mu, arm: r },
+        Target::Bodies(body, other),
+        rows,
+        asked_normal_velocity(f.distance, h, piece),
+        warm,
+        diagonal,
+        scale,
+    )
+}
+
+/// The constraint of `joint`'s lower (`side` 0) or upper (1) bound at configuration `q`, its normal velocity asked
+/// on the piece of the gap at configuration `piece`, with its warm-start impulse, on the fused `model` whose
+/// factor `data` and `delassus` hold.
+#[allow(clippy::too_many_arguments)]
+fn limit_constraint(
+    model: &Model,
+    data: &Data,
+    delassus: &Delassus,
+    h: f64,
+    joint: &LimitedJoint,
+    side: usize,
+    q: &[f64],
+    piece: &[f64],
+    warm: f64,
+) -> Constraint {
+    let gap = |q: &[f64]| if side == 0 { q[joint.q] - joint.lower } else { joint.upper - q[joint.q] };
+    let sign = if side == 0 { 1.0 } else { -1.0 };
+    let a = delassus.coordinate(model, data, joint.body);
+    let unit = Vector6::new(sign, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let zero = Vector6::zeros();
+    Constraint::new(
+        Kind::Limit,
+        Target::Coordinate(joint.v),
+        [unit, zero, zero],
+        asked_normal_velocity(gap(q), h, gap(piece)),
+        [warm, 0.0, 0.0],
+        [a, 0.0],
+        a,
+    )
+}
+
 /// The normal velocity a constraint at `gap` asks for in a step of `h`: the gap closed while apart
 /// (speculative contact), a fraction of the penetration while overlapping (Baumgarte).
-fn asked_normal_velocity(gap: f64, h: f64) -> f64 {
-    if gap > 0.0 {
+/// `piece` is the gap whose piece of this piecewise-linear law applies (`gap` itself in a step; the step's own
+/// gap when differentiating it, which holds the piece).
+fn asked_normal_velocity(gap: f64, h: f64, piece: f64) -> f64 {
+    if piece > 0.0 {
         -gap / h
+    } else if -BAUMGARTE * piece / h < MAX_CORRECTION {
+        -BAUMGARTE * gap / h
     } else {
-        (-BAUMGARTE * gap / h).min(MAX_CORRECTION)
+        MAX_CORRECTION
     }
 }
 

@@ -1,0 +1,131 @@
+"""Side-by-side time of one step's transition Jacobians: legkit's ``Simulation.transition_jacobians`` (analytic
+through the tree engine's converged contact solve) and MuJoCo's ``mjd_transitionFD`` (finite differences of its
+step: forward, eps = 1e-6, its default), on scenes of benches/simulation_vs_mujoco.py built from the same numbers:
+Go1 standing on servos (example-robot-data's URDF) and the 21-module SuperBot-like tree sagging onto the ground
+(``--scenes`` adds ``quadruped-stand``, ``anymal-stand`` or larger trees such as ``tree-51``).
+
+Each engine settles its scene untimed (``--settle`` s), then computes the Jacobians at that state in
+``--blocks`` blocks of ``--calls`` calls; reported: the median over blocks of the mean call time (CPU time of
+the calling thread), the ratio legkit / MuJoCo, the sizes (A is 2 nv square in both; B is 2 nv x 3 nv in legkit,
+whose controls are the feed-forward torques and the servos' position and velocity targets, and 2 nv x nu in
+MuJoCo, whose are its actuators' controls), the contact points, and the spectral radius of each A (a step's
+stability: just below 1 for a robot at rest). The two engines' contact models differ (MuJoCo's soft contacts,
+legkit's regularised Coulomb cone), so their A and B are not expected to agree entry by entry.
+
+``--check`` also measures legkit's A and B's feed-forward columns against central differences of its own step
+(each displaced step replayed from a freshly settled scene, contact history included; displacement 1e-7), the
+accuracy figure of docs/derivatives.md; slow on the tree (6 nv settled replays).
+
+Run: ``python benches/transition_vs_mujoco.py [--scenes go1-stand tree-21] [--settle 0.3] [--blocks 7]
+[--calls 20] [--check]``. Prints a Markdown table and the load average.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+from collections.abc import Callable
+
+import numpy as np
+from simulation_vs_mujoco import DT, Runner, Scene, load_average, quadruped_scene, robot_scene, tree_scene
+
+import legkit as lk
+
+CHECK_STEP = 1e-7
+
+
+def scene(name: str) -> Scene:
+    if name.startswith("tree-"):
+        return tree_scene(int(name.split("-")[1]))
+    if name == "quadruped-stand":
+        return quadruped_scene(trot=False)
+    robot, _, kind = name.partition("-")
+    return robot_scene(robot, fall=kind == "fall")
+
+
+def settled(scene: Scene, engine: str, settle: float) -> Runner:
+    runner = scene.legkit("tree") if engine == "legkit" else scene.mujoco()
+    runner.advance(int(round(settle / DT)))
+    return runner
+
+
+def time_calls(call: Callable[[], object], blocks: int, calls: int) -> float:
+    """Median over blocks of the mean time of one call (s, thread CPU time)."""
+    means = []
+    for _ in range(blocks):
+        start = time.thread_time()
+        for _ in range(calls):
+            call()
+        means.append((time.thread_time() - start) / calls)
+    return statistics.median(means)
+
+
+def spectral_radius(a: np.ndarray) -> float:
+    return float(np.abs(np.linalg.eigvals(a)).max())
+
+
+def central_differences(build: Callable[[], lk.Simulation]) -> tuple[float, float]:
+    """Largest |[A B_tau] − central differences of the step| and largest |[A B_tau]| (B_tau: B's feed-forward
+    columns; the servo-target columns are checked in tests/), the displaced steps replayed from `build`."""
+    sim = build()
+    a, b = sim.transition_jacobians()
+    nv, model = sim.model.nv, sim.model
+    analytic = np.hstack([a, b[:, :nv]])
+    q, v = sim.q.copy(), sim.v.copy()
+
+    def step(column: int, delta: float) -> tuple[np.ndarray, np.ndarray]:
+        displaced = build()
+        d = np.zeros(3 * nv)
+        d[column] = delta
+        displaced.q = lk.integrate(model, q, d[:nv], 1.0)
+        displaced.v = v + d[nv:2 * nv]
+        displaced.step(d[2 * nv:])
+        return displaced.q, displaced.v
+
+    q_next, _ = step(0, 0.0)
+    numeric = np.zeros_like(analytic)
+    for column in range(3 * nv):
+        (q_plus, v_plus), (q_minus, v_minus) = step(column, CHECK_STEP), step(column, -CHECK_STEP)
+        numeric[:nv, column] = (lk.difference(model, q_next, q_plus) - lk.difference(model, q_next, q_minus)) / (2 * CHECK_STEP)
+        numeric[nv:, column] = (v_plus - v_minus) / (2 * CHECK_STEP)
+    return float(np.abs(analytic - numeric).max()), float(np.abs(analytic).max())
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scenes", nargs="+", default=["go1-stand", "tree-21"])
+    parser.add_argument("--settle", type=float, default=0.3)
+    parser.add_argument("--blocks", type=int, default=7)
+    parser.add_argument("--calls", type=int, default=20)
+    parser.add_argument("--check", action="store_true")
+    args = parser.parse_args()
+    rows = []
+    for name in args.scenes:
+        s = scene(name)
+        ours, theirs = settled(s, "legkit", args.settle), settled(s, "mujoco", args.settle)
+        assert ours.jacobians is not None and theirs.jacobians is not None
+        a, b = ours.jacobians()
+        a_mj, b_mj = theirs.jacobians()
+        t_ours = time_calls(ours.jacobians, args.blocks, args.calls)
+        t_theirs = time_calls(theirs.jacobians, args.blocks, args.calls)
+        check = ""
+        if args.check:
+            error, scale = central_differences(lambda scene=s: settled(scene, "legkit", args.settle).simulation)
+            check = f"{error / scale:.1e}"
+        rows.append((name, a.shape[0] // 2, ours.contacts(), theirs.contacts(), f"{b.shape[1]} / {b_mj.shape[1]}",
+                     t_ours, t_theirs, spectral_radius(a), spectral_radius(a_mj), check))
+        print(f"{name}: done", flush=True)
+    print()
+    print("| scene | nv | contacts legkit / MuJoCo | B columns legkit / MuJoCo | legkit (µs) | MuJoCo FD (µs) | ratio |"
+          " spectral radius of A legkit / MuJoCo |" + (" legkit vs central differences (relative) |" if args.check else ""))
+    print("|---|---|---|---|---|---|---|---|" + ("---|" if args.check else ""))
+    for name, nv, c_ours, c_theirs, columns, t_ours, t_theirs, rho, rho_mj, check in rows:
+        print(f"| {name} | {nv} | {c_ours} / {c_theirs} | {columns} | {t_ours * 1e6:.0f} | {t_theirs * 1e6:.0f} | "
+              f"{t_ours / t_theirs:.2f}x | {rho:.4f} / {rho_mj:.4f} |" + (f" {check} |" if args.check else ""))
+    print(f"\nload average {load_average()}, {os.cpu_count()} CPUs")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,171 @@
+"""`Simulation.transition_jacobians` against central differences of `Simulation.step` (each displaced step replayed
+from a freshly built scene, so the contact history and warm starts are the same), against MuJoCo's
+`mjd_transitionFD` on a contact-free chain (where both engines integrate the same semi-implicit Euler step), and
+its refusals. The Rust tests (crates/dynamics/tests/transition.rs) cover sliding boxes, parry hulls, joint limits
+and saturated servos."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+import legkit as lk
+from conftest import examples
+from test_simulation import standing_quadruped, ten_link_tree
+
+STEP = 1e-7  # below the 0.5 µm a resting contact sits from where its Baumgarte law bends
+
+
+def targets_configuration(model: lk.Model, target_q: np.ndarray, per_velocity: np.ndarray) -> np.ndarray:
+    """`target_q` (nq) with its joints' coordinates moved by `per_velocity` (nv; every joint has one coordinate)."""
+    out = target_q.copy()
+    for i in range(1, model.nbodies):
+        out[model.idx_q[i]] += per_velocity[model.idx_v[i]]
+    return out
+
+
+def jacobians_and_differences(build, tau: np.ndarray, servo: dict) -> tuple[np.ndarray, np.ndarray]:
+    """[A | B] at `build()`'s state and the same by central differences of one step in each of the 5 nv inputs;
+    `servo` holds the set_servo arguments `build` used (target_q a configuration)."""
+    sim = build()
+    model = sim.model
+    nv = model.nv
+    a, b = sim.transition_jacobians(tau)
+    q, v = sim.q.copy(), sim.v.copy()
+
+    def step(column: int, delta: float):
+        displaced = build()
+        d = np.zeros(5 * nv)
+        d[column] = delta
+        displaced.q = lk.integrate(model, q, d[:nv], 1.0)
+        displaced.v = v + d[nv:2 * nv]
+        displaced.set_servo(servo["kp"], servo["kd"], servo["torque_limit"],
+                            targets_configuration(model, servo["target_q"], d[3 * nv:4 * nv]), d[4 * nv:])
+        displaced.step(tau + d[2 * nv:3 * nv])
+        return displaced.q, displaced.v
+
+    q_next, _ = step(0, 0.0)
+    numeric = np.zeros((2 * nv, 5 * nv))
+    for column in range(5 * nv):
+        (q_plus, v_plus), (q_minus, v_minus) = step(column, STEP), step(column, -STEP)
+        numeric[:nv, column] = (lk.difference(model, q_next, q_plus) - lk.difference(model, q_next, q_minus)) / (2 * STEP)
+        numeric[nv:, column] = (v_plus - v_minus) / (2 * STEP)
+    return np.hstack([a, b]), numeric
+
+
+def assert_close(analytic: np.ndarray, numeric: np.ndarray, tolerance: float = 1e-6) -> None:
+    scale = max(1.0, np.abs(analytic).max())
+    error = np.abs(analytic - numeric).max()
+    row, column = np.unravel_index(np.abs(analytic - numeric).argmax(), analytic.shape)
+    assert error <= tolerance * scale, f"off by {error:.2e} at ({row}, {column}): {analytic[row, column]} vs {numeric[row, column]}"
+
+
+QUADRUPED_SERVO = {"kp": 40.0, "kd": 0.3, "torque_limit": 20.0}
+
+
+@given(push=st.tuples(*[st.floats(-0.3, 0.3)] * 3), settle=st.integers(50, 300), seed=st.integers(0, 2**16))
+@examples(4)
+def test_standing_and_pushed_quadruped_matches_central_differences(push, settle, seed):
+    """Feet sticking (no push) or sliding (pushed sideways), servos implicit, warm starts from `settle` steps."""
+    model = standing_quadruped(lk.Ground.plane(0.8)).model
+    servo = dict(QUADRUPED_SERVO, target_q=model.neutral())
+    tau = np.r_[np.zeros(6), 0.3 * np.random.default_rng(seed).standard_normal(model.nv - 6)]
+
+    def build() -> lk.Simulation:
+        sim = standing_quadruped(lk.Ground.plane(0.8))
+        sim.step(None, settle)
+        sim.v = sim.v + np.r_[push, np.zeros(model.nv - 3)]
+        return sim
+
+    assert len(build().contacts()["body"]) > 0
+    assert_close(*jacobians_and_differences(build, tau, servo))
+
+
+def test_servoed_tree_without_contacts_matches_central_differences():
+    model = ten_link_tree()
+    target = model.neutral() + 0.2
+    servo = {"kp": 30.0, "kd": 0.5, "torque_limit": 1.5, "target_q": target}  # a few servos saturate
+
+    def build() -> lk.Simulation:
+        sim = lk.Simulation(model, dt=1e-3)
+        sim.set_servo(servo["kp"], servo["kd"], servo["torque_limit"], target)
+        sim.step(None, 120)
+        return sim
+
+    assert_close(*jacobians_and_differences(build, np.linspace(-0.2, 0.2, model.nv), servo))
+
+
+CHAIN_URDF = """<robot name="chain">
+  <link name="base"><inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  {links}
+</robot>"""
+LINK = """<link name="l{k}"><inertial><origin xyz="0.15 0 0.02"/><mass value="{mass}"/>
+    <inertia ixx="0.002" iyy="0.01" izz="0.011" ixy="0.001" ixz="0" iyz="0"/></inertial></link>
+  <joint name="j{k}" type="revolute"><parent link="{parent}"/><child link="l{k}"/><origin xyz="{x} 0 0" rpy="0.3 0 0.2"/>
+    <axis xyz="{axis}"/><limit lower="-10" upper="10" effort="100" velocity="100"/></joint>"""
+
+
+def test_contact_free_chain_matches_mujoco():
+    """Without contacts, servos or damping both engines take v⁺ = v + h M⁻¹ (τ − c), q⁺ = q + h v⁺, so A and
+    B (torque columns) agree to MuJoCo's centred finite differences."""
+    mujoco = pytest.importorskip("mujoco")
+    axes = ["0 1 0", "0 0.6 0.8", "1 0 0", "0 1 0"]
+    links = "\n  ".join(
+        LINK.format(k=k, mass=1.0 - 0.2 * k, parent="base" if k == 0 else f"l{k - 1}", x=0.0 if k == 0 else 0.3, axis=axis)
+        for k, axis in enumerate(axes)
+    )
+    urdf = CHAIN_URDF.format(links=links)
+    model = lk.Model.from_urdf(urdf)
+    sim = lk.Simulation(model, dt=1e-3)
+    q, v, tau = np.array([0.3, -0.5, 0.8, 0.2]), np.array([1.0, -2.0, 0.5, 3.0]), np.array([0.5, -0.2, 0.1, 0.3])
+    sim.q, sim.v = q, v
+    a, b = sim.transition_jacobians(tau)
+
+    m = mujoco.MjModel.from_xml_string(urdf)
+    m.opt.timestep = 1e-3
+    m.opt.gravity[:] = [0, 0, -lk.STANDARD_GRAVITY]
+    m.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    d = mujoco.MjData(m)
+    d.qpos[:], d.qvel[:], d.qfrc_applied[:] = q, v, tau
+    mujoco.mj_forward(m, d)
+    a_mj = np.zeros((2 * m.nv, 2 * m.nv))
+    mujoco.mjd_transitionFD(m, d, 1e-6, True, a_mj, None, None, None)
+    assert_close(a, a_mj, 1e-7)
+    # B by torques: MuJoCo's applied generalized forces enter as tau does; by centred differences of mj_step.
+    numeric = np.zeros((2 * m.nv, m.nv))
+    for k in range(m.nv):
+        states = []
+        for sign in (1, -1):
+            d.qpos[:], d.qvel[:], d.qfrc_applied[:] = q, v, tau
+            d.qfrc_applied[k] += sign * 1e-6
+            mujoco.mj_step(m, d)
+            states.append(np.r_[d.qpos, d.qvel])
+        numeric[:, k] = (states[0] - states[1]) / 2e-6
+    assert_close(b[:, : m.nv], numeric, 1e-7)
+
+
+def test_asking_changes_nothing():
+    def build() -> lk.Simulation:
+        sim = standing_quadruped(lk.Ground.plane(0.8))
+        sim.step(None, 200)
+        return sim
+
+    asked, twin = build(), build()
+    asked.transition_jacobians(np.ones(asked.model.nv))
+    for sim in (asked, twin):
+        sim.step(None, 100)
+    assert np.array_equal(asked.q, twin.q) and np.array_equal(asked.v, twin.v) and asked.time == twin.time
+    for key, value in asked.contacts().items():
+        assert np.array_equal(value, twin.contacts()[key]), key
+
+
+def test_refusals_name_the_argument():
+    model = ten_link_tree()
+    with pytest.raises(ValueError, match="backend"):
+        lk.Simulation(model, backend="rapier").transition_jacobians()
+    with pytest.raises(ValueError, match="substeps"):
+        lk.Simulation(model, substeps=2).transition_jacobians()
+    with pytest.raises(ValueError, match="tau"):
+        lk.Simulation(model).transition_jacobians(np.zeros(model.nv + 1))
