@@ -48,6 +48,7 @@ from legkit._core import (
     resolve_mesh,
     rnea,
     rnea_derivatives,
+    rnea_second_order_derivatives,
     subtree_mass_properties,
 )
 from legkit.geometry import CircleLineResult, circle_line, rotation_toward_line
@@ -71,6 +72,7 @@ __all__ = [
     "crba",
     "aba",
     "rnea_derivatives",
+    "rnea_second_order_derivatives",
     "aba_derivatives",
     "centroidal_derivatives",
     "center_of_mass_jacobian",

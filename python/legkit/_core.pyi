@@ -159,6 +159,13 @@ def rnea_derivatives(
     """(dtau/dq, dtau/dv) of ``rnea``, each (..., nv, nv); q on its tangent space (a free-flyer base perturbed as
     q (+) dq with dq = [dv_lin, dw] in the base frame, as ``integrate``), as Pinocchio's computeRNEADerivatives.
     dtau/da is ``crba``."""
+def rnea_second_order_derivatives(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(d2tau_dqdq, d2tau_dvdv, d2tau_dqdv, d2tau_dadq) of ``rnea``, each (..., nv, nv, nv): entry [i, j, k] is the slope
+    along the third index of a first derivative (d/dq_k of dtau_i/dq_j, d/dv_k of dtau_i/dv_j, d/dv_k of dtau_i/dq_j,
+    d/dq_k of M_ij); q on its tangent space, as Pinocchio's ComputeRNEASecondOrderDerivatives. The Hessian of a
+    multiplier's lam^T tau: ``np.einsum("i,ijk->jk", lam, d2tau_dqdq)``."""
 def aba_derivatives(
     model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, f_ext: npt.ArrayLike | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

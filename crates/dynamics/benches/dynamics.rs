@@ -21,7 +21,7 @@ use std::hint::black_box;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use legkit_dynamics::algorithms::{
     aba, aba_derivatives, centroidal_derivatives, contact_dynamics, contact_dynamics_derivatives, crba, impact_derivatives, minv, rnea,
-    rnea_derivatives, ContactPoint,
+    rnea_derivatives, rnea_second_order_derivatives, ContactPoint,
 };
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{Matrix3, Vector3};
@@ -182,6 +182,11 @@ fn derivatives(c: &mut Criterion) {
         group.bench_function(BenchmarkId::new("aba", name), |b| {
             b.iter(|| aba_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None).0[(0, 0)])
         });
+        if model.nv() <= 64 {
+            group.bench_function(BenchmarkId::new("rnea_second_order", name), |b| {
+                b.iter(|| rnea_second_order_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau)).dqdq[0])
+            });
+        }
         group.bench_function(BenchmarkId::new("centroidal", name), |b| {
             b.iter(|| centroidal_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau)).0[(0, 0)])
         });

@@ -16,6 +16,7 @@ use std::ops::Range;
 use nalgebra::{DMatrix, DVector, Matrix3xX, Matrix6xX, Vector3, Vector6};
 
 use crate::algorithms::aba::{Block6, BLOCK};
+use crate::algorithms::SecondOrder;
 use crate::joint::Joint;
 use crate::sim::Shape;
 use crate::spatial::{spatial, Force, Inertia, Motion, RateMatrix, RigidInertia, Transform};
@@ -462,6 +463,8 @@ pub struct Derivatives {
     pub dh_dq: Matrix6xX<f64>,
     pub dhdot_dq: Matrix6xX<f64>,
     pub dhdot_dv: Matrix6xX<f64>,
+    /// The RNEA's second derivatives (`rnea_second_order_derivatives`), nv³ numbers each, sized on first use.
+    pub second_order: SecondOrder,
 }
 
 /// Sizes `matrix` n x n unless it already is (its numbers are then to be overwritten).
@@ -512,6 +515,7 @@ impl Derivatives {
             dh_dq: columns(),
             dhdot_dq: columns(),
             dhdot_dv: columns(),
+            second_order: SecondOrder::default(),
         };
     }
 }

@@ -7,7 +7,7 @@ use legkit_dynamics::algorithms::{
     aba, aba_derivatives, center_of_mass, center_of_mass_jacobian, centroidal_derivatives, centroidal_map, centroidal_momentum,
     centroidal_momentum_rate, crba, difference, difference_jacobians, forward_kinematics, frame_acceleration, frame_acceleration_derivatives,
     frame_velocity, frame_velocity_derivatives, integrate, integrate_jacobians, jacobian, jacobian_time_variation, kinetic_energy, minv,
-    potential_energy, rnea, rnea_derivatives, subtree_mass_properties, Frame,
+    potential_energy, rnea, rnea_derivatives, rnea_second_order_derivatives, subtree_mass_properties, Frame,
 };
 use legkit_dynamics::sim::{Shape, ShapeKind};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
@@ -58,10 +58,11 @@ fn algorithms_do_not_allocate() {
     q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
     let v = vec![0.2; model.nv()];
     let tau = vec![0.3; model.nv()];
-    // The first calls size M, M⁻¹ and minv's force sets, and the derivatives' workspace.
+    // The first calls size M, M⁻¹ and minv's force sets, and the derivatives' workspace and tensors.
     crba(&model, &mut data, &q);
     minv(&model, &mut data, &q);
     aba_derivatives(&model, &mut data, &q, &v, &tau, None);
+    rnea_second_order_derivatives(&model, &mut data, &q, &v, &tau);
     let (mut q1, mut dv) = (vec![0.0; model.nq()], vec![0.0; model.nv()]);
     let (mut jacobian_a, mut jacobian_b) = (DMatrix::zeros(model.nv(), model.nv()), DMatrix::zeros(model.nv(), model.nv()));
     let count = allocations_during(|| {
@@ -80,6 +81,7 @@ fn algorithms_do_not_allocate() {
         kinetic_energy(&model, &mut data, &q, &v);
         potential_energy(&model, &mut data, &q);
         rnea_derivatives(&model, &mut data, &q, &v, &tau, None);
+        rnea_second_order_derivatives(&model, &mut data, &q, &v, &tau);
         aba_derivatives(&model, &mut data, &q, &v, &tau, None);
         let point = Vector3::new(0.1, 0.0, 0.0);
         frame_velocity(&model, &mut data, &q, &v, 17, &point, Frame::World);

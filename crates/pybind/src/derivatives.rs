@@ -85,6 +85,34 @@ pub fn rnea_derivatives<'py>(
     pair(parts)
 }
 
+/// The second derivatives of inverse dynamics (`rnea`), each `(..., nv, nv, nv)` with entry [i, j, k] the slope along
+/// the third index of a first derivative: ∂/∂q_k of ∂τ_i/∂q_j, ∂/∂v_k of ∂τ_i/∂v_j, ∂/∂v_k of ∂τ_i/∂q_j and ∂/∂q_k of
+/// ∂τ_i/∂a_j = M_ij; q on its tangent space (Pinocchio's `ComputeRNEASecondOrderDerivatives`).
+#[pyfunction]
+pub fn rnea_second_order_derivatives<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    a: ArrayArg<'_>,
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>, FloatArray<'py>, FloatArray<'py>)> {
+    let nv = model.model.nv();
+    let batch = state_batch(&model.model, &q, &v, ("a", &a), None)?;
+    let out = run(py, &model, &batch, &[4, nv, nv, nv], |m, w, i, out| {
+        let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
+        check_state(m, q, Some(v))?;
+        check_vector("a", a, m.nv())?;
+        let second = algorithms::rnea_second_order_derivatives(m, w.data(), q, v, a);
+        write_columns(&[&second.dqdq, &second.dvdv, &second.dqdv, &second.dadq], out);
+        Ok(())
+    })?;
+    // SAFETY: the array was just filled and nothing else refers to it; the views keep it alive as their base.
+    let buffer = unsafe { out.as_array() };
+    let axis = Axis(buffer.ndim() - 4);
+    let part = |k: usize| unsafe { PyArrayDyn::borrow_from_array(&buffer.index_axis(axis, k), out.clone().into_any()) };
+    Ok((part(0), part(1), part(2), part(3)))
+}
+
 /// ∂a/∂q, ∂a/∂v and ∂a/∂τ = M⁻¹ of forward dynamics (`aba`), each `(..., nv, nv)`, q on its tangent space
 /// (Pinocchio's `computeABADerivatives`).
 #[pyfunction]

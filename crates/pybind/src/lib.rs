@@ -42,6 +42,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(dynamics::rnea, m)?)?;
     m.add_function(wrap_pyfunction!(dynamics::aba, m)?)?;
     m.add_function(wrap_pyfunction!(derivatives::rnea_derivatives, m)?)?;
+    m.add_function(wrap_pyfunction!(derivatives::rnea_second_order_derivatives, m)?)?;
     m.add_function(wrap_pyfunction!(derivatives::aba_derivatives, m)?)?;
     m.add_function(wrap_pyfunction!(derivatives::centroidal_derivatives, m)?)?;
     m.add_function(wrap_pyfunction!(derivatives::center_of_mass_jacobian, m)?)?;

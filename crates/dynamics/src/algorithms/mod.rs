@@ -19,6 +19,7 @@ pub mod kinematics_derivatives;
 pub mod minv;
 pub mod rnea;
 pub mod rnea_derivatives;
+pub mod rnea_second_order_derivatives;
 
 pub use aba::{aba, aba_with_armature};
 pub use aba_derivatives::aba_derivatives;
@@ -39,6 +40,7 @@ pub use kinematics_derivatives::{
 pub use minv::minv;
 pub use rnea::rnea;
 pub use rnea_derivatives::rnea_derivatives;
+pub use rnea_second_order_derivatives::{rnea_second_order_derivatives, SecondOrder};
 
 use crate::joint::Dofs;
 use crate::model::Model;
