@@ -15,7 +15,9 @@ import legkit as lk
 from conftest import examples
 from test_simulation import standing_quadruped, ten_link_tree
 
-STEP = 1e-7  # below the 0.5 µm a resting contact sits from where its Baumgarte law bends
+# Below the 0.5 µm a resting contact sits from where its Baumgarte law bends, and below the distance to a zone's edge
+# of a lightly loaded foot sliding at the cone's edge (a few 1e-7 in q on a settling quadruped).
+STEP = 1e-8
 
 
 def targets_configuration(model: lk.Model, target_q: np.ndarray, per_velocity: np.ndarray) -> np.ndarray:
@@ -65,10 +67,15 @@ def assert_close(analytic: np.ndarray, numeric: np.ndarray, tolerance: float = 1
 QUADRUPED_SERVO = {"kp": 40.0, "kd": 0.3, "torque_limit": 20.0}
 
 
-@given(push=st.tuples(*[st.floats(-0.3, 0.3)] * 3), settle=st.integers(50, 300), seed=st.integers(0, 2**16))
+# No push (every foot sticks) or a push that sets the feet sliding well inside their sliding zone: a small push, or
+# a robot still landing, leaves feet at the edge between sticking and sliding, within 1e-8 of a switch.
+pushes = st.one_of(st.just((0.0, 0.0, 0.0)), st.tuples(st.floats(0.15, 0.3), st.floats(-0.3, 0.3), st.floats(-0.1, 0.1)))
+
+
+@given(push=pushes, settle=st.integers(150, 300), seed=st.integers(0, 2**16))
 @examples(4)
 def test_standing_and_pushed_quadruped_matches_central_differences(push, settle, seed):
-    """Feet sticking (no push) or sliding (pushed sideways), servos implicit, warm starts from `settle` steps."""
+    """Feet sticking (no push) or sliding (pushed), servos implicit, warm starts from `settle` steps."""
     model = standing_quadruped(lk.Ground.plane(0.8)).model
     servo = dict(QUADRUPED_SERVO, target_q=model.neutral())
     tau = np.r_[np.zeros(6), 0.3 * np.random.default_rng(seed).standard_normal(model.nv - 6)]

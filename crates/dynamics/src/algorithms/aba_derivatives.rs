@@ -10,7 +10,8 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::aba::{solve_columns, Factors};
-use super::{aba, minv, rnea_derivatives};
+use super::minv::minv_after_aba;
+use super::{aba, rnea_derivatives};
 use crate::model::{reserve_square, Data, Model};
 use crate::spatial::Force;
 
@@ -20,7 +21,7 @@ const DENSE_LIMIT: usize = 32;
 
 /// ∂q̈/∂q, ∂q̈/∂q̇ and ∂q̈/∂τ = M⁻¹ (nv x nv; q on its tangent space) at configuration `q`, velocity `v` and joint
 /// forces `tau`, with `f_ext` as in `aba`. Leaves q̈ in `data.ddq`, the first two in `data.derivatives.ddq_dq` and
-/// `ddq_dv`, and M⁻¹ (by `minv`) in `data.minv`.
+/// `ddq_dv`, and M⁻¹ (by `minv`'s passes on ABA's factors) in `data.minv`.
 pub fn aba_derivatives<'d>(
     model: &Model,
     data: &'d mut Data,
@@ -37,7 +38,7 @@ pub fn aba_derivatives<'d>(
     reserve_square(&mut data.derivatives.ddq_dq, model.nv());
     reserve_square(&mut data.derivatives.ddq_dv, model.nv());
     if model.nv() <= DENSE_LIMIT {
-        minv(model, data, q);
+        minv_after_aba(model, data);
         let d = &mut data.derivatives;
         negated_product(&data.minv, &d.dtau_dq, &mut d.ddq_dq);
         negated_product(&data.minv, &d.dtau_dv, &mut d.ddq_dv);
@@ -49,7 +50,7 @@ pub fn aba_derivatives<'d>(
         out.zip_apply(dtau, |x, y| *x = -y);
         solve_columns(model, &factors, out.as_mut_slice(), &mut d.block_rows, &mut d.block_forces, &mut d.block_accelerations);
     }
-    minv(model, data, q);
+    minv_after_aba(model, data);
     (&data.derivatives.ddq_dq, &data.derivatives.ddq_dv, &data.minv)
 }
 

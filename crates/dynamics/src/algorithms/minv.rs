@@ -38,16 +38,28 @@ fn axpy(out: &mut [f64; 6], base: &[f64; 6], x: &Vector6<f64>, m: f64) {
 
 /// Fills `data.minv` (both triangles) with M(q)⁻¹ and returns it.
 pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64> {
+    base_centred_kinematics(model, data, q);
+    for i in 0..model.nbodies() {
+        data.inertia[i] = data.centred_m_i[i].act_rigid_inertia(model.inertia(i)).matrix();
+        data.s[i] = model.joint(i).subspace_in(&data.centred_m_i[i]);
+    }
+    inverse(model, data, false)
+}
+
+/// `minv` at the configuration `aba` (or `aba_with_armature` with the model's armature) last ran at, from the
+/// poses, subspaces and articulated-body factors (I^A, U, D⁻¹) it left in `data`.
+pub(crate) fn minv_after_aba<'d>(model: &Model, data: &'d mut Data) -> &'d DMatrix<f64> {
+    inverse(model, data, true)
+}
+
+/// The passes of `minv` after the kinematics: from the bodies' rigid inertias in `data.inertia`, or, `factored`,
+/// from ABA's articulated inertias and factors there.
+fn inverse<'d>(model: &Model, data: &'d mut Data, factored: bool) -> &'d DMatrix<f64> {
     let (n, nv) = (model.nbodies(), model.nv());
     if data.force_sets.len() != n {
         data.force_sets = vec![Matrix6xX::zeros(nv); n];
     }
     reserve_square(&mut data.minv, nv);
-    base_centred_kinematics(model, data, q);
-    for i in 0..n {
-        data.inertia[i] = data.centred_m_i[i].act_rigid_inertia(model.inertia(i)).matrix();
-        data.s[i] = model.joint(i).subspace_in(&data.centred_m_i[i]);
-    }
     // Backward pass: the rows' subtree parts D⁻¹(e_i − Sᵀ F_i); F_i + U M⁻¹_i goes to the parent together
     // with the articulated inertia I^A − U D⁻¹ Uᵀ.
     for i in (0..n).rev() {
@@ -74,9 +86,16 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
             }
             continue;
         }
-        let (s, u) = (data.s[i], data.inertia[i] * data.s[i]);
         let one_dof = model.joint(i).nv() == 1;
-        let dinv = if one_dof { 1.0 / (s.dot(&u) + model.armature()[k]) } else { 0.0 };
+        let s = data.s[i];
+        let (u, dinv) = match (one_dof, factored) {
+            (true, true) => (data.u[i], data.d_inv[i]),
+            (true, false) => {
+                let u = data.inertia[i] * s;
+                (u, 1.0 / (s.dot(&u) + model.armature()[k]))
+            }
+            (false, _) => (Vector6::zeros(), 0.0),
+        };
         if one_dof {
             // Beyond the subtree this row is zero until the forward pass.
             data.minv.as_mut_slice()[k * nv + k..(k + 1) * nv].fill(0.0);
@@ -104,8 +123,10 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
                 axpy(to, if c == k { &[0.0; 6] } else { from }, &u, m);
             }
         }
-        let (head, tail) = data.inertia.split_at_mut(i);
-        add_reduced_inertia(&mut head[p], &tail[0], &u, &(u * dinv));
+        if !factored {
+            let (head, tail) = data.inertia.split_at_mut(i);
+            add_reduced_inertia(&mut head[p], &tail[0], &u, &(u * dinv));
+        }
     }
     // Forward pass: subtract D⁻¹ Uᵀ P_parent, then P_i = S M⁻¹_i + P_parent (reusing the sets' storage).
     for i in 0..n {
