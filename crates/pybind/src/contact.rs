@@ -11,7 +11,7 @@ use pyo3::types::PyTuple;
 use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::convert::{kernel_error, to_numpy, vector3, FloatArray, Vector};
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
+use crate::workspace::{check_state, finite_values, run, run_packed, unpack};
 
 /// Contact points from a sequence of (body, point) pairs: body index or name, point in the body's frame.
 fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<ContactPoint>> {
@@ -36,7 +36,7 @@ where
         let (generalized, per_contact) = kernel(m, w.data(), i)?;
         out[..nv].copy_from_slice(generalized.as_slice());
         out[nv..].copy_from_slice(per_contact.as_slice());
-        finite_result(&*out)
+        finite_values(out)
     })?;
     let mut parts = unpack(py, batch, &packed, &[&[nv], &[k, 3]]).into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap()))
@@ -189,7 +189,7 @@ pub fn contact_dynamics_derivatives<'py>(
         check_vector("tau", tau, nv)?;
         let d = algorithms::contact_dynamics_derivatives(m, w.data(), q, v, tau, &contacts)?;
         write_rows(&[&d.ddq_dq, &d.ddq_dv, &d.ddq_dtau, &d.forces_dq, &d.forces_dv, &d.forces_dtau], out);
-        finite_result(&*out)
+        finite_values(out)
     })?;
     let (square, per_contact): (&[usize], &[usize]) = (&[nv, nv], &[k, 3, nv]);
     PyTuple::new(py, unpack(py, &batch, &packed, &[square, square, square, per_contact, per_contact, per_contact]))
@@ -214,7 +214,7 @@ pub fn impact_derivatives<'py>(
         check_state(m, q, Some(v))?;
         let d = algorithms::impact_derivatives(m, w.data(), q, v, &contacts)?;
         write_rows(&[&d.velocity_dq, &d.velocity_dv, &d.impulses_dq, &d.impulses_dv], out);
-        finite_result(&*out)
+        finite_values(out)
     })?;
     let (square, per_contact): (&[usize], &[usize]) = (&[nv, nv], &[k, 3, nv]);
     PyTuple::new(py, unpack(py, &batch, &packed, &[square, square, per_contact, per_contact]))

@@ -134,8 +134,8 @@ pub fn aba_derivatives<'py>(
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         let (dq, dv, minv) = algorithms::aba_derivatives(m, data, q, v, tau, forces);
         write_columns(&[dq.as_slice(), dv.as_slice(), minv.as_slice()], out);
-        // M⁻¹ is positive definite: a singular M shows on its diagonal, and spreads to the other two.
-        finite_result(&*out)
+        // M⁻¹ is positive definite: a singular M shows on its diagonal (D⁻¹ there), and spreads to the other two.
+        finite_result(minv.as_slice().iter().step_by(m.nv() + 1))
     })?;
     let mut parts = parts.into_iter();
     Ok((parts.next().expect("three"), parts.next().expect("three"), parts.next().expect("three")))

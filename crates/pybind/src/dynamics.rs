@@ -10,7 +10,7 @@ use crate::convert::FloatArray;
 
 use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_result, run};
+use crate::workspace::{check_state, finite_result, finite_values, run};
 
 /// The batch of (q, v, x[, f_ext]) with cores (nq,), (nv,), (nv,) and (nbodies, 6).
 pub(crate) fn state_batch(
@@ -71,7 +71,7 @@ pub fn aba<'py>(
         check_vector("tau", tau, m.nv())?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         out.copy_from_slice(algorithms::aba(m, data, q, v, tau, forces).as_slice());
-        finite_result(&*out)
+        finite_values(out)
     })
 }
 

@@ -10,7 +10,7 @@ use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::convert::FloatArray;
 use crate::derivatives::{pair, run_matrices, write_columns};
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
+use crate::workspace::{check_state, finite_values, run, run_packed, unpack};
 
 /// `q ⊕ v dt`: joint coordinates add; a free-flyer base moves along exp(v dt) in its own frame: `(..., nq)`.
 #[pyfunction]
@@ -63,7 +63,7 @@ pub fn free_rollout<'py>(
         check_state(m, q, Some(v))?;
         let (qs, vs) = out.split_at_mut((steps + 1) * nq);
         algorithms::free_rollout(m, w.data(), q, v, &tau, dt, steps, method, qs, vs)?;
-        finite_result(&*out)
+        finite_values(out)
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[steps + 1, nq], &[steps + 1, nv]]).into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap()))
