@@ -64,9 +64,11 @@ pub fn rnea_second_order_derivatives<'d>(model: &Model, data: &'d mut Data, q: &
     let (n, nv) = (model.nbodies(), model.nv());
     forward_pass(model, data, q, v, a, model.gravity_bias());
     let d = &mut data.derivatives;
+    // Which entries the passes write depends on the tree alone, so the others stay zero from the first call on.
     for tensor in [&mut d.second_order.dqdq, &mut d.second_order.dvdv, &mut d.second_order.dqdv, &mut d.second_order.dadq] {
-        tensor.clear();
-        tensor.resize(nv * nv * nv, 0.0);
+        if tensor.len() != nv * nv * nv {
+            *tensor = vec![0.0; nv * nv * nv];
+        }
     }
     let at = |i: usize, j: usize, k: usize| (i * nv + j) * nv + k;
     for i in (0..n).rev() {
