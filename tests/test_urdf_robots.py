@@ -68,17 +68,21 @@ class Twin:
     def state(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """A random configuration in legkit's layout, and the same in Pinocchio's."""
         q = rng.uniform(-1.0, 1.0, self.model.nq)
-        q_pin = np.zeros(self.reference.nq)
         if self.model.floating_base:
             quaternion = rng.normal(size=4)
             q[3:7] = quaternion / np.linalg.norm(quaternion)
+        return q, self.to_pin_q(q)
+
+    def to_pin_q(self, q: np.ndarray) -> np.ndarray:
+        q_pin = np.zeros(self.reference.nq)
+        if self.model.floating_base:
             q_pin[:7] = q[:7]
         for lk_q, _, pin_q, _, continuous in self.joints:
             if continuous:
                 q_pin[pin_q:pin_q + 2] = np.cos(q[lk_q]), np.sin(q[lk_q])
             else:
                 q_pin[pin_q] = q[lk_q]
-        return q, q_pin
+        return q_pin
 
     def to_pin_v(self, v: np.ndarray) -> np.ndarray:
         out = np.zeros(self.reference.nv)
@@ -291,3 +295,39 @@ def test_go1_trots_forward_under_pd_on_both_engines():
         assert 1 - 2 * (x * x + y * y) > 0.99, (backend, sim.q[3:7])
         travelled[backend] = moved[0]
     assert abs(travelled["tree"] - travelled["rapier"]) < 0.05, travelled
+
+
+SECOND_ORDER_ROBOTS = ["solo_description/robots/solo12.urdf", "go1_description/urdf/go1.urdf", "panda_description/urdf/panda.urdf"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("relative", SECOND_ORDER_ROBOTS)
+def test_second_order_derivatives_are_the_slopes_of_pinocchios_first(relative: str):
+    """``rnea_second_order_derivatives`` on real robots (floating legged ones, a fixed arm) against central differences
+    (five-point, h = 1e-4) of Pinocchio's ``computeRNEADerivatives`` and ``crba``, q stepped on its tangent space."""
+    path = ROBOTS / relative
+    floating = "panda" not in relative
+    reference = pinocchio_model(path, floating)
+    assert reference is not None
+    twin = Twin(legkit_model(path, floating), reference)
+    data, nv, h = reference.createData(), twin.model.nv, 1e-4
+    rng = np.random.default_rng(3)
+    q, _ = twin.state(rng)
+    v, a = rng.normal(size=nv), rng.normal(size=nv)
+
+    def first(q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        q_pin, v_pin = twin.to_pin_q(q), twin.to_pin_v(v)
+        dq, dv = (twin.to_lk_m(np.array(x)) for x in pin.computeRNEADerivatives(reference, data, q_pin, v_pin, twin.to_pin_v(a))[:2])
+        mass = pin.crba(reference, data, q_pin)
+        return dq, dv, twin.to_lk_m(np.triu(mass) + np.triu(mass, 1).T)
+
+    def slope(at) -> np.ndarray:
+        """Five-point slopes of `at(j, step)` for each coordinate j, stacked along a last axis."""
+        return np.stack([(at(j, -2 * h) - 8 * at(j, -h) + 8 * at(j, h) - at(j, 2 * h)) / (12 * h) for j in range(nv)], axis=-1)
+
+    along_q = slope(lambda j, s: np.stack(first(lk.integrate(twin.model, q, np.eye(nv)[j], s), v)))
+    along_v = slope(lambda j, s: np.stack(first(q, v + s * np.eye(nv)[j])))
+    dqdq, dvdv, dqdv, dadq = lk.rnea_second_order_derivatives(twin.model, q, v, a)
+    for got, want, what in [(dqdq, along_q[0], "d2tau/dqdq"), (dadq, along_q[2], "d2tau/dadq"), (dvdv, along_v[1], "d2tau/dvdv"),
+                            (dqdv, along_v[0], "d2tau/dqdv")]:
+        assert_close(got, want, what, rtol=1e-6)
