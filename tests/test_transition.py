@@ -176,3 +176,21 @@ def test_refusals_name_the_argument():
         lk.Simulation(model, substeps=2).transition_jacobians()
     with pytest.raises(ValueError, match="tau"):
         lk.Simulation(model).transition_jacobians(np.zeros(model.nv + 1))
+
+
+def test_a_batch_gives_each_simulations_jacobians():
+    def pushed(push: float) -> lk.Simulation:
+        sim = standing_quadruped(lk.Ground.plane(0.8))
+        sim.step(None, 200)
+        sim.v = sim.v + np.r_[push, np.zeros(sim.model.nv - 1)]
+        return sim
+
+    sims = [pushed(p) for p in (0.0, 0.2, 0.25)]
+    tau = np.stack([np.r_[np.zeros(6), np.full(8, 0.1 * k)] for k in range(3)])
+    a, b = lk.SimulationBatch(sims).transition_jacobians(tau)
+    assert a.shape == (3, 28, 28) and b.shape == (3, 28, 42)
+    for k, sim in enumerate(sims):
+        a_k, b_k = sim.transition_jacobians(tau[k])
+        assert np.array_equal(a[k], a_k) and np.array_equal(b[k], b_k)
+    with pytest.raises(ValueError, match="nv"):
+        lk.SimulationBatch([sims[0], lk.Simulation(ten_link_tree())]).transition_jacobians()

@@ -355,6 +355,10 @@ class SimulationBatch:
     def __init__(self, simulations: Sequence[Simulation]) -> None: ...
     def step(self, tau: npt.ArrayLike | Sequence[npt.ArrayLike | None] | None = None, n: int = 1) -> None:
         """tau: None, (nv,) for all, (B, nv), or a list with one (nv,) array (or None) per simulation."""
+    def transition_jacobians(
+        self, tau: npt.ArrayLike | Sequence[npt.ArrayLike | None] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Every simulation's (A, B) at its state, in parallel: (B, 2nv, 2nv) and (B, 2nv, 3nv) (one nv for all)."""
     @property
     def simulations(self) -> list[Simulation]: ...
     @property

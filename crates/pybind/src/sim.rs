@@ -485,12 +485,7 @@ impl PySimulationBatch {
         if n < 0 {
             return Err(PyValueError::new_err(format!("n: must be >= 0, got {n}")));
         }
-        let mut guards = self
-            .members
-            .iter()
-            .enumerate()
-            .map(|(i, m)| m.bind(py).try_borrow_mut().map_err(|_| PyRuntimeError::new_err(format!("simulations[{i}]: in use elsewhere"))))
-            .collect::<PyResult<Vec<_>>>()?;
+        let mut guards = self.borrow_all(py)?;
         let taus = self.torques(&guards, tau)?;
         let sims: Vec<&mut Simulation> = guards.iter_mut().map(|g| &mut g.sim).collect();
         // Each simulation is stepped by one thread, so the results do not depend on which.
@@ -500,6 +495,38 @@ impl PySimulationBatch {
             Some((i, error)) => Err(batch_error(error, i)),
             None => Ok(()),
         }
+    }
+
+    /// Every simulation's transition Jacobians at its current state, in parallel (GIL released): A (B, 2 nv, 2 nv)
+    /// and B (B, 2 nv, 3 nv), as `Simulation.transition_jacobians` (all simulations must share nv); `tau` as in
+    /// `step`. Nothing changes. An error names the lowest index it came from.
+    #[pyo3(signature = (tau = None))]
+    fn transition_jacobians<'py>(&self, py: Python<'py>, tau: Option<Bound<'_, PyAny>>) -> PyResult<Bound<'py, PyTuple>> {
+        let mut guards = self.borrow_all(py)?;
+        let nv = guards[0].sim.model().nv();
+        if guards.iter().any(|g| g.sim.model().nv() != nv) {
+            return Err(PyValueError::new_err("simulations: they differ in nv; ask each simulation for its own Jacobians"));
+        }
+        let taus = self.torques(&guards, tau)?;
+        let items: Vec<_> = guards.iter_mut().map(|g| &mut g.sim).zip(&taus).collect();
+        let outcomes = py.detach(|| {
+            on_all_threads(
+                items,
+                || (),
+                |_, _, (sim, tau)| {
+                    let (mut a, mut b) = (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0));
+                    sim.transition_jacobians(tau.as_deref(), &mut a, &mut b).map(|()| (a, b))
+                },
+            )
+        });
+        let count = outcomes.len();
+        let (mut a_all, mut b_all) = (Vec::with_capacity(count * 4 * nv * nv), Vec::with_capacity(count * 6 * nv * nv));
+        for (i, outcome) in outcomes.into_iter().enumerate() {
+            let (a, b) = outcome.map_err(|e| batch_error(e, i))?;
+            a_all.extend_from_slice(a.transpose().as_slice());
+            b_all.extend_from_slice(b.transpose().as_slice());
+        }
+        PyTuple::new(py, [to_numpy(py, (count, 2 * nv, 2 * nv), a_all), to_numpy(py, (count, 2 * nv, 3 * nv), b_all)])
     }
 
     /// The grouped simulations, in order.
@@ -530,6 +557,15 @@ impl PySimulationBatch {
 }
 
 impl PySimulationBatch {
+    /// Every simulation, borrowed for writing; an error naming the first one in use elsewhere.
+    fn borrow_all<'py>(&self, py: Python<'py>) -> PyResult<Vec<PyRefMut<'py, PySimulation>>> {
+        self.members
+            .iter()
+            .enumerate()
+            .map(|(i, m)| m.bind(py).try_borrow_mut().map_err(|_| PyRuntimeError::new_err(format!("simulations[{i}]: in use elsewhere"))))
+            .collect()
+    }
+
     /// One feed-forward per simulation, checked (length, finite) before any step.
     fn torques(&self, guards: &[PyRefMut<'_, PySimulation>], tau: Option<Bound<'_, PyAny>>) -> PyResult<Vec<Option<Vec<f64>>>> {
         let count = guards.len();
