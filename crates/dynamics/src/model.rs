@@ -11,7 +11,9 @@
 //! algorithms ignore them: they describe the mechanism for the simulation (which enforces the position
 //! range and the effort bound) and for controllers (which read them with [`Model::limits`]).
 
+use std::collections::HashMap;
 use std::ops::Range;
+use std::sync::OnceLock;
 
 use nalgebra::{DMatrix, DVector, Matrix3xX, Matrix6xX, Vector3, Vector6};
 
@@ -102,11 +104,14 @@ pub struct Model {
     bodies: Vec<MassProperties>,
     inertias: Vec<RigidInertia>,
     names: Vec<String>,
+    /// Each name's body, so that adding and finding a body by name does not scan the others.
+    index_of_name: HashMap<String, usize>,
     idx_q: Vec<usize>,
     idx_v: Vec<usize>,
     /// The velocity indices of each body's subtree as increasing ranges (one range when bodies are
-    /// numbered depth first).
-    subtree_columns: Vec<Vec<Range<usize>>>,
+    /// numbered depth first); computed by the first call that needs them, in one pass over the bodies
+    /// (extending every ancestor's ranges as each body is added took time quadratic in the depth).
+    subtree_columns: OnceLock<Vec<Vec<Range<usize>>>>,
     nq: usize,
     nv: usize,
     /// Gravity in the world frame.
@@ -131,9 +136,10 @@ impl Model {
             bodies: vec![base],
             inertias: vec![RigidInertia::from_body(&base)],
             names: vec![base_name.to_owned()],
+            index_of_name: HashMap::from([(base_name.to_owned(), 0)]),
             idx_q: vec![0],
             idx_v: vec![0],
-            subtree_columns: vec![(joint.nv() > 0).then(|| 0..joint.nv()).into_iter().collect()],
+            subtree_columns: OnceLock::new(),
             nq: joint.nq(),
             nv: joint.nv(),
             gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
@@ -181,7 +187,7 @@ impl Model {
         if joint == Joint::Fixed && limits.is_limited() {
             return Err(Error::invalid("limits", "a fixed joint has no coordinate to limit"));
         }
-        if self.names.iter().any(|n| n == name) {
+        if self.index_of_name.contains_key(name) {
             return Err(Error::invalid("name", format!("a body is already named {name:?}")));
         }
         self.joints.push(joint);
@@ -191,27 +197,40 @@ impl Model {
         self.bodies.push(body);
         self.inertias.push(RigidInertia::from_body(&body));
         self.names.push(name.to_owned());
+        self.index_of_name.insert(name.to_owned(), self.joints.len() - 1);
         self.idx_q.push(self.nq);
         self.idx_v.push(self.nv);
         self.nq += joint.nq();
         self.nv += joint.nv();
         self.armature.resize(self.nv, 0.0);
         self.damping.resize(self.nv, 0.0);
-        let columns = self.nv - joint.nv()..self.nv;
-        self.subtree_columns.push(if columns.is_empty() { Vec::new() } else { vec![columns.clone()] });
-        let mut ancestor = parent;
-        while !columns.is_empty() {
-            let ranges = &mut self.subtree_columns[ancestor];
-            match ranges.last_mut() {
-                Some(last) if last.end == columns.start => last.end = columns.end,
-                _ => ranges.push(columns.clone()),
-            }
-            if ancestor == 0 {
-                break;
-            }
-            ancestor = self.parents[ancestor];
-        }
+        self.subtree_columns = OnceLock::new();
         Ok(self.joints.len() - 1)
+    }
+
+    /// Every body's subtree columns (see `subtree_columns`), children before parents: each body's ranges
+    /// are its own columns and its children's ranges, sorted and merged where they meet.
+    fn all_subtree_columns(&self) -> Vec<Vec<Range<usize>>> {
+        let n = self.nbodies();
+        let mut columns: Vec<Vec<Range<usize>>> =
+            (0..n).map(|i| Some(self.idx_v[i]..self.idx_v[i] + self.joints[i].nv()).filter(|r| !r.is_empty()).into_iter().collect()).collect();
+        for i in (0..n).rev() {
+            let mut ranges = std::mem::take(&mut columns[i]);
+            ranges.sort_unstable_by_key(|r| r.start);
+            let mut merged: Vec<Range<usize>> = Vec::with_capacity(ranges.len());
+            for range in ranges {
+                match merged.last_mut() {
+                    Some(last) if last.end == range.start => last.end = range.end,
+                    _ => merged.push(range),
+                }
+            }
+            if i > 0 {
+                let parent = self.parents[i];
+                columns[parent].extend(merged.iter().cloned());
+            }
+            columns[i] = merged;
+        }
+        columns
     }
 
     pub fn nbodies(&self) -> usize {
@@ -252,7 +271,7 @@ impl Model {
         &self.names[i]
     }
     pub fn body_index(&self, name: &str) -> Option<usize> {
-        self.names.iter().position(|n| n == name)
+        self.index_of_name.get(name).copied()
     }
     pub fn idx_q(&self, i: usize) -> usize {
         self.idx_q[i]
@@ -262,7 +281,7 @@ impl Model {
     }
     /// The velocity indices of body `i`'s subtree (its own included), as increasing ranges.
     pub fn subtree_columns(&self, i: usize) -> &[Range<usize>] {
-        &self.subtree_columns[i]
+        &self.subtree_columns.get_or_init(|| self.all_subtree_columns())[i]
     }
     /// A copy of the model in which body `i` (which must exist) has the mass properties `body`.
     pub fn with_body(&self, i: usize, body: MassProperties) -> Model {

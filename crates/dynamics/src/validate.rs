@@ -1,6 +1,8 @@
 //! Argument checks shared by the kernels and the bindings: each returns the value it accepts or an error
 //! naming the argument.
 
+use std::path::Path;
+
 use nalgebra::{Matrix3, Vector3};
 
 use crate::{Error, Result};
@@ -48,4 +50,15 @@ pub fn rotation(argument: &'static str, r: &Matrix3<f64>) -> Result<()> {
         return Err(Error::invalid(argument, format!("must be a rotation matrix (R^T R = I, det R = +1); |R^T R - I| = {orthogonality:.3e}")));
     }
     Ok(())
+}
+
+/// The bytes of the regular file at `path`; anything else (a FIFO, a device, a folder) is refused before it is
+/// opened, as reading one may block forever or never end.
+pub fn read_regular_file(argument: &'static str, path: &Path) -> Result<Vec<u8>> {
+    let fail = |reason: String| Error::invalid(argument, format!("{}: {reason}", path.display()));
+    let metadata = std::fs::metadata(path).map_err(|e| fail(format!("cannot read it: {e}")))?;
+    if !metadata.is_file() {
+        return Err(fail("not a regular file".into()));
+    }
+    std::fs::read(path).map_err(|e| fail(format!("cannot read it: {e}")))
 }
