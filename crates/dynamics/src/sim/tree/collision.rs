@@ -48,7 +48,7 @@ pub(super) enum Source {
     Manifold(u32, u32, u32),
 }
 
-#[derive(Default)]
+#[derive(Default, Clone)]
 pub(super) struct Pair {
     pub manifolds: Vec<ContactManifold<(), Warm>>,
     workspace: Option<ContactManifoldsWorkspace>,
@@ -67,6 +67,15 @@ pub(super) struct Found {
     pub distance: f64,
     pub warm: Warm,
     pub source: Source,
+}
+
+/// What a step changed of a `Collision`, to undo it: the plane impulses it overwrote (collider, feature,
+/// old value), in order, and parry's pairs as they were.
+#[derive(Default)]
+pub(super) struct History {
+    plane_warm: Vec<(u32, u32, Warm)>,
+    ground_pairs: Vec<Pair>,
+    self_pairs: Vec<(u32, u32, Pair)>,
 }
 
 pub(super) struct Collision {
@@ -126,6 +135,33 @@ impl Collision {
         }
     }
 
+    /// Starts recording what the next step changes, so that `undo` can take it back.
+    pub(super) fn save(&mut self, history: &mut History) {
+        history.plane_warm.clear();
+        // Parry's pairs are copied whole (only heightfields, meshes on the plane and self-collision have
+        // them); the plane's impulses are logged as they change, which costs nothing per idle collider.
+        if self.ground.is_some() {
+            history.ground_pairs.clone_from(&self.ground_pairs);
+        }
+        if self.self_collision {
+            history.self_pairs.clone_from(&self.self_pairs);
+        }
+    }
+
+    /// Returns to the state of the last `save`.
+    pub(super) fn undo(&mut self, history: &mut History) {
+        for &(collider, feature, warm) in history.plane_warm.iter().rev() {
+            self.plane_warm[collider as usize][feature as usize] = warm;
+        }
+        history.plane_warm.clear();
+        if self.ground.is_some() {
+            std::mem::swap(&mut self.ground_pairs, &mut history.ground_pairs);
+        }
+        if self.self_collision {
+            std::mem::swap(&mut self.self_pairs, &mut history.self_pairs);
+        }
+    }
+
     /// Forgets every contact (no warm start for what follows).
     pub(super) fn clear(&mut self) {
         self.ground_pairs.iter_mut().for_each(|p| *p = Pair::default());
@@ -133,8 +169,9 @@ impl Collision {
         self.self_pairs.clear();
     }
 
-    /// Finds the contacts of bodies at world poses `poses`, appending them to `out`.
-    pub(super) fn detect(&mut self, poses: &[Transform], out: &mut Vec<Found>) {
+    /// Finds the contacts of bodies at world poses `poses`, appending them to `out`; what it changes of the
+    /// plane's impulses goes to `history`.
+    pub(super) fn detect(&mut self, poses: &[Transform], out: &mut Vec<Found>, history: &mut History) {
         if self.plane {
             let up = tangents(&Vector3::z());
             for (index, c) in self.colliders.iter().enumerate() {
@@ -154,8 +191,9 @@ impl Collision {
                         source: Source::Plane(index as u32, p.feature as u32),
                     });
                 });
-                for (w, t) in warm.iter_mut().zip(touching) {
-                    if !t {
+                for (feature, (w, t)) in warm.iter_mut().zip(touching).enumerate() {
+                    if !t && *w != [0.0; 4] {
+                        history.plane_warm.push((index as u32, feature as u32, *w));
                         *w = [0.0; 4];
                     }
                 }
@@ -245,10 +283,15 @@ impl Collision {
         }
     }
 
-    /// Stores the impulses of the contact at `source` for the next step's warm start.
-    pub(super) fn store(&mut self, source: Source, warm: Warm) {
+    /// Stores the impulses of the contact at `source` for the next step's warm start (what they replace of
+    /// the plane's goes to `history`).
+    pub(super) fn store(&mut self, source: Source, warm: Warm, history: &mut History) {
         match source {
-            Source::Plane(collider, feature) => self.plane_warm[collider as usize][feature as usize] = warm,
+            Source::Plane(collider, feature) => {
+                let stored = &mut self.plane_warm[collider as usize][feature as usize];
+                history.plane_warm.push((collider, feature, *stored));
+                *stored = warm;
+            }
             Source::Manifold(pair, manifold, point) => {
                 let pair = match self.ground_pairs.get_mut(pair as usize) {
                     Some(p) => p,
