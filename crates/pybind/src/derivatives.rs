@@ -12,7 +12,7 @@ use crate::convert::FloatArray;
 use crate::dynamics::state_batch;
 use crate::kinematics::row_major;
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_result, run, Workspace};
+use crate::workspace::{check_state, finite_dynamics, run, Workspace};
 
 /// Copies `matrices` (column-major, as nalgebra stores them) one after the other into `out`.
 pub(crate) fn write_columns(matrices: &[&[f64]], out: &mut [f64]) {
@@ -107,7 +107,7 @@ pub fn aba_derivatives<'py>(
         let (dq, dv, minv) = algorithms::aba_derivatives(m, data, q, v, tau, forces);
         write_columns(&[dq.as_slice(), dv.as_slice(), minv.as_slice()], out);
         // M⁻¹ is positive definite: a singular M shows on its diagonal, and spreads to the other two.
-        finite_result(&*out)
+        finite_dynamics(m, w.data(), &*out)
     })?;
     let mut parts = parts.into_iter();
     Ok((parts.next().expect("three"), parts.next().expect("three"), parts.next().expect("three")))

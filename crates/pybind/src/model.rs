@@ -11,7 +11,7 @@ use pyo3::exceptions::{PyFileNotFoundError, PyIndexError, PyTypeError, PyUserWar
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
 
-use crate::convert::{homogeneous_matrix, kernel_error, matrix3, to_numpy, vector3, vector_to_numpy, Floats, Matrix, Vector};
+use crate::convert::{homogeneous_matrix, kernel_error, matrix3, to_numpy, vector3, vector_to_numpy, shown, Floats, Integer, Matrix, Vector};
 use crate::mass::PyMassProperties;
 
 pyo3::create_exception!(
@@ -85,17 +85,17 @@ impl PyModel {
         }
     }
 
-    /// A body given by index or by name.
+    /// A body given by index or by name: IndexError for an index out of range or a name no body has.
     pub fn body_index(&self, body: &Bound<'_, PyAny>) -> PyResult<usize> {
         if let Ok(name) = body.cast::<PyString>() {
             let name = name.to_str()?;
-            return self.model.body_index(name).ok_or_else(|| PyValueError::new_err(format!("body: no body is named {name:?}")));
+            return self.model.body_index(name).ok_or_else(|| PyIndexError::new_err(format!("body: no body is named {name:?}")));
         }
-        let index: i64 = body.extract().map_err(|_| PyTypeError::new_err("body: expected an index or a name"))?;
-        if index < 0 || index as usize >= self.model.nbodies() {
-            return Err(PyIndexError::new_err(format!("body: index {index} is out of range for {} bodies", self.model.nbodies())));
+        let index = body.extract::<Integer>()?.value("body").map_err(|_| PyTypeError::new_err("body: expected an index or a name"))?;
+        match usize::try_from(index) {
+            Ok(i) if i < self.model.nbodies() => Ok(i),
+            _ => Err(PyIndexError::new_err(format!("body: index {} is out of range for {} bodies", shown(index), self.model.nbodies()))),
         }
-        Ok(index as usize)
     }
 }
 

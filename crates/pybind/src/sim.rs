@@ -1,16 +1,21 @@
 //! `legkit.Simulation` and `legkit.Ground`: conversions around `legkit_dynamics::sim`.
 
 use legkit_dynamics::model::check_vector;
-use legkit_dynamics::sim::{dof_coordinates, Backend, Convex, Ground, Options, Servo, Shape, ShapeKind, Simulation, DEFAULT_SOLVER_ITERATIONS};
+use legkit_dynamics::sim::{
+    dof_coordinates, Backend, Convex, Ground, Options, Servo, Shape, ShapeKind, Simulation, DEFAULT_SOLVER_ITERATIONS, MAX_SOLVER_ITERATIONS,
+    MAX_SUBSTEPS,
+};
+use legkit_dynamics::validate::with_capacity;
 use legkit_dynamics::Transform;
 use nalgebra::{DMatrix, Vector3};
 use numpy::{PyArray1, PyArray2, PyArray3};
-use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyIndexError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
 use crate::batch::on_all_threads;
-use crate::convert::{batch_error, kernel_error, to_numpy, Floats};
+use crate::convert::{batch_error, kernel_error, to_numpy, Floats, Integer};
+use crate::interrupt::in_pieces;
 use crate::model::{homogeneous, transform, PyModel};
 
 /// Terrain for a `Simulation`: `Ground.plane(friction)` (the plane z = 0) or
@@ -41,7 +46,10 @@ impl PyGround {
             return Err(PyValueError::new_err(format!("heights: expected a 2-D array (nx, ny), got shape {:?}", view.shape())));
         }
         let (nx, ny) = (view.shape()[0], view.shape()[1]);
-        let matrix = DMatrix::from_fn(nx, ny, |i, j| view[[i, j]]);
+        // A broadcast view may stand for far more numbers than it holds: allocate the copy fallibly.
+        let mut heights = with_capacity("heights", nx.saturating_mul(ny)).map_err(kernel_error)?;
+        heights.extend(view.t().iter().copied());
+        let matrix = DMatrix::from_vec(nx, ny, heights);
         Ok(PyGround { ground: Ground::heightfield(matrix, cell_size, friction).map_err(kernel_error)? })
     }
 
@@ -100,11 +108,25 @@ impl PyGround {
 /// reflected rotor inertia) adds to each joint's inertia. `backend` is "tree" (legkit's reduced-coordinate engine:
 /// O(n) dynamics, parry contacts, a warm-started Newton contact solver with at most `solver_iterations`
 /// iterations, servos and damping integrated implicitly) or "rapier" (Rapier's multibody,
-/// the reference). Both integrate semi-implicitly to first order in dt / `substeps`.
+/// the reference). Both integrate semi-implicitly to first order in dt / `substeps`. `substeps` and
+/// `solver_iterations` are at most 1000 (a step is the unit Ctrl-C interrupts at, so it stays short); shape
+/// sizes and offsets at most 1e6 m.
 /// The robot starts at `model.neutral()`, at rest, at time 0.
 #[pyclass(name = "Simulation", module = "legkit")]
 pub struct PySimulation {
     sim: Simulation,
+}
+
+/// `error` with its message prefixed by `argument`, its class kept.
+fn prefixed(argument: &str, error: &PyErr, py: Python<'_>) -> PyErr {
+    let message = format!("{argument}: {}", error.value(py));
+    if error.is_instance_of::<PyIndexError>(py) {
+        PyIndexError::new_err(message)
+    } else if error.is_instance_of::<PyTypeError>(py) {
+        PyTypeError::new_err(message)
+    } else {
+        PyValueError::new_err(message)
+    }
 }
 
 fn shape_error(reason: impl std::fmt::Display) -> PyErr {
@@ -160,7 +182,7 @@ fn shape_overrides(model: &PyModel, shapes: Option<&Bound<'_, PyDict>>) -> PyRes
     shapes
         .iter()
         .map(|(key, value)| {
-            let body = model.body_index(&key).map_err(|e| PyValueError::new_err(format!("shapes: {e}")))?;
+            let body = model.body_index(&key).map_err(|e| prefixed("shapes", &e, key.py()))?;
             Ok((body, parse_shape(&value)?))
         })
         .collect()
@@ -214,7 +236,7 @@ fn vector_argument(argument: &'static str, value: &Floats<'_>, n: usize) -> PyRe
 #[pymethods]
 impl PySimulation {
     #[new]
-    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, substeps = 1, backend = "tree", solver_iterations = DEFAULT_SOLVER_ITERATIONS as i64))]
+    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, substeps = Integer::new(1), backend = "tree", solver_iterations = Integer::new(DEFAULT_SOLVER_ITERATIONS as i128)))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         model: PyRef<'_, PyModel>,
@@ -222,15 +244,15 @@ impl PySimulation {
         ground: Option<PyRef<'_, PyGround>>,
         shapes: Option<Bound<'_, PyDict>>,
         self_collision: bool,
-        substeps: i64,
+        substeps: Integer,
         backend: &str,
-        solver_iterations: i64,
+        solver_iterations: Integer,
     ) -> PyResult<Self> {
         let mut options = Options::new(dt);
         options.ground = ground.map(|g| g.ground.clone());
         options.self_collision = self_collision;
-        options.substeps = at_least_one("substeps", substeps)?;
-        options.solver_iterations = at_least_one("solver_iterations", solver_iterations)?;
+        options.substeps = substeps.within("substeps", 1, MAX_SUBSTEPS as u64)? as usize;
+        options.solver_iterations = solver_iterations.within("solver_iterations", 1, MAX_SOLVER_ITERATIONS as u64)? as usize;
         options.backend = Backend::parse(backend).map_err(kernel_error)?;
         options.shapes = shape_overrides(&model, shapes.as_ref())?;
         let sim = Simulation::new(&model.model, options).map_err(kernel_error)?;
@@ -256,15 +278,15 @@ impl PySimulation {
     /// are enforced as constraints.
     /// On a floating base tau[:6] is a wrench [f, n] on the base, in its frame, at its origin (as `aba`).
     /// Raises RuntimeError, naming the step and the body, if the state would stop being finite or explode
-    /// (a speed or position beyond 1e6); the state before that step is kept.
-    #[pyo3(signature = (tau = None, n = 1))]
-    fn step(&mut self, py: Python<'_>, tau: Option<Floats<'_>>, n: i64) -> PyResult<()> {
-        if n < 0 {
-            return Err(PyValueError::new_err(format!("n: must be >= 0, got {n}")));
-        }
-        let tau = tau.map(|t| vector_argument("tau", &t, self.sim.model().nv())).transpose()?;
-        let sim = &mut self.sim;
-        py.detach(|| sim.step(tau.as_deref(), n as usize)).map_err(kernel_error)
+    /// (a speed or position beyond 1e6); the simulation is then exactly as before that step. Ctrl-C
+    /// interrupts a long call between steps (KeyboardInterrupt), keeping the steps taken.
+    #[pyo3(signature = (tau = None, n = Integer::new(1)))]
+    fn step(slf: &Bound<'_, Self>, tau: Option<Floats<'_>>, n: Integer) -> PyResult<()> {
+        let n = n.within("n", 0, i64::MAX as u64)?;
+        let mut this = in_use(slf)?;
+        let tau = tau.map(|t| vector_argument("tau", &t, this.sim.model().nv())).transpose()?;
+        let sim = &mut this.sim;
+        in_pieces(slf.py(), n, |k| sim.step(tau.as_deref(), k as usize).map_err(kernel_error))
     }
 
     /// Position/velocity servos, evaluated every step in Rust:
@@ -412,11 +434,11 @@ impl PySimulation {
     }
 }
 
-fn at_least_one(argument: &str, value: i64) -> PyResult<usize> {
-    if value < 1 {
-        return Err(PyValueError::new_err(format!("{argument}: must be >= 1, got {value}")));
-    }
-    Ok(value as usize)
+/// The simulation, borrowed to change it: a RuntimeError saying so if another thread is using it (stepping
+/// it with the GIL released), where pyo3 would say only "Already borrowed".
+fn in_use<'py>(slf: &Bound<'py, PySimulation>) -> PyResult<PyRefMut<'py, PySimulation>> {
+    slf.try_borrow_mut()
+        .map_err(|_| PyRuntimeError::new_err("Simulation: in use by another thread (a step is running); a Simulation takes one caller at a time"))
 }
 
 /// Steps many simulations at once on all cores (GIL released), each in its own thread of work: the
@@ -454,11 +476,9 @@ impl PySimulationBatch {
     /// (B, nv) array, or a list of B arrays (or None), one per simulation (each its own nv). Every tau is
     /// checked before anything moves. A simulation that diverges stops at its last good state and raises
     /// RuntimeError naming its index (the lowest such index); the others complete their n steps.
-    #[pyo3(signature = (tau = None, n = 1))]
-    fn step(&self, py: Python<'_>, tau: Option<Bound<'_, PyAny>>, n: i64) -> PyResult<()> {
-        if n < 0 {
-            return Err(PyValueError::new_err(format!("n: must be >= 0, got {n}")));
-        }
+    #[pyo3(signature = (tau = None, n = Integer::new(1)))]
+    fn step(&self, py: Python<'_>, tau: Option<Bound<'_, PyAny>>, n: Integer) -> PyResult<()> {
+        let n = n.within("n", 0, i64::MAX as u64)?;
         let mut guards = self
             .members
             .iter()
@@ -466,11 +486,20 @@ impl PySimulationBatch {
             .map(|(i, m)| m.bind(py).try_borrow_mut().map_err(|_| PyRuntimeError::new_err(format!("simulations[{i}]: in use elsewhere"))))
             .collect::<PyResult<Vec<_>>>()?;
         let taus = self.torques(&guards, tau)?;
-        let sims: Vec<&mut Simulation> = guards.iter_mut().map(|g| &mut g.sim).collect();
-        // Each simulation is stepped by one thread, so the results do not depend on which.
-        let items: Vec<_> = sims.into_iter().zip(&taus).collect();
-        let outcomes = py.detach(|| on_all_threads(items, || (), |_, _, (sim, tau)| sim.step(tau.as_deref(), n as usize)));
-        match outcomes.into_iter().enumerate().find_map(|(i, r)| r.err().map(|e| (i, e))) {
+        let mut sims: Vec<(usize, &mut Simulation, &Option<Vec<f64>>)> =
+            guards.iter_mut().zip(&taus).enumerate().map(|(i, (g, t))| (i, &mut g.sim, t)).collect();
+        // The first failure, by index; a failed simulation stops, the others go on.
+        let mut failure: Option<(usize, legkit_dynamics::Error)> = None;
+        in_pieces(py, n, |k| {
+            // Each simulation is stepped by one thread, so the results do not depend on which.
+            let items: Vec<_> = sims.iter_mut().map(|(i, sim, tau)| (*i, &mut **sim, tau.as_deref())).collect();
+            let outcomes = on_all_threads(items, || (), |_, _, (i, sim, tau)| sim.step(tau, k as usize).err().map(|e| (i, e)));
+            let failed: Vec<(usize, legkit_dynamics::Error)> = outcomes.into_iter().flatten().collect();
+            sims.retain(|(i, _, _)| !failed.iter().any(|(f, _)| f == i));
+            failure = failure.take().into_iter().chain(failed).min_by_key(|(i, _)| *i);
+            Ok(())
+        })?;
+        match failure {
             Some((i, error)) => Err(batch_error(error, i)),
             None => Ok(()),
         }

@@ -2,12 +2,13 @@
 
 use legkit_dynamics::model::check_vector;
 use legkit_dynamics::spatial::Force;
+use legkit_dynamics::validate::{array_len, filled};
 use legkit_dynamics::{Data, Error, Model};
 use nalgebra::DMatrix;
-use numpy::{IxDyn, PyArrayDyn, PyArrayMethods};
+use numpy::PyArrayMethods;
 use pyo3::prelude::*;
 
-use crate::convert::FloatArray;
+use crate::convert::{kernel_error, FloatArray};
 
 use crate::batch::{map_rows, to_numpy, Batch};
 use crate::model::PyModel;
@@ -26,7 +27,7 @@ pub struct Workspace<'m> {
 }
 
 impl<'m> Workspace<'m> {
-    fn new(owner: &'m PyModel) -> Self {
+    pub fn new(owner: &'m PyModel) -> Self {
         Self { owner, data: Some(owner.take_workspace()), forces: Vec::new(), matrices: (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0)) }
     }
 
@@ -71,8 +72,8 @@ pub fn run<'py, K>(py: Python<'py>, owner: &PyModel, batch: &Batch, out_core: &[
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
-    // SAFETY: every kernel writes its whole row before the array can be read (see above).
-    let array = unsafe { PyArrayDyn::<f64>::new(py, IxDyn(&batch.output_shape(out_core)), false) };
+    // Every kernel writes its whole row before the array can be read (see above).
+    let array = batch.output(py, out_core)?;
     // SAFETY: the array was just created here and nothing else refers to it yet.
     let out = unsafe { array.as_slice_mut() }.expect("a new array is contiguous");
     fill(py, owner, batch, out, out_core.iter().product(), kernel)?;
@@ -84,7 +85,8 @@ pub fn run_packed<K>(py: Python<'_>, owner: &PyModel, batch: &Batch, width: usiz
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
-    let mut out = vec![0.0; batch.len * width];
+    let len = array_len(batch.largest, &[batch.len, width], std::mem::size_of::<f64>()).map_err(kernel_error)?;
+    let mut out = filled(batch.largest, len, 0.0).map_err(kernel_error)?;
     fill(py, owner, batch, &mut out, width, kernel)?;
     Ok(out)
 }
@@ -122,13 +124,30 @@ pub fn unpack<'py>(py: Python<'py>, batch: &Batch, packed: &[f64], cores: &[&[us
         .collect()
 }
 
-/// Fails on NaN or infinity in a result: a singular model or state rather than silent garbage.
+/// Fails on NaN or infinity in a result: with valid (finite) inputs, a number overflowed. A numerical failure
+/// (RuntimeError), never reported as a singular mass matrix.
 pub fn finite_result<'a>(values: impl IntoIterator<Item = &'a f64>) -> Result<(), Error> {
     if values.into_iter().all(|x| x.is_finite()) {
         Ok(())
     } else {
-        Err(Error::invalid("model", "the result is not finite: the mass matrix is singular at this configuration"))
+        Err(Error::numerical("result", "not finite: a number overflowed float64 (are the inputs' magnitudes physical?)"))
     }
+}
+
+/// `finite_result` for the outputs of the articulated-body factorisation left in `data` (ABA, Minv, and what
+/// runs them), which also fail on a singular mass matrix.
+pub fn finite_dynamics<'a>(model: &Model, data: &Data, values: impl IntoIterator<Item = &'a f64>) -> Result<(), Error> {
+    finite_result(values).map_err(|overflow| if singular_factor(model, data) { singular() } else { overflow })
+}
+
+/// Whether the articulated-body factor in `data` has an infinite or non-positive pivot: a singular mass
+/// matrix (an overflowed state leaves NaN pivots instead).
+pub fn singular_factor(model: &Model, data: &Data) -> bool {
+    (1..model.nbodies()).any(|i| model.joint(i).nv() == 1 && (data.d_inv[i].is_infinite() || data.d_inv[i] <= 0.0))
+}
+
+pub fn singular() -> Error {
+    Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint without inertia?)")
 }
 
 pub fn check_state(model: &Model, q: &[f64], v: Option<&[f64]>) -> Result<(), Error> {
