@@ -1,8 +1,11 @@
 //! Long calls run in pieces of whole steps, each with the GIL released, and Python's signal handlers run
 //! between pieces: Ctrl-C raises KeyboardInterrupt within about `PIECE` of work, and what was done before
-//! it (whole steps) is kept.
+//! it (whole steps) is kept. Work that cannot be cut in pieces runs on a thread of its own (`on_worker`).
 
+use std::sync::mpsc::{self, RecvTimeoutError};
 use std::time::{Duration, Instant};
+
+use pyo3::exceptions::PyRuntimeError;
 
 use pyo3::prelude::*;
 
@@ -36,4 +39,36 @@ where
         }
     }
     Ok(())
+}
+
+/// `work()` on a thread of its own, the caller waiting for it with the GIL released and running Python's
+/// signal handlers every `PIECE`: for work that has no steps to stop between (loading a file). On Ctrl-C the
+/// caller raises KeyboardInterrupt at once; the work then finishes on its thread and its result is dropped,
+/// so it must change nothing the caller can see. A panic in it is a RuntimeError naming `what`.
+pub fn on_worker<T, F>(py: Python<'_>, what: &str, work: F) -> PyResult<T>
+where
+    T: Send + 'static,
+    F: FnOnce() -> T + Send + 'static,
+{
+    let (sender, mut receiver) = mpsc::channel();
+    std::thread::Builder::new()
+        .name(what.to_owned())
+        .spawn(move || {
+            // The caller may have gone (interrupted): then nobody wants the result.
+            let _ = sender.send(work());
+        })
+        .map_err(|e| PyRuntimeError::new_err(format!("{what}: cannot start a thread: {e}")))?;
+    loop {
+        // The receiver goes with the wait (it may not be shared between threads, only moved).
+        let (back, received) = py.detach(move || {
+            let received = receiver.recv_timeout(PIECE);
+            (receiver, received)
+        });
+        receiver = back;
+        match received {
+            Ok(result) => return Ok(result),
+            Err(RecvTimeoutError::Timeout) => py.check_signals()?,
+            Err(RecvTimeoutError::Disconnected) => return Err(PyRuntimeError::new_err(format!("{what}: failed inside a dependency (a panic)"))),
+        }
+    }
 }
