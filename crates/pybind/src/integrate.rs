@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use crate::batch::{broadcast, map_rows, ArrayArg, Batch};
 use crate::convert::{kernel_error, shown, FloatArray, Integer};
 use crate::derivatives::{pair, run_matrices, write_columns};
-use crate::interrupt::in_pieces;
+use crate::interrupt::{in_pieces, Pace};
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run, singular, singular_factor, unpack, Workspace};
 use legkit_dynamics::validate::{array_len, filled};
@@ -96,7 +96,7 @@ pub fn free_rollout<'py>(
     )?;
     let mut done = 0;
     // In pieces of whole steps, each continuing from the last row written: a step depends only on (q, v).
-    in_pieces(py, steps as u64, |k| {
+    in_pieces(py, steps as u64, &Pace::default(), |k| {
         let (from, to) = (done, done + k as usize);
         map_rows(
             &mut packed,

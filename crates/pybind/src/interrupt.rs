@@ -2,40 +2,52 @@
 //! between pieces: Ctrl-C raises KeyboardInterrupt within about `PIECE` of work, and what was done before
 //! it (whole steps) is kept. Work that cannot be cut in pieces runs on a thread of its own (`on_worker`).
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
 use pyo3::exceptions::PyRuntimeError;
-
 use pyo3::prelude::*;
 
 /// The work per piece: short enough that Ctrl-C is answered at once, long enough that releasing and
 /// retaking the GIL between pieces costs nothing.
 const PIECE: Duration = Duration::from_millis(50);
 
-/// Runs `run(k)`, which does the next `k` units of work (steps), until `total` units are done. Pieces start
-/// at one unit and grow (doubling) while they take under half of `PIECE`, shrink when they take more; between
-/// pieces, with the GIL held, Python's signal handlers run, and an exception they raise stops the work there.
+/// The time one unit of work (a step) took last, kept by the object that does the work, so that a call
+/// repeated with the same count (a control loop stepping 50 steps at a time) runs as one piece rather than
+/// growing its pieces again each time (each piece wakes a batch's threads anew).
+#[derive(Debug, Default)]
+pub struct Pace(AtomicU64);
+
+impl Pace {
+    /// Units that fill about one `PIECE` (one until a unit has been timed).
+    fn units_per_piece(&self) -> u64 {
+        (PIECE.as_nanos() as u64).checked_div(self.0.load(Ordering::Relaxed)).map_or(1, |units| units.max(1))
+    }
+
+    fn record(&self, took: Duration, units: u64) {
+        let unit = (took.as_nanos() / u128::from(units.max(1))).clamp(1, u128::from(u64::MAX)) as u64;
+        self.0.store(unit, Ordering::Relaxed);
+    }
+}
+
+/// Runs `run(k)`, which does the next `k` units of work (steps), until `total` units are done, in pieces of
+/// about `PIECE` at the `pace` last measured (one unit first when it is not known yet); between pieces, with
+/// the GIL held, Python's signal handlers run, and an exception they raise stops the work there.
 /// `run` must give the same result whatever the pieces (k steps then m steps = k + m steps).
-pub fn in_pieces<F>(py: Python<'_>, total: u64, mut run: F) -> PyResult<()>
+pub fn in_pieces<F>(py: Python<'_>, total: u64, pace: &Pace, mut run: F) -> PyResult<()>
 where
     F: FnMut(u64) -> PyResult<()> + Send,
 {
-    let (mut done, mut piece) = (0, 1u64);
+    let mut done = 0;
     while done < total {
-        let k = piece.min(total - done);
+        let k = pace.units_per_piece().min(total - done);
         let started = Instant::now();
         py.detach(|| run(k))?;
+        pace.record(started.elapsed(), k);
         done += k;
-        if done == total {
-            break;
-        }
-        py.check_signals()?;
-        let took = started.elapsed();
-        if took < PIECE / 2 {
-            piece = piece.saturating_mul(2);
-        } else if took > PIECE {
-            piece = (piece / 2).max(1);
+        if done < total {
+            py.check_signals()?;
         }
     }
     Ok(())

@@ -15,7 +15,7 @@ use pyo3::types::{PyDict, PyList, PyTuple};
 
 use crate::batch::on_all_threads;
 use crate::convert::{batch_error, kernel_error, to_numpy, Floats, Integer};
-use crate::interrupt::in_pieces;
+use crate::interrupt::{in_pieces, Pace};
 use crate::model::{homogeneous, transform, PyModel};
 
 /// Terrain for a `Simulation`: `Ground.plane(friction)` (the plane z = 0) or
@@ -115,6 +115,7 @@ impl PyGround {
 #[pyclass(name = "Simulation", module = "legkit")]
 pub struct PySimulation {
     sim: Simulation,
+    pace: Pace,
 }
 
 /// `error` with its message prefixed by `argument`, its class kept.
@@ -256,7 +257,7 @@ impl PySimulation {
         options.backend = Backend::parse(backend).map_err(kernel_error)?;
         options.shapes = shape_overrides(&model, shapes.as_ref())?;
         let sim = Simulation::new(&model.model, options).map_err(kernel_error)?;
-        Ok(PySimulation { sim })
+        Ok(PySimulation { sim, pace: Pace::default() })
     }
 
     /// Newton iterations of the contact solver in the last (sub)step on the tree engine (it stops once
@@ -285,8 +286,8 @@ impl PySimulation {
         let n = n.within("n", 0, i64::MAX as u64)?;
         let mut this = in_use(slf)?;
         let tau = tau.map(|t| vector_argument("tau", &t, this.sim.model().nv())).transpose()?;
-        let sim = &mut this.sim;
-        in_pieces(slf.py(), n, |k| sim.step(tau.as_deref(), k as usize).map_err(kernel_error))
+        let PySimulation { sim, pace } = &mut *this;
+        in_pieces(slf.py(), n, pace, |k| sim.step(tau.as_deref(), k as usize).map_err(kernel_error))
     }
 
     /// Position/velocity servos, evaluated every step in Rust:
@@ -447,6 +448,7 @@ fn in_use<'py>(slf: &Bound<'py, PySimulation>) -> PyResult<PyRefMut<'py, PySimul
 #[pyclass(name = "SimulationBatch", module = "legkit")]
 pub struct PySimulationBatch {
     members: Vec<Py<PySimulation>>,
+    pace: Pace,
 }
 
 #[pymethods]
@@ -469,7 +471,7 @@ impl PySimulationBatch {
             }
             members.push(sim.clone().unbind());
         }
-        Ok(PySimulationBatch { members })
+        Ok(PySimulationBatch { members, pace: Pace::default() })
     }
 
     /// Advances every simulation `n` steps, in parallel. `tau`: None (zero), one (nv,) array for all, a
@@ -490,7 +492,7 @@ impl PySimulationBatch {
             guards.iter_mut().zip(&taus).enumerate().map(|(i, (g, t))| (i, &mut g.sim, t)).collect();
         // The first failure, by index; a failed simulation stops, the others go on.
         let mut failure: Option<(usize, legkit_dynamics::Error)> = None;
-        in_pieces(py, n, |k| {
+        in_pieces(py, n, &self.pace, |k| {
             // Each simulation is stepped by one thread, so the results do not depend on which.
             let items: Vec<_> = sims.iter_mut().map(|(i, sim, tau)| (*i, &mut **sim, tau.as_deref())).collect();
             let outcomes = on_all_threads(items, || (), |_, _, (i, sim, tau)| sim.step(tau, k as usize).err().map(|e| (i, e)));
