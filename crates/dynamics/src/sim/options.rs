@@ -57,10 +57,13 @@ pub struct Convex {
 }
 
 impl Convex {
-    /// The hull of `points` (finite); an error if they span no volume.
+    /// The hull of `points` (finite, within `MAX_SHAPE_SIZE`); an error if they span no volume, or if parry
+    /// fails on them (a panic inside it, caught: a numerical failure).
     pub fn hull(points: &[Vector3<f64>]) -> Result<Self> {
         for p in points {
-            finite_vector("shapes", *p)?;
+            for x in finite_vector("shapes", *p)?.iter() {
+                within_size("shapes", *x)?;
+            }
         }
         let flat = || {
             Error::invalid("shapes", format!("the convex hull of {} points has no volume (they lie in a plane or are fewer than 4)", points.len()))
@@ -69,7 +72,9 @@ impl Convex {
             return Err(flat());
         }
         let parry: Vec<Vector> = points.iter().map(to_vector).collect();
-        let hull = ConvexPolyhedron::from_convex_hull(&parry).ok_or_else(flat)?;
+        let hull = std::panic::catch_unwind(|| ConvexPolyhedron::from_convex_hull(&parry))
+            .map_err(|_| Error::numerical("shapes", format!("parry failed to build the convex hull of {} points", points.len())))?
+            .ok_or_else(flat)?;
         let vertices = hull.points().iter().map(|p| from_vector(*p)).collect();
         Ok(Convex { vertices, shape: SharedShape::new(hull) })
     }
@@ -143,11 +148,8 @@ impl Shape {
                     return Err(Error::invalid("shapes", format!("half_height must be >= 0, got {half_height}")));
                 }
             }
-            ShapeKind::Convex(hull) => {
-                for x in hull.vertices().iter().flat_map(|v| v.iter()) {
-                    within_size("shapes", *x)?;
-                }
-            }
+            // Checked by `Convex::hull`, its only maker.
+            ShapeKind::Convex(_) => {}
         }
         if let Some(p) = &placement {
             rotation("shapes", &p.rotation)?;
