@@ -43,7 +43,8 @@ pub fn resolve_mesh(filename: &str, urdf_dir: Option<&Path>, package_dirs: &[Pat
         let (package, inside) = rest.split_once('/').unwrap_or((rest, ""));
         // Only plain names below the package: `..` or a root would reach files outside it (which the viewer
         // would then embed).
-        if !Path::new(rest).components().all(|c| matches!(c, Component::Normal(_) | Component::CurDir)) {
+        let below = |path: &str| Path::new(path).components().all(|c| matches!(c, Component::Normal(_) | Component::CurDir));
+        if !(below(rest) && below(inside)) {
             return Err(Error::invalid("mesh", format!("{filename:?} names a file outside its package (only names below it are allowed)")));
         }
         let mut searched = Vec::new();
@@ -325,5 +326,33 @@ mod tests {
         assert_eq!(resolve_mesh("../meshes/part.stl", Some(&urdf_dir), &[]).unwrap(), urdf_dir.join("../meshes/part.stl"));
         let missing = resolve_mesh("package://nowhere/x.stl", Some(&urdf_dir), &[]).unwrap_err().to_string();
         assert!(missing.contains("package_dirs") && missing.contains("nowhere"), "{missing}");
+        // A package name cannot climb out of its package, even to a file that exists.
+        for escape in ["package://pkg_a/../pkg_a/meshes/part.stl", "package://pkg_a//etc/passwd", "package://../pkg_a/meshes/part.stl"] {
+            let refused = resolve_mesh(escape, Some(&urdf_dir), std::slice::from_ref(&root)).unwrap_err().to_string();
+            assert!(refused.contains("outside its package"), "{refused}");
+        }
+        // A FIFO is refused before it is opened (opening one blocks until a writer comes).
+        let fifo = root.join("pipe.stl");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success());
+        if made {
+            let refused = mesh_vertices(&fifo).unwrap_err().to_string();
+            assert!(refused.contains("not a regular file"), "{refused}");
+        }
+    }
+
+    #[test]
+    fn collada_nesting_deeper_than_the_call_stack_allows() {
+        let depth = 100_000;
+        let cube: String = (0..8).map(|k| format!("{} {} {} ", k & 1, (k >> 1) & 1, (k >> 2) & 1)).collect();
+        let text = format!(
+            "<COLLADA><library_geometries><geometry id=\"g\"><mesh><source id=\"p\"><float_array>{cube}</float_array></source>\
+             <vertices id=\"v\"><input semantic=\"POSITION\" source=\"#p\"/></vertices></mesh></geometry></library_geometries>\
+             <library_visual_scenes><visual_scene>{}<instance_geometry url=\"#g\"/>{}</visual_scene></library_visual_scenes></COLLADA>",
+            "<node><translate>1 0 0</translate>".repeat(depth),
+            "</node>".repeat(depth)
+        );
+        let vertices = collada(&text).unwrap();
+        assert_eq!(vertices.len(), 8);
+        assert_eq!(vertices[0], Vector3::new(depth as f64, 0.0, 0.0));
     }
 }
