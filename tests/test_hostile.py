@@ -137,6 +137,25 @@ report(raised=None, finite=bool(np.isfinite(a).all()), error=float(np.abs(a - v)
     assert result["raised"] is None and result["finite"] and result["error"] < 1e-3, result
 
 
+@pytest.mark.parametrize("call", ["lk.crba(model, q)", "lk.minv(model, q)", "lk.contact_dynamics(model, q, q, q, [(1, [0, 0, 0])])"])
+def test_dense_kernels_on_a_20000_link_chain_are_memory_errors_within_a_limit(tmp_path, call):
+    # Their output (3.2 GB) fits under the limit, their own nv x nv workspace does not: MemoryError, not an abort.
+    (tmp_path / "chain.urdf").write_text(chain_urdf(20_000))
+    raises(
+        f"""
+model = lk.Model.from_urdf({str(tmp_path / "chain.urdf")!r})
+q = np.zeros(model.nq)
+vm = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (vm + 4 * 2**30, vm + 4 * 2**30))
+{call}
+""",
+        "MemoryError",
+        "model",
+        "bytes",
+        memory=0,
+    )
+
+
 # --- recursion over input-defined depth ---------------------------------------------------------------------
 
 

@@ -21,7 +21,7 @@ use crate::algorithms::aba::{Block6, BLOCK};
 use crate::joint::Joint;
 use crate::sim::Shape;
 use crate::spatial::{spatial, Force, Inertia, Motion, RateMatrix, RigidInertia, Transform};
-use crate::validate::{finite_vector, rotation};
+use crate::validate::{array_len, filled, finite_vector, rotation, with_capacity};
 use crate::{Error, MassProperties, Result};
 
 /// Limits of a revolute or prismatic joint, in the joint's coordinate: position range `lower..=upper`
@@ -490,6 +490,29 @@ pub(crate) fn reserve_square(matrix: &mut DMatrix<f64>, n: usize) {
     }
 }
 
+/// `reserve_square` with fallible allocation (n x n checked by the caller): `Error::TooLarge` naming the
+/// model instead of an abort.
+fn try_reserve_square(matrix: &mut DMatrix<f64>, n: usize) -> Result<()> {
+    if matrix.shape() != (n, n) {
+        *matrix = DMatrix::from_vec(n, n, filled("model", n * n, 0.0)?);
+    }
+    Ok(())
+}
+
+/// A dense part of `Data` (nv x nv, or nbodies x 6 x nv), which the kernels that need it size on their first
+/// call: 3.2 GB per nv x nv matrix on a 20,000-link chain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dense {
+    /// M (`crba`).
+    MassMatrix,
+    /// M⁻¹ and its recursion's per-body force sets (`minv`, and what solves with M⁻¹).
+    Inverse,
+    /// The RNEA derivatives' ∂τ/∂q and ∂τ/∂v.
+    RneaDerivatives,
+    /// The ABA derivatives' ∂q̈/∂q and ∂q̈/∂v.
+    AbaDerivatives,
+}
+
 impl Derivatives {
     /// Sizes the workspace for `model` unless it already is, all but the nv x nv outputs, which the RNEA and ABA
     /// derivatives size on their first call (`reserve_square`): the frame and centroidal derivatives need O(n nv).
@@ -536,6 +559,51 @@ impl Derivatives {
 }
 
 impl Data {
+    /// Sizes the dense `parts` for `model` as their kernels would on their first call, but with fallible
+    /// allocation: `Error::TooLarge` (naming the model) where the kernels would abort the process. Callers that
+    /// take sizes from untrusted input reserve first.
+    pub fn reserve_dense(&mut self, model: &Model, parts: &[Dense]) -> Result<()> {
+        let (n, nv) = (model.nbodies(), model.nv());
+        let square = array_len("model", &[nv, nv], std::mem::size_of::<f64>())?;
+        let sets = array_len("model", &[n, 6, nv], std::mem::size_of::<f64>())?;
+        let missing = |m: &DMatrix<f64>| if m.shape() == (nv, nv) { 0 } else { square };
+        let d = &self.derivatives;
+        let needed = parts.iter().fold(0usize, |total, part| {
+            total.saturating_add(match part {
+                Dense::MassMatrix => missing(&self.mass_matrix),
+                Dense::Inverse => missing(&self.minv).saturating_add(if self.force_sets.len() == n { 0 } else { sets }),
+                Dense::RneaDerivatives => missing(&d.dtau_dq).saturating_add(missing(&d.dtau_dv)),
+                Dense::AbaDerivatives => missing(&d.ddq_dq).saturating_add(missing(&d.ddq_dv)),
+            })
+        });
+        // Asked for as one block first, which the allocator refuses at once if it cannot hold it all, before
+        // gigabytes of it are written and then given up.
+        drop(with_capacity::<f64>("model", needed)?);
+        for part in parts {
+            match part {
+                Dense::MassMatrix => try_reserve_square(&mut self.mass_matrix, nv)?,
+                Dense::Inverse => {
+                    try_reserve_square(&mut self.minv, nv)?;
+                    if self.force_sets.len() != n {
+                        let mut sets = with_capacity("model", n)?;
+                        for _ in 0..n {
+                            sets.push(Matrix6xX::from_vec(filled("model", 6 * nv, 0.0)?));
+                        }
+                        self.force_sets = sets;
+                    }
+                }
+                Dense::RneaDerivatives | Dense::AbaDerivatives => {
+                    self.derivatives.reserve(model);
+                    let d = &mut self.derivatives;
+                    let (a, b) = if *part == Dense::RneaDerivatives { (&mut d.dtau_dq, &mut d.dtau_dv) } else { (&mut d.ddq_dq, &mut d.ddq_dv) };
+                    try_reserve_square(a, nv)?;
+                    try_reserve_square(b, nv)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
     pub fn new(model: &Model) -> Self {
         let n = model.nbodies();
         Data {

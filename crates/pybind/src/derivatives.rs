@@ -1,7 +1,7 @@
 //! The derivatives of the dynamics over batches of states, as `dynamics.rs` runs the dynamics.
 
 use legkit_dynamics::algorithms;
-use legkit_dynamics::model::check_vector;
+use legkit_dynamics::model::{check_vector, Dense};
 use legkit_dynamics::{Error, Model};
 use numpy::ndarray::Axis;
 use numpy::{PyArrayDyn, PyArrayMethods};
@@ -77,6 +77,7 @@ pub fn rnea_derivatives<'py>(
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("a", a, m.nv())?;
+        w.dense(&[Dense::RneaDerivatives])?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         let (dq, dv) = algorithms::rnea_derivatives(m, data, q, v, a, forces);
         write_columns(&[dq.as_slice(), dv.as_slice()], out);
@@ -103,6 +104,7 @@ pub fn aba_derivatives<'py>(
         let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("tau", tau, m.nv())?;
+        w.dense(&[Dense::Inverse, Dense::AbaDerivatives])?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         let (dq, dv, minv) = algorithms::aba_derivatives(m, data, q, v, tau, forces);
         write_columns(&[dq.as_slice(), dv.as_slice(), minv.as_slice()], out);

@@ -2,7 +2,7 @@
 //! checked, and the batch is spread over all cores with the GIL released.
 
 use legkit_dynamics::algorithms;
-use legkit_dynamics::model::check_vector;
+use legkit_dynamics::model::{check_vector, Dense};
 use legkit_dynamics::Model;
 use pyo3::prelude::*;
 
@@ -84,7 +84,7 @@ pub fn crba<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) ->
         let q = batch.rows[0].row(i);
         m.check_configuration(q)?;
         // M is symmetric, so its column-major storage is also its row-major layout.
-        out.copy_from_slice(algorithms::crba(m, w.data(), q).as_slice());
+        out.copy_from_slice(algorithms::crba(m, w.dense(&[Dense::MassMatrix])?, q).as_slice());
         Ok(())
     })
 }
@@ -97,7 +97,7 @@ pub fn minv<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) ->
     run(py, &model, &batch, &[m.nv(), m.nv()], |m, w, i, out| {
         let q = batch.rows[0].row(i);
         m.check_configuration(q)?;
-        out.copy_from_slice(algorithms::minv(m, w.data(), q).as_slice());
+        out.copy_from_slice(algorithms::minv(m, w.dense(&[Dense::Inverse])?, q).as_slice());
         // M⁻¹ is positive definite, so |M⁻¹_ij| <= sqrt(M⁻¹_ii M⁻¹_jj): a singular M shows on the diagonal.
         finite_dynamics(m, w.data(), out.iter().step_by(m.nv() + 1))
     })

@@ -198,7 +198,7 @@ where
 {
     let nv = owner.model.nv();
     let parts = run_matrices(py, owner, batch, 2, nv, |m, w, i, out| {
-        let (a, b) = w.matrix_pair(nv);
+        let (a, b) = w.matrix_pair(nv)?;
         kernel(m, i, a, b)?;
         write_columns(&[a.as_slice(), b.as_slice()], out);
         Ok(())

@@ -1,6 +1,7 @@
 //! Running a kernel over a batch of states with per-task workspaces, the GIL released.
 
 use legkit_dynamics::model::check_vector;
+use legkit_dynamics::model::Dense;
 use legkit_dynamics::spatial::Force;
 use legkit_dynamics::validate::{array_len, filled};
 use legkit_dynamics::{Data, Error, Model};
@@ -35,6 +36,14 @@ impl<'m> Workspace<'m> {
         self.data.as_mut().expect("present until dropped")
     }
 
+    /// The workspace with its dense `parts` sized fallibly (see `Data::reserve_dense`): for the kernels that
+    /// need nv x nv matrices, so that a model too large for them is a MemoryError, not an abort.
+    pub fn dense(&mut self, parts: &[Dense]) -> Result<&mut Data, Error> {
+        let data = self.data.as_mut().expect("present until dropped");
+        data.reserve_dense(&self.owner.model, parts)?;
+        Ok(data)
+    }
+
     /// The workspace and the external forces read from a row of `nbodies x 6` numbers (None when the
     /// argument was not given).
     pub fn with_forces(&mut self, row: Option<&[f64]>) -> Result<(&mut Data, Option<&[Force]>), Error> {
@@ -48,12 +57,13 @@ impl<'m> Workspace<'m> {
         Ok((data, Some(&self.forces)))
     }
 
-    /// Two n x n matrices, allocated by the task's first row and reused by the others.
-    pub fn matrix_pair(&mut self, n: usize) -> (&mut DMatrix<f64>, &mut DMatrix<f64>) {
+    /// Two n x n matrices, allocated (fallibly) by the task's first row and reused by the others.
+    pub fn matrix_pair(&mut self, n: usize) -> Result<(&mut DMatrix<f64>, &mut DMatrix<f64>), Error> {
         if self.matrices.0.nrows() != n {
-            self.matrices = (DMatrix::zeros(n, n), DMatrix::zeros(n, n));
+            let len = array_len("model", &[n, n], std::mem::size_of::<f64>())?;
+            self.matrices = (DMatrix::from_vec(n, n, filled("model", len, 0.0)?), DMatrix::from_vec(n, n, filled("model", len, 0.0)?));
         }
-        (&mut self.matrices.0, &mut self.matrices.1)
+        Ok((&mut self.matrices.0, &mut self.matrices.1))
     }
 }
 
