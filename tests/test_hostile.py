@@ -111,6 +111,18 @@ def test_a_rollout_too_long_to_hold_is_a_memory_error(steps):
     raises(PENDULUM + f"lk.free_rollout(model, q, v, dt=1e-3, steps={steps})", "MemoryError", "steps")
 
 
+@pytest.mark.parametrize(
+    "call",
+    [
+        "lk.MassProperties.from_points(np.broadcast_to(1.0, (10**10,)), np.broadcast_to(0.0, (10**10, 3)))",
+        'lk.Simulation(model, shapes={1: ("convex", np.broadcast_to(0.0, (10**10, 3)))})',
+        "lk.reduced_dynamics(model, np.broadcast_to(0.0, (10**10,)), v, tau, [(1, [0, 0, 0])])",
+    ],
+)
+def test_huge_broadcast_views_elsewhere_are_memory_errors(call):
+    raises(PENDULUM + call, "MemoryError", "bytes")
+
+
 def test_a_huge_broadcast_heightfield_is_a_memory_error():
     raises("lk.Ground.heightfield(np.broadcast_to(0.0, (10**5, 10**5)), 0.1)", "MemoryError", "heights")
 
@@ -282,6 +294,21 @@ def test_a_result_that_overflows_is_a_runtime_error_not_a_singular_matrix(call):
     with pytest.raises(RuntimeError, match="overflow") as error:
         eval(call, namespace)
     assert "singular" not in str(error.value)
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        "a + a",
+        "a.transformed(np.eye(3), [1e200, 0, 0])",
+        "a.inertia_about([1e200, 0, 0])",
+        "lk.MassProperties.from_points([1e308, 1e308], np.zeros((2, 3)))",
+    ],
+)
+def test_mass_algebra_that_overflows_is_a_runtime_error(call):
+    namespace = {"lk": lk, "np": np, "a": lk.MassProperties(1e300, [0, 0, 0], np.eye(3) * 1e308)}
+    with pytest.raises(RuntimeError, match="overflow"):
+        eval(call, namespace)
 
 
 @pytest.mark.parametrize("call", ["lk.aba(model, q, v, tau)", "lk.minv(model, q)", "lk.free_rollout(model, q, v, 1e-3, 3)"])

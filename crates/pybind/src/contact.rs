@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use crate::batch::{broadcast, ArrayArg, Batch};
-use crate::convert::{kernel_error, to_numpy, vector3, FloatArray, Vector};
+use crate::convert::{kernel_error, numbers, to_numpy, vector3, FloatArray, Vector};
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
 
@@ -132,8 +132,7 @@ pub fn reduced_dynamics<'py>(
 ) -> PyResult<Reduced<'py>> {
     let contacts = self::contacts(&model, contacts)?;
     let m = &model.model;
-    let slice = |name: &str, x: &Vector<'_>| -> PyResult<Vec<f64>> { Ok(x.get(name)?.iter().copied().collect()) };
-    let (q, v, tau) = (&slice("q", &q)?[..], &slice("v", &v)?[..], &slice("tau", &tau)?[..]);
+    let (q, v, tau) = (&numbers("q", &q)?[..], &numbers("v", &v)?[..], &numbers("tau", &tau)?[..]);
     check_state(m, q, Some(v)).map_err(kernel_error)?;
     check_vector("tau", tau, m.nv()).map_err(kernel_error)?;
     let mut data = model.take_workspace();

@@ -1,5 +1,6 @@
 //! Conversions between NumPy arrays and nalgebra values, and the mapping of kernel errors to Python ones.
 
+use legkit_dynamics::validate::with_capacity;
 use legkit_dynamics::Error;
 use nalgebra::{Matrix3, Vector3};
 use numpy::ndarray::{Array, ArrayViewD, Dimension, IntoDimension};
@@ -184,13 +185,24 @@ pub fn homogeneous_matrix(argument: &str, value: &Matrix<'_>) -> PyResult<(Matri
     Ok((Matrix3::from_fn(|i, j| view[[i, j]]), Vector3::from_fn(|i, _| view[[i, 3]])))
 }
 
-/// Rows of an (n, 3) array as vectors.
-pub fn rows3(argument: &str, value: &Matrix<'_>) -> PyResult<Vec<Vector3<f64>>> {
+/// Rows of an (n, 3) array as vectors, allocated fallibly (a broadcast view may stand for more rows than
+/// memory holds).
+pub fn rows3(argument: &'static str, value: &Matrix<'_>) -> PyResult<Vec<Vector3<f64>>> {
     let view = value.get(argument)?;
     if view.ndim() != 2 || view.shape()[1] != 3 {
         return Err(shape_error(argument, "(n, 3)", view.shape()));
     }
-    Ok(view.outer_iter().map(|r| Vector3::new(r[0], r[1], r[2])).collect())
+    let mut rows = with_capacity(argument, view.shape()[0]).map_err(kernel_error)?;
+    rows.extend(view.outer_iter().map(|r| Vector3::new(r[0], r[1], r[2])));
+    Ok(rows)
+}
+
+/// An array's numbers in order, allocated fallibly.
+pub fn numbers(argument: &'static str, value: &Floats<'_>) -> PyResult<Vec<f64>> {
+    let view = value.get(argument)?;
+    let mut numbers = with_capacity(argument, view.len()).map_err(kernel_error)?;
+    numbers.extend(view.iter().copied());
+    Ok(numbers)
 }
 
 pub fn to_numpy<'py, D: Dimension, S: IntoDimension<Dim = D>, T: numpy::Element>(

@@ -160,14 +160,8 @@ fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
         }
         "sphere" => ShapeKind::Sphere(number(1)?),
         "convex" => {
-            let points: numpy::PyReadonlyArray2<'_, f64> =
-                tuple.get_item(1)?.extract().map_err(|_| PyTypeError::new_err("shapes: convex takes an (n, 3) array of points"))?;
-            let view = points.as_array();
-            if view.ncols() != 3 {
-                return Err(shape_error(format!("convex takes an (n, 3) array of points, got {:?}", view.shape())));
-            }
-            let points: Vec<Vector3<f64>> = view.rows().into_iter().map(|r| Vector3::new(r[0], r[1], r[2])).collect();
-            ShapeKind::Convex(Convex::hull(&points).map_err(kernel_error)?)
+            let points: Floats<'_> = tuple.get_item(1)?.extract()?;
+            ShapeKind::Convex(Convex::hull(&crate::convert::rows3("shapes", &points)?).map_err(kernel_error)?)
         }
         "capsule" => ShapeKind::Capsule { half_height: number(1)?, radius: number(2)? },
         _ => ShapeKind::Cylinder { half_height: number(1)?, radius: number(2)? },
