@@ -137,7 +137,7 @@ class Model:
         What exporters write and Pinocchio loads (non-physical inertias, effort="0") loads as written with
         a UrdfWarning naming the element, or raises ValueError if strict. A string starting with "<" (after a byte
         order mark and blanks) is XML, anything else a path; a path that is not a regular file (a FIFO, a device)
-        is refused before it is opened."""
+        is refused before it is opened. Ctrl-C interrupts the load."""
 
 def resolve_mesh(
     filename: str, urdf: str | os.PathLike[str] | None = None, package_dirs: Sequence[str | os.PathLike[str]] | None = None,
