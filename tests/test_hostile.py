@@ -378,6 +378,18 @@ def assert_ctrl_c_answered_within_a_second(body: str, *, after: float, memory: i
     assert waited < 1.0, waited
 
 
+def test_ctrl_c_interrupts_a_long_batched_kernel_within_a_second(tmp_path):
+    # 30,000 states of a 300-link chain in contact (about 10 s).
+    (tmp_path / "chain.urdf").write_text(chain_urdf(300))
+    body = f"""
+model = lk.Model.from_urdf({str(tmp_path / "chain.urdf")!r})
+q = np.zeros((30_000, model.nq))
+print('STARTED', flush=True)
+lk.contact_dynamics(model, q, q, q, [(model.nbodies - 1, [0, 0, 0])])
+"""
+    assert_ctrl_c_answered_within_a_second(body.strip(), after=0.5, memory=4 * GIB)
+
+
 @pytest.mark.parametrize("call", sorted(LONG_CALLS))
 def test_ctrl_c_interrupts_a_long_call_within_a_second(call):
     setup = "from legkit.robots.quadruped import build_quadruped\nmodel = build_quadruped().model\n"

@@ -161,10 +161,11 @@ fn broadcast_shapes(a: &[usize], b: &[usize]) -> Option<Shape> {
 /// Rows per parallel task: large enough that a task's setup (e.g. a fresh workspace) is amortised.
 const MIN_ROWS_PER_TASK: usize = 64;
 
-/// Evaluates `kernel(state, i, row)` for each batch row `i` of `out` (`width` numbers per row), in tasks of
-/// rows shared by the calling thread and the pool's other threads (`on_all_threads`; each thread with its own
-/// `state` from `init`). A failure names the lowest failing row, so the message does not depend on scheduling.
-pub fn map_rows<S, I, K>(out: &mut [f64], width: usize, init: I, kernel: K) -> PyResult<()>
+/// Evaluates `kernel(state, i, row)` for each batch row `i` of `out` (`width` numbers per row), which holds
+/// rows `first..` of a batch of `total` (all of it, or a piece of it), in tasks of rows shared by the calling
+/// thread and the pool's other threads (`on_all_threads`; each thread with its own `state` from `init`). A
+/// failure names the lowest failing row, so the message does not depend on scheduling.
+pub fn map_rows<S, I, K>(out: &mut [f64], width: usize, first: usize, total: usize, init: I, kernel: K) -> PyResult<()>
 where
     I: Fn() -> S + Sync,
     K: Fn(&mut S, usize, &mut [f64]) -> Result<(), Error> + Sync,
@@ -177,13 +178,14 @@ where
         rows.chunks_mut(width).enumerate().find_map(|(j, row)| kernel(state, first_row + j, row).err().map(|e| (first_row + j, e)))
     };
     let failure = if len < 2 * MIN_ROWS_PER_TASK {
-        first_failure(&mut init(), 0, out)
+        first_failure(&mut init(), first, out)
     } else {
         let tasks: Vec<&mut [f64]> = out.chunks_mut(MIN_ROWS_PER_TASK * width).collect();
-        on_all_threads(tasks, &init, |state, k, rows| first_failure(state, k * MIN_ROWS_PER_TASK, rows)).into_iter().flatten().min_by_key(|(i, _)| *i)
+        let failures = on_all_threads(tasks, &init, |state, k, rows| first_failure(state, first + k * MIN_ROWS_PER_TASK, rows));
+        failures.into_iter().flatten().min_by_key(|(i, _)| *i)
     };
     match failure {
-        Some((_, e)) if len == 1 => Err(crate::convert::kernel_error(e)),
+        Some((_, e)) if total == 1 => Err(crate::convert::kernel_error(e)),
         Some((i, e)) => Err(batch_error(e, i)),
         None => Ok(()),
     }

@@ -1,7 +1,7 @@
 //! Circle–line queries over broadcast batches, written straight into the output arrays in parallel
 //! chunks with the GIL released.
 
-use legkit_dynamics::validate::finite_vector;
+use legkit_dynamics::validate::{array_len, filled, finite_vector};
 use legkit_dynamics::{circle_line as circle_line_query, rotation_toward_line as rotation_query, Circle, CircleLineColumns, Error, Line};
 use nalgebra::Vector3;
 use numpy::{IxDyn, PyArrayDyn};
@@ -51,8 +51,11 @@ pub fn circle_line<'py>(
         ("line_direction", &line_direction, &[3]),
     ])?;
     let n = batch.len;
-    let (mut distance, mut count, mut equidistant) = (vec![0.0; n], vec![0i64; n], vec![false; n]);
-    let (mut circle_points, mut line_points) = (vec![0.0; 6 * n], vec![0.0; 6 * n]);
+    let points = array_len(batch.largest, &[n, 6], std::mem::size_of::<f64>()).map_err(kernel_error)?;
+    let output = |len, value| filled(batch.largest, len, value).map_err(kernel_error);
+    let (mut distance, mut count, mut equidistant) =
+        (output(n, 0.0)?, filled(batch.largest, n, 0i64).map_err(kernel_error)?, filled(batch.largest, n, false).map_err(kernel_error)?);
+    let (mut circle_points, mut line_points) = (output(points, 0.0)?, output(points, 0.0)?);
     let r = &batch.rows;
     let failure = py.detach(|| {
         let chunks = distance
@@ -107,7 +110,8 @@ pub fn rotation_toward_line<'py>(
         ("line_point", &line_point, &[3]),
         ("line_direction", &line_direction, &[3]),
     ])?;
-    let (mut theta, mut distance) = (vec![0.0; batch.len], vec![0.0; batch.len]);
+    let output = || filled(batch.largest, batch.len, 0.0).map_err(kernel_error);
+    let (mut theta, mut distance) = (output()?, output()?);
     let r = &batch.rows;
     let failure = py.detach(|| {
         let chunks = theta.par_chunks_mut(CHUNK).zip(distance.par_chunks_mut(CHUNK)).enumerate();

@@ -85,6 +85,8 @@ pub fn free_rollout<'py>(
     map_rows(
         &mut packed,
         width,
+        0,
+        batch.len,
         || (),
         |_, i, out| {
             let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
@@ -101,6 +103,8 @@ pub fn free_rollout<'py>(
         map_rows(
             &mut packed,
             width,
+            0,
+            batch.len,
             || Workspace::new(owner),
             |w, _, out| {
                 let (qs, vs) = out.split_at_mut(rows * nq);

@@ -12,6 +12,7 @@ use pyo3::prelude::*;
 use crate::convert::{kernel_error, FloatArray};
 
 use crate::batch::{map_rows, to_numpy, Batch};
+use crate::interrupt::{in_pieces, Pace};
 use crate::model::PyModel;
 
 /// Models with fewer bodies than this run a single state without releasing the GIL.
@@ -105,14 +106,20 @@ fn fill<K>(py: Python<'_>, owner: &PyModel, batch: &Batch, out: &mut [f64], widt
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
-    let (model, kernel) = (&owner.model, &kernel);
-    let work = |out: &mut [f64]| map_rows(out, width, || Workspace::new(owner), |w, i, row| kernel(model, w, i, row));
+    let (model, kernel, total) = (&owner.model, &kernel, batch.len);
+    let rows = |first: usize, out: &mut [f64]| map_rows(out, width, first, total, || Workspace::new(owner), |w, i, row| kernel(model, w, i, row));
     // Releasing and retaking the GIL costs about as much as one small model's kernel: keep it for those.
-    if batch.len == 1 && model.nbodies() < SMALL_MODEL {
-        work(out)
-    } else {
-        py.detach(|| work(out))
+    if total == 1 && model.nbodies() < SMALL_MODEL {
+        return rows(0, out);
     }
+    // Long batches in pieces of rows, so that Ctrl-C is answered between them.
+    let mut done = 0;
+    in_pieces(py, total as u64, &Pace::default(), |k| {
+        let next = done + k as usize;
+        rows(done, &mut out[done * width..next * width])?;
+        done = next;
+        Ok(())
+    })
 }
 
 /// Splits rows packed as `[part 0 | part 1 | ...]` into one array per part, shaped `batch + core`.
