@@ -311,11 +311,15 @@ def test_mass_algebra_that_overflows_is_a_runtime_error(call):
         eval(call, namespace)
 
 
+@pytest.mark.parametrize("floating", [False, True])
 @pytest.mark.parametrize("call", ["lk.aba(model, q, v, tau)", "lk.minv(model, q)", "lk.free_rollout(model, q, v, 1e-3, 3)"])
-def test_a_singular_mass_matrix_is_a_runtime_error_everywhere(call):
-    model = lk.Model()
-    model.add_revolute(0, [0, 0, 1], body=lk.MassProperties.zero(), name="massless")
-    namespace = {"lk": lk, "model": model, "q": np.zeros(1), "v": np.zeros(1), "tau": np.zeros(1)}
+def test_a_singular_mass_matrix_is_a_runtime_error_everywhere(call, floating):
+    # A massless link on a fixed base; a massless floating base whose one link turns about its own centre, so
+    # the base's articulated inertia loses that rotation while every joint's pivot stays positive.
+    model = lk.Model(floating_base=floating)
+    model.add_revolute(0, [0, 0, 1], body=lk.MassProperties(1.0, [0, 0, 0], 0.1 * np.eye(3)) if floating else lk.MassProperties.zero())
+    q, v = model.neutral(), np.zeros(model.nv)
+    namespace = {"lk": lk, "model": model, "q": q, "v": v, "tau": v}
     with pytest.raises(RuntimeError, match="singular"):
         eval(call, namespace)
 

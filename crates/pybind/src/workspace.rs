@@ -2,7 +2,7 @@
 
 use legkit_dynamics::model::check_vector;
 use legkit_dynamics::model::Dense;
-use legkit_dynamics::spatial::Force;
+use legkit_dynamics::spatial::{spd_inverse6, Force};
 use legkit_dynamics::validate::{array_len, filled};
 use legkit_dynamics::{Data, Error, Model};
 use nalgebra::DMatrix;
@@ -157,14 +157,16 @@ pub fn finite_dynamics<'a>(model: &Model, data: &Data, values: impl IntoIterator
     finite_result(values).map_err(|overflow| if singular_factor(model, data) { singular() } else { overflow })
 }
 
-/// Whether the articulated-body factor in `data` has an infinite or non-positive pivot: a singular mass
-/// matrix (an overflowed state leaves NaN pivots instead).
+/// Whether the articulated-body factor in `data` is singular: a joint's pivot infinite or non-positive, or a
+/// floating base's finite articulated inertia not positive definite (an overflowed state leaves NaN instead).
 pub fn singular_factor(model: &Model, data: &Data) -> bool {
-    (1..model.nbodies()).any(|i| model.joint(i).nv() == 1 && (data.d_inv[i].is_infinite() || data.d_inv[i] <= 0.0))
+    let base = &data.inertia[0];
+    let base_singular = model.floating_base() && base.iter().all(|x| x.is_finite()) && spd_inverse6(base)[(0, 0)].is_nan();
+    base_singular || (1..model.nbodies()).any(|i| model.joint(i).nv() == 1 && (data.d_inv[i].is_infinite() || data.d_inv[i] <= 0.0))
 }
 
 pub fn singular() -> Error {
-    Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint without inertia?)")
+    Error::numerical("model", "the mass matrix is singular at this configuration (a body or joint without inertia?)")
 }
 
 pub fn check_state(model: &Model, q: &[f64], v: Option<&[f64]>) -> Result<(), Error> {
