@@ -332,18 +332,37 @@ def _state(sim: lk.Simulation) -> list:
     return [sim.q, sim.v, np.array([sim.time]), sim.applied_tau] + [contacts[key] for key in sorted(contacts)]
 
 
-@pytest.mark.parametrize("backend", ["tree", "rapier"])
-def test_a_step_that_raises_leaves_the_simulation_as_a_never_failed_twin(backend):
+def _go1() -> lk.Model:
+    import warnings
+    from importlib.metadata import distribution
+
+    robots = Path(distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lk.UrdfWarning)
+        return lk.Model.from_urdf(robots / "go1_description/urdf/go1.urdf", floating_base=True)
+
+
+@pytest.mark.parametrize(
+    ("backend", "scene"),
+    [("tree", "plane"), ("rapier", "plane"), ("tree", "heightfield"), ("rapier", "heightfield"), ("tree", "go1 self-collision")],
+)
+def test_a_step_that_raises_leaves_the_simulation_as_a_never_failed_twin(backend, scene):
     from legkit.robots.quadruped import build_quadruped
 
-    model = build_quadruped().model
-    ground = lk.Ground.plane(friction=0.8)
-    sims = [lk.Simulation(model, dt=1e-3, ground=ground, backend=backend) for _ in range(2)]
+    # On the heightfield and between Go1's bodies the contacts go through parry's manifolds.
+    bumps = 0.01 * np.sin(np.arange(30))[:, None] * np.cos(np.arange(30))[None, :]
+    ground = lk.Ground.heightfield(bumps, 0.1, friction=0.8) if scene == "heightfield" else lk.Ground.plane(friction=0.8)
+    model = _go1() if scene.startswith("go1") else build_quadruped().model
+    sims = [lk.Simulation(model, dt=1e-3, ground=ground, backend=backend, self_collision=scene.startswith("go1")) for _ in range(2)]
+    start = model.neutral()
+    start[2] = 0.35 if scene.startswith("go1") else start[2]
     for sim in sims:
-        sim.step(None, 200)  # standing on the ground: contacts and warm starts in play
+        sim.reset(start, np.zeros(model.nv))
+    for sim in sims:
+        sim.step(None, 500)  # on the ground (Go1 collapsed on its limp legs): contacts and warm starts in play
+    assert len(sims[0].contacts()["body"]) > 0
     before = _state(sims[0])
-    huge = np.zeros(model.nv)
-    huge[6:] = 1e11  # within the actuation bound, but the step explodes
+    huge = np.full(model.nv, 1e11)  # within the actuation bound (the base's wrench is not effort-limited), but it explodes
     with pytest.raises(RuntimeError, match="diverged"):
         sims[0].step(huge, 1)
     for a, b in zip(before, _state(sims[0]), strict=True):

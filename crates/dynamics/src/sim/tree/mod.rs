@@ -289,7 +289,7 @@ impl TreeSimulation {
         for (f, c) in self.found.iter().zip(&self.constraints) {
             let [t1, t2] = f.tangents;
             let friction = t1 * c.lambda[1] + t2 * c.lambda[2];
-            self.collision.store(f.source, [c.lambda[0], friction.x, friction.y, friction.z], &mut self.history);
+            self.collision.store(f.source, [c.lambda[0], friction.x, friction.y, friction.z]);
             self.contacts.push(Contact {
                 body: f.body,
                 other: f.other,
