@@ -564,18 +564,21 @@ impl Data {
     /// take sizes from untrusted input reserve first.
     pub fn reserve_dense(&mut self, model: &Model, parts: &[Dense]) -> Result<()> {
         let (n, nv) = (model.nbodies(), model.nv());
-        let square = array_len("model", &[nv, nv], std::mem::size_of::<f64>())?;
-        let sets = array_len("model", &[n, 6, nv], std::mem::size_of::<f64>())?;
-        let missing = |m: &DMatrix<f64>| if m.shape() == (nv, nv) { 0 } else { square };
+        // Counted in squares and force sets first: a workspace already sized returns at once.
+        let unsized_square = |m: &DMatrix<f64>| usize::from(m.shape() != (nv, nv));
         let d = &self.derivatives;
-        let needed = parts.iter().fold(0usize, |total, part| {
-            total.saturating_add(match part {
-                Dense::MassMatrix => missing(&self.mass_matrix),
-                Dense::Inverse => missing(&self.minv).saturating_add(if self.force_sets.len() == n { 0 } else { sets }),
-                Dense::RneaDerivatives => missing(&d.dtau_dq).saturating_add(missing(&d.dtau_dv)),
-                Dense::AbaDerivatives => missing(&d.ddq_dq).saturating_add(missing(&d.ddq_dv)),
-            })
+        let (squares, sets) = parts.iter().fold((0, 0), |(squares, sets), part| match part {
+            Dense::MassMatrix => (squares + unsized_square(&self.mass_matrix), sets),
+            Dense::Inverse => (squares + unsized_square(&self.minv), sets + usize::from(self.force_sets.len() != n)),
+            Dense::RneaDerivatives => (squares + unsized_square(&d.dtau_dq) + unsized_square(&d.dtau_dv), sets),
+            Dense::AbaDerivatives => (squares + unsized_square(&d.ddq_dq) + unsized_square(&d.ddq_dv), sets),
         });
+        if squares + sets == 0 {
+            return Ok(());
+        }
+        let square = array_len("model", &[nv, nv], std::mem::size_of::<f64>())?;
+        let set = array_len("model", &[n, 6, nv], std::mem::size_of::<f64>())?;
+        let needed = square.saturating_mul(squares).saturating_add(set.saturating_mul(sets));
         // Asked for as one block first, which the allocator refuses at once if it cannot hold it all, before
         // gigabytes of it are written and then given up.
         drop(with_capacity::<f64>("model", needed)?);

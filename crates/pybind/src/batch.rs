@@ -85,20 +85,25 @@ pub fn broadcast(arguments: &[(&'static str, &ArrayArg<'_>, Core)]) -> PyResult<
         let batch = &dims[..dims.len() - core.len()];
         shape = broadcast_shapes(&shape, batch)
             .ok_or_else(|| PyValueError::new_err(format!("{name}: batch shape {batch:?} does not broadcast with {shape:?}")))?;
-        let full: Shape = shape.iter().chain(core.iter()).copied().collect();
-        array_len(name, &full, std::mem::size_of::<f64>()).map_err(kernel_error)?;
         let elements = batch.iter().product::<usize>();
         if elements > most || largest.is_empty() {
             (largest, most) = (name, elements);
         }
         arrays.push((*name, array, batch.len(), *core));
     }
-    let len = shape.iter().product();
+    let len = shape.iter().try_fold(1usize, |n, &d| n.checked_mul(d));
     let rows = arrays
         .into_iter()
         .map(|(name, array, batch_ndim, core)| {
             let batch = &array.shape()[..batch_ndim];
             let shared = batch.iter().product::<usize>() == 1;
+            // The copy's size, checked before anything is allocated: a product that overflows, or more bytes
+            // than an allocation may have, is a MemoryError naming the argument.
+            let numbers = len.and_then(|n| n.checked_mul(core.iter().product()));
+            if !shared && numbers.is_none_or(|n| n > isize::MAX as usize / std::mem::size_of::<f64>()) {
+                let full: Shape = shape.iter().chain(core.iter()).copied().collect();
+                array_len(name, &full, std::mem::size_of::<f64>()).map_err(kernel_error)?;
+            }
             // SAFETY: read here, with the GIL held, so no Python thread writes the array meanwhile (and no
             // Rust code writes arguments); the kernels then run on this copy with the GIL released. Only a
             // C-ordered array is its rows in order: `as_slice` also takes a Fortran-ordered one (a transpose).
@@ -115,7 +120,8 @@ pub fn broadcast(arguments: &[(&'static str, &ArrayArg<'_>, Core)]) -> PyResult<
             Ok(Rows { data, width: core.iter().product(), shared })
         })
         .collect::<PyResult<_>>()?;
-    Ok(Batch { shape, len, rows, largest })
+    // An overflowing batch length was refused above, with the first argument that spans the batch.
+    Ok(Batch { shape, len: len.unwrap_or(usize::MAX), rows, largest })
 }
 
 /// A view's numbers in row-major order, a row at a time where its last axis is contiguous (a column slice such
@@ -137,6 +143,11 @@ fn row_major(argument: &'static str, view: ArrayViewD<'_, f64>) -> PyResult<Vec<
 
 /// `slice` copied on every core: large batches of cheap kernels would otherwise wait on a one-core copy.
 fn copied(argument: &'static str, slice: &[f64]) -> PyResult<Vec<f64>> {
+    if slice.len() <= COPY_CHUNK {
+        let mut copy = with_capacity(argument, slice.len()).map_err(kernel_error)?;
+        copy.extend_from_slice(slice);
+        return Ok(copy);
+    }
     let mut copy = filled(argument, slice.len(), 0.0).map_err(kernel_error)?;
     copy.par_chunks_mut(COPY_CHUNK).zip(slice.par_chunks(COPY_CHUNK)).for_each(|(to, from)| to.copy_from_slice(from));
     Ok(copy)

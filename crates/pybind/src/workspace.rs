@@ -109,10 +109,10 @@ where
     let (model, kernel, total) = (&owner.model, &kernel, batch.len);
     let rows = |first: usize, out: &mut [f64]| map_rows(out, width, first, total, || Workspace::new(owner), |w, i, row| kernel(model, w, i, row));
     // Releasing and retaking the GIL costs about as much as one small model's kernel: keep it for those.
-    if total == 1 && model.nbodies() < SMALL_MODEL {
-        return rows(0, out);
+    if total == 1 {
+        return if model.nbodies() < SMALL_MODEL { rows(0, out) } else { py.detach(|| rows(0, out)) };
     }
-    // Long batches in pieces of rows, so that Ctrl-C is answered between them.
+    // Batches in pieces of rows, so that Ctrl-C is answered between them.
     let mut done = 0;
     in_pieces(py, total as u64, &Pace::default(), |k| {
         let next = done + k as usize;
