@@ -252,14 +252,17 @@ import os, threading, time
 sim = lk.Simulation(model)
 threading.Thread(target=sim.step, args=(None, 10**12), daemon=True).start()
 time.sleep(0.3)
-try:
-    sim.step()
-except RuntimeError as error:
-    report(raised="RuntimeError", message=str(error))
-    os._exit(0)
+messages = []
+for call in (lambda: sim.step(), lambda: setattr(sim, "q", q), lambda: sim.reset(), lambda: sim.set_servo(1.0)):
+    try:
+        call()
+    except RuntimeError as error:
+        messages.append(str(error))
+report(raised="RuntimeError", messages=messages)
+os._exit(0)
 """
     )
-    assert result["raised"] == "RuntimeError" and "another thread" in result["message"], result
+    assert len(result["messages"]) == 4 and all("another thread" in m for m in result["messages"]), result
 
 
 # --- silent wrong answers --------------------------------------------------------------------------------------

@@ -293,14 +293,15 @@ impl PySimulation {
     /// `target_v`: (nv,) (None: zero). Clear servos with kp = kd = 0.
     #[pyo3(signature = (kp, kd = None, torque_limit = None, target_q = None, target_v = None))]
     fn set_servo(
-        &mut self,
+        slf: &Bound<'_, Self>,
         kp: Floats<'_>,
         kd: Option<Floats<'_>>,
         torque_limit: Option<Floats<'_>>,
         target_q: Option<Floats<'_>>,
         target_v: Option<Floats<'_>>,
     ) -> PyResult<()> {
-        let model = self.sim.model();
+        let mut this = in_use(slf)?;
+        let model = this.sim.model();
         let (nq, nv, floating) = (model.nq(), model.nv(), model.floating_base());
         let kp = per_dof("kp", &kp, nv, floating, 0.0)?;
         let kd = kd.map(|k| per_dof("kd", &k, nv, floating, 0.0)).transpose()?.unwrap_or_else(|| vec![0.0; nv]);
@@ -312,13 +313,13 @@ impl PySimulation {
                 check_vector("target_q", &t, nq).map_err(kernel_error)?;
                 t
             }
-            None => self.sim.q().to_vec(),
+            None => this.sim.q().to_vec(),
         };
         let mut targets = vec![0.0; nv];
         dof_coordinates(model, &configuration, &mut targets);
         let target_v = target_v.map(|t| vector_argument("target_v", &t, nv)).transpose()?.unwrap_or_else(|| vec![0.0; nv]);
         let servo = Servo::new(model, kp, kd, limit, targets, target_v).map_err(kernel_error)?;
-        self.sim.set_servo(servo).map_err(kernel_error)
+        this.sim.set_servo(servo).map_err(kernel_error)
     }
 
     /// Configuration (nq,) in legkit's layout; setting it moves the robot (velocity, time and contact
@@ -329,9 +330,10 @@ impl PySimulation {
     }
 
     #[setter]
-    fn set_q(&mut self, q: Floats<'_>) -> PyResult<()> {
-        let q = vector_argument("q", &q, self.sim.model().nq())?;
-        self.sim.set_state(Some(&q), None).map_err(kernel_error)
+    fn set_q(slf: &Bound<'_, Self>, q: Floats<'_>) -> PyResult<()> {
+        let mut this = in_use(slf)?;
+        let q = vector_argument("q", &q, this.sim.model().nq())?;
+        this.sim.set_state(Some(&q), None).map_err(kernel_error)
     }
 
     /// Velocity (nv,) in legkit's layout (a floating base's [v_lin, ω] in its own frame); settable.
@@ -341,9 +343,10 @@ impl PySimulation {
     }
 
     #[setter]
-    fn set_v(&mut self, v: Floats<'_>) -> PyResult<()> {
-        let v = vector_argument("v", &v, self.sim.model().nv())?;
-        self.sim.set_state(None, Some(&v)).map_err(kernel_error)
+    fn set_v(slf: &Bound<'_, Self>, v: Floats<'_>) -> PyResult<()> {
+        let mut this = in_use(slf)?;
+        let v = vector_argument("v", &v, this.sim.model().nv())?;
+        this.sim.set_state(None, Some(&v)).map_err(kernel_error)
     }
 
     /// Simulated time (s).
@@ -403,8 +406,9 @@ impl PySimulation {
     /// Starts over at time 0 from (q, v) (None: neutral configuration, zero velocity) with no contact
     /// history: bit-identical to a new Simulation set to that state. Servo settings are kept.
     #[pyo3(signature = (q = None, v = None))]
-    fn reset(&mut self, q: Option<Floats<'_>>, v: Option<Floats<'_>>) -> PyResult<()> {
-        let model = self.sim.model();
+    fn reset(slf: &Bound<'_, Self>, q: Option<Floats<'_>>, v: Option<Floats<'_>>) -> PyResult<()> {
+        let mut this = in_use(slf)?;
+        let model = this.sim.model();
         let q = match q {
             Some(q) => vector_argument("q", &q, model.nq())?,
             None => model.neutral().as_slice().to_vec(),
@@ -413,7 +417,7 @@ impl PySimulation {
             Some(v) => vector_argument("v", &v, model.nv())?,
             None => vec![0.0; model.nv()],
         };
-        self.sim.reset(&q, &v).map_err(kernel_error)
+        this.sim.reset(&q, &v).map_err(kernel_error)
     }
 
     fn __repr__(&self) -> String {
