@@ -39,7 +39,7 @@ def test_urdf_collisions_and_overrides():
 
 def test_bad_overrides_name_the_argument():
     model = lk.Model.from_urdf(URDF)
-    with pytest.raises(ValueError, match="shapes"):
+    with pytest.raises(IndexError, match="shapes"):
         model.colliders({3: ("sphere", 0.1)})
     with pytest.raises(ValueError, match="shapes"):
         model.colliders({0: ("cone", 0.1)})

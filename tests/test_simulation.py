@@ -348,7 +348,7 @@ def test_bad_construction_arguments_name_the_argument():
         lk.Simulation(model, shapes={1: ("sphere", -0.1)})
     with pytest.raises(ValueError, match="shapes"):
         lk.Simulation(model, shapes={1: ("cone", 0.1)})
-    with pytest.raises(ValueError, match="shapes"):
+    with pytest.raises(IndexError, match="shapes"):
         lk.Simulation(model, shapes={"nope": ("sphere", 0.1)})
     with pytest.raises(ValueError, match="substeps"):
         lk.Simulation(model, substeps=0)

@@ -135,14 +135,17 @@ class Model:
     ) -> Model:
         """A model from a URDF path or XML string; bodies are named after links, the root link is the base.
         What exporters write and Pinocchio loads (non-physical inertias, effort="0") loads as written with
-        a UrdfWarning naming the element, or raises ValueError if strict."""
+        a UrdfWarning naming the element, or raises ValueError if strict. A string starting with "<" (after a byte
+        order mark and blanks) is XML, anything else a path; a path that is not a regular file (a FIFO, a device)
+        is refused before it is opened. Ctrl-C interrupts the load."""
 
 def resolve_mesh(
     filename: str, urdf: str | os.PathLike[str] | None = None, package_dirs: Sequence[str | os.PathLike[str]] | None = None,
 ) -> pathlib.Path:
     """The file a URDF's mesh ``filename`` names, as ``Model.from_urdf`` finds it: ``package://name/rest`` in
     ``package_dirs`` (folders holding packages, or a package itself), then ROS_PACKAGE_PATH, then the folders
-    above the file ``urdf``; relative names against ``urdf``'s folder. FileNotFoundError naming where it looked."""
+    above the file ``urdf``; relative names against ``urdf``'s folder. FileNotFoundError naming where it looked,
+    or for a ``package://`` name with ``..`` or a root in it (which would reach outside its package)."""
 
 class UrdfWarning(UserWarning):
     """A URDF loaded as written although it is not quite valid; the message names the element."""
@@ -274,7 +277,8 @@ def free_rollout(
     method: Literal["rk4", "semi_implicit_euler"] = "rk4",
 ) -> tuple[np.ndarray, np.ndarray]:
     """(qs (..., steps + 1, nq), vs (..., steps + 1, nv)) of the free dynamics (ABA: no contacts, no ground, no joint
-    limits) rolled out from (q, v); contact simulation is ``Simulation``."""
+    limits) rolled out from (q, v); contact simulation is ``Simulation``. tau: (nv,) or (steps, nv), anything else a
+    ValueError. MemoryError (naming steps) if the outputs cannot be allocated; Ctrl-C interrupts a long rollout."""
 def circle_line(
     center: npt.ArrayLike, normal: npt.ArrayLike, radius: npt.ArrayLike, line_point: npt.ArrayLike, line_direction: npt.ArrayLike
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...
@@ -303,7 +307,7 @@ class Ground:
 
 class Simulation:
     """Contact simulation of a Model: legkit's tree engine (backend="tree", default) or Rapier's multibody
-    (backend="rapier", the reference)."""
+    (backend="rapier", the reference). substeps and solver_iterations in 1..1000; shape sizes at most 1e6 m."""
     def __init__(
         self, model: Model, dt: float = 1e-3, ground: Ground | None = None, shapes: dict[int | str, _ShapeSpec] | None = None,
         self_collision: bool = False, substeps: int = 1,
@@ -318,7 +322,9 @@ class Simulation:
         """Newton iterations of the contact solver in the last (sub)step (tree engine); None on Rapier."""
     def step(self, tau: npt.ArrayLike | None = None, n: int = 1) -> None:
         """n steps with feed-forward tau (nv,) held over them; GIL released. RuntimeError (naming the step and
-        the body) if the state would diverge; the last good state is kept."""
+        the body) if the state would diverge, the simulation then exactly as before that step (state, time, contact
+        history, applied_tau, contacts()). Ctrl-C interrupts between steps (KeyboardInterrupt), keeping the steps
+        taken; RuntimeError if another thread is stepping the same Simulation."""
     def transition_jacobians(self, tau: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
         """A = dx+/dx (2nv, 2nv) and B = dx+/du (2nv, 3nv) of one step from the current state, x = (dq on q's
         tangent space, v), u = (tau, servo target_q per velocity coordinate, servo target_v); changes nothing.
@@ -354,7 +360,9 @@ class SimulationBatch:
     """Steps many Simulations (any models, any backends) in parallel on all cores, GIL released."""
     def __init__(self, simulations: Sequence[Simulation]) -> None: ...
     def step(self, tau: npt.ArrayLike | Sequence[npt.ArrayLike | None] | None = None, n: int = 1) -> None:
-        """tau: None, (nv,) for all, (B, nv), or a list with one (nv,) array (or None) per simulation."""
+        """tau: None, (nv,) for all, (B, nv), or a list with one (nv,) array (or None) per simulation. A simulation
+        that diverges stops as before its failed step (RuntimeError naming the lowest such index); Ctrl-C
+        interrupts between steps, every simulation having taken the same whole steps."""
     def transition_jacobians(
         self, tau: npt.ArrayLike | Sequence[npt.ArrayLike | None] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:

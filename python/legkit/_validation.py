@@ -5,6 +5,10 @@ Wrong types raise TypeError and wrong values (shape, range, NaN/inf) ValueError;
 
 from __future__ import annotations
 
+import argparse
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
 from typing import TypeGuard
 
 import numpy as np
@@ -102,3 +106,39 @@ def time_grid(t: npt.ArrayLike, samples: int, name: str = "t") -> np.ndarray:
     if np.any(np.diff(times) <= 0.0):
         raise ValueError(f"{name} must be strictly increasing")
     return times
+
+
+def bounded_int(low: int, high: int) -> Callable[[str], int]:
+    """An argparse type: an integer in [low, high], so that a command refuses a huge count on one line
+    instead of running out of memory or time."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text[:40]!r}") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"must be in [{low}, {high}], got {text[:40]}")
+        return value
+
+    return parse
+
+
+def output_folder(path: Path) -> Path:
+    """`path`, created if needed, after checking that a file can be written in it, so that a command can check
+    its output folder before it runs rather than fail after. ValueError saying why otherwise."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as error:
+        raise ValueError(f"cannot write to {str(path)!r}: {error.strerror or error}") from None
+    return path
+
+
+def output_folder_argument(text: str) -> Path:
+    """An argparse type: `output_folder`, checked as the command line is read (before the command runs)."""
+    try:
+        return output_folder(Path(text))
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None

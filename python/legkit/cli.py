@@ -42,7 +42,21 @@ EXPERIMENTS = {
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Runs a command. What a user can cause without a bug (Ctrl-C, a file that cannot be written, a size that
+    cannot be allocated) ends it with one line on stderr, not a traceback."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    prog = f"legkit {argv[0]}" if argv and argv[0] in EXPERIMENTS else "legkit"
+    try:
+        return run(argv)
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+    except (OSError, MemoryError) as error:
+        print(f"{prog}: {type(error).__name__}: {error}", file=sys.stderr)
+        return 1
+
+
+def run(argv: list[str]) -> int:
     if argv and argv[0] in EXPERIMENTS:
         module, _ = EXPERIMENTS[argv[0]]
         return importlib.import_module(module).main(argv[1:])

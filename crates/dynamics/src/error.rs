@@ -1,5 +1,5 @@
-//! The one error type of the crate: bad input, named by the argument it came from, or a computation that
-//! failed on valid input (a diverging simulation).
+//! The one error type of the crate: bad input, named by the argument it came from, a size that cannot be
+//! allocated, or a computation that failed on valid input (a diverging simulation).
 
 use std::fmt;
 
@@ -9,6 +9,8 @@ pub enum Error {
     InvalidArgument { argument: &'static str, reason: String },
     /// A computation failed on valid input (`context` names it, e.g. "step"): a RuntimeError in Python.
     Numerical { context: &'static str, reason: String },
+    /// What the argument asks for cannot be allocated (the reason gives the size): a MemoryError in Python.
+    TooLarge { argument: &'static str, reason: String },
 }
 
 impl Error {
@@ -20,10 +22,21 @@ impl Error {
         Error::Numerical { context, reason: reason.into() }
     }
 
+    pub fn too_large(argument: &'static str, reason: impl Into<String>) -> Self {
+        Error::TooLarge { argument, reason: reason.into() }
+    }
+
     /// The argument (or, for a numerical failure, the computation) the error is about.
     pub fn argument(&self) -> &'static str {
         match self {
-            Error::InvalidArgument { argument, .. } | Error::Numerical { context: argument, .. } => argument,
+            Error::InvalidArgument { argument, .. } | Error::Numerical { context: argument, .. } | Error::TooLarge { argument, .. } => argument,
+        }
+    }
+
+    /// What went wrong, without the argument's name.
+    pub fn reason(&self) -> &str {
+        match self {
+            Error::InvalidArgument { reason, .. } | Error::Numerical { reason, .. } | Error::TooLarge { reason, .. } => reason,
         }
     }
 }
@@ -31,7 +44,9 @@ impl Error {
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Error::InvalidArgument { argument, reason } | Error::Numerical { context: argument, reason } => write!(f, "{argument}: {reason}"),
+            Error::InvalidArgument { argument, reason } | Error::Numerical { context: argument, reason } | Error::TooLarge { argument, reason } => {
+                write!(f, "{argument}: {reason}")
+            }
         }
     }
 }

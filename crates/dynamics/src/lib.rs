@@ -16,6 +16,7 @@ pub mod sim;
 pub mod spatial;
 pub mod urdf;
 pub mod validate;
+mod xml;
 
 pub use error::{Error, Result};
 pub use geometry::circle_line::{circle_line, rotation_toward_line, Circle, CircleLine, CircleLineColumns, Line};

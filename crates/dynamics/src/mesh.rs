@@ -2,10 +2,11 @@
 //! collision shape wraps in their convex hull. Only positions are read: faces, normals and materials do
 //! not change a hull.
 
-use std::path::{Path, PathBuf};
+use std::collections::HashMap;
+use std::path::{Component, Path, PathBuf};
 
 use nalgebra::{Matrix3, Matrix4, Rotation3, Unit, Vector3, Vector4};
-use roxmltree::{Document, Node};
+use roxmltree::Node;
 
 use crate::{Error, Result};
 
@@ -13,7 +14,7 @@ use crate::{Error, Result};
 /// applied: metres, z up). The format is chosen by the extension (case-insensitive).
 pub fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
     let fail = |reason: String| Error::invalid("mesh", format!("{}: {reason}", path.display()));
-    let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read it: {e}")))?;
+    let bytes = crate::validate::read_regular_file("mesh", path)?;
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let vertices = match extension.as_str() {
         "stl" => stl(&bytes),
@@ -34,12 +35,18 @@ pub fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
 /// Where a URDF's mesh `filename` lies: `package://name/rest` is `dir/name/rest` (or `dir/rest` when `dir`
 /// is the package `name` itself) for the first such file over `package_dirs`, then `ROS_PACKAGE_PATH`'s
 /// folders, then the URDF folder's ancestors (`urdf_dir`); `file://` paths as written; relative paths
-/// against `urdf_dir` (the working folder if None).
+/// against `urdf_dir` (the working folder if None). A `package://` name with `..` or a root in it is refused.
 pub fn resolve_mesh(filename: &str, urdf_dir: Option<&Path>, package_dirs: &[PathBuf]) -> Result<PathBuf> {
     if let Some(rest) = filename.strip_prefix("package://") {
         let ros_path = std::env::var_os("ROS_PACKAGE_PATH").map(|p| std::env::split_paths(&p).collect::<Vec<_>>()).unwrap_or_default();
         let ancestors = urdf_dir.into_iter().flat_map(Path::ancestors).map(Path::to_path_buf);
         let (package, inside) = rest.split_once('/').unwrap_or((rest, ""));
+        // Only plain names below the package: `..` or a root would reach files outside it (which the viewer
+        // would then embed).
+        let below = |path: &str| Path::new(path).components().all(|c| matches!(c, Component::Normal(_) | Component::CurDir));
+        if !(below(rest) && below(inside)) {
+            return Err(Error::invalid("mesh", format!("{filename:?} names a file outside its package (only names below it are allowed)")));
+        }
         let mut searched = Vec::new();
         for dir in package_dirs.iter().cloned().chain(ros_path).chain(ancestors) {
             let itself = dir.file_name().is_some_and(|name| name == package);
@@ -106,7 +113,7 @@ fn three<'a>(words: &mut impl Iterator<Item = &'a str>) -> Option<Vector3<f64>> 
 /// COLLADA: the positions of every `<instance_geometry>` of the visual scene, through its nodes'
 /// transforms (or every geometry as written when the scene instantiates none).
 fn collada(text: &str) -> std::result::Result<Vec<Vector3<f64>>, String> {
-    let doc = Document::parse(text).map_err(|e| format!("not valid XML: {e}"))?;
+    let doc = crate::xml::parse(text)?;
     let root = doc.root_element();
     let asset = child(root, "asset");
     let meter = asset
@@ -121,23 +128,49 @@ fn collada(text: &str) -> std::result::Result<Vec<Vector3<f64>>, String> {
     };
     let mut correction = Matrix4::identity();
     correction.fixed_view_mut::<3, 3>(0, 0).copy_from(&(up * meter));
-    let mut vertices = Vec::new();
-    let scenes: Vec<Node> = root.descendants().filter(|n| n.has_tag_name("visual_scene")).collect();
-    for scene in &scenes {
-        for node in scene.children().filter(|n| n.has_tag_name("node")) {
-            instances(&doc, node, correction, &mut vertices)?;
+    // The first element of each id, as a search in document order would find it.
+    let mut ids: HashMap<&str, Node> = HashMap::new();
+    for node in root.descendants() {
+        if let Some(id) = node.attribute("id") {
+            ids.entry(id).or_insert(node);
         }
+    }
+    let mut vertices = Vec::new();
+    for scene in root.descendants().filter(|n| n.has_tag_name("visual_scene")) {
+        instances(&ids, scene, correction, &mut vertices)?;
     }
     if vertices.is_empty() {
         for geometry in root.descendants().filter(|n| n.has_tag_name("geometry")) {
-            positions(&doc, geometry, &correction, &mut vertices)?;
+            positions(&ids, geometry, &correction, &mut vertices)?;
         }
     }
     Ok(vertices)
 }
 
-fn instances(doc: &Document, node: Node, parent: Matrix4<f64>, out: &mut Vec<Vector3<f64>>) -> std::result::Result<(), String> {
-    let mut transform = parent;
+/// The geometries instantiated by the `<node>`s under `scene`, through the nodes' transforms, in document
+/// order. The walk keeps its own stack: a file's nesting depth must not decide the depth of the call stack.
+fn instances(ids: &HashMap<&str, Node>, scene: Node, correction: Matrix4<f64>, out: &mut Vec<Vector3<f64>>) -> std::result::Result<(), String> {
+    let mut stack: Vec<(Node, Matrix4<f64>)> = scene.children().filter(|n| n.has_tag_name("node")).map(|n| (n, correction)).collect();
+    stack.reverse();
+    while let Some((node, parent)) = stack.pop() {
+        if node.has_tag_name("instance_geometry") {
+            let url = node.attribute("url").unwrap_or("").trim_start_matches('#');
+            let geometry = ids.get(url).ok_or(format!("<instance_geometry url=\"#{url}\"> names no geometry"))?;
+            positions(ids, *geometry, &parent, out)?;
+            continue;
+        }
+        let transform = parent * node_transform(node)?;
+        let first = stack.len();
+        stack
+            .extend(node.children().filter(|item| item.has_tag_name("instance_geometry") || item.has_tag_name("node")).map(|item| (item, transform)));
+        stack[first..].reverse();
+    }
+    Ok(())
+}
+
+/// The product of a `<node>`'s transform elements, in order.
+fn node_transform(node: Node) -> std::result::Result<Matrix4<f64>, String> {
+    let mut transform = Matrix4::identity();
     for step in node.children().filter(Node::is_element) {
         let numbers = || -> std::result::Result<Vec<f64>, String> {
             step.text()
@@ -167,27 +200,16 @@ fn instances(doc: &Document, node: Node, parent: Matrix4<f64>, out: &mut Vec<Vec
         };
         transform *= local;
     }
-    for item in node.children().filter(Node::is_element) {
-        match item.tag_name().name() {
-            "instance_geometry" => {
-                let url = item.attribute("url").unwrap_or("").trim_start_matches('#');
-                let geometry = by_id(doc, url).ok_or(format!("<instance_geometry url=\"#{url}\"> names no geometry"))?;
-                positions(doc, geometry, &transform, out)?;
-            }
-            "node" => instances(doc, item, transform, out)?,
-            _ => {}
-        }
-    }
-    Ok(())
+    Ok(transform)
 }
 
 /// The POSITION inputs' floats of a `<geometry>`'s meshes, transformed.
-fn positions(doc: &Document, geometry: Node, transform: &Matrix4<f64>, out: &mut Vec<Vector3<f64>>) -> std::result::Result<(), String> {
+fn positions(ids: &HashMap<&str, Node>, geometry: Node, transform: &Matrix4<f64>, out: &mut Vec<Vector3<f64>>) -> std::result::Result<(), String> {
     for mesh in geometry.children().filter(|n| n.has_tag_name("mesh")) {
         for vertices in mesh.children().filter(|n| n.has_tag_name("vertices")) {
             for input in vertices.children().filter(|n| n.has_tag_name("input") && n.attribute("semantic") == Some("POSITION")) {
                 let id = input.attribute("source").unwrap_or("").trim_start_matches('#');
-                let array = by_id(doc, id).and_then(|s| child(s, "float_array")).ok_or(format!("POSITION source #{id} has no <float_array>"))?;
+                let array = ids.get(id).and_then(|s| child(*s, "float_array")).ok_or(format!("POSITION source #{id} has no <float_array>"))?;
                 let floats: Vec<f64> = array
                     .text()
                     .unwrap_or("")
@@ -206,10 +228,6 @@ fn positions(doc: &Document, geometry: Node, transform: &Matrix4<f64>, out: &mut
 
 fn child<'a, 'i>(node: Node<'a, 'i>, tag: &str) -> Option<Node<'a, 'i>> {
     node.children().find(|n| n.has_tag_name(tag))
-}
-
-fn by_id<'a, 'i>(doc: &'a Document<'i>, id: &str) -> Option<Node<'a, 'i>> {
-    doc.descendants().find(|n| n.attribute("id") == Some(id))
 }
 
 #[cfg(test)]
@@ -308,5 +326,33 @@ mod tests {
         assert_eq!(resolve_mesh("../meshes/part.stl", Some(&urdf_dir), &[]).unwrap(), urdf_dir.join("../meshes/part.stl"));
         let missing = resolve_mesh("package://nowhere/x.stl", Some(&urdf_dir), &[]).unwrap_err().to_string();
         assert!(missing.contains("package_dirs") && missing.contains("nowhere"), "{missing}");
+        // A package name cannot climb out of its package, even to a file that exists.
+        for escape in ["package://pkg_a/../pkg_a/meshes/part.stl", "package://pkg_a//etc/passwd", "package://../pkg_a/meshes/part.stl"] {
+            let refused = resolve_mesh(escape, Some(&urdf_dir), std::slice::from_ref(&root)).unwrap_err().to_string();
+            assert!(refused.contains("outside its package"), "{refused}");
+        }
+        // A FIFO is refused before it is opened (opening one blocks until a writer comes).
+        let fifo = root.join("pipe.stl");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success());
+        if made {
+            let refused = mesh_vertices(&fifo).unwrap_err().to_string();
+            assert!(refused.contains("not a regular file"), "{refused}");
+        }
+    }
+
+    #[test]
+    fn collada_nesting_deeper_than_the_call_stack_allows() {
+        let depth = 100_000;
+        let cube: String = (0..8).map(|k| format!("{} {} {} ", k & 1, (k >> 1) & 1, (k >> 2) & 1)).collect();
+        let text = format!(
+            "<COLLADA><library_geometries><geometry id=\"g\"><mesh><source id=\"p\"><float_array>{cube}</float_array></source>\
+             <vertices id=\"v\"><input semantic=\"POSITION\" source=\"#p\"/></vertices></mesh></geometry></library_geometries>\
+             <library_visual_scenes><visual_scene>{}<instance_geometry url=\"#g\"/>{}</visual_scene></library_visual_scenes></COLLADA>",
+            "<node><translate>1 0 0</translate>".repeat(depth),
+            "</node>".repeat(depth)
+        );
+        let vertices = collada(&text).unwrap();
+        assert_eq!(vertices.len(), 8);
+        assert_eq!(vertices[0], Vector3::new(depth as f64, 0.0, 0.0));
     }
 }

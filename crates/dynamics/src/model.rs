@@ -11,7 +11,9 @@
 //! algorithms ignore them: they describe the mechanism for the simulation (which enforces the position
 //! range and the effort bound) and for controllers (which read them with [`Model::limits`]).
 
+use std::collections::HashMap;
 use std::ops::Range;
+use std::sync::OnceLock;
 
 use nalgebra::{DMatrix, DVector, Matrix3xX, Matrix6xX, Vector3, Vector6};
 
@@ -20,7 +22,7 @@ use crate::algorithms::SecondOrder;
 use crate::joint::Joint;
 use crate::sim::Shape;
 use crate::spatial::{spatial, Force, Inertia, Motion, RateMatrix, RigidInertia, Transform};
-use crate::validate::{finite_vector, rotation};
+use crate::validate::{array_len, filled, finite_vector, rotation, with_capacity};
 use crate::{Error, MassProperties, Result};
 
 /// Limits of a revolute or prismatic joint, in the joint's coordinate: position range `lower..=upper`
@@ -103,11 +105,14 @@ pub struct Model {
     bodies: Vec<MassProperties>,
     inertias: Vec<RigidInertia>,
     names: Vec<String>,
+    /// Each name's body, so that adding and finding a body by name does not scan the others.
+    index_of_name: HashMap<String, usize>,
     idx_q: Vec<usize>,
     idx_v: Vec<usize>,
     /// The velocity indices of each body's subtree as increasing ranges (one range when bodies are
-    /// numbered depth first).
-    subtree_columns: Vec<Vec<Range<usize>>>,
+    /// numbered depth first); computed by the first call that needs them, in one pass over the bodies
+    /// (extending every ancestor's ranges as each body is added took time quadratic in the depth).
+    subtree_columns: OnceLock<Vec<Vec<Range<usize>>>>,
     nq: usize,
     nv: usize,
     /// Gravity in the world frame.
@@ -132,9 +137,10 @@ impl Model {
             bodies: vec![base],
             inertias: vec![RigidInertia::from_body(&base)],
             names: vec![base_name.to_owned()],
+            index_of_name: HashMap::from([(base_name.to_owned(), 0)]),
             idx_q: vec![0],
             idx_v: vec![0],
-            subtree_columns: vec![(joint.nv() > 0).then(|| 0..joint.nv()).into_iter().collect()],
+            subtree_columns: OnceLock::new(),
             nq: joint.nq(),
             nv: joint.nv(),
             gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
@@ -182,7 +188,7 @@ impl Model {
         if joint == Joint::Fixed && limits.is_limited() {
             return Err(Error::invalid("limits", "a fixed joint has no coordinate to limit"));
         }
-        if self.names.iter().any(|n| n == name) {
+        if self.index_of_name.contains_key(name) {
             return Err(Error::invalid("name", format!("a body is already named {name:?}")));
         }
         self.joints.push(joint);
@@ -192,27 +198,40 @@ impl Model {
         self.bodies.push(body);
         self.inertias.push(RigidInertia::from_body(&body));
         self.names.push(name.to_owned());
+        self.index_of_name.insert(name.to_owned(), self.joints.len() - 1);
         self.idx_q.push(self.nq);
         self.idx_v.push(self.nv);
         self.nq += joint.nq();
         self.nv += joint.nv();
         self.armature.resize(self.nv, 0.0);
         self.damping.resize(self.nv, 0.0);
-        let columns = self.nv - joint.nv()..self.nv;
-        self.subtree_columns.push(if columns.is_empty() { Vec::new() } else { vec![columns.clone()] });
-        let mut ancestor = parent;
-        while !columns.is_empty() {
-            let ranges = &mut self.subtree_columns[ancestor];
-            match ranges.last_mut() {
-                Some(last) if last.end == columns.start => last.end = columns.end,
-                _ => ranges.push(columns.clone()),
-            }
-            if ancestor == 0 {
-                break;
-            }
-            ancestor = self.parents[ancestor];
-        }
+        self.subtree_columns = OnceLock::new();
         Ok(self.joints.len() - 1)
+    }
+
+    /// Every body's subtree columns (see `subtree_columns`), children before parents: each body's ranges
+    /// are its own columns and its children's ranges, sorted and merged where they meet.
+    fn all_subtree_columns(&self) -> Vec<Vec<Range<usize>>> {
+        let n = self.nbodies();
+        let mut columns: Vec<Vec<Range<usize>>> =
+            (0..n).map(|i| Some(self.idx_v[i]..self.idx_v[i] + self.joints[i].nv()).filter(|r| !r.is_empty()).into_iter().collect()).collect();
+        for i in (0..n).rev() {
+            let mut ranges = std::mem::take(&mut columns[i]);
+            ranges.sort_unstable_by_key(|r| r.start);
+            let mut merged: Vec<Range<usize>> = Vec::with_capacity(ranges.len());
+            for range in ranges {
+                match merged.last_mut() {
+                    Some(last) if last.end == range.start => last.end = range.end,
+                    _ => merged.push(range),
+                }
+            }
+            if i > 0 {
+                let parent = self.parents[i];
+                columns[parent].extend(merged.iter().cloned());
+            }
+            columns[i] = merged;
+        }
+        columns
     }
 
     pub fn nbodies(&self) -> usize {
@@ -253,7 +272,7 @@ impl Model {
         &self.names[i]
     }
     pub fn body_index(&self, name: &str) -> Option<usize> {
-        self.names.iter().position(|n| n == name)
+        self.index_of_name.get(name).copied()
     }
     pub fn idx_q(&self, i: usize) -> usize {
         self.idx_q[i]
@@ -263,7 +282,7 @@ impl Model {
     }
     /// The velocity indices of body `i`'s subtree (its own included), as increasing ranges.
     pub fn subtree_columns(&self, i: usize) -> &[Range<usize>] {
-        &self.subtree_columns[i]
+        &self.subtree_columns.get_or_init(|| self.all_subtree_columns())[i]
     }
     /// A copy of the model in which body `i` (which must exist) has the mass properties `body`.
     pub fn with_body(&self, i: usize, body: MassProperties) -> Model {
@@ -474,6 +493,31 @@ pub(crate) fn reserve_square(matrix: &mut DMatrix<f64>, n: usize) {
     }
 }
 
+/// `reserve_square` with fallible allocation (n x n checked by the caller): `Error::TooLarge` naming the
+/// model instead of an abort.
+fn try_reserve_square(matrix: &mut DMatrix<f64>, n: usize) -> Result<()> {
+    if matrix.shape() != (n, n) {
+        *matrix = DMatrix::from_vec(n, n, filled("model", n * n, 0.0)?);
+    }
+    Ok(())
+}
+
+/// A dense part of `Data` (nv x nv, or nbodies x 6 x nv), which the kernels that need it size on their first
+/// call: 3.2 GB per nv x nv matrix on a 20,000-link chain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dense {
+    /// M (`crba`).
+    MassMatrix,
+    /// M⁻¹ and its recursion's per-body force sets (`minv`, and what solves with M⁻¹).
+    Inverse,
+    /// The RNEA derivatives' ∂τ/∂q and ∂τ/∂v.
+    RneaDerivatives,
+    /// The ABA derivatives' ∂q̈/∂q and ∂q̈/∂v.
+    AbaDerivatives,
+    /// The RNEA's four nv x nv x nv second-derivative tensors.
+    SecondOrder,
+}
+
 impl Derivatives {
     /// Sizes the workspace for `model` unless it already is, all but the nv x nv outputs, which the RNEA and ABA
     /// derivatives size on their first call (`reserve_square`): the frame and centroidal derivatives need O(n nv).
@@ -521,6 +565,65 @@ impl Derivatives {
 }
 
 impl Data {
+    /// Sizes the dense `parts` for `model` as their kernels would on their first call, but with fallible
+    /// allocation: `Error::TooLarge` (naming the model) where the kernels would abort the process. Callers that
+    /// take sizes from untrusted input reserve first.
+    pub fn reserve_dense(&mut self, model: &Model, parts: &[Dense]) -> Result<()> {
+        let (n, nv) = (model.nbodies(), model.nv());
+        // Counted in squares and force sets first: a workspace already sized returns at once.
+        let unsized_square = |m: &DMatrix<f64>| usize::from(m.shape() != (nv, nv));
+        let d = &self.derivatives;
+        let (squares, sets) = parts.iter().fold((0, 0), |(squares, sets), part| match part {
+            Dense::MassMatrix => (squares + unsized_square(&self.mass_matrix), sets),
+            Dense::Inverse => (squares + unsized_square(&self.minv), sets + usize::from(self.force_sets.len() != n)),
+            Dense::RneaDerivatives => (squares + unsized_square(&d.dtau_dq) + unsized_square(&d.dtau_dv), sets),
+            Dense::AbaDerivatives => (squares + unsized_square(&d.ddq_dq) + unsized_square(&d.ddq_dv), sets),
+            Dense::SecondOrder => (squares, sets),
+        });
+        let cube = array_len("model", &[nv, nv, nv], std::mem::size_of::<f64>())?;
+        let cubes = if parts.contains(&Dense::SecondOrder) && d.second_order.dqdq.len() != cube { 4 } else { 0 };
+        if squares + sets + cubes == 0 {
+            return Ok(());
+        }
+        let square = array_len("model", &[nv, nv], std::mem::size_of::<f64>())?;
+        let set = array_len("model", &[n, 6, nv], std::mem::size_of::<f64>())?;
+        let needed = square.saturating_mul(squares).saturating_add(set.saturating_mul(sets)).saturating_add(cube.saturating_mul(cubes));
+        // Asked for as one block first, which the allocator refuses at once if it cannot hold it all, before
+        // gigabytes of it are written and then given up.
+        drop(with_capacity::<f64>("model", needed)?);
+        for part in parts {
+            match part {
+                Dense::MassMatrix => try_reserve_square(&mut self.mass_matrix, nv)?,
+                Dense::Inverse => {
+                    try_reserve_square(&mut self.minv, nv)?;
+                    if self.force_sets.len() != n {
+                        let mut sets = with_capacity("model", n)?;
+                        for _ in 0..n {
+                            sets.push(Matrix6xX::from_vec(filled("model", 6 * nv, 0.0)?));
+                        }
+                        self.force_sets = sets;
+                    }
+                }
+                Dense::SecondOrder => {
+                    let t = &mut self.derivatives.second_order;
+                    for tensor in [&mut t.dqdq, &mut t.dvdv, &mut t.dqdv, &mut t.dadq] {
+                        if tensor.len() != cube {
+                            *tensor = filled("model", cube, 0.0)?;
+                        }
+                    }
+                }
+                Dense::RneaDerivatives | Dense::AbaDerivatives => {
+                    self.derivatives.reserve(model);
+                    let d = &mut self.derivatives;
+                    let (a, b) = if *part == Dense::RneaDerivatives { (&mut d.dtau_dq, &mut d.dtau_dv) } else { (&mut d.ddq_dq, &mut d.ddq_dv) };
+                    try_reserve_square(a, nv)?;
+                    try_reserve_square(b, nv)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
     pub fn new(model: &Model) -> Self {
         let n = model.nbodies();
         Data {

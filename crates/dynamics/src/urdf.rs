@@ -58,7 +58,7 @@ use std::collections::{HashMap, VecDeque};
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Vector3};
-use roxmltree::{Document, Node};
+use roxmltree::Node;
 
 use crate::mesh::{mesh_vertices, resolve_mesh};
 use crate::sim::{Convex, Shape, ShapeKind};
@@ -83,17 +83,24 @@ pub struct Urdf {
     pub warnings: Vec<String>,
 }
 
-/// Loads a URDF from a file, or parses it directly if `path_or_xml` (trimmed) starts with `<`.
-/// A file that cannot be read is an error on argument `"path"`; see [`parse_urdf`] for the rest.
-/// Mesh names in a file resolve against its folder.
+/// Loads a URDF from a file, or parses it directly if `path_or_xml` (after a byte order mark and blanks)
+/// starts with `<`. A file that cannot be read, or that is not a regular file (a FIFO, a device), is an
+/// error on argument `"path"`; see [`parse_urdf`] for the rest. Mesh names in a file resolve against its
+/// folder.
 pub fn load_urdf(path_or_xml: &str, options: &UrdfOptions) -> Result<Urdf> {
-    if path_or_xml.trim_start().starts_with('<') {
-        return parse_urdf(path_or_xml, options);
+    let text = path_or_xml.strip_prefix(BYTE_ORDER_MARK).unwrap_or(path_or_xml);
+    if text.trim_start().starts_with('<') {
+        return parse_urdf(text, options);
     }
-    let xml = std::fs::read_to_string(path_or_xml).map_err(|e| Error::invalid("path", format!("cannot read URDF file {path_or_xml:?}: {e}")))?;
+    let bytes = crate::validate::read_regular_file("path", Path::new(path_or_xml))?;
+    let xml = String::from_utf8(bytes).map_err(|e| Error::invalid("path", format!("{path_or_xml}: not UTF-8 text: {e}")))?;
+    let xml = xml.strip_prefix(BYTE_ORDER_MARK).unwrap_or(&xml);
     let folder = Path::new(path_or_xml).parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
-    parse(&xml, options, folder)
+    parse(xml, options, folder)
 }
+
+/// U+FEFF, which editors on Windows put at the start of UTF-8 files.
+const BYTE_ORDER_MARK: char = '\u{feff}';
 
 /// Parses URDF text into a [`Model`]. See the [module documentation](self) for what is read, what is
 /// accepted with a warning, and how bodies are named and ordered. Relative mesh names resolve against
@@ -125,7 +132,7 @@ fn parse(xml: &str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf
     } else {
         xml
     };
-    let doc = Document::parse(xml).map_err(|e| invalid(format!("not valid XML: {e}")))?;
+    let doc = crate::xml::parse(xml).map_err(invalid)?;
     let robot = doc.root_element();
     if robot.tag_name().name() != "robot" {
         return Err(invalid(format!("the root element must be <robot>, found <{}>", robot.tag_name().name())));

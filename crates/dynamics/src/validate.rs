@@ -1,6 +1,8 @@
 //! Argument checks shared by the kernels and the bindings: each returns the value it accepts or an error
 //! naming the argument.
 
+use std::path::Path;
+
 use nalgebra::{Matrix3, Vector3};
 
 use crate::{Error, Result};
@@ -48,4 +50,43 @@ pub fn rotation(argument: &'static str, r: &Matrix3<f64>) -> Result<()> {
         return Err(Error::invalid(argument, format!("must be a rotation matrix (R^T R = I, det R = +1); |R^T R - I| = {orthogonality:.3e}")));
     }
     Ok(())
+}
+
+/// The number of elements of an array of `shape`, each `element_bytes` long, if it can exist at all (at
+/// most `isize::MAX` bytes, as Rust and NumPy allow); `Error::TooLarge` naming `argument` otherwise.
+pub fn array_len(argument: &'static str, shape: &[usize], element_bytes: usize) -> Result<usize> {
+    let len = shape.iter().try_fold(1usize, |n, &d| n.checked_mul(d));
+    match len.filter(|n| n.checked_mul(element_bytes).is_some_and(|b| b <= isize::MAX as usize)) {
+        Some(len) => Ok(len),
+        None => Err(Error::too_large(argument, format!("an array of shape {shape:?} is beyond any memory (more than {} bytes)", isize::MAX))),
+    }
+}
+
+/// An empty vector with room for `len` values, or `Error::TooLarge` naming `argument` when the allocator
+/// refuses them (where an infallible allocation would abort the process).
+pub fn with_capacity<T>(argument: &'static str, len: usize) -> Result<Vec<T>> {
+    let mut vec = Vec::new();
+    vec.try_reserve_exact(len).map_err(|_| {
+        let bytes = len.saturating_mul(std::mem::size_of::<T>());
+        Error::too_large(argument, format!("cannot allocate {bytes} bytes ({len} values)"))
+    })?;
+    Ok(vec)
+}
+
+/// `len` copies of `value`, allocated as `with_capacity` does.
+pub fn filled<T: Clone>(argument: &'static str, len: usize, value: T) -> Result<Vec<T>> {
+    let mut vec = with_capacity(argument, len)?;
+    vec.resize(len, value);
+    Ok(vec)
+}
+
+/// The bytes of the regular file at `path`; anything else (a FIFO, a device, a folder) is refused before it is
+/// opened, as reading one may block forever or never end.
+pub fn read_regular_file(argument: &'static str, path: &Path) -> Result<Vec<u8>> {
+    let fail = |reason: String| Error::invalid(argument, format!("{}: {reason}", path.display()));
+    let metadata = std::fs::metadata(path).map_err(|e| fail(format!("cannot read it: {e}")))?;
+    if !metadata.is_file() {
+        return Err(fail("not a regular file".into()));
+    }
+    std::fs::read(path).map_err(|e| fail(format!("cannot read it: {e}")))
 }

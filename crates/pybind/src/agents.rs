@@ -7,13 +7,18 @@ use numpy::ndarray::ArrayViewD;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 
-use crate::convert::{kernel_error, to_numpy, FloatArray, Floats};
+use crate::convert::{kernel_error, to_numpy, FloatArray, Floats, Integer};
+use crate::interrupt::{in_pieces, Pace};
+
+/// Rounds between checks for Ctrl-C in `run_until_quiescent`.
+const SIGNAL_ROUNDS: u64 = 1024;
 
 #[pyclass(name = "BalanceKernel", module = "legkit")]
 pub struct PyBalanceKernel {
     network: Network,
     controller: Controller,
     torques: Vec<[f64; 3]>,
+    pace: Pace,
 }
 
 /// `value` as a flat row-major vector of `shape`; ValueError naming `argument` otherwise.
@@ -119,14 +124,19 @@ impl PyBalanceKernel {
                 Ok(Schedule { scheme, c0: g[0], c1: g[1], kp0: g[2], ki0: g[3], kd0: g[4] })
             })
             .collect::<PyResult<_>>()?;
-        Ok(PyBalanceKernel { network, controller: Controller::new(schedules, limit, width), torques: vec![[0.0; 3]; n] })
+        Ok(PyBalanceKernel { network, controller: Controller::new(schedules, limit, width), torques: vec![[0.0; 3]; n], pace: Pace::default() })
     }
 
-    /// Runs rounds until nothing is pending or on the wire; returns the rounds run.
-    fn run_until_quiescent(&mut self, max_rounds: usize) -> PyResult<usize> {
+    /// Runs rounds until nothing is pending or on the wire; returns the rounds run. Ctrl-C stops it between
+    /// rounds (KeyboardInterrupt).
+    fn run_until_quiescent(&mut self, py: Python<'_>, max_rounds: Integer) -> PyResult<u64> {
+        let max_rounds = max_rounds.within("max_rounds", 0, i64::MAX as u64)?;
         for rounds in 0..=max_rounds {
             if self.network.quiescent() {
                 return Ok(rounds);
+            }
+            if rounds % SIGNAL_ROUNDS == 0 {
+                py.check_signals()?;
             }
             self.network.round();
         }
@@ -134,20 +144,32 @@ impl PyBalanceKernel {
     }
 
     /// One control step: the agents read `angles` (N, 3), run `rounds` rounds, and every joint computes its
-    /// torque after `dt` s; returns the torques (N, 3) N m. Bad angles leave the state unchanged.
-    fn step<'py>(&mut self, py: Python<'py>, angles: Floats<'_>, dt: f64, rounds: usize) -> PyResult<FloatArray<'py>> {
+    /// torque after `dt` s; returns the torques (N, 3) N m. Bad angles leave the state unchanged; Ctrl-C
+    /// stops a long run of rounds between rounds (KeyboardInterrupt, no torques).
+    fn step<'py>(&mut self, py: Python<'py>, angles: Floats<'_>, dt: f64, rounds: Integer) -> PyResult<FloatArray<'py>> {
+        let rounds = rounds.within("rounds", 0, i64::MAX as u64 - 1)?;
         let n = self.network.n_modules();
         let angles = angle_rows(&flat("angles", &angles, &[n, 3])?);
         if !(dt.is_finite() && dt > 0.0) {
             return Err(PyValueError::new_err(format!("dt: must be > 0, got {dt}")));
         }
-        let PyBalanceKernel { network, controller, torques } = self;
-        py.detach(|| {
-            network.observe(&angles)?;
-            (0..rounds).for_each(|_| network.round());
-            controller.torques(network, dt, torques)
-        })
-        .map_err(kernel_error)?;
+        let PyBalanceKernel { network, controller, torques, pace } = self;
+        // Unit 0 is the observation, units 1..=rounds the rounds; the last piece ends with the torques.
+        let mut done = 0;
+        in_pieces(py, rounds + 1, pace, |k| {
+            for unit in done..done + k {
+                if unit == 0 {
+                    network.observe(&angles).map_err(kernel_error)?;
+                } else {
+                    network.round();
+                }
+            }
+            done += k;
+            if done == rounds + 1 {
+                controller.torques(network, dt, torques).map_err(kernel_error)?;
+            }
+            Ok(())
+        })?;
         Ok(to_numpy(py, vec![n, 3], torques.iter().flatten().copied().collect()))
     }
 

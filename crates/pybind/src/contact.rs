@@ -1,7 +1,7 @@
 //! Contact-constrained dynamics, the reduced ODE and impacts.
 
 use legkit_dynamics::algorithms::{self, ContactPoint};
-use legkit_dynamics::model::check_vector;
+use legkit_dynamics::model::{check_vector, Dense};
 use legkit_dynamics::{Data, Error, Model};
 use nalgebra::{DMatrix, DVector};
 use numpy::{PyArray1, PyArray2};
@@ -9,9 +9,9 @@ use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use crate::batch::{broadcast, ArrayArg, Batch};
-use crate::convert::{kernel_error, to_numpy, vector3, FloatArray, Vector};
+use crate::convert::{kernel_error, numbers, to_numpy, vector3, FloatArray, Vector};
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_values, run, run_packed, unpack};
+use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
 
 /// Contact points from a sequence of (body, point) pairs: body index or name, point in the body's frame.
 fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<ContactPoint>> {
@@ -33,10 +33,10 @@ where
 {
     let nv = model.model.nv();
     let packed = run_packed(py, model, batch, nv + 3 * k, |m, w, i, out| {
-        let (generalized, per_contact) = kernel(m, w.data(), i)?;
+        let (generalized, per_contact) = kernel(m, w.dense(&[Dense::Inverse])?, i)?;
         out[..nv].copy_from_slice(generalized.as_slice());
         out[nv..].copy_from_slice(per_contact.as_slice());
-        finite_values(out)
+        finite_result(out)
     })?;
     let mut parts = unpack(py, batch, &packed, &[&[nv], &[k, 3]]).into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap()))
@@ -132,12 +132,13 @@ pub fn reduced_dynamics<'py>(
 ) -> PyResult<Reduced<'py>> {
     let contacts = self::contacts(&model, contacts)?;
     let m = &model.model;
-    let slice = |name: &str, x: &Vector<'_>| -> PyResult<Vec<f64>> { Ok(x.get(name)?.iter().copied().collect()) };
-    let (q, v, tau) = (&slice("q", &q)?[..], &slice("v", &v)?[..], &slice("tau", &tau)?[..]);
+    let (q, v, tau) = (&numbers("q", &q)?[..], &numbers("v", &v)?[..], &numbers("tau", &tau)?[..]);
     check_state(m, q, Some(v)).map_err(kernel_error)?;
     check_vector("tau", tau, m.nv()).map_err(kernel_error)?;
     let mut data = model.take_workspace();
-    let result = algorithms::reduced_dynamics(m, &mut data, q, v, tau, &contacts, independent.as_deref());
+    let result = data
+        .reserve_dense(m, &[Dense::MassMatrix])
+        .and_then(|()| algorithms::reduced_dynamics(m, &mut data, q, v, tau, &contacts, independent.as_deref()));
     model.put_back(data);
     let r = result.map_err(kernel_error)?;
     let matrix = |x: &nalgebra::DMatrix<f64>| to_numpy(py, (x.nrows(), x.ncols()), x.transpose().as_slice().to_vec());
@@ -187,9 +188,9 @@ pub fn contact_dynamics_derivatives<'py>(
         let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("tau", tau, nv)?;
-        let d = algorithms::contact_dynamics_derivatives(m, w.data(), q, v, tau, &contacts)?;
+        let d = algorithms::contact_dynamics_derivatives(m, w.dense(&[Dense::Inverse, Dense::RneaDerivatives])?, q, v, tau, &contacts)?;
         write_rows(&[&d.ddq_dq, &d.ddq_dv, &d.ddq_dtau, &d.forces_dq, &d.forces_dv, &d.forces_dtau], out);
-        finite_values(out)
+        finite_result(out)
     })?;
     let (square, per_contact): (&[usize], &[usize]) = (&[nv, nv], &[k, 3, nv]);
     PyTuple::new(py, unpack(py, &batch, &packed, &[square, square, square, per_contact, per_contact, per_contact]))
@@ -212,9 +213,9 @@ pub fn impact_derivatives<'py>(
     let packed = run_packed(py, &model, &batch, 2 * nv * (nv + 3 * k), |m, w, i, out| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
-        let d = algorithms::impact_derivatives(m, w.data(), q, v, &contacts)?;
+        let d = algorithms::impact_derivatives(m, w.dense(&[Dense::Inverse, Dense::RneaDerivatives])?, q, v, &contacts)?;
         write_rows(&[&d.velocity_dq, &d.velocity_dv, &d.impulses_dq, &d.impulses_dv], out);
-        finite_values(out)
+        finite_result(out)
     })?;
     let (square, per_contact): (&[usize], &[usize]) = (&[nv, nv], &[k, 3, nv]);
     PyTuple::new(py, unpack(py, &batch, &packed, &[square, square, per_contact, per_contact]))

@@ -1,11 +1,16 @@
 //! Conversions between NumPy arrays and nalgebra values, and the mapping of kernel errors to Python ones.
 
+use legkit_dynamics::validate::with_capacity;
 use legkit_dynamics::Error;
 use nalgebra::{Matrix3, Vector3};
 use numpy::ndarray::{Array, ArrayViewD, Dimension, IntoDimension};
+use numpy::npyffi::{self, npy_intp};
+use numpy::{Element, PyArrayDescrMethods, PY_ARRAY_API};
 use numpy::{PyArray, PyArrayDyn, PyArrayMethods};
-use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyOverflowError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use smallvec::SmallVec;
+use std::ffi::c_int;
 
 /// A NumPy float64 array returned to Python.
 pub type FloatArray<'py> = Bound<'py, PyArrayDyn<f64>>;
@@ -47,19 +52,105 @@ pub type Vector<'py> = Floats<'py>;
 pub type Matrix<'py> = Floats<'py>;
 
 /// A kernel error as Python's: bad input a ValueError, a numerical failure (a diverging simulation) a
-/// RuntimeError.
+/// RuntimeError, a size that cannot be allocated a MemoryError.
 pub fn kernel_error(error: Error) -> PyErr {
-    match error {
-        Error::InvalidArgument { .. } => PyValueError::new_err(error.to_string()),
-        Error::Numerical { .. } => PyRuntimeError::new_err(error.to_string()),
-    }
+    python_error(&error, error.to_string())
 }
 
 /// A kernel error from row `index` of a batch, e.g. "radius[4]: must be >= 0".
 pub fn batch_error(error: Error, index: usize) -> PyErr {
+    python_error(&error, format!("{}[{index}]: {}", error.argument(), error.reason()))
+}
+
+fn python_error(error: &Error, message: String) -> PyErr {
     match error {
-        Error::InvalidArgument { argument, reason } => PyValueError::new_err(format!("{argument}[{index}]: {reason}")),
-        Error::Numerical { context, reason } => PyRuntimeError::new_err(format!("{context}[{index}]: {reason}")),
+        Error::InvalidArgument { .. } => PyValueError::new_err(message),
+        Error::Numerical { .. } => PyRuntimeError::new_err(message),
+        Error::TooLarge { .. } => PyMemoryError::new_err(message),
+    }
+}
+
+/// A new, uninitialised, C-ordered float64 array of `shape`: MemoryError naming `argument` (the argument that
+/// asks for that size) if it cannot be allocated, where rust-numpy's constructor would panic.
+pub fn new_array<'py>(py: Python<'py>, argument: &'static str, shape: &[usize]) -> PyResult<FloatArray<'py>> {
+    let len = legkit_dynamics::validate::array_len(argument, shape, std::mem::size_of::<f64>()).map_err(kernel_error)?;
+    let mut dims: SmallVec<[npy_intp; 4]> = shape.iter().map(|&d| d as npy_intp).collect();
+    // SAFETY: NumPy's array constructor with a fresh float64 descriptor (whose reference it takes), no data and
+    // no strides: it allocates the array, or returns null with a Python error set.
+    let array = unsafe {
+        let pointer = PY_ARRAY_API.PyArray_NewFromDescr(
+            py,
+            npyffi::get_type_object(py, npyffi::NpyTypes::PyArray_Type),
+            f64::get_dtype(py).into_dtype_ptr(),
+            dims.len() as c_int,
+            dims.as_mut_ptr(),
+            std::ptr::null_mut(),
+            std::ptr::null_mut(),
+            0,
+            std::ptr::null_mut(),
+        );
+        Bound::from_owned_ptr_or_err(py, pointer)
+    };
+    match array {
+        // SAFETY: NumPy made a float64 array.
+        Ok(array) => Ok(unsafe { array.cast_into_unchecked() }),
+        Err(e) if e.is_instance_of::<PyMemoryError>(py) => {
+            Err(PyMemoryError::new_err(format!("{argument}: cannot allocate {} bytes for an array of shape {shape:?}", len * 8)))
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// An integer argument of any size (a Python or NumPy integer), saturated to the range of i128: 2**200 reads
+/// as i128::MAX, beyond every bound a caller checks. Taken where an i64 or usize parameter would make an
+/// integer out of its range an OverflowError instead of the ValueError, IndexError or MemoryError it is.
+/// Extraction never fails, as for `Floats`: `value` raises anything but an integer as a TypeError naming the
+/// argument.
+#[derive(Debug, Clone)]
+pub struct Integer(Result<i128, String>);
+
+impl<'a, 'py> FromPyObject<'a, 'py> for Integer {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        // i64 first: its conversion is the fast one, and nearly every count fits.
+        if let Ok(n) = obj.extract::<i64>() {
+            return Ok(Integer(Ok(n.into())));
+        }
+        Ok(Integer(match obj.extract::<i128>() {
+            Ok(n) => Ok(n),
+            Err(e) if e.is_instance_of::<PyOverflowError>(obj.py()) => Ok(if obj.gt(0)? { i128::MAX } else { i128::MIN }),
+            Err(_) => Err(obj.get_type().name().map_or_else(|_| "?".into(), |n| n.to_string())),
+        }))
+    }
+}
+
+impl Integer {
+    pub const fn new(n: i128) -> Self {
+        Integer(Ok(n))
+    }
+
+    /// The value (saturated), or a TypeError naming `argument` if it is not an integer.
+    pub fn value(&self, argument: &str) -> PyResult<i128> {
+        self.0.clone().map_err(|kind| PyTypeError::new_err(format!("{argument}: expected an integer, got {kind}")))
+    }
+
+    /// The value if it is in `lower..=upper`; a ValueError naming `argument` otherwise.
+    pub fn within(&self, argument: &str, lower: u64, upper: u64) -> PyResult<u64> {
+        let n = self.value(argument)?;
+        if n < lower as i128 || n > upper as i128 {
+            return Err(PyValueError::new_err(format!("{argument}: must be in {lower}..={upper}, got {}", shown(n))));
+        }
+        Ok(n as u64)
+    }
+}
+
+/// A saturated integer as a message shows it.
+pub fn shown(n: i128) -> String {
+    match n {
+        i128::MAX => "an integer beyond 2**127".to_owned(),
+        i128::MIN => "an integer below -2**127".to_owned(),
+        n => n.to_string(),
     }
 }
 
@@ -98,13 +189,24 @@ pub fn homogeneous_matrix(argument: &str, value: &Matrix<'_>) -> PyResult<(Matri
     Ok((Matrix3::from_fn(|i, j| view[[i, j]]), Vector3::from_fn(|i, _| view[[i, 3]])))
 }
 
-/// Rows of an (n, 3) array as vectors.
-pub fn rows3(argument: &str, value: &Matrix<'_>) -> PyResult<Vec<Vector3<f64>>> {
+/// Rows of an (n, 3) array as vectors, allocated fallibly (a broadcast view may stand for more rows than
+/// memory holds).
+pub fn rows3(argument: &'static str, value: &Matrix<'_>) -> PyResult<Vec<Vector3<f64>>> {
     let view = value.get(argument)?;
     if view.ndim() != 2 || view.shape()[1] != 3 {
         return Err(shape_error(argument, "(n, 3)", view.shape()));
     }
-    Ok(view.outer_iter().map(|r| Vector3::new(r[0], r[1], r[2])).collect())
+    let mut rows = with_capacity(argument, view.shape()[0]).map_err(kernel_error)?;
+    rows.extend(view.outer_iter().map(|r| Vector3::new(r[0], r[1], r[2])));
+    Ok(rows)
+}
+
+/// An array's numbers in order, allocated fallibly.
+pub fn numbers(argument: &'static str, value: &Floats<'_>) -> PyResult<Vec<f64>> {
+    let view = value.get(argument)?;
+    let mut numbers = with_capacity(argument, view.len()).map_err(kernel_error)?;
+    numbers.extend(view.iter().copied());
+    Ok(numbers)
 }
 
 pub fn to_numpy<'py, D: Dimension, S: IntoDimension<Dim = D>, T: numpy::Element>(

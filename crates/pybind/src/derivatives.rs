@@ -1,7 +1,7 @@
 //! The derivatives of the dynamics over batches of states, as `dynamics.rs` runs the dynamics.
 
 use legkit_dynamics::algorithms;
-use legkit_dynamics::model::check_vector;
+use legkit_dynamics::model::{check_vector, Dense};
 use legkit_dynamics::{Error, Model};
 use numpy::ndarray::Axis;
 use numpy::{PyArrayDyn, PyArrayMethods};
@@ -12,7 +12,7 @@ use crate::convert::FloatArray;
 use crate::dynamics::state_batch;
 use crate::kinematics::row_major;
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_result, run, Workspace};
+use crate::workspace::{check_state, finite_dynamics, run, Workspace};
 
 /// Copies `matrices` (column-major, as nalgebra stores them) one after the other into `out`.
 pub(crate) fn write_columns(matrices: &[&[f64]], out: &mut [f64]) {
@@ -77,6 +77,7 @@ pub fn rnea_derivatives<'py>(
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("a", a, m.nv())?;
+        w.dense(&[Dense::RneaDerivatives])?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         let (dq, dv) = algorithms::rnea_derivatives(m, data, q, v, a, forces);
         write_columns(&[dq.as_slice(), dv.as_slice()], out);
@@ -102,7 +103,7 @@ pub fn rnea_second_order_derivatives<'py>(
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("a", a, m.nv())?;
-        let second = algorithms::rnea_second_order_derivatives(m, w.data(), q, v, a);
+        let second = algorithms::rnea_second_order_derivatives(m, w.dense(&[Dense::SecondOrder])?, q, v, a);
         write_columns(&[&second.dqdq, &second.dvdv, &second.dqdv, &second.dadq], out);
         Ok(())
     })?;
@@ -131,11 +132,12 @@ pub fn aba_derivatives<'py>(
         let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("tau", tau, m.nv())?;
+        w.dense(&[Dense::Inverse, Dense::AbaDerivatives])?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         let (dq, dv, minv) = algorithms::aba_derivatives(m, data, q, v, tau, forces);
         write_columns(&[dq.as_slice(), dv.as_slice(), minv.as_slice()], out);
-        // M⁻¹ is positive definite: a singular M shows on its diagonal (D⁻¹ there), and spreads to the other two.
-        finite_result(minv.as_slice().iter().step_by(m.nv() + 1))
+        // M⁻¹ is positive definite: a singular M shows on its diagonal, and spreads to the other two.
+        finite_dynamics(m, w.data(), out)
     })?;
     let mut parts = parts.into_iter();
     Ok((parts.next().expect("three"), parts.next().expect("three"), parts.next().expect("three")))

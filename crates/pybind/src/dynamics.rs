@@ -2,7 +2,7 @@
 //! checked, and the batch is spread over all cores with the GIL released.
 
 use legkit_dynamics::algorithms;
-use legkit_dynamics::model::check_vector;
+use legkit_dynamics::model::{check_vector, Dense};
 use legkit_dynamics::Model;
 use pyo3::prelude::*;
 
@@ -10,7 +10,7 @@ use crate::convert::FloatArray;
 
 use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_result, finite_values, run};
+use crate::workspace::{check_state, finite_dynamics, finite_result, run};
 
 /// The batch of (q, v, x[, f_ext]) with cores (nq,), (nv,), (nv,) and (nbodies, 6).
 pub(crate) fn state_batch(
@@ -48,7 +48,7 @@ pub fn rnea<'py>(
         check_vector("a", a, m.nv())?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         out.copy_from_slice(algorithms::rnea(m, data, q, v, a, forces).as_slice());
-        Ok(())
+        finite_result(out)
     })
 }
 
@@ -71,7 +71,7 @@ pub fn aba<'py>(
         check_vector("tau", tau, m.nv())?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         out.copy_from_slice(algorithms::aba(m, data, q, v, tau, forces).as_slice());
-        finite_values(out)
+        finite_dynamics(m, data, out)
     })
 }
 
@@ -84,7 +84,7 @@ pub fn crba<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) ->
         let q = batch.rows[0].row(i);
         m.check_configuration(q)?;
         // M is symmetric, so its column-major storage is also its row-major layout.
-        out.copy_from_slice(algorithms::crba(m, w.data(), q).as_slice());
+        out.copy_from_slice(algorithms::crba(m, w.dense(&[Dense::MassMatrix])?, q).as_slice());
         Ok(())
     })
 }
@@ -97,9 +97,9 @@ pub fn minv<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) ->
     run(py, &model, &batch, &[m.nv(), m.nv()], |m, w, i, out| {
         let q = batch.rows[0].row(i);
         m.check_configuration(q)?;
-        out.copy_from_slice(algorithms::minv(m, w.data(), q).as_slice());
+        out.copy_from_slice(algorithms::minv(m, w.dense(&[Dense::Inverse])?, q).as_slice());
         // M⁻¹ is positive definite, so |M⁻¹_ij| <= sqrt(M⁻¹_ii M⁻¹_jj): a singular M shows on the diagonal.
-        finite_result(out.iter().step_by(m.nv() + 1))
+        finite_dynamics(m, w.data(), out)
     })
 }
 
@@ -112,7 +112,7 @@ pub fn kinetic_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayA
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
         out[0] = algorithms::kinetic_energy(m, w.data(), q, v);
-        Ok(())
+        finite_result(out)
     })
 }
 
@@ -124,6 +124,6 @@ pub fn potential_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: Arra
         let q = batch.rows[0].row(i);
         check_state(m, q, None)?;
         out[0] = algorithms::potential_energy(m, w.data(), q);
-        Ok(())
+        finite_result(out)
     })
 }

@@ -1,7 +1,7 @@
 //! Circle–line queries over broadcast batches, written straight into the output arrays in parallel
 //! chunks with the GIL released.
 
-use legkit_dynamics::validate::finite_vector;
+use legkit_dynamics::validate::{array_len, filled, finite_vector};
 use legkit_dynamics::{circle_line as circle_line_query, rotation_toward_line as rotation_query, Circle, CircleLineColumns, Error, Line};
 use nalgebra::Vector3;
 use numpy::{IxDyn, PyArrayDyn};
@@ -10,6 +10,7 @@ use rayon::prelude::*;
 
 use crate::batch::{broadcast, ArrayArg, Batch, Rows};
 use crate::convert::{batch_error, kernel_error, to_numpy, FloatArray};
+use crate::interrupt::{in_pieces, Pace};
 
 /// Queries per parallel task.
 const CHUNK: usize = 4096;
@@ -51,21 +52,26 @@ pub fn circle_line<'py>(
         ("line_direction", &line_direction, &[3]),
     ])?;
     let n = batch.len;
-    let (mut distance, mut count, mut equidistant) = (vec![0.0; n], vec![0i64; n], vec![false; n]);
-    let (mut circle_points, mut line_points) = (vec![0.0; 6 * n], vec![0.0; 6 * n]);
+    let points = array_len(batch.largest, &[n, 6], std::mem::size_of::<f64>()).map_err(kernel_error)?;
+    let output = |len, value| filled(batch.largest, len, value).map_err(kernel_error);
+    let (mut distance, mut count, mut equidistant) =
+        (output(n, 0.0)?, filled(batch.largest, n, 0i64).map_err(kernel_error)?, filled(batch.largest, n, false).map_err(kernel_error)?);
+    let (mut circle_points, mut line_points) = (output(points, 0.0)?, output(points, 0.0)?);
     let r = &batch.rows;
-    let failure = py.detach(|| {
-        let chunks = distance
+    let mut done = 0;
+    in_pieces(py, n as u64, &Pace::default(), |k| {
+        let (first, end) = (done, done + k as usize);
+        let chunks = distance[first..end]
             .par_chunks_mut(CHUNK)
-            .zip(count.par_chunks_mut(CHUNK))
-            .zip(equidistant.par_chunks_mut(CHUNK))
-            .zip(circle_points.par_chunks_mut(6 * CHUNK))
-            .zip(line_points.par_chunks_mut(6 * CHUNK))
+            .zip(count[first..end].par_chunks_mut(CHUNK))
+            .zip(equidistant[first..end].par_chunks_mut(CHUNK))
+            .zip(circle_points[6 * first..6 * end].par_chunks_mut(6 * CHUNK))
+            .zip(line_points[6 * first..6 * end].par_chunks_mut(6 * CHUNK))
             .enumerate();
-        first_error(chunks.map(|(c, ((((distance, count), equidistant), circle_points), line_points))| {
+        let failure = first_error(chunks.map(|(c, ((((distance, count), equidistant), circle_points), line_points))| {
             let mut columns = CircleLineColumns { distance, count, circle_points, line_points, equidistant };
             for j in 0..columns.distance.len() {
-                let i = c * CHUNK + j;
+                let i = first + c * CHUNK + j;
                 let query = Circle::new(vector(&r[0], i), vector(&r[1], i), r[2].row(i)[0])
                     .and_then(|circle| Ok((circle, Line::new(vector(&r[3], i), vector(&r[4], i))?)));
                 let (circle, line) = match query {
@@ -75,11 +81,10 @@ pub fn circle_line<'py>(
                 columns.set(j, &circle_line_query(&circle, &line));
             }
             None
-        }))
-    });
-    if let Some(failure) = failure {
-        return Err(raise(&batch, failure));
-    }
+        }));
+        done = end;
+        failure.map_or(Ok(()), |failure| Err(raise(&batch, failure)))
+    })?;
     let points_shape = IxDyn(&batch.output_shape(&[2, 3]));
     Ok((
         to_numpy(py, IxDyn(&batch.shape), distance),
@@ -107,13 +112,16 @@ pub fn rotation_toward_line<'py>(
         ("line_point", &line_point, &[3]),
         ("line_direction", &line_direction, &[3]),
     ])?;
-    let (mut theta, mut distance) = (vec![0.0; batch.len], vec![0.0; batch.len]);
+    let output = || filled(batch.largest, batch.len, 0.0).map_err(kernel_error);
+    let (mut theta, mut distance) = (output()?, output()?);
     let r = &batch.rows;
-    let failure = py.detach(|| {
-        let chunks = theta.par_chunks_mut(CHUNK).zip(distance.par_chunks_mut(CHUNK)).enumerate();
-        first_error(chunks.map(|(c, (theta, distance))| {
+    let mut done = 0;
+    in_pieces(py, batch.len as u64, &Pace::default(), |k| {
+        let (first, end) = (done, done + k as usize);
+        let chunks = theta[first..end].par_chunks_mut(CHUNK).zip(distance[first..end].par_chunks_mut(CHUNK)).enumerate();
+        let failure = first_error(chunks.map(|(c, (theta, distance))| {
             for j in 0..theta.len() {
-                let i = c * CHUNK + j;
+                let i = first + c * CHUNK + j;
                 let query = (|| {
                     let axis = Line::axis(vector(&r[0], i), vector(&r[1], i))?;
                     let point = finite_vector("point", vector(&r[2], i))?;
@@ -125,10 +133,9 @@ pub fn rotation_toward_line<'py>(
                 }
             }
             None
-        }))
-    });
-    if let Some(failure) = failure {
-        return Err(raise(&batch, failure));
-    }
+        }));
+        done = end;
+        failure.map_or(Ok(()), |failure| Err(raise(&batch, failure)))
+    })?;
     Ok((to_numpy(py, IxDyn(&batch.shape), theta), to_numpy(py, IxDyn(&batch.shape), distance)))
 }

@@ -6,11 +6,13 @@ use nalgebra::DMatrix;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
-use crate::batch::{broadcast, ArrayArg, Batch};
-use crate::convert::FloatArray;
+use crate::batch::{broadcast, map_rows, ArrayArg, Batch};
+use crate::convert::{kernel_error, shown, FloatArray, Integer};
 use crate::derivatives::{pair, run_matrices, write_columns};
+use crate::interrupt::{in_pieces, Pace};
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_values, run, run_packed, unpack};
+use crate::workspace::{check_state, finite_result, run, singular, singular_factor, unpack, Workspace};
+use legkit_dynamics::validate::{array_len, filled};
 
 /// `q ⊕ v dt`: joint coordinates add; a free-flyer base moves along exp(v dt) in its own frame: `(..., nq)`.
 #[pyfunction]
@@ -22,14 +24,15 @@ pub fn integrate<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
         algorithms::integrate(m, q, v, dt, out);
-        Ok(())
+        finite_result(out)
     })
 }
 
 /// Rolls the free dynamics (ABA: no contacts, no ground, no joint limits) out for `steps` steps of `dt` from
 /// (q, v) under joint forces `tau` (constant (nv,), per step (steps, nv), or None for zero) with "rk4" or
 /// "semi_implicit_euler". Returns (qs (..., steps + 1, nq), vs (..., steps + 1, nv)). Leading dimensions of
-/// q and v run independent rollouts on all cores. Contact simulation is `Simulation`.
+/// q and v run independent rollouts on all cores. Contact simulation is `Simulation`. MemoryError if the
+/// output cannot be allocated; Ctrl-C interrupts a long rollout (KeyboardInterrupt).
 #[pyfunction]
 #[pyo3(signature = (model, q, v, dt, steps, tau = None, method = "rk4"))]
 #[allow(clippy::too_many_arguments)]
@@ -39,7 +42,7 @@ pub fn free_rollout<'py>(
     q: ArrayArg<'_>,
     v: ArrayArg<'_>,
     dt: f64,
-    steps: usize,
+    steps: Integer,
     tau: Option<ArrayArg<'_>>,
     method: &str,
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
@@ -49,23 +52,85 @@ pub fn free_rollout<'py>(
         other => return Err(PyValueError::new_err(format!("method: expected \"rk4\" or \"semi_implicit_euler\", got {other:?}"))),
     };
     let (nq, nv) = (model.model.nq(), model.model.nv());
+    let steps = steps.value("steps")?;
+    if steps < 0 {
+        return Err(PyValueError::new_err(format!("steps: must be >= 0, got {}", shown(steps))));
+    }
+    // Checked before anything is allocated: the outputs hold steps + 1 rows.
+    let rows = usize::try_from(steps).ok().and_then(|s| s.checked_add(1));
+    let rows = rows.ok_or_else(|| kernel_error(Error::too_large("steps", format!("{} steps are beyond any memory", shown(steps)))))?;
+    let steps = rows - 1;
+    array_len("steps", &[rows, nq + nv], std::mem::size_of::<f64>()).map_err(kernel_error)?;
     let tau: Vec<f64> = match &tau {
-        Some(t) => t.get("tau")?.iter().copied().collect(),
+        Some(t) => {
+            let view = t.get("tau")?;
+            if view.shape() != [nv] && view.shape() != [steps, nv] {
+                return Err(PyValueError::new_err(format!(
+                    "tau: expected shape ({nv},) or ({steps}, {nv}) (one row per step), got {:?}",
+                    view.shape()
+                )));
+            }
+            view.iter().copied().collect()
+        }
         None => vec![0.0; nv],
     };
     if let Some(bad) = tau.iter().find(|x| !x.is_finite()) {
         return Err(PyValueError::new_err(format!("tau: must be finite, got {bad}")));
     }
     let batch = broadcast(&[("q", &q, &[nq]), ("v", &v, &[nv])])?;
-    let width = (steps + 1) * (nq + nv);
-    let packed = run_packed(py, &model, &batch, width, |m, w, i, out| {
-        let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
-        check_state(m, q, Some(v))?;
-        let (qs, vs) = out.split_at_mut((steps + 1) * nq);
-        algorithms::free_rollout(m, w.data(), q, v, &tau, dt, steps, method, qs, vs)?;
-        finite_values(out)
+    let width = rows * (nq + nv);
+    let len = array_len("steps", &[batch.len, width], std::mem::size_of::<f64>()).map_err(kernel_error)?;
+    let mut packed = filled("steps", len, 0.0).map_err(kernel_error)?;
+    let owner: &PyModel = &model;
+    map_rows(
+        &mut packed,
+        width,
+        0,
+        batch.len,
+        || (),
+        |_, i, out| {
+            let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
+            check_state(&owner.model, q, Some(v))?;
+            out[..nq].copy_from_slice(q);
+            out[rows * nq..rows * nq + nv].copy_from_slice(v);
+            Ok(())
+        },
+    )?;
+    let mut done = 0;
+    // In pieces of whole steps, each continuing from the last row written: a step depends only on (q, v).
+    in_pieces(py, steps as u64, &Pace::default(), |k| {
+        let (from, to) = (done, done + k as usize);
+        map_rows(
+            &mut packed,
+            width,
+            0,
+            batch.len,
+            || Workspace::new(owner),
+            |w, _, out| {
+                let (qs, vs) = out.split_at_mut(rows * nq);
+                let (q0, v0) = (qs[from * nq..(from + 1) * nq].to_vec(), vs[from * nv..(from + 1) * nv].to_vec());
+                let tau = if tau.len() == nv { &tau[..] } else { &tau[from * nv..to * nv] };
+                let (qs, vs) = (&mut qs[from * nq..(to + 1) * nq], &mut vs[from * nv..(to + 1) * nv]);
+                let model = &owner.model;
+                algorithms::free_rollout(model, w.data(), &q0, &v0, tau, dt, to - from, method, qs, vs)?;
+                finite_result(qs).and_then(|()| finite_result(vs)).map_err(|overflow| {
+                    // The factor at the last finite state tells a singular mass matrix from an overflow.
+                    let finite = |x: &[f64]| x.iter().all(|x| x.is_finite());
+                    let last = qs.chunks_exact(nq).zip(vs.chunks_exact(nv)).take_while(|(q, v)| finite(q) && finite(v)).last();
+                    let (q, v) = last.unwrap_or((&q0, &v0));
+                    algorithms::aba(model, w.data(), q, v, &tau[..nv], None);
+                    if singular_factor(model, w.data()) {
+                        singular()
+                    } else {
+                        overflow
+                    }
+                })
+            },
+        )?;
+        done = to;
+        Ok(())
     })?;
-    let mut parts = unpack(py, &batch, &packed, &[&[steps + 1, nq], &[steps + 1, nv]]).into_iter();
+    let mut parts = unpack(py, &batch, &packed, &[&[rows, nq], &[rows, nv]]).into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap()))
 }
 
@@ -137,7 +202,7 @@ where
 {
     let nv = owner.model.nv();
     let parts = run_matrices(py, owner, batch, 2, nv, |m, w, i, out| {
-        let (a, b) = w.matrix_pair(nv);
+        let (a, b) = w.matrix_pair(nv)?;
         kernel(m, i, a, b)?;
         write_columns(&[a.as_slice(), b.as_slice()], out);
         Ok(())

@@ -9,6 +9,7 @@ mod derivatives;
 mod dynamics;
 mod geometry;
 mod integrate;
+mod interrupt;
 mod kinematics;
 mod mass;
 mod model;

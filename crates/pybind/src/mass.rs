@@ -5,10 +5,25 @@ use legkit_dynamics::MassProperties;
 use nalgebra::{Matrix3, Vector3};
 use numpy::{PyArray1, PyArray2};
 use pyo3::basic::CompareOp;
+use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::PyInt;
 
-use crate::convert::{homogeneous_matrix, kernel_error, matrix3, matrix_to_numpy, rows3, vector3, vector_to_numpy, Matrix, Vector};
+use crate::convert::{homogeneous_matrix, kernel_error, matrix3, matrix_to_numpy, numbers, rows3, vector3, vector_to_numpy, Matrix, Vector};
+
+/// `value` if all its numbers are finite: sums and transforms of valid mass properties can still overflow.
+fn finite(value: MassProperties) -> PyResult<PyMassProperties> {
+    let (mass, com, inertia) = (value.mass(), value.com(), value.inertia());
+    if mass.is_finite() && com.iter().chain(inertia.iter()).all(|x| x.is_finite()) {
+        Ok(PyMassProperties(value))
+    } else {
+        Err(overflow())
+    }
+}
+
+fn overflow() -> PyErr {
+    PyRuntimeError::new_err("result: not finite: a number overflowed float64 (are the inputs' magnitudes physical?)")
+}
 
 /// Mass, centre of mass and rotational inertia about the centre of mass, all in one frame.
 #[pyclass(name = "MassProperties", module = "legkit", frozen, from_py_object)]
@@ -45,8 +60,8 @@ impl PyMassProperties {
     #[staticmethod]
     fn from_points(masses: Vector<'_>, positions: Matrix<'_>) -> PyResult<Self> {
         let positions = rows3("positions", &positions)?;
-        let masses: Vec<f64> = masses.get("masses")?.iter().copied().collect();
-        MassProperties::from_points(&masses, &positions).map(Self).map_err(kernel_error)
+        let masses = numbers("masses", &masses)?;
+        finite(MassProperties::from_points(&masses, &positions).map_err(kernel_error)?)
     }
 
     #[getter]
@@ -67,7 +82,11 @@ impl PyMassProperties {
 
     fn inertia_about<'py>(&self, py: Python<'py>, point: Vector<'_>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let point = finite_vector("point", vector3("point", &point)?).map_err(kernel_error)?;
-        Ok(matrix_to_numpy(py, &self.0.inertia_about(&point)))
+        let inertia = self.0.inertia_about(&point);
+        if !inertia.iter().all(|x| x.is_finite()) {
+            return Err(overflow());
+        }
+        Ok(matrix_to_numpy(py, &inertia))
     }
 
     /// Express in the parent frame of `x_parent = R x + t`: `(R, t)`, or one 4x4 homogeneous matrix.
@@ -77,7 +96,7 @@ impl PyMassProperties {
             Some(t) => (matrix3("rotation", &rotation)?, vector3("translation", &t)?),
             None => homogeneous_matrix("rotation", &rotation)?,
         };
-        self.0.transformed(&r, &t).map(Self).map_err(kernel_error)
+        finite(self.0.transformed(&r, &t).map_err(kernel_error)?)
     }
 
     #[pyo3(signature = (other, rtol = 1e-9, atol = 1e-12))]
@@ -85,8 +104,8 @@ impl PyMassProperties {
         self.0.is_close(&other.0, rtol, atol)
     }
 
-    fn __add__(&self, other: &Self) -> Self {
-        Self(self.0 + other.0)
+    fn __add__(&self, other: &Self) -> PyResult<Self> {
+        finite(self.0 + other.0)
     }
 
     /// Lets `sum(bodies)` start from the integer 0.
@@ -98,7 +117,7 @@ impl PyMassProperties {
     }
 
     fn __sub__(&self, other: &Self) -> PyResult<Self> {
-        (self.0 - other.0).map(Self).map_err(kernel_error)
+        finite((self.0 - other.0).map_err(kernel_error)?)
     }
 
     fn __richcmp__(&self, other: &Bound<'_, PyAny>, op: CompareOp, py: Python<'_>) -> Py<PyAny> {

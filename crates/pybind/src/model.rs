@@ -11,7 +11,8 @@ use pyo3::exceptions::{PyFileNotFoundError, PyIndexError, PyTypeError, PyUserWar
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
 
-use crate::convert::{homogeneous_matrix, kernel_error, matrix3, to_numpy, vector3, vector_to_numpy, Floats, Matrix, Vector};
+use crate::convert::{homogeneous_matrix, kernel_error, matrix3, shown, to_numpy, vector3, vector_to_numpy, Floats, Integer, Matrix, Vector};
+use crate::interrupt::on_worker;
 use crate::mass::PyMassProperties;
 
 pyo3::create_exception!(
@@ -85,17 +86,17 @@ impl PyModel {
         }
     }
 
-    /// A body given by index or by name.
+    /// A body given by index or by name: IndexError for an index out of range or a name no body has.
     pub fn body_index(&self, body: &Bound<'_, PyAny>) -> PyResult<usize> {
         if let Ok(name) = body.cast::<PyString>() {
             let name = name.to_str()?;
-            return self.model.body_index(name).ok_or_else(|| PyValueError::new_err(format!("body: no body is named {name:?}")));
+            return self.model.body_index(name).ok_or_else(|| PyIndexError::new_err(format!("body: no body is named {name:?}")));
         }
-        let index: i64 = body.extract().map_err(|_| PyTypeError::new_err("body: expected an index or a name"))?;
-        if index < 0 || index as usize >= self.model.nbodies() {
-            return Err(PyIndexError::new_err(format!("body: index {index} is out of range for {} bodies", self.model.nbodies())));
+        let index = body.extract::<Integer>()?.value("body").map_err(|_| PyTypeError::new_err("body: expected an index or a name"))?;
+        match usize::try_from(index) {
+            Ok(i) if i < self.model.nbodies() => Ok(i),
+            _ => Err(PyIndexError::new_err(format!("body: index {} is out of range for {} bodies", shown(index), self.model.nbodies()))),
         }
-        Ok(index as usize)
     }
 }
 
@@ -181,7 +182,9 @@ impl PyModel {
     /// What exporters write and Pinocchio loads (non-physical inertias, `effort="0"`) loads as written
     /// with a `UrdfWarning` naming the element, or is a ValueError if `strict`. `<collision>` meshes
     /// become convex hulls; `package://` names resolve in `package_dirs`, then `ROS_PACKAGE_PATH`, then
-    /// the file's folder's ancestors (a mesh not found: a warning, and the link's inertia box).
+    /// the file's folder's ancestors (a mesh not found: a warning, and the link's inertia box). A string
+    /// starting with `<` (after a byte order mark and blanks) is XML; a path that is not a regular file is
+    /// refused before it is opened. Ctrl-C interrupts the load (KeyboardInterrupt).
     #[staticmethod]
     #[pyo3(signature = (path_or_xml, floating_base = false, strict = false, package_dirs = None))]
     fn from_urdf(
@@ -200,7 +203,7 @@ impl PyModel {
                 .map_err(|_| PyTypeError::new_err("path_or_xml: expected a path or an XML string"))?,
         };
         let options = UrdfOptions { floating_base, strict, package_dirs: package_dirs.unwrap_or_default() };
-        let urdf = py.detach(|| load_urdf(&source, &options)).map_err(kernel_error)?;
+        let urdf = on_worker(py, "from_urdf", move || load_urdf(&source, &options))?.map_err(kernel_error)?;
         let category = py.get_type::<UrdfWarning>();
         for warning in &urdf.warnings {
             PyErr::warn(py, &category, &CString::new(format!("urdf: {warning}"))?, 1)?;

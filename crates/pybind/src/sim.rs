@@ -1,16 +1,21 @@
 //! `legkit.Simulation` and `legkit.Ground`: conversions around `legkit_dynamics::sim`.
 
 use legkit_dynamics::model::check_vector;
-use legkit_dynamics::sim::{dof_coordinates, Backend, Convex, Ground, Options, Servo, Shape, ShapeKind, Simulation, DEFAULT_SOLVER_ITERATIONS};
+use legkit_dynamics::sim::{
+    dof_coordinates, Backend, Convex, Ground, Options, Servo, Shape, ShapeKind, Simulation, DEFAULT_SOLVER_ITERATIONS, MAX_SOLVER_ITERATIONS,
+    MAX_SUBSTEPS,
+};
+use legkit_dynamics::validate::with_capacity;
 use legkit_dynamics::Transform;
 use nalgebra::{DMatrix, Vector3};
 use numpy::{PyArray1, PyArray2, PyArray3};
-use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyIndexError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
 use crate::batch::on_all_threads;
-use crate::convert::{batch_error, kernel_error, to_numpy, Floats};
+use crate::convert::{batch_error, kernel_error, to_numpy, Floats, Integer};
+use crate::interrupt::{in_pieces, Pace};
 use crate::model::{homogeneous, transform, PyModel};
 
 /// Terrain for a `Simulation`: `Ground.plane(friction)` (the plane z = 0) or
@@ -41,7 +46,10 @@ impl PyGround {
             return Err(PyValueError::new_err(format!("heights: expected a 2-D array (nx, ny), got shape {:?}", view.shape())));
         }
         let (nx, ny) = (view.shape()[0], view.shape()[1]);
-        let matrix = DMatrix::from_fn(nx, ny, |i, j| view[[i, j]]);
+        // A broadcast view may stand for far more numbers than it holds: allocate the copy fallibly.
+        let mut heights = with_capacity("heights", nx.saturating_mul(ny)).map_err(kernel_error)?;
+        heights.extend(view.t().iter().copied());
+        let matrix = DMatrix::from_vec(nx, ny, heights);
         Ok(PyGround { ground: Ground::heightfield(matrix, cell_size, friction).map_err(kernel_error)? })
     }
 
@@ -100,13 +108,28 @@ impl PyGround {
 /// reflected rotor inertia) adds to each joint's inertia. `backend` is "tree" (legkit's reduced-coordinate engine:
 /// O(n) dynamics, parry contacts, a warm-started Newton contact solver with at most `solver_iterations`
 /// iterations, servos and damping integrated implicitly) or "rapier" (Rapier's multibody,
-/// the reference). Both integrate semi-implicitly to first order in dt / `substeps`.
+/// the reference). Both integrate semi-implicitly to first order in dt / `substeps`. `substeps` and
+/// `solver_iterations` are at most 1000 (a step is the unit Ctrl-C interrupts at, so it stays short); shape
+/// sizes and offsets at most 1e6 m.
 /// The robot starts at `model.neutral()`, at rest, at time 0.
 #[pyclass(name = "Simulation", module = "legkit")]
 pub struct PySimulation {
     sim: Simulation,
     /// The Model it was built from (its description; the simulation holds its own copy).
     model: Py<PyModel>,
+    pace: Pace,
+}
+
+/// `error` with its message prefixed by `argument`, its class kept.
+fn prefixed(argument: &str, error: &PyErr, py: Python<'_>) -> PyErr {
+    let message = format!("{argument}: {}", error.value(py));
+    if error.is_instance_of::<PyIndexError>(py) {
+        PyIndexError::new_err(message)
+    } else if error.is_instance_of::<PyTypeError>(py) {
+        PyTypeError::new_err(message)
+    } else {
+        PyValueError::new_err(message)
+    }
 }
 
 fn shape_error(reason: impl std::fmt::Display) -> PyErr {
@@ -139,14 +162,8 @@ fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
         }
         "sphere" => ShapeKind::Sphere(number(1)?),
         "convex" => {
-            let points: numpy::PyReadonlyArray2<'_, f64> =
-                tuple.get_item(1)?.extract().map_err(|_| PyTypeError::new_err("shapes: convex takes an (n, 3) array of points"))?;
-            let view = points.as_array();
-            if view.ncols() != 3 {
-                return Err(shape_error(format!("convex takes an (n, 3) array of points, got {:?}", view.shape())));
-            }
-            let points: Vec<Vector3<f64>> = view.rows().into_iter().map(|r| Vector3::new(r[0], r[1], r[2])).collect();
-            ShapeKind::Convex(Convex::hull(&points).map_err(kernel_error)?)
+            let points: Floats<'_> = tuple.get_item(1)?.extract()?;
+            ShapeKind::Convex(Convex::hull(&crate::convert::rows3("shapes", &points)?).map_err(kernel_error)?)
         }
         "capsule" => ShapeKind::Capsule { half_height: number(1)?, radius: number(2)? },
         _ => ShapeKind::Cylinder { half_height: number(1)?, radius: number(2)? },
@@ -162,7 +179,7 @@ fn shape_overrides(model: &PyModel, shapes: Option<&Bound<'_, PyDict>>) -> PyRes
     shapes
         .iter()
         .map(|(key, value)| {
-            let body = model.body_index(&key).map_err(|e| PyValueError::new_err(format!("shapes: {e}")))?;
+            let body = model.body_index(&key).map_err(|e| prefixed("shapes", &e, key.py()))?;
             Ok((body, parse_shape(&value)?))
         })
         .collect()
@@ -216,7 +233,7 @@ fn vector_argument(argument: &'static str, value: &Floats<'_>, n: usize) -> PyRe
 #[pymethods]
 impl PySimulation {
     #[new]
-    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, substeps = 1, backend = "tree", solver_iterations = DEFAULT_SOLVER_ITERATIONS as i64))]
+    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, substeps = Integer::new(1), backend = "tree", solver_iterations = Integer::new(DEFAULT_SOLVER_ITERATIONS as i128)))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         model: PyRef<'_, PyModel>,
@@ -224,19 +241,19 @@ impl PySimulation {
         ground: Option<PyRef<'_, PyGround>>,
         shapes: Option<Bound<'_, PyDict>>,
         self_collision: bool,
-        substeps: i64,
+        substeps: Integer,
         backend: &str,
-        solver_iterations: i64,
+        solver_iterations: Integer,
     ) -> PyResult<Self> {
         let mut options = Options::new(dt);
         options.ground = ground.map(|g| g.ground.clone());
         options.self_collision = self_collision;
-        options.substeps = at_least_one("substeps", substeps)?;
-        options.solver_iterations = at_least_one("solver_iterations", solver_iterations)?;
+        options.substeps = substeps.within("substeps", 1, MAX_SUBSTEPS as u64)? as usize;
+        options.solver_iterations = solver_iterations.within("solver_iterations", 1, MAX_SOLVER_ITERATIONS as u64)? as usize;
         options.backend = Backend::parse(backend).map_err(kernel_error)?;
         options.shapes = shape_overrides(&model, shapes.as_ref())?;
         let sim = Simulation::new(&model.model, options).map_err(kernel_error)?;
-        Ok(PySimulation { sim, model: model.into() })
+        Ok(PySimulation { sim, model: model.into(), pace: Pace::default() })
     }
 
     /// The Model simulated.
@@ -264,15 +281,15 @@ impl PySimulation {
     /// are enforced as constraints.
     /// On a floating base tau[:6] is a wrench [f, n] on the base, in its frame, at its origin (as `aba`).
     /// Raises RuntimeError, naming the step and the body, if the state would stop being finite or explode
-    /// (a speed or position beyond 1e6); the state before that step is kept.
-    #[pyo3(signature = (tau = None, n = 1))]
-    fn step(&mut self, py: Python<'_>, tau: Option<Floats<'_>>, n: i64) -> PyResult<()> {
-        if n < 0 {
-            return Err(PyValueError::new_err(format!("n: must be >= 0, got {n}")));
-        }
-        let tau = tau.map(|t| vector_argument("tau", &t, self.sim.model().nv())).transpose()?;
-        let sim = &mut self.sim;
-        py.detach(|| sim.step(tau.as_deref(), n as usize)).map_err(kernel_error)
+    /// (a speed or position beyond 1e6); the simulation is then exactly as before that step. Ctrl-C
+    /// interrupts a long call between steps (KeyboardInterrupt), keeping the steps taken.
+    #[pyo3(signature = (tau = None, n = Integer::new(1)))]
+    fn step(slf: &Bound<'_, Self>, tau: Option<Floats<'_>>, n: Integer) -> PyResult<()> {
+        let n = n.within("n", 0, i64::MAX as u64)?;
+        let mut this = in_use(slf)?;
+        let tau = tau.map(|t| vector_argument("tau", &t, this.sim.model().nv())).transpose()?;
+        let PySimulation { sim, pace, .. } = &mut *this;
+        in_pieces(slf.py(), n, pace, |k| sim.step(tau.as_deref(), k as usize).map_err(kernel_error))
     }
 
     /// The transition Jacobians of one step from the current state (GIL released), as MuJoCo's
@@ -283,10 +300,12 @@ impl PySimulation {
     /// the step's contact set, contact zones (apart, sticking, sliding), saturated servos and active limits
     /// are held. Nothing changes (state, time, contact history, `contacts()`). Tree backend, substeps=1.
     #[pyo3(signature = (tau = None))]
-    fn transition_jacobians<'py>(&mut self, py: Python<'py>, tau: Option<Floats<'_>>) -> PyResult<Bound<'py, PyTuple>> {
-        let nv = self.sim.model().nv();
+    fn transition_jacobians<'py>(slf: &Bound<'py, Self>, tau: Option<Floats<'_>>) -> PyResult<Bound<'py, PyTuple>> {
+        let py = slf.py();
+        let mut this = in_use(slf)?;
+        let nv = this.sim.model().nv();
         let tau = tau.map(|t| vector_argument("tau", &t, nv)).transpose()?;
-        let sim = &mut self.sim;
+        let sim = &mut this.sim;
         let (mut a, mut b) = (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0));
         py.detach(|| sim.transition_jacobians(tau.as_deref(), &mut a, &mut b)).map_err(kernel_error)?;
         let row_major = |m: &DMatrix<f64>| m.transpose().as_slice().to_vec();
@@ -302,14 +321,15 @@ impl PySimulation {
     /// `target_v`: (nv,) (None: zero). Clear servos with kp = kd = 0.
     #[pyo3(signature = (kp, kd = None, torque_limit = None, target_q = None, target_v = None))]
     fn set_servo(
-        &mut self,
+        slf: &Bound<'_, Self>,
         kp: Floats<'_>,
         kd: Option<Floats<'_>>,
         torque_limit: Option<Floats<'_>>,
         target_q: Option<Floats<'_>>,
         target_v: Option<Floats<'_>>,
     ) -> PyResult<()> {
-        let model = self.sim.model();
+        let mut this = in_use(slf)?;
+        let model = this.sim.model();
         let (nq, nv, floating) = (model.nq(), model.nv(), model.floating_base());
         let kp = per_dof("kp", &kp, nv, floating, 0.0)?;
         let kd = kd.map(|k| per_dof("kd", &k, nv, floating, 0.0)).transpose()?.unwrap_or_else(|| vec![0.0; nv]);
@@ -321,13 +341,13 @@ impl PySimulation {
                 check_vector("target_q", &t, nq).map_err(kernel_error)?;
                 t
             }
-            None => self.sim.q().to_vec(),
+            None => this.sim.q().to_vec(),
         };
         let mut targets = vec![0.0; nv];
         dof_coordinates(model, &configuration, &mut targets);
         let target_v = target_v.map(|t| vector_argument("target_v", &t, nv)).transpose()?.unwrap_or_else(|| vec![0.0; nv]);
         let servo = Servo::new(model, kp, kd, limit, targets, target_v).map_err(kernel_error)?;
-        self.sim.set_servo(servo).map_err(kernel_error)
+        this.sim.set_servo(servo).map_err(kernel_error)
     }
 
     /// Configuration (nq,) in legkit's layout; setting it moves the robot (velocity, time and contact
@@ -338,9 +358,10 @@ impl PySimulation {
     }
 
     #[setter]
-    fn set_q(&mut self, q: Floats<'_>) -> PyResult<()> {
-        let q = vector_argument("q", &q, self.sim.model().nq())?;
-        self.sim.set_state(Some(&q), None).map_err(kernel_error)
+    fn set_q(slf: &Bound<'_, Self>, q: Floats<'_>) -> PyResult<()> {
+        let mut this = in_use(slf)?;
+        let q = vector_argument("q", &q, this.sim.model().nq())?;
+        this.sim.set_state(Some(&q), None).map_err(kernel_error)
     }
 
     /// Velocity (nv,) in legkit's layout (a floating base's [v_lin, ω] in its own frame); settable.
@@ -350,9 +371,10 @@ impl PySimulation {
     }
 
     #[setter]
-    fn set_v(&mut self, v: Floats<'_>) -> PyResult<()> {
-        let v = vector_argument("v", &v, self.sim.model().nv())?;
-        self.sim.set_state(None, Some(&v)).map_err(kernel_error)
+    fn set_v(slf: &Bound<'_, Self>, v: Floats<'_>) -> PyResult<()> {
+        let mut this = in_use(slf)?;
+        let v = vector_argument("v", &v, this.sim.model().nv())?;
+        this.sim.set_state(None, Some(&v)).map_err(kernel_error)
     }
 
     /// Simulated time (s).
@@ -412,8 +434,9 @@ impl PySimulation {
     /// Starts over at time 0 from (q, v) (None: neutral configuration, zero velocity) with no contact
     /// history: bit-identical to a new Simulation set to that state. Servo settings are kept.
     #[pyo3(signature = (q = None, v = None))]
-    fn reset(&mut self, q: Option<Floats<'_>>, v: Option<Floats<'_>>) -> PyResult<()> {
-        let model = self.sim.model();
+    fn reset(slf: &Bound<'_, Self>, q: Option<Floats<'_>>, v: Option<Floats<'_>>) -> PyResult<()> {
+        let mut this = in_use(slf)?;
+        let model = this.sim.model();
         let q = match q {
             Some(q) => vector_argument("q", &q, model.nq())?,
             None => model.neutral().as_slice().to_vec(),
@@ -422,7 +445,7 @@ impl PySimulation {
             Some(v) => vector_argument("v", &v, model.nv())?,
             None => vec![0.0; model.nv()],
         };
-        self.sim.reset(&q, &v).map_err(kernel_error)
+        this.sim.reset(&q, &v).map_err(kernel_error)
     }
 
     fn __repr__(&self) -> String {
@@ -438,11 +461,11 @@ impl PySimulation {
     }
 }
 
-fn at_least_one(argument: &str, value: i64) -> PyResult<usize> {
-    if value < 1 {
-        return Err(PyValueError::new_err(format!("{argument}: must be >= 1, got {value}")));
-    }
-    Ok(value as usize)
+/// The simulation, borrowed to change it: a RuntimeError saying so if another thread is using it (stepping
+/// it with the GIL released), where pyo3 would say only "Already borrowed".
+fn in_use<'py>(slf: &Bound<'py, PySimulation>) -> PyResult<PyRefMut<'py, PySimulation>> {
+    slf.try_borrow_mut()
+        .map_err(|_| PyRuntimeError::new_err("Simulation: in use by another thread (a step is running); a Simulation takes one caller at a time"))
 }
 
 /// Steps many simulations at once on all cores (GIL released), each in its own thread of work: the
@@ -451,6 +474,7 @@ fn at_least_one(argument: &str, value: i64) -> PyResult<usize> {
 #[pyclass(name = "SimulationBatch", module = "legkit")]
 pub struct PySimulationBatch {
     members: Vec<Py<PySimulation>>,
+    pace: Pace,
 }
 
 #[pymethods]
@@ -473,25 +497,32 @@ impl PySimulationBatch {
             }
             members.push(sim.clone().unbind());
         }
-        Ok(PySimulationBatch { members })
+        Ok(PySimulationBatch { members, pace: Pace::default() })
     }
 
     /// Advances every simulation `n` steps, in parallel. `tau`: None (zero), one (nv,) array for all, a
     /// (B, nv) array, or a list of B arrays (or None), one per simulation (each its own nv). Every tau is
     /// checked before anything moves. A simulation that diverges stops at its last good state and raises
     /// RuntimeError naming its index (the lowest such index); the others complete their n steps.
-    #[pyo3(signature = (tau = None, n = 1))]
-    fn step(&self, py: Python<'_>, tau: Option<Bound<'_, PyAny>>, n: i64) -> PyResult<()> {
-        if n < 0 {
-            return Err(PyValueError::new_err(format!("n: must be >= 0, got {n}")));
-        }
+    #[pyo3(signature = (tau = None, n = Integer::new(1)))]
+    fn step(&self, py: Python<'_>, tau: Option<Bound<'_, PyAny>>, n: Integer) -> PyResult<()> {
+        let n = n.within("n", 0, i64::MAX as u64)?;
         let mut guards = self.borrow_all(py)?;
         let taus = self.torques(&guards, tau)?;
-        let sims: Vec<&mut Simulation> = guards.iter_mut().map(|g| &mut g.sim).collect();
-        // Each simulation is stepped by one thread, so the results do not depend on which.
-        let items: Vec<_> = sims.into_iter().zip(&taus).collect();
-        let outcomes = py.detach(|| on_all_threads(items, || (), |_, _, (sim, tau)| sim.step(tau.as_deref(), n as usize)));
-        match outcomes.into_iter().enumerate().find_map(|(i, r)| r.err().map(|e| (i, e))) {
+        let mut sims: Vec<(usize, &mut Simulation, &Option<Vec<f64>>)> =
+            guards.iter_mut().zip(&taus).enumerate().map(|(i, (g, t))| (i, &mut g.sim, t)).collect();
+        // The first failure, by index; a failed simulation stops, the others go on.
+        let mut failure: Option<(usize, legkit_dynamics::Error)> = None;
+        in_pieces(py, n, &self.pace, |k| {
+            // Each simulation is stepped by one thread, so the results do not depend on which.
+            let items: Vec<_> = sims.iter_mut().map(|(i, sim, tau)| (*i, &mut **sim, tau.as_deref())).collect();
+            let outcomes = on_all_threads(items, || (), |_, _, (i, sim, tau)| sim.step(tau, k as usize).err().map(|e| (i, e)));
+            let failed: Vec<(usize, legkit_dynamics::Error)> = outcomes.into_iter().flatten().collect();
+            sims.retain(|(i, _, _)| !failed.iter().any(|(f, _)| f == i));
+            failure = failure.take().into_iter().chain(failed).min_by_key(|(i, _)| *i);
+            Ok(())
+        })?;
+        match failure {
             Some((i, error)) => Err(batch_error(error, i)),
             None => Ok(()),
         }

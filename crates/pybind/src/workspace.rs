@@ -1,15 +1,18 @@
 //! Running a kernel over a batch of states with per-task workspaces, the GIL released.
 
 use legkit_dynamics::model::check_vector;
-use legkit_dynamics::spatial::Force;
+use legkit_dynamics::model::Dense;
+use legkit_dynamics::spatial::{spd_inverse6, Force};
+use legkit_dynamics::validate::{array_len, filled};
 use legkit_dynamics::{Data, Error, Model};
 use nalgebra::DMatrix;
-use numpy::{IxDyn, PyArrayDyn, PyArrayMethods};
+use numpy::PyArrayMethods;
 use pyo3::prelude::*;
 
-use crate::convert::FloatArray;
+use crate::convert::{kernel_error, FloatArray};
 
 use crate::batch::{map_rows, to_numpy, Batch};
+use crate::interrupt::{in_pieces, Pace};
 use crate::model::PyModel;
 
 /// Models with fewer bodies than this run a single state without releasing the GIL.
@@ -26,12 +29,20 @@ pub struct Workspace<'m> {
 }
 
 impl<'m> Workspace<'m> {
-    fn new(owner: &'m PyModel) -> Self {
+    pub fn new(owner: &'m PyModel) -> Self {
         Self { owner, data: Some(owner.take_workspace()), forces: Vec::new(), matrices: (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0)) }
     }
 
     pub fn data(&mut self) -> &mut Data {
         self.data.as_mut().expect("present until dropped")
+    }
+
+    /// The workspace with its dense `parts` sized fallibly (see `Data::reserve_dense`): for the kernels that
+    /// need nv x nv matrices, so that a model too large for them is a MemoryError, not an abort.
+    pub fn dense(&mut self, parts: &[Dense]) -> Result<&mut Data, Error> {
+        let data = self.data.as_mut().expect("present until dropped");
+        data.reserve_dense(&self.owner.model, parts)?;
+        Ok(data)
     }
 
     /// The workspace and the external forces read from a row of `nbodies x 6` numbers (None when the
@@ -47,12 +58,13 @@ impl<'m> Workspace<'m> {
         Ok((data, Some(&self.forces)))
     }
 
-    /// Two n x n matrices, allocated by the task's first row and reused by the others.
-    pub fn matrix_pair(&mut self, n: usize) -> (&mut DMatrix<f64>, &mut DMatrix<f64>) {
+    /// Two n x n matrices, allocated (fallibly) by the task's first row and reused by the others.
+    pub fn matrix_pair(&mut self, n: usize) -> Result<(&mut DMatrix<f64>, &mut DMatrix<f64>), Error> {
         if self.matrices.0.nrows() != n {
-            self.matrices = (DMatrix::zeros(n, n), DMatrix::zeros(n, n));
+            let len = array_len("model", &[n, n], std::mem::size_of::<f64>())?;
+            self.matrices = (DMatrix::from_vec(n, n, filled("model", len, 0.0)?), DMatrix::from_vec(n, n, filled("model", len, 0.0)?));
         }
-        (&mut self.matrices.0, &mut self.matrices.1)
+        Ok((&mut self.matrices.0, &mut self.matrices.1))
     }
 }
 
@@ -71,8 +83,8 @@ pub fn run<'py, K>(py: Python<'py>, owner: &PyModel, batch: &Batch, out_core: &[
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
-    // SAFETY: every kernel writes its whole row before the array can be read (see above).
-    let array = unsafe { PyArrayDyn::<f64>::new(py, IxDyn(&batch.output_shape(out_core)), false) };
+    // Every kernel writes its whole row before the array can be read (see above).
+    let array = batch.output(py, out_core)?;
     // SAFETY: the array was just created here and nothing else refers to it yet.
     let out = unsafe { array.as_slice_mut() }.expect("a new array is contiguous");
     fill(py, owner, batch, out, out_core.iter().product(), kernel)?;
@@ -84,7 +96,8 @@ pub fn run_packed<K>(py: Python<'_>, owner: &PyModel, batch: &Batch, width: usiz
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
-    let mut out = vec![0.0; batch.len * width];
+    let len = array_len(batch.largest, &[batch.len, width], std::mem::size_of::<f64>()).map_err(kernel_error)?;
+    let mut out = filled(batch.largest, len, 0.0).map_err(kernel_error)?;
     fill(py, owner, batch, &mut out, width, kernel)?;
     Ok(out)
 }
@@ -93,14 +106,20 @@ fn fill<K>(py: Python<'_>, owner: &PyModel, batch: &Batch, out: &mut [f64], widt
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
-    let (model, kernel) = (&owner.model, &kernel);
-    let work = |out: &mut [f64]| map_rows(out, width, || Workspace::new(owner), |w, i, row| kernel(model, w, i, row));
+    let (model, kernel, total) = (&owner.model, &kernel, batch.len);
+    let rows = |first: usize, out: &mut [f64]| map_rows(out, width, first, total, || Workspace::new(owner), |w, i, row| kernel(model, w, i, row));
     // Releasing and retaking the GIL costs about as much as one small model's kernel: keep it for those.
-    if batch.len == 1 && model.nbodies() < SMALL_MODEL {
-        work(out)
-    } else {
-        py.detach(|| work(out))
+    if total == 1 {
+        return if model.nbodies() < SMALL_MODEL { rows(0, out) } else { py.detach(|| rows(0, out)) };
     }
+    // Batches in pieces of rows, so that Ctrl-C is answered between them.
+    let mut done = 0;
+    in_pieces(py, total as u64, &Pace::default(), |k| {
+        let next = done + k as usize;
+        rows(done, &mut out[done * width..next * width])?;
+        done = next;
+        Ok(())
+    })
 }
 
 /// Splits rows packed as `[part 0 | part 1 | ...]` into one array per part, shaped `batch + core`.
@@ -122,19 +141,20 @@ pub fn unpack<'py>(py: Python<'py>, batch: &Batch, packed: &[f64], cores: &[&[us
         .collect()
 }
 
-/// Fails on NaN or infinity in a result: a singular model or state rather than silent garbage.
-pub fn finite_result<'a>(values: impl IntoIterator<Item = &'a f64>) -> Result<(), Error> {
-    if values.into_iter().all(|x| x.is_finite()) {
+/// Fails on NaN or infinity in a result: with valid (finite) inputs, a number overflowed. A numerical failure
+/// (RuntimeError), never reported as a singular mass matrix.
+pub fn finite_result(values: &[f64]) -> Result<(), Error> {
+    if all_finite(values) {
         Ok(())
     } else {
-        Err(not_finite())
+        Err(Error::numerical("result", "not finite: a number overflowed float64 (are the inputs' magnitudes physical?)"))
     }
 }
 
-/// `finite_result` for a whole output, without a branch per number: x 0 is 0 for a finite x and NaN otherwise, summed
-/// in eight lanes the compiler keeps in vector registers (the early-exit loop took 10 µs of `aba_derivatives`' 95 µs
-/// on a 64-joint chain).
-pub fn finite_values(values: &[f64]) -> Result<(), Error> {
+/// Whether every number is finite, without a branch per number: x 0 is 0 for a finite x and NaN otherwise, summed in
+/// eight lanes the compiler keeps in vector registers (an early-exit loop took 10 µs of `aba_derivatives`' 95 µs on a
+/// 64-joint chain).
+fn all_finite(values: &[f64]) -> bool {
     let mut lanes = [0.0f64; 8];
     let chunks = values.chunks_exact(8);
     let tail: f64 = chunks.remainder().iter().map(|x| x * 0.0).sum();
@@ -143,15 +163,25 @@ pub fn finite_values(values: &[f64]) -> Result<(), Error> {
             *lane += x * 0.0;
         }
     }
-    if lanes.iter().sum::<f64>() + tail == 0.0 {
-        Ok(())
-    } else {
-        Err(not_finite())
-    }
+    lanes.iter().sum::<f64>() + tail == 0.0
 }
 
-fn not_finite() -> Error {
-    Error::invalid("model", "the result is not finite: the mass matrix is singular at this configuration")
+/// `finite_result` for the outputs of the articulated-body factorisation left in `data` (ABA, Minv, and what
+/// runs them), which also fail on a singular mass matrix.
+pub fn finite_dynamics(model: &Model, data: &Data, values: &[f64]) -> Result<(), Error> {
+    finite_result(values).map_err(|overflow| if singular_factor(model, data) { singular() } else { overflow })
+}
+
+/// Whether the articulated-body factor in `data` is singular: a joint's pivot infinite or non-positive, or a
+/// floating base's finite articulated inertia not positive definite (an overflowed state leaves NaN instead).
+pub fn singular_factor(model: &Model, data: &Data) -> bool {
+    let base = &data.inertia[0];
+    let base_singular = model.floating_base() && base.iter().all(|x| x.is_finite()) && spd_inverse6(base)[(0, 0)].is_nan();
+    base_singular || (1..model.nbodies()).any(|i| model.joint(i).nv() == 1 && (data.d_inv[i].is_infinite() || data.d_inv[i] <= 0.0))
+}
+
+pub fn singular() -> Error {
+    Error::numerical("model", "the mass matrix is singular at this configuration (a body or joint without inertia?)")
 }
 
 pub fn check_state(model: &Model, q: &[f64], v: Option<&[f64]>) -> Result<(), Error> {

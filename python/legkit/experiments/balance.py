@@ -44,7 +44,7 @@ import numpy as np
 from tqdm import tqdm
 
 import legkit as lk
-from legkit._validation import float_array, is_integer, positive_scalar
+from legkit._validation import bounded_int, float_array, is_integer, output_folder_argument, positive_scalar
 from legkit.agents import AgentNetwork, BusConfig, GroundContact
 from legkit.control import SCHEMES, BalanceController, BalanceKernel, GainSchedule
 from legkit.robots.superbot import ModuleTree, random_tree
@@ -525,22 +525,20 @@ def main(argv: list[str] | None = None) -> int:
     """``legkit balance``: run the experiment, write ``balance.csv``, ``balance.png``, ``balance.html`` (unless
     ``--no-animation``) and ``balance.gif`` (with ``--gif``) to ``--out``, print the table."""
     parser = argparse.ArgumentParser(prog="legkit balance", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--trees", type=int, default=4, help="number of random trees (default 4)")
-    parser.add_argument("--modules", type=int, default=20, help="modules per tree besides the root (default 20)")
-    parser.add_argument("--branches", type=int, default=4, help="branches off the root (default 4)")
+    parser.add_argument("--trees", type=bounded_int(1, 1000), default=4, help="number of random trees (default 4)")
+    parser.add_argument("--modules", type=bounded_int(1, 10_000), default=20, help="modules per tree besides the root (default 20)")
+    parser.add_argument("--branches", type=bounded_int(1, 10_000), default=4, help="branches off the root (default 4)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the trees and of the bus (default 0)")
     parser.add_argument("--duration", type=float, default=DEFAULT_DURATION, help=f"simulated seconds (default {DEFAULT_DURATION})")
     parser.add_argument("--loss", type=float, default=0.0, help="message loss probability (default 0: synchronous bus)")
     parser.add_argument("--friction", type=float, default=DEFAULT_FRICTION, help=f"ground friction coefficient (default {DEFAULT_FRICTION})")
-    parser.add_argument("--out", type=Path, default=Path("balance-out"), help="output folder (default ./balance-out)")
+    parser.add_argument("--out", type=output_folder_argument, default="balance-out", help="output folder (default ./balance-out)")
     parser.add_argument("--plant", choices=PLANTS, default="tree", help="simulator: legkit's tree engine (default), Rapier, or free (no contacts)")
     parser.add_argument("--no-animation", action="store_true", help="do not write balance.html (or balance.gif)")
     parser.add_argument("--gif", action="store_true", help="also write balance.gif, the animation as a picture (about 1.2 s to render)")
     args = parser.parse_args(argv)
-    if args.trees < 1:
-        parser.error("--trees: must be >= 1")
-    if args.duration <= 0:
-        parser.error("--duration: must be > 0")
+    if not 0 < args.duration <= MAX_DURATION:
+        parser.error(f"--duration: must be in (0, {MAX_DURATION:g}] s")
     if not 0 <= args.loss < 1:
         parser.error("--loss: must be in [0, 1)")
     try:
@@ -549,7 +547,6 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, RuntimeError) as error:
         print(f"legkit balance: {error}", file=sys.stderr)
         return 2
-    args.out.mkdir(parents=True, exist_ok=True)
     write_csv(results, args.out / "balance.csv")
     plot(results, args.out / "balance.png")
     written = [args.out / "balance.csv", args.out / "balance.png"]
@@ -563,6 +560,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 DEFAULT_DURATION = 3.0
+#: The longest run the command takes (s of simulated time): its records grow with the duration.
+MAX_DURATION = 3600.0
 INITIAL_SPREAD = 0.25
 INITIAL_LEAN = 0.5
 POSE_KP = 20.0

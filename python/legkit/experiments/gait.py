@@ -53,6 +53,7 @@ from tqdm import tqdm
 
 import legkit as lk
 import legkit.stability as st
+from legkit._validation import bounded_int, output_folder_argument
 from legkit.robots.biped import JOINT_LABELS, SIDES, Biped, build_biped
 from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, Quadruped, QuadrupedParameters, build_quadruped
 
@@ -800,7 +801,7 @@ def main(argv: list[str] | None = None) -> int:
     """`legkit gait`: analyse the quadruped amble and/or the biped walk; writes CSVs and figures to --out."""
     parser = argparse.ArgumentParser(prog="legkit gait", description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=["quadruped", "biped", "both"], default="both")
-    parser.add_argument("--out", type=Path, default=Path("gait_results"), help="output folder (created)")
+    parser.add_argument("--out", type=output_folder_argument, default="gait_results", help="output folder (created)")
     parser.add_argument("--cycles", type=_positive_int, default=1, help="gait cycles to analyse")
     parser.add_argument("--samples", type=_positive_int, default=400, help="samples per cycle (>= 8)")
     parser.add_argument("--mu", type=float, default=0.8, help="friction coefficient for the friction-cone margin")
@@ -861,7 +862,6 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--coarse-intervals must be fewer than --intervals ({args.intervals})")
     if not 0.0 <= args.torque_margin < 1.0:
         parser.error("--torque-margin must be in [0, 1)")
-    args.out.mkdir(parents=True, exist_ok=True)
     robots = ["quadruped", "biped"] if args.robot == "both" else [args.robot]
     if args.optimize:
         for name in robots:
@@ -881,8 +881,5 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {value}")
-    return value
+#: Counts (cycles, samples, intervals, iterations) the command takes: far beyond what a run needs.
+_positive_int = bounded_int(1, 1_000_000)

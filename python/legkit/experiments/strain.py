@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from legkit._validation import bounded_int, output_folder_argument
 from legkit.strain.benchtop import (
     BenchtopData,
     CompliantFourBarLeg,
@@ -258,14 +259,14 @@ def run(
 def main(argv: list[str] | None = None) -> int:
     """``legkit strain``: print Tables 1 and 2 analogues and write the Fig. 7 analogue to --out."""
     parser = argparse.ArgumentParser(prog="legkit strain", description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("strain_out"), help="directory for the figure")
-    parser.add_argument("--runs", type=int, default=5, help="walking runs per speed")
+    parser.add_argument("--out", type=output_folder_argument, default="strain_out", help="directory for the figure")
+    parser.add_argument("--runs", type=bounded_int(1, 1000), default=5, help="walking runs per speed")
     parser.add_argument("--duration", type=float, default=4.0, help="length of each walking run (s)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--source", choices=sorted(SOURCES), default="kinematic", help="walking data source")
     args = parser.parse_args(argv)
-    if args.runs < 1 or args.duration <= 0:
-        parser.error("--runs must be positive and --duration must be positive")
+    if not 0 < args.duration <= 3600:
+        parser.error("--duration must be in (0, 3600] s")
 
     leg = CompliantFourBarLeg()
     source, description = SOURCES[args.source]

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from legkit._validation import bounded_int, output_folder
 from legkit.control.gains import SCHEMES
 from legkit.sweeps.spec import SweepSpec
 
@@ -69,8 +70,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--spec", type=Path, help="a JSON file of SweepSpec arguments (the axis options below are then ignored)")
     parser.add_argument("--trees", nargs="+", default=["4"], help="number of random trees (seeds 0..n-1), or --tree-seeds")
     parser.add_argument("--tree-seeds", nargs="+", help="explicit tree seeds (values or a:b:n)")
-    parser.add_argument("--modules", type=int, default=20, help="modules per tree besides the root (default 20)")
-    parser.add_argument("--branches", type=int, default=4, help="branches off the root (default 4)")
+    parser.add_argument("--modules", type=bounded_int(1, 10_000), default=20, help="modules per tree besides the root (default 20)")
+    parser.add_argument("--branches", type=bounded_int(1, 10_000), default=4, help="branches off the root (default 4)")
     parser.add_argument("--schemes", nargs="+", default=list(SCHEMES), help=f"gain schedules (default all: {' '.join(SCHEMES)})")
     parser.add_argument("--c0", nargs="+", help="c0 values (default: the paper's per scheme)")
     parser.add_argument("--c1", nargs="+", help="c1 values (default: the paper's per scheme)")
@@ -81,10 +82,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--terrain", nargs="+", default=["0"], help="terrain roughness depths in m (default 0: plane)")
     parser.add_argument("--friction", nargs="+", default=["0.8"], help="ground friction coefficients (default 0.8)")
     parser.add_argument("--noise", nargs="+", default=["0"], help="sensor noise std on the joint angles, rad (default 0)")
-    parser.add_argument("--seeds", type=int, default=1, help="replicates per configuration (default 1)")
+    parser.add_argument("--seeds", type=bounded_int(1, 10_000), default=1, help="replicates per configuration (default 1)")
     parser.add_argument("--duration", type=float, default=2.0, help="simulated seconds per run (default 2)")
-    parser.add_argument("--batch-size", type=int, default=48, help="runs per batch, one run_balance call (default 48)")
-    parser.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
+    parser.add_argument("--batch-size", type=bounded_int(1, 10_000), default=48, help="runs per batch, one run_balance call (default 48)")
+    parser.add_argument("--workers", type=bounded_int(1, 1024), help="local worker processes (default: one per core)")
     parser.add_argument("--ray", metavar="ADDRESS", help="run on Ray at ADDRESS ('auto', 'ray://host:10001', or 'local')")
     parser.add_argument("--out", type=Path, default=Path("sweep-out"), help="output folder (default ./sweep-out)")
     parser.add_argument("--no-figures", action="store_true", help="do not draw the summary figures")
@@ -94,7 +95,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def spec_from_args(args: argparse.Namespace) -> SweepSpec:
     if args.spec is not None:
-        return SweepSpec.from_dict(json.loads(args.spec.read_text()))
+        try:
+            text = args.spec.read_text()
+        except OSError as error:
+            raise ValueError(f"--spec: cannot read {str(args.spec)!r}: {error.strerror or error}") from None
+        return SweepSpec.from_dict(json.loads(text))
     trees: Any = parse_values("tree-seeds", args.tree_seeds, int) if args.tree_seeds else None
     if trees is None:
         counts = parse_values("trees", args.trees, int)
@@ -143,6 +148,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{len(spec.runs())} runs in {len(spec.batches())} batches (spec id {spec.spec_id})")
             return 0
         from legkit.sweeps.execute import run_sweep
+
+        try:
+            output_folder(args.out)
+        except ValueError as error:
+            raise ValueError(f"--out: {error}") from None
 
         table = run_sweep(spec, args.out, workers=args.workers, ray=args.ray, figures=not args.no_figures)
     except (ValueError, TypeError) as error:

@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from legkit._validation import positive_scalar
+from legkit._validation import bounded_int, positive_scalar
 from legkit.control.gains import SCHEMES, GainSchedule
 from legkit.sweeps.cli import median_quartiles
 from legkit.sweeps.execute import LocalExecutor, RayExecutor, executor, run_batch
@@ -331,18 +331,20 @@ def main(argv: list[str] | None = None) -> int:
         epilog=__doc__.split("\n\n", 1)[1],
     )
     parser.add_argument("--schemes", nargs="+", default=list(SCHEMES), help="schemes to tune (default all)")
-    parser.add_argument("--train", type=int, default=4, help=f"training trees, seeds {TRAIN_SEED0}.. (default 4)")
-    parser.add_argument("--test", type=int, default=6, help=f"held-out trees, seeds {TEST_SEED0}.. (default 6)")
-    parser.add_argument("--trials", type=int, default=32, help="trials per scheme, the paper's first (default 32)")
-    parser.add_argument("--per-round", type=int, default=4, help="trials per scheme evaluated together (on Ray Tune: at once) (default 4)")
+    parser.add_argument("--train", type=bounded_int(1, 1000), default=4, help=f"training trees, seeds {TRAIN_SEED0}.. (default 4)")
+    parser.add_argument("--test", type=bounded_int(1, 1000), default=6, help=f"held-out trees, seeds {TEST_SEED0}.. (default 6)")
+    parser.add_argument("--trials", type=bounded_int(1, 100_000), default=32, help="trials per scheme, the paper's first (default 32)")
+    parser.add_argument("--per-round", type=bounded_int(1, 1000), default=4,
+                        help="trials per scheme evaluated together (on Ray Tune: at once) (default 4)")
     parser.add_argument("--duration", type=float, default=1.0, help="simulated seconds per run (default 1)")
-    parser.add_argument("--modules", type=int, default=20, help="modules per tree besides the root (default 20)")
-    parser.add_argument("--branches", type=int, default=4, help="branches off the root (default 4)")
+    parser.add_argument("--modules", type=bounded_int(1, 10_000), default=20, help="modules per tree besides the root (default 20)")
+    parser.add_argument("--branches", type=bounded_int(1, 10_000), default=4, help="branches off the root (default 4)")
     parser.add_argument("--paper-base-gains", action="store_true", help="keep the paper's K_P0, K_I0, K_D0 (search c0, c1 only)")
     parser.add_argument("--seed", type=int, default=0, help="sampler seed (default 0)")
     parser.add_argument("--t10-weight", type=float, default=T10_WEIGHT,
                         help=f"module widths per second of t10 in the objective (default {T10_WEIGHT})")
-    parser.add_argument("--workers", type=int, default=1, help="local worker processes (default 1: this process, physics on every core)")
+    parser.add_argument("--workers", type=bounded_int(1, 1024), default=1,
+                        help="local worker processes (default 1: this process, physics on every core)")
     parser.add_argument("--ray", metavar="ADDRESS", help="tune with Ray Tune on Ray at ADDRESS ('auto', 'ray://host:10001', or 'local')")
     args = parser.parse_args(argv)
     try:

@@ -6,6 +6,7 @@ use rapier3d_f64::parry::shape::HeightFieldFlags;
 use rapier3d_f64::parry::utils::Array2;
 use rapier3d_f64::prelude::{ColliderBuilder, SharedShape};
 
+use super::options::MAX_SHAPE_SIZE;
 use crate::validate::finite;
 use crate::{Error, Result};
 
@@ -38,11 +39,15 @@ impl Ground {
         if heights.nrows() < 2 || heights.ncols() < 2 {
             return Err(Error::invalid("heights", format!("needs at least 2 x 2 samples, got {} x {}", heights.nrows(), heights.ncols())));
         }
-        if let Some(bad) = heights.iter().find(|h| !h.is_finite()) {
-            return Err(Error::invalid("heights", format!("must be finite, got {bad}")));
+        if let Some(bad) = heights.iter().find(|h| !(h.abs() <= MAX_SHAPE_SIZE)) {
+            return Err(Error::invalid("heights", format!("must be finite and at most {MAX_SHAPE_SIZE:e} m in magnitude, got {bad}")));
         }
         if finite("cell_size", cell_size)? <= 0.0 {
             return Err(Error::invalid("cell_size", format!("must be > 0, got {cell_size}")));
+        }
+        let extent = cell_size * (heights.nrows().max(heights.ncols()) - 1) as f64;
+        if extent > MAX_SHAPE_SIZE {
+            return Err(Error::invalid("cell_size", format!("the grid would span {extent:e} m, more than {MAX_SHAPE_SIZE:e} m")));
         }
         Ok(Ground::Heightfield { heights, cell_size, friction: check_friction(friction)? })
     }

@@ -6,8 +6,8 @@
 //! limits (position range enforced as a constraint, effort bound by clipping the actuation; velocity bounds
 //! are for controllers). Every method checks its input before touching the state: on error the simulation is
 //! unchanged. A step that would leave the state non-finite or exploding (a speed or position beyond
-//! `DIVERGENCE_BOUND`) stops with `Error::Numerical`, naming the step and the body, and leaves the last
-//! good state. The same inputs give bit-identical trajectories on either backend.
+//! `DIVERGENCE_BOUND`) stops with `Error::Numerical`, naming the step and the body, and leaves the
+//! simulation exactly as before that step. The same inputs give bit-identical trajectories on either backend.
 
 mod actuation;
 mod ground;
@@ -19,12 +19,17 @@ mod tree;
 
 pub use actuation::{dof_coordinates, Servo};
 pub use ground::Ground;
-pub use options::{Backend, Convex, Options, Shape, ShapeKind, DEFAULT_SOLVER_ITERATIONS, MIN_DEFAULT_EDGE};
+pub use options::{
+    Backend, Convex, Options, Shape, ShapeKind, DEFAULT_SOLVER_ITERATIONS, MAX_SHAPE_SIZE, MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS, MIN_DEFAULT_EDGE,
+};
+
+use std::panic::AssertUnwindSafe;
 
 use nalgebra::{DMatrix, Vector3};
 
 use crate::model::{check_vector, Model};
 use crate::spatial::Transform;
+use crate::validate::{array_len, with_capacity};
 use crate::{Error, Result};
 use actuation::{effort_bounds, Actuation};
 
@@ -62,6 +67,10 @@ pub(crate) trait Engine: Send + Sync {
     fn restart(&mut self, model: &Model, q: &[f64], v: &[f64]) -> Result<()>;
     /// Advances (q, v) by one step; writes the generalized forces the actuation applied.
     fn step(&mut self, model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64]) -> Result<()>;
+    /// Keeps what a step changes (contact history, warm starts, reported contacts), for `undo`.
+    fn save(&mut self);
+    /// Returns to the state of the last `save`, bit for bit: the step since then failed.
+    fn undo(&mut self);
     fn body_poses(&self, model: &Model, q: &[f64]) -> Vec<Transform>;
     fn contacts(&self) -> Vec<Contact>;
     /// Penetration the engine lets stand without correcting it (m).
@@ -88,8 +97,9 @@ pub struct Simulation {
     /// The model's effort bound per velocity coordinate (+inf on the base and unbounded joints).
     effort: Vec<f64>,
     steps: u64,
-    /// Actuation of the last step, one entry per velocity coordinate.
+    /// Actuation of the last step, one entry per velocity coordinate, and before the step being taken.
     applied: Vec<f64>,
+    applied_before: Vec<f64>,
     q: Vec<f64>,
     v: Vec<f64>,
     q_next: Vec<f64>,
@@ -115,6 +125,7 @@ impl Simulation {
             effort: effort_bounds(model),
             steps: 0,
             applied: vec![0.0; nv],
+            applied_before: vec![0.0; nv],
             q_next: vec![0.0; nq],
             v_next: vec![0.0; nv],
             tau_ff: vec![0.0; nv],
@@ -212,7 +223,9 @@ impl Simulation {
     /// Advances `n` steps with feed-forward generalized forces `tau` (nv, held over the steps; None for
     /// zero). On a floating base, tau[0..6] is a wrench [f; n] on the base in its frame at its origin, as
     /// in `aba`. Fails before stepping on bad `tau`; stops with `Error::Numerical` at the first step whose
-    /// state would diverge, keeping the state before it.
+    /// state would diverge, or in which the engine panics (inside a dependency), leaving the simulation
+    /// bit-identical to before that step: state, time, contact history and warm starts, applied forces and
+    /// reported contacts.
     pub fn step(&mut self, tau: Option<&[f64]>, n: usize) -> Result<()> {
         match tau {
             Some(t) => {
@@ -224,11 +237,21 @@ impl Simulation {
         for _ in 0..n {
             self.q_next.copy_from_slice(&self.q);
             self.v_next.copy_from_slice(&self.v);
+            self.applied_before.copy_from_slice(&self.applied);
+            self.engine.save();
             let actuation = Actuation { servo: &self.servo, effort: &self.effort, tau_ff: &self.tau_ff };
-            let outcome = self.engine.step(&self.model, &actuation, &mut self.q_next, &mut self.v_next, &mut self.applied);
+            let (engine, model) = (&mut self.engine, &self.model);
+            let (q_next, v_next, applied) = (&mut self.q_next, &mut self.v_next, &mut self.applied);
+            // A panic inside a dependency (parry, Rapier) must not cross into the caller (Python): it fails
+            // the step like a divergence.
+            let outcome =
+                std::panic::catch_unwind(AssertUnwindSafe(|| engine.step(model, &actuation, q_next, v_next, applied))).unwrap_or_else(|panic| {
+                    Err(Error::numerical("step", format!("the physics engine failed at step {}: {}", self.steps + 1, panic_message(&panic))))
+                });
             let outcome = outcome.and_then(|()| divergence(&self.model, &self.q_next, &self.v_next, &self.applied, self.steps + 1, self.options.dt));
             if let Err(error) = outcome {
-                self.engine.write_state(&self.model, &self.q, &self.v);
+                self.engine.undo();
+                self.applied.copy_from_slice(&self.applied_before);
                 return Err(error);
             }
             std::mem::swap(&mut self.q, &mut self.q_next);
@@ -246,6 +269,10 @@ impl Simulation {
     /// saturated servos and active joint limits are held: the Jacobians are the step's away from switches
     /// between them. Tree engine with one substep only (`Error::Invalid` otherwise).
     pub fn transition_jacobians(&mut self, tau: Option<&[f64]>, a: &mut DMatrix<f64>, b: &mut DMatrix<f64>) -> Result<()> {
+        // The Jacobians and the buffers behind them hold about 20 nv² numbers: a MemoryError where that cannot be
+        // allocated (asked for as one block first, as `Data::reserve_dense`), not an abort.
+        let nv = self.model.nv();
+        drop(with_capacity::<f64>("model", array_len("model", &[20, nv, nv], std::mem::size_of::<f64>())?)?);
         match tau {
             Some(t) => {
                 check_vector("tau", t, self.model.nv())?;
@@ -265,6 +292,15 @@ impl Simulation {
     /// Contacts of the last step.
     pub fn contacts(&self) -> Vec<Contact> {
         self.engine.contacts()
+    }
+}
+
+/// What a caught panic says (its message if it has one).
+fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
+    match (panic.downcast_ref::<&str>(), panic.downcast_ref::<String>()) {
+        (Some(message), _) => (*message).to_owned(),
+        (None, Some(message)) => message.clone(),
+        (None, None) => "a panic".to_owned(),
     }
 }
 

@@ -57,10 +57,13 @@ pub struct Convex {
 }
 
 impl Convex {
-    /// The hull of `points` (finite); an error if they span no volume.
+    /// The hull of `points` (finite, within `MAX_SHAPE_SIZE`); an error if they span no volume, or if parry
+    /// fails on them (a panic inside it, caught: a numerical failure).
     pub fn hull(points: &[Vector3<f64>]) -> Result<Self> {
         for p in points {
-            finite_vector("shapes", *p)?;
+            for x in finite_vector("shapes", *p)?.iter() {
+                within_size("shapes", *x)?;
+            }
         }
         let flat = || {
             Error::invalid("shapes", format!("the convex hull of {} points has no volume (they lie in a plane or are fewer than 4)", points.len()))
@@ -69,7 +72,9 @@ impl Convex {
             return Err(flat());
         }
         let parry: Vec<Vector> = points.iter().map(to_vector).collect();
-        let hull = ConvexPolyhedron::from_convex_hull(&parry).ok_or_else(flat)?;
+        let hull = std::panic::catch_unwind(|| ConvexPolyhedron::from_convex_hull(&parry))
+            .map_err(|_| Error::numerical("shapes", format!("parry failed to build the convex hull of {} points", points.len())))?
+            .ok_or_else(flat)?;
         let vertices = hull.points().iter().map(|p| from_vector(*p)).collect();
         Ok(Convex { vertices, shape: SharedShape::new(hull) })
     }
@@ -112,29 +117,45 @@ fn positive(argument: &'static str, x: f64) -> Result<f64> {
     Ok(x)
 }
 
+/// The largest size or offset (m) of a collision shape: a robot is far smaller, and parry's geometry
+/// overflows (and panics) on sizes near the square root of the largest float.
+pub const MAX_SHAPE_SIZE: f64 = 1e6;
+
+/// `x` if it is at most `MAX_SHAPE_SIZE` in magnitude.
+fn within_size(argument: &'static str, x: f64) -> Result<f64> {
+    if x.abs() > MAX_SHAPE_SIZE {
+        return Err(Error::invalid(argument, format!("sizes and offsets must be at most {MAX_SHAPE_SIZE:e} m, got {x}")));
+    }
+    Ok(x)
+}
+
 impl Shape {
-    /// Checks sizes (finite, > 0) and the placement (a proper rotation, finite translation).
+    /// Checks sizes (finite, > 0, at most `MAX_SHAPE_SIZE`) and the placement (a proper rotation, a finite
+    /// translation within `MAX_SHAPE_SIZE`).
     pub fn new(kind: ShapeKind, placement: Option<Transform>) -> Result<Self> {
-        match kind {
+        match &kind {
             ShapeKind::Box(size) => {
                 for s in size.iter() {
-                    positive("shapes", *s)?;
+                    within_size("shapes", positive("shapes", *s)?)?;
                 }
             }
             ShapeKind::Sphere(r) => {
-                positive("shapes", r)?;
+                within_size("shapes", positive("shapes", *r)?)?;
             }
             ShapeKind::Capsule { half_height, radius } | ShapeKind::Cylinder { half_height, radius } => {
-                positive("shapes", radius)?;
-                if finite("shapes", half_height)? < 0.0 {
+                within_size("shapes", positive("shapes", *radius)?)?;
+                if within_size("shapes", finite("shapes", *half_height)?)? < 0.0 {
                     return Err(Error::invalid("shapes", format!("half_height must be >= 0, got {half_height}")));
                 }
             }
+            // Checked by `Convex::hull`, its only maker.
             ShapeKind::Convex(_) => {}
         }
         if let Some(p) = &placement {
             rotation("shapes", &p.rotation)?;
-            finite_vector("shapes", p.translation)?;
+            for x in finite_vector("shapes", p.translation)?.iter() {
+                within_size("shapes", *x)?;
+            }
         }
         Ok(Shape { kind, placement })
     }
@@ -219,6 +240,11 @@ pub struct Options {
     pub solver_iterations: usize,
 }
 
+/// The most substeps per step, and solver iterations per substep: a step is the unit a long run can be
+/// interrupted at, so it must stay short (a thousand substeps of a large model already take seconds).
+pub const MAX_SUBSTEPS: usize = 1000;
+pub const MAX_SOLVER_ITERATIONS: usize = 1000;
+
 /// Which engine steps the simulation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Backend {
@@ -282,11 +308,11 @@ impl Options {
         if finite("dt", self.dt)? <= 0.0 {
             return Err(Error::invalid("dt", format!("must be > 0, got {}", self.dt)));
         }
-        if self.substeps == 0 {
-            return Err(Error::invalid("substeps", "must be >= 1"));
+        if !(1..=MAX_SUBSTEPS).contains(&self.substeps) {
+            return Err(Error::invalid("substeps", format!("must be in 1..={MAX_SUBSTEPS}, got {}", self.substeps)));
         }
-        if self.solver_iterations == 0 {
-            return Err(Error::invalid("solver_iterations", "must be >= 1"));
+        if !(1..=MAX_SOLVER_ITERATIONS).contains(&self.solver_iterations) {
+            return Err(Error::invalid("solver_iterations", format!("must be in 1..={MAX_SOLVER_ITERATIONS}, got {}", self.solver_iterations)));
         }
         let mut seen = vec![false; model.nbodies()];
         for (body, _) in &self.shapes {

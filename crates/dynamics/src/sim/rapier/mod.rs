@@ -14,13 +14,16 @@
 //! substep length. Single-threaded and free of hash-order effects, the same inputs give bit-identical
 //! trajectories.
 //!
-//! Every method checks its input before touching the state: on error the simulation is unchanged.
+//! Every method checks its input before touching the state: on error the simulation is unchanged. A step
+//! that fails is undone from a copy of the world taken before it.
 
 mod builder;
 mod state;
 
 use nalgebra::{DMatrix, Vector3};
-use rapier3d_f64::prelude::PhysicsWorld;
+use rapier3d_f64::prelude::{
+    BroadPhaseBvh, CCDSolver, ColliderSet, ImpulseJointSet, IslandManager, MultibodyJointSet, NarrowPhase, PhysicsWorld, RigidBodySet,
+};
 
 use crate::joint::Dofs;
 use crate::model::Model;
@@ -46,16 +49,63 @@ enum Push {
 pub(crate) struct RapierSimulation {
     options: Options,
     world: PhysicsWorld,
+    /// The world before the step being taken (`Engine::save`), without the pipelines' workspaces.
+    saved: Option<Saved>,
     layout: Layout,
     q_dof: Vec<f64>,
     pushes: Vec<Push>,
+}
+
+/// Every part of a `PhysicsWorld` that carries state from one step to the next.
+struct Saved {
+    islands: IslandManager,
+    broad_phase: BroadPhaseBvh,
+    narrow_phase: NarrowPhase,
+    bodies: RigidBodySet,
+    colliders: ColliderSet,
+    impulse_joints: ImpulseJointSet,
+    multibody_joints: MultibodyJointSet,
+    ccd_solver: CCDSolver,
+}
+
+impl Saved {
+    fn of(world: &PhysicsWorld) -> Self {
+        Saved {
+            islands: world.islands.clone(),
+            broad_phase: world.broad_phase.clone(),
+            narrow_phase: world.narrow_phase.clone(),
+            bodies: world.bodies.clone(),
+            colliders: world.colliders.clone(),
+            impulse_joints: world.impulse_joints.clone(),
+            multibody_joints: world.multibody_joints.clone(),
+            ccd_solver: world.ccd_solver.clone(),
+        }
+    }
+
+    fn restore(self, world: &mut PhysicsWorld) {
+        world.islands = self.islands;
+        world.broad_phase = self.broad_phase;
+        world.narrow_phase = self.narrow_phase;
+        world.bodies = self.bodies;
+        world.colliders = self.colliders;
+        world.impulse_joints = self.impulse_joints;
+        world.multibody_joints = self.multibody_joints;
+        world.ccd_solver = self.ccd_solver;
+    }
 }
 
 impl RapierSimulation {
     /// The model at its neutral configuration, at rest (options checked by the caller).
     pub(crate) fn new(model: &Model, options: &Options) -> Result<Self> {
         let (world, layout) = builder::build(model, options)?;
-        Ok(RapierSimulation { options: options.clone(), world, layout, q_dof: vec![0.0; model.nv()], pushes: Vec::with_capacity(model.nbodies()) })
+        Ok(RapierSimulation {
+            options: options.clone(),
+            world,
+            saved: None,
+            layout,
+            q_dof: vec![0.0; model.nv()],
+            pushes: Vec::with_capacity(model.nbodies()),
+        })
     }
 }
 
@@ -79,6 +129,16 @@ impl Engine for RapierSimulation {
         self.world.step();
         state::read(&self.world, &self.layout, model, q, v);
         Ok(())
+    }
+
+    fn save(&mut self) {
+        self.saved = Some(Saved::of(&self.world));
+    }
+
+    fn undo(&mut self) {
+        if let Some(saved) = self.saved.take() {
+            saved.restore(&mut self.world);
+        }
     }
 
     fn body_poses(&self, _model: &Model, _q: &[f64]) -> Vec<Transform> {

@@ -24,7 +24,6 @@ pub(super) const PREDICTION: f64 = 1e-3;
 /// What a contact point carries from one step to the next: the impulses [λ_n, λ_t (world, 3)].
 pub(super) type Warm = [f64; 4];
 
-#[derive(Clone)]
 struct Collider {
     body: usize,
     /// The body of the fused model that `body` moves with, and that body's parent.
@@ -49,10 +48,31 @@ pub(super) enum Source {
     Manifold(u32, u32, u32),
 }
 
-#[derive(Default, Clone)]
+#[derive(Default)]
 pub(super) struct Pair {
     pub manifolds: Vec<ContactManifold<(), Warm>>,
     workspace: Option<ContactManifoldsWorkspace>,
+}
+
+impl Clone for Pair {
+    fn clone(&self) -> Self {
+        Pair { manifolds: self.manifolds.clone(), workspace: self.workspace.clone() }
+    }
+
+    /// Reuses this pair's buffers: a step saves its pairs every step, which must not allocate once warm
+    /// (only a composite shape's workspace, a heightfield's, is copied anew).
+    fn clone_from(&mut self, other: &Self) {
+        self.manifolds.truncate(other.manifolds.len());
+        let kept = self.manifolds.len();
+        for (to, from) in self.manifolds.iter_mut().zip(&other.manifolds) {
+            let ContactManifold { points, local_n1, local_n2, subshape1, subshape2, subshape_poses, data } = from;
+            to.points.clone_from(points);
+            (to.local_n1, to.local_n2, to.subshape1, to.subshape2, to.data) = (*local_n1, *local_n2, *subshape1, *subshape2, *data);
+            to.subshape_poses.clone_from(subshape_poses);
+        }
+        self.manifolds.extend_from_slice(&other.manifolds[kept..]);
+        self.workspace.clone_from(&other.workspace);
+    }
 }
 
 /// One contact point of this step, between `body` (pushed along `normal`) and `other` (the ground if None).
@@ -70,14 +90,24 @@ pub(super) struct Found {
     pub source: Source,
 }
 
-#[derive(Clone)]
+/// What a step changed of a `Collision`, to undo it: the plane impulses of the colliders it changed
+/// (collider, old impulses, old activity), in order, and parry's pairs as they were.
+#[derive(Default)]
+pub(super) struct History {
+    plane_warm: Vec<(u32, [Warm; MAX_FEATURES], bool)>,
+    ground_pairs: Vec<Pair>,
+    self_pairs: Vec<(u32, u32, Pair)>,
+}
+
 pub(super) struct Collision {
     colliders: Vec<Collider>,
     /// The ground as a parry shape, for the colliders that meet it through parry; None if none does.
     ground: Option<(SharedShape, Pose)>,
     plane: bool,
-    /// Impulses of each collider's features on the plane, from the last step.
+    /// Impulses of each collider's features on the plane, from the last step, and whether any may be
+    /// non-zero (the collider touched the plane).
     plane_warm: Vec<[Warm; MAX_FEATURES]>,
+    plane_active: Vec<bool>,
     ground_pairs: Vec<Pair>,
     self_collision: bool,
     /// Overlapping collider pairs (a < b) of the last step, sorted, with their manifolds.
@@ -116,6 +146,7 @@ impl Collision {
             ground: options.ground.as_ref().filter(|_| colliders.iter().any(|c| c.parry_ground)).map(|g| g.shape()),
             plane,
             plane_warm: vec![[[0.0; 4]; MAX_FEATURES]; n],
+            plane_active: vec![false; n],
             ground_pairs: (0..n).map(|_| Pair::default()).collect(),
             colliders,
             self_collision: options.self_collision,
@@ -128,15 +159,53 @@ impl Collision {
         }
     }
 
+    /// Starts recording what the next step changes, so that `undo` can take it back.
+    pub(super) fn save(&mut self, history: &mut History) {
+        history.plane_warm.clear();
+        // Parry's pairs are copied whole (only heightfields, meshes on the plane and self-collision have
+        // them); a collider's plane impulses are logged when it touches, which costs nothing per idle one.
+        if self.ground.is_some() {
+            history.ground_pairs.clone_from(&self.ground_pairs);
+        }
+        if self.self_collision {
+            // Element by element, so that each pair reuses its buffers (a tuple's clone_from would not).
+            let saved = &mut history.self_pairs;
+            saved.truncate(self.self_pairs.len());
+            let kept = saved.len();
+            for (to, (a, b, pair)) in saved.iter_mut().zip(&self.self_pairs) {
+                (to.0, to.1) = (*a, *b);
+                to.2.clone_from(pair);
+            }
+            saved.extend(self.self_pairs[kept..].iter().cloned());
+        }
+    }
+
+    /// Returns to the state of the last `save`.
+    pub(super) fn undo(&mut self, history: &mut History) {
+        for &(collider, warm, active) in history.plane_warm.iter().rev() {
+            self.plane_warm[collider as usize] = warm;
+            self.plane_active[collider as usize] = active;
+        }
+        history.plane_warm.clear();
+        if self.ground.is_some() {
+            std::mem::swap(&mut self.ground_pairs, &mut history.ground_pairs);
+        }
+        if self.self_collision {
+            std::mem::swap(&mut self.self_pairs, &mut history.self_pairs);
+        }
+    }
+
     /// Forgets every contact (no warm start for what follows).
     pub(super) fn clear(&mut self) {
         self.ground_pairs.iter_mut().for_each(|p| *p = Pair::default());
         self.plane_warm.iter_mut().for_each(|w| *w = [[0.0; 4]; MAX_FEATURES]);
+        self.plane_active.fill(false);
         self.self_pairs.clear();
     }
 
-    /// Finds the contacts of bodies at world poses `poses`, appending them to `out`.
-    pub(super) fn detect(&mut self, poses: &[Transform], out: &mut Vec<Found>) {
+    /// Finds the contacts of bodies at world poses `poses`, appending them to `out`; the plane impulses of
+    /// the colliders it may change go to `history` first.
+    pub(super) fn detect(&mut self, poses: &[Transform], out: &mut Vec<Found>, history: &mut History) {
         if self.plane {
             let up = tangents(&Vector3::z());
             for (index, c) in self.colliders.iter().enumerate() {
@@ -156,11 +225,17 @@ impl Collision {
                         source: Source::Plane(index as u32, p.feature as u32),
                     });
                 });
-                for (w, t) in warm.iter_mut().zip(touching) {
-                    if !t {
-                        *w = [0.0; 4];
+                // Only a collider touching now or last step has impulses to change: it is logged whole.
+                let touches = touching.contains(&true);
+                if touches || self.plane_active[index] {
+                    history.plane_warm.push((index as u32, *warm, self.plane_active[index]));
+                    for (w, t) in warm.iter_mut().zip(touching) {
+                        if !t {
+                            *w = [0.0; 4];
+                        }
                     }
                 }
+                self.plane_active[index] = touches;
             }
         }
         if !(self.self_collision || self.ground.is_some()) {
@@ -299,7 +374,8 @@ impl Collision {
         moved
     }
 
-    /// Stores the impulses of the contact at `source` for the next step's warm start.
+    /// Stores the impulses of the contact at `source` for the next step's warm start (a plane contact's
+    /// collider was logged by `detect`, which found it).
     pub(super) fn store(&mut self, source: Source, warm: Warm) {
         match source {
             Source::Plane(collider, feature) => self.plane_warm[collider as usize][feature as usize] = warm,

@@ -38,7 +38,7 @@ use crate::algorithms::{aba_with_armature, integrate, joint_placement, world_pos
 use crate::model::{Data, Model};
 use crate::spatial::{spatial, Transform};
 use crate::{Error, MassProperties, Result};
-use collision::{Collision, Found};
+use collision::{Collision, Found, History};
 use delassus::Delassus;
 use solver::{Constraint, Kind, Solver, Target, BAUMGARTE, MAX_CORRECTION, TOLERANCE};
 use transition::Transition;
@@ -71,6 +71,11 @@ pub(crate) struct TreeSimulation {
     data: Data,
     delassus: Delassus,
     collision: Collision,
+    /// What the step being taken changed, to undo it if it fails (`Engine::undo`).
+    history: History,
+    limit_impulses_before: Vec<[f64; 2]>,
+    contacts_before: Vec<Contact>,
+    iterations_before: usize,
     /// Joints with a position range.
     limited: Vec<LimitedJoint>,
     /// Last step's limit impulses per velocity coordinate: [at the lower bound, at the upper bound].
@@ -121,6 +126,10 @@ impl TreeSimulation {
             fused_body,
             offset: offset.into_iter().map(|o| (o != Transform::identity()).then_some(o)).collect(),
             collision,
+            history: History::default(),
+            limit_impulses_before: vec![[0.0; 2]; nv],
+            contacts_before: Vec::new(),
+            iterations_before: 0,
             options: options.clone(),
             limited,
             limit_impulses: vec![[0.0; 2]; nv],
@@ -226,7 +235,7 @@ impl TreeSimulation {
                 self.collision_poses(&self.data, q, &mut poses);
                 self.poses = poses;
                 self.found.clear();
-                self.collision.detect(&self.poses, &mut self.found);
+                self.collision.detect(&self.poses, &mut self.found, &mut self.history);
                 // Bodies fixed to a fixed base cannot move: their contacts carry no constraint.
                 if !model.floating_base() {
                     let carrier = &self.fused_body;
@@ -310,6 +319,20 @@ impl Engine for TreeSimulation {
             self.substep(actuation, q, v, applied)?;
         }
         Ok(())
+    }
+
+    fn save(&mut self) {
+        self.collision.save(&mut self.history);
+        self.limit_impulses_before.copy_from_slice(&self.limit_impulses);
+        self.contacts_before.clone_from(&self.contacts);
+        self.iterations_before = self.iterations;
+    }
+
+    fn undo(&mut self) {
+        self.collision.undo(&mut self.history);
+        self.limit_impulses.copy_from_slice(&self.limit_impulses_before);
+        std::mem::swap(&mut self.contacts, &mut self.contacts_before);
+        self.iterations = self.iterations_before;
     }
 
     fn body_poses(&self, model: &Model, q: &[f64]) -> Vec<Transform> {

@@ -25,6 +25,7 @@ use super::{base_origin, contact_constraint, limit_constraint, TreeSimulation};
 use crate::algorithms::{aba_with_armature, crba, integrate, integrate_jacobians, rnea_derivatives};
 use crate::model::{Data, Model};
 use crate::sim::actuation::Actuation;
+use crate::sim::Engine;
 use crate::spatial::{Motion, Transform};
 use crate::{Error, Result};
 
@@ -149,13 +150,14 @@ impl TreeSimulation {
                 ),
             ));
         }
-        let history = (self.collision.clone(), self.limit_impulses.clone(), std::mem::take(&mut self.contacts), self.iterations);
+        // The step is taken and undone, as a failed step is (`Engine::save`, `Engine::undo`).
+        self.save();
         let (mut q_next, mut v_next, mut applied) = (q.to_vec(), v.to_vec(), vec![0.0; v.len()]);
         let mut transition = self.transition.take().unwrap_or_else(|| Box::new(Transition::new(&self.fused, self.fused_body.len())));
         let outcome =
             self.substep(actuation, &mut q_next, &mut v_next, &mut applied).and_then(|()| self.linearise(&mut transition, actuation, q, v, a, b));
         self.transition = Some(transition);
-        (self.collision, self.limit_impulses, self.contacts, self.iterations) = history;
+        self.undo();
         outcome
     }
 

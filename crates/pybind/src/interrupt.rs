@@ -1,0 +1,90 @@
+//! Long calls run in pieces of whole steps, each with the GIL released, and Python's signal handlers run
+//! between pieces: Ctrl-C raises KeyboardInterrupt within about `PIECE` of work, and what was done before
+//! it (whole steps) is kept. Work that cannot be cut in pieces runs on a thread of its own (`on_worker`).
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{self, RecvTimeoutError};
+use std::time::{Duration, Instant};
+
+use pyo3::exceptions::PyRuntimeError;
+use pyo3::prelude::*;
+
+/// The work per piece: short enough that Ctrl-C is answered at once, long enough that releasing and
+/// retaking the GIL between pieces costs nothing.
+const PIECE: Duration = Duration::from_millis(50);
+
+/// The time one unit of work (a step) took last, kept by the object that does the work, so that a call
+/// repeated with the same count (a control loop stepping 50 steps at a time) runs as one piece rather than
+/// growing its pieces again each time (each piece wakes a batch's threads anew).
+#[derive(Debug, Default)]
+pub struct Pace(AtomicU64);
+
+impl Pace {
+    /// Units that fill about one `PIECE` (one until a unit has been timed).
+    fn units_per_piece(&self) -> u64 {
+        (PIECE.as_nanos() as u64).checked_div(self.0.load(Ordering::Relaxed)).map_or(1, |units| units.max(1))
+    }
+
+    fn record(&self, took: Duration, units: u64) {
+        let unit = (took.as_nanos() / u128::from(units.max(1))).clamp(1, u128::from(u64::MAX)) as u64;
+        self.0.store(unit, Ordering::Relaxed);
+    }
+}
+
+/// Runs `run(k)`, which does the next `k` units of work (steps), until `total` units are done, in pieces of
+/// about `PIECE` at the `pace` last measured (one unit first when it is not known yet); between pieces, with
+/// the GIL held, Python's signal handlers run, and an exception they raise stops the work there.
+/// `run` must give the same result whatever the pieces (k steps then m steps = k + m steps).
+pub fn in_pieces<F>(py: Python<'_>, total: u64, pace: &Pace, mut run: F) -> PyResult<()>
+where
+    F: FnMut(u64) -> PyResult<()> + Send,
+{
+    // One step is one piece whatever the pace: not worth timing.
+    if total == 1 {
+        return py.detach(|| run(1));
+    }
+    let mut done = 0;
+    while done < total {
+        let k = pace.units_per_piece().min(total - done);
+        let started = Instant::now();
+        py.detach(|| run(k))?;
+        pace.record(started.elapsed(), k);
+        done += k;
+        if done < total {
+            py.check_signals()?;
+        }
+    }
+    Ok(())
+}
+
+/// `work()` on a thread of its own, the caller waiting for it with the GIL released and running Python's
+/// signal handlers every `PIECE`: for work that has no steps to stop between (loading a file). On Ctrl-C the
+/// caller raises KeyboardInterrupt at once; the work then finishes on its thread and its result is dropped,
+/// so it must change nothing the caller can see. A panic in it is a RuntimeError naming `what`.
+pub fn on_worker<T, F>(py: Python<'_>, what: &str, work: F) -> PyResult<T>
+where
+    T: Send + 'static,
+    F: FnOnce() -> T + Send + 'static,
+{
+    let (sender, mut receiver) = mpsc::channel();
+    std::thread::Builder::new()
+        .name(what.to_owned())
+        .spawn(move || {
+            // The caller may have gone (interrupted): then nobody wants the result.
+            let _ = sender.send(work());
+        })
+        .map_err(|e| PyRuntimeError::new_err(format!("{what}: cannot start a thread: {e}")))?;
+    loop {
+        // The receiver goes with the wait (it may not be shared between threads, only moved).
+        let (back, received) = py.detach(move || {
+            let received = receiver.recv_timeout(PIECE);
+            (receiver, received)
+        });
+        receiver = back;
+        match received {
+            Ok(result) => return Ok(result),
+            Err(RecvTimeoutError::Timeout) => py.check_signals()?,
+            Err(RecvTimeoutError::Disconnected) => return Err(PyRuntimeError::new_err(format!("{what}: failed inside a dependency (a panic)"))),
+        }
+    }
+}

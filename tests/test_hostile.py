@@ -1,0 +1,526 @@
+"""Hostile input: huge sizes, deep or pathological files, out-of-range integers, overflowing numbers, Ctrl-C.
+
+Each case runs in a child interpreter with a timeout and an address-space limit, so a crash (a signal, an
+abort, a Rust panic) or a hang fails its test instead of the run. A case passes when the child raises the
+class of the README's error table, with a message naming the argument, and exits normally.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import legkit as lk
+
+GIB = 1 << 30
+
+PRELUDE = """
+import json, resource, sys
+limit = {memory}
+if limit:
+    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+import numpy as np
+import legkit as lk
+
+def report(**fields):
+    print("RESULT " + json.dumps(fields), flush=True)
+
+try:
+{body}
+except BaseException as error:
+    report(raised=type(error).__name__, message=str(error))
+else:
+    report(raised=None)
+"""
+
+
+def outcome(body: str, *, timeout: float = 30.0, memory: int = 2 * GIB, cwd: Path | None = None) -> dict:
+    """What `body` did in a child interpreter: its first `report(...)`, or {"raised": class name or None,
+    "message": ...}. A crash or a timeout fails the calling test."""
+    code = PRELUDE.format(memory=memory, body=textwrap.indent(textwrap.dedent(body).strip(), "    "))
+    child = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout, cwd=cwd)
+    results = [line for line in child.stdout.splitlines() if line.startswith("RESULT ")]
+    assert child.returncode == 0 and results, f"the child crashed (exit {child.returncode}):\n{child.stderr[-3000:]}"
+    result = json.loads(results[0].removeprefix("RESULT "))
+    assert result.get("raised") != "PanicException", result
+    return result
+
+
+def raises(body: str, expected: str, *words: str, **options) -> dict:
+    result = outcome(body, **options)
+    assert result["raised"] == expected, result
+    for word in words:
+        assert word in result["message"], result
+    return result
+
+
+PENDULUM = """
+model = lk.Model()
+model.add_revolute(0, [0, 1, 0], placement=(np.eye(3), [0, 0, 0]), body=lk.MassProperties.point(1.0, [0, 0, -0.5]), name="link")
+q, v, tau = np.zeros(1), np.zeros(1), np.zeros(1)
+"""
+
+
+def chain_urdf(links: int) -> str:
+    """A URDF chain of `links` links on revolute joints."""
+    inertial = '<inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>'
+    parts = ['<robot name="chain">', f'<link name="l0">{inertial}</link>']
+    for i in range(1, links):
+        parts.append(f'<link name="l{i}">{inertial}</link>')
+        parts.append(
+            f'<joint name="j{i}" type="revolute"><parent link="l{i - 1}"/><child link="l{i}"/>'
+            '<origin xyz="0 0 -0.1"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="10" velocity="1"/></joint>'
+        )
+    parts.append("</robot>")
+    return "\n".join(parts)
+
+
+# --- MemoryError: a size that cannot be allocated, checked before allocating -------------------------------
+
+
+def test_a_huge_broadcast_batch_is_a_memory_error():
+    raises(
+        PENDULUM + "lk.aba(model, np.broadcast_to(q, (10**5, 1, 1)), np.broadcast_to(v, (1, 10**5, 1)), tau)",
+        "MemoryError",
+        "bytes",
+    )
+
+
+def test_a_batch_whose_shape_product_overflows_is_a_memory_error():
+    raises(
+        PENDULUM
+        + """
+big = 2**31
+lk.rnea(model, np.broadcast_to(q, (big, 1, 1, 1)), np.broadcast_to(v, (1, big, 1, 1)), np.broadcast_to(tau, (1, 1, big, 1)))
+""",
+        "MemoryError",
+    )
+
+
+@pytest.mark.parametrize("steps", [10**12, 2**63 - 1, 2**63, 2**64 - 1, 2**70])
+def test_a_rollout_too_long_to_hold_is_a_memory_error(steps):
+    raises(PENDULUM + f"lk.free_rollout(model, q, v, dt=1e-3, steps={steps})", "MemoryError", "steps")
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        "lk.MassProperties.from_points(np.broadcast_to(1.0, (10**10,)), np.broadcast_to(0.0, (10**10, 3)))",
+        'lk.Simulation(model, shapes={1: ("convex", np.broadcast_to(0.0, (10**10, 3)))})',
+        "lk.reduced_dynamics(model, np.broadcast_to(0.0, (10**10,)), v, tau, [(1, [0, 0, 0])])",
+    ],
+)
+def test_huge_broadcast_views_elsewhere_are_memory_errors(call):
+    raises(PENDULUM + call, "MemoryError", "bytes")
+
+
+def test_a_huge_broadcast_heightfield_is_a_memory_error():
+    raises("lk.Ground.heightfield(np.broadcast_to(0.0, (10**5, 10**5)), 0.1)", "MemoryError", "heights")
+
+
+def test_rnea_and_aba_on_a_20000_link_chain_stay_within_100_mb(tmp_path):
+    (tmp_path / "chain.urdf").write_text(chain_urdf(20_000))
+    # The limit is set after loading: what the kernels allocate on top must fit in 100 MB.
+    result = outcome(
+        f"""
+model = lk.Model.from_urdf({str(tmp_path / "chain.urdf")!r})
+q, v = np.full(model.nq, 0.1), np.full(model.nv, 0.2)
+lk.rnea(model, q, v, v)
+status = open("/proc/self/status").read()
+vm = int(status.split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (vm + 100 * 2**20, vm + 100 * 2**20))
+tau = lk.rnea(model, q, v, v)
+a = lk.aba(model, q, v, tau)
+report(raised=None, finite=bool(np.isfinite(a).all()), error=float(np.abs(a - v).max() / np.abs(v).max()))
+""",
+        memory=0,
+        timeout=60,
+    )
+    # ABA undoes RNEA to the conditioning of a 20,000-link chain.
+    assert result["raised"] is None and result["finite"] and result["error"] < 1e-3, result
+
+
+@pytest.mark.parametrize("call", ["lk.crba(model, q)", "lk.minv(model, q)", "lk.contact_dynamics(model, q, q, q, [(1, [0, 0, 0])])"])
+def test_dense_kernels_on_a_20000_link_chain_are_memory_errors_within_a_limit(tmp_path, call):
+    # Their output (3.2 GB) fits under the limit, their own nv x nv workspace does not: MemoryError, not an abort.
+    (tmp_path / "chain.urdf").write_text(chain_urdf(20_000))
+    raises(
+        f"""
+model = lk.Model.from_urdf({str(tmp_path / "chain.urdf")!r})
+q = np.zeros(model.nq)
+vm = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (vm + 4 * 2**30, vm + 4 * 2**30))
+{call}
+""",
+        "MemoryError",
+        "model",
+        "bytes",
+        memory=0,
+    )
+
+
+# --- recursion over input-defined depth ---------------------------------------------------------------------
+
+
+def test_a_collada_file_with_20000_nested_nodes_loads(tmp_path):
+    depth = 20_000
+    cube = " ".join(f"{x} {y} {z}" for x in (0, 1) for y in (0, 1) for z in (0, 1))
+    geometry = (
+        '<library_geometries><geometry id="g"><mesh><source id="p"><float_array count="24">'
+        f'{cube}</float_array></source><vertices id="v"><input semantic="POSITION" source="#p"/></vertices>'
+        "</mesh></geometry></library_geometries>"
+    )
+    nodes = "<node>" * depth + '<instance_geometry url="#g"/>' + "</node>" * depth
+    (tmp_path / "deep.dae").write_text(
+        f'<COLLADA>{geometry}<library_visual_scenes><visual_scene id="s">{nodes}</visual_scene></library_visual_scenes></COLLADA>'
+    )
+    urdf = (
+        '<robot name="r"><link name="base"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>'
+        '</inertial><collision><geometry><mesh filename="deep.dae"/></geometry></collision></link></robot>'
+    )
+    (tmp_path / "r.urdf").write_text(urdf)
+    result = outcome(
+        f"""
+model = lk.Model.from_urdf({str(tmp_path / "r.urdf")!r}, strict=True)
+report(raised=None, kinds=[c[1] for c in model.colliders()])
+"""
+    )
+    assert result["kinds"] == ["convex"], result
+
+
+# --- dependencies that can panic -----------------------------------------------------------------------------
+
+
+def test_a_capsule_beyond_any_robot_is_refused_before_parry_sees_it():
+    raises(
+        PENDULUM
+        + """
+model.add_revolute(1, [0, 1, 0], placement=(np.eye(3), [0, 0, -1]), body=lk.MassProperties.point(1.0, [0, 0, -0.5]))
+model.add_revolute(2, [0, 1, 0], placement=(np.eye(3), [0, 0, -1]), body=lk.MassProperties.point(1.0, [0, 0, -0.5]))
+sim = lk.Simulation(model, shapes={1: ("capsule", 1e155, 0.1), 3: ("capsule", 1e155, 0.1)}, self_collision=True)
+sim.step(None, 5)
+""",
+        "ValueError",
+        "shapes",
+    )
+
+
+# --- integer arguments out of range --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("body", ["2**70", "-2**70", "5"])
+def test_a_body_index_out_of_range_is_an_index_error(body):
+    raises(PENDULUM + f"lk.jacobian(model, q, {body}, [0, 0, 0])", "IndexError", "body")
+
+
+def test_an_unknown_body_in_shapes_is_an_index_error():
+    raises(PENDULUM + 'lk.Simulation(model, shapes={"nope": ("sphere", 0.1)})', "IndexError", "shapes", "nope")
+
+
+@pytest.mark.parametrize("argument", ["substeps", "solver_iterations"])
+def test_counts_beyond_their_bound_are_value_errors(argument):
+    raises(PENDULUM + f"lk.Simulation(model, {argument}=10**9)", "ValueError", argument)
+    raises(PENDULUM + f"lk.Simulation(model, {argument}=2**70)", "ValueError", argument)
+
+
+@pytest.mark.parametrize("n", ["-1", "2**70"])
+def test_step_counts_out_of_range_are_value_errors(n):
+    raises(PENDULUM + f"lk.Simulation(model).step(None, {n})", "ValueError", "n")
+    raises(PENDULUM + f"lk.SimulationBatch([lk.Simulation(model)]).step(None, {n})", "ValueError", "n")
+
+
+def test_arguments_of_the_wrong_type_are_type_errors_naming_them():
+    raises(PENDULUM + 'lk.aba(model, "q", v, tau)', "TypeError", "q")
+    raises(PENDULUM + "lk.Simulation(model).step(None, 1.5)", "TypeError", "n")
+    raises(PENDULUM + "lk.free_rollout(model, q, v, 1e-3, 1e12)", "TypeError", "steps")
+
+
+def test_a_simulation_stepped_from_two_threads_is_a_runtime_error():
+    result = outcome(
+        PENDULUM
+        + """
+import os, threading, time
+sim = lk.Simulation(model)
+threading.Thread(target=sim.step, args=(None, 10**12), daemon=True).start()
+time.sleep(0.3)
+messages = []
+for call in (lambda: sim.step(), lambda: setattr(sim, "q", q), lambda: sim.reset(), lambda: sim.set_servo(1.0)):
+    try:
+        call()
+    except RuntimeError as error:
+        messages.append(str(error))
+report(raised="RuntimeError", messages=messages)
+os._exit(0)
+"""
+    )
+    assert len(result["messages"]) == 4 and all("another thread" in m for m in result["messages"]), result
+
+
+# --- silent wrong answers --------------------------------------------------------------------------------------
+
+
+def test_a_tau_table_shaped_nv_by_steps_is_refused():
+    model = lk.Model()
+    first = model.add_revolute(0, [0, 1, 0], body=lk.MassProperties.point(1.0, [0, 0, -0.5]))
+    model.add_revolute(first, [0, 1, 0], placement=(np.eye(3), [0, 0, -1]), body=lk.MassProperties.point(1.0, [0, 0, -0.5]))
+    q, v = np.zeros(2), np.zeros(2)
+    with pytest.raises(ValueError, match=r"tau: expected shape \(2,\) or \(5, 2\)"):
+        lk.free_rollout(model, q, v, dt=1e-3, steps=5, tau=np.zeros((2, 5)))
+    with pytest.raises(ValueError, match="tau"):
+        lk.free_rollout(model, q, v, dt=1e-3, steps=5, tau=np.zeros(10))
+    table = np.arange(10.0).reshape(5, 2)
+    qs, _ = lk.free_rollout(model, q, v, dt=1e-3, steps=5, tau=table)
+    assert qs.shape == (6, 2)
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        "lk.rnea(model, q, np.full(1, 1e200), tau)",
+        "lk.aba(model, q, np.full(1, 1e200), tau)",
+        "lk.integrate(model, q, np.full(1, 1e308), 10.0)",
+        "lk.kinetic_energy(model, q, np.full(1, 1e200))",
+        "lk.free_rollout(model, q, np.full(1, 1e200), dt=1e-3, steps=3)",
+    ],
+)
+def test_a_result_that_overflows_is_a_runtime_error_not_a_singular_matrix(call):
+    exec(PENDULUM, namespace := {"lk": lk, "np": np})
+    with pytest.raises(RuntimeError, match="overflow") as error:
+        eval(call, namespace)
+    assert "singular" not in str(error.value)
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        "a + a",
+        "a.transformed(np.eye(3), [1e200, 0, 0])",
+        "a.inertia_about([1e200, 0, 0])",
+        "lk.MassProperties.from_points([1e308, 1e308], np.zeros((2, 3)))",
+    ],
+)
+def test_mass_algebra_that_overflows_is_a_runtime_error(call):
+    namespace = {"lk": lk, "np": np, "a": lk.MassProperties(1e300, [0, 0, 0], np.eye(3) * 1e308)}
+    with pytest.raises(RuntimeError, match="overflow"):
+        eval(call, namespace)
+
+
+@pytest.mark.parametrize("floating", [False, True])
+@pytest.mark.parametrize("call", ["lk.aba(model, q, v, tau)", "lk.minv(model, q)", "lk.free_rollout(model, q, v, 1e-3, 3)"])
+def test_a_singular_mass_matrix_is_a_runtime_error_everywhere(call, floating):
+    # A massless link on a fixed base; a massless floating base whose one link turns about its own centre, so
+    # the base's articulated inertia loses that rotation while every joint's pivot stays positive.
+    model = lk.Model(floating_base=floating)
+    model.add_revolute(0, [0, 0, 1], body=lk.MassProperties(1.0, [0, 0, 0], 0.1 * np.eye(3)) if floating else lk.MassProperties.zero())
+    q, v = model.neutral(), np.zeros(model.nv)
+    namespace = {"lk": lk, "model": model, "q": q, "v": v, "tau": v}
+    with pytest.raises(RuntimeError, match="singular"):
+        eval(call, namespace)
+
+
+# --- a failed step changes nothing -------------------------------------------------------------------------------
+
+
+def _state(sim: lk.Simulation) -> list:
+    contacts = sim.contacts()
+    return [sim.q, sim.v, np.array([sim.time]), sim.applied_tau] + [contacts[key] for key in sorted(contacts)]
+
+
+def _go1() -> lk.Model:
+    import warnings
+    from importlib.metadata import distribution
+
+    robots = Path(distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lk.UrdfWarning)
+        return lk.Model.from_urdf(robots / "go1_description/urdf/go1.urdf", floating_base=True)
+
+
+@pytest.mark.parametrize(
+    ("backend", "scene"),
+    [("tree", "plane"), ("rapier", "plane"), ("tree", "heightfield"), ("rapier", "heightfield"), ("tree", "go1 self-collision")],
+)
+def test_a_step_that_raises_leaves_the_simulation_as_a_never_failed_twin(backend, scene):
+    from legkit.robots.quadruped import build_quadruped
+
+    # On the heightfield and between Go1's bodies the contacts go through parry's manifolds.
+    bumps = 0.01 * np.sin(np.arange(30))[:, None] * np.cos(np.arange(30))[None, :]
+    ground = lk.Ground.heightfield(bumps, 0.1, friction=0.8) if scene == "heightfield" else lk.Ground.plane(friction=0.8)
+    model = _go1() if scene.startswith("go1") else build_quadruped().model
+    sims = [lk.Simulation(model, dt=1e-3, ground=ground, backend=backend, self_collision=scene.startswith("go1")) for _ in range(2)]
+    start = model.neutral()
+    start[2] = 0.35 if scene.startswith("go1") else start[2]
+    for sim in sims:
+        sim.reset(start, np.zeros(model.nv))
+    for sim in sims:
+        sim.step(None, 500)  # on the ground (Go1 collapsed on its limp legs): contacts and warm starts in play
+    assert len(sims[0].contacts()["body"]) > 0
+    before = _state(sims[0])
+    huge = np.full(model.nv, 1e11)  # within the actuation bound (the base's wrench is not effort-limited), but it explodes
+    with pytest.raises(RuntimeError, match="diverged"):
+        sims[0].step(huge, 1)
+    for a, b in zip(before, _state(sims[0]), strict=True):
+        assert np.array_equal(a, b)
+    for sim in sims:
+        sim.step(None, 300)
+    for a, b in zip(_state(sims[0]), _state(sims[1]), strict=True):
+        assert np.array_equal(a, b)
+
+
+# --- interruptible long calls ----------------------------------------------------------------------------------
+
+LONG_CALLS = {
+    "step": "sim = lk.Simulation(model, ground=lk.Ground.plane())\nstart()\nsim.step(None, 10**12)",
+    "batch": "sim = lk.Simulation(model, ground=lk.Ground.plane())\nbatch = lk.SimulationBatch([sim])\nstart()\nbatch.step(None, 10**12)",
+    "rollout": "start()\nlk.free_rollout(model, model.neutral(), np.zeros(model.nv), 1e-3, 3 * 10**6)",
+}
+
+
+def assert_ctrl_c_answered_within_a_second(body: str, *, after: float, memory: int) -> None:
+    """Runs `body` in a child, which prints STARTED before its long call; sends SIGINT `after` s later and
+    expects KeyboardInterrupt to end the call within a second."""
+    code = PRELUDE.format(memory=memory, body=textwrap.indent(body, "    "))
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout is not None
+        assert child.stdout.readline().strip() == "STARTED"
+        time.sleep(after)
+        sent = time.monotonic()
+        child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=30)
+        waited = time.monotonic() - sent
+    finally:
+        child.kill()
+    assert '"raised": "KeyboardInterrupt"' in out, err[-2000:]
+    assert waited < 1.0, waited
+
+
+def test_ctrl_c_interrupts_a_long_batched_kernel_within_a_second(tmp_path):
+    # 30,000 states of a 300-link chain in contact (about 10 s).
+    (tmp_path / "chain.urdf").write_text(chain_urdf(300))
+    body = f"""
+model = lk.Model.from_urdf({str(tmp_path / "chain.urdf")!r})
+q = np.zeros((30_000, model.nq))
+print('STARTED', flush=True)
+lk.contact_dynamics(model, q, q, q, [(model.nbodies - 1, [0, 0, 0])])
+"""
+    assert_ctrl_c_answered_within_a_second(body.strip(), after=0.5, memory=4 * GIB)
+
+
+@pytest.mark.parametrize("call", sorted(LONG_CALLS))
+def test_ctrl_c_interrupts_a_long_call_within_a_second(call):
+    setup = "from legkit.robots.quadruped import build_quadruped\nmodel = build_quadruped().model\n"
+    start = "def start():\n    print('STARTED', flush=True)\n"
+    assert_ctrl_c_answered_within_a_second(setup + start + LONG_CALLS[call], after=0.5, memory=4 * GIB)
+
+
+@pytest.mark.slow
+def test_ctrl_c_interrupts_loading_a_huge_urdf(tmp_path):
+    path = tmp_path / "chain.urdf"
+    path.write_text(chain_urdf(500_000))
+    body = f"print('STARTED', flush=True)\nlk.Model.from_urdf({str(path)!r})"
+    assert_ctrl_c_answered_within_a_second(body, after=1.0, memory=8 * GIB)
+
+
+def test_an_interrupted_step_keeps_whole_steps():
+    model = lk.Model()
+    model.add_revolute(0, [0, 1, 0], body=lk.MassProperties.point(1.0, [0, 0, -0.5]))
+    sim, twin = lk.Simulation(model), lk.Simulation(model)
+    signal.setitimer(signal.ITIMER_REAL, 0.2)
+    previous = signal.signal(signal.SIGALRM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt))
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            sim.step(None, 10**12)
+    finally:
+        signal.signal(signal.SIGALRM, previous)
+    steps = round(sim.time / sim.dt)
+    assert steps > 0 and sim.time == steps * sim.dt
+    twin.step(None, steps)
+    assert np.array_equal(sim.q, twin.q) and np.array_equal(sim.v, twin.v)
+
+
+# --- loading -------------------------------------------------------------------------------------------------
+
+
+def test_a_100000_link_chain_loads_in_under_2_seconds(tmp_path):
+    path = tmp_path / "chain.urdf"
+    path.write_text(chain_urdf(100_000))
+    started = time.perf_counter()
+    model = lk.Model.from_urdf(str(path))
+    elapsed = time.perf_counter() - started
+    assert model.nbodies == 100_000
+    assert elapsed < 2.0, elapsed
+
+
+def test_an_element_with_150000_attributes_is_refused_at_once():
+    # The XML parser's time grows with the square of one element's attributes (> 15 s here): refused first.
+    attributes = " ".join(f'a{i}="0"' for i in range(150_000))
+    urdf = f'<robot name="r"><link name="base" {attributes}/></robot>'
+    started = time.perf_counter()
+    with pytest.raises(ValueError, match="more than 1024 attributes"):
+        lk.Model.from_urdf(urdf)
+    assert time.perf_counter() - started < 1.0
+
+
+def test_a_urdf_string_with_a_byte_order_mark_is_xml():
+    model = lk.Model.from_urdf('\ufeff<robot name="r"><link name="base"/></robot>')
+    assert model.nbodies == 1
+
+
+# --- paths ---------------------------------------------------------------------------------------------------
+
+
+def test_a_fifo_is_refused_before_it_is_opened(tmp_path):
+    fifo = tmp_path / "robot.urdf"
+    os.mkfifo(fifo)
+    raises(f"lk.Model.from_urdf({str(fifo)!r})", "ValueError", "path", "not a regular file", timeout=10)
+
+
+def test_a_package_name_cannot_escape_its_package(tmp_path):
+    (tmp_path / "secret.stl").write_text("solid s\nendsolid s\n")
+    package = tmp_path / "share" / "bot"
+    package.mkdir(parents=True)
+    with pytest.raises(FileNotFoundError, match="outside"):
+        lk.resolve_mesh("package://bot/../../secret.stl", package_dirs=[str(tmp_path / "share")])
+
+
+# --- the commands ----------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["balance", "--out", "{file}/out"],
+        ["strain", "--out", "{file}/out"],
+        ["gait", "--out", "{file}/out"],
+        ["balance", "--trees", "10**12"],
+        ["balance", "--trees", "1000000000000"],
+        ["sweep", "--seeds", "1" * 5000],
+    ],
+)
+def test_a_command_refuses_an_unwritable_out_or_a_huge_count_before_it_runs(tmp_path, capsys, argv):
+    from legkit.cli import main
+
+    (tmp_path / "file").write_text("")
+    with pytest.raises(SystemExit) as exit:
+        main([a.format(file=tmp_path / "file") for a in argv])
+    assert exit.value.code == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert error.startswith(f"legkit {argv[0]}: error: argument {argv[1]}: "), error
+
+
+def test_a_sweep_without_its_spec_file_says_so_in_one_line(tmp_path, capsys):
+    from legkit.cli import main
+
+    assert main(["sweep", "--spec", str(tmp_path / "missing.json")]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("legkit sweep: --spec: cannot read") and len(error.splitlines()) == 1, error
