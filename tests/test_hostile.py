@@ -253,7 +253,9 @@ sim = lk.Simulation(model)
 threading.Thread(target=sim.step, args=(None, 10**12), daemon=True).start()
 time.sleep(0.3)
 messages = []
-for call in (lambda: sim.step(), lambda: setattr(sim, "q", q), lambda: sim.reset(), lambda: sim.set_servo(1.0)):
+calls = (lambda: sim.step(), lambda: setattr(sim, "q", q), lambda: sim.reset(), lambda: sim.set_servo(1.0), lambda: sim.q,
+         lambda: sim.time, lambda: sim.contacts(), lambda: sim.body_poses(), lambda: sim.transition_jacobians(), lambda: repr(sim))
+for call in calls:
     try:
         call()
     except RuntimeError as error:
@@ -262,7 +264,7 @@ report(raised="RuntimeError", messages=messages)
 os._exit(0)
 """
     )
-    assert len(result["messages"]) == 4 and all("another thread" in m for m in result["messages"]), result
+    assert len(result["messages"]) == 10 and all("another thread" in m for m in result["messages"]), result
 
 
 # --- silent wrong answers --------------------------------------------------------------------------------------

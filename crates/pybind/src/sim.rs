@@ -258,21 +258,21 @@ impl PySimulation {
 
     /// The Model simulated.
     #[getter]
-    fn model(&self, py: Python<'_>) -> Py<PyModel> {
-        self.model.clone_ref(py)
+    fn model(slf: &Bound<'_, Self>) -> PyResult<Py<PyModel>> {
+        Ok(reading(slf)?.model.clone_ref(slf.py()))
     }
 
     /// Newton iterations of the contact solver in the last (sub)step on the tree engine (it stops once
     /// the velocities converge, or at `solver_iterations`); None on Rapier.
     #[getter]
-    fn last_solver_iterations(&self) -> Option<usize> {
-        self.sim.last_solver_iterations()
+    fn last_solver_iterations(slf: &Bound<'_, Self>) -> PyResult<Option<usize>> {
+        Ok(reading(slf)?.sim.last_solver_iterations())
     }
 
     /// "tree" or "rapier".
     #[getter]
-    fn backend(&self) -> &'static str {
-        self.sim.options().backend.name()
+    fn backend(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        Ok(reading(slf)?.sim.options().backend.name())
     }
 
     /// Advances `n` steps (in Rust, GIL released) with feed-forward generalized forces `tau` (nv,) held
@@ -353,8 +353,9 @@ impl PySimulation {
     /// Configuration (nq,) in legkit's layout; setting it moves the robot (velocity, time and contact
     /// history kept).
     #[getter]
-    fn q<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        to_numpy(py, self.sim.q().len(), self.sim.q().to_vec())
+    fn q<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let q = reading(slf)?.sim.q().to_vec();
+        Ok(to_numpy(slf.py(), q.len(), q))
     }
 
     #[setter]
@@ -366,8 +367,9 @@ impl PySimulation {
 
     /// Velocity (nv,) in legkit's layout (a floating base's [v_lin, ω] in its own frame); settable.
     #[getter]
-    fn v<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        to_numpy(py, self.sim.v().len(), self.sim.v().to_vec())
+    fn v<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let v = reading(slf)?.sim.v().to_vec();
+        Ok(to_numpy(slf.py(), v.len(), v))
     }
 
     #[setter]
@@ -379,43 +381,43 @@ impl PySimulation {
 
     /// Simulated time (s).
     #[getter]
-    fn time(&self) -> f64 {
-        self.sim.time()
+    fn time(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(reading(slf)?.sim.time())
     }
 
     /// Step length (s).
     #[getter]
-    fn dt(&self) -> f64 {
-        self.sim.options().dt
+    fn dt(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(reading(slf)?.sim.options().dt)
     }
 
     /// Generalized forces applied during the last step (nv,): servo plus feed-forward, clipped to the
     /// servo's torque limit and the joint's effort limit.
     #[getter]
-    fn applied_tau<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        let tau = self.sim.applied_tau();
-        to_numpy(py, tau.len(), tau.to_vec())
+    fn applied_tau<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let tau = reading(slf)?.sim.applied_tau().to_vec();
+        Ok(to_numpy(slf.py(), tau.len(), tau))
     }
 
     /// Penetration (m) the engine leaves uncorrected: the contact tolerance.
     #[getter]
-    fn contact_tolerance(&self) -> f64 {
-        self.sim.contact_tolerance()
+    fn contact_tolerance(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(reading(slf)?.sim.contact_tolerance())
     }
 
     /// World pose of every body, (nbodies, 4, 4).
-    fn body_poses<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray3<f64>> {
-        let poses = self.sim.body_poses();
+    fn body_poses<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray3<f64>>> {
+        let poses = reading(slf)?.sim.body_poses();
         let data = poses.iter().flat_map(homogeneous).collect();
-        to_numpy(py, (poses.len(), 4, 4), data)
+        Ok(to_numpy(slf.py(), (poses.len(), 4, 4), data))
     }
 
     /// Contact points of the last step as a dict of arrays over k points: "body" (k,) int (the body the
     /// force acts on), "other" (k,) int (the other body, -1 for the ground), "point" (k, 3) world,
     /// "normal" (k, 3) unit, pointing into "body", "normal_force" (k,) N >= 0, "tangential_force" (k, 3) N
     /// (friction on "body"), "depth" (k,) penetration (m). Forces are averages over the step.
-    fn contacts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let contacts = self.sim.contacts();
+    fn contacts<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+        let (py, contacts) = (slf.py(), reading(slf)?.sim.contacts());
         let k = contacts.len();
         let rows = |f: &dyn Fn(&legkit_dynamics::sim::Contact) -> Vector3<f64>| -> Vec<f64> {
             contacts.iter().flat_map(|c| f(c).as_slice().to_vec()).collect()
@@ -448,24 +450,33 @@ impl PySimulation {
         this.sim.reset(&q, &v).map_err(kernel_error)
     }
 
-    fn __repr__(&self) -> String {
-        let model = self.sim.model();
-        format!(
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let this = reading(slf)?;
+        let (model, options) = (this.sim.model(), this.sim.options());
+        Ok(format!(
             "Simulation(nq={}, nv={}, dt={}, time={}, backend={:?})",
             model.nq(),
             model.nv(),
-            self.sim.options().dt,
-            self.sim.time(),
-            self.backend()
-        )
+            options.dt,
+            this.sim.time(),
+            options.backend.name()
+        ))
     }
 }
 
 /// The simulation, borrowed to change it: a RuntimeError saying so if another thread is using it (stepping
 /// it with the GIL released), where pyo3 would say only "Already borrowed".
 fn in_use<'py>(slf: &Bound<'py, PySimulation>) -> PyResult<PyRefMut<'py, PySimulation>> {
-    slf.try_borrow_mut()
-        .map_err(|_| PyRuntimeError::new_err("Simulation: in use by another thread (a step is running); a Simulation takes one caller at a time"))
+    slf.try_borrow_mut().map_err(|_| busy())
+}
+
+/// The Simulation to read, or the same error as `in_use` while another thread steps it.
+fn reading<'py>(slf: &Bound<'py, PySimulation>) -> PyResult<PyRef<'py, PySimulation>> {
+    slf.try_borrow().map_err(|_| busy())
+}
+
+fn busy() -> PyErr {
+    PyRuntimeError::new_err("Simulation: in use by another thread (a step is running); a Simulation takes one caller at a time")
 }
 
 /// Steps many simulations at once on all cores (GIL released), each in its own thread of work: the
