@@ -39,12 +39,10 @@ from legkit.robots.quadruped import LEGS, Quadruped
 #: iterations of the J_s2 stage and then crawled along the constraints; docs/optimize.md).
 AMBLE_IPOPT = {"mu_strategy": "monotone"}
 
-#: Derivatives for the amble's L-BFGS runs before the polish: L-BFGS reached a higher worst-case S_H per second
-#: than the exact Hessian (p1 0.103 vs 0.036 after 150 J_s2 iterations, cold), though the exact Hessian meets the
-#: constraints in fewer iterations (20 vs 78). On the exact Jacobians (`pointwise`) rather than legkit's
-#: differenced kernels, cold solves at six speeds took as long (median 15.5 s vs 16.2 s) with 7-10 % of the time
-#: in evaluations instead of 15-28 % (docs/optimize.md).
-AMBLE_DERIVATIVES = "lbfgs"
+#: Derivatives for the amble's L-BFGS runs before the polish: L-BFGS on legkit's exact Jacobian reached a higher
+#: worst-case S_H per second than the exact Hessian (p1 0.103 vs 0.036 after 150 J_s2 iterations, cold), though
+#: the exact Hessian meets the constraints in fewer iterations (20 vs 78).
+AMBLE_DERIVATIVES = "legkit"
 
 #: The amble is transcribed as a mirrored half cycle by default: with the polish's durations held first it
 #: converges 2-6x faster than its whole cycle, to the same worst-case S_H (docs/optimize.md).
@@ -123,10 +121,9 @@ SOLE_TORSION = 0.04
 #: point: adaptive reached J_e1 13.6 J/m in 300 iterations, monotone 8.7 J/m in 190; docs/optimize.md).
 WALK_IPOPT = {"mu_strategy": "monotone"}
 
-#: Derivatives for the walk's J_e1 stage: L-BFGS on the exact Jacobians (`pointwise`) converged (578 iterations,
-#: 32.8 s, J_e1 5.44 J/m, 9.7 % of the time in evaluations); on legkit's differenced kernels it stopped at the
-#: 600-iteration limit (56.4 s, 5.23 J/m, 30.6 %); the exact Hessian converged to 6.31 J/m (531, 42.4 s; docs/optimize.md).
-WALK_DERIVATIVES = "lbfgs"
+#: Derivatives for the walk's J_e1 stage: L-BFGS on the exact Jacobian converged (578 iterations, 32.8 s, J_e1 5.44
+#: J/m); the exact Hessian converged to 6.31 J/m (531, 42.4 s).
+WALK_DERIVATIVES = "legkit"
 
 #: The walk is transcribed over its whole cycle by default: its mirrored half (28 s instead of 40 s) holds the
 #: torso's roll at its bound on the quaternion's x, and the mirror image, scaled to the quaternion norm the

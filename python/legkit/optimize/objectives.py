@@ -45,6 +45,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 import legkit as lk
+from legkit.optimize import kinematics as kin
 from legkit.optimize.blocks import Block, Point
 from legkit.optimize.collocation import point_jacobian
 from legkit.stability import angular_momentum_stability_of_model, foot_rotation_indicator
@@ -68,6 +69,8 @@ class Integral:
     per_distance: bool = False
     weight: float = 1.0
     symbolic: Callable | None = None  # (problem, SymbolicModel, z casadi (nz,), k) -> scalar: the same integrand for casadi
+    #: (problem, z (P, nz), k) -> (P, nz): the integrand's gradient where it has a closed form; else `point_jacobian`'s.
+    slopes: Integrand | None = None
 
 
 @dataclass(frozen=True)
@@ -85,8 +88,14 @@ class MinMaxStability:
 def effort(weights: ArrayLike = 1.0, weight: float = 1.0) -> Integral:
     """int sum_i weights_i u_i^2 dt."""
     w = np.asarray(weights, dtype=np.float64)
+
+    def slopes(problem: MultiphaseProblem, z: np.ndarray, _: int) -> np.ndarray:
+        out = np.zeros_like(z)
+        out[:, problem.nx : problem.nx + problem.nu] = 2.0 * w * z[:, problem.nx : problem.nx + problem.nu]
+        return out
+
     return Integral(lambda problem, z, _: np.sum(w * z[:, problem.nx : problem.nx + problem.nu] ** 2, axis=1), weight=weight,
-                    symbolic=lambda problem, _, z, __: _weighted_squares(w, z[problem.nx : problem.nx + problem.nu]))
+                    symbolic=lambda problem, _, z, __: _weighted_squares(w, z[problem.nx : problem.nx + problem.nu]), slopes=slopes)
 
 
 def _weighted_squares(w: np.ndarray, u: Any) -> Any:
@@ -99,7 +108,7 @@ def joule_loss(resistance: ArrayLike, gear_ratio: ArrayLike, torque_constant: Ar
     """J_e1 of eq. 12: (1 / d_S) int sum_i R_i (u_i / (G_i K_i))^2 dt, per actuated joint (arrays or scalars)."""
     w = np.asarray(resistance, dtype=np.float64) / (np.asarray(gear_ratio, dtype=np.float64) * np.asarray(torque_constant, dtype=np.float64)) ** 2
     term = effort(w)
-    return Integral(term.integrand, per_distance=True, weight=weight, symbolic=term.symbolic)
+    return Integral(term.integrand, per_distance=True, weight=weight, symbolic=term.symbolic, slopes=term.slopes)
 
 
 def specific_resistance(weight: float = 1.0) -> Integral:
@@ -197,6 +206,9 @@ def build_objective(problem: MultiphaseProblem, terms: Sequence) -> tuple[Callab
             z = x[index]
             if gradient is None:
                 values = term.integrand(problem, z, k)
+            elif term.slopes is not None:
+                values = term.integrand(problem, z, k)
+                np.add.at(gradient, index, duration * weights[k][:, None] * term.slopes(problem, z, k))
             else:
                 def phase_integrand(zz: np.ndarray, phase: int = k) -> np.ndarray:
                     return term.integrand(problem, zz, phase)[:, None]
@@ -302,22 +314,32 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
         feet = problem.foot_positions(z[:, :nq], edge)
         return rows(c, h, feet[:, 0].T, feet[:, 1].T, z[:, nx], np.sqrt, stacked)
 
+    points = [(problem.foot_body[n], problem.foot_point[n]) for n in edge]
+
     def derivative(z: np.ndarray) -> np.ndarray:
-        """d/dq by central differences (but for a free-flyer's position, which the rows do not see: they
-        depend on the COM and the feet through their differences only); d/dv and d/dp1 exactly: the rows are
-        affine in p1 and in h, and h = A_G(q) v (`lk.centroidal_map`)."""
-        by_q = np.zeros((len(z), outputs, nq))
-        moving = problem.q_without_translation
-        by_q[..., moving] = point_jacobian(margin, z, columns=moving)[1]
+        """The rows' slopes in c, the feet (differences of their closed form), h and p1 (exact: the rows are affine
+        in them), chained with the COM's, the feet's and the momentum's derivatives from the kernels (h = A_G(q) v;
+        d/dq of h by `lk.centroidal_derivatives`). A free-flyer's position drops out of every difference."""
         q = problem.configuration(z[:, :nq])
-        c = np.asarray(lk.center_of_mass(model, q)).T
+        c = np.asarray(lk.center_of_mass(model, q))
+        h = np.asarray(lk.centroidal_momentum(model, q, z[:, nq:nx]))
         feet = problem.foot_positions(z[:, :nq], edge)
-        start, end = feet[:, 0].T, feet[:, 1].T
+        geometry = np.concatenate([c, feet.reshape(len(z), 6), h], axis=1)  # (B, 15): c, start, end, h
+
+        def of_geometry(g: np.ndarray) -> np.ndarray:
+            return rows(g[:, :3].T, g[:, 9:].T, g[:, 3:6].T, g[:, 6:9].T, 0.0, np.sqrt, stacked)
+
+        _, by_geometry = point_jacobian(of_geometry, geometry, columns=np.arange(9))  # (B, rows, 9)
         unit = np.eye(7)[:, :, None]  # h = e_0..e_5 and p1 = 1, each against zeros (unit[6])
-        base = rows(c, np.zeros(6), start, end, 0.0, np.sqrt, stacked)
-        slopes = np.stack([rows(c, unit[j, :6], start, end, unit[j, 6], np.sqrt, stacked) - base for j in range(7)], axis=-1)
+        base = rows(c.T, np.zeros(6), feet[:, 0].T, feet[:, 1].T, 0.0, np.sqrt, stacked)
+        slopes = np.stack([rows(c.T, unit[j, :6], feet[:, 0].T, feet[:, 1].T, unit[j, 6], np.sqrt, stacked) - base
+                           for j in range(7)], axis=-1)
+        centroidal = np.asarray(lk.centroidal_derivatives(model, q, z[:, nq:nx], np.zeros((len(z), problem.nv)))[0])
+        ends = kin.point_jacobians(model, q, points)[:, :, :3].reshape(len(z), 6, problem.nv)
+        tangent = (by_geometry[..., :3] @ np.asarray(lk.center_of_mass_jacobian(model, q)) + by_geometry[..., 3:] @ ends
+                   + slopes[..., :6] @ centroidal)
         by_v = slopes[..., :6] @ np.asarray(lk.centroidal_map(model, q))
-        return np.concatenate([by_q, by_v, slopes[..., 6:]], axis=2)
+        return np.concatenate([kin.raw(model, z[:, :nq], tangent), by_v, slopes[..., 6:]], axis=2)
 
     feet = [(problem.foot_body[n], problem.foot_point[n]) for n in edge]
 

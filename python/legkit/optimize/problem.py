@@ -7,16 +7,15 @@ and 4.1, on legkit's kernels:
 * per phase a grid of `intervals` Hermite–Simpson intervals (eq. 14: cubic states, linear controls); at every
   knot and midpoint the variables z = [q, v, u, lambda, slack]: configuration, velocity, actuated torques,
   the world-frame contact forces of the phase's feet and the stance feet's slack (below);
-* dynamics (eq. 1), by default in inverse-dynamics form (`transcription="inverse"`): the accelerations a are
-  variables too (z = [q, v, u, lambda, a, slack]), the state rate is [dq/dt(q, v), a], and at every point the RNEA
-  residual rnea(q, v, a, J_c^T lambda) - B u = 0 (legkit's batched RNEA with the forces as external wrenches)
-  closes the dynamics. `transcription="forward"` instead collocates a = aba(q, v, B u, J_c^T lambda). Either
-  way the stance feet are held in DIRCON's form (Posa, Kuindersma & Tedrake 2016): at every knot on the
-  ground, at rest and not accelerating (`stance_blocks`), the midpoints freed from the contact manifold by a
-  slack in the configuration rate (`rate`). Held at position level at every point instead, the forces were
-  free to alternate between knots and midpoints (`stance_accelerations`, docs/optimize.md). The inverse form
-  converges better and its Jacobian is sparser (a joint's torque depends on its own leg and the base only):
-  docs/optimize.md has the measurements;
+* dynamics (eq. 1) in inverse-dynamics form: the accelerations a are variables too (z = [q, v, u, lambda, a,
+  slack]), the state rate is [dq/dt(q, v), a], and at every point the RNEA residual rnea(q, v, a, J_c^T lambda)
+  - B u = 0 (legkit's batched RNEA with the forces as external wrenches) closes the dynamics (Ferrolho et al.,
+  ICRA 2021, found this form converging in fewer iterations than collocating the forward dynamics; its
+  Jacobian is also sparser: a joint's torque depends on its own leg and the base only). The stance feet are
+  held in DIRCON's form (Posa, Kuindersma & Tedrake 2016): at every knot on the ground, at rest and not
+  accelerating (`stance_blocks`), the midpoints freed from the contact manifold by a slack in the
+  configuration rate (`rate`). Held at position level at every point instead, the forces were free to
+  alternate between knots and midpoints (`stance_accelerations`);
 * swing-tip height >= 0 (eq. 4) at the points and at fractions of every interval between them
   (`swing_clearance_blocks`), friction cone mu^2 F_z^2 - F_x^2 - F_y^2 >= 0 with F_z >= 0 (eq. 5, squared
   to stay smooth), for flat feet (`FlatFoot`) a contact torque T about the sole's centre within the foot-torque
@@ -29,9 +28,9 @@ and 4.1, on legkit's kernels:
   the second half, the first's mirror image, begins where it ends: q(t_f) = mirror(q(0)) up to the travelled
   distance; `full_cycle` unrolls a solution), or fixed initial/final states.
 
-Jacobians of the dynamics and of every nonlinear point constraint are coloured central differences over
-batched kernel calls (`point_jacobian`), except where they are exact and cheap (d rnea / d a = M from `crba`,
-d rnea / d u = -B); the pattern, from the model's tree, is fixed before solving. Objectives: `objectives.py`.
+The constraint Jacobian is exact, from the core's analytic derivatives (`lk.rnea_derivatives`, `lk.crba`, frame
+Jacobians and their velocity and acceleration derivatives) in the variables' raw coordinates (`kinematics`);
+its pattern, from the model's tree, is fixed before solving. Objectives: `objectives.py`.
 """
 
 from __future__ import annotations
@@ -44,8 +43,9 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 
 import legkit as lk
+from legkit.optimize import kinematics as kin
 from legkit.optimize.blocks import Block, Linear, Point, equal
-from legkit.optimize.collocation import hermite_basis, hermite_simpson_defects, point_jacobian
+from legkit.optimize.collocation import hermite_basis, hermite_simpson_defects
 from legkit.optimize.mirror import Mirror
 from legkit.optimize.solver import NLP, SolveResult, prepare, solve
 
@@ -53,9 +53,9 @@ if TYPE_CHECKING:
     from legkit.optimize.symbolic import SymbolicModel
 
 
-#: `MultiphaseProblem.nlp`'s derivatives: legkit's kernels differenced, the symbolic mirror's exact ones, or its
-#: exact Jacobian with an L-BFGS Hessian.
-DERIVATIVES = ("legkit", "exact", "lbfgs")
+#: `MultiphaseProblem.nlp`'s derivatives: the exact Jacobian from legkit's kernels with IPOPT's L-BFGS Hessian, or
+#: the symbolic mirror's exact Jacobian and Hessian.
+DERIVATIVES = ("legkit", "exact")
 
 
 #: IPOPT's initial barrier parameter for `MultiphaseProblem.solve(polish=True)`. From the amble's point after
@@ -131,28 +131,11 @@ class InputPower:
     torque_constant: np.ndarray | float  # [N m / A]
 
 
-def quaternion_rate(quaternion: np.ndarray, omega: np.ndarray) -> np.ndarray:
-    """d/dt of an [x, y, z, w] quaternion turning at body-frame angular velocity omega: q (x) [omega, 0] / 2.
-    Tangent to the sphere |q| = const, so the collocated quaternion keeps its norm up to the defects' error."""
-    vector, w = quaternion[..., :3], quaternion[..., 3:]
-    return 0.5 * np.concatenate([w * omega + np.cross(vector, omega), -np.sum(vector * omega, axis=-1, keepdims=True)], axis=-1)
-
-
-def rotation(quaternion: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) rotation of a (not necessarily unit) [x, y, z, w] quaternion."""
-    x, y, z, w = np.moveaxis(quaternion / np.linalg.norm(quaternion, axis=-1, keepdims=True), -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
-
-
 @dataclass
 class Trajectory:
     """The variables of a transcription, per phase: times t (P,), q (P, nq), v (P, nv), u (P, nu), forces
-    (P, c, 3) on the phase's feet (world frame), the phase durations, the accelerations a (P, nv) of the
-    inverse-dynamics transcription (None: `pack` takes them from the forward dynamics of q, v, u, forces), and
+    (P, c, 3) on the phase's feet (world frame), the phase durations, the accelerations a (P, nv) (None: `pack`
+    takes them from the forward dynamics of q, v, u, forces), and
     the torques (P, c_flat, 3) on the phase's flat feet (`FlatFoot`, foot frame; None: zero), and the slack (P, r) of
     the phase's `contact_rows` (`MultiphaseProblem.rate`; None: zero)."""
 
@@ -211,7 +194,6 @@ class MultiphaseProblem:
     torque_speed: TorqueSpeedLine | None = None
     input_power: InputPower | None = None
     continuous_controls: bool = False
-    transcription: str = "inverse"
     max_swing_height: float = np.inf  # [m] swing tips stay between the ground (eq. 4) and this height
     max_impulse: float = np.inf  # [N s] bound on every component of every touchdown impulse (0: feet land at rest)
     min_normal_force: float = 0.0  # [N] floor on every stance normal force
@@ -239,19 +221,18 @@ class MultiphaseProblem:
                 self.foot_point[f"{name}/{label}"] = self.foot_point[name] + shift
                 self.sole_points[f"{name}/{label}"] = name
         # Variable layout: per phase a (P, nz) block of point variables z = [q, v, u, forces, torques, a, slack]
-        # (torques on flat feet only, a only in the inverse transcription, slack: one per `contact_rows` row,
+        # (torques on flat feet only, slack: one per `contact_rows` row,
         # used at the midpoints only: `rate`), then the durations, then p1.
         self.point_index: list[np.ndarray] = []
         self.force_columns: list[slice] = []
         self.torque_columns: list[slice] = []
         self.a_columns: list[slice] = []
         self.slack_columns: list[slice] = []
-        inverse = self.transcription == "inverse"
         offset = 0
         for phase in self.phases:
             forces = self.nx + self.nu + self.force_dims * len(phase.contacts)
             torques = forces + 3 * len(self.flat_contacts(phase.contacts))
-            accelerations = torques + (self.nv if inverse else 0)
+            accelerations = torques + self.nv
             nz = accelerations + sum(len(axes) for _, _, axes in self.contact_rows(phase.contacts))
             self.force_columns.append(slice(self.nx + self.nu, forces))
             self.torque_columns.append(slice(forces, torques))
@@ -283,8 +264,6 @@ class MultiphaseProblem:
             raise TypeError(f"model must be a legkit.Model, got {type(model).__name__}")
         if len(self.phases) == 0:
             raise ValueError("phases must hold at least one Phase")
-        if self.transcription not in ("inverse", "forward"):
-            raise ValueError(f"transcription must be 'inverse' or 'forward', got {self.transcription!r}")
         if self.force_dims not in (1, 3):
             raise ValueError(f"force_dims must be 1 or 3, got {self.force_dims}")
         if not self.max_swing_height > 0.0:
@@ -423,19 +402,12 @@ class MultiphaseProblem:
 
     # ------------------------------------------------------------------ kernels
     def configuration(self, q: np.ndarray) -> np.ndarray:
-        """q with a unit base quaternion: the kernels see a valid configuration whatever the iterate's norm."""
-        if not self.model.floating_base:
-            return q
-        q = q.copy()
-        q[..., 3:7] /= np.linalg.norm(q[..., 3:7], axis=-1, keepdims=True)
-        return q
+        """q (B, nq) with a unit base quaternion: the kernels see a valid configuration whatever the iterate's norm."""
+        return kin.unit(self.model, q)
 
     def q_rate(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """dq/dt (..., nq): base position rate R v_lin, quaternion rate, joint rates."""
-        if not self.model.floating_base:
-            return v
-        position = np.einsum("...ij,...j->...i", rotation(q[..., 3:7]), v[..., :3])
-        return np.concatenate([position, quaternion_rate(q[..., 3:7], v[..., 3:6]), v[..., 6:]], axis=-1)
+        """dq/dt (B, nq): base position rate R v_lin, quaternion rate, joint rates (`kinematics.q_rate`)."""
+        return kin.q_rate(self.model, q, v)
 
     def foot_positions(self, q: np.ndarray, names: Sequence[str]) -> np.ndarray:
         """World positions (..., len(names), 3) of the named feet."""
@@ -499,34 +471,53 @@ class MultiphaseProblem:
         tau[:, self.actuated] = u
         return tau
 
-    def state_rate(self, z: np.ndarray, k: int) -> np.ndarray:
-        """[dq/dt, a] (B, nx) at phase k's point variables z (B, nz, or without a): eq. 1 forward,
-        a = aba(q, v, B u, J_c^T lambda)."""
+    def forward_accelerations(self, z: np.ndarray, k: int) -> np.ndarray:
+        """a = aba(q, v, B u, J_c^T lambda) (B, nv) at phase k's point variables z (B, nz, a and slack unused): eq. 1
+        forward, for a guess that has no accelerations (`pack`)."""
         q, v = self.configuration(z[:, : self.nq]), z[:, self.nq : self.nx]
         contacts = self.phases[k].contacts
         f_ext = self.external_wrenches(q, z[:, self.force_columns[k]], contacts, z[:, self.torque_columns[k]])
-        a = np.asarray(lk.aba(self.model, q, v, self.tau(z[:, self.nx : self.nx + self.nu]), f_ext))
-        return np.concatenate([self.q_rate(z[:, : self.nq], v), a], axis=1)
+        return np.asarray(lk.aba(self.model, q, v, self.tau(z[:, self.nx : self.nx + self.nu]), f_ext))
 
     def rate(self, z: np.ndarray, k: int) -> np.ndarray:
-        """The collocated state rate (B, nx) at phase k's point variables: [dq/dt, a] with a the forward dynamics,
-        or the variables of the inverse transcription (whose dynamics are the RNEA residual rows). dq/dt is that
-        of v + J_c^T slack, J_c the phase's `contact_rows`: the slack (zero at the knots, free at the midpoints)
-        lets the stance feet be held at position, velocity and acceleration level at every knot without
-        over-determining the collocation (Posa, Kuindersma & Tedrake 2016, DIRCON)."""
+        """The collocated state rate (B, nx) at phase k's point variables: [dq/dt, a], a the accelerations (variables,
+        whose dynamics are the RNEA residual rows). dq/dt is that of v + J_c^T slack, J_c the phase's `contact_rows`:
+        the slack (zero at the knots, free at the midpoints) lets the stance feet be held at position, velocity and
+        acceleration level at every knot without over-determining the collocation (Posa, Kuindersma & Tedrake 2016,
+        DIRCON)."""
         q, v = z[:, : self.nq], z[:, self.nq : self.nx]
         slack = z[:, self.slack_columns[k]]
         if slack.shape[1]:
             v = v + np.einsum("bri,br->bi", self.contact_jacobian(q, self.phases[k].contacts), slack)
-        return np.concatenate([self.q_rate(q, v), self.accelerations(z, k)], axis=1)
+        return np.concatenate([self.q_rate(q, v), z[:, self.a_columns[k]]], axis=1)
+
+    def rate_jacobian(self, z: np.ndarray, k: int) -> np.ndarray:
+        """d `rate` / dz (B, nx, nz): the q rate's slopes in closed form (`kinematics.q_rate_derivatives`), the
+        slack's J_c(q)^T slack by `kinematics.force_slope` (the slack acts like a force at the contact points)."""
+        nq, nx, model = self.nq, self.nx, self.model
+        q, v, slack = z[:, :nq], z[:, nq:nx], z[:, self.slack_columns[k]]
+        jac = np.zeros((len(z), nx, z.shape[1]))
+        jac[:, nq:, self.a_columns[k]] = np.eye(self.nv)
+        if not slack.shape[1]:
+            by_q, jac[:, :nq, nq:nx] = kin.q_rate_derivatives(model, q, v)
+            jac[:, :nq, :nq] = by_q
+            return jac
+        contacts, unit = self.phases[k].contacts, self.configuration(q)
+        points, full, contact = self.contact_frames(unit, contacts)
+        forces = self.row_forces(slack, contacts)
+        by_q, by_w = kin.q_rate_derivatives(model, q, v + np.einsum("bri,br->bi", contact, slack))
+        jac[:, :nq, :nq] = by_q + by_w @ kin.raw(model, q, kin.force_slope(model, unit, points, forces, full))
+        jac[:, :nq, nq:nx] = by_w
+        jac[:, :nq, self.slack_columns[k]] = by_w @ np.swapaxes(contact, 1, 2)
+        return jac
 
     def accelerations(self, z: np.ndarray, k: int) -> np.ndarray:
-        """a (B, nv) at phase k's point variables: the forward dynamics, or the inverse transcription's variables."""
-        return self.state_rate(z, k)[:, self.nq :] if self.transcription == "forward" else z[:, self.a_columns[k]]
+        """a (B, nv) at phase k's point variables."""
+        return z[:, self.a_columns[k]]
 
     def rate_dependence(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """(nx, nz) bool twice: which point variables each component of `rate` depends on (structurally), and
-        which of those it equals (a joint's q rate its v, in the inverse transcription the v rate its a)."""
+        which of those it equals (a joint's q rate its v, the v rate its a)."""
         nq, nx = self.nq, self.nx
         nz = self.point_index[k].shape[1]
         dependence = np.zeros((nx, nz), dtype=bool)
@@ -537,10 +528,7 @@ class MultiphaseProblem:
             identity[7:nq, nq + 6 : nx] = np.eye(nq - 7, dtype=bool)
         else:
             identity[:nq, nq:nx] = np.eye(nq, dtype=bool)
-        if self.transcription == "forward":
-            dependence[nq:, :] = True
-        else:
-            identity[nq:, self.a_columns[k]] = np.eye(self.nv, dtype=bool)
+        identity[nq:, self.a_columns[k]] = np.eye(self.nv, dtype=bool)
         # The slack's J_c^T slack moves the q rates of each held point's chain, through its q (not a free-flyer's position).
         ancestors, q_body, _ = self.tree()
         column = self.slack_columns[k].start
@@ -597,11 +585,10 @@ class MultiphaseProblem:
                                      np.concatenate([index[1::2, u].ravel(), index[0:-1:2, u].ravel(), index[2::2, u].ravel()]),
                                      np.r_[np.ones(len(rows)), -0.5 * np.ones(2 * len(rows))]))
             blocks.extend(self._contact_blocks(k))
-        if self.transcription == "inverse":  # one block, one RNEA call, per layout of the point variables
-            layouts: dict[tuple[int, int], list[int]] = {}
-            for k, phase in enumerate(self.phases):
-                layouts.setdefault((len(phase.contacts), len(self.flat_contacts(phase.contacts))), []).append(k)
-            blocks.extend(_InverseDynamics(self, ks) for ks in layouts.values())
+        layouts: dict[tuple[int, int], list[int]] = {}  # one block, one RNEA call, per layout of the point variables
+        for k, phase in enumerate(self.phases):
+            layouts.setdefault((len(phase.contacts), len(self.flat_contacts(phase.contacts))), []).append(k)
+        blocks.extend(_InverseDynamics(self, ks) for ks in layouts.values())
         for k in range(count if self.periodic else count - 1):
             end, start = self.point_index[k][-1], self._start_seen_from(k)
             if self.periodic and (k + 1) % count == 0 and self.travel_index is not None:
@@ -629,7 +616,7 @@ class MultiphaseProblem:
         if self.model.floating_base:  # fixes the scale gauge of the quaternion (kernels normalise it)
             first = self.point_index[0][0]
             blocks.append(Point(first[None, 3:7], lambda quat: np.sum(quat * quat, axis=1, keepdims=True) - 1.0, 1,
-                                symbolic=lambda _, quat: quat.T @ quat - 1.0))
+                                symbolic=lambda _, quat: quat.T @ quat - 1.0, derivative=lambda quat: 2.0 * quat[:, None, :]))
         if self.torque_speed is not None and nu:
             blocks.extend(self._torque_speed_blocks())
         if self.input_power is not None and nu:
@@ -655,10 +642,18 @@ class MultiphaseProblem:
         blocks.extend(self.swing_clearance_blocks(k))
         if phase.contacts and self.force_dims == 3:  # friction cone (eq. 5), squared to stay smooth
             mu2 = self.friction**2
-            blocks.append(Point(index[:, self.force_columns[k]], lambda f: (mu2 * f.reshape(len(f), -1, 3)[..., 2] ** 2
-                                                                          - np.sum(f.reshape(len(f), -1, 3)[..., :2] ** 2, axis=-1)),
-                                len(phase.contacts), 0.0, np.inf,
-                                symbolic=lambda _, f: mu2 * f[2::3] ** 2 - f[0::3] ** 2 - f[1::3] ** 2))
+            feet = len(phase.contacts)
+            slope = np.tile([-2.0, -2.0, 2.0 * mu2], feet)
+            owner = np.repeat(np.eye(feet), 3, axis=1)  # each foot's row sees its own force
+
+            def cone(f: np.ndarray) -> np.ndarray:
+                return mu2 * f.reshape(len(f), -1, 3)[..., 2] ** 2 - np.sum(f.reshape(len(f), -1, 3)[..., :2] ** 2, axis=-1)
+
+            def cone_slopes(f: np.ndarray, slope: np.ndarray = slope, owner: np.ndarray = owner) -> np.ndarray:
+                return owner * (slope * f)[:, None, :]
+
+            blocks.append(Point(index[:, self.force_columns[k]], cone, feet, 0.0, np.inf,
+                                symbolic=lambda _, f: mu2 * f[2::3] ** 2 - f[0::3] ** 2 - f[1::3] ** 2, derivative=cone_slopes))
         blocks.extend(self.foot_torque_blocks(k))
         return blocks
 
@@ -701,10 +696,8 @@ class MultiphaseProblem:
             q_columns = self.q_without_translation[np.isin(q_body[self.q_without_translation], reach)]
             v_columns = np.flatnonzero(np.isin(v_body, reach))
             velocity_columns = np.concatenate([q_columns, nq + v_columns])
-            if self.transcription == "inverse":  # a foot's acceleration depends on its leg and the base only
-                acceleration_columns = np.concatenate([velocity_columns, self.a_columns[k].start + v_columns])
-            else:  # a = aba(...) depends on everything at the point
-                acceleration_columns = np.concatenate([self.q_without_translation, np.arange(nq, self.slack_columns[k].start)])
+            # a foot's acceleration depends on its leg and the base only
+            acceleration_columns = np.concatenate([velocity_columns, self.a_columns[k].start + v_columns])
 
             def velocities(g: np.ndarray, columns: np.ndarray = velocity_columns, name: str = name) -> np.ndarray:
                 z = full(g, columns)
@@ -726,6 +719,29 @@ class MultiphaseProblem:
                 z = symbolic_full(g, columns)
                 return model.point_accelerations(z[:nq], z[nq:nx], z[self.a_columns[k]], points)[axes.tolist()]
 
+            def velocity_slopes(g: np.ndarray, columns: np.ndarray = velocity_columns, rows: list = rows) -> np.ndarray:
+                z = full(g, columns)
+                q, v = z[:, :nq], z[:, nq:nx]
+                unit = self.configuration(q)
+                slopes = np.zeros((len(g), 0, nx))
+                for body, point, row_axes in rows:
+                    by_q, by_v = kin.point_velocity_derivatives(self.model, unit, v, body, point)
+                    slopes = np.concatenate([slopes, np.concatenate([kin.raw(self.model, q, by_q), by_v], axis=2)[:, row_axes]], axis=1)
+                return slopes[:, :, columns]
+
+            def acceleration_slopes(g: np.ndarray, columns: np.ndarray = acceleration_columns, points: list = points,
+                                    axes: np.ndarray = axes) -> np.ndarray:
+                z = full(g, columns)
+                q, v, a = z[:, :nq], z[:, nq:nx], self.accelerations(z, k)
+                unit = self.configuration(q)
+                slopes = np.zeros((len(g), 3 * len(points), width))
+                for i, (body, point) in enumerate(points):
+                    by_q, by_v, by_a = kin.point_acceleration_derivatives(self.model, unit, v, a, body, point)
+                    slopes[:, 3 * i : 3 * i + 3, :nq] = kin.raw(self.model, q, by_q)
+                    slopes[:, 3 * i : 3 * i + 3, nq:nx] = by_v
+                    slopes[:, 3 * i : 3 * i + 3, self.a_columns[k]] = by_a
+                return slopes[:, axes][:, :, columns]
+
             held = knots
             if k > 0 or linked or self.initial is not None:
                 held = held[held > 0]
@@ -734,8 +750,10 @@ class MultiphaseProblem:
             if (soft_touchdown and name in self.contacts_after(k)) or (k == count - 1 and self.final is not None):
                 held = held[held < last]
             if len(held):
-                blocks.append(Point(index[np.ix_(held, velocity_columns)], velocities, len(axes), symbolic=symbolic_velocities))
-            blocks.append(Point(index[np.ix_(knots, acceleration_columns)], accelerations, len(axes), symbolic=symbolic_accelerations))
+                blocks.append(Point(index[np.ix_(held, velocity_columns)], velocities, len(axes), symbolic=symbolic_velocities,
+                                    derivative=velocity_slopes))
+            blocks.append(Point(index[np.ix_(knots, acceleration_columns)], accelerations, len(axes), symbolic=symbolic_accelerations,
+                                derivative=acceleration_slopes))
         return blocks
 
     #: Where on each interval (fractions of it) `swing_clearance_blocks` holds the swing tips above the ground.
@@ -760,12 +778,12 @@ class MultiphaseProblem:
         spans = ((0, c), (c, c + nv), (c + nv, 2 * c + nv), (2 * c + nv, 2 * (c + nv)))  # q0, v0, q1, v1; then the duration
         basis = [hermite_basis(s) for s in self.CLEARANCE_FRACTIONS]
 
-        def heights(g: np.ndarray) -> np.ndarray:
-            def full(q: np.ndarray) -> np.ndarray:  # x, y = 0
-                out = np.zeros((len(q), nq))
-                out[:, q_columns] = q
-                return out
+        def full(q: np.ndarray) -> np.ndarray:  # x, y = 0
+            out = np.zeros((len(q), nq))
+            out[:, q_columns] = q
+            return out
 
+        def heights(g: np.ndarray) -> np.ndarray:
             q0, v0, q1, v1 = (g[:, a:b] for a, b in spans)
             q0, q1, h = full(q0), full(q1), g[:, -1:] / intervals
             r0, r1 = h * self.q_rate(q0, v0), h * self.q_rate(q1, v1)
@@ -784,7 +802,25 @@ class MultiphaseProblem:
             feet = [(self.foot_body[n], self.foot_point[n]) for n in swing]
             return ca.vertcat(*[model.points(b[0] * q0 + b[1] * r0 + b[2] * q1 + b[3] * r1, feet)[2::3] for b in basis])
 
-        return [Point(groups, heights, len(basis) * len(swing), 0.0, np.inf, symbolic=symbolic)]
+        swing_points = [(self.foot_body[n], self.foot_point[n]) for n in swing]
+
+        def height_slopes(g: np.ndarray) -> np.ndarray:
+            q0, v0, q1, v1 = (g[:, a:b] for a, b in spans)
+            q0, q1, h = full(q0), full(q1), g[:, -1:] / intervals
+            (dq0, dv0), (dq1, dv1) = kin.q_rate_derivatives(self.model, q0, v0), kin.q_rate_derivatives(self.model, q1, v1)
+            rate0, rate1 = self.q_rate(q0, v0), self.q_rate(q1, v1)
+            eye, hh = np.eye(nq), h[:, :, None]
+            slopes = np.empty((len(g), len(basis), len(swing), g.shape[1]))
+            for f, b in enumerate(basis):  # through q_s = b0 q0 + b1 h rate0 + b2 q1 + b3 h rate1 at each fraction
+                q = b[0] * q0 + b[1] * h * rate0 + b[2] * q1 + b[3] * h * rate1
+                height = kin.raw(self.model, q, kin.point_jacobians(self.model, self.configuration(q), swing_points)[:, :, 2])
+                slopes[:, f] = np.concatenate([
+                    height @ (b[0] * eye + b[1] * hh * dq0)[:, :, q_columns], height @ (b[1] * hh * dv0),
+                    height @ (b[2] * eye + b[3] * hh * dq1)[:, :, q_columns], height @ (b[3] * hh * dv1),
+                    height @ ((b[1] * rate0 + b[3] * rate1)[:, :, None] / intervals)], axis=2)
+            return slopes.reshape(len(g), -1, g.shape[1])
+
+        return [Point(groups, heights, len(basis) * len(swing), 0.0, np.inf, symbolic=symbolic, derivative=height_slopes)]
 
     def foot_torque_blocks(self, k: int) -> list[Block]:
         """Eq. 6 at every point of phase k, for each flat foot on the ground: c_i F_z - s T_i >= 0 for i = x, y, z
@@ -818,6 +854,25 @@ class MultiphaseProblem:
                 rows.append((self.foot_body[name], self.foot_point[f"{name}/side"], [2]))
         return rows
 
+    def contact_frames(self, q: np.ndarray, contacts: Sequence[str]) -> tuple[list[kin.ContactPoint], np.ndarray, np.ndarray]:
+        """The named feet's `contact_rows` at unit q (B, nq): their points, the points' world-aligned Jacobians
+        (B, points, 6, nv) and the rows' linear Jacobian (B, r, nv) (`contact_jacobian`)."""
+        rows = self.contact_rows(contacts)
+        points = [(body, point) for body, point, _ in rows]
+        full = kin.point_jacobians(self.model, q, points)
+        return points, full, np.concatenate([full[:, i, axes] for i, (_, _, axes) in enumerate(rows)], axis=1)
+
+    def row_forces(self, values: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
+        """World forces (B, points, 3) at the `contact_rows` points of the named feet from per-row values (B, r)
+        (impulses, slack), zero on the axes a row does not hold."""
+        rows = self.contact_rows(contacts)
+        out = np.zeros((len(values), len(rows), 3))
+        column = 0
+        for i, (_, _, axes) in enumerate(rows):
+            out[:, i, axes] = values[:, column : column + len(axes)]
+            column += len(axes)
+        return out
+
     def contact_jacobian(self, q: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
         """(B, r, nv): the world-aligned linear Jacobians of the `contact_rows` of the named feet at q (B, nq)."""
         q = self.configuration(q)
@@ -835,13 +890,19 @@ class MultiphaseProblem:
                                np.einsum("bij,bj->bi", jac, v_plus)], axis=1)
 
     def impact_derivative(self, z: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
-        """The Jacobian (B, rows, columns of z) of `impact_rows`: d/dq by central differences, the rest exactly
-        (the rows are affine in v-, v+ and Lambda: -M, [M; J] and -J^T)."""
-        nq, nv = self.nq, self.nv
-        jac = np.zeros((len(z), nv + z.shape[1] - nq - 2 * nv, z.shape[1]))
-        jac[:, :, self.q_without_translation] = point_jacobian(lambda zz: self.impact_rows(zz, contacts), z, columns=self.q_without_translation)[1]
+        """The Jacobian (B, rows, columns of z) of `impact_rows`: affine in v-, v+ and Lambda (-M, [M; J] and -J^T);
+        d/dq of M(q) w by `kinematics.mass_slope`, of J^T Lambda by `kinematics.force_slope`, of J v+ by the
+        points' velocity derivatives."""
+        nq, nv, model = self.nq, self.nv, self.model
         q = self.configuration(z[:, :nq])
-        mass, contact = np.asarray(lk.crba(self.model, q)), self.contact_jacobian(q, contacts)
+        v_minus, v_plus, impulses = z[:, nq : nq + nv], z[:, nq + nv : nq + 2 * nv], z[:, nq + 2 * nv :]
+        points, full, contact = self.contact_frames(q, contacts)
+        mass = np.asarray(lk.crba(model, q))
+        jac = np.zeros((len(z), nv + impulses.shape[1], z.shape[1]))
+        top = kin.mass_slope(model, q, v_plus - v_minus) - kin.force_slope(model, q, points, self.row_forces(impulses, contacts), full)
+        bottom = np.concatenate([kin.point_velocity_derivatives(model, q, v_plus, body, point)[0][:, axes]
+                                 for body, point, axes in self.contact_rows(contacts)], axis=1)
+        jac[:, :, :nq] = kin.raw(model, z[:, :nq], np.concatenate([top, bottom], axis=1))
         jac[:, :nv, nq : nq + nv] = -mass
         jac[:, :nv, nq + nv : nq + 2 * nv] = mass
         jac[:, nv:, nq + nv : nq + 2 * nv] = contact
@@ -913,9 +974,12 @@ class MultiphaseProblem:
         limit = per_joint(power.limit)
         loss = per_joint(power.resistance) / (per_joint(power.gear_ratio) * per_joint(power.torque_constant)) ** 2
         index = np.concatenate(self.point_index_u_w(), axis=0)  # (P, nu, 2): (u, w) columns
-        return [Point(index[:, i], _input_power(float(loss[i])), 1, lower_bound=-np.inf, upper_bound=float(limit[i]),
-                      symbolic=_input_power_symbolic(float(loss[i])))
-                for i in range(self.nu)]
+        blocks: list[Block] = []
+        for i in range(self.nu):
+            drawn, slopes = _input_power(float(loss[i]))
+            blocks.append(Point(index[:, i], drawn, 1, lower_bound=-np.inf, upper_bound=float(limit[i]),
+                                symbolic=_input_power_symbolic(float(loss[i])), derivative=slopes))
+        return blocks
 
     def point_index_u_w(self) -> list[np.ndarray]:
         """Per phase (P, nu, 2): the variable of each actuated torque and of its joint's velocity."""
@@ -974,10 +1038,9 @@ class MultiphaseProblem:
         return np.bincount(self._entry, weights=values, minlength=len(self.jac_rows))
 
     def nlp(self, derivatives: str = "legkit", objective: bool = True) -> NLP:
-        """The NLP. derivatives="legkit": legkit's kernels with coloured central differences (IPOPT then uses
-        L-BFGS); "exact": also its symbolic mirror (`legkit.optimize.symbolic`, built once per problem), with
-        which IPOPT has exact Jacobians and Hessians; "lbfgs": the symbolic mirror's exact Jacobian with IPOPT's
-        L-BFGS Hessian. objective=False: the constraints alone (objective 0)."""
+        """The NLP. derivatives="legkit": the exact Jacobian from legkit's kernels (`kinematics`), IPOPT's L-BFGS
+        Hessian; "exact": also its symbolic mirror (`legkit.optimize.symbolic`, built once per problem), with which
+        IPOPT has exact Jacobians and Hessians. objective=False: the constraints alone (objective 0)."""
         if derivatives not in DERIVATIVES:
             raise ValueError(f"derivatives must be one of {DERIVATIVES}, got {derivatives!r}")
         lower, upper = self.bounds()
@@ -991,7 +1054,7 @@ class MultiphaseProblem:
             symbolic = self._symbolic[objective]
         f, gradient = (self.objective, self.gradient) if objective else (lambda x: 0.0, lambda x: np.zeros(self.n))
         return NLP(lower, upper, np.concatenate([b.lower for b in self.blocks]), np.concatenate([b.upper for b in self.blocks]),
-                   f, gradient, self.constraints, self.jacobian, self.jac_rows, self.jac_cols, symbolic, derivatives == "lbfgs")
+                   f, gradient, self.constraints, self.jacobian, self.jac_rows, self.jac_cols, symbolic)
 
     def solve(self, guess: Trajectory | np.ndarray | SolveResult, derivatives: str = "exact", feasibility_first: bool = False,
               polish: bool = False, polish_max_iter: int = 1000, **options: Any) -> tuple[Trajectory, SolveResult]:
@@ -1002,7 +1065,7 @@ class MultiphaseProblem:
 
         feasibility_first (problems with a MinMaxStability term): continuation in two IPOPT runs, first the
         constraints alone with p1 held below every S_H row, then the objective from that feasible point with p1
-        at its worst S_H row. polish (with derivatives "legkit" or "lbfgs"): the L-BFGS run on the objective ends once it
+        at its worst S_H row. polish (with derivatives "legkit"): the L-BFGS run on the objective ends once it
         stalls (`POLISH_SWITCH`; options' stall replaces it, and applies to the objective's run only), then IPOPT
         runs twice more from its best point (its last after a stall), with the exact Hessian and a small initial
         barrier parameter (`POLISH_MU_INIT`), each within polish_max_iter iterations (the L-BFGS runs take options'
@@ -1013,7 +1076,7 @@ class MultiphaseProblem:
         converges (docs/optimize.md).
         The result's iterations, times and history cover every run; its times are IPOPT's, without the builds."""
         if polish and derivatives == "exact":
-            raise ValueError("polish follows an L-BFGS solve (derivatives 'legkit' or 'lbfgs'), got derivatives='exact'")
+            raise ValueError("polish follows an L-BFGS solve (derivatives 'legkit'), got derivatives='exact'")
         if isinstance(guess, SolveResult):
             if feasibility_first:
                 raise ValueError("feasibility_first does not apply to a warm start from a SolveResult")
@@ -1196,9 +1259,8 @@ class MultiphaseProblem:
             flat = len(self.flat_contacts(self.phases[k].contacts))
             parts.append(np.zeros((len(index), 3 * flat)) if trajectory.torques is None else trajectory.torques[k])
             z = np.concatenate([np.asarray(p, dtype=np.float64).reshape(len(index), -1) for p in parts], axis=1)
-            if self.transcription == "inverse":
-                a = trajectory.a[k] if trajectory.a is not None else self.state_rate(z, k)[:, self.nq :]
-                z = np.concatenate([z, np.asarray(a, dtype=np.float64).reshape(len(index), -1)], axis=1)
+            a = trajectory.a[k] if trajectory.a is not None else self.forward_accelerations(z, k)
+            z = np.concatenate([z, np.asarray(a, dtype=np.float64).reshape(len(index), -1)], axis=1)
             slack = np.zeros((len(index), index.shape[1] - z.shape[1])) if trajectory.slack is None else trajectory.slack[k]
             z = np.concatenate([z, np.asarray(slack, dtype=np.float64).reshape(len(index), -1)], axis=1)
             if z.shape != index.shape:
@@ -1284,9 +1346,7 @@ class _Defects:
         self.size = 2 * nx * self.intervals
         self.lower = self.upper = np.zeros(self.size)
         # Structural pattern of one interval: rows [interpolation; Simpson] x cols [z_a, z_m, z_b, T].
-        dependence, self.identity = problem.rate_dependence(k)
-        # The inputs the rate is differenced by: those it depends on other than as an identity.
-        self.columns = np.flatnonzero((dependence & ~self.identity).any(axis=0))
+        dependence, _ = problem.rate_dependence(k)
         select = np.zeros((nx, nz), dtype=bool)
         select[:, :nx] = np.eye(nx, dtype=bool)
         column = np.ones((nx, 1), dtype=bool)
@@ -1310,11 +1370,8 @@ class _Defects:
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         nx, n_int = self.problem.nx, self.intervals
         z = x[self.index]
-        rates, partial = point_jacobian(lambda zz: self.problem.rate(zz, self.k), z, columns=self.columns)
+        rates, jac = self.problem.rate(z, self.k), self.problem.rate_jacobian(z, self.k)
         nz = z.shape[1]
-        jac = np.zeros((len(z), nx, nz))
-        jac[:, :, self.columns] = partial
-        jac[:, self.identity] = 1.0
         h = x[self.duration] / n_int
         eye = np.zeros((nx, nz))
         eye[:, :nx] = np.eye(nx)
@@ -1335,11 +1392,11 @@ class _Defects:
 class _InverseDynamics:
     """Eq. 1 in inverse-dynamics form at every point of the phases ks (phases with one layout of the point
     variables: as many feet, and flat feet, on the ground): rnea(q, v, a, J_c^T lambda) - B u = 0 (nv rows per
-    point). d/d(q, v) by coloured central differences over one batched RNEA call for all of them (a free-
-    flyer's position left out: no row depends on it); the rows are affine in a, u and the foot loads, so
-    d/da = M(q) (`crba`), d/du = -B, d/dlambda = -J^T (each foot point's world-aligned linear Jacobian) and,
-    for a flat foot's torques, -J_w^T (its body's angular Jacobian in the body frame) exactly. The pattern
-    follows the tree (`MultiphaseProblem.tree_dependence`)."""
+    point). d/d(q, v) by `lk.rnea_derivatives` in one batched call for all of them, with the world-fixed foot
+    forces' turning term (`kinematics.force_slope`); the rows are affine in a, u and the foot loads: d/da = M(q)
+    (`crba`), d/du = -B, d/dlambda = -J^T (each foot point's world-aligned linear Jacobian) and, for a flat foot's
+    torques, -J_w^T (its body's angular Jacobian in the body frame). No row depends on a free-flyer's position.
+    The pattern follows the tree (`MultiphaseProblem.tree_dependence`)."""
 
     def __init__(self, problem: MultiphaseProblem, ks: Sequence[int]) -> None:
         self.problem, self.ks = problem, list(ks)
@@ -1355,7 +1412,6 @@ class _InverseDynamics:
         forces = np.arange(nz)[self.force_columns].reshape(-1, problem.force_dims)
         torques = np.arange(nz)[self.torque_columns].reshape(-1, 3)
         self.forces, self.torques = forces, torques
-        self.columns = np.r_[problem.q_without_translation, nq:nx]  # differenced; the rest is exact
         # Per phase: its points in the block, its contacts and the nonzeros (r, c) of one point's rows.
         self._parts: list[tuple[slice, tuple[str, ...], np.ndarray, np.ndarray]] = []
         rows, cols, contacts = [], [], []
@@ -1378,10 +1434,6 @@ class _InverseDynamics:
             start += count
         self.rows, self.cols = np.concatenate(rows), np.concatenate(cols)
         self.feet = problem.contact_points(contacts)
-        # The same, row by row, for `point_jacobian`'s batch (each point followed by its perturbations).
-        copies = 2 * len(self.columns) + 1
-        bodies, points, flat = self.feet
-        self._batch_feet = (np.repeat(bodies, copies, axis=0), np.repeat(points, copies, axis=0), np.repeat(flat, copies, axis=0))
 
     def residual(self, z: np.ndarray, feet: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
         """The rows at the block's point variables z (B, nz), row b with the feet of row b of `feet`
@@ -1396,23 +1448,30 @@ class _InverseDynamics:
         return self.residual(x[self.index], self.feet).ravel()
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
-        problem = self.problem
+        problem, model = self.problem, self.problem.model
+        nq, nx = problem.nq, problem.nx
         z = x[self.index]
-        _, partial = point_jacobian(lambda batch: self.residual(batch, self._batch_feet), z, columns=self.columns)
+        q = problem.configuration(z[:, :nq])
+        f_ext = problem.point_wrenches(q, z[:, self.force_columns], *self.feet, z[:, self.torque_columns])
+        by_q, by_v = (np.asarray(d) for d in lk.rnea_derivatives(model, q, z[:, nq:nx], z[:, self.a_columns], f_ext))
         jac = np.zeros((len(z), problem.nv, z.shape[1]))
-        jac[:, :, self.columns] = partial
-        q = problem.configuration(z[:, : problem.nq])
-        jac[:, :, self.a_columns] = np.asarray(lk.crba(problem.model, q))
-        jac[:, problem.actuated, problem.nx + np.arange(problem.nu)] = -1.0
+        jac[:, :, nq:nx] = by_v
+        jac[:, :, self.a_columns] = np.asarray(lk.crba(model, q))
+        jac[:, problem.actuated, nx + np.arange(problem.nu)] = -1.0
+        forces = problem.world_forces(z[:, self.force_columns], self.forces.shape[0])
         axes = slice(3 - problem.force_dims, 3)  # the world axes the force variables hold
         values = []
-        for points, contacts, r, c in self._parts:
-            for foot, name in enumerate(contacts):
-                linear = np.asarray(lk.jacobian(problem.model, q[points], problem.foot_body[name], problem.foot_point[name], "local_world_aligned"))
-                jac[points, :, self.forces[foot]] = -linear[:, axes].transpose(0, 2, 1)
+        for points, contacts, _, _ in self._parts:
+            full = kin.point_jacobians(model, q[points], [(problem.foot_body[name], problem.foot_point[name]) for name in contacts])
+            for foot in range(len(contacts)):
+                jac[points, :, self.forces[foot]] = -np.swapaxes(full[:, foot, axes], 1, 2)
+            # rnea_derivatives holds the loads in their bodies' frames; the forces are world-fixed (`force_slope`).
+            by_q[points] -= np.einsum("bcki,bckl,bclj->bij", full[:, :, :3], kin.skew(forces[points]), full[:, :, 3:])
             for foot, name in enumerate(problem.flat_contacts(contacts)):
-                angular = np.asarray(lk.jacobian(problem.model, q[points], problem.foot_body[name], None, "local"))
+                angular = np.asarray(lk.jacobian(model, q[points], problem.foot_body[name], None, "local"))
                 jac[points, :, self.torques[foot]] = -angular[:, 3:].transpose(0, 2, 1)
+        jac[:, :, :nq] = kin.raw(model, z[:, :nq], by_q)
+        for points, _, r, c in self._parts:
             values.append(jac[points][:, r, c].ravel())
         return np.concatenate(values)
 
@@ -1495,15 +1554,23 @@ class _Feet:
         return positions[self._output] - np.where(self._anchor >= 0, positions[np.maximum(self._anchor, 0)], 0.0)
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
-        _, jac = point_jacobian(self._positions, x[self.index])
+        problem = self.problem
+        q = x[self.index]
+        points = [(problem.foot_body[name], problem.foot_point[name]) for name in self.names]
+        linear = kin.point_jacobians(problem.model, problem.configuration(q), points)[:, :, :3]  # (P, feet, 3, nv)
+        jac = kin.raw(problem.model, q, linear.reshape(len(q), -1, problem.nv))
         return self._sign * jac.ravel()[self._source]
 
 
-def _input_power(loss: float) -> Callable[[np.ndarray], np.ndarray]:
-    """(B, 2) points (u, w) -> (B, 1) input powers loss u^2 + u w [W]."""
+def _input_power(loss: float) -> tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.ndarray]]:
+    """(B, 2) points (u, w) -> (B, 1) input powers loss u^2 + u w [W], and its slopes (B, 1, 2)."""
     def power(z: np.ndarray) -> np.ndarray:
         return (loss * z[:, 0] ** 2 + z[:, 0] * z[:, 1])[:, None]
-    return power
+
+    def slopes(z: np.ndarray) -> np.ndarray:
+        return np.stack([2.0 * loss * z[:, 0] + z[:, 1], z[:, 0]], axis=1)[:, None, :]
+
+    return power, slopes
 
 
 def _input_power_symbolic(loss: float) -> Callable[[Any, Any], Any]:

@@ -43,7 +43,8 @@ import numpy as np
 
 import legkit as lk
 from legkit.optimize.collocation import hermite_basis
-from legkit.optimize.problem import MultiphaseProblem, Trajectory, rotation
+from legkit.optimize.kinematics import rotation
+from legkit.optimize.problem import MultiphaseProblem, Trajectory
 
 
 @dataclass

@@ -15,7 +15,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 import legkit as lk
-from legkit.optimize.problem import MultiphaseProblem, rotation
+from legkit.optimize.kinematics import rotation
+from legkit.optimize.problem import MultiphaseProblem
 
 #: Rates beyond this [rad/s, m/s] count as a blown-up integration (`interval_drift` reports inf there).
 DIVERGED = 1e6

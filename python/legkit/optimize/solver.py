@@ -4,8 +4,8 @@ The NLP is given as NumPy callbacks (objective, gradient, constraints, Jacobian 
 pattern), which casadi carries to IPOPT through `casadi.Callback`s so the model's dynamics stay in legkit's
 batched kernels; the Hessian is then IPOPT's L-BFGS approximation (the callbacks give first derivatives
 only). An NLP may also carry a symbolic form (`NLP.symbolic`: casadi x, f(x), g(x), see
-`legkit.optimize.symbolic`), which IPOPT then uses with exact first derivatives and exact second derivatives
-(or, `NLP.limited_memory`, L-BFGS), assembled point by point from compiled pieces (`legkit.optimize.pointwise`);
+`legkit.optimize.symbolic`), which IPOPT then uses with exact first and second derivatives, assembled point
+by point from compiled pieces (`legkit.optimize.pointwise`);
 the callbacks still define the problem (violations are re-evaluated by them).
 """
 
@@ -49,7 +49,6 @@ class NLP:
     jac_rows: np.ndarray
     jac_cols: np.ndarray
     symbolic: Transcription | None = None  # the same NLP in casadi MX: exact derivatives, exact Hessian
-    limited_memory: bool = False  # with a symbolic form: its exact first derivatives, IPOPT's L-BFGS Hessian
 
     @property
     def n(self) -> int:
@@ -246,7 +245,7 @@ def _ipopt_options(nlp: NLP, tol: float, max_iter: int, options: dict | None) ->
     # iterations (1.9-3.5 s) against 19-200+ (2.6-28+ s) with the default ordering (docs/optimize.md).
     ipopt = {"tol": tol, "constr_viol_tol": tol, "max_iter": max_iter, "print_level": 0, "sb": "yes", "mu_strategy": "adaptive",
              "mumps_pivot_order": 5}
-    if nlp.symbolic is None or nlp.limited_memory:
+    if nlp.symbolic is None:
         ipopt["hessian_approximation"] = "limited-memory"
     ipopt.update(options or {})
     return ipopt
@@ -358,8 +357,6 @@ def _build(ca: Any, nlp: NLP, ipopt: dict, state: dict, Functions: type | None) 
             if id(nlp.symbolic) not in _DERIVATIVES:
                 _keep(_DERIVATIVES, id(nlp.symbolic), (nlp.symbolic, pointwise.derivatives(nlp.symbolic)))
             extra = {"expand": True, **_DERIVATIVES[id(nlp.symbolic)][1]}
-        if nlp.limited_memory:
-            del extra["hess_lag"]
     solver = ca.nlpsol("legkit", "ipopt", {"x": symbol, "f": f_expr, "g": g_expr},
                        {"ipopt": ipopt, "print_time": False, "iteration_callback": iteration, "error_on_fail": False, **extra})
     solver.keep_alive = (iteration, functions if nlp.symbolic is None else None)  # casadi holds raw references

@@ -388,8 +388,6 @@ def transcription(problem: MultiphaseProblem) -> Transcription:
     from legkit.optimize import problem as transcribed
     from legkit.optimize.blocks import Linear, Point
 
-    if problem.transcription != "inverse":
-        raise ValueError("the symbolic transcription needs transcription='inverse'")
     model = SymbolicModel(problem.model)
     x = ca.MX.sym("x", problem.n)
     pieces: list = []

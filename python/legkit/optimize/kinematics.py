@@ -1,0 +1,174 @@
+"""Contact kinematics of a transcription's variables, with their derivatives from legkit's core.
+
+The NLP's configuration variables are raw: a free-flyer's [position (world), quaternion [x, y, z, w] of any
+norm, joint angles]. The kernels see the quaternion normalised (`unit`), and their derivatives are taken on q's
+tangent space (q (+) dq with dq = [dv_lin, dw] in the base frame, as `lk.integrate`). `tangent_map` is d(dq) /
+d(q_raw), so a kernel's derivative times it (`raw`) is the derivative with respect to the variables. Every
+function here is batched over its leading axis (B points of a transcription) and calls each kernel once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Final, Literal
+
+import numpy as np
+
+import legkit as lk
+
+#: A contact point: (body index, point in the body's frame).
+ContactPoint = tuple[int, np.ndarray]
+
+_WORLD: Final[Literal["local_world_aligned"]] = "local_world_aligned"
+
+
+def skew(w: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) cross-product matrices [w]x of (..., 3) vectors."""
+    out = np.zeros(w.shape + (3,))
+    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -w[..., 2], w[..., 1], -w[..., 0]
+    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = w[..., 2], -w[..., 1], w[..., 0]
+    return out
+
+
+def unit(model: lk.Model, q: np.ndarray) -> np.ndarray:
+    """q (..., nq) with a unit base quaternion: a configuration the kernels take, whatever the iterate's norm."""
+    if not model.floating_base:
+        return q
+    q = q.copy()
+    q[..., 3:7] /= np.linalg.norm(q[..., 3:7], axis=-1, keepdims=True)
+    return q
+
+
+def rotation(quaternion: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotation of a (not necessarily unit) [x, y, z, w] quaternion."""
+    x, y, z, w = np.moveaxis(quaternion / np.linalg.norm(quaternion, axis=-1, keepdims=True), -1, 0)
+    out = np.empty(quaternion.shape[:-1] + (3, 3))
+    out[..., 0, 0], out[..., 0, 1], out[..., 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
+    out[..., 1, 0], out[..., 1, 1], out[..., 1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
+    out[..., 2, 0], out[..., 2, 1], out[..., 2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
+    return out
+
+
+def attitude_map(quaternion: np.ndarray) -> np.ndarray:
+    """(B, 3, 4): d(dw) / d(quaternion) for R = R(quaternion / |quaternion|), R' = R exp([dw]x): dw = 2 vec(u* (x) du)
+    / |quaternion| with u the unit quaternion; its radial part maps to zero (the norm is not seen)."""
+    norm = np.linalg.norm(quaternion, axis=1)
+    u = quaternion / norm[:, None]
+    out = np.empty((len(u), 3, 4))
+    out[:, :, :3] = -skew(u[:, :3])
+    out[:, [0, 1, 2], [0, 1, 2]] += u[:, 3, None]
+    out[:, :, 3] = -u[:, :3]
+    return 2.0 * out / norm[:, None, None]
+
+
+def tangent_map(model: lk.Model, q: np.ndarray) -> np.ndarray:
+    """(B, nv, nq): d(dq) / d(q_raw) (module docstring). A free-flyer's block is [R^T, 0; 0, `attitude_map`], the
+    joints' the identity."""
+    nq, nv = model.nq, model.nv
+    out = np.zeros((len(q), nv, nq))
+    if model.floating_base:
+        out[:, :3, :3] = np.swapaxes(rotation(q[:, 3:7]), 1, 2)
+        out[:, 3:6, 3:7] = attitude_map(q[:, 3:7])
+        out[:, 6:, 7:] = np.eye(nv - 6)
+    else:
+        out[:] = np.eye(nv)
+    return out
+
+
+def raw(model: lk.Model, q: np.ndarray, tangent: np.ndarray) -> np.ndarray:
+    """A derivative (B, ..., nv) on q's tangent space at raw q (B, nq), as one with respect to q_raw (B, ..., nq)."""
+    if not model.floating_base:
+        return tangent
+    return np.einsum("b...i,bij->b...j", tangent, tangent_map(model, q))
+
+
+def q_rate(model: lk.Model, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """dq/dt (B, nq) of raw q at velocity v: a free-flyer's position rate R v_lin, its quaternion's q (x) [w, 0] / 2
+    (tangent to |q| = const, so a collocated quaternion keeps its norm up to the defects' error), joint rates."""
+    if not model.floating_base:
+        return v
+    quaternion, omega = q[:, 3:7], v[:, 3:6]
+    vector, w = quaternion[:, :3], quaternion[:, 3:]
+    position = np.einsum("bij,bj->bi", rotation(quaternion), v[:, :3])
+    spin = 0.5 * np.concatenate([w * omega + np.cross(vector, omega), -np.sum(vector * omega, axis=1, keepdims=True)], axis=1)
+    return np.concatenate([position, spin, v[:, 6:]], axis=1)
+
+
+def q_rate_derivatives(model: lk.Model, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(d q_rate / d q_raw (B, nq, nq), d q_rate / dv (B, nq, nv)) of `q_rate`."""
+    count, nq, nv = len(q), model.nq, model.nv
+    if not model.floating_base:
+        return np.zeros((count, nq, nq)), np.broadcast_to(np.eye(nv), (count, nv, nv)).copy()
+    quaternion, omega = q[:, 3:7], v[:, 3:6]
+    by_q, by_v = np.zeros((count, nq, nq)), np.zeros((count, nq, nv))
+    r = rotation(quaternion)
+    by_q[:, :3, 3:7] = -r @ skew(v[:, :3]) @ attitude_map(quaternion)  # R' w = R w - R [w]x dw
+    by_q[:, 3:6, 3:6] = -0.5 * skew(omega)  # q (x) [w, 0] / 2 is linear in q
+    by_q[:, 3:6, 6] = 0.5 * omega
+    by_q[:, 6, 3:6] = -0.5 * omega
+    by_v[:, :3, :3] = r
+    by_v[:, 3:6, 3:6] = 0.5 * (quaternion[:, 3, None, None] * np.eye(3) + skew(quaternion[:, :3]))
+    by_v[:, 6, 3:6] = -0.5 * quaternion[:, :3]
+    by_v[:, 7:, 6:] = np.eye(nv - 6)
+    return by_q, by_v
+
+
+def point_jacobians(model: lk.Model, q: np.ndarray, points: Sequence[ContactPoint]) -> np.ndarray:
+    """(B, len(points), 6, nv): each point's world-aligned Jacobian [linear; angular] at unit q."""
+    out = np.empty((len(q), len(points), 6, model.nv))
+    for c, (body, point) in enumerate(points):
+        out[:, c] = lk.jacobian(model, q, body, point, _WORLD)
+    return out
+
+
+def point_wrenches(model: lk.Model, q: np.ndarray, points: Sequence[ContactPoint], forces: np.ndarray) -> np.ndarray:
+    """Body-frame wrenches (B, nbodies, 6) as `lk.rnea` takes them of world forces (B, len(points), 3) at the points."""
+    poses = np.asarray(lk.forward_kinematics(model, q))
+    out = np.zeros((len(q), model.nbodies, 6))
+    for c, (body, point) in enumerate(points):  # a few feet; each line is batched over all rows
+        local = np.einsum("bji,bj->bi", poses[:, body, :3, :3], forces[:, c])
+        out[:, body, :3] += local
+        out[:, body, 3:] += np.cross(point, local)
+    return out
+
+
+def force_slope(model: lk.Model, q: np.ndarray, points: Sequence[ContactPoint], forces: np.ndarray,
+                jacobians: np.ndarray | None = None) -> np.ndarray:
+    """d(sum_c J_c(q)^T F_c) / dq (B, nv, nv) on the tangent space at unit q, for world forces F (B, c, 3) held in
+    world axes at the points; J_c the points' world-aligned linear Jacobians (`point_jacobians`, computed if None).
+    `lk.rnea_derivatives` holds an external force in its body's frame; turning with the body, a world force's body
+    components change by [f]x J_w dq, which adds J_lin^T [F]x J_ang (world axes) per point."""
+    if jacobians is None:
+        jacobians = point_jacobians(model, q, points)
+    zero = np.zeros((len(q), model.nv))
+    held = np.asarray(lk.rnea_derivatives(model, q, zero, zero, point_wrenches(model, q, points, forces))[0])
+    gravity = np.asarray(lk.rnea_derivatives(model, q, zero, zero)[0])
+    turning = np.einsum("bcki,bckl,bclj->bij", jacobians[:, :, :3], skew(forces), jacobians[:, :, 3:])
+    return gravity - held + turning
+
+
+def mass_slope(model: lk.Model, q: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """d(M(q) w) / dq (B, nv, nv) on the tangent space at unit q: the RNEA's slope at v = 0, a = w, less gravity's."""
+    zero = np.zeros_like(w)
+    return np.asarray(lk.rnea_derivatives(model, q, zero, w)[0]) - np.asarray(lk.rnea_derivatives(model, q, zero, zero)[0])
+
+
+def point_velocity_derivatives(model: lk.Model, q: np.ndarray, v: np.ndarray, body: int, point: np.ndarray
+                               ) -> tuple[np.ndarray, np.ndarray]:
+    """(d/dq on the tangent space, d/dv), each (B, 3, nv), of the point's world velocity J_lin(q) v at unit q."""
+    by_q, by_v = lk.frame_velocity_derivatives(model, q, v, body, point, _WORLD)
+    return np.asarray(by_q)[:, :3], np.asarray(by_v)[:, :3]
+
+
+def point_acceleration_derivatives(model: lk.Model, q: np.ndarray, v: np.ndarray, a: np.ndarray, body: int,
+                                   point: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(d/dq on the tangent space, d/dv, d/da), each (B, 3, nv), of the point's classical world acceleration
+    J a + dJ/dt v + w x v_point (`lk.point_accelerations`) at unit q: the spatial acceleration's slopes
+    (`lk.frame_acceleration_derivatives`) plus those of w x v_point = -[v_point]x w + [w]x v_point."""
+    dv_dq, da_dq, da_dv, da_da = (np.asarray(d) for d in lk.frame_acceleration_derivatives(model, q, v, a, body, point, _WORLD))
+    velocity = np.asarray(lk.frame_velocity(model, q, v, body, point, _WORLD))
+    linear, angular = skew(velocity[:, :3]), skew(velocity[:, 3:])
+    jac = np.asarray(lk.jacobian(model, q, body, point, _WORLD))
+    by_q = da_dq[:, :3] - linear @ dv_dq[:, 3:] + angular @ dv_dq[:, :3]
+    by_v = da_dv[:, :3] - linear @ jac[:, 3:] + angular @ jac[:, :3]
+    return by_q, by_v, da_da[:, :3]

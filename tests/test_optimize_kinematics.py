@@ -1,0 +1,99 @@
+"""legkit.optimize.kinematics: the transcription's contact kinematics and their derivatives in the raw variables
+(a free-flyer's quaternion of any norm), from the core's analytic derivatives, against central differences of the
+kernels' values written here."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+import legkit as lk
+from legkit.optimize import kinematics as kin
+from legkit.robots.biped import build_biped
+from legkit.robots.quadruped import build_quadruped
+
+STEP = 1e-6  # central differences: truncation ~STEP^2, rounding ~1e-16 / STEP; both far below the tolerance
+TOLERANCE = 1e-7
+
+
+def central(function: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> np.ndarray:
+    """(B, ..., n): d function / dx column by column, each row of the batch x (B, n) on its own."""
+    columns = []
+    for j in range(x.shape[1]):
+        plus, minus = x.copy(), x.copy()
+        plus[:, j] += STEP
+        minus[:, j] -= STEP
+        columns.append((function(plus) - function(minus)) / (2.0 * STEP))
+    return np.stack(columns, axis=-1)
+
+
+@pytest.fixture(scope="module", params=["quadruped", "biped"])
+def case(request):
+    robot = build_quadruped() if request.param == "quadruped" else build_biped()
+    model = robot.model
+    rng = np.random.default_rng(7)
+    q = np.tile(np.asarray(model.neutral(), dtype=np.float64), (3, 1)) + rng.normal(0.0, 0.2, (3, model.nq))
+    q[:, 3:7] *= 1.4  # the raw quaternion's norm is not 1
+    v, a = rng.normal(0.0, 1.0, (3, model.nv)), rng.normal(0.0, 1.0, (3, model.nv))
+    body = model.nbodies - 1
+    return model, q, v, a, body, np.array([0.02, -0.01, -0.05]), rng
+
+
+def test_tangent_map_turns_kernel_derivatives_into_raw_ones(case):
+    model, q, v, a, body, point, _ = case
+
+    def position(raw: np.ndarray) -> np.ndarray:
+        pose = np.asarray(lk.forward_kinematics(model, kin.unit(model, raw)))[:, body]
+        return pose[:, :3, :3] @ point + pose[:, :3, 3]
+
+    jac = kin.point_jacobians(model, kin.unit(model, q), [(body, point)])[:, 0, :3]
+    np.testing.assert_allclose(kin.raw(model, q, jac), central(position, q), atol=TOLERANCE)
+    # the quaternion's norm is invisible: its radial direction maps to zero
+    radial = np.zeros_like(q)
+    radial[:, 3:7] = q[:, 3:7]
+    np.testing.assert_allclose(np.einsum("bij,bj->bi", kin.tangent_map(model, q), radial), 0.0, atol=1e-14)
+
+
+def test_q_rate_derivatives_match_central_differences(case):
+    model, q, v, *_ = case
+    by_q, by_v = kin.q_rate_derivatives(model, q, v)
+    np.testing.assert_allclose(by_q, central(lambda x: kin.q_rate(model, x, v), q), atol=TOLERANCE)
+    np.testing.assert_allclose(by_v, central(lambda x: kin.q_rate(model, q, x), v), atol=TOLERANCE)
+
+
+def test_point_velocity_and_acceleration_derivatives_match_central_differences(case):
+    model, q, v, a, body, point, _ = case
+    unit = kin.unit(model, q)
+
+    def velocity(raw: np.ndarray, speed: np.ndarray = v) -> np.ndarray:
+        return np.einsum("bij,bj->bi", np.asarray(lk.jacobian(model, kin.unit(model, raw), body, point))[:, :3], speed)
+
+    def acceleration(raw: np.ndarray, speed: np.ndarray = v, rate: np.ndarray = a) -> np.ndarray:
+        return np.asarray(lk.point_accelerations(model, kin.unit(model, raw), speed, rate, [(body, point)]))[:, 0]
+
+    by_q, by_v = kin.point_velocity_derivatives(model, unit, v, body, point)
+    np.testing.assert_allclose(kin.raw(model, q, by_q), central(velocity, q), atol=TOLERANCE)
+    np.testing.assert_allclose(by_v, central(lambda x: velocity(q, x), v), atol=TOLERANCE)
+    by_q, by_v, by_a = kin.point_acceleration_derivatives(model, unit, v, a, body, point)
+    np.testing.assert_allclose(kin.raw(model, q, by_q), central(acceleration, q), atol=TOLERANCE)
+    np.testing.assert_allclose(by_v, central(lambda x: acceleration(q, x), v), atol=TOLERANCE)
+    np.testing.assert_allclose(by_a, central(lambda x: acceleration(q, v, x), a), atol=TOLERANCE)
+
+
+def test_force_and_mass_slopes_match_central_differences(case):
+    model, q, _, _, body, point, rng = case
+    points = [(body, point), (1, np.array([0.1, 0.0, 0.0]))]
+    forces, w = rng.normal(0.0, 5.0, (len(q), 2, 3)), rng.normal(0.0, 1.0, (len(q), model.nv))
+
+    def generalized(raw: np.ndarray) -> np.ndarray:  # sum_c J_c^T F_c with F_c held in world axes
+        return np.einsum("bcki,bck->bi", kin.point_jacobians(model, kin.unit(model, raw), points)[:, :, :3], forces)
+
+    def momentum(raw: np.ndarray) -> np.ndarray:
+        return np.einsum("bij,bj->bi", np.asarray(lk.crba(model, kin.unit(model, raw))), w)
+
+    unit = kin.unit(model, q)
+    np.testing.assert_allclose(kin.raw(model, q, kin.force_slope(model, unit, points, forces)), central(generalized, q),
+                               atol=TOLERANCE * 10)  # forces of ~5 N scale the rounding
+    np.testing.assert_allclose(kin.raw(model, q, kin.mass_slope(model, unit, w)), central(momentum, q), atol=TOLERANCE)
