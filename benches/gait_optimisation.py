@@ -6,9 +6,9 @@ half its mirror image, and the walk's whole cycle (`AMBLE_MIRROR`, `WALK_MIRROR`
 Prints, for a cold start (from `legkit gait`'s hand-built reference, feasibility first, then J_s2 with L-BFGS,
 polished with the exact Hessian, durations held then free; --no-polish: L-BFGS only) and a warm start (the exact
 Hessian from the point and multipliers of the solve at a neighbouring speed, its travel stretched to the new
-speed: `problem.solve(problem.continued(result, speed))`): IPOPT status, iterations, the symbolic build time,
-IPOPT's wall time, the solve call's total time (with casadi's solver build for an exact-Hessian --polish), the
-share of it spent evaluating the functions and their derivatives, the largest constraint violation re-evaluated
+speed: `problem.solve(problem.continued(result, speed))`): IPOPT status, iterations, IPOPT's wall time, the
+share of it spent evaluating the functions and their derivatives (the Hessian's included), the largest constraint
+violation re-evaluated
 by legkit's kernels, p1, the worst published S_H (eq. 10) and the largest stance-foot acceleration at the
 midpoints (`MultiphaseProblem.stance_accelerations`; the knots hold it at 0, docs/optimize.md).
 
@@ -48,15 +48,14 @@ from legkit.robots.biped import build_biped
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
 
 
-def report(label: str, problem: lo.MultiphaseProblem, result: lo.SolveResult, build: float, total: float) -> None:
+def report(label: str, problem: lo.MultiphaseProblem, result: lo.SolveResult) -> None:
     """One row; violation and S_H min (published, eq. 10) of the kept point (`SolveResult.best`), re-evaluated
-    by legkit's kernels; build: seconds spent building the symbolic transcription before the solve; total: the
-    solve call's seconds, with what IPOPT's wall time leaves out (building a polish's transcription and solver)."""
+    by legkit's kernels."""
     share = 100.0 * result.evaluation_time / result.wall_time
     x, objective = result.best()
     s_h = min(s.min() for s in problem.stability_index(x))
     stance = midpoint_stance_acceleration(problem, x)
-    print(f"{label:<30} {result.status:<28} {result.iterations:6d} {build:7.1f} {result.wall_time:9.2f} {total:9.2f} {share:8.1f} "
+    print(f"{label:<30} {result.status:<28} {result.iterations:6d} {result.wall_time:9.2f} {share:8.1f} "
           f"{problem.nlp().violation(x):10.2e} {-objective:9.4g} {s_h:9.4g} {stance:10.3g}", flush=True)
 
 
@@ -107,34 +106,25 @@ def main() -> None:
     options = {"tol": args.tol, "max_iter": args.max_iter, "derivatives": args.derivatives, "options": AMBLE_IPOPT, "polish": args.polish,
                "polish_max_iter": args.polish_max_iter}
 
-    def problem(speed: float) -> tuple[lo.MultiphaseProblem, float]:
-        start = time.perf_counter()
+    def cold(speed: float) -> tuple[lo.MultiphaseProblem, lo.SolveResult]:
         # Soft touchdowns, as `legkit gait --optimize` solves it (its --max-impulse default).
         p = amble_problem(robot, objective, speed, 1.25, args.intervals, QUADRUPED_MOTOR, max_impulse=0.0, mirror=args.mirror)
-        p.nlp(args.derivatives)  # builds (and keeps) the symbolic transcription
-        return p, time.perf_counter() - start
-
-    def cold(speed: float) -> tuple[lo.MultiphaseProblem, lo.SolveResult, float, float]:
-        p, build = problem(speed)
         guess = guess_from_reference(p, amble_reference(robot, speed, 1.25, args.intervals))
-        start = time.perf_counter()
-        result = p.solve(guess, feasibility_first=True, **options)[1]
-        return p, result, build, time.perf_counter() - start
+        return p, p.solve(guess, feasibility_first=True, **options)[1]
 
     print(f"amble, {args.intervals} intervals per phase, tol {args.tol:g}; IPOPT (casadi {__import__('casadi').__version__}), "
           f"MUMPS, {args.derivatives} derivatives, {'mirrored half' if args.mirror else 'whole'} cycle; cold: feasibility first, then J_s2"
           + (", then an exact-Hessian polish" if args.polish else ""))
-    print(f"{'run':<30} {'status':<28} {'iter':>6} {'build':>7} {'wall [s]':>9} {'total [s]':>9} {'f+J [%]':>8} {'violation':>10} "
+    print(f"{'run':<30} {'status':<28} {'iter':>6} {'wall [s]':>9} {'f+J+H [%]':>9} {'violation':>10} "
           f"{'p1':>9} {'S_H min':>9} {'foot acc':>10}")
-    target, result, build, total = cold(args.speed)
-    print(f"  ({target.n} variables, {target.m} constraints, {len(target.jac_rows)} Jacobian nonzeros)")
-    report(f"cold, {args.speed:g} m/s", target, result, build, total)
-    other, neighbour, build, total = cold(args.neighbour)
-    report(f"cold, {args.neighbour:g} m/s (the neighbour)", other, neighbour, build, total)
-    start = time.perf_counter()
+    target, result = cold(args.speed)
+    print(f"  ({target.n} variables, {target.m} constraints, {len(target.jac_rows)} Jacobian and {len(target.hess_rows)} Hessian nonzeros)")
+    report(f"cold, {args.speed:g} m/s", target, result)
+    other, neighbour = cold(args.neighbour)
+    report(f"cold, {args.neighbour:g} m/s (the neighbour)", other, neighbour)
     warm = target.solve(target.continued(neighbour, args.neighbour), derivatives="exact", tol=args.tol, max_iter=args.polish_max_iter,
                         options=AMBLE_IPOPT)[1]
-    report(f"warm from {args.neighbour:g} m/s, exact", target, warm, 0.0, time.perf_counter() - start)
+    report(f"warm from {args.neighbour:g} m/s, exact", target, warm)
 
 
 if __name__ == "__main__":

@@ -352,3 +352,21 @@ def circle_line_tolerance(center, radius, line_point, line_direction, factor: fl
     scale = circle_line_scale(center, radius, line_point, line_direction)
     magnitude = max(norm(center), norm(line_point)) + float(radius)
     return factor * scale + 8.0 * EPS * magnitude
+
+
+# --------------------------------------------------------------------------------------------------
+# Derivatives of an NLP
+# --------------------------------------------------------------------------------------------------
+
+
+def central_jacobian(function, x, step: float = 1e-6) -> np.ndarray:
+    """d function / dx by plain central differences, one column at a time, step relative to max(1, |x_j|)."""
+    x = np.asarray(x, dtype=np.float64)
+    columns = []
+    for j in range(len(x)):
+        h = step * max(1.0, abs(x[j]))
+        plus, minus = x.copy(), x.copy()
+        plus[j] += h
+        minus[j] -= h
+        columns.append((np.asarray(function(plus)) - np.asarray(function(minus))) / (2.0 * h))
+    return np.stack(columns, axis=-1)

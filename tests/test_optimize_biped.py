@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import csv
 
-import casadi as ca
 import numpy as np
 import pytest
 from scipy.optimize import nnls
@@ -18,6 +17,7 @@ from legkit.optimize import FlatFoot, MultiphaseProblem, Phase, fri_deviation, j
 from legkit.optimize.gaits import SOLE_TORSION, WALK_SUPPORT, guess_from_reference, walk_problem, walk_reference
 from legkit.optimize.solver import solve
 from legkit.robots.biped import SIDES, build_biped
+from test_optimize import lagrangian_hessian_error
 
 COARSE = (1, 1)  # intervals per double- and single-support phase: 12 collocation points per cycle
 SPEED = 0.5  # [m/s], the paper's 1.8 km/h
@@ -166,14 +166,13 @@ def test_derivatives_of_flat_feet_and_j_s1_match_central_differences(walk):
 
 
 @pytest.mark.slow
-def test_symbolic_transcription_of_flat_feet_and_j_s1_equals_the_legkit_one(walk):
-    problem, x = walk
-    transcribed = problem.nlp("exact").symbolic
-    symbol, objective, rows = transcribed.x, transcribed.f, transcribed.g
-    evaluate = ca.Function("nlp", [symbol], [objective, rows])
-    f, g = evaluate(x)
-    np.testing.assert_allclose(np.asarray(g).ravel(), problem.constraints(x), rtol=1e-9, atol=1e-8)
-    assert float(f) == pytest.approx(problem.objective(x), rel=1e-9)
+def test_hessian_of_flat_feet_j_s1_and_input_power_matches_central_differences(robot):
+    # The sole's rows, eq. 6's torques, J_s1 (its gradient differenced algebra of kernels: ~1e-5) and the input power.
+    terms = [joule_loss(BIPED_MOTOR.resistance, BIPED_MOTOR.gear_ratio, BIPED_MOTOR.torque_constant), fri_deviation(0.5)]
+    problem = walk_problem(robot, SPEED, BIPED_MOTOR, COARSE, objectives=terms, mirror=True, max_input_power=200.0)
+    rng = np.random.default_rng(2)
+    x = problem.gauged(problem.pack(guess_from_reference(problem, walk_reference(robot, SPEED, COARSE)))) + 0.01 * rng.normal(size=problem.n)
+    assert lagrangian_hessian_error(problem, x, rng) < 1e-4
 
 
 def test_walk_solution_meets_dynamics_feet_and_motor_limits_in_legkit_kernels(robot, feasible):

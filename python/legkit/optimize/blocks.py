@@ -1,8 +1,10 @@
-"""Constraint blocks of a transcribed NLP: each knows its rows, bounds, fixed sparsity pattern and values.
+"""Constraint blocks of a transcribed NLP: each knows its rows, bounds, the fixed sparsity patterns of its
+Jacobian and of its part of the Hessian of the Lagrangian, and their values.
 
-Two kinds cover everything but the collocation defects: linear rows (constant Jacobian) and point rows, a
-function applied independently to many small groups of variables (a knot's state, a touchdown's pre-impact
-state), differentiated by `point_jacobian`'s coloured central differences.
+Two kinds cover most rows: linear rows (constant Jacobian, no curvature) and point rows, a function applied
+independently to many small groups of variables (a knot's state, a touchdown's pre-impact state) with its exact
+Jacobian (closed-form algebra without one is differenced by `point_jacobian`). A block's curvature
+sum_rows mu_row d2(row)/dx2 is `group_hessian`: central differences of the exact Jacobian, all groups at once.
 """
 
 from __future__ import annotations
@@ -14,21 +16,68 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import ArrayLike
 
-from legkit.optimize.collocation import point_jacobian
+from legkit.optimize.collocation import FD_STEP, point_jacobian
 
 
 class Block(Protocol):
-    """rows: local row of each Jacobian entry; cols: its variable; values(x), jacobian(x) in that order."""
+    """rows: local row of each Jacobian entry; cols: its variable; values(x), jacobian(x) in that order.
+    hessian_rows, hessian_cols: the variables of each entry of hessian(x, multipliers (size,)), the block's
+    sum_rows multiplier d2(row)/dx2 (either triangle; entries at one place are summed)."""
 
     size: int
     lower: np.ndarray
     upper: np.ndarray
     rows: np.ndarray
     cols: np.ndarray
+    hessian_rows: np.ndarray
+    hessian_cols: np.ndarray
 
     def values(self, x: np.ndarray) -> np.ndarray: ...
 
     def jacobian(self, x: np.ndarray) -> np.ndarray: ...
+
+    def hessian(self, x: np.ndarray, multipliers: np.ndarray) -> np.ndarray: ...
+
+
+def group_hessian(gradient: Callable[[np.ndarray, np.ndarray], np.ndarray], z: np.ndarray, weights: np.ndarray,
+                  columns: np.ndarray, step: float = FD_STEP) -> np.ndarray:
+    """(P, k, k): the Hessians of weights[p] . f(z_p) at P groups z (P, k), by central differences of the exact
+    weighted gradient gradient(z (B, k), weights (B, r)) -> (B, k) (the vector-Jacobian product weights . df/dz)
+    along `columns` (the inputs f depends on nonlinearly; the curvature between two other inputs is zero), all
+    groups and columns in one call. Symmetrised; accurate to ~1e-8 relative (the step is `FD_STEP`)."""
+    points, k = z.shape
+    c = len(columns)
+    delta = step * np.maximum(1.0, np.abs(z[:, columns]))  # (P, c)
+    plus = np.repeat(z[:, None, :], c, axis=1)  # (P, c, k): copy j moves input columns[j]
+    minus = plus.copy()
+    plus[:, np.arange(c), columns] += delta
+    minus[:, np.arange(c), columns] -= delta
+    batch = np.concatenate([plus, minus], axis=1).reshape(points * 2 * c, k)
+    slopes = np.asarray(gradient(batch, np.repeat(weights, 2 * c, axis=0))).reshape(points, 2, c, k)
+    rows = (slopes[:, 0] - slopes[:, 1]) / (2.0 * delta[:, :, None])  # (P, c, k): d gradient / d z_columns
+    out = np.zeros((points, k, k))
+    out[:, columns] = rows
+    out += np.swapaxes(out, 1, 2)
+    out[:, columns[:, None], columns] *= 0.5  # set from both sides
+    return out
+
+
+def weighted(derivative: Callable[[np.ndarray], np.ndarray]) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """The weighted gradient (z, weights) -> weights . derivative(z) of a Jacobian (B, k) -> (B, r, k)."""
+    return lambda z, weights: np.einsum("brk,br->bk", np.asarray(derivative(z)), weights)
+
+
+def group_pattern(index: np.ndarray, columns: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(rows, cols, local) of the Hessian entries `group_hessian` can make nonzero in groups of variables index
+    (P, k): the pairs with at least one input in columns, lower triangle within a group; local indexes the
+    flattened (P, k, k) result."""
+    points, k = index.shape
+    mask = np.zeros((k, k), dtype=bool)
+    mask[columns] = True
+    mask |= mask.T
+    i, j = np.nonzero(np.tril(mask))
+    local = (np.arange(points)[:, None] * k * k + i * k + j).ravel()
+    return index[:, i].ravel(), index[:, j].ravel(), local
 
 
 class Linear:
@@ -50,6 +99,11 @@ class Linear:
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         return self.coefficients
 
+    hessian_rows = hessian_cols = np.zeros(0, dtype=np.int64)
+
+    def hessian(self, x: np.ndarray, multipliers: np.ndarray) -> np.ndarray:
+        return np.zeros(0)
+
 
 def equal(size: int, left: np.ndarray, right: np.ndarray, signs: ArrayLike = 1.0) -> Linear:
     """signs * x[left] - x[right] = 0 elementwise (continuity, periodicity, mirror periodicity)."""
@@ -68,9 +122,13 @@ class Point:
     outputs: int
     lower_bound: float | np.ndarray = 0.0
     upper_bound: float | np.ndarray = 0.0
-    symbolic: Callable | None = None  # (SymbolicModel, z casadi (k,)) -> (outputs,): the same function for casadi
-    #: (P, k) -> (P, outputs, k): the function's Jacobian where it has a cheaper form; else `point_jacobian`'s.
+    #: (P, k) -> (P, outputs, k): the function's exact Jacobian; None: `point_jacobian`'s differences (algebra only).
     derivative: Callable[[np.ndarray], np.ndarray] | None = None
+    #: ((P, k), weights (P, outputs)) -> (P, k): weights . the exact Jacobian, for a function whose vector product is
+    #: cheaper than its Jacobian (the Jacobian is then assembled from it, one output at a time).
+    gradient: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
+    #: The inputs the function depends on nonlinearly (default: all), where `group_hessian` differences.
+    nonlinear: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         points, k = self.index.shape
@@ -79,11 +137,26 @@ class Point:
         self.upper = np.resize(np.asarray(self.upper_bound, dtype=np.float64), self.size)
         self.rows = np.repeat(np.arange(self.size), k)
         self.cols = np.repeat(self.index, self.outputs, axis=0).ravel()
+        self._nonlinear = np.arange(k) if self.nonlinear is None else np.asarray(self.nonlinear, dtype=np.int64)
+        self.hessian_rows, self.hessian_cols, self._local = group_pattern(self.index, self._nonlinear)
 
     def values(self, x: np.ndarray) -> np.ndarray:
         return np.asarray(self.function(x[self.index])).ravel()
 
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
+    def slopes(self, z: np.ndarray) -> np.ndarray:
+        """(P, outputs, k): the function's Jacobian at groups z (P, k)."""
         if self.derivative is not None:
-            return np.asarray(self.derivative(x[self.index])).ravel()
-        return point_jacobian(self.function, x[self.index])[1].ravel()
+            return np.asarray(self.derivative(z))
+        if self.gradient is not None:  # one output at a time, all in one call
+            unit = np.tile(np.eye(self.outputs), (len(z), 1))
+            return np.asarray(self.gradient(np.repeat(z, self.outputs, axis=0), unit)).reshape(len(z), self.outputs, -1)
+        return point_jacobian(self.function, z)[1]
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        return self.slopes(x[self.index]).ravel()
+
+    def hessian(self, x: np.ndarray, multipliers: np.ndarray) -> np.ndarray:
+        z = x[self.index]
+        weights = multipliers.reshape(len(z), self.outputs)
+        gradient = weighted(self.slopes) if self.gradient is None else self.gradient
+        return group_hessian(gradient, z, weights, self._nonlinear).ravel()[self._local]

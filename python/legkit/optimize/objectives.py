@@ -46,13 +46,12 @@ from numpy.typing import ArrayLike
 
 import legkit as lk
 from legkit.optimize import kinematics as kin
-from legkit.optimize.blocks import Block, Point
+from legkit.optimize.blocks import Block, Point, group_hessian, group_pattern
 from legkit.optimize.collocation import point_jacobian
 from legkit.stability import angular_momentum_stability_of_model, foot_rotation_indicator
 
 if TYPE_CHECKING:
     from legkit.optimize.problem import MultiphaseProblem
-    from legkit.optimize.symbolic import SymbolicModel
 
 #: Smoothing of |x| in J_e2 [W]: sqrt(x^2 + eps^2) keeps the integrand differentiable where a joint's power is 0.
 POWER_SMOOTHING = 1e-3
@@ -68,9 +67,10 @@ class Integral:
     integrand: Integrand
     per_distance: bool = False
     weight: float = 1.0
-    symbolic: Callable | None = None  # (problem, SymbolicModel, z casadi (nz,), k) -> scalar: the same integrand for casadi
     #: (problem, z (P, nz), k) -> (P, nz): the integrand's gradient where it has a closed form; else `point_jacobian`'s.
     slopes: Integrand | None = None
+    #: problem -> the point variables the integrand depends on nonlinearly (default: all), for the Hessian.
+    nonlinear: Callable[[MultiphaseProblem], np.ndarray] | None = None
 
 
 @dataclass(frozen=True)
@@ -95,20 +95,14 @@ def effort(weights: ArrayLike = 1.0, weight: float = 1.0) -> Integral:
         return out
 
     return Integral(lambda problem, z, _: np.sum(w * z[:, problem.nx : problem.nx + problem.nu] ** 2, axis=1), weight=weight,
-                    symbolic=lambda problem, _, z, __: _weighted_squares(w, z[problem.nx : problem.nx + problem.nu]), slopes=slopes)
-
-
-def _weighted_squares(w: np.ndarray, u: Any) -> Any:
-    import casadi as ca
-
-    return ca.sum1(ca.DM(np.broadcast_to(w, (u.shape[0],)).copy()) * u**2)
+                    slopes=slopes, nonlinear=lambda problem: np.arange(problem.nx, problem.nx + problem.nu))
 
 
 def joule_loss(resistance: ArrayLike, gear_ratio: ArrayLike, torque_constant: ArrayLike, weight: float = 1.0) -> Integral:
     """J_e1 of eq. 12: (1 / d_S) int sum_i R_i (u_i / (G_i K_i))^2 dt, per actuated joint (arrays or scalars)."""
     w = np.asarray(resistance, dtype=np.float64) / (np.asarray(gear_ratio, dtype=np.float64) * np.asarray(torque_constant, dtype=np.float64)) ** 2
     term = effort(w)
-    return Integral(term.integrand, per_distance=True, weight=weight, symbolic=term.symbolic, slopes=term.slopes)
+    return Integral(term.integrand, per_distance=True, weight=weight, slopes=term.slopes, nonlinear=term.nonlinear)
 
 
 def specific_resistance(weight: float = 1.0) -> Integral:
@@ -140,13 +134,7 @@ def fri_deviation(weight: float = 1.0) -> Integral:
         gcom = np.asarray(lk.center_of_mass(problem.model, q))
         return np.sum((gcom[:, :2] - fri[:, :2]) ** 2, axis=1)
 
-    def symbolic(problem: MultiphaseProblem, model: SymbolicModel, z: Any, k: int) -> Any:
-        q, v = z[: problem.nq], z[problem.nq : problem.nx]
-        fri = _symbolic_fri(problem, model, q, v, z[problem.a_columns[k]], _support_bodies(problem, k))
-        gcom = model.center_of_mass(q)
-        return (gcom[0] - fri[0]) ** 2 + (gcom[1] - fri[1]) ** 2
-
-    return Integral(integrand, weight=weight, symbolic=symbolic)
+    return Integral(integrand, weight=weight)
 
 
 def _support_bodies(problem: MultiphaseProblem, k: int) -> list[int]:
@@ -157,28 +145,6 @@ def _support_bodies(problem: MultiphaseProblem, k: int) -> list[int]:
     return sorted({problem.foot_body[name] for name in contacts})
 
 
-def _symbolic_fri(problem: MultiphaseProblem, model: SymbolicModel, q: Any, v: Any, a: Any, feet: list[int]) -> Any:
-    """`foot_rotation_indicator` in casadi: the rest's momentum rate by the chain rule along (dq/dt, a)."""
-    import casadi as ca
-
-    from legkit.optimize.symbolic import SymbolicModel
-    from legkit.stability.fri import _without_mass_of
-
-    rest_model = _without_mass_of(problem.model, feet)
-    rest = SymbolicModel(rest_model)
-    momentum = rest.centroidal_momentum(q, v)
-    rate = ca.jacobian(momentum, q) @ (model.q_rate_matrix(q) @ v) + ca.jacobian(momentum, v) @ a
-    gravity = ca.DM(np.asarray(problem.model.gravity, dtype=np.float64))
-    rest_mass = problem.model.total_mass - sum(problem.model.body(i).mass for i in feet)
-    com = rest.center_of_mass(q)
-    moment = rate[3:] + ca.cross(com, rate[:3]) - ca.cross(com, rest_mass * gravity)
-    for body in feet:
-        foot_com = model.points(q, [(body, np.asarray(problem.model.body(body).com, dtype=np.float64))])
-        moment = moment - ca.cross(foot_com, problem.model.body(body).mass * gravity)
-    force = rate[:3] - problem.model.total_mass * gravity
-    return ca.vertcat(-moment[1] / force[2], moment[0] / force[2])
-
-
 def _simpson_weights(intervals: int) -> np.ndarray:
     """Simpson weights of the 2N + 1 points of N intervals, in units of h / 6."""
     c = np.tile([2.0, 4.0], intervals + 1)[: 2 * intervals + 1]
@@ -186,8 +152,8 @@ def _simpson_weights(intervals: int) -> np.ndarray:
     return c
 
 
-def build_objective(problem: MultiphaseProblem, terms: Sequence) -> tuple[Callable, Callable, list[Block]]:
-    """(objective(x), gradient(x), extra constraint blocks) of the summed terms."""
+def build_objective(problem: MultiphaseProblem, terms: Sequence) -> tuple[Callable, Callable, list[IntegralCurvature], list[Block]]:
+    """(objective(x), gradient(x), the integrals' curvatures, extra constraint blocks) of the summed terms."""
     integrals = [t for t in terms if isinstance(t, Integral)]
     stability = [t for t in terms if isinstance(t, MinMaxStability)]
     unknown = [t for t in terms if not isinstance(t, (Integral, MinMaxStability))]
@@ -246,7 +212,68 @@ def build_objective(problem: MultiphaseProblem, terms: Sequence) -> tuple[Callab
         return total
 
     blocks = [_stability_block(problem, k, stability[0]) for k in range(len(problem.phases))] if stability else []
-    return objective, gradient, blocks
+    return objective, gradient, [IntegralCurvature(problem, term, weights) for term in integrals], blocks
+
+
+class IntegralCurvature:
+    """The Hessian of an `Integral` term J = scale sum_k T_k S_k (over the distance s D, D = sum_k T_k, s = |speed|,
+    if per_distance), S_k = sum_p w_kp phi(z_kp) the phase's quadrature: T_k w_kp d2 phi / dz2 per point (by
+    `group_hessian` of phi's gradient), the durations' w_kp d phi / dz, and with per_distance the terms of 1 / D.
+    rows, cols: the entries' variables; values(x) in that order."""
+
+    def __init__(self, problem: MultiphaseProblem, term: Integral, weights: list[np.ndarray]) -> None:
+        self.problem, self.term, self.weights = problem, term, weights
+        phases = len(problem.phases)
+        rows, cols = [], []
+        self._local = []
+        self._columns = []
+        for k, index in enumerate(problem.point_index):
+            columns = np.arange(index.shape[1]) if term.nonlinear is None else np.asarray(term.nonlinear(problem), dtype=np.int64)
+            r, c, local = group_pattern(index, columns)
+            rows.append(r)
+            cols.append(c)
+            self._local.append(local)
+            self._columns.append(columns)
+            for j in range(phases) if term.per_distance else [k]:  # d2 J / dT_j dz_kp
+                rows.append(np.full(index[:, columns].size, problem.duration_index[j]))
+                cols.append(index[:, columns].ravel())
+        if term.per_distance:
+            first, second = np.tril_indices(phases)
+            rows.append(problem.duration_index[first])
+            cols.append(problem.duration_index[second])
+        self.rows, self.cols = np.concatenate(rows), np.concatenate(cols)
+
+    def slopes(self, z: np.ndarray, k: int) -> np.ndarray:
+        """(P, nz): d phi / dz at phase k's points z."""
+        term, problem = self.term, self.problem
+        if term.slopes is not None:
+            return term.slopes(problem, z, k)
+        return point_jacobian(lambda zz: term.integrand(problem, zz, k)[:, None], z)[1][:, 0]
+
+    def values(self, x: np.ndarray) -> np.ndarray:
+        problem, term = self.problem, self.term
+        durations = x[problem.duration_index]
+        total_time, speed = float(np.sum(durations)), abs(problem.speed)
+        scale = term.weight / (speed * total_time) if term.per_distance else term.weight
+        out, sums = [], np.zeros(len(durations))
+        for k, index in enumerate(problem.point_index):
+            z, w, columns = x[index], self.weights[k], self._columns[k]
+            sums[k] = w @ term.integrand(problem, z, k)
+            def phase_slopes(zz: np.ndarray, weight: np.ndarray, k: int = k) -> np.ndarray:
+                return weight * self.slopes(zz, k)
+
+            curvature = group_hessian(phase_slopes, z, w[:, None], columns)
+            out.append(scale * durations[k] * curvature.ravel()[self._local[k]])
+            gradient = (w[:, None] * self.slopes(z, k))[:, columns].ravel()
+            if term.per_distance:
+                out.extend(scale * gradient * ((j == k) - durations[k] / total_time) for j in range(len(durations)))
+            else:
+                out.append(scale * gradient)
+        if term.per_distance:
+            i, j = np.tril_indices(len(durations))
+            weighted = float(durations @ sums)
+            out.append(scale * (2.0 * weighted / total_time**2 - (sums[i] + sums[j]) / total_time))
+        return np.concatenate(out)
 
 
 def published_stability(problem: MultiphaseProblem, k: int, term: MinMaxStability, z: np.ndarray) -> np.ndarray:
@@ -281,16 +308,18 @@ def _smooth_edge(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> t
     return (contacts if side > 0.0 else contacts[::-1]), diagonal
 
 
-def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> tuple[Callable, int, Callable, Callable]:
-    """The smooth constraint rows (module docstring) as a function of (B, nx + 1) = [q, v, p1], their number,
-    their casadi form, and their Jacobian (B, rows, nx + 1)."""
+def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> tuple[Callable, int, Callable]:
+    """The smooth constraint rows (module docstring) as a function of (B, nx + 1) = [q, v, p1], their number and
+    their Jacobian (B, rows, nx + 1)."""
     edge, diagonal = _smooth_edge(problem, k, term)
     model, nq, nx = problem.model, problem.nq, problem.nx
     m, g = model.total_mass, -float(model.gravity[2])
     outputs = 2  # rows per point, on either kind of pair
 
-    def rows(c: Any, h: Any, start: Any, end: Any, p1: Any, sqrt: Callable, stack: Callable) -> Any:
-        """The rows from COM c, centroidal momentum h = [P, k_G], the edge's feet and p1 (numpy or casadi)."""
+    def rows(c: Any, h: Any, start: Any, end: Any, p1: Any) -> np.ndarray:
+        """(B, 2): the rows from COM c, centroidal momentum h = [P, k_G], the edge's feet (each component-major:
+        c[0] is the x of every point) and p1."""
+        sqrt = np.sqrt
         dx, dy = end[0] - start[0], end[1] - start[1]
         length = sqrt(dx * dx + dy * dy)
         nx_, ny_ = dy / length, -dx / length
@@ -301,8 +330,8 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
         momentum = ax * (h[3] + oy * h[2] - oz * h[1]) + ay * (h[4] + oz * h[0] - ox * h[2])  # H = H_p . e_l
         h_ref = m * r * d * sqrt(2.0 * g / (r + oz))  # eq. 10's H_ref, continued with the sign of d
         if diagonal:
-            return stack([momentum - h_ref - p1, m * r * term.v_tip_max - momentum - p1])
-        return stack([h_ref - momentum - p1, d])  # d >= 0: the GCoM stays on the side the published rule reads
+            return stacked([momentum - h_ref - p1, m * r * term.v_tip_max - momentum - p1])
+        return stacked([h_ref - momentum - p1, d])  # d >= 0: the GCoM stays on the side the published rule reads
 
     def stacked(r: list) -> np.ndarray:
         return np.stack(np.broadcast_arrays(*r), axis=1)
@@ -312,7 +341,7 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
         c = np.asarray(lk.center_of_mass(model, q)).T
         h = np.asarray(lk.centroidal_momentum(model, q, z[:, nq:nx])).T
         feet = problem.foot_positions(z[:, :nq], edge)
-        return rows(c, h, feet[:, 0].T, feet[:, 1].T, z[:, nx], np.sqrt, stacked)
+        return rows(c, h, feet[:, 0].T, feet[:, 1].T, z[:, nx])
 
     points = [(problem.foot_body[n], problem.foot_point[n]) for n in edge]
 
@@ -327,12 +356,12 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
         geometry = np.concatenate([c, feet.reshape(len(z), 6), h], axis=1)  # (B, 15): c, start, end, h
 
         def of_geometry(g: np.ndarray) -> np.ndarray:
-            return rows(g[:, :3].T, g[:, 9:].T, g[:, 3:6].T, g[:, 6:9].T, 0.0, np.sqrt, stacked)
+            return rows(g[:, :3].T, g[:, 9:].T, g[:, 3:6].T, g[:, 6:9].T, 0.0)
 
         _, by_geometry = point_jacobian(of_geometry, geometry, columns=np.arange(9))  # (B, rows, 9)
         unit = np.eye(7)[:, :, None]  # h = e_0..e_5 and p1 = 1, each against zeros (unit[6])
-        base = rows(c.T, np.zeros(6), feet[:, 0].T, feet[:, 1].T, 0.0, np.sqrt, stacked)
-        slopes = np.stack([rows(c.T, unit[j, :6], feet[:, 0].T, feet[:, 1].T, unit[j, 6], np.sqrt, stacked) - base
+        base = rows(c.T, np.zeros(6), feet[:, 0].T, feet[:, 1].T, 0.0)
+        slopes = np.stack([rows(c.T, unit[j, :6], feet[:, 0].T, feet[:, 1].T, unit[j, 6]) - base
                            for j in range(7)], axis=-1)
         centroidal = np.asarray(lk.centroidal_derivatives(model, q, z[:, nq:nx], np.zeros((len(z), problem.nv)))[0])
         ends = kin.point_jacobians(model, q, points)[:, :, :3].reshape(len(z), 6, problem.nv)
@@ -341,16 +370,7 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
         by_v = slopes[..., :6] @ np.asarray(lk.centroidal_map(model, q))
         return np.concatenate([kin.raw(model, z[:, :nq], tangent), by_v, slopes[..., 6:]], axis=2)
 
-    feet = [(problem.foot_body[n], problem.foot_point[n]) for n in edge]
-
-    def symbolic(model: SymbolicModel, z: Any) -> Any:
-        import casadi as ca
-
-        q = z[:nq]
-        ends = model.points(q, feet)
-        return rows(model.center_of_mass(q), model.centroidal_momentum(q, z[nq:nx]), ends[:3], ends[3:], z[nx], ca.sqrt, lambda r: ca.vertcat(*r))
-
-    return margin, outputs, symbolic, derivative
+    return margin, outputs, derivative
 
 
 def _stability_block(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> Block:
@@ -361,7 +381,7 @@ def _stability_block(problem: MultiphaseProblem, k: int, term: MinMaxStability) 
     index = problem.point_index[k]
     columns = np.concatenate([index[:, : problem.nx], np.full((len(index), 1), problem.p1_index)], axis=1)
     if term.smooth:
-        margin, rows, symbolic, derivative = _smooth_margin(problem, k, term)
-        return Point(columns, margin, rows, 0.0, np.inf, symbolic=symbolic, derivative=derivative)
+        margin, rows, derivative = _smooth_margin(problem, k, term)
+        return Point(columns, margin, rows, 0.0, np.inf, derivative=derivative, nonlinear=np.arange(problem.nq))
     nx = problem.nx
     return Point(columns, lambda z: (published_stability(problem, k, term, z) - z[:, nx])[:, None], 1, 0.0, np.inf)

@@ -36,25 +36,20 @@ its pattern, from the model's tree, is fixed before solving. Objectives: `object
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any, cast
 
 import numpy as np
 
 import legkit as lk
 from legkit.optimize import kinematics as kin
-from legkit.optimize.blocks import Block, Linear, Point, equal
+from legkit.optimize.blocks import Block, Linear, Point, equal, group_hessian, group_pattern, weighted
 from legkit.optimize.collocation import hermite_basis, hermite_simpson_defects
 from legkit.optimize.mirror import Mirror
-from legkit.optimize.solver import NLP, SolveResult, prepare, solve
+from legkit.optimize.solver import NLP, SolveResult, solve
 
-if TYPE_CHECKING:
-    from legkit.optimize.symbolic import SymbolicModel
-
-
-#: `MultiphaseProblem.nlp`'s derivatives: the exact Jacobian from legkit's kernels with IPOPT's L-BFGS Hessian, or
-#: the symbolic mirror's exact Jacobian and Hessian.
+#: `MultiphaseProblem.nlp`'s second derivatives: IPOPT's L-BFGS approximation, or the Hessian of the Lagrangian from
+#: legkit's kernels (`MultiphaseProblem.hessian`); the Jacobian is exact in both.
 DERIVATIVES = ("legkit", "exact")
 
 
@@ -511,6 +506,31 @@ class MultiphaseProblem:
         jac[:, :nq, self.slack_columns[k]] = by_w @ np.swapaxes(contact, 1, 2)
         return jac
 
+    def rate_gradient(self, z: np.ndarray, weights: np.ndarray, k: int) -> np.ndarray:
+        """weights . d `rate` / dz (B, nz) for weights (B, nx): `rate_jacobian`'s vector product, without forming it
+        (d(slack . J_c(q) u) / dq by the contact points' velocity derivatives at u)."""
+        nq, nx, model = self.nq, self.nx, self.model
+        q, v, slack = z[:, :nq], z[:, nq:nx], z[:, self.slack_columns[k]]
+        out = np.zeros_like(z)
+        out[:, self.a_columns[k]] = weights[:, nq:]
+        on_q = weights[:, :nq]
+        if not slack.shape[1]:
+            by_q, by_w = kin.q_rate_derivatives(model, q, v)
+            out[:, :nq] = np.einsum("bi,bij->bj", on_q, by_q)
+            out[:, nq:nx] = np.einsum("bi,bij->bj", on_q, by_w)
+            return out
+        contacts, unit = self.phases[k].contacts, self.configuration(q)
+        points, _, contact = self.contact_frames(unit, contacts)
+        by_q, by_w = kin.q_rate_derivatives(model, q, v + np.einsum("bri,br->bi", contact, slack))
+        u = np.einsum("bi,bij->bj", on_q, by_w)
+        forces = self.row_forces(slack, contacts)
+        turning = sum(np.einsum("bk,bkj->bj", forces[:, c], kin.point_velocity_derivatives(model, unit, u, body, point)[0])
+                      for c, (body, point) in enumerate(points))
+        out[:, :nq] = np.einsum("bi,bij->bj", on_q, by_q) + kin.raw(model, q, np.asarray(turning)[:, None, :])[:, 0]
+        out[:, nq:nx] = u
+        out[:, self.slack_columns[k]] = np.einsum("bri,bi->br", contact, u)
+        return out
+
     def accelerations(self, z: np.ndarray, k: int) -> np.ndarray:
         """a (B, nv) at phase k's point variables."""
         return z[:, self.a_columns[k]]
@@ -616,24 +636,29 @@ class MultiphaseProblem:
         if self.model.floating_base:  # fixes the scale gauge of the quaternion (kernels normalise it)
             first = self.point_index[0][0]
             blocks.append(Point(first[None, 3:7], lambda quat: np.sum(quat * quat, axis=1, keepdims=True) - 1.0, 1,
-                                symbolic=lambda _, quat: quat.T @ quat - 1.0, derivative=lambda quat: 2.0 * quat[:, None, :]))
+                                derivative=lambda quat: 2.0 * quat[:, None, :]))
         if self.torque_speed is not None and nu:
             blocks.extend(self._torque_speed_blocks())
         if self.input_power is not None and nu:
             blocks.extend(self._input_power_blocks())
-        objective, gradient, extra = build_objective(self, self.objectives)
+        objective, gradient, self.curvatures, extra = build_objective(self, self.objectives)
         self.uses_p1 = bool(extra)
         self.stability_blocks = extra
         blocks.extend(extra)
         self.blocks = blocks
         self.objective, self.gradient = objective, gradient
-        offsets = np.cumsum([0] + [b.size for b in blocks])
-        rows = np.concatenate([b.rows + o for b, o in zip(blocks, offsets)])
+        self._offsets = np.cumsum([0] + [b.size for b in blocks])
+        rows = np.concatenate([b.rows + o for b, o in zip(blocks, self._offsets)])
         cols = np.concatenate([b.cols for b in blocks])
         # Entries sharing (row, col) are summed into one nonzero of the fixed pattern.
         key, self._entry = np.unique(rows * self.n + cols, return_inverse=True)
         self.jac_rows, self.jac_cols = key // self.n, key % self.n
-        self.m = int(offsets[-1])
+        self.m = int(self._offsets[-1])
+        # The Hessian of the Lagrangian's lower triangle, likewise: each entry folded below the diagonal.
+        rows = np.concatenate([b.hessian_rows for b in blocks] + [c.rows for c in self.curvatures])
+        cols = np.concatenate([b.hessian_cols for b in blocks] + [c.cols for c in self.curvatures])
+        key, self._hessian_entry = np.unique(np.maximum(rows, cols) * self.n + np.minimum(rows, cols), return_inverse=True)
+        self.hess_rows, self.hess_cols = key // self.n, key % self.n
 
     def _contact_blocks(self, k: int) -> list[Block]:
         phase, index = self.phases[k], self.point_index[k]
@@ -653,7 +678,7 @@ class MultiphaseProblem:
                 return owner * (slope * f)[:, None, :]
 
             blocks.append(Point(index[:, self.force_columns[k]], cone, feet, 0.0, np.inf,
-                                symbolic=lambda _, f: mu2 * f[2::3] ** 2 - f[0::3] ** 2 - f[1::3] ** 2, derivative=cone_slopes))
+                                derivative=cone_slopes))
         blocks.extend(self.foot_torque_blocks(k))
         return blocks
 
@@ -680,13 +705,6 @@ class MultiphaseProblem:
             z[:, columns] = g
             return z
 
-        def symbolic_full(g: Any, columns: np.ndarray) -> Any:
-            import casadi as ca
-
-            z = ca.SX.zeros(width)
-            z[columns.tolist()] = g
-            return z
-
         blocks: list[Block] = []
         for name in self.phases[k].contacts:
             rows = self.contact_rows([name])
@@ -709,15 +727,6 @@ class MultiphaseProblem:
                 a = self.accelerations(z, k)
                 values = np.asarray(lk.point_accelerations(self.model, self.configuration(z[:, :nq]), z[:, nq:nx], a, points))
                 return values.reshape(len(g), -1)[:, axes]
-
-            def symbolic_velocities(model: SymbolicModel, g: Any, columns: np.ndarray = velocity_columns, rows: list = rows) -> Any:
-                z = symbolic_full(g, columns)
-                return model.contact_rows_jacobian(z[:nq], rows) @ z[nq:nx]
-
-            def symbolic_accelerations(model: SymbolicModel, g: Any, columns: np.ndarray = acceleration_columns, points: list = points,
-                                       axes: np.ndarray = axes) -> Any:
-                z = symbolic_full(g, columns)
-                return model.point_accelerations(z[:nq], z[nq:nx], z[self.a_columns[k]], points)[axes.tolist()]
 
             def velocity_slopes(g: np.ndarray, columns: np.ndarray = velocity_columns, rows: list = rows) -> np.ndarray:
                 z = full(g, columns)
@@ -750,10 +759,10 @@ class MultiphaseProblem:
             if (soft_touchdown and name in self.contacts_after(k)) or (k == count - 1 and self.final is not None):
                 held = held[held < last]
             if len(held):
-                blocks.append(Point(index[np.ix_(held, velocity_columns)], velocities, len(axes), symbolic=symbolic_velocities,
-                                    derivative=velocity_slopes))
-            blocks.append(Point(index[np.ix_(knots, acceleration_columns)], accelerations, len(axes), symbolic=symbolic_accelerations,
-                                derivative=acceleration_slopes))
+                blocks.append(Point(index[np.ix_(held, velocity_columns)], velocities, len(axes), derivative=velocity_slopes,
+                                    nonlinear=np.arange(len(q_columns))))
+            blocks.append(Point(index[np.ix_(knots, acceleration_columns)], accelerations, len(axes), derivative=acceleration_slopes,
+                                nonlinear=np.arange(len(velocity_columns))))
         return blocks
 
     #: Where on each interval (fractions of it) `swing_clearance_blocks` holds the swing tips above the ground.
@@ -790,37 +799,28 @@ class MultiphaseProblem:
             q = np.stack([b[0] * q0 + b[1] * r0 + b[2] * q1 + b[3] * r1 for b in basis], axis=1)  # (B, fractions, nq)
             return self.foot_positions(q, swing)[..., 2].reshape(len(g), -1)
 
-        def symbolic(model: SymbolicModel, g: Any) -> Any:
-            import casadi as ca
-
-            def full(q: Any) -> Any:
-                return ca.vertcat(ca.DM.zeros(nq - c, 1), q)
-
-            q0, v0, q1, v1 = (g[a:b] for a, b in spans)
-            q0, q1, h = full(q0), full(q1), g[-1] / intervals
-            r0, r1 = h * (model.q_rate_matrix(q0) @ v0), h * (model.q_rate_matrix(q1) @ v1)
-            feet = [(self.foot_body[n], self.foot_point[n]) for n in swing]
-            return ca.vertcat(*[model.points(b[0] * q0 + b[1] * r0 + b[2] * q1 + b[3] * r1, feet)[2::3] for b in basis])
-
         swing_points = [(self.foot_body[n], self.foot_point[n]) for n in swing]
 
-        def height_slopes(g: np.ndarray) -> np.ndarray:
+        def height_gradient(g: np.ndarray, weights: np.ndarray) -> np.ndarray:
+            """weights (B, fractions x swing) . d heights / dg (B, columns), through q_s = b0 q0 + b1 h rate0 + b2 q1
+            + b3 h rate1 at each fraction."""
             q0, v0, q1, v1 = (g[:, a:b] for a, b in spans)
             q0, q1, h = full(q0), full(q1), g[:, -1:] / intervals
             (dq0, dv0), (dq1, dv1) = kin.q_rate_derivatives(self.model, q0, v0), kin.q_rate_derivatives(self.model, q1, v1)
             rate0, rate1 = self.q_rate(q0, v0), self.q_rate(q1, v1)
-            eye, hh = np.eye(nq), h[:, :, None]
-            slopes = np.empty((len(g), len(basis), len(swing), g.shape[1]))
-            for f, b in enumerate(basis):  # through q_s = b0 q0 + b1 h rate0 + b2 q1 + b3 h rate1 at each fraction
+            out = np.zeros_like(g)
+            for f, b in enumerate(basis):
                 q = b[0] * q0 + b[1] * h * rate0 + b[2] * q1 + b[3] * h * rate1
-                height = kin.raw(self.model, q, kin.point_jacobians(self.model, self.configuration(q), swing_points)[:, :, 2])
-                slopes[:, f] = np.concatenate([
-                    height @ (b[0] * eye + b[1] * hh * dq0)[:, :, q_columns], height @ (b[1] * hh * dv0),
-                    height @ (b[2] * eye + b[3] * hh * dq1)[:, :, q_columns], height @ (b[3] * hh * dv1),
-                    height @ ((b[1] * rate0 + b[3] * rate1)[:, :, None] / intervals)], axis=2)
-            return slopes.reshape(len(g), -1, g.shape[1])
+                height = kin.point_jacobians(self.model, self.configuration(q), swing_points)[:, :, 2]  # (B, swing, nv)
+                on_q = kin.raw(self.model, q, np.einsum("bs,bsj->bj", weights[:, f * len(swing) : (f + 1) * len(swing)], height)[:, None])[:, 0]
+                out[:, spans[0][0] : spans[0][1]] += (b[0] * on_q + b[1] * h * np.einsum("bi,bij->bj", on_q, dq0))[:, q_columns]
+                out[:, spans[1][0] : spans[1][1]] += b[1] * h * np.einsum("bi,bij->bj", on_q, dv0)
+                out[:, spans[2][0] : spans[2][1]] += (b[2] * on_q + b[3] * h * np.einsum("bi,bij->bj", on_q, dq1))[:, q_columns]
+                out[:, spans[3][0] : spans[3][1]] += b[3] * h * np.einsum("bi,bij->bj", on_q, dv1)
+                out[:, -1] += np.sum(on_q * (b[1] * rate0 + b[3] * rate1), axis=1) / intervals
+            return out
 
-        return [Point(groups, heights, len(basis) * len(swing), 0.0, np.inf, symbolic=symbolic, derivative=height_slopes)]
+        return [Point(groups, heights, len(basis) * len(swing), 0.0, np.inf, gradient=height_gradient)]
 
     def foot_torque_blocks(self, k: int) -> list[Block]:
         """Eq. 6 at every point of phase k, for each flat foot on the ground: c_i F_z - s T_i >= 0 for i = x, y, z
@@ -921,28 +921,17 @@ class MultiphaseProblem:
 
     def _velocity_transition(self, k: int, start: _Start) -> Block:
         """v after the boundary: the impact map (eq. 7) when feet touch down, else continuity. The impact is
-        stated implicitly with the impulses as variables (`impact_rows`): the explicit map v+ = impact(q, v-)
-        solves a KKT system whose second derivatives are ~100x those of the implicit rows (the symbolic
-        Hessian of one explicit touchdown had 2.9 million instructions)."""
+        stated implicitly with the impulses as variables (`impact_rows`, bilinear in q and v+, v-, Lambda): the
+        explicit map v+ = impact(q, v-) solves a KKT system whose second derivatives are far larger."""
         end = self.point_index[k][-1]
         nq, nx, nv = self.nq, self.nx, self.nv
         if k not in self.impulse_index:
             return equal(nv, start.v, end[nq:nx], start.v_sign)
         contacts = self.contacts_after(k)
-        rows = self.contact_rows(contacts)
         signs = np.r_[np.ones(nx), start.v_sign, np.ones(len(self.impulse_index[k]))]
-
-        def symbolic(model: SymbolicModel, z: Any) -> Any:
-            import casadi as ca
-
-            z = z * ca.DM(signs)
-            q, v_minus, v_plus, impulses = z[:nq], z[nq : nq + nv], z[nq + nv : nq + 2 * nv], z[nq + 2 * nv :]
-            jac = model.contact_rows_jacobian(q, rows)
-            return ca.vertcat(model.mass_matrix(q) @ (v_plus - v_minus) - jac.T @ impulses, jac @ v_plus)
-
         index = np.concatenate([end[:nx], start.v, self.impulse_index[k]])[None]
-        return Point(index, lambda z: self.impact_rows(signs * z, contacts), nv + len(self.impulse_index[k]), symbolic=symbolic,
-                     derivative=lambda z: self.impact_derivative(signs * z, contacts) * signs)
+        return Point(index, lambda z: self.impact_rows(signs * z, contacts), nv + len(self.impulse_index[k]),
+                     derivative=lambda z: self.impact_derivative(signs * z, contacts) * signs, nonlinear=self.q_without_translation)
 
     def _torque_speed_blocks(self) -> list[Block]:
         """(w_max - |w|) k - |u| >= 0 as four linear faces per actuated joint and point."""
@@ -977,8 +966,7 @@ class MultiphaseProblem:
         blocks: list[Block] = []
         for i in range(self.nu):
             drawn, slopes = _input_power(float(loss[i]))
-            blocks.append(Point(index[:, i], drawn, 1, lower_bound=-np.inf, upper_bound=float(limit[i]),
-                                symbolic=_input_power_symbolic(float(loss[i])), derivative=slopes))
+            blocks.append(Point(index[:, i], drawn, 1, lower_bound=-np.inf, upper_bound=float(limit[i]), derivative=slopes))
         return blocks
 
     def point_index_u_w(self) -> list[np.ndarray]:
@@ -1037,31 +1025,36 @@ class MultiphaseProblem:
         values = np.concatenate([b.jacobian(x) for b in self.blocks])
         return np.bincount(self._entry, weights=values, minlength=len(self.jac_rows))
 
+    def hessian(self, x: np.ndarray, objective_factor: float, multipliers: np.ndarray) -> np.ndarray:
+        """The lower triangle of objective_factor d2f/dx2 + sum_i multipliers_i d2g_i/dx2 on (hess_rows, hess_cols):
+        each block's curvature by central differences of its exact Jacobian (`blocks.group_hessian`)."""
+        values = [b.hessian(x, multipliers[start:stop]) for b, start, stop in zip(self.blocks, self._offsets, self._offsets[1:])]
+        if objective_factor != 0.0:
+            values += [objective_factor * c.values(x) for c in self.curvatures]
+        else:
+            values += [np.zeros(len(c.rows)) for c in self.curvatures]
+        return np.bincount(self._hessian_entry, weights=np.concatenate(values), minlength=len(self.hess_rows))
+
     def nlp(self, derivatives: str = "legkit", objective: bool = True) -> NLP:
-        """The NLP. derivatives="legkit": the exact Jacobian from legkit's kernels (`kinematics`), IPOPT's L-BFGS
-        Hessian; "exact": also its symbolic mirror (`legkit.optimize.symbolic`, built once per problem), with which
-        IPOPT has exact Jacobians and Hessians. objective=False: the constraints alone (objective 0)."""
+        """The NLP: objective, constraints and their exact Jacobian from legkit's kernels. derivatives="legkit": IPOPT
+        approximates the Hessian of the Lagrangian by L-BFGS; "exact": it is given `hessian`. objective=False: the
+        constraints alone (objective 0)."""
         if derivatives not in DERIVATIVES:
             raise ValueError(f"derivatives must be one of {DERIVATIVES}, got {derivatives!r}")
         lower, upper = self.bounds()
-        symbolic = None
-        if derivatives != "legkit":
-            if getattr(self, "_symbolic", None) is None:
-                from legkit.optimize.symbolic import transcription
-
-                whole = transcription(self)
-                self._symbolic = {True: whole, False: whole.without_objective()}
-            symbolic = self._symbolic[objective]
         f, gradient = (self.objective, self.gradient) if objective else (lambda x: 0.0, lambda x: np.zeros(self.n))
+        hessian = None
+        if derivatives == "exact":
+            hessian = self.hessian if objective else (lambda x, _, multipliers: self.hessian(x, 0.0, multipliers))
         return NLP(lower, upper, np.concatenate([b.lower for b in self.blocks]), np.concatenate([b.upper for b in self.blocks]),
-                   f, gradient, self.constraints, self.jacobian, self.jac_rows, self.jac_cols, symbolic)
+                   f, gradient, self.constraints, self.jacobian, self.jac_rows, self.jac_cols, hessian, self.hess_rows, self.hess_cols)
 
     def solve(self, guess: Trajectory | np.ndarray | SolveResult, derivatives: str = "exact", feasibility_first: bool = False,
               polish: bool = False, polish_max_iter: int = 1000, **options: Any) -> tuple[Trajectory, SolveResult]:
         """Solve from a guess (a Trajectory, a variable vector, or the `SolveResult` of a problem with the same
         layout, e.g. the gait at a neighbouring speed: its point and multipliers, a primal-dual warm start
-        (`legkit.optimize.solver.WARM_START`)), with exact derivatives (default), the exact Jacobian with L-BFGS or legkit's differences (`nlp`);
-        options go to `legkit.optimize.solver.solve`.
+        (`legkit.optimize.solver.WARM_START`)), with the Hessian of the Lagrangian (derivatives="exact", default) or
+        IPOPT's L-BFGS approximation of it ("legkit"; `nlp`); options go to `legkit.optimize.solver.solve`.
 
         feasibility_first (problems with a MinMaxStability term): continuation in two IPOPT runs, first the
         constraints alone with p1 held below every S_H row, then the objective from that feasible point with p1
@@ -1072,9 +1065,8 @@ class MultiphaseProblem:
         max_iter): first with the phase durations held at that point's, then with them free, from the held run's
         point and multipliers. The durations are the slow variables: released at once, they crept to their
         optimum over ~1000 iterations on the mirrored amble at 0.60 m/s; held first, 116 + 180 (docs/optimize.md).
-        Its solver is built in a thread while the L-BFGS runs go on. L-BFGS keeps climbing where the exact Hessian
-        converges (docs/optimize.md).
-        The result's iterations, times and history cover every run; its times are IPOPT's, without the builds."""
+        L-BFGS keeps climbing where the exact Hessian converges (docs/optimize.md).
+        The result's iterations, times and history cover every run."""
         if polish and derivatives == "exact":
             raise ValueError("polish follows an L-BFGS solve (derivatives 'legkit'), got derivatives='exact'")
         if isinstance(guess, SolveResult):
@@ -1087,11 +1079,8 @@ class MultiphaseProblem:
         x0 = self.gauged(self.pack(guess) if isinstance(guess, Trajectory) else guess)
         nlp = self.nlp(derivatives)
         stall = options.pop("stall", POLISH_SWITCH if polish else None)  # on the objective's run only
-        if polish:  # the polish's solver is built (`prepare`) while the L-BFGS runs go on
+        if polish:
             exact = {**options, "max_iter": polish_max_iter, "options": {**(options.get("options") or {}), "mu_init": POLISH_MU_INIT}}
-            builder = ThreadPoolExecutor(1)
-            built = builder.submit(lambda: prepare(self.nlp("exact"), **{k: exact[k] for k in ("tol", "max_iter", "options") if k in exact}))
-            builder.shutdown(wait=False)
         if feasibility_first and self.uses_p1:
             x0 = x0.copy()
             x0[self.p1_index] = 0.0
@@ -1104,7 +1093,6 @@ class MultiphaseProblem:
         else:
             result = solve(nlp, x0, multipliers=multipliers, stall=stall, **options)
         if polish:
-            built.result()
             start = result.x if result.status == "User_Requested_Stop" else result.best()[0]
             held = self.nlp("exact")  # the phase durations held where L-BFGS left them
             held.x_lower[self.duration_index] = held.x_upper[self.duration_index] = start[self.duration_index]
@@ -1298,12 +1286,6 @@ def _period_bounds(period: float | tuple[float, float]) -> tuple[float, float]:
     return (cast(float, period), cast(float, period)) if np.isscalar(period) else cast(tuple[float, float], period)
 
 
-def _norm(vector: Any) -> Any:
-    import casadi
-
-    return casadi.norm_2(vector)
-
-
 def _same_rotation(pair: np.ndarray) -> np.ndarray:
     """(B, 3): vector parts of two [x, y, z, w] quaternions (B, 8), each normalised, subtracted."""
     first, second = pair[:, :4], pair[:, 4:]
@@ -1312,13 +1294,17 @@ def _same_rotation(pair: np.ndarray) -> np.ndarray:
 
 def _same_rotation_block(index: np.ndarray, signs: np.ndarray) -> Point:
     """`_same_rotation` of the quaternion pair x[index] (8,), each component times its sign first."""
-    def symbolic(_: Any, z: Any) -> Any:
-        import casadi
+    def slopes(pair: np.ndarray) -> np.ndarray:  # d(vector / |q|) / dq = [I 0] / |q| - vector q^T / |q|^3, per quaternion
+        out = np.empty((len(pair), 3, 8))
+        for half, sign in ((slice(0, 4), 1.0), (slice(4, 8), -1.0)):
+            quaternion = signs[half] * pair[:, half]
+            norm = np.linalg.norm(quaternion, axis=1)[:, None, None]
+            part = -quaternion[:, :3, None] * quaternion[:, None, :] / norm**3
+            part[:, :, :3] += np.eye(3) / norm
+            out[:, :, half] = sign * part * signs[half]
+        return out
 
-        z = casadi.DM(signs) * z
-        return z[:3] / _norm(z[:4]) - z[4:7] / _norm(z[4:8])
-
-    return Point(index[None], lambda pair: _same_rotation(signs * pair), 3, symbolic=symbolic)
+    return Point(index[None], lambda pair: _same_rotation(signs * pair), 3, derivative=slopes)
 
 
 @dataclass(frozen=True)
@@ -1359,6 +1345,13 @@ class _Defects:
         self.rows = (interval[:, None] * 2 * nx + r[None]).ravel()
         self.cols = cols[:, c].ravel()
         self._r, self._c = r, c
+        # Curvature: each point's weighted rate (q and slack enter nonlinearly, v through a free-flyer's R(q) v), and
+        # T with every variable the rate depends on (the defects hold h f = T f / N).
+        self._nonlinear = np.r_[problem.q_without_translation, problem.nq : nx, np.arange(nz)[problem.slack_columns[k]]]
+        self._seen = np.flatnonzero(dependence.any(axis=0))
+        rows_h, cols_h, self._local = group_pattern(index, self._nonlinear)
+        self.hessian_rows = np.concatenate([rows_h, np.full(index[:, self._seen].size, self.duration)])
+        self.hessian_cols = np.concatenate([cols_h, index[:, self._seen].ravel()])
 
     def values(self, x: np.ndarray) -> np.ndarray:
         z = x[self.index]
@@ -1387,6 +1380,19 @@ class _Defects:
         block[:, nx:, 2 * nz : 3 * nz] = eye - h / 6.0 * jb
         block[:, nx:, -1] = -(fa + 4.0 * fm + fb) / (6.0 * n_int)
         return block[:, self._r, self._c].ravel()
+
+    def hessian(self, x: np.ndarray, multipliers: np.ndarray) -> np.ndarray:
+        problem, k = self.problem, self.k
+        z, duration = x[self.index], x[self.duration]
+        h = duration / self.intervals
+        interpolation, simpson = np.moveaxis(multipliers.reshape(self.intervals, 2, problem.nx), 1, 0)
+        weights = np.zeros((len(z), problem.nx))  # of each point's rate in sum mu . defects (knots in two intervals)
+        weights[0:-1:2] -= h * (interpolation / 8.0 + simpson / 6.0)
+        weights[1::2] -= h * 4.0 * simpson / 6.0
+        weights[2::2] += h * (interpolation / 8.0 - simpson / 6.0)
+        curvature = group_hessian(lambda zz, ww: problem.rate_gradient(zz, ww, k), z, weights, self._nonlinear)
+        by_duration = problem.rate_gradient(z, weights, k) / duration
+        return np.concatenate([curvature.ravel()[self._local], by_duration[:, self._seen].ravel()])
 
 
 class _InverseDynamics:
@@ -1434,6 +1440,12 @@ class _InverseDynamics:
             start += count
         self.rows, self.cols = np.concatenate(rows), np.concatenate(cols)
         self.feet = problem.contact_points(contacts)
+        # Curvature: the rows are nonlinear in q (not a free-flyer's position) and v only.
+        self._nonlinear = np.r_[problem.q_without_translation, nq:nx]
+        patterns = [group_pattern(self.index[points], self._nonlinear) for points, *_ in self._parts]
+        self.hessian_rows = np.concatenate([rows for rows, _, _ in patterns])
+        self.hessian_cols = np.concatenate([cols for _, cols, _ in patterns])
+        self._local = [local for _, _, local in patterns]
 
     def residual(self, z: np.ndarray, feet: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
         """The rows at the block's point variables z (B, nz), row b with the feet of row b of `feet`
@@ -1447,33 +1459,68 @@ class _InverseDynamics:
     def values(self, x: np.ndarray) -> np.ndarray:
         return self.residual(x[self.index], self.feet).ravel()
 
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
+    def dense(self, z: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
+        """(B, nv, nz): the rows' Jacobian at point variables z (B, nz) with `contacts` down."""
         problem, model = self.problem, self.problem.model
         nq, nx = problem.nq, problem.nx
-        z = x[self.index]
         q = problem.configuration(z[:, :nq])
-        f_ext = problem.point_wrenches(q, z[:, self.force_columns], *self.feet, z[:, self.torque_columns])
+        f_ext = problem.point_wrenches(q, z[:, self.force_columns], *problem.contact_points([contacts]), z[:, self.torque_columns])
         by_q, by_v = (np.asarray(d) for d in lk.rnea_derivatives(model, q, z[:, nq:nx], z[:, self.a_columns], f_ext))
         jac = np.zeros((len(z), problem.nv, z.shape[1]))
         jac[:, :, nq:nx] = by_v
         jac[:, :, self.a_columns] = np.asarray(lk.crba(model, q))
         jac[:, problem.actuated, nx + np.arange(problem.nu)] = -1.0
-        forces = problem.world_forces(z[:, self.force_columns], self.forces.shape[0])
+        forces = problem.world_forces(z[:, self.force_columns], len(contacts))
         axes = slice(3 - problem.force_dims, 3)  # the world axes the force variables hold
-        values = []
-        for points, contacts, _, _ in self._parts:
-            full = kin.point_jacobians(model, q[points], [(problem.foot_body[name], problem.foot_point[name]) for name in contacts])
-            for foot in range(len(contacts)):
-                jac[points, :, self.forces[foot]] = -np.swapaxes(full[:, foot, axes], 1, 2)
-            # rnea_derivatives holds the loads in their bodies' frames; the forces are world-fixed (`force_slope`).
-            by_q[points] -= np.einsum("bcki,bckl,bclj->bij", full[:, :, :3], kin.skew(forces[points]), full[:, :, 3:])
-            for foot, name in enumerate(problem.flat_contacts(contacts)):
-                angular = np.asarray(lk.jacobian(model, q[points], problem.foot_body[name], None, "local"))
-                jac[points, :, self.torques[foot]] = -angular[:, 3:].transpose(0, 2, 1)
+        full = kin.point_jacobians(model, q, [(problem.foot_body[name], problem.foot_point[name]) for name in contacts])
+        for foot in range(len(contacts)):
+            jac[:, :, self.forces[foot]] = -np.swapaxes(full[:, foot, axes], 1, 2)
+        # rnea_derivatives holds the loads in their bodies' frames; the forces are world-fixed (`force_slope`).
+        by_q -= np.einsum("bcki,bckl,bclj->bij", full[:, :, :3], kin.skew(forces), full[:, :, 3:])
+        for foot, name in enumerate(problem.flat_contacts(contacts)):
+            angular = np.asarray(lk.jacobian(model, q, problem.foot_body[name], None, "local"))
+            jac[:, :, self.torques[foot]] = -angular[:, 3:].transpose(0, 2, 1)
         jac[:, :, :nq] = kin.raw(model, z[:, :nq], by_q)
-        for points, _, r, c in self._parts:
-            values.append(jac[points][:, r, c].ravel())
-        return np.concatenate(values)
+        return jac
+
+    def gradient(self, z: np.ndarray, weights: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
+        """weights . d rows / dz (B, nz) for weights (B, nv): `dense`'s vector product, without forming it."""
+        problem, model = self.problem, self.problem.model
+        nq, nx = problem.nq, problem.nx
+        q = problem.configuration(z[:, :nq])
+        f_ext = problem.point_wrenches(q, z[:, self.force_columns], *problem.contact_points([contacts]), z[:, self.torque_columns])
+        by_q, by_v = (np.asarray(d) for d in lk.rnea_derivatives(model, q, z[:, nq:nx], z[:, self.a_columns], f_ext))
+        out = np.zeros_like(z)
+        on_q = np.einsum("bi,bij->bj", weights, by_q)
+        out[:, nq:nx] = np.einsum("bi,bij->bj", weights, by_v)
+        out[:, self.a_columns] = np.einsum("bij,bj->bi", np.asarray(lk.crba(model, q)), weights)
+        out[:, nx + np.arange(problem.nu)] = -weights[:, problem.actuated]
+        forces = problem.world_forces(z[:, self.force_columns], len(contacts))
+        axes = slice(3 - problem.force_dims, 3)
+        full = kin.point_jacobians(model, q, [(problem.foot_body[name], problem.foot_point[name]) for name in contacts])
+        moved = np.einsum("bckj,bj->bck", full, weights)  # each foot frame's velocity under the weights
+        for foot in range(len(contacts)):
+            out[:, self.forces[foot]] = -moved[:, foot, axes]
+        on_q -= np.einsum("bck,bckl,bclj->bj", moved[:, :, :3], kin.skew(forces), full[:, :, 3:])
+        for foot, name in enumerate(problem.flat_contacts(contacts)):
+            angular = np.asarray(lk.jacobian(model, q, problem.foot_body[name], None, "local"))
+            out[:, self.torques[foot]] = -np.einsum("bkj,bj->bk", angular[:, 3:], weights)
+        out[:, :nq] = kin.raw(model, z[:, :nq], on_q[:, None, :])[:, 0]
+        return out
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        z = x[self.index]
+        return np.concatenate([self.dense(z[points], contacts)[:, r, c].ravel() for points, contacts, r, c in self._parts])
+
+    def hessian(self, x: np.ndarray, multipliers: np.ndarray) -> np.ndarray:
+        z, weights = x[self.index], multipliers.reshape(len(self.index), self.problem.nv)
+        out = []
+        for (points, contacts, _, _), local in zip(self._parts, self._local):
+            def gradient(zz: np.ndarray, ww: np.ndarray, contacts: Sequence[str] = contacts) -> np.ndarray:
+                return self.gradient(zz, ww, contacts)
+
+            out.append(group_hessian(gradient, z[points], weights[points], self._nonlinear).ravel()[local])
+        return np.concatenate(out)
 
 
 class _Feet:
@@ -1545,6 +1592,7 @@ class _Feet:
         self.lower = np.zeros(row)
         self.upper = np.where(unilateral, problem.max_swing_height, 0.0)
         self._output, self._anchor = np.array(output), np.array(anchor_output)
+        self.hessian_rows, self.hessian_cols, self._local = group_pattern(self.index, problem.q_without_translation)
 
     def _positions(self, q: np.ndarray) -> np.ndarray:
         return self.problem.foot_positions(q, self.names).reshape(len(q), -1)
@@ -1553,13 +1601,24 @@ class _Feet:
         positions = self._positions(x[self.index]).ravel()
         return positions[self._output] - np.where(self._anchor >= 0, positions[np.maximum(self._anchor, 0)], 0.0)
 
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
+    def _slopes(self, q: np.ndarray) -> np.ndarray:
+        """(B, feet x 3, nq): the positions' Jacobian at raw q (B, nq)."""
         problem = self.problem
-        q = x[self.index]
         points = [(problem.foot_body[name], problem.foot_point[name]) for name in self.names]
-        linear = kin.point_jacobians(problem.model, problem.configuration(q), points)[:, :, :3]  # (P, feet, 3, nv)
-        jac = kin.raw(problem.model, q, linear.reshape(len(q), -1, problem.nv))
-        return self._sign * jac.ravel()[self._source]
+        linear = kin.point_jacobians(problem.model, problem.configuration(q), points)[:, :, :3]  # (B, feet, 3, nv)
+        return kin.raw(problem.model, q, linear.reshape(len(q), -1, problem.nv))
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        return self._sign * self._slopes(x[self.index]).ravel()[self._source]
+
+    def hessian(self, x: np.ndarray, multipliers: np.ndarray) -> np.ndarray:
+        q = x[self.index]
+        # Each row's multiplier weighs its position and, for an anchored row, minus the first point's.
+        anchored = self._anchor >= 0
+        size = len(q) * 3 * len(self.names)
+        weights = np.bincount(self._output, multipliers, minlength=size) - np.bincount(self._anchor[anchored], multipliers[anchored], minlength=size)
+        curvature = group_hessian(weighted(self._slopes), q, weights.reshape(len(q), -1), self.problem.q_without_translation)
+        return curvature.ravel()[self._local]
 
 
 def _input_power(loss: float) -> tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.ndarray]]:
@@ -1571,8 +1630,3 @@ def _input_power(loss: float) -> tuple[Callable[[np.ndarray], np.ndarray], Calla
         return np.stack([2.0 * loss * z[:, 0] + z[:, 1], z[:, 0]], axis=1)[:, None, :]
 
     return power, slopes
-
-
-def _input_power_symbolic(loss: float) -> Callable[[Any, Any], Any]:
-    """`_input_power` on a casadi point (u, w)."""
-    return lambda _, z: loss * z[0] ** 2 + z[0] * z[1]

@@ -1,28 +1,19 @@
 """One small interface to a sparse NLP solver: IPOPT as bundled in the casadi wheel (pip alone installs it).
 
 The NLP is given as NumPy callbacks (objective, gradient, constraints, Jacobian values on a fixed sparsity
-pattern), which casadi carries to IPOPT through `casadi.Callback`s so the model's dynamics stay in legkit's
-batched kernels; the Hessian is then IPOPT's L-BFGS approximation (the callbacks give first derivatives
-only). An NLP may also carry a symbolic form (`NLP.symbolic`: casadi x, f(x), g(x), see
-`legkit.optimize.symbolic`), which IPOPT then uses with exact first and second derivatives, assembled point
-by point from compiled pieces (`legkit.optimize.pointwise`);
-the callbacks still define the problem (violations are re-evaluated by them).
+pattern, and optionally the Hessian of the Lagrangian on its own pattern), which casadi carries to IPOPT through
+`casadi.Callback`s, so every function of the robot stays in legkit's batched kernels; without a Hessian, IPOPT
+approximates it by L-BFGS.
 """
 
 from __future__ import annotations
 
-import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
-
-from legkit.optimize import pointwise
-
-if TYPE_CHECKING:
-    from legkit.optimize.symbolic import Transcription
 
 Progress = Callable[[int, float, float], None]
 
@@ -36,7 +27,9 @@ WARM_START = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-6, "wa
 @dataclass
 class NLP:
     """min f(x) s.t. x_lower <= x <= x_upper, g_lower <= g(x) <= g_upper, with the Jacobian of g given as
-    values on the fixed pattern (jac_rows, jac_cols) (no duplicate entries)."""
+    values on the fixed pattern (jac_rows, jac_cols) (no duplicate entries), and optionally hessian(x,
+    objective_factor, multipliers): the lower triangle of the Hessian of objective_factor f + multipliers . g on
+    (hess_rows, hess_cols) (rows >= cols, no duplicates)."""
 
     x_lower: np.ndarray
     x_upper: np.ndarray
@@ -48,7 +41,9 @@ class NLP:
     jacobian: Callable[[np.ndarray], np.ndarray]
     jac_rows: np.ndarray
     jac_cols: np.ndarray
-    symbolic: Transcription | None = None  # the same NLP in casadi MX: exact derivatives, exact Hessian
+    hessian: Callable[[np.ndarray, float, np.ndarray], np.ndarray] | None = None
+    hess_rows: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    hess_cols: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @property
     def n(self) -> int:
@@ -126,7 +121,7 @@ def solve(
     nlp: NLP, x0: np.ndarray, *, tol: float = 1e-6, max_iter: int = 3000, progress: Progress | None = None,
     options: dict | None = None, multipliers: tuple[np.ndarray, np.ndarray] | None = None, stall: tuple[int, float] | None = None,
 ) -> SolveResult:
-    """Solve `nlp` from x0 with IPOPT (L-BFGS Hessian, MUMPS). progress(iteration, objective, violation) is
+    """Solve `nlp` from x0 with IPOPT (MUMPS; the NLP's Hessian, or L-BFGS without one). progress(iteration, objective, violation) is
     called once per IPOPT iteration. options: extra IPOPT options (without the "ipopt." prefix). multipliers:
     (bound, constraint) multipliers to start from with x0, e.g. a neighbouring problem's
     `SolveResult.multipliers`: a primal-dual warm start with `WARM_START`'s options (options override them).
@@ -209,7 +204,46 @@ def solve(
             self.jacobian_callback = Jacobian(name, opts)  # casadi holds a raw reference; keep it alive
             return self.jacobian_callback
 
-    solver, state = _casadi_solver(ca, nlp, _ipopt_options(nlp, tol, max_iter, options), Functions)
+    hessian = None
+    if nlp.hessian is not None:  # casadi stores the upper triangle column-compressed: IPOPT's lower one transposed
+        hessian_pattern = ca.Sparsity.triplet(n, n, nlp.hess_cols.tolist(), nlp.hess_rows.tolist())
+        hessian_order = np.lexsort((nlp.hess_cols, nlp.hess_rows))
+        curvature = timer(nlp.hessian)
+
+        class Hessian(ca.Callback):
+            def __init__(self) -> None:
+                ca.Callback.__init__(self)
+                self.construct("legkit_hessian", {})
+
+            def get_n_in(self) -> int:
+                return 4
+
+            def get_n_out(self) -> int:
+                return 1
+
+            def get_name_in(self, i: int) -> str:
+                return ["x", "p", "lam_f", "lam_g"][i]
+
+            def get_name_out(self, i: int) -> str:
+                return "triu_hess_gamma_x_x"
+
+            def get_sparsity_in(self, i: int) -> Any:
+                return [ca.Sparsity.dense(n, 1), ca.Sparsity(0, 1), ca.Sparsity.dense(1, 1), ca.Sparsity.dense(m, 1)][i]
+
+            def get_sparsity_out(self, i: int) -> Any:
+                return hessian_pattern
+
+            def eval(self, arg: Any) -> list[Any]:
+                values = curvature(np.asarray(arg[0]).ravel(), float(arg[2]), np.asarray(arg[3]).ravel())
+                return [ca.DM(hessian_pattern, values[hessian_order])]
+
+        hessian = Hessian()
+    ipopt = {"tol": tol, "constr_viol_tol": tol, "max_iter": max_iter, "print_level": 0, "sb": "yes", "mu_strategy": "adaptive",
+             # MUMPS with METIS ordering: the amble's constraint stage from the reference at seven speeds took 23-44
+             # iterations (1.9-3.5 s) against 19-200+ (2.6-28+ s) with the default ordering (docs/optimize.md).
+             "mumps_pivot_order": 5, **({} if hessian is not None else {"hessian_approximation": "limited-memory"}), **(options or {})}
+    state: dict = {}
+    solver = _build(ca, nlp, ipopt, state, Functions(), hessian)
     history: list[tuple[int, float, float]] = []
     best: list[tuple[int, float, np.ndarray] | None] = [None]
     state.update(history=history, best=best, progress=progress, tol=tol, nlp=nlp, stall=stall)
@@ -219,50 +253,10 @@ def solve(
     if timer.error is not None:
         raise timer.error
     stats = solver.stats()
-    evaluation = timer.seconds
-    if nlp.symbolic is not None:  # casadi times its own evaluations of f, g and their derivatives
-        evaluation = sum(stats.get(f"t_wall_{name}", 0.0) for name in ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l", "nlp_grad"))
     x = np.asarray(result["x"]).ravel()
     return SolveResult(x, float(result["f"]), stats["return_status"], bool(stats["success"]), int(stats["iter_count"]),
-                       wall, evaluation, nlp.violation(x), history, best[0], tol,
+                       wall, timer.seconds, nlp.violation(x), history, best[0], tol,
                        (np.asarray(result["lam_x"]).ravel(), np.asarray(result["lam_g"]).ravel()))
-
-
-def prepare(nlp: NLP, *, tol: float = 1e-6, max_iter: int = 3000, options: dict | None = None) -> None:
-    """Build and keep the IPOPT solver of a symbolic NLP (`NLP.symbolic`) that `solve` with the same arguments
-    uses. Building it mostly runs outside the GIL (casadi's expansion, the compiler: 1-2 s for the amble once its
-    pieces are compiled, 30 s more on a machine's first solve), so a thread can build the next stage's solver
-    while another solve runs."""
-    import casadi as ca
-
-    if nlp.symbolic is None:
-        raise ValueError("prepare builds the solver of an NLP with a symbolic form (nlp.symbolic is None)")
-    _casadi_solver(ca, nlp, _ipopt_options(nlp, tol, max_iter, options), None)
-
-
-def _ipopt_options(nlp: NLP, tol: float, max_iter: int, options: dict | None) -> dict:
-    # MUMPS with METIS ordering: the amble's constraint stage from the reference at seven speeds took 23-44
-    # iterations (1.9-3.5 s) against 19-200+ (2.6-28+ s) with the default ordering (docs/optimize.md).
-    ipopt = {"tol": tol, "constr_viol_tol": tol, "max_iter": max_iter, "print_level": 0, "sb": "yes", "mu_strategy": "adaptive",
-             "mumps_pivot_order": 5}
-    if nlp.symbolic is None:
-        ipopt["hessian_approximation"] = "limited-memory"
-    ipopt.update(options or {})
-    return ipopt
-
-
-def _casadi_solver(ca: Any, nlp: NLP, ipopt: dict, Functions: type | None) -> tuple[Any, dict]:
-    """(casadi solver, its iteration callback's state) for nlp with these IPOPT options; a symbolic NLP's is
-    built once (SX expansion, `pointwise.derivatives`: seconds) and kept."""
-    if nlp.symbolic is None:
-        state: dict = {}
-        return _build(ca, nlp, ipopt, state, Functions), state
-    key = (id(nlp.symbolic), tuple(sorted((k, str(v)) for k, v in ipopt.items())))
-    if key not in _SOLVERS:
-        state = {}
-        solver = _build(ca, nlp, ipopt, state, Functions)
-        _keep(_SOLVERS, key, (solver, state, nlp.symbolic))  # the transcription kept with it, so its id stays its own
-    return _SOLVERS[key][:2]
 
 
 class _LastPoint:
@@ -279,25 +273,9 @@ class _LastPoint:
         return self.out
 
 
-#: Built casadi solvers of symbolic NLPs, by (transcription's id, IPOPT options): (solver, state, transcription);
-#: a continuation's stages and repeated solves of one problem (warm starts) reuse them; a few at most.
-_SOLVERS: dict = {}
-
-def _keep(cache: dict, key: Any, value: Any) -> None:
-    """cache[key] = value, dropping the oldest entries beyond a few."""
-    while len(cache) >= 4:
-        cache.pop(next(iter(cache)))
-    cache[key] = value
-
-
-#: The derivative functions of symbolic NLPs (`pointwise.derivatives`), by the transcription's id (kept with it,
-#: so the id stays its own): (transcription, {nlpsol option: function}); a few at most.
-_DERIVATIVES: dict = {}
-_DERIVATIVES_LOCK = threading.Lock()
-
-
-def _build(ca: Any, nlp: NLP, ipopt: dict, state: dict, Functions: type | None) -> Any:
-    """casadi's IPOPT solver of nlp; its iteration callback reports to `state` (history, best, progress)."""
+def _build(ca: Any, nlp: NLP, ipopt: dict, state: dict, functions: Any, hessian: Any) -> Any:
+    """casadi's IPOPT solver of nlp from its callbacks (`functions`: f and g with their derivatives; `hessian`: the
+    Hessian of the Lagrangian, or None); its iteration callback reports to `state` (history, best, progress)."""
     n, m = nlp.n, nlp.m
 
     class Iteration(ca.Callback):
@@ -343,21 +321,10 @@ def _build(ca: Any, nlp: NLP, ipopt: dict, state: dict, Functions: type | None) 
             return [int(window is not None and len(history) > window[0] and history[-1 - window[0]][1] - f < window[1])]
 
     iteration = Iteration()
-    if nlp.symbolic is None:
-        assert Functions is not None  # a callback NLP's solver is built by `solve`, which passes them
-        functions = Functions()
-        symbol = ca.MX.sym("x", n)
-        f_expr, g_expr = functions(symbol)
-        extra = {}
-    else:
-        symbol, f_expr, g_expr = nlp.symbolic.x, nlp.symbolic.f, nlp.symbolic.g
-        # f and g as one SX graph (casadi's virtual machine evaluates it without MX overhead); the Jacobian and the
-        # Hessian of the Lagrangian assembled point by point from compiled pieces (`pointwise`), built once per NLP.
-        with _DERIVATIVES_LOCK:  # a polish's solver is prepared in a thread while the first runs build theirs
-            if id(nlp.symbolic) not in _DERIVATIVES:
-                _keep(_DERIVATIVES, id(nlp.symbolic), (nlp.symbolic, pointwise.derivatives(nlp.symbolic)))
-            extra = {"expand": True, **_DERIVATIVES[id(nlp.symbolic)][1]}
+    symbol = ca.MX.sym("x", n)
+    f_expr, g_expr = functions(symbol)
+    extra = {} if hessian is None else {"hess_lag": hessian}
     solver = ca.nlpsol("legkit", "ipopt", {"x": symbol, "f": f_expr, "g": g_expr},
                        {"ipopt": ipopt, "print_time": False, "iteration_callback": iteration, "error_on_fail": False, **extra})
-    solver.keep_alive = (iteration, functions if nlp.symbolic is None else None)  # casadi holds raw references
+    solver.keep_alive = (iteration, functions, hessian)  # casadi holds raw references
     return solver
