@@ -382,6 +382,6 @@ def _stability_block(problem: MultiphaseProblem, k: int, term: MinMaxStability) 
     columns = np.concatenate([index[:, : problem.nx], np.full((len(index), 1), problem.p1_index)], axis=1)
     if term.smooth:
         margin, rows, derivative = _smooth_margin(problem, k, term)
-        return Point(columns, margin, rows, 0.0, np.inf, derivative=derivative, nonlinear=np.arange(problem.nq))
+        return Point(columns, margin, rows, 0.0, np.inf, derivative=derivative, nonlinear=problem.q_without_translation)
     nx = problem.nx
     return Point(columns, lambda z: (published_stability(problem, k, term, z) - z[:, nx])[:, None], 1, 0.0, np.inf)

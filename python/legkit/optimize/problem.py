@@ -779,22 +779,30 @@ class MultiphaseProblem:
         if not swing:
             return []
         nq, nv, intervals = self.nq, self.nv, self.phases[k].intervals
-        q_columns = np.arange(2 if self.model.floating_base else 0, nq)  # a height is the same wherever in x, y
+        # The swing feet's chains: a height is the same wherever in x, y and whatever the other legs do.
+        ancestors, q_body, v_body = self.tree()
+        chain = list(set().union(*(ancestors[self.foot_body[n]] for n in swing)))
+        q_columns = np.flatnonzero(np.isin(q_body, chain))
+        q_columns = q_columns[q_columns >= (2 if self.model.floating_base else 0)]
+        v_columns = np.flatnonzero(np.isin(v_body, chain))
         index = self.point_index[k]
-        groups = np.concatenate([index[0:-1:2][:, q_columns], index[0:-1:2, nq : nq + nv], index[2::2][:, q_columns],
-                                 index[2::2, nq : nq + nv], np.full((intervals, 1), self.duration_index[k])], axis=1)
-        c = len(q_columns)
-        spans = ((0, c), (c, c + nv), (c + nv, 2 * c + nv), (2 * c + nv, 2 * (c + nv)))  # q0, v0, q1, v1; then the duration
+        groups = np.concatenate([index[0:-1:2][:, q_columns], index[0:-1:2][:, nq + v_columns], index[2::2][:, q_columns],
+                                 index[2::2][:, nq + v_columns], np.full((intervals, 1), self.duration_index[k])], axis=1)
+        c, cv = len(q_columns), len(v_columns)
+        spans = ((0, c), (c, c + cv), (c + cv, 2 * c + cv), (2 * c + cv, 2 * (c + cv)))  # q0, v0, q1, v1; then the duration
         basis = [hermite_basis(s) for s in self.CLEARANCE_FRACTIONS]
 
-        def full(q: np.ndarray) -> np.ndarray:  # x, y = 0
-            out = np.zeros((len(q), nq))
-            out[:, q_columns] = q
+        def full(part: np.ndarray, columns: np.ndarray = q_columns, size: int = nq) -> np.ndarray:  # zero elsewhere
+            out = np.zeros((len(part), size))
+            out[:, columns] = part
             return out
 
-        def heights(g: np.ndarray) -> np.ndarray:
+        def states(g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
             q0, v0, q1, v1 = (g[:, a:b] for a, b in spans)
-            q0, q1, h = full(q0), full(q1), g[:, -1:] / intervals
+            return full(q0), full(v0, v_columns, nv), full(q1), full(v1, v_columns, nv), g[:, -1:] / intervals
+
+        def heights(g: np.ndarray) -> np.ndarray:
+            q0, v0, q1, v1, h = states(g)
             r0, r1 = h * self.q_rate(q0, v0), h * self.q_rate(q1, v1)
             q = np.stack([b[0] * q0 + b[1] * r0 + b[2] * q1 + b[3] * r1 for b in basis], axis=1)  # (B, fractions, nq)
             return self.foot_positions(q, swing)[..., 2].reshape(len(g), -1)
@@ -804,9 +812,9 @@ class MultiphaseProblem:
         def height_gradient(g: np.ndarray, weights: np.ndarray) -> np.ndarray:
             """weights (B, fractions x swing) . d heights / dg (B, columns), through q_s = b0 q0 + b1 h rate0 + b2 q1
             + b3 h rate1 at each fraction."""
-            q0, v0, q1, v1 = (g[:, a:b] for a, b in spans)
-            q0, q1, h = full(q0), full(q1), g[:, -1:] / intervals
+            q0, v0, q1, v1, h = states(g)
             (dq0, dv0), (dq1, dv1) = kin.q_rate_derivatives(self.model, q0, v0), kin.q_rate_derivatives(self.model, q1, v1)
+            dv0, dv1 = dv0[:, :, v_columns], dv1[:, :, v_columns]
             rate0, rate1 = self.q_rate(q0, v0), self.q_rate(q1, v1)
             out = np.zeros_like(g)
             for f, b in enumerate(basis):
@@ -1345,9 +1353,10 @@ class _Defects:
         self.rows = (interval[:, None] * 2 * nx + r[None]).ravel()
         self.cols = cols[:, c].ravel()
         self._r, self._c = r, c
-        # Curvature: each point's weighted rate (q and slack enter nonlinearly, v through a free-flyer's R(q) v), and
-        # T with every variable the rate depends on (the defects hold h f = T f / N).
-        self._nonlinear = np.r_[problem.q_without_translation, problem.nq : nx, np.arange(nz)[problem.slack_columns[k]]]
+        # Curvature: each point's weighted rate, linear in v, a and the slack for a given q (v + J_c(q)^T slack enters
+        # R(q) v_lin, q (x) w and the joint rates linearly), so differenced along q alone; and T with every variable
+        # the rate depends on (the defects hold h f = T f / N).
+        self._nonlinear = problem.q_without_translation
         self._seen = np.flatnonzero(dependence.any(axis=0))
         rows_h, cols_h, self._local = group_pattern(index, self._nonlinear)
         self.hessian_rows = np.concatenate([rows_h, np.full(index[:, self._seen].size, self.duration)])
@@ -1440,9 +1449,10 @@ class _InverseDynamics:
             start += count
         self.rows, self.cols = np.concatenate(rows), np.concatenate(cols)
         self.feet = problem.contact_points(contacts)
-        # Curvature: the rows are nonlinear in q (not a free-flyer's position) and v only.
-        self._nonlinear = np.r_[problem.q_without_translation, nq:nx]
-        patterns = [group_pattern(self.index[points], self._nonlinear) for points, *_ in self._parts]
+        # Curvature: the rows are nonlinear in q (not a free-flyer's position) and v only; differenced along q, and
+        # d2/dv2 (C(q, v) v is quadratic in v) from `lk.rnea_second_order_derivatives`.
+        self._nonlinear = problem.q_without_translation
+        patterns = [group_pattern(self.index[points], np.r_[self._nonlinear, nq:nx]) for points, *_ in self._parts]
         self.hessian_rows = np.concatenate([rows for rows, _, _ in patterns])
         self.hessian_cols = np.concatenate([cols for _, cols, _ in patterns])
         self._local = [local for _, _, local in patterns]
@@ -1519,7 +1529,13 @@ class _InverseDynamics:
             def gradient(zz: np.ndarray, ww: np.ndarray, contacts: Sequence[str] = contacts) -> np.ndarray:
                 return self.gradient(zz, ww, contacts)
 
-            out.append(group_hessian(gradient, z[points], weights[points], self._nonlinear).ravel()[local])
+            curvature = group_hessian(gradient, z[points], weights[points], self._nonlinear)
+            nq, nx = self.problem.nq, self.problem.nx
+            part = z[points]
+            by_vv = lk.rnea_second_order_derivatives(self.problem.model, self.problem.configuration(part[:, :nq]), part[:, nq:nx],
+                                                     part[:, self.a_columns])[1]
+            curvature[:, nq:nx, nq:nx] += np.einsum("bi,bijk->bjk", weights[points], np.asarray(by_vv))
+            out.append(curvature.ravel()[local])
         return np.concatenate(out)
 
 
