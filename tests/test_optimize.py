@@ -21,6 +21,7 @@ from legkit.optimize import (
     joule_loss,
     specific_resistance,
 )
+from legkit.optimize.mirror import side_mirror
 from legkit.optimize.solver import solve
 from legkit.robots.quadruped import LEGS, build_quadruped
 from reference import central_jacobian
@@ -351,6 +352,42 @@ def test_min_normal_force_bounds_every_stance_normal_force_and_nothing_else():
     others = np.setdiff1d(np.arange(problem.n), normal)
     np.testing.assert_array_equal(floored_lower[others], lower[others])
     np.testing.assert_array_equal(floored_upper, upper)
+
+
+@pytest.mark.parametrize("mirrored", [False, True])
+def test_load_rate_rows_bound_every_change_of_force_and_torque_and_each_switch(mirrored):
+    # The rows |change| - rate x step, recomputed here from the unpacked (mirrored: unrolled) trajectory of a random
+    # point: within each phase between neighbouring points (step T / (2 N)); across each boundary for a foot down on
+    # both sides and the torques, and from or to zero for a landing or lifting foot (the step of the phase it is down in).
+    robot = build_quadruped()
+    feet = {leg: robot.feet[leg] for leg in LEGS}
+    phases = [Phase(("lf", "lh"), 2, (0.1, 0.5)), Phase(("lf", "rh"), 1, (0.1, 0.5))] if mirrored else \
+        [Phase(("lf", "lh"), 2, (0.1, 0.5)), Phase(("lf", "rh"), 1, (0.1, 0.5)), Phase(("rf", "rh"), 2, (0.1, 0.5))]
+    mirror = side_mirror(robot.model, {"lf": "rf", "lh": "rh"}) if mirrored else None
+    force_rate, torque_rate = 800.0, 300.0
+    plain = MultiphaseProblem(robot.model, phases, feet, [effort()], speed=0.3, mirror=mirror)
+    problem = replace(plain, max_force_rate=force_rate, max_torque_rate=torque_rate)
+    x = np.random.default_rng(4).normal(0.0, 50.0, problem.n)
+    x[problem.duration_index] = [0.2, 0.3, 0.25][: len(phases)]
+    values = problem.constraints(x)[plain.m :]  # the new rows come after the plain problem's: +change, then -change
+    rows = np.maximum(values[: len(values) // 2], values[len(values) // 2 :])
+    trajectory = problem.unroll(problem.unpack(x))
+    cycle = problem.cycle_phases()
+    expected = []
+    for k, phase in enumerate(problem.phases):  # a mirrored half's rows: its phases and boundaries, the wrap-around included
+        later, after = cycle[(k + 1) % len(cycle)], (k + 1) % len(cycle)
+        step, later_step = (trajectory.durations[j] / (2 * cycle[j].intervals) for j in (k, after))
+        force = {name: trajectory.forces[k][:, c] for c, name in enumerate(phase.contacts)}
+        landing = {name: trajectory.forces[after][0, c] for c, name in enumerate(later.contacts)}
+        expected += [np.abs(np.diff(trajectory.u[k], axis=0)).ravel() - torque_rate * step,
+                     np.abs(trajectory.u[after][0] - trajectory.u[k][-1]) - torque_rate * step]
+        expected += [np.abs(np.diff(f, axis=0)).ravel() - force_rate * step for f in force.values()]
+        for name in set(phase.contacts) | set(later.contacts):
+            last = force[name][-1] if name in force else 0.0
+            expected.append(np.abs(landing.get(name, 0.0) - last) - force_rate * (step if name in force else later_step))
+    np.testing.assert_allclose(np.sort(rows), np.sort(np.concatenate([np.ravel(e) for e in expected])), rtol=1e-12, atol=1e-9)
+    with pytest.raises(ValueError, match="max_force_rate must be > 0"):
+        replace(plain, max_force_rate=0.0)
 
 
 @pytest.mark.parametrize("change, message", [

@@ -36,7 +36,7 @@ from legkit.robots.biped import SIDES, Biped
 from legkit.robots.quadruped import LEGS, Quadruped
 
 #: IPOPT options for the amble: the monotone barrier update (the adaptive one drove mu to 1e-11 within a few
-#: iterations of the J_s2 stage and then crawled along the constraints; docs/optimize.md).
+#: iterations of the J_s2 stage and then crawled along the constraints).
 AMBLE_IPOPT = {"mu_strategy": "monotone"}
 
 #: Derivatives for the amble's L-BFGS runs before the polish: L-BFGS on legkit's exact Jacobian reached a higher
@@ -44,8 +44,15 @@ AMBLE_IPOPT = {"mu_strategy": "monotone"}
 #: the exact Hessian meets the constraints in fewer iterations (20 vs 78).
 AMBLE_DERIVATIVES = "legkit"
 
+#: The amble's execution bounds (`amble_problem`), on by default: the torso's yaw within 10 deg (J_s2 alone yawed it by
+#: +-56 deg), no foot's load changing by more than 10 % of the body weight per millisecond (J_s2 alone moved 43-68 %
+#: of it between feet at a switch instantaneously), and each torque rising from zero to stall in no less than 20 ms.
+AMBLE_MAX_YAW = np.radians(10.0)
+AMBLE_MAX_LOAD_RATE = 100.0  # [body weights / s]
+AMBLE_TORQUE_RISE = 0.02  # [s]
+
 #: The amble is transcribed as a mirrored half cycle by default: with the polish's durations held first it
-#: converges 2-6x faster than its whole cycle, to the same worst-case S_H (docs/optimize.md).
+#: converges 2-6x faster than its whole cycle, to the same worst-case S_H.
 AMBLE_MIRROR = True
 
 #: The amble's support pairs in time order from t = 0 (file 003, Sect. 4.2).
@@ -68,7 +75,8 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
                   motor: MotorParameters, friction: float = 0.8, duration_range: tuple[float, float] = (0.5, 1.5),
                   max_tilt: float = np.radians(15.0), joint_range: tuple[float, float, float] = (0.35, 1.8, 2.6),
                   max_swing_height: float = 0.06, max_impulse: float = np.inf, mirror: bool = False,
-                  min_normal_force: float = 0.0, torque_margin: float = 0.0) -> MultiphaseProblem:
+                  min_normal_force: float = 0.0, torque_margin: float = 0.0, max_yaw: float = AMBLE_MAX_YAW,
+                  max_load_rate: float = AMBLE_MAX_LOAD_RATE, torque_rise: float = AMBLE_TORQUE_RISE) -> MultiphaseProblem:
     """The amble at `speed` [m/s] over a fixed `period` [s]; each phase lasts between duration_range x period / 4.
     The state bounds of Sect. 2.3 keep the torso above the ground and its roll and pitch within about
     max_tilt [rad] (|q_x|, |q_y| <= sin(max_tilt / 2)): unbounded, J_s2 pitches the torso by ~50 deg; and the
@@ -79,7 +87,11 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
     min_normal_force [N]: the stance force floor (`MultiphaseProblem`; `legkit.optimize.tracking` needs one).
     torque_margin in [0, 1): the fraction of the motors' torque (bounds and characteristic line) the plan leaves to
     feedback: headroom for `legkit.optimize.tracking`'s corrections where a plan rides the stall torque (the MPC held
-    some plans only with one and others only without; docs/optimize.md)."""
+    some plans only with one and others only without).
+    For a plan a robot can execute (`legkit.optimize.checks`): the torso's yaw within about max_yaw [rad] (|q_z| <=
+    sin(max_yaw / 2)); every foot's load changing by at most max_load_rate body weights per second, support switches
+    included (`MultiphaseProblem.max_force_rate`); each torque by at most its stall torque per torque_rise [s]
+    (`max_torque_rate`). np.inf switches a bound off."""
     if not 0.0 <= torque_margin < 1.0:
         raise ValueError(f"torque_margin must be in [0, 1), got {torque_margin}")
     quarter = period / 4.0
@@ -90,6 +102,7 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
     nu = robot.model.nv - 6
     upper = np.full(robot.model.nq, np.inf)
     upper[3:5] = np.sin(0.5 * max_tilt)
+    upper[5] = np.sin(0.5 * min(max_yaw, np.pi))
     lower = -upper
     lower[2] = 0.02
     roll, pitch, knee = joint_range
@@ -98,10 +111,15 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
         bend = robot.parameters.knee_direction[leg]
         lower[joints : joints + 3] = [-roll, -pitch, min(0.0, bend * knee)]
         upper[joints : joints + 3] = [roll, pitch, max(0.0, bend * knee)]
+    if not (max_yaw > 0.0 and max_load_rate > 0.0 and torque_rise >= 0.0):
+        raise ValueError(f"max_yaw and max_load_rate must be > 0 and torque_rise >= 0, got {max_yaw}, {max_load_rate}, {torque_rise}")
+    bounds = stall_torque_bounds(motor, nu, 1.0 - torque_margin)
+    weight = robot.model.total_mass * float(np.linalg.norm(robot.model.gravity))
     return MultiphaseProblem(robot.model, phases, {leg: robot.feet[leg] for leg in LEGS}, objectives, speed=speed, period=period,
-                             friction=friction, u_bounds=stall_torque_bounds(motor, nu, 1.0 - torque_margin), torque_speed=line,
+                             friction=friction, u_bounds=bounds, torque_speed=line,
                              q_bounds=(lower, upper), max_swing_height=max_swing_height, max_impulse=max_impulse,
-                             min_normal_force=min_normal_force,
+                             min_normal_force=min_normal_force, max_force_rate=max_load_rate * weight,
+                             max_torque_rate=float(bounds[1][0]) / torque_rise if torque_rise > 0.0 else np.inf,
                              mirror=side_mirror(robot.model, {"lf": "rf", "lh": "rh"}) if mirror else None)
 
 
@@ -118,7 +136,7 @@ WALK_SUPPORT = (("l", "r"), ("l",), ("l", "r"), ("r",))
 SOLE_TORSION = 0.04
 
 #: IPOPT options for the walk's J_e1 stage: the monotone barrier update (exact Hessian, from the same feasible
-#: point: adaptive reached J_e1 13.6 J/m in 300 iterations, monotone 8.7 J/m in 190; docs/optimize.md).
+#: point: adaptive reached J_e1 13.6 J/m in 300 iterations, monotone 8.7 J/m in 190).
 WALK_IPOPT = {"mu_strategy": "monotone"}
 
 #: Derivatives for the walk's J_e1 stage: L-BFGS on the exact Jacobian converged (578 iterations, 32.8 s, J_e1 5.44
@@ -127,7 +145,7 @@ WALK_DERIVATIVES = "legkit"
 
 #: The walk is transcribed over its whole cycle by default: its mirrored half (28 s instead of 40 s) holds the
 #: torso's roll at its bound on the quaternion's x, and the mirror image, scaled to the quaternion norm the
-#: collocation drifted to over the half (1.0017), exceeds that bound by 1.5e-4 in the whole cycle (docs/optimize.md).
+#: collocation drifted to over the half (1.0017), exceeds that bound by 1.5e-4 in the whole cycle.
 WALK_MIRROR = False
 
 

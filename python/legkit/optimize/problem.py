@@ -55,18 +55,18 @@ DERIVATIVES = ("legkit", "exact")
 
 #: IPOPT's initial barrier parameter for `MultiphaseProblem.solve(polish=True)`. From the amble's point after
 #: 600 L-BFGS J_s2 iterations the exact Hessian converged in 56 iterations with it; from the constraint
-#: stage's point, in 326 (docs/optimize.md).
+#: stage's point, in 326.
 POLISH_MU_INIT = 1e-6
 
 
 #: `MultiphaseProblem.solve(polish=True)` ends the L-BFGS run on the objective once its best point has improved
 #: by less than this (second) over this many (first) iterations, and polishes from there: L-BFGS on the amble's
-#: J_s2 either climbs quickly and then slowly, or crawls (p1 +1.5e-7 per iteration); measured in docs/optimize.md.
+#: J_s2 either climbs quickly and then slowly, or crawls (p1 +1.5e-7 per iteration).
 POLISH_SWITCH = (20, 5e-3)
 
 #: `MultiphaseProblem.refine` holds J_s2's p1 at this fraction of the coarse optimum's. The 0.67 m/s amble (3 N
 #: floor, mu 0.6) from 4 onto 16 intervals per phase: 0.1, 0.2, 0.3 converged in 55, 40, 54 iterations (S_H min
-#: 0.042, 0.044, 0.063); 0.5 and 0.8 did not in 300 (docs/optimize.md).
+#: 0.042, 0.044, 0.063); 0.5 and 0.8 did not in 300.
 REFINE_STABILITY = 0.2
 
 
@@ -164,10 +164,12 @@ class MultiphaseProblem:
     `FlatFoot` soles by foot name (eq. 6; needs force_dims 3). q/v/u_bounds: (lower, upper) arrays.
     max_impulse: a bound [N s] on every component of every touchdown impulse (eq. 7, the impulse variables); 0
     makes every touchdown soft, the landing feet arriving at rest and v continuous (a gait whose impacts carry
-    the robot's momentum cannot be replayed by joint tracking: docs/optimize.md). min_normal_force [N]: a floor
+    the robot's momentum cannot be replayed by joint tracking). min_normal_force [N]: a floor
     on every stance foot's normal force at every point (eq. 5 with a margin: the min-max S_H optimum otherwise
     balances on one foot of two, leaving a tracking controller nothing to push with on the other).
-    objectives: terms from `legkit.optimize.objectives`, summed.
+    objectives: terms from `legkit.optimize.objectives`, summed. max_force_rate [N/s], max_torque_rate [N m/s]:
+    bounds on how fast the foot forces and the torques change, across phase boundaries too (a lifting foot unloads,
+    a landing foot loads, within the half interval beside the switch): `load_rate_blocks`.
     """
 
     model: lk.Model
@@ -194,6 +196,8 @@ class MultiphaseProblem:
     min_normal_force: float = 0.0  # [N] floor on every stance normal force
     flat_feet: Mapping[str, FlatFoot] = field(default_factory=dict)
     mirror: Mirror | None = None
+    max_force_rate: float = np.inf  # [N/s] on every component of every stance foot's force (`load_rate_blocks`)
+    max_torque_rate: float = np.inf  # [N m/s] on every actuated torque (`load_rate_blocks`)
 
     def __post_init__(self) -> None:
         self._validate()
@@ -267,6 +271,9 @@ class MultiphaseProblem:
             raise ValueError(f"max_impulse must be >= 0, got {self.max_impulse}")
         if not 0.0 <= self.min_normal_force < np.inf:
             raise ValueError(f"min_normal_force must be finite and >= 0, got {self.min_normal_force}")
+        for name in ("max_force_rate", "max_torque_rate"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"{name} must be > 0 (inf: unbounded), got {getattr(self, name)}")
         if not self.friction > 0.0:
             raise ValueError(f"friction must be > 0, got {self.friction}")
         if self.input_power is not None:
@@ -637,6 +644,7 @@ class MultiphaseProblem:
             first = self.point_index[0][0]
             blocks.append(Point(first[None, 3:7], lambda quat: np.sum(quat * quat, axis=1, keepdims=True) - 1.0, 1,
                                 derivative=lambda quat: 2.0 * quat[:, None, :]))
+        blocks.extend(self.load_rate_blocks())
         if self.torque_speed is not None and nu:
             blocks.extend(self._torque_speed_blocks())
         if self.input_power is not None and nu:
@@ -687,8 +695,8 @@ class MultiphaseProblem:
         `_Feet`): J_c v = 0 and J_c a + dJ_c/dt v = 0 (`lk.point_accelerations`) for each foot's `contact_rows`,
         one block each per foot over its leg's and the base's columns. With the midpoints freed by the slack
         (`rate`), this is DIRCON's form of the contact constraint (Posa, Kuindersma & Tedrake 2016). Held at
-        position level at every point instead, the forces were free to alternate between knots and midpoints
-        (docs/optimize.md). A knot's velocity is stated once: not at a phase's first knot (the impact map or the
+        position level at every point instead, the forces were free to alternate between knots and midpoints.
+        A knot's velocity is stated once: not at a phase's first knot (the impact map or the
         previous phase's last knot states it), nor at its last for a foot that stays down through a soft
         touchdown (max_impulse 0: v is continuous there, and the impact map states it), nor where
         `initial`/`final` fix the state."""
@@ -773,7 +781,7 @@ class MultiphaseProblem:
         at `CLEARANCE_FRACTIONS` of every interval, on the state's Hermite cubic through the interval's knots
         with their rates [dq/dt] scaled by the interval's length (the curve `legkit.optimize.replay` samples).
         At the points alone, the converged amble's swing feet dipped up to 11 mm below the ground between them,
-        and a replay stumbled on them (docs/optimize.md)."""
+        and a replay stumbled on them."""
         contacts = self.phases[k].contacts
         swing = [n for n in self.foot_names + list(self.sole_points) if self.sole_points.get(n, n) not in contacts]
         if not swing:
@@ -941,6 +949,68 @@ class MultiphaseProblem:
         return Point(index, lambda z: self.impact_rows(signs * z, contacts), nv + len(self.impulse_index[k]),
                      derivative=lambda z: self.impact_derivative(signs * z, contacts) * signs, nonlinear=self.q_without_translation)
 
+    def load_rate_blocks(self) -> list[Block]:
+        """|x(t_p+1) - x(t_p)| <= rate (t_p+1 - t_p) between neighbouring points for every component x of every
+        stance foot's force (max_force_rate) and every actuated torque (max_torque_rate): linear rows in x and the
+        phase's duration (t_p+1 - t_p = T / (2 N)). At a phase boundary, where two points share one instant, a foot
+        down on both sides keeps its force within one half interval's change, a lifting foot's force at its last
+        point and a landing foot's at its first are within one half interval's change of zero (the load moves
+        between feet over the half intervals beside the switch, not at once), and the torques likewise."""
+        terms: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []  # a, its sign, b, phase, c
+
+        def add(a: np.ndarray, b: np.ndarray | None, k: int, rate: float, a_sign: np.ndarray | float = 1.0) -> None:
+            """Rows |a_sign x[a] - x[b]| <= rate T_k / (2 N_k) (b None: |a_sign x[a]|), elementwise over a."""
+            a = np.ravel(a)
+            b_index = np.full(len(a), -1) if b is None else np.ravel(b)
+            terms.append((a, np.broadcast_to(np.asarray(a_sign, dtype=np.float64), a.shape).ravel(), b_index,
+                          np.full(len(a), k), np.full(len(a), rate / (2.0 * self.phases[k].intervals))))
+
+        count = len(self.phases)
+        nx, nu = self.nx, self.nu
+
+        def forces(k: int, point: int, name: str) -> np.ndarray:
+            contacts = list(self.phases[k].contacts)
+            own = self.point_index[k][point, self.force_columns[k]].reshape(len(contacts), self.force_dims)
+            return own[contacts.index(name)]
+
+        for k in range(count):
+            index = self.point_index[k]
+            if np.isfinite(self.max_torque_rate) and nu:
+                add(index[1:, nx : nx + nu], index[:-1, nx : nx + nu], k, self.max_torque_rate)
+            if np.isfinite(self.max_force_rate):
+                for name in self.phases[k].contacts:
+                    add(np.stack([forces(k, p, name) for p in range(1, len(index))]),
+                        np.stack([forces(k, p, name) for p in range(len(index) - 1)]), k, self.max_force_rate)
+            if k == count - 1 and not self.periodic:
+                continue
+            after = (k + 1) % count
+            wrapped = after == 0 and self.mirror is not None
+            start = self._start_seen_from(k)
+            if np.isfinite(self.max_torque_rate) and nu:
+                add(start.u, self.point_index[k][-1, nx : nx + nu], k, self.max_torque_rate, start.u_sign)
+            if not np.isfinite(self.max_force_rate):
+                continue
+            sign = np.array([1.0, -1.0, 1.0])[3 - self.force_dims :] if wrapped else 1.0  # a mirrored force's y flips
+            before, later = self.phases[k].contacts, self.contacts_after(k)
+            for name in set(before) | set(later):
+                own = self.mirror.feet[name] if wrapped and self.mirror is not None else name  # its name in phase `after`
+                if name in before and name in later:
+                    add(forces(after, 0, own), forces(k, len(self.point_index[k]) - 1, name), k, self.max_force_rate, sign)
+                elif name in before:
+                    add(forces(k, len(self.point_index[k]) - 1, name), None, k, self.max_force_rate)
+                else:
+                    add(forces(after, 0, own), None, after, self.max_force_rate)
+        if not terms:
+            return []
+        a, a_sign, b, phase, c = (np.concatenate(part) for part in zip(*terms))
+        size, paired = len(a), np.flatnonzero(b >= 0)
+        rows = np.concatenate([np.arange(size), paired, np.arange(size)])
+        cols = np.concatenate([a, b[paired], self.duration_index[phase]])
+        coefficients = np.concatenate([a_sign, -np.ones(len(paired)), -c])
+        flip = np.r_[-np.ones(len(cols) - size), np.ones(size)]  # difference - c T <= 0, then -difference - c T <= 0
+        return [Linear(size, rows, cols, coefficients, lower=-np.inf, upper=0.0),
+                Linear(size, rows, cols, coefficients * flip, lower=-np.inf, upper=0.0)]
+
     def _torque_speed_blocks(self) -> list[Block]:
         """(w_max - |w|) k - |u| >= 0 as four linear faces per actuated joint and point."""
         line = self.torque_speed
@@ -1072,8 +1142,8 @@ class MultiphaseProblem:
         barrier parameter (`POLISH_MU_INIT`), each within polish_max_iter iterations (the L-BFGS runs take options'
         max_iter): first with the phase durations held at that point's, then with them free, from the held run's
         point and multipliers. The durations are the slow variables: released at once, they crept to their
-        optimum over ~1000 iterations on the mirrored amble at 0.60 m/s; held first, 116 + 180 (docs/optimize.md).
-        L-BFGS keeps climbing where the exact Hessian converges (docs/optimize.md).
+        optimum over ~1000 iterations on the mirrored amble at 0.60 m/s; held first, 116 + 180.
+        L-BFGS keeps climbing where the exact Hessian converges.
         The result's iterations, times and history cover every run."""
         if polish and derivatives == "exact":
             raise ValueError("polish follows an L-BFGS solve (derivatives 'legkit'), got derivatives='exact'")
@@ -1141,7 +1211,7 @@ class MultiphaseProblem:
         stability_fraction x the coarse optimum's, so the worst-case S_H stays at least that and the run is a
         feasibility problem; other objective terms are minimised. J_s2 itself on the fine mesh took as many
         iterations from the interpolation as from the reference (16 intervals per phase: 709 against 712, ~2 min;
-        `REFINE_STABILITY`, docs/optimize.md). Options go to `legkit.optimize.solver.solve`; the result covers
+        `REFINE_STABILITY`). Options go to `legkit.optimize.solver.solve`; the result covers
         both solves."""
         if not 0.0 <= stability_fraction <= 1.0:
             raise ValueError(f"stability_fraction must be in [0, 1], got {stability_fraction}")
@@ -1158,7 +1228,7 @@ class MultiphaseProblem:
         """`result`, solved at `speed` [m/s], as a warm start at this problem's speed (`solve(problem.continued(
         result, speed))`): the travel coordinate and its rate stretched by self.speed / speed at every point, the
         multipliers kept. From the 0.60 m/s amble's optimum to 0.67 m/s: 83 iterations (8.4 s) against 136
-        (15.1 s) unstretched (docs/optimize.md)."""
+        (15.1 s) unstretched."""
         if self.travel_index is None or not self.speed > 0.0:
             raise ValueError("continued needs a problem with a travel coordinate and a positive speed")
         if not speed > 0.0:
@@ -1175,7 +1245,7 @@ class MultiphaseProblem:
     def stance_accelerations(self, x: np.ndarray) -> list[np.ndarray]:
         """Per phase (points, stance feet, 3): the world acceleration J a + dJ/dt v (`lk.point_accelerations`) of
         each stance foot's point at the point's state and accelerations a (`accelerations`). A motion holds its stance
-        feet at rest, so these are zero on it (docs/optimize.md)."""
+        feet at rest, so these are zero on it."""
         out = []
         for k, phase in enumerate(self.phases):
             z = x[self.point_index[k]]

@@ -5,7 +5,7 @@ dynamics the transcription constrains (the phase's feet held as `MultiphaseProbl
 bilaterally; the controls interpolated linearly through knot, midpoint and knot, as the replay samples them) to
 the interval's end, and compares the result with the next knot. On a mesh fine enough for the motion the
 drift is small; on the Fig. 3 amble at 4 intervals per phase the 0.47 s lateral supports drifted by up to 47 deg
-in the torso's attitude within one 0.117 s interval, against 0.8 deg at 16 intervals (docs/optimize.md)."""
+in the torso's attitude within one 0.117 s interval, against 0.8 deg at 16 intervals."""
 
 from __future__ import annotations
 

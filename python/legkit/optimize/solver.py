@@ -20,7 +20,7 @@ Progress = Callable[[int, float, float], None]
 #: IPOPT options of a primal-dual warm start (`solve(..., multipliers=)`): the start kept within 1e-6 of its bounds
 #: and a small initial barrier parameter. From the converged 0.60 m/s amble, with its multipliers, the 0.67 m/s
 #: J_s2 converged in 126 iterations (13.4 s) against 323 (42.6 s) from its point alone; mu_init 1e-6 took 280,
-#: 1e-3 and 1e-2 took 193 (docs/optimize.md).
+#: 1e-3 and 1e-2 took 193.
 WARM_START = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6, "mu_init": 1e-4}
 
 
@@ -240,7 +240,7 @@ def solve(
         hessian = Hessian()
     ipopt = {"tol": tol, "constr_viol_tol": tol, "max_iter": max_iter, "print_level": 0, "sb": "yes", "mu_strategy": "adaptive",
              # MUMPS with METIS ordering: the amble's constraint stage from the reference at seven speeds took 23-44
-             # iterations (1.9-3.5 s) against 19-200+ (2.6-28+ s) with the default ordering (docs/optimize.md).
+             # iterations (1.9-3.5 s) against 19-200+ (2.6-28+ s) with the default ordering.
              "mumps_pivot_order": 5, **({} if hessian is not None else {"hessian_approximation": "limited-memory"}), **(options or {})}
     state: dict = {}
     solver = _build(ca, nlp, ipopt, state, Functions(), hessian)
