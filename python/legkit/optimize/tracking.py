@@ -27,7 +27,7 @@ mismatch).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -333,7 +333,7 @@ class MPC:
         self.variables = len(lengths) * nu
         self._pyramid = _pyramid(model.held.shape[1], friction)
         # Every instant's QP, kept as what the solve needs: H^-1, the unconstrained minimiser, the rows.
-        qp = self.condense(np.arange(self.count))
+        qp = self.condense(np.arange(self.count), chunk=16)
         self.inverse = np.linalg.inv(qp.hessian)
         self.minimiser_state, self.minimiser = -self.inverse @ qp.gradient_state, -np.einsum("bij,bj->bi", self.inverse, qp.gradient)
         self.rows, self.row_state, self.lower, self.tolerance = qp.rows, qp.row_state, qp.lower, qp.tolerance
@@ -341,8 +341,13 @@ class MPC:
         self._working = np.zeros(0, dtype=np.int64)
         self.solved = 0
 
-    def condense(self, instants: np.ndarray) -> CondensedQP:
-        """The QP (`CondensedQP`) at each of the given control instants of the cycle, batched over them."""
+    def condense(self, instants: np.ndarray, chunk: int | None = None) -> CondensedQP:
+        """The QP (`CondensedQP`) at each of the given control instants of the cycle, batched over them (in batches of
+        `chunk` instants if given: small enough to stay in the cache)."""
+        if chunk is not None and len(instants) > chunk:
+            parts = [self.condense(part) for part in np.array_split(instants, -(-len(instants) // chunk))]
+            return CondensedQP(*(np.concatenate([getattr(part, field.name) for part in parts])
+                                 for field in fields(CondensedQP) if field.name != "tolerance"), parts[0].tolerance)
         m, count = self.model, self.count
         nu, n = m.B.shape[2], m.A.shape[1]
         instants = np.asarray(instants) % count
@@ -388,7 +393,7 @@ class MPC:
                     WT = m.cost_to_go[end] @ T[:, :, active]
                 else:
                     WT = m.state_weights[:, None] * T[:, :, active]
-                hessian[:, active, active] += np.swapaxes(T[:, :, active], 1, 2) @ WT
+                hessian[:, active, active] += np.einsum("bni,bnj->bij", T[:, :, active], WT, optimize=True)
                 gradient_state[:, active] += np.swapaxes(WT, 1, 2) @ S
                 gradient[:, active] += np.einsum("bni,bn->bi", WT, c)
         stacked = {key: np.concatenate(value, axis=1) for key, value in rows.items()}
