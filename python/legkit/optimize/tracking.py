@@ -346,8 +346,8 @@ class MPC:
         `chunk` instants if given: small enough to stay in the cache)."""
         if chunk is not None and len(instants) > chunk:
             parts = [self.condense(part) for part in np.array_split(instants, -(-len(instants) // chunk))]
-            return CondensedQP(*(np.concatenate([getattr(part, field.name) for part in parts])
-                                 for field in fields(CondensedQP) if field.name != "tolerance"), parts[0].tolerance)
+            joined: dict[str, Any] = {field.name: np.concatenate([getattr(part, field.name) for part in parts]) for field in fields(CondensedQP)}
+            return CondensedQP(**{**joined, "tolerance": parts[0].tolerance})
         m, count = self.model, self.count
         nu, n = m.B.shape[2], m.A.shape[1]
         instants = np.asarray(instants) % count
