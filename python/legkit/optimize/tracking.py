@@ -454,8 +454,10 @@ def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, f
           control_every: int = 2, friction: float = 0.8, swing_clearance: float = 0.01, model: TrackingModel | None = None,
           joint_offset: np.ndarray | None = None, plant: lk.Model | None = None, progress: bool = True, **mpc: Any) -> Replay:
     """Simulate `cycles` cycles under `MPC` (its keyword arguments in **mpc), from the plan's first state with the
-    base raised clear of the ground (`clear_of_ground`); the feet as in `replay`. model: a `TrackingModel` built
-    for this plan and control period (built here otherwise). joint_offset (nu,): added to the first state's joint
+    base raised clear of the ground (`clear_of_ground`); the feet as in `replay`. The controller acts every
+    control_every simulation steps of dt (the model's control period, dt x control_every rounded so that whole
+    periods make one cycle, sets the step). model: a `TrackingModel` built for this plan and control period (built
+    here otherwise). joint_offset (nu,): added to the first state's joint
     angles, a perturbed start. plant: the model simulated (default the plan's), e.g. one with other masses (model
     mismatch). progress: a progress bar. Stops stepping once the robot has fallen (checked every 50 control periods)."""
     if not (isinstance(control_every, (int, np.integer)) and control_every >= 1):
