@@ -226,7 +226,8 @@ def test_heavier_scales_every_body_and_nothing_else(amble):
 
 def test_bad_arguments_fail_naming_them(amble):
     problem, trajectory, model = amble
-    for kwargs, name in (({"blocks": (3, 0)}, "blocks"), ({"blocks": ()}, "blocks"), ({"friction": 0.0}, "friction"),
+    for kwargs, name in (({"blocks": (3, 0)}, "blocks"), ({"blocks": ()}, "blocks"), ({"blocks": 5}, "blocks"), ({"blocks": "66"}, "blocks"),
+                         ({"friction": 0.0}, "friction"),
                          ({"min_normal_force": -1.0}, "min_normal_force"), ({"slack_weight": np.nan}, "slack_weight"),
                          ({"swing_tolerance": -1e-3}, "swing_tolerance"),
                          ({"torque_bounds": (np.ones(problem.nu), -np.ones(problem.nu))}, "torque_bounds"),

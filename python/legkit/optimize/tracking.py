@@ -313,7 +313,8 @@ class MPC:
         plan's (`problem.u_bounds`). A plan kept inside its motors (`amble_problem(torque_margin=)`) leaves the
         difference to the correction. swing_tolerance [m]: how far below its floor a swing foot may be predicted
         before its row enters the QP."""
-        lengths = [int(b) for b in blocks] if all(isinstance(b, (int, np.integer)) for b in blocks) else []
+        sequence = isinstance(blocks, (Sequence, np.ndarray)) and not isinstance(blocks, str)
+        lengths = [int(b) for b in blocks] if sequence and all(isinstance(b, (int, np.integer)) for b in blocks) else []
         if not lengths or min(lengths) < 1:
             raise ValueError(f"blocks must be a non-empty sequence of positive integers, got {blocks}")
         for name, value, positive in (("friction", friction, True), ("slack_weight", slack_weight, True),
