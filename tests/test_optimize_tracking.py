@@ -243,6 +243,8 @@ def test_bad_arguments_fail_naming_them(amble):
         track(problem, trajectory, 1, model=model, control_every=10, plant=lk.Model(floating_base=True))
     with pytest.raises(ValueError, match="cycles"):
         track(problem, trajectory, 0, model=model, control_every=10)
+    with pytest.raises(ValueError, match="joint_offset"):
+        track(problem, trajectory, 1, model=model, control_every=10, joint_offset=np.zeros(3))
 
 
 @pytest.fixture(scope="module")

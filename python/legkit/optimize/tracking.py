@@ -479,7 +479,10 @@ def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, f
     start, start_v = model.reference(0)
     start = start.copy()
     if joint_offset is not None:
-        start[np.asarray(problem.actuated) + (problem.nq - problem.nv)] += np.asarray(joint_offset, dtype=np.float64)
+        offset = np.asarray(joint_offset, dtype=np.float64)
+        if offset.shape != (problem.nu,) or not np.all(np.isfinite(offset)):
+            raise ValueError(f"joint_offset must be {problem.nu} finite numbers, got shape {offset.shape}")
+        start[np.asarray(problem.actuated) + (problem.nq - problem.nv)] += offset
     sim.reset(clear_of_ground(problem, start, foot_radius), start_v)
     simulated = np.empty_like(planned_q)
     simulated[0] = sim.q
