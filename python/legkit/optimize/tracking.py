@@ -465,6 +465,9 @@ def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, f
         raise ValueError(f"control_every must be an integer >= 1, got {control_every}")
     if not (isinstance(cycles, (int, np.integer)) and cycles >= 1):
         raise ValueError(f"cycles must be an integer >= 1, got {cycles}")
+    offset = np.zeros(problem.nu) if joint_offset is None else np.asarray(joint_offset, dtype=np.float64)
+    if offset.shape != (problem.nu,) or not np.all(np.isfinite(offset)):
+        raise ValueError(f"joint_offset must be {problem.nu} finite numbers, got shape {offset.shape}")
     model = model if model is not None else TrackingModel.build(problem, trajectory, dt * control_every, swing_clearance)
     if not np.isclose(model.dt, dt * control_every, rtol=1e-2):
         raise ValueError(f"model: the TrackingModel's control period {model.dt} differs from dt x control_every = {dt * control_every}")
@@ -479,9 +482,6 @@ def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, f
     start, start_v = model.reference(0)
     start = start.copy()
     if joint_offset is not None:
-        offset = np.asarray(joint_offset, dtype=np.float64)
-        if offset.shape != (problem.nu,) or not np.all(np.isfinite(offset)):
-            raise ValueError(f"joint_offset must be {problem.nu} finite numbers, got shape {offset.shape}")
         start[np.asarray(problem.actuated) + (problem.nq - problem.nv)] += offset
     sim.reset(clear_of_ground(problem, start, foot_radius), start_v)
     simulated = np.empty_like(planned_q)
