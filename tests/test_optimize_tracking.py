@@ -1,17 +1,28 @@
-"""legkit.optimize.tracking: the plan's linearisation against the nonlinear contact model, the swing feet's rise,
-and the MPC's contact constraints against the unconstrained LQR's correction."""
+"""legkit.optimize.tracking: the plan's analytic linearisation against central differences of the nonlinear contact
+model, the swing feet's rise, the MPC's solution against a dense QP built and solved independently, its contact
+constraints against the unconstrained LQR's correction, and (slow) the MPC holding an optimised amble for 5 cycles,
+also with 10 % more mass in the simulated robot than in its model."""
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 import pytest
 
-from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR, build_quadruped
-from legkit.optimize import effort
-from legkit.optimize.gaits import amble_problem, amble_reference, guess_from_reference
+import legkit as lk
+from legkit.experiments.gait import AMBLE_QUADRUPED, DIAGONAL_PAIRS, QUADRUPED_MOTOR, build_quadruped
+from legkit.optimize import MinMaxStability, effort
+from legkit.optimize.gaits import (
+    AMBLE_DERIVATIVES,
+    AMBLE_IPOPT,
+    AMBLE_MIRROR,
+    amble_problem,
+    amble_reference,
+    guess_from_reference,
+    stall_torque_bounds,
+)
 from legkit.optimize.replay import phase_of
-from legkit.optimize.shooting import tangent_add, tangent_difference
-from legkit.optimize.tracking import MPC, TrackingModel, _pyramid, held_step, sampled_reference
+from legkit.optimize.tracking import MPC, TrackingModel, _pyramid, heavier, held_step, sampled_reference, track
 
 DT = 0.01  # a coarse control period keeps the linearisation short
 
@@ -21,24 +32,50 @@ def amble():
     robot = build_quadruped(AMBLE_QUADRUPED)
     problem = amble_problem(robot, [effort()], 0.67, 1.25, 2, QUADRUPED_MOTOR, max_impulse=0.0)
     trajectory = problem.unpack(problem.pack(guess_from_reference(problem, amble_reference(robot, 0.67, 1.25, 2))))
-    return problem, trajectory, TrackingModel.build(problem, trajectory, DT, progress=False)
+    return problem, trajectory, TrackingModel.build(problem, trajectory, DT)
+
+
+def _stepped(problem, model, i, x):
+    """(deviation after one control period, forces at its start) of `held_step` from the reference at sample i moved
+    by x = (dq, dv, du): the brute-force reference for the linearisation."""
+    nv = problem.nv
+    q = np.asarray(lk.integrate(problem.model, model.q[i], x[:nv], 1.0))[None]
+    tau = np.zeros((1, nv))
+    tau[0, problem.actuated] = model.u[i] + x[2 * nv :]
+    q1, v1, f = held_step(problem, model.phase[i], model.phase[i + 1], q, model.v[i][None] + x[nv : 2 * nv], tau, model.dt, 4)
+    return np.concatenate([np.asarray(lk.difference(problem.model, model.q[i + 1], q1[0])), v1[0] - model.v[i + 1]]), f[0]
+
+
+def _touchdown(model):
+    return int(np.flatnonzero(np.diff(model.phase[:-1]))[0])  # the step onto a touchdown: the impact map is in it
+
+
+def test_the_analytic_linearisation_equals_central_differences_of_the_contact_model(amble):
+    problem, _, model = amble
+    n, columns, step = 2 * problem.nv, 2 * problem.nv + problem.nu, 1e-6
+    for i in (3, 40, _touchdown(model), 100):
+        plus = [_stepped(problem, model, i, step * np.eye(columns)[c]) for c in range(columns)]
+        minus = [_stepped(problem, model, i, -step * np.eye(columns)[c]) for c in range(columns)]
+        state = np.stack([(p[0] - m[0]) / (2 * step) for p, m in zip(plus, minus)], axis=1)
+        forces = np.stack([(p[1] - m[1]) / (2 * step) for p, m in zip(plus, minus)], axis=1)
+        held = 3 * int(np.sum(model.held[i]))
+        np.testing.assert_allclose(model.residual[i], _stepped(problem, model, i, np.zeros(columns))[0], atol=1e-12)
+        np.testing.assert_allclose(np.concatenate([model.A[i], model.B[i]], axis=1), state, atol=1e-6 * max(1.0, np.abs(state).max()))
+        np.testing.assert_allclose(np.concatenate([model.force_state[i], model.force_input[i]], axis=1)[:held], forces,
+                                   atol=1e-6 * max(1.0, np.abs(forces).max()))
+        assert np.all(model.force_state[i][held:] == 0.0) and np.abs(model.A[i]).max() > 1.0
+        assert n == model.A.shape[1]
 
 
 def test_the_linearisation_predicts_the_contact_model_to_second_order(amble):
     problem, _, model = amble
     rng = np.random.default_rng(0)
-    nv, nu = problem.nv, problem.nu
-    for i in (3, 40, 62, 100):  # 62: the step onto a touchdown (the impact map is part of it)
-        direction, du = rng.normal(size=2 * nv), rng.normal(size=nu)
+    for i in (3, 40, _touchdown(model), 100):
+        x = rng.normal(size=2 * problem.nv + problem.nu)
         errors = []
         for scale in (1e-3, 5e-4):
-            e = scale * direction
-            q = tangent_add(problem, model.q[i][None], e[None, :nv])
-            tau = np.zeros((1, nv))
-            tau[0, problem.actuated] = model.u[i] + scale * du
-            q1, v1, _ = held_step(problem, model.phase[i], model.phase[i + 1], q, model.v[i][None] + e[nv:], tau, model.dt, 4)
-            actual = np.concatenate([tangent_difference(problem, problem.configuration(q1), model.q[i + 1][None])[0], v1[0] - model.v[i + 1]])
-            predicted = model.residual[i] + model.A[i] @ e + model.B[i] @ (scale * du)
+            actual, _ = _stepped(problem, model, i, scale * x)
+            predicted = model.residual[i] + model.A[i] @ (scale * x[: 2 * problem.nv]) + model.B[i] @ (scale * x[2 * problem.nv :])
             errors.append(np.linalg.norm(actual - predicted))
         assert errors[1] < 0.35 * errors[0], (i, errors)  # halving the deviation quarters the error: linear to second order
 
@@ -65,25 +102,83 @@ def test_pyramid_rows_accept_forces_inside_the_cone_and_reject_the_rest():
     assert (rows @ np.array([0.0, 0.0, -1.0, 0.0, 0.0, 5.0]))[0] < 0.0  # pulling
 
 
+def _mul(matrix: np.ndarray, x):
+    return ca.mtimes(ca.DM(matrix), x)
+
+
+def _dense_reference(mpc: MPC, i: int, e: np.ndarray) -> np.ndarray:
+    """The MPC's QP at instant i built step by step, states and slacks as variables (no condensing), solved by
+    qpOASES: the first block's correction."""
+    m, nu, n = mpc.model, mpc.model.B.shape[2], 2 * mpc.model.problem.nv
+    opti = ca.Opti("conic")
+    U = [opti.variable(nu) for _ in mpc.blocks]
+    cost, state, step = 0, ca.DM(e), 0
+    for p, length in enumerate(mpc.blocks):
+        k = (i + step) % mpc.count
+        opti.subject_to(opti.bounded(mpc.torque_lower - m.u[k], U[p], mpc.torque_upper - m.u[k]))
+        cost += 0.5 * length * ca.dot(m.torque_weights * U[p], U[p])
+        for foot in np.flatnonzero(m.held[k]):
+            rows = _pyramid(1, mpc.friction)
+            rows3 = slice(3 * foot, 3 * foot + 3)
+            force = m.forces[k, rows3] + _mul(m.force_state[k, rows3], state) + _mul(m.force_input[k, rows3], U[p])
+            slack = opti.variable(5)
+            opti.subject_to(slack >= 0)
+            opti.subject_to(_mul(rows, force) + slack >= np.array([mpc.min_normal_force, 0, 0, 0, 0]))
+            cost += 0.5 * mpc.slack_weight * ca.sumsqr(slack)
+        for _ in range(length):
+            k = (i + step) % mpc.count
+            state = _mul(m.A[k], state) + _mul(m.B[k], U[p]) + m.residual[k]
+            step += 1
+            end = (i + step) % mpc.count
+            for foot in np.flatnonzero(m.swing[end]):
+                slack = opti.variable()
+                opti.subject_to(slack >= 0)
+                h = m.heights[end, foot]
+                opti.subject_to(h + _mul(m.height_state[end, foot][None], state) + slack >= min(mpc.min_swing_height, h))
+                cost += 0.5 * mpc.slack_weight * slack**2
+            weights = m.cost_to_go[end] if step == sum(mpc.blocks) else np.diag(m.state_weights)
+            cost += 0.5 * ca.dot(state, ca.mtimes(weights, state))
+    assert n == len(e)
+    opti.minimize(cost)
+    opti.solver("qpoases", {"printLevel": "none"})
+    return np.asarray(opti.solve().value(U[0])).ravel()
+
+
+def test_the_mpc_solves_its_qp_as_a_dense_qp_solver_does(amble):
+    problem, _, model = amble
+    mpc = MPC(model, blocks=(2, 2, 4), slack_weight=1e3, swing_tolerance=0.0, torque_bounds=(-0.3 * np.ones(problem.nu), 0.3 * np.ones(problem.nu)))
+    rng = np.random.default_rng(3)
+    constrained = 0
+    for i in range(0, len(model.A), 9):
+        e = 0.05 * rng.normal(size=2 * problem.nv)
+        solved = mpc.solved
+        correction = mpc.correction(i, e)
+        constrained += mpc.solved - solved
+        np.testing.assert_allclose(correction, _dense_reference(mpc, i, e), atol=1e-6, err_msg=f"instant {i}")
+    assert constrained >= 5  # most of these needed the constrained solve, not just the unconstrained minimiser
+
+
 def test_mpc_keeps_the_predicted_forces_where_the_lqr_would_pull(amble):
     problem, _, model = amble
-    mpc = MPC(model, horizon=10, block=5, min_normal_force=0.5, friction=0.6)
+    mpc = MPC(model, blocks=(5, 5), min_normal_force=0.5, friction=0.6)
     gains = model.gains()
     rng = np.random.default_rng(1)
     checked = 0
     for i in range(0, len(model.A), 7):
         e = 0.05 * rng.normal(size=2 * problem.nv)
         lqr = -gains[i] @ e
-        pyramid = _pyramid(len(model.forces[i]) // 3, 0.6)
-        floor = np.tile([0.5, 0.0, 0.0, 0.0, 0.0], len(model.forces[i]) // 3)
+        held = int(np.sum(model.held[i]))
+        pyramid = _pyramid(held, 0.6)
+        floor = np.tile([0.5, 0.0, 0.0, 0.0, 0.0], held)
 
-        def predicted(du: np.ndarray, i: int = i, e: np.ndarray = e, pyramid: np.ndarray = pyramid, floor: np.ndarray = floor) -> np.ndarray:
-            return pyramid @ (model.forces[i] + model.force_state[i] @ e + model.force_input[i] @ du) - floor
+        def predicted(du: np.ndarray, i: int = i, e: np.ndarray = e, pyramid: np.ndarray = pyramid, floor: np.ndarray = floor,
+                      rows: int = 3 * held) -> np.ndarray:
+            return pyramid @ (model.forces[i, :rows] + model.force_state[i, :rows] @ e + model.force_input[i, :rows] @ du) - floor
 
         if np.all(predicted(np.zeros(problem.nu)) >= 0.0) and np.any(predicted(lqr) < -1e-3):
-            assert np.all(predicted(mpc.correction(i, e)) >= -1e-6), i
+            assert np.all(predicted(mpc.correction(i, e)) >= -1e-4), i  # soft rows: slack weight 1e6
             checked += 1
-    assert checked >= 3 and mpc.failures == 0
+    assert checked >= 3
 
 
 def test_mpc_corrections_stay_within_the_actuators_torque_bounds_not_the_plans(amble):
@@ -92,21 +187,17 @@ def test_mpc_corrections_stay_within_the_actuators_torque_bounds_not_the_plans(a
     problem, _, model = amble
     lower, upper = problem.u_bounds
     motors = (lower / 0.7, upper / 0.7)
-    mpc = MPC(model, horizon=10, block=5, torque_bounds=motors)
-    plain = MPC(model, horizon=10, block=5)
+    mpc = MPC(model, blocks=(5, 5), torque_bounds=motors)
+    plain = MPC(model, blocks=(5, 5))
     rng = np.random.default_rng(2)
-    solved = beyond = 0
+    beyond = 0
     for i in range(0, len(model.A), 5):
         e = 0.2 * rng.normal(size=2 * problem.nv)
-        failures = (mpc.failures, plain.failures)
         torque, planned = model.u[i] + mpc.correction(i, e), model.u[i] + plain.correction(i, e)
-        if (mpc.failures, plain.failures) != failures:  # an infeasible QP falls back to the unconstrained LQR
-            continue
-        solved += 1
-        assert np.all(torque >= motors[0] - 1e-6) and np.all(torque <= motors[1] + 1e-6), i
-        assert np.all(planned >= lower - 1e-6) and np.all(planned <= upper + 1e-6), i
+        assert np.all(torque >= motors[0] - 1e-9) and np.all(torque <= motors[1] + 1e-9), i
+        assert np.all(planned >= lower - 1e-9) and np.all(planned <= upper + 1e-9), i
         beyond += int(np.any((torque < lower - 1e-3) | (torque > upper + 1e-3)))
-    assert solved >= 10 and beyond >= 3, (solved, beyond)
+    assert beyond >= 3, beyond
 
 
 def test_torque_margin_scales_the_plans_bounds_and_characteristic_line():
@@ -121,15 +212,65 @@ def test_torque_margin_scales_the_plans_bounds_and_characteristic_line():
             amble_problem(robot, [effort()], 0.67, 1.25, 1, QUADRUPED_MOTOR, torque_margin=margin)
 
 
+def test_heavier_scales_every_body_and_nothing_else(amble):
+    problem, _, _ = amble
+    plant = heavier(problem.model, 1.1)
+    assert plant.total_mass == pytest.approx(1.1 * problem.model.total_mass, rel=1e-12)
+    body = next(b for b in range(problem.model.nbodies) if problem.model.body(b).mass > 0.0)
+    np.testing.assert_allclose(plant.body(body).inertia, 1.1 * np.asarray(problem.model.body(body).inertia), rtol=1e-12)
+    np.testing.assert_allclose(plant.body(body).com, problem.model.body(body).com)
+    assert problem.model.total_mass == pytest.approx(1.58)  # the model itself unchanged
+    with pytest.raises(ValueError, match="factor"):
+        heavier(problem.model, 0.0)
+
+
 def test_bad_arguments_fail_naming_them(amble):
     problem, trajectory, model = amble
-    with pytest.raises(ValueError, match="horizon"):
-        MPC(model, horizon=12, block=5)
-    with pytest.raises(ValueError, match="friction"):
-        MPC(model, friction=0.0)
-    with pytest.raises(ValueError, match="torque_bounds"):
-        MPC(model, torque_bounds=(np.ones(problem.nu), -np.ones(problem.nu)))
-    with pytest.raises(ValueError, match="torque_bounds"):
-        MPC(model, torque_bounds=(-np.ones(3), np.ones(3)))
-    with pytest.raises(ValueError, match="dt"):
-        TrackingModel.build(problem, trajectory, -1.0)
+    for kwargs, name in (({"blocks": (3, 0)}, "blocks"), ({"blocks": ()}, "blocks"), ({"blocks": 5}, "blocks"), ({"blocks": "66"}, "blocks"),
+                         ({"friction": 0.0}, "friction"),
+                         ({"min_normal_force": -1.0}, "min_normal_force"), ({"slack_weight": np.nan}, "slack_weight"),
+                         ({"swing_tolerance": -1e-3}, "swing_tolerance"),
+                         ({"torque_bounds": (np.ones(problem.nu), -np.ones(problem.nu))}, "torque_bounds"),
+                         ({"torque_bounds": (-np.ones(3), np.ones(3))}, "torque_bounds")):
+        with pytest.raises(ValueError, match=name):
+            MPC(model, **kwargs)
+    for kwargs, name in (({"dt": -1.0}, "dt"), ({"substeps": 0}, "substeps"), ({"swing_clearance": -0.1}, "swing_clearance")):
+        with pytest.raises(ValueError, match=name):
+            TrackingModel.build(problem, trajectory, **kwargs)
+    with pytest.raises(ValueError, match="model"):
+        track(problem, trajectory, 1, model=model, control_every=3)
+    with pytest.raises(ValueError, match="plant"):
+        track(problem, trajectory, 1, model=model, control_every=10, plant=lk.Model(floating_base=True))
+    with pytest.raises(ValueError, match="cycles"):
+        track(problem, trajectory, 0, model=model, control_every=10)
+    with pytest.raises(ValueError, match="joint_offset"):
+        track(problem, trajectory, 1, model=model, control_every=10, joint_offset=np.zeros(3))
+
+
+@pytest.fixture(scope="module")
+def optimised_amble():
+    """The README's tracking recipe: the amble solved on 4 intervals per phase with a 3 N stance-force floor at mu 0.6,
+    refined onto 16 (about 30 s)."""
+    robot = build_quadruped(AMBLE_QUADRUPED)
+
+    def amble_on(intervals: int):
+        return amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, intervals, QUADRUPED_MOTOR, 0.6,
+                             max_impulse=0.0, mirror=AMBLE_MIRROR, min_normal_force=3.0)
+
+    coarse, fine = amble_on(4), amble_on(16)
+    _, result = coarse.solve(guess_from_reference(coarse, amble_reference(robot, 0.67, 1.25, 4)), derivatives=AMBLE_DERIVATIVES,
+                             feasibility_first=True, polish=True, options=AMBLE_IPOPT)
+    _, result = fine.refine(coarse, result, options=AMBLE_IPOPT)
+    problem = fine.full_cycle()
+    trajectory = problem.unpack(problem.pack(fine.unroll(fine.unpack(result.best()[0]))))
+    return problem, trajectory, TrackingModel.build(problem, trajectory)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mass", [1.0, 1.1])
+def test_the_mpc_holds_the_optimised_amble_five_cycles(optimised_amble, mass):
+    problem, trajectory, model = optimised_amble
+    run = track(problem, trajectory, 5, model=model, plant=heavier(problem.model, mass), progress=False,
+                torque_bounds=stall_torque_bounds(QUADRUPED_MOTOR, problem.nu))
+    assert run.upright, run.fell_at
+    assert run.drift_fraction < 0.1, run.drift_fraction

@@ -517,9 +517,10 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     --coarse-intervals, J_s2 is solved on that mesh and the optimum refined onto --intervals (`MultiphaseProblem.refine`).
     Writes gait_quadruped_optimized.csv (every collocation point: t, phase, support, q, v, u, S_H) and .png
     (S_H over the period with its worst case marked, beside the reference's), then replays the gait in
-    `lk.Simulation` (joint PD tracking with --replay-kp, --replay-kd + feed-forward torques, or with --replay-controller
-    mpc the contact-constrained MPC of `legkit.optimize.tracking`) over --replay-cycles cycles and, unless
-    --no-animation, writes the replay beside the plan as .html (meshcat) and .gif."""
+    `lk.Simulation` over --replay-cycles cycles under the contact-constrained MPC of `legkit.optimize.tracking` (by
+    default; --replay-controller pd: joint PD tracking with --replay-kp, --replay-kd + feed-forward torques), saying
+    which, and, unless --no-animation, writes the replay beside the plan as .html (meshcat) and .gif, captioned with
+    the controller."""
     from legkit.optimize import MinMaxStability
     from legkit.optimize.gaits import (
         AMBLE_DERIVATIVES,
@@ -576,11 +577,18 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
                     f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}, iterate {kept} kept"
                     + (f", refined from {args.coarse_intervals} intervals" if args.coarse_intervals else ""))
     if args.replay_controller == "mpc":
+        controller = ("the contact-constrained MPC (legkit.optimize.tracking: 2 ms control period, 120 ms horizon, "
+                      "stance forces >= 0.5 N in the friction pyramid, swing feet above the ground, the motors' stall torques)")
+        print(f"replaying {args.replay_cycles} cycles in lk.Simulation under {controller}")
         simulated = track(problem, trajectory, args.replay_cycles, torque_bounds=stall_torque_bounds(QUADRUPED_MOTOR, problem.nu))
     else:
+        controller = f"joint PD tracking (kp {args.replay_kp:g} N m/rad, kd {args.replay_kd:g} N m s/rad) + the planned torques as feed-forward"
+        print(f"replaying {args.replay_cycles} cycles in lk.Simulation under {controller}")
         simulated = replay(problem, trajectory, args.replay_cycles, kp=args.replay_kp, kd=args.replay_kd, control_every=1)
     if not args.no_animation:
-        _animate_replay(args.out / "gait_quadruped_optimized", problem.model, simulated)
+        _animate_replay(args.out / "gait_quadruped_optimized", problem, simulated,
+                        "the contact-constrained MPC (2 ms, 120 ms horizon)" if args.replay_controller == "mpc"
+                        else f"joint PD (kp {args.replay_kp:g}, kd {args.replay_kd:g}) + feed-forward")
     return {
         "IPOPT iterations": result.iterations, "solve wall time [s]": result.wall_time,
         "function + Jacobian share of the solve [%]": 100.0 * result.evaluation_time / result.wall_time,
@@ -591,7 +599,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
         "S_H min, optimised [N m s]": worst, "S_H min at [s]": worst_t, "S_H min, reference [N m s]": float(reference_s_h.min()),
         **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d)
            for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
-        f"replay: drift over {args.replay_cycles} cycles [% of distance]": 100.0 * simulated.drift_fraction,
+        f"replay ({args.replay_controller}): drift over {args.replay_cycles} cycles [% of distance]": 100.0 * simulated.drift_fraction,
         "replay: stayed upright (1 = yes)": float(simulated.upright),
         "replay: fell after [s] (inf: never)": simulated.fell_at,
         "solver succeeded (1 = yes)": float(result.success),
@@ -758,17 +766,32 @@ def _write_trajectory_csv(path: Path, trajectory: Trajectory, labels: list[str],
     return columns
 
 
-def _animate_replay(stem: Path, model: lk.Model, simulated: Replay) -> None:
-    """stem.html (meshcat) and stem.gif: the replay in simulation beside the optimised plan (grey, translucent in
-    the HTML)."""
+def _animate_replay(stem: Path, problem: MultiphaseProblem, simulated: Replay, controller: str) -> None:
+    """stem.html (meshcat) and stem.gif: the replay in simulation (coloured) beside the optimised plan (grey,
+    translucent in the HTML, REPLAY_AHEAD m ahead of it), both seen from the side in a frame that moves with the
+    plan's travel (so that the robots stay large in the picture and apart), the controller named in the title."""
     from legkit import viewer
 
-    scene = viewer.Scene(title="legkit gait --optimize: the amble replayed in simulation",
-                         caption="coloured: simulated (PD tracking + feed-forward); grey: the optimised plan")
-    scene.add_robot(model, simulated.planned_q, simulated.t, name="planned", color=(0.55, 0.55, 0.6, 0.35), label="planned")
-    scene.add_robot(model, simulated.q, simulated.t, name="simulated", label="simulated")
+    moving = np.zeros(len(simulated.t))
+    if problem.travel_index is not None:
+        moving = simulated.planned_q[:, problem.travel_index] - simulated.planned_q[0, problem.travel_index]
+    simulated_q, planned_q = simulated.q.copy(), simulated.planned_q.copy()
+    simulated_q[:, 0] -= moving
+    planned_q[:, 0] -= moving
+    speed = moving[-1] / simulated.t[-1] if simulated.t[-1] > 0 else 0.0
+    scene = viewer.Scene(view=(75.0, 15.0), title=f"the amble replayed in simulation under {controller}",
+                         caption=f"legkit gait --optimize. Coloured: simulated; grey: the optimised plan, {REPLAY_AHEAD:g} m ahead; "
+                                 f"seen from a frame moving at the plan's {speed:.2f} m/s"
+                                 + ("" if simulated.upright else f"; fell at {simulated.fell_at:.2f} s"))
+    scene.add_robot(problem.model, planned_q, simulated.t, name="planned", color=(0.55, 0.55, 0.6, 0.35), label="planned",
+                    offset=[REPLAY_AHEAD, 0.0, 0.0])
+    scene.add_robot(problem.model, simulated_q, simulated.t, name="simulated", label="simulated")
     scene.write_html(stem.with_suffix(".html"))
-    scene.write_gif(stem.with_suffix(".gif"))
+    scene.write_gif(stem.with_suffix(".gif"), size=(800, 450))
+
+
+#: [m] how far ahead of the simulated robot the replay's animation shows the plan.
+REPLAY_AHEAD = 0.45
 
 
 def _plot_optimized(path: Path, t: np.ndarray, s_h: np.ndarray, reference_t: np.ndarray, reference: np.ndarray, labels: list[str],
@@ -830,10 +853,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--replay-cycles", type=_positive_int, default=5, help="--optimize: cycles replayed in simulation")
     parser.add_argument("--replay-kp", type=float, default=50.0, help="--optimize: joint PD stiffness of the replay [N m/rad]")
     parser.add_argument("--replay-kd", type=float, default=1.0, help="--optimize: joint PD damping of the replay [N m s/rad]")
-    parser.add_argument("--replay-controller", choices=("pd", "mpc"), default="pd",
-                        help="--optimize: the amble's replay: joint PD + feed-forward (pd), or the contact-constrained model-predictive "
-                             "tracking of legkit.optimize.tracking (mpc; its plan needs a fine mesh and a force floor: --coarse-intervals 4 "
-                             "--intervals 16 --min-normal-force 3 --mu 0.6, docs/optimize.md)")
+    parser.add_argument("--replay-controller", choices=("mpc", "pd"), default="mpc",
+                        help="--optimize: the amble's replay: the contact-constrained model-predictive tracking of legkit.optimize.tracking "
+                             "(mpc, the default: faster than real time; it holds plans that are motions of their model with a force floor: "
+                             "--coarse-intervals 4 --intervals 16 --min-normal-force 3 --mu 0.6, docs/optimize.md), or joint PD + "
+                             "feed-forward (pd, which holds none of them)")
     parser.add_argument("--min-normal-force", type=float, default=0.0,
                         help="--optimize: floor on every stance normal force of the amble's plan [N] (0: eq. 5 as published)")
     parser.add_argument("--torque-margin", type=float, default=0.0,
