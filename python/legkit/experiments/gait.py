@@ -42,8 +42,9 @@ from __future__ import annotations
 
 import argparse
 import csv
+import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -552,14 +553,18 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     # The constraints first, then J_s2, optionally polished with the exact Hessian; with --coarse-intervals on the
     # coarse mesh, then refined onto --intervals (docs/optimize.md).
     solved, solved_guess = amble(args.coarse_intervals) if args.coarse_intervals else (problem, guess)
+    progress = _StageProgress(["constraints (p1 held below S_H)", "J_s2 (L-BFGS)"]
+                              + (["polish: exact Hessian, durations held", "polish: exact Hessian"] if args.polish else []))
     _, result = solved.solve(solved_guess, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=args.polish,
                              polish_max_iter=args.polish_max_iter, tol=args.tol, max_iter=args.max_iter,
-                             progress=_iteration_printer("J_s2"), options=AMBLE_IPOPT)
+                             progress=progress, options=AMBLE_IPOPT)
+    progress.close()
     if solved is not problem:
         if not result.success:
             print(f"the {args.coarse_intervals}-interval solve ended with {result.status}; refining its best point")
-        _, result = problem.refine(solved, result, tol=args.tol, max_iter=args.max_iter, progress=_iteration_printer("refine"),
-                                   options=AMBLE_IPOPT)
+        progress = _StageProgress([f"refine onto {args.intervals} intervals"])
+        _, result = problem.refine(solved, result, tol=args.tol, max_iter=args.max_iter, progress=progress, options=AMBLE_IPOPT)
+        progress.close()
     x, _ = result.best()
     if x is result.x:
         kept = result.history[-1][0]
@@ -596,6 +601,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
         "max constraint violation (legkit dynamics)": problem.nlp().violation(x),
         "largest stance-foot acceleration at the midpoints [m/s^2] (the knots hold 0)": midpoint_stance_acceleration(problem, x),
         **interval_drift_summary(problem, x),
+        **execution_summary(problem, x),
         "S_H min, optimised [N m s]": worst, "S_H min at [s]": worst_t, "S_H min, reference [N m s]": float(reference_s_h.min()),
         **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d)
            for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
@@ -623,7 +629,9 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
     guess = guess_from_reference(problem, walk_reference(robot, speed, intervals))
     print(f"optimising the biped walk: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
     cpu = time.process_time()
-    _, result = solve_walk(problem, guess, tol=args.tol, max_iter=args.biped_max_iter, progress=_iteration_printer("J_e1"))
+    progress = _StageProgress(["constraints", "J_e1"])
+    _, result = solve_walk(problem, guess, tol=args.tol, max_iter=args.biped_max_iter, progress=progress)
+    progress.close()
     cpu = time.process_time() - cpu
     x, objective = result.best()
     problem, x = _whole_cycle(problem, x)
@@ -651,6 +659,7 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
         "max constraint violation (legkit dynamics)": problem.nlp().violation(x),
         "max |rnea - B u| (lk.rnea) [N m]": float(np.max(np.abs(np.concatenate(inverse_dynamics_residuals(problem, x))))),
         **interval_drift_summary(problem, x),
+        **execution_summary(problem, x),
         "period [s]": float(np.sum(trajectory.durations)), "step length [m]": 0.5 * speed * float(np.sum(trajectory.durations)),
         **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d)
            for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
@@ -658,6 +667,16 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
             data["u"], joint_speed, BIPED_MOTOR.joint_max_speed, BIPED_MOTOR.gear_ratio, BIPED_MOTOR.efficiency, BIPED_MOTOR.slope))),
         "solver succeeded (1 = yes)": float(result.success),
     }
+
+
+def execution_summary(problem: MultiphaseProblem, x: np.ndarray) -> dict[str, float]:
+    """`legkit.optimize.checks.execution_check` of a solution as summary rows."""
+    from legkit.optimize.checks import execution_check
+
+    check = execution_check(problem, x)
+    return {"torso yaw max [deg]": check.yaw, "joint rate max between points / motors' no-load speed": check.joint_rate,
+            "torque max / bound": check.torque, "torque rate max [bound per ms]": check.torque_rate,
+            "foot load rate max [body weight per ms]": check.force_rate, "swing tip min between points [m]": check.swing_height}
 
 
 def interval_drift_summary(problem: MultiphaseProblem, x: np.ndarray) -> dict[str, float]:
@@ -742,13 +761,31 @@ def plot_torque_speed(path: Path, robot: Biped, joint_speed: np.ndarray, torque:
     plt.close(fig)
 
 
-def _iteration_printer(name: str) -> Callable[[int, float, float], None]:
-    """progress(iteration, objective, violation) printing one line per IPOPT iteration."""
+class _StageProgress:
+    """progress(iteration, objective, violation) printing one labelled line per IPOPT run (a stage of the solve:
+    its iterations, objective and largest violation), updated in place on a terminal; `close` ends the last."""
 
-    def progress(iteration: int, objective: float, violation: float) -> None:
-        print(f"  iter {iteration:4d}  {name} {objective: .6e}  max violation {violation:.2e}", flush=True)
+    def __init__(self, labels: Sequence[str]) -> None:
+        self.labels, self.stage, self.running, self.last = list(labels), -1, False, (0, 0.0, 0.0)
+        self.live = sys.stdout.isatty()
 
-    return progress
+    def __call__(self, iteration: int, objective: float, violation: float) -> None:
+        if iteration == 0:  # IPOPT's first iterate: a new run
+            self.close()
+            self.stage, self.running = self.stage + 1, True
+        self.last = (iteration, objective, violation)
+        if self.live:
+            print("\r" + self.line(), end="", flush=True)
+
+    def line(self) -> str:
+        label = self.labels[self.stage] if self.stage < len(self.labels) else f"run {self.stage + 1}"
+        iteration, objective, violation = self.last
+        return f"  {label}: {iteration} iterations, objective {objective: .6e}, max violation {violation:.2e}"
+
+    def close(self) -> None:
+        if self.running:
+            print(("\r" if self.live else "") + self.line(), flush=True)
+            self.running = False
 
 
 def _write_trajectory_csv(path: Path, trajectory: Trajectory, labels: list[str], extra: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
