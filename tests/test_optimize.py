@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from scipy.integrate import solve_bvp
+from scipy.spatial.transform import Rotation
 
 import legkit as lk
 from legkit.optimize import (
@@ -159,6 +160,7 @@ def test_hessian_of_the_lagrangian_matches_central_differences_of_the_exact_grad
     terms = [joule_loss(5.0, 60.0, 0.012), specific_resistance(0.1),
              MinMaxStability(2.0, diagonal_pairs=(("lf", "rh"), ("rf", "lh")))]
     problem, x = quadruped_problem(terms)
+    problem = replace(problem, max_yaw=0.2, max_force_rate=500.0, max_torque_rate=100.0)
     assert lagrangian_hessian_error(problem, x, np.random.default_rng(5)) < 1e-4
     problem, x = quadruped_problem([joule_loss(5.0, 60.0, 0.012)])
     assert lagrangian_hessian_error(problem, x, np.random.default_rng(6)) < 1e-6
@@ -352,6 +354,27 @@ def test_min_normal_force_bounds_every_stance_normal_force_and_nothing_else():
     others = np.setdiff1d(np.arange(problem.n), normal)
     np.testing.assert_array_equal(floored_lower[others], lower[others])
     np.testing.assert_array_equal(floored_upper, upper)
+
+
+def test_yaw_rows_are_the_heading_of_the_base_whatever_the_quaternions_norm():
+    problem, x = quadruped_problem([effort()])
+    (block,) = replace(problem, max_yaw=0.3).yaw_blocks()
+    quaternions = np.random.default_rng(8).normal(size=block.index.shape)  # of any norm
+    x = x.copy()
+    x[block.index] = quaternions
+    heading = Rotation.from_quat(quaternions).as_euler("ZYX")[:, 0]  # intrinsic z-y'-x'': the first angle is the yaw
+    np.testing.assert_allclose(block.values(x), heading, atol=1e-12)
+    step = 1e-6
+    for j in range(4):  # each quaternion component, every point at once (each row sees its own point only)
+        plus, minus = quaternions.copy(), quaternions.copy()
+        plus[:, j] += step
+        minus[:, j] -= step
+        expected = (Rotation.from_quat(plus).as_euler("ZYX")[:, 0] - Rotation.from_quat(minus).as_euler("ZYX")[:, 0]) / (2 * step)
+        np.testing.assert_allclose(block.slopes(quaternions)[:, 0, j], expected, atol=1e-8)
+    np.testing.assert_array_equal(block.lower, -0.3)
+    np.testing.assert_array_equal(block.upper, 0.3)
+    with pytest.raises(ValueError, match="max_yaw"):
+        replace(problem, max_yaw=0.0)
 
 
 @pytest.mark.parametrize("mirrored", [False, True])
