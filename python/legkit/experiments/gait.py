@@ -514,7 +514,7 @@ def run(robot_name: str, args: argparse.Namespace, progress: tqdm) -> GaitAnalys
 def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     """`--optimize`: the Fig. 3 amble optimised by multiphase collocation on IPOPT (`legkit.optimize`), maximising
     the worst-case S_H (J_s2, eq. 11) from the hand-built reference, its touchdown impulses bounded by --max-impulse
-    (default 0: the feet land at rest; docs/optimize.md, replay); one progress line per IPOPT iteration. With
+    (default 0: the feet land at rest); one labelled progress line per IPOPT stage. With
     --coarse-intervals, J_s2 is solved on that mesh and the optimum refined onto --intervals (`MultiphaseProblem.refine`).
     Writes gait_quadruped_optimized.csv (every collocation point: t, phase, support, q, v, u, S_H) and .png
     (S_H over the period with its worst case marked, beside the reference's), then replays the gait in
@@ -551,7 +551,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
           + (f", from {args.coarse_intervals} intervals per phase" if args.coarse_intervals else ""))
 
     # The constraints first, then J_s2, optionally polished with the exact Hessian; with --coarse-intervals on the
-    # coarse mesh, then refined onto --intervals (docs/optimize.md).
+    # coarse mesh, then refined onto --intervals.
     solved, solved_guess = amble(args.coarse_intervals) if args.coarse_intervals else (problem, guess)
     progress = _StageProgress(["constraints (p1 held below S_H)", "J_s2 (L-BFGS)"]
                               + (["polish: exact Hessian, durations held", "polish: exact Hessian"] if args.polish else []))
@@ -893,7 +893,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--replay-controller", choices=("mpc", "pd"), default="mpc",
                         help="--optimize: the amble's replay: the contact-constrained model-predictive tracking of legkit.optimize.tracking "
                              "(mpc, the default: faster than real time; it holds plans that are motions of their model with a force floor: "
-                             "--coarse-intervals 4 --intervals 16 --min-normal-force 3 --mu 0.6, docs/optimize.md), or joint PD + "
+                             "--coarse-intervals 4 --intervals 16 --min-normal-force 3 --mu 0.6), or joint PD + "
                              "feed-forward (pd, which holds none of them)")
     parser.add_argument("--min-normal-force", type=float, default=0.0,
                         help="--optimize: floor on every stance normal force of the amble's plan [N] (0: eq. 5 as published)")
@@ -907,7 +907,7 @@ def main(argv: list[str] | None = None) -> int:
                              "or (--no-mirror) the whole cycle; default: the amble's half (AMBLE_MIRROR), the walk's whole cycle (WALK_MIRROR)")
     parser.add_argument("--polish", action=argparse.BooleanOptionalAction, default=True,
                         help="--optimize: after the amble's L-BFGS runs (J_s2's ended once it stalls), IPOPT with the exact Hessian "
-                             "from their best point, first with the phase durations held, then free, which converges J_s2 (docs/optimize.md)")
+                             "from their best point, first with the phase durations held, then free, which converges J_s2")
     parser.add_argument("--polish-max-iter", type=_positive_int, default=1000, help="--optimize: IPOPT iteration limit of the amble's polish")
     args = parser.parse_args(argv)
     if args.samples < 8:

@@ -3,9 +3,9 @@ rates plus the optimised torques as feed-forward (the trajectory-following contr
 Fig. 4), over several cycles; reports the base drift from the plan and whether the robot stayed upright.
 
 Every finding below was measured on plans whose stance forces rang between knots and midpoints
-(`MultiphaseProblem.stance_accelerations`, docs/optimize.md): their torques did not produce their motion.
+(`MultiphaseProblem.stance_accelerations`): their torques did not produce their motion.
 The transcription now holds the stance feet in DIRCON's form; its amble plans still fall in the first
-diagonal support at every gain tried (docs/optimize.md). At the default 4 intervals per phase the amble's long
+diagonal support at every gain tried. At the default 4 intervals per phase the amble's long
 supports are not motions of the model at all (`legkit.optimize.shooting.interval_drift`: 60 deg of attitude within
 one 0.117 s interval); 16 intervals per phase bring that under 1 deg, and those plans fall too (0.6-1.2 s).
 `legkit.optimize.tracking` tracks such a plan (with a stance-force floor) 5 cycles upright by a contact-constrained

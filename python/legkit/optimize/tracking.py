@@ -1,7 +1,7 @@
 """Tracking an optimised gait in `lk.Simulation` with a linear time-varying model-predictive controller.
 
 Joint PD + feed-forward cannot hold the amble's two-point supports: linearised around the plan, the
-simulation's one-cycle multiplier under PD is in the hundreds to thousands (docs/optimize.md). A time-varying LQR
+simulation's one-cycle multiplier under PD is in the hundreds to thousands. A time-varying LQR
 on the optimiser's contact model holds the model, but by pulling on stance feet, which the simulation cannot do.
 
 `TrackingModel.build` linearises that contact model (the phase's feet held, `lk.contact_dynamics`; touchdowns by
