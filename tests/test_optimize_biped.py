@@ -168,7 +168,7 @@ def test_derivatives_of_flat_feet_and_j_s1_match_central_differences(walk):
 
 def test_rate_fractions_bound_the_joint_rates_on_the_velocity_cubic_between_the_points(robot):
     # The rows at fraction s of each interval, recomputed here: v(s) = b0 v_k + b1 h a_k + b2 v_k+1 + b3 h a_k+1.
-    plain = walk_problem(robot, SPEED, BIPED_MOTOR, COARSE)
+    plain = walk_problem(robot, SPEED, BIPED_MOTOR, COARSE, rate_fractions=())
     problem = replace(plain, rate_fractions=(0.3, 0.8))
     x = problem.gauged(problem.pack(guess_from_reference(problem, walk_reference(robot, SPEED, COARSE))))
     x += 0.1 * np.random.default_rng(3).normal(size=problem.n)

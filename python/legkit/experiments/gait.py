@@ -502,7 +502,7 @@ def run(robot_name: str, args: argparse.Namespace, progress: tqdm) -> GaitAnalys
         model, motor, tip_speed, diagonal = biped.model, BIPED_MOTOR, args.biped_tip_speed, None
         title = f"Biped walk, {args.biped_speed:g} km/h: S_H over {args.cycles} cycle(s)"
     progress.update()
-    analysis = analyse(robot_name, model, ref, motor, tip_speed, args.mu, progress, diagonal)
+    analysis = analyse(robot_name, model, ref, motor, tip_speed, FRICTION if args.mu is None else args.mu, progress, diagonal)
     if robot_name == "biped":
         _biped_extras(biped, analysis)
     write_csv(args.out / f"gait_{robot_name}.csv", analysis)
@@ -540,7 +540,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
 
     def amble(intervals: int) -> tuple[MultiphaseProblem, Trajectory]:
         problem = amble_problem(robot, [MinMaxStability(args.quadruped_tip_speed, DIAGONAL_PAIRS)], speed, period,
-                                intervals, QUADRUPED_MOTOR, args.mu, max_impulse=args.max_impulse,
+                                intervals, QUADRUPED_MOTOR, AMBLE_PLAN_FRICTION if args.mu is None else args.mu, max_impulse=args.max_impulse,
                                 mirror=AMBLE_MIRROR if args.mirror is None else args.mirror, min_normal_force=args.min_normal_force,
                                 torque_margin=args.torque_margin)
         return problem, guess_from_reference(problem, amble_reference(robot, speed, period, intervals))
@@ -624,7 +624,7 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
     robot = build_biped()
     speed = args.biped_speed / 3.6
     intervals = (max(1, args.biped_intervals // 4), args.biped_intervals)
-    problem = walk_problem(robot, speed, BIPED_MOTOR, intervals, args.mu, max_input_power=args.biped_max_power,
+    problem = walk_problem(robot, speed, BIPED_MOTOR, intervals, FRICTION if args.mu is None else args.mu, max_input_power=args.biped_max_power,
                            mirror=WALK_MIRROR if args.mirror is None else args.mirror)
     guess = guess_from_reference(problem, walk_reference(robot, speed, intervals))
     print(f"optimising the biped walk: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
@@ -864,7 +864,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=output_folder_argument, default="gait_results", help="output folder (created)")
     parser.add_argument("--cycles", type=_positive_int, default=1, help="gait cycles to analyse")
     parser.add_argument("--samples", type=_positive_int, default=400, help="samples per cycle (>= 8)")
-    parser.add_argument("--mu", type=float, default=0.8, help="friction coefficient for the friction-cone margin")
+    parser.add_argument("--mu", type=float, default=None,
+                        help="friction coefficient: of the friction-cone margin (default 0.8) and of the optimised amble's plan (default 0.6, "
+                             "the tracking MPC's friction pyramid)")
     parser.add_argument("--quadruped-speed", type=float, default=0.67, help="amble speed [m/s] (Fig. 3: 0.67)")
     parser.add_argument("--quadruped-period", type=float, default=1.25, help="amble cycle time [s] (Fig. 3: 1.25)")
     parser.add_argument("--quadruped-tip-speed", type=float, default=2.0, help="swing-leg tip speed limit v_tip_max [m/s] (Fig. 3: 2)")
@@ -874,10 +876,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--optimize", action="store_true", help="optimise the quadruped amble for the worst-case S_H "
                         "(J_s2) on IPOPT, write its CSV/figure and replay it in simulation, and the biped walk for the "
                         "Joule loss (J_e1), writing its CSV and torque-speed figure (--robot picks one or both)")
-    parser.add_argument("--intervals", type=_positive_int, default=4, help="--optimize: collocation intervals per amble phase")
-    parser.add_argument("--coarse-intervals", type=_positive_int, default=None,
+    parser.add_argument("--intervals", type=_positive_int, default=16,
+                        help="--optimize: collocation intervals per amble phase (16: a plan that is a motion of the model)")
+    parser.add_argument("--coarse-intervals", type=_non_negative_int, default=None,
                         help="--optimize: solve the amble on this many intervals per phase first, then refine it onto --intervals with its "
-                             "worst-case S_H held at a fraction of the coarse optimum's (MultiphaseProblem.refine; default: solve on --intervals)")
+                             "worst-case S_H held at a fraction of the coarse optimum's (MultiphaseProblem.refine; default 4 when --intervals "
+                             "is more, 0: solve on --intervals directly)")
     parser.add_argument("--biped-intervals", type=_positive_int, default=4,
                         help="--optimize: collocation intervals per biped single-support phase (a quarter, at least 1, per double support)")
     parser.add_argument("--max-iter", type=_positive_int, default=300,
@@ -892,11 +896,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--replay-kd", type=float, default=1.0, help="--optimize: joint PD damping of the replay [N m s/rad]")
     parser.add_argument("--replay-controller", choices=("mpc", "pd"), default="mpc",
                         help="--optimize: the amble's replay: the contact-constrained model-predictive tracking of legkit.optimize.tracking "
-                             "(mpc, the default: faster than real time; it holds plans that are motions of their model with a force floor: "
-                             "--coarse-intervals 4 --intervals 16 --min-normal-force 3 --mu 0.6), or joint PD + "
-                             "feed-forward (pd, which holds none of them)")
-    parser.add_argument("--min-normal-force", type=float, default=0.0,
-                        help="--optimize: floor on every stance normal force of the amble's plan [N] (0: eq. 5 as published)")
+                             "(mpc, the default: faster than real time; it holds plans that are motions of their model with a force floor, "
+                             "as the defaults make them), or joint PD + feed-forward (pd, which holds none of them)")
+    parser.add_argument("--min-normal-force", type=float, default=3.0,
+                        help="--optimize: floor on every stance normal force of the amble's plan [N] (0: eq. 5 as published; the tracking "
+                             "MPC needs one)")
     parser.add_argument("--torque-margin", type=float, default=0.0,
                         help="--optimize: fraction of the motors' torque the amble's plan leaves to feedback (0: the full line)")
     parser.add_argument("--max-impulse", type=float, default=0.0,
@@ -910,16 +914,20 @@ def main(argv: list[str] | None = None) -> int:
                              "from their best point, first with the phase durations held, then free, which converges J_s2")
     parser.add_argument("--polish-max-iter", type=_positive_int, default=1000, help="--optimize: IPOPT iteration limit of the amble's polish")
     args = parser.parse_args(argv)
+    if args.coarse_intervals is None:
+        args.coarse_intervals = 4 if args.intervals > 4 else 0
     if args.samples < 8:
         parser.error("--samples must be at least 8")
-    for name in ("mu", "quadruped_speed", "quadruped_period", "quadruped_tip_speed", "biped_speed", "biped_step", "biped_tip_speed"):
+    if args.mu is not None and not (np.isfinite(args.mu) and args.mu > 0.0):
+        parser.error("--mu must be a positive number")
+    for name in ("quadruped_speed", "quadruped_period", "quadruped_tip_speed", "biped_speed", "biped_step", "biped_tip_speed"):
         if not np.isfinite(getattr(args, name)) or getattr(args, name) <= 0.0:
             parser.error(f"--{name.replace('_', '-')} must be a positive number")
     if args.biped_max_power is not None and not (np.isfinite(args.biped_max_power) and args.biped_max_power > 0.0):
         parser.error("--biped-max-power must be a positive number")
     if not (np.isfinite(args.min_normal_force) and args.min_normal_force >= 0.0):
         parser.error("--min-normal-force must be a non-negative number")
-    if args.coarse_intervals is not None and args.coarse_intervals >= args.intervals:
+    if args.coarse_intervals and args.coarse_intervals >= args.intervals:
         parser.error(f"--coarse-intervals must be fewer than --intervals ({args.intervals})")
     if not 0.0 <= args.torque_margin < 1.0:
         parser.error("--torque-margin must be in [0, 1)")
@@ -942,5 +950,10 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+#: The friction coefficient of the analyses and of the walk's plan, and of the optimised amble's plan: the tracking
+#: MPC's friction pyramid, within which it holds the plan.
+FRICTION, AMBLE_PLAN_FRICTION = 0.8, 0.6
+
 #: Counts (cycles, samples, intervals, iterations) the command takes: far beyond what a run needs.
 _positive_int = bounded_int(1, 1_000_000)
+_non_negative_int = bounded_int(0, 1_000_000)

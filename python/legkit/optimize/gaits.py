@@ -153,19 +153,25 @@ WALK_DERIVATIVES = "legkit"
 #: collocation drifted to over the half (1.0017), exceeds that bound by 1.5e-4 in the whole cycle.
 WALK_MIRROR = False
 
+#: The walk's joint rates within the motors' no-load speed at these fractions of every interval too (at the points
+#: alone its rates reached 38-48 rad/s between them, against the 5.2 rad/s the motors can turn).
+WALK_RATE_FRACTIONS = (0.25, 0.75)
+
 
 def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: tuple[int, int] = (1, 4),
                  friction: float = 0.8, max_tilt: float = np.radians(10.0), max_swing_height: float = 0.15,
                  double_support: tuple[float, float] = (0.04, 0.4), single_support: tuple[float, float] = (0.3, 1.0),
                  period: float | tuple[float, float] | None = 1.6, objectives: Sequence | None = None,
-                 max_input_power: float | None = None, mirror: bool = False) -> MultiphaseProblem:
+                 max_input_power: float | None = None, mirror: bool = False,
+                 rate_fractions: Sequence[float] = WALK_RATE_FRACTIONS) -> MultiphaseProblem:
     """The biped walk at `speed` [m/s] minimising J_e1 (eq. 12) with `motor`'s resistance, gear and torque
     constant at every joint (or the given `objectives`), under its torque-speed line (Sect. 2.3) and stall torque; the soles flat on the
     ground in stance with eq. 6's torque limits. intervals: (per double-support phase, per single-support
     phase); the phase durations [s] lie in double_support and single_support and sum to `period` [s] (fixed,
     bounds, or None: free; the default is the reference's, a 0.4 m step). max_input_power [W]: each motor's input
     power bound (`InputPower`, Sect. 6's "maximum input power constraints"; None: unbounded). mirror: transcribe
-    half the cycle (module docstring).
+    half the cycle (module docstring). rate_fractions: where in every interval the joint rates also stay within the
+    motors' no-load speed (`MultiphaseProblem.rate_fractions`; () for the points alone).
 
     Parameters the paper does not give, assumed here: the motor (legkit's `BIPED_MOTOR`: Fig. 6 names 42 V
     motors with 66:1 gears for an 18 kg biped but no motor constants, and legkit's biped weighs 42 kg); mu_d =
@@ -199,7 +205,7 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
                              max_swing_height=max_swing_height, flat_feet={side: sole for side in SIDES},
                              input_power=None if max_input_power is None else
                              InputPower(max_input_power, motor.resistance, motor.gear_ratio, motor.torque_constant),
-                             mirror=side_mirror(model, {"l": "r"}) if mirror else None)
+                             mirror=side_mirror(model, {"l": "r"}) if mirror else None, rate_fractions=rate_fractions)
 
 
 def solve_walk(problem: MultiphaseProblem, guess: Trajectory, derivatives: str = WALK_DERIVATIVES,
