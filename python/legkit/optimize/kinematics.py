@@ -30,6 +30,16 @@ def skew(w: np.ndarray) -> np.ndarray:
     return out
 
 
+def vecmat(w: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """(B, j): each row's w (B, i) times its matrix m (B, i, j)."""
+    return (w[:, None, :] @ m)[:, 0]
+
+
+def matvec(m: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(B, i): each row's matrix m (B, i, j) times its w (B, j)."""
+    return (m @ w[:, :, None])[:, :, 0]
+
+
 def unit(model: lk.Model, q: np.ndarray) -> np.ndarray:
     """q (..., nq) with a unit base quaternion: a configuration the kernels take, whatever the iterate's norm."""
     if not model.floating_base:
@@ -76,10 +86,16 @@ def tangent_map(model: lk.Model, q: np.ndarray) -> np.ndarray:
 
 
 def raw(model: lk.Model, q: np.ndarray, tangent: np.ndarray) -> np.ndarray:
-    """A derivative (B, ..., nv) on q's tangent space at raw q (B, nq), as one with respect to q_raw (B, ..., nq)."""
+    """A derivative (B, ..., nv) on q's tangent space at raw q (B, nq), as one with respect to q_raw (B, ..., nq):
+    times `tangent_map`, block by block."""
     if not model.floating_base:
         return tangent
-    return np.einsum("b...i,bij->b...j", tangent, tangent_map(model, q))
+    rows = tangent.reshape(len(q), -1, model.nv)
+    out = np.empty(rows.shape[:2] + (model.nq,))
+    out[:, :, :3] = rows[:, :, :3] @ np.swapaxes(rotation(q[:, 3:7]), 1, 2)
+    out[:, :, 3:7] = rows[:, :, 3:6] @ attitude_map(q[:, 3:7])
+    out[:, :, 7:] = rows[:, :, 6:]
+    return out.reshape(tangent.shape[:-1] + (model.nq,))
 
 
 def q_rate(model: lk.Model, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -89,7 +105,7 @@ def q_rate(model: lk.Model, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         return v
     quaternion, omega = q[:, 3:7], v[:, 3:6]
     vector, w = quaternion[:, :3], quaternion[:, 3:]
-    position = np.einsum("bij,bj->bi", rotation(quaternion), v[:, :3])
+    position = matvec(rotation(quaternion), v[:, :3])
     spin = 0.5 * np.concatenate([w * omega + np.cross(vector, omega), -np.sum(vector * omega, axis=1, keepdims=True)], axis=1)
     return np.concatenate([position, spin, v[:, 6:]], axis=1)
 

@@ -534,17 +534,17 @@ class MultiphaseProblem:
         on_q = weights[:, :nq]
         if not slack.shape[1]:
             by_q, by_w = kin.q_rate_derivatives(model, q, v)
-            out[:, :nq] = np.einsum("bi,bij->bj", on_q, by_q)
-            out[:, nq:nx] = np.einsum("bi,bij->bj", on_q, by_w)
+            out[:, :nq] = kin.vecmat(on_q, by_q)
+            out[:, nq:nx] = kin.vecmat(on_q, by_w)
             return out
         contacts, unit = self.phases[k].contacts, self.configuration(q)
         points, _, contact = self.contact_frames(unit, contacts)
         by_q, by_w = kin.q_rate_derivatives(model, q, v + np.einsum("bri,br->bi", contact, slack))
-        u = np.einsum("bi,bij->bj", on_q, by_w)
+        u = kin.vecmat(on_q, by_w)
         forces = self.row_forces(slack, contacts)
         turning = sum(np.einsum("bk,bkj->bj", forces[:, c], kin.point_velocity_derivatives(model, unit, u, body, point)[0])
                       for c, (body, point) in enumerate(points))
-        out[:, :nq] = np.einsum("bi,bij->bj", on_q, by_q) + kin.raw(model, q, np.asarray(turning)[:, None, :])[:, 0]
+        out[:, :nq] = kin.vecmat(on_q, by_q) + kin.raw(model, q, np.asarray(turning)[:, None, :])[:, 0]
         out[:, nq:nx] = u
         out[:, self.slack_columns[k]] = np.einsum("bri,bi->br", contact, u)
         return out
@@ -842,10 +842,10 @@ class MultiphaseProblem:
                 q = b[0] * q0 + b[1] * h * rate0 + b[2] * q1 + b[3] * h * rate1
                 height = kin.point_jacobians(self.model, self.configuration(q), swing_points)[:, :, 2]  # (B, swing, nv)
                 on_q = kin.raw(self.model, q, np.einsum("bs,bsj->bj", weights[:, f * len(swing) : (f + 1) * len(swing)], height)[:, None])[:, 0]
-                out[:, spans[0][0] : spans[0][1]] += (b[0] * on_q + b[1] * h * np.einsum("bi,bij->bj", on_q, dq0))[:, q_columns]
-                out[:, spans[1][0] : spans[1][1]] += b[1] * h * np.einsum("bi,bij->bj", on_q, dv0)
-                out[:, spans[2][0] : spans[2][1]] += (b[2] * on_q + b[3] * h * np.einsum("bi,bij->bj", on_q, dq1))[:, q_columns]
-                out[:, spans[3][0] : spans[3][1]] += b[3] * h * np.einsum("bi,bij->bj", on_q, dv1)
+                out[:, spans[0][0] : spans[0][1]] += (b[0] * on_q + b[1] * h * kin.vecmat(on_q, dq0))[:, q_columns]
+                out[:, spans[1][0] : spans[1][1]] += b[1] * h * kin.vecmat(on_q, dv0)
+                out[:, spans[2][0] : spans[2][1]] += (b[2] * on_q + b[3] * h * kin.vecmat(on_q, dq1))[:, q_columns]
+                out[:, spans[3][0] : spans[3][1]] += b[3] * h * kin.vecmat(on_q, dv1)
                 out[:, -1] += np.sum(on_q * (b[1] * rate0 + b[3] * rate1), axis=1) / intervals
             return out
 
@@ -1639,9 +1639,9 @@ class _InverseDynamics:
         f_ext = problem.point_wrenches(q, z[:, self.force_columns], *problem.contact_points([contacts]), z[:, self.torque_columns])
         by_q, by_v = (np.asarray(d) for d in lk.rnea_derivatives(model, q, z[:, nq:nx], z[:, self.a_columns], f_ext))
         out = np.zeros_like(z)
-        on_q = np.einsum("bi,bij->bj", weights, by_q)
-        out[:, nq:nx] = np.einsum("bi,bij->bj", weights, by_v)
-        out[:, self.a_columns] = np.einsum("bij,bj->bi", np.asarray(lk.crba(model, q)), weights)
+        on_q = kin.vecmat(weights, by_q)
+        out[:, nq:nx] = kin.vecmat(weights, by_v)
+        out[:, self.a_columns] = kin.matvec(np.asarray(lk.crba(model, q)), weights)
         out[:, nx + np.arange(problem.nu)] = -weights[:, problem.actuated]
         forces = problem.world_forces(z[:, self.force_columns], len(contacts))
         axes = slice(3 - problem.force_dims, 3)
