@@ -46,6 +46,7 @@ from legkit.optimize import kinematics as kin
 from legkit.optimize.blocks import Block, Linear, Point, equal, group_hessian, group_pattern, weighted
 from legkit.optimize.collocation import hermite_basis, hermite_simpson_defects
 from legkit.optimize.mirror import Mirror
+from legkit.optimize.objectives import MinMaxStability, build_objective, published_stability
 from legkit.optimize.solver import NLP, SolveResult, solve
 
 #: `MultiphaseProblem.nlp`'s second derivatives: IPOPT's L-BFGS approximation, or the Hessian of the Lagrangian from
@@ -608,8 +609,6 @@ class MultiphaseProblem:
 
     # ------------------------------------------------------------------ NLP assembly
     def _build(self) -> None:
-        from legkit.optimize.objectives import build_objective
-
         blocks: list[Block] = []
         nq, nx, nu = self.nq, self.nx, self.nu
         count = len(self.phases)
@@ -1328,8 +1327,6 @@ class MultiphaseProblem:
     def stability_index(self, x: np.ndarray) -> list[np.ndarray]:
         """S_H as published (eq. 10) at every point of every phase, for a problem with a MinMaxStability
         objective (whatever form its constraint takes)."""
-        from legkit.optimize.objectives import MinMaxStability, published_stability
-
         terms = [t for t in self.objectives if isinstance(t, MinMaxStability)]
         if not terms:
             raise ValueError("stability_index needs a problem whose objectives hold a MinMaxStability term")
