@@ -2,8 +2,8 @@
 
 use legkit_dynamics::model::check_vector;
 use legkit_dynamics::sim::{
-    dof_coordinates, Backend, Convex, Ground, Options, Servo, Shape, ShapeKind, Simulation, DEFAULT_SOLVER_ITERATIONS, MAX_SOLVER_ITERATIONS,
-    MAX_SUBSTEPS,
+    dof_coordinates, Backend, Convex, FrictionLaw, Ground, Options, Servo, Shape, ShapeKind, Simulation, DEFAULT_SOLVER_ITERATIONS,
+    MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS,
 };
 use legkit_dynamics::validate::with_capacity;
 use legkit_dynamics::Transform;
@@ -233,7 +233,7 @@ fn vector_argument(argument: &'static str, value: &Floats<'_>, n: usize) -> PyRe
 #[pymethods]
 impl PySimulation {
     #[new]
-    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, substeps = Integer::new(1), backend = "tree", solver_iterations = Integer::new(DEFAULT_SOLVER_ITERATIONS as i128)))]
+    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, substeps = Integer::new(1), backend = "tree", solver_iterations = Integer::new(DEFAULT_SOLVER_ITERATIONS as i128), friction_law = "cone"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         model: PyRef<'_, PyModel>,
@@ -244,6 +244,7 @@ impl PySimulation {
         substeps: Integer,
         backend: &str,
         solver_iterations: Integer,
+        friction_law: &str,
     ) -> PyResult<Self> {
         let mut options = Options::new(dt);
         options.ground = ground.map(|g| g.ground.clone());
@@ -251,6 +252,7 @@ impl PySimulation {
         options.substeps = substeps.within("substeps", 1, MAX_SUBSTEPS as u64)? as usize;
         options.solver_iterations = solver_iterations.within("solver_iterations", 1, MAX_SOLVER_ITERATIONS as u64)? as usize;
         options.backend = Backend::parse(backend).map_err(kernel_error)?;
+        options.friction_law = FrictionLaw::parse(friction_law).map_err(kernel_error)?;
         options.shapes = shape_overrides(&model, shapes.as_ref())?;
         let sim = Simulation::new(&model.model, options).map_err(kernel_error)?;
         Ok(PySimulation { sim, model: model.into(), pace: Pace::default() })
@@ -267,6 +269,12 @@ impl PySimulation {
     #[getter]
     fn last_solver_iterations(slf: &Bound<'_, Self>) -> PyResult<Option<usize>> {
         Ok(reading(slf)?.sim.last_solver_iterations())
+    }
+
+    /// The tree engine's friction law: "cone" (the convex relaxation, the default) or "coulomb".
+    #[getter]
+    fn friction_law(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        Ok(reading(slf)?.sim.options().friction_law.name())
     }
 
     /// "tree" or "rapier".

@@ -20,7 +20,8 @@ mod tree;
 pub use actuation::{dof_coordinates, Servo};
 pub use ground::Ground;
 pub use options::{
-    Backend, Convex, Options, Shape, ShapeKind, DEFAULT_SOLVER_ITERATIONS, MAX_SHAPE_SIZE, MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS, MIN_DEFAULT_EDGE,
+    Backend, Convex, FrictionLaw, Options, Shape, ShapeKind, DEFAULT_SOLVER_ITERATIONS, MAX_SHAPE_SIZE, MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS,
+    MIN_DEFAULT_EDGE,
 };
 
 use std::panic::AssertUnwindSafe;
