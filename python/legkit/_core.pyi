@@ -325,11 +325,14 @@ class Simulation:
     @property
     def last_solver_iterations(self) -> int | None:
         """Newton iterations of the contact solver in the last (sub)step (tree engine); None on Rapier."""
-    def step(self, tau: npt.ArrayLike | None = None, n: int = 1) -> None:
-        """n steps with feed-forward tau (nv,) held over them; GIL released. RuntimeError (naming the step and
-        the body) if the state would diverge, the simulation then exactly as before that step (state, time, contact
-        history, applied_tau, contacts()). Ctrl-C interrupts between steps (KeyboardInterrupt), keeping the steps
-        taken; RuntimeError if another thread is stepping the same Simulation."""
+    def step(self, tau: npt.ArrayLike | None = None, n: int | None = None, targets: npt.ArrayLike | None = None) -> None:
+        """n steps (default 1) with feed-forward tau (nv,) held over them; GIL released. RuntimeError (naming the
+        step and the body) if the state would diverge, the simulation then exactly as before that step (state,
+        time, contact history, applied_tau, contacts()). Ctrl-C interrupts between steps (KeyboardInterrupt),
+        keeping the steps taken; RuntimeError if another thread is stepping the same Simulation.
+        targets (n, nv): the servos' position targets per velocity coordinate, one row per step (base entries
+        unused; n defaults to the rows and must match them if given), checked whole before any step; the
+        servos keep the last row's targets. Bit-identical to set_servo(target_q=...) and step() per row."""
     def transition_jacobians(self, tau: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
         """A = dx+/dx (2nv, 2nv) and B = dx+/du (2nv, 3nv) of one step from the current state, x = (dq on q's
         tangent space, v), u = (tau, servo target_q per velocity coordinate, servo target_v); changes nothing.

@@ -262,6 +262,40 @@ impl Simulation {
         Ok(())
     }
 
+    /// Advances one step per row of `targets` (row-major, nv per row: the servos' position targets per
+    /// velocity coordinate, base entries unused), each step's servo target the row's, with feed-forward `tau`
+    /// held (None for zero): a servo tracking a trajectory at the simulation's rate without a call per
+    /// step. Every target is checked (finite, whole rows) before anything moves. After it, the servos keep
+    /// the last row's targets; a step that fails leaves the simulation as `step` does, its servos aiming at
+    /// the last completed step's row (or as before the call).
+    pub fn step_targets(&mut self, tau: Option<&[f64]>, targets: &[f64]) -> Result<()> {
+        let nv = self.model.nv();
+        if nv == 0 || !targets.len().is_multiple_of(nv) {
+            return Err(Error::invalid(
+                "targets",
+                format!("expected rows of {nv} values (one per velocity coordinate), got {} values", targets.len()),
+            ));
+        }
+        if let Some(k) = targets.iter().position(|x| !x.is_finite()) {
+            return Err(Error::invalid("targets", format!("row {}, element {} is not finite ({})", k / nv, k % nv, targets[k])));
+        }
+        if let Some(t) = tau {
+            check_vector("tau", t, nv)?;
+        }
+        let before = self.servo.target_q.clone();
+        for (k, row) in targets.chunks_exact(nv).enumerate() {
+            self.servo.target_q.copy_from_slice(row);
+            if let Err(error) = self.step(tau, 1) {
+                match k {
+                    0 => self.servo.target_q.copy_from_slice(&before),
+                    _ => self.servo.target_q.copy_from_slice(&targets[(k - 1) * nv..k * nv]),
+                }
+                return Err(error);
+            }
+        }
+        Ok(())
+    }
+
     /// The transition Jacobians of one step from the current state with feed-forward `tau` (None for zero)
     /// and the current servos: A = ∂x⁺/∂x (2 nv x 2 nv) and B = ∂x⁺/∂u (2 nv x 3 nv) into `a` and `b`, for the
     /// state x = (q on its tangent space, as q ⊕ δq; v) and the controls u = (τ_ff, target_q, target_v), as
