@@ -11,21 +11,24 @@ Scenes, each built twice from the same numbers (a `legkit.Model` and an MJCF str
 * ``quadruped-stand`` / ``quadruped-trot``: a 12-DoF floating-base quadruped (torso box; per leg a hip roll,
   a hip pitch and a knee, box links, a sphere foot: the only leg geometry touching the ground) with PD
   position servos on every joint. Standing holds a crouched pose; trotting is an open-loop gait whose joint
-  targets vary sinusoidally in time (diagonal legs in phase), sent every step in both engines
-  (legkit: ``sim.set_servo(target_q=...)``; MuJoCo: ``data.ctrl``), so both timings include the same
-  per-step Python call.
+  targets vary sinusoidally in time (diagonal legs in phase), at every step in both engines (legkit: the
+  block's targets in one ``sim.step(targets=...)`` call; MuJoCo, which has no such entry point: ``data.ctrl``
+  and ``mj_step`` per step from Python).
 * ``go1-stand`` / ``go1-fall`` / ``anymal-stand`` / ``anymal-fall``: Go1 and ANYmal C from example-robot-data's
   URDFs, loaded by both engines from the same file (a copy whose placeholder inertias are made physical:
   MuJoCo refuses them; MuJoCo also told not to infer masses from geometry), with the URDFs' own collision
   shapes touching the ground (no self-collision). Standing: PD servos hold a crouch. Falling: released
-  rolled by 0.7 rad at 0.45 m with limp, damped joints, it tips over onto its side. The two engines' contact
-  models differ (MuJoCo's soft contacts let feet creep), so the poses they end in differ; see the
-  behaviour table.
+  rolled by 0.7 rad at 0.45 m with limp, damped joints, it tips over onto its side. See the behaviour table
+  for the poses each engine ends in: with MuJoCo's default pyramidal cone a diagonal friction force is
+  bounded by μ/√2, which standing ANYmal's feet exceed (|f_t|/f_n = 0.58 diagonally), so it sags.
 
 Each engine runs in this one process at dt = 1 ms with its default solver (MuJoCo: Euler for the trees,
 ``implicitfast`` for the quadruped, whose stiff light-legged servos the explicit damping of Euler would
-not hold; legkit integrates servos implicitly). Each first settles untimed (0.3 s), then is timed in blocks
-of 100 steps; the reported step time is the median of the block means, in CPU time of the stepping thread
+not hold; legkit integrates servos implicitly). MuJoCo runs twice: with the elliptic friction cone and
+impratio 100 (as MuJoCo Menagerie's ANYmal C sets them: the like-for-like row, legkit's friction being
+elliptic Coulomb), and with its default pyramidal cone beside it. Each first settles untimed (0.3 s), then
+is timed in blocks of 100 steps, legkit's and the two MuJoCo runs' blocks interleaved (one block of each in
+turn); the reported step time is the median of the block means, in CPU time of the stepping thread
 (`time.thread_time`: every engine steps a single simulation on the calling thread), so that other work on
 this shared machine, which takes the core away from one engine's blocks and not another's, does not skew
 the ratios. The batch section, which runs on all cores, is timed in wall time. Also reported: contact points
@@ -76,8 +79,30 @@ SETTLE_SECONDS = 0.3
 SOLVER_ITERATIONS: int | None = None  # None: legkit's default; --solver-iterations overrides
 
 
+# MuJoCo's friction cone for the runner being built: ("elliptic", impratio) or ("pyramidal", 1.0). The
+# elliptic cone with impratio 100 is how MuJoCo Menagerie's ANYmal C (anybotics_anymal_c/scene.xml) sets it; the
+# pyramid, MuJoCo's default, bounds a diagonal friction force by mu / sqrt(2) only.
+MUJOCO_CONE: tuple[str, float] = ("pyramidal", 1.0)
+ELLIPTIC_IMPRATIO = 100.0
+
+
+def set_cone(m) -> None:
+    """Applies MUJOCO_CONE to the compiled MjModel `m`."""
+    import mujoco
+
+    cone, impratio = MUJOCO_CONE
+    m.opt.cone = mujoco.mjtCone.mjCONE_ELLIPTIC if cone == "elliptic" else mujoco.mjtCone.mjCONE_PYRAMIDAL
+    m.opt.impratio = impratio
+
+
+FRICTION_LAW = "coulomb"  # legkit's tree engine: Coulomb's law, elliptic; --friction-law cone for the relaxation
+
+
 def solver_options() -> dict:
-    return {} if SOLVER_ITERATIONS is None else {"solver_iterations": SOLVER_ITERATIONS}
+    options = {"friction_law": FRICTION_LAW}
+    return options if SOLVER_ITERATIONS is None else {**options, "solver_iterations": SOLVER_ITERATIONS}
+
+
 BLOCK_STEPS = 100
 
 # ------------------------------------------------------------------------------------------------------
@@ -362,6 +387,7 @@ def tree_scene(n_modules: int) -> Scene:
         import mujoco
 
         m = mujoco.MjModel.from_xml_string(mujoco_xml(parts))
+        set_cone(m)
         d = mujoco.MjData(m)
         return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon), jacobians=mujoco_jacobians(m, d))
 
@@ -380,7 +406,6 @@ def quadruped_scene(trot: bool) -> Scene:
         start = quadruped_start()
         sim.reset(start, np.zeros(model.nv))
         sim.set_servo(kp=Q_KP, kd=Q_KD, torque_limit=Q_TORQUE_LIMIT, target_q=start)
-        target_q = start.copy()
         done = [0]
 
         def advance(n: int) -> None:
@@ -388,11 +413,11 @@ def quadruped_scene(trot: bool) -> Scene:
                 sim.step(None, n)
                 done[0] += n
                 return
-            for _ in range(n):
-                target_q[7:] = targets[done[0] % period]
-                sim.set_servo(kp=Q_KP, kd=Q_KD, torque_limit=Q_TORQUE_LIMIT, target_q=target_q)
-                sim.step()
-                done[0] += 1
+            # The n steps' targets in one call (per velocity coordinate: the base's six unused).
+            rows = np.zeros((n, model.nv))
+            rows[:, 6:] = targets[(done[0] + np.arange(n)) % period]
+            sim.step(targets=rows)
+            done[0] += n
 
         def base() -> np.ndarray:
             q = sim.q
@@ -409,6 +434,7 @@ def quadruped_scene(trot: bool) -> Scene:
         import mujoco
 
         m = mujoco.MjModel.from_xml_string(quadruped_xml())
+        set_cone(m)
         d = mujoco.MjData(m)
         d.qpos[7:] = quadruped_joint_targets(0.0, False)
         d.ctrl[:] = quadruped_joint_targets(0.0, False)
@@ -540,6 +566,7 @@ def robot_scene(robot: str, fall: bool) -> Scene:
                 else:
                     spec.add_actuator(target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT).set_to_position(kp=kp, kv=kd)
         m = spec.compile()
+        set_cone(m)
         d = mujoco.MjData(m)
         for joint, angle in angles.items():
             d.qpos[m.jnt_qposadr[m.joint(joint).id]] = angle
@@ -624,19 +651,59 @@ def measure(runner: Runner, settle_steps: int, blocks: int, block_steps: int, bu
         return Result(float("nan"), (float("nan"),) * 2, -1, 0, 0, settle_steps, used_handoff, error=f"{type(error).__name__}: {error}")
 
 
+def measure_interleaved(runners: dict[str, Runner], settle_steps: int, blocks: int, block_steps: int) -> dict[str, Result]:
+    """Settle each runner, then time `blocks` blocks of `block_steps` per runner, the runners' blocks taken in
+    turn (engine A's first block, B's first, ..., A's second, ...), so that a change in the machine's load
+    falls on every engine alike."""
+    errors: dict[str, str] = {}
+    bases: dict[str, np.ndarray | None] = {}
+    for name, runner in runners.items():
+        try:
+            runner.advance(settle_steps)
+            bases[name] = runner.base() if runner.base else None
+        except Exception as error:  # noqa: BLE001 - reported in the table, the other engines still run
+            errors[name] = f"{type(error).__name__}: {error}"
+    means: dict[str, list[float]] = {name: [] for name in runners}
+    contacts: dict[str, list[int]] = {name: [] for name in runners}
+    for _ in range(blocks):
+        for name, runner in runners.items():
+            if name in errors:
+                continue
+            try:
+                start = time.thread_time()
+                runner.advance(block_steps)
+                means[name].append((time.thread_time() - start) / block_steps)
+                contacts[name].append(runner.contacts())
+            except Exception as error:  # noqa: BLE001
+                errors[name] = f"{type(error).__name__}: {error}"
+    out = {}
+    for name, runner in runners.items():
+        if name in errors:
+            out[name] = Result(float("nan"), (float("nan"),) * 2, -1, 0, 0, settle_steps, error=errors[name])
+            continue
+        out[name] = Result(statistics.median(means[name]), (min(means[name]), max(means[name])), int(statistics.median(contacts[name])),
+                           blocks, block_steps, settle_steps, False, runner.base() if runner.base else None, bases[name])
+    return out
+
+
 def run_scene(scene: Scene, args: argparse.Namespace) -> dict[str, Result | None]:
+    global MUJOCO_CONE
     settle = int(round(args.settle / DT))
     blocks = max(1, int(round(args.seconds / (args.block_steps * DT))))
-    out: dict[str, Result | None] = {}
     ours = scene.legkit("tree")
-    out["legkit"] = measure(ours, settle, blocks, args.block_steps, float("inf"))
-    handoff = ours.state() if ours.state and out["legkit"].error is None else None
+    runners = {"legkit": ours}
     try:
         import mujoco  # noqa: F401
 
-        out["MuJoCo"] = measure(scene.mujoco(), settle, blocks, args.block_steps, float("inf"))
+        for name, cone in (("MuJoCo elliptic", ("elliptic", ELLIPTIC_IMPRATIO)), ("MuJoCo pyramid", ("pyramidal", 1.0))):
+            MUJOCO_CONE = cone
+            runners[name] = scene.mujoco()
+        MUJOCO_CONE = ("pyramidal", 1.0)
     except ImportError:
-        out["MuJoCo"] = None
+        pass
+    out: dict[str, Result | None] = {"MuJoCo elliptic": None, "MuJoCo pyramid": None}
+    out.update(measure_interleaved(runners, settle, blocks, args.block_steps))
+    handoff = ours.state() if ours.state and out["legkit"].error is None else None
     if args.skip_rapier:
         out["Rapier"] = None
     else:
@@ -666,15 +733,17 @@ def fmt_ratio(a: Result | None, b: Result | None) -> str:
 
 
 def print_scene_table(rows: list[tuple[Scene, dict[str, Result | None]]]) -> None:
-    print("| scene | DoF | legkit µs/step | MuJoCo µs/step | Rapier µs/step | legkit × real time | MuJoCo × real time "
-          "| Rapier × real time | contacts legkit / MuJoCo / Rapier | legkit / MuJoCo | legkit / Rapier |")
-    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | :---: | ---: | ---: |")
+    print("| scene | DoF | legkit µs/step | MuJoCo elliptic µs/step | MuJoCo pyramid µs/step | Rapier µs/step "
+          "| legkit × real time | contacts legkit / MuJoCo ell. / pyr. / Rapier | legkit / MuJoCo elliptic "
+          "| legkit / MuJoCo pyramid | legkit / Rapier |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | :---: | ---: | ---: | ---: |")
     for scene, r in rows:
-        contacts = " / ".join("–" if r[e] is None or r[e].error else str(r[e].contacts) for e in ("legkit", "MuJoCo", "Rapier"))
+        engines = ("legkit", "MuJoCo elliptic", "MuJoCo pyramid", "Rapier")
+        contacts = " / ".join("–" if r[e] is None or r[e].error else str(r[e].contacts) for e in engines)
         rapier = fmt_us(r["Rapier"]) + ("*" if r["Rapier"] is not None and r["Rapier"].handoff else "")
-        print(f"| {scene.name} | {scene.dof} | {fmt_us(r['legkit'])} | {fmt_us(r['MuJoCo'])} | {rapier} | {fmt_rtf(r['legkit'])} "
-              f"| {fmt_rtf(r['MuJoCo'])} | {fmt_rtf(r['Rapier'])} | {contacts} | {fmt_ratio(r['legkit'], r['MuJoCo'])} "
-              f"| {fmt_ratio(r['legkit'], r['Rapier'])} |")
+        print(f"| {scene.name} | {scene.dof} | {fmt_us(r['legkit'])} | {fmt_us(r['MuJoCo elliptic'])} | {fmt_us(r['MuJoCo pyramid'])} "
+              f"| {rapier} | {fmt_rtf(r['legkit'])} | {contacts} | {fmt_ratio(r['legkit'], r['MuJoCo elliptic'])} "
+              f"| {fmt_ratio(r['legkit'], r['MuJoCo pyramid'])} | {fmt_ratio(r['legkit'], r['Rapier'])} |")
 
 
 def print_details(rows: list[tuple[Scene, dict[str, Result | None]]]) -> None:
@@ -685,9 +754,9 @@ def print_details(rows: list[tuple[Scene, dict[str, Result | None]]]) -> None:
             if res is None:
                 continue
             if res.error:
-                print(f"  {scene.name:16} {engine:7} ERROR {res.error}")
+                print(f"  {scene.name:16} {engine:15} ERROR {res.error}")
                 continue
-            print(f"  {scene.name:16} {engine:7} settle {res.settle_steps:4d}{'*' if res.handoff else ' '} steps, "
+            print(f"  {scene.name:16} {engine:15} settle {res.settle_steps:4d}{'*' if res.handoff else ' '} steps, "
                   f"{res.blocks:2d} x {res.block_steps:3d} steps, block means {res.spread[0] * 1e6:.1f}-{res.spread[1] * 1e6:.1f} µs")
 
 
@@ -811,7 +880,7 @@ def mujoco_version() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    global SOLVER_ITERATIONS
+    global SOLVER_ITERATIONS, FRICTION_LAW
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--modules", type=int, nargs="+", default=None, help="modules per tree (default 21 51 101)")
     parser.add_argument("--seconds", type=float, default=1.0, help="simulated time timed per engine and scene (blocks of 100 steps)")
@@ -826,8 +895,11 @@ def main(argv: list[str] | None = None) -> int:
                              "about 2 s brings them to rest)")
     parser.add_argument("--solver-iterations", type=int, default=SOLVER_ITERATIONS,
                         help="legkit tree engine's most contact-solver iterations per step (default: legkit's)")
+    parser.add_argument("--friction-law", choices=("coulomb", "cone"), default=FRICTION_LAW,
+                        help="legkit tree engine's friction law (default coulomb: the like-for-like row with MuJoCo's elliptic cone)")
     args = parser.parse_args(argv)
     SOLVER_ITERATIONS = args.solver_iterations
+    FRICTION_LAW = args.friction_law
     args.block_steps = BLOCK_STEPS
     if args.quick:
         args.modules = args.modules or [21]
@@ -846,7 +918,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"... {scene.name}", flush=True)
         rows.append((scene, run_scene(scene, args)))
     print(f"\nStep time at dt = {DT * 1e3:g} ms, median of block means ({'quick' if args.quick else 'full'} run), "
-          f"legkit's tree engine (solver_iterations={SOLVER_ITERATIONS or 'default'}) vs MuJoCo {mujoco_version()} and Rapier "
+          f"legkit's tree engine (friction_law={FRICTION_LAW}, solver_iterations={SOLVER_ITERATIONS or 'default'}) "
+          f"vs MuJoCo {mujoco_version()} and Rapier "
           f"(backend=\"rapier\"); legkit extension built {EXTENSION_BUILT}:\n")
     print_scene_table(rows)
     print_details(rows)

@@ -307,12 +307,17 @@ class Ground:
 
 class Simulation:
     """Contact simulation of a Model: legkit's tree engine (backend="tree", default) or Rapier's multibody
-    (backend="rapier", the reference). substeps and solver_iterations in 1..1000; shape sizes at most 1e6 m."""
+    (backend="rapier", the reference). substeps and solver_iterations in 1..1000; shape sizes at most 1e6 m.
+    friction_law (tree engine): "cone", the convex relaxation |f_t| <= mu f_n (the default; a sliding contact
+    separates at v_n = mu |v_t|, so sliding bodies hop), or "coulomb", Coulomb's law (no lift; not convex)."""
     def __init__(
         self, model: Model, dt: float = 1e-3, ground: Ground | None = None, shapes: dict[int | str, _ShapeSpec] | None = None,
         self_collision: bool = False, substeps: int = 1,
         backend: Literal["tree", "rapier"] = "tree", solver_iterations: int = 20,
+        friction_law: Literal["cone", "coulomb"] = "cone",
     ) -> None: ...
+    @property
+    def friction_law(self) -> Literal["cone", "coulomb"]: ...
     @property
     def model(self) -> Model: ...
     @property
@@ -320,11 +325,14 @@ class Simulation:
     @property
     def last_solver_iterations(self) -> int | None:
         """Newton iterations of the contact solver in the last (sub)step (tree engine); None on Rapier."""
-    def step(self, tau: npt.ArrayLike | None = None, n: int = 1) -> None:
-        """n steps with feed-forward tau (nv,) held over them; GIL released. RuntimeError (naming the step and
-        the body) if the state would diverge, the simulation then exactly as before that step (state, time, contact
-        history, applied_tau, contacts()). Ctrl-C interrupts between steps (KeyboardInterrupt), keeping the steps
-        taken; RuntimeError if another thread is stepping the same Simulation."""
+    def step(self, tau: npt.ArrayLike | None = None, n: int | None = None, targets: npt.ArrayLike | None = None) -> None:
+        """n steps (default 1) with feed-forward tau (nv,) held over them; GIL released. RuntimeError (naming the
+        step and the body) if the state would diverge, the simulation then exactly as before that step (state,
+        time, contact history, applied_tau, contacts()). Ctrl-C interrupts between steps (KeyboardInterrupt),
+        keeping the steps taken; RuntimeError if another thread is stepping the same Simulation.
+        targets (n, nv): the servos' position targets per velocity coordinate, one row per step (base entries
+        unused; n defaults to the rows and must match them if given), checked whole before any step; the
+        servos keep the last row's targets. Bit-identical to set_servo(target_q=...) and step() per row."""
     def transition_jacobians(self, tau: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
         """A = dx+/dx (2nv, 2nv) and B = dx+/du (2nv, 3nv) of one step from the current state, x = (dq on q's
         tangent space, v), u = (tau, servo target_q per velocity coordinate, servo target_v); changes nothing.

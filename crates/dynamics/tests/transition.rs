@@ -4,7 +4,7 @@
 //! servos saturate.
 
 use legkit_dynamics::algorithms::{difference, integrate};
-use legkit_dynamics::sim::{Convex, Ground, Options, Servo, Shape, ShapeKind, Simulation};
+use legkit_dynamics::sim::{Convex, FrictionLaw, Ground, Options, Servo, Shape, ShapeKind, Simulation};
 use legkit_dynamics::{Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{DMatrix, Matrix3, Rotation3, Vector3};
 
@@ -80,9 +80,13 @@ fn plane() -> Option<Ground> {
 /// The fixture's quadruped standing on its servos (its ball feet sticking), run `settle` steps, then given base
 /// velocity `base_v` (a sideways push makes the feet slide).
 fn quadruped(settle: usize, base_v: [f64; 6], servo_limit: f64) -> Simulation {
+    quadruped_under(settle, base_v, servo_limit, FrictionLaw::Cone)
+}
+
+fn quadruped_under(settle: usize, base_v: [f64; 6], servo_limit: f64, friction_law: FrictionLaw) -> Simulation {
     let (model, shapes) = fixture::quadruped(0.2, JointLimits::NONE);
     let nv = model.nv();
-    let options = Options { ground: plane(), shapes, ..Options::new(1e-3) };
+    let options = Options { ground: plane(), shapes, friction_law, ..Options::new(1e-3) };
     let mut sim = Simulation::new(&model, options).unwrap();
     let mut q = model.neutral().as_slice().to_vec();
     q[2] = 0.03 + 0.3 + 0.02 + 0.005;
@@ -112,9 +116,19 @@ fn quadruped_standing_sliding_and_saturated() {
     assert_matches_differences("quadruped saturated", &|| quadruped(100, [0.0, 0.0, 0.0, 0.2, 0.0, 0.0], 0.5), &tau, 1e-6);
 }
 
+/// Under Coulomb's law a sliding foot's friction bound follows its normal impulse: the step's Hessian has the
+/// law's unsymmetric coupling (`solver`), which the Jacobians must carry.
+#[test]
+fn quadruped_standing_and_sliding_under_coulombs_law() {
+    let tau = joint_torques(14);
+    let coulomb = FrictionLaw::Coulomb;
+    assert_matches_differences("quadruped standing (Coulomb)", &|| quadruped_under(300, [0.0; 6], 20.0, coulomb), &tau, 1e-6);
+    assert_matches_differences("quadruped sliding (Coulomb)", &|| quadruped_under(300, [0.4, 0.3, 0.0, 0.0, 0.0, 0.5], 20.0, coulomb), &tau, 1e-6);
+}
+
 /// A tilted box on one corner, or flat on four, on the plane (closed form) or as a convex hull (parry), set
 /// sliding into the ground (the step the Jacobians are of is its first: no warm start).
-fn sliding_box(hull: bool, tilt: f64) -> Simulation {
+fn sliding_box(hull: bool, tilt: f64, friction_law: FrictionLaw) -> Simulation {
     let size = Vector3::new(0.3, 0.2, 0.1);
     let mut model = Model::new(true, MassProperties::solid_box(2.0, size, Vector3::zeros(), &Matrix3::identity()).unwrap(), "box");
     if hull {
@@ -123,7 +137,7 @@ fn sliding_box(hull: bool, tilt: f64) -> Simulation {
         let shape = Shape::new(ShapeKind::Convex(Convex::hull(&corners).unwrap()), Some(Transform::identity())).unwrap();
         model.set_collision_shapes(vec![(0, shape)]).unwrap();
     }
-    let mut sim = Simulation::new(&model, Options { ground: plane(), ..Options::new(1e-3) }).unwrap();
+    let mut sim = Simulation::new(&model, Options { ground: plane(), friction_law, ..Options::new(1e-3) }).unwrap();
     let rotation = Rotation3::from_euler_angles(tilt, 0.6 * tilt, 0.0);
     let quaternion = nalgebra::UnitQuaternion::from_rotation_matrix(&rotation);
     let lowest = (0..8)
@@ -137,14 +151,14 @@ fn sliding_box(hull: bool, tilt: f64) -> Simulation {
 #[test]
 fn boxes_sliding_on_the_plane_and_on_parry_hulls() {
     let tau = [0.0, 0.0, 0.0, 0.05, -0.02, 0.01];
-    for hull in [false, true] {
+    for (hull, law) in [false, true].into_iter().flat_map(|hull| [(hull, FrictionLaw::Cone), (hull, FrictionLaw::Coulomb)]) {
         for tilt in [0.0, 0.25] {
-            let label = format!("box (hull: {hull}, tilt {tilt})");
-            let mut stepped = sliding_box(hull, tilt);
+            let label = format!("box (hull: {hull}, tilt {tilt}, {})", law.name());
+            let mut stepped = sliding_box(hull, tilt, law);
             stepped.step(Some(&tau), 1).unwrap();
             let loaded = stepped.contacts().iter().filter(|c| c.normal_force > 0.0 && c.tangential_force.norm() > 0.0).count();
             assert!(loaded >= if tilt == 0.0 { 4 } else { 1 }, "{label}: {loaded} loaded sliding contacts");
-            assert_matches_differences(&label, &|| sliding_box(hull, tilt), &tau, 1e-6);
+            assert_matches_differences(&label, &|| sliding_box(hull, tilt, law), &tau, 1e-6);
         }
     }
 }
@@ -199,6 +213,12 @@ fn refused_on_rapier_and_with_substeps() {
 /// face), which couples the two bodies' chains in the step's Hessian.
 #[test]
 fn box_sliding_on_a_platform() {
+    for law in [FrictionLaw::Cone, FrictionLaw::Coulomb] {
+        box_sliding_on_a_platform_under(law);
+    }
+}
+
+fn box_sliding_on_a_platform_under(friction_law: FrictionLaw) {
     let build = || {
         let mut model = Model::new(false, MassProperties::zero(), "world");
         let solid = |mass: f64, size: Vector3<f64>| MassProperties::solid_box(mass, size, Vector3::zeros(), &Matrix3::identity()).unwrap();
@@ -223,7 +243,13 @@ fn box_sliding_on_a_platform() {
         model
             .add_body(z, Joint::Revolute(Vector3::z()), Transform::identity(), solid(1.0, Vector3::new(0.2, 0.15, 0.1)), "box", JointLimits::NONE)
             .unwrap();
-        let options = Options { self_collision: true, shapes: vec![(x, None), (y, None), (z, None)], solver_iterations: 500, ..Options::new(1e-3) };
+        let options = Options {
+            self_collision: true,
+            shapes: vec![(x, None), (y, None), (z, None)],
+            solver_iterations: 500,
+            friction_law,
+            ..Options::new(1e-3)
+        };
         let mut sim = Simulation::new(&model, options).unwrap();
         // The box's bottom (0.1 - 0.05 + z) rests on the platform's top (q_platform + 0.05).
         sim.set_state(Some(&[0.0, 0.02, -0.01, -0.05 + 2e-6, 0.3]), Some(&[0.0, 0.4, 0.2, 0.0, 0.5])).unwrap();
@@ -240,8 +266,8 @@ fn box_sliding_on_a_platform() {
     let loaded = stepped.contacts().iter().filter(|c| c.other.is_some() && c.normal_force > 0.0 && c.tangential_force.norm() > 0.0).count();
     assert_eq!(loaded, 4, "{:?}", stepped.contacts());
     // The solver's iterations on a contact between two bodies converge linearly (its Newton matrix leaves out
-    // the bodies' coupling; 89 iterations here), so the step, and its central differences, are exact only to
+    // the bodies' coupling; 89 iterations here under the cone, about 200 under Coulomb's law), so the step, and its central differences, are exact only to
     // about 1e-4 of the Jacobians' scale: the tolerance. Leaving the coupling out of the Jacobians' Hessian
     // puts them 0.6 off.
-    assert_matches_differences("box on a platform", &build, &[0.0, 0.1, 0.0, 0.0, 0.02], 1e-3);
+    assert_matches_differences(&format!("box on a platform ({})", friction_law.name()), &build, &[0.0, 0.1, 0.0, 0.0, 0.02], 1e-3);
 }

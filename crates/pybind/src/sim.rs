@@ -2,8 +2,8 @@
 
 use legkit_dynamics::model::check_vector;
 use legkit_dynamics::sim::{
-    dof_coordinates, Backend, Convex, Ground, Options, Servo, Shape, ShapeKind, Simulation, DEFAULT_SOLVER_ITERATIONS, MAX_SOLVER_ITERATIONS,
-    MAX_SUBSTEPS,
+    dof_coordinates, Backend, Convex, FrictionLaw, Ground, Options, Servo, Shape, ShapeKind, Simulation, DEFAULT_SOLVER_ITERATIONS,
+    MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS,
 };
 use legkit_dynamics::validate::with_capacity;
 use legkit_dynamics::Transform;
@@ -233,7 +233,7 @@ fn vector_argument(argument: &'static str, value: &Floats<'_>, n: usize) -> PyRe
 #[pymethods]
 impl PySimulation {
     #[new]
-    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, substeps = Integer::new(1), backend = "tree", solver_iterations = Integer::new(DEFAULT_SOLVER_ITERATIONS as i128)))]
+    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, substeps = Integer::new(1), backend = "tree", solver_iterations = Integer::new(DEFAULT_SOLVER_ITERATIONS as i128), friction_law = "cone"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         model: PyRef<'_, PyModel>,
@@ -244,6 +244,7 @@ impl PySimulation {
         substeps: Integer,
         backend: &str,
         solver_iterations: Integer,
+        friction_law: &str,
     ) -> PyResult<Self> {
         let mut options = Options::new(dt);
         options.ground = ground.map(|g| g.ground.clone());
@@ -251,6 +252,7 @@ impl PySimulation {
         options.substeps = substeps.within("substeps", 1, MAX_SUBSTEPS as u64)? as usize;
         options.solver_iterations = solver_iterations.within("solver_iterations", 1, MAX_SOLVER_ITERATIONS as u64)? as usize;
         options.backend = Backend::parse(backend).map_err(kernel_error)?;
+        options.friction_law = FrictionLaw::parse(friction_law).map_err(kernel_error)?;
         options.shapes = shape_overrides(&model, shapes.as_ref())?;
         let sim = Simulation::new(&model.model, options).map_err(kernel_error)?;
         Ok(PySimulation { sim, model: model.into(), pace: Pace::default() })
@@ -269,6 +271,12 @@ impl PySimulation {
         Ok(reading(slf)?.sim.last_solver_iterations())
     }
 
+    /// The tree engine's friction law: "cone" (the convex relaxation, the default) or "coulomb".
+    #[getter]
+    fn friction_law(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        Ok(reading(slf)?.sim.options().friction_law.name())
+    }
+
     /// "tree" or "rapier".
     #[getter]
     fn backend(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
@@ -283,13 +291,38 @@ impl PySimulation {
     /// Raises RuntimeError, naming the step and the body, if the state would stop being finite or explode
     /// (a speed or position beyond 1e6); the simulation is then exactly as before that step. Ctrl-C
     /// interrupts a long call between steps (KeyboardInterrupt), keeping the steps taken.
-    #[pyo3(signature = (tau = None, n = Integer::new(1)))]
-    fn step(slf: &Bound<'_, Self>, tau: Option<Floats<'_>>, n: Integer) -> PyResult<()> {
-        let n = n.within("n", 0, i64::MAX as u64)?;
+    /// `targets` (n, nv): the servos' position targets per velocity coordinate for each of n steps (base
+    /// entries unused; n defaults to its rows, and must match them if given), so a controller tracking a
+    /// trajectory at the simulation's rate makes one call; the servos then keep the last row's targets.
+    #[pyo3(signature = (tau = None, n = None, targets = None))]
+    fn step(slf: &Bound<'_, Self>, tau: Option<Floats<'_>>, n: Option<Integer>, targets: Option<Floats<'_>>) -> PyResult<()> {
+        let n = n.map(|n| n.within("n", 0, i64::MAX as u64)).transpose()?;
         let mut this = in_use(slf)?;
-        let tau = tau.map(|t| vector_argument("tau", &t, this.sim.model().nv())).transpose()?;
+        let nv = this.sim.model().nv();
+        let tau = tau.map(|t| vector_argument("tau", &t, nv)).transpose()?;
+        let Some(targets) = targets else {
+            let PySimulation { sim, pace, .. } = &mut *this;
+            return in_pieces(slf.py(), n.unwrap_or(1), pace, |k| sim.step(tau.as_deref(), k as usize).map_err(kernel_error));
+        };
+        let view = targets.get("targets")?;
+        if view.ndim() != 2 || view.shape()[1] != nv {
+            return Err(PyValueError::new_err(format!("targets: expected shape (n, {nv}), got {:?}", view.shape())));
+        }
+        let rows = view.shape()[0] as u64;
+        if let Some(n) = n.filter(|&n| n != rows) {
+            return Err(PyValueError::new_err(format!("n: {n} steps asked with {rows} rows of targets (leave n out to take one step per row)")));
+        }
+        let targets: Vec<f64> = view.iter().copied().collect();
+        if let Some(k) = targets.iter().position(|x| !x.is_finite()) {
+            return Err(PyValueError::new_err(format!("targets: row {}, element {} is not finite ({})", k / nv, k % nv, targets[k])));
+        }
         let PySimulation { sim, pace, .. } = &mut *this;
-        in_pieces(slf.py(), n, pace, |k| sim.step(tau.as_deref(), k as usize).map_err(kernel_error))
+        let mut done = 0;
+        in_pieces(slf.py(), rows, pace, |k| {
+            let piece = &targets[done * nv..(done + k as usize) * nv];
+            done += k as usize;
+            sim.step_targets(tau.as_deref(), piece).map_err(kernel_error)
+        })
     }
 
     /// The transition Jacobians of one step from the current state (GIL released), as MuJoCo's

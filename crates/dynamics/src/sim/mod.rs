@@ -20,7 +20,8 @@ mod tree;
 pub use actuation::{dof_coordinates, Servo};
 pub use ground::Ground;
 pub use options::{
-    Backend, Convex, Options, Shape, ShapeKind, DEFAULT_SOLVER_ITERATIONS, MAX_SHAPE_SIZE, MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS, MIN_DEFAULT_EDGE,
+    Backend, Convex, FrictionLaw, Options, Shape, ShapeKind, DEFAULT_SOLVER_ITERATIONS, MAX_SHAPE_SIZE, MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS,
+    MIN_DEFAULT_EDGE,
 };
 
 use std::panic::AssertUnwindSafe;
@@ -257,6 +258,40 @@ impl Simulation {
             std::mem::swap(&mut self.q, &mut self.q_next);
             std::mem::swap(&mut self.v, &mut self.v_next);
             self.steps += 1;
+        }
+        Ok(())
+    }
+
+    /// Advances one step per row of `targets` (row-major, nv per row: the servos' position targets per
+    /// velocity coordinate, base entries unused), each step's servo target the row's, with feed-forward `tau`
+    /// held (None for zero): a servo tracking a trajectory at the simulation's rate without a call per
+    /// step. Every target is checked (finite, whole rows) before anything moves. After it, the servos keep
+    /// the last row's targets; a step that fails leaves the simulation as `step` does, its servos aiming at
+    /// the last completed step's row (or as before the call).
+    pub fn step_targets(&mut self, tau: Option<&[f64]>, targets: &[f64]) -> Result<()> {
+        let nv = self.model.nv();
+        if nv == 0 || !targets.len().is_multiple_of(nv) {
+            return Err(Error::invalid(
+                "targets",
+                format!("expected rows of {nv} values (one per velocity coordinate), got {} values", targets.len()),
+            ));
+        }
+        if let Some(k) = targets.iter().position(|x| !x.is_finite()) {
+            return Err(Error::invalid("targets", format!("row {}, element {} is not finite ({})", k / nv, k % nv, targets[k])));
+        }
+        if let Some(t) = tau {
+            check_vector("tau", t, nv)?;
+        }
+        let before = self.servo.target_q.clone();
+        for (k, row) in targets.chunks_exact(nv).enumerate() {
+            self.servo.target_q.copy_from_slice(row);
+            if let Err(error) = self.step(tau, 1) {
+                match k {
+                    0 => self.servo.target_q.copy_from_slice(&before),
+                    _ => self.servo.target_q.copy_from_slice(&targets[(k - 1) * nv..k * nv]),
+                }
+                return Err(error);
+            }
         }
         Ok(())
     }

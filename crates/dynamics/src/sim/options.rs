@@ -238,6 +238,36 @@ pub struct Options {
     /// Most contact-solver (Newton) iterations per (sub)step of the tree engine (it stops earlier once
     /// converged).
     pub solver_iterations: usize,
+    /// The tree engine's friction law (Rapier has its own).
+    pub friction_law: FrictionLaw,
+}
+
+/// How the tree engine bounds friction (`sim::tree::solver`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrictionLaw {
+    /// The convex relaxation: impulses in the elliptic cone |λ_t| ≤ μ λ_n, one strictly convex problem
+    /// (Anitescu 2006). A sliding contact separates at v_n = μ |v_t|: a sliding body hops. The default.
+    Cone,
+    /// Coulomb's law: the normal row complementary to the normal velocity alone, friction in the disk
+    /// |λ_t| ≤ μ λ_n (non-associated): no lift, μ g deceleration from the first step; not convex.
+    Coulomb,
+}
+
+impl FrictionLaw {
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "cone" => Ok(FrictionLaw::Cone),
+            "coulomb" => Ok(FrictionLaw::Coulomb),
+            other => Err(Error::invalid("friction_law", format!("must be 'cone' or 'coulomb', got {other:?}"))),
+        }
+    }
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            FrictionLaw::Cone => "cone",
+            FrictionLaw::Coulomb => "coulomb",
+        }
+    }
 }
 
 /// The most substeps per step, and solver iterations per substep: a step is the unit a long run can be
@@ -281,6 +311,7 @@ impl Options {
             substeps: 1,
             backend: Backend::Tree,
             solver_iterations: DEFAULT_SOLVER_ITERATIONS,
+            friction_law: FrictionLaw::Cone,
         }
     }
 

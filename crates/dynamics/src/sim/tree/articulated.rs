@@ -7,7 +7,7 @@
 //! articulated-body recursion without velocities (Featherstone, Table 7.1) factors and solves it with no
 //! fill-in. Everything is in the world's axes about the base origin, as `aba` leaves `Data`.
 
-use nalgebra::{Cholesky, Matrix6, U6};
+use nalgebra::{Cholesky, Matrix6, LU, U6};
 
 use crate::joint::Dofs;
 use crate::model::{Data, Model};
@@ -15,12 +15,15 @@ use crate::spatial::{add_reduced_inertia, dot6, Force, Motion};
 
 pub(super) struct Articulated {
     /// Each body's I_b + K_b while H is assembled (`clear_stiffness`, then the caller adds K_b), which
-    /// `factor` turns into H's articulated inertias; and per one-degree-of-freedom joint U = I^A S and D⁻¹
-    /// (eq. 7.38–7.44).
+    /// `factor` turns into H's articulated inertias; and per one-degree-of-freedom joint U = I^A S, its left
+    /// counterpart (I^A)ᵀ S and D⁻¹ (eq. 7.38–7.44). K_b may be unsymmetric (a sliding contact's friction
+    /// bound following its normal impulse, `solver`): the recursion is Gaussian elimination on the tree, and
+    /// needs only nonzero pivots D, U on the right and (I^A)ᵀ S on the left.
     pub inertia: Vec<Matrix6<f64>>,
     u: Vec<Motion>,
+    u_left: Vec<Motion>,
     d_inv: Vec<f64>,
-    base: Option<Cholesky<f64, U6>>,
+    base: Option<Base>,
     /// `solve` uses the factor ABA left in `Data` (`factor_of_aba`) rather than `u` and `d_inv`.
     of_aba: bool,
     /// u_k = r_k − S_kᵀ p_k of the last solve's backward pass, per velocity coordinate.
@@ -32,12 +35,19 @@ pub(super) struct Articulated {
     pub force: Vec<Force>,
 }
 
+/// A free-flyer base's factored block D_0 = I^A_0: Cholesky while H is symmetric, LU otherwise.
+enum Base {
+    Cholesky(Cholesky<f64, U6>),
+    Lu(LU<f64, U6, U6>),
+}
+
 impl Articulated {
     pub(super) fn new(model: &Model) -> Self {
         let (n, nv) = (model.nbodies(), model.nv());
         Articulated {
             inertia: vec![Matrix6::zeros(); n],
             u: vec![Motion::zeros(); n],
+            u_left: vec![Motion::zeros(); n],
             d_inv: vec![0.0; n],
             base: None,
             of_aba: false,
@@ -101,46 +111,61 @@ impl Articulated {
         self.coordinate_stiffness.fill(0.0);
     }
 
-    /// Factors H, assembled in `inertia` and `coordinate_stiffness`; false if it is not positive definite.
-    pub(super) fn factor(&mut self, model: &Model, data: &Data, armature: &[f64]) -> bool {
+    /// Factors H, assembled in `inertia` and `coordinate_stiffness`; false if a pivot D is not positive (H
+    /// is not positive definite) or, for an unsymmetric H (`definite` false), if one is nearly zero.
+    pub(super) fn factor(&mut self, model: &Model, data: &Data, armature: &[f64], definite: bool) -> bool {
         self.of_aba = false;
         for i in (1..model.nbodies()).rev() {
             let k = model.idx_v(i);
             let w = if model.joint(i).nv() == 1 {
                 // eq. 7.39–7.40
                 let u = self.inertia[i] * data.s[i];
-                let d = dot6(&data.s[i], u.as_slice()) + armature[k] + self.coordinate_stiffness[k];
-                if !(d > 0.0) {
+                // (I^A)ᵀ S is U itself while H is symmetric.
+                let u_left = if definite { u } else { self.inertia[i].tr_mul(&data.s[i]) };
+                let added = armature[k] + self.coordinate_stiffness[k];
+                let d = dot6(&data.s[i], u.as_slice()) + added;
+                // Unsymmetric, a pivot may be negative; one that cancels to rounding would amplify it.
+                let pivot = if definite { d > 0.0 } else { d.is_finite() && d.abs() > 1e-9 * (u.norm() * data.s[i].norm() + added.abs()) };
+                if !pivot {
                     return false;
                 }
                 self.u[i] = u;
+                self.u_left[i] = u_left;
                 self.d_inv[i] = 1.0 / d;
-                u / d
+                u_left / d
             } else {
                 Motion::zeros()
             };
             let (head, tail) = self.inertia.split_at_mut(i);
             add_reduced_inertia(&mut head[model.parent(i)], &tail[0], &self.u[i], &w);
         }
-        self.factor_base(model, self.inertia[0])
+        self.factor_base(model, self.inertia[0], definite)
     }
 
     /// Takes the factor of M̃ itself (no stiffness) from the one `aba_with_armature` left in `data`; false
     /// if a free-flyer base's articulated inertia is not positive definite.
     pub(super) fn factor_of_aba(&mut self, model: &Model, data: &Data) -> bool {
         self.of_aba = true;
-        self.factor_base(model, data.inertia[0])
+        self.factor_base(model, data.inertia[0], true)
     }
 
-    /// A free-flyer base's block D_0 = I^A_0 = C Cᵀ; false if it is not positive definite.
-    fn factor_base(&mut self, model: &Model, inertia: Matrix6<f64>) -> bool {
-        self.base = if model.floating_base() { Cholesky::new(inertia) } else { None };
-        !model.floating_base() || self.base.is_some()
+    /// A free-flyer base's block D_0 = I^A_0 = C Cᵀ if `definite` (false if it is not positive definite), else
+    /// by LU (false if it is singular or not finite).
+    fn factor_base(&mut self, model: &Model, inertia: Matrix6<f64>, definite: bool) -> bool {
+        self.base = match (model.floating_base(), definite) {
+            (false, _) => return true,
+            (true, true) => Cholesky::new(inertia).map(Base::Cholesky),
+            (true, false) => {
+                let lu = inertia.lu();
+                (lu.is_invertible() && inertia.iter().all(|x| x.is_finite())).then_some(Base::Lu(lu))
+            }
+        };
+        self.base.is_some()
     }
 
     /// out = H⁻¹ rhs, after `factor` or `factor_of_aba`.
     pub(super) fn solve(&mut self, model: &Model, data: &Data, rhs: &[f64], out: &mut [f64]) {
-        let (u, d_inv) = if self.of_aba { (&data.u, &data.d_inv) } else { (&self.u, &self.d_inv) };
+        let (u, u_left, d_inv) = if self.of_aba { (&data.u, &data.u, &data.d_inv) } else { (&self.u, &self.u_left, &self.d_inv) };
         self.force.iter_mut().for_each(|p| *p = Force::zeros());
         // Backward: the bias forces p^A of the generalized forces alone (eq. 7.41–7.44).
         for i in (1..model.nbodies()).rev() {
@@ -157,7 +182,11 @@ impl Articulated {
         self.motion[0] = match &self.base {
             Some(c) => {
                 let pose = data.centred_m_i[0];
-                let a = c.solve(&(pose.act_force(&Force::from_column_slice(&rhs[0..6])) - self.force[0]));
+                let b = pose.act_force(&Force::from_column_slice(&rhs[0..6])) - self.force[0];
+                let a = match c {
+                    Base::Cholesky(c) => c.solve(&b),
+                    Base::Lu(lu) => lu.solve(&b).unwrap_or_else(Motion::zeros),
+                };
                 out[0..6].copy_from_slice(pose.inv_act_motion(&a).as_slice());
                 a
             }
@@ -166,7 +195,7 @@ impl Articulated {
         for i in 1..model.nbodies() {
             let (k, parent) = (model.idx_v(i), self.motion[model.parent(i)]);
             self.motion[i] = if model.joint(i).nv() == 1 {
-                let x = (self.reduced[k] - dot6(&u[i], parent.as_slice())) * d_inv[i];
+                let x = (self.reduced[k] - dot6(&u_left[i], parent.as_slice())) * d_inv[i];
                 out[k] = x;
                 parent + data.s[i] * x
             } else {

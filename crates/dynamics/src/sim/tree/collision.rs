@@ -403,11 +403,20 @@ fn collect(pair: &Pair, pose1: &Pose, pose2: &Pose, body: usize, other: Option<u
             if point.dist > PREDICTION {
                 continue;
             }
-            let midpoint = (frame1 * point.local_p1 + frame2 * point.local_p2) * 0.5;
+            // A face's point is the other shape's vertex projected onto it (the ground's: the body's), as
+            // `moved` takes it: parry keeps a persistent manifold's points in each shape's frame, so the face's
+            // would otherwise lag behind a vertex sliding over it (and the transition Jacobians with it).
+            let (mut p1, mut p2) = (from_vector(frame1 * point.local_p1), from_vector(frame2 * point.local_p2));
+            let gap = (p2 - p1).dot(&normal);
+            if other.is_none() || point.fid1.is_face() && point.fid2.is_vertex() {
+                p1 = p2 - normal * gap;
+            } else if point.fid2.is_face() && point.fid1.is_vertex() {
+                p2 = p1 + normal * gap;
+            }
             out.push(Found {
                 body,
                 other,
-                point: from_vector(midpoint),
+                point: (p1 + p2) * 0.5,
                 normal,
                 tangents: frame,
                 distance: point.dist,

@@ -7,8 +7,10 @@
 //!    leaves its factor, from which every body's apparent inverse inertia follows in O(n) (`delassus`).
 //! 3. Contacts from parry at the start-of-step configuration (`collision`), joint limits about to be
 //!    crossed, each a constraint whose rows follow the ancestor chain of its bodies.
-//! 4. Newton's method on the primal of the soft contacts, warm-started from the last step's impulses
-//!    (`solver`), gives v⁺ = v_free + M̃⁻¹ Jᵀ λ; then q⁺ = q ⊕ h v⁺ (semi-implicit Euler).
+//! 4. Newton's method on the soft contacts, under the cone law (the convex relaxation, the default) or
+//!    Coulomb's (the normal rows complementary to the normal velocity alone, friction in the disk
+//!    |λ_t| ≤ μ λ_n: no lift off a sliding contact), warm-started from the last step's impulses (`solver`),
+//!    gives v⁺ = v_free + M̃⁻¹ Jᵀ λ; then q⁺ = q ⊕ h v⁺ (semi-implicit Euler).
 //!
 //! Why Newton on the tree: its matrix M̃ + Jᵀ H J keeps the tree's sparsity (a contact adds a 6x6
 //! stiffness to its body's inertia), so each iteration costs O(n) passes plus O(1) per contact
@@ -32,7 +34,7 @@ use std::sync::Arc;
 use nalgebra::{DMatrix, Vector3, Vector6};
 
 use super::actuation::{dof_coordinates, Actuation};
-use super::options::{Options, DEFAULT_FRICTION};
+use super::options::{FrictionLaw, Options, DEFAULT_FRICTION};
 use super::{Contact, Engine};
 use crate::algorithms::{aba_with_armature, integrate, joint_placement, world_pose};
 use crate::model::{Data, Model};
@@ -68,6 +70,8 @@ pub(crate) struct TreeSimulation {
     /// Substep length (s).
     h: f64,
     friction: f64,
+    /// Coulomb's law rather than the cone (`FrictionLaw`).
+    coulomb: bool,
     data: Data,
     delassus: Delassus,
     collision: Collision,
@@ -119,6 +123,7 @@ impl TreeSimulation {
         Ok(TreeSimulation {
             h: options.dt / options.substeps as f64,
             friction: options.ground.as_ref().map_or(DEFAULT_FRICTION, |g| g.friction()),
+            coulomb: options.friction_law == FrictionLaw::Coulomb,
             data: Data::new(&fused),
             delassus: Delassus::new(&fused),
             solver: Solver::new(&fused),
@@ -176,6 +181,7 @@ impl TreeSimulation {
         self.constraints.clear();
         for f in &self.found {
             self.constraints.push(contact_constraint(
+                self.coulomb,
                 model,
                 &self.data,
                 &self.delassus,
@@ -413,6 +419,7 @@ fn fuse(model: &Model) -> Result<(Model, Vec<usize>, Vec<Transform>)> {
 /// asked on the piece of gap `piece` (`asked_normal_velocity`).
 #[allow(clippy::too_many_arguments)]
 fn contact_constraint(
+    coulomb: bool,
     model: &Model,
     data: &Data,
     delassus: &Delassus,
@@ -431,7 +438,7 @@ fn contact_constraint(
     let warm_t = Vector3::new(f.warm[1], f.warm[2], f.warm[3]);
     let warm = [f.warm[0], warm_t.dot(&t1), warm_t.dot(&t2)];
     Constraint::new(
-        Kind::Contact { mu, arm: r },
+        Kind::Contact { mu, arm: r, coulomb },
         Target::Bodies(body, other),
         rows,
         asked_normal_velocity(f.distance, h, piece),

@@ -2,7 +2,7 @@
 //! against the CRBA mass matrix, and the Delassus diagonals (`delassus`) against J M̃⁻¹ Jᵀ formed densely,
 //! on a fixed-base branching tree (revolute and prismatic joints) and on a floating one.
 
-use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Rotation3, UnitQuaternion, Vector3, Vector6};
 
 use super::articulated::Articulated;
 use super::delassus::Delassus;
@@ -117,20 +117,27 @@ fn newton_matrix_products_and_solves_match_dense_algebra() {
         assert!(tree.factor_of_aba(&model, &data));
         tree.solve(&model, &data, rhs.as_slice(), &mut solution);
         assert!(relative_error(&(&mass * DVector::from_vec(solution.clone())), &rhs) < 1e-10, "floating base: {}", model.floating_base());
-        // H = M̃ + Σ Φ_bᵀ K_b Φ_b + diag(c): H⁻¹ r solves H x = r.
-        let mut h = mass.clone();
-        tree.clear_stiffness(&data);
-        for (b, phi) in phi.iter().enumerate() {
-            tree.inertia[b] += stiffness(b);
-            h += phi.transpose() * DMatrix::from_column_slice(6, 6, stiffness(b).as_slice()) * phi;
+        // H = M̃ + Σ Φ_bᵀ K_b Φ_b + diag(c): H⁻¹ r solves H x = r, for symmetric K_b and for K_b with an
+        // unsymmetric rank-one part (a sliding contact's friction following its normal impulse, `solver`).
+        for skew in [0.0, 0.3] {
+            let mut h = mass.clone();
+            tree.clear_stiffness(&data);
+            for (b, phi) in phi.iter().enumerate() {
+                let a = Vector6::from_fn(|r, _| ((b * 6 + r) as f64 * 1.3).cos());
+                let n = Vector6::from_fn(|r, _| ((b * 6 + r) as f64 * 0.4).sin());
+                let k = stiffness(b) + skew * a * n.transpose();
+                tree.inertia[b] += k;
+                h += phi.transpose() * DMatrix::from_column_slice(6, 6, k.as_slice()) * phi;
+            }
+            for k in base_coordinates(&model)..nv {
+                tree.coordinate_stiffness[k] = 0.5 * k as f64;
+                h[(k, k)] += 0.5 * k as f64;
+            }
+            assert!(tree.factor(&model, &data, &armature, skew == 0.0));
+            tree.solve(&model, &data, rhs.as_slice(), &mut solution);
+            let error = relative_error(&(&h * DVector::from_vec(solution.clone())), &rhs);
+            assert!(error < 1e-10, "floating base: {}, skew {skew}: {error}", model.floating_base());
         }
-        for k in base_coordinates(&model)..nv {
-            tree.coordinate_stiffness[k] = 0.5 * k as f64;
-            h[(k, k)] += 0.5 * k as f64;
-        }
-        assert!(tree.factor(&model, &data, &armature));
-        tree.solve(&model, &data, rhs.as_slice(), &mut solution);
-        assert!(relative_error(&(&h * DVector::from_vec(solution)), &rhs) < 1e-10, "floating base: {}", model.floating_base());
     }
 }
 

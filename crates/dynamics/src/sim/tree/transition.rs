@@ -4,9 +4,10 @@
 //! The step's velocities v⁺ minimise the contact solver's primal (`solver`), so its gradient vanishes there:
 //!   g(v⁺; q, v, u) = h RNEA(q, v, (v⁺ − v) / h) + D (v⁺ − v) − h τ(q, v, u) − Σ_c J_cᵀ λ_c(J_c v⁺ − b_c) = 0,
 //! with D the armature the actuation adds (implicit servos, damping) and τ its forces (`actuate`). By the
-//! implicit-function theorem dv⁺ = −H⁻¹ (∂g/∂x dx + ∂g/∂u du), where H = ∂g/∂v⁺ = M̃ + Σ_c J_cᵀ H_c J_c is the
-//! primal's Hessian at the solution, formed densely here with the coupling of contacts between two bodies
-//! (which the solver's O(n) factor leaves out); then q⁺ = q ⊕ h v⁺ through `integrate_jacobians`.
+//! implicit-function theorem dv⁺ = −H⁻¹ (∂g/∂x dx + ∂g/∂u du), where H = ∂g/∂v⁺ = M̃ + Σ_c J_cᵀ H_c J_c, with
+//! H_c = ∂λ_c/∂(−y_c) of the friction law (unsymmetric for a sliding contact, whose bound μ λ_n follows
+//! y_n), formed densely here with the coupling of contacts between two bodies (which the solver's O(n)
+//! factor leaves out), and solved by LU; then q⁺ = q ⊕ h v⁺ through `integrate_jacobians`.
 //! ∂g/∂v and ∂g/∂u are analytic: the RNEA derivatives and the actuation's slopes. In ∂g/∂q the rigid-body and
 //! actuation terms are analytic too; the contacts' Σ J_cᵀ λ_c, whose rows, gaps and regularisation move with
 //! the configuration (through the contact geometry and the Delassus diagonals), is differentiated by central
@@ -16,7 +17,7 @@
 //! sticking, sliding), its saturated servos and the joint limits in play held; the Jacobians are the step's
 //! away from switches between them, with the contact solve taken as converged.
 
-use nalgebra::{Cholesky, DMatrix, Matrix6, Matrix6xX};
+use nalgebra::{DMatrix, Matrix6, Matrix6xX};
 
 use super::articulated::Articulated;
 use super::delassus::Delassus;
@@ -220,10 +221,12 @@ impl TreeSimulation {
             }
         }
         let hessian = std::mem::replace(&mut t.hessian, DMatrix::zeros(0, 0));
-        let factor = Cholesky::new(hessian)
-            .ok_or_else(|| Error::numerical("transition_jacobians", "the step's Hessian M̃ + Jᵀ H J is not positive definite"))?;
-        factor.solve_mut(&mut t.slopes);
-        t.hessian = factor.unpack();
+        // ∂g/∂v⁺ is unsymmetric where a sliding contact's friction bound follows its normal impulse (`solver`).
+        let factor = hessian.lu();
+        if !factor.solve_mut(&mut t.slopes) {
+            return Err(Error::numerical("transition_jacobians", "the step's Jacobian M̃ + Jᵀ H J is singular"));
+        }
+        t.hessian = DMatrix::zeros(nv, nv);
         t.slopes.neg_mut();
         integrate_jacobians(model, v_next, h, &mut t.integrate_q, &mut t.integrate_v);
         a.resize_mut(2 * nv, 2 * nv, 0.0);
@@ -252,7 +255,18 @@ impl TreeSimulation {
         t.constraints.clear();
         for f in &self.found {
             let moved = self.collision.moved(f, &t.poses);
-            t.constraints.push(contact_constraint(model, &t.data, &t.delassus, &self.fused_body, self.friction, self.h, &moved, f.distance, &origin));
+            t.constraints.push(contact_constraint(
+                self.coulomb,
+                model,
+                &t.data,
+                &t.delassus,
+                &self.fused_body,
+                self.friction,
+                self.h,
+                &moved,
+                f.distance,
+                &origin,
+            ));
         }
         for &(index, side) in &self.limit_rows {
             // A limit's warm start only seeds the solver: its impulse at a given v⁺ does not depend on it.
