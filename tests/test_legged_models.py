@@ -177,9 +177,9 @@ def test_gait_cli_rejects_bad_arguments():
             gait.main(["--torque-margin", margin])
     with pytest.raises(SystemExit):
         gait.main(["--replay-controller", "lqr"])
-    for coarse in (["--coarse-intervals", "0"], ["--coarse-intervals", "4"], ["--coarse-intervals", "8", "--intervals", "8"]):
+    for coarse in (["--coarse-intervals", "-1"], ["--coarse-intervals", "16"], ["--coarse-intervals", "8", "--intervals", "8"]):
         with pytest.raises(SystemExit):
-            gait.main(coarse)  # not positive, or not fewer than --intervals (default 4)
+            gait.main(coarse)  # negative, or not fewer than --intervals (default 16); 0 solves on --intervals directly
 
 
 def test_gait_defaults_are_the_published_amble(tmp_path):

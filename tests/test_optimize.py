@@ -16,12 +16,14 @@ from legkit.optimize import (
     MinMaxStability,
     MultiphaseProblem,
     Phase,
+    TorqueSpeedLine,
     Trajectory,
     effort,
     hermite_simpson_defects,
     joule_loss,
     specific_resistance,
 )
+from legkit.optimize.checks import execution_check
 from legkit.optimize.mirror import side_mirror
 from legkit.optimize.solver import solve
 from legkit.robots.quadruped import LEGS, build_quadruped
@@ -411,6 +413,48 @@ def test_load_rate_rows_bound_every_change_of_force_and_torque_and_each_switch(m
     np.testing.assert_allclose(np.sort(rows), np.sort(np.concatenate([np.ravel(e) for e in expected])), rtol=1e-12, atol=1e-9)
     with pytest.raises(ValueError, match="max_force_rate must be > 0"):
         replace(plain, max_force_rate=0.0)
+
+
+def test_execution_check_reports_the_worst_yaw_rates_and_torque_of_a_plan():
+    # Each figure recomputed here from the unpacked trajectory of a random point: yaw by scipy at the points, torques
+    # against their bound, the largest change of a force component or a torque over its step (switches: from or to
+    # zero), and the joint rates on the velocity's Hermite cubic sampled as finely as the check samples it.
+    robot = build_quadruped()
+    feet = {leg: robot.feet[leg] for leg in LEGS}
+    phases = [Phase(("lf", "lh"), 2, (0.1, 0.5)), Phase(("lf", "rh"), 1, (0.1, 0.5)), Phase(("rf", "rh"), 2, (0.1, 0.5))]
+    nu, stall, speed = robot.model.nv - 6, 2.0, 20.0
+    problem = MultiphaseProblem(robot.model, phases, feet, [effort()], speed=0.3, u_bounds=(np.full(nu, -stall), np.full(nu, stall)),
+                                torque_speed=TorqueSpeedLine(speed, 0.1))
+    x = np.random.default_rng(9).normal(0.0, 1.0, problem.n)
+    x[problem.duration_index] = [0.2, 0.3, 0.25]
+    check = execution_check(problem, x, samples=9)
+    trajectory = problem.unpack(x)
+    yaw = np.concatenate([Rotation.from_quat(q[:, 3:7]).as_euler("ZYX")[:, 0] for q in trajectory.q])
+    assert check.yaw == pytest.approx(np.degrees(np.abs(yaw).max()), rel=1e-12)
+    assert check.torque == pytest.approx(max(np.abs(u).max() for u in trajectory.u) / stall, rel=1e-12)
+    force_rates, torque_rates, joint_rates = [], [], []
+    for k, phase in enumerate(phases):
+        after = (k + 1) % len(phases)
+        step, later_step = (trajectory.durations[j] / (2 * phases[j].intervals) for j in (k, after))
+        torque_rates += [np.abs(np.diff(trajectory.u[k], axis=0)).max() / step, np.abs(trajectory.u[after][0] - trajectory.u[k][-1]).max() / step]
+        landing = {name: trajectory.forces[after][0, c] for c, name in enumerate(phases[after].contacts)}
+        for c, name in enumerate(phase.contacts):
+            force = trajectory.forces[k][:, c]
+            force_rates += [np.abs(np.diff(force, axis=0)).max() / step, np.abs(landing.get(name, 0.0) - force[-1]).max() / step]
+        force_rates += [np.abs(f).max() / later_step for name, f in landing.items() if name not in phase.contacts]
+        h = 2 * step
+        v, a = trajectory.v[k][:, 6:], trajectory.a[k][:, 6:]
+        for i in range(phase.intervals):
+            for s in np.linspace(0.0, 1.0, 9):
+                joint_rates.append(np.abs((2 * s**3 - 3 * s**2 + 1) * v[2 * i] + (s**3 - 2 * s**2 + s) * h * a[2 * i]
+                                          + (-2 * s**3 + 3 * s**2) * v[2 * i + 2] + (s**3 - s**2) * h * a[2 * i + 2]).max())
+    weight = robot.model.total_mass * lk.STANDARD_GRAVITY
+    assert check.force_rate == pytest.approx(max(force_rates) / (1e3 * weight), rel=1e-9)
+    assert check.torque_rate == pytest.approx(max(torque_rates) / (1e3 * stall), rel=1e-9)
+    assert check.joint_rate == pytest.approx(max(joint_rates) / speed, rel=1e-9)
+    assert np.isfinite(check.swing_height) and len(check.lines()) == 6
+    with pytest.raises(ValueError, match="samples"):
+        execution_check(problem, x, samples=1)
 
 
 @pytest.mark.parametrize("change, message", [

@@ -25,7 +25,7 @@ class ExecutionCheck:
     joint_rate: float  # largest |joint rate| on the cubics between the points / the motors' no-load joint speed
     torque: float  # largest |u| / its bound (the controls are linear between the points: the largest is at one)
     torque_rate: float  # largest |du/dt| [bound per ms]: between neighbouring points and across support switches
-    force_rate: float  # largest |dF/dt| of a foot's force [body weights per ms], switches included
+    force_rate: float  # largest |dF_i/dt| of a component of a foot's force [body weights per ms], switches included
     swing_height: float  # [m] the lowest swing tip on the cubics between the points (negative: below the ground)
 
     def lines(self) -> list[str]:
@@ -83,15 +83,15 @@ def execution_check(problem: MultiphaseProblem, x: np.ndarray, samples: int = 16
         later_step = 0.5 * trajectory.durations[(k + 1) % len(phases)] / later.intervals
         for c, name in enumerate(phase.contacts):
             force = trajectory.forces[k][:, c]
-            changes = [np.max(np.linalg.norm(np.diff(force, axis=0), axis=1), initial=0.0) / step]
+            changes = [np.max(np.abs(np.diff(force, axis=0)), initial=0.0) / step]
             if problem.periodic or k + 1 < len(phases):
                 after = {n: trajectory.forces[(k + 1) % len(phases)][0, i] for i, n in enumerate(later.contacts)}
-                changes.append(np.linalg.norm(after.get(name, 0.0) - force[-1]) / step)
+                changes.append(np.max(np.abs(after.get(name, 0.0) - force[-1])) / step)
             force_rate = max(force_rate, max(changes) / (1e3 * weight))
         if problem.periodic or k + 1 < len(phases):
             for i, name in enumerate(later.contacts):
                 if name not in phase.contacts:  # landing: loads from zero
-                    force_rate = max(force_rate, float(np.linalg.norm(trajectory.forces[(k + 1) % len(phases)][0, i])) / later_step / (1e3 * weight))
+                    force_rate = max(force_rate, float(np.max(np.abs(trajectory.forces[(k + 1) % len(phases)][0, i]))) / later_step / (1e3 * weight))
     return ExecutionCheck(yaw if model.floating_base else np.nan, joint_rate if np.all(np.isfinite(speed)) else np.nan,
                           torque if bound is not None else np.nan, torque_rate if bound is not None else np.nan, force_rate,
                           swing_height if np.isfinite(swing_height) else np.nan)
