@@ -25,17 +25,8 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from legkit.experiments.gait import AMBLE_QUADRUPED, DIAGONAL_PAIRS, QUADRUPED_MOTOR, build_quadruped  # noqa: E402
-from legkit.optimize import MinMaxStability  # noqa: E402
-from legkit.optimize.gaits import (  # noqa: E402
-    AMBLE_DERIVATIVES,
-    AMBLE_IPOPT,
-    AMBLE_MIRROR,
-    amble_problem,
-    amble_reference,
-    guess_from_reference,
-    stall_torque_bounds,
-)
+from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR, build_quadruped  # noqa: E402
+from legkit.optimize.gaits import replayable_amble, replayable_amble_problem, stall_torque_bounds  # noqa: E402
 from legkit.optimize.tracking import MPC, TrackingModel, heavier, track  # noqa: E402
 
 
@@ -47,20 +38,13 @@ def main() -> None:
     args = parser.parse_args()
 
     robot = build_quadruped(AMBLE_QUADRUPED)
-
-    def amble(intervals: int):
-        return amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, intervals, QUADRUPED_MOTOR, 0.6,
-                             max_impulse=0.0, mirror=AMBLE_MIRROR, min_normal_force=3.0)
-
-    coarse, fine = amble(4), amble(16)
     if args.plan is not None and args.plan.exists():
+        fine = replayable_amble_problem(robot)
         x = np.load(args.plan)["x"]
         print(f"plan loaded from {args.plan}")
     else:
         start = time.perf_counter()
-        _, result = coarse.solve(guess_from_reference(coarse, amble_reference(robot, 0.67, 1.25, 4)), derivatives=AMBLE_DERIVATIVES,
-                                 feasibility_first=True, polish=True, options=AMBLE_IPOPT)
-        _, result = fine.refine(coarse, result, options=AMBLE_IPOPT)
+        fine, result = replayable_amble(robot)
         x = result.best()[0]
         print(f"plan solved: {result.status}, {time.perf_counter() - start:.1f} s")
         if args.plan is not None:

@@ -22,6 +22,7 @@ import numpy as np
 import legkit as lk
 from legkit.experiments.gait import (
     AMBLE_HIP_HEIGHT,
+    QUADRUPED_MOTOR,
     GaitReference,
     MotorParameters,
     biped_walk,
@@ -29,11 +30,11 @@ from legkit.experiments.gait import (
     quadruped_amble,
 )
 from legkit.optimize.mirror import side_mirror
-from legkit.optimize.objectives import joule_loss
+from legkit.optimize.objectives import MinMaxStability, joule_loss
 from legkit.optimize.problem import FlatFoot, InputPower, MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
 from legkit.optimize.solver import SolveResult, solve
 from legkit.robots.biped import SIDES, Biped
-from legkit.robots.quadruped import LEGS, Quadruped
+from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, Quadruped
 
 #: IPOPT options for the amble: the monotone barrier update (the adaptive one drove mu to 1e-11 within a few
 #: iterations of the J_s2 stage and then crawled along the constraints).
@@ -126,6 +127,25 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
                              rate_fractions=rate_fractions,
                              max_torque_rate=float(bounds[1][0]) / torque_rise if torque_rise > 0.0 else np.inf,
                              mirror=side_mirror(robot.model, {"lf": "rf", "lh": "rh"}) if mirror else None)
+
+
+def replayable_amble_problem(robot: Quadruped, intervals: int = 16, speed: float = 0.67, period: float = 1.25) -> MultiphaseProblem:
+    """`replayable_amble`'s problem on `intervals` per phase."""
+    return amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], speed, period, intervals, QUADRUPED_MOTOR, 0.6,
+                         max_impulse=0.0, mirror=AMBLE_MIRROR, min_normal_force=3.0)
+
+
+def replayable_amble(robot: Quadruped, speed: float = 0.67, period: float = 1.25, intervals: int = 16,
+                     coarse_intervals: int = 4) -> tuple[MultiphaseProblem, SolveResult]:
+    """The amble a tracking controller holds, as `legkit gait --optimize` plans it by default: J_s2 with soft
+    touchdowns, a 3 N stance-force floor and mu 0.6 on `coarse_intervals` per phase (mirrored half, feasibility
+    first, polished), refined onto `intervals` (`MultiphaseProblem.refine`). Returns the fine problem and its result;
+    `problem.full_cycle()` and `problem.unroll` give the whole cycle."""
+    coarse, fine = (replayable_amble_problem(robot, count, speed, period) for count in (coarse_intervals, intervals))
+    _, result = coarse.solve(guess_from_reference(coarse, amble_reference(robot, speed, period, coarse_intervals)),
+                             derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=True, options=AMBLE_IPOPT)
+    _, result = fine.refine(coarse, result, options=AMBLE_IPOPT)
+    return fine, result
 
 
 def amble_reference(robot: Quadruped, speed: float, period: float, intervals: int) -> GaitReference:
