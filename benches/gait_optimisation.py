@@ -29,7 +29,8 @@ import time
 import numpy as np
 
 import legkit.optimize as lo
-from legkit.experiments.gait import AMBLE_QUADRUPED, BIPED_MOTOR, QUADRUPED_MOTOR, inverse_dynamics_residuals, midpoint_stance_acceleration
+from legkit.gaits import AMBLE_QUADRUPED
+from legkit.optimize.checks import inverse_dynamics_residuals, midpoint_stance_acceleration
 from legkit.optimize.gaits import (
     AMBLE_DERIVATIVES,
     AMBLE_IPOPT,
@@ -45,6 +46,7 @@ from legkit.optimize.gaits import (
 )
 from legkit.optimize.problem import DERIVATIVES
 from legkit.robots.biped import build_biped
+from legkit.robots.motors import BIPED_MOTOR, QUADRUPED_MOTOR
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
 
 

@@ -20,11 +20,13 @@ import time
 
 import numpy as np
 
-from legkit.experiments.gait import AMBLE_QUADRUPED, DIAGONAL_PAIRS, QUADRUPED_MOTOR, build_quadruped
-from legkit.optimize import MinMaxStability, MultiphaseProblem, interval_drift
-from legkit.optimize.gaits import AMBLE_DERIVATIVES, AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference, stall_torque_bounds
+from legkit.gaits import AMBLE_QUADRUPED
+from legkit.optimize import interval_drift
+from legkit.optimize.gaits import plan_amble, stall_torque_bounds
 from legkit.optimize.replay import replay
 from legkit.optimize.tracking import TrackingModel, track
+from legkit.robots.motors import QUADRUPED_MOTOR
+from legkit.robots.quadruped import build_quadruped
 
 
 def main() -> None:
@@ -41,21 +43,12 @@ def main() -> None:
 
     robot = build_quadruped(AMBLE_QUADRUPED)
 
-    def amble(intervals: int) -> MultiphaseProblem:
-        return amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, intervals, QUADRUPED_MOTOR, args.mu,
-                             max_impulse=0.0, mirror=True, min_normal_force=args.min_normal_force, torque_margin=args.torque_margin)
-
-    half = amble(args.intervals)
-    solved = amble(args.coarse_intervals) if args.coarse_intervals else half
-    guess = guess_from_reference(solved, amble_reference(robot, 0.67, 1.25, solved.phases[0].intervals))
     start = time.perf_counter()
-    _, result = solved.solve(guess, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=True, options=AMBLE_IPOPT)
-    if solved is not half:
-        _, result = half.refine(solved, result, options=AMBLE_IPOPT)
+    plan = plan_amble(robot, intervals=args.intervals, coarse_intervals=args.coarse_intervals or 0, friction=args.mu,
+                      min_normal_force=args.min_normal_force, torque_margin=args.torque_margin)
     total = time.perf_counter() - start
-    x, _ = result.best()
-    problem = half.full_cycle()
-    x = problem.pack(half.unroll(half.unpack(x)))
+    result = plan.result
+    problem, x = plan.problem.whole_cycle(result.best()[0])
     trajectory = problem.unpack(x)
     drift = interval_drift(problem, x).worst(True)
     refined = f" (refined from {args.coarse_intervals})" if args.coarse_intervals else ""

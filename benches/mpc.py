@@ -25,9 +25,11 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR, build_quadruped  # noqa: E402
-from legkit.optimize.gaits import replayable_amble, replayable_amble_problem, stall_torque_bounds  # noqa: E402
+from legkit.gaits import AMBLE_QUADRUPED  # noqa: E402
+from legkit.optimize.gaits import amble_plan_problem, plan_amble, stall_torque_bounds  # noqa: E402
 from legkit.optimize.tracking import MPC, TrackingModel, heavier, track  # noqa: E402
+from legkit.robots.motors import QUADRUPED_MOTOR  # noqa: E402
+from legkit.robots.quadruped import build_quadruped  # noqa: E402
 
 
 def main() -> None:
@@ -39,18 +41,19 @@ def main() -> None:
 
     robot = build_quadruped(AMBLE_QUADRUPED)
     if args.plan is not None and args.plan.exists():
-        fine = replayable_amble_problem(robot)
+        fine = amble_plan_problem(robot)
         x = np.load(args.plan)["x"]
         print(f"plan loaded from {args.plan}")
     else:
         start = time.perf_counter()
-        fine, result = replayable_amble(robot)
+        plan = plan_amble(robot)
+        fine, result = plan.problem, plan.result
         x = result.best()[0]
         print(f"plan solved: {result.status}, {time.perf_counter() - start:.1f} s")
         if args.plan is not None:
             np.savez(args.plan, x=x)
-    problem = fine.full_cycle()
-    trajectory = problem.unpack(problem.pack(fine.unroll(fine.unpack(x))))
+    problem, x = fine.whole_cycle(x)
+    trajectory = problem.unpack(x)
     motors = stall_torque_bounds(QUADRUPED_MOTOR, problem.nu)
 
     start = time.perf_counter()

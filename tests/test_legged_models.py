@@ -13,6 +13,7 @@ import legkit as lk
 import legkit.stability as ls
 from conftest import examples
 from legkit.experiments import gait
+from legkit.gaits import periodic_lip, quadruped_amble
 from legkit.robots.biped import BipedParameters, build_biped
 from legkit.robots.legs import model_to_urdf
 from legkit.robots.quadruped import LEGS, QuadrupedParameters, build_quadruped
@@ -120,7 +121,7 @@ def test_periodic_lip_satisfies_the_pendulum_equation():
     n, period, height = 256, 0.8, 0.9
     t = np.arange(n) * period / n
     zmp = np.column_stack([0.05 * np.sin(2 * np.pi * t / period), 0.02 * np.cos(4 * np.pi * t / period)])
-    com = gait.periodic_lip(zmp, period, height)
+    com = periodic_lip(zmp, period, height)
     # Exact for these two harmonics: amplitude divided by 1 + (h/g) w^2.
     for column, harmonic, amplitude, wave in ((0, 1, 0.05, np.sin), (1, 2, 0.02, np.cos)):
         w = 2 * np.pi * harmonic / period
@@ -148,7 +149,7 @@ def test_gait_experiment_writes_results_and_its_biped_zmp_equals_the_cop(tmp_pat
 
 def test_quadruped_amble_support_alternates_diagonal_and_lateral_pairs():
     robot = build_quadruped()
-    ref = gait.quadruped_amble(robot, 0.67, 0.4, 80, 1, 0.03, 0.09)
+    ref = quadruped_amble(robot, 0.67, 0.4, 80, 1, 0.03, 0.09)
     assert np.all(ref.active.sum(axis=1) == 2)
     phases = [ref.support_label[i] for i in (0, 20, 40, 60)]
     # File 003, Sect. 4.2: LF-LB, LF-RR (printed "LR-RR"), RF-RR, RF-LR from the start of the cycle.

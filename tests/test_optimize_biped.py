@@ -13,11 +13,11 @@ from scipy.optimize import nnls
 import legkit as lk
 import legkit.stability as st
 from legkit.experiments import gait
-from legkit.experiments.gait import BIPED_MOTOR
 from legkit.optimize import FlatFoot, MultiphaseProblem, Phase, fri_deviation, joule_loss
 from legkit.optimize.gaits import SOLE_TORSION, WALK_SUPPORT, guess_from_reference, walk_problem, walk_reference
 from legkit.optimize.solver import solve
 from legkit.robots.biped import SIDES, build_biped
+from legkit.robots.motors import BIPED_MOTOR
 from test_optimize import lagrangian_hessian_error
 
 COARSE = (1, 1)  # intervals per double- and single-support phase: 12 collocation points per cycle

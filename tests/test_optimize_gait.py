@@ -9,10 +9,11 @@ import pytest
 
 import legkit as lk
 from legkit.experiments import gait
-from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR
+from legkit.gaits import AMBLE_QUADRUPED
 from legkit.optimize import MinMaxStability, MultiphaseProblem, Phase, SolveResult, Trajectory, effort
 from legkit.optimize.gaits import AMBLE_SUPPORT, amble_problem, amble_reference, guess_from_reference
 from legkit.optimize.replay import clear_of_ground, foot_bottoms, foot_shapes, periodic_samples
+from legkit.robots.motors import QUADRUPED_MOTOR
 from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, build_quadruped
 
 
@@ -45,8 +46,10 @@ def test_cli_optimize_prints_each_stage_and_writes_csv_and_figure(tmp_path, caps
     out = capsys.readouterr().out
     # Two continuation stages (constraints first, then J_s2), by default two more (the exact-Hessian polish with the
     # phase durations held, then free), with --coarse-intervals one more (the refinement), each with IPOPT's iterate 0 too.
-    stages = ["constraints (p1 held below S_H)", "J_s2 (L-BFGS)"]
-    stages += [] if mode == "no_polish" else ["polish: exact Hessian, durations held", "polish: exact Hessian"]
+    # The stages on the coarse mesh name it.
+    coarse = " on 1 interval" if mode == "refined" else ""
+    stages = [f"constraints{coarse} (p1 held below S_H)", f"J_s2{coarse} (L-BFGS)"]
+    stages += [] if mode == "no_polish" else [f"polish{coarse}: exact Hessian, durations held", f"polish{coarse}: exact Hessian"]
     stages += [f"refine onto {intervals} intervals"] if mode == "refined" else []
     progress = [line.strip().rpartition(": ") for line in out.splitlines() if " iterations, objective " in line]  # one per stage
     assert [label for label, _, _ in progress] == stages
@@ -202,9 +205,9 @@ def test_max_impulse_bounds_every_touchdown_impulse():
 def test_replay_soles_are_boxes_whose_lowest_corner_starts_on_the_ground():
     # The biped's flat feet collide as boxes under their soles; against brute force: points all over each
     # box's bottom face placed by forward kinematics, the walk's first point tilted so a sole starts below.
-    from legkit.experiments.gait import BIPED_MOTOR
     from legkit.optimize.gaits import walk_problem
     from legkit.robots.biped import build_biped
+    from legkit.robots.motors import BIPED_MOTOR
 
     robot = build_biped()
     problem = walk_problem(robot, 0.5, BIPED_MOTOR, (1, 1))

@@ -9,12 +9,13 @@ import numpy as np
 import pytest
 
 import legkit as lk
-from legkit.experiments.gait import AMBLE_QUADRUPED, BIPED_MOTOR, QUADRUPED_MOTOR
+from legkit.gaits import AMBLE_QUADRUPED
 from legkit.optimize import MinMaxStability, MultiphaseProblem
 from legkit.optimize.gaits import amble_problem, amble_reference, guess_from_reference, walk_problem, walk_reference
 from legkit.optimize.mirror import REFLECTION, Mirror, sagittal_mirror, side_mirror
 from legkit.optimize.solver import solve
 from legkit.robots.biped import build_biped
+from legkit.robots.motors import BIPED_MOTOR, QUADRUPED_MOTOR
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
 
 SIDES = {"biped": {"l": "r"}, "quadruped": {"lf": "rf", "lh": "rh"}}

@@ -7,9 +7,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR
+from legkit.gaits import AMBLE_QUADRUPED
 from legkit.optimize import MinMaxStability, SolveResult
 from legkit.optimize.gaits import AMBLE_IPOPT, amble_problem, amble_reference, guess_from_reference
+from legkit.robots.motors import QUADRUPED_MOTOR
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
 
 ROBOT = build_quadruped(AMBLE_QUADRUPED)

@@ -11,12 +11,12 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import legkit as lk
-from legkit.experiments.gait import BIPED_MOTOR
 from legkit.optimize import MultiphaseProblem, Phase, Trajectory, effort
 from legkit.optimize.gaits import walk_problem
 from legkit.optimize.kinematics import rotation
 from legkit.optimize.shooting import constrained_accelerations, interval_drift
 from legkit.robots.biped import build_biped
+from legkit.robots.motors import BIPED_MOTOR
 from legkit.robots.quadruped import LEGS, build_quadruped
 
 G = lk.STANDARD_GRAVITY

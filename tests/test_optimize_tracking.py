@@ -12,11 +12,13 @@ import numpy as np
 import pytest
 
 import legkit as lk
-from legkit.experiments.gait import AMBLE_QUADRUPED, QUADRUPED_MOTOR, build_quadruped
+from legkit.gaits import AMBLE_QUADRUPED
 from legkit.optimize import effort
-from legkit.optimize.gaits import amble_problem, amble_reference, guess_from_reference, replayable_amble_problem, stall_torque_bounds
+from legkit.optimize.gaits import amble_plan_problem, amble_problem, amble_reference, guess_from_reference, stall_torque_bounds
 from legkit.optimize.replay import phase_of
 from legkit.optimize.tracking import MPC, TrackingModel, _pyramid, heavier, held_step, sampled_reference, track
+from legkit.robots.motors import QUADRUPED_MOTOR
+from legkit.robots.quadruped import build_quadruped
 
 DT = 0.01  # a coarse control period keeps the linearisation short
 
@@ -241,7 +243,7 @@ def test_bad_arguments_fail_naming_them(amble):
         track(problem, trajectory, 1, model=model, control_every=10, joint_offset=np.zeros(3))
 
 
-#: A plan `replayable_amble` solved (mirrored half, 16 intervals per phase; `benches/mpc.py --plan` writes one). It is
+#: A plan `plan_amble` solved (mirrored half, 16 intervals per phase; `benches/mpc.py --plan` writes one). It is
 #: stored because IPOPT's path over a few hundred iterations follows the last bits of its floating-point arithmetic,
 #: which change with what ran before in the process: solved inside the test run, the plan differed from run to run,
 #: and so did whether the MPC held it with the heavier plant (it fell in 2 of 7 runs).
@@ -251,11 +253,11 @@ PLAN = Path(__file__).parent / "data" / "replayable_amble.npz"
 @pytest.fixture(scope="module")
 def optimised_amble():
     """The stored plan of `legkit gait --optimize`'s default recipe, checked to be a solution of today's problem."""
-    fine = replayable_amble_problem(build_quadruped(AMBLE_QUADRUPED))
+    fine = amble_plan_problem(build_quadruped(AMBLE_QUADRUPED))
     x = np.load(PLAN)["x"]
     assert x.shape == (fine.n,) and fine.nlp().violation(x) < 1e-6  # stale if the transcription changed: re-solve it
-    problem = fine.full_cycle()
-    trajectory = problem.unpack(problem.pack(fine.unroll(fine.unpack(x))))
+    problem, x = fine.whole_cycle(x)
+    trajectory = problem.unpack(x)
     return problem, trajectory, TrackingModel.build(problem, trajectory)
 
 

@@ -1,39 +1,16 @@
 """`legkit gait`: stability and energy indices over one cycle of a quadruped amble and a biped walk.
 
-Reproduces the gait analysis of Hardt & von Stryk (RoboCup 2002; ../shared/seeds/003_8a51da06d878ba35.txt):
-the amble of their Fig. 3 (0.67 m/s, gait period 1.25 s, duty factor 0.5, v_tip_max = 2 m/s, support order
-LF+LH, LF+RH, RF+RH, RF+LH), and a biped walking at the 1.8 km/h (0.5 m/s) of their Sect. 6.
+Reproduces the gait analysis of [Hardt 2002]: the amble of its Fig. 3 (0.67 m/s, gait period 1.25 s, duty factor
+0.5, v_tip_max = 2 m/s, support order LF+LH, LF+RH, RF+RH, RF+LH), and a biped walking at the 1.8 km/h (0.5 m/s) of
+its Sect. 6. The references are `legkit.gaits.references`' (the amble on `AMBLE_QUADRUPED`, whose legs reach the
+published stride), their analysis `legkit.gaits.analysis.analyse`; this module parses the arguments and writes the
+outputs.
 
-The published amble's numbers fix its stride: 0.67 m/s x 1.25 s = 0.84 m per cycle, so each foot sweeps
-0.42 m under its hip during a stance (the paper's "gait stride 0.416 m" is this half cycle; 0.416 m per
-cycle would mean 0.33 m/s). An AIBO-sized leg (0.145 m, legkit's default quadruped) cannot reach that far,
-so the amble runs on the default quadruped with 0.18 m thighs and shanks at a hip height of 0.20 m
-(``AMBLE_QUADRUPED``, ``AMBLE_HIP_HEIGHT``); masses and the rest of the body are unchanged.
+Outputs in --out: gait_<robot>.csv (one row per sample) and gait_<robot>.png (S_H over the cycle, like the paper's
+Fig. 3: the published S_H, with the energy variant overlaid; the static and ZMP margins below). A short table is
+printed. Nothing is random: the same arguments give the same files.
 
-Pipeline, per robot:
-1. Reference motion from foot placements: the base moves at constant speed and height (the biped also sways
-   sideways over its stance foot and swings its arms); stance feet stay where they touched down, swing feet
-   follow a C2 minimum-jerk arc to the next foothold; joint angles by closed-form leg inverse kinematics;
-   joint velocities and accelerations by periodic fourth-order central differences.
-2. Inverse dynamics with contacts: rnea gives M a + h; the contact forces f of the stance feet solve the
-   six base rows  M_b a + h_b = J_c,b^T f  in the least-squares (minimum-norm) sense, and the joint torques
-   follow as tau = (M a + h)_joints - J_c,joints^T f. With two point feet (the quadruped's amble) the six
-   rows cannot all be met: point forces cannot produce a moment about the line through the two feet, so the
-   residual is the unbalanced tipping moment about the support line, reported as such. `lk.contact_dynamics`
-   with those torques then gives the acceleration the constrained robot would really have; its distance
-   from the reference is reported too.
-3. Indices: S_H as published (definition="paper", the diagonal leg pairs LF-RH and RF-LH, travel along +x)
-   and legkit's energy variant (definition="energy", the swing tips as catching legs), static stability margin, ZMP from the centroidal
-   momentum rate and its margin to the support polygon, CoP of the contact forces, friction-cone margin,
-   torque-speed margin, and the two energy indices over the cycle (J_e2 as the published integral and as
-   its time mean, with v the COM's forward speed). The biped also gets the FRI of its feet in contact
-   (eq. 8, the point S) and J_s1 (eq. 9) of the GCoM about it.
-
-Outputs in --out: gait_<robot>.csv (one row per sample) and gait_<robot>.png (S_H over the cycle, like the
-paper's Fig. 3: the published S_H, with the energy variant overlaid; the static and ZMP margins below). A short table is printed.
-Nothing is random: the same arguments give the same files.
-
-`--optimize` replaces the references by optimised gaits (`legkit.optimize`): the amble maximising the
+`--optimize` replaces the references by optimised gaits (`legkit.optimize.gaits`): the amble maximising the
 worst-case S_H (J_s2) and the biped walk minimising the Joule loss (J_e1) with a Fig.-6 torque-speed plot
 (`run_optimized_amble`, `run_optimized_walk`).
 """
@@ -44,390 +21,24 @@ import argparse
 import csv
 import sys
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 from tqdm import tqdm
 
-import legkit as lk
 import legkit.stability as st
 from legkit._validation import bounded_int, output_folder_argument
+from legkit.gaits.analysis import GaitAnalysis, analyse, biped_extras
+from legkit.gaits.references import AMBLE_HIP_HEIGHT, AMBLE_QUADRUPED, biped_walk, quadruped_amble
 from legkit.robots.biped import JOINT_LABELS, SIDES, Biped, build_biped
-from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, Quadruped, QuadrupedParameters, build_quadruped
+from legkit.robots.motors import BIPED_MOTOR, QUADRUPED_MOTOR, MotorParameters
+from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, build_quadruped
 
-if TYPE_CHECKING:  # legkit.optimize.gaits imports this module
+if TYPE_CHECKING:
     from legkit.optimize.problem import MultiphaseProblem, Trajectory
     from legkit.optimize.replay import Replay
-
-
-@dataclass(frozen=True)
-class MotorParameters:
-    """DC motor and gear of every actuated joint (same for all joints of a robot)."""
-
-    resistance: float  # ohm
-    torque_constant: float  # N m / A
-    gear_ratio: float  # motor turns per joint turn
-    efficiency: float  # gear efficiency in (0, 1]
-    no_load_speed: float  # motor no-load speed [rad/s]
-    stall_torque: float  # motor stall torque [N m]
-
-    @property
-    def joint_max_speed(self) -> float:
-        return self.no_load_speed / self.gear_ratio
-
-    @property
-    def slope(self) -> float:
-        """Motor speed-torque gradient m [rad/s per N m]."""
-        return self.no_load_speed / self.stall_torque
-
-
-QUADRUPED_MOTOR = MotorParameters(resistance=5.0, torque_constant=0.012, gear_ratio=60.0, efficiency=0.7, no_load_speed=1257.0, stall_torque=0.03)
-#: The quadruped of the amble: legkit's default with legs long enough for the published 0.42 m stance sweep.
-AMBLE_QUADRUPED = QuadrupedParameters(thigh_length=0.18, shank_length=0.18)
-AMBLE_HIP_HEIGHT = 0.20  # [m]
-BIPED_MOTOR = MotorParameters(resistance=0.5, torque_constant=0.05, gear_ratio=160.0, efficiency=0.8, no_load_speed=838.0, stall_torque=1.2)
-
-
-@dataclass
-class GaitReference:
-    """Sampled reference motion of a whole-body gait."""
-
-    t: np.ndarray  # (T,)
-    q: np.ndarray  # (T, nq)
-    v: np.ndarray  # (T, nv)
-    a: np.ndarray  # (T, nv)
-    contacts: list[tuple[int, np.ndarray]]  # every possible contact point (body, point in body frame)
-    active: np.ndarray  # (T, k) bool: which contact points are on the ground
-    support_label: list[str]  # (T,) human-readable support set
-    distance: float  # metres travelled over t
-    feet: list[list[int]]  # contact indices of each foot
-    zmp_tracking_error: float  # largest distance [m] of the whole-body ZMP from the planned ZMP
-
-
-# --------------------------------------------------------------------------------------------------
-# Reference motions
-# --------------------------------------------------------------------------------------------------
-
-
-def _min_jerk(s: np.ndarray) -> np.ndarray:
-    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
-
-
-def _bump(s: np.ndarray) -> np.ndarray:
-    """C2 lift profile with value 1 at s = 1/2 and zero value, slope and curvature at s = 0 and 1."""
-    return 64.0 * (s * (1.0 - s)) ** 3
-
-
-def _foot_track(samples: int, touchdown: int, stance_samples: int, dt: float, speed: float,
-                step_height: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """World foot x (relative to where the body's nominal frame was at t = 0), lift and stance flag over one
-    cycle of `samples` steps of dt. The foot touches down at sample `touchdown` half a stance ahead of its
-    hip, stays put for `stance_samples`, then swings one stride (speed x cycle time) forward along a
-    minimum-jerk arc; all in integer sample arithmetic, so support sets switch exactly at sample boundaries."""
-    i = np.arange(samples)
-    phase = (i - touchdown) % samples
-    stance = phase < stance_samples
-    s = np.clip((phase - stance_samples) / (samples - stance_samples), 0.0, 1.0)
-    half_stance = 0.5 * speed * stance_samples * dt
-    x = speed * (i - phase) * dt + half_stance + np.where(stance, 0.0, speed * samples * dt * _min_jerk(s))
-    z = np.where(stance, 0.0, step_height * _bump(s))
-    return x, z, stance
-
-
-def _periodic_derivatives(values: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """First and second time derivatives of samples periodic along axis 0 (fourth-order central differences)."""
-    p1, m1 = np.roll(values, -1, axis=0), np.roll(values, 1, axis=0)
-    p2, m2 = np.roll(values, -2, axis=0), np.roll(values, 2, axis=0)
-    first = (-p2 + 8.0 * p1 - 8.0 * m1 + m2) / (12.0 * dt)
-    second = (-p2 + 16.0 * p1 - 30.0 * values + 16.0 * m1 - m2) / (12.0 * dt * dt)
-    return first, second
-
-
-def periodic_lip(zmp_offset: np.ndarray, period: float, height: float, gravity: float = lk.STANDARD_GRAVITY) -> np.ndarray:
-    """The periodic COM path (N, 2) of the linear inverted pendulum c - (height / g) c'' = p for a periodic
-    ZMP reference p (N, 2), both taken relative to the steady progression (speed t, 0).
-
-    In Fourier terms C_k = P_k / (1 + (height / g) (2 pi k / period)^2): the unique periodic solution, so the
-    gait's base motion starts and ends in the same state and the ZMP (in the LIP sense) follows p."""
-    frequency = 2.0 * np.pi * np.fft.rfftfreq(zmp_offset.shape[0], d=period / zmp_offset.shape[0])
-    spectrum = np.fft.rfft(zmp_offset, axis=0) / (1.0 + height / gravity * frequency**2)[:, None]
-    return np.fft.irfft(spectrum, n=zmp_offset.shape[0], axis=0)
-
-
-def _base_on_zmp(model: lk.Model, t: np.ndarray, speed: float, zmp_ref: np.ndarray, com_height: float,
-                 joints_for: Callable[[np.ndarray], np.ndarray],
-                 states: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]],
-                 iterations: int = 8) -> tuple[np.ndarray, np.ndarray, float]:
-    """Periodic base xy offsets (N, 2) whose whole-body ZMP follows zmp_ref (N, 2); also the joints (N, nj)
-    and the remaining largest ZMP error [m].
-
-    Starts from the periodic LIP path and corrects it by the LIP response to the whole-body ZMP error (legs
-    and arms swing and shift the ZMP, which a point-mass model ignores): a fixed-point iteration in the style
-    of iterative ZMP compensation. joints_for(base_xy) -> joint angles; states(base_xy, joints) -> (q, v, a)."""
-    period = t[1] * len(t)
-    progression = np.stack([speed * t, np.zeros_like(t)], axis=1)
-    g = -model.gravity[2]
-    base = periodic_lip(zmp_ref - progression, period, com_height, g)
-    for _ in range(iterations):
-        error = zmp_ref - st.zmp(model, *states(base, joints_for(base)))[:, :2]
-        base = base + periodic_lip(error, period, com_height, g)
-    joints = joints_for(base)
-    error = zmp_ref - st.zmp(model, *states(base, joints))[:, :2]
-    return base, joints, float(np.max(np.linalg.norm(error, axis=1)))
-
-
-def _expand(robot_model: lk.Model, dt: float, cycles: int, speed: float, base_xy: np.ndarray, base_z: float,
-            joints: np.ndarray, joint_columns: list[slice]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(t, q, v, a) over `cycles` cycles from one periodic cycle of base offsets and joint angles; the base
-    keeps an identity orientation and moves at `speed` along x plus the periodic offsets."""
-    samples = len(base_xy)
-    base_v, base_a = _periodic_derivatives(base_xy, dt)
-    joint_v, joint_a = _periodic_derivatives(joints, dt)
-    t = np.arange(samples * cycles) * dt
-    index = np.arange(samples * cycles) % samples
-    q = np.zeros((len(t), robot_model.nq))
-    q[:, 0], q[:, 1], q[:, 2], q[:, 6] = speed * t + base_xy[index, 0], base_xy[index, 1], base_z, 1.0
-    v = np.zeros((len(t), robot_model.nv))
-    v[:, 0], v[:, 1] = speed + base_v[index, 0], base_v[index, 1]
-    a = np.zeros_like(v)
-    a[:, :2] = base_a[index]
-    offset = 0
-    for cols in joint_columns:
-        width = cols.stop - cols.start
-        q[:, cols.start + 1 : cols.stop + 1] = joints[index, offset : offset + width]
-        v[:, cols] = joint_v[index, offset : offset + width]
-        a[:, cols] = joint_a[index, offset : offset + width]
-        offset += width
-    return t, q, v, a
-
-
-def quadruped_amble(robot: Quadruped, speed: float, period: float, samples: int, cycles: int, step_height: float, hip_height: float) -> GaitReference:
-    """Amble with duty factor 0.5 in the lateral sequence LF, RH, RF, LH (touchdowns a quarter cycle apart):
-    the support order of file 003, Sect. 4.2, LF+LH, LF+RH, RF+RH, RF+LH from t = 0, a lateral pair then a
-    diagonal one. The published list reads "LF-LB, LR-RR, RF-RR, RF-LR"; its second pair (both rear legs)
-    contradicts the same paragraph (lateral and diagonal pairs alternate) and the Fig. 3 caption (the RR leg
-    touches down as the left rear lifts, leaving a diagonal pair), so it is read as LF-RR (= LF+RH). The
-    torso sways so that the COM follows the periodic LIP whose ZMP is the midpoint of the supporting pair."""
-    p = robot.parameters
-    dt = period / samples
-    t = np.arange(samples) * dt
-    torso_z = hip_height - p.hip_z
-    touchdown = {"lf": 0, "rh": samples // 4, "rf": samples // 2, "lh": (3 * samples) // 4}
-    # Footholds at the hip offsets from the COM path, so the supporting pairs' midpoints follow the COM; the
-    # torso then runs behind the COM by the head's forward shift.
-    _, _, com_up = np.asarray(lk.center_of_mass(robot.model, robot.model.neutral()))
-    feet = np.zeros((samples, 4, 3))
-    active = np.zeros((samples, 4), dtype=bool)
-    for n, leg in enumerate(LEGS):
-        x, z, stance = _foot_track(samples, touchdown[leg], samples // 2, dt, speed, step_height)
-        hip = p.hip_position(leg)
-        feet[:, n] = np.stack([hip[0] + x, np.full(samples, hip[1]), z], axis=-1)
-        active[:, n] = stance
-    zmp_ref = np.sum(feet[:, :, :2] * active[:, :, None], axis=1) / np.sum(active, axis=1, keepdims=True)
-    columns = [robot.joint_slice(leg) for leg in LEGS]
-
-    def joints_for(base_xy: np.ndarray) -> np.ndarray:
-        base = np.stack([speed * t + base_xy[:, 0], base_xy[:, 1], np.full(samples, torso_z)], axis=-1)
-        return np.concatenate([robot.leg_angles(leg, feet[:, n] - base) for n, leg in enumerate(LEGS)], axis=1)
-
-    def states(base_xy: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return _expand(robot.model, dt, 1, speed, base_xy, torso_z, joints, columns)[1:]
-
-    base_xy, joints, zmp_error = _base_on_zmp(robot.model, t, speed, zmp_ref, torso_z + com_up, joints_for, states)
-    times, q, v, a = _expand(robot.model, dt, cycles, speed, base_xy, torso_z, joints, columns)
-    active = np.tile(active, (cycles, 1))
-    labels = ["+".join(leg.upper() for leg, on in zip(LEGS, row) if on) for row in active]
-    return GaitReference(times, q, v, a, robot.contacts(), active, labels, speed * len(times) * dt, [[n] for n in range(4)], zmp_error)
-
-
-def biped_walk(robot: Biped, speed: float, step_length: float, samples: int, cycles: int, double_support: float,
-               step_height: float, hip_height: float, arm_swing: float) -> GaitReference:
-    """Walk with the left foot touching down at t = 0 and the right half a cycle later; each stance lasts
-    (1 + double_support) step times. The pelvis follows the periodic LIP whose ZMP sits at the stance sole's
-    centre in single support and moves from the trailing to the leading sole centre in double support; the
-    arms swing by `arm_swing` [rad] against the same-side leg."""
-    p = robot.parameters
-    period = 2.0 * step_length / speed
-    dt = period / samples
-    t = np.arange(samples) * dt
-    stance_samples = int(round(0.5 * (1.0 + double_support) * samples))
-    touchdown = {"l": 0, "r": samples // 2}
-    sole_centre = np.array([0.5 * (p.foot_toe - p.foot_heel), 0.0, 0.0])
-    ankles = np.zeros((samples, 2, 3))
-    active = np.zeros((samples, 8), dtype=bool)
-    since_touchdown = np.zeros((samples, 2), dtype=int)
-    for n, side in enumerate(SIDES):
-        x, z, stance = _foot_track(samples, touchdown[side], stance_samples, dt, speed, step_height)
-        ankles[:, n] = np.stack([x, np.full(samples, p.hip_y if side == "l" else -p.hip_y), z + p.ankle_height], axis=-1)
-        active[:, 4 * n : 4 * n + 4] = stance[:, None]
-        since_touchdown[:, n] = (np.arange(samples) - touchdown[side]) % samples
-    centres = ankles[:, :, :2] + sole_centre[:2]
-    left_on, right_on = active[:, 0], active[:, 4]
-    leading = np.where(since_touchdown[:, 0] < since_touchdown[:, 1], 0, 1)
-    weight = np.clip(np.min(since_touchdown, axis=1) / max(stance_samples - samples // 2, 1), 0.0, 1.0)
-    rows = np.arange(samples)
-    double = (1.0 - weight)[:, None] * centres[rows, 1 - leading] + weight[:, None] * centres[rows, leading]
-    zmp_ref = np.where((left_on & right_on)[:, None], double, np.where(left_on[:, None], centres[:, 0], centres[:, 1]))
-    arm_phase = 2.0 * np.pi * t / period
-    arms = np.stack([arm_swing * np.sin(arm_phase), np.zeros(samples), -arm_swing * np.sin(arm_phase), np.zeros(samples)], axis=-1)
-    columns = [robot.joint_slice("l"), robot.joint_slice("r"), robot.joint_slice("l", "arm"), robot.joint_slice("r", "arm")]
-
-    def joints_for(base_xy: np.ndarray) -> np.ndarray:
-        base = np.stack([speed * t + base_xy[:, 0], base_xy[:, 1], np.full(samples, hip_height)], axis=-1)
-        legs = [robot.leg_angles(side, ankles[:, n] - base) for n, side in enumerate(SIDES)]
-        return np.concatenate(legs + [arms], axis=1)
-
-    def states(base_xy: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return _expand(robot.model, dt, 1, speed, base_xy, hip_height, joints, columns)[1:]
-
-    com_up = float(np.asarray(lk.center_of_mass(robot.model, robot.model.neutral()))[2])
-    base_xy, joints, zmp_error = _base_on_zmp(robot.model, t, speed, zmp_ref, hip_height + com_up, joints_for, states)
-    times, q, v, a = _expand(robot.model, dt, cycles, speed, base_xy, hip_height, joints, columns)
-    active = np.tile(active, (cycles, 1))
-    labels = ["double" if row.all() else ("left" if row[0] else "right") for row in active]
-    return GaitReference(times, q, v, a, robot.contacts(), active, labels, speed * len(times) * dt, [[0, 1, 2, 3], [4, 5, 6, 7]], zmp_error)
-
-
-# --------------------------------------------------------------------------------------------------
-# Dynamics and indices
-# --------------------------------------------------------------------------------------------------
-
-
-@dataclass
-class ContactInverseDynamics:
-    torques: np.ndarray  # (T, nv - 6) actuated joint torques [N m]
-    forces: np.ndarray  # (T, k, 3) contact forces on the robot [N], zero for contacts in the air
-    unbalanced: np.ndarray  # (T, 6) base-row residual [N; N m] the contact forces cannot supply
-    points: np.ndarray  # (T, k, 3) world contact points
-
-
-def contact_inverse_dynamics(model: lk.Model, ref: GaitReference) -> ContactInverseDynamics:
-    """Least-squares contact forces and joint torques realising the reference accelerations (module docstring)."""
-    generalized = np.asarray(lk.rnea(model, ref.q, ref.v, ref.a))  # (T, nv) = M a + h
-    poses = np.asarray(lk.forward_kinematics(model, ref.q))
-    jacobians = np.stack([np.asarray(lk.jacobian(model, ref.q, body, point))[:, :3, :] for body, point in ref.contacts], axis=1)  # (T, k, 3, nv)
-    points = np.stack([np.einsum("tij,j->ti", poses[:, body, :3, :3], point) + poses[:, body, :3, 3] for body, point in ref.contacts], axis=1)
-    jacobians = jacobians * ref.active[:, :, None, None]
-    samples, k = ref.active.shape
-    base_map = np.transpose(jacobians[..., :6], (0, 3, 1, 2)).reshape(samples, 6, 3 * k)  # (T, 6, 3k): J_b^T
-    forces = np.einsum("tij,tj->ti", np.linalg.pinv(base_map, rcond=1e-10), generalized[:, :6])
-    unbalanced = generalized[:, :6] - np.einsum("tij,tj->ti", base_map, forces)
-    forces = forces.reshape(samples, k, 3)
-    torques = generalized[:, 6:] - np.einsum("tkcv,tkc->tv", jacobians[..., 6:], forces)
-    return ContactInverseDynamics(torques, forces, unbalanced, points)
-
-
-def constrained_acceleration_gap(model: lk.Model, ref: GaitReference, torques: np.ndarray) -> float:
-    """Largest |ddq - a_ref| over the samples, with ddq from `lk.contact_dynamics` under the found torques
-    and the stance contacts held (one batched call per distinct support set)."""
-    tau = np.concatenate([np.zeros((len(ref.t), 6)), torques], axis=1)
-    gap = 0.0
-    for support in np.unique(ref.active, axis=0):
-        rows = np.all(ref.active == support, axis=1)
-        contacts = [c for c, on in zip(ref.contacts, support) if on]
-        ddq, _ = lk.contact_dynamics(model, ref.q[rows], ref.v[rows], tau[rows], contacts)
-        gap = max(gap, float(np.max(np.abs(np.asarray(ddq) - ref.a[rows]))))
-    return gap
-
-
-@dataclass
-class GaitAnalysis:
-    robot: str
-    ref: GaitReference
-    dynamics: ContactInverseDynamics
-    columns: dict[str, np.ndarray]
-    summary: dict[str, float]
-
-
-def analyse(name: str, model: lk.Model, ref: GaitReference, motor: MotorParameters, v_tip_max: float, mu: float,
-            progress: tqdm, diagonal_pairs: list[tuple[int, int]] | None = None) -> GaitAnalysis:
-    """Every index over the reference (see the module docstring). S_H: published (its diagonal edges join the
-    contact pairs `diagonal_pairs`, travel along +x) and energy variant (the contact points in the air are the
-    swing tips that make support edges diagonal)."""
-    dyn = contact_inverse_dynamics(model, ref)
-    progress.update()
-    gap = constrained_acceleration_gap(model, ref, dyn.torques)
-    progress.update()
-    com = np.asarray(lk.center_of_mass(model, ref.q))
-    s_h = st.angular_momentum_stability_of_model(model, ref.q, ref.v, dyn.points, ref.active, v_tip_max=v_tip_max, diagonal_pairs=diagonal_pairs)
-    s_h_energy = st.angular_momentum_stability_of_model(
-        model, ref.q, ref.v, dyn.points, ref.active, dyn.points, ~ref.active, v_tip_max, definition="energy"
-    )
-    forward_speed = np.asarray(lk.centroidal_momentum(model, ref.q, ref.v))[:, 0] / model.total_mass
-    static = st.static_stability_margin(com, dyn.points, ref.active)
-    zmp = st.zmp(model, ref.q, ref.v, ref.a)
-    zmp_margin = st.static_stability_margin(zmp, dyn.points, ref.active)
-    cop = st.center_of_pressure(dyn.points, dyn.forces)
-    # Friction on each foot's resultant: how a foot's force is split among its sole corners is not determined.
-    foot_forces = np.stack([dyn.forces[:, group].sum(axis=1) for group in ref.feet], axis=1)
-    foot_on = np.stack([ref.active[:, group[0]] for group in ref.feet], axis=1)
-    normals = np.broadcast_to([0.0, 0.0, 1.0], foot_forces.shape)
-    friction = np.min(np.where(foot_on, st.friction_cone_margin(foot_forces, normals, mu), np.inf), axis=1)
-    joint_v = ref.v[:, 6:]
-    torque_speed = np.min(st.torque_speed_margin(dyn.torques, joint_v, motor.joint_max_speed, motor.gear_ratio, motor.efficiency, motor.slope),
-                          axis=1)
-    joule = st.joule_loss_power(dyn.torques, motor.resistance, motor.gear_ratio, motor.torque_constant)
-    mechanical = np.sum(np.abs(dyn.torques * joint_v), axis=1)
-    progress.update()
-    columns = {
-        "t": ref.t, "S_H": s_h, "S_H_energy": s_h_energy, "static_margin": static, "zmp_x": zmp[:, 0], "zmp_y": zmp[:, 1], "zmp_margin": zmp_margin,
-        "cop_x": cop[:, 0], "cop_y": cop[:, 1], "com_x": com[:, 0], "com_y": com[:, 1],
-        "unbalanced_moment": np.linalg.norm(dyn.unbalanced[:, 3:], axis=1), "friction_margin": friction,
-        "torque_speed_margin": torque_speed, "joule_power": joule, "mechanical_power": mechanical,
-    }
-    worst, worst_t = st.worst_case(s_h, ref.t)
-    mass, g = model.total_mass, -model.gravity[2]
-    summary = {
-        "S_H min [N m s]": worst, "S_H min at [s]": worst_t, "S_H mean [N m s]": float(np.mean(s_h)),
-        "S_H energy variant min [N m s]": float(np.min(s_h_energy)),
-        "static margin min [m]": float(np.min(static)), "static margin max [m]": float(np.max(static)),
-        "ZMP margin min [m]": float(np.min(zmp_margin)), "ZMP margin max [m]": float(np.max(zmp_margin)),
-        "planned-ZMP tracking error max [m]": ref.zmp_tracking_error,
-        "|CoP - ZMP| max [m]": float(np.max(np.linalg.norm(cop[:, :2] - zmp[:, :2], axis=1))),
-        "unbalanced tipping moment max [N m]": float(np.max(columns["unbalanced_moment"])),
-        "contact-dynamics |ddq - a_ref| max": gap,
-        "friction margin min [N]": float(np.min(friction)), "torque-speed margin min [N m]": float(np.min(torque_speed)),
-        "E1 Joule loss [J/m]": st.joule_loss_index(dyn.torques, ref.t, ref.distance, motor.resistance, motor.gear_ratio, motor.torque_constant),
-        "J_e2 (eq. 13) [s]": st.specific_resistance(dyn.torques, joint_v, ref.t, forward_speed, mass, g),
-        "J_e2 time mean [-]": st.specific_resistance(dyn.torques, joint_v, ref.t, forward_speed, mass, g, definition="mean"),
-    }
-    return GaitAnalysis(name, ref, dyn, columns, summary)
-
-
-def _biped_extras(robot: Biped, analysis: GaitAnalysis) -> None:
-    """FRI S of the feet in contact (eq. 8) and its margin to the sole in single support, the foot-torque
-    margins (eq. 6) of each stance foot's wrench about its sole point below the ankle, and J_s1 (eq. 9) of the
-    GCoM about S."""
-    ref, model = analysis.ref, robot.model
-    poses = np.asarray(lk.forward_kinematics(model, ref.q))
-    torque_margin = np.full(len(ref.t), np.inf)
-    for side, group in zip(SIDES, ref.feet):
-        sole_point = poses[:, model.names.index(f"{side}_foot"), :3, 3] - [0.0, 0.0, robot.parameters.ankle_height]
-        forces = analysis.dynamics.forces[:, group]
-        moment = np.sum(np.cross(analysis.dynamics.points[:, group] - sole_point[:, None, :], forces), axis=1)
-        margins = np.min(st.foot_torque_margin(forces.sum(axis=1), moment, robot.parameters.sole), axis=1)
-        torque_margin = np.where(ref.active[:, group[0]], np.minimum(torque_margin, margins), torque_margin)
-    analysis.columns["foot_torque_margin"] = torque_margin
-    analysis.summary["foot-torque margin min (eq. 6) [N m]"] = float(np.min(torque_margin))
-    # S of eq. 8 for the feet in contact (one foot or both); its margin to the sole in single support.
-    left, right = ref.active[:, 0], ref.active[:, 4]
-    fri = np.zeros((len(ref.t), 3))
-    fri_margin = np.full(len(ref.t), np.nan)
-    for feet, rows in ((("l_foot",), left & ~right), (("r_foot",), right & ~left), (("l_foot", "r_foot"), left & right)):
-        if not np.any(rows):
-            continue
-        fri[rows] = st.foot_rotation_indicator(model, ref.q[rows], ref.v[rows], ref.a[rows], feet)
-        if len(feet) == 1:
-            group = ref.feet[SIDES.index(feet[0][0])]
-            fri_margin[rows] = st.static_stability_margin(fri[rows], analysis.dynamics.points[rows][:, group])
-    analysis.columns.update({"fri_x": fri[:, 0], "fri_y": fri[:, 1], "fri_margin": fri_margin})
-    single = ~np.isnan(fri_margin)
-    analysis.summary["FRI margin min, single support [m]"] = float(np.min(fri_margin[single]))
-    gcom = np.stack([analysis.columns["com_x"], analysis.columns["com_y"]], axis=1)
-    analysis.summary["J_s1 (eq. 9) [m^2 s]"] = st.stability_performance_1(gcom, fri, ref.t)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -502,9 +113,9 @@ def run(robot_name: str, args: argparse.Namespace, progress: tqdm) -> GaitAnalys
         model, motor, tip_speed, diagonal = biped.model, BIPED_MOTOR, args.biped_tip_speed, None
         title = f"Biped walk, {args.biped_speed:g} km/h: S_H over {args.cycles} cycle(s)"
     progress.update()
-    analysis = analyse(robot_name, model, ref, motor, tip_speed, FRICTION if args.mu is None else args.mu, progress, diagonal)
+    analysis = analyse(robot_name, model, ref, motor, tip_speed, FRICTION if args.mu is None else args.mu, diagonal, progress.update)
     if robot_name == "biped":
-        _biped_extras(biped, analysis)
+        biped_extras(biped, analysis)
     write_csv(args.out / f"gait_{robot_name}.csv", analysis)
     plot(args.out / f"gait_{robot_name}.png", analysis, title)
     progress.update()
@@ -522,63 +133,44 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     default; --replay-controller pd: joint PD tracking with --replay-kp, --replay-kd + feed-forward torques), saying
     which, and, unless --no-animation, writes the replay beside the plan as .html (meshcat) and .gif, captioned with
     the controller."""
-    from legkit.optimize import MinMaxStability
-    from legkit.optimize.gaits import (
-        AMBLE_DERIVATIVES,
-        AMBLE_IPOPT,
-        AMBLE_MIRROR,
-        amble_problem,
-        amble_reference,
-        guess_from_reference,
-        stall_torque_bounds,
-    )
+    from legkit.optimize.checks import midpoint_stance_acceleration
+    from legkit.optimize.gaits import AMBLE_PLAN_FRICTION, amble_plan_problem, plan_amble, stall_torque_bounds
     from legkit.optimize.replay import replay
     from legkit.optimize.tracking import track
 
     robot = build_quadruped(AMBLE_QUADRUPED)
     speed, period = args.quadruped_speed, args.quadruped_period
-
-    def amble(intervals: int) -> tuple[MultiphaseProblem, Trajectory]:
-        problem = amble_problem(robot, [MinMaxStability(args.quadruped_tip_speed, DIAGONAL_PAIRS)], speed, period,
-                                intervals, QUADRUPED_MOTOR, AMBLE_PLAN_FRICTION if args.mu is None else args.mu, max_impulse=args.max_impulse,
-                                mirror=AMBLE_MIRROR if args.mirror is None else args.mirror, min_normal_force=args.min_normal_force,
-                                torque_margin=args.torque_margin)
-        return problem, guess_from_reference(problem, amble_reference(robot, speed, period, intervals))
-
-    problem, guess = amble(args.intervals)
-    reference_s_h = np.concatenate(problem.stability_index(problem.pack(guess)))
+    problem_options = {"tip_speed": args.quadruped_tip_speed, "friction": AMBLE_PLAN_FRICTION if args.mu is None else args.mu,
+                       "max_impulse": args.max_impulse, "min_normal_force": args.min_normal_force, "torque_margin": args.torque_margin}
+    if args.mirror is not None:
+        problem_options["mirror"] = args.mirror
+    problem = amble_plan_problem(robot, args.intervals, speed, period, **problem_options)
     print(f"optimising the amble: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros"
           + (f", from {args.coarse_intervals} intervals per phase" if args.coarse_intervals else ""))
-
-    # The constraints first, then J_s2, optionally polished with the exact Hessian; with --coarse-intervals on the
-    # coarse mesh, then refined onto --intervals.
-    solved, solved_guess = amble(args.coarse_intervals) if args.coarse_intervals else (problem, guess)
-    progress = _StageProgress(["constraints (p1 held below S_H)", "J_s2 (L-BFGS)"]
-                              + (["polish: exact Hessian, durations held", "polish: exact Hessian"] if args.polish else []))
-    _, result = solved.solve(solved_guess, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=args.polish,
-                             polish_max_iter=args.polish_max_iter, tol=args.tol, max_iter=args.max_iter,
-                             progress=progress, options=AMBLE_IPOPT)
+    coarse = f" on {args.coarse_intervals} interval{'s' if args.coarse_intervals > 1 else ''}" if args.coarse_intervals else ""
+    progress = _StageProgress([f"constraints{coarse} (p1 held below S_H)", f"J_s2{coarse} (L-BFGS)"]
+                              + ([f"polish{coarse}: exact Hessian, durations held", f"polish{coarse}: exact Hessian"] if args.polish else [])
+                              + ([f"refine onto {args.intervals} intervals"] if args.coarse_intervals else []))
+    plan = plan_amble(robot, speed, period, args.intervals, args.coarse_intervals, polish=args.polish, polish_max_iter=args.polish_max_iter,
+                      tol=args.tol, max_iter=args.max_iter, progress=progress, **problem_options)
     progress.close()
-    if solved is not problem:
-        if not result.success:
-            print(f"the {args.coarse_intervals}-interval solve ended with {result.status}; refining its best point")
-        progress = _StageProgress([f"refine onto {args.intervals} intervals"])
-        _, result = problem.refine(solved, result, tol=args.tol, max_iter=args.max_iter, progress=progress, options=AMBLE_IPOPT)
-        progress.close()
+    problem, result = plan.problem, plan.result
+    reference_s_h = np.concatenate(problem.stability_index(problem.pack(plan.reference)))
     x, _ = result.best()
     if x is result.x:
         kept = result.history[-1][0]
     else:
         assert result.best_feasible is not None  # best() returns another point than IPOPT's only from best_feasible
         kept = result.best_feasible[0]
-    problem, x = _whole_cycle(problem, x)
+    problem, x = problem.whole_cycle(x)
     trajectory = problem.unpack(x)
     data = trajectory.stacked()
     labels = ["+".join(leg.upper() for leg in problem.phases[k].contacts) for k in data["phase"]]
     columns = _write_trajectory_csv(args.out / "gait_quadruped_optimized.csv", trajectory, labels,
                                     {"S_H": np.concatenate(problem.stability_index(x))})
     worst, worst_t = st.worst_case(columns["S_H"], data["t"])
-    _plot_optimized(args.out / "gait_quadruped_optimized.png", data["t"], columns["S_H"], guess.stacked()["t"], reference_s_h, labels, worst, worst_t,
+    _plot_optimized(args.out / "gait_quadruped_optimized.png", data["t"], columns["S_H"], plan.reference.stacked()["t"], reference_s_h,
+                    labels, worst, worst_t,
                     f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}, iterate {kept} kept"
                     + (f", refined from {args.coarse_intervals} intervals" if args.coarse_intervals else ""))
     if args.replay_controller == "mpc":
@@ -614,11 +206,12 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
 
 def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
     """`--optimize`: the biped walk at --biped-speed minimising J_e1 (eq. 12) under the motors' torque-speed lines
-    (Sect. 2.3 and 6 of file 003; `legkit.optimize.gaits.walk_problem`), its soles flat with eq. 6's torque
+    ([Hardt 2002, Sect. 2.3 and 6]; `legkit.optimize.gaits.walk_problem`), its soles flat with eq. 6's torque
     limits, from the hand-built reference (`biped_walk`); constraints first, then J_e1, one progress line per
     IPOPT iteration. Writes gait_biped_optimized.csv (every collocation point: t, phase, support, q, v, u, the
     feet's forces and torques) and gait_biped_torque_speed.png (Fig. 6: each joint's (speed, torque) points over
     the period against the motor's characteristic lines for several gear ratios)."""
+    from legkit.optimize.checks import inverse_dynamics_residuals
     from legkit.optimize.gaits import WALK_MIRROR, guess_from_reference, solve_walk, walk_problem, walk_reference
 
     robot = build_biped()
@@ -634,7 +227,7 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
     progress.close()
     cpu = time.process_time() - cpu
     x, objective = result.best()
-    problem, x = _whole_cycle(problem, x)
+    problem, x = problem.whole_cycle(x)
     trajectory = problem.unpack(x)
     data = trajectory.stacked()
     labels = ["+".join(problem.phases[k].contacts).upper() for k in data["phase"]]
@@ -673,6 +266,7 @@ def execution_summary(problem: MultiphaseProblem, x: np.ndarray) -> dict[str, fl
     """`legkit.optimize.checks.execution_check` of a solution as summary rows."""
     from legkit.optimize.checks import execution_check
 
+
     check = execution_check(problem, x)
     return {"torso yaw max [deg]": check.yaw, "joint rate max between points / motors' no-load speed": check.joint_rate,
             "torque max / bound": check.torque, "torque rate max [bound per ms]": check.torque_rate,
@@ -685,38 +279,10 @@ def interval_drift_summary(problem: MultiphaseProblem, x: np.ndarray) -> dict[st
     intervals (--intervals, --biped-intervals)."""
     from legkit.optimize import interval_drift
 
+
     worst = interval_drift(problem, x).worst(problem.model.floating_base)
     return {f"largest drift over one interval, {name}": value for name, value in worst.items()
             if name in ("attitude [deg]", "joints", "joint rates")}
-
-
-def midpoint_stance_acceleration(problem: MultiphaseProblem, x: np.ndarray) -> float:
-    """The largest stance-foot acceleration [m/s^2] at the midpoints (`MultiphaseProblem.stance_accelerations`;
-    the knots hold it at 0): how far the collocation cubics between the knots are from a motion."""
-    return max(float(np.linalg.norm(a[1::2], axis=-1).max(initial=0.0)) for a in problem.stance_accelerations(x))
-
-
-def _whole_cycle(problem: MultiphaseProblem, x: np.ndarray) -> tuple[MultiphaseProblem, np.ndarray]:
-    """A solution as the whole cycle's problem and variables: unrolled if the problem is a mirrored half cycle,
-    so that everything after (CSV, figures, the violation re-evaluated, the replay) sees the whole gait."""
-    if problem.mirror is None:
-        return problem, x
-    whole = problem.full_cycle()
-    return whole, whole.pack(problem.unroll(problem.unpack(x)))
-
-
-def inverse_dynamics_residuals(problem: MultiphaseProblem, x: np.ndarray) -> list[np.ndarray]:
-    """Per phase (P, nv): rnea(q, v, a, f_ext) - B u recomputed from the solution by `lk.rnea`, the feet's forces
-    and flat feet's torques applied as body wrenches (eq. 1 in inverse form; zero for an exact solution)."""
-    trajectory = problem.unpack(x)
-    assert trajectory.a is not None and trajectory.torques is not None  # unpack gives both
-    residuals = []
-    for k, phase in enumerate(problem.phases):
-        q = problem.configuration(trajectory.q[k])
-        forces = trajectory.forces[k].reshape(len(q), -1)
-        f_ext = problem.external_wrenches(q, forces, phase.contacts, trajectory.torques[k].reshape(len(q), -1))
-        residuals.append(np.asarray(lk.rnea(problem.model, q, trajectory.v[k], trajectory.a[k], f_ext)) - problem.tau(trajectory.u[k]))
-    return residuals
 
 
 #: Gear ratios drawn in the torque-speed figure: the paper's choice for its biped (Fig. 6, Sect. 6: 42 V motors with
@@ -725,7 +291,7 @@ FIG6_GEAR_RATIOS = (66.0, 100.0, BIPED_MOTOR.gear_ratio)
 
 
 def plot_torque_speed(path: Path, robot: Biped, joint_speed: np.ndarray, torque: np.ndarray, motor: MotorParameters, title: str) -> None:
-    """Fig. 6 of file 003: per joint (left and right together), |torque| against |speed| [rpm] at every collocation
+    """Fig. 6 of [Hardt 2002]: per joint (left and right together), |torque| against |speed| [rpm] at every collocation
     point, with the characteristic line |u| = (w_max - |w|) G^2 eta / m (Sect. 2.3) of `motor` at each gear ratio
     in FIG6_GEAR_RATIOS (the motor's own ratio bounds the optimisation)."""
     import matplotlib
@@ -833,7 +399,7 @@ REPLAY_AHEAD = 0.45
 
 def _plot_optimized(path: Path, t: np.ndarray, s_h: np.ndarray, reference_t: np.ndarray, reference: np.ndarray, labels: list[str],
                     worst: float, worst_t: float, title: str) -> None:
-    """Fig. 3 of file 003 for the optimised gait: S_H over one period, the worst case marked."""
+    """Fig. 3 of [Hardt 2002] for the optimised gait: S_H over one period, the worst case marked."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -950,9 +516,8 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-#: The friction coefficient of the analyses and of the walk's plan, and of the optimised amble's plan: the tracking
-#: MPC's friction pyramid, within which it holds the plan.
-FRICTION, AMBLE_PLAN_FRICTION = 0.8, 0.6
+#: The friction coefficient of the analyses and of the walk's plan (the amble's plan: `AMBLE_PLAN_FRICTION`).
+FRICTION = 0.8
 
 #: Counts (cycles, samples, intervals, iterations) the command takes: far beyond what a run needs.
 _positive_int = bounded_int(1, 1_000_000)

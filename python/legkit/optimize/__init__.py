@@ -1,4 +1,4 @@
-"""legkit.optimize: gait trajectory optimisation by multiphase direct collocation on IPOPT (file 003, Sect. 4).
+"""legkit.optimize: gait trajectory optimisation by multiphase direct collocation on IPOPT ([Hardt 2002, Sect. 4]).
 
 `MultiphaseProblem` transcribes a fixed contact sequence (`Phase`s) by Hermite–Simpson collocation over
 legkit's batched dynamics, a whole cycle or, with a `Mirror` (`side_mirror`, `sagittal_mirror`), half of one;

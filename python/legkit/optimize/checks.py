@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import legkit as lk
 from legkit.optimize.collocation import hermite_basis
 from legkit.optimize.problem import MultiphaseProblem
 
@@ -95,3 +96,23 @@ def execution_check(problem: MultiphaseProblem, x: np.ndarray, samples: int = 16
     return ExecutionCheck(yaw if model.floating_base else np.nan, joint_rate if np.all(np.isfinite(speed)) else np.nan,
                           torque if bound is not None else np.nan, torque_rate if bound is not None else np.nan, force_rate,
                           swing_height if np.isfinite(swing_height) else np.nan)
+
+
+def midpoint_stance_acceleration(problem: MultiphaseProblem, x: np.ndarray) -> float:
+    """The largest stance-foot acceleration [m/s^2] at the midpoints (`MultiphaseProblem.stance_accelerations`;
+    the knots hold it at 0): how far the collocation cubics between the knots are from a motion."""
+    return max(float(np.linalg.norm(a[1::2], axis=-1).max(initial=0.0)) for a in problem.stance_accelerations(x))
+
+
+def inverse_dynamics_residuals(problem: MultiphaseProblem, x: np.ndarray) -> list[np.ndarray]:
+    """Per phase (P, nv): rnea(q, v, a, f_ext) - B u recomputed from the solution by `lk.rnea`, the feet's forces
+    and flat feet's torques applied as body wrenches (eq. 1 in inverse form; zero for an exact solution)."""
+    trajectory = problem.unpack(x)
+    assert trajectory.a is not None and trajectory.torques is not None  # unpack gives both
+    residuals = []
+    for k, phase in enumerate(problem.phases):
+        q = problem.configuration(trajectory.q[k])
+        forces = trajectory.forces[k].reshape(len(q), -1)
+        f_ext = problem.external_wrenches(q, forces, phase.contacts, trajectory.torques[k].reshape(len(q), -1))
+        residuals.append(np.asarray(lk.rnea(problem.model, q, trajectory.v[k], trajectory.a[k], f_ext)) - problem.tau(trajectory.u[k]))
+    return residuals

@@ -1,6 +1,6 @@
 """Hermite–Simpson collocation and coloured finite-difference Jacobians of batched point functions.
 
-File 003 (../shared/seeds/003_8a51da06d878ba35.txt), Sect. 4.1, eq. 14: DIRCOL approximates the states by
+[Hardt 2002, Sect. 4.1, eq. 14]: DIRCOL approximates the states by
 cubic Hermite polynomials and the controls linearly on each grid interval [t_k, t_k+1]. With f the state
 derivative, the cubic through (x_k, f_k) and (x_k+1, f_k+1) is collocated at the midpoint m, which gives the
 two (separated) Hermite–Simpson defects per interval of length h:

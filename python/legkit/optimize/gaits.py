@@ -1,13 +1,13 @@
-"""The gaits of file 003 (../shared/seeds/003_8a51da06d878ba35.txt, Sect. 4.2 and 6) as `MultiphaseProblem`s,
-started from `legkit.experiments.gait`'s hand-built references.
+"""The gaits of [Hardt 2002, Sect. 4.2 and 6] as `MultiphaseProblem`s, started from the hand-built references of
+`legkit.gaits.references`.
 
 The amble: duty factor 0.5, support order LF+LH, LF+RH, RF+RH, RF+LH (Sect. 4.2, read as in
-`legkit.experiments.gait.quadruped_amble`), a touchdown and a liftoff at every boundary, so every phase has
+`legkit.gaits.references.quadruped_amble`), a touchdown and a liftoff at every boundary, so every phase has
 two feet down and S_H (eq. 10) is defined throughout; the full cycle is transcribed, or with `mirror=True` its
 first half, the second being its mirror image (`legkit.optimize.mirror`).
 
 The biped walk (Sect. 6: walking at up to 1.8 km/h, minimising J_e1 under the motors' torque-speed lines): the
-flat-footed walk of `legkit.experiments.gait.biped_walk`, double support, left stance, double support, right
+flat-footed walk of `legkit.gaits.references.biped_walk`, double support, left stance, double support, right
 stance from the left touchdown at t = 0, each sole a `FlatFoot` (eq. 6); the full cycle is transcribed, or with
 `mirror=True` its first half (double support, left stance), the second being its mirror image.
 """
@@ -15,25 +15,20 @@ stance from the left touchdown at t = 0, each sole a `FlatFoot` (eq. 6); the ful
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 import legkit as lk
-from legkit.experiments.gait import (
-    AMBLE_HIP_HEIGHT,
-    QUADRUPED_MOTOR,
-    GaitReference,
-    MotorParameters,
-    biped_walk,
-    contact_inverse_dynamics,
-    quadruped_amble,
-)
+from legkit.gaits.analysis import contact_inverse_dynamics
+from legkit.gaits.references import AMBLE_HIP_HEIGHT, GaitReference, biped_walk, quadruped_amble
 from legkit.optimize.mirror import side_mirror
 from legkit.optimize.objectives import MinMaxStability, joule_loss
 from legkit.optimize.problem import FlatFoot, InputPower, MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
-from legkit.optimize.solver import SolveResult, solve
+from legkit.optimize.solver import Progress, SolveResult, solve
 from legkit.robots.biped import SIDES, Biped
+from legkit.robots.motors import QUADRUPED_MOTOR, MotorParameters
 from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, Quadruped
 
 #: IPOPT options for the amble: the monotone barrier update (the adaptive one drove mu to 1e-11 within a few
@@ -59,7 +54,7 @@ AMBLE_RATE_FRACTIONS = (0.25, 0.75)
 #: converges 2-6x faster than its whole cycle, to the same worst-case S_H.
 AMBLE_MIRROR = True
 
-#: The amble's support pairs in time order from t = 0 (file 003, Sect. 4.2).
+#: The amble's support pairs in time order from t = 0 ([Hardt 2002, Sect. 4.2]).
 AMBLE_SUPPORT = (("lf", "lh"), ("lf", "rh"), ("rf", "rh"), ("rf", "lh"))
 
 
@@ -129,23 +124,54 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
                              mirror=side_mirror(robot.model, {"lf": "rf", "lh": "rh"}) if mirror else None)
 
 
-def replayable_amble_problem(robot: Quadruped, intervals: int = 16, speed: float = 0.67, period: float = 1.25) -> MultiphaseProblem:
-    """`replayable_amble`'s problem on `intervals` per phase."""
-    return amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], speed, period, intervals, QUADRUPED_MOTOR, 0.6,
-                         max_impulse=0.0, mirror=AMBLE_MIRROR, min_normal_force=3.0)
+#: The plan's friction coefficient: the tracking MPC's friction pyramid (`legkit.optimize.tracking`), within which it
+#: holds the plan.
+AMBLE_PLAN_FRICTION = 0.6
 
 
-def replayable_amble(robot: Quadruped, speed: float = 0.67, period: float = 1.25, intervals: int = 16,
-                     coarse_intervals: int = 4) -> tuple[MultiphaseProblem, SolveResult]:
-    """The amble a tracking controller holds, as `legkit gait --optimize` plans it by default: J_s2 with soft
-    touchdowns, a 3 N stance-force floor and mu 0.6 on `coarse_intervals` per phase (mirrored half, feasibility
-    first, polished), refined onto `intervals` (`MultiphaseProblem.refine`). Returns the fine problem and its result;
-    `problem.full_cycle()` and `problem.unroll` give the whole cycle."""
-    coarse, fine = (replayable_amble_problem(robot, count, speed, period) for count in (coarse_intervals, intervals))
+def amble_plan_problem(robot: Quadruped, intervals: int = 16, speed: float = 0.67, period: float = 1.25, *, tip_speed: float = 2.0,
+                       friction: float = AMBLE_PLAN_FRICTION, max_impulse: float = 0.0, mirror: bool = AMBLE_MIRROR,
+                       min_normal_force: float = 3.0, torque_margin: float = 0.0) -> MultiphaseProblem:
+    """The problem `plan_amble` solves on `intervals` per phase: `amble_problem` maximising the worst-case S_H (J_s2, eq. 11,
+    swing tips up to tip_speed [m/s]) with `QUADRUPED_MOTOR`, and the defaults a tracking controller needs: soft touchdowns
+    (max_impulse 0), a stance-force floor of min_normal_force [N], mu = friction, the execution bounds."""
+    return amble_problem(robot, [MinMaxStability(tip_speed, DIAGONAL_PAIRS)], speed, period, intervals, QUADRUPED_MOTOR, friction,
+                         max_impulse=max_impulse, mirror=mirror, min_normal_force=min_normal_force, torque_margin=torque_margin)
+
+
+@dataclass
+class AmblePlan:
+    """`plan_amble`'s outcome: the problem on the fine mesh (a mirrored half cycle unless mirror=False:
+    `problem.full_cycle()` and `problem.unroll` give the whole cycle), its solve (covering the coarse one), and the start:
+    the hand-built reference on the problem's mesh."""
+
+    problem: MultiphaseProblem
+    result: SolveResult
+    reference: Trajectory
+
+
+def plan_amble(robot: Quadruped, speed: float = 0.67, period: float = 1.25, intervals: int = 16, coarse_intervals: int = 4, *,
+               polish: bool = True, polish_max_iter: int = 1000, tol: float = 1e-6, max_iter: int = 300,
+               progress: Progress | None = None, **problem_options: Any) -> AmblePlan:
+    """The amble a tracking controller holds, as `legkit gait --optimize` plans it: `amble_plan_problem` (problem_options
+    go to it) solved on `coarse_intervals` per phase from the hand-built reference, feasibility first, then J_s2 on
+    L-BFGS, polished with the exact Hessian (polish, within polish_max_iter iterations), and refined onto `intervals`
+    (`MultiphaseProblem.refine`; coarse_intervals 0: J_s2 solved on `intervals` directly). tol and max_iter (per stage)
+    go to every IPOPT run, progress(iteration, objective, violation) is called at every iteration of every run."""
+    if coarse_intervals and coarse_intervals >= intervals:
+        raise ValueError(f"coarse_intervals must be 0 or fewer than intervals ({intervals}), got {coarse_intervals}")
+    problem = amble_plan_problem(robot, intervals, speed, period, **problem_options)
+    reference = guess_from_reference(problem, amble_reference(robot, speed, period, intervals))
+    options: dict[str, Any] = {"tol": tol, "max_iter": max_iter, "progress": progress, "options": AMBLE_IPOPT}
+    if not coarse_intervals:
+        _, result = problem.solve(reference, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=polish,
+                                  polish_max_iter=polish_max_iter, **options)
+        return AmblePlan(problem, result, reference)
+    coarse = amble_plan_problem(robot, coarse_intervals, speed, period, **problem_options)
     _, result = coarse.solve(guess_from_reference(coarse, amble_reference(robot, speed, period, coarse_intervals)),
-                             derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=True, options=AMBLE_IPOPT)
-    _, result = fine.refine(coarse, result, options=AMBLE_IPOPT)
-    return fine, result
+                             derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=polish, polish_max_iter=polish_max_iter, **options)
+    _, result = problem.refine(coarse, result, **options)
+    return AmblePlan(problem, result, reference)
 
 
 def amble_reference(robot: Quadruped, speed: float, period: float, intervals: int) -> GaitReference:

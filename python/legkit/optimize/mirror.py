@@ -1,6 +1,6 @@
 """A robot's mirror image through its sagittal plane, for gaits transcribed over half a cycle.
 
-A symmetric gait's second half is the mirror image of its first (file 003, Sect. 4.1 names "periodicity or
+A symmetric gait's second half is the mirror image of its first ([Hardt 2002, Sect. 4.1] names "periodicity or
 mirror periodicity"): the amble's LF+LH, LF+RH is followed by RF+RH, RF+LH, the biped's left stance by the
 right. Mirroring reflects the world through the x-z plane (y -> -y) and swaps left and right. In coordinates
 it is a signed permutation: the base's y, the quaternion's x and z and the angular velocity's x and z change

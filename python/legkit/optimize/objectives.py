@@ -1,4 +1,4 @@
-"""Performance indices of Hardt & von Stryk (RoboCup 2002; ../shared/seeds/003_8a51da06d878ba35.txt, Sect. 3.2)
+"""Performance indices of [Hardt 2002, Sect. 3.2]
 as objectives of a `MultiphaseProblem`; a problem sums its terms, each scaled by its `weight`.
 
 * `Integral` terms, integrated over every phase by the collocation's own Simpson rule (weights h/6 (1, 4, 1)

@@ -1,7 +1,6 @@
 """Multiphase direct collocation of a legged robot's motion with a fixed contact sequence.
 
-The transcription of Hardt & von Stryk (RoboCup 2002; ../shared/seeds/003_8a51da06d878ba35.txt), Sect. 2.3
-and 4.1, on legkit's kernels:
+The transcription of [Hardt 2002, Sect. 2.3 and 4.1], on legkit's kernels:
 
 * phases with fixed contact sets (the discrete state d(t) of Sect. 4.1), each with its duration as a variable;
 * per phase a grid of `intervals` Hermite–Simpson intervals (eq. 14: cubic states, linear controls); at every
@@ -82,7 +81,7 @@ class Phase:
 
 @dataclass(frozen=True)
 class FlatFoot:
-    """A flat sole lying on the ground in stance (file 003, Sect. 2.3, eq. 6). The foot's contact point (the
+    """A flat sole lying on the ground in stance ([Hardt 2002, Sect. 2.3, eq. 6]). The foot's contact point (the
     `feet` entry) is the centre of its sole, the sole's axes are the foot body's x (length l_x) and y (width l_y),
     and besides the force F the ground puts a torque T (foot-body frame, about that point) on it, limited by
 
@@ -108,7 +107,7 @@ class FlatFoot:
 
 @dataclass(frozen=True)
 class TorqueSpeedLine:
-    """|u_i| <= (max_speed_i - |w_i|) gain_i per actuated joint (file 003 Sect. 2.3: gain = G^2 eta / m)."""
+    """|u_i| <= (max_speed_i - |w_i|) gain_i per actuated joint ([Hardt 2002] Sect. 2.3: gain = G^2 eta / m)."""
 
     max_speed: np.ndarray | float  # [rad/s]
     gain: np.ndarray | float  # [N m s / rad]
@@ -116,7 +115,7 @@ class TorqueSpeedLine:
 
 @dataclass(frozen=True)
 class InputPower:
-    """Each actuated joint's motor draws at most ``limit_i`` [W] (file 003 Sect. 6: the humanoid's "maximum input
+    """Each actuated joint's motor draws at most ``limit_i`` [W] ([Hardt 2002] Sect. 6: the humanoid's "maximum input
     power constraints"). Its input power is U I = R I^2 + u w with the motor current I = u / (G K) of eq. 12: the
     Joule loss plus the mechanical power, R_i (u_i / (G_i K_i))^2 + u_i w_i <= limit_i at every collocation point.
     A braking joint (u w < 0) may feed power back; the bound is on what the motor draws."""
@@ -1377,6 +1376,15 @@ class MultiphaseProblem:
             np.concatenate([trajectory.durations, trajectory.durations]), trajectory.stability_bound,
             None if a is None else twice(a, mirror.v), None if torques is None else twice(torques, Mirror.axial), slack,
         )
+
+    def whole_cycle(self, x: np.ndarray) -> tuple[MultiphaseProblem, np.ndarray]:
+        """A point x of this problem as the whole cycle's problem (`full_cycle`) and its point: unrolled if this is a
+        mirrored half cycle (`unroll`), so that what follows (outputs, the violation re-evaluated, a replay) sees the
+        whole gait."""
+        if self.mirror is None:
+            return self, x
+        whole = self.full_cycle()
+        return whole, whole.pack(self.unroll(self.unpack(x)))
 
     # ------------------------------------------------------------------ packing
     def pack(self, trajectory: Trajectory) -> np.ndarray:

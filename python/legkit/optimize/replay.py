@@ -1,5 +1,5 @@
 """Replaying an optimised periodic gait in `lk.Simulation`: joint PD tracking of the optimised joint angles and
-rates plus the optimised torques as feed-forward (the trajectory-following control of file 003, Sect. 5,
+rates plus the optimised torques as feed-forward (the trajectory-following control of [Hardt 2002] Sect. 5,
 Fig. 4), over several cycles; reports the base drift from the plan and whether the robot stayed upright.
 
 Every finding below was measured on plans whose stance forces rang between knots and midpoints
