@@ -166,22 +166,22 @@ def test_derivatives_of_flat_feet_and_j_s1_match_central_differences(walk):
         assert gradient[j] == pytest.approx((problem.objective(plus) - problem.objective(minus)) / (2 * step), rel=1e-5, abs=1e-7)
 
 
-def test_rate_fractions_bound_the_joint_rates_on_the_velocity_cubic_between_the_points(robot):
-    # The rows at fraction s of each interval, recomputed here: v(s) = b0 v_k + b1 h a_k + b2 v_k+1 + b3 h a_k+1.
-    plain = walk_problem(robot, SPEED, BIPED_MOTOR, COARSE, rate_fractions=())
-    problem = replace(plain, rate_fractions=(0.3, 0.8))
+def test_dense_rates_bound_the_joint_rates_on_the_whole_velocity_cubic_between_the_points(robot):
+    # The rows, recomputed here: the inner Bernstein control points of v(s) = b0 v_k + b1 h a_k + b2 v_k+1 + b3 h a_k+1.
+    plain = walk_problem(robot, SPEED, BIPED_MOTOR, COARSE, dense_rates=False)
+    problem = replace(plain, dense_rates=True)
     x = problem.gauged(problem.pack(guess_from_reference(problem, walk_reference(robot, SPEED, COARSE))))
     x += 0.1 * np.random.default_rng(3).normal(size=problem.n)
     trajectory = problem.unpack(x)
-    expected = []
+    expected, cubics = [], []
+    s = np.linspace(0.0, 1.0, 1001)[:, None]
     for k, phase in enumerate(problem.phases):
         h = trajectory.durations[k] / phase.intervals
         v, a = trajectory.v[k][:, 6:], trajectory.a[k][:, 6:]
         for i in range(phase.intervals):
             v0, v1, a0, a1 = v[2 * i], v[2 * i + 2], a[2 * i], a[2 * i + 2]
-            for s in (0.3, 0.8):
-                expected.append((2 * s**3 - 3 * s**2 + 1) * v0 + (s**3 - 2 * s**2 + s) * h * a0
-                                + (-2 * s**3 + 3 * s**2) * v1 + (s**3 - s**2) * h * a1)
+            expected.append(np.concatenate([v0 + h * a0 / 3.0, v1 - h * a1 / 3.0]))
+            cubics.append((2 * s**3 - 3 * s**2 + 1) * v0 + (s**3 - 2 * s**2 + s) * h * a0 + (-2 * s**3 + 3 * s**2) * v1 + (s**3 - s**2) * h * a1)
     blocks = problem.dense_rate_blocks()
     assert problem.m == plain.m + sum(b.size for b in blocks)
     rows = np.concatenate([b.values(x) for b in blocks])
@@ -189,8 +189,12 @@ def test_rate_fractions_bound_the_joint_rates_on_the_velocity_cubic_between_the_
     lower, upper = np.concatenate([b.lower for b in blocks]), np.concatenate([b.upper for b in blocks])
     np.testing.assert_allclose(upper, BIPED_MOTOR.joint_max_speed)
     np.testing.assert_allclose(lower, -BIPED_MOTOR.joint_max_speed)
-    with pytest.raises(ValueError, match="rate_fractions must lie"):
-        replace(plain, rate_fractions=(1.0,))
+    # The convex hull: the cubic, sampled finely, never leaves the range of its ends and the two rows.
+    for cubic, inner in zip(cubics, np.split(rows, len(cubics))):
+        ends = np.stack([cubic[0], cubic[-1], inner[: problem.nu], inner[problem.nu :]])
+        assert np.all(cubic.max(axis=0) <= ends.max(axis=0) + 1e-12) and np.all(cubic.min(axis=0) >= ends.min(axis=0) - 1e-12)
+    with pytest.raises(ValueError, match="dense_rates needs a torque_speed"):
+        replace(plain, dense_rates=True, torque_speed=None)
 
 
 @pytest.mark.slow
@@ -199,7 +203,7 @@ def test_hessian_of_flat_feet_j_s1_and_input_power_matches_central_differences(r
     # the joint rates between the points.
     terms = [joule_loss(BIPED_MOTOR.resistance, BIPED_MOTOR.gear_ratio, BIPED_MOTOR.torque_constant), fri_deviation(0.5)]
     problem = replace(walk_problem(robot, SPEED, BIPED_MOTOR, COARSE, objectives=terms, mirror=True, max_input_power=200.0),
-                      rate_fractions=(0.3, 0.8))
+                      dense_rates=True)
     rng = np.random.default_rng(2)
     x = problem.gauged(problem.pack(guess_from_reference(problem, walk_reference(robot, SPEED, COARSE)))) + 0.01 * rng.normal(size=problem.n)
     assert lagrangian_hessian_error(problem, x, rng) < 1e-4

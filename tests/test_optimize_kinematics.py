@@ -11,6 +11,7 @@ import pytest
 
 import legkit as lk
 from legkit.optimize import kinematics as kin
+from legkit.optimize.collocation import complex_step_jacobian
 from legkit.robots.biped import build_biped
 from legkit.robots.quadruped import build_quadruped
 
@@ -97,3 +98,18 @@ def test_force_and_mass_slopes_match_central_differences(case):
     np.testing.assert_allclose(kin.raw(model, q, kin.force_slope(model, unit, points, forces)), central(generalized, q),
                                atol=TOLERANCE * 10)  # forces of ~5 N scale the rounding
     np.testing.assert_allclose(kin.raw(model, q, kin.mass_slope(model, unit, w)), central(momentum, q), atol=TOLERANCE)
+
+
+def test_complex_steps_differentiate_closed_form_algebra_exactly():
+    # f(z) = (sqrt(z0^2 + z1^2), z0 z2 / z1) and its Jacobian written here; no difference is taken, so rounding alone.
+    z = np.random.default_rng(4).uniform(0.5, 2.0, (7, 3))
+
+    def f(z: np.ndarray) -> np.ndarray:
+        return np.stack([np.sqrt(z[:, 0] ** 2 + z[:, 1] ** 2), z[:, 0] * z[:, 2] / z[:, 1]], axis=1)
+
+    r = np.hypot(z[:, 0], z[:, 1])
+    expected = np.zeros((7, 2, 3))
+    expected[:, 0, 0], expected[:, 0, 1] = z[:, 0] / r, z[:, 1] / r
+    expected[:, 1, 0], expected[:, 1, 1], expected[:, 1, 2] = z[:, 2] / z[:, 1], -z[:, 0] * z[:, 2] / z[:, 1] ** 2, z[:, 0] / z[:, 1]
+    np.testing.assert_allclose(complex_step_jacobian(f, z, np.arange(3)), expected, rtol=1e-14, atol=1e-15)
+    np.testing.assert_allclose(complex_step_jacobian(f, z, np.array([2, 0])), expected[:, :, [2, 0]], rtol=1e-14, atol=1e-15)

@@ -4,7 +4,7 @@ Jacobian and of its part of the Hessian of the Lagrangian, and their values.
 Two kinds cover most rows: linear rows (constant Jacobian, no curvature) and point rows, a function applied
 independently to many small groups of variables (a knot's state, a touchdown's pre-impact state) with its exact
 Jacobian (closed-form algebra without one is differenced by `point_jacobian`). A block's curvature
-sum_rows mu_row d2(row)/dx2 is `group_hessian`: central differences of the exact Jacobian, all groups at once.
+sum_rows mu_row d2(row)/dx2 is `group_hessian`: forward differences of the exact Jacobian, all groups at once.
 """
 
 from __future__ import annotations
@@ -39,22 +39,32 @@ class Block(Protocol):
     def hessian(self, x: np.ndarray, multipliers: np.ndarray) -> np.ndarray: ...
 
 
+#: Relative step of `group_hessian`'s forward differences of an exact gradient: about the square root of the machine
+#: epsilon, which balances their truncation and rounding errors.
+HESSIAN_STEP = 1e-8
+
+
 def group_hessian(gradient: Callable[[np.ndarray, np.ndarray], np.ndarray], z: np.ndarray, weights: np.ndarray,
-                  columns: np.ndarray, step: float = FD_STEP) -> np.ndarray:
-    """(P, k, k): the Hessians of weights[p] . f(z_p) at P groups z (P, k), by central differences of the exact
-    weighted gradient gradient(z (B, k), weights (B, r)) -> (B, k) (the vector-Jacobian product weights . df/dz)
-    along `columns` (the inputs f depends on nonlinearly; the curvature between two other inputs is zero), all
-    groups and columns in one call. Symmetrised; accurate to ~1e-8 relative (the step is `FD_STEP`)."""
+                  columns: np.ndarray, exact: bool = True) -> np.ndarray:
+    """(P, k, k): the Hessians of weights[p] . f(z_p) at P groups z (P, k), by differences of the weighted gradient
+    gradient(z (B, k), weights (B, r)) -> (B, k) (the vector-Jacobian product weights . df/dz) along `columns` (the
+    inputs f depends on nonlinearly; the curvature between two other inputs is zero), all groups and columns in one
+    call. exact (the gradient is exact to rounding): forward differences, 1 + len(columns) gradients per group,
+    ~1e-7 relative; else (a gradient itself differenced, ~1e-10) central differences of step `FD_STEP`, twice as
+    many gradients, ~1e-5. Symmetrised."""
     points, k = z.shape
     c = len(columns)
+    step = HESSIAN_STEP if exact else FD_STEP
     delta = step * np.maximum(1.0, np.abs(z[:, columns]))  # (P, c)
-    plus = np.repeat(z[:, None, :], c, axis=1)  # (P, c, k): copy j moves input columns[j]
-    minus = plus.copy()
-    plus[:, np.arange(c), columns] += delta
-    minus[:, np.arange(c), columns] -= delta
-    batch = np.concatenate([plus, minus], axis=1).reshape(points * 2 * c, k)
-    slopes = np.asarray(gradient(batch, np.repeat(weights, 2 * c, axis=0))).reshape(points, 2, c, k)
-    rows = (slopes[:, 0] - slopes[:, 1]) / (2.0 * delta[:, :, None])  # (P, c, k): d gradient / d z_columns
+    # Copy j of the forward (central) batch moves input columns[j] forward (and copy c + j backward); the forward
+    # batch's last copy is z itself.
+    moved = np.repeat(z[:, None, :], c + 1 if exact else 2 * c, axis=1)
+    moved[:, np.arange(c), columns] += delta
+    if not exact:
+        moved[:, c + np.arange(c), columns] -= delta
+    slopes = np.asarray(gradient(moved.reshape(-1, k), np.repeat(weights, moved.shape[1], axis=0))).reshape(points, -1, k)
+    ahead, behind = slopes[:, :c], slopes[:, c:]  # behind: z's gradient (1 copy) or the backward copies
+    rows = (ahead - behind) / ((1.0 if exact else 2.0) * delta[:, :, None])  # (P, c, k): d gradient / d z_columns
     out = np.zeros((points, k, k))
     out[:, columns] = rows
     out += np.swapaxes(out, 1, 2)
@@ -129,6 +139,8 @@ class Point:
     gradient: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
     #: The inputs the function depends on nonlinearly (default: all), where `group_hessian` differences.
     nonlinear: np.ndarray | None = None
+    #: derivative or gradient is exact to rounding (not itself differenced): `group_hessian`'s forward differences.
+    exact: bool = True
 
     def __post_init__(self) -> None:
         points, k = self.index.shape
@@ -159,4 +171,5 @@ class Point:
         z = x[self.index]
         weights = multipliers.reshape(len(z), self.outputs)
         gradient = weighted(self.slopes) if self.gradient is None else self.gradient
-        return group_hessian(gradient, z, weights, self._nonlinear).ravel()[self._local]
+        exact = self.exact and (self.derivative is not None or self.gradient is not None)
+        return group_hessian(gradient, z, weights, self._nonlinear, exact).ravel()[self._local]

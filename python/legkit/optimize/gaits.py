@@ -46,9 +46,6 @@ AMBLE_DERIVATIVES = "legkit"
 AMBLE_MAX_YAW = np.radians(10.0)
 AMBLE_MAX_LOAD_RATE = 100.0  # [body weights / s]
 AMBLE_TORQUE_RISE = 0.02  # [s]
-#: ... and the joint rates within the motors' no-load speed at these fractions of every interval too (at the points
-#: alone, the 4-interval amble's rates reached 1.14 x that speed between them).
-AMBLE_RATE_FRACTIONS = (0.25, 0.75)
 
 #: The amble is transcribed as a mirrored half cycle by default: with the polish's durations held first it
 #: converges 2-6x faster than its whole cycle, to the same worst-case S_H.
@@ -76,7 +73,7 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
                   max_swing_height: float = 0.06, max_impulse: float = np.inf, mirror: bool = False,
                   min_normal_force: float = 0.0, torque_margin: float = 0.0, max_yaw: float = AMBLE_MAX_YAW,
                   max_load_rate: float = AMBLE_MAX_LOAD_RATE, torque_rise: float = AMBLE_TORQUE_RISE,
-                  rate_fractions: Sequence[float] = AMBLE_RATE_FRACTIONS) -> MultiphaseProblem:
+                  dense_rates: bool = True) -> MultiphaseProblem:
     """The amble at `speed` [m/s] over a fixed `period` [s]; each phase lasts between duration_range x period / 4.
     The state bounds of Sect. 2.3 keep the torso above the ground and its roll and pitch within about
     max_tilt [rad] (|q_x|, |q_y| <= sin(max_tilt / 2)): unbounded, J_s2 pitches the torso by ~50 deg; and the
@@ -91,8 +88,9 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
     For a plan a robot can execute (`legkit.optimize.checks`): the torso's yaw within max_yaw [rad]
     (`MultiphaseProblem.max_yaw`); every foot's load changing by at most max_load_rate body weights per second, support
     switches included (`max_force_rate`); each torque by at most its stall torque per torque_rise [s]
-    (`max_torque_rate`; 0 for none); the joint rates within the motors' no-load speed at rate_fractions of every
-    interval too (`rate_fractions`). np.inf switches a bound off, () the rates between points."""
+    (`max_torque_rate`; 0 for none); the joint rates within the motors' no-load speed between the points too
+    (`dense_rates`: at the points alone, the 4-interval amble's rates reached 1.14 x that speed between them). np.inf
+    switches a bound off, dense_rates=False the rates between points."""
     if not 0.0 <= torque_margin < 1.0:
         raise ValueError(f"torque_margin must be in [0, 1), got {torque_margin}")
     quarter = period / 4.0
@@ -119,7 +117,7 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
                              friction=friction, u_bounds=bounds, torque_speed=line,
                              q_bounds=(lower, upper), max_swing_height=max_swing_height, max_impulse=max_impulse,
                              min_normal_force=min_normal_force, max_force_rate=max_load_rate * weight, max_yaw=max_yaw,
-                             rate_fractions=rate_fractions,
+                             dense_rates=dense_rates,
                              max_torque_rate=float(bounds[1][0]) / torque_rise if torque_rise > 0.0 else np.inf,
                              mirror=side_mirror(robot.model, {"lf": "rf", "lh": "rh"}) if mirror else None)
 
@@ -199,9 +197,8 @@ WALK_DERIVATIVES = "legkit"
 #: collocation drifted to over the half (1.0017), exceeds that bound by 1.5e-4 in the whole cycle.
 WALK_MIRROR = False
 
-#: The walk's joint rates within the motors' no-load speed at these fractions of every interval too (at the points
-#: alone its rates reached 38-48 rad/s between them, against the 5.2 rad/s the motors can turn).
-WALK_RATE_FRACTIONS = (0.25, 0.75)
+#: The walk's pelvis heading within 10 deg (J_e1 alone turned it by 85 deg: the robot walked sideways).
+WALK_MAX_YAW = np.radians(10.0)
 
 
 def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: tuple[int, int] = (1, 4),
@@ -209,15 +206,16 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
                  double_support: tuple[float, float] = (0.04, 0.4), single_support: tuple[float, float] = (0.3, 1.0),
                  period: float | tuple[float, float] | None = 1.6, objectives: Sequence | None = None,
                  max_input_power: float | None = None, mirror: bool = False,
-                 rate_fractions: Sequence[float] = WALK_RATE_FRACTIONS) -> MultiphaseProblem:
+                 dense_rates: bool = True, max_yaw: float = WALK_MAX_YAW) -> MultiphaseProblem:
     """The biped walk at `speed` [m/s] minimising J_e1 (eq. 12) with `motor`'s resistance, gear and torque
     constant at every joint (or the given `objectives`), under its torque-speed line (Sect. 2.3) and stall torque; the soles flat on the
     ground in stance with eq. 6's torque limits. intervals: (per double-support phase, per single-support
     phase); the phase durations [s] lie in double_support and single_support and sum to `period` [s] (fixed,
     bounds, or None: free; the default is the reference's, a 0.4 m step). max_input_power [W]: each motor's input
     power bound (`InputPower`, Sect. 6's "maximum input power constraints"; None: unbounded). mirror: transcribe
-    half the cycle (module docstring). rate_fractions: where in every interval the joint rates also stay within the
-    motors' no-load speed (`MultiphaseProblem.rate_fractions`; () for the points alone).
+    half the cycle (module docstring). dense_rates: the joint rates within the motors' no-load speed between the
+    points too (`MultiphaseProblem.dense_rates`; at the points alone they reached 38-48 rad/s between them, against the
+    5.2 rad/s the motors can turn). max_yaw [rad]: the pelvis' heading (`MultiphaseProblem.max_yaw`; np.inf for none).
 
     Parameters the paper does not give, assumed here: the motor (legkit's `BIPED_MOTOR`: Fig. 6 names 42 V
     motors with 66:1 gears for an 18 kg biped but no motor constants, and legkit's biped weighs 42 kg); mu_d =
@@ -251,7 +249,7 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
                              max_swing_height=max_swing_height, flat_feet={side: sole for side in SIDES},
                              input_power=None if max_input_power is None else
                              InputPower(max_input_power, motor.resistance, motor.gear_ratio, motor.torque_constant),
-                             mirror=side_mirror(model, {"l": "r"}) if mirror else None, rate_fractions=rate_fractions)
+                             mirror=side_mirror(model, {"l": "r"}) if mirror else None, dense_rates=dense_rates, max_yaw=max_yaw)
 
 
 def solve_walk(problem: MultiphaseProblem, guess: Trajectory, derivatives: str = WALK_DERIVATIVES,

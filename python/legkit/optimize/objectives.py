@@ -47,7 +47,7 @@ from numpy.typing import ArrayLike
 import legkit as lk
 from legkit.optimize import kinematics as kin
 from legkit.optimize.blocks import Block, Point, group_hessian, group_pattern
-from legkit.optimize.collocation import point_jacobian
+from legkit.optimize.collocation import complex_step_jacobian, point_jacobian
 from legkit.stability import angular_momentum_stability_of_model, foot_rotation_indicator
 
 if TYPE_CHECKING:
@@ -262,7 +262,7 @@ class IntegralCurvature:
             def phase_slopes(zz: np.ndarray, weight: np.ndarray, k: int = k) -> np.ndarray:
                 return weight * self.slopes(zz, k)
 
-            curvature = group_hessian(phase_slopes, z, w[:, None], columns)
+            curvature = group_hessian(phase_slopes, z, w[:, None], columns, exact=term.slopes is not None)
             out.append(scale * durations[k] * curvature.ravel()[self._local[k]])
             gradient = (w[:, None] * self.slopes(z, k))[:, columns].ravel()
             if term.per_distance:
@@ -346,7 +346,7 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
     points = [(problem.foot_body[n], problem.foot_point[n]) for n in edge]
 
     def derivative(z: np.ndarray) -> np.ndarray:
-        """The rows' slopes in c, the feet (differences of their closed form), h and p1 (exact: the rows are affine
+        """The rows' slopes in c, the feet (complex steps of their closed form), h and p1 (exact: the rows are affine
         in them), chained with the COM's, the feet's and the momentum's derivatives from the kernels (h = A_G(q) v;
         d/dq of h by `lk.centroidal_derivatives`). A free-flyer's position drops out of every difference."""
         q = problem.configuration(z[:, :nq])
@@ -358,7 +358,7 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
         def of_geometry(g: np.ndarray) -> np.ndarray:
             return rows(g[:, :3].T, g[:, 9:].T, g[:, 3:6].T, g[:, 6:9].T, 0.0)
 
-        _, by_geometry = point_jacobian(of_geometry, geometry, columns=np.arange(9))  # (B, rows, 9)
+        by_geometry = complex_step_jacobian(of_geometry, geometry, np.arange(9))  # (B, rows, 9)
         unit = np.eye(7)[:, :, None]  # h = e_0..e_5 and p1 = 1, each against zeros (unit[6])
         base = rows(c.T, np.zeros(6), feet[:, 0].T, feet[:, 1].T, 0.0)
         slopes = np.stack([rows(c.T, unit[j, :6], feet[:, 0].T, feet[:, 1].T, unit[j, 6]) - base

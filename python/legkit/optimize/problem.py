@@ -167,9 +167,9 @@ class MultiphaseProblem:
     the robot's momentum cannot be replayed by joint tracking). min_normal_force [N]: a floor
     on every stance foot's normal force at every point (eq. 5 with a margin: the min-max S_H optimum otherwise
     balances on one foot of two, leaving a tracking controller nothing to push with on the other).
-    objectives: terms from `legkit.optimize.objectives`, summed. rate_fractions (with a torque_speed line): fractions
-    of every interval where each actuated joint's rate, on the velocity's Hermite cubic, stays within the line's
-    no-load speed (`dense_rate_blocks`; the points meet it through the line). max_yaw [rad]: a free-flyer's yaw (its
+    objectives: terms from `legkit.optimize.objectives`, summed. dense_rates (with a torque_speed line): each actuated
+    joint's rate within the line's no-load speed over every interval, on the velocity's Hermite cubic, not only at
+    the points (`dense_rate_blocks`: its Bernstein control points bounded). max_yaw [rad]: a free-flyer's yaw (its
     heading about the world's z) within +-max_yaw at every point. max_force_rate [N/s], max_torque_rate [N m/s]:
     bounds on how fast the foot forces and the torques change, across phase boundaries too (a lifting foot unloads,
     a landing foot loads, within the half interval beside the switch): `load_rate_blocks`.
@@ -199,7 +199,7 @@ class MultiphaseProblem:
     min_normal_force: float = 0.0  # [N] floor on every stance normal force
     flat_feet: Mapping[str, FlatFoot] = field(default_factory=dict)
     mirror: Mirror | None = None
-    rate_fractions: Sequence[float] = ()  # where in each interval the joint rates meet the torque-speed line's no-load speed
+    dense_rates: bool = False  # the joint rates within the torque-speed line's no-load speed between the points too
     max_yaw: float = np.inf  # [rad] a free-flyer's yaw at every point (`yaw_blocks`)
     max_force_rate: float = np.inf  # [N/s] on every component of every stance foot's force (`load_rate_blocks`)
     max_torque_rate: float = np.inf  # [N m/s] on every actuated torque (`load_rate_blocks`)
@@ -281,10 +281,8 @@ class MultiphaseProblem:
                 raise ValueError(f"{name} must be > 0 (inf: unbounded), got {getattr(self, name)}")
         if not self.max_yaw > 0.0 or (np.isfinite(self.max_yaw) and not self.model.floating_base):
             raise ValueError(f"max_yaw must be > 0 and needs a free-flyer base, got {self.max_yaw}")
-        if any(not 0.0 < f < 1.0 for f in self.rate_fractions):
-            raise ValueError(f"rate_fractions must lie in (0, 1), got {list(self.rate_fractions)}")
-        if self.rate_fractions and self.torque_speed is None:
-            raise ValueError("rate_fractions needs a torque_speed line (its no-load speed bounds the rates)")
+        if self.dense_rates and self.torque_speed is None:
+            raise ValueError("dense_rates needs a torque_speed line (its no-load speed bounds the rates)")
         if not self.friction > 0.0:
             raise ValueError(f"friction must be > 0, got {self.friction}")
         if self.input_power is not None:
@@ -980,39 +978,37 @@ class MultiphaseProblem:
         return [Point(index, yaw, 1, -self.max_yaw, self.max_yaw, derivative=slopes)]
 
     def dense_rate_blocks(self) -> list[Block]:
-        """|w_i(s)| <= no-load speed of each actuated joint i at the `rate_fractions` s of every interval, w(s) = b0 v_k +
-        b1 h a_k + b2 v_k+1 + b3 h a_k+1 the velocity's Hermite cubic [Hardt 2002, eq. 14] (h = T / N: bilinear in the
-        duration and the accelerations)."""
-        if not self.rate_fractions or self.torque_speed is None or not self.nu:
+        """|w_i(s)| <= no-load speed of each actuated joint i over every interval (dense_rates): w(s) is the velocity's
+        Hermite cubic [Hardt 2002, eq. 14] through (v_k, h a_k) and (v_k+1, h a_k+1), h = T / N; in Bernstein form its
+        control points are v_k, v_k + h a_k / 3, v_k+1 - h a_k+1 / 3, v_k+1, and the cubic lies in their convex hull, so
+        bounding the two inner ones (bilinear in the duration and the accelerations) bounds it everywhere; the ends are
+        points, held by the torque-speed line."""
+        if not self.dense_rates or self.torque_speed is None or not self.nu:
             return []
         actuated, nu = np.asarray(self.actuated), self.nu
-        basis = np.array([hermite_basis(s) for s in self.rate_fractions])  # (fractions, 4)
-        limit = np.tile(np.broadcast_to(np.asarray(self.torque_speed.max_speed, dtype=np.float64), (nu,)), len(basis))
+        limit = np.tile(np.broadcast_to(np.asarray(self.torque_speed.max_speed, dtype=np.float64), (nu,)), 2)
         blocks: list[Block] = []
         for k, index in enumerate(self.point_index):
             a = index[:, self.a_columns[k]][:, actuated]
             v = index[:, self.nq + actuated]
             groups = np.concatenate([v[0:-1:2], a[0:-1:2], v[2::2], a[2::2], np.full((len(v) // 2, 1), self.duration_index[k])], axis=1)
-            intervals = self.phases[k].intervals
+            third = 1.0 / (3.0 * self.phases[k].intervals)  # h / 3 per unit duration
 
-            def rates(g: np.ndarray, intervals: int = intervals) -> np.ndarray:
-                h = g[:, -1:] / intervals
-                parts = [g[:, i * nu : (i + 1) * nu] for i in range(4)]
-                return np.concatenate([b[0] * parts[0] + b[1] * h * parts[1] + b[2] * parts[2] + b[3] * h * parts[3] for b in basis], axis=1)
+            def rates(g: np.ndarray, third: float = third) -> np.ndarray:
+                v0, a0, v1, a1 = (g[:, i * nu : (i + 1) * nu] for i in range(4))
+                step = third * g[:, -1:]
+                return np.concatenate([v0 + step * a0, v1 - step * a1], axis=1)
 
-            def slopes(g: np.ndarray, intervals: int = intervals) -> np.ndarray:
-                h = g[:, -1] / intervals
-                out = np.zeros((len(g), len(basis) * nu, 4 * nu + 1))
+            def slopes(g: np.ndarray, third: float = third) -> np.ndarray:
+                out = np.zeros((len(g), 2 * nu, 4 * nu + 1))
                 eye = np.eye(nu)
-                for f, b in enumerate(basis):
-                    rows = slice(f * nu, (f + 1) * nu)
-                    out[:, rows, 0:nu], out[:, rows, 2 * nu : 3 * nu] = b[0] * eye, b[2] * eye
-                    out[:, rows, nu : 2 * nu] = b[1] * h[:, None, None] * eye
-                    out[:, rows, 3 * nu : 4 * nu] = b[3] * h[:, None, None] * eye
-                    out[:, rows, -1] = (b[1] * g[:, nu : 2 * nu] + b[3] * g[:, 3 * nu : 4 * nu]) / intervals
+                step = third * g[:, -1, None, None]
+                out[:, :nu, :nu], out[:, nu:, 2 * nu : 3 * nu] = eye, eye
+                out[:, :nu, nu : 2 * nu], out[:, nu:, 3 * nu : 4 * nu] = step * eye, -step * eye
+                out[:, :nu, -1], out[:, nu:, -1] = third * g[:, nu : 2 * nu], -third * g[:, 3 * nu : 4 * nu]
                 return out
 
-            blocks.append(Point(groups, rates, len(basis) * nu, -limit, limit, derivative=slopes, nonlinear=np.array([4 * nu])))
+            blocks.append(Point(groups, rates, 2 * nu, -limit, limit, derivative=slopes, nonlinear=np.array([4 * nu])))
         return blocks
 
     def load_rate_blocks(self) -> list[Block]:
