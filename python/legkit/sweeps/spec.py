@@ -247,6 +247,9 @@ def _per_scheme(name: str, value: Any, schemes: list[str]) -> dict[str, list[flo
         unknown = sorted(set(value) - set(SCHEMES))
         if unknown:
             raise ValueError(f"{name}: keys must be schemes {SCHEMES}, got {unknown}")
+        unswept = sorted(set(value) - set(schemes))
+        if unswept:
+            raise ValueError(f"{name}: values given for {unswept}, which the sweep does not run (schemes {schemes})")
         return {s: _floats(f"{name}[{s!r}]", value[s], low=0.0) if s in value else paper[s] for s in schemes}
     values = _floats(name, value, low=0.0)
     return {s: list(values) for s in schemes}
