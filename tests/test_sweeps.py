@@ -483,7 +483,7 @@ def _assert_gone(pids):
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_ctrl_c_stops_at_once_keeps_the_parts_and_exits_130(tmp_path):
-    spec_values = {**TINY, "trees": 8, "duration": 1.0, "batch_size": 2}
+    spec_values = {**TINY, "trees": 8, "duration": 3.0, "batch_size": 2}
     process, out = _start_sweep(tmp_path, spec_values)
     _wait_for(lambda: list((out / "parts").glob("batch-*.parquet")), process)
     below = _descendants(process.pid)

@@ -183,8 +183,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, TypeError, ImportError) as error:
         print(f"legkit sweep: {error}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt as interrupt:  # SweepInterrupted: says what is kept and how to resume
-        print(f"legkit sweep: {interrupt or 'interrupted'}", file=sys.stderr)
+    except KeyboardInterrupt as interrupt:  # SweepInterrupted says what is kept and how to resume
+        text = str(interrupt) or f"interrupted; the finished batches are kept in {args.out}: run the same command again to resume"
+        print(f"legkit sweep: {text}", file=sys.stderr)
         return 130
     print(summary(table))
     print(f"wrote {args.out}/results.parquet ({table.num_rows} runs)" + ("" if args.no_figures else " and its figures"))

@@ -406,6 +406,9 @@ def _worker_start(parent: int) -> None:
     exits (``prctl(PR_SET_PDEATHSIG, SIGKILL)``); everywhere a watchdog thread exits once the parent id
     changes (the driver gone, the worker adopted). Ctrl-C is the driver's to handle: the worker ignores it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # tqdm's default lock (run_balance makes a disabled bar) is a named semaphore that a killed worker would
+    # leave to the resource tracker, which then warns as the driver exits.
+    tqdm.set_lock(threading.RLock())
     if sys.platform.startswith("linux"):
         try:
             ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # 1: PR_SET_PDEATHSIG
@@ -573,6 +576,7 @@ def run_sweep(
             pieces[b] += 1
         arrived: dict[int, dict[int, list[dict]]] = {b: {} for b in todo}
         done = sum(len(batches[b]) for b in kept)
+        tqdm.set_lock(threading.RLock())  # as in the workers (_worker_start): the bar is written from this thread only
         with tqdm(
             total=total, initial=done, desc="sweep", unit="run", disable=not progress, smoothing=0.1, file=sys.stderr, dynamic_ncols=True,
         ) as bar:
@@ -586,13 +590,15 @@ def run_sweep(
                         row.update(run_id=spec.run_id(run), index=order[run], batch=b)
                     store.write(b, rows)
                     kept.append(b)
+        pool.close()
     except KeyboardInterrupt:
         pool.abort()
-        raise SweepInterrupted(store.out, sum(len(batches[b]) for b in kept), total) from None
+        # A part renamed into place is whole (the interrupt may fall between its rename and the bookkeeping).
+        written = set(kept) | {b for b in todo if store.part(b).exists()}
+        raise SweepInterrupted(store.out, sum(len(batches[b]) for b in written), total) from None
     except BaseException:
         pool.abort()
         raise
-    pool.close()
     table = store.table(sorted(kept))
     assert table is not None  # a spec has at least one batch, and one is written by now
     if len(kept) == len(batches):
