@@ -613,3 +613,15 @@ def test_servo_torques_are_limited_to_the_stall_torque(monkeypatch):
     for bad in (0.0, -1.0, float("nan"), "1"):
         with pytest.raises(ValueError, match="^servo_torque_limit"):
             sb.ModuleParameters(servo_torque_limit=bad)
+
+
+@pytest.mark.slow
+def test_ray_local_starts_an_instance_even_when_ray_address_names_a_cluster(tiny_sweep, tmp_path, monkeypatch):
+    """--ray local means a new local instance, whatever RAY_ADDRESS says (here an address where nothing
+    listens); the run's table is the in-process one, and the instance is shut down after."""
+    _, reference = tiny_sweep
+    monkeypatch.setenv("RAY_ADDRESS", "127.0.0.1:9")
+    assert not ray.is_initialized()
+    table = run_sweep(SweepSpec(**TINY), tmp_path / "ray-local", ray="local", progress=False, figures=False)
+    assert not ray.is_initialized()
+    assert_same_table(table, reference)
