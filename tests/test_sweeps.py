@@ -1,5 +1,6 @@
-"""legkit.sweeps: the declarative spec, batched execution locally and on Ray, resumable Parquet output, the
-CLI, figures and tuning. Small trees (4 modules) and short runs keep the file to well under a minute."""
+"""legkit.sweeps: the declarative spec, batched execution locally and on Ray, verified resumable Parquet output
+with provenance, interruption, the CLI's one-line errors, figures and tuning. Small trees (4 modules) and short
+runs keep every sweep here to seconds; the two Ray tests spend most of their time starting Ray."""
 
 from __future__ import annotations
 
