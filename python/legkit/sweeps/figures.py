@@ -60,7 +60,7 @@ def distributions_figure(c: dict[str, np.ndarray]) -> Figure:
     labels = [" ".join([scheme, *(f"{n}={v:g}" for n, v in zip(varying, group))]) for scheme in schemes for group in groups]
     boxes = len(schemes) * (len(groups) + 1)
     width = max(6.0, 0.2 * boxes + 1.5)
-    height = len(DISTRIBUTIONS) * 2.2 + (0.0 if not varying else 0.065 * max(map(len, labels)) + 0.3)
+    height = len(DISTRIBUTIONS) * 2.2 + (0.0 if not varying else 0.075 * max(map(len, labels)) + 0.4)
     figure, axes = plt.subplots(len(DISTRIBUTIONS), 1, figsize=(width, height), squeeze=False, sharex=True)
     positions = [k * (len(groups) + 1) + g for k in range(len(schemes)) for g in range(len(groups))]
     for axis, (metric, label) in zip(axes[:, 0], DISTRIBUTIONS):
