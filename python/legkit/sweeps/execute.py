@@ -67,7 +67,7 @@ if TYPE_CHECKING:
 
 METRICS = ("initial", "final", "settled", "t10", "overshoot", "messages", "energy")
 #: The fewest runs per task: throughput per core grows with the runs of a ``run_balance`` call up to about
-#: four and is flat beyond (benches/balance_sweep.py --task-sizes).
+#: four and is flat beyond (benches/balance_sweep.py --batch-sizes 1 2 4 8 16; docs/sweeps.md, Throughput).
 TASK_FLOOR = 4
 #: Tasks per unit of parallelism aimed at, so that the tail (the last tasks, run while other workers idle)
 #: is a small share of the sweep.
