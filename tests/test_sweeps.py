@@ -626,3 +626,24 @@ def test_ray_local_starts_an_instance_even_when_ray_address_names_a_cluster(tiny
     table = run_sweep(SweepSpec(**TINY), tmp_path / "ray-local", ray="local", progress=False, figures=False)
     assert not ray.is_initialized()
     assert_same_table(table, reference)
+
+
+def test_rows_from_a_worker_of_another_build_are_refused_unless_allowed(tmp_path, monkeypatch):
+    """A worker (a cluster node) with another legkit build: the sweep stops naming both builds, before
+    writing its rows; with allow_mixed the rows are kept under their own build, and the part checks out."""
+    from legkit.sweeps import execute
+
+    real = execute.run_batch
+
+    def other_node(spec_values, runs, threads=None):
+        return [{**row, "build": "f" * 16} for row in real(spec_values, runs, threads)]
+
+    monkeypatch.setattr(execute, "run_batch", other_node)
+    spec = SweepSpec(**{**TINY, "trees": 1, "batch_size": 4})
+    with pytest.raises(ValueError, match=r"^ray: a worker ran legkit build f{16}, this driver is build [0-9a-f]{16}"):
+        run_sweep(spec, tmp_path / "refused", workers=1, progress=False, figures=False)
+    assert not list((tmp_path / "refused" / "parts").glob("*.parquet"))
+    table = run_sweep(spec, tmp_path / "mixed", workers=1, progress=False, figures=False, allow_mixed=True)
+    assert set(table.column("build").to_pylist()) == {"f" * 16}
+    monkeypatch.setattr(execute, "run_batch", real)
+    assert execute.ResultStore(tmp_path / "mixed", spec, allow_mixed=True).verify_part(0) is None

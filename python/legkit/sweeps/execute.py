@@ -351,8 +351,12 @@ class ResultStore:
             self.log(f"{path}: {reason}")
 
     def write(self, batch: int, rows: list[dict[str, Any]]) -> None:
+        """Write the part of ``batch``, recording this build's provenance (or, when every row comes from one
+        other build, under ``allow_mixed``, that build's id in it)."""
         pa = _pyarrow()
-        table = pa.Table.from_pylist(rows, schema=schema().with_metadata({PROVENANCE_KEY: json.dumps(self.provenance).encode()}))
+        builds = {row["build"] for row in rows}
+        recorded = {**self.provenance, "build": builds.pop()} if len(builds) == 1 else self.provenance
+        table = pa.Table.from_pylist(rows, schema=schema().with_metadata({PROVENANCE_KEY: json.dumps(recorded).encode()}))
         _durable_write(self.part(batch), lambda path: pa.parquet.write_table(table, path))
 
     def table(self, batches: Sequence[int] | None = None) -> pa.Table | None:
@@ -581,6 +585,12 @@ def run_sweep(
             total=total, initial=done, desc="sweep", unit="run", disable=not progress, smoothing=0.1, file=sys.stderr, dynamic_ncols=True,
         ) as bar:
             for (b, k), rows in pool.map(spec.to_dict(), tasks):
+                foreign = {row["build"] for row in rows} - {store.provenance["build"]}
+                if foreign and not allow_mixed:  # a cluster node with another legkit installed
+                    raise ValueError(
+                        f"ray: a worker ran legkit build {sorted(foreign)[0]}, this driver is build {store.provenance['build']}; "
+                        "install the same legkit on every node, or allow it with --allow-mixed (allow_mixed=True)"
+                    )
                 arrived[b][k] = rows
                 bar.update(len(rows))
                 if len(arrived[b]) == pieces[b]:
