@@ -1,9 +1,12 @@
-"""legkit.sweeps: the declarative spec, batched execution locally and on Ray, resumable Parquet output, the
-CLI, figures and tuning. Small trees (4 modules) and short runs keep the file to well under a minute."""
+"""legkit.sweeps: the declarative spec, batched execution locally and on Ray, verified resumable Parquet output
+with provenance, interruption, the CLI's one-line errors, figures and tuning. Small trees (4 modules) and short
+runs keep every sweep here to seconds; the two Ray tests spend most of their time starting Ray."""
 
 from __future__ import annotations
 
+import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -17,7 +20,7 @@ import ray
 from legkit.control import SCHEMES, GainSchedule
 from legkit.experiments import balance
 from legkit.robots.superbot import random_tree
-from legkit.sweeps import SweepSpec, read_results, run_batch, run_sweep
+from legkit.sweeps import SweepSpec, read_results, run_batch, run_sweep, task_size
 from legkit.sweeps import cli as sweep_cli
 from legkit.sweeps import tune as tuning
 
@@ -263,3 +266,384 @@ def test_tune_starts_from_the_paper_and_reports_held_out_spread(capsys):
         tuning.tune(["pid"])
     with pytest.raises(ValueError, match="^train"):
         tuning.tune(train=0)
+
+
+# --- Integrity, provenance, interruption, work split (issue 39) -----------------------------------------------
+
+TINY = dict(trees=2, modules=4, branches=2, duration=0.05, schemes=["constant", "momentum"], batch_size=2)
+
+
+@pytest.fixture(scope="module")
+def tiny_sweep(tmp_path_factory):
+    """A finished tiny sweep (2 batches of 2 runs), run in this process: the reference for damaged copies."""
+    out = tmp_path_factory.mktemp("tiny")
+    return out, run_sweep(SweepSpec(**TINY), out, workers=1, progress=False, figures=False)
+
+
+def _rewrite(path, table, metadata=None):
+    """Write ``table`` over the part ``path``, keeping (or replacing) the provenance in its metadata."""
+    import pyarrow as pa
+
+    metadata = pq.read_schema(path).metadata if metadata is None else metadata
+    pq.write_table(table.replace_schema_metadata(metadata), path)
+    del pa
+
+
+def _damage(kind, parts):
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    first, second = parts / "batch-00000.parquet", parts / "batch-00001.parquet"
+    table = pq.read_table(first)
+    if kind == "fewer rows":
+        _rewrite(first, table.slice(0, 1))
+    elif kind == "another batch's rows":
+        first.write_bytes(second.read_bytes())
+    elif kind == "zero rows":
+        _rewrite(first, table.slice(0, 0))
+    elif kind == "duplicated rows":
+        _rewrite(first, pa.concat_tables([table, table.slice(0, 1)]))
+    elif kind == "dropped column":
+        _rewrite(first, table.drop_columns(["energy"]))
+    elif kind == "retyped column":
+        _rewrite(first, table.set_column(table.schema.get_field_index("index"), "index", pc.cast(table.column("index"), pa.float64())))
+    elif kind == "cut file":
+        first.write_bytes(first.read_bytes()[:200])
+    elif kind == "no provenance":
+        _rewrite(first, table, metadata={})
+    elif kind == "another build":
+        other = json.loads(pq.read_schema(first).metadata[b"legkit.provenance"])
+        other["build"] = "0" * 16
+        table = table.set_column(table.schema.get_field_index("build"), "build", pa.array(["0" * 16] * table.num_rows))
+        _rewrite(first, table, metadata={b"legkit.provenance": json.dumps(other).encode()})
+    elif kind == "stray batch":
+        (parts / "batch-00099.parquet").write_bytes(first.read_bytes())
+    return parts / ("batch-00099.parquet" if kind == "stray batch" else "batch-00000.parquet")
+
+
+DAMAGE = ["fewer rows", "another batch's rows", "zero rows", "duplicated rows", "dropped column", "retyped column", "cut file",
+          "no provenance", "another build", "stray batch"]
+
+
+@pytest.mark.parametrize("kind", DAMAGE)
+def test_a_damaged_part_is_run_again_with_a_line_or_refused_with_strict(kind, tiny_sweep, tmp_path):
+    """Every kind of damaged part ends in the uninterrupted table (no run lost or duplicated), with one line
+    naming the file; with strict, a ValueError naming it and nothing written."""
+    import shutil
+
+    reference_out, reference = tiny_sweep
+    out = tmp_path / "copy"
+    shutil.copytree(reference_out, out)
+    (out / "results.parquet").unlink()
+    damaged = _damage(kind, out / "parts")
+    before = {p.name: p.read_bytes() for p in (out / "parts").iterdir()}
+    with pytest.raises(ValueError, match=rf"^strict: {damaged}"):
+        run_sweep(SweepSpec(**TINY), out, workers=1, progress=False, figures=False, strict=True)
+    assert {p.name: p.read_bytes() for p in (out / "parts").iterdir()} == before and not (out / "results.parquet").exists()
+    lines = []
+    table = run_sweep(SweepSpec(**TINY), out, workers=1, progress=False, figures=False, log=lines.append)
+    assert len(lines) == 1 and lines[0].startswith(str(damaged)), lines
+    assert_same_table(table, reference)
+    assert_same_table(pq.read_table(out / "results.parquet"), reference)
+    assert sorted(table.column("run_id").to_pylist()) == sorted(SweepSpec(**TINY).run_id(r) for r in SweepSpec(**TINY).runs())
+    # The re-run part checks out now: a second resume keeps every part and says nothing.
+    lines.clear()
+    run_sweep(SweepSpec(**TINY), out, workers=1, progress=False, figures=False, log=lines.append)
+    assert lines == ([lines[0]] if kind == "stray batch" else [])
+
+
+def test_provenance_is_recorded_and_another_build_refused_unless_allowed(tiny_sweep, tmp_path):
+    import shutil
+
+    from legkit.sweeps import provenance
+
+    reference_out, reference = tiny_sweep
+    mine = provenance()
+    assert set(reference.column("build").to_pylist()) == {mine["build"]}
+    stored = json.loads((reference_out / "spec.json").read_text())
+    assert stored["provenance"] == mine
+    assert {"legkit", "build", "extension", "engine", "python", "platform", "commit"} <= set(mine)
+    assert mine["engine"]["servo_torque_limit"] == 1.0
+    for part in (reference_out / "parts").iterdir():
+        assert json.loads(pq.read_schema(part).metadata[b"legkit.provenance"]) == mine
+    # A folder started by another build: refused, unless allow_mixed, which keeps its (self-consistent) parts.
+    out = tmp_path / "other-build"
+    shutil.copytree(reference_out, out)
+    (out / "results.parquet").unlink()
+    stored["provenance"] = {**mine, "build": "0" * 16, "commit": "f" * 40}
+    (out / "spec.json").write_text(json.dumps(stored))
+    _damage("another build", out / "parts")
+    with pytest.raises(ValueError, match=r"^out: .* was started by legkit .* build 0{16}, commit ffffffffff.*--allow-mixed"):
+        run_sweep(SweepSpec(**TINY), out, workers=1, progress=False, figures=False)
+    mixed = run_sweep(SweepSpec(**TINY), out, workers=1, progress=False, figures=False, allow_mixed=True, log=pytest.fail)
+    assert mixed.column("build").to_pylist() == ["0" * 16] * 2 + [mine["build"]] * 2
+    assert json.loads((out / "spec.json").read_text())["resumed_by"] == [mine]
+    # A garbled spec.json: one line naming the file.
+    (out / "spec.json").write_text("{garbled")
+    with pytest.raises(ValueError, match=rf"^out: {out / 'spec.json'} is not a sweep's spec.json"):
+        run_sweep(SweepSpec(**TINY), out, workers=1, progress=False)
+
+
+def test_task_size_and_split_spread_runs_over_the_workers():
+    from legkit.sweeps.execute import TASK_FLOOR, split
+
+    # The docs' first example (24 runs, one batch of 48) on 2 workers: several tasks, each of >= TASK_FLOOR runs.
+    assert task_size(24, 2, 48) == TASK_FLOOR and len(split(list(range(24)), TASK_FLOOR)) == 6
+    for runs, workers, batch in [(1, 1, 48), (1002, 2, 48), (1002, 64, 48), (5, 3, 2), (100_000, 2, 48)]:
+        size = task_size(runs, workers, batch)
+        assert min(batch, TASK_FLOOR) <= size <= batch
+        tasks = -(-runs // size)
+        assert tasks >= min(-(-runs // batch) * 1, 2 * workers) or size == min(batch, TASK_FLOOR)
+    for n, size in [(1, 4), (7, 3), (48, 5), (48, 48)]:
+        pieces = split(list(range(n)), size)
+        assert [x for p in pieces for x in p] == list(range(n))
+        assert max(map(len, pieces)) <= size and max(map(len, pieces)) - min(map(len, pieces)) <= 1
+
+
+@pytest.mark.slow
+def test_the_table_does_not_depend_on_how_runs_are_split_into_tasks(tiny_sweep, tmp_path, monkeypatch):
+    """One run per task in this process, and the default split on a 2-process pool: the same table."""
+    from legkit.sweeps import execute
+
+    _, reference = tiny_sweep
+    spec = SweepSpec(**{**TINY, "batch_size": 4})
+    pooled = run_sweep(spec, tmp_path / "pool", workers=2, progress=False, figures=False)
+    monkeypatch.setattr(execute, "TASK_FLOOR", 1)
+    monkeypatch.setattr(execute, "TASKS_PER_WORKER", 10_000)
+    assert execute.task_size(len(spec.runs()), 1, 4) == 1
+    alone = run_sweep(spec, tmp_path / "alone", workers=1, progress=False, figures=False)
+    assert_same_table(alone, pooled)
+    assert_same_table(alone.drop_columns(["batch"]), reference.drop_columns(["batch"]))
+
+
+def _descendants(pid):
+    """Every process below ``pid`` (from /proc), found before the driver dies."""
+    children = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                stat = open(f"/proc/{entry}/stat").read()
+            except OSError:
+                continue
+            children.setdefault(int(stat.rsplit(")", 1)[1].split()[1]), []).append(int(entry))
+    found, stack = [], [pid]
+    while stack:
+        for child in children.get(stack.pop(), []):
+            found.append(child)
+            stack.append(child)
+    return found
+
+
+def _alive(pid):
+    try:
+        return open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _start_sweep(tmp_path, spec_values, workers=2):
+    spec_file = tmp_path / "spec.json"
+    spec_file.write_text(json.dumps(spec_values))
+    out = tmp_path / "out"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "legkit.cli", "sweep", "--spec", str(spec_file), "--out", str(out), "--workers", str(workers), "--no-figures"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy(),
+    )
+    return process, out
+
+
+def _wait_for(condition, process, seconds=120):
+    deadline = time.monotonic() + seconds
+    while not condition() and time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.05)
+    assert condition(), process.poll()
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_killing_the_driver_leaves_no_process_behind(tmp_path):
+    """kill -9 of a sweep's driver while its pool works: every worker (and the resource tracker) exits."""
+    process, out = _start_sweep(tmp_path, {**TINY, "trees": 8, "duration": 0.5, "batch_size": 4})
+    try:
+        _wait_for(lambda: list((out / "parts").glob("batch-*.parquet")), process)
+        below = _descendants(process.pid)
+        assert len(below) >= 2, below  # the pool's workers (and the resource tracker)
+    finally:
+        process.kill()
+        process.communicate()
+    _assert_gone(below)
+
+
+def _assert_gone(pids):
+    deadline = time.monotonic() + 30  # a liveness bound, far above the watchdog's half second
+    while any(_alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not [p for p in pids if _alive(p)]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_ctrl_c_stops_at_once_keeps_the_parts_and_exits_130(tmp_path):
+    spec_values = {**TINY, "trees": 8, "duration": 3.0, "batch_size": 2}
+    process, out = _start_sweep(tmp_path, spec_values)
+    _wait_for(lambda: list((out / "parts").glob("batch-*.parquet")), process)
+    below = _descendants(process.pid)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 130, err
+    last = err.strip().splitlines()[-1]
+    assert re.fullmatch(rf"legkit sweep: interrupted; \d+ of 16 runs are kept in {out}: run the same command again to resume", last), err
+    assert "Traceback" not in err
+    _assert_gone(below)
+    kept = {p.name: p.stat().st_mtime_ns for p in (out / "parts").glob("batch-*.parquet")}
+    assert 1 <= len(kept) < 8 and int(last.split("; ")[1].split()[0]) == 2 * len(kept)
+    resumed = run_sweep(SweepSpec(**spec_values), out, workers=1, progress=False, figures=False, log=pytest.fail)
+    assert resumed.num_rows == 16
+    assert all((out / "parts" / n).stat().st_mtime_ns == t for n, t in kept.items())
+
+
+@pytest.mark.slow
+def test_commands_fail_in_one_line_before_creating_output(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "never"
+    cases = [
+        (["--spec", str(tmp_path / "missing.json")], "--spec: cannot read"),
+        (["--spec", str(tmp_path / "garbled.json")], f"--spec: '{tmp_path / 'garbled.json'}' is not JSON"),
+        (["--schemes", "distance", "--c1", "momentum=1"], "c1: values given for ['momentum'], which the sweep does not run"),
+        (["--ray", "auto"], "ray: no Ray cluster found at 'auto'; start one with `ray start --head`"),
+    ]
+    (tmp_path / "garbled.json").write_text("{trees: 2")
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    if ray.is_initialized() or _ray_cluster_running():
+        cases.pop()  # a cluster is up on this machine: --ray auto would find it
+    for argv, message in cases:
+        assert sweep_cli.main([*argv, "--trees", "2", "--modules", "4", "--branches", "2", "--duration", "0.02", "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"legkit sweep: {message}") and err.count("\n") == 1, err
+        assert not out.exists()
+    # Optional dependencies, checked up front with the install command.
+    import importlib.util
+
+    real = importlib.util.find_spec
+    for module, extra, command in [("pyarrow", "sweep", sweep_cli.main), ("optuna", "sweep", tuning.main), ("ray", "cluster", sweep_cli.main)]:
+        monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a, hidden=module: None if name == hidden else real(name, *a))
+        argv = ["--out", str(out), "--ray", "local"] if command is sweep_cli.main else ["--trials", "1"]
+        assert command(argv) == 2
+        err = capsys.readouterr().err
+        assert err.endswith(f"{module} is not installed; install it with: pip install 'legkit[{extra}]'\n") and err.count("\n") == 1, err
+        assert not out.exists()
+        monkeypatch.setattr(importlib.util, "find_spec", real)
+
+
+def _ray_cluster_running():
+    return any(
+        "raylet" in open(f"/proc/{p}/comm").read() for p in os.listdir("/proc") if p.isdigit() and os.path.exists(f"/proc/{p}/comm")
+    ) if sys.platform.startswith("linux") else True
+
+
+def _synthetic_table(varying, outlier=False):
+    import itertools
+
+    import pyarrow as pa
+
+    rng = np.random.default_rng(0)
+    rows = []
+    values = {"loss": [0.0, 0.1, 0.3], "delay": [1, 4], "terrain": [0.0, 0.01], "noise": [0.0, 0.02], "friction": [0.8]}
+    axes = {a: (values[a] if a in varying else values[a][:1]) for a in values}
+    for scheme in SCHEMES:
+        for c0, c1 in itertools.product([0.0, 0.5, 1.0], [0.1, 1.0, 3.0]):
+            for combo in itertools.product(*axes.values()):
+                final = 1e3 if outlier and (c0, c1) == (0.0, 0.1) else rng.random()
+                rows.append({"run_id": f"{len(rows)}", "scheme": scheme, "c0": c0, "c1": c1, **dict(zip(axes, combo)), "final": final,
+                             "t10": rng.random(), "energy": 10 ** rng.uniform(0, 3)})
+    return pa.Table.from_pylist(rows)
+
+
+def test_figures_are_legible_for_any_number_of_axes_and_robust_to_outliers():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from legkit.sweeps import figures
+
+    for varying in ([], ["loss"], ["loss", "delay", "terrain", "noise"]):
+        figure = figures.distributions_figure(figures._columns(_synthetic_table(varying)))
+        figure.canvas.draw()
+        renderer = figure.canvas.get_renderer()
+        for axis in figure.axes:
+            boxes = [t.get_window_extent(renderer) for t in axis.get_xticklabels() if t.get_visible() and t.get_text()]
+            assert all(not a.overlaps(b) for a, b in zip(boxes, boxes[1:])), varying
+            # Inside the figure: not cut off at the bottom.
+            assert all(b.y0 >= 0 for b in boxes), varying
+        plt.close(figure)
+    heat = figures.heatmap_figure(figures._columns(_synthetic_table([], outlier=True)))
+    image = heat.axes[0].images[0]
+    low, high = image.get_clim()
+    assert high < 1.0  # the 1e3 cell is clipped; the others (in [0, 1)) spread over the colours
+    assert "5–95 % quantiles" in heat.axes[-1].get_ylabel()
+    plt.close(heat)
+
+
+def test_servo_torques_are_limited_to_the_stall_torque(monkeypatch):
+    """run_balance clips every joint torque to the servo's limit: the paper's constant scheme (K_P = 10 N m/rad
+    on errors of tenths of a radian) saturates it, and never exceeds it."""
+    from legkit.robots import superbot as sb
+
+    applied = []
+    real_batch = balance.lk.SimulationBatch
+
+    class Recording:
+        def __init__(self, simulations):
+            self._batch = real_batch(simulations)
+
+        def __getattr__(self, name):
+            return getattr(self._batch, name)
+
+        def step(self, taus, **kwargs):
+            if taus is not None:
+                applied.append(np.abs(np.asarray(taus)).max())
+            return self._batch.step(taus, **kwargs)
+
+    monkeypatch.setattr(balance.lk, "SimulationBatch", Recording)
+    for limit in (0.05, 1.0):
+        applied.clear()
+        trees = [random_tree(4, 2, 0, sb.ModuleParameters(servo_torque_limit=limit))]
+        balance.run_balance(trees, 0.05, runs=[balance.RunSpec(0, GainSchedule.paper("constant"))], progress=False)
+        assert max(applied) == limit
+    assert sb.ModuleParameters().servo_torque_limit == sb.SERVO_TORQUE_LIMIT == 1.0
+    for bad in (0.0, -1.0, float("nan"), "1"):
+        with pytest.raises(ValueError, match="^servo_torque_limit"):
+            sb.ModuleParameters(servo_torque_limit=bad)
+
+
+@pytest.mark.slow
+def test_ray_local_starts_an_instance_even_when_ray_address_names_a_cluster(tiny_sweep, tmp_path, monkeypatch):
+    """--ray local means a new local instance, whatever RAY_ADDRESS says (here an address where nothing
+    listens); the run's table is the in-process one, and the instance is shut down after."""
+    _, reference = tiny_sweep
+    monkeypatch.setenv("RAY_ADDRESS", "127.0.0.1:9")
+    assert not ray.is_initialized()
+    table = run_sweep(SweepSpec(**TINY), tmp_path / "ray-local", ray="local", progress=False, figures=False)
+    assert not ray.is_initialized()
+    assert_same_table(table, reference)
+
+
+def test_rows_from_a_worker_of_another_build_are_refused_unless_allowed(tmp_path, monkeypatch):
+    """A worker (a cluster node) with another legkit build: the sweep stops naming both builds, before
+    writing its rows; with allow_mixed the rows are kept under their own build, and the part checks out."""
+    from legkit.sweeps import execute
+
+    real = execute.run_batch
+
+    def other_node(spec_values, runs, threads=None):
+        return [{**row, "build": "f" * 16} for row in real(spec_values, runs, threads)]
+
+    monkeypatch.setattr(execute, "run_batch", other_node)
+    spec = SweepSpec(**{**TINY, "trees": 1, "batch_size": 4})
+    with pytest.raises(ValueError, match=r"^ray: a worker ran legkit build f{16}, this driver is build [0-9a-f]{16}"):
+        run_sweep(spec, tmp_path / "refused", workers=1, progress=False, figures=False)
+    assert not list((tmp_path / "refused" / "parts").glob("*.parquet"))
+    table = run_sweep(spec, tmp_path / "mixed", workers=1, progress=False, figures=False, allow_mixed=True)
+    assert set(table.column("build").to_pylist()) == {"f" * 16}
+    monkeypatch.setattr(execute, "run_batch", real)
+    assert execute.ResultStore(tmp_path / "mixed", spec, allow_mixed=True).verify_part(0) is None

@@ -260,7 +260,8 @@ def run_balance(
     of the call, on any bus. The agents run ``rounds_per_step`` rounds of messages per control step. One
     plant per run; the agents of all runs share one vectorised network (the runs are not connected, so they
     do not interact). Samples every
-    ``sample_every`` steps. Each run's ``energy`` is the integral over the run of sum_j |tau_j v_j|, the
+    ``sample_every`` steps. Every joint's torque is clipped to its servo's limit
+    (``ModuleParameters.servo_torque_limit``). Each run's ``energy`` is the integral over the run of sum_j |tau_j v_j|, the
     power of every joint's applied torque (``Simulation.applied_tau``; the commanded torque for other
     plants) at the velocity it reached in that step, in J."""
     if not trees:
@@ -332,6 +333,7 @@ def run_balance(
     kernel = BalanceKernel(controller) if network.bus.mode == "sync" else None
     (kernel or network).run_until_quiescent()  # the agents agree on a leader and the mass properties before moving
     joint_index = [np.asarray(built[r.tree][0].idx_v)[built[r.tree][1].joint_bodies] for r in runs]
+    torque_limit = np.concatenate([np.full((tree.n_modules, 1), tree.parameters.servo_torque_limit) for tree in instances])
 
     def messages_sent() -> np.ndarray:
         if kernel is not None:
@@ -362,7 +364,8 @@ def run_balance(
             coms[step // sample_every] = [lk.center_of_mass(built[r.tree][0], q_run[step // sample_every]) for r, q_run in zip(runs, qs)]
         if step == steps:
             break
-        torque = control(sensed_angles(q))
+        # The servos' motors cannot exceed their stall torque (ModuleParameters.servo_torque_limit).
+        torque = np.clip(control(sensed_angles(q)), -torque_limit, torque_limit)
         taus: np.ndarray | list[np.ndarray]
         if shared:
             taus = np.zeros((len(runs), nv))

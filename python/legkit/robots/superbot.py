@@ -38,7 +38,10 @@ Every joint is driven by a geared servo: the model carries its reflected rotor i
 0.1 N m s/rad), the order of magnitude of a small geared servo (rotor ~2e-7 kg m^2 behind a ~1:250 gearbox;
 ~1 N m stall torque over ~6 rad/s no-load speed): approximate figures, not SuperBot's datasheet. Without
 them the seed's 5 g middle links under K_P = 10 N m/rad would ring at ~1.4e3 rad/s, beyond what a 1 kHz
-torque loop can control.
+torque loop can control. The servo's motor cannot exceed its stall torque: ``SERVO_TORQUE_LIMIT`` = 1 N m
+(the same figure) bounds every commanded joint torque (``ModuleParameters.servo_torque_limit``; the balance
+experiment clips its controllers' torques to it). The seed simulates modules at 10 % of the real mass so
+that such motors can lift long chains (file 000, Sect. V).
 """
 
 from __future__ import annotations
@@ -51,7 +54,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import legkit as lk
-from legkit._validation import float_array, integer, positive_scalar
+from legkit._validation import float_array, integer, is_real, positive_scalar
 
 MODULE_WIDTH = 0.084
 REAL_MODULE_MASS = 0.5
@@ -60,6 +63,7 @@ MODULE_MASS = REAL_MODULE_MASS * SIMULATED_MASS_FRACTION
 JOINT_LIMIT = np.pi / 2
 SERVO_ARMATURE = 0.01
 SERVO_DAMPING = 0.1
+SERVO_TORQUE_LIMIT = 1.0
 
 CONNECTOR_NAMES = ("A_end", "A_left", "A_right", "B_end", "B_left", "B_right")
 CONNECTOR_BLOCK = np.array([0, 0, 0, 1, 1, 1])  # 0: on block A (part 0), 1: on block B (part 3)
@@ -100,19 +104,23 @@ def mate_rotation(angle_deg: int) -> np.ndarray:
 @dataclass(frozen=True)
 class ModuleParameters:
     """Size and mass of one module: ``width`` (m, the end blocks' edge) and ``mass`` (kg, whole module); its
-    joints' ``joint_limit`` (rad) and servos' ``servo_armature`` (kg m^2) and ``servo_damping`` (N m s/rad)."""
+    joints' ``joint_limit`` (rad) and servos' ``servo_armature`` (kg m^2), ``servo_damping`` (N m s/rad) and
+    ``servo_torque_limit`` (N m, the largest torque a servo applies; inf for none)."""
 
     width: float = MODULE_WIDTH
     mass: float = MODULE_MASS
     joint_limit: float = JOINT_LIMIT
     servo_armature: float = SERVO_ARMATURE
     servo_damping: float = SERVO_DAMPING
+    servo_torque_limit: float = SERVO_TORQUE_LIMIT
 
     def __post_init__(self) -> None:
         for name in ("width", "mass", "joint_limit"):
             positive_scalar(getattr(self, name), name)
         for name in ("servo_armature", "servo_damping"):
             positive_scalar(getattr(self, name), name, allow_zero=True)
+        if not is_real(self.servo_torque_limit) or not float(self.servo_torque_limit) > 0:  # NaN fails too; inf: no limit
+            raise ValueError(f"servo_torque_limit: must be > 0 (inf for none), got {self.servo_torque_limit!r}")
 
     @property
     def joint_points(self) -> np.ndarray:

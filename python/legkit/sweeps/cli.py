@@ -8,20 +8,23 @@ Examples:
     legkit sweep --trees 16 --schemes distance momentum --c0 0:1:5 --c1 0:2:5 --out grid
     legkit sweep --trees 32 --loss 0 0.1 0.3 --terrain 0 0.01 --noise 0 0.02 --seeds 2 --ray auto --out faults
 
-Running the same command again with the same --out resumes: finished batches are kept, the rest run.
+Running the same command again with the same --out resumes: finished batches whose parts check out are kept,
+the rest run (--strict refuses a damaged part instead; --allow-mixed resumes a folder written by another
+legkit build). Ctrl-C stops at once, keeps the finished batches and exits with status 130.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from legkit._validation import bounded_int, output_folder
+from legkit._validation import bounded_int
 from legkit.control.gains import SCHEMES
 from legkit.sweeps.spec import SweepSpec
 
@@ -84,9 +87,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--noise", nargs="+", default=["0"], help="sensor noise std on the joint angles, rad (default 0)")
     parser.add_argument("--seeds", type=bounded_int(1, 10_000), default=1, help="replicates per configuration (default 1)")
     parser.add_argument("--duration", type=float, default=2.0, help="simulated seconds per run (default 2)")
-    parser.add_argument("--batch-size", type=bounded_int(1, 10_000), default=48, help="runs per batch, one run_balance call (default 48)")
+    parser.add_argument("--batch-size", type=bounded_int(1, 10_000), default=48,
+                        help="runs per batch, one Parquet part (default 48; runs per task adapt to the workers)")
     parser.add_argument("--workers", type=bounded_int(1, 1024), help="local worker processes (default: one per core)")
-    parser.add_argument("--ray", metavar="ADDRESS", help="run on Ray at ADDRESS ('auto', 'ray://host:10001', or 'local')")
+    parser.add_argument("--ray", metavar="ADDRESS",
+                        help="run on Ray: 'auto' or 'ray://host:10001' (a running cluster), or 'local' (start one here, even if RAY_ADDRESS is set)")
+    parser.add_argument("--strict", action="store_true", help="refuse a damaged or foreign part in --out (naming it) rather than run its batch again")
+    parser.add_argument("--allow-mixed", action="store_true", help="resume a folder started by another legkit build (each row records its build)")
     parser.add_argument("--out", type=Path, default=Path("sweep-out"), help="output folder (default ./sweep-out)")
     parser.add_argument("--no-figures", action="store_true", help="do not draw the summary figures")
     parser.add_argument("--dry-run", action="store_true", help="print the number of runs and batches, run nothing")
@@ -99,7 +106,13 @@ def spec_from_args(args: argparse.Namespace) -> SweepSpec:
             text = args.spec.read_text()
         except OSError as error:
             raise ValueError(f"--spec: cannot read {str(args.spec)!r}: {error.strerror or error}") from None
-        return SweepSpec.from_dict(json.loads(text))
+        try:
+            values = json.loads(text)
+        except ValueError as error:
+            raise ValueError(f"--spec: {str(args.spec)!r} is not JSON ({error})") from None
+        if not isinstance(values, dict):
+            raise ValueError(f"--spec: {str(args.spec)!r} must hold a JSON object of SweepSpec arguments")
+        return SweepSpec.from_dict(values)
     trees: Any = parse_values("tree-seeds", args.tree_seeds, int) if args.tree_seeds else None
     if trees is None:
         counts = parse_values("trees", args.trees, int)
@@ -139,25 +152,41 @@ def median_quartiles(values: np.ndarray) -> str:
     return f"{text(median)} [{text(q1)}, {text(q3)}]"
 
 
+def check_out(path: Path) -> None:
+    """ValueError naming --out unless ``path`` is a folder, or can become one, that this process can write
+    (checked without creating anything)."""
+    existing = path
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if existing == path and not path.is_dir():
+        raise ValueError(f"--out: {str(path)!r} is a file, not a folder")
+    if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
+        raise ValueError(f"--out: cannot write to {str(existing)!r}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    from legkit.sweeps.deps import require
+    from legkit.sweeps.execute import run_sweep
+
     try:
         spec = spec_from_args(args)
         if args.dry_run:
             print(f"{len(spec.runs())} runs in {len(spec.batches())} batches (spec id {spec.spec_id})")
             return 0
-        from legkit.sweeps.execute import run_sweep
-
-        try:
-            output_folder(args.out)
-        except ValueError as error:
-            raise ValueError(f"--out: {error}") from None
-
-        table = run_sweep(spec, args.out, workers=args.workers, ray=args.ray, figures=not args.no_figures)
-    except (ValueError, TypeError) as error:
+        require("pyarrow", *(["ray"] if args.ray else []))
+        check_out(args.out)
+        table = run_sweep(
+            spec, args.out, workers=args.workers, ray=args.ray, figures=not args.no_figures, strict=args.strict, allow_mixed=args.allow_mixed,
+        )
+    except (ValueError, TypeError, ImportError) as error:
         print(f"legkit sweep: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt as interrupt:  # SweepInterrupted says what is kept and how to resume
+        text = str(interrupt) or f"interrupted; the finished batches are kept in {args.out}: run the same command again to resume"
+        print(f"legkit sweep: {text}", file=sys.stderr)
+        return 130
     print(summary(table))
     print(f"wrote {args.out}/results.parquet ({table.num_rows} runs)" + ("" if args.no_figures else " and its figures"))
     return 0

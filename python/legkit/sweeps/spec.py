@@ -17,8 +17,9 @@ balance run (``legkit.experiments.balance.run_balance``) of ``duration`` s.
   seed = tree seed); others from start angles, sensor noise and terrain of their own.
 
 Runs that share a bus configuration are cut, in grid order, into batches of ``batch_size`` runs; a batch is
-one ``run_balance`` call (its agents vectorised together, its plants stepped together on all cores), the
-unit of work of a worker. A run's id is a hash of its parameters (and the spec's duration, dt and tree
+the unit of storage (one Parquet part). Workers run tasks of a few runs of a batch, each one ``run_balance``
+call (its agents vectorised together, its plants stepped together), sized to the workers
+(``legkit.sweeps.execute.task_size``). A run's id is a hash of its parameters (and the spec's duration, dt and tree
 size): the same run has the same id in every sweep. A run's result does not depend on its batch: its start
 angles, terrain, sensor noise and, on a lossy or delayed bus, its message losses, duplicates and delays come
 from generators of its own (``derived_seed``).
@@ -247,6 +248,9 @@ def _per_scheme(name: str, value: Any, schemes: list[str]) -> dict[str, list[flo
         unknown = sorted(set(value) - set(SCHEMES))
         if unknown:
             raise ValueError(f"{name}: keys must be schemes {SCHEMES}, got {unknown}")
+        unswept = sorted(set(value) - set(schemes))
+        if unswept:
+            raise ValueError(f"{name}: values given for {unswept}, which the sweep does not run (schemes {schemes})")
         return {s: _floats(f"{name}[{s!r}]", value[s], low=0.0) if s in value else paper[s] for s in schemes}
     values = _floats(name, value, low=0.0)
     return {s: list(values) for s in schemes}

@@ -5,7 +5,7 @@ c0, c1 = (1, 0) constant, (0, 0.1) distance, (0, 1) momentum. Here Optuna's TPE 
 per scheme, c0 and c1 (the constant scheme has no c1) and the base gains K_P0, K_I0, K_D0
 (``--paper-base-gains`` keeps the paper's), minimising over the training trees the mean of
 ``final + t10_weight * t10`` (final distance in module widths; t10 in s, a run that never gets within 10 %
-counting twice the duration; ``T10_WEIGHT`` = 1 width per second by default). The paper's constants are
+counting twice the duration; ``T10_WEIGHT`` = 2 widths per second by default). The paper's constants are
 the first trial of every scheme. Locally, Optuna evaluates trials in rounds: each round asks every scheme
 for ``per_round`` trials and runs all their training runs together, in batches (many runs per
 ``run_balance`` call) on the local workers. With ``--ray`` (or Ray already initialised) each scheme is a
@@ -41,6 +41,7 @@ import numpy as np
 from legkit._validation import bounded_int, positive_scalar
 from legkit.control.gains import SCHEMES, GainSchedule
 from legkit.sweeps.cli import median_quartiles
+from legkit.sweeps.deps import require
 from legkit.sweeps.execute import LocalExecutor, RayExecutor, executor, run_batch
 from legkit.sweeps.spec import RunParams
 
@@ -108,6 +109,7 @@ def tune(
     workers: int | None = 1, ray: str | None = None, batch_size: int = 48, progress: bool = True, t10_weight: float = T10_WEIGHT,
 ) -> list[SchemeResult]:
     """Tune every scheme of ``schemes`` (see the module docstring); returns one ``SchemeResult`` per scheme."""
+    require("optuna", *(["ray"] if ray is not None else []))
     schemes = list(schemes)
     for s in schemes:
         if s not in SCHEMES:
@@ -352,7 +354,7 @@ def main(argv: list[str] | None = None) -> int:
             args.schemes, args.train, args.test, args.trials, args.per_round, args.duration, args.modules, args.branches,
             not args.paper_base_gains, args.seed, args.workers, args.ray, t10_weight=args.t10_weight,
         )
-    except (ValueError, TypeError) as error:
+    except (ValueError, TypeError, ImportError) as error:
         print(f"legkit tune: {error}", file=sys.stderr)
         return 2
     print(report(results))
