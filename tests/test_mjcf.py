@@ -299,3 +299,41 @@ def test_every_shipped_model_mujoco_compiles_loads_and_matches_or_is_refused(pat
         assert result is not None  # documented: the mesh's mass is left out
         return
     assert result is None, result
+
+
+def test_frames_place_their_bodies_and_geoms_as_mujoco() -> None:
+    xml = """<mujoco><default><default class="light"><geom density="100"/></default></default><worldbody>
+      <body name="a"><joint name="j0"/><geom size=".1"/>
+        <frame pos=".2 0 0" euler="0 30 0" childclass="light">
+          <geom type="box" size=".1 .05 .02" pos="0 .1 0"/>
+          <frame pos="0 0 -.1" zaxis="1 0 1">
+            <body name="b" pos="0 0 -.2"><joint name="j1" axis="1 0 0"/><geom type="capsule" size=".03 .1"/></body></frame>
+        </frame></body></worldbody></mujoco>"""
+    assert_bodies_match(xml)
+
+
+def test_collision_shapes_sit_where_mujocos_geoms_are() -> None:
+    xml = """<mujoco><worldbody><geom type="plane" size="5 5 .1"/>
+      <body name="a" pos="0 0 1" euler="10 20 30"><joint name="j0" pos=".1 .2 .3" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 .3 .1 -.2" size=".04"/><geom type="box" size=".1 .2 .3" pos=".1 0 0" euler="5 6 7"/>
+        <geom type="sphere" size=".3" contype="0" conaffinity="0"/>
+        <body name="b" pos=".3 0 0"><joint name="j1" type="slide" axis="1 0 0"/><joint name="j2" pos="0 0 .1"/>
+          <geom type="cylinder" size=".05 .2" zaxis="1 1 0"/><geom type="sphere" size=".1" pos="0 0 -.3"/></body></body>
+    </worldbody></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    d.qpos[:] = [0.4, 0.1, -0.7]
+    mujoco.mj_forward(m, d)
+    with pytest.warns(lk.MjcfWarning, match="plane"):
+        model = lk.Model.from_mjcf(xml)
+    poses = lk.forward_kinematics(model, d.qpos)
+    colliders = model.colliders()
+    solid = [g for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]][1:]  # not the plane
+    assert [kind for _, kind, _, _ in colliders] == ["capsule", "box", "cylinder", "sphere"]
+    for (body, kind, size, placement), g in zip(colliders, solid):
+        a, b, c = m.geom_size[g]
+        expected = {"capsule": (b, a), "cylinder": (b, a), "sphere": (a,), "box": (2 * a, 2 * b, 2 * c)}[kind]
+        np.testing.assert_allclose(size, expected, rtol=1e-15)
+        world = poses[body] @ placement
+        np.testing.assert_allclose(world[:3, 3], d.geom_xpos[g], atol=1e-12)
+        np.testing.assert_allclose(world[:3, :3], d.geom_xmat[g].reshape(3, 3), atol=1e-12)
