@@ -337,3 +337,19 @@ def test_collision_shapes_sit_where_mujocos_geoms_are() -> None:
         world = poses[body] @ placement
         np.testing.assert_allclose(world[:3, 3], d.geom_xpos[g], atol=1e-12)
         np.testing.assert_allclose(world[:3, :3], d.geom_xmat[g].reshape(3, 3), atol=1e-12)
+
+
+def test_a_freejoint_takes_no_joint_defaults_as_in_mujoco() -> None:
+    xml = """<mujoco><default><joint armature="0.1" damping="2"/></default><worldbody>
+      <body name="base" pos="0 0 1"><freejoint name="root"/><geom size=".1"/>
+        <body name="leg"><joint name="hip"/><geom type="capsule" fromto="0 0 0 0 0 -.3" size=".02"/></body></body></worldbody></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    np.testing.assert_array_equal(m.dof_armature[:6], 0)  # MuJoCo's reading, which legkit's must equal
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", lk.MjcfWarning)
+        loaded = lk.load_mjcf(xml)
+    assert compare(xml, m, np.random.default_rng(6)) is None
+    np.testing.assert_array_equal(loaded.model.armature, [0, 0, 0, 0, 0, 0, 0.1])
+    # A <joint type="free"> does take them: MuJoCo adds the armature to the base, which legkit cannot.
+    with pytest.warns(lk.MjcfWarning, match='free joint "root": armature=0.1 is not modelled'):
+        lk.load_mjcf(xml.replace('<freejoint name="root"/>', '<joint name="root" type="free"/>'))

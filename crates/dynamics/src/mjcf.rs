@@ -13,8 +13,9 @@
 //!   `axisangle`, `euler` (`eulerseq`: lower case rotating axes, upper case fixed axes), `xyaxes`, `zaxis`;
 //!   geoms also `fromto`.
 //! - `<joint type="hinge|slide|free">` and `<freejoint>`: `pos`, `axis`, `ref`, `range`, `limited` (auto:
-//!   limited when `range` is given), `damping` and `armature` (the model's, per coordinate). `stiffness`,
-//!   `springref` and `frictionloss` are not modelled: a non-zero value is a warning. `ball` joints are
+//!   limited when `range` is given), `damping` and `armature` (the model's, per coordinate; none on a free
+//!   joint, and `<freejoint>` takes no joint defaults, as in MuJoCo). `stiffness` and `frictionloss` are not
+//!   modelled: a non-zero value is a warning. `ball` joints are
 //!   refused (legkit has no spherical joint yet).
 //! - Mass properties: `<inertial pos quat|... mass diaginertia|fullinertia>`, or, per `inertiafromgeom`
 //!   (`auto`: when the body has no `<inertial>`), the sum of its geoms' (sphere, capsule, cylinder,
@@ -739,7 +740,20 @@ impl Walker<'_, '_> {
 
 fn joint(el: &El, class: &str, prefix: &Transform, reader: &mut Reader, id: usize) -> Result<JointSpec> {
     let name = el.attr("name").map_or_else(|| format!("joint{id}"), str::to_owned);
-    let kind = if el.tag == "freejoint" { "free" } else { reader.get(el, class, "type").unwrap_or("hinge") };
+    if el.tag == "freejoint" {
+        // MuJoCo's <freejoint> takes no joint defaults: no damping, armature or stiffness.
+        return Ok(JointSpec {
+            name,
+            kind: JointKind::Free,
+            pos: Vector3::zeros(),
+            axis: Vector3::z(),
+            reference: 0.0,
+            range: None,
+            damping: 0.0,
+            armature: 0.0,
+        });
+    }
+    let kind = reader.get(el, class, "type").unwrap_or("hinge");
     let kind = match kind {
         "hinge" => JointKind::Hinge,
         "slide" => JointKind::Slide,
