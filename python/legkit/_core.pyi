@@ -138,6 +138,16 @@ class Model:
         a UrdfWarning naming the element, or raises ValueError if strict. A string starting with "<" (after a byte
         order mark and blanks) is XML, anything else a path; a path that is not a regular file (a FIFO, a device)
         is refused before it is opened. Ctrl-C interrupts the load."""
+    @staticmethod
+    def from_mjcf(path_or_xml: str | os.PathLike[str], floating_base: bool | None = None, strict: bool = False) -> Model:
+        """A model from a MuJoCo MJCF path or XML string (``load_mjcf`` also gives its joints, actuators and
+        options): bodies in MuJoCo's order, hinge and slide joints with q equal to MuJoCo's qpos, a top-level free
+        joint as the free-flyer base (``floating_base=None``: as the file says; False welds it, True frees the single
+        top-level body), default classes, includes, every orientation form with ``<compiler angle>`` (degrees
+        unless set), inertias from ``<inertial>`` or from geoms as MuJoCo's compiler, collision shapes from geoms,
+        ``<option gravity>``. Ball joints raise ValueError; what legkit does not model (tendons, equality
+        constraints, sensors, joint stiffness, ...) loads with an MjcfWarning naming it, or raises ValueError if
+        strict. Ctrl-C interrupts the load. See docs/mjcf.md."""
 
 def resolve_mesh(
     filename: str, urdf: str | os.PathLike[str] | None = None, package_dirs: Sequence[str | os.PathLike[str]] | None = None,
@@ -149,6 +159,36 @@ def resolve_mesh(
 
 class UrdfWarning(UserWarning):
     """A URDF loaded as written although it is not quite valid; the message names the element."""
+
+class MjcfWarning(UserWarning):
+    """An MJCF loaded without something legkit does not model (a tendon, a sensor, a joint's stiffness, ...); the
+    message names it."""
+
+class Mjcf:
+    """An MJCF file read into a Model, with its joints, joint actuators and options."""
+    @property
+    def model(self) -> Model: ...
+    @property
+    def joints(self) -> list[dict[str, Any]]:
+        """The kept joints in MuJoCo's order: {name, type ("hinge", "slide", "free"), body, idx_q, idx_v}."""
+    @property
+    def actuators(self) -> list[dict[str, Any]]:
+        """The joint actuators: {name, joint, dof, gear, gain (3), bias (3), ctrlrange, forcerange} (None: not limited)."""
+    @property
+    def timestep(self) -> float:
+        """``<option timestep>`` (s; MuJoCo's default 0.002)."""
+    @property
+    def gravity(self) -> np.ndarray:
+        """``<option gravity>`` (m/s^2), also the model's gravity."""
+    @property
+    def warnings(self) -> list[str]:
+        """What was loaded with a warning (also raised as MjcfWarnings)."""
+    def actuator_torques(self, q: npt.ArrayLike, v: npt.ArrayLike, ctrl: npt.ArrayLike) -> np.ndarray:
+        """The joint torques (nv,) of controls ``ctrl`` (one per actuator) at (q, v), as MuJoCo's qfrc_actuator:
+        force = gain ctrl + bias (affine in gear q and gear v), ctrl and force clamped, torque gear force."""
+
+def load_mjcf(path_or_xml: str | os.PathLike[str], floating_base: bool | None = None, strict: bool = False) -> Mjcf:
+    """The MJCF as an Mjcf (see Model.from_mjcf for what is read)."""
 
 def forward_kinematics(model: Model, q: npt.ArrayLike) -> np.ndarray:
     """World pose (4x4) of every body: (..., nbodies, 4, 4)."""

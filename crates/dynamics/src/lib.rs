@@ -11,6 +11,7 @@ pub mod geometry;
 pub mod joint;
 pub mod mass;
 pub mod mesh;
+pub mod mjcf;
 pub mod model;
 pub mod sim;
 pub mod spatial;

@@ -12,6 +12,7 @@ mod integrate;
 mod interrupt;
 mod kinematics;
 mod mass;
+mod mjcf;
 mod model;
 mod sim;
 mod workspace;
@@ -23,6 +24,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<mass::PyMassProperties>()?;
     m.add_class::<model::PyModel>()?;
     m.add("UrdfWarning", m.py().get_type::<model::UrdfWarning>())?;
+    m.add("MjcfWarning", m.py().get_type::<mjcf::MjcfWarning>())?;
+    m.add_class::<mjcf::PyMjcf>()?;
+    m.add_function(wrap_pyfunction!(mjcf::load_mjcf, m)?)?;
     m.add_class::<sim::PySimulation>()?;
     m.add_class::<sim::PyGround>()?;
     m.add_class::<sim::PySimulationBatch>()?;

@@ -211,6 +211,20 @@ impl PyModel {
         Ok(Self::wrap(urdf.model))
     }
 
+    /// A model from a MuJoCo MJCF file path or XML string (`load_mjcf` gives its joints, actuators and
+    /// options too): bodies in MuJoCo's order, hinge and slide joints with q equal to MuJoCo's qpos, a
+    /// top-level free joint as the free-flyer base (`floating_base=None`: as the file says; False welds it;
+    /// True frees the single top-level body), `<default>` classes, `<include>`, every orientation form with
+    /// `<compiler angle>` (degrees unless set), inertias from `<inertial>` or from geoms as MuJoCo's
+    /// compiler, collision shapes from geoms, `<option gravity>`. Ball joints are a ValueError; what legkit
+    /// does not model (tendons, equality constraints, sensors, joint stiffness, ...) loads with an
+    /// `MjcfWarning` naming it, or is a ValueError if `strict`. Ctrl-C interrupts the load. See docs/mjcf.md.
+    #[staticmethod]
+    #[pyo3(signature = (path_or_xml, floating_base = None, strict = false))]
+    fn from_mjcf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: Option<bool>, strict: bool) -> PyResult<Self> {
+        Ok(Self::wrap(crate::mjcf::read(py, path_or_xml, floating_base, strict)?.model))
+    }
+
     /// Adds a body on a revolute joint about `axis` (in the joint frame); returns its index. `limits`:
     /// None, a (lower, upper) angle range (rad), or a dict with any of lower, upper (rad; ±inf for
     /// none), effort (N m) and velocity (rad/s) (> 0; inf for none). Enforced by `Simulation` (range and

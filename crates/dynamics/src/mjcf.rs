@@ -1,0 +1,1229 @@
+//! MJCF import: builds a [`Model`] from a MuJoCo model file, as MuJoCo's compiler reads it.
+//!
+//! Read, with MuJoCo's defaults and semantics:
+//! - `<compiler angle eulerseq meshdir assetdir inertiafromgeom inertiagrouprange boundmass boundinertia
+//!   balanceinertia autolimits settotalmass>` (`angle` is **degree** unless set: it applies to `euler`, `axisangle`, and
+//!   hinge `range` and `ref`); several `<compiler>` elements merge.
+//! - `<option timestep gravity>` and `<flag gravity="disable">`: [`Mjcf::timestep`], [`Mjcf::gravity`]
+//!   (the model's gravity).
+//! - `<default>` classes, nested (a class inherits its parent's values), chosen by `class=` or by the
+//!   nearest `childclass=` of the enclosing bodies and frames, else the top class `main`.
+//! - `<include file>` anywhere, spliced in place (paths relative to the main file's folder).
+//! - `<worldbody>`, `<body>` (nested) and `<frame>` with `pos` and every orientation form: `quat` (w x y z),
+//!   `axisangle`, `euler` (`eulerseq`: lower case rotating axes, upper case fixed axes), `xyaxes`, `zaxis`;
+//!   geoms also `fromto`.
+//! - `<joint type="hinge|slide|free">` and `<freejoint>`: `pos`, `axis`, `ref`, `range`, `limited` (auto:
+//!   limited when `range` is given), `damping` and `armature` (the model's, per coordinate; none on a free
+//!   joint, and `<freejoint>` takes no joint defaults, as in MuJoCo). `stiffness` and `frictionloss` are not
+//!   modelled: a non-zero value is a warning. `ball` joints are
+//!   refused (legkit has no spherical joint yet).
+//! - Mass properties: `<inertial pos quat|... mass diaginertia|fullinertia>`, or, per `inertiafromgeom`
+//!   (`auto`: when the body has no `<inertial>`), the sum of its geoms' (sphere, capsule, cylinder,
+//!   ellipsoid, box; `mass=` or `density=`, 1000 by default; groups within `inertiagrouprange`), by
+//!   MuJoCo's formulas [MuJoCo, user_objects.cc: mjCGeom::GetVolume, SetInertia]; then `boundmass`,
+//!   `boundinertia` (on the principal moments) and `balanceinertia`. A mesh geom's mass is not computed
+//!   (a warning; `<inertial>` avoids it).
+//! - Collision shapes: sphere, capsule, cylinder and box geoms, and meshes (STL, OBJ) as the convex hull of
+//!   their vertices, except geoms with `contype="0" conaffinity="0"` (visual only). Pair filtering by the
+//!   bits of `contype`/`conaffinity` is not expressible: every other geom collides. Planes and height
+//!   fields (the floor: `lk.Ground`), ellipsoids and unreadable meshes are listed in a warning.
+//! - `<actuator>`: `motor`, `position` (`kp`, `kv`), `velocity` (`kv`) and `general` (`gaintype`
+//!   fixed/affine, `gainprm`, `biastype` none/affine, `biasprm`, `dyntype none`) on a hinge or slide
+//!   `joint=` transmission, with `gear`, `ctrlrange`/`ctrllimited` and `forcerange`/`forcelimited`:
+//!   [`Mjcf::actuators`] and [`Mjcf::actuator_torques`]. Other actuators are warnings.
+//!
+//! The model: body order is MuJoCo's (depth first, in file order), so velocity coordinates come in
+//! MuJoCo's dof order, and **q equals MuJoCo's qpos** for hinge and slide joints (the joint frame
+//! includes `-ref`; the neutral configuration q = 0 is therefore not MuJoCo's qpos0 = ref). A top-level
+//! body with a free joint becomes the free-flyer base (q = [x y z qx qy qz qw], v in the base frame, as
+//! everywhere in legkit; MuJoCo's qpos has w first and its free-joint linear velocity is in the world
+//! frame); otherwise body 0 is the massless `world`, fixed. A legkit body turns about its joint frame's
+//! origin, so a body whose (last) hinge has `pos` p has its frame at the anchor p (same orientation as the
+//! MJCF body frame; mass and shapes shifted by -p). A body with several joints becomes a chain: massless
+//! bodies named `body/joint` for all but its last joint, the last one carrying the body's name and mass,
+//! as MuJoCo composes joint transforms in order. A body without joints is fixed to its parent. Unnamed
+//! bodies and joints are `body<i>` and `joint<i>`, i MuJoCo's id.
+//!
+//! What legkit cannot model (tendons, equality constraints, sensors, contact pairs and excludes,
+//! composite/flex/replicate, non-joint transmissions, static bodies beside a floating base) loads with a
+//! warning naming it, or is an error with [`MjcfOptions::strict`].
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{DVector, Matrix3, Quaternion, SymmetricEigen, Unit, UnitQuaternion, Vector3};
+use roxmltree::Node;
+
+use crate::mesh::mesh_vertices;
+use crate::sim::{Convex, Shape, ShapeKind};
+use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
+
+/// How an MJCF becomes a model.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct MjcfOptions {
+    /// None: as the file says (a free joint on the single moving top-level body makes a floating base);
+    /// Some(false) welds a free body to the world; Some(true) frees the single top-level body.
+    pub floating_base: Option<bool>,
+    /// What would be a warning is an error.
+    pub strict: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JointKind {
+    Hinge,
+    Slide,
+    Free,
+}
+
+/// An MJCF joint and the model coordinates it became.
+#[derive(Debug, Clone)]
+pub struct MjcfJoint {
+    pub name: String,
+    pub kind: JointKind,
+    /// The legkit body it moves.
+    pub body: usize,
+    pub idx_q: usize,
+    pub idx_v: usize,
+}
+
+/// An actuator on a joint: force = gain ctrl + bias, gain = g0 + g1 l + g2 l', bias = b0 + b1 l + b2 l',
+/// with l = gear q and l' = gear v; ctrl and force clamped to their ranges; joint torque gear · force
+/// [MuJoCo, XML reference: actuator].
+#[derive(Debug, Clone)]
+pub struct Actuator {
+    pub name: String,
+    pub joint: String,
+    /// The velocity coordinate it drives.
+    pub dof: usize,
+    pub gear: f64,
+    pub gain: [f64; 3],
+    pub bias: [f64; 3],
+    pub ctrlrange: Option<[f64; 2]>,
+    pub forcerange: Option<[f64; 2]>,
+}
+
+/// An MJCF read into a model, with what the model does not hold.
+#[derive(Debug, Clone)]
+pub struct Mjcf {
+    pub model: Model,
+    pub warnings: Vec<String>,
+    /// Every hinge, slide and free joint the model kept, in MuJoCo's order.
+    pub joints: Vec<MjcfJoint>,
+    pub actuators: Vec<Actuator>,
+    /// `<option timestep>` (s; MuJoCo's default 0.002).
+    pub timestep: f64,
+    pub gravity: Vector3<f64>,
+}
+
+impl Mjcf {
+    /// The joint torques (nv) the actuators apply for controls `ctrl` (one per actuator) at (q, v).
+    pub fn actuator_torques(&self, q: &[f64], v: &[f64], ctrl: &[f64]) -> Result<DVector<f64>> {
+        crate::model::check_vector("q", q, self.model.nq())?;
+        crate::model::check_vector("v", v, self.model.nv())?;
+        crate::model::check_vector("ctrl", ctrl, self.actuators.len())?;
+        let mut tau = DVector::zeros(self.model.nv());
+        for (actuator, &u) in self.actuators.iter().zip(ctrl) {
+            let joint = self.joints.iter().find(|j| j.idx_v == actuator.dof).expect("actuators drive kept joints");
+            let (length, speed) = (actuator.gear * q[joint.idx_q], actuator.gear * v[actuator.dof]);
+            let u = actuator.ctrlrange.map_or(u, |[lo, hi]| u.clamp(lo, hi));
+            let affine = |p: &[f64; 3]| p[0] + p[1] * length + p[2] * speed;
+            let force = affine(&actuator.gain) * u + affine(&actuator.bias);
+            let force = actuator.forcerange.map_or(force, |[lo, hi]| force.clamp(lo, hi));
+            tau[actuator.dof] += actuator.gear * force;
+        }
+        Ok(tau)
+    }
+}
+
+/// Loads an MJCF from a file, or parses it if `path_or_xml` (after a byte order mark and blanks) starts
+/// with `<` (then includes and meshes resolve against the working folder).
+pub fn load_mjcf(path_or_xml: &str, options: &MjcfOptions) -> Result<Mjcf> {
+    let text = path_or_xml.strip_prefix('\u{feff}').unwrap_or(path_or_xml);
+    if text.trim_start().starts_with('<') {
+        return parse(text, "<string>", None, options);
+    }
+    let xml = read_text(Path::new(path_or_xml), "path")?;
+    let folder = Path::new(path_or_xml).parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
+    parse(&xml, path_or_xml, folder, options)
+}
+
+fn read_text(path: &Path, argument: &'static str) -> Result<String> {
+    let bytes = crate::validate::read_regular_file(argument, path)?;
+    let text = String::from_utf8(bytes).map_err(|e| Error::invalid(argument, format!("{}: not UTF-8 text: {e}", path.display())))?;
+    Ok(text.strip_prefix('\u{feff}').map(str::to_owned).unwrap_or(text))
+}
+
+fn invalid(reason: String) -> Error {
+    Error::invalid("mjcf", reason)
+}
+
+/// Includes nest at most this deep (a file including itself is refused at once).
+const MAX_INCLUDE_DEPTH: usize = 16;
+/// At most this many elements over the file and its includes.
+const MAX_ELEMENTS: usize = 2_000_000;
+
+/// An element, owned, so that included files splice into one tree.
+#[derive(Debug, Clone)]
+struct El {
+    tag: String,
+    attrs: Vec<(String, String)>,
+    children: Vec<El>,
+    /// "file:line" for messages.
+    at: String,
+}
+
+impl El {
+    fn attr(&self, key: &str) -> Option<&str> {
+        self.attrs.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+    }
+    fn elements<'a>(&'a self, tag: &'a str) -> impl Iterator<Item = &'a El> + 'a {
+        self.children.iter().filter(move |c| c.tag == tag)
+    }
+    fn what(&self) -> String {
+        match self.attr("name") {
+            Some(name) => format!("<{} name={name:?}> ({})", self.tag, self.at),
+            None => format!("<{}> ({})", self.tag, self.at),
+        }
+    }
+}
+
+struct Source<'a> {
+    folder: Option<&'a Path>,
+    elements: usize,
+    stack: Vec<PathBuf>,
+}
+
+/// The byte offsets of the line breaks of `text`, to find an element's line by bisection (roxmltree's
+/// `text_pos_at` scans from the start: quadratic over a file).
+fn line_breaks(text: &str) -> Vec<usize> {
+    text.bytes().enumerate().filter(|(_, b)| *b == b'\n').map(|(i, _)| i).collect()
+}
+
+fn own(node: Node, label: &str, breaks: &[usize], source: &mut Source) -> Result<El> {
+    let row = breaks.partition_point(|&b| b < node.range().start) + 1;
+    let mut el = El {
+        tag: node.tag_name().name().to_owned(),
+        attrs: node.attributes().map(|a| (a.name().to_owned(), a.value().to_owned())).collect(),
+        children: Vec::new(),
+        at: format!("{label}:{row}"),
+    };
+    for child in node.children().filter(Node::is_element) {
+        source.elements += 1;
+        if source.elements > MAX_ELEMENTS {
+            return Err(Error::too_large("mjcf", format!("more than {MAX_ELEMENTS} elements")));
+        }
+        if child.tag_name().name() == "include" {
+            let file = child.attribute("file").ok_or_else(|| invalid(format!("<include> has no file attribute ({label}:{row})")))?;
+            let path = source.folder.map_or_else(|| PathBuf::from(file), |f| f.join(file));
+            if source.stack.len() >= MAX_INCLUDE_DEPTH || source.stack.contains(&path) {
+                return Err(invalid(format!("<include file={file:?}>: includes nest too deep or include themselves ({label})")));
+            }
+            let text = read_text(&path, "mjcf").map_err(|e| invalid(format!("<include file={file:?}> ({label}:{row}): {}", e.reason())))?;
+            let doc = crate::xml::parse(&text).map_err(|e| invalid(format!("{file}: {e}")))?;
+            if doc.root_element().tag_name().name() != "mujoco" {
+                return Err(invalid(format!("{file}: an included file's root must be <mujoco>")));
+            }
+            source.stack.push(path);
+            let included = own(doc.root_element(), file, &line_breaks(&text), source)?;
+            source.stack.pop();
+            el.children.extend(included.children);
+        } else {
+            el.children.push(own(child, label, breaks, source)?);
+        }
+    }
+    Ok(el)
+}
+
+/// Whitespace-separated finite numbers.
+fn numbers(text: &str, what: &dyn Fn() -> String) -> Result<Vec<f64>> {
+    text.split_whitespace()
+        .map(|t| match t.parse::<f64>() {
+            Ok(x) if x.is_finite() => Ok(x),
+            _ => Err(invalid(format!("{}: {t:?} is not a finite number", what()))),
+        })
+        .collect()
+}
+
+type Attrs = HashMap<String, String>;
+/// A default class: per element kind (joint, geom, actuator, ...), its attribute values.
+type Class = HashMap<String, Attrs>;
+
+/// The kind of default an element reads: every actuator shortcut shares one.
+fn kind_of(tag: &str) -> &str {
+    match tag {
+        "motor" | "position" | "velocity" | "general" | "intvelocity" | "damper" | "cylinder" | "muscle" | "adhesion" => "actuator",
+        "freejoint" => "joint",
+        other => other,
+    }
+}
+
+fn collect_defaults(el: &El, parent: &Class, name: &str, classes: &mut HashMap<String, Class>) -> Result<()> {
+    let mut class = parent.clone();
+    for child in el.children.iter().filter(|c| c.tag != "default") {
+        let attrs = class.entry(kind_of(&child.tag).to_owned()).or_default();
+        for (k, v) in &child.attrs {
+            attrs.insert(k.clone(), v.clone());
+        }
+    }
+    if classes.contains_key(name) {
+        return Err(invalid(format!("default class {name:?} is defined twice ({})", el.at)));
+    }
+    for child in el.elements("default") {
+        let child_name = child.attr("class").ok_or_else(|| invalid(format!("a nested <default> has no class ({})", child.at)))?;
+        collect_defaults(child, &class, child_name, classes)?;
+    }
+    classes.insert(name.to_owned(), class);
+    Ok(())
+}
+
+struct Compiler {
+    /// Radians per angle unit.
+    angle: f64,
+    eulerseq: [u8; 3],
+    meshdir: Option<PathBuf>,
+    inertia_from_geom: InertiaFromGeom,
+    group_range: [i64; 2],
+    boundmass: f64,
+    boundinertia: f64,
+    balanceinertia: bool,
+    autolimits: bool,
+    /// `settotalmass` (> 0: every body's mass and inertia scaled so that they add up to it).
+    total_mass: f64,
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum InertiaFromGeom {
+    Auto,
+    Always,
+    Never,
+}
+
+/// Reads attributes with defaults, and warns or refuses.
+struct Reader<'a> {
+    classes: HashMap<String, Class>,
+    compiler: Compiler,
+    strict: bool,
+    warnings: Vec<String>,
+    /// Warnings `strict` does not refuse (what legkit cannot read, e.g. a missing mesh file).
+    notes: Vec<String>,
+    folder: Option<&'a Path>,
+}
+
+impl Reader<'_> {
+    fn accept(&mut self, problem: String) -> Result<()> {
+        if self.strict {
+            return Err(invalid(format!("{problem} (strict)")));
+        }
+        self.warnings.push(problem);
+        Ok(())
+    }
+
+    fn class_of<'e>(&self, el: &'e El, childclass: &'e str) -> Result<&'e str> {
+        let class = el.attr("class").unwrap_or(childclass);
+        if !self.classes.contains_key(class) {
+            return Err(invalid(format!("{}: unknown default class {class:?}", el.what())));
+        }
+        Ok(class)
+    }
+
+    fn get<'e>(&'e self, el: &'e El, class: &str, key: &str) -> Option<&'e str> {
+        el.attr(key).or_else(|| self.classes.get(class)?.get(kind_of(&el.tag))?.get(key).map(String::as_str))
+    }
+
+    fn nums(&self, el: &El, class: &str, key: &str) -> Result<Option<Vec<f64>>> {
+        self.get(el, class, key).map(|text| numbers(text, &|| format!("{}: {key}", el.what()))).transpose()
+    }
+
+    fn fixed<const N: usize>(&self, el: &El, class: &str, key: &str) -> Result<Option<[f64; N]>> {
+        match self.nums(el, class, key)? {
+            None => Ok(None),
+            Some(v) if v.len() == N => Ok(Some(v.try_into().expect("length checked"))),
+            Some(v) => Err(invalid(format!("{}: {key} needs {N} numbers, found {}", el.what(), v.len()))),
+        }
+    }
+
+    fn scalar(&self, el: &El, class: &str, key: &str, default: f64) -> Result<f64> {
+        Ok(self.fixed::<1>(el, class, key)?.map_or(default, |[x]| x))
+    }
+
+    fn boolean(&self, el: &El, class: &str, key: &str) -> Result<Option<bool>> {
+        match self.get(el, class, key) {
+            None | Some("auto") => Ok(None),
+            Some("true") => Ok(Some(true)),
+            Some("false") => Ok(Some(false)),
+            Some(other) => Err(invalid(format!("{}: {key}={other:?} must be true, false or auto", el.what()))),
+        }
+    }
+
+    /// The element's frame in its parent's: `pos` and one orientation form.
+    fn frame(&self, el: &El, class: &str) -> Result<Transform> {
+        let pos = self.fixed::<3>(el, class, "pos")?.map_or_else(Vector3::zeros, Vector3::from);
+        Ok(Transform::new(self.orientation(el, class)?, pos))
+    }
+
+    fn orientation(&self, el: &El, class: &str) -> Result<Matrix3<f64>> {
+        let forms = ["quat", "axisangle", "euler", "xyaxes", "zaxis"];
+        // An orientation on the element replaces one from its class.
+        let given: Vec<&str> = forms.iter().copied().filter(|f| el.attr(f).is_some()).collect();
+        let given = if given.is_empty() { forms.iter().copied().filter(|f| self.get(el, class, f).is_some()).collect() } else { given };
+        let q = match given.as_slice() {
+            [] => return Ok(Matrix3::identity()),
+            [form] => self.rotation(el, class, form)?,
+            _ => return Err(invalid(format!("{}: more than one orientation ({})", el.what(), given.join(", ")))),
+        };
+        Ok(q.to_rotation_matrix().into_inner())
+    }
+
+    fn rotation(&self, el: &El, class: &str, form: &str) -> Result<UnitQuaternion<f64>> {
+        let zero = || invalid(format!("{}: {form} is degenerate", el.what()));
+        Ok(match form {
+            "quat" => {
+                let [w, x, y, z] = self.fixed::<4>(el, class, form)?.expect("present");
+                let q = Quaternion::new(w, x, y, z);
+                if q.norm() < 1e-10 {
+                    return Err(zero());
+                }
+                UnitQuaternion::from_quaternion(q)
+            }
+            "axisangle" => {
+                let [x, y, z, a] = self.fixed::<4>(el, class, form)?.expect("present");
+                let axis = Unit::try_new(Vector3::new(x, y, z), 1e-10).ok_or_else(zero)?;
+                UnitQuaternion::from_axis_angle(&axis, a * self.compiler.angle)
+            }
+            "euler" => {
+                let angles = self.fixed::<3>(el, class, form)?.expect("present");
+                let mut q = UnitQuaternion::identity();
+                for (&c, angle) in self.compiler.eulerseq.iter().zip(angles) {
+                    let axis = match c.to_ascii_lowercase() {
+                        b'x' => Vector3::x_axis(),
+                        b'y' => Vector3::y_axis(),
+                        _ => Vector3::z_axis(),
+                    };
+                    let turn = UnitQuaternion::from_axis_angle(&axis, angle * self.compiler.angle);
+                    // Lower case: about the rotating (intrinsic) axes; upper case: the fixed ones.
+                    q = if c.is_ascii_lowercase() { q * turn } else { turn * q };
+                }
+                q
+            }
+            "xyaxes" => {
+                let v = self.fixed::<6>(el, class, form)?.expect("present");
+                let x = Vector3::new(v[0], v[1], v[2]);
+                let x = x.try_normalize(1e-10).ok_or_else(zero)?;
+                let y = Vector3::new(v[3], v[4], v[5]);
+                let y = (y - x * x.dot(&y)).try_normalize(1e-10).ok_or_else(zero)?;
+                let m = Matrix3::from_columns(&[x, y, x.cross(&y)]);
+                UnitQuaternion::from_matrix(&m)
+            }
+            _ => {
+                let [x, y, z] = self.fixed::<3>(el, class, form)?.expect("present");
+                z_to(Vector3::new(x, y, z)).ok_or_else(zero)?
+            }
+        })
+    }
+}
+
+/// The shortest rotation taking z to `v` (MuJoCo's `mju_quatZ2Vec`: half a turn about x for -z).
+fn z_to(v: Vector3<f64>) -> Option<UnitQuaternion<f64>> {
+    let v = v.try_normalize(1e-14)?;
+    let axis = Vector3::z().cross(&v);
+    let s = axis.norm();
+    if s < 1e-15 {
+        return Some(if v.z < 0.0 { UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI) } else { UnitQuaternion::identity() });
+    }
+    Some(UnitQuaternion::from_axis_angle(&Unit::new_unchecked(axis / s), s.atan2(v.z)))
+}
+
+struct JointSpec {
+    name: String,
+    kind: JointKind,
+    pos: Vector3<f64>,
+    axis: Vector3<f64>,
+    reference: f64,
+    range: Option<(f64, f64)>,
+    damping: f64,
+    armature: f64,
+}
+
+/// A body as the file gives it, in MuJoCo's numbering (0 the world).
+struct Body {
+    name: String,
+    parent: usize,
+    /// In the parent's MJCF frame.
+    frame: Transform,
+    joints: Vec<JointSpec>,
+    /// In its own MJCF frame.
+    mass: MassProperties,
+    shapes: Vec<Shape>,
+}
+
+fn parse(xml: &str, label: &str, folder: Option<&Path>, options: &MjcfOptions) -> Result<Mjcf> {
+    let doc = crate::xml::parse(xml).map_err(invalid)?;
+    if doc.root_element().tag_name().name() != "mujoco" {
+        return Err(invalid(format!("the root element must be <mujoco>, found <{}>", doc.root_element().tag_name().name())));
+    }
+    let mut source = Source { folder, elements: 0, stack: Vec::new() };
+    let root = own(doc.root_element(), label, &line_breaks(xml), &mut source)?;
+    drop(doc);
+
+    let mut compiler = Compiler {
+        angle: std::f64::consts::PI / 180.0,
+        eulerseq: *b"xyz",
+        meshdir: None,
+        inertia_from_geom: InertiaFromGeom::Auto,
+        group_range: [0, 5],
+        boundmass: 0.0,
+        boundinertia: 0.0,
+        balanceinertia: false,
+        autolimits: true,
+        total_mass: -1.0,
+    };
+    let mut assetdir = None;
+    for c in root.elements("compiler") {
+        let flag = |key: &str| -> Result<Option<bool>> {
+            match c.attr(key) {
+                None => Ok(None),
+                Some("true") => Ok(Some(true)),
+                Some("false") => Ok(Some(false)),
+                Some(other) => Err(invalid(format!("<compiler {key}={other:?}>: expected true or false"))),
+            }
+        };
+        match c.attr("angle") {
+            None => {}
+            Some("degree") => compiler.angle = std::f64::consts::PI / 180.0,
+            Some("radian") => compiler.angle = 1.0,
+            Some(other) => return Err(invalid(format!("<compiler angle={other:?}>: expected degree or radian"))),
+        }
+        if let Some(seq) = c.attr("eulerseq") {
+            let bytes = seq.as_bytes();
+            if bytes.len() != 3 || !bytes.iter().all(|b| b"xyzXYZ".contains(b)) {
+                return Err(invalid(format!("<compiler eulerseq={seq:?}>: expected three of x, y, z, X, Y, Z")));
+            }
+            compiler.eulerseq = [bytes[0], bytes[1], bytes[2]];
+        }
+        if let Some(dir) = c.attr("meshdir") {
+            compiler.meshdir = Some(PathBuf::from(dir));
+        }
+        if let Some(dir) = c.attr("assetdir") {
+            assetdir = Some(PathBuf::from(dir));
+        }
+        match c.attr("inertiafromgeom") {
+            None => {}
+            Some("auto") => compiler.inertia_from_geom = InertiaFromGeom::Auto,
+            Some("true") => compiler.inertia_from_geom = InertiaFromGeom::Always,
+            Some("false") => compiler.inertia_from_geom = InertiaFromGeom::Never,
+            Some(other) => return Err(invalid(format!("<compiler inertiafromgeom={other:?}>: expected true, false or auto"))),
+        }
+        if let Some(text) = c.attr("inertiagrouprange") {
+            match numbers(text, &|| "<compiler inertiagrouprange>".into())?.as_slice() {
+                [a, b] => compiler.group_range = [*a as i64, *b as i64],
+                _ => return Err(invalid("<compiler inertiagrouprange>: expected 2 numbers".into())),
+            }
+        }
+        for (key, slot) in
+            [("boundmass", &mut compiler.boundmass), ("boundinertia", &mut compiler.boundinertia), ("settotalmass", &mut compiler.total_mass)]
+        {
+            if let Some(text) = c.attr(key) {
+                match numbers(text, &|| format!("<compiler {key}>"))?.as_slice() {
+                    [x] => *slot = *x,
+                    _ => return Err(invalid(format!("<compiler {key}>: expected 1 number"))),
+                }
+            }
+        }
+        if let Some(b) = flag("balanceinertia")? {
+            compiler.balanceinertia = b;
+        }
+        if let Some(b) = flag("autolimits")? {
+            compiler.autolimits = b;
+        }
+        if c.attr("coordinate").is_some_and(|v| v != "local") {
+            return Err(invalid("<compiler coordinate=\"global\"> is not supported (MuJoCo removed it too)".into()));
+        }
+    }
+    if compiler.meshdir.is_none() {
+        compiler.meshdir = assetdir;
+    }
+
+    let mut classes = HashMap::new();
+    let mut main = Class::new();
+    for d in root.elements("default") {
+        // The top <default> is class "main"; its children inherit from it.
+        let mut top = HashMap::new();
+        collect_defaults(d, &main, "main", &mut top)?;
+        main = top.remove("main").expect("collected");
+        for (name, class) in top {
+            if classes.insert(name.clone(), class).is_some() {
+                return Err(invalid(format!("default class {name:?} is defined twice")));
+            }
+        }
+    }
+    classes.insert("main".to_owned(), main);
+
+    let mut reader = Reader { classes, compiler, strict: options.strict, warnings: Vec::new(), notes: Vec::new(), folder };
+
+    let (mut timestep, mut gravity) = (0.002, Vector3::new(0.0, 0.0, -9.81));
+    for option in root.elements("option") {
+        timestep = reader.scalar(option, "main", "timestep", timestep)?;
+        if let Some(g) = reader.fixed::<3>(option, "main", "gravity")? {
+            gravity = Vector3::from(g);
+        }
+        if option.elements("flag").any(|f| f.attr("gravity") == Some("disable")) {
+            gravity = Vector3::zeros();
+        }
+    }
+
+    for tag in ["tendon", "equality", "sensor", "contact", "deformable", "extension", "custom"] {
+        let listed: Vec<String> = root.elements(tag).flat_map(|e| e.children.iter().map(El::what)).collect();
+        if !listed.is_empty() && tag != "custom" {
+            reader.accept(format!("<{tag}> is not modelled: {}", listed.join(", ")))?;
+        }
+    }
+
+    let meshes = mesh_assets(&root, &reader)?;
+    let bodies = vec![Body {
+        name: "world".to_owned(),
+        parent: 0,
+        frame: Transform::identity(),
+        joints: Vec::new(),
+        mass: MassProperties::zero(),
+        shapes: Vec::new(),
+    }];
+    let mut walker = Walker { reader: &mut reader, meshes: &meshes, bodies, joint_count: 0 };
+    for world in root.elements("worldbody") {
+        walker.body(world, 0, "main")?;
+    }
+    let mut bodies = walker.bodies;
+
+    if reader.compiler.total_mass > 0.0 {
+        // MuJoCo's mj_setTotalmass: every mass and inertia times one factor.
+        let total: f64 = bodies.iter().map(|b| b.mass.mass()).sum();
+        if total > 0.0 {
+            let scale = reader.compiler.total_mass / total;
+            for body in &mut bodies {
+                body.mass = MassProperties::as_written(body.mass.mass() * scale, body.mass.com(), body.mass.inertia() * scale)?;
+            }
+        }
+    }
+    let (model, joints) = build(&bodies, options, &mut reader)?;
+    let mut model = model;
+    model.gravity = gravity;
+    let actuators = actuators(&root, &joints, &mut reader)?;
+    let Reader { mut warnings, notes, .. } = reader;
+    warnings.extend(notes);
+    Ok(Mjcf { model, warnings, joints, actuators, timestep, gravity })
+}
+
+/// `<asset><mesh>` by name: the file's vertices scaled, or why they could not be read.
+fn mesh_assets(root: &El, reader: &Reader) -> Result<Meshes> {
+    let mut meshes = HashMap::new();
+    for asset in root.elements("asset") {
+        for mesh in asset.elements("mesh") {
+            let class = reader.class_of(mesh, "main")?;
+            let Some(file) = reader.get(mesh, class, "file") else {
+                meshes.insert(mesh.attr("name").unwrap_or("").to_owned(), Err("no file (vertices given inline are not read)".to_owned()));
+                continue;
+            };
+            let name = mesh
+                .attr("name")
+                .map_or_else(|| Path::new(file).file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned()), str::to_owned);
+            let scale = reader.fixed::<3>(mesh, class, "scale")?.map_or(Vector3::repeat(1.0), Vector3::from);
+            let mut path = PathBuf::from(file);
+            if path.is_relative() {
+                if let Some(dir) = &reader.compiler.meshdir {
+                    path = dir.join(path);
+                }
+                if let (true, Some(folder)) = (path.is_relative(), reader.folder) {
+                    path = folder.join(path);
+                }
+            }
+            let vertices = mesh_vertices(&path).map(|vs| vs.iter().map(|v| v.component_mul(&scale)).collect()).map_err(|e| e.reason().to_owned());
+            meshes.insert(name, vertices);
+        }
+    }
+    Ok(meshes)
+}
+
+type Meshes = HashMap<String, std::result::Result<Vec<Vector3<f64>>, String>>;
+
+/// What a body's elements add up to: its `<inertial>`, its geoms' masses, and what they leave out.
+#[derive(Default)]
+struct Contents {
+    inertial: Option<MassProperties>,
+    geoms: Vec<MassProperties>,
+    mesh_mass: Vec<String>,
+    unshaped: Vec<String>,
+}
+
+/// Reads bodies depth first (MuJoCo's numbering) into `bodies`.
+struct Walker<'r, 'a> {
+    reader: &'r mut Reader<'a>,
+    meshes: &'r Meshes,
+    bodies: Vec<Body>,
+    joint_count: usize,
+}
+
+impl Walker<'_, '_> {
+    /// Body `index` (0 the world) from its element `el`: its contents, then its mass properties.
+    fn body(&mut self, el: &El, index: usize, childclass: &str) -> Result<()> {
+        let mut contents = Contents::default();
+        self.children(el, index, &Transform::identity(), childclass, &mut contents)?;
+        let reader = &mut *self.reader;
+        let name = &self.bodies[index].name;
+        if !contents.unshaped.is_empty() {
+            reader.notes.push(format!("body {name:?}: geoms without a collision shape: {}", contents.unshaped.join(", ")));
+        }
+        if index == 0 {
+            return Ok(());
+        }
+        let from_geoms = match reader.compiler.inertia_from_geom {
+            InertiaFromGeom::Always => true,
+            InertiaFromGeom::Never => false,
+            InertiaFromGeom::Auto => contents.inertial.is_none(),
+        };
+        let mass = if from_geoms {
+            if !contents.mesh_mass.is_empty() {
+                reader.accept(format!(
+                    "body {name:?}: the mass of mesh geoms {} is not computed (legkit reads no mesh volumes): left out",
+                    contents.mesh_mass.join(", ")
+                ))?;
+            }
+            contents.geoms.into_iter().sum()
+        } else {
+            contents.inertial.unwrap_or_else(MassProperties::zero)
+        };
+        self.bodies[index].mass = bounded(mass, &reader.compiler).map_err(|e| invalid(format!("body {name:?}: {e}")))?;
+        Ok(())
+    }
+
+    /// The children of `el` (a body or a `<frame>` in it, placed by `prefix` in body `index`'s frame).
+    fn children(&mut self, el: &El, index: usize, prefix: &Transform, childclass: &str, contents: &mut Contents) -> Result<()> {
+        for child in &el.children {
+            let class = self.reader.class_of(child, childclass)?.to_owned();
+            let inner = child.attr("childclass").unwrap_or(childclass);
+            if !self.reader.classes.contains_key(inner) {
+                return Err(invalid(format!("{}: unknown childclass {inner:?}", child.what())));
+            }
+            match child.tag.as_str() {
+                "body" => {
+                    let frame = prefix.compose(&self.reader.frame(child, &class)?);
+                    let number = self.bodies.len();
+                    let name = child.attr("name").map_or_else(|| format!("body{number}"), str::to_owned);
+                    self.bodies.push(Body { name, parent: index, frame, joints: Vec::new(), mass: MassProperties::zero(), shapes: Vec::new() });
+                    self.body(child, number, inner)?;
+                }
+                // A frame's elements belong to the enclosing body, placed by the frame.
+                "frame" => {
+                    let frame = prefix.compose(&self.reader.frame(child, &class)?);
+                    self.children(child, index, &frame, inner, contents)?;
+                }
+                "joint" | "freejoint" => {
+                    if index == 0 {
+                        return Err(invalid(format!("{}: the world body cannot have joints", child.what())));
+                    }
+                    let spec = joint(child, &class, prefix, self.reader, self.joint_count)?;
+                    self.joint_count += 1;
+                    self.bodies[index].joints.push(spec);
+                }
+                "geom" => geom(child, &class, prefix, self.reader, self.meshes, contents, &mut self.bodies[index].shapes)?,
+                "inertial" => {
+                    let frame = prefix.compose(&self.reader.frame(child, &class)?);
+                    contents.inertial = Some(inertial_of(child, &class, &frame, self.reader)?);
+                }
+                "composite" | "flexcomp" | "replicate" | "attach" | "plugin" | "skin" => {
+                    self.reader.accept(format!("{} is not supported: left out", child.what()))?;
+                }
+                _ => {} // site, camera, light: no effect on the dynamics
+            }
+        }
+        Ok(())
+    }
+}
+
+fn joint(el: &El, class: &str, prefix: &Transform, reader: &mut Reader, id: usize) -> Result<JointSpec> {
+    let name = el.attr("name").map_or_else(|| format!("joint{id}"), str::to_owned);
+    if el.tag == "freejoint" {
+        // MuJoCo's <freejoint> takes no joint defaults: no damping, armature or stiffness.
+        return Ok(JointSpec {
+            name,
+            kind: JointKind::Free,
+            pos: Vector3::zeros(),
+            axis: Vector3::z(),
+            reference: 0.0,
+            range: None,
+            damping: 0.0,
+            armature: 0.0,
+        });
+    }
+    let kind = reader.get(el, class, "type").unwrap_or("hinge");
+    let kind = match kind {
+        "hinge" => JointKind::Hinge,
+        "slide" => JointKind::Slide,
+        "free" => JointKind::Free,
+        "ball" => return Err(invalid(format!("joint {name:?} ({}): ball joints are not supported yet", el.at))),
+        other => return Err(invalid(format!("joint {name:?} ({}): unknown type {other:?}", el.at))),
+    };
+    let pos = prefix.transform_point(&reader.fixed::<3>(el, class, "pos")?.map_or_else(Vector3::zeros, Vector3::from));
+    let axis = prefix.rotation * reader.fixed::<3>(el, class, "axis")?.map_or_else(Vector3::z, Vector3::from);
+    let axis = axis.try_normalize(1e-10).ok_or_else(|| invalid(format!("joint {name:?}: zero axis")))?;
+    let scale = if kind == JointKind::Hinge { reader.compiler.angle } else { 1.0 };
+    let range = reader.fixed::<2>(el, class, "range")?;
+    let limited = match reader.boolean(el, class, "limited")? {
+        Some(b) => b,
+        None => reader.compiler.autolimits && range.is_some(),
+    };
+    let range = match (kind, limited, range) {
+        (JointKind::Free, _, _) | (_, false, _) => None,
+        (_, true, r) => {
+            let [lo, hi] = r.unwrap_or([0.0, 0.0]);
+            if lo > hi {
+                return Err(invalid(format!("joint {name:?}: range {lo} > {hi}")));
+            }
+            Some((lo * scale, hi * scale))
+        }
+    };
+    let reference = if kind == JointKind::Free { 0.0 } else { reader.scalar(el, class, "ref", 0.0)? * scale };
+    let damping = reader.scalar(el, class, "damping", 0.0)?;
+    let armature = reader.scalar(el, class, "armature", 0.0)?;
+    if damping < 0.0 || armature < 0.0 {
+        return Err(invalid(format!("joint {name:?}: damping and armature must be >= 0")));
+    }
+    for key in ["stiffness", "frictionloss"] {
+        let value = reader.scalar(el, class, key, 0.0)?;
+        if value != 0.0 {
+            reader.accept(format!("joint {name:?}: {key}={value} is not modelled"))?;
+        }
+    }
+    Ok(JointSpec { name, kind, pos, axis, reference, range, damping, armature })
+}
+
+/// A geom's mass (into `contents`, when its group counts) and collision shape (into `shapes`).
+fn geom(
+    el: &El,
+    class: &str,
+    prefix: &Transform,
+    reader: &mut Reader,
+    meshes: &Meshes,
+    contents: &mut Contents,
+    shapes: &mut Vec<Shape>,
+) -> Result<()> {
+    let what = el.what();
+    let kind = reader.get(el, class, "type").unwrap_or("sphere").to_owned();
+    let mut size = [0.0; 3];
+    if let Some(values) = reader.nums(el, class, "size")? {
+        if values.len() > 3 {
+            return Err(invalid(format!("{what}: size has more than 3 numbers")));
+        }
+        size[..values.len()].copy_from_slice(&values);
+    }
+    let mut frame = reader.frame(el, class)?;
+    if let Some(ft) = reader.fixed::<6>(el, class, "fromto")? {
+        let (from, to) = (Vector3::new(ft[0], ft[1], ft[2]), Vector3::new(ft[3], ft[4], ft[5]));
+        let half = (to - from).norm() / 2.0;
+        if half < 1e-14 {
+            return Err(invalid(format!("{what}: fromto points too close")));
+        }
+        match kind.as_str() {
+            "capsule" | "cylinder" => size[1] = half,
+            "box" | "ellipsoid" => {
+                size[2] = half;
+                size[1] = size[0];
+            }
+            _ => return Err(invalid(format!("{what}: fromto requires a capsule, cylinder, box or ellipsoid"))),
+        }
+        let rotation = z_to(from - to).expect("points apart").to_rotation_matrix().into_inner();
+        frame = Transform::new(rotation, (from + to) / 2.0);
+    }
+    let frame = prefix.compose(&frame);
+    let [a, b, c] = size;
+    let pi = std::f64::consts::PI;
+    // [MuJoCo, user_objects.cc: mjCGeom::GetVolume, SetInertia]: volume, and the inertia per unit mass.
+    let shape_inertia: Option<(f64, [f64; 3])> = match kind.as_str() {
+        "sphere" => Some((4.0 * pi * a.powi(3) / 3.0, [2.0 * a * a / 5.0; 3])),
+        "capsule" => {
+            let h = 2.0 * b;
+            let sphere = 4.0 * a / (4.0 * a + 3.0 * h);
+            let cylinder = 1.0 - sphere;
+            let side = cylinder * (3.0 * a * a + h * h) / 12.0 + 2.0 * sphere * a * a / 5.0 + sphere * h * (3.0 * a + 2.0 * h) / 8.0;
+            let axial = cylinder * a * a / 2.0 + 2.0 * sphere * a * a / 5.0;
+            Some((pi * (a * a * h + 4.0 * a.powi(3) / 3.0), [side, side, axial]))
+        }
+        "cylinder" => {
+            let h = 2.0 * b;
+            Some((pi * a * a * h, [(3.0 * a * a + h * h) / 12.0, (3.0 * a * a + h * h) / 12.0, a * a / 2.0]))
+        }
+        "ellipsoid" => Some((4.0 * pi * a * b * c / 3.0, [(b * b + c * c) / 5.0, (a * a + c * c) / 5.0, (a * a + b * b) / 5.0])),
+        "box" => Some((8.0 * a * b * c, [(b * b + c * c) / 3.0, (a * a + c * c) / 3.0, (a * a + b * b) / 3.0])),
+        "plane" | "hfield" | "mesh" | "sdf" => None,
+        other => return Err(invalid(format!("{what}: unknown geom type {other:?}"))),
+    };
+    let group = reader.scalar(el, class, "group", 0.0)? as i64;
+    let counts = (reader.compiler.group_range[0]..=reader.compiler.group_range[1]).contains(&group);
+    let given_mass = reader.fixed::<1>(el, class, "mass")?.map(|[m]| m);
+    let density = reader.scalar(el, class, "density", 1000.0)?;
+    if counts {
+        match shape_inertia {
+            Some((volume, per_mass)) => {
+                let mass = match given_mass {
+                    Some(m) if volume > 1e-15 || m == 0.0 => m,
+                    Some(_) => 0.0,
+                    None => density * volume,
+                };
+                if mass < 0.0 {
+                    return Err(invalid(format!("{what}: negative mass or density")));
+                }
+                if mass > 0.0 {
+                    let inertia = frame.rotation * Matrix3::from_diagonal(&(Vector3::from(per_mass) * mass)) * frame.rotation.transpose();
+                    contents.geoms.push(MassProperties::as_written(mass, frame.translation, inertia).map_err(|e| invalid(format!("{what}: {e}")))?);
+                }
+            }
+            None if kind == "mesh" && given_mass != Some(0.0) && density != 0.0 => contents.mesh_mass.push(what.clone()),
+            None => {}
+        }
+    }
+    let contype = reader.scalar(el, class, "contype", 1.0)?;
+    let conaffinity = reader.scalar(el, class, "conaffinity", 1.0)?;
+    if contype == 0.0 && conaffinity == 0.0 {
+        return Ok(());
+    }
+    let shape_kind = match kind.as_str() {
+        "sphere" => ShapeKind::Sphere(a),
+        "capsule" => ShapeKind::Capsule { half_height: b, radius: a },
+        "cylinder" => ShapeKind::Cylinder { half_height: b, radius: a },
+        "box" => ShapeKind::Box(Vector3::new(2.0 * a, 2.0 * b, 2.0 * c)),
+        "mesh" => {
+            let name = reader.get(el, class, "mesh").unwrap_or("");
+            match meshes.get(name) {
+                Some(Ok(vertices)) => match Convex::hull(vertices) {
+                    Ok(hull) => ShapeKind::Convex(hull),
+                    Err(e) => {
+                        contents.unshaped.push(format!("{what} (mesh {name:?}: {})", e.reason()));
+                        return Ok(());
+                    }
+                },
+                Some(Err(e)) => {
+                    contents.unshaped.push(format!("{what} (mesh {name:?}: {e})"));
+                    return Ok(());
+                }
+                None => return Err(invalid(format!("{what}: unknown mesh {name:?}"))),
+            }
+        }
+        _ => {
+            contents.unshaped.push(format!("{what} ({kind})"));
+            return Ok(());
+        }
+    };
+    shapes.push(Shape::new(shape_kind, Some(frame)).map_err(|e| invalid(format!("{what}: {e}")))?);
+    Ok(())
+}
+
+fn inertial_of(el: &El, class: &str, frame: &Transform, reader: &mut Reader) -> Result<MassProperties> {
+    let what = el.what();
+    let mass = reader.fixed::<1>(el, class, "mass")?.ok_or_else(|| invalid(format!("{what} has no mass")))?[0];
+    let inertia = match (reader.fixed::<3>(el, class, "diaginertia")?, reader.fixed::<6>(el, class, "fullinertia")?) {
+        (Some(d), None) => Matrix3::from_diagonal(&Vector3::from(d)),
+        (None, Some([xx, yy, zz, xy, xz, yz])) => Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz),
+        (None, None) => Matrix3::zeros(),
+        (Some(_), Some(_)) => return Err(invalid(format!("{what}: both diaginertia and fullinertia"))),
+    };
+    if let Some(problem) = MassProperties::inertia_problem(&inertia) {
+        reader.accept(format!("{what}: non-physical inertia ({problem}), kept as written"))?;
+    }
+    MassProperties::as_written(mass, Vector3::zeros(), inertia)
+        .and_then(|body| body.transformed(&frame.rotation, &frame.translation))
+        .map_err(|e| invalid(format!("{what}: {e}")))
+}
+
+/// `boundmass`, `boundinertia` and `balanceinertia` on the body's mass and principal moments.
+fn bounded(body: MassProperties, compiler: &Compiler) -> Result<MassProperties> {
+    let bound = compiler.boundmass > 0.0 || compiler.boundinertia > 0.0 || compiler.balanceinertia;
+    if !bound {
+        return Ok(body);
+    }
+    let mass = body.mass().max(compiler.boundmass);
+    let eigen = SymmetricEigen::new(body.inertia());
+    let mut moments = eigen.eigenvalues.map(|m| m.max(compiler.boundinertia));
+    let (x, y, z) = (moments[0], moments[1], moments[2]);
+    if compiler.balanceinertia && (x + y < z || x + z < y || y + z < x) {
+        moments = Vector3::repeat((x + y + z) / 3.0);
+    }
+    let inertia = eigen.eigenvectors * Matrix3::from_diagonal(&moments) * eigen.eigenvectors.transpose();
+    MassProperties::as_written(mass, body.com(), inertia)
+}
+
+/// The model: the world (or the free body) as the base, then MuJoCo's bodies in order.
+fn build(bodies: &[Body], options: &MjcfOptions, reader: &mut Reader) -> Result<(Model, Vec<MjcfJoint>)> {
+    let top: Vec<usize> = (1..bodies.len()).filter(|&b| bodies[b].parent == 0).collect();
+    for body in &bodies[1..] {
+        let free = body.joints.iter().filter(|j| j.kind == JointKind::Free).count();
+        if free > 0 && (body.parent != 0 || body.joints.len() > 1) {
+            return Err(invalid(format!("body {:?}: a free joint must be the only joint of a top-level body", body.name)));
+        }
+    }
+    let has_free = |b: usize| bodies[b].joints.iter().any(|j| j.kind == JointKind::Free);
+    let moving: Vec<usize> = top.iter().copied().filter(|&b| !bodies[b].joints.is_empty()).collect();
+    let free: Vec<usize> = top.iter().copied().filter(|&b| has_free(b)).collect();
+    let names = |list: &[usize]| list.iter().map(|&b| format!("{:?}", bodies[b].name)).collect::<Vec<_>>().join(", ");
+    let floating = match options.floating_base {
+        Some(f) => f,
+        None => {
+            if free.len() > 1 {
+                return Err(invalid(format!(
+                    "bodies {} have free joints; a legkit model has one free-floating base (floating_base=False welds them to the world)",
+                    names(&free)
+                )));
+            }
+            free.len() == 1
+        }
+    };
+    let base_body = if floating {
+        let candidates = if moving.is_empty() { top.clone() } else { moving.clone() };
+        match candidates.as_slice() {
+            [b] if bodies[*b].joints.iter().all(|j| j.kind == JointKind::Free) => Some(*b),
+            [b] => return Err(invalid(format!("body {:?}: a floating base cannot also have hinge or slide joints", bodies[*b].name))),
+            [] => return Err(invalid("no body to make the floating base".into())),
+            _ => return Err(invalid(format!("a floating base needs a single moving top-level body; found {}", names(&candidates)))),
+        }
+    } else {
+        None
+    };
+    let mut model;
+    let mut kept = vec![false; bodies.len()];
+    // The legkit body of each MJCF body, and the anchor offset of its frame.
+    let mut legkit = vec![(0usize, Vector3::zeros()); bodies.len()];
+    let mut joints = Vec::new();
+    let mut damping = Vec::new();
+    let mut armature = Vec::new();
+    if let Some(b) = base_body {
+        let body = &bodies[b];
+        model = Model::new(true, body.mass, &body.name);
+        kept[b] = true;
+        let spec = &body.joints[0];
+        joints.push(MjcfJoint { name: spec.name.clone(), kind: JointKind::Free, body: 0, idx_q: 0, idx_v: 0 });
+        // legkit's free-flyer coordinates carry no armature or damping (Pinocchio's neither).
+        for (key, value) in [("damping", spec.damping), ("armature", spec.armature)] {
+            if value != 0.0 {
+                reader.accept(format!("free joint {:?}: {key}={value} is not modelled on a floating base", spec.name))?;
+            }
+        }
+        let dropped: Vec<usize> = top.iter().copied().filter(|&t| t != b).collect();
+        if !dropped.is_empty() {
+            reader.accept(format!("static top-level bodies {} are left out of the floating-base model", names(&dropped)))?;
+        }
+        if let Some(shapes) = Some(&bodies[0].shapes).filter(|s| !s.is_empty()) {
+            reader.notes.push(format!("the world's {} collision geoms are left out of the floating-base model (use lk.Ground)", shapes.len()));
+        }
+    } else {
+        model = Model::new(false, MassProperties::zero(), "world");
+        kept[0] = true;
+    }
+    let mut shapes: Vec<(usize, Shape)> = Vec::new();
+    let shifted = |shape: &Shape, shift: &Vector3<f64>| -> Shape {
+        let mut s = shape.clone();
+        let p = s.placement.unwrap_or_default();
+        s.placement = Some(Transform::from_translation(-shift).compose(&p));
+        s
+    };
+    if base_body.is_none() {
+        shapes.extend(bodies[0].shapes.iter().map(|s| (0, s.clone())));
+    } else if let Some(b) = base_body {
+        shapes.extend(bodies[b].shapes.iter().map(|s| (0, s.clone())));
+    }
+    for (b, body) in bodies.iter().enumerate().skip(1) {
+        if kept[b] || !kept[body.parent] {
+            continue;
+        }
+        kept[b] = true;
+        let (mut parent, parent_shift) = legkit[body.parent];
+        let mut frame = Transform::from_translation(-parent_shift).compose(&body.frame);
+        let mut anchor = Vector3::zeros();
+        let free_welded = body.joints.iter().any(|j| j.kind == JointKind::Free);
+        let moving: Vec<&JointSpec> = if free_welded { Vec::new() } else { body.joints.iter().collect() };
+        let fail = |e: Error| invalid(format!("body {:?}: {e}", body.name));
+        for (k, spec) in moving.iter().enumerate() {
+            let last = k + 1 == moving.len();
+            let name = if last { body.name.clone() } else { format!("{}/{}", body.name, spec.name) };
+            let (joint, placement) = match spec.kind {
+                JointKind::Hinge => {
+                    let placement = frame.compose(&Transform::from_translation(spec.pos - anchor)).rotated_about(&spec.axis, -spec.reference);
+                    anchor = spec.pos;
+                    (Joint::Revolute(spec.axis), placement)
+                }
+                _ => (Joint::Prismatic(spec.axis), frame.compose(&Transform::from_translation(-spec.axis * spec.reference))),
+            };
+            let limits = match spec.range {
+                Some((lo, hi)) => JointLimits::new(lo, hi, f64::INFINITY, f64::INFINITY).map_err(fail)?,
+                None => JointLimits::NONE,
+            };
+            let mass = if last { body.mass.transformed_unchecked(&Matrix3::identity(), &-anchor) } else { MassProperties::zero() };
+            parent = model.add_body(parent, joint, placement, mass, &name, limits).map_err(fail)?;
+            let kind = spec.kind;
+            joints.push(MjcfJoint { name: spec.name.clone(), kind, body: parent, idx_q: model.idx_q(parent), idx_v: model.idx_v(parent) });
+            damping.push((model.idx_v(parent), spec.damping));
+            armature.push((model.idx_v(parent), spec.armature));
+            frame = Transform::identity();
+        }
+        if moving.is_empty() {
+            parent = model.add_body(parent, Joint::Fixed, frame, body.mass, &body.name, JointLimits::NONE).map_err(fail)?;
+        }
+        legkit[b] = (parent, anchor);
+        shapes.extend(body.shapes.iter().map(|s| (parent, shifted(s, &anchor))));
+    }
+    let set = |values: &[(usize, f64)], n: usize| -> Vec<f64> {
+        let mut out = vec![0.0; n];
+        for &(k, x) in values {
+            out[k] = x;
+        }
+        out
+    };
+    model.set_damping(&set(&damping, model.nv()))?;
+    model.set_armature(&set(&armature, model.nv()))?;
+    if !shapes.is_empty() {
+        model.set_collision_shapes(shapes)?;
+    }
+    Ok((model, joints))
+}
+
+fn actuators(root: &El, joints: &[MjcfJoint], reader: &mut Reader) -> Result<Vec<Actuator>> {
+    let mut out = Vec::new();
+    let mut skipped = Vec::new();
+    for section in root.elements("actuator") {
+        for el in &section.children {
+            let class = reader.class_of(el, "main")?.to_owned();
+            let name = el.attr("name").map_or_else(|| format!("actuator{}", out.len() + skipped.len()), str::to_owned);
+            let Some(target) = reader.get(el, &class, "joint") else {
+                skipped.push(format!("{} (not a joint transmission)", el.what()));
+                continue;
+            };
+            let Some(joint) = joints.iter().find(|j| j.name == target) else {
+                return Err(invalid(format!("{}: unknown joint {target:?}", el.what())));
+            };
+            if joint.kind == JointKind::Free {
+                skipped.push(format!("{} (on a free joint)", el.what()));
+                continue;
+            }
+            let gear = reader.nums(el, &class, "gear")?.map_or(1.0, |g| g.first().copied().unwrap_or(1.0));
+            let kp = reader.scalar(el, &class, "kp", 1.0)?;
+            let kv = reader.scalar(el, &class, "kv", if el.tag == "velocity" { 1.0 } else { 0.0 })?;
+            let params = |key: &str| -> Result<[f64; 3]> {
+                let mut p = [0.0; 3];
+                if let Some(v) = reader.nums(el, &class, key)? {
+                    for (slot, x) in p.iter_mut().zip(v) {
+                        *slot = x;
+                    }
+                }
+                Ok(p)
+            };
+            let (gain, bias) = match el.tag.as_str() {
+                "motor" => ([1.0, 0.0, 0.0], [0.0; 3]),
+                "position" => {
+                    if reader.scalar(el, &class, "timeconst", 0.0)? != 0.0 || reader.get(el, &class, "dampratio").is_some() {
+                        skipped.push(format!("{} (timeconst or dampratio)", el.what()));
+                        continue;
+                    }
+                    ([kp, 0.0, 0.0], [0.0, -kp, -kv])
+                }
+                "velocity" => ([kv, 0.0, 0.0], [0.0, 0.0, -kv]),
+                "general" => {
+                    let dyn_ok = reader.get(el, &class, "dyntype").is_none_or(|d| d == "none");
+                    let gain_type = reader.get(el, &class, "gaintype").unwrap_or("fixed");
+                    let bias_type = reader.get(el, &class, "biastype").unwrap_or("none");
+                    if !dyn_ok || !matches!(gain_type, "fixed" | "affine") || !matches!(bias_type, "none" | "affine") {
+                        skipped.push(format!("{} (dyntype, gaintype or biastype)", el.what()));
+                        continue;
+                    }
+                    let mut gain = params("gainprm")?;
+                    if reader.nums(el, &class, "gainprm")?.is_none() {
+                        gain[0] = 1.0;
+                    }
+                    if gain_type == "fixed" {
+                        gain[1] = 0.0;
+                        gain[2] = 0.0;
+                    }
+                    let bias = if bias_type == "none" { [0.0; 3] } else { params("biasprm")? };
+                    (gain, bias)
+                }
+                _ => {
+                    skipped.push(format!("{} (kind)", el.what()));
+                    continue;
+                }
+            };
+            let range = |key: &str, limited: &str| -> Result<Option<[f64; 2]>> {
+                let r = reader.fixed::<2>(el, &class, key)?;
+                let on = reader.boolean(el, &class, limited)?.unwrap_or(reader.compiler.autolimits && r.is_some());
+                Ok(if on { Some(r.unwrap_or([0.0, 0.0])) } else { None })
+            };
+            let ctrlrange = range("ctrlrange", "ctrllimited")?;
+            let forcerange = range("forcerange", "forcelimited")?;
+            out.push(Actuator { name, joint: target.to_owned(), dof: joint.idx_v, gear, gain, bias, ctrlrange, forcerange });
+        }
+    }
+    if !skipped.is_empty() {
+        reader.accept(format!("actuators not supported: {}", skipped.join(", ")))?;
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(xml: &str) -> Mjcf {
+        load_mjcf(xml, &MjcfOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn z_to_takes_z_to_the_vector_and_minus_z_by_half_a_turn_about_x() {
+        for v in [Vector3::new(0.2, -0.3, 0.9), Vector3::new(-1.0, 0.0, 0.0), Vector3::z(), -Vector3::z()] {
+            let q = z_to(v).unwrap();
+            assert!((q * Vector3::z() - v.normalize()).norm() < 1e-14, "{v:?}");
+        }
+        assert!((z_to(-Vector3::z()).unwrap() * Vector3::y() + Vector3::y()).norm() < 1e-14);
+        assert!(z_to(Vector3::zeros()).is_none());
+    }
+
+    #[test]
+    fn euler_lower_case_turns_about_moving_axes_upper_case_about_fixed_ones() {
+        let pose = |seq: &str| {
+            let xml =
+                format!("<mujoco><compiler angle='radian' eulerseq='{seq}'/><worldbody><body name='b' euler='0.3 0.5 0.7'/></worldbody></mujoco>");
+            *load(&xml).model.placement(1)
+        };
+        let r = |axis: Vector3<f64>, a: f64| Transform::rotation_about(&axis, a);
+        let (x, y, z) = (Vector3::x(), Vector3::y(), Vector3::z());
+        assert!((pose("xyz").rotation - r(x, 0.3) * r(y, 0.5) * r(z, 0.7)).norm() < 1e-14);
+        assert!((pose("XYZ").rotation - r(z, 0.7) * r(y, 0.5) * r(x, 0.3)).norm() < 1e-14);
+    }
+
+    #[test]
+    fn a_hinge_with_an_anchor_and_a_reference_turns_about_the_anchor_with_q_as_mujocos_qpos() {
+        let xml = "<mujoco><compiler angle='radian'/><worldbody><body name='b' pos='1 0 0'>
+            <joint name='j' pos='0 0 0.5' axis='0 1 0' ref='0.25' range='-1 1'/><geom size='0.1' pos='0 0 0.5'/></body></worldbody></mujoco>";
+        let mjcf = load(xml);
+        let model = &mjcf.model;
+        // The legkit frame sits at the anchor, turned by -ref; the sphere's centre is the anchor.
+        let placement = model.placement(1);
+        assert!((placement.translation - Vector3::new(1.0, 0.0, 0.5)).norm() < 1e-15);
+        assert!((placement.rotation - Transform::rotation_about(&Vector3::y(), -0.25)).norm() < 1e-15);
+        assert!(model.body(1).com().norm() < 1e-15);
+        assert_eq!((model.limits(1).lower, model.limits(1).upper), (-1.0, 1.0));
+        assert_eq!(mjcf.joints[0].idx_q, 0);
+    }
+
+    #[test]
+    fn ball_joints_and_unknown_classes_are_errors_naming_them() {
+        let error = load_mjcf("<mujoco><worldbody><body><joint name='s' type='ball'/></body></worldbody></mujoco>", &MjcfOptions::default());
+        assert!(error.unwrap_err().to_string().contains("joint \"s\" (<string>:1): ball joints are not supported yet"));
+        let error = load_mjcf("<mujoco><worldbody><body childclass='x'/></worldbody></mujoco>", &MjcfOptions::default());
+        assert!(error.unwrap_err().to_string().contains("unknown childclass \"x\""));
+    }
+
+    #[test]
+    fn includes_that_include_themselves_are_refused() {
+        let folder = std::env::temp_dir().join(format!("legkit-mjcf-{}", std::process::id()));
+        std::fs::create_dir_all(&folder).unwrap();
+        let file = folder.join("loop.xml");
+        std::fs::write(&file, "<mujoco><include file='loop.xml'/></mujoco>").unwrap();
+        let error = load_mjcf(file.to_str().unwrap(), &MjcfOptions::default()).unwrap_err();
+        assert!(error.to_string().contains("include themselves"), "{error}");
+        std::fs::remove_dir_all(&folder).unwrap();
+    }
+}

@@ -1,0 +1,140 @@
+//! `legkit.load_mjcf` and `legkit.Mjcf`: a MuJoCo model file read into a `Model`, with its joints,
+//! actuators and options.
+
+use std::ffi::CString;
+
+use legkit_dynamics::mjcf::{self, JointKind, MjcfOptions};
+use numpy::PyArray1;
+use pyo3::exceptions::{PyTypeError, PyUserWarning};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyString};
+
+use crate::convert::{kernel_error, numbers, vector_to_numpy, Vector};
+use crate::interrupt::on_worker;
+use crate::model::PyModel;
+
+pyo3::create_exception!(
+    legkit,
+    MjcfWarning,
+    PyUserWarning,
+    "An MJCF loaded without something legkit does not model (a tendon, a sensor, a joint's stiffness, ...); the message names it."
+);
+
+/// An MJCF file read into a `Model` (`model`), with its hinge, slide and free joints (`joints`), its joint
+/// actuators (`actuators`, `actuator_torques`), `<option>`'s `timestep` and `gravity`, and the `warnings`.
+#[pyclass(name = "Mjcf", module = "legkit")]
+pub struct PyMjcf {
+    inner: mjcf::Mjcf,
+    model: Py<PyModel>,
+}
+
+/// Reads an MJCF (path or XML string) off the GIL, raising its warnings as `MjcfWarning`s.
+pub fn read(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: Option<bool>, strict: bool) -> PyResult<mjcf::Mjcf> {
+    let source: String = match path_or_xml.cast::<PyString>() {
+        Ok(s) => s.to_str()?.to_owned(),
+        Err(_) => py
+            .import("os")?
+            .call_method1("fspath", (path_or_xml,))?
+            .extract()
+            .map_err(|_| PyTypeError::new_err("path_or_xml: expected a path or an XML string"))?,
+    };
+    let options = MjcfOptions { floating_base, strict };
+    let loaded = on_worker(py, "from_mjcf", move || mjcf::load_mjcf(&source, &options))?.map_err(kernel_error)?;
+    let category = py.get_type::<MjcfWarning>();
+    for warning in &loaded.warnings {
+        PyErr::warn(py, &category, &CString::new(format!("mjcf: {warning}"))?, 2)?;
+    }
+    Ok(loaded)
+}
+
+/// `load_mjcf(path_or_xml, floating_base=None, strict=False)`: the MJCF as an `Mjcf` (see
+/// `Model.from_mjcf` for what is read).
+#[pyfunction]
+#[pyo3(signature = (path_or_xml, floating_base = None, strict = false))]
+pub fn load_mjcf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: Option<bool>, strict: bool) -> PyResult<PyMjcf> {
+    let inner = read(py, path_or_xml, floating_base, strict)?;
+    let model = Py::new(py, PyModel::wrap(inner.model.clone()))?;
+    Ok(PyMjcf { inner, model })
+}
+
+#[pymethods]
+impl PyMjcf {
+    #[getter]
+    fn model(&self, py: Python<'_>) -> Py<PyModel> {
+        self.model.clone_ref(py)
+    }
+    /// The kept joints in MuJoCo's order: dicts {name, type ("hinge", "slide", "free"), body, idx_q, idx_v}.
+    #[getter]
+    fn joints<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let list = PyList::empty(py);
+        for j in &self.inner.joints {
+            let d = PyDict::new(py);
+            d.set_item("name", &j.name)?;
+            d.set_item(
+                "type",
+                match j.kind {
+                    JointKind::Hinge => "hinge",
+                    JointKind::Slide => "slide",
+                    JointKind::Free => "free",
+                },
+            )?;
+            d.set_item("body", j.body)?;
+            d.set_item("idx_q", j.idx_q)?;
+            d.set_item("idx_v", j.idx_v)?;
+            list.append(d)?;
+        }
+        Ok(list)
+    }
+    /// The joint actuators: dicts {name, joint, dof, gear, gain (3,), bias (3,), ctrlrange, forcerange}
+    /// (a range is None when not limited); see `actuator_torques`.
+    #[getter]
+    fn actuators<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let list = PyList::empty(py);
+        for a in &self.inner.actuators {
+            let d = PyDict::new(py);
+            d.set_item("name", &a.name)?;
+            d.set_item("joint", &a.joint)?;
+            d.set_item("dof", a.dof)?;
+            d.set_item("gear", a.gear)?;
+            d.set_item("gain", a.gain.to_vec())?;
+            d.set_item("bias", a.bias.to_vec())?;
+            d.set_item("ctrlrange", a.ctrlrange.map(|r| r.to_vec()))?;
+            d.set_item("forcerange", a.forcerange.map(|r| r.to_vec()))?;
+            list.append(d)?;
+        }
+        Ok(list)
+    }
+    /// `<option timestep>` (s).
+    #[getter]
+    fn timestep(&self) -> f64 {
+        self.inner.timestep
+    }
+    /// `<option gravity>` (m/s², world frame); also the model's gravity.
+    #[getter]
+    fn gravity<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        vector_to_numpy(py, &self.inner.gravity)
+    }
+    /// What was loaded with a warning (also raised as `MjcfWarning`s).
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.inner.warnings.clone()
+    }
+    /// The joint torques (nv,) the actuators apply for controls `ctrl` (one per actuator) at (q, v), as
+    /// MuJoCo's `qfrc_actuator`: force = gain ctrl + bias (affine in the actuator length gear q and
+    /// velocity gear v), ctrl and force clamped to their ranges, torque gear force.
+    fn actuator_torques<'py>(&self, py: Python<'py>, q: Vector<'_>, v: Vector<'_>, ctrl: Vector<'_>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let (q, v, ctrl) = (numbers("q", &q)?, numbers("v", &v)?, numbers("ctrl", &ctrl)?);
+        let tau = self.inner.actuator_torques(&q, &v, &ctrl).map_err(kernel_error)?;
+        Ok(PyArray1::from_slice(py, tau.as_slice()))
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "Mjcf(nbodies={}, nv={}, joints={}, actuators={}, warnings={})",
+            self.inner.model.nbodies(),
+            self.inner.model.nv(),
+            self.inner.joints.len(),
+            self.inner.actuators.len(),
+            self.inner.warnings.len()
+        )
+    }
+}

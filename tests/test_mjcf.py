@@ -1,0 +1,355 @@
+"""`lk.Model.from_mjcf` / `lk.load_mjcf` against MuJoCo's own compiler: hand-written MJCF exercising each
+orientation form, angle units, default classes, includes, multi-joint bodies and inertias inferred from geoms
+(body mass, COM and inertia against `body_mass`, `body_ipos`, `body_iquat`/`body_inertia`), and every model file
+of the dm_control and gymnasium wheels (mass matrix and bias forces against `mj_fullM` and `qfrc_bias`)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import legkit as lk
+
+mujoco = pytest.importorskip("mujoco")
+from mjcf_compare import RTOL, compare, corpus  # noqa: E402 (needs mujoco)
+
+
+def mj_inertia(m, b: int) -> tuple[float, np.ndarray, np.ndarray]:
+    """MuJoCo's compiled mass, COM and inertia tensor (about the COM) of body b, in its body frame."""
+    r = np.zeros(9)
+    mujoco.mju_quat2Mat(r, m.body_iquat[b])
+    r = r.reshape(3, 3)
+    return float(m.body_mass[b]), m.body_ipos[b].copy(), r @ np.diag(m.body_inertia[b]) @ r.T
+
+
+def assert_bodies_match(xml: str, **kwargs) -> lk.Mjcf:
+    """Every named MuJoCo body's mass properties equal legkit's body of that name (joints at pos 0), and the
+    dynamics match at random states."""
+    m = mujoco.MjModel.from_xml_string(xml)
+    loaded = lk.load_mjcf(xml, **kwargs)
+    model = loaded.model
+    for b in range(1, m.nbody):
+        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b)
+        mass, com, inertia = mj_inertia(m, b)
+        ours = model.body(name)
+        scale = max(mass, 1e-12)
+        assert ours.mass == pytest.approx(mass, rel=RTOL, abs=1e-15), name
+        np.testing.assert_allclose(ours.com, com, rtol=0, atol=RTOL * (1 + np.abs(com).max()), err_msg=name)
+        np.testing.assert_allclose(ours.inertia, inertia, rtol=0, atol=RTOL * max(np.abs(inertia).max(), 1e-12 * scale), err_msg=name)
+    assert compare(xml, m, np.random.default_rng(1)) is None
+    return loaded
+
+
+def one_body(body_attrs: str, compiler: str = "", geom: str = '<geom type="box" size=".1 .2 .3" pos=".1 0 0"/>') -> str:
+    return f"""<mujoco><compiler {compiler}/><worldbody>
+      <body name="a" pos="0 0 1"><joint name="j0" axis="1 0 0"/><geom type="capsule" size=".05 .2"/>
+        <body name="b" pos=".3 .1 0" {body_attrs}><joint name="j1" axis="0 1 1"/>{geom}
+          <body name="c" pos="0 0 -.4"><joint name="j2"/><geom size=".07"/></body></body></body>
+    </worldbody></mujoco>"""
+
+
+ORIENTATIONS = [
+    ('quat="0.9 0.1 -0.3 0.2"', ""),
+    ('axisangle="1 2 3 40"', ""),
+    ('axisangle="1 2 3 0.7"', 'angle="radian"'),
+    ('euler="10 20 30"', ""),
+    ('euler="10 20 30"', 'eulerseq="XYZ"'),
+    ('euler="0.3 -0.5 1.1"', 'angle="radian" eulerseq="zyx"'),
+    ('euler="15 -25 35"', 'eulerseq="zXy"'),
+    ('xyaxes="1 1 0 -1 2 0.5"', ""),
+    ('zaxis="0.2 -0.3 0.9"', ""),
+    ('zaxis="0 0 -1"', ""),
+]
+
+
+@pytest.mark.parametrize("orientation, compiler", ORIENTATIONS)
+def test_each_orientation_form_as_mujoco(orientation: str, compiler: str) -> None:
+    assert_bodies_match(one_body(orientation, compiler))
+    # The same form on a geom and an inertial.
+    assert_bodies_match(one_body("", compiler, f'<geom type="box" size=".1 .2 .3" pos=".1 0 0" {orientation}/>'))
+    inertial = f'<inertial pos=".1 .2 .3" {orientation} mass="2" diaginertia=".1 .2 .25"/>'
+    assert_bodies_match(one_body("", compiler, inertial))
+
+
+GEOMS = [
+    '<geom type="sphere" size=".1"/>',
+    '<geom type="capsule" size=".05 .2" pos=".1 0 0"/>',
+    '<geom type="capsule" fromto="0 0 0 .3 .1 -.2" size=".04"/>',
+    '<geom type="cylinder" size=".05 .2" euler="30 0 10"/>',
+    '<geom type="cylinder" fromto="0 0 0 0 0 -.3" size=".04" mass="3"/>',
+    '<geom type="ellipsoid" size=".1 .2 .3" density="300"/>',
+    '<geom type="ellipsoid" fromto="0 0 0 .2 .2 0" size=".05"/>',
+    '<geom type="box" size=".1 .2 .3" quat="1 1 0 0"/>',
+    '<geom type="box" fromto="0 0 0 .1 .3 0" size=".05"/>',
+    '<geom type="box" size=".1 .2 .3"/><geom type="sphere" size=".1" pos="0 .3 0" mass="0.5"/>'
+    '<geom type="sphere" size=".2" mass="0"/><geom type="sphere" size=".2" group="4" density="10"/>',
+    '<inertial pos=".1 0 0" mass="2" fullinertia=".3 .2 .25 .01 -.02 .03"/><geom type="box" size="1 1 1"/>',
+]
+
+
+@pytest.mark.parametrize("geom", GEOMS)
+def test_inertia_from_geoms_as_mujoco(geom: str) -> None:
+    assert_bodies_match(one_body("", "", geom))
+
+
+@pytest.mark.parametrize(
+    "compiler, moments",
+    [
+        ('inertiafromgeom="true"', ".01 .02 .025"),
+        ('inertiafromgeom="false"', ".01 .02 .025"),
+        ('boundmass="5" boundinertia="0.5"', ".01 .02 .025"),
+        ('balanceinertia="true"', ".01 .01 .05"),
+        ('settotalmass="10"', ".01 .02 .025"),
+        ('inertiagrouprange="1 3"', ".01 .02 .025"),
+        ('inertiagrouprange="2 4" inertiafromgeom="true"', ".01 .02 .025"),
+    ],
+)
+def test_compiler_mass_options_as_mujoco(compiler: str, moments: str) -> None:
+    inertial = f'<inertial pos=".1 0 0" mass="0.3" diaginertia="{moments}"/>'
+    xml = f"""<mujoco><compiler {compiler}/><worldbody>
+      <body name="a">{inertial}<joint name="j0"/><geom type="capsule" size=".05 .2" group="2"/>
+        <body name="b" pos=".3 0 0">{inertial}<joint name="j1" axis="1 0 0"/><geom type="box" size=".1 .2 .3" group="2"/>
+          <body name="c" pos="0 0 -.4">{inertial}<joint name="j2" axis="0 1 0"/><geom size=".1" group="2"/>
+            <geom size=".05" pos=".1 0 0" group="4"/><geom size=".05" pos="0 .1 0" group="1"/></body></body></body>
+    </worldbody></mujoco>"""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lk.MjcfWarning)  # the unbalanced inertia, which MuJoCo balances
+        assert_bodies_match(xml)
+
+
+def test_default_classes_childclass_and_angles_as_mujoco() -> None:
+    xml = """<mujoco><compiler angle="degree"/>
+      <default><geom density="500"/><joint damping="0.1" armature="0.02"/>
+        <default class="heavy"><geom density="3000" type="box" size=".1 .1 .1"/>
+          <default class="heavier"><geom density="9000"/><joint axis="0 1 0" range="-30 60" armature="0.5"/></default>
+        </default>
+        <default class="slider"><joint type="slide" axis="1 0 0"/></default>
+      </default>
+      <worldbody>
+        <body name="a" childclass="heavy"><joint name="j0" class="slider" ref="0.2"/><geom/>
+          <body name="b" pos="0 0 -.5"><joint name="j1" class="heavier" ref="10"/><geom class="heavier" size=".2 .1 .05"/>
+            <body name="c" pos="0 0 -.5" childclass="heavier"><joint name="j2"/><geom type="sphere" size=".1" class="main"/></body>
+          </body>
+        </body>
+      </worldbody></mujoco>"""
+    loaded = assert_bodies_match(xml)
+    m = mujoco.MjModel.from_xml_string(xml)
+    for joint in loaded.joints:
+        j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, joint["name"])
+        assert loaded.model.armature[joint["idx_v"]] == pytest.approx(m.dof_armature[m.jnt_dofadr[j]])
+        assert loaded.model.damping[joint["idx_v"]] == pytest.approx(m.dof_damping[m.jnt_dofadr[j]])
+        limits = loaded.model.limits(joint["body"])
+        if m.jnt_limited[j]:
+            assert [limits["lower"], limits["upper"]] == pytest.approx(m.jnt_range[j])
+        else:
+            assert limits is None
+
+
+MULTI_JOINT = """<mujoco><compiler angle="radian"/><worldbody>
+  <body name="torso" pos="0 0 1.3" euler="0.1 0.2 0.3">
+    <joint name="rootx" type="slide" axis="1 0 0"/><joint name="rootz" type="slide" axis="0 0 1" ref="1.3"/>
+    <joint name="rooty" type="hinge" axis="0 1 0" pos="0 0 -.2" ref="0.3"/>
+    <geom type="capsule" fromto="0 0 -.3 0 0 .3" size=".05"/>
+    <body name="thigh" pos="0 0 -.3"><joint name="hip_x" pos=".05 0 .02" axis="1 0 0" range="-1 1"/>
+      <joint name="hip_y" pos="0 .03 0" axis="0 1 0" ref="-0.4"/><joint name="hip_z" axis="0 0 1"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -.4" size=".04"/>
+      <body name="shin" pos="0 0 -.4"><joint name="knee" pos="0 0 .01" axis="0 -1 0"/><geom type="box" size=".05 .05 .2" pos="0 0 -.2"/></body>
+    </body>
+  </body></worldbody></mujoco>"""
+
+
+def test_several_joints_in_one_body_compose_as_mujoco() -> None:
+    m = mujoco.MjModel.from_xml_string(MULTI_JOINT)
+    assert compare(MULTI_JOINT, m, np.random.default_rng(2), states=6) is None
+    loaded = lk.load_mjcf(MULTI_JOINT)
+    names = loaded.model.names
+    assert names[:4] == ["world", "torso/rootx", "torso/rootz", "torso"]
+    assert [j["name"] for j in loaded.joints] == ["rootx", "rootz", "rooty", "hip_x", "hip_y", "hip_z", "knee"]
+    assert [j["idx_v"] for j in loaded.joints] == list(range(7))  # MuJoCo's dof order
+
+
+FREE = """<mujoco><option gravity="0 1 -5" timestep="0.005"/><worldbody><geom type="plane" size="5 5 .1"/>
+  <body name="base" pos="0 0 .5" quat="0.9 0 0.2 0.1"><freejoint name="root"/><geom type="box" size=".3 .2 .1"/>
+    <body name="leg" pos=".3 0 0"><joint name="hip" axis="0 1 0" armature="0.1"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -.3" size=".03"/></body></body></worldbody></mujoco>"""
+
+
+def test_free_joint_is_the_floating_base_with_mujocos_velocity_convention() -> None:
+    m = mujoco.MjModel.from_xml_string(FREE)
+    assert compare(FREE, m, np.random.default_rng(3), states=6) is None
+    loaded = lk.load_mjcf(FREE)
+    assert loaded.model.floating_base and loaded.model.nq == 8 and loaded.model.nv == 7
+    assert loaded.timestep == 0.005
+    np.testing.assert_array_equal(loaded.gravity, [0, 1, -5])
+    np.testing.assert_array_equal(loaded.model.gravity, [0, 1, -5])
+    welded = lk.Model.from_mjcf(FREE, floating_base=False)
+    assert not welded.floating_base and welded.nv == 1 and welded.names[:2] == ["world", "base"]
+
+
+def test_include_files_and_meshdir(tmp_path) -> None:
+    (tmp_path / "parts").mkdir()
+    (tmp_path / "parts" / "leg.xml").write_text(
+        '<mujoco><body name="leg" pos=".3 0 0"><joint name="hip" axis="0 1 0"/><geom type="sphere" size=".1"/></body></mujoco>'
+    )
+    (tmp_path / "defaults.xml").write_text('<mujoco><default><geom density="200"/></default></mujoco>')
+    main = tmp_path / "robot.xml"
+    main.write_text(
+        '<mujoco><include file="defaults.xml"/><worldbody><body name="base"><joint name="slide" type="slide"/>'
+        '<geom type="box" size=".1 .1 .1"/><include file="parts/leg.xml"/></body></worldbody></mujoco>'
+    )
+    m = mujoco.MjModel.from_xml_path(str(main))
+    assert compare(str(main), m, np.random.default_rng(4)) is None
+    assert lk.Model.from_mjcf(main).names == ["world", "base", "leg"]  # a path object works too
+
+
+def test_actuator_torques_equal_mujocos_qfrc_actuator() -> None:
+    xml = """<mujoco><worldbody><body name="a"><joint name="j0" axis="0 1 0" range="-90 90"/><geom size=".1"/>
+        <body name="b" pos="0 0 -.5"><joint name="j1" type="slide"/><geom size=".1"/></body></body></worldbody>
+      <actuator><motor joint="j0" gear="20" ctrlrange="-1 1"/><position joint="j1" kp="50" kv="3" forcerange="-4 4"/>
+        <velocity joint="j0" kv="2" gear="3"/>
+        <general joint="j1" gaintype="affine" gainprm="2 0.5 -0.1" biastype="affine" biasprm="1 -2 -0.3" gear="1.5"/>
+      </actuator></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    loaded = lk.load_mjcf(xml)
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        d.qpos[:] = rng.uniform(-1, 1, 2)
+        d.qvel[:] = rng.normal(size=2)
+        d.ctrl[:] = rng.uniform(-2, 2, 4)
+        mujoco.mj_forward(m, d)
+        np.testing.assert_allclose(loaded.actuator_torques(d.qpos, d.qvel, d.ctrl), d.qfrc_actuator, rtol=1e-12, atol=1e-12)
+    assert [a["joint"] for a in loaded.actuators] == ["j0", "j1", "j0", "j1"]
+    with pytest.raises(ValueError, match="ctrl"):
+        loaded.actuator_torques(d.qpos, d.qvel, [1.0])
+
+
+def test_ball_joints_are_refused_naming_the_joint() -> None:
+    xml = '<mujoco><worldbody><body><joint name="shoulder" type="ball"/><geom size=".1"/></body></worldbody></mujoco>'
+    with pytest.raises(ValueError, match='joint "shoulder".*ball joints are not supported yet'):
+        lk.Model.from_mjcf(xml)
+
+
+def test_what_legkit_does_not_model_warns_or_is_refused_with_strict() -> None:
+    xml = """<mujoco><worldbody><body name="a"><joint name="j" stiffness="3"/><geom size=".1"/><site name="s"/></body></worldbody>
+      <tendon><fixed name="t"><joint joint="j" coef="1"/></fixed></tendon><sensor><jointpos joint="j"/></sensor></mujoco>"""
+    with pytest.warns(lk.MjcfWarning) as record:
+        model = lk.Model.from_mjcf(xml)
+    messages = " ".join(str(w.message) for w in record)
+    assert "tendon" in messages and '<fixed name="t">' in messages and "sensor" in messages and "stiffness" in messages
+    assert model.nv == 1
+    with pytest.raises(ValueError, match="strict"):
+        lk.Model.from_mjcf(xml, strict=True)
+
+
+@pytest.mark.parametrize(
+    "xml, message",
+    [
+        ("<robot/>", "root element must be <mujoco>"),
+        ("<mujoco><worldbody><body><geom class='nope'/></body></worldbody></mujoco>", "unknown default class"),
+        ("<mujoco><worldbody><body quat='1 0 0 0' euler='0 0 0'/></worldbody></mujoco>", "more than one orientation"),
+        ("<mujoco><worldbody><body><joint type='hinge' axis='0 0 0'/></body></worldbody></mujoco>", "zero axis"),
+        ("<mujoco><include file='/nonexistent/file.xml'/></mujoco>", "include"),
+        ("<mujoco><worldbody><body pos='1 2'/></worldbody></mujoco>", "pos needs 3 numbers"),
+        ("<mujoco><worldbody><body><freejoint/></body><body><freejoint/></body></worldbody></mujoco>", "free joints"),
+    ],
+)
+def test_bad_files_are_clear_value_errors(xml: str, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        lk.Model.from_mjcf(xml)
+
+
+CORPUS = corpus()
+# Files MuJoCo compiles that legkit refuses, with the reason the error gives.
+REFUSED = {
+    "dm_control/mujoco/testing/assets/model_with_ball_joints.xml": "ball joints",
+    "dm_control/suite/dog.xml": "free joints",
+    "dm_control/suite/quadruped.xml": "free joints",
+}
+# Loaded with a warning that the mass of mesh geoms is not computed: MuJoCo's mass differs.
+MESH_MASS = "mass of mesh geoms"
+
+
+def compiled(path: str):
+    try:
+        return mujoco.MjModel.from_xml_path(path)
+    except Exception:  # noqa: BLE001 (fragments and broken test assets MuJoCo itself refuses)
+        return None
+
+
+@pytest.mark.skipif(not CORPUS, reason="dm_control and gymnasium are not installed")
+@pytest.mark.parametrize("path", CORPUS, ids=[p.split("site-packages/")[-1] for p in CORPUS])
+def test_every_shipped_model_mujoco_compiles_loads_and_matches_or_is_refused(path: str) -> None:
+    m = compiled(path)
+    if m is None:
+        pytest.skip("MuJoCo does not compile it")
+    refused = next((reason for name, reason in REFUSED.items() if path.endswith(name)), None)
+    try:
+        with warnings.catch_warnings(record=True) as record:
+            warnings.simplefilter("always")
+            result = compare(path, m, np.random.default_rng(0))
+    except ValueError as error:
+        assert refused is not None, f"refused: {error}"
+        assert any(reason in str(error) for reason in refused.split("|")), str(error)
+        return
+    assert refused is None, "expected a refusal"
+    if any(MESH_MASS in str(w.message) for w in record):
+        assert result is not None  # documented: the mesh's mass is left out
+        return
+    assert result is None, result
+
+
+def test_frames_place_their_bodies_and_geoms_as_mujoco() -> None:
+    xml = """<mujoco><default><default class="light"><geom density="100"/></default></default><worldbody>
+      <body name="a"><joint name="j0"/><geom size=".1"/>
+        <frame pos=".2 0 0" euler="0 30 0" childclass="light">
+          <geom type="box" size=".1 .05 .02" pos="0 .1 0"/>
+          <frame pos="0 0 -.1" zaxis="1 0 1">
+            <body name="b" pos="0 0 -.2"><joint name="j1" axis="1 0 0"/><geom type="capsule" size=".03 .1"/></body></frame>
+        </frame></body></worldbody></mujoco>"""
+    assert_bodies_match(xml)
+
+
+def test_collision_shapes_sit_where_mujocos_geoms_are() -> None:
+    xml = """<mujoco><worldbody><geom type="plane" size="5 5 .1"/>
+      <body name="a" pos="0 0 1" euler="10 20 30"><joint name="j0" pos=".1 .2 .3" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 .3 .1 -.2" size=".04"/><geom type="box" size=".1 .2 .3" pos=".1 0 0" euler="5 6 7"/>
+        <geom type="sphere" size=".3" contype="0" conaffinity="0"/>
+        <body name="b" pos=".3 0 0"><joint name="j1" type="slide" axis="1 0 0"/><joint name="j2" pos="0 0 .1"/>
+          <geom type="cylinder" size=".05 .2" zaxis="1 1 0"/><geom type="sphere" size=".1" pos="0 0 -.3"/></body></body>
+    </worldbody></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    d.qpos[:] = [0.4, 0.1, -0.7]
+    mujoco.mj_forward(m, d)
+    with pytest.warns(lk.MjcfWarning, match="plane"):
+        model = lk.Model.from_mjcf(xml)
+    poses = lk.forward_kinematics(model, d.qpos)
+    colliders = model.colliders()
+    solid = [g for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]][1:]  # not the plane
+    assert [kind for _, kind, _, _ in colliders] == ["capsule", "box", "cylinder", "sphere"]
+    for (body, kind, size, placement), g in zip(colliders, solid):
+        a, b, c = m.geom_size[g]
+        expected = {"capsule": (b, a), "cylinder": (b, a), "sphere": (a,), "box": (2 * a, 2 * b, 2 * c)}[kind]
+        np.testing.assert_allclose(size, expected, rtol=1e-15)
+        world = poses[body] @ placement
+        np.testing.assert_allclose(world[:3, 3], d.geom_xpos[g], atol=1e-12)
+        np.testing.assert_allclose(world[:3, :3], d.geom_xmat[g].reshape(3, 3), atol=1e-12)
+
+
+def test_a_freejoint_takes_no_joint_defaults_as_in_mujoco() -> None:
+    xml = """<mujoco><default><joint armature="0.1" damping="2"/></default><worldbody>
+      <body name="base" pos="0 0 1"><freejoint name="root"/><geom size=".1"/>
+        <body name="leg"><joint name="hip"/><geom type="capsule" fromto="0 0 0 0 0 -.3" size=".02"/></body></body></worldbody></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    np.testing.assert_array_equal(m.dof_armature[:6], 0)  # MuJoCo's reading, which legkit's must equal
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", lk.MjcfWarning)
+        loaded = lk.load_mjcf(xml)
+    assert compare(xml, m, np.random.default_rng(6)) is None
+    np.testing.assert_array_equal(loaded.model.armature, [0, 0, 0, 0, 0, 0, 0.1])
+    # A <joint type="free"> does take them: MuJoCo adds the armature to the base, which legkit cannot.
+    with pytest.warns(lk.MjcfWarning, match='free joint "root": armature=0.1 is not modelled'):
+        lk.load_mjcf(xml.replace('<freejoint name="root"/>', '<joint name="root" type="free"/>'))
