@@ -491,8 +491,30 @@ def test_a_package_name_cannot_escape_its_package(tmp_path):
     (tmp_path / "secret.stl").write_text("solid s\nendsolid s\n")
     package = tmp_path / "share" / "bot"
     package.mkdir(parents=True)
-    with pytest.raises(FileNotFoundError, match="outside"):
+    with pytest.raises(ValueError, match="filename.*outside"):
         lk.resolve_mesh("package://bot/../../secret.stl", package_dirs=[str(tmp_path / "share")])
+
+
+def test_a_symbolic_link_cannot_lead_out_of_its_package(tmp_path):
+    secret = tmp_path / "secret.stl"
+    secret.write_text("solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n")
+    share = tmp_path / "share"
+    meshes = share / "bot" / "meshes"
+    meshes.mkdir(parents=True)
+    (meshes / "leg.stl").symlink_to(secret)  # a file linked out of the package
+    (share / "bot" / "outside").symlink_to(tmp_path)  # a folder linked out of it
+    (meshes / "copy.stl").write_text(secret.read_text())
+    (meshes / "alias.stl").symlink_to(meshes / "copy.stl")  # a link that stays inside is followed
+    for name in ["package://bot/meshes/leg.stl", "package:///bot/outside/secret.stl", "model://bot/meshes/leg.stl"]:
+        with pytest.raises(ValueError, match="filename.*outside its package"):
+            lk.resolve_mesh(name, package_dirs=[share])
+    assert lk.resolve_mesh("package://bot/meshes/alias.stl", package_dirs=[share]) == meshes / "alias.stl"
+    # Loading: the link collides as the box of its inertia, with a warning that says why.
+    urdf = """<robot name="r"><link name="base"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>
+      </inertial><collision><geometry><mesh filename="package://bot/meshes/leg.stl"/></geometry></collision></link></robot>"""
+    with pytest.warns(lk.UrdfWarning, match="outside its package"):
+        model = lk.Model.from_urdf(urdf, package_dirs=[str(share)])
+    assert [kind for _, kind, _, _ in model.colliders()] == ["box"]
 
 
 # --- the commands ----------------------------------------------------------------------------------------------

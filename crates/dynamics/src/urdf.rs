@@ -26,9 +26,9 @@
 //!   length>` or `<capsule radius length>` (along z) becomes one of the model's collision shapes
 //!   ([`Model::collision_shapes`], several per body allowed), which a simulation uses instead of default
 //!   boxes. `<mesh filename scale>` (STL, OBJ or COLLADA; [`crate::mesh`]) becomes the convex hull of its
-//!   vertices, scaled; `package://` names resolve through [`UrdfOptions::package_dirs`], then
-//!   `ROS_PACKAGE_PATH`, then the URDF file's folder's ancestors, and relative names against that folder
-//!   ([`crate::mesh::resolve_mesh`]). A mesh that cannot be found or read leaves its link colliding as the
+//!   vertices, scaled; `package://` names (and `package:///`, `model://`) resolve through
+//!   [`UrdfOptions::package_dirs`], then `ROS_PACKAGE_PATH`, then the URDF file's folder's ancestors, confined to
+//!   their package, and relative names against that folder ([`crate::mesh::resolve_mesh`]). A mesh that cannot be found or read leaves its link colliding as the
 //!   box of its inertia, with a warning (`strict` does not refuse it).
 //!
 //! - `<dynamics damping>` of a moving joint becomes its damping ([`Model::damping`], as Pinocchio's and
