@@ -433,6 +433,47 @@ def test_ctrl_c_interrupts_loading_a_huge_urdf(tmp_path):
     assert_ctrl_c_answered_within_a_second(body, after=1.0, memory=8 * GIB)
 
 
+@pytest.mark.slow
+def test_an_interrupted_load_stops_its_worker_thread(tmp_path):
+    # The child loads a 500,000-link chain once to time it (T), then again; interrupted halfway through that
+    # second load, the worker thread (named from_urdf) is cancelled and ends, instead of loading on in the
+    # background for the other half. (The XML parse itself, a quarter of the load, is one call that cannot be
+    # cut: it is over by then.)
+    path = tmp_path / "chain.urdf"
+    path.write_text(chain_urdf(500_000))
+    body = f"""
+import os, time
+def workers():
+    return [t for t in os.listdir("/proc/self/task") if open(f"/proc/self/task/{{t}}/comm").read().strip() == "from_urdf"]
+started = time.monotonic()
+lk.Model.from_urdf({str(path)!r})
+whole = time.monotonic() - started
+print("STARTED", whole, flush=True)
+try:
+    lk.Model.from_urdf({str(path)!r})
+except KeyboardInterrupt:
+    interrupted = time.monotonic()
+    while workers() and time.monotonic() - interrupted < 60:
+        time.sleep(0.005)
+    report(raised="KeyboardInterrupt", whole=whole, worker_ended_after=time.monotonic() - interrupted)
+"""
+    code = PRELUDE.format(memory=8 * GIB, body=textwrap.indent(body.strip(), "    "))
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout is not None
+        started, whole = child.stdout.readline().split()
+        assert started == "STARTED"
+        time.sleep(0.5 * float(whole))
+        child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=120)
+    finally:
+        child.kill()
+    result = json.loads(next(line for line in out.splitlines() if line.startswith("RESULT ")).removeprefix("RESULT "))
+    assert result["raised"] == "KeyboardInterrupt", (result, err[-2000:])
+    # Uncancelled, the worker would go on for the other half of the load.
+    assert result["worker_ended_after"] < 0.25 * result["whole"], result
+
+
 def test_an_interrupted_step_keeps_whole_steps():
     model = lk.Model()
     model.add_revolute(0, [0, 1, 0], body=lk.MassProperties.point(1.0, [0, 0, -0.5]))
