@@ -123,6 +123,33 @@ def test_huge_broadcast_views_elsewhere_are_memory_errors(call):
     raises(PENDULUM + call, "MemoryError", "bytes")
 
 
+def test_huge_broadcast_servo_targets_are_a_memory_error():
+    raises(PENDULUM + "sim = lk.Simulation(model)\nsim.step(targets=np.broadcast_to(0.0, (10**10, 1)))", "MemoryError", "targets")
+
+
+def test_a_batch_result_that_fits_once_but_not_twice_is_a_memory_error():
+    # The kernels fill one packed block of rows, then split it into an array per result: the limit is set so
+    # that the block (512 MiB) fits and its split copy does not.
+    raises(
+        PENDULUM
+        + """
+rows = 2**29 // (8 * 13 * model.nbodies)
+vm = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (vm + 3 * 2**28, vm + 3 * 2**28))
+lk.subtree_mass_properties(model, np.broadcast_to(q, (rows, 1)))
+""",
+        "MemoryError",
+        "bytes",
+        memory=0,
+    )
+
+
+def test_a_rapier_simulation_of_a_model_too_large_for_its_dense_blocks_is_a_memory_error(tmp_path):
+    # Rapier's multibody holds nv x nv matrices and a 6 x nv Jacobian per body: about 64 GB for 20,000 links.
+    (tmp_path / "chain.urdf").write_text(chain_urdf(20_000))
+    raises(f"model = lk.Model.from_urdf({str(tmp_path / 'chain.urdf')!r})\nlk.Simulation(model, backend='rapier')", "MemoryError", "model")
+
+
 def test_a_huge_broadcast_heightfield_is_a_memory_error():
     raises("lk.Ground.heightfield(np.broadcast_to(0.0, (10**5, 10**5)), 0.1)", "MemoryError", "heights")
 
