@@ -123,6 +123,33 @@ def test_huge_broadcast_views_elsewhere_are_memory_errors(call):
     raises(PENDULUM + call, "MemoryError", "bytes")
 
 
+def test_huge_broadcast_servo_targets_are_a_memory_error():
+    raises(PENDULUM + "sim = lk.Simulation(model)\nsim.step(targets=np.broadcast_to(0.0, (10**10, 1)))", "MemoryError", "targets")
+
+
+def test_a_batch_result_that_fits_once_but_not_twice_is_a_memory_error():
+    # The kernels fill one packed block of rows, then split it into an array per result: the limit is set so
+    # that the block (512 MiB) fits and its split copy does not.
+    raises(
+        PENDULUM
+        + """
+rows = 2**29 // (8 * 13 * model.nbodies)
+vm = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (vm + 3 * 2**28, vm + 3 * 2**28))
+lk.subtree_mass_properties(model, np.broadcast_to(q, (rows, 1)))
+""",
+        "MemoryError",
+        "bytes",
+        memory=0,
+    )
+
+
+def test_a_rapier_simulation_of_a_model_too_large_for_its_dense_blocks_is_a_memory_error(tmp_path):
+    # Rapier's multibody holds nv x nv matrices and a 6 x nv Jacobian per body: about 64 GB for 20,000 links.
+    (tmp_path / "chain.urdf").write_text(chain_urdf(20_000))
+    raises(f"model = lk.Model.from_urdf({str(tmp_path / 'chain.urdf')!r})\nlk.Simulation(model, backend='rapier')", "MemoryError", "model")
+
+
 def test_a_huge_broadcast_heightfield_is_a_memory_error():
     raises("lk.Ground.heightfield(np.broadcast_to(0.0, (10**5, 10**5)), 0.1)", "MemoryError", "heights")
 
@@ -433,6 +460,47 @@ def test_ctrl_c_interrupts_loading_a_huge_urdf(tmp_path):
     assert_ctrl_c_answered_within_a_second(body, after=1.0, memory=8 * GIB)
 
 
+@pytest.mark.slow
+def test_an_interrupted_load_stops_its_worker_thread(tmp_path):
+    # The child loads a 500,000-link chain once to time it (T), then again; interrupted halfway through that
+    # second load, the worker thread (named from_urdf) is cancelled and ends, instead of loading on in the
+    # background for the other half. (The XML parse itself, a quarter of the load, is one call that cannot be
+    # cut: it is over by then.)
+    path = tmp_path / "chain.urdf"
+    path.write_text(chain_urdf(500_000))
+    body = f"""
+import os, time
+def workers():
+    return [t for t in os.listdir("/proc/self/task") if open(f"/proc/self/task/{{t}}/comm").read().strip() == "from_urdf"]
+started = time.monotonic()
+lk.Model.from_urdf({str(path)!r})
+whole = time.monotonic() - started
+print("STARTED", whole, flush=True)
+try:
+    lk.Model.from_urdf({str(path)!r})
+except KeyboardInterrupt:
+    interrupted = time.monotonic()
+    while workers() and time.monotonic() - interrupted < 60:
+        time.sleep(0.005)
+    report(raised="KeyboardInterrupt", whole=whole, worker_ended_after=time.monotonic() - interrupted)
+"""
+    code = PRELUDE.format(memory=8 * GIB, body=textwrap.indent(body.strip(), "    "))
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout is not None
+        started, whole = child.stdout.readline().split()
+        assert started == "STARTED"
+        time.sleep(0.5 * float(whole))
+        child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=120)
+    finally:
+        child.kill()
+    result = json.loads(next(line for line in out.splitlines() if line.startswith("RESULT ")).removeprefix("RESULT "))
+    assert result["raised"] == "KeyboardInterrupt", (result, err[-2000:])
+    # Uncancelled, the worker would go on for the other half of the load.
+    assert result["worker_ended_after"] < 0.25 * result["whole"], result
+
+
 def test_an_interrupted_step_keeps_whole_steps():
     model = lk.Model()
     model.add_revolute(0, [0, 1, 0], body=lk.MassProperties.point(1.0, [0, 0, -0.5]))
@@ -491,8 +559,30 @@ def test_a_package_name_cannot_escape_its_package(tmp_path):
     (tmp_path / "secret.stl").write_text("solid s\nendsolid s\n")
     package = tmp_path / "share" / "bot"
     package.mkdir(parents=True)
-    with pytest.raises(FileNotFoundError, match="outside"):
+    with pytest.raises(ValueError, match="filename.*outside"):
         lk.resolve_mesh("package://bot/../../secret.stl", package_dirs=[str(tmp_path / "share")])
+
+
+def test_a_symbolic_link_cannot_lead_out_of_its_package(tmp_path):
+    secret = tmp_path / "secret.stl"
+    secret.write_text("solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n")
+    share = tmp_path / "share"
+    meshes = share / "bot" / "meshes"
+    meshes.mkdir(parents=True)
+    (meshes / "leg.stl").symlink_to(secret)  # a file linked out of the package
+    (share / "bot" / "outside").symlink_to(tmp_path)  # a folder linked out of it
+    (meshes / "copy.stl").write_text(secret.read_text())
+    (meshes / "alias.stl").symlink_to(meshes / "copy.stl")  # a link that stays inside is followed
+    for name in ["package://bot/meshes/leg.stl", "package:///bot/outside/secret.stl", "model://bot/meshes/leg.stl"]:
+        with pytest.raises(ValueError, match="filename.*outside its package"):
+            lk.resolve_mesh(name, package_dirs=[share])
+    assert lk.resolve_mesh("package://bot/meshes/alias.stl", package_dirs=[share]) == meshes / "alias.stl"
+    # Loading: the link collides as the box of its inertia, with a warning that says why.
+    urdf = """<robot name="r"><link name="base"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>
+      </inertial><collision><geometry><mesh filename="package://bot/meshes/leg.stl"/></geometry></collision></link></robot>"""
+    with pytest.warns(lk.UrdfWarning, match="outside its package"):
+        model = lk.Model.from_urdf(urdf, package_dirs=[str(share)])
+    assert [kind for _, kind, _, _ in model.colliders()] == ["box"]
 
 
 # --- the commands ----------------------------------------------------------------------------------------------

@@ -331,3 +331,20 @@ def test_second_order_derivatives_are_the_slopes_of_pinocchios_first(relative: s
     for got, want, what in [(dqdq, along_q[0], "d2tau/dqdq"), (dadq, along_q[2], "d2tau/dadq"), (dvdv, along_v[1], "d2tau/dvdv"),
                             (dqdv, along_v[0], "d2tau/dqdv")]:
         assert_close(got, want, what, rtol=1e-6)
+
+
+def test_talos_resolves_every_collision_mesh_pinocchio_resolves():
+    """talos_full_v2.urdf names its meshes package:///example-robot-data/robots/talos_data/... (three slashes):
+    with the same package_dirs, legkit reads every collision geometry Pinocchio's buildGeomFromUrdf reads, each
+    of the same kind (a mesh as its convex hull), and no link falls back to the box of its inertia."""
+    share = ROBOTS.parent.parent
+    path = ROBOTS / "talos_data/robots/talos_full_v2.urdf"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", lk.UrdfWarning)
+        model = lk.Model.from_urdf(path, package_dirs=[share])
+    geometry = pin.buildGeomFromUrdf(pin.buildModelFromUrdf(str(path)), str(path), pin.COLLISION, package_dirs=[str(share)])
+    kinds = {"BVHModelOBBRSS": "convex", "Cylinder": "cylinder", "Box": "box", "Sphere": "sphere", "Capsule": "capsule"}
+    want = sorted((g.name.rsplit("_", 1)[0], kinds[type(g.geometry).__name__]) for g in geometry.geometryObjects)
+    got = sorted((model.names[body], kind) for body, kind, _, _ in model.colliders())
+    assert len(got) == geometry.ngeoms == 52
+    assert got == want

@@ -32,43 +32,77 @@ pub fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
     Ok(vertices)
 }
 
-/// Where a URDF's mesh `filename` lies: `package://name/rest` is `dir/name/rest` (or `dir/rest` when `dir`
-/// is the package `name` itself) for the first such file over `package_dirs`, then `ROS_PACKAGE_PATH`'s
-/// folders, then the URDF folder's ancestors (`urdf_dir`); `file://` paths as written; relative paths
-/// against `urdf_dir` (the working folder if None). A `package://` name with `..` or a root in it is refused.
+/// Where a URDF's mesh `filename` lies, read as Pinocchio and ROS read it:
+///
+/// - `package://name/rest` is `dir/name/rest` (or `dir/rest` when `dir` is the package `name` itself) for the
+///   first such file over `package_dirs`, then `ROS_PACKAGE_PATH`'s folders, then the URDF folder's
+///   ancestors (`urdf_dir`). Empty segments are skipped, so `package:///name/rest` (as example-robot-data
+///   writes it) is the same name; `model://` (Gazebo's) is read as `package://`. The name may not climb
+///   (`..`), and the file it reaches, symbolic links followed, must lie inside the package's folder: a name
+///   or a link leading outside it is refused (`Error::Invalid` naming `filename`).
+/// - `file://path` and absolute paths are read as written.
+/// - A relative path is taken against `urdf_dir` (the working folder if None), then, if it does not climb,
+///   against each of `package_dirs` (confined to it, as a package name is).
 pub fn resolve_mesh(filename: &str, urdf_dir: Option<&Path>, package_dirs: &[PathBuf]) -> Result<PathBuf> {
-    if let Some(rest) = filename.strip_prefix("package://") {
+    let outside = || Error::invalid("filename", format!("{filename:?} names a file outside its package (only names below it are allowed)"));
+    if let Some(rest) = ["package://", "model://"].iter().find_map(|scheme| filename.strip_prefix(scheme)) {
+        let mut parts = Vec::new();
+        for component in Path::new(rest).components() {
+            match component {
+                Component::Normal(part) => parts.push(part),
+                Component::RootDir | Component::CurDir => {}
+                // `..` or a drive would reach files outside the package (which the viewer would then embed).
+                Component::ParentDir | Component::Prefix(_) => return Err(outside()),
+            }
+        }
+        let Some((&package, inside)) = parts.split_first() else {
+            return Err(Error::invalid("filename", format!("{filename:?} names no package")));
+        };
+        let inside: PathBuf = inside.iter().collect();
         let ros_path = std::env::var_os("ROS_PACKAGE_PATH").map(|p| std::env::split_paths(&p).collect::<Vec<_>>()).unwrap_or_default();
         let ancestors = urdf_dir.into_iter().flat_map(Path::ancestors).map(Path::to_path_buf);
-        let (package, inside) = rest.split_once('/').unwrap_or((rest, ""));
-        // Only plain names below the package: `..` or a root would reach files outside it (which the viewer
-        // would then embed).
-        let below = |path: &str| Path::new(path).components().all(|c| matches!(c, Component::Normal(_) | Component::CurDir));
-        if !(below(rest) && below(inside)) {
-            return Err(Error::invalid("mesh", format!("{filename:?} names a file outside its package (only names below it are allowed)")));
-        }
         let mut searched = Vec::new();
         for dir in package_dirs.iter().cloned().chain(ros_path).chain(ancestors) {
             let itself = dir.file_name().is_some_and(|name| name == package);
-            for candidate in [dir.join(rest), dir.join(inside)].into_iter().take(if itself { 2 } else { 1 }) {
+            for root in [dir.join(package)].into_iter().chain(itself.then(|| dir.clone())) {
+                let candidate = root.join(&inside);
                 if candidate.is_file() {
-                    return Ok(candidate);
+                    return confined(filename, candidate, &root);
                 }
             }
             searched.push(dir.display().to_string());
         }
         return Err(Error::invalid("package_dirs", format!("{filename:?} is in none of {}", searched.join(", "))));
     }
-    let path = PathBuf::from(filename.strip_prefix("file://").unwrap_or(filename));
-    let path = match urdf_dir {
+    let path = Path::new(filename.strip_prefix("file://").unwrap_or(filename));
+    let beside = match urdf_dir {
         Some(dir) if path.is_relative() => dir.join(path),
-        _ => path,
+        _ => path.to_path_buf(),
     };
-    if path.is_file() {
-        Ok(path)
-    } else {
-        Err(Error::invalid("mesh", format!("{filename:?}: no such file ({})", path.display())))
+    if beside.is_file() {
+        return Ok(beside);
     }
+    // Pinocchio's fallback for a relative name: each package folder, which the name may not leave.
+    if path.is_relative() && path.components().all(|c| matches!(c, Component::Normal(_) | Component::CurDir)) {
+        if let Some(dir) = package_dirs.iter().find(|dir| dir.join(path).is_file()) {
+            return confined(filename, dir.join(path), dir);
+        }
+    }
+    Err(Error::invalid("mesh", format!("{filename:?}: no such file ({})", beside.display())))
+}
+
+/// `candidate` if it lies inside `root` once symbolic links are followed (a link inside a package may point
+/// anywhere); otherwise `Error::Invalid` naming `filename`.
+fn confined(filename: &str, candidate: PathBuf, root: &Path) -> Result<PathBuf> {
+    let real = |path: &Path| path.canonicalize().map_err(|e| Error::invalid("filename", format!("{filename:?}: {}: {e}", path.display())));
+    let (file, folder) = (real(&candidate)?, real(root)?);
+    if !file.starts_with(&folder) {
+        return Err(Error::invalid(
+            "filename",
+            format!("{filename:?} leads outside its package {} (a symbolic link reaches {})", folder.display(), file.display()),
+        ));
+    }
+    Ok(candidate)
 }
 
 fn stl(bytes: &[u8]) -> std::result::Result<Vec<Vector3<f64>>, String> {
@@ -327,10 +361,26 @@ mod tests {
         let missing = resolve_mesh("package://nowhere/x.stl", Some(&urdf_dir), &[]).unwrap_err().to_string();
         assert!(missing.contains("package_dirs") && missing.contains("nowhere"), "{missing}");
         // A package name cannot climb out of its package, even to a file that exists.
-        for escape in ["package://pkg_a/../pkg_a/meshes/part.stl", "package://pkg_a//etc/passwd", "package://../pkg_a/meshes/part.stl"] {
-            let refused = resolve_mesh(escape, Some(&urdf_dir), std::slice::from_ref(&root)).unwrap_err().to_string();
-            assert!(refused.contains("outside its package"), "{refused}");
+        for escape in ["package://pkg_a/../pkg_a/meshes/part.stl", "package://../pkg_a/meshes/part.stl", "model://pkg_a/../../x.stl"] {
+            let refused = resolve_mesh(escape, Some(&urdf_dir), std::slice::from_ref(&root)).unwrap_err();
+            assert!(refused.argument() == "filename" && refused.to_string().contains("outside its package"), "{refused}");
         }
+        // Empty segments are skipped, as Pinocchio and ROS read them: example-robot-data's three slashes, and a
+        // root inside the name stays below the package.
+        assert_eq!(resolve_mesh("package:///pkg_a/meshes/part.stl", None, std::slice::from_ref(&root)).unwrap(), found);
+        assert_eq!(resolve_mesh("model://pkg_a//meshes/part.stl", None, std::slice::from_ref(&root)).unwrap(), found);
+        assert_eq!(resolve_mesh("package://pkg_a//etc/passwd", None, std::slice::from_ref(&root)).unwrap_err().argument(), "package_dirs");
+        // A relative name not beside the URDF: in the package folders, as Pinocchio looks for it.
+        assert_eq!(resolve_mesh("meshes/part.stl", None, &[root.join("pkg_a")]).unwrap(), root.join("pkg_a").join("meshes/part.stl"));
+        // A symbolic link inside the package that leads out of it is refused; one that stays inside is followed.
+        std::fs::write(root.join("secret.stl"), b"solid\nendsolid\n").unwrap();
+        let (outward, inward) = (root.join("pkg_a/meshes/outward.stl"), root.join("pkg_a/meshes/inward.stl"));
+        let _ = (std::fs::remove_file(&outward), std::fs::remove_file(&inward));
+        std::os::unix::fs::symlink(root.join("secret.stl"), &outward).unwrap();
+        std::os::unix::fs::symlink(root.join("pkg_a/meshes/part.stl"), &inward).unwrap();
+        let refused = resolve_mesh("package://pkg_a/meshes/outward.stl", None, std::slice::from_ref(&root)).unwrap_err();
+        assert!(refused.argument() == "filename" && refused.to_string().contains("outside its package"), "{refused}");
+        assert_eq!(resolve_mesh("package://pkg_a/meshes/inward.stl", None, std::slice::from_ref(&root)).unwrap(), inward);
         // A FIFO is refused before it is opened (opening one blocks until a writer comes).
         let fifo = root.join("pipe.stl");
         let made = std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success());

@@ -26,9 +26,9 @@
 //!   length>` or `<capsule radius length>` (along z) becomes one of the model's collision shapes
 //!   ([`Model::collision_shapes`], several per body allowed), which a simulation uses instead of default
 //!   boxes. `<mesh filename scale>` (STL, OBJ or COLLADA; [`crate::mesh`]) becomes the convex hull of its
-//!   vertices, scaled; `package://` names resolve through [`UrdfOptions::package_dirs`], then
-//!   `ROS_PACKAGE_PATH`, then the URDF file's folder's ancestors, and relative names against that folder
-//!   ([`crate::mesh::resolve_mesh`]). A mesh that cannot be found or read leaves its link colliding as the
+//!   vertices, scaled; `package://` names (and `package:///`, `model://`) resolve through
+//!   [`UrdfOptions::package_dirs`], then `ROS_PACKAGE_PATH`, then the URDF file's folder's ancestors, confined to
+//!   their package, and relative names against that folder ([`crate::mesh::resolve_mesh`]). A mesh that cannot be found or read leaves its link colliding as the
 //!   box of its inertia, with a warning (`strict` does not refuse it).
 //!
 //! - `<dynamics damping>` of a moving joint becomes its damping ([`Model::damping`], as Pinocchio's and
@@ -62,7 +62,7 @@ use roxmltree::Node;
 
 use crate::mesh::{mesh_vertices, resolve_mesh};
 use crate::sim::{Convex, Shape, ShapeKind};
-use crate::validate::direction;
+use crate::validate::{check_cancelled, direction, CANCEL_INTERVAL};
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
 /// How a URDF becomes a model.
@@ -141,7 +141,8 @@ fn parse(xml: &str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf
     // Links, by name.
     let mut links: Vec<Link> = Vec::new();
     let mut link_index: HashMap<&str, usize> = HashMap::new();
-    for node in elements(robot, "link") {
+    for (k, node) in elements(robot, "link").enumerate() {
+        cancel_point(k)?;
         let name = required_name(node, "link")?;
         if link_index.insert(name, links.len()).is_some() {
             return Err(invalid(format!("link {name:?} is defined twice ({})", line(node))));
@@ -158,7 +159,8 @@ fn parse(xml: &str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf
     let mut joints: Vec<UrdfJoint> = Vec::new();
     let mut joint_names: HashMap<&str, ()> = HashMap::new();
     let mut parent_joint: Vec<Option<usize>> = vec![None; links.len()];
-    for node in elements(robot, "joint") {
+    for (k, node) in elements(robot, "joint").enumerate() {
+        cancel_point(k)?;
         let name = required_name(node, "joint")?;
         if joint_names.insert(name, ()).is_some() {
             return Err(invalid(format!("joint {name:?} is defined twice ({})", line(node))));
@@ -202,6 +204,7 @@ fn parse(xml: &str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf
     body_of_link[root] = Some(0);
     let mut queue = VecDeque::from([root]);
     while let Some(link) = queue.pop_front() {
+        cancel_point(model.nbodies())?;
         let parent_body = body_of_link[link].expect("queued links have bodies");
         for &j in &children[link] {
             let joint = &joints[j];
@@ -231,6 +234,15 @@ fn parse(xml: &str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf
     }
     warnings.extend(notes);
     Ok(Urdf { model, warnings })
+}
+
+/// Every `CANCEL_INTERVAL` items of a loop over the document (`k` counts them), fails if the load was
+/// cancelled (`validate::cancellable`).
+fn cancel_point(k: usize) -> Result<()> {
+    if k.is_multiple_of(CANCEL_INTERVAL) {
+        check_cancelled("from_urdf")?;
+    }
+    Ok(())
 }
 
 /// URDF's `rpy`: roll about the fixed x axis, then pitch about the fixed y axis, then yaw about the fixed
@@ -386,6 +398,8 @@ fn collisions(
             "mesh" => {
                 let filename = geometry.attribute("filename").unwrap_or("");
                 let scale = vector3(geometry, "scale", Vector3::repeat(1.0), &owner)?;
+                // Reading a mesh and taking its hull may take long: a cancelled load stops before the next.
+                check_cancelled("from_urdf")?;
                 let hull = resolve_mesh(filename, folder, package_dirs)
                     .and_then(|path| mesh_vertices(&path))
                     .and_then(|vertices| Convex::hull(&vertices.iter().map(|v| v.component_mul(&scale)).collect::<Vec<_>>()));
@@ -740,6 +754,24 @@ mod tests {
         assert_eq!((floating.nq(), floating.nv()), (7 + 3, 6 + 3));
         assert_eq!(floating.nbodies(), 5);
         assert_eq!(floating.name(0), "root");
+    }
+
+    #[test]
+    fn a_cancelled_load_stops_and_an_uncancelled_one_is_unchanged() {
+        use std::sync::atomic::{AtomicBool, Ordering};
+        use std::sync::Arc;
+        let links: String = (1..3000)
+            .map(|i| format!(r#"<link name="l{i}"/><joint name="j{i}" type="fixed"><parent link="l{}"/><child link="l{i}"/></joint>"#, i - 1))
+            .collect();
+        let xml = format!(r#"<robot name="r"><link name="l0"/>{links}</robot>"#);
+        let flag = Arc::new(AtomicBool::new(false));
+        let loaded = crate::validate::cancellable(Arc::clone(&flag), || parse_urdf(&xml, FIXED)).unwrap();
+        assert_eq!(loaded.model.nbodies(), 3000);
+        flag.store(true, Ordering::Relaxed);
+        let error = crate::validate::cancellable(Arc::clone(&flag), || parse_urdf(&xml, FIXED)).unwrap_err();
+        assert!(error.to_string().contains("cancelled"), "{error}");
+        // Outside `cancellable` the flag is not this thread's.
+        assert_eq!(parse_urdf(&xml, FIXED).unwrap().model.nbodies(), 3000);
     }
 
     #[test]

@@ -90,3 +90,32 @@ pub fn read_regular_file(argument: &'static str, path: &Path) -> Result<Vec<u8>>
     }
     std::fs::read(path).map_err(|e| fail(format!("cannot read it: {e}")))
 }
+
+thread_local! {
+    /// The flag that cancels the work of this thread (`cancellable`), if any.
+    static CANCEL: std::cell::RefCell<Option<std::sync::Arc<std::sync::atomic::AtomicBool>>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Runs `work` on this thread so that `check_cancelled` fails once `flag` is set: a caller that stopped
+/// waiting (Ctrl-C) ends work it no longer wants (loading a file) instead of letting it run to its end.
+pub fn cancellable<T>(flag: std::sync::Arc<std::sync::atomic::AtomicBool>, work: impl FnOnce() -> T) -> T {
+    let previous = CANCEL.with(|cancel| cancel.replace(Some(flag)));
+    let result = work();
+    CANCEL.with(|cancel| cancel.replace(previous));
+    result
+}
+
+/// `Error::Numerical` (its context `what`) when this thread's work has been cancelled (see `cancellable`);
+/// a relaxed atomic load, cheap enough to call every few thousand elements of a loop.
+pub fn check_cancelled(what: &'static str) -> Result<()> {
+    let cancelled = CANCEL.with(|cancel| cancel.borrow().as_ref().is_some_and(|flag| flag.load(std::sync::atomic::Ordering::Relaxed)));
+    if cancelled {
+        Err(Error::numerical(what, "cancelled (the caller was interrupted)"))
+    } else {
+        Ok(())
+    }
+}
+
+/// Loop iterations between two `check_cancelled` calls in loaders: each iteration is a few microseconds at
+/// most, so a cancelled load stops within milliseconds.
+pub const CANCEL_INTERVAL: usize = 1024;

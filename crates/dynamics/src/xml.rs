@@ -12,6 +12,7 @@ pub fn parse(text: &str) -> Result<Document<'_>, String> {
     if let Some(line) = crowded_element(text) {
         return Err(format!("not valid XML: an element at line {line} has more than {MAX_ATTRIBUTES} attributes"));
     }
+    crate::validate::check_cancelled("xml").map_err(|e| e.to_string())?;
     Document::parse(text).map_err(|e| format!("not valid XML: {e}"))
 }
 
@@ -21,7 +22,13 @@ pub fn parse(text: &str) -> Result<Document<'_>, String> {
 fn crowded_element(text: &str) -> Option<usize> {
     let bytes = text.as_bytes();
     let mut at = 0;
+    let mut tags = 0usize;
     while let Some(offset) = bytes[at..].iter().position(|&b| b == b'<') {
+        tags += 1;
+        if tags.is_multiple_of(crate::validate::CANCEL_INTERVAL) && crate::validate::check_cancelled("xml").is_err() {
+            // A cancelled load: the parse that follows is not wanted either (see `parse`).
+            return None;
+        }
         let start = at + offset;
         let rest = &text[start..];
         let skip_to = |end: &str| rest.find(end).map_or(bytes.len(), |i| start + i + end.len());

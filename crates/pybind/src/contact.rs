@@ -38,7 +38,7 @@ where
         out[nv..].copy_from_slice(per_contact.as_slice());
         finite_result(out)
     })?;
-    let mut parts = unpack(py, batch, &packed, &[&[nv], &[k, 3]]).into_iter();
+    let mut parts = unpack(py, batch, &packed, &[&[nv], &[k, 3]])?.into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap()))
 }
 
@@ -193,7 +193,7 @@ pub fn contact_dynamics_derivatives<'py>(
         finite_result(out)
     })?;
     let (square, per_contact): (&[usize], &[usize]) = (&[nv, nv], &[k, 3, nv]);
-    PyTuple::new(py, unpack(py, &batch, &packed, &[square, square, square, per_contact, per_contact, per_contact]))
+    PyTuple::new(py, unpack(py, &batch, &packed, &[square, square, square, per_contact, per_contact, per_contact])?)
 }
 
 /// The derivatives of `impact` with respect to q (its tangent space) and the velocity before it: (v_plus_dq,
@@ -218,5 +218,5 @@ pub fn impact_derivatives<'py>(
         finite_result(out)
     })?;
     let (square, per_contact): (&[usize], &[usize]) = (&[nv, nv], &[k, 3, nv]);
-    PyTuple::new(py, unpack(py, &batch, &packed, &[square, square, per_contact, per_contact]))
+    PyTuple::new(py, unpack(py, &batch, &packed, &[square, square, per_contact, per_contact])?)
 }

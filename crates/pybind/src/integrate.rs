@@ -130,7 +130,7 @@ pub fn free_rollout<'py>(
         done = to;
         Ok(())
     })?;
-    let mut parts = unpack(py, &batch, &packed, &[&[rows, nq], &[rows, nv]]).into_iter();
+    let mut parts = unpack(py, &batch, &packed, &[&[rows, nq], &[rows, nv]])?.into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap()))
 }
 

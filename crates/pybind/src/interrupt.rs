@@ -2,10 +2,12 @@
 //! between pieces: Ctrl-C raises KeyboardInterrupt within about `PIECE` of work, and what was done before
 //! it (whole steps) is kept. Work that cannot be cut in pieces runs on a thread of its own (`on_worker`).
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use legkit_dynamics::validate::cancellable;
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 
@@ -59,19 +61,22 @@ where
 
 /// `work()` on a thread of its own, the caller waiting for it with the GIL released and running Python's
 /// signal handlers every `PIECE`: for work that has no steps to stop between (loading a file). On Ctrl-C the
-/// caller raises KeyboardInterrupt at once; the work then finishes on its thread and its result is dropped,
-/// so it must change nothing the caller can see. A panic in it is a RuntimeError naming `what`.
+/// caller raises KeyboardInterrupt at once and cancels the work (`validate::cancellable`: the loaders check
+/// the flag every few thousand elements and stop), whose result is dropped, so it must change nothing the
+/// caller can see. A panic in it is a RuntimeError naming `what`.
 pub fn on_worker<T, F>(py: Python<'_>, what: &str, work: F) -> PyResult<T>
 where
     T: Send + 'static,
     F: FnOnce() -> T + Send + 'static,
 {
     let (sender, mut receiver) = mpsc::channel();
+    let cancel = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&cancel);
     std::thread::Builder::new()
         .name(what.to_owned())
         .spawn(move || {
             // The caller may have gone (interrupted): then nobody wants the result.
-            let _ = sender.send(work());
+            let _ = sender.send(cancellable(flag, work));
         })
         .map_err(|e| PyRuntimeError::new_err(format!("{what}: cannot start a thread: {e}")))?;
     loop {
@@ -83,7 +88,7 @@ where
         receiver = back;
         match received {
             Ok(result) => return Ok(result),
-            Err(RecvTimeoutError::Timeout) => py.check_signals()?,
+            Err(RecvTimeoutError::Timeout) => py.check_signals().inspect_err(|_| cancel.store(true, Ordering::Relaxed))?,
             Err(RecvTimeoutError::Disconnected) => return Err(PyRuntimeError::new_err(format!("{what}: failed inside a dependency (a panic)"))),
         }
     }

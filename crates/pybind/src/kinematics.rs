@@ -104,7 +104,7 @@ pub fn subtree_mass_properties<'py>(
         }
         Ok(())
     })?;
-    let mut parts = unpack(py, &batch, &packed, &[&[nb], &[nb, 3], &[nb, 3, 3]]).into_iter();
+    let mut parts = unpack(py, &batch, &packed, &[&[nb], &[nb, 3], &[nb, 3, 3]])?.into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap(), parts.next().unwrap()))
 }
 
@@ -240,7 +240,7 @@ pub fn frame_velocity_derivatives<'py>(
         }
         Ok(())
     })?;
-    let mut parts = unpack(py, &batch, &packed, &[&[6, nv], &[6, nv]]).into_iter();
+    let mut parts = unpack(py, &batch, &packed, &[&[6, nv], &[6, nv]])?.into_iter();
     Ok((parts.next().expect("two"), parts.next().expect("two")))
 }
 
@@ -273,7 +273,7 @@ pub fn frame_acceleration_derivatives<'py>(
         }
         Ok(())
     })?;
-    let mut parts = unpack(py, &batch, &packed, &[&[6, nv], &[6, nv], &[6, nv], &[6, nv]]).into_iter();
+    let mut parts = unpack(py, &batch, &packed, &[&[6, nv], &[6, nv], &[6, nv], &[6, nv]])?.into_iter();
     let mut next = || parts.next().expect("four");
     Ok((next(), next(), next(), next()))
 }

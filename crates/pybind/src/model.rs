@@ -435,10 +435,15 @@ impl PyModel {
 /// `resolve_mesh(filename, urdf=None, package_dirs=None)`: the file a URDF's mesh `filename` names, as
 /// `Model.from_urdf` finds it: `package://name/rest` in `package_dirs` (each a folder holding packages, or
 /// the package itself), then `ROS_PACKAGE_PATH`, then the folders above the file `urdf`; relative names
-/// against `urdf`'s folder. FileNotFoundError naming where it looked.
+/// against `urdf`'s folder, then `package_dirs` (see `legkit_dynamics::mesh::resolve_mesh` for every form
+/// read). FileNotFoundError naming where it looked; ValueError for a name, or a symbolic link, that leads
+/// outside its package.
 #[pyfunction]
 #[pyo3(signature = (filename, urdf = None, package_dirs = None))]
 pub fn resolve_mesh(filename: &str, urdf: Option<std::path::PathBuf>, package_dirs: Option<Vec<std::path::PathBuf>>) -> PyResult<std::path::PathBuf> {
     let folder = urdf.as_deref().and_then(std::path::Path::parent);
-    mesh::resolve_mesh(filename, folder, &package_dirs.unwrap_or_default()).map_err(|e| PyFileNotFoundError::new_err(e.to_string()))
+    mesh::resolve_mesh(filename, folder, &package_dirs.unwrap_or_default()).map_err(|e| match e.argument() {
+        "filename" => PyValueError::new_err(e.to_string()),
+        _ => PyFileNotFoundError::new_err(e.to_string()),
+    })
 }

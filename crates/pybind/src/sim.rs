@@ -5,7 +5,7 @@ use legkit_dynamics::sim::{
     dof_coordinates, Backend, Convex, FrictionLaw, Ground, Options, Servo, Shape, ShapeKind, Simulation, DEFAULT_SOLVER_ITERATIONS,
     MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS,
 };
-use legkit_dynamics::validate::with_capacity;
+use legkit_dynamics::validate::{array_len, with_capacity};
 use legkit_dynamics::Transform;
 use nalgebra::{DMatrix, Vector3};
 use numpy::{PyArray1, PyArray2, PyArray3};
@@ -312,7 +312,9 @@ impl PySimulation {
         if let Some(n) = n.filter(|&n| n != rows) {
             return Err(PyValueError::new_err(format!("n: {n} steps asked with {rows} rows of targets (leave n out to take one step per row)")));
         }
-        let targets: Vec<f64> = view.iter().copied().collect();
+        // A broadcast view may stand for more numbers than memory holds: copied with fallible allocation.
+        let mut targets = with_capacity("targets", view.len()).map_err(kernel_error)?;
+        targets.extend(view.iter().copied());
         if let Some(k) = targets.iter().position(|x| !x.is_finite()) {
             return Err(PyValueError::new_err(format!("targets: row {}, element {} is not finite ({})", k / nv, k % nv, targets[k])));
         }
@@ -595,7 +597,9 @@ impl PySimulationBatch {
             )
         });
         let count = outcomes.len();
-        let (mut a_all, mut b_all) = (Vec::with_capacity(count * 4 * nv * nv), Vec::with_capacity(count * 6 * nv * nv));
+        let len = |columns: usize| array_len("simulations", &[count, 2 * nv, columns * nv], std::mem::size_of::<f64>()).map_err(kernel_error);
+        let mut a_all = with_capacity("simulations", len(2)?).map_err(kernel_error)?;
+        let mut b_all = with_capacity("simulations", len(3)?).map_err(kernel_error)?;
         for (i, outcome) in outcomes.into_iter().enumerate() {
             let (a, b) = outcome.map_err(|e| batch_error(e, i))?;
             a_all.extend_from_slice(a.transpose().as_slice());

@@ -3,7 +3,7 @@
 use legkit_dynamics::model::check_vector;
 use legkit_dynamics::model::Dense;
 use legkit_dynamics::spatial::{spd_inverse6, Force};
-use legkit_dynamics::validate::{array_len, filled};
+use legkit_dynamics::validate::{array_len, filled, with_capacity};
 use legkit_dynamics::{Data, Error, Model};
 use nalgebra::DMatrix;
 use numpy::PyArrayMethods;
@@ -122,8 +122,9 @@ where
     })
 }
 
-/// Splits rows packed as `[part 0 | part 1 | ...]` into one array per part, shaped `batch + core`.
-pub fn unpack<'py>(py: Python<'py>, batch: &Batch, packed: &[f64], cores: &[&[usize]]) -> Vec<FloatArray<'py>> {
+/// Splits rows packed as `[part 0 | part 1 | ...]` into one array per part, shaped `batch + core`; a copy of
+/// `packed` allocated fallibly (MemoryError naming the batch where it cannot be held twice).
+pub fn unpack<'py>(py: Python<'py>, batch: &Batch, packed: &[f64], cores: &[&[usize]]) -> PyResult<Vec<FloatArray<'py>>> {
     let widths: Vec<usize> = cores.iter().map(|c| c.iter().product()).collect();
     let width: usize = widths.iter().sum();
     let mut start = 0;
@@ -131,12 +132,12 @@ pub fn unpack<'py>(py: Python<'py>, batch: &Batch, packed: &[f64], cores: &[&[us
         .iter()
         .zip(&widths)
         .map(|(core, &w)| {
-            let mut part = Vec::with_capacity(batch.len * w);
+            let mut part = with_capacity("batch", batch.len.saturating_mul(w)).map_err(kernel_error)?;
             for row in packed.chunks_exact(width.max(1)) {
                 part.extend_from_slice(&row[start..start + w]);
             }
             start += w;
-            to_numpy(py, batch.output_shape(core), part)
+            Ok(to_numpy(py, batch.output_shape(core), part))
         })
         .collect()
 }

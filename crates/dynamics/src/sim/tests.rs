@@ -511,6 +511,49 @@ fn immovable_contacts_carry_nothing() {
     assert_eq!((sim.q(), sim.v()), (free.q(), free.v()));
 }
 
+/// A step that fails leaves the simulation as a twin that never took it, bit for bit, however many steps came
+/// before it (the Rapier backend undoes from a checkpoint taken every few steps, replaying those since), also
+/// after a change of state from outside, and after a failure just undone.
+fn a_failed_step_leaves_a_never_failed_twin(backend: Backend) {
+    let tau = |k: usize, nv: usize| -> Vec<f64> { (0..nv).map(|j| if j < 6 { 0.0 } else { 0.3 * ((k + j) as f64).sin() }).collect() };
+    let state = |sim: &Simulation| (sim.q().to_vec(), sim.v().to_vec(), sim.time(), sim.applied_tau().to_vec(), sim.contacts());
+    for before in [0, 1, 2, 31, 32, 33, 63, 64, 65, 100] {
+        let (mut sim, mut twin) = (quadruped_on_plane(1, backend), quadruped_on_plane(1, backend));
+        let nv = sim.model().nv();
+        // The fixture's servos clip every coordinate to 20; free the base's wrench, through which a huge push
+        // makes the step diverge.
+        let (mut kp, mut kd, mut limit) = (vec![40.0; nv], vec![1.0; nv], vec![20.0; nv]);
+        kp[..6].fill(0.0);
+        kd[..6].fill(0.0);
+        limit[..6].fill(f64::INFINITY);
+        for s in [&mut sim, &mut twin] {
+            let servo = Servo::new(s.model(), kp.clone(), kd.clone(), limit.clone(), vec![0.0; nv], vec![0.0; nv]).unwrap();
+            s.set_servo(servo).unwrap();
+        }
+        for k in 0..before {
+            if k == 50 {
+                // A push from outside between steps.
+                let mut v = sim.v().to_vec();
+                v[0] += 0.1;
+                sim.set_state(None, Some(&v)).unwrap();
+                twin.set_state(None, Some(&v)).unwrap();
+            }
+            sim.step(Some(&tau(k, nv)), 1).unwrap();
+            twin.step(Some(&tau(k, nv)), 1).unwrap();
+        }
+        for _ in 0..2 {
+            let error = sim.step(Some(&vec![1e11; nv]), 1).unwrap_err();
+            assert!(error.to_string().contains("diverged"), "{error}");
+            assert_eq!(state(&sim), state(&twin), "after {before} steps");
+        }
+        for k in before..before + 40 {
+            sim.step(Some(&tau(k, nv)), 1).unwrap();
+            twin.step(Some(&tau(k, nv)), 1).unwrap();
+        }
+        assert_eq!(state(&sim), state(&twin), "40 steps after a failure after {before} steps");
+    }
+}
+
 fn opts(backend: Backend, dt: f64) -> Options {
     Options { backend, ..Options::new(dt) }
 }
@@ -549,4 +592,5 @@ on_both_backends!(
     model_collision_shapes_replace_default_boxes,
     convex_mesh_rests_like_its_box,
     fixed_bodies_move_with_their_carrier,
+    a_failed_step_leaves_a_never_failed_twin,
 );

@@ -18,6 +18,7 @@ use rapier3d_f64::prelude::{
 use crate::joint::{Dofs, Joint};
 use crate::model::Model;
 use crate::spatial::{angular, linear, Transform};
+use crate::validate::{array_len, with_capacity};
 use crate::{Error, MassProperties, Result};
 
 use crate::sim::options::{to_pose, to_vector, Options, DEFAULT_FRICTION};
@@ -79,6 +80,11 @@ pub(crate) struct Layout {
 /// Builds the world: gravity, integration parameters, ground, bodies, joints, colliders.
 pub(crate) fn build(model: &Model, options: &Options) -> Result<(PhysicsWorld, Layout)> {
     let n = model.nbodies();
+    // Rapier's multibody holds dense blocks: its mass matrix and their factors (4 nv x nv) and a 6 x nv Jacobian
+    // per body, twice with the undo checkpoint. Asked for as one block first, so that a model too large for
+    // them is `Error::TooLarge` naming it rather than an abort inside Rapier.
+    let rows = (4 * model.nv()).saturating_add(6 * n);
+    drop(with_capacity::<f64>("model", array_len("model", &[2, rows, model.nv()], std::mem::size_of::<f64>())?)?);
     // Carriers and offsets: fixed joints merge into the parent's carrier.
     let mut carrier = vec![0usize; n];
     let mut offset = vec![Transform::identity(); n];

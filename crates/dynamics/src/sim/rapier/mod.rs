@@ -15,7 +15,10 @@
 //! trajectories.
 //!
 //! Every method checks its input before touching the state: on error the simulation is unchanged. A step
-//! that fails is undone from a copy of the world taken before it.
+//! that fails is undone bit for bit by going back to a checkpoint (a copy of the world's state) and replaying
+//! the steps taken since, each from the generalized forces it applied: stepping is deterministic, so the
+//! replay reproduces them exactly. A checkpoint is taken every `CHECKPOINT_STEPS` steps (and after every
+//! change of state from outside), so a step pays a small fraction of a world copy instead of a whole one.
 
 mod builder;
 mod state;
@@ -46,14 +49,37 @@ enum Push {
     Base { force: Vector3<f64>, point: Vector3<f64>, torque: Vector3<f64> },
 }
 
+/// Steps replayed at most to undo a failed one; a world copy per this many steps.
+const CHECKPOINT_STEPS: usize = 32;
+
+/// How one body's generalized forces reach the Rapier bodies.
+#[derive(Debug, Clone, Copy)]
+enum Drive {
+    /// The floating base: applied[0..6] is a wrench on it.
+    Base,
+    /// A one-degree-of-freedom joint (velocity index `k`) between Rapier bodies `child` and `parent`.
+    Axis { k: usize, axis: RapierAxis, child: usize, parent: usize },
+}
+
 pub(crate) struct RapierSimulation {
     options: Options,
     world: PhysicsWorld,
-    /// The world before the step being taken (`Engine::save`), without the pipelines' workspaces.
-    saved: Option<Saved>,
+    /// The world at the last checkpoint and the steps taken since; None when the world changed otherwise.
+    checkpoint: Option<Checkpoint>,
+    /// The generalized forces of each step since the checkpoint (nv per step), the last one the step in
+    /// progress; preallocated for `CHECKPOINT_STEPS` steps.
+    replay: Vec<f64>,
     layout: Layout,
+    drives: Vec<Drive>,
+    nv: usize,
     q_dof: Vec<f64>,
     pushes: Vec<Push>,
+}
+
+struct Checkpoint {
+    world: Saved,
+    /// Steps taken (or begun) since the checkpoint.
+    steps: usize,
 }
 
 /// Every part of a `PhysicsWorld` that carries state from one step to the next.
@@ -101,44 +127,83 @@ impl RapierSimulation {
         Ok(RapierSimulation {
             options: options.clone(),
             world,
-            saved: None,
+            checkpoint: None,
+            replay: Vec::with_capacity(CHECKPOINT_STEPS * model.nv()),
+            drives: drives(model, &layout),
             layout,
+            nv: model.nv(),
             q_dof: vec![0.0; model.nv()],
             pushes: Vec::with_capacity(model.nbodies()),
         })
     }
 }
 
+/// Each body's `Drive`, parent before child (the order forces are summed in).
+fn drives(model: &Model, layout: &Layout) -> Vec<Drive> {
+    (0..model.nbodies())
+        .filter_map(|i| match model.joint(i).dofs() {
+            Dofs::Free => Some(Drive::Base),
+            Dofs::One(_) => Some(Drive::Axis {
+                k: model.idx_v(i),
+                axis: RapierAxis::of(model.joint(i)).expect("the builder takes no other joint"),
+                child: layout.carrier[i],
+                parent: layout.carrier[model.parent(i)],
+            }),
+            Dofs::Zero => None,
+        })
+        .collect()
+}
+
 impl Engine for RapierSimulation {
     fn write_state(&mut self, model: &Model, q: &[f64], v: &[f64]) {
+        // The steps since the checkpoint no longer lead to this world.
+        self.checkpoint = None;
         state::write(&mut self.world, &self.layout, model, q, v);
     }
 
     fn restart(&mut self, model: &Model, q: &[f64], v: &[f64]) -> Result<()> {
         let (world, layout) = builder::build(model, &self.options)?;
+        self.checkpoint = None;
         self.world = world;
+        self.drives = drives(model, &layout);
         self.layout = layout;
         state::write(&mut self.world, &self.layout, model, q, v);
         Ok(())
     }
 
     fn step(&mut self, model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64]) -> Result<()> {
+        // Counted before anything can fail, so that `undo` replays exactly the steps before this one.
+        let logged = self.checkpoint.as_mut().map(|c| c.steps += 1).is_some();
         dof_coordinates(model, q, &mut self.q_dof);
         actuation.explicit(&self.q_dof, v, applied);
-        self.apply_forces(model, applied);
+        if logged {
+            self.replay.extend_from_slice(applied);
+        }
+        self.apply_forces(applied);
         self.world.step();
         state::read(&self.world, &self.layout, model, q, v);
         Ok(())
     }
 
     fn save(&mut self) {
-        self.saved = Some(Saved::of(&self.world));
+        if self.checkpoint.as_ref().is_none_or(|c| c.steps >= CHECKPOINT_STEPS) {
+            self.replay.clear();
+            self.checkpoint = Some(Checkpoint { world: Saved::of(&self.world), steps: 0 });
+        }
     }
 
     fn undo(&mut self) {
-        if let Some(saved) = self.saved.take() {
-            saved.restore(&mut self.world);
+        let Some(checkpoint) = self.checkpoint.take() else { return };
+        checkpoint.world.restore(&mut self.world);
+        // Every step since the checkpoint but the failed last one, as it was taken: the same forces on the
+        // same world give the same step, bit for bit.
+        let replay = std::mem::take(&mut self.replay);
+        for step in 0..checkpoint.steps.saturating_sub(1) {
+            self.apply_forces(&replay[step * self.nv..(step + 1) * self.nv]);
+            self.world.step();
         }
+        self.replay = replay;
+        self.replay.clear();
     }
 
     fn body_poses(&self, _model: &Model, _q: &[f64]) -> Vec<Transform> {
@@ -172,14 +237,13 @@ impl Engine for RapierSimulation {
 
 impl RapierSimulation {
     /// Turns `applied` into forces on the Rapier bodies (replacing those of the previous step).
-    fn apply_forces(&mut self, model: &Model, applied: &[f64]) {
+    fn apply_forces(&mut self, applied: &[f64]) {
         let layout = &self.layout;
         let carrier_pose = |r: usize| from_pose(&state::carrier_pose(&self.world, layout, r));
         self.pushes.clear();
-        for i in 0..model.nbodies() {
-            let k = model.idx_v(i);
-            let axis = match model.joint(i).dofs() {
-                Dofs::Free => {
+        for drive in &self.drives {
+            let (k, axis, child, parent) = match *drive {
+                Drive::Base => {
                     let base = carrier_pose(0).compose(&layout.offset[0]);
                     let (f, n) = (Vector3::new(applied[0], applied[1], applied[2]), Vector3::new(applied[3], applied[4], applied[5]));
                     if f != Vector3::zeros() || n != Vector3::zeros() {
@@ -187,10 +251,9 @@ impl RapierSimulation {
                     }
                     continue;
                 }
-                Dofs::One(_) if applied[k] != 0.0 => RapierAxis::of(model.joint(i)).expect("the builder takes no other joint"),
-                Dofs::One(_) | Dofs::Zero => continue,
+                Drive::Axis { k, axis, child, parent } if applied[k] != 0.0 => (k, axis, child, parent),
+                Drive::Axis { .. } => continue,
             };
-            let (child, parent) = (layout.carrier[i], layout.carrier[model.parent(i)]);
             let pose = carrier_pose(child);
             self.pushes.push(match axis {
                 RapierAxis::Angular(a) => Push::Couple { child, parent, torque: pose.rotation * a * applied[k] },
