@@ -521,24 +521,29 @@ def test_an_interrupted_step_keeps_whole_steps():
 # --- loading -------------------------------------------------------------------------------------------------
 
 
-def test_a_100000_link_chain_loads_in_under_2_seconds(tmp_path):
-    path = tmp_path / "chain.urdf"
-    path.write_text(chain_urdf(100_000))
-    started = time.perf_counter()
-    model = lk.Model.from_urdf(str(path))
-    elapsed = time.perf_counter() - started
-    assert model.nbodies == 100_000
-    assert elapsed < 2.0, elapsed
+def test_loading_a_chain_takes_time_linear_in_its_links(tmp_path):
+    # Ten times the links, about ten times the CPU time (the loader's worker thread counts in process_time); a name
+    # scan or an ancestor walk per link made it a hundred times (a 10^5-link chain took 64 s). The absolute figure
+    # (10^5 links: 0.7 s) is a benchmark's (benches/), not a test's.
+    seconds = {}
+    for links in (10_000, 100_000):
+        path = tmp_path / f"chain{links}.urdf"
+        path.write_text(chain_urdf(links))
+        started = time.process_time()
+        model = lk.Model.from_urdf(str(path))
+        seconds[links] = time.process_time() - started
+        assert model.nbodies == links
+    assert seconds[100_000] < 30.0 * seconds[10_000], seconds
 
 
 def test_an_element_with_150000_attributes_is_refused_at_once():
     # The XML parser's time grows with the square of one element's attributes (> 15 s here): refused first.
     attributes = " ".join(f'a{i}="0"' for i in range(150_000))
     urdf = f'<robot name="r"><link name="base" {attributes}/></robot>'
-    started = time.perf_counter()
+    started = time.process_time()
     with pytest.raises(ValueError, match="more than 1024 attributes"):
         lk.Model.from_urdf(urdf)
-    assert time.perf_counter() - started < 1.0
+    assert time.process_time() - started < 1.0  # CPU time: parsing first took more than 15 s
 
 
 def test_a_urdf_string_with_a_byte_order_mark_is_xml():
