@@ -9,6 +9,8 @@ import sys
 import numpy as np
 
 import legkit as lk
+from legkit._extras import MissingExtra, require
+from legkit._help import HelpFormatter
 
 
 def demo(_: argparse.Namespace) -> int:
@@ -40,6 +42,9 @@ EXPERIMENTS = {
     "tune": ("legkit.sweeps.tune", "tune the balance gain constants per scheme on random trees"),
 }
 
+#: The optional modules a subcommand needs from the start, and their extra (the sweeps check their own).
+NEEDS = {name: (("matplotlib", "tqdm"), "plot") for name in ("balance", "strain", "gait")}
+
 
 def main(argv: list[str] | None = None) -> int:
     """Runs a command. What a user can cause without a bug (Ctrl-C, a file that cannot be written, a size that
@@ -51,6 +56,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
+    except MissingExtra as error:  # an optional dependency: the message says how to install it
+        print(f"{prog}: {error}", file=sys.stderr)
+        return 2
     except (OSError, MemoryError) as error:
         print(f"{prog}: {type(error).__name__}: {error}", file=sys.stderr)
         return 1
@@ -59,12 +67,15 @@ def main(argv: list[str] | None = None) -> int:
 def run(argv: list[str]) -> int:
     if argv and argv[0] in EXPERIMENTS:
         module, _ = EXPERIMENTS[argv[0]]
+        if argv[0] in NEEDS and not {"-h", "--help"} & set(argv[1:]):
+            modules, extra = NEEDS[argv[0]]
+            require(*modules, extra=extra)
         return importlib.import_module(module).main(argv[1:])
-    parser = argparse.ArgumentParser(prog="legkit", description="Physics for legged and modular robots.")
+    parser = argparse.ArgumentParser(prog="legkit", description="Physics for legged and modular robots.", formatter_class=HelpFormatter)
     commands = parser.add_subparsers(dest="command", required=True, metavar="command")
-    commands.add_parser("demo", help="print a composite mass and a circle-line query").set_defaults(run=demo)
+    commands.add_parser("demo", help="print a composite mass and a circle-line query", formatter_class=HelpFormatter).set_defaults(run=demo)
     for name, (_, summary) in EXPERIMENTS.items():
-        commands.add_parser(name, help=f"{summary}; `legkit {name} --help` for its options", add_help=False)
+        commands.add_parser(name, help=f"{summary}; legkit {name} --help for its options", add_help=False)
     args = parser.parse_args(argv)
     return args.run(args)
 
