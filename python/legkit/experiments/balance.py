@@ -8,7 +8,7 @@ the support line, here the vertical line through the root's footprint, with its 
 the joints compute their torques, which drive the plant for one step of ``dt``.
 
 The trees are ``random_tree(20, 4, seed)``: a root plus 20 modules in 4 branches of 5, 63 joints. The paper
-(file 000, Sect. V) says "20 modules divided into 4 branches of 5 modules" and "60 degrees of freedom",
+[Moll 2006, Sect. V] says "20 modules divided into 4 branches of 5 modules" and "60 degrees of freedom",
 which cannot both hold with a root; legkit reads the branches literally and adds the root.
 
 Each run has its own plant; the agents of all runs share one vectorised network (the runs are separate
