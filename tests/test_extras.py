@@ -121,3 +121,15 @@ def test_the_extras_declared_match_the_modules_legkit_names() -> None:
     assert names(extras["all"]) == optional
     assert optional <= names(extras["test"])  # the tests exercise every extra
     assert legkit.__name__ == "legkit"
+
+
+def test_the_cli_checks_the_extras_an_experiment_run_needs() -> None:
+    from legkit.cli import needs
+
+    plot, viewer, optimize = (("matplotlib", "tqdm"), "plot"), (("meshcat", "PIL"), "viewer"), (("casadi",), "optimize")
+    assert needs("balance", []) == [plot, viewer]
+    assert needs("balance", ["--no-animation"]) == [plot]
+    assert needs("gait", []) == [plot]
+    assert needs("gait", ["--optimize"]) == [plot, optimize, viewer]
+    assert needs("gait", ["--optimize", "--no-animation"]) == [plot, optimize]
+    assert needs("strain", ["--help"]) == [] and needs("demo", []) == []

@@ -42,8 +42,19 @@ EXPERIMENTS = {
     "tune": ("legkit.sweeps.tune", "tune the balance gain constants per scheme on random trees"),
 }
 
-#: The optional modules a subcommand needs from the start, and their extra (the sweeps check their own).
-NEEDS = {name: (("matplotlib", "tqdm"), "plot") for name in ("balance", "strain", "gait")}
+
+def needs(command: str, options: list[str]) -> list[tuple[tuple[str, ...], str]]:
+    """The optional modules an experiment's run needs, with their extra, checked before it starts (the sweeps
+    check their own): figures and progress bars (plot), animations (viewer), gait optimisation (optimize)."""
+    if command not in ("balance", "strain", "gait") or {"-h", "--help"} & set(options):
+        return []
+    wanted: list[tuple[tuple[str, ...], str]] = [(("matplotlib", "tqdm"), "plot")]
+    optimize = command == "gait" and "--optimize" in options
+    if optimize:
+        wanted.append((("casadi",), "optimize"))
+    if (command == "balance" or optimize) and "--no-animation" not in options:
+        wanted.append((("meshcat", "PIL"), "viewer"))
+    return wanted
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -67,8 +78,7 @@ def main(argv: list[str] | None = None) -> int:
 def run(argv: list[str]) -> int:
     if argv and argv[0] in EXPERIMENTS:
         module, _ = EXPERIMENTS[argv[0]]
-        if argv[0] in NEEDS and not {"-h", "--help"} & set(argv[1:]):
-            modules, extra = NEEDS[argv[0]]
+        for modules, extra in needs(argv[0], argv[1:]):
             require(*modules, extra=extra)
         return importlib.import_module(module).main(argv[1:])
     parser = argparse.ArgumentParser(prog="legkit", description="Physics for legged and modular robots.", formatter_class=HelpFormatter)
