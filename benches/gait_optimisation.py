@@ -1,4 +1,4 @@
-"""Gait optimisation benchmark: the Fig. 3 amble of file 003 (0.67 m/s, period 1.25 s, duty 0.5,
+"""Gait optimisation benchmark: the Fig. 3 amble of [Hardt 2002] (0.67 m/s, period 1.25 s, duty 0.5,
 full 3D model, 19 configuration states) maximising the worst-case S_H (J_s2) on IPOPT, or (--gait walk) the
 biped walk of Sect. 6 at 1.8 km/h minimising J_e1. By default the amble's half cycle is transcribed, the other
 half its mirror image, and the walk's whole cycle (`AMBLE_MIRROR`, `WALK_MIRROR`; --mirror / --no-mirror).

@@ -1,13 +1,17 @@
 #!/usr/bin/env bash
 # Installs what the tests need (the package with its test extras, built from this checkout, into the
-# project's virtual environment: see venv.sh) and runs the linters and every test in four tiers, timing each:
+# project's virtual environment: see venv.sh) and runs the linters and every test in five tiers, timing each:
 #   lint         rustfmt and clippy (warnings are errors) on the crates; ruff check and mypy on the Python
 #                package and its stub (configured in rustfmt.toml, Cargo.toml and pyproject.toml)
 #   rust         the Rust unit tests (cargo test, release optimisation without fat LTO)
 #   python-fast  the Python suite without the tests marked slow (pytest -m "not slow": the inner loop)
-#   python-slow  the tests marked slow (end-to-end experiments, simulations, browser rendering)
-# Every tier runs even when an earlier one fails; the wall times are printed at the end, and the exit status
-# is non-zero if any tier failed. LEGKIT_HYPOTHESIS_PROFILE selects the example counts (tests/conftest.py).
+#   python-slow  the tests marked slow (end-to-end experiments, simulations), except the browser's
+#   browser      the tests marked browser: the viewer's HTML rendered by headless Chromium. Chromium is
+#                installed with apt-get as root, or through sudo when that needs no password; when it cannot
+#                be, the tier is reported as NOT RUN in the summary (with the command that installs it)
+# Runs as any user. Every tier runs even when an earlier one fails; the wall times are printed at the end, and
+# the exit status is non-zero if any tier failed. LEGKIT_HYPOTHESIS_PROFILE selects the example counts
+# (tests/conftest.py).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 
@@ -27,12 +31,22 @@ tier() {  # tier NAME COMMAND...: run, time and record one step
     return "$rc"
 }
 
+skip() {  # skip NAME REASON: record a tier that could not run
+    names+=("$1")
+    times+=("-")
+    results+=("NOT RUN: $2")
+}
+
 setup() {
     source scripts/venv.sh &&
-        python -m pip install --quiet ".[test]" &&
-        # Headless Chromium renders the viewer's HTML in tests/test_viewer.py (Debian package; about 20 s to install).
-        { command -v chromium >/dev/null ||
-            { apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium >/dev/null; }; }
+        legkit_install ".[test]" || return
+    # Headless Chromium renders the viewer's HTML in tests/test_viewer.py (Debian package; about 20 s to
+    # install). Without it the browser tier is reported as not run; the other tiers do not need it.
+    command -v chromium >/dev/null ||
+        { legkit_as_root apt-get update -qq && legkit_as_root apt-get install -y -qq --no-install-recommends chromium >/dev/null; } ||
+        echo "chromium is not installed and cannot be without a password: the browser tier will not run" \
+            "(install it with: sudo apt-get install chromium)"
+    return 0
 }
 
 lint() {  # every linter runs; the tier fails if any does
@@ -53,7 +67,12 @@ if tier setup setup; then
     tier rust env CARGO_PROFILE_RELEASE_LTO=false CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 \
         cargo test --release --workspace --exclude legkit-pybind
     tier python-fast python -m pytest tests -q -m "not slow"
-    tier python-slow python -m pytest tests -q -m slow
+    tier python-slow python -m pytest tests -q -m "slow and not browser"
+    if command -v chromium >/dev/null; then
+        tier browser python -m pytest tests -q -m browser
+    else
+        skip browser "chromium missing (sudo apt-get install chromium)"
+    fi
 fi
 
 echo
@@ -61,4 +80,7 @@ echo "tier          wall time   result   (hypothesis profile: ${LEGKIT_HYPOTHESI
 for i in "${!names[@]}"; do
     printf "%-12s %8s s   %s\n" "${names[$i]}" "${times[$i]}" "${results[$i]}"
 done
+for result in "${results[@]}"; do
+    [[ "$result" == "NOT RUN"* ]] && echo "Some tests did NOT run (see above): this run does not cover them."
+done | sort -u
 exit "$status"

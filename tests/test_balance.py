@@ -67,7 +67,7 @@ def seed_runs():
 
 @pytest.mark.slow
 def test_closed_loop_brings_the_com_to_the_support_line_on_the_seed_trees(seed_runs):
-    """The paper (file 000, Sect. V): "all methods exhibit the desired behavior most of the time". Every run
+    """The paper [Moll 2006, Sect. V]: "all methods exhibit the desired behavior most of the time". Every run
     at least halves its distance to the support line, and all but two end under a quarter of it: tree 2
     under the constant and distance schemes ends at a quarter (0.249 and 0.254 of its start), its branches
     dragging on the ground, where the contact solver, converged to its Newton tolerance, holds them in

@@ -1,4 +1,4 @@
-"""legkit.optimize: Hermite–Simpson collocation (file 003, Sect. 4.1, eq. 14), its Jacobians, and small
+"""legkit.optimize: Hermite–Simpson collocation [Hardt 2002, Sect. 4.1, eq. 14], its Jacobians, and small
 optimal control problems whose optima are derived here by hand."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """legkit.optimize on the biped: flat feet with the foot-torque limits of eq. 6, J_s1 (eq. 9) as an objective, and
-the walk of Sect. 6 (file 003), each against a reference written here."""
+the walk of [Hardt 2002, Sect. 6], each against a reference written here."""
 
 from __future__ import annotations
 

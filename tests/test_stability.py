@@ -305,7 +305,7 @@ def test_zmp_from_dynamics_equals_cop_of_constrained_contact_forces():
 
 @pytest.mark.parametrize("feet", [("l",), ("l", "r")])
 def test_fri_equals_cop_while_the_feet_are_held_still(feet):
-    # Eq. 8 of file 003 with N_f = 1 or 2 feet in contact: with the feet still, S is the CoP of the ground forces.
+    # [Hardt 2002, eq. 8] with N_f = 1 or 2 feet in contact: with the feet still, S is the CoP of the ground forces.
     from legkit.robots.biped import build_biped
 
     robot = build_biped()
@@ -527,7 +527,7 @@ def test_bad_input_raises_clear_errors():
 
 
 # --------------------------------------------------------------------------------------------------
-# The published S_H (file 003, eq. 10 and the diagonal-edge cases) and J_e2 (eq. 13), computed by hand
+# The published S_H [Hardt 2002, eq. 10 and the diagonal-edge cases] and J_e2 (eq. 13), computed by hand
 # from the paper's text: H_ref = m r sqrt(2 g (r - h)) (the kinetic energy m v_ref^2 / 2 that lifts the COM
 # by r - h, to above the edge), H_max = m r v_tip_max, H = angular momentum about the edge.
 # A point mass at height h moving horizontally at u perpendicular to an edge has H = m u h about it.

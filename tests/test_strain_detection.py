@@ -1,4 +1,4 @@
-"""Stance detection by coplanarity (file 002, Sect. 5.2) in the strain experiment: the separation statistics
+"""Stance detection by coplanarity [Lin 2003, Sect. 5.2] in the strain experiment: the separation statistics
 by hand, and the comparison on a simulated walk."""
 
 from __future__ import annotations

@@ -529,7 +529,8 @@ def test_commands_fail_in_one_line_before_creating_output(tmp_path, capsys, monk
         argv = ["--out", str(out), "--ray", "local"] if command is sweep_cli.main else ["--trials", "1"]
         assert command(argv) == 2
         err = capsys.readouterr().err
-        assert err.endswith(f"{module} is not installed; install it with: pip install 'legkit[{extra}]'\n") and err.count("\n") == 1, err
+        assert err.endswith(f"{module} is not installed; it comes with legkit's '{extra}' extra: install it from the legkit checkout with "
+                           f".venv/bin/pip install '.[{extra}]'\n") and err.count("\n") == 1, err
         assert not out.exists()
         monkeypatch.setattr(importlib.util, "find_spec", real)
 

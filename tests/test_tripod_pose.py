@@ -288,7 +288,7 @@ def test_stance_intervals_bad_input() -> None:
 
 
 # --------------------------------------------------------------------------------------------------
-# The published eq. 2 frame, eq. 5 angles and Sect. 5.2 coplanarity, by hand from file 002
+# The published eq. 2 frame, eq. 5 angles and Sect. 5.2 coplanarity, by hand from [Lin 2003]
 # --------------------------------------------------------------------------------------------------
 
 

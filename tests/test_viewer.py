@@ -340,6 +340,7 @@ def chromium_screenshot(page: Path, picture: Path, size: tuple[int, int]) -> np.
 
 
 @pytest.mark.slow
+@pytest.mark.browser
 def test_chromium_shows_the_robot_where_it_projects(tmp_path):
     """Solo-12 (its collision shapes) exported to HTML and rendered by headless Chromium (WebGL on
     SwiftShader), against the same page with the robot hidden: the pixels differ where the software

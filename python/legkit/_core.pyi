@@ -11,6 +11,10 @@ import numpy.typing as npt
 _Vector = npt.ArrayLike
 _Matrix = npt.ArrayLike
 
+COMPILED_TARGET_FEATURES: str
+"""The target features the extension was compiled for, comma-separated in Rust's names ("avx,avx2,..."):
+what ``-C target-cpu`` enabled; ``import legkit`` checks them against the CPU (legkit/_build.py)."""
+
 class MassProperties:
     """Mass, centre of mass and rotational inertia about the centre of mass, all in one frame.
 

@@ -9,6 +9,8 @@ import sys
 import numpy as np
 
 import legkit as lk
+from legkit._extras import MissingExtra, require
+from legkit._help import HelpFormatter
 
 
 def demo(_: argparse.Namespace) -> int:
@@ -41,6 +43,20 @@ EXPERIMENTS = {
 }
 
 
+def needs(command: str, options: list[str]) -> list[tuple[tuple[str, ...], str]]:
+    """The optional modules an experiment's run needs, with their extra, checked before it starts (the sweeps
+    check their own): figures and progress bars (plot), animations (viewer), gait optimisation (optimize)."""
+    if command not in ("balance", "strain", "gait") or {"-h", "--help"} & set(options):
+        return []
+    wanted: list[tuple[tuple[str, ...], str]] = [(("matplotlib", "tqdm"), "plot")]
+    optimize = command == "gait" and "--optimize" in options
+    if optimize:
+        wanted.append((("casadi",), "optimize"))
+    if (command == "balance" or optimize) and "--no-animation" not in options:
+        wanted.append((("meshcat", "PIL"), "viewer"))
+    return wanted
+
+
 def main(argv: list[str] | None = None) -> int:
     """Runs a command. What a user can cause without a bug (Ctrl-C, a file that cannot be written, a size that
     cannot be allocated) ends it with one line on stderr, not a traceback."""
@@ -51,6 +67,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
+    except MissingExtra as error:  # an optional dependency: the message says how to install it
+        print(f"{prog}: {error}", file=sys.stderr)
+        return 2
     except (OSError, MemoryError) as error:
         print(f"{prog}: {type(error).__name__}: {error}", file=sys.stderr)
         return 1
@@ -59,12 +78,14 @@ def main(argv: list[str] | None = None) -> int:
 def run(argv: list[str]) -> int:
     if argv and argv[0] in EXPERIMENTS:
         module, _ = EXPERIMENTS[argv[0]]
+        for modules, extra in needs(argv[0], argv[1:]):
+            require(*modules, extra=extra)
         return importlib.import_module(module).main(argv[1:])
-    parser = argparse.ArgumentParser(prog="legkit", description="Physics for legged and modular robots.")
+    parser = argparse.ArgumentParser(prog="legkit", description="Physics for legged and modular robots.", formatter_class=HelpFormatter)
     commands = parser.add_subparsers(dest="command", required=True, metavar="command")
-    commands.add_parser("demo", help="print a composite mass and a circle-line query").set_defaults(run=demo)
+    commands.add_parser("demo", help="print a composite mass and a circle-line query", formatter_class=HelpFormatter).set_defaults(run=demo)
     for name, (_, summary) in EXPERIMENTS.items():
-        commands.add_parser(name, help=f"{summary}; `legkit {name} --help` for its options", add_help=False)
+        commands.add_parser(name, help=f"{summary}; legkit {name} --help for its options", add_help=False)
     args = parser.parse_args(argv)
     return args.run(args)
 

@@ -19,8 +19,16 @@ mod workspace;
 
 use pyo3::prelude::*;
 
+/// The target features the extension is compiled for, behind a marker that `legkit._build` finds in the
+/// shared library's bytes before loading it (executing an instruction the CPU lacks would kill the process);
+/// `#[used]` keeps the whole record in the library.
+#[used]
+static TARGET_FEATURES_RECORD: &str = concat!("legkit-target-features=", env!("LEGKIT_TARGET_FEATURES"), ";");
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let features = &TARGET_FEATURES_RECORD["legkit-target-features=".len()..TARGET_FEATURES_RECORD.len() - 1];
+    m.add("COMPILED_TARGET_FEATURES", features)?;
     m.add_class::<mass::PyMassProperties>()?;
     m.add_class::<model::PyModel>()?;
     m.add("UrdfWarning", m.py().get_type::<model::UrdfWarning>())?;

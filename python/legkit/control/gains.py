@@ -1,5 +1,5 @@
-"""Gain schedules of the seed paper (Moll et al., IROS 2006; ../shared/seeds/000_213d0a35bbd6e04e.txt, §IV
-for the heuristics, §V for the constants): every PID gain is the base gain times a factor that each joint
+"""Gain schedules of [Moll 2006] (Sect. IV for the heuristics, Sect. V for the constants): every PID gain
+is the base gain times a factor that each joint
 computes from its own agent's estimates.
 
 * constant:  K = K0                         (the paper's default: identical gains on every module)

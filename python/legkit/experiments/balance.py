@@ -8,7 +8,7 @@ the support line, here the vertical line through the root's footprint, with its 
 the joints compute their torques, which drive the plant for one step of ``dt``.
 
 The trees are ``random_tree(20, 4, seed)``: a root plus 20 modules in 4 branches of 5, 63 joints. The paper
-(file 000, Sect. V) says "20 modules divided into 4 branches of 5 modules" and "60 degrees of freedom",
+[Moll 2006, Sect. V] says "20 modules divided into 4 branches of 5 modules" and "60 degrees of freedom",
 which cannot both hold with a root; legkit reads the branches literally and adds the root.
 
 Each run has its own plant; the agents of all runs share one vectorised network (the runs are separate
@@ -41,9 +41,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
-from tqdm import tqdm
 
 import legkit as lk
+from legkit._extras import progress as progress_bar
+from legkit._extras import require
+from legkit._help import HelpFormatter
 from legkit._validation import bounded_int, float_array, is_integer, output_folder_argument, positive_scalar
 from legkit.agents import AgentNetwork, BusConfig, GroundContact
 from legkit.control import SCHEMES, BalanceController, BalanceKernel, GainSchedule
@@ -356,7 +358,7 @@ def run_balance(
     coms = np.zeros((samples, len(runs), 3))
     qs = [np.zeros((samples, built[r.tree][0].nq)) for r in runs]
     energy = np.zeros(len(runs))
-    for step in tqdm(range(steps + 1), desc="balance", unit="step", disable=not progress, mininterval=0.5):
+    for step in progress_bar(range(steps + 1), enabled=progress, desc="balance", unit="step", mininterval=0.5):
         q = states()
         if step % sample_every == 0:
             for q_run, q_now in zip(qs, q):
@@ -433,6 +435,7 @@ def write_csv(results: Sequence[RunResult], path: Path) -> None:
 
 def plot(results: Sequence[RunResult], path: Path) -> None:
     """One panel per tree (a row, like the paper's Fig. 4), one curve per scheme."""
+    require("matplotlib")
     import matplotlib
 
     matplotlib.use("Agg")
@@ -527,7 +530,7 @@ def table(results: Sequence[RunResult]) -> str:
 def main(argv: list[str] | None = None) -> int:
     """``legkit balance``: run the experiment, write ``balance.csv``, ``balance.png``, ``balance.html`` (unless
     ``--no-animation``) and ``balance.gif`` (with ``--gif``) to ``--out``, print the table."""
-    parser = argparse.ArgumentParser(prog="legkit balance", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="legkit balance", formatter_class=HelpFormatter, description=__doc__.split("\n\n")[0])
     parser.add_argument("--trees", type=bounded_int(1, 1000), default=4, help="number of random trees (default 4)")
     parser.add_argument("--modules", type=bounded_int(1, 10_000), default=20, help="modules per tree besides the root (default 20)")
     parser.add_argument("--branches", type=bounded_int(1, 10_000), default=4, help="branches off the root (default 4)")

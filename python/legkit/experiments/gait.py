@@ -23,12 +23,13 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from tqdm import tqdm
 
 import legkit.stability as st
+from legkit._extras import load, require
+from legkit._help import HelpFormatter
 from legkit._validation import bounded_int, output_folder_argument
 from legkit.gaits.analysis import GaitAnalysis, analyse, biped_extras
 from legkit.gaits.references import AMBLE_HIP_HEIGHT, AMBLE_QUADRUPED, biped_walk, quadruped_amble
@@ -58,6 +59,7 @@ def write_csv(path: Path, analysis: GaitAnalysis) -> None:
 
 def plot(path: Path, analysis: GaitAnalysis, title: str) -> None:
     """S_H over the cycle (paper Fig. 3) with the support phases shaded, and the static/ZMP margins below."""
+    require("matplotlib")
     import matplotlib
 
     matplotlib.use("Agg")
@@ -98,7 +100,7 @@ def print_table(analyses: list[GaitAnalysis]) -> None:
         print(f"{key:{width}}  " + "  ".join(cells))
 
 
-def run(robot_name: str, args: argparse.Namespace, progress: tqdm) -> GaitAnalysis:
+def run(robot_name: str, args: argparse.Namespace, progress: Any) -> GaitAnalysis:
     """Build the robot and its reference, analyse it, and write its CSV and figure."""
     if robot_name == "quadruped":
         quadruped = build_quadruped(AMBLE_QUADRUPED)
@@ -294,6 +296,7 @@ def plot_torque_speed(path: Path, robot: Biped, joint_speed: np.ndarray, torque:
     """Fig. 6 of [Hardt 2002]: per joint (left and right together), |torque| against |speed| [rpm] at every collocation
     point, with the characteristic line |u| = (w_max - |w|) G^2 eta / m (Sect. 2.3) of `motor` at each gear ratio
     in FIG6_GEAR_RATIOS (the motor's own ratio bounds the optimisation)."""
+    require("matplotlib")
     import matplotlib
 
     matplotlib.use("Agg")
@@ -400,6 +403,7 @@ REPLAY_AHEAD = 0.45
 def _plot_optimized(path: Path, t: np.ndarray, s_h: np.ndarray, reference_t: np.ndarray, reference: np.ndarray, labels: list[str],
                     worst: float, worst_t: float, title: str) -> None:
     """Fig. 3 of [Hardt 2002] for the optimised gait: S_H over one period, the worst case marked."""
+    require("matplotlib")
     import matplotlib
 
     matplotlib.use("Agg")
@@ -425,8 +429,8 @@ def _plot_optimized(path: Path, t: np.ndarray, s_h: np.ndarray, reference_t: np.
 
 def main(argv: list[str] | None = None) -> int:
     """`legkit gait`: analyse the quadruped amble and/or the biped walk; writes CSVs and figures to --out."""
-    parser = argparse.ArgumentParser(prog="legkit gait", description=__doc__.splitlines()[0])
-    parser.add_argument("--robot", choices=["quadruped", "biped", "both"], default="both")
+    parser = argparse.ArgumentParser(prog="legkit gait", formatter_class=HelpFormatter, description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", choices=["quadruped", "biped", "both"], default="both", help="robots to analyse")
     parser.add_argument("--out", type=output_folder_argument, default="gait_results", help="output folder (created)")
     parser.add_argument("--cycles", type=_positive_int, default=1, help="gait cycles to analyse")
     parser.add_argument("--samples", type=_positive_int, default=400, help="samples per cycle (>= 8)")
@@ -509,7 +513,7 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 print(f"wrote gait_biped_optimized.csv and gait_biped_torque_speed.png to {args.out}")
         return 0
-    with tqdm(total=5 * len(robots), desc="gait analysis", unit="stage") as progress:
+    with load("tqdm").tqdm(total=5 * len(robots), desc="gait analysis", unit="stage") as progress:
         analyses = [run(name, args, progress) for name in robots]
     print_table(analyses)
     print(f"wrote {', '.join(f'gait_{n}.csv/.png' for n in robots)} to {args.out}")

@@ -26,8 +26,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
+from legkit._extras import progress, require
+from legkit._help import HelpFormatter
 from legkit._validation import bounded_int, output_folder_argument
 from legkit.strain.benchtop import (
     BenchtopData,
@@ -112,6 +113,7 @@ def format_walking_table(results: list[RunResult]) -> str:
 
 def plot_stride(stream: WalkingStream, estimate: PoseEstimate, path: Path, source_label: str = "kinematic walking generator") -> None:
     """Fig. 7 analogue: estimated vs true height, roll and pitch over the first full stride."""
+    require("matplotlib")
     import matplotlib
 
     matplotlib.use("Agg")
@@ -237,7 +239,7 @@ def run(
     results: list[RunResult] = []
     first: tuple[WalkingStream, PoseEstimate] | None = None
     jobs = [(speed, seed * 1000 + k) for speed in SPEEDS for k in range(runs)]
-    for speed, run_seed in tqdm(jobs, desc="walking runs", leave=False):
+    for speed, run_seed in progress(jobs, desc="walking runs", leave=False):
         stream = source(speed, duration, run_seed)
         result, estimate = evaluate_run(stream, model, run_seed)
         results.append(result)
@@ -248,7 +250,7 @@ def run(
     assert first is not None  # runs >= 1
     plot_stride(*first, figure, source_label)
     detection: list[StanceDetection] = []
-    for speed in tqdm(SPEEDS, desc="stance detection", leave=False):
+    for speed in progress(SPEEDS, desc="stance detection", leave=False):
         stream = simulated_walk(speed, duration, seed)
         detection += stance_detection(stream, evaluate_run(stream, model, seed)[1])
     return ExperimentResult(
@@ -258,11 +260,11 @@ def run(
 
 def main(argv: list[str] | None = None) -> int:
     """``legkit strain``: print Tables 1 and 2 analogues and write the Fig. 7 analogue to --out."""
-    parser = argparse.ArgumentParser(prog="legkit strain", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="legkit strain", formatter_class=HelpFormatter, description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=output_folder_argument, default="strain_out", help="directory for the figure")
     parser.add_argument("--runs", type=bounded_int(1, 1000), default=5, help="walking runs per speed")
     parser.add_argument("--duration", type=float, default=4.0, help="length of each walking run (s)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the synthetic bench-top calibration and of the walking runs")
     parser.add_argument("--source", choices=sorted(SOURCES), default="kinematic", help="walking data source")
     args = parser.parse_args(argv)
     if not 0 < args.duration <= 3600:

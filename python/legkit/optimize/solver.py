@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from legkit._extras import require
+
 Progress = Callable[[int, float, float], None]
 
 #: IPOPT options of a primal-dual warm start (`solve(..., multipliers=)`): the start kept within 1e-6 of its bounds
@@ -127,6 +129,7 @@ def solve(
     `SolveResult.multipliers`: a primal-dual warm start with `WARM_START`'s options (options override them).
     stall (window, gain): stop (status "User_Requested_Stop") at an iterate whose objective is less than gain
     below that of the iterate window iterations before."""
+    require("casadi")
     import casadi as ca
 
     x0 = np.asarray(x0, dtype=np.float64)

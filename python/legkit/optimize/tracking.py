@@ -32,9 +32,9 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import nnls
-from tqdm import tqdm
 
 import legkit as lk
+from legkit._extras import progress as progress_bar
 from legkit.optimize.problem import MultiphaseProblem, Trajectory
 from legkit.optimize.replay import Replay, clear_of_ground, foot_shapes, outcome, periodic_samples, phase_of
 
@@ -488,7 +488,7 @@ def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, f
     simulated[0] = sim.q
     tau = np.zeros(problem.nv)
     actuated, count = np.asarray(problem.actuated), len(model.A)
-    for i in tqdm(range(steps), desc="tracking in simulation", unit="step", leave=False, disable=not progress, mininterval=0.5):
+    for i in progress_bar(range(steps), enabled=progress, extra="optimize", desc="tracking in simulation", unit="step", leave=False, mininterval=0.5):
         q = sim.q
         tau[actuated] = model.u[i % count] + controller.correction(i, model.deviation(i, q, sim.v))
         try:

@@ -41,7 +41,7 @@ them the seed's 5 g middle links under K_P = 10 N m/rad would ring at ~1.4e3 rad
 torque loop can control. The servo's motor cannot exceed its stall torque: ``SERVO_TORQUE_LIMIT`` = 1 N m
 (the same figure) bounds every commanded joint torque (``ModuleParameters.servo_torque_limit``; the balance
 experiment clips its controllers' torques to it). The seed simulates modules at 10 % of the real mass so
-that such motors can lift long chains (file 000, Sect. V).
+that such motors can lift long chains [Moll 2006, Sect. V].
 """
 
 from __future__ import annotations

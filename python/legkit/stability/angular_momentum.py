@@ -1,8 +1,8 @@
 """The paper's Stability Performance 2: the angular-momentum stability index S_H.
 
-Hardt & von Stryk (RoboCup 2002; ../shared/seeds/003_8a51da06d878ba35.txt, Sect. 3.2, eq. 10 and the
-diagonal-edge cases after it). S_H(t) = min over the support edges l of S_H^l(t) (eq. 10); positive is
-stable. Two definitions are offered, ``definition="paper"`` (the default) and ``definition="energy"``.
+[Hardt 2002, Sect. 3.2, eq. 10 and the diagonal-edge cases after it]. S_H(t) = min over the support edges l
+of S_H^l(t) (eq. 10); positive is stable. Two definitions are offered, ``definition="paper"`` (the default)
+and ``definition="energy"``.
 
 Shared geometry. Every edge is a horizontal axis through its start contact p with a horizontal unit normal n
 pointing to the side the robot would tip to, and the unit vector e_l = z x n along the edge. With c the COM:
@@ -112,7 +112,7 @@ def angular_momentum_stability(
     direction: npt.ArrayLike | None = None,
     diagonal_pairs: npt.ArrayLike | None = None,
 ) -> np.ndarray:
-    """S_H (...,) [N m s] (eq. 10 of file 003): the minimum over the support edges of S_H^l (module docstring).
+    """S_H (...,) [N m s] [Hardt 2002, eq. 10]: the minimum over the support edges of S_H^l (module docstring).
 
     com: (..., 3) [m]; linear_momentum: (..., 3) [kg m/s]; angular_momentum: (..., 3) about the COM [N m s]
     (both as `lk.centroidal_momentum`); mass [kg]; contact_points: (..., k, 3) with optional active (..., k)

@@ -1,4 +1,4 @@
-"""Energy indices of a gait and the actuator torque-speed limit (Hardt & von Stryk, file 003, Sect. 2.3 and 3.2).
+"""Energy indices of a gait and the actuator torque-speed limit [Hardt 2002, Sect. 2.3 and 3.2].
 
 Joint i is driven by a DC motor through a gear of ratio G_i (motor turns per joint turn) and efficiency
 eta_i; K_i is the motor torque constant [N m/A], R_i the winding resistance [ohm]. A joint torque u_i needs
@@ -54,7 +54,7 @@ def joule_loss_index(
     gear_ratio: npt.ArrayLike,
     torque_constant: npt.ArrayLike,
 ) -> float:
-    """Energy Performance 1, J_e1 (eq. 12 of file 003) [J/m]: the Joule loss integrated over t (trapezoidal
+    """Energy Performance 1, J_e1 [Hardt 2002, eq. 12] [J/m]: the Joule loss integrated over t (trapezoidal
     rule) per distance d_S travelled.
 
     torques: (T, n) [N m]; t: (T,) [s]; distance > 0 [m] travelled over t; motor parameters as the module
@@ -75,7 +75,7 @@ def specific_resistance(
     *,
     definition: Literal["paper", "mean"] = "paper",
 ) -> float:
-    """Energy Performance 2, J_e2 (eq. 13 of file 003), from the specific resistance of Gregorio et al.
+    """Energy Performance 2, J_e2 [Hardt 2002, eq. 13], from the specific resistance of Gregorio et al.
 
     definition="paper" (default): J_e2 = integral over t of sum_i |u_i theta_dot_i| / (m g v) dt [s], as
     published: the integral of the dimensionless specific resistance, so it has units of seconds and grows
@@ -113,7 +113,7 @@ def torque_speed_margin(
     efficiency: npt.ArrayLike,
     slope: npt.ArrayLike,
 ) -> np.ndarray:
-    """Margin (T, n) [N m] to the actuator torque-speed line of file 003, Sect. 2.3 (interior constraint 3):
+    """Margin (T, n) [N m] to the actuator torque-speed line of [Hardt 2002, Sect. 2.3] (interior constraint 3):
     |u_i| <= (theta_dot_max,i - |theta_dot_i|) G_i^2 eta_i / m_i.
 
     max_speed: the joint's no-load speed theta_dot_max (motor no-load speed / G) [rad/s]; slope m_i: the

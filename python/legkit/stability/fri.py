@@ -1,6 +1,6 @@
 """Goswami's foot-rotation indicator (FRI) and the paper's Stability Performance 1, J_s1.
 
-Hardt & von Stryk (file 003, Sect. 3.2, eq. 8-9). The FRI S of the N_f feet in ground contact is the point
+[Hardt 2002, Sect. 3.2, eq. 8-9]. The FRI S of the N_f feet in ground contact is the point
 on the ground where the ground reaction would have to act for the feet to stay still, given the motion of the
 rest of the robot (Goswami 1999). Eq. 8 sets the tangential moments about S of what acts on the feet to zero:
 
@@ -55,7 +55,7 @@ def foot_rotation_indicator(
     foot: int | str | Sequence[int | str],
     ground_height: float = 0.0,
 ) -> np.ndarray:
-    """FRI point S (..., 3) [m] (eq. 8 of file 003) on the plane z = ground_height for the support foot or
+    """FRI point S (..., 3) [m] [Hardt 2002, eq. 8] on the plane z = ground_height for the support foot or
     feet `foot` (an index or name, or a sequence of them: the N_f feet in contact).
 
     q, v, a: (..., nq), (..., nv), (..., nv) of the whole robot (the feet's own accelerations are ignored, as
@@ -84,7 +84,7 @@ def foot_rotation_indicator(
 
 
 def stability_performance_1(points: npt.ArrayLike, reference: npt.ArrayLike, t: npt.ArrayLike) -> float:
-    """The paper's Stability Performance 1, J_s1 = integral of |GCoM - S|^2 dt [m^2 s] (eq. 9 of file 003,
+    """The paper's Stability Performance 1, J_s1 = integral of |GCoM - S|^2 dt [m^2 s] ([Hardt 2002, eq. 9],
     trapezoidal rule). The text calls it "the average distance" between the two points; the equation, kept
     here, integrates the squared distance and does not divide by t_f.
 

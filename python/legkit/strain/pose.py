@@ -5,8 +5,7 @@ at its hip, rotated by the hip angle theta_i about +y; in that frame the leg han
 length l deflected by d (a further rotation about +y, same sign as theta) has its toe at
 (-l sin d, 0, -l cos d). ``hip_to_body`` is the paper's h_i^theta: the 4x4 transform leg frame -> body.
 
-Tripod pose (Lin, Komsuoglu, Koditschek, ICRA 2003; ../shared/seeds/002_e1a2a2fa623d3640.txt, Sect. 5.1,
-eq. 2-5). Given the three stance toes s_0, s_1, s_2 in the body frame:
+Tripod pose [Lin 2003, Sect. 5.1, eq. 2-5]. Given the three stance toes s_0, s_1, s_2 in the body frame:
   * support frame Q (eq. 2): origin s_0; e_1, e_2 the unit vectors from s_0 to s_1 and s_2; q_1 = e_1,
     q_2 = e_2 minus its q_1 component, normalised, q_3 = q_1 x q_2. Q = [q_1 q_2 q_3] (columns are the support
     axes in body coordinates). q_3 follows the toe order: it points up, away from the ground toward the body,
@@ -170,7 +169,7 @@ def _check_toes(toes: npt.ArrayLike, minimum: int, exact: bool = False) -> np.nd
 
 
 def tripod_pose(toes: npt.ArrayLike, orientation: Literal["paper", "body_side"] = "paper") -> TripodPose:
-    """Body pose from three stance toes (eq. 2-5 of file 002), vectorised over any batch shape.
+    """Body pose from three stance toes [Lin 2003, eq. 2-5], vectorised over any batch shape.
 
     Args:
         toes: (..., 3, 3) toe positions in the body frame (metres), one row per toe, s_0 first; the order of
@@ -244,7 +243,7 @@ def coplanarity(toes: npt.ArrayLike, definition: Literal["paper", "determinant"]
     """A coplanarity measure rho of k toes (...,) (module docstring; small when the toes share a plane).
 
     definition="paper" (default): rho = sum_i s_i^T s_i - s_bar^T s_bar, s_bar = (1/k) sum_i s_i, as printed in
-    file 002, Sect. 5.2 (k = 6 there; any k >= 3 here), m^2.
+    [Lin 2003, Sect. 5.2] (k = 6 there; any k >= 3 here), m^2.
     definition="determinant": max over four-toe subsets {a, b, c, e} of |det[s_b - s_a, s_c - s_a,
     s_e - s_a]| (k >= 4), m^3; zero iff every four toes are coplanar.
     """

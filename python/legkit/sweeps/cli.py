@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from legkit._help import HelpFormatter
 from legkit._validation import bounded_int
 from legkit.control.gains import SCHEMES
 from legkit.sweeps.spec import SweepSpec
@@ -67,7 +68,7 @@ def parse_coefficients(name: str, tokens: list[str] | None) -> Any:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="legkit sweep", description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+        prog="legkit sweep", description=__doc__.split("\n\n")[0], formatter_class=HelpFormatter,
         epilog=__doc__.split("\n\n", 1)[1],
     )
     parser.add_argument("--spec", type=Path, help="a JSON file of SweepSpec arguments (the axis options below are then ignored)")
@@ -167,7 +168,7 @@ def check_out(path: Path) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    from legkit.sweeps.deps import require
+    from legkit._extras import require
     from legkit.sweeps.execute import run_sweep
 
     try:

@@ -54,9 +54,8 @@ from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from tqdm import tqdm
 
-from legkit.sweeps.deps import require
+from legkit._extras import load, require
 from legkit.sweeps.spec import RunParams, SweepSpec
 
 if TYPE_CHECKING:
@@ -410,9 +409,9 @@ def _worker_start(parent: int) -> None:
     exits (``prctl(PR_SET_PDEATHSIG, SIGKILL)``); everywhere a watchdog thread exits once the parent id
     changes (the driver gone, the worker adopted). Ctrl-C is the driver's to handle: the worker ignores it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    # tqdm's default lock (run_balance makes a disabled bar) is a named semaphore that a killed worker would
-    # leave to the resource tracker, which then warns as the driver exits.
-    tqdm.set_lock(threading.RLock())
+    # tqdm's default lock (made with a worker's first bar, should a run show one) is a named semaphore that a
+    # killed worker would leave to the resource tracker, which then warns as the driver exits.
+    load("tqdm", "sweep").tqdm.set_lock(threading.RLock())
     if sys.platform.startswith("linux"):
         try:
             ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # 1: PR_SET_PDEATHSIG
@@ -580,6 +579,7 @@ def run_sweep(
             pieces[b] += 1
         arrived: dict[int, dict[int, list[dict]]] = {b: {} for b in todo}
         done = sum(len(batches[b]) for b in kept)
+        tqdm = load("tqdm", "sweep").tqdm
         tqdm.set_lock(threading.RLock())  # as in the workers (_worker_start): the bar is written from this thread only
         with tqdm(
             total=total, initial=done, desc="sweep", unit="run", disable=not progress, smoothing=0.1, file=sys.stderr, dynamic_ncols=True,

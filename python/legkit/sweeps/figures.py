@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from legkit._extras import require
 from legkit.control.gains import SCHEMES
 
 if TYPE_CHECKING:
@@ -28,6 +29,7 @@ COLOUR_QUANTILES = (0.05, 0.95)
 def summary_figures(table: pa.Table, out: str | Path) -> list[Path]:
     """``distributions.png`` (``distributions_figure``) and, only when c0 or c1 takes several values,
     ``heatmap.png`` (``heatmap_figure``). Returns the files written."""
+    require("matplotlib", extra="sweep")
     import matplotlib
 
     matplotlib.use("Agg")
@@ -51,6 +53,7 @@ def distributions_figure(c: dict[str, np.ndarray]) -> Figure:
     (combination) of the fault/terrain/noise axes that vary. Each box's label is one line (scheme and the
     varied axes' values), upright when axes vary; the figure grows with the number of boxes and the labels'
     length, so labels never overlap or leave the figure."""
+    require("matplotlib", extra="sweep")
     import matplotlib.pyplot as plt
 
     schemes = [s for s in SCHEMES if s in set(c["scheme"])]
@@ -91,6 +94,7 @@ def heatmap_figure(c: dict[str, np.ndarray]) -> Figure | None:
     """Per scheme with several c0 or c1 values, the median final distance over the c0–c1 grid (None if no
     scheme has); the colour scale spans the ``COLOUR_QUANTILES`` of the cells (every panel its own), values
     beyond drawn in the end colours, as the colour bar's label says."""
+    require("matplotlib", extra="sweep")
     import matplotlib.pyplot as plt
 
     schemes = [s for s in SCHEMES if s in set(c["scheme"])]

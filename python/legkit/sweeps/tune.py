@@ -38,10 +38,11 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
+from legkit._extras import require
+from legkit._help import HelpFormatter
 from legkit._validation import bounded_int, positive_scalar
 from legkit.control.gains import SCHEMES, GainSchedule
 from legkit.sweeps.cli import median_quartiles
-from legkit.sweeps.deps import require
 from legkit.sweeps.execute import LocalExecutor, RayExecutor, executor, run_batch
 from legkit.sweeps.spec import RunParams
 
@@ -329,10 +330,10 @@ def report(results: Sequence[SchemeResult]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="legkit tune", description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+        prog="legkit tune", description=__doc__.split("\n\n")[0], formatter_class=HelpFormatter,
         epilog=__doc__.split("\n\n", 1)[1],
     )
-    parser.add_argument("--schemes", nargs="+", default=list(SCHEMES), help="schemes to tune (default all)")
+    parser.add_argument("--schemes", nargs="+", default=list(SCHEMES), help=f"schemes to tune (default all: {' '.join(SCHEMES)})")
     parser.add_argument("--train", type=bounded_int(1, 1000), default=4, help=f"training trees, seeds {TRAIN_SEED0}.. (default 4)")
     parser.add_argument("--test", type=bounded_int(1, 1000), default=6, help=f"held-out trees, seeds {TEST_SEED0}.. (default 6)")
     parser.add_argument("--trials", type=bounded_int(1, 100_000), default=32, help="trials per scheme, the paper's first (default 32)")

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from legkit._extras import require
 from legkit.viewer._geometry import Shape
 
 if TYPE_CHECKING:
@@ -120,6 +121,7 @@ def _size_argument(size: tuple[int, int]) -> tuple[int, int]:
 def render_frames(scene: Scene, times: np.ndarray, size: tuple[int, int] = (640, 360)) -> list[np.ndarray]:
     """RGB frames (height, width, 3) uint8 of ``scene`` at motion ``times`` (each robot holds its sample at
     or before a time, its first sample before it begins)."""
+    require("matplotlib", extra="viewer")
     import matplotlib
 
     matplotlib.use("Agg")
@@ -246,6 +248,7 @@ def render_frames(scene: Scene, times: np.ndarray, size: tuple[int, int] = (640,
 
 def write_gif(scene: Scene, path: Path, fps: float = 15.0, size: tuple[int, int] = (640, 360), speed: float = 1.0) -> Path:
     """An animated GIF of the scene's motion (looping), one shared palette so colours do not flicker."""
+    require("PIL")
     from PIL import Image
 
     times = frame_times(scene, fps, speed)
@@ -259,6 +262,7 @@ def write_gif(scene: Scene, path: Path, fps: float = 15.0, size: tuple[int, int]
 
 def write_png(scene: Scene, path: Path, time: float = 0.0, size: tuple[int, int] = (640, 360)) -> Path:
     """A PNG of the scene at motion ``time`` s."""
+    require("PIL")
     from PIL import Image
 
     if not (isinstance(time, (int, float)) and math.isfinite(time)):

@@ -15,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
+from legkit._extras import require
 from legkit._validation import float_array
 from legkit.viewer._geometry import Shape, check_model, collision_shapes, visual_shapes
 
@@ -33,6 +34,7 @@ def import_meshcat() -> Any:
     """meshcat, imported without the DeprecationWarning its server module raises on import (pyzmq's ioloop)."""
     import warnings
 
+    require("meshcat")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         import meshcat
