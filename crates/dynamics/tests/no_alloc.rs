@@ -58,10 +58,12 @@ fn algorithms_do_not_allocate() {
     q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
     let v = vec![0.2; model.nv()];
     let tau = vec![0.3; model.nv()];
-    // The first calls size M, M⁻¹ and minv's force sets, and the derivatives' workspace and tensors.
+    // The first calls size M, M⁻¹ and minv's force sets, and the derivatives' workspace, outputs and tensors (the ABA
+    // derivatives form ∂τ in their own outputs, so the RNEA derivatives' are sized by their own first call).
     crba(&model, &mut data, &q);
     minv(&model, &mut data, &q);
     aba_derivatives(&model, &mut data, &q, &v, &tau, None);
+    rnea_derivatives(&model, &mut data, &q, &v, &tau, None);
     rnea_second_order_derivatives(&model, &mut data, &q, &v, &tau);
     let (mut q1, mut dv) = (vec![0.0; model.nq()], vec![0.0; model.nv()]);
     let (mut jacobian_a, mut jacobian_b) = (DMatrix::zeros(model.nv(), model.nv()), DMatrix::zeros(model.nv(), model.nv()));

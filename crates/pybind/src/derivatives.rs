@@ -77,10 +77,10 @@ pub fn rnea_derivatives<'py>(
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("a", a, m.nv())?;
-        w.dense(&[Dense::RneaDerivatives])?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
-        let (dq, dv) = algorithms::rnea_derivatives(m, data, q, v, a, forces);
-        write_columns(&[dq.as_slice(), dv.as_slice()], out);
+        // Straight into the arrays: no nv x nv workspace, no copy.
+        let (dq, dv) = out.split_at_mut(m.nv() * m.nv());
+        algorithms::rnea_derivatives_into(m, data, q, v, a, forces, dq, dv);
         Ok(())
     })?;
     pair(parts)
@@ -132,10 +132,14 @@ pub fn aba_derivatives<'py>(
         let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("tau", tau, m.nv())?;
-        w.dense(&[Dense::Inverse, Dense::AbaDerivatives])?;
+        // M⁻¹'s recursion's force sets (and M⁻¹'s own square, which stays unused) on the models that use them.
+        let dense: &[Dense] = if algorithms::aba_derivatives::minv_by_recursion(m) { &[Dense::Inverse] } else { &[] };
+        w.dense(dense)?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
-        let (dq, dv, minv) = algorithms::aba_derivatives(m, data, q, v, tau, forces);
-        write_columns(&[dq.as_slice(), dv.as_slice(), minv.as_slice()], out);
+        // Straight into the arrays: no nv x nv workspace for them, no copy.
+        let (dq, rest) = out.split_at_mut(m.nv() * m.nv());
+        let (dv, minv) = rest.split_at_mut(m.nv() * m.nv());
+        algorithms::aba_derivatives_into(m, data, q, v, tau, forces, dq, dv, minv);
         // M⁻¹ is positive definite: a singular M shows on its diagonal, and spreads to the other two.
         finite_dynamics(m, w.data(), out)
     })?;

@@ -2,21 +2,22 @@
 //! q̈ = ABA(q, q̇, τ) solves RNEA(q, q̇, q̈) = τ, so ∂q̈/∂q = −M⁻¹ ∂τ/∂q and ∂q̈/∂q̇ = −M⁻¹ ∂τ/∂q̇ at that q̈, and
 //! ∂q̈/∂τ = M⁻¹ (with the model's armature in M).
 //!
-//! The products by M⁻¹ are, up to `DENSE_LIMIT` velocity coordinates, dense products by M⁻¹ (`minv`), as Pinocchio's
-//! (O(nv³), in few enough operations to win on a small robot); beyond, solves with the articulated-body factors ABA
-//! leaves behind (`aba::solve_columns`: O(n) per column, O(n nv) per matrix), which are also backward stable where the
-//! dense product loses digits to M's condition number. (MuJoCo likewise works dense below 60 degrees of freedom.)
+//! The products by M⁻¹ run where ∂τ is sparse (a branched tree), else solves with the articulated-body factors ABA
+//! leaves behind (`aba_derivatives_into`); the outputs can be written in place (`aba_derivatives_into`), with O(n)
+//! workspace beyond them.
 
 use nalgebra::{DMatrix, DVector};
 
-use super::aba::{solve_columns, Factors};
-use super::minv::minv_after_aba;
-use super::{aba, rnea_derivatives};
+use super::aba;
+use super::aba::{solve_columns, Factors, BLOCK};
+use super::minv::minv_after_aba_into;
+use super::rnea_derivatives::derivatives_into;
 use crate::model::{reserve_square, Data, Model};
 use crate::spatial::Force;
 
-/// Criterion `derivatives/aba`: with the dense products the quadruped (nv 18) took 0.70x the solves' time, the 63-DoF
-/// tree 1.33x; in proportion to nv, they cross between 26 and 47.
+/// Criterion `derivatives/aba`: with dense products the quadruped (nv 18) took 0.70x the solves' time, the 63-DoF
+/// tree 1.33x; in proportion to the products' work (nv per nonzero of ∂τ), they cross between 26 and 47 nonzeros per
+/// column of ∂τ (`by_products`).
 const DENSE_LIMIT: usize = 32;
 
 /// ∂q̈/∂q, ∂q̈/∂q̇ and ∂q̈/∂τ = M⁻¹ (nv x nv; q on its tangent space) at configuration `q`, velocity `v` and joint
@@ -30,62 +31,127 @@ pub fn aba_derivatives<'d>(
     tau: &[f64],
     f_ext: Option<&[Force]>,
 ) -> (&'d DMatrix<f64>, &'d DMatrix<f64>, &'d DMatrix<f64>) {
-    aba(model, data, q, v, tau, f_ext);
-    // An empty vector holds no allocation: q̈ is lent to the RNEA derivatives and put back.
-    let ddq = std::mem::replace(&mut data.ddq, DVector::zeros(0));
-    rnea_derivatives(model, data, q, v, ddq.as_slice(), f_ext);
-    data.ddq = ddq;
-    reserve_square(&mut data.derivatives.ddq_dq, model.nv());
-    reserve_square(&mut data.derivatives.ddq_dv, model.nv());
-    if model.nv() <= DENSE_LIMIT {
-        minv_after_aba(model, data);
-        let d = &mut data.derivatives;
-        negated_product(&data.minv, &d.dtau_dq, &mut d.ddq_dq);
-        negated_product(&data.minv, &d.dtau_dv, &mut d.ddq_dv);
-        return (&data.derivatives.ddq_dq, &data.derivatives.ddq_dv, &data.minv);
-    }
-    let Data { centred_m_i, inertia, s, u, d_inv, derivatives: d, .. } = data;
-    let factors = Factors { poses: centred_m_i, inertia, s, u, d_inv };
-    for (out, dtau) in [(&mut d.ddq_dq, &d.dtau_dq), (&mut d.ddq_dv, &d.dtau_dv)] {
-        out.zip_apply(dtau, |x, y| *x = -y);
-        solve_columns(model, &factors, out.as_mut_slice(), &mut d.block_rows, &mut d.block_forces, &mut d.block_accelerations);
-    }
-    minv_after_aba(model, data);
+    let nv = model.nv();
+    reserve_square(&mut data.derivatives.ddq_dq, nv);
+    reserve_square(&mut data.derivatives.ddq_dv, nv);
+    reserve_square(&mut data.minv, nv);
+    // Empty matrices hold no allocation: the outputs are lent to `aba_derivatives_into` and put back.
+    let empty = || DMatrix::zeros(0, 0);
+    let mut dq = std::mem::replace(&mut data.derivatives.ddq_dq, empty());
+    let mut dv = std::mem::replace(&mut data.derivatives.ddq_dv, empty());
+    let mut minv = std::mem::replace(&mut data.minv, empty());
+    aba_derivatives_into(model, data, q, v, tau, f_ext, dq.as_mut_slice(), dv.as_mut_slice(), minv.as_mut_slice());
+    (data.derivatives.ddq_dq, data.derivatives.ddq_dv, data.minv) = (dq, dv, minv);
     (&data.derivatives.ddq_dq, &data.derivatives.ddq_dv, &data.minv)
 }
 
-/// `out = −a b` for square matrices, four columns of `out` at a time (each column of `a` read once for the four,
-/// contiguous columns the compiler vectorises), without the packing buffers a general matrix product allocates.
-fn negated_product(a: &DMatrix<f64>, b: &DMatrix<f64>, out: &mut DMatrix<f64>) {
-    let n = a.nrows();
+/// `aba_derivatives` into `ddq_dq`, `ddq_dv` and `minv` (nv x nv each, column-major; every entry written) instead of
+/// `Data`. ∂τ/∂q and ∂τ/∂q̇ are formed in the first two and turned into −M⁻¹ ∂τ in place, so the only workspace
+/// beyond the outputs is O(n) (and M⁻¹'s recursion's force sets on small models, `minv_by_recursion`).
+///
+/// −M⁻¹ ∂τ runs as products by M⁻¹ where ∂τ is sparse enough, else as solves with the articulated-body factors ABA
+/// leaves behind (`aba::solve_columns`: O(n) per column, O(n nv) per matrix), which are also backward stable where
+/// the dense product loses digits to M's condition number. Column j of ∂τ is nonzero only on the coordinates of j's
+/// ancestors and of its subtree [Carpentier & Mansard 2018], so on a branched tree a product costs far less than
+/// nv³: nv per nonzero of ∂τ. (MuJoCo likewise works dense below 60 degrees of freedom.)
+#[allow(clippy::too_many_arguments)]
+pub fn aba_derivatives_into(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    f_ext: Option<&[Force]>,
+    ddq_dq: &mut [f64],
+    ddq_dv: &mut [f64],
+    minv: &mut [f64],
+) {
+    let nv = model.nv();
+    let square = nv * nv;
+    assert!(ddq_dq.len() == square && ddq_dv.len() == square && minv.len() == square, "aba_derivatives_into: outputs of nv x nv");
+    aba(model, data, q, v, tau, f_ext);
+    // An empty vector holds no allocation: q̈ is lent to the RNEA derivatives and put back.
+    let ddq = std::mem::replace(&mut data.ddq, DVector::zeros(0));
+    // On ABA's poses (same q): the forward pass composes no transform again.
+    derivatives_into::<true>(model, data, q, v, ddq.as_slice(), f_ext, model.gravity_bias(), ddq_dq, ddq_dv);
+    data.ddq = ddq;
+    if minv_by_recursion(model) {
+        minv_after_aba_into(model, data, minv);
+    }
+    let Data { centred_m_i, inertia, s, u, d_inv, derivatives: d, .. } = data;
+    let factors = Factors { poses: centred_m_i, inertia, s, u, d_inv };
+    if !minv_by_recursion(model) {
+        minv.fill(0.0);
+        minv.iter_mut().step_by(nv + 1).for_each(|x| *x = 1.0);
+        solve_columns(model, &factors, minv, &mut d.block_rows, &mut d.block_forces, &mut d.block_accelerations);
+    }
+    if by_products(model) {
+        negated_product_in_place(minv, ddq_dq, &mut d.block_rows);
+        negated_product_in_place(minv, ddq_dv, &mut d.block_rows);
+        return;
+    }
+    ddq_dq.iter_mut().chain(ddq_dv.iter_mut()).for_each(|x| *x = -*x);
+    for out in [ddq_dq, ddq_dv] {
+        solve_columns(model, &factors, out, &mut d.block_rows, &mut d.block_forces, &mut d.block_accelerations);
+    }
+}
+
+/// The most numbers `minv`'s recursion may hold in its per-body force sets (6 n nv) for `aba_derivatives_into`,
+/// 1 MB: beyond, M⁻¹ comes from solves with the identity (`aba::solve_columns`, O(n) workspace), which measured
+/// slower on chain64 (0.68x Pinocchio's time against 0.62x) and no slower on chain512.
+const FORCE_SETS_LIMIT: usize = 1 << 17;
+
+/// Whether `aba_derivatives_into` takes M⁻¹ from `minv`'s recursion, whose force sets `Dense::Inverse` reserves.
+pub fn minv_by_recursion(model: &Model) -> bool {
+    6 * model.nbodies() * model.nv() <= FORCE_SETS_LIMIT
+}
+
+/// Whether `aba_derivatives_into` forms −M⁻¹ ∂τ as products by M⁻¹ rather than by solves: where ∂τ has at most `DENSE_LIMIT` nonzeros per column on
+/// average. Column j's nonzeros are its ancestors' and its subtree's coordinates, so their count is
+/// Σ_j (ancestors' + subtree's) = 2 Σ_i nv_i · (i's subtree's coordinates) − Σ_i nv_i² (each ancestor pair counted from
+/// both ends, a joint's own block twice), O(n) by the subtrees' column ranges.
+pub fn by_products(model: &Model) -> bool {
+    let nv = model.nv();
+    if nv <= DENSE_LIMIT {
+        return true;
+    }
+    let mut nonzeros = 0;
+    for i in 0..model.nbodies() {
+        let own = model.joint(i).nv();
+        let subtree: usize = model.subtree_columns(i).iter().map(|r| r.len()).sum();
+        nonzeros += 2 * own * subtree - own * own;
+    }
+    nonzeros <= DENSE_LIMIT * nv
+}
+
+/// `b = −a b` in place for square matrices (column-major), four columns of `b` at a time into `block` (nv rows of
+/// `BLOCK`, the solves' buffer): each column of `a` is read once for the four and skipped where the four's entries
+/// are zero (the sparsity of ∂τ), without the packing buffers a general matrix product allocates.
+fn negated_product_in_place(a: &[f64], b: &mut [f64], block: &mut [[f64; BLOCK]]) {
+    const WIDTH: usize = 4;
+    let n = block.len();
     if n == 0 {
         return;
     }
-    let (a, b, out) = (a.as_slice(), b.as_slice(), out.as_mut_slice());
-    out.fill(0.0);
-    for (block, columns) in out.chunks_mut(4 * n).enumerate() {
-        let j0 = 4 * block;
-        if columns.len() == 4 * n {
-            let (c0, rest) = columns.split_at_mut(n);
-            let (c1, rest) = rest.split_at_mut(n);
-            let (c2, c3) = rest.split_at_mut(n);
-            for (k, a_k) in a.chunks_exact(n).enumerate() {
-                let f = [-b[j0 * n + k], -b[(j0 + 1) * n + k], -b[(j0 + 2) * n + k], -b[(j0 + 3) * n + k]];
-                for ((((x, y0), y1), y2), y3) in a_k.iter().zip(c0.iter_mut()).zip(c1.iter_mut()).zip(c2.iter_mut()).zip(c3.iter_mut()) {
-                    *y0 += f[0] * x;
-                    *y1 += f[1] * x;
-                    *y2 += f[2] * x;
-                    *y3 += f[3] * x;
+    for columns in b.chunks_mut(WIDTH * n) {
+        let width = columns.len() / n;
+        for row in block.iter_mut() {
+            row[..WIDTH].fill(0.0);
+        }
+        for (k, a_k) in a.chunks_exact(n).enumerate() {
+            let f: [f64; WIDTH] = std::array::from_fn(|c| if c < width { -columns[c * n + k] } else { 0.0 });
+            if f == [0.0; WIDTH] {
+                continue;
+            }
+            for (x, row) in a_k.iter().zip(block.iter_mut()) {
+                for c in 0..WIDTH {
+                    row[c] += f[c] * x;
                 }
             }
-        } else {
-            for (jj, column) in columns.chunks_exact_mut(n).enumerate() {
-                for (k, a_k) in a.chunks_exact(n).enumerate() {
-                    let factor = -b[(j0 + jj) * n + k];
-                    for (x, y) in column.iter_mut().zip(a_k) {
-                        *x += factor * y;
-                    }
-                }
+        }
+        for (c, column) in columns.chunks_exact_mut(n).enumerate() {
+            for (y, row) in column.iter_mut().zip(block.iter()) {
+                *y = row[c];
             }
         }
     }

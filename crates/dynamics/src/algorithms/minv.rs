@@ -47,19 +47,28 @@ pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
 }
 
 /// `minv` at the configuration `aba` (or `aba_with_armature` with the model's armature) last ran at, from the
-/// poses, subspaces and articulated-body factors (I^A, U, D⁻¹) it left in `data`.
-pub(crate) fn minv_after_aba<'d>(model: &Model, data: &'d mut Data) -> &'d DMatrix<f64> {
-    inverse(model, data, true)
+/// poses, subspaces and articulated-body factors (I^A, U, D⁻¹) it left in `data`, into `out` (nv x nv, column-major).
+pub(crate) fn minv_after_aba_into(model: &Model, data: &mut Data, out: &mut [f64]) {
+    inverse_into(model, data, true, out);
 }
 
-/// The passes of `minv` after the kinematics: from the bodies' rigid inertias in `data.inertia`, or, `factored`,
-/// from ABA's articulated inertias and factors there.
+/// The passes of `minv` after the kinematics into `data.minv` (`inverse_into`).
 fn inverse<'d>(model: &Model, data: &'d mut Data, factored: bool) -> &'d DMatrix<f64> {
+    reserve_square(&mut data.minv, model.nv());
+    // An empty matrix holds no allocation: M⁻¹ is lent to the passes and put back.
+    let mut minv = std::mem::replace(&mut data.minv, DMatrix::zeros(0, 0));
+    inverse_into(model, data, factored, minv.as_mut_slice());
+    data.minv = minv;
+    &data.minv
+}
+
+/// The passes of `minv` after the kinematics, M⁻¹ into `out` (nv x nv, column-major): from the bodies' rigid inertias
+/// in `data.inertia`, or, `factored`, from ABA's articulated inertias and factors there.
+fn inverse_into(model: &Model, data: &mut Data, factored: bool, out: &mut [f64]) {
     let (n, nv) = (model.nbodies(), model.nv());
     if data.force_sets.len() != n {
         data.force_sets = vec![Matrix6xX::zeros(nv); n];
     }
-    reserve_square(&mut data.minv, nv);
     // Backward pass: the rows' subtree parts D⁻¹(e_i − Sᵀ F_i); F_i + U M⁻¹_i goes to the parent together
     // with the articulated inertia I^A − U D⁻¹ Uᵀ.
     for i in (0..n).rev() {
@@ -78,7 +87,7 @@ fn inverse<'d>(model: &Model, data: &'d mut Data, factored: bool) -> &'d DMatrix
                     -(inverse * Vector6::from_column_slice(chunk(data.force_sets[0].as_slice(), col)))
                 };
                 // Row r of the upper triangle lives in column r: entry (col, r), at r nv + col.
-                let minv = data.minv.as_mut_slice();
+                let minv = &mut *out;
                 for (r, x) in base.inv_act_motion(&motion).iter().enumerate() {
                     minv[r * nv + col] = *x;
                 }
@@ -98,7 +107,7 @@ fn inverse<'d>(model: &Model, data: &'d mut Data, factored: bool) -> &'d DMatrix
         };
         if one_dof {
             // Beyond the subtree this row is zero until the forward pass.
-            data.minv.as_mut_slice()[k * nv + k..(k + 1) * nv].fill(0.0);
+            out[k * nv + k..(k + 1) * nv].fill(0.0);
             data.u[i] = u;
             data.d_inv[i] = dinv;
         }
@@ -107,7 +116,7 @@ fn inverse<'d>(model: &Model, data: &'d mut Data, factored: bool) -> &'d DMatrix
         }
         let p = model.parent(i);
         let (fp, fi) = sets(&mut data.force_sets, p, i);
-        let row: &mut [f64] = if one_dof { &mut data.minv.as_mut_slice()[k * nv..(k + 1) * nv] } else { &mut [] };
+        let row: &mut [f64] = if one_dof { &mut out[k * nv..(k + 1) * nv] } else { &mut [] };
         for columns in model.subtree_columns(i) {
             let span = 6 * columns.start..6 * columns.end;
             let pairs = fp[span.clone()].chunks_exact_mut(6).zip(fi[span].chunks_exact(6));
@@ -142,7 +151,7 @@ fn inverse<'d>(model: &Model, data: &'d mut Data, factored: bool) -> &'d DMatrix
                     pi[6 * k..].copy_from_slice(&pp[6 * k..]);
                     continue;
                 }
-                let row = &mut data.minv.as_mut_slice()[k * nv + k..(k + 1) * nv];
+                let row = &mut out[k * nv + k..(k + 1) * nv];
                 for ((parent, own), entry) in pp[6 * k..].chunks_exact(6).zip(pi[6 * k..].chunks_exact_mut(6)).zip(row) {
                     let (parent, own): (&[f64; 6], &mut [f64; 6]) = (parent.try_into().expect("6"), own.try_into().expect("6"));
                     let m = *entry - dinv * dot6(&u, parent);
@@ -152,6 +161,10 @@ fn inverse<'d>(model: &Model, data: &'d mut Data, factored: bool) -> &'d DMatrix
             }
         }
     }
-    data.minv.fill_upper_triangle_with_lower_triangle();
-    &data.minv
+    // The upper triangle from the lower: entry (r, c), r < c, from (c, r).
+    for c in 1..nv {
+        for r in 0..c {
+            out[c * nv + r] = out[r * nv + c];
+        }
+    }
 }

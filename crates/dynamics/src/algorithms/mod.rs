@@ -22,7 +22,7 @@ pub mod rnea_derivatives;
 pub mod rnea_second_order_derivatives;
 
 pub use aba::{aba, aba_with_armature};
-pub use aba_derivatives::aba_derivatives;
+pub use aba_derivatives::{aba_derivatives, aba_derivatives_into};
 pub use centroidal::{centroidal_map, centroidal_momentum, centroidal_momentum_rate};
 pub use centroidal_derivatives::centroidal_derivatives;
 pub use com::{center_of_mass, center_of_mass_jacobian, subtree_mass_properties};
@@ -39,7 +39,7 @@ pub use kinematics_derivatives::{
 };
 pub use minv::minv;
 pub use rnea::rnea;
-pub use rnea_derivatives::rnea_derivatives;
+pub use rnea_derivatives::{rnea_derivatives, rnea_derivatives_into};
 pub use rnea_second_order_derivatives::{rnea_second_order_derivatives, SecondOrder};
 
 use crate::joint::Dofs;

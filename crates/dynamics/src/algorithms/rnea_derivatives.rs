@@ -39,6 +39,24 @@ pub fn rnea_derivatives<'d>(
     derivatives_with_base_acceleration(model, data, q, v, a, f_ext, model.gravity_bias())
 }
 
+/// `rnea_derivatives` into `dtau_dq` and `dtau_dv` (nv x nv each, column-major; every entry written) instead of
+/// `Data`, which then holds no nv x nv matrix: O(n) workspace beyond the outputs.
+#[allow(clippy::too_many_arguments)]
+pub fn rnea_derivatives_into(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    f_ext: Option<&[Force]>,
+    dtau_dq: &mut [f64],
+    dtau_dv: &mut [f64],
+) {
+    let square = model.nv() * model.nv();
+    assert!(dtau_dq.len() == square && dtau_dv.len() == square, "rnea_derivatives_into: outputs of nv x nv");
+    derivatives_into::<false>(model, data, q, v, a, f_ext, model.gravity_bias(), dtau_dq, dtau_dv);
+}
+
 /// `rnea_derivatives` with the base accelerating at `base_acceleration` instead of against gravity (zero: the
 /// derivatives of M(q) a alone, as an impact's need).
 pub(crate) fn derivatives_with_base_acceleration<'d>(
@@ -50,10 +68,34 @@ pub(crate) fn derivatives_with_base_acceleration<'d>(
     f_ext: Option<&[Force]>,
     base_acceleration: Motion,
 ) -> (&'d DMatrix<f64>, &'d DMatrix<f64>) {
-    let n = model.nbodies();
-    forward_pass(model, data, q, v, a, base_acceleration);
     reserve_square(&mut data.derivatives.dtau_dq, model.nv());
     reserve_square(&mut data.derivatives.dtau_dv, model.nv());
+    // Empty matrices hold no allocation: the outputs are lent to `derivatives_into` and put back.
+    let d = &mut data.derivatives;
+    let (mut dq, mut dv) = (std::mem::replace(&mut d.dtau_dq, DMatrix::zeros(0, 0)), std::mem::replace(&mut d.dtau_dv, DMatrix::zeros(0, 0)));
+    derivatives_into::<false>(model, data, q, v, a, f_ext, base_acceleration, dq.as_mut_slice(), dv.as_mut_slice());
+    let d = &mut data.derivatives;
+    (d.dtau_dq, d.dtau_dv) = (dq, dv);
+    (&d.dtau_dq, &d.dtau_dv)
+}
+
+/// `derivatives_with_base_acceleration` into `dtau_dq` and `dtau_dv` (nv x nv each, column-major; every entry
+/// written), for the callers that keep them elsewhere (`aba_derivatives_into`, the Python bindings' arrays); with
+/// `POSES_KNOWN`, on the poses `aba` just left in `data` at `q`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn derivatives_into<const POSES_KNOWN: bool>(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    f_ext: Option<&[Force]>,
+    base_acceleration: Motion,
+    dtau_dq: &mut [f64],
+    dtau_dv: &mut [f64],
+) {
+    let n = model.nbodies();
+    forward_pass_with::<POSES_KNOWN>(model, data, q, v, a, base_acceleration);
     let Data { centred_m_i: poses, derivatives: d, .. } = data;
     if let Some(f_ext) = f_ext {
         for i in 0..n {
@@ -63,8 +105,8 @@ pub(crate) fn derivatives_with_base_acceleration<'d>(
     // Backward pass: each joint's subtree force derivatives, its rows τ_j = S_jᵀ f over its subtree's columns,
     // and its column in its descendants' rows (Alg. 1, backward pass).
     let nv = model.nv();
-    d.dtau_dq.fill(0.0);
-    d.dtau_dv.fill(0.0);
+    dtau_dq.fill(0.0);
+    dtau_dv.fill(0.0);
     for i in (0..n).rev() {
         let k = model.idx_v(i);
         let own = k..k + model.joint(i).nv();
@@ -76,7 +118,6 @@ pub(crate) fn derivatives_with_base_acceleration<'d>(
             set_column(&mut d.df_dv, c, &(rate.apply(&s) + composite.apply(&column(&d.da_dv, c))));
             set_column(&mut d.rate_subspace, c, &rate.transpose_apply(&s));
         }
-        let (dtau_dq, dtau_dv) = (d.dtau_dq.as_mut_slice(), d.dtau_dv.as_mut_slice());
         let (df_da, df_dq, df_dv, rate_s) = (d.df_da.as_slice(), d.df_dq.as_slice(), d.df_dv.as_slice(), d.rate_subspace.as_slice());
         for c in own.clone() {
             let (s, dv_dq, da_dq, da_dv) = (column(&d.subspace, c), column(&d.dv_dq, c), column(&d.da_dq, c), column(&d.da_dv, c));
@@ -105,7 +146,6 @@ pub(crate) fn derivatives_with_base_acceleration<'d>(
             d.force[p] += force;
         }
     }
-    (&d.dtau_dq, &d.dtau_dv)
 }
 
 /// The forward pass of the derivative algorithms (Carpentier & Mansard, Alg. 1, forward pass; Pinocchio's
@@ -114,14 +154,28 @@ pub(crate) fn derivatives_with_base_acceleration<'d>(
 /// ∂a/∂q and ∂a/∂q̇ in `data.derivatives` (sized here).
 #[inline(always)]
 pub(crate) fn motion_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Option<&[f64]>, base_acceleration: Motion) {
+    motion_derivatives_with::<false>(model, data, q, v, a, base_acceleration);
+}
+
+/// `motion_derivatives`; with `POSES_KNOWN`, the poses `data.centred_m_i` already holds at `q` (left by `aba`) are
+/// taken as they are instead of composed again.
+#[inline(always)]
+fn motion_derivatives_with<const POSES_KNOWN: bool>(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: Option<&[f64]>,
+    base_acceleration: Motion,
+) {
     data.derivatives.reserve(model);
     let Data { centred_m_i: poses, derivatives: d, .. } = data;
     for i in 0..model.nbodies() {
         let (pose, v_parent, a_parent) = match i {
-            0 => (base_centred_root(model, q), Motion::zeros(), base_acceleration),
+            0 => (if POSES_KNOWN { poses[0] } else { base_centred_root(model, q) }, Motion::zeros(), base_acceleration),
             _ => {
                 let p = model.parent(i);
-                (world_pose(model, i, &poses[p], q), d.velocity[p], d.acceleration[p])
+                (if POSES_KNOWN { poses[i] } else { world_pose(model, i, &poses[p], q) }, d.velocity[p], d.acceleration[p])
             }
         };
         poses[i] = pose;
@@ -162,7 +216,13 @@ pub(crate) fn motion_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &
 /// Inlined: out of line, both derivatives took 5% more instructions (callgrind, trees of 64 and 512 bodies).
 #[inline(always)]
 pub(crate) fn forward_pass(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64], base_acceleration: Motion) {
-    motion_derivatives(model, data, q, v, Some(a), base_acceleration);
+    forward_pass_with::<false>(model, data, q, v, a, base_acceleration);
+}
+
+/// `forward_pass`, the poses known with `POSES_KNOWN` (`motion_derivatives_with`).
+#[inline(always)]
+fn forward_pass_with<const POSES_KNOWN: bool>(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64], base_acceleration: Motion) {
+    motion_derivatives_with::<POSES_KNOWN>(model, data, q, v, Some(a), base_acceleration);
     let Data { centred_m_i: poses, derivatives: d, .. } = data;
     for (i, pose) in poses.iter().enumerate().take(model.nbodies()) {
         let velocity = d.velocity[i];
