@@ -9,6 +9,7 @@ use numpy::{Element, PyArrayDescrMethods, PY_ARRAY_API};
 use numpy::{PyArray, PyArrayDyn, PyArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyOverflowError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::PyString;
 use smallvec::SmallVec;
 use std::ffi::c_int;
 
@@ -50,6 +51,19 @@ impl<'py> Floats<'py> {
 
 pub type Vector<'py> = Floats<'py>;
 pub type Matrix<'py> = Floats<'py>;
+
+/// A loader's `path_or_xml` argument as text: a `str` as given (a path or the document itself, the loader tells
+/// which), or any path-like object through `os.fspath`.
+pub fn source_text(py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<String> {
+    match value.cast::<PyString>() {
+        Ok(s) => Ok(s.to_str()?.to_owned()),
+        Err(_) => py
+            .import("os")?
+            .call_method1("fspath", (value,))?
+            .extract()
+            .map_err(|_| PyTypeError::new_err("path_or_xml: expected a path or an XML string")),
+    }
+}
 
 /// A kernel error as Python's: bad input a ValueError, a numerical failure (a diverging simulation) a
 /// RuntimeError, a size that cannot be allocated a MemoryError.

@@ -5,11 +5,11 @@ use std::ffi::CString;
 
 use legkit_dynamics::mjcf::{self, JointKind, MjcfOptions};
 use numpy::PyArray1;
-use pyo3::exceptions::{PyTypeError, PyUserWarning};
+use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyString};
+use pyo3::types::{PyDict, PyList};
 
-use crate::convert::{kernel_error, numbers, vector_to_numpy, Vector};
+use crate::convert::{kernel_error, numbers, source_text, vector_to_numpy, Vector};
 use crate::interrupt::on_worker;
 use crate::model::PyModel;
 
@@ -30,14 +30,7 @@ pub struct PyMjcf {
 
 /// Reads an MJCF (path or XML string) off the GIL, raising its warnings as `MjcfWarning`s.
 pub fn read(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: Option<bool>, strict: bool) -> PyResult<mjcf::Mjcf> {
-    let source: String = match path_or_xml.cast::<PyString>() {
-        Ok(s) => s.to_str()?.to_owned(),
-        Err(_) => py
-            .import("os")?
-            .call_method1("fspath", (path_or_xml,))?
-            .extract()
-            .map_err(|_| PyTypeError::new_err("path_or_xml: expected a path or an XML string"))?,
-    };
+    let source = source_text(py, path_or_xml)?;
     let options = MjcfOptions { floating_base, strict };
     let loaded = on_worker(py, "from_mjcf", move || mjcf::load_mjcf(&source, &options))?.map_err(kernel_error)?;
     let category = py.get_type::<MjcfWarning>();

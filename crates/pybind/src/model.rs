@@ -11,7 +11,9 @@ use pyo3::exceptions::{PyFileNotFoundError, PyIndexError, PyTypeError, PyUserWar
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
 
-use crate::convert::{homogeneous_matrix, kernel_error, matrix3, shown, to_numpy, vector3, vector_to_numpy, Floats, Integer, Matrix, Vector};
+use crate::convert::{
+    homogeneous_matrix, kernel_error, matrix3, shown, source_text, to_numpy, vector3, vector_to_numpy, Floats, Integer, Matrix, Vector,
+};
 use crate::interrupt::on_worker;
 use crate::mass::PyMassProperties;
 
@@ -194,14 +196,7 @@ impl PyModel {
         strict: bool,
         package_dirs: Option<Vec<std::path::PathBuf>>,
     ) -> PyResult<Self> {
-        let source: String = match path_or_xml.cast::<PyString>() {
-            Ok(s) => s.to_str()?.to_owned(),
-            Err(_) => py
-                .import("os")?
-                .call_method1("fspath", (path_or_xml,))?
-                .extract()
-                .map_err(|_| PyTypeError::new_err("path_or_xml: expected a path or an XML string"))?,
-        };
+        let source = source_text(py, path_or_xml)?;
         let options = UrdfOptions { floating_base, strict, package_dirs: package_dirs.unwrap_or_default() };
         let urdf = on_worker(py, "from_urdf", move || load_urdf(&source, &options))?.map_err(kernel_error)?;
         let category = py.get_type::<UrdfWarning>();
