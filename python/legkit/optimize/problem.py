@@ -1054,7 +1054,7 @@ class MultiphaseProblem:
                 continue
             sign = np.array([1.0, -1.0, 1.0])[3 - self.force_dims :] if wrapped else 1.0  # a mirrored force's y flips
             before, later = self.phases[k].contacts, self.contacts_after(k)
-            for name in set(before) | set(later):
+            for name in dict.fromkeys((*before, *later)):  # ordered: a set's order follows the hash seed
                 own = self.mirror.feet[name] if wrapped and self.mirror is not None else name  # its name in phase `after`
                 if name in before and name in later:
                     add(forces(after, 0, own), forces(k, len(self.point_index[k]) - 1, name), k, self.max_force_rate, sign)
