@@ -1,12 +1,13 @@
 """The README's and the guides' snippets do what they show.
 
-Every ```python block of a page runs, in order, in one namespace per page, in a scratch folder. A statement that is
-an expression followed by a comment holding a Python literal (``r.distance   # 1.0``) must evaluate to that literal
-(numbers to 1e-9). A line naming a piece of ``NOT_RUN`` is left out, for the reason given there. Every ``legkit``
-command of the README's ```bash blocks is parsed as written by its own parser (its options and their values
-accepted), ``legkit demo`` and a small ``legkit balance`` run, and each ``python benches/...`` command is parsed
-the same way (a bench without options compiles). Not run here: the install and test commands (``bash
-scripts/test.sh``, ``.venv/bin/pip install``, ``cargo bench``, ``python -m pytest``), which CI runs as its own steps.
+Every ```python block of a page runs, in order, in one namespace per page, in a scratch folder (a long one
+shortened as ``SHORTER`` says). A statement that is an expression followed by a comment holding a Python literal
+(``r.distance   # 1.0``) must evaluate to that literal (numbers to 1e-9). A line naming a piece of ``NOT_RUN`` is
+left out, for the reason given there. Every ``legkit`` command of the ```bash blocks of ``COMMAND_PAGES`` is parsed
+as written by its own parser (its options and their values accepted), ``legkit demo`` and a small ``legkit
+balance`` run, and each ``python benches/...`` command is parsed the same way (a bench without options compiles).
+Not run here: the install and test commands (``bash scripts/test.sh``, ``.venv/bin/pip install``, ``cargo bench``,
+``python -m pytest``), which CI runs as its own steps.
 """
 
 from __future__ import annotations
@@ -29,11 +30,22 @@ import pytest
 from legkit import cli
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = ["README.md", "docs/urdf_to_simulation.md", "docs/robots.md", "docs/agents.md", "docs/control.md"]
+PAGES = ["README.md", "docs/urdf_to_simulation.md", "docs/robots.md", "docs/agents.md", "docs/control.md", "docs/viewer.md"]
+PAGES.append("docs/sweeps.md")
+SLOW_PAGES = {"docs/viewer.md", "docs/sweeps.md"}  # pictures of Solo-12's meshes; a process pool: seconds each
+#: Per page, (text, replacement) applied to its snippets before they run: a short variant of a long snippet.
+SHORTER = {
+    "docs/sweeps.md": [
+        ("trees=64,", "trees=1,"), ("modules=20, branches=4,", "modules=4, branches=2,"), ("c0=[0.0, 0.5, 1.0]", "c0=[0.5]"),
+        ('c1={"distance": [0.1, 0.3, 1.0], "momentum": [1.0, 5.0, 20.0]}', 'c1={"distance": [0.1], "momentum": [1.0]}'),
+        ("seeds=2,", "seeds=1,"), ("duration=2.0,", "duration=0.02,"),
+    ],
+}
 
 #: Statements not run, by a piece of their source, and why.
 NOT_RUN = {
     "viewer.Viewer(": "starts meshcat's server process for a browser to connect to (tests/test_viewer.py starts one)",
+    "live.": "uses that live viewer",
 }
 
 
@@ -102,14 +114,20 @@ def run_page(page: str) -> int:
 
     namespace["_shows"] = shows
     expected: dict[int, Any] = {}
-    for first_line, code in blocks(page, "python"):
+    replacements = SHORTER.get(page, [])
+    code_blocks = blocks(page, "python")
+    for text, _ in replacements:
+        assert any(text in code for _, code in code_blocks), f"{page}: SHORTER's {text!r} is no longer in the page"
+    for first_line, code in code_blocks:
+        for text, replacement in replacements:
+            code = code.replace(text, replacement)
         module, shown = checked_code(code, first_line)
         expected.update(shown)
         exec(compile(module, f"{page}", "exec"), namespace)
     return checked
 
 
-@pytest.mark.parametrize("page", PAGES)
+@pytest.mark.parametrize("page", [pytest.param(p, marks=pytest.mark.slow) if p in SLOW_PAGES else p for p in PAGES])
 def test_python_snippets_run_and_show_what_they_give(page: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     assert blocks(page, "python"), f"{page} has no Python snippet"
     monkeypatch.chdir(tmp_path)
@@ -130,10 +148,14 @@ def test_the_checker_catches_a_snippet_that_shows_a_wrong_value() -> None:
     assert [ast.unparse(s) for s in module.body] == ["x = 1"]
 
 
-def readme_commands(prefix: str) -> list[str]:
-    """The README's command lines (comments stripped) that start with ``prefix``."""
-    lines = [line.split("  #")[0].strip() for _, code in blocks("README.md", "bash") for line in code.splitlines()]
-    return [line for line in lines if line.startswith(prefix)]
+#: The pages whose ```bash commands are checked.
+COMMAND_PAGES = ["README.md", "docs/sweeps.md"]
+
+
+def commands(prefix: str) -> list[str]:
+    """The command lines (comments stripped) of ``COMMAND_PAGES`` that start with ``prefix``, each once."""
+    lines = [line.split("  #")[0].strip() for page in COMMAND_PAGES for _, code in blocks(page, "bash") for line in code.splitlines()]
+    return list(dict.fromkeys(line for line in lines if line.startswith(prefix)))
 
 
 class Parsed(Exception):
@@ -141,10 +163,8 @@ class Parsed(Exception):
 
 
 def legkit_arguments() -> list[list[str]]:
-    commands = [shlex.split(line)[1:] for line in readme_commands("legkit ")]
     # scripts/run.sh passes its arguments to `legkit`.
-    commands += [shlex.split(line)[2:] for line in readme_commands("bash scripts/run.sh ")]
-    return commands
+    return [shlex.split(line)[1:] for line in commands("legkit ")] + [shlex.split(line)[2:] for line in commands("bash scripts/run.sh ")]
 
 
 @pytest.mark.parametrize("argv", legkit_arguments(), ids=" ".join)
@@ -185,7 +205,7 @@ def test_a_short_legkit_balance_runs_from_the_command_line(tmp_path: Path) -> No
 
 
 def bench_commands() -> list[list[str]]:
-    return [shlex.split(line)[1:] for line in readme_commands("python benches/")]
+    return [shlex.split(line)[1:] for line in commands("python benches/")]
 
 
 @pytest.mark.slow
