@@ -1,4 +1,4 @@
-"""The closed loop of the balance controller (Moll et al., IROS 2006, Sect. V): SuperBot trees whose modules'
+"""The closed loop of the balance controller [Moll 2006, Sect. V]: SuperBot trees whose modules'
 agents (``legkit.agents``) learn their mass properties and whose joints steer the centre of mass toward the
 support line (``BalanceController``), each joint's torque driving a plant for one step of ``dt``.
 
@@ -33,7 +33,7 @@ from legkit.robots.superbot import ModuleTree
 
 
 class Plant(Protocol):
-    """What the experiment needs from a simulator: joint torques in, joint state out (legkit's order)."""
+    """What the closed loop needs from a simulator: joint torques in, joint state out (legkit's order)."""
 
     @property
     def q(self) -> np.ndarray: ...
