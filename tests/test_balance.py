@@ -10,7 +10,7 @@ import pytest
 from PIL import Image
 
 import legkit as lk
-from legkit.control import SCHEMES
+from legkit.control import SCHEMES, FreePlant, initial_angles, make_plant, pose_on_ground, run_balance
 from legkit.experiments import balance
 from legkit.robots import superbot as sb
 
@@ -21,7 +21,7 @@ def test_free_plant_without_servo_terms_is_the_cores_semi_implicit_euler():
     rng = np.random.default_rng(0)
     q0, v0 = rng.uniform(-1, 1, model.nq), rng.uniform(-1, 1, model.nv)
     tau = rng.uniform(-0.2, 0.2, model.nv)
-    plant = balance.FreePlant(model, q0, v0, dt=1e-3)
+    plant = FreePlant(model, q0, v0, dt=1e-3)
     for _ in range(20):
         plant.step(tau)
     qs, vs = lk.free_rollout(model, q0, v0, 1e-3, 20, tau, method="semi_implicit_euler")
@@ -34,7 +34,7 @@ def test_free_plant_servo_terms():
     rigid, _ = sb.ModuleTree(1, [], sb.ModuleParameters(servo_armature=0.0, servo_damping=0.0)).to_model()
     model, _ = sb.ModuleTree(1, [], sb.ModuleParameters(servo_armature=0.02, servo_damping=0.3)).to_model()
     assert np.array_equal(model.armature, np.full(3, 0.02)) and np.array_equal(model.damping, np.full(3, 0.3))
-    plant = balance.FreePlant(model, dt=1e-3)
+    plant = FreePlant(model, dt=1e-3)
     q, v, tau = np.array([0.1, -0.2, 0.3]), np.array([0.0, 1.0, -0.5]), np.array([0.0, 0.01, 0.0])
     expected = np.linalg.solve(lk.crba(rigid, q) + 0.02 * np.eye(3), tau - 0.3 * v - lk.rnea(rigid, q, v, np.zeros(3)))
     np.testing.assert_allclose(plant.acceleration(q, v, tau), expected, rtol=1e-12, atol=1e-15)
@@ -42,7 +42,7 @@ def test_free_plant_servo_terms():
 
 def test_free_plant_rejects_bad_input_and_keeps_its_state():
     model, _ = sb.random_tree(3, 1, 0).to_model()
-    plant = balance.FreePlant(model)
+    plant = FreePlant(model)
     q, v = plant.q, plant.v
     with pytest.raises(ValueError, match="tau"):
         plant.step(np.zeros(model.nv + 1))
@@ -50,11 +50,11 @@ def test_free_plant_rejects_bad_input_and_keeps_its_state():
         plant.step(np.full(model.nv, np.nan))
     assert np.array_equal(plant.q, q) and np.array_equal(plant.v, v)
     with pytest.raises(ValueError, match="dt"):
-        balance.FreePlant(model, dt=0.0)
+        FreePlant(model, dt=0.0)
     with pytest.raises(ValueError, match="servo_armature"):
         sb.ModuleParameters(servo_armature=-1.0)
     with pytest.raises(ValueError, match="plant"):
-        balance.make_plant("mujoco", model, np.zeros(model.nq), 1e-3)
+        make_plant("mujoco", model, np.zeros(model.nq), 1e-3)
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +62,7 @@ def seed_runs():
     """The CLI's default experiment: four seed trees x three schemes for the default duration, on the tree
     engine."""
     trees = [sb.random_tree(20, 4, seed) for seed in range(4)]
-    return balance.run_balance(trees, balance.DEFAULT_DURATION, progress=False)
+    return run_balance(trees, balance.DEFAULT_DURATION, progress=False)
 
 
 @pytest.mark.slow
@@ -102,7 +102,7 @@ def test_runs_record_the_joint_angles_behind_their_distances(seed_runs):
 def test_closed_loop_holds_on_a_slippery_ground():
     """On a more slippery ground (mu 0.3 instead of 0.8) the branches lying on the ground slide more
     freely: every run of seed tree 0 ends within a quarter of its start."""
-    runs = balance.run_balance([sb.random_tree(20, 4, 0)], balance.DEFAULT_DURATION, progress=False, friction=0.3)
+    runs = run_balance([sb.random_tree(20, 4, 0)], balance.DEFAULT_DURATION, progress=False, friction=0.3)
     for run in runs:
         assert run.distance[-1] < 0.25 * run.initial, (run.scheme, run.distance[-1] / run.initial)
 
@@ -115,12 +115,12 @@ def test_simulated_runs_start_at_rest_out_of_the_ground(seed):
     tree = sb.random_tree(20, 4, seed)
     model, layout = tree.to_model()
     start = np.zeros(model.nq)
-    start[layout.joint_q] = balance.initial_angles(tree, seed)
-    sunk = balance.make_plant("tree", model, start, 1e-3)
+    start[layout.joint_q] = initial_angles(tree, seed)
+    sunk = make_plant("tree", model, start, 1e-3)
     sunk.step(None)
     assert sunk.contacts()["depth"].max() > 0.01
-    plant = balance.make_plant("tree", model, start, 1e-3)
-    balance.pose_on_ground(lk.SimulationBatch([plant]), [model])
+    plant = make_plant("tree", model, start, 1e-3)
+    pose_on_ground(lk.SimulationBatch([plant]), [model])
     assert np.all(plant.v == 0.0)
     posed = plant.q
     plant.step(None)
@@ -136,7 +136,7 @@ def test_cli_writes_csv_and_figure(tmp_path, capsys):
     assert code == 0
     with open(out / "balance.csv") as handle:
         rows = list(csv.DictReader(handle))
-    assert {r["scheme"] for r in rows} == set(SCHEMES) and {r["tree"] for r in rows} == {"0", "1"}
+    assert {r["scheme"] for r in rows} == set(SCHEMES) and {r["tree"] for r in rows} == {"1", "2"}
     assert len(rows) == 2 * 3 * 6  # 0.05 s sampled every 10 ms: 6 samples per run
     assert (out / "balance.png").stat().st_size > 0
     page = (out / "balance.html").read_text()

@@ -31,7 +31,7 @@ import numpy as np
 import legkit as lk
 import legkit.stability as st
 from legkit.agents import AgentNetwork, GroundContact
-from legkit.experiments.balance import run_balance
+from legkit.control import run_balance
 from legkit.robots.quadruped import build_quadruped
 from legkit.robots.superbot import random_tree
 from legkit.strain.benchtop import synthetic_benchtop

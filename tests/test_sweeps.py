@@ -17,8 +17,7 @@ import pyarrow.parquet as pq
 import pytest
 import ray
 
-from legkit.control import SCHEMES, GainSchedule
-from legkit.experiments import balance
+from legkit.control import SCHEMES, GainSchedule, closed_loop
 from legkit.robots.superbot import random_tree
 from legkit.sweeps import SweepSpec, read_results, run_batch, run_sweep, task_size
 from legkit.sweeps import cli as sweep_cli
@@ -83,11 +82,11 @@ def test_bad_run_arguments_raise_errors_naming_them(tmp_path):
         run_sweep(SweepSpec(**SMALL), tmp_path / "w", workers=0)
     trees = [random_tree(4, 2, 0)]
     with pytest.raises(ValueError, match=r"^runs\[0\].tree"):
-        balance.run_balance(trees, 0.01, runs=[balance.RunSpec(1, GainSchedule())], progress=False)
+        closed_loop.run_balance(trees, 0.01, runs=[closed_loop.RunSpec(1, GainSchedule())], progress=False)
     with pytest.raises(ValueError, match=r"^runs\[0\].noise"):
-        balance.run_balance(trees, 0.01, runs=[balance.RunSpec(0, GainSchedule(), noise=-1.0)], progress=False)
+        closed_loop.run_balance(trees, 0.01, runs=[closed_loop.RunSpec(0, GainSchedule(), noise=-1.0)], progress=False)
     with pytest.raises(ValueError, match="^bus"):
-        balance.run_balance(trees, 0.01, loss=0.1, bus=balance.BusConfig(), progress=False)
+        closed_loop.run_balance(trees, 0.01, loss=0.1, bus=closed_loop.BusConfig(), progress=False)
 
 
 @pytest.fixture(scope="module")
@@ -114,7 +113,7 @@ def test_sweep_writes_parquet_figures_and_the_paper_runs_of_legkit_balance(local
     for r in rows:
         assert r["final"] >= 0 and r["energy"] > 0 and r["messages"] > 0 and r["initial"] > 0
     # Replicate 0 on the plane, reliable bus, no noise, is the run of `legkit balance` with the same tree seed.
-    reference = balance.run_balance([random_tree(4, 2, s) for s in range(2)], 0.1, progress=False)
+    reference = closed_loop.run_balance([random_tree(4, 2, s) for s in range(2)], 0.1, progress=False)
     for expected in (e for e in reference if e.scheme in ("constant", "momentum")):
         key = (expected.tree, expected.scheme, 0.0, 0.0, 0.0)
         (row,) = [r for r in rows if (r["tree_seed"], r["scheme"], r["loss"], r["terrain"], r["noise"]) == key]
@@ -131,12 +130,12 @@ def test_zero_gains_spend_no_energy_and_noise_is_per_run():
     """A schedule with zero gains applies no torque: zero energy. A run's sensor noise comes from its own
     generator: the same noisy run gives the same result beside other runs or alone."""
     trees = [random_tree(4, 2, 0), random_tree(4, 2, 1)]
-    noisy = balance.RunSpec(0, GainSchedule.paper("distance"), noise=0.02, noise_seed=7)
-    together = balance.run_balance(trees, 0.05, runs=[balance.RunSpec(1, GainSchedule("constant", c0=0.0)), noisy], progress=False)
-    alone = balance.run_balance(trees, 0.05, runs=[noisy], progress=False)
+    noisy = closed_loop.RunSpec(0, GainSchedule.paper("distance"), noise=0.02, noise_seed=7)
+    together = closed_loop.run_balance(trees, 0.05, runs=[closed_loop.RunSpec(1, GainSchedule("constant", c0=0.0)), noisy], progress=False)
+    alone = closed_loop.run_balance(trees, 0.05, runs=[noisy], progress=False)
     assert together[0].energy == 0.0
     np.testing.assert_array_equal(together[1].distance, alone[0].distance)
-    quiet = balance.run_balance(trees, 0.05, runs=[balance.RunSpec(0, GainSchedule.paper("distance"))], progress=False)
+    quiet = closed_loop.run_balance(trees, 0.05, runs=[closed_loop.RunSpec(0, GainSchedule.paper("distance"))], progress=False)
     assert not np.array_equal(quiet[0].distance, alone[0].distance)
 
 
@@ -144,22 +143,24 @@ def test_a_run_on_a_lossy_delayed_bus_does_not_depend_on_its_batch():
     """On an asynchronous bus a run draws its losses, duplicates and delays from generators of its own
     (RunSpec.bus_seed): the same RunSpec gives the same result alone and between other runs."""
     trees = [random_tree(4, 2, 0), random_tree(6, 2, 1), random_tree(4, 2, 2)]
-    bus = balance.BusConfig(mode="async", loss=0.3, delay_max=4, duplication=0.1)
-    run = balance.RunSpec(1, GainSchedule.paper("distance"), bus_seed=11)
-    others = [balance.RunSpec(0, GainSchedule.paper("constant")), balance.RunSpec(2, GainSchedule.paper("momentum"), bus_seed=3)]
-    together = balance.run_balance(trees, 0.1, runs=[others[0], run, others[1]], bus=bus, progress=False)[1]
-    alone = balance.run_balance(trees, 0.1, runs=[run], bus=bus, progress=False)[0]
+    bus = closed_loop.BusConfig(mode="async", loss=0.3, delay_max=4, duplication=0.1)
+    run = closed_loop.RunSpec(1, GainSchedule.paper("distance"), bus_seed=11)
+    others = [closed_loop.RunSpec(0, GainSchedule.paper("constant")), closed_loop.RunSpec(2, GainSchedule.paper("momentum"), bus_seed=3)]
+    together = closed_loop.run_balance(trees, 0.1, runs=[others[0], run, others[1]], bus=bus, progress=False)[1]
+    alone = closed_loop.run_balance(trees, 0.1, runs=[run], bus=bus, progress=False)[0]
     np.testing.assert_array_equal(together.distance, alone.distance)
     assert (together.messages_per_module_second, together.energy) == (alone.messages_per_module_second, alone.energy)
     # The faults are real: the reliable bus, or the same bus with another run seed, give other results.
-    reliable = balance.run_balance(trees, 0.1, runs=[run], progress=False)[0]
-    reseeded = balance.run_balance(trees, 0.1, runs=[balance.RunSpec(1, GainSchedule.paper("distance"), bus_seed=12)], bus=bus, progress=False)[0]
+    reliable = closed_loop.run_balance(trees, 0.1, runs=[run], progress=False)[0]
+    reseeded = closed_loop.run_balance(
+        trees, 0.1, runs=[closed_loop.RunSpec(1, GainSchedule.paper("distance"), bus_seed=12)], bus=bus, progress=False,
+    )[0]
     assert not np.array_equal(reliable.distance, alone.distance)
     assert not np.array_equal(reseeded.distance, alone.distance)
     with pytest.raises(ValueError, match="^bus: run_balance gives every run its own stream"):
-        balance.run_balance(trees, 0.1, runs=[run], bus=balance.BusConfig(mode="async", streams=((7, 0),)), progress=False)
+        closed_loop.run_balance(trees, 0.1, runs=[run], bus=closed_loop.BusConfig(mode="async", streams=((7, 0),)), progress=False)
     with pytest.raises(ValueError, match=r"^runs\[0\].bus_seed"):
-        balance.run_balance(trees, 0.1, runs=[balance.RunSpec(0, GainSchedule(), bus_seed=-1)], bus=bus, progress=False)
+        closed_loop.run_balance(trees, 0.1, runs=[closed_loop.RunSpec(0, GainSchedule(), bus_seed=-1)], bus=bus, progress=False)
 
 
 @pytest.mark.slow
@@ -592,7 +593,7 @@ def test_servo_torques_are_limited_to_the_stall_torque(monkeypatch):
     from legkit.robots import superbot as sb
 
     applied = []
-    real_batch = balance.lk.SimulationBatch
+    real_batch = closed_loop.lk.SimulationBatch
 
     class Recording:
         def __init__(self, simulations):
@@ -606,11 +607,11 @@ def test_servo_torques_are_limited_to_the_stall_torque(monkeypatch):
                 applied.append(np.abs(np.asarray(taus)).max())
             return self._batch.step(taus, **kwargs)
 
-    monkeypatch.setattr(balance.lk, "SimulationBatch", Recording)
+    monkeypatch.setattr(closed_loop.lk, "SimulationBatch", Recording)
     for limit in (0.05, 1.0):
         applied.clear()
         trees = [random_tree(4, 2, 0, sb.ModuleParameters(servo_torque_limit=limit))]
-        balance.run_balance(trees, 0.05, runs=[balance.RunSpec(0, GainSchedule.paper("constant"))], progress=False)
+        closed_loop.run_balance(trees, 0.05, runs=[closed_loop.RunSpec(0, GainSchedule.paper("constant"))], progress=False)
         assert max(applied) == limit
     assert sb.ModuleParameters().servo_torque_limit == sb.SERVO_TORQUE_LIMIT == 1.0
     for bad in (0.0, -1.0, float("nan"), "1"):

@@ -147,7 +147,7 @@ def run_batch(spec_values: dict[str, Any], runs: Sequence[RunParams], threads: i
     if threads is not None:
         os.environ["RAYON_NUM_THREADS"] = str(threads)
     from legkit.agents import BusConfig
-    from legkit.experiments.balance import RunSpec, run_balance
+    from legkit.control import RunSpec, run_balance
     from legkit.robots.superbot import random_tree
 
     modules, branches = spec_values["modules"], spec_values["branches"]

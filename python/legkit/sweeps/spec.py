@@ -2,7 +2,7 @@
 
 A spec is the Cartesian product of its axes: tree seeds x schemes x c0 x c1 x K_P0 x K_I0 x K_D0 x bus loss
 x bus delay x terrain roughness x friction x sensor noise x replicate seeds. Every run is one closed-loop
-balance run (``legkit.experiments.balance.run_balance``) of ``duration`` s.
+balance run (``legkit.control.run_balance``) of ``duration`` s.
 
 * ``c0`` / ``c1`` None take the paper's value of each scheme (``GainSchedule.paper``); a sequence applies to
   every scheme; a mapping ``{scheme: sequence}`` gives each scheme its own values (schemes left out take
