@@ -54,8 +54,8 @@ use std::path::{Path, PathBuf};
 use nalgebra::{DVector, Matrix3, Quaternion, SymmetricEigen, Unit, UnitQuaternion, Vector3};
 use roxmltree::Node;
 
+use crate::geometry::{Convex, Shape, ShapeKind};
 use crate::mesh::mesh_vertices;
-use crate::sim::{Convex, Shape, ShapeKind};
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
 /// How an MJCF becomes a model.

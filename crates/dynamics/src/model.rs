@@ -19,8 +19,8 @@ use nalgebra::{DMatrix, DVector, Matrix3xX, Matrix6xX, Vector3, Vector6};
 
 use crate::algorithms::aba::{Block6, BLOCK};
 use crate::algorithms::SecondOrder;
+use crate::geometry::Shape;
 use crate::joint::Joint;
-use crate::sim::Shape;
 use crate::spatial::{spatial, Force, Inertia, Motion, RateMatrix, RigidInertia, Transform};
 use crate::validate::{array_len, filled, finite_vector, rotation, with_capacity};
 use crate::{Error, MassProperties, Result};

@@ -60,8 +60,8 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Matrix3, Vector3};
 use roxmltree::Node;
 
+use crate::geometry::{Convex, Shape, ShapeKind};
 use crate::mesh::{mesh_vertices, resolve_mesh};
-use crate::sim::{Convex, Shape, ShapeKind};
 use crate::validate::{check_cancelled, direction, CANCEL_INTERVAL};
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 

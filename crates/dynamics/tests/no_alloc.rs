@@ -9,7 +9,7 @@ use legkit_dynamics::algorithms::{
     frame_velocity, frame_velocity_derivatives, integrate, integrate_jacobians, jacobian, jacobian_time_variation, kinetic_energy, minv,
     potential_energy, rnea, rnea_derivatives, rnea_second_order_derivatives, subtree_mass_properties, Frame,
 };
-use legkit_dynamics::sim::{Shape, ShapeKind};
+use legkit_dynamics::geometry::{Shape, ShapeKind};
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 

@@ -4,7 +4,8 @@
 //! servos saturate.
 
 use legkit_dynamics::algorithms::{difference, integrate};
-use legkit_dynamics::sim::{Convex, FrictionLaw, Ground, Options, Servo, Shape, ShapeKind, Simulation};
+use legkit_dynamics::geometry::{Convex, Shape, ShapeKind};
+use legkit_dynamics::sim::{FrictionLaw, Ground, Options, Servo, Simulation};
 use legkit_dynamics::{Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{DMatrix, Matrix3, Rotation3, Vector3};
 

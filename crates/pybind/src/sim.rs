@@ -1,9 +1,9 @@
 //! `legkit.Simulation` and `legkit.Ground`: conversions around `legkit_dynamics::sim`.
 
+use legkit_dynamics::geometry::{Convex, Shape, ShapeKind};
 use legkit_dynamics::model::check_vector;
 use legkit_dynamics::sim::{
-    dof_coordinates, Backend, Convex, FrictionLaw, Ground, Options, Servo, Shape, ShapeKind, Simulation, DEFAULT_SOLVER_ITERATIONS,
-    MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS,
+    dof_coordinates, Backend, FrictionLaw, Ground, Options, Servo, Simulation, DEFAULT_SOLVER_ITERATIONS, MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS,
 };
 use legkit_dynamics::validate::{array_len, with_capacity};
 use legkit_dynamics::Transform;

@@ -6,7 +6,7 @@ use rapier3d_f64::parry::shape::HeightFieldFlags;
 use rapier3d_f64::parry::utils::Array2;
 use rapier3d_f64::prelude::{ColliderBuilder, SharedShape};
 
-use super::options::MAX_SHAPE_SIZE;
+use crate::geometry::MAX_SHAPE_SIZE;
 use crate::validate::finite;
 use crate::{Error, Result};
 

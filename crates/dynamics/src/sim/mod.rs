@@ -19,10 +19,7 @@ mod tree;
 
 pub use actuation::{dof_coordinates, Servo};
 pub use ground::Ground;
-pub use options::{
-    Backend, Convex, FrictionLaw, Options, Shape, ShapeKind, DEFAULT_SOLVER_ITERATIONS, MAX_SHAPE_SIZE, MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS,
-    MIN_DEFAULT_EDGE,
-};
+pub use options::{Backend, FrictionLaw, Options, DEFAULT_SOLVER_ITERATIONS, MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS};
 
 use std::panic::AssertUnwindSafe;
 

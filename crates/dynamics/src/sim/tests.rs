@@ -5,6 +5,7 @@ use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 
 use super::*;
 use crate::algorithms::{free_rollout, Method};
+use crate::geometry::{Convex, Shape, ShapeKind};
 use crate::model::{JointLimits, STANDARD_GRAVITY};
 use crate::sim::options::Backend;
 use crate::Joint;

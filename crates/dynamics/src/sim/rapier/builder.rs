@@ -21,7 +21,8 @@ use crate::spatial::{angular, linear, Transform};
 use crate::validate::{array_len, with_capacity};
 use crate::{Error, MassProperties, Result};
 
-use crate::sim::options::{to_pose, to_vector, Options, DEFAULT_FRICTION};
+use crate::geometry::{to_pose, to_vector};
+use crate::sim::options::{Options, DEFAULT_FRICTION};
 use crate::sim::Ground;
 
 /// Marks the ground collider in `Collider::user_data` (bodies store their legkit index).

@@ -35,8 +35,9 @@ use crate::{Error, Result};
 use builder::{Layout, RapierAxis};
 
 use super::actuation::{dof_coordinates, Actuation};
-use super::options::{from_pose, to_vector, Options};
+use super::options::Options;
 use super::{Contact, Engine};
+use crate::geometry::{from_pose, to_vector};
 
 /// The world-frame wrench of one generalized force, to apply to Rapier bodies.
 #[derive(Debug, Clone, Copy)]

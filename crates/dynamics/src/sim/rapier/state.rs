@@ -10,8 +10,8 @@ use rapier3d_f64::math::{Pose, Vector};
 use rapier3d_f64::prelude::{Multibody, PhysicsWorld};
 
 use super::builder::{Layout, RapierAxis, GROUND_TAG};
+use crate::geometry::{from_pose, from_vector, to_pose, to_vector};
 use crate::model::Model;
-use crate::sim::options::{from_pose, from_vector, to_pose, to_vector};
 use crate::sim::Contact;
 use crate::spatial::Transform;
 

@@ -13,8 +13,9 @@ use rapier3d_f64::prelude::SharedShape;
 use nalgebra::Vector3;
 
 use super::plane::{plane_points, MAX_FEATURES};
+use crate::geometry::{from_vector, to_pose, ShapeKind};
 use crate::model::Model;
-use crate::sim::options::{from_vector, to_pose, Options, ShapeKind};
+use crate::sim::options::Options;
 use crate::sim::Ground;
 use crate::spatial::Transform;
 

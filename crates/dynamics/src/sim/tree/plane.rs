@@ -4,7 +4,7 @@
 
 use nalgebra::Vector3;
 
-use crate::sim::options::ShapeKind;
+use crate::geometry::ShapeKind;
 use crate::spatial::Transform;
 
 /// The most features a shape has: a cylinder's two lowest rim points and four rim points per cap.

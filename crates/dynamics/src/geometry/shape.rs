@@ -1,0 +1,213 @@
+//! Collision shapes in a body's frame (boxes, spheres, capsules, cylinders, convex hulls), checked on
+//! construction, and their parry counterparts: below both `model` (which carries a model's collision shapes)
+//! and `sim` (which collides them).
+
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use rapier3d_f64::math::{Matrix, Pose, Rotation, Vector};
+use rapier3d_f64::parry::shape::ConvexPolyhedron;
+use rapier3d_f64::prelude::SharedShape;
+use std::sync::Arc;
+
+use crate::spatial::Transform;
+use crate::validate::{finite, finite_vector, rotation};
+use crate::{Error, MassProperties, Result};
+
+/// Edges of default boxes are at least this long (m), so point masses and thin rods still collide.
+pub const MIN_DEFAULT_EDGE: f64 = 1e-3;
+
+/// A collision shape in a body's frame. `placement` (the shape frame in the body frame) defaults to the
+/// body's centre of mass with the body's axes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Shape {
+    pub kind: ShapeKind,
+    pub placement: Option<Transform>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum ShapeKind {
+    /// Full edge lengths along the shape's x, y, z.
+    Box(Vector3<f64>),
+    Sphere(f64),
+    /// Along the shape's z axis: half the length of the axis segment, and the radius.
+    Capsule {
+        half_height: f64,
+        radius: f64,
+    },
+    /// Along the shape's z axis.
+    Cylinder {
+        half_height: f64,
+        radius: f64,
+    },
+    /// A convex polyhedron (a mesh's convex hull).
+    Convex(Convex),
+}
+
+/// The convex hull of points in the shape frame (a collision mesh's vertices).
+#[derive(Clone)]
+pub struct Convex {
+    vertices: Arc<[Vector3<f64>]>,
+    shape: SharedShape,
+}
+
+impl Convex {
+    /// The hull of `points` (finite, within `MAX_SHAPE_SIZE`); an error if they span no volume, or if parry
+    /// fails on them (a panic inside it, caught: a numerical failure).
+    pub fn hull(points: &[Vector3<f64>]) -> Result<Self> {
+        for p in points {
+            for x in finite_vector("shapes", *p)?.iter() {
+                within_size("shapes", *x)?;
+            }
+        }
+        let flat = || {
+            Error::invalid("shapes", format!("the convex hull of {} points has no volume (they lie in a plane or are fewer than 4)", points.len()))
+        };
+        if !spans_volume(points) {
+            return Err(flat());
+        }
+        let parry: Vec<Vector> = points.iter().map(to_vector).collect();
+        let hull = std::panic::catch_unwind(|| ConvexPolyhedron::from_convex_hull(&parry))
+            .map_err(|_| Error::numerical("shapes", format!("parry failed to build the convex hull of {} points", points.len())))?
+            .ok_or_else(flat)?;
+        let vertices = hull.points().iter().map(|p| from_vector(*p)).collect();
+        Ok(Convex { vertices, shape: SharedShape::new(hull) })
+    }
+
+    /// The hull's vertices.
+    pub fn vertices(&self) -> &[Vector3<f64>] {
+        &self.vertices
+    }
+}
+
+/// Some point lies off the plane through three others by more than 1e-9 of the points' extent.
+fn spans_volume(points: &[Vector3<f64>]) -> bool {
+    let Some(first) = points.first() else { return false };
+    let farthest =
+        |score: &dyn Fn(&Vector3<f64>) -> f64| points.iter().map(|p| (score(p), *p)).fold((0.0, *first), |a, b| if b.0 > a.0 { b } else { a });
+    let (extent, second) = farthest(&|p| (p - first).norm());
+    let along = (second - first) / extent.max(f64::MIN_POSITIVE);
+    let (_, third) = farthest(&|p| (p - first).cross(&along).norm());
+    let normal = (second - first).cross(&(third - first));
+    let (height, _) = farthest(&|p| (p - first).dot(&normal).abs() / normal.norm().max(f64::MIN_POSITIVE));
+    extent > 0.0 && height > 1e-9 * extent
+}
+
+impl PartialEq for Convex {
+    fn eq(&self, other: &Self) -> bool {
+        self.vertices == other.vertices
+    }
+}
+
+impl std::fmt::Debug for Convex {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Convex({} vertices)", self.vertices.len())
+    }
+}
+
+fn positive(argument: &'static str, x: f64) -> Result<f64> {
+    if finite(argument, x)? <= 0.0 {
+        return Err(Error::invalid(argument, format!("must be > 0, got {x}")));
+    }
+    Ok(x)
+}
+
+/// The largest size or offset (m) of a collision shape: a robot is far smaller, and parry's geometry
+/// overflows (and panics) on sizes near the square root of the largest float.
+pub const MAX_SHAPE_SIZE: f64 = 1e6;
+
+/// `x` if it is at most `MAX_SHAPE_SIZE` in magnitude.
+fn within_size(argument: &'static str, x: f64) -> Result<f64> {
+    if x.abs() > MAX_SHAPE_SIZE {
+        return Err(Error::invalid(argument, format!("sizes and offsets must be at most {MAX_SHAPE_SIZE:e} m, got {x}")));
+    }
+    Ok(x)
+}
+
+impl Shape {
+    /// Checks sizes (finite, > 0, at most `MAX_SHAPE_SIZE`) and the placement (a proper rotation, a finite
+    /// translation within `MAX_SHAPE_SIZE`).
+    pub fn new(kind: ShapeKind, placement: Option<Transform>) -> Result<Self> {
+        match &kind {
+            ShapeKind::Box(size) => {
+                for s in size.iter() {
+                    within_size("shapes", positive("shapes", *s)?)?;
+                }
+            }
+            ShapeKind::Sphere(r) => {
+                within_size("shapes", positive("shapes", *r)?)?;
+            }
+            ShapeKind::Capsule { half_height, radius } | ShapeKind::Cylinder { half_height, radius } => {
+                within_size("shapes", positive("shapes", *radius)?)?;
+                if within_size("shapes", finite("shapes", *half_height)?)? < 0.0 {
+                    return Err(Error::invalid("shapes", format!("half_height must be >= 0, got {half_height}")));
+                }
+            }
+            // Checked by `Convex::hull`, its only maker.
+            ShapeKind::Convex(_) => {}
+        }
+        if let Some(p) = &placement {
+            rotation("shapes", &p.rotation)?;
+            for x in finite_vector("shapes", p.translation)?.iter() {
+                within_size("shapes", *x)?;
+            }
+        }
+        Ok(Shape { kind, placement })
+    }
+
+    /// The uniform box with the body's mass and principal moments, centred at its COM along its principal
+    /// axes: edges a² = 6 (I₂ + I₃ − I₁) / m and cyclically, floored at `MIN_DEFAULT_EDGE`. None for a
+    /// massless body.
+    pub fn default_box(body: &MassProperties) -> Option<Shape> {
+        if body.mass() <= 0.0 {
+            return None;
+        }
+        let eigen = SymmetricEigen::new(body.inertia());
+        let mut axes = eigen.eigenvectors;
+        if axes.determinant() < 0.0 {
+            axes.set_column(2, &(-axes.column(2)));
+        }
+        let moments = eigen.eigenvalues;
+        let edge = |k: usize| {
+            let squared = 6.0 * (moments[(k + 1) % 3] + moments[(k + 2) % 3] - moments[k]) / body.mass();
+            squared.max(0.0).sqrt().max(MIN_DEFAULT_EDGE)
+        };
+        Some(Shape { kind: ShapeKind::Box(Vector3::new(edge(0), edge(1), edge(2))), placement: Some(Transform::new(axes, body.com())) })
+    }
+
+    pub(crate) fn shared_shape(&self) -> (SharedShape, Transform) {
+        // Parry's cylinder runs along its y axis: turn it onto z (x → x, y → z, z → −y).
+        let y_to_z = Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0);
+        match &self.kind {
+            ShapeKind::Box(size) => (SharedShape::cuboid(size.x / 2.0, size.y / 2.0, size.z / 2.0), Transform::identity()),
+            ShapeKind::Sphere(r) => (SharedShape::ball(*r), Transform::identity()),
+            ShapeKind::Capsule { half_height, radius } => (SharedShape::capsule_z(*half_height, *radius), Transform::identity()),
+            ShapeKind::Cylinder { half_height, radius } => (SharedShape::cylinder(*half_height, *radius), Transform::new(y_to_z, Vector3::zeros())),
+            ShapeKind::Convex(convex) => (convex.shape.clone(), Transform::identity()),
+        }
+    }
+}
+
+pub(crate) fn to_pose(t: &Transform) -> Pose {
+    let r = &t.rotation;
+    let m = Matrix::from_cols(
+        Vector::new(r[(0, 0)], r[(1, 0)], r[(2, 0)]),
+        Vector::new(r[(0, 1)], r[(1, 1)], r[(2, 1)]),
+        Vector::new(r[(0, 2)], r[(1, 2)], r[(2, 2)]),
+    );
+    Pose::from_parts(to_vector(&t.translation), Rotation::from_mat3(&m).normalize())
+}
+
+pub(crate) fn from_pose(p: &Pose) -> Transform {
+    let m = Matrix::from_quat(p.rotation);
+    let (x, y, z) = (m.col(0), m.col(1), m.col(2));
+    Transform::new(Matrix3::new(x.x, y.x, z.x, x.y, y.y, z.y, x.z, y.z, z.z), from_vector(p.translation))
+}
+
+#[inline]
+pub(crate) fn to_vector(v: &Vector3<f64>) -> Vector {
+    Vector::new(v.x, v.y, v.z)
+}
+
+#[inline]
+pub(crate) fn from_vector(v: Vector) -> Vector3<f64> {
+    Vector3::new(v.x, v.y, v.z)
+}
