@@ -14,6 +14,7 @@ import subprocess
 import sys
 import textwrap
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -568,26 +569,84 @@ def test_a_package_name_cannot_escape_its_package(tmp_path):
         lk.resolve_mesh("package://bot/../../secret.stl", package_dirs=[str(tmp_path / "share")])
 
 
-def test_a_symbolic_link_cannot_lead_out_of_its_package(tmp_path):
-    secret = tmp_path / "secret.stl"
-    secret.write_text("solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n")
+CUBE_STL = (
+    "solid s\n"
+    + "".join(
+        f"facet normal 0 0 0\nouter loop\nvertex {x} {y} {z}\nvertex {x} {y} 0\nvertex 0 0 {z}\nendloop\nendfacet\n"
+        for x in (0, 1)
+        for y in (0, 1)
+        for z in (0, 1)
+    )
+    + "endsolid s\n"
+)
+
+MESH_URDF = """<robot name="bot"><link name="base"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>
+  </inertial><collision><geometry><mesh filename="{filename}"/></geometry></collision></link></robot>"""
+
+
+def test_a_symbolic_link_out_of_its_package_must_reach_a_mesh(tmp_path):
+    # A package unpacked from an archive may bring links of its own: one that leads out of the package is
+    # followed only to a file of the name's kind, never to a key that the viewer would embed in its HTML.
+    (tmp_path / "id_rsa").write_text("not a mesh")
+    (tmp_path / "elsewhere.stl").write_text(CUBE_STL)
     share = tmp_path / "share"
     meshes = share / "bot" / "meshes"
     meshes.mkdir(parents=True)
-    (meshes / "leg.stl").symlink_to(secret)  # a file linked out of the package
-    (share / "bot" / "outside").symlink_to(tmp_path)  # a folder linked out of it
-    (meshes / "copy.stl").write_text(secret.read_text())
-    (meshes / "alias.stl").symlink_to(meshes / "copy.stl")  # a link that stays inside is followed
-    for name in ["package://bot/meshes/leg.stl", "package:///bot/outside/secret.stl", "model://bot/meshes/leg.stl"]:
-        with pytest.raises(ValueError, match="filename.*outside its package"):
+    (meshes / "leg.stl").symlink_to(tmp_path / "id_rsa")
+    (meshes / "foot.stl").symlink_to(tmp_path / "elsewhere.stl")
+    (meshes / "copy.stl").write_text(CUBE_STL)
+    (meshes / "alias.stl").symlink_to(meshes / "copy.stl")
+    (share / "bot" / "outside").symlink_to(tmp_path)
+    for name in ["package://bot/meshes/leg.stl", "model://bot/outside/id_rsa"]:
+        with pytest.raises(ValueError, match="filename.*outside its package .* to a file of another kind"):
             lk.resolve_mesh(name, package_dirs=[share])
     assert lk.resolve_mesh("package://bot/meshes/alias.stl", package_dirs=[share]) == meshes / "alias.stl"
+    assert lk.resolve_mesh("package://bot/meshes/foot.stl", package_dirs=[share]) == meshes / "foot.stl"
+    assert lk.resolve_mesh("package:///bot/outside/elsewhere.stl", package_dirs=[share]) == share / "bot" / "outside" / "elsewhere.stl"
     # Loading: the link collides as the box of its inertia, with a warning that says why.
-    urdf = """<robot name="r"><link name="base"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>
-      </inertial><collision><geometry><mesh filename="package://bot/meshes/leg.stl"/></geometry></collision></link></robot>"""
-    with pytest.warns(lk.UrdfWarning, match="outside its package"):
-        model = lk.Model.from_urdf(urdf, package_dirs=[str(share)])
+    with pytest.warns(lk.UrdfWarning, match="another kind"):
+        model = lk.Model.from_urdf(MESH_URDF.format(filename="package://bot/meshes/leg.stl"), package_dirs=[str(share)])
     assert [kind for _, kind, _, _ in model.colliders()] == ["box"]
+
+
+def colcon_workspace(root: Path) -> Path:
+    """A colcon workspace built with --symlink-install: src/bot holds the package, install/bot/share/bot links
+    each of its files there. Returns the installed URDF."""
+    source = root / "src" / "bot"
+    (source / "meshes").mkdir(parents=True)
+    (source / "urdf").mkdir()
+    (source / "meshes" / "leg.stl").write_text(CUBE_STL)
+    (source / "urdf" / "bot.urdf").write_text(MESH_URDF.format(filename="package://bot/meshes/leg.stl"))
+    installed = root / "install" / "bot" / "share" / "bot"
+    for relative in ["meshes/leg.stl", "urdf/bot.urdf"]:
+        (installed / relative).parent.mkdir(parents=True, exist_ok=True)
+        (installed / relative).symlink_to(source / relative)
+    return installed / "urdf" / "bot.urdf"
+
+
+def test_a_colcon_symlink_install_workspace_loads_as_pinocchio_loads_it(tmp_path, monkeypatch):
+    import pinocchio as pin
+
+    urdf = colcon_workspace(tmp_path)
+    share = tmp_path / "install" / "bot" / "share"
+    installed_mesh = share / "bot" / "meshes" / "leg.stl"
+    pin_model = pin.buildModelFromUrdf(str(urdf))
+    pin_geometry = pin.buildGeomFromUrdf(pin_model, str(urdf), pin.COLLISION, package_dirs=[str(share)])
+    assert Path(pin_geometry.geometryObjects[0].meshPath).resolve() == installed_mesh.resolve()
+    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
+    monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
+    # Through package_dirs, the URDF's folder's ancestors, and a sourced workspace's AMENT_PREFIX_PATH.
+    assert lk.resolve_mesh("package://bot/meshes/leg.stl", package_dirs=[share]) == installed_mesh
+    assert lk.resolve_mesh("package://bot/meshes/leg.stl", urdf) == installed_mesh
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(tmp_path / "install" / "bot"))
+    assert lk.resolve_mesh("package://bot/meshes/leg.stl") == installed_mesh
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", lk.UrdfWarning)
+        for model in [lk.Model.from_urdf(urdf), lk.Model.from_urdf(urdf.read_text())]:
+            assert [kind for _, kind, _, _ in model.colliders()] == ["convex"]
+    # A name still cannot climb out of the package, symlinked or not.
+    with pytest.raises(ValueError, match="filename.*outside its package"):
+        lk.resolve_mesh("package://bot/../../../src/bot/meshes/leg.stl", urdf)
 
 
 # --- the commands ----------------------------------------------------------------------------------------------

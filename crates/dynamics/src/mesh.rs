@@ -35,11 +35,11 @@ pub fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
 /// Where a URDF's mesh `filename` lies, read as Pinocchio and ROS read it:
 ///
 /// - `package://name/rest` is `dir/name/rest` (or `dir/rest` when `dir` is the package `name` itself) for the
-///   first such file over `package_dirs`, then `ROS_PACKAGE_PATH`'s folders, then the URDF folder's
+///   first such file over `package_dirs`, then `ROS_PACKAGE_PATH`'s folders,
+///   then each of `AMENT_PREFIX_PATH`'s prefixes' `share/` (a sourced ROS 2 workspace), then the URDF folder's
 ///   ancestors (`urdf_dir`). Empty segments are skipped, so `package:///name/rest` (as example-robot-data
 ///   writes it) is the same name; `model://` (Gazebo's) is read as `package://`. The name may not climb
-///   (`..`), and the file it reaches, symbolic links followed, must lie inside the package's folder: a name
-///   or a link leading outside it is refused (`Error::Invalid` naming `filename`).
+///   (`..`): it is refused (`Error::Invalid` naming `filename`). See `confined` for symbolic links.
 /// - `file://path` and absolute paths are read as written.
 /// - A relative path is taken against `urdf_dir` (the working folder if None), then, if it does not climb,
 ///   against each of `package_dirs` (confined to it, as a package name is).
@@ -59,10 +59,11 @@ pub fn resolve_mesh(filename: &str, urdf_dir: Option<&Path>, package_dirs: &[Pat
             return Err(Error::invalid("filename", format!("{filename:?} names no package")));
         };
         let inside: PathBuf = inside.iter().collect();
-        let ros_path = std::env::var_os("ROS_PACKAGE_PATH").map(|p| std::env::split_paths(&p).collect::<Vec<_>>()).unwrap_or_default();
+        let paths = |variable: &str| std::env::var_os(variable).map(|p| std::env::split_paths(&p).collect::<Vec<_>>()).unwrap_or_default();
+        let ament_shares = paths("AMENT_PREFIX_PATH").into_iter().map(|prefix| prefix.join("share"));
         let ancestors = urdf_dir.into_iter().flat_map(Path::ancestors).map(Path::to_path_buf);
         let mut searched = Vec::new();
-        for dir in package_dirs.iter().cloned().chain(ros_path).chain(ancestors) {
+        for dir in package_dirs.iter().cloned().chain(paths("ROS_PACKAGE_PATH")).chain(ament_shares).chain(ancestors) {
             let itself = dir.file_name().is_some_and(|name| name == package);
             for root in [dir.join(package)].into_iter().chain(itself.then(|| dir.clone())) {
                 let candidate = root.join(&inside);
@@ -91,15 +92,24 @@ pub fn resolve_mesh(filename: &str, urdf_dir: Option<&Path>, package_dirs: &[Pat
     Err(Error::invalid("mesh", format!("{filename:?}: no such file ({})", beside.display())))
 }
 
-/// `candidate` if it lies inside `root` once symbolic links are followed (a link inside a package may point
-/// anywhere); otherwise `Error::Invalid` naming `filename`.
+/// `candidate`, a name below `root`, once its symbolic links are checked. They are followed wherever they lead,
+/// as Pinocchio and ROS follow them: a colcon `--symlink-install` share folder links each installed file to
+/// its source, a catkin devel space links into `src/`, and the user made those links, not the URDF. A name
+/// cannot climb out of its package (the callers refuse `..`), but a package from an archive may bring links
+/// of its own: one that leads out of the package must reach a file of the name's kind (the same extension,
+/// as colcon's and catkin's links keep it), never a key or a configuration file that the viewer would embed.
 fn confined(filename: &str, candidate: PathBuf, root: &Path) -> Result<PathBuf> {
     let real = |path: &Path| path.canonicalize().map_err(|e| Error::invalid("filename", format!("{filename:?}: {}: {e}", path.display())));
     let (file, folder) = (real(&candidate)?, real(root)?);
-    if !file.starts_with(&folder) {
+    let extension = |path: &Path| path.extension().map(|e| e.to_ascii_lowercase());
+    if !file.starts_with(&folder) && (extension(&candidate).is_none() || extension(&file) != extension(&candidate)) {
         return Err(Error::invalid(
             "filename",
-            format!("{filename:?} leads outside its package {} (a symbolic link reaches {})", folder.display(), file.display()),
+            format!(
+                "{filename:?} leads outside its package {} to a file of another kind (a symbolic link reaches {})",
+                folder.display(),
+                file.display()
+            ),
         ));
     }
     Ok(candidate)
@@ -372,15 +382,22 @@ mod tests {
         assert_eq!(resolve_mesh("package://pkg_a//etc/passwd", None, std::slice::from_ref(&root)).unwrap_err().argument(), "package_dirs");
         // A relative name not beside the URDF: in the package folders, as Pinocchio looks for it.
         assert_eq!(resolve_mesh("meshes/part.stl", None, &[root.join("pkg_a")]).unwrap(), root.join("pkg_a").join("meshes/part.stl"));
-        // A symbolic link inside the package that leads out of it is refused; one that stays inside is followed.
-        std::fs::write(root.join("secret.stl"), b"solid\nendsolid\n").unwrap();
-        let (outward, inward) = (root.join("pkg_a/meshes/outward.stl"), root.join("pkg_a/meshes/inward.stl"));
-        let _ = (std::fs::remove_file(&outward), std::fs::remove_file(&inward));
-        std::os::unix::fs::symlink(root.join("secret.stl"), &outward).unwrap();
-        std::os::unix::fs::symlink(root.join("pkg_a/meshes/part.stl"), &inward).unwrap();
-        let refused = resolve_mesh("package://pkg_a/meshes/outward.stl", None, std::slice::from_ref(&root)).unwrap_err();
-        assert!(refused.argument() == "filename" && refused.to_string().contains("outside its package"), "{refused}");
+        // Symbolic links are followed: inside the package, and out of it to a file of the name's kind (colcon's
+        // --symlink-install links each installed file to its source); out of it to another kind, refused.
+        std::fs::write(root.join("source.stl"), b"solid\nendsolid\n").unwrap();
+        std::fs::write(root.join("secret.key"), b"not a mesh").unwrap();
+        let link = |target: &str, name: &str| {
+            let path = root.join("pkg_a/meshes").join(name);
+            let _ = std::fs::remove_file(&path);
+            std::os::unix::fs::symlink(root.join(target), &path).unwrap();
+            path
+        };
+        let (inward, installed, disguised) =
+            (link("pkg_a/meshes/part.stl", "inward.stl"), link("source.stl", "installed.stl"), link("secret.key", "key.stl"));
         assert_eq!(resolve_mesh("package://pkg_a/meshes/inward.stl", None, std::slice::from_ref(&root)).unwrap(), inward);
+        assert_eq!(resolve_mesh("package://pkg_a/meshes/installed.stl", None, std::slice::from_ref(&root)).unwrap(), installed);
+        let refused = resolve_mesh("package://pkg_a/meshes/key.stl", None, std::slice::from_ref(&root)).unwrap_err();
+        assert!(refused.argument() == "filename" && refused.to_string().contains("another kind"), "{refused} ({disguised:?})");
         // A FIFO is refused before it is opened (opening one blocks until a writer comes).
         let fifo = root.join("pipe.stl");
         let made = std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success());
