@@ -155,6 +155,55 @@ def test_a_huge_broadcast_heightfield_is_a_memory_error():
     raises("lk.Ground.heightfield(np.broadcast_to(0.0, (10**5, 10**5)), 0.1)", "MemoryError", "heights")
 
 
+def binary_stl(path: Path, triangles: int, *, sphere: bool = False) -> None:
+    """A binary STL of `triangles` triangles with vertices in the unit cube, or on the unit sphere (every vertex
+    then on the hull)."""
+    rng = np.random.default_rng(0)
+    points = rng.normal(size=(triangles, 3, 3))
+    if sphere:
+        points /= np.linalg.norm(points, axis=2, keepdims=True)
+    records = np.zeros(triangles, dtype=[("normal", "<f4", 3), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])
+    records["vertices"] = points
+    path.write_bytes(b"\0" * 80 + np.uint32(triangles).tobytes() + records.tobytes())
+
+
+@pytest.mark.parametrize(("triangles", "sphere", "headroom"), [(4_000_000, False, 350), (200_000, True, 200)], ids=["vertices", "hull"])
+def test_a_mesh_too_large_for_memory_is_a_memory_error(tmp_path, triangles, sphere, headroom):
+    # Headroom (MB) above what the child holds before loading, of which the loader's thread takes 72 MB (its
+    # stack and malloc arena). "vertices": the file (200 MB) fits, its vertex list (288 MB) does not. "hull":
+    # the vertex list (14 MB) and its copies fit, parry's working set for 600,000 points on a sphere (about
+    # 700 MB) does not.
+    binary_stl(tmp_path / "leg.stl", triangles, sphere=sphere)
+    (tmp_path / "r.urdf").write_text(MESH_URDF.format(filename="leg.stl"))
+    raises(
+        f"""
+vm = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (vm + {headroom} * 2**20, vm + {headroom} * 2**20))
+lk.Model.from_urdf({str(tmp_path / "r.urdf")!r})
+""",
+        "MemoryError",
+        "mesh",
+        "leg.stl",
+        "bytes",
+        memory=0,
+    )
+
+
+def test_a_collada_file_instancing_a_geometry_beyond_memory_is_a_memory_error(tmp_path):
+    # 2 MB of text: 100,000 vertices instanced 10,000 times, 24 GB of vertices.
+    floats = " ".join(["0 0 0 1 0 0 0 1 0 0 0 1"] * 25_000)
+    geometry = (
+        f'<library_geometries><geometry id="g"><mesh><source id="p"><float_array>{floats}</float_array></source>'
+        '<vertices id="v"><input semantic="POSITION" source="#p"/></vertices></mesh></geometry></library_geometries>'
+    )
+    nodes = '<node><instance_geometry url="#g"/></node>' * 10_000
+    (tmp_path / "leg.dae").write_text(
+        f"<COLLADA>{geometry}<library_visual_scenes><visual_scene>{nodes}</visual_scene></library_visual_scenes></COLLADA>"
+    )
+    (tmp_path / "r.urdf").write_text(MESH_URDF.format(filename="leg.dae"))
+    raises(f"lk.Model.from_urdf({str(tmp_path / 'r.urdf')!r})", "MemoryError", "mesh", "leg.dae", "bytes", memory=GIB)
+
+
 def test_rnea_and_aba_on_a_20000_link_chain_stay_within_100_mb(tmp_path):
     (tmp_path / "chain.urdf").write_text(chain_urdf(20_000))
     # The limit is set after loading: what the kernels allocate on top must fit in 100 MB.
