@@ -14,6 +14,7 @@ import subprocess
 import sys
 import textwrap
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -152,6 +153,55 @@ def test_a_rapier_simulation_of_a_model_too_large_for_its_dense_blocks_is_a_memo
 
 def test_a_huge_broadcast_heightfield_is_a_memory_error():
     raises("lk.Ground.heightfield(np.broadcast_to(0.0, (10**5, 10**5)), 0.1)", "MemoryError", "heights")
+
+
+def binary_stl(path: Path, triangles: int, *, sphere: bool = False) -> None:
+    """A binary STL of `triangles` triangles with vertices in the unit cube, or on the unit sphere (every vertex
+    then on the hull)."""
+    rng = np.random.default_rng(0)
+    points = rng.normal(size=(triangles, 3, 3))
+    if sphere:
+        points /= np.linalg.norm(points, axis=2, keepdims=True)
+    records = np.zeros(triangles, dtype=[("normal", "<f4", 3), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])
+    records["vertices"] = points
+    path.write_bytes(b"\0" * 80 + np.uint32(triangles).tobytes() + records.tobytes())
+
+
+@pytest.mark.parametrize(("triangles", "sphere", "headroom"), [(4_000_000, False, 350), (200_000, True, 200)], ids=["vertices", "hull"])
+def test_a_mesh_too_large_for_memory_is_a_memory_error(tmp_path, triangles, sphere, headroom):
+    # Headroom (MB) above what the child holds before loading, of which the loader's thread takes 72 MB (its
+    # stack and malloc arena). "vertices": the file (200 MB) fits, its vertex list (288 MB) does not. "hull":
+    # the vertex list (14 MB) and its copies fit, parry's working set for 600,000 points on a sphere (about
+    # 700 MB) does not.
+    binary_stl(tmp_path / "leg.stl", triangles, sphere=sphere)
+    (tmp_path / "r.urdf").write_text(MESH_URDF.format(filename="leg.stl"))
+    raises(
+        f"""
+vm = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (vm + {headroom} * 2**20, vm + {headroom} * 2**20))
+lk.Model.from_urdf({str(tmp_path / "r.urdf")!r})
+""",
+        "MemoryError",
+        "mesh",
+        "leg.stl",
+        "bytes",
+        memory=0,
+    )
+
+
+def test_a_collada_file_instancing_a_geometry_beyond_memory_is_a_memory_error(tmp_path):
+    # 2 MB of text: 100,000 vertices instanced 10,000 times, 24 GB of vertices.
+    floats = " ".join(["0 0 0 1 0 0 0 1 0 0 0 1"] * 25_000)
+    geometry = (
+        f'<library_geometries><geometry id="g"><mesh><source id="p"><float_array>{floats}</float_array></source>'
+        '<vertices id="v"><input semantic="POSITION" source="#p"/></vertices></mesh></geometry></library_geometries>'
+    )
+    nodes = '<node><instance_geometry url="#g"/></node>' * 10_000
+    (tmp_path / "leg.dae").write_text(
+        f"<COLLADA>{geometry}<library_visual_scenes><visual_scene>{nodes}</visual_scene></library_visual_scenes></COLLADA>"
+    )
+    (tmp_path / "r.urdf").write_text(MESH_URDF.format(filename="leg.dae"))
+    raises(f"lk.Model.from_urdf({str(tmp_path / 'r.urdf')!r})", "MemoryError", "mesh", "leg.dae", "bytes", memory=GIB)
 
 
 def test_rnea_and_aba_on_a_20000_link_chain_stay_within_100_mb(tmp_path):
@@ -407,57 +457,108 @@ def test_a_step_that_raises_leaves_the_simulation_as_a_never_failed_twin(backend
 
 # --- interruptible long calls ----------------------------------------------------------------------------------
 
-LONG_CALLS = {
-    "step": "sim = lk.Simulation(model, ground=lk.Ground.plane())\nstart()\nsim.step(None, 10**12)",
-    "batch": "sim = lk.Simulation(model, ground=lk.Ground.plane())\nbatch = lk.SimulationBatch([sim])\nstart()\nbatch.step(None, 10**12)",
-    "rollout": "start()\nlk.free_rollout(model, model.neutral(), np.zeros(model.nv), 1e-3, 3 * 10**6)",
+LONG_CALLS = {  # setup, call
+    "step": ("sim = lk.Simulation(model, ground=lk.Ground.plane())", "sim.step(None, 10**12)"),
+    "batch": ("batch = lk.SimulationBatch([lk.Simulation(model, ground=lk.Ground.plane())])", "batch.step(None, 10**12)"),
+    "rollout": ("", "lk.free_rollout(model, model.neutral(), np.zeros(model.nv), 1e-3, 3 * 10**6)"),
 }
 
 
-def assert_ctrl_c_answered_within_a_second(body: str, *, after: float, memory: int) -> None:
-    """Runs `body` in a child, which prints STARTED before its long call; sends SIGINT `after` s later and
-    expects KeyboardInterrupt to end the call within a second."""
+CPU_SECONDS = """
+import os
+def cpu_seconds():
+    # Each thread's CPU time (s), by thread id: what /proc says, as the parent reads it at the signal.
+    seconds = {}
+    for tid in os.listdir("/proc/self/task"):
+        try:
+            fields = open(f"/proc/self/task/{tid}/stat").read().rsplit(")", 1)[1].split()
+        except OSError:  # the thread ended meanwhile
+            continue
+        seconds[tid] = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    return seconds
+
+def thread_names():
+    return [open(f"/proc/self/task/{tid}/comm").read().strip() for tid in os.listdir("/proc/self/task")]
+
+def answer():
+    report(raised="KeyboardInterrupt", cpu=cpu_seconds(), threads=thread_names())
+"""
+
+
+def threads_cpu_seconds(pid: int) -> dict[str, float]:
+    """The CPU time (s) of each thread of process `pid`, by thread id (the child's `cpu_seconds`)."""
+    namespace: dict = {}
+    exec(CPU_SECONDS.replace("/proc/self/", f"/proc/{pid}/"), namespace)
+    return namespace["cpu_seconds"]()
+
+
+def assert_ctrl_c_answered_within_a_second(setup: str, call: str, *, after: float, memory: int) -> dict:
+    """Runs `setup` in a child, then `call`, SIGINT `after` s into it (`after` times `whole` if `setup` sets
+    `whole`, the call's duration as timed in the child), and expects KeyboardInterrupt to end the
+    call within a second of work: no thread of the child may run for more than a second of CPU time between
+    the signal and the answer. CPU time, not wall time, so that a loaded machine (which delays the answer
+    but not the work done before it) cannot fail the test, and a call that ignores Ctrl-C, whose threads
+    work on, still does. Returns the child's report, with the names of the threads alive at the answer."""
+    started = "print('STARTED', globals().get('whole', 1.0), flush=True)"
+    body = f"{CPU_SECONDS}\n{setup}\n{started}\ntry:\n    {call}\nexcept KeyboardInterrupt:\n    answer()"
     code = PRELUDE.format(memory=memory, body=textwrap.indent(body, "    "))
     child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         assert child.stdout is not None
-        assert child.stdout.readline().strip() == "STARTED"
-        time.sleep(after)
-        sent = time.monotonic()
+        started, whole = child.stdout.readline().split()
+        assert started == "STARTED"
+        time.sleep(after * float(whole))
+        at_signal = threads_cpu_seconds(child.pid)
         child.send_signal(signal.SIGINT)
-        out, err = child.communicate(timeout=30)
-        waited = time.monotonic() - sent
+        out, err = child.communicate(timeout=60)
     finally:
         child.kill()
-    assert '"raised": "KeyboardInterrupt"' in out, err[-2000:]
-    assert waited < 1.0, waited
+    results = [line for line in out.splitlines() if line.startswith("RESULT ")]
+    assert results, err[-2000:]
+    result = json.loads(results[0].removeprefix("RESULT "))
+    assert result["raised"] == "KeyboardInterrupt", (result, err[-2000:])
+    worked = {tid: cpu - at_signal.get(tid, 0.0) for tid, cpu in result["cpu"].items()}
+    assert max(worked.values()) < 1.0, worked
+    return result
 
 
 def test_ctrl_c_interrupts_a_long_batched_kernel_within_a_second(tmp_path):
     # 30,000 states of a 300-link chain in contact (about 10 s).
     (tmp_path / "chain.urdf").write_text(chain_urdf(300))
-    body = f"""
-model = lk.Model.from_urdf({str(tmp_path / "chain.urdf")!r})
-q = np.zeros((30_000, model.nq))
-print('STARTED', flush=True)
-lk.contact_dynamics(model, q, q, q, [(model.nbodies - 1, [0, 0, 0])])
-"""
-    assert_ctrl_c_answered_within_a_second(body.strip(), after=0.5, memory=4 * GIB)
+    setup = f"model = lk.Model.from_urdf({str(tmp_path / 'chain.urdf')!r})\nq = np.zeros((30_000, model.nq))"
+    call = "lk.contact_dynamics(model, q, q, q, [(model.nbodies - 1, [0, 0, 0])])"
+    assert_ctrl_c_answered_within_a_second(setup, call, after=0.5, memory=4 * GIB)
 
 
 @pytest.mark.parametrize("call", sorted(LONG_CALLS))
 def test_ctrl_c_interrupts_a_long_call_within_a_second(call):
-    setup = "from legkit.robots.quadruped import build_quadruped\nmodel = build_quadruped().model\n"
-    start = "def start():\n    print('STARTED', flush=True)\n"
-    assert_ctrl_c_answered_within_a_second(setup + start + LONG_CALLS[call], after=0.5, memory=4 * GIB)
+    setup, long_call = LONG_CALLS[call]
+    setup = f"from legkit.robots.quadruped import build_quadruped\nmodel = build_quadruped().model\n{setup}"
+    assert_ctrl_c_answered_within_a_second(setup, long_call, after=0.5, memory=4 * GIB)
 
 
 @pytest.mark.slow
 def test_ctrl_c_interrupts_loading_a_huge_urdf(tmp_path):
     path = tmp_path / "chain.urdf"
     path.write_text(chain_urdf(500_000))
-    body = f"print('STARTED', flush=True)\nlk.Model.from_urdf({str(path)!r})"
-    assert_ctrl_c_answered_within_a_second(body, after=1.0, memory=8 * GIB)
+    assert_ctrl_c_answered_within_a_second("", f"lk.Model.from_urdf({str(path)!r})", after=1.0, memory=8 * GIB)
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_the_xml_parse_is_answered_before_the_parse_ends():
+    # The parse is one call that cannot be cut: the loader's worker thread parses on, and the caller answers
+    # Ctrl-C without waiting for it (the worker frees what it parsed when it ends). Elements of 1024 attributes
+    # (the most allowed) make the parse nearly the whole load (about 3 s) in little memory.
+    element = "<a " + " ".join(f'b{i}="0"' for i in range(1024)) + "/>"
+    setup = f"""
+import time
+urdf = '<robot name="r"><link name="base"/><documentation>' + {element!r} * 3000 + '</documentation></robot>'
+started = time.monotonic()
+lk.Model.from_urdf(urdf)
+whole = time.monotonic() - started
+"""
+    result = assert_ctrl_c_answered_within_a_second(setup, "lk.Model.from_urdf(urdf)", after=0.4, memory=4 * GIB)
+    assert "from_urdf" in result["threads"], result  # still parsing: the answer did not wait for it
 
 
 @pytest.mark.slow
@@ -568,26 +669,84 @@ def test_a_package_name_cannot_escape_its_package(tmp_path):
         lk.resolve_mesh("package://bot/../../secret.stl", package_dirs=[str(tmp_path / "share")])
 
 
-def test_a_symbolic_link_cannot_lead_out_of_its_package(tmp_path):
-    secret = tmp_path / "secret.stl"
-    secret.write_text("solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n")
+CUBE_STL = (
+    "solid s\n"
+    + "".join(
+        f"facet normal 0 0 0\nouter loop\nvertex {x} {y} {z}\nvertex {x} {y} 0\nvertex 0 0 {z}\nendloop\nendfacet\n"
+        for x in (0, 1)
+        for y in (0, 1)
+        for z in (0, 1)
+    )
+    + "endsolid s\n"
+)
+
+MESH_URDF = """<robot name="bot"><link name="base"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>
+  </inertial><collision><geometry><mesh filename="{filename}"/></geometry></collision></link></robot>"""
+
+
+def test_a_symbolic_link_out_of_its_package_must_reach_a_mesh(tmp_path):
+    # A package unpacked from an archive may bring links of its own: one that leads out of the package is
+    # followed only to a file of the name's kind, never to a key that the viewer would embed in its HTML.
+    (tmp_path / "id_rsa").write_text("not a mesh")
+    (tmp_path / "elsewhere.stl").write_text(CUBE_STL)
     share = tmp_path / "share"
     meshes = share / "bot" / "meshes"
     meshes.mkdir(parents=True)
-    (meshes / "leg.stl").symlink_to(secret)  # a file linked out of the package
-    (share / "bot" / "outside").symlink_to(tmp_path)  # a folder linked out of it
-    (meshes / "copy.stl").write_text(secret.read_text())
-    (meshes / "alias.stl").symlink_to(meshes / "copy.stl")  # a link that stays inside is followed
-    for name in ["package://bot/meshes/leg.stl", "package:///bot/outside/secret.stl", "model://bot/meshes/leg.stl"]:
-        with pytest.raises(ValueError, match="filename.*outside its package"):
+    (meshes / "leg.stl").symlink_to(tmp_path / "id_rsa")
+    (meshes / "foot.stl").symlink_to(tmp_path / "elsewhere.stl")
+    (meshes / "copy.stl").write_text(CUBE_STL)
+    (meshes / "alias.stl").symlink_to(meshes / "copy.stl")
+    (share / "bot" / "outside").symlink_to(tmp_path)
+    for name in ["package://bot/meshes/leg.stl", "model://bot/outside/id_rsa"]:
+        with pytest.raises(ValueError, match="filename.*outside its package .* to a file of another kind"):
             lk.resolve_mesh(name, package_dirs=[share])
     assert lk.resolve_mesh("package://bot/meshes/alias.stl", package_dirs=[share]) == meshes / "alias.stl"
+    assert lk.resolve_mesh("package://bot/meshes/foot.stl", package_dirs=[share]) == meshes / "foot.stl"
+    assert lk.resolve_mesh("package:///bot/outside/elsewhere.stl", package_dirs=[share]) == share / "bot" / "outside" / "elsewhere.stl"
     # Loading: the link collides as the box of its inertia, with a warning that says why.
-    urdf = """<robot name="r"><link name="base"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>
-      </inertial><collision><geometry><mesh filename="package://bot/meshes/leg.stl"/></geometry></collision></link></robot>"""
-    with pytest.warns(lk.UrdfWarning, match="outside its package"):
-        model = lk.Model.from_urdf(urdf, package_dirs=[str(share)])
+    with pytest.warns(lk.UrdfWarning, match="another kind"):
+        model = lk.Model.from_urdf(MESH_URDF.format(filename="package://bot/meshes/leg.stl"), package_dirs=[str(share)])
     assert [kind for _, kind, _, _ in model.colliders()] == ["box"]
+
+
+def colcon_workspace(root: Path) -> Path:
+    """A colcon workspace built with --symlink-install: src/bot holds the package, install/bot/share/bot links
+    each of its files there. Returns the installed URDF."""
+    source = root / "src" / "bot"
+    (source / "meshes").mkdir(parents=True)
+    (source / "urdf").mkdir()
+    (source / "meshes" / "leg.stl").write_text(CUBE_STL)
+    (source / "urdf" / "bot.urdf").write_text(MESH_URDF.format(filename="package://bot/meshes/leg.stl"))
+    installed = root / "install" / "bot" / "share" / "bot"
+    for relative in ["meshes/leg.stl", "urdf/bot.urdf"]:
+        (installed / relative).parent.mkdir(parents=True, exist_ok=True)
+        (installed / relative).symlink_to(source / relative)
+    return installed / "urdf" / "bot.urdf"
+
+
+def test_a_colcon_symlink_install_workspace_loads_as_pinocchio_loads_it(tmp_path, monkeypatch):
+    import pinocchio as pin
+
+    urdf = colcon_workspace(tmp_path)
+    share = tmp_path / "install" / "bot" / "share"
+    installed_mesh = share / "bot" / "meshes" / "leg.stl"
+    pin_model = pin.buildModelFromUrdf(str(urdf))
+    pin_geometry = pin.buildGeomFromUrdf(pin_model, str(urdf), pin.COLLISION, package_dirs=[str(share)])
+    assert Path(pin_geometry.geometryObjects[0].meshPath).resolve() == installed_mesh.resolve()
+    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
+    monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
+    # Through package_dirs, the URDF's folder's ancestors, and a sourced workspace's AMENT_PREFIX_PATH.
+    assert lk.resolve_mesh("package://bot/meshes/leg.stl", package_dirs=[share]) == installed_mesh
+    assert lk.resolve_mesh("package://bot/meshes/leg.stl", urdf) == installed_mesh
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(tmp_path / "install" / "bot"))
+    assert lk.resolve_mesh("package://bot/meshes/leg.stl") == installed_mesh
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", lk.UrdfWarning)
+        for model in [lk.Model.from_urdf(urdf), lk.Model.from_urdf(urdf.read_text())]:
+            assert [kind for _, kind, _, _ in model.colliders()] == ["convex"]
+    # A name still cannot climb out of the package, symlinked or not.
+    with pytest.raises(ValueError, match="filename.*outside its package"):
+        lk.resolve_mesh("package://bot/../../../src/bot/meshes/leg.stl", urdf)
 
 
 # --- the commands ----------------------------------------------------------------------------------------------

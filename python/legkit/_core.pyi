@@ -157,9 +157,10 @@ def resolve_mesh(
     filename: str, urdf: str | os.PathLike[str] | None = None, package_dirs: Sequence[str | os.PathLike[str]] | None = None,
 ) -> pathlib.Path:
     """The file a URDF's mesh ``filename`` names, as ``Model.from_urdf`` finds it: ``package://name/rest`` in
-    ``package_dirs`` (folders holding packages, or a package itself), then ROS_PACKAGE_PATH, then the folders
-    above the file ``urdf``; relative names against ``urdf``'s folder. FileNotFoundError naming where it looked,
-    or for a ``package://`` name with ``..`` or a root in it (which would reach outside its package)."""
+    ``package_dirs`` (folders holding packages, or a package itself), then ROS_PACKAGE_PATH, then AMENT_PREFIX_PATH's
+    share/ folders, then the folders above the file ``urdf``; relative names against ``urdf``'s folder.
+    FileNotFoundError naming where it looked; ValueError naming ``filename`` for a name with ``..`` (which would
+    climb out of its package) or a symbolic link out of the package to a file of another kind."""
 
 class UrdfWarning(UserWarning):
     """A URDF loaded as written although it is not quite valid; the message names the element."""

@@ -12,6 +12,8 @@ use crate::{Error, Result};
 
 /// The vertices of the mesh file at `path`, in the file's units (COLLADA's `<unit meter>` and `<up_axis>`
 /// applied: metres, z up). The format is chosen by the extension (case-insensitive).
+/// A list too large to allocate is `Error::TooLarge` naming `mesh` (where an infallible allocation would abort
+/// the process), anything else wrong with the file `Error::Invalid` naming `mesh`.
 pub fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
     let fail = |reason: String| Error::invalid("mesh", format!("{}: {reason}", path.display()));
     let bytes = crate::validate::read_regular_file("mesh", path)?;
@@ -20,9 +22,12 @@ pub fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
         "stl" => stl(&bytes),
         "obj" => obj(&String::from_utf8_lossy(&bytes)),
         "dae" => collada(&String::from_utf8_lossy(&bytes)),
-        other => Err(format!("unknown mesh format {other:?} (expected .stl, .obj or .dae)")),
+        other => Err(bad(format!("unknown mesh format {other:?} (expected .stl, .obj or .dae)"))),
     }
-    .map_err(fail)?;
+    .map_err(|e| match e {
+        Error::TooLarge { argument, reason } => Error::too_large(argument, format!("{}: {reason}", path.display())),
+        other => fail(other.reason().to_owned()),
+    })?;
     if vertices.is_empty() {
         return Err(fail("no vertices".into()));
     }
@@ -35,11 +40,11 @@ pub fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
 /// Where a URDF's mesh `filename` lies, read as Pinocchio and ROS read it:
 ///
 /// - `package://name/rest` is `dir/name/rest` (or `dir/rest` when `dir` is the package `name` itself) for the
-///   first such file over `package_dirs`, then `ROS_PACKAGE_PATH`'s folders, then the URDF folder's
+///   first such file over `package_dirs`, then `ROS_PACKAGE_PATH`'s folders,
+///   then each of `AMENT_PREFIX_PATH`'s prefixes' `share/` (a sourced ROS 2 workspace), then the URDF folder's
 ///   ancestors (`urdf_dir`). Empty segments are skipped, so `package:///name/rest` (as example-robot-data
 ///   writes it) is the same name; `model://` (Gazebo's) is read as `package://`. The name may not climb
-///   (`..`), and the file it reaches, symbolic links followed, must lie inside the package's folder: a name
-///   or a link leading outside it is refused (`Error::Invalid` naming `filename`).
+///   (`..`): it is refused (`Error::Invalid` naming `filename`). See `confined` for symbolic links.
 /// - `file://path` and absolute paths are read as written.
 /// - A relative path is taken against `urdf_dir` (the working folder if None), then, if it does not climb,
 ///   against each of `package_dirs` (confined to it, as a package name is).
@@ -59,10 +64,11 @@ pub fn resolve_mesh(filename: &str, urdf_dir: Option<&Path>, package_dirs: &[Pat
             return Err(Error::invalid("filename", format!("{filename:?} names no package")));
         };
         let inside: PathBuf = inside.iter().collect();
-        let ros_path = std::env::var_os("ROS_PACKAGE_PATH").map(|p| std::env::split_paths(&p).collect::<Vec<_>>()).unwrap_or_default();
+        let paths = |variable: &str| std::env::var_os(variable).map(|p| std::env::split_paths(&p).collect::<Vec<_>>()).unwrap_or_default();
+        let ament_shares = paths("AMENT_PREFIX_PATH").into_iter().map(|prefix| prefix.join("share"));
         let ancestors = urdf_dir.into_iter().flat_map(Path::ancestors).map(Path::to_path_buf);
         let mut searched = Vec::new();
-        for dir in package_dirs.iter().cloned().chain(ros_path).chain(ancestors) {
+        for dir in package_dirs.iter().cloned().chain(paths("ROS_PACKAGE_PATH")).chain(ament_shares).chain(ancestors) {
             let itself = dir.file_name().is_some_and(|name| name == package);
             for root in [dir.join(package)].into_iter().chain(itself.then(|| dir.clone())) {
                 let candidate = root.join(&inside);
@@ -91,52 +97,80 @@ pub fn resolve_mesh(filename: &str, urdf_dir: Option<&Path>, package_dirs: &[Pat
     Err(Error::invalid("mesh", format!("{filename:?}: no such file ({})", beside.display())))
 }
 
-/// `candidate` if it lies inside `root` once symbolic links are followed (a link inside a package may point
-/// anywhere); otherwise `Error::Invalid` naming `filename`.
+/// `candidate`, a name below `root`, once its symbolic links are checked. They are followed wherever they lead,
+/// as Pinocchio and ROS follow them: a colcon `--symlink-install` share folder links each installed file to
+/// its source, a catkin devel space links into `src/`, and the user made those links, not the URDF. A name
+/// cannot climb out of its package (the callers refuse `..`), but a package from an archive may bring links
+/// of its own: one that leads out of the package must reach a file of the name's kind (the same extension,
+/// as colcon's and catkin's links keep it), never a key or a configuration file that the viewer would embed.
 fn confined(filename: &str, candidate: PathBuf, root: &Path) -> Result<PathBuf> {
     let real = |path: &Path| path.canonicalize().map_err(|e| Error::invalid("filename", format!("{filename:?}: {}: {e}", path.display())));
     let (file, folder) = (real(&candidate)?, real(root)?);
-    if !file.starts_with(&folder) {
+    let extension = |path: &Path| path.extension().map(|e| e.to_ascii_lowercase());
+    if !file.starts_with(&folder) && (extension(&candidate).is_none() || extension(&file) != extension(&candidate)) {
         return Err(Error::invalid(
             "filename",
-            format!("{filename:?} leads outside its package {} (a symbolic link reaches {})", folder.display(), file.display()),
+            format!(
+                "{filename:?} leads outside its package {} to a file of another kind (a symbolic link reaches {})",
+                folder.display(),
+                file.display()
+            ),
         ));
     }
     Ok(candidate)
 }
 
-fn stl(bytes: &[u8]) -> std::result::Result<Vec<Vector3<f64>>, String> {
+/// What is wrong with a mesh file (`mesh_vertices` adds its path).
+fn bad(reason: impl Into<String>) -> Error {
+    Error::invalid("mesh", reason)
+}
+
+/// `vertices` with room for `more`, or `Error::TooLarge` naming `mesh`. Reserving one at a time still grows the
+/// list geometrically.
+fn grow(vertices: &mut Vec<Vector3<f64>>, more: usize) -> Result<()> {
+    vertices.try_reserve(more).map_err(|_| {
+        let len = vertices.len().saturating_add(more);
+        Error::too_large("mesh", format!("cannot allocate {} bytes for its {len} vertices", len.saturating_mul(size_of::<Vector3<f64>>())))
+    })
+}
+
+fn stl(bytes: &[u8]) -> Result<Vec<Vector3<f64>>> {
     // Binary: an 80-byte header, a triangle count, then 50 bytes per triangle (normal, three vertices,
     // attribute); ASCII files also start with "solid", so the length decides.
     if bytes.len() >= 84 {
         let count = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
         if bytes.len() == 84 + 50 * count {
             let float = |at: usize| f32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]) as f64;
-            return Ok((0..count)
-                .flat_map(|t| (1..4).map(move |v| 84 + 50 * t + 12 * v))
-                .map(|at| Vector3::new(float(at), float(at + 4), float(at + 8)))
-                .collect());
+            let mut vertices = Vec::new();
+            grow(&mut vertices, 3 * count)?;
+            vertices.extend(
+                (0..count).flat_map(|t| (1..4).map(move |v| 84 + 50 * t + 12 * v)).map(|at| Vector3::new(float(at), float(at + 4), float(at + 8))),
+            );
+            return Ok(vertices);
         }
     }
-    let text = std::str::from_utf8(bytes).map_err(|_| "neither binary STL (wrong length) nor ASCII STL".to_owned())?;
+    let text = std::str::from_utf8(bytes).map_err(|_| bad("neither binary STL (wrong length) nor ASCII STL"))?;
     let mut vertices = Vec::new();
     let mut words = text.split_whitespace();
     while let Some(word) = words.next() {
         if word == "vertex" {
-            vertices.push(three(&mut words).ok_or("a vertex without three numbers")?);
+            grow(&mut vertices, 1)?;
+            vertices.push(three(&mut words).ok_or_else(|| bad("a vertex without three numbers"))?);
         }
     }
     Ok(vertices)
 }
 
-fn obj(text: &str) -> std::result::Result<Vec<Vector3<f64>>, String> {
-    text.lines()
-        .enumerate()
-        .filter_map(|(n, line)| {
-            let mut words = line.split_whitespace();
-            (words.next() == Some("v")).then(|| three(&mut words).ok_or(format!("line {}: a vertex without three numbers", n + 1)))
-        })
-        .collect()
+fn obj(text: &str) -> Result<Vec<Vector3<f64>>> {
+    let mut vertices = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        if words.next() == Some("v") {
+            grow(&mut vertices, 1)?;
+            vertices.push(three(&mut words).ok_or_else(|| bad(format!("line {}: a vertex without three numbers", n + 1)))?);
+        }
+    }
+    Ok(vertices)
 }
 
 fn three<'a>(words: &mut impl Iterator<Item = &'a str>) -> Option<Vector3<f64>> {
@@ -146,14 +180,14 @@ fn three<'a>(words: &mut impl Iterator<Item = &'a str>) -> Option<Vector3<f64>> 
 
 /// COLLADA: the positions of every `<instance_geometry>` of the visual scene, through its nodes'
 /// transforms (or every geometry as written when the scene instantiates none).
-fn collada(text: &str) -> std::result::Result<Vec<Vector3<f64>>, String> {
-    let doc = crate::xml::parse(text)?;
+fn collada(text: &str) -> Result<Vec<Vector3<f64>>> {
+    let doc = crate::xml::parse(text).map_err(bad)?;
     let root = doc.root_element();
     let asset = child(root, "asset");
     let meter = asset
         .and_then(|a| child(a, "unit"))
         .and_then(|u| u.attribute("meter"))
-        .map_or(Ok(1.0), |m| m.trim().parse::<f64>().map_err(|_| format!("<unit meter={m:?}> is not a number")))?;
+        .map_or(Ok(1.0), |m| m.trim().parse::<f64>().map_err(|_| bad(format!("<unit meter={m:?}> is not a number"))))?;
     // Turn the file's up axis onto z.
     let up = match asset.and_then(|a| child(a, "up_axis")).and_then(|u| u.text()).map(str::trim) {
         Some("Y_UP") => Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0),
@@ -183,13 +217,13 @@ fn collada(text: &str) -> std::result::Result<Vec<Vector3<f64>>, String> {
 
 /// The geometries instantiated by the `<node>`s under `scene`, through the nodes' transforms, in document
 /// order. The walk keeps its own stack: a file's nesting depth must not decide the depth of the call stack.
-fn instances(ids: &HashMap<&str, Node>, scene: Node, correction: Matrix4<f64>, out: &mut Vec<Vector3<f64>>) -> std::result::Result<(), String> {
+fn instances(ids: &HashMap<&str, Node>, scene: Node, correction: Matrix4<f64>, out: &mut Vec<Vector3<f64>>) -> Result<()> {
     let mut stack: Vec<(Node, Matrix4<f64>)> = scene.children().filter(|n| n.has_tag_name("node")).map(|n| (n, correction)).collect();
     stack.reverse();
     while let Some((node, parent)) = stack.pop() {
         if node.has_tag_name("instance_geometry") {
             let url = node.attribute("url").unwrap_or("").trim_start_matches('#');
-            let geometry = ids.get(url).ok_or(format!("<instance_geometry url=\"#{url}\"> names no geometry"))?;
+            let geometry = ids.get(url).ok_or_else(|| bad(format!("<instance_geometry url=\"#{url}\"> names no geometry")))?;
             positions(ids, *geometry, &parent, out)?;
             continue;
         }
@@ -203,32 +237,34 @@ fn instances(ids: &HashMap<&str, Node>, scene: Node, correction: Matrix4<f64>, o
 }
 
 /// The product of a `<node>`'s transform elements, in order.
-fn node_transform(node: Node) -> std::result::Result<Matrix4<f64>, String> {
+fn node_transform(node: Node) -> Result<Matrix4<f64>> {
     let mut transform = Matrix4::identity();
     for step in node.children().filter(Node::is_element) {
-        let numbers = || -> std::result::Result<Vec<f64>, String> {
+        // At most one number more than any transform takes: enough to tell a wrong count, whatever the text's size.
+        let numbers = || -> Result<Vec<f64>> {
             step.text()
                 .unwrap_or("")
                 .split_whitespace()
-                .map(|w| w.parse::<f64>().map_err(|_| format!("<{}> holds {w:?}", step.tag_name().name())))
+                .take(17)
+                .map(|w| w.parse::<f64>().map_err(|_| bad(format!("<{}> holds {w:?}", step.tag_name().name()))))
                 .collect()
         };
         let local = match step.tag_name().name() {
             "matrix" => {
                 let m = numbers()?;
-                (m.len() == 16).then(|| Matrix4::from_row_slice(&m)).ok_or("<matrix> needs 16 numbers")?
+                (m.len() == 16).then(|| Matrix4::from_row_slice(&m)).ok_or_else(|| bad("<matrix> needs 16 numbers"))?
             }
             "translate" => match numbers()?[..] {
                 [x, y, z] => Matrix4::new_translation(&Vector3::new(x, y, z)),
-                _ => return Err("<translate> needs 3 numbers".into()),
+                _ => return Err(bad("<translate> needs 3 numbers")),
             },
             "rotate" => match numbers()?[..] {
                 [x, y, z, degrees] => Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::new(x, y, z)), degrees.to_radians()).to_homogeneous(),
-                _ => return Err("<rotate> needs 4 numbers".into()),
+                _ => return Err(bad("<rotate> needs 4 numbers")),
             },
             "scale" => match numbers()?[..] {
                 [x, y, z] => Matrix4::new_nonuniform_scaling(&Vector3::new(x, y, z)),
-                _ => return Err("<scale> needs 3 numbers".into()),
+                _ => return Err(bad("<scale> needs 3 numbers")),
             },
             _ => continue,
         };
@@ -237,23 +273,27 @@ fn node_transform(node: Node) -> std::result::Result<Matrix4<f64>, String> {
     Ok(transform)
 }
 
-/// The POSITION inputs' floats of a `<geometry>`'s meshes, transformed.
-fn positions(ids: &HashMap<&str, Node>, geometry: Node, transform: &Matrix4<f64>, out: &mut Vec<Vector3<f64>>) -> std::result::Result<(), String> {
+/// The POSITION inputs' floats of a `<geometry>`'s meshes, transformed, appended to `out`, which grows fallibly:
+/// every instance of a geometry adds its positions again, so a small file can ask for far more than it holds.
+fn positions(ids: &HashMap<&str, Node>, geometry: Node, transform: &Matrix4<f64>, out: &mut Vec<Vector3<f64>>) -> Result<()> {
     for mesh in geometry.children().filter(|n| n.has_tag_name("mesh")) {
         for vertices in mesh.children().filter(|n| n.has_tag_name("vertices")) {
             for input in vertices.children().filter(|n| n.has_tag_name("input") && n.attribute("semantic") == Some("POSITION")) {
                 let id = input.attribute("source").unwrap_or("").trim_start_matches('#');
-                let array = ids.get(id).and_then(|s| child(*s, "float_array")).ok_or(format!("POSITION source #{id} has no <float_array>"))?;
-                let floats: Vec<f64> = array
-                    .text()
-                    .unwrap_or("")
-                    .split_whitespace()
-                    .map(|w| w.parse::<f64>().map_err(|_| format!("<float_array> holds {w:?}")))
-                    .collect::<std::result::Result<_, _>>()?;
-                if !floats.len().is_multiple_of(3) {
-                    return Err(format!("POSITION source #{id} has {} numbers, not a multiple of 3", floats.len()));
+                let array =
+                    ids.get(id).and_then(|s| child(*s, "float_array")).ok_or_else(|| bad(format!("POSITION source #{id} has no <float_array>")))?;
+                let (mut numbers, mut p) = (0usize, [0.0; 3]);
+                for word in array.text().unwrap_or("").split_whitespace() {
+                    p[numbers % 3] = word.parse::<f64>().map_err(|_| bad(format!("<float_array> holds {word:?}")))?;
+                    numbers += 1;
+                    if numbers.is_multiple_of(3) {
+                        grow(out, 1)?;
+                        out.push((transform * Vector4::new(p[0], p[1], p[2], 1.0)).xyz());
+                    }
                 }
-                out.extend(floats.chunks_exact(3).map(|p| (transform * Vector4::new(p[0], p[1], p[2], 1.0)).xyz()));
+                if !numbers.is_multiple_of(3) {
+                    return Err(bad(format!("POSITION source #{id} has {numbers} numbers, not a multiple of 3")));
+                }
             }
         }
     }
@@ -315,6 +355,12 @@ mod tests {
     }
 
     #[test]
+    fn a_vertex_list_beyond_memory_is_too_large_naming_the_mesh() {
+        let error = grow(&mut Vec::new(), usize::MAX / 32).unwrap_err();
+        assert!(matches!(error, Error::TooLarge { argument: "mesh", .. }) && error.to_string().contains("bytes"), "{error}");
+    }
+
+    #[test]
     fn obj_vertices() {
         let text: String = CUBE.iter().map(|c| format!("v {} {} {}\n", c[0], c[1], c[2])).chain(["vn 0 0 1\nf 1 2 3\n".into()]).collect();
         assert_corners(&mesh_vertices(&write("cube.obj", text.as_bytes())).unwrap(), |c| c);
@@ -372,15 +418,22 @@ mod tests {
         assert_eq!(resolve_mesh("package://pkg_a//etc/passwd", None, std::slice::from_ref(&root)).unwrap_err().argument(), "package_dirs");
         // A relative name not beside the URDF: in the package folders, as Pinocchio looks for it.
         assert_eq!(resolve_mesh("meshes/part.stl", None, &[root.join("pkg_a")]).unwrap(), root.join("pkg_a").join("meshes/part.stl"));
-        // A symbolic link inside the package that leads out of it is refused; one that stays inside is followed.
-        std::fs::write(root.join("secret.stl"), b"solid\nendsolid\n").unwrap();
-        let (outward, inward) = (root.join("pkg_a/meshes/outward.stl"), root.join("pkg_a/meshes/inward.stl"));
-        let _ = (std::fs::remove_file(&outward), std::fs::remove_file(&inward));
-        std::os::unix::fs::symlink(root.join("secret.stl"), &outward).unwrap();
-        std::os::unix::fs::symlink(root.join("pkg_a/meshes/part.stl"), &inward).unwrap();
-        let refused = resolve_mesh("package://pkg_a/meshes/outward.stl", None, std::slice::from_ref(&root)).unwrap_err();
-        assert!(refused.argument() == "filename" && refused.to_string().contains("outside its package"), "{refused}");
+        // Symbolic links are followed: inside the package, and out of it to a file of the name's kind (colcon's
+        // --symlink-install links each installed file to its source); out of it to another kind, refused.
+        std::fs::write(root.join("source.stl"), b"solid\nendsolid\n").unwrap();
+        std::fs::write(root.join("secret.key"), b"not a mesh").unwrap();
+        let link = |target: &str, name: &str| {
+            let path = root.join("pkg_a/meshes").join(name);
+            let _ = std::fs::remove_file(&path);
+            std::os::unix::fs::symlink(root.join(target), &path).unwrap();
+            path
+        };
+        let (inward, installed, disguised) =
+            (link("pkg_a/meshes/part.stl", "inward.stl"), link("source.stl", "installed.stl"), link("secret.key", "key.stl"));
         assert_eq!(resolve_mesh("package://pkg_a/meshes/inward.stl", None, std::slice::from_ref(&root)).unwrap(), inward);
+        assert_eq!(resolve_mesh("package://pkg_a/meshes/installed.stl", None, std::slice::from_ref(&root)).unwrap(), installed);
+        let refused = resolve_mesh("package://pkg_a/meshes/key.stl", None, std::slice::from_ref(&root)).unwrap_err();
+        assert!(refused.argument() == "filename" && refused.to_string().contains("another kind"), "{refused} ({disguised:?})");
         // A FIFO is refused before it is opened (opening one blocks until a writer comes).
         let fifo = root.join("pipe.stl");
         let made = std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success());

@@ -27,9 +27,11 @@
 //!   ([`Model::collision_shapes`], several per body allowed), which a simulation uses instead of default
 //!   boxes. `<mesh filename scale>` (STL, OBJ or COLLADA; [`crate::mesh`]) becomes the convex hull of its
 //!   vertices, scaled; `package://` names (and `package:///`, `model://`) resolve through
-//!   [`UrdfOptions::package_dirs`], then `ROS_PACKAGE_PATH`, then the URDF file's folder's ancestors, confined to
-//!   their package, and relative names against that folder ([`crate::mesh::resolve_mesh`]). A mesh that cannot be found or read leaves its link colliding as the
-//!   box of its inertia, with a warning (`strict` does not refuse it).
+//!   [`UrdfOptions::package_dirs`], then `ROS_PACKAGE_PATH`, then `AMENT_PREFIX_PATH`'s `share/` folders, then
+//!   the URDF file's folder's ancestors, never climbing out of their package, and relative names against that
+//!   folder ([`crate::mesh::resolve_mesh`]; symbolic links followed as ROS follows them). A mesh that cannot be
+//!   found or read leaves its link colliding as the box of its inertia, with a warning (`strict` does not
+//!   refuse it); one whose vertices or hull cannot be allocated fails the load (`Error::TooLarge` naming `mesh`).
 //!
 //! - `<dynamics damping>` of a moving joint becomes its damping ([`Model::damping`], as Pinocchio's and
 //!   MuJoCo's importers read it; 0 if absent); a negative or non-finite value is an error naming the joint.
@@ -400,11 +402,14 @@ fn collisions(
                 let scale = vector3(geometry, "scale", Vector3::repeat(1.0), &owner)?;
                 // Reading a mesh and taking its hull may take long: a cancelled load stops before the next.
                 check_cancelled("from_urdf")?;
-                let hull = resolve_mesh(filename, folder, package_dirs)
-                    .and_then(|path| mesh_vertices(&path))
-                    .and_then(|vertices| Convex::hull(&vertices.iter().map(|v| v.component_mul(&scale)).collect::<Vec<_>>()));
+                let hull = resolve_mesh(filename, folder, package_dirs).and_then(|path| mesh_vertices(&path)).and_then(|mut vertices| {
+                    vertices.iter_mut().for_each(|v| v.component_mul_assign(&scale));
+                    Convex::hull(&vertices)
+                });
                 match hull {
                     Ok(convex) => ShapeKind::Convex(convex),
+                    // A mesh too large for memory is no unreadable file: the load fails (MemoryError), not the mesh.
+                    Err(Error::TooLarge { reason, .. }) => return Err(Error::too_large("mesh", format!("{owner}: {filename:?}: {reason}"))),
                     Err(e) => {
                         unread.push(format!("{filename:?} ({e})"));
                         continue;

@@ -81,14 +81,19 @@ pub fn filled<T: Clone>(argument: &'static str, len: usize, value: T) -> Result<
 }
 
 /// The bytes of the regular file at `path`; anything else (a FIFO, a device, a folder) is refused before it is
-/// opened, as reading one may block forever or never end.
+/// opened, as reading one may block forever or never end. A file too large for memory is `Error::TooLarge`.
 pub fn read_regular_file(argument: &'static str, path: &Path) -> Result<Vec<u8>> {
     let fail = |reason: String| Error::invalid(argument, format!("{}: {reason}", path.display()));
     let metadata = std::fs::metadata(path).map_err(|e| fail(format!("cannot read it: {e}")))?;
     if !metadata.is_file() {
         return Err(fail("not a regular file".into()));
     }
-    std::fs::read(path).map_err(|e| fail(format!("cannot read it: {e}")))
+    std::fs::read(path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::OutOfMemory => {
+            Error::too_large(argument, format!("{}: cannot allocate {} bytes to read it", path.display(), metadata.len()))
+        }
+        _ => fail(format!("cannot read it: {e}")),
+    })
 }
 
 thread_local! {

@@ -429,10 +429,10 @@ impl PyModel {
 
 /// `resolve_mesh(filename, urdf=None, package_dirs=None)`: the file a URDF's mesh `filename` names, as
 /// `Model.from_urdf` finds it: `package://name/rest` in `package_dirs` (each a folder holding packages, or
-/// the package itself), then `ROS_PACKAGE_PATH`, then the folders above the file `urdf`; relative names
-/// against `urdf`'s folder, then `package_dirs` (see `legkit_dynamics::mesh::resolve_mesh` for every form
-/// read). FileNotFoundError naming where it looked; ValueError for a name, or a symbolic link, that leads
-/// outside its package.
+/// the package itself), then `ROS_PACKAGE_PATH`, then `AMENT_PREFIX_PATH`'s `share/` folders, then the folders
+/// above the file `urdf`; relative names against `urdf`'s folder, then `package_dirs` (see
+/// `legkit_dynamics::mesh::resolve_mesh` for every form read). FileNotFoundError naming where it looked;
+/// ValueError for a name that climbs out of its package, or a symbolic link out of it to a file of another kind.
 #[pyfunction]
 #[pyo3(signature = (filename, urdf = None, package_dirs = None))]
 pub fn resolve_mesh(filename: &str, urdf: Option<std::path::PathBuf>, package_dirs: Option<Vec<std::path::PathBuf>>) -> PyResult<std::path::PathBuf> {
