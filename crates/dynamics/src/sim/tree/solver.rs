@@ -48,7 +48,7 @@
 //! chains outside the tree's sparsity; its Hessian is taken on each body alone, which still gives a
 //! descent direction, and linear convergence.
 
-use nalgebra::{Matrix6, Vector3, Vector6};
+use nalgebra::{Cholesky, Matrix6, Vector3, Vector6, U6};
 
 use super::articulated::Articulated;
 use crate::model::{Data, Model};
@@ -506,13 +506,15 @@ impl Solver {
     }
 
     /// Solves for the impulses (warm start in `constraints`, solution out) and the velocities `v` they
-    /// leave from `v_free`, on the tree whose poses `aba_with_armature` left in `data` (with `armature`).
+    /// leave from `v_free`, on the tree whose poses `aba_with_armature` left in `data` (with `armature`; a
+    /// free-flyer base's articulated inertia factored as `base`, `Delassus::base`).
     /// Returns the Newton iterations done, or None if the Newton matrix is not positive definite.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn solve(
         &mut self,
         model: &Model,
         data: &Data,
+        base: Option<&Cholesky<f64, U6>>,
         armature: &[f64],
         constraints: &mut [Constraint],
         v_free: &[f64],
@@ -527,7 +529,7 @@ impl Solver {
         let tree = &mut self.tree;
         // Warm start: v = v_free + M̃⁻¹ Jᵀ λ_warm, so M̃ (v − v_free) = Jᵀ λ_warm, through ABA's own factor of M̃.
         generalized_impulses(tree, model, data, constraints, &mut self.mass_change);
-        if !tree.factor_of_aba(model, data) {
+        if !tree.factor_of_aba(model, base) {
             return None;
         }
         tree.solve(model, data, &self.mass_change, &mut self.change);
