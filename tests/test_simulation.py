@@ -244,11 +244,14 @@ def test_quadruped_dropped_on_a_heightfield_settles_without_sinking_in():
     xs = (np.arange(61) - 30) * 0.025
     hs = 0.015 * np.sin(2 * math.pi * xs / 0.6) + 0.01 * np.cos(2 * math.pi * xs / 0.25)
     ground = lk.Ground.heightfield(np.tile(hs[:, None], (1, 31)), 0.025, friction=0.9)
-    sim = standing_quadruped(ground, height=0.42, kp=300.0, kd=0.5)
-    # The tree engine dissipates less than Rapier's single solver iteration: the robot ends up see-sawing
-    # on two diagonal feet, a mode only the servos' kd damps, and is at rest by about 4.5 s (max |v| over
-    # 3.5-4 s 1.2e-2, 4-4.5 s 5e-3, 5.5-6 s 3e-4), where Rapier is by 2 s.
-    sim.step(n=4500)
+    # Dropped 2-4.5 cm (standing height 0.35 m over terrain within +-2.5 cm). From higher up the landing is
+    # chaotic: the front feet land on ridges of slope up to 0.40 and may slide down them at mu N, pitching
+    # the robot onto its back, and whether they do flips with the drop height by a centimetre in every
+    # engine (dropped from 0.40-0.44 m: the cone law falls over from 0.40 and 0.41, Coulomb's from 0.42 and
+    # 0.44, MuJoCo's elliptic cone from 0.39 and 0.42 with its default contacts and from none when stiff).
+    # From 0.355-0.39 m all of them, and Rapier, settle on four feet.
+    sim = standing_quadruped(ground, height=0.37, kp=300.0, kd=0.5)
+    sim.step(n=3000)
     assert np.abs(sim.v).max() < 1e-2, "the robot should have come to rest"
     poses = sim.body_poses()
     feet = [poses[sim_index][:3, :3] @ [0, 0, -LEG_LENGTH] + poses[sim_index][:3, 3] for sim_index in (2, 4, 6, 8)]

@@ -358,7 +358,7 @@ class Simulation:
     def __init__(
         self, model: Model, dt: float = 1e-3, ground: Ground | None = None, shapes: dict[int | str, _ShapeSpec] | None = None,
         self_collision: bool = False, substeps: int = 1,
-        backend: Literal["tree", "rapier"] = "tree", solver_iterations: int = 20,
+        backend: Literal["tree", "rapier"] = "tree", solver_iterations: int = 50,
         friction_law: Literal["cone", "coulomb"] = "cone",
     ) -> None: ...
     @property

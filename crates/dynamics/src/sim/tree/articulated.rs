@@ -142,11 +142,12 @@ impl Articulated {
         self.factor_base(model, self.inertia[0], definite)
     }
 
-    /// Takes the factor of M̃ itself (no stiffness) from the one `aba_with_armature` left in `data`; false
-    /// if a free-flyer base's articulated inertia is not positive definite.
-    pub(super) fn factor_of_aba(&mut self, model: &Model, data: &Data) -> bool {
+    /// Takes the factor of M̃ itself (no stiffness) from the one `aba_with_armature` left in `data`, with a
+    /// free-flyer base's block factored as `base` (`Delassus::base`); false if that is missing.
+    pub(super) fn factor_of_aba(&mut self, model: &Model, base: Option<&Cholesky<f64, U6>>) -> bool {
         self.of_aba = true;
-        self.factor_base(model, data.inertia[0], true)
+        self.base = base.filter(|_| model.floating_base()).cloned().map(Base::Cholesky);
+        self.base.is_some() || !model.floating_base()
     }
 
     /// A free-flyer base's block D_0 = I^A_0 = C Cᵀ if `definite` (false if it is not positive definite), else

@@ -12,7 +12,7 @@ use rapier3d_f64::prelude::SharedShape;
 
 use nalgebra::Vector3;
 
-use super::plane::{plane_points, MAX_FEATURES};
+use super::plane::{plane_points, reach, MAX_FEATURES};
 use crate::geometry::{from_vector, to_pose, ShapeKind};
 use crate::model::Model;
 use crate::sim::options::Options;
@@ -33,6 +33,8 @@ struct Collider {
     /// It meets the ground through parry (a heightfield, or a convex mesh on the plane), not in closed form.
     parry_ground: bool,
     kind: ShapeKind,
+    /// Its points' greatest distance from its frame's origin (`plane::reach`).
+    reach: Option<f64>,
     /// Shape frame in the body frame.
     local: Transform,
     shape: SharedShape,
@@ -135,6 +137,7 @@ impl Collision {
                     carrier,
                     parent_carrier: if carrier == 0 { 0 } else { fused.parent(carrier) },
                     parry_ground: options.ground.is_some() && (!plane || matches!(shape.kind, ShapeKind::Convex(_))),
+                    reach: reach(&shape.kind),
                     kind: shape.kind,
                     local: in_body,
                     shape: shared,
@@ -158,6 +161,14 @@ impl Collision {
             candidates: Vec::new(),
             dispatcher: DefaultQueryDispatcher,
         }
+    }
+
+    /// The bodies that carry colliders, in order, each once.
+    pub(super) fn bodies(&self) -> Vec<usize> {
+        let mut bodies: Vec<usize> = self.colliders.iter().map(|c| c.body).collect();
+        bodies.sort_unstable();
+        bodies.dedup();
+        bodies
     }
 
     /// Starts recording what the next step changes, so that `undo` can take it back.
@@ -213,7 +224,7 @@ impl Collision {
                 let pose = poses[c.body].compose(&c.local);
                 let warm = &mut self.plane_warm[index];
                 let mut touching = [false; MAX_FEATURES];
-                plane_points(&c.kind, &pose, PREDICTION, |p| {
+                plane_points(&c.kind, c.reach, &pose, PREDICTION, |p| {
                     touching[p.feature] = true;
                     out.push(Found {
                         body: c.body,
@@ -334,7 +345,7 @@ impl Collision {
         match f.source {
             Source::Plane(index, feature) => {
                 let c = &self.colliders[index as usize];
-                plane_points(&c.kind, &poses[c.body].compose(&c.local), f64::INFINITY, |p| {
+                plane_points(&c.kind, c.reach, &poses[c.body].compose(&c.local), f64::INFINITY, |p| {
                     if p.feature == feature as usize {
                         moved.point = Vector3::new(p.surface.x, p.surface.y, 0.5 * p.height);
                         moved.distance = p.height;

@@ -12,7 +12,7 @@
 //! (M̃⁻¹)_kk = D_i⁻¹ + w_iᵀ Ω_λ(i) w_i with w_i = U_i D_i⁻¹. Everything is in the world's axes about the
 //! base origin, as `aba` leaves it in `Data`.
 
-use nalgebra::{Matrix6, Vector3, Vector6};
+use nalgebra::{Cholesky, Matrix6, Vector3, Vector6, U6};
 
 use crate::model::{Data, Model};
 use crate::spatial::{dot6, Force};
@@ -20,39 +20,51 @@ use crate::spatial::{dot6, Force};
 pub(super) struct Delassus {
     /// Ω_b of each body.
     omega: Vec<Matrix6<f64>>,
+    /// A free-flyer base's articulated inertia I^A_0 = C Cᵀ, which the solver's first solve reuses.
+    base: Option<Cholesky<f64, U6>>,
 }
 
 impl Delassus {
     pub(super) fn new(model: &Model) -> Self {
-        Delassus { omega: vec![Matrix6::zeros(); model.nbodies()] }
+        Delassus { omega: vec![Matrix6::zeros(); model.nbodies()], base: None }
     }
 
     /// Reads Ω of every body from the factor in `data`; false if a free-flyer base's articulated inertia is
     /// not positive definite.
     pub(super) fn update(&mut self, model: &Model, data: &Data) -> bool {
+        self.base = None;
         self.omega[0] = if model.floating_base() {
             match data.inertia[0].cholesky() {
-                Some(c) => c.inverse(),
+                Some(c) => self.base.insert(c).inverse(),
                 None => return false,
             }
         } else {
             Matrix6::zeros()
         };
         for i in 1..model.nbodies() {
-            let mut omega = self.omega[model.parent(i)];
+            // Written in place from the parent's (a parent precedes its children): no 6x6 copies.
+            let (head, tail) = self.omega.split_at_mut(i);
+            let (parent, omega) = (&head[model.parent(i)], &mut tail[0]);
             if model.joint(i).nv() == 1 {
                 // P Ω Pᵀ + S D⁻¹ Sᵀ with P = 1 − S wᵀ: Ω + S zᵀ − y Sᵀ, y = Ω w, z = (wᵀ y + D⁻¹) S − y.
                 let (s, w) = (data.s[i], data.u[i] * data.d_inv[i]);
-                let y = omega * w;
+                let y = parent * w;
                 let z = s * (w.dot(&y) + data.d_inv[i]) - y;
-                let (o, s, y, z) = (&mut omega.data.0, &s.data.0[0], &y.data.0[0], &z.data.0[0]);
-                for ((column, z_c), s_c) in o.iter_mut().zip(z).zip(s) {
-                    *column = std::array::from_fn(|r| column[r] + (s[r] * z_c - y[r] * s_c));
+                let (s, y, z) = (&s.data.0[0], &y.data.0[0], &z.data.0[0]);
+                for (((column, from), z_c), s_c) in omega.data.0.iter_mut().zip(&parent.data.0).zip(z).zip(s) {
+                    *column = std::array::from_fn(|r| from[r] + (s[r] * z_c - y[r] * s_c));
                 }
+            } else {
+                *omega = *parent;
             }
-            self.omega[i] = omega;
         }
         true
+    }
+
+    /// The Cholesky factor of a free-flyer base's articulated inertia from the last `update` (None for a
+    /// fixed base).
+    pub(super) fn base(&self) -> Option<&Cholesky<f64, U6>> {
+        self.base.as_ref()
     }
 
     /// A contact's Delassus diagonal, as [its normal row's, the sum of its two tangent rows'], and its scale

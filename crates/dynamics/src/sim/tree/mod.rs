@@ -66,6 +66,9 @@ pub(crate) struct TreeSimulation {
     /// chain), and its frame in that body's frame (None where the frames coincide: the body is its carrier).
     fused_body: Vec<usize>,
     offset: Vec<Option<Transform>>,
+    /// The bodies carrying a collider, in order: the only ones whose poses collision needs (most of a URDF's
+    /// links carry none).
+    collider_bodies: Vec<usize>,
     options: Options,
     /// Substep length (s).
     h: f64,
@@ -130,6 +133,7 @@ impl TreeSimulation {
             fused: Arc::new(fused),
             fused_body,
             offset: offset.into_iter().map(|o| (o != Transform::identity()).then_some(o)).collect(),
+            collider_bodies: collision.bodies(),
             collision,
             history: History::default(),
             limit_impulses_before: vec![[0.0; 2]; nv],
@@ -207,16 +211,17 @@ impl TreeSimulation {
         }
     }
 
-    /// The world poses of the original model's bodies from the fused model's, which `data` holds about the
-    /// base origin of `q`, into `poses`.
+    /// The world poses of the original model's bodies that carry colliders from the fused model's, which
+    /// `data` holds about the base origin of `q`, into `poses` (indexed by body; the others are left as they are).
     fn collision_poses(&self, data: &Data, q: &[f64], poses: &mut [Transform]) {
         let origin = base_origin(&self.fused, q);
-        for ((pose, &body), offset) in poses.iter_mut().zip(&self.fused_body).zip(&self.offset) {
-            let centred = &data.centred_m_i[body];
-            *pose = Transform::new(centred.rotation, centred.translation + origin);
-            if let Some(offset) = offset {
-                *pose = pose.compose(offset);
-            }
+        for &i in &self.collider_bodies {
+            let centred = &data.centred_m_i[self.fused_body[i]];
+            let pose = Transform::new(centred.rotation, centred.translation + origin);
+            poses[i] = match &self.offset[i] {
+                Some(offset) => pose.compose(offset),
+                None => pose,
+            };
         }
     }
 
@@ -253,7 +258,7 @@ impl TreeSimulation {
             let most = self.options.solver_iterations;
             self.iterations = self
                 .solver
-                .solve(model, &self.data, &self.armature, &mut self.constraints, &self.v_free, &mut self.v_next, most)
+                .solve(model, &self.data, self.delassus.base(), &self.armature, &mut self.constraints, &self.v_free, &mut self.v_next, most)
                 .ok_or_else(|| Error::numerical("step", "the contact solver's Newton matrix stopped being positive definite"))?;
             // An implicit servo whose force at the end of the step exceeds its bound saturates: redo the
             // step with it applying its bound.

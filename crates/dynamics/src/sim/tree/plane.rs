@@ -22,22 +22,27 @@ pub(super) struct PlanePoint {
     pub height: f64,
 }
 
-/// Calls `emit` for each point of `kind` at world pose `pose` (shape frame) within `prediction` of z = 0.
-pub(super) fn plane_points(kind: &ShapeKind, pose: &Transform, prediction: f64, mut emit: impl FnMut(PlanePoint)) {
+/// The distance from a shape's frame origin within which all its points lie; None for a convex mesh, which
+/// meets the plane through parry's manifolds (see `collision`).
+pub(super) fn reach(kind: &ShapeKind) -> Option<f64> {
+    match *kind {
+        ShapeKind::Box(size) => Some(0.5 * size.norm()),
+        ShapeKind::Sphere(r) => Some(r),
+        ShapeKind::Capsule { half_height, radius } => Some(half_height + radius),
+        ShapeKind::Cylinder { half_height, radius } => Some(half_height.hypot(radius)),
+        ShapeKind::Convex(_) => None,
+    }
+}
+
+/// Calls `emit` for each point of `kind` (whose `reach` is given: it is computed once per shape) at world
+/// pose `pose` (shape frame) within `prediction` of z = 0.
+pub(super) fn plane_points(kind: &ShapeKind, reach: Option<f64>, pose: &Transform, prediction: f64, mut emit: impl FnMut(PlanePoint)) {
     let mut point = |feature: usize, surface: Vector3<f64>| {
         if surface.z <= prediction {
             emit(PlanePoint { feature, surface, height: surface.z });
         }
     };
-    // Every point of the shape lies within `reach` of its frame's origin.
-    let reach = match *kind {
-        ShapeKind::Box(size) => 0.5 * size.norm(),
-        ShapeKind::Sphere(r) => r,
-        ShapeKind::Capsule { half_height, radius } => half_height + radius,
-        ShapeKind::Cylinder { half_height, radius } => half_height.hypot(radius),
-        // Convex meshes meet the plane through parry's manifolds (see `collision`).
-        ShapeKind::Convex(_) => return,
-    };
+    let Some(reach) = reach else { return };
     if pose.translation.z - reach > prediction {
         return;
     }
@@ -90,7 +95,7 @@ mod tests {
 
     fn collect(kind: ShapeKind, pose: Transform) -> Vec<PlanePoint> {
         let mut out = Vec::new();
-        plane_points(&kind, &pose, 1e-3, |p| out.push(p));
+        plane_points(&kind, reach(&kind), &pose, 1e-3, |p| out.push(p));
         out
     }
 

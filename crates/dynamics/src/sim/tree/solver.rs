@@ -26,8 +26,12 @@
 //! are lost. It is the fixed point of convex problems, those with the friction disks' radii frozen; where
 //! several exist (stiff contacts coupled through a light, high-μ chain, as in Painlevé's paradox) the step
 //! picks one deterministically, from its warm start. Measured, it converges in few iterations (0.7 per step
-//! on a sliding box, 5 at the switch to sticking; 1-3.5 on the bench's robots and trees standing), and the
-//! transition Jacobians (`transition`) match central differences of its step.
+//! on a sliding box, 5 at the switch to sticking; 1-3.5 on the bench's robots and trees standing; a few steps
+//! where feet switch between sticking, sliding and lifting off take 20-50, hence the cap of 50), and the
+//! transition Jacobians (`transition`) match central differences of its step. The laws can part on a robot's
+//! landing, chaotically: a quadruped dropped 7 cm onto ridges of slope 0.4 at μ 0.9 falls over or not as the
+//! drop height changes by a centimetre, under either law and in MuJoCo (docs/simulation.md). Not the default
+//! yet: an MPC tuned under the cone (`legkit gait --optimize`) loses its amble under it (docs/simulation.md).
 //!
 //! Newton. Each iteration holds the disks' radii at the current normal impulses: that problem is the primal
 //!   min ½ (v − v_free)ᵀ M̃ (v − v_free) + Σ ψ(−R^-½ (J v − b)),  ψ(s) = ½ |s|² − ½ dist(s, C)²,
@@ -48,7 +52,7 @@
 //! chains outside the tree's sparsity; its Hessian is taken on each body alone, which still gives a
 //! descent direction, and linear convergence.
 
-use nalgebra::{Matrix6, Vector3, Vector6};
+use nalgebra::{Cholesky, Matrix6, Vector3, Vector6, U6};
 
 use super::articulated::Articulated;
 use crate::model::{Data, Model};
@@ -506,13 +510,15 @@ impl Solver {
     }
 
     /// Solves for the impulses (warm start in `constraints`, solution out) and the velocities `v` they
-    /// leave from `v_free`, on the tree whose poses `aba_with_armature` left in `data` (with `armature`).
+    /// leave from `v_free`, on the tree whose poses `aba_with_armature` left in `data` (with `armature`; a
+    /// free-flyer base's articulated inertia factored as `base`, `Delassus::base`).
     /// Returns the Newton iterations done, or None if the Newton matrix is not positive definite.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn solve(
         &mut self,
         model: &Model,
         data: &Data,
+        base: Option<&Cholesky<f64, U6>>,
         armature: &[f64],
         constraints: &mut [Constraint],
         v_free: &[f64],
@@ -527,7 +533,7 @@ impl Solver {
         let tree = &mut self.tree;
         // Warm start: v = v_free + M̃⁻¹ Jᵀ λ_warm, so M̃ (v − v_free) = Jᵀ λ_warm, through ABA's own factor of M̃.
         generalized_impulses(tree, model, data, constraints, &mut self.mass_change);
-        if !tree.factor_of_aba(model, data) {
+        if !tree.factor_of_aba(model, base) {
             return None;
         }
         tree.solve(model, data, &self.mass_change, &mut self.change);
