@@ -12,12 +12,16 @@ MuJoCo, whose are its actuators' controls), the contact points, and the spectral
 stability: just below 1 for a robot at rest). The two engines' contact models differ (MuJoCo's soft contacts,
 legkit's regularised Coulomb cone), so their A and B are not expected to agree entry by entry.
 
+``--substeps 1 4 10`` times legkit's Jacobians of the same step cut into that many substeps (each substep linearised
+and the chain composed, its warm starts followed: docs/derivatives.md) against MuJoCo's of its one step of the
+same length.
+
 ``--check`` also measures legkit's A and B's feed-forward columns against central differences of its own step
 (each displaced step replayed from a freshly settled scene, contact history included; displacement 1e-7), the
 accuracy figure of docs/derivatives.md; slow on the tree (6 nv settled replays).
 
-Run: ``python benches/transition_vs_mujoco.py [--scenes go1-stand tree-21] [--settle 0.3] [--blocks 7]
-[--calls 20] [--check]``. Prints a Markdown table and the load average.
+Run: ``python benches/transition_vs_mujoco.py [--scenes go1-stand tree-21] [--substeps 1] [--settle 0.3]
+[--blocks 7] [--calls 20] [--check]``. Prints a Markdown table and the load average.
 """
 
 from __future__ import annotations
@@ -39,6 +43,12 @@ import legkit as lk
 simulation_vs_mujoco.FRICTION_LAW = "cone"
 
 CHECK_STEP = 1e-7
+SOLVER_OPTIONS = simulation_vs_mujoco.solver_options
+
+
+def use_substeps(substeps: int) -> None:
+    """Builds legkit's scenes with each step cut into `substeps` (the step, dt, unchanged)."""
+    simulation_vs_mujoco.solver_options = lambda: {**SOLVER_OPTIONS(), "substeps": substeps}
 
 
 def scene(name: str) -> Scene:
@@ -101,6 +111,7 @@ def central_differences(build: Callable[[], lk.Simulation]) -> tuple[float, floa
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenes", nargs="+", default=["go1-stand", "tree-21"])
+    parser.add_argument("--substeps", type=int, nargs="+", default=[1])
     parser.add_argument("--settle", type=float, default=0.3)
     parser.add_argument("--blocks", type=int, default=7)
     parser.add_argument("--calls", type=int, default=20)
@@ -108,26 +119,30 @@ def main() -> None:
     args = parser.parse_args()
     rows = []
     for name in args.scenes:
-        s = scene(name)
-        ours, theirs = settled(s, "legkit", args.settle), settled(s, "mujoco", args.settle)
-        assert ours.jacobians is not None and theirs.jacobians is not None
-        a, b = ours.jacobians()
+        theirs = settled(scene(name), "mujoco", args.settle)
+        assert theirs.jacobians is not None
         a_mj, b_mj = theirs.jacobians()
-        t_ours = time_calls(ours.jacobians, args.blocks, args.calls)
         t_theirs = time_calls(theirs.jacobians, args.blocks, args.calls)
-        check = ""
-        if args.check:
-            error, scale = central_differences(lambda scene=s: settled(scene, "legkit", args.settle).simulation)
-            check = f"{error / scale:.1e}"
-        rows.append((name, a.shape[0] // 2, ours.contacts(), theirs.contacts(), f"{b.shape[1]} / {b_mj.shape[1]}",
-                     t_ours, t_theirs, spectral_radius(a), spectral_radius(a_mj), check))
+        for substeps in args.substeps:
+            use_substeps(substeps)
+            s = scene(name)
+            ours = settled(s, "legkit", args.settle)
+            assert ours.jacobians is not None
+            a, b = ours.jacobians()
+            t_ours = time_calls(ours.jacobians, args.blocks, args.calls)
+            check = ""
+            if args.check:
+                error, scale = central_differences(lambda scene=s: settled(scene, "legkit", args.settle).simulation)
+                check = f"{error / scale:.1e}"
+            rows.append((name, substeps, a.shape[0] // 2, ours.contacts(), theirs.contacts(), f"{b.shape[1]} / {b_mj.shape[1]}",
+                         t_ours, t_theirs, spectral_radius(a), spectral_radius(a_mj), check))
         print(f"{name}: done", flush=True)
     print()
-    print("| scene | nv | contacts legkit / MuJoCo | B columns legkit / MuJoCo | legkit (µs) | MuJoCo FD (µs) | ratio |"
+    print("| scene | substeps | nv | contacts legkit / MuJoCo | B columns legkit / MuJoCo | legkit (µs) | MuJoCo FD (µs) | ratio |"
           " spectral radius of A legkit / MuJoCo |" + (" legkit vs central differences (relative) |" if args.check else ""))
-    print("|---|---|---|---|---|---|---|---|" + ("---|" if args.check else ""))
-    for name, nv, c_ours, c_theirs, columns, t_ours, t_theirs, rho, rho_mj, check in rows:
-        print(f"| {name} | {nv} | {c_ours} / {c_theirs} | {columns} | {t_ours * 1e6:.0f} | {t_theirs * 1e6:.0f} | "
+    print("|---|---|---|---|---|---|---|---|---|" + ("---|" if args.check else ""))
+    for name, substeps, nv, c_ours, c_theirs, columns, t_ours, t_theirs, rho, rho_mj, check in rows:
+        print(f"| {name} | {substeps} | {nv} | {c_ours} / {c_theirs} | {columns} | {t_ours * 1e6:.0f} | {t_theirs * 1e6:.0f} | "
               f"{t_ours / t_theirs:.2f}x | {rho:.4f} / {rho_mj:.4f} |" + (f" {check} |" if args.check else ""))
     print(f"\nload average {load_average()}, {os.cpu_count()} CPUs")
 

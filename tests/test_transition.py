@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 import legkit as lk
 from conftest import examples
+from test_hostile import chain_urdf, outcome
 from test_simulation import standing_quadruped, ten_link_tree
 
 # Below the 0.5 µm a resting contact sits from where its Baumgarte law bends, and below the distance to a zone's edge
@@ -28,9 +29,9 @@ def targets_configuration(model: lk.Model, target_q: np.ndarray, per_velocity: n
     return out
 
 
-def jacobians_and_differences(build, tau: np.ndarray, servo: dict) -> tuple[np.ndarray, np.ndarray]:
-    """[A | B] at `build()`'s state and the same by central differences of one step in each of the 5 nv inputs;
-    `servo` holds the set_servo arguments `build` used (target_q a configuration)."""
+def jacobians_and_differences(build, tau: np.ndarray, servo: dict, step_size: float = STEP) -> tuple[np.ndarray, np.ndarray]:
+    """[A | B] at `build()`'s state and the same by central differences of one step in each of the 5 nv inputs,
+    displaced by `step_size`; `servo` holds the set_servo arguments `build` used (target_q a configuration)."""
     sim = build()
     model = sim.model
     nv = model.nv
@@ -51,9 +52,9 @@ def jacobians_and_differences(build, tau: np.ndarray, servo: dict) -> tuple[np.n
     q_next, _ = step(0, 0.0)
     numeric = np.zeros((2 * nv, 5 * nv))
     for column in range(5 * nv):
-        (q_plus, v_plus), (q_minus, v_minus) = step(column, STEP), step(column, -STEP)
-        numeric[:nv, column] = (lk.difference(model, q_next, q_plus) - lk.difference(model, q_next, q_minus)) / (2 * STEP)
-        numeric[nv:, column] = (v_plus - v_minus) / (2 * STEP)
+        (q_plus, v_plus), (q_minus, v_minus) = step(column, step_size), step(column, -step_size)
+        numeric[:nv, column] = (lk.difference(model, q_next, q_plus) - lk.difference(model, q_next, q_minus)) / (2 * step_size)
+        numeric[nv:, column] = (v_plus - v_minus) / (2 * step_size)
     return np.hstack([a, b]), numeric
 
 
@@ -88,6 +89,28 @@ def test_standing_and_pushed_quadruped_matches_central_differences(push, settle,
 
     assert len(build().contacts()["body"]) > 0
     assert_close(*jacobians_and_differences(build, tau, servo))
+
+
+@pytest.mark.parametrize("substeps", [2, 4])
+@pytest.mark.parametrize("push", [0.0, 0.25], ids=["sticking", "sliding"])
+def test_substeps_compose_to_central_differences(substeps, push):
+    """A step of several substeps: each substep's Jacobians chained, its warm starts followed from the substep before
+    (the friction rows ask for R_t λ_t,warm, so holding them constant would be off by about 1e-2). A resting foot
+    settles within ε g h² of where its normal row's law bends, h the substep, so the displacement shrinks with h²."""
+    model = standing_quadruped(lk.Ground.plane(0.8)).model
+    servo = dict(QUADRUPED_SERVO, target_q=model.neutral())
+    tau = np.r_[np.zeros(6), 0.3 * np.random.default_rng(substeps).standard_normal(model.nv - 6)]
+
+    def build() -> lk.Simulation:
+        sim = standing_quadruped(lk.Ground.plane(0.8), substeps=substeps)
+        sim.step(None, 200)
+        sim.v = sim.v + np.r_[push, np.zeros(model.nv - 1)]
+        return sim
+
+    assert len(build().contacts()["body"]) > 0
+    # 10 substeps are checked in Rust: this scene's feet rest 3.5e-9 m deep with them, where displacements small
+    # enough (1e-9) magnify the solve's own convergence error (1e-10 of its impulses) to about 1e-6 of the Jacobians.
+    assert_close(*jacobians_and_differences(build, tau, servo, STEP / substeps**2))
 
 
 def test_servoed_tree_without_contacts_matches_central_differences():
@@ -172,8 +195,6 @@ def test_refusals_name_the_argument():
     model = ten_link_tree()
     with pytest.raises(ValueError, match="backend"):
         lk.Simulation(model, backend="rapier").transition_jacobians()
-    with pytest.raises(ValueError, match="substeps"):
-        lk.Simulation(model, substeps=2).transition_jacobians()
     with pytest.raises(ValueError, match="tau"):
         lk.Simulation(model).transition_jacobians(np.zeros(model.nv + 1))
 
@@ -194,3 +215,29 @@ def test_a_batch_gives_each_simulations_jacobians():
         assert np.array_equal(a[k], a_k) and np.array_equal(b[k], b_k)
     with pytest.raises(ValueError, match="nv"):
         lk.SimulationBatch([sims[0], lk.Simulation(ten_link_tree())]).transition_jacobians()
+
+
+def test_a_model_too_large_for_the_jacobians_buffers_is_a_memory_error(tmp_path):
+    """The Jacobians of a step of two substeps on a 1,000-joint chain hold about 40 nv² numbers (320 MB): under a
+    limit of 25 nv² past the probe for 20 nv² (`Simulation::transition_jacobians`), the buffers behind them are
+    allocated fallibly, a MemoryError naming the model, the simulation as it was; not an abort."""
+    (tmp_path / "chain.urdf").write_text(chain_urdf(1001))
+    result = outcome(
+        f"""
+model = lk.Model.from_urdf({str(tmp_path / "chain.urdf")!r})
+sim = lk.Simulation(model, substeps=2)
+sim.step(None, 2)
+before = (sim.q.copy(), sim.v.copy(), sim.time)
+vm = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (vm + 25 * 8 * model.nv**2, vm + 25 * 8 * model.nv**2))
+try:
+    sim.transition_jacobians()
+except MemoryError as error:
+    same = bool((sim.q == before[0]).all() and (sim.v == before[1]).all() and sim.time == before[2])
+    report(raised="MemoryError", message=str(error), same=same)
+""",
+        memory=0,
+        timeout=120,
+    )
+    assert result["raised"] == "MemoryError" and "model" in result["message"] and "bytes" in result["message"], result
+    assert result["same"], result

@@ -381,7 +381,8 @@ class Simulation:
     def transition_jacobians(self, tau: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
         """A = dx+/dx (2nv, 2nv) and B = dx+/du (2nv, 3nv) of one step from the current state, x = (dq on q's
         tangent space, v), u = (tau, servo target_q per velocity coordinate, servo target_v); changes nothing.
-        The step's contacts, their zones, saturated servos and active limits are held. Tree backend, substeps=1."""
+        The step's contacts, their zones, saturated servos and active limits are held. Tree backend; a step of
+        several substeps is their chain, the warm starts followed (docs/derivatives.md)."""
     def set_servo(
         self, kp: npt.ArrayLike, kd: npt.ArrayLike | None = None, torque_limit: npt.ArrayLike | None = None,
         target_q: npt.ArrayLike | None = None, target_v: npt.ArrayLike | None = None,

@@ -333,7 +333,7 @@ impl PySimulation {
     /// the feed-forward tau (nv), the servos' position targets and their velocity targets (nv each, per
     /// velocity coordinate; zero on a floating base's six). Analytic through the converged contact solve;
     /// the step's contact set, contact zones (apart, sticking, sliding), saturated servos and active limits
-    /// are held. Nothing changes (state, time, contact history, `contacts()`). Tree backend, substeps=1.
+    /// are held. Nothing changes (state, time, contact history, `contacts()`). Tree backend; a step of several substeps is chained (docs/derivatives.md).
     #[pyo3(signature = (tau = None))]
     fn transition_jacobians<'py>(slf: &Bound<'py, Self>, tau: Option<Floats<'_>>) -> PyResult<Bound<'py, PyTuple>> {
         let py = slf.py();
@@ -343,8 +343,13 @@ impl PySimulation {
         let sim = &mut this.sim;
         let (mut a, mut b) = (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0));
         py.detach(|| sim.transition_jacobians(tau.as_deref(), &mut a, &mut b)).map_err(kernel_error)?;
-        let row_major = |m: &DMatrix<f64>| m.transpose().as_slice().to_vec();
-        PyTuple::new(py, [to_numpy(py, (2 * nv, 2 * nv), row_major(&a)), to_numpy(py, (2 * nv, 3 * nv), row_major(&b))])
+        // Copied row by row into a fallibly reserved vector: a MemoryError naming the model, not an abort.
+        let row_major = |m: &DMatrix<f64>| -> PyResult<Vec<f64>> {
+            let mut out = with_capacity("model", m.len()).map_err(kernel_error)?;
+            out.extend((0..m.nrows()).flat_map(|i| (0..m.ncols()).map(move |j| m[(i, j)])));
+            Ok(out)
+        };
+        PyTuple::new(py, [to_numpy(py, (2 * nv, 2 * nv), row_major(&a)?), to_numpy(py, (2 * nv, 3 * nv), row_major(&b)?)])
     }
 
     /// Position/velocity servos, evaluated every step in Rust:

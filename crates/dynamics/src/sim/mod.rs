@@ -299,7 +299,7 @@ impl Simulation {
     /// MuJoCo's `mjd_transitionFD`. Nothing changes: not the state, time, contact history nor what
     /// `contacts` reports. The step's contact set and each contact's zone (apart, sticking, sliding), its
     /// saturated servos and active joint limits are held: the Jacobians are the step's away from switches
-    /// between them. Tree engine with one substep only (`Error::Invalid` otherwise).
+    /// between them; a step of several substeps is the chain of theirs. Tree engine only (`Error::Invalid` otherwise).
     pub fn transition_jacobians(&mut self, tau: Option<&[f64]>, a: &mut DMatrix<f64>, b: &mut DMatrix<f64>) -> Result<()> {
         // The Jacobians and the buffers behind them hold about 20 nv² numbers: a MemoryError where that cannot be
         // allocated (asked for as one block first, as `Data::reserve_dense`), not an abort.

@@ -15,19 +15,22 @@
 //!
 //! What is differentiated: the step from the given state with its contact set, each contact's zone (apart,
 //! sticking, sliding), its saturated servos and the joint limits in play held; the Jacobians are the step's
-//! away from switches between them, with the contact solve taken as converged.
+//! away from switches between them, with the contact solve taken as converged. A step of several substeps is the
+//! chain of theirs, each substep's contact set and zones held, the warm starts it passes on followed (`Substeps`).
 
 use nalgebra::{DMatrix, Matrix6, Matrix6xX};
 
 use super::articulated::Articulated;
+use super::collision::{Found, Source, Warm};
 use super::delassus::Delassus;
 use super::solver::{impulses_at, Constraint, Stiffness};
 use super::{base_origin, contact_constraint, limit_constraint, TreeSimulation};
 use crate::algorithms::{aba_with_armature, crba, integrate, integrate_jacobians, rnea_derivatives};
-use crate::model::{Data, Model};
+use crate::model::{Data, Dense, Model};
 use crate::sim::actuation::Actuation;
 use crate::sim::Engine;
 use crate::spatial::{Motion, Transform};
+use crate::validate::{array_len, filled};
 use crate::{Error, Result};
 
 /// The configuration step of the central differences of the contacts' generalized impulses (rad or m).
@@ -58,12 +61,58 @@ pub(super) struct Transition {
     /// ∂(q ⊕ h v⁺)/∂q and /∂v⁺.
     integrate_q: DMatrix<f64>,
     integrate_v: DMatrix<f64>,
+    /// Across substeps (`Substeps`).
+    substeps: Substeps,
+}
+
+/// An r x c matrix of zeros, allocated fallibly: `Error::TooLarge` naming the model where it cannot be (the
+/// Jacobians' buffers grow with nv², a model too large for them is a MemoryError, not an abort).
+fn zeros(rows: usize, columns: usize) -> Result<DMatrix<f64>> {
+    let len = array_len("model", &[rows, columns], std::mem::size_of::<f64>())?;
+    Ok(DMatrix::from_vec(rows, columns, filled("model", len, 0.0)?))
+}
+
+/// `matrix` sized r x c and zeroed, reallocated (fallibly) only if its size changes.
+fn zeroed(matrix: &mut DMatrix<f64>, rows: usize, columns: usize) -> Result<()> {
+    if matrix.shape() == (rows, columns) {
+        matrix.fill(0.0);
+    } else {
+        *matrix = zeros(rows, columns)?;
+    }
+    Ok(())
+}
+
+/// The chain rule across the substeps of one step. Substep s maps (q_s, v_s) and its contacts' warm starts W_s (each
+/// contact's [λ_n, friction in world axes], which it inherits from the last substep's impulses) to (q_s+1, v_s+1) and
+/// its impulses, the next W. The warm start is no mere seed: the friction rows ask for R_t λ_t,warm (`solver`), so a
+/// substep's solution depends on it, and through it on the state and controls at the step's start.
+#[derive(Default)]
+struct Substeps {
+    /// ∂(q_s, v_s)/∂(x, u) (2 nv x 5 nv) and ∂W_s/∂(x, u) (4 k_s x 5 nv).
+    state: DMatrix<f64>,
+    warm: DMatrix<f64>,
+    /// ∂v⁺ and ∂q⁺ by (x, u) of the substep being folded in (nv x 5 nv each), and ∂W⁺ before it is passed on.
+    velocity_by: DMatrix<f64>,
+    position_by: DMatrix<f64>,
+    warm_by: DMatrix<f64>,
+    /// The last substep's contacts (where their impulses went) and impulses, and ∂W⁺/∂(x, u) (4 k x 5 nv).
+    sources: Vec<(Source, usize, Option<usize>, Warm)>,
+    next_warm: DMatrix<f64>,
+    /// Per contact of this substep: ∂W⁺/∂q at fixed v⁺, ∂W⁺/∂v⁺ (4 k x nv each), ∂W⁺/∂W (4 k x 4).
+    warm_dq: DMatrix<f64>,
+    warm_dv: DMatrix<f64>,
+    warm_dw: DMatrix<f64>,
+    /// The impulses at the displaced configurations (4 k each) and the contacts' tangents there.
+    warm_plus: Vec<f64>,
+    warm_minus: Vec<f64>,
+    tangents: Vec<[nalgebra::Vector3<f64>; 2]>,
+    velocity: Vec<f64>,
 }
 
 impl Transition {
-    pub(super) fn new(fused: &Model, nbodies: usize) -> Self {
+    pub(super) fn new(fused: &Model, nbodies: usize) -> Result<Self> {
         let nv = fused.nv();
-        Transition {
+        Ok(Transition {
             data: Data::new(fused),
             delassus: Delassus::new(fused),
             tree: Articulated::new(fused),
@@ -78,11 +127,12 @@ impl Transition {
             relative: Matrix6xX::zeros(nv),
             columns: Vec::with_capacity(nv),
             touched: vec![false; nv],
-            hessian: DMatrix::zeros(nv, nv),
-            slopes: DMatrix::zeros(nv, 5 * nv),
-            integrate_q: DMatrix::zeros(nv, nv),
-            integrate_v: DMatrix::zeros(nv, nv),
-        }
+            hessian: zeros(nv, nv)?,
+            slopes: zeros(nv, 5 * nv)?,
+            integrate_q: zeros(nv, nv)?,
+            integrate_v: zeros(nv, nv)?,
+            substeps: Substeps::default(),
+        })
     }
 
     /// H += (Φ_a − Φ_b)ᵀ K (Φ_a − Φ_b) for a stiffness K on body `a` against body `b` (the ground if None).
@@ -142,29 +192,23 @@ impl TreeSimulation {
         a: &mut DMatrix<f64>,
         b: &mut DMatrix<f64>,
     ) -> Result<()> {
-        if self.options.substeps != 1 {
-            return Err(Error::invalid(
-                "substeps",
-                format!(
-                    "transition Jacobians are of a step of one substep; this simulation takes {} (use dt / substeps as dt instead)",
-                    self.options.substeps
-                ),
-            ));
-        }
+        let mut transition = match self.transition.take() {
+            Some(t) => t,
+            None => Box::new(Transition::new(&self.fused, self.fused_body.len())?),
+        };
         // The step is taken and undone, as a failed step is (`Engine::save`, `Engine::undo`).
         self.save();
-        let (mut q_next, mut v_next, mut applied) = (q.to_vec(), v.to_vec(), vec![0.0; v.len()]);
-        let mut transition = self.transition.take().unwrap_or_else(|| Box::new(Transition::new(&self.fused, self.fused_body.len())));
-        let outcome =
-            self.substep(actuation, &mut q_next, &mut v_next, &mut applied).and_then(|()| self.linearise(&mut transition, actuation, q, v, a, b));
+        let outcome = self.chain(&mut transition, actuation, q, v, a, b);
         self.transition = Some(transition);
         self.undo();
         outcome
     }
 
-    /// The Jacobians of the substep just taken from (q, v), whose solution `self` holds.
-    fn linearise(
-        &self,
+    /// Takes the step's substeps from (q, v), each linearised at its start, and composes their Jacobians into `a`
+    /// and `b` (`Substeps`): A = A_k ⋯ A_1 and B = Σ_s A_k ⋯ A_s+1 B_s, with each substep's warm starts followed
+    /// from the impulses of the substep before it.
+    fn chain(
+        &mut self,
         t: &mut Transition,
         actuation: &Actuation<'_>,
         q: &[f64],
@@ -172,11 +216,133 @@ impl TreeSimulation {
         a: &mut DMatrix<f64>,
         b: &mut DMatrix<f64>,
     ) -> Result<()> {
+        let (nv, substeps) = (self.fused.nv(), self.options.substeps);
+        let (mut q_s, mut v_s, mut applied) = (q.to_vec(), v.to_vec(), vec![0.0; v.len()]);
+        let (mut q_start, mut v_start) = (q.to_vec(), v.to_vec());
+        zeroed(a, 2 * nv, 2 * nv)?;
+        zeroed(b, 2 * nv, 3 * nv)?;
+        for s in 0..substeps {
+            q_start.copy_from_slice(&q_s);
+            v_start.copy_from_slice(&v_s);
+            self.substep(actuation, &mut q_s, &mut v_s, &mut applied)?;
+            // The first substep's warm starts are the last step's impulses: constant.
+            let inherits = s > 0;
+            let passes_on = s + 1 < substeps;
+            if inherits {
+                self.inherited_warm(t)?;
+            }
+            self.linearise(t, actuation, &q_start, &v_start, inherits, passes_on)?;
+            if substeps == 1 {
+                self.write_jacobians(t, a, b);
+                return Ok(());
+            }
+            self.compose(t, s == 0, passes_on)?;
+        }
+        let state = &t.substeps.state;
+        a.copy_from(&state.columns(0, 2 * nv));
+        b.copy_from(&state.columns(2 * nv, 3 * nv));
+        Ok(())
+    }
+
+    /// A and B of a lone substep from its slopes.
+    fn write_jacobians(&self, t: &Transition, a: &mut DMatrix<f64>, b: &mut DMatrix<f64>) {
+        let nv = self.fused.nv();
+        let (by_state, by_control) = (t.slopes.columns(0, 2 * nv), t.slopes.columns(2 * nv, 3 * nv));
+        a.view_mut((0, 0), (nv, 2 * nv)).gemm(1.0, &t.integrate_v, &by_state, 0.0);
+        a.view_mut((0, 0), (nv, nv)).zip_apply(&t.integrate_q, |x, d| *x += d);
+        a.view_mut((nv, 0), (nv, 2 * nv)).copy_from(&by_state);
+        b.view_mut((0, 0), (nv, 3 * nv)).gemm(1.0, &t.integrate_v, &by_control, 0.0);
+        b.view_mut((nv, 0), (nv, 3 * nv)).copy_from(&by_control);
+    }
+
+    /// ∂W_s/∂(x, u) of this substep's contacts from the last substep's impulses: a contact inherits the impulses of
+    /// the last substep's contact at the same place (`Source`) on the same bodies, exactly as stored (`report`);
+    /// any other warm start is the last step's, constant.
+    fn inherited_warm(&self, t: &mut Transition) -> Result<()> {
+        let columns = 5 * self.fused.nv();
+        let Substeps { warm, next_warm, sources, .. } = &mut t.substeps;
+        zeroed(warm, 4 * self.found.len(), columns)?;
+        for (c, f) in self.found.iter().enumerate() {
+            let same = |(source, body, other, warm): &(Source, usize, Option<usize>, Warm)| {
+                let place = match (source, &f.source) {
+                    (Source::Plane(a, b), Source::Plane(c, d)) => a == c && b == d,
+                    (Source::Manifold(a, b, c), Source::Manifold(d, e, g)) => a == d && b == e && c == g,
+                    _ => false,
+                };
+                place && *body == f.body && *other == f.other && *warm == f.warm
+            };
+            if let Some(k) = sources.iter().position(same) {
+                warm.rows_mut(4 * c, 4).copy_from(&next_warm.rows(4 * k, 4));
+            }
+        }
+        Ok(())
+    }
+
+    /// Folds this substep's Jacobians (its slopes by (q_s, v_s, u, W_s), `linearise`) into ∂(q, v)/∂(x, u) and, if
+    /// `passes_on`, its impulses' into ∂W⁺/∂(x, u).
+    fn compose(&self, t: &mut Transition, first: bool, passes_on: bool) -> Result<()> {
+        let (nv, k) = (self.fused.nv(), self.found.len());
+        let (columns, k4) = (5 * nv, 4 * k);
+        let ss = &mut t.substeps;
+        if first {
+            zeroed(&mut ss.state, 2 * nv, columns)?;
+            ss.state.view_mut((0, 0), (2 * nv, 2 * nv)).fill_with_identity();
+            zeroed(&mut ss.warm, k4, columns)?;
+        }
+        // dv⁺ = P_x d(q_s, v_s) + P_u du + P_W dW_s.
+        zeroed(&mut ss.velocity_by, nv, columns)?;
+        let velocity = &mut ss.velocity_by;
+        velocity.gemm(1.0, &t.slopes.columns(0, 2 * nv), &ss.state, 0.0);
+        velocity.columns_mut(2 * nv, 3 * nv).zip_apply(&t.slopes.columns(2 * nv, 3 * nv), |x, p| *x += p);
+        if k4 > 0 && ss.warm.nrows() == k4 && t.slopes.ncols() == columns + k4 {
+            velocity.gemm(1.0, &t.slopes.columns(columns, k4), &ss.warm, 1.0);
+        }
+        // dq⁺ = ∂(q ⊕ h v⁺)/∂q dq_s + ∂(q ⊕ h v⁺)/∂v⁺ dv⁺.
+        zeroed(&mut ss.position_by, nv, columns)?;
+        ss.position_by.gemm(1.0, &t.integrate_q, &ss.state.rows(0, nv), 0.0);
+        ss.position_by.gemm(1.0, &t.integrate_v, &ss.velocity_by, 1.0);
+        if passes_on {
+            // dW⁺ = ∂W⁺/∂v⁺ dv⁺ + ∂W⁺/∂q dq_s + ∂W⁺/∂W dW_s (each contact's own warm start alone).
+            zeroed(&mut ss.warm_by, k4, columns)?;
+            ss.warm_by.gemm(1.0, &ss.warm_dv, &ss.velocity_by, 0.0);
+            ss.warm_by.gemm(1.0, &ss.warm_dq, &ss.state.rows(0, nv), 1.0);
+            if ss.warm.nrows() == k4 {
+                for c in 0..k {
+                    ss.warm_by.rows_mut(4 * c, 4).gemm(1.0, &ss.warm_dw.rows(4 * c, 4), &ss.warm.rows(4 * c, 4), 1.0);
+                }
+            }
+            std::mem::swap(&mut ss.next_warm, &mut ss.warm_by);
+            ss.sources.clear();
+            for (f, c) in self.found.iter().zip(&self.constraints) {
+                let [t1, t2] = f.tangents;
+                let friction = t1 * c.lambda[1] + t2 * c.lambda[2];
+                ss.sources.push((f.source, f.body, f.other, [c.lambda[0], friction.x, friction.y, friction.z]));
+            }
+        }
+        ss.state.rows_mut(0, nv).copy_from(&ss.position_by);
+        ss.state.rows_mut(nv, nv).copy_from(&ss.velocity_by);
+        Ok(())
+    }
+
+    /// The Jacobians of the substep just taken from (q, v), whose solution `self` holds: ∂v⁺/∂(q, v, u) in
+    /// `t.slopes`, and with `inherits` ∂v⁺/∂W_s after them; with `passes_on`, the derivatives of its impulses (the
+    /// next substep's warm starts) in `t.substeps`.
+    fn linearise(&self, t: &mut Transition, actuation: &Actuation<'_>, q: &[f64], v: &[f64], inherits: bool, passes_on: bool) -> Result<()> {
         let model = self.fused.as_ref();
         let (nv, h) = (model.nv(), self.h);
+        let k4 = 4 * self.found.len();
         let v_next = &self.v_next;
+        // CRBA's M and the RNEA derivatives' two squares, reserved fallibly (`Data::reserve_dense`).
+        t.rigid.reserve_dense(model, &[Dense::MassMatrix, Dense::RneaDerivatives])?;
         t.hessian.copy_from(crba(model, &mut t.rigid, q));
-        t.slopes.fill(0.0);
+        zeroed(&mut t.slopes, nv, 5 * nv + if inherits { k4 } else { 0 })?;
+        if passes_on {
+            let ss = &mut t.substeps;
+            for m in [&mut ss.warm_dq, &mut ss.warm_dv] {
+                zeroed(m, k4, nv)?;
+            }
+            zeroed(&mut ss.warm_dw, k4, 4)?;
+        }
         t.slopes.columns_mut(nv, nv).zip_apply(&t.hessian, |s, m| *s = -m);
         // The free flyer's coordinates have no armature (`aba_with_armature`).
         let first_joint = if model.floating_base() { 6 } else { 0 };
@@ -213,12 +379,25 @@ impl TreeSimulation {
             integrate(model, q, &t.direction, -STEP, &mut t.displaced);
             self.contact_impulses(t, q, v)?;
             std::mem::swap(&mut t.plus, &mut t.minus);
+            std::mem::swap(&mut t.substeps.warm_plus, &mut t.substeps.warm_minus);
             integrate(model, q, &t.direction, STEP, &mut t.displaced);
             self.contact_impulses(t, q, v)?;
             t.direction[k] = 0.0;
             for (r, (plus, minus)) in t.plus.iter().zip(&t.minus).enumerate() {
                 t.slopes[(r, k)] -= (plus - minus) / (2.0 * STEP);
             }
+            if passes_on {
+                let ss = &mut t.substeps;
+                for (r, (plus, minus)) in ss.warm_plus.iter().zip(&ss.warm_minus).enumerate() {
+                    ss.warm_dq[(r, k)] = (plus - minus) / (2.0 * STEP);
+                }
+            }
+        }
+        if passes_on {
+            self.impulses_by_velocity(t, q, v)?;
+        }
+        if inherits {
+            self.by_warm_start(t, q, passes_on);
         }
         let hessian = std::mem::replace(&mut t.hessian, DMatrix::zeros(0, 0));
         // ∂g/∂v⁺ is unsymmetric where a sliding contact's friction bound follows its normal impulse (`solver`).
@@ -226,24 +405,98 @@ impl TreeSimulation {
         if !factor.solve_mut(&mut t.slopes) {
             return Err(Error::numerical("transition_jacobians", "the step's Jacobian M̃ + Jᵀ H J is singular"));
         }
-        t.hessian = DMatrix::zeros(nv, nv);
+        t.hessian = zeros(nv, nv)?;
         t.slopes.neg_mut();
         integrate_jacobians(model, v_next, h, &mut t.integrate_q, &mut t.integrate_v);
-        a.resize_mut(2 * nv, 2 * nv, 0.0);
-        b.resize_mut(2 * nv, 3 * nv, 0.0);
-        let (by_state, by_control) = (t.slopes.columns(0, 2 * nv), t.slopes.columns(2 * nv, 3 * nv));
-        a.view_mut((0, 0), (nv, 2 * nv)).gemm(1.0, &t.integrate_v, &by_state, 0.0);
-        a.view_mut((0, 0), (nv, nv)).zip_apply(&t.integrate_q, |x, d| *x += d);
-        a.view_mut((nv, 0), (nv, 2 * nv)).copy_from(&by_state);
-        b.view_mut((0, 0), (nv, 3 * nv)).gemm(1.0, &t.integrate_v, &by_control, 0.0);
-        b.view_mut((nv, 0), (nv, 3 * nv)).copy_from(&by_control);
         Ok(())
+    }
+
+    /// ∂W⁺/∂v⁺ of this substep's contacts at its start configuration `q`, by central differences in v⁺ (no solve).
+    fn impulses_by_velocity(&self, t: &mut Transition, q: &[f64], v: &[f64]) -> Result<()> {
+        let model = self.fused.as_ref();
+        t.displaced.copy_from_slice(q);
+        self.constraints_at(t, q, v)?;
+        let mut velocity = std::mem::take(&mut t.substeps.velocity);
+        velocity.clear();
+        velocity.extend_from_slice(&self.v_next);
+        for k in 0..model.nv() {
+            for (sign, _) in [(1.0, 0), (-1.0, 1)] {
+                velocity[k] = self.v_next[k] + sign * STEP;
+                impulses_at(&mut t.tree, model, &t.data, &mut t.constraints, &self.constraints, &velocity, &mut t.plus);
+                let ss = &mut t.substeps;
+                let out = if sign > 0.0 { &mut ss.warm_plus } else { &mut ss.warm_minus };
+                warm_starts(&t.constraints, &ss.tangents, out);
+            }
+            velocity[k] = self.v_next[k];
+            let ss = &mut t.substeps;
+            for (r, (plus, minus)) in ss.warm_plus.iter().zip(&ss.warm_minus).enumerate() {
+                ss.warm_dv[(r, k)] = (plus - minus) / (2.0 * STEP);
+            }
+        }
+        t.substeps.velocity = velocity;
+        Ok(())
+    }
+
+    /// The slopes by this substep's warm starts W_s: ∂g/∂W = −J_cᵀ ∂λ_c/∂W_c into `t.slopes` after the 5 nv columns
+    /// of (q, v, u), and with `passes_on` ∂W⁺/∂W, by central differences of each contact's impulses alone at the
+    /// substep's start configuration `q` and v⁺ (a contact's impulses depend on its own warm start only).
+    fn by_warm_start(&self, t: &mut Transition, q: &[f64], passes_on: bool) {
+        let model = self.fused.as_ref();
+        let (nv, origin) = (model.nv(), base_origin(model, q));
+        for (c, f) in self.found.iter().enumerate() {
+            for j in 0..4 {
+                let step = STEP * f.warm.iter().fold(1e-3_f64, |m, x| m.max(x.abs()));
+                let mut impulses = [[0.0; 4]; 2];
+                for (side, sign) in [(0, 1.0), (1, -1.0)] {
+                    let mut displaced: Found = *f;
+                    displaced.warm[j] += sign * step;
+                    let mut constraint = [contact_constraint(
+                        self.coulomb,
+                        model,
+                        &self.data,
+                        &self.delassus,
+                        &self.fused_body,
+                        self.friction,
+                        self.h,
+                        &displaced,
+                        f.distance,
+                        &origin,
+                    )];
+                    impulses_at(&mut t.tree, model, &self.data, &mut constraint, &self.constraints[c..c + 1], &self.v_next, &mut t.plus);
+                    let lambda = constraint[0].lambda;
+                    let friction = f.tangents[0] * lambda[1] + f.tangents[1] * lambda[2];
+                    impulses[side] = [lambda[0], friction.x, friction.y, friction.z];
+                    if side == 0 {
+                        std::mem::swap(&mut t.plus, &mut t.minus);
+                    }
+                }
+                // After the swaps `t.minus` holds the plus side and `t.plus` the minus side.
+                for r in 0..nv {
+                    t.slopes[(r, 5 * nv + 4 * c + j)] -= (t.minus[r] - t.plus[r]) / (2.0 * step);
+                }
+                if passes_on {
+                    for (r, (plus, minus)) in impulses[0].iter().zip(&impulses[1]).enumerate() {
+                        t.substeps.warm_dw[(4 * c + r, j)] = (plus - minus) / (2.0 * step);
+                    }
+                }
+            }
+        }
     }
 
     /// Σ J_cᵀ λ_c at v⁺ = `self.v_next` with the configuration at `t.displaced`: the step's contacts and
     /// limits (at `q`) moved there, each its impulses at J_c v⁺ − b_c (no solve, b_c on its piece at `q`), into
     /// `t.plus`.
     fn contact_impulses(&self, t: &mut Transition, q: &[f64], v: &[f64]) -> Result<()> {
+        self.constraints_at(t, q, v)?;
+        let model = self.fused.as_ref();
+        impulses_at(&mut t.tree, model, &t.data, &mut t.constraints, &self.constraints, &self.v_next, &mut t.plus);
+        warm_starts(&t.constraints, &t.substeps.tangents, &mut t.substeps.warm_plus);
+        Ok(())
+    }
+
+    /// The step's contacts and limits (at `q`) moved to the configuration at `t.displaced`, into `t.constraints`
+    /// (and the contacts' tangents there into `t.substeps.tangents`), with the factor there in `t.data`.
+    fn constraints_at(&self, t: &mut Transition, q: &[f64], v: &[f64]) -> Result<()> {
         let model = self.fused.as_ref();
         let displaced = &t.displaced;
         aba_with_armature(model, &mut t.data, displaced, v, &self.tau, None, &self.armature);
@@ -253,8 +506,10 @@ impl TreeSimulation {
         self.collision_poses(&t.data, displaced, &mut t.poses);
         let origin = base_origin(model, displaced);
         t.constraints.clear();
+        t.substeps.tangents.clear();
         for f in &self.found {
             let moved = self.collision.moved(f, &t.poses);
+            t.substeps.tangents.push(moved.tangents);
             t.constraints.push(contact_constraint(
                 self.coulomb,
                 model,
@@ -272,7 +527,16 @@ impl TreeSimulation {
             // A limit's warm start only seeds the solver: its impulse at a given v⁺ does not depend on it.
             t.constraints.push(limit_constraint(model, &t.data, &t.delassus, self.h, &self.limited[index], side, displaced, q, 0.0));
         }
-        impulses_at(&mut t.tree, model, &t.data, &mut t.constraints, &self.constraints, &self.v_next, &mut t.plus);
         Ok(())
+    }
+}
+
+/// Each contact's impulses [λ_n, friction in world axes] (what `report` stores as the next warm start) from
+/// `constraints` (contacts first) with their `tangents`, into `out` (4 per contact).
+fn warm_starts(constraints: &[Constraint], tangents: &[[nalgebra::Vector3<f64>; 2]], out: &mut Vec<f64>) {
+    out.clear();
+    for (c, [t1, t2]) in constraints.iter().zip(tangents) {
+        let friction = t1 * c.lambda[1] + t2 * c.lambda[2];
+        out.extend_from_slice(&[c.lambda[0], friction.x, friction.y, friction.z]);
     }
 }
