@@ -39,10 +39,12 @@ def random_state(m: mujoco.MjModel, rng: np.random.Generator) -> tuple[np.ndarra
     qpos = m.qpos0.copy()
     for j in range(m.njnt):
         a = m.jnt_qposadr[j]
-        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-            qpos[a : a + 3] = rng.uniform(-1, 1, 3)
+        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE or m.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL:
+            if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+                qpos[a : a + 3] = rng.uniform(-1, 1, 3)
+                a += 3
             quat = rng.normal(size=4)
-            qpos[a + 3 : a + 7] = quat / np.linalg.norm(quat)
+            qpos[a : a + 4] = quat / np.linalg.norm(quat)
         elif m.jnt_limited[j]:
             qpos[a] = rng.uniform(*m.jnt_range[j])
         else:
@@ -71,6 +73,11 @@ def mapped(m: mujoco.MjModel, d: mujoco.MjData, loaded: lk.Mjcf, ids: list[int])
             t[da : da + 3, iv : iv + 3] = r
             t[da + 3 : da + 6, iv + 3 : iv + 6] = np.eye(3)
             c[da : da + 3] = r @ np.cross(v[iv + 3 : iv + 6], v[iv : iv + 3])
+        elif joint["type"] == "ball":  # the angular velocity in the body frame in both; w first in MuJoCo
+            w, x, y, z = d.qpos[qa : qa + 4]
+            q[iq : iq + 4] = [x, y, z, w]
+            v[iv : iv + 3] = d.qvel[da : da + 3]
+            t[da : da + 3, iv : iv + 3] = np.eye(3)
         else:
             q[iq], v[iv], t[da, iv] = d.qpos[qa], d.qvel[da], 1.0
     full = np.zeros((m.nv, m.nv))

@@ -7,7 +7,9 @@ and once as a `pinocchio.Model`. The mapping is:
   -> pin's universe (joint 0), whose inertia pin ignores (legkit: "its mass is irrelevant").
 * every revolute / prismatic body -> one pin joint (RX/RY/RZ, PX/PY/PZ when the axis is exactly +x/+y/+z,
   otherwise the *Unaligned joint with the normalised axis); every helical body -> JointModelHelicalUnaligned
-  with the normalised axis and the same pitch. Pinocchio's CRBA and Minverse assume that every
+  with the normalised axis and the same pitch; every spherical body (trees built with `ball=True`) ->
+  JointModelSpherical (q a unit quaternion [x, y, z, w] in both, v the angular velocity in the body frame).
+  Pinocchio's CRBA and Minverse assume that every
   joint's subtree occupies a contiguous range of v (depth-first joint order), while legkit accepts any
   parent-before-child numbering; so pin joints are added in depth-first pre-order of the legkit tree and
   the twin records the permutation (`perm_q`, `perm_v`, and the converters q_pin / v_pin / v_lk / m_lk /
@@ -25,7 +27,7 @@ prints Python source that rebuilds the legkit model exactly, for reproducers.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
@@ -113,7 +115,7 @@ class Twin:
     pin_model: pin.Model
     floating: bool
     parents: list[int]
-    kinds: list[str]  # "base", "revolute", "prismatic", "helical", "fixed"
+    kinds: list[str]  # "base", "revolute", "prismatic", "helical", "spherical", "fixed"
     axes: list[np.ndarray | None]  # as given to legkit (possibly non-unit)
     placements: list[np.ndarray]  # 4x4 joint placement in the parent body frame (identity for the base)
     bodies: list[tuple[float, np.ndarray, np.ndarray] | None]  # (mass, com, inertia) or None (massless)
@@ -126,10 +128,21 @@ class Twin:
     depth_first: bool
     lk_iv: list[int]  # legkit velocity index of each movable body (0 for the base / fixed bodies)
     pitches: list[float]  # m/rad, of the helical joints (0 for the other bodies)
+    lk_iq: list[int] = field(default_factory=list)  # legkit configuration index of each movable body (0 for the others)
 
     def __repr__(self) -> str:  # short: the full model is in describe(), noted by the tests on failure
-        kinds = "".join({"base": "B", "revolute": "R", "prismatic": "P", "helical": "H", "fixed": "F"}[k] for k in self.kinds)
+        kinds = "".join({"base": "B", "revolute": "R", "prismatic": "P", "helical": "H", "spherical": "S", "fixed": "F"}[k] for k in self.kinds)
         return f"Twin(nbodies={self.nbodies}, floating={self.floating}, depth_first={self.depth_first}, kinds={kinds})"
+
+    @property
+    def quaternions(self) -> list[int]:
+        """The legkit q index of each spherical joint's quaternion."""
+        return [self.lk_iq[i] for i, kind in enumerate(self.kinds) if kind == "spherical"]
+
+    @property
+    def rotations(self) -> list[int]:
+        """The legkit v index of each angular velocity that turns a quaternion: the base's and the spherical joints'."""
+        return ([3] if self.floating else []) + [self.lk_iv[i] for i, kind in enumerate(self.kinds) if kind == "spherical"]
 
     # ---- sizes -------------------------------------------------------------------------------------
     @property
@@ -149,11 +162,10 @@ class Twin:
 
     # ---- random states -----------------------------------------------------------------------------
     def random_q(self, rng: np.random.Generator) -> np.ndarray:
-        """Joint coordinates uniform in [-pi, pi]; the base quaternion a normalised normal 4-vector."""
+        """Joint coordinates uniform in [-pi, pi]; the quaternions normalised normal 4-vectors."""
         q = rng.uniform(-np.pi, np.pi, size=self.nq)
-        if self.floating:
-            x, y, z, w = _unit_quaternion(rng)  # any unit 4-vector; layout [qx, qy, qz, qw]
-            q[3:7] = (x, y, z, w)
+        for k in ([3] if self.floating else []) + self.quaternions:
+            q[k : k + 4] = _unit_quaternion(rng)  # any unit 4-vector; layout [qx, qy, qz, qw]
         return q
 
     def random_v(self, rng: np.random.Generator) -> np.ndarray:
@@ -237,8 +249,8 @@ class Twin:
         ]
         for i in range(1, self.nbodies):
             pl = arr(self.placements[i])
-            if self.kinds[i] == "fixed":
-                lines.append(f"model.add_fixed({self.parents[i]}, {pl}, {mp(self.bodies[i])}, 'b{i}')")
+            if self.kinds[i] in ("fixed", "spherical"):
+                lines.append(f"model.add_{self.kinds[i]}({self.parents[i]}, {pl}, {mp(self.bodies[i])}, 'b{i}')")
             else:
                 axis, body = arr(self.axes[i]), mp(self.bodies[i])
                 pitch = f"{self.pitches[i]!r}, " if self.kinds[i] == "helical" else ""
@@ -255,6 +267,7 @@ def build_twin(
     gravity: np.ndarray | None = None,
     massive_fixed_base: bool | None = None,
     depth_first: bool | None = None,
+    ball: bool = False,
 ) -> Twin:
     """A random tree of `n_bodies` bodies (base included) and its pin twin.
 
@@ -264,6 +277,8 @@ def build_twin(
     depth_first=True numbers the legkit bodies in depth-first pre-order (then the q/v layouts of legkit and
     pin coincide); otherwise parents are any earlier body and pin (whose CRBA / Minverse need depth-first
     joint order) gets its joints in depth-first order with the permutation recorded in the twin.
+    ball=True makes about a fifth of the joints spherical; without it the trees are those drawn before ball joints
+    existed (the same seeds, the same trees).
     """
     if n_bodies < 1:
         raise ValueError("n_bodies must be >= 1")
@@ -297,9 +312,11 @@ def build_twin(
         u = rng.random()
         kind = "revolute" if u < 0.6 else "prismatic" if u < 0.75 else "helical" if u < 0.9 else "fixed"
         body = random_body(rng)
+        if ball and rng.random() < 0.2:
+            kind = "spherical"
         if kind == "fixed" and (rng.random() < 0.3 or (anchored[parent] and not anchored_mass)):
             body = None  # a massless marker frame
-        if kind == "fixed":
+        if kind in ("fixed", "spherical"):
             axis = unit = None
         else:
             axis, unit = random_axis(rng)
@@ -319,20 +336,25 @@ def build_twin(
 
     model = lk.Model(floating_base=floating, base=mp(base), base_name="base", gravity=None if gravity is None else g)
     lk_iv = [0] * n_bodies  # legkit velocity index of each movable body (body order; free flyer first)
-    nv = 6 if floating else 0
+    lk_iq = [0] * n_bodies  # and its configuration index
+    nv, nq = (6, 7) if floating else (0, 0)
     for i in range(1, n_bodies):
         T = placements[i]
         placement = (T[:3, :3].copy(), T[:3, 3].copy()) if as_tuple[i] else T.copy()
         if kinds[i] == "fixed":
             idx = model.add_fixed(parents[i], placement, mp(bodies[i]), f"b{i}")
+        elif kinds[i] == "spherical":
+            idx = model.add_spherical(parents[i], placement, mp(bodies[i]), f"b{i}")
+            lk_iv[i], lk_iq[i] = nv, nq
+            nv, nq = nv + 3, nq + 4
         else:
             if kinds[i] == "helical":
                 idx = model.add_helical(parents[i], axes[i], pitches[i], placement, mp(bodies[i]), f"b{i}")
             else:
                 add = model.add_revolute if kinds[i] == "revolute" else model.add_prismatic
                 idx = add(parents[i], axes[i], placement, mp(bodies[i]), f"b{i}")
-            lk_iv[i] = nv
-            nv += 1
+            lk_iv[i], lk_iq[i] = nv, nq
+            nv, nq = nv + 1, nq + 1
         assert idx == i, (idx, i)
 
     # ---- pin, in depth-first pre-order ------------------------------------------------------------------
@@ -351,7 +373,6 @@ def build_twin(
     body_in_joint = [pin.SE3.Identity()] * n_bodies
     perm_q = list(range(7)) if floating else []
     perm_v = list(range(6)) if floating else []
-    offset_q = 1 if floating else 0  # legkit q index = legkit v index + 1 with a free flyer
     for i in order:
         if i == 0:
             if floating:
@@ -371,7 +392,9 @@ def build_twin(
             continue
         unit = units[i]
         aligned = [k for k in range(3) if np.array_equal(unit, UNIT_AXES[k])]
-        if kinds[i] == "helical":
+        if kinds[i] == "spherical":
+            jm = pin.JointModelSpherical()
+        elif kinds[i] == "helical":
             jm = pin.JointModelHelicalUnaligned(unit, pitches[i])
         elif kinds[i] == "revolute":
             jm = REVOLUTE[aligned[0]]() if aligned else pin.JointModelRevoluteUnaligned(unit)
@@ -380,8 +403,9 @@ def build_twin(
         j = pin_model.addJoint(pj, jm, pX * X, f"b{i}")
         pin_model.appendBodyToJoint(j, pin.Inertia(body[0], body[1], body[2]), pin.SE3.Identity())
         body_joint[i] = j
-        perm_v.append(lk_iv[i])
-        perm_q.append(lk_iv[i] + offset_q)
+        width_v, width_q = (3, 4) if kinds[i] == "spherical" else (1, 1)
+        perm_v.extend(range(lk_iv[i], lk_iv[i] + width_v))
+        perm_q.extend(range(lk_iq[i], lk_iq[i] + width_q))
 
     # Half the trees carry armature on their joints (Pinocchio's model.armature, in its own v order).
     if rng.random() < 0.5:
@@ -391,6 +415,7 @@ def build_twin(
     twin = Twin(
         model, pin_model, floating, parents, kinds, axes, placements, bodies, body_joint, body_in_joint, g, as_tuple,
         np.array(perm_q, dtype=int), np.array(perm_v, dtype=int), depth_first, lk_iv, pitches,
+        lk_iq,
     )
     assert model.nq == pin_model.nq and model.nv == pin_model.nv == nv, (model.nq, pin_model.nq, model.nv, pin_model.nv)
     assert model.nbodies == n_bodies
@@ -426,10 +451,12 @@ def random_model(draw, n_bodies: int, floating: bool, **kwargs) -> Twin:
 
 
 @st.composite
-def twins(draw, max_bodies: int = 200, floating: bool | None = None, **kwargs) -> Twin:
-    """A random twin: size from body_counts(max_bodies), fixed or floating base (drawn unless given)."""
+def twins(draw, max_bodies: int = 200, floating: bool | None = None, ball: bool | None = None, **kwargs) -> Twin:
+    """A random twin: size from body_counts(max_bodies), fixed or floating base, with or without spherical joints
+    (drawn unless given)."""
     n = draw(body_counts(max_bodies), label="n_bodies")
     fl = draw(st.booleans(), label="floating") if floating is None else floating
+    kwargs["ball"] = draw(st.booleans(), label="ball") if ball is None else ball
     event("bodies", "1-8" if n <= 8 else ("9-40" if n <= 40 else "41+"))
     return random_model(draw, n, fl, **kwargs)
 

@@ -32,19 +32,20 @@ def pinocchio(function, tw: Twin, *args) -> np.ndarray:
 
 
 def below_pi(tw: Twin, v: np.ndarray) -> np.ndarray:
-    """v with a free-flyer base's rotation halved: random_v's angles reach 3 sqrt(3) > pi, halved they stay below,
-    where (-) inverts (+)."""
+    """v with the base's and the ball joints' rotations halved: random_v's angles reach 3 sqrt(3) > pi, halved they
+    stay below, where (-) inverts (+)."""
     v = v.copy()
-    if tw.floating:
-        v[3:6] *= 0.5
+    for k in tw.rotations:
+        v[k : k + 3] *= 0.5
     return v
 
 
 def same_configuration(tw: Twin, got: np.ndarray, want: np.ndarray) -> None:
-    """Equal coordinates, a base quaternion up to its sign (q and -q are one rotation)."""
+    """Equal coordinates, quaternions up to their sign (q and -q are one rotation)."""
     got = np.array(got)
-    if tw.floating and np.dot(got[3:7], want[3:7]) < 0.0:
-        got[3:7] *= -1.0
+    for k in ([3] if tw.floating else []) + tw.quaternions:
+        if np.dot(got[k : k + 4], want[k : k + 4]) < 0.0:
+            got[k : k + 4] *= -1.0
     assert_close(got, want, "configuration")
 
 

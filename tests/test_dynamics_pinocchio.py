@@ -81,26 +81,27 @@ def state(tw: Twin, rng: np.random.Generator):
 @given(twins())
 def test_model_layout(tw: Twin):
     m = tw.model
-    nv_joints = sum(k in ("revolute", "prismatic", "helical") for k in tw.kinds)
+    nv_joints = sum({"revolute": 1, "prismatic": 1, "helical": 1, "spherical": 3}.get(k, 0) for k in tw.kinds)
+    nq_joints = nv_joints + len(tw.quaternions)
     assert m.nv == nv_joints + (6 if tw.floating else 0)
-    assert m.nq == nv_joints + (7 if tw.floating else 0)
+    assert m.nq == nq_joints + (7 if tw.floating else 0)
     assert m.nbodies == tw.nbodies
     assert list(m.parents) == tw.parents
     assert list(m.names) == ["base"] + [f"b{i}" for i in range(1, tw.nbodies)]
     assert m.floating_base == tw.floating
-    off_q = 1 if tw.floating else 0
     for i, kind in enumerate(tw.kinds):
         if kind != "base":
             assert m.joint_type(i) == kind
         if kind in ("revolute", "prismatic", "helical"):
             assert np.allclose(m.joint_axis(i), tw.axes[i] / np.linalg.norm(tw.axes[i]), rtol=0, atol=1e-15)
             assert m.joint_pitch(i) == (tw.pitches[i] if kind == "helical" else None)
+        if kind in ("revolute", "prismatic", "helical", "spherical"):
             assert m.idx_v[i] == tw.lk_iv[i], (i, m.idx_v)
-            assert m.idx_q[i] == tw.lk_iv[i] + off_q, (i, m.idx_q)
+            assert m.idx_q[i] == tw.lk_iq[i], (i, m.idx_q)
     neutral = np.asarray(m.neutral())
     expected = np.zeros(m.nq)
-    if tw.floating:
-        expected[6] = 1.0  # identity quaternion [0, 0, 0, 1]
+    for k in ([3] if tw.floating else []) + tw.quaternions:
+        expected[k + 3] = 1.0  # identity quaternion [0, 0, 0, 1]
     assert np.array_equal(neutral, expected)
     assert np.array_equal(tw.q_pin(neutral), pin.neutral(tw.pin_model))
 

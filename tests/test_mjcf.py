@@ -226,10 +226,28 @@ def test_actuator_torques_equal_mujocos_qfrc_actuator() -> None:
         loaded.actuator_torques(d.qpos, d.qvel, [1.0])
 
 
-def test_ball_joints_are_refused_naming_the_joint() -> None:
-    xml = '<mujoco><worldbody><body><joint name="shoulder" type="ball"/><geom size=".1"/></body></worldbody></mujoco>'
-    with pytest.raises(ValueError, match='joint "shoulder".*ball joints are not supported yet'):
-        lk.Model.from_mjcf(xml)
+BALLS = """<mujoco><compiler angle="radian"/><worldbody>
+  <body name="torso" pos="0 0 1"><freejoint/><geom type="box" size=".2 .1 .05"/>
+    <body name="upper" pos=".2 0 0" euler=".3 -.2 .5"><joint name="shoulder" type="ball" pos=".02 .01 0" ref="0.7"
+        damping=".3" armature=".05"/><geom type="capsule" fromto="0 0 0 .3 0 0" size=".04"/>
+      <body name="lower" pos=".3 0 0"><joint name="elbow" axis="0 1 0"/><joint name="wrist" type="ball" pos=".01 0 0"/>
+        <geom type="ellipsoid" size=".05 .03 .02" pos=".1 0 0"/></body></body>
+    <body name="tail" pos="-.2 0 0"><joint name="hip" type="ball"/><geom type="sphere" size=".05" pos="-.1 .02 0"/></body>
+  </body></worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("floating", [True, False], ids=["free", "welded"])
+def test_ball_joints_match_mujocos_mass_matrix_and_bias_forces(floating: bool) -> None:
+    """A ball joint below a free joint and beside a hinge in one body (MuJoCo composes them in order); `ref` is
+    ignored on a ball joint, as in MuJoCo; damping and armature on each of its three coordinates."""
+    xml = BALLS if floating else BALLS.replace("<freejoint/>", "")
+    m = mujoco.MjModel.from_xml_string(xml)
+    loaded = lk.load_mjcf(xml)
+    assert [j["type"] for j in loaded.joints] == (["free"] if floating else []) + ["ball", "hinge", "ball", "ball"]
+    assert compare(xml, m, np.random.default_rng(1), states=5) is None
+    k = loaded.joints[1 if floating else 0]["idx_v"]
+    assert np.array_equal(loaded.model.armature[k : k + 3], [0.05] * 3)
+    assert np.array_equal(loaded.model.damping[k : k + 3], [0.3] * 3)
 
 
 def test_what_legkit_does_not_model_warns_or_is_refused_with_strict() -> None:
@@ -264,7 +282,6 @@ def test_bad_files_are_clear_value_errors(xml: str, message: str) -> None:
 CORPUS = corpus()
 # Files MuJoCo compiles that legkit refuses, with the reason the error gives.
 REFUSED = {
-    "dm_control/mujoco/testing/assets/model_with_ball_joints.xml": "ball joints",
     "dm_control/suite/dog.xml": "free joints",
     "dm_control/suite/quadruped.xml": "free joints",
 }

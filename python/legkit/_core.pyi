@@ -80,6 +80,11 @@ class Model:
     ) -> int:
         """Turns by q about axis and moves pitch * q (m/rad) along it; limits as for add_revolute. The tree engine
         simulates it; backend="rapier" refuses it (RuntimeError)."""
+    def add_spherical(
+        self, parent: _Body, placement: _Placement | None = None, body: MassProperties | None = None, name: str | None = None
+    ) -> int:
+        """A ball joint: q a unit quaternion [qx, qy, qz, qw], v the angular velocity in the body's frame (Pinocchio's
+        JointModelSpherical). Simulation refuses it for now."""
     def add_fixed(
         self, parent: _Body, placement: _Placement | None = None, body: MassProperties | None = None, name: str | None = None
     ) -> int: ...

@@ -124,6 +124,16 @@ pub(crate) fn log3(r: &UnitQuaternion<f64>) -> Vector3<f64> {
     u * scale
 }
 
+/// The right Jacobian of exp on SO(3), J_r(ω) = V(−ω) (Pinocchio's `Jexp3`): the ball joint's.
+pub(crate) fn jexp3(w: &Vector3<f64>) -> Matrix3<f64> {
+    left_jacobian(&-w)
+}
+
+/// J_r(ω)⁻¹ at the log ω of a rotation R: Pinocchio's `Jlog3(R)`, log(R exp(δ)) ≈ ω + J_r(ω)⁻¹ δ.
+pub(crate) fn jlog3(w: &Vector3<f64>) -> Matrix3<f64> {
+    right_jacobian_inverse(w)
+}
+
 /// log of the rigid transform (r, p): the twist [V(ω)⁻¹ p; ω], ω = log3(r) [Solà, App. D] (Pinocchio's `log6`).
 pub(crate) fn log6(r: &UnitQuaternion<f64>, p: &Vector3<f64>) -> Motion {
     let w = log3(r);

@@ -15,8 +15,9 @@
 //! - `<joint type="hinge|slide|free">` and `<freejoint>`: `pos`, `axis`, `ref`, `range`, `limited` (auto:
 //!   limited when `range` is given), `damping` and `armature` (the model's, per coordinate; none on a free
 //!   joint, and `<freejoint>` takes no joint defaults, as in MuJoCo). `stiffness` and `frictionloss` are not
-//!   modelled: a non-zero value is a warning. `ball` joints are
-//!   refused (legkit has no spherical joint yet).
+//!   modelled: a non-zero value is a warning. `<joint type="ball">` becomes [`Joint::Spherical`] turning about
+//!   `pos` (q = MuJoCo's qpos with w last; `ref` is ignored, as MuJoCo reads it on hinges and slides only;
+//!   a `range`, MuJoCo's cone on the rotation angle, is a warning).
 //! - Mass properties: `<inertial pos quat|... mass diaginertia|fullinertia>`, or, per `inertiafromgeom`
 //!   (`auto`: when the body has no `<inertial>`), the sum of its geoms' (sphere, capsule, cylinder,
 //!   ellipsoid, box; `mass=` or `density=`, 1000 by default; groups within `inertiagrouprange`), by
@@ -73,6 +74,7 @@ pub enum JointKind {
     Hinge,
     Slide,
     Free,
+    Ball,
 }
 
 /// An MJCF joint and the model coordinates it became.
@@ -107,7 +109,7 @@ pub struct Actuator {
 pub struct Mjcf {
     pub model: Model,
     pub warnings: Vec<String>,
-    /// Every hinge, slide and free joint the model kept, in MuJoCo's order.
+    /// Every hinge, slide, ball and free joint the model kept, in MuJoCo's order.
     pub joints: Vec<MjcfJoint>,
     pub actuators: Vec<Actuator>,
     /// `<option timestep>` (s; MuJoCo's default 0.002).
@@ -758,13 +760,13 @@ fn joint(el: &El, class: &str, prefix: &Transform, reader: &mut Reader, id: usiz
         "hinge" => JointKind::Hinge,
         "slide" => JointKind::Slide,
         "free" => JointKind::Free,
-        "ball" => return Err(invalid(format!("joint {name:?} ({}): ball joints are not supported yet", el.at))),
+        "ball" => JointKind::Ball,
         other => return Err(invalid(format!("joint {name:?} ({}): unknown type {other:?}", el.at))),
     };
     let pos = prefix.transform_point(&reader.fixed::<3>(el, class, "pos")?.map_or_else(Vector3::zeros, Vector3::from));
     let axis = prefix.rotation * reader.fixed::<3>(el, class, "axis")?.map_or_else(Vector3::z, Vector3::from);
     let axis = axis.try_normalize(1e-10).ok_or_else(|| invalid(format!("joint {name:?}: zero axis")))?;
-    let scale = if kind == JointKind::Hinge { reader.compiler.angle } else { 1.0 };
+    let scale = if matches!(kind, JointKind::Hinge | JointKind::Ball) { reader.compiler.angle } else { 1.0 };
     let range = reader.fixed::<2>(el, class, "range")?;
     let limited = match reader.boolean(el, class, "limited")? {
         Some(b) => b,
@@ -772,6 +774,11 @@ fn joint(el: &El, class: &str, prefix: &Transform, reader: &mut Reader, id: usiz
     };
     let range = match (kind, limited, range) {
         (JointKind::Free, _, _) | (_, false, _) => None,
+        // A ball joint's range bounds its rotation angle (MuJoCo's cone), which JointLimits cannot express.
+        (JointKind::Ball, true, r) => {
+            reader.accept(format!("joint {name:?}: the range {r:?} of a ball joint is not modelled"))?;
+            None
+        }
         (_, true, r) => {
             let [lo, hi] = r.unwrap_or([0.0, 0.0]);
             if lo > hi {
@@ -780,7 +787,8 @@ fn joint(el: &El, class: &str, prefix: &Transform, reader: &mut Reader, id: usiz
             Some((lo * scale, hi * scale))
         }
     };
-    let reference = if kind == JointKind::Free { 0.0 } else { reader.scalar(el, class, "ref", 0.0)? * scale };
+    // MuJoCo reads `ref` on hinges and slides only: a ball joint's qpos0 is the identity.
+    let reference = if matches!(kind, JointKind::Hinge | JointKind::Slide) { reader.scalar(el, class, "ref", 0.0)? * scale } else { 0.0 };
     let damping = reader.scalar(el, class, "damping", 0.0)?;
     let armature = reader.scalar(el, class, "armature", 0.0)?;
     if damping < 0.0 || armature < 0.0 {
@@ -1047,6 +1055,12 @@ fn build(bodies: &[Body], options: &MjcfOptions, reader: &mut Reader) -> Result<
                     anchor = spec.pos;
                     (Joint::Revolute(spec.axis), placement)
                 }
+                // Turns about its anchor, as a hinge: q is MuJoCo's qpos with w last.
+                JointKind::Ball => {
+                    let placement = frame.compose(&Transform::from_translation(spec.pos - anchor));
+                    anchor = spec.pos;
+                    (Joint::Spherical, placement)
+                }
                 _ => (Joint::Prismatic(spec.axis), frame.compose(&Transform::from_translation(-spec.axis * spec.reference))),
             };
             let limits = match spec.range {
@@ -1057,8 +1071,10 @@ fn build(bodies: &[Body], options: &MjcfOptions, reader: &mut Reader) -> Result<
             parent = model.add_body(parent, joint, placement, mass, &name, limits).map_err(fail)?;
             let kind = spec.kind;
             joints.push(MjcfJoint { name: spec.name.clone(), kind, body: parent, idx_q: model.idx_q(parent), idx_v: model.idx_v(parent) });
-            damping.push((model.idx_v(parent), spec.damping));
-            armature.push((model.idx_v(parent), spec.armature));
+            for k in model.idx_v(parent)..model.idx_v(parent) + model.joint(parent).nv() {
+                damping.push((k, spec.damping));
+                armature.push((k, spec.armature));
+            }
             frame = Transform::identity();
         }
         if moving.is_empty() {
@@ -1096,8 +1112,8 @@ fn actuators(root: &El, joints: &[MjcfJoint], reader: &mut Reader) -> Result<Vec
             let Some(joint) = joints.iter().find(|j| j.name == target) else {
                 return Err(invalid(format!("{}: unknown joint {target:?}", el.what())));
             };
-            if joint.kind == JointKind::Free {
-                skipped.push(format!("{} (on a free joint)", el.what()));
+            if matches!(joint.kind, JointKind::Free | JointKind::Ball) {
+                skipped.push(format!("{} (on a {} joint)", el.what(), if joint.kind == JointKind::Free { "free" } else { "ball" }));
                 continue;
             }
             let gear = reader.nums(el, &class, "gear")?.map_or(1.0, |g| g.first().copied().unwrap_or(1.0));
@@ -1209,9 +1225,18 @@ mod tests {
     }
 
     #[test]
-    fn ball_joints_and_unknown_classes_are_errors_naming_them() {
-        let error = load_mjcf("<mujoco><worldbody><body><joint name='s' type='ball'/></body></worldbody></mujoco>", &MjcfOptions::default());
-        assert!(error.unwrap_err().to_string().contains("joint \"s\" (<string>:1): ball joints are not supported yet"));
+    fn a_ball_joint_is_spherical_about_its_anchor_and_ignores_ref() {
+        let xml =
+            "<mujoco><worldbody><body pos='0 0 1'><joint name='s' type='ball' pos='0 0 0.5' ref='30'/><geom size='.1'/></body></worldbody></mujoco>";
+        let loaded = load_mjcf(xml, &MjcfOptions::default()).unwrap();
+        let model = &loaded.model;
+        assert_eq!((*model.joint(1), model.nq(), model.nv()), (Joint::Spherical, 4, 3));
+        assert_eq!(model.placement(1).translation, Vector3::new(0.0, 0.0, 1.5));
+        assert_eq!(loaded.joints[0].kind, JointKind::Ball);
+    }
+
+    #[test]
+    fn unknown_classes_are_errors_naming_them() {
         let error = load_mjcf("<mujoco><worldbody><body childclass='x'/></worldbody></mujoco>", &MjcfOptions::default());
         assert!(error.unwrap_err().to_string().contains("unknown childclass \"x\""));
     }

@@ -333,16 +333,18 @@ impl Model {
         self.bodies.iter().map(|b| b.mass()).sum()
     }
 
-    /// The neutral configuration: zero joint coordinates, base at the origin with identity orientation.
+    /// The neutral configuration: zero joint coordinates, base at the origin, identity orientations.
     pub fn neutral(&self) -> DVector<f64> {
         let mut q = DVector::zeros(self.nq);
-        if self.floating_base() {
-            q[6] = 1.0;
+        for (joint, &k) in self.joints.iter().zip(&self.idx_q) {
+            if let Some(quaternion) = joint.quaternion_coordinates() {
+                q[k + quaternion.end - 1] = 1.0;
+            }
         }
         q
     }
 
-    /// Checks a configuration: length `nq`, finite, and a unit base quaternion (to 1e-6).
+    /// Checks a configuration: length `nq`, finite, and unit quaternions (to 1e-6): the base's and the ball joints'.
     pub fn check_configuration(&self, q: &[f64]) -> Result<()> {
         self.check_configuration_named("q", q)
     }
@@ -350,10 +352,13 @@ impl Model {
     /// `check_configuration` of the argument named `argument` (e.g. "q0").
     pub fn check_configuration_named(&self, argument: &'static str, q: &[f64]) -> Result<()> {
         check_vector(argument, q, self.nq)?;
-        if self.floating_base() {
-            let norm = q[3..7].iter().map(|x| x * x).sum::<f64>().sqrt();
+        for (i, (joint, &k)) in self.joints.iter().zip(&self.idx_q).enumerate() {
+            let Some(quaternion) = joint.quaternion_coordinates() else { continue };
+            let (a, b) = (k + quaternion.start, k + quaternion.end);
+            let norm = q[a..b].iter().map(|x| x * x).sum::<f64>().sqrt();
             if (norm - 1.0).abs() > 1e-6 {
-                return Err(Error::invalid(argument, format!("the base quaternion {argument}[3:7] must have unit norm, got {norm:.9}")));
+                let whose = if i == 0 { "the base quaternion".to_string() } else { format!("the quaternion of ball joint '{}'", self.names[i]) };
+                return Err(Error::invalid(argument, format!("{whose} {argument}[{a}:{b}] must have unit norm, got {norm:.9}")));
             }
         }
         Ok(())

@@ -83,11 +83,15 @@ fn check_jacobians(model: &Model, q0: &[f64], v: &[f64], dt: f64, what: &str) {
     assert_close(&d0, &-(&d1 * &dq), 1e-12, &format!("{what}: ∂⊖/∂q0"));
 }
 
-/// The same configuration: equal coordinates, the quaternion up to its sign.
+/// The same configuration: equal coordinates, the quaternions up to their sign.
 fn assert_same_configuration(model: &Model, got: &[f64], want: &[f64], what: &str) {
     let mut aligned = got.to_vec();
-    if model.floating_base() && (3..7).map(|k| got[k] * want[k]).sum::<f64>() < 0.0 {
-        aligned[3..7].iter_mut().for_each(|x| *x = -*x);
+    for i in 0..model.nbodies() {
+        let Some(quaternion) = model.joint(i).quaternion_coordinates() else { continue };
+        let k = model.idx_q(i) + quaternion.start..model.idx_q(i) + quaternion.end;
+        if k.clone().map(|k| got[k] * want[k]).sum::<f64>() < 0.0 {
+            aligned[k].iter_mut().for_each(|x| *x = -*x);
+        }
     }
     let error = aligned.iter().zip(want).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
     assert!(error < 1e-12, "{what}: error {error:.3e}\ngot {got:?}\nwant {want:?}");

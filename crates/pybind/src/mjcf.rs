@@ -69,6 +69,7 @@ impl PyMjcf {
                     JointKind::Hinge => "hinge",
                     JointKind::Slide => "slide",
                     JointKind::Free => "free",
+                    JointKind::Ball => "ball",
                 },
             )?;
             d.set_item("body", j.body)?;

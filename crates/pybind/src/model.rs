@@ -270,6 +270,20 @@ impl PyModel {
         self.add(parent, Joint::Helical { axis: vector3("axis", &axis)?, pitch }, placement, body, name, limits)
     }
 
+    /// Adds a body on a ball (spherical) joint; returns its index. Its coordinates are a unit quaternion
+    /// `[qx, qy, qz, qw]` (as the free-flyer base's) and its velocity the angular velocity in the body's frame
+    /// (Pinocchio's `JointModelSpherical`). The tree engine and Rapier do not simulate it yet.
+    #[pyo3(signature = (parent, placement = None, body = None, name = None))]
+    fn add_spherical(
+        &mut self,
+        parent: &Bound<'_, PyAny>,
+        placement: Option<&Bound<'_, PyAny>>,
+        body: Option<PyMassProperties>,
+        name: Option<String>,
+    ) -> PyResult<usize> {
+        self.add(parent, Joint::Spherical, placement, body, name, None)
+    }
+
     /// Adds a body rigidly attached to `parent`; returns its index.
     #[pyo3(signature = (parent, placement = None, body = None, name = None))]
     fn add_fixed(
@@ -351,7 +365,7 @@ impl PyModel {
         self.per_body(Model::idx_v)
     }
 
-    /// "free_flyer", "fixed", "revolute", "prismatic" or "helical".
+    /// "free_flyer", "fixed", "revolute", "prismatic", "helical" or "spherical".
     fn joint_type(&self, body: &Bound<'_, PyAny>) -> PyResult<&'static str> {
         Ok(self.model.joint(self.body_index(body)?).kind())
     }

@@ -4,7 +4,7 @@
 //! coordinates: each body's rigid inertia moves to the world once, in its 10-parameter form, and articulated
 //! inertias and bias forces then pass to the parent without a transform.
 
-use nalgebra::{DVector, Vector6};
+use nalgebra::{DVector, Matrix3, Matrix6x3, Vector3, Vector6};
 
 use super::kinematics::base_centred_root;
 use super::world_pose;
@@ -55,6 +55,10 @@ pub fn aba_with_armature<'d>(
                 data.s[i] = model.joint(i).subspace_in(&pose);
                 data.s[i] * v[k]
             }
+            Dofs::Ball => {
+                data.s[i] = Motion::zeros();
+                ball_subspace(&pose) * Vector3::from_column_slice(&v[k..k + 3])
+            }
         };
         data.centred_m_i[i] = pose;
         data.centred_v[i] = v_parent + v_joint;
@@ -88,7 +92,17 @@ pub fn aba_with_armature<'d>(
             Motion::zeros()
         };
         let (head, tail) = data.inertia.split_at_mut(i);
-        add_reduced_inertia(&mut head[p], &tail[0], &u, &w);
+        if model.joint(i).dofs() == Dofs::Ball {
+            // The same with three columns: U = I^A S (6 x 3), D = Sᵀ U + armature (3 x 3).
+            let (s3, u3, d_inv) = ball_factors(&data.centred_m_i[i], &tail[0], &armature[k..k + 3]);
+            let u_joint = Vector3::from_column_slice(&tau[k..k + 3]) - s3.tr_mul(&data.bias[i]);
+            let w3 = u3 * d_inv;
+            pa += w3 * (u_joint - u3.tr_mul(&c));
+            head[p] += tail[0] - w3 * u3.transpose();
+            data.ddq.rows_mut(k, 3).copy_from(&u_joint);
+        } else {
+            add_reduced_inertia(&mut head[p], &tail[0], &u, &w);
+        }
         data.bias[p] += pa;
     }
     // Pass 3: accelerations, root to leaves (eq. 7.45–7.47).
@@ -111,9 +125,36 @@ pub fn aba_with_armature<'d>(
                 data.ddq[k] = qdd;
                 a_prime + data.s[i] * qdd
             }
+            Dofs::Ball => {
+                let (s3, u3, d_inv) = ball_factors(&data.centred_m_i[i], &data.inertia[i], &armature[k..k + 3]);
+                let qdd = d_inv * (data.ddq.fixed_rows::<3>(k) - u3.tr_mul(&a_prime));
+                data.ddq.rows_mut(k, 3).copy_from(&qdd);
+                a_prime + s3 * qdd
+            }
         };
     }
     &data.ddq
+}
+
+/// The ball joint's S = X [0; I] at `pose` (6 x 3, the centred frame).
+#[inline(always)]
+pub(crate) fn ball_subspace(pose: &Transform) -> Matrix6x3<f64> {
+    let mut s = Matrix6x3::zeros();
+    s.fixed_view_mut::<3, 3>(0, 0).copy_from(&(pose.translation.cross_matrix() * pose.rotation));
+    s.fixed_view_mut::<3, 3>(3, 0).copy_from(&pose.rotation);
+    s
+}
+
+/// A ball joint's S, U = I^A S and D⁻¹ = (Sᵀ U + diag(armature))⁻¹ (eq. 7.43 with three columns) at `pose`, from its
+/// articulated inertia, which `Data` keeps: recomputed where needed rather than stored per joint. D is not positive
+/// definite only for a massless subtree, whose accelerations are then NaN as the one-coordinate joints'.
+#[inline(always)]
+pub(crate) fn ball_factors(pose: &Transform, inertia: &Inertia, armature: &[f64]) -> (Matrix6x3<f64>, Matrix6x3<f64>, Matrix3<f64>) {
+    let s = ball_subspace(pose);
+    let u = inertia * s;
+    let d = s.tr_mul(&u) + Matrix3::from_diagonal(&Vector3::from_column_slice(armature));
+    let d_inv = d.cholesky().map_or_else(|| Matrix3::repeat(f64::NAN), |c| c.inverse());
+    (s, u, d_inv)
 }
 
 /// The factors of M + diag(armature) that `aba_with_armature` leaves in `Data` (centred frame): each body's pose,
@@ -132,7 +173,7 @@ pub(crate) const BLOCK: usize = 8;
 /// A 6-vector per column of a block, stored row by row.
 pub(crate) type Block6 = [[f64; BLOCK]; 6];
 
-/// Solves (M + diag(armature)) x = b in place for every column b of `columns` (column-major, nv rows each) with
+/// Solves (M + diag(armature)) x = b in place (a ball joint's D from the model's armature, `ball_factors`) for every column b of `columns` (column-major, nv rows each) with
 /// `factors`: Table 7.1's passes 2 and 3 with q̇ = 0 and no gravity, O(n) per column, so M⁻¹ B costs O(n nv) for
 /// nv columns where a dense product costs O(nv³). Columns go `BLOCK` at a time; `rows` (nv) holds a block row by row
 /// and `forces` and `accelerations` (one per body) its bias forces and accelerations.
@@ -180,6 +221,21 @@ pub(crate) fn solve_columns(
                     }
                 }
                 rows[k] = u;
+            } else if model.joint(i).dofs() == Dofs::Ball {
+                let k = model.idx_v(i);
+                let (s3, u3, d_inv) = ball_factors(&factors.poses[i], &factors.inertia[i], &model.armature()[k..k + 3]);
+                let w3 = u3 * d_inv;
+                for c in 0..BLOCK {
+                    let f = Force::from_fn(|r, _| from[r][c]);
+                    let u = Vector3::from_fn(|r, _| rows[k + r][c]) - s3.tr_mul(&f);
+                    let passed = f + w3 * u;
+                    for r in 0..6 {
+                        to[r][c] += passed[r];
+                    }
+                    for r in 0..3 {
+                        rows[k + r][c] = u[r];
+                    }
+                }
             } else {
                 for r in 0..6 {
                     for c in 0..BLOCK {
@@ -223,6 +279,20 @@ pub(crate) fn solve_columns(
                     }
                 }
                 rows[k] = qdd;
+            } else if model.joint(i).dofs() == Dofs::Ball {
+                let k = model.idx_v(i);
+                let (s3, u3, d_inv) = ball_factors(&factors.poses[i], &factors.inertia[i], &model.armature()[k..k + 3]);
+                for c in 0..BLOCK {
+                    let a = Motion::from_fn(|r, _| from[r][c]);
+                    let qdd = d_inv * (Vector3::from_fn(|r, _| rows[k + r][c]) - u3.tr_mul(&a));
+                    let a = a + s3 * qdd;
+                    for r in 0..6 {
+                        to[r][c] = a[r];
+                    }
+                    for r in 0..3 {
+                        rows[k + r][c] = qdd[r];
+                    }
+                }
             } else {
                 *to = *from;
             }

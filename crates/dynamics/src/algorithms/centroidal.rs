@@ -61,10 +61,10 @@ pub fn centroidal_map<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d M
     for i in 0..n {
         let k = model.idx_v(i);
         match model.joint(i).dofs() {
-            Dofs::Free => {
-                for j in 0..6 {
-                    let motion = data.centred_m_i[0].act_motion(&Motion::ith(j, 1.0));
-                    data.centroidal_map.set_column(k + j, &about_com(whole.apply(&motion)));
+            Dofs::Free | Dofs::Ball => {
+                for c in 0..model.joint(i).nv() {
+                    let s = model.joint(i).subspace_column_in(&data.centred_m_i[i], c);
+                    data.centroidal_map.set_column(k + c, &about_com(data.composite[i].apply(&s)));
                 }
             }
             Dofs::Zero => {}

@@ -9,7 +9,7 @@ use nalgebra::DMatrix;
 use super::kinematics::base_centred_kinematics;
 use crate::joint::Dofs;
 use crate::model::{reserve_square, Data, Model};
-use crate::spatial::RigidInertia;
+use crate::spatial::{Force, RigidInertia};
 
 /// Fills `data.mass_matrix` (both triangles, each entry as it is found) and returns it. Works for any parent-before-child order.
 pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64> {
@@ -39,26 +39,52 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64
                 // F = I^c S (eq. 6.17), then M_ji = S_jᵀ F up the ancestors (eq. 6.18).
                 let force = composite.apply(&data.s[i]);
                 data.mass_matrix[(k, k)] = data.s[i].dot(&force) + model.armature()[k];
-                let mut j = i;
-                while j != 0 {
-                    j = model.parent(j);
-                    let kj = model.idx_v(j);
-                    match model.joint(j).dofs() {
-                        Dofs::Free => {
-                            let local = data.centred_m_i[0].inv_act_force(&force);
-                            data.mass_matrix.view_mut((kj, k), (6, 1)).copy_from(&local);
-                            data.mass_matrix.view_mut((k, kj), (1, 6)).copy_from(&local.transpose());
-                        }
-                        Dofs::Zero => {}
-                        Dofs::One(_) => {
-                            let entry = data.s[j].dot(&force);
-                            data.mass_matrix[(kj, k)] = entry;
-                            data.mass_matrix[(k, kj)] = entry;
-                        }
+                ancestor_entries(model, data, i, k, &force);
+            }
+            Dofs::Ball => {
+                let joint = model.joint(i);
+                for c in 0..3 {
+                    let force = composite.apply(&joint.subspace_column_in(&data.centred_m_i[i], c));
+                    // The block's upper triangle, mirrored: M exactly symmetric.
+                    for r in 0..=c {
+                        let entry = joint.subspace_column_in(&data.centred_m_i[i], r).dot(&force);
+                        data.mass_matrix[(k + r, k + c)] = entry;
+                        data.mass_matrix[(k + c, k + r)] = entry;
                     }
+                    data.mass_matrix[(k + c, k + c)] += model.armature()[k + c];
+                    ancestor_entries(model, data, i, k + c, &force);
                 }
             }
         }
     }
     &data.mass_matrix
+}
+
+/// M_jk = S_jᵀ F (eq. 6.18) and its transpose for every ancestor j of body `i`, F = I^c S's column `k`.
+fn ancestor_entries(model: &Model, data: &mut Data, i: usize, k: usize, force: &Force) {
+    let mut j = i;
+    while j != 0 {
+        j = model.parent(j);
+        let kj = model.idx_v(j);
+        match model.joint(j).dofs() {
+            Dofs::Free => {
+                let local = data.centred_m_i[0].inv_act_force(force);
+                data.mass_matrix.view_mut((kj, k), (6, 1)).copy_from(&local);
+                data.mass_matrix.view_mut((k, kj), (1, 6)).copy_from(&local.transpose());
+            }
+            Dofs::Zero => {}
+            Dofs::One(_) => {
+                let entry = data.s[j].dot(force);
+                data.mass_matrix[(kj, k)] = entry;
+                data.mass_matrix[(k, kj)] = entry;
+            }
+            Dofs::Ball => {
+                for r in 0..3 {
+                    let entry = model.joint(j).subspace_column_in(&data.centred_m_i[j], r).dot(force);
+                    data.mass_matrix[(kj + r, k)] = entry;
+                    data.mass_matrix[(k, kj + r)] = entry;
+                }
+            }
+        }
+    }
 }

@@ -29,9 +29,9 @@ pub fn jacobian<'d>(model: &Model, data: &'d mut Data, q: &[f64], body: usize, p
         let k = model.idx_v(j);
         let pose = data.o_m_i[j];
         match model.joint(j).dofs() {
-            Dofs::Free => {
-                for c in 0..6 {
-                    data.jacobian.set_column(k + c, &pose.act_motion(&Motion::from_fn(|r, _| if r == c { 1.0 } else { 0.0 })));
+            Dofs::Free | Dofs::Ball => {
+                for c in 0..model.joint(j).nv() {
+                    data.jacobian.set_column(k + c, &model.joint(j).subspace_column_in(&pose, c));
                 }
             }
             Dofs::Zero => {}

@@ -10,8 +10,9 @@
 //! F_i is nonzero only on the columns of i's subtree, and each of those but i's own belongs to exactly one
 //! child's subtree: a child writes its part of F_parent outright, so no set is ever cleared.
 
-use nalgebra::{DMatrix, Matrix6xX, Vector6};
+use nalgebra::{DMatrix, Matrix6xX, Vector3, Vector6};
 
+use super::aba::ball_factors;
 use super::kinematics::base_centred_kinematics;
 use crate::joint::Dofs;
 use crate::model::{reserve_square, Data, Model};
@@ -95,6 +96,10 @@ fn inverse_into(model: &Model, data: &mut Data, factored: bool, out: &mut [f64])
             }
             continue;
         }
+        if model.joint(i).dofs() == Dofs::Ball {
+            ball_backward(model, data, i, factored, out);
+            continue;
+        }
         let one_dof = model.joint(i).nv() == 1;
         let s = data.s[i];
         let (u, dinv) = match (one_dof, factored) {
@@ -143,6 +148,7 @@ fn inverse_into(model: &Model, data: &mut Data, factored: bool, out: &mut [f64])
         match model.joint(i).dofs() {
             // The backward pass left P_0.
             Dofs::Free => {}
+            Dofs::Ball => ball_forward(model, data, i, out),
             Dofs::Zero if i == 0 => data.force_sets[0].fill(0.0),
             dofs => {
                 let (p, s, u, dinv) = (model.parent(i), data.s[i], data.u[i], data.d_inv[i]);
@@ -166,5 +172,53 @@ fn inverse_into(model: &Model, data: &mut Data, factored: bool, out: &mut [f64])
         for r in 0..c {
             out[c * nv + r] = out[r * nv + c];
         }
+    }
+}
+
+/// The backward pass at ball joint `i`, its three rows at once: as a one-coordinate joint's with S (6 x 3), U and D⁻¹
+/// (3 x 3) from `aba::ball_factors`.
+fn ball_backward(model: &Model, data: &mut Data, i: usize, factored: bool, out: &mut [f64]) {
+    let (k, nv, p) = (model.idx_v(i), model.nv(), model.parent(i));
+    let own = k..k + 3;
+    let (s, u, d_inv) = ball_factors(&data.centred_m_i[i], &data.inertia[i], &model.armature()[own.clone()]);
+    for r in own.clone() {
+        out[r * nv + k..(r + 1) * nv].fill(0.0);
+    }
+    let (fp, fi) = sets(&mut data.force_sets, p, i);
+    for columns in model.subtree_columns(i) {
+        for c in columns.clone() {
+            // F_i is zero on i's own columns (its storage may hold the last forward pass's P_i).
+            let (m, passed) = if own.contains(&c) {
+                let m = d_inv.column(c - k).into_owned();
+                (m, u * m)
+            } else {
+                let from = Vector6::from_column_slice(chunk(fi, c));
+                let m = -(d_inv * s.tr_mul(&from));
+                (m, from + u * m)
+            };
+            for r in 0..3 {
+                out[(k + r) * nv + c] = m[r];
+            }
+            fp[6 * c..6 * c + 6].copy_from_slice(passed.as_slice());
+        }
+    }
+    if !factored {
+        let (head, tail) = data.inertia.split_at_mut(i);
+        head[p] += tail[0] - u * d_inv * u.transpose();
+    }
+}
+
+/// The forward pass at ball joint `i`: its rows less D⁻¹ Uᵀ P_parent, then P_i = S M⁻¹_i + P_parent.
+fn ball_forward(model: &Model, data: &mut Data, i: usize, out: &mut [f64]) {
+    let (k, nv, p) = (model.idx_v(i), model.nv(), model.parent(i));
+    let (s, u, d_inv) = ball_factors(&data.centred_m_i[i], &data.inertia[i], &model.armature()[k..k + 3]);
+    let (pp, pi) = sets(&mut data.force_sets, p, i);
+    for c in k..nv {
+        let parent = Vector6::from_column_slice(chunk(pp, c));
+        let m = Vector3::from_fn(|r, _| out[(k + r) * nv + c]) - d_inv * u.tr_mul(&parent);
+        for r in 0..3 {
+            out[(k + r) * nv + c] = m[r];
+        }
+        pi[6 * c..6 * c + 6].copy_from_slice((parent + s * m).as_slice());
     }
 }

@@ -44,7 +44,9 @@ pub use rnea_second_order_derivatives::{rnea_second_order_derivatives, SecondOrd
 
 use crate::joint::Dofs;
 use crate::model::Model;
-use crate::spatial::{Motion, Transform};
+use nalgebra::Vector3;
+
+use crate::spatial::{spatial, Motion, Transform};
 
 /// The motion across joint `i` for joint velocity `v` (the model's full velocity vector), in body `i`'s frame.
 #[inline(always)]
@@ -54,6 +56,7 @@ pub(crate) fn joint_motion(model: &Model, i: usize, v: &[f64]) -> Motion {
         Dofs::Free => Motion::from_column_slice(&v[k..k + 6]),
         Dofs::Zero => Motion::zeros(),
         Dofs::One(s) => s * v[k],
+        Dofs::Ball => spatial(Vector3::zeros(), Vector3::from_column_slice(&v[k..k + 3])),
     }
 }
 

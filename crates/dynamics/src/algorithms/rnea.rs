@@ -28,6 +28,12 @@ pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f6
             Dofs::Free => data.tau.rows_mut(k, 6).copy_from(&f),
             Dofs::Zero => {}
             Dofs::One(s) => data.tau[k] = s.dot(&f) + model.armature()[k] * a[k],
+            // S = [0; I]: the moment.
+            Dofs::Ball => {
+                for c in 0..3 {
+                    data.tau[k + c] = f[3 + c] + model.armature()[k + c] * a[k + c];
+                }
+            }
         }
         if i > 0 {
             let p = model.parent(i);

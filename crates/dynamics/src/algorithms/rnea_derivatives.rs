@@ -182,9 +182,9 @@ fn motion_derivatives_with<const POSES_KNOWN: bool>(
         let k = model.idx_v(i);
         let columns = k..k + model.joint(i).nv();
         match model.joint(i).dofs() {
-            Dofs::Free => {
-                for c in 0..6 {
-                    set_column(&mut d.subspace, k + c, &pose.act_motion(&Motion::ith(c, 1.0)));
+            Dofs::Free | Dofs::Ball => {
+                for c in 0..model.joint(i).nv() {
+                    set_column(&mut d.subspace, k + c, &model.joint(i).subspace_column_in(&pose, c));
                 }
             }
             Dofs::Zero => {}

@@ -150,7 +150,8 @@ fn drives(model: &Model, layout: &Layout) -> Vec<Drive> {
                 child: layout.carrier[i],
                 parent: layout.carrier[model.parent(i)],
             }),
-            Dofs::Zero => None,
+            // The builder refuses ball joints.
+            Dofs::Zero | Dofs::Ball => None,
         })
         .collect()
 }

@@ -7,8 +7,9 @@
 //! articulated-body recursion without velocities (Featherstone, Table 7.1) factors and solves it with no
 //! fill-in. Everything is in the world's axes about the base origin, as `aba` leaves `Data`.
 
-use nalgebra::{Cholesky, Matrix6, LU, U6};
+use nalgebra::{Cholesky, Matrix6, Vector3, LU, U6};
 
+use crate::algorithms::aba::ball_subspace;
 use crate::joint::Dofs;
 use crate::model::{Data, Model};
 use crate::spatial::{add_reduced_inertia, dot6, Force, Motion};
@@ -67,6 +68,7 @@ impl Articulated {
                 Dofs::Zero if i == 0 => Motion::zeros(),
                 Dofs::Zero => self.motion[model.parent(i)],
                 Dofs::One(_) => self.motion[model.parent(i)] + data.s[i] * x[k],
+                Dofs::Ball => self.motion[model.parent(i)] + ball_subspace(&data.centred_m_i[i]) * Vector3::from_column_slice(&x[k..k + 3]),
             };
         }
     }
@@ -79,6 +81,7 @@ impl Articulated {
                 Dofs::Free => out[k..k + 6].copy_from_slice(data.centred_m_i[i].inv_act_force(&self.force[i]).as_slice()),
                 Dofs::Zero => {}
                 Dofs::One(_) => out[k] = dot6(&data.s[i], self.force[i].as_slice()),
+                Dofs::Ball => out[k..k + 3].copy_from_slice(ball_subspace(&data.centred_m_i[i]).tr_mul(&self.force[i]).as_slice()),
             }
             if i > 0 {
                 let f = self.force[i];

@@ -37,6 +37,7 @@ use super::actuation::{dof_coordinates, Actuation};
 use super::options::{FrictionLaw, Options, DEFAULT_FRICTION};
 use super::{Contact, Engine};
 use crate::algorithms::{aba_with_armature, integrate, joint_placement, world_pose};
+use crate::joint::Dofs;
 use crate::model::{Data, Model};
 use crate::spatial::{spatial, Transform};
 use crate::{Error, MassProperties, Result};
@@ -110,6 +111,14 @@ pub(crate) struct TreeSimulation {
 
 impl TreeSimulation {
     pub(crate) fn new(model: &Model, options: &Options) -> Result<Self> {
+        // Its factorisation and contact solver take one coordinate per joint below the base.
+        if let Some(i) = (0..model.nbodies()).find(|&i| model.joint(i).dofs() == Dofs::Ball) {
+            let name = model.name(i);
+            return Err(Error::invalid(
+                "model",
+                format!("the tree engine does not simulate ball joints yet (body '{name}'); the dynamics functions take them"),
+            ));
+        }
         let nv = model.nv();
         let (fused, fused_body, offset) = fuse(model)?;
         let collision = Collision::new(model, options, &fused, &fused_body);
