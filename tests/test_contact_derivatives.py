@@ -1,37 +1,44 @@
 """The derivatives of the contact dynamics and of impacts (``lk.contact_dynamics_derivatives``,
 ``lk.impact_derivatives``).
 
-Against Pinocchio's ``computeConstraintDynamicsDerivatives`` and ``computeImpulseDynamicsDerivatives`` (3-D contacts in
-LOCAL_WORLD_ALIGNED, no proximal damping, no restitution) on random trees with every joint kind; against five-point
-central differences of legkit's own ``contact_dynamics`` and ``impact``; and in closed form on a body held at its
-centre of mass. Both references lose digits with the conditioning of the contacts (J M^-1 J^T), so the tolerance
-grows with its condition number beyond 1e6, as in tests/test_urdf_robots.py.
+Against Pinocchio's ``computeConstraintDynamicsDerivatives`` and ``computeImpulseDynamicsDerivatives`` (CONTACT_3D
+contacts, ``dim=3``, and CONTACT_6D ones, ``dim=6``, in LOCAL_WORLD_ALIGNED, no proximal damping, no restitution) on
+random trees with every joint kind and on the biped standing on both flat feet; against five-point central differences
+of legkit's own ``contact_dynamics`` and ``impact``; and in closed form on a body held at its centre of mass. Both
+references lose digits with the conditioning of the contacts (J M^-1 J^T), so the tolerance grows with its condition
+number beyond 1e6, as in tests/test_urdf_robots.py.
 """
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pinocchio as pin
 import pytest
-from hypothesis import assume, given
+from hypothesis import assume, given, strategies
 
 import legkit as lk
 from conftest import examples
+from legkit.robots.biped import build_biped
 from robots import Twin, rngs, twins
 from test_derivatives import FD_RTOL, coordinate_differences, tangent_differences
 from test_dynamics_pinocchio import RTOL, note_case, state
+from test_urdf_robots import Twin as UrdfTwin
+
+CONTACT_TYPE = {3: pin.ContactType.CONTACT_3D, 6: pin.ContactType.CONTACT_6D}
 
 
-def random_contacts(tw: Twin, rng: np.random.Generator) -> list[tuple[int, np.ndarray]]:
-    """One to three points on distinct random bodies, at most nv / 3 of them."""
-    count = min(int(rng.integers(1, 4)), tw.nv // 3, tw.nbodies)
+def random_contacts(tw: Twin, rng: np.random.Generator, dim: int, spare: int = 0) -> list[tuple[int, np.ndarray]]:
+    """One to three contacts on distinct random bodies, at most (nv - spare) / dim of them."""
+    count = max(0, min(int(rng.integers(1, 4)), (tw.nv - spare) // dim, tw.nbodies))
     bodies = rng.choice(tw.nbodies, size=count, replace=False)
     return [(int(b), rng.uniform(-0.5, 0.5, size=3)) for b in bodies]
 
 
-def condition(tw: Twin, q: np.ndarray, contacts) -> float:
-    j = np.vstack([lk.jacobian(tw.model, q, b, p)[:3] for b, p in contacts])
-    schur = j @ np.linalg.solve(lk.crba(tw.model, q), j.T)
+def condition(model: lk.Model, q: np.ndarray, contacts, dim: int) -> float:
+    j = np.vstack([lk.jacobian(model, q, b, p)[:dim] for b, p in contacts])
+    schur = j @ np.linalg.solve(lk.crba(model, q), j.T)
     eigenvalues = np.linalg.eigvalsh(schur)
     return float(eigenvalues[-1] / eigenvalues[0]) if eigenvalues[0] > 0.0 else np.inf
 
@@ -44,67 +51,142 @@ def assert_close(got, want, rtol: float, what: str) -> None:
     assert error <= rtol * scale, f"{what}: max error {error:.3e} > {rtol:g} * {scale:.3e}"
 
 
-def pin_contacts(tw: Twin, contacts):
+def pin_contacts(pin_model: pin.Model, placements, dim: int):
+    """Pinocchio's contact models for (joint, placement in the joint's frame) pairs, and their datas."""
     models, datas = pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
-    for body, point in contacts:
-        placement = tw.body_in_joint[body] * pin.SE3(np.eye(3), point)
-        models.append(pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, tw.pin_model, tw.body_joint[body], placement, pin.LOCAL_WORLD_ALIGNED))
+    for joint, placement in placements:
+        models.append(pin.RigidConstraintModel(CONTACT_TYPE[dim], pin_model, joint, placement, pin.LOCAL_WORLD_ALIGNED))
     for model in models:
         datas.append(model.createData())
     return models, datas
 
 
-def independent_case(tw: Twin, rng: np.random.Generator):
-    """A state and contacts whose forces are unique (J of full row rank, as the derivatives need); else the example is
-    discarded."""
+def twin_contacts(tw: Twin, contacts, dim: int):
+    return pin_contacts(tw.pin_model, [(tw.body_joint[b], tw.body_in_joint[b] * pin.SE3(np.eye(3), p)) for b, p in contacts], dim)
+
+
+def independent_case(tw: Twin, rng: np.random.Generator, dim: int, spare: int = 0):
+    """A state and contacts whose forces are unique (J of full row rank, as the derivatives need), leaving at least
+    `spare` coordinates free; else the example is discarded."""
     q, v, _ = state(tw, rng)
-    contacts = random_contacts(tw, rng)
+    contacts = random_contacts(tw, rng, dim, spare)
     assume(contacts)
-    cond = condition(tw, q, contacts)
+    cond = condition(tw.model, q, contacts, dim)
     assume(cond < 1e10)
     note_case(tw, q=q, v=v)
     return q, v, contacts, max(1.0, cond / 1e6)
 
 
+SETTINGS = pin.ProximalSettings(1e-14, 0.0, 1)
+
+
+def pin_constraint_derivatives(pin_model: pin.Model, data, models, datas, q, v, tau) -> list[np.ndarray]:
+    """Pinocchio's ddq_dq, ddq_dv, ddq_dtau, dlambda_dq, dlambda_dv, dlambda_dtau (its velocity order)."""
+    pin.initConstraintDynamics(pin_model, data, models, datas)
+    pin.constraintDynamics(pin_model, data, q, v, tau, models, datas, SETTINGS)
+    pin.computeConstraintDynamicsDerivatives(pin_model, data, models, datas, SETTINGS)
+    names = ("ddq_dq", "ddq_dv", "ddq_dtau", "dlambda_dq", "dlambda_dv", "dlambda_dtau")
+    return [np.array(getattr(data, name)) for name in names]
+
+
+def pin_impact_derivatives(pin_model: pin.Model, data, models, datas, q, v) -> list[np.ndarray]:
+    """Pinocchio's impulse derivatives as legkit's: dv+/dq, dv+/dv, dimpulses/dq, dimpulses/dv (its velocity order;
+    its ddq_dv is the derivative of the velocity change v+ - v, legkit's that of v+)."""
+    pin.initConstraintDynamics(pin_model, data, models, datas)
+    pin.impulseDynamics(pin_model, data, q, v, models, datas, 0.0, SETTINGS)
+    pin.computeImpulseDynamicsDerivatives(pin_model, data, models, datas, 0.0, SETTINGS)
+    return [np.array(data.ddq_dq), np.array(data.ddq_dv) + np.eye(pin_model.nv), np.array(data.dlambda_dq), np.array(data.dlambda_dv)]
+
+
+def check_against_pinocchio(tw: Twin, rng: np.random.Generator, dim: int, impact: bool) -> None:
+    """Contact dynamics' derivatives (impact: the impact's) against Pinocchio's. With a coordinate left free: contacts
+    that hold every coordinate (6 k = nv, as one held free body) leave q̈ to the kinematics alone, and each entry of
+    the KKT inverse's q̈ blocks is then a cancellation to zero in which both libraries keep about 1e-8 of the terms'
+    size (their difference, 2.5e-8 on such a body, is rounding; the central-difference test below covers them)."""
+    q, v, contacts, loss = independent_case(tw, rng, dim, spare=1)
+    k = len(contacts)
+    models, datas = twin_contacts(tw, contacts, dim)
+    if not impact:
+        tau = rng.uniform(-20.0, 20.0, size=tw.nv)
+        want = pin_constraint_derivatives(tw.pin_model, tw.data(), models, datas, tw.q_pin(q), tw.v_pin(v), tw.v_pin(tau))
+        got = lk.contact_dynamics_derivatives(tw.model, q, v, tau, contacts, dim=dim)
+        for g, w, name in zip(got[:3], want[:3], ("ddq_dq", "ddq_dv", "ddq_dtau")):
+            assert_close(g, tw.m_lk(w), RTOL * loss, name)
+        for g, w, name in zip(got[3:], want[3:], ("dlambda_dq", "dlambda_dv", "dlambda_dtau")):
+            assert_close(g, tw.cols_lk(w).reshape(k, dim, tw.nv), RTOL * loss, name)
+        return
+    want = pin_impact_derivatives(tw.pin_model, tw.data(), models, datas, tw.q_pin(q), tw.v_pin(v))
+    got = lk.impact_derivatives(tw.model, q, v, contacts, dim=dim)
+    for g, w, name in zip(got[:2], want[:2], ("v+/dq", "v+/dv")):
+        assert_close(g, tw.m_lk(w), RTOL * loss, name)
+    for g, w, name in zip(got[2:], want[2:], ("impulses/dq", "impulses/dv")):
+        assert_close(g, tw.cols_lk(w).reshape(k, dim, tw.nv), RTOL * loss, name)
+
+
 @examples(60)
 @given(tw=twins(max_bodies=40), rng=rngs())
-def test_contact_dynamics_derivatives_match_pinocchio(tw: Twin, rng):
-    q, v, contacts, loss = independent_case(tw, rng)
-    tau = rng.uniform(-20.0, 20.0, size=tw.nv)
-    models, datas = pin_contacts(tw, contacts)
-    data = tw.data()
-    settings = pin.ProximalSettings(1e-14, 0.0, 1)
-    pin.initConstraintDynamics(tw.pin_model, data, models, datas)
-    pin.constraintDynamics(tw.pin_model, data, tw.q_pin(q), tw.v_pin(v), tw.v_pin(tau), models, datas, settings)
-    pin.computeConstraintDynamicsDerivatives(tw.pin_model, data, models, datas, settings)
-    got = lk.contact_dynamics_derivatives(tw.model, q, v, tau, contacts)
-    k = len(contacts)
-    for g, name in zip(got[:3], ("ddq_dq", "ddq_dv", "ddq_dtau")):
-        assert_close(g, tw.m_lk(np.array(getattr(data, name))), RTOL * loss, name)
-    for g, name in zip(got[3:], ("dlambda_dq", "dlambda_dv", "dlambda_dtau")):
-        assert_close(g, tw.cols_lk(np.array(getattr(data, name))).reshape(k, 3, tw.nv), RTOL * loss, name)
+def test_point_contact_derivatives_match_pinocchio(tw: Twin, rng):
+    check_against_pinocchio(tw, rng, 3, impact=False)
 
 
-# Without spherical joints: on some trees with one, legkit and Pinocchio differ by up to 3e-7 (relative) at a contact
-# condition number below 1e8, where central differences (5e-5 off for both) cannot tell which is nearer; the slopes
-# test below covers ball joints.
 @examples(60)
-@given(tw=twins(max_bodies=40, ball=False), rng=rngs())
-def test_impact_derivatives_match_pinocchio(tw: Twin, rng):
-    """Pinocchio's impulse-dynamics ddq_dv is the derivative of the velocity change v+ - v, legkit's that of v+."""
-    q, v, contacts, loss = independent_case(tw, rng)
-    models, datas = pin_contacts(tw, contacts)
-    data = tw.data()
-    settings = pin.ProximalSettings(1e-14, 0.0, 1)
-    pin.initConstraintDynamics(tw.pin_model, data, models, datas)
-    pin.impulseDynamics(tw.pin_model, data, tw.q_pin(q), tw.v_pin(v), models, datas, 0.0, settings)
-    pin.computeImpulseDynamicsDerivatives(tw.pin_model, data, models, datas, 0.0, settings)
-    v_dq, v_dv, impulses_dq, impulses_dv = lk.impact_derivatives(tw.model, q, v, contacts)
-    k = len(contacts)
-    assert_close(v_dq, tw.m_lk(np.array(data.ddq_dq)), RTOL * loss, "v+/dq")
-    assert_close(v_dv, tw.m_lk(np.array(data.ddq_dv)) + np.eye(tw.nv), RTOL * loss, "v+/dv")
-    assert_close(impulses_dq, tw.cols_lk(np.array(data.dlambda_dq)).reshape(k, 3, tw.nv), RTOL * loss, "impulses/dq")
-    assert_close(impulses_dv, tw.cols_lk(np.array(data.dlambda_dv)).reshape(k, 3, tw.nv), RTOL * loss, "impulses/dv")
+@given(tw=twins(max_bodies=40, floating=True), rng=rngs())
+def test_frame_contact_derivatives_match_pinocchio(tw: Twin, rng):
+    """dim=6 (CONTACT_6D) on floating trees, which have the six coordinates a held frame takes."""
+    check_against_pinocchio(tw, rng, 6, impact=False)
+
+
+# Without spherical joints: on some trees with one, legkit's and Pinocchio's impact derivatives differ by up to 3e-7
+# (relative) at a contact condition number below 1e8, where central differences (5e-5 off for both) cannot tell which
+# is nearer; the slopes test below covers ball joints.
+@examples(60)
+@given(tw=twins(max_bodies=40, ball=False), rng=rngs(), dim=strategies.sampled_from([3, 6]))
+def test_impact_derivatives_match_pinocchio(tw: Twin, rng, dim):
+    if dim == 6 and not tw.model.floating_base:
+        dim = 3  # a held frame needs the six coordinates of a floating base
+    check_against_pinocchio(tw, rng, dim, impact=True)
+
+
+def test_the_biped_on_both_flat_feet_matches_pinocchio():
+    """The biped's URDF loaded by both libraries, both feet held flat (dim=6) at their soles' centres, or at a point
+    each (dim=3), at random states."""
+    biped = build_biped()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lk.UrdfWarning)
+        model = lk.Model.from_urdf(biped.to_urdf(), floating_base=True)
+    reference = pin.buildModelFromXML(biped.to_urdf(), pin.JointModelFreeFlyer())
+    twin = UrdfTwin(model, reference)
+    sole = np.array([0.05, 0.0, -biped.parameters.ankle_height])
+    feet = [model.names.index(f"{side}_foot") for side in ("l", "r")]
+    frames = [reference.frames[reference.getFrameId(model.names[b], pin.FrameType.BODY)] for b in feet]
+    placements = [(f.parentJoint, f.placement * pin.SE3(np.eye(3), sole)) for f in frames]
+    contacts = [(b, sole) for b in feet]
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        q, q_pin = twin.state(rng)
+        v, tau = rng.normal(size=model.nv), rng.normal(scale=5.0, size=model.nv)
+        v_pin, tau_pin = twin.to_pin_v(v), twin.to_pin_v(tau)
+        for dim in (3, 6):
+            loss = max(1.0, condition(model, q, contacts, dim) / 1e6)
+            models, datas = pin_contacts(reference, placements, dim)
+            want = pin_constraint_derivatives(reference, reference.createData(), models, datas, q_pin, v_pin, tau_pin)
+            got = lk.contact_dynamics_derivatives(model, q, v, tau, contacts, dim=dim)
+            ddq, forces = lk.contact_dynamics(model, q, v, tau, contacts, dim=dim)
+            models, datas = pin_contacts(reference, placements, dim)
+            data = reference.createData()
+            pin.initConstraintDynamics(reference, data, models, datas)
+            want_ddq = pin.constraintDynamics(reference, data, q_pin, v_pin, tau_pin, models, datas, SETTINGS)
+            assert_close(ddq, twin.to_lk_v(want_ddq), RTOL * loss, f"dim {dim}: ddq")
+            assert_close(forces.ravel(), np.array(data.lambda_c), RTOL * loss, f"dim {dim}: forces")
+            for g, w, name in zip(got, want, ("ddq_dq", "ddq_dv", "ddq_dtau", "dlambda_dq", "dlambda_dv", "dlambda_dtau")):
+                w = twin.to_lk_m(w) if name.startswith("ddq") else twin.to_lk_columns(w).reshape(2, dim, model.nv)
+                assert_close(g, w, RTOL * loss, f"dim {dim}: {name}")
+            models, datas = pin_contacts(reference, placements, dim)
+            want = pin_impact_derivatives(reference, reference.createData(), models, datas, q_pin, v_pin)
+            got = lk.impact_derivatives(model, q, v, contacts, dim=dim)
+            for g, w, name in zip(got, want, ("v+/dq", "v+/dv", "impulses/dq", "impulses/dv")):
+                w = twin.to_lk_m(w) if name.startswith("v+") else twin.to_lk_columns(w).reshape(2, dim, model.nv)
+                assert_close(g, w, RTOL * loss, f"dim {dim}: {name}")
 
 
 def slopes(m: lk.Model, f, q: np.ndarray, *vectors: np.ndarray) -> list[np.ndarray]:
@@ -115,22 +197,33 @@ def slopes(m: lk.Model, f, q: np.ndarray, *vectors: np.ndarray) -> list[np.ndarr
     return out
 
 
-@examples(30)
-@given(tw=twins(max_bodies=20), rng=rngs())
-def test_contact_derivatives_are_the_slopes_of_contact_dynamics_and_impact(tw: Twin, rng):
-    q, v, contacts, loss = independent_case(tw, rng)
+def check_slopes(tw: Twin, rng: np.random.Generator, dim: int) -> None:
+    """With a coordinate left free, as `check_against_pinocchio`."""
+    q, v, contacts, loss = independent_case(tw, rng, dim, spare=1)
     tau = rng.uniform(-20.0, 20.0, size=tw.nv)
     m, rtol = tw.model, FD_RTOL * loss
-    got = lk.contact_dynamics_derivatives(m, q, v, tau, contacts)
-    want = slopes(m, lambda *x: lk.contact_dynamics(m, *x, contacts)[0], q, v, tau) + slopes(
-        m, lambda *x: lk.contact_dynamics(m, *x, contacts)[1], q, v, tau
+    got = lk.contact_dynamics_derivatives(m, q, v, tau, contacts, dim=dim)
+    want = slopes(m, lambda *x: lk.contact_dynamics(m, *x, contacts, dim=dim)[0], q, v, tau) + slopes(
+        m, lambda *x: lk.contact_dynamics(m, *x, contacts, dim=dim)[1], q, v, tau
     )
     for g, w, name in zip(got, want, ("ddq_dq", "ddq_dv", "ddq_dtau", "forces_dq", "forces_dv", "forces_dtau")):
         assert_close(g, w, rtol, name)
-    got = lk.impact_derivatives(m, q, v, contacts)
-    want = slopes(m, lambda *x: lk.impact(m, *x, contacts)[0], q, v) + slopes(m, lambda *x: lk.impact(m, *x, contacts)[1], q, v)
+    got = lk.impact_derivatives(m, q, v, contacts, dim=dim)
+    want = slopes(m, lambda *x: lk.impact(m, *x, contacts, dim=dim)[0], q, v) + slopes(m, lambda *x: lk.impact(m, *x, contacts, dim=dim)[1], q, v)
     for g, w, name in zip(got, want, ("v+/dq", "v+/dv", "impulses/dq", "impulses/dv")):
         assert_close(g, w, rtol, name)
+
+
+@examples(30)
+@given(tw=twins(max_bodies=20), rng=rngs())
+def test_point_contact_derivatives_are_the_slopes_of_contact_dynamics_and_impact(tw: Twin, rng):
+    check_slopes(tw, rng, 3)
+
+
+@examples(30)
+@given(tw=twins(max_bodies=20, floating=True), rng=rngs())
+def test_frame_contact_derivatives_are_the_slopes_of_contact_dynamics_and_impact(tw: Twin, rng):
+    check_slopes(tw, rng, 6)
 
 
 def held_box() -> tuple[lk.Model, np.ndarray, list]:
@@ -168,5 +261,20 @@ def test_dependent_contacts_and_bad_arguments_are_refused():
         lk.contact_dynamics_derivatives(model, q, zeros, zeros, [])
     with pytest.raises(ValueError, match="tau"):
         lk.contact_dynamics_derivatives(model, q, zeros, np.zeros(5), held)
+    with pytest.raises(ValueError, match="dim"):
+        lk.contact_dynamics_derivatives(model, q, zeros, zeros, held, dim=4)
     shapes = [x.shape for x in lk.contact_dynamics_derivatives(model, np.tile(q, (2, 1)), zeros, zeros, held)]
     assert shapes == [(2, 6, 6)] * 3 + [(2, 1, 3, 6)] * 3
+    shapes = [x.shape for x in lk.impact_derivatives(model, np.tile(q, (2, 1)), zeros, held, dim=6)]
+    assert shapes == [(2, 6, 6)] * 2 + [(2, 1, 6, 6)] * 2
+
+
+@pytest.mark.parametrize("call", [lk.contact_dynamics_derivatives, lk.contact_dynamics])
+def test_contacts_too_many_to_hold_are_a_memory_error(call):
+    """300,000 constraint rows ask for a 720 GB Schur complement: refused as a MemoryError naming the contacts, not an
+    abort; the model still works afterwards."""
+    model, q, held = held_box()
+    zeros = np.zeros(6)
+    with pytest.raises(MemoryError, match="contacts"):
+        call(model, q, zeros, zeros, held * 100_000)
+    assert np.all(np.isfinite(lk.contact_dynamics_derivatives(model, q, zeros, zeros, held)[0]))

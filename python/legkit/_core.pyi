@@ -281,24 +281,35 @@ def centroidal_momentum_rate(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a
     """Time derivative of the centroidal momentum (gravity excluded): (..., 6)."""
 def kinetic_energy(model: Model, q: npt.ArrayLike, v: npt.ArrayLike) -> np.ndarray: ...
 def potential_energy(model: Model, q: npt.ArrayLike) -> np.ndarray: ...
-def contact_dynamics(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _ContactPoints) -> tuple[np.ndarray, np.ndarray]:
-    """(ddq (..., nv), forces (..., k, 3)) with each contact point (body, point in body frame) held still."""
-def impact(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, contacts: _ContactPoints) -> tuple[np.ndarray, np.ndarray]:
-    """(v_plus (..., nv), impulses (..., k, 3)) of a perfectly inelastic impact at the contacts."""
+def contact_dynamics(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _ContactPoints, dim: Literal[3, 6] = 3
+) -> tuple[np.ndarray, np.ndarray]:
+    """(ddq (..., nv), forces (..., k, dim)) with each contact (body, point in body frame) held still: its point
+    (dim=3) or its body's frame at the point (dim=6; the forces are then wrenches [force; torque about the point]),
+    world axes."""
+def impact(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, contacts: _ContactPoints, dim: Literal[3, 6] = 3
+) -> tuple[np.ndarray, np.ndarray]:
+    """(v_plus (..., nv), impulses (..., k, dim)) of a perfectly inelastic impact at the contacts (dim as
+    ``contact_dynamics``)."""
 def contact_dynamics_derivatives(
-    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _ContactPoints
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _ContactPoints, dim: Literal[3, 6] = 3
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(ddq/dq, ddq/dv, ddq/dtau) each (..., nv, nv) and (forces/dq, forces/dv, forces/dtau) each (..., k, 3, nv) of
-    ``contact_dynamics``, q on its tangent space (Pinocchio's computeConstraintDynamicsDerivatives, 3-D contacts in
-    LOCAL_WORLD_ALIGNED). Dependent contacts raise ValueError: their forces are not unique."""
+    """(ddq/dq, ddq/dv, ddq/dtau) each (..., nv, nv) and (forces/dq, forces/dv, forces/dtau) each (..., k, dim, nv) of
+    ``contact_dynamics``, q on its tangent space (Pinocchio's computeConstraintDynamicsDerivatives, CONTACT_3D or, with
+    dim=6, CONTACT_6D contacts in LOCAL_WORLD_ALIGNED). Dependent contacts raise ValueError: their forces are not
+    unique."""
 def impact_derivatives(
-    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, contacts: _ContactPoints
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, contacts: _ContactPoints, dim: Literal[3, 6] = 3
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(v_plus/dq, v_plus/dv) each (..., nv, nv) and (impulses/dq, impulses/dv) each (..., k, 3, nv) of ``impact``
+    """(v_plus/dq, v_plus/dv) each (..., nv, nv) and (impulses/dq, impulses/dv) each (..., k, dim, nv) of ``impact``
     (Pinocchio's computeImpulseDynamicsDerivatives without restitution). Dependent contacts raise ValueError."""
-def point_accelerations(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike, contacts: _ContactPoints) -> np.ndarray:
-    """World-axes (classical) acceleration J ddq + dJ/dt dq of each (body, point in body frame): (..., k, 3); zero for
-    the points `contact_dynamics` holds, at its ddq."""
+def point_accelerations(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike, contacts: _ContactPoints, dim: Literal[3, 6] = 3
+) -> np.ndarray:
+    """World-axes (classical) acceleration J ddq + dJ/dt dq of each (body, point in body frame): (..., k, 3); with
+    dim=6, the frame's spatial acceleration [linear; angular] at the point, world axes: (..., k, 6). Zero for the
+    contacts `contact_dynamics` holds (with the same dim), at its ddq."""
 def reduced_dynamics(
     model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _ContactPoints, independent: Sequence[int] | None = None
 ) -> tuple[np.ndarray, list[int], list[int], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -21,7 +21,7 @@ use std::hint::black_box;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use legkit_dynamics::algorithms::{
     aba, aba_derivatives, centroidal_derivatives, contact_dynamics, contact_dynamics_derivatives, crba, impact_derivatives, minv, rnea,
-    rnea_derivatives, rnea_second_order_derivatives, ContactPoint,
+    rnea_derivatives, rnea_second_order_derivatives, ContactDim, ContactPoint,
 };
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{Matrix3, Vector3};
@@ -201,15 +201,21 @@ fn contacts(c: &mut Criterion) {
     q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]); // the base upright
     let mut group = c.benchmark_group("contacts");
     group.bench_function("contact_dynamics/quadruped", |b| {
-        b.iter(|| contact_dynamics(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), &feet).expect("independent").ddq[0])
+        b.iter(|| {
+            contact_dynamics(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), &feet, ContactDim::Point).expect("independent").ddq[0]
+        })
     });
     group.bench_function("contact_dynamics_derivatives/quadruped", |b| {
         b.iter(|| {
-            contact_dynamics_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), &feet).expect("independent").ddq_dq[(0, 0)]
+            contact_dynamics_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), &feet, ContactDim::Point)
+                .expect("independent")
+                .ddq_dq[(0, 0)]
         })
     });
     group.bench_function("impact_derivatives/quadruped", |b| {
-        b.iter(|| impact_derivatives(&model, &mut data, black_box(&q), black_box(&v), &feet).expect("independent").velocity_dq[(0, 0)])
+        b.iter(|| {
+            impact_derivatives(&model, &mut data, black_box(&q), black_box(&v), &feet, ContactDim::Point).expect("independent").velocity_dq[(0, 0)]
+        })
     });
     group.finish();
 }

@@ -436,6 +436,8 @@ pub struct Data {
     pub force_sets: Vec<Matrix6xX<f64>>,
     /// The derivative algorithms' workspace and outputs, sized by their first call.
     pub derivatives: Derivatives,
+    /// The contact kernels' k-dependent matrices, sized by their first call.
+    pub contact: crate::algorithms::contact::ContactWorkspace,
 }
 
 /// The workspace and outputs of the derivative algorithms (`rnea_derivatives`, `aba_derivatives`), in the centred
@@ -658,6 +660,7 @@ impl Data {
             minv: DMatrix::zeros(0, 0),
             force_sets: Vec::new(),
             derivatives: Derivatives::default(),
+            contact: Default::default(),
         }
     }
 }

@@ -4,8 +4,8 @@
 
 use legkit_dynamics::algorithms::{
     aba, aba_derivatives, contact_dynamics, contact_dynamics_derivatives, frame_acceleration, frame_acceleration_derivatives, frame_velocity,
-    frame_velocity_derivatives, impact, impact_derivatives, integrate, jacobian, jacobian_time_variation, rnea, rnea_derivatives, ContactPoint,
-    Frame,
+    frame_velocity_derivatives, impact, impact_derivatives, integrate, jacobian, jacobian_time_variation, rnea, rnea_derivatives, ContactDim,
+    ContactPoint, Frame,
 };
 use legkit_dynamics::spatial::Force;
 use legkit_dynamics::{Data, Model};
@@ -151,9 +151,9 @@ fn the_jacobian_time_variation_is_the_jacobians_slope_along_the_velocity() {
     }
 }
 
-/// Up to three contact points on distinct random bodies of `model` (3 per contact, at most nv rows).
-fn random_contacts(rng: &mut StdRng, model: &Model) -> Vec<ContactPoint> {
-    let count = rng.random_range(1..=3).min(model.nv() / 3).min(model.nbodies());
+/// Up to three contacts on distinct random bodies of `model` (at most nv rows).
+fn random_contacts(rng: &mut StdRng, model: &Model, dim: ContactDim) -> Vec<ContactPoint> {
+    let count = rng.random_range(1..=3).min(model.nv() / dim.rows()).min(model.nbodies());
     let mut bodies: Vec<usize> = (0..model.nbodies()).collect();
     (0..count)
         .map(|_| {
@@ -164,10 +164,12 @@ fn random_contacts(rng: &mut StdRng, model: &Model) -> Vec<ContactPoint> {
 }
 
 /// The condition number of J M⁻¹ Jᵀ, the contacts' KKT system's Schur complement.
-fn contact_condition(model: &Model, q: &[f64], contacts: &[ContactPoint]) -> f64 {
+fn contact_condition(model: &Model, q: &[f64], contacts: &[ContactPoint], dim: ContactDim) -> f64 {
     let mut data = Data::new(model);
-    let rows: Vec<DMatrix<f64>> =
-        contacts.iter().map(|c| dense(jacobian(model, &mut data, q, c.body, &c.point, Frame::LocalWorldAligned)).rows(0, 3).into_owned()).collect();
+    let rows: Vec<DMatrix<f64>> = contacts
+        .iter()
+        .map(|c| dense(jacobian(model, &mut data, q, c.body, &c.point, Frame::LocalWorldAligned)).rows(0, dim.rows()).into_owned())
+        .collect();
     let j = DMatrix::from_rows(&rows.iter().flat_map(|r| r.row_iter().map(|x| x.into_owned()).collect::<Vec<_>>()).collect::<Vec<_>>());
     let mass = legkit_dynamics::algorithms::crba(model, &mut data, q).clone();
     let schur = &j * mass.cholesky().unwrap().solve(&j.transpose());
@@ -179,34 +181,46 @@ fn stacked(a: &DVector<f64>, b: &DVector<f64>) -> DVector<f64> {
     DVector::from_iterator(a.len() + b.len(), a.iter().chain(b.iter()).copied())
 }
 
-/// Runs `check(rng, case, model, data, q, v, contacts)` on 80 random trees with up to three random contact points each;
-/// it returns false for dependent contacts, which the derivatives refuse, and most are independent.
-fn for_contact_cases(seed: u64, mut check: impl FnMut(&mut StdRng, usize, &Model, &mut Data, &[f64], &[f64], &[ContactPoint]) -> bool) {
+/// Runs `check(rng, case, model, data, q, v, contacts)` on 80 random trees with up to three random contacts each, of
+/// each `ContactDim` (`Frame` needs six coordinates per contact: on fewer trees); it returns false for dependent
+/// contacts, which the derivatives refuse, and most are independent.
+fn for_contact_cases(
+    seed: u64,
+    dim: ContactDim,
+    mut check: impl FnMut(&mut StdRng, usize, &Model, &mut Data, &[f64], &[f64], &[ContactPoint]) -> bool,
+) {
     let mut rng = StdRng::seed_from_u64(seed);
     let mut checked = 0;
     for case in 0..80 {
         let (model, mut data, q, v) = random_case(&mut rng, case);
-        let contacts = random_contacts(&mut rng, &model);
+        let contacts = random_contacts(&mut rng, &model, dim);
         if !contacts.is_empty() && check(&mut rng, case, &model, &mut data, q.as_slice(), v.as_slice(), &contacts) {
             checked += 1;
         }
     }
-    assert!(checked >= 35, "only {checked} cases had independent contacts");
+    let wanted = if dim == ContactDim::Point { 35 } else { 15 };
+    assert!(checked >= wanted, "only {checked} cases had independent contacts ({dim:?})");
 }
 
 #[test]
 fn contact_dynamics_derivatives_are_its_slopes() {
-    for_contact_cases(13, |rng, case, model, data, q, v, contacts| {
+    for dim in [ContactDim::Point, ContactDim::Frame] {
+        contact_dynamics_derivatives_are_slopes(dim);
+    }
+}
+
+fn contact_dynamics_derivatives_are_slopes(dim: ContactDim) {
+    for_contact_cases(13, dim, |rng, case, model, data, q, v, contacts| {
         let nv = model.nv();
         let tau: Vec<f64> = (0..nv).map(|_| rng.random_range(-3.0..3.0)).collect();
-        let Ok(got) = contact_dynamics_derivatives(model, data, q, v, &tau, contacts) else { return false };
+        let Ok(got) = contact_dynamics_derivatives(model, data, q, v, &tau, contacts, dim) else { return false };
         let mut scratch = Data::new(model);
-        let solved = contact_dynamics(model, &mut scratch, q, v, &tau, contacts).unwrap();
-        let condition = contact_condition(model, q, contacts);
-        let what = |name: &str| format!("case {case}, {} contacts (condition {condition:.1e}): {name}", contacts.len());
+        let solved = contact_dynamics(model, &mut scratch, q, v, &tau, contacts, dim).unwrap();
+        let condition = contact_condition(model, q, contacts, dim);
+        let what = |name: &str| format!("case {case}, {} contacts {dim:?} (condition {condition:.1e}): {name}", contacts.len());
         assert_close(&DMatrix::from_column_slice(nv, 1, got.ddq.as_slice()), &DMatrix::from_column_slice(nv, 1, solved.ddq.as_slice()), &what("ddq"));
         let mut both = |q: &[f64], v: &[f64], tau: &[f64]| {
-            let s = contact_dynamics(model, &mut scratch, q, v, tau, contacts).unwrap();
+            let s = contact_dynamics(model, &mut scratch, q, v, tau, contacts, dim).unwrap();
             stacked(&s.ddq, &s.forces)
         };
         let want_dq = central_differences(nv, |j, h| both(&stepped_q(model, q, j, h), v, &tau));
@@ -226,16 +240,22 @@ fn contact_dynamics_derivatives_are_its_slopes() {
 
 #[test]
 fn impact_derivatives_are_its_slopes() {
-    for_contact_cases(17, |_, case, model, data, q, v, contacts| {
+    for dim in [ContactDim::Point, ContactDim::Frame] {
+        impact_derivatives_are_slopes(dim);
+    }
+}
+
+fn impact_derivatives_are_slopes(dim: ContactDim) {
+    for_contact_cases(17, dim, |_, case, model, data, q, v, contacts| {
         let nv = model.nv();
-        let Ok(got) = impact_derivatives(model, data, q, v, contacts) else { return false };
+        let Ok(got) = impact_derivatives(model, data, q, v, contacts, dim) else { return false };
         let mut scratch = Data::new(model);
         let mut both = |q: &[f64], v: &[f64]| {
-            let (after, impulses) = impact(model, &mut scratch, q, v, contacts).unwrap();
+            let (after, impulses) = impact(model, &mut scratch, q, v, contacts, dim).unwrap();
             stacked(&after, &impulses)
         };
         let at = both(q, v);
-        let what = |name: &str| format!("case {case}, {} contacts: {name}", contacts.len());
+        let what = |name: &str| format!("case {case}, {} contacts {dim:?}: {name}", contacts.len());
         assert_close(
             &DMatrix::from_column_slice(nv, 1, got.velocity.as_slice()),
             &DMatrix::from_column_slice(nv, 1, &at.as_slice()[..nv]),

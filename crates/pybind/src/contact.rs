@@ -1,10 +1,11 @@
 //! Contact-constrained dynamics, the reduced ODE and impacts.
 
-use legkit_dynamics::algorithms::{self, ContactPoint};
+use legkit_dynamics::algorithms::{self, ContactDim, ContactPoint};
 use legkit_dynamics::model::{check_vector, Dense};
 use legkit_dynamics::{Data, Error, Model};
-use nalgebra::{DMatrix, DVector};
-use numpy::{PyArray1, PyArray2};
+use nalgebra::DVector;
+use numpy::ndarray::{ArrayViewD, IxDyn, ShapeBuilder};
+use numpy::{PyArray1, PyArray2, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
@@ -12,6 +13,15 @@ use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::convert::{kernel_error, numbers, to_numpy, vector3, FloatArray, Vector};
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
+
+/// The `dim` argument: 3 holds each contact's point still, 6 its body's frame at the point.
+fn contact_dim(dim: usize) -> PyResult<ContactDim> {
+    match dim {
+        3 => Ok(ContactDim::Point),
+        6 => Ok(ContactDim::Frame),
+        _ => Err(pyo3::exceptions::PyValueError::new_err(format!("dim: expected 3 (points held still) or 6 (frames held still), got {dim}"))),
+    }
+}
 
 /// Contact points from a sequence of (body, point) pairs: body index or name, point in the body's frame.
 fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<ContactPoint>> {
@@ -25,26 +35,34 @@ fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<ContactPo
     Ok(out)
 }
 
-/// Runs `kernel(model, data, i)`, which returns (nv numbers, 3 per contact), over the batch: the arrays
-/// `(..., nv)` and `(..., k, 3)`; a result that is not finite is a ValueError.
-fn per_state<'py, K>(py: Python<'py>, model: &PyModel, batch: &Batch, k: usize, kernel: K) -> PyResult<(FloatArray<'py>, FloatArray<'py>)>
+/// Runs `kernel(model, data, i)`, which returns (nv numbers, d per contact), over the batch: the arrays
+/// `(..., nv)` and `(..., k, d)`; a result that is not finite is a ValueError.
+fn per_state<'py, K>(
+    py: Python<'py>,
+    model: &PyModel,
+    batch: &Batch,
+    (k, d): (usize, usize),
+    kernel: K,
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>)>
 where
     K: Fn(&Model, &mut Data, usize) -> Result<(DVector<f64>, DVector<f64>), Error> + Sync,
 {
     let nv = model.model.nv();
-    let packed = run_packed(py, model, batch, nv + 3 * k, |m, w, i, out| {
+    let packed = run_packed(py, model, batch, nv + d * k, |m, w, i, out| {
         let (generalized, per_contact) = kernel(m, w.dense(&[Dense::Inverse])?, i)?;
         out[..nv].copy_from_slice(generalized.as_slice());
         out[nv..].copy_from_slice(per_contact.as_slice());
         finite_result(out)
     })?;
-    let mut parts = unpack(py, batch, &packed, &[&[nv], &[k, 3]])?.into_iter();
+    let mut parts = unpack(py, batch, &packed, &[&[nv], &[k, d]])?.into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap()))
 }
 
-/// Forward dynamics with the contact points held still (Hardt & von Stryk eq. 1–3):
-/// returns (ddq (..., nv), forces (..., k, 3)), the forces on the robot at the contacts in world axes.
+/// Forward dynamics with the contacts held still (Hardt & von Stryk eq. 1–3): the points (`dim=3`) or the bodies'
+/// frames at them (`dim=6`). Returns (ddq (..., nv), forces (..., k, dim)), the forces (with dim 6, wrenches [force;
+/// torque about the point]) on the robot at the contacts in world axes.
 #[pyfunction]
+#[pyo3(signature = (model, q, v, tau, contacts, dim = 3))]
 pub fn contact_dynamics<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -52,40 +70,48 @@ pub fn contact_dynamics<'py>(
     v: ArrayArg<'_>,
     tau: ArrayArg<'_>,
     contacts: &Bound<'_, PyAny>,
+    dim: usize,
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
     let contacts = self::contacts(&model, contacts)?;
+    let dim = contact_dim(dim)?;
     let nv = model.model.nv();
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("tau", &tau, &[nv])])?;
-    per_state(py, &model, &batch, contacts.len(), |m, data, i| {
+    per_state(py, &model, &batch, (contacts.len(), dim.rows()), |m, data, i| {
         let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("tau", tau, nv)?;
-        let solution = algorithms::contact_dynamics(m, data, q, v, tau, &contacts)?;
+        let solution = algorithms::contact_dynamics(m, data, q, v, tau, &contacts, dim)?;
         Ok((solution.ddq, solution.forces))
     })
 }
 
-/// Perfectly inelastic impact at the contacts: returns (v_plus (..., nv), impulses (..., k, 3)).
+/// Perfectly inelastic impact at the contacts (`dim` as `contact_dynamics`): returns (v_plus (..., nv), impulses
+/// (..., k, dim)).
 #[pyfunction]
+#[pyo3(signature = (model, q, v, contacts, dim = 3))]
 pub fn impact<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
     q: ArrayArg<'_>,
     v: ArrayArg<'_>,
     contacts: &Bound<'_, PyAny>,
+    dim: usize,
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
     let contacts = self::contacts(&model, contacts)?;
+    let dim = contact_dim(dim)?;
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[model.model.nv()])])?;
-    per_state(py, &model, &batch, contacts.len(), |m, data, i| {
+    per_state(py, &model, &batch, (contacts.len(), dim.rows()), |m, data, i| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
-        algorithms::impact(m, data, q, v, &contacts)
+        algorithms::impact(m, data, q, v, &contacts, dim)
     })
 }
 
 /// World-axes (classical) acceleration of each contact point (body, point in the body's frame) at (q, v, a):
-/// J q̈ + J̇ q̇ per point, `(..., k, 3)`; zero for the points `contact_dynamics` holds, at its q̈.
+/// J q̈ + J̇ q̇ per point, `(..., k, 3)`; with `dim=6`, the frame's spatial acceleration [linear; angular] at the point,
+/// world axes, `(..., k, 6)`. Zero for the contacts `contact_dynamics` holds, at its q̈.
 #[pyfunction]
+#[pyo3(signature = (model, q, v, a, contacts, dim = 3))]
 pub fn point_accelerations<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -93,15 +119,17 @@ pub fn point_accelerations<'py>(
     v: ArrayArg<'_>,
     a: ArrayArg<'_>,
     contacts: &Bound<'_, PyAny>,
+    dim: usize,
 ) -> PyResult<FloatArray<'py>> {
     let points = self::contacts(&model, contacts)?;
+    let dim = contact_dim(dim)?;
     let nv = model.model.nv();
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("a", &a, &[nv])])?;
-    run(py, &model, &batch, &[points.len(), 3], |m, w, i, out| {
+    run(py, &model, &batch, &[points.len(), dim.rows()], |m, w, i, out| {
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("a", a, nv)?;
-        algorithms::point_accelerations(m, w.data(), q, v, Some(a), &points, out);
+        algorithms::point_accelerations(m, w.data(), q, v, Some(a), &points, dim, out);
         Ok(())
     })
 }
@@ -153,26 +181,47 @@ pub fn reduced_dynamics<'py>(
     ))
 }
 
-/// `matrices` one after the other, each row by row (as NumPy reads them), into `out`.
-fn write_rows(matrices: &[&DMatrix<f64>], out: &mut [f64]) {
-    let mut rest = out;
-    for matrix in matrices {
-        let (rows, columns) = matrix.shape();
-        let (chunk, tail) = rest.split_at_mut(rows * columns);
-        for (c, column) in matrix.as_slice().chunks_exact(rows.max(1)).enumerate() {
-            for (r, x) in column.iter().enumerate() {
-                chunk[r * columns + c] = *x;
+/// Views of `out` (the batch's rows of numbers, `(..., width)`) as arrays `(..., core)`: each `(offset, core, strides)`
+/// reads a row's numbers from `offset` with `strides` (in numbers) over `core`, so that the kernels' column-major
+/// matrices reach NumPy without a copy or a transpose.
+fn views<'py>(out: &FloatArray<'py>, parts: &[(usize, &[usize], &[usize])]) -> Vec<FloatArray<'py>> {
+    let batch_shape = &out.shape()[..out.ndim() - 1];
+    let batch_strides: Vec<usize> = out.strides()[..out.ndim() - 1].iter().map(|s| *s as usize / std::mem::size_of::<f64>()).collect();
+    let pointer = out.data();
+    parts
+        .iter()
+        .map(|(offset, core, strides)| {
+            let shape: Vec<usize> = batch_shape.iter().chain(core.iter()).copied().collect();
+            let strides: Vec<usize> = batch_strides.iter().chain(strides.iter()).copied().collect();
+            // SAFETY: every index of the view falls inside `out`'s buffer (a row's parts lie within its width), which
+            // was filled by the kernel and which the view keeps alive as its base.
+            unsafe {
+                let view = ArrayViewD::from_shape_ptr(IxDyn(&shape).strides(IxDyn(&strides)), pointer.add(*offset));
+                PyArrayDyn::borrow_from_array(&view, out.clone().into_any())
             }
-        }
-        rest = tail;
-    }
+        })
+        .collect()
+}
+
+/// The views of `count` square (nv x nv) column-major matrices, then `count` (k·d x nv) ones as `(..., k, d, nv)`.
+fn matrix_views<'py>(out: &FloatArray<'py>, count: usize, nv: usize, (k, d): (usize, usize)) -> Vec<FloatArray<'py>> {
+    let (square, per_row) = (nv * nv, k * d * nv);
+    let (square_core, row_core) = ([nv, nv], [k, d, nv]);
+    let (square_strides, row_strides) = ([1, nv], [d, 1, k * d]);
+    let parts: Vec<(usize, &[usize], &[usize])> = (0..count)
+        .map(|i| (i * square, &square_core[..], &square_strides[..]))
+        .chain((0..count).map(|i| (count * square + i * per_row, &row_core[..], &row_strides[..])))
+        .collect();
+    views(out, &parts)
 }
 
 /// The derivatives of `contact_dynamics` with respect to q (its tangent space), v and tau: (ddq_dq, ddq_dv, ddq_dtau)
-/// each `(..., nv, nv)` and (forces_dq, forces_dv, forces_dtau) each `(..., k, 3, nv)`, the forces in world axes
-/// (Pinocchio's `computeConstraintDynamicsDerivatives` for 3-D contacts in `LOCAL_WORLD_ALIGNED`). The contacts must be
-/// independent (a ValueError otherwise: their forces, and so the derivatives, would not be unique).
+/// each `(..., nv, nv)` and (forces_dq, forces_dv, forces_dtau) each `(..., k, dim, nv)`, the forces in world axes
+/// (Pinocchio's `computeConstraintDynamicsDerivatives` for CONTACT_3D or, with `dim=6`, CONTACT_6D contacts in
+/// `LOCAL_WORLD_ALIGNED`). The contacts must be independent (a ValueError otherwise: their forces, and so the
+/// derivatives, would not be unique).
 #[pyfunction]
+#[pyo3(signature = (model, q, v, tau, contacts, dim = 3))]
 pub fn contact_dynamics_derivatives<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -180,43 +229,48 @@ pub fn contact_dynamics_derivatives<'py>(
     v: ArrayArg<'_>,
     tau: ArrayArg<'_>,
     contacts: &Bound<'_, PyAny>,
+    dim: usize,
 ) -> PyResult<Bound<'py, PyTuple>> {
     let contacts = self::contacts(&model, contacts)?;
-    let (nv, k) = (model.model.nv(), contacts.len());
+    let dim = contact_dim(dim)?;
+    let (nv, k, d) = (model.model.nv(), contacts.len(), dim.rows());
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("tau", &tau, &[nv])])?;
-    let packed = run_packed(py, &model, &batch, 3 * nv * (nv + 3 * k), |m, w, i, out| {
+    let width = 3 * nv * (nv + k * d);
+    let out = run(py, &model, &batch, &[width], |m, w, i, out| {
         let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("tau", tau, nv)?;
-        let d = algorithms::contact_dynamics_derivatives(m, w.dense(&[Dense::Inverse, Dense::RneaDerivatives])?, q, v, tau, &contacts)?;
-        write_rows(&[&d.ddq_dq, &d.ddq_dv, &d.ddq_dtau, &d.forces_dq, &d.forces_dv, &d.forces_dtau], out);
+        // Straight into the array, column-major.
+        let (ddq_d, forces_d) = out.split_at_mut(3 * nv * nv);
+        algorithms::contact_dynamics_derivatives_into(m, w.dense(&[Dense::Inverse])?, q, v, tau, &contacts, dim, ddq_d, forces_d)?;
         finite_result(out)
     })?;
-    let (square, per_contact): (&[usize], &[usize]) = (&[nv, nv], &[k, 3, nv]);
-    PyTuple::new(py, unpack(py, &batch, &packed, &[square, square, square, per_contact, per_contact, per_contact])?)
+    PyTuple::new(py, matrix_views(&out, 3, nv, (k, d)))
 }
 
 /// The derivatives of `impact` with respect to q (its tangent space) and the velocity before it: (v_plus_dq,
-/// v_plus_dv) each `(..., nv, nv)` and (impulses_dq, impulses_dv) each `(..., k, 3, nv)` (Pinocchio's
+/// v_plus_dv) each `(..., nv, nv)` and (impulses_dq, impulses_dv) each `(..., k, dim, nv)` (Pinocchio's
 /// `computeImpulseDynamicsDerivatives` with no restitution). The contacts must be independent.
 #[pyfunction]
+#[pyo3(signature = (model, q, v, contacts, dim = 3))]
 pub fn impact_derivatives<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
     q: ArrayArg<'_>,
     v: ArrayArg<'_>,
     contacts: &Bound<'_, PyAny>,
+    dim: usize,
 ) -> PyResult<Bound<'py, PyTuple>> {
     let contacts = self::contacts(&model, contacts)?;
-    let (nv, k) = (model.model.nv(), contacts.len());
+    let dim = contact_dim(dim)?;
+    let (nv, k, d) = (model.model.nv(), contacts.len(), dim.rows());
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv])])?;
-    let packed = run_packed(py, &model, &batch, 2 * nv * (nv + 3 * k), |m, w, i, out| {
+    let out = run(py, &model, &batch, &[2 * nv * (nv + k * d)], |m, w, i, out| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
-        let d = algorithms::impact_derivatives(m, w.dense(&[Dense::Inverse, Dense::RneaDerivatives])?, q, v, &contacts)?;
-        write_rows(&[&d.velocity_dq, &d.velocity_dv, &d.impulses_dq, &d.impulses_dv], out);
+        let (velocity_d, impulses_d) = out.split_at_mut(2 * nv * nv);
+        algorithms::impact_derivatives_into(m, w.dense(&[Dense::Inverse])?, q, v, &contacts, dim, velocity_d, impulses_d)?;
         finite_result(out)
     })?;
-    let (square, per_contact): (&[usize], &[usize]) = (&[nv, nv], &[k, 3, nv]);
-    PyTuple::new(py, unpack(py, &batch, &packed, &[square, square, per_contact, per_contact])?)
+    PyTuple::new(py, matrix_views(&out, 2, nv, (k, d)))
 }

@@ -1,10 +1,12 @@
-//! Dynamics with point contacts held fixed (Hardt & von Stryk, eq. 1–3 and 7): the constrained forward
-//! dynamics, the reduced ODE on independent coordinates, and perfectly inelastic impacts.
+//! Dynamics with contacts held fixed (Hardt & von Stryk, eq. 1–3 and 7): the constrained forward dynamics, the reduced
+//! ODE on independent coordinates, and perfectly inelastic impacts.
 //!
-//! A contact is a point on a body whose world position may not move: J_c q̈ + γ = 0 with J_c the 3k x nv
-//! stack of the points' linear Jacobians (world axes) and γ = J̇_c q̇ their velocity-product acceleration.
-//! Contact forces are 3-vectors in world axes acting on the robot at the points. These functions
-//! allocate their k-dependent matrices on each call.
+//! A contact holds a point on a body still (`ContactDim::Point`: J_c q̈ + γ = 0 with J_c the 3k x nv stack of the
+//! points' linear Jacobians, world axes, and γ = J̇_c q̇ their velocity-product acceleration), or the body's whole frame
+//! at the point (`ContactDim::Frame`: 6 rows per contact, the point's velocity and the body's angular velocity, world
+//! axes, whose spatial acceleration is held at zero; Pinocchio's CONTACT_6D in LOCAL_WORLD_ALIGNED). Contact forces act on the robot at the points, in world axes:
+//! 3-vectors, or wrenches [force; torque about the point]. The k-dependent matrices live in `ContactWorkspace`, sized
+//! (fallibly) on first use.
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
@@ -12,7 +14,8 @@ use super::kinematics_derivatives::FramePoint;
 use super::rnea_derivatives::motion_derivatives;
 use super::{crba, minv, rnea};
 use crate::model::{Data, Model};
-use crate::spatial::{angular, linear, Motion};
+use crate::spatial::{Force, Motion};
+use crate::validate::{array_len, filled};
 use crate::{Error, Result};
 
 /// A point on a body, in the body's frame, held still by `contact_dynamics`, `reduced_dynamics` and `impact` (their
@@ -23,11 +26,32 @@ pub struct ContactPoint {
     pub point: Vector3<f64>,
 }
 
-/// Accelerations and the contact forces that keep the contact points still.
+/// What a contact holds still: the point (a point foot; Pinocchio's CONTACT_3D) or the body's frame at it, turning
+/// included (a flat foot; CONTACT_6D). One kind for all the contacts of a call.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ContactDim {
+    /// 3 rows per contact; forces.
+    #[default]
+    Point,
+    /// 6 rows per contact, [linear; angular]; wrenches [force; torque about the point].
+    Frame,
+}
+
+impl ContactDim {
+    /// Constraint rows per contact.
+    pub fn rows(self) -> usize {
+        match self {
+            ContactDim::Point => 3,
+            ContactDim::Frame => 6,
+        }
+    }
+}
+
+/// Accelerations and the contact forces that keep the contacts still.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactDynamics {
     pub ddq: DVector<f64>,
-    /// 3k forces, contact after contact, world axes.
+    /// 3 (or 6) per contact, contact after contact, world axes.
     pub forces: DVector<f64>,
 }
 
@@ -60,133 +84,266 @@ pub fn check_contacts(model: &Model, contacts: &[ContactPoint]) -> Result<()> {
     Ok(())
 }
 
-/// The contact points' rows: J (3k x nv, their velocities in world axes), J_ω (3k x nv, their bodies' angular
-/// velocities) and γ (3k, their classical accelerations at q̈ = 0).
-pub(crate) struct Constraint {
-    pub linear: DMatrix<f64>,
-    pub angular: DMatrix<f64>,
-    pub drift: DVector<f64>,
+/// The contact kernels' k-dependent matrices (column-major), kept in `Data` and reused while r (the constraint rows)
+/// and nv stay; sized with fallible allocation, so that too many contacts are a `TooLarge` naming them.
+#[derive(Debug, Clone, Default)]
+pub struct ContactWorkspace {
+    /// (r, nv) for which the buffers are sized (and the model's bodies).
+    pub(crate) shape: (usize, usize),
+    bodies: usize,
+    /// J (r x nv): the constraint rows, world axes at the points.
+    pub(crate) jacobian: Vec<f64>,
+    /// γ (r): the rows' velocity-product accelerations; then the right-hand side of a solve.
+    pub(crate) drift: Vec<f64>,
+    /// M⁻¹ Jᵀ (nv x r).
+    pub(crate) minv_jt: Vec<f64>,
+    /// S⁻¹ = (J M⁻¹ Jᵀ)⁻¹ (r x r), and the Cholesky factor it is computed from.
+    pub(crate) schur_inverse: Vec<f64>,
+    schur: Vec<f64>,
+    cholesky: Vec<f64>,
+    /// Gᵀ = M⁻¹ Jᵀ S⁻¹ (nv x r) and G (r x nv).
+    pub(crate) gain_t: Vec<f64>,
+    pub(crate) gain: Vec<f64>,
+    /// M⁻¹ − M⁻¹ Jᵀ G (nv x nv).
+    pub(crate) projected: Vec<f64>,
+    /// Right-hand sides of the derivatives' solve: nv x 2nv and r x 2nv.
+    pub(crate) rhs_top: Vec<f64>,
+    pub(crate) rhs_rows: Vec<f64>,
+    /// nv numbers: zero accelerations, then the solution's generalized part.
+    pub(crate) zeros: Vec<f64>,
+    pub(crate) solution: Vec<f64>,
+    /// r numbers: the solution's forces (or impulses).
+    pub(crate) forces: Vec<f64>,
+    /// nv numbers: an impact's change of velocity.
+    pub(crate) change: Vec<f64>,
+    /// The forces as external forces on the bodies (`rnea`'s f_ext).
+    pub(crate) body_forces: Vec<Force>,
 }
 
-pub(crate) fn constraint(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint]) -> Constraint {
+impl ContactWorkspace {
+    /// Sizes the buffers for r constraint rows on `model`, or `TooLarge` naming the contacts.
+    pub(crate) fn reserve(&mut self, model: &Model, r: usize) -> Result<()> {
+        let nv = model.nv();
+        if self.shape == (r, nv) && self.bodies == model.nbodies() {
+            return Ok(());
+        }
+        let len = |shape: &[usize]| array_len("contacts", shape, std::mem::size_of::<f64>());
+        let buffer = |shape: &[usize]| filled("contacts", len(shape)?, 0.0);
+        // All at once, so that a refusal leaves the workspace as it was.
+        let fresh = ContactWorkspace {
+            shape: (r, nv),
+            bodies: model.nbodies(),
+            jacobian: buffer(&[r, nv])?,
+            drift: buffer(&[r])?,
+            minv_jt: buffer(&[nv, r])?,
+            schur_inverse: buffer(&[r, r])?,
+            schur: buffer(&[r, r])?,
+            cholesky: buffer(&[r, r])?,
+            gain_t: buffer(&[nv, r])?,
+            gain: buffer(&[r, nv])?,
+            projected: buffer(&[nv, nv])?,
+            rhs_top: buffer(&[nv, 2, nv])?,
+            rhs_rows: buffer(&[r, 2, nv])?,
+            zeros: buffer(&[nv])?,
+            solution: buffer(&[nv])?,
+            forces: buffer(&[r])?,
+            change: buffer(&[nv])?,
+            body_forces: filled("contacts", model.nbodies(), Force::zeros())?,
+        };
+        *self = fresh;
+        Ok(())
+    }
+}
+
+/// `c = beta c + alpha a b` for column-major a (m x p, `a.len() / m` = p) and b (p x n) read at b[k rs + j cs], c m x
+/// n: in plain loops, as the matrices here are a few dozen wide (a blocked product spent more time packing and
+/// allocating than multiplying). Four columns of a at a time, so that c's column is read and written once per four;
+/// b's zeros (the contact rows outside their bodies' supports) skipped four at a time.
+pub(crate) fn gemm(c: &mut [f64], m: usize, alpha: f64, a: &[f64], b: &[f64], (rs, cs): (usize, usize), beta: f64) {
+    let m = m.max(1);
+    let p = a.len() / m;
+    for (j, cj) in c.chunks_exact_mut(m).enumerate() {
+        if beta == 0.0 {
+            cj.fill(0.0);
+        } else if beta != 1.0 {
+            cj.iter_mut().for_each(|x| *x *= beta);
+        }
+        let x = |k: usize| alpha * b[k * rs + j * cs];
+        let mut k = 0;
+        while k + 4 <= p {
+            let (x0, x1, x2, x3) = (x(k), x(k + 1), x(k + 2), x(k + 3));
+            if x0 != 0.0 || x1 != 0.0 || x2 != 0.0 || x3 != 0.0 {
+                let (a0, a1, a2, a3) =
+                    (&a[k * m..(k + 1) * m], &a[(k + 1) * m..(k + 2) * m], &a[(k + 2) * m..(k + 3) * m], &a[(k + 3) * m..(k + 4) * m]);
+                for (c, (((a0, a1), a2), a3)) in cj.iter_mut().zip(a0.iter().zip(a1).zip(a2).zip(a3)) {
+                    *c += x0 * a0 + x1 * a1 + x2 * a2 + x3 * a3;
+                }
+            }
+            k += 4;
+        }
+        for k in k..p {
+            let xk = x(k);
+            if xk != 0.0 {
+                cj.iter_mut().zip(&a[k * m..(k + 1) * m]).for_each(|(c, a)| *c += xk * a);
+            }
+        }
+    }
+}
+
+/// The strides of a column-major matrix with `rows` rows, read as it is, and read transposed.
+pub(crate) fn plain(rows: usize) -> (usize, usize) {
+    (1, rows)
+}
+pub(crate) fn transposed(rows: usize) -> (usize, usize) {
+    (rows, 1)
+}
+
+/// The contacts' constraint rows J into `w.jacobian` and γ (their accelerations at q̈ = 0, `contact_acceleration`) into
+/// `w.drift`, after sizing `w`.
+pub(crate) fn constraint(
+    model: &Model,
+    data: &mut Data,
+    w: &mut ContactWorkspace,
+    q: &[f64],
+    v: &[f64],
+    contacts: &[ContactPoint],
+    dim: ContactDim,
+) -> Result<()> {
+    let (d, r) = (dim.rows(), dim.rows() * contacts.len());
+    w.reserve(model, r)?;
     motion_derivatives(model, data, q, v, None, Motion::zeros());
-    let (rows, nv) = (3 * contacts.len(), model.nv());
-    let mut out = Constraint { linear: DMatrix::zeros(rows, nv), angular: DMatrix::zeros(rows, nv), drift: DVector::zeros(rows) };
+    w.jacobian.fill(0.0);
     for (k, contact) in contacts.iter().enumerate() {
         let at = FramePoint::new(model, data, q, contact.body, &contact.point);
+        let jacobian = &mut w.jacobian;
         at.support(model, |c, _| {
             let s = at.jacobian_column(&data.derivatives.subspace, c);
-            out.linear.view_mut((3 * k, c), (3, 1)).copy_from(&linear(&s));
-            out.angular.view_mut((3 * k, c), (3, 1)).copy_from(&angular(&s));
+            jacobian[c * r + d * k..c * r + d * k + d].copy_from_slice(&s.as_slice()[..d]);
         });
-        out.drift.rows_mut(3 * k, 3).copy_from(&at.classical_acceleration());
+        contact_acceleration(&at, dim, &mut w.drift[d * k..d * k + d]);
     }
-    out
+    Ok(())
 }
 
-/// Writes the world-axes (classical) acceleration of each point to `out` (3k): J_c q̈ + J̇_c q̇ at (q, v, q̈),
-/// or with q̈ None the velocity-product term γ = J̇_c q̇ alone.
-pub fn point_accelerations(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Option<&[f64]>, points: &[ContactPoint], out: &mut [f64]) {
+/// Writes each contact's acceleration to `out` (3 or 6 per contact, world axes, `contact_acceleration`): J_c q̈ + J̇_c q̇
+/// at (q, v, q̈), or with q̈ None the velocity-product term γ = J̇_c q̇ alone.
+#[allow(clippy::too_many_arguments)]
+pub fn point_accelerations(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: Option<&[f64]>,
+    points: &[ContactPoint],
+    dim: ContactDim,
+    out: &mut [f64],
+) {
     motion_derivatives(model, data, q, v, a, Motion::zeros());
-    for (point, chunk) in points.iter().zip(out.chunks_exact_mut(3)) {
-        chunk.copy_from_slice(FramePoint::new(model, data, q, point.body, &point.point).classical_acceleration().as_slice());
+    for (point, chunk) in points.iter().zip(out.chunks_exact_mut(dim.rows())) {
+        contact_acceleration(&FramePoint::new(model, data, q, point.body, &point.point), dim, chunk);
     }
 }
 
-/// The KKT system [M −Jᵀ; J 0] solved through the Schur complement S = J M⁻¹ Jᵀ, with its inverse in dense blocks:
-/// x = (M⁻¹ − M⁻¹ Jᵀ G) a + Gᵀ b and y = S⁻¹ b − G a, where G = S⁻¹ J M⁻¹ (nv and 3k are small where contacts are used,
-/// and the solves then run as matrix products).
-pub(crate) struct Kkt {
-    /// M⁻¹ Jᵀ (nv x 3k).
-    pub minv_jt: DMatrix<f64>,
-    pub schur_inverse: DMatrix<f64>,
-    /// G (3k x nv): minus y's derivative with respect to a; and Gᵀ = M⁻¹ Jᵀ S⁻¹, x's with respect to b.
-    pub gain: DMatrix<f64>,
-    gain_t: DMatrix<f64>,
-    /// M⁻¹ − M⁻¹ Jᵀ G (nv x nv): x's derivative with respect to a.
-    pub projected: DMatrix<f64>,
-}
-
-impl Kkt {
-    /// From M⁻¹ at q and the contact rows J; the pieces back if the contacts are not independent.
-    fn new(minv: DMatrix<f64>, j: &DMatrix<f64>) -> std::result::Result<Self, Dependent> {
-        let minv_jt = &minv * j.transpose();
-        let schur = j * &minv_jt;
-        let Some(schur_inverse) = spd_inverse(&schur) else { return Err(Dependent { minv, minv_jt, schur }) };
-        let gain_t = &minv_jt * &schur_inverse;
-        let gain = gain_t.transpose();
-        let projected = minv - &minv_jt * &gain;
-        Ok(Kkt { minv_jt, schur_inverse, gain, gain_t, projected })
-    }
-
-    /// Solves M x − Jᵀ y = a, J x = b for each column of a and b.
-    pub fn solve(&self, a: &DMatrix<f64>, b: &DMatrix<f64>) -> (DMatrix<f64>, DMatrix<f64>) {
-        let mut x = &self.projected * a;
-        x.gemm(1.0, &self.gain_t, b, 1.0);
-        let mut y = &self.schur_inverse * b;
-        y.gemm(-1.0, &self.gain, a, 1.0);
-        (x, y)
-    }
-
-    /// `solve` for one right-hand side.
-    pub fn solve_vectors(&self, a: &DVector<f64>, b: &DVector<f64>) -> (DVector<f64>, DVector<f64>) {
-        (&self.projected * a + &self.gain_t * b, &self.schur_inverse * b - &self.gain * a)
+/// What a contact holds at zero: the point's classical acceleration (3), or the frame's spatial acceleration [linear;
+/// angular] (6; world axes, about the point), the derivative of its velocity in its own frame, as Pinocchio's
+/// CONTACT_6D. The two agree where the contact is still (ω × v = 0).
+fn contact_acceleration(at: &FramePoint, dim: ContactDim, out: &mut [f64]) {
+    match dim {
+        ContactDim::Point => out.copy_from_slice(at.classical_acceleration().as_slice()),
+        ContactDim::Frame => out.copy_from_slice(at.acceleration.as_slice()),
     }
 }
 
-/// The inverse of a symmetric positive definite matrix by its Cholesky factor L (S⁻¹ = L⁻ᵀ L⁻¹), in plain loops (the
-/// matrices are 3k x 3k); None if a pivot keeps no more than 1e-10 of its diagonal entry (a rank deficiency in
-/// rounding) or the matrix is not positive definite.
-fn spd_inverse(s: &DMatrix<f64>) -> Option<DMatrix<f64>> {
-    let n = s.nrows();
-    let mut l = DMatrix::zeros(n, n);
+/// The inverse of the symmetric positive definite `s` (n x n, column-major) into `inverse` by its Cholesky factor L
+/// (S⁻¹ = L⁻ᵀ L⁻¹), in plain loops with `l` (n x n) as scratch; false if a pivot keeps no more than 1e-10 of its diagonal
+/// entry (a rank deficiency in rounding) or the matrix is not positive definite.
+fn spd_inverse(s: &[f64], n: usize, l: &mut [f64], inverse: &mut [f64]) -> bool {
+    // L in the lower triangle: l[i + n j] = L_ij (i ≥ j).
     for j in 0..n {
-        let pivot = s[(j, j)] - (0..j).map(|k| l[(j, k)] * l[(j, k)]).sum::<f64>();
-        if !(pivot > 1e-10 * s[(j, j)]) {
-            return None;
+        let pivot = s[j + n * j] - (0..j).map(|k| l[j + n * k] * l[j + n * k]).sum::<f64>();
+        if !(pivot > 1e-10 * s[j + n * j]) {
+            return false;
         }
-        l[(j, j)] = pivot.sqrt();
+        l[j + n * j] = pivot.sqrt();
         for i in j + 1..n {
-            l[(i, j)] = (s[(i, j)] - (0..j).map(|k| l[(i, k)] * l[(j, k)]).sum::<f64>()) / l[(j, j)];
+            l[i + n * j] = (s[i + n * j] - (0..j).map(|k| l[i + n * k] * l[j + n * k]).sum::<f64>()) / l[j + n * j];
         }
     }
-    // L⁻¹, lower triangular, column by column.
-    let mut inverse_l = DMatrix::zeros(n, n);
+    // L⁻¹ column by column into the upper triangle and the diagonal: l[j + n i] = (L⁻¹)_ij (i ≥ j), the lower
+    // triangle's L still read (L_ii is replaced only once column i is reached).
     for j in 0..n {
-        inverse_l[(j, j)] = 1.0 / l[(j, j)];
+        l[j + n * j] = 1.0 / l[j + n * j];
         for i in j + 1..n {
-            inverse_l[(i, j)] = -(j..i).map(|k| l[(i, k)] * inverse_l[(k, j)]).sum::<f64>() / l[(i, i)];
+            l[j + n * i] = -(j..i).map(|k| l[i + n * k] * l[j + n * k]).sum::<f64>() / l[i + n * i];
         }
     }
-    Some(inverse_l.tr_mul(&inverse_l))
+    // S⁻¹_ij = Σ_k (L⁻¹)_ki (L⁻¹)_kj over k ≥ max(i, j).
+    for j in 0..n {
+        for i in 0..=j {
+            let x = (j..n).map(|k| l[i + n * k] * l[j + n * k]).sum::<f64>();
+            inverse[i + n * j] = x;
+            inverse[j + n * i] = x;
+        }
+    }
+    true
 }
 
-/// M⁻¹, M⁻¹ Jᵀ and J M⁻¹ Jᵀ of contacts that are not independent.
-pub(crate) struct Dependent {
-    minv: DMatrix<f64>,
-    minv_jt: DMatrix<f64>,
-    schur: DMatrix<f64>,
-}
-
-/// The KKT system of the `contacts` at q (`Kkt` if they are independent); an error if M is singular.
-pub(crate) fn kkt(model: &Model, data: &mut Data, q: &[f64], j: &DMatrix<f64>) -> Result<std::result::Result<Kkt, Dependent>> {
+/// M⁻¹ at q, checked: an error if M is singular.
+fn checked_minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d DMatrix<f64>> {
     let minv = minv(model, data, q);
     if !minv.diagonal().iter().all(|x| x.is_finite() && *x > 0.0) {
         return Err(Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint carrying no inertia?)"));
     }
-    Ok(Kkt::new(minv.clone(), j))
+    Ok(minv)
 }
 
-/// Solves M x − Jᵀ y = a, J x = b for vectors a and b: by `Kkt`, or for dependent contacts in the least-squares,
-/// minimum-norm sense (the smallest forces that do the job).
-fn solve_vectors(system: &std::result::Result<Kkt, Dependent>, j: &DMatrix<f64>, a: DVector<f64>, b: DVector<f64>) -> (DVector<f64>, DVector<f64>) {
-    match system {
-        Ok(kkt) => kkt.solve_vectors(&a, &b),
-        Err(Dependent { minv, minv_jt, schur }) => {
-            let free = minv * a;
-            let y = solve_spd(schur.clone(), &(b - j * &free));
-            (free + minv_jt * &y, y)
+/// The KKT system [M −Jᵀ; J 0] of the rows in `w` at q, through the Schur complement S = J M⁻¹ Jᵀ: M⁻¹ Jᵀ and S⁻¹ into
+/// `w` (after `constraint`). Ok(false) if the contacts are not independent (S singular); then `w.schur_inverse`
+/// holds S itself. An error if M is singular.
+pub(crate) fn factor(model: &Model, data: &mut Data, w: &mut ContactWorkspace, q: &[f64]) -> Result<bool> {
+    let (r, nv) = w.shape;
+    let minv = checked_minv(model, data, q)?.as_slice();
+    gemm(&mut w.minv_jt, nv, 1.0, minv, &w.jacobian, transposed(r), 0.0);
+    gemm(&mut w.schur, r, 1.0, &w.jacobian, &w.minv_jt, plain(nv), 0.0);
+    let independent = spd_inverse(&w.schur, r, &mut w.cholesky, &mut w.schur_inverse);
+    if !independent {
+        w.schur_inverse.copy_from_slice(&w.schur);
+    }
+    Ok(independent)
+}
+
+/// After `factor` of independent contacts, G and the projected M⁻¹ − M⁻¹ Jᵀ G into `w` (the KKT inverse's blocks):
+/// x = (M⁻¹ − M⁻¹ Jᵀ G) a + Gᵀ b and y = S⁻¹ b − G a solve M x − Jᵀ y = a, J x = b.
+fn inverse_blocks(data: &Data, w: &mut ContactWorkspace) {
+    let (r, nv) = w.shape;
+    gemm(&mut w.gain_t, nv, 1.0, &w.minv_jt, &w.schur_inverse, plain(r), 0.0);
+    for c in 0..nv {
+        for i in 0..r {
+            w.gain[i + r * c] = w.gain_t[c + nv * i];
         }
+    }
+    w.projected.copy_from_slice(data.minv.as_slice());
+    gemm(&mut w.projected, nv, -1.0, &w.minv_jt, &w.gain, plain(r), 1.0);
+}
+
+/// After `factor`, solves M x − Jᵀ y = a, J x = b for vectors a (nv) and b (`w.drift`, r) into `w.solution` and
+/// `w.forces`: by the KKT inverse's blocks (`inverse_blocks`, which the derivatives reuse; through them rather than
+/// as M⁻¹ a + M⁻¹ Jᵀ S⁻¹ (b − J M⁻¹ a), which cancels digits where J M⁻¹ Jᵀ is ill-conditioned), or for dependent
+/// contacts in the least-squares, minimum-norm sense (the smallest forces that do the job).
+fn solve(data: &Data, w: &mut ContactWorkspace, independent: bool, a: &[f64]) {
+    let (r, nv) = w.shape;
+    if independent {
+        inverse_blocks(data, w);
+        gemm(&mut w.solution, nv, 1.0, &w.projected, a, plain(nv), 0.0);
+        gemm(&mut w.solution, nv, 1.0, &w.gain_t, &w.drift, plain(r), 1.0);
+        gemm(&mut w.forces, r, 1.0, &w.schur_inverse, &w.drift, plain(r), 0.0);
+        gemm(&mut w.forces, r, -1.0, &w.gain, a, plain(nv), 1.0);
+    } else {
+        gemm(&mut w.solution, nv, 1.0, data.minv.as_slice(), a, plain(nv), 0.0);
+        gemm(&mut w.drift, r, -1.0, &w.jacobian, &w.solution, plain(nv), 1.0);
+        let schur = DMatrix::from_column_slice(r, r, &w.schur_inverse);
+        w.forces.copy_from_slice(solve_spd(schur, &DVector::from_column_slice(&w.drift)).as_slice());
+        gemm(&mut w.solution, nv, 1.0, &w.minv_jt, &w.forces, plain(r), 1.0);
     }
 }
 
@@ -199,40 +356,96 @@ fn solve_spd(a: DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
     &eigen.eigenvectors * inverse.component_mul(&(eigen.eigenvectors.transpose() * b))
 }
 
-/// M, a Cholesky factor of M, and the bias h = C q̇ + g.
-type MassAndBias = (DMatrix<f64>, nalgebra::Cholesky<f64, nalgebra::Dyn>, DVector<f64>);
-
-/// M and the bias h = C q̇ + g at (q, v), and a Cholesky factor of M.
-fn mass_and_bias(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result<MassAndBias> {
-    let mass = crba(model, data, q).clone();
-    let bias = rnea(model, data, q, v, &vec![0.0; model.nv()], None).clone();
-    let chol = mass
-        .clone()
-        .cholesky()
-        .ok_or_else(|| Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint carrying no inertia?)"))?;
-    Ok((mass, chol, bias))
+/// Runs `kernel` with the contact workspace lent out of `data` (and put back, also on an error).
+pub(crate) fn with_workspace<T>(data: &mut Data, kernel: impl FnOnce(&mut Data, &mut ContactWorkspace) -> Result<T>) -> Result<T> {
+    let mut w = std::mem::take(&mut data.contact);
+    let result = kernel(data, &mut w);
+    data.contact = w;
+    result
 }
 
 /// Constrained forward dynamics: [M −Jᵀ; J 0] [q̈; λ] = [τ − h; −γ], by the Schur complement
 /// (J M⁻¹ Jᵀ) λ = −γ − J M⁻¹ (τ − h).
-pub fn contact_dynamics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64], contacts: &[ContactPoint]) -> Result<ContactDynamics> {
+pub fn contact_dynamics(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    contacts: &[ContactPoint],
+    dim: ContactDim,
+) -> Result<ContactDynamics> {
     check_contacts(model, contacts)?;
-    let rows = constraint(model, data, q, v, contacts);
-    let bias = DVector::from_column_slice(rnea(model, data, q, v, &vec![0.0; model.nv()], None).as_slice());
-    let system = kkt(model, data, q, &rows.linear)?;
-    let (ddq, forces) = solve_vectors(&system, &rows.linear, DVector::from_column_slice(tau) - bias, -&rows.drift);
-    Ok(ContactDynamics { ddq, forces })
+    with_workspace(data, |data, w| {
+        contact_solution(model, data, w, q, v, tau, contacts, dim)?;
+        Ok(ContactDynamics { ddq: DVector::from_column_slice(&w.solution), forces: DVector::from_column_slice(&w.forces) })
+    })
+}
+
+/// `contact_dynamics` into `w.solution` and `w.forces`; Ok(independent).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn contact_solution(
+    model: &Model,
+    data: &mut Data,
+    w: &mut ContactWorkspace,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    contacts: &[ContactPoint],
+    dim: ContactDim,
+) -> Result<bool> {
+    constraint(model, data, w, q, v, contacts, dim)?;
+    w.drift.iter_mut().for_each(|x| *x = -*x);
+    // τ − h, h = rnea(q, v, 0), in `rhs_top`'s first column.
+    let nv = model.nv();
+    let bias = rnea(model, data, q, v, &w.zeros, None);
+    for ((x, t), h) in w.rhs_top[..nv].iter_mut().zip(tau).zip(bias.iter()) {
+        *x = t - h;
+    }
+    let independent = factor(model, data, w, q)?;
+    let a = std::mem::take(&mut w.rhs_top);
+    solve(data, w, independent, &a[..nv]);
+    w.rhs_top = a;
+    Ok(independent)
 }
 
 /// Post-impact velocities of a perfectly inelastic impact at the contacts: M (v⁺ − v⁻) = Jᵀ Λ, J v⁺ = 0.
-/// Returns (v⁺, the 3k impulses Λ).
-pub fn impact(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint]) -> Result<(DVector<f64>, DVector<f64>)> {
+/// Returns (v⁺, the impulses Λ, 3 or 6 per contact).
+pub fn impact(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    contacts: &[ContactPoint],
+    dim: ContactDim,
+) -> Result<(DVector<f64>, DVector<f64>)> {
     check_contacts(model, contacts)?;
-    let rows = constraint(model, data, q, v, contacts);
-    let system = kkt(model, data, q, &rows.linear)?;
-    let v_minus = DVector::from_column_slice(v);
-    let (change, impulses) = solve_vectors(&system, &rows.linear, DVector::zeros(model.nv()), -(&rows.linear * &v_minus));
-    Ok((v_minus + change, impulses))
+    with_workspace(data, |data, w| {
+        impact_solution(model, data, w, q, v, contacts, dim)?;
+        Ok((DVector::from_column_slice(&w.solution), DVector::from_column_slice(&w.forces)))
+    })
+}
+
+/// `impact` into `w.solution` (v⁺) and `w.forces`; Ok(independent).
+pub(crate) fn impact_solution(
+    model: &Model,
+    data: &mut Data,
+    w: &mut ContactWorkspace,
+    q: &[f64],
+    v: &[f64],
+    contacts: &[ContactPoint],
+    dim: ContactDim,
+) -> Result<bool> {
+    constraint(model, data, w, q, v, contacts, dim)?;
+    let nv = model.nv();
+    // The change of velocity: a = 0, b = −J v⁻.
+    gemm(&mut w.drift, w.shape.0, -1.0, &w.jacobian, v, plain(nv), 0.0);
+    let independent = factor(model, data, w, q)?;
+    let zeros = std::mem::take(&mut w.zeros);
+    solve(data, w, independent, &zeros);
+    w.zeros = zeros;
+    w.solution.iter_mut().zip(v).for_each(|(x, v)| *x += v);
+    Ok(independent)
 }
 
 /// Picks `rank` columns of `j` that are linearly independent (greedy pivoting on the residual norms).
@@ -274,8 +487,15 @@ pub fn reduced_dynamics(
 ) -> Result<ReducedDynamics> {
     check_contacts(model, contacts)?;
     let nv = model.nv();
-    let (mass, _, bias) = mass_and_bias(model, data, q, v)?;
-    let Constraint { linear: jc, drift: gamma, .. } = constraint(model, data, q, v, contacts);
+    let mass = crba(model, data, q).clone();
+    let bias = rnea(model, data, q, v, &vec![0.0; nv], None).clone();
+    if mass.clone().cholesky().is_none() {
+        return Err(Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint carrying no inertia?)"));
+    }
+    let (jc, gamma) = with_workspace(data, |data, w| {
+        constraint(model, data, w, q, v, contacts, ContactDim::Point)?;
+        Ok((DMatrix::from_column_slice(w.shape.0, nv, &w.jacobian), DVector::from_column_slice(&w.drift)))
+    })?;
     let dependent: Vec<usize> = match independent {
         Some(ind) => {
             if let Some(&bad) = ind.iter().find(|&&i| i >= nv) {

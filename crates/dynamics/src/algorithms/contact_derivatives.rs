@@ -1,28 +1,30 @@
 //! Analytic derivatives of the contact dynamics and of impacts (`contact::contact_dynamics`, `contact::impact`;
-//! Pinocchio's `computeConstraintDynamicsDerivatives` and `computeImpulseDynamicsDerivatives` for 3-D contacts in
-//! `LOCAL_WORLD_ALIGNED`), q on its tangent space.
+//! Pinocchio's `computeConstraintDynamicsDerivatives` and `computeImpulseDynamicsDerivatives` for CONTACT_3D or
+//! CONTACT_6D contacts in `LOCAL_WORLD_ALIGNED`), q on its tangent space.
 //!
 //! Both solve a KKT system [M −Jᵀ; J 0] [x; λ] = [a; b]. Differentiating its rows at the solution gives the same
 //! system for the derivatives, with the rows' own partial derivatives as right-hand sides: those of inverse dynamics
-//! (`rnea_derivatives` with the contact forces as external forces) and of the contact points' accelerations or
-//! velocities (`kinematics_derivatives`). The contact forces are fixed in world axes, not in their bodies, so a joint
-//! that turns a body also turns its forces against it: ∂τ/∂q gains −J_pᵀ [λ]× J_ω. The derivatives exist where the
-//! contacts are independent (J of full row rank); redundant contacts are refused.
+//! (`rnea_derivatives` with the contact forces as external forces) and of the contacts' accelerations or velocities
+//! (`kinematics_derivatives`). The solve reuses the KKT inverse's blocks of the forward solution (`contact::factor`),
+//! whose q̈-by-τ block is ∂q̈/∂τ itself, as Pinocchio does. The contact forces are fixed in world axes, not in their
+//! bodies, so a joint that turns a body also turns its forces against it: ∂τ/∂q gains −J_pᵀ [f]× J_ω (and −J_ωᵀ [n]×
+//! J_ω for a torque n). The derivatives exist where the contacts are independent (J of full row rank); redundant
+//! contacts are refused.
 //!
-//! Dense O(nv³ + k³) linear algebra, allocating its k-dependent matrices on each call, as `contact.rs`.
+//! Dense O(nv³ + r³) linear algebra for r constraint rows, in `ContactWorkspace` (`Data::contact`): nothing is
+//! allocated once it is sized, apart from the outputs of the owning variants.
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
-use super::contact::{check_contacts, constraint, kkt, Constraint, ContactPoint, Dependent, Kkt};
+use super::contact::{check_contacts, contact_solution, gemm, impact_solution, plain, with_workspace, ContactDim, ContactPoint, ContactWorkspace};
 use super::jacobian::Frame;
 use super::kinematics_derivatives::{for_each_frame_derivative, FramePoint};
-use super::rnea;
-use super::rnea_derivatives::{derivatives_with_base_acceleration, motion_derivatives, rnea_derivatives};
+use super::rnea_derivatives::{column, derivatives_into, motion_derivatives};
 use crate::model::{Data, Model};
 use crate::spatial::{angular, linear, spatial, Force, Motion};
 use crate::{Error, Result};
 
-/// `contact_dynamics`' solution and its derivatives (q on its tangent space; forces 3 per contact, world axes).
+/// `contact_dynamics`' solution and its derivatives (q on its tangent space; forces r = 3 or 6 per contact, world axes).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactDynamicsDerivatives {
     pub ddq: DVector<f64>,
@@ -31,7 +33,7 @@ pub struct ContactDynamicsDerivatives {
     pub ddq_dq: DMatrix<f64>,
     pub ddq_dv: DMatrix<f64>,
     pub ddq_dtau: DMatrix<f64>,
-    /// 3k x nv each.
+    /// r x nv each.
     pub forces_dq: DMatrix<f64>,
     pub forces_dv: DMatrix<f64>,
     pub forces_dtau: DMatrix<f64>,
@@ -45,74 +47,90 @@ pub struct ImpactDerivatives {
     /// nv x nv each.
     pub velocity_dq: DMatrix<f64>,
     pub velocity_dv: DMatrix<f64>,
-    /// 3k x nv each.
+    /// r x nv each.
     pub impulses_dq: DMatrix<f64>,
     pub impulses_dv: DMatrix<f64>,
 }
 
-/// [a b], side by side.
-fn stack_columns(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
-    let mut out = DMatrix::zeros(a.nrows(), a.ncols() + b.ncols());
-    out.columns_mut(0, a.ncols()).copy_from(a);
-    out.columns_mut(a.ncols(), b.ncols()).copy_from(b);
-    out
+fn dependent() -> Error {
+    Error::invalid("contacts", "the contacts are not independent (J M⁻¹ Jᵀ is singular): their forces, and so the derivatives, are not unique")
 }
 
-/// The KKT system of independent contacts, or the error of dependent ones.
-fn independent(system: std::result::Result<Kkt, Dependent>) -> Result<Kkt> {
-    system.map_err(|_| {
-        Error::invalid("contacts", "the contacts are not independent (J M⁻¹ Jᵀ is singular): their forces, and so the derivatives, are not unique")
-    })
-}
-
-/// The contact forces (3 per contact, world axes) as forces on their bodies, fixed in the bodies' frames (`rnea`'s
-/// f_ext), from the poses `motion_derivatives` leaves.
-fn body_forces(model: &Model, data: &Data, contacts: &[ContactPoint], forces: &DVector<f64>) -> Vec<Force> {
-    let mut out = vec![Force::zeros(); model.nbodies()];
-    for (k, contact) in contacts.iter().enumerate() {
-        let f = data.centred_m_i[contact.body].rotation.tr_mul(&forces.fixed_rows::<3>(3 * k));
-        out[contact.body] += spatial(f, contact.point.cross(&f));
-    }
-    out
-}
-
-/// ∂τ/∂q of `rnea_derivatives`, whose external forces turn with their bodies, for the same forces fixed in world axes
-/// instead: less J_pᵀ [f]× J_ω per contact (a turn ω of the body turns a body-fixed force f by ω × f).
-fn hold_forces_in_world_axes(dtau_dq: &mut DMatrix<f64>, rows: &Constraint, forces: &DVector<f64>) {
-    for k in 0..forces.len() / 3 {
-        let f = Vector3::new(forces[3 * k], forces[3 * k + 1], forces[3 * k + 2]);
-        let column = |m: &DMatrix<f64>, c: usize| Vector3::new(m[(3 * k, c)], m[(3 * k + 1, c)], m[(3 * k + 2, c)]);
-        for c in 0..dtau_dq.ncols() {
-            let w = column(&rows.angular, c);
-            // Only the contact's support turns it.
-            if w == Vector3::zeros() {
-                continue;
-            }
-            let change = f.cross(&w);
-            for r in 0..dtau_dq.nrows() {
-                dtau_dq[(r, c)] -= column(&rows.linear, r).dot(&change);
-            }
-        }
+/// The contact forces `w.forces` (world axes, at the points) as forces on their bodies fixed in the bodies' frames
+/// (`rnea`'s f_ext) into `w.body_forces`, from the poses `motion_derivatives` leaves.
+fn body_forces(data: &Data, w: &mut ContactWorkspace, contacts: &[ContactPoint], dim: ContactDim) {
+    w.body_forces.fill(Force::zeros());
+    for (contact, wrench) in contacts.iter().zip(w.forces.chunks_exact(dim.rows())) {
+        let rotation = &data.centred_m_i[contact.body].rotation;
+        let f = rotation.tr_mul(&Vector3::from_column_slice(&wrench[..3]));
+        let n = if dim == ContactDim::Frame { rotation.tr_mul(&Vector3::from_column_slice(&wrench[3..])) } else { Vector3::zeros() };
+        w.body_forces[contact.body] += spatial(f, contact.point.cross(&f) + n);
     }
 }
 
-/// Rows of the contact points' classical accelerations a + ω × v (world axes) differentiated with respect to q and q̇,
-/// after `motion_derivatives` at the state (gravity in the base's acceleration adds a constant and changes nothing).
-fn acceleration_rows(model: &Model, data: &Data, q: &[f64], contacts: &[ContactPoint]) -> (DMatrix<f64>, DMatrix<f64>) {
-    let (rows, nv) = (3 * contacts.len(), model.nv());
-    let (mut dq, mut dv) = (DMatrix::zeros(rows, nv), DMatrix::zeros(rows, nv));
+/// ∂τ/∂q (`dtau_dq`, nv x nv column-major) of `rnea_derivatives`, whose external forces turn with their bodies, for
+/// the same forces fixed in world axes instead: less J_pᵀ [f]× J_ω + J_ωᵀ [n]× J_ω per contact (a turn ω of the body
+/// turns a body-fixed force f by ω × f), over the contact's support, after `motion_derivatives` at q.
+fn hold_forces_in_world_axes(model: &Model, data: &Data, q: &[f64], contacts: &[ContactPoint], dim: ContactDim, forces: &[f64], dtau_dq: &mut [f64]) {
+    let (nv, subspace) = (model.nv(), &data.derivatives.subspace);
+    for (contact, wrench) in contacts.iter().zip(forces.chunks_exact(dim.rows())) {
+        let f = Vector3::from_column_slice(&wrench[..3]);
+        let n = if dim == ContactDim::Frame { Vector3::from_column_slice(&wrench[3..]) } else { Vector3::zeros() };
+        let at = FramePoint::new(model, data, q, contact.body, &contact.point);
+        at.support(model, |c, _| {
+            let turn = angular(&column(subspace, c));
+            let (change_f, change_n) = (f.cross(&turn), n.cross(&turn));
+            at.support(model, |r, _| {
+                let s = at.jacobian_column(subspace, r);
+                dtau_dq[r + nv * c] -= linear(&s).dot(&change_f) + angular(&s).dot(&change_n);
+            });
+        });
+    }
+}
+
+/// Rows of the contacts' accelerations (the points' classical accelerations a + ω × v, or with `ContactDim::Frame` the
+/// frames' spatial accelerations; world axes) differentiated with respect to q and q̇, into `rows` (r x 2nv
+/// column-major: q's columns, then q̇'s), after `motion_derivatives` at the state (gravity in the base's acceleration
+/// adds a constant and changes nothing).
+fn acceleration_rows(model: &Model, data: &Data, q: &[f64], contacts: &[ContactPoint], dim: ContactDim, rows: &mut [f64]) {
+    let (d, r, nv) = (dim.rows(), dim.rows() * contacts.len(), model.nv());
+    rows.fill(0.0);
     for (k, contact) in contacts.iter().enumerate() {
         let at = FramePoint::new(model, data, q, contact.body, &contact.point);
         let (velocity, omega) = (linear(&at.velocity), angular(&at.velocity));
-        for_each_frame_derivative(model, data, &at, Frame::LocalWorldAligned, |c, d| {
-            // ∂(a + ω × v) = ∂a + ∂ω × v + ω × ∂v, with ∂/∂q̇ of (v, ω) the Jacobian's columns.
-            let along_q = linear(&d.acceleration_dq) + angular(&d.velocity_dq).cross(&velocity) + omega.cross(&linear(&d.velocity_dq));
-            let along_v = linear(&d.acceleration_dv) + angular(&d.jacobian).cross(&velocity) + omega.cross(&linear(&d.jacobian));
-            dq.view_mut((3 * k, c), (3, 1)).copy_from(&along_q);
-            dv.view_mut((3 * k, c), (3, 1)).copy_from(&along_v);
+        for_each_frame_derivative(model, data, &at, Frame::LocalWorldAligned, |c, x| {
+            let (dq, dv) = (c * r + d * k, (nv + c) * r + d * k);
+            if dim == ContactDim::Frame {
+                // The frame's spatial acceleration (`contact::contact_acceleration`).
+                rows[dq..dq + 6].copy_from_slice(x.acceleration_dq.as_slice());
+                rows[dv..dv + 6].copy_from_slice(x.acceleration_dv.as_slice());
+            } else {
+                // ∂(a + ω × v) = ∂a + ∂ω × v + ω × ∂v, with ∂/∂q̇ of (v, ω) the Jacobian's columns.
+                let along_q = linear(&x.acceleration_dq) + angular(&x.velocity_dq).cross(&velocity) + omega.cross(&linear(&x.velocity_dq));
+                let along_v = linear(&x.acceleration_dv) + angular(&x.jacobian).cross(&velocity) + omega.cross(&linear(&x.jacobian));
+                rows[dq..dq + 3].copy_from_slice(along_q.as_slice());
+                rows[dv..dv + 3].copy_from_slice(along_v.as_slice());
+            }
         });
     }
-    (dq, dv)
+}
+
+/// The derivatives' solve with the KKT inverse's blocks the forward solve left (`contact::solve`): for the rows' partial derivatives A
+/// (`w.rhs_top`, nv x m) and B (`w.rhs_rows`, r x m), x = −(M⁻¹ − M⁻¹ Jᵀ G) A − Gᵀ B into `x` and y = G A − S⁻¹ B into
+/// `y` (m = x.len() / nv columns).
+fn solve_derivatives(w: &ContactWorkspace, x: &mut [f64], y: &mut [f64]) {
+    let (r, nv) = w.shape;
+    let m = x.len() / nv;
+    let (a, b) = (&w.rhs_top[..nv * m], &w.rhs_rows[..r * m]);
+    gemm(x, nv, -1.0, &w.projected, a, plain(nv), 0.0);
+    gemm(x, nv, -1.0, &w.gain_t, b, plain(r), 1.0);
+    gemm(y, r, -1.0, &w.schur_inverse, b, plain(r), 0.0);
+    gemm(y, r, 1.0, &w.gain, a, plain(nv), 1.0);
+}
+
+/// The constraint rows of `contacts` (3 or 6 each).
+fn rows(contacts: &[ContactPoint], dim: ContactDim) -> usize {
+    dim.rows() * contacts.len()
 }
 
 /// `contact_dynamics` (q̈ and the contact forces at configuration `q`, velocity `v`, joint forces `tau`, the
@@ -125,56 +143,137 @@ pub fn contact_dynamics_derivatives(
     v: &[f64],
     tau: &[f64],
     contacts: &[ContactPoint],
+    dim: ContactDim,
 ) -> Result<ContactDynamicsDerivatives> {
+    let (nv, r) = (model.nv(), rows(contacts, dim));
+    let (mut ddq_d, mut forces_d) = (vec![0.0; 3 * nv * nv], vec![0.0; 3 * r * nv]);
+    contact_dynamics_derivatives_into(model, data, q, v, tau, contacts, dim, &mut ddq_d, &mut forces_d)?;
+    let square = |i: usize| DMatrix::from_column_slice(nv, nv, &ddq_d[i * nv * nv..(i + 1) * nv * nv]);
+    let per_row = |i: usize| DMatrix::from_column_slice(r, nv, &forces_d[i * r * nv..(i + 1) * r * nv]);
+    let w = &data.contact;
+    Ok(ContactDynamicsDerivatives {
+        ddq: DVector::from_column_slice(&w.solution),
+        forces: DVector::from_column_slice(&w.forces),
+        ddq_dq: square(0),
+        ddq_dv: square(1),
+        ddq_dtau: square(2),
+        forces_dq: per_row(0),
+        forces_dv: per_row(1),
+        forces_dtau: per_row(2),
+    })
+}
+
+/// `contact_dynamics_derivatives` into `ddq_d` (3 nv x nv, column-major, one after the other: ∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂τ)
+/// and `forces_d` (3 r x nv: the forces' by q, q̇ and τ; r = 3 or 6 per contact); q̈ and the forces are left in
+/// `data.contact`. Allocates nothing once `data` is sized for the contacts (`TooLarge` naming them if it cannot be).
+#[allow(clippy::too_many_arguments)]
+pub fn contact_dynamics_derivatives_into(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    contacts: &[ContactPoint],
+    dim: ContactDim,
+    ddq_d: &mut [f64],
+    forces_d: &mut [f64],
+) -> Result<()> {
     check_contacts(model, contacts)?;
-    let rows = constraint(model, data, q, v, contacts);
-    let bias = DVector::from_column_slice(rnea(model, data, q, v, &vec![0.0; model.nv()], None).as_slice());
-    let kkt = independent(kkt(model, data, q, &rows.linear)?)?;
-    let (ddq, forces) = kkt.solve_vectors(&(DVector::from_column_slice(tau) - bias), &-&rows.drift);
-    // The rows' partial derivatives: M q̈ + h − Jᵀλ − τ (inverse dynamics with the forces applied) and J q̈ + γ.
-    let f_ext = body_forces(model, data, contacts, &forces);
-    let (dtau_dq, dtau_dv) = rnea_derivatives(model, data, q, v, ddq.as_slice(), Some(&f_ext));
-    let (mut dtau_dq, dtau_dv) = (dtau_dq.clone(), dtau_dv.clone());
-    hold_forces_in_world_axes(&mut dtau_dq, &rows, &forces);
-    let (da_dq, da_dv) = acceleration_rows(model, data, q, contacts);
-    // One solve for q and q̇ side by side (fewer, larger products).
-    let nv = model.nv();
-    let (ddq_dx, forces_dx) = kkt.solve(&-stack_columns(&dtau_dq, &dtau_dv), &-stack_columns(&da_dq, &da_dv));
-    let (ddq_dq, ddq_dv) = (ddq_dx.columns(0, nv).into_owned(), ddq_dx.columns(nv, nv).into_owned());
-    let (forces_dq, forces_dv) = (forces_dx.columns(0, nv).into_owned(), forces_dx.columns(nv, nv).into_owned());
-    let (ddq_dtau, forces_dtau) = (kkt.projected, -kkt.gain);
-    Ok(ContactDynamicsDerivatives { ddq, forces, ddq_dq, ddq_dv, ddq_dtau, forces_dq, forces_dv, forces_dtau })
+    let (nv, r) = (model.nv(), rows(contacts, dim));
+    assert!(ddq_d.len() == 3 * nv * nv && forces_d.len() == 3 * r * nv, "contact_dynamics_derivatives_into: outputs of 3 nv x nv and 3 r x nv");
+    with_workspace(data, |data, w| {
+        if !contact_solution(model, data, w, q, v, tau, contacts, dim)? {
+            return Err(dependent());
+        }
+        // The rows' partial derivatives: M q̈ + h − Jᵀλ − τ (inverse dynamics with the forces applied) and J q̈ + γ.
+        body_forces(data, w, contacts, dim);
+        let (dtau_dq, dtau_dv) = w.rhs_top.split_at_mut(nv * nv);
+        derivatives_into::<false>(model, data, q, v, &w.solution, Some(&w.body_forces), model.gravity_bias(), dtau_dq, dtau_dv);
+        hold_forces_in_world_axes(model, data, q, contacts, dim, &w.forces, dtau_dq);
+        acceleration_rows(model, data, q, contacts, dim, &mut w.rhs_rows);
+        // q's and q̇'s columns side by side, straight into the outputs; the τ block is the KKT inverse's own.
+        let (ddq_dx, ddq_dtau) = ddq_d.split_at_mut(2 * nv * nv);
+        let (forces_dx, forces_dtau) = forces_d.split_at_mut(2 * r * nv);
+        solve_derivatives(w, ddq_dx, forces_dx);
+        ddq_dtau.copy_from_slice(&w.projected);
+        forces_dtau.iter_mut().zip(&w.gain).for_each(|(out, g)| *out = -g);
+        Ok(())
+    })
 }
 
 /// `impact` (the velocity after a perfectly inelastic impact at the contacts, and its impulses, at configuration `q`
 /// and velocity `v` before it) and its derivatives with respect to q and that velocity.
-pub fn impact_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint]) -> Result<ImpactDerivatives> {
+pub fn impact_derivatives(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    contacts: &[ContactPoint],
+    dim: ContactDim,
+) -> Result<ImpactDerivatives> {
+    let (nv, r) = (model.nv(), rows(contacts, dim));
+    let (mut velocity_d, mut impulses_d) = (vec![0.0; 2 * nv * nv], vec![0.0; 2 * r * nv]);
+    impact_derivatives_into(model, data, q, v, contacts, dim, &mut velocity_d, &mut impulses_d)?;
+    let square = |i: usize| DMatrix::from_column_slice(nv, nv, &velocity_d[i * nv * nv..(i + 1) * nv * nv]);
+    let per_row = |i: usize| DMatrix::from_column_slice(r, nv, &impulses_d[i * r * nv..(i + 1) * r * nv]);
+    let w = &data.contact;
+    Ok(ImpactDerivatives {
+        velocity: DVector::from_column_slice(&w.solution),
+        impulses: DVector::from_column_slice(&w.forces),
+        velocity_dq: square(0),
+        velocity_dv: square(1),
+        impulses_dq: per_row(0),
+        impulses_dv: per_row(1),
+    })
+}
+
+/// `impact_derivatives` into `velocity_d` (2 nv x nv, column-major: ∂v⁺/∂q, ∂v⁺/∂v) and `impulses_d` (2 r x nv); v⁺
+/// and the impulses are left in `data.contact`. Allocates nothing once `data` is sized for the contacts.
+#[allow(clippy::too_many_arguments)]
+pub fn impact_derivatives_into(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    contacts: &[ContactPoint],
+    dim: ContactDim,
+    velocity_d: &mut [f64],
+    impulses_d: &mut [f64],
+) -> Result<()> {
     check_contacts(model, contacts)?;
-    let rows = constraint(model, data, q, v, contacts);
-    let kkt = independent(kkt(model, data, q, &rows.linear)?)?;
-    let (nv, k3) = (model.nv(), 3 * contacts.len());
-    let before = DVector::from_column_slice(v);
-    // M (v⁺ − v) − Jᵀ Λ = 0, J v⁺ = 0.
-    let (change, impulses) = kkt.solve_vectors(&DVector::zeros(nv), &-(&rows.linear * &before));
-    let velocity = before + &change;
-    // ∂(J v⁺)/∂q: the points' velocities at v⁺.
-    motion_derivatives(model, data, q, velocity.as_slice(), None, Motion::zeros());
-    let mut dvelocity_dq = DMatrix::zeros(k3, nv);
-    for (k, contact) in contacts.iter().enumerate() {
-        let at = FramePoint::new(model, data, q, contact.body, &contact.point);
-        for_each_frame_derivative(model, data, &at, Frame::LocalWorldAligned, |c, d| {
-            dvelocity_dq.view_mut((3 * k, c), (3, 1)).copy_from(&linear(&d.velocity_dq));
-        });
-    }
-    // ∂(M (v⁺ − v) − Jᵀ Λ)/∂q: inverse dynamics at rest, accelerating by the change, without gravity.
-    let zero = vec![0.0; nv];
-    let f_ext = body_forces(model, data, contacts, &impulses);
-    let (dq, _) = derivatives_with_base_acceleration(model, data, q, &zero, change.as_slice(), Some(&f_ext), Motion::zeros());
-    let mut dresidual_dq = dq.clone();
-    hold_forces_in_world_axes(&mut dresidual_dq, &rows, &impulses);
-    let (velocity_dq, impulses_dq) = kkt.solve(&-dresidual_dq, &-dvelocity_dq);
-    // Along v: M ∂v⁺ − Jᵀ ∂Λ = M, so ∂v⁺ = I + M⁻¹ Jᵀ ∂Λ with ∂Λ = −S⁻¹ J.
-    let impulses_dv = -(&kkt.schur_inverse * &rows.linear);
-    let velocity_dv = DMatrix::identity(nv, nv) + &kkt.minv_jt * &impulses_dv;
-    Ok(ImpactDerivatives { velocity, impulses, velocity_dq, velocity_dv, impulses_dq, impulses_dv })
+    let (nv, r) = (model.nv(), rows(contacts, dim));
+    assert!(velocity_d.len() == 2 * nv * nv && impulses_d.len() == 2 * r * nv, "impact_derivatives_into: outputs of 2 nv x nv and 2 r x nv");
+    with_workspace(data, |data, w| {
+        // M (v⁺ − v) − Jᵀ Λ = 0, J v⁺ = 0.
+        if !impact_solution(model, data, w, q, v, contacts, dim)? {
+            return Err(dependent());
+        }
+        // ∂(J v⁺)/∂q: the contacts' velocities at v⁺.
+        motion_derivatives(model, data, q, &w.solution, None, Motion::zeros());
+        let d = dim.rows();
+        w.rhs_rows[..r * nv].fill(0.0);
+        for (k, contact) in contacts.iter().enumerate() {
+            let at = FramePoint::new(model, data, q, contact.body, &contact.point);
+            let rows = &mut w.rhs_rows;
+            for_each_frame_derivative(model, data, &at, Frame::LocalWorldAligned, |c, x| {
+                rows[c * r + d * k..c * r + d * k + d].copy_from_slice(&x.velocity_dq.as_slice()[..d]);
+            });
+        }
+        // ∂(M (v⁺ − v) − Jᵀ Λ)/∂q: inverse dynamics at rest, accelerating by the change, without gravity.
+        w.change.iter_mut().zip(w.solution.iter().zip(v)).for_each(|(x, (after, before))| *x = after - before);
+        body_forces(data, w, contacts, dim);
+        let (dq, scratch) = w.rhs_top.split_at_mut(nv * nv);
+        derivatives_into::<false>(model, data, q, &w.zeros, &w.change, Some(&w.body_forces), Motion::zeros(), dq, scratch);
+        hold_forces_in_world_axes(model, data, q, contacts, dim, &w.forces, dq);
+        let (velocity_dq, velocity_dv) = velocity_d.split_at_mut(nv * nv);
+        let (impulses_dq, impulses_dv) = impulses_d.split_at_mut(r * nv);
+        solve_derivatives(w, velocity_dq, impulses_dq);
+        // Along v: M ∂v⁺ − Jᵀ ∂Λ = M, so ∂Λ = −S⁻¹ J and ∂v⁺ = I + M⁻¹ Jᵀ ∂Λ.
+        gemm(impulses_dv, r, -1.0, &w.schur_inverse, &w.jacobian, plain(r), 0.0);
+        gemm(velocity_dv, nv, 1.0, &w.minv_jt, impulses_dv, plain(r), 0.0);
+        for i in 0..nv {
+            velocity_dv[i + nv * i] += 1.0;
+        }
+        Ok(())
+    })
 }

@@ -27,8 +27,11 @@ pub use centroidal::{centroidal_map, centroidal_momentum, centroidal_momentum_ra
 pub use centroidal_derivatives::centroidal_derivatives;
 pub use com::{center_of_mass, center_of_mass_jacobian, subtree_mass_properties};
 pub use configuration::{difference, difference_jacobians, integrate, integrate_jacobians};
-pub use contact::{contact_dynamics, impact, point_accelerations, reduced_dynamics, ContactDynamics, ContactPoint, ReducedDynamics};
-pub use contact_derivatives::{contact_dynamics_derivatives, impact_derivatives, ContactDynamicsDerivatives, ImpactDerivatives};
+pub use contact::{contact_dynamics, impact, point_accelerations, reduced_dynamics, ContactDim, ContactDynamics, ContactPoint, ReducedDynamics};
+pub use contact_derivatives::{
+    contact_dynamics_derivatives, contact_dynamics_derivatives_into, impact_derivatives, impact_derivatives_into, ContactDynamicsDerivatives,
+    ImpactDerivatives,
+};
 pub use crba::crba;
 pub use energy::{kinetic_energy, potential_energy};
 pub use integrate::{free_rollout, Integrator, Method};
