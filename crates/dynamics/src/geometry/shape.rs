@@ -3,9 +3,8 @@
 //! and `sim` (which collides them).
 
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
-use rapier3d_f64::math::{Matrix, Pose, Rotation, Vector};
-use rapier3d_f64::parry::shape::ConvexPolyhedron;
-use rapier3d_f64::prelude::SharedShape;
+use parry3d_f64::math::{Matrix, Pose, Rotation, Vector};
+use parry3d_f64::shape::{ConvexPolyhedron, SharedShape};
 use std::sync::Arc;
 
 use crate::spatial::Transform;
