@@ -195,6 +195,7 @@ pub(crate) fn to_pose(t: &Transform) -> Pose {
     Pose::from_parts(to_vector(&t.translation), Rotation::from_mat3(&m).normalize())
 }
 
+#[cfg(feature = "rapier")]
 pub(crate) fn from_pose(p: &Pose) -> Transform {
     let m = Matrix::from_quat(p.rotation);
     let (x, y, z) = (m.col(0), m.col(1), m.col(2));
