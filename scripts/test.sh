@@ -3,7 +3,8 @@
 # project's virtual environment: see venv.sh) and runs the linters and every test in five tiers, timing each:
 #   lint         rustfmt and clippy (warnings are errors) on the crates; ruff check and mypy on the Python
 #                package and its stub (configured in rustfmt.toml, Cargo.toml and pyproject.toml)
-#   rust         the Rust unit tests (cargo test, release optimisation without fat LTO)
+#   rust         the Rust unit tests (cargo test, release optimisation without fat LTO), and the core crate checked
+#                without its default features (no Rapier)
 #   python-fast  the Python suite without the tests marked slow (pytest -m "not slow": the inner loop)
 #   python-slow  the tests marked slow (end-to-end experiments, simulations), except the browser's
 #   browser      the tests marked browser: the viewer's HTML rendered by headless Chromium. Chromium is
@@ -60,12 +61,19 @@ lint() {  # every linter runs; the tier fails if any does
     return "$rc"
 }
 
-if tier setup setup; then
-    tier lint lint
+rust() {
+    local rc=0
     # Optimised like the release build but without its fat LTO and single codegen unit, which make every
     # test binary slow to build; the wheel keeps them.
-    tier rust env CARGO_PROFILE_RELEASE_LTO=false CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 \
-        cargo test --release --workspace --exclude legkit-pybind
+    env CARGO_PROFILE_RELEASE_LTO=false CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 \
+        cargo test --release --workspace --exclude legkit-pybind || rc=1
+    cargo check --quiet -p legkit-dynamics --no-default-features || rc=1
+    return "$rc"
+}
+
+if tier setup setup; then
+    tier lint lint
+    tier rust rust
     tier python-fast python -m pytest tests -q -m "not slow"
     tier python-slow python -m pytest tests -q -m "slow and not browser"
     if command -v chromium >/dev/null; then

@@ -1,8 +1,7 @@
 """The code and docs cite papers by the keys of docs/references.md ("[Hardt 2002, eq. 10]"), never by a path
 outside the repository, which a reader of the checkout or of the installed package does not have.
 
-Covers python/, docs/, README.md, scripts/, benches/ and tests/ (the Rust crates are checked once their
-comments are converted)."""
+Covers python/, docs/, README.md, scripts/, benches/, tests/ and the Rust crates."""
 
 from __future__ import annotations
 
@@ -12,8 +11,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-COVERED = ["python", "docs", "README.md", "scripts", "benches", "tests"]
-SUFFIXES = {".py", ".pyi", ".md", ".sh", ".toml", ".txt", ".rst", ".cfg", ".json", ".yaml", ".yml"}
+COVERED = ["python", "docs", "README.md", "scripts", "benches", "tests", "crates"]
+SUFFIXES = {".py", ".pyi", ".md", ".sh", ".toml", ".txt", ".rst", ".cfg", ".json", ".yaml", ".yml", ".rs"}
 # Spelled in pieces so that this file does not match itself.
 FORBIDDEN = [
     re.compile(re.escape("shared" + "/seeds")),

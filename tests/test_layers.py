@@ -4,6 +4,7 @@ optimiser's modules import each other downward only (no import circle)."""
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -87,3 +88,142 @@ def test_a_package_imports_downward_only(package):
 def test_the_cycle_finder_finds_a_cycle():
     assert cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
     assert cycle({"a": {"b"}, "b": {"c"}, "c": set()}) is None
+
+
+# The Rust crates: a module is a file (or an inline `mod x { ... }`), named by its path from the crate root
+# ("crate::sim::tree"); it imports a module when it names an item defined there, through `use` or a path in its
+# code, re-exports (`pub use`) followed to the item's own module. A module naming its own descendants is the
+# package's composition (`mod` + `use child::...`), not an edge.
+CRATES = Path(__file__).resolve().parents[1] / "crates"
+_COMMENT = re.compile(r"//[^\n]*|/\*.*?\*/", re.S)
+_STRING = re.compile(r'\bb?r(#*)".*?"\1|b?"(?:\\.|[^"\\])*"|\'(?:\\.|[^\'\\])\'', re.S)
+_USE = re.compile(r"\buse\s+([^;]+);")
+_INLINE_MOD = re.compile(r"\bmod\s+(\w+)\s*\{")
+_DEFINED = re.compile(r"\b(?:fn|struct|enum|trait|const|static|type|union|macro_rules!)\s+(\w+)")
+_PATH = re.compile(r"\b(crate|super|self)((?:\s*::\s*\w+)+)")
+
+
+def _split_tree(tree: str) -> list[tuple[list[str], str]]:
+    """The leaves of a use tree ("a::{b, c::d as e, f::*}") as (path, bound name); a glob's name is "*"."""
+    tree = re.sub(r"\s*(::|\{|\}|,)\s*", r"\1", tree.strip())
+    brace = tree.find("{")
+    if brace < 0:
+        head, _, alias = tree.partition(" as ")
+        segments = head.split("::")
+        if segments[-1] == "self":  # `a::{self, b}`: the module a, named by the caller
+            return [(segments[:-1], alias or "self")]
+        return [(segments, "*" if segments[-1] == "*" else alias or segments[-1])]
+    prefix, inner = tree[:brace].split("::")[:-1], tree[brace + 1 : tree.rindex("}")]
+    depth, start, parts = 0, 0, []
+    for i, char in enumerate(inner + ","):
+        depth += {"{": 1, "}": -1}.get(char, 0)
+        if char == "," and depth == 0:
+            parts.append(inner[start:i])
+            start = i + 1
+    leaves = [(prefix + path, name) for part in parts if part for path, name in _split_tree(part)]
+    return [(path, path[-1] if name == "self" else name) for path, name in leaves]
+
+
+def _modules(src: Path) -> dict[str, str]:
+    """Every module of the crate rooted at `src` (lib.rs) with its code, comments and strings removed; an inline
+    module's code is its own, not its file's."""
+    modules: dict[str, str] = {}
+    for path in sorted(src.rglob("*.rs")):
+        parts = path.relative_to(src).with_suffix("").parts
+        parts = parts[:-1] if parts[-1] in {"mod", "lib"} else parts
+        code = _STRING.sub('""', _COMMENT.sub("", path.read_text()))
+        pending = [("::".join(("crate",) + parts), code)]
+        while pending:
+            name, code = pending.pop()
+            while (found := _INLINE_MOD.search(code)) is not None:
+                depth, end = 0, found.end() - 1
+                for end in range(found.end() - 1, len(code)):
+                    depth += {"{": 1, "}": -1}.get(code[end], 0)
+                    if depth == 0:
+                        break
+                pending.append((f"{name}::{found.group(1)}", code[found.end() : end]))
+                code = code[: found.start()] + code[end + 1 :]
+            modules[name] = code
+    return modules
+
+
+def rust_imports(src: Path) -> dict[str, set[str]]:
+    """The module graph of the crate rooted at `src`: module -> the modules whose items it names."""
+    modules = _modules(src)
+    bindings: dict[str, dict[str, list[str]]] = {}  # module -> name it brings in scope -> absolute path
+    globs: dict[str, list[list[str]]] = {m: [] for m in modules}
+    defined = {m: set(_DEFINED.findall(code)) for m, code in modules.items()}
+
+    def absolute(module: str, segments: list[str]) -> list[str] | None:
+        here, relative = module.split("::"), segments[0] in {"super", "self"}
+        while segments and segments[0] in {"super", "self"}:
+            here = here[:-1] if segments[0] == "super" else here
+            segments = segments[1:]
+        if segments and segments[0] == "crate":
+            return segments
+        if relative or "::".join(here + segments[:1]) in modules:
+            return here + segments
+        return None  # an external crate
+
+    for module, code in modules.items():
+        bindings[module] = {}
+        for tree in _USE.findall(code):
+            for segments, name in _split_tree(tree):
+                path = absolute(module, segments if name != "*" else segments[:-1])
+                if path is None:
+                    continue
+                if name == "*":
+                    globs[module].append(path)
+                elif name:
+                    bindings[module][name] = path
+
+    def resolve(path: list[str], seen: int = 0) -> str | None:
+        here = path[0]
+        for i, segment in enumerate(path[1:], start=1):
+            if f"{here}::{segment}" in modules:
+                here = f"{here}::{segment}"
+            elif segment in defined[here] or seen > 20:
+                return here
+            elif segment in bindings[here]:
+                return resolve(bindings[here][segment] + path[i + 1 :], seen + 1)
+            else:
+                for glob in globs[here]:
+                    target = resolve(glob + path[i:], seen + 1)
+                    if target is not None and target != "::".join(glob):
+                        return target
+                return here
+        return here
+
+    graph: dict[str, set[str]] = {}
+    for module, code in modules.items():
+        paths = [absolute(module, [m.group(1)] + re.sub(r"\s", "", m.group(2)).split("::")[1:]) for m in _PATH.finditer(_USE.sub("", code))]
+        for name, target in bindings[module].items():  # a module brought in scope, then named: `algorithms::aba`
+            if "::".join(target) in modules:
+                paths += [target + m.group(1).split("::") for m in re.finditer(rf"(?<![\w:]){name}::(\w+)", code)]
+        paths += list(bindings[module].values()) + globs[module]
+        targets = {resolve(p) for p in paths if p}
+        graph[module] = {t for t in targets if t is not None and t != module and not t.startswith(module + "::")}
+    return graph
+
+
+@pytest.mark.parametrize("crate", ["dynamics", "pybind"])
+def test_a_rust_crate_has_no_import_circle(crate):
+    assert cycle(rust_imports(CRATES / crate / "src")) is None
+
+
+def test_the_rust_checker_finds_a_planted_cycle(tmp_path):
+    (tmp_path / "lib.rs").write_text("mod a;\nmod b;\npub use a::A;\n")
+    (tmp_path / "a.rs").write_text("pub struct A;\n// use crate::b::B;\nfn f() {}\n")
+    (tmp_path / "b.rs").write_text("use crate::{A, c};\npub struct B;\n")
+    (tmp_path / "c").mkdir()
+    (tmp_path / "c" / "mod.rs").write_text("pub(crate) use d::D;\nmod d;\n#[cfg(test)]\nmod tests {\n    use super::*;\n}\n")
+    (tmp_path / "c" / "d.rs").write_text("pub struct D;\n")
+    graph = rust_imports(tmp_path)
+    assert graph["crate::b"] == {"crate::a", "crate::c"}
+    assert graph["crate::c::tests"] == {"crate::c"}
+    assert cycle(graph) is None, "the comment and the root's re-export of its child make no cycle"
+    (tmp_path / "a.rs").write_text("pub struct A;\nfn f() -> Option<super::b::B> {\n    None\n}\n")
+    assert cycle(rust_imports(tmp_path)) == ["crate::a", "crate::b", "crate::a"]
+    (tmp_path / "a.rs").write_text("use crate::c;\npub struct A;\nfn f() { c::D; }\n")
+    (tmp_path / "c" / "d.rs").write_text("use crate::b::{self, B};\npub struct D;\n")
+    assert cycle(rust_imports(tmp_path)) == ["crate::a", "crate::c::d", "crate::b", "crate::a"]

@@ -1,7 +1,12 @@
-//! legkit-dynamics: the numeric kernels of legkit (mass-property algebra, geometry, rigid-body dynamics).
+//! legkit-dynamics: the numeric kernels of legkit (mass-property algebra, geometry, rigid-body dynamics and their
+//! derivatives, contact simulation, the balance agents).
 //!
-//! Conventions (see DESIGN.md): SI units, right-handed frames with z up, and rigid transforms that map
-//! child to parent coordinates, `x_parent = R x_child + t`.
+//! Conventions: SI units, right-handed frames with z up, and rigid transforms that map child to parent coordinates,
+//! `x_parent = R x_child + t`. Comments cite papers by the keys of the repository's docs/references.md
+//! ("[Featherstone 2008, Table 7.1]", "[Moll 2006, Algorithm 1]").
+//!
+//! Cargo features: `rapier` (on by default, and in the Python wheel) builds `sim`'s Rapier reference backend;
+//! without it the crate needs parry alone and `sim::Backend::Rapier` is refused with `Error::InvalidArgument`.
 
 pub mod agents;
 pub mod algorithms;

@@ -17,8 +17,6 @@ use std::sync::OnceLock;
 
 use nalgebra::{DMatrix, DVector, Matrix3xX, Matrix6xX, Vector3, Vector6};
 
-use crate::algorithms::aba::{Block6, BLOCK};
-use crate::algorithms::SecondOrder;
 use crate::geometry::Shape;
 use crate::joint::Joint;
 use crate::spatial::{spatial, Force, Inertia, Motion, RateMatrix, RigidInertia, Transform};
@@ -438,6 +436,24 @@ pub struct Data {
     pub derivatives: Derivatives,
     /// The contact kernels' k-dependent matrices, sized by their first call.
     pub contact: crate::algorithms::contact::ContactWorkspace,
+}
+
+/// Right-hand sides `aba::solve_columns` takes at once: its per-body work runs across them as short vectors.
+pub(crate) const BLOCK: usize = 8;
+
+/// A 6-vector per column of a block, stored row by row.
+pub(crate) type Block6 = [[f64; BLOCK]; 6];
+
+/// The RNEA's second derivatives (`rnea_second_order_derivatives`): four tensors, each nv³ numbers, entry (i, j, k)
+/// at (i nv + j) nv + k (row-major, as NumPy's (nv, nv, nv)): each the slope along its last index of a first
+/// derivative: `dqdq` ∂/∂q_k of ∂τ_i/∂q_j, `dvdv` ∂/∂q̇_k of ∂τ_i/∂q̇_j, `dqdv` ∂/∂q̇_k of ∂τ_i/∂q_j and `dadq`
+/// ∂/∂q_k of ∂τ_i/∂q̈_j = M_ij (Pinocchio's d2tau_dqdq, d2tau_dvdv, dtau_dqdv and dtau_dadq).
+#[derive(Debug, Clone, Default)]
+pub struct SecondOrder {
+    pub dqdq: Vec<f64>,
+    pub dvdv: Vec<f64>,
+    pub dqdv: Vec<f64>,
+    pub dadq: Vec<f64>,
 }
 
 /// The workspace and outputs of the derivative algorithms (`rnea_derivatives`, `aba_derivatives`), in the centred

@@ -1,7 +1,7 @@
 //! Conversions between NumPy arrays and nalgebra values, and the mapping of kernel errors to Python ones.
 
 use legkit_dynamics::validate::with_capacity;
-use legkit_dynamics::Error;
+use legkit_dynamics::{Error, Transform};
 use nalgebra::{Matrix3, Vector3};
 use numpy::ndarray::{Array, ArrayViewD, Dimension, IntoDimension};
 use numpy::npyffi::{self, npy_intp};
@@ -9,7 +9,7 @@ use numpy::{Element, PyArrayDescrMethods, PY_ARRAY_API};
 use numpy::{PyArray, PyArrayDyn, PyArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyOverflowError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyString;
+use pyo3::types::{PyString, PyTuple};
 use smallvec::SmallVec;
 use std::ffi::c_int;
 
@@ -189,6 +189,34 @@ fn matrix3_view(argument: &str, view: ArrayViewD<'_, f64>) -> PyResult<Matrix3<f
         return Err(shape_error(argument, "(3, 3)", view.shape()));
     }
     Ok(Matrix3::from_fn(|i, j| view[[i, j]]))
+}
+
+/// A placement from a 4x4 homogeneous matrix or an (R, t) pair.
+pub fn transform(value: &Bound<'_, PyAny>) -> PyResult<Transform> {
+    if let Ok(pair) = value.cast::<PyTuple>() {
+        if pair.len() != 2 {
+            return Err(PyValueError::new_err("placement: expected a 4x4 matrix or an (R, t) pair"));
+        }
+        let rotation: Matrix<'_> = pair.get_item(0)?.extract()?;
+        let translation: Vector<'_> = pair.get_item(1)?.extract()?;
+        return Ok(Transform::new(matrix3("placement", &rotation)?, vector3("placement", &translation)?));
+    }
+    let matrix: Matrix<'_> = value.extract()?;
+    let (rotation, translation) = homogeneous_matrix("placement", &matrix)?;
+    Ok(Transform::new(rotation, translation))
+}
+
+/// A placement as a row-major 4x4 homogeneous matrix.
+pub fn homogeneous(x: &Transform) -> [f64; 16] {
+    let mut out = [0.0; 16];
+    for i in 0..3 {
+        for j in 0..3 {
+            out[4 * i + j] = x.rotation[(i, j)];
+        }
+        out[4 * i + 3] = x.translation[i];
+    }
+    out[15] = 1.0;
+    out
 }
 
 /// The rotation and translation of a 4x4 homogeneous transform.

@@ -8,8 +8,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use crate::batch::{broadcast, ArrayArg};
-use crate::convert::{vector3, FloatArray, Vector};
-use crate::model::{homogeneous, PyModel};
+use crate::convert::{homogeneous, vector3, FloatArray, Vector};
+use crate::model::PyModel;
 use crate::workspace::{check_state, run, run_packed, unpack};
 
 /// World pose (4x4) of every body: `(..., nbodies, 4, 4)`.

@@ -14,6 +14,7 @@ mod kinematics;
 mod mass;
 mod mjcf;
 mod model;
+mod shapes;
 mod sim;
 mod workspace;
 
@@ -32,7 +33,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<mass::PyMassProperties>()?;
     m.add_class::<model::PyModel>()?;
     m.add("UrdfWarning", m.py().get_type::<model::UrdfWarning>())?;
-    m.add("MjcfWarning", m.py().get_type::<mjcf::MjcfWarning>())?;
+    m.add("MjcfWarning", m.py().get_type::<model::MjcfWarning>())?;
     m.add_class::<mjcf::PyMjcf>()?;
     m.add_function(wrap_pyfunction!(mjcf::load_mjcf, m)?)?;
     m.add_class::<sim::PySimulation>()?;

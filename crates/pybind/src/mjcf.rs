@@ -1,24 +1,13 @@
 //! `legkit.load_mjcf` and `legkit.Mjcf`: a MuJoCo model file read into a `Model`, with its joints,
 //! actuators and options.
 
-use std::ffi::CString;
-
-use legkit_dynamics::mjcf::{self, JointKind, MjcfOptions};
+use legkit_dynamics::mjcf::{self, JointKind};
 use numpy::PyArray1;
-use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::convert::{kernel_error, numbers, source_text, vector_to_numpy, Vector};
-use crate::interrupt::on_worker;
-use crate::model::PyModel;
-
-pyo3::create_exception!(
-    legkit,
-    MjcfWarning,
-    PyUserWarning,
-    "An MJCF loaded without something legkit does not model (a tendon, a sensor, a joint's stiffness, ...); the message names it."
-);
+use crate::convert::{kernel_error, numbers, vector_to_numpy, Vector};
+use crate::model::{read_mjcf, PyModel};
 
 /// An MJCF file read into a `Model` (`model`), with its hinge, slide and free joints (`joints`), its joint
 /// actuators (`actuators`, `actuator_torques`), `<option>`'s `timestep` and `gravity`, and the `warnings`.
@@ -28,24 +17,12 @@ pub struct PyMjcf {
     model: Py<PyModel>,
 }
 
-/// Reads an MJCF (path or XML string) off the GIL, raising its warnings as `MjcfWarning`s.
-pub fn read(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: Option<bool>, strict: bool) -> PyResult<mjcf::Mjcf> {
-    let source = source_text(py, path_or_xml)?;
-    let options = MjcfOptions { floating_base, strict };
-    let loaded = on_worker(py, "from_mjcf", move || mjcf::load_mjcf(&source, &options))?.map_err(kernel_error)?;
-    let category = py.get_type::<MjcfWarning>();
-    for warning in &loaded.warnings {
-        PyErr::warn(py, &category, &CString::new(format!("mjcf: {warning}"))?, 2)?;
-    }
-    Ok(loaded)
-}
-
 /// `load_mjcf(path_or_xml, floating_base=None, strict=False)`: the MJCF as an `Mjcf` (see
 /// `Model.from_mjcf` for what is read).
 #[pyfunction]
 #[pyo3(signature = (path_or_xml, floating_base = None, strict = false))]
 pub fn load_mjcf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: Option<bool>, strict: bool) -> PyResult<PyMjcf> {
-    let inner = read(py, path_or_xml, floating_base, strict)?;
+    let inner = read_mjcf(py, path_or_xml, floating_base, strict)?;
     let model = Py::new(py, PyModel::wrap(inner.model.clone()))?;
     Ok(PyMjcf { inner, model })
 }

@@ -4,24 +4,31 @@ use std::ffi::CString;
 use std::sync::Mutex;
 
 use legkit_dynamics::mesh;
+use legkit_dynamics::mjcf::{self, MjcfOptions};
 use legkit_dynamics::urdf::{load_urdf, UrdfOptions};
-use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
+use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model};
 use numpy::{PyArray1, PyArray2};
 use pyo3::exceptions::{PyFileNotFoundError, PyIndexError, PyTypeError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyString, PyTuple};
+use pyo3::types::{PyDict, PyString};
 
-use crate::convert::{
-    homogeneous_matrix, kernel_error, matrix3, shown, source_text, to_numpy, vector3, vector_to_numpy, Floats, Integer, Matrix, Vector,
-};
+use crate::convert::{homogeneous, kernel_error, shown, source_text, to_numpy, transform, vector3, vector_to_numpy, Floats, Integer, Vector};
 use crate::interrupt::on_worker;
 use crate::mass::PyMassProperties;
+use crate::shapes::{colliders, shape_overrides};
 
 pyo3::create_exception!(
     legkit,
     UrdfWarning,
     PyUserWarning,
     "A URDF loaded as written although it is not quite valid (a non-physical inertia, effort=\"0\", ...); the message names the element."
+);
+
+pyo3::create_exception!(
+    legkit,
+    MjcfWarning,
+    PyUserWarning,
+    "An MJCF loaded without something legkit does not model (a tendon, a sensor, a joint's stiffness, ...); the message names it."
 );
 
 /// A kinematic tree: body 0 is the base (fixed to the world, or a free flyer with
@@ -102,21 +109,6 @@ impl PyModel {
     }
 }
 
-/// A placement from a 4x4 homogeneous matrix or an (R, t) pair.
-pub fn transform(value: &Bound<'_, PyAny>) -> PyResult<Transform> {
-    if let Ok(pair) = value.cast::<PyTuple>() {
-        if pair.len() != 2 {
-            return Err(PyValueError::new_err("placement: expected a 4x4 matrix or an (R, t) pair"));
-        }
-        let rotation: Matrix<'_> = pair.get_item(0)?.extract()?;
-        let translation: Vector<'_> = pair.get_item(1)?.extract()?;
-        return Ok(Transform::new(matrix3("placement", &rotation)?, vector3("placement", &translation)?));
-    }
-    let matrix: Matrix<'_> = value.extract()?;
-    let (rotation, translation) = homogeneous_matrix("placement", &matrix)?;
-    Ok(Transform::new(rotation, translation))
-}
-
 /// Joint limits from None (no limits), a (lower, upper) pair (any sequence of two numbers), or a dict with
 /// any of the keys "lower", "upper", "effort", "velocity" (absent keys: no bound).
 fn joint_limits(value: Option<&Bound<'_, PyAny>>) -> PyResult<JointLimits> {
@@ -155,16 +147,16 @@ fn read_only<'py>(py: Python<'py>, values: &[f64]) -> PyResult<Bound<'py, PyArra
     Ok(array)
 }
 
-pub fn homogeneous(x: &Transform) -> [f64; 16] {
-    let mut out = [0.0; 16];
-    for i in 0..3 {
-        for j in 0..3 {
-            out[4 * i + j] = x.rotation[(i, j)];
-        }
-        out[4 * i + 3] = x.translation[i];
+/// Reads an MJCF (path or XML string) off the GIL, raising its warnings as `MjcfWarning`s.
+pub fn read_mjcf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: Option<bool>, strict: bool) -> PyResult<mjcf::Mjcf> {
+    let source = source_text(py, path_or_xml)?;
+    let options = MjcfOptions { floating_base, strict };
+    let loaded = on_worker(py, "from_mjcf", move || mjcf::load_mjcf(&source, &options))?.map_err(kernel_error)?;
+    let category = py.get_type::<MjcfWarning>();
+    for warning in &loaded.warnings {
+        PyErr::warn(py, &category, &CString::new(format!("mjcf: {warning}"))?, 2)?;
     }
-    out[15] = 1.0;
-    out
+    Ok(loaded)
 }
 
 #[pymethods]
@@ -217,7 +209,7 @@ impl PyModel {
     #[staticmethod]
     #[pyo3(signature = (path_or_xml, floating_base = None, strict = false))]
     fn from_mjcf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: Option<bool>, strict: bool) -> PyResult<Self> {
-        Ok(Self::wrap(crate::mjcf::read(py, path_or_xml, floating_base, strict)?.model))
+        Ok(Self::wrap(read_mjcf(py, path_or_xml, floating_base, strict)?.model))
     }
 
     /// Adds a body on a revolute joint about `axis` (in the joint frame); returns its index. `limits`:
@@ -426,7 +418,7 @@ impl PyModel {
     /// box with the body's inertia.
     #[pyo3(signature = (shapes = None))]
     fn colliders<'py>(&self, py: Python<'py>, shapes: Option<&Bound<'py, PyDict>>) -> PyResult<Bound<'py, pyo3::types::PyList>> {
-        crate::sim::colliders(py, self, shapes)
+        colliders(py, &self.model, shape_overrides(shapes, |key| self.body_index(key))?)
     }
 
     fn __repr__(&self) -> String {

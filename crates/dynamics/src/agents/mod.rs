@@ -1,6 +1,5 @@
 //! The mass-property agents of a SuperBot robot on a synchronous bus, and the per-joint balancing controller
-//! (Moll, Will, Krivokon, Shen, IROS 2006; ../shared/seeds/000_213d0a35bbd6e04e.txt): the balance
-//! experiment's control loop, one call per control step.
+//! [Moll 2006, Algorithms 1–2]: the balance experiment's control loop, one call per control step.
 //!
 //! `legkit.agents.AgentNetwork` and `legkit.control.BalanceController` (Python) are the reference
 //! implementation, and the only one of the asynchronous, lossy bus; this kernel is their synchronous bus

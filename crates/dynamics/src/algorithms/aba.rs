@@ -9,7 +9,7 @@ use nalgebra::{DVector, Matrix3, Matrix6x3, Vector3, Vector6};
 use super::kinematics::base_centred_root;
 use super::world_pose;
 use crate::joint::Dofs;
-use crate::model::{Data, Model};
+use crate::model::{Block6, Data, Model, BLOCK};
 use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inertia_times_pair, spd_inverse6, Force, Inertia, Motion, Transform};
 
 /// Joint accelerations for configuration `q`, velocity `v` and joint forces `tau`, with the model's
@@ -166,12 +166,6 @@ pub(crate) struct Factors<'a> {
     pub u: &'a [Vector6<f64>],
     pub d_inv: &'a [f64],
 }
-
-/// Right-hand sides `solve_columns` takes at once: its per-body work runs across them as short vectors.
-pub(crate) const BLOCK: usize = 8;
-
-/// A 6-vector per column of a block, stored row by row.
-pub(crate) type Block6 = [[f64; BLOCK]; 6];
 
 /// Solves (M + diag(armature)) x = b in place (a ball joint's D from the model's armature, `ball_factors`) for every column b of `columns` (column-major, nv rows each) with
 /// `factors`: Table 7.1's passes 2 and 3 with q̇ = 0 and no gravity, O(n) per column, so M⁻¹ B costs O(n nv) for

@@ -9,9 +9,10 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::aba;
-use super::aba::{solve_columns, Factors, BLOCK};
+use super::aba::{solve_columns, Factors};
 use super::minv::minv_after_aba_into;
 use super::rnea_derivatives::derivatives_into;
+use crate::model::BLOCK;
 use crate::model::{reserve_square, Data, Model};
 use crate::spatial::Force;
 

@@ -1,7 +1,8 @@
 //! Centroidal momentum (Orin & Goswami): the robot's linear momentum and its angular momentum about the
-//! centre of mass, in world-aligned axes, its time derivative, and the centroidal momentum matrix A_G.
+//! centre of mass, in world-aligned axes, its time derivative, the centroidal momentum matrix A_G, and the centre of
+//! mass's Jacobian (A_G's linear rows over the mass).
 
-use nalgebra::{Matrix6xX, Vector3, Vector6};
+use nalgebra::{Matrix3xX, Matrix6xX, Vector3, Vector6};
 
 use super::com::world_com;
 use super::kinematics::{base_centred_kinematics, body_motions};
@@ -75,4 +76,17 @@ pub fn centroidal_map<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d M
         }
     }
     &data.centroidal_map
+}
+
+/// The centre of mass's Jacobian ∂c/∂q (3 x nv, world axes; q on its tangent space, as `integrate` steps it;
+/// Pinocchio's `jacobianCenterOfMass`) in `data.com_jacobian`: the linear rows of the centroidal momentum matrix
+/// over the mass, since the linear momentum is m ċ = A_G q̇ (zeros for a massless model).
+pub fn center_of_mass_jacobian<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d Matrix3xX<f64> {
+    centroidal_map(model, data, q);
+    let mass = data.composite[0].mass;
+    let per_mass = if mass > 0.0 { 1.0 / mass } else { 0.0 };
+    for (mut jacobian, map) in data.com_jacobian.column_iter_mut().zip(data.centroidal_map.column_iter()) {
+        jacobian.copy_from(&(map.fixed_rows::<3>(0) * per_mass));
+    }
+    &data.com_jacobian
 }

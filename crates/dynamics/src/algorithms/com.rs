@@ -1,8 +1,8 @@
 //! Centre of mass and the mass properties of every subtree, in world coordinates.
 
-use nalgebra::{Matrix3xX, Vector3};
+use nalgebra::Vector3;
 
-use super::{centroidal_map, forward_kinematics};
+use super::forward_kinematics;
 use crate::model::{Data, Model};
 
 /// Fills `data.subtree[i]` with the mass properties of the subtree rooted at body `i`, in the world frame
@@ -25,19 +25,6 @@ pub fn subtree_mass_properties<'d>(model: &Model, data: &'d mut Data, q: &[f64])
 pub fn center_of_mass(model: &Model, data: &mut Data, q: &[f64]) -> Vector3<f64> {
     forward_kinematics(model, data, q);
     world_com(model, data)
-}
-
-/// The centre of mass's Jacobian ∂c/∂q (3 x nv, world axes; q on its tangent space, as `integrate` steps it;
-/// Pinocchio's `jacobianCenterOfMass`) in `data.com_jacobian`: the linear rows of the centroidal momentum matrix
-/// over the mass, since the linear momentum is m ċ = A_G q̇ (zeros for a massless model).
-pub fn center_of_mass_jacobian<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d Matrix3xX<f64> {
-    centroidal_map(model, data, q);
-    let mass = data.composite[0].mass;
-    let per_mass = if mass > 0.0 { 1.0 / mass } else { 0.0 };
-    for (mut jacobian, map) in data.com_jacobian.column_iter_mut().zip(data.centroidal_map.column_iter()) {
-        jacobian.copy_from(&(map.fixed_rows::<3>(0) * per_mass));
-    }
-    &data.com_jacobian
 }
 
 /// The centre of mass at the bodies' world poses in `data.o_m_i`: sum m_i c_i / M, without the inertias that

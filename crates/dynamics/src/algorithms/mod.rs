@@ -23,9 +23,9 @@ pub mod rnea_second_order_derivatives;
 
 pub use aba::{aba, aba_with_armature};
 pub use aba_derivatives::{aba_derivatives, aba_derivatives_into};
-pub use centroidal::{centroidal_map, centroidal_momentum, centroidal_momentum_rate};
+pub use centroidal::{center_of_mass_jacobian, centroidal_map, centroidal_momentum, centroidal_momentum_rate};
 pub use centroidal_derivatives::centroidal_derivatives;
-pub use com::{center_of_mass, center_of_mass_jacobian, subtree_mass_properties};
+pub use com::{center_of_mass, subtree_mass_properties};
 pub use configuration::{difference, difference_jacobians, integrate, integrate_jacobians};
 pub use contact::{contact_dynamics, impact, point_accelerations, reduced_dynamics, ContactDim, ContactDynamics, ContactPoint, ReducedDynamics};
 pub use contact_derivatives::{
@@ -43,7 +43,7 @@ pub use kinematics_derivatives::{
 pub use minv::minv;
 pub use rnea::rnea;
 pub use rnea_derivatives::{rnea_derivatives, rnea_derivatives_into};
-pub use rnea_second_order_derivatives::{rnea_second_order_derivatives, SecondOrder};
+pub use rnea_second_order_derivatives::rnea_second_order_derivatives;
 
 use crate::joint::Dofs;
 use crate::model::Model;

@@ -11,20 +11,8 @@
 use nalgebra::{Matrix6, Vector6};
 
 use super::rnea_derivatives::{column, forward_pass};
-use crate::model::{Data, Model};
+use crate::model::{Data, Model, SecondOrder};
 use crate::spatial::{cross_force, Force, Motion};
-
-/// The four tensors, each nv³ numbers, entry (i, j, k) at (i nv + j) nv + k (row-major, as NumPy's (nv, nv, nv)):
-/// each the slope along its last index of a first derivative: `dqdq` ∂/∂q_k of ∂τ_i/∂q_j, `dvdv` ∂/∂q̇_k of ∂τ_i/∂q̇_j,
-/// `dqdv` ∂/∂q̇_k of ∂τ_i/∂q_j and `dadq` ∂/∂q_k of ∂τ_i/∂q̈_j = M_ij (Pinocchio's d2tau_dqdq, d2tau_dvdv, dtau_dqdv
-/// and dtau_dadq).
-#[derive(Debug, Clone, Default)]
-pub struct SecondOrder {
-    pub dqdq: Vec<f64>,
-    pub dvdv: Vec<f64>,
-    pub dqdv: Vec<f64>,
-    pub dadq: Vec<f64>,
-}
 
 /// m ↦ m ×* f as a matrix (Pinocchio's `ForceCrossMatrix`; the paper's f×̄).
 fn bar(f: &Force) -> Matrix6<f64> {

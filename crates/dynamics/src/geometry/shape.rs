@@ -3,9 +3,8 @@
 //! and `sim` (which collides them).
 
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
-use rapier3d_f64::math::{Matrix, Pose, Rotation, Vector};
-use rapier3d_f64::parry::shape::ConvexPolyhedron;
-use rapier3d_f64::prelude::SharedShape;
+use parry3d_f64::math::{Matrix, Pose, Rotation, Vector};
+use parry3d_f64::shape::{ConvexPolyhedron, SharedShape};
 use std::sync::Arc;
 
 use crate::spatial::Transform;
@@ -211,6 +210,7 @@ pub(crate) fn to_pose(t: &Transform) -> Pose {
     Pose::from_parts(to_vector(&t.translation), Rotation::from_mat3(&m).normalize())
 }
 
+#[cfg(feature = "rapier")]
 pub(crate) fn from_pose(p: &Pose) -> Transform {
     let m = Matrix::from_quat(p.rotation);
     let (x, y, z) = (m.col(0), m.col(1), m.col(2));

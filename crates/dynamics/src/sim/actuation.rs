@@ -100,7 +100,8 @@ impl Actuation<'_> {
         s.kp[k] * (s.target_q[k] - q_dof[k]) + s.kd[k] * (s.target_v[k] - v[k]) + self.tau_ff[k]
     }
 
-    /// The clipped forces, held over the step, written to `out`.
+    /// The clipped forces, held over the step, written to `out` (Rapier's explicit actuation).
+    #[cfg(feature = "rapier")]
     pub fn explicit(&self, q_dof: &[f64], v: &[f64], out: &mut [f64]) {
         for (k, tau) in out.iter_mut().enumerate() {
             let bound = self.bound(k);

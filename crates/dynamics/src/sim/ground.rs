@@ -1,10 +1,9 @@
 //! The ground: an infinite plane z = 0, or a heightfield over the xy plane.
 
 use nalgebra::DMatrix;
-use rapier3d_f64::math::{Pose, Rotation, Vector};
-use rapier3d_f64::parry::shape::HeightFieldFlags;
-use rapier3d_f64::parry::utils::Array2;
-use rapier3d_f64::prelude::{ColliderBuilder, SharedShape};
+use parry3d_f64::math::{Matrix, Pose, Rotation, Vector};
+use parry3d_f64::shape::{HeightFieldFlags, SharedShape};
+use parry3d_f64::utils::Array2;
 
 use crate::geometry::MAX_SHAPE_SIZE;
 use crate::validate::finite;
@@ -70,16 +69,10 @@ impl Ground {
                 let (nx, ny) = heights.shape();
                 let scale = Vector::new((ny - 1) as f64 * cell_size, 1.0, (nx - 1) as f64 * cell_size);
                 let samples = Array2::new(nx, ny, heights.as_slice().to_vec());
-                let rotation = Rotation::from_mat3(&rapier3d_f64::math::Matrix::from_cols(Vector::Y, Vector::Z, Vector::X));
+                let rotation = Rotation::from_mat3(&Matrix::from_cols(Vector::Y, Vector::Z, Vector::X));
                 // Internal edges fixed: a body sliding over the triangles' shared edges meets no ghost contact.
                 (SharedShape::heightfield_with_flags(samples, scale, HeightFieldFlags::FIX_INTERNAL_EDGES), Pose::from_parts(Vector::ZERO, rotation))
             }
         }
-    }
-
-    /// The Rapier collider of this ground, attached to a fixed body at the world origin.
-    pub(crate) fn collider(&self) -> ColliderBuilder {
-        let (shape, pose) = self.shape();
-        ColliderBuilder::new(shape).position(pose).friction(self.friction()).restitution(0.0).density(0.0)
     }
 }

@@ -12,6 +12,7 @@
 mod actuation;
 mod ground;
 mod options;
+#[cfg(feature = "rapier")]
 mod rapier;
 #[cfg(test)]
 mod tests;
@@ -111,7 +112,12 @@ impl Simulation {
         options.check(model)?;
         let engine: Box<dyn Engine> = match options.backend {
             Backend::Tree => Box::new(tree::TreeSimulation::new(model, &options)?),
+            #[cfg(feature = "rapier")]
             Backend::Rapier => Box::new(rapier::RapierSimulation::new(model, &options)?),
+            #[cfg(not(feature = "rapier"))]
+            Backend::Rapier => {
+                return Err(Error::invalid("backend", "'rapier' is not built in: legkit-dynamics was compiled without its `rapier` feature"))
+            }
         };
         let (nq, nv) = (model.nq(), model.nv());
         let q = model.neutral().as_slice().to_vec();

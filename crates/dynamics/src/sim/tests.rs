@@ -555,6 +555,14 @@ fn a_failed_step_leaves_a_never_failed_twin(backend: Backend) {
     }
 }
 
+#[cfg(not(feature = "rapier"))]
+#[test]
+fn the_rapier_backend_is_refused_without_its_feature() {
+    let error = Simulation::new(&ten_link_tree(), opts(Backend::Rapier, 1e-3)).err().expect("no Rapier backend to build");
+    assert_eq!(error.argument(), "backend");
+    assert!(error.to_string().contains("`rapier` feature"), "{error}");
+}
+
 fn opts(backend: Backend, dt: f64) -> Options {
     Options { backend, ..Options::new(dt) }
 }
@@ -567,6 +575,7 @@ macro_rules! on_both_backends {
             fn tree() {
                 super::$name(super::Backend::Tree)
             }
+            #[cfg(feature = "rapier")]
             #[test]
             fn rapier() {
                 super::$name(super::Backend::Rapier)

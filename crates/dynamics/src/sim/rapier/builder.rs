@@ -124,7 +124,9 @@ pub(crate) fn build(model: &Model, options: &Options) -> Result<(PhysicsWorld, L
     let friction = options.ground.as_ref().map_or(DEFAULT_FRICTION, Ground::friction);
     if let Some(ground) = &options.ground {
         let ground_body = world.insert_body(RigidBodyBuilder::fixed());
-        world.insert_collider(ground.collider().user_data(GROUND_TAG), Some(ground_body));
+        let (shape, pose) = ground.shape();
+        let collider = ColliderBuilder::new(shape).position(pose).friction(ground.friction()).restitution(0.0).density(0.0);
+        world.insert_collider(collider.user_data(GROUND_TAG), Some(ground_body));
     }
 
     // Rigid bodies at the neutral configuration: world pose of each legkit body.

@@ -5,10 +5,10 @@
 //! and body pairs go through parry, each pair keeping its contact manifolds from step to step. Either way a contact point is matched to the
 //! last step's by the shapes' features and inherits its impulses (the solver's warm start).
 
-use rapier3d_f64::math::Pose;
-use rapier3d_f64::parry::bounding_volume::{Aabb, BoundingVolume};
-use rapier3d_f64::parry::query::{ContactManifold, ContactManifoldsWorkspace, DefaultQueryDispatcher, PersistentQueryDispatcher};
-use rapier3d_f64::prelude::SharedShape;
+use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
+use parry3d_f64::math::Pose;
+use parry3d_f64::query::{ContactManifold, ContactManifoldsWorkspace, DefaultQueryDispatcher, PersistentQueryDispatcher};
+use parry3d_f64::shape::SharedShape;
 
 use nalgebra::Vector3;
 
