@@ -16,7 +16,7 @@ from legkit.gaits import AMBLE_QUADRUPED
 from legkit.optimize import effort
 from legkit.optimize.gaits import amble_plan_problem, amble_problem, amble_reference, guess_from_reference, stall_torque_bounds
 from legkit.optimize.replay import phase_of
-from legkit.optimize.tracking import MPC, TrackingModel, _pyramid, heavier, held_step, sampled_reference, track
+from legkit.optimize.tracking import MPC, TrackingModel, force_rows, heavier, held_step, sampled_reference, track
 from legkit.robots.motors import QUADRUPED_MOTOR
 from legkit.robots.quadruped import build_quadruped
 
@@ -31,7 +31,7 @@ def amble():
     return problem, trajectory, TrackingModel.build(problem, trajectory, DT)
 
 
-def _stepped(problem, model, i, x):
+def stepped(problem, model, i, x):
     """(deviation after one control period, forces at its start) of `held_step` from the reference at sample i moved
     by x = (dq, dv, du): the brute-force reference for the linearisation."""
     nv = problem.nv
@@ -50,12 +50,12 @@ def test_the_analytic_linearisation_equals_central_differences_of_the_contact_mo
     problem, _, model = amble
     n, columns, step = 2 * problem.nv, 2 * problem.nv + problem.nu, 1e-6
     for i in (3, 40, _touchdown(model), 100):
-        plus = [_stepped(problem, model, i, step * np.eye(columns)[c]) for c in range(columns)]
-        minus = [_stepped(problem, model, i, -step * np.eye(columns)[c]) for c in range(columns)]
+        plus = [stepped(problem, model, i, step * np.eye(columns)[c]) for c in range(columns)]
+        minus = [stepped(problem, model, i, -step * np.eye(columns)[c]) for c in range(columns)]
         state = np.stack([(p[0] - m[0]) / (2 * step) for p, m in zip(plus, minus)], axis=1)
         forces = np.stack([(p[1] - m[1]) / (2 * step) for p, m in zip(plus, minus)], axis=1)
         held = 3 * int(np.sum(model.held[i]))
-        np.testing.assert_allclose(model.residual[i], _stepped(problem, model, i, np.zeros(columns))[0], atol=1e-12)
+        np.testing.assert_allclose(model.residual[i], stepped(problem, model, i, np.zeros(columns))[0], atol=1e-12)
         np.testing.assert_allclose(np.concatenate([model.A[i], model.B[i]], axis=1), state, atol=1e-6 * max(1.0, np.abs(state).max()))
         np.testing.assert_allclose(np.concatenate([model.force_state[i], model.force_input[i]], axis=1)[:held], forces,
                                    atol=1e-6 * max(1.0, np.abs(forces).max()))
@@ -70,7 +70,7 @@ def test_the_linearisation_predicts_the_contact_model_to_second_order(amble):
         x = rng.normal(size=2 * problem.nv + problem.nu)
         errors = []
         for scale in (1e-3, 5e-4):
-            actual, _ = _stepped(problem, model, i, scale * x)
+            actual, _ = stepped(problem, model, i, scale * x)
             predicted = model.residual[i] + model.A[i] @ (scale * x[: 2 * problem.nv]) + model.B[i] @ (scale * x[2 * problem.nv :])
             errors.append(np.linalg.norm(actual - predicted))
         assert errors[1] < 0.35 * errors[0], (i, errors)  # halving the deviation quarters the error: linear to second order
@@ -90,12 +90,29 @@ def test_swing_feet_rise_by_the_clearance_at_mid_swing_and_stance_feet_stay(ambl
     assert np.min(rise[~stance]) > -1e-6
 
 
-def test_pyramid_rows_accept_forces_inside_the_cone_and_reject_the_rest():
-    rows = _pyramid(2, 0.6)
+def _cone(feet: int, friction: float) -> np.ndarray:
+    """Rows r with r . f >= (floor, 0, 0, 0, 0) per point foot: f_z, then mu f_z -+ f_x, mu f_z -+ f_y."""
+    rows = np.zeros((5 * feet, 3 * feet))
+    for foot in range(feet):
+        x, y, z = 3 * foot, 3 * foot + 1, 3 * foot + 2
+        r = rows[5 * foot : 5 * foot + 5]
+        r[:, z] = [1.0, friction, friction, friction, friction]
+        r[1, x], r[2, x], r[3, y], r[4, y] = -1.0, 1.0, -1.0, 1.0
+    return rows
+
+
+def test_force_rows_of_point_feet_are_the_friction_pyramid_of_each_held_foot(amble):
+    _, _, model = amble
+    rows, per_foot = force_rows(model, 0.6)
+    assert per_foot == 5
+    for i in range(len(model.A)):
+        held = int(np.sum(model.held[i]))
+        np.testing.assert_array_equal(rows[i, : 5 * held, : 3 * held], _cone(held, 0.6))
+        assert not np.any(rows[i, 5 * held :]) and not np.any(rows[i, :, 3 * held :])
     inside = np.array([0.2, -0.3, 1.0, 0.0, 0.0, 5.0])
-    assert np.all(rows @ inside >= np.tile([0.0, 0.0, 0.0, 0.0, 0.0], 2))
-    assert np.any(rows @ np.array([0.7, 0.0, 1.0, 0.0, 0.0, 5.0]) < 0.0)  # sliding sideways
-    assert (rows @ np.array([0.0, 0.0, -1.0, 0.0, 0.0, 5.0]))[0] < 0.0  # pulling
+    assert np.all(_cone(2, 0.6) @ inside >= 0.0)
+    assert np.any(_cone(2, 0.6) @ np.array([0.7, 0.0, 1.0, 0.0, 0.0, 5.0]) < 0.0)  # sliding sideways
+    assert (_cone(2, 0.6) @ np.array([0.0, 0.0, -1.0, 0.0, 0.0, 5.0]))[0] < 0.0  # pulling
 
 
 def _mul(matrix: np.ndarray, x):
@@ -114,7 +131,7 @@ def _dense_reference(mpc: MPC, i: int, e: np.ndarray) -> np.ndarray:
         opti.subject_to(opti.bounded(mpc.torque_lower - m.u[k], U[p], mpc.torque_upper - m.u[k]))
         cost += 0.5 * length * ca.dot(m.torque_weights * U[p], U[p])
         for foot in np.flatnonzero(m.held[k]):
-            rows = _pyramid(1, mpc.friction)
+            rows = _cone(1, mpc.friction)
             rows3 = slice(3 * foot, 3 * foot + 3)
             force = m.forces[k, rows3] + _mul(m.force_state[k, rows3], state) + _mul(m.force_input[k, rows3], U[p])
             slack = opti.variable(5)
@@ -164,7 +181,7 @@ def test_mpc_keeps_the_predicted_forces_where_the_lqr_would_pull(amble):
         e = 0.05 * rng.normal(size=2 * problem.nv)
         lqr = -gains[i] @ e
         held = int(np.sum(model.held[i]))
-        pyramid = _pyramid(held, 0.6)
+        pyramid = _cone(held, 0.6)
         floor = np.tile([0.5, 0.0, 0.0, 0.0, 0.0], held)
 
         def predicted(du: np.ndarray, i: int = i, e: np.ndarray = e, pyramid: np.ndarray = pyramid, floor: np.ndarray = floor,

@@ -4,31 +4,31 @@ Joint PD + feed-forward cannot hold the amble's two-point supports: linearised a
 simulation's one-cycle multiplier under PD is in the hundreds to thousands. A time-varying LQR
 on the optimiser's contact model holds the model, but by pulling on stance feet, which the simulation cannot do.
 
-`TrackingModel.build` linearises that contact model (the phase's feet held, `lk.contact_dynamics`; touchdowns by
-`lk.impact`; semi-implicit Euler substeps under a zero-order hold) around the plan sampled every control period
-over one cycle, analytically: the chain rule through the substeps and the touchdown from the core's derivatives
-(`lk.contact_dynamics_derivatives`, `lk.impact_derivatives`, `lk.integrate_jacobians`, `lk.difference_jacobians`),
-batched over the samples; with the stance forces, the swing feet's heights (`lk.jacobian`), and the periodic LQR
-cost-to-go. Deviations live in the tangent space of the configuration (`lk.difference`, Pinocchio's convention). The
-reference raises each swing foot by `swing_clearance` x sin(pi s) over its swing (s its fraction) through its
-leg's joints: planned soft touchdowns and lift-offs skim the ground, and a tipping error of a degree puts a
-skimming foot on it.
+`TrackingModel.build` linearises that contact model (the phase's feet held, `lk.contact_dynamics`: point feet as
+points, flat soles as frames (dim=6); touchdowns by `lk.impact`; semi-implicit Euler substeps under a zero-order
+hold) around the plan sampled every control period over one cycle, analytically: the chain rule through the
+substeps and the touchdown from the core's derivatives (`lk.contact_dynamics_derivatives`, `lk.impact_derivatives`,
+`lk.integrate_jacobians`, `lk.difference_jacobians`), batched over the samples; with the stance forces, the swing
+feet's heights (`lk.jacobian`), and the periodic LQR cost-to-go. Deviations live in the tangent space of the
+configuration (`lk.difference`, Pinocchio's convention). The reference raises each swing foot by `swing_clearance`
+x sin(pi s) over its swing (s its fraction) through its leg's joints: planned soft touchdowns and lift-offs skim
+the ground, and a tipping error of a degree puts a skimming foot on it.
 
 `MPC` solves, every control period, a QP over a 120 ms horizon (the correction held over blocks of control
 periods): the predicted deviation's quadratic cost and the cost-to-go at the horizon's end, subject to each stance
-normal force above a floor and inside the friction pyramid and to the swing feet above the ground (softly, through
-slacks: the linear model knows no ground), within the torque bounds. Every instant's QP is condensed once for the
-whole cycle (batched); per control period the unconstrained minimiser is checked against the rows and, where it
-violates some, the QP is solved by constraint generation on its dual (non-negative least squares). The first
-correction is applied. `track` runs it in `lk.Simulation`, the PD servo off, optionally on another plant (model
-mismatch).
+normal force above a floor and inside the friction pyramid (a flat sole's torque within eq. 6 too) and to the swing
+feet above the ground (softly, through slacks: the linear model knows no ground), within the torque bounds. Every
+instant's QP is condensed once for the whole cycle (batched); per control period the unconstrained minimiser is
+checked against the rows and, where it violates some, the QP is solved by constraint generation on its dual
+(non-negative least squares). The first correction is applied. `track` runs it in `lk.Simulation`, the PD servo
+off, optionally on another plant (model mismatch).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from scipy.optimize import nnls
@@ -89,12 +89,12 @@ def sampled_reference(problem: MultiphaseProblem, trajectory: Trajectory, t: np.
 @dataclass
 class TrackingModel:
     """One cycle of the plan, linearised every control period (module docstring). Deviations e (2 nv) are the
-    configuration's `lk.difference` from the reference (its tangent space, Pinocchio's convention) then the
-    velocity's. Per sample i of N: e_{i+1} = A_i e_i + B_i du_i + residual_i (the reference is not exactly a
-    motion of the stepped model); the held feet's forces (world axes, 3 per foot, padded to the most feet held at
-    once, `held` marking the real ones) forces_i + force_state_i e_i + force_input_i du_i; the feet's heights
-    heights_i + height_state_i e_i, `swing_i` marking the feet in the air; cost_to_go (N + 1) the periodic
-    LQR's."""
+    configuration's `lk.difference` from the reference (its tangent space, Pinocchio's convention) then the velocity's.
+    Per sample i of N: e_{i+1} = A_i e_i + B_i du_i + residual_i (the reference is not exactly a motion of the
+    stepped model); the held feet's forces (world axes, `contact_width` per foot: a point foot's force or a sole's
+    force and torque about its centre, padded to the most feet held at once, `held` marking the real ones) forces_i
+    + force_state_i e_i + force_input_i du_i; the feet's heights heights_i + height_state_i e_i, `swing_i` marking
+    the feet in the air; cost_to_go (N + 1) the periodic LQR's."""
 
     problem: MultiphaseProblem
     trajectory: Trajectory
@@ -142,9 +142,9 @@ class TrackingModel:
         nv, nu = problem.nv, problem.nu
         n = 2 * nv
         names = list(problem.feet)
-        most = max(len(p.contacts) for p in problem.phases)
+        most, width = max(len(p.contacts) for p in problem.phases), contact_width(problem)
         A, B, residual = np.empty((count, n, n)), np.empty((count, n, nu)), np.empty((count, n))
-        forces, force_state, force_input = np.zeros((count, 3 * most)), np.zeros((count, 3 * most, n)), np.zeros((count, 3 * most, nu))
+        forces, force_state, force_input = np.zeros((count, width * most)), np.zeros((count, width * most, n)), np.zeros((count, width * most, nu))
         held = np.zeros((count, most), dtype=bool)
         swing = np.array([[name not in problem.phases[phase[i]].contacts for name in names] for i in range(count)])
         # One batched step per run of samples with the same (phase, next phase).
@@ -161,7 +161,7 @@ class TrackingModel:
             rows = f.shape[1]
             forces[samples, :rows] = f
             force_state[samples, :rows], force_input[samples, :rows] = np.split(force, [n], axis=2)
-            held[samples, : rows // 3] = True
+            held[samples, : rows // width] = True
         heights = problem.foot_positions(q[:count], names)[..., 2]
         height_state = np.zeros((count, len(names), n))
         for foot, name in enumerate(names):
@@ -195,14 +195,14 @@ def held_step(problem: MultiphaseProblem, phase: int, next_phase: int, q: np.nda
               substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(q, v, forces) after dt of the optimiser's contact model from (q, v) (B, .) under torques tau (B, nv) held
     over it: `phase`'s feet held (`lk.contact_dynamics`), semi-implicit Euler substeps, then the touchdown (eq. 7,
-    `lk.impact`) of `next_phase`'s feet if it differs; forces (B, 3 x held feet) at the start."""
+    `lk.impact`) of `next_phase`'s feet if it differs; forces (B, `contact_width` x held feet) at the start."""
     return _held_step(problem, phase, next_phase, q, v, tau, dt, substeps, False)[:3]
 
 
 def held_step_linearised(problem: MultiphaseProblem, phase: int, next_phase: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
                          dt: float, substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """`held_step` and its Jacobians by x = (dq on q's tangent space, dv, du on the actuated torques): state
-    (B, 2 nv, 2 nv + nu) of (q', v') (q' on its own tangent space) and forces (B, 3 x held feet, 2 nv + nu). The
+    (B, 2 nv, 2 nv + nu) of (q', v') (q' on its own tangent space) and forces (B, width x held feet, 2 nv + nu). The
     chain rule through the substeps: v' = v + h a(q, v, tau), q' = q (+) h v' (`lk.contact_dynamics_derivatives`,
     `lk.integrate_jacobians`), then v+ = impact(q', v') (`lk.impact_derivatives`)."""
     result = _held_step(problem, phase, next_phase, q, v, tau, dt, substeps, True)
@@ -214,6 +214,7 @@ def _held_step(problem: MultiphaseProblem, phase: int, next_phase: int, q: np.nd
                substeps: int, jacobians: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
     model, nv, batch = problem.model, problem.nv, len(q)
     feet = [(problem.foot_body[name], problem.foot_point[name]) for name in problem.phases[phase].contacts]
+    dim = contact_width(problem)
     h = dt / substeps
     # Sensitivities of (q, v) to x = (dq, dv, du): (B, nv, 2 nv + nu) each.
     columns = 2 * nv + problem.nu
@@ -221,11 +222,11 @@ def _held_step(problem: MultiphaseProblem, phase: int, next_phase: int, q: np.nd
     dq[:, :, :nv], dv[:, :, nv : 2 * nv] = np.eye(nv), np.eye(nv)
     dtau = np.zeros((nv, columns))
     dtau[problem.actuated, 2 * nv + np.arange(problem.nu)] = 1.0
-    forces, dforces = np.zeros((batch, 3 * len(feet))), None
+    forces, dforces = np.zeros((batch, dim * len(feet))), None
     for sub in range(substeps):
-        a, f = lk.contact_dynamics(model, q, v, tau, feet)
+        a, f = lk.contact_dynamics(model, q, v, tau, feet, dim=dim)
         if jacobians:
-            a_q, a_v, a_tau, f_q, f_v, f_tau = (np.asarray(d) for d in lk.contact_dynamics_derivatives(model, q, v, tau, feet))
+            a_q, a_v, a_tau, f_q, f_v, f_tau = (np.asarray(d) for d in lk.contact_dynamics_derivatives(model, q, v, tau, feet, dim=dim))
             if sub == 0:
                 dforces = (f_q.reshape(batch, -1, nv) @ dq + f_v.reshape(batch, -1, nv) @ dv + f_tau.reshape(batch, -1, nv) @ dtau)
             dv = dv + h * (a_q @ dq + a_v @ dv + a_tau @ dtau)
@@ -239,9 +240,9 @@ def _held_step(problem: MultiphaseProblem, phase: int, next_phase: int, q: np.nd
     if next_phase != phase:
         landing = [(problem.foot_body[name], problem.foot_point[name]) for name in problem.phases[next_phase].contacts]
         if jacobians:
-            v_q, v_v = (np.asarray(d) for d in lk.impact_derivatives(model, q, v, landing)[:2])
+            v_q, v_v = (np.asarray(d) for d in lk.impact_derivatives(model, q, v, landing, dim=dim)[:2])
             dv = v_q @ dq + v_v @ dv
-        v = np.asarray(lk.impact(model, q, v, landing)[0])
+        v = np.asarray(lk.impact(model, q, v, landing, dim=dim)[0])
     if not jacobians:
         return q, v, forces, None, None
     return q, v, forces, np.concatenate([dq, dv], axis=1), dforces
@@ -306,13 +307,15 @@ class MPC:
     until none does: then z solves the whole QP. `solved` counts the control periods that needed it."""
 
     def __init__(self, model: TrackingModel, blocks: Sequence[int] = (6, 6, 6, 6, 12, 12, 12), min_normal_force: float = 0.5,
-                 friction: float = 0.6, min_swing_height: float = 0.003, slack_weight: float = 1e6, swing_tolerance: float = 5e-4,
+                 friction: float | None = None, min_swing_height: float = 0.003, slack_weight: float = 1e6, swing_tolerance: float = 5e-4,
                  torque_bounds: tuple[np.ndarray, np.ndarray] | None = None) -> None:
-        """blocks: the blocks' lengths in control periods (the default spans 60, 120 ms at the default 2 ms).
-        torque_bounds (lower, upper), each (nu,): the actuators' torques, which bound plan + correction; default the
-        plan's (`problem.u_bounds`). A plan kept inside its motors (`amble_problem(torque_margin=)`) leaves the
-        difference to the correction. swing_tolerance [m]: how far below its floor a swing foot may be predicted
-        before its row enters the QP."""
+        """blocks: the blocks' lengths in control periods (the default spans 60, 120 ms at the default 2 ms). friction:
+        the pyramid's mu (default the plan's, `problem.friction`). torque_bounds (lower, upper), each (nu,):
+        the actuators' torques, which bound plan + correction; default the plan's (`problem.u_bounds`). A plan
+        kept inside its motors (`amble_problem(torque_margin=)`) leaves the difference to the correction.
+        swing_tolerance [m]: how far below its floor a swing foot may be predicted before its row enters the
+        QP."""
+        friction = model.problem.friction if friction is None else friction
         sequence = isinstance(blocks, (Sequence, np.ndarray)) and not isinstance(blocks, str)
         lengths = [int(b) for b in blocks] if sequence and all(isinstance(b, (int, np.integer)) for b in blocks) else []
         if not lengths or min(lengths) < 1:
@@ -332,7 +335,7 @@ class MPC:
         self.slack_weight, self.swing_tolerance = slack_weight, swing_tolerance
         self.torque_lower, self.torque_upper = lower, upper
         self.variables = len(lengths) * nu
-        self._pyramid = _pyramid(model.held.shape[1], friction)
+        self._force_rows, self._rows_per_foot = force_rows(model, friction)
         # Every instant's QP, kept as what the solve needs: H^-1, the unconstrained minimiser, the rows.
         qp = self.condense(np.arange(self.count), chunk=16)
         self.inverse = np.linalg.inv(qp.hessian)
@@ -358,7 +361,7 @@ class MPC:
         hessian, gradient_state, gradient = np.zeros((batch, nz, nz)), np.zeros((batch, nz, n)), np.zeros((batch, nz))
         R = np.diag(m.torque_weights)
         rows: dict[str, list[np.ndarray]] = {"rows": [], "state": [], "lower": [], "tolerance": []}
-        floor = np.tile([self.min_normal_force, 0.0, 0.0, 0.0, 0.0], m.held.shape[1])
+        floor = np.tile(np.r_[self.min_normal_force, np.zeros(self._rows_per_foot - 1)], m.held.shape[1])
         swinging = int(np.max(np.sum(m.swing, axis=1), initial=0))  # height rows per period: the most feet in the air
         lower_u, upper_u = np.empty((batch, nz)), np.empty((batch, nz))
         step = 0
@@ -368,11 +371,12 @@ class MPC:
             lower_u[:, columns], upper_u[:, columns] = self.torque_lower - m.u[s], self.torque_upper - m.u[s]
             hessian[:, columns, columns] += length * R
             # The held feet's forces at the block's start: pyramid (f + F_e e_j + F_u z_p) >= floor.
-            F_e = self._pyramid @ m.force_state[s]
+            F_e = self._force_rows[s] @ m.force_state[s]
             coefficient = F_e @ T
-            coefficient[:, :, columns] += self._pyramid @ m.force_input[s]
-            constant = np.einsum("rf,bf->br", self._pyramid, m.forces[s]) + np.einsum("brn,bn->br", F_e, c)
-            for key, value in zip(rows, (coefficient, F_e @ S, np.where(np.repeat(m.held[s], 5, axis=1), floor - constant, -np.inf),
+            coefficient[:, :, columns] += self._force_rows[s] @ m.force_input[s]
+            constant = np.einsum("brf,bf->br", self._force_rows[s], m.forces[s]) + np.einsum("brn,bn->br", F_e, c)
+            held = np.repeat(m.held[s], self._rows_per_foot, axis=1)
+            for key, value in zip(rows, (coefficient, F_e @ S, np.where(held, floor - constant, -np.inf),
                                          np.zeros((batch, len(floor))))):
                 rows[key].append(value)
             active = slice(0, (p + 1) * nu)  # the corrections so far: later columns of T are still zero
@@ -422,7 +426,8 @@ class MPC:
             self._working = working
             return z0[:nu]
         self.solved += 1
-        working = np.union1d(working, self._working)
+        carried = self._working[np.isfinite(b[self._working])]  # last period's active rows that still bind something here
+        working = np.union1d(working, carried)
         z = z0
         for _ in range(len(b)):
             G = np.concatenate([rows, np.eye(self.variables), -np.eye(self.variables)])[working]
@@ -440,27 +445,49 @@ class MPC:
         return np.clip(z[:nu], self.lower_u[k, :nu], self.upper_u[k, :nu])  # hard bounds, to rounding
 
 
-def _pyramid(feet: int, friction: float) -> np.ndarray:
-    """(5 feet, 3 feet): rows r with r . f >= (floor, 0, 0, 0, 0) per foot: f_z, then mu f_z -+ f_x, mu f_z -+ f_y."""
-    rows = np.zeros((5 * feet, 3 * feet))
-    for foot in range(feet):
-        x, y, z = 3 * foot, 3 * foot + 1, 3 * foot + 2
-        r = rows[5 * foot : 5 * foot + 5]
-        r[:, z] = [1.0, friction, friction, friction, friction]
-        r[1, x], r[2, x], r[3, y], r[4, y] = -1.0, 1.0, -1.0, 1.0
-    return rows
+def contact_width(problem: MultiphaseProblem) -> Literal[3, 6]:
+    """Rows per held foot of the contact model: 3 (a point foot's force) or 6 (a flat sole held as a frame: force and
+    torque about the sole's centre, world axes; `lk.contact_dynamics(dim=6)`). Feet of both kinds in one problem are
+    refused."""
+    flat = [name in problem.flat_feet for name in problem.feet]
+    if any(flat) and not all(flat):
+        raise ValueError("problem: tracking needs every foot flat (FlatFoot) or every foot a point")
+    return 6 if all(flat) and flat else 3
+
+
+def force_rows(model: TrackingModel, friction: float) -> tuple[np.ndarray, int]:
+    """(rows (N, r x most feet, width x most feet), r): at each control instant, rows R with R . f >= (floor, 0, ...,
+    0) per held foot (`TrackingModel.forces`; padded slots unused). A point foot (r = 5): f_z, then mu f_z -+ f_x,
+    mu f_z -+ f_y. A flat sole (r = 11) adds eq. 6 [Hardt 2002] on the torque T about its centre in the sole's axes
+    (the reference foot's, at that instant): 0.5 l_y f_z -+ T_x, 0.5 l_x f_z -+ T_y, mu_d f_z -+ T_z."""
+    problem = model.problem
+    width, count, most = contact_width(problem), len(model.A), model.held.shape[1]
+    per_foot = 5 if width == 3 else 11
+    rows = np.zeros((count, per_foot * most, width * most))
+    poses = np.asarray(lk.forward_kinematics(problem.model, model.q[:count])) if width == 6 else None
+    for i in range(count):
+        for slot, name in enumerate(problem.phases[model.phase[i]].contacts):
+            r = rows[i, per_foot * slot : per_foot * (slot + 1), width * slot : width * (slot + 1)]
+            r[:5, 2] = [1.0, friction, friction, friction, friction]
+            r[1, 0], r[2, 0], r[3, 1], r[4, 1] = -1.0, 1.0, -1.0, 1.0
+            if poses is not None:
+                sole, axes = problem.flat_feet[name], poses[i, problem.foot_body[name], :3, :3]  # T = axes^T torque
+                r[5:, 2] = np.repeat([0.5 * sole.width, 0.5 * sole.length, sole.torsion], 2)
+                r[5:, 3:] = np.repeat(axes.T, 2, axis=0) * np.tile([[-1.0], [1.0]], (3, 1))
+    return rows, per_foot
 
 
 def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, foot_radius: float = 0.002, dt: float = 1e-3,
-          control_every: int = 2, friction: float = 0.8, swing_clearance: float = 0.01, model: TrackingModel | None = None,
+          control_every: int = 2, ground_friction: float = 0.8, swing_clearance: float = 0.01, model: TrackingModel | None = None,
           joint_offset: np.ndarray | None = None, plant: lk.Model | None = None, progress: bool = True, **mpc: Any) -> Replay:
-    """Simulate `cycles` cycles under `MPC` (its keyword arguments in **mpc), from the plan's first state with the
-    base raised clear of the ground (`clear_of_ground`); the feet as in `replay`. The controller acts every
-    control_every simulation steps of dt (the model's control period, dt x control_every rounded so that whole
-    periods make one cycle, sets the step). model: a `TrackingModel` built for this plan and control period (built
-    here otherwise). joint_offset (nu,): added to the first state's joint
-    angles, a perturbed start. plant: the model simulated (default the plan's), e.g. one with other masses (model
-    mismatch). progress: a progress bar. Stops stepping once the robot has fallen (checked every 50 control periods)."""
+    """Simulate `cycles` cycles under `MPC` (its keyword arguments in **mpc), from the plan's first state with the base
+    raised clear of the ground (`clear_of_ground`); the feet as in `replay`, on ground of ground_friction. The
+    controller acts every control_every simulation steps of dt (the model's control period, dt x control_every
+    rounded so that whole periods make one cycle, sets the step). model: a `TrackingModel` built for this plan
+    and control period (built here otherwise). joint_offset (nu,): added to the first state's joint angles, a
+    perturbed start. plant: the model simulated (default the plan's), e.g. one with other masses (model
+    mismatch). progress: a progress bar. Stops stepping once the robot has fallen (checked every 50 control
+    periods)."""
     if not (isinstance(control_every, (int, np.integer)) and control_every >= 1):
         raise ValueError(f"control_every must be an integer >= 1, got {control_every}")
     if not (isinstance(cycles, (int, np.integer)) and cycles >= 1):
@@ -475,7 +502,7 @@ def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, f
     if plant.nq != problem.nq or plant.nv != problem.nv:
         raise ValueError(f"plant must have the plan's coordinates (nq {problem.nq}, nv {problem.nv}), got {plant.nq}, {plant.nv}")
     controller = MPC(model, **mpc)
-    sim = lk.Simulation(plant, dt=model.dt / control_every, ground=lk.Ground.plane(friction), shapes=foot_shapes(problem, foot_radius))
+    sim = lk.Simulation(plant, dt=model.dt / control_every, ground=lk.Ground.plane(ground_friction), shapes=foot_shapes(problem, foot_radius))
     steps = cycles * len(model.A)
     t = np.arange(steps + 1) * model.dt
     planned_q = np.stack([model.reference(i)[0] for i in range(steps + 1)])
