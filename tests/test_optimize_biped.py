@@ -44,8 +44,11 @@ def feasible(walk):
     return problem, solve(problem.nlp("legkit", objective=False), x0, max_iter=200)
 
 
-def test_foot_torque_rows_are_eq6_and_keep_the_centre_of_pressure_on_the_sole(robot):
-    problem = walk_problem(robot, SPEED, BIPED_MOTOR, COARSE)
+@pytest.mark.parametrize("support", [1.0, 0.8])
+def test_foot_torque_rows_are_eq6_and_keep_the_centre_of_pressure_on_the_sole(robot, support):
+    """support 1: eq. 6 as published; below 1, its bounds scaled (`FlatFoot.support`): the centre of pressure on the
+    sole shrunk by that factor."""
+    problem = walk_problem(robot, SPEED, BIPED_MOTOR, COARSE, sole_support=support)
     k = WALK_SUPPORT.index(("l", "r"))  # both soles down
     index = problem.point_index[k]
     forces = index[:, problem.force_columns[k]].reshape(len(index), 2, 3)
@@ -58,24 +61,24 @@ def test_foot_torque_rows_are_eq6_and_keep_the_centre_of_pressure_on_the_sole(ro
         x[forces[..., 2]] = rng.uniform(0.0, 400.0, forces[..., 2].shape)
         x[torques] = rng.normal(0.0, 12.0, torques.shape)
         values = np.concatenate([b.values(x) for b in problem.foot_torque_blocks(k)])
-        # Eq. 6 as published, per foot: c F_z - s T >= 0 for s = +1 then -1, c = (0.5 l_y, 0.5 l_x, mu_d).
+        # Eq. 6 per foot: c F_z - s T >= 0 for s = +1 then -1, c = support x (0.5 l_y, 0.5 l_x, mu_d).
         expected = []
         for foot in range(2):
             sole = problem.flat_feet[SIDES[foot]]
-            limit = np.array([0.5 * sole.width, 0.5 * sole.length, sole.torsion])
+            limit = support * np.array([0.5 * sole.width, 0.5 * sole.length, sole.torsion])
             for sign in (1.0, -1.0):
                 expected.append((limit * x[forces[:, foot, 2:]] - sign * x[torques[:, foot]]).ravel())
         np.testing.assert_allclose(values, np.concatenate(expected), atol=1e-12)
         # The x and y rows hold iff nonnegative pressure at the sole's corners produces (F_z, T_x, T_y).
         for foot in range(2):
             sole = problem.flat_feet[SIDES[foot]]
-            corners = np.array([[sx * 0.5 * sole.length, sy * 0.5 * sole.width] for sx in (-1, 1) for sy in (-1, 1)])
+            corners = support * np.array([[sx * 0.5 * sole.length, sy * 0.5 * sole.width] for sx in (-1, 1) for sy in (-1, 1)])
             wrench = np.stack([np.ones(4), corners[:, 1], -corners[:, 0]])  # unit normal forces -> (F_z, T_x, T_y)
             for point in range(len(index)):
                 target = np.r_[x[forces[point, foot, 2]], x[torques[point, foot, :2]]]
                 producible = nnls(wrench, target)[1] < 1e-9 * max(1.0, np.abs(target).max())
-                rows = [x[forces[point, foot, 2]] * 0.5 * sole.width - s * x[torques[point, foot, 0]] for s in (1, -1)]
-                rows += [x[forces[point, foot, 2]] * 0.5 * sole.length - s * x[torques[point, foot, 1]] for s in (1, -1)]
+                rows = [x[forces[point, foot, 2]] * support * 0.5 * sole.width - s * x[torques[point, foot, 0]] for s in (1, -1)]
+                rows += [x[forces[point, foot, 2]] * support * 0.5 * sole.length - s * x[torques[point, foot, 1]] for s in (1, -1)]
                 samples.append((producible, min(rows) >= 0.0))
     assert all(a == b for a, b in samples)
     assert {True, False} <= {a for a, _ in samples}  # both cases met
@@ -258,7 +261,8 @@ def test_walk_solution_meets_dynamics_feet_and_motor_limits_in_legkit_kernels(ro
 @pytest.mark.slow
 def test_cli_optimize_walks_the_biped_printing_each_stage_and_writing_csv_and_figure(tmp_path, capsys):
     iterations = 2
-    assert gait.main(["--robot", "biped", "--optimize", "--biped-intervals", "1", "--biped-max-iter", str(iterations), "--out", str(tmp_path)]) == 0
+    assert gait.main(["--robot", "biped", "--optimize", "--biped-intervals", "1", "--biped-max-iter", str(iterations), "--replay-cycles", "1",
+                      "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     progress = [line.strip().rpartition(": ") for line in out.splitlines() if " iterations, objective " in line]  # one per stage
     assert [label for label, _, _ in progress] == ["constraints", "J_e1"]
@@ -269,3 +273,6 @@ def test_cli_optimize_walks_the_biped_printing_each_stage_and_writing_csv_and_fi
     assert len(rows) == 4 * 3 and [rows[3 * k]["support"] for k in range(4)] == ["+".join(p).upper() for p in WALK_SUPPORT]
     assert "l_Tx" in rows[0] and float(rows[3]["r_Fz"]) == 0.0  # the right foot is in the air in phase 1
     assert (tmp_path / "gait_biped_torque_speed.png").stat().st_size > 10_000
+    # Replayed under the MPC (two iterations are no walk: only the outputs are checked here).
+    assert "replaying 1 cycles in lk.Simulation under the contact-constrained MPC" in out and "replay: stayed upright" in out
+    assert "the walk replayed in simulation" in (tmp_path / "gait_biped_optimized.html").read_text()

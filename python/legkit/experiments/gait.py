@@ -136,9 +136,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     which, and, unless --no-animation, writes the replay beside the plan as .html (meshcat) and .gif, captioned with
     the controller."""
     from legkit.optimize.checks import midpoint_stance_acceleration
-    from legkit.optimize.gaits import AMBLE_PLAN_FRICTION, amble_plan_problem, plan_amble, stall_torque_bounds
-    from legkit.optimize.replay import replay
-    from legkit.optimize.tracking import track
+    from legkit.optimize.gaits import AMBLE_PLAN_FRICTION, amble_plan_problem, plan_amble
 
     robot = build_quadruped(AMBLE_QUADRUPED)
     speed, period = args.quadruped_speed, args.quadruped_period
@@ -175,19 +173,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
                     labels, worst, worst_t,
                     f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}, iterate {kept} kept"
                     + (f", refined from {args.coarse_intervals} intervals" if args.coarse_intervals else ""))
-    if args.replay_controller == "mpc":
-        controller = ("the contact-constrained MPC (legkit.optimize.tracking: 2 ms control period, 120 ms horizon, "
-                      "stance forces >= 0.5 N in the friction pyramid, swing feet above the ground, the motors' stall torques)")
-        print(f"replaying {args.replay_cycles} cycles in lk.Simulation under {controller}")
-        simulated = track(problem, trajectory, args.replay_cycles, torque_bounds=stall_torque_bounds(QUADRUPED_MOTOR, problem.nu))
-    else:
-        controller = f"joint PD tracking (kp {args.replay_kp:g} N m/rad, kd {args.replay_kd:g} N m s/rad) + the planned torques as feed-forward"
-        print(f"replaying {args.replay_cycles} cycles in lk.Simulation under {controller}")
-        simulated = replay(problem, trajectory, args.replay_cycles, kp=args.replay_kp, kd=args.replay_kd, control_every=1)
-    if not args.no_animation:
-        _animate_replay(args.out / "gait_quadruped_optimized", problem, simulated,
-                        "the contact-constrained MPC (2 ms, 120 ms horizon)" if args.replay_controller == "mpc"
-                        else f"joint PD (kp {args.replay_kp:g}, kd {args.replay_kd:g}) + feed-forward")
+    simulated = _replay(args, problem, trajectory, QUADRUPED_MOTOR, args.out / "gait_quadruped_optimized", "the amble")
     return {
         "IPOPT iterations": result.iterations, "solve wall time [s]": result.wall_time,
         "function + Jacobian share of the solve [%]": 100.0 * result.evaluation_time / result.wall_time,
@@ -199,9 +185,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
         "S_H min, optimised [N m s]": worst, "S_H min at [s]": worst_t, "S_H min, reference [N m s]": float(reference_s_h.min()),
         **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d)
            for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
-        f"replay ({args.replay_controller}): drift over {args.replay_cycles} cycles [% of distance]": 100.0 * simulated.drift_fraction,
-        "replay: stayed upright (1 = yes)": float(simulated.upright),
-        "replay: fell after [s] (inf: never)": simulated.fell_at,
+        **_replay_summary(args, simulated),
         "solver succeeded (1 = yes)": float(result.success),
     }
 
@@ -212,14 +196,17 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
     limits, from the hand-built reference (`biped_walk`); constraints first, then J_e1, one progress line per
     IPOPT iteration. Writes gait_biped_optimized.csv (every collocation point: t, phase, support, q, v, u, the
     feet's forces and torques) and gait_biped_torque_speed.png (Fig. 6: each joint's (speed, torque) points over
-    the period against the motor's characteristic lines for several gear ratios)."""
+    the period against the motor's characteristic lines for several gear ratios), then replays the walk in
+    `lk.Simulation` as the amble is replayed (--replay-controller; the MPC holds each stance sole as a frame, its
+    wrench within eq. 6) and, unless --no-animation, writes gait_biped_optimized.html and .gif."""
     from legkit.optimize.checks import inverse_dynamics_residuals
-    from legkit.optimize.gaits import WALK_MIRROR, guess_from_reference, solve_walk, walk_problem, walk_reference
+    from legkit.optimize.gaits import WALK_MIRROR, WALK_PLAN_FRICTION, guess_from_reference, solve_walk, walk_problem, walk_reference
 
     robot = build_biped()
     speed = args.biped_speed / 3.6
     intervals = (max(1, args.biped_intervals // 4), args.biped_intervals)
-    problem = walk_problem(robot, speed, BIPED_MOTOR, intervals, FRICTION if args.mu is None else args.mu, max_input_power=args.biped_max_power,
+    problem = walk_problem(robot, speed, BIPED_MOTOR, intervals, WALK_PLAN_FRICTION if args.mu is None else args.mu,
+                           max_input_power=args.biped_max_power,
                            mirror=WALK_MIRROR if args.mirror is None else args.mirror)
     guess = guess_from_reference(problem, walk_reference(robot, speed, intervals))
     print(f"optimising the biped walk: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
@@ -248,6 +235,7 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
     joint_speed = data["v"][:, problem.actuated]
     plot_torque_speed(args.out / "gait_biped_torque_speed.png", robot, joint_speed, data["u"], BIPED_MOTOR,
                       f"Optimised biped walk (J_e1), {args.biped_speed:g} km/h: IPOPT {result.status}")
+    simulated = _replay(args, problem, trajectory, BIPED_MOTOR, args.out / "gait_biped_optimized", "the walk")
     return {
         "IPOPT iterations (constraints, then J_e1)": result.iterations, "solve wall time [s]": result.wall_time,
         "solve CPU time of this process [s]": cpu, "J_e1 (eq. 12) [J/m]": objective,
@@ -260,8 +248,39 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
            for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
         "torque-speed margin min (Sect. 2.3) [N m]": float(np.min(st.torque_speed_margin(
             data["u"], joint_speed, BIPED_MOTOR.joint_max_speed, BIPED_MOTOR.gear_ratio, BIPED_MOTOR.efficiency, BIPED_MOTOR.slope))),
+        **_replay_summary(args, simulated),
         "solver succeeded (1 = yes)": float(result.success),
     }
+
+
+def _replay(args: argparse.Namespace, problem: MultiphaseProblem, trajectory: Trajectory, motor: MotorParameters, stem: Path,
+            gait: str) -> Replay:
+    """Replay a solved gait in `lk.Simulation` for --replay-cycles cycles under --replay-controller, saying which, and,
+    unless --no-animation, write stem.html and stem.gif captioned with the controller."""
+    from legkit.optimize.gaits import stall_torque_bounds
+    from legkit.optimize.replay import replay
+    from legkit.optimize.tracking import track
+
+    if args.replay_controller == "mpc":
+        controller = ("the contact-constrained MPC (legkit.optimize.tracking: 2 ms control period, 120 ms horizon, "
+                      "stance forces >= 0.5 N in the friction pyramid (soles: eq. 6), swing feet above the ground, the motors' stall torques)")
+        caption = "the contact-constrained MPC (2 ms, 120 ms horizon)"
+        print(f"replaying {args.replay_cycles} cycles in lk.Simulation under {controller}")
+        simulated = track(problem, trajectory, args.replay_cycles, torque_bounds=stall_torque_bounds(motor, problem.nu))
+    else:
+        controller = f"joint PD tracking (kp {args.replay_kp:g} N m/rad, kd {args.replay_kd:g} N m s/rad) + the planned torques as feed-forward"
+        caption = f"joint PD (kp {args.replay_kp:g}, kd {args.replay_kd:g}) + feed-forward"
+        print(f"replaying {args.replay_cycles} cycles in lk.Simulation under {controller}")
+        simulated = replay(problem, trajectory, args.replay_cycles, kp=args.replay_kp, kd=args.replay_kd, control_every=1)
+    if not args.no_animation:
+        _animate_replay(stem, problem, simulated, caption, gait)
+    return simulated
+
+
+def _replay_summary(args: argparse.Namespace, simulated: Replay) -> dict[str, float]:
+    return {f"replay ({args.replay_controller}): drift over {args.replay_cycles} cycles [% of distance]": 100.0 * simulated.drift_fraction,
+            "replay: stayed upright (1 = yes)": float(simulated.upright),
+            "replay: fell after [s] (inf: never)": simulated.fell_at}
 
 
 def execution_summary(problem: MultiphaseProblem, x: np.ndarray) -> dict[str, float]:
@@ -372,9 +391,9 @@ def _write_trajectory_csv(path: Path, trajectory: Trajectory, labels: list[str],
     return columns
 
 
-def _animate_replay(stem: Path, problem: MultiphaseProblem, simulated: Replay, controller: str) -> None:
+def _animate_replay(stem: Path, problem: MultiphaseProblem, simulated: Replay, controller: str, gait: str) -> None:
     """stem.html (meshcat) and stem.gif: the replay in simulation (coloured) beside the optimised plan (grey,
-    translucent in the HTML, REPLAY_AHEAD m ahead of it), both seen from the side in a frame that moves with the
+    translucent in the HTML, REPLAY_AHEAD[gait] m ahead of it), both seen from the side in a frame that moves with the
     plan's travel (so that the robots stay large in the picture and apart), the controller named in the title."""
     from legkit import viewer
 
@@ -385,19 +404,19 @@ def _animate_replay(stem: Path, problem: MultiphaseProblem, simulated: Replay, c
     simulated_q[:, 0] -= moving
     planned_q[:, 0] -= moving
     speed = moving[-1] / simulated.t[-1] if simulated.t[-1] > 0 else 0.0
-    scene = viewer.Scene(view=(75.0, 15.0), title=f"the amble replayed in simulation under {controller}",
-                         caption=f"legkit gait --optimize. Coloured: simulated; grey: the optimised plan, {REPLAY_AHEAD:g} m ahead; "
+    scene = viewer.Scene(view=(75.0, 15.0), title=f"{gait} replayed in simulation under {controller}",
+                         caption=f"legkit gait --optimize. Coloured: simulated; grey: the optimised plan, {REPLAY_AHEAD[gait]:g} m ahead; "
                                  f"seen from a frame moving at the plan's {speed:.2f} m/s"
                                  + ("" if simulated.upright else f"; fell at {simulated.fell_at:.2f} s"))
     scene.add_robot(problem.model, planned_q, simulated.t, name="planned", color=(0.55, 0.55, 0.6, 0.35), label="planned",
-                    offset=[REPLAY_AHEAD, 0.0, 0.0])
+                    offset=[REPLAY_AHEAD[gait], 0.0, 0.0])
     scene.add_robot(problem.model, simulated_q, simulated.t, name="simulated", label="simulated")
     scene.write_html(stem.with_suffix(".html"))
     scene.write_gif(stem.with_suffix(".gif"), size=(800, 450))
 
 
-#: [m] how far ahead of the simulated robot the replay's animation shows the plan.
-REPLAY_AHEAD = 0.45
+#: [m] how far ahead of the simulated robot the replay's animation shows the plan, by gait (a stride and more apart).
+REPLAY_AHEAD = {"the amble": 0.45, "the walk": 0.9}
 
 
 def _plot_optimized(path: Path, t: np.ndarray, s_h: np.ndarray, reference_t: np.ndarray, reference: np.ndarray, labels: list[str],
@@ -435,8 +454,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cycles", type=_positive_int, default=1, help="gait cycles to analyse")
     parser.add_argument("--samples", type=_positive_int, default=400, help="samples per cycle (>= 8)")
     parser.add_argument("--mu", type=float, default=None,
-                        help="friction coefficient: of the friction-cone margin (default 0.8) and of the optimised amble's plan (default 0.6, "
-                             "the tracking MPC's friction pyramid)")
+                        help="friction coefficient: of the friction-cone margin (default 0.8) and of the optimised amble's and walk's "
+                             "plans (default 0.6, the tracking MPC's friction pyramid; the replay's ground has 0.8)")
     parser.add_argument("--quadruped-speed", type=float, default=0.67, help="amble speed [m/s] (Fig. 3: 0.67)")
     parser.add_argument("--quadruped-period", type=float, default=1.25, help="amble cycle time [s] (Fig. 3: 1.25)")
     parser.add_argument("--quadruped-tip-speed", type=float, default=2.0, help="swing-leg tip speed limit v_tip_max [m/s] (Fig. 3: 2)")
@@ -452,7 +471,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="--optimize: solve the amble on this many intervals per phase first, then refine it onto --intervals with its "
                              "worst-case S_H held at a fraction of the coarse optimum's (MultiphaseProblem.refine; default 4 when --intervals "
                              "is more, 0: solve on --intervals directly)")
-    parser.add_argument("--biped-intervals", type=_positive_int, default=4,
+    parser.add_argument("--biped-intervals", type=_positive_int, default=8,
                         help="--optimize: collocation intervals per biped single-support phase (a quarter, at least 1, per double support)")
     parser.add_argument("--max-iter", type=_positive_int, default=300,
                         help="--optimize: IPOPT iteration limit for the amble (per continuation stage)")

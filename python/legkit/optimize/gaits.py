@@ -201,8 +201,17 @@ WALK_MIRROR = False
 WALK_MAX_YAW = np.radians(10.0)
 
 
-def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: tuple[int, int] = (1, 4),
-                 friction: float = 0.8, max_tilt: float = np.radians(10.0), max_swing_height: float = 0.15,
+#: The walk's plan uses friction up to 0.6 and 0.8 of eq. 6's sole bounds (`FlatFoot.support`), below the 0.8 of the
+#: ground it is replayed on and the whole sole: margins the tracking MPC corrects with. Planned with friction 0.8 and
+#: the whole sole, the trailing foot's centre of pressure sat on its toe edge at 0.8 friction in every double support,
+#: and the MPC (holding every sole flat) fell within 5 cycles.
+WALK_PLAN_FRICTION = 0.6
+WALK_SOLE_SUPPORT = 0.8
+
+
+def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: tuple[int, int] = (2, 8),
+                 friction: float = WALK_PLAN_FRICTION, sole_support: float = WALK_SOLE_SUPPORT, max_tilt: float = np.radians(10.0),
+                 max_swing_height: float = 0.15,
                  double_support: tuple[float, float] = (0.04, 0.4), single_support: tuple[float, float] = (0.3, 1.0),
                  period: float | tuple[float, float] | None = 1.6, objectives: Sequence | None = None,
                  max_input_power: float | None = None, mirror: bool = False,
@@ -212,7 +221,8 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
     ground in stance with eq. 6's torque limits. intervals: (per double-support phase, per single-support
     phase); the phase durations [s] lie in double_support and single_support and sum to `period` [s] (fixed,
     bounds, or None: free; the default is the reference's, a 0.4 m step). max_input_power [W]: each motor's input
-    power bound (`InputPower`, Sect. 6's "maximum input power constraints"; None: unbounded). mirror: transcribe
+    power bound (`InputPower`, Sect. 6's "maximum input power constraints"; None: unbounded). sole_support: the
+    fraction of eq. 6's bounds the plan uses (`FlatFoot.support`). mirror: transcribe
     half the cycle (module docstring). dense_rates: the joint rates within the motors' no-load speed between the
     points too (`MultiphaseProblem.dense_rates`; at the points alone they reached 38-48 rad/s between them, against the
     5.2 rad/s the motors can turn). max_yaw [rad]: the pelvis' heading (`MultiphaseProblem.max_yaw`; np.inf for none).
@@ -226,7 +236,7 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
     p = robot.parameters
     centre = np.array([0.5 * (p.foot_toe - p.foot_heel), 0.0, -p.ankle_height])
     feet = {side: (f"{side}_foot", centre) for side in SIDES}
-    sole = FlatFoot(p.foot_toe + p.foot_heel, 2.0 * p.foot_half_width, SOLE_TORSION)
+    sole = FlatFoot(p.foot_toe + p.foot_heel, 2.0 * p.foot_half_width, SOLE_TORSION, sole_support)
     phases = [Phase(support, intervals[0] if len(support) == 2 else intervals[1], double_support if len(support) == 2 else single_support)
               for support in (WALK_SUPPORT[:2] if mirror else WALK_SUPPORT)]
     line = torque_speed_line(motor)
@@ -262,7 +272,7 @@ def solve_walk(problem: MultiphaseProblem, guess: Trajectory, derivatives: str =
     return trajectory, result.after(first)
 
 
-def walk_reference(robot: Biped, speed: float, intervals: tuple[int, int] = (1, 4), step_length: float = 0.4) -> GaitReference:
+def walk_reference(robot: Biped, speed: float, intervals: tuple[int, int] = (2, 8), step_length: float = 0.4) -> GaitReference:
     """`biped_walk` (double support 20 % of the cycle, step_length [m]) on the collocation points of
     `walk_problem`'s phases at their reference durations (0.1 and 0.4 of the period), one cycle and the next
     cycle's first point. The walk is sampled finely (a common multiple of both phases' point spacings; its derivatives by periodic

@@ -91,11 +91,16 @@ class FlatFoot:
     it is a length [m] although the paper calls it a friction coefficient. In stance the sole is held flat and
     still (six rows: the centre's position, the heights of a toe and a side point, the toe's y), at a
     touchdown the whole foot stops (eq. 7 with six impulse rows), and in swing those sole points stay above
-    the ground (eq. 4)."""
+    the ground (eq. 4).
+
+    support (0, 1]: the fraction of each of eq. 6's three bounds the plan may use (1: eq. 6 as published). Below 1 it
+    keeps the planned centre of pressure and torsion off the sole's edges, a margin a tracking controller needs: a
+    plan pressing a sole's edge leaves it no torque to correct with, and the sole tips about that edge."""
 
     length: float  # l_x [m]
     width: float  # l_y [m]
     torsion: float  # mu_d [m]
+    support: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("length", "width"):
@@ -103,6 +108,8 @@ class FlatFoot:
                 raise ValueError(f"FlatFoot.{name} must be > 0, got {getattr(self, name)}")
         if not self.torsion >= 0.0:
             raise ValueError(f"FlatFoot.torsion must be >= 0, got {self.torsion}")
+        if not 0.0 < self.support <= 1.0:
+            raise ValueError(f"FlatFoot.support must be in (0, 1], got {self.support}")
 
 
 @dataclass(frozen=True)
@@ -849,7 +856,7 @@ class MultiphaseProblem:
 
     def foot_torque_blocks(self, k: int) -> list[Block]:
         """Eq. 6 at every point of phase k, for each flat foot on the ground: c_i F_z - s T_i >= 0 for i = x, y, z
-        and s = +-1, with c = (0.5 l_y, 0.5 l_x, mu_d); linear in the force and torque variables."""
+        and s = +-1, with c = support x (0.5 l_y, 0.5 l_x, mu_d) (`FlatFoot.support`); linear in the force and torque variables."""
         contacts = list(self.phases[k].contacts)
         if not self.flat_contacts(contacts):
             return []
@@ -859,7 +866,7 @@ class MultiphaseProblem:
         blocks: list[Block] = []
         for c, name in enumerate(self.flat_contacts(contacts)):
             sole = self.flat_feet[name]
-            limit = np.array([0.5 * sole.width, 0.5 * sole.length, sole.torsion])
+            limit = sole.support * np.array([0.5 * sole.width, 0.5 * sole.length, sole.torsion])
             normal = forces[:, contacts.index(name), 2]
             for sign in (1.0, -1.0):
                 rows = np.arange(3 * len(index))
