@@ -435,7 +435,7 @@ pub struct Data {
     /// The derivative algorithms' workspace and outputs, sized by their first call.
     pub derivatives: Derivatives,
     /// The contact kernels' k-dependent matrices, sized by their first call.
-    pub contact: crate::algorithms::contact::ContactWorkspace,
+    pub contact: ContactWorkspace,
 }
 
 /// Right-hand sides `aba::solve_columns` takes at once: its per-body work runs across them as short vectors.
@@ -454,6 +454,77 @@ pub struct SecondOrder {
     pub dvdv: Vec<f64>,
     pub dqdv: Vec<f64>,
     pub dadq: Vec<f64>,
+}
+
+/// The contact kernels' k-dependent matrices (column-major), kept in `Data` and reused while r (the constraint rows)
+/// and nv stay; sized with fallible allocation, so that too many contacts are a `TooLarge` naming them.
+#[derive(Debug, Clone, Default)]
+pub struct ContactWorkspace {
+    /// (r, nv) for which the buffers are sized (and the model's bodies).
+    pub(crate) shape: (usize, usize),
+    pub(crate) bodies: usize,
+    /// J (r x nv): the constraint rows, world axes at the points.
+    pub(crate) jacobian: Vec<f64>,
+    /// γ (r): the rows' velocity-product accelerations; then the right-hand side of a solve.
+    pub(crate) drift: Vec<f64>,
+    /// M⁻¹ Jᵀ (nv x r).
+    pub(crate) minv_jt: Vec<f64>,
+    /// S⁻¹ = (J M⁻¹ Jᵀ)⁻¹ (r x r), and the Cholesky factor it is computed from.
+    pub(crate) schur_inverse: Vec<f64>,
+    pub(crate) schur: Vec<f64>,
+    pub(crate) cholesky: Vec<f64>,
+    /// Gᵀ = M⁻¹ Jᵀ S⁻¹ (nv x r) and G (r x nv).
+    pub(crate) gain_t: Vec<f64>,
+    pub(crate) gain: Vec<f64>,
+    /// M⁻¹ − M⁻¹ Jᵀ G (nv x nv).
+    pub(crate) projected: Vec<f64>,
+    /// Right-hand sides of the derivatives' solve: nv x 2nv and r x 2nv.
+    pub(crate) rhs_top: Vec<f64>,
+    pub(crate) rhs_rows: Vec<f64>,
+    /// nv numbers: zero accelerations, then the solution's generalized part.
+    pub(crate) zeros: Vec<f64>,
+    pub(crate) solution: Vec<f64>,
+    /// r numbers: the solution's forces (or impulses).
+    pub(crate) forces: Vec<f64>,
+    /// nv numbers: an impact's change of velocity.
+    pub(crate) change: Vec<f64>,
+    /// The forces as external forces on the bodies (`rnea`'s f_ext).
+    pub(crate) body_forces: Vec<Force>,
+}
+
+impl ContactWorkspace {
+    /// Sizes the buffers for r constraint rows on `model`, or `TooLarge` naming the contacts.
+    pub(crate) fn reserve(&mut self, model: &Model, r: usize) -> Result<()> {
+        let nv = model.nv();
+        if self.shape == (r, nv) && self.bodies == model.nbodies() {
+            return Ok(());
+        }
+        let len = |shape: &[usize]| array_len("contacts", shape, std::mem::size_of::<f64>());
+        let buffer = |shape: &[usize]| filled("contacts", len(shape)?, 0.0);
+        // All at once, so that a refusal leaves the workspace as it was.
+        let fresh = ContactWorkspace {
+            shape: (r, nv),
+            bodies: model.nbodies(),
+            jacobian: buffer(&[r, nv])?,
+            drift: buffer(&[r])?,
+            minv_jt: buffer(&[nv, r])?,
+            schur_inverse: buffer(&[r, r])?,
+            schur: buffer(&[r, r])?,
+            cholesky: buffer(&[r, r])?,
+            gain_t: buffer(&[nv, r])?,
+            gain: buffer(&[r, nv])?,
+            projected: buffer(&[nv, nv])?,
+            rhs_top: buffer(&[nv, 2, nv])?,
+            rhs_rows: buffer(&[r, 2, nv])?,
+            zeros: buffer(&[nv])?,
+            solution: buffer(&[nv])?,
+            forces: buffer(&[r])?,
+            change: buffer(&[nv])?,
+            body_forces: filled("contacts", model.nbodies(), Force::zeros())?,
+        };
+        *self = fresh;
+        Ok(())
+    }
 }
 
 /// The workspace and outputs of the derivative algorithms (`rnea_derivatives`, `aba_derivatives`), in the centred

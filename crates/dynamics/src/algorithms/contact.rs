@@ -13,9 +13,8 @@ use nalgebra::{DMatrix, DVector, Vector3};
 use super::kinematics_derivatives::FramePoint;
 use super::rnea_derivatives::motion_derivatives;
 use super::{crba, minv, rnea};
-use crate::model::{Data, Model};
-use crate::spatial::{Force, Motion};
-use crate::validate::{array_len, filled};
+use crate::model::{ContactWorkspace, Data, Model};
+use crate::spatial::Motion;
 use crate::{Error, Result};
 
 /// A point on a body, in the body's frame, held still by `contact_dynamics`, `reduced_dynamics` and `impact` (their
@@ -82,77 +81,6 @@ pub fn check_contacts(model: &Model, contacts: &[ContactPoint]) -> Result<()> {
         crate::validate::finite_vector("contacts", c.point)?;
     }
     Ok(())
-}
-
-/// The contact kernels' k-dependent matrices (column-major), kept in `Data` and reused while r (the constraint rows)
-/// and nv stay; sized with fallible allocation, so that too many contacts are a `TooLarge` naming them.
-#[derive(Debug, Clone, Default)]
-pub struct ContactWorkspace {
-    /// (r, nv) for which the buffers are sized (and the model's bodies).
-    pub(crate) shape: (usize, usize),
-    bodies: usize,
-    /// J (r x nv): the constraint rows, world axes at the points.
-    pub(crate) jacobian: Vec<f64>,
-    /// γ (r): the rows' velocity-product accelerations; then the right-hand side of a solve.
-    pub(crate) drift: Vec<f64>,
-    /// M⁻¹ Jᵀ (nv x r).
-    pub(crate) minv_jt: Vec<f64>,
-    /// S⁻¹ = (J M⁻¹ Jᵀ)⁻¹ (r x r), and the Cholesky factor it is computed from.
-    pub(crate) schur_inverse: Vec<f64>,
-    schur: Vec<f64>,
-    cholesky: Vec<f64>,
-    /// Gᵀ = M⁻¹ Jᵀ S⁻¹ (nv x r) and G (r x nv).
-    pub(crate) gain_t: Vec<f64>,
-    pub(crate) gain: Vec<f64>,
-    /// M⁻¹ − M⁻¹ Jᵀ G (nv x nv).
-    pub(crate) projected: Vec<f64>,
-    /// Right-hand sides of the derivatives' solve: nv x 2nv and r x 2nv.
-    pub(crate) rhs_top: Vec<f64>,
-    pub(crate) rhs_rows: Vec<f64>,
-    /// nv numbers: zero accelerations, then the solution's generalized part.
-    pub(crate) zeros: Vec<f64>,
-    pub(crate) solution: Vec<f64>,
-    /// r numbers: the solution's forces (or impulses).
-    pub(crate) forces: Vec<f64>,
-    /// nv numbers: an impact's change of velocity.
-    pub(crate) change: Vec<f64>,
-    /// The forces as external forces on the bodies (`rnea`'s f_ext).
-    pub(crate) body_forces: Vec<Force>,
-}
-
-impl ContactWorkspace {
-    /// Sizes the buffers for r constraint rows on `model`, or `TooLarge` naming the contacts.
-    pub(crate) fn reserve(&mut self, model: &Model, r: usize) -> Result<()> {
-        let nv = model.nv();
-        if self.shape == (r, nv) && self.bodies == model.nbodies() {
-            return Ok(());
-        }
-        let len = |shape: &[usize]| array_len("contacts", shape, std::mem::size_of::<f64>());
-        let buffer = |shape: &[usize]| filled("contacts", len(shape)?, 0.0);
-        // All at once, so that a refusal leaves the workspace as it was.
-        let fresh = ContactWorkspace {
-            shape: (r, nv),
-            bodies: model.nbodies(),
-            jacobian: buffer(&[r, nv])?,
-            drift: buffer(&[r])?,
-            minv_jt: buffer(&[nv, r])?,
-            schur_inverse: buffer(&[r, r])?,
-            schur: buffer(&[r, r])?,
-            cholesky: buffer(&[r, r])?,
-            gain_t: buffer(&[nv, r])?,
-            gain: buffer(&[r, nv])?,
-            projected: buffer(&[nv, nv])?,
-            rhs_top: buffer(&[nv, 2, nv])?,
-            rhs_rows: buffer(&[r, 2, nv])?,
-            zeros: buffer(&[nv])?,
-            solution: buffer(&[nv])?,
-            forces: buffer(&[r])?,
-            change: buffer(&[nv])?,
-            body_forces: filled("contacts", model.nbodies(), Force::zeros())?,
-        };
-        *self = fresh;
-        Ok(())
-    }
 }
 
 /// `c = beta c + alpha a b` for column-major a (m x p, `a.len() / m` = p) and b (p x n) read at b[k rs + j cs], c m x

@@ -16,11 +16,11 @@
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
-use super::contact::{check_contacts, contact_solution, gemm, impact_solution, plain, with_workspace, ContactDim, ContactPoint, ContactWorkspace};
+use super::contact::{check_contacts, contact_solution, gemm, impact_solution, plain, with_workspace, ContactDim, ContactPoint};
 use super::jacobian::Frame;
 use super::kinematics_derivatives::{for_each_frame_derivative, FramePoint};
 use super::rnea_derivatives::{column, derivatives_into, motion_derivatives};
-use crate::model::{Data, Model};
+use crate::model::{ContactWorkspace, Data, Model};
 use crate::spatial::{angular, linear, spatial, Force, Motion};
 use crate::{Error, Result};
 
