@@ -8,8 +8,11 @@ real-time factor (wall / simulated time), whether the robot stayed upright, and 
 distance.
 
     PYTHONPATH=python python3 benches/mpc.py [--cycles 5] [--mass 1.1 0.9] [--plan /tmp/amble.npz]
+    PYTHONPATH=python python3 benches/mpc.py --gait walk --plan tests/data/optimised_walk.npz --mass 0.9
 
---plan: the solved plan is saved there on the first run and loaded on later ones (the solve takes 30-60 s).
+--plan: the solved plan is saved there on the first run and loaded on later ones (the amble's solve takes a minute or
+two, the walk's (`walk_problem`'s defaults, `solve_walk`) about five). --gait walk: the biped walk at 1.8 km/h, its
+soles held as frames by the MPC.
 """
 
 from __future__ import annotations
@@ -26,35 +29,31 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from legkit.gaits import AMBLE_QUADRUPED  # noqa: E402
-from legkit.optimize.gaits import amble_plan_problem, plan_amble, stall_torque_bounds  # noqa: E402
+from legkit.optimize.gaits import (  # noqa: E402
+    amble_plan_problem,
+    guess_from_reference,
+    plan_amble,
+    solve_walk,
+    stall_torque_bounds,
+    walk_problem,
+    walk_reference,
+)
 from legkit.optimize.tracking import MPC, TrackingModel, heavier, track  # noqa: E402
-from legkit.robots.motors import QUADRUPED_MOTOR  # noqa: E402
+from legkit.robots.biped import build_biped  # noqa: E402
+from legkit.robots.motors import BIPED_MOTOR, QUADRUPED_MOTOR  # noqa: E402
 from legkit.robots.quadruped import build_quadruped  # noqa: E402
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--gait", choices=("amble", "walk"), default="amble")
     parser.add_argument("--cycles", type=int, default=5)
     parser.add_argument("--mass", type=float, nargs="*", default=[1.1, 0.9], help="plant mass factors besides 1")
     parser.add_argument("--plan", type=Path, default=None, help="npz file to save the solved plan to, or load it from")
     args = parser.parse_args()
 
-    robot = build_quadruped(AMBLE_QUADRUPED)
-    if args.plan is not None and args.plan.exists():
-        fine = amble_plan_problem(robot)
-        x = np.load(args.plan)["x"]
-        print(f"plan loaded from {args.plan}")
-    else:
-        start = time.perf_counter()
-        plan = plan_amble(robot)
-        fine, result = plan.problem, plan.result
-        x = result.best()[0]
-        print(f"plan solved: {result.status}, {time.perf_counter() - start:.1f} s")
-        if args.plan is not None:
-            np.savez(args.plan, x=x)
-    problem, x = fine.whole_cycle(x)
-    trajectory = problem.unpack(x)
-    motors = stall_torque_bounds(QUADRUPED_MOTOR, problem.nu)
+    problem, trajectory, motor = plan(args)
+    motors = stall_torque_bounds(motor, problem.nu)
 
     start = time.perf_counter()
     model = TrackingModel.build(problem, trajectory)
@@ -85,6 +84,32 @@ def main() -> None:
         steps, solved = np.array(timings) * 1e3, controllers[-1].solved / len(timings)
         print(f"{factor:>10.2f} {wall:>9.2f} {run.t[-1]:>13.2f} {wall / run.t[-1]:>16.2f} {np.median(steps):>16.3f} "
               f"{np.percentile(steps, 90):>13.3f} {solved:>11.0%} {str(run.upright):>7} {100 * run.drift_fraction:>9.2f}")
+
+
+def plan(args: argparse.Namespace) -> tuple:
+    """(whole-cycle problem, trajectory, motor) of the gait, loaded from --plan if it exists, else solved (and saved there)."""
+    if args.gait == "walk":
+        biped = build_biped()
+        fine, motor = walk_problem(biped, 0.5, BIPED_MOTOR), BIPED_MOTOR
+    else:
+        quadruped = build_quadruped(AMBLE_QUADRUPED)
+        fine, motor = amble_plan_problem(quadruped), QUADRUPED_MOTOR
+    if args.plan is not None and args.plan.exists():
+        x = np.load(args.plan)["x"]
+        print(f"plan loaded from {args.plan}")
+    else:
+        start = time.perf_counter()
+        if args.gait == "walk":
+            _, result = solve_walk(fine, guess_from_reference(fine, walk_reference(biped, 0.5)))
+        else:
+            solved = plan_amble(quadruped)
+            fine, result = solved.problem, solved.result
+        x = result.best()[0]
+        print(f"plan solved: {result.status}, {time.perf_counter() - start:.1f} s")
+        if args.plan is not None:
+            np.savez(args.plan, x=x)
+    problem, x = fine.whole_cycle(x)
+    return problem, problem.unpack(x), motor
 
 
 if __name__ == "__main__":
