@@ -148,18 +148,16 @@ pub fn contact_dynamics_derivatives(
     let (nv, r) = (model.nv(), rows(contacts, dim));
     let (mut ddq_d, mut forces_d) = (vec![0.0; 3 * nv * nv], vec![0.0; 3 * r * nv]);
     contact_dynamics_derivatives_into(model, data, q, v, tau, contacts, dim, &mut ddq_d, &mut forces_d)?;
-    let square = |i: usize| DMatrix::from_column_slice(nv, nv, &ddq_d[i * nv * nv..(i + 1) * nv * nv]);
-    let per_row = |i: usize| DMatrix::from_column_slice(r, nv, &forces_d[i * r * nv..(i + 1) * r * nv]);
     let w = &data.contact;
     Ok(ContactDynamicsDerivatives {
         ddq: DVector::from_column_slice(&w.solution),
         forces: DVector::from_column_slice(&w.forces),
-        ddq_dq: square(0),
-        ddq_dv: square(1),
-        ddq_dtau: square(2),
-        forces_dq: per_row(0),
-        forces_dv: per_row(1),
-        forces_dtau: per_row(2),
+        ddq_dq: block(&ddq_d, nv, nv, 0),
+        ddq_dv: block(&ddq_d, nv, nv, 1),
+        ddq_dtau: block(&ddq_d, nv, nv, 2),
+        forces_dq: block(&forces_d, r, nv, 0),
+        forces_dv: block(&forces_d, r, nv, 1),
+        forces_dtau: block(&forces_d, r, nv, 2),
     })
 }
 
@@ -201,6 +199,11 @@ pub fn contact_dynamics_derivatives_into(
     })
 }
 
+/// The i-th of the column-major rows x cols matrices stored one after the other in `buffer`.
+fn block(buffer: &[f64], rows: usize, cols: usize, i: usize) -> DMatrix<f64> {
+    DMatrix::from_column_slice(rows, cols, &buffer[i * rows * cols..(i + 1) * rows * cols])
+}
+
 /// `impact` (the velocity after a perfectly inelastic impact at the contacts, and its impulses, at configuration `q`
 /// and velocity `v` before it) and its derivatives with respect to q and that velocity.
 pub fn impact_derivatives(
@@ -214,16 +217,14 @@ pub fn impact_derivatives(
     let (nv, r) = (model.nv(), rows(contacts, dim));
     let (mut velocity_d, mut impulses_d) = (vec![0.0; 2 * nv * nv], vec![0.0; 2 * r * nv]);
     impact_derivatives_into(model, data, q, v, contacts, dim, &mut velocity_d, &mut impulses_d)?;
-    let square = |i: usize| DMatrix::from_column_slice(nv, nv, &velocity_d[i * nv * nv..(i + 1) * nv * nv]);
-    let per_row = |i: usize| DMatrix::from_column_slice(r, nv, &impulses_d[i * r * nv..(i + 1) * r * nv]);
     let w = &data.contact;
     Ok(ImpactDerivatives {
         velocity: DVector::from_column_slice(&w.solution),
         impulses: DVector::from_column_slice(&w.forces),
-        velocity_dq: square(0),
-        velocity_dv: square(1),
-        impulses_dq: per_row(0),
-        impulses_dv: per_row(1),
+        velocity_dq: block(&velocity_d, nv, nv, 0),
+        velocity_dv: block(&velocity_d, nv, nv, 1),
+        impulses_dq: block(&impulses_d, r, nv, 0),
+        impulses_dv: block(&impulses_d, r, nv, 1),
     })
 }
 
