@@ -95,7 +95,7 @@ def set_cone(m) -> None:
     m.opt.impratio = impratio
 
 
-FRICTION_LAW = "coulomb"  # legkit's tree engine: Coulomb's law, elliptic; --friction-law cone for the relaxation
+FRICTION_LAW = "coulomb"  # legkit's tree engine: Coulomb's law (its default), elliptic; --friction-law cone for the relaxation
 
 
 def solver_options() -> dict:

@@ -1,4 +1,4 @@
-"""Coulomb friction in the tree engine (friction_law="coulomb") against closed-form physics, to the step.
+"""Coulomb friction in the tree engine (friction_law="coulomb", the default) against closed-form physics, to the step.
 
 A launched box (deceleration μg from the first step, stopping distance, no hop), a box on an incline at μ
 just below and just above tan θ (acceleration g (sin θ − μ cos θ), hover, creep), a sphere launched without
@@ -26,7 +26,7 @@ SOLVER_RTOL = 1e-6
 
 def box_sim(mu, gravity=None, size=SIZE):
     model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(1.0, [size] * 3), gravity=gravity)
-    sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(mu), shapes={0: ("box", [size] * 3)}, friction_law="coulomb")
+    sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(mu), shapes={0: ("box", [size] * 3)})
     sim.q = [0.0, 0.0, size / 2, 0.0, 0.0, 0.0, 1.0]
     sim.step(n=200)  # settled: its contacts carry its weight, warm-started
     return sim
@@ -131,7 +131,7 @@ def sphere_sim(mu, gravity=None):
     mass = 1.0
     inertia = 0.4 * mass * RADIUS**2 * np.eye(3)
     model = lk.Model(floating_base=True, base=lk.MassProperties(mass, [0.0, 0.0, 0.0], inertia), gravity=gravity)
-    sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(mu), shapes={0: ("sphere", RADIUS)}, friction_law="coulomb")
+    sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(mu), shapes={0: ("sphere", RADIUS)})
     sim.q = [0.0, 0.0, RADIUS, 0.0, 0.0, 0.0, 1.0]
     sim.step(n=100)
     return sim
@@ -262,7 +262,7 @@ def test_pendulum_period_and_first_order_energy_error():
 
 
 def test_the_cone_law_lifts_a_sliding_box_and_coulombs_does_not():
-    # The convex relaxation (the default, friction_law="cone") makes a sliding contact separate at
+    # The convex relaxation (friction_law="cone") makes a sliding contact separate at
     # v_n = μ |v_t| (less what its soft normal row absorbs): launched at 2 m/s with μ = 0.8, the box leaves
     # the ground in its first step at nearly μ times its new speed. Coulomb's law keeps it down.
     heights = {}
@@ -281,6 +281,12 @@ def test_the_cone_law_lifts_a_sliding_box_and_coulombs_does_not():
         sim.step(n=20)
         heights[law] = sim.q[2] - rest
     assert heights["cone"] > 10e-3 and heights["coulomb"] <= 1e-6
+
+
+def test_coulombs_law_is_the_default():
+    # What a new user's box slides under (the closed-form tests above build their simulations without the argument).
+    model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(1.0, [SIZE] * 3))
+    assert lk.Simulation(model).friction_law == "coulomb"
 
 
 def test_an_unknown_friction_law_is_refused_naming_it():

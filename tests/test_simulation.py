@@ -64,9 +64,9 @@ def quadruped():
     return model, shapes
 
 
-def standing_quadruped(ground, height=0.03 + 2 * LEG_LENGTH + FOOT_RADIUS + 0.005, substeps=1, kp=40.0, kd=0.3):
+def standing_quadruped(ground, height=0.03 + 2 * LEG_LENGTH + FOOT_RADIUS + 0.005, substeps=1, kp=40.0, kd=0.3, friction_law="coulomb"):
     model, shapes = quadruped()
-    sim = lk.Simulation(model, dt=1e-3, ground=ground, shapes=shapes, substeps=substeps)
+    sim = lk.Simulation(model, dt=1e-3, ground=ground, shapes=shapes, substeps=substeps, friction_law=friction_law)
     q = model.neutral()
     q[2] = height
     sim.q = q

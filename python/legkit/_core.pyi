@@ -369,13 +369,14 @@ class Ground:
 class Simulation:
     """Contact simulation of a Model: legkit's tree engine (backend="tree", default) or Rapier's multibody
     (backend="rapier", the reference). substeps and solver_iterations in 1..1000; shape sizes at most 1e6 m.
-    friction_law (tree engine): "cone", the convex relaxation |f_t| <= mu f_n (the default; a sliding contact
-    separates at v_n = mu |v_t|, so sliding bodies hop), or "coulomb", Coulomb's law (no lift; not convex)."""
+    friction_law (tree engine): "coulomb", Coulomb's law (the default: no lift off a sliding contact; not convex),
+    or "cone", the convex relaxation |f_t| <= mu f_n (unique impulses; a sliding contact separates at
+    v_n = mu |v_t|, so sliding bodies hop)."""
     def __init__(
         self, model: Model, dt: float = 1e-3, ground: Ground | None = None, shapes: dict[int | str, _ShapeSpec] | None = None,
         self_collision: bool = False, substeps: int = 1,
         backend: Literal["tree", "rapier"] = "tree", solver_iterations: int = 50,
-        friction_law: Literal["cone", "coulomb"] = "cone",
+        friction_law: Literal["cone", "coulomb"] = "coulomb",
     ) -> None: ...
     @property
     def friction_law(self) -> Literal["cone", "coulomb"]: ...

@@ -44,10 +44,11 @@ pub struct Options {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FrictionLaw {
     /// The convex relaxation: impulses in the elliptic cone |λ_t| ≤ μ λ_n, one strictly convex problem
-    /// (Anitescu 2006). A sliding contact separates at v_n = μ |v_t|: a sliding body hops. The default.
+    /// (Anitescu 2006): unique impulses, Newton converging from anywhere. A sliding contact separates at
+    /// v_n = μ |v_t|: a sliding body hops.
     Cone,
     /// Coulomb's law: the normal row complementary to the normal velocity alone, friction in the disk
-    /// |λ_t| ≤ μ λ_n (non-associated): no lift, μ g deceleration from the first step; not convex.
+    /// |λ_t| ≤ μ λ_n (non-associated): no lift, μ g deceleration from the first step; not convex. The default.
     Coulomb,
 }
 
@@ -109,7 +110,7 @@ impl Options {
             substeps: 1,
             backend: Backend::Tree,
             solver_iterations: DEFAULT_SOLVER_ITERATIONS,
-            friction_law: FrictionLaw::Cone,
+            friction_law: FrictionLaw::Coulomb,
         }
     }
 

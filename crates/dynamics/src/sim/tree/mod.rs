@@ -7,9 +7,9 @@
 //!    leaves its factor, from which every body's apparent inverse inertia follows in O(n) (`delassus`).
 //! 3. Contacts from parry at the start-of-step configuration (`collision`), joint limits about to be
 //!    crossed, each a constraint whose rows follow the ancestor chain of its bodies.
-//! 4. Newton's method on the soft contacts, under the cone law (the convex relaxation, the default) or
-//!    Coulomb's (the normal rows complementary to the normal velocity alone, friction in the disk
-//!    |λ_t| ≤ μ λ_n: no lift off a sliding contact), warm-started from the last step's impulses (`solver`),
+//! 4. Newton's method on the soft contacts, under Coulomb's law (the default: the normal rows complementary
+//!    to the normal velocity alone, friction in the disk |λ_t| ≤ μ λ_n: no lift off a sliding contact) or the
+//!    cone law (the convex relaxation), warm-started from the last step's impulses (`solver`),
 //!    gives v⁺ = v_free + M̃⁻¹ Jᵀ λ; then q⁺ = q ⊕ h v⁺ (semi-implicit Euler).
 //!
 //! Why Newton on the tree: its matrix M̃ + Jᵀ H J keeps the tree's sparsity (a contact adds a 6x6

@@ -9,17 +9,17 @@
 //! impulses follow from y contact by contact (Todorov 2014's soft contacts, MuJoCo's R), and the step's
 //! velocities solve M̃ (v − v_free) = Jᵀ λ(J v − b).
 //!
-//! The cone law (the default) is the convex (Anitescu 2006) relaxation: λ = R^-½ Π_K̂(−R^-½ y), the
-//! projection on the elliptic cone |λ_t| ≤ μ λ_n, of slope μ̂ = μ (R_t / R_n)^½ in the scaled impulses R^½ λ.
+//! The cone law is the convex (Anitescu 2006) relaxation: λ = R^-½ Π_K̂(−R^-½ y), the projection on the
+//! elliptic cone |λ_t| ≤ μ λ_n, of slope μ̂ = μ (R_t / R_n)^½ in the scaled impulses R^½ λ.
 //! The velocities minimise one strictly convex primal,
 //!   min ½ (v − v_free)ᵀ M̃ (v − v_free) + Σ ½ |Π_K̂(−R^-½ (J v − b))|²,
 //! so the impulses are unique even where contacts are redundant (four corners of a box on the ground). Its
 //! optimality conditions make a sliding contact separate at v_n = μ |v_t|: a 1 kg box launched at 2 m/s
 //! with μ = 0.8 loses 39 % of its speed in its first millisecond and hops 47 mm.
 //!
-//! Coulomb's law: λ_n = max(0, −y_n / R_n) and λ_t = −y_t / R_t clamped to the disk |λ_t| ≤ μ λ_n. The
-//! normal row is complementary to the normal velocity alone and friction bounded by the same solve's normal
-//! impulse: the non-associated law, as the per-contact solvers of Bullet, PhysX and Rapier clamp it (normal,
+//! Coulomb's law (the default): λ_n = max(0, −y_n / R_n) and λ_t = −y_t / R_t clamped to the disk
+//! |λ_t| ≤ μ λ_n. The normal row is complementary to the normal velocity alone and friction bounded by the
+//! same solve's normal impulse: the non-associated law, as the per-contact solvers of Bullet, PhysX and Rapier clamp it (normal,
 //! then tangent), and as Kaufman et al. 2008 (staggered projections) solve it globally. No lift: that box
 //! decelerates at μ g from its first step (`tests/test_friction.py`). What it gives up: the law is no
 //! minimum of one convex function, so Newton's global convergence guarantee and the solution's uniqueness
@@ -30,8 +30,9 @@
 //! where feet switch between sticking, sliding and lifting off take 20-50, hence the cap of 50), and the
 //! transition Jacobians (`transition`) match central differences of its step. The laws can part on a robot's
 //! landing, chaotically: a quadruped dropped 7 cm onto ridges of slope 0.4 at μ 0.9 falls over or not as the
-//! drop height changes by a centimetre, under either law and in MuJoCo (docs/simulation.md). Not the default
-//! yet: an MPC tuned under the cone (`legkit gait --optimize`) loses its amble under it (docs/simulation.md).
+//! drop height changes by a centimetre, under either law and in MuJoCo (docs/simulation.md). The cone law
+//! stays for what convexity buys: impulses unique and Newton globally convergent (contacts between two bodies
+//! converge in fewer iterations under it), and the relaxation that convex solvers (MuJoCo's, Drake's SAP) share.
 //!
 //! Newton. Each iteration holds the disks' radii at the current normal impulses: that problem is the primal
 //!   min ½ (v − v_free)ᵀ M̃ (v − v_free) + Σ ψ(−R^-½ (J v − b)),  ψ(s) = ½ |s|² − ½ dist(s, C)²,
