@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Installs what the tests need (the package with its test extras, built from this checkout, into the
 # project's virtual environment: see venv.sh) and runs the linters and every test in five tiers, timing each:
-#   lint         rustfmt and clippy (warnings are errors) on the crates; ruff check and mypy on the Python
-#                package and its stub (configured in rustfmt.toml, Cargo.toml and pyproject.toml)
+#   lint         rustfmt and clippy (warnings are errors) on the crates; rustdoc on the core crate, with and
+#                without its default features (every public item documented, no broken links: warnings are
+#                errors); ruff check and mypy on the Python package and its stub (configured in rustfmt.toml,
+#                Cargo.toml and pyproject.toml)
 #   rust         the Rust unit tests (cargo test, release optimisation without fat LTO), and the core crate checked
 #                without its default features (no Rapier)
 #   python-fast  the Python suite without the tests marked slow (pytest -m "not slow": the inner loop)
@@ -56,6 +58,8 @@ lint() {  # every linter runs; the tier fails if any does
     { cargo fmt --version && cargo clippy --version; } >/dev/null 2>&1 || rustup component add rustfmt clippy || rc=1
     cargo fmt --all -- --check || rc=1
     cargo clippy --quiet --workspace --all-targets -- -D warnings || rc=1
+    RUSTDOCFLAGS="-D warnings" cargo doc --quiet -p legkit-dynamics --no-deps || rc=1
+    RUSTDOCFLAGS="-D warnings" cargo doc --quiet -p legkit-dynamics --no-deps --no-default-features || rc=1
     python -m ruff check || rc=1
     python -m mypy || rc=1
     return "$rc"

@@ -3,25 +3,45 @@
 
 use std::fmt;
 
+/// Why a call failed; every fallible function of the crate returns it. Its `Display` is "argument: reason", the
+/// message the Python bindings raise.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Error {
     /// An argument's value is out of its domain (non-finite, negative mass, non-physical inertia, ...).
-    InvalidArgument { argument: &'static str, reason: String },
+    InvalidArgument {
+        /// The argument's name, as the caller spells it.
+        argument: &'static str,
+        /// What is wrong with its value.
+        reason: String,
+    },
     /// A computation failed on valid input (`context` names it, e.g. "step"): a RuntimeError in Python.
-    Numerical { context: &'static str, reason: String },
+    Numerical {
+        /// The computation that failed.
+        context: &'static str,
+        /// How it failed.
+        reason: String,
+    },
     /// What the argument asks for cannot be allocated (the reason gives the size): a MemoryError in Python.
-    TooLarge { argument: &'static str, reason: String },
+    TooLarge {
+        /// The argument whose size it is.
+        argument: &'static str,
+        /// The size asked for.
+        reason: String,
+    },
 }
 
 impl Error {
+    /// An [`Error::InvalidArgument`].
     pub fn invalid(argument: &'static str, reason: impl Into<String>) -> Self {
         Error::InvalidArgument { argument, reason: reason.into() }
     }
 
+    /// An [`Error::Numerical`].
     pub fn numerical(context: &'static str, reason: impl Into<String>) -> Self {
         Error::Numerical { context, reason: reason.into() }
     }
 
+    /// An [`Error::TooLarge`].
     pub fn too_large(argument: &'static str, reason: impl Into<String>) -> Self {
         Error::TooLarge { argument, reason: reason.into() }
     }
@@ -53,4 +73,5 @@ impl fmt::Display for Error {
 
 impl std::error::Error for Error {}
 
+/// The crate's result type.
 pub type Result<T> = std::result::Result<T, Error>;

@@ -9,6 +9,8 @@ use crate::spatial::{spatial, Motion, Transform};
 use crate::validate::{direction, finite};
 use crate::{Error, Result};
 
+/// The joint that moves a body relative to its parent, with its motion subspace from
+/// [Featherstone 2008, Table 4.1].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Joint {
     /// The base of a floating-base model: 7 configuration and 6 velocity coordinates.
@@ -20,7 +22,12 @@ pub enum Joint {
     /// Translation along a unit axis of the joint frame.
     Prismatic(Vector3<f64>),
     /// Rotation by q about a unit axis of the joint frame with translation `pitch` q along it (m/rad).
-    Helical { axis: Vector3<f64>, pitch: f64 },
+    Helical {
+        /// The unit axis of rotation and translation.
+        axis: Vector3<f64>,
+        /// Translation per radian (m/rad).
+        pitch: f64,
+    },
     /// A ball joint: any rotation about the joint frame's origin, a unit quaternion `[qx, qy, qz, qw]` in q (as
     /// the free flyer's) and the angular velocity in the child frame in v (Pinocchio's `JointModelSpherical`).
     Spherical,
@@ -28,7 +35,7 @@ pub enum Joint {
 
 /// How a joint moves, as the algorithms see it.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Dofs {
+pub(crate) enum Dofs {
     /// The free-flyer base: velocity `[v; ω]` in its own frame.
     Free,
     /// No motion.
@@ -40,6 +47,7 @@ pub enum Dofs {
 }
 
 impl Joint {
+    /// Number of configuration coordinates: 7 for the free flyer, 4 for a ball joint (a quaternion).
     #[inline(always)]
     pub fn nq(&self) -> usize {
         match self.dofs() {
@@ -50,6 +58,7 @@ impl Joint {
         }
     }
 
+    /// Number of velocity coordinates (degrees of freedom).
     #[inline(always)]
     pub fn nv(&self) -> usize {
         match self.dofs() {
@@ -62,7 +71,7 @@ impl Joint {
 
     /// The joint's degrees of freedom; S of a one-degree-of-freedom joint is Table 4.1's.
     #[inline(always)]
-    pub fn dofs(&self) -> Dofs {
+    pub(crate) fn dofs(&self) -> Dofs {
         match *self {
             Joint::FreeFlyer => Dofs::Free,
             Joint::Fixed => Dofs::Zero,
@@ -76,7 +85,7 @@ impl Joint {
     /// S of a one-degree-of-freedom joint carried from its child frame by `pose` (`pose.act_motion(S)`,
     /// without the products by zero); zero for the other joints, whose motion the algorithms treat apart.
     #[inline(always)]
-    pub fn subspace_in(&self, pose: &Transform) -> Motion {
+    pub(crate) fn subspace_in(&self, pose: &Transform) -> Motion {
         match *self {
             Joint::Revolute(a) => {
                 let w = pose.rotation * a;
@@ -94,7 +103,7 @@ impl Joint {
     /// Column `c` of S carried from the child frame by `pose`, for any joint with more than one: the free flyer's
     /// S is the identity in its own frame, the ball joint's [0; I].
     #[inline(always)]
-    pub fn subspace_column_in(&self, pose: &Transform, c: usize) -> Motion {
+    pub(crate) fn subspace_column_in(&self, pose: &Transform, c: usize) -> Motion {
         match self.dofs() {
             Dofs::Ball => {
                 let w = pose.rotation.column(c).into_owned();
@@ -107,7 +116,7 @@ impl Joint {
 
     /// `pose` followed by the joint's transform for configuration `q` (its `nq` coordinates).
     #[inline(always)]
-    pub fn after(&self, pose: Transform, q: &[f64]) -> Transform {
+    pub(crate) fn after(&self, pose: Transform, q: &[f64]) -> Transform {
         match *self {
             Joint::Revolute(axis) => pose.rotated_about(&axis, q[0]),
             Joint::Prismatic(axis) => Transform::new(pose.rotation, pose.transform_point(&(axis * q[0]))),
@@ -126,7 +135,7 @@ impl Joint {
     /// free-flyer base moves along the screw exp(v dt) in its own frame (Pinocchio's `integrate`), keeping
     /// the quaternion unit, and the ball joint turns by exp(ω dt) in its own frame; the other coordinates add.
     #[inline]
-    pub fn integrate(&self, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
+    pub(crate) fn integrate(&self, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
         match self.dofs() {
             Dofs::Free => {
                 let rotation = unit_quaternion(&q[3..]);
@@ -147,7 +156,7 @@ impl Joint {
     /// `difference`): for the free flyer the SE(3) log of M0⁻¹ M1, in the base's own frame and of angle ≤ π, for the
     /// ball joint the SO(3) log of R0⁻¹ R1; the other coordinates subtract.
     #[inline]
-    pub fn difference(&self, q0: &[f64], q1: &[f64], out: &mut [f64]) {
+    pub(crate) fn difference(&self, q0: &[f64], q1: &[f64], out: &mut [f64]) {
         match self.dofs() {
             Dofs::Free => {
                 let (rotation, translation) = relative_pose(q0, q1);
@@ -164,7 +173,7 @@ impl Joint {
     /// perturbation of q into the frame of q ⊕ v dt, and dt J_r(v dt); their SO(3) blocks for the ball joint, exp(ω
     /// dt)ᵀ and dt J_r(ω dt); 1 and dt for one coordinate. Neither depends
     /// on q: each joint's configurations form a group, whose ⊕ is its product on the right.
-    pub fn integrate_jacobians(&self, v: &[f64], dt: f64, dq: &mut DMatrixViewMut<'_, f64>, dv: &mut DMatrixViewMut<'_, f64>) {
+    pub(crate) fn integrate_jacobians(&self, v: &[f64], dt: f64, dq: &mut DMatrixViewMut<'_, f64>, dv: &mut DMatrixViewMut<'_, f64>) {
         match self.dofs() {
             Dofs::Free => {
                 let step = Motion::from_column_slice(v) * dt;
@@ -189,7 +198,7 @@ impl Joint {
     /// `dDifference`, ARG0 and ARG1): for the free flyer −J_r(ξ)⁻¹ Ad(M0⁻¹ M1)⁻¹ and J_r(ξ)⁻¹ at ξ = log(M0⁻¹ M1)
     /// (perturbing M0 by δ perturbs M0⁻¹ M1 by −Ad(M0⁻¹ M1)⁻¹ δ on its right); for the ball joint the SO(3) blocks
     /// −J_r(ω)⁻¹ (R0⁻¹ R1)ᵀ and J_r(ω)⁻¹ at ω = log(R0⁻¹ R1); −1 and 1 for one coordinate.
-    pub fn difference_jacobians(&self, q0: &[f64], q1: &[f64], d0: &mut DMatrixViewMut<'_, f64>, d1: &mut DMatrixViewMut<'_, f64>) {
+    pub(crate) fn difference_jacobians(&self, q0: &[f64], q1: &[f64], d0: &mut DMatrixViewMut<'_, f64>, d1: &mut DMatrixViewMut<'_, f64>) {
         match self.dofs() {
             Dofs::Free => {
                 let (rotation, translation) = relative_pose(q0, q1);
@@ -212,7 +221,7 @@ impl Joint {
     }
 
     /// The configuration coordinates that are lengths (m): the base's position, a prismatic joint's.
-    pub fn length_coordinates(&self) -> std::ops::Range<usize> {
+    pub(crate) fn length_coordinates(&self) -> std::ops::Range<usize> {
         match self {
             Joint::FreeFlyer => 0..3,
             Joint::Prismatic(_) => 0..1,

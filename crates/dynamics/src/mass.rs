@@ -27,6 +27,9 @@ const PHYSICAL_TOLERANCE: f64 = 1e-9;
 /// 1 mm cube has 1.7e-10), so a written-out zero inertia with 1e-35 terms is not refused.
 const ROUND_OFF_INERTIA: f64 = 1e-15;
 
+/// A body's mass (kg), centre of mass (m) and rotational inertia about its centre of mass (kg m²), all in one
+/// frame. `+` composes bodies by the parallel-axis theorem (not the mass-weighted average of the inertias
+/// written in [Moll 2006], which omits the transfer term); `-` is its exact inverse ([`MassProperties::checked_sub`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MassProperties {
     mass: f64,
@@ -57,7 +60,7 @@ impl MassProperties {
     /// A body as a file writes it, checked only for finite values, mass >= 0 and a symmetric inertia
     /// (within `PHYSICAL_TOLERANCE`). Unlike `new` it admits what exporters write and Pinocchio loads: a
     /// massless body with a rotational inertia, an inertia that is not physical (see `inertia_problem`).
-    pub fn as_written(mass: f64, com: Vector3<f64>, inertia: Matrix3<f64>) -> Result<Self> {
+    pub(crate) fn as_written(mass: f64, com: Vector3<f64>, inertia: Matrix3<f64>) -> Result<Self> {
         if finite("mass", mass)? < 0.0 {
             return Err(Error::invalid("mass", format!("must be >= 0, got {mass}")));
         }
@@ -82,6 +85,7 @@ impl MassProperties {
         Self { mass: 0.0, com: Vector3::zeros(), inertia: Matrix3::zeros() }
     }
 
+    /// A point mass `mass` (> 0) at `position`: no rotational inertia.
     pub fn point(mass: f64, position: Vector3<f64>) -> Result<Self> {
         finite_vector("position", position)?;
         Self::new(mass, position, Matrix3::zeros())
@@ -112,10 +116,12 @@ impl MassProperties {
         masses.iter().zip(positions).try_fold(Self::zero(), |acc, (&m, &p)| Ok(acc + Self::point(m, p)?))
     }
 
+    /// Mass (kg).
     pub fn mass(&self) -> f64 {
         self.mass
     }
 
+    /// Centre of mass (m).
     pub fn com(&self) -> Vector3<f64> {
         self.com
     }

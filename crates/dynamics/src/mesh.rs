@@ -14,7 +14,7 @@ use crate::{Error, Result};
 /// applied: metres, z up). The format is chosen by the extension (case-insensitive).
 /// A list too large to allocate is `Error::TooLarge` naming `mesh` (where an infallible allocation would abort
 /// the process), anything else wrong with the file `Error::Invalid` naming `mesh`.
-pub fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
+pub(crate) fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
     let fail = |reason: String| Error::invalid("mesh", format!("{}: {reason}", path.display()));
     let bytes = crate::validate::read_regular_file("mesh", path)?;
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();

@@ -69,22 +69,31 @@ pub struct MjcfOptions {
     pub strict: bool,
 }
 
+/// An MJCF joint's `type`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum JointKind {
+    /// `hinge`: a revolute joint.
     Hinge,
+    /// `slide`: a prismatic joint.
     Slide,
+    /// `free` (or `<freejoint>`): the floating base.
     Free,
+    /// `ball`: a spherical joint.
     Ball,
 }
 
 /// An MJCF joint and the model coordinates it became.
 #[derive(Debug, Clone)]
 pub struct MjcfJoint {
+    /// The joint's name (MuJoCo's, or the one it would give an unnamed joint).
     pub name: String,
+    /// Its type.
     pub kind: JointKind,
     /// The legkit body it moves.
     pub body: usize,
+    /// Its first configuration coordinate in the model's q.
     pub idx_q: usize,
+    /// Its first velocity coordinate in the model's v.
     pub idx_v: usize,
 }
 
@@ -93,27 +102,38 @@ pub struct MjcfJoint {
 /// [MuJoCo, XML reference: actuator].
 #[derive(Debug, Clone)]
 pub struct Actuator {
+    /// The actuator's name.
     pub name: String,
+    /// The joint it drives.
     pub joint: String,
     /// The velocity coordinate it drives.
     pub dof: usize,
+    /// The transmission's gear ratio.
     pub gear: f64,
+    /// `gainprm` [g0, g1, g2].
     pub gain: [f64; 3],
+    /// `biasprm` [b0, b1, b2].
     pub bias: [f64; 3],
+    /// The range ctrl is clamped to, if limited.
     pub ctrlrange: Option<[f64; 2]>,
+    /// The range the force is clamped to, if limited.
     pub forcerange: Option<[f64; 2]>,
 }
 
 /// An MJCF read into a model, with what the model does not hold.
 #[derive(Debug, Clone)]
 pub struct Mjcf {
+    /// The kinematic tree, its inertias, limits, armature, damping and collision shapes.
     pub model: Model,
+    /// What was accepted with a warning (an error under `strict`).
     pub warnings: Vec<String>,
     /// Every hinge, slide, ball and free joint the model kept, in MuJoCo's order.
     pub joints: Vec<MjcfJoint>,
+    /// The actuators on those joints, in MuJoCo's order.
     pub actuators: Vec<Actuator>,
     /// `<option timestep>` (s; MuJoCo's default 0.002).
     pub timestep: f64,
+    /// `<option gravity>` (m/s², world frame; zero when `<flag gravity="disable">`), also the model's.
     pub gravity: Vector3<f64>,
 }
 

@@ -31,9 +31,13 @@ use crate::{Error, MassProperties, Result};
 /// checks again, so a model never holds invalid limits.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct JointLimits {
+    /// Lowest position (rad or m), −inf if unbounded.
     pub lower: f64,
+    /// Highest position (rad or m), +inf if unbounded.
     pub upper: f64,
+    /// Largest magnitude of the joint's generalized force (N m or N), +inf if unbounded.
     pub effort: f64,
+    /// Largest magnitude of the joint's velocity (rad/s or m/s), +inf if unbounded.
     pub velocity: f64,
 }
 
@@ -94,6 +98,9 @@ impl Default for JointLimits {
 /// Standard gravity (m/s²): a new model's gravity is (0, 0, −g).
 pub const STANDARD_GRAVITY: f64 = 9.81;
 
+/// A kinematic tree: joints, their placements and limits, and the bodies' mass properties, built body by body
+/// with [`Model::add_body`] or loaded ([`crate::urdf`], [`crate::mjcf`]). Immutable once built, except for gravity,
+/// armature, damping and collision shapes; every algorithm reads it alongside a [`Data`] sized for it.
 #[derive(Debug, Clone)]
 pub struct Model {
     joints: Vec<Joint>,
@@ -232,18 +239,23 @@ impl Model {
         columns
     }
 
+    /// Number of bodies, the base included.
     pub fn nbodies(&self) -> usize {
         self.joints.len()
     }
+    /// Length of a configuration q (a unit quaternion counts 4).
     pub fn nq(&self) -> usize {
         self.nq
     }
+    /// Length of a velocity v (the tangent space: a rotation counts 3).
     pub fn nv(&self) -> usize {
         self.nv
     }
+    /// Whether the base moves on a free-flyer joint.
     pub fn floating_base(&self) -> bool {
         self.joints[0] == Joint::FreeFlyer
     }
+    /// The joint that moves body `i` relative to its parent.
     pub fn joint(&self, i: usize) -> &Joint {
         &self.joints[i]
     }
@@ -256,9 +268,11 @@ impl Model {
     pub fn parent(&self, i: usize) -> usize {
         self.parents[i]
     }
+    /// The frame of body `i`'s joint in its parent's frame (the body's frame at zero joint coordinates).
     pub fn placement(&self, i: usize) -> &Transform {
         &self.placements[i]
     }
+    /// Mass properties of body `i` in its own frame.
     pub fn body(&self, i: usize) -> &MassProperties {
         &self.bodies[i]
     }
@@ -266,20 +280,24 @@ impl Model {
     pub fn inertia(&self, i: usize) -> &RigidInertia {
         &self.inertias[i]
     }
+    /// Name of body `i` (unique in the model).
     pub fn name(&self, i: usize) -> &str {
         &self.names[i]
     }
+    /// The body named `name`, if any.
     pub fn body_index(&self, name: &str) -> Option<usize> {
         self.index_of_name.get(name).copied()
     }
+    /// Index of body `i`'s joint's first coordinate in q.
     pub fn idx_q(&self, i: usize) -> usize {
         self.idx_q[i]
     }
+    /// Index of body `i`'s joint's first coordinate in v.
     pub fn idx_v(&self, i: usize) -> usize {
         self.idx_v[i]
     }
     /// The velocity indices of body `i`'s subtree (its own included), as increasing ranges.
-    pub fn subtree_columns(&self, i: usize) -> &[Range<usize>] {
+    pub(crate) fn subtree_columns(&self, i: usize) -> &[Range<usize>] {
         &self.subtree_columns.get_or_init(|| self.all_subtree_columns())[i]
     }
     /// A copy of the model in which body `i` (which must exist) has the mass properties `body`.
@@ -327,6 +345,7 @@ impl Model {
         Ok(values.to_vec())
     }
 
+    /// Sum of the bodies' masses (kg).
     pub fn total_mass(&self) -> f64 {
         self.bodies.iter().map(|b| b.mass()).sum()
     }
@@ -394,11 +413,14 @@ pub struct Data {
     /// Velocity, acceleration and net force of each body in its own frame (RNEA, centroidal momentum,
     /// energy, contact).
     pub v: Vec<Motion>,
+    /// Acceleration of each body in its own frame.
     pub a: Vec<Motion>,
+    /// Net force on each body in its own frame (after RNEA's backward pass, on its subtree).
     pub f: Vec<Force>,
     /// Velocity and acceleration of each body in the centred frame (ABA; the acceleration with gravity as
     /// a base acceleration).
     pub centred_v: Vec<Motion>,
+    /// Acceleration of each body in the centred frame, gravity included as a base acceleration.
     pub centred_a: Vec<Motion>,
     /// Velocity-product acceleration of each joint (the `c` of Table 7.1; centred frame).
     pub c: Vec<Motion>,
@@ -414,6 +436,7 @@ pub struct Data {
     pub s: Vec<Motion>,
     /// `U = I^A S` and `D⁻¹ = (Sᵀ U)⁻¹` of one-degree-of-freedom joints.
     pub u: Vec<Vector6<f64>>,
+    /// `D⁻¹ = (Sᵀ U)⁻¹` of each one-degree-of-freedom joint [Featherstone 2008, Table 7.1].
     pub d_inv: Vec<f64>,
     /// Mass properties of the subtree rooted at each body, in world coordinates.
     pub subtree: Vec<MassProperties>,
@@ -423,19 +446,22 @@ pub struct Data {
     pub centroidal_map: Matrix6xX<f64>,
     /// The centre of mass's Jacobian ∂c/∂q, 3 x nv (world axes, q on its tangent space).
     pub com_jacobian: Matrix3xX<f64>,
+    /// Generalized forces (nv), the output of `rnea`.
     pub tau: DVector<f64>,
+    /// Generalized accelerations (nv), the output of `aba`.
     pub ddq: DVector<f64>,
     /// M and M⁻¹ (nv x nv), sized by the first `crba` and `minv` call: the O(n) algorithms need neither, and a
     /// large model should not hold them (a 20,000-link chain's would take 6.4 GB).
     pub mass_matrix: DMatrix<f64>,
+    /// M⁻¹ (nv x nv), the output of `minv`.
     pub minv: DMatrix<f64>,
     /// Per-body 6 x nv force (then motion) sets of the inverse-mass-matrix recursion; sized by its
     /// first call, since only `minv` needs these O(n nv) numbers.
-    pub force_sets: Vec<Matrix6xX<f64>>,
+    pub(crate) force_sets: Vec<Matrix6xX<f64>>,
     /// The derivative algorithms' workspace and outputs, sized by their first call.
-    pub derivatives: Derivatives,
+    pub(crate) derivatives: Derivatives,
     /// The contact kernels' k-dependent matrices, sized by their first call.
-    pub contact: ContactWorkspace,
+    pub(crate) contact: ContactWorkspace,
 }
 
 /// Right-hand sides `aba::solve_columns` takes at once: its per-body work runs across them as short vectors.
@@ -450,16 +476,20 @@ pub(crate) type Block6 = [[f64; BLOCK]; 6];
 /// ∂/∂q_k of ∂τ_i/∂q̈_j = M_ij (Pinocchio's d2tau_dqdq, d2tau_dvdv, dtau_dqdv and dtau_dadq).
 #[derive(Debug, Clone, Default)]
 pub struct SecondOrder {
+    /// ∂²τ/∂q².
     pub dqdq: Vec<f64>,
+    /// ∂²τ/∂q̇².
     pub dvdv: Vec<f64>,
+    /// ∂²τ/∂q∂q̇.
     pub dqdv: Vec<f64>,
+    /// ∂M/∂q.
     pub dadq: Vec<f64>,
 }
 
 /// The contact kernels' k-dependent matrices (column-major), kept in `Data` and reused while r (the constraint rows)
 /// and nv stay; sized with fallible allocation, so that too many contacts are a `TooLarge` naming them.
 #[derive(Debug, Clone, Default)]
-pub struct ContactWorkspace {
+pub(crate) struct ContactWorkspace {
     /// (r, nv) for which the buffers are sized (and the model's bodies).
     pub(crate) shape: (usize, usize),
     pub(crate) bodies: usize,
@@ -531,7 +561,7 @@ impl ContactWorkspace {
 /// frame (see `Data`). Empty until their first call sizes it, so that a model that is never differentiated does not
 /// hold its nv x nv outputs.
 #[derive(Debug, Clone, Default)]
-pub struct Derivatives {
+pub(crate) struct Derivatives {
     /// Per body: velocity, acceleration with gravity as a base acceleration, and (after the backward pass) the net
     /// force on its subtree less the external forces.
     pub velocity: Vec<Motion>,
@@ -718,6 +748,8 @@ impl Data {
         Ok(())
     }
 
+    /// A workspace for `model`, its per-body parts sized; the dense ones wait for the kernels that need them
+    /// (see [`Dense`]).
     pub fn new(model: &Model) -> Self {
         let n = model.nbodies();
         Data {

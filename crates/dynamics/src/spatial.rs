@@ -10,36 +10,38 @@ use nalgebra::{Matrix3, Matrix6, UnitQuaternion, Vector3, Vector6};
 
 use crate::MassProperties;
 
+/// A spatial motion vector `[v; ω]` (m/s, rad/s): a body's velocity, or an acceleration, about a frame's origin.
 pub type Motion = Vector6<f64>;
+/// A spatial force vector `[f; n]` (N, N m): a force and its moment about a frame's origin.
 pub type Force = Vector6<f64>;
 /// A spatial inertia (rigid or articulated) acting on motions `[v; ω]` and giving forces `[f; n]`.
 pub type Inertia = Matrix6<f64>;
 
 #[inline(always)]
-pub fn linear(x: &Vector6<f64>) -> Vector3<f64> {
+pub(crate) fn linear(x: &Vector6<f64>) -> Vector3<f64> {
     x.fixed_rows::<3>(0).into_owned()
 }
 
 #[inline(always)]
-pub fn angular(x: &Vector6<f64>) -> Vector3<f64> {
+pub(crate) fn angular(x: &Vector6<f64>) -> Vector3<f64> {
     x.fixed_rows::<3>(3).into_owned()
 }
 
 #[inline(always)]
-pub fn spatial(linear: Vector3<f64>, angular: Vector3<f64>) -> Vector6<f64> {
+pub(crate) fn spatial(linear: Vector3<f64>, angular: Vector3<f64>) -> Vector6<f64> {
     Vector6::new(linear.x, linear.y, linear.z, angular.x, angular.y, angular.z)
 }
 
 /// `v × m` (eq. 2.31): the derivative of motion `m` moving with velocity `v`.
 #[inline(always)]
-pub fn cross_motion(v: &Motion, m: &Motion) -> Motion {
+pub(crate) fn cross_motion(v: &Motion, m: &Motion) -> Motion {
     let (vl, w) = (linear(v), angular(v));
     spatial(w.cross(&linear(m)) + vl.cross(&angular(m)), w.cross(&angular(m)))
 }
 
 /// `v ×* f` (eq. 2.32): the derivative of force `f` moving with velocity `v`.
 #[inline(always)]
-pub fn cross_force(v: &Motion, f: &Force) -> Force {
+pub(crate) fn cross_force(v: &Motion, f: &Force) -> Force {
     let (vl, w, fl) = (linear(v), angular(v), linear(f));
     spatial(w.cross(&fl), w.cross(&angular(f)) + vl.cross(&fl))
 }
@@ -47,7 +49,9 @@ pub fn cross_force(v: &Motion, f: &Force) -> Force {
 /// A rigid transform: the pose of a child frame in its parent.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Transform {
+    /// R: the child's axes in parent coordinates.
     pub rotation: Matrix3<f64>,
+    /// t: the child's origin in parent coordinates (m).
     pub translation: Vector3<f64>,
 }
 
@@ -58,14 +62,17 @@ impl Default for Transform {
 }
 
 impl Transform {
+    /// The pose (R, t), unchecked: R is taken to be a rotation.
     pub fn new(rotation: Matrix3<f64>, translation: Vector3<f64>) -> Self {
         Self { rotation, translation }
     }
 
+    /// The child frame coincides with the parent.
     pub fn identity() -> Self {
         Self { rotation: Matrix3::identity(), translation: Vector3::zeros() }
     }
 
+    /// A pure translation by `translation` (m).
     pub fn from_translation(translation: Vector3<f64>) -> Self {
         Self { rotation: Matrix3::identity(), translation }
     }
@@ -81,6 +88,7 @@ impl Transform {
         Matrix3::new(tx * x + c, tx * y - sz, tx * z + sy, tx * y + sz, ty * y + c, ty * z - sx, tx * z - sy, ty * z + sx, tz * z + c)
     }
 
+    /// The pose with rotation `rotation` and origin `translation`.
     pub fn from_quaternion(translation: Vector3<f64>, rotation: &UnitQuaternion<f64>) -> Self {
         Self { rotation: rotation.to_rotation_matrix().into_inner(), translation }
     }
@@ -91,18 +99,20 @@ impl Transform {
         Transform { rotation: self.rotation * other.rotation, translation: self.rotation * other.translation + self.translation }
     }
 
+    /// The parent's pose in the child: (Rᵀ, −Rᵀ t).
     #[inline(always)]
     pub fn inverse(&self) -> Transform {
         let rt = self.rotation.transpose();
         Transform { rotation: rt, translation: -(rt * self.translation) }
     }
 
+    /// A point from child to parent coordinates: R x + t.
     #[inline(always)]
     pub fn transform_point(&self, x: &Vector3<f64>) -> Vector3<f64> {
         self.rotation * x + self.translation
     }
 
-    /// Motion from child to parent coordinates.
+    /// Motion from child to parent coordinates, X m [Featherstone 2008, eq. 2.24].
     #[inline(always)]
     pub fn act_motion(&self, m: &Motion) -> Motion {
         let w = self.rotation * angular(m);
@@ -117,7 +127,7 @@ impl Transform {
         spatial(rt * (v - self.translation.cross(&w)), rt * w)
     }
 
-    /// Force from child to parent coordinates.
+    /// Force from child to parent coordinates, X* f (the dual of `act_motion`).
     #[inline(always)]
     pub fn act_force(&self, f: &Force) -> Force {
         let fl = self.rotation * linear(f);
@@ -138,7 +148,7 @@ impl Transform {
 /// The linear and angular halves of x and y are summed apart: ABA's backward pass is a chain of these
 /// products, so their latency counts.
 #[inline(always)]
-pub fn inertia_times_pair(inertia: &Inertia, x: &Vector6<f64>, y: &Vector6<f64>) -> (Vector6<f64>, Vector6<f64>) {
+pub(crate) fn inertia_times_pair(inertia: &Inertia, x: &Vector6<f64>, y: &Vector6<f64>) -> (Vector6<f64>, Vector6<f64>) {
     let entries: &[f64; 36] = inertia.as_slice().try_into().expect("6x6");
     let mut sums = [[0.0; 6]; 4];
     for (c, column) in entries.chunks_exact(6).enumerate() {
@@ -154,7 +164,7 @@ pub fn inertia_times_pair(inertia: &Inertia, x: &Vector6<f64>, y: &Vector6<f64>)
 
 /// `a · b` for 6-vectors, summed pairwise (a shorter dependency chain than left to right).
 #[inline(always)]
-pub fn dot6(a: &Vector6<f64>, b: &[f64]) -> f64 {
+pub(crate) fn dot6(a: &Vector6<f64>, b: &[f64]) -> f64 {
     (a[0] * b[0] + a[1] * b[1]) + (a[2] * b[2] + a[3] * b[3]) + (a[4] * b[4] + a[5] * b[5])
 }
 
@@ -198,7 +208,7 @@ pub fn spd_inverse6(m: &Inertia) -> Inertia {
 /// `parent += I − u wᵀ`: an articulated inertia less a joint's rank-one part (I^A − U D⁻¹ Uᵀ with w = U / D),
 /// added to its parent's without storing it.
 #[inline(always)]
-pub fn add_reduced_inertia(parent: &mut Inertia, inertia: &Inertia, u: &Vector6<f64>, w: &Vector6<f64>) {
+pub(crate) fn add_reduced_inertia(parent: &mut Inertia, inertia: &Inertia, u: &Vector6<f64>, w: &Vector6<f64>) {
     let (parent, entries, u) = (&mut parent.data.0, &inertia.data.0, &u.data.0[0]);
     // Whole fixed-size columns, which the compiler vectorises.
     for ((p, column), &wc) in parent.iter_mut().zip(entries).zip(w.iter()) {
@@ -226,16 +236,21 @@ fn rotate_symmetric(r: &Matrix3<f64>, s: &Matrix3<f64>) -> Matrix3<f64> {
 /// between frames, at a fraction of the cost of their 6x6 matrices.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RigidInertia {
+    /// m (kg).
     pub mass: f64,
+    /// h = m c (kg m), c the centre of mass in the frame.
     pub first_moment: Vector3<f64>,
+    /// I_O, the rotational inertia about the frame's origin (kg m²).
     pub rotational: Matrix3<f64>,
 }
 
 impl RigidInertia {
+    /// No mass: the identity of addition.
     pub fn zeros() -> Self {
         Self { mass: 0.0, first_moment: Vector3::zeros(), rotational: Matrix3::zeros() }
     }
 
+    /// The inertia of `body` about its frame's origin (parallel axes: I_O = I_c − m ĉĉ).
     pub fn from_body(body: &MassProperties) -> Self {
         let (m, c) = (body.mass(), body.com().cross_matrix());
         Self { mass: m, first_moment: body.com() * m, rotational: body.inertia() - m * c * c }
@@ -299,7 +314,7 @@ impl RigidInertia {
 /// For I = [m 1, −ĥ; ĥ, I_O] and v = [u; ω] it is [0, −2p̂; 0, C] with p = m u + ω × h the linear momentum and
 /// C = ω̂ I_O − I_O ω̂ − (ûĥ + ĥû) − L̂, L = I_O ω + h × u: only its angular columns, 12 numbers, which add.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RateMatrix {
+pub(crate) struct RateMatrix {
     pub momentum: Vector3<f64>,
     pub angular: Matrix3<f64>,
 }
@@ -342,7 +357,7 @@ impl std::ops::AddAssign for RateMatrix {
 impl RigidInertia {
     /// B(v) (see `RateMatrix`) of this body moving with velocity `v`.
     #[inline(always)]
-    pub fn rate_matrix(&self, v: &Motion) -> RateMatrix {
+    pub(crate) fn rate_matrix(&self, v: &Motion) -> RateMatrix {
         let (u, w, h, i) = (linear(v), angular(v), &self.first_moment, &self.rotational);
         let momentum = u * self.mass + w.cross(h);
         let spin = i * w + h.cross(&u);

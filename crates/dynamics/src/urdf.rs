@@ -81,13 +81,16 @@ pub struct UrdfOptions {
 /// A URDF read into a model, and what was accepted with a warning (each naming its element).
 #[derive(Debug, Clone)]
 pub struct Urdf {
+    /// The kinematic tree, its inertias, limits and collision shapes.
     pub model: Model,
+    /// What was accepted with a warning (an error under `strict`).
     pub warnings: Vec<String>,
 }
 
 /// Loads a URDF from a file, or parses it directly if `path_or_xml` (after a byte order mark and blanks)
 /// starts with `<`. A file that cannot be read, or that is not a regular file (a FIFO, a device), is an
-/// error on argument `"path"`; see [`parse_urdf`] for the rest. Mesh names in a file resolve against its
+/// error on argument `"path"`; the [module documentation](self) says what is read, what is accepted with a
+/// warning and what is an error. Mesh names in a file resolve against its
 /// folder.
 pub fn load_urdf(path_or_xml: &str, options: &UrdfOptions) -> Result<Urdf> {
     let text = path_or_xml.strip_prefix(BYTE_ORDER_MARK).unwrap_or(path_or_xml);
@@ -107,7 +110,7 @@ const BYTE_ORDER_MARK: char = '\u{feff}';
 /// Parses URDF text into a [`Model`]. See the [module documentation](self) for what is read, what is
 /// accepted with a warning, and how bodies are named and ordered. Relative mesh names resolve against
 /// the working folder.
-pub fn parse_urdf(xml: &str, options: &UrdfOptions) -> Result<Urdf> {
+pub(crate) fn parse_urdf(xml: &str, options: &UrdfOptions) -> Result<Urdf> {
     parse(xml, options, None)
 }
 
@@ -249,7 +252,7 @@ fn cancel_point(k: usize) -> Result<()> {
 
 /// URDF's `rpy`: roll about the fixed x axis, then pitch about the fixed y axis, then yaw about the fixed
 /// z axis, `R = Rz(yaw) Ry(pitch) Rx(roll)`.
-pub fn rpy_to_matrix(roll: f64, pitch: f64, yaw: f64) -> Matrix3<f64> {
+pub(crate) fn rpy_to_matrix(roll: f64, pitch: f64, yaw: f64) -> Matrix3<f64> {
     let (sr, cr) = roll.sin_cos();
     let (sp, cp) = pitch.sin_cos();
     let (sy, cy) = yaw.sin_cos();

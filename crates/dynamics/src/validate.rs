@@ -7,6 +7,7 @@ use nalgebra::{Matrix3, Vector3};
 
 use crate::{Error, Result};
 
+/// `value` if finite; an error on `argument` otherwise.
 pub fn finite(argument: &'static str, value: f64) -> Result<f64> {
     if value.is_finite() {
         Ok(value)
@@ -15,6 +16,7 @@ pub fn finite(argument: &'static str, value: f64) -> Result<f64> {
     }
 }
 
+/// `v` if every component is finite; an error on `argument` otherwise.
 pub fn finite_vector(argument: &'static str, v: Vector3<f64>) -> Result<Vector3<f64>> {
     if v.iter().all(|x| x.is_finite()) {
         Ok(v)
@@ -24,7 +26,7 @@ pub fn finite_vector(argument: &'static str, v: Vector3<f64>) -> Result<Vector3<
 }
 
 /// A finite, non-zero direction, returned normalised.
-pub fn direction(argument: &'static str, v: Vector3<f64>) -> Result<Vector3<f64>> {
+pub(crate) fn direction(argument: &'static str, v: Vector3<f64>) -> Result<Vector3<f64>> {
     let v = finite_vector(argument, v)?;
     let norm = v.norm();
     if norm > 0.0 && norm.is_finite() {
@@ -34,7 +36,7 @@ pub fn direction(argument: &'static str, v: Vector3<f64>) -> Result<Vector3<f64>
     }
 }
 
-pub fn finite_matrix(argument: &'static str, m: &Matrix3<f64>) -> Result<()> {
+pub(crate) fn finite_matrix(argument: &'static str, m: &Matrix3<f64>) -> Result<()> {
     if m.iter().all(|x| x.is_finite()) {
         Ok(())
     } else {
@@ -43,7 +45,7 @@ pub fn finite_matrix(argument: &'static str, m: &Matrix3<f64>) -> Result<()> {
 }
 
 /// A proper rotation: orthonormal with determinant +1, to 1e-9.
-pub fn rotation(argument: &'static str, r: &Matrix3<f64>) -> Result<()> {
+pub(crate) fn rotation(argument: &'static str, r: &Matrix3<f64>) -> Result<()> {
     finite_matrix(argument, r)?;
     let orthogonality = (r.transpose() * r - Matrix3::identity()).abs().max();
     if orthogonality > 1e-9 || r.determinant() < 0.0 {
@@ -82,7 +84,7 @@ pub fn filled<T: Clone>(argument: &'static str, len: usize, value: T) -> Result<
 
 /// The bytes of the regular file at `path`; anything else (a FIFO, a device, a folder) is refused before it is
 /// opened, as reading one may block forever or never end. A file too large for memory is `Error::TooLarge`.
-pub fn read_regular_file(argument: &'static str, path: &Path) -> Result<Vec<u8>> {
+pub(crate) fn read_regular_file(argument: &'static str, path: &Path) -> Result<Vec<u8>> {
     let fail = |reason: String| Error::invalid(argument, format!("{}: {reason}", path.display()));
     let metadata = std::fs::metadata(path).map_err(|e| fail(format!("cannot read it: {e}")))?;
     if !metadata.is_file() {
@@ -112,7 +114,7 @@ pub fn cancellable<T>(flag: std::sync::Arc<std::sync::atomic::AtomicBool>, work:
 
 /// `Error::Numerical` (its context `what`) when this thread's work has been cancelled (see `cancellable`);
 /// a relaxed atomic load, cheap enough to call every few thousand elements of a loop.
-pub fn check_cancelled(what: &'static str) -> Result<()> {
+pub(crate) fn check_cancelled(what: &'static str) -> Result<()> {
     let cancelled = CANCEL.with(|cancel| cancel.borrow().as_ref().is_some_and(|flag| flag.load(std::sync::atomic::Ordering::Relaxed)));
     if cancelled {
         Err(Error::numerical(what, "cancelled (the caller was interrupted)"))
@@ -123,4 +125,4 @@ pub fn check_cancelled(what: &'static str) -> Result<()> {
 
 /// Loop iterations between two `check_cancelled` calls in loaders: each iteration is a few microseconds at
 /// most, so a cancelled load stops within milliseconds.
-pub const CANCEL_INTERVAL: usize = 1024;
+pub(crate) const CANCEL_INTERVAL: usize = 1024;

@@ -31,7 +31,7 @@ fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<ContactPo
             item?.extract().map_err(|_| pyo3::exceptions::PyTypeError::new_err("contacts: expected a sequence of (body, point) pairs"))?;
         out.push(ContactPoint { body: model.body_index(&body)?, point: vector3("contacts", &point)? });
     }
-    algorithms::contact::check_contacts(&model.model, &out).map_err(kernel_error)?;
+    algorithms::check_contacts(&model.model, &out).map_err(kernel_error)?;
     Ok(out)
 }
 

@@ -133,7 +133,7 @@ pub fn aba_derivatives<'py>(
         check_state(m, q, Some(v))?;
         check_vector("tau", tau, m.nv())?;
         // M⁻¹'s recursion's force sets (and M⁻¹'s own square, which stays unused) on the models that use them.
-        let dense: &[Dense] = if algorithms::aba_derivatives::minv_by_recursion(m) { &[Dense::Inverse] } else { &[] };
+        let dense: &[Dense] = if algorithms::minv_by_recursion(m) { &[Dense::Inverse] } else { &[] };
         w.dense(dense)?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         // Straight into the arrays: no nv x nv workspace for them, no copy.

@@ -12,19 +12,28 @@ use crate::{Error, Result};
 /// mass moment |m2 u x (p2 - q)|.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Scheme {
+    /// x = 0: constant gains c0 K0.
     Constant,
+    /// x = the COM's distance from the support line, in module widths.
     Distance,
+    /// x = the joint's mass moment |m2 u x (p2 - q)| (kg m).
     Momentum,
 }
 
 /// One module's schedule: its scheme, coefficients and base gains (K_P0, K_I0, K_D0).
 #[derive(Clone, Copy, Debug)]
 pub struct Schedule {
+    /// What x is.
     pub scheme: Scheme,
+    /// Constant factor of the gains.
     pub c0: f64,
+    /// Factor of x in the gains.
     pub c1: f64,
+    /// Base proportional gain K_P0.
     pub kp0: f64,
+    /// Base integral gain K_I0.
     pub ki0: f64,
+    /// Base derivative gain K_D0.
     pub kd0: f64,
 }
 

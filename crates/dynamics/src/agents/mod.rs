@@ -22,7 +22,7 @@ pub type Moments = [f64; 13];
 
 /// Moments expressed in the frame in which their frame has pose (r, t) (`legkit.agents.moments.transform`):
 /// h' = R h + m t, P' = R P R^T + (R h) t^T + t (R h)^T + m t t^T.
-pub fn transform(r: &Matrix3<f64>, t: &Vector3<f64>, x: &Moments) -> Moments {
+pub(crate) fn transform(r: &Matrix3<f64>, t: &Vector3<f64>, x: &Moments) -> Moments {
     let m = x[0];
     let h = Vector3::new(x[1], x[2], x[3]);
     let p = Matrix3::from_row_slice(&x[4..]);

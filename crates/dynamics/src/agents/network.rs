@@ -21,9 +21,11 @@ pub struct ModuleSpec {
     pub part_moments: [Moments; 4],
     /// Connector frames: rotation and origin (slots 0–2 move with part 0, 3–5 with part 3).
     pub connector_rotation: [Matrix3<f64>; SLOTS],
+    /// Connector origins (m), with `connector_rotation`.
     pub connector_position: [Vector3<f64>; SLOTS],
-    /// Joint k turns part k + 1 about coordinate axis `joint_axes[k]` through the point (0, 0, joint_z[k]).
+    /// Joint k turns part k + 1 about coordinate axis `joint_axes[k]` through the point (0, 0, `joint_z[k]`).
     pub joint_axes: [usize; 3],
+    /// Heights (m) of the joints' axes in the module frame (see `joint_axes`).
     pub joint_z: [f64; 3],
 }
 
@@ -31,12 +33,19 @@ pub struct ModuleSpec {
 /// line through `line_point` along the unit `line_direction`; its election `priority` (distinct per contact).
 #[derive(Clone, Debug)]
 pub struct GroundContact {
+    /// The module that touches.
     pub module: usize,
+    /// Its block on the ground: 0 for A, 1 for B.
     pub block: usize,
+    /// The block's world rotation.
     pub rotation: Matrix3<f64>,
+    /// The block's world position (m).
     pub translation: Vector3<f64>,
+    /// A point of the support line (world, m).
     pub line_point: Vector3<f64>,
+    /// The support line's unit direction (world).
     pub line_direction: Vector3<f64>,
+    /// Election priority: the contact with the highest leads (distinct per contact).
     pub priority: f64,
 }
 
@@ -190,6 +199,7 @@ impl Network {
         pose
     }
 
+    /// Number of modules (agents).
     pub fn n_modules(&self) -> usize {
         self.angles.len()
     }
@@ -372,7 +382,7 @@ impl Network {
         self.connected(m, slot) && Some(slot) != self.uplink[m]
     }
 
-    pub fn is_leader(&self, m: usize) -> bool {
+    pub(crate) fn is_leader(&self, m: usize) -> bool {
         self.leader[m] == m as i64
     }
 
@@ -403,22 +413,23 @@ impl Network {
 
     /// The block (0: A, 1: B) on the leader's side of the module: the grounded block for a leader, the uplink
     /// connector's block otherwise; None where no leader is known.
-    pub fn fixed_block(&self, m: usize) -> Option<usize> {
+    pub(crate) fn fixed_block(&self, m: usize) -> Option<usize> {
         if self.is_leader(m) {
             return self.contact_of[m].map(|c| self.ground[c].block);
         }
         self.uplink[m].map(|slot| slot / 3)
     }
 
+    /// Module `m`'s joint angles (rad) as last observed.
     pub fn angles(&self, m: usize) -> [f64; 3] {
         self.angles[m]
     }
 
-    pub fn part_pose(&self, m: usize, part: usize) -> (&Matrix3<f64>, &Vector3<f64>) {
+    pub(crate) fn part_pose(&self, m: usize, part: usize) -> (&Matrix3<f64>, &Vector3<f64>) {
         (&self.part_rotation[m][part], &self.part_translation[m][part])
     }
 
-    pub fn part_moments(&self, m: usize) -> &[Moments; 4] {
+    pub(crate) fn part_moments(&self, m: usize) -> &[Moments; 4] {
         &self.part_moments[m]
     }
 
@@ -427,6 +438,7 @@ impl Network {
         (&self.connector_rotation[SLOTS * m + slot], &self.connector_position[SLOTS * m + slot])
     }
 
+    /// Module `m`'s own moments (its four parts), module frame, at the last observed angles.
     pub fn own(&self, m: usize) -> &Moments {
         &self.own[m]
     }
@@ -437,12 +449,12 @@ impl Network {
     }
 
     /// The support line as the agent knows it: point and unit direction.
-    pub fn line(&self, m: usize) -> (Vector3<f64>, Vector3<f64>) {
+    pub(crate) fn line(&self, m: usize) -> (Vector3<f64>, Vector3<f64>) {
         let line = &self.line[m];
         (Vector3::new(line[0], line[1], line[2]), Vector3::new(line[3], line[4], line[5]))
     }
 
-    pub fn spec(&self) -> &ModuleSpec {
+    pub(crate) fn spec(&self) -> &ModuleSpec {
         &self.spec
     }
 }

@@ -12,6 +12,9 @@ use crate::joint::Dofs;
 use crate::model::{Block6, Data, Model, BLOCK};
 use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inertia_times_pair, spd_inverse6, Force, Inertia, Motion, Transform};
 
+/// Forward dynamics by the articulated-body algorithm [Featherstone 2008, Table 7.1], O(n):
+/// q̈ = M⁻¹(τ − C q̇ − g + Jᵀ f_ext).
+///
 /// Joint accelerations for configuration `q`, velocity `v` and joint forces `tau`, with the model's
 /// armature (`Model::armature`); `f_ext` as in `rnea`. Writes `data.ddq` and returns it. In the world's axes about the base's origin (see
 /// `kinematics::base_centred_kinematics`), `data.centred_m_i` holds each body's pose, `data.rigid` its rigid

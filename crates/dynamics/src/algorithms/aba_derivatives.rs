@@ -111,7 +111,7 @@ pub fn minv_by_recursion(model: &Model) -> bool {
 /// average. Column j's nonzeros are its ancestors' and its subtree's coordinates, so their count is
 /// Σ_j (ancestors' + subtree's) = 2 Σ_i nv_i · (i's subtree's coordinates) − Σ_i nv_i² (each ancestor pair counted from
 /// both ends, a joint's own block twice), O(n) by the subtrees' column ranges.
-pub fn by_products(model: &Model) -> bool {
+pub(crate) fn by_products(model: &Model) -> bool {
     let nv = model.nv();
     if nv <= DENSE_LIMIT {
         return true;

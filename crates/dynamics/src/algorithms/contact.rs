@@ -21,7 +21,9 @@ use crate::{Error, Result};
 /// input). Not to be confused with `sim::Contact`, a contact the simulation reports with its forces.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContactPoint {
+    /// The body the point is fixed to.
     pub body: usize,
+    /// The point in the body's frame (m).
     pub point: Vector3<f64>,
 }
 
@@ -49,6 +51,7 @@ impl ContactDim {
 /// Accelerations and the contact forces that keep the contacts still.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactDynamics {
+    /// Generalized accelerations q̈ (nv).
     pub ddq: DVector<f64>,
     /// 3 (or 6) per contact, contact after contact, world axes.
     pub forces: DVector<f64>,
@@ -58,18 +61,26 @@ pub struct ContactDynamics {
 /// `v = N v_I` and `q̈ = N v̇_I + offset`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReducedDynamics {
+    /// The independent velocity coordinates v_I, increasing.
     pub independent: Vec<usize>,
+    /// The others, increasing: fixed by the contacts given v_I.
     pub dependent: Vec<usize>,
     /// nv x n_I map from independent to all velocities.
     pub basis: DMatrix<f64>,
     /// The acceleration that keeps the contacts still when v̇_I = 0.
     pub offset: DVector<f64>,
+    /// The reduced mass matrix Nᵀ M N (n_I x n_I) [Hardt 2002, eq. 7].
     pub mass: DMatrix<f64>,
+    /// The reduced generalized force Nᵀ (τ − h − M offset), h the bias forces C q̇ + g (n_I).
     pub force: DVector<f64>,
+    /// v̇_I, the solution of `mass · v̇_I = force`.
     pub ddq_independent: DVector<f64>,
+    /// All accelerations: N v̇_I + offset (nv).
     pub ddq: DVector<f64>,
 }
 
+/// Checks contacts for the contact kernels: at least one, each on an existing body at a finite point; an error
+/// on `contacts` otherwise.
 pub fn check_contacts(model: &Model, contacts: &[ContactPoint]) -> Result<()> {
     if contacts.is_empty() {
         return Err(Error::invalid("contacts", "needs at least one contact"));

@@ -27,28 +27,38 @@ use crate::{Error, Result};
 /// `contact_dynamics`' solution and its derivatives (q on its tangent space; forces r = 3 or 6 per contact, world axes).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactDynamicsDerivatives {
+    /// q̈ (nv), as `contact_dynamics` gives it.
     pub ddq: DVector<f64>,
+    /// The contact forces (r), as `contact_dynamics` gives them.
     pub forces: DVector<f64>,
     /// nv x nv each.
     pub ddq_dq: DMatrix<f64>,
+    /// ∂q̈/∂q̇.
     pub ddq_dv: DMatrix<f64>,
+    /// ∂q̈/∂τ.
     pub ddq_dtau: DMatrix<f64>,
     /// r x nv each.
     pub forces_dq: DMatrix<f64>,
+    /// ∂λ/∂q̇.
     pub forces_dv: DMatrix<f64>,
+    /// ∂λ/∂τ.
     pub forces_dtau: DMatrix<f64>,
 }
 
 /// `impact`'s solution and its derivatives with respect to q (tangent space) and the velocity before the impact.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImpactDerivatives {
+    /// The velocity after the impact (nv), as `impact` gives it.
     pub velocity: DVector<f64>,
+    /// The contact impulses (r), as `impact` gives them.
     pub impulses: DVector<f64>,
     /// nv x nv each.
     pub velocity_dq: DMatrix<f64>,
+    /// ∂v⁺/∂v⁻.
     pub velocity_dv: DMatrix<f64>,
     /// r x nv each.
     pub impulses_dq: DMatrix<f64>,
+    /// ∂Λ/∂v⁻.
     pub impulses_dv: DMatrix<f64>,
 }
 

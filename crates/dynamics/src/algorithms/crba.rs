@@ -11,6 +11,8 @@ use crate::joint::Dofs;
 use crate::model::{reserve_square, Data, Model};
 use crate::spatial::{Force, RigidInertia};
 
+/// The joint-space mass matrix M(q) by the composite-rigid-body algorithm [Featherstone 2008, Table 6.2].
+///
 /// Fills `data.mass_matrix` (both triangles, each entry as it is found) and returns it. Works for any parent-before-child order.
 pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64> {
     let n = model.nbodies();

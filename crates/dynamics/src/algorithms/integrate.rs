@@ -7,6 +7,7 @@ use super::{aba, integrate};
 use crate::model::{Data, Model};
 use crate::Result;
 
+/// How [`Integrator`] and [`free_rollout`] step the free dynamics.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Method {
     /// v ← v + h q̈(q, v); q ← q ⊕ h v: first order, symplectic for separable systems.
@@ -26,6 +27,7 @@ pub struct Integrator {
 }
 
 impl Integrator {
+    /// Buffers sized for `model`, stepping with `method`.
     pub fn new(model: &Model, method: Method) -> Self {
         let nv = model.nv();
         Self {

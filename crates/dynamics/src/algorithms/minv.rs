@@ -37,6 +37,9 @@ fn axpy(out: &mut [f64; 6], base: &[f64; 6], x: &Vector6<f64>, m: f64) {
     }
 }
 
+/// M(q)⁻¹ by the articulated-body recursion (Carpentier, "Analytical inverse of the joint space inertia matrix",
+/// 2018; Pinocchio's `computeMinverse`), without forming or factorising M.
+///
 /// Fills `data.minv` (both triangles) with M(q)⁻¹ and returns it.
 pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64> {
     base_centred_kinematics(model, data, q);

@@ -2,32 +2,34 @@
 //! intermediates into `data` and allocates nothing. Inputs are assumed checked (`Model::check_configuration`,
 //! `check_vector`); the bindings check them.
 
-pub mod aba;
-pub mod aba_derivatives;
-pub mod centroidal;
-pub mod centroidal_derivatives;
-pub mod com;
-pub mod configuration;
-pub mod contact;
-pub mod contact_derivatives;
-pub mod crba;
-pub mod energy;
-pub mod integrate;
-pub mod jacobian;
-pub mod kinematics;
-pub mod kinematics_derivatives;
-pub mod minv;
-pub mod rnea;
-pub mod rnea_derivatives;
-pub mod rnea_second_order_derivatives;
+pub(crate) mod aba;
+pub(crate) mod aba_derivatives;
+pub(crate) mod centroidal;
+pub(crate) mod centroidal_derivatives;
+pub(crate) mod com;
+pub(crate) mod configuration;
+pub(crate) mod contact;
+pub(crate) mod contact_derivatives;
+pub(crate) mod crba;
+pub(crate) mod energy;
+pub(crate) mod integrate;
+pub(crate) mod jacobian;
+pub(crate) mod kinematics;
+pub(crate) mod kinematics_derivatives;
+pub(crate) mod minv;
+pub(crate) mod rnea;
+pub(crate) mod rnea_derivatives;
+pub(crate) mod rnea_second_order_derivatives;
 
 pub use aba::{aba, aba_with_armature};
-pub use aba_derivatives::{aba_derivatives, aba_derivatives_into};
+pub use aba_derivatives::{aba_derivatives, aba_derivatives_into, minv_by_recursion};
 pub use centroidal::{center_of_mass_jacobian, centroidal_map, centroidal_momentum, centroidal_momentum_rate};
 pub use centroidal_derivatives::centroidal_derivatives;
 pub use com::{center_of_mass, subtree_mass_properties};
 pub use configuration::{difference, difference_jacobians, integrate, integrate_jacobians};
-pub use contact::{contact_dynamics, impact, point_accelerations, reduced_dynamics, ContactDim, ContactDynamics, ContactPoint, ReducedDynamics};
+pub use contact::{
+    check_contacts, contact_dynamics, impact, point_accelerations, reduced_dynamics, ContactDim, ContactDynamics, ContactPoint, ReducedDynamics,
+};
 pub use contact_derivatives::{
     contact_dynamics_derivatives, contact_dynamics_derivatives_into, impact_derivatives, impact_derivatives_into, ContactDynamicsDerivatives,
     ImpactDerivatives,
@@ -39,6 +41,7 @@ pub use jacobian::{jacobian, Frame};
 pub use kinematics::forward_kinematics;
 pub use kinematics_derivatives::{
     frame_acceleration, frame_acceleration_derivatives, frame_velocity, frame_velocity_derivatives, jacobian_time_variation,
+    FrameAccelerationDerivatives,
 };
 pub use minv::minv;
 pub use rnea::rnea;

@@ -7,6 +7,9 @@ use crate::joint::Dofs;
 use crate::model::{Data, Model};
 use crate::spatial::{cross_force, Force};
 
+/// Inverse dynamics by the recursive Newton–Euler algorithm [Featherstone 2008, Table 5.1], O(n):
+/// τ = M(q) q̈ + C(q, q̇) q̇ + g(q) − Jᵀ f_ext.
+///
 /// Joint forces for configuration `q`, velocity `v` and acceleration `a`. `f_ext`, when given, holds one
 /// external force `[f; n]` per body, acting on that body and expressed in its frame.
 pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64], f_ext: Option<&[Force]>) -> &'d DVector<f64> {

@@ -50,6 +50,7 @@ const MAX_ITERATIONS: usize = 100;
 /// A circle in 3D: centre, unit normal and radius.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Circle {
+    /// Centre of the circle.
     pub center: Vector3<f64>,
     /// Unit normal of the circle's plane; its sign does not matter to `circle_line`.
     pub normal: Vector3<f64>,
@@ -119,12 +120,15 @@ pub struct CircleLine {
 /// Results stored column by column, row `i` of each (a structure of arrays): what a batch of queries fills,
 /// the Python binding's output arrays and the batch benchmark alike.
 pub struct CircleLineColumns<'a> {
+    /// One number a row: [`CircleLine::distance`].
     pub distance: &'a mut [f64],
+    /// One number a row: [`CircleLine::count`].
     pub count: &'a mut [i64],
     /// Six numbers a row: the two minimising circle points.
     pub circle_points: &'a mut [f64],
     /// Six numbers a row: the line point closest to each circle point.
     pub line_points: &'a mut [f64],
+    /// One flag a row: [`CircleLine::equidistant`].
     pub equidistant: &'a mut [bool],
 }
 

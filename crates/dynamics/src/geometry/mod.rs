@@ -1,8 +1,9 @@
 //! Geometric queries and collision shapes.
 
-pub mod circle_line;
+pub(crate) mod circle_line;
 mod shape;
 
+pub use circle_line::{circle_line, rotation_toward_line, Circle, CircleLine, CircleLineColumns, Line};
 #[cfg(feature = "rapier")]
 pub(crate) use shape::{from_pose, to_vector};
 pub(crate) use shape::{from_vector, to_pose};

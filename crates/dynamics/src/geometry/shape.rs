@@ -18,23 +18,31 @@ pub const MIN_DEFAULT_EDGE: f64 = 1e-3;
 /// body's centre of mass with the body's axes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Shape {
+    /// The geometry, in the shape frame.
     pub kind: ShapeKind,
+    /// The shape frame in the body frame; None for the body's centre of mass with the body's axes.
     pub placement: Option<Transform>,
 }
 
+/// The geometry of a [`Shape`], sizes in m.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ShapeKind {
     /// Full edge lengths along the shape's x, y, z.
     Box(Vector3<f64>),
+    /// A sphere of this radius about the shape frame's origin.
     Sphere(f64),
     /// Along the shape's z axis: half the length of the axis segment, and the radius.
     Capsule {
+        /// Half the length of the axis segment.
         half_height: f64,
+        /// Radius about the segment.
         radius: f64,
     },
     /// Along the shape's z axis.
     Cylinder {
+        /// Half the height.
         half_height: f64,
+        /// Radius.
         radius: f64,
     },
     /// A convex polyhedron (a mesh's convex hull).

@@ -8,15 +8,21 @@
 use crate::model::Model;
 use crate::{Error, Result};
 
-/// Servo gains, limits and targets, one entry per velocity coordinate. The free-flyer base is not
-/// actuated by servos (its gains must be zero), but `τ_ff` may push it.
+/// Servo gains, limits and targets, one entry per velocity coordinate: the servo force on coordinate k is
+/// `kp (target_q − q) + kd (target_v − v)` plus the feed-forward τ_ff, clipped to the tighter of `limit` and the
+/// joint's effort bound. The free-flyer base is not actuated by servos (its gains must be zero), but `τ_ff` may
+/// push it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Servo {
+    /// Position gains (N m/rad or N/m), >= 0.
     pub kp: Vec<f64>,
+    /// Velocity gains (N m s/rad or N s/m), >= 0.
     pub kd: Vec<f64>,
+    /// Bound on the magnitude of each coordinate's force (N m or N), >= 0, +inf for none.
     pub limit: Vec<f64>,
     /// Target joint coordinates, indexed by velocity coordinate (base entries unused).
     pub target_q: Vec<f64>,
+    /// Target velocities (rad/s or m/s).
     pub target_v: Vec<f64>,
 }
 
@@ -57,7 +63,7 @@ impl Servo {
     }
 }
 
-/// Joint coordinates indexed by velocity coordinate: q[idx_q] for each one-degree-of-freedom joint, zero
+/// Joint coordinates indexed by velocity coordinate: `q[idx_q]` for each one-degree-of-freedom joint, zero
 /// on the base (the layout of servo targets).
 pub fn dof_coordinates(model: &Model, q: &[f64], out: &mut [f64]) {
     out.fill(0.0);

@@ -13,12 +13,22 @@ use crate::{Error, Result};
 #[derive(Debug, Clone, PartialEq)]
 pub enum Ground {
     /// The plane z = 0, solid below.
-    Plane { friction: f64 },
+    Plane {
+        /// Coulomb friction coefficient, >= 0.
+        friction: f64,
+    },
     /// Heights on a regular grid: `heights[(i, j)]` is the terrain height at
     /// x = (i − (nx − 1)/2) cell_size, y = (j − (ny − 1)/2) cell_size, so the grid is centred on the world
     /// origin; between samples each cell is split into two planar triangles. Outside the grid there is no
     /// ground.
-    Heightfield { heights: DMatrix<f64>, cell_size: f64, friction: f64 },
+    Heightfield {
+        /// Terrain heights (m), nx x ny samples.
+        heights: DMatrix<f64>,
+        /// Spacing of the samples in x and y (m).
+        cell_size: f64,
+        /// Coulomb friction coefficient, >= 0.
+        friction: f64,
+    },
 }
 
 fn check_friction(friction: f64) -> Result<f64> {
@@ -29,6 +39,7 @@ fn check_friction(friction: f64) -> Result<f64> {
 }
 
 impl Ground {
+    /// The plane z = 0 with friction coefficient `friction` (finite, >= 0).
     pub fn plane(friction: f64) -> Result<Self> {
         Ok(Ground::Plane { friction: check_friction(friction)? })
     }
@@ -51,6 +62,7 @@ impl Ground {
         Ok(Ground::Heightfield { heights, cell_size, friction: check_friction(friction)? })
     }
 
+    /// The ground's Coulomb friction coefficient.
     pub fn friction(&self) -> f64 {
         match self {
             Ground::Plane { friction } | Ground::Heightfield { friction, .. } => *friction,

@@ -88,6 +88,9 @@ pub(crate) trait Engine: Send + Sync {
     ) -> Result<()>;
 }
 
+/// A robot stepped forward in time with contacts, servos and joint limits, on the backend its [`Options`] choose.
+/// Every method checks its input before changing anything; a step that diverges returns `Error::Numerical` and
+/// leaves the simulation as it was before that step.
 pub struct Simulation {
     model: Model,
     options: Options,
@@ -140,10 +143,12 @@ impl Simulation {
         Ok(sim)
     }
 
+    /// The simulated model.
     pub fn model(&self) -> &Model {
         &self.model
     }
 
+    /// The options the simulation was built with.
     pub fn options(&self) -> &Options {
         &self.options
     }
@@ -170,10 +175,13 @@ impl Simulation {
         &self.applied
     }
 
+    /// The servos now driving the joints.
     pub fn servo(&self) -> &Servo {
         &self.servo
     }
 
+    /// Replaces the servos from the next step on. Only the length (nv) is checked here, an error on `kp`: build
+    /// `servo` with [`Servo::new`], which checks the rest.
     pub fn set_servo(&mut self, servo: Servo) -> Result<()> {
         if servo.kp.len() != self.model.nv() {
             return Err(Error::invalid("kp", format!("expected {} values, got {}", self.model.nv(), servo.kp.len())));

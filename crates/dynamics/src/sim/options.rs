@@ -22,6 +22,7 @@ pub const DEFAULT_FRICTION: f64 = 0.8;
 pub struct Options {
     /// Step length (s), > 0.
     pub dt: f64,
+    /// The terrain, or None for none.
     pub ground: Option<Ground>,
     /// Shapes replacing the listed bodies' own (the model's collision shapes, or the default box); `None`
     /// removes a body's colliders.
@@ -32,6 +33,7 @@ pub struct Options {
     /// solver iterations, each re-evaluating the multibody dynamics. Either way more substeps integrate
     /// more accurately at a proportional cost.
     pub substeps: usize,
+    /// The engine that steps the simulation.
     pub backend: Backend,
     /// Most contact-solver (Newton) iterations per (sub)step of the tree engine (it stops earlier once
     /// converged).
@@ -53,6 +55,7 @@ pub enum FrictionLaw {
 }
 
 impl FrictionLaw {
+    /// The law named `name` ("cone" or "coulomb"); another name is an error on `friction_law`.
     pub fn parse(name: &str) -> Result<Self> {
         match name {
             "cone" => Ok(FrictionLaw::Cone),
@@ -61,6 +64,7 @@ impl FrictionLaw {
         }
     }
 
+    /// The name `parse` reads.
     pub fn name(&self) -> &'static str {
         match self {
             FrictionLaw::Cone => "cone",
@@ -72,6 +76,7 @@ impl FrictionLaw {
 /// The most substeps per step, and solver iterations per substep: a step is the unit a long run can be
 /// interrupted at, so it must stay short (a thousand substeps of a large model already take seconds).
 pub const MAX_SUBSTEPS: usize = 1000;
+/// The most solver iterations per substep (see [`MAX_SUBSTEPS`]).
 pub const MAX_SOLVER_ITERATIONS: usize = 1000;
 
 /// Which engine steps the simulation.
@@ -84,6 +89,7 @@ pub enum Backend {
 }
 
 impl Backend {
+    /// The backend named `name` ("tree" or "rapier"); another name is an error on `backend`.
     pub fn parse(name: &str) -> Result<Self> {
         match name {
             "tree" => Ok(Backend::Tree),
@@ -92,6 +98,7 @@ impl Backend {
         }
     }
 
+    /// The name `parse` reads.
     pub fn name(&self) -> &'static str {
         match self {
             Backend::Tree => "tree",
@@ -101,6 +108,9 @@ impl Backend {
 }
 
 impl Options {
+    /// Defaults around step length `dt` (s): no ground, the model's shapes, no self-collision, one substep,
+    /// the tree engine with [`DEFAULT_SOLVER_ITERATIONS`] and the cone friction law. Checked by
+    /// [`Simulation::new`](super::Simulation::new).
     pub fn new(dt: f64) -> Self {
         Options {
             dt,
