@@ -14,9 +14,9 @@ use pyo3::types::{PyDict, PyList, PyTuple};
 use crate::batch::on_all_threads;
 use crate::convert::{batch_error, homogeneous, kernel_error, to_numpy, Floats, Integer};
 use crate::interrupt::{in_pieces, Pace};
-use crate::workspace::finite_result;
 use crate::model::PyModel;
 use crate::shapes::shape_overrides;
+use crate::workspace::finite_result;
 
 /// Terrain for a `Simulation`: `Ground.plane(friction)` (the plane z = 0) or
 /// `Ground.heightfield(heights, cell_size, friction)`.
@@ -512,13 +512,7 @@ impl PySimulationBatch {
         }
         let taus = self.torques(&guards, tau)?;
         let items: Vec<_> = guards.iter_mut().map(|g| &mut g.sim).zip(&taus).collect();
-        let outcomes = py.detach(|| {
-            on_all_threads(
-                items,
-                || (),
-                |_, _, (sim, tau)| finite_jacobians(sim, tau.as_deref()),
-            )
-        });
+        let outcomes = py.detach(|| on_all_threads(items, || (), |_, _, (sim, tau)| finite_jacobians(sim, tau.as_deref())));
         let count = outcomes.len();
         let len = |columns: usize| array_len("simulations", &[count, 2 * nv, columns * nv], std::mem::size_of::<f64>()).map_err(kernel_error);
         let mut a_all = with_capacity("simulations", len(2)?).map_err(kernel_error)?;
