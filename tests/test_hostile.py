@@ -204,6 +204,49 @@ def test_a_collada_file_instancing_a_geometry_beyond_memory_is_a_memory_error(tm
     raises(f"lk.Model.from_urdf({str(tmp_path / 'r.urdf')!r})", "MemoryError", "mesh", "leg.dae", "bytes", memory=GIB)
 
 
+TINY_ELEMENTS = {
+    "urdf": '<robot name="r"><link name="a"/>' + "<b/>" * 10**7 + "</robot>",
+    "mjcf": "<mujoco><worldbody/>" + "<b/>" * 10**7 + "</mujoco>",
+}
+
+
+@pytest.mark.parametrize("source", ["xml", "path"])
+@pytest.mark.parametrize("kind", ["urdf", "mjcf"])
+def test_a_document_too_large_for_memory_is_a_memory_error(tmp_path, kind, source):
+    # 40 MB of ten million empty elements: roxmltree's document (72 B a node, 720 MB) does not fit in 512 MB.
+    (tmp_path / f"r.{kind}").write_text(TINY_ELEMENTS[kind])
+    raises(
+        f"""
+path = {str(tmp_path / f"r.{kind}")!r}
+argument = path if {source!r} == "path" else open(path).read()
+vm = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (vm + 512 * 2**20, vm + 512 * 2**20))
+lk.Model.from_{kind}(argument)
+""",
+        "MemoryError",
+        f"{source}: parsing 40000",
+        "bytes",
+        memory=0,
+    )
+
+
+def test_an_mjcf_model_too_large_for_memory_is_a_memory_error():
+    # 1.5 million bodies in 10 MB: the document fits in 1 GB, the bodies built from it (1.1 KB each) do not.
+    raises(
+        """
+xml = "<mujoco><worldbody>" + "<body/>" * 1_500_000 + "</worldbody></mujoco>"
+vm = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (vm + 2**30, vm + 2**30))
+lk.Model.from_mjcf(xml)
+""",
+        "MemoryError",
+        "xml: building a model of 1500002 elements",
+        "bytes",
+        memory=0,
+        timeout=60,
+    )
+
+
 def test_rnea_and_aba_on_a_20000_link_chain_stay_within_100_mb(tmp_path):
     (tmp_path / "chain.urdf").write_text(chain_urdf(20_000))
     # The limit is set after loading: what the kernels allocate on top must fit in 100 MB.
@@ -274,6 +317,25 @@ report(raised=None, kinds=[c[1] for c in model.colliders()])
     assert result["kinds"] == ["convex"], result
 
 
+NESTED_MJCF = """
+def nested(depth):
+    body = "<body pos='0 0 -0.1'><joint type='hinge'/><geom size='0.05'/>"
+    return "<mujoco><worldbody>" + body * depth + "</body>" * depth + "</worldbody></mujoco>"
+"""
+
+
+def test_an_mjcf_file_nested_1000_deep_loads_and_deeper_is_refused():
+    # <mujoco> is at depth 0, <worldbody> at 1, and the deepest body's joint and geom one below it.
+    result = outcome(NESTED_MJCF + "report(raised=None, nbodies=lk.Model.from_mjcf(nested(998)).nbodies)")
+    assert result == {"raised": None, "nbodies": 999}
+    raises(NESTED_MJCF + "lk.Model.from_mjcf(nested(100_000))", "ValueError", "mjcf", "nest deeper than 1000 levels")
+    defaults = """
+classes = "".join(f"<default class='c{i}'>" for i in range(100_000))
+lk.Model.from_mjcf("<mujoco><default>" + classes + "</default>" * 100_001 + "</mujoco>")
+"""
+    raises(defaults, "ValueError", "mjcf", "nest deeper than 1000 levels")
+
+
 # --- dependencies that can panic -----------------------------------------------------------------------------
 
 
@@ -307,6 +369,12 @@ def test_an_unknown_body_in_shapes_is_an_index_error():
 def test_counts_beyond_their_bound_are_value_errors(argument):
     raises(PENDULUM + f"lk.Simulation(model, {argument}=10**9)", "ValueError", argument)
     raises(PENDULUM + f"lk.Simulation(model, {argument}=2**70)", "ValueError", argument)
+
+
+@pytest.mark.parametrize("dim", ["5", "-6", "2**70"])
+@pytest.mark.parametrize("call", ["contact_dynamics(model, q, v, tau, [(1, [0, 0, 0])]", "impact_derivatives(model, q, v, [(1, [0, 0, 0])]"])
+def test_a_contact_dim_other_than_3_or_6_is_a_value_error(call, dim):
+    raises(PENDULUM + f"lk.{call}, dim={dim})", "ValueError", "dim: expected 3")
 
 
 @pytest.mark.parametrize("n", ["-1", "2**70"])
@@ -347,6 +415,25 @@ os._exit(0)
 # --- silent wrong answers --------------------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("batch", [False, True])
+def test_transition_jacobians_that_overflow_are_a_runtime_error(batch):
+    # At v = 1e200 a double pendulum's Coriolis terms (v^2) overflow in A, which must not come back as NaN.
+    result = outcome(
+        PENDULUM
+        + f"""
+model.add_revolute(1, [0, 1, 0], placement=(np.eye(3), [0, 0, -1]), body=lk.MassProperties.point(1.0, [0, 0, -0.5]))
+sim = lk.Simulation(model)
+sim.v = np.full(model.nv, 1e200)
+before = (sim.q.tolist(), sim.v.tolist(), sim.time)
+try:
+    lk.SimulationBatch([sim]).transition_jacobians() if {batch} else sim.transition_jacobians()
+except RuntimeError as error:
+    report(raised="RuntimeError", message=str(error), unchanged=before == (sim.q.tolist(), sim.v.tolist(), sim.time))
+"""
+    )
+    assert result["raised"] == "RuntimeError" and "not finite" in result["message"] and result["unchanged"], result
+
+
 def test_a_tau_table_shaped_nv_by_steps_is_refused():
     model = lk.Model()
     first = model.add_revolute(0, [0, 1, 0], body=lk.MassProperties.point(1.0, [0, 0, -0.5]))
@@ -369,6 +456,8 @@ def test_a_tau_table_shaped_nv_by_steps_is_refused():
         "lk.integrate(model, q, np.full(1, 1e308), 10.0)",
         "lk.kinetic_energy(model, q, np.full(1, 1e200))",
         "lk.free_rollout(model, q, np.full(1, 1e200), dt=1e-3, steps=3)",
+        "lk.centroidal_momentum_rate(model, q, np.full(1, 1e200), tau)",
+        "lk.center_of_mass(model.with_body(1, lk.MassProperties.point(1e300, [0, 0, 1e200])), q)",
     ],
 )
 def test_a_result_that_overflows_is_a_runtime_error_not_a_singular_matrix(call):
@@ -659,6 +748,10 @@ def test_a_fifo_is_refused_before_it_is_opened(tmp_path):
     fifo = tmp_path / "robot.urdf"
     os.mkfifo(fifo)
     raises(f"lk.Model.from_urdf({str(fifo)!r})", "ValueError", "path", "not a regular file", timeout=10)
+
+
+def test_a_mesh_found_nowhere_is_a_file_not_found_error(tmp_path):
+    raises(f"lk.resolve_mesh('package://nowhere/x.stl', package_dirs=[{str(tmp_path)!r}])", "FileNotFoundError", "package_dirs")
 
 
 def test_a_package_name_cannot_escape_its_package(tmp_path):

@@ -181,7 +181,7 @@ fn three<'a>(words: &mut impl Iterator<Item = &'a str>) -> Option<Vector3<f64>> 
 /// COLLADA: the positions of every `<instance_geometry>` of the visual scene, through its nodes'
 /// transforms (or every geometry as written when the scene instantiates none).
 fn collada(text: &str) -> Result<Vec<Vector3<f64>>> {
-    let doc = crate::xml::parse(text).map_err(bad)?;
+    let doc = crate::xml::parse(text, "mesh")?.map_err(bad)?;
     let root = doc.root_element();
     let asset = child(root, "asset");
     let meter = asset

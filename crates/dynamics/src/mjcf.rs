@@ -162,11 +162,11 @@ impl Mjcf {
 pub fn load_mjcf(path_or_xml: &str, options: &MjcfOptions) -> Result<Mjcf> {
     let text = path_or_xml.strip_prefix('\u{feff}').unwrap_or(path_or_xml);
     if text.trim_start().starts_with('<') {
-        return parse(text, "<string>", None, options);
+        return parse(text, "xml", "<string>", None, options);
     }
     let xml = read_text(Path::new(path_or_xml), "path")?;
     let folder = Path::new(path_or_xml).parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
-    parse(&xml, path_or_xml, folder, options)
+    parse(&xml, "path", path_or_xml, folder, options)
 }
 
 fn read_text(path: &Path, argument: &'static str) -> Result<String> {
@@ -183,6 +183,13 @@ fn invalid(reason: String) -> Error {
 const MAX_INCLUDE_DEPTH: usize = 16;
 /// At most this many elements over the file and its includes.
 const MAX_ELEMENTS: usize = 2_000_000;
+/// Elements nest at most this deep (a body's depth in the tree is its element's): the passes over the
+/// tree recurse, about 3 KB of stack a level (a release build), so that deep a file needs 3 MB of stack
+/// (Python's loader thread has 16 MB).
+pub const MAX_DEPTH: usize = 1000;
+/// The peak memory of building a model, per element, beyond roxmltree's (`xml::parse`): measured at
+/// 1.1 KB per `<body/>` on 300,000 bodies (peak RSS), with a margin.
+const BYTES_PER_ELEMENT: usize = 2048;
 
 /// An element, owned, so that included files splice into one tree.
 #[derive(Debug, Clone)]
@@ -210,6 +217,8 @@ impl El {
 }
 
 struct Source<'a> {
+    /// "path" or "xml": what a size that cannot be allocated is reported against.
+    argument: &'static str,
     folder: Option<&'a Path>,
     elements: usize,
     stack: Vec<PathBuf>,
@@ -221,8 +230,12 @@ fn line_breaks(text: &str) -> Vec<usize> {
     text.bytes().enumerate().filter(|(_, b)| *b == b'\n').map(|(i, _)| i).collect()
 }
 
-fn own(node: Node, label: &str, breaks: &[usize], source: &mut Source) -> Result<El> {
+/// `node` owned, at `depth` in the tree (the root at 0), with its includes spliced in.
+fn own(node: Node, label: &str, breaks: &[usize], source: &mut Source, depth: usize) -> Result<El> {
     let row = breaks.partition_point(|&b| b < node.range().start) + 1;
+    if depth > MAX_DEPTH {
+        return Err(invalid(format!("elements nest deeper than {MAX_DEPTH} levels ({label}:{row})")));
+    }
     let mut el = El {
         tag: node.tag_name().name().to_owned(),
         attrs: node.attributes().map(|a| (a.name().to_owned(), a.value().to_owned())).collect(),
@@ -241,16 +254,17 @@ fn own(node: Node, label: &str, breaks: &[usize], source: &mut Source) -> Result
                 return Err(invalid(format!("<include file={file:?}>: includes nest too deep or include themselves ({label})")));
             }
             let text = read_text(&path, "mjcf").map_err(|e| invalid(format!("<include file={file:?}> ({label}:{row}): {}", e.reason())))?;
-            let doc = crate::xml::parse(&text).map_err(|e| invalid(format!("{file}: {e}")))?;
+            let doc = crate::xml::parse(&text, source.argument)?.map_err(|e| invalid(format!("{file}: {e}")))?;
+            reserve_build(&doc, source.argument)?;
             if doc.root_element().tag_name().name() != "mujoco" {
                 return Err(invalid(format!("{file}: an included file's root must be <mujoco>")));
             }
             source.stack.push(path);
-            let included = own(doc.root_element(), file, &line_breaks(&text), source)?;
+            let included = own(doc.root_element(), file, &line_breaks(&text), source, depth)?;
             source.stack.pop();
             el.children.extend(included.children);
         } else {
-            el.children.push(own(child, label, breaks, source)?);
+            el.children.push(own(child, label, breaks, source, depth + 1)?);
         }
     }
     Ok(el)
@@ -478,13 +492,28 @@ struct Body {
     shapes: Vec<Shape>,
 }
 
-fn parse(xml: &str, label: &str, folder: Option<&Path>, options: &MjcfOptions) -> Result<Mjcf> {
-    let doc = crate::xml::parse(xml).map_err(invalid)?;
+/// Fails with `Error::TooLarge` naming `argument` when the memory that building a model from `doc` may take
+/// cannot be allocated: the element tree, the bodies and the model grow infallibly.
+fn reserve_build(doc: &roxmltree::Document, argument: &'static str) -> Result<()> {
+    let elements = doc.descendants().filter(Node::is_element).count();
+    let bytes = elements.saturating_mul(BYTES_PER_ELEMENT);
+    if crate::validate::headroom(bytes) {
+        Ok(())
+    } else {
+        Err(Error::too_large(argument, format!("building a model of {elements} elements needs up to {bytes} bytes, which cannot be allocated")))
+    }
+}
+
+/// `argument` ("path" or "xml") is what a size that cannot be allocated is reported against; `label` names
+/// the text in messages.
+fn parse(xml: &str, argument: &'static str, label: &str, folder: Option<&Path>, options: &MjcfOptions) -> Result<Mjcf> {
+    let doc = crate::xml::parse(xml, argument)?.map_err(invalid)?;
+    reserve_build(&doc, argument)?;
     if doc.root_element().tag_name().name() != "mujoco" {
         return Err(invalid(format!("the root element must be <mujoco>, found <{}>", doc.root_element().tag_name().name())));
     }
-    let mut source = Source { folder, elements: 0, stack: Vec::new() };
-    let root = own(doc.root_element(), label, &line_breaks(xml), &mut source)?;
+    let mut source = Source { argument, folder, elements: 0, stack: Vec::new() };
+    let root = own(doc.root_element(), label, &line_breaks(xml), &mut source, 0)?;
     drop(doc);
 
     let mut compiler = Compiler {
@@ -1204,6 +1233,21 @@ mod tests {
 
     fn load(xml: &str) -> Mjcf {
         load_mjcf(xml, &MjcfOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn elements_nested_deeper_than_max_depth_are_refused_before_the_passes_recurse() {
+        let nested = |depth: usize| format!("<mujoco><worldbody>{}{}</worldbody></mujoco>", "<body>".repeat(depth), "</body>".repeat(depth));
+        // A debug build's frames are larger than a release build's: a stack to match.
+        let run = |xml: String| {
+            std::thread::Builder::new().stack_size(64 << 20).spawn(move || load_mjcf(&xml, &MjcfOptions::default())).unwrap().join().unwrap()
+        };
+        // The worldbody is at depth 1, its bodies below it.
+        assert_eq!(run(nested(MAX_DEPTH - 1)).unwrap().model.nbodies(), MAX_DEPTH);
+        for depth in [MAX_DEPTH, 100 * MAX_DEPTH] {
+            let error = run(nested(depth)).unwrap_err();
+            assert!(error.to_string().contains("nest deeper than 1000 levels (<string>:1)"), "{error}");
+        }
     }
 
     #[test]

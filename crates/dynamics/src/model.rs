@@ -214,6 +214,25 @@ impl Model {
         Ok(self.joints.len() - 1)
     }
 
+    /// Reserves room for `bodies` more bodies with `dofs` velocity coordinates between them, fallibly: a
+    /// loader that knows the size of the model it builds fails with `Error::TooLarge` naming `argument`
+    /// (where `add_body` would abort the process when memory runs out).
+    pub fn try_reserve(&mut self, argument: &'static str, bodies: usize, dofs: usize) -> Result<()> {
+        let fail = |_| Error::too_large(argument, format!("cannot allocate a model of {bodies} more bodies"));
+        self.joints.try_reserve_exact(bodies).map_err(fail)?;
+        self.limits.try_reserve_exact(bodies).map_err(fail)?;
+        self.parents.try_reserve_exact(bodies).map_err(fail)?;
+        self.placements.try_reserve_exact(bodies).map_err(fail)?;
+        self.bodies.try_reserve_exact(bodies).map_err(fail)?;
+        self.inertias.try_reserve_exact(bodies).map_err(fail)?;
+        self.names.try_reserve_exact(bodies).map_err(fail)?;
+        self.index_of_name.try_reserve(bodies).map_err(fail)?;
+        self.idx_q.try_reserve_exact(bodies).map_err(fail)?;
+        self.idx_v.try_reserve_exact(bodies).map_err(fail)?;
+        self.armature.try_reserve_exact(dofs).map_err(fail)?;
+        self.damping.try_reserve_exact(dofs).map_err(fail)
+    }
+
     /// Every body's subtree columns (see `subtree_columns`), children before parents: each body's ranges
     /// are its own columns and its children's ranges, sorted and merged where they meet.
     fn all_subtree_columns(&self) -> Vec<Vec<Range<usize>>> {
@@ -792,6 +811,15 @@ mod tests {
         let mut model = Model::new(false, MassProperties::zero(), "base");
         model.add_body(0, joint, Transform::identity(), MassProperties::zero(), "link", limits)?;
         Ok(model)
+    }
+
+    #[test]
+    fn a_reservation_beyond_memory_is_too_large_and_changes_nothing() {
+        let mut model = Model::new(false, MassProperties::zero(), "base");
+        let error = model.try_reserve("path", usize::MAX / 64, 0).unwrap_err();
+        assert!(matches!(error, Error::TooLarge { argument: "path", .. }), "{error}");
+        assert_eq!((model.nbodies(), model.nv()), (1, 0));
+        model.try_reserve("path", 3, 3).unwrap();
     }
 
     #[test]

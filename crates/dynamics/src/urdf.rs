@@ -48,7 +48,8 @@
 //! children whatever the order of the elements in the file.
 //!
 //! Every problem in the file is an [`Error`] with argument `"urdf"` and a message naming the offending
-//! element, e.g. `joint "knee": unknown parent link "thigh2"`.
+//! element, e.g. `joint "knee": unknown parent link "thigh2"`. A document, or the model it describes, too
+//! large for memory is `Error::TooLarge` naming `"path"` (or `"xml"` for a string), before it is built.
 //!
 //! What real exporters write and Pinocchio loads, legkit loads too, as written, with a warning in
 //! [`Urdf::warnings`] naming the element: an inertia that is not physical (a negative principal moment,
@@ -64,7 +65,7 @@ use roxmltree::Node;
 
 use crate::geometry::{Convex, Shape, ShapeKind};
 use crate::mesh::{mesh_vertices, resolve_mesh};
-use crate::validate::{check_cancelled, direction, CANCEL_INTERVAL};
+use crate::validate::{check_cancelled, direction, filled, with_capacity, CANCEL_INTERVAL};
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
 /// How a URDF becomes a model.
@@ -95,13 +96,13 @@ pub struct Urdf {
 pub fn load_urdf(path_or_xml: &str, options: &UrdfOptions) -> Result<Urdf> {
     let text = path_or_xml.strip_prefix(BYTE_ORDER_MARK).unwrap_or(path_or_xml);
     if text.trim_start().starts_with('<') {
-        return parse_urdf(text, options);
+        return parse(text, "xml", options, None);
     }
     let bytes = crate::validate::read_regular_file("path", Path::new(path_or_xml))?;
     let xml = String::from_utf8(bytes).map_err(|e| Error::invalid("path", format!("{path_or_xml}: not UTF-8 text: {e}")))?;
     let xml = xml.strip_prefix(BYTE_ORDER_MARK).unwrap_or(&xml);
     let folder = Path::new(path_or_xml).parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
-    parse(xml, options, folder)
+    parse(xml, "path", options, folder)
 }
 
 /// U+FEFF, which editors on Windows put at the start of UTF-8 files.
@@ -111,10 +112,11 @@ const BYTE_ORDER_MARK: char = '\u{feff}';
 /// accepted with a warning, and how bodies are named and ordered. Relative mesh names resolve against
 /// the working folder.
 pub(crate) fn parse_urdf(xml: &str, options: &UrdfOptions) -> Result<Urdf> {
-    parse(xml, options, None)
+    parse(xml, "xml", options, None)
 }
 
-fn parse(xml: &str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf> {
+/// `argument` ("path" or "xml") is what a size that cannot be allocated is reported against.
+fn parse(xml: &str, argument: &'static str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf> {
     let mut warnings = Vec::new();
     // Warnings that `strict` does not turn into errors: what legkit cannot read yet.
     let mut notes = Vec::new();
@@ -137,15 +139,17 @@ fn parse(xml: &str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf
     } else {
         xml
     };
-    let doc = crate::xml::parse(xml).map_err(invalid)?;
+    let doc = crate::xml::parse(xml, argument)?.map_err(invalid)?;
     let robot = doc.root_element();
     if robot.tag_name().name() != "robot" {
         return Err(invalid(format!("the root element must be <robot>, found <{}>", robot.tag_name().name())));
     }
 
-    // Links, by name.
-    let mut links: Vec<Link> = Vec::new();
+    // Links, by name. Every table below is reserved whole, fallibly, from the counts of links and joints.
+    let (nlinks, njoints) = (elements(robot, "link").count(), elements(robot, "joint").count());
+    let mut links: Vec<Link> = with_capacity(argument, nlinks)?;
     let mut link_index: HashMap<&str, usize> = HashMap::new();
+    link_index.try_reserve(nlinks).map_err(|_| too_large(argument, "links", nlinks))?;
     for (k, node) in elements(robot, "link").enumerate() {
         cancel_point(k)?;
         let name = required_name(node, "link")?;
@@ -161,9 +165,10 @@ fn parse(xml: &str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf
     }
 
     // Joints, and the parent joint of each link.
-    let mut joints: Vec<UrdfJoint> = Vec::new();
+    let mut joints: Vec<UrdfJoint> = with_capacity(argument, njoints)?;
     let mut joint_names: HashMap<&str, ()> = HashMap::new();
-    let mut parent_joint: Vec<Option<usize>> = vec![None; links.len()];
+    joint_names.try_reserve(njoints).map_err(|_| too_large(argument, "joints", njoints))?;
+    let mut parent_joint: Vec<Option<usize>> = filled(argument, links.len(), None)?;
     for (k, node) in elements(robot, "joint").enumerate() {
         cancel_point(k)?;
         let name = required_name(node, "joint")?;
@@ -199,19 +204,34 @@ fn parse(xml: &str, options: &UrdfOptions, folder: Option<&Path>) -> Result<Urdf
             )));
         }
     };
-    let mut children: Vec<Vec<usize>> = vec![Vec::new(); links.len()];
+    // Each link's child joints in file order: `by_parent[first_child[l]..first_child[l + 1]]` (a counting
+    // sort, in two tables rather than a vector per link).
+    let mut first_child: Vec<usize> = filled(argument, links.len() + 1, 0)?;
+    for joint in &joints {
+        first_child[joint.parent + 1] += 1;
+    }
+    for l in 0..links.len() {
+        first_child[l + 1] += first_child[l];
+    }
+    let mut next: Vec<usize> = filled(argument, links.len(), 0)?;
+    next.copy_from_slice(&first_child[..links.len()]);
+    let mut by_parent: Vec<usize> = filled(argument, joints.len(), 0)?;
     for (j, joint) in joints.iter().enumerate() {
-        children[joint.parent].push(j);
+        by_parent[next[joint.parent]] = j;
+        next[joint.parent] += 1;
     }
 
     let mut model = Model::new(options.floating_base, links[root].body, links[root].name);
-    let mut body_of_link: Vec<Option<usize>> = vec![None; links.len()];
+    model.try_reserve(argument, links.len() - 1, joints.iter().map(|j| j.joint.nv()).sum())?;
+    let mut body_of_link: Vec<Option<usize>> = filled(argument, links.len(), None)?;
     body_of_link[root] = Some(0);
-    let mut queue = VecDeque::from([root]);
+    let mut queue: VecDeque<usize> = VecDeque::new();
+    queue.try_reserve_exact(links.len()).map_err(|_| too_large(argument, "links", links.len()))?;
+    queue.push_back(root);
     while let Some(link) = queue.pop_front() {
         cancel_point(model.nbodies())?;
         let parent_body = body_of_link[link].expect("queued links have bodies");
-        for &j in &children[link] {
+        for &j in &by_parent[first_child[link]..first_child[link + 1]] {
             let joint = &joints[j];
             let child = &links[joint.child];
             let body = model
@@ -278,6 +298,11 @@ struct UrdfJoint<'a> {
     placement: Transform,
     limits: JointLimits,
     damping: f64,
+}
+
+/// The error of a table of `count` `what` that cannot be allocated.
+fn too_large(argument: &'static str, what: &str, count: usize) -> Error {
+    Error::too_large(argument, format!("cannot allocate the table of {count} {what}"))
 }
 
 fn invalid(reason: String) -> Error {

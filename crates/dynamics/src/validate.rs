@@ -75,6 +75,12 @@ pub fn with_capacity<T>(argument: &'static str, len: usize) -> Result<Vec<T>> {
     Ok(vec)
 }
 
+/// Whether `bytes` can be allocated now (they are reserved and freed at once, untouched): the check before
+/// work that allocates infallibly (a dependency's) and that at most `bytes` bound.
+pub fn headroom(bytes: usize) -> bool {
+    Vec::<u8>::new().try_reserve_exact(bytes).is_ok()
+}
+
 /// `len` copies of `value`, allocated as `with_capacity` does.
 pub fn filled<T: Clone>(argument: &'static str, len: usize, value: T) -> Result<Vec<T>> {
     let mut vec = with_capacity(argument, len)?;

@@ -10,12 +10,13 @@ use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use crate::batch::{broadcast, ArrayArg, Batch};
-use crate::convert::{kernel_error, numbers, to_numpy, vector3, FloatArray, Vector};
+use crate::convert::{kernel_error, numbers, to_numpy, vector3, FloatArray, Integer, Vector};
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
 
 /// The `dim` argument: 3 holds each contact's point still, 6 its body's frame at the point.
-fn contact_dim(dim: usize) -> PyResult<ContactDim> {
+fn contact_dim(dim: Integer) -> PyResult<ContactDim> {
+    let dim = dim.value("dim")?;
     match dim {
         3 => Ok(ContactDim::Point),
         6 => Ok(ContactDim::Frame),
@@ -62,7 +63,7 @@ where
 /// frames at them (`dim=6`). Returns (ddq (..., nv), forces (..., k, dim)), the forces (with dim 6, wrenches [force;
 /// torque about the point]) on the robot at the contacts in world axes.
 #[pyfunction]
-#[pyo3(signature = (model, q, v, tau, contacts, dim = 3))]
+#[pyo3(signature = (model, q, v, tau, contacts, dim = Integer::new(3)))]
 pub fn contact_dynamics<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -70,7 +71,7 @@ pub fn contact_dynamics<'py>(
     v: ArrayArg<'_>,
     tau: ArrayArg<'_>,
     contacts: &Bound<'_, PyAny>,
-    dim: usize,
+    dim: Integer,
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
     let contacts = self::contacts(&model, contacts)?;
     let dim = contact_dim(dim)?;
@@ -88,14 +89,14 @@ pub fn contact_dynamics<'py>(
 /// Perfectly inelastic impact at the contacts (`dim` as `contact_dynamics`): returns (v_plus (..., nv), impulses
 /// (..., k, dim)).
 #[pyfunction]
-#[pyo3(signature = (model, q, v, contacts, dim = 3))]
+#[pyo3(signature = (model, q, v, contacts, dim = Integer::new(3)))]
 pub fn impact<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
     q: ArrayArg<'_>,
     v: ArrayArg<'_>,
     contacts: &Bound<'_, PyAny>,
-    dim: usize,
+    dim: Integer,
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
     let contacts = self::contacts(&model, contacts)?;
     let dim = contact_dim(dim)?;
@@ -111,7 +112,7 @@ pub fn impact<'py>(
 /// J q̈ + J̇ q̇ per point, `(..., k, 3)`; with `dim=6`, the frame's spatial acceleration [linear; angular] at the point,
 /// world axes, `(..., k, 6)`. Zero for the contacts `contact_dynamics` holds, at its q̈.
 #[pyfunction]
-#[pyo3(signature = (model, q, v, a, contacts, dim = 3))]
+#[pyo3(signature = (model, q, v, a, contacts, dim = Integer::new(3)))]
 pub fn point_accelerations<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -119,7 +120,7 @@ pub fn point_accelerations<'py>(
     v: ArrayArg<'_>,
     a: ArrayArg<'_>,
     contacts: &Bound<'_, PyAny>,
-    dim: usize,
+    dim: Integer,
 ) -> PyResult<FloatArray<'py>> {
     let points = self::contacts(&model, contacts)?;
     let dim = contact_dim(dim)?;
@@ -221,7 +222,7 @@ fn matrix_views<'py>(out: &FloatArray<'py>, count: usize, nv: usize, (k, d): (us
 /// `LOCAL_WORLD_ALIGNED`). The contacts must be independent (a ValueError otherwise: their forces, and so the
 /// derivatives, would not be unique).
 #[pyfunction]
-#[pyo3(signature = (model, q, v, tau, contacts, dim = 3))]
+#[pyo3(signature = (model, q, v, tau, contacts, dim = Integer::new(3)))]
 pub fn contact_dynamics_derivatives<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -229,7 +230,7 @@ pub fn contact_dynamics_derivatives<'py>(
     v: ArrayArg<'_>,
     tau: ArrayArg<'_>,
     contacts: &Bound<'_, PyAny>,
-    dim: usize,
+    dim: Integer,
 ) -> PyResult<Bound<'py, PyTuple>> {
     let contacts = self::contacts(&model, contacts)?;
     let dim = contact_dim(dim)?;
@@ -252,14 +253,14 @@ pub fn contact_dynamics_derivatives<'py>(
 /// v_plus_dv) each `(..., nv, nv)` and (impulses_dq, impulses_dv) each `(..., k, dim, nv)` (Pinocchio's
 /// `computeImpulseDynamicsDerivatives` with no restitution). The contacts must be independent.
 #[pyfunction]
-#[pyo3(signature = (model, q, v, contacts, dim = 3))]
+#[pyo3(signature = (model, q, v, contacts, dim = Integer::new(3)))]
 pub fn impact_derivatives<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
     q: ArrayArg<'_>,
     v: ArrayArg<'_>,
     contacts: &Bound<'_, PyAny>,
-    dim: usize,
+    dim: Integer,
 ) -> PyResult<Bound<'py, PyTuple>> {
     let contacts = self::contacts(&model, contacts)?;
     let dim = contact_dim(dim)?;

@@ -59,6 +59,10 @@ where
     Ok(())
 }
 
+/// The stack of a worker: MJCF's passes recurse once per level of nesting, about 3 KB a level, up to
+/// `mjcf::MAX_DEPTH` (1000) levels; reserved, and touched only as deep as a file nests.
+const WORKER_STACK: usize = 16 << 20;
+
 /// `work()` on a thread of its own, the caller waiting for it with the GIL released and running Python's
 /// signal handlers every `PIECE`: for work that has no steps to stop between (loading a file). On Ctrl-C the
 /// caller raises KeyboardInterrupt at once and cancels the work (`validate::cancellable`: the loaders check
@@ -74,6 +78,7 @@ where
     let flag = Arc::clone(&cancel);
     std::thread::Builder::new()
         .name(what.to_owned())
+        .stack_size(WORKER_STACK)
         .spawn(move || {
             // The caller may have gone (interrupted): then nobody wants the result.
             let _ = sender.send(cancellable(flag, work));

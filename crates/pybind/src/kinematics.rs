@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use crate::batch::{broadcast, ArrayArg};
 use crate::convert::{homogeneous, vector3, FloatArray, Vector};
 use crate::model::PyModel;
-use crate::workspace::{check_state, run, run_packed, unpack};
+use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
 
 /// World pose (4x4) of every body: `(..., nbodies, 4, 4)`.
 #[pyfunction]
@@ -25,7 +25,7 @@ pub fn forward_kinematics<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: Ar
         for (pose, chunk) in data.o_m_i.iter().zip(out.chunks_exact_mut(16)) {
             chunk.copy_from_slice(&homogeneous(pose));
         }
-        Ok(())
+        finite_result(out)
     })
 }
 
@@ -66,7 +66,7 @@ pub fn jacobian<'py>(
         let q = batch.rows[0].row(i);
         check_state(m, q, None)?;
         row_major(algorithms::jacobian(m, w.data(), q, body, &point, convention), out);
-        Ok(())
+        finite_result(out)
     })
 }
 
@@ -78,7 +78,7 @@ pub fn center_of_mass<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayA
         let q = batch.rows[0].row(i);
         check_state(m, q, None)?;
         out.copy_from_slice(algorithms::center_of_mass(m, w.data(), q).as_slice());
-        Ok(())
+        finite_result(out)
     })
 }
 
@@ -102,7 +102,7 @@ pub fn subtree_mass_properties<'py>(
             coms[3 * b..3 * b + 3].copy_from_slice(body.com().as_slice());
             inertias[9 * b..9 * b + 9].copy_from_slice(body.inertia().transpose().as_slice());
         }
-        Ok(())
+        finite_result(out)
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[nb], &[nb, 3], &[nb, 3, 3]])?.into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap(), parts.next().unwrap()))
@@ -117,7 +117,7 @@ pub fn centroidal_momentum<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: A
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
         out.copy_from_slice(algorithms::centroidal_momentum(m, w.data(), q, v).as_slice());
-        Ok(())
+        finite_result(out)
     })
 }
 
@@ -130,7 +130,7 @@ pub fn centroidal_map<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayA
         let q = batch.rows[0].row(i);
         check_state(m, q, None)?;
         row_major(algorithms::centroidal_map(m, w.data(), q), out);
-        Ok(())
+        finite_result(out)
     })
 }
 
@@ -150,7 +150,7 @@ pub fn centroidal_momentum_rate<'py>(
         check_state(m, q, Some(v))?;
         check_vector("a", a, m.nv())?;
         out.copy_from_slice(algorithms::centroidal_momentum_rate(m, w.data(), q, v, a).as_slice());
-        Ok(())
+        finite_result(out)
     })
 }
 
@@ -182,7 +182,7 @@ pub fn frame_velocity<'py>(
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
         out.copy_from_slice(algorithms::frame_velocity(m, w.data(), q, v, body, &point, convention).as_slice());
-        Ok(())
+        finite_result(out)
     })
 }
 
@@ -210,7 +210,7 @@ pub fn frame_acceleration<'py>(
         check_state(m, q, Some(v))?;
         check_vector("a", a, nv)?;
         out.copy_from_slice(algorithms::frame_acceleration(m, w.data(), q, v, a, body, &point, convention).as_slice());
-        Ok(())
+        finite_result(out)
     })
 }
 
@@ -238,7 +238,7 @@ pub fn frame_velocity_derivatives<'py>(
         for (matrix, chunk) in [dq, dv].into_iter().zip(out.chunks_exact_mut(6 * nv)) {
             row_major(matrix, chunk);
         }
-        Ok(())
+        finite_result(out)
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[6, nv], &[6, nv]])?.into_iter();
     Ok((parts.next().expect("two"), parts.next().expect("two")))
@@ -271,7 +271,7 @@ pub fn frame_acceleration_derivatives<'py>(
         for (matrix, chunk) in [v_dq, a_dq, a_dv, a_da].into_iter().zip(out.chunks_exact_mut(6 * nv)) {
             row_major(matrix, chunk);
         }
-        Ok(())
+        finite_result(out)
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[6, nv], &[6, nv], &[6, nv], &[6, nv]])?.into_iter();
     let mut next = || parts.next().expect("four");
@@ -298,6 +298,6 @@ pub fn jacobian_time_variation<'py>(
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
         row_major(algorithms::jacobian_time_variation(m, w.data(), q, v, body, &point, convention), out);
-        Ok(())
+        finite_result(out)
     })
 }

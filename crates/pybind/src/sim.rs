@@ -16,9 +16,20 @@ use crate::convert::{batch_error, homogeneous, kernel_error, to_numpy, Floats, I
 use crate::interrupt::{in_pieces, Pace};
 use crate::model::PyModel;
 use crate::shapes::shape_overrides;
+use crate::workspace::finite_result;
 
 /// Terrain for a `Simulation`: `Ground.plane(friction)` (the plane z = 0) or
 /// `Ground.heightfield(heights, cell_size, friction)`.
+/// One step's Jacobians (A, B) from the simulation's state; a RuntimeError where they overflow (a state of
+/// huge velocities), not NaN returned without a word.
+fn finite_jacobians(sim: &mut Simulation, tau: Option<&[f64]>) -> legkit_dynamics::Result<(DMatrix<f64>, DMatrix<f64>)> {
+    let (mut a, mut b) = (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0));
+    sim.transition_jacobians(tau, &mut a, &mut b)?;
+    finite_result(a.as_slice())?;
+    finite_result(b.as_slice())?;
+    Ok((a, b))
+}
+
 #[pyclass(name = "Ground", module = "legkit", frozen)]
 pub struct PyGround {
     pub ground: Ground,
@@ -252,8 +263,7 @@ impl PySimulation {
         let nv = this.sim.model().nv();
         let tau = tau.map(|t| vector_argument("tau", &t, nv)).transpose()?;
         let sim = &mut this.sim;
-        let (mut a, mut b) = (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0));
-        py.detach(|| sim.transition_jacobians(tau.as_deref(), &mut a, &mut b)).map_err(kernel_error)?;
+        let (a, b) = py.detach(|| finite_jacobians(sim, tau.as_deref())).map_err(kernel_error)?;
         // Copied row by row into a fallibly reserved vector: a MemoryError naming the model, not an abort.
         let row_major = |m: &DMatrix<f64>| -> PyResult<Vec<f64>> {
             let mut out = with_capacity("model", m.len()).map_err(kernel_error)?;
@@ -502,16 +512,7 @@ impl PySimulationBatch {
         }
         let taus = self.torques(&guards, tau)?;
         let items: Vec<_> = guards.iter_mut().map(|g| &mut g.sim).zip(&taus).collect();
-        let outcomes = py.detach(|| {
-            on_all_threads(
-                items,
-                || (),
-                |_, _, (sim, tau)| {
-                    let (mut a, mut b) = (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0));
-                    sim.transition_jacobians(tau.as_deref(), &mut a, &mut b).map(|()| (a, b))
-                },
-            )
-        });
+        let outcomes = py.detach(|| on_all_threads(items, || (), |_, _, (sim, tau)| finite_jacobians(sim, tau.as_deref())));
         let count = outcomes.len();
         let len = |columns: usize| array_len("simulations", &[count, 2 * nv, columns * nv], std::mem::size_of::<f64>()).map_err(kernel_error);
         let mut a_all = with_capacity("simulations", len(2)?).map_err(kernel_error)?;
