@@ -158,3 +158,13 @@ def test_joint_without_a_leader_holds():
     network.run_until_quiescent()
     decisions = BalanceController(network, GainSchedule.paper("momentum")).decide()
     assert np.all(decisions.theta == 0) and np.allclose(decisions.target, 0.2)
+
+
+@pytest.mark.parametrize(("gains", "argument"), [((np.nan, 0.0, 0.0), "kp"), ((1.0, np.ones(4), 0.0), "ki"), ((1.0, 0.0, [np.inf] * 3), "kd")])
+def test_pid_refuses_non_finite_or_misshaped_gains_and_keeps_its_state(gains, argument):
+    pid = PID((3,))
+    pid(np.ones(3), 1e-3, 1.0, 1.0, 1.0)
+    integral, previous = pid.integral.copy(), pid.previous_error.copy()
+    with pytest.raises(ValueError, match=argument):
+        pid(np.ones(3), 1e-3, *gains)
+    assert np.array_equal(pid.integral, integral) and np.array_equal(pid.previous_error, previous)

@@ -192,3 +192,19 @@ def test_gait_defaults_are_the_published_amble(tmp_path):
     assert t[1] == pytest.approx(1.25 / 80, rel=1e-12) and len(t) == 80
     assert [rows[i]["support"] for i in (0, 20, 40, 60)] == ["LF+LH", "LF+RH", "RF+RH", "RF+LH"]
     assert all(np.isfinite(float(r["S_H"])) for r in rows)
+
+
+@pytest.mark.parametrize(("call", "argument"), [
+    (lambda: periodic_lip(np.full((8, 2), np.nan), 1.0, 1.0), "zmp_offset"),
+    (lambda: periodic_lip(np.zeros(8), 1.0, 1.0), "zmp_offset"),
+    (lambda: periodic_lip(np.zeros((0, 2)), 1.0, 1.0), "zmp_offset"),
+    (lambda: periodic_lip(np.zeros((8, 2)), 0.0, 1.0), "period"),
+    (lambda: periodic_lip(np.zeros((8, 2)), 1.0, -1.0), "height"),
+    (lambda: quadruped_amble(build_quadruped(), 0.5, 1.0, 0, 1, 0.05, 0.3), "samples"),
+    (lambda: quadruped_amble(build_quadruped(), 0.5, -1.0, 40, 1, 0.05, 0.3), "period"),
+    (lambda: quadruped_amble(build_quadruped(), 0.5, 1.0, 40, 0, 0.05, 0.3), "cycles"),
+    (lambda: quadruped_amble(build_quadruped(), np.nan, 1.0, 40, 1, 0.05, 0.3), "speed"),
+])
+def test_reference_gaits_refuse_bad_arguments_by_name(call, argument):
+    with pytest.raises(ValueError, match=argument):
+        call()

@@ -27,6 +27,12 @@ class PID:
         """Control effort for ``error`` (rad, of ``shape``) after a step of ``dt`` s; gains broadcast to ``shape``."""
         error = float_array(error, "error", shape=self.shape)
         positive_scalar(dt, "dt")
+        for gain, name in ((kp, "kp"), (ki, "ki"), (kd, "kd")):
+            gain = float_array(gain, name)
+            try:
+                np.broadcast_to(gain, self.shape)
+            except ValueError:
+                raise ValueError(f"{name} must broadcast to {self.shape}, got shape {gain.shape}") from None
         self.integral = self.integral + error * dt
         derivative = np.zeros(self.shape) if self.previous_error is None else (error - self.previous_error) / dt
         self.previous_error = error.copy()

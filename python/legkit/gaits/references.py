@@ -20,6 +20,7 @@ import numpy as np
 
 import legkit as lk
 import legkit.stability as st
+from legkit._validation import float_array, integer, positive_scalar
 from legkit.robots.biped import SIDES, Biped
 from legkit.robots.quadruped import LEGS, Quadruped, QuadrupedParameters
 
@@ -89,6 +90,11 @@ def periodic_lip(zmp_offset: np.ndarray, period: float, height: float, gravity: 
 
     In Fourier terms C_k = P_k / (1 + (height / g) (2 pi k / period)^2): the unique periodic solution, so the
     gait's base motion starts and ends in the same state and the ZMP (in the LIP sense) follows p."""
+    zmp_offset = float_array(zmp_offset, "zmp_offset")
+    if zmp_offset.ndim != 2 or len(zmp_offset) == 0:
+        raise ValueError(f"zmp_offset must have shape (N, 2) with N >= 1, got shape {zmp_offset.shape}")
+    period, height = positive_scalar(period, "period"), positive_scalar(height, "height")
+    gravity = positive_scalar(gravity, "gravity")
     frequency = 2.0 * np.pi * np.fft.rfftfreq(zmp_offset.shape[0], d=period / zmp_offset.shape[0])
     spectrum = np.fft.rfft(zmp_offset, axis=0) / (1.0 + height / gravity * frequency**2)[:, None]
     return np.fft.irfft(spectrum, n=zmp_offset.shape[0], axis=0)
@@ -141,6 +147,16 @@ def _expand(robot_model: lk.Model, dt: float, cycles: int, speed: float, base_xy
     return t, q, v, a
 
 
+def _sample_counts(samples: object, cycles: object) -> tuple[int, int]:
+    """samples per cycle (at least 4: the footfalls are a quarter cycle apart) and cycles (at least 1), checked."""
+    samples, cycles = integer(samples, "samples"), integer(cycles, "cycles")
+    if samples < 4:
+        raise ValueError(f"samples must be >= 4, got {samples}")
+    if cycles < 1:
+        raise ValueError(f"cycles must be >= 1, got {cycles}")
+    return samples, cycles
+
+
 def quadruped_amble(robot: Quadruped, speed: float, period: float, samples: int, cycles: int, step_height: float, hip_height: float) -> GaitReference:
     """Amble with duty factor 0.5 in the lateral sequence LF, RH, RF, LH (touchdowns a quarter cycle apart):
     the support order of [Hardt 2002] Sect. 4.2, LF+LH, LF+RH, RF+RH, RF+LH from t = 0, a lateral pair then a
@@ -148,6 +164,9 @@ def quadruped_amble(robot: Quadruped, speed: float, period: float, samples: int,
     contradicts the same paragraph (lateral and diagonal pairs alternate) and the Fig. 3 caption (the RR leg
     touches down as the left rear lifts, leaving a diagonal pair), so it is read as LF-RR (= LF+RH). The
     torso sways so that the COM follows the periodic LIP whose ZMP is the midpoint of the supporting pair."""
+    speed, period, hip_height = positive_scalar(speed, "speed"), positive_scalar(period, "period"), positive_scalar(hip_height, "hip_height")
+    step_height = positive_scalar(step_height, "step_height", allow_zero=True)
+    samples, cycles = _sample_counts(samples, cycles)
     p = robot.parameters
     dt = period / samples
     t = np.arange(samples) * dt
@@ -186,6 +205,14 @@ def biped_walk(robot: Biped, speed: float, step_length: float, samples: int, cyc
     (1 + double_support) step times. The pelvis follows the periodic LIP whose ZMP sits at the stance sole's
     centre in single support and moves from the trailing to the leading sole centre in double support; the
     arms swing by `arm_swing` [rad] against the same-side leg."""
+    speed, step_length = positive_scalar(speed, "speed"), positive_scalar(step_length, "step_length")
+    hip_height = positive_scalar(hip_height, "hip_height")
+    double_support = positive_scalar(double_support, "double_support", allow_zero=True)
+    step_height = positive_scalar(step_height, "step_height", allow_zero=True)
+    if double_support >= 1.0:
+        raise ValueError(f"double_support must be in [0, 1), got {double_support}")
+    float_array(arm_swing, "arm_swing", shape=())
+    samples, cycles = _sample_counts(samples, cycles)
     p = robot.parameters
     period = 2.0 * step_length / speed
     dt = period / samples
