@@ -153,7 +153,8 @@ fn derivative_kernels_allocate_nothing_once_reserved() {
     let square = || vec![0.0; nv * nv];
     let (mut a, mut b) = (square(), square());
     let (mut c, mut d, mut e) = (square(), square(), square());
-    let mut kernels: Vec<(&str, Box<dyn FnMut(&mut Data)>)> = vec![
+    type Kernel<'a> = Box<dyn FnMut(&mut Data) + 'a>;
+    let mut kernels: Vec<(&str, Kernel)> = vec![
         ("rnea_derivatives_into", Box::new(move |data| rnea_derivatives_into(model, data, q, v, tau, None, &mut a, &mut b))),
         ("aba_derivatives_into", Box::new(move |data| aba_derivatives_into(model, data, q, v, tau, None, &mut c, &mut d, &mut e))),
         (
