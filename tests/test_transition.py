@@ -115,6 +115,68 @@ def test_substeps_compose_to_central_differences(substeps, push):
     assert_close(*jacobians_and_differences(build, tau, servo, STEP / substeps**2))
 
 
+BOX = np.array([0.3, 0.2, 0.1])
+BOX_TAU = np.array([0.0, 0.0, 0.0, 0.05, -0.02, 0.01])
+
+
+def sliding_box(substeps: int, friction_law: str, settle: int) -> lk.Simulation:
+    """A 2 kg box set down flat 10 µm above the plane, sliding at (0.8, 0.3) m/s and turning at 0.2 rad/s, run
+    `settle` steps."""
+    sim = lk.Simulation(lk.Model(True, lk.MassProperties.solid_box(2.0, BOX)), dt=1e-3, ground=lk.Ground.plane(0.8),
+                        substeps=substeps, friction_law=friction_law)
+    sim.q = np.array([0.0, 0.0, BOX[2] / 2 + 1e-5, 0.0, 0.0, 0.0, 1.0])
+    sim.v = np.array([0.8, 0.3, 0.0, 0.0, 0.0, 0.2])
+    sim.step(BOX_TAU, settle)
+    return sim
+
+
+def one_sided_slopes(build, tau: np.ndarray, step_size: float) -> tuple[np.ndarray, np.ndarray]:
+    """The slopes of one step on each side of every input of x = (q on its tangent space, v), Richardson-extrapolated
+    from displacements of `step_size` and twice it: (right, left), each 2 nv x 2 nv."""
+    sim = build()
+    model, nv = sim.model, sim.model.nv
+    q, v = sim.q.copy(), sim.v.copy()
+
+    def step(column: int, delta: float) -> np.ndarray:
+        displaced = build()
+        d = np.zeros(2 * nv)
+        d[column] = delta
+        displaced.q, displaced.v = lk.integrate(model, q, d[:nv], 1.0), v + d[nv:]
+        displaced.step(tau)
+        return np.concatenate([lk.difference(model, q_next, displaced.q), displaced.v])
+
+    undisplaced = build()
+    undisplaced.step(tau)
+    q_next = undisplaced.q.copy()
+    base = step(0, 0.0)
+    sides = []
+    for sign in (1.0, -1.0):
+        slopes = np.zeros((2 * nv, 2 * nv))
+        for column in range(2 * nv):
+            near = (step(column, sign * step_size) - base) / (sign * step_size)
+            far = (step(column, 2 * sign * step_size) - base) / (2 * sign * step_size)
+            slopes[:, column] = 2 * near - far
+        sides.append(slopes)
+    return sides[0], sides[1]
+
+
+@pytest.mark.parametrize("substeps", [2, 10])
+def test_a_box_sliding_in_substeps_has_the_slopes_of_the_side_its_step_is_on(substeps):
+    """Under Coulomb's law a sliding box rests on its contacts' gap-0 bend (within ε g h² of it, 7e-9 m with 10
+    substeps), and tilting it by 1e-7 rad lifts an edge past it: central differences of its height and tilt
+    straddle a switch (6e-5 off with 10 substeps). The Jacobians hold the step's side: each of their columns equals
+    the one-sided slopes of the step on one side, displaced by 1e-8 (the step's solve converged to about 1e-12
+    leaves 1e-4 of noise in slopes at 1e-9)."""
+    build = lambda: sliding_box(substeps, "coulomb", 20)  # noqa: E731
+    sim = build()
+    assert len(sim.contacts()["body"]) == 4
+    a, _ = sim.transition_jacobians(BOX_TAU)
+    right, left = one_sided_slopes(build, BOX_TAU, 1e-8)
+    scale = max(1.0, np.abs(a).max())
+    per_column = np.minimum(np.abs(a - right).max(axis=0), np.abs(a - left).max(axis=0))
+    assert per_column.max() <= 1e-6 * scale, f"columns off both sides' slopes by {per_column.max() / scale:.1e} (relative)"
+
+
 def test_servoed_tree_without_contacts_matches_central_differences():
     model = ten_link_tree()
     target = model.neutral() + 0.2

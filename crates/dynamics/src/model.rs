@@ -659,51 +659,68 @@ pub enum Dense {
     AbaDerivatives,
     /// The RNEA's four nv x nv x nv second-derivative tensors.
     SecondOrder,
+    /// The derivative algorithms' O(n) workspace (`Data::derivatives` less its outputs), which every derivative
+    /// kernel and the contact kernels use; included in the three parts above.
+    Workspace,
 }
 
 impl Derivatives {
     /// Sizes the workspace for `model` unless it already is, all but the nv x nv outputs, which the RNEA and ABA
     /// derivatives size on their first call (`reserve_square`): the frame and centroidal derivatives need O(n nv).
+    /// The kernels call it on first use, where a refused allocation aborts as a `Vec`'s would; callers that must
+    /// not abort reserve first with `Data::reserve_dense` (`Dense::Workspace`), which reports `TooLarge` instead.
     pub(crate) fn reserve(&mut self, model: &Model) {
+        if self.try_reserve(model).is_err() {
+            std::alloc::handle_alloc_error(std::alloc::Layout::new::<Derivatives>());
+        }
+    }
+
+    /// `reserve` with fallible allocation: `Error::TooLarge` naming the model, the workspace left as it was.
+    fn try_reserve(&mut self, model: &Model) -> Result<()> {
         let (n, nv) = (model.nbodies(), model.nv());
         if self.velocity.len() == n && self.subspace.ncols() == nv {
-            return;
+            return Ok(());
         }
-        let columns = || Matrix6xX::zeros(nv);
+        let per_body = |value| filled("model", n, value);
+        let columns = || -> Result<Matrix6xX<f64>> {
+            Ok(Matrix6xX::from_vec(filled("model", array_len("model", &[6, nv], std::mem::size_of::<f64>())?, 0.0)?))
+        };
         let empty = || DMatrix::zeros(0, 0);
+        // All at once, so that a refusal leaves the workspace as it was.
         *self = Derivatives {
-            velocity: vec![Motion::zeros(); n],
-            acceleration: vec![Motion::zeros(); n],
-            force: vec![Force::zeros(); n],
-            composite: vec![RigidInertia::zeros(); n],
-            rate: vec![RateMatrix::zeros(); n],
-            subspace: columns(),
-            dv_dq: columns(),
-            da_dq: columns(),
-            da_dv: columns(),
-            df_dq: columns(),
-            df_dv: columns(),
-            df_da: columns(),
-            rate_subspace: columns(),
+            velocity: per_body(Motion::zeros())?,
+            acceleration: per_body(Motion::zeros())?,
+            force: filled("model", n, Force::zeros())?,
+            composite: filled("model", n, RigidInertia::zeros())?,
+            rate: filled("model", n, RateMatrix::zeros())?,
+            subspace: columns()?,
+            dv_dq: columns()?,
+            da_dq: columns()?,
+            da_dv: columns()?,
+            df_dq: columns()?,
+            df_dv: columns()?,
+            df_da: columns()?,
+            rate_subspace: columns()?,
             dtau_dq: empty(),
             dtau_dv: empty(),
             ddq_dq: empty(),
             ddq_dv: empty(),
-            block_rows: vec![[0.0; BLOCK]; nv],
-            block_forces: vec![[[0.0; BLOCK]; 6]; n],
-            block_accelerations: vec![[[0.0; BLOCK]; 6]; n],
-            frame_velocity_dq: columns(),
-            frame_velocity_dv: columns(),
-            frame_acceleration_dq: columns(),
-            frame_acceleration_dv: columns(),
-            frame_acceleration_da: columns(),
-            jacobian_rate: columns(),
-            momentum: vec![Force::zeros(); n],
-            dh_dq: columns(),
-            dhdot_dq: columns(),
-            dhdot_dv: columns(),
+            block_rows: filled("model", nv, [0.0; BLOCK])?,
+            block_forces: filled("model", n, [[0.0; BLOCK]; 6])?,
+            block_accelerations: filled("model", n, [[0.0; BLOCK]; 6])?,
+            frame_velocity_dq: columns()?,
+            frame_velocity_dv: columns()?,
+            frame_acceleration_dq: columns()?,
+            frame_acceleration_dv: columns()?,
+            frame_acceleration_da: columns()?,
+            jacobian_rate: columns()?,
+            momentum: filled("model", n, Force::zeros())?,
+            dh_dq: columns()?,
+            dhdot_dq: columns()?,
+            dhdot_dv: columns()?,
             second_order: SecondOrder::default(),
         };
+        Ok(())
     }
 }
 
@@ -721,10 +738,13 @@ impl Data {
             Dense::Inverse => (squares + unsized_square(&self.minv), sets + usize::from(self.force_sets.len() != n)),
             Dense::RneaDerivatives => (squares + unsized_square(&d.dtau_dq) + unsized_square(&d.dtau_dv), sets),
             Dense::AbaDerivatives => (squares + unsized_square(&d.ddq_dq) + unsized_square(&d.ddq_dv), sets),
-            Dense::SecondOrder => (squares, sets),
+            Dense::SecondOrder | Dense::Workspace => (squares, sets),
         });
         let cube = array_len("model", &[nv, nv, nv], std::mem::size_of::<f64>())?;
         let cubes = if parts.contains(&Dense::SecondOrder) && d.second_order.dqdq.len() != cube { 4 } else { 0 };
+        if parts.iter().any(|part| matches!(part, Dense::Workspace | Dense::RneaDerivatives | Dense::AbaDerivatives | Dense::SecondOrder)) {
+            self.derivatives.try_reserve(model)?;
+        }
         if squares + sets + cubes == 0 {
             return Ok(());
         }
@@ -755,8 +775,8 @@ impl Data {
                         }
                     }
                 }
+                Dense::Workspace => {}
                 Dense::RneaDerivatives | Dense::AbaDerivatives => {
-                    self.derivatives.reserve(model);
                     let d = &mut self.derivatives;
                     let (a, b) = if *part == Dense::RneaDerivatives { (&mut d.dtau_dq, &mut d.dtau_dv) } else { (&mut d.ddq_dq, &mut d.ddq_dv) };
                     try_reserve_square(a, nv)?;

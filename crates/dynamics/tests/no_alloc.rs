@@ -4,12 +4,14 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use legkit_dynamics::algorithms::{
-    aba, aba_derivatives, center_of_mass, center_of_mass_jacobian, centroidal_derivatives, centroidal_map, centroidal_momentum,
+    aba, aba_derivatives, aba_derivatives_into, center_of_mass, center_of_mass_jacobian, centroidal_derivatives, centroidal_map, centroidal_momentum,
     centroidal_momentum_rate, crba, difference, difference_jacobians, forward_kinematics, frame_acceleration, frame_acceleration_derivatives,
     frame_velocity, frame_velocity_derivatives, integrate, integrate_jacobians, jacobian, jacobian_time_variation, kinetic_energy, minv,
-    potential_energy, rnea, rnea_derivatives, rnea_second_order_derivatives, subtree_mass_properties, Frame,
+    potential_energy, rnea, rnea_derivatives, rnea_derivatives_into, rnea_second_order_derivatives, subtree_mass_properties, Frame,
 };
+use legkit_dynamics::algorithms::{contact_dynamics_derivatives_into, impact_derivatives_into, ContactDim, ContactPoint};
 use legkit_dynamics::geometry::{Shape, ShapeKind};
+use legkit_dynamics::model::Dense;
 use legkit_dynamics::{Data, Joint, JointLimits, MassProperties, Model, Transform};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
@@ -44,8 +46,8 @@ fn allocations_during(f: impl FnOnce()) -> usize {
     ALLOCATIONS.with(Cell::get) - before
 }
 
-#[test]
-fn algorithms_do_not_allocate() {
+/// A floating binary tree of 30 boxes on revolute and prismatic joints.
+fn tree() -> Model {
     let body = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.2, 0.3), Vector3::new(0.0, 0.0, 0.1), &Matrix3::identity()).unwrap();
     let mut model = Model::new(true, body, "base");
     for i in 1..30 {
@@ -53,6 +55,12 @@ fn algorithms_do_not_allocate() {
         let placement = Transform::from_translation(Vector3::new(0.1, 0.0, 0.05));
         model.add_body((i - 1) / 2, joint, placement, body, &format!("b{i}"), JointLimits::NONE).unwrap();
     }
+    model
+}
+
+#[test]
+fn algorithms_do_not_allocate() {
+    let model = tree();
     let mut data = Data::new(&model);
     let mut q = vec![0.1; model.nq()];
     q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
@@ -122,4 +130,94 @@ fn tree_engine_steps_do_not_allocate_once_warm() {
     sim.step(Some(&tau), 1000).unwrap();
     assert_eq!(sim.contacts().len(), 4);
     assert_eq!(allocations_during(|| sim.step(Some(&tau), 200).unwrap()), 0);
+}
+
+#[test]
+fn derivative_kernels_allocate_nothing_once_reserved() {
+    // What the bindings do: `reserve_dense` sizes every part fallibly, then each kernel, first call or second,
+    // allocates nothing (the contact kernels size their r-dependent workspace fallibly on their first call).
+    let model = tree();
+    // The model's own cache (its subtree columns, computed once per model), not a kernel's temporary.
+    model.subtree_columns(0);
+    let (nq, nv) = (model.nq(), model.nv());
+    let mut q: Vec<f64> = (0..nq).map(|i| 0.1 + 0.03 * i as f64).collect();
+    q[3..7].copy_from_slice(&[0.1, -0.2, 0.3, 0.9]);
+    let norm = q[3..7].iter().map(|x| x * x).sum::<f64>().sqrt();
+    q[3..7].iter_mut().for_each(|x| *x /= norm);
+    let v: Vec<f64> = (0..nv).map(|i| 0.2 - 0.01 * i as f64).collect();
+    let tau: Vec<f64> = (0..nv).map(|i| 0.3 * (i as f64).sin()).collect();
+    let contacts: Vec<ContactPoint> = [17, 20, 25, 29].iter().map(|&body| ContactPoint { body, point: Vector3::new(0.05, 0.0, 0.1) }).collect();
+    let r = 3 * contacts.len();
+    let point = Vector3::new(0.1, 0.0, 0.0);
+    let (model, q, v, tau, point) = (&model, &q[..], &v[..], &tau[..], &point);
+    let square = || vec![0.0; nv * nv];
+    let (mut a, mut b) = (square(), square());
+    let (mut c, mut d, mut e) = (square(), square(), square());
+    type Kernel<'a> = Box<dyn FnMut(&mut Data) + 'a>;
+    let mut kernels: Vec<(&str, Kernel)> = vec![
+        ("rnea_derivatives_into", Box::new(move |data| rnea_derivatives_into(model, data, q, v, tau, None, &mut a, &mut b))),
+        ("aba_derivatives_into", Box::new(move |data| aba_derivatives_into(model, data, q, v, tau, None, &mut c, &mut d, &mut e))),
+        (
+            "rnea_derivatives",
+            Box::new(|data| {
+                rnea_derivatives(model, data, q, v, tau, None);
+            }),
+        ),
+        (
+            "aba_derivatives",
+            Box::new(|data| {
+                aba_derivatives(model, data, q, v, tau, None);
+            }),
+        ),
+        (
+            "rnea_second_order_derivatives",
+            Box::new(|data| {
+                rnea_second_order_derivatives(model, data, q, v, tau);
+            }),
+        ),
+        (
+            "frame_velocity_derivatives",
+            Box::new(|data| {
+                frame_velocity_derivatives(model, data, q, v, 17, point, Frame::Local);
+            }),
+        ),
+        (
+            "frame_acceleration_derivatives",
+            Box::new(|data| {
+                frame_acceleration_derivatives(model, data, q, v, tau, 17, point, Frame::World);
+            }),
+        ),
+        (
+            "jacobian_time_variation",
+            Box::new(|data| {
+                jacobian_time_variation(model, data, q, v, 17, point, Frame::LocalWorldAligned);
+            }),
+        ),
+        (
+            "centroidal_derivatives",
+            Box::new(|data| {
+                centroidal_derivatives(model, data, q, v, tau);
+            }),
+        ),
+    ];
+    let dense = [Dense::Workspace, Dense::MassMatrix, Dense::Inverse, Dense::RneaDerivatives, Dense::AbaDerivatives, Dense::SecondOrder];
+    for (name, kernel) in &mut kernels {
+        let mut data = Data::new(model);
+        data.reserve_dense(model, &dense).unwrap();
+        assert_eq!(allocations_during(|| kernel(&mut data)), 0, "{name}'s first call allocated");
+        assert_eq!(allocations_during(|| kernel(&mut data)), 0, "{name}'s second call allocated");
+    }
+    drop(kernels);
+    let mut data = Data::new(model);
+    data.reserve_dense(model, &[Dense::Workspace, Dense::Inverse]).unwrap();
+    let (mut generalized, mut rows) = (vec![0.0; 3 * nv * nv], vec![0.0; 3 * r * nv]);
+    let (ddq_d, forces_d) = (&mut generalized[..], &mut rows[..]);
+    let mut contact =
+        |data: &mut Data| contact_dynamics_derivatives_into(model, data, q, v, tau, &contacts, ContactDim::Point, ddq_d, forces_d).unwrap();
+    contact(&mut data);
+    assert_eq!(allocations_during(|| contact(&mut data)), 0, "contact_dynamics_derivatives_into's second call allocated");
+    let (velocity_d, impulses_d) = (&mut generalized[..2 * nv * nv], &mut rows[..2 * r * nv]);
+    let mut impact = |data: &mut Data| impact_derivatives_into(model, data, q, v, &contacts, ContactDim::Point, velocity_d, impulses_d).unwrap();
+    impact(&mut data);
+    assert_eq!(allocations_during(|| impact(&mut data)), 0, "impact_derivatives_into's second call allocated");
 }

@@ -50,7 +50,7 @@ where
 {
     let nv = model.model.nv();
     let packed = run_packed(py, model, batch, nv + d * k, |m, w, i, out| {
-        let (generalized, per_contact) = kernel(m, w.dense(&[Dense::Inverse])?, i)?;
+        let (generalized, per_contact) = kernel(m, w.dense(&[Dense::Inverse, Dense::Workspace])?, i)?;
         out[..nv].copy_from_slice(generalized.as_slice());
         out[nv..].copy_from_slice(per_contact.as_slice());
         finite_result(out)
@@ -130,7 +130,7 @@ pub fn point_accelerations<'py>(
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("a", a, nv)?;
-        algorithms::point_accelerations(m, w.data(), q, v, Some(a), &points, dim, out);
+        algorithms::point_accelerations(m, w.dense(&[Dense::Workspace])?, q, v, Some(a), &points, dim, out);
         Ok(())
     })
 }
@@ -243,7 +243,7 @@ pub fn contact_dynamics_derivatives<'py>(
         check_vector("tau", tau, nv)?;
         // Straight into the array, column-major.
         let (ddq_d, forces_d) = out.split_at_mut(3 * nv * nv);
-        algorithms::contact_dynamics_derivatives_into(m, w.dense(&[Dense::Inverse])?, q, v, tau, &contacts, dim, ddq_d, forces_d)?;
+        algorithms::contact_dynamics_derivatives_into(m, w.dense(&[Dense::Inverse, Dense::Workspace])?, q, v, tau, &contacts, dim, ddq_d, forces_d)?;
         finite_result(out)
     })?;
     PyTuple::new(py, matrix_views(&out, 3, nv, (k, d)))
@@ -270,7 +270,7 @@ pub fn impact_derivatives<'py>(
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
         let (velocity_d, impulses_d) = out.split_at_mut(2 * nv * nv);
-        algorithms::impact_derivatives_into(m, w.dense(&[Dense::Inverse])?, q, v, &contacts, dim, velocity_d, impulses_d)?;
+        algorithms::impact_derivatives_into(m, w.dense(&[Dense::Inverse, Dense::Workspace])?, q, v, &contacts, dim, velocity_d, impulses_d)?;
         finite_result(out)
     })?;
     PyTuple::new(py, matrix_views(&out, 2, nv, (k, d)))

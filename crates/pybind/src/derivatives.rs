@@ -77,6 +77,7 @@ pub fn rnea_derivatives<'py>(
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("a", a, m.nv())?;
+        w.dense(&[Dense::Workspace])?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         // Straight into the arrays: no nv x nv workspace, no copy.
         let (dq, dv) = out.split_at_mut(m.nv() * m.nv());
@@ -133,7 +134,8 @@ pub fn aba_derivatives<'py>(
         check_state(m, q, Some(v))?;
         check_vector("tau", tau, m.nv())?;
         // M⁻¹'s recursion's force sets (and M⁻¹'s own square, which stays unused) on the models that use them.
-        let dense: &[Dense] = if algorithms::minv_by_recursion(m) { &[Dense::Inverse] } else { &[] };
+        let dense: &[Dense] =
+            if algorithms::minv_by_recursion(m) { &[Dense::Inverse, Dense::Workspace] } else { &[Dense::Workspace] };
         w.dense(dense)?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         // Straight into the arrays: no nv x nv workspace for them, no copy.
@@ -163,7 +165,7 @@ pub fn centroidal_derivatives<'py>(
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("a", a, m.nv())?;
-        let (dh_dq, dhdot_dq, dhdot_dv, dhdot_da) = algorithms::centroidal_derivatives(m, w.data(), q, v, a);
+        let (dh_dq, dhdot_dq, dhdot_dv, dhdot_da) = algorithms::centroidal_derivatives(m, w.dense(&[Dense::Workspace])?, q, v, a);
         write_columns(&[dh_dq.as_slice(), dhdot_dq.as_slice(), dhdot_dv.as_slice(), dhdot_da.as_slice()], out);
         Ok(())
     })?;

@@ -2,7 +2,7 @@
 //! centroidal momentum.
 
 use legkit_dynamics::algorithms::{self, Frame};
-use legkit_dynamics::model::check_vector;
+use legkit_dynamics::model::{check_vector, Dense};
 use nalgebra::{Dim, Dyn, Matrix, RawStorage, Vector3};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -181,7 +181,7 @@ pub fn frame_velocity<'py>(
     run(py, &model, &batch, &[6], |m, w, i, out| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
-        out.copy_from_slice(algorithms::frame_velocity(m, w.data(), q, v, body, &point, convention).as_slice());
+        out.copy_from_slice(algorithms::frame_velocity(m, w.dense(&[Dense::Workspace])?, q, v, body, &point, convention).as_slice());
         finite_result(out)
     })
 }
@@ -209,7 +209,7 @@ pub fn frame_acceleration<'py>(
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("a", a, nv)?;
-        out.copy_from_slice(algorithms::frame_acceleration(m, w.data(), q, v, a, body, &point, convention).as_slice());
+        out.copy_from_slice(algorithms::frame_acceleration(m, w.dense(&[Dense::Workspace])?, q, v, a, body, &point, convention).as_slice());
         finite_result(out)
     })
 }
@@ -234,7 +234,7 @@ pub fn frame_velocity_derivatives<'py>(
     let packed = run_packed(py, &model, &batch, 12 * nv, |m, w, i, out| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
-        let (dq, dv) = algorithms::frame_velocity_derivatives(m, w.data(), q, v, body, &point, convention);
+        let (dq, dv) = algorithms::frame_velocity_derivatives(m, w.dense(&[Dense::Workspace])?, q, v, body, &point, convention);
         for (matrix, chunk) in [dq, dv].into_iter().zip(out.chunks_exact_mut(6 * nv)) {
             row_major(matrix, chunk);
         }
@@ -267,7 +267,8 @@ pub fn frame_acceleration_derivatives<'py>(
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
         check_state(m, q, Some(v))?;
         check_vector("a", a, nv)?;
-        let (v_dq, a_dq, a_dv, a_da) = algorithms::frame_acceleration_derivatives(m, w.data(), q, v, a, body, &point, convention);
+        let (v_dq, a_dq, a_dv, a_da) =
+            algorithms::frame_acceleration_derivatives(m, w.dense(&[Dense::Workspace])?, q, v, a, body, &point, convention);
         for (matrix, chunk) in [v_dq, a_dq, a_dv, a_da].into_iter().zip(out.chunks_exact_mut(6 * nv)) {
             row_major(matrix, chunk);
         }
@@ -297,7 +298,7 @@ pub fn jacobian_time_variation<'py>(
     run(py, &model, &batch, &[6, nv], |m, w, i, out| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
         check_state(m, q, Some(v))?;
-        row_major(algorithms::jacobian_time_variation(m, w.data(), q, v, body, &point, convention), out);
+        row_major(algorithms::jacobian_time_variation(m, w.dense(&[Dense::Workspace])?, q, v, body, &point, convention), out);
         finite_result(out)
     })
 }

@@ -230,7 +230,8 @@ fn spd_inverse(s: &[f64], n: usize, l: &mut [f64], inverse: &mut [f64]) -> bool 
 /// M⁻¹ at q, checked: an error if M is singular.
 fn checked_minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d DMatrix<f64>> {
     let minv = minv(model, data, q);
-    if !minv.diagonal().iter().all(|x| x.is_finite() && *x > 0.0) {
+    // The diagonal read in place (`diagonal()` would copy it out).
+    if !minv.as_slice().iter().step_by(minv.nrows() + 1).all(|x| x.is_finite() && *x > 0.0) {
         return Err(Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint carrying no inertia?)"));
     }
     Ok(minv)

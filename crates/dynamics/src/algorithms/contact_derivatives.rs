@@ -155,20 +155,11 @@ pub fn contact_dynamics_derivatives(
     contacts: &[ContactPoint],
     dim: ContactDim,
 ) -> Result<ContactDynamicsDerivatives> {
-    let (nv, r) = (model.nv(), rows(contacts, dim));
-    let (mut ddq_d, mut forces_d) = (vec![0.0; 3 * nv * nv], vec![0.0; 3 * r * nv]);
-    contact_dynamics_derivatives_into(model, data, q, v, tau, contacts, dim, &mut ddq_d, &mut forces_d)?;
-    let w = &data.contact;
-    Ok(ContactDynamicsDerivatives {
-        ddq: DVector::from_column_slice(&w.solution),
-        forces: DVector::from_column_slice(&w.forces),
-        ddq_dq: block(&ddq_d, nv, nv, 0),
-        ddq_dv: block(&ddq_d, nv, nv, 1),
-        ddq_dtau: block(&ddq_d, nv, nv, 2),
-        forces_dq: block(&forces_d, r, nv, 0),
-        forces_dv: block(&forces_d, r, nv, 1),
-        forces_dtau: block(&forces_d, r, nv, 2),
-    })
+    let (ddq, forces, [ddq_dq, ddq_dv, ddq_dtau], [forces_dq, forces_dv, forces_dtau]) =
+        owned(model, data, rows(contacts, dim), |data, ddq_d, forces_d| {
+            contact_dynamics_derivatives_into(model, data, q, v, tau, contacts, dim, ddq_d, forces_d)
+        })?;
+    Ok(ContactDynamicsDerivatives { ddq, forces, ddq_dq, ddq_dv, ddq_dtau, forces_dq, forces_dv, forces_dtau })
 }
 
 /// `contact_dynamics_derivatives` into `ddq_d` (3 nv x nv, column-major, one after the other: ∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂τ)
@@ -209,9 +200,22 @@ pub fn contact_dynamics_derivatives_into(
     })
 }
 
-/// The i-th of the column-major rows x cols matrices stored one after the other in `buffer`.
-fn block(buffer: &[f64], rows: usize, cols: usize, i: usize) -> DMatrix<f64> {
-    DMatrix::from_column_slice(rows, cols, &buffer[i * rows * cols..(i + 1) * rows * cols])
+/// Runs an `_into` variant on outputs of N nv x nv and N r x nv matrices it allocates, and returns the solution it
+/// leaves in `data.contact` with those matrices.
+#[allow(clippy::type_complexity)]
+fn owned<const N: usize>(
+    model: &Model,
+    data: &mut Data,
+    r: usize,
+    kernel: impl FnOnce(&mut Data, &mut [f64], &mut [f64]) -> Result<()>,
+) -> Result<(DVector<f64>, DVector<f64>, [DMatrix<f64>; N], [DMatrix<f64>; N])> {
+    let nv = model.nv();
+    let (mut generalized, mut per_row) = (vec![0.0; N * nv * nv], vec![0.0; N * r * nv]);
+    kernel(data, &mut generalized, &mut per_row)?;
+    let blocks =
+        |buffer: &[f64], rows: usize| std::array::from_fn(|i| DMatrix::from_column_slice(rows, nv, &buffer[i * rows * nv..(i + 1) * rows * nv]));
+    let w = &data.contact;
+    Ok((DVector::from_column_slice(&w.solution), DVector::from_column_slice(&w.forces), blocks(&generalized, nv), blocks(&per_row, r)))
 }
 
 /// `impact` (the velocity after a perfectly inelastic impact at the contacts, and its impulses, at configuration `q`
@@ -224,18 +228,11 @@ pub fn impact_derivatives(
     contacts: &[ContactPoint],
     dim: ContactDim,
 ) -> Result<ImpactDerivatives> {
-    let (nv, r) = (model.nv(), rows(contacts, dim));
-    let (mut velocity_d, mut impulses_d) = (vec![0.0; 2 * nv * nv], vec![0.0; 2 * r * nv]);
-    impact_derivatives_into(model, data, q, v, contacts, dim, &mut velocity_d, &mut impulses_d)?;
-    let w = &data.contact;
-    Ok(ImpactDerivatives {
-        velocity: DVector::from_column_slice(&w.solution),
-        impulses: DVector::from_column_slice(&w.forces),
-        velocity_dq: block(&velocity_d, nv, nv, 0),
-        velocity_dv: block(&velocity_d, nv, nv, 1),
-        impulses_dq: block(&impulses_d, r, nv, 0),
-        impulses_dv: block(&impulses_d, r, nv, 1),
-    })
+    let (velocity, impulses, [velocity_dq, velocity_dv], [impulses_dq, impulses_dv]) =
+        owned(model, data, rows(contacts, dim), |data, velocity_d, impulses_d| {
+            impact_derivatives_into(model, data, q, v, contacts, dim, velocity_d, impulses_d)
+        })?;
+    Ok(ImpactDerivatives { velocity, impulses, velocity_dq, velocity_dv, impulses_dq, impulses_dv })
 }
 
 /// `impact_derivatives` into `velocity_d` (2 nv x nv, column-major: ∂v⁺/∂q, ∂v⁺/∂v) and `impulses_d` (2 r x nv); v⁺

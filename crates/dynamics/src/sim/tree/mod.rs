@@ -193,18 +193,7 @@ impl TreeSimulation {
         let origin = base_origin(model, q);
         self.constraints.clear();
         for f in &self.found {
-            self.constraints.push(contact_constraint(
-                self.coulomb,
-                model,
-                &self.data,
-                &self.delassus,
-                &self.fused_body,
-                self.friction,
-                self.h,
-                f,
-                f.distance,
-                &origin,
-            ));
+            self.constraints.push(self.contact_row(model, &self.data, &self.delassus, f, f.distance, &origin));
         }
         self.limit_rows.clear();
         for (index, joint) in self.limited.iter().enumerate() {

@@ -18,7 +18,7 @@
 //! away from switches between them, with the contact solve taken as converged. A step of several substeps is the
 //! chain of theirs, each substep's contact set and zones held, the warm starts it passes on followed (`Substeps`).
 
-use nalgebra::{DMatrix, Matrix6, Matrix6xX};
+use nalgebra::{DMatrix, Matrix6, Matrix6xX, Vector3};
 
 use super::articulated::Articulated;
 use super::collision::{Found, Source, Warm};
@@ -182,6 +182,12 @@ fn for_each_column(model: &Model, data: &Data, body: usize, mut f: impl FnMut(us
 }
 
 impl TreeSimulation {
+    /// `contact_constraint` of contact `f` with this simulation's law, friction, step and body map, on the factor in
+    /// `data` and `delassus` (the step's own, or one at a displaced configuration), its gap law's piece `piece`.
+    pub(super) fn contact_row(&self, model: &Model, data: &Data, delassus: &Delassus, f: &Found, piece: f64, origin: &Vector3<f64>) -> Constraint {
+        contact_constraint(self.coulomb, model, data, delassus, &self.fused_body, self.friction, self.h, f, piece, origin)
+    }
+
     /// A = ∂x⁺/∂x (2 nv square) and B = ∂x⁺/∂u (2 nv x 3 nv, u = (τ_ff, target_q, target_v)) of one step from
     /// (q, v) under `actuation`, leaving the simulation as it was.
     pub(super) fn transition_jacobians(
@@ -450,18 +456,7 @@ impl TreeSimulation {
                 for (side, sign) in [(0, 1.0), (1, -1.0)] {
                     let mut displaced: Found = *f;
                     displaced.warm[j] += sign * step;
-                    let mut constraint = [contact_constraint(
-                        self.coulomb,
-                        model,
-                        &self.data,
-                        &self.delassus,
-                        &self.fused_body,
-                        self.friction,
-                        self.h,
-                        &displaced,
-                        f.distance,
-                        &origin,
-                    )];
+                    let mut constraint = [self.contact_row(model, &self.data, &self.delassus, &displaced, f.distance, &origin)];
                     impulses_at(&mut t.tree, model, &self.data, &mut constraint, &self.constraints[c..c + 1], &self.v_next, &mut t.plus);
                     let lambda = constraint[0].lambda;
                     let friction = f.tangents[0] * lambda[1] + f.tangents[1] * lambda[2];
@@ -510,18 +505,7 @@ impl TreeSimulation {
         for f in &self.found {
             let moved = self.collision.moved(f, &t.poses);
             t.substeps.tangents.push(moved.tangents);
-            t.constraints.push(contact_constraint(
-                self.coulomb,
-                model,
-                &t.data,
-                &t.delassus,
-                &self.fused_body,
-                self.friction,
-                self.h,
-                &moved,
-                f.distance,
-                &origin,
-            ));
+            t.constraints.push(self.contact_row(model, &t.data, &t.delassus, &moved, f.distance, &origin));
         }
         for &(index, side) in &self.limit_rows {
             // A limit's warm start only seeds the solver: its impulse at a given v⁺ does not depend on it.
