@@ -316,7 +316,7 @@ impl Model {
         self.idx_v[i]
     }
     /// The velocity indices of body `i`'s subtree (its own included), as increasing ranges.
-    pub(crate) fn subtree_columns(&self, i: usize) -> &[Range<usize>] {
+    pub fn subtree_columns(&self, i: usize) -> &[Range<usize>] {
         &self.subtree_columns.get_or_init(|| self.all_subtree_columns())[i]
     }
     /// A copy of the model in which body `i` (which must exist) has the mass properties `body`.

@@ -108,10 +108,9 @@ pub fn load_urdf(path_or_xml: &str, options: &UrdfOptions) -> Result<Urdf> {
 /// U+FEFF, which editors on Windows put at the start of UTF-8 files.
 const BYTE_ORDER_MARK: char = '\u{feff}';
 
-/// Parses URDF text into a [`Model`]. See the [module documentation](self) for what is read, what is
-/// accepted with a warning, and how bodies are named and ordered. Relative mesh names resolve against
-/// the working folder.
-pub(crate) fn parse_urdf(xml: &str, options: &UrdfOptions) -> Result<Urdf> {
+/// Parses URDF text, as `load_urdf` does, for the tests. Relative mesh names resolve against the working folder.
+#[cfg(test)]
+fn parse_urdf(xml: &str, options: &UrdfOptions) -> Result<Urdf> {
     parse(xml, "xml", options, None)
 }
 

@@ -134,8 +134,7 @@ pub fn aba_derivatives<'py>(
         check_state(m, q, Some(v))?;
         check_vector("tau", tau, m.nv())?;
         // M⁻¹'s recursion's force sets (and M⁻¹'s own square, which stays unused) on the models that use them.
-        let dense: &[Dense] =
-            if algorithms::minv_by_recursion(m) { &[Dense::Inverse, Dense::Workspace] } else { &[Dense::Workspace] };
+        let dense: &[Dense] = if algorithms::minv_by_recursion(m) { &[Dense::Inverse, Dense::Workspace] } else { &[Dense::Workspace] };
         w.dense(dense)?;
         let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
         // Straight into the arrays: no nv x nv workspace for them, no copy.
