@@ -353,7 +353,7 @@ def test_what_legkit_does_not_model_warns_or_is_refused_with_strict() -> None:
         ("<mujoco><worldbody><body><joint type='hinge' axis='0 0 0'/></body></worldbody></mujoco>", "zero axis"),
         ("<mujoco><include file='/nonexistent/file.xml'/></mujoco>", "include"),
         ("<mujoco><worldbody><body pos='1 2'/></worldbody></mujoco>", "pos needs 3 numbers"),
-        ("<mujoco><worldbody><body><freejoint/></body><body><freejoint/></body></worldbody></mujoco>", "free joints"),
+        ("<mujoco><worldbody><body><joint/><body><freejoint/></body></body></worldbody></mujoco>", "only joint of a top-level body"),
     ],
 )
 def test_bad_files_are_clear_value_errors(xml: str, message: str) -> None:
