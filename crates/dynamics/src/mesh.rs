@@ -38,10 +38,13 @@ pub fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
     Ok(vertices)
 }
 
+/// A triangle mesh: its vertices, and its faces as indices into them.
+pub type Triangles = (Vec<Vector3<f64>>, Vec<[usize; 3]>);
+
 /// The triangles of the mesh file at `path`, as vertices and faces indexing them, for a mesh's volume and
 /// inertia: STL's triangles (three vertices each), OBJ's faces (a polygon as the fan from its first vertex),
 /// and MuJoCo's binary MSH. Errors as `mesh_vertices`'.
-pub fn mesh_triangles(path: &Path) -> Result<(Vec<Vector3<f64>>, Vec<[usize; 3]>)> {
+pub fn mesh_triangles(path: &Path) -> Result<Triangles> {
     let fail = |reason: String| Error::invalid("mesh", format!("{}: {reason}", path.display()));
     let bytes = crate::validate::read_regular_file("mesh", path)?;
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
@@ -189,7 +192,7 @@ fn stl(bytes: &[u8]) -> Result<Vec<Vector3<f64>>> {
 }
 
 /// OBJ's vertices and faces (1-based indices, negative ones counted back from the last vertex read).
-fn obj_faces(text: &str) -> Result<(Vec<Vector3<f64>>, Vec<[usize; 3]>)> {
+fn obj_faces(text: &str) -> Result<Triangles> {
     let (mut vertices, mut faces) = (Vec::new(), Vec::new());
     for (n, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
@@ -220,7 +223,7 @@ fn obj_faces(text: &str) -> Result<(Vec<Vector3<f64>>, Vec<[usize; 3]>)> {
 
 /// MuJoCo's binary MSH: four counts (vertices, normals, texture coordinates, faces), then the vertices' and
 /// normals' float triples, the texture coordinates' pairs and the faces' index triples, little-endian.
-fn msh(bytes: &[u8]) -> Result<(Vec<Vector3<f64>>, Vec<[usize; 3]>)> {
+fn msh(bytes: &[u8]) -> Result<Triangles> {
     let word = |at: usize| [bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]];
     if bytes.len() < 16 {
         return Err(bad("an MSH file shorter than its header"));
