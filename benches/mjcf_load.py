@@ -1,10 +1,11 @@
-"""MJCF loading time and ABA against MuJoCo on dm_control's humanoid.
+"""MJCF loading time and ABA against MuJoCo on dm_control's humanoid and dog.
 
 * Load time of a generated MJCF tree with default classes, fromto capsules and hinge joints of 100 bodies
   (target < 50 ms), and of 200, 400, 800 and 1600 bodies: the time per kilobyte shows whether loading is linear
   in file size. `lk.Model.from_mjcf` on the XML string; median and min of repeats.
-* ABA on dm_control's suite humanoid (free base, 21 hinges, no ball joints) against MuJoCo's `mj_forward` with
-  contacts disabled, one Python call each, same run, at a random state: median of repeats and their ratio.
+* ABA on dm_control's suite humanoid (free base, 21 hinges) and dog (the dog's free body and its ball, each on
+  three slides and a ball joint) against MuJoCo's `mj_forward` with contacts disabled, one Python call each, same
+  run, at random states: median of repeats and their ratio.
 
 Run: python benches/mjcf_load.py [--repeats 30]
 """
@@ -78,25 +79,27 @@ def main() -> None:
         return
     import mujoco
 
-    path = os.path.join(os.path.dirname(spec.origin), "suite", "humanoid.xml")
-    m = mujoco.MjModel.from_xml_path(path)
-    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
-    d = mujoco.MjData(m)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", lk.MjcfWarning)
-        loaded = lk.load_mjcf(path)
-    model = loaded.model
-    rng = np.random.default_rng(0)
-    q = model.neutral()
-    q[7:] = rng.uniform(-0.3, 0.3, model.nq - 7)
-    v, tau = rng.normal(size=model.nv), rng.normal(size=model.nv)
-    d.qpos[:] = m.qpos0
-    d.qpos[7:] = q[7:]
-    d.qvel[:] = v
-    aba, _ = timed(lambda: lk.aba(model, q, v, tau), args.repeats * 100)
-    forward, _ = timed(lambda: mujoco.mj_forward(m, d), args.repeats * 100)
-    print(f"humanoid (nv={model.nv}): lk.aba {aba * 1e6:.2f} us, mj_forward (no contacts) {forward * 1e6:.2f} us, ratio {aba / forward:.2f}")
-
+    for name in ("humanoid.xml", "dog.xml"):
+        path = os.path.join(os.path.dirname(spec.origin), "suite", name)
+        m = mujoco.MjModel.from_xml_path(path)
+        m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+        d = mujoco.MjData(m)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", lk.MjcfWarning)
+            model = lk.Model.from_mjcf(path)
+        rng = np.random.default_rng(0)
+        # Random states of the same kind in both: each coordinate moved from the file's pose by a random velocity.
+        q = lk.integrate(model, model.neutral(), rng.normal(scale=0.3, size=model.nv), 1.0)
+        v, tau = rng.normal(size=model.nv), rng.normal(size=model.nv)
+        d.qpos[:] = m.qpos0
+        mujoco.mj_integratePos(m, d.qpos, rng.normal(scale=0.3, size=m.nv), 1.0)
+        d.qvel[:] = rng.normal(size=m.nv)
+        aba, _ = timed(lambda model=model, q=q, v=v, tau=tau: lk.aba(model, q, v, tau), args.repeats * 100)
+        forward, _ = timed(lambda m=m, d=d: mujoco.mj_forward(m, d), args.repeats * 100)
+        print(
+            f"{name} (nv={model.nv}, MuJoCo nv={m.nv}): lk.aba {aba * 1e6:.2f} us, "
+            f"mj_forward (no contacts) {forward * 1e6:.2f} us, ratio {aba / forward:.2f}"
+        )
 
 if __name__ == "__main__":
     main()

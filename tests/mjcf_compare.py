@@ -1,5 +1,6 @@
 """Differential check of `lk.load_mjcf` against MuJoCo's own compiler and dynamics (used by test_mjcf.py and
-benches/mjcf_load.py): joint coordinates mapped by name, MuJoCo's free-joint velocity convention converted."""
+benches/mjcf_load.py): joint coordinates mapped by name, MuJoCo's free-joint velocity convention converted on a
+floating base (several free bodies keep MuJoCo's coordinates)."""
 
 from __future__ import annotations
 
@@ -62,7 +63,12 @@ def mapped(m: mujoco.MjModel, d: mujoco.MjData, loaded: lk.Mjcf, ids: list[int])
     c = np.zeros(m.nv)
     for joint, j in zip(loaded.joints, ids):
         qa, da, iq, iv = m.jnt_qposadr[j], m.jnt_dofadr[j], joint["idx_q"], joint["idx_v"]
-        if joint["type"] == "free":
+        if joint["type"] == "free" and not model.floating_base:  # three slides and a ball: MuJoCo's coordinates
+            w, x, y, z = d.qpos[qa + 3 : qa + 7]
+            q[iq : iq + 7] = [*d.qpos[qa : qa + 3], x, y, z, w]
+            v[iv : iv + 6] = d.qvel[da : da + 6]
+            t[da : da + 6, iv : iv + 6] = np.eye(6)
+        elif joint["type"] == "free":
             w, x, y, z = d.qpos[qa + 3 : qa + 7]
             rotation = np.zeros(9)
             mujoco.mju_quat2Mat(rotation, d.qpos[qa + 3 : qa + 7])

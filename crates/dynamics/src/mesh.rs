@@ -20,9 +20,10 @@ pub(crate) fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let vertices = match extension.as_str() {
         "stl" => stl(&bytes),
-        "obj" => obj(&String::from_utf8_lossy(&bytes)),
+        "obj" => obj_faces(&String::from_utf8_lossy(&bytes)).map(|(vertices, _)| vertices),
         "dae" => collada(&String::from_utf8_lossy(&bytes)),
-        other => Err(bad(format!("unknown mesh format {other:?} (expected .stl, .obj or .dae)"))),
+        "msh" => msh(&bytes).map(|(vertices, _)| vertices),
+        other => Err(bad(format!("unknown mesh format {other:?} (expected .stl, .obj, .dae or .msh)"))),
     }
     .map_err(|e| match e {
         Error::TooLarge { argument, reason } => Error::too_large(argument, format!("{}: {reason}", path.display())),
@@ -35,6 +36,35 @@ pub(crate) fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
         return Err(fail(format!("a vertex is not finite: {bad:?}")));
     }
     Ok(vertices)
+}
+
+/// A triangle mesh: its vertices, and its faces as indices into them.
+pub type Triangles = (Vec<Vector3<f64>>, Vec<[usize; 3]>);
+
+/// The triangles of the mesh file at `path`, as vertices and faces indexing them, for a mesh's volume and
+/// inertia: STL's triangles (three vertices each), OBJ's faces (a polygon as the fan from its first vertex),
+/// and MuJoCo's binary MSH. Errors as `mesh_vertices`'.
+pub fn mesh_triangles(path: &Path) -> Result<Triangles> {
+    let fail = |reason: String| Error::invalid("mesh", format!("{}: {reason}", path.display()));
+    let bytes = crate::validate::read_regular_file("mesh", path)?;
+    let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let (vertices, faces) = match extension.as_str() {
+        "stl" => stl(&bytes).map(|vertices| {
+            let faces = (0..vertices.len() / 3).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+            (vertices, faces)
+        }),
+        "obj" => obj_faces(&String::from_utf8_lossy(&bytes)),
+        "msh" => msh(&bytes),
+        other => Err(bad(format!("no faces read from {other:?} files (expected .stl, .obj or .msh)"))),
+    }
+    .map_err(|e| fail(e.reason().to_owned()))?;
+    if faces.is_empty() {
+        return Err(fail("no faces".into()));
+    }
+    if let Some(bad) = vertices.iter().find(|v| !v.iter().all(|x| x.is_finite())) {
+        return Err(fail(format!("a vertex is not finite: {bad:?}")));
+    }
+    Ok((vertices, faces))
 }
 
 /// Where a URDF's mesh `filename` lies, read as Pinocchio and ROS read it:
@@ -161,16 +191,65 @@ fn stl(bytes: &[u8]) -> Result<Vec<Vector3<f64>>> {
     Ok(vertices)
 }
 
-fn obj(text: &str) -> Result<Vec<Vector3<f64>>> {
-    let mut vertices = Vec::new();
+/// OBJ's vertices and faces (1-based indices, negative ones counted back from the last vertex read).
+fn obj_faces(text: &str) -> Result<Triangles> {
+    let (mut vertices, mut faces) = (Vec::new(), Vec::new());
     for (n, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
-        if words.next() == Some("v") {
-            grow(&mut vertices, 1)?;
-            vertices.push(three(&mut words).ok_or_else(|| bad(format!("line {}: a vertex without three numbers", n + 1)))?);
+        match words.next() {
+            Some("v") => {
+                grow(&mut vertices, 1)?;
+                vertices.push(three(&mut words).ok_or_else(|| bad(format!("line {}: a vertex without three numbers", n + 1)))?);
+            }
+            Some("f") => {
+                let count = vertices.len() as i64;
+                let corners = words
+                    .map(|w| match w.split('/').next().and_then(|i| i.parse::<i64>().ok()) {
+                        Some(i) if i > 0 && i <= count => Ok(i as usize - 1),
+                        Some(i) if i < 0 && -i <= count => Ok((count + i) as usize),
+                        _ => Err(bad(format!("line {}: face corner {w:?} names no vertex", n + 1))),
+                    })
+                    .collect::<Result<Vec<usize>>>()?;
+                if corners.len() < 3 {
+                    return Err(bad(format!("line {}: a face with fewer than three corners", n + 1)));
+                }
+                faces.extend(corners.windows(2).skip(1).map(|pair| [corners[0], pair[0], pair[1]]));
+            }
+            _ => {}
         }
     }
-    Ok(vertices)
+    Ok((vertices, faces))
+}
+
+/// MuJoCo's binary MSH: four counts (vertices, normals, texture coordinates, faces), then the vertices' and
+/// normals' float triples, the texture coordinates' pairs and the faces' index triples, little-endian.
+fn msh(bytes: &[u8]) -> Result<Triangles> {
+    let word = |at: usize| [bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]];
+    if bytes.len() < 16 {
+        return Err(bad("an MSH file shorter than its header"));
+    }
+    let counts: Vec<usize> = (0..4).map(|k| i32::from_le_bytes(word(4 * k))).map(|n| usize::try_from(n).unwrap_or(usize::MAX)).collect();
+    let [nv, nn, nt, nf] = [counts[0], counts[1], counts[2], counts[3]];
+    let size = [(nv, 12), (nn, 12), (nt, 8), (nf, 12)].iter().try_fold(16usize, |total, &(n, width)| total.checked_add(n.checked_mul(width)?));
+    if size != Some(bytes.len()) {
+        return Err(bad(format!("an MSH file of {} bytes for {nv} vertices, {nn} normals, {nt} texture coordinates and {nf} faces", bytes.len())));
+    }
+    let mut vertices = Vec::new();
+    grow(&mut vertices, nv)?;
+    let float = |at: usize| f32::from_le_bytes(word(at)) as f64;
+    vertices.extend((0..nv).map(|i| 16 + 12 * i).map(|at| Vector3::new(float(at), float(at + 4), float(at + 8))));
+    let start = 16 + 12 * (nv + nn) + 8 * nt;
+    let index = |at: usize| usize::try_from(i32::from_le_bytes(word(at))).ok().filter(|&i| i < nv);
+    let faces = (0..nf)
+        .map(|f| {
+            let at = start + 12 * f;
+            match (index(at), index(at + 4), index(at + 8)) {
+                (Some(a), Some(b), Some(c)) => Ok([a, b, c]),
+                _ => Err(bad(format!("face {f} names no vertex"))),
+            }
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok((vertices, faces))
 }
 
 fn three<'a>(words: &mut impl Iterator<Item = &'a str>) -> Option<Vector3<f64>> {

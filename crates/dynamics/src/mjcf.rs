@@ -22,9 +22,10 @@
 //!   (`auto`: when the body has no `<inertial>`), the sum of its geoms' (sphere, capsule, cylinder,
 //!   ellipsoid, box; `mass=` or `density=`, 1000 by default; groups within `inertiagrouprange`), by
 //!   MuJoCo's formulas [MuJoCo, user_objects.cc: mjCGeom::GetVolume, SetInertia]; then `boundmass`,
-//!   `boundinertia` (on the principal moments) and `balanceinertia`. A mesh geom's mass is not computed
-//!   (a warning; `<inertial>` avoids it).
-//! - Collision shapes: sphere, capsule, cylinder and box geoms, and meshes (STL, OBJ) as the convex hull of
+//!   `boundinertia` (on the principal moments) and `balanceinertia`. Mesh geoms (STL, OBJ, MSH) by their
+//!   triangles as MuJoCo's compiler takes them (`mesh_mass`; `<mesh inertia="convex">` and meshes without
+//!   faces are a warning).
+//! - Collision shapes: sphere, capsule, cylinder and box geoms, and meshes (STL, OBJ, MSH) as the convex hull of
 //!   their vertices, except geoms with `contype="0" conaffinity="0"` (visual only). Pair filtering by the
 //!   bits of `contype`/`conaffinity` is not expressible: every other geom collides. Planes and height
 //!   fields (the floor: `lk.Ground`), ellipsoids and unreadable meshes are listed in a warning.
@@ -38,7 +39,8 @@
 //! includes `-ref`; the neutral configuration q = 0 is therefore not MuJoCo's qpos0 = ref). A top-level
 //! body with a free joint becomes the free-flyer base (q = [x y z qx qy qz qw], v in the base frame, as
 //! everywhere in legkit; MuJoCo's qpos has w first and its free-joint linear velocity is in the world
-//! frame); otherwise body 0 is the massless `world`, fixed. A legkit body turns about its joint frame's
+//! frame); otherwise body 0 is the massless `world`, fixed, and with several free bodies each moves on three
+//! slide joints along the world's axes and a ball joint (MuJoCo's own free-joint coordinates). A legkit body turns about its joint frame's
 //! origin, so a body whose (last) hinge has `pos` p has its frame at the anchor p (same orientation as the
 //! MJCF body frame; mass and shapes shifted by -p). A body with several joints becomes a chain: massless
 //! bodies named `body/joint` for all but its last joint, the last one carrying the body's name and mass,
@@ -56,7 +58,7 @@ use nalgebra::{DVector, Matrix3, Quaternion, SymmetricEigen, Unit, UnitQuaternio
 use roxmltree::Node;
 
 use crate::geometry::{Convex, Shape, ShapeKind};
-use crate::mesh::mesh_vertices;
+use crate::mesh::{mesh_triangles, mesh_vertices};
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
 /// How an MJCF becomes a model.
@@ -677,6 +679,10 @@ fn mesh_assets(root: &El, reader: &Reader) -> Result<Meshes> {
                 .attr("name")
                 .map_or_else(|| Path::new(file).file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned()), str::to_owned);
             let scale = reader.fixed::<3>(mesh, class, "scale")?.map_or(Vector3::repeat(1.0), Vector3::from);
+            let mode = reader.get(mesh, class, "inertia").unwrap_or("legacy");
+            if !matches!(mode, "legacy" | "exact" | "convex" | "shell") {
+                return Err(invalid(format!("{}: unknown inertia {mode:?}", mesh.what())));
+            }
             let mut path = PathBuf::from(file);
             if path.is_relative() {
                 if let Some(dir) = &reader.compiler.meshdir {
@@ -686,14 +692,116 @@ fn mesh_assets(root: &El, reader: &Reader) -> Result<Meshes> {
                     path = folder.join(path);
                 }
             }
-            let vertices = mesh_vertices(&path).map(|vs| vs.iter().map(|v| v.component_mul(&scale)).collect()).map_err(|e| e.reason().to_owned());
-            meshes.insert(name, vertices);
+            // MuJoCo stores vertices in single precision and scales them in double.
+            let scaled = |vertices: Vec<Vector3<f64>>| -> Vec<Vector3<f64>> {
+                vertices.iter().map(|v| v.map(|x| x as f32 as f64).component_mul(&scale)).collect()
+            };
+            let asset = match mesh_triangles(&path) {
+                Ok((vertices, faces)) => {
+                    let vertices = scaled(vertices);
+                    let mass = if mode == "convex" {
+                        Err("inertia=\"convex\" (the hull's volume) is not computed".to_owned())
+                    } else {
+                        mesh_mass(&vertices, &faces, mode)
+                    };
+                    Ok(MeshAsset { vertices, mass })
+                }
+                Err(faceless) => mesh_vertices(&path)
+                    .map(|vertices| MeshAsset { vertices: scaled(vertices), mass: Err(faceless.reason().to_owned()) })
+                    .map_err(|e| e.reason().to_owned()),
+            };
+            meshes.insert(name, asset);
         }
     }
     Ok(meshes)
 }
 
-type Meshes = HashMap<String, std::result::Result<Vec<Vector3<f64>>, String>>;
+type Meshes = HashMap<String, std::result::Result<MeshAsset, String>>;
+
+/// A mesh asset: its vertices (scaled) for the collision hull, and its mass per unit density, or why that
+/// could not be computed.
+struct MeshAsset {
+    vertices: Vec<Vector3<f64>>,
+    mass: std::result::Result<MeshMass, String>,
+}
+
+/// A mesh's volume (its area for `inertia="shell"`), centre of mass and inertia about it per unit density, in
+/// the mesh file's frame.
+struct MeshMass {
+    volume: f64,
+    com: Vector3<f64>,
+    inertia: Matrix3<f64>,
+}
+
+/// A triangle's area, unit normal and centre; a triangle whose cross product is below MuJoCo's `mjMINVAL`
+/// has no area.
+fn triangle(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> (f64, Vector3<f64>, Vector3<f64>) {
+    let center = (a + b + c) / 3.0;
+    let normal = (b - a).cross(&(c - a));
+    let len = normal.norm();
+    if len < 1e-15 {
+        return (0.0, normal, center);
+    }
+    (0.5 * len, normal / len, center)
+}
+
+/// A mesh's mass per unit density from its triangles, step by step as MuJoCo's compiler takes it
+/// [MuJoCo, user_mesh.cc: mjCMesh::Process, ComputeFaceCentroid, ComputeVolume, ComputeInertia]: the pyramids
+/// from the faces' area-weighted centroid to each face give the centre of mass, then the pyramids from the
+/// centre of mass to each face the volume and the inertia (for `legacy`, MuJoCo's default, each pyramid's
+/// volume counts positive whatever the face's orientation; `shell` weighs the faces by area).
+fn mesh_mass(vertices: &[Vector3<f64>], faces: &[[usize; 3]], mode: &str) -> std::result::Result<MeshMass, String> {
+    let corners = |f: &[usize; 3]| (&vertices[f[0]], &vertices[f[1]], &vertices[f[2]]);
+    let (mut area, mut facecen) = (0.0, Vector3::zeros());
+    for f in faces {
+        let (a, b, c) = corners(f);
+        let (s, _, center) = triangle(a, b, c);
+        area += s;
+        facecen += center * s;
+    }
+    if area < 1e-15 {
+        return Err("its surface area is too small".into());
+    }
+    facecen /= area;
+    let shell = mode == "shell";
+    let pyramid = |s: f64, normal: &Vector3<f64>, apex_to_center: &Vector3<f64>| -> f64 {
+        let v = if shell { s } else { apex_to_center.dot(normal) * s / 3.0 };
+        if mode == "legacy" {
+            v.abs()
+        } else {
+            v
+        }
+    };
+    let (mut total, mut com) = (0.0, Vector3::zeros());
+    for f in faces {
+        let (a, b, c) = corners(f);
+        let (s, normal, center) = triangle(a, b, c);
+        let v = pyramid(s, &normal, &(center - facecen));
+        total += v;
+        com += (center * 0.75 + facecen * 0.25) * v;
+    }
+    if total < 1e-15 {
+        return Err(if total < 0.0 { "its volume is negative (misoriented faces)" } else { "its volume is too small" }.into());
+    }
+    com /= total;
+    // Second moments P = Σ v/C (2 Σ D Dᵀ + Σ (D Eᵀ + E Dᵀ)) over each face's corners D, E, F about the centre of mass.
+    let (mut volume, mut p) = (0.0, Matrix3::zeros());
+    let weight = if shell { 12.0 } else { 20.0 };
+    for f in faces {
+        let (a, b, c) = corners(f);
+        let (d, e, g) = (a - com, b - com, c - com);
+        let (s, normal, center) = triangle(&d, &e, &g);
+        let v = pyramid(s, &normal, &center);
+        volume += v;
+        let outer = |x: &Vector3<f64>, y: &Vector3<f64>| x * y.transpose() + y * x.transpose();
+        p += (2.0 * (d * d.transpose() + e * e.transpose() + g * g.transpose()) + outer(&d, &e) + outer(&d, &g) + outer(&e, &g)) * (v / weight);
+    }
+    let inertia = Matrix3::identity() * p.trace() - p;
+    if SymmetricEigen::new(inertia).eigenvalues.min() <= 0.0 {
+        return Err("its inertia is not positive".into());
+    }
+    Ok(MeshMass { volume, com, inertia })
+}
 
 /// What a body's elements add up to: its `<inertial>`, its geoms' masses, and what they leave out.
 #[derive(Default)]
@@ -732,10 +840,7 @@ impl Walker<'_, '_> {
         };
         let mass = if from_geoms {
             if !contents.mesh_mass.is_empty() {
-                reader.accept(format!(
-                    "body {name:?}: the mass of mesh geoms {} is not computed (legkit reads no mesh volumes): left out",
-                    contents.mesh_mass.join(", ")
-                ))?;
+                reader.accept(format!("body {name:?}: the mass of mesh geoms {} is not computed: left out", contents.mesh_mass.join(", ")))?;
             }
             contents.geoms.into_iter().sum()
         } else {
@@ -912,28 +1017,47 @@ fn geom(
         "plane" | "hfield" | "mesh" | "sdf" => None,
         other => return Err(invalid(format!("{what}: unknown geom type {other:?}"))),
     };
+    let mesh = match kind.as_str() {
+        "mesh" => {
+            let name = reader.get(el, class, "mesh").unwrap_or("");
+            Some((name, meshes.get(name).ok_or_else(|| invalid(format!("{what}: unknown mesh {name:?}")))?))
+        }
+        _ => None,
+    };
     let group = reader.scalar(el, class, "group", 0.0)? as i64;
     let counts = (reader.compiler.group_range[0]..=reader.compiler.group_range[1]).contains(&group);
     let given_mass = reader.fixed::<1>(el, class, "mass")?.map(|[m]| m);
     let density = reader.scalar(el, class, "density", 1000.0)?;
-    if counts {
-        match shape_inertia {
-            Some((volume, per_mass)) => {
-                let mass = match given_mass {
-                    Some(m) if volume > 1e-15 || m == 0.0 => m,
-                    Some(_) => 0.0,
-                    None => density * volume,
+    // The geom's volume, and its centre of mass and inertia per unit mass in the geom's frame.
+    let per_mass = match (shape_inertia, mesh) {
+        (Some((volume, per_mass)), _) => Some((volume, Vector3::zeros(), Matrix3::from_diagonal(&Vector3::from(per_mass)))),
+        (None, Some((_, Ok(MeshAsset { mass: Ok(m), .. })))) => Some((m.volume, m.com, m.inertia / m.volume)),
+        (None, Some((name, asset))) => {
+            if counts && given_mass != Some(0.0) && density != 0.0 {
+                let reason = match asset {
+                    Ok(MeshAsset { mass: Err(e), .. }) | Err(e) => e.as_str(),
+                    Ok(_) => "",
                 };
-                if mass < 0.0 {
-                    return Err(invalid(format!("{what}: negative mass or density")));
-                }
-                if mass > 0.0 {
-                    let inertia = frame.rotation * Matrix3::from_diagonal(&(Vector3::from(per_mass) * mass)) * frame.rotation.transpose();
-                    contents.geoms.push(MassProperties::as_written(mass, frame.translation, inertia).map_err(|e| invalid(format!("{what}: {e}")))?);
-                }
+                contents.mesh_mass.push(format!("{what} (mesh {name:?}: {reason})"));
             }
-            None if kind == "mesh" && given_mass != Some(0.0) && density != 0.0 => contents.mesh_mass.push(what.clone()),
-            None => {}
+            None
+        }
+        (None, None) => None,
+    };
+    if let (true, Some((volume, com, per_mass))) = (counts, per_mass) {
+        let mass = match given_mass {
+            Some(m) if volume > 1e-15 || m == 0.0 => m,
+            Some(_) => 0.0,
+            None => density * volume,
+        };
+        if mass < 0.0 {
+            return Err(invalid(format!("{what}: negative mass or density")));
+        }
+        // MuJoCo leaves out geoms of mass up to mjEPS.
+        if mass > 1e-14 {
+            let inertia = frame.rotation * (per_mass * mass) * frame.rotation.transpose();
+            let center = frame.transform_point(&com);
+            contents.geoms.push(MassProperties::as_written(mass, center, inertia).map_err(|e| invalid(format!("{what}: {e}")))?);
         }
     }
     let contype = reader.scalar(el, class, "contype", 1.0)?;
@@ -946,23 +1070,20 @@ fn geom(
         "capsule" => ShapeKind::Capsule { half_height: b, radius: a },
         "cylinder" => ShapeKind::Cylinder { half_height: b, radius: a },
         "box" => ShapeKind::Box(Vector3::new(2.0 * a, 2.0 * b, 2.0 * c)),
-        "mesh" => {
-            let name = reader.get(el, class, "mesh").unwrap_or("");
-            match meshes.get(name) {
-                Some(Ok(vertices)) => match Convex::hull(vertices) {
-                    Ok(hull) => ShapeKind::Convex(hull),
-                    Err(e) => {
-                        contents.unshaped.push(format!("{what} (mesh {name:?}: {})", e.reason()));
-                        return Ok(());
-                    }
-                },
-                Some(Err(e)) => {
-                    contents.unshaped.push(format!("{what} (mesh {name:?}: {e})"));
+        "mesh" => match mesh {
+            Some((_, Ok(asset))) => match Convex::hull(&asset.vertices) {
+                Ok(hull) => ShapeKind::Convex(hull),
+                Err(e) => {
+                    contents.unshaped.push(format!("{what} (mesh: {})", e.reason()));
                     return Ok(());
                 }
-                None => return Err(invalid(format!("{what}: unknown mesh {name:?}"))),
+            },
+            Some((name, Err(e))) => {
+                contents.unshaped.push(format!("{what} (mesh {name:?}: {e})"));
+                return Ok(());
             }
-        }
+            None => unreachable!("a mesh geom has its mesh"),
+        },
         _ => {
             contents.unshaped.push(format!("{what} ({kind})"));
             return Ok(());
@@ -1019,18 +1140,11 @@ fn build(bodies: &[Body], options: &MjcfOptions, reader: &mut Reader) -> Result<
     let moving: Vec<usize> = top.iter().copied().filter(|&b| !bodies[b].joints.is_empty()).collect();
     let free: Vec<usize> = top.iter().copied().filter(|&b| has_free(b)).collect();
     let names = |list: &[usize]| list.iter().map(|&b| format!("{:?}", bodies[b].name)).collect::<Vec<_>>().join(", ");
-    let floating = match options.floating_base {
-        Some(f) => f,
-        None => {
-            if free.len() > 1 {
-                return Err(invalid(format!(
-                    "bodies {} have free joints; a legkit model has one free-floating base (floating_base=False welds them to the world)",
-                    names(&free)
-                )));
-            }
-            free.len() == 1
-        }
-    };
+    // Several free bodies (a robot and a ball): a fixed world, each free body on three slides along the world's
+    // axes and a ball joint, which are MuJoCo's free-joint coordinates (position, and linear velocity, in the world
+    // frame; orientation, and angular velocity, in the body's).
+    let free_chains = options.floating_base.is_none() && free.len() > 1;
+    let floating = options.floating_base.unwrap_or(free.len() == 1);
     let base_body = if floating {
         let candidates = if moving.is_empty() { top.clone() } else { moving.clone() };
         match candidates.as_slice() {
@@ -1095,6 +1209,26 @@ fn build(bodies: &[Body], options: &MjcfOptions, reader: &mut Reader) -> Result<
         let free_welded = body.joints.iter().any(|j| j.kind == JointKind::Free);
         let moving: Vec<&JointSpec> = if free_welded { Vec::new() } else { body.joints.iter().collect() };
         let fail = |e: Error| invalid(format!("body {:?}: {e}", body.name));
+        if free_welded && free_chains {
+            let spec = &body.joints[0];
+            let first = model.nbodies();
+            for (k, axis) in ["x", "y", "z"].iter().zip([Vector3::x(), Vector3::y(), Vector3::z()]) {
+                let name = format!("{}/{}:{k}", body.name, spec.name);
+                parent = model
+                    .add_body(parent, Joint::Prismatic(axis), Transform::identity(), MassProperties::zero(), &name, JointLimits::NONE)
+                    .map_err(fail)?;
+            }
+            parent = model.add_body(parent, Joint::Spherical, Transform::identity(), body.mass, &body.name, JointLimits::NONE).map_err(fail)?;
+            let (idx_q, idx_v) = (model.idx_q(first), model.idx_v(first));
+            joints.push(MjcfJoint { name: spec.name.clone(), kind: JointKind::Free, body: parent, idx_q, idx_v });
+            for k in idx_v..idx_v + 6 {
+                damping.push((k, spec.damping));
+                armature.push((k, spec.armature));
+            }
+            legkit[b] = (parent, anchor);
+            shapes.extend(body.shapes.iter().map(|s| (parent, s.clone())));
+            continue;
+        }
         for (k, spec) in moving.iter().enumerate() {
             let last = k + 1 == moving.len();
             let name = if last { body.name.clone() } else { format!("{}/{}", body.name, spec.name) };
@@ -1297,6 +1431,56 @@ mod tests {
         assert_eq!((*model.joint(1), model.nq(), model.nv()), (Joint::Spherical, 4, 3));
         assert_eq!(model.placement(1).translation, Vector3::new(0.0, 0.0, 1.5));
         assert_eq!(loaded.joints[0].kind, JointKind::Ball);
+    }
+
+    /// A box's triangles, half-sizes `h`, turned by `r` and moved by `t`, with every other face turned inside out.
+    fn box_mesh(h: Vector3<f64>, r: &Matrix3<f64>, t: &Vector3<f64>) -> (Vec<Vector3<f64>>, Vec<[usize; 3]>) {
+        let corner = |i: usize| {
+            r * Vector3::new(
+                h.x * if i & 1 == 0 { -1.0 } else { 1.0 },
+                h.y * if i & 2 == 0 { -1.0 } else { 1.0 },
+                h.z * if i & 4 == 0 { -1.0 } else { 1.0 },
+            ) + t
+        };
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        let faces = quads
+            .iter()
+            .enumerate()
+            .flat_map(|(k, q)| if k % 2 == 0 { [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] } else { [[q[0], q[2], q[1]], [q[0], q[3], q[2]]] })
+            .collect();
+        ((0..8).map(corner).collect(), faces)
+    }
+
+    #[test]
+    fn a_box_meshs_legacy_mass_is_the_solid_box_whatever_its_faces_orientation() {
+        let (h, r, t) =
+            (Vector3::new(0.1, 0.2, 0.3), Transform::rotation_about(&Vector3::new(1.0, 2.0, 3.0).normalize(), 0.7), Vector3::new(0.5, -1.0, 2.0));
+        let (vertices, faces) = box_mesh(h, &r, &t);
+        let mass = mesh_mass(&vertices, &faces, "legacy").unwrap();
+        let inertia = r
+            * Matrix3::from_diagonal(&Vector3::new(h.y * h.y + h.z * h.z, h.x * h.x + h.z * h.z, h.x * h.x + h.y * h.y))
+            * r.transpose()
+            * (8.0 * h.x * h.y * h.z / 3.0);
+        assert!((mass.volume - 8.0 * h.x * h.y * h.z).abs() < 1e-15);
+        assert!((mass.com - t).norm() < 1e-14);
+        assert!((mass.inertia - inertia).norm() < 1e-9 * inertia.norm(), "{} vs {inertia}", mass.inertia);
+        // "exact" sums signed pyramids: the inside-out faces cancel their opposites.
+        assert!(mesh_mass(&vertices, &faces, "exact").is_err());
+    }
+
+    #[test]
+    fn several_free_bodies_move_on_slides_and_a_ball_under_a_fixed_world() {
+        let xml = "<mujoco><worldbody><body name='a' pos='0 0 1'><freejoint/><geom size='.1'/><body name='c'><joint axis='1 0 0'/><geom size='.1' pos='0 0 .3'/></body></body>
+            <body name='b' pos='1 0 1'><joint name='f' type='free' damping='0.5'/><geom size='.2'/></body></worldbody></mujoco>";
+        let loaded = load(xml);
+        let model = &loaded.model;
+        assert!(!model.floating_base());
+        assert_eq!((model.nq(), model.nv()), (15, 13));
+        let kinds: Vec<_> = (1..model.nbodies()).map(|i| model.joint(i).kind()).collect();
+        assert_eq!(kinds, ["prismatic", "prismatic", "prismatic", "spherical", "revolute", "prismatic", "prismatic", "prismatic", "spherical"]);
+        assert_eq!((loaded.joints[2].name.as_str(), loaded.joints[2].idx_q, loaded.joints[2].idx_v), ("f", 8, 7));
+        assert_eq!(&model.damping()[7..13], &[0.5; 6]);
+        assert!(load_mjcf(xml, &MjcfOptions { floating_base: Some(false), strict: false }).unwrap().model.nv() == 1);
     }
 
     #[test]
