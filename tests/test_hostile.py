@@ -458,6 +458,7 @@ def test_a_tau_table_shaped_nv_by_steps_is_refused():
         "lk.free_rollout(model, q, np.full(1, 1e200), dt=1e-3, steps=3)",
         "lk.centroidal_momentum_rate(model, q, np.full(1, 1e200), tau)",
         "lk.center_of_mass(model.with_body(1, lk.MassProperties.point(1e300, [0, 0, 1e200])), q)",
+        "lk.crba(model.with_body(1, lk.MassProperties.point(1e300, [0, 0, 1e200])), q)",
     ],
 )
 def test_a_result_that_overflows_is_a_runtime_error_not_a_singular_matrix(call):
