@@ -17,6 +17,7 @@ Strategies return plain numpy data (never legkit objects), so this module does n
 from __future__ import annotations
 
 import os
+import signal
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,6 +44,13 @@ settings.register_profile("thorough", parent=settings.get_profile("legkit"), max
 PROFILE = os.environ.get("LEGKIT_HYPOTHESIS_PROFILE", "legkit")
 settings.load_profile(PROFILE)
 _EXAMPLE_FACTOR = {"legkit": 1.0, "quick": 0.25, "thorough": 10.0}.get(PROFILE, 1.0)
+
+
+def ctrl_c_restored() -> None:
+    """`preexec_fn` of a child a test sends SIGINT: Ctrl-C back to its default disposition. A test run started with
+    SIGINT ignored (a background job of a non-interactive shell, nohup) passes that on to its children, and a Python
+    started so installs no KeyboardInterrupt handler."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def examples(n: int) -> settings:

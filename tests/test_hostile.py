@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 import legkit as lk
+from conftest import ctrl_c_restored
 
 GIB = 1 << 30
 
@@ -592,7 +593,8 @@ def assert_ctrl_c_answered_within_a_second(setup: str, call: str, *, after: floa
     started = "print('STARTED', globals().get('whole', 1.0), flush=True)"
     body = f"{CPU_SECONDS}\n{setup}\n{started}\ntry:\n    {call}\nexcept KeyboardInterrupt:\n    answer()"
     code = PRELUDE.format(memory=memory, body=textwrap.indent(body, "    "))
-    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             preexec_fn=ctrl_c_restored)
     try:
         assert child.stdout is not None
         started, whole = child.stdout.readline().split()
@@ -676,7 +678,8 @@ except KeyboardInterrupt:
     report(raised="KeyboardInterrupt", whole=whole, worker_ended_after=time.monotonic() - interrupted)
 """
     code = PRELUDE.format(memory=8 * GIB, body=textwrap.indent(body.strip(), "    "))
-    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             preexec_fn=ctrl_c_restored)
     try:
         assert child.stdout is not None
         started, whole = child.stdout.readline().split()

@@ -17,6 +17,7 @@ import pyarrow.parquet as pq
 import pytest
 import ray
 
+from conftest import ctrl_c_restored
 from legkit.control import SCHEMES, GainSchedule, closed_loop
 from legkit.robots.superbot import random_tree
 from legkit.sweeps import SweepSpec, read_results, run_batch, run_sweep, task_size
@@ -448,7 +449,7 @@ def _start_sweep(tmp_path, spec_values, workers=2):
     out = tmp_path / "out"
     process = subprocess.Popen(
         [sys.executable, "-m", "legkit.cli", "sweep", "--spec", str(spec_file), "--out", str(out), "--workers", str(workers), "--no-figures"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy(),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy(), preexec_fn=ctrl_c_restored,
     )
     return process, out
 
