@@ -367,6 +367,21 @@ class Scene:
     rapier: bool = True  # False: a model Rapier's multibody refuses (ball joints)
 
 
+def stepping_runner(sim: lk.Simulation, **extra) -> Runner:
+    """A runner stepping `sim` with no torques (its servos as set), restorable to a state."""
+    done = [0]
+
+    def advance(n: int) -> None:
+        sim.step(None, n)
+        done[0] += n
+
+    def restore(q: np.ndarray, v: np.ndarray, steps: int) -> None:
+        sim.reset(q, v)
+        done[0] = steps
+
+    return Runner(advance, lambda: len(sim.contacts()["body"]), state=lambda: (sim.q, sim.v, done[0]), restore=restore, **extra)
+
+
 def tree_scene(n_modules: int) -> Scene:
     parts = module_tree(n_modules)
     dof = sum(p.axis is not None for p in parts)
@@ -376,18 +391,7 @@ def tree_scene(n_modules: int) -> Scene:
         model = legkit_model(parts)
         sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), backend=backend, **solver_options())
         sim.set_servo(kp=KP, kd=KD, torque_limit=TORQUE_LIMIT, target_q=model.neutral())
-        done = [0]
-
-        def advance(n: int) -> None:
-            sim.step(None, n)
-            done[0] += n
-
-        def restore(q: np.ndarray, v: np.ndarray, steps: int) -> None:
-            sim.reset(q, v)
-            done[0] = steps
-
-        return Runner(advance, lambda: len(sim.contacts()["body"]), state=lambda: (sim.q, sim.v, done[0]), restore=restore,
-                      jacobians=sim.transition_jacobians, simulation=sim)
+        return stepping_runner(sim, jacobians=sim.transition_jacobians, simulation=sim)
 
     def mujoco_runner() -> Runner:
         import mujoco
@@ -532,22 +536,12 @@ def robot_scene(robot: str, fall: bool) -> Scene:
         sim.reset(start, np.zeros(model.nv))
         gains = np.r_[np.zeros(6), np.ones(model.nv - 6)]
         sim.set_servo(kp=kp * gains, kd=kd * gains, target_q=start)
-        done = [0]
-
-        def advance(n: int) -> None:
-            sim.step(None, n)
-            done[0] += n
 
         def base() -> np.ndarray:
             x, y = sim.q[3:5]
             return np.array([*sim.q[:3], 1 - 2 * (x * x + y * y)])
 
-        def restore(q0: np.ndarray, v0: np.ndarray, steps: int) -> None:
-            sim.reset(q0, v0)
-            done[0] = steps
-
-        return Runner(advance, lambda: len(sim.contacts()["body"]), base, lambda: (sim.q, sim.v, done[0]), restore,
-                      jacobians=sim.transition_jacobians, simulation=sim)
+        return stepping_runner(sim, base=base, jacobians=sim.transition_jacobians, simulation=sim)
 
     def mujoco_runner() -> Runner:
         import mujoco
@@ -636,17 +630,7 @@ def dog_scene() -> Scene:
     def legkit_runner(backend: str) -> Runner:
         sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), backend=backend, **solver_options())
         sim.reset(start, np.zeros(model.nv))
-        done = [0]
-
-        def advance(n: int) -> None:
-            sim.step(None, n)
-            done[0] += n
-
-        def restore(q: np.ndarray, v: np.ndarray, steps: int) -> None:
-            sim.reset(q, v)
-            done[0] = steps
-
-        return Runner(advance, lambda: len(sim.contacts()["body"]), None, lambda: (sim.q, sim.v, done[0]), restore)
+        return stepping_runner(sim)
 
     def mujoco_runner() -> Runner:
         m, d = compiled()
