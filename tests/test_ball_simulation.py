@@ -146,6 +146,14 @@ def test_a_position_servo_on_a_ball_joint_is_refused_naming_its_body() -> None:
     assert np.abs(sim.v).max() < 0.05
 
 
+def test_transition_jacobians_refuse_ball_joints_naming_the_body() -> None:
+    sim = lk.Simulation(pendulum())
+    q, v = sim.q, sim.v
+    with pytest.raises(ValueError, match=r"transition_jacobians does not take ball joints yet \(body 'rod'\)"):
+        sim.transition_jacobians()
+    assert np.array_equal(sim.q, q) and np.array_equal(sim.v, v)
+
+
 # A chain of two ball joints and a hinge, damped and with armature, with the integrator matched (semi-implicit Euler,
 # damping implicit in both) and no contacts: both engines apply the same update to every coordinate (a ball joint's
 # quaternion by exp of h times its body-frame angular velocity in both), so the trajectories agree to rounding.
