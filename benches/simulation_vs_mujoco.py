@@ -21,6 +21,10 @@ Scenes, each built twice from the same numbers (a `legkit.Model` and an MJCF str
   rolled by 0.7 rad at 0.45 m with limp, damped joints, it tips over onto its side. See the behaviour table
   for the poses each engine ends in: with MuJoCo's default pyramidal cone a diagonal friction force is
   bounded by μ/√2, which standing ANYmal's feet exceed (|f_t|/f_n = 0.58 diagonally), so it sags.
+* ``dog-fall``: the dm_control suite's dog (85 DoF, with its ball: two free bodies, each on three slides and a ball
+  joint in legkit) from one MJCF file, dropped limp from qpos0 (limited joints at mid-range) onto a plane, where it
+  lies on its belly; MuJoCo without what legkit does not model (joint stiffness, springdamper, frictionloss, tendons,
+  margins, actuators) and ellipsoid geoms colliding in neither. Rapier is left out (its multibody has no ball joint).
 
 Each engine runs in this one process at dt = 1 ms with its default solver (MuJoCo: Euler for the trees,
 ``implicitfast`` for the quadruped, whose stiff light-legged servos the explicit damping of Euler would
@@ -44,7 +48,7 @@ for every simulation every step, a loop of ``sim.step(None, n)`` per simulation,
 and the ratios (MuJoCo stepping 12 ``MjData`` in a loop for reference).
 
 Run: ``python benches/simulation_vs_mujoco.py [--modules 21 51 101] [--seconds 1.0] [--skip-rapier]
-[--quick] [--settle 0.3] [--budget 10] [--solver-iterations N] [--no-quadruped] [--no-robots] [--no-batch]``. ``--seconds`` is the
+[--quick] [--settle 0.3] [--budget 10] [--solver-iterations N] [--no-quadruped] [--no-robots] [--no-dog] [--no-batch]``. ``--seconds`` is the
 simulated time timed per engine and scene (1.0: ten blocks of 100 steps); ``--quick`` is a smoke test
 (21 modules, five blocks of 50 steps, ~10 s); a full run takes about 3 minutes on 2 cores, most of it
 MuJoCo and legkit on the 101-module tree and Rapier within its budget. ``--solver-iterations`` sets the
@@ -59,6 +63,7 @@ work on the machine inflates the times, and the batch speed-up needs idle cores.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import os
 import statistics
 import tempfile
@@ -359,6 +364,22 @@ class Scene:
     dof: int
     legkit: Callable[[str], Runner]  # backend -> runner
     mujoco: Callable[[], Runner]
+    rapier: bool = True  # False: a model Rapier's multibody refuses (ball joints)
+
+
+def stepping_runner(sim: lk.Simulation, **extra) -> Runner:
+    """A runner stepping `sim` with no torques (its servos as set), restorable to a state."""
+    done = [0]
+
+    def advance(n: int) -> None:
+        sim.step(None, n)
+        done[0] += n
+
+    def restore(q: np.ndarray, v: np.ndarray, steps: int) -> None:
+        sim.reset(q, v)
+        done[0] = steps
+
+    return Runner(advance, lambda: len(sim.contacts()["body"]), state=lambda: (sim.q, sim.v, done[0]), restore=restore, **extra)
 
 
 def tree_scene(n_modules: int) -> Scene:
@@ -370,18 +391,7 @@ def tree_scene(n_modules: int) -> Scene:
         model = legkit_model(parts)
         sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), backend=backend, **solver_options())
         sim.set_servo(kp=KP, kd=KD, torque_limit=TORQUE_LIMIT, target_q=model.neutral())
-        done = [0]
-
-        def advance(n: int) -> None:
-            sim.step(None, n)
-            done[0] += n
-
-        def restore(q: np.ndarray, v: np.ndarray, steps: int) -> None:
-            sim.reset(q, v)
-            done[0] = steps
-
-        return Runner(advance, lambda: len(sim.contacts()["body"]), state=lambda: (sim.q, sim.v, done[0]), restore=restore,
-                      jacobians=sim.transition_jacobians, simulation=sim)
+        return stepping_runner(sim, jacobians=sim.transition_jacobians, simulation=sim)
 
     def mujoco_runner() -> Runner:
         import mujoco
@@ -526,22 +536,12 @@ def robot_scene(robot: str, fall: bool) -> Scene:
         sim.reset(start, np.zeros(model.nv))
         gains = np.r_[np.zeros(6), np.ones(model.nv - 6)]
         sim.set_servo(kp=kp * gains, kd=kd * gains, target_q=start)
-        done = [0]
-
-        def advance(n: int) -> None:
-            sim.step(None, n)
-            done[0] += n
 
         def base() -> np.ndarray:
             x, y = sim.q[3:5]
             return np.array([*sim.q[:3], 1 - 2 * (x * x + y * y)])
 
-        def restore(q0: np.ndarray, v0: np.ndarray, steps: int) -> None:
-            sim.reset(q0, v0)
-            done[0] = steps
-
-        return Runner(advance, lambda: len(sim.contacts()["body"]), base, lambda: (sim.q, sim.v, done[0]), restore,
-                      jacobians=sim.transition_jacobians, simulation=sim)
+        return stepping_runner(sim, base=base, jacobians=sim.transition_jacobians, simulation=sim)
 
     def mujoco_runner() -> Runner:
         import mujoco
@@ -583,6 +583,62 @@ def robot_scene(robot: str, fall: bool) -> Scene:
         return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon), base, jacobians=mujoco_jacobians(m, d))
 
     return Scene(f"{robot}-{'fall' if fall else 'stand'}", model.nv - 6, legkit_runner, mujoco_runner)
+
+
+def dog_scene() -> Scene:
+    """The dm_control suite's dog and its ball (two free bodies: in legkit each on three slides and a ball joint) from
+    one file, dropped limp from qpos0 with its limited joints at mid-range: it falls and lies on its belly. MuJoCo
+    without what legkit does not model (joint stiffness and springdamper, frictionloss, tendons, contact margins,
+    actuators) and with the ellipsoid geoms, which have no collision shape in legkit, colliding in neither."""
+    import warnings
+
+    import mujoco
+
+    spec = importlib.util.find_spec("dm_control")
+    assert spec is not None and spec.origin is not None, "the dog scene needs dm_control"
+    path = os.path.join(os.path.dirname(spec.origin), "suite", "dog.xml")
+
+    def compiled():
+        spec = mujoco.MjSpec.from_file(path)
+        for joint in spec.joints:
+            joint.springdamper = [0.0, 0.0]
+        m = spec.compile()
+        m.opt.timestep = DT
+        m.jnt_stiffness[:], m.dof_frictionloss[:], m.geom_margin[:] = 0.0, 0.0, 0.0
+        m.tendon_stiffness[:], m.tendon_damping[:], m.tendon_limited[:] = 0.0, 0.0, 0
+        m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ACTUATION
+        ellipsoid = m.geom_type == mujoco.mjtGeom.mjGEOM_ELLIPSOID
+        m.geom_contype[ellipsoid], m.geom_conaffinity[ellipsoid] = 0, 0
+        m.geom_friction[:, 0] = FRICTION
+        d = mujoco.MjData(m)
+        for j in range(m.njnt):
+            if m.jnt_limited[j] and m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE:
+                d.qpos[m.jnt_qposadr[j]] = m.jnt_range[j].mean()
+        return m, d
+
+    m, d = compiled()
+    # legkit's q is MuJoCo's qpos with each free joint's quaternion w last.
+    start = d.qpos.copy()
+    for j in np.flatnonzero(m.jnt_type == mujoco.mjtJoint.mjJNT_FREE):
+        a = m.jnt_qposadr[j] + 3
+        start[a : a + 4] = [*d.qpos[a + 1 : a + 4], d.qpos[a]]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lk.MjcfWarning)
+        model = lk.Model.from_mjcf(path)
+    assert model.nq == m.nq and model.nv == m.nv
+
+    def legkit_runner(backend: str) -> Runner:
+        sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), backend=backend, **solver_options())
+        sim.reset(start, np.zeros(model.nv))
+        return stepping_runner(sim)
+
+    def mujoco_runner() -> Runner:
+        m, d = compiled()
+        set_cone(m)
+        mujoco.mj_forward(m, d)
+        return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon))
+
+    return Scene("dog-fall", model.nv, legkit_runner, mujoco_runner, rapier=False)
 
 
 def mujoco_jacobians(m, d) -> Callable[[], tuple[np.ndarray, np.ndarray]]:
@@ -704,7 +760,7 @@ def run_scene(scene: Scene, args: argparse.Namespace) -> dict[str, Result | None
     out: dict[str, Result | None] = {"MuJoCo elliptic": None, "MuJoCo pyramid": None}
     out.update(measure_interleaved(runners, settle, blocks, args.block_steps))
     handoff = ours.state() if ours.state and out["legkit"].error is None else None
-    if args.skip_rapier:
+    if args.skip_rapier or not scene.rapier:
         out["Rapier"] = None
     else:
         out["Rapier"] = measure(scene.legkit("rapier"), settle, blocks, args.block_steps, args.budget, handoff)
@@ -888,6 +944,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="smoke test: 21 modules, 5 blocks of 50 steps, short batch")
     parser.add_argument("--no-quadruped", action="store_true", help="trees only")
     parser.add_argument("--no-robots", action="store_true", help="leave out Go1 and ANYmal from their URDFs")
+    parser.add_argument("--no-dog", action="store_true", help="leave out the dm_control suite's dog (ball joints)")
     parser.add_argument("--no-batch", action="store_true", help="skip the batch throughput section")
     parser.add_argument("--budget", type=float, default=10.0, help="wall seconds Rapier may spend settling, and timing, per scene")
     parser.add_argument("--settle", type=float, default=SETTLE_SECONDS,
@@ -911,6 +968,8 @@ def main(argv: list[str] | None = None) -> int:
         scenes += [quadruped_scene(False), quadruped_scene(True)]
     if not args.no_robots:
         scenes += [robot_scene(robot, fall) for robot in ROBOTS for fall in (False, True)]
+    if not args.no_dog and importlib.util.find_spec("dm_control") is not None:
+        scenes.append(dog_scene())
     rows = []
     wall = time.perf_counter()
     load_start = load_average()

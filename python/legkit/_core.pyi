@@ -84,7 +84,8 @@ class Model:
         self, parent: _Body, placement: _Placement | None = None, body: MassProperties | None = None, name: str | None = None
     ) -> int:
         """A ball joint: q a unit quaternion [qx, qy, qz, qw], v the angular velocity in the body's frame (Pinocchio's
-        JointModelSpherical). Simulation refuses it for now."""
+        JointModelSpherical). The tree engine simulates it (per-axis damping, armature, velocity servos; no position
+        servo); backend="rapier" refuses it."""
     def add_fixed(
         self, parent: _Body, placement: _Placement | None = None, body: MassProperties | None = None, name: str | None = None
     ) -> int: ...
@@ -154,7 +155,7 @@ class Model:
         joint as the free-flyer base (``floating_base=None``: as the file says; False welds it, True frees the single
         top-level body), default classes, includes, every orientation form with ``<compiler angle>`` (degrees
         unless set), inertias from ``<inertial>`` or from geoms as MuJoCo's compiler, collision shapes from geoms,
-        ``<option gravity>``. Ball joints raise ValueError; what legkit does not model (tendons, equality
+        ``<option gravity>``; ball joints become spherical joints. What legkit does not model (tendons, equality
         constraints, sensors, joint stiffness, ...) loads with an MjcfWarning naming it, or raises ValueError if
         strict. Ctrl-C interrupts the load. See docs/mjcf.md."""
 

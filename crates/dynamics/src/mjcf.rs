@@ -14,8 +14,8 @@
 //!   geoms also `fromto`.
 //! - `<joint type="hinge|slide|free">` and `<freejoint>`: `pos`, `axis`, `ref`, `range`, `limited` (auto:
 //!   limited when `range` is given), `damping` and `armature` (the model's, per coordinate; none on a free
-//!   joint, and `<freejoint>` takes no joint defaults, as in MuJoCo). `stiffness` and `frictionloss` are not
-//!   modelled: a non-zero value is a warning. `<joint type="ball">` becomes [`Joint::Spherical`] turning about
+//!   joint, and `<freejoint>` takes no joint defaults, as in MuJoCo). `stiffness`, `frictionloss` and
+//!   `springdamper` are not modelled: a non-zero value is a warning. `<joint type="ball">` becomes [`Joint::Spherical`] turning about
 //!   `pos` (q = MuJoCo's qpos with w last; `ref` is ignored, as MuJoCo reads it on hinges and slides only;
 //!   a `range`, MuJoCo's cone on the rotation angle, is a warning).
 //! - Mass properties: `<inertial pos quat|... mass diaginertia|fullinertia>`, or, per `inertiafromgeom`
@@ -954,6 +954,12 @@ fn joint(el: &El, class: &str, prefix: &Transform, reader: &mut Reader, id: usiz
             reader.accept(format!("joint {name:?}: {key}={value} is not modelled"))?;
         }
     }
+    // MuJoCo derives a stiffness and a damping from the joint's effective mass in place of `damping`.
+    if let Some(value @ [timeconst, _]) = reader.fixed::<2>(el, class, "springdamper")? {
+        if timeconst > 0.0 {
+            reader.accept(format!("joint {name:?}: springdamper={value:?} is not modelled (its damping={damping} applies)"))?;
+        }
+    }
     Ok(JointSpec { name, kind, pos, axis, reference, range, damping, armature })
 }
 
@@ -1382,6 +1388,19 @@ mod tests {
             let error = run(nested(depth)).unwrap_err();
             assert!(error.to_string().contains("nest deeper than 1000 levels (<string>:1)"), "{error}");
         }
+    }
+
+    #[test]
+    fn springdamper_is_a_warning_and_leaves_the_damping_read() {
+        let xml = "<mujoco><default><joint damping='0.3'/></default><worldbody><body><joint name='h' springdamper='0.1 1'/><geom size='.1'/></body></worldbody></mujoco>";
+        let loaded = load(xml);
+        assert_eq!(loaded.model.damping(), &[0.3]);
+        assert!(
+            loaded.warnings.iter().any(|w| w.contains("joint \"h\": springdamper=[0.1, 1.0] is not modelled (its damping=0.3 applies)")),
+            "{:?}",
+            loaded.warnings
+        );
+        assert!(load_mjcf(xml, &MjcfOptions { strict: true, ..MjcfOptions::default() }).is_err());
     }
 
     #[test]

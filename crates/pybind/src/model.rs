@@ -203,7 +203,7 @@ impl PyModel {
     /// top-level free joint as the free-flyer base (`floating_base=None`: as the file says; False welds it;
     /// True frees the single top-level body), `<default>` classes, `<include>`, every orientation form with
     /// `<compiler angle>` (degrees unless set), inertias from `<inertial>` or from geoms as MuJoCo's
-    /// compiler, collision shapes from geoms, `<option gravity>`. Ball joints are a ValueError; what legkit
+    /// compiler, collision shapes from geoms, `<option gravity>`; ball joints become spherical joints. What legkit
     /// does not model (tendons, equality constraints, sensors, joint stiffness, ...) loads with an
     /// `MjcfWarning` naming it, or is a ValueError if `strict`. Ctrl-C interrupts the load. See docs/mjcf.md.
     #[staticmethod]
@@ -264,7 +264,7 @@ impl PyModel {
 
     /// Adds a body on a ball (spherical) joint; returns its index. Its coordinates are a unit quaternion
     /// `[qx, qy, qz, qw]` (as the free-flyer base's) and its velocity the angular velocity in the body's frame
-    /// (Pinocchio's `JointModelSpherical`). The tree engine and Rapier do not simulate it yet.
+    /// (Pinocchio's `JointModelSpherical`). The tree engine simulates it (no position servo on it); Rapier refuses it.
     #[pyo3(signature = (parent, placement = None, body = None, name = None))]
     fn add_spherical(
         &mut self,

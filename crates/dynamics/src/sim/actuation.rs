@@ -5,6 +5,7 @@
 //! (`JointLimits::effort`). Rapier holds it over the step (a servo sampled at 1/dt); the tree engine
 //! integrates the PD terms of an unsaturated servo implicitly (`sim::tree`).
 
+use crate::joint::Dofs;
 use crate::model::Model;
 use crate::{Error, Result};
 
@@ -59,12 +60,21 @@ impl Servo {
                 ));
             }
         }
+        // A ball joint's coordinates are a quaternion: no per-axis angle for a position servo to hold. Its
+        // velocity servo (per axis of the body's angular velocity) and feed-forward torques are well defined.
+        if let Some(i) = (1..model.nbodies()).find(|&i| model.joint(i).dofs() == Dofs::Ball && kp[model.idx_v(i)..][..3].iter().any(|x| *x != 0.0)) {
+            let (name, k) = (model.name(i), model.idx_v(i));
+            return Err(Error::invalid(
+                "kp",
+                format!("elements {k}..{} belong to the ball joint of body '{name}', which position servos cannot actuate; they must be 0 (kd and feed-forward torques act per axis)", k + 3),
+            ));
+        }
         Ok(Servo { kp, kd, limit, target_q, target_v })
     }
 }
 
 /// Joint coordinates indexed by velocity coordinate: `q[idx_q]` for each one-degree-of-freedom joint, zero
-/// on the base (the layout of servo targets).
+/// on the base and on ball joints (the layout of servo targets).
 pub fn dof_coordinates(model: &Model, q: &[f64], out: &mut [f64]) {
     out.fill(0.0);
     for i in 1..model.nbodies() {

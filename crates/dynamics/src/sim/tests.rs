@@ -563,6 +563,70 @@ fn the_rapier_backend_is_refused_without_its_feature() {
     assert!(error.to_string().contains("`rapier` feature"), "{error}");
 }
 
+/// A fixed-base chain of a revolute and two ball joints with a side link on a ball, tumbling freely from a
+/// spinning start (unit quaternions in q).
+fn ball_chain() -> (Model, Vec<f64>, Vec<f64>) {
+    let mut model = Model::new(false, rod(1.0, 0.1), "base");
+    let down = Transform::new(Rotation3::from_euler_angles(0.0, std::f64::consts::FRAC_PI_2, 0.0).into_inner(), Vector3::zeros());
+    let along = |length: f64| Transform::from_translation(Vector3::new(length, 0.0, 0.0));
+    let a = model.add_body(0, Joint::Revolute(Vector3::y()), down, rod(0.6, 0.25), "a", JointLimits::NONE).unwrap();
+    let b = model.add_body(a, Joint::Spherical, along(0.25), rod(0.5, 0.25), "b", JointLimits::NONE).unwrap();
+    model.add_body(b, Joint::Spherical, along(0.25), rod(0.4, 0.2), "c", JointLimits::NONE).unwrap();
+    model.add_body(a, Joint::Spherical, along(0.1), rod(0.2, 0.15), "side", JointLimits::NONE).unwrap();
+    let turn = |x: f64, y: f64, z: f64| {
+        let r = nalgebra::UnitQuaternion::from_euler_angles(x, y, z);
+        [r.i, r.j, r.k, r.w]
+    };
+    let q = [vec![0.4], turn(0.3, -0.5, 0.2).to_vec(), turn(-0.2, 0.6, 0.4).to_vec(), turn(0.5, 0.1, -0.3).to_vec()].concat();
+    let v = vec![0.5, 1.0, -2.0, 0.7, -0.5, 1.5, 3.0, 2.0, 0.0, -1.0];
+    (model, q, v)
+}
+
+#[test]
+fn ball_joints_follow_aba_rk4() {
+    // As `free_tree_follows_aba_rk4`: first order, the error halving with the substep.
+    let (model, q, v) = ball_chain();
+    let (q_ref, v_ref) = reference(&model, &q, &v, 1e-3, 500);
+    let errors: Vec<f64> = [2, 4, 8, 16]
+        .iter()
+        .map(|&substeps| {
+            let mut options = opts(Backend::Tree, 1e-3);
+            options.substeps = substeps;
+            let mut sim = Simulation::new(&model, options).unwrap();
+            sim.set_state(Some(&q), Some(&v)).unwrap();
+            sim.step(None, 500).unwrap();
+            let error = max_difference(sim.q(), &q_ref).max(0.1 * max_difference(sim.v(), &v_ref));
+            println!("ball chain, 0.5 s at 1 kHz, {substeps} substeps: max(|q - q_rk4|, |v - v_rk4| / 10) = {error:.3e}");
+            error
+        })
+        .collect();
+    for pair in errors.windows(2) {
+        let ratio = pair[0] / pair[1];
+        assert!((1.6..2.5).contains(&ratio), "halving the substep should halve the error, ratio {ratio}");
+    }
+    assert!(errors[3] < 2.5e-3, "coordinates differ from ABA + RK4 by {}", errors[3]);
+}
+
+#[test]
+fn ball_joints_take_velocity_servos_and_refuse_position_servos() {
+    let (model, q, v) = ball_chain();
+    let nv = model.nv();
+    let mut kp = vec![0.0; nv];
+    kp[2] = 5.0;
+    let error = Servo::new(&model, kp, vec![0.0; nv], vec![f64::INFINITY; nv], vec![0.0; nv], vec![0.0; nv]).unwrap_err();
+    assert_eq!(error.argument(), "kp");
+    assert!(error.to_string().contains("ball joint of body 'b'"), "{error}");
+    // A strong velocity servo (implicit) on every axis stops the spinning joints within a few steps.
+    let mut sim = Simulation::new(&model, opts(Backend::Tree, 1e-3)).unwrap();
+    sim.set_state(Some(&q), Some(&v)).unwrap();
+    sim.set_servo(Servo::new(&model, vec![0.0; nv], vec![100.0; nv], vec![f64::INFINITY; nv], vec![0.0; nv], vec![0.0; nv]).unwrap()).unwrap();
+    sim.step(None, 20).unwrap();
+    assert!(sim.v().iter().all(|x| x.abs() < 0.05), "{:?}", sim.v());
+    let (mut a, mut b) = (nalgebra::DMatrix::zeros(0, 0), nalgebra::DMatrix::zeros(0, 0));
+    let error = sim.transition_jacobians(None, &mut a, &mut b).unwrap_err();
+    assert!(error.to_string().contains("ball joints") && error.to_string().contains("'b'"), "{error}");
+}
+
 fn opts(backend: Backend, dt: f64) -> Options {
     Options { backend, ..Options::new(dt) }
 }

@@ -1,15 +1,15 @@
 //! Products with, and solves against, the contact solver's Newton matrix on the tree, in O(n):
 //!   H = M̃ + Σ_b Φ_bᵀ K_b Φ_b + diag(c),
 //! with Φ_b the map from joint velocities to body b's spatial velocity, K_b a 6x6 stiffness on body b and
-//! c a stiffness on each joint coordinate (armature and c act on one-degree-of-freedom joints; a
+//! c a stiffness on each joint coordinate (armature and c act on one- and three-degree-of-freedom joints; a
 //! free-flyer base has neither, as in `aba_with_armature`). M̃ = Σ_b Φ_bᵀ I_b Φ_b + diag(armature) is linear in the bodies'
 //! inertias, so H is the mass matrix of the same tree with inertias I_b + K_b and armatures + c, and the
 //! articulated-body recursion without velocities (Featherstone, Table 7.1) factors and solves it with no
-//! fill-in. Everything is in the world's axes about the base origin, as `aba` leaves `Data`.
+//! fill-in; a ball joint's pivot D is a 3x3 block [Featherstone 2008, eq. 7.43]. Everything is in the world's axes about the base origin, as `aba` leaves `Data`.
 
-use nalgebra::{Cholesky, Matrix6, Vector3, LU, U6};
+use nalgebra::{Cholesky, Matrix3, Matrix6, Matrix6x3, Vector3, LU, U6};
 
-use crate::algorithms::aba::ball_subspace;
+use crate::algorithms::aba::{ball_factors, ball_subspace};
 use crate::joint::Dofs;
 use crate::model::{Data, Model};
 use crate::spatial::{add_reduced_inertia, dot6, Force, Motion};
@@ -24,6 +24,8 @@ pub(super) struct Articulated {
     u: Vec<Motion>,
     u_left: Vec<Motion>,
     d_inv: Vec<f64>,
+    /// The same per ball joint, by body (after `factor` or `factor_of_aba` alike).
+    ball: Vec<BallFactor>,
     base: Option<Base>,
     /// `solve` uses the factor ABA left in `Data` (`factor_of_aba`) rather than `u` and `d_inv`.
     of_aba: bool,
@@ -34,6 +36,15 @@ pub(super) struct Articulated {
     /// Body spatial velocities of the last `motions`; body forces for `generalized`.
     pub motion: Vec<Motion>,
     pub force: Vec<Force>,
+}
+
+/// A ball joint's S, U = I^A S, (I^A)ᵀ S and D⁻¹ (3x3).
+#[derive(Debug, Clone, Copy, Default)]
+struct BallFactor {
+    s: Matrix6x3<f64>,
+    u: Matrix6x3<f64>,
+    u_left: Matrix6x3<f64>,
+    d_inv: Matrix3<f64>,
 }
 
 /// A free-flyer base's factored block D_0 = I^A_0: Cholesky while H is symmetric, LU otherwise.
@@ -50,6 +61,7 @@ impl Articulated {
             u: vec![Motion::zeros(); n],
             u_left: vec![Motion::zeros(); n],
             d_inv: vec![0.0; n],
+            ball: vec![BallFactor::default(); n],
             base: None,
             of_aba: false,
             reduced: vec![0.0; nv],
@@ -120,11 +132,34 @@ impl Articulated {
         self.of_aba = false;
         for i in (1..model.nbodies()).rev() {
             let k = model.idx_v(i);
+            let (head, tail) = self.inertia.split_at_mut(i);
+            if model.joint(i).dofs() == Dofs::Ball {
+                // The same with three columns (eq. 7.43): the parent gets I^A − U D⁻¹ ((I^A)ᵀ S)ᵀ.
+                let s = ball_subspace(&data.centred_m_i[i]);
+                let u = tail[0] * s;
+                let u_left = if definite { u } else { tail[0].tr_mul(&s) };
+                let added = Vector3::from_fn(|r, _| armature[k + r] + self.coordinate_stiffness[k + r]);
+                let d = s.tr_mul(&u) + Matrix3::from_diagonal(&added);
+                let d_inv = if definite {
+                    d.cholesky().map(|c| c.inverse())
+                } else {
+                    let lu = d.lu();
+                    let scale = u.norm() * s.norm() + added.amax();
+                    let pivots = lu.u().diagonal();
+                    (d.iter().all(|x| x.is_finite()) && pivots.iter().all(|p| p.abs() > 1e-9 * scale)).then(|| lu.try_inverse()).flatten()
+                };
+                let Some(d_inv) = d_inv else {
+                    return false;
+                };
+                head[model.parent(i)] += tail[0] - u * d_inv * u_left.transpose();
+                self.ball[i] = BallFactor { s, u, u_left, d_inv };
+                continue;
+            }
             let w = if model.joint(i).nv() == 1 {
                 // eq. 7.39–7.40
-                let u = self.inertia[i] * data.s[i];
+                let u = tail[0] * data.s[i];
                 // (I^A)ᵀ S is U itself while H is symmetric.
-                let u_left = if definite { u } else { self.inertia[i].tr_mul(&data.s[i]) };
+                let u_left = if definite { u } else { tail[0].tr_mul(&data.s[i]) };
                 let added = armature[k] + self.coordinate_stiffness[k];
                 let d = dot6(&data.s[i], u.as_slice()) + added;
                 // Unsymmetric, a pivot may be negative; one that cancels to rounding would amplify it.
@@ -139,16 +174,23 @@ impl Articulated {
             } else {
                 Motion::zeros()
             };
-            let (head, tail) = self.inertia.split_at_mut(i);
             add_reduced_inertia(&mut head[model.parent(i)], &tail[0], &self.u[i], &w);
         }
         self.factor_base(model, self.inertia[0], definite)
     }
 
-    /// Takes the factor of M̃ itself (no stiffness) from the one `aba_with_armature` left in `data`, with a
-    /// free-flyer base's block factored as `base` (`Delassus::base`); false if that is missing.
-    pub(super) fn factor_of_aba(&mut self, model: &Model, base: Option<&Cholesky<f64, U6>>) -> bool {
+    /// Takes the factor of M̃ itself (no stiffness) from the one `aba_with_armature` left in `data` (with
+    /// `armature`), with a free-flyer base's block factored as `base` (`Delassus::base`); false if that is missing.
+    pub(super) fn factor_of_aba(&mut self, model: &Model, data: &Data, armature: &[f64], base: Option<&Cholesky<f64, U6>>) -> bool {
         self.of_aba = true;
+        // ABA keeps no ball joint's factors, only its articulated inertia.
+        for i in 1..model.nbodies() {
+            if model.joint(i).dofs() == Dofs::Ball {
+                let k = model.idx_v(i);
+                let (s, u, d_inv) = ball_factors(&data.centred_m_i[i], &data.inertia[i], &armature[k..k + 3]);
+                self.ball[i] = BallFactor { s, u, u_left: u, d_inv };
+            }
+        }
         self.base = base.filter(|_| model.floating_base()).cloned().map(Base::Cholesky);
         self.base.is_some() || !model.floating_base()
     }
@@ -179,6 +221,11 @@ impl Articulated {
                 let reduced = rhs[k] - dot6(&data.s[i], p.as_slice());
                 p += u[i] * (reduced * d_inv[i]);
                 self.reduced[k] = reduced;
+            } else if model.joint(i).dofs() == Dofs::Ball {
+                let b = &self.ball[i];
+                let reduced = Vector3::from_column_slice(&rhs[k..k + 3]) - b.s.tr_mul(&p);
+                p += b.u * (b.d_inv * reduced);
+                self.reduced[k..k + 3].copy_from_slice(reduced.as_slice());
             }
             self.force[model.parent(i)] += p;
         }
@@ -202,6 +249,11 @@ impl Articulated {
                 let x = (self.reduced[k] - dot6(&u_left[i], parent.as_slice())) * d_inv[i];
                 out[k] = x;
                 parent + data.s[i] * x
+            } else if model.joint(i).dofs() == Dofs::Ball {
+                let b = &self.ball[i];
+                let x = b.d_inv * (Vector3::from_column_slice(&self.reduced[k..k + 3]) - b.u_left.tr_mul(&parent));
+                out[k..k + 3].copy_from_slice(x.as_slice());
+                parent + b.s * x
             } else {
                 parent
             };

@@ -9,29 +9,35 @@
 //! from Ω_0 = 0 for a fixed base or (I^A_0)⁻¹ for a free-flyer. A force on body a with its opposite on b
 //! couples the two through their nearest common ancestor c: Φ_aᵀ M̃⁻¹ Φ_b = T_a Ω_c T_bᵀ, with T_x the
 //! product of the P's from c down to x. A unit generalized force on joint k of body i gives
-//! (M̃⁻¹)_kk = D_i⁻¹ + w_iᵀ Ω_λ(i) w_i with w_i = U_i D_i⁻¹. Everything is in the world's axes about the
-//! base origin, as `aba` leaves it in `Data`.
+//! (M̃⁻¹)_kk = D_i⁻¹ + w_iᵀ Ω_λ(i) w_i with w_i = U_i D_i⁻¹. A ball joint is the same with S_i and U_i 6x3 and
+//! D_i 3x3 [Featherstone 2008, eq. 7.43]. Everything is in the world's axes about the base origin, as `aba`
+//! leaves it in `Data`.
 
-use nalgebra::{Cholesky, Matrix6, Vector3, Vector6, U6};
+use nalgebra::{Cholesky, Matrix6, Matrix6x3, Vector3, Vector6, U6};
 
+use crate::algorithms::aba::ball_factors;
+use crate::joint::Dofs;
 use crate::model::{Data, Model};
 use crate::spatial::{dot6, Force};
 
 pub(super) struct Delassus {
     /// Ω_b of each body.
     omega: Vec<Matrix6<f64>>,
+    /// Each ball joint's S and W = U D⁻¹, by body (ABA keeps neither).
+    ball: Vec<(Matrix6x3<f64>, Matrix6x3<f64>)>,
     /// A free-flyer base's articulated inertia I^A_0 = C Cᵀ, which the solver's first solve reuses.
     base: Option<Cholesky<f64, U6>>,
 }
 
 impl Delassus {
     pub(super) fn new(model: &Model) -> Self {
-        Delassus { omega: vec![Matrix6::zeros(); model.nbodies()], base: None }
+        let n = model.nbodies();
+        Delassus { omega: vec![Matrix6::zeros(); n], ball: vec![(Matrix6x3::zeros(), Matrix6x3::zeros()); n], base: None }
     }
 
-    /// Reads Ω of every body from the factor in `data`; false if a free-flyer base's articulated inertia is
-    /// not positive definite.
-    pub(super) fn update(&mut self, model: &Model, data: &Data) -> bool {
+    /// Reads Ω of every body from the factor in `data` (of M + diag(`armature`)); false if a free-flyer base's
+    /// articulated inertia is not positive definite.
+    pub(super) fn update(&mut self, model: &Model, data: &Data, armature: &[f64]) -> bool {
         self.base = None;
         self.omega[0] = if model.floating_base() {
             match data.inertia[0].cholesky() {
@@ -54,6 +60,15 @@ impl Delassus {
                 for (((column, from), z_c), s_c) in omega.data.0.iter_mut().zip(&parent.data.0).zip(z).zip(s) {
                     *column = std::array::from_fn(|r| from[r] + (s[r] * z_c - y[r] * s_c));
                 }
+            } else if model.joint(i).dofs() == Dofs::Ball {
+                // The same with three columns: Ω + Z Sᵀ − S Yᵀ, Y = Ω W, Z = S (Wᵀ Y + D⁻¹) − Y.
+                let k = model.idx_v(i);
+                let (s, u, d_inv) = ball_factors(&data.centred_m_i[i], &data.inertia[i], &armature[k..k + 3]);
+                let w = u * d_inv;
+                let y = parent * w;
+                let z = s * (w.tr_mul(&y) + d_inv) - y;
+                *omega = parent + z * s.transpose() - s * y.transpose();
+                self.ball[i] = (s, w);
             } else {
                 *omega = *parent;
             }
@@ -87,10 +102,10 @@ impl Delassus {
             let (mut x, mut y) = (a, b);
             while x != y {
                 if x > y {
-                    transmit(model, data, x, &mut on_a);
+                    transmit(model, data, &self.ball, x, &mut on_a);
                     x = model.parent(x);
                 } else {
-                    transmit(model, data, y, &mut on_b);
+                    transmit(model, data, &self.ball, y, &mut on_b);
                     y = model.parent(y);
                 }
             }
@@ -136,11 +151,16 @@ fn quadratic(omega: &Matrix6<f64>, f: &Vector6<f64>) -> f64 {
 }
 
 /// Forces on body `i` passed to its parent: f ← P_iᵀ f = f − w_i (S_iᵀ f).
-fn transmit(model: &Model, data: &Data, i: usize, forces: &mut [Force; 3]) {
+fn transmit(model: &Model, data: &Data, ball: &[(Matrix6x3<f64>, Matrix6x3<f64>)], i: usize, forces: &mut [Force; 3]) {
     if model.joint(i).nv() == 1 {
         for f in forces.iter_mut() {
             let through = dot6(&data.s[i], f.as_slice()) * data.d_inv[i];
             *f -= data.u[i] * through;
+        }
+    } else if model.joint(i).dofs() == Dofs::Ball {
+        let (s, w) = &ball[i];
+        for f in forces.iter_mut() {
+            *f -= w * s.tr_mul(f);
         }
     }
 }

@@ -37,7 +37,6 @@ use super::actuation::{dof_coordinates, Actuation};
 use super::options::{FrictionLaw, Options, DEFAULT_FRICTION};
 use super::{Contact, Engine};
 use crate::algorithms::{aba_with_armature, integrate, joint_placement, world_pose};
-use crate::joint::Dofs;
 use crate::model::{Data, Model};
 use crate::spatial::{spatial, Transform};
 use crate::{Error, MassProperties, Result};
@@ -111,14 +110,6 @@ pub(crate) struct TreeSimulation {
 
 impl TreeSimulation {
     pub(crate) fn new(model: &Model, options: &Options) -> Result<Self> {
-        // Its factorisation and contact solver take one coordinate per joint below the base.
-        if let Some(i) = (0..model.nbodies()).find(|&i| model.joint(i).dofs() == Dofs::Ball) {
-            let name = model.name(i);
-            return Err(Error::invalid(
-                "model",
-                format!("the tree engine does not simulate ball joints yet (body '{name}'); the dynamics functions take them"),
-            ));
-        }
         let nv = model.nv();
         let (fused, fused_body, offset) = fuse(model)?;
         let collision = Collision::new(model, options, &fused, &fused_body);
@@ -236,7 +227,7 @@ impl TreeSimulation {
             for k in 0..nv {
                 self.v_free[k] = v[k] + h * ddq[k];
             }
-            if !self.delassus.update(model, &self.data) {
+            if !self.delassus.update(model, &self.data, &self.armature) {
                 return Err(Error::numerical("step", "the mass matrix stopped being positive definite (a massless body on a joint?)"));
             }
             if !detected {

@@ -534,7 +534,7 @@ impl Solver {
         let tree = &mut self.tree;
         // Warm start: v = v_free + M̃⁻¹ Jᵀ λ_warm, so M̃ (v − v_free) = Jᵀ λ_warm, through ABA's own factor of M̃.
         generalized_impulses(tree, model, data, constraints, &mut self.mass_change);
-        if !tree.factor_of_aba(model, base) {
+        if !tree.factor_of_aba(model, data, armature, base) {
             return None;
         }
         tree.solve(model, data, &self.mass_change, &mut self.change);

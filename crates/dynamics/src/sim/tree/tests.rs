@@ -1,6 +1,6 @@
 //! The Newton solver's passes over the tree against dense linear algebra: M̃ x, M̃⁻¹ r and H⁻¹ r (`articulated`)
 //! against the CRBA mass matrix, and the Delassus diagonals (`delassus`) against J M̃⁻¹ Jᵀ formed densely,
-//! on a fixed-base branching tree (revolute and prismatic joints) and on a floating one.
+//! on a fixed-base branching tree (revolute and prismatic joints), on a floating one, and on trees with ball joints.
 
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Rotation3, UnitQuaternion, Vector3, Vector6};
 
@@ -44,14 +44,37 @@ fn floating_tree() -> Model {
     model
 }
 
-/// A configuration away from the neutral one (unit quaternion for a free-flyer).
+/// Ball joints on a floating base (one between two revolutes, one on a leaf) or on a fixed one.
+fn ball_tree(floating: bool) -> Model {
+    let part = |m: f64| MassProperties::solid_box(m, Vector3::new(0.2, 0.05, 0.04), Vector3::new(0.1, 0.0, 0.0), &Matrix3::identity()).unwrap();
+    let mut model =
+        Model::new(floating, MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap(), "base");
+    let along = |r: Matrix3<f64>| Transform::new(r, Vector3::new(0.2, 0.0, 0.0));
+    let tilted = along(Rotation3::from_euler_angles(0.4, 0.3, -0.2).into_inner());
+    let a = model.add_body(0, Joint::Revolute(Vector3::y()), tilted, part(0.5), "a", JointLimits::NONE).unwrap();
+    let b = model.add_body(a, Joint::Spherical, tilted, part(0.4), "b", JointLimits::NONE).unwrap();
+    model.add_body(b, Joint::Revolute(Vector3::new(0.3, 1.0, 0.0)), along(Matrix3::identity()), part(0.3), "c", JointLimits::NONE).unwrap();
+    model.add_body(0, Joint::Spherical, along(Rotation3::from_euler_angles(0.0, 0.0, 2.0).into_inner()), part(0.6), "d", JointLimits::NONE).unwrap();
+    model
+}
+
+/// A configuration away from the neutral one (unit quaternions for a free-flyer and ball joints).
 fn configuration(model: &Model) -> Vec<f64> {
     let mut q: Vec<f64> = (0..model.nq()).map(|k| 0.4 * ((k as f64) * 1.3 + 0.2).sin()).collect();
-    if model.floating_base() {
-        let r = UnitQuaternion::from_euler_angles(0.3, -0.2, 0.7);
-        q[3..7].copy_from_slice(&[r.i, r.j, r.k, r.w]);
+    for i in 0..model.nbodies() {
+        let at = match model.joint(i) {
+            Joint::FreeFlyer => 3,
+            Joint::Spherical => 0,
+            _ => continue,
+        } + model.idx_q(i);
+        let r = UnitQuaternion::from_euler_angles(0.3, -0.2 + 0.1 * i as f64, 0.7);
+        q[at..at + 4].copy_from_slice(&[r.i, r.j, r.k, r.w]);
     }
     q
+}
+
+fn models() -> [Model; 4] {
+    [ten_link_tree(), floating_tree(), ball_tree(true), ball_tree(false)]
 }
 
 /// A deterministic symmetric positive semi-definite 6x6 (A Aᵀ of a pseudo-random A).
@@ -102,7 +125,7 @@ fn relative_error(a: &DVector<f64>, b: &DVector<f64>) -> f64 {
 
 #[test]
 fn newton_matrix_products_and_solves_match_dense_algebra() {
-    for model in [ten_link_tree(), floating_tree()] {
+    for model in models() {
         let nv = model.nv();
         let (q, armature, data, mut tree) = prepared(&model);
         let (mass, phi) = dense(&model, &q, &armature, &mut tree, &data);
@@ -114,7 +137,7 @@ fn newton_matrix_products_and_solves_match_dense_algebra() {
         let rhs = DVector::from_fn(nv, |k, _| (k as f64 * 1.9 + 0.3).sin());
         let mut solution = vec![0.0; nv];
         // M̃⁻¹ r through the factor ABA left.
-        assert!(tree.factor_of_aba(&model, data.inertia[0].cholesky().as_ref()));
+        assert!(tree.factor_of_aba(&model, &data, &armature, data.inertia[0].cholesky().as_ref()));
         tree.solve(&model, &data, rhs.as_slice(), &mut solution);
         assert!(relative_error(&(&mass * DVector::from_vec(solution.clone())), &rhs) < 1e-10, "floating base: {}", model.floating_base());
         // H = M̃ + Σ Φ_bᵀ K_b Φ_b + diag(c): H⁻¹ r solves H x = r, for symmetric K_b and for K_b with an
@@ -143,12 +166,12 @@ fn newton_matrix_products_and_solves_match_dense_algebra() {
 
 #[test]
 fn delassus_diagonals_match_dense_inverse_mass_matrix() {
-    for model in [ten_link_tree(), floating_tree()] {
+    for model in models() {
         let (q, armature, data, mut tree) = prepared(&model);
         let (mass, phi) = dense(&model, &q, &armature, &mut tree, &data);
         let inverse = mass.clone().try_inverse().expect("positive definite");
         let mut delassus = Delassus::new(&model);
-        assert!(delassus.update(&model, &data));
+        assert!(delassus.update(&model, &data, &armature));
         // A contact frame: an orthonormal (n, t1, t2) at an arm r, rows [d; r × d].
         let normal = Vector3::new(0.3, -0.5, 0.8).normalize();
         let t1 = normal.cross(&Vector3::new(1.0, 0.2, -0.1)).normalize();

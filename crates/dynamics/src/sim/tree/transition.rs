@@ -26,6 +26,7 @@ use super::delassus::Delassus;
 use super::solver::{impulses_at, Constraint, Stiffness};
 use super::{base_origin, contact_constraint, limit_constraint, TreeSimulation};
 use crate::algorithms::{aba_with_armature, crba, integrate, integrate_jacobians, rnea_derivatives};
+use crate::joint::Dofs;
 use crate::model::{Data, Dense, Model};
 use crate::sim::actuation::Actuation;
 use crate::sim::Engine;
@@ -198,6 +199,12 @@ impl TreeSimulation {
         a: &mut DMatrix<f64>,
         b: &mut DMatrix<f64>,
     ) -> Result<()> {
+        // Its columns of Φ and its displaced configurations take one coordinate per joint below the base.
+        let model = self.fused.as_ref();
+        if let Some(i) = (1..model.nbodies()).find(|&i| model.joint(i).dofs() == Dofs::Ball) {
+            let name = model.name(i);
+            return Err(Error::invalid("model", format!("transition_jacobians does not take ball joints yet (body '{name}'); step() does")));
+        }
         let mut transition = match self.transition.take() {
             Some(t) => t,
             None => Box::new(Transition::new(&self.fused, self.fused_body.len())?),
@@ -495,7 +502,7 @@ impl TreeSimulation {
         let model = self.fused.as_ref();
         let displaced = &t.displaced;
         aba_with_armature(model, &mut t.data, displaced, v, &self.tau, None, &self.armature);
-        if !t.delassus.update(model, &t.data) {
+        if !t.delassus.update(model, &t.data, &self.armature) {
             return Err(Error::numerical("transition_jacobians", "the mass matrix stopped being positive definite near the state"));
         }
         self.collision_poses(&t.data, displaced, &mut t.poses);
