@@ -22,10 +22,12 @@ STEP = 1e-8
 
 
 def targets_configuration(model: lk.Model, target_q: np.ndarray, per_velocity: np.ndarray) -> np.ndarray:
-    """`target_q` (nq) with its joints' coordinates moved by `per_velocity` (nv; every joint has one coordinate)."""
+    """`target_q` (nq) with its one-coordinate joints' coordinates moved by `per_velocity` (nv); a ball joint takes no
+    position servo, so its target is left."""
     out = target_q.copy()
     for i in range(1, model.nbodies):
-        out[model.idx_q[i]] += per_velocity[model.idx_v[i]]
+        if model.joint_type(i) != "spherical":
+            out[model.idx_q[i]] += per_velocity[model.idx_v[i]]
     return out
 
 

@@ -25,6 +25,7 @@ use super::collision::{Found, Source, Warm};
 use super::delassus::Delassus;
 use super::solver::{impulses_at, Constraint, Stiffness};
 use super::{base_origin, contact_constraint, limit_constraint, TreeSimulation};
+use crate::algorithms::aba::ball_subspace;
 use crate::algorithms::{aba_with_armature, crba, integrate, integrate_jacobians, rnea_derivatives};
 use crate::joint::Dofs;
 use crate::model::{Data, Dense, Model};
@@ -170,8 +171,15 @@ impl Transition {
 fn for_each_column(model: &Model, data: &Data, body: usize, mut f: impl FnMut(usize, Motion)) {
     let mut i = body;
     while i > 0 {
-        if model.joint(i).nv() == 1 {
-            f(model.idx_v(i), data.s[i]);
+        match model.joint(i).dofs() {
+            Dofs::One(_) => f(model.idx_v(i), data.s[i]),
+            Dofs::Ball => {
+                let subspace = ball_subspace(&data.centred_m_i[i]);
+                for c in 0..3 {
+                    f(model.idx_v(i) + c, Motion::from(subspace.column(c).into_owned()));
+                }
+            }
+            Dofs::Zero | Dofs::Free => {}
         }
         i = model.parent(i);
     }
@@ -199,12 +207,6 @@ impl TreeSimulation {
         a: &mut DMatrix<f64>,
         b: &mut DMatrix<f64>,
     ) -> Result<()> {
-        // Its columns of Φ and its displaced configurations take one coordinate per joint below the base.
-        let model = self.fused.as_ref();
-        if let Some(i) = (1..model.nbodies()).find(|&i| model.joint(i).dofs() == Dofs::Ball) {
-            let name = model.name(i);
-            return Err(Error::invalid("model", format!("transition_jacobians does not take ball joints yet (body '{name}'); step() does")));
-        }
         let mut transition = match self.transition.take() {
             Some(t) => t,
             None => Box::new(Transition::new(&self.fused, self.fused_body.len())?),
