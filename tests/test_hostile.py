@@ -413,6 +413,51 @@ os._exit(0)
     assert len(result["messages"]) == 10 and all("another thread" in m for m in result["messages"]), result
 
 
+# --- dependent contacts ----------------------------------------------------------------------------------------
+
+QUADRUPED_FOOT = """
+from legkit.robots.quadruped import build_quadruped
+model = build_quadruped().model
+q = model.neutral()
+q[2] = 0.5
+rng = np.random.default_rng(0)
+v, tau = rng.normal(size=model.nv), rng.normal(size=model.nv)
+foot = (model.nbodies - 1, [0.0, 0.0, -0.02])
+"""
+
+
+@pytest.mark.parametrize("dim", [3, 6])
+@pytest.mark.parametrize(("function", "state"), [("contact_dynamics", "q, v, tau"), ("impact", "q, v")])
+def test_a_repeated_contact_gets_the_minimum_norm_forces(function, state, dim):
+    # A foot held twice moves as the foot held once, and the two copies share its force evenly: of the forces that
+    # hold it, the split with the least norm (the forces of dependent contacts are not unique).
+    result = outcome(
+        QUADRUPED_FOOT
+        + f"""
+once = lk.{function}(model, {state}, [foot], dim={dim})
+twice = lk.{function}(model, {state}, [foot, foot], dim={dim})
+report(raised=None, motion=float(np.abs(twice[0] - once[0]).max()), split=float(np.abs(twice[1] - once[1] / 2).max()),
+       force=float(np.abs(once[1]).max()))
+"""
+    )
+    assert result["raised"] is None and result["force"] > 0.1, result
+    assert result["motion"] <= 1e-9 and result["split"] <= 1e-9 * result["force"], result
+
+
+@pytest.mark.parametrize("dim", [3, 6])
+@pytest.mark.parametrize(("function", "state"), [("contact_dynamics_derivatives", "q, v, tau"), ("impact_derivatives", "q, v")])
+def test_the_derivatives_of_dependent_contacts_are_a_value_error_naming_the_contact(function, state, dim):
+    # Their forces are not unique, so neither are the derivatives: the message names the contact and the matrix,
+    # where it once blamed the mass matrix.
+    raises(
+        QUADRUPED_FOOT + f"lk.{function}(model, {state}, [foot, foot], dim={dim})",
+        "ValueError",
+        "contacts: the contacts are not independent",
+        f"row 1 of {dim} of contact 1 (body ",
+        "contact Gram matrix J M⁻¹ Jᵀ is singular",
+    )
+
+
 # --- silent wrong answers --------------------------------------------------------------------------------------
 
 
