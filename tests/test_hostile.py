@@ -674,6 +674,32 @@ def test_ctrl_c_interrupts_a_long_call_within_a_second(call):
     assert_ctrl_c_answered_within_a_second(setup, long_call, after=0.5, memory=4 * GIB)
 
 
+@pytest.mark.parametrize("batch", [False, True])
+def test_ctrl_c_interrupts_transition_jacobians_of_many_substeps_and_changes_nothing(tmp_path, batch):
+    # A thousand substeps of a 60-link chain take about 3 s a simulation, which ran to their end before; stopped,
+    # the call leaves every simulation as it was: the next step is the never-interrupted twin's.
+    (tmp_path / "chain.urdf").write_text(chain_urdf(60))
+    setup = f"""
+model = lk.Model.from_urdf({str(tmp_path / "chain.urdf")!r})
+sims = [lk.Simulation(model, substeps=1000) for _ in range(3)]
+for sim in sims:
+    sim.step(None, 2)
+def state(sim):
+    return [sim.q.tolist(), sim.v.tolist(), sim.time, sim.applied_tau.tolist()]
+before = [state(sim) for sim in sims]
+uninterrupted = lk.Simulation(model, substeps=1000)
+uninterrupted.step(None, 3)
+first_report = report
+def report(**fields):
+    unchanged = [state(sim) for sim in sims] == before
+    sims[0].step(None, 1)
+    first_report(unchanged=unchanged, twin=state(sims[0]) == state(uninterrupted), **fields)
+"""
+    call = "lk.SimulationBatch(sims).transition_jacobians()" if batch else "sims[0].transition_jacobians()"
+    result = assert_ctrl_c_answered_within_a_second(setup, call, after=0.5, memory=4 * GIB)
+    assert result["unchanged"] and result["twin"], result
+
+
 @pytest.mark.slow
 def test_ctrl_c_interrupts_loading_a_huge_urdf(tmp_path):
     path = tmp_path / "chain.urdf"
