@@ -917,6 +917,32 @@ def test_a_colcon_symlink_install_workspace_loads_as_pinocchio_loads_it(tmp_path
         lk.resolve_mesh("package://bot/../../../src/bot/meshes/leg.stl", urdf)
 
 
+# --- Python entry points ---------------------------------------------------------------------------------------
+
+IK = "from legkit.robots.legs import roll_pitch_knee_ik\n"
+NETWORK = "from legkit.agents import AgentNetwork\nfrom legkit.robots import random_tree\nnetwork = AgentNetwork(random_tree(5))\n"
+
+
+@pytest.mark.parametrize(
+    ("call", "expected", "name"),
+    [
+        # NaN feet and zero-length legs came back as NaN angles.
+        (IK + "roll_pitch_knee_ik([np.nan, 0.0, -0.3], 0.2, 0.2, 1.0)", "ValueError", "foot"),
+        (IK + "roll_pitch_knee_ik([0.0, 0.0, 0.0], 0.0, 0.0, 1.0)", "ValueError", "upper"),
+        (IK + "roll_pitch_knee_ik([0.0, 0.0, -0.3], 0.2, 0.2, 0.0)", "ValueError", "knee_direction"),
+        # NumPy's "expected non-negative integer", naming nothing.
+        ("from legkit.robots import random_tree\nrandom_tree(5, seed=-1)", "ValueError", "seed"),
+        # A negative count ran no round without a word, or said the network did not fall silent.
+        (NETWORK + "network.run(-1)", "ValueError", "rounds"),
+        (NETWORK + "network.run(np.nan)", "TypeError", "rounds"),
+        (NETWORK + "network.run_until_quiescent(-5)", "ValueError", "max_rounds"),
+    ],
+)
+def test_python_entry_points_refuse_non_finite_values_and_negative_counts_by_name(call, expected, name):
+    result = raises(call, expected)
+    assert result["message"].startswith(name), result
+
+
 # --- the commands ----------------------------------------------------------------------------------------------
 
 
