@@ -413,6 +413,51 @@ os._exit(0)
     assert len(result["messages"]) == 10 and all("another thread" in m for m in result["messages"]), result
 
 
+# --- dependent contacts ----------------------------------------------------------------------------------------
+
+QUADRUPED_FOOT = """
+from legkit.robots.quadruped import build_quadruped
+model = build_quadruped().model
+q = model.neutral()
+q[2] = 0.5
+rng = np.random.default_rng(0)
+v, tau = rng.normal(size=model.nv), rng.normal(size=model.nv)
+foot = (model.nbodies - 1, [0.0, 0.0, -0.02])
+"""
+
+
+@pytest.mark.parametrize("dim", [3, 6])
+@pytest.mark.parametrize(("function", "state"), [("contact_dynamics", "q, v, tau"), ("impact", "q, v")])
+def test_a_repeated_contact_gets_the_minimum_norm_forces(function, state, dim):
+    # A foot held twice moves as the foot held once, and the two copies share its force evenly: of the forces that
+    # hold it, the split with the least norm (the forces of dependent contacts are not unique).
+    result = outcome(
+        QUADRUPED_FOOT
+        + f"""
+once = lk.{function}(model, {state}, [foot], dim={dim})
+twice = lk.{function}(model, {state}, [foot, foot], dim={dim})
+report(raised=None, motion=float(np.abs(twice[0] - once[0]).max()), split=float(np.abs(twice[1] - once[1] / 2).max()),
+       force=float(np.abs(once[1]).max()))
+"""
+    )
+    assert result["raised"] is None and result["force"] > 0.1, result
+    assert result["motion"] <= 1e-9 and result["split"] <= 1e-9 * result["force"], result
+
+
+@pytest.mark.parametrize("dim", [3, 6])
+@pytest.mark.parametrize(("function", "state"), [("contact_dynamics_derivatives", "q, v, tau"), ("impact_derivatives", "q, v")])
+def test_the_derivatives_of_dependent_contacts_are_a_value_error_naming_the_contact(function, state, dim):
+    # Their forces are not unique, so neither are the derivatives: the message names the contact and the matrix,
+    # where it once blamed the mass matrix.
+    raises(
+        QUADRUPED_FOOT + f"lk.{function}(model, {state}, [foot, foot], dim={dim})",
+        "ValueError",
+        "contacts: the contacts are not independent",
+        f"row 1 of {dim} of contact 1 (body ",
+        "contact Gram matrix J M⁻¹ Jᵀ is singular",
+    )
+
+
 # --- silent wrong answers --------------------------------------------------------------------------------------
 
 
@@ -627,6 +672,32 @@ def test_ctrl_c_interrupts_a_long_call_within_a_second(call):
     setup, long_call = LONG_CALLS[call]
     setup = f"from legkit.robots.quadruped import build_quadruped\nmodel = build_quadruped().model\n{setup}"
     assert_ctrl_c_answered_within_a_second(setup, long_call, after=0.5, memory=4 * GIB)
+
+
+@pytest.mark.parametrize("batch", [False, True])
+def test_ctrl_c_interrupts_transition_jacobians_of_many_substeps_and_changes_nothing(tmp_path, batch):
+    # A thousand substeps of a 60-link chain take about 3 s a simulation, which ran to their end before; stopped,
+    # the call leaves every simulation as it was: the next step is the never-interrupted twin's.
+    (tmp_path / "chain.urdf").write_text(chain_urdf(60))
+    setup = f"""
+model = lk.Model.from_urdf({str(tmp_path / "chain.urdf")!r})
+sims = [lk.Simulation(model, substeps=1000) for _ in range(3)]
+for sim in sims:
+    sim.step(None, 2)
+def state(sim):
+    return [sim.q.tolist(), sim.v.tolist(), sim.time, sim.applied_tau.tolist()]
+before = [state(sim) for sim in sims]
+uninterrupted = lk.Simulation(model, substeps=1000)
+uninterrupted.step(None, 3)
+first_report = report
+def report(**fields):
+    unchanged = [state(sim) for sim in sims] == before
+    sims[0].step(None, 1)
+    first_report(unchanged=unchanged, twin=state(sims[0]) == state(uninterrupted), **fields)
+"""
+    call = "lk.SimulationBatch(sims).transition_jacobians()" if batch else "sims[0].transition_jacobians()"
+    result = assert_ctrl_c_answered_within_a_second(setup, call, after=0.5, memory=4 * GIB)
+    assert result["unchanged"] and result["twin"], result
 
 
 @pytest.mark.slow
@@ -844,6 +915,32 @@ def test_a_colcon_symlink_install_workspace_loads_as_pinocchio_loads_it(tmp_path
     # A name still cannot climb out of the package, symlinked or not.
     with pytest.raises(ValueError, match="filename.*outside its package"):
         lk.resolve_mesh("package://bot/../../../src/bot/meshes/leg.stl", urdf)
+
+
+# --- Python entry points ---------------------------------------------------------------------------------------
+
+IK = "from legkit.robots.legs import roll_pitch_knee_ik\n"
+NETWORK = "from legkit.agents import AgentNetwork\nfrom legkit.robots import random_tree\nnetwork = AgentNetwork(random_tree(5))\n"
+
+
+@pytest.mark.parametrize(
+    ("call", "expected", "name"),
+    [
+        # NaN feet and zero-length legs came back as NaN angles.
+        (IK + "roll_pitch_knee_ik([np.nan, 0.0, -0.3], 0.2, 0.2, 1.0)", "ValueError", "foot"),
+        (IK + "roll_pitch_knee_ik([0.0, 0.0, 0.0], 0.0, 0.0, 1.0)", "ValueError", "upper"),
+        (IK + "roll_pitch_knee_ik([0.0, 0.0, -0.3], 0.2, 0.2, 0.0)", "ValueError", "knee_direction"),
+        # NumPy's "expected non-negative integer", naming nothing.
+        ("from legkit.robots import random_tree\nrandom_tree(5, seed=-1)", "ValueError", "seed"),
+        # A negative count ran no round without a word, or said the network did not fall silent.
+        (NETWORK + "network.run(-1)", "ValueError", "rounds"),
+        (NETWORK + "network.run(np.nan)", "TypeError", "rounds"),
+        (NETWORK + "network.run_until_quiescent(-5)", "ValueError", "max_rounds"),
+    ],
+)
+def test_python_entry_points_refuse_non_finite_values_and_negative_counts_by_name(call, expected, name):
+    result = raises(call, expected)
+    assert result["message"].startswith(name), result
 
 
 # --- the commands ----------------------------------------------------------------------------------------------

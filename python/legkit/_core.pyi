@@ -287,24 +287,27 @@ def contact_dynamics(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(ddq (..., nv), forces (..., k, dim)) with each contact (body, point in body frame) held still: its point
     (dim=3) or its body's frame at the point (dim=6; the forces are then wrenches [force; torque about the point]),
-    world axes."""
+    world axes. Dependent (redundant) contacts, whose forces are not unique, get the minimum-norm forces; a singular
+    mass matrix raises RuntimeError."""
 def impact(
     model: Model, q: npt.ArrayLike, v: npt.ArrayLike, contacts: _ContactPoints, dim: Literal[3, 6] = 3
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(v_plus (..., nv), impulses (..., k, dim)) of a perfectly inelastic impact at the contacts (dim as
-    ``contact_dynamics``)."""
+    """(v_plus (..., nv), impulses (..., k, dim)) of a perfectly inelastic impact at the contacts (dim, dependent
+    contacts and errors as ``contact_dynamics``)."""
 def contact_dynamics_derivatives(
     model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _ContactPoints, dim: Literal[3, 6] = 3
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(ddq/dq, ddq/dv, ddq/dtau) each (..., nv, nv) and (forces/dq, forces/dv, forces/dtau) each (..., k, dim, nv) of
     ``contact_dynamics``, q on its tangent space (Pinocchio's computeConstraintDynamicsDerivatives, CONTACT_3D or, with
-    dim=6, CONTACT_6D contacts in LOCAL_WORLD_ALIGNED). Dependent contacts raise ValueError: their forces are not
-    unique."""
+    dim=6, CONTACT_6D contacts in LOCAL_WORLD_ALIGNED). Dependent contacts raise ValueError naming the first contact
+    that repeats what the others hold (the contact Gram matrix J M^-1 J^T is singular): their forces, and so the
+    derivatives, are not unique."""
 def impact_derivatives(
     model: Model, q: npt.ArrayLike, v: npt.ArrayLike, contacts: _ContactPoints, dim: Literal[3, 6] = 3
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(v_plus/dq, v_plus/dv) each (..., nv, nv) and (impulses/dq, impulses/dv) each (..., k, dim, nv) of ``impact``
-    (Pinocchio's computeImpulseDynamicsDerivatives without restitution). Dependent contacts raise ValueError."""
+    (Pinocchio's computeImpulseDynamicsDerivatives without restitution). Dependent contacts raise ValueError, as in
+    ``contact_dynamics_derivatives``."""
 def point_accelerations(
     model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike, contacts: _ContactPoints, dim: Literal[3, 6] = 3
 ) -> np.ndarray:

@@ -15,7 +15,6 @@ use crate::{Error, Result};
 /// A list too large to allocate is `Error::TooLarge` naming `mesh` (where an infallible allocation would abort
 /// the process), anything else wrong with the file `Error::Invalid` naming `mesh`.
 pub(crate) fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
-    let fail = |reason: String| Error::invalid("mesh", format!("{}: {reason}", path.display()));
     let bytes = crate::validate::read_regular_file("mesh", path)?;
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let vertices = match extension.as_str() {
@@ -25,16 +24,11 @@ pub(crate) fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
         "msh" => msh(&bytes).map(|(vertices, _)| vertices),
         other => Err(bad(format!("unknown mesh format {other:?} (expected .stl, .obj, .dae or .msh)"))),
     }
-    .map_err(|e| match e {
-        Error::TooLarge { argument, reason } => Error::too_large(argument, format!("{}: {reason}", path.display())),
-        other => fail(other.reason().to_owned()),
-    })?;
+    .map_err(|e| in_file(path, e))?;
     if vertices.is_empty() {
-        return Err(fail("no vertices".into()));
+        return Err(in_file(path, bad("no vertices")));
     }
-    if let Some(bad) = vertices.iter().find(|v| !v.iter().all(|x| x.is_finite())) {
-        return Err(fail(format!("a vertex is not finite: {bad:?}")));
-    }
+    finite_vertices(path, &vertices)?;
     Ok(vertices)
 }
 
@@ -45,26 +39,52 @@ pub type Triangles = (Vec<Vector3<f64>>, Vec<[usize; 3]>);
 /// inertia: STL's triangles (three vertices each), OBJ's faces (a polygon as the fan from its first vertex),
 /// and MuJoCo's binary MSH. Errors as `mesh_vertices`'.
 pub fn mesh_triangles(path: &Path) -> Result<Triangles> {
-    let fail = |reason: String| Error::invalid("mesh", format!("{}: {reason}", path.display()));
     let bytes = crate::validate::read_regular_file("mesh", path)?;
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let (vertices, faces) = match extension.as_str() {
-        "stl" => stl(&bytes).map(|vertices| {
-            let faces = (0..vertices.len() / 3).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
-            (vertices, faces)
+        "stl" => stl(&bytes).and_then(|vertices| {
+            let mut faces = Vec::new();
+            grow(&mut faces, vertices.len() / 3, "faces")?;
+            faces.extend((0..vertices.len() / 3).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]));
+            Ok((vertices, faces))
         }),
         "obj" => obj_faces(&String::from_utf8_lossy(&bytes)),
         "msh" => msh(&bytes),
         other => Err(bad(format!("no faces read from {other:?} files (expected .stl, .obj or .msh)"))),
     }
-    .map_err(|e| fail(e.reason().to_owned()))?;
+    .map_err(|e| in_file(path, e))?;
     if faces.is_empty() {
-        return Err(fail("no faces".into()));
+        return Err(in_file(path, bad("no faces")));
     }
-    if let Some(bad) = vertices.iter().find(|v| !v.iter().all(|x| x.is_finite())) {
-        return Err(fail(format!("a vertex is not finite: {bad:?}")));
-    }
+    finite_vertices(path, &vertices)?;
     Ok((vertices, faces))
+}
+
+/// `e`, from reading the mesh file at `path`, with the path in its reason: a list too large to allocate stays
+/// `Error::TooLarge` (where an infallible allocation would abort the process) and a cancelled load stays
+/// `Error::Numerical`; anything else wrong with the file is `Error::Invalid` naming `mesh`.
+fn in_file(path: &Path, e: Error) -> Error {
+    match e {
+        Error::TooLarge { argument, reason } => Error::too_large(argument, format!("{}: {reason}", path.display())),
+        Error::Numerical { .. } => e,
+        other => Error::invalid("mesh", format!("{}: {}", path.display(), other.reason())),
+    }
+}
+
+fn finite_vertices(path: &Path, vertices: &[Vector3<f64>]) -> Result<()> {
+    match vertices.iter().find(|v| !v.iter().all(|x| x.is_finite())) {
+        Some(v) => Err(in_file(path, bad(format!("a vertex is not finite: {v:?}")))),
+        None => Ok(()),
+    }
+}
+
+/// Every `CANCEL_INTERVAL` items of a loop over a file (`k` counts them), fails if the load was cancelled
+/// (`validate::cancellable`): a file of hundreds of megabytes takes seconds to read.
+fn cancel_point(k: usize) -> Result<()> {
+    if k.is_multiple_of(crate::validate::CANCEL_INTERVAL) {
+        crate::validate::check_cancelled("mesh")?;
+    }
+    Ok(())
 }
 
 /// Where a URDF's mesh `filename` lies, read as Pinocchio and ROS read it:
@@ -155,12 +175,12 @@ fn bad(reason: impl Into<String>) -> Error {
     Error::invalid("mesh", reason)
 }
 
-/// `vertices` with room for `more`, or `Error::TooLarge` naming `mesh`. Reserving one at a time still grows the
-/// list geometrically.
-fn grow(vertices: &mut Vec<Vector3<f64>>, more: usize) -> Result<()> {
-    vertices.try_reserve(more).map_err(|_| {
-        let len = vertices.len().saturating_add(more);
-        Error::too_large("mesh", format!("cannot allocate {} bytes for its {len} vertices", len.saturating_mul(size_of::<Vector3<f64>>())))
+/// `list` (the file's `what`) with room for `more`, or `Error::TooLarge` naming `mesh`. Reserving one at a time
+/// still grows the list geometrically.
+fn grow<T>(list: &mut Vec<T>, more: usize, what: &str) -> Result<()> {
+    list.try_reserve(more).map_err(|_| {
+        let len = list.len().saturating_add(more);
+        Error::too_large("mesh", format!("cannot allocate {} bytes for its {len} {what}", len.saturating_mul(size_of::<T>())))
     })
 }
 
@@ -172,7 +192,7 @@ fn stl(bytes: &[u8]) -> Result<Vec<Vector3<f64>>> {
         if bytes.len() == 84 + 50 * count {
             let float = |at: usize| f32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]) as f64;
             let mut vertices = Vec::new();
-            grow(&mut vertices, 3 * count)?;
+            grow(&mut vertices, 3 * count, "vertices")?;
             vertices.extend(
                 (0..count).flat_map(|t| (1..4).map(move |v| 84 + 50 * t + 12 * v)).map(|at| Vector3::new(float(at), float(at + 4), float(at + 8))),
             );
@@ -181,11 +201,12 @@ fn stl(bytes: &[u8]) -> Result<Vec<Vector3<f64>>> {
     }
     let text = std::str::from_utf8(bytes).map_err(|_| bad("neither binary STL (wrong length) nor ASCII STL"))?;
     let mut vertices = Vec::new();
-    let mut words = text.split_whitespace();
-    while let Some(word) = words.next() {
+    let mut words = text.split_whitespace().enumerate();
+    while let Some((k, word)) = words.next() {
+        cancel_point(k)?;
         if word == "vertex" {
-            grow(&mut vertices, 1)?;
-            vertices.push(three(&mut words).ok_or_else(|| bad("a vertex without three numbers"))?);
+            grow(&mut vertices, 1, "vertices")?;
+            vertices.push(three(&mut (&mut words).map(|(_, w)| w)).ok_or_else(|| bad("a vertex without three numbers"))?);
         }
     }
     Ok(vertices)
@@ -195,25 +216,36 @@ fn stl(bytes: &[u8]) -> Result<Vec<Vector3<f64>>> {
 fn obj_faces(text: &str) -> Result<Triangles> {
     let (mut vertices, mut faces) = (Vec::new(), Vec::new());
     for (n, line) in text.lines().enumerate() {
+        cancel_point(n)?;
         let mut words = line.split_whitespace();
         match words.next() {
             Some("v") => {
-                grow(&mut vertices, 1)?;
+                grow(&mut vertices, 1, "vertices")?;
                 vertices.push(three(&mut words).ok_or_else(|| bad(format!("line {}: a vertex without three numbers", n + 1)))?);
             }
             Some("f") => {
                 let count = vertices.len() as i64;
-                let corners = words
-                    .map(|w| match w.split('/').next().and_then(|i| i.parse::<i64>().ok()) {
-                        Some(i) if i > 0 && i <= count => Ok(i as usize - 1),
-                        Some(i) if i < 0 && -i <= count => Ok((count + i) as usize),
-                        _ => Err(bad(format!("line {}: face corner {w:?} names no vertex", n + 1))),
-                    })
-                    .collect::<Result<Vec<usize>>>()?;
-                if corners.len() < 3 {
+                // The fan from the first corner: a triangle per corner after the second.
+                let (mut first, mut last, mut corners) = (0, 0, 0);
+                for w in words {
+                    let corner = match w.split('/').next().and_then(|i| i.parse::<i64>().ok()) {
+                        Some(i) if i > 0 && i <= count => i as usize - 1,
+                        Some(i) if i < 0 && -i <= count => (count + i) as usize,
+                        _ => return Err(bad(format!("line {}: face corner {w:?} names no vertex", n + 1))),
+                    };
+                    match corners {
+                        0 => first = corner,
+                        1 => {}
+                        _ => {
+                            grow(&mut faces, 1, "faces")?;
+                            faces.push([first, last, corner]);
+                        }
+                    }
+                    (last, corners) = (corner, corners + 1);
+                }
+                if corners < 3 {
                     return Err(bad(format!("line {}: a face with fewer than three corners", n + 1)));
                 }
-                faces.extend(corners.windows(2).skip(1).map(|pair| [corners[0], pair[0], pair[1]]));
             }
             _ => {}
         }
@@ -234,21 +266,20 @@ fn msh(bytes: &[u8]) -> Result<Triangles> {
     if size != Some(bytes.len()) {
         return Err(bad(format!("an MSH file of {} bytes for {nv} vertices, {nn} normals, {nt} texture coordinates and {nf} faces", bytes.len())));
     }
-    let mut vertices = Vec::new();
-    grow(&mut vertices, nv)?;
+    let (mut vertices, mut faces) = (Vec::new(), Vec::new());
+    grow(&mut vertices, nv, "vertices")?;
+    grow(&mut faces, nf, "faces")?;
     let float = |at: usize| f32::from_le_bytes(word(at)) as f64;
     vertices.extend((0..nv).map(|i| 16 + 12 * i).map(|at| Vector3::new(float(at), float(at + 4), float(at + 8))));
     let start = 16 + 12 * (nv + nn) + 8 * nt;
     let index = |at: usize| usize::try_from(i32::from_le_bytes(word(at))).ok().filter(|&i| i < nv);
-    let faces = (0..nf)
-        .map(|f| {
-            let at = start + 12 * f;
-            match (index(at), index(at + 4), index(at + 8)) {
-                (Some(a), Some(b), Some(c)) => Ok([a, b, c]),
-                _ => Err(bad(format!("face {f} names no vertex"))),
-            }
-        })
-        .collect::<Result<Vec<_>>>()?;
+    for f in 0..nf {
+        let at = start + 12 * f;
+        match (index(at), index(at + 4), index(at + 8)) {
+            (Some(a), Some(b), Some(c)) => faces.push([a, b, c]),
+            _ => return Err(bad(format!("face {f} names no vertex"))),
+        }
+    }
     Ok((vertices, faces))
 }
 
@@ -366,7 +397,7 @@ fn positions(ids: &HashMap<&str, Node>, geometry: Node, transform: &Matrix4<f64>
                     p[numbers % 3] = word.parse::<f64>().map_err(|_| bad(format!("<float_array> holds {word:?}")))?;
                     numbers += 1;
                     if numbers.is_multiple_of(3) {
-                        grow(out, 1)?;
+                        grow(out, 1, "vertices")?;
                         out.push((transform * Vector4::new(p[0], p[1], p[2], 1.0)).xyz());
                     }
                 }
@@ -435,7 +466,7 @@ mod tests {
 
     #[test]
     fn a_vertex_list_beyond_memory_is_too_large_naming_the_mesh() {
-        let error = grow(&mut Vec::new(), usize::MAX / 32).unwrap_err();
+        let error = grow(&mut Vec::<Vector3<f64>>::new(), usize::MAX / 32, "vertices").unwrap_err();
         assert!(matches!(error, Error::TooLarge { argument: "mesh", .. }) && error.to_string().contains("bytes"), "{error}");
     }
 

@@ -59,6 +59,7 @@ use roxmltree::Node;
 
 use crate::geometry::{Convex, Shape, ShapeKind};
 use crate::mesh::{mesh_triangles, mesh_vertices};
+use crate::validate::check_cancelled;
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
 /// How an MJCF becomes a model.
@@ -693,12 +694,19 @@ fn mesh_assets(root: &El, reader: &Reader) -> Result<Meshes> {
                 }
             }
             // MuJoCo stores vertices in single precision and scales them in double.
-            let scaled = |vertices: Vec<Vector3<f64>>| -> Vec<Vector3<f64>> {
-                vertices.iter().map(|v| v.map(|x| x as f32 as f64).component_mul(&scale)).collect()
+            let scaled = |mut vertices: Vec<Vector3<f64>>| -> Vec<Vector3<f64>> {
+                vertices.iter_mut().for_each(|v| *v = v.map(|x| x as f32 as f64).component_mul(&scale));
+                vertices
             };
-            let asset = match mesh_triangles(&path) {
-                Ok((vertices, faces)) => {
+            // Reading a mesh may take long: a cancelled load stops before the next.
+            check_cancelled("from_mjcf")?;
+            let asset = match readable(mesh_triangles(&path))? {
+                Ok((vertices, mut faces)) => {
                     let vertices = scaled(vertices);
+                    // A mirroring scale turns the faces inside out; MuJoCo turns them back.
+                    if scale.product() < 0.0 {
+                        faces.iter_mut().for_each(|f| f.swap(1, 2));
+                    }
                     let mass = if mode == "convex" {
                         Err("inertia=\"convex\" (the hull's volume) is not computed".to_owned())
                     } else {
@@ -706,14 +714,23 @@ fn mesh_assets(root: &El, reader: &Reader) -> Result<Meshes> {
                     };
                     Ok(MeshAsset { vertices, mass })
                 }
-                Err(faceless) => mesh_vertices(&path)
-                    .map(|vertices| MeshAsset { vertices: scaled(vertices), mass: Err(faceless.reason().to_owned()) })
-                    .map_err(|e| e.reason().to_owned()),
+                Err(faceless) => readable(mesh_vertices(&path))?.map(|vertices| MeshAsset { vertices: scaled(vertices), mass: Err(faceless) }),
             };
             meshes.insert(name, asset);
         }
     }
     Ok(meshes)
+}
+
+/// What reading a mesh file gave: a file that cannot be read is a warning (Ok(Err(reason))), but one too large for
+/// memory fails the load (`Error::TooLarge`: a MemoryError, as for any other part of the model), and so does a
+/// cancelled load.
+fn readable<T>(read: Result<T>) -> Result<std::result::Result<T, String>> {
+    match read {
+        Ok(x) => Ok(Ok(x)),
+        Err(e @ (Error::TooLarge { .. } | Error::Numerical { .. })) => Err(e),
+        Err(other) => Ok(Err(other.reason().to_owned())),
+    }
 }
 
 type Meshes = HashMap<String, std::result::Result<MeshAsset, String>>;
@@ -745,6 +762,9 @@ fn triangle(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> (f64, Vecto
     (0.5 * len, normal / len, center)
 }
 
+/// Why `mesh_mass` fails on numbers beyond float64 (where a silent NaN would leave the geom's mass out unsaid).
+const OVERFLOW: &str = "its volume or inertia overflows float64 (is its scale physical?)";
+
 /// A mesh's mass per unit density from its triangles, step by step as MuJoCo's compiler takes it
 /// [MuJoCo, user_mesh.cc: mjCMesh::Process, ComputeFaceCentroid, ComputeVolume, ComputeInertia]: the pyramids
 /// from the faces' area-weighted centroid to each face give the centre of mass, then the pyramids from the
@@ -759,8 +779,9 @@ fn mesh_mass(vertices: &[Vector3<f64>], faces: &[[usize; 3]], mode: &str) -> std
         area += s;
         facecen += center * s;
     }
-    if area < 1e-15 {
-        return Err("its surface area is too small".into());
+    // Negated comparisons, so that NaN (a scale that overflows) fails them too.
+    if !(area >= 1e-15) {
+        return Err(if area.is_finite() { "its surface area is too small" } else { OVERFLOW }.into());
     }
     facecen /= area;
     let shell = mode == "shell";
@@ -780,8 +801,13 @@ fn mesh_mass(vertices: &[Vector3<f64>], faces: &[[usize; 3]], mode: &str) -> std
         total += v;
         com += (center * 0.75 + facecen * 0.25) * v;
     }
-    if total < 1e-15 {
-        return Err(if total < 0.0 { "its volume is negative (misoriented faces)" } else { "its volume is too small" }.into());
+    if !(total >= 1e-15) {
+        return Err(match total {
+            t if t < 0.0 => "its volume is negative (misoriented faces)",
+            t if t.is_nan() => OVERFLOW,
+            _ => "its volume is too small",
+        }
+        .into());
     }
     com /= total;
     // Second moments P = Σ v/C (2 Σ D Dᵀ + Σ (D Eᵀ + E Dᵀ)) over each face's corners D, E, F about the centre of mass.
@@ -797,6 +823,9 @@ fn mesh_mass(vertices: &[Vector3<f64>], faces: &[[usize; 3]], mode: &str) -> std
         p += (2.0 * (d * d.transpose() + e * e.transpose() + g * g.transpose()) + outer(&d, &e) + outer(&d, &g) + outer(&e, &g)) * (v / weight);
     }
     let inertia = Matrix3::identity() * p.trace() - p;
+    if !(volume.is_finite() && com.iter().chain(inertia.iter()).all(|x| x.is_finite())) {
+        return Err(OVERFLOW.into());
+    }
     if SymmetricEigen::new(inertia).eigenvalues.min() <= 0.0 {
         return Err("its inertia is not positive".into());
     }

@@ -61,7 +61,7 @@ where
 
 /// Forward dynamics with the contacts held still (Hardt & von Stryk eq. 1–3): the points (`dim=3`) or the bodies'
 /// frames at them (`dim=6`). Returns (ddq (..., nv), forces (..., k, dim)), the forces (with dim 6, wrenches [force;
-/// torque about the point]) on the robot at the contacts in world axes.
+/// torque about the point]) on the robot at the contacts in world axes; dependent contacts get the minimum-norm forces.
 #[pyfunction]
 #[pyo3(signature = (model, q, v, tau, contacts, dim = Integer::new(3)))]
 pub fn contact_dynamics<'py>(

@@ -1,6 +1,7 @@
 //! Long calls run in pieces of whole steps, each with the GIL released, and Python's signal handlers run
 //! between pieces: Ctrl-C raises KeyboardInterrupt within about `PIECE` of work, and what was done before
-//! it (whole steps) is kept. Work that cannot be cut in pieces runs on a thread of its own (`on_worker`).
+//! it (whole steps) is kept. Work that cannot be cut in pieces runs on a thread of its own (`on_worker`, or
+//! `interruptible` for work that borrows from the caller and undoes itself when stopped).
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError};
@@ -27,7 +28,12 @@ impl Pace {
         (PIECE.as_nanos() as u64).checked_div(self.0.load(Ordering::Relaxed)).map_or(1, |units| units.max(1))
     }
 
-    fn record(&self, took: Duration, units: u64) {
+    /// Whether `units` take no more than one `PIECE` at the pace last measured (unknown: only one unit does).
+    pub fn fits_one_piece(&self, units: u64) -> bool {
+        units <= self.units_per_piece()
+    }
+
+    pub fn record(&self, took: Duration, units: u64) {
         let unit = (took.as_nanos() / u128::from(units.max(1))).clamp(1, u128::from(u64::MAX)) as u64;
         self.0.store(unit, Ordering::Relaxed);
     }
@@ -85,16 +91,66 @@ where
         })
         .map_err(|e| PyRuntimeError::new_err(format!("{what}: cannot start a thread: {e}")))?;
     loop {
-        // The receiver goes with the wait (it may not be shared between threads, only moved).
-        let (back, received) = py.detach(move || {
-            let received = receiver.recv_timeout(PIECE);
-            (receiver, received)
-        });
-        receiver = back;
+        let received;
+        (receiver, received) = receive(py, receiver);
         match received {
             Ok(result) => return Ok(result),
             Err(RecvTimeoutError::Timeout) => py.check_signals().inspect_err(|_| cancel.store(true, Ordering::Relaxed))?,
             Err(RecvTimeoutError::Disconnected) => return Err(PyRuntimeError::new_err(format!("{what}: failed inside a dependency (a panic)"))),
         }
     }
+}
+
+/// `work(flag)` on a scoped thread of its own, so that it may borrow from the caller, which waits with the GIL released
+/// and runs Python's signal handlers every `PIECE`, as in `on_worker`. On Ctrl-C the caller sets `flag` and waits for
+/// the work to stop before raising KeyboardInterrupt: the work checks the flag between bounded units
+/// (`validate::check_cancelled`; the worker runs under `cancellable(flag, ..)`, and work spread over other threads must
+/// run under it there too) and must leave everything as it was when it stops. A panic in it is a RuntimeError naming
+/// `what`.
+pub fn interruptible<T, F>(py: Python<'_>, what: &str, work: F) -> PyResult<T>
+where
+    T: Send,
+    F: FnOnce(&Arc<AtomicBool>) -> T + Send,
+{
+    let cancel = Arc::new(AtomicBool::new(false));
+    let (sender, mut receiver) = mpsc::channel();
+    std::thread::scope(|scope| {
+        let flag = Arc::clone(&cancel);
+        let worker = std::thread::Builder::new()
+            .name(what.to_owned())
+            .stack_size(WORKER_STACK)
+            .spawn_scoped(scope, move || {
+                let _ = sender.send(cancellable(Arc::clone(&flag), || work(&flag)));
+            })
+            .map_err(|e| PyRuntimeError::new_err(format!("{what}: cannot start a thread: {e}")))?;
+        let mut interrupted = None;
+        let result = loop {
+            let received;
+            (receiver, received) = receive(py, receiver);
+            match received {
+                Ok(result) => break Some(result),
+                Err(RecvTimeoutError::Timeout) if interrupted.is_none() => {
+                    interrupted = py.check_signals().inspect_err(|_| cancel.store(true, Ordering::Relaxed)).err();
+                }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break None,
+            }
+        };
+        // The worker has sent its result or panicked: it ends at once.
+        let _ = py.detach(|| worker.join());
+        match (interrupted, result) {
+            (Some(interrupt), _) => Err(interrupt),
+            (None, Some(result)) => Ok(result),
+            (None, None) => Err(PyRuntimeError::new_err(format!("{what}: failed inside a dependency (a panic)"))),
+        }
+    })
+}
+
+/// What `receiver` brings within one `PIECE`, waited for with the GIL released; the receiver goes with the wait and
+/// comes back (it may not be shared between threads, only moved).
+fn receive<T: Send>(py: Python<'_>, receiver: mpsc::Receiver<T>) -> (mpsc::Receiver<T>, Result<T, RecvTimeoutError>) {
+    py.detach(move || {
+        let received = receiver.recv_timeout(PIECE);
+        (receiver, received)
+    })
 }

@@ -4,7 +4,11 @@ use legkit_dynamics::model::check_vector;
 use legkit_dynamics::sim::{
     dof_coordinates, Backend, FrictionLaw, Ground, Options, Servo, Simulation, DEFAULT_SOLVER_ITERATIONS, MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS,
 };
-use legkit_dynamics::validate::{array_len, with_capacity};
+use legkit_dynamics::validate::{array_len, cancellable, with_capacity};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Instant;
+
 use nalgebra::{DMatrix, Vector3};
 use numpy::{PyArray1, PyArray2, PyArray3};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
@@ -13,7 +17,7 @@ use pyo3::types::{PyDict, PyList, PyTuple};
 
 use crate::batch::on_all_threads;
 use crate::convert::{batch_error, homogeneous, kernel_error, to_numpy, Floats, Integer};
-use crate::interrupt::{in_pieces, Pace};
+use crate::interrupt::{in_pieces, interruptible, Pace};
 use crate::model::PyModel;
 use crate::shapes::shape_overrides;
 use crate::workspace::finite_result;
@@ -128,6 +132,8 @@ pub struct PySimulation {
     /// The Model it was built from (its description; the simulation holds its own copy).
     model: Py<PyModel>,
     pace: Pace,
+    /// `transition_jacobians`' pace, per substep.
+    jacobian_pace: Pace,
 }
 
 /// A per-degree-of-freedom parameter: a scalar (applied to the joint coordinates, `base` on a floating
@@ -177,7 +183,7 @@ impl PySimulation {
         options.friction_law = FrictionLaw::parse(friction_law).map_err(kernel_error)?;
         options.shapes = shape_overrides(shapes.as_ref(), |key| model.body_index(key))?;
         let sim = Simulation::new(&model.model, options).map_err(kernel_error)?;
-        Ok(PySimulation { sim, model: model.into(), pace: Pace::default() })
+        Ok(PySimulation { sim, model: model.into(), pace: Pace::default(), jacobian_pace: Pace::default() })
     }
 
     /// The Model simulated.
@@ -262,8 +268,18 @@ impl PySimulation {
         let mut this = in_use(slf)?;
         let nv = this.sim.model().nv();
         let tau = tau.map(|t| vector_argument("tau", &t, nv)).transpose()?;
-        let sim = &mut this.sim;
-        let (a, b) = py.detach(|| finite_jacobians(sim, tau.as_deref())).map_err(kernel_error)?;
+        let PySimulation { sim, jacobian_pace, .. } = &mut *this;
+        // A chain of substeps that may run past one piece runs where Ctrl-C can stop it (`interruptible`); a short one
+        // is not worth a thread.
+        let substeps = sim.options().substeps as u64;
+        let started = Instant::now();
+        let (a, b) = if jacobian_pace.fits_one_piece(substeps) {
+            py.detach(|| finite_jacobians(sim, tau.as_deref()))
+        } else {
+            interruptible(py, "transition_jacobians", |_| finite_jacobians(sim, tau.as_deref()))?
+        }
+        .map_err(kernel_error)?;
+        jacobian_pace.record(started.elapsed(), substeps);
         // Copied row by row into a fallibly reserved vector: a MemoryError naming the model, not an abort.
         let row_major = |m: &DMatrix<f64>| -> PyResult<Vec<f64>> {
             let mut out = with_capacity("model", m.len()).map_err(kernel_error)?;
@@ -447,6 +463,8 @@ fn busy() -> PyErr {
 pub struct PySimulationBatch {
     members: Vec<Py<PySimulation>>,
     pace: Pace,
+    /// `transition_jacobians`' pace, per substep of all the simulations.
+    jacobian_pace: Pace,
 }
 
 #[pymethods]
@@ -469,7 +487,7 @@ impl PySimulationBatch {
             }
             members.push(sim.clone().unbind());
         }
-        Ok(PySimulationBatch { members, pace: Pace::default() })
+        Ok(PySimulationBatch { members, pace: Pace::default(), jacobian_pace: Pace::default() })
     }
 
     /// Advances every simulation `n` steps, in parallel. `tau`: None (zero), one (nv,) array for all, a
@@ -512,7 +530,18 @@ impl PySimulationBatch {
         }
         let taus = self.torques(&guards, tau)?;
         let items: Vec<_> = guards.iter_mut().map(|g| &mut g.sim).zip(&taus).collect();
-        let outcomes = py.detach(|| on_all_threads(items, || (), |_, _, (sim, tau)| finite_jacobians(sim, tau.as_deref())));
+        // As `Simulation.transition_jacobians`, over the substeps of all the simulations.
+        let substeps = items.iter().map(|(sim, _)| sim.options().substeps as u64).sum();
+        let jacobians = |flag: &Arc<AtomicBool>| {
+            on_all_threads(items, || (), |_, _, (sim, tau)| cancellable(Arc::clone(flag), || finite_jacobians(sim, tau.as_deref())))
+        };
+        let started = Instant::now();
+        let outcomes = if self.jacobian_pace.fits_one_piece(substeps) {
+            py.detach(|| jacobians(&Arc::default()))
+        } else {
+            interruptible(py, "transition_jacobians", jacobians)?
+        };
+        self.jacobian_pace.record(started.elapsed(), substeps);
         let count = outcomes.len();
         let len = |columns: usize| array_len("simulations", &[count, 2 * nv, columns * nv], std::mem::size_of::<f64>()).map_err(kernel_error);
         let mut a_all = with_capacity("simulations", len(2)?).map_err(kernel_error)?;

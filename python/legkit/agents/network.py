@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import legkit as lk
-from legkit._validation import float_array
+from legkit._validation import float_array, integer
 from legkit.agents import moments
 from legkit.agents.bus import BusConfig, Channel
 from legkit.robots.superbot import CONNECTOR_BLOCK, ModelLayout, ModuleParameters, ModuleTree, module_kinematics_components
@@ -366,12 +366,16 @@ class AgentNetwork:
         return self.transmissions - before
 
     def run(self, rounds: int) -> int:
-        """Run ``rounds`` rounds; returns the data messages sent."""
+        """Run ``rounds`` (>= 0) rounds; returns the data messages sent."""
+        if integer(rounds, "rounds") < 0:
+            raise ValueError(f"rounds: must be >= 0, got {rounds}")
         return sum(self.round() for _ in range(rounds))
 
     def run_until_quiescent(self, max_rounds: int = 100_000) -> int:
         """Run rounds until every channel is idle (nothing in flight, nothing unacknowledged); returns the
-        rounds run. Raises RuntimeError if that takes more than ``max_rounds``."""
+        rounds run. Raises RuntimeError if that takes more than ``max_rounds`` (>= 0)."""
+        if integer(max_rounds, "max_rounds") < 0:
+            raise ValueError(f"max_rounds: must be >= 0, got {max_rounds}")
         for rounds in range(max_rounds + 1):
             if self.quiescent:
                 return rounds

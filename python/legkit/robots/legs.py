@@ -8,6 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
+from legkit._validation import float_array, positive_scalar
 
 
 def limb_segment(mass: float, length: float, width: float) -> lk.MassProperties:
@@ -20,9 +21,13 @@ def roll_pitch_knee_ik(foot: npt.ArrayLike, upper: float, lower: float, knee_dir
 
     Forward map: foot = R_x(roll) R_y(pitch) [(0, 0, -upper) + R_y(knee) (0, 0, -lower)]. knee_direction
     (+1/-1) picks the sign of the knee angle. Returns (..., 3) [roll, pitch, knee] [rad]; ValueError when the
-    foot is farther than upper + lower or closer than |upper - lower| (with 1e-12 slack).
+    foot is farther than upper + lower or closer than |upper - lower| (with 1e-12 slack), or the arguments are not
+    finite (NaN would come back as angles).
     """
-    f = np.asarray(foot, dtype=np.float64)
+    f = float_array(foot, "foot", last=3)
+    upper, lower = positive_scalar(upper, "upper"), positive_scalar(lower, "lower")
+    if knee_direction not in (1, -1):
+        raise ValueError(f"knee_direction: must be +1 or -1, got {knee_direction!r}")
     roll = np.arctan2(f[..., 1], -f[..., 2])
     wx, wz = f[..., 0], -np.hypot(f[..., 1], f[..., 2])
     reach_sq = wx * wx + wz * wz

@@ -481,8 +481,9 @@ def random_tree(
     root has five free connectors)."""
     for name, value in (("n_modules", n_modules), ("branches", branches), ("seed", seed)):
         integer(value, name)
-    if n_modules < 0:
-        raise ValueError(f"n_modules: must be >= 0, got {n_modules}")
+    if n_modules < 0 or seed < 0:
+        name, value = ("n_modules", n_modules) if n_modules < 0 else ("seed", seed)
+        raise ValueError(f"{name}: must be >= 0, got {value}")
     if not 1 <= branches <= 5:
         raise ValueError(f"branches: must be in 1..5 (the root has five free connectors), got {branches}")
     if branches > max(n_modules, 1):

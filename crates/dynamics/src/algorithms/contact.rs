@@ -194,14 +194,14 @@ fn contact_acceleration(at: &FramePoint, dim: ContactDim, out: &mut [f64]) {
 }
 
 /// The inverse of the symmetric positive definite `s` (n x n, column-major) into `inverse` by its Cholesky factor L
-/// (S⁻¹ = L⁻ᵀ L⁻¹), in plain loops with `l` (n x n) as scratch; false if a pivot keeps no more than 1e-10 of its diagonal
-/// entry (a rank deficiency in rounding) or the matrix is not positive definite.
-fn spd_inverse(s: &[f64], n: usize, l: &mut [f64], inverse: &mut [f64]) -> bool {
+/// (S⁻¹ = L⁻ᵀ L⁻¹), in plain loops with `l` (n x n) as scratch; Err(j) at the first pivot j that keeps no more than
+/// 1e-10 of its diagonal entry (a rank deficiency in rounding: row j depends on the rows before it) or is not positive.
+fn spd_inverse(s: &[f64], n: usize, l: &mut [f64], inverse: &mut [f64]) -> std::result::Result<(), usize> {
     // L in the lower triangle: l[i + n j] = L_ij (i ≥ j).
     for j in 0..n {
         let pivot = s[j + n * j] - (0..j).map(|k| l[j + n * k] * l[j + n * k]).sum::<f64>();
         if !(pivot > 1e-10 * s[j + n * j]) {
-            return false;
+            return Err(j);
         }
         l[j + n * j] = pivot.sqrt();
         for i in j + 1..n {
@@ -224,7 +224,12 @@ fn spd_inverse(s: &[f64], n: usize, l: &mut [f64], inverse: &mut [f64]) -> bool 
             inverse[j + n * i] = x;
         }
     }
-    true
+    Ok(())
+}
+
+/// A singular M: the model's fault (a numerical failure with valid arguments), not the contacts'.
+fn singular_mass_matrix() -> Error {
+    Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint carrying no inertia?)")
 }
 
 /// M⁻¹ at q, checked: an error if M is singular.
@@ -232,24 +237,25 @@ fn checked_minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d 
     let minv = minv(model, data, q);
     // The diagonal read in place (`diagonal()` would copy it out).
     if !minv.as_slice().iter().step_by(minv.nrows() + 1).all(|x| x.is_finite() && *x > 0.0) {
-        return Err(Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint carrying no inertia?)"));
+        return Err(singular_mass_matrix());
     }
     Ok(minv)
 }
 
-/// The KKT system [M −Jᵀ; J 0] of the rows in `w` at q, through the Schur complement S = J M⁻¹ Jᵀ: M⁻¹ Jᵀ and S⁻¹ into
-/// `w` (after `constraint`). Ok(false) if the contacts are not independent (S singular); then `w.schur_inverse`
-/// holds S itself. An error if M is singular.
-pub(crate) fn factor(model: &Model, data: &mut Data, w: &mut ContactWorkspace, q: &[f64]) -> Result<bool> {
+/// The KKT system [M −Jᵀ; J 0] of the rows in `w` at q, through the Schur complement S = J M⁻¹ Jᵀ (the contacts'
+/// Gram matrix in the metric M⁻¹, the Delassus matrix): M⁻¹ Jᵀ and S⁻¹ into `w` (after `constraint`). Ok(Some(j)) if
+/// the contacts are not independent, j the first constraint row that depends on the rows before it (S singular);
+/// then `w.schur_inverse` holds S itself. An error if M is singular.
+pub(crate) fn factor(model: &Model, data: &mut Data, w: &mut ContactWorkspace, q: &[f64]) -> Result<Option<usize>> {
     let (r, nv) = w.shape;
     let minv = checked_minv(model, data, q)?.as_slice();
     gemm(&mut w.minv_jt, nv, 1.0, minv, &w.jacobian, transposed(r), 0.0);
     gemm(&mut w.schur, r, 1.0, &w.jacobian, &w.minv_jt, plain(nv), 0.0);
-    let independent = spd_inverse(&w.schur, r, &mut w.cholesky, &mut w.schur_inverse);
-    if !independent {
+    let dependent = spd_inverse(&w.schur, r, &mut w.cholesky, &mut w.schur_inverse).err();
+    if dependent.is_some() {
         w.schur_inverse.copy_from_slice(&w.schur);
     }
-    Ok(independent)
+    Ok(dependent)
 }
 
 /// After `factor` of independent contacts, G and the projected M⁻¹ − M⁻¹ Jᵀ G into `w` (the KKT inverse's blocks):
@@ -322,7 +328,7 @@ pub fn contact_dynamics(
     })
 }
 
-/// `contact_dynamics` into `w.solution` and `w.forces`; Ok(independent).
+/// `contact_dynamics` into `w.solution` and `w.forces`; Ok(the first dependent constraint row, if any: `factor`).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn contact_solution(
     model: &Model,
@@ -333,7 +339,7 @@ pub(crate) fn contact_solution(
     tau: &[f64],
     contacts: &[ContactPoint],
     dim: ContactDim,
-) -> Result<bool> {
+) -> Result<Option<usize>> {
     constraint(model, data, w, q, v, contacts, dim)?;
     w.drift.iter_mut().for_each(|x| *x = -*x);
     // τ − h, h = rnea(q, v, 0), in `rhs_top`'s first column.
@@ -342,11 +348,11 @@ pub(crate) fn contact_solution(
     for ((x, t), h) in w.rhs_top[..nv].iter_mut().zip(tau).zip(bias.iter()) {
         *x = t - h;
     }
-    let independent = factor(model, data, w, q)?;
+    let dependent = factor(model, data, w, q)?;
     let a = std::mem::take(&mut w.rhs_top);
-    solve(data, w, independent, &a[..nv]);
+    solve(data, w, dependent.is_none(), &a[..nv]);
     w.rhs_top = a;
-    Ok(independent)
+    Ok(dependent)
 }
 
 /// Post-impact velocities of a perfectly inelastic impact at the contacts: M (v⁺ − v⁻) = Jᵀ Λ, J v⁺ = 0.
@@ -366,7 +372,7 @@ pub fn impact(
     })
 }
 
-/// `impact` into `w.solution` (v⁺) and `w.forces`; Ok(independent).
+/// `impact` into `w.solution` (v⁺) and `w.forces`; Ok(the first dependent constraint row, if any: `factor`).
 pub(crate) fn impact_solution(
     model: &Model,
     data: &mut Data,
@@ -375,17 +381,17 @@ pub(crate) fn impact_solution(
     v: &[f64],
     contacts: &[ContactPoint],
     dim: ContactDim,
-) -> Result<bool> {
+) -> Result<Option<usize>> {
     constraint(model, data, w, q, v, contacts, dim)?;
     let nv = model.nv();
     // The change of velocity: a = 0, b = −J v⁻.
     gemm(&mut w.drift, w.shape.0, -1.0, &w.jacobian, v, plain(nv), 0.0);
-    let independent = factor(model, data, w, q)?;
+    let dependent = factor(model, data, w, q)?;
     let zeros = std::mem::take(&mut w.zeros);
-    solve(data, w, independent, &zeros);
+    solve(data, w, dependent.is_none(), &zeros);
     w.zeros = zeros;
     w.solution.iter_mut().zip(v).for_each(|(x, v)| *x += v);
-    Ok(independent)
+    Ok(dependent)
 }
 
 /// Picks `rank` columns of `j` that are linearly independent (greedy pivoting on the residual norms).
@@ -430,7 +436,7 @@ pub fn reduced_dynamics(
     let mass = crba(model, data, q).clone();
     let bias = rnea(model, data, q, v, &vec![0.0; nv], None).clone();
     if mass.clone().cholesky().is_none() {
-        return Err(Error::numerical("model", "the mass matrix is singular at this configuration (a moving joint carrying no inertia?)"));
+        return Err(singular_mass_matrix());
     }
     let (jc, gamma) = with_workspace(data, |data, w| {
         constraint(model, data, w, q, v, contacts, ContactDim::Point)?;

@@ -62,8 +62,21 @@ pub struct ImpactDerivatives {
     pub impulses_dv: DMatrix<f64>,
 }
 
-fn dependent() -> Error {
-    Error::invalid("contacts", "the contacts are not independent (J M⁻¹ Jᵀ is singular): their forces, and so the derivatives, are not unique")
+/// Dependent contacts (`factor` found constraint row `row` to depend on the rows before it): the caller's constraint
+/// set is redundant, so its forces are not unique (`contact_dynamics` and `impact` take the minimum-norm ones; their
+/// derivatives do not exist). Names the contact and the matrix, so that the caller knows which contact to drop.
+fn dependent(contacts: &[ContactPoint], dim: ContactDim, row: usize) -> Error {
+    let (k, d) = (row / dim.rows(), dim.rows());
+    Error::invalid(
+        "contacts",
+        format!(
+            "the contacts are not independent: row {} of {d} of contact {k} (body {}) depends on the rows before it (the contact \
+             Gram matrix J M⁻¹ Jᵀ is singular there: a repeated contact, or one on a body that cannot move that way), so the \
+             forces, and their derivatives, are not unique",
+            row % d + 1,
+            contacts[k].body
+        ),
+    )
 }
 
 /// The contact forces `w.forces` (world axes, at the points) as forces on their bodies fixed in the bodies' frames
@@ -181,8 +194,8 @@ pub fn contact_dynamics_derivatives_into(
     let (nv, r) = (model.nv(), rows(contacts, dim));
     assert!(ddq_d.len() == 3 * nv * nv && forces_d.len() == 3 * r * nv, "contact_dynamics_derivatives_into: outputs of 3 nv x nv and 3 r x nv");
     with_workspace(data, |data, w| {
-        if !contact_solution(model, data, w, q, v, tau, contacts, dim)? {
-            return Err(dependent());
+        if let Some(row) = contact_solution(model, data, w, q, v, tau, contacts, dim)? {
+            return Err(dependent(contacts, dim, row));
         }
         // The rows' partial derivatives: M q̈ + h − Jᵀλ − τ (inverse dynamics with the forces applied) and J q̈ + γ.
         body_forces(data, w, contacts, dim);
@@ -253,8 +266,8 @@ pub fn impact_derivatives_into(
     assert!(velocity_d.len() == 2 * nv * nv && impulses_d.len() == 2 * r * nv, "impact_derivatives_into: outputs of 2 nv x nv and 2 r x nv");
     with_workspace(data, |data, w| {
         // M (v⁺ − v) − Jᵀ Λ = 0, J v⁺ = 0.
-        if !impact_solution(model, data, w, q, v, contacts, dim)? {
-            return Err(dependent());
+        if let Some(row) = impact_solution(model, data, w, q, v, contacts, dim)? {
+            return Err(dependent(contacts, dim, row));
         }
         // ∂(J v⁺)/∂q: the contacts' velocities at v⁺.
         motion_derivatives(model, data, q, &w.solution, None, Motion::zeros());

@@ -32,7 +32,7 @@ use crate::model::{Data, Dense, Model};
 use crate::sim::actuation::Actuation;
 use crate::sim::Engine;
 use crate::spatial::{Motion, Transform};
-use crate::validate::{array_len, filled};
+use crate::validate::{array_len, check_cancelled, filled};
 use crate::{Error, Result};
 
 /// The configuration step of the central differences of the contacts' generalized impulses (rad or m).
@@ -237,6 +237,9 @@ impl TreeSimulation {
         zeroed(a, 2 * nv, 2 * nv)?;
         zeroed(b, 2 * nv, 3 * nv)?;
         for s in 0..substeps {
+            // A thousand substeps of a large model take seconds: a caller that was interrupted stops them here, and
+            // `transition_jacobians` undoes what was taken.
+            check_cancelled("transition_jacobians")?;
             q_start.copy_from_slice(&q_s);
             v_start.copy_from_slice(&v_s);
             self.substep(actuation, &mut q_s, &mut v_s, &mut applied)?;

@@ -1,0 +1,199 @@
+"""Hostile mesh files, as URDF collision meshes and as MJCF mesh assets (whose triangles give the geoms' mass):
+lying headers, truncated files, faces naming no vertex, non-finite vertices, sizes beyond memory, degenerate and
+open meshes under each inertia mode, mirroring and overflowing scales. Each file case runs in a child process with
+a timeout and a memory limit (`test_hostile.outcome`); what MuJoCo compiles is compared with MuJoCo.
+"""
+
+from __future__ import annotations
+
+import struct
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import legkit as lk
+from test_hostile import binary_stl, outcome, raises
+
+CUBE = np.array([[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)])
+# Outward (counter-clockwise seen from outside) triangles of the unit cube.
+CUBE_FACES = np.array(
+    [[0, 3, 2], [0, 1, 3], [4, 7, 5], [4, 6, 7], [0, 5, 1], [0, 4, 5], [2, 7, 6], [2, 3, 7], [0, 6, 4], [0, 2, 6], [1, 7, 3], [1, 5, 7]]
+)
+
+
+def obj_text(vertices: np.ndarray, faces: list | np.ndarray, extra: str = "") -> str:
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in vertices.tolist()]
+    lines += ["f " + " ".join(str(i) for i in face) for face in faces]
+    return "\n".join(lines) + "\n" + extra
+
+
+def stl_bytes(vertices: np.ndarray, faces: np.ndarray, count: int | None = None) -> bytes:
+    records = np.zeros(len(faces), dtype=[("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
+    records["corners"] = vertices[faces]
+    return b"\0" * 80 + struct.pack("<I", len(faces) if count is None else count) + records.tobytes()
+
+
+def msh_bytes(counts: tuple[int, int, int, int], faces: np.ndarray = CUBE_FACES) -> bytes:
+    return struct.pack("<4i", *counts) + CUBE.astype("<f4").tobytes() + faces.astype("<i4").tobytes()
+
+
+CUBE_OBJ = obj_text(CUBE, CUBE_FACES + 1)
+
+# name: (file name, contents, what the warning says). Each is refused as a mesh (a warning), never a crash.
+BROKEN = {
+    "stl-count-lies": ("m.stl", stl_bytes(CUBE, CUBE_FACES, count=10**8), "neither binary STL (wrong length) nor ASCII STL"),
+    "stl-truncated": ("m.stl", stl_bytes(CUBE, CUBE_FACES)[:-7], "neither binary STL (wrong length) nor ASCII STL"),
+    "stl-ascii-short-vertex": ("m.stl", b"solid s\nfacet normal 0 0 1\nouter loop\nvertex 1 2\nendloop\nendfacet\nendsolid s\n",
+                               "a vertex without three numbers"),
+    "obj-index-zero": ("m.obj", CUBE_OBJ + "f 0 1 2\n", 'face corner "0" names no vertex'),
+    "obj-index-beyond": ("m.obj", CUBE_OBJ + "f 1 2 100\n", 'face corner "100" names no vertex'),
+    "obj-negative-beyond": ("m.obj", CUBE_OBJ + "f -1 -2 -9\n", 'face corner "-9" names no vertex'),
+    "obj-two-corners": ("m.obj", CUBE_OBJ + "f 1 2\n", "a face with fewer than three corners"),
+    "obj-nan-vertex": ("m.obj", "v nan 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n", "a vertex is not finite"),
+    "obj-inf-vertex": ("m.obj", "v 1e999 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n", "a vertex is not finite"),
+    "msh-faces-lie": ("m.msh", msh_bytes((8, 0, 0, 10**8)), "an MSH file of 256 bytes for 8 vertices"),
+    "msh-negative-count": ("m.msh", msh_bytes((-1, 0, 0, 12)), "an MSH file of 256 bytes"),
+    "msh-counts-overflow": ("m.msh", msh_bytes((2**31 - 1,) * 4), "an MSH file of 256 bytes for 2147483647 vertices"),
+    "msh-face-beyond": ("m.msh", msh_bytes((8, 0, 0, 12), np.vstack([CUBE_FACES[:-1], [[0, 1, -5]]])), "face 11 names no vertex"),
+    "msh-header-cut": ("m.msh", b"\x08\x00\x00", "shorter than its header"),
+}
+
+URDF = (
+    '<robot name="r"><link name="base"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>'
+    '</inertial><collision><geometry><mesh filename="{file}" scale="{scale}"/></geometry></collision></link></robot>'
+)
+MJCF = (
+    '<mujoco><asset><mesh name="m" file="{file}" scale="{scale}" inertia="{inertia}"/></asset><worldbody><body name="b">'
+    '<freejoint/><geom type="mesh" mesh="m"/><geom size="0.1"/></body></worldbody></mujoco>'
+)
+
+LOAD = """
+import warnings
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    model = {load}
+report(raised=None, warnings=[str(w.message) for w in caught], mass=model.body(0).mass)
+"""
+
+
+def load(kind: str, path: Path, scale: str = "1 1 1", inertia: str = "legacy") -> str:
+    if kind == "urdf":
+        return f"lk.Model.from_urdf({URDF.format(file=path, scale=scale)!r})"
+    return f"lk.Model.from_mjcf({MJCF.format(file=path, scale=scale, inertia=inertia)!r})"
+
+
+@pytest.mark.parametrize("kind", ["urdf", "mjcf"])
+@pytest.mark.parametrize("case", sorted(BROKEN))
+def test_a_broken_mesh_file_is_a_warning_naming_what_is_wrong(tmp_path, case, kind):
+    name, contents, reason = BROKEN[case]
+    path = tmp_path / name
+    path.write_bytes(contents if isinstance(contents, bytes) else contents.encode())
+    result = outcome(LOAD.format(load=load(kind, path)))
+    assert result["raised"] is None and any(reason in w and str(path) in w for w in result["warnings"]), result
+
+
+def write(path: Path, vertices: np.ndarray, faces: np.ndarray) -> Path:
+    """The mesh as OBJ, binary STL or MSH by the suffix."""
+    if path.suffix == ".obj":
+        path.write_text(obj_text(vertices, faces + 1))
+    elif path.suffix == ".stl":
+        path.write_bytes(stl_bytes(vertices, faces))
+    else:
+        path.write_bytes(struct.pack("<4i", len(vertices), 0, 0, len(faces)) + vertices.astype("<f4").tobytes() + faces.astype("<i4").tobytes())
+    return path
+
+
+def mujoco_mass(xml: str) -> tuple[float, np.ndarray] | str:
+    """The free body's mass and principal moments as MuJoCo compiles them, or its error."""
+    mujoco = pytest.importorskip("mujoco")
+    try:
+        m = mujoco.MjModel.from_xml_string(xml)
+    except ValueError as error:
+        return str(error)
+    return float(m.body_mass[1]), np.sort(m.body_inertia[1])
+
+
+MESHES = {
+    "cube": CUBE_FACES,
+    "open": CUBE_FACES[:-2],  # two triangles missing: MuJoCo computes it all the same
+    "inside-out": CUBE_FACES[:, ::-1],
+}
+
+
+@pytest.mark.parametrize("scale", ["1 1 1", "-1 1 1", "-1 -2 0.5", "-1 -1 -1"])
+@pytest.mark.parametrize("inertia", ["legacy", "exact", "shell"])
+@pytest.mark.parametrize("mesh", sorted(MESHES))
+@pytest.mark.parametrize("suffix", [".obj", ".stl", ".msh"])
+def test_mesh_mass_under_each_inertia_mode_and_mirroring_scale_as_mujoco(tmp_path, suffix, mesh, inertia, scale):
+    # A mirroring scale (a negative product) turns the faces inside out, and MuJoCo turns them back: "exact" was left
+    # out as a negative volume. Where MuJoCo refuses the mesh (an inside-out one under "exact"), legkit leaves its
+    # mass out with a warning that says why.
+    path = write(tmp_path / f"m{suffix}", CUBE, MESHES[mesh])
+    xml = MJCF.format(file=path, scale=scale, inertia=inertia)
+    expected = mujoco_mass(xml)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model = lk.Model.from_mjcf(xml)
+    messages = [str(w.message) for w in caught]
+    ours = model.body(0)
+    if isinstance(expected, str):
+        assert "volume is negative" in expected and any("volume is negative" in m for m in messages), (expected, messages)
+        assert ours.mass == pytest.approx(4 / 3 * np.pi * 0.1**3 * 1000)  # the sphere alone
+    else:
+        mass, moments = expected
+        assert messages == []
+        assert ours.mass == pytest.approx(mass, rel=1e-9)
+        np.testing.assert_allclose(np.linalg.eigvalsh(ours.inertia), moments, rtol=1e-6)
+
+
+@pytest.mark.parametrize("scale", ["1e200 1 1", "1e308 1e308 1e308"])
+def test_a_scale_whose_mass_overflows_is_a_warning_and_refused_when_strict(tmp_path, scale):
+    # The overflow made the volume NaN, and a NaN mass failed every test that would have reported it: the geom's
+    # mass was left out without a word (MuJoCo refuses the model).
+    path = write(tmp_path / "m.obj", CUBE, CUBE_FACES)
+    xml = MJCF.format(file=path, scale=scale, inertia="exact")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        lk.Model.from_mjcf(xml)
+    assert any("overflows float64" in str(w.message) for w in caught), [str(w.message) for w in caught]
+    with pytest.raises(ValueError, match="overflows float64"):
+        lk.Model.from_mjcf(xml, strict=True)
+
+
+@pytest.mark.parametrize("kind", ["urdf", "mjcf"])
+def test_an_obj_face_of_millions_of_corners_beyond_memory_is_a_memory_error(tmp_path, kind):
+    # 18 MB of text: one face of 9 million corners, 216 MB of triangles in its fan, in 150 MB of headroom.
+    path = tmp_path / "m.obj"
+    path.write_text(obj_text(CUBE, [], extra="f " + "1 2 3 " * 3_000_000 + "\n"))
+    raises(
+        f"""
+vm = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (vm + 150 * 2**20, vm + 150 * 2**20))
+{load(kind, path)}
+""",
+        "MemoryError",
+        "mesh",
+        "m.obj",
+        "faces",
+        "bytes",
+        memory=0,
+    )
+
+
+def test_an_mjcf_mesh_too_large_for_memory_is_a_memory_error(tmp_path):
+    # As for a URDF's: the load fails, where the mesh was left out with a warning.
+    binary_stl(tmp_path / "m.stl", 4_000_000)
+    raises(
+        f"""
+vm = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (vm + 350 * 2**20, vm + 350 * 2**20))
+{load("mjcf", tmp_path / "m.stl")}
+""",
+        "MemoryError",
+        "mesh",
+        "m.stl",
+        "bytes",
+        memory=0,
+    )
