@@ -438,7 +438,7 @@ def quadruped_scene(trot: bool) -> Scene:
             sim.reset(q, v)
             done[0] = steps
 
-        return Runner(advance, lambda: len(sim.contacts()["body"]), base, lambda: (sim.q, sim.v, done[0]), restore)
+        return Runner(advance, lambda: len(sim.contacts()["body"]), base, lambda: (sim.q, sim.v, done[0]), restore, simulation=sim)
 
     def mujoco_runner() -> Runner:
         import mujoco
