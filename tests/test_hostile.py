@@ -955,6 +955,9 @@ def test_python_entry_points_refuse_non_finite_values_and_negative_counts_by_nam
         ["balance", "--trees", "10**12"],
         ["balance", "--trees", "1000000000000"],
         ["sweep", "--seeds", "1" * 5000],
+        ["strain", "--seed", "-1"],
+        ["balance", "--seed", "-1"],
+        ["tune", "--seed", "-1"],
     ],
 )
 def test_a_command_refuses_an_unwritable_out_or_a_huge_count_before_it_runs(tmp_path, capsys, argv):
@@ -966,6 +969,21 @@ def test_a_command_refuses_an_unwritable_out_or_a_huge_count_before_it_runs(tmp_
     assert exit.value.code == 2
     error = capsys.readouterr().err.strip().splitlines()[-1]
     assert error.startswith(f"legkit {argv[0]}: error: argument {argv[1]}: "), error
+
+
+@pytest.mark.parametrize(
+    "argv, given",
+    [(["--robot", "biped", "--biped-step", "10"], "--biped-speed/--biped-step"),
+     (["--robot", "quadruped", "--quadruped-speed", "1e6"], "--quadruped-speed/--quadruped-period")],
+)
+def test_gait_refuses_a_step_the_legs_cannot_reach_naming_the_arguments(tmp_path, capsys, argv, given):
+    from legkit.cli import main
+
+    with pytest.raises(SystemExit) as exit:
+        main(["gait", "--out", str(tmp_path), *argv])
+    assert exit.value.code == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert error.startswith(f"legkit gait: error: {given}: foot target out of reach"), error
 
 
 def test_a_sweep_without_its_spec_file_says_so_in_one_line(tmp_path, capsys):

@@ -150,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--trees", type=bounded_int(1, 1000), default=4, help="number of random trees (default 4)")
     parser.add_argument("--modules", type=bounded_int(1, 10_000), default=20, help="modules per tree besides the root (default 20)")
     parser.add_argument("--branches", type=bounded_int(1, 10_000), default=4, help="branches off the root (default 4)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the trees and of the bus (default 0)")
+    parser.add_argument("--seed", type=bounded_int(0, 2**31 - 1), default=0, help="seed of the trees and of the bus (default 0)")
     parser.add_argument("--duration", type=float, default=DEFAULT_DURATION, help=f"simulated seconds (default {DEFAULT_DURATION})")
     parser.add_argument("--loss", type=float, default=0.0, help="message loss probability (default 0: synchronous bus)")
     parser.add_argument("--friction", type=float, default=DEFAULT_FRICTION, help=f"ground friction coefficient (default {DEFAULT_FRICTION})")

@@ -100,18 +100,28 @@ def print_table(analyses: list[GaitAnalysis]) -> None:
         print(f"{key:{width}}  " + "  ".join(cells))
 
 
-def run(robot_name: str, args: argparse.Namespace, progress: Any) -> GaitAnalysis:
-    """Build the robot and its reference, analyse it, and write its CSV and figure."""
+def reference(robot_name: str, args: argparse.Namespace) -> tuple[Any, Any]:
+    """The robot and its hand-built reference gait at the command's speed, period and step. ValueError when a foot
+    target is out of the legs' reach."""
     if robot_name == "quadruped":
         quadruped = build_quadruped(AMBLE_QUADRUPED)
-        ref = quadruped_amble(quadruped, args.quadruped_speed, args.quadruped_period, args.samples, args.cycles, 0.03, AMBLE_HIP_HEIGHT)
+        return quadruped, quadruped_amble(quadruped, args.quadruped_speed, args.quadruped_period, args.samples, args.cycles, 0.03,
+                                          AMBLE_HIP_HEIGHT)
+    biped = build_biped()
+    return biped, biped_walk(biped, args.biped_speed / 3.6, args.biped_step, args.samples, args.cycles, 0.2, 0.05, 0.82, 0.3)
+
+
+def run(robot_name: str, args: argparse.Namespace, progress: Any) -> GaitAnalysis:
+    """Build the robot and its reference, analyse it, and write its CSV and figure."""
+    robot, ref = reference(robot_name, args)
+    if robot_name == "quadruped":
+        quadruped = robot
         model, motor, tip_speed = quadruped.model, QUADRUPED_MOTOR, args.quadruped_tip_speed
         diagonal = [(LEGS.index(a), LEGS.index(b)) for a, b in DIAGONAL_PAIRS]
         title = (f"Quadruped amble, duty 0.5, {args.quadruped_speed:g} m/s, period {args.quadruped_period:g} s: "
                  f"S_H over {args.cycles} cycle(s)")
     else:
-        biped = build_biped()
-        ref = biped_walk(biped, args.biped_speed / 3.6, args.biped_step, args.samples, args.cycles, 0.2, 0.05, 0.82, 0.3)
+        biped = robot
         model, motor, tip_speed, diagonal = biped.model, BIPED_MOTOR, args.biped_tip_speed, None
         title = f"Biped walk, {args.biped_speed:g} km/h: S_H over {args.cycles} cycle(s)"
     progress.update()
@@ -521,6 +531,12 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.0 <= args.torque_margin < 1.0:
         parser.error("--torque-margin must be in [0, 1)")
     robots = ["quadruped", "biped"] if args.robot == "both" else [args.robot]
+    for name in robots:
+        try:
+            reference(name, args)
+        except ValueError as error:  # a speed, period or step the legs cannot reach
+            given = "--quadruped-speed/--quadruped-period" if name == "quadruped" else "--biped-speed/--biped-step"
+            parser.error(f"{given}: {error}")
     if args.optimize:
         for name in robots:
             summary = run_optimized_amble(args) if name == "quadruped" else run_optimized_walk(args)

@@ -343,7 +343,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--modules", type=bounded_int(1, 10_000), default=20, help="modules per tree besides the root (default 20)")
     parser.add_argument("--branches", type=bounded_int(1, 10_000), default=4, help="branches off the root (default 4)")
     parser.add_argument("--paper-base-gains", action="store_true", help="keep the paper's K_P0, K_I0, K_D0 (search c0, c1 only)")
-    parser.add_argument("--seed", type=int, default=0, help="sampler seed (default 0)")
+    parser.add_argument("--seed", type=bounded_int(0, 2**31 - 1), default=0, help="sampler seed (default 0)")
     parser.add_argument("--t10-weight", type=float, default=T10_WEIGHT,
                         help=f"module widths per second of t10 in the objective (default {T10_WEIGHT})")
     parser.add_argument("--workers", type=bounded_int(1, 1024), default=1,
