@@ -264,7 +264,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=output_folder_argument, default="strain_out", help="directory for the figure")
     parser.add_argument("--runs", type=bounded_int(1, 1000), default=5, help="walking runs per speed")
     parser.add_argument("--duration", type=float, default=4.0, help="length of each walking run (s)")
-    parser.add_argument("--seed", type=bounded_int(0, 2**31 - 1), default=0, help="seed of the synthetic bench-top calibration and of the walking runs")
+    parser.add_argument("--seed", type=bounded_int(0, 2**31 - 1), default=0,
+                        help="seed of the synthetic bench-top calibration and of the walking runs")
     parser.add_argument("--source", choices=sorted(SOURCES), default="kinematic", help="walking data source")
     args = parser.parse_args(argv)
     if not 0 < args.duration <= 3600:
