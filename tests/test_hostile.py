@@ -700,6 +700,24 @@ def report(**fields):
     assert result["unchanged"] and result["twin"], result
 
 
+def test_ctrl_c_interrupts_one_long_substep_of_transition_jacobians(tmp_path):
+    # One substep of a 1000-link chain takes about 2.6 s (a pair of contact passes per coordinate); its first call,
+    # of a length not yet timed, is stopped too.
+    (tmp_path / "chain.urdf").write_text(chain_urdf(1000))
+    setup = f"""
+model = lk.Model.from_urdf({str(tmp_path / "chain.urdf")!r})
+sim = lk.Simulation(model)
+sim.step(None, 2)
+q = sim.q.copy()
+def fresh():
+    global sim
+    sim = lk.Simulation(model)
+    sim.step(None, 2)
+"""
+    result = assert_ctrl_c_answered_within_a_second(setup, "fresh(); sim.transition_jacobians()", after=0.5, memory=4 * GIB)
+    assert result["raised"] == "KeyboardInterrupt"
+
+
 @pytest.mark.slow
 def test_ctrl_c_interrupts_loading_a_huge_urdf(tmp_path):
     path = tmp_path / "chain.urdf"

@@ -28,9 +28,10 @@ impl Pace {
         (PIECE.as_nanos() as u64).checked_div(self.0.load(Ordering::Relaxed)).map_or(1, |units| units.max(1))
     }
 
-    /// Whether `units` take no more than one `PIECE` at the pace last measured (unknown: only one unit does).
+    /// Whether `units` take no more than one `PIECE` at the pace last measured (unknown: no, so a first call of a
+    /// size not yet timed runs where Ctrl-C can stop it).
     pub fn fits_one_piece(&self, units: u64) -> bool {
-        units <= self.units_per_piece()
+        self.0.load(Ordering::Relaxed) != 0 && units <= self.units_per_piece()
     }
 
     pub fn record(&self, took: Duration, units: u64) {

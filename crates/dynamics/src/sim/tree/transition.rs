@@ -393,6 +393,8 @@ impl TreeSimulation {
         t.slopes.columns_mut(nv, nv).zip_apply(dtau_dv, |s, d| *s += h * d);
         // − ∂(Σ J_cᵀ λ_c)/∂q at fixed v⁺, by central differences.
         for k in 0..nv {
+            // One coordinate's pair of contact passes: on a model of a thousand links the loop takes seconds.
+            check_cancelled("transition_jacobians")?;
             t.direction[k] = 1.0;
             integrate(model, q, &t.direction, -STEP, &mut t.displaced);
             self.contact_impulses(t, q, v)?;
