@@ -147,7 +147,10 @@ class Model:
         What exporters write and Pinocchio loads (non-physical inertias, effort="0") loads as written with
         a UrdfWarning naming the element, or raises ValueError if strict. A string starting with "<" (after a byte
         order mark and blanks) is XML, anything else a path; a path that is not a regular file (a FIFO, a device)
-        is refused before it is opened. Ctrl-C interrupts the load."""
+        is refused before it is opened. Ctrl-C interrupts the load. A ``floating`` joint becomes three slides along
+        its joint frame's axes and a ball joint (q Pinocchio's free-flyer q; the linear rate in the joint frame), refused
+        out of the root link with floating_base=True; the extension ``spherical`` a ball joint, with a UrdfWarning.
+        See docs/urdf_to_simulation.md."""
     @staticmethod
     def from_mjcf(path_or_xml: str | os.PathLike[str], floating_base: bool | None = None, strict: bool = False) -> Model:
         """A model from a MuJoCo MJCF path or XML string (``load_mjcf`` also gives its joints, actuators and

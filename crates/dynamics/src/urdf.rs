@@ -8,8 +8,18 @@
 //!   Pinocchio.
 //! - `<joint name type>` with `<parent link>`, `<child link>`, `<origin xyz rpy>` (default identity) and
 //!   `<axis xyz>` (default `1 0 0`, normalised; read only for moving joints). Types: `revolute` and
-//!   `continuous` become [`Joint::Revolute`], `prismatic` [`Joint::Prismatic`], `fixed` [`Joint::Fixed`];
-//!   any other type (`floating`, `planar`, ...) is an error.
+//!   `continuous` become [`Joint::Revolute`], `prismatic` [`Joint::Prismatic`], `fixed` [`Joint::Fixed`].
+//!   `floating` becomes three prismatic joints along the joint frame's x, y, z axes (massless bodies named
+//!   `"{child}/{joint}:x"`, `:y`, `:z`) and a [`Joint::Spherical`] moving the child link, because legkit's
+//!   free flyer can only be the base: q = `[x, y, z, qx, qy, qz, qw]` equals Pinocchio's `JointModelFreeFlyer`
+//!   q, and v = `[ṗ, ω]` has ω in the child frame as Pinocchio's but the linear rate ṗ in the joint frame
+//!   where Pinocchio's is `Rᵀṗ`, in the child frame (MuJoCo's free-joint coordinates, as [`crate::mjcf`]
+//!   reads a free body below a fixed world). With [`UrdfOptions::floating_base`] a `floating` joint out of
+//!   the root link is an error (the base would float twice); load such a file with a fixed base instead.
+//!   `spherical`, an extension outside the URDF specification (urdfdom and Pinocchio refuse it), becomes a
+//!   [`Joint::Spherical`] (q the unit quaternion `[qx, qy, qz, qw]`, v the angular velocity in the child
+//!   frame, as Pinocchio's `JointModelSpherical`) with a warning (an error under `strict`). `<limit>` and
+//!   `<dynamics>` are ignored on both. Any other type (`planar`, ...) is an error.
 //! - `<limit lower upper effort velocity>` of a moving joint becomes its [`JointLimits`]: `lower` and
 //!   `upper` (rad or m; each defaults to 0, as the specification says) bound a `revolute` or `prismatic`
 //!   joint; a `continuous` joint has no position limits (its `lower`/`upper` are ignored). `effort`
@@ -220,8 +230,15 @@ fn parse(xml: &str, argument: &'static str, options: &UrdfOptions, folder: Optio
         next[joint.parent] += 1;
     }
 
+    if let Some(joint) = joints.iter().find(|j| options.floating_base && j.free && j.parent == root) {
+        return Err(invalid(format!(
+            "joint {:?}: a floating joint out of the root link {:?} with floating_base: the base would float twice (load with a fixed base)",
+            joint.name, links[root].name
+        )));
+    }
     let mut model = Model::new(options.floating_base, links[root].body, links[root].name);
-    model.try_reserve(argument, links.len() - 1, joints.iter().map(|j| j.joint.nv()).sum())?;
+    let floating = joints.iter().filter(|j| j.free).count();
+    model.try_reserve(argument, links.len() - 1 + 3 * floating, joints.iter().map(|j| j.joint.nv()).sum::<usize>() + 3 * floating)?;
     let mut body_of_link: Vec<Option<usize>> = filled(argument, links.len(), None)?;
     body_of_link[root] = Some(0);
     let mut queue: VecDeque<usize> = VecDeque::new();
@@ -233,9 +250,17 @@ fn parse(xml: &str, argument: &'static str, options: &UrdfOptions, folder: Optio
         for &j in &by_parent[first_child[link]..first_child[link + 1]] {
             let joint = &joints[j];
             let child = &links[joint.child];
-            let body = model
-                .add_body(parent_body, joint.joint, joint.placement, child.body, child.name, joint.limits)
-                .map_err(|e| invalid(format!("joint {:?}: {e}", joint.name)))?;
+            let fail = |e: Error| invalid(format!("joint {:?}: {e}", joint.name));
+            let (mut parent, mut placement) = (parent_body, joint.placement);
+            if joint.free {
+                for (k, axis) in ["x", "y", "z"].iter().zip([Vector3::x(), Vector3::y(), Vector3::z()]) {
+                    let name = format!("{}/{}:{k}", child.name, joint.name);
+                    parent =
+                        model.add_body(parent, Joint::Prismatic(axis), placement, MassProperties::zero(), &name, JointLimits::NONE).map_err(fail)?;
+                    placement = Transform::identity();
+                }
+            }
+            let body = model.add_body(parent, joint.joint, placement, child.body, child.name, joint.limits).map_err(fail)?;
             body_of_link[joint.child] = Some(body);
             queue.push_back(joint.child);
         }
@@ -292,6 +317,8 @@ struct Link<'a> {
 struct UrdfJoint<'a> {
     name: &'a str,
     joint: Joint,
+    /// A `floating` joint: three prismatic joints before `joint` (a ball).
+    free: bool,
     parent: usize,
     child: usize,
     placement: Transform,
@@ -481,15 +508,26 @@ fn joint<'a>(
         Some("continuous") => (Joint::Revolute(axis()?), false),
         Some("prismatic") => (Joint::Prismatic(axis()?), true),
         Some("fixed") => (Joint::Fixed, false),
-        Some(other) => return Err(invalid(format!("{owner}: unsupported type {other:?} (supported: revolute, continuous, prismatic, fixed)"))),
+        Some("floating") => (Joint::Spherical, false),
+        Some("spherical") => {
+            accept(format!("{owner}: type \"spherical\" is not in the URDF specification; read as a ball joint"))?;
+            (Joint::Spherical, false)
+        }
+        Some(other) => {
+            return Err(invalid(format!(
+                "{owner}: unsupported type {other:?} (supported: revolute, continuous, prismatic, fixed, floating, spherical)"
+            )))
+        }
         None => return Err(invalid(format!("{owner}: has no type attribute"))),
     };
+    // Only a one-coordinate joint reads `<limit>` and `<dynamics>`.
+    let scalar_joint = joint.nv() == 1;
     let limits = match element(node, "limit") {
-        Some(limit) if joint != Joint::Fixed => limits(limit, bounded, &owner, accept)?,
+        Some(limit) if scalar_joint => limits(limit, bounded, &owner, accept)?,
         _ => JointLimits::NONE,
     };
     let damping = match element(node, "dynamics") {
-        Some(dynamics) if joint != Joint::Fixed && dynamics.attribute("damping").is_some() => {
+        Some(dynamics) if scalar_joint && dynamics.attribute("damping").is_some() => {
             let damping = scalar(dynamics, "damping", &owner)?;
             if damping < 0.0 {
                 return Err(invalid(format!("{owner}: <dynamics damping> must be >= 0, got {damping}")));
@@ -498,7 +536,8 @@ fn joint<'a>(
         }
         _ => 0.0,
     };
-    Ok(UrdfJoint { name, joint, parent, child, placement, limits, damping })
+    let free = node.attribute("type") == Some("floating");
+    Ok(UrdfJoint { name, joint, free, parent, child, placement, limits, damping })
 }
 
 /// A moving joint's `<limit>`: the position range if `bounded` (attributes default to 0, as URDF says),
@@ -1160,9 +1199,53 @@ mod tests {
         assert_fails(&joint("revolute", r#"<axis xyz="0 0 0"/>"#), &[knee, "<axis", "must be a non-zero direction"]);
         assert_fails(&joint("prismatic", r#"<axis xyz="0 0 0"/>"#), &[knee, "<axis", "must be a non-zero direction"]);
         assert_fails(&joint("continuous", r#"<axis xyz="0 1"/>"#), &[knee, "axis", "expected 3 numbers"]);
-        for kind in ["floating", "planar", "spherical", "REVOLUTE"] {
-            assert_fails(&joint(kind, ""), &[knee, &format!("unsupported type {kind:?}")]);
+        for kind in ["planar", "REVOLUTE"] {
+            assert_fails(&joint(kind, ""), &[knee, &format!("unsupported type {kind:?}"), "floating, spherical"]);
         }
         assert_fails(&joint_robot(r#"<joint name="knee"><parent link="a"/><child link="b"/></joint>"#), &[knee, "no type"]);
+        // The base cannot float twice.
+        let error = parse_urdf(&joint("floating", ""), FLOATING).unwrap_err().to_string();
+        assert!(error.contains(knee) && error.contains(r#"root link "a""#) && error.contains("float twice"), "{error}");
+    }
+
+    #[test]
+    fn floating_joints_are_three_slides_and_a_ball_and_spherical_joints_a_ball_with_a_warning() {
+        let joint = |kind: &str| {
+            joint_robot(&format!(
+                r#"<joint name="knee" type="{kind}"><parent link="a"/><child link="b"/><origin xyz="1 2 3" rpy="0.1 0.2 0.3"/>
+                   <limit lower="-1" upper="1" effort="0"/><dynamics damping="2"/></joint>"#
+            ))
+        };
+        let floating = parse_urdf(&joint("floating"), FIXED).unwrap();
+        assert!(floating.warnings.is_empty(), "{:?}", floating.warnings);
+        let model = &floating.model;
+        assert_eq!((model.nbodies(), model.nq(), model.nv()), (5, 7, 6));
+        let names: Vec<&str> = (0..5).map(|b| model.name(b)).collect();
+        assert_eq!(names, ["a", "b/knee:x", "b/knee:y", "b/knee:z", "b"]);
+        for (body, axis) in [(1, Vector3::x()), (2, Vector3::y()), (3, Vector3::z())] {
+            assert_eq!(*model.joint(body), Joint::Prismatic(axis));
+            assert_eq!(model.parent(body), body - 1);
+        }
+        assert_eq!(*model.joint(4), Joint::Spherical);
+        assert_placement(model, 1, &expected_placement([1.0, 2.0, 3.0], [0.1, 0.2, 0.3]));
+        for body in 2..5 {
+            assert_placement(model, body, &Transform::identity());
+        }
+        assert!(model.damping().iter().all(|d| *d == 0.0) && (1..5).all(|b| *model.limits(b) == JointLimits::NONE));
+        // Below a floating base, a floating joint is another free body.
+        assert_eq!(
+            parse_urdf(&robot(r#"<link name="c"/><joint name="f" type="floating"><parent link="b"/><child link="c"/></joint>"#), FLOATING)
+                .unwrap()
+                .model
+                .nv(),
+            6 + 1 + 6
+        );
+
+        let spherical = parse_urdf(&joint("spherical"), FIXED).unwrap();
+        assert_eq!((spherical.model.nbodies(), spherical.model.nq(), spherical.model.nv()), (2, 4, 3));
+        assert_eq!(*spherical.model.joint(1), Joint::Spherical);
+        assert_placement(&spherical.model, 1, &expected_placement([1.0, 2.0, 3.0], [0.1, 0.2, 0.3]));
+        assert_eq!(spherical.warnings, [r#"joint "knee": type "spherical" is not in the URDF specification; read as a ball joint"#]);
+        assert_fails(&joint("spherical"), &[r#"joint "knee": type "spherical""#, "(strict)"]);
     }
 }
