@@ -115,19 +115,17 @@ def run(robot_name: str, args: argparse.Namespace, progress: Any) -> GaitAnalysi
     """Build the robot and its reference, analyse it, and write its CSV and figure."""
     robot, ref = reference(robot_name, args)
     if robot_name == "quadruped":
-        quadruped = robot
-        model, motor, tip_speed = quadruped.model, QUADRUPED_MOTOR, args.quadruped_tip_speed
+        model, motor, tip_speed = robot.model, QUADRUPED_MOTOR, args.quadruped_tip_speed
         diagonal = [(LEGS.index(a), LEGS.index(b)) for a, b in DIAGONAL_PAIRS]
         title = (f"Quadruped amble, duty 0.5, {args.quadruped_speed:g} m/s, period {args.quadruped_period:g} s: "
                  f"S_H over {args.cycles} cycle(s)")
     else:
-        biped = robot
-        model, motor, tip_speed, diagonal = biped.model, BIPED_MOTOR, args.biped_tip_speed, None
+        model, motor, tip_speed, diagonal = robot.model, BIPED_MOTOR, args.biped_tip_speed, None
         title = f"Biped walk, {args.biped_speed:g} km/h: S_H over {args.cycles} cycle(s)"
     progress.update()
     analysis = analyse(robot_name, model, ref, motor, tip_speed, FRICTION if args.mu is None else args.mu, diagonal, progress.update)
     if robot_name == "biped":
-        biped_extras(biped, analysis)
+        biped_extras(robot, analysis)
     write_csv(args.out / f"gait_{robot_name}.csv", analysis)
     plot(args.out / f"gait_{robot_name}.png", analysis, title)
     progress.update()
