@@ -467,7 +467,13 @@ def test_execution_check_reports_the_worst_yaw_rates_and_torque_of_a_plan():
     ({"phases": [Phase(("lf", "lh", "rf")), Phase(("lf", "rh", "rf"))]}, "foot 'lf' never leaves the ground"),
     ({"period": (5.0, 6.0)}, "period .* cannot be met"),
     ({"force_dims": 2}, "force_dims must be 1 or 3"),
-    ({"friction": 0.0}, "friction must be > 0"),
+    ({"friction": 0.0}, "friction must be finite and > 0"),
+    ({"friction": np.inf}, "friction must be finite and > 0"),
+    ({"speed": np.nan}, "speed must be finite"),
+    ({"phases": [Phase(("lf", "lh"), 10**7), Phase(("rf", "rh"))]}, r"phases\[0\]\.intervals must be in \[1, 1000\]"),
+    ({"q_bounds": (np.zeros(3), np.ones(3))}, r"q_bounds must be \(lower, upper\) arrays of shape \(19,\)"),
+    ({"u_bounds": (np.full(12, np.nan), np.ones(12))}, r"u_bounds: lower\[0\] = nan must be <= upper\[0\]"),
+    ({"v_bounds": (np.ones(18), np.zeros(18))}, r"v_bounds: lower\[0\] = 1.0 must be <= upper\[0\] = 0.0"),
     ({"min_normal_force": -1.0}, "min_normal_force must be finite and >= 0"),
     ({"actuated": [3, 3]}, "actuated must list distinct"),
     ({"objectives": [MinMaxStability(2.0)], "phases": [Phase(("lf",)), Phase(("rf", "rh"))]}, "MinMaxStability needs two feet"),
@@ -480,6 +486,32 @@ def test_bad_problem_definitions_fail_fast_naming_the_argument(change, message):
     arguments.update(change)
     with pytest.raises(ValueError, match=message):
         MultiphaseProblem(**arguments)
+
+
+def test_a_non_integer_interval_count_is_a_type_error_naming_it():
+    robot = build_quadruped()
+    with pytest.raises(TypeError, match=r"phases\[0\]\.intervals must be an integer, got float"):
+        MultiphaseProblem(robot.model, [Phase(("lf", "lh"), 2.5), Phase(("rf", "rh"))], {leg: robot.feet[leg] for leg in LEGS})
+
+
+@pytest.mark.parametrize("change, error, message", [
+    ({"motor": None}, TypeError, "motor must be a legkit.robots.MotorParameters, got NoneType"),
+    ({"period": np.nan}, ValueError, "period must be finite and > 0"),
+    ({"period": np.inf}, ValueError, "period must be finite and > 0"),
+    ({"duration_range": (1.0, 0.5)}, ValueError, "duration_range must satisfy"),
+    ({"max_tilt": np.nan}, ValueError, r"max_tilt must be in \(0, pi\]"),
+    ({"max_tilt": -0.1}, ValueError, r"max_tilt must be in \(0, pi\]"),
+    ({"joint_range": (np.nan, 1.0, 2.0)}, ValueError, "joint_range must be three finite bounds"),
+    ({"speed": np.nan}, ValueError, "speed must be finite"),
+])
+def test_amble_problem_refuses_bad_arguments_by_name(change, error, message):
+    from legkit.optimize.gaits import amble_problem
+    from legkit.robots import QUADRUPED_MOTOR
+
+    arguments = {"robot": build_quadruped(), "objectives": [effort()], "speed": 0.5, "period": 1.25, "intervals": 2,
+                 "motor": QUADRUPED_MOTOR}
+    with pytest.raises(error, match=message):
+        amble_problem(**{**arguments, **change})
 
 
 def test_best_keeps_the_best_iterate_within_tolerance_when_ipopt_stops_on_a_worse_one():

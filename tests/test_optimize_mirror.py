@@ -119,6 +119,28 @@ def test_a_half_cycle_unrolled_violates_the_full_cycle_exactly_twice_as_much(nam
     np.testing.assert_allclose(unrolled.q[len(half.phases)][0, 0] - unrolled.q[0][0, 0], half.speed * np.sum(x_half[half.duration_index]))
 
 
+def test_a_half_cycle_is_sampled_and_tracked_as_its_whole_cycle():
+    # periodic_samples (which replay and the tracking MPC sample the plan with) of a mirrored half cycle: the second
+    # half of the cycle is the first half's mirror image, moved on by half the stride, not the first half repeated.
+    from legkit.optimize.replay import periodic_samples
+    from legkit.optimize.tracking import TrackingModel
+
+    half, _, reference = gait_problems("quadruped")
+    trajectory = half.unpack(half.pack(guess_from_reference(half, reference)))
+    period = 2.0 * float(np.sum(trajectory.durations))
+    t = np.linspace(0.0, 0.5 * period, 7, endpoint=False)
+    q, v, _ = periodic_samples(half, trajectory, np.concatenate([t, t + 0.5 * period]))
+    first, second = q[: len(t)], q[len(t) :]
+    expected = half.mirror.q(first)
+    expected[:, half.travel_index] += half.speed * 0.5 * period
+    np.testing.assert_allclose(second[:, 7:], expected[:, 7:], atol=1e-12)  # the joints: the other side's
+    np.testing.assert_allclose(second[:, :3], expected[:, :3], atol=1e-12)
+    assert np.abs(second[:, 7:] - first[:, 7:]).max() > 0.1  # the second half is not the first repeated
+    np.testing.assert_allclose(v[len(t) :], half.mirror.v(v[: len(t)]), atol=1e-12)
+    model = TrackingModel.build(half, trajectory, 0.0125)  # before: StopIteration (no foot swings first in a half cycle)
+    assert len(model.A) == 100 and len(model.problem.phases) == 4
+
+
 def test_a_solved_half_cycle_unrolled_meets_the_whole_cycles_constraints():
     # Five IPOPT iterations on the half walk's constraints (4e-8 left), stopped short of convergence (its quaternion norm
     # drifts off 1 within the defects' error): the whole cycle, unrolled, violates no row more than the half

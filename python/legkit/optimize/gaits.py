@@ -57,6 +57,8 @@ AMBLE_SUPPORT = (("lf", "lh"), ("lf", "rh"), ("rf", "rh"), ("rf", "lh"))
 
 def torque_speed_line(motor: MotorParameters) -> TorqueSpeedLine:
     """The motor-gear characteristic line of Sect. 2.3: |u| <= (w_max - |w|) G^2 eta / m."""
+    if not isinstance(motor, MotorParameters):
+        raise TypeError(f"motor must be a legkit.robots.MotorParameters, got {type(motor).__name__}")
     return TorqueSpeedLine(motor.joint_max_speed, motor.gear_ratio**2 * motor.efficiency / motor.slope)
 
 
@@ -65,6 +67,12 @@ def stall_torque_bounds(motor: MotorParameters, nu: int, fraction: float = 1.0) 
     line = torque_speed_line(motor)
     stall = fraction * line.max_speed * line.gain
     return np.full(nu, -stall), np.full(nu, stall)
+
+
+def _check_tilt(max_tilt: float) -> None:
+    """max_tilt bounds roll and pitch through sin(max_tilt / 2), which is monotonic up to pi."""
+    if not 0.0 < max_tilt <= np.pi:
+        raise ValueError(f"max_tilt must be in (0, pi] rad, got {max_tilt}")
 
 
 def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: float, intervals: int,
@@ -93,6 +101,13 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
     switches a bound off, dense_rates=False the rates between points."""
     if not 0.0 <= torque_margin < 1.0:
         raise ValueError(f"torque_margin must be in [0, 1), got {torque_margin}")
+    if not 0.0 < period < np.inf:
+        raise ValueError(f"period must be finite and > 0, got {period}")
+    if not 0.0 < duration_range[0] <= duration_range[1] < np.inf:
+        raise ValueError(f"duration_range must satisfy 0 < lower <= upper (finite), got {duration_range}")
+    _check_tilt(max_tilt)
+    if len(joint_range) != 3 or not all(0.0 <= bound < np.inf for bound in joint_range):
+        raise ValueError(f"joint_range must be three finite bounds >= 0 (hip roll, hip pitch, knee), got {joint_range}")
     quarter = period / 4.0
     support = AMBLE_SUPPORT[:2] if mirror else AMBLE_SUPPORT
     phases = [Phase(pair, intervals, (duration_range[0] * quarter, duration_range[1] * quarter)) for pair in support]
@@ -233,6 +248,7 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
     pitch within max_tilt, joint ranges of a human-like leg (hip yaw +-0.3, hip roll +-0.4, hip pitch
     [-1.2, 1.0], knee [0, 2.2], ankle pitch +-1.0, ankle roll +-0.4, shoulder pitch +-1.0, shoulder roll
     [-0.5, 0.5] rad) and swing soles below max_swing_height [m]."""
+    _check_tilt(max_tilt)
     p = robot.parameters
     centre = np.array([0.5 * (p.foot_toe - p.foot_heel), 0.0, -p.ankle_height])
     feet = {side: (f"{side}_foot", centre) for side in SIDES}

@@ -68,6 +68,9 @@ POLISH_SWITCH = (20, 5e-3)
 #: floor, mu 0.6) from 4 onto 16 intervals per phase: 0.1, 0.2, 0.3 converged in 55, 40, 54 iterations (S_H min
 #: 0.042, 0.044, 0.063); 0.5 and 0.8 did not in 300.
 REFINE_STABILITY = 0.2
+#: The most intervals one phase takes: a 16-interval phase already costs IPOPT minutes (docs/optimize.md), and the
+#: transcription's arrays grow with the points, so a larger count is a mistake, not a request.
+MAX_INTERVALS = 1000
 
 
 @dataclass(frozen=True)
@@ -290,8 +293,10 @@ class MultiphaseProblem:
             raise ValueError(f"max_yaw must be > 0 and needs a free-flyer base, got {self.max_yaw}")
         if self.dense_rates and self.torque_speed is None:
             raise ValueError("dense_rates needs a torque_speed line (its no-load speed bounds the rates)")
-        if not self.friction > 0.0:
-            raise ValueError(f"friction must be > 0, got {self.friction}")
+        if not 0.0 < self.friction < np.inf:
+            raise ValueError(f"friction must be finite and > 0, got {self.friction}")
+        if not np.isfinite(self.speed):
+            raise ValueError(f"speed must be finite, got {self.speed}")
         if self.input_power is not None:
             power = self.input_power
             for name in ("limit", "resistance", "gear_ratio", "torque_constant"):
@@ -300,8 +305,10 @@ class MultiphaseProblem:
                     bound = ">= 0" if name == "resistance" else "> 0"
                     raise ValueError(f"input_power.{name} must be finite and {bound}, got {getattr(power, name)!r}")
         for i, phase in enumerate(self.phases):
-            if phase.intervals < 1:
-                raise ValueError(f"phases[{i}].intervals must be >= 1, got {phase.intervals}")
+            if isinstance(phase.intervals, bool) or not isinstance(phase.intervals, int | np.integer):
+                raise TypeError(f"phases[{i}].intervals must be an integer, got {type(phase.intervals).__name__}")
+            if not 1 <= phase.intervals <= MAX_INTERVALS:
+                raise ValueError(f"phases[{i}].intervals must be in [1, {MAX_INTERVALS}], got {phase.intervals}")
             lo, hi = phase.duration
             if not 0.0 < lo <= hi:
                 raise ValueError(f"phases[{i}].duration must satisfy 0 < lower <= upper, got {phase.duration}")
@@ -323,6 +330,8 @@ class MultiphaseProblem:
         self.actuated = list(range(6 if model.floating_base else 0, model.nv)) if self.actuated is None else [int(i) for i in self.actuated]
         if any(not 0 <= i < model.nv for i in self.actuated) or len(set(self.actuated)) != len(self.actuated):
             raise ValueError(f"actuated must list distinct v indices in [0, {model.nv}), got {self.actuated}")
+        for name, size in (("q_bounds", model.nq), ("v_bounds", model.nv), ("u_bounds", len(self.actuated))):
+            self._validate_bounds(name, size)
         if self.travel_index is None and model.floating_base:
             self.travel_index = 0
         if self.mirror is not None:
@@ -349,6 +358,21 @@ class MultiphaseProblem:
                                  f"(their sums over the cycle lie in [{sum(p.duration[0] for p in cycle)}, {sum(p.duration[1] for p in cycle)}])")
         if not self.periodic and (self.initial is None and self.final is None):
             raise ValueError("a non-periodic problem needs initial and/or final states")
+
+    def _validate_bounds(self, name: str, size: int) -> None:
+        """(lower, upper) of `size` values each, lower <= upper, none NaN."""
+        bounds = getattr(self, name)
+        if bounds is None:
+            return
+        try:
+            lower, upper = (np.asarray(side, dtype=np.float64) for side in bounds)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"{name} must be (lower, upper) arrays of {size} numbers: {error}") from None
+        if lower.shape != (size,) or upper.shape != (size,):
+            raise ValueError(f"{name} must be (lower, upper) arrays of shape ({size},), got {lower.shape} and {upper.shape}")
+        if not np.all(lower <= upper):  # False on NaN too
+            bad = int(np.flatnonzero(~(lower <= upper))[0])
+            raise ValueError(f"{name}: lower[{bad}] = {lower[bad]} must be <= upper[{bad}] = {upper[bad]} (and not NaN)")
 
     def _validate_mirror(self) -> None:
         mirror = self.mirror
@@ -1379,6 +1403,12 @@ class MultiphaseProblem:
             np.concatenate([trajectory.durations, trajectory.durations]), trajectory.stability_bound,
             None if a is None else twice(a, mirror.v), None if torques is None else twice(torques, Mirror.axial), slack,
         )
+
+    def whole_trajectory(self, trajectory: Trajectory) -> tuple[MultiphaseProblem, Trajectory]:
+        """`whole_cycle` for a trajectory: the whole cycle's problem and the trajectory unrolled over it (both as given
+        without a mirror). Whatever samples or replays a gait periodically starts here, so a half cycle is never
+        repeated as if it were the whole."""
+        return self.full_cycle(), self.unroll(trajectory)
 
     def whole_cycle(self, x: np.ndarray) -> tuple[MultiphaseProblem, np.ndarray]:
         """A point x of this problem as the whole cycle's problem (`full_cycle`) and its point: unrolled if this is a

@@ -75,7 +75,8 @@ def periodic_samples(problem: MultiphaseProblem, trajectory: Trajectory, t: np.n
     the knots with the collocated rates [dq/dt, a] there, the controls are linear. Each phase is interpolated on
     its own, so an instant on a phase boundary belongs to the later phase: the state after the touchdown, whose
     velocity jump (eq. 7) stays a jump instead of being spread over the interval before it. The travel
-    coordinate advances by speed x period."""
+    coordinate advances by speed x period. A mirrored half cycle is sampled as its whole cycle (`whole_trajectory`)."""
+    problem, trajectory = problem.whole_trajectory(trajectory)
     t = np.asarray(t, dtype=np.float64)
     period = float(np.sum(trajectory.durations))
     cycle, phase_t = np.divmod(t, period)
@@ -163,7 +164,9 @@ def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, 
     ground (`clear_of_ground`); only the feet (`foot_shapes`: spheres of foot_radius, flat soles as boxes) and the
     base collide. kp, kd: joint PD gains, one for every actuated joint or one each (nu,). The replay is open
     loop in the torso's attitude: a two-legged support's tipping mode grows from any small error (module
-    docstring: feeding the attitude error to the hip targets made the soft-touchdown amble fall sooner)."""
+    docstring: feeding the attitude error to the hip targets made the soft-touchdown amble fall sooner). A mirrored
+    half cycle is replayed as its whole cycle (`MultiphaseProblem.whole_trajectory`)."""
+    problem, trajectory = problem.whole_trajectory(trajectory)
     model = problem.model
     sim = lk.Simulation(model, dt=dt, ground=lk.Ground.plane(friction), shapes=foot_shapes(problem, foot_radius))
     period = float(np.sum(trajectory.durations))

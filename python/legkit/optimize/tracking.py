@@ -124,7 +124,9 @@ class TrackingModel:
               substeps: int = 4) -> TrackingModel:
         """Sample the plan every dt (rounded so that whole control periods make one cycle) and linearise the
         contact model's step (`held_step`) there analytically: the chain rule through its substeps and touchdown
-        from the core's derivatives, batched over the samples of each run of one (phase, next phase)."""
+        from the core's derivatives, batched over the samples of each run of one (phase, next phase). A mirrored half
+        cycle is tracked as its whole cycle (`MultiphaseProblem.whole_trajectory`)."""
+        problem, trajectory = problem.whole_trajectory(trajectory)
         if not problem.model.floating_base or not problem.periodic:
             raise ValueError("problem: TrackingModel needs a periodic free-flyer gait")
         if not (np.isfinite(dt) and dt > 0.0):
@@ -138,6 +140,8 @@ class TrackingModel:
         dt = period / count  # whole control periods per cycle, so the linearisation wraps around
         t = np.arange(count + 1) * dt
         q, v, u = sampled_reference(problem, trajectory, t, swing_clearance)
+        if not np.all(np.isfinite(q)):
+            raise ValueError(f"swing_clearance: raising the swing feet by {swing_clearance} m gives no finite joint angles")
         phase = phase_of(trajectory, t)
         nv, nu = problem.nv, problem.nu
         n = 2 * nv
@@ -487,7 +491,8 @@ def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, f
     and control period (built here otherwise). joint_offset (nu,): added to the first state's joint angles, a
     perturbed start. plant: the model simulated (default the plan's), e.g. one with other masses (model
     mismatch). progress: a progress bar. Stops stepping once the robot has fallen (checked every 50 control
-    periods)."""
+    periods). A mirrored half cycle is tracked as its whole cycle (`MultiphaseProblem.whole_trajectory`)."""
+    problem, trajectory = problem.whole_trajectory(trajectory)
     if not (isinstance(control_every, (int, np.integer)) and control_every >= 1):
         raise ValueError(f"control_every must be an integer >= 1, got {control_every}")
     if not (isinstance(cycles, (int, np.integer)) and cycles >= 1):
@@ -495,29 +500,41 @@ def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, f
     offset = np.zeros(problem.nu) if joint_offset is None else np.asarray(joint_offset, dtype=np.float64)
     if offset.shape != (problem.nu,) or not np.all(np.isfinite(offset)):
         raise ValueError(f"joint_offset must be {problem.nu} finite numbers, got shape {offset.shape}")
+    if not 0.0 < dt * control_every <= float(np.sum(trajectory.durations)):
+        raise ValueError(f"dt x control_every must be a positive time within the cycle ({float(np.sum(trajectory.durations))} s), "
+                         f"got {dt} x {control_every}")
+    plant = problem.model if plant is None else plant
+    if not isinstance(plant, lk.Model):
+        raise TypeError(f"plant must be a legkit.Model, got {type(plant).__name__}")
     model = model if model is not None else TrackingModel.build(problem, trajectory, dt * control_every, swing_clearance)
     if not np.isclose(model.dt, dt * control_every, rtol=1e-2):
         raise ValueError(f"model: the TrackingModel's control period {model.dt} differs from dt x control_every = {dt * control_every}")
-    plant = problem.model if plant is None else plant
     if plant.nq != problem.nq or plant.nv != problem.nv:
         raise ValueError(f"plant must have the plan's coordinates (nq {problem.nq}, nv {problem.nv}), got {plant.nq}, {plant.nv}")
     controller = MPC(model, **mpc)
     sim = lk.Simulation(plant, dt=model.dt / control_every, ground=lk.Ground.plane(ground_friction), shapes=foot_shapes(problem, foot_radius))
     steps = cycles * len(model.A)
-    t = np.arange(steps + 1) * model.dt
+    try:
+        t = np.arange(steps + 1) * model.dt
+        simulated = np.empty((steps + 1, problem.nq))
+    except MemoryError:
+        raise MemoryError(f"cycles: {cycles} cycles of {len(model.A)} control periods do not fit in memory") from None
     planned_q = np.stack([model.reference(i)[0] for i in range(steps + 1)])
     start, start_v = model.reference(0)
     start = start.copy()
     if joint_offset is not None:
         start[np.asarray(problem.actuated) + (problem.nq - problem.nv)] += offset
     sim.reset(clear_of_ground(problem, start, foot_radius), start_v)
-    simulated = np.empty_like(planned_q)
     simulated[0] = sim.q
     tau = np.zeros(problem.nv)
     actuated, count = np.asarray(problem.actuated), len(model.A)
     for i in progress_bar(range(steps), enabled=progress, extra="optimize", desc="tracking in simulation", unit="step", leave=False, mininterval=0.5):
         q = sim.q
-        tau[actuated] = model.u[i % count] + controller.correction(i, model.deviation(i, q, sim.v))
+        correction = controller.correction(i, model.deviation(i, q, sim.v))
+        if not np.all(np.isfinite(correction)):
+            raise RuntimeError(f"the MPC's correction at control instant {i} is not finite: the tracked reference "
+                               f"(swing_clearance {swing_clearance} m) or the state left the range the model was built for")
+        tau[actuated] = model.u[i % count] + correction
         try:
             sim.step(tau, control_every)
         except RuntimeError:  # the simulation diverged: the robot is down
