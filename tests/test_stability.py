@@ -526,6 +526,37 @@ def test_bad_input_raises_clear_errors():
         ls.foot_rotation_indicator(model, np.r_[0, 0, 1, 0, 0, 0, 1.0], np.zeros(6), np.zeros(6), 1)
 
 
+def test_degenerate_supports_give_the_distance_to_what_is_left():
+    # One contact is a point support: the margin is minus the distance to it (it raised a NumPy reduction error).
+    point = np.array([[0.3, -0.2, 0.0]])
+    expected = -np.hypot(COM[0] - 0.3, COM[1] + 0.2)
+    assert ls.static_stability_margin(COM, point) == pytest.approx(expected, rel=1e-15)
+    assert ls.static_stability_margin(COM, np.repeat(point, 3, axis=0)) == pytest.approx(expected, rel=1e-15)
+    # A polygon with repeated vertices is the polygon without them (a zero-length edge gave 0/0 = NaN).
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    doubled = np.repeat(square, 2, axis=0)
+    queries = np.array([[0.5, 0.5], [0.9, 0.2], [2.0, 0.5], [-1.0, -1.0]])
+    np.testing.assert_array_equal(ls.polygon_margin(queries, doubled), ls.polygon_margin(queries, square))
+    np.testing.assert_allclose(ls.polygon_margin(queries, square), [0.5, 0.1, -1.0, -np.sqrt(2.0)], rtol=1e-15)
+    assert ls.polygon_margin([[3.0, 4.0]], np.zeros((3, 2))) == pytest.approx(-5.0)
+
+
+def test_inputs_that_would_overflow_or_never_finish_are_refused():
+    # 1e200 m squared overflows: the margin came out NaN without a word.
+    with pytest.raises(ValueError, match=r"contact_points must lie within \+-1e\+100"):
+        ls.static_stability_margin(COM, FEET * 1e200)
+    with pytest.raises(ValueError, match=r"com must lie within"):
+        ls.static_stability_margin([1e200, 0.0, 0.0], FEET)
+    with pytest.raises(ValueError, match=r"polygon must lie within"):
+        ls.polygon_margin([[0.0, 0.0]], FEET[:, :2] * 1e200)
+    scale = 1e90  # within the bound, the geometry scales exactly
+    assert ls.static_stability_margin(COM * scale, FEET * scale) == pytest.approx(scale * ls.static_stability_margin(COM, FEET), rel=1e-12)
+    with pytest.raises(ValueError, match=r"cone_sides must be in \[3, 1000\], got 1000000000"):
+        ls.static_equilibrium_margin(COM, [(p, [0.0, 0.0, 1.0]) for p in FEET], 0.5, cone_sides=10**9)
+    with pytest.raises(ValueError, match="index must hold at least one sample"):
+        ls.worst_case([], [])
+
+
 # --------------------------------------------------------------------------------------------------
 # The published S_H [Hardt 2002, eq. 10 and the diagonal-edge cases] and J_e2 (eq. 13), computed by hand
 # from the paper's text: H_ref = m r sqrt(2 g (r - h)) (the kinetic energy m v_ref^2 / 2 that lifts the COM

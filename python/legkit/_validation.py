@@ -46,10 +46,12 @@ def positive_scalar(value: object, name: str, *, allow_zero: bool = False) -> fl
 
 
 def float_array(
-    value: object, name: str, *, shape: tuple[int, ...] | None = None, last: int | None = None, min_ndim: int = 0
+    value: object, name: str, *, shape: tuple[int, ...] | None = None, last: int | None = None, min_ndim: int = 0,
+    bound: float | None = None,
 ) -> np.ndarray:
     """`value` as a finite float64 array: TypeError if it is not numeric, ValueError on a wrong shape
-    (other than `shape`, fewer than `min_ndim` dimensions, or a last dimension other than `last`) or on NaN/inf."""
+    (other than `shape`, fewer than `min_ndim` dimensions, or a last dimension other than `last`), on NaN/inf, or
+    on an entry beyond +-`bound` (where squares and products of the values would overflow to NaN)."""
     try:
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as error:
@@ -62,6 +64,8 @@ def float_array(
         raise ValueError(f"{name} must have a last dimension of size {last}, got shape {array.shape}")
     if not np.all(np.isfinite(array)):
         raise ValueError(f"{name} contains a non-finite value (NaN or inf)")
+    if bound is not None and array.size and np.max(np.abs(array)) > bound:
+        raise ValueError(f"{name} must lie within +-{bound:g}, got {np.max(np.abs(array)):g}")
     return array
 
 

@@ -354,5 +354,7 @@ def worst_case(index: npt.ArrayLike, t: npt.ArrayLike) -> tuple[float, float]:
     times = float_array(t, "t", min_ndim=1)
     if values.ndim != 1 or times.shape != values.shape:
         raise ValueError(f"index and t must be 1-D of equal length, got {values.shape} and {times.shape}")
+    if values.size == 0:
+        raise ValueError("index must hold at least one sample")
     worst = int(np.argmin(values))
     return float(values[worst]), float(times[worst])

@@ -110,6 +110,11 @@ class _EquilibriumLP:
         return self._solve(np.zeros(3 * self.k + 2), bounds).status == 0
 
 
+#: The most faces a friction pyramid takes: the LP has one variable per face and contact, and at 1000 faces the
+#: pyramid already reaches mu cos(pi / 1000), within 5e-6 of the cone.
+MAX_CONE_SIDES = 1000
+
+
 def _check(
     contacts: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]], mu: float, cone_sides: int
 ) -> tuple[np.ndarray, np.ndarray, float, int]:
@@ -118,8 +123,8 @@ def _check(
     if friction.ndim != 0:
         raise ValueError(f"mu must be a scalar, got shape {friction.shape}")
     sides = integer(cone_sides, "cone_sides")
-    if sides < 3:
-        raise ValueError(f"cone_sides must be >= 3, got {cone_sides}")
+    if not 3 <= sides <= MAX_CONE_SIDES:
+        raise ValueError(f"cone_sides must be in [3, {MAX_CONE_SIDES}], got {cone_sides}")
     return points, normals, float(friction), sides
 
 

@@ -69,8 +69,13 @@ class SupportEdges:
         return np.stack([direction[..., 1], -direction[..., 0]], axis=-1)
 
 
+#: The largest coordinate [m] the support geometry takes: its cross products square the coordinates, which beyond
+#: about 1e150 overflow to NaN. 1e100 m is far beyond any robot and leaves the products room.
+MAX_COORDINATE = 1e100
+
+
 def _contacts(contact_points: npt.ArrayLike, active: npt.ArrayLike | None) -> tuple[np.ndarray, np.ndarray]:
-    points = float_array(contact_points, "contact_points", last=3, min_ndim=2)
+    points = float_array(contact_points, "contact_points", last=3, min_ndim=2, bound=MAX_COORDINATE)
     if points.shape[-2] < 1:
         raise ValueError("contact_points must hold at least one contact point")
     mask = bool_mask(active, "active", points.shape[:-1])
@@ -194,7 +199,7 @@ def _signed_distance(px: np.ndarray, py: np.ndarray, hull: _Hull) -> np.ndarray:
     # Segments include their end points; only a support without any edge (one point) needs the vertices.
     vertex = np.where(hull.mask, np.hypot(px - hull.x, py - hull.y), np.inf)
     any_edge = hull.any_edge
-    distance = np.where(any_edge, np.min(segment, axis=0), np.min(vertex, axis=0))
+    distance = np.where(any_edge, np.min(segment, axis=0, initial=np.inf), np.min(vertex, axis=0))  # one contact: no pairs
     # Strictly left of every CCW edge; a line or point support has edges in both directions, so nothing is inside.
     cross = hull.dx * ry - hull.dy * rx
     inside = any_edge & np.all((cross > 0.0) | ~hull.valid, axis=0)
@@ -211,7 +216,7 @@ def static_stability_margin(
     polygon (statically stable), zero on the boundary, negative outside (minus the distance to the polygon).
     A one- or two-contact support (a point or a line) has no interior, so the margin is never positive.
     """
-    point = float_array(com, "com", last=3)
+    point = float_array(com, "com", last=3, bound=MAX_COORDINATE)
     points, mask = _contacts(contact_points, active)
     shape = np.broadcast_shapes(point.shape[:-1], points.shape[:-2], mask.shape[:-1])
     points = np.broadcast_to(points, shape + points.shape[-2:])
@@ -279,10 +284,12 @@ def polygon_margin(points: npt.ArrayLike, polygon: npt.ArrayLike) -> np.ndarray:
     Positive strictly inside, negative outside; a polygon with fewer than three vertices (point or segment)
     has no inside. Vectorised over the points; used for ZMP margins and static-equilibrium regions.
     """
-    vertices = float_array(polygon, "polygon", last=2, min_ndim=2)
+    vertices = float_array(polygon, "polygon", last=2, min_ndim=2, bound=MAX_COORDINATE)
     if vertices.shape[0] < 1:
         raise ValueError("polygon must have at least one vertex")
-    query = float_array(points, "points", min_ndim=1)
+    distinct = np.any(vertices != np.roll(vertices, -1, axis=0), axis=1)  # a repeated vertex makes no edge
+    vertices = vertices[distinct] if np.any(distinct) else vertices[:1]
+    query = float_array(points, "points", min_ndim=1, bound=MAX_COORDINATE)
     if query.shape[-1] not in (2, 3):
         raise ValueError(f"points must have a last dimension of 2 or 3, got shape {query.shape}")
     p = query[..., None, :2]
