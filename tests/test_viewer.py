@@ -290,6 +290,26 @@ def test_bad_input_names_the_argument(tmp_path):
         viewer.visual_shapes(tmp_path / "missing.urdf", model)
 
 
+def test_sizes_beyond_what_the_viewer_can_draw_are_refused_by_name(tmp_path):
+    # Each of these ran out of memory (a keyframe grid or GIF frames over 1e12 s) or drew inf (float32 poses).
+    rng = np.random.default_rng(5)
+    model, _ = chain(rng)
+    with pytest.raises(ValueError, match=r"q must lie within \+-1e\+30"):
+        Scene().add_robot(model, np.full(4, 1e200))
+    with pytest.raises(ValueError, match=r"poses must lie within"):
+        Scene().add_rigid([Shape(0, "sphere", (0.1,))], np.full((4, 4), 1e40), name="marker")
+    long = Scene()
+    long.add_robot(model, np.zeros((2, 4)), times=[0.0, 1e12])
+    with pytest.raises(ValueError, match=r"max_fps: 1e\+12 s of motion at 30 keyframes per second is more than 1000000"):
+        long.commands()
+    with pytest.raises(ValueError, match=r"fps: 1e\+12 s of motion at 15 frames per second and speed 1 make 1\.5e\+13 frames"):
+        long.write_gif(tmp_path / "long.gif")
+    with pytest.raises(ValueError, match="fps: must be a finite number"):
+        long.write_gif(tmp_path / "long.gif", fps=math.inf)
+    long.write_gif(tmp_path / "fast.gif", fps=1, speed=1e11, size=(32, 32))  # 11 frames: drawn
+    assert (tmp_path / "fast.gif").stat().st_size > 0
+
+
 def test_write_animation_html_is_self_contained_and_gif_moves(tmp_path):
     rng = np.random.default_rng(6)
     model, _ = chain(rng)

@@ -62,9 +62,13 @@ def transform_argument(value: Any, name: str) -> np.ndarray:
     return array.copy()
 
 
+#: The largest coordinate the viewer draws: meshcat takes float32 poses, which end at 3.4e38 (beyond it, inf).
+MAX_COORDINATE = 1e30
+
+
 def trajectory_arguments(model: lk.Model, q: Any, times: Any) -> tuple[np.ndarray, np.ndarray | None]:
     """(q (T, nq), times (T,)) of a motion, or (q (1, nq), None) of a single configuration."""
-    q = float_array(q, "q", last=model.nq, min_ndim=1)
+    q = float_array(q, "q", last=model.nq, min_ndim=1, bound=MAX_COORDINATE)
     if times is None:
         if q.ndim != 1:
             raise ValueError(f"times: needed with a trajectory q of shape {q.shape} (one time per row)")
@@ -185,7 +189,7 @@ class Scene:
         shapes = list(shapes)
         if not shapes or not all(isinstance(s, Shape) and s.body == 0 for s in shapes):
             raise ValueError("shapes: must be a non-empty list of legkit.viewer.Shape on body 0")
-        poses = float_array(poses, "poses", min_ndim=2)
+        poses = float_array(poses, "poses", min_ndim=2, bound=MAX_COORDINATE)
         if times is None:
             if poses.shape != (4, 4):
                 raise ValueError(f"poses: a still body takes one 4x4 pose, got shape {poses.shape}")
@@ -396,8 +400,16 @@ def _meshcat_pieces(shape: Shape) -> list[tuple[str, Any, np.ndarray]]:
     return [("/mesh", reader.from_file(str(shape.mesh)), np.diag([*shape.size, 1.0]))]
 
 
+#: The most keyframes an HTML animation takes: nine hours of motion at 30 per second, each a pose per body.
+MAX_KEYFRAMES = 1_000_000
+
+
 def _keyframes(times: np.ndarray, max_fps: float) -> np.ndarray:
     """Indices of the samples nearest to a grid of 1 / max_fps s, first and last kept."""
+    span = float(times[-1] - times[0])
+    if span * max_fps > MAX_KEYFRAMES:
+        raise ValueError(f"max_fps: {span:g} s of motion at {max_fps:g} keyframes per second is more than {MAX_KEYFRAMES} keyframes; "
+                         "lower max_fps")
     grid = np.arange(times[0], times[-1], 1.0 / max_fps)
     after = np.clip(np.searchsorted(times, grid), 1, times.size - 1)
     index = np.where(times[after] - grid < grid - times[after - 1], after, after - 1)
