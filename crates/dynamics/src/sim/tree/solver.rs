@@ -712,7 +712,6 @@ impl Solver {
     /// constraint's impulses by the formula of its warm zone. Where the zones guessed are the solution's, and
     /// none slides, the law is affine there and the step lands on its solution. Returns false, with the
     /// constraints and the descent as they were, where every zone agrees or the factor fails.
-    #[allow(clippy::too_many_arguments)]
     fn step_in_warm_zones(
         &mut self,
         model: &Model,
