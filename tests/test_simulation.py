@@ -247,8 +247,8 @@ def test_quadruped_dropped_on_a_heightfield_settles_without_sinking_in():
     # Dropped 2-4.5 cm (standing height 0.35 m over terrain within +-2.5 cm). From higher up the landing is
     # chaotic: the front feet land on ridges of slope up to 0.40 and may slide down them at mu N, pitching
     # the robot onto its back, and whether they do flips with the drop height by a centimetre in every
-    # engine (dropped from 0.40-0.44 m: the cone law falls over from 0.40 and 0.41, Coulomb's from 0.42 and
-    # 0.44, MuJoCo's elliptic cone from 0.39 and 0.42 with its default contacts and from none when stiff).
+    # engine (dropped from 0.40-0.44 m: the cone law falls over from 0.40 and 0.41, Coulomb's from all but
+    # 0.42, MuJoCo's elliptic cone from 0.39 and 0.42 with its default contacts and from none when stiff).
     # From 0.355-0.39 m all of them, and Rapier, settle on four feet.
     sim = standing_quadruped(ground, height=0.37, kp=300.0, kd=0.5)
     sim.step(n=3000)

@@ -26,8 +26,8 @@
 //! are lost. It is the fixed point of convex problems, those with the friction disks' radii frozen; where
 //! several exist (stiff contacts coupled through a light, high-μ chain, as in Painlevé's paradox) the step
 //! picks one deterministically, from its warm start. Measured, it converges in few iterations (0.7 per step
-//! on a sliding box, 5 at the switch to sticking; 1-3.5 on the bench's robots and trees standing; a few steps
-//! where feet switch between sticking, sliding and lifting off take 20-50, hence the cap of 50), and the
+//! on a sliding box, 2 at most; 1-3 on the bench's robots and trees; a few steps where feet switch between
+//! sticking, sliding and lifting off take 20-40, hence the cap of 50), and the
 //! transition Jacobians (`transition`) match central differences of its step. The laws can part on a robot's
 //! landing, chaotically: a quadruped dropped 7 cm onto ridges of slope 0.4 at μ 0.9 falls over or not as the
 //! drop height changes by a centimetre, under either law and in MuJoCo (docs/simulation.md). The cone law
@@ -51,6 +51,15 @@
 //! a trotting quadruped); otherwise the step is line searched, and where the unsymmetric step does not
 //! descend the frozen problem, or leaves a pivot non-positive, the frozen problem's symmetric step, line
 //! searched, which descends it.
+//! The first step guesses the zones: Newton's step on the law with each constraint's impulses by the formula
+//! of the zone its warm-start impulses lie in (last step's solution: pressing, sticking or sliding), wherever
+//! that differs from the zone at the warm-start velocities v_free + M̃⁻¹ Jᵀ λ_warm. Those velocities leave a
+//! loaded contact within R λ of its zone's boundary, which the change of v_free from one step to the next
+//! crosses (on the bench's swaying 21-module tree, 56 of 88 contacts looked sliding there while the solution
+//! had every one sticking, and Newton took 3-4 iterations to find its zones again). Where the guess is right
+//! and nothing slides, the law is affine in those zones and the step lands on its solution; a guess that
+//! raises the law's residual is undone (one factor lost, a few steps in a thousand) and Newton goes on from
+//! the warm start as before.
 //! Newton converges in a few iterations where Gauss–Seidel needed hundreds of sweeps: contacts along a
 //! chain lying on the ground couple through the whole chain. A contact between two bodies couples their
 //! chains outside the tree's sparsity; its Hessian is taken on each body alone, which still gives a
@@ -136,6 +145,9 @@ pub(super) struct Constraint {
     /// J v − b at the solver's current velocities, and J d along its step.
     residual: [f64; 3],
     slope: [f64; 3],
+    /// The zone the warm start's impulses lie in, where they press (None otherwise): the first Newton
+    /// step's guess of the solution's zones (`Solver::step_in_warm_zones`).
+    warm_zone: Option<Projection>,
 }
 
 fn clamp_to_cone(lambda: &mut [f64; 3], mu: f64) {
@@ -155,6 +167,13 @@ struct Projection {
     /// Π_n = s_n while pressing, None while apart.
     normal: Option<f64>,
     tangent: Tangent,
+}
+
+impl Projection {
+    /// Whether `other` is in the same zone: pressing or apart; sticking, sliding or free.
+    fn same_zone(&self, other: &Projection) -> bool {
+        self.normal.is_some() == other.normal.is_some() && std::mem::discriminant(&self.tangent) == std::mem::discriminant(&other.tangent)
+    }
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -207,6 +226,19 @@ impl Constraint {
                 lambda[2] = 0.0;
             }
         }
+        // Friction strictly inside its disk sticks; on its rim (to rounding: the impulses went through the
+        // world's axes) it slides.
+        let friction = (lambda[1] * lambda[1] + lambda[2] * lambda[2]).sqrt();
+        let warm_zone = (lambda[0] > 0.0).then(|| {
+            let tangent = if r_t == 0.0 {
+                Tangent::Free
+            } else if friction < (1.0 - 1e-9) * mu * lambda[0] {
+                Tangent::Held([0.0; 2])
+            } else {
+                Tangent::Sliding { radius: 0.0, e: [0.0; 2], bend: 0.0 }
+            };
+            Projection { normal: Some(0.0), tangent }
+        });
         Constraint {
             kind,
             target,
@@ -222,6 +254,7 @@ impl Constraint {
             projection: Projection { normal: None, tangent: Tangent::Free },
             residual: [0.0; 3],
             slope: [0.0; 3],
+            warm_zone,
         }
     }
 
@@ -364,9 +397,7 @@ impl Constraint {
     /// Whether a full step along `slope` keeps the constraint in the zone of its `projection` (pressing or
     /// apart; sticking, sliding or free), with the disk's radius where it lands.
     fn stays_in_zone(&self) -> bool {
-        let after = self.project_coulomb(std::array::from_fn(|r| self.residual[r] + self.slope[r]), None);
-        let before = &self.projection;
-        after.normal.is_some() == before.normal.is_some() && std::mem::discriminant(&after.tangent) == std::mem::discriminant(&before.tangent)
+        self.projection.same_zone(&self.project_coulomb(std::array::from_fn(|r| self.residual[r] + self.slope[r]), None))
     }
 
     /// The diagonal entry H_c[0, 0] (a joint limit's stiffness on its coordinate, before the row's scale).
@@ -555,33 +586,25 @@ impl Solver {
         // Whether the last step was a full unsymmetric one (to take back if it raised the gradient), and
         // the last direction's φ'(0) terms (`line_search`).
         let mut full = false;
+        // Whether the last step was the guess in the warm start's zones (to take back if it raised the residual).
+        let mut guessed = false;
         let (mut start, mut initial, mut curvature) = (0.0, 0.0, 0.0);
         loop {
             // The friction bounds from the normal impulses at the current velocities, held for this
             // iteration: its problem is convex, and its gradient at the start is the law's residual.
-            for c in constraints.iter_mut().filter(|c| c.active()) {
-                c.radius = c.radius_at(c.residual, None);
-                c.projection = c.project(c.residual);
-                c.lambda = c.impulses(&c.projection);
-            }
-            generalized_impulses(&mut self.tree, model, data, constraints, &mut self.descent);
-            let (mut gradient, mut scale) = (0.0f64, 0.0f64);
-            for (descent, mass_change) in self.descent.iter_mut().zip(&self.mass_change) {
-                *descent -= mass_change;
-                gradient = gradient.max(descent.abs());
-                scale = scale.max(mass_change.abs());
+            project(constraints);
+            let (gradient, scale) = self.descend(model, data, constraints);
+            // A guess that raised the law's residual is undone: Newton goes on from the warm start.
+            if std::mem::take(&mut guessed) && gradient >= last_gradient {
+                self.move_along(constraints, v_free, v, -1.0);
+                continue;
             }
             // A full unsymmetric step that raised the law's residual (its zones' linearisation overshot: a
             // lightly loaded foot whose bound swings with its normal impulse) is taken back to the exact line
             // search along it on the frozen problem it started from, which it descends: no new factor.
             if full && gradient >= last_gradient {
-                for k in 0..v.len() {
-                    self.change[k] -= self.step[k];
-                    self.mass_change[k] -= self.mass_step[k];
-                    v[k] = v_free[k] + self.change[k];
-                }
+                self.move_along(constraints, v_free, v, -1.0);
                 for c in constraints.iter_mut().filter(|c| c.active()) {
-                    c.residual = std::array::from_fn(|r| c.residual[r] - c.slope[r]);
                     c.radius = c.radius_at(c.residual, None);
                 }
                 full = false;
@@ -593,6 +616,10 @@ impl Solver {
                 }
                 iterations += 1;
                 last_gradient = gradient;
+                if coulomb && iterations == 1 && self.step_in_warm_zones(model, data, armature, constraints, v_free, v) {
+                    guessed = true;
+                    continue;
+                }
                 // The law's Jacobian, the friction bounds' dependence on the normal impulses included: Newton
                 // on the law itself, quadratic once the zones settle. Unless it leaves a pivot of the tree's
                 // elimination non-positive, or its step does not descend this iteration's convex problem: then
@@ -606,13 +633,7 @@ impl Solver {
                         }
                         return None;
                     }
-                    let tree = &mut self.tree;
-                    tree.solve(model, data, &self.descent, &mut self.step);
-                    tree.motions(model, data, &self.step);
-                    for c in constraints.iter_mut().filter(|c| c.active()) {
-                        c.slope = rows_times(c, &tree.motion, &self.step);
-                    }
-                    tree.mass_times_motions(model, data, armature, &self.step, &mut self.mass_step);
+                    self.direction(model, data, armature, constraints);
                     let start = dot(&self.mass_change, &self.step);
                     let initial = start - constraints.iter().filter(|c| c.active()).map(|c| dot(&c.lambda, &c.slope)).sum::<f64>();
                     if coupled && !(initial < 0.0) {
@@ -626,14 +647,7 @@ impl Solver {
                 full = coupled && constraints.iter().filter(|c| c.active()).all(Constraint::stays_in_zone);
             }
             let alpha = if full { 1.0 } else { line_search(constraints, start, initial, curvature) };
-            for k in 0..v.len() {
-                self.change[k] += alpha * self.step[k];
-                self.mass_change[k] += alpha * self.mass_step[k];
-                v[k] = v_free[k] + self.change[k];
-            }
-            for c in constraints.iter_mut().filter(|c| c.active()) {
-                c.residual = std::array::from_fn(|r| c.residual[r] + alpha * c.slope[r]);
-            }
+            self.move_along(constraints, v_free, v, alpha);
             // The error left after a step, from the steps' contraction over two iterations r (linear where
             // contacts couple two bodies' chains, which the factor leaves out): step r / (1 − r), or a
             // thousand steps where they do not contract (the rounding floor).
@@ -657,6 +671,79 @@ impl Solver {
 }
 
 impl Solver {
+    /// out = Jᵀ λ − M̃ (v − v_free), the descent's right-hand side, into `descent`; returns its largest entry
+    /// (the law's residual) and that of M̃ (v − v_free) (its scale).
+    fn descend(&mut self, model: &Model, data: &Data, constraints: &[Constraint]) -> (f64, f64) {
+        generalized_impulses(&mut self.tree, model, data, constraints, &mut self.descent);
+        let (mut gradient, mut scale) = (0.0f64, 0.0f64);
+        for (descent, mass_change) in self.descent.iter_mut().zip(&self.mass_change) {
+            *descent -= mass_change;
+            gradient = gradient.max(descent.abs());
+            scale = scale.max(mass_change.abs());
+        }
+        (gradient, scale)
+    }
+
+    /// The step d = H⁻¹ `descent` through the factor of the last `assemble`, M̃ d and each constraint's J d.
+    fn direction(&mut self, model: &Model, data: &Data, armature: &[f64], constraints: &mut [Constraint]) {
+        let tree = &mut self.tree;
+        tree.solve(model, data, &self.descent, &mut self.step);
+        tree.motions(model, data, &self.step);
+        for c in constraints.iter_mut().filter(|c| c.active()) {
+            c.slope = rows_times(c, &tree.motion, &self.step);
+        }
+        tree.mass_times_motions(model, data, armature, &self.step, &mut self.mass_step);
+    }
+
+    /// Moves the velocities `v` (and the constraints' residuals) by `alpha` times the last step.
+    fn move_along(&mut self, constraints: &mut [Constraint], v_free: &[f64], v: &mut [f64], alpha: f64) {
+        for k in 0..v.len() {
+            self.change[k] += alpha * self.step[k];
+            self.mass_change[k] += alpha * self.mass_step[k];
+            v[k] = v_free[k] + self.change[k];
+        }
+        for c in constraints.iter_mut().filter(|c| c.active()) {
+            c.residual = std::array::from_fn(|r| c.residual[r] + alpha * c.slope[r]);
+        }
+    }
+
+    /// The first Newton step, taken in full in the zones the warm start's impulses lie in (`Constraint::warm_zone`)
+    /// wherever they differ from those at the warm start's velocities: Newton's step on the law with each such
+    /// constraint's impulses by the formula of its warm zone. Where the zones guessed are the solution's, and
+    /// none slides, the law is affine there and the step lands on its solution. Returns false, with the
+    /// constraints and the descent as they were, where every zone agrees or the factor fails.
+    fn step_in_warm_zones(
+        &mut self,
+        model: &Model,
+        data: &Data,
+        armature: &[f64],
+        constraints: &mut [Constraint],
+        v_free: &[f64],
+        v: &mut [f64],
+    ) -> bool {
+        let mut differs = false;
+        for c in constraints.iter_mut().filter(|c| c.active()) {
+            if let Some(zone) = c.warm_zone.filter(|zone| !zone.same_zone(&c.projection)) {
+                c.radius = c.radius_at(c.residual, Some(&zone));
+                c.projection = c.project_in(c.residual, c.radius, Some(&zone));
+                c.lambda = c.impulses(&c.projection);
+                differs = true;
+            }
+        }
+        if !differs {
+            return false;
+        }
+        self.descend(model, data, constraints);
+        if self.assemble(model, data, armature, constraints, true) {
+            self.direction(model, data, armature, constraints);
+            self.move_along(constraints, v_free, v, 1.0);
+            return true;
+        }
+        project(constraints);
+        self.descend(model, data, constraints);
+        false
+    }
+
     /// Assembles and factors the Newton matrix M̃ + Σ Jᵀ H_c J at the constraints' projections, with the
     /// law's unsymmetric coupling if `coupled`; false if the factor fails.
     fn assemble(&mut self, model: &Model, data: &Data, armature: &[f64], constraints: &[Constraint], coupled: bool) -> bool {
@@ -678,6 +765,16 @@ impl Solver {
             }
         }
         tree.factor(model, data, armature, !coupled)
+    }
+}
+
+/// Each active constraint's projection and impulses at its residual, the disk's radius from the normal impulse
+/// there, held for the Newton iteration.
+fn project(constraints: &mut [Constraint]) {
+    for c in constraints.iter_mut().filter(|c| c.active()) {
+        c.radius = c.radius_at(c.residual, None);
+        c.projection = c.project(c.residual);
+        c.lambda = c.impulses(&c.projection);
     }
 }
 
