@@ -36,7 +36,7 @@ pub(crate) fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
 pub type Triangles = (Vec<Vector3<f64>>, Vec<[usize; 3]>);
 
 /// The triangles of the mesh file at `path`, as vertices and faces indexing them, for a mesh's volume and
-/// inertia: STL's triangles (three vertices each), OBJ's faces (a polygon as the fan from its first vertex),
+/// inertia: STL's triangles (three vertices each), OBJ's faces (a polygon cut into triangles as MuJoCo cuts it: see `clip_ears`),
 /// and MuJoCo's binary MSH. Errors as `mesh_vertices`'.
 pub fn mesh_triangles(path: &Path) -> Result<Triangles> {
     let bytes = crate::validate::read_regular_file("mesh", path)?;
@@ -212,9 +212,14 @@ fn stl(bytes: &[u8]) -> Result<Vec<Vector3<f64>>> {
     Ok(vertices)
 }
 
+/// The most corners an OBJ polygon may have: `clip_ears` takes up to cubic time in them (a second at this
+/// size), and real meshes' polygons have a few dozen.
+pub const OBJ_POLYGON_CORNERS: usize = 1024;
+
 /// OBJ's vertices and faces (1-based indices, negative ones counted back from the last vertex read).
 fn obj_faces(text: &str) -> Result<Triangles> {
-    let (mut vertices, mut faces) = (Vec::new(), Vec::new());
+    let (mut vertices, mut faces, mut polygon) = (Vec::new(), Vec::new(), Vec::new());
+    let mut attempts = 0;
     for (n, line) in text.lines().enumerate() {
         cancel_point(n)?;
         let mut words = line.split_whitespace();
@@ -225,32 +230,103 @@ fn obj_faces(text: &str) -> Result<Triangles> {
             }
             Some("f") => {
                 let count = vertices.len() as i64;
-                // The fan from the first corner: a triangle per corner after the second.
-                let (mut first, mut last, mut corners) = (0, 0, 0);
+                polygon.clear();
                 for w in words {
-                    let corner = match w.split('/').next().and_then(|i| i.parse::<i64>().ok()) {
+                    if polygon.len() == OBJ_POLYGON_CORNERS {
+                        return Err(bad(format!("line {}: a face of more than {OBJ_POLYGON_CORNERS} corners", n + 1)));
+                    }
+                    polygon.push(match w.split('/').next().and_then(|i| i.parse::<i64>().ok()) {
                         Some(i) if i > 0 && i <= count => i as usize - 1,
                         Some(i) if i < 0 && -i <= count => (count + i) as usize,
                         _ => return Err(bad(format!("line {}: face corner {w:?} names no vertex", n + 1))),
-                    };
-                    match corners {
-                        0 => first = corner,
-                        1 => {}
-                        _ => {
-                            grow(&mut faces, 1, "faces")?;
-                            faces.push([first, last, corner]);
-                        }
-                    }
-                    (last, corners) = (corner, corners + 1);
+                    });
                 }
-                if corners < 3 {
+                if polygon.len() < 3 {
                     return Err(bad(format!("line {}: a face with fewer than three corners", n + 1)));
                 }
+                clip_ears(&vertices, &mut polygon, &mut faces, &mut attempts)?;
             }
             _ => {}
         }
     }
     Ok((vertices, faces))
+}
+
+/// Cuts `polygon` (vertex indices) into triangles appended to `faces` as tinyobjloader does for MuJoCo, so
+/// that masses agree on any polygon, planar or not, convex or not, repeating corners or not: a quadrilateral
+/// along its shorter diagonal (the second on a tie); a larger polygon by clipping ears in the coordinate plane
+/// most nearly facing its first turning corner, an ear skipped if it turns against the sign of its first
+/// edge's area term or holds another corner, and the corners left after a lap of skips dropped. In f32, as
+/// tinyobjloader reads coordinates, so that ties fall the same way. `attempts` counts the ears tried in the
+/// file, for cancellation.
+fn clip_ears(vertices: &[Vector3<f64>], polygon: &mut Vec<usize>, faces: &mut Vec<[usize; 3]>, attempts: &mut usize) -> Result<()> {
+    let point = |i: usize| vertices[i].map(|x| x as f32);
+    let n = polygon.len();
+    if let [a, b, c, d] = polygon[..] {
+        grow(faces, 2, "faces")?;
+        let shorter = (point(c) - point(a)).norm_squared() < (point(d) - point(b)).norm_squared();
+        faces.extend(if shorter { [[a, b, c], [a, c, d]] } else { [[a, b, d], [b, c, d]] });
+        return Ok(());
+    }
+    let mut axes = (1, 2);
+    for k in 0..n {
+        let (a, b, c) = (point(polygon[k]), point(polygon[(k + 1) % n]), point(polygon[(k + 2) % n]));
+        let [cx, cy, cz] = [0, 1, 2].map(|i| (b - a).cross(&(c - b))[i].abs());
+        if cx > f32::EPSILON || cy > f32::EPSILON || cz > f32::EPSILON {
+            if !(cx > cy && cx > cz) {
+                axes = if cz > cx && cz > cy { (0, 1) } else { (0, 2) };
+            }
+            break;
+        }
+    }
+    let flat = |i: usize| {
+        let p = point(i);
+        (p[axes.0], p[axes.1])
+    };
+    let (mut guess, mut laps_left, mut last_len) = (0, n, n);
+    while polygon.len() > 3 && laps_left > 0 {
+        *attempts += 1;
+        cancel_point(*attempts)?;
+        let m = polygon.len();
+        if guess >= m {
+            guess -= m;
+        }
+        if last_len != m {
+            (last_len, laps_left) = (m, m);
+        } else {
+            laps_left -= 1;
+        }
+        let ear = [0, 1, 2].map(|k| polygon[(guess + k) % m]);
+        let corners = ear.map(flat);
+        let [p0, p1, p2] = corners;
+        let turn = (p1.0 - p0.0) * (p2.1 - p1.1) - (p1.1 - p0.1) * (p2.0 - p1.0);
+        let area = (p0.0 * p1.1 - p0.1 * p1.0) * 0.5;
+        if turn * area < 0.0 || (3..m).any(|k| inside(&corners, flat(polygon[(guess + k) % m]))) {
+            guess += 1;
+            continue;
+        }
+        grow(faces, 1, "faces")?;
+        faces.push(ear);
+        polygon.remove((guess + 1) % m);
+    }
+    if let [a, b, c] = polygon[..] {
+        grow(faces, 1, "faces")?;
+        faces.push([a, b, c]);
+    }
+    Ok(())
+}
+
+/// Whether `(x, y)` lies inside the triangle by the crossing count, as tinyobjloader's `pnpoly` tells it (a
+/// corner on an edge may count either way; the same way as there).
+fn inside(triangle: &[(f32, f32); 3], (x, y): (f32, f32)) -> bool {
+    let mut odd = false;
+    for (i, j) in [(0, 2), (1, 0), (2, 1)] {
+        let (a, b) = (triangle[i], triangle[j]);
+        if (a.1 > y) != (b.1 > y) && x < (b.0 - a.0) * (y - a.1) / (b.1 - a.1) + a.0 {
+            odd = !odd;
+        }
+    }
+    odd
 }
 
 /// MuJoCo's binary MSH: four counts (vertices, normals, texture coordinates, faces), then the vertices' and
