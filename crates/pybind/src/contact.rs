@@ -30,7 +30,7 @@ fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<ContactPo
     let mut out = Vec::new();
     for item in value.try_iter().map_err(|_| expected())? {
         let (body, point): (Bound<'_, PyAny>, Vector<'_>) = item?.extract().map_err(|_| expected())?;
-        out.push(ContactPoint { body: model.body_index("contacts", &body)?, point: vector3("contacts", &point)? });
+        out.push(ContactPoint { body: model.body_index("body", &body)?, point: vector3("contacts", &point)? });
     }
     algorithms::check_contacts(&model.model, &out).map_err(kernel_error)?;
     Ok(out)
