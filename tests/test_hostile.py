@@ -742,14 +742,21 @@ whole = time.monotonic() - started
     assert "from_urdf" in result["threads"], result  # still parsing: the answer did not wait for it
 
 
+def flat_mjcf(bodies: int) -> str:
+    """An MJCF world of `bodies` free-standing bodies, each on a hinge with a sphere."""
+    body = '<body pos="0 0 1"><joint type="hinge"/><geom size="0.1"/></body>'
+    return "<mujoco><worldbody>" + body * bodies + "</worldbody></mujoco>"
+
+
 @pytest.mark.slow
-def test_an_interrupted_load_stops_its_worker_thread(tmp_path):
-    # The child loads a 500,000-link chain once to time it (T), then again; interrupted halfway through that
-    # second load, the worker thread (named from_urdf) is cancelled and ends, instead of loading on in the
-    # background for the other half. (The XML parse itself, a quarter of the load, is one call that cannot be
-    # cut: it is over by then.)
-    path = tmp_path / "chain.urdf"
-    path.write_text(chain_urdf(500_000))
+@pytest.mark.parametrize(("kind", "document"), [("urdf", chain_urdf), ("mjcf", flat_mjcf)])
+def test_an_interrupted_load_stops_its_worker_thread(tmp_path, kind, document):
+    # The child loads a 500,000-link model once to time it (T), then again; interrupted halfway through that
+    # second load, the worker thread (named from_urdf or from_mjcf) is cancelled and ends, instead of loading on
+    # in the background for the other half. (The XML parse itself is one call that cannot be cut: it is over by
+    # then.)
+    path = tmp_path / f"model.{kind}"
+    path.write_text(document(500_000))
     body = f"""
 import os, time
 TICK = os.sysconf("SC_CLK_TCK")
@@ -757,18 +764,18 @@ def worker_cpu():  # CPU seconds of the from_urdf worker threads alive now
     total = 0.0
     for t in os.listdir("/proc/self/task"):
         try:
-            if open(f"/proc/self/task/{{t}}/comm").read().strip() == "from_urdf":
+            if open(f"/proc/self/task/{{t}}/comm").read().strip() == "from_{kind}":
                 fields = open(f"/proc/self/task/{{t}}/stat").read().rsplit(")", 1)[1].split()
                 total += (int(fields[11]) + int(fields[12])) / TICK
         except FileNotFoundError:  # ended meanwhile
             pass
     return total
 started, started_cpu = time.monotonic(), time.process_time()
-lk.Model.from_urdf({str(path)!r})
+lk.Model.from_{kind}({str(path)!r})
 whole = time.process_time() - started_cpu  # CPU seconds: the worker's work, whatever else runs on the machine
 print("STARTED", time.monotonic() - started, flush=True)
 try:
-    lk.Model.from_urdf({str(path)!r})
+    lk.Model.from_{kind}({str(path)!r})
 except KeyboardInterrupt:
     interrupted, at_interrupt, last = time.monotonic(), worker_cpu(), 0.0
     while time.monotonic() - interrupted < 60:

@@ -78,11 +78,11 @@ fn finite_vertices(path: &Path, vertices: &[Vector3<f64>]) -> Result<()> {
     }
 }
 
-/// Every `CANCEL_INTERVAL` items of a loop over a file (`k` counts them), fails if the load was cancelled
-/// (`validate::cancellable`): a file of hundreds of megabytes takes seconds to read.
-fn cancel_point(k: usize) -> Result<()> {
+/// Every `CANCEL_INTERVAL` items of a loop over a file (`k` counts them), fails (naming `what`) if the load was
+/// cancelled (`validate::cancellable`): a file of hundreds of megabytes takes seconds to read.
+pub(crate) fn cancel_point(what: &'static str, k: usize) -> Result<()> {
     if k.is_multiple_of(crate::validate::CANCEL_INTERVAL) {
-        crate::validate::check_cancelled("mesh")?;
+        crate::validate::check_cancelled(what)?;
     }
     Ok(())
 }
@@ -203,7 +203,7 @@ fn stl(bytes: &[u8]) -> Result<Vec<Vector3<f64>>> {
     let mut vertices = Vec::new();
     let mut words = text.split_whitespace().enumerate();
     while let Some((k, word)) = words.next() {
-        cancel_point(k)?;
+        cancel_point("mesh", k)?;
         if word == "vertex" {
             grow(&mut vertices, 1, "vertices")?;
             vertices.push(three(&mut (&mut words).map(|(_, w)| w)).ok_or_else(|| bad("a vertex without three numbers"))?);
@@ -221,7 +221,7 @@ fn obj_faces(text: &str) -> Result<Triangles> {
     let (mut vertices, mut faces, mut polygon) = (Vec::new(), Vec::new(), Vec::new());
     let mut attempts = 0;
     for (n, line) in text.lines().enumerate() {
-        cancel_point(n)?;
+        cancel_point("mesh", n)?;
         let mut words = line.split_whitespace();
         match words.next() {
             Some("v") => {
@@ -286,7 +286,7 @@ fn clip_ears(vertices: &[Vector3<f64>], polygon: &mut Vec<usize>, faces: &mut Ve
     let (mut guess, mut laps_left, mut last_len) = (0, n, n);
     while polygon.len() > 3 && laps_left > 0 {
         *attempts += 1;
-        cancel_point(*attempts)?;
+        cancel_point("mesh", *attempts)?;
         let m = polygon.len();
         if guess >= m {
             guess -= m;

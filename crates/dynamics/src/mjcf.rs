@@ -58,6 +58,7 @@ use nalgebra::{DVector, Matrix3, Quaternion, SymmetricEigen, Unit, UnitQuaternio
 use roxmltree::Node;
 
 use crate::geometry::{Convex, Shape, ShapeKind};
+use crate::mesh::cancel_point;
 use crate::mesh::{mesh_triangles, mesh_vertices};
 use crate::validate::check_cancelled;
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
@@ -247,6 +248,7 @@ fn own(node: Node, label: &str, breaks: &[usize], source: &mut Source, depth: us
     };
     for child in node.children().filter(Node::is_element) {
         source.elements += 1;
+        cancel_point("from_mjcf", source.elements)?;
         if source.elements > MAX_ELEMENTS {
             return Err(Error::too_large("mjcf", format!("more than {MAX_ELEMENTS} elements")));
         }
@@ -889,6 +891,7 @@ impl Walker<'_, '_> {
             }
             match child.tag.as_str() {
                 "body" => {
+                    cancel_point("from_mjcf", self.bodies.len())?;
                     let frame = prefix.compose(&self.reader.frame(child, &class)?);
                     let number = self.bodies.len();
                     let name = child.attr("name").map_or_else(|| format!("body{number}"), str::to_owned);
@@ -1234,6 +1237,7 @@ fn build(bodies: &[Body], options: &MjcfOptions, reader: &mut Reader) -> Result<
         shapes.extend(bodies[b].shapes.iter().map(|s| (0, s.clone())));
     }
     for (b, body) in bodies.iter().enumerate().skip(1) {
+        cancel_point("from_mjcf", b)?;
         if kept[b] || !kept[body.parent] {
             continue;
         }
