@@ -58,8 +58,7 @@ use nalgebra::{DVector, Matrix3, Quaternion, SymmetricEigen, Unit, UnitQuaternio
 use roxmltree::Node;
 
 use crate::geometry::{Convex, Shape, ShapeKind};
-use crate::mesh::cancel_point;
-use crate::mesh::{mesh_triangles, mesh_vertices};
+use crate::mesh::{cancel_point, hull_points, mesh_triangles, mesh_vertices};
 use crate::validate::check_cancelled;
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
@@ -1109,8 +1108,13 @@ fn geom(
         "cylinder" => ShapeKind::Cylinder { half_height: b, radius: a },
         "box" => ShapeKind::Box(Vector3::new(2.0 * a, 2.0 * b, 2.0 * c)),
         "mesh" => match mesh {
-            Some((_, Ok(asset))) => match Convex::hull(&asset.vertices) {
-                Ok(hull) => ShapeKind::Convex(hull),
+            Some((name, Ok(asset))) => match hull_points(&asset.vertices).and_then(|(points, thinned)| Ok((Convex::hull(&points)?, thinned))) {
+                Ok((hull, thinned)) => {
+                    if let Some(note) = thinned {
+                        reader.accept(format!("{what} (mesh {name:?}): {note}"))?;
+                    }
+                    ShapeKind::Convex(hull)
+                }
                 Err(e) => {
                     contents.unshaped.push(format!("{what} (mesh: {})", e.reason()));
                     return Ok(());
