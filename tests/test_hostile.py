@@ -348,6 +348,39 @@ lk.Model.from_mjcf("<mujoco><default>" + classes + "</default>" * 100_001 + "</m
 # --- dependencies that can panic -----------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize(
+    "defaults",
+    [
+        ('<default><default class="a"><default class="a"/></default></default>', "defined twice"),
+        ('<default><default class="a"/><default class="a"/></default>', "defined twice"),
+        ('<default><default class="main"/></default>', "defined twice"),
+        ('<default class="a"/>', "cannot be renamed"),
+    ],
+    ids=["nested", "siblings", "main", "top-renamed"],
+)
+def test_a_default_class_defined_twice_or_a_renamed_top_class_is_refused(defaults):
+    # A nested class of its parent's name silently replaced the parent's attributes, and a top <default class="a">
+    # was read as "main" (MuJoCo refuses both).
+    xml, reason = defaults
+    raises(f"lk.Model.from_mjcf('<mujoco>{xml}<worldbody/></mujoco>')", "ValueError", "mjcf", reason)
+
+
+@pytest.mark.parametrize(
+    ("call", "name"),
+    [
+        ("run_balance([tree], 0.01, sample_every=0)", "sample_every"),  # was a ZeroDivisionError
+        ("run_balance([tree], 0.01, rounds_per_step=0)", "rounds_per_step"),  # ran without messages
+        ("run_balance([tree], 0.01, dt=1.0)", "dt"),  # ran no step and returned the start
+        ("run_balance([tree], 0.01, seed=-1)", "seed"),  # NumPy's message, naming nothing
+        ("initial_angles(tree, -1)", "seed"),
+        ("PID((-1,))", "shape"),
+    ],
+)
+def test_balance_entry_points_refuse_bad_counts_by_name(call, name):
+    setup = "from legkit.control import PID, initial_angles, run_balance\nfrom legkit.robots import random_tree\ntree = random_tree(5, 2)\n"
+    raises(setup + call, "ValueError", name)
+
+
 def test_a_capsule_beyond_any_robot_is_refused_before_parry_sees_it():
     raises(
         PENDULUM

@@ -305,14 +305,14 @@ fn collect_defaults(el: &El, parent: &Class, name: &str, classes: &mut HashMap<S
             attrs.insert(k.clone(), v.clone());
         }
     }
-    if classes.contains_key(name) {
-        return Err(invalid(format!("default class {name:?} is defined twice ({})", el.at)));
-    }
     for child in el.elements("default") {
         let child_name = child.attr("class").ok_or_else(|| invalid(format!("a nested <default> has no class ({})", child.at)))?;
         collect_defaults(child, &class, child_name, classes)?;
     }
-    classes.insert(name.to_owned(), class);
+    // Checked once the nested classes are in: one of them may take its parent's name.
+    if classes.insert(name.to_owned(), class).is_some() {
+        return Err(invalid(format!("default class {name:?} is defined twice ({})", el.at)));
+    }
     Ok(())
 }
 
@@ -602,6 +602,9 @@ fn parse(xml: &str, argument: &'static str, label: &str, folder: Option<&Path>, 
     let mut main = Class::new();
     for d in root.elements("default") {
         // The top <default> is class "main"; its children inherit from it.
+        if d.attr("class").is_some_and(|name| name != "main") {
+            return Err(invalid(format!("the top <default> is class \"main\" and cannot be renamed ({})", d.at)));
+        }
         let mut top = HashMap::new();
         collect_defaults(d, &main, "main", &mut top)?;
         main = top.remove("main").expect("collected");
