@@ -168,26 +168,34 @@ def binary_stl(path: Path, triangles: int, *, sphere: bool = False) -> None:
     path.write_bytes(b"\0" * 80 + np.uint32(triangles).tobytes() + records.tobytes())
 
 
-@pytest.mark.parametrize(("triangles", "sphere", "headroom"), [(4_000_000, False, 350), (200_000, True, 200)], ids=["vertices", "hull"])
-def test_a_mesh_too_large_for_memory_is_a_memory_error(tmp_path, triangles, sphere, headroom):
-    # Headroom (MB) above what the child holds before loading, of which the loader's thread takes 72 MB (its
-    # stack and malloc arena). "vertices": the file (200 MB) fits, its vertex list (288 MB) does not. "hull":
-    # the vertex list (14 MB) and its copies fit, parry's working set for 600,000 points on a sphere (about
-    # 700 MB) does not.
-    binary_stl(tmp_path / "leg.stl", triangles, sphere=sphere)
-    (tmp_path / "r.urdf").write_text(MESH_URDF.format(filename="leg.stl"))
-    raises(
-        f"""
+LIMITED = """
 vm = int(open("/proc/self/status").read().split("VmSize:")[1].split()[0]) * 1024
 resource.setrlimit(resource.RLIMIT_AS, (vm + {headroom} * 2**20, vm + {headroom} * 2**20))
-lk.Model.from_urdf({str(tmp_path / "r.urdf")!r})
-""",
-        "MemoryError",
-        "mesh",
-        "leg.stl",
-        "bytes",
-        memory=0,
-    )
+"""
+
+
+def test_a_mesh_too_large_for_memory_is_a_memory_error(tmp_path):
+    # 350 MB of headroom above what the child holds before loading, of which the loader's thread takes 72 MB (its
+    # stack and malloc arena): the file (200 MB) fits, its vertex list (288 MB) does not.
+    binary_stl(tmp_path / "leg.stl", 4_000_000)
+    (tmp_path / "r.urdf").write_text(MESH_URDF.format(filename="leg.stl"))
+    raises(LIMITED.format(headroom=350) + f"lk.Model.from_urdf({str(tmp_path / 'r.urdf')!r})", "MemoryError", "mesh", "leg.stl", "bytes", memory=0)
+
+
+def test_a_mesh_whose_whole_hull_would_not_fit_loads_its_thinned_hull(tmp_path):
+    # Parry's working set for the hull of 600,000 points on a sphere (about 700 MB) did not fit in 200 MB of
+    # headroom; the hull is now taken over at most 25,000 of them (about 32 MB), with a warning.
+    binary_stl(tmp_path / "leg.stl", 200_000, sphere=True)
+    (tmp_path / "r.urdf").write_text(MESH_URDF.format(filename="leg.stl"))
+    body = LIMITED.format(headroom=200) + f"""
+import warnings
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    lk.Model.from_urdf({str(tmp_path / "r.urdf")!r})
+report(raised=None, warnings=[str(w.message) for w in caught])
+"""
+    result = outcome(body, memory=0)
+    assert result["raised"] is None and any("convex hull is taken over" in w for w in result["warnings"]), result
 
 
 def test_a_collada_file_instancing_a_geometry_beyond_memory_is_a_memory_error(tmp_path):
@@ -338,6 +346,39 @@ lk.Model.from_mjcf("<mujoco><default>" + classes + "</default>" * 100_001 + "</m
 
 
 # --- dependencies that can panic -----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "defaults",
+    [
+        ('<default><default class="a"><default class="a"/></default></default>', "defined twice"),
+        ('<default><default class="a"/><default class="a"/></default>', "defined twice"),
+        ('<default><default class="main"/></default>', "defined twice"),
+        ('<default class="a"/>', "cannot be renamed"),
+    ],
+    ids=["nested", "siblings", "main", "top-renamed"],
+)
+def test_a_default_class_defined_twice_or_a_renamed_top_class_is_refused(defaults):
+    # A nested class of its parent's name silently replaced the parent's attributes, and a top <default class="a">
+    # was read as "main" (MuJoCo refuses both).
+    xml, reason = defaults
+    raises(f"lk.Model.from_mjcf('<mujoco>{xml}<worldbody/></mujoco>')", "ValueError", "mjcf", reason)
+
+
+@pytest.mark.parametrize(
+    ("call", "name"),
+    [
+        ("run_balance([tree], 0.01, sample_every=0)", "sample_every"),  # was a ZeroDivisionError
+        ("run_balance([tree], 0.01, rounds_per_step=0)", "rounds_per_step"),  # ran without messages
+        ("run_balance([tree], 0.01, dt=1.0)", "dt"),  # ran no step and returned the start
+        ("run_balance([tree], 0.01, seed=-1)", "seed"),  # NumPy's message, naming nothing
+        ("initial_angles(tree, -1)", "seed"),
+        ("PID((-1,))", "shape"),
+    ],
+)
+def test_balance_entry_points_refuse_bad_counts_by_name(call, name):
+    setup = "from legkit.control import PID, initial_angles, run_balance\nfrom legkit.robots import random_tree\ntree = random_tree(5, 2)\n"
+    raises(setup + call, "ValueError", name)
 
 
 def test_a_capsule_beyond_any_robot_is_refused_before_parry_sees_it():
@@ -742,14 +783,17 @@ whole = time.monotonic() - started
     assert "from_urdf" in result["threads"], result  # still parsing: the answer did not wait for it
 
 
-@pytest.mark.slow
-def test_an_interrupted_load_stops_its_worker_thread(tmp_path):
-    # The child loads a 500,000-link chain once to time it (T), then again; interrupted halfway through that
-    # second load, the worker thread (named from_urdf) is cancelled and ends, instead of loading on in the
-    # background for the other half. (The XML parse itself, a quarter of the load, is one call that cannot be
-    # cut: it is over by then.)
-    path = tmp_path / "chain.urdf"
-    path.write_text(chain_urdf(500_000))
+def flat_mjcf(bodies: int) -> str:
+    """An MJCF world of `bodies` free-standing bodies, each on a hinge with a sphere."""
+    body = '<body pos="0 0 1"><joint type="hinge"/><geom size="0.1"/></body>'
+    return "<mujoco><worldbody>" + body * bodies + "</worldbody></mujoco>"
+
+
+def interrupted_load(path: Path, kind: str) -> dict:
+    """Loads `path` (a URDF or MJCF file) in a child once to time it (T), then again, interrupted halfway through
+    that second load; the child reports T (`whole`, CPU seconds) and the CPU seconds its worker thread (named
+    from_urdf or from_mjcf) ran after the interrupt, until it ended (`worker_cpu_after`). CPU seconds, not wall
+    time, so that a loaded machine does not stretch what is measured."""
     body = f"""
 import os, time
 TICK = os.sysconf("SC_CLK_TCK")
@@ -757,18 +801,18 @@ def worker_cpu():  # CPU seconds of the from_urdf worker threads alive now
     total = 0.0
     for t in os.listdir("/proc/self/task"):
         try:
-            if open(f"/proc/self/task/{{t}}/comm").read().strip() == "from_urdf":
+            if open(f"/proc/self/task/{{t}}/comm").read().strip() == "from_{kind}":
                 fields = open(f"/proc/self/task/{{t}}/stat").read().rsplit(")", 1)[1].split()
                 total += (int(fields[11]) + int(fields[12])) / TICK
         except FileNotFoundError:  # ended meanwhile
             pass
     return total
 started, started_cpu = time.monotonic(), time.process_time()
-lk.Model.from_urdf({str(path)!r})
+lk.Model.from_{kind}({str(path)!r})
 whole = time.process_time() - started_cpu  # CPU seconds: the worker's work, whatever else runs on the machine
 print("STARTED", time.monotonic() - started, flush=True)
 try:
-    lk.Model.from_urdf({str(path)!r})
+    lk.Model.from_{kind}({str(path)!r})
 except KeyboardInterrupt:
     interrupted, at_interrupt, last = time.monotonic(), worker_cpu(), 0.0
     while time.monotonic() - interrupted < 60:
@@ -793,9 +837,55 @@ except KeyboardInterrupt:
         child.kill()
     result = json.loads(next(line for line in out.splitlines() if line.startswith("RESULT ")).removeprefix("RESULT "))
     assert result["raised"] == "KeyboardInterrupt", (result, err[-2000:])
-    # Uncancelled, the worker would go on for the other half of the load: half its CPU time. Counted in CPU seconds,
-    # not wall time, so that a loaded machine does not stretch what it measures.
+    return result
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("kind", "document"), [("urdf", chain_urdf), ("mjcf", flat_mjcf)])
+def test_an_interrupted_load_stops_its_worker_thread(tmp_path, kind, document):
+    # A 500,000-link model: interrupted halfway, the worker thread is cancelled and ends, instead of loading on in
+    # the background for the other half. (The XML parse itself is one call that cannot be cut: it is over by then.)
+    path = tmp_path / f"model.{kind}"
+    path.write_text(document(500_000))
+    result = interrupted_load(path, kind)
     assert result["worker_cpu_after"] < 0.25 * result["whole"], result
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["urdf", "mjcf"])
+def test_an_interrupted_load_of_a_mesh_with_a_huge_hull_stops_within_a_second(tmp_path, kind):
+    # 900,000 vertices on a sphere, all on its hull: parry took 52 s of CPU over them in one call that cannot be
+    # cut, and went on for as long after Ctrl-C. Its hull is now taken over at most 25,000 of them (a warning says
+    # so), and the reading and thinning before it are interruptible.
+    binary_stl(tmp_path / "sphere.stl", 300_000, sphere=True)
+    path = tmp_path / f"model.{kind}"
+    path.write_text(mesh_model(kind, "sphere.stl"))
+    result = interrupted_load(path, kind)
+    assert result["worker_cpu_after"] < 1.0, result
+
+
+def mesh_model(kind: str, mesh: str) -> str:
+    """A URDF or MJCF document of one body colliding as the mesh file `mesh`."""
+    if kind == "urdf":
+        return chain_urdf(1).replace('<link name="l0">', f'<link name="l0"><collision><geometry><mesh filename="{mesh}"/></geometry></collision>')
+    body = '<body><freejoint/><geom type="mesh" mesh="m"/></body>'
+    return f'<mujoco><asset><mesh name="m" file="{mesh}"/></asset><worldbody>{body}</worldbody></mujoco>'
+
+
+def test_a_mesh_beyond_the_hull_bound_is_thinned_with_a_warning(tmp_path):
+    binary_stl(tmp_path / "sphere.stl", 100_000, sphere=True)
+    with pytest.warns(lk.UrdfWarning, match=r"its convex hull is taken over \d+ of its 300000 vertices \(each within"):
+        model = lk.Model.from_urdf(mesh_model("urdf", str(tmp_path / "sphere.stl")))
+    ((_, kind, vertices, _),) = model.colliders()
+    assert kind == "convex"
+    assert 10_000 < len(vertices) <= 25_000
+    # The thinned hull lies inside the unit sphere and reaches it in every direction, to within the grid's cell.
+    assert np.all(np.linalg.norm(vertices, axis=1) <= 1 + 1e-6)
+    directions = np.random.default_rng(1).normal(size=(1000, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    assert np.all((directions @ np.asarray(vertices).T).max(axis=1) > 0.95)
+    with pytest.raises(ValueError, match="convex hull is taken over"):
+        lk.Model.from_mjcf(mesh_model("mjcf", str(tmp_path / "sphere.stl")), strict=True)
 
 
 def test_an_interrupted_step_keeps_whole_steps():

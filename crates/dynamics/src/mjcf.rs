@@ -58,7 +58,7 @@ use nalgebra::{DVector, Matrix3, Quaternion, SymmetricEigen, Unit, UnitQuaternio
 use roxmltree::Node;
 
 use crate::geometry::{Convex, Shape, ShapeKind};
-use crate::mesh::{mesh_triangles, mesh_vertices};
+use crate::mesh::{cancel_point, hull_points, mesh_triangles, mesh_vertices};
 use crate::validate::check_cancelled;
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
@@ -247,6 +247,7 @@ fn own(node: Node, label: &str, breaks: &[usize], source: &mut Source, depth: us
     };
     for child in node.children().filter(Node::is_element) {
         source.elements += 1;
+        cancel_point("from_mjcf", source.elements)?;
         if source.elements > MAX_ELEMENTS {
             return Err(Error::too_large("mjcf", format!("more than {MAX_ELEMENTS} elements")));
         }
@@ -304,14 +305,14 @@ fn collect_defaults(el: &El, parent: &Class, name: &str, classes: &mut HashMap<S
             attrs.insert(k.clone(), v.clone());
         }
     }
-    if classes.contains_key(name) {
-        return Err(invalid(format!("default class {name:?} is defined twice ({})", el.at)));
-    }
     for child in el.elements("default") {
         let child_name = child.attr("class").ok_or_else(|| invalid(format!("a nested <default> has no class ({})", child.at)))?;
         collect_defaults(child, &class, child_name, classes)?;
     }
-    classes.insert(name.to_owned(), class);
+    // Checked once the nested classes are in: one of them may take its parent's name.
+    if classes.insert(name.to_owned(), class).is_some() {
+        return Err(invalid(format!("default class {name:?} is defined twice ({})", el.at)));
+    }
     Ok(())
 }
 
@@ -601,6 +602,9 @@ fn parse(xml: &str, argument: &'static str, label: &str, folder: Option<&Path>, 
     let mut main = Class::new();
     for d in root.elements("default") {
         // The top <default> is class "main"; its children inherit from it.
+        if d.attr("class").is_some_and(|name| name != "main") {
+            return Err(invalid(format!("the top <default> is class \"main\" and cannot be renamed ({})", d.at)));
+        }
         let mut top = HashMap::new();
         collect_defaults(d, &main, "main", &mut top)?;
         main = top.remove("main").expect("collected");
@@ -889,6 +893,7 @@ impl Walker<'_, '_> {
             }
             match child.tag.as_str() {
                 "body" => {
+                    cancel_point("from_mjcf", self.bodies.len())?;
                     let frame = prefix.compose(&self.reader.frame(child, &class)?);
                     let number = self.bodies.len();
                     let name = child.attr("name").map_or_else(|| format!("body{number}"), str::to_owned);
@@ -1106,8 +1111,13 @@ fn geom(
         "cylinder" => ShapeKind::Cylinder { half_height: b, radius: a },
         "box" => ShapeKind::Box(Vector3::new(2.0 * a, 2.0 * b, 2.0 * c)),
         "mesh" => match mesh {
-            Some((_, Ok(asset))) => match Convex::hull(&asset.vertices) {
-                Ok(hull) => ShapeKind::Convex(hull),
+            Some((name, Ok(asset))) => match hull_points(&asset.vertices).and_then(|(points, thinned)| Ok((Convex::hull(&points)?, thinned))) {
+                Ok((hull, thinned)) => {
+                    if let Some(note) = thinned {
+                        reader.accept(format!("{what} (mesh {name:?}): {note}"))?;
+                    }
+                    ShapeKind::Convex(hull)
+                }
                 Err(e) => {
                     contents.unshaped.push(format!("{what} (mesh: {})", e.reason()));
                     return Ok(());
@@ -1234,6 +1244,7 @@ fn build(bodies: &[Body], options: &MjcfOptions, reader: &mut Reader) -> Result<
         shapes.extend(bodies[b].shapes.iter().map(|s| (0, s.clone())));
     }
     for (b, body) in bodies.iter().enumerate().skip(1) {
+        cancel_point("from_mjcf", b)?;
         if kept[b] || !kept[body.parent] {
             continue;
         }

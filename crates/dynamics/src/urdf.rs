@@ -74,7 +74,7 @@ use nalgebra::{Matrix3, Vector3};
 use roxmltree::Node;
 
 use crate::geometry::{Convex, Shape, ShapeKind};
-use crate::mesh::{mesh_vertices, resolve_mesh};
+use crate::mesh::{hull_points, mesh_vertices, resolve_mesh};
 use crate::validate::{check_cancelled, direction, filled, with_capacity, CANCEL_INTERVAL};
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
@@ -458,7 +458,9 @@ fn collisions(
                 check_cancelled("from_urdf")?;
                 let hull = resolve_mesh(filename, folder, package_dirs).and_then(|path| mesh_vertices(&path)).and_then(|mut vertices| {
                     vertices.iter_mut().for_each(|v| v.component_mul_assign(&scale));
-                    Convex::hull(&vertices)
+                    let (points, thinned) = hull_points(&vertices)?;
+                    notes.extend(thinned.map(|note| format!("{owner}: <collision> mesh {filename:?}: {note}")));
+                    Convex::hull(&points)
                 });
                 match hull {
                     Ok(convex) => ShapeKind::Convex(convex),

@@ -43,6 +43,7 @@ fn angle_rows(angles: &[f64]) -> Vec<[f64; 3]> {
 }
 
 #[pymethods]
+#[pyo3(crate = "crate::arguments")]
 impl PyBalanceKernel {
     /// Internal: see `legkit.control.balance.BalanceKernel`, which builds it from an `AgentNetwork` and a
     /// `BalanceController`. Links are numbered 6 module + slot.

@@ -26,11 +26,11 @@ fn contact_dim(dim: Integer) -> PyResult<ContactDim> {
 
 /// Contact points from a sequence of (body, point) pairs: body index or name, point in the body's frame.
 fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<ContactPoint>> {
+    let expected = || pyo3::exceptions::PyTypeError::new_err("contacts: expected a sequence of (body, point) pairs");
     let mut out = Vec::new();
-    for item in value.try_iter()? {
-        let (body, point): (Bound<'_, PyAny>, Vector<'_>) =
-            item?.extract().map_err(|_| pyo3::exceptions::PyTypeError::new_err("contacts: expected a sequence of (body, point) pairs"))?;
-        out.push(ContactPoint { body: model.body_index(&body)?, point: vector3("contacts", &point)? });
+    for item in value.try_iter().map_err(|_| expected())? {
+        let (body, point): (Bound<'_, PyAny>, Vector<'_>) = item?.extract().map_err(|_| expected())?;
+        out.push(ContactPoint { body: model.body_index("body", &body)?, point: vector3("contacts", &point)? });
     }
     algorithms::check_contacts(&model.model, &out).map_err(kernel_error)?;
     Ok(out)
@@ -62,7 +62,7 @@ where
 /// Forward dynamics with the contacts held still (Hardt & von Stryk eq. 1–3): the points (`dim=3`) or the bodies'
 /// frames at them (`dim=6`). Returns (ddq (..., nv), forces (..., k, dim)), the forces (with dim 6, wrenches [force;
 /// torque about the point]) on the robot at the contacts in world axes; dependent contacts get the minimum-norm forces.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, tau, contacts, dim = Integer::new(3)))]
 pub fn contact_dynamics<'py>(
     py: Python<'py>,
@@ -88,7 +88,7 @@ pub fn contact_dynamics<'py>(
 
 /// Perfectly inelastic impact at the contacts (`dim` as `contact_dynamics`): returns (v_plus (..., nv), impulses
 /// (..., k, dim)).
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, contacts, dim = Integer::new(3)))]
 pub fn impact<'py>(
     py: Python<'py>,
@@ -111,7 +111,7 @@ pub fn impact<'py>(
 /// World-axes (classical) acceleration of each contact point (body, point in the body's frame) at (q, v, a):
 /// J q̈ + J̇ q̇ per point, `(..., k, 3)`; with `dim=6`, the frame's spatial acceleration [linear; angular] at the point,
 /// world axes, `(..., k, 6)`. Zero for the contacts `contact_dynamics` holds, at its q̈.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, a, contacts, dim = Integer::new(3)))]
 pub fn point_accelerations<'py>(
     py: Python<'py>,
@@ -148,7 +148,7 @@ type Reduced<'py> = (
 /// The reduced ODE on independent velocity coordinates for one state (Hardt & von Stryk eq. 7):
 /// (ddq, independent, dependent, basis N (nv, nI), mass N^T M N, force, offset) with v = N v_I and
 /// q̈ = N v̇_I + offset. `independent` picks the coordinates; by default they are chosen by pivoting.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, tau, contacts, independent = None))]
 pub fn reduced_dynamics<'py>(
     py: Python<'py>,
@@ -221,7 +221,7 @@ fn matrix_views<'py>(out: &FloatArray<'py>, count: usize, nv: usize, (k, d): (us
 /// (Pinocchio's `computeConstraintDynamicsDerivatives` for CONTACT_3D or, with `dim=6`, CONTACT_6D contacts in
 /// `LOCAL_WORLD_ALIGNED`). The contacts must be independent (a ValueError otherwise: their forces, and so the
 /// derivatives, would not be unique).
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, tau, contacts, dim = Integer::new(3)))]
 pub fn contact_dynamics_derivatives<'py>(
     py: Python<'py>,
@@ -252,7 +252,7 @@ pub fn contact_dynamics_derivatives<'py>(
 /// The derivatives of `impact` with respect to q (its tangent space) and the velocity before it: (v_plus_dq,
 /// v_plus_dv) each `(..., nv, nv)` and (impulses_dq, impulses_dv) each `(..., k, dim, nv)` (Pinocchio's
 /// `computeImpulseDynamicsDerivatives` with no restitution). The contacts must be independent.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, contacts, dim = Integer::new(3)))]
 pub fn impact_derivatives<'py>(
     py: Python<'py>,

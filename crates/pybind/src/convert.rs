@@ -59,8 +59,8 @@ pub fn source_text(py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<String>
         Ok(s) => Ok(s.to_str()?.to_owned()),
         Err(_) => py
             .import("os")?
-            .call_method1("fspath", (value,))?
-            .extract()
+            .call_method1("fspath", (value,))
+            .and_then(|path| path.extract())
             .map_err(|_| PyTypeError::new_err("path_or_xml: expected a path or an XML string")),
     }
 }

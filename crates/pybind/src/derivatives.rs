@@ -61,7 +61,7 @@ pub(crate) fn pair(parts: Vec<FloatArray<'_>>) -> PyResult<(FloatArray<'_>, Floa
 
 /// ∂τ/∂q and ∂τ/∂v of inverse dynamics (`rnea`), each `(..., nv, nv)`, q on its tangent space (Carpentier &
 /// Mansard, RSS 2018; Pinocchio's `computeRNEADerivatives`). ∂τ/∂a is `crba`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, a, f_ext = None))]
 pub fn rnea_derivatives<'py>(
     py: Python<'py>,
@@ -90,7 +90,7 @@ pub fn rnea_derivatives<'py>(
 /// The second derivatives of inverse dynamics (`rnea`), each `(..., nv, nv, nv)` with entry [i, j, k] the slope along
 /// the third index of a first derivative: ∂/∂q_k of ∂τ_i/∂q_j, ∂/∂v_k of ∂τ_i/∂v_j, ∂/∂v_k of ∂τ_i/∂q_j and ∂/∂q_k of
 /// ∂τ_i/∂a_j = M_ij; q on its tangent space (Pinocchio's `ComputeRNEASecondOrderDerivatives`).
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn rnea_second_order_derivatives<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -117,7 +117,7 @@ pub fn rnea_second_order_derivatives<'py>(
 
 /// ∂a/∂q, ∂a/∂v and ∂a/∂τ = M⁻¹ of forward dynamics (`aba`), each `(..., nv, nv)`, q on its tangent space
 /// (Pinocchio's `computeABADerivatives`).
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, tau, f_ext = None))]
 pub fn aba_derivatives<'py>(
     py: Python<'py>,
@@ -151,7 +151,7 @@ pub fn aba_derivatives<'py>(
 /// ∂h/∂q, ∂ḣ/∂q, ∂ḣ/∂v and ∂ḣ/∂a = ∂h/∂v = A_G of the centroidal momentum h (`centroidal_momentum`) and its rate ḣ
 /// (`centroidal_momentum_rate`, gravity excluded), each `(..., 6, nv)`, q on its tangent space (Pinocchio's
 /// `computeCentroidalDynamicsDerivatives`).
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn centroidal_derivatives<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -174,7 +174,7 @@ pub fn centroidal_derivatives<'py>(
 
 /// The centre of mass's Jacobian ∂c/∂q, `(..., 3, nv)`, world axes, q on its tangent space (Pinocchio's
 /// `jacobianCenterOfMass`).
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn center_of_mass_jacobian<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let nv = model.model.nv();
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;

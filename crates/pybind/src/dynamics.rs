@@ -30,7 +30,7 @@ pub(crate) fn state_batch(
 
 /// Inverse dynamics τ = M q̈ + C q̇ + g − Σ Jᵀ f_ext (recursive Newton–Euler). `f_ext`, optional, holds one
 /// force `[f, n]` per body, in that body's frame: `(..., nbodies, 6)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, a, f_ext = None))]
 pub fn rnea<'py>(
     py: Python<'py>,
@@ -53,7 +53,7 @@ pub fn rnea<'py>(
 }
 
 /// Forward dynamics q̈ = M⁻¹ (τ − C q̇ − g + Σ Jᵀ f_ext) by the O(n) articulated-body algorithm.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, tau, f_ext = None))]
 pub fn aba<'py>(
     py: Python<'py>,
@@ -76,7 +76,7 @@ pub fn aba<'py>(
 }
 
 /// The joint-space mass matrix M(q) (composite-rigid-body algorithm): `(..., nv, nv)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn crba<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()])])?;
@@ -93,7 +93,7 @@ pub fn crba<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) ->
 }
 
 /// M(q)⁻¹ by the O(n) articulated-body recursion, without forming or factorising M: `(..., nv, nv)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn minv<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()])])?;
@@ -107,7 +107,7 @@ pub fn minv<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) ->
 }
 
 /// Kinetic energy ½ vᵀ M v: `(...)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn kinetic_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>, v: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()])])?;
@@ -120,7 +120,7 @@ pub fn kinetic_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayA
 }
 
 /// Potential energy −Σ mᵢ gᵀ cᵢ: `(...)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn potential_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
     run(py, &model, &batch, &[], |m, w, i, out| {

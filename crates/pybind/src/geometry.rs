@@ -35,7 +35,7 @@ fn raise(batch: &Batch, (i, error): (usize, Error)) -> PyErr {
 type CircleLineArrays<'py> = (FloatArray<'py>, Bound<'py, PyArrayDyn<i64>>, FloatArray<'py>, FloatArray<'py>, Bound<'py, PyArrayDyn<bool>>);
 
 /// (distance, count, circle_points (..., 2, 3), line_points (..., 2, 3), equidistant) over the batch.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn circle_line<'py>(
     py: Python<'py>,
     center: ArrayArg<'_>,
@@ -96,7 +96,7 @@ pub fn circle_line<'py>(
 }
 
 /// (theta, distance) over the batch.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn rotation_toward_line<'py>(
     py: Python<'py>,
     axis_point: ArrayArg<'_>,

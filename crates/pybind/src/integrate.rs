@@ -15,7 +15,7 @@ use crate::workspace::{check_state, finite_result, run, singular, singular_facto
 use legkit_dynamics::validate::{array_len, filled};
 
 /// `q ⊕ v dt`: joint coordinates add; a free-flyer base moves along exp(v dt) in its own frame: `(..., nq)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn integrate<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>, v: ArrayArg<'_>, dt: f64) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     legkit_dynamics::validate::finite("dt", dt).map_err(crate::convert::kernel_error)?;
@@ -33,7 +33,7 @@ pub fn integrate<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_
 /// "semi_implicit_euler". Returns (qs (..., steps + 1, nq), vs (..., steps + 1, nv)). Leading dimensions of
 /// q and v run independent rollouts on all cores. Contact simulation is `Simulation`. MemoryError if the
 /// output cannot be allocated; Ctrl-C interrupts a long rollout (KeyboardInterrupt).
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, dt, steps, tau = None, method = "rk4"))]
 #[allow(clippy::too_many_arguments)]
 pub fn free_rollout<'py>(
@@ -136,7 +136,7 @@ pub fn free_rollout<'py>(
 
 /// `q1 ⊖ q0`: the velocity v with `integrate(q0, v, 1) = q1` (Pinocchio's `difference`); a free-flyer base's part is
 /// the SE(3) log of its relative pose, in the base frame at q0: `(..., nv)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn difference<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q0: ArrayArg<'_>, q1: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let nq = model.model.nq();
     let batch = broadcast(&[("q0", &q0, &[nq]), ("q1", &q1, &[nq])])?;
@@ -149,7 +149,7 @@ pub fn difference<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q0: ArrayArg<
 
 /// (∂(q ⊕ v dt)/∂q, ∂(q ⊕ v dt)/∂v), each `(..., nv, nv)`, on the tangent spaces: Pinocchio's `dIntegrate` at v dt,
 /// ARG0 and dt times ARG1. Block diagonal; they do not depend on q, which is checked as in `integrate`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, dt = 1.0))]
 pub fn integrate_jacobians<'py>(
     py: Python<'py>,
@@ -171,7 +171,7 @@ pub fn integrate_jacobians<'py>(
 
 /// (∂(q1 ⊖ q0)/∂q0, ∂(q1 ⊖ q0)/∂q1), each `(..., nv, nv)`, on the tangent spaces: Pinocchio's `dDifference`, ARG0
 /// and ARG1. Block diagonal.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn difference_jacobians<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,

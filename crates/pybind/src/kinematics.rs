@@ -13,7 +13,7 @@ use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
 
 /// World pose (4x4) of every body: `(..., nbodies, 4, 4)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn forward_kinematics<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()])])?;
@@ -40,7 +40,7 @@ fn frame(name: &str) -> PyResult<Frame> {
 
 /// The body index, point (default the origin) and convention of a frame argument.
 fn frame_arguments(model: &PyModel, body: &Bound<'_, PyAny>, point: Option<Vector<'_>>, frame: &str) -> PyResult<(usize, Vector3<f64>, Frame)> {
-    let (body, convention) = (model.body_index(body)?, self::frame(frame)?);
+    let (body, convention) = (model.body_index("body", body)?, self::frame(frame)?);
     let point = point.map(|p| vector3("point", &p)).transpose()?.unwrap_or_else(Vector3::zeros);
     legkit_dynamics::validate::finite_vector("point", point).map_err(crate::convert::kernel_error)?;
     Ok((body, point, convention))
@@ -49,7 +49,7 @@ fn frame_arguments(model: &PyModel, body: &Bound<'_, PyAny>, point: Option<Vecto
 /// The 6 x nv Jacobian (rows [linear; angular]) of the frame at `point` (body coordinates, default the
 /// origin) on `body` (index or name), in Pinocchio's `frame` convention: "local", "world" or
 /// "local_world_aligned" (the point's velocity in world axes). `(..., 6, nv)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, body, point = None, frame = "local_world_aligned"))]
 pub fn jacobian<'py>(
     py: Python<'py>,
@@ -71,7 +71,7 @@ pub fn jacobian<'py>(
 }
 
 /// The model's centre of mass in the world frame: `(..., 3)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn center_of_mass<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
     run(py, &model, &batch, &[3], |m, w, i, out| {
@@ -84,7 +84,7 @@ pub fn center_of_mass<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayA
 
 /// Mass properties of the subtree rooted at each body, in world coordinates (inertia about the subtree's
 /// COM): `(mass (..., nbodies), com (..., nbodies, 3), inertia (..., nbodies, 3, 3))`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn subtree_mass_properties<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -109,7 +109,7 @@ pub fn subtree_mass_properties<'py>(
 }
 
 /// Centroidal momentum [h_lin, h_ang about the COM], world-aligned: `(..., 6)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn centroidal_momentum<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>, v: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()])])?;
@@ -122,7 +122,7 @@ pub fn centroidal_momentum<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: A
 }
 
 /// The centroidal momentum matrix A_G, `centroidal_momentum(q, v) = A_G(q) v`: `(..., 6, nv)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn centroidal_map<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let nv = model.model.nv();
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
@@ -135,7 +135,7 @@ pub fn centroidal_map<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayA
 }
 
 /// Time derivative of the centroidal momentum for joint accelerations `a` (gravity excluded): `(..., 6)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 pub fn centroidal_momentum_rate<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -165,7 +165,7 @@ pub(crate) fn row_major<R: Dim, S: RawStorage<f64, R, Dyn>>(matrix: &Matrix<f64,
 
 /// The velocity `[linear; angular]` of the frame at `point` on `body` in `frame` (Pinocchio's `getFrameVelocity`):
 /// `(..., 6)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, body, point = None, frame = "local_world_aligned"))]
 pub fn frame_velocity<'py>(
     py: Python<'py>,
@@ -189,7 +189,7 @@ pub fn frame_velocity<'py>(
 /// The spatial acceleration `[linear; angular]` of the frame at `point` on `body` in `frame` for joint accelerations
 /// `a`, gravity excluded (Pinocchio's `getFrameAcceleration`; the classical acceleration of the point is the
 /// "local_world_aligned" linear part plus ω × v): `(..., 6)`.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, a, body, point = None, frame = "local_world_aligned"))]
 #[allow(clippy::too_many_arguments)]
 pub fn frame_acceleration<'py>(
@@ -217,7 +217,7 @@ pub fn frame_acceleration<'py>(
 /// ∂v/∂q and ∂v/∂v (the Jacobian) of `frame_velocity`, q on its tangent space: each `(..., 6, nv)`. Pinocchio's
 /// `getFrameVelocityDerivatives`, except in "local_world_aligned", where Pinocchio holds the frame's origin still and
 /// its ∂v/∂q lacks ω × J_lin in the linear rows.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, body, point = None, frame = "local_world_aligned"))]
 pub fn frame_velocity_derivatives<'py>(
     py: Python<'py>,
@@ -247,7 +247,7 @@ pub fn frame_velocity_derivatives<'py>(
 /// ∂v/∂q, ∂a/∂q, ∂a/∂v and ∂a/∂a (the Jacobian) of `frame_velocity` and `frame_acceleration`, q on its tangent space:
 /// each `(..., 6, nv)` (Pinocchio's `getFrameAccelerationDerivatives`, except as `frame_velocity_derivatives` says in
 /// "local_world_aligned", where Pinocchio's ∂a/∂q also lacks α × J_lin).
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, a, body, point = None, frame = "local_world_aligned"))]
 #[allow(clippy::too_many_arguments)]
 pub fn frame_acceleration_derivatives<'py>(
@@ -281,7 +281,7 @@ pub fn frame_acceleration_derivatives<'py>(
 
 /// The time derivative of the frame's Jacobian along the velocity `v` (Pinocchio's `getFrameJacobianTimeVariation`):
 /// `(..., 6, nv)`. In "local_world_aligned", the point's classical acceleration is J a + J̇ v + ω × v_point.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (model, q, v, body, point = None, frame = "local_world_aligned"))]
 pub fn jacobian_time_variation<'py>(
     py: Python<'py>,

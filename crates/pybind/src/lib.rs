@@ -2,6 +2,7 @@
 //! every computation lives in `legkit-dynamics`.
 
 mod agents;
+mod arguments;
 mod batch;
 mod contact;
 mod convert;

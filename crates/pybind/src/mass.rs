@@ -31,6 +31,7 @@ fn overflow() -> PyErr {
 pub struct PyMassProperties(pub MassProperties);
 
 #[pymethods]
+#[pyo3(crate = "crate::arguments")]
 impl PyMassProperties {
     #[new]
     fn new(mass: f64, com: Vector<'_>, inertia: Matrix<'_>) -> PyResult<Self> {

@@ -19,7 +19,7 @@ pub struct PyMjcf {
 
 /// `load_mjcf(path_or_xml, floating_base=None, strict=False)`: the MJCF as an `Mjcf` (see
 /// `Model.from_mjcf` for what is read).
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (path_or_xml, floating_base = None, strict = false))]
 pub fn load_mjcf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: Option<bool>, strict: bool) -> PyResult<PyMjcf> {
     let inner = read_mjcf(py, path_or_xml, floating_base, strict)?;
@@ -28,6 +28,7 @@ pub fn load_mjcf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: 
 }
 
 #[pymethods]
+#[pyo3(crate = "crate::arguments")]
 impl PyMjcf {
     #[getter]
     fn model(&self, py: Python<'_>) -> Py<PyModel> {

@@ -66,7 +66,7 @@ impl PyModel {
         name: Option<String>,
         limits: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<usize> {
-        let parent = self.body_index(parent)?;
+        let parent = self.body_index("parent", parent)?;
         let limits = joint_limits(limits)?;
         let placement = placement.map(transform).transpose()?.unwrap_or_default();
         let body = body.map_or_else(MassProperties::zero, |b| b.0);
@@ -95,16 +95,18 @@ impl PyModel {
         }
     }
 
-    /// A body given by index or by name: IndexError for an index out of range or a name no body has.
-    pub fn body_index(&self, body: &Bound<'_, PyAny>) -> PyResult<usize> {
+    /// A body given by index or by name, as the argument named `argument`: IndexError for an index out of range or
+    /// a name no body has.
+    pub fn body_index(&self, argument: &str, body: &Bound<'_, PyAny>) -> PyResult<usize> {
         if let Ok(name) = body.cast::<PyString>() {
             let name = name.to_str()?;
-            return self.model.body_index(name).ok_or_else(|| PyIndexError::new_err(format!("body: no body is named {name:?}")));
+            return self.model.body_index(name).ok_or_else(|| PyIndexError::new_err(format!("{argument}: no body is named {name:?}")));
         }
-        let index = body.extract::<Integer>()?.value("body").map_err(|_| PyTypeError::new_err("body: expected an index or a name"))?;
+        let index =
+            body.extract::<Integer>()?.value(argument).map_err(|_| PyTypeError::new_err(format!("{argument}: expected an index or a name")))?;
         match usize::try_from(index) {
             Ok(i) if i < self.model.nbodies() => Ok(i),
-            _ => Err(PyIndexError::new_err(format!("body: index {} is out of range for {} bodies", shown(index), self.model.nbodies()))),
+            _ => Err(PyIndexError::new_err(format!("{argument}: index {} is out of range for {} bodies", shown(index), self.model.nbodies()))),
         }
     }
 }
@@ -160,6 +162,7 @@ pub fn read_mjcf(py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: 
 }
 
 #[pymethods]
+#[pyo3(crate = "crate::arguments")]
 impl PyModel {
     #[new]
     #[pyo3(signature = (floating_base = false, base = None, base_name = "base", gravity = None))]
@@ -359,17 +362,17 @@ impl PyModel {
 
     /// "free_flyer", "fixed", "revolute", "prismatic", "helical" or "spherical".
     fn joint_type(&self, body: &Bound<'_, PyAny>) -> PyResult<&'static str> {
-        Ok(self.model.joint(self.body_index(body)?).kind())
+        Ok(self.model.joint(self.body_index("body", body)?).kind())
     }
 
     /// The unit axis of a revolute, prismatic or helical joint, None otherwise.
     fn joint_axis<'py>(&self, py: Python<'py>, body: &Bound<'py, PyAny>) -> PyResult<Option<Bound<'py, PyArray1<f64>>>> {
-        Ok(self.model.joint(self.body_index(body)?).axis().map(|a| vector_to_numpy(py, &a)))
+        Ok(self.model.joint(self.body_index("body", body)?).axis().map(|a| vector_to_numpy(py, &a)))
     }
 
     /// The pitch (m/rad) of a helical joint, None otherwise.
     fn joint_pitch(&self, body: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
-        Ok(match *self.model.joint(self.body_index(body)?) {
+        Ok(match *self.model.joint(self.body_index("body", body)?) {
             Joint::Helical { pitch, .. } => Some(pitch),
             _ => None,
         })
@@ -379,7 +382,7 @@ impl PyModel {
     /// rad/s or m/s; ±inf where unbounded), or None if the joint has none (always for the base and
     /// fixed joints).
     fn limits<'py>(&self, py: Python<'py>, body: &Bound<'py, PyAny>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        let limits = self.model.limits(self.body_index(body)?);
+        let limits = self.model.limits(self.body_index("body", body)?);
         if !limits.is_limited() {
             return Ok(None);
         }
@@ -392,18 +395,18 @@ impl PyModel {
 
     /// The body's mass properties in its own frame.
     fn body(&self, body: &Bound<'_, PyAny>) -> PyResult<PyMassProperties> {
-        Ok(PyMassProperties(*self.model.body(self.body_index(body)?)))
+        Ok(PyMassProperties(*self.model.body(self.body_index("body", body)?)))
     }
 
     /// A copy of the model in which `body` has the mass properties `mass_properties` (its own frame); joints,
     /// placements, limits and collision shapes unchanged.
     fn with_body(&self, body: &Bound<'_, PyAny>, mass_properties: PyMassProperties) -> PyResult<Self> {
-        Ok(Self::wrap(self.model.with_body(self.body_index(body)?, mass_properties.0)))
+        Ok(Self::wrap(self.model.with_body(self.body_index("body", body)?, mass_properties.0)))
     }
 
     /// The 4x4 placement of the body's joint frame in its parent's frame.
     fn placement<'py>(&self, py: Python<'py>, body: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        Ok(to_numpy(py, (4, 4), homogeneous(self.model.placement(self.body_index(body)?)).to_vec()))
+        Ok(to_numpy(py, (4, 4), homogeneous(self.model.placement(self.body_index("body", body)?)).to_vec()))
     }
 
     /// The neutral configuration (zero joints, identity base orientation).
@@ -418,7 +421,7 @@ impl PyModel {
     /// box with the body's inertia.
     #[pyo3(signature = (shapes = None))]
     fn colliders<'py>(&self, py: Python<'py>, shapes: Option<&Bound<'py, PyDict>>) -> PyResult<Bound<'py, pyo3::types::PyList>> {
-        colliders(py, &self.model, shape_overrides(shapes, |key| self.body_index(key))?)
+        colliders(py, &self.model, shape_overrides(shapes, |key| self.body_index("body", key))?)
     }
 
     fn __repr__(&self) -> String {
@@ -439,7 +442,7 @@ impl PyModel {
 /// above the file `urdf`; relative names against `urdf`'s folder, then `package_dirs` (see
 /// `legkit_dynamics::mesh::resolve_mesh` for every form read). FileNotFoundError naming where it looked;
 /// ValueError for a name that climbs out of its package, or a symbolic link out of it to a file of another kind.
-#[pyfunction]
+#[pyfunction(crate = "crate::arguments")]
 #[pyo3(signature = (filename, urdf = None, package_dirs = None))]
 pub fn resolve_mesh(filename: &str, urdf: Option<std::path::PathBuf>, package_dirs: Option<Vec<std::path::PathBuf>>) -> PyResult<std::path::PathBuf> {
     let folder = urdf.as_deref().and_then(std::path::Path::parent);

@@ -40,6 +40,7 @@ pub struct PyGround {
 }
 
 #[pymethods]
+#[pyo3(crate = "crate::arguments")]
 impl PyGround {
     /// The plane z = 0, solid below, with Coulomb friction coefficient `friction` (>= 0).
     #[staticmethod]
@@ -159,6 +160,7 @@ fn vector_argument(argument: &'static str, value: &Floats<'_>, n: usize) -> PyRe
 }
 
 #[pymethods]
+#[pyo3(crate = "crate::arguments")]
 impl PySimulation {
     #[new]
     #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, substeps = Integer::new(1), backend = "tree", solver_iterations = Integer::new(DEFAULT_SOLVER_ITERATIONS as i128), friction_law = "coulomb"))]
@@ -181,7 +183,7 @@ impl PySimulation {
         options.solver_iterations = solver_iterations.within("solver_iterations", 1, MAX_SOLVER_ITERATIONS as u64)? as usize;
         options.backend = Backend::parse(backend).map_err(kernel_error)?;
         options.friction_law = FrictionLaw::parse(friction_law).map_err(kernel_error)?;
-        options.shapes = shape_overrides(shapes.as_ref(), |key| model.body_index(key))?;
+        options.shapes = shape_overrides(shapes.as_ref(), |key| model.body_index("body", key))?;
         let sim = Simulation::new(&model.model, options).map_err(kernel_error)?;
         Ok(PySimulation { sim, model: model.into(), pace: Pace::default(), jacobian_pace: Pace::default() })
     }
@@ -468,6 +470,7 @@ pub struct PySimulationBatch {
 }
 
 #[pymethods]
+#[pyo3(crate = "crate::arguments")]
 impl PySimulationBatch {
     #[new]
     fn new(simulations: Vec<Bound<'_, PyAny>>) -> PyResult<Self> {

@@ -25,7 +25,7 @@ import numpy as np
 
 import legkit as lk
 from legkit._extras import progress as progress_bar
-from legkit._validation import float_array, is_integer, positive_scalar
+from legkit._validation import float_array, integer, is_integer, positive_scalar
 from legkit.agents import AgentNetwork, BusConfig, GroundContact
 from legkit.control.balance import BalanceController, BalanceKernel
 from legkit.control.gains import SCHEMES, GainSchedule
@@ -208,6 +208,8 @@ def initial_angles(tree: ModuleTree, seed: int) -> np.ndarray:
     +-INITIAL_SPREAD of the joint limit (generator seeded with ``seed``), except the root, which leans with
     both pitch joints at INITIAL_LEAN of the limit, to whichever side puts the COM farther from the support
     line (the vertical through the root), so every run starts clearly off balance."""
+    if integer(seed, "seed") < 0:
+        raise ValueError(f"seed: must be >= 0, got {seed}")
     rng = np.random.default_rng([seed, 1])
     limit = tree.parameters.joint_limit
     angles = rng.uniform(-INITIAL_SPREAD * limit, INITIAL_SPREAD * limit, size=(tree.n_modules, 3))
@@ -247,6 +249,11 @@ def run_balance(
     if not trees:
         raise ValueError("trees: need at least one tree")
     positive_scalar(duration, "duration")
+    if positive_scalar(dt, "dt") > 2 * duration:  # not one step (steps = round(duration / dt))
+        raise ValueError(f"dt: must be at most twice duration ({duration}) for one step, got {dt}")
+    for name, value, low in (("seed", seed, 0), ("sample_every", sample_every, 1), ("rounds_per_step", rounds_per_step, 1)):
+        if integer(value, name) < low:
+            raise ValueError(f"{name}: must be >= {low}, got {value}")
     if not 0 <= loss < 1:
         raise ValueError(f"loss: must be in [0, 1), got {loss!r}")
     if bus is not None and loss:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from legkit._validation import float_array, positive_scalar
+from legkit._validation import float_array, is_integer, positive_scalar
 
 
 class PID:
@@ -14,6 +14,8 @@ class PID:
     first call."""
 
     def __init__(self, shape: tuple[int, ...]):
+        if not all(is_integer(n) and n >= 0 for n in shape):
+            raise ValueError(f"shape: must be non-negative integers, got {shape}")
         self.shape = tuple(shape)
         self.integral = np.zeros(self.shape)
         self.previous_error: np.ndarray | None = None
