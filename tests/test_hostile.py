@@ -558,6 +558,33 @@ def test_a_result_that_overflows_is_a_runtime_error_not_a_singular_matrix(call):
 @pytest.mark.parametrize(
     "call",
     [
+        "lk.rnea_derivatives(double, q, v, a)",
+        "lk.rnea_second_order_derivatives(double, q, v, a)",
+        "lk.centroidal_derivatives(double, q, v, a)",
+        "lk.point_accelerations(double, q, v, a, [(2, [0, 0, -1.0])])",
+        "lk.integrate_jacobians(free, q_free, np.full(6, 1e308), 10.0)",
+        "lk.reduced_dynamics(free, q_free, np.full(6, 1e200), np.zeros(6), [(0, [0, 0, -1.0])])",
+    ],
+)
+def test_derivatives_and_contact_kinematics_that_overflow_are_runtime_errors_not_nan(call):
+    # A double pendulum's and an offset free body's v^2 terms overflow at v = 1e200: these returned NaN or inf silently.
+    double = lk.Model()
+    first = double.add_revolute(0, [0, 1, 0], body=lk.MassProperties.point(1.0, [0, 0, -0.5]))
+    double.add_revolute(first, [0, 1, 0], placement=(np.eye(3), [0, 0, -1]), body=lk.MassProperties.point(1.0, [0, 0, -0.5]))
+    free = lk.Model(floating_base=True, base=lk.MassProperties(1.0, [0, 0, 0.1], np.eye(3) * 0.01))
+    namespace = {"lk": lk, "np": np, "double": double, "free": free, "q": np.zeros(2), "v": np.full(2, 1e200), "a": np.zeros(2),
+                 "q_free": np.r_[0, 0, 0, 0, 0, 0, 1.0]}
+    with pytest.raises(RuntimeError, match="result: not finite: a number overflowed"):
+        eval(call, namespace)
+    at_rest = call.replace("np.full(2, 1e200)", "np.zeros(2)").replace("v, a", "np.zeros(2), a").replace("1e308", "1.0").replace("1e200", "1.0")
+    outputs = eval(at_rest, namespace)  # the same call at physical magnitudes is finite
+    assert all(np.all(np.isfinite(np.asarray(x, dtype=float))) for x in (outputs if isinstance(outputs, tuple) else (outputs,))
+               if not isinstance(x, list))
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
         "a + a",
         "a.transformed(np.eye(3), [1e200, 0, 0])",
         "a.inertia_about([1e200, 0, 0])",

@@ -131,7 +131,7 @@ pub fn point_accelerations<'py>(
         check_state(m, q, Some(v))?;
         check_vector("a", a, nv)?;
         algorithms::point_accelerations(m, w.dense(&[Dense::Workspace])?, q, v, Some(a), &points, dim, out);
-        Ok(())
+        finite_result(out)
     })
 }
 
@@ -170,6 +170,9 @@ pub fn reduced_dynamics<'py>(
         .and_then(|()| algorithms::reduced_dynamics(m, &mut data, q, v, tau, &contacts, independent.as_deref()));
     model.put_back(data);
     let r = result.map_err(kernel_error)?;
+    for part in [r.ddq.as_slice(), r.basis.as_slice(), r.mass.as_slice(), r.force.as_slice(), r.offset.as_slice()] {
+        finite_result(part).map_err(kernel_error)?;
+    }
     let matrix = |x: &nalgebra::DMatrix<f64>| to_numpy(py, (x.nrows(), x.ncols()), x.transpose().as_slice().to_vec());
     Ok((
         to_numpy(py, r.ddq.len(), r.ddq.as_slice().to_vec()),

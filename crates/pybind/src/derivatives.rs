@@ -12,7 +12,7 @@ use crate::convert::FloatArray;
 use crate::dynamics::state_batch;
 use crate::kinematics::row_major;
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_dynamics, run, Workspace};
+use crate::workspace::{check_state, finite_dynamics, finite_result, run, Workspace};
 
 /// Copies `matrices` (column-major, as nalgebra stores them) one after the other into `out`.
 pub(crate) fn write_columns(matrices: &[&[f64]], out: &mut [f64]) {
@@ -82,7 +82,7 @@ pub fn rnea_derivatives<'py>(
         // Straight into the arrays: no nv x nv workspace, no copy.
         let (dq, dv) = out.split_at_mut(m.nv() * m.nv());
         algorithms::rnea_derivatives_into(m, data, q, v, a, forces, dq, dv);
-        Ok(())
+        finite_result(out)
     })?;
     pair(parts)
 }
@@ -106,7 +106,7 @@ pub fn rnea_second_order_derivatives<'py>(
         check_vector("a", a, m.nv())?;
         let second = algorithms::rnea_second_order_derivatives(m, w.dense(&[Dense::SecondOrder])?, q, v, a);
         write_columns(&[&second.dqdq, &second.dvdv, &second.dqdv, &second.dadq], out);
-        Ok(())
+        finite_result(out)
     })?;
     // SAFETY: the array was just filled and nothing else refers to it; the views keep it alive as their base.
     let buffer = unsafe { out.as_array() };
@@ -166,7 +166,7 @@ pub fn centroidal_derivatives<'py>(
         check_vector("a", a, m.nv())?;
         let (dh_dq, dhdot_dq, dhdot_dv, dhdot_da) = algorithms::centroidal_derivatives(m, w.dense(&[Dense::Workspace])?, q, v, a);
         write_columns(&[dh_dq.as_slice(), dhdot_dq.as_slice(), dhdot_dv.as_slice(), dhdot_da.as_slice()], out);
-        Ok(())
+        finite_result(out)
     })?;
     let mut parts = parts.into_iter();
     Ok((parts.next().expect("four"), parts.next().expect("four"), parts.next().expect("four"), parts.next().expect("four")))

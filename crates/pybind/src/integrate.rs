@@ -165,7 +165,7 @@ pub fn integrate_jacobians<'py>(
         let v = batch.rows[1].row(i);
         check_state(m, batch.rows[0].row(i), Some(v))?;
         algorithms::integrate_jacobians(m, v, dt, dq, dv);
-        Ok(())
+        finite_result(dq.as_slice()).and_then(|()| finite_result(dv.as_slice()))
     })
 }
 
