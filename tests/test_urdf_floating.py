@@ -193,3 +193,24 @@ def test_a_spherical_urdf_pendulum_simulates_as_the_ball_joint_it_is() -> None:
     np.testing.assert_array_equal(runs[0][1], runs[1][1])
     q = runs[0][0]
     assert abs(np.linalg.norm(q) - 1.0) < 1e-12 and not np.allclose(q, q0)
+
+
+@pytest.mark.parametrize("kind, coordinates", [("spherical", 3), ("floating", 6)])
+def test_dynamics_damping_damps_every_coordinate_of_a_ball_or_free_joint(kind: str, coordinates: int) -> None:
+    # It was dropped without a word: only one-coordinate joints read <dynamics>. MuJoCo damps every coordinate of a
+    # ball or free joint by its one damping.
+    body = ('<link name="arm"><inertial><mass value="0.8"/>'  # its COM at the joint: translation and rotation decouple
+            '<inertia ixx="0.01" iyy="0.012" izz="0.004" ixy="0" ixz="0" iyz="0"/></inertial></link>')
+    xml = (f'<robot name="p"><link name="pivot"/>{body}<joint name="ball" type="{kind}"><parent link="pivot"/>'
+           '<child link="arm"/><origin xyz="0 0 1"/><dynamics damping="0.4"/></joint></robot>')
+    loaded = load_spherical(xml, "ball") if kind == "spherical" else lk.Model.from_urdf(xml)
+    np.testing.assert_array_equal(loaded.damping, np.full(coordinates, 0.4))
+    with pytest.raises(ValueError, match=r'joint "ball": <dynamics damping> must be >= 0'):
+        lk.Model.from_urdf(xml.replace("0.4", "-1"))
+    if kind == "floating":
+        # Sliding along x (gravity is along z), the body slows as v = v0 exp(-damping t / mass), to first order in dt:
+        # over n steps the discrete decay differs by about n (damping dt / mass)^2 / 2 = 6e-5 of it.
+        sim = lk.Simulation(loaded, dt=1e-3)
+        sim.v = np.r_[0.5, 0.0, 0.0, 0.0, 0.0, 0.0]
+        sim.step(n=500)
+        assert sim.v[0] == pytest.approx(0.5 * np.exp(-0.4 * 0.5 / 0.8), rel=2e-4)

@@ -18,8 +18,9 @@
 //!   the root link is an error (the base would float twice); load such a file with a fixed base instead.
 //!   `spherical`, an extension outside the URDF specification (urdfdom and Pinocchio refuse it), becomes a
 //!   [`Joint::Spherical`] (q the unit quaternion `[qx, qy, qz, qw]`, v the angular velocity in the child
-//!   frame, as Pinocchio's `JointModelSpherical`) with a warning (an error under `strict`). `<limit>` and
-//!   `<dynamics>` are ignored on both. Any other type (`planar`, ...) is an error.
+//!   frame, as Pinocchio's `JointModelSpherical`) with a warning (an error under `strict`). `<limit>` is
+//!   ignored on both; `<dynamics damping>` damps each of their coordinates. Any other type (`planar`, ...) is
+//!   an error.
 //! - `<limit lower upper effort velocity>` of a moving joint becomes its [`JointLimits`]: `lower` and
 //!   `upper` (rad or m; each defaults to 0, as the specification says) bound a `revolute` or `prismatic`
 //!   joint; a `continuous` joint has no position limits (its `lower`/`upper` are ignored). `effort`
@@ -44,7 +45,8 @@
 //!   refuse it); one whose vertices or hull cannot be allocated fails the load (`Error::TooLarge` naming `mesh`).
 //!
 //! - `<dynamics damping>` of a moving joint becomes its damping ([`Model::damping`], as Pinocchio's and
-//!   MuJoCo's importers read it; 0 if absent); a negative or non-finite value is an error naming the joint.
+//!   MuJoCo's importers read it; 0 if absent; on every coordinate of a `spherical` or `floating` joint, as MuJoCo
+//!   damps a ball or free joint); a negative or non-finite value is an error naming the joint.
 //!   `friction` (Coulomb joint friction) is not modelled and is ignored.
 //!
 //! Everything else (`<visual>`, `<safety_controller>`, `<mimic>`, `<material>`,
@@ -270,8 +272,12 @@ fn parse(xml: &str, argument: &'static str, options: &UrdfOptions, folder: Optio
         return Err(invalid(format!("the joints form a cycle ({}), which is not a tree", describe_cycle(&links, &joints, &parent_joint, unreached))));
     }
     let mut damping = model.damping().to_vec();
-    for joint in joints.iter().filter(|j| j.joint.nv() == 1) {
-        damping[model.idx_v(body_of_link[joint.child].expect("every link has a body"))] = joint.damping;
+    for joint in joints.iter().filter(|j| j.joint.nv() > 0) {
+        // A `floating` joint's three slides sit just before its ball, and take its damping too (MuJoCo damps
+        // every coordinate of a free or ball joint by its one damping).
+        let (slides, end) =
+            (if joint.free { 3 } else { 0 }, model.idx_v(body_of_link[joint.child].expect("every link has a body")) + joint.joint.nv());
+        damping[end - joint.joint.nv() - slides..end].fill(joint.damping);
     }
     model.set_damping(&damping)?;
     if links.iter().any(|link| !link.shapes.is_empty()) {
@@ -522,14 +528,13 @@ fn joint<'a>(
         }
         None => return Err(invalid(format!("{owner}: has no type attribute"))),
     };
-    // Only a one-coordinate joint reads `<limit>` and `<dynamics>`.
-    let scalar_joint = joint.nv() == 1;
+    // Only a one-coordinate joint reads `<limit>`; every moving joint reads `<dynamics>`.
     let limits = match element(node, "limit") {
-        Some(limit) if scalar_joint => limits(limit, bounded, &owner, accept)?,
+        Some(limit) if joint.nv() == 1 => limits(limit, bounded, &owner, accept)?,
         _ => JointLimits::NONE,
     };
     let damping = match element(node, "dynamics") {
-        Some(dynamics) if scalar_joint && dynamics.attribute("damping").is_some() => {
+        Some(dynamics) if joint.nv() > 0 && dynamics.attribute("damping").is_some() => {
             let damping = scalar(dynamics, "damping", &owner)?;
             if damping < 0.0 {
                 return Err(invalid(format!("{owner}: <dynamics damping> must be >= 0, got {damping}")));
@@ -1042,6 +1047,10 @@ mod tests {
         assert_eq!(damping("revolute", r#"<dynamics damping="0.25" friction="0.2"/>"#).unwrap(), vec![0.25]);
         assert_eq!(damping("prismatic", r#"<dynamics friction="0.2"/>"#).unwrap(), vec![0.0]);
         assert_eq!(damping("fixed", r#"<dynamics damping="0.25"/>"#).unwrap(), Vec::<f64>::new());
+        assert_eq!(damping("spherical", r#"<dynamics damping="0.25"/>"#).unwrap(), vec![0.25; 3]);
+        assert_eq!(damping("floating", r#"<dynamics damping="0.5"/>"#).unwrap(), vec![0.5; 6]);
+        let error = damping("spherical", r#"<dynamics damping="-1"/>"#).unwrap_err().to_string();
+        assert!(error.contains("damping> must be >= 0"), "{error}");
         let knee = r#"joint "knee""#;
         let error = damping("revolute", r#"<dynamics damping="-1"/>"#).unwrap_err().to_string();
         assert!(error.contains(knee) && error.contains("damping> must be >= 0"), "{error}");
@@ -1233,7 +1242,7 @@ mod tests {
         for body in 2..5 {
             assert_placement(model, body, &Transform::identity());
         }
-        assert!(model.damping().iter().all(|d| *d == 0.0) && (1..5).all(|b| *model.limits(b) == JointLimits::NONE));
+        assert!(model.damping().iter().all(|d| *d == 2.0) && (1..5).all(|b| *model.limits(b) == JointLimits::NONE));
         // Below a floating base, a floating joint is another free body.
         assert_eq!(
             parse_urdf(&robot(r#"<link name="c"/><joint name="f" type="floating"><parent link="b"/><child link="c"/></joint>"#), FLOATING)
