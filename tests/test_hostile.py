@@ -901,7 +901,7 @@ def mesh_model(kind: str, mesh: str) -> str:
 
 def test_a_mesh_beyond_the_hull_bound_is_thinned_with_a_warning(tmp_path):
     binary_stl(tmp_path / "sphere.stl", 100_000, sphere=True)
-    with pytest.warns(lk.UrdfWarning, match=r"its convex hull is taken over \d+ of its 300000 vertices \(each within"):
+    with pytest.warns(lk.UrdfWarning, match=r"its convex hull is taken over \d+ of its 300000 distinct vertices \(each within"):
         model = lk.Model.from_urdf(mesh_model("urdf", str(tmp_path / "sphere.stl")))
     ((_, kind, vertices, _),) = model.colliders()
     assert kind == "convex"
@@ -913,6 +913,29 @@ def test_a_mesh_beyond_the_hull_bound_is_thinned_with_a_warning(tmp_path):
     assert np.all((directions @ np.asarray(vertices).T).max(axis=1) > 0.95)
     with pytest.raises(ValueError, match="convex hull is taken over"):
         lk.Model.from_mjcf(mesh_model("mjcf", str(tmp_path / "sphere.stl")), strict=True)
+
+
+def test_a_mesh_whose_triangles_share_corners_keeps_its_whole_hull(tmp_path):
+    # An STL lists each triangle's corners: a 12,000-triangle sphere has 36,000 of them but 5,942 distinct points,
+    # which the hull takes whole, without a warning (counting the repeats, it was thinned with one, and refused
+    # under strict=True).
+    lat, lon = 60, 100
+    theta, phi = np.meshgrid(np.linspace(0.0, np.pi, lat + 1), np.linspace(0.0, 2.0 * np.pi, lon + 1), indexing="ij")
+    grid = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=-1)
+    a, b, c, d = grid[:-1, :-1], grid[1:, :-1], grid[1:, 1:], grid[:-1, 1:]
+    corners = np.concatenate([np.stack([a, b, c], axis=2), np.stack([a, c, d], axis=2)]).reshape(-1, 3, 3)
+    records = np.zeros(len(corners), dtype=[("normal", "<f4", 3), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])
+    records["vertices"] = corners
+    (tmp_path / "sphere.stl").write_bytes(b"\0" * 80 + np.uint32(len(corners)).tobytes() + records.tobytes())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model = lk.Model.from_urdf(mesh_model("urdf", str(tmp_path / "sphere.stl")), strict=True)
+    ((_, kind, vertices, _),) = model.colliders()
+    distinct = np.unique(records["vertices"].reshape(-1, 3).astype(np.float64), axis=0)
+    assert kind == "convex" and len(corners) * 3 > 25_000 >= len(distinct)
+    # The hull's vertices are the sphere's distinct points on it: all but the poles' repeats, none thinned away.
+    assert {tuple(v) for v in np.asarray(vertices)} <= {tuple(p) for p in distinct}
+    assert len(vertices) > 0.9 * len(distinct)
 
 
 def test_an_interrupted_step_keeps_whole_steps():

@@ -3,7 +3,7 @@
 //! not change a hull.
 
 use std::borrow::Cow;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::{Component, Path, PathBuf};
 
 use nalgebra::{Matrix3, Matrix4, Rotation3, Unit, Vector3, Vector4};
@@ -38,17 +38,41 @@ pub(crate) fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
 /// many points on a sphere, 7.7 s for 100,000 and 52 s for 300,000 (release build).
 pub const HULL_POINTS: usize = 25_000;
 
+/// `points` without repeats (equal to the bit), in the order they first appear. Interruptible.
+fn distinct_points(points: &[Vector3<f64>]) -> Result<Vec<Vector3<f64>>> {
+    let too_large = || Error::too_large("mesh", format!("cannot allocate the set of its {} vertices", points.len()));
+    let mut seen: HashSet<[u64; 3]> = HashSet::new();
+    let mut distinct = Vec::new();
+    for (k, p) in points.iter().enumerate() {
+        cancel_point("mesh", k)?;
+        if seen.len() == seen.capacity() {
+            seen.try_reserve(seen.len().max(16)).map_err(|_| too_large())?;
+            distinct.try_reserve(seen.capacity().saturating_sub(distinct.len())).map_err(|_| too_large())?;
+        }
+        if seen.insert(p.map(f64::to_bits).into()) {
+            distinct.push(*p);
+        }
+    }
+    Ok(distinct)
+}
+
 /// The points a hull is taken over (`hull_points`), and the note saying they are fewer than the mesh's.
 pub(crate) type HullPoints<'a> = (Cow<'a, [Vector3<f64>]>, Option<String>);
 
 /// The points a convex hull of `points` is taken over, and a note when they are fewer than the mesh's
-/// points: beyond `HULL_POINTS`, one point per cell of the finest grid over the bounding box that
-/// leaves at most that many (the one farthest from the box's centre), so that every point lies within a
-/// cell's diagonal of the hull taken, which lies inside the mesh's. Interruptible (`validate::cancellable`).
+/// distinct points: beyond `HULL_POINTS` distinct points, one per cell of the finest grid over the bounding
+/// box that leaves at most that many (the one farthest from the box's centre), so that every point lies within
+/// a cell's diagonal of the hull taken, which lies inside the mesh's. Interruptible (`validate::cancellable`).
 pub(crate) fn hull_points(points: &[Vector3<f64>]) -> Result<HullPoints<'_>> {
     if points.len() <= HULL_POINTS {
         return Ok((Cow::Borrowed(points), None));
     }
+    // An STL lists each triangle's corners: a closed mesh has about a sixth as many distinct points.
+    let distinct = distinct_points(points)?;
+    if distinct.len() <= HULL_POINTS {
+        return Ok((Cow::Owned(distinct), None));
+    }
+    let points = &distinct[..];
     let (lower, upper) =
         points.iter().fold((Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
     let centre = (lower + upper) / 2.0;
@@ -75,7 +99,12 @@ pub(crate) fn hull_points(points: &[Vector3<f64>]) -> Result<HullPoints<'_>> {
             let mut chosen: Vec<usize> = kept.into_values().collect();
             chosen.sort_unstable();
             let note = (chosen.len() < points.len()).then(|| {
-                format!("its convex hull is taken over {} of its {} vertices (each within {:.2e} m of one)", chosen.len(), points.len(), size.norm())
+                format!(
+                    "its convex hull is taken over {} of its {} distinct vertices (each within {:.2e} m of one)",
+                    chosen.len(),
+                    points.len(),
+                    size.norm()
+                )
             });
             let mut out = crate::validate::with_capacity("mesh", chosen.len())?;
             out.extend(chosen.into_iter().map(|k| points[k]));
@@ -604,6 +633,10 @@ mod tests {
         let few: Vec<Vector3<f64>> = (0..HULL_POINTS).map(|k| Vector3::new(k as f64, (k * k) as f64, 1.0)).collect();
         let (same, note) = hull_points(&few).unwrap();
         assert!(matches!(same, Cow::Borrowed(_)) && note.is_none());
+        // Each point three times, as an STL lists shared corners: the hull takes every distinct point, without a note.
+        let repeated: Vec<Vector3<f64>> = few.iter().flat_map(|p| [*p; 3]).collect();
+        let (distinct, note) = hull_points(&repeated).unwrap();
+        assert!(note.is_none() && distinct[..] == few[..]);
         // 200,000 points on a helix around the unit sphere: a subset within a cell's diagonal of each of them.
         let many: Vec<Vector3<f64>> = (0..200_000)
             .map(|k| {
