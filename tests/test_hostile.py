@@ -381,6 +381,24 @@ def test_balance_entry_points_refuse_bad_counts_by_name(call, name):
     raises(setup + call, "ValueError", name)
 
 
+@pytest.mark.parametrize(
+    ("call", "error", "name"),
+    [
+        ("random_tree(10**9)", "ValueError", "n_modules"),  # ran for hours before failing to place the modules
+        ("PID((10**6, 10**6))", "MemoryError", "shape"),  # NumPy's MemoryError, naming nothing
+        ("PID((10**10, 10**10))", "MemoryError", "shape"),  # NumPy's ValueError about the byte count
+        ("quadruped_amble(build_quadruped(), 0.67, 0.4, 10**9, 1, 0.03, 0.09)", "ValueError", "samples"),  # ran out of memory
+        ("quadruped_amble(build_quadruped(), 0.67, 0.4, 400, 10**6, 0.03, 0.09)", "ValueError", "cycles"),
+    ],
+)
+def test_sizes_beyond_their_bound_are_refused_by_name_before_the_work(call, error, name):
+    setup = (
+        "from legkit.control import PID\nfrom legkit.robots import random_tree\nfrom legkit.robots.quadruped import build_quadruped\n"
+        "from legkit.gaits.references import quadruped_amble\n"
+    )
+    raises(setup + call, error, name)
+
+
 def test_a_capsule_beyond_any_robot_is_refused_before_parry_sees_it():
     raises(
         PENDULUM

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from legkit._validation import float_array, is_integer, positive_scalar
@@ -14,15 +16,20 @@ class PID:
     first call."""
 
     def __init__(self, shape: tuple[int, ...]):
+        if not isinstance(shape, (tuple, list)):
+            raise TypeError(f"shape: must be a tuple of integers, got {type(shape).__name__}")
         if not all(is_integer(n) and n >= 0 for n in shape):
             raise ValueError(f"shape: must be non-negative integers, got {shape}")
-        self.shape = tuple(shape)
-        self.integral = np.zeros(self.shape)
+        self.shape = tuple(int(n) for n in shape)
+        try:
+            self.integral = np.zeros(self.shape)
+        except (MemoryError, ValueError):  # NumPy says ValueError when the byte count overflows
+            raise MemoryError(f"shape: {self.shape} needs {8 * math.prod(self.shape):,} bytes, more than can be allocated") from None
         self.previous_error: np.ndarray | None = None
 
     def reset(self) -> None:
         """Forget the integral and the previous error."""
-        self.integral = np.zeros(self.shape)
+        self.integral = np.zeros_like(self.integral)
         self.previous_error = None
 
     def __call__(self, error: np.ndarray, dt: float, kp: np.ndarray, ki: np.ndarray, kd: np.ndarray) -> np.ndarray:

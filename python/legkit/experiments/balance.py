@@ -34,7 +34,7 @@ from legkit._extras import require
 from legkit._help import HelpFormatter
 from legkit._validation import bounded_int, output_folder_argument
 from legkit.control.closed_loop import DEFAULT_FRICTION, PLANTS, RunResult, run_balance
-from legkit.robots.superbot import ModuleTree, random_tree
+from legkit.robots.superbot import MAX_RANDOM_MODULES, ModuleTree, random_tree
 
 if TYPE_CHECKING:
     from legkit.viewer import Scene
@@ -148,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
     ``--no-animation``) and ``balance.gif`` (with ``--gif``) to ``--out``, print the table."""
     parser = argparse.ArgumentParser(prog="legkit balance", formatter_class=HelpFormatter, description=__doc__.split("\n\n")[0])
     parser.add_argument("--trees", type=bounded_int(1, 1000), default=4, help="number of random trees (default 4)")
-    parser.add_argument("--modules", type=bounded_int(1, 10_000), default=20, help="modules per tree besides the root (default 20)")
+    parser.add_argument("--modules", type=bounded_int(1, MAX_RANDOM_MODULES), default=20, help="modules per tree besides the root (default 20)")
     parser.add_argument("--branches", type=bounded_int(1, 10_000), default=4, help="branches off the root (default 4)")
     parser.add_argument("--seed", type=bounded_int(0, 2**31 - 1), default=0, help="seed of the trees and of the bus (default 0)")
     parser.add_argument("--duration", type=float, default=DEFAULT_DURATION, help=f"simulated seconds (default {DEFAULT_DURATION})")

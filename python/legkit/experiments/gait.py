@@ -32,7 +32,7 @@ from legkit._extras import load, require
 from legkit._help import HelpFormatter
 from legkit._validation import bounded_int, output_folder_argument
 from legkit.gaits.analysis import GaitAnalysis, analyse, biped_extras
-from legkit.gaits.references import AMBLE_HIP_HEIGHT, AMBLE_QUADRUPED, biped_walk, quadruped_amble
+from legkit.gaits.references import AMBLE_HIP_HEIGHT, AMBLE_QUADRUPED, MAX_SAMPLES, biped_walk, quadruped_amble
 from legkit.robots.biped import JOINT_LABELS, SIDES, Biped, build_biped
 from legkit.robots.motors import BIPED_MOTOR, QUADRUPED_MOTOR, MotorParameters
 from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, build_quadruped
@@ -529,6 +529,8 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.0 <= args.torque_margin < 1.0:
         parser.error("--torque-margin must be in [0, 1)")
     robots = ["quadruped", "biped"] if args.robot == "both" else [args.robot]
+    if args.samples * args.cycles > MAX_SAMPLES:
+        parser.error(f"--samples x --cycles must be <= {MAX_SAMPLES:,}, got {args.samples:,} x {args.cycles:,}")
     for name in robots:
         try:
             reference(name, args)

@@ -147,13 +147,20 @@ def _expand(robot_model: lk.Model, dt: float, cycles: int, speed: float, base_xy
     return t, q, v, a
 
 
+#: Samples a reference may hold over all its cycles: building one takes about 30 µs and 1.2 kB per sample.
+MAX_SAMPLES = 1_000_000
+
+
 def _sample_counts(samples: object, cycles: object) -> tuple[int, int]:
-    """samples per cycle (at least 4: the footfalls are a quarter cycle apart) and cycles (at least 1), checked."""
+    """samples per cycle (at least 4: the footfalls are a quarter cycle apart) and cycles (at least 1), checked,
+    with at most MAX_SAMPLES samples in all."""
     samples, cycles = integer(samples, "samples"), integer(cycles, "cycles")
     if samples < 4:
         raise ValueError(f"samples must be >= 4, got {samples}")
     if cycles < 1:
         raise ValueError(f"cycles must be >= 1, got {cycles}")
+    if samples * cycles > MAX_SAMPLES:
+        raise ValueError(f"samples x cycles must be <= {MAX_SAMPLES:,}, got {samples:,} x {cycles:,}")
     return samples, cycles
 
 

@@ -64,6 +64,9 @@ JOINT_LIMIT = np.pi / 2
 SERVO_ARMATURE = 0.01
 SERVO_DAMPING = 0.1
 SERVO_TORQUE_LIMIT = 1.0
+#: Modules a random tree may have: past a few hundred, the branches box themselves in on the module lattice and
+#: every placement attempt fails (1,000 fails for every seed tried, after about 5 s).
+MAX_RANDOM_MODULES = 1000
 
 CONNECTOR_NAMES = ("A_end", "A_left", "A_right", "B_end", "B_left", "B_right")
 CONNECTOR_BLOCK = np.array([0, 0, 0, 1, 1, 1])  # 0: on block A (part 0), 1: on block B (part 3)
@@ -478,12 +481,14 @@ def random_tree(
     of a random module already in the branch. Placements whose blocks would overlap another block, or go
     below the ground, at zero joint angles are rejected (blocks sit on a lattice of module widths), so the
     zero configuration is physically valid. Deterministic for a given seed. ``branches`` must be 1..5 (the
-    root has five free connectors)."""
+    root has five free connectors); ``n_modules`` at most MAX_RANDOM_MODULES."""
     for name, value in (("n_modules", n_modules), ("branches", branches), ("seed", seed)):
         integer(value, name)
     if n_modules < 0 or seed < 0:
         name, value = ("n_modules", n_modules) if n_modules < 0 else ("seed", seed)
         raise ValueError(f"{name}: must be >= 0, got {value}")
+    if n_modules > MAX_RANDOM_MODULES:
+        raise ValueError(f"n_modules: must be <= {MAX_RANDOM_MODULES} (larger random trees box themselves in), got {n_modules}")
     if not 1 <= branches <= 5:
         raise ValueError(f"branches: must be in 1..5 (the root has five free connectors), got {branches}")
     if branches > max(n_modules, 1):
