@@ -399,6 +399,39 @@ def test_sizes_beyond_their_bound_are_refused_by_name_before_the_work(call, erro
     raises(setup + call, error, name)
 
 
+@pytest.mark.parametrize(
+    ("call", "error", "name"),
+    [
+        ("build_quadruped('x')", "TypeError", "parameters"),  # was an AttributeError
+        ("build_biped(3)", "TypeError", "parameters"),
+        ("random_tree(5, parameters='x')", "TypeError", "parameters"),
+        ("QuadrupedParameters(torso_size='abc')", "TypeError", "torso_size"),  # was a str/float comparison error
+        ("QuadrupedParameters(thigh_length=1e300)", "ValueError", "thigh_length"),  # blamed the core's 'inertia'
+        ("QuadrupedParameters(hip_x=float('nan'))", "ValueError", "hip_x"),  # a NaN model
+        ("BipedParameters(torso_position=(0, 0, float('inf')))", "ValueError", "torso_position"),
+        ("ModuleParameters(width=1e300)", "ValueError", "width"),  # blamed the root's connector
+        ("MotorParameters(-1, 0.1, 10, 0.9, 5, 1)", "ValueError", "resistance"),  # accepted: a negative Joule loss
+        ("MotorParameters(float('nan'), 0.1, 10, 0.9, 5, 1)", "ValueError", "resistance"),
+        ("MotorParameters(1, 0.1, 10, 1.5, 5, 1)", "ValueError", "efficiency"),
+        ("rhex_compliant_model('x')", "TypeError", "spring_axis"),  # NumPy's conversion message
+        ("model_to_urdf(build_quadruped().model, 5)", "TypeError", "robot_name"),
+        ("model_to_urdf('m', 'q')", "TypeError", "model"),
+        ("initial_angles('x', 0)", "TypeError", "tree"),
+        ("FreePlant('m')", "TypeError", "model"),
+        ("run_balance(['x'], 0.01)", "TypeError", "trees[0]"),
+        ("run_balance(random_tree(5, 2), 0.01)", "TypeError", "trees"),
+        ("run_balance([random_tree(5, 2)], 1e12)", "MemoryError", "duration"),  # NumPy's 728 TiB message
+        ("run_balance([random_tree(5, 2)], 0.01, dt=1e-300)", "MemoryError", "duration"),  # blamed the core's 'n'
+    ],
+)
+def test_robot_and_control_builders_name_a_bad_argument(call, error, name):
+    setup = (
+        "from legkit.control import FreePlant, initial_angles, run_balance\n"
+        "from legkit.robots import *\n"
+    )
+    raises(setup + call, error, name)
+
+
 def test_a_capsule_beyond_any_robot_is_refused_before_parry_sees_it():
     raises(
         PENDULUM

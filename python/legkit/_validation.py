@@ -6,8 +6,11 @@ Wrong types raise TypeError and wrong values (shape, range, NaN/inf) ValueError;
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
+import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TypeGuard
 
@@ -27,6 +30,12 @@ def integer(value: object, name: str) -> int:
     if not is_integer(value):
         raise TypeError(f"{name} must be an integer, got {type(value).__name__}")
     return int(value)
+
+
+def instance(value: object, kind: type, name: str) -> None:
+    """TypeError naming `name` unless `value` is a `kind`."""
+    if not isinstance(value, kind):
+        raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
 
 
 def is_real(value: object) -> TypeGuard[int | float | np.integer | np.floating]:
@@ -67,6 +76,46 @@ def float_array(
     if bound is not None and array.size and np.max(np.abs(array)) > bound:
         raise ValueError(f"{name} must lie within +-{bound:g}, got {np.max(np.abs(array)):g}")
     return array
+
+
+#: Largest magnitude of a robot's length (m) or mass (kg) parameter: a product such as m l^2 of two stays finite.
+MAX_PARAMETER = 1e100
+
+
+def parameter_fields(
+    parameters: object, *, positive: Iterable[str] = (), non_negative: Iterable[str] = (), real: Iterable[str] = ()
+) -> None:
+    """Checks a parameter dataclass's fields by name: each a real number or, where the field's default is a tuple,
+    a tuple of as many; finite and within +-MAX_PARAMETER; > 0 for `positive`, >= 0 for `non_negative`
+    (TypeError or ValueError naming the field)."""
+    defaults = {f.name: f.default for f in dataclasses.fields(parameters)}  # type: ignore[arg-type]
+    for names, low in ((positive, "> 0"), (non_negative, ">= 0"), (real, None)):
+        for name in names:
+            value = getattr(parameters, name)
+            default = defaults[name]
+            shape = (len(default),) if isinstance(default, tuple) else ()
+            if isinstance(value, (str, bytes)):
+                raise TypeError(f"{name} must be {'a real number' if not shape else f'{shape[0]} real numbers'}, got {type(value).__name__}")
+            array = float_array(value, name, shape=shape, bound=MAX_PARAMETER)
+            if (low == "> 0" and np.any(array <= 0.0)) or (low == ">= 0" and np.any(array < 0.0)):
+                raise ValueError(f"{name} must be {low}, got {value}")
+
+
+def check_allocation(n_bytes: int, name: str) -> None:
+    """MemoryError naming `name` when `n_bytes` exceed this machine's physical memory: NumPy would reserve them
+    lazily, and the process be killed once it had written that much."""
+    available = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    if n_bytes > available:
+        raise MemoryError(f"{name}: needs {n_bytes / 1e9:.3g} GB, more than this machine's memory ({available / 1e9:.3g} GB)")
+
+
+def zeros(shape: tuple[int, ...], name: str) -> np.ndarray:
+    """np.zeros(shape), or a MemoryError naming `name` when it cannot be had."""
+    check_allocation(8 * math.prod(shape), name)
+    try:
+        return np.zeros(shape)
+    except MemoryError:
+        raise MemoryError(f"{name}: {shape} needs {8 * math.prod(shape) / 1e9:.3g} GB, more than can be allocated") from None
 
 
 def bool_mask(value: npt.ArrayLike | None, name: str, shape: tuple[int, ...]) -> np.ndarray:

@@ -25,7 +25,7 @@ import numpy as np
 
 import legkit as lk
 from legkit._extras import progress as progress_bar
-from legkit._validation import float_array, integer, is_integer, positive_scalar
+from legkit._validation import check_allocation, float_array, instance, integer, is_integer, positive_scalar
 from legkit.agents import AgentNetwork, BusConfig, GroundContact
 from legkit.control.balance import BalanceController, BalanceKernel
 from legkit.control.gains import SCHEMES, GainSchedule
@@ -51,6 +51,7 @@ class FreePlant:
     then ``v += dt a`` and ``q += dt v``."""
 
     def __init__(self, model: lk.Model, q0: np.ndarray | None = None, v0: np.ndarray | None = None, dt: float = 1e-3):
+        instance(model, lk.Model, "model")
         if model.floating_base:
             raise ValueError("model: FreePlant integrates fixed-base models only")
         self.model = model
@@ -208,6 +209,7 @@ def initial_angles(tree: ModuleTree, seed: int) -> np.ndarray:
     +-INITIAL_SPREAD of the joint limit (generator seeded with ``seed``), except the root, which leans with
     both pitch joints at INITIAL_LEAN of the limit, to whichever side puts the COM farther from the support
     line (the vertical through the root), so every run starts clearly off balance."""
+    instance(tree, ModuleTree, "tree")
     if integer(seed, "seed") < 0:
         raise ValueError(f"seed: must be >= 0, got {seed}")
     rng = np.random.default_rng([seed, 1])
@@ -246,8 +248,12 @@ def run_balance(
     (``ModuleParameters.servo_torque_limit``). Each run's ``energy`` is the integral over the run of sum_j |tau_j v_j|, the
     power of every joint's applied torque (``Simulation.applied_tau``; the commanded torque for other
     plants) at the velocity it reached in that step, in J."""
+    if isinstance(trees, ModuleTree) or not isinstance(trees, Sequence):
+        raise TypeError(f"trees must be a sequence of ModuleTree, got {type(trees).__name__}")
     if not trees:
         raise ValueError("trees: need at least one tree")
+    for k, tree in enumerate(trees):
+        instance(tree, ModuleTree, f"trees[{k}]")
     positive_scalar(duration, "duration")
     if positive_scalar(dt, "dt") > 2 * duration:  # not one step (steps = round(duration / dt))
         raise ValueError(f"dt: must be at most twice duration ({duration}) for one step, got {dt}")
@@ -267,6 +273,9 @@ def run_balance(
     runs = _checked_runs(runs, len(trees))
     instances = [trees[r.tree] for r in runs]
     built = [tree.to_model() for tree in trees]
+    steps = round(duration / dt)
+    samples = steps // sample_every + 1
+    check_allocation(8 * samples * sum(built[r.tree][0].nq + 3 for r in runs), "duration")  # the sampled q and COM
 
     def start_seed(r: RunSpec) -> int:
         return seed + r.tree if r.start_seed is None else r.start_seed
@@ -337,8 +346,6 @@ def run_balance(
 
     messages_before = messages_sent()
 
-    steps = int(round(duration / dt))
-    samples = steps // sample_every + 1
     times = np.arange(samples) * sample_every * dt
     coms = np.zeros((samples, len(runs), 3))
     qs = [np.zeros((samples, built[r.tree][0].nq)) for r in runs]

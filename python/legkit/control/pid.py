@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from legkit._validation import float_array, is_integer, positive_scalar
+from legkit._validation import float_array, is_integer, positive_scalar, zeros
 
 
 class PID:
@@ -21,10 +19,7 @@ class PID:
         if not all(is_integer(n) and n >= 0 for n in shape):
             raise ValueError(f"shape: must be non-negative integers, got {shape}")
         self.shape = tuple(int(n) for n in shape)
-        try:
-            self.integral = np.zeros(self.shape)
-        except (MemoryError, ValueError):  # NumPy says ValueError when the byte count overflows
-            raise MemoryError(f"shape: {self.shape} needs {8 * math.prod(self.shape):,} bytes, more than can be allocated") from None
+        self.integral = zeros(self.shape, "shape")
         self.previous_error: np.ndarray | None = None
 
     def reset(self) -> None:

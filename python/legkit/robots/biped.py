@@ -16,12 +16,13 @@ walks at the paper's 1.8 km/h; every value is an overridable field of `BipedPara
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
+from legkit._validation import instance, parameter_fields
 from legkit.robots.legs import limb_segment, model_to_urdf, roll_pitch_knee_ik
 
 SIDES = ("l", "r")
@@ -57,10 +58,7 @@ class BipedParameters:
     arm_mass: float = 2.0
 
     def __post_init__(self) -> None:
-        for name, value in self.__dict__.items():
-            values = value if isinstance(value, tuple) else (value,)
-            if name not in ("torso_position",) and any(not v > 0.0 for v in values):
-                raise ValueError(f"{name} must be > 0, got {value}")
+        parameter_fields(self, positive=[f.name for f in fields(self) if f.name != "torso_position"], real=("torso_position",))
 
     @property
     def total_mass(self) -> float:
@@ -119,7 +117,8 @@ class Biped:
 
 def build_biped(parameters: BipedParameters | None = None) -> Biped:
     """The biped of the module docstring as an `lk.Model` with a free-flyer pelvis."""
-    p = parameters or BipedParameters()
+    p = BipedParameters() if parameters is None else parameters
+    instance(p, BipedParameters, "parameters")
     model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(p.pelvis_mass, list(p.pelvis_size)), base_name="pelvis")
     model.add_fixed("pelvis", (np.eye(3), list(p.torso_position)), lk.MassProperties.solid_box(p.torso_mass, list(p.torso_size)), "torso")
     foot_length = p.foot_toe + p.foot_heel

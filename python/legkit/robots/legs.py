@@ -8,7 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
-from legkit._validation import float_array, positive_scalar
+from legkit._validation import float_array, instance, positive_scalar
 
 
 def limb_segment(mass: float, length: float, width: float) -> lk.MassProperties:
@@ -70,6 +70,8 @@ def model_to_urdf(model: lk.Model, robot_name: str) -> str:
     `<body>_joint` per non-base body (revolute with +-pi limits, prismatic with +-1 m, or fixed). A floating
     base is not written as a joint (URDF has none): load with Model.from_urdf(xml, floating_base=True). A joint
     URDF has no type for (helical) is a ValueError naming its body."""
+    instance(model, lk.Model, "model")
+    instance(robot_name, str, "robot_name")
     for i in range(1, model.nbodies):
         if model.joint_type(i) not in ("revolute", "prismatic", "fixed"):
             raise ValueError(f"model: URDF has no {model.joint_type(i)} joint (body {model.names[i]!r})")

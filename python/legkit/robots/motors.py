@@ -8,7 +8,9 @@ are used (`legkit.optimize.gaits.walk_problem`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+
+from legkit._validation import parameter_fields
 
 
 @dataclass(frozen=True)
@@ -21,6 +23,11 @@ class MotorParameters:
     efficiency: float  # gear efficiency in (0, 1]
     no_load_speed: float  # motor no-load speed [rad/s]
     stall_torque: float  # motor stall torque [N m]
+
+    def __post_init__(self) -> None:
+        parameter_fields(self, positive=[f.name for f in fields(self)])
+        if self.efficiency > 1.0:
+            raise ValueError(f"efficiency must be in (0, 1], got {self.efficiency}")
 
     @property
     def joint_max_speed(self) -> float:

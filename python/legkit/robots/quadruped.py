@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
+from legkit._validation import instance, parameter_fields
 from legkit.robots.legs import limb_segment, model_to_urdf, roll_pitch_knee_ik
 
 LEGS = ("lf", "rf", "lh", "rh")
@@ -53,12 +54,13 @@ class QuadrupedParameters:
     )  # sign of the knee angle in the inverse kinematics: fore knees bend backwards (elbow), hind forwards
 
     def __post_init__(self) -> None:
-        for name in ("torso_mass", "head_mass", "thigh_mass", "shank_mass", "thigh_length", "shank_length", "link_width"):
-            if not getattr(self, name) > 0.0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        for name in ("torso_size", "head_size"):
-            if len(getattr(self, name)) != 3 or min(getattr(self, name)) <= 0.0:
-                raise ValueError(f"{name} must be three positive edge lengths, got {getattr(self, name)}")
+        parameter_fields(
+            self, positive=("torso_mass", "torso_size", "head_mass", "head_size", "thigh_mass", "shank_mass", "thigh_length",
+                            "shank_length", "link_width"),
+            real=("head_position", "hip_x", "hip_y", "hip_z"),
+        )
+        if not isinstance(self.knee_direction, dict):
+            raise TypeError(f"knee_direction must be a dict, got {type(self.knee_direction).__name__}")
         if set(self.knee_direction) != set(LEGS) or any(abs(s) != 1.0 for s in self.knee_direction.values()):
             raise ValueError(f"knee_direction must map each of {LEGS} to +1 or -1, got {self.knee_direction}")
 
@@ -109,7 +111,8 @@ class Quadruped:
 
 def build_quadruped(parameters: QuadrupedParameters | None = None) -> Quadruped:
     """The quadruped of the module docstring as an `lk.Model` with a free-flyer torso."""
-    p = parameters or QuadrupedParameters()
+    p = QuadrupedParameters() if parameters is None else parameters
+    instance(p, QuadrupedParameters, "parameters")
     model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(p.torso_mass, list(p.torso_size)), base_name="torso")
     model.add_fixed("torso", (np.eye(3), list(p.head_position)), lk.MassProperties.solid_box(p.head_mass, list(p.head_size)), "head")
     knee = (np.eye(3), [0.0, 0.0, -p.thigh_length])

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 import legkit as lk
+from legkit._validation import float_array
 
 BODY_LENGTH = 0.50  # m, along x
 BODY_WIDTH = 0.20  # m, along y
@@ -98,10 +99,11 @@ def rhex_compliant_model(spring_axis: object) -> lk.Model:
     chooses the axis and stiffnesses that match the compliant four-bar leg of ``legkit.strain.benchtop``).
 
     Raises:
+        TypeError: spring_axis is not numeric.
         ValueError: spring_axis is not a finite unit 3-vector in the xz plane.
     """
-    axis = np.asarray(spring_axis, dtype=np.float64)
-    if axis.shape != (3,) or not np.all(np.isfinite(axis)) or abs(np.linalg.norm(axis) - 1.0) > 1e-9 or axis[1] != 0.0:
+    axis = float_array(spring_axis, "spring_axis")
+    if axis.shape != (3,) or abs(np.linalg.norm(axis) - 1.0) > 1e-9 or axis[1] != 0.0:
         raise ValueError(f"spring_axis must be a finite unit 3-vector with zero y component, got {spring_axis!r}")
     clamp_mass, member_mass, shin_mass = COMPLIANT_LEG_MASSES
     rotor = 0.5 * HIP_ROTOR_INERTIA

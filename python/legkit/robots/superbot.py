@@ -54,7 +54,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import legkit as lk
-from legkit._validation import float_array, integer, is_real, positive_scalar
+from legkit._validation import float_array, instance, integer, is_real, parameter_fields
 
 MODULE_WIDTH = 0.084
 REAL_MODULE_MASS = 0.5
@@ -118,10 +118,7 @@ class ModuleParameters:
     servo_torque_limit: float = SERVO_TORQUE_LIMIT
 
     def __post_init__(self) -> None:
-        for name in ("width", "mass", "joint_limit"):
-            positive_scalar(getattr(self, name), name)
-        for name in ("servo_armature", "servo_damping"):
-            positive_scalar(getattr(self, name), name, allow_zero=True)
+        parameter_fields(self, positive=("width", "mass", "joint_limit"), non_negative=("servo_armature", "servo_damping"))
         if not is_real(self.servo_torque_limit) or not float(self.servo_torque_limit) > 0:  # NaN fails too; inf: no limit
             raise ValueError(f"servo_torque_limit: must be > 0 (inf for none), got {self.servo_torque_limit!r}")
 
@@ -493,7 +490,8 @@ def random_tree(
         raise ValueError(f"branches: must be in 1..5 (the root has five free connectors), got {branches}")
     if branches > max(n_modules, 1):
         raise ValueError(f"branches: must be <= n_modules ({n_modules}), got {branches}")
-    parameters = parameters or ModuleParameters()
+    parameters = ModuleParameters() if parameters is None else parameters
+    instance(parameters, ModuleParameters, "parameters")
     rng = np.random.default_rng(seed)
     rotation_c, position_c = parameters.connector_frames()
     w = parameters.width
