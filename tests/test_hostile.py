@@ -793,6 +793,16 @@ def test_ctrl_c_interrupts_a_long_call_within_a_second(call):
     assert_ctrl_c_answered_within_a_second(setup, long_call, after=0.5, memory=4 * GIB)
 
 
+def test_ctrl_c_interrupts_a_gait_optimisation_within_a_second():
+    # casadi checks for signals between IPOPT's steps and, finding Ctrl-C, ended the solve as failed and dropped the
+    # KeyboardInterrupt: the plan went on to its next stage, and Ctrl-C was ignored until the last.
+    setup = (
+        "from legkit.gaits.references import AMBLE_QUADRUPED\nfrom legkit.optimize.gaits import plan_amble\n"
+        "from legkit.robots.quadruped import build_quadruped\nrobot = build_quadruped(AMBLE_QUADRUPED)"
+    )
+    assert_ctrl_c_answered_within_a_second(setup, "plan_amble(robot)", after=6.0, memory=4 * GIB)
+
+
 @pytest.mark.parametrize("batch", [False, True])
 def test_ctrl_c_interrupts_transition_jacobians_of_many_substeps_and_changes_nothing(tmp_path, batch):
     # A thousand substeps of a 60-link chain take about 3 s a simulation, which ran to their end before; stopped,

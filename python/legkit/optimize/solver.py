@@ -8,10 +8,13 @@ approximates it by L-BFGS.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import functools
+import signal
+import threading
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -100,8 +103,9 @@ class SolveResult:
 
 
 class _Timer:
-    """Times the callbacks and keeps the first exception raised in one: casadi would only report a failed
-    evaluation, so `solve` re-raises it after IPOPT returns."""
+    """Times the callbacks and keeps the first exception raised in one, Ctrl-C's KeyboardInterrupt included: casadi
+    would only report a failed evaluation, and IPOPT try a shorter step, so the iteration callback stops IPOPT
+    once one is kept, and `solve` re-raises it after IPOPT returns."""
 
     def __init__(self) -> None:
         self.seconds = 0.0
@@ -112,7 +116,7 @@ class _Timer:
             start = time.perf_counter()
             try:
                 return function(*args)
-            except Exception as error:
+            except BaseException as error:
                 self.error = self.error or error
                 raise
             finally:
@@ -260,9 +264,10 @@ def solve(
     solver = _build(ca, nlp, ipopt, state, Functions(), hessian)
     history: list[tuple[int, float, float]] = []
     best: list[tuple[int, float, np.ndarray] | None] = [None]
-    state.update(history=history, best=best, progress=progress, tol=tol, nlp=nlp, stall=stall)
+    state.update(history=history, best=best, progress=progress, tol=tol, nlp=nlp, stall=stall, timer=timer)
     start = time.perf_counter()
-    result = solver(x0=x0, lbx=nlp.x_lower, ubx=nlp.x_upper, lbg=nlp.g_lower, ubg=nlp.g_upper, **start_duals)
+    with _ctrl_c_kept(timer):
+        result = solver(x0=x0, lbx=nlp.x_lower, ubx=nlp.x_upper, lbg=nlp.g_lower, ubg=nlp.g_upper, **start_duals)
     wall = time.perf_counter() - start
     if timer.error is not None:
         raise timer.error
@@ -271,6 +276,25 @@ def solve(
     return SolveResult(x, float(result["f"]), stats["return_status"], bool(stats["success"]), int(stats["iter_count"]),
                        wall, timer.seconds, nlp.violation(x), history, best[0], tol,
                        (np.asarray(result["lam_x"]).ravel(), np.asarray(result["lam_g"]).ravel()))
+
+
+@contextlib.contextmanager
+def _ctrl_c_kept(timer: _Timer) -> Iterator[None]:
+    """Ctrl-C during the solve is kept in `timer` rather than raised where it lands: casadi checks for signals between
+    IPOPT's steps and, finding one, ends the solve as failed and drops the KeyboardInterrupt. Kept, it stops IPOPT at
+    its next iteration and `solve` raises it. Only Python's own Ctrl-C handler, in the main thread, is replaced."""
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield
+        return
+
+    def keep(signum: int, frame: Any) -> None:
+        timer.error = timer.error or KeyboardInterrupt()
+
+    signal.signal(signal.SIGINT, keep)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @functools.cache
@@ -317,7 +341,8 @@ class _LastPoint:
 
 def _build(ca: Any, nlp: NLP, ipopt: dict, state: dict, functions: Any, hessian: Any) -> Any:
     """casadi's IPOPT solver of nlp from its callbacks (`functions`: f and g with their derivatives; `hessian`: the
-    Hessian of the Lagrangian, or None); its iteration callback reports to `state` (history, best, progress)."""
+    Hessian of the Lagrangian, or None); its iteration callback reports to `state` (history, best, progress), and
+    stops IPOPT once `state`'s timer holds an exception."""
     n, m = nlp.n, nlp.m
 
     class Iteration(ca.Callback):
@@ -351,9 +376,14 @@ def _build(ca: Any, nlp: NLP, ipopt: dict, state: dict, functions: Any, hessian:
             return True
 
         def eval_buffer(self, arg: Any, res: Any) -> int:
-            names = ca.nlpsol_out()
-            f, g, x = (_read(arg[names.index(name)]) for name in ("f", "g", "x"))
-            return _write(res, [self.stop(float(f[0]), g, x)])
+            timer, stop = state["timer"], 1
+            try:
+                names = ca.nlpsol_out()
+                f, g, x = (_read(arg[names.index(name)]) for name in ("f", "g", "x"))
+                stop = self.stop(float(f[0]), g, x)
+            except BaseException as error:  # Ctrl-C, or a progress hook that failed
+                timer.error = timer.error or error
+            return _write(res, [1 if timer.error is not None else stop])
 
         def stop(self, f: float, g: np.ndarray, x: np.ndarray) -> int:
             bounds, history, best = state["nlp"], state["history"], state["best"]
