@@ -48,10 +48,11 @@ def sent(network: AgentNetwork) -> np.ndarray:
     return sum(channel.sent_by_module for channel in network.channels)
 
 
+@pytest.mark.parametrize("grounded", [3, 0])  # 0: building the kernel was a NumPy shape error
 @examples(12)
 @given(st.integers(0, 2**31))
-def test_the_kernel_sends_the_same_messages_and_computes_the_same_torques(seed):
-    controller, kernel, angles = twins(seed)
+def test_the_kernel_sends_the_same_messages_and_computes_the_same_torques(grounded, seed):
+    controller, kernel, angles = twins(seed, grounded=grounded)
     network = controller.network
     assert kernel.run_until_quiescent() == network.run_until_quiescent()
     assert np.array_equal(kernel.sent_by_module, sent(network))

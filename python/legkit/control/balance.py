@@ -190,7 +190,8 @@ class BalanceKernel:
         parts = parameters.part_mass_properties()
         connector_rotation, connector_position = parameters.connector_frames()
         modules = [c.module for c in net.ground]
-        ground_pose = np.concatenate([[c.rotation for c in net.ground], np.array([c.translation for c in net.ground])[..., None]], axis=-1)
+        rotations = np.array([c.rotation for c in net.ground]).reshape(-1, 3, 3)
+        ground_pose = np.concatenate([rotations, np.array([c.translation for c in net.ground]).reshape(-1, 3, 1)], axis=-1)
         schedules = controller.schedules
         self.n_modules = net.n_modules
         self._core = _core.BalanceKernel(
