@@ -793,6 +793,17 @@ def test_ctrl_c_interrupts_a_long_call_within_a_second(call):
     assert_ctrl_c_answered_within_a_second(setup, long_call, after=0.5, memory=4 * GIB)
 
 
+def test_ctrl_c_interrupts_the_balance_kernel_agreeing_on_a_long_chain_within_a_second():
+    # 20,000 modules in a chain: a round takes about 12 ms, and signals were checked every 1024 rounds.
+    setup = (
+        "from legkit.agents import AgentNetwork\nfrom legkit.control import BalanceController, BalanceKernel, GainSchedule\n"
+        "from legkit.robots import Connection, ModuleTree\n"
+        "chain = [Connection(0, 1, 1, 0)] + [Connection(i, 3, i + 1, 0) for i in range(1, 19_999)]\n"
+        "kernel = BalanceKernel(BalanceController(AgentNetwork([ModuleTree(20_000, chain)]), GainSchedule()))"
+    )
+    assert_ctrl_c_answered_within_a_second(setup, "kernel.run_until_quiescent()", after=4.0, memory=4 * GIB)
+
+
 def test_ctrl_c_interrupts_a_gait_optimisation_within_a_second():
     # casadi checks for signals between IPOPT's steps and, finding Ctrl-C, ended the solve as failed and dropped the
     # KeyboardInterrupt: the plan went on to its next stage, and Ctrl-C was ignored until the last.

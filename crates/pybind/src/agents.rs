@@ -8,10 +8,7 @@ use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 
 use crate::convert::{kernel_error, to_numpy, FloatArray, Floats, Integer};
-use crate::interrupt::{in_pieces, Pace};
-
-/// Rounds between checks for Ctrl-C in `run_until_quiescent`.
-const SIGNAL_ROUNDS: u64 = 1024;
+use crate::interrupt::{in_pieces, Pace, SignalCheck};
 
 #[pyclass(name = "BalanceKernel", module = "legkit")]
 pub struct PyBalanceKernel {
@@ -132,13 +129,12 @@ impl PyBalanceKernel {
     /// rounds (KeyboardInterrupt).
     fn run_until_quiescent(&mut self, py: Python<'_>, max_rounds: Integer) -> PyResult<u64> {
         let max_rounds = max_rounds.within("max_rounds", 0, i64::MAX as u64)?;
+        let mut signals = SignalCheck::default();
         for rounds in 0..=max_rounds {
             if self.network.quiescent() {
                 return Ok(rounds);
             }
-            if rounds % SIGNAL_ROUNDS == 0 {
-                py.check_signals()?;
-            }
+            signals.poll(py)?;
             self.network.round();
         }
         Err(PyRuntimeError::new_err(format!("max_rounds: the network did not fall silent within {max_rounds} rounds")))

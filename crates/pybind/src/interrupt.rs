@@ -66,6 +66,27 @@ where
     Ok(())
 }
 
+/// Python's signal handlers, run at most once a `PIECE` from a loop that holds the GIL and has no count of its work
+/// to cut into pieces (rounds until a network falls silent).
+pub struct SignalCheck(Instant);
+
+impl Default for SignalCheck {
+    fn default() -> Self {
+        SignalCheck(Instant::now())
+    }
+}
+
+impl SignalCheck {
+    /// Runs the handlers if a `PIECE` has passed since they last ran; an exception they raise is returned.
+    pub fn poll(&mut self, py: Python<'_>) -> PyResult<()> {
+        if self.0.elapsed() >= PIECE {
+            py.check_signals()?;
+            self.0 = Instant::now();
+        }
+        Ok(())
+    }
+}
+
 /// The stack of a worker: MJCF's passes recurse once per level of nesting, about 3 KB a level, up to
 /// `mjcf::MAX_DEPTH` (1000) levels; reserved, and touched only as deep as a file nests.
 const WORKER_STACK: usize = 16 << 20;
