@@ -1202,6 +1202,11 @@ def test_python_entry_points_refuse_non_finite_values_and_negative_counts_by_nam
         ["strain", "--seed", "-1"],
         ["balance", "--seed", "-1"],
         ["tune", "--seed", "-1"],
+        ["gait", "--tol", "nan", "--optimize"],  # ran IPOPT with a NaN tolerance
+        ["gait", "--tol", "0", "--optimize"],  # casadi's traceback: invalid IPOPT options
+        ["gait", "--replay-kp", "nan", "--optimize"],
+        ["gait", "--max-impulse", "-1", "--optimize"],  # the library's traceback
+        ["gait", "--torque-margin", "1", "--optimize"],
     ],
 )
 def test_a_command_refuses_an_unwritable_out_or_a_huge_count_before_it_runs(tmp_path, capsys, argv):
@@ -1228,6 +1233,26 @@ def test_gait_refuses_a_step_the_legs_cannot_reach_naming_the_arguments(tmp_path
     assert exit.value.code == 2
     error = capsys.readouterr().err.strip().splitlines()[-1]
     assert error.startswith(f"legkit gait: error: {given}: foot target out of reach"), error
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["gait", "--biped-intervals", "1000000", "--optimize"], "--biped-intervals must be at most 1000"),  # a traceback
+        (["gait", "--min-normal-force", "1e308", "--optimize", "--robot", "quadruped"], "min_normal_force must be in [0, 100 x"),  # overflow
+        (["strain", "--duration", "1e-9"], "duration 1e-09 s is shorter than one sample"),  # a traceback
+    ],
+)
+def test_a_value_the_library_refuses_is_one_line_naming_it(tmp_path, capsys, argv, message):
+    from legkit.cli import main
+
+    try:
+        code = main([*argv, "--out", str(tmp_path / "out")])
+    except SystemExit as exit:  # argparse's error
+        code = exit.code
+    assert code == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert error.startswith(f"legkit {argv[0]}: error: ") and message in error, error
 
 
 def test_a_sweep_without_its_spec_file_says_so_in_one_line(tmp_path, capsys):

@@ -474,7 +474,8 @@ def test_execution_check_reports_the_worst_yaw_rates_and_torque_of_a_plan():
     ({"q_bounds": (np.zeros(3), np.ones(3))}, r"q_bounds must be \(lower, upper\) arrays of shape \(19,\)"),
     ({"u_bounds": (np.full(12, np.nan), np.ones(12))}, r"u_bounds: lower\[0\] = nan must be <= upper\[0\]"),
     ({"v_bounds": (np.ones(18), np.zeros(18))}, r"v_bounds: lower\[0\] = 1.0 must be <= upper\[0\] = 0.0"),
-    ({"min_normal_force": -1.0}, "min_normal_force must be finite and >= 0"),
+    ({"min_normal_force": -1.0}, "min_normal_force must be in \\[0, 100 x the robot's weight"),
+    ({"min_normal_force": 1e308}, "min_normal_force must be in \\[0, 100 x the robot's weight"),  # overflowed in the solve
     ({"actuated": [3, 3]}, "actuated must list distinct"),
     ({"objectives": [MinMaxStability(2.0)], "phases": [Phase(("lf",)), Phase(("rf", "rh"))]}, "MinMaxStability needs two feet"),
 ])

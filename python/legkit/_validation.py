@@ -161,6 +161,24 @@ def time_grid(t: npt.ArrayLike, samples: int, name: str = "t") -> np.ndarray:
     return times
 
 
+def bounded_float(low: float, high: float, *, open_low: bool = False, open_high: bool = False) -> Callable[[str], float]:
+    """An argparse type: a number in [low, high] (an end excluded with `open_low` or `open_high`); NaN is refused."""
+    interval = f"{'(' if open_low else '['}{low:g}, {high:g}{')' if open_high else ']'}"
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text[:40]!r}") from None
+        above = value > low if open_low else value >= low
+        below = value < high if open_high else value <= high
+        if not (above and below):
+            raise argparse.ArgumentTypeError(f"must be in {interval}, got {text[:40]}")
+        return value
+
+    return parse
+
+
 def bounded_int(low: int, high: int) -> Callable[[str], int]:
     """An argparse type: an integer in [low, high], so that a command refuses a huge count on one line
     instead of running out of memory or time."""

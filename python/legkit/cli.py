@@ -59,7 +59,8 @@ def needs(command: str, options: list[str]) -> list[tuple[tuple[str, ...], str]]
 
 def main(argv: list[str] | None = None) -> int:
     """Runs a command. What a user can cause without a bug (Ctrl-C, a file that cannot be written, a size that
-    cannot be allocated) ends it with one line on stderr, not a traceback."""
+    cannot be allocated, a value the library refuses, a numerical failure) ends it with one line on stderr, not a
+    traceback."""
     argv = sys.argv[1:] if argv is None else list(argv)
     prog = f"legkit {argv[0]}" if argv and argv[0] in EXPERIMENTS else "legkit"
     try:
@@ -70,9 +71,12 @@ def main(argv: list[str] | None = None) -> int:
     except MissingExtra as error:  # an optional dependency: the message says how to install it
         print(f"{prog}: {error}", file=sys.stderr)
         return 2
-    except (OSError, MemoryError) as error:
+    except (OSError, MemoryError, RuntimeError) as error:
         print(f"{prog}: {type(error).__name__}: {error}", file=sys.stderr)
         return 1
+    except (ValueError, TypeError) as error:  # a value the options' checks let through, refused by the library by name
+        print(f"{prog}: error: {error}", file=sys.stderr)
+        return 2
 
 
 def run(argv: list[str]) -> int:

@@ -30,7 +30,7 @@ import numpy as np
 import legkit.stability as st
 from legkit._extras import load, require
 from legkit._help import HelpFormatter
-from legkit._validation import bounded_int, output_folder_argument
+from legkit._validation import bounded_float, bounded_int, output_folder_argument
 from legkit.gaits.analysis import GaitAnalysis, analyse, biped_extras
 from legkit.gaits.references import AMBLE_HIP_HEIGHT, AMBLE_QUADRUPED, MAX_SAMPLES, biped_walk, quadruped_amble
 from legkit.robots.biped import JOINT_LABELS, SIDES, Biped, build_biped
@@ -485,22 +485,22 @@ def main(argv: list[str] | None = None) -> int:
                         help="--optimize: IPOPT iteration limit for the amble (per continuation stage)")
     parser.add_argument("--biped-max-iter", type=_positive_int, default=1000,
                         help="--optimize: IPOPT iteration limit for the biped walk (per stage; J_e1 still falls slowly after 1000)")
-    parser.add_argument("--tol", type=float, default=1e-6, help="--optimize: IPOPT tolerance")
-    parser.add_argument("--biped-max-power", type=float, default=None,
+    parser.add_argument("--tol", type=bounded_float(0.0, 1.0, open_low=True), default=1e-6, help="--optimize: IPOPT tolerance")
+    parser.add_argument("--biped-max-power", type=bounded_float(0.0, np.inf, open_low=True, open_high=True), default=None,
                         help="--optimize: each biped motor's input power limit [W] (Sect. 6; default: none)")
     parser.add_argument("--replay-cycles", type=_positive_int, default=5, help="--optimize: cycles replayed in simulation")
-    parser.add_argument("--replay-kp", type=float, default=50.0, help="--optimize: joint PD stiffness of the replay [N m/rad]")
-    parser.add_argument("--replay-kd", type=float, default=1.0, help="--optimize: joint PD damping of the replay [N m s/rad]")
+    parser.add_argument("--replay-kp", type=_gain, default=50.0, help="--optimize: joint PD stiffness of the replay [N m/rad]")
+    parser.add_argument("--replay-kd", type=_gain, default=1.0, help="--optimize: joint PD damping of the replay [N m s/rad]")
     parser.add_argument("--replay-controller", choices=("mpc", "pd"), default="mpc",
                         help="--optimize: the amble's replay: the contact-constrained model-predictive tracking of legkit.optimize.tracking "
                              "(mpc, the default: faster than real time; it holds plans that are motions of their model with a force floor, "
                              "as the defaults make them), or joint PD + feed-forward (pd, which holds none of them)")
-    parser.add_argument("--min-normal-force", type=float, default=3.0,
+    parser.add_argument("--min-normal-force", type=_gain, default=3.0,
                         help="--optimize: floor on every stance normal force of the amble's plan [N] (0: eq. 5 as published; the tracking "
                              "MPC needs one)")
-    parser.add_argument("--torque-margin", type=float, default=0.0,
+    parser.add_argument("--torque-margin", type=bounded_float(0.0, 1.0, open_high=True), default=0.0,
                         help="--optimize: fraction of the motors' torque the amble's plan leaves to feedback (0: the full line)")
-    parser.add_argument("--max-impulse", type=float, default=0.0,
+    parser.add_argument("--max-impulse", type=bounded_float(0.0, np.inf), default=0.0,
                         help="--optimize: bound on the amble's touchdown impulses [N s] (0: feet land at rest; inf: eq. 7 unbounded)")
     parser.add_argument("--no-animation", action="store_true", help="--optimize: do not write the replay's .html and .gif")
     parser.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None,
@@ -520,14 +520,14 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("quadruped_speed", "quadruped_period", "quadruped_tip_speed", "biped_speed", "biped_step", "biped_tip_speed"):
         if not np.isfinite(getattr(args, name)) or getattr(args, name) <= 0.0:
             parser.error(f"--{name.replace('_', '-')} must be a positive number")
-    if args.biped_max_power is not None and not (np.isfinite(args.biped_max_power) and args.biped_max_power > 0.0):
-        parser.error("--biped-max-power must be a positive number")
-    if not (np.isfinite(args.min_normal_force) and args.min_normal_force >= 0.0):
-        parser.error("--min-normal-force must be a non-negative number")
     if args.coarse_intervals and args.coarse_intervals >= args.intervals:
         parser.error(f"--coarse-intervals must be fewer than --intervals ({args.intervals})")
-    if not 0.0 <= args.torque_margin < 1.0:
-        parser.error("--torque-margin must be in [0, 1)")
+    if args.optimize:
+        from legkit.optimize.problem import MAX_INTERVALS
+
+        for option in ("intervals", "biped_intervals"):
+            if getattr(args, option) > MAX_INTERVALS:
+                parser.error(f"--{option.replace('_', '-')} must be at most {MAX_INTERVALS}, got {getattr(args, option)}")
     robots = ["quadruped", "biped"] if args.robot == "both" else [args.robot]
     if args.samples * args.cycles > MAX_SAMPLES:
         parser.error(f"--samples x --cycles must be <= {MAX_SAMPLES:,}, got {args.samples:,} x {args.cycles:,}")
@@ -561,3 +561,5 @@ FRICTION = 0.8
 #: Counts (cycles, samples, intervals, iterations) the command takes: far beyond what a run needs.
 _positive_int = bounded_int(1, 1_000_000)
 _non_negative_int = bounded_int(0, 1_000_000)
+#: Gains and forces: finite and >= 0.
+_gain = bounded_float(0.0, np.inf, open_high=True)

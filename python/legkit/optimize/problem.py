@@ -71,6 +71,9 @@ REFINE_STABILITY = 0.2
 #: The most intervals one phase takes: a 16-interval phase already costs IPOPT minutes (docs/optimize.md), and the
 #: transcription's arrays grow with the points, so a larger count is a mistake, not a request.
 MAX_INTERVALS = 1000
+#: The largest stance force floor, in the robot's weights: feet in stance carry the weight on average over a cycle, a
+#: few times it in a run's short stance; beyond this the floor is a typing error (and large enough ones overflow).
+MAX_FORCE_FLOOR = 100.0
 
 
 @dataclass(frozen=True)
@@ -284,8 +287,11 @@ class MultiphaseProblem:
             raise ValueError(f"max_swing_height must be > 0, got {self.max_swing_height}")
         if not self.max_impulse >= 0.0:
             raise ValueError(f"max_impulse must be >= 0, got {self.max_impulse}")
-        if not 0.0 <= self.min_normal_force < np.inf:
-            raise ValueError(f"min_normal_force must be finite and >= 0, got {self.min_normal_force}")
+        weight = model.total_mass * float(np.linalg.norm(model.gravity))
+        if not 0.0 <= self.min_normal_force <= MAX_FORCE_FLOOR * weight:
+            raise ValueError(
+                f"min_normal_force must be in [0, {MAX_FORCE_FLOOR:g} x the robot's weight ({weight:.4g} N)], got {self.min_normal_force}"
+            )
         for name in ("max_force_rate", "max_torque_rate"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be > 0 (inf: unbounded), got {getattr(self, name)}")
