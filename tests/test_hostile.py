@@ -422,11 +422,18 @@ def test_sizes_beyond_their_bound_are_refused_by_name_before_the_work(call, erro
         ("run_balance(random_tree(5, 2), 0.01)", "TypeError", "trees"),
         ("run_balance([random_tree(5, 2)], 1e12)", "MemoryError", "duration"),  # NumPy's 728 TiB message
         ("run_balance([random_tree(5, 2)], 0.01, dt=1e-300)", "MemoryError", "duration"),  # blamed the core's 'n'
+        ("build_biped().leg_angles('x', [0, 0.1, -0.7])", "ValueError", "side"),  # the right leg's angles
+        ("build_biped().joint_slice('l', 'tail')", "ValueError", "limb"),  # the arm's slice
+        ("build_biped().contacts(('x',))", "ValueError", "sides"),  # a KeyError
+        ("build_quadruped().contacts('lf')", "TypeError", "legs"),  # a KeyError for 'l'
+        ("build_quadruped().joint_slice('zz')", "ValueError", "leg"),  # "'zz_hip' is not in list"
+        ("build_quadruped().leg_angles('lf', [0, 0])", "ValueError", "foot_in_torso"),  # NumPy's broadcast error
+        ("GainSchedule('distance').gains(float('nan'), 0.1)", "ValueError", "distance_widths"),  # NaN gains
     ],
 )
 def test_robot_and_control_builders_name_a_bad_argument(call, error, name):
     setup = (
-        "from legkit.control import FreePlant, initial_angles, run_balance\n"
+        "from legkit.control import FreePlant, GainSchedule, initial_angles, run_balance\n"
         "from legkit.robots import *\n"
     )
     raises(setup + call, error, name)

@@ -10,7 +10,7 @@ import dataclasses
 import math
 import os
 import tempfile
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import TypeGuard
 
@@ -36,6 +36,12 @@ def instance(value: object, kind: type, name: str) -> None:
     """TypeError naming `name` unless `value` is a `kind`."""
     if not isinstance(value, kind):
         raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
+
+
+def choice(value: object, options: Sequence[object], name: str) -> None:
+    """ValueError naming `name` unless `value` is one of `options`."""
+    if isinstance(value, (list, np.ndarray)) or not any(value == option for option in options):
+        raise ValueError(f"{name} must be one of {tuple(options)}, got {value!r}")
 
 
 def is_real(value: object) -> TypeGuard[int | float | np.integer | np.floating]:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from legkit._validation import positive_scalar
+from legkit._validation import float_array, positive_scalar
 
 KP0 = 10.0
 KI0 = 0.1
@@ -84,7 +84,8 @@ class GainSchedule:
 
     def factor(self, distance_widths: npt.ArrayLike, mass_moment: npt.ArrayLike) -> np.ndarray:
         """The gain factor per joint from the support distance (module widths) and the mass moment (kg m)."""
-        return gain_factor(self.scheme_index, self.c0, self.c1, distance_widths, mass_moment)
+        distance, moment = float_array(distance_widths, "distance_widths"), float_array(mass_moment, "mass_moment")
+        return gain_factor(self.scheme_index, self.c0, self.c1, distance, moment)
 
     def gains(self, distance_widths: npt.ArrayLike, mass_moment: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(K_P, K_I, K_D) per joint."""

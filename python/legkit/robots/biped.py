@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
-from legkit._validation import instance, parameter_fields
+from legkit._validation import choice, float_array, instance, parameter_fields
 from legkit.robots.legs import limb_segment, model_to_urdf, roll_pitch_knee_ik
 
 SIDES = ("l", "r")
@@ -91,10 +91,16 @@ class Biped:
 
     def contacts(self, sides: tuple[str, ...] = SIDES) -> list[tuple[int, np.ndarray]]:
         """Contact list for `lk.contact_dynamics` / `lk.jacobian`: the four sole corners of each foot in `sides`."""
+        if isinstance(sides, str):
+            raise TypeError(f"sides must be a tuple of side names, got the string {sides!r}")
+        for side in sides:
+            choice(side, SIDES, "sides")
         return [(self.model.names.index(body), point) for side in sides for body, point in self.feet[side]]
 
     def joint_slice(self, side: str, limb: str = "leg") -> slice:
         """Indices in v of the six joints of a leg or the two of an arm (q index = v index + 1)."""
+        choice(side, SIDES, "side")
+        choice(limb, ("leg", "arm"), "limb")
         first_body = f"{side}_hip_yaw" if limb == "leg" else f"{side}_shoulder"
         first = self.model.idx_v[self.model.names.index(first_body)]
         return slice(first, first + (6 if limb == "leg" else 2))
@@ -103,9 +109,10 @@ class Biped:
         """(..., 6) leg angles [rad] (hip yaw, roll, pitch, knee, ankle pitch, ankle roll) that put the ankle of
         `side` at ankle_in_pelvis (..., 3) [m, pelvis frame] with zero yaw and the sole parallel to the pelvis
         xy plane. ValueError when out of reach."""
+        choice(side, SIDES, "side")
         p = self.parameters
         hip = np.array([0.0, p.hip_y if side == "l" else -p.hip_y, 0.0])
-        rpk = roll_pitch_knee_ik(np.asarray(ankle_in_pelvis, dtype=np.float64) - hip, p.thigh_length, p.shank_length, 1.0)
+        rpk = roll_pitch_knee_ik(float_array(ankle_in_pelvis, "ankle_in_pelvis", last=3) - hip, p.thigh_length, p.shank_length, 1.0)
         roll, pitch, knee = rpk[..., 0], rpk[..., 1], rpk[..., 2]
         # R_x(roll) R_y(pitch + knee) R_y(ankle_pitch) R_x(ankle_roll) = I.
         return np.stack([np.zeros_like(roll), roll, pitch, knee, -(pitch + knee), -roll], axis=-1)

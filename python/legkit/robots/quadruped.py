@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
-from legkit._validation import instance, parameter_fields
+from legkit._validation import choice, float_array, instance, parameter_fields
 from legkit.robots.legs import limb_segment, model_to_urdf, roll_pitch_knee_ik
 
 LEGS = ("lf", "rf", "lh", "rh")
@@ -90,18 +90,24 @@ class Quadruped:
 
     def contacts(self, legs: tuple[str, ...] = LEGS) -> list[tuple[int, np.ndarray]]:
         """Contact list for `lk.contact_dynamics` / `lk.jacobian`: (body index, point) of each leg in `legs`."""
+        if isinstance(legs, str):
+            raise TypeError(f"legs must be a tuple of leg names, got the string {legs!r}")
+        for leg in legs:
+            choice(leg, LEGS, "legs")
         return [(self.model.names.index(self.feet[leg][0]), self.feet[leg][1]) for leg in legs]
 
     def joint_slice(self, leg: str) -> slice:
         """Indices of `leg`'s three joints (roll, pitch, knee) in v (q is the same plus one)."""
+        choice(leg, LEGS, "leg")
         first = self.model.idx_v[self.model.names.index(f"{leg}_hip")]
         return slice(first, first + 3)
 
     def leg_angles(self, leg: str, foot_in_torso: npt.ArrayLike) -> np.ndarray:
         """(..., 3) joint angles (hip roll, hip pitch, knee) [rad] that put the foot of `leg` at
         foot_in_torso (..., 3) [m, torso frame]. Raises ValueError when out of reach."""
+        choice(leg, LEGS, "leg")
         p = self.parameters
-        relative = np.asarray(foot_in_torso, dtype=np.float64) - p.hip_position(leg)
+        relative = float_array(foot_in_torso, "foot_in_torso", last=3) - p.hip_position(leg)
         return roll_pitch_knee_ik(relative, p.thigh_length, p.shank_length, p.knee_direction[leg])
 
     def to_urdf(self) -> str:
