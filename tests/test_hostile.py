@@ -429,11 +429,14 @@ def test_sizes_beyond_their_bound_are_refused_by_name_before_the_work(call, erro
         ("build_quadruped().joint_slice('zz')", "ValueError", "leg"),  # "'zz_hip' is not in list"
         ("build_quadruped().leg_angles('lf', [0, 0])", "ValueError", "foot_in_torso"),  # NumPy's broadcast error
         ("GainSchedule('distance').gains(float('nan'), 0.1)", "ValueError", "distance_widths"),  # NaN gains
+        ("run_balance([random_tree(5, 2)], 0.01, runs=[RunSpec(0, GainSchedule(), noise_seed=-1)])", "ValueError", "noise_seed"),
+        ("pose_on_ground('b', [])", "TypeError", "batch"),  # an AttributeError
+        ("m = random_tree(5, 2).to_model()[0]\npose_on_ground(lk.SimulationBatch([lk.Simulation(m)]), [m, m])", "ValueError", "models"),
     ],
 )
 def test_robot_and_control_builders_name_a_bad_argument(call, error, name):
     setup = (
-        "from legkit.control import FreePlant, GainSchedule, initial_angles, run_balance\n"
+        "from legkit.control import FreePlant, GainSchedule, RunSpec, initial_angles, pose_on_ground, run_balance\n"
         "from legkit.robots import *\n"
     )
     raises(setup + call, error, name)

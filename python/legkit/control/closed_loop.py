@@ -194,6 +194,13 @@ def pose_on_ground(batch: lk.SimulationBatch, models: Sequence[lk.Model]) -> Non
     only touches the ground, and stiff servos (``POSE_KP``, ``POSE_KD``) take every joint toward its start
     angle for ``POSE_DURATION`` s; a joint whose module the ground holds back stops there. The robot
     is then released at rest from wherever it got to."""
+    instance(batch, lk.SimulationBatch, "batch")
+    if isinstance(models, lk.Model) or not isinstance(models, Sequence) or len(models) != len(batch.simulations):
+        raise ValueError(f"models must be one Model per simulation of batch ({len(batch.simulations)})")
+    for k, (simulation, model) in enumerate(zip(batch.simulations, models)):
+        instance(model, lk.Model, f"models[{k}]")
+        if model.nq != simulation.model.nq:
+            raise ValueError(f"models[{k}]: has nq {model.nq}, its simulation {simulation.model.nq}")
     for simulation, model in zip(batch.simulations, models):
         start = simulation.q
         simulation.reset(np.zeros(model.nq), None)
@@ -411,8 +418,10 @@ def _checked_runs(runs: Sequence[RunSpec], n_trees: int) -> list[RunSpec]:
         if r.ground is not None and not isinstance(r.ground, lk.Ground):
             raise TypeError(f"runs[{k}].ground: must be an lk.Ground or None, got {type(r.ground).__name__}")
         positive_scalar(r.noise, f"runs[{k}].noise", allow_zero=True)
-        if r.bus_seed is not None and (not is_integer(r.bus_seed) or r.bus_seed < 0):
-            raise ValueError(f"runs[{k}].bus_seed: must be None or an int >= 0, got {r.bus_seed!r}")
+        for field in ("start_seed", "bus_seed", "noise_seed"):
+            seed = getattr(r, field)
+            if (seed is not None or field == "noise_seed") and (not is_integer(seed) or seed < 0):
+                raise ValueError(f"runs[{k}].{field}: must be {'' if field == 'noise_seed' else 'None or '}an int >= 0, got {seed!r}")
     return runs
 
 
