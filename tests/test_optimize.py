@@ -25,6 +25,8 @@ from legkit.optimize import (
 )
 from legkit.optimize.checks import execution_check
 from legkit.optimize.mirror import side_mirror
+from legkit.optimize.replay import periodic_samples, phase_of, replay
+from legkit.optimize.shooting import interval_drift
 from legkit.optimize.solver import solve
 from legkit.robots.quadruped import LEGS, build_quadruped
 from reference import central_jacobian
@@ -513,6 +515,30 @@ def test_amble_problem_refuses_bad_arguments_by_name(change, error, message):
                  "motor": QUADRUPED_MOTOR}
     with pytest.raises(error, match=message):
         amble_problem(**{**arguments, **change})
+
+
+@pytest.mark.parametrize(("call", "error", "message"), [
+    # Each was a silent wrong answer, an unnamed error or a hang before.
+    (lambda problem, x: problem.unpack(x[:-1]), ValueError, r"x must have shape"),  # unpacked the short vector
+    (lambda problem, x: problem.unpack(x + np.nan), ValueError, "x contains a non-finite value"),  # a NaN trajectory
+    (lambda problem, x: problem.solve('x'), TypeError, "guess must be an array of real numbers"),
+    (lambda problem, x: problem.solve(x, tol=-1.0), ValueError, "tol must be finite and > 0"),  # casadi: invalid IPOPT options
+    (lambda problem, x: problem.solve(x, max_iter=-3), ValueError, r"max_iter must be in \[0, inf\]"),
+    (lambda problem, x: problem.refine(problem, x), TypeError, "result must be a SolveResult"),  # an AttributeError
+    (lambda problem, x: interval_drift(problem, x, substeps=10**9), ValueError, r"substeps must be in \[1, 10000\]"),  # ran for minutes
+    (lambda problem, x: interval_drift(problem, x[:-1]), ValueError, r"x must have shape"),  # drifts of the short vector
+    (lambda problem, x: execution_check(problem, x, samples=10**9), ValueError, r"samples must be in \[2, 10000\]"),  # NumPy's MemoryError
+    (lambda problem, x: execution_check(problem, x, samples=2.5), TypeError, "samples must be an integer"),
+    (lambda problem, x: periodic_samples(problem, problem.unpack(x), [np.nan]), ValueError, "t contains a non-finite value"),  # NaN samples
+    (lambda problem, x: phase_of(problem.unpack(x), [np.nan]), ValueError, "t contains a non-finite value"),  # phase 2
+    (lambda problem, x: replay(problem, problem.unpack(x), cycles=0), ValueError, r"cycles must be in \[1, inf\]"),  # a replay of nothing
+    (lambda problem, x: replay(problem, problem.unpack(x), cycles=10**12), MemoryError, "cycles: needs"),  # NumPy's 4.5 TiB message
+    (lambda problem, x: replay(problem, problem.unpack(x), kp=[1.0] * 3), ValueError, "kp must be one gain or 12"),  # a broadcast error
+])
+def test_points_counts_and_times_are_checked_by_name(call, error, message):
+    problem, x = quadruped_problem([effort()])
+    with pytest.raises(error, match=message):
+        call(problem, x)
 
 
 def test_best_keeps_the_best_iterate_within_tolerance_when_ipopt_stops_on_a_worse_one():

@@ -44,6 +44,15 @@ def choice(value: object, options: Sequence[object], name: str) -> None:
         raise ValueError(f"{name} must be one of {tuple(options)}, got {value!r}")
 
 
+def count(value: object, name: str, low: int, high: int | None = None) -> int:
+    """`value` as an int in [low, high] (no upper end when high is None): TypeError unless it is an integer, ValueError
+    naming `name` outside the range."""
+    number = integer(value, name)
+    if number < low or (high is not None and number > high):
+        raise ValueError(f"{name} must be in [{low}, {'inf' if high is None else high}], got {number}")
+    return number
+
+
 def is_real(value: object) -> TypeGuard[int | float | np.integer | np.floating]:
     """True for a Python or numpy real scalar; False for a bool."""
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)

@@ -14,8 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 
 import legkit as lk
+from legkit._validation import count
 from legkit.optimize.collocation import hermite_basis
 from legkit.optimize.problem import MultiphaseProblem
+
+#: The most samples per interval `execution_check` takes (its arrays grow with samples x points).
+MAX_SAMPLES = 10_000
 
 
 @dataclass(frozen=True)
@@ -43,11 +47,8 @@ def execution_check(problem: MultiphaseProblem, x: np.ndarray, samples: int = 16
     """`ExecutionCheck` of the point x of `problem` (its mirrored half unrolled into the whole cycle), each interval
     sampled at `samples` fractions. The joint-rate figure needs a torque-speed line (`MultiphaseProblem.
     torque_speed`; nan without), the torque figures bounds on u (`u_bounds`; nan without)."""
-    if samples < 2:
-        raise ValueError(f"samples must be >= 2, got {samples}")
-    x = np.asarray(x, dtype=np.float64)
-    if x.shape != (problem.n,):
-        raise ValueError(f"x must have shape ({problem.n},), got {x.shape}")
+    count(samples, "samples", 2, MAX_SAMPLES)
+    x = problem.point(x)
     whole = problem.full_cycle()
     trajectory = problem.unroll(problem.unpack(x))
     phases, model = whole.phases, problem.model

@@ -41,6 +41,7 @@ from typing import Any, cast
 import numpy as np
 
 import legkit as lk
+from legkit._validation import float_array, instance
 from legkit.optimize import kinematics as kin
 from legkit.optimize.blocks import Block, Linear, Point, equal, group_hessian, group_pattern, weighted
 from legkit.optimize.collocation import hermite_basis, hermite_simpson_defects
@@ -1253,7 +1254,7 @@ class MultiphaseProblem:
             guess = guess.x
         else:
             multipliers = None
-        x0 = self.gauged(self.pack(guess) if isinstance(guess, Trajectory) else guess)
+        x0 = self.gauged(self.pack(guess) if isinstance(guess, Trajectory) else self.point(guess, "guess"))
         nlp = self.nlp(derivatives)
         stall = options.pop("stall", POLISH_SWITCH if polish else None)  # on the objective's run only
         if polish:
@@ -1287,14 +1288,13 @@ class MultiphaseProblem:
         """`x`, a point of `coarse` (the same problem on other intervals per phase), on this problem's mesh: each
         phase's point variables (knots and midpoints, evenly spaced in the phase's time) interpolated linearly, the
         durations, p1 and touchdown impulses copied, gauged (`gauged`)."""
+        instance(coarse, MultiphaseProblem, "coarse")
         same = (len(coarse.phases) == len(self.phases) and coarse.n - coarse.p1_index == self.n - self.p1_index
                 and all(a.contacts == b.contacts for a, b in zip(coarse.phases, self.phases))
                 and all(a.shape[1] == b.shape[1] for a, b in zip(coarse.point_index, self.point_index)))
         if not same:
             raise ValueError("coarse must be this problem with other intervals per phase (the same phases, contacts and variables per point)")
-        x = np.asarray(x, dtype=np.float64)
-        if x.shape != (coarse.n,):
-            raise ValueError(f"x must have coarse's shape ({coarse.n},), got {x.shape}")
+        x = coarse.point(x)
         fine = np.empty(self.n)
         for index, coarse_index in zip(self.point_index, coarse.point_index):
             s, s_coarse = np.linspace(0.0, 1.0, len(index)), np.linspace(0.0, 1.0, len(coarse_index))
@@ -1312,6 +1312,8 @@ class MultiphaseProblem:
         iterations from the interpolation as from the reference (16 intervals per phase: 709 against 712, ~2 min;
         `REFINE_STABILITY`). Options go to `legkit.optimize.solver.solve`; the result covers
         both solves."""
+        instance(coarse, MultiphaseProblem, "coarse")
+        instance(result, SolveResult, "result")
         if not 0.0 <= stability_fraction <= 1.0:
             raise ValueError(f"stability_fraction must be in [0, 1], got {stability_fraction}")
         x0 = self.refined(coarse, result.best()[0])
@@ -1453,7 +1455,12 @@ class MultiphaseProblem:
             x[index] = np.linalg.lstsq(self.contact_jacobian(q, self.contacts_after(k))[0].T, jump, rcond=None)[0]
         return x
 
+    def point(self, x: object, name: str = "x") -> np.ndarray:
+        """x as a point of this problem: finite float64 of shape (n,) (TypeError or ValueError naming `name`)."""
+        return float_array(x, name, shape=(self.n,))
+
     def unpack(self, x: np.ndarray) -> Trajectory:
+        x = self.point(x)
         durations = x[self.duration_index].copy()
         starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
         t, q, v, u, forces, a, torques, slack = [], [], [], [], [], [], [], []

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import legkit as lk
+from legkit._validation import check_allocation, count, float_array
 from legkit.optimize.collocation import hermite_basis
 from legkit.optimize.kinematics import rotation
 from legkit.optimize.problem import MultiphaseProblem, Trajectory
@@ -64,6 +65,7 @@ class Replay:
 
 def phase_of(trajectory: Trajectory, t: np.ndarray) -> np.ndarray:
     """(S,) the phase each instant t (any number of cycles) belongs to; an instant on a boundary to the later phase."""
+    t = float_array(t, "t")
     durations = np.asarray(trajectory.durations)
     starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
     return np.clip(np.searchsorted(starts, np.mod(t, np.sum(durations)), side="right") - 1, 0, len(durations) - 1)
@@ -77,7 +79,8 @@ def periodic_samples(problem: MultiphaseProblem, trajectory: Trajectory, t: np.n
     velocity jump (eq. 7) stays a jump instead of being spread over the interval before it. The travel
     coordinate advances by speed x period. A mirrored half cycle is sampled as its whole cycle (`whole_trajectory`)."""
     problem, trajectory = problem.whole_trajectory(trajectory)
-    t = np.asarray(t, dtype=np.float64)
+    t = float_array(t, "t")
+    check_allocation(8 * t.size * (problem.nq + problem.nv + problem.nu), "t")
     period = float(np.sum(trajectory.durations))
     cycle, phase_t = np.divmod(t, period)
     x = problem.pack(trajectory)
@@ -168,9 +171,15 @@ def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, 
     half cycle is replayed as its whole cycle (`MultiphaseProblem.whole_trajectory`)."""
     problem, trajectory = problem.whole_trajectory(trajectory)
     model = problem.model
+    count(cycles, "cycles", 1)
+    count(control_every, "control_every", 1)
+    for gain, name in ((kp, "kp"), (kd, "kd")):
+        if float_array(gain, name).shape not in ((), (1,), (problem.nu,)):
+            raise ValueError(f"{name} must be one gain or {problem.nu} (one per actuated joint), got shape {np.shape(gain)}")
     sim = lk.Simulation(model, dt=dt, ground=lk.Ground.plane(friction), shapes=foot_shapes(problem, foot_radius))
     period = float(np.sum(trajectory.durations))
     steps = int(round(cycles * period / (dt * control_every)))
+    check_allocation(8 * (steps + 1) * (3 * model.nq + 2 * model.nv + problem.nu), "cycles")  # the planned and simulated samples
     t = np.arange(steps + 1) * dt * control_every
     planned_q, planned_v, planned_u = periodic_samples(problem, trajectory, t)
     sim.reset(clear_of_ground(problem, planned_q[0], foot_radius), planned_v[0])

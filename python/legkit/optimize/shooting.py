@@ -15,11 +15,14 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 import legkit as lk
+from legkit._validation import count
 from legkit.optimize.kinematics import rotation
 from legkit.optimize.problem import MultiphaseProblem
 
 #: Rates beyond this [rad/s, m/s] count as a blown-up integration (`interval_drift` reports inf there).
 DIVERGED = 1e6
+#: The most RK4 steps per interval `interval_drift` takes: the drift of a 16-interval plan has converged long before.
+MAX_SUBSTEPS = 10_000
 
 
 @dataclass
@@ -93,9 +96,8 @@ def interval_drift(problem: MultiphaseProblem, x: np.ndarray, substeps: int = 32
     """Integrate each interval of solution x from its first knot (classical Runge-Kutta, `substeps` steps, all
     intervals of a phase at once; q advanced by `lk.integrate`) and compare with its last knot; inf for an
     interval whose integration blows up."""
-    if substeps < 1:
-        raise ValueError(f"substeps must be >= 1, got {substeps}")
-    x = np.asarray(x, dtype=np.float64)
+    count(substeps, "substeps", 1, MAX_SUBSTEPS)
+    x = problem.point(x)
     trajectory = problem.unpack(x)
     nq, nx, nu = problem.nq, problem.nx, problem.nu
     configuration, velocity = [], []

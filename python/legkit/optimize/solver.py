@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from legkit._extras import require
+from legkit._validation import count, float_array, positive_scalar
 
 Progress = Callable[[int, float, float], None]
 
@@ -139,9 +140,9 @@ def solve(
     import casadi as ca
 
     _single_threaded_blas(ca)
-    x0 = np.asarray(x0, dtype=np.float64)
-    if x0.shape != (nlp.n,):
-        raise ValueError(f"x0 must have shape ({nlp.n},), got {x0.shape}")
+    x0 = float_array(x0, "x0", shape=(nlp.n,))
+    positive_scalar(tol, "tol")
+    count(max_iter, "max_iter", 0)
     start_duals = {}
     if multipliers is not None:
         lam_x, lam_g = (np.asarray(lam, dtype=np.float64) for lam in multipliers)
