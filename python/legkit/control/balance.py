@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from legkit import _core
-from legkit._validation import float_array, integer, positive_scalar
+from legkit._validation import count, float_array, positive_scalar
 from legkit.agents import moments
 from legkit.agents.network import AgentNetwork
 from legkit.control.gains import GainSchedule, gain_factor, scaled_gains
@@ -206,14 +206,14 @@ class BalanceKernel:
     def run_until_quiescent(self, max_rounds: int = 100_000) -> int:
         """Run rounds until nothing is pending or on the wire; returns the rounds run (RuntimeError after
         ``max_rounds``), as ``AgentNetwork.run_until_quiescent``."""
-        return int(self._core.run_until_quiescent(_count(max_rounds, "max_rounds")))
+        return int(self._core.run_until_quiescent(count(max_rounds, "max_rounds", 0)))
 
     def step(self, angles: np.ndarray, dt: float, rounds: int = 1) -> np.ndarray:
         """One control step: every agent reads its joint angles (N, 3) rad (``AgentNetwork.observe``), the
         network runs ``rounds`` rounds, and every joint computes its torque after ``dt`` s
         (``BalanceController.torques``). Returns the torques (N, 3) N m."""
         angles = float_array(angles, "angles", shape=(self.n_modules, 3))
-        return self._core.step(angles, positive_scalar(dt, "dt"), _count(rounds, "rounds"))
+        return self._core.step(angles, positive_scalar(dt, "dt"), count(rounds, "rounds", 0))
 
     @property
     def sent_by_module(self) -> np.ndarray:
@@ -227,11 +227,3 @@ class BalanceKernel:
     def world_poses(self) -> tuple[np.ndarray, np.ndarray]:
         """(rotations (N, 3, 3), translations (N, 3)) as ``AgentNetwork.world_poses``."""
         return self._core.world_poses()
-
-
-def _count(value: object, name: str) -> int:
-    """``value`` as an int >= 0 (TypeError or ValueError naming ``name``)."""
-    count = integer(value, name)
-    if count < 0:
-        raise ValueError(f"{name}: must be >= 0, got {count}")
-    return count
