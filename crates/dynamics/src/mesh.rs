@@ -3,7 +3,7 @@
 //! not change a hull.
 
 use std::borrow::Cow;
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
 
 use nalgebra::{Matrix3, Matrix4, Rotation3, Unit, Vector3, Vector4};
@@ -38,22 +38,24 @@ pub(crate) fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
 /// many points on a sphere, 7.7 s for 100,000 and 52 s for 300,000 (release build).
 pub const HULL_POINTS: usize = 25_000;
 
-/// `points` without repeats (equal to the bit), in the order they first appear. Interruptible.
-fn distinct_points(points: &[Vector3<f64>]) -> Result<Vec<Vector3<f64>>> {
+/// `points` without repeats (equal to the bit), in the order they first appear, and the index among them of each
+/// point. Interruptible.
+fn distinct_points(points: &[Vector3<f64>]) -> Result<(Vec<Vector3<f64>>, Vec<usize>)> {
     let too_large = || Error::too_large("mesh", format!("cannot allocate the set of its {} vertices", points.len()));
-    let mut seen: HashSet<[u64; 3]> = HashSet::new();
-    let mut distinct = Vec::new();
+    let mut seen: HashMap<[u64; 3], usize> = HashMap::new();
+    let (mut distinct, mut index) = (Vec::new(), crate::validate::with_capacity("mesh", points.len())?);
     for (k, p) in points.iter().enumerate() {
         cancel_point("mesh", k)?;
         if seen.len() == seen.capacity() {
             seen.try_reserve(seen.len().max(16)).map_err(|_| too_large())?;
             distinct.try_reserve(seen.capacity().saturating_sub(distinct.len())).map_err(|_| too_large())?;
         }
-        if seen.insert(p.map(f64::to_bits).into()) {
+        index.push(*seen.entry(p.map(f64::to_bits).into()).or_insert_with(|| {
             distinct.push(*p);
-        }
+            distinct.len() - 1
+        }));
     }
-    Ok(distinct)
+    Ok((distinct, index))
 }
 
 /// The points a hull is taken over (`hull_points`), and the note saying they are fewer than the mesh's.
@@ -68,7 +70,7 @@ pub(crate) fn hull_points(points: &[Vector3<f64>]) -> Result<HullPoints<'_>> {
         return Ok((Cow::Borrowed(points), None));
     }
     // An STL lists each triangle's corners: a closed mesh has about a sixth as many distinct points.
-    let distinct = distinct_points(points)?;
+    let (distinct, _) = distinct_points(points)?;
     if distinct.len() <= HULL_POINTS {
         return Ok((Cow::Owned(distinct), None));
     }
@@ -124,10 +126,13 @@ pub fn mesh_triangles(path: &Path) -> Result<Triangles> {
     let bytes = crate::validate::read_regular_file("mesh", path)?;
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let (vertices, faces) = match extension.as_str() {
-        "stl" => stl(&bytes).and_then(|vertices| {
+        // Each triangle lists its corners: those equal to the bit are one vertex, as MuJoCo's STL decoder merges
+        // them (google-deepmind/mujoco), so that its faces share edges (see `mjcf::inconsistent_edge`).
+        "stl" => stl(&bytes).and_then(|corners| {
+            let (vertices, index) = distinct_points(&corners)?;
             let mut faces = Vec::new();
-            grow(&mut faces, vertices.len() / 3, "faces")?;
-            faces.extend((0..vertices.len() / 3).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]));
+            grow(&mut faces, index.len() / 3, "faces")?;
+            faces.extend(index.chunks_exact(3).map(|t| [t[0], t[1], t[2]]));
             Ok((vertices, faces))
         }),
         "obj" => obj_faces(&String::from_utf8_lossy(&bytes)),

@@ -24,7 +24,8 @@
 //!   MuJoCo's formulas [MuJoCo, user_objects.cc: mjCGeom::GetVolume, SetInertia]; then `boundmass`,
 //!   `boundinertia` (on the principal moments) and `balanceinertia`. Mesh geoms (STL, OBJ, MSH) by their
 //!   triangles as MuJoCo's compiler takes them (`mesh_mass`; `<mesh inertia="convex">` and meshes without
-//!   faces are a warning).
+//!   faces are a warning; what MuJoCo refuses, inconsistently oriented faces under `exact` among them
+//!   (`inconsistent_edge`), is refused).
 //! - Collision shapes: sphere, capsule, cylinder and box geoms, and meshes (STL, OBJ, MSH) as the convex hull of
 //!   their vertices, except geoms with `contype="0" conaffinity="0"` (visual only). Pair filtering by the
 //!   bits of `contype`/`conaffinity` is not expressible: every other geom collides. Planes and height
@@ -704,17 +705,33 @@ fn mesh_assets(root: &El, reader: &Reader) -> Result<Meshes> {
             };
             // Reading a mesh may take long: a cancelled load stops before the next.
             check_cancelled("from_mjcf")?;
+            // What MuJoCo refuses in a mesh, legkit refuses too: its mass would be a wrong answer.
+            let refused = |reason: String| invalid(format!("{} ({}): {reason}, which MuJoCo refuses too", mesh.what(), path.display()));
             let asset = match readable(mesh_triangles(&path))? {
                 Ok((vertices, mut faces)) => {
+                    if mode == "exact" {
+                        if let Some([a, b]) = inconsistent_edge(&vertices, &faces)? {
+                            let reason = format!(
+                                "its faces have inconsistent orientation (two faces run along the edge from vertex {} to vertex {}) under \
+                                 inertia=\"exact\"",
+                                a + 1,
+                                b + 1
+                            );
+                            return Err(refused(reason));
+                        }
+                    }
                     let vertices = scaled(vertices);
                     // A mirroring scale turns the faces inside out; MuJoCo turns them back.
                     if scale.product() < 0.0 {
                         faces.iter_mut().for_each(|f| f.swap(1, 2));
                     }
-                    let mass = if mode == "convex" {
-                        Err("inertia=\"convex\" (the hull's volume) is not computed".to_owned())
-                    } else {
-                        mesh_mass(&vertices, &faces, mode)
+                    let mass = match mode {
+                        "convex" => Err("inertia=\"convex\" (the hull's volume) is not computed".to_owned()),
+                        // MuJoCo leaves an overflowing mass out without a word: here, a warning.
+                        _ => match mesh_mass(&vertices, &faces, mode) {
+                            Err(reason) if reason != OVERFLOW => return Err(refused(reason)),
+                            mass => mass,
+                        },
                     };
                     Ok(MeshAsset { vertices, mass })
                 }
@@ -764,6 +781,26 @@ fn triangle(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> (f64, Vecto
         return (0.0, normal, center);
     }
     (0.5 * len, normal / len, center)
+}
+
+/// The first directed edge (vertex indices, in sorted order) that two faces run along, counting faces of area above
+/// `sqrt(mjMINVAL)` in the mesh file's units: a closed or open surface whose faces are consistently oriented runs
+/// along each edge once in each direction at most. MuJoCo refuses such a mesh under `inertia="exact"`, whose
+/// signed volumes would partly cancel (mjCMesh::Process, google-deepmind/mujoco); STL corners are merged first
+/// (`mesh_triangles`), OBJ and MSH vertices are taken as indexed.
+fn inconsistent_edge(vertices: &[Vector3<f64>], faces: &[[usize; 3]]) -> Result<Option<[usize; 2]>> {
+    let mut edges = crate::validate::with_capacity("mesh", faces.len().saturating_mul(3))?;
+    for (k, f) in faces.iter().enumerate() {
+        cancel_point("mesh", k)?;
+        // MuJoCo stores vertices in single precision and checks them before scaling.
+        let [a, b, c] = f.map(|i| vertices[i].map(|x| x as f32 as f64));
+        if triangle(&a, &b, &c).0 > 1e-15f64.sqrt() {
+            edges.extend([[f[0], f[1]], [f[1], f[2]], [f[2], f[0]]]);
+        }
+    }
+    check_cancelled("mesh")?;
+    edges.sort_unstable();
+    Ok(edges.windows(2).find(|pair| pair[0] == pair[1]).map(|pair| pair[0]))
 }
 
 /// Why `mesh_mass` fails on numbers beyond float64 (where a silent NaN would leave the geom's mass out unsaid).
@@ -1523,8 +1560,15 @@ mod tests {
         assert!((mass.volume - 8.0 * h.x * h.y * h.z).abs() < 1e-15);
         assert!((mass.com - t).norm() < 1e-14);
         assert!((mass.inertia - inertia).norm() < 1e-9 * inertia.norm(), "{} vs {inertia}", mass.inertia);
-        // "exact" sums signed pyramids: the inside-out faces cancel their opposites.
+        // "exact" sums signed pyramids: the inside-out faces cancel their opposites. MuJoCo refuses the mesh before:
+        // the inside-out faces run along the edges they share with their neighbours in the same direction.
         assert!(mesh_mass(&vertices, &faces, "exact").is_err());
+        assert_eq!(inconsistent_edge(&vertices, &faces).unwrap(), Some([1, 5]));
+        let outward: Vec<[usize; 3]> = faces.iter().enumerate().map(|(k, f)| if (k / 2) % 2 == 1 { [f[0], f[2], f[1]] } else { *f }).collect();
+        assert_eq!(inconsistent_edge(&vertices, &outward).unwrap(), None);
+        // Faces of no area do not count.
+        let sliver = [outward.as_slice(), &[[0, 0, 1], [0, 0, 1]]].concat();
+        assert_eq!(inconsistent_edge(&vertices, &sliver).unwrap(), None);
     }
 
     #[test]
