@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import legkit as lk
-from test_hostile import binary_stl, outcome, raises
+from test_hostile import binary_stl, interrupted_load, outcome, raises
 
 CUBE = np.array([[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)])
 # Outward (counter-clockwise seen from outside) triangles of the unit cube.
@@ -180,13 +180,57 @@ def test_a_scale_whose_mass_overflows_is_a_warning_and_refused_when_strict(tmp_p
         lk.Model.from_mjcf(xml, strict=True)
 
 
-@pytest.mark.parametrize("kind", ["urdf", "mjcf"])
-def test_an_obj_face_of_millions_of_corners_is_refused_naming_the_line(tmp_path, kind):
-    # 18 MB of text: one face of 9 million corners, whose triangulation (as MuJoCo's) would take cubic time.
+def test_an_obj_face_of_millions_of_corners_loads_as_a_collision_mesh_without_cutting_it(tmp_path):
+    # 18 MB of text: one face of 9 million corners, which a URDF's hull does not need cut into triangles (it was
+    # refused beyond 1024 corners).
     path = tmp_path / "m.obj"
     path.write_text(obj_text(CUBE, [], extra="f " + "1 2 3 " * 3_000_000 + "\n"))
-    result = outcome(LOAD.format(load=load(kind, path)))
-    assert result["raised"] is None and any("line 9: a face of more than 1024 corners" in w for w in result["warnings"]), result
+    result = outcome(LOAD.format(load=load("urdf", path)))
+    assert result == {"raised": None, "warnings": [], "mass": 1.0}, result
+
+
+@pytest.mark.slow
+def test_an_interrupted_cut_of_an_obj_face_of_a_million_corners_stops_its_worker(tmp_path):
+    # Ear clipping takes time growing with the square of the corners (0.7 s of CPU for 16,384, so about an hour for a
+    # million): it checks for Ctrl-C about every millisecond of work, so the load stops within a second of it.
+    n = 1_000_000
+    t = 2 * np.pi * np.arange(n) / n
+    (tmp_path / "m.obj").write_text(obj_text(np.c_[np.cos(t), np.sin(t), np.zeros(n)], [np.arange(1, n + 1)]))
+    path = tmp_path / "model.mjcf"
+    path.write_text(MJCF.format(file=tmp_path / "m.obj", scale="1 1 1", inertia="shell"))
+    result = interrupted_load(path, "mjcf", whole=4.0)
+    assert result["worker_cpu_after"] < 1.0, result
+
+
+def prism(n: int) -> tuple[np.ndarray, list]:
+    """A regular prism of `n` sides (unit circumradius, unit height): two OBJ faces of n corners (1-based) and n
+    quadrilaterals, outward."""
+    t = 2 * np.pi * np.arange(n) / n
+    ring = np.c_[np.cos(t), np.sin(t), np.zeros(n)]
+    side = [[k + 1, (k + 1) % n + 1, (k + 1) % n + n + 1, k + n + 1] for k in range(n)]
+    return np.vstack([ring, ring + [0, 0, 1]]), [list(range(n, 0, -1)), list(range(n + 1, 2 * n + 1)), *side]
+
+
+@pytest.mark.parametrize("inertia", ["legacy", "exact", "shell"])
+@pytest.mark.parametrize("corners", [100, 101, 2000])
+def test_obj_faces_of_many_corners_are_cut_whole_and_a_warning_says_where_mujoco_differs(tmp_path, corners, inertia):
+    # Up to 100 corners, MuJoCo's mass; beyond, MuJoCo leaves part or all of the face out (all, here), where legkit
+    # takes the whole face: the exact prism's mass, with a warning naming the line (an error when strict).
+    vertices, faces = prism(corners)
+    path = tmp_path / "m.obj"
+    path.write_text(obj_text(vertices, faces))
+    xml = MJCF.format(file=path, scale="1 1 1", inertia=inertia)
+    if corners <= 100:
+        assert_as_mujoco(xml)
+        return
+    with pytest.warns(lk.MjcfWarning, match=f"line {2 * corners + 1}: a face of {corners} corners, whose mass MuJoCo takes otherwise"):
+        ours = lk.Model.from_mjcf(xml).body(0)
+    area = corners / 2 * np.sin(2 * np.pi / corners)  # of each end face
+    measure = 2 * area + corners * 2 * np.sin(np.pi / corners) if inertia == "shell" else area
+    assert ours.mass == pytest.approx(1000 * measure + 4 / 3 * np.pi * 0.1**3 * 1000, rel=1e-6)
+    assert mujoco_mass(xml)[0] < ours.mass - 500  # MuJoCo's leaves the end faces out
+    with pytest.raises(ValueError, match="whose mass MuJoCo takes otherwise"):
+        lk.Model.from_mjcf(xml, strict=True)
 
 
 # The unit cube's six faces as quadrilaterals (1-based), and polygons that replace the first: each is cut into

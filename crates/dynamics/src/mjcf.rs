@@ -637,7 +637,7 @@ fn parse(xml: &str, argument: &'static str, label: &str, folder: Option<&Path>, 
         }
     }
 
-    let meshes = mesh_assets(&root, &reader)?;
+    let meshes = mesh_assets(&root, &mut reader)?;
     let bodies = vec![Body {
         name: "world".to_owned(),
         parent: 0,
@@ -672,7 +672,7 @@ fn parse(xml: &str, argument: &'static str, label: &str, folder: Option<&Path>, 
 }
 
 /// `<asset><mesh>` by name: the file's vertices scaled, or why they could not be read.
-fn mesh_assets(root: &El, reader: &Reader) -> Result<Meshes> {
+fn mesh_assets(root: &El, reader: &mut Reader) -> Result<Meshes> {
     let mut meshes = HashMap::new();
     for asset in root.elements("asset") {
         for mesh in asset.elements("mesh") {
@@ -685,7 +685,8 @@ fn mesh_assets(root: &El, reader: &Reader) -> Result<Meshes> {
                 .attr("name")
                 .map_or_else(|| Path::new(file).file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned()), str::to_owned);
             let scale = reader.fixed::<3>(mesh, class, "scale")?.map_or(Vector3::repeat(1.0), Vector3::from);
-            let mode = reader.get(mesh, class, "inertia").unwrap_or("legacy");
+            let mode = reader.get(mesh, class, "inertia").unwrap_or("legacy").to_owned();
+            let mode = mode.as_str();
             if !matches!(mode, "legacy" | "exact" | "convex" | "shell") {
                 return Err(invalid(format!("{}: unknown inertia {mode:?}", mesh.what())));
             }
@@ -708,7 +709,10 @@ fn mesh_assets(root: &El, reader: &Reader) -> Result<Meshes> {
             // What MuJoCo refuses in a mesh, legkit refuses too: its mass would be a wrong answer.
             let refused = |reason: String| invalid(format!("{} ({}): {reason}, which MuJoCo refuses too", mesh.what(), path.display()));
             let asset = match readable(mesh_triangles(&path))? {
-                Ok((vertices, mut faces)) => {
+                Ok(((vertices, mut faces), note)) => {
+                    if let (Some(note), false) = (note, mode == "convex") {
+                        reader.accept(format!("{}: {note}", mesh.what()))?;
+                    }
                     if mode == "exact" {
                         if let Some([a, b]) = inconsistent_edge(&vertices, &faces)? {
                             let reason = format!(
