@@ -9,6 +9,8 @@
 //! - `<default>` classes, nested (a class inherits its parent's values), chosen by `class=` or by the
 //!   nearest `childclass=` of the enclosing bodies and frames, else the top class `main`.
 //! - `<include file>` anywhere, spliced in place (paths relative to the main file's folder).
+//! - `<replicate count offset euler sep childclass>`, nested or not, expanded as MuJoCo expands it
+//!   (`Reader::expand_replicates`).
 //! - `<worldbody>`, `<body>` (nested) and `<frame>` with `pos` and every orientation form: `quat` (w x y z),
 //!   `axisangle`, `euler` (`eulerseq`: lower case rotating axes, upper case fixed axes), `xyaxes`, `zaxis`;
 //!   geoms also `fromto`.
@@ -49,7 +51,7 @@
 //! bodies and joints are `body<i>` and `joint<i>`, i MuJoCo's id.
 //!
 //! What legkit cannot model (tendons, equality constraints, sensors, contact pairs and excludes,
-//! composite/flex/replicate, non-joint transmissions, static bodies beside a floating base) loads with a
+//! composite/flex, non-joint transmissions, static bodies beside a floating base) loads with a
 //! warning naming it, or is an error with [`MjcfOptions::strict`].
 
 use std::collections::HashMap;
@@ -431,21 +433,7 @@ impl Reader<'_> {
                 let axis = Unit::try_new(Vector3::new(x, y, z), 1e-10).ok_or_else(zero)?;
                 UnitQuaternion::from_axis_angle(&axis, a * self.compiler.angle)
             }
-            "euler" => {
-                let angles = self.fixed::<3>(el, class, form)?.expect("present");
-                let mut q = UnitQuaternion::identity();
-                for (&c, angle) in self.compiler.eulerseq.iter().zip(angles) {
-                    let axis = match c.to_ascii_lowercase() {
-                        b'x' => Vector3::x_axis(),
-                        b'y' => Vector3::y_axis(),
-                        _ => Vector3::z_axis(),
-                    };
-                    let turn = UnitQuaternion::from_axis_angle(&axis, angle * self.compiler.angle);
-                    // Lower case: about the rotating (intrinsic) axes; upper case: the fixed ones.
-                    q = if c.is_ascii_lowercase() { q * turn } else { turn * q };
-                }
-                q
-            }
+            "euler" => self.euler(self.fixed::<3>(el, class, form)?.expect("present")),
             "xyaxes" => {
                 let v = self.fixed::<6>(el, class, form)?.expect("present");
                 let x = Vector3::new(v[0], v[1], v[2]);
@@ -460,6 +448,103 @@ impl Reader<'_> {
                 z_to(Vector3::new(x, y, z)).ok_or_else(zero)?
             }
         })
+    }
+}
+
+impl Reader<'_> {
+    /// The rotation of Euler angles `angles` (in the compiler's unit and sequence).
+    fn euler(&self, angles: [f64; 3]) -> UnitQuaternion<f64> {
+        let mut q = UnitQuaternion::identity();
+        for (&c, angle) in self.compiler.eulerseq.iter().zip(angles) {
+            let axis = match c.to_ascii_lowercase() {
+                b'x' => Vector3::x_axis(),
+                b'y' => Vector3::y_axis(),
+                _ => Vector3::z_axis(),
+            };
+            let turn = UnitQuaternion::from_axis_angle(&axis, angle * self.compiler.angle);
+            // Lower case: about the rotating (intrinsic) axes; upper case: the fixed ones.
+            q = if c.is_ascii_lowercase() { q * turn } else { turn * q };
+        }
+        q
+    }
+
+    /// `el`'s `<replicate>` children (and theirs, and those nested in them) replaced, in place, by their copies, as
+    /// MuJoCo's parser expands them (mjXReader::Body, google-deepmind/mujoco): copy i is a `<frame>` turned by i times
+    /// `euler` (in the compiler's unit and sequence) and moved by the sum of `offset` turned by each earlier copy's
+    /// rotation, holding the replicate's children with every `name` suffixed by `sep` and i, zero-padded to the digits
+    /// of `count`; an inner replicate's suffix comes first. A `count` below 1 makes no copy, as in MuJoCo. `budget`
+    /// is the elements still allowed (`MAX_ELEMENTS`); `seen` counts the elements walked, for cancellation.
+    fn expand_replicates(&self, el: &mut El, budget: &mut usize, seen: &mut usize) -> Result<()> {
+        if !el.children.iter().any(|c| c.tag == "replicate" || !c.children.is_empty()) {
+            return Ok(());
+        }
+        let children = std::mem::take(&mut el.children);
+        for mut child in children {
+            *seen += 1;
+            cancel_point("from_mjcf", *seen)?;
+            self.expand_replicates(&mut child, budget, seen)?;
+            if child.tag != "replicate" {
+                el.children.push(child);
+                continue;
+            }
+            let what = child.what();
+            let count = match child.attr("count").map(|c| c.trim().parse::<i64>()) {
+                Some(Ok(count)) => usize::try_from(count).unwrap_or(0),
+                Some(Err(_)) => return Err(invalid(format!("{what}: count={:?} is not an integer", child.attr("count").unwrap_or("")))),
+                None => return Err(invalid(format!("{what}: count is required"))),
+            };
+            if let Some(inner) = child.children.iter().find(|c| matches!(c.tag.as_str(), "joint" | "freejoint")) {
+                return Err(invalid(format!("{}: a <{}> cannot be a direct child of <replicate>, as in MuJoCo", inner.what(), inner.tag)));
+            }
+            // MuJoCo ignores an <inertial> there (in a <frame>, legkit would give it to the body).
+            child.children.retain(|c| c.tag != "inertial");
+            // The copies' elements, counted and their memory checked before any is made.
+            let size = 1 + child.children.iter().map(El::size).sum::<usize>();
+            let (added, bytes) = (count.saturating_mul(size), count.saturating_mul(size).saturating_mul(BYTES_PER_ELEMENT));
+            let copies = format!("{what}: count={count} copies of {size} elements");
+            if added > *budget {
+                return Err(Error::too_large("mjcf", format!("{copies}: more than the {MAX_ELEMENTS} elements an MJCF may have")));
+            }
+            if !crate::validate::headroom(bytes) {
+                return Err(Error::too_large("mjcf", format!("{copies} need up to {bytes} bytes, which cannot be allocated")));
+            }
+            *budget -= added;
+            let offset = self.fixed::<3>(&child, "main", "offset")?.map_or_else(Vector3::zeros, Vector3::from);
+            let euler = self.fixed::<3>(&child, "main", "euler")?.unwrap_or([0.0; 3]);
+            let sep = child.attr("sep").unwrap_or("");
+            let digits = count.to_string().len();
+            let mut pos = Vector3::zeros();
+            for i in 0..count {
+                // Each copy's rotation from i times the angles, as MuJoCo computes it (not the product of i turns).
+                let q = self.euler(euler.map(|a| a * i as f64));
+                let mut attrs = vec![
+                    ("pos".to_owned(), format!("{} {} {}", pos.x, pos.y, pos.z)),
+                    ("quat".to_owned(), format!("{} {} {} {}", q.w, q.i, q.j, q.k)),
+                ];
+                attrs.extend(child.attrs.iter().filter(|(k, _)| k == "childclass").cloned());
+                let suffix = format!("{sep}{i:0digits$}");
+                let children = child.children.iter().map(|c| c.suffixed(&suffix, seen)).collect::<Result<_>>()?;
+                el.children.push(El { tag: "frame".to_owned(), attrs, children, at: child.at.clone() });
+                pos += q * offset;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl El {
+    /// The elements of the tree below and including `self`.
+    fn size(&self) -> usize {
+        1 + self.children.iter().map(El::size).sum::<usize>()
+    }
+
+    /// A copy of the tree with `suffix` appended to every `name`; `seen` counts the elements copied, for cancellation.
+    fn suffixed(&self, suffix: &str, seen: &mut usize) -> Result<El> {
+        *seen += 1;
+        cancel_point("from_mjcf", *seen)?;
+        let attrs = self.attrs.iter().map(|(k, v)| (k.clone(), if k == "name" { format!("{v}{suffix}") } else { v.clone() })).collect();
+        let children = self.children.iter().map(|c| c.suffixed(suffix, seen)).collect::<Result<_>>()?;
+        Ok(El { tag: self.tag.clone(), attrs, children, at: self.at.clone() })
     }
 }
 
@@ -518,7 +603,7 @@ fn parse(xml: &str, argument: &'static str, label: &str, folder: Option<&Path>, 
         return Err(invalid(format!("the root element must be <mujoco>, found <{}>", doc.root_element().tag_name().name())));
     }
     let mut source = Source { argument, folder, elements: 0, stack: Vec::new() };
-    let root = own(doc.root_element(), label, &line_breaks(xml), &mut source, 0)?;
+    let mut root = own(doc.root_element(), label, &line_breaks(xml), &mut source, 0)?;
     drop(doc);
 
     let mut compiler = Compiler {
@@ -635,6 +720,11 @@ fn parse(xml: &str, argument: &'static str, label: &str, folder: Option<&Path>, 
         if !listed.is_empty() && tag != "custom" {
             reader.accept(format!("<{tag}> is not modelled: {}", listed.join(", ")))?;
         }
+    }
+
+    let (mut budget, mut seen) = (MAX_ELEMENTS.saturating_sub(source.elements), 0);
+    for world in root.children.iter_mut().filter(|c| c.tag == "worldbody") {
+        reader.expand_replicates(world, &mut budget, &mut seen)?;
     }
 
     let meshes = mesh_assets(&root, &mut reader)?;
@@ -959,7 +1049,7 @@ impl Walker<'_, '_> {
                     let frame = prefix.compose(&self.reader.frame(child, &class)?);
                     contents.inertial = Some(inertial_of(child, &class, &frame, self.reader)?);
                 }
-                "composite" | "flexcomp" | "replicate" | "attach" | "plugin" | "skin" => {
+                "composite" | "flexcomp" | "attach" | "plugin" | "skin" => {
                     self.reader.accept(format!("{} is not supported: left out", child.what()))?;
                 }
                 _ => {} // site, camera, light: no effect on the dynamics
@@ -1588,6 +1678,25 @@ mod tests {
         assert_eq!((loaded.joints[2].name.as_str(), loaded.joints[2].idx_q, loaded.joints[2].idx_v), ("f", 8, 7));
         assert_eq!(&model.damping()[7..13], &[0.5; 6]);
         assert!(load_mjcf(xml, &MjcfOptions { floating_base: Some(false), strict: false }).unwrap().model.nv() == 1);
+    }
+
+    #[test]
+    fn replicate_copies_are_named_and_placed_as_mujoco_places_them() {
+        let xml = "<mujoco><compiler angle='radian'/><worldbody><replicate count='2' sep='-'>
+            <replicate count='10' offset='1 0 0' euler='0 0 1.5707963267948966'><body name='b'><joint/></body></replicate>
+            </replicate></worldbody></mujoco>";
+        let model = load(xml).model;
+        assert_eq!(model.nbodies(), 21);
+        assert_eq!((model.name(1), model.name(10), model.name(11), model.name(20)), ("b00-0", "b09-0", "b00-1", "b09-1"));
+        // Copy i is turned by i quarter turns and sits at the sum of the offsets turned by the copies before it.
+        let expected = [Vector3::zeros(), Vector3::x(), Vector3::new(1.0, 1.0, 0.0), Vector3::y()];
+        for (i, p) in expected.iter().enumerate() {
+            assert!((model.placement(i + 1).translation - p).norm() < 1e-15, "{i}");
+        }
+        assert!((model.placement(2).rotation - Transform::rotation_about(&Vector3::z(), std::f64::consts::FRAC_PI_2)).norm() < 1e-15);
+        let nested = "<replicate count='1000'>".repeat(3) + "<body/>" + &"</replicate>".repeat(3);
+        let error = load_mjcf(&format!("<mujoco><worldbody>{nested}</worldbody></mujoco>"), &MjcfOptions::default()).unwrap_err();
+        assert!(matches!(error, Error::TooLarge { .. }) && error.to_string().contains("count=1000 copies of 2001 elements"), "{error}");
     }
 
     #[test]
