@@ -463,3 +463,50 @@ def test_a_freejoint_takes_no_joint_defaults_as_in_mujoco() -> None:
     # A <joint type="free"> does take them: MuJoCo adds the armature to the base, which legkit cannot.
     with pytest.warns(lk.MjcfWarning, match='free joint "root": armature=0.1 is not modelled'):
         lk.load_mjcf(xml.replace('<freejoint name="root"/>', '<joint name="root" type="free"/>'))
+
+
+REPLICATED = """<mujoco><compiler angle="{angle}" eulerseq="{seq}"/><default><default class="light"><geom density="200"/></default></default>
+  <worldbody><geom type="box" size=".1 .1 .1"/>
+    <body name="base" pos="0 0 1"><joint name="root" axis="1 0 0"/><geom size=".1"/>
+      <replicate count="4" offset=".1 .2 0" euler="{euler}" sep="-">
+        <geom type="box" size=".02 .03 .04" pos=".1 0 0"/>
+        <body name="leg" pos=".2 0 0" euler="0 15 0"><joint name="hip" axis="0 1 0"/><geom type="capsule" fromto="0 0 0 0 .1 -.3" size=".03"/>
+          <body name="shin" pos="0 .1 -.3"><joint name="knee" type="slide" axis="1 0 1"/><geom size=".04"/></body></body>
+      </replicate></body>
+    <frame pos="1 0 0" euler="0 0 20">
+      <replicate count="2" offset="0 0 .5" childclass="light">
+        <replicate count="11" offset=".3 0 0" euler="{euler}">
+          <body name="link" pos="0 0 2"><joint name="j" axis="0 1 0"/><geom type="box" size=".05 .06 .07" pos="0 0 -.1"/></body>
+        </replicate></replicate></frame>
+    <replicate count="3" offset="0 -1 0" sep="_"><geom type="capsule" size=".05 .3" pos="0 0 .2"/></replicate>
+  </worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize(("angle", "seq", "euler"), [("degree", "xyz", "10 20 30"), ("radian", "ZYX", "0.1 -0.4 0.3")])
+def test_replicate_expands_as_mujoco(angle: str, seq: str, euler: str) -> None:
+    # <replicate> was left out with a warning. Copies inside a body, in the world, in a frame, nested (an inner copy's
+    # suffix first), with a childclass: MuJoCo's body names, poses, masses and dynamics; joints by name; geoms where
+    # MuJoCo's are.
+    xml = REPLICATED.format(angle=angle, seq=seq, euler=euler)
+    m = mujoco.MjModel.from_xml_string(xml)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", lk.MjcfWarning)
+        loaded = assert_bodies_match(xml)
+    model = loaded.model
+    names = [m.body(b).name for b in range(1, m.nbody)]
+    assert "leg-0" in names and "shin-3" in names and "link000" in names and "link101" in names and len(names) == 31
+    assert model.names == ["world", *names] and model.nq == m.nq == 31
+    assert [j["name"] for j in loaded.joints] == [m.joint(j).name for j in range(m.njnt)]
+    d = mujoco.MjData(m)
+    d.qpos[:] = np.random.default_rng(3).uniform(-1, 1, m.nq)
+    mujoco.mj_forward(m, d)
+    poses = lk.forward_kinematics(model, d.qpos)
+    np.testing.assert_allclose(poses[1:, :3, 3], d.xpos[1:], atol=1e-12)
+    np.testing.assert_allclose(poses[1:, :3, :3], d.xmat[1:].reshape(-1, 3, 3), atol=1e-12)
+    colliders = model.colliders()
+    assert len(colliders) == m.ngeom
+    for body, _, _, placement in colliders:
+        world = poses[body] @ placement
+        g = int(np.argmin(np.linalg.norm(d.geom_xpos - world[:3, 3], axis=1)))
+        np.testing.assert_allclose(world[:3, 3], d.geom_xpos[g], atol=1e-12)
+        np.testing.assert_allclose(world[:3, :3], d.geom_xmat[g].reshape(3, 3), atol=1e-12)

@@ -3,7 +3,7 @@
 //! not change a hull.
 
 use std::borrow::Cow;
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
 
 use nalgebra::{Matrix3, Matrix4, Rotation3, Unit, Vector3, Vector4};
@@ -20,7 +20,7 @@ pub(crate) fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let vertices = match extension.as_str() {
         "stl" => stl(&bytes),
-        "obj" => obj_faces(&String::from_utf8_lossy(&bytes)).map(|(vertices, _)| vertices),
+        "obj" => obj_faces(&String::from_utf8_lossy(&bytes), false).map(|((vertices, _), _)| vertices),
         "dae" => collada(&String::from_utf8_lossy(&bytes)),
         "msh" => msh(&bytes).map(|(vertices, _)| vertices),
         other => Err(bad(format!("unknown mesh format {other:?} (expected .stl, .obj, .dae or .msh)"))),
@@ -38,22 +38,24 @@ pub(crate) fn mesh_vertices(path: &Path) -> Result<Vec<Vector3<f64>>> {
 /// many points on a sphere, 7.7 s for 100,000 and 52 s for 300,000 (release build).
 pub const HULL_POINTS: usize = 25_000;
 
-/// `points` without repeats (equal to the bit), in the order they first appear. Interruptible.
-fn distinct_points(points: &[Vector3<f64>]) -> Result<Vec<Vector3<f64>>> {
+/// `points` without repeats (equal to the bit), in the order they first appear, and the index among them of each
+/// point. Interruptible.
+fn distinct_points(points: &[Vector3<f64>]) -> Result<(Vec<Vector3<f64>>, Vec<usize>)> {
     let too_large = || Error::too_large("mesh", format!("cannot allocate the set of its {} vertices", points.len()));
-    let mut seen: HashSet<[u64; 3]> = HashSet::new();
-    let mut distinct = Vec::new();
+    let mut seen: HashMap<[u64; 3], usize> = HashMap::new();
+    let (mut distinct, mut index) = (Vec::new(), crate::validate::with_capacity("mesh", points.len())?);
     for (k, p) in points.iter().enumerate() {
         cancel_point("mesh", k)?;
         if seen.len() == seen.capacity() {
             seen.try_reserve(seen.len().max(16)).map_err(|_| too_large())?;
             distinct.try_reserve(seen.capacity().saturating_sub(distinct.len())).map_err(|_| too_large())?;
         }
-        if seen.insert(p.map(f64::to_bits).into()) {
+        index.push(*seen.entry(p.map(f64::to_bits).into()).or_insert_with(|| {
             distinct.push(*p);
-        }
+            distinct.len() - 1
+        }));
     }
-    Ok(distinct)
+    Ok((distinct, index))
 }
 
 /// The points a hull is taken over (`hull_points`), and the note saying they are fewer than the mesh's.
@@ -68,7 +70,7 @@ pub(crate) fn hull_points(points: &[Vector3<f64>]) -> Result<HullPoints<'_>> {
         return Ok((Cow::Borrowed(points), None));
     }
     // An STL lists each triangle's corners: a closed mesh has about a sixth as many distinct points.
-    let distinct = distinct_points(points)?;
+    let (distinct, _) = distinct_points(points)?;
     if distinct.len() <= HULL_POINTS {
         return Ok((Cow::Owned(distinct), None));
     }
@@ -118,19 +120,33 @@ pub(crate) fn hull_points(points: &[Vector3<f64>]) -> Result<HullPoints<'_>> {
 pub type Triangles = (Vec<Vector3<f64>>, Vec<[usize; 3]>);
 
 /// The triangles of the mesh file at `path`, as vertices and faces indexing them, for a mesh's volume and
-/// inertia: STL's triangles (three vertices each), OBJ's faces (a polygon cut into triangles as MuJoCo cuts it: see `clip_ears`),
-/// and MuJoCo's binary MSH. Errors as `mesh_vertices`'.
-pub fn mesh_triangles(path: &Path) -> Result<Triangles> {
+/// inertia: STL's triangles, OBJ's faces (a polygon cut into triangles as MuJoCo cuts it: see `clip_ears`), and
+/// MuJoCo's binary MSH; and a note when MuJoCo's mass of them would differ (an OBJ face of more than
+/// `MUJOCO_OBJ_CORNERS` corners). Errors as `mesh_vertices`'.
+pub fn mesh_triangles(path: &Path) -> Result<(Triangles, Option<String>)> {
     let bytes = crate::validate::read_regular_file("mesh", path)?;
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let mut note = None;
     let (vertices, faces) = match extension.as_str() {
-        "stl" => stl(&bytes).and_then(|vertices| {
+        // Each triangle lists its corners: those equal to the bit are one vertex, as MuJoCo's STL decoder merges
+        // them (google-deepmind/mujoco), so that its faces share edges (see `mjcf::inconsistent_edge`).
+        "stl" => stl(&bytes).and_then(|corners| {
+            let (vertices, index) = distinct_points(&corners)?;
             let mut faces = Vec::new();
-            grow(&mut faces, vertices.len() / 3, "faces")?;
-            faces.extend((0..vertices.len() / 3).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]));
+            grow(&mut faces, index.len() / 3, "faces")?;
+            faces.extend(index.chunks_exact(3).map(|t| [t[0], t[1], t[2]]));
             Ok((vertices, faces))
         }),
-        "obj" => obj_faces(&String::from_utf8_lossy(&bytes)),
+        "obj" => obj_faces(&String::from_utf8_lossy(&bytes), true).map(|(triangles, large)| {
+            note = large.map(|(line, corners)| {
+                format!(
+                    "{}: line {line}: a face of {corners} corners, whose mass MuJoCo takes otherwise (it leaves part or \
+                     all of a face of more than {MUJOCO_OBJ_CORNERS} corners out)",
+                    path.display()
+                )
+            });
+            triangles
+        }),
         "msh" => msh(&bytes),
         other => Err(bad(format!("no faces read from {other:?} files (expected .stl, .obj or .msh)"))),
     }
@@ -139,7 +155,7 @@ pub fn mesh_triangles(path: &Path) -> Result<Triangles> {
         return Err(in_file(path, bad("no faces")));
     }
     finite_vertices(path, &vertices)?;
-    Ok((vertices, faces))
+    Ok(((vertices, faces), note))
 }
 
 /// `e`, from reading the mesh file at `path`, with the path in its reason: a list too large to allocate stays
@@ -294,14 +310,13 @@ fn stl(bytes: &[u8]) -> Result<Vec<Vector3<f64>>> {
     Ok(vertices)
 }
 
-/// The most corners an OBJ polygon may have: `clip_ears` takes up to cubic time in them (a second at this
-/// size), and real meshes' polygons have a few dozen.
-pub const OBJ_POLYGON_CORNERS: usize = 1024;
-
-/// OBJ's vertices and faces (1-based indices, negative ones counted back from the last vertex read).
-fn obj_faces(text: &str) -> Result<Triangles> {
+/// OBJ's vertices and, when `triangulate`, its faces (1-based indices, negative ones counted back from the last
+/// vertex read), a polygon of any number of corners cut as `clip_ears` cuts it; without, the faces' corners are
+/// only checked.
+/// Also the line and corner count of the first face of more than `MUJOCO_OBJ_CORNERS` corners.
+fn obj_faces(text: &str, triangulate: bool) -> Result<(Triangles, Option<(usize, usize)>)> {
     let (mut vertices, mut faces, mut polygon) = (Vec::new(), Vec::new(), Vec::new());
-    let mut attempts = 0;
+    let (mut work, mut large) = (0, None);
     for (n, line) in text.lines().enumerate() {
         cancel_point("mesh", n)?;
         let mut words = line.split_whitespace();
@@ -314,9 +329,7 @@ fn obj_faces(text: &str) -> Result<Triangles> {
                 let count = vertices.len() as i64;
                 polygon.clear();
                 for w in words {
-                    if polygon.len() == OBJ_POLYGON_CORNERS {
-                        return Err(bad(format!("line {}: a face of more than {OBJ_POLYGON_CORNERS} corners", n + 1)));
-                    }
+                    grow(&mut polygon, 1, "face corners")?;
                     polygon.push(match w.split('/').next().and_then(|i| i.parse::<i64>().ok()) {
                         Some(i) if i > 0 && i <= count => i as usize - 1,
                         Some(i) if i < 0 && -i <= count => (count + i) as usize,
@@ -326,22 +339,33 @@ fn obj_faces(text: &str) -> Result<Triangles> {
                 if polygon.len() < 3 {
                     return Err(bad(format!("line {}: a face with fewer than three corners", n + 1)));
                 }
-                clip_ears(&vertices, &mut polygon, &mut faces, &mut attempts)?;
+                if polygon.len() > MUJOCO_OBJ_CORNERS && large.is_none() {
+                    large = Some((n + 1, polygon.len()));
+                }
+                if triangulate {
+                    clip_ears(&vertices, &mut polygon, &mut faces, &mut work)?;
+                }
             }
             _ => {}
         }
     }
-    Ok((vertices, faces))
+    Ok(((vertices, faces), large))
 }
+
+/// The most corners of an OBJ face whose triangles MuJoCo's mass takes as `clip_ears` cuts them. Of a larger face,
+/// MuJoCo (4.0, measured) leaves part or all of the area out: all of a regular polygon's, from 101 corners to 2000.
+/// legkit takes the whole face, of any size.
+pub const MUJOCO_OBJ_CORNERS: usize = 100;
 
 /// Cuts `polygon` (vertex indices) into triangles appended to `faces` as tinyobjloader does for MuJoCo, so
 /// that masses agree on any polygon, planar or not, convex or not, repeating corners or not: a quadrilateral
 /// along its shorter diagonal (the second on a tie); a larger polygon by clipping ears in the coordinate plane
 /// most nearly facing its first turning corner, an ear skipped if it turns against the sign of its first
 /// edge's area term or holds another corner, and the corners left after a lap of skips dropped. In f32, as
-/// tinyobjloader reads coordinates, so that ties fall the same way. `attempts` counts the ears tried in the
-/// file, for cancellation.
-fn clip_ears(vertices: &[Vector3<f64>], polygon: &mut Vec<usize>, faces: &mut Vec<[usize; 3]>, attempts: &mut usize) -> Result<()> {
+/// tinyobjloader reads coordinates, so that ties fall the same way. Each ear tried costs a pass over the corners
+/// left: about n² / 2 corner tests for a convex polygon of n corners, up to n³ / 2 for one whose ears are skipped
+/// lap after lap. `work` counts the corner tests in the file, for cancellation every `TESTS_PER_CANCEL_POINT`.
+fn clip_ears(vertices: &[Vector3<f64>], polygon: &mut Vec<usize>, faces: &mut Vec<[usize; 3]>, work: &mut usize) -> Result<()> {
     let point = |i: usize| vertices[i].map(|x| x as f32);
     let n = polygon.len();
     if let [a, b, c, d] = polygon[..] {
@@ -367,9 +391,12 @@ fn clip_ears(vertices: &[Vector3<f64>], polygon: &mut Vec<usize>, faces: &mut Ve
     };
     let (mut guess, mut laps_left, mut last_len) = (0, n, n);
     while polygon.len() > 3 && laps_left > 0 {
-        *attempts += 1;
-        cancel_point("mesh", *attempts)?;
         let m = polygon.len();
+        let before = *work;
+        *work = work.saturating_add(m);
+        if before / TESTS_PER_CANCEL_POINT != *work / TESTS_PER_CANCEL_POINT {
+            crate::validate::check_cancelled("mesh")?;
+        }
         if guess >= m {
             guess -= m;
         }
@@ -397,6 +424,9 @@ fn clip_ears(vertices: &[Vector3<f64>], polygon: &mut Vec<usize>, faces: &mut Ve
     }
     Ok(())
 }
+
+/// Corner tests (a few nanoseconds each) between two checks for cancellation in `clip_ears`: about a millisecond.
+const TESTS_PER_CANCEL_POINT: usize = 1 << 18;
 
 /// Whether `(x, y)` lies inside the triangle by the crossing count, as tinyobjloader's `pnpoly` tells it (a
 /// corner on an edge may count either way; the same way as there).

@@ -9,6 +9,8 @@
 //! - `<default>` classes, nested (a class inherits its parent's values), chosen by `class=` or by the
 //!   nearest `childclass=` of the enclosing bodies and frames, else the top class `main`.
 //! - `<include file>` anywhere, spliced in place (paths relative to the main file's folder).
+//! - `<replicate count offset euler sep childclass>`, nested or not, expanded as MuJoCo expands it
+//!   (`Reader::expand_replicates`).
 //! - `<worldbody>`, `<body>` (nested) and `<frame>` with `pos` and every orientation form: `quat` (w x y z),
 //!   `axisangle`, `euler` (`eulerseq`: lower case rotating axes, upper case fixed axes), `xyaxes`, `zaxis`;
 //!   geoms also `fromto`.
@@ -24,7 +26,8 @@
 //!   MuJoCo's formulas [MuJoCo, user_objects.cc: mjCGeom::GetVolume, SetInertia]; then `boundmass`,
 //!   `boundinertia` (on the principal moments) and `balanceinertia`. Mesh geoms (STL, OBJ, MSH) by their
 //!   triangles as MuJoCo's compiler takes them (`mesh_mass`; `<mesh inertia="convex">` and meshes without
-//!   faces are a warning).
+//!   faces are a warning; what MuJoCo refuses, inconsistently oriented faces under `exact` among them
+//!   (`inconsistent_edge`), is refused).
 //! - Collision shapes: sphere, capsule, cylinder and box geoms, and meshes (STL, OBJ, MSH) as the convex hull of
 //!   their vertices, except geoms with `contype="0" conaffinity="0"` (visual only). Pair filtering by the
 //!   bits of `contype`/`conaffinity` is not expressible: every other geom collides. Planes and height
@@ -48,11 +51,12 @@
 //! bodies and joints are `body<i>` and `joint<i>`, i MuJoCo's id.
 //!
 //! What legkit cannot model (tendons, equality constraints, sensors, contact pairs and excludes,
-//! composite/flex/replicate, non-joint transmissions, static bodies beside a floating base) loads with a
+//! composite/flex, non-joint transmissions, static bodies beside a floating base) loads with a
 //! warning naming it, or is an error with [`MjcfOptions::strict`].
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 
 use nalgebra::{DVector, Matrix3, Quaternion, SymmetricEigen, Unit, UnitQuaternion, Vector3};
 use roxmltree::Node;
@@ -194,14 +198,69 @@ pub const MAX_DEPTH: usize = 1000;
 /// 1.1 KB per `<body/>` on 300,000 bodies (peak RSS), with a margin.
 const BYTES_PER_ELEMENT: usize = 2048;
 
-/// An element, owned, so that included files splice into one tree.
+/// An element, owned, so that included files splice into one tree. Its tag and attribute names are shared
+/// (`Source::name`) and its place holds the file's label by reference: an element owns only its values and lists,
+/// so a tree of a million elements is built, and freed when a load is cancelled, in fewer allocations.
 #[derive(Debug, Clone)]
 struct El {
-    tag: String,
-    attrs: Vec<(String, String)>,
+    tag: Name,
+    attrs: Vec<(Name, String)>,
     children: Vec<El>,
-    /// "file:line" for messages.
-    at: String,
+    at: At,
+}
+
+/// A tag or attribute name, shared by every element that has it.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+struct Name(Rc<str>);
+
+impl Name {
+    fn as_str(&self) -> &str {
+        &self.0
+    }
+}
+
+impl std::ops::Deref for Name {
+    type Target = str;
+    fn deref(&self) -> &str {
+        &self.0
+    }
+}
+
+impl PartialEq<str> for Name {
+    fn eq(&self, other: &str) -> bool {
+        &*self.0 == other
+    }
+}
+
+impl PartialEq<&str> for Name {
+    fn eq(&self, other: &&str) -> bool {
+        &*self.0 == *other
+    }
+}
+
+impl From<&str> for Name {
+    fn from(name: &str) -> Self {
+        Name(Rc::from(name))
+    }
+}
+
+impl std::fmt::Display for Name {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+/// Where an element is, for messages: "file:line".
+#[derive(Debug, Clone)]
+struct At {
+    label: Rc<str>,
+    line: usize,
+}
+
+impl std::fmt::Display for At {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "{}:{}", self.label, self.line)
+    }
 }
 
 impl El {
@@ -225,6 +284,19 @@ struct Source<'a> {
     folder: Option<&'a Path>,
     elements: usize,
     stack: Vec<PathBuf>,
+    /// The tag and attribute names read so far.
+    names: std::collections::HashSet<Rc<str>>,
+}
+
+impl Source<'_> {
+    fn name(&mut self, name: &str) -> Name {
+        if let Some(shared) = self.names.get(name) {
+            return Name(Rc::clone(shared));
+        }
+        let shared: Rc<str> = Rc::from(name);
+        self.names.insert(Rc::clone(&shared));
+        Name(shared)
+    }
 }
 
 /// The byte offsets of the line breaks of `text`, to find an element's line by bisection (roxmltree's
@@ -234,16 +306,16 @@ fn line_breaks(text: &str) -> Vec<usize> {
 }
 
 /// `node` owned, at `depth` in the tree (the root at 0), with its includes spliced in.
-fn own(node: Node, label: &str, breaks: &[usize], source: &mut Source, depth: usize) -> Result<El> {
+fn own(node: Node, label: &Rc<str>, breaks: &[usize], source: &mut Source, depth: usize) -> Result<El> {
     let row = breaks.partition_point(|&b| b < node.range().start) + 1;
     if depth > MAX_DEPTH {
         return Err(invalid(format!("elements nest deeper than {MAX_DEPTH} levels ({label}:{row})")));
     }
     let mut el = El {
-        tag: node.tag_name().name().to_owned(),
-        attrs: node.attributes().map(|a| (a.name().to_owned(), a.value().to_owned())).collect(),
+        tag: source.name(node.tag_name().name()),
+        attrs: node.attributes().map(|a| (source.name(a.name()), a.value().to_owned())).collect(),
         children: Vec::new(),
-        at: format!("{label}:{row}"),
+        at: At { label: Rc::clone(label), line: row },
     };
     for child in node.children().filter(Node::is_element) {
         source.elements += 1;
@@ -264,7 +336,7 @@ fn own(node: Node, label: &str, breaks: &[usize], source: &mut Source, depth: us
                 return Err(invalid(format!("{file}: an included file's root must be <mujoco>")));
             }
             source.stack.push(path);
-            let included = own(doc.root_element(), file, &line_breaks(&text), source, depth)?;
+            let included = own(doc.root_element(), &Rc::from(file), &line_breaks(&text), source, depth)?;
             source.stack.pop();
             el.children.extend(included.children);
         } else {
@@ -302,7 +374,7 @@ fn collect_defaults(el: &El, parent: &Class, name: &str, classes: &mut HashMap<S
     for child in el.children.iter().filter(|c| c.tag != "default") {
         let attrs = class.entry(kind_of(&child.tag).to_owned()).or_default();
         for (k, v) in &child.attrs {
-            attrs.insert(k.clone(), v.clone());
+            attrs.insert(k.to_string(), v.clone());
         }
     }
     for child in el.elements("default") {
@@ -430,21 +502,7 @@ impl Reader<'_> {
                 let axis = Unit::try_new(Vector3::new(x, y, z), 1e-10).ok_or_else(zero)?;
                 UnitQuaternion::from_axis_angle(&axis, a * self.compiler.angle)
             }
-            "euler" => {
-                let angles = self.fixed::<3>(el, class, form)?.expect("present");
-                let mut q = UnitQuaternion::identity();
-                for (&c, angle) in self.compiler.eulerseq.iter().zip(angles) {
-                    let axis = match c.to_ascii_lowercase() {
-                        b'x' => Vector3::x_axis(),
-                        b'y' => Vector3::y_axis(),
-                        _ => Vector3::z_axis(),
-                    };
-                    let turn = UnitQuaternion::from_axis_angle(&axis, angle * self.compiler.angle);
-                    // Lower case: about the rotating (intrinsic) axes; upper case: the fixed ones.
-                    q = if c.is_ascii_lowercase() { q * turn } else { turn * q };
-                }
-                q
-            }
+            "euler" => self.euler(self.fixed::<3>(el, class, form)?.expect("present")),
             "xyaxes" => {
                 let v = self.fixed::<6>(el, class, form)?.expect("present");
                 let x = Vector3::new(v[0], v[1], v[2]);
@@ -459,6 +517,103 @@ impl Reader<'_> {
                 z_to(Vector3::new(x, y, z)).ok_or_else(zero)?
             }
         })
+    }
+}
+
+impl Reader<'_> {
+    /// The rotation of Euler angles `angles` (in the compiler's unit and sequence).
+    fn euler(&self, angles: [f64; 3]) -> UnitQuaternion<f64> {
+        let mut q = UnitQuaternion::identity();
+        for (&c, angle) in self.compiler.eulerseq.iter().zip(angles) {
+            let axis = match c.to_ascii_lowercase() {
+                b'x' => Vector3::x_axis(),
+                b'y' => Vector3::y_axis(),
+                _ => Vector3::z_axis(),
+            };
+            let turn = UnitQuaternion::from_axis_angle(&axis, angle * self.compiler.angle);
+            // Lower case: about the rotating (intrinsic) axes; upper case: the fixed ones.
+            q = if c.is_ascii_lowercase() { q * turn } else { turn * q };
+        }
+        q
+    }
+
+    /// `el`'s `<replicate>` children (and theirs, and those nested in them) replaced, in place, by their copies, as
+    /// MuJoCo's parser expands them (mjXReader::Body, google-deepmind/mujoco): copy i is a `<frame>` turned by i times
+    /// `euler` (in the compiler's unit and sequence) and moved by the sum of `offset` turned by each earlier copy's
+    /// rotation, holding the replicate's children with every `name` suffixed by `sep` and i, zero-padded to the digits
+    /// of `count`; an inner replicate's suffix comes first. A `count` below 1 makes no copy, as in MuJoCo. `budget`
+    /// is the elements still allowed (`MAX_ELEMENTS`); `seen` counts the elements walked, for cancellation.
+    fn expand_replicates(&self, el: &mut El, budget: &mut usize, seen: &mut usize) -> Result<()> {
+        if !el.children.iter().any(|c| c.tag == "replicate" || !c.children.is_empty()) {
+            return Ok(());
+        }
+        let children = std::mem::take(&mut el.children);
+        for mut child in children {
+            *seen += 1;
+            cancel_point("from_mjcf", *seen)?;
+            self.expand_replicates(&mut child, budget, seen)?;
+            if child.tag != "replicate" {
+                el.children.push(child);
+                continue;
+            }
+            let what = child.what();
+            let count = match child.attr("count").map(|c| c.trim().parse::<i64>()) {
+                Some(Ok(count)) => usize::try_from(count).unwrap_or(0),
+                Some(Err(_)) => return Err(invalid(format!("{what}: count={:?} is not an integer", child.attr("count").unwrap_or("")))),
+                None => return Err(invalid(format!("{what}: count is required"))),
+            };
+            if let Some(inner) = child.children.iter().find(|c| matches!(c.tag.as_str(), "joint" | "freejoint")) {
+                return Err(invalid(format!("{}: a <{}> cannot be a direct child of <replicate>, as in MuJoCo", inner.what(), inner.tag)));
+            }
+            // MuJoCo ignores an <inertial> there (in a <frame>, legkit would give it to the body).
+            child.children.retain(|c| c.tag != "inertial");
+            // The copies' elements, counted and their memory checked before any is made.
+            let size = 1 + child.children.iter().map(El::size).sum::<usize>();
+            let (added, bytes) = (count.saturating_mul(size), count.saturating_mul(size).saturating_mul(BYTES_PER_ELEMENT));
+            let copies = format!("{what}: count={count} copies of {size} elements");
+            if added > *budget {
+                return Err(Error::too_large("mjcf", format!("{copies}: more than the {MAX_ELEMENTS} elements an MJCF may have")));
+            }
+            if !crate::validate::headroom(bytes) {
+                return Err(Error::too_large("mjcf", format!("{copies} need up to {bytes} bytes, which cannot be allocated")));
+            }
+            *budget -= added;
+            let offset = self.fixed::<3>(&child, "main", "offset")?.map_or_else(Vector3::zeros, Vector3::from);
+            let euler = self.fixed::<3>(&child, "main", "euler")?.unwrap_or([0.0; 3]);
+            let sep = child.attr("sep").unwrap_or("");
+            let digits = count.to_string().len();
+            let mut pos = Vector3::zeros();
+            for i in 0..count {
+                // Each copy's rotation from i times the angles, as MuJoCo computes it (not the product of i turns).
+                let q = self.euler(euler.map(|a| a * i as f64));
+                let mut attrs = vec![
+                    (Name::from("pos"), format!("{} {} {}", pos.x, pos.y, pos.z)),
+                    (Name::from("quat"), format!("{} {} {} {}", q.w, q.i, q.j, q.k)),
+                ];
+                attrs.extend(child.attrs.iter().filter(|(k, _)| k == "childclass").cloned());
+                let suffix = format!("{sep}{i:0digits$}");
+                let children = child.children.iter().map(|c| c.suffixed(&suffix, seen)).collect::<Result<_>>()?;
+                el.children.push(El { tag: Name::from("frame"), attrs, children, at: child.at.clone() });
+                pos += q * offset;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl El {
+    /// The elements of the tree below and including `self`.
+    fn size(&self) -> usize {
+        1 + self.children.iter().map(El::size).sum::<usize>()
+    }
+
+    /// A copy of the tree with `suffix` appended to every `name`; `seen` counts the elements copied, for cancellation.
+    fn suffixed(&self, suffix: &str, seen: &mut usize) -> Result<El> {
+        *seen += 1;
+        cancel_point("from_mjcf", *seen)?;
+        let attrs = self.attrs.iter().map(|(k, v)| (k.clone(), if k == "name" { format!("{v}{suffix}") } else { v.clone() })).collect();
+        let children = self.children.iter().map(|c| c.suffixed(suffix, seen)).collect::<Result<_>>()?;
+        Ok(El { tag: self.tag.clone(), attrs, children, at: self.at.clone() })
     }
 }
 
@@ -516,8 +671,8 @@ fn parse(xml: &str, argument: &'static str, label: &str, folder: Option<&Path>, 
     if doc.root_element().tag_name().name() != "mujoco" {
         return Err(invalid(format!("the root element must be <mujoco>, found <{}>", doc.root_element().tag_name().name())));
     }
-    let mut source = Source { argument, folder, elements: 0, stack: Vec::new() };
-    let root = own(doc.root_element(), label, &line_breaks(xml), &mut source, 0)?;
+    let mut source = Source { argument, folder, elements: 0, stack: Vec::new(), names: Default::default() };
+    let mut root = own(doc.root_element(), &Rc::from(label), &line_breaks(xml), &mut source, 0)?;
     drop(doc);
 
     let mut compiler = Compiler {
@@ -636,7 +791,12 @@ fn parse(xml: &str, argument: &'static str, label: &str, folder: Option<&Path>, 
         }
     }
 
-    let meshes = mesh_assets(&root, &reader)?;
+    let (mut budget, mut seen) = (MAX_ELEMENTS.saturating_sub(source.elements), 0);
+    for world in root.children.iter_mut().filter(|c| c.tag == "worldbody") {
+        reader.expand_replicates(world, &mut budget, &mut seen)?;
+    }
+
+    let meshes = mesh_assets(&root, &mut reader)?;
     let bodies = vec![Body {
         name: "world".to_owned(),
         parent: 0,
@@ -671,7 +831,7 @@ fn parse(xml: &str, argument: &'static str, label: &str, folder: Option<&Path>, 
 }
 
 /// `<asset><mesh>` by name: the file's vertices scaled, or why they could not be read.
-fn mesh_assets(root: &El, reader: &Reader) -> Result<Meshes> {
+fn mesh_assets(root: &El, reader: &mut Reader) -> Result<Meshes> {
     let mut meshes = HashMap::new();
     for asset in root.elements("asset") {
         for mesh in asset.elements("mesh") {
@@ -684,7 +844,8 @@ fn mesh_assets(root: &El, reader: &Reader) -> Result<Meshes> {
                 .attr("name")
                 .map_or_else(|| Path::new(file).file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned()), str::to_owned);
             let scale = reader.fixed::<3>(mesh, class, "scale")?.map_or(Vector3::repeat(1.0), Vector3::from);
-            let mode = reader.get(mesh, class, "inertia").unwrap_or("legacy");
+            let mode = reader.get(mesh, class, "inertia").unwrap_or("legacy").to_owned();
+            let mode = mode.as_str();
             if !matches!(mode, "legacy" | "exact" | "convex" | "shell") {
                 return Err(invalid(format!("{}: unknown inertia {mode:?}", mesh.what())));
             }
@@ -704,17 +865,36 @@ fn mesh_assets(root: &El, reader: &Reader) -> Result<Meshes> {
             };
             // Reading a mesh may take long: a cancelled load stops before the next.
             check_cancelled("from_mjcf")?;
+            // What MuJoCo refuses in a mesh, legkit refuses too: its mass would be a wrong answer.
+            let refused = |reason: String| invalid(format!("{} ({}): {reason}, which MuJoCo refuses too", mesh.what(), path.display()));
             let asset = match readable(mesh_triangles(&path))? {
-                Ok((vertices, mut faces)) => {
+                Ok(((vertices, mut faces), note)) => {
+                    if let (Some(note), false) = (note, mode == "convex") {
+                        reader.accept(format!("{}: {note}", mesh.what()))?;
+                    }
+                    if mode == "exact" {
+                        if let Some([a, b]) = inconsistent_edge(&vertices, &faces)? {
+                            let reason = format!(
+                                "its faces have inconsistent orientation (two faces run along the edge from vertex {} to vertex {}) under \
+                                 inertia=\"exact\"",
+                                a + 1,
+                                b + 1
+                            );
+                            return Err(refused(reason));
+                        }
+                    }
                     let vertices = scaled(vertices);
                     // A mirroring scale turns the faces inside out; MuJoCo turns them back.
                     if scale.product() < 0.0 {
                         faces.iter_mut().for_each(|f| f.swap(1, 2));
                     }
-                    let mass = if mode == "convex" {
-                        Err("inertia=\"convex\" (the hull's volume) is not computed".to_owned())
-                    } else {
-                        mesh_mass(&vertices, &faces, mode)
+                    let mass = match mode {
+                        "convex" => Err("inertia=\"convex\" (the hull's volume) is not computed".to_owned()),
+                        // MuJoCo leaves an overflowing mass out without a word: here, a warning.
+                        _ => match mesh_mass(&vertices, &faces, mode) {
+                            Err(reason) if reason != OVERFLOW => return Err(refused(reason)),
+                            mass => mass,
+                        },
                     };
                     Ok(MeshAsset { vertices, mass })
                 }
@@ -764,6 +944,26 @@ fn triangle(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> (f64, Vecto
         return (0.0, normal, center);
     }
     (0.5 * len, normal / len, center)
+}
+
+/// The first directed edge (vertex indices, in sorted order) that two faces run along, counting faces of area above
+/// `sqrt(mjMINVAL)` in the mesh file's units: a closed or open surface whose faces are consistently oriented runs
+/// along each edge once in each direction at most. MuJoCo refuses such a mesh under `inertia="exact"`, whose
+/// signed volumes would partly cancel (mjCMesh::Process, google-deepmind/mujoco); STL corners are merged first
+/// (`mesh_triangles`), OBJ and MSH vertices are taken as indexed.
+fn inconsistent_edge(vertices: &[Vector3<f64>], faces: &[[usize; 3]]) -> Result<Option<[usize; 2]>> {
+    let mut edges = crate::validate::with_capacity("mesh", faces.len().saturating_mul(3))?;
+    for (k, f) in faces.iter().enumerate() {
+        cancel_point("mesh", k)?;
+        // MuJoCo stores vertices in single precision and checks them before scaling.
+        let [a, b, c] = f.map(|i| vertices[i].map(|x| x as f32 as f64));
+        if triangle(&a, &b, &c).0 > 1e-15f64.sqrt() {
+            edges.extend([[f[0], f[1]], [f[1], f[2]], [f[2], f[0]]]);
+        }
+    }
+    check_cancelled("mesh")?;
+    edges.sort_unstable();
+    Ok(edges.windows(2).find(|pair| pair[0] == pair[1]).map(|pair| pair[0]))
 }
 
 /// Why `mesh_mass` fails on numbers beyond float64 (where a silent NaN would leave the geom's mass out unsaid).
@@ -918,7 +1118,7 @@ impl Walker<'_, '_> {
                     let frame = prefix.compose(&self.reader.frame(child, &class)?);
                     contents.inertial = Some(inertial_of(child, &class, &frame, self.reader)?);
                 }
-                "composite" | "flexcomp" | "replicate" | "attach" | "plugin" | "skin" => {
+                "composite" | "flexcomp" | "attach" | "plugin" | "skin" => {
                     self.reader.accept(format!("{} is not supported: left out", child.what()))?;
                 }
                 _ => {} // site, camera, light: no effect on the dynamics
@@ -1523,8 +1723,15 @@ mod tests {
         assert!((mass.volume - 8.0 * h.x * h.y * h.z).abs() < 1e-15);
         assert!((mass.com - t).norm() < 1e-14);
         assert!((mass.inertia - inertia).norm() < 1e-9 * inertia.norm(), "{} vs {inertia}", mass.inertia);
-        // "exact" sums signed pyramids: the inside-out faces cancel their opposites.
+        // "exact" sums signed pyramids: the inside-out faces cancel their opposites. MuJoCo refuses the mesh before:
+        // the inside-out faces run along the edges they share with their neighbours in the same direction.
         assert!(mesh_mass(&vertices, &faces, "exact").is_err());
+        assert_eq!(inconsistent_edge(&vertices, &faces).unwrap(), Some([1, 5]));
+        let outward: Vec<[usize; 3]> = faces.iter().enumerate().map(|(k, f)| if (k / 2) % 2 == 1 { [f[0], f[2], f[1]] } else { *f }).collect();
+        assert_eq!(inconsistent_edge(&vertices, &outward).unwrap(), None);
+        // Faces of no area do not count.
+        let sliver = [outward.as_slice(), &[[0, 0, 1], [0, 0, 1]]].concat();
+        assert_eq!(inconsistent_edge(&vertices, &sliver).unwrap(), None);
     }
 
     #[test]
@@ -1540,6 +1747,25 @@ mod tests {
         assert_eq!((loaded.joints[2].name.as_str(), loaded.joints[2].idx_q, loaded.joints[2].idx_v), ("f", 8, 7));
         assert_eq!(&model.damping()[7..13], &[0.5; 6]);
         assert!(load_mjcf(xml, &MjcfOptions { floating_base: Some(false), strict: false }).unwrap().model.nv() == 1);
+    }
+
+    #[test]
+    fn replicate_copies_are_named_and_placed_as_mujoco_places_them() {
+        let xml = "<mujoco><compiler angle='radian'/><worldbody><replicate count='2' sep='-'>
+            <replicate count='10' offset='1 0 0' euler='0 0 1.5707963267948966'><body name='b'><joint/></body></replicate>
+            </replicate></worldbody></mujoco>";
+        let model = load(xml).model;
+        assert_eq!(model.nbodies(), 21);
+        assert_eq!((model.name(1), model.name(10), model.name(11), model.name(20)), ("b00-0", "b09-0", "b00-1", "b09-1"));
+        // Copy i is turned by i quarter turns and sits at the sum of the offsets turned by the copies before it.
+        let expected = [Vector3::zeros(), Vector3::x(), Vector3::new(1.0, 1.0, 0.0), Vector3::y()];
+        for (i, p) in expected.iter().enumerate() {
+            assert!((model.placement(i + 1).translation - p).norm() < 1e-15, "{i}");
+        }
+        assert!((model.placement(2).rotation - Transform::rotation_about(&Vector3::z(), std::f64::consts::FRAC_PI_2)).norm() < 1e-15);
+        let nested = "<replicate count='1000'>".repeat(3) + "<body/>" + &"</replicate>".repeat(3);
+        let error = load_mjcf(&format!("<mujoco><worldbody>{nested}</worldbody></mujoco>"), &MjcfOptions::default()).unwrap_err();
+        assert!(matches!(error, Error::TooLarge { .. }) && error.to_string().contains("count=1000 copies of 2001 elements"), "{error}");
     }
 
     #[test]
