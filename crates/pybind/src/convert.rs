@@ -6,7 +6,7 @@ use nalgebra::{Matrix3, Vector3};
 use numpy::ndarray::{Array, ArrayViewD, Dimension, IntoDimension};
 use numpy::npyffi::{self, npy_intp};
 use numpy::{Element, PyArrayDescrMethods, PY_ARRAY_API};
-use numpy::{PyArray, PyArrayDyn, PyArrayMethods};
+use numpy::{PyArray, PyArrayDyn, PyArrayMethods, PyUntypedArray};
 use pyo3::exceptions::{PyMemoryError, PyOverflowError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyString, PyTuple};
@@ -16,31 +16,63 @@ use std::ffi::c_int;
 /// A NumPy float64 array returned to Python.
 pub type FloatArray<'py> = Bound<'py, PyArrayDyn<f64>>;
 
-/// A float64 array argument: anything NumPy converts (float64 arrays are used in place, anything else goes
-/// through `numpy.asarray`). Extraction never fails; `get` raises a failed conversion as a TypeError
-/// naming the argument.
+/// A float64 array argument: anything NumPy converts to real numbers (float64 arrays, strided or not, are used in
+/// place; anything else goes through `numpy.asarray`). Extraction never fails; `get` raises an argument that is not
+/// real numbers as a TypeError naming it, where NumPy would turn it into numbers: complex ones (the imaginary part
+/// dropped with only a warning), strings ("1.5"), dates and records. A masked array with masked entries, whose
+/// hidden values NumPy would read, and a Python int beyond float64's range are ValueErrors.
 ///
 /// Arrays are read only while the GIL is held (and copied where a kernel then releases it), so another
 /// Python thread cannot write them meanwhile; rust-numpy's borrow tracking, which guards Rust borrows
 /// only, is not needed.
-pub struct Floats<'py>(Result<FloatArray<'py>, String>);
+pub struct Floats<'py>(Result<FloatArray<'py>, Refused>);
+
+/// Why an argument is not an array of real numbers, by the class of the error it raises.
+enum Refused {
+    Type(String),
+    Value(String),
+}
 
 impl<'a, 'py> FromPyObject<'a, 'py> for Floats<'py> {
     type Error = PyErr;
 
     fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
-        if let Ok(array) = obj.cast::<PyArrayDyn<f64>>() {
+        let py = obj.py();
+        // SAFETY: a type check of a live object.
+        let exact = unsafe { npyffi::PyArray_CheckExact(py, obj.as_ptr()) } != 0;
+        let float64 = obj.cast::<PyArrayDyn<f64>>();
+        if let (true, Ok(array)) = (exact, &float64) {
+            return Ok(Floats(Ok((*array).to_owned())));
+        }
+        let numpy = py.import("numpy")?;
+        if !exact && obj.cast::<PyUntypedArray>().is_ok() && numpy.getattr("ma")?.call_method1("is_masked", (obj,))?.is_truthy()? {
+            return Ok(Floats(Err(Refused::Value("a masked array with masked entries (fill them first: a.filled(value))".into()))));
+        }
+        if let Ok(array) = float64 {
             return Ok(Floats(Ok(array.to_owned())));
         }
-        let converted =
-            numpy::get_array_module(obj.py())?.call_method1("asarray", (obj, "float64")).and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?));
-        Ok(Floats(converted.map_err(|e| e.to_string())))
+        let refused = |e: PyErr| match e.is_instance_of::<PyOverflowError>(py) {
+            true => Refused::Value("a number beyond float64's range".into()),
+            false => Refused::Type(format!("expected an array of numbers ({e})")),
+        };
+        let array = match numpy.call_method1("asarray", (obj,)) {
+            Ok(array) => array,
+            Err(e) => return Ok(Floats(Err(refused(e)))),
+        };
+        let dtype = array.getattr("dtype")?;
+        if !matches!(dtype.getattr("kind")?.extract::<char>()?, 'b' | 'i' | 'u' | 'f' | 'O') {
+            return Ok(Floats(Err(Refused::Type(format!("expected real numbers, got an array of {}", dtype.str()?)))));
+        }
+        Ok(Floats(numpy.call_method1("asarray", (array, "float64")).and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?)).map_err(refused)))
     }
 }
 
 impl<'py> Floats<'py> {
     pub fn array(&self, argument: &str) -> PyResult<&FloatArray<'py>> {
-        self.0.as_ref().map_err(|e| PyTypeError::new_err(format!("{argument}: expected an array of numbers ({e})")))
+        self.0.as_ref().map_err(|refused| match refused {
+            Refused::Type(why) => PyTypeError::new_err(format!("{argument}: {why}")),
+            Refused::Value(why) => PyValueError::new_err(format!("{argument}: {why}")),
+        })
     }
 
     pub fn get(&self, argument: &str) -> PyResult<ArrayViewD<'_, f64>> {
