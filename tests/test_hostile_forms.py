@@ -37,19 +37,14 @@ def state(model: lk.Model) -> tuple[np.ndarray, np.ndarray]:
     return q, rng.normal(size=model.nv)
 
 
-def strided(x: np.ndarray) -> np.ndarray:
-    wide = np.zeros((2 * len(x),))
-    wide[::2] = x
-    return wide[::2]
-
-
 def read_only(x: np.ndarray) -> np.ndarray:
     y = x.copy()
     y.flags.writeable = False
     return y
 
 
-# Forms of a vector x that hold the same real numbers (each as NumPy converts it to float64).
+# Forms of an array x that hold the same real numbers (each as NumPy converts it to float64); the last five, of a
+# vector only.
 SAME_NUMBERS = {
     "float32": lambda x: x.astype(np.float32),
     "int64": lambda x: np.round(x).astype(np.int64),
@@ -58,18 +53,19 @@ SAME_NUMBERS = {
     "big-endian": lambda x: x.astype(">f8"),
     "longdouble": lambda x: x.astype(np.longdouble),
     "object": lambda x: x.astype(object),
-    "strided": strided,
+    "strided": lambda x: np.repeat(x[..., None], 2, axis=-1)[..., 0],
     "negative stride": lambda x: x[::-1].copy()[::-1],
-    "Fortran column": lambda x: np.asfortranarray(np.stack([x, x], axis=1))[:, 0],
+    "Fortran-ordered slice": lambda x: np.asfortranarray(np.stack([x, x], axis=-1))[..., 0],
     "read-only": read_only,
-    "broadcast_to": lambda x: np.broadcast_to(x, (3, len(x)))[1],
+    "broadcast_to": lambda x: np.broadcast_to(x, (3, *x.shape))[1],
     "list": lambda x: x.tolist(),
+    "unmasked masked array": lambda x: np.ma.masked_array(x),
     "tuple": lambda x: tuple(x.tolist()),
     "array.array": lambda x: array.array("d", x),
     "memoryview": lambda x: memoryview(x.copy()),
-    "unmasked masked array": lambda x: np.ma.masked_array(x),
     "list of NumPy scalars": lambda x: [np.float32(e) for e in x],
 }
+ANY_SHAPE = list(SAME_NUMBERS)[:-4]
 
 # Forms refused: (form, error class, words of the message).
 REFUSED = {
@@ -78,8 +74,8 @@ REFUSED = {
     "strings": (lambda x: x.astype(str), TypeError, "<U"),
     "datetime": (lambda x: np.zeros(x.shape, "M8[s]"), TypeError, "datetime64"),
     "record": (lambda x: np.zeros(x.shape, [("a", "f8")]), TypeError, "real numbers"),
-    "masked entries": (lambda x: np.ma.masked_array(x, mask=np.arange(len(x)) == 0), ValueError, "masked"),
-    "int beyond float64": (lambda x: [10**400] * len(x), ValueError, "float64's range"),
+    "masked entries": (lambda x: np.ma.masked_array(x, mask=np.arange(x.size).reshape(x.shape) == 0), ValueError, "masked"),
+    "int beyond float64": (lambda x: np.full(x.shape, 10**400, dtype=object), ValueError, "float64's range"),
     "ragged": (lambda x: [x.tolist(), [1.0]], TypeError, "array of numbers"),
 }
 
@@ -273,3 +269,62 @@ def test_signatures_show_their_real_defaults_as_the_stubs_do():
                 assert stubs[name][parameter.name] == parameter.default, (name, parameter)
                 compared += 1
     assert compared > 40, compared
+
+
+# --- The Python layers: the same rule through `_validation.real_numbers` -----------------------------------
+
+FEET = np.array([[0.3, 0.2, 0.0], [0.3, -0.2, 0.0], [-0.3, -0.2, 0.0], [-0.3, 0.2, 0.0]])
+TOES = np.array([[0.1, 0.1, -0.2], [0.1, -0.1, -0.21], [-0.1, 0.0, -0.19]])
+
+
+def python_calls():
+    from legkit import stability, strain
+
+    com = np.array([0.01, 0.02, 0.3])
+    forces = np.array([[0.1, 0.2, 10.0]] * 4)
+    return [
+        ("static_stability_margin", "contact_points", FEET, lambda x: stability.static_stability_margin(com, x)),
+        ("center_of_pressure", "forces", forces, lambda x: stability.center_of_pressure(FEET, x)),
+        ("friction_cone_margin", "normals", np.tile([0.0, 0.0, 1.0], (4, 1)), lambda x: stability.friction_cone_margin(forces, x, 0.7)),
+        ("zmp_from_momentum_rate", "com", com, lambda x: stability.zmp_from_momentum_rate(x, np.arange(6.0), 10.0)),
+        ("tripod_pose", "toes", TOES, lambda x: strain.tripod_pose(x).position),
+        ("nrmse", "d_hat", np.array([1.1, 2.0, 2.9]), lambda x: strain.nrmse([1.0, 2.0, 3.0], x)),
+        ("tripod_clock_signal", "hip_angle", np.linspace(-1, 1, 12).reshape(2, 6), strain.tripod_clock_signal),
+    ]
+
+
+def test_python_layers_give_the_same_answer_for_every_form_of_the_same_numbers():
+    for name, _, plain, call in python_calls():
+        for form in (f for f in (ANY_SHAPE if plain.ndim > 1 else SAME_NUMBERS) if f not in ("int64", "uint8", "bool")):  # rounded: degenerate
+            given = SAME_NUMBERS[form](plain)
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                assert np.array_equal(call(given), call(np.asarray(given, dtype=np.float64))), (name, form)
+
+
+def test_python_layers_refuse_numbers_that_are_not_real_by_name():
+    for name, argument, plain, call in python_calls():
+        for form, (make, error, _) in REFUSED.items():
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                with pytest.raises(error) as raised:
+                    call(make(plain))
+            assert str(raised.value).startswith(argument), (name, form, raised.value)
+
+
+def test_an_agent_network_keeps_its_own_ground_contacts():
+    from legkit.agents import AgentNetwork, GroundContact
+    from legkit.robots import random_tree
+
+    tree = random_tree(4, seed=1)
+    point, direction = np.zeros(3), np.array([1.0, 0.0, 0.0])
+    contact = GroundContact(0, 0, np.eye(3), np.zeros(3), point, direction)
+    network = AgentNetwork(tree, ground=[contact])
+    point[...] = 5.0
+    direction[...] = 0.0
+    assert not network.ground[0].line_point.any() and network.ground[0].line_direction[0] == 1.0
+    for field, value, error in (("line_point", [0.0, 0.0j, 0.0], TypeError), ("translation", [0.0, 0.0], ValueError),
+                                ("rotation", np.full((3, 3), np.nan), ValueError)):
+        bad = GroundContact(**{**vars(contact), field: value})
+        with pytest.raises(error, match=rf"^ground\[0\]\.{field}"):
+            AgentNetwork(tree, ground=[bad])
