@@ -23,6 +23,7 @@ import pytest
 import legkit as lk
 from legkit import _core
 from legkit.robots import build_quadruped
+from test_hostile import GIB, raises
 
 
 @pytest.fixture(scope="module")
@@ -328,3 +329,53 @@ def test_an_agent_network_keeps_its_own_ground_contacts():
         bad = GroundContact(**{**vars(contact), field: value})
         with pytest.raises(error, match=rf"^ground\[0\]\.{field}"):
             AgentNetwork(tree, ground=[bad])
+
+
+# --- Sweeps and callbacks: bounded before anything is spelled out, started or run (child processes) ---------
+
+SWEEP = "from legkit.sweeps import SweepSpec, run_sweep\nspec = SweepSpec(trees=1, schemes=['constant'], duration=0.02, modules=3, branches=1)\n"
+
+
+@pytest.mark.parametrize(
+    ("call", "expected", "words"),
+    [
+        ("SweepSpec(trees=10**12)", "ValueError", "trees: must be in 1..1000000"),
+        ("SweepSpec(seeds=2**70)", "ValueError", "seeds: must be in 1..1000000"),
+        ("SweepSpec(trees=list(range(10**7)))", "ValueError", "trees: at most 1000000 values"),
+        ("SweepSpec(kp0=np.arange(1000.0), ki0=np.arange(1000.0), kd0=np.arange(1000.0))", "ValueError", "spec: the grid has 12000000000 runs"),
+        ("SweepSpec(modules=10**9)", "ValueError", "modules: must be in 1..10000"),
+        ("SweepSpec(delay=[2**64])", "ValueError", "delay: must be in 1..1000000"),
+        ("SweepSpec(duration=1e300, dt=1e-300)", "ValueError", "duration: at most"),
+        ("run_sweep(spec, out, workers=10**9, progress=False)", "ValueError", "workers: must be an int in 1..1024"),
+        ("run_sweep(spec, out, workers=1, threads=10**9, progress=False)", "ValueError", "threads: must be an int in 1..1024"),
+        ("run_sweep(spec, out, workers=1, log=5, progress=False)", "TypeError", "log: must be a callable"),
+        ("run_sweep(spec, out, ray=5, progress=False)", "TypeError", "ray: must be an address"),
+        ("run_sweep(spec, '/dev/null/sweep', workers=1, progress=False, figures=False)", "ValueError", "out: cannot create"),
+    ],
+)
+def test_hostile_sweeps_are_refused_by_name_at_once(call, expected, words, tmp_path):
+    raises(SWEEP + f"out = {str(tmp_path / 'sweep')!r}\n" + call, expected, words, timeout=60, memory=4 * GIB)
+
+
+def test_a_gait_analysis_refuses_a_progress_that_cannot_be_called():
+    from legkit.gaits import analyse
+
+    with pytest.raises(TypeError, match="^progress: must be a callable"):
+        analyse("robot", lk.Model(), None, None, 1.0, 0.5, progress=5)  # type: ignore[arg-type]
+
+
+def test_a_bool_is_not_taken_for_a_number(quadruped):
+    q = quadruped.neutral()
+    calls = {
+        "dt": lambda: lk.Simulation(quadruped, dt=True),
+        "n": lambda: lk.Simulation(quadruped).step(None, True),
+        "mass": lambda: lk.MassProperties.point(True, [0, 0, 0]),
+        "friction": lambda: lk.Ground.plane(friction=False),
+        "steps": lambda: lk.free_rollout(quadruped, q, np.zeros(quadruped.nv), dt=1e-3, steps=True),
+        "dim": lambda: lk.impact(quadruped, q, np.zeros(quadruped.nv), [(1, [0, 0, 0])], dim=True),
+        "body": lambda: lk.jacobian(quadruped, q, True),
+    }
+    for argument, call in calls.items():
+        with pytest.raises(TypeError, match=f"^{argument}: expected an? (number|integer|index)"):
+            call()
+    assert lk.Simulation(quadruped, dt=np.float32(0.5)).dt == 0.5 and lk.jacobian(quadruped, q, np.int8(1)).shape == (6, quadruped.nv)

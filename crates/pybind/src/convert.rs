@@ -9,7 +9,7 @@ use numpy::{Element, PyArrayDescrMethods, PY_ARRAY_API};
 use numpy::{PyArray, PyArrayDyn, PyArrayMethods, PyUntypedArray};
 use pyo3::exceptions::{PyMemoryError, PyOverflowError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyString, PyTuple};
+use pyo3::types::{PyBool, PyString, PyTuple};
 use smallvec::SmallVec;
 use std::ffi::c_int;
 
@@ -159,6 +159,10 @@ impl<'a, 'py> FromPyObject<'a, 'py> for Integer {
     type Error = PyErr;
 
     fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        // pyo3 reads True as 1; the Python layers refuse a bool for a count, and so do the bindings.
+        if obj.is_instance_of::<PyBool>() {
+            return Ok(Integer(Err("bool".into())));
+        }
         // i64 first: its conversion is the fast one, and nearly every count fits.
         if let Ok(n) = obj.extract::<i64>() {
             return Ok(Integer(Ok(n.into())));
