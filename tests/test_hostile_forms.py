@@ -378,4 +378,22 @@ def test_a_bool_is_not_taken_for_a_number(quadruped):
     for argument, call in calls.items():
         with pytest.raises(TypeError, match=f"^{argument}: expected an? (number|integer|index)"):
             call()
+    with pytest.raises(TypeError, match="^shapes: sphere parameters must be numbers"):
+        lk.Simulation(quadruped, shapes={1: ("sphere", True)})
+    with pytest.raises(TypeError, match="^limits: upper must be a number"):
+        lk.Model().add_revolute(0, [0, 0, 1], limits={"upper": True})
     assert lk.Simulation(quadruped, dt=np.float32(0.5)).dt == 0.5 and lk.jacobian(quadruped, q, np.int8(1)).shape == (6, quadruped.nv)
+
+
+def test_the_strain_experiment_checks_its_walking_source(tmp_path):
+    from legkit.experiments import strain as experiment
+
+    for source, words in ((5, "source: must be a WalkingSource"), (lambda speed, duration, seed: None, "source: returned NoneType")):
+        with pytest.raises(TypeError, match=words):
+            experiment.run(tmp_path, source=source, runs=1, duration=0.5)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="^runs must be an integer"):
+        experiment.run(tmp_path, runs=2.5)  # type: ignore[arg-type]
+
+
+def test_a_walking_record_too_long_to_hold_is_refused_before_allocating():
+    raises("from legkit.strain import kinematic_walk\nkinematic_walk(0.2, 1e5)", "ValueError", "duration: 100000.0 s at 300.0 Hz")

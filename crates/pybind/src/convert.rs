@@ -195,6 +195,15 @@ impl Integer {
     }
 }
 
+/// A number inside a container argument (a shape's size, a limit), as the argument wrappers read one: None for a bool
+/// or anything pyo3 cannot read as an f64.
+pub fn number(value: &Bound<'_, PyAny>) -> Option<f64> {
+    if value.is_instance_of::<PyBool>() {
+        return None;
+    }
+    value.extract().ok()
+}
+
 /// A saturated integer as a message shows it.
 pub fn shown(n: i128) -> String {
     match n {

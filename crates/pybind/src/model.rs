@@ -12,7 +12,7 @@ use pyo3::exceptions::{PyFileNotFoundError, PyIndexError, PyTypeError, PyUserWar
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 
-use crate::convert::{homogeneous, kernel_error, shown, source_text, to_numpy, transform, vector3, vector_to_numpy, Floats, Integer, Vector};
+use crate::convert::{homogeneous, kernel_error, number, shown, source_text, to_numpy, transform, vector3, vector_to_numpy, Floats, Integer, Vector};
 use crate::interrupt::on_worker;
 use crate::mass::PyMassProperties;
 use crate::shapes::{colliders, shape_overrides};
@@ -142,7 +142,7 @@ fn joint_limits(value: Option<&Bound<'_, PyAny>>) -> PyResult<JointLimits> {
                 "velocity" => &mut limits.velocity,
                 other => return Err(PyValueError::new_err(format!("limits: unknown key {other:?} (expected lower, upper, effort, velocity)"))),
             };
-            *slot = item.extract().map_err(|_| PyTypeError::new_err(format!("limits: {key} must be a number")))?;
+            *slot = number(&item).ok_or_else(|| PyTypeError::new_err(format!("limits: {key} must be a number")))?;
         }
         limits
     } else {

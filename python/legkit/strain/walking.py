@@ -141,12 +141,19 @@ class ClockGait:
         return np.mod(theta + np.pi, 2 * np.pi) - np.pi, stance
 
 
+#: The most samples a walking record holds, checked before allocating: 1.85 h at the sensor's 300 Hz (the CLI's longest
+#: run is 1 h), about 1 GB of per-leg arrays.
+MAX_SAMPLES = 2 * 10**6
+
+
 def record_samples(duration: float, rate: float) -> int:
     """Samples in a record of ``duration`` s at ``rate`` Hz: ValueError unless the duration is finite, > 0 and
-    holds at least one sample."""
-    samples = int(round(positive_scalar(duration, "duration") * rate))
+    holds at least one sample and at most ``MAX_SAMPLES``."""
+    samples = round(positive_scalar(duration, "duration") * rate)
     if samples < 1:
         raise ValueError(f"duration {duration} s is shorter than one sample at {rate} Hz")
+    if samples > MAX_SAMPLES:
+        raise ValueError(f"duration: {duration} s at {rate} Hz is {samples:.3g} samples, more than {MAX_SAMPLES:.0e}")
     return samples
 
 
