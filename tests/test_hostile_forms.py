@@ -364,7 +364,7 @@ def test_a_gait_analysis_refuses_a_progress_that_cannot_be_called():
         analyse("robot", lk.Model(), None, None, 1.0, 0.5, progress=5)  # type: ignore[arg-type]
 
 
-def test_a_bool_is_not_taken_for_a_number(quadruped):
+def test_a_bool_or_a_complex_scalar_is_not_taken_for_a_number(quadruped):
     q = quadruped.neutral()
     calls = {
         "dt": lambda: lk.Simulation(quadruped, dt=True),
@@ -376,8 +376,13 @@ def test_a_bool_is_not_taken_for_a_number(quadruped):
         "body": lambda: lk.jacobian(quadruped, q, True),
     }
     for argument, call in calls.items():
-        with pytest.raises(TypeError, match=f"^{argument}: expected an? (number|integer|index)"):
+        with pytest.raises(TypeError, match=f"^{argument}: expected an? (real number|integer|index)"):
             call()
+    for complex_scalar in (np.complex128(0.01), np.complex64(0.01), np.array(0.01 + 0j)):  # NumPy would warn and drop .imag
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            with pytest.raises(TypeError, match="^dt: expected a real number, got a complex number"):
+                lk.Simulation(quadruped, dt=complex_scalar)
     with pytest.raises(TypeError, match="^shapes: sphere parameters must be numbers"):
         lk.Simulation(quadruped, shapes={1: ("sphere", True)})
     with pytest.raises(TypeError, match="^limits: upper must be a number"):

@@ -3,7 +3,7 @@
 //! fails to convert raises an error whose message starts with the argument's name, "dt: must be real number,
 //! not str". pyo3 names it only in a note ("while processing 'dt'"), which `str(e)` leaves out and Python 3.10,
 //! the oldest the wheel supports, does not print. A bool given for a number is a TypeError too, as in the Python
-//! layers: pyo3 reads `dt=True` as 1.0.
+//! layers: pyo3 reads `dt=True` as 1.0; so is a complex NumPy scalar, whose real part pyo3 would take.
 
 pub use pyo3::*;
 
@@ -18,7 +18,6 @@ pub mod impl_ {
         use pyo3::exceptions::{PyOverflowError, PyTypeError, PyValueError};
         use pyo3::impl_::extract_argument as upstream;
         use pyo3::prelude::*;
-        use pyo3::types::PyBool;
 
         /// `error` with `name` prefixed to its message, unless the message already names it (the
         /// hand-written extractors do). Only TypeError, ValueError and OverflowError, whose message is their
@@ -47,13 +46,15 @@ pub mod impl_ {
         where
             T: PyFunctionArgument<'a, 'holder, 'py, F>,
         {
-            if obj.is_instance_of::<PyBool>() && is_number::<T>() {
-                return Err(PyTypeError::new_err(format!("{arg_name}: expected a number, got bool")));
+            if is_number::<T>() {
+                if let Some(kind) = crate::convert::not_real(&obj) {
+                    return Err(PyTypeError::new_err(format!("{arg_name}: expected a real number, got {kind}")));
+                }
             }
             T::extract(obj, holder).map_err(|e| named(obj.py(), arg_name, e.into()))
         }
 
-        /// Whether `T` is a number type (or an optional one), which pyo3 would fill from a bool.
+        /// Whether `T` is a number type (or an optional one), which pyo3 would fill from a bool or a complex NumPy scalar.
         fn is_number<T>() -> bool {
             let name = std::any::type_name::<T>();
             let name = name.strip_prefix("core::option::Option<").and_then(|n| n.strip_suffix('>')).unwrap_or(name);

@@ -6,10 +6,10 @@ use nalgebra::{Matrix3, Vector3};
 use numpy::ndarray::{Array, ArrayViewD, Dimension, IntoDimension};
 use numpy::npyffi::{self, npy_intp};
 use numpy::{Element, PyArrayDescrMethods, PY_ARRAY_API};
-use numpy::{PyArray, PyArrayDyn, PyArrayMethods, PyUntypedArray};
+use numpy::{PyArray, PyArrayDyn, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyOverflowError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyString, PyTuple};
+use pyo3::types::{PyBool, PyComplex, PyFloat, PyInt, PyString, PyTuple};
 use smallvec::SmallVec;
 use std::ffi::c_int;
 
@@ -44,8 +44,7 @@ impl<'a, 'py> FromPyObject<'a, 'py> for Floats<'py> {
         if let (true, Ok(array)) = (exact, &float64) {
             return Ok(Floats(Ok((*array).to_owned())));
         }
-        let numpy = py.import("numpy")?;
-        if !exact && obj.cast::<PyUntypedArray>().is_ok() && numpy.getattr("ma")?.call_method1("is_masked", (obj,))?.is_truthy()? {
+        if !exact && obj.cast::<PyUntypedArray>().is_ok() && py.import("numpy.ma")?.call_method1("is_masked", (obj,))?.is_truthy()? {
             return Ok(Floats(Err(Refused::Value("a masked array with masked entries (fill them first: a.filled(value))".into()))));
         }
         if let Ok(array) = float64 {
@@ -55,15 +54,25 @@ impl<'a, 'py> FromPyObject<'a, 'py> for Floats<'py> {
             true => Refused::Value("a number beyond float64's range".into()),
             false => Refused::Type(format!("expected an array of numbers ({e})")),
         };
-        let array = match numpy.call_method1("asarray", (obj,)) {
+        // SAFETY: `numpy.asarray(obj)` through NumPy's C API (no dtype asked: NumPy's own choice), which returns a new
+        // array or null with a Python error set.
+        let array = unsafe {
+            let pointer = PY_ARRAY_API.PyArray_FromAny(py, obj.as_ptr(), std::ptr::null_mut(), 0, 0, 0, std::ptr::null_mut());
+            Bound::from_owned_ptr_or_err(py, pointer)
+        };
+        let array = match array.and_then(|a| Ok(a.cast_into::<PyUntypedArray>()?)) {
             Ok(array) => array,
             Err(e) => return Ok(Floats(Err(refused(e)))),
         };
-        let dtype = array.getattr("dtype")?;
-        if !matches!(dtype.getattr("kind")?.extract::<char>()?, 'b' | 'i' | 'u' | 'f' | 'O') {
+        if let Ok(array) = array.cast::<PyArrayDyn<f64>>() {
+            return Ok(Floats(Ok(array.to_owned())));
+        }
+        let dtype = array.dtype();
+        if !matches!(dtype.kind(), b'b' | b'i' | b'u' | b'f' | b'O') {
             return Ok(Floats(Err(Refused::Type(format!("expected real numbers, got an array of {}", dtype.str()?)))));
         }
-        Ok(Floats(numpy.call_method1("asarray", (array, "float64")).and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?)).map_err(refused)))
+        let converted = py.import("numpy")?.call_method1("asarray", (array, "float64"));
+        Ok(Floats(converted.and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?)).map_err(refused)))
     }
 }
 
@@ -195,13 +204,23 @@ impl Integer {
     }
 }
 
-/// A number inside a container argument (a shape's size, a limit), as the argument wrappers read one: None for a bool
-/// or anything pyo3 cannot read as an f64.
-pub fn number(value: &Bound<'_, PyAny>) -> Option<f64> {
-    if value.is_instance_of::<PyBool>() {
+/// Why `value`, given for a real number, is not one though pyo3 would read it as one: a bool (True as 1.0) or a
+/// complex NumPy scalar (its real part, with only a warning). Plain floats and ints are checked first, at no cost.
+pub fn not_real(value: &Bound<'_, PyAny>) -> Option<&'static str> {
+    if value.is_exact_instance_of::<PyFloat>() || value.is_exact_instance_of::<PyInt>() {
         return None;
     }
-    value.extract().ok()
+    if value.is_instance_of::<PyBool>() {
+        return Some("bool");
+    }
+    let kind = value.getattr("dtype").and_then(|d| d.getattr("kind")).and_then(|k| k.extract::<char>());
+    (value.is_instance_of::<PyComplex>() || kind.is_ok_and(|k| k == 'c')).then_some("a complex number")
+}
+
+/// A number inside a container argument (a shape's size, a limit), as the argument wrappers read one: None for
+/// anything `not_real` or that pyo3 cannot read as an f64.
+pub fn number(value: &Bound<'_, PyAny>) -> Option<f64> {
+    not_real(value).map_or_else(|| value.extract().ok(), |_| None)
 }
 
 /// A saturated integer as a message shows it.
