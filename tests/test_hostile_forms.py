@@ -402,3 +402,10 @@ def test_the_strain_experiment_checks_its_walking_source(tmp_path):
 
 def test_a_walking_record_too_long_to_hold_is_refused_before_allocating():
     raises("from legkit.strain import kinematic_walk\nkinematic_walk(0.2, 1e5)", "ValueError", "duration: 100000.0 s at 300.0 Hz")
+
+
+def test_masked_group_ids_are_refused():
+    from legkit.strain import average_by_group
+
+    with pytest.raises(ValueError, match="^groups is a masked array"):
+        average_by_group(np.ma.masked_array([0, 1, 0], mask=[0, 1, 0]), [1.0, 2.0, 3.0])

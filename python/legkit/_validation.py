@@ -45,13 +45,18 @@ def positive_scalar(value: object, name: str, *, allow_zero: bool = False) -> fl
     return number
 
 
+def unmasked(value: object, name: str) -> None:
+    """ValueError if `value` is a masked array with masked entries, whose hidden values NumPy would read."""
+    if np.ma.is_masked(value):
+        raise ValueError(f"{name} is a masked array with masked entries (fill them first: a.filled(value))")
+
+
 def real_numbers(value: object, name: str) -> np.ndarray:
     """`value` as a float64 array, where NumPy reads it as real numbers (any real dtype, byte order, layout or
     sequence: the same numbers as a plain float64 array); TypeError where NumPy would make numbers of what is not
     (complex, dropping the imaginary part with only a warning; strings; dates; records), ValueError for a masked array
     with masked entries (NumPy reads the hidden values) and for an int beyond float64's range. NaN and inf pass."""
-    if np.ma.is_masked(value):
-        raise ValueError(f"{name} is a masked array with masked entries (fill them first: a.filled(value))")
+    unmasked(value, name)
     try:
         array = np.asarray(value)
         if array.dtype.kind not in "biufO":
