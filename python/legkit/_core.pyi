@@ -388,7 +388,9 @@ class Simulation:
     @property
     def friction_law(self) -> Literal["cone", "coulomb"]: ...
     @property
-    def model(self) -> Model: ...
+    def model(self) -> Model:
+        """The Model simulated: a copy of the one it was built from, as it was then; changing it is a ValueError, and
+        changing the Model it was built from changes neither the simulation nor this."""
     @property
     def backend(self) -> Literal["tree", "rapier"]: ...
     @property

@@ -69,6 +69,31 @@ def positive_scalar(value: object, name: str, *, allow_zero: bool = False) -> fl
     return number
 
 
+def unmasked(value: object, name: str) -> None:
+    """ValueError if `value` is a masked array with masked entries, whose hidden values NumPy would read."""
+    if np.ma.is_masked(value):
+        raise ValueError(f"{name} is a masked array with masked entries (fill them first: a.filled(value))")
+
+
+def real_numbers(value: object, name: str) -> np.ndarray:
+    """`value` as a float64 array, where NumPy reads it as real numbers (any real dtype, byte order, layout or
+    sequence: the same numbers as a plain float64 array); TypeError where NumPy would make numbers of what is not
+    (complex, dropping the imaginary part with only a warning; strings; dates; records), ValueError for a masked array
+    with masked entries (NumPy reads the hidden values) and for an int beyond float64's range. NaN and inf pass."""
+    unmasked(value, name)
+    try:
+        array = np.asarray(value)
+        if array.dtype.kind not in "biufO":
+            raise TypeError(f"{name} must be an array of numbers, got an array of {array.dtype}: only real numbers are taken")
+        return np.asarray(array, dtype=np.float64)
+    except OverflowError as error:
+        raise ValueError(f"{name} holds a number beyond float64's range") from error
+    except (TypeError, ValueError) as error:
+        if str(error).startswith(name):
+            raise
+        raise TypeError(f"{name} must be an array of real numbers, got {type(value).__name__}") from error
+
+
 def float_array(
     value: object, name: str, *, shape: tuple[int, ...] | None = None, last: int | None = None, min_ndim: int = 0,
     bound: float | None = None,
@@ -76,10 +101,7 @@ def float_array(
     """`value` as a finite float64 array: TypeError if it is not numeric, ValueError on a wrong shape
     (other than `shape`, fewer than `min_ndim` dimensions, or a last dimension other than `last`), on NaN/inf, or
     on an entry beyond +-`bound` (where squares and products of the values would overflow to NaN)."""
-    try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as error:
-        raise TypeError(f"{name} must be an array of real numbers, got {type(value).__name__}") from error
+    array = real_numbers(value, name)
     if shape is not None and array.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got shape {array.shape}")
     if array.ndim < min_ndim:

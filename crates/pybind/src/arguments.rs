@@ -2,7 +2,8 @@
 //! `#[pyo3(crate = "crate::arguments")]` on each `#[pymethods]`): pyo3 itself, except that an argument that
 //! fails to convert raises an error whose message starts with the argument's name, "dt: must be real number,
 //! not str". pyo3 names it only in a note ("while processing 'dt'"), which `str(e)` leaves out and Python 3.10,
-//! the oldest the wheel supports, does not print.
+//! the oldest the wheel supports, does not print. A bool given for a number is a TypeError too, as in the Python
+//! layers: pyo3 reads `dt=True` as 1.0; so is a complex NumPy scalar, whose real part pyo3 would take.
 
 pub use pyo3::*;
 
@@ -45,7 +46,19 @@ pub mod impl_ {
         where
             T: PyFunctionArgument<'a, 'holder, 'py, F>,
         {
+            if is_number::<T>() {
+                if let Some(kind) = crate::convert::not_real(&obj) {
+                    return Err(PyTypeError::new_err(format!("{arg_name}: expected a real number, got {kind}")));
+                }
+            }
             T::extract(obj, holder).map_err(|e| named(obj.py(), arg_name, e.into()))
+        }
+
+        /// Whether `T` is a number type (or an optional one), which pyo3 would fill from a bool or a complex NumPy scalar.
+        fn is_number<T>() -> bool {
+            let name = std::any::type_name::<T>();
+            let name = name.strip_prefix("core::option::Option<").and_then(|n| n.strip_suffix('>')).unwrap_or(name);
+            matches!(name, "f64" | "f32" | "usize" | "u64" | "u32" | "i64" | "i32")
         }
 
         pub fn extract_required_argument<'a, 'holder, 'py, T, const F: bool>(

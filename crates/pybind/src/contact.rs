@@ -63,7 +63,7 @@ where
 /// frames at them (`dim=6`). Returns (ddq (..., nv), forces (..., k, dim)), the forces (with dim 6, wrenches [force;
 /// torque about the point]) on the robot at the contacts in world axes; dependent contacts get the minimum-norm forces.
 #[pyfunction(crate = "crate::arguments")]
-#[pyo3(signature = (model, q, v, tau, contacts, dim = Integer::new(3)))]
+#[pyo3(signature = (model, q, v, tau, contacts, dim = Integer::new(3)), text_signature = "(model, q, v, tau, contacts, dim=3)")]
 pub fn contact_dynamics<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -89,7 +89,7 @@ pub fn contact_dynamics<'py>(
 /// Perfectly inelastic impact at the contacts (`dim` as `contact_dynamics`): returns (v_plus (..., nv), impulses
 /// (..., k, dim)).
 #[pyfunction(crate = "crate::arguments")]
-#[pyo3(signature = (model, q, v, contacts, dim = Integer::new(3)))]
+#[pyo3(signature = (model, q, v, contacts, dim = Integer::new(3)), text_signature = "(model, q, v, contacts, dim=3)")]
 pub fn impact<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -112,7 +112,7 @@ pub fn impact<'py>(
 /// J q̈ + J̇ q̇ per point, `(..., k, 3)`; with `dim=6`, the frame's spatial acceleration [linear; angular] at the point,
 /// world axes, `(..., k, 6)`. Zero for the contacts `contact_dynamics` holds, at its q̈.
 #[pyfunction(crate = "crate::arguments")]
-#[pyo3(signature = (model, q, v, a, contacts, dim = Integer::new(3)))]
+#[pyo3(signature = (model, q, v, a, contacts, dim = Integer::new(3)), text_signature = "(model, q, v, a, contacts, dim=3)")]
 pub fn point_accelerations<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -225,7 +225,7 @@ fn matrix_views<'py>(out: &FloatArray<'py>, count: usize, nv: usize, (k, d): (us
 /// `LOCAL_WORLD_ALIGNED`). The contacts must be independent (a ValueError otherwise: their forces, and so the
 /// derivatives, would not be unique).
 #[pyfunction(crate = "crate::arguments")]
-#[pyo3(signature = (model, q, v, tau, contacts, dim = Integer::new(3)))]
+#[pyo3(signature = (model, q, v, tau, contacts, dim = Integer::new(3)), text_signature = "(model, q, v, tau, contacts, dim=3)")]
 pub fn contact_dynamics_derivatives<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,
@@ -256,7 +256,7 @@ pub fn contact_dynamics_derivatives<'py>(
 /// v_plus_dv) each `(..., nv, nv)` and (impulses_dq, impulses_dv) each `(..., k, dim, nv)` (Pinocchio's
 /// `computeImpulseDynamicsDerivatives` with no restitution). The contacts must be independent.
 #[pyfunction(crate = "crate::arguments")]
-#[pyo3(signature = (model, q, v, contacts, dim = Integer::new(3)))]
+#[pyo3(signature = (model, q, v, contacts, dim = Integer::new(3)), text_signature = "(model, q, v, contacts, dim=3)")]
 pub fn impact_derivatives<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyModel>,

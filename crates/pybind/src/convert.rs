@@ -6,41 +6,82 @@ use nalgebra::{Matrix3, Vector3};
 use numpy::ndarray::{Array, ArrayViewD, Dimension, IntoDimension};
 use numpy::npyffi::{self, npy_intp};
 use numpy::{Element, PyArrayDescrMethods, PY_ARRAY_API};
-use numpy::{PyArray, PyArrayDyn, PyArrayMethods};
+use numpy::{PyArray, PyArrayDyn, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyOverflowError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyString, PyTuple};
+use pyo3::types::{PyBool, PyComplex, PyFloat, PyInt, PyString, PyTuple};
 use smallvec::SmallVec;
 use std::ffi::c_int;
 
 /// A NumPy float64 array returned to Python.
 pub type FloatArray<'py> = Bound<'py, PyArrayDyn<f64>>;
 
-/// A float64 array argument: anything NumPy converts (float64 arrays are used in place, anything else goes
-/// through `numpy.asarray`). Extraction never fails; `get` raises a failed conversion as a TypeError
-/// naming the argument.
+/// A float64 array argument: anything NumPy converts to real numbers (float64 arrays, strided or not, are used in
+/// place; anything else goes through `numpy.asarray`). Extraction never fails; `get` raises an argument that is not
+/// real numbers as a TypeError naming it, where NumPy would turn it into numbers: complex ones (the imaginary part
+/// dropped with only a warning), strings ("1.5"), dates and records. A masked array with masked entries, whose
+/// hidden values NumPy would read, and a Python int beyond float64's range are ValueErrors.
 ///
 /// Arrays are read only while the GIL is held (and copied where a kernel then releases it), so another
 /// Python thread cannot write them meanwhile; rust-numpy's borrow tracking, which guards Rust borrows
 /// only, is not needed.
-pub struct Floats<'py>(Result<FloatArray<'py>, String>);
+pub struct Floats<'py>(Result<FloatArray<'py>, Refused>);
+
+/// Why an argument is not an array of real numbers, by the class of the error it raises.
+enum Refused {
+    Type(String),
+    Value(String),
+}
 
 impl<'a, 'py> FromPyObject<'a, 'py> for Floats<'py> {
     type Error = PyErr;
 
     fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
-        if let Ok(array) = obj.cast::<PyArrayDyn<f64>>() {
+        let py = obj.py();
+        // SAFETY: a type check of a live object.
+        let exact = unsafe { npyffi::PyArray_CheckExact(py, obj.as_ptr()) } != 0;
+        let float64 = obj.cast::<PyArrayDyn<f64>>();
+        if let (true, Ok(array)) = (exact, &float64) {
+            return Ok(Floats(Ok((*array).to_owned())));
+        }
+        if !exact && obj.cast::<PyUntypedArray>().is_ok() && py.import("numpy.ma")?.call_method1("is_masked", (obj,))?.is_truthy()? {
+            return Ok(Floats(Err(Refused::Value("a masked array with masked entries (fill them first: a.filled(value))".into()))));
+        }
+        if let Ok(array) = float64 {
             return Ok(Floats(Ok(array.to_owned())));
         }
-        let converted =
-            numpy::get_array_module(obj.py())?.call_method1("asarray", (obj, "float64")).and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?));
-        Ok(Floats(converted.map_err(|e| e.to_string())))
+        let refused = |e: PyErr| match e.is_instance_of::<PyOverflowError>(py) {
+            true => Refused::Value("a number beyond float64's range".into()),
+            false => Refused::Type(format!("expected an array of numbers ({e})")),
+        };
+        // SAFETY: `numpy.asarray(obj)` through NumPy's C API (no dtype asked: NumPy's own choice), which returns a new
+        // array or null with a Python error set.
+        let array = unsafe {
+            let pointer = PY_ARRAY_API.PyArray_FromAny(py, obj.as_ptr(), std::ptr::null_mut(), 0, 0, 0, std::ptr::null_mut());
+            Bound::from_owned_ptr_or_err(py, pointer)
+        };
+        let array = match array.and_then(|a| Ok(a.cast_into::<PyUntypedArray>()?)) {
+            Ok(array) => array,
+            Err(e) => return Ok(Floats(Err(refused(e)))),
+        };
+        if let Ok(array) = array.cast::<PyArrayDyn<f64>>() {
+            return Ok(Floats(Ok(array.to_owned())));
+        }
+        let dtype = array.dtype();
+        if !matches!(dtype.kind(), b'b' | b'i' | b'u' | b'f' | b'O') {
+            return Ok(Floats(Err(Refused::Type(format!("expected real numbers, got an array of {}", dtype.str()?)))));
+        }
+        let converted = py.import("numpy")?.call_method1("asarray", (array, "float64"));
+        Ok(Floats(converted.and_then(|a| Ok(a.cast_into::<PyArrayDyn<f64>>()?)).map_err(refused)))
     }
 }
 
 impl<'py> Floats<'py> {
     pub fn array(&self, argument: &str) -> PyResult<&FloatArray<'py>> {
-        self.0.as_ref().map_err(|e| PyTypeError::new_err(format!("{argument}: expected an array of numbers ({e})")))
+        self.0.as_ref().map_err(|refused| match refused {
+            Refused::Type(why) => PyTypeError::new_err(format!("{argument}: {why}")),
+            Refused::Value(why) => PyValueError::new_err(format!("{argument}: {why}")),
+        })
     }
 
     pub fn get(&self, argument: &str) -> PyResult<ArrayViewD<'_, f64>> {
@@ -127,6 +168,10 @@ impl<'a, 'py> FromPyObject<'a, 'py> for Integer {
     type Error = PyErr;
 
     fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        // pyo3 reads True as 1; the Python layers refuse a bool for a count, and so do the bindings.
+        if obj.is_instance_of::<PyBool>() {
+            return Ok(Integer(Err("bool".into())));
+        }
         // i64 first: its conversion is the fast one, and nearly every count fits.
         if let Ok(n) = obj.extract::<i64>() {
             return Ok(Integer(Ok(n.into())));
@@ -157,6 +202,25 @@ impl Integer {
         }
         Ok(n as u64)
     }
+}
+
+/// Why `value`, given for a real number, is not one though pyo3 would read it as one: a bool (True as 1.0) or a
+/// complex NumPy scalar (its real part, with only a warning). Plain floats and ints are checked first, at no cost.
+pub fn not_real(value: &Bound<'_, PyAny>) -> Option<&'static str> {
+    if value.is_exact_instance_of::<PyFloat>() || value.is_exact_instance_of::<PyInt>() {
+        return None;
+    }
+    if value.is_instance_of::<PyBool>() {
+        return Some("bool");
+    }
+    let kind = value.getattr("dtype").and_then(|d| d.getattr("kind")).and_then(|k| k.extract::<char>());
+    (value.is_instance_of::<PyComplex>() || kind.is_ok_and(|k| k == 'c')).then_some("a complex number")
+}
+
+/// A number inside a container argument (a shape's size, a limit), as the argument wrappers read one: None for
+/// anything `not_real` or that pyo3 cannot read as an f64.
+pub fn number(value: &Bound<'_, PyAny>) -> Option<f64> {
+    not_real(value).map_or_else(|| value.extract().ok(), |_| None)
 }
 
 /// A saturated integer as a message shows it.

@@ -12,7 +12,7 @@ use pyo3::exceptions::{PyFileNotFoundError, PyIndexError, PyTypeError, PyUserWar
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
 
-use crate::convert::{homogeneous, kernel_error, shown, source_text, to_numpy, transform, vector3, vector_to_numpy, Floats, Integer, Vector};
+use crate::convert::{homogeneous, kernel_error, number, shown, source_text, to_numpy, transform, vector3, vector_to_numpy, Floats, Integer, Vector};
 use crate::interrupt::on_worker;
 use crate::mass::PyMassProperties;
 use crate::shapes::{colliders, shape_overrides};
@@ -38,11 +38,27 @@ pyo3::create_exception!(
 pub struct PyModel {
     pub model: Model,
     workspace: Mutex<Option<Box<Data>>>,
+    /// A Simulation's own copy (`Simulation.model`): it describes what is simulated, so it does not change.
+    frozen: bool,
 }
 
 impl PyModel {
     pub fn wrap(model: Model) -> Self {
-        Self { model, workspace: Mutex::new(None) }
+        Self { model, workspace: Mutex::new(None), frozen: false }
+    }
+
+    pub fn frozen(model: Model) -> Self {
+        Self { frozen: true, ..Self::wrap(model) }
+    }
+
+    /// The model to change, or a ValueError if it is a Simulation's.
+    fn changed(&mut self) -> PyResult<&mut Model> {
+        if self.frozen {
+            return Err(PyValueError::new_err(
+                "model: a Simulation's model (sim.model) describes what it simulates and cannot change; change the Model it was built from and build a new Simulation",
+            ));
+        }
+        Ok(&mut self.model)
     }
 
     /// The cached workspace (or a new one if another thread holds it); hand it back with `put_back`.
@@ -71,7 +87,7 @@ impl PyModel {
         let placement = placement.map(transform).transpose()?.unwrap_or_default();
         let body = body.map_or_else(MassProperties::zero, |b| b.0);
         let name = name.unwrap_or_else(|| format!("body{}", self.model.nbodies()));
-        let index = self.model.add_body(parent, joint, placement, body, &name, limits).map_err(kernel_error)?;
+        let index = self.changed()?.add_body(parent, joint, placement, body, &name, limits).map_err(kernel_error)?;
         *self.workspace.get_mut().unwrap_or_else(|e| e.into_inner()) = None;
         Ok(index)
     }
@@ -126,7 +142,7 @@ fn joint_limits(value: Option<&Bound<'_, PyAny>>) -> PyResult<JointLimits> {
                 "velocity" => &mut limits.velocity,
                 other => return Err(PyValueError::new_err(format!("limits: unknown key {other:?} (expected lower, upper, effort, velocity)"))),
             };
-            *slot = item.extract().map_err(|_| PyTypeError::new_err(format!("limits: {key} must be a number")))?;
+            *slot = number(&item).ok_or_else(|| PyTypeError::new_err(format!("limits: {key} must be a number")))?;
         }
         limits
     } else {
@@ -332,7 +348,7 @@ impl PyModel {
     #[setter]
     fn set_armature(&mut self, value: Floats<'_>) -> PyResult<()> {
         let values = self.per_coordinate("armature", &value)?;
-        self.model.set_armature(&values).map_err(kernel_error)
+        self.changed()?.set_armature(&values).map_err(kernel_error)
     }
     /// Each velocity coordinate's viscous damping (N m s/rad or N s/m): `Simulation` applies −damping v
     /// (implicitly); the dynamics functions ignore it, as Pinocchio's. Set as `armature`. Zero by default.
@@ -343,7 +359,7 @@ impl PyModel {
     #[setter]
     fn set_damping(&mut self, value: Floats<'_>) -> PyResult<()> {
         let values = self.per_coordinate("damping", &value)?;
-        self.model.set_damping(&values).map_err(kernel_error)
+        self.changed()?.set_damping(&values).map_err(kernel_error)
     }
     #[getter]
     fn total_mass(&self) -> f64 {

@@ -8,7 +8,7 @@ use pyo3::exceptions::{PyIndexError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
-use crate::convert::{homogeneous, kernel_error, rows3, to_numpy, transform, vector3, Floats};
+use crate::convert::{homogeneous, kernel_error, number, rows3, to_numpy, transform, vector3, Floats};
 
 /// `error` with its message prefixed by `argument`, its class kept.
 fn prefixed(argument: &str, error: &PyErr, py: Python<'_>) -> PyErr {
@@ -42,7 +42,7 @@ fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
         return Err(shape_error(format!("{kind} takes {count} size parameter(s) and an optional placement, got {} values", tuple.len() - 1)));
     }
     let number = |k: usize| -> PyResult<f64> {
-        tuple.get_item(k)?.extract().map_err(|_| PyTypeError::new_err(format!("shapes: {kind} parameters must be numbers")))
+        number(&tuple.get_item(k)?).ok_or_else(|| PyTypeError::new_err(format!("shapes: {kind} parameters must be numbers")))
     };
     let shape_kind = match kind.as_str() {
         "box" => {

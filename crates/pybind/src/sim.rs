@@ -13,6 +13,7 @@ use nalgebra::{DMatrix, Vector3};
 use numpy::{PyArray1, PyArray2, PyArray3};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
 use crate::batch::on_all_threads;
@@ -130,8 +131,9 @@ impl PyGround {
 #[pyclass(name = "Simulation", module = "legkit")]
 pub struct PySimulation {
     sim: Simulation,
-    /// The Model it was built from (its description; the simulation holds its own copy).
-    model: Py<PyModel>,
+    /// `model`: the model simulated, made on first use (a frozen copy: the Model the simulation was built from may
+    /// change afterwards, and the simulation does not follow).
+    model: PyOnceLock<Py<PyModel>>,
     pace: Pace,
     /// `transition_jacobians`' pace, per substep.
     jacobian_pace: Pace,
@@ -159,11 +161,15 @@ fn vector_argument(argument: &'static str, value: &Floats<'_>, n: usize) -> PyRe
     Ok(view.iter().copied().collect())
 }
 
+// `Simulation`'s text signature shows the default solver iterations as a number.
+const _: () = assert!(DEFAULT_SOLVER_ITERATIONS == 50);
+
 #[pymethods]
 #[pyo3(crate = "crate::arguments")]
 impl PySimulation {
     #[new]
-    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, substeps = Integer::new(1), backend = "tree", solver_iterations = Integer::new(DEFAULT_SOLVER_ITERATIONS as i128), friction_law = "coulomb"))]
+    #[pyo3(signature = (model, dt = 1e-3, ground = None, shapes = None, self_collision = false, substeps = Integer::new(1), backend = "tree", solver_iterations = Integer::new(DEFAULT_SOLVER_ITERATIONS as i128), friction_law = "coulomb"),
+        text_signature = "(model, dt=0.001, ground=None, shapes=None, self_collision=False, substeps=1, backend='tree', solver_iterations=50, friction_law='coulomb')")]
     #[allow(clippy::too_many_arguments)]
     fn new(
         model: PyRef<'_, PyModel>,
@@ -185,13 +191,15 @@ impl PySimulation {
         options.friction_law = FrictionLaw::parse(friction_law).map_err(kernel_error)?;
         options.shapes = shape_overrides(shapes.as_ref(), |key| model.body_index("body", key))?;
         let sim = Simulation::new(&model.model, options).map_err(kernel_error)?;
-        Ok(PySimulation { sim, model: model.into(), pace: Pace::default(), jacobian_pace: Pace::default() })
+        Ok(PySimulation { sim, model: PyOnceLock::new(), pace: Pace::default(), jacobian_pace: Pace::default() })
     }
 
-    /// The Model simulated.
+    /// The Model simulated: a copy of the one it was built from, as it was then, that cannot change (changing
+    /// that Model afterwards changes neither the simulation nor this).
     #[getter]
     fn model(slf: &Bound<'_, Self>) -> PyResult<Py<PyModel>> {
-        Ok(reading(slf)?.model.clone_ref(slf.py()))
+        let (py, this) = (slf.py(), reading(slf)?);
+        this.model.get_or_try_init(py, || Py::new(py, PyModel::frozen(this.sim.model().clone()))).map(|m| m.clone_ref(py))
     }
 
     /// Newton iterations of the contact solver in the last (sub)step on the tree engine (it stops once
@@ -497,7 +505,7 @@ impl PySimulationBatch {
     /// (B, nv) array, or a list of B arrays (or None), one per simulation (each its own nv). Every tau is
     /// checked before anything moves. A simulation that diverges stops at its last good state and raises
     /// RuntimeError naming its index (the lowest such index); the others complete their n steps.
-    #[pyo3(signature = (tau = None, n = Integer::new(1)))]
+    #[pyo3(signature = (tau = None, n = Integer::new(1)), text_signature = "($self, tau=None, n=1)")]
     fn step(&self, py: Python<'_>, tau: Option<Bound<'_, PyAny>>, n: Integer) -> PyResult<()> {
         let n = n.within("n", 0, i64::MAX as u64)?;
         let mut guards = self.borrow_all(py)?;

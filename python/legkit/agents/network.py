@@ -46,7 +46,7 @@ results are reproducible bit for bit.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -186,10 +186,14 @@ class AgentNetwork:
                 raise TypeError(f"ground[{index}]: must be a GroundContact, got {type(contact).__name__}")
             if not 0 <= contact.module < self.n_modules or contact.block not in (0, 1):
                 raise ValueError(f"ground[{index}]: module must be in 0..{self.n_modules - 1} and block 0 or 1")
-            direction = np.asarray(contact.line_direction, dtype=float)
-            if direction.shape != (3,) or not np.linalg.norm(direction) > 0:
+            # Checked and copied: the network keeps its own, whatever the caller's arrays become.
+            fields = {
+                field: float_array(getattr(contact, field), f"ground[{index}].{field}", shape=shape, bound=1e6).copy()
+                for field, shape in (("rotation", (3, 3)), ("translation", (3,)), ("line_point", (3,)), ("line_direction", (3,)))
+            }
+            if not np.linalg.norm(fields["line_direction"]) > 0:
                 raise ValueError(f"ground[{index}]: line_direction must be a non-zero 3-vector")
-            checked.append(contact)
+            checked.append(replace(contact, **fields))
         if len({c.module for c in checked}) != len(checked):
             raise ValueError("ground: a module is listed twice")
         return checked

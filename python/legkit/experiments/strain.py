@@ -29,7 +29,7 @@ import numpy as np
 
 from legkit._extras import progress, require
 from legkit._help import HelpFormatter
-from legkit._validation import bounded_int, output_folder_argument
+from legkit._validation import bounded_int, integer, output_folder_argument, positive_scalar
 from legkit.strain.benchtop import (
     BenchtopData,
     CompliantFourBarLeg,
@@ -229,8 +229,11 @@ def run(
     source_label: str = "kinematic walking generator",
 ) -> ExperimentResult:
     """Calibrate on synthetic benchtop data, walk at ``SPEEDS`` with ``source``, write the figure to out."""
-    if runs < 1:
-        raise ValueError(f"runs must be at least 1, got {runs}")
+    if not callable(source):
+        raise TypeError(f"source: must be a WalkingSource (a callable), got {type(source).__name__}")
+    if not 1 <= integer(runs, "runs") <= 1000:
+        raise ValueError(f"runs must be in 1..1000, got {runs}")
+    positive_scalar(duration, "duration")
     leg = leg or CompliantFourBarLeg()
     strain, length, deflection = calibration_set(synthetic_benchtop(leg, seed=seed))
     order_table = format_order_table(order_selection_table(strain, length, deflection, seed=seed))
@@ -241,6 +244,8 @@ def run(
     jobs = [(speed, seed * 1000 + k) for speed in SPEEDS for k in range(runs)]
     for speed, run_seed in progress(jobs, desc="walking runs", leave=False):
         stream = source(speed, duration, run_seed)
+        if not isinstance(stream, WalkingStream):
+            raise TypeError(f"source: returned {type(stream).__name__}, not a WalkingStream")
         result, estimate = evaluate_run(stream, model, run_seed)
         results.append(result)
         if first is None:

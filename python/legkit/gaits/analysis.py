@@ -81,6 +81,8 @@ def analyse(name: str, model: lk.Model, ref: GaitReference, motor: MotorParamete
     """Every index over the reference (see the module docstring). S_H: published (its diagonal edges join the
     contact pairs `diagonal_pairs`, travel along +x) and energy variant (the contact points in the air are the
     swing tips that make support edges diagonal). progress: called after each of its three stages."""
+    if progress is not None and not callable(progress):
+        raise TypeError(f"progress: must be a callable or None, got {type(progress).__name__}")
     dyn = contact_inverse_dynamics(model, ref)
     if progress is not None:
         progress()

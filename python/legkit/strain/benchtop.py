@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from legkit._validation import float_array, is_integer, positive_scalar
+from legkit._validation import float_array, is_integer, positive_scalar, unmasked
 from legkit.robots.rhex import LEG_LENGTH
 
 
@@ -249,6 +249,7 @@ def average_by_group(groups: npt.ArrayLike, *values: npt.ArrayLike) -> tuple[np.
 
     Returns (sorted unique ids, [mean per id for each value array]).
     """
+    unmasked(groups, "groups")
     ids = np.asarray(groups)
     if ids.ndim != 1 or not np.issubdtype(ids.dtype, np.integer):
         raise ValueError(f"groups must be a 1-D integer array, got shape {ids.shape} and dtype {ids.dtype}")

@@ -24,17 +24,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from legkit._validation import float_array, integer
+from legkit._validation import float_array, integer, real_numbers
 
 MAX_ORDER = 8
 
 
 def _as_samples(name: str, values: object) -> np.ndarray:
     """A finite 1-D float64 array, or a ValueError/TypeError naming the argument."""
-    try:
-        array = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be an array of numbers: {exc}") from exc
+    array = real_numbers(values, name)
     if array.ndim != 1:
         raise ValueError(f"{name} must be one-dimensional, got shape {array.shape}")
     if array.size == 0:
@@ -310,7 +307,7 @@ def order_selection_table(
     rows = []
     for order in orders:
         model = LegModel.fit(strain, length, deflection, order)
-        length_hat, deflection_hat = model.predict(np.asarray(strain, dtype=np.float64))
+        length_hat, deflection_hat = model.predict(strain)
         cv = cross_validate(strain, length, deflection, order, folds, seed)
         rows.append(
             OrderSelectionRow(

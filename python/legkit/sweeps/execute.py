@@ -233,6 +233,8 @@ class ResultStore:
         self.out = Path(out)
         self.spec = spec
         self.parts = self.out / "parts"
+        if log is not None and not callable(log):
+            raise TypeError(f"log: must be a callable taking a line, or None, got {type(log).__name__}")
         self.allow_mixed, self.strict, self.log = allow_mixed, strict, log
         self.provenance = provenance()
         self.batches = spec.batches()
@@ -263,7 +265,10 @@ class ResultStore:
     def create(self) -> None:
         """Make the folder and write ``spec.json`` (with this build's provenance; a resume with another build
         under ``allow_mixed`` is added to its ``resumed_by``)."""
-        self.parts.mkdir(parents=True, exist_ok=True)
+        try:
+            self.parts.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise ValueError(f"out: cannot create {self.parts}: {error.strerror}") from None
         if self.stored is None:
             record: dict[str, Any] = {"spec_id": self.spec.spec_id, "spec": self.spec.to_dict(), "provenance": self.provenance}
         elif (self.stored.get("provenance") or {}).get("build") != self.provenance["build"]:
@@ -434,6 +439,10 @@ def _task(arguments: tuple[Any, dict[str, Any], list[RunParams], int | None]) ->
     return key, run_batch(spec_values, runs, threads)
 
 
+#: The most local worker processes, and physics threads per worker, a sweep starts (each is an OS process or thread).
+MAX_WORKERS = 1024
+
+
 class LocalExecutor:
     """Runs tasks on ``workers`` local processes (spawned once, kept until ``close``; they die with this
     process), each stepping its plants on ``threads`` threads (default: cores // workers); one worker
@@ -442,8 +451,8 @@ class LocalExecutor:
 
     def __init__(self, workers: int, threads: int | None = None):
         for name, value in (("workers", workers), ("threads", 1 if threads is None else threads)):
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"{name}: must be an int >= 1, got {value!r}")
+            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_WORKERS:
+                raise ValueError(f"{name}: must be an int in 1..{MAX_WORKERS}, got {value!r}")
         self.workers = workers
         self.parallelism = workers  # tasks that run at once
         self.threads = max(1, (os.cpu_count() or 1) // workers) if threads is None else threads
@@ -487,6 +496,8 @@ class RayExecutor(LocalExecutor):
     already initialised in this process, which is then used. ``parallelism`` is the cluster's CPUs."""
 
     def __init__(self, address: str | None = None):
+        if address is not None and not isinstance(address, str):
+            raise TypeError(f"ray: must be an address (a str) or None, got {type(address).__name__}")
         require("ray")
         import ray
 
@@ -497,6 +508,8 @@ class RayExecutor(LocalExecutor):
             try:
                 # address="local" starts a new instance whatever RAY_ADDRESS says (ray.init's documented meaning).
                 ray.init(address="local" if local else address, log_to_driver=False, include_dashboard=False if local else None)
+            except ValueError as error:  # an address Ray cannot use (a client address without ray[client])
+                raise ValueError(f"ray: {error}") from None
             except ConnectionError:
                 raise ValueError(
                     f"ray: no Ray cluster found at {address!r}; start one with `ray start --head` (docs/sweeps.md, On a cluster), "

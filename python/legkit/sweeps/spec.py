@@ -39,6 +39,13 @@ import numpy as np
 from legkit._validation import integer, is_integer, is_real
 from legkit.control.gains import KD0, KI0, KP0, SCHEMES, GainSchedule
 
+#: Bounds checked before anything is spelled out or run: the runs of a grid (a million runs of the default 2 s take
+#: about a core-year), the modules of a tree, a bus delay (ticks) and the steps of a run (duration / dt).
+MAX_RUNS = 10**6
+MAX_MODULES = 10_000
+MAX_DELAY = 10**6
+MAX_STEPS = 10**8
+
 #: The axes of the grid, in the order they vary (the last fastest).
 AXES = ("trees", "schemes", "c0", "c1", "kp0", "ki0", "kd0", "loss", "delay", "terrain", "friction", "noise", "seeds")
 
@@ -170,7 +177,7 @@ def _normalise(spec: SweepSpec) -> dict[str, Any]:
     """The spec's values checked and spelled out in JSON types; ValueError/TypeError naming the argument."""
     out: dict[str, Any] = {}
     out["trees"] = _ints("trees", spec.trees, count_ok=True, low=0)
-    out["modules"] = _int("modules", spec.modules, low=1)
+    out["modules"] = _int("modules", spec.modules, low=1, high=MAX_MODULES)
     out["branches"] = _int("branches", spec.branches, low=1, high=5)
     if out["branches"] > out["modules"]:
         raise ValueError(f"branches: must be <= modules ({out['modules']}), got {out['branches']}")
@@ -184,7 +191,7 @@ def _normalise(spec: SweepSpec) -> dict[str, Any]:
     for name in ("kp0", "ki0", "kd0"):
         out[name] = _floats(name, getattr(spec, name), low=0.0)
     out["loss"] = _floats("loss", spec.loss, low=0.0, below=1.0)
-    out["delay"] = _ints("delay", spec.delay, low=1)
+    out["delay"] = _ints("delay", spec.delay, low=1, high=MAX_DELAY)
     out["terrain"] = _floats("terrain", spec.terrain, low=0.0)
     out["friction"] = _floats("friction", spec.friction, low=0.0)
     out["noise"] = _floats("noise", spec.noise, low=0.0)
@@ -193,7 +200,13 @@ def _normalise(spec: SweepSpec) -> dict[str, Any]:
     out["dt"] = _float("dt", spec.dt, positive=True)
     if out["dt"] > out["duration"]:
         raise ValueError(f"dt: must be <= duration ({out['duration']}), got {out['dt']}")
+    if out["duration"] / out["dt"] > MAX_STEPS:
+        raise ValueError(f"duration: at most {MAX_STEPS:.0e} steps of dt per run, got {out['duration']} / {out['dt']}")
     out["batch_size"] = _int("batch_size", spec.batch_size, low=1)
+    runs = len(out["trees"]) * sum(len(out["c0"][s]) * len(out["c1"][s]) for s in out["schemes"]) * len(out["seeds"])
+    runs *= np.prod([len(out[axis]) for axis in ("kp0", "ki0", "kd0", "loss", "delay", "terrain", "friction", "noise")], dtype=object)
+    if runs > MAX_RUNS:
+        raise ValueError(f"spec: the grid has {runs} runs, more than {MAX_RUNS}; sweep fewer values")
     return out
 
 
@@ -202,6 +215,8 @@ def _sequence(name: str, value: Any) -> Sequence[Any] | np.ndarray:
         raise TypeError(f"{name}: must be a sequence of values, got {type(value).__name__}")
     if len(value) == 0:
         raise ValueError(f"{name}: needs at least one value")
+    if len(value) > MAX_RUNS:
+        raise ValueError(f"{name}: at most {MAX_RUNS} values, got {len(value)}")
     return value
 
 
@@ -219,10 +234,10 @@ def _int(name: str, value: Any, low: int | None = None, high: int | None = None)
     return number
 
 
-def _ints(name: str, value: Any, low: int, count_ok: bool = False) -> list[int]:
+def _ints(name: str, value: Any, low: int, count_ok: bool = False, high: int | None = None) -> list[int]:
     if count_ok and is_integer(value):
-        return list(range(_int(name, value, low=1)))
-    return _unique(name, [_int(name, v, low=low) for v in _sequence(name, value)])
+        return list(range(_int(name, value, low=1, high=MAX_RUNS)))
+    return _unique(name, [_int(name, v, low=low, high=high) for v in _sequence(name, value)])
 
 
 def _float(name: str, value: Any, positive: bool = False, low: float | None = None, below: float | None = None) -> float:
