@@ -389,19 +389,6 @@ def test_balance_entry_points_refuse_bad_counts_by_name(call, name):
         ("PID((10**10, 10**10))", "MemoryError", "shape"),  # NumPy's ValueError about the byte count
         ("quadruped_amble(build_quadruped(), 0.67, 0.4, 10**9, 1, 0.03, 0.09)", "ValueError", "samples"),  # ran out of memory
         ("quadruped_amble(build_quadruped(), 0.67, 0.4, 400, 10**6, 0.03, 0.09)", "ValueError", "cycles"),
-    ],
-)
-def test_sizes_beyond_their_bound_are_refused_by_name_before_the_work(call, error, name):
-    setup = (
-        "from legkit.control import PID\nfrom legkit.robots import random_tree\nfrom legkit.robots.quadruped import build_quadruped\n"
-        "from legkit.gaits.references import quadruped_amble\n"
-    )
-    raises(setup + call, error, name)
-
-
-@pytest.mark.parametrize(
-    ("call", "error", "name"),
-    [
         ("build_quadruped('x')", "TypeError", "parameters"),  # was an AttributeError
         ("build_biped(3)", "TypeError", "parameters"),
         ("random_tree(5, parameters='x')", "TypeError", "parameters"),
@@ -434,10 +421,10 @@ def test_sizes_beyond_their_bound_are_refused_by_name_before_the_work(call, erro
         ("m = random_tree(5, 2).to_model()[0]\npose_on_ground(lk.SimulationBatch([lk.Simulation(m)]), [m, m])", "ValueError", "models"),
     ],
 )
-def test_robot_and_control_builders_name_a_bad_argument(call, error, name):
+def test_robot_and_control_entry_points_name_a_bad_argument_or_size(call, error, name):
     setup = (
-        "from legkit.control import FreePlant, GainSchedule, RunSpec, initial_angles, pose_on_ground, run_balance\n"
-        "from legkit.robots import *\n"
+        "from legkit.control import PID, FreePlant, GainSchedule, RunSpec, initial_angles, pose_on_ground, run_balance\n"
+        "from legkit.robots import *\nfrom legkit.gaits.references import quadruped_amble\n"
     )
     raises(setup + call, error, name)
 

@@ -343,7 +343,7 @@ SWEEP = "from legkit.sweeps import SweepSpec, run_sweep\nspec = SweepSpec(trees=
         ("SweepSpec(seeds=2**70)", "ValueError", "seeds: must be in 1..1000000"),
         ("SweepSpec(trees=list(range(10**7)))", "ValueError", "trees: at most 1000000 values"),
         ("SweepSpec(kp0=np.arange(1000.0), ki0=np.arange(1000.0), kd0=np.arange(1000.0))", "ValueError", "spec: the grid has 12000000000 runs"),
-        ("SweepSpec(modules=10**9)", "ValueError", "modules: must be in 1..10000"),
+        ("SweepSpec(modules=10**9)", "ValueError", "modules: must be in 1..1000"),
         ("SweepSpec(delay=[2**64])", "ValueError", "delay: must be in 1..1000000"),
         ("SweepSpec(duration=1e300, dt=1e-300)", "ValueError", "duration: at most"),
         ("run_sweep(spec, out, workers=10**9, progress=False)", "ValueError", "workers: must be an int in 1..1024"),

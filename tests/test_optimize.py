@@ -521,7 +521,8 @@ def test_amble_problem_refuses_bad_arguments_by_name(change, error, message):
     # Each was a silent wrong answer, an unnamed error or a hang before.
     (lambda problem, x: problem.unpack(x[:-1]), ValueError, r"x must have shape"),  # unpacked the short vector
     (lambda problem, x: problem.unpack(x + np.nan), ValueError, "x contains a non-finite value"),  # a NaN trajectory
-    (lambda problem, x: problem.solve('x'), TypeError, "guess must be an array of real numbers"),
+    (lambda problem, x: problem.unpack(x * (1 + 1j)), TypeError, "x must be an array of numbers"),  # a complex trajectory
+    (lambda problem, x: problem.solve("x"), TypeError, "guess must be an array of"),
     (lambda problem, x: problem.solve(x, tol=-1.0), ValueError, "tol must be finite and > 0"),  # casadi: invalid IPOPT options
     (lambda problem, x: problem.solve(x, max_iter=-3), ValueError, r"max_iter must be in \[0, inf\]"),
     (lambda problem, x: problem.refine(problem, x), TypeError, "result must be a SolveResult"),  # an AttributeError

@@ -38,11 +38,12 @@ import numpy as np
 
 from legkit._validation import integer, is_integer, is_real
 from legkit.control.gains import KD0, KI0, KP0, SCHEMES, GainSchedule
+from legkit.robots.superbot import MAX_RANDOM_MODULES
 
 #: Bounds checked before anything is spelled out or run: the runs of a grid (a million runs of the default 2 s take
-#: about a core-year), the modules of a tree, a bus delay (ticks) and the steps of a run (duration / dt).
+#: about a core-year), a bus delay (ticks) and the steps of a run (duration / dt); a tree's modules are
+#: `random_tree`'s bound, MAX_RANDOM_MODULES.
 MAX_RUNS = 10**6
-MAX_MODULES = 10_000
 MAX_DELAY = 10**6
 MAX_STEPS = 10**8
 
@@ -177,7 +178,7 @@ def _normalise(spec: SweepSpec) -> dict[str, Any]:
     """The spec's values checked and spelled out in JSON types; ValueError/TypeError naming the argument."""
     out: dict[str, Any] = {}
     out["trees"] = _ints("trees", spec.trees, count_ok=True, low=0)
-    out["modules"] = _int("modules", spec.modules, low=1, high=MAX_MODULES)
+    out["modules"] = _int("modules", spec.modules, low=1, high=MAX_RANDOM_MODULES)
     out["branches"] = _int("branches", spec.branches, low=1, high=5)
     if out["branches"] > out["modules"]:
         raise ValueError(f"branches: must be <= modules ({out['modules']}), got {out['branches']}")
