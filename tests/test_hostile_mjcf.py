@@ -5,12 +5,11 @@ process with a timeout and a memory limit (`test_hostile.outcome`); what MuJoCo 
 
 from __future__ import annotations
 
+import mujoco
 import pytest
 
 import legkit as lk
 from test_hostile import interrupted_load, raises
-
-mujoco = pytest.importorskip("mujoco")
 
 BODY = '<body name="b"><joint/><geom size=".1"/></body>'
 
