@@ -387,6 +387,8 @@ def test_a_bool_or_a_complex_scalar_is_not_taken_for_a_number(quadruped):
         lk.Simulation(quadruped, shapes={1: ("sphere", True)})
     with pytest.raises(TypeError, match="^limits: upper must be a number"):
         lk.Model().add_revolute(0, [0, 0, 1], limits={"upper": True})
+    with pytest.raises(TypeError, match="^limits: lower must be a number"):  # read as (1.0, 2.0) before
+        lk.Model().add_revolute(0, [0, 0, 1], limits=(True, 2.0))
     assert lk.Simulation(quadruped, dt=np.float32(0.5)).dt == 0.5 and lk.jacobian(quadruped, q, np.int8(1)).shape == (6, quadruped.nv)
 
 

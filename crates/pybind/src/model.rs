@@ -146,14 +146,17 @@ fn joint_limits(value: Option<&Bound<'_, PyAny>>) -> PyResult<JointLimits> {
         }
         limits
     } else {
-        // pyo3 refuses to read a str as a sequence of numbers.
-        let pair: Vec<f64> = value
+        // pyo3 refuses to read a str as a sequence.
+        let pair: Vec<Bound<'_, PyAny>> = value
             .extract()
             .map_err(|_| PyTypeError::new_err("limits: expected None, a (lower, upper) pair or a dict with keys lower, upper, effort, velocity"))?;
-        let [lower, upper] = pair[..] else {
+        let [lower, upper] = &pair[..] else {
             return Err(PyValueError::new_err(format!("limits: expected a (lower, upper) pair, got {} values", pair.len())));
         };
-        JointLimits { lower, upper, ..JointLimits::NONE }
+        // `number`, not `f64`'s extraction, which takes a bool for 1.
+        let bound =
+            |item: &Bound<'_, PyAny>, name: &str| number(item).ok_or_else(|| PyTypeError::new_err(format!("limits: {name} must be a number")));
+        JointLimits { lower: bound(lower, "lower")?, upper: bound(upper, "upper")?, ..JointLimits::NONE }
     };
     JointLimits::new(limits.lower, limits.upper, limits.effort, limits.velocity).map_err(kernel_error)
 }
