@@ -81,6 +81,14 @@ pub fn headroom(bytes: usize) -> bool {
     Vec::<u8>::new().try_reserve_exact(bytes).is_ok()
 }
 
+/// `len` zeros, refused as `with_capacity` refuses them. Allocated zeroed (calloc): the system maps the pages as they
+/// are first written, so a large output costs nothing until the work fills it, and work that stops early (Ctrl-C)
+/// never pays for the rest; `filled` would write every zero first, seconds for gigabytes, before the work begins.
+pub fn zeros(argument: &'static str, len: usize) -> Result<Vec<f64>> {
+    with_capacity::<f64>(argument, len)?; // the allocator's answer, before `vec!`, which aborts on a refusal
+    Ok(vec![0.0; len])
+}
+
 /// `len` copies of `value`, allocated as `with_capacity` does.
 pub fn filled<T: Clone>(argument: &'static str, len: usize, value: T) -> Result<Vec<T>> {
     let mut vec = with_capacity(argument, len)?;

@@ -12,7 +12,7 @@ use crate::derivatives::{pair, run_matrices, write_columns};
 use crate::interrupt::{in_pieces, Pace};
 use crate::model::PyModel;
 use crate::workspace::{check_state, finite_result, run, singular, singular_factor, unpack, Workspace};
-use legkit_dynamics::validate::{array_len, filled};
+use legkit_dynamics::validate::{array_len, zeros};
 
 /// `q ⊕ v dt`: joint coordinates add; a free-flyer base moves along exp(v dt) in its own frame: `(..., nq)`.
 #[pyfunction(crate = "crate::arguments")]
@@ -80,7 +80,7 @@ pub fn free_rollout<'py>(
     let batch = broadcast(&[("q", &q, &[nq]), ("v", &v, &[nv])])?;
     let width = rows * (nq + nv);
     let len = array_len("steps", &[batch.len, width], std::mem::size_of::<f64>()).map_err(kernel_error)?;
-    let mut packed = filled("steps", len, 0.0).map_err(kernel_error)?;
+    let mut packed = zeros("steps", len).map_err(kernel_error)?;
     let owner: &PyModel = &model;
     map_rows(
         &mut packed,

@@ -3,7 +3,7 @@
 use legkit_dynamics::model::check_vector;
 use legkit_dynamics::model::Dense;
 use legkit_dynamics::spatial::{spd_inverse6, Force};
-use legkit_dynamics::validate::{array_len, filled, with_capacity};
+use legkit_dynamics::validate::{array_len, filled, with_capacity, zeros};
 use legkit_dynamics::{Data, Error, Model};
 use nalgebra::DMatrix;
 use numpy::PyArrayMethods;
@@ -97,7 +97,7 @@ where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
     let len = array_len(batch.largest, &[batch.len, width], std::mem::size_of::<f64>()).map_err(kernel_error)?;
-    let mut out = filled(batch.largest, len, 0.0).map_err(kernel_error)?;
+    let mut out = zeros(batch.largest, len).map_err(kernel_error)?;
     fill(py, owner, batch, &mut out, width, kernel)?;
     Ok(out)
 }
