@@ -85,7 +85,11 @@ pub fn headroom(bytes: usize) -> bool {
 /// are first written, so a large output costs nothing until the work fills it, and work that stops early (Ctrl-C)
 /// never pays for the rest; `filled` would write every zero first, seconds for gigabytes, before the work begins.
 pub fn zeros(argument: &'static str, len: usize) -> Result<Vec<f64>> {
-    with_capacity::<f64>(argument, len)?; // the allocator's answer, before `vec!`, which aborts on a refusal
+    // The allocator's answer, before `vec!`, which aborts on a refusal; below a megabyte a refusal is not a request's
+    // doing, and a single call's output is spared a second allocation.
+    if len > 1 << 17 {
+        with_capacity::<f64>(argument, len)?;
+    }
     Ok(vec![0.0; len])
 }
 
