@@ -3,8 +3,9 @@ full 3D model, 19 configuration states) maximising the worst-case S_H (J_s2) on 
 biped walk of Sect. 6 at 1.8 km/h minimising J_e1. By default the amble's half cycle is transcribed, the other
 half its mirror image, and the walk's whole cycle (`AMBLE_MIRROR`, `WALK_MIRROR`; --mirror / --no-mirror).
 
-Prints, for a cold start (from `legkit gait`'s hand-built reference, feasibility first, then J_s2 with L-BFGS,
-polished with the exact Hessian, durations held then free; --no-polish: L-BFGS only) and a warm start (the exact
+Prints, for a cold start (from `legkit gait`'s hand-built reference, feasibility first, then J_s2 with the exact
+Hessian, or with --derivatives legkit L-BFGS polished with the exact Hessian, durations held then free; --no-polish:
+L-BFGS only) and a warm start (the exact
 Hessian from the point and multipliers of the solve at a neighbouring speed, its travel stretched to the new
 speed: `problem.solve(problem.continued(result, speed))`): IPOPT status, iterations, IPOPT's wall time, the
 share of it spent evaluating the functions and their derivatives (the Hessian's included), the largest constraint
@@ -13,6 +14,7 @@ by legkit's kernels, p1, the worst published S_H (eq. 10) and the largest stance
 midpoints (`MultiphaseProblem.stance_accelerations`; the knots hold it at 0, docs/optimize.md).
 
     PYTHONPATH=python python3 benches/gait_optimisation.py [--intervals 4] [--max-iter 300] [--neighbour 0.6] [--no-mirror] [--no-polish]
+    PYTHONPATH=python python3 benches/gait_optimisation.py --compare --intervals 16   # solver settings side by side
 
 The walk (cold, from `legkit gait`'s hand-built walk, constraints first by `solve_walk`): status, iterations,
 wall and CPU time of the solve, the evaluation share, the violation re-evaluated by legkit's kernels, J_e1
@@ -50,14 +52,15 @@ from legkit.robots.motors import BIPED_MOTOR, QUADRUPED_MOTOR
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
 
 
-def report(label: str, problem: lo.MultiphaseProblem, result: lo.SolveResult) -> None:
+def report(label: str, problem: lo.MultiphaseProblem, result: lo.SolveResult, cpu: float | None = None) -> None:
     """One row; violation and S_H min (published, eq. 10) of the kept point (`SolveResult.best`), re-evaluated
-    by legkit's kernels."""
+    by legkit's kernels; the solve's wall time, or its CPU time when given."""
     share = 100.0 * result.evaluation_time / result.wall_time
     x, objective = result.best()
     s_h = min(s.min() for s in problem.stability_index(x))
     stance = midpoint_stance_acceleration(problem, x)
-    print(f"{label:<30} {result.status:<28} {result.iterations:6d} {result.wall_time:9.2f} {share:8.1f} "
+    print(f"{label:<{44 if cpu is not None else 30}} {result.status:<28} {result.iterations:6d} "
+          f"{result.wall_time if cpu is None else cpu:{8 if cpu is not None else 9}.2f} {share:8.1f} "
           f"{problem.nlp().violation(x):10.2e} {-objective:9.4g} {s_h:9.4g} {stance:10.3g}", flush=True)
 
 
@@ -94,8 +97,11 @@ def main() -> None:
                         help="transcribe half the cycle, the other half its mirror image (--no-mirror: the whole cycle); default: the gait's "
                              "(AMBLE_ / WALK_MIRROR)")
     parser.add_argument("--polish", action=argparse.BooleanOptionalAction, default=True,
-                        help="amble: after legkit's L-BFGS runs, an exact-Hessian polish (durations held, then free)")
+                        help="amble, --derivatives legkit: after the L-BFGS runs, an exact-Hessian polish (durations held, then free)")
     parser.add_argument("--polish-max-iter", type=int, default=1000, help="amble: IPOPT iteration limit of the polish and of the warm start")
+    parser.add_argument("--compare", action="store_true",
+                        help="amble: the cold solve under each solver setting side by side (exact Hessian with and without "
+                             "perturb_always_cd, L-BFGS with the polish), CPU time per row")
     args = parser.parse_args()
     if args.gait == "walk":
         args.mirror = WALK_MIRROR if args.mirror is None else args.mirror
@@ -105,14 +111,29 @@ def main() -> None:
     args.mirror = AMBLE_MIRROR if args.mirror is None else args.mirror
     robot = build_quadruped(AMBLE_QUADRUPED)
     objective = [lo.MinMaxStability(2.0, DIAGONAL_PAIRS)]
+    args.polish = args.polish and args.derivatives == "legkit"  # the polish follows an L-BFGS run
     options = {"tol": args.tol, "max_iter": args.max_iter, "derivatives": args.derivatives, "options": AMBLE_IPOPT, "polish": args.polish,
                "polish_max_iter": args.polish_max_iter}
 
-    def cold(speed: float) -> tuple[lo.MultiphaseProblem, lo.SolveResult]:
+    def cold(speed: float, **variant: object) -> tuple[lo.MultiphaseProblem, lo.SolveResult]:
         # Soft touchdowns, as `legkit gait --optimize` solves it (its --max-impulse default).
         p = amble_problem(robot, objective, speed, 1.25, args.intervals, QUADRUPED_MOTOR, max_impulse=0.0, mirror=args.mirror)
         guess = guess_from_reference(p, amble_reference(robot, speed, 1.25, args.intervals))
-        return p, p.solve(guess, feasibility_first=True, **options)[1]
+        return p, p.solve(guess, feasibility_first=True, **{**options, **variant})[1]
+
+    if args.compare:
+        print(f"amble, {args.intervals} intervals per phase, {'mirrored half' if args.mirror else 'whole'} cycle, tol {args.tol:g}, "
+              "cold (feasibility first, then J_s2); IPOPT with MUMPS; the same problem for each solver setting:")
+        print(f"{'solver setting':<44} {'status':<28} {'iter':>6} {'CPU [s]':>8} {'f+J+H [%]':>9} {'violation':>10} {'p1':>9} "
+              f"{'S_H min':>9} {'foot acc':>10}")
+        without = {key: value for key, value in AMBLE_IPOPT.items() if key != "perturb_always_cd"}
+        for label, variant in (("exact Hessian, perturb_always_cd (default)", {"derivatives": "exact", "polish": False}),
+                               ("exact Hessian, IPOPT's default perturbation", {"derivatives": "exact", "polish": False, "options": without}),
+                               ("L-BFGS, then the exact-Hessian polish", {"derivatives": "legkit", "polish": True})):
+            cpu = time.process_time()
+            problem, result = cold(args.speed, **variant)
+            report(label, problem, result, time.process_time() - cpu)
+        return
 
     print(f"amble, {args.intervals} intervals per phase, tol {args.tol:g}; IPOPT (casadi {__import__('casadi').__version__}), "
           f"MUMPS, {args.derivatives} derivatives, {'mirrored half' if args.mirror else 'whole'} cycle; cold: feasibility first, then J_s2"

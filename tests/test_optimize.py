@@ -552,3 +552,12 @@ def test_best_keeps_the_best_iterate_within_tolerance_when_ipopt_stops_on_a_wors
     assert feasible_and_best.best()[0] is last
     converged = SolveResult(last, 0.5, "Solve_Succeeded", True, 10, 1.0, 0.1, 1e-7, [], (4, -0.2, better), 1e-6)
     assert converged.best()[0] is last
+
+
+def test_a_spherical_joint_is_refused_by_name():
+    # The transcription's configuration maps know a free-flyer's quaternion only: a ball joint's q rate is not its v.
+    model = pendulum(9.81)
+    model.add_spherical(1, (np.eye(3), [0.0, 0.0, -LENGTH]), lk.MassProperties.point(0.5, [0.0, 0.0, -0.2]), "wrist")
+    with pytest.raises(ValueError, match=r"spherical joints.*'wrist'"):
+        MultiphaseProblem(model, [Phase(intervals=2, duration=(1.0, 1.0))], objectives=[effort()], periodic=False,
+                          initial=(np.zeros(model.nq), np.zeros(model.nv)))

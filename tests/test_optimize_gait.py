@@ -35,21 +35,22 @@ def test_amble_guess_lies_on_the_reference_and_wraps_around_by_one_stride():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("mode", ["whole_cycle", "mirrored_half", "no_polish", "refined"])
+@pytest.mark.parametrize("mode", ["whole_cycle", "mirrored_half", "l_bfgs", "l_bfgs_no_polish", "refined"])
 def test_cli_optimize_prints_each_stage_and_writes_csv_and_figure(tmp_path, capsys, mode):
     # By default (--mirror) the half cycle is optimised and everything after sees the whole cycle, unrolled.
     iterations, intervals = 3, 2 if mode == "refined" else 1
-    flags = {"whole_cycle": ["--no-mirror"], "mirrored_half": ["--no-animation"], "no_polish": ["--no-polish", "--no-animation"],
+    flags = {"whole_cycle": ["--no-mirror"], "mirrored_half": ["--no-animation"], "l_bfgs": ["--derivatives", "legkit", "--no-animation"],
+             "l_bfgs_no_polish": ["--derivatives", "legkit", "--no-polish", "--no-animation"],
              "refined": ["--coarse-intervals", "1", "--no-animation"]}[mode]
     assert gait.main(["--robot", "quadruped", "--optimize", "--intervals", str(intervals), "--max-iter", str(iterations), "--polish-max-iter",
                       str(iterations), "--replay-cycles", "1", "--out", str(tmp_path)] + flags) == 0
     out = capsys.readouterr().out
-    # Two continuation stages (constraints first, then J_s2), by default two more (the exact-Hessian polish with the
-    # phase durations held, then free), with --coarse-intervals one more (the refinement), each with IPOPT's iterate 0 too.
-    # The stages on the coarse mesh name it.
+    # Two continuation stages (constraints first, then J_s2), with L-BFGS two more (the exact-Hessian polish with the phase
+    # durations held, then free) unless --no-polish, with --coarse-intervals one more (the refinement), each with IPOPT's
+    # iterate 0 too. The stages on the coarse mesh name it.
     coarse = " on 1 interval" if mode == "refined" else ""
-    stages = [f"constraints{coarse} (p1 held below S_H)", f"J_s2{coarse} (L-BFGS)"]
-    stages += [] if mode == "no_polish" else [f"polish{coarse}: exact Hessian, durations held", f"polish{coarse}: exact Hessian"]
+    stages = [f"constraints{coarse} (p1 held below S_H)", f"J_s2{coarse} ({'L-BFGS' if mode.startswith('l_bfgs') else 'exact Hessian'})"]
+    stages += [f"polish{coarse}: exact Hessian, durations held", f"polish{coarse}: exact Hessian"] if mode == "l_bfgs" else []
     stages += [f"refine onto {intervals} intervals"] if mode == "refined" else []
     progress = [line.strip().rpartition(": ") for line in out.splitlines() if " iterations, objective " in line]  # one per stage
     assert [label for label, _, _ in progress] == stages
@@ -246,3 +247,32 @@ def test_stance_accelerations_are_the_feet_second_derivatives_along_the_points_m
         expected = (feet[0] - 2.0 * feet[1] + feet[2]) / step**2
         assert np.abs(expected).max() > 10.0
         np.testing.assert_allclose(accelerations, expected, atol=1e-4 * np.abs(expected).max())
+
+
+def test_stage_progress_writes_a_line_per_block_of_iterations_to_a_log(capsys):
+    # Captured output is not a terminal: each stage gets a flushed line every BLOCK iterations and one when it ends.
+    progress = gait._StageProgress(["constraints", "J_s2"])
+    for stage_iterations in (25, 4):
+        for iteration in range(stage_iterations + 1):
+            progress(iteration, -0.1 * iteration, 1e-3)
+    progress.close()
+    lines = capsys.readouterr().out.splitlines()
+    block = gait._StageProgress.BLOCK
+    assert [line.split(":")[0].strip() for line in lines] == ["constraints"] * (25 // block + 1) + ["J_s2"]
+    assert [line.split(": ")[1].split(",")[0] for line in lines] == [f"at iteration {i}" for i in range(block, 26, block)] + ["25 iterations",
+                                                                                                                           "4 iterations"]
+    assert all(line.endswith("s of CPU") for line in lines)
+
+
+def test_verdict_says_plainly_when_a_plan_is_not_a_motion_or_the_replay_fell():
+    summary = {"solver succeeded (1 = yes)": 1.0, "largest drift over one interval, attitude [deg]": 0.4,
+               "largest drift over one interval, joints": 0.01, "replay: stayed upright (1 = yes)": 1.0,
+               "replay: fell after [s] (inf: never)": np.inf}
+    good = gait.verdict(summary, 1)
+    assert good == ["verdict: IPOPT converged", "verdict: a motion of the model (drift over one interval within 1 deg of attitude and "
+                    "0.02 rad at the joints)", "verdict: the replay stayed upright over 1 cycle"]
+    bad = gait.verdict({**summary, "solver succeeded (1 = yes)": 0.0, "largest drift over one interval, attitude [deg]": 3.0,
+                        "replay: stayed upright (1 = yes)": 0.0, "replay: fell after [s] (inf: never)": 1.234}, 5)
+    assert "did NOT converge" in bad[0]
+    assert bad[1].startswith("verdict: NOT a motion of the model") and "attitude [deg] 3 > 1" in bad[1]
+    assert bad[2] == "verdict: the replay FELL after 1.23 s"

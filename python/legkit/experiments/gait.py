@@ -144,7 +144,7 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     which, and, unless --no-animation, writes the replay beside the plan as .html (meshcat) and .gif, captioned with
     the controller."""
     from legkit.optimize.checks import midpoint_stance_acceleration
-    from legkit.optimize.gaits import AMBLE_PLAN_FRICTION, amble_plan_problem, plan_amble
+    from legkit.optimize.gaits import AMBLE_PLAN_FRICTION, amble_plan_problem, amble_reference, guess_from_reference, plan_amble
 
     robot = build_quadruped(AMBLE_QUADRUPED)
     speed, period = args.quadruped_speed, args.quadruped_period
@@ -155,12 +155,17 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     problem = amble_plan_problem(robot, args.intervals, speed, period, **problem_options)
     print(f"optimising the amble: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros"
           + (f", from {args.coarse_intervals} intervals per phase" if args.coarse_intervals else ""))
+    if not args.coarse_intervals:
+        _announce(problem, problem.gauged(problem.pack(guess_from_reference(problem, amble_reference(robot, speed, period, args.intervals)))),
+                  EXPECTED_ITERATIONS["amble"])
     coarse = f" on {args.coarse_intervals} interval{'s' if args.coarse_intervals > 1 else ''}" if args.coarse_intervals else ""
-    progress = _StageProgress([f"constraints{coarse} (p1 held below S_H)", f"J_s2{coarse} (L-BFGS)"]
-                              + ([f"polish{coarse}: exact Hessian, durations held", f"polish{coarse}: exact Hessian"] if args.polish else [])
+    polish = args.polish and args.derivatives == "legkit"
+    hessian = "exact Hessian" if args.derivatives == "exact" else "L-BFGS"
+    progress = _StageProgress([f"constraints{coarse} (p1 held below S_H)", f"J_s2{coarse} ({hessian})"]
+                              + ([f"polish{coarse}: exact Hessian, durations held", f"polish{coarse}: exact Hessian"] if polish else [])
                               + ([f"refine onto {args.intervals} intervals"] if args.coarse_intervals else []))
-    plan = plan_amble(robot, speed, period, args.intervals, args.coarse_intervals, polish=args.polish, polish_max_iter=args.polish_max_iter,
-                      tol=args.tol, max_iter=args.max_iter, progress=progress, **problem_options)
+    plan = plan_amble(robot, speed, period, args.intervals, args.coarse_intervals, derivatives=args.derivatives, polish=args.polish,
+                      polish_max_iter=args.polish_max_iter, tol=args.tol, max_iter=args.max_iter, progress=progress, **problem_options)
     progress.close()
     problem, result = plan.problem, plan.result
     reference_s_h = np.concatenate(problem.stability_index(problem.pack(plan.reference)))
@@ -218,6 +223,7 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
                            mirror=WALK_MIRROR if args.mirror is None else args.mirror)
     guess = guess_from_reference(problem, walk_reference(robot, speed, intervals))
     print(f"optimising the biped walk: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
+    _announce(problem, problem.gauged(problem.pack(guess)), EXPECTED_ITERATIONS["walk"])
     cpu = time.process_time()
     progress = _StageProgress(["constraints", "J_e1"])
     _, result = solve_walk(problem, guess, tol=args.tol, max_iter=args.biped_max_iter, progress=progress)
@@ -291,6 +297,27 @@ def _replay_summary(args: argparse.Namespace, simulated: Replay) -> dict[str, fl
             "replay: fell after [s] (inf: never)": simulated.fell_at}
 
 
+#: The largest drift over one interval (`interval_drift_summary`) of a plan that is a motion of its model, 1 deg of attitude
+#: and 0.02 rad at the joints: beyond it the mesh is too coarse for the dynamics between the points (more intervals).
+MOTION_DRIFT = {"largest drift over one interval, attitude [deg]": 1.0, "largest drift over one interval, joints": 0.02}
+
+
+def verdict(summary: dict[str, float], cycles: int) -> list[str]:
+    """The summary's outcome in words: whether IPOPT converged, whether the plan is a motion of the model (its interval
+    drift within `MOTION_DRIFT`) and whether the replay stayed upright."""
+    converged = summary["solver succeeded (1 = yes)"] == 1.0
+    drift = {key: summary[key] for key in MOTION_DRIFT if key in summary}
+    beyond = [f"{key.rpartition(', ')[2]} {value:.3g} > {MOTION_DRIFT[key]:g}" for key, value in drift.items() if not value <= MOTION_DRIFT[key]]
+    fell, upright = summary["replay: fell after [s] (inf: never)"], summary["replay: stayed upright (1 = yes)"] == 1.0
+    return [
+        "verdict: " + ("IPOPT converged" if converged else "IPOPT did NOT converge: the plan is its best feasible iterate, not an optimum"),
+        "verdict: " + (f"NOT a motion of the model (drift over one interval: {', '.join(beyond)}; use more intervals)" if beyond
+                       else "a motion of the model (drift over one interval within 1 deg of attitude and 0.02 rad at the joints)"),
+        "verdict: " + (f"the replay stayed upright over {cycles} cycle{'s' if cycles > 1 else ''}" if upright
+                       else f"the replay FELL after {fell:.2f} s"),
+    ]
+
+
 def execution_summary(problem: MultiphaseProblem, x: np.ndarray) -> dict[str, float]:
     """`legkit.optimize.checks.execution_check` of a solution as summary rows."""
     from legkit.optimize.checks import execution_check
@@ -357,13 +384,41 @@ def plot_torque_speed(path: Path, robot: Biped, joint_speed: np.ndarray, torque:
     plt.close(fig)
 
 
+#: IPOPT iterations of the gaits' cold solves with the default options, constraints and objective stages together
+#: (docs/optimize.md, "Results"), and the CPU an iteration takes in units of one evaluation of the NLP's functions
+#: and derivatives (constraints, Jacobian, Hessian): the KKT factorisations take the rest. For the estimate printed
+#: before a solve.
+EXPECTED_ITERATIONS = {"amble": 190, "walk": 110}
+ITERATION_COST = 3.0
+
+
+def _announce(problem: MultiphaseProblem, x: np.ndarray, iterations: int) -> None:
+    """Print the estimated CPU time of a cold solve of `problem` from x: `iterations` iterations of `ITERATION_COST`
+    evaluations each, one evaluation timed here."""
+    start = time.process_time()
+    nlp = problem.nlp("exact")
+    nlp.constraints(x), nlp.jacobian(x)
+    assert nlp.hessian is not None  # derivatives="exact"
+    nlp.hessian(x, 1.0, np.ones(problem.m))
+    seconds = time.process_time() - start
+    print(f"  estimate: about {iterations} IPOPT iterations of ~{ITERATION_COST * seconds:.2f} s of CPU each, "
+          f"~{iterations * ITERATION_COST * seconds:.0f} s in all (one evaluation of the functions and derivatives took {seconds:.2f} s)",
+          flush=True)
+
+
 class _StageProgress:
-    """progress(iteration, objective, violation) printing one labelled line per IPOPT run (a stage of the solve:
-    its iterations, objective and largest violation), updated in place on a terminal; `close` ends the last."""
+    """progress(iteration, objective, violation) printing one labelled line per IPOPT run (a stage of the solve: its
+    iterations, objective, largest violation and the CPU seconds since the solve began), updated in place on a terminal;
+    written to a file or a pipe, also a flushed line every `BLOCK` iterations, so that a log shows a long stage
+    moving. `close` ends the last stage's line."""
+
+    #: Iterations between the lines a redirected log gets within a stage.
+    BLOCK = 10
 
     def __init__(self, labels: Sequence[str]) -> None:
         self.labels, self.stage, self.running, self.last = list(labels), -1, False, (0, 0.0, 0.0)
         self.live = sys.stdout.isatty()
+        self.start = time.process_time()
 
     def __call__(self, iteration: int, objective: float, violation: float) -> None:
         if iteration == 0:  # IPOPT's first iterate: a new run
@@ -372,11 +427,15 @@ class _StageProgress:
         self.last = (iteration, objective, violation)
         if self.live:
             print("\r" + self.line(), end="", flush=True)
+        elif iteration and iteration % self.BLOCK == 0:
+            print(self.line(running=True), flush=True)
 
-    def line(self) -> str:
+    def line(self, running: bool = False) -> str:
         label = self.labels[self.stage] if self.stage < len(self.labels) else f"run {self.stage + 1}"
         iteration, objective, violation = self.last
-        return f"  {label}: {iteration} iterations, objective {objective: .6e}, max violation {violation:.2e}"
+        count = f"at iteration {iteration}" if running else f"{iteration} iterations"
+        return (f"  {label}: {count}, objective {objective: .6e}, max violation {violation:.2e}, "
+                f"{time.process_time() - self.start:.1f} s of CPU")
 
     def close(self) -> None:
         if self.running:
@@ -475,10 +534,13 @@ def main(argv: list[str] | None = None) -> int:
                         "Joule loss (J_e1), writing its CSV and torque-speed figure (--robot picks one or both)")
     parser.add_argument("--intervals", type=_positive_int, default=16,
                         help="--optimize: collocation intervals per amble phase (16: a plan that is a motion of the model)")
-    parser.add_argument("--coarse-intervals", type=_non_negative_int, default=None,
+    parser.add_argument("--coarse-intervals", type=_non_negative_int, default=0,
                         help="--optimize: solve the amble on this many intervals per phase first, then refine it onto --intervals with its "
-                             "worst-case S_H held at a fraction of the coarse optimum's (MultiphaseProblem.refine; default 4 when --intervals "
-                             "is more, 0: solve on --intervals directly)")
+                             "worst-case S_H held at a fraction of the coarse optimum's (MultiphaseProblem.refine: faster, short of the "
+                             "fine mesh's optimum; default 0: J_s2 solved on --intervals directly)")
+    parser.add_argument("--derivatives", choices=("exact", "legkit"), default="exact",
+                        help="--optimize: the amble's J_s2 run with the exact Hessian of the Lagrangian (exact) or IPOPT's L-BFGS "
+                             "approximation of it (legkit, then the --polish stages); the Jacobian is exact in both")
     parser.add_argument("--biped-intervals", type=_positive_int, default=8,
                         help="--optimize: collocation intervals per biped single-support phase (a quarter, at least 1, per double support)")
     parser.add_argument("--max-iter", type=_positive_int, default=300,
@@ -507,12 +569,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="--optimize: transcribe half of each gait's cycle, the other half its mirror image (mirror periodicity), "
                              "or (--no-mirror) the whole cycle; default: the amble's half (AMBLE_MIRROR), the walk's whole cycle (WALK_MIRROR)")
     parser.add_argument("--polish", action=argparse.BooleanOptionalAction, default=True,
-                        help="--optimize: after the amble's L-BFGS runs (J_s2's ended once it stalls), IPOPT with the exact Hessian "
-                             "from their best point, first with the phase durations held, then free, which converges J_s2")
+                        help="--optimize with --derivatives legkit: after the amble's L-BFGS runs (J_s2's ended once it stalls), IPOPT "
+                             "with the exact Hessian from their best point, first with the phase durations held, then free")
     parser.add_argument("--polish-max-iter", type=_positive_int, default=1000, help="--optimize: IPOPT iteration limit of the amble's polish")
     args = parser.parse_args(argv)
-    if args.coarse_intervals is None:
-        args.coarse_intervals = 4 if args.intervals > 4 else 0
     if args.samples < 8:
         parser.error("--samples must be at least 8")
     if args.mu is not None and not (np.isfinite(args.mu) and args.mu > 0.0):
@@ -543,6 +603,8 @@ def main(argv: list[str] | None = None) -> int:
             width = max(len(k) for k in summary)
             for key, value in summary.items():
                 print(f"{key:{width}}  {value:12.5g}")
+            for line in verdict(summary, args.replay_cycles):
+                print(line)
             if name == "quadruped":
                 print(f"wrote gait_quadruped_optimized.csv/.png{'' if args.no_animation else '/.html/.gif'} to {args.out}")
             else:

@@ -32,13 +32,18 @@ from legkit.robots.motors import QUADRUPED_MOTOR, MotorParameters
 from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, Quadruped
 
 #: IPOPT options for the amble: the monotone barrier update (the adaptive one drove mu to 1e-11 within a few
-#: iterations of the J_s2 stage and then crawled along the constraints).
-AMBLE_IPOPT = {"mu_strategy": "monotone"}
+#: iterations of the J_s2 stage and then crawled along the constraints), and the constraint block of the KKT system
+#: always regularised (`perturb_always_cd`): the touchdown rows M(q) (v+ - v-) - J^T Lambda scale with the legs' small
+#: inertias, so the constraint Jacobian is nearly rank-deficient (singular values 3e-5 of the largest 93 on the
+#: 2-interval amble), which IPOPT otherwise answers with Hessian perturbations of 1e-3 to 1e-1 at every iteration. On
+#: the 16-interval mirrored amble from the reference, J_s2 with the exact Hessian then crept to p1 0.014 in 300
+#: iterations; with it, it converged in 17 + 169 (p1 0.158).
+AMBLE_IPOPT = {"mu_strategy": "monotone", "perturb_always_cd": "yes"}
 
-#: Derivatives for the amble's L-BFGS runs before the polish: L-BFGS on legkit's exact Jacobian reached a higher
-#: worst-case S_H per second than the exact Hessian (p1 0.103 vs 0.036 after 150 J_s2 iterations, cold), though
-#: the exact Hessian meets the constraints in fewer iterations (20 vs 78).
-AMBLE_DERIVATIVES = "legkit"
+#: Derivatives of the amble's J_s2 run: the exact Hessian of the Lagrangian (with `AMBLE_IPOPT`'s regularisation it
+#: converges where L-BFGS stalls and has to be polished: on the 16-interval mirrored amble, L-BFGS then the polish took
+#: 412 iterations to p1 0.158, the exact Hessian 186). "legkit": IPOPT's L-BFGS on the exact Jacobian.
+AMBLE_DERIVATIVES = "exact"
 
 #: The amble's execution bounds (`amble_problem`), on by default: the torso's yaw within 10 deg (J_s2 alone yawed it by
 #: +-56 deg), no foot's load changing by more than 10 % of the body weight per millisecond (J_s2 alone moved 43-68 %
@@ -163,26 +168,29 @@ class AmblePlan:
     reference: Trajectory
 
 
-def plan_amble(robot: Quadruped, speed: float = 0.67, period: float = 1.25, intervals: int = 16, coarse_intervals: int = 4, *,
-               polish: bool = True, polish_max_iter: int = 1000, tol: float = 1e-6, max_iter: int = 300,
-               progress: Progress | None = None, **problem_options: Any) -> AmblePlan:
+def plan_amble(robot: Quadruped, speed: float = 0.67, period: float = 1.25, intervals: int = 16, coarse_intervals: int = 0, *,
+               derivatives: str = AMBLE_DERIVATIVES, polish: bool = True, polish_max_iter: int = 1000, tol: float = 1e-6,
+               max_iter: int = 300, progress: Progress | None = None, **problem_options: Any) -> AmblePlan:
     """The amble a tracking controller holds, as `legkit gait --optimize` plans it: `amble_plan_problem` (problem_options
-    go to it) solved on `coarse_intervals` per phase from the hand-built reference, feasibility first, then J_s2 on
-    L-BFGS, polished with the exact Hessian (polish, within polish_max_iter iterations), and refined onto `intervals`
-    (`MultiphaseProblem.refine`; coarse_intervals 0: J_s2 solved on `intervals` directly). tol and max_iter (per stage)
-    go to every IPOPT run, progress(iteration, objective, violation) is called at every iteration of every run."""
+    go to it) solved from the hand-built reference, feasibility first, then J_s2 with `derivatives` (default: the exact
+    Hessian, `AMBLE_DERIVATIVES`; "legkit": L-BFGS, then with polish the exact-Hessian polish within polish_max_iter
+    iterations). By default on `intervals` per phase directly; with coarse_intervals (fewer than intervals) on that mesh
+    first, the optimum then refined onto `intervals` (`MultiphaseProblem.refine`: its worst-case S_H held at a fraction of
+    the coarse optimum's, which is faster than J_s2 on the fine mesh but does not reach its optimum). tol and max_iter
+    (per stage) go to every IPOPT run, progress(iteration, objective, violation) is called at every iteration of every
+    run."""
     if coarse_intervals and coarse_intervals >= intervals:
         raise ValueError(f"coarse_intervals must be 0 or fewer than intervals ({intervals}), got {coarse_intervals}")
     problem = amble_plan_problem(robot, intervals, speed, period, **problem_options)
     reference = guess_from_reference(problem, amble_reference(robot, speed, period, intervals))
     options: dict[str, Any] = {"tol": tol, "max_iter": max_iter, "progress": progress, "options": AMBLE_IPOPT}
+    solve_options = {"derivatives": derivatives, "feasibility_first": True, "polish": polish and derivatives == "legkit",
+                     "polish_max_iter": polish_max_iter, **options}
     if not coarse_intervals:
-        _, result = problem.solve(reference, derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=polish,
-                                  polish_max_iter=polish_max_iter, **options)
+        _, result = problem.solve(reference, **solve_options)
         return AmblePlan(problem, result, reference)
     coarse = amble_plan_problem(robot, coarse_intervals, speed, period, **problem_options)
-    _, result = coarse.solve(guess_from_reference(coarse, amble_reference(robot, speed, period, coarse_intervals)),
-                             derivatives=AMBLE_DERIVATIVES, feasibility_first=True, polish=polish, polish_max_iter=polish_max_iter, **options)
+    _, result = coarse.solve(guess_from_reference(coarse, amble_reference(robot, speed, period, coarse_intervals)), **solve_options)
     _, result = problem.refine(coarse, result, **options)
     return AmblePlan(problem, result, reference)
 

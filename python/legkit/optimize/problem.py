@@ -280,6 +280,11 @@ class MultiphaseProblem:
         model = self.model
         if not isinstance(model, lk.Model):
             raise TypeError(f"model must be a legkit.Model, got {type(model).__name__}")
+        # `kinematics` maps a free-flyer's quaternion to its tangent space and takes every other joint's q rate as its v.
+        spherical = [model.names[i] for i in range(1, model.nbodies) if model.joint_type(i) == "spherical"]
+        if spherical:
+            raise ValueError(f"model: spherical joints cannot be transcribed (their quaternions have no configuration map "
+                             f"here), got {spherical}; model them as three revolute joints")
         if len(self.phases) == 0:
             raise ValueError("phases must hold at least one Phase")
         if self.force_dims not in (1, 3):
