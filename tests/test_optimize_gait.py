@@ -269,10 +269,10 @@ def test_verdict_says_plainly_when_a_plan_is_not_a_motion_or_the_replay_fell():
                "largest drift over one interval, joints": 0.01, "replay: stayed upright (1 = yes)": 1.0,
                "replay: fell after [s] (inf: never)": np.inf}
     good = gait.verdict(summary, 1)
-    assert good == ["verdict: IPOPT converged", "verdict: a motion of the model (drift over one interval within 1 deg of attitude and "
-                    "0.02 rad at the joints)", "verdict: the replay stayed upright over 1 cycle"]
+    assert good == ["verdict: IPOPT converged", "verdict: a motion of the model (drift over one interval within 2 deg of attitude and "
+                    "0.1 rad at the joints)", "verdict: the replay stayed upright over 1 cycle"]
     bad = gait.verdict({**summary, "solver succeeded (1 = yes)": 0.0, "largest drift over one interval, attitude [deg]": 3.0,
                         "replay: stayed upright (1 = yes)": 0.0, "replay: fell after [s] (inf: never)": 1.234}, 5)
     assert "did NOT converge" in bad[0]
-    assert bad[1].startswith("verdict: NOT a motion of the model") and "attitude [deg] 3 > 1" in bad[1]
+    assert bad[1].startswith("verdict: NOT a motion of the model") and "attitude [deg] 3 > 2" in bad[1]
     assert bad[2] == "verdict: the replay FELL after 1.23 s"

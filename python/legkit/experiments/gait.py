@@ -297,9 +297,10 @@ def _replay_summary(args: argparse.Namespace, simulated: Replay) -> dict[str, fl
             "replay: fell after [s] (inf: never)": simulated.fell_at}
 
 
-#: The largest drift over one interval (`interval_drift_summary`) of a plan that is a motion of its model, 1 deg of attitude
-#: and 0.02 rad at the joints: beyond it the mesh is too coarse for the dynamics between the points (more intervals).
-MOTION_DRIFT = {"largest drift over one interval, attitude [deg]": 1.0, "largest drift over one interval, joints": 0.02}
+#: The largest drift over one interval (`interval_drift_summary`) of a plan that is a motion of its model, 2 deg of attitude
+#: and 0.1 rad at the joints: beyond it the mesh is too coarse for the dynamics between the points (more intervals). The
+#: default amble on 16 intervals per phase drifts 0.22 deg and 0.020 rad, its optimum on 4 intervals 37 deg and 1.8 rad.
+MOTION_DRIFT = {"largest drift over one interval, attitude [deg]": 2.0, "largest drift over one interval, joints": 0.1}
 
 
 def verdict(summary: dict[str, float], cycles: int) -> list[str]:
@@ -312,7 +313,7 @@ def verdict(summary: dict[str, float], cycles: int) -> list[str]:
     return [
         "verdict: " + ("IPOPT converged" if converged else "IPOPT did NOT converge: the plan is its best feasible iterate, not an optimum"),
         "verdict: " + (f"NOT a motion of the model (drift over one interval: {', '.join(beyond)}; use more intervals)" if beyond
-                       else "a motion of the model (drift over one interval within 1 deg of attitude and 0.02 rad at the joints)"),
+                       else "a motion of the model (drift over one interval within 2 deg of attitude and 0.1 rad at the joints)"),
         "verdict: " + (f"the replay stayed upright over {cycles} cycle{'s' if cycles > 1 else ''}" if upright
                        else f"the replay FELL after {fell:.2f} s"),
     ]

@@ -207,13 +207,14 @@ WALK_SUPPORT = (("l", "r"), ("l",), ("l", "r"), ("r",))
 #: mu_d of eq. 6 [m] for the biped's soles; the paper gives no value (`walk_problem`).
 SOLE_TORSION = 0.04
 
-#: IPOPT options for the walk's J_e1 stage: the monotone barrier update (exact Hessian, from the same feasible
-#: point: adaptive reached J_e1 13.6 J/m in 300 iterations, monotone 8.7 J/m in 190).
-WALK_IPOPT = {"mu_strategy": "monotone"}
+#: IPOPT options for the walk: the monotone barrier update (exact Hessian, from the same feasible point: adaptive
+#: reached J_e1 13.6 J/m in 300 iterations, monotone 8.7 J/m in 190) and, as for the amble (`AMBLE_IPOPT`), the KKT
+#: system's constraint block always regularised.
+WALK_IPOPT = {"mu_strategy": "monotone", "perturb_always_cd": "yes"}
 
-#: Derivatives for the walk's J_e1 stage: L-BFGS on the exact Jacobian converged (578 iterations, 32.8 s, J_e1 5.44
-#: J/m); the exact Hessian converged to 6.31 J/m (531, 42.4 s).
-WALK_DERIVATIVES = "legkit"
+#: Derivatives for the walk's J_e1 stage: the exact Hessian (with `WALK_IPOPT`, the walk of `legkit gait --optimize`, (2, 8)
+#: intervals, converged to 7.01 J/m in 17 + 94 iterations; L-BFGS on the exact Jacobian took 700 to 7.11 J/m).
+WALK_DERIVATIVES = "exact"
 
 #: The walk is transcribed over its whole cycle by default: its mirrored half (28 s instead of 40 s) holds the
 #: torso's roll at its bound on the quaternion's x, and the mirror image, scaled to the quaternion norm the
@@ -289,10 +290,12 @@ def walk_problem(robot: Biped, speed: float, motor: MotorParameters, intervals: 
 def solve_walk(problem: MultiphaseProblem, guess: Trajectory, derivatives: str = WALK_DERIVATIVES,
                **options: Any) -> tuple[Trajectory, SolveResult]:
     """The walk in two IPOPT runs: the constraints alone with the L-BFGS Hessian (on the coarse walk it met them
-    in 9 iterations, against 97 with the exact Hessian), then the objective with `derivatives` and `WALK_IPOPT` from
-    that feasible point. options go to `legkit.optimize.solver.solve` in both runs; the result covers both."""
-    first = solve(problem.nlp("legkit", objective=False), problem.gauged(problem.pack(guess)), **options)
-    trajectory, result = problem.solve(first.x, derivatives=derivatives, **{**options, "options": {**WALK_IPOPT, **options.get("options", {})}})
+    in 9 iterations, against 97 with the exact Hessian), then the objective with `derivatives` from that feasible point,
+    both with `WALK_IPOPT` (options' "options" override it). options go to `legkit.optimize.solver.solve` in both runs;
+    the result covers both."""
+    ipopt = {**WALK_IPOPT, **options.pop("options", {})}
+    first = solve(problem.nlp("legkit", objective=False), problem.gauged(problem.pack(guess)), options=ipopt, **options)
+    trajectory, result = problem.solve(first.x, derivatives=derivatives, options=ipopt, **options)
     return trajectory, result.after(first)
 
 
