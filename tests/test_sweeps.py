@@ -23,6 +23,7 @@ from legkit.robots.superbot import random_tree
 from legkit.sweeps import SweepSpec, read_results, run_batch, run_sweep, task_size
 from legkit.sweeps import cli as sweep_cli
 from legkit.sweeps import tune as tuning
+from legkit.sweeps.execute import checksum
 
 SMALL = dict(trees=2, modules=4, branches=2, duration=0.1)
 
@@ -314,17 +315,46 @@ def _damage(kind, parts):
     elif kind == "no provenance":
         _rewrite(first, table, metadata={})
     elif kind == "another build":
+        # A whole part of another build: its provenance and the checksum of its values.
         other = json.loads(pq.read_schema(first).metadata[b"legkit.provenance"])
         other["build"] = "0" * 16
         table = table.set_column(table.schema.get_field_index("build"), "build", pa.array(["0" * 16] * table.num_rows))
-        _rewrite(first, table, metadata={b"legkit.provenance": json.dumps(other).encode()})
+        _rewrite(first, table, metadata={b"legkit.provenance": json.dumps(other).encode(), b"legkit.sha256": checksum(table).encode()})
+    elif kind == "flipped bit":
+        flip_stored_value(first, "final")
+    elif kind == "no checksum":
+        metadata = pq.read_schema(first).metadata
+        _rewrite(first, table, metadata={b"legkit.provenance": metadata[b"legkit.provenance"]})
     elif kind == "stray batch":
         (parts / "batch-00099.parquet").write_bytes(first.read_bytes())
     return parts / ("batch-00099.parquet" if kind == "stray batch" else "batch-00000.parquet")
 
 
+def flip_stored_value(path, column):
+    """Flips one bit (mantissa bit 40) of the first value of ``column`` where the file stores it (not a copy in
+    its statistics): the file still reads, that value differs by about 1e-4 of itself, nothing else changes."""
+    data = path.read_bytes()
+    value = pq.read_table(path).column(column)[0].as_py()
+    stored = np.float64(value).tobytes()
+    at = data.find(stored)
+    while at >= 0:
+        flipped = bytearray(data)
+        flipped[at + 5] ^= 0x01
+        path.write_bytes(bytes(flipped))
+        try:
+            changed = pq.read_table(path).column(column)[0].as_py()
+        except Exception:  # noqa: BLE001 - this copy was the one a header needs: try the next
+            changed = value
+        if changed != value:
+            assert 0 < abs(changed - value) < 1e-3 * abs(value), (value, changed)
+            return
+        at = data.find(stored, at + 1)
+    path.write_bytes(data)
+    raise AssertionError(f"no stored copy of {value!r} in {path} changes {column} when flipped")
+
+
 DAMAGE = ["fewer rows", "another batch's rows", "zero rows", "duplicated rows", "dropped column", "retyped column", "cut file",
-          "no provenance", "another build", "stray batch"]
+          "no provenance", "another build", "stray batch", "flipped bit", "no checksum"]
 
 
 @pytest.mark.parametrize("kind", DAMAGE)
@@ -352,6 +382,36 @@ def test_a_damaged_part_is_run_again_with_a_line_or_refused_with_strict(kind, ti
     lines.clear()
     run_sweep(SweepSpec(**TINY), out, workers=1, progress=False, figures=False, log=lines.append)
     assert lines == ([lines[0]] if kind == "stray batch" else [])
+
+
+def test_a_flipped_bit_fails_its_checksum_and_results_record_version_commit_build_and_spec(tiny_sweep, tmp_path):
+    """A bit flipped in a stored value reads without a word from Parquet: the part's checksum catches it (one
+    line, the batch recomputed), and results.parquet's, read_results refusing it; results.parquet's metadata
+    holds this build's provenance (version, commit, build), the spec id and the builds of its rows."""
+    import shutil
+
+    from legkit.sweeps import provenance
+
+    reference_out, reference = tiny_sweep
+    results = reference_out / "results.parquet"
+    record = json.loads(pq.read_schema(results).metadata[b"legkit.provenance"])
+    mine = provenance()
+    assert record == {**mine, "spec_id": SweepSpec(**TINY).spec_id, "builds": [mine["build"]]}
+    assert pq.read_schema(results).metadata[b"legkit.sha256"].decode() == checksum(pq.read_table(results))
+    out = tmp_path / "copy"
+    shutil.copytree(reference_out, out)
+    part = out / "parts" / "batch-00000.parquet"
+    flip_stored_value(part, "final")
+    flip_stored_value(out / "results.parquet", "final")
+    mismatch = r"holds values other than those written \(sha256 [0-9a-f]{16}, recorded [0-9a-f]{16}\)"
+    results_refused = rf"^out: {re.escape(str(out / 'results.parquet'))} {mismatch}; run the sweep again to rebuild it from its parts$"
+    with pytest.raises(ValueError, match=results_refused):
+        read_results(out)
+    lines = []
+    table = run_sweep(SweepSpec(**TINY), out, workers=1, progress=False, figures=False, log=lines.append)
+    assert len(lines) == 1 and re.fullmatch(rf"{re.escape(str(part))}: {mismatch}; running its batch again", lines[0]), lines
+    assert_same_table(table, reference)
+    assert_same_table(read_results(out), reference)
 
 
 def test_provenance_is_recorded_and_another_build_refused_unless_allowed(tiny_sweep, tmp_path):

@@ -440,9 +440,11 @@ class SimulationBatch:
     """Steps many Simulations (any models, any backends) in parallel on all cores, GIL released."""
     def __init__(self, simulations: Sequence[Simulation]) -> None: ...
     def step(self, tau: npt.ArrayLike | Sequence[npt.ArrayLike | None] | None = None, n: int = 1) -> None:
-        """tau: None, (nv,) for all, (B, nv), or a list with one (nv,) array (or None) per simulation. A simulation
-        that diverges stops as before its failed step (RuntimeError naming the lowest such index); Ctrl-C
-        interrupts between steps, every simulation having taken the same whole steps."""
+        """tau: None, (nv,) for all, (B, nv), or a list with one (nv,) array (or None) per simulation. Per member: a
+        simulation that diverges stops as before its failed step while the others take all n steps; then a
+        RuntimeError names the lowest such index and which members stopped after how many steps, and its ``steps``
+        attribute lists the steps each member took. Ctrl-C interrupts between steps, every simulation having
+        taken the same whole steps."""
     def transition_jacobians(
         self, tau: npt.ArrayLike | Sequence[npt.ArrayLike | None] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:

@@ -50,9 +50,15 @@
 //! as MuJoCo composes joint transforms in order. A body without joints is fixed to its parent. Unnamed
 //! bodies and joints are `body<i>` and `joint<i>`, i MuJoCo's id.
 //!
+//! Every element and attribute must be one MuJoCo knows there (its schema, `schema.rs`): a name it does not
+//! know, a typo such as `<joint dampng="1">`, is an error naming it, its element and line, as MuJoCo refuses
+//! it (legkit also checks inside `<frame>` and `<replicate>`, which MuJoCo's validator skips).
+//!
 //! What legkit cannot model (tendons, equality constraints, sensors, contact pairs and excludes,
-//! composite/flex, non-joint transmissions, static bodies beside a floating base) loads with a
+//! flex and flexcomp, non-joint transmissions, static bodies beside a floating base) loads with a
 //! warning naming it, or is an error with [`MjcfOptions::strict`].
+
+mod schema;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -674,6 +680,7 @@ fn parse(xml: &str, argument: &'static str, label: &str, folder: Option<&Path>, 
     let mut source = Source { argument, folder, elements: 0, stack: Vec::new(), names: Default::default() };
     let mut root = own(doc.root_element(), &Rc::from(label), &line_breaks(xml), &mut source, 0)?;
     drop(doc);
+    schema::check(&root)?;
 
     let mut compiler = Compiler {
         angle: std::f64::consts::PI / 180.0,
@@ -1118,7 +1125,7 @@ impl Walker<'_, '_> {
                     let frame = prefix.compose(&self.reader.frame(child, &class)?);
                     contents.inertial = Some(inertial_of(child, &class, &frame, self.reader)?);
                 }
-                "composite" | "flexcomp" | "attach" | "plugin" | "skin" => {
+                "flexcomp" | "attach" | "plugin" | "skin" => {
                     self.reader.accept(format!("{} is not supported: left out", child.what()))?;
                 }
                 _ => {} // site, camera, light: no effect on the dynamics

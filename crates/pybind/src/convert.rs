@@ -114,7 +114,12 @@ pub fn kernel_error(error: Error) -> PyErr {
 
 /// A kernel error from row `index` of a batch, e.g. "radius[4]: must be >= 0".
 pub fn batch_error(error: Error, index: usize) -> PyErr {
-    python_error(&error, format!("{}[{index}]: {}", error.argument(), error.reason()))
+    batch_error_noting(error, index, "")
+}
+
+/// As `batch_error`, with `note` after the reason.
+pub fn batch_error_noting(error: Error, index: usize, note: &str) -> PyErr {
+    python_error(&error, format!("{}[{index}]: {}{note}", error.argument(), error.reason()))
 }
 
 fn python_error(error: &Error, message: String) -> PyErr {

@@ -17,7 +17,7 @@ use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
 use crate::batch::on_all_threads;
-use crate::convert::{batch_error, homogeneous, kernel_error, to_numpy, Floats, Integer};
+use crate::convert::{batch_error, batch_error_noting, homogeneous, kernel_error, to_numpy, Floats, Integer};
 use crate::interrupt::{in_pieces, interruptible, Pace};
 use crate::model::PyModel;
 use crate::shapes::shape_overrides;
@@ -503,13 +503,16 @@ impl PySimulationBatch {
 
     /// Advances every simulation `n` steps, in parallel. `tau`: None (zero), one (nv,) array for all, a
     /// (B, nv) array, or a list of B arrays (or None), one per simulation (each its own nv). Every tau is
-    /// checked before anything moves. A simulation that diverges stops at its last good state and raises
-    /// RuntimeError naming its index (the lowest such index); the others complete their n steps.
+    /// checked before anything moves. The call is per member: a simulation that diverges stops at its last
+    /// good state (as `Simulation.step` leaves it) while the others complete their n steps; then a
+    /// RuntimeError names the lowest such index and its reason, and says which members stopped after how many
+    /// steps; its `steps` attribute lists the steps each member took in this call.
     #[pyo3(signature = (tau = None, n = Integer::new(1)), text_signature = "($self, tau=None, n=1)")]
     fn step(&self, py: Python<'_>, tau: Option<Bound<'_, PyAny>>, n: Integer) -> PyResult<()> {
         let n = n.within("n", 0, i64::MAX as u64)?;
         let mut guards = self.borrow_all(py)?;
         let taus = self.torques(&guards, tau)?;
+        let before: Vec<u64> = guards.iter().map(|g| g.sim.steps()).collect();
         let mut sims: Vec<(usize, &mut Simulation, &Option<Vec<f64>>)> =
             guards.iter_mut().zip(&taus).enumerate().map(|(i, (g, t))| (i, &mut g.sim, t)).collect();
         // The first failure, by index; a failed simulation stops, the others go on.
@@ -523,10 +526,17 @@ impl PySimulationBatch {
             failure = failure.take().into_iter().chain(failed).min_by_key(|(i, _)| *i);
             Ok(())
         })?;
-        match failure {
-            Some((i, error)) => Err(batch_error(error, i)),
-            None => Ok(()),
-        }
+        let Some((first, error)) = failure else { return Ok(()) };
+        let taken: Vec<u64> = guards.iter().zip(&before).map(|(g, b)| g.sim.steps() - b).collect();
+        let stopped: Vec<String> = taken.iter().enumerate().filter(|&(_, &t)| t < n).map(|(i, t)| format!("simulations[{i}] after {t}")).collect();
+        let note = format!(
+            "; per member: {} of {n} steps stopped at the last good state, the other {} took all {n} (steps: each member's)",
+            stopped.join(", "),
+            taken.len() - stopped.len()
+        );
+        let error = batch_error_noting(error, first, &note);
+        error.value(py).setattr("steps", taken)?;
+        Err(error)
     }
 
     /// Every simulation's transition Jacobians at its current state, in parallel (GIL released): A (B, 2 nv, 2 nv)

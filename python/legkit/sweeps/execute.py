@@ -5,14 +5,16 @@ Output folder layout (``out``):
 * ``spec.json``: the spec (``SweepSpec.to_dict``), its id and the provenance of the build that started it
   (``provenance()``). A folder belongs to one spec: running another spec into it raises ValueError; resuming
   it with another build raises ValueError unless ``allow_mixed``.
-* ``parts/batch-NNNNN.parquet``: one file per finished batch, its provenance in the file's metadata, written
-  to a temporary name, flushed to disk and renamed, so a part is either whole or absent. A part is kept on
-  resume only if its rows are exactly its batch's run ids, once each, with the sweep's columns and types
-  (``SCHEMA``) and its provenance's build (``verify_part``); any other is run again, with a line saying why
-  (with ``strict``, ValueError naming the file). Files that are no batch of the spec are left out, with a
-  line (``strict``: refused).
-* ``results.parquet``: every run, in grid order (written the same way when all batches are done);
-  ``read_results`` reads the verified parts of an unfinished sweep too.
+* ``parts/batch-NNNNN.parquet``: one file per finished batch, its provenance and the checksum of its values
+  (``checksum``) in the file's metadata, written to a temporary name, flushed to disk and renamed, so a part
+  is either whole or absent. A part is kept on resume only if its rows are exactly its batch's run ids, once
+  each, with the sweep's columns and types (``SCHEMA``), its provenance's build and values that match their
+  checksum (``verify_part``): Parquet reads a flipped bit in a stored value without a word. Any other part is
+  run again, with a line saying why (with ``strict``, ValueError naming the file). Files that are no batch of
+  the spec are left out, with a line (``strict``: refused).
+* ``results.parquet``: every run, in grid order (written the same way when all batches are done), its
+  metadata the provenance of the build that wrote it with the spec id and the builds of its rows, and its
+  checksum; ``read_results`` checks it, and reads the verified parts of an unfinished sweep too.
 
 Work: a batch (``SweepSpec.batch_size`` runs) is the unit of storage; the unit of scheduling is a task of a
 few runs (one ``run_balance`` call), sized to the executor's parallelism (``task_size``): small enough that
@@ -74,6 +76,7 @@ TASKS_PER_WORKER = 16
 #: What the balance plant runs on (``run_balance``'s defaults, used by ``run_batch``): part of a part's provenance.
 ENGINE: dict[str, Any] = {"plant": "tree", "sample_every": 10, "rounds_per_step": 1}
 PROVENANCE_KEY = b"legkit.provenance"
+CHECKSUM_KEY = b"legkit.sha256"
 _PART = re.compile(r"batch-(\d{5})\.parquet")
 
 
@@ -204,6 +207,36 @@ def schema() -> pa.Schema:
     return pa.schema([(n, pa.int64() if n in integers else pa.string() if n in strings else pa.float64()) for n in names])
 
 
+def checksum(table: pa.Table) -> str:
+    """The sha256 of ``table``'s values, column by column in order (its name, then its values in row order: the
+    bytes of a numeric column, the repr of a text column's list): the same however Parquet stores them."""
+    pa = _pyarrow()
+    digest = hashlib.sha256()
+    for name, column in zip(table.column_names, table.columns):
+        digest.update(name.encode() + b"\0")
+        if pa.types.is_integer(column.type) or pa.types.is_floating(column.type):
+            digest.update(np.ascontiguousarray(column.to_numpy()).tobytes())
+        else:
+            digest.update(repr(column.to_pylist()).encode())
+    return digest.hexdigest()
+
+
+def _recorded(table: pa.Table, record: dict[str, Any]) -> pa.Table:
+    """``table`` with ``record`` (its provenance) and its checksum as its metadata."""
+    return table.replace_schema_metadata({PROVENANCE_KEY: json.dumps(record).encode(), CHECKSUM_KEY: checksum(table).encode()})
+
+
+def _checksum_mismatch(table: pa.Table) -> str | None:
+    """Why ``table``'s values are not the ones written (None: they are), from the checksum in its metadata."""
+    recorded = (table.schema.metadata or {}).get(CHECKSUM_KEY)
+    if recorded is None:
+        return "records no checksum of its values"
+    actual = checksum(table)
+    if actual != recorded.decode(errors="replace"):
+        return f"holds values other than those written (sha256 {actual[:16]}, recorded {recorded.decode(errors='replace')[:16]})"
+    return None
+
+
 def _durable_write(path: Path, write: Callable[[Path], object]) -> None:
     """``write`` to a temporary name beside ``path``, flushed to disk, then renamed onto ``path`` (and the
     rename flushed): after a crash the file is whole or absent."""
@@ -283,7 +316,8 @@ class ResultStore:
 
     def verify_part(self, batch: int) -> str | None:
         """Why the part of ``batch`` cannot be kept (None: it can): unreadable, other columns or types, no
-        rows, run ids other than its batch's or repeated, or another build (unless ``allow_mixed``)."""
+        rows, run ids other than its batch's or repeated, another build (unless ``allow_mixed``), or values
+        that do not match their checksum."""
         pa = _pyarrow()
         path = self.part(batch)
         try:
@@ -318,7 +352,7 @@ class ResultStore:
             return f"its rows' builds {sorted(builds)} are not its recorded build {recorded.get('build')}"
         if recorded.get("build") != self.provenance["build"] and not self.allow_mixed:
             return f"was written by {_describe(recorded)}, this is {_describe(self.provenance)}"
-        return None
+        return _checksum_mismatch(table)
 
     def stray_files(self) -> list[Path]:
         """Files in ``parts`` that are no batch's part of this spec (temporary files of a killed write aside)."""
@@ -360,7 +394,7 @@ class ResultStore:
         pa = _pyarrow()
         builds = {row["build"] for row in rows}
         recorded = {**self.provenance, "build": builds.pop()} if len(builds) == 1 else self.provenance
-        table = pa.Table.from_pylist(rows, schema=schema().with_metadata({PROVENANCE_KEY: json.dumps(recorded).encode()}))
+        table = _recorded(pa.Table.from_pylist(rows, schema=schema()), recorded)
         _durable_write(self.part(batch), lambda path: pa.parquet.write_table(table, path))
 
     def table(self, batches: Sequence[int] | None = None) -> pa.Table | None:
@@ -373,16 +407,25 @@ class ResultStore:
         return table.sort_by("index")
 
     def write_results(self, table: pa.Table) -> None:
+        """Write ``results.parquet``: ``table`` with this build's provenance, the spec id and the builds of its
+        rows, and its checksum, in its metadata."""
         pa = _pyarrow()
+        record = {**self.provenance, "spec_id": self.spec.spec_id, "builds": sorted(set(table.column("build").to_pylist()))}
+        table = _recorded(table, record)
         _durable_write(self.out / "results.parquet", lambda path: pa.parquet.write_table(table, path))
 
 
 def read_results(out: str | os.PathLike) -> pa.Table:
-    """The runs of the sweep in ``out`` (finished or not: its verified parts), in grid order, as a pyarrow Table."""
+    """The runs of the sweep in ``out`` (finished or not: its verified parts), in grid order, as a pyarrow Table;
+    ``results.parquet`` whose values do not match their checksum raises ValueError naming it."""
     pa = _pyarrow()
     out = Path(out)
     if (out / "results.parquet").exists():
-        return pa.parquet.read_table(out / "results.parquet")
+        table = pa.parquet.read_table(out / "results.parquet")
+        mismatch = _checksum_mismatch(table)
+        if mismatch is not None:
+            raise ValueError(f"out: {out / 'results.parquet'} {mismatch}; run the sweep again to rebuild it from its parts")
+        return table
     spec_file = out / "spec.json"
     if not spec_file.exists():
         raise ValueError(f"out: {out} holds no sweep (no spec.json)")

@@ -158,6 +158,11 @@ impl Simulation {
         self.steps as f64 * self.options.dt
     }
 
+    /// The steps taken since the simulation started (or was last reset).
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
     /// Configuration in legkit's layout (nq).
     pub fn q(&self) -> &[f64] {
         &self.q
