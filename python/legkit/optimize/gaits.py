@@ -37,8 +37,10 @@ from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, Quadruped
 #: inertias, so the constraint Jacobian is nearly rank-deficient (singular values 3e-5 of the largest 93 on the
 #: 2-interval amble), which IPOPT otherwise answers with Hessian perturbations of 1e-3 to 1e-1 at every iteration. On
 #: the 16-interval mirrored amble from the reference, J_s2 with the exact Hessian then crept to p1 0.014 in 300
-#: iterations; with it, it converged in 17 + 169 (p1 0.158).
-AMBLE_IPOPT = {"mu_strategy": "monotone", "perturb_always_cd": "yes"}
+#: iterations; with it, it converged in 17 + 169 (p1 0.158). And MUMPS with the AMD ordering and without its scaling
+#: (rather than `solve`'s METIS): from the reference at 0.67 and 0.60 m/s, 18 + 93 and 19 + 100 iterations against
+#: 17 + 169 and 19 + 188, to optima within 0.3 % of METIS's (p1 0.1577 and 0.1640 against 0.1579 and 0.1644).
+AMBLE_IPOPT = {"mu_strategy": "monotone", "perturb_always_cd": "yes", "mumps_pivot_order": 0, "mumps_scaling": 0}
 
 #: Derivatives of the amble's J_s2 run: the exact Hessian of the Lagrangian (with `AMBLE_IPOPT`'s regularisation it
 #: converges where L-BFGS stalls and has to be polished: on the 16-interval mirrored amble, L-BFGS then the polish took
