@@ -26,10 +26,10 @@ from legkit._validation import count, float_array, positive_scalar
 Progress = Callable[[int, float, float], None]
 
 #: IPOPT options of a primal-dual warm start (`solve(..., multipliers=)`): the start kept within 1e-6 of its bounds
-#: and a small initial barrier parameter. From the converged 0.60 m/s amble, with its multipliers, the 0.67 m/s
-#: J_s2 converged in 126 iterations (13.4 s) against 323 (42.6 s) from its point alone; mu_init 1e-6 took 280,
-#: 1e-3 and 1e-2 took 193.
-WARM_START = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6, "mu_init": 1e-4}
+#: and a small initial barrier parameter. The 16-interval mirrored amble (exact Hessian, `AMBLE_IPOPT`) from its 0.67
+#: m/s optimum and multipliers (`continued`): to 0.70 m/s in 53 iterations with mu_init 1e-6, against 131, 77, 111 and
+#: 254 with 1e-4, 1e-5, 1e-7 and 1e-8, 116 from the point alone and 111 cold; to 0.64 m/s in 52 against 124 (1e-4).
+WARM_START = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6, "mu_init": 1e-6}
 
 
 @dataclass
