@@ -119,32 +119,53 @@ pub(crate) fn hull_points(points: &[Vector3<f64>]) -> Result<HullPoints<'_>> {
 /// A triangle mesh: its vertices, and its faces as indices into them.
 pub type Triangles = (Vec<Vector3<f64>>, Vec<[usize; 3]>);
 
+/// Where MuJoCo reads a mesh file otherwise than legkit (`mesh_triangles`): each a sentence naming the file, which
+/// the MJCF reader gives as a warning (an error under `strict`).
+#[derive(Debug, Default, PartialEq)]
+pub struct MujocoDiffers {
+    /// MuJoCo's mass of the faces differs from legkit's, which is the whole mesh's: an OBJ face of more than
+    /// `MUJOCO_OBJ_CORNERS` corners, OBJ faces in more than one group (`ObjFaces::groups`).
+    pub mass: Vec<String>,
+    /// MuJoCo refuses the file, which legkit reads: an ASCII STL.
+    pub refused: Option<String>,
+}
+
 /// The triangles of the mesh file at `path`, as vertices and faces indexing them, for a mesh's volume and
-/// inertia: STL's triangles, OBJ's faces (a polygon cut into triangles as MuJoCo cuts it: see `clip_ears`), and
-/// MuJoCo's binary MSH; and a note when MuJoCo's mass of them would differ (an OBJ face of more than
-/// `MUJOCO_OBJ_CORNERS` corners). Errors as `mesh_vertices`'.
-pub fn mesh_triangles(path: &Path) -> Result<(Triangles, Option<String>)> {
+/// inertia: STL's triangles, OBJ's faces (of every group; a polygon cut into triangles as MuJoCo cuts it: see
+/// `clip_ears`), and MuJoCo's binary MSH; and where MuJoCo's reading of the file differs (`MujocoDiffers`).
+/// Errors as `mesh_vertices`'.
+pub fn mesh_triangles(path: &Path) -> Result<(Triangles, MujocoDiffers)> {
     let bytes = crate::validate::read_regular_file("mesh", path)?;
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    let mut note = None;
+    let mut differs = MujocoDiffers::default();
+    let file = path.display();
     let (vertices, faces) = match extension.as_str() {
         // Each triangle lists its corners: those equal to the bit are one vertex, as MuJoCo's STL decoder merges
         // them (google-deepmind/mujoco), so that its faces share edges (see `mjcf::inconsistent_edge`).
         "stl" => stl(&bytes).and_then(|corners| {
+            if binary_stl(&bytes).is_none() {
+                differs.refused = Some(format!("{file}: an ASCII STL, which MuJoCo refuses (it reads binary STL only); legkit reads it"));
+            }
             let (vertices, index) = distinct_points(&corners)?;
             let mut faces = Vec::new();
             grow(&mut faces, index.len() / 3, "faces")?;
             faces.extend(index.chunks_exact(3).map(|t| [t[0], t[1], t[2]]));
             Ok((vertices, faces))
         }),
-        "obj" => obj_faces(&String::from_utf8_lossy(&bytes), true).map(|(triangles, large)| {
-            note = large.map(|(line, corners)| {
-                format!(
-                    "{}: line {line}: a face of {corners} corners, whose mass MuJoCo takes otherwise (it leaves part or \
-                     all of a face of more than {MUJOCO_OBJ_CORNERS} corners out)",
-                    path.display()
-                )
-            });
+        "obj" => obj_faces(&String::from_utf8_lossy(&bytes), true).map(|(triangles, obj)| {
+            if let Some((line, corners)) = obj.large {
+                differs.mass.push(format!(
+                    "{file}: line {line}: a face of {corners} corners, whose mass MuJoCo takes otherwise (it leaves part or all \
+                     of a face of more than {MUJOCO_OBJ_CORNERS} corners out)"
+                ));
+            }
+            if obj.groups > 1 {
+                differs.mass.push(format!(
+                    "{file}: its {} faces lie in {} groups (OBJ `g`/`o` lines): MuJoCo's mass takes only the first group's {} \
+                     faces, legkit's is the whole mesh's",
+                    obj.faces, obj.groups, obj.first_group
+                ));
+            }
             triangles
         }),
         "msh" => msh(&bytes),
@@ -155,7 +176,7 @@ pub fn mesh_triangles(path: &Path) -> Result<(Triangles, Option<String>)> {
         return Err(in_file(path, bad("no faces")));
     }
     finite_vertices(path, &vertices)?;
-    Ok(((vertices, faces), note))
+    Ok(((vertices, faces), differs))
 }
 
 /// `e`, from reading the mesh file at `path`, with the path in its reason: a list too large to allocate stays
@@ -282,20 +303,22 @@ fn grow<T>(list: &mut Vec<T>, more: usize, what: &str) -> Result<()> {
     })
 }
 
+/// The triangle count of a binary STL: an 80-byte header, the count, then 50 bytes per triangle (normal, three
+/// vertices, attribute). None for anything else: ASCII files also start with "solid", so the length decides.
+fn binary_stl(bytes: &[u8]) -> Option<usize> {
+    let count = u32::from_le_bytes(bytes.get(80..84)?.try_into().ok()?) as usize;
+    (bytes.len() == 84 + 50 * count).then_some(count)
+}
+
 fn stl(bytes: &[u8]) -> Result<Vec<Vector3<f64>>> {
-    // Binary: an 80-byte header, a triangle count, then 50 bytes per triangle (normal, three vertices,
-    // attribute); ASCII files also start with "solid", so the length decides.
-    if bytes.len() >= 84 {
-        let count = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
-        if bytes.len() == 84 + 50 * count {
-            let float = |at: usize| f32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]) as f64;
-            let mut vertices = Vec::new();
-            grow(&mut vertices, 3 * count, "vertices")?;
-            vertices.extend(
-                (0..count).flat_map(|t| (1..4).map(move |v| 84 + 50 * t + 12 * v)).map(|at| Vector3::new(float(at), float(at + 4), float(at + 8))),
-            );
-            return Ok(vertices);
-        }
+    if let Some(count) = binary_stl(bytes) {
+        let float = |at: usize| f32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]) as f64;
+        let mut vertices = Vec::new();
+        grow(&mut vertices, 3 * count, "vertices")?;
+        vertices.extend(
+            (0..count).flat_map(|t| (1..4).map(move |v| 84 + 50 * t + 12 * v)).map(|at| Vector3::new(float(at), float(at + 4), float(at + 8))),
+        );
+        return Ok(vertices);
     }
     let text = std::str::from_utf8(bytes).map_err(|_| bad("neither binary STL (wrong length) nor ASCII STL"))?;
     let mut vertices = Vec::new();
@@ -310,15 +333,33 @@ fn stl(bytes: &[u8]) -> Result<Vec<Vector3<f64>>> {
     Ok(vertices)
 }
 
-/// OBJ's vertices and, when `triangulate`, its faces (1-based indices, negative ones counted back from the last
-/// vertex read), a polygon of any number of corners cut as `clip_ears` cuts it; without, the faces' corners are
-/// only checked.
-/// Also the line and corner count of the first face of more than `MUJOCO_OBJ_CORNERS` corners.
-fn obj_faces(text: &str, triangulate: bool) -> Result<(Triangles, Option<(usize, usize)>)> {
+/// What an OBJ file's faces hold besides their triangles, where MuJoCo's mass of them differs from legkit's.
+#[derive(Debug, Default, PartialEq)]
+struct ObjFaces {
+    /// The line and corner count of the first face of more than `MUJOCO_OBJ_CORNERS` corners.
+    large: Option<(usize, usize)>,
+    /// The faces (`f` lines) in the file.
+    faces: usize,
+    /// The groups that hold at least one face, as tinyobjloader reads them for MuJoCo: a `g` or `o` line (its
+    /// letter followed by a space or tab) after faces begins a new group (a new shape), of which MuJoCo 4.0 keeps
+    /// only the first for the mesh; `usemtl` begins none.
+    groups: usize,
+    /// The faces of the first group.
+    first_group: usize,
+}
+
+/// OBJ's vertices and, when `triangulate`, its faces of every group (1-based indices, negative ones counted back
+/// from the last vertex read), a polygon of any number of corners cut as `clip_ears` cuts it; without, the faces'
+/// corners are only checked. Also the faces' groups and the first face of many corners (`ObjFaces`).
+fn obj_faces(text: &str, triangulate: bool) -> Result<(Triangles, ObjFaces)> {
     let (mut vertices, mut faces, mut polygon) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut work, mut large) = (0, None);
+    let (mut work, mut obj, mut in_group) = (0, ObjFaces::default(), 0usize);
     for (n, line) in text.lines().enumerate() {
         cancel_point("mesh", n)?;
+        if matches!(line.trim_start_matches([' ', '\t']).as_bytes(), [b'g' | b'o', b' ' | b'\t', ..]) {
+            in_group = 0;
+            continue;
+        }
         let mut words = line.split_whitespace();
         match words.next() {
             Some("v") => {
@@ -339,8 +380,16 @@ fn obj_faces(text: &str, triangulate: bool) -> Result<(Triangles, Option<(usize,
                 if polygon.len() < 3 {
                     return Err(bad(format!("line {}: a face with fewer than three corners", n + 1)));
                 }
-                if polygon.len() > MUJOCO_OBJ_CORNERS && large.is_none() {
-                    large = Some((n + 1, polygon.len()));
+                if polygon.len() > MUJOCO_OBJ_CORNERS && obj.large.is_none() {
+                    obj.large = Some((n + 1, polygon.len()));
+                }
+                if in_group == 0 {
+                    obj.groups += 1;
+                }
+                in_group += 1;
+                obj.faces += 1;
+                if obj.groups == 1 {
+                    obj.first_group += 1;
                 }
                 if triangulate {
                     clip_ears(&vertices, &mut polygon, &mut faces, &mut work)?;
@@ -349,7 +398,7 @@ fn obj_faces(text: &str, triangulate: bool) -> Result<(Triangles, Option<(usize,
             _ => {}
         }
     }
-    Ok(((vertices, faces), large))
+    Ok(((vertices, faces), obj))
 }
 
 /// The most corners of an OBJ face whose triangles MuJoCo's mass takes as `clip_ears` cuts them. Of a larger face,
@@ -650,6 +699,10 @@ mod tests {
         assert_corners(&mesh_vertices(&write("cube-ascii.stl", ascii.as_bytes())).unwrap(), |c| c);
         let truncated = &binary[..binary.len() - 7];
         assert!(mesh_vertices(&write("broken.stl", truncated)).is_err());
+        // MuJoCo refuses the ASCII file, which the MJCF reader is told.
+        assert_eq!(mesh_triangles(&write("cube.STL", &binary)).unwrap().1, MujocoDiffers::default());
+        let refused = mesh_triangles(&write("cube-ascii.stl", ascii.as_bytes())).unwrap().1.refused.unwrap();
+        assert!(refused.ends_with("cube-ascii.stl: an ASCII STL, which MuJoCo refuses (it reads binary STL only); legkit reads it"), "{refused}");
     }
 
     #[test]
@@ -690,6 +743,32 @@ mod tests {
         let text: String = CUBE.iter().map(|c| format!("v {} {} {}\n", c[0], c[1], c[2])).chain(["vn 0 0 1\nf 1 2 3\n".into()]).collect();
         assert_corners(&mesh_vertices(&write("cube.obj", text.as_bytes())).unwrap(), |c| c);
         assert!(mesh_vertices(&write("bad.obj", b"v 1 2\n")).unwrap_err().to_string().contains("line 1"));
+    }
+
+    #[test]
+    fn obj_groups_are_runs_of_faces_begun_by_g_or_o_lines_as_tinyobjloader_reads_them() {
+        let cube: String = CUBE.iter().map(|c| format!("v {} {} {}\n", c[0], c[1], c[2])).collect();
+        let groups = |body: &str| {
+            let (_, obj) = obj_faces(&format!("{cube}{body}"), true).unwrap();
+            (obj.groups, obj.first_group, obj.faces)
+        };
+        // Faces before any group line are the first group; `g` or `o` lines without faces after them begin none;
+        // `usemtl` and a bare `g` (no space after the letter: tinyobjloader's test) begin none.
+        assert_eq!(groups("f 1 2 3\nf 2 3 4\n"), (1, 2, 2));
+        assert_eq!(groups("g a\no b\n  g c\nf 1 2 3\nusemtl m\nf 2 3 4\ng\nf 1 2 4\ng d\n"), (1, 3, 3));
+        assert_eq!(groups("f 1 2 3\ng a\nf 2 3 4 5\n\to\tb\nf 1 2 4\nf 1 3 4\ng c\ng d\n"), (3, 1, 4));
+        // What mesh_triangles says of it: the file, the groups and faces, and the first group's faces.
+        let path = write("groups.obj", format!("{cube}f 1 2 3\ng a\nf 2 3 4 5\n").as_bytes());
+        let ((_, triangles), differs) = mesh_triangles(&path).unwrap();
+        assert_eq!(triangles.len(), 3, "every group's faces are taken");
+        let expected = format!(
+            "{}: its 2 faces lie in 2 groups (OBJ `g`/`o` lines): MuJoCo's mass takes only the first group's 1 faces, legkit's is \
+             the whole mesh's",
+            path.display()
+        );
+        assert_eq!(differs, MujocoDiffers { mass: vec![expected], refused: None });
+        let one = write("one.obj", format!("{cube}g a\nf 1 2 3\n").as_bytes());
+        assert_eq!(mesh_triangles(&one).unwrap().1, MujocoDiffers::default());
     }
 
     #[test]

@@ -27,7 +27,9 @@
 //!   `boundinertia` (on the principal moments) and `balanceinertia`. Mesh geoms (STL, OBJ, MSH) by their
 //!   triangles as MuJoCo's compiler takes them (`mesh_mass`; `<mesh inertia="convex">` and meshes without
 //!   faces are a warning; what MuJoCo refuses, inconsistently oriented faces under `exact` among them
-//!   (`inconsistent_edge`), is refused).
+//!   (`inconsistent_edge`), is refused). Where MuJoCo reads the file otherwise, the whole mesh's mass is taken
+//!   with a warning ([`crate::mesh::MujocoDiffers`]: OBJ faces in several groups, a face of many corners, an
+//!   ASCII STL).
 //! - Collision shapes: sphere, capsule, cylinder and box geoms, and meshes (STL, OBJ, MSH) as the convex hull of
 //!   their vertices, except geoms with `contype="0" conaffinity="0"` (visual only). Pair filtering by the
 //!   bits of `contype`/`conaffinity` is not expressible: every other geom collides. Planes and height
@@ -875,8 +877,11 @@ fn mesh_assets(root: &El, reader: &mut Reader) -> Result<Meshes> {
             // What MuJoCo refuses in a mesh, legkit refuses too: its mass would be a wrong answer.
             let refused = |reason: String| invalid(format!("{} ({}): {reason}, which MuJoCo refuses too", mesh.what(), path.display()));
             let asset = match readable(mesh_triangles(&path))? {
-                Ok(((vertices, mut faces), note)) => {
-                    if let (Some(note), false) = (note, mode == "convex") {
+                Ok(((vertices, mut faces), differs)) => {
+                    // Where MuJoCo reads the file otherwise: its mass of the faces (not taken under "convex", whose
+                    // hull is of every vertex in both), or its refusal of the file.
+                    let mass = differs.mass.into_iter().filter(|_| mode != "convex");
+                    for note in differs.refused.into_iter().chain(mass) {
                         reader.accept(format!("{}: {note}", mesh.what()))?;
                     }
                     if mode == "exact" {
