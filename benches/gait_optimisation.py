@@ -32,6 +32,7 @@ import numpy as np
 
 import legkit.optimize as lo
 from legkit.gaits import AMBLE_QUADRUPED
+from legkit.optimize.assembly import DERIVATIVES
 from legkit.optimize.checks import inverse_dynamics_residuals, midpoint_stance_acceleration
 from legkit.optimize.gaits import (
     AMBLE_DERIVATIVES,
@@ -46,7 +47,6 @@ from legkit.optimize.gaits import (
     walk_problem,
     walk_reference,
 )
-from legkit.optimize.problem import DERIVATIVES
 from legkit.robots.biped import build_biped
 from legkit.robots.motors import BIPED_MOTOR, QUADRUPED_MOTOR
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped

@@ -1,5 +1,6 @@
-"""The package's layers, read from its source: the library does not import the command-line experiments, and the
-optimiser's modules import each other downward only (no import circle)."""
+"""The package's layers, read from its source: the library does not import the command-line experiments, the
+optimiser's modules import each other downward only (no import circle, not even one only type checkers see), and no
+file of the optimiser is over `MAX_FILE_LINES` lines, no class over `MAX_CLASS_LINES` (issue 52, item 4)."""
 
 from __future__ import annotations
 
@@ -17,12 +18,17 @@ def module_name(path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def imports(path: Path) -> set[str]:
+#: The longest file and the longest class of `legkit.optimize` (a file of the optimiser's house is one room).
+MAX_FILE_LINES, MAX_CLASS_LINES = 600, 400
+
+
+def imports(path: Path, type_checking: bool = False) -> set[str]:
     """Every legkit module `path` imports when it runs, at any depth of its code (function-level imports included;
-    not those under `if TYPE_CHECKING:`, which only type checkers read)."""
+    those under `if TYPE_CHECKING:`, which only type checkers read, with type_checking only)."""
     tree = ast.parse(path.read_text())
-    typing_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If) and ast.unparse(block.test).endswith("TYPE_CHECKING")
-                   for statement in block.body for n in ast.walk(statement)}
+    typing_only = set() if type_checking else {
+        id(n) for block in ast.walk(tree) if isinstance(block, ast.If) and ast.unparse(block.test).endswith("TYPE_CHECKING")
+        for statement in block.body for n in ast.walk(statement)}
     found = set()
     for node in ast.walk(tree):
         if id(node) in typing_only:
@@ -52,6 +58,7 @@ def test_the_checker_sees_an_import_of_the_experiments(tmp_path):
     assert "legkit.experiments.gait" in imports(module)
     module.write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from legkit.experiments.gait import main\n")
     assert imports(module) == set()
+    assert imports(module, type_checking=True) == {"legkit.experiments.gait", "legkit.experiments.gait.main"}
 
 
 def cycle(graph: dict[str, set[str]]) -> list[str] | None:
@@ -79,10 +86,33 @@ def cycle(graph: dict[str, set[str]]) -> list[str] | None:
 
 @pytest.mark.parametrize("package", ["optimize", "gaits"])
 def test_a_package_imports_downward_only(package):
-    paths = [p for p in sorted((PACKAGE / package).glob("*.py")) if p.name != "__init__.py"]
+    """Its modules, subpackages' included, and their imports for type checkers too (a circle a type checker sees is
+    one the code's readers see: a Protocol or a type moved down breaks it). The package's own `__init__`, which only
+    gathers the public names, is left out."""
+    paths = [p for p in sorted((PACKAGE / package).rglob("*.py")) if p.parent != PACKAGE / package or p.name != "__init__.py"]
     names = {module_name(p) for p in paths}
-    graph = {module_name(p): {n for n in imports(p) if n in names} for p in paths}
+    graph = {module_name(p): {n for n in imports(p, type_checking=True) if n in names} for p in paths}
     assert cycle(graph) is None
+
+
+def optimiser_sizes() -> tuple[dict[str, int], dict[str, int]]:
+    """The lines of every file of `legkit.optimize` and of every class in them (by its qualified name)."""
+    files, classes = {}, {}
+    for path in sorted((PACKAGE / "optimize").rglob("*.py")):
+        text = path.read_text()
+        files[module_name(path)] = len(text.splitlines())
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.ClassDef):
+                assert node.end_lineno is not None
+                classes[f"{module_name(path)}.{node.name}"] = node.end_lineno - node.lineno + 1
+    return files, classes
+
+
+def test_no_optimiser_file_or_class_is_too_long():
+    files, classes = optimiser_sizes()
+    assert "legkit.optimize.problem.MultiphaseProblem" in classes and "legkit.optimize.constraints.stance" in files
+    assert {name: lines for name, lines in files.items() if lines > MAX_FILE_LINES} == {}
+    assert {name: lines for name, lines in classes.items() if lines > MAX_CLASS_LINES} == {}
 
 
 def test_the_cycle_finder_finds_a_cycle():

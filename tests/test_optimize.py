@@ -23,6 +23,7 @@ from legkit.optimize import (
     joule_loss,
     specific_resistance,
 )
+from legkit.optimize.constraints.limits import yaw_blocks
 from legkit.optimize.checks import execution_check
 from legkit.optimize.mirror import side_mirror
 from legkit.optimize.replay import periodic_samples, phase_of, replay
@@ -362,7 +363,7 @@ def test_min_normal_force_bounds_every_stance_normal_force_and_nothing_else():
 
 def test_yaw_rows_are_the_heading_of_the_base_whatever_the_quaternions_norm():
     problem, x = quadruped_problem([effort()])
-    (block,) = replace(problem, max_yaw=0.3).yaw_blocks()
+    (block,) = yaw_blocks(replace(problem, max_yaw=0.3))
     quaternions = np.random.default_rng(8).normal(size=block.index.shape)  # of any norm
     x = x.copy()
     x[block.index] = quaternions

@@ -14,6 +14,8 @@ import legkit as lk
 import legkit.stability as st
 from legkit.experiments import gait
 from legkit.optimize import FlatFoot, MultiphaseProblem, Phase, fri_deviation, joule_loss
+from legkit.optimize.constraints.rates import dense_rate_blocks
+from legkit.optimize.constraints.stance import foot_torque_blocks
 from legkit.optimize.gaits import SOLE_TORSION, WALK_SUPPORT, guess_from_reference, walk_problem, walk_reference
 from legkit.optimize.solver import solve
 from legkit.robots.biped import SIDES, build_biped
@@ -60,7 +62,7 @@ def test_foot_torque_rows_are_eq6_and_keep_the_centre_of_pressure_on_the_sole(ro
         x[forces] = rng.normal(0.0, 50.0, forces.shape)
         x[forces[..., 2]] = rng.uniform(0.0, 400.0, forces[..., 2].shape)
         x[torques] = rng.normal(0.0, 12.0, torques.shape)
-        values = np.concatenate([b.values(x) for b in problem.foot_torque_blocks(k)])
+        values = np.concatenate([b.values(x) for b in foot_torque_blocks(problem, k)])
         # Eq. 6 per foot: c F_z - s T >= 0 for s = +1 then -1, c = support x (0.5 l_y, 0.5 l_x, mu_d).
         expected = []
         for foot in range(2):
@@ -185,7 +187,7 @@ def test_dense_rates_bound_the_joint_rates_on_the_whole_velocity_cubic_between_t
             v0, v1, a0, a1 = v[2 * i], v[2 * i + 2], a[2 * i], a[2 * i + 2]
             expected.append(np.concatenate([v0 + h * a0 / 3.0, v1 - h * a1 / 3.0]))
             cubics.append((2 * s**3 - 3 * s**2 + 1) * v0 + (s**3 - 2 * s**2 + s) * h * a0 + (-2 * s**3 + 3 * s**2) * v1 + (s**3 - s**2) * h * a1)
-    blocks = problem.dense_rate_blocks()
+    blocks = dense_rate_blocks(problem)
     assert problem.m == plain.m + sum(b.size for b in blocks)
     rows = np.concatenate([b.values(x) for b in blocks])
     np.testing.assert_allclose(rows, np.concatenate(expected), rtol=1e-12, atol=1e-12)

@@ -11,6 +11,7 @@ import legkit as lk
 from legkit.experiments import gait
 from legkit.gaits import AMBLE_QUADRUPED
 from legkit.optimize import MinMaxStability, MultiphaseProblem, Phase, SolveResult, Trajectory, effort
+from legkit.optimize.constraints.swing import CLEARANCE_FRACTIONS, clearance_blocks
 from legkit.optimize.gaits import AMBLE_SUPPORT, amble_problem, amble_reference, guess_from_reference
 from legkit.optimize.replay import clear_of_ground, foot_bottoms, foot_shapes, periodic_samples
 from legkit.robots.motors import QUADRUPED_MOTOR
@@ -81,10 +82,10 @@ def test_swing_clearance_rows_are_the_swing_heights_on_the_replayed_cubics():
     problem = amble_problem(robot, [MinMaxStability(2.0, DIAGONAL_PAIRS)], 0.67, 1.25, 2, QUADRUPED_MOTOR)
     guess = guess_from_reference(problem, amble_reference(robot, 0.67, 1.25, 2))
     x = problem.pack(guess)
-    fractions = np.array(problem.CLEARANCE_FRACTIONS)
+    fractions = np.array(CLEARANCE_FRACTIONS)
     start = 0.0
     for k, phase in enumerate(problem.phases):
-        (block,) = problem.swing_clearance_blocks(k)
+        (block,) = clearance_blocks(problem, k)
         swing = [leg for leg in LEGS if leg not in phase.contacts]
         h = guess.durations[k] / phase.intervals
         t = start + h * (np.arange(phase.intervals)[:, None] + fractions[None, :])

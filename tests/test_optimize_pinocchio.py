@@ -12,8 +12,8 @@ import pinocchio as pin
 import pytest
 
 from legkit.gaits import AMBLE_QUADRUPED
+from legkit.optimize import MultiphaseProblem, Trajectory
 from legkit.optimize.gaits import amble_plan_problem
-from legkit.optimize.problem import MultiphaseProblem, Trajectory
 from legkit.robots.quadruped import Quadruped, build_quadruped
 
 PLAN = Path(__file__).parent / "data" / "replayable_amble.npz"

@@ -586,7 +586,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.coarse_intervals and args.coarse_intervals >= args.intervals:
         parser.error(f"--coarse-intervals must be fewer than --intervals ({args.intervals})")
     if args.optimize:
-        from legkit.optimize.problem import MAX_INTERVALS
+        from legkit.optimize.definition import MAX_INTERVALS
 
         for option in ("intervals", "biped_intervals"):
             if getattr(args, option) > MAX_INTERVALS:

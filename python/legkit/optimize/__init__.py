@@ -9,9 +9,11 @@ legkit's batched dynamics, a whole cycle or, with a `Mirror` (`side_mirror`, `sa
 """
 
 from legkit.optimize.collocation import hermite_simpson_defects, point_jacobian
+from legkit.optimize.definition import FlatFoot, InputPower, Phase, TorqueSpeedLine
+from legkit.optimize.layout import Trajectory
 from legkit.optimize.mirror import Mirror, sagittal_mirror, side_mirror
 from legkit.optimize.objectives import Integral, MinMaxStability, effort, fri_deviation, joule_loss, specific_resistance
-from legkit.optimize.problem import FlatFoot, InputPower, MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
+from legkit.optimize.problem import MultiphaseProblem
 from legkit.optimize.shooting import IntervalDrift, interval_drift
 from legkit.optimize.solver import NLP, SolveResult, solve
 

@@ -16,7 +16,7 @@ import numpy as np
 import legkit as lk
 from legkit._validation import count
 from legkit.optimize.collocation import hermite_basis
-from legkit.optimize.problem import MultiphaseProblem
+from legkit.optimize.contact import ContactModel
 
 #: The most samples per interval `execution_check` takes (its arrays grow with samples x points).
 MAX_SAMPLES = 10_000
@@ -43,7 +43,7 @@ class ExecutionCheck:
                 f"swing tip min between points [m]  {self.swing_height:10.3g}"]
 
 
-def execution_check(problem: MultiphaseProblem, x: np.ndarray, samples: int = 16) -> ExecutionCheck:
+def execution_check(problem: ContactModel, x: np.ndarray, samples: int = 16) -> ExecutionCheck:
     """`ExecutionCheck` of the point x of `problem` (its mirrored half unrolled into the whole cycle), each interval
     sampled at `samples` fractions. The joint-rate figure needs a torque-speed line (`MultiphaseProblem.
     torque_speed`; nan without), the torque figures bounds on u (`u_bounds`; nan without)."""
@@ -99,13 +99,13 @@ def execution_check(problem: MultiphaseProblem, x: np.ndarray, samples: int = 16
                           swing_height if np.isfinite(swing_height) else np.nan)
 
 
-def midpoint_stance_acceleration(problem: MultiphaseProblem, x: np.ndarray) -> float:
-    """The largest stance-foot acceleration [m/s^2] at the midpoints (`MultiphaseProblem.stance_accelerations`;
+def midpoint_stance_acceleration(problem: ContactModel, x: np.ndarray) -> float:
+    """The largest stance-foot acceleration [m/s^2] at the midpoints (`ContactModel.stance_accelerations`;
     the knots hold it at 0): how far the collocation cubics between the knots are from a motion."""
     return max(float(np.linalg.norm(a[1::2], axis=-1).max(initial=0.0)) for a in problem.stance_accelerations(x))
 
 
-def inverse_dynamics_residuals(problem: MultiphaseProblem, x: np.ndarray) -> list[np.ndarray]:
+def inverse_dynamics_residuals(problem: ContactModel, x: np.ndarray) -> list[np.ndarray]:
     """Per phase (P, nv): rnea(q, v, a, f_ext) - B u recomputed from the solution by `lk.rnea`, the feet's forces
     and flat feet's torques applied as body wrenches (eq. 1 in inverse form; zero for an exact solution)."""
     trajectory = problem.unpack(x)

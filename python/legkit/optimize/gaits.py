@@ -23,9 +23,11 @@ import numpy as np
 import legkit as lk
 from legkit.gaits.analysis import contact_inverse_dynamics
 from legkit.gaits.references import AMBLE_HIP_HEIGHT, GaitReference, biped_walk, quadruped_amble
+from legkit.optimize.definition import FlatFoot, InputPower, Phase, TorqueSpeedLine
+from legkit.optimize.layout import Trajectory
 from legkit.optimize.mirror import side_mirror
 from legkit.optimize.objectives import MinMaxStability, joule_loss
-from legkit.optimize.problem import FlatFoot, InputPower, MultiphaseProblem, Phase, TorqueSpeedLine, Trajectory
+from legkit.optimize.problem import MultiphaseProblem
 from legkit.optimize.solver import Progress, SolveResult, solve
 from legkit.robots.biped import SIDES, Biped
 from legkit.robots.motors import QUADRUPED_MOTOR, MotorParameters

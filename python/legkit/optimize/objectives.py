@@ -39,7 +39,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -48,15 +48,13 @@ import legkit as lk
 from legkit.optimize import kinematics as kin
 from legkit.optimize.blocks import Block, Point, group_hessian, group_pattern
 from legkit.optimize.collocation import complex_step_jacobian, point_jacobian
+from legkit.optimize.contact import ContactModel
 from legkit.stability import angular_momentum_stability_of_model, foot_rotation_indicator
-
-if TYPE_CHECKING:
-    from legkit.optimize.problem import MultiphaseProblem
 
 #: Smoothing of |x| in J_e2 [W]: sqrt(x^2 + eps^2) keeps the integrand differentiable where a joint's power is 0.
 POWER_SMOOTHING = 1e-3
 
-Integrand = Callable[["MultiphaseProblem", np.ndarray, int], np.ndarray]
+Integrand = Callable[[ContactModel, np.ndarray, int], np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -70,7 +68,7 @@ class Integral:
     #: (problem, z (P, nz), k) -> (P, nz): the integrand's gradient where it has a closed form; else `point_jacobian`'s.
     slopes: Integrand | None = None
     #: problem -> the point variables the integrand depends on nonlinearly (default: all), for the Hessian.
-    nonlinear: Callable[[MultiphaseProblem], np.ndarray] | None = None
+    nonlinear: Callable[[ContactModel], np.ndarray] | None = None
 
 
 @dataclass(frozen=True)
@@ -89,7 +87,7 @@ def effort(weights: ArrayLike = 1.0, weight: float = 1.0) -> Integral:
     """int sum_i weights_i u_i^2 dt."""
     w = np.asarray(weights, dtype=np.float64)
 
-    def slopes(problem: MultiphaseProblem, z: np.ndarray, _: int) -> np.ndarray:
+    def slopes(problem: ContactModel, z: np.ndarray, _: int) -> np.ndarray:
         out = np.zeros_like(z)
         out[:, problem.nx : problem.nx + problem.nu] = 2.0 * w * z[:, problem.nx : problem.nx + problem.nu]
         return out
@@ -108,7 +106,7 @@ def joule_loss(resistance: ArrayLike, gear_ratio: ArrayLike, torque_constant: Ar
 def specific_resistance(weight: float = 1.0) -> Integral:
     """J_e2 of eq. 13: int sum_i |u_i w_i| / (m g v) dt, v the COM's forward (x) velocity."""
 
-    def integrand(problem: MultiphaseProblem, z: np.ndarray, _: int) -> np.ndarray:
+    def integrand(problem: ContactModel, z: np.ndarray, _: int) -> np.ndarray:
         u = z[:, problem.nx : problem.nx + problem.nu]
         w = z[:, problem.nq + np.asarray(problem.actuated)]
         power = np.sum(np.sqrt((u * w) ** 2 + POWER_SMOOTHING**2), axis=1)
@@ -127,7 +125,7 @@ def fri_deviation(weight: float = 1.0) -> Integral:
     taken with the feet's weight acting downwards (the published "- SG_j x m_j g" reads g as pointing up;
     `legkit.stability.fri` docstring). Every phase needs a foot on the ground (S is undefined in flight)."""
 
-    def integrand(problem: MultiphaseProblem, z: np.ndarray, k: int) -> np.ndarray:
+    def integrand(problem: ContactModel, z: np.ndarray, k: int) -> np.ndarray:
         feet = _support_bodies(problem, k)
         q, v = problem.configuration(z[:, : problem.nq]), z[:, problem.nq : problem.nx]
         fri = foot_rotation_indicator(problem.model, q, v, problem.accelerations(z, k), feet)
@@ -137,7 +135,7 @@ def fri_deviation(weight: float = 1.0) -> Integral:
     return Integral(integrand, weight=weight)
 
 
-def _support_bodies(problem: MultiphaseProblem, k: int) -> list[int]:
+def _support_bodies(problem: ContactModel, k: int) -> list[int]:
     """The distinct bodies of phase k's feet on the ground: the feet of eq. 8."""
     contacts = problem.phases[k].contacts
     if not contacts:
@@ -152,7 +150,7 @@ def _simpson_weights(intervals: int) -> np.ndarray:
     return c
 
 
-def build_objective(problem: MultiphaseProblem, terms: Sequence) -> tuple[Callable, Callable, list[IntegralCurvature], list[Block]]:
+def build_objective(problem: ContactModel, terms: Sequence) -> tuple[Callable, Callable, list[IntegralCurvature], list[Block]]:
     """(objective(x), gradient(x), the integrals' curvatures, extra constraint blocks) of the summed terms."""
     integrals = [t for t in terms if isinstance(t, Integral)]
     stability = [t for t in terms if isinstance(t, MinMaxStability)]
@@ -221,7 +219,7 @@ class IntegralCurvature:
     `group_hessian` of phi's gradient), the durations' w_kp d phi / dz, and with per_distance the terms of 1 / D.
     rows, cols: the entries' variables; values(x) in that order."""
 
-    def __init__(self, problem: MultiphaseProblem, term: Integral, weights: list[np.ndarray]) -> None:
+    def __init__(self, problem: ContactModel, term: Integral, weights: list[np.ndarray]) -> None:
         self.problem, self.term, self.weights = problem, term, weights
         phases = len(problem.phases)
         rows, cols = [], []
@@ -276,7 +274,7 @@ class IntegralCurvature:
         return np.concatenate(out)
 
 
-def published_stability(problem: MultiphaseProblem, k: int, term: MinMaxStability, z: np.ndarray) -> np.ndarray:
+def published_stability(problem: ContactModel, k: int, term: MinMaxStability, z: np.ndarray) -> np.ndarray:
     """S_H as published (eq. 10, `definition="paper"`) at phase k's point variables z (P, nz)."""
     contacts = list(problem.phases[k].contacts)
     pairs = np.array([(contacts.index(a), contacts.index(b)) for a, b in term.diagonal_pairs if a in contacts and b in contacts],
@@ -287,7 +285,7 @@ def published_stability(problem: MultiphaseProblem, k: int, term: MinMaxStabilit
         v_tip_max=term.v_tip_max, definition="paper", direction=term.direction, diagonal_pairs=pairs)
 
 
-def _smooth_edge(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> tuple[list[str], bool]:
+def _smooth_edge(problem: ContactModel, k: int, term: MinMaxStability) -> tuple[list[str], bool]:
     """Phase k's edge (start, end), ordered so that n = (dy, -dx) / |.| points to the side tipped over, and
     whether it is diagonal (module docstring); the side is fixed from the model's neutral pose."""
     contacts = list(problem.phases[k].contacts)
@@ -308,7 +306,7 @@ def _smooth_edge(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> t
     return (contacts if side > 0.0 else contacts[::-1]), diagonal
 
 
-def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> tuple[Callable, int, Callable]:
+def _smooth_margin(problem: ContactModel, k: int, term: MinMaxStability) -> tuple[Callable, int, Callable]:
     """The smooth constraint rows (module docstring) as a function of (B, nx + 1) = [q, v, p1], their number and
     their Jacobian (B, rows, nx + 1)."""
     edge, diagonal = _smooth_edge(problem, k, term)
@@ -373,7 +371,7 @@ def _smooth_margin(problem: MultiphaseProblem, k: int, term: MinMaxStability) ->
     return margin, outputs, derivative
 
 
-def _stability_block(problem: MultiphaseProblem, k: int, term: MinMaxStability) -> Block:
+def _stability_block(problem: ContactModel, k: int, term: MinMaxStability) -> Block:
     """S_H(q, v) - p1 >= 0 at every point of phase k (eq. 11): published, or its smooth lower bound."""
     contacts = list(problem.phases[k].contacts)
     if len(contacts) < 2:

@@ -3,7 +3,7 @@ rates plus the optimised torques as feed-forward (the trajectory-following contr
 Fig. 4), over several cycles; reports the base drift from the plan and whether the robot stayed upright.
 
 Every finding below was measured on plans whose stance forces rang between knots and midpoints
-(`MultiphaseProblem.stance_accelerations`): their torques did not produce their motion.
+(`ContactModel.stance_accelerations`): their torques did not produce their motion.
 The transcription now holds the stance feet in DIRCON's form; its amble plans still fall in the first
 diagonal support at every gain tried. At the default 4 intervals per phase the amble's long
 supports are not motions of the model at all (`legkit.optimize.shooting.interval_drift`: 60 deg of attitude within
@@ -44,8 +44,9 @@ import numpy as np
 import legkit as lk
 from legkit._validation import check_allocation, count, float_array
 from legkit.optimize.collocation import hermite_basis
+from legkit.optimize.contact import ContactModel
 from legkit.optimize.kinematics import rotation
-from legkit.optimize.problem import MultiphaseProblem, Trajectory
+from legkit.optimize.layout import Trajectory
 
 
 @dataclass
@@ -71,7 +72,7 @@ def phase_of(trajectory: Trajectory, t: np.ndarray) -> np.ndarray:
     return np.clip(np.searchsorted(starts, np.mod(t, np.sum(durations)), side="right") - 1, 0, len(durations) - 1)
 
 
-def periodic_samples(problem: MultiphaseProblem, trajectory: Trajectory, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def periodic_samples(problem: ContactModel, trajectory: Trajectory, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(q, v, u) of the periodic optimised gait at times t (any number of cycles), as the collocation itself
     interpolates them: on each Hermite–Simpson interval (knot, midpoint, knot) the state is the cubic through
     the knots with the collocated rates [dq/dt, a] there, the controls are linear. Each phase is interpolated on
@@ -115,7 +116,7 @@ def periodic_samples(problem: MultiphaseProblem, trajectory: Trajectory, t: np.n
 SOLE_THICKNESS = 0.01
 
 
-def foot_shapes(problem: MultiphaseProblem, radius: float) -> dict[int | str, tuple | None]:
+def foot_shapes(problem: ContactModel, radius: float) -> dict[int | str, tuple | None]:
     """`lk.Simulation` shapes: each point foot a sphere of `radius` whose bottom is the foot's point when its body
     hangs straight (centre `radius` above the point along the body's z axis); each flat foot (`FlatFoot`) a box
     of its sole's length and width, SOLE_THICKNESS thick, whose bottom face is the sole (centred on the foot's
@@ -133,7 +134,7 @@ def foot_shapes(problem: MultiphaseProblem, radius: float) -> dict[int | str, tu
     return shapes
 
 
-def foot_bottoms(problem: MultiphaseProblem, q: np.ndarray, radius: float) -> np.ndarray:
+def foot_bottoms(problem: ContactModel, q: np.ndarray, radius: float) -> np.ndarray:
     """(..., feet) world height of the lowest point of each foot's shape (`foot_shapes`) at configuration q: a
     sphere's centre height minus its radius, a sole's lowest corner."""
     poses = np.asarray(lk.forward_kinematics(problem.model, q))
@@ -150,7 +151,7 @@ def foot_bottoms(problem: MultiphaseProblem, q: np.ndarray, radius: float) -> np
     return np.stack(lowest, axis=-1)
 
 
-def clear_of_ground(problem: MultiphaseProblem, q: np.ndarray, radius: float) -> np.ndarray:
+def clear_of_ground(problem: ContactModel, q: np.ndarray, radius: float) -> np.ndarray:
     """q with a free-flyer base raised so that no foot shape (`foot_shapes`) starts below the ground. On a leg
     tilted by theta a sphere's bottom lies radius (1 - cos theta) below the plan's point foot: started on the plan
     itself, the amble's stance spheres (legs tilted ~40 deg) began 1.2 mm deep with radius 5 mm, and the soft
@@ -161,14 +162,14 @@ def clear_of_ground(problem: MultiphaseProblem, q: np.ndarray, radius: float) ->
     return q
 
 
-def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, kp: float | np.ndarray = 20.0, kd: float | np.ndarray = 0.5,
+def replay(problem: ContactModel, trajectory: Trajectory, cycles: int = 5, kp: float | np.ndarray = 20.0, kd: float | np.ndarray = 0.5,
            foot_radius: float = 0.002, dt: float = 1e-3, control_every: int = 2, friction: float = 0.8) -> Replay:
     """Simulate `cycles` cycles from the optimised initial state, its base raised until no foot starts below the
     ground (`clear_of_ground`); only the feet (`foot_shapes`: spheres of foot_radius, flat soles as boxes) and the
     base collide. kp, kd: joint PD gains, one for every actuated joint or one each (nu,). The replay is open
     loop in the torso's attitude: a two-legged support's tipping mode grows from any small error (module
     docstring: feeding the attitude error to the hip targets made the soft-touchdown amble fall sooner). A mirrored
-    half cycle is replayed as its whole cycle (`MultiphaseProblem.whole_trajectory`)."""
+    half cycle is replayed as its whole cycle (`ContactModel.whole_trajectory`)."""
     problem, trajectory = problem.whole_trajectory(trajectory)
     model = problem.model
     count(cycles, "cycles", 1)
@@ -196,7 +197,7 @@ def replay(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, 
     return outcome(problem, t, simulated, planned_q)
 
 
-def outcome(problem: MultiphaseProblem, t: np.ndarray, simulated: np.ndarray, planned_q: np.ndarray) -> Replay:
+def outcome(problem: ContactModel, t: np.ndarray, simulated: np.ndarray, planned_q: np.ndarray) -> Replay:
     """A simulated run judged against the plan at the same instants (`Replay`)."""
     model = problem.model
     standing = np.ones(len(t), dtype=bool)

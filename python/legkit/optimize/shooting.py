@@ -1,7 +1,7 @@
 """How far a transcription's solution is from a motion of its model, interval by interval.
 
 Collocation meets the dynamics at the knots and midpoints only. From each knot, `interval_drift` integrates the
-dynamics the transcription constrains (the phase's feet held as `MultiphaseProblem.contact_rows` hold them,
+dynamics the transcription constrains (the phase's feet held as `Layout.contact_rows` hold them,
 bilaterally; the controls interpolated linearly through knot, midpoint and knot, as the replay samples them) to
 the interval's end, and compares the result with the next knot. On a mesh fine enough for the motion the
 drift is small; on the Fig. 3 amble at 4 intervals per phase the 0.47 s lateral supports drifted by up to 47 deg
@@ -16,8 +16,8 @@ from scipy.spatial.transform import Rotation
 
 import legkit as lk
 from legkit._validation import count
+from legkit.optimize.contact import ContactModel
 from legkit.optimize.kinematics import rotation
-from legkit.optimize.problem import MultiphaseProblem
 
 #: Rates beyond this [rad/s, m/s] count as a blown-up integration (`interval_drift` reports inf there).
 DIVERGED = 1e6
@@ -50,7 +50,7 @@ class IntervalDrift:
         return summary
 
 
-def constrained_accelerations(problem: MultiphaseProblem, k: int, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+def constrained_accelerations(problem: ContactModel, k: int, q: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:
     """(B, nv) accelerations with phase k's `contact_rows` held (J a + dJ/dt v = 0) under controls u (B, nu):
     M a + h = S^T u + J^T lambda."""
     model, nv = problem.model, problem.nv
@@ -73,7 +73,7 @@ def constrained_accelerations(problem: MultiphaseProblem, k: int, q: np.ndarray,
     return free + np.einsum("bji,bj->bi", projected, forces)
 
 
-def tangent_difference(problem: MultiphaseProblem, q: np.ndarray, reference: np.ndarray) -> np.ndarray:
+def tangent_difference(problem: ContactModel, q: np.ndarray, reference: np.ndarray) -> np.ndarray:
     """(B, nv): q minus reference in the tangent space (`IntervalDrift`)."""
     if not problem.model.floating_base:
         return q - reference
@@ -81,7 +81,7 @@ def tangent_difference(problem: MultiphaseProblem, q: np.ndarray, reference: np.
     return np.concatenate([q[:, :3] - reference[:, :3], Rotation.from_matrix(relative).as_rotvec(), q[:, 7:] - reference[:, 7:]], axis=1)
 
 
-def tangent_add(problem: MultiphaseProblem, reference: np.ndarray, d: np.ndarray) -> np.ndarray:
+def tangent_add(problem: ContactModel, reference: np.ndarray, d: np.ndarray) -> np.ndarray:
     """(B, nq): reference moved by d (B, nv) in the tangent space; the inverse of `tangent_difference`."""
     if not problem.model.floating_base:
         return reference + d
@@ -92,7 +92,7 @@ def tangent_add(problem: MultiphaseProblem, reference: np.ndarray, d: np.ndarray
     return q
 
 
-def interval_drift(problem: MultiphaseProblem, x: np.ndarray, substeps: int = 32) -> IntervalDrift:
+def interval_drift(problem: ContactModel, x: np.ndarray, substeps: int = 32) -> IntervalDrift:
     """Integrate each interval of solution x from its first knot (classical Runge-Kutta, `substeps` steps, all
     intervals of a phase at once; q advanced by `lk.integrate`) and compare with its last knot; inf for an
     interval whose integration blows up."""
@@ -141,6 +141,6 @@ def _linear_controls(times: np.ndarray, u: np.ndarray, t: np.ndarray) -> np.ndar
     return first_value + ((t - left) / (right - left))[:, None] * (last_value - first_value)
 
 
-def _advance(problem: MultiphaseProblem, q: np.ndarray, rate: np.ndarray, dt: np.ndarray) -> np.ndarray:
+def _advance(problem: ContactModel, q: np.ndarray, rate: np.ndarray, dt: np.ndarray) -> np.ndarray:
     """q (+) rate dt, one dt per row."""
     return problem.configuration(np.asarray(lk.integrate(problem.model, q, rate * dt[:, None], 1.0)))

@@ -35,7 +35,8 @@ from scipy.optimize import nnls
 
 import legkit as lk
 from legkit._extras import progress as progress_bar
-from legkit.optimize.problem import MultiphaseProblem, Trajectory
+from legkit.optimize.contact import ContactModel
+from legkit.optimize.layout import Trajectory
 from legkit.optimize.replay import Replay, clear_of_ground, foot_shapes, outcome, periodic_samples, phase_of
 
 #: Deviation weights of the LQR cost: the free-flyer base's position and attitude (rotation vector), each joint
@@ -47,13 +48,13 @@ JOINT_RATE_WEIGHT = 0.1
 TORQUE_WEIGHT = 0.1
 
 
-def state_weights(problem: MultiphaseProblem) -> np.ndarray:
+def state_weights(problem: ContactModel) -> np.ndarray:
     """(2 nv,) the diagonal of the LQR's state cost on a free-flyer robot."""
     joints = problem.nv - 6
     return np.concatenate([BASE_WEIGHTS, np.full(joints, JOINT_WEIGHT), BASE_RATE_WEIGHTS, np.full(joints, JOINT_RATE_WEIGHT)])
 
 
-def sampled_reference(problem: MultiphaseProblem, trajectory: Trajectory, t: np.ndarray,
+def sampled_reference(problem: ContactModel, trajectory: Trajectory, t: np.ndarray,
                       swing_clearance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(q, v, u) of the plan at t (`periodic_samples`) with every swing foot raised by swing_clearance x sin(pi s)
     over its swing (s its fraction) through its leg's joints (damped least squares), v by the rise's rate."""
@@ -96,7 +97,7 @@ class TrackingModel:
     + force_state_i e_i + force_input_i du_i; the feet's heights heights_i + height_state_i e_i, `swing_i` marking
     the feet in the air; cost_to_go (N + 1) the periodic LQR's."""
 
-    problem: MultiphaseProblem
+    problem: ContactModel
     trajectory: Trajectory
     dt: float
     swing_clearance: float
@@ -120,12 +121,12 @@ class TrackingModel:
     cost_to_go: np.ndarray
 
     @classmethod
-    def build(cls, problem: MultiphaseProblem, trajectory: Trajectory, dt: float = 2e-3, swing_clearance: float = 0.01,
+    def build(cls, problem: ContactModel, trajectory: Trajectory, dt: float = 2e-3, swing_clearance: float = 0.01,
               substeps: int = 4) -> TrackingModel:
         """Sample the plan every dt (rounded so that whole control periods make one cycle) and linearise the
         contact model's step (`held_step`) there analytically: the chain rule through its substeps and touchdown
         from the core's derivatives, batched over the samples of each run of one (phase, next phase). A mirrored half
-        cycle is tracked as its whole cycle (`MultiphaseProblem.whole_trajectory`)."""
+        cycle is tracked as its whole cycle (`ContactModel.whole_trajectory`)."""
         problem, trajectory = problem.whole_trajectory(trajectory)
         if not problem.model.floating_base or not problem.periodic:
             raise ValueError("problem: TrackingModel needs a periodic free-flyer gait")
@@ -195,7 +196,7 @@ class TrackingModel:
         return np.linalg.solve(R + bp @ self.B, bp @ self.A)
 
 
-def held_step(problem: MultiphaseProblem, phase: int, next_phase: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
+def held_step(problem: ContactModel, phase: int, next_phase: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
               substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(q, v, forces) after dt of the optimiser's contact model from (q, v) (B, .) under torques tau (B, nv) held
     over it: `phase`'s feet held (`lk.contact_dynamics`), semi-implicit Euler substeps, then the touchdown (eq. 7,
@@ -203,7 +204,7 @@ def held_step(problem: MultiphaseProblem, phase: int, next_phase: int, q: np.nda
     return _held_step(problem, phase, next_phase, q, v, tau, dt, substeps, False)[:3]
 
 
-def held_step_linearised(problem: MultiphaseProblem, phase: int, next_phase: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
+def held_step_linearised(problem: ContactModel, phase: int, next_phase: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
                          dt: float, substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """`held_step` and its Jacobians by x = (dq on q's tangent space, dv, du on the actuated torques): state
     (B, 2 nv, 2 nv + nu) of (q', v') (q' on its own tangent space) and forces (B, width x held feet, 2 nv + nu). The
@@ -214,7 +215,7 @@ def held_step_linearised(problem: MultiphaseProblem, phase: int, next_phase: int
     return result[0], result[1], result[2], result[3], result[4]
 
 
-def _held_step(problem: MultiphaseProblem, phase: int, next_phase: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
+def _held_step(problem: ContactModel, phase: int, next_phase: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, dt: float,
                substeps: int, jacobians: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
     model, nv, batch = problem.model, problem.nv, len(q)
     feet = [(problem.foot_body[name], problem.foot_point[name]) for name in problem.phases[phase].contacts]
@@ -449,7 +450,7 @@ class MPC:
         return np.clip(z[:nu], self.lower_u[k, :nu], self.upper_u[k, :nu])  # hard bounds, to rounding
 
 
-def contact_width(problem: MultiphaseProblem) -> Literal[3, 6]:
+def contact_width(problem: ContactModel) -> Literal[3, 6]:
     """Rows per held foot of the contact model: 3 (a point foot's force) or 6 (a flat sole held as a frame: force and
     torque about the sole's centre, world axes; `lk.contact_dynamics(dim=6)`). Feet of both kinds in one problem are
     refused."""
@@ -481,7 +482,7 @@ def force_rows(model: TrackingModel, friction: float) -> tuple[np.ndarray, int]:
     return rows, per_foot
 
 
-def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, foot_radius: float = 0.002, dt: float = 1e-3,
+def track(problem: ContactModel, trajectory: Trajectory, cycles: int = 5, foot_radius: float = 0.002, dt: float = 1e-3,
           control_every: int = 2, ground_friction: float = 0.8, swing_clearance: float = 0.01, model: TrackingModel | None = None,
           joint_offset: np.ndarray | None = None, plant: lk.Model | None = None, progress: bool = True, **mpc: Any) -> Replay:
     """Simulate `cycles` cycles under `MPC` (its keyword arguments in **mpc), from the plan's first state with the base
@@ -491,7 +492,7 @@ def track(problem: MultiphaseProblem, trajectory: Trajectory, cycles: int = 5, f
     and control period (built here otherwise). joint_offset (nu,): added to the first state's joint angles, a
     perturbed start. plant: the model simulated (default the plan's), e.g. one with other masses (model
     mismatch). progress: a progress bar. Stops stepping once the robot has fallen (checked every 50 control
-    periods). A mirrored half cycle is tracked as its whole cycle (`MultiphaseProblem.whole_trajectory`)."""
+    periods). A mirrored half cycle is tracked as its whole cycle (`ContactModel.whole_trajectory`)."""
     problem, trajectory = problem.whole_trajectory(trajectory)
     if not (isinstance(control_every, (int, np.integer)) and control_every >= 1):
         raise ValueError(f"control_every must be an integer >= 1, got {control_every}")
