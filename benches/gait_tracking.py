@@ -22,7 +22,7 @@ import numpy as np
 
 from legkit.gaits import AMBLE_QUADRUPED
 from legkit.optimize import interval_drift
-from legkit.optimize.gaits import plan_amble, stall_torque_bounds
+from legkit.optimize.gaits import AmbleOptions, plan_amble, stall_torque_bounds
 from legkit.optimize.replay import replay
 from legkit.optimize.tracking import TrackingModel, track
 from legkit.robots.motors import QUADRUPED_MOTOR
@@ -44,8 +44,8 @@ def main() -> None:
     robot = build_quadruped(AMBLE_QUADRUPED)
 
     start = time.perf_counter()
-    plan = plan_amble(robot, intervals=args.intervals, coarse_intervals=args.coarse_intervals or 0, friction=args.mu,
-                      min_normal_force=args.min_normal_force, torque_margin=args.torque_margin)
+    options = AmbleOptions(friction=args.mu, min_normal_force=args.min_normal_force, torque_margin=args.torque_margin)
+    plan = plan_amble(robot, intervals=args.intervals, coarse_intervals=args.coarse_intervals or 0, options=options)
     total = time.perf_counter() - start
     result = plan.result
     problem, x = plan.problem.whole_cycle(result.best()[0])

@@ -23,8 +23,8 @@ from legkit.optimize import (
     joule_loss,
     specific_resistance,
 )
-from legkit.optimize.constraints.limits import yaw_blocks
 from legkit.optimize.checks import execution_check
+from legkit.optimize.constraints.limits import yaw_blocks
 from legkit.optimize.mirror import side_mirror
 from legkit.optimize.replay import periodic_samples, phase_of, replay
 from legkit.optimize.shooting import interval_drift

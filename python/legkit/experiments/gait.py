@@ -22,6 +22,7 @@ import csv
 import sys
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -38,8 +39,60 @@ from legkit.robots.motors import BIPED_MOTOR, QUADRUPED_MOTOR, MotorParameters
 from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, build_quadruped
 
 if TYPE_CHECKING:
-    from legkit.optimize.problem import MultiphaseProblem, Trajectory
+    from legkit.optimize.gaits import AmbleOptions
+    from legkit.optimize.layout import Trajectory
+    from legkit.optimize.problem import MultiphaseProblem
     from legkit.optimize.replay import Replay
+
+
+@dataclass(frozen=True)
+class GaitOptions:
+    """The command's arguments, typed, as `main` builds them once from its parser (`from_arguments`) and hands them to
+    the functions that run it (each option's meaning: `legkit gait --help`)."""
+
+    robot: str
+    out: Path
+    cycles: int
+    samples: int
+    mu: float | None
+    quadruped_speed: float
+    quadruped_period: float
+    quadruped_tip_speed: float
+    biped_speed: float
+    biped_step: float
+    biped_tip_speed: float
+    optimize: bool
+    intervals: int
+    coarse_intervals: int
+    derivatives: str
+    biped_intervals: int
+    max_iter: int
+    biped_max_iter: int
+    tol: float
+    biped_max_power: float | None
+    replay_cycles: int
+    replay_kp: float
+    replay_kd: float
+    replay_controller: str
+    min_normal_force: float
+    torque_margin: float
+    max_impulse: float
+    no_animation: bool
+    mirror: bool | None
+    polish: bool
+    polish_max_iter: int
+
+    @classmethod
+    def from_arguments(cls, args: argparse.Namespace) -> GaitOptions:
+        """The options of parsed arguments."""
+        return cls(**{option.name: getattr(args, option.name) for option in fields(cls)})
+
+    def amble(self) -> AmbleOptions:
+        """The amble plan's problem options (`legkit.optimize.gaits.AmbleOptions`): the command's, its defaults otherwise."""
+        from legkit.optimize.gaits import AMBLE_MIRROR, AMBLE_PLAN_FRICTION, AmbleOptions
+
+        return AmbleOptions(self.quadruped_tip_speed, AMBLE_PLAN_FRICTION if self.mu is None else self.mu, self.max_impulse,
+                            AMBLE_MIRROR if self.mirror is None else self.mirror, self.min_normal_force, self.torque_margin)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -100,39 +153,39 @@ def print_table(analyses: list[GaitAnalysis]) -> None:
         print(f"{key:{width}}  " + "  ".join(cells))
 
 
-def reference(robot_name: str, args: argparse.Namespace) -> tuple[Any, Any]:
+def reference(robot_name: str, options: GaitOptions) -> tuple[Any, Any]:
     """The robot and its hand-built reference gait at the command's speed, period and step. ValueError when a foot
     target is out of the legs' reach."""
     if robot_name == "quadruped":
         quadruped = build_quadruped(AMBLE_QUADRUPED)
-        return quadruped, quadruped_amble(quadruped, args.quadruped_speed, args.quadruped_period, args.samples, args.cycles, 0.03,
+        return quadruped, quadruped_amble(quadruped, options.quadruped_speed, options.quadruped_period, options.samples, options.cycles, 0.03,
                                           AMBLE_HIP_HEIGHT)
     biped = build_biped()
-    return biped, biped_walk(biped, args.biped_speed / 3.6, args.biped_step, args.samples, args.cycles, 0.2, 0.05, 0.82, 0.3)
+    return biped, biped_walk(biped, options.biped_speed / 3.6, options.biped_step, options.samples, options.cycles, 0.2, 0.05, 0.82, 0.3)
 
 
-def run(robot_name: str, args: argparse.Namespace, progress: Any) -> GaitAnalysis:
+def run(robot_name: str, options: GaitOptions, progress: Any) -> GaitAnalysis:
     """Build the robot and its reference, analyse it, and write its CSV and figure."""
-    robot, ref = reference(robot_name, args)
+    robot, ref = reference(robot_name, options)
     if robot_name == "quadruped":
-        model, motor, tip_speed = robot.model, QUADRUPED_MOTOR, args.quadruped_tip_speed
+        model, motor, tip_speed = robot.model, QUADRUPED_MOTOR, options.quadruped_tip_speed
         diagonal = [(LEGS.index(a), LEGS.index(b)) for a, b in DIAGONAL_PAIRS]
-        title = (f"Quadruped amble, duty 0.5, {args.quadruped_speed:g} m/s, period {args.quadruped_period:g} s: "
-                 f"S_H over {args.cycles} cycle(s)")
+        title = (f"Quadruped amble, duty 0.5, {options.quadruped_speed:g} m/s, period {options.quadruped_period:g} s: "
+                 f"S_H over {options.cycles} cycle(s)")
     else:
-        model, motor, tip_speed, diagonal = robot.model, BIPED_MOTOR, args.biped_tip_speed, None
-        title = f"Biped walk, {args.biped_speed:g} km/h: S_H over {args.cycles} cycle(s)"
+        model, motor, tip_speed, diagonal = robot.model, BIPED_MOTOR, options.biped_tip_speed, None
+        title = f"Biped walk, {options.biped_speed:g} km/h: S_H over {options.cycles} cycle(s)"
     progress.update()
-    analysis = analyse(robot_name, model, ref, motor, tip_speed, FRICTION if args.mu is None else args.mu, diagonal, progress.update)
+    analysis = analyse(robot_name, model, ref, motor, tip_speed, FRICTION if options.mu is None else options.mu, diagonal, progress.update)
     if robot_name == "biped":
         biped_extras(robot, analysis)
-    write_csv(args.out / f"gait_{robot_name}.csv", analysis)
-    plot(args.out / f"gait_{robot_name}.png", analysis, title)
+    write_csv(options.out / f"gait_{robot_name}.csv", analysis)
+    plot(options.out / f"gait_{robot_name}.png", analysis, title)
     progress.update()
     return analysis
 
 
-def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
+def run_optimized_amble(options: GaitOptions) -> dict[str, float]:
     """`--optimize`: the Fig. 3 amble optimised by multiphase collocation on IPOPT (`legkit.optimize`), maximising
     the worst-case S_H (J_s2, eq. 11) from the hand-built reference, its touchdown impulses bounded by --max-impulse
     (default 0: the feet land at rest); one labelled progress line per IPOPT stage. With
@@ -144,29 +197,26 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     which, and, unless --no-animation, writes the replay beside the plan as .html (meshcat) and .gif, captioned with
     the controller."""
     from legkit.optimize.checks import midpoint_stance_acceleration
-    from legkit.optimize.gaits import AMBLE_PLAN_FRICTION, amble_plan_problem, amble_reference, guess_from_reference, plan_amble
+    from legkit.optimize.gaits import amble_plan_problem, amble_reference, guess_from_reference, plan_amble
 
     robot = build_quadruped(AMBLE_QUADRUPED)
-    speed, period = args.quadruped_speed, args.quadruped_period
-    problem_options = {"tip_speed": args.quadruped_tip_speed, "friction": AMBLE_PLAN_FRICTION if args.mu is None else args.mu,
-                       "max_impulse": args.max_impulse, "min_normal_force": args.min_normal_force, "torque_margin": args.torque_margin}
-    if args.mirror is not None:
-        problem_options["mirror"] = args.mirror
-    problem = amble_plan_problem(robot, args.intervals, speed, period, **problem_options)
+    speed, period = options.quadruped_speed, options.quadruped_period
+    problem = amble_plan_problem(robot, options.intervals, speed, period, options.amble())
     print(f"optimising the amble: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros"
-          + (f", from {args.coarse_intervals} intervals per phase" if args.coarse_intervals else ""))
-    if not args.coarse_intervals:
-        _announce(problem, problem.gauged(problem.pack(guess_from_reference(problem, amble_reference(robot, speed, period, args.intervals)))),
+          + (f", from {options.coarse_intervals} intervals per phase" if options.coarse_intervals else ""))
+    if not options.coarse_intervals:
+        _announce(problem, problem.gauged(problem.pack(guess_from_reference(problem, amble_reference(robot, speed, period, options.intervals)))),
                   EXPECTED_ITERATIONS["amble"])
-    coarse = f" on {args.coarse_intervals} interval{'s' if args.coarse_intervals > 1 else ''}" if args.coarse_intervals else ""
-    polish = args.polish and args.derivatives == "legkit"
-    hessian = "exact Hessian" if args.derivatives == "exact" else "L-BFGS"
+    coarse = f" on {options.coarse_intervals} interval{'s' if options.coarse_intervals > 1 else ''}" if options.coarse_intervals else ""
+    polish = options.polish and options.derivatives == "legkit"
+    hessian = "exact Hessian" if options.derivatives == "exact" else "L-BFGS"
     progress = _StageProgress([f"constraints{coarse} (p1 held below S_H)", f"J_s2{coarse} ({hessian})"]
                               + ([f"polish{coarse}: exact Hessian, durations held", f"polish{coarse}: exact Hessian"] if polish else [])
-                              + ([f"refine onto {args.intervals} intervals"] if args.coarse_intervals else []))
+                              + ([f"refine onto {options.intervals} intervals"] if options.coarse_intervals else []))
     cpu = time.process_time()
-    plan = plan_amble(robot, speed, period, args.intervals, args.coarse_intervals, derivatives=args.derivatives, polish=args.polish,
-                      polish_max_iter=args.polish_max_iter, tol=args.tol, max_iter=args.max_iter, progress=progress, **problem_options)
+    plan = plan_amble(robot, speed, period, options.intervals, options.coarse_intervals, derivatives=options.derivatives, polish=options.polish,
+                      polish_max_iter=options.polish_max_iter, tol=options.tol, max_iter=options.max_iter, progress=progress,
+                      options=options.amble(), problem=problem)
     cpu = time.process_time() - cpu
     progress.close()
     problem, result = plan.problem, plan.result
@@ -181,14 +231,14 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
     trajectory = problem.unpack(x)
     data = trajectory.stacked()
     labels = ["+".join(leg.upper() for leg in problem.phases[k].contacts) for k in data["phase"]]
-    columns = _write_trajectory_csv(args.out / "gait_quadruped_optimized.csv", trajectory, labels,
+    columns = _write_trajectory_csv(options.out / "gait_quadruped_optimized.csv", trajectory, labels,
                                     {"S_H": np.concatenate(problem.stability_index(x))})
     worst, worst_t = st.worst_case(columns["S_H"], data["t"])
-    _plot_optimized(args.out / "gait_quadruped_optimized.png", data["t"], columns["S_H"], plan.reference.stacked()["t"], reference_s_h,
+    _plot_optimized(options.out / "gait_quadruped_optimized.png", data["t"], columns["S_H"], plan.reference.stacked()["t"], reference_s_h,
                     labels, worst, worst_t,
                     f"Optimised amble (J_s2), {speed:g} m/s, period {period:g} s: IPOPT {result.status}, iterate {kept} kept"
-                    + (f", refined from {args.coarse_intervals} intervals" if args.coarse_intervals else ""))
-    simulated = _replay(args, problem, trajectory, QUADRUPED_MOTOR, args.out / "gait_quadruped_optimized", "the amble")
+                    + (f", refined from {options.coarse_intervals} intervals" if options.coarse_intervals else ""))
+    simulated = _replay(options, problem, trajectory, QUADRUPED_MOTOR, options.out / "gait_quadruped_optimized", "the amble")
     return {
         "IPOPT iterations": result.iterations, "solve wall time [s]": result.wall_time, "solve CPU time of this process [s]": cpu,
         "function + Jacobian share of the solve [%]": 100.0 * result.evaluation_time / result.wall_time,
@@ -200,12 +250,12 @@ def run_optimized_amble(args: argparse.Namespace) -> dict[str, float]:
         "S_H min, optimised [N m s]": worst, "S_H min at [s]": worst_t, "S_H min, reference [N m s]": float(reference_s_h.min()),
         **{f"phase {k} ({'+'.join(p.contacts).upper()}) duration [s]": float(d)
            for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
-        **_replay_summary(args, simulated),
+        **_replay_summary(options, simulated),
         "solver succeeded (1 = yes)": float(result.success),
     }
 
 
-def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
+def run_optimized_walk(options: GaitOptions) -> dict[str, float]:
     """`--optimize`: the biped walk at --biped-speed minimising J_e1 (eq. 12) under the motors' torque-speed lines
     ([Hardt 2002, Sect. 2.3 and 6]; `legkit.optimize.gaits.walk_problem`), its soles flat with eq. 6's torque
     limits, from the hand-built reference (`biped_walk`); constraints first, then J_e1, one progress line per
@@ -218,17 +268,17 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
     from legkit.optimize.gaits import WALK_MIRROR, WALK_PLAN_FRICTION, guess_from_reference, solve_walk, walk_problem, walk_reference
 
     robot = build_biped()
-    speed = args.biped_speed / 3.6
-    intervals = (max(1, args.biped_intervals // 4), args.biped_intervals)
-    problem = walk_problem(robot, speed, BIPED_MOTOR, intervals, WALK_PLAN_FRICTION if args.mu is None else args.mu,
-                           max_input_power=args.biped_max_power,
-                           mirror=WALK_MIRROR if args.mirror is None else args.mirror)
+    speed = options.biped_speed / 3.6
+    intervals = (max(1, options.biped_intervals // 4), options.biped_intervals)
+    problem = walk_problem(robot, speed, BIPED_MOTOR, intervals, WALK_PLAN_FRICTION if options.mu is None else options.mu,
+                           max_input_power=options.biped_max_power,
+                           mirror=WALK_MIRROR if options.mirror is None else options.mirror)
     guess = guess_from_reference(problem, walk_reference(robot, speed, intervals))
     print(f"optimising the biped walk: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
     _announce(problem, problem.gauged(problem.pack(guess)), EXPECTED_ITERATIONS["walk"])
     cpu = time.process_time()
     progress = _StageProgress(["constraints", "J_e1"])
-    _, result = solve_walk(problem, guess, tol=args.tol, max_iter=args.biped_max_iter, progress=progress)
+    _, result = solve_walk(problem, guess, tol=options.tol, max_iter=options.biped_max_iter, progress=progress)
     progress.close()
     cpu = time.process_time() - cpu
     x, objective = result.best()
@@ -247,11 +297,11 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
                 torque[rows[k] : rows[k + 1]] = trajectory.torques[k][:, problem.flat_contacts(phase.contacts).index(side)]
         wrenches.update({f"{side}_F{axis}": force[:, i] for i, axis in enumerate("xyz")})
         wrenches.update({f"{side}_T{axis}": torque[:, i] for i, axis in enumerate("xyz")})
-    _write_trajectory_csv(args.out / "gait_biped_optimized.csv", trajectory, labels, wrenches)
+    _write_trajectory_csv(options.out / "gait_biped_optimized.csv", trajectory, labels, wrenches)
     joint_speed = data["v"][:, problem.actuated]
-    plot_torque_speed(args.out / "gait_biped_torque_speed.png", robot, joint_speed, data["u"], BIPED_MOTOR,
-                      f"Optimised biped walk (J_e1), {args.biped_speed:g} km/h: IPOPT {result.status}")
-    simulated = _replay(args, problem, trajectory, BIPED_MOTOR, args.out / "gait_biped_optimized", "the walk")
+    plot_torque_speed(options.out / "gait_biped_torque_speed.png", robot, joint_speed, data["u"], BIPED_MOTOR,
+                      f"Optimised biped walk (J_e1), {options.biped_speed:g} km/h: IPOPT {result.status}")
+    simulated = _replay(options, problem, trajectory, BIPED_MOTOR, options.out / "gait_biped_optimized", "the walk")
     return {
         "IPOPT iterations (constraints, then J_e1)": result.iterations, "solve wall time [s]": result.wall_time,
         "solve CPU time of this process [s]": cpu, "J_e1 (eq. 12) [J/m]": objective,
@@ -264,12 +314,12 @@ def run_optimized_walk(args: argparse.Namespace) -> dict[str, float]:
            for k, (p, d) in enumerate(zip(problem.phases, trajectory.durations))},
         "torque-speed margin min (Sect. 2.3) [N m]": float(np.min(st.torque_speed_margin(
             data["u"], joint_speed, BIPED_MOTOR.joint_max_speed, BIPED_MOTOR.gear_ratio, BIPED_MOTOR.efficiency, BIPED_MOTOR.slope))),
-        **_replay_summary(args, simulated),
+        **_replay_summary(options, simulated),
         "solver succeeded (1 = yes)": float(result.success),
     }
 
 
-def _replay(args: argparse.Namespace, problem: MultiphaseProblem, trajectory: Trajectory, motor: MotorParameters, stem: Path,
+def _replay(options: GaitOptions, problem: MultiphaseProblem, trajectory: Trajectory, motor: MotorParameters, stem: Path,
             gait: str) -> Replay:
     """Replay a solved gait in `lk.Simulation` for --replay-cycles cycles under --replay-controller, saying which, and,
     unless --no-animation, write stem.html and stem.gif captioned with the controller."""
@@ -277,24 +327,24 @@ def _replay(args: argparse.Namespace, problem: MultiphaseProblem, trajectory: Tr
     from legkit.optimize.replay import replay
     from legkit.optimize.tracking import track
 
-    if args.replay_controller == "mpc":
+    if options.replay_controller == "mpc":
         controller = ("the contact-constrained MPC (legkit.optimize.tracking: 2 ms control period, 120 ms horizon, "
                       "stance forces >= 0.5 N in the friction pyramid (soles: eq. 6), swing feet above the ground, the motors' stall torques)")
         caption = "the contact-constrained MPC (2 ms, 120 ms horizon)"
-        print(f"replaying {args.replay_cycles} cycles in lk.Simulation under {controller}")
-        simulated = track(problem, trajectory, args.replay_cycles, torque_bounds=stall_torque_bounds(motor, problem.nu))
+        print(f"replaying {options.replay_cycles} cycles in lk.Simulation under {controller}")
+        simulated = track(problem, trajectory, options.replay_cycles, torque_bounds=stall_torque_bounds(motor, problem.nu))
     else:
-        controller = f"joint PD tracking (kp {args.replay_kp:g} N m/rad, kd {args.replay_kd:g} N m s/rad) + the planned torques as feed-forward"
-        caption = f"joint PD (kp {args.replay_kp:g}, kd {args.replay_kd:g}) + feed-forward"
-        print(f"replaying {args.replay_cycles} cycles in lk.Simulation under {controller}")
-        simulated = replay(problem, trajectory, args.replay_cycles, kp=args.replay_kp, kd=args.replay_kd, control_every=1)
-    if not args.no_animation:
+        controller = f"joint PD tracking (kp {options.replay_kp:g} N m/rad, kd {options.replay_kd:g} N m s/rad) + the planned torques as feed-forward"
+        caption = f"joint PD (kp {options.replay_kp:g}, kd {options.replay_kd:g}) + feed-forward"
+        print(f"replaying {options.replay_cycles} cycles in lk.Simulation under {controller}")
+        simulated = replay(problem, trajectory, options.replay_cycles, kp=options.replay_kp, kd=options.replay_kd, control_every=1)
+    if not options.no_animation:
         _animate_replay(stem, problem, simulated, caption, gait)
     return simulated
 
 
-def _replay_summary(args: argparse.Namespace, simulated: Replay) -> dict[str, float]:
-    return {f"replay ({args.replay_controller}): drift over {args.replay_cycles} cycles [% of distance]": 100.0 * simulated.drift_fraction,
+def _replay_summary(options: GaitOptions, simulated: Replay) -> dict[str, float]:
+    return {f"replay ({options.replay_controller}): drift over {options.replay_cycles} cycles [% of distance]": 100.0 * simulated.drift_fraction,
             "replay: stayed upright (1 = yes)": float(simulated.upright),
             "replay: fell after [s] (inf: never)": simulated.fell_at}
 
@@ -594,29 +644,30 @@ def main(argv: list[str] | None = None) -> int:
     robots = ["quadruped", "biped"] if args.robot == "both" else [args.robot]
     if args.samples * args.cycles > MAX_SAMPLES:
         parser.error(f"--samples x --cycles must be <= {MAX_SAMPLES:,}, got {args.samples:,} x {args.cycles:,}")
+    options = GaitOptions.from_arguments(args)
     for name in robots:
         try:
-            reference(name, args)
+            reference(name, options)
         except ValueError as error:  # a speed, period or step the legs cannot reach
             given = "--quadruped-speed/--quadruped-period" if name == "quadruped" else "--biped-speed/--biped-step"
             parser.error(f"{given}: {error}")
-    if args.optimize:
+    if options.optimize:
         for name in robots:
-            summary = run_optimized_amble(args) if name == "quadruped" else run_optimized_walk(args)
+            summary = run_optimized_amble(options) if name == "quadruped" else run_optimized_walk(options)
             width = max(len(k) for k in summary)
             for key, value in summary.items():
                 print(f"{key:{width}}  {value:12.5g}")
-            for line in verdict(summary, args.replay_cycles):
+            for line in verdict(summary, options.replay_cycles):
                 print(line)
             if name == "quadruped":
-                print(f"wrote gait_quadruped_optimized.csv/.png{'' if args.no_animation else '/.html/.gif'} to {args.out}")
+                print(f"wrote gait_quadruped_optimized.csv/.png{'' if options.no_animation else '/.html/.gif'} to {options.out}")
             else:
-                print(f"wrote gait_biped_optimized.csv and gait_biped_torque_speed.png to {args.out}")
+                print(f"wrote gait_biped_optimized.csv and gait_biped_torque_speed.png to {options.out}")
         return 0
     with load("tqdm").tqdm(total=5 * len(robots), desc="gait analysis", unit="stage") as progress:
-        analyses = [run(name, args, progress) for name in robots]
+        analyses = [run(name, options, progress) for name in robots]
     print_table(analyses)
-    print(f"wrote {', '.join(f'gait_{n}.csv/.png' for n in robots)} to {args.out}")
+    print(f"wrote {', '.join(f'gait_{n}.csv/.png' for n in robots)} to {options.out}")
     return 0
 
 

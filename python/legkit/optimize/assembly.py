@@ -80,6 +80,8 @@ class Assembly(ContactModel):
 
     # ------------------------------------------------------------------ NLP interface
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) (n,) of the variables: q, v, u bounds at every point, the stance force floor, the slack zero at
+        the knots, the durations', the fixed ends', the impulses', the translation gauge and p1 zero when unused."""
         lower, upper = np.full(self.n, -np.inf), np.full(self.n, np.inf)
         for k, phase in enumerate(self.phases):
             index = self.point_index[k]
@@ -123,9 +125,11 @@ class Assembly(ContactModel):
         return x
 
     def constraints(self, x: np.ndarray) -> np.ndarray:
+        """The rows (m,) at x, block after block."""
         return np.concatenate([b.values(x) for b in self.blocks])
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
+        """The rows' Jacobian at x on (jac_rows, jac_cols)."""
         values = np.concatenate([b.jacobian(x) for b in self.blocks])
         return np.bincount(self._entry, weights=values, minlength=len(self.jac_rows))
 

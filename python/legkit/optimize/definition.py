@@ -115,9 +115,9 @@ class ProblemDefinition:
     flat_feet: Mapping[str, FlatFoot] = field(default_factory=dict)
     mirror: Mirror | None = None
     dense_rates: bool = False  # the joint rates within the torque-speed line's no-load speed between the points too
-    max_yaw: float = np.inf  # [rad] a free-flyer's yaw at every point (`yaw_blocks`)
-    max_force_rate: float = np.inf  # [N/s] on every component of every stance foot's force (`load_rate_blocks`)
-    max_torque_rate: float = np.inf  # [N m/s] on every actuated torque (`load_rate_blocks`)
+    max_yaw: float = np.inf  # [rad] a free-flyer's yaw at every point (`constraints.limits.yaw_blocks`)
+    max_force_rate: float = np.inf  # [N/s] on every component of every stance foot's force (`constraints.rates.load_rate_blocks`)
+    max_torque_rate: float = np.inf  # [N m/s] on every actuated torque (`constraints.rates.load_rate_blocks`)
 
     def __post_init__(self) -> None:
         self._validate()

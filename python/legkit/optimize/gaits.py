@@ -151,14 +151,29 @@ def amble_problem(robot: Quadruped, objectives: Sequence, speed: float, period: 
 AMBLE_PLAN_FRICTION = 0.6
 
 
-def amble_plan_problem(robot: Quadruped, intervals: int = 16, speed: float = 0.67, period: float = 1.25, *, tip_speed: float = 2.0,
-                       friction: float = AMBLE_PLAN_FRICTION, max_impulse: float = 0.0, mirror: bool = AMBLE_MIRROR,
-                       min_normal_force: float = 3.0, torque_margin: float = 0.0) -> MultiphaseProblem:
-    """The problem `plan_amble` solves on `intervals` per phase: `amble_problem` maximising the worst-case S_H (J_s2, eq. 11,
-    swing tips up to tip_speed [m/s]) with `QUADRUPED_MOTOR`, and the defaults a tracking controller needs: soft touchdowns
-    (max_impulse 0), a stance-force floor of min_normal_force [N], mu = friction, the execution bounds."""
-    return amble_problem(robot, [MinMaxStability(tip_speed, DIAGONAL_PAIRS)], speed, period, intervals, QUADRUPED_MOTOR, friction,
-                         max_impulse=max_impulse, mirror=mirror, min_normal_force=min_normal_force, torque_margin=torque_margin)
+@dataclass(frozen=True)
+class AmbleOptions:
+    """The options of the amble's plan (`amble_plan_problem`), as `legkit gait --optimize` takes them: swing tips up to
+    tip_speed [m/s] (J_s2's `MinMaxStability`), mu = friction, every touchdown impulse component within max_impulse
+    [N s] (0: soft touchdowns), a stance-force floor of min_normal_force [N], the fraction torque_margin of the motors'
+    torque left to feedback, and a mirrored half cycle (mirror, `AMBLE_MIRROR`) or the whole."""
+
+    tip_speed: float = 2.0
+    friction: float = AMBLE_PLAN_FRICTION
+    max_impulse: float = 0.0
+    mirror: bool = AMBLE_MIRROR
+    min_normal_force: float = 3.0
+    torque_margin: float = 0.0
+
+
+def amble_plan_problem(robot: Quadruped, intervals: int = 16, speed: float = 0.67, period: float = 1.25,
+                       options: AmbleOptions = AmbleOptions()) -> MultiphaseProblem:
+    """The problem `plan_amble` solves on `intervals` per phase: `amble_problem` maximising the worst-case S_H (J_s2, eq. 11)
+    with `QUADRUPED_MOTOR` and the defaults a tracking controller needs (`AmbleOptions`: soft touchdowns, a stance-force
+    floor, mu 0.6), and the execution bounds."""
+    return amble_problem(robot, [MinMaxStability(options.tip_speed, DIAGONAL_PAIRS)], speed, period, intervals, QUADRUPED_MOTOR,
+                         options.friction, max_impulse=options.max_impulse, mirror=options.mirror,
+                         min_normal_force=options.min_normal_force, torque_margin=options.torque_margin)
 
 
 @dataclass
@@ -174,28 +189,30 @@ class AmblePlan:
 
 def plan_amble(robot: Quadruped, speed: float = 0.67, period: float = 1.25, intervals: int = 16, coarse_intervals: int = 0, *,
                derivatives: str = AMBLE_DERIVATIVES, polish: bool = True, polish_max_iter: int = 1000, tol: float = 1e-6,
-               max_iter: int = 300, progress: Progress | None = None, **problem_options: Any) -> AmblePlan:
-    """The amble a tracking controller holds, as `legkit gait --optimize` plans it: `amble_plan_problem` (problem_options
-    go to it) solved from the hand-built reference, feasibility first, then J_s2 with `derivatives` (default: the exact
-    Hessian, `AMBLE_DERIVATIVES`; "legkit": L-BFGS, then with polish the exact-Hessian polish within polish_max_iter
-    iterations). By default on `intervals` per phase directly; with coarse_intervals (fewer than intervals) on that mesh
-    first, the optimum then refined onto `intervals` (`MultiphaseProblem.refine`: its worst-case S_H held at a fraction of
-    the coarse optimum's, which is faster than J_s2 on the fine mesh but does not reach its optimum). tol and max_iter
-    (per stage) go to every IPOPT run, progress(iteration, objective, violation) is called at every iteration of every
-    run."""
+               max_iter: int = 300, progress: Progress | None = None, options: AmbleOptions = AmbleOptions(),
+               problem: MultiphaseProblem | None = None) -> AmblePlan:
+    """The amble a tracking controller holds, as `legkit gait --optimize` plans it: `amble_plan_problem` with `options`
+    (problem: that problem when the caller has built it already) solved from the hand-built reference, feasibility
+    first, then J_s2 with `derivatives` (default: the exact Hessian, `AMBLE_DERIVATIVES`; "legkit": L-BFGS, then with
+    polish the exact-Hessian polish within polish_max_iter iterations). By default on `intervals` per phase directly;
+    with coarse_intervals (fewer than intervals) on that mesh first, the optimum then refined onto `intervals`
+    (`MultiphaseProblem.refine`: its worst-case S_H held at a fraction of the coarse optimum's, which is faster than J_s2
+    on the fine mesh but does not reach its optimum). tol and max_iter (per stage) go to every IPOPT run,
+    progress(iteration, objective, violation) is called at every iteration of every run."""
     if coarse_intervals and coarse_intervals >= intervals:
         raise ValueError(f"coarse_intervals must be 0 or fewer than intervals ({intervals}), got {coarse_intervals}")
-    problem = amble_plan_problem(robot, intervals, speed, period, **problem_options)
+    if problem is None:
+        problem = amble_plan_problem(robot, intervals, speed, period, options)
     reference = guess_from_reference(problem, amble_reference(robot, speed, period, intervals))
-    options: dict[str, Any] = {"tol": tol, "max_iter": max_iter, "progress": progress, "options": AMBLE_IPOPT}
+    run_options: dict[str, Any] = {"tol": tol, "max_iter": max_iter, "progress": progress, "options": AMBLE_IPOPT}
     solve_options = {"derivatives": derivatives, "feasibility_first": True, "polish": polish and derivatives == "legkit",
-                     "polish_max_iter": polish_max_iter, **options}
+                     "polish_max_iter": polish_max_iter, **run_options}
     if not coarse_intervals:
         _, result = problem.solve(reference, **solve_options)
         return AmblePlan(problem, result, reference)
-    coarse = amble_plan_problem(robot, coarse_intervals, speed, period, **problem_options)
+    coarse = amble_plan_problem(robot, coarse_intervals, speed, period, options)
     _, result = coarse.solve(guess_from_reference(coarse, amble_reference(robot, speed, period, coarse_intervals)), **solve_options)
-    _, result = problem.refine(coarse, result, **options)
+    _, result = problem.refine(coarse, result, **run_options)
     return AmblePlan(problem, result, reference)
 
 

@@ -19,7 +19,7 @@ class Trajectory:
     (P, c, 3) on the phase's feet (world frame), the phase durations, the accelerations a (P, nv) (None: `pack`
     takes them from the forward dynamics of q, v, u, forces), and
     the torques (P, c_flat, 3) on the phase's flat feet (`FlatFoot`, foot frame; None: zero), and the slack (P, r) of
-    the phase's `contact_rows` (`MultiphaseProblem.rate`; None: zero)."""
+    the phase's `contact_rows` (`ContactModel.rate`; None: zero)."""
 
     t: list[np.ndarray]
     q: list[np.ndarray]
@@ -216,6 +216,7 @@ class Layout(ProblemDefinition):
         return float_array(x, name, shape=(self.n,))
 
     def unpack(self, x: np.ndarray) -> Trajectory:
+        """The `Trajectory` of a point x (n,) of this problem (`point` checks it)."""
         x = self.point(x)
         durations = x[self.duration_index].copy()
         starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])

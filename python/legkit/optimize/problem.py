@@ -12,11 +12,11 @@ The transcription of [Hardt 2002, Sect. 2.3 and 4.1], on legkit's kernels:
   ICRA 2021, found this form converging in fewer iterations than collocating the forward dynamics; its
   Jacobian is also sparser: a joint's torque depends on its own leg and the base only). The stance feet are
   held in DIRCON's form (Posa, Kuindersma & Tedrake 2016): at every knot on the ground, at rest and not
-  accelerating (`stance_blocks`), the midpoints freed from the contact manifold by a slack in the
+  accelerating (`constraints.stance.stance_blocks`), the midpoints freed from the contact manifold by a slack in the
   configuration rate (`rate`). Held at position level at every point instead, the forces were free to
   alternate between knots and midpoints (`stance_accelerations`);
 * swing-tip height >= 0 (eq. 4) at the points and at fractions of every interval between them
-  (`swing_clearance_blocks`), friction cone mu^2 F_z^2 - F_x^2 - F_y^2 >= 0 with F_z >= 0 (eq. 5, squared
+  (`constraints.swing.clearance_blocks`), friction cone mu^2 F_z^2 - F_x^2 - F_y^2 >= 0 with F_z >= 0 (eq. 5, squared
   to stay smooth), for flat feet (`FlatFoot`) a contact torque T about the sole's centre within the foot-torque
   limits of eq. 6 and the whole sole held flat on the ground, the inelastic impact map at each touchdown (eq. 7, `lk.impact` with the new
   phase's feet),
@@ -68,10 +68,10 @@ class MultiphaseProblem(Assembly):
     balances on one foot of two, leaving a tracking controller nothing to push with on the other).
     objectives: terms from `legkit.optimize.objectives`, summed. dense_rates (with a torque_speed line): each actuated
     joint's rate within the line's no-load speed over every interval, on the velocity's Hermite cubic, not only at
-    the points (`dense_rate_blocks`: its Bernstein control points bounded). max_yaw [rad]: a free-flyer's yaw (its
+    the points (`constraints.rates.dense_rate_blocks`: its Bernstein control points bounded). max_yaw [rad]: a free-flyer's yaw (its
     heading about the world's z) within +-max_yaw at every point. max_force_rate [N/s], max_torque_rate [N m/s]:
     bounds on how fast the foot forces and the torques change, across phase boundaries too (a lifting foot unloads,
-    a landing foot loads, within the half interval beside the switch): `load_rate_blocks`.
+    a landing foot loads, within the half interval beside the switch): `constraints.rates.load_rate_blocks`.
     """
 
 

@@ -114,9 +114,6 @@ def stance_blocks(problem: ContactModel, k: int) -> list[Block]:
                             nonlinear=np.arange(len(velocity_columns))))
     return blocks
 
-#: Where on each interval (fractions of it) `swing_clearance_blocks` holds the swing tips above the ground.
-CLEARANCE_FRACTIONS = (0.25, 0.75)
-
 
 def foot_torque_blocks(problem: ContactModel, k: int) -> list[Block]:
     """Eq. 6 at every point of phase k, for each flat foot on the ground: c_i F_z - s T_i >= 0 for i = x, y, z
