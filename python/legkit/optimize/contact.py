@@ -1,6 +1,7 @@
 """Contact kinematics at the point variables of a `Layout` (`ContactModel`): the configuration map, the collocated
-state rate and its derivatives, the feet's positions, wrenches and Jacobians, the forward dynamics of a guess
-(`pack`), from legkit's batched kernels (`legkit.optimize.kinematics`)."""
+state rate and its derivatives, the feet's positions, wrenches, Jacobians and accelerations, the forward dynamics of a
+guess (`pack`), from legkit's batched kernels (`legkit.optimize.kinematics`); and a mirrored half cycle unrolled onto
+its whole cycle (`full_cycle`, `unroll`, `whole_cycle`), which replays and tracking start from."""
 
 from __future__ import annotations
 
@@ -20,8 +21,8 @@ SelfModel = TypeVar("SelfModel", bound="ContactModel")
 
 
 class ContactModel(Layout):
-    """A `Layout` with the kernels its constraint families, objectives and replays evaluate: point variables to
-    configurations, rates, foot positions, wrenches and contact Jacobians."""
+    """A `Layout` with the kernels its constraint families, objectives, replays and tracking evaluate: point variables
+    to configurations, rates, foot positions, wrenches and contact Jacobians; the whole cycle of a mirrored half."""
 
     # ------------------------------------------------------------------ kernels
     def configuration(self, q: np.ndarray) -> np.ndarray:

@@ -33,7 +33,7 @@ its pattern, from the model's tree, is fixed before solving. Objectives: `object
 
 The house, importing downward only: `definition` (the fields, checked) <- `layout` (the variables) <- `contact` (contact
 kinematics at the point variables) <- `constraints` (one module per family) <- `assembly` (the NLP) <- `strategy` (how
-it is solved) <- this module's `MultiphaseProblem`, the user-facing problem (mirror unrolling, diagnostics).
+it is solved) <- this module's `MultiphaseProblem`, the user-facing problem (its solves and the published S_H).
 """
 
 from __future__ import annotations
@@ -68,12 +68,11 @@ class MultiphaseProblem(Assembly):
     balances on one foot of two, leaving a tracking controller nothing to push with on the other).
     objectives: terms from `legkit.optimize.objectives`, summed. dense_rates (with a torque_speed line): each actuated
     joint's rate within the line's no-load speed over every interval, on the velocity's Hermite cubic, not only at
-    the points (`constraints.rates.dense_rate_blocks`: its Bernstein control points bounded). max_yaw [rad]: a free-flyer's yaw (its
-    heading about the world's z) within +-max_yaw at every point. max_force_rate [N/s], max_torque_rate [N m/s]:
+    the points (`constraints.rates.dense_rate_blocks`: its Bernstein control points bounded). max_yaw [rad]: a
+    free-flyer's yaw (its heading about the world's z) within +-max_yaw at every point. max_force_rate [N/s], max_torque_rate [N m/s]:
     bounds on how fast the foot forces and the torques change, across phase boundaries too (a lifting foot unloads,
     a landing foot loads, within the half interval beside the switch): `constraints.rates.load_rate_blocks`.
     """
-
 
     def solve(self, guess: Trajectory | np.ndarray | SolveResult, derivatives: str = "exact", feasibility_first: bool = False,
               polish: bool = False, polish_max_iter: int = 1000, **options: Any) -> tuple[Trajectory, SolveResult]:
