@@ -33,7 +33,7 @@ def test_kinematic_hessian_is_the_slope_of_the_jacobian(tw: Twin, rng):
     body, point = random_frame(tw, rng)
     note_case(tw, q=q)
     for frame in ALIGNED_FRAMES:
-        want = tangent_differences(tw.model, lambda x: lk.jacobian(tw.model, x, body, point, frame), q)  # (6, nv, nv): [r, a, d]
+        want = tangent_differences(tw.model, lambda x, frame=frame: lk.jacobian(tw.model, x, body, point, frame), q)  # [r, a, d]
         assert_slopes(lk.kinematic_hessian(tw.model, q, body, point, frame), want, f"dJ/dq, {frame}")
 
 

@@ -61,11 +61,22 @@ pub fn jacobian<'py>(
 ) -> PyResult<FloatArray<'py>> {
     let (body, point, convention) = frame_arguments(&model, body, point, frame)?;
     let nv = model.model.nv();
-    let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
-    run(py, &model, &batch, &[6, nv], |m, w, i, out| {
+    of_configuration(py, &model, &q, &[6, nv], |m, data, q, out| row_major(algorithms::jacobian(m, data, q, body, &point, convention), out))
+}
+
+/// A kernel of the configuration alone over a batch of q: `kernel(model, data, q, out)` writes each row's `shape` numbers.
+fn of_configuration<'py>(
+    py: Python<'py>,
+    model: &PyModel,
+    q: &ArrayArg<'_>,
+    shape: &[usize],
+    kernel: impl Fn(&legkit_dynamics::Model, &mut legkit_dynamics::Data, &[f64], &mut [f64]) + Sync,
+) -> PyResult<FloatArray<'py>> {
+    let batch = broadcast(&[("q", q, &[model.model.nq()])])?;
+    run(py, model, &batch, shape, |m, w, i, out| {
         let q = batch.rows[0].row(i);
         check_state(m, q, None)?;
-        row_major(algorithms::jacobian(m, w.data(), q, body, &point, convention), out);
+        kernel(m, w.data(), q, out);
         finite_result(out)
     })
 }
@@ -88,13 +99,7 @@ pub fn kinematic_hessian<'py>(
         return Err(PyValueError::new_err("frame: kinematic_hessian takes \"world\" or \"local_world_aligned\", got \"local\""));
     }
     let nv = model.model.nv();
-    let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
-    run(py, &model, &batch, &[6, nv, nv], |m, w, i, out| {
-        let q = batch.rows[0].row(i);
-        check_state(m, q, None)?;
-        algorithms::kinematic_hessian(m, w.data(), q, body, &point, convention, out);
-        finite_result(out)
-    })
+    of_configuration(py, &model, &q, &[6, nv, nv], |m, data, q, out| algorithms::kinematic_hessian(m, data, q, body, &point, convention, out))
 }
 
 /// (Hessian `(..., nv, nv)`, gradient `(..., nv)`) with respect to q (on its tangent space, as `rnea_derivatives`;
