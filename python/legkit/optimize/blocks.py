@@ -145,14 +145,18 @@ class Point:
     #: ((P, k), weights (P, outputs)) -> (P, k, k): the exact curvature sum_r weights_r d2f_r/dz2, in place of
     #: `group_hessian`'s differences.
     curvature: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
+    #: (outputs, k) bool: the inputs each output depends on (default: all), the Jacobian's pattern per group.
+    mask: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         points, k = self.index.shape
         self.size = points * self.outputs
         self.lower = np.resize(np.asarray(self.lower_bound, dtype=np.float64), self.size)
         self.upper = np.resize(np.asarray(self.upper_bound, dtype=np.float64), self.size)
-        self.rows = np.repeat(np.arange(self.size), k)
-        self.cols = np.repeat(self.index, self.outputs, axis=0).ravel()
+        mask = np.ones((self.outputs, k), dtype=bool) if self.mask is None else np.asarray(self.mask, dtype=bool)
+        self._rows, self._cols = np.nonzero(mask)
+        self.rows = (np.arange(points)[:, None] * self.outputs + self._rows[None]).ravel()
+        self.cols = self.index[:, self._cols].ravel()
         self._nonlinear = np.arange(k) if self.nonlinear is None else np.asarray(self.nonlinear, dtype=np.int64)
         self.hessian_rows, self.hessian_cols, self._local = group_pattern(self.index, self._nonlinear)
 
@@ -169,7 +173,7 @@ class Point:
         return point_jacobian(self.function, z)[1]
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
-        return self.slopes(x[self.index]).ravel()
+        return self.slopes(x[self.index])[:, self._rows, self._cols].ravel()
 
     def hessian(self, x: np.ndarray, multipliers: np.ndarray) -> np.ndarray:
         z = x[self.index]

@@ -105,4 +105,8 @@ def clearance_blocks(problem: ContactModel, k: int) -> list[Block]:
                 out[:, -1, columns] += by_h
         return out
 
-    return [Point(groups, heights, len(basis) * len(swing), 0.0, np.inf, gradient=height_gradient, curvature=height_curvature)]
+    # A tip's height depends on its own leg's and the base's columns only.
+    reaches = [list(ancestors[problem.foot_body[n]]) for n in swing]
+    mask = np.tile([np.r_[np.tile(np.r_[np.isin(q_body[q_columns], reach), np.isin(v_body[v_columns], reach)], 2), True] for reach in reaches],
+                   (len(basis), 1))
+    return [Point(groups, heights, len(basis) * len(swing), 0.0, np.inf, gradient=height_gradient, curvature=height_curvature, mask=mask)]
