@@ -15,6 +15,7 @@ midpoints (`MultiphaseProblem.stance_accelerations`; the knots hold it at 0, doc
 
     PYTHONPATH=python python3 benches/gait_optimisation.py [--intervals 4] [--max-iter 300] [--neighbour 0.6] [--no-mirror] [--no-polish]
     PYTHONPATH=python python3 benches/gait_optimisation.py --compare --intervals 16   # solver settings side by side
+    PYTHONPATH=python python3 benches/gait_optimisation.py --split --intervals 16     # where an iteration's CPU goes
 
 The walk (cold, from `legkit gait`'s hand-built walk, constraints first by `solve_walk`): status, iterations,
 wall and CPU time of the solve, the evaluation share, the violation re-evaluated by legkit's kernels, J_e1
@@ -26,7 +27,12 @@ and the largest RNEA residual recomputed by `lk.rnea`.
 from __future__ import annotations
 
 import argparse
+import gc
+import re
+import tempfile
 import time
+from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -40,6 +46,8 @@ from legkit.optimize.gaits import (
     AMBLE_MIRROR,
     WALK_DERIVATIVES,
     WALK_MIRROR,
+    AmbleOptions,
+    amble_plan_problem,
     amble_problem,
     amble_reference,
     guess_from_reference,
@@ -62,6 +70,59 @@ def report(label: str, problem: lo.MultiphaseProblem, result: lo.SolveResult, cp
     print(f"{label:<{44 if cpu is not None else 30}} {result.status:<28} {result.iterations:6d} "
           f"{result.wall_time if cpu is None else cpu:{8 if cpu is not None else 9}.2f} {share:8.1f} "
           f"{problem.nlp().violation(x):10.2e} {-objective:9.4g} {s_h:9.4g} {stance:10.3g}", flush=True)
+
+
+#: IPOPT's timing statistics (`print_timing_statistics`) that `split` reads: CPU seconds of the whole solve, of its
+#: linear algebra (the KKT factorisations and solves), and of legkit's Hessian and of its values, gradient and
+#: Jacobian (one call computes the gradient with the Jacobian, charged to whichever IPOPT asks for first).
+TIMINGS = {"whole solve": "OverallAlgorithm", "KKT factorisations and solves": "PDSystemSolverTotal",
+           "Lagrangian Hessian": "Lagrangian Hessian",
+           "values, gradient and Jacobian": "(?:Objective function|Objective function gradient|Equality constraints|Inequality constraints|"
+                                            "Equality constraint Jacobian|Inequality constraint Jacobian)"}
+
+
+def split(problem: lo.MultiphaseProblem, solve: Callable[[dict], lo.SolveResult]) -> None:
+    """--split: one cold solve's last IPOPT stage (J_s2) by component, per iteration, from IPOPT's timing statistics;
+    then the Lagrangian Hessian by block at the reference point (CPU, median of 5 evaluations)."""
+    with tempfile.TemporaryDirectory() as folder:
+        log = Path(folder) / "ipopt.txt"
+        cpu = time.process_time()
+        result = solve({**AMBLE_IPOPT, "print_timing_statistics": "yes", "output_file": str(log), "file_print_level": 5})
+        cpu = time.process_time() - cpu
+        gc.collect()  # IPOPT's journal writes its file out when the solver is freed
+        text = log.read_text()
+    count = re.search(r"Number of Iterations\.*:\s*(\d+)", text)
+    if count is None:
+        raise RuntimeError(f"no iteration count in IPOPT's output:\n{text[-2000:]}")
+    iterations = int(count.group(1))
+    print(f"cold solve: {result.status}, {result.iterations} IPOPT iterations in all, {cpu:.1f} s of CPU; its J_s2 stage, "
+          f"{iterations} iterations, by component (CPU):")
+    print(f"  {'component':<34} {'[s]':>8} {'per iteration [s]':>18}")
+    for label, pattern in TIMINGS.items():
+        seconds = sum(float(m) for m in re.findall(rf"^ *{pattern}\.*: *([0-9.]+)", text, flags=re.MULTILINE))
+        print(f"  {label:<34} {seconds:8.2f} {seconds / iterations:18.4f}")
+    lam = np.random.default_rng(0).normal(size=problem.m)
+    x = result.best()[0]
+    timed: dict[str, float] = {}
+    for block, start, stop in zip(problem.blocks, problem._offsets, problem._offsets[1:]):
+        name = type(block).__name__
+        function = getattr(block, "function", None)
+        if function is not None:
+            name += " " + function.__qualname__.replace(".<locals>", "")
+        runs = []
+        for _ in range(5):
+            begin = time.process_time()
+            block.hessian(x, lam[start:stop])
+            runs.append(time.process_time() - begin)
+        timed[name] = timed.get(name, 0.0) + float(np.median(runs))
+    whole = []
+    for _ in range(5):
+        begin = time.process_time()
+        problem.hessian(x, 1.0, lam)
+        whole.append(time.process_time() - begin)
+    print(f"the Lagrangian Hessian at the optimum: {1e3 * np.median(whole):.1f} ms (median of 5); by block [ms]:")
+    for name, seconds in sorted(timed.items(), key=lambda item: -item[1])[:8]:
+        print(f"  {1e3 * seconds:7.2f}  {name}")
 
 
 def walk(args: argparse.Namespace) -> None:
@@ -99,6 +160,8 @@ def main() -> None:
     parser.add_argument("--polish", action=argparse.BooleanOptionalAction, default=True,
                         help="amble, --derivatives legkit: after the L-BFGS runs, an exact-Hessian polish (durations held, then free)")
     parser.add_argument("--polish-max-iter", type=int, default=1000, help="amble: IPOPT iteration limit of the polish and of the warm start")
+    parser.add_argument("--split", action="store_true", help="amble: one cold solve's CPU by component per iteration, and the "
+                        "Lagrangian Hessian's by block")
     parser.add_argument("--compare", action="store_true",
                         help="amble: the cold solve under each solver setting side by side (exact Hessian with and without "
                              "perturb_always_cd, L-BFGS with the polish), CPU time per row")
@@ -120,6 +183,15 @@ def main() -> None:
         p = amble_problem(robot, objective, speed, 1.25, args.intervals, QUADRUPED_MOTOR, max_impulse=0.0, mirror=args.mirror)
         guess = guess_from_reference(p, amble_reference(robot, speed, 1.25, args.intervals))
         return p, p.solve(guess, feasibility_first=True, **{**options, **variant})[1]
+
+    if args.split:
+        # The problem `legkit gait --optimize` solves (`amble_plan_problem`: a stance-force floor, the plan's friction).
+        problem = amble_plan_problem(robot, args.intervals, args.speed, 1.25, AmbleOptions(mirror=args.mirror))
+        guess = guess_from_reference(problem, amble_reference(robot, args.speed, 1.25, args.intervals))
+        print(f"amble plan, {args.intervals} intervals per phase, {'mirrored half' if args.mirror else 'whole'} cycle, {args.speed:g} m/s: "
+              f"{problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian and {len(problem.hess_rows)} Hessian nonzeros")
+        split(problem, lambda ipopt: problem.solve(guess, feasibility_first=True, **{**options, "options": ipopt})[1])
+        return
 
     if args.compare:
         print(f"amble, {args.intervals} intervals per phase, {'mirrored half' if args.mirror else 'whole'} cycle, tol {args.tol:g}, "

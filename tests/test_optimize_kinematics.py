@@ -64,6 +64,36 @@ def test_q_rate_derivatives_match_central_differences(case):
     np.testing.assert_allclose(by_v, central(lambda x: kin.q_rate(model, q, x), v), atol=TOLERANCE)
 
 
+def test_q_rate_hessian_matches_central_differences_of_its_slopes(case):
+    model, q, v, _, _, _, rng = case
+    weights = rng.normal(size=q.shape)
+    state = np.concatenate([q, v], axis=1)
+
+    def slopes(x: np.ndarray) -> np.ndarray:
+        by_q, by_v = kin.q_rate_derivatives(model, x[:, : model.nq], x[:, model.nq :])
+        return np.concatenate([kin.vecmat(weights, by_q), kin.vecmat(weights, by_v)], axis=1)
+
+    hessian = kin.q_rate_hessian(model, q, v, weights)
+    np.testing.assert_allclose(hessian, central(slopes, state), atol=TOLERANCE)
+    np.testing.assert_allclose(hessian, np.swapaxes(hessian, 1, 2), atol=1e-14)
+
+
+def test_raw_position_curvature_matches_central_differences_of_the_raw_gradient(case):
+    """`position_curvature` (the core's kinematic Hessian through `raw_hessian`) against differences of the raw
+    gradient w . J_lin (tangent_map), the quaternion of any norm."""
+    model, q, _, _, body, point, rng = case
+    points, weights = [(body, point), (1, -point)], rng.normal(size=(len(q), 2, 3))
+
+    def gradient(raw: np.ndarray) -> np.ndarray:
+        linear = kin.point_jacobians(model, kin.unit(model, raw), points)[:, :, :3]
+        return kin.raw(model, raw, np.einsum("bcr,bcra->ba", weights, linear)[:, None])[:, 0]
+
+    hessian, slope = kin.position_curvature(model, q, points, weights)
+    np.testing.assert_allclose(slope, gradient(q), atol=1e-14)
+    np.testing.assert_allclose(hessian, central(gradient, q), atol=TOLERANCE)
+    np.testing.assert_allclose(hessian, np.swapaxes(hessian, 1, 2), atol=1e-12)
+
+
 def test_point_velocity_and_acceleration_derivatives_match_central_differences(case):
     model, q, v, a, body, point, _ = case
     unit = kin.unit(model, q)

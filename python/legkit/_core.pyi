@@ -251,6 +251,18 @@ def jacobian_time_variation(
 ) -> np.ndarray:
     """dJ/dt of ``jacobian`` along the velocity v (Pinocchio's getFrameJacobianTimeVariation): (..., 6, nv). In
     "local_world_aligned" the point's classical acceleration is J a + dJ/dt v + w x v_point."""
+def kinematic_hessian(
+    model: Model, q: npt.ArrayLike, body: _Body, point: npt.ArrayLike | None = None, frame: _Frame = "local_world_aligned",
+) -> np.ndarray:
+    """d/dq_d of entry [r, a] of ``jacobian`` at [r, a, d] (Pinocchio's getJointKinematicHessian; q on its tangent space, as
+    ``rnea_derivatives``), in "world" or "local_world_aligned" ("local" raises ValueError): (..., 6, nv, nv). Along q_d, the slope of
+    w . J_lin (the gradient of w . position): ``np.einsum("r,rad->ad", w, H[:3])``."""
+def point_velocity_hessian(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, body: _Body, point: npt.ArrayLike | None, weights: npt.ArrayLike,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(Hessian (..., nv, nv), gradient (..., nv)) with respect to q (on its tangent space, as ``rnea_derivatives``; entry
+    [e, d] the slope along q_d of the gradient's entry e) of ``weights`` (..., 3) . the world velocity J_lin(q) v of
+    `point` on `body`: the curvature of a load's virtual power F . J(q) v."""
 def frame_velocity(
     model: Model, q: npt.ArrayLike, v: npt.ArrayLike, body: _Body, point: npt.ArrayLike | None = None, frame: _Frame = "local_world_aligned"
 ) -> np.ndarray:

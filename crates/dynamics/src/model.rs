@@ -619,6 +619,9 @@ pub(crate) struct Derivatives {
     pub frame_acceleration_dv: Matrix6xX<f64>,
     pub frame_acceleration_da: Matrix6xX<f64>,
     pub jacobian_rate: Matrix6xX<f64>,
+    /// Per velocity coordinate on a frame's support (6 x nv): the world velocity of its joint and the joints after it
+    /// (`point_velocity_hessian`).
+    pub velocity_after: Matrix6xX<f64>,
     /// The centroidal derivatives (`centroidal_derivatives`): per body its momentum I v (after the backward pass its
     /// subtree's), and ∂h/∂q, ∂ḣ/∂q, ∂ḣ/∂q̇ (6 x nv, about the centre of mass; ∂ḣ/∂q̈ = A_G is `Data::centroidal_map`).
     pub momentum: Vec<Force>,
@@ -714,6 +717,7 @@ impl Derivatives {
             frame_acceleration_dv: columns()?,
             frame_acceleration_da: columns()?,
             jacobian_rate: columns()?,
+            velocity_after: columns()?,
             momentum: filled("model", n, Force::zeros())?,
             dh_dq: columns()?,
             dhdot_dq: columns()?,

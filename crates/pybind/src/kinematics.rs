@@ -61,13 +61,74 @@ pub fn jacobian<'py>(
 ) -> PyResult<FloatArray<'py>> {
     let (body, point, convention) = frame_arguments(&model, body, point, frame)?;
     let nv = model.model.nv();
-    let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
-    run(py, &model, &batch, &[6, nv], |m, w, i, out| {
+    of_configuration(py, &model, &q, &[6, nv], |m, data, q, out| row_major(algorithms::jacobian(m, data, q, body, &point, convention), out))
+}
+
+/// A kernel of the configuration alone over a batch of q: `kernel(model, data, q, out)` writes each row's `shape` numbers.
+fn of_configuration<'py>(
+    py: Python<'py>,
+    model: &PyModel,
+    q: &ArrayArg<'_>,
+    shape: &[usize],
+    kernel: impl Fn(&legkit_dynamics::Model, &mut legkit_dynamics::Data, &[f64], &mut [f64]) + Sync,
+) -> PyResult<FloatArray<'py>> {
+    let batch = broadcast(&[("q", q, &[model.model.nq()])])?;
+    run(py, model, &batch, shape, |m, w, i, out| {
         let q = batch.rows[0].row(i);
         check_state(m, q, None)?;
-        row_major(algorithms::jacobian(m, w.data(), q, body, &point, convention), out);
+        kernel(m, w.data(), q, out);
         finite_result(out)
     })
+}
+
+/// d/dq_d of entry [r, a] of `jacobian` at [r, a, d] (Pinocchio's `getJointKinematicHessian`; q on its tangent space,
+/// as `rnea_derivatives`), in "world" or "local_world_aligned": `(..., 6, nv, nv)`. Along q_d, the slope of
+/// w . J_lin (the gradient of w . position): `np.einsum("r,rad->ad", w, H[..., :3, :, :])`.
+#[pyfunction(crate = "crate::arguments")]
+#[pyo3(signature = (model, q, body, point = None, frame = "local_world_aligned"))]
+pub fn kinematic_hessian<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    body: &Bound<'_, PyAny>,
+    point: Option<Vector<'_>>,
+    frame: &str,
+) -> PyResult<FloatArray<'py>> {
+    let (body, point, convention) = frame_arguments(&model, body, point, frame)?;
+    if convention == Frame::Local {
+        return Err(PyValueError::new_err("frame: kinematic_hessian takes \"world\" or \"local_world_aligned\", got \"local\""));
+    }
+    let nv = model.model.nv();
+    of_configuration(py, &model, &q, &[6, nv, nv], |m, data, q, out| algorithms::kinematic_hessian(m, data, q, body, &point, convention, out))
+}
+
+/// (Hessian `(..., nv, nv)`, gradient `(..., nv)`) with respect to q (on its tangent space, as `rnea_derivatives`;
+/// entry [e, d] the slope along q_d of the gradient's entry e) of `weights` . the world velocity J_lin(q) v of
+/// `point` on `body`: the curvature of a load's virtual power F . J(q) v.
+#[pyfunction(crate = "crate::arguments")]
+#[pyo3(signature = (model, q, v, body, point, weights))]
+pub fn point_velocity_hessian<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    body: &Bound<'_, PyAny>,
+    point: Option<Vector<'_>>,
+    weights: ArrayArg<'_>,
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
+    let (body, point, _) = frame_arguments(&model, body, point, "local_world_aligned")?;
+    let nv = model.model.nv();
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("weights", &weights, &[3])])?;
+    let packed = run_packed(py, &model, &batch, nv * nv + nv, |m, w, i, out| {
+        let (q, v, f) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
+        check_state(m, q, Some(v))?;
+        legkit_dynamics::validate::finite_vector("weights", Vector3::from_column_slice(f))?;
+        let (hessian, gradient) = out.split_at_mut(nv * nv);
+        algorithms::point_velocity_hessian(m, w.dense(&[Dense::Workspace])?, q, v, body, &point, &Vector3::from_column_slice(f), hessian, gradient);
+        finite_result(out)
+    })?;
+    let mut parts = unpack(py, &batch, &packed, &[&[nv, nv], &[nv]])?.into_iter();
+    Ok((parts.next().expect("two"), parts.next().expect("two")))
 }
 
 /// The model's centre of mass in the world frame: `(..., 3)`.

@@ -45,6 +45,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(kinematics::forward_kinematics, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::jacobian, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::jacobian_time_variation, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::kinematic_hessian, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::point_velocity_hessian, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::frame_velocity, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::frame_acceleration, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::frame_velocity_derivatives, m)?)?;

@@ -4,7 +4,8 @@ Jacobian and of its part of the Hessian of the Lagrangian, and their values.
 Two kinds cover most rows: linear rows (constant Jacobian, no curvature) and point rows, a function applied
 independently to many small groups of variables (a knot's state, a touchdown's pre-impact state) with its exact
 Jacobian (closed-form algebra without one is differenced by `point_jacobian`). A block's curvature
-sum_rows mu_row d2(row)/dx2 is `group_hessian`: forward differences of the exact Jacobian, all groups at once.
+sum_rows mu_row d2(row)/dx2 is exact where the block gives it (`Point.curvature`, from the core's second-order
+kernels), else `group_hessian`: forward differences of the exact Jacobian, all groups at once.
 """
 
 from __future__ import annotations
@@ -141,14 +142,21 @@ class Point:
     nonlinear: np.ndarray | None = None
     #: derivative or gradient is exact to rounding (not itself differenced): `group_hessian`'s forward differences.
     exact: bool = True
+    #: ((P, k), weights (P, outputs)) -> (P, k, k): the exact curvature sum_r weights_r d2f_r/dz2, in place of
+    #: `group_hessian`'s differences.
+    curvature: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
+    #: (outputs, k) bool: the inputs each output depends on (default: all), the Jacobian's pattern per group.
+    mask: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         points, k = self.index.shape
         self.size = points * self.outputs
         self.lower = np.resize(np.asarray(self.lower_bound, dtype=np.float64), self.size)
         self.upper = np.resize(np.asarray(self.upper_bound, dtype=np.float64), self.size)
-        self.rows = np.repeat(np.arange(self.size), k)
-        self.cols = np.repeat(self.index, self.outputs, axis=0).ravel()
+        mask = np.ones((self.outputs, k), dtype=bool) if self.mask is None else np.asarray(self.mask, dtype=bool)
+        self._rows, self._cols = np.nonzero(mask)
+        self.rows = (np.arange(points)[:, None] * self.outputs + self._rows[None]).ravel()
+        self.cols = self.index[:, self._cols].ravel()
         self._nonlinear = np.arange(k) if self.nonlinear is None else np.asarray(self.nonlinear, dtype=np.int64)
         self.hessian_rows, self.hessian_cols, self._local = group_pattern(self.index, self._nonlinear)
 
@@ -165,11 +173,13 @@ class Point:
         return point_jacobian(self.function, z)[1]
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
-        return self.slopes(x[self.index]).ravel()
+        return self.slopes(x[self.index])[:, self._rows, self._cols].ravel()
 
     def hessian(self, x: np.ndarray, multipliers: np.ndarray) -> np.ndarray:
         z = x[self.index]
         weights = multipliers.reshape(len(z), self.outputs)
+        if self.curvature is not None:
+            return np.asarray(self.curvature(z, weights)).ravel()[self._local]
         gradient = weighted(self.slopes) if self.gradient is None else self.gradient
         exact = self.exact and (self.derivative is not None or self.gradient is not None)
         return group_hessian(gradient, z, weights, self._nonlinear, exact).ravel()[self._local]

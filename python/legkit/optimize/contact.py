@@ -149,6 +149,42 @@ class ContactModel(Layout):
         out[:, self.slack_columns[k]] = np.einsum("bri,bi->br", contact, u)
         return out
 
+    def rate_curvature(self, z: np.ndarray, weights: np.ndarray, k: int) -> np.ndarray:
+        """(B, nz, nz): the Hessian of weights (B, nx) . `rate` at phase k's point variables z. With R(q, w) the
+        weighted q rate (`kinematics.q_rate_hessian`) at w = v + J_c(q)^T slack, u = dR/dw and W = dw/dq
+        (`kinematics.force_slope`): d2/dq2 = R_qq + R_qw W + W^T R_wq + d2(slack . J_c(q) u)/dq2
+        (`lk.point_velocity_hessian`), d2/dq dv = R_qw and d2/dq dslack = R_qw J_c^T + d(J_c u)/dq^T; R is linear in w."""
+        nq, nx, model = self.nq, self.nx, self.model
+        q, v, slack = z[:, :nq], z[:, nq:nx], z[:, self.slack_columns[k]]
+        out = np.zeros((len(z), z.shape[1], z.shape[1]))
+        on_q = weights[:, :nq]
+        if not slack.shape[1]:
+            out[:, :nx, :nx] = kin.q_rate_hessian(model, q, v, on_q)
+            return out
+        contacts, unit = self.phases[k].contacts, self.configuration(q)
+        rows = self.contact_rows(contacts)
+        points, full, contact = self.contact_frames(unit, contacts)
+        w = v + np.einsum("bri,br->bi", contact, slack)
+        rate = kin.q_rate_hessian(model, q, w, on_q)
+        by_qw = rate[:, :nq, nq:]
+        u = kin.vecmat(on_q, kin.q_rate_derivatives(model, q, w)[1])
+        forces = self.row_forces(slack, contacts)
+        turning = kin.raw(model, q, kin.force_slope(model, unit, points, forces, full))  # W (B, nv, nq)
+        curvature, gradient = np.zeros((len(z), self.nv, self.nv)), np.zeros((len(z), self.nv))
+        velocity_slopes = []
+        for c, (body, point, axes) in enumerate(rows):
+            power_qq, power_q = lk.point_velocity_hessian(model, unit, u, body, point, forces[:, c])
+            curvature, gradient = curvature + np.asarray(power_qq), gradient + np.asarray(power_q)
+            velocity_slopes.append(kin.point_velocity_derivatives(model, unit, u, body, point)[0][:, axes])
+        cross = by_qw @ turning
+        out[:, :nq, :nq] = rate[:, :nq, :nq] + cross + np.swapaxes(cross, 1, 2) + kin.raw_hessian(model, q, curvature, gradient)
+        out[:, :nq, nq:nx] = by_qw
+        with_slack = by_qw @ np.swapaxes(contact, 1, 2) + np.swapaxes(kin.raw(model, q, np.concatenate(velocity_slopes, axis=1)), 1, 2)
+        out[:, :nq, self.slack_columns[k]] = with_slack
+        out[:, nq:nx, :nq] = np.swapaxes(by_qw, 1, 2)
+        out[:, self.slack_columns[k], :nq] = np.swapaxes(with_slack, 1, 2)
+        return out
+
     def rate_dependence(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """(nx, nz) bool twice: which point variables each component of `rate` depends on (structurally), and
         which of those it equals (a joint's q rate its v, the v rate its a)."""

@@ -71,6 +71,41 @@ def attitude_map(quaternion: np.ndarray) -> np.ndarray:
     return 2.0 * out / norm[:, None, None]
 
 
+def _attitude_rows(u: np.ndarray) -> np.ndarray:
+    """(B, 3, 4): [u_w I - [u_v]x, -u_v] of (B, 4) quaternions u, linear in u (`attitude_map` is 2 / |q| of it at u = q / |q|)."""
+    out = np.empty((len(u), 3, 4))
+    out[:, :, :3] = -skew(u[:, :3])
+    out[:, [0, 1, 2], [0, 1, 2]] += u[:, 3, None]
+    out[:, :, 3] = -u[:, :3]
+    return out
+
+
+def attitude_map_slopes(quaternion: np.ndarray) -> np.ndarray:
+    """(B, 3, 4, 4): entry [i, c, b] is d `attitude_map`[i, c] / d quaternion_b: with n = |q|, u = q / n and
+    du/dq = (I - u u^T) / n, d(2 A(u) / n) = -2 u_b A(u) / n^2 + 2 A(du/dq_b) / n (`_attitude_rows` A is linear)."""
+    norm = np.linalg.norm(quaternion, axis=1)
+    u = quaternion / norm[:, None]
+    projector = (np.eye(4) - u[:, :, None] * u[:, None, :]) / norm[:, None, None]  # (B, 4, b): du / dq_b
+    along = _attitude_rows(np.moveaxis(projector, 2, 1).reshape(-1, 4)).reshape(len(u), 4, 3, 4)  # [B, b, i, c]
+    out = 2.0 * np.moveaxis(along, 1, 3) / norm[:, None, None, None]
+    return out - 2.0 * _attitude_rows(u)[:, :, :, None] * u[:, None, None, :] / norm[:, None, None, None] ** 2
+
+
+def raw_hessian(model: lk.Model, q: np.ndarray, curvature: np.ndarray, gradient: np.ndarray) -> np.ndarray:
+    """(B, nq, nq): the Hessian with respect to raw q (B, nq) of a function f(unit q) whose tangent-space gradient is
+    `gradient` (B, nv) and whose `curvature` (B, nv, nv) [a, d] is that gradient's slope along dq_d (as
+    `lk.kinematic_hessian`): T^T K T plus the gradient's share of the slopes of T = `tangent_map` (R^T's along the
+    quaternion: -[t_b]x R^T, t_b = attitude_map[:, b]; `attitude_map_slopes`)."""
+    tangent = tangent_map(model, q)
+    out = np.swapaxes(tangent, 1, 2) @ curvature @ tangent  # [c, b]
+    if model.floating_base:
+        quaternion = q[:, 3:7]
+        moved = np.cross(np.swapaxes(attitude_map(quaternion), 1, 2), gradient[:, None, :3])  # (B, 4, 3): t_b x g_lin
+        out[:, :3, 3:7] += np.einsum("bij,bkj->bik", rotation(quaternion), moved)  # g^T d(R^T)/dq_b = R (t_b x g)
+        out[:, 3:7, 3:7] += np.einsum("bi,bicd->bcd", gradient[:, 3:6], attitude_map_slopes(quaternion))
+    return out
+
+
 def tangent_map(model: lk.Model, q: np.ndarray) -> np.ndarray:
     """(B, nv, nq): d(dq) / d(q_raw) (module docstring). A free-flyer's block is [R^T, 0; 0, `attitude_map`], the
     joints' the identity."""
@@ -129,12 +164,47 @@ def q_rate_derivatives(model: lk.Model, q: np.ndarray, v: np.ndarray) -> tuple[n
     return by_q, by_v
 
 
+def q_rate_hessian(model: lk.Model, q: np.ndarray, v: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """(B, nq + nv, nq + nv): the Hessian of weights (B, nq) . `q_rate`(q, v) with respect to (raw q, v). The position
+    rate's weight is mu . v_lin with mu = R^T weights_position, and dmu/dq_c = -t_c x mu (t_b = attitude_map[:, b]), so
+    d/dq_b = mu . (t_b x v), d2/dq_b dq_c = (mu x t_c) . (t_b x v) + mu . (dt_b/dq_c x v) and d2/dq_b dv_lin = mu x t_b.
+    The quaternion's rate q (x) [w, 0] / 2 is bilinear in (q, w); the joints' rates are linear."""
+    count, nq, nv = len(q), model.nq, model.nv
+    out = np.zeros((count, nq + nv, nq + nv))
+    if not model.floating_base:
+        return out
+    quaternion, velocity = q[:, 3:7], v[:, :3]
+    turns = np.swapaxes(attitude_map(quaternion), 1, 2)  # (B, 4, 3): t_b
+    mu = np.einsum("bji,bj->bi", rotation(quaternion), weights[:, :3])
+    turned = np.cross(mu[:, None, :], turns)  # mu x t_b
+    moved = np.cross(np.moveaxis(attitude_map_slopes(quaternion), 1, 3), velocity[:, None, None, :])  # dt_b/dq_c x v
+    block = np.einsum("bxi,byi->bxy", np.cross(turns, velocity[:, None, :]), turned) + np.einsum("bxyi,bi->bxy", moved, mu)
+    out[:, 3:7, 3:7] = block
+    out[:, 3:7, nq : nq + 3] = turned
+    spin = weights[:, 3:7]  # d/dw of its weight is (q_w spin_v + spin_v x q_v - spin_w q_v) / 2, linear in q
+    out[:, 3:6, nq + 3 : nq + 6] = 0.5 * (np.swapaxes(skew(spin[:, :3]), 1, 2) - spin[:, 3, None, None] * np.eye(3))
+    out[:, 6, nq + 3 : nq + 6] = 0.5 * spin[:, :3]
+    out[:, nq:, :nq] = np.swapaxes(out[:, :nq, nq:], 1, 2)
+    return out
+
+
 def point_jacobians(model: lk.Model, q: np.ndarray, points: Sequence[ContactPoint]) -> np.ndarray:
     """(B, len(points), 6, nv): each point's world-aligned Jacobian [linear; angular] at unit q."""
     out = np.empty((len(q), len(points), 6, model.nv))
     for c, (body, point) in enumerate(points):
         out[:, c] = lk.jacobian(model, q, body, point, _WORLD)
     return out
+
+
+def position_curvature(model: lk.Model, q: np.ndarray, points: Sequence[ContactPoint], weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(Hessian (B, nq, nq), gradient (B, nq)) with respect to raw q (B, nq) of sum_c weights[:, c] . the world
+    position of point c, weights (B, len(points), 3): `raw_hessian` of `lk.kinematic_hessian`'s linear rows."""
+    unit_q = unit(model, q)
+    curvature, gradient = np.zeros((len(q), model.nv, model.nv)), np.zeros((len(q), model.nv))
+    for c, (body, point) in enumerate(points):  # a few feet; each line is batched over all rows
+        curvature += np.einsum("br,brad->bad", weights[:, c], np.asarray(lk.kinematic_hessian(model, unit_q, body, point, _WORLD))[:, :3])
+        gradient += np.einsum("br,bra->ba", weights[:, c], np.asarray(lk.jacobian(model, unit_q, body, point, _WORLD))[:, :3])
+    return raw_hessian(model, q, curvature, gradient), raw(model, q, gradient[:, None])[:, 0]
 
 
 def point_wrenches(model: lk.Model, q: np.ndarray, points: Sequence[ContactPoint], forces: np.ndarray) -> np.ndarray:

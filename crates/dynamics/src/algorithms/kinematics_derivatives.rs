@@ -31,7 +31,7 @@ pub(crate) struct FramePoint {
 
 /// A motion about the centred frame's origin, taken about `point` (centred coordinates) instead.
 #[inline(always)]
-fn about(m: &Motion, point: &Vector3<f64>) -> Motion {
+pub(crate) fn about(m: &Motion, point: &Vector3<f64>) -> Motion {
     spatial(linear(m) + angular(m).cross(point), angular(m))
 }
 
@@ -88,23 +88,28 @@ impl FramePoint {
 
     /// Calls `visit(column, body)` for each velocity coordinate that moves the frame (its body's support), from the
     /// body to the root.
-    pub(crate) fn support(&self, model: &Model, mut visit: impl FnMut(usize, usize)) {
-        let mut j = self.body;
-        loop {
-            let k = model.idx_v(j);
-            for c in k..k + model.joint(j).nv() {
-                visit(c, j);
-            }
-            if j == 0 {
-                break;
-            }
-            j = model.parent(j);
-        }
+    pub(crate) fn support(&self, model: &Model, visit: impl FnMut(usize, usize)) {
+        support(model, self.body, visit);
     }
 
     /// Column `c` of the frame's Jacobian (world axes, about its origin) from the joints' columns `subspace`.
     pub(crate) fn jacobian_column(&self, subspace: &Matrix6xX<f64>, c: usize) -> Motion {
         about(&column(subspace, c), &self.pose.translation)
+    }
+}
+
+/// Calls `visit(column, joint)` for each velocity coordinate of `joint` and of its ancestors, from it to the root.
+pub(crate) fn support(model: &Model, joint: usize, mut visit: impl FnMut(usize, usize)) {
+    let mut j = joint;
+    loop {
+        let k = model.idx_v(j);
+        for c in k..k + model.joint(j).nv() {
+            visit(c, j);
+        }
+        if j == 0 {
+            break;
+        }
+        j = model.parent(j);
     }
 }
 

@@ -14,6 +14,7 @@ pub(crate) mod crba;
 pub(crate) mod energy;
 pub(crate) mod integrate;
 pub(crate) mod jacobian;
+pub(crate) mod kinematic_hessian;
 pub(crate) mod kinematics;
 pub(crate) mod kinematics_derivatives;
 pub(crate) mod minv;
@@ -38,6 +39,7 @@ pub use crba::crba;
 pub use energy::{kinetic_energy, potential_energy};
 pub use integrate::{free_rollout, Integrator, Method};
 pub use jacobian::{jacobian, Frame};
+pub use kinematic_hessian::{kinematic_hessian, point_velocity_hessian};
 pub use kinematics::forward_kinematics;
 pub use kinematics_derivatives::{
     frame_acceleration, frame_acceleration_derivatives, frame_velocity, frame_velocity_derivatives, jacobian_time_variation,

@@ -58,9 +58,9 @@ class Defects:
         self.rows = (interval[:, None] * 2 * nx + r[None]).ravel()
         self.cols = cols[:, c].ravel()
         self._r, self._c = r, c
-        # Curvature: each point's weighted rate, linear in v, a and the slack for a given q (v + J_c(q)^T slack enters
-        # R(q) v_lin, q (x) w and the joint rates linearly), so differenced along q alone; and T with every variable
-        # the rate depends on (the defects hold h f = T f / N).
+        # Curvature: each point's weighted rate (`ContactModel.rate_curvature`), linear in v, a and the slack for a given q
+        # (v + J_c(q)^T slack enters R(q) v_lin, q (x) w and the joint rates linearly), so every entry pairs with q; and T
+        # with every variable the rate depends on (the defects hold h f = T f / N).
         self._nonlinear = problem.q_without_translation
         self._seen = np.flatnonzero(dependence.any(axis=0))
         rows_h, cols_h, self._local = group_pattern(index, self._nonlinear)
@@ -104,7 +104,7 @@ class Defects:
         weights[0:-1:2] -= h * (interpolation / 8.0 + simpson / 6.0)
         weights[1::2] -= h * 4.0 * simpson / 6.0
         weights[2::2] += h * (interpolation / 8.0 - simpson / 6.0)
-        curvature = group_hessian(lambda zz, ww: problem.rate_gradient(zz, ww, k), z, weights, self._nonlinear)
+        curvature = problem.rate_curvature(z, weights, k)
         by_duration = problem.rate_gradient(z, weights, k) / duration
         return np.concatenate([curvature.ravel()[self._local], by_duration[:, self._seen].ravel()])
 
@@ -154,8 +154,7 @@ class InverseDynamics:
             start += count
         self.rows, self.cols = np.concatenate(rows), np.concatenate(cols)
         self.feet = problem.contact_points(contacts)
-        # Curvature: the rows are nonlinear in q (not a free-flyer's position) and v only; differenced along q, and
-        # d2/dv2 (C(q, v) v is quadratic in v) from `lk.rnea_second_order_derivatives`.
+        # Curvature (`curvature`): the rows are nonlinear in q (not a free-flyer's position) and v only.
         self._nonlinear = problem.q_without_translation
         patterns = [group_pattern(self.index[points], np.r_[self._nonlinear, nq:nx]) for points, *_ in self._parts]
         self.hessian_rows = np.concatenate([rows for rows, _, _ in patterns])
@@ -198,47 +197,66 @@ class InverseDynamics:
         jac[:, :, :nq] = kin.raw(model, z[:, :nq], by_q)
         return jac
 
-    def gradient(self, z: np.ndarray, weights: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
-        """weights . d rows / dz (B, nz) for weights (B, nv): `dense`'s vector product, without forming it."""
-        problem, model = self.problem, self.problem.model
-        nq, nx = problem.nq, problem.nx
-        q = problem.configuration(z[:, :nq])
-        f_ext = problem.point_wrenches(q, z[:, self.force_columns], *problem.contact_points([contacts]), z[:, self.torque_columns])
-        by_q, by_v = (np.asarray(d) for d in lk.rnea_derivatives(model, q, z[:, nq:nx], z[:, self.a_columns], f_ext))
-        out = np.zeros_like(z)
-        on_q = kin.vecmat(weights, by_q)
-        out[:, nq:nx] = kin.vecmat(weights, by_v)
-        out[:, self.a_columns] = kin.matvec(np.asarray(lk.crba(model, q)), weights)
-        out[:, nx + np.arange(problem.nu)] = -weights[:, problem.actuated]
-        forces = problem.world_forces(z[:, self.force_columns], len(contacts))
-        axes = slice(3 - problem.force_dims, 3)
-        full = kin.point_jacobians(model, q, [(problem.foot_body[name], problem.foot_point[name]) for name in contacts])
-        moved = np.einsum("bckj,bj->bck", full, weights)  # each foot frame's velocity under the weights
-        for foot in range(len(contacts)):
-            out[:, self.forces[foot]] = -moved[:, foot, axes]
-        on_q -= np.einsum("bck,bckl,bclj->bj", moved[:, :, :3], kin.skew(forces), full[:, :, 3:])
-        for foot, name in enumerate(problem.flat_contacts(contacts)):
-            angular = np.asarray(lk.jacobian(model, q, problem.foot_body[name], None, "local"))
-            out[:, self.torques[foot]] = -np.einsum("bkj,bj->bk", angular[:, 3:], weights)
-        out[:, :nq] = kin.raw(model, z[:, :nq], on_q[:, None, :])[:, 0]
-        return out
-
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         z = x[self.index]
         return np.concatenate([self.dense(z[points], contacts)[:, r, c].ravel() for points, contacts, r, c in self._parts])
 
     def hessian(self, x: np.ndarray, multipliers: np.ndarray) -> np.ndarray:
         z, weights = x[self.index], multipliers.reshape(len(self.index), self.problem.nv)
-        out = []
-        for (points, contacts, _, _), local in zip(self._parts, self._local):
-            def gradient(zz: np.ndarray, ww: np.ndarray, contacts: Sequence[str] = contacts) -> np.ndarray:
-                return self.gradient(zz, ww, contacts)
+        return np.concatenate([self.curvature(z[points], weights[points], contacts).ravel()[local]
+                               for (points, contacts, _, _), local in zip(self._parts, self._local)])
 
-            curvature = group_hessian(gradient, z[points], weights[points], self._nonlinear)
-            nq, nx = self.problem.nq, self.problem.nx
-            part = z[points]
-            by_vv = lk.rnea_second_order_derivatives(self.problem.model, self.problem.configuration(part[:, :nq]), part[:, nq:nx],
-                                                     part[:, self.a_columns])[1]
-            curvature[:, nq:nx, nq:nx] += np.einsum("bi,bijk->bjk", weights[points], np.asarray(by_vv))
-            out.append(curvature.ravel()[local])
-        return np.concatenate(out)
+    def curvature(self, z: np.ndarray, weights: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
+        """(B, nz, nz): the Hessian of weights . rows at point variables z with `contacts` down. The RNEA's share from
+        `lk.rnea_second_order_derivatives` and the foot forces' -F . J(q) w from `lk.point_velocity_hessian` (mapped to
+        raw q: `kinematics.raw_hessian`); the loads cross with q by the feet's velocity derivatives at w; a flat foot's
+        -T . J_w(q) w curves in q by differences of its exact slope (`group_hessian`)."""
+        problem, model = self.problem, self.problem.model
+        nq, nx = problem.nq, problem.nx
+        q_raw, v, a = z[:, :nq], z[:, nq:nx], z[:, self.a_columns]
+        q = problem.configuration(q_raw)
+        by_qq, by_vv, by_qv, by_aq = (np.einsum("bi,bijk->bjk", weights, np.asarray(t)) for t in lk.rnea_second_order_derivatives(model, q, v, a))
+        tangent = kin.tangent_map(model, q_raw)
+        out = np.zeros((len(z), z.shape[1], z.shape[1]))
+        if problem.flat_contacts(contacts):
+            out += group_hessian(lambda zz, ww: self._torque_slope(zz, ww, contacts), z, weights, self._nonlinear)
+        by_q = kin.vecmat(weights, np.asarray(lk.rnea_derivatives(model, q, v, a)[0]))
+        forces = problem.world_forces(z[:, self.force_columns], len(contacts))
+        for foot, name in enumerate(contacts):  # the forces' virtual power -F . J(q) w
+            power_qq, power_q = lk.point_velocity_hessian(model, q, weights, problem.foot_body[name], problem.foot_point[name], forces[:, foot])
+            by_qq, by_q = by_qq - np.asarray(power_qq), by_q - np.asarray(power_q)
+        out[:, :nq, :nq] += kin.raw_hessian(model, q_raw, by_qq, by_q)
+        out[:, nq:nx, nq:nx] += by_vv
+        cross: list[tuple[slice | np.ndarray, np.ndarray]] = [(slice(nq, nx), np.swapaxes(tangent, 1, 2) @ by_qv),
+                                                              (self.a_columns, np.swapaxes(by_aq @ tangent, 1, 2))]
+        for loads, slope in zip(self._load_columns(contacts), self._load_velocity_slopes(q, weights, contacts)):
+            cross.append((loads, -np.swapaxes(kin.raw(model, q_raw, slope), 1, 2)))
+        for columns, block in cross:  # (B, nq, len(columns)): with q
+            out[:, :nq, columns] += block
+            out[:, columns, :nq] += np.swapaxes(block, 1, 2)
+        return out
+
+    def _load_columns(self, contacts: Sequence[str]) -> list[np.ndarray]:
+        """The point variables of each foot's force, then of each flat foot's torques (`_load_velocity_slopes`' order)."""
+        flat = self.problem.flat_contacts(contacts)
+        return [self.forces[foot] for foot in range(len(contacts))] + [self.torques[foot] for foot in range(len(flat))]
+
+    def _load_velocity_slopes(self, q: np.ndarray, weights: np.ndarray, contacts: Sequence[str]) -> list[np.ndarray]:
+        """At unit q, d/dq (tangent) of each foot point's world velocity J w along the force variables' axes
+        (B, force_dims, nv), then of each flat foot's body-frame angular velocity J_w w (B, 3, nv)."""
+        problem = self.problem
+        axes = slice(3 - problem.force_dims, 3)
+        slopes = [kin.point_velocity_derivatives(problem.model, q, weights, problem.foot_body[name], problem.foot_point[name])[0][:, axes]
+                  for name in contacts]
+        return slopes + [np.asarray(lk.frame_velocity_derivatives(problem.model, q, weights, problem.foot_body[name], None, "local")[0])[:, 3:]
+                         for name in problem.flat_contacts(contacts)]
+
+    def _torque_slope(self, z: np.ndarray, weights: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
+        """(B, nz): d/dq_raw of the flat feet's -T . J_w(q) w at point variables z (zero elsewhere)."""
+        problem = self.problem
+        q = problem.configuration(z[:, : problem.nq])
+        columns, slopes = self._load_columns(contacts)[len(contacts) :], self._load_velocity_slopes(q, weights, contacts)[len(contacts) :]
+        tangent = -sum(np.einsum("br,bra->ba", z[:, c], slope) for c, slope in zip(columns, slopes))
+        out = np.zeros_like(z)
+        out[:, : problem.nq] = kin.raw(problem.model, z[:, : problem.nq], tangent[:, None])[:, 0]
+        return out

@@ -40,7 +40,13 @@ def dense_rate_blocks(problem: ContactModel) -> list[Block]:
             out[:, :nu, -1], out[:, nu:, -1] = third * g[:, nu : 2 * nu], -third * g[:, 3 * nu : 4 * nu]
             return out
 
-        blocks.append(Point(groups, rates, 2 * nu, -limit, limit, derivative=slopes, nonlinear=np.array([4 * nu])))
+        # Rate i of the first inner control point depends on v0_i, a0_i and T; of the second on v1_i, a1_i and T.
+        mask = np.zeros((2 * nu, 4 * nu + 1), dtype=bool)
+        joints = np.arange(nu)
+        mask[joints, joints] = mask[joints, nu + joints] = True
+        mask[nu + joints, 2 * nu + joints] = mask[nu + joints, 3 * nu + joints] = True
+        mask[:, -1] = True
+        blocks.append(Point(groups, rates, 2 * nu, -limit, limit, derivative=slopes, nonlinear=np.array([4 * nu]), mask=mask))
     return blocks
 
 

@@ -8,7 +8,7 @@ import numpy as np
 
 import legkit as lk
 from legkit.optimize import kinematics as kin
-from legkit.optimize.blocks import Block, Linear, Point, group_hessian, group_pattern, weighted
+from legkit.optimize.blocks import Block, Linear, Point, group_pattern
 from legkit.optimize.contact import ContactModel
 
 
@@ -41,7 +41,7 @@ def stance_blocks(problem: ContactModel, k: int) -> list[Block]:
     previous phase's last knot states it), nor at its last for a foot that stays down through a soft
     touchdown (max_impulse 0: v is continuous there, and the impact map states it), nor where
     `initial`/`final` fix the state."""
-    nq, nx = problem.nq, problem.nx
+    nq, nv, nx = problem.nq, problem.nv, problem.nx
     index = problem.point_index[k]
     knots = np.arange(0, len(index), 2)
     count = len(problem.phases)
@@ -87,6 +87,25 @@ def stance_blocks(problem: ContactModel, k: int) -> list[Block]:
                 slopes = np.concatenate([slopes, np.concatenate([kin.raw(problem.model, q, by_q), by_v], axis=2)[:, row_axes]], axis=1)
             return slopes[:, :, columns]
 
+        def velocity_curvature(g: np.ndarray, weights: np.ndarray, columns: np.ndarray = velocity_columns, rows: list = rows,
+                               name: str = name) -> np.ndarray:
+            """(B, k, k): the Hessian of weights . J_c(q) v: in q from `lk.point_velocity_hessian`, with v the rows'
+            loads F = weights (`row_forces`) along `lk.kinematic_hessian`; linear in v."""
+            z = full(g, columns)
+            q, v = z[:, :nq], z[:, nq:nx]
+            unit = problem.configuration(q)
+            loads = problem.row_forces(weights, [name])
+            curvature, gradient, turning = np.zeros((len(g), nv, nv)), np.zeros((len(g), nv)), np.zeros((len(g), nv, nv))
+            for c, (body, point, _) in enumerate(rows):
+                power_qq, power_q = lk.point_velocity_hessian(problem.model, unit, v, body, point, loads[:, c])
+                curvature, gradient = curvature + np.asarray(power_qq), gradient + np.asarray(power_q)
+                turning += np.einsum("br,brad->bad", loads[:, c], np.asarray(lk.kinematic_hessian(problem.model, unit, body, point))[:, :3])
+            out = np.zeros((len(g), nx, nx))
+            out[:, :nq, :nq] = kin.raw_hessian(problem.model, q, curvature, gradient)
+            out[:, nq:nx, :nq] = turning @ kin.tangent_map(problem.model, q)  # d(J^T F)/dq: [v_a, q_c]
+            out[:, :nq, nq:nx] = np.swapaxes(out[:, nq:nx, :nq], 1, 2)
+            return out[:, columns][:, :, columns]
+
         def acceleration_slopes(g: np.ndarray, columns: np.ndarray = acceleration_columns, points: list = points,
                                 axes: np.ndarray = axes) -> np.ndarray:
             z = full(g, columns)
@@ -109,7 +128,7 @@ def stance_blocks(problem: ContactModel, k: int) -> list[Block]:
             held = held[held < last]
         if len(held):
             blocks.append(Point(index[np.ix_(held, velocity_columns)], velocities, len(axes), derivative=velocity_slopes,
-                                nonlinear=np.arange(len(q_columns))))
+                                nonlinear=np.arange(len(q_columns)), curvature=velocity_curvature))
         blocks.append(Point(index[np.ix_(knots, acceleration_columns)], accelerations, len(axes), derivative=acceleration_slopes,
                             nonlinear=np.arange(len(velocity_columns))))
     return blocks
@@ -205,6 +224,7 @@ class Feet:
         self.lower = np.zeros(row)
         self.upper = np.where(unilateral, problem.max_swing_height, 0.0)
         self._output, self._anchor = np.array(output), np.array(anchor_output)
+        self._points = [(problem.foot_body[name], problem.foot_point[name]) for name in names]
         self.hessian_rows, self.hessian_cols, self._local = group_pattern(self.index, problem.q_without_translation)
 
     def _positions(self, q: np.ndarray) -> np.ndarray:
@@ -217,8 +237,7 @@ class Feet:
     def _slopes(self, q: np.ndarray) -> np.ndarray:
         """(B, feet x 3, nq): the positions' Jacobian at raw q (B, nq)."""
         problem = self.problem
-        points = [(problem.foot_body[name], problem.foot_point[name]) for name in self.names]
-        linear = kin.point_jacobians(problem.model, problem.configuration(q), points)[:, :, :3]  # (B, feet, 3, nv)
+        linear = kin.point_jacobians(problem.model, problem.configuration(q), self._points)[:, :, :3]  # (B, feet, 3, nv)
         return kin.raw(problem.model, q, linear.reshape(len(q), -1, problem.nv))
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
@@ -230,5 +249,4 @@ class Feet:
         anchored = self._anchor >= 0
         size = len(q) * 3 * len(self.names)
         weights = np.bincount(self._output, multipliers, minlength=size) - np.bincount(self._anchor[anchored], multipliers[anchored], minlength=size)
-        curvature = group_hessian(weighted(self._slopes), q, weights.reshape(len(q), -1), self.problem.q_without_translation)
-        return curvature.ravel()[self._local]
+        return kin.position_curvature(self.problem.model, q, self._points, weights.reshape(len(q), -1, 3))[0].ravel()[self._local]

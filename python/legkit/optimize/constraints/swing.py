@@ -53,24 +53,60 @@ def clearance_blocks(problem: ContactModel, k: int) -> list[Block]:
         return problem.foot_positions(q, swing)[..., 2].reshape(len(g), -1)
 
     swing_points = [(problem.foot_body[n], problem.foot_point[n]) for n in swing]
+    state_columns = np.r_[q_columns, nq + v_columns]
+    end_columns = (np.r_[spans[0][0] : spans[1][1]], np.r_[spans[2][0] : spans[3][1]])
 
-    def height_gradient(g: np.ndarray, weights: np.ndarray) -> np.ndarray:
-        """weights (B, fractions x swing) . d heights / dg (B, columns), through q_s = b0 q0 + b1 h rate0 + b2 q1
-        + b3 h rate1 at each fraction."""
+    def curve(g: np.ndarray) -> tuple[np.ndarray, list, list]:
+        """h, and per end of the interval (q, v, its rate, the rate's d/dq and d/dv, its group columns), and per
+        fraction q_s = b0 q0 + b1 h rate0 + b2 q1 + b3 h rate1 with its slope D = dq_s/dg (B, nq, columns)."""
         q0, v0, q1, v1, h = states(g)
-        (dq0, dv0), (dq1, dv1) = kin.q_rate_derivatives(problem.model, q0, v0), kin.q_rate_derivatives(problem.model, q1, v1)
-        dv0, dv1 = dv0[:, :, v_columns], dv1[:, :, v_columns]
-        rate0, rate1 = problem.q_rate(q0, v0), problem.q_rate(q1, v1)
-        out = np.zeros_like(g)
-        for f, b in enumerate(basis):
-            q = b[0] * q0 + b[1] * h * rate0 + b[2] * q1 + b[3] * h * rate1
-            height = kin.point_jacobians(problem.model, problem.configuration(q), swing_points)[:, :, 2]  # (B, swing, nv)
-            on_q = kin.raw(problem.model, q, np.einsum("bs,bsj->bj", weights[:, f * len(swing) : (f + 1) * len(swing)], height)[:, None])[:, 0]
-            out[:, spans[0][0] : spans[0][1]] += (b[0] * on_q + b[1] * h * kin.vecmat(on_q, dq0))[:, q_columns]
-            out[:, spans[1][0] : spans[1][1]] += b[1] * h * kin.vecmat(on_q, dv0)
-            out[:, spans[2][0] : spans[2][1]] += (b[2] * on_q + b[3] * h * kin.vecmat(on_q, dq1))[:, q_columns]
-            out[:, spans[3][0] : spans[3][1]] += b[3] * h * kin.vecmat(on_q, dv1)
-            out[:, -1] += np.sum(on_q * (b[1] * rate0 + b[3] * rate1), axis=1) / intervals
+        ends = [(q, v, problem.q_rate(q, v), *kin.q_rate_derivatives(problem.model, q, v), columns)
+                for q, v, columns in ((q0, v0, end_columns[0]), (q1, v1, end_columns[1]))]
+        points = []
+        for b in basis:
+            slope = np.zeros((len(g), nq, g.shape[1]))
+            for identity, weight, (_, _, _, dq, dv, columns) in zip((b[0], b[2]), (b[1], b[3]), ends):
+                slope[:, :, columns] = np.concatenate([identity * np.eye(nq)[:, q_columns] + weight * h[:, :, None] * dq[:, :, q_columns],
+                                                       weight * h[:, :, None] * dv[:, :, v_columns]], axis=2)
+            slope[:, :, -1] = (b[1] * ends[0][2] + b[3] * ends[1][2]) / intervals
+            points.append((b[0] * q0 + b[1] * h * ends[0][2] + b[2] * q1 + b[3] * h * ends[1][2], slope))
+        return h, ends, points
+
+    def fraction_weights(weights: np.ndarray, f: int) -> np.ndarray:
+        """(B, swing, 3): fraction f's multipliers on the swing points' heights (z)."""
+        out = np.zeros((len(weights), len(swing), 3))
+        out[:, :, 2] = weights[:, f * len(swing) : (f + 1) * len(swing)]
         return out
 
-    return [Point(groups, heights, len(basis) * len(swing), 0.0, np.inf, gradient=height_gradient)]
+    def height_gradient(g: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """weights (B, fractions x swing) . d heights / dg (B, columns): the heights' raw gradient at each q_s times D."""
+        _, _, points = curve(g)
+        out = np.zeros_like(g)
+        for f, (q, slope) in enumerate(points):
+            height = kin.point_jacobians(problem.model, problem.configuration(q), swing_points)[:, :, :3]
+            on_q = kin.raw(problem.model, q, np.einsum("bsr,bsrj->bj", fraction_weights(weights, f), height)[:, None])[:, 0]
+            out += kin.vecmat(on_q, slope)
+        return out
+
+    def height_curvature(g: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """(B, k, k): the Hessian of weights . heights: at each fraction D^T H D with H the heights' raw-q Hessian
+        (`kinematics.position_curvature`), plus the curve's own curvature h (b1 d2rate0 + b3 d2rate1) weighted by the
+        heights' raw gradient (`kinematics.q_rate_hessian`), and its cross slopes with h (h = T / intervals)."""
+        h, ends, points = curve(g)
+        out = np.zeros((len(g), g.shape[1], g.shape[1]))
+        for f, (b, (q, slope)) in enumerate(zip(basis, points)):
+            curvature, on_q = kin.position_curvature(problem.model, q, swing_points, fraction_weights(weights, f))
+            out += np.swapaxes(slope, 1, 2) @ curvature @ slope
+            for weight, (qe, ve, _, dq, dv, columns) in zip((b[1], b[3]), ends):
+                rate_curvature = kin.q_rate_hessian(problem.model, qe, ve, on_q)[:, state_columns][:, :, state_columns]
+                out[:, columns[:, None], columns] += weight * h[:, :, None] * rate_curvature
+                by_h = weight * kin.vecmat(on_q, np.concatenate([dq[:, :, q_columns], dv[:, :, v_columns]], axis=2)) / intervals
+                out[:, columns, -1] += by_h
+                out[:, -1, columns] += by_h
+        return out
+
+    # A tip's height depends on its own leg's and the base's columns only.
+    reaches = [list(ancestors[problem.foot_body[n]]) for n in swing]
+    mask = np.tile([np.r_[np.tile(np.r_[np.isin(q_body[q_columns], reach), np.isin(v_body[v_columns], reach)], 2), True] for reach in reaches],
+                   (len(basis), 1))
+    return [Point(groups, heights, len(basis) * len(swing), 0.0, np.inf, gradient=height_gradient, curvature=height_curvature, mask=mask)]
