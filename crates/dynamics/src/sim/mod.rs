@@ -28,7 +28,7 @@ use nalgebra::{DMatrix, Vector3};
 
 use crate::model::{check_vector, Model};
 use crate::spatial::Transform;
-use crate::validate::{array_len, with_capacity};
+use crate::validate::{array_len, check_cancelled, filled, with_capacity};
 use crate::{Error, Result};
 use actuation::{effort_bounds, Actuation};
 
@@ -86,6 +86,28 @@ pub(crate) trait Engine: Send + Sync {
         a: &mut DMatrix<f64>,
         b: &mut DMatrix<f64>,
     ) -> Result<()>;
+}
+
+/// What `Simulation::rollout` gives, one row per step (row-major): the state after it, q (n x nq) and v (n x nv), and
+/// if asked the transition Jacobians at its start, A (n x 2 nv x 2 nv) and B (n x 2 nv x 3 nv); grown once, reused.
+#[derive(Debug, Clone, Default)]
+pub struct Rollout {
+    pub q: Vec<f64>,
+    pub v: Vec<f64>,
+    pub a: Vec<f64>,
+    pub b: Vec<f64>,
+}
+
+/// `buffer` holding `shape`'s numbers (zeroed), reallocated (fallibly, `Error::TooLarge` naming `argument`) only if
+/// its size changes.
+fn sized(buffer: &mut Vec<f64>, argument: &'static str, shape: &[usize]) -> Result<()> {
+    let len = array_len(argument, shape, std::mem::size_of::<f64>())?;
+    if buffer.len() == len {
+        buffer.fill(0.0);
+    } else {
+        *buffer = filled(argument, len, 0.0)?;
+    }
+    Ok(())
 }
 
 /// A robot stepped forward in time with contacts, servos and joint limits, on the backend its [`Options`] choose.
@@ -333,6 +355,48 @@ impl Simulation {
         }
         let actuation = Actuation { servo: &self.servo, effort: &self.effort, tau_ff: &self.tau_ff };
         self.engine.transition_jacobians(&self.model, &actuation, &self.q, &self.v, a, b)
+    }
+
+    /// Steps once per row of `tau` (row-major, nv per row: each step's feed-forward generalized forces), from the
+    /// current state under the current servos, as MuJoCo's `rollout` does: the state after each step into `out.q` and
+    /// `out.v` and, with `jacobians`, each step's transition Jacobians at its start (`transition_jacobians`, the state
+    /// and control the step takes) into `out.a` and `out.b` (`Rollout`). The rows are checked (at least one, whole,
+    /// finite) before anything moves, and the simulation advances as `step` does: one that fails (diverges, or is
+    /// cancelled) stops at its last good state, the steps before it taken and written.
+    pub fn rollout(&mut self, tau: &[f64], jacobians: bool, out: &mut Rollout) -> Result<()> {
+        let (nq, nv) = (self.model.nq(), self.model.nv());
+        if nv == 0 || tau.is_empty() || !tau.len().is_multiple_of(nv) {
+            return Err(Error::invalid(
+                "controls",
+                format!("expected one or more rows of {nv} values (one per velocity coordinate), got {} values", tau.len()),
+            ));
+        }
+        if let Some(k) = tau.iter().position(|x| !x.is_finite()) {
+            return Err(Error::invalid("controls", format!("row {}, element {} is not finite ({})", k / nv, k % nv, tau[k])));
+        }
+        let n = tau.len() / nv;
+        sized(&mut out.q, "controls", &[n, nq])?;
+        sized(&mut out.v, "controls", &[n, nv])?;
+        let (na, nb) = if jacobians { (4 * nv * nv, 6 * nv * nv) } else { (0, 0) };
+        sized(&mut out.a, "controls", &[n, na])?;
+        sized(&mut out.b, "controls", &[n, nb])?;
+        let (mut a, mut b) = (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0));
+        for (k, row) in tau.chunks_exact(nv).enumerate() {
+            check_cancelled("rollout")?;
+            if jacobians {
+                self.transition_jacobians(Some(row), &mut a, &mut b)?;
+                // Row-major, as NumPy reads them.
+                for (m, into) in [(&a, &mut out.a[k * na..(k + 1) * na]), (&b, &mut out.b[k * nb..(k + 1) * nb])] {
+                    for (i, out_row) in into.chunks_exact_mut(m.ncols()).enumerate() {
+                        out_row.iter_mut().zip(m.row(i).iter()).for_each(|(o, x)| *o = *x);
+                    }
+                }
+            }
+            self.step(Some(row), 1)?;
+            out.q[k * nq..(k + 1) * nq].copy_from_slice(&self.q);
+            out.v[k * nv..(k + 1) * nv].copy_from_slice(&self.v);
+        }
+        Ok(())
     }
 
     /// World pose of every body.

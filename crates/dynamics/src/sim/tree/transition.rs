@@ -18,7 +18,7 @@
 //! away from switches between them, with the contact solve taken as converged. A step of several substeps is the
 //! chain of theirs, each substep's contact set and zones held, the warm starts it passes on followed (`Substeps`).
 
-use nalgebra::{DMatrix, Matrix6, Matrix6xX, Vector3};
+use nalgebra::{DMatrix, Matrix4x3, Matrix6, Matrix6x4, Matrix6xX, Vector3, Vector4, Vector6};
 
 use super::articulated::Articulated;
 use super::collision::{Found, Source, Warm};
@@ -57,8 +57,10 @@ pub(super) struct Transition {
     relative: Matrix6xX<f64>,
     columns: Vec<usize>,
     touched: Vec<bool>,
+    /// H, then its LU factors in place with their row swaps (`lu_factor`): no allocation per substep.
     hessian: DMatrix<f64>,
-    /// ∂g/∂(q, v, τ_ff, target_q, target_v), nv x 5 nv; after the solve, ∂v⁺ with respect to them.
+    pivots: Vec<usize>,
+    /// ∂g/∂(q, v, τ_ff, target_q, target_v), nv x 5 nv; of a lone substep, after the solve, ∂v⁺ by them.
     slopes: DMatrix<f64>,
     /// ∂(q ⊕ h v⁺)/∂q and /∂v⁺.
     integrate_q: DMatrix<f64>,
@@ -93,6 +95,9 @@ struct Substeps {
     /// ∂(q_s, v_s)/∂(x, u) (2 nv x 5 nv) and ∂W_s/∂(x, u) (4 k_s x 5 nv).
     state: DMatrix<f64>,
     warm: DMatrix<f64>,
+    /// Per contact, the spatial force F ∂λ_c/∂W_c its impulses' slopes by its warm start exert (6 x 4; a contact's
+    /// impulses at fixed v⁺ depend on its own warm start alone).
+    warm_force: Vec<Matrix6x4<f64>>,
     /// ∂v⁺ and ∂q⁺ by (x, u) of the substep being folded in (nv x 5 nv each), and ∂W⁺ before it is passed on.
     velocity_by: DMatrix<f64>,
     position_by: DMatrix<f64>,
@@ -100,15 +105,15 @@ struct Substeps {
     /// The last substep's contacts (where their impulses went) and impulses, and ∂W⁺/∂(x, u) (4 k x 5 nv).
     sources: Vec<(Source, usize, Option<usize>, Warm)>,
     next_warm: DMatrix<f64>,
-    /// Per contact of this substep: ∂W⁺/∂q at fixed v⁺, ∂W⁺/∂v⁺ (4 k x nv each), ∂W⁺/∂W (4 k x 4).
+    /// Per contact of this substep: ∂W⁺/∂q at fixed v⁺ (4 k x nv), ∂W⁺/∂W (4 k x 4), and ∂W_c⁺/∂(J_c v⁺) (4 x 3: a
+    /// contact's impulses follow v⁺ through its own rows' velocities alone).
     warm_dq: DMatrix<f64>,
-    warm_dv: DMatrix<f64>,
     warm_dw: DMatrix<f64>,
+    warm_dy: Vec<Matrix4x3<f64>>,
     /// The impulses at the displaced configurations (4 k each) and the contacts' tangents there.
     warm_plus: Vec<f64>,
     warm_minus: Vec<f64>,
     tangents: Vec<[nalgebra::Vector3<f64>; 2]>,
-    velocity: Vec<f64>,
 }
 
 impl Transition {
@@ -130,6 +135,7 @@ impl Transition {
             columns: Vec::with_capacity(nv),
             touched: vec![false; nv],
             hessian: zeros(nv, nv)?,
+            pivots: Vec::with_capacity(nv),
             slopes: zeros(nv, 5 * nv)?,
             integrate_q: zeros(nv, nv)?,
             integrate_v: zeros(nv, nv)?,
@@ -251,6 +257,8 @@ impl TreeSimulation {
             }
             self.linearise(t, actuation, &q_start, &v_start, inherits, passes_on)?;
             if substeps == 1 {
+                lu_solve(&t.hessian, &t.pivots, &mut t.slopes);
+                t.slopes.neg_mut();
                 self.write_jacobians(t, a, b);
                 return Ok(());
             }
@@ -297,9 +305,11 @@ impl TreeSimulation {
     }
 
     /// Folds this substep's Jacobians (its slopes by (q_s, v_s, u, W_s), `linearise`) into ∂(q, v)/∂(x, u) and, if
-    /// `passes_on`, its impulses' into ∂W⁺/∂(x, u).
+    /// `passes_on`, its impulses' into ∂W⁺/∂(x, u). The slopes are applied to the running block before the solve, so
+    /// the substep's factor of H solves 5 nv columns once, and the warm starts' act contact by contact along its chain.
     fn compose(&self, t: &mut Transition, first: bool, passes_on: bool) -> Result<()> {
-        let (nv, k) = (self.fused.nv(), self.found.len());
+        let model = self.fused.as_ref();
+        let (nv, k) = (model.nv(), self.found.len());
         let (columns, k4) = (5 * nv, 4 * k);
         let ss = &mut t.substeps;
         if first {
@@ -307,23 +317,48 @@ impl TreeSimulation {
             ss.state.view_mut((0, 0), (2 * nv, 2 * nv)).fill_with_identity();
             zeroed(&mut ss.warm, k4, columns)?;
         }
-        // dv⁺ = P_x d(q_s, v_s) + P_u du + P_W dW_s.
+        // dv⁺ = −H⁻¹ (∂g/∂(q_s, v_s) d(q_s, v_s) + ∂g/∂u du + ∂g/∂W dW_s), ∂g/∂W_c = −J_cᵀ F ∂λ_c/∂W_c.
         zeroed(&mut ss.velocity_by, nv, columns)?;
         let velocity = &mut ss.velocity_by;
         velocity.gemm(1.0, &t.slopes.columns(0, 2 * nv), &ss.state, 0.0);
         velocity.columns_mut(2 * nv, 3 * nv).zip_apply(&t.slopes.columns(2 * nv, 3 * nv), |x, p| *x += p);
-        if k4 > 0 && ss.warm.nrows() == k4 && t.slopes.ncols() == columns + k4 {
-            velocity.gemm(1.0, &t.slopes.columns(columns, k4), &ss.warm, 1.0);
+        if !first && ss.warm.nrows() == k4 && ss.warm_force.len() == k {
+            // Column by column: the contacts' forces on their bodies, then one pass down the tree (`generalized`).
+            for (j, mut column) in velocity.column_iter_mut().enumerate() {
+                t.tree.force.fill(Vector6::zeros());
+                for (c, force) in ss.warm_force.iter().enumerate() {
+                    let Some((body, other)) = self.constraints[c].bodies() else { continue };
+                    let f = force * ss.warm.fixed_view::<4, 1>(4 * c, j);
+                    t.tree.force[body] += f;
+                    if let Some(other) = other {
+                        t.tree.force[other] -= f;
+                    }
+                }
+                t.tree.generalized(model, &self.data, &mut t.plus);
+                column.iter_mut().zip(&t.plus).for_each(|(x, g)| *x -= g);
+            }
         }
+        lu_solve(&t.hessian, &t.pivots, velocity);
+        velocity.neg_mut();
         // dq⁺ = ∂(q ⊕ h v⁺)/∂q dq_s + ∂(q ⊕ h v⁺)/∂v⁺ dv⁺.
         zeroed(&mut ss.position_by, nv, columns)?;
         ss.position_by.gemm(1.0, &t.integrate_q, &ss.state.rows(0, nv), 0.0);
         ss.position_by.gemm(1.0, &t.integrate_v, &ss.velocity_by, 1.0);
         if passes_on {
-            // dW⁺ = ∂W⁺/∂v⁺ dv⁺ + ∂W⁺/∂q dq_s + ∂W⁺/∂W dW_s (each contact's own warm start alone).
+            // dW⁺ = ∂W⁺/∂q dq_s + ∂W⁺/∂W dW_s + ∂W_c⁺/∂y_c J_c dv⁺ (each contact's own warm start and rows alone): one
+            // pass over the tree per column for the bodies' motions, no 4 k x nv product.
             zeroed(&mut ss.warm_by, k4, columns)?;
-            ss.warm_by.gemm(1.0, &ss.warm_dv, &ss.velocity_by, 0.0);
-            ss.warm_by.gemm(1.0, &ss.warm_dq, &ss.state.rows(0, nv), 1.0);
+            ss.warm_by.gemm(1.0, &ss.warm_dq, &ss.state.rows(0, nv), 0.0);
+            for (j, column) in ss.velocity_by.column_iter().enumerate() {
+                t.tree.motions(model, &self.data, column.as_slice());
+                for (c, slope) in ss.warm_dy.iter().enumerate() {
+                    let y = self.constraints[c].velocity(&t.tree.motion, column.as_slice());
+                    let change = slope * Vector3::from(y);
+                    for r in 0..4 {
+                        ss.warm_by[(4 * c + r, j)] += change[r];
+                    }
+                }
+            }
             if ss.warm.nrows() == k4 {
                 for c in 0..k {
                     ss.warm_by.rows_mut(4 * c, 4).gemm(1.0, &ss.warm_dw.rows(4 * c, 4), &ss.warm.rows(4 * c, 4), 1.0);
@@ -342,9 +377,9 @@ impl TreeSimulation {
         Ok(())
     }
 
-    /// The Jacobians of the substep just taken from (q, v), whose solution `self` holds: ∂v⁺/∂(q, v, u) in
-    /// `t.slopes`, and with `inherits` ∂v⁺/∂W_s after them; with `passes_on`, the derivatives of its impulses (the
-    /// next substep's warm starts) in `t.substeps`.
+    /// The Jacobians of the substep just taken from (q, v), whose solution `self` holds: ∂g/∂(q, v, u) in
+    /// `t.slopes` and H factored in `t.hessian`, and with `inherits` the warm starts' forces (`Substeps::warm_force`);
+    /// with `passes_on`, the derivatives of its impulses (the next substep's warm starts) in `t.substeps`.
     fn linearise(&self, t: &mut Transition, actuation: &Actuation<'_>, q: &[f64], v: &[f64], inherits: bool, passes_on: bool) -> Result<()> {
         let model = self.fused.as_ref();
         let (nv, h) = (model.nv(), self.h);
@@ -353,12 +388,10 @@ impl TreeSimulation {
         // CRBA's M and the RNEA derivatives' two squares, reserved fallibly (`Data::reserve_dense`).
         t.rigid.reserve_dense(model, &[Dense::MassMatrix, Dense::RneaDerivatives])?;
         t.hessian.copy_from(crba(model, &mut t.rigid, q));
-        zeroed(&mut t.slopes, nv, 5 * nv + if inherits { k4 } else { 0 })?;
+        zeroed(&mut t.slopes, nv, 5 * nv)?;
         if passes_on {
             let ss = &mut t.substeps;
-            for m in [&mut ss.warm_dq, &mut ss.warm_dv] {
-                zeroed(m, k4, nv)?;
-            }
+            zeroed(&mut ss.warm_dq, k4, nv)?;
             zeroed(&mut ss.warm_dw, k4, 4)?;
         }
         t.slopes.columns_mut(nv, nv).zip_apply(&t.hessian, |s, m| *s = -m);
@@ -414,81 +447,74 @@ impl TreeSimulation {
             }
         }
         if passes_on {
-            self.impulses_by_velocity(t, q, v)?;
+            self.impulses_by_velocity(t);
         }
         if inherits {
             self.by_warm_start(t, q, passes_on);
         }
-        let hessian = std::mem::replace(&mut t.hessian, DMatrix::zeros(0, 0));
         // ∂g/∂v⁺ is unsymmetric where a sliding contact's friction bound follows its normal impulse (`solver`).
-        let factor = hessian.lu();
-        if !factor.solve_mut(&mut t.slopes) {
+        if !lu_factor(&mut t.hessian, &mut t.pivots) {
             return Err(Error::numerical("transition_jacobians", "the step's Jacobian M̃ + Jᵀ H J is singular"));
         }
-        t.hessian = zeros(nv, nv)?;
-        t.slopes.neg_mut();
         integrate_jacobians(model, v_next, h, &mut t.integrate_q, &mut t.integrate_v);
         Ok(())
     }
 
-    /// ∂W⁺/∂v⁺ of this substep's contacts at its start configuration `q`, by central differences in v⁺ (no solve).
-    fn impulses_by_velocity(&self, t: &mut Transition, q: &[f64], v: &[f64]) -> Result<()> {
+    /// ∂W_c⁺/∂(J_c v⁺) of each of this substep's contacts, by central differences of its own rows' velocities at v⁺
+    /// (no solve, no pass over the tree), into `t.substeps.warm_dy`.
+    fn impulses_by_velocity(&self, t: &mut Transition) {
         let model = self.fused.as_ref();
-        t.displaced.copy_from_slice(q);
-        self.constraints_at(t, q, v)?;
-        let mut velocity = std::mem::take(&mut t.substeps.velocity);
-        velocity.clear();
-        velocity.extend_from_slice(&self.v_next);
-        for k in 0..model.nv() {
-            for (sign, _) in [(1.0, 0), (-1.0, 1)] {
-                velocity[k] = self.v_next[k] + sign * STEP;
-                impulses_at(&mut t.tree, model, &t.data, &mut t.constraints, &self.constraints, &velocity, &mut t.plus);
-                let ss = &mut t.substeps;
-                let out = if sign > 0.0 { &mut ss.warm_plus } else { &mut ss.warm_minus };
-                warm_starts(&t.constraints, &ss.tangents, out);
+        t.tree.motions(model, &self.data, &self.v_next);
+        t.substeps.warm_dy.clear();
+        for (f, solved) in self.found.iter().zip(&self.constraints) {
+            let at = solved.velocity(&t.tree.motion, &self.v_next);
+            let mut slope = Matrix4x3::zeros();
+            for r in 0..3 {
+                let mut impulses = [Vector4::zeros(); 2];
+                for (side, sign) in [(0, 1.0), (1, -1.0)] {
+                    let mut velocity = at;
+                    velocity[r] += sign * STEP;
+                    let mut constraint = solved.clone();
+                    constraint.settle_with(solved, velocity);
+                    let friction = f.tangents[0] * constraint.lambda[1] + f.tangents[1] * constraint.lambda[2];
+                    impulses[side] = Vector4::new(constraint.lambda[0], friction.x, friction.y, friction.z);
+                }
+                slope.set_column(r, &((impulses[0] - impulses[1]) / (2.0 * STEP)));
             }
-            velocity[k] = self.v_next[k];
-            let ss = &mut t.substeps;
-            for (r, (plus, minus)) in ss.warm_plus.iter().zip(&ss.warm_minus).enumerate() {
-                ss.warm_dv[(r, k)] = (plus - minus) / (2.0 * STEP);
-            }
+            t.substeps.warm_dy.push(slope);
         }
-        t.substeps.velocity = velocity;
-        Ok(())
     }
 
-    /// The slopes by this substep's warm starts W_s: ∂g/∂W = −J_cᵀ ∂λ_c/∂W_c into `t.slopes` after the 5 nv columns
-    /// of (q, v, u), and with `passes_on` ∂W⁺/∂W, by central differences of each contact's impulses alone at the
-    /// substep's start configuration `q` and v⁺ (a contact's impulses depend on its own warm start only).
+    /// The slopes by this substep's warm starts W_s: each contact's F ∂λ_c/∂W_c into `t.substeps.warm_force` and,
+    /// with `passes_on`, ∂W⁺/∂W, by central differences of each contact's impulses alone at the substep's start
+    /// configuration `q` and v⁺ (a contact's impulses depend on its own warm start only: no pass over the tree).
     fn by_warm_start(&self, t: &mut Transition, q: &[f64], passes_on: bool) {
         let model = self.fused.as_ref();
-        let (nv, origin) = (model.nv(), base_origin(model, q));
+        let origin = base_origin(model, q);
+        t.tree.motions(model, &self.data, &self.v_next);
+        t.substeps.warm_force.clear();
         for (c, f) in self.found.iter().enumerate() {
+            let mut force = Matrix6x4::zeros();
             for j in 0..4 {
                 let step = STEP * f.warm.iter().fold(1e-3_f64, |m, x| m.max(x.abs()));
-                let mut impulses = [[0.0; 4]; 2];
+                let mut lambda = [[0.0; 3]; 2];
                 for (side, sign) in [(0, 1.0), (1, -1.0)] {
                     let mut displaced: Found = *f;
                     displaced.warm[j] += sign * step;
-                    let mut constraint = [self.contact_row(model, &self.data, &self.delassus, &displaced, f.distance, &origin)];
-                    impulses_at(&mut t.tree, model, &self.data, &mut constraint, &self.constraints[c..c + 1], &self.v_next, &mut t.plus);
-                    let lambda = constraint[0].lambda;
-                    let friction = f.tangents[0] * lambda[1] + f.tangents[1] * lambda[2];
-                    impulses[side] = [lambda[0], friction.x, friction.y, friction.z];
-                    if side == 0 {
-                        std::mem::swap(&mut t.plus, &mut t.minus);
-                    }
+                    let mut constraint = self.contact_row(model, &self.data, &self.delassus, &displaced, f.distance, &origin);
+                    constraint.settle_at(&self.constraints[c], &t.tree.motion, &self.v_next);
+                    lambda[side] = constraint.lambda;
                 }
-                // After the swaps `t.minus` holds the plus side and `t.plus` the minus side.
-                for r in 0..nv {
-                    t.slopes[(r, 5 * nv + 4 * c + j)] -= (t.minus[r] - t.plus[r]) / (2.0 * step);
-                }
+                let slope: [f64; 3] = std::array::from_fn(|r| (lambda[0][r] - lambda[1][r]) / (2.0 * step));
+                force.set_column(j, &self.constraints[c].force(&slope));
                 if passes_on {
-                    for (r, (plus, minus)) in impulses[0].iter().zip(&impulses[1]).enumerate() {
-                        t.substeps.warm_dw[(4 * c + r, j)] = (plus - minus) / (2.0 * step);
+                    let friction = f.tangents[0] * slope[1] + f.tangents[1] * slope[2];
+                    for (r, x) in [slope[0], friction.x, friction.y, friction.z].into_iter().enumerate() {
+                        t.substeps.warm_dw[(4 * c + r, j)] = x;
                     }
                 }
             }
+            t.substeps.warm_force.push(force);
         }
     }
 
@@ -536,5 +562,53 @@ fn warm_starts(constraints: &[Constraint], tangents: &[[nalgebra::Vector3<f64>; 
     for (c, [t1, t2]) in constraints.iter().zip(tangents) {
         let friction = t1 * c.lambda[1] + t2 * c.lambda[2];
         out.extend_from_slice(&[c.lambda[0], friction.x, friction.y, friction.z]);
+    }
+}
+
+/// LU factors of the square `m` with partial pivoting, in place (L unit lower below the diagonal, U on and above),
+/// the row swapped in at each column into `pivots`; false if `m` is singular.
+fn lu_factor(m: &mut DMatrix<f64>, pivots: &mut Vec<usize>) -> bool {
+    let n = m.nrows();
+    pivots.clear();
+    for j in 0..n {
+        let (p, largest) = (j..n).map(|i| (i, m[(i, j)].abs())).fold((j, -1.0), |best, x| if x.1 > best.1 { x } else { best });
+        if !(largest > 0.0) {
+            return false;
+        }
+        pivots.push(p);
+        m.swap_rows(j, p);
+        let (left, right) = m.as_mut_slice().split_at_mut((j + 1) * n);
+        let pivot_column = &mut left[j * n..];
+        let inverse = 1.0 / pivot_column[j];
+        pivot_column[j + 1..].iter_mut().for_each(|l| *l *= inverse);
+        // The Schur complement: each later column less its row j times L's column j.
+        for column in right.chunks_exact_mut(n) {
+            let u = column[j];
+            if u != 0.0 {
+                column[j + 1..].iter_mut().zip(&pivot_column[j + 1..]).for_each(|(x, l)| *x -= l * u);
+            }
+        }
+    }
+    true
+}
+
+/// Solves (`lu_factor`'s factors) x = rhs for every column of `rhs`, in place: the swaps, L forward, U back.
+fn lu_solve(lu: &DMatrix<f64>, pivots: &[usize], rhs: &mut DMatrix<f64>) {
+    let n = lu.nrows();
+    let factors = lu.as_slice();
+    for x in rhs.as_mut_slice().chunks_exact_mut(n) {
+        for (j, &p) in pivots.iter().enumerate() {
+            x.swap(j, p);
+        }
+        for j in 0..n {
+            let xj = x[j];
+            x[j + 1..].iter_mut().zip(&factors[j * n + j + 1..(j + 1) * n]).for_each(|(x, l)| *x -= l * xj);
+        }
+        for j in (0..n).rev() {
+            let column = &factors[j * n..(j + 1) * n];
+            x[j] /= column[j];
+            let xj = x[j];
+            x[..j].iter_mut().zip(&column[..j]).for_each(|(x, u)| *x -= u * xj);
+        }
     }
 }
