@@ -88,13 +88,16 @@ pub(crate) trait Engine: Send + Sync {
     ) -> Result<()>;
 }
 
-/// What `Simulation::rollout` gives, one row per step (row-major): the state after it, q (n x nq) and v (n x nv), and
-/// if asked the transition Jacobians at its start, A (n x 2 nv x 2 nv) and B (n x 2 nv x 3 nv); grown once, reused.
+/// What `Simulation::rollout` gives, one row per step, row-major; grown once, reused.
 #[derive(Debug, Clone, Default)]
 pub struct Rollout {
+    /// The configuration after each step (n x nq).
     pub q: Vec<f64>,
+    /// The velocity after each step (n x nv).
     pub v: Vec<f64>,
+    /// If asked, each step's A = ∂x⁺/∂x at its start (n x 2 nv x 2 nv), as `transition_jacobians`.
     pub a: Vec<f64>,
+    /// If asked, each step's B = ∂x⁺/∂u at its start (n x 2 nv x 3 nv).
     pub b: Vec<f64>,
 }
 
