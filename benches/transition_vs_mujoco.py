@@ -172,6 +172,7 @@ def main() -> None:
             ours = settled(s, "legkit", args.settle)
             assert ours.jacobians is not None
             a, b = ours.jacobians()
+            contacts = ours.contacts()  # at the settled state (a rollout moves the simulation on)
             t_ours = time_calls(ours.jacobians, args.blocks, args.calls)
             check = ""
             if args.check:
@@ -180,7 +181,7 @@ def main() -> None:
             if args.rollout:
                 t_ours_rollout = time_calls(legkit_rollout(ours, args.rollout), args.blocks, rollout_calls)
                 rollouts.append((name, substeps, t_ours_rollout, t_theirs_rollout))
-            rows.append((name, substeps, a.shape[0] // 2, ours.contacts(), theirs.contacts(), f"{b.shape[1]} / {b_mj.shape[1]}",
+            rows.append((name, substeps, a.shape[0] // 2, contacts, theirs.contacts(), f"{b.shape[1]} / {b_mj.shape[1]}",
                          t_ours, t_theirs, spectral_radius(a), spectral_radius(a_mj), check))
         print(f"{name}: done", flush=True)
     print()

@@ -18,7 +18,7 @@
 //! away from switches between them, with the contact solve taken as converged. A step of several substeps is the
 //! chain of theirs, each substep's contact set and zones held, the warm starts it passes on followed (`Substeps`).
 
-use nalgebra::{DMatrix, Matrix4x3, Matrix6, Matrix6x4, Matrix6xX, Vector3, Vector4, Vector6};
+use nalgebra::{DMatrix, Matrix4, Matrix4x3, Matrix6, Matrix6x4, Matrix6xX, Vector3, Vector4, Vector6};
 
 use super::articulated::Articulated;
 use super::collision::{Found, Source, Warm};
@@ -57,9 +57,11 @@ pub(super) struct Transition {
     relative: Matrix6xX<f64>,
     columns: Vec<usize>,
     touched: Vec<bool>,
-    /// H, then its LU factors in place with their row swaps (`lu_factor`): no allocation per substep.
+    /// H, then its LU factors in place with their row swaps (`lu_factor`), and H⁻¹ from them: its products with the
+    /// 5 nv columns of a substep are one matrix product, not 5 nv triangular solves. No allocation per substep.
     hessian: DMatrix<f64>,
     pivots: Vec<usize>,
+    inverse: DMatrix<f64>,
     /// ∂g/∂(q, v, τ_ff, target_q, target_v), nv x 5 nv; of a lone substep, after the solve, ∂v⁺ by them.
     slopes: DMatrix<f64>,
     /// ∂(q ⊕ h v⁺)/∂q and /∂v⁺.
@@ -101,15 +103,19 @@ struct Substeps {
     /// ∂v⁺ and ∂q⁺ by (x, u) of the substep being folded in (nv x 5 nv each), and ∂W⁺ before it is passed on.
     velocity_by: DMatrix<f64>,
     position_by: DMatrix<f64>,
+    /// The right-hand side ∂g d(x_s, u, W_s) of dv⁺ (nv x 5 nv).
+    rhs: DMatrix<f64>,
     warm_by: DMatrix<f64>,
     /// The last substep's contacts (where their impulses went) and impulses, and ∂W⁺/∂(x, u) (4 k x 5 nv).
     sources: Vec<(Source, usize, Option<usize>, Warm)>,
     next_warm: DMatrix<f64>,
-    /// Per contact of this substep: ∂W⁺/∂q at fixed v⁺ (4 k x nv), ∂W⁺/∂W (4 k x 4), and ∂W_c⁺/∂(J_c v⁺) (4 x 3: a
+    /// Per contact of this substep: ∂W⁺/∂q at fixed v⁺ (4 k x nv), ∂W_c⁺/∂W_c (4 x 4), and ∂W_c⁺/∂(J_c v⁺) (4 x 3: a
     /// contact's impulses follow v⁺ through its own rows' velocities alone).
     warm_dq: DMatrix<f64>,
-    warm_dw: DMatrix<f64>,
+    warm_dw: Vec<Matrix4<f64>>,
     warm_dy: Vec<Matrix4x3<f64>>,
+    /// Per contact of this substep, the last substep's contact whose impulses it inherits (`inherited_warm`).
+    inherits_from: Vec<Option<usize>>,
     /// The impulses at the displaced configurations (4 k each) and the contacts' tangents there.
     warm_plus: Vec<f64>,
     warm_minus: Vec<f64>,
@@ -136,6 +142,7 @@ impl Transition {
             touched: vec![false; nv],
             hessian: zeros(nv, nv)?,
             pivots: Vec::with_capacity(nv),
+            inverse: zeros(nv, nv)?,
             slopes: zeros(nv, 5 * nv)?,
             integrate_q: zeros(nv, nv)?,
             integrate_v: zeros(nv, nv)?,
@@ -257,8 +264,11 @@ impl TreeSimulation {
             }
             self.linearise(t, actuation, &q_start, &v_start, inherits, passes_on)?;
             if substeps == 1 {
-                lu_solve(&t.hessian, &t.pivots, &mut t.slopes);
-                t.slopes.neg_mut();
+                // ∂v⁺ = −H⁻¹ ∂g.
+                let solved = &mut t.substeps.velocity_by;
+                zeroed(solved, nv, 5 * nv)?;
+                solved.gemm(-1.0, &t.inverse, &t.slopes, 0.0);
+                std::mem::swap(&mut t.slopes, solved);
                 self.write_jacobians(t, a, b);
                 return Ok(());
             }
@@ -286,9 +296,10 @@ impl TreeSimulation {
     /// any other warm start is the last step's, constant.
     fn inherited_warm(&self, t: &mut Transition) -> Result<()> {
         let columns = 5 * self.fused.nv();
-        let Substeps { warm, next_warm, sources, .. } = &mut t.substeps;
+        let Substeps { warm, next_warm, sources, inherits_from, .. } = &mut t.substeps;
         zeroed(warm, 4 * self.found.len(), columns)?;
-        for (c, f) in self.found.iter().enumerate() {
+        inherits_from.clear();
+        for f in &self.found {
             let same = |(source, body, other, warm): &(Source, usize, Option<usize>, Warm)| {
                 let place = match (source, &f.source) {
                     (Source::Plane(a, b), Source::Plane(c, d)) => a == c && b == d,
@@ -297,8 +308,18 @@ impl TreeSimulation {
                 };
                 place && *body == f.body && *other == f.other && *warm == f.warm
             };
-            if let Some(k) = sources.iter().position(same) {
-                warm.rows_mut(4 * c, 4).copy_from(&next_warm.rows(4 * k, 4));
+            inherits_from.push(sources.iter().position(same));
+        }
+        // Column by column, each contact's four rows contiguous.
+        let (rows, from_rows) = (warm.nrows(), next_warm.nrows());
+        if rows == 0 || from_rows == 0 {
+            return Ok(());
+        }
+        for (column, from) in warm.as_mut_slice().chunks_exact_mut(rows).zip(next_warm.as_slice().chunks_exact(from_rows)) {
+            for (c, k) in inherits_from.iter().enumerate() {
+                if let Some(k) = k {
+                    column[4 * c..4 * c + 4].copy_from_slice(&from[4 * k..4 * k + 4]);
+                }
             }
         }
         Ok(())
@@ -306,7 +327,7 @@ impl TreeSimulation {
 
     /// Folds this substep's Jacobians (its slopes by (q_s, v_s, u, W_s), `linearise`) into ∂(q, v)/∂(x, u) and, if
     /// `passes_on`, its impulses' into ∂W⁺/∂(x, u). The slopes are applied to the running block before the solve, so
-    /// the substep's factor of H solves 5 nv columns once, and the warm starts' act contact by contact along its chain.
+    /// H⁻¹ (from its factor) multiplies 5 nv columns once, and the warm starts' act as forces on their bodies.
     fn compose(&self, t: &mut Transition, first: bool, passes_on: bool) -> Result<()> {
         let model = self.fused.as_ref();
         let (nv, k) = (model.nv(), self.found.len());
@@ -318,13 +339,13 @@ impl TreeSimulation {
             zeroed(&mut ss.warm, k4, columns)?;
         }
         // dv⁺ = −H⁻¹ (∂g/∂(q_s, v_s) d(q_s, v_s) + ∂g/∂u du + ∂g/∂W dW_s), ∂g/∂W_c = −J_cᵀ F ∂λ_c/∂W_c.
-        zeroed(&mut ss.velocity_by, nv, columns)?;
-        let velocity = &mut ss.velocity_by;
-        velocity.gemm(1.0, &t.slopes.columns(0, 2 * nv), &ss.state, 0.0);
-        velocity.columns_mut(2 * nv, 3 * nv).zip_apply(&t.slopes.columns(2 * nv, 3 * nv), |x, p| *x += p);
+        zeroed(&mut ss.rhs, nv, columns)?;
+        let rhs = &mut ss.rhs;
+        rhs.gemm(1.0, &t.slopes.columns(0, 2 * nv), &ss.state, 0.0);
+        rhs.columns_mut(2 * nv, 3 * nv).zip_apply(&t.slopes.columns(2 * nv, 3 * nv), |x, p| *x += p);
         if !first && ss.warm.nrows() == k4 && ss.warm_force.len() == k {
             // Column by column: the contacts' forces on their bodies, then one pass down the tree (`generalized`).
-            for (j, mut column) in velocity.column_iter_mut().enumerate() {
+            for (j, mut column) in rhs.column_iter_mut().enumerate() {
                 t.tree.force.fill(Vector6::zeros());
                 for (c, force) in ss.warm_force.iter().enumerate() {
                     let Some((body, other)) = self.constraints[c].bodies() else { continue };
@@ -338,8 +359,8 @@ impl TreeSimulation {
                 column.iter_mut().zip(&t.plus).for_each(|(x, g)| *x -= g);
             }
         }
-        lu_solve(&t.hessian, &t.pivots, velocity);
-        velocity.neg_mut();
+        zeroed(&mut ss.velocity_by, nv, columns)?;
+        ss.velocity_by.gemm(-1.0, &t.inverse, &ss.rhs, 0.0);
         // dq⁺ = ∂(q ⊕ h v⁺)/∂q dq_s + ∂(q ⊕ h v⁺)/∂v⁺ dv⁺.
         zeroed(&mut ss.position_by, nv, columns)?;
         ss.position_by.gemm(1.0, &t.integrate_q, &ss.state.rows(0, nv), 0.0);
@@ -349,19 +370,17 @@ impl TreeSimulation {
             // pass over the tree per column for the bodies' motions, no 4 k x nv product.
             zeroed(&mut ss.warm_by, k4, columns)?;
             ss.warm_by.gemm(1.0, &ss.warm_dq, &ss.state.rows(0, nv), 0.0);
+            let inherited = ss.warm.nrows() == k4;
             for (j, column) in ss.velocity_by.column_iter().enumerate() {
                 t.tree.motions(model, &self.data, column.as_slice());
-                for (c, slope) in ss.warm_dy.iter().enumerate() {
+                for (c, (by_velocity, by_warm)) in ss.warm_dy.iter().zip(&ss.warm_dw).enumerate() {
                     let y = self.constraints[c].velocity(&t.tree.motion, column.as_slice());
-                    let change = slope * Vector3::from(y);
-                    for r in 0..4 {
-                        ss.warm_by[(4 * c + r, j)] += change[r];
+                    let mut change = by_velocity * Vector3::from(y);
+                    if inherited {
+                        change += by_warm * ss.warm.fixed_view::<4, 1>(4 * c, j);
                     }
-                }
-            }
-            if ss.warm.nrows() == k4 {
-                for c in 0..k {
-                    ss.warm_by.rows_mut(4 * c, 4).gemm(1.0, &ss.warm_dw.rows(4 * c, 4), &ss.warm.rows(4 * c, 4), 1.0);
+                    let mut target = ss.warm_by.fixed_view_mut::<4, 1>(4 * c, j);
+                    target += change;
                 }
             }
             std::mem::swap(&mut ss.next_warm, &mut ss.warm_by);
@@ -392,7 +411,8 @@ impl TreeSimulation {
         if passes_on {
             let ss = &mut t.substeps;
             zeroed(&mut ss.warm_dq, k4, nv)?;
-            zeroed(&mut ss.warm_dw, k4, 4)?;
+            ss.warm_dw.clear();
+            ss.warm_dw.resize(self.found.len(), Matrix4::zeros());
         }
         t.slopes.columns_mut(nv, nv).zip_apply(&t.hessian, |s, m| *s = -m);
         // The free flyer's coordinates have no armature (`aba_with_armature`).
@@ -456,6 +476,8 @@ impl TreeSimulation {
         if !lu_factor(&mut t.hessian, &mut t.pivots) {
             return Err(Error::numerical("transition_jacobians", "the step's Jacobian M̃ + Jᵀ H J is singular"));
         }
+        t.inverse.fill_with_identity();
+        lu_solve(&t.hessian, &t.pivots, &mut t.inverse);
         integrate_jacobians(model, v_next, h, &mut t.integrate_q, &mut t.integrate_v);
         Ok(())
     }
@@ -510,7 +532,7 @@ impl TreeSimulation {
                 if passes_on {
                     let friction = f.tangents[0] * slope[1] + f.tangents[1] * slope[2];
                     for (r, x) in [slope[0], friction.x, friction.y, friction.z].into_iter().enumerate() {
-                        t.substeps.warm_dw[(4 * c + r, j)] = x;
+                        t.substeps.warm_dw[c][(r, j)] = x;
                     }
                 }
             }
@@ -595,6 +617,9 @@ fn lu_factor(m: &mut DMatrix<f64>, pivots: &mut Vec<usize>) -> bool {
 /// Solves (`lu_factor`'s factors) x = rhs for every column of `rhs`, in place: the swaps, L forward, U back.
 fn lu_solve(lu: &DMatrix<f64>, pivots: &[usize], rhs: &mut DMatrix<f64>) {
     let n = lu.nrows();
+    if n == 0 {
+        return;
+    }
     let factors = lu.as_slice();
     for x in rhs.as_mut_slice().chunks_exact_mut(n) {
         for (j, &p) in pivots.iter().enumerate() {
