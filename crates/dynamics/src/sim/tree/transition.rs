@@ -69,6 +69,9 @@ pub(super) struct Transition {
     integrate_v: DMatrix<f64>,
     /// Across substeps (`Substeps`).
     substeps: Substeps,
+    /// The state a substep starts from, and a step's own state, applied forces (for a step taken and undone).
+    start: [Vec<f64>; 2],
+    step: [Vec<f64>; 3],
 }
 
 /// An r x c matrix of zeros, allocated fallibly: `Error::TooLarge` naming the model where it cannot be (the
@@ -147,6 +150,8 @@ impl Transition {
             integrate_q: zeros(nv, nv)?,
             integrate_v: zeros(nv, nv)?,
             substeps: Substeps::default(),
+            start: [vec![0.0; fused.nq()], vec![0.0; nv]],
+            step: [vec![0.0; fused.nq()], vec![0.0; nv], vec![0.0; nv]],
         })
     }
 
@@ -210,6 +215,14 @@ impl TreeSimulation {
         contact_constraint(self.coulomb, model, data, delassus, &self.fused_body, self.friction, self.h, f, piece, origin)
     }
 
+    /// The Jacobians' buffers, taken out of `self` while they are in use.
+    fn take_transition(&mut self) -> Result<Box<Transition>> {
+        match self.transition.take() {
+            Some(t) => Ok(t),
+            None => Ok(Box::new(Transition::new(&self.fused, self.fused_body.len())?)),
+        }
+    }
+
     /// A = ∂x⁺/∂x (2 nv square) and B = ∂x⁺/∂u (2 nv x 3 nv, u = (τ_ff, target_q, target_v)) of one step from
     /// (q, v) under `actuation`, leaving the simulation as it was.
     pub(super) fn transition_jacobians(
@@ -220,49 +233,85 @@ impl TreeSimulation {
         a: &mut DMatrix<f64>,
         b: &mut DMatrix<f64>,
     ) -> Result<()> {
-        let mut transition = match self.transition.take() {
-            Some(t) => t,
-            None => Box::new(Transition::new(&self.fused, self.fused_body.len())?),
-        };
+        let mut transition = self.take_transition()?;
+        let [mut q_s, mut v_s, mut applied] = std::mem::take(&mut transition.step);
+        q_s.copy_from_slice(q);
+        v_s.copy_from_slice(v);
         // The step is taken and undone, as a failed step is (`Engine::save`, `Engine::undo`).
         self.save();
-        let outcome = self.chain(&mut transition, actuation, q, v, a, b);
+        let outcome = self.chain(&mut transition, actuation, &mut q_s, &mut v_s, &mut applied, a, b);
+        transition.step = [q_s, v_s, applied];
         self.transition = Some(transition);
         self.undo();
         outcome
     }
 
-    /// Takes the step's substeps from (q, v), each linearised at its start, and composes their Jacobians into `a`
-    /// and `b` (`Substeps`): A = A_k ⋯ A_1 and B = Σ_s A_k ⋯ A_s+1 B_s, with each substep's warm starts followed
-    /// from the impulses of the substep before it.
+    /// One step from (q, v), as `Engine::step` takes it (the same substeps, bit for bit), with its Jacobians at its
+    /// start into `a` and `b`: a rollout's step and its linearisation in one pass.
+    pub(super) fn step_with_jacobians(
+        &mut self,
+        actuation: &Actuation<'_>,
+        q: &mut [f64],
+        v: &mut [f64],
+        applied: &mut [f64],
+        a: &mut DMatrix<f64>,
+        b: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        let mut transition = self.take_transition()?;
+        let outcome = self.chain(&mut transition, actuation, q, v, applied, a, b);
+        self.transition = Some(transition);
+        outcome
+    }
+
+    /// Takes the step's substeps from (q, v), in place, each linearised at its start, and composes their Jacobians
+    /// into `a` and `b` (`Substeps`): A = A_k ⋯ A_1 and B = Σ_s A_k ⋯ A_s+1 B_s, with each substep's warm starts
+    /// followed from the impulses of the substep before it.
+    #[allow(clippy::too_many_arguments)]
     fn chain(
         &mut self,
         t: &mut Transition,
         actuation: &Actuation<'_>,
-        q: &[f64],
-        v: &[f64],
+        q: &mut [f64],
+        v: &mut [f64],
+        applied: &mut [f64],
+        a: &mut DMatrix<f64>,
+        b: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        let mut start = std::mem::take(&mut t.start);
+        let outcome = self.chain_from(t, &mut start, actuation, q, v, applied, a, b);
+        t.start = start;
+        outcome
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn chain_from(
+        &mut self,
+        t: &mut Transition,
+        [q_start, v_start]: &mut [Vec<f64>; 2],
+        actuation: &Actuation<'_>,
+        q_s: &mut [f64],
+        v_s: &mut [f64],
+        applied: &mut [f64],
         a: &mut DMatrix<f64>,
         b: &mut DMatrix<f64>,
     ) -> Result<()> {
         let (nv, substeps) = (self.fused.nv(), self.options.substeps);
-        let (mut q_s, mut v_s, mut applied) = (q.to_vec(), v.to_vec(), vec![0.0; v.len()]);
-        let (mut q_start, mut v_start) = (q.to_vec(), v.to_vec());
         zeroed(a, 2 * nv, 2 * nv)?;
         zeroed(b, 2 * nv, 3 * nv)?;
         for s in 0..substeps {
             // A thousand substeps of a large model take seconds: a caller that was interrupted stops them here, and
             // `transition_jacobians` undoes what was taken.
             check_cancelled("transition_jacobians")?;
-            q_start.copy_from_slice(&q_s);
-            v_start.copy_from_slice(&v_s);
-            self.substep(actuation, &mut q_s, &mut v_s, &mut applied)?;
+            q_start.copy_from_slice(q_s);
+            v_start.copy_from_slice(v_s);
+            self.substep(actuation, q_s, v_s, applied)?;
             // The first substep's warm starts are the last step's impulses: constant.
             let inherits = s > 0;
             let passes_on = s + 1 < substeps;
             if inherits {
                 self.inherited_warm(t)?;
             }
-            self.linearise(t, actuation, &q_start, &v_start, inherits, passes_on)?;
+            self.linearise(t, actuation, q_start, v_start, inherits, passes_on)?;
             if substeps == 1 {
                 // ∂v⁺ = −H⁻¹ ∂g.
                 let solved = &mut t.substeps.velocity_by;
