@@ -356,6 +356,7 @@ class Runner:
     # MuJoCo: `mjd_transitionFD`, forward differences), returning (A, B): benches/transition_vs_mujoco.py.
     jacobians: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None
     simulation: lk.Simulation | None = None  # legkit's
+    model_data: tuple | None = None  # MuJoCo's (MjModel, MjData), for benches/transition_vs_mujoco.py's rollouts
 
 
 @dataclass
@@ -399,7 +400,7 @@ def tree_scene(n_modules: int) -> Scene:
         m = mujoco.MjModel.from_xml_string(mujoco_xml(parts))
         set_cone(m)
         d = mujoco.MjData(m)
-        return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon), jacobians=mujoco_jacobians(m, d))
+        return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon), jacobians=mujoco_jacobians(m, d), model_data=(m, d))
 
     return Scene(f"tree-{modules}", dof, legkit_runner, mujoco_runner)
 
@@ -580,7 +581,7 @@ def robot_scene(robot: str, fall: bool) -> Scene:
             _, x, y, _ = d.qpos[3:7]
             return np.array([*d.qpos[:3], 1 - 2 * (x * x + y * y)])
 
-        return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon), base, jacobians=mujoco_jacobians(m, d))
+        return Runner(lambda n: mujoco.mj_step(m, d, nstep=n), lambda: int(d.ncon), base, jacobians=mujoco_jacobians(m, d), model_data=(m, d))
 
     return Scene(f"{robot}-{'fall' if fall else 'stand'}", model.nv - 6, legkit_runner, mujoco_runner)
 

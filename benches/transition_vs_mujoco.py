@@ -16,6 +16,10 @@ legkit's regularised Coulomb cone), so their A and B are not expected to agree e
 and the chain composed, its warm starts followed: docs/derivatives.md) against MuJoCo's of its one step of the
 same length.
 
+``--rollout 100`` adds, per scene and substep count, one rollout of that many steps with every step's Jacobians:
+legkit's ``Simulation.rollout(controls, jacobians=True)`` (one call) against that many MuJoCo steps each with
+``mjd_transitionFD`` at its start (``mj_step`` after it), both from the settled state, restored before each call.
+
 ``--check`` also measures legkit's A and B's feed-forward columns against central differences of its own step
 (each displaced step replayed from a freshly settled scene, contact history included; displacement 1e-7), the
 accuracy figure of docs/derivatives.md; slow on the tree (6 nv settled replays).
@@ -67,13 +71,14 @@ def settled(scene: Scene, engine: str, settle: float) -> Runner:
 
 
 def time_calls(call: Callable[[], object], blocks: int, calls: int) -> float:
-    """Median over blocks of the mean time of one call (s, thread CPU time)."""
+    """Median over blocks of the mean time of one call (s, CPU time of the process: a long call of legkit's runs on a
+    worker thread, where Ctrl-C can stop it, which the calling thread's time would miss)."""
     means = []
     for _ in range(blocks):
-        start = time.thread_time()
+        start = time.process_time()
         for _ in range(calls):
             call()
-        means.append((time.thread_time() - start) / calls)
+        means.append((time.process_time() - start) / calls)
     return statistics.median(means)
 
 
@@ -108,6 +113,41 @@ def central_differences(build: Callable[[], lk.Simulation]) -> tuple[float, floa
     return float(np.abs(analytic - numeric).max()), float(np.abs(analytic).max())
 
 
+def legkit_rollout(runner: Runner, steps: int) -> Callable[[], object]:
+    """One `Simulation.rollout` of `steps` zero feed-forward steps with their Jacobians, from the runner's state now."""
+    sim = runner.simulation
+    assert sim is not None
+    q, v, controls = sim.q.copy(), sim.v.copy(), np.zeros((steps, sim.model.nv))
+
+    def call() -> object:
+        sim.q, sim.v = q, v
+        return sim.rollout(controls, jacobians=True)
+
+    return call
+
+
+def mujoco_rollout(name: str, settle: float, steps: int) -> Callable[[], object]:
+    """`steps` MuJoCo steps, each after `mjd_transitionFD` at its start, from the settled scene's state."""
+    import mujoco
+
+    runner = settled(scene(name), "mujoco", settle)
+    m, d = runner.model_data
+    spec = mujoco.mjtState.mjSTATE_INTEGRATION
+    start = np.zeros(mujoco.mj_stateSize(m, spec))
+    mujoco.mj_getState(m, d, start, spec)
+    assert runner.jacobians is not None
+    jacobians = runner.jacobians
+
+    def call() -> object:
+        mujoco.mj_setState(m, d, start, spec)
+        for _ in range(steps):
+            jacobians()
+            mujoco.mj_step(m, d)
+        return d
+
+    return call
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenes", nargs="+", default=["go1-stand", "tree-21"])
@@ -116,25 +156,32 @@ def main() -> None:
     parser.add_argument("--blocks", type=int, default=7)
     parser.add_argument("--calls", type=int, default=20)
     parser.add_argument("--check", action="store_true")
+    parser.add_argument("--rollout", type=int, default=0, help="steps of a rollout with Jacobians to time (0: none)")
     args = parser.parse_args()
-    rows = []
+    rows, rollouts = [], []
     for name in args.scenes:
         theirs = settled(scene(name), "mujoco", args.settle)
         assert theirs.jacobians is not None
         a_mj, b_mj = theirs.jacobians()
         t_theirs = time_calls(theirs.jacobians, args.blocks, args.calls)
+        rollout_calls = max(1, args.calls // 10)
+        t_theirs_rollout = time_calls(mujoco_rollout(name, args.settle, args.rollout), args.blocks, rollout_calls) if args.rollout else 0.0
         for substeps in args.substeps:
             use_substeps(substeps)
             s = scene(name)
             ours = settled(s, "legkit", args.settle)
             assert ours.jacobians is not None
             a, b = ours.jacobians()
+            contacts = ours.contacts()  # at the settled state (a rollout moves the simulation on)
             t_ours = time_calls(ours.jacobians, args.blocks, args.calls)
             check = ""
             if args.check:
                 error, scale = central_differences(lambda scene=s: settled(scene, "legkit", args.settle).simulation)
                 check = f"{error / scale:.1e}"
-            rows.append((name, substeps, a.shape[0] // 2, ours.contacts(), theirs.contacts(), f"{b.shape[1]} / {b_mj.shape[1]}",
+            if args.rollout:
+                t_ours_rollout = time_calls(legkit_rollout(ours, args.rollout), args.blocks, rollout_calls)
+                rollouts.append((name, substeps, t_ours_rollout, t_theirs_rollout))
+            rows.append((name, substeps, a.shape[0] // 2, contacts, theirs.contacts(), f"{b.shape[1]} / {b_mj.shape[1]}",
                          t_ours, t_theirs, spectral_radius(a), spectral_radius(a_mj), check))
         print(f"{name}: done", flush=True)
     print()
@@ -144,6 +191,12 @@ def main() -> None:
     for name, substeps, nv, c_ours, c_theirs, columns, t_ours, t_theirs, rho, rho_mj, check in rows:
         print(f"| {name} | {substeps} | {nv} | {c_ours} / {c_theirs} | {columns} | {t_ours * 1e6:.0f} | {t_theirs * 1e6:.0f} | "
               f"{t_ours / t_theirs:.2f}x | {rho:.4f} / {rho_mj:.4f} |" + (f" {check} |" if args.check else ""))
+    if rollouts:
+        print(f"\n| scene | substeps | legkit rollout of {args.rollout} steps with Jacobians (ms) |"
+              f" MuJoCo {args.rollout} x (mjd_transitionFD + mj_step) (ms) | ratio |")
+        print("|---|---|---|---|---|")
+        for name, substeps, t_ours, t_theirs in rollouts:
+            print(f"| {name} | {substeps} | {t_ours * 1e3:.1f} | {t_theirs * 1e3:.1f} | {t_ours / t_theirs:.2f}x |")
     print(f"\nload average {load_average()}, {os.cpu_count()} CPUs")
 
 

@@ -55,7 +55,7 @@ def valid(objects: dict[str, object]) -> dict[str, object]:
         "kp": 1.0, "kd": None, "torque_limit": None, "target_q": None, "target_v": None, "n": 1, "targets": None,
         "simulations": [objects["Simulation"]], "heights": np.zeros((2, 2)), "cell_size": 0.1, "friction": 0.8,
         "normal": up, "radius": 1.0, "line_point": three, "line_direction": [1.0, 0.0, 0.0], "axis_point": three,
-        "axis_direction": up, "weights": up,
+        "axis_direction": up, "weights": up, "controls": np.zeros((2, model.nv)), "jacobians": False,
     }
 
 

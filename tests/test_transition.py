@@ -307,3 +307,39 @@ except MemoryError as error:
     )
     assert result["raised"] == "MemoryError" and "model" in result["message"] and "bytes" in result["message"], result
     assert result["same"], result
+
+
+@pytest.mark.parametrize("substeps", [1, 2, 4, 10])
+def test_a_servoed_tree_in_substeps_matches_central_differences(substeps):
+    """The chain through the substeps (each substep's slopes applied to the running Jacobian, `transition.rs`) without
+    contacts: the servos' implicit terms, saturation and the integration carried through every substep."""
+    model = ten_link_tree()
+    target = model.neutral() + 0.2
+    servo = {"kp": 30.0, "kd": 0.5, "torque_limit": 1.5, "target_q": target}
+
+    def build() -> lk.Simulation:
+        sim = lk.Simulation(model, dt=1e-3, substeps=substeps)
+        sim.set_servo(servo["kp"], servo["kd"], servo["torque_limit"], target)
+        sim.step(None, 120)
+        return sim
+
+    assert_close(*jacobians_and_differences(build, np.linspace(-0.2, 0.2, model.nv), servo))
+
+
+@pytest.mark.parametrize("substeps", [1, 2, 4])
+def test_a_box_resting_in_substeps_matches_central_differences(substeps):
+    """Four sticking contacts whose warm starts pass from substep to substep (the friction rows ask for R_t λ_t,warm):
+    each contact's slopes by its own warm start act along its chain, no dense product over all contacts. A resting
+    corner settles within ε g h² of its normal law's bend, h the substep: the displacement shrinks with h². With 10
+    substeps no displacement is clean (1e-8 straddles the bend, 1e-9 and 1e-10 leave 1e-5 and 3e-5 of the solve's
+    noise); the Rust tests check 10 substeps on the quadruped, and the servoed tree above has no bend."""
+
+    def build() -> lk.Simulation:
+        sim = sliding_box(substeps, "cone", 0)
+        sim.v = np.zeros(6)
+        sim.step(BOX_TAU, 60)
+        return sim
+
+    assert len(build().contacts()["body"]) == 4
+    servo = {"kp": 0.0, "kd": 0.0, "torque_limit": 1.0, "target_q": build().model.neutral()}
+    assert_close(*jacobians_and_differences(build, BOX_TAU, servo, STEP / substeps**2))

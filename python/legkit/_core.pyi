@@ -3,7 +3,7 @@
 import os
 import pathlib
 from collections.abc import Sequence
-from typing import Any, Literal
+from typing import Any, Literal, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -421,6 +421,16 @@ class Simulation:
         tangent space, v), u = (tau, servo target_q per velocity coordinate, servo target_v); changes nothing.
         The step's contacts, their zones, saturated servos and active limits are held. Tree backend; a step of
         several substeps is their chain, the warm starts followed (docs/derivatives.md)."""
+    @overload
+    def rollout(self, controls: npt.ArrayLike, jacobians: Literal[False] = False) -> tuple[np.ndarray, np.ndarray]:
+        """One step per row of controls (N, nv), each row that step's feed-forward tau, from the current state under the
+        current servos, as MuJoCo's ``rollout`` (GIL released, Ctrl-C between steps): (q (N, nq), v (N, nv)), the state
+        after each step; with jacobians=True also A (N, 2nv, 2nv) and B (N, 2nv, 3nv), each step's
+        ``transition_jacobians`` at its start. The simulation advances exactly as N calls of step(controls[k]).
+        ValueError for another shape, no rows or a non-finite value (nothing moves); a failing step raises
+        RuntimeError at its last good state, the steps before it taken."""
+    @overload
+    def rollout(self, controls: npt.ArrayLike, jacobians: Literal[True]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...
     def set_servo(
         self, kp: npt.ArrayLike, kd: npt.ArrayLike | None = None, torque_limit: npt.ArrayLike | None = None,
         target_q: npt.ArrayLike | None = None, target_v: npt.ArrayLike | None = None,
@@ -461,6 +471,14 @@ class SimulationBatch:
         self, tau: npt.ArrayLike | Sequence[npt.ArrayLike | None] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Every simulation's (A, B) at its state, in parallel: (B, 2nv, 2nv) and (B, 2nv, 3nv) (one nv for all)."""
+    @overload
+    def rollout(self, controls: npt.ArrayLike, jacobians: Literal[False] = False) -> tuple[np.ndarray, np.ndarray]:
+        """Every simulation's ``Simulation.rollout`` from its own state, in parallel on all cores: controls (B, N, nv),
+        one sequence per simulation, or (N, nv) for all; (q (B, N, nq), v (B, N, nv)) and with jacobians=True
+        A (B, N, 2nv, 2nv), B (B, N, 2nv, 3nv) (one nq and nv for all). A failing simulation stops at its last good
+        state while the others complete; the error names the lowest index."""
+    @overload
+    def rollout(self, controls: npt.ArrayLike, jacobians: Literal[True]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...
     @property
     def simulations(self) -> list[Simulation]: ...
     @property

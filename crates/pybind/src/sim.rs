@@ -2,7 +2,8 @@
 
 use legkit_dynamics::model::check_vector;
 use legkit_dynamics::sim::{
-    dof_coordinates, Backend, FrictionLaw, Ground, Options, Servo, Simulation, DEFAULT_SOLVER_ITERATIONS, MAX_SOLVER_ITERATIONS, MAX_SUBSTEPS,
+    dof_coordinates, Backend, FrictionLaw, Ground, Options, Rollout, Servo, Simulation, DEFAULT_SOLVER_ITERATIONS, MAX_SOLVER_ITERATIONS,
+    MAX_SUBSTEPS,
 };
 use legkit_dynamics::validate::{array_len, cancellable, with_capacity};
 use std::sync::atomic::AtomicBool;
@@ -33,6 +34,50 @@ fn finite_jacobians(sim: &mut Simulation, tau: Option<&[f64]>) -> legkit_dynamic
     finite_result(a.as_slice())?;
     finite_result(b.as_slice())?;
     Ok((a, b))
+}
+
+/// A rollout's controls: the rows of `view` (..., N, nv) as one row-major vector, copied with fallible allocation.
+fn control_rows(view: &numpy::ndarray::ArrayViewD<'_, f64>, nv: usize) -> PyResult<Vec<f64>> {
+    let mut rows = with_capacity("controls", view.len()).map_err(kernel_error)?;
+    rows.extend(view.iter().copied());
+    if view.shape().last() != Some(&nv) {
+        return Err(PyValueError::new_err(format!("controls: expected rows of {nv} values (shape (N, {nv})), got shape {:?}", view.shape())));
+    }
+    Ok(rows)
+}
+
+/// One rollout's outcome with its Jacobians checked finite (a RuntimeError where they overflow, as `finite_jacobians`).
+fn finite_rollout(sim: &mut Simulation, controls: &[f64], jacobians: bool) -> legkit_dynamics::Result<Rollout> {
+    let mut out = Rollout::default();
+    sim.rollout(controls, jacobians, &mut out)?;
+    finite_result(&out.a)?;
+    finite_result(&out.b)?;
+    Ok(out)
+}
+
+/// The arrays of `outs` (one per simulation, each of `n` steps), stacked with `batch` leading (None: one simulation):
+/// (q, v), and with `jacobians` (q, v, A, B).
+fn rollout_arrays<'py>(
+    py: Python<'py>,
+    batch: Option<usize>,
+    n: usize,
+    (nq, nv): (usize, usize),
+    outs: Vec<Rollout>,
+    jacobians: bool,
+) -> PyResult<Bound<'py, PyTuple>> {
+    let lead: Vec<usize> = batch.into_iter().chain([n]).collect();
+    let shaped = |tail: &[usize], take: &dyn Fn(&Rollout) -> &[f64]| {
+        let shape: Vec<usize> = lead.iter().chain(tail).copied().collect();
+        let mut all = with_capacity("controls", shape.iter().product()).map_err(kernel_error)?;
+        outs.iter().for_each(|o| all.extend_from_slice(take(o)));
+        Ok::<_, PyErr>(to_numpy(py, shape, all).into_any())
+    };
+    let mut arrays = vec![shaped(&[nq], &|o| &o.q)?, shaped(&[nv], &|o| &o.v)?];
+    if jacobians {
+        arrays.push(shaped(&[2 * nv, 2 * nv], &|o| &o.a)?);
+        arrays.push(shaped(&[2 * nv, 3 * nv], &|o| &o.b)?);
+    }
+    PyTuple::new(py, arrays)
 }
 
 #[pyclass(name = "Ground", module = "legkit", frozen)]
@@ -263,6 +308,28 @@ impl PySimulation {
             done += k as usize;
             sim.step_targets(tau.as_deref(), piece).map_err(kernel_error)
         })
+    }
+
+    /// Steps once per row of `controls` (N, nv), each row one step's feed-forward tau, from the current state under the
+    /// current servos, as MuJoCo's `rollout` steps a state (GIL released; Ctrl-C stops it between steps): returns
+    /// (q (N, nq), v (N, nv)), the state after each step, and with `jacobians=True` (q, v, A (N, 2 nv, 2 nv),
+    /// B (N, 2 nv, 3 nv)), each step's transition Jacobians at its start as `transition_jacobians` gives them: one call
+    /// per iteration of a shooting method or iLQR. The simulation advances as N calls of `step(controls[k])` (the
+    /// same states, bit for bit). ValueError for controls of another shape, no rows or a value not finite (nothing
+    /// moves); a step that fails raises RuntimeError at its last good state, the steps before it taken, as `step`.
+    #[pyo3(signature = (controls, jacobians = false))]
+    fn rollout<'py>(slf: &Bound<'py, Self>, controls: Floats<'_>, jacobians: bool) -> PyResult<Bound<'py, PyTuple>> {
+        let py = slf.py();
+        let mut this = in_use(slf)?;
+        let sizes = (this.sim.model().nq(), this.sim.model().nv());
+        let view = controls.get("controls")?;
+        if view.ndim() != 2 {
+            return Err(PyValueError::new_err(format!("controls: expected shape (N, {}), got {:?}", sizes.1, view.shape())));
+        }
+        let controls = control_rows(&view, sizes.1)?;
+        let sim = &mut this.sim;
+        let out = interruptible(py, "rollout", |_| finite_rollout(sim, &controls, jacobians))?.map_err(kernel_error)?;
+        rollout_arrays(py, None, out.v.len() / sizes.1.max(1), sizes, vec![out], jacobians)
     }
 
     /// The transition Jacobians of one step from the current state (GIL released), as MuJoCo's
@@ -573,6 +640,40 @@ impl PySimulationBatch {
             b_all.extend_from_slice(b.transpose().as_slice());
         }
         PyTuple::new(py, [to_numpy(py, (count, 2 * nv, 2 * nv), a_all), to_numpy(py, (count, 2 * nv, 3 * nv), b_all)])
+    }
+
+    /// Every simulation's `Simulation.rollout` from its own state, in parallel (GIL released; Ctrl-C stops them between
+    /// steps), as MuJoCo's `rollout` over a batch of initial states: `controls` (B, N, nv), one sequence per simulation,
+    /// or (N, nv) for all; returns (q (B, N, nq), v (B, N, nv)) and with `jacobians=True` also A (B, N, 2 nv, 2 nv)
+    /// and B (B, N, 2 nv, 3 nv). All simulations must share nq and nv. Every control is checked before anything moves;
+    /// a simulation that fails stops at its last good state while the others complete, and the error names the
+    /// lowest index.
+    #[pyo3(signature = (controls, jacobians = false))]
+    fn rollout<'py>(&self, py: Python<'py>, controls: Floats<'_>, jacobians: bool) -> PyResult<Bound<'py, PyTuple>> {
+        let mut guards = self.borrow_all(py)?;
+        let sizes = (guards[0].sim.model().nq(), guards[0].sim.model().nv());
+        if guards.iter().any(|g| (g.sim.model().nq(), g.sim.model().nv()) != sizes) {
+            return Err(PyValueError::new_err("simulations: they differ in nq or nv; roll each simulation out on its own"));
+        }
+        let count = guards.len();
+        let view = controls.get("controls")?;
+        let shared = match view.shape() {
+            [_, k] if *k == sizes.1 => true,
+            [b, _, k] if *b == count && *k == sizes.1 => false,
+            shape => return Err(PyValueError::new_err(format!("controls: expected shape (N, {0}) or ({count}, N, {0}), got {shape:?}", sizes.1))),
+        };
+        let rows = control_rows(&view, sizes.1)?;
+        let per = if shared { rows.len() } else { rows.len() / count };
+        let items: Vec<_> =
+            guards.iter_mut().enumerate().map(|(i, g)| (&mut g.sim, if shared { &rows[..] } else { &rows[i * per..(i + 1) * per] })).collect();
+        let outcomes = interruptible(py, "rollout", |flag| {
+            on_all_threads(items, || (), |_, _, (sim, controls)| cancellable(Arc::clone(flag), || finite_rollout(sim, controls, jacobians)))
+        })?;
+        let mut outs = Vec::with_capacity(count);
+        for (i, outcome) in outcomes.into_iter().enumerate() {
+            outs.push(outcome.map_err(|e| batch_error(e, i))?);
+        }
+        rollout_arrays(py, Some(count), per / sizes.1.max(1), sizes, outs, jacobians)
     }
 
     /// The grouped simulations, in order.

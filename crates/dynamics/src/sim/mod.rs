@@ -28,7 +28,7 @@ use nalgebra::{DMatrix, Vector3};
 
 use crate::model::{check_vector, Model};
 use crate::spatial::Transform;
-use crate::validate::{array_len, with_capacity};
+use crate::validate::{array_len, check_cancelled, filled, with_capacity};
 use crate::{Error, Result};
 use actuation::{effort_bounds, Actuation};
 
@@ -86,6 +86,47 @@ pub(crate) trait Engine: Send + Sync {
         a: &mut DMatrix<f64>,
         b: &mut DMatrix<f64>,
     ) -> Result<()>;
+    /// `step` with the Jacobians of that step at its start into `a` and `b` (`transition_jacobians`), in one pass
+    /// where the engine can (a rollout's steps); by default the two calls.
+    #[allow(clippy::too_many_arguments)]
+    fn step_with_jacobians(
+        &mut self,
+        model: &Model,
+        actuation: &Actuation<'_>,
+        q: &mut [f64],
+        v: &mut [f64],
+        applied: &mut [f64],
+        a: &mut DMatrix<f64>,
+        b: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        self.transition_jacobians(model, actuation, q, v, a, b)?;
+        self.step(model, actuation, q, v, applied)
+    }
+}
+
+/// What `Simulation::rollout` gives, one row per step, row-major; grown once, reused.
+#[derive(Debug, Clone, Default)]
+pub struct Rollout {
+    /// The configuration after each step (n x nq).
+    pub q: Vec<f64>,
+    /// The velocity after each step (n x nv).
+    pub v: Vec<f64>,
+    /// If asked, each step's A = ∂x⁺/∂x at its start (n x 2 nv x 2 nv), as `transition_jacobians`.
+    pub a: Vec<f64>,
+    /// If asked, each step's B = ∂x⁺/∂u at its start (n x 2 nv x 3 nv).
+    pub b: Vec<f64>,
+}
+
+/// `buffer` holding `shape`'s numbers (zeroed), reallocated (fallibly, `Error::TooLarge` naming `argument`) only if
+/// its size changes.
+fn sized(buffer: &mut Vec<f64>, argument: &'static str, shape: &[usize]) -> Result<()> {
+    let len = array_len(argument, shape, std::mem::size_of::<f64>())?;
+    if buffer.len() == len {
+        buffer.fill(0.0);
+    } else {
+        *buffer = filled(argument, len, 0.0)?;
+    }
+    Ok(())
 }
 
 /// A robot stepped forward in time with contacts, servos and joint limits, on the backend its [`Options`] choose.
@@ -252,29 +293,39 @@ impl Simulation {
             None => self.tau_ff.fill(0.0),
         }
         for _ in 0..n {
-            self.q_next.copy_from_slice(&self.q);
-            self.v_next.copy_from_slice(&self.v);
-            self.applied_before.copy_from_slice(&self.applied);
-            self.engine.save();
-            let actuation = Actuation { servo: &self.servo, effort: &self.effort, tau_ff: &self.tau_ff };
-            let (engine, model) = (&mut self.engine, &self.model);
-            let (q_next, v_next, applied) = (&mut self.q_next, &mut self.v_next, &mut self.applied);
-            // A panic inside a dependency (parry, Rapier) must not cross into the caller (Python): it fails
-            // the step like a divergence.
-            let outcome =
-                std::panic::catch_unwind(AssertUnwindSafe(|| engine.step(model, &actuation, q_next, v_next, applied))).unwrap_or_else(|panic| {
-                    Err(Error::numerical("step", format!("the physics engine failed at step {}: {}", self.steps + 1, panic_message(&panic))))
-                });
-            let outcome = outcome.and_then(|()| divergence(&self.model, &self.q_next, &self.v_next, &self.applied, self.steps + 1, self.options.dt));
-            if let Err(error) = outcome {
-                self.engine.undo();
-                self.applied.copy_from_slice(&self.applied_before);
-                return Err(error);
-            }
-            std::mem::swap(&mut self.q, &mut self.q_next);
-            std::mem::swap(&mut self.v, &mut self.v_next);
-            self.steps += 1;
+            self.advance(None)?;
         }
+        Ok(())
+    }
+
+    /// One step with the feed-forward in `tau_ff`, as `step` describes it; with `jacobians`, that step's transition
+    /// Jacobians at its start written into them (`Engine::step_with_jacobians`).
+    fn advance(&mut self, jacobians: Option<(&mut DMatrix<f64>, &mut DMatrix<f64>)>) -> Result<()> {
+        self.q_next.copy_from_slice(&self.q);
+        self.v_next.copy_from_slice(&self.v);
+        self.applied_before.copy_from_slice(&self.applied);
+        self.engine.save();
+        let actuation = Actuation { servo: &self.servo, effort: &self.effort, tau_ff: &self.tau_ff };
+        let (engine, model) = (&mut self.engine, &self.model);
+        let (q_next, v_next, applied) = (&mut self.q_next, &mut self.v_next, &mut self.applied);
+        // A panic inside a dependency (parry, Rapier) must not cross into the caller (Python): it fails
+        // the step like a divergence.
+        let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| match jacobians {
+            Some((a, b)) => engine.step_with_jacobians(model, &actuation, q_next, v_next, applied, a, b),
+            None => engine.step(model, &actuation, q_next, v_next, applied),
+        }))
+        .unwrap_or_else(|panic| {
+            Err(Error::numerical("step", format!("the physics engine failed at step {}: {}", self.steps + 1, panic_message(&panic))))
+        });
+        let outcome = outcome.and_then(|()| divergence(&self.model, &self.q_next, &self.v_next, &self.applied, self.steps + 1, self.options.dt));
+        if let Err(error) = outcome {
+            self.engine.undo();
+            self.applied.copy_from_slice(&self.applied_before);
+            return Err(error);
+        }
+        std::mem::swap(&mut self.q, &mut self.q_next);
+        std::mem::swap(&mut self.v, &mut self.v_next);
+        self.steps += 1;
         Ok(())
     }
 
@@ -320,10 +371,7 @@ impl Simulation {
     /// saturated servos and active joint limits are held: the Jacobians are the step's away from switches
     /// between them; a step of several substeps is the chain of theirs. Tree engine only (`Error::Invalid` otherwise).
     pub fn transition_jacobians(&mut self, tau: Option<&[f64]>, a: &mut DMatrix<f64>, b: &mut DMatrix<f64>) -> Result<()> {
-        // The Jacobians and the buffers behind them hold about 20 nv² numbers: a MemoryError where that cannot be
-        // allocated (asked for as one block first, as `Data::reserve_dense`), not an abort.
-        let nv = self.model.nv();
-        drop(with_capacity::<f64>("model", array_len("model", &[20, nv, nv], std::mem::size_of::<f64>())?)?);
+        self.reserve_jacobians()?;
         match tau {
             Some(t) => {
                 check_vector("tau", t, self.model.nv())?;
@@ -333,6 +381,60 @@ impl Simulation {
         }
         let actuation = Actuation { servo: &self.servo, effort: &self.effort, tau_ff: &self.tau_ff };
         self.engine.transition_jacobians(&self.model, &actuation, &self.q, &self.v, a, b)
+    }
+
+    /// Steps once per row of `tau` (row-major, nv per row: each step's feed-forward generalized forces), from the
+    /// current state under the current servos, as MuJoCo's `rollout` does: the state after each step into `out.q` and
+    /// `out.v` and, with `jacobians`, each step's transition Jacobians at its start (`transition_jacobians`, the state
+    /// and control the step takes) into `out.a` and `out.b` (`Rollout`). The rows are checked (at least one, whole,
+    /// finite) before anything moves, and the simulation advances as `step` does: one that fails (diverges, or is
+    /// cancelled) stops at its last good state, the steps before it taken and written.
+    pub fn rollout(&mut self, tau: &[f64], jacobians: bool, out: &mut Rollout) -> Result<()> {
+        let (nq, nv) = (self.model.nq(), self.model.nv());
+        if nv == 0 || tau.is_empty() || !tau.len().is_multiple_of(nv) {
+            return Err(Error::invalid(
+                "controls",
+                format!("expected one or more rows of {nv} values (one per velocity coordinate), got {} values", tau.len()),
+            ));
+        }
+        if let Some(k) = tau.iter().position(|x| !x.is_finite()) {
+            return Err(Error::invalid("controls", format!("row {}, element {} is not finite ({})", k / nv, k % nv, tau[k])));
+        }
+        let n = tau.len() / nv;
+        sized(&mut out.q, "controls", &[n, nq])?;
+        sized(&mut out.v, "controls", &[n, nv])?;
+        let (na, nb) = if jacobians { (4 * nv * nv, 6 * nv * nv) } else { (0, 0) };
+        sized(&mut out.a, "controls", &[n, na])?;
+        sized(&mut out.b, "controls", &[n, nb])?;
+        if jacobians {
+            self.reserve_jacobians()?;
+        }
+        let (mut a, mut b) = (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0));
+        for (k, row) in tau.chunks_exact(nv).enumerate() {
+            check_cancelled("rollout")?;
+            self.tau_ff.copy_from_slice(row);
+            // The step and its Jacobians in one pass (`Engine::step_with_jacobians`).
+            self.advance(jacobians.then_some((&mut a, &mut b)))?;
+            if jacobians {
+                // Row-major, as NumPy reads them.
+                for (m, into) in [(&a, &mut out.a[k * na..(k + 1) * na]), (&b, &mut out.b[k * nb..(k + 1) * nb])] {
+                    for (i, out_row) in into.chunks_exact_mut(m.ncols()).enumerate() {
+                        out_row.iter_mut().zip(m.row(i).iter()).for_each(|(o, x)| *o = *x);
+                    }
+                }
+            }
+            out.q[k * nq..(k + 1) * nq].copy_from_slice(&self.q);
+            out.v[k * nv..(k + 1) * nv].copy_from_slice(&self.v);
+        }
+        Ok(())
+    }
+
+    /// The Jacobians and the buffers behind them hold about 20 nv² numbers: a MemoryError where that cannot be
+    /// allocated (asked for as one block first, as `Data::reserve_dense`), not an abort.
+    fn reserve_jacobians(&self) -> Result<()> {
+        let nv = self.model.nv();
+        drop(with_capacity::<f64>("model", array_len("model", &[20, nv, nv], std::mem::size_of::<f64>())?)?);
+        Ok(())
     }
 
     /// World pose of every body.

@@ -367,6 +367,19 @@ impl Engine for TreeSimulation {
     ) -> Result<()> {
         TreeSimulation::transition_jacobians(self, actuation, q, v, a, b)
     }
+
+    fn step_with_jacobians(
+        &mut self,
+        _model: &Model,
+        actuation: &Actuation<'_>,
+        q: &mut [f64],
+        v: &mut [f64],
+        applied: &mut [f64],
+        a: &mut DMatrix<f64>,
+        b: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        TreeSimulation::step_with_jacobians(self, actuation, q, v, applied, a, b)
+    }
 }
 
 fn carriers(model: &Model) -> Vec<usize> {

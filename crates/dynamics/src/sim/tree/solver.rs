@@ -468,6 +468,38 @@ impl Constraint {
     }
 
     /// `settle`, the impulses in the zone of `zone` if given, whichever zone the residual is in.
+    /// Its impulses at velocities `v` whose body motions are `motion` (`Articulated::motions`), in the zone of
+    /// `solved`, the step's own constraint (`impulses_at`).
+    pub(super) fn settle_at(&mut self, solved: &Constraint, motion: &[Vector6<f64>], v: &[f64]) {
+        self.settle_with(solved, rows_times(self, motion, v));
+    }
+
+    /// Its impulses at its rows' velocities J v = `velocity`, in the zone of `solved` (as `settle_at`).
+    pub(super) fn settle_with(&mut self, solved: &Constraint, velocity: [f64; 3]) {
+        if self.active() {
+            self.residual = std::array::from_fn(|r| velocity[r] - self.asked[r]);
+        }
+        self.settle_in(solved.active().then(|| solved.project_coulomb(solved.residual, None)).as_ref());
+    }
+
+    /// Its rows' velocities J x for the body motions `motion` of x.
+    pub(super) fn velocity(&self, motion: &[Vector6<f64>], x: &[f64]) -> [f64; 3] {
+        rows_times(self, motion, x)
+    }
+
+    /// The spatial force F λ its rows exert for impulses `lambda`.
+    pub(super) fn force(&self, lambda: &[f64; 3]) -> Vector6<f64> {
+        self.rows[0] * lambda[0] + self.rows[1] * lambda[1] + self.rows[2] * lambda[2]
+    }
+
+    /// The bodies its rows act on (None for a joint limit).
+    pub(super) fn bodies(&self) -> Option<(usize, Option<usize>)> {
+        match self.target {
+            Target::Bodies(a, b) => Some((a, b)),
+            Target::Coordinate(_) => None,
+        }
+    }
+
     fn settle_in(&mut self, zone: Option<&Projection>) {
         if !self.active() {
             self.lambda = [0.0; 3];
@@ -509,11 +541,7 @@ pub(super) fn impulses_at(
 ) {
     tree.motions(model, data, v);
     for (c, solved) in constraints.iter_mut().zip(solved) {
-        if c.active() {
-            let velocity = rows_times(c, &tree.motion, v);
-            c.residual = std::array::from_fn(|r| velocity[r] - c.asked[r]);
-        }
-        c.settle_in(solved.active().then(|| solved.project_coulomb(solved.residual, None)).as_ref());
+        c.settle_at(solved, &tree.motion, v);
     }
     generalized_impulses(tree, model, data, constraints, out);
 }
@@ -783,7 +811,7 @@ fn generalized_impulses(tree: &mut Articulated, model: &Model, data: &Data, cons
     tree.force.fill(Vector6::zeros());
     for c in constraints.iter().filter(|c| c.lambda != [0.0; 3]) {
         if let Target::Bodies(a, b) = c.target {
-            let f = c.rows[0] * c.lambda[0] + c.rows[1] * c.lambda[1] + c.rows[2] * c.lambda[2];
+            let f = c.force(&c.lambda);
             tree.force[a] += f;
             if let Some(b) = b {
                 tree.force[b] -= f;

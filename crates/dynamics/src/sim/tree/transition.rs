@@ -18,7 +18,7 @@
 //! away from switches between them, with the contact solve taken as converged. A step of several substeps is the
 //! chain of theirs, each substep's contact set and zones held, the warm starts it passes on followed (`Substeps`).
 
-use nalgebra::{DMatrix, Matrix6, Matrix6xX, Vector3};
+use nalgebra::{DMatrix, Matrix4, Matrix4x3, Matrix6, Matrix6x4, Matrix6xX, Vector3, Vector4, Vector6};
 
 use super::articulated::Articulated;
 use super::collision::{Found, Source, Warm};
@@ -57,14 +57,21 @@ pub(super) struct Transition {
     relative: Matrix6xX<f64>,
     columns: Vec<usize>,
     touched: Vec<bool>,
+    /// H, then its LU factors in place with their row swaps (`lu_factor`), and H⁻¹ from them: its products with the
+    /// 5 nv columns of a substep are one matrix product, not 5 nv triangular solves. No allocation per substep.
     hessian: DMatrix<f64>,
-    /// ∂g/∂(q, v, τ_ff, target_q, target_v), nv x 5 nv; after the solve, ∂v⁺ with respect to them.
+    pivots: Vec<usize>,
+    inverse: DMatrix<f64>,
+    /// ∂g/∂(q, v, τ_ff, target_q, target_v), nv x 5 nv; of a lone substep, after the solve, ∂v⁺ by them.
     slopes: DMatrix<f64>,
     /// ∂(q ⊕ h v⁺)/∂q and /∂v⁺.
     integrate_q: DMatrix<f64>,
     integrate_v: DMatrix<f64>,
     /// Across substeps (`Substeps`).
     substeps: Substeps,
+    /// The state a substep starts from, and a step's own state, applied forces (for a step taken and undone).
+    start: [Vec<f64>; 2],
+    step: [Vec<f64>; 3],
 }
 
 /// An r x c matrix of zeros, allocated fallibly: `Error::TooLarge` naming the model where it cannot be (the
@@ -93,22 +100,29 @@ struct Substeps {
     /// ∂(q_s, v_s)/∂(x, u) (2 nv x 5 nv) and ∂W_s/∂(x, u) (4 k_s x 5 nv).
     state: DMatrix<f64>,
     warm: DMatrix<f64>,
+    /// Per contact, the spatial force F ∂λ_c/∂W_c its impulses' slopes by its warm start exert (6 x 4; a contact's
+    /// impulses at fixed v⁺ depend on its own warm start alone).
+    warm_force: Vec<Matrix6x4<f64>>,
     /// ∂v⁺ and ∂q⁺ by (x, u) of the substep being folded in (nv x 5 nv each), and ∂W⁺ before it is passed on.
     velocity_by: DMatrix<f64>,
     position_by: DMatrix<f64>,
+    /// The right-hand side ∂g d(x_s, u, W_s) of dv⁺ (nv x 5 nv).
+    rhs: DMatrix<f64>,
     warm_by: DMatrix<f64>,
     /// The last substep's contacts (where their impulses went) and impulses, and ∂W⁺/∂(x, u) (4 k x 5 nv).
     sources: Vec<(Source, usize, Option<usize>, Warm)>,
     next_warm: DMatrix<f64>,
-    /// Per contact of this substep: ∂W⁺/∂q at fixed v⁺, ∂W⁺/∂v⁺ (4 k x nv each), ∂W⁺/∂W (4 k x 4).
+    /// Per contact of this substep: ∂W⁺/∂q at fixed v⁺ (4 k x nv), ∂W_c⁺/∂W_c (4 x 4), and ∂W_c⁺/∂(J_c v⁺) (4 x 3: a
+    /// contact's impulses follow v⁺ through its own rows' velocities alone).
     warm_dq: DMatrix<f64>,
-    warm_dv: DMatrix<f64>,
-    warm_dw: DMatrix<f64>,
+    warm_dw: Vec<Matrix4<f64>>,
+    warm_dy: Vec<Matrix4x3<f64>>,
+    /// Per contact of this substep, the last substep's contact whose impulses it inherits (`inherited_warm`).
+    inherits_from: Vec<Option<usize>>,
     /// The impulses at the displaced configurations (4 k each) and the contacts' tangents there.
     warm_plus: Vec<f64>,
     warm_minus: Vec<f64>,
     tangents: Vec<[nalgebra::Vector3<f64>; 2]>,
-    velocity: Vec<f64>,
 }
 
 impl Transition {
@@ -130,10 +144,14 @@ impl Transition {
             columns: Vec::with_capacity(nv),
             touched: vec![false; nv],
             hessian: zeros(nv, nv)?,
+            pivots: Vec::with_capacity(nv),
+            inverse: zeros(nv, nv)?,
             slopes: zeros(nv, 5 * nv)?,
             integrate_q: zeros(nv, nv)?,
             integrate_v: zeros(nv, nv)?,
             substeps: Substeps::default(),
+            start: [vec![0.0; fused.nq()], vec![0.0; nv]],
+            step: [vec![0.0; fused.nq()], vec![0.0; nv], vec![0.0; nv]],
         })
     }
 
@@ -197,6 +215,14 @@ impl TreeSimulation {
         contact_constraint(self.coulomb, model, data, delassus, &self.fused_body, self.friction, self.h, f, piece, origin)
     }
 
+    /// The Jacobians' buffers, taken out of `self` while they are in use.
+    fn take_transition(&mut self) -> Result<Box<Transition>> {
+        match self.transition.take() {
+            Some(t) => Ok(t),
+            None => Ok(Box::new(Transition::new(&self.fused, self.fused_body.len())?)),
+        }
+    }
+
     /// A = ∂x⁺/∂x (2 nv square) and B = ∂x⁺/∂u (2 nv x 3 nv, u = (τ_ff, target_q, target_v)) of one step from
     /// (q, v) under `actuation`, leaving the simulation as it was.
     pub(super) fn transition_jacobians(
@@ -207,50 +233,91 @@ impl TreeSimulation {
         a: &mut DMatrix<f64>,
         b: &mut DMatrix<f64>,
     ) -> Result<()> {
-        let mut transition = match self.transition.take() {
-            Some(t) => t,
-            None => Box::new(Transition::new(&self.fused, self.fused_body.len())?),
-        };
+        let mut transition = self.take_transition()?;
+        let [mut q_s, mut v_s, mut applied] = std::mem::take(&mut transition.step);
+        q_s.copy_from_slice(q);
+        v_s.copy_from_slice(v);
         // The step is taken and undone, as a failed step is (`Engine::save`, `Engine::undo`).
         self.save();
-        let outcome = self.chain(&mut transition, actuation, q, v, a, b);
+        let outcome = self.chain(&mut transition, actuation, &mut q_s, &mut v_s, &mut applied, a, b);
+        transition.step = [q_s, v_s, applied];
         self.transition = Some(transition);
         self.undo();
         outcome
     }
 
-    /// Takes the step's substeps from (q, v), each linearised at its start, and composes their Jacobians into `a`
-    /// and `b` (`Substeps`): A = A_k ⋯ A_1 and B = Σ_s A_k ⋯ A_s+1 B_s, with each substep's warm starts followed
-    /// from the impulses of the substep before it.
+    /// One step from (q, v), as `Engine::step` takes it (the same substeps, bit for bit), with its Jacobians at its
+    /// start into `a` and `b`: a rollout's step and its linearisation in one pass.
+    pub(super) fn step_with_jacobians(
+        &mut self,
+        actuation: &Actuation<'_>,
+        q: &mut [f64],
+        v: &mut [f64],
+        applied: &mut [f64],
+        a: &mut DMatrix<f64>,
+        b: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        let mut transition = self.take_transition()?;
+        let outcome = self.chain(&mut transition, actuation, q, v, applied, a, b);
+        self.transition = Some(transition);
+        outcome
+    }
+
+    /// Takes the step's substeps from (q, v), in place, each linearised at its start, and composes their Jacobians
+    /// into `a` and `b` (`Substeps`): A = A_k ⋯ A_1 and B = Σ_s A_k ⋯ A_s+1 B_s, with each substep's warm starts
+    /// followed from the impulses of the substep before it.
+    #[allow(clippy::too_many_arguments)]
     fn chain(
         &mut self,
         t: &mut Transition,
         actuation: &Actuation<'_>,
-        q: &[f64],
-        v: &[f64],
+        q: &mut [f64],
+        v: &mut [f64],
+        applied: &mut [f64],
+        a: &mut DMatrix<f64>,
+        b: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        let mut start = std::mem::take(&mut t.start);
+        let outcome = self.chain_from(t, &mut start, actuation, q, v, applied, a, b);
+        t.start = start;
+        outcome
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn chain_from(
+        &mut self,
+        t: &mut Transition,
+        [q_start, v_start]: &mut [Vec<f64>; 2],
+        actuation: &Actuation<'_>,
+        q_s: &mut [f64],
+        v_s: &mut [f64],
+        applied: &mut [f64],
         a: &mut DMatrix<f64>,
         b: &mut DMatrix<f64>,
     ) -> Result<()> {
         let (nv, substeps) = (self.fused.nv(), self.options.substeps);
-        let (mut q_s, mut v_s, mut applied) = (q.to_vec(), v.to_vec(), vec![0.0; v.len()]);
-        let (mut q_start, mut v_start) = (q.to_vec(), v.to_vec());
         zeroed(a, 2 * nv, 2 * nv)?;
         zeroed(b, 2 * nv, 3 * nv)?;
         for s in 0..substeps {
             // A thousand substeps of a large model take seconds: a caller that was interrupted stops them here, and
             // `transition_jacobians` undoes what was taken.
             check_cancelled("transition_jacobians")?;
-            q_start.copy_from_slice(&q_s);
-            v_start.copy_from_slice(&v_s);
-            self.substep(actuation, &mut q_s, &mut v_s, &mut applied)?;
+            q_start.copy_from_slice(q_s);
+            v_start.copy_from_slice(v_s);
+            self.substep(actuation, q_s, v_s, applied)?;
             // The first substep's warm starts are the last step's impulses: constant.
             let inherits = s > 0;
             let passes_on = s + 1 < substeps;
             if inherits {
                 self.inherited_warm(t)?;
             }
-            self.linearise(t, actuation, &q_start, &v_start, inherits, passes_on)?;
+            self.linearise(t, actuation, q_start, v_start, inherits, passes_on)?;
             if substeps == 1 {
+                // ∂v⁺ = −H⁻¹ ∂g.
+                let solved = &mut t.substeps.velocity_by;
+                zeroed(solved, nv, 5 * nv)?;
+                solved.gemm(-1.0, &t.inverse, &t.slopes, 0.0);
+                std::mem::swap(&mut t.slopes, solved);
                 self.write_jacobians(t, a, b);
                 return Ok(());
             }
@@ -278,9 +345,10 @@ impl TreeSimulation {
     /// any other warm start is the last step's, constant.
     fn inherited_warm(&self, t: &mut Transition) -> Result<()> {
         let columns = 5 * self.fused.nv();
-        let Substeps { warm, next_warm, sources, .. } = &mut t.substeps;
+        let Substeps { warm, next_warm, sources, inherits_from, .. } = &mut t.substeps;
         zeroed(warm, 4 * self.found.len(), columns)?;
-        for (c, f) in self.found.iter().enumerate() {
+        inherits_from.clear();
+        for f in &self.found {
             let same = |(source, body, other, warm): &(Source, usize, Option<usize>, Warm)| {
                 let place = match (source, &f.source) {
                     (Source::Plane(a, b), Source::Plane(c, d)) => a == c && b == d,
@@ -289,17 +357,29 @@ impl TreeSimulation {
                 };
                 place && *body == f.body && *other == f.other && *warm == f.warm
             };
-            if let Some(k) = sources.iter().position(same) {
-                warm.rows_mut(4 * c, 4).copy_from(&next_warm.rows(4 * k, 4));
+            inherits_from.push(sources.iter().position(same));
+        }
+        // Column by column, each contact's four rows contiguous.
+        let (rows, from_rows) = (warm.nrows(), next_warm.nrows());
+        if rows == 0 || from_rows == 0 {
+            return Ok(());
+        }
+        for (column, from) in warm.as_mut_slice().chunks_exact_mut(rows).zip(next_warm.as_slice().chunks_exact(from_rows)) {
+            for (c, k) in inherits_from.iter().enumerate() {
+                if let Some(k) = k {
+                    column[4 * c..4 * c + 4].copy_from_slice(&from[4 * k..4 * k + 4]);
+                }
             }
         }
         Ok(())
     }
 
     /// Folds this substep's Jacobians (its slopes by (q_s, v_s, u, W_s), `linearise`) into ∂(q, v)/∂(x, u) and, if
-    /// `passes_on`, its impulses' into ∂W⁺/∂(x, u).
+    /// `passes_on`, its impulses' into ∂W⁺/∂(x, u). The slopes are applied to the running block before the solve, so
+    /// H⁻¹ (from its factor) multiplies 5 nv columns once, and the warm starts' act as forces on their bodies.
     fn compose(&self, t: &mut Transition, first: bool, passes_on: bool) -> Result<()> {
-        let (nv, k) = (self.fused.nv(), self.found.len());
+        let model = self.fused.as_ref();
+        let (nv, k) = (model.nv(), self.found.len());
         let (columns, k4) = (5 * nv, 4 * k);
         let ss = &mut t.substeps;
         if first {
@@ -307,26 +387,49 @@ impl TreeSimulation {
             ss.state.view_mut((0, 0), (2 * nv, 2 * nv)).fill_with_identity();
             zeroed(&mut ss.warm, k4, columns)?;
         }
-        // dv⁺ = P_x d(q_s, v_s) + P_u du + P_W dW_s.
-        zeroed(&mut ss.velocity_by, nv, columns)?;
-        let velocity = &mut ss.velocity_by;
-        velocity.gemm(1.0, &t.slopes.columns(0, 2 * nv), &ss.state, 0.0);
-        velocity.columns_mut(2 * nv, 3 * nv).zip_apply(&t.slopes.columns(2 * nv, 3 * nv), |x, p| *x += p);
-        if k4 > 0 && ss.warm.nrows() == k4 && t.slopes.ncols() == columns + k4 {
-            velocity.gemm(1.0, &t.slopes.columns(columns, k4), &ss.warm, 1.0);
+        // dv⁺ = −H⁻¹ (∂g/∂(q_s, v_s) d(q_s, v_s) + ∂g/∂u du + ∂g/∂W dW_s), ∂g/∂W_c = −J_cᵀ F ∂λ_c/∂W_c.
+        zeroed(&mut ss.rhs, nv, columns)?;
+        let rhs = &mut ss.rhs;
+        rhs.gemm(1.0, &t.slopes.columns(0, 2 * nv), &ss.state, 0.0);
+        rhs.columns_mut(2 * nv, 3 * nv).zip_apply(&t.slopes.columns(2 * nv, 3 * nv), |x, p| *x += p);
+        if !first && ss.warm.nrows() == k4 && ss.warm_force.len() == k {
+            // Column by column: the contacts' forces on their bodies, then one pass down the tree (`generalized`).
+            for (j, mut column) in rhs.column_iter_mut().enumerate() {
+                t.tree.force.fill(Vector6::zeros());
+                for (c, force) in ss.warm_force.iter().enumerate() {
+                    let Some((body, other)) = self.constraints[c].bodies() else { continue };
+                    let f = force * ss.warm.fixed_view::<4, 1>(4 * c, j);
+                    t.tree.force[body] += f;
+                    if let Some(other) = other {
+                        t.tree.force[other] -= f;
+                    }
+                }
+                t.tree.generalized(model, &self.data, &mut t.plus);
+                column.iter_mut().zip(&t.plus).for_each(|(x, g)| *x -= g);
+            }
         }
+        zeroed(&mut ss.velocity_by, nv, columns)?;
+        ss.velocity_by.gemm(-1.0, &t.inverse, &ss.rhs, 0.0);
         // dq⁺ = ∂(q ⊕ h v⁺)/∂q dq_s + ∂(q ⊕ h v⁺)/∂v⁺ dv⁺.
         zeroed(&mut ss.position_by, nv, columns)?;
         ss.position_by.gemm(1.0, &t.integrate_q, &ss.state.rows(0, nv), 0.0);
         ss.position_by.gemm(1.0, &t.integrate_v, &ss.velocity_by, 1.0);
         if passes_on {
-            // dW⁺ = ∂W⁺/∂v⁺ dv⁺ + ∂W⁺/∂q dq_s + ∂W⁺/∂W dW_s (each contact's own warm start alone).
+            // dW⁺ = ∂W⁺/∂q dq_s + ∂W⁺/∂W dW_s + ∂W_c⁺/∂y_c J_c dv⁺ (each contact's own warm start and rows alone): one
+            // pass over the tree per column for the bodies' motions, no 4 k x nv product.
             zeroed(&mut ss.warm_by, k4, columns)?;
-            ss.warm_by.gemm(1.0, &ss.warm_dv, &ss.velocity_by, 0.0);
-            ss.warm_by.gemm(1.0, &ss.warm_dq, &ss.state.rows(0, nv), 1.0);
-            if ss.warm.nrows() == k4 {
-                for c in 0..k {
-                    ss.warm_by.rows_mut(4 * c, 4).gemm(1.0, &ss.warm_dw.rows(4 * c, 4), &ss.warm.rows(4 * c, 4), 1.0);
+            ss.warm_by.gemm(1.0, &ss.warm_dq, &ss.state.rows(0, nv), 0.0);
+            let inherited = ss.warm.nrows() == k4;
+            for (j, column) in ss.velocity_by.column_iter().enumerate() {
+                t.tree.motions(model, &self.data, column.as_slice());
+                for (c, (by_velocity, by_warm)) in ss.warm_dy.iter().zip(&ss.warm_dw).enumerate() {
+                    let y = self.constraints[c].velocity(&t.tree.motion, column.as_slice());
+                    let mut change = by_velocity * Vector3::from(y);
+                    if inherited {
+                        change += by_warm * ss.warm.fixed_view::<4, 1>(4 * c, j);
+                    }
+                    let mut target = ss.warm_by.fixed_view_mut::<4, 1>(4 * c, j);
+                    target += change;
                 }
             }
             std::mem::swap(&mut ss.next_warm, &mut ss.warm_by);
@@ -342,9 +445,9 @@ impl TreeSimulation {
         Ok(())
     }
 
-    /// The Jacobians of the substep just taken from (q, v), whose solution `self` holds: ∂v⁺/∂(q, v, u) in
-    /// `t.slopes`, and with `inherits` ∂v⁺/∂W_s after them; with `passes_on`, the derivatives of its impulses (the
-    /// next substep's warm starts) in `t.substeps`.
+    /// The Jacobians of the substep just taken from (q, v), whose solution `self` holds: ∂g/∂(q, v, u) in
+    /// `t.slopes` and H factored in `t.hessian`, and with `inherits` the warm starts' forces (`Substeps::warm_force`);
+    /// with `passes_on`, the derivatives of its impulses (the next substep's warm starts) in `t.substeps`.
     fn linearise(&self, t: &mut Transition, actuation: &Actuation<'_>, q: &[f64], v: &[f64], inherits: bool, passes_on: bool) -> Result<()> {
         let model = self.fused.as_ref();
         let (nv, h) = (model.nv(), self.h);
@@ -353,13 +456,12 @@ impl TreeSimulation {
         // CRBA's M and the RNEA derivatives' two squares, reserved fallibly (`Data::reserve_dense`).
         t.rigid.reserve_dense(model, &[Dense::MassMatrix, Dense::RneaDerivatives])?;
         t.hessian.copy_from(crba(model, &mut t.rigid, q));
-        zeroed(&mut t.slopes, nv, 5 * nv + if inherits { k4 } else { 0 })?;
+        zeroed(&mut t.slopes, nv, 5 * nv)?;
         if passes_on {
             let ss = &mut t.substeps;
-            for m in [&mut ss.warm_dq, &mut ss.warm_dv] {
-                zeroed(m, k4, nv)?;
-            }
-            zeroed(&mut ss.warm_dw, k4, 4)?;
+            zeroed(&mut ss.warm_dq, k4, nv)?;
+            ss.warm_dw.clear();
+            ss.warm_dw.resize(self.found.len(), Matrix4::zeros());
         }
         t.slopes.columns_mut(nv, nv).zip_apply(&t.hessian, |s, m| *s = -m);
         // The free flyer's coordinates have no armature (`aba_with_armature`).
@@ -414,81 +516,76 @@ impl TreeSimulation {
             }
         }
         if passes_on {
-            self.impulses_by_velocity(t, q, v)?;
+            self.impulses_by_velocity(t);
         }
         if inherits {
             self.by_warm_start(t, q, passes_on);
         }
-        let hessian = std::mem::replace(&mut t.hessian, DMatrix::zeros(0, 0));
         // ∂g/∂v⁺ is unsymmetric where a sliding contact's friction bound follows its normal impulse (`solver`).
-        let factor = hessian.lu();
-        if !factor.solve_mut(&mut t.slopes) {
+        if !lu_factor(&mut t.hessian, &mut t.pivots) {
             return Err(Error::numerical("transition_jacobians", "the step's Jacobian M̃ + Jᵀ H J is singular"));
         }
-        t.hessian = zeros(nv, nv)?;
-        t.slopes.neg_mut();
+        t.inverse.fill_with_identity();
+        lu_solve(&t.hessian, &t.pivots, &mut t.inverse);
         integrate_jacobians(model, v_next, h, &mut t.integrate_q, &mut t.integrate_v);
         Ok(())
     }
 
-    /// ∂W⁺/∂v⁺ of this substep's contacts at its start configuration `q`, by central differences in v⁺ (no solve).
-    fn impulses_by_velocity(&self, t: &mut Transition, q: &[f64], v: &[f64]) -> Result<()> {
+    /// ∂W_c⁺/∂(J_c v⁺) of each of this substep's contacts, by central differences of its own rows' velocities at v⁺
+    /// (no solve, no pass over the tree), into `t.substeps.warm_dy`.
+    fn impulses_by_velocity(&self, t: &mut Transition) {
         let model = self.fused.as_ref();
-        t.displaced.copy_from_slice(q);
-        self.constraints_at(t, q, v)?;
-        let mut velocity = std::mem::take(&mut t.substeps.velocity);
-        velocity.clear();
-        velocity.extend_from_slice(&self.v_next);
-        for k in 0..model.nv() {
-            for (sign, _) in [(1.0, 0), (-1.0, 1)] {
-                velocity[k] = self.v_next[k] + sign * STEP;
-                impulses_at(&mut t.tree, model, &t.data, &mut t.constraints, &self.constraints, &velocity, &mut t.plus);
-                let ss = &mut t.substeps;
-                let out = if sign > 0.0 { &mut ss.warm_plus } else { &mut ss.warm_minus };
-                warm_starts(&t.constraints, &ss.tangents, out);
+        t.tree.motions(model, &self.data, &self.v_next);
+        t.substeps.warm_dy.clear();
+        for (f, solved) in self.found.iter().zip(&self.constraints) {
+            let at = solved.velocity(&t.tree.motion, &self.v_next);
+            let mut slope = Matrix4x3::zeros();
+            for r in 0..3 {
+                let mut impulses = [Vector4::zeros(); 2];
+                for (side, sign) in [(0, 1.0), (1, -1.0)] {
+                    let mut velocity = at;
+                    velocity[r] += sign * STEP;
+                    let mut constraint = solved.clone();
+                    constraint.settle_with(solved, velocity);
+                    let friction = f.tangents[0] * constraint.lambda[1] + f.tangents[1] * constraint.lambda[2];
+                    impulses[side] = Vector4::new(constraint.lambda[0], friction.x, friction.y, friction.z);
+                }
+                slope.set_column(r, &((impulses[0] - impulses[1]) / (2.0 * STEP)));
             }
-            velocity[k] = self.v_next[k];
-            let ss = &mut t.substeps;
-            for (r, (plus, minus)) in ss.warm_plus.iter().zip(&ss.warm_minus).enumerate() {
-                ss.warm_dv[(r, k)] = (plus - minus) / (2.0 * STEP);
-            }
+            t.substeps.warm_dy.push(slope);
         }
-        t.substeps.velocity = velocity;
-        Ok(())
     }
 
-    /// The slopes by this substep's warm starts W_s: ∂g/∂W = −J_cᵀ ∂λ_c/∂W_c into `t.slopes` after the 5 nv columns
-    /// of (q, v, u), and with `passes_on` ∂W⁺/∂W, by central differences of each contact's impulses alone at the
-    /// substep's start configuration `q` and v⁺ (a contact's impulses depend on its own warm start only).
+    /// The slopes by this substep's warm starts W_s: each contact's F ∂λ_c/∂W_c into `t.substeps.warm_force` and,
+    /// with `passes_on`, ∂W⁺/∂W, by central differences of each contact's impulses alone at the substep's start
+    /// configuration `q` and v⁺ (a contact's impulses depend on its own warm start only: no pass over the tree).
     fn by_warm_start(&self, t: &mut Transition, q: &[f64], passes_on: bool) {
         let model = self.fused.as_ref();
-        let (nv, origin) = (model.nv(), base_origin(model, q));
+        let origin = base_origin(model, q);
+        t.tree.motions(model, &self.data, &self.v_next);
+        t.substeps.warm_force.clear();
         for (c, f) in self.found.iter().enumerate() {
+            let mut force = Matrix6x4::zeros();
             for j in 0..4 {
                 let step = STEP * f.warm.iter().fold(1e-3_f64, |m, x| m.max(x.abs()));
-                let mut impulses = [[0.0; 4]; 2];
+                let mut lambda = [[0.0; 3]; 2];
                 for (side, sign) in [(0, 1.0), (1, -1.0)] {
                     let mut displaced: Found = *f;
                     displaced.warm[j] += sign * step;
-                    let mut constraint = [self.contact_row(model, &self.data, &self.delassus, &displaced, f.distance, &origin)];
-                    impulses_at(&mut t.tree, model, &self.data, &mut constraint, &self.constraints[c..c + 1], &self.v_next, &mut t.plus);
-                    let lambda = constraint[0].lambda;
-                    let friction = f.tangents[0] * lambda[1] + f.tangents[1] * lambda[2];
-                    impulses[side] = [lambda[0], friction.x, friction.y, friction.z];
-                    if side == 0 {
-                        std::mem::swap(&mut t.plus, &mut t.minus);
-                    }
+                    let mut constraint = self.contact_row(model, &self.data, &self.delassus, &displaced, f.distance, &origin);
+                    constraint.settle_at(&self.constraints[c], &t.tree.motion, &self.v_next);
+                    lambda[side] = constraint.lambda;
                 }
-                // After the swaps `t.minus` holds the plus side and `t.plus` the minus side.
-                for r in 0..nv {
-                    t.slopes[(r, 5 * nv + 4 * c + j)] -= (t.minus[r] - t.plus[r]) / (2.0 * step);
-                }
+                let slope: [f64; 3] = std::array::from_fn(|r| (lambda[0][r] - lambda[1][r]) / (2.0 * step));
+                force.set_column(j, &self.constraints[c].force(&slope));
                 if passes_on {
-                    for (r, (plus, minus)) in impulses[0].iter().zip(&impulses[1]).enumerate() {
-                        t.substeps.warm_dw[(4 * c + r, j)] = (plus - minus) / (2.0 * step);
+                    let friction = f.tangents[0] * slope[1] + f.tangents[1] * slope[2];
+                    for (r, x) in [slope[0], friction.x, friction.y, friction.z].into_iter().enumerate() {
+                        t.substeps.warm_dw[c][(r, j)] = x;
                     }
                 }
             }
+            t.substeps.warm_force.push(force);
         }
     }
 
@@ -536,5 +633,56 @@ fn warm_starts(constraints: &[Constraint], tangents: &[[nalgebra::Vector3<f64>; 
     for (c, [t1, t2]) in constraints.iter().zip(tangents) {
         let friction = t1 * c.lambda[1] + t2 * c.lambda[2];
         out.extend_from_slice(&[c.lambda[0], friction.x, friction.y, friction.z]);
+    }
+}
+
+/// LU factors of the square `m` with partial pivoting, in place (L unit lower below the diagonal, U on and above),
+/// the row swapped in at each column into `pivots`; false if `m` is singular.
+fn lu_factor(m: &mut DMatrix<f64>, pivots: &mut Vec<usize>) -> bool {
+    let n = m.nrows();
+    pivots.clear();
+    for j in 0..n {
+        let (p, largest) = (j..n).map(|i| (i, m[(i, j)].abs())).fold((j, -1.0), |best, x| if x.1 > best.1 { x } else { best });
+        if !(largest > 0.0) {
+            return false;
+        }
+        pivots.push(p);
+        m.swap_rows(j, p);
+        let (left, right) = m.as_mut_slice().split_at_mut((j + 1) * n);
+        let pivot_column = &mut left[j * n..];
+        let inverse = 1.0 / pivot_column[j];
+        pivot_column[j + 1..].iter_mut().for_each(|l| *l *= inverse);
+        // The Schur complement: each later column less its row j times L's column j.
+        for column in right.chunks_exact_mut(n) {
+            let u = column[j];
+            if u != 0.0 {
+                column[j + 1..].iter_mut().zip(&pivot_column[j + 1..]).for_each(|(x, l)| *x -= l * u);
+            }
+        }
+    }
+    true
+}
+
+/// Solves (`lu_factor`'s factors) x = rhs for every column of `rhs`, in place: the swaps, L forward, U back.
+fn lu_solve(lu: &DMatrix<f64>, pivots: &[usize], rhs: &mut DMatrix<f64>) {
+    let n = lu.nrows();
+    if n == 0 {
+        return;
+    }
+    let factors = lu.as_slice();
+    for x in rhs.as_mut_slice().chunks_exact_mut(n) {
+        for (j, &p) in pivots.iter().enumerate() {
+            x.swap(j, p);
+        }
+        for j in 0..n {
+            let xj = x[j];
+            x[j + 1..].iter_mut().zip(&factors[j * n + j + 1..(j + 1) * n]).for_each(|(x, l)| *x -= l * xj);
+        }
+        for j in (0..n).rev() {
+            let column = &factors[j * n..(j + 1) * n];
+            x[j] /= column[j];
+            let xj = x[j];
+            x[..j].iter_mut().zip(&column[..j]).for_each(|(x, u)| *x -= u * xj);
+        }
     }
 }
