@@ -243,19 +243,24 @@ class InverseDynamics:
 
     def _load_velocity_slopes(self, q: np.ndarray, weights: np.ndarray, contacts: Sequence[str]) -> list[np.ndarray]:
         """At unit q, d/dq (tangent) of each foot point's world velocity J w along the force variables' axes
-        (B, force_dims, nv), then of each flat foot's body-frame angular velocity J_w w (B, 3, nv)."""
+        (B, force_dims, nv), then of each flat foot's body-frame angular velocity (`_torque_velocity_slopes`)."""
         problem = self.problem
         axes = slice(3 - problem.force_dims, 3)
         slopes = [kin.point_velocity_derivatives(problem.model, q, weights, problem.foot_body[name], problem.foot_point[name])[0][:, axes]
                   for name in contacts]
-        return slopes + [np.asarray(lk.frame_velocity_derivatives(problem.model, q, weights, problem.foot_body[name], None, "local")[0])[:, 3:]
-                         for name in problem.flat_contacts(contacts)]
+        return slopes + self._torque_velocity_slopes(q, weights, contacts)
+
+    def _torque_velocity_slopes(self, q: np.ndarray, weights: np.ndarray, contacts: Sequence[str]) -> list[np.ndarray]:
+        """At unit q, d/dq (tangent) of each flat foot's body-frame angular velocity J_w w (B, 3, nv)."""
+        problem = self.problem
+        return [np.asarray(lk.frame_velocity_derivatives(problem.model, q, weights, problem.foot_body[name], None, "local")[0])[:, 3:]
+                for name in problem.flat_contacts(contacts)]
 
     def _torque_slope(self, z: np.ndarray, weights: np.ndarray, contacts: Sequence[str]) -> np.ndarray:
         """(B, nz): d/dq_raw of the flat feet's -T . J_w(q) w at point variables z (zero elsewhere)."""
         problem = self.problem
         q = problem.configuration(z[:, : problem.nq])
-        columns, slopes = self._load_columns(contacts)[len(contacts) :], self._load_velocity_slopes(q, weights, contacts)[len(contacts) :]
+        columns, slopes = self._load_columns(contacts)[len(contacts) :], self._torque_velocity_slopes(q, weights, contacts)
         tangent = -sum(np.einsum("br,bra->ba", z[:, c], slope) for c, slope in zip(columns, slopes))
         out = np.zeros_like(z)
         out[:, : problem.nq] = kin.raw(problem.model, z[:, : problem.nq], tangent[:, None])[:, 0]
