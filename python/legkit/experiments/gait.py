@@ -206,7 +206,7 @@ def run_optimized_amble(options: GaitOptions) -> dict[str, float]:
           + (f", from {options.coarse_intervals} intervals per phase" if options.coarse_intervals else ""))
     if not options.coarse_intervals:
         _announce(problem, problem.gauged(problem.pack(guess_from_reference(problem, amble_reference(robot, speed, period, options.intervals)))),
-                  EXPECTED_ITERATIONS["amble"])
+                  "amble")
     coarse = f" on {options.coarse_intervals} interval{'s' if options.coarse_intervals > 1 else ''}" if options.coarse_intervals else ""
     polish = options.polish and options.derivatives == "legkit"
     hessian = "exact Hessian" if options.derivatives == "exact" else "L-BFGS"
@@ -275,7 +275,7 @@ def run_optimized_walk(options: GaitOptions) -> dict[str, float]:
                            mirror=WALK_MIRROR if options.mirror is None else options.mirror)
     guess = guess_from_reference(problem, walk_reference(robot, speed, intervals))
     print(f"optimising the biped walk: {problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian nonzeros")
-    _announce(problem, problem.gauged(problem.pack(guess)), EXPECTED_ITERATIONS["walk"])
+    _announce(problem, problem.gauged(problem.pack(guess)), "walk")
     cpu = time.process_time()
     progress = _StageProgress(["constraints", "J_e1"])
     _, result = solve_walk(problem, guess, tol=options.tol, max_iter=options.biped_max_iter, progress=progress)
@@ -438,24 +438,26 @@ def plot_torque_speed(path: Path, robot: Biped, joint_speed: np.ndarray, torque:
 
 
 #: IPOPT iterations of the gaits' cold solves with the default options, constraints and objective stages together
-#: (docs/optimize.md, "Results"), and the CPU an iteration takes in units of one evaluation of the NLP's functions
-#: and derivatives (constraints, Jacobian, Hessian): the KKT factorisations take the rest. For the estimate printed
-#: before a solve.
-EXPECTED_ITERATIONS = {"amble": 110, "walk": 110}
-ITERATION_COST = 3.0
+#: (docs/optimize.md, "Results"), and the CPU an iteration took in units of one evaluation of the NLP's functions
+#: and derivatives (constraints, Jacobian, Hessian) timed before it: the KKT factorisations take the rest, more of it
+#: on the amble's larger system (45.7 s over 117 iterations after a 0.08 s evaluation; the walk 23.2 s over 107
+#: after 0.10 s). For the estimate printed before a solve.
+EXPECTED_ITERATIONS = {"amble": 117, "walk": 107}
+ITERATION_COST = {"amble": 4.9, "walk": 2.2}
 
 
-def _announce(problem: MultiphaseProblem, x: np.ndarray, iterations: int) -> None:
-    """Print the estimated CPU time of a cold solve of `problem` from x: `iterations` iterations of `ITERATION_COST`
-    evaluations each, one evaluation timed here."""
+def _announce(problem: MultiphaseProblem, x: np.ndarray, gait: str) -> None:
+    """Print the estimated CPU time of a cold solve of `problem` (the `gait`'s) from x: `EXPECTED_ITERATIONS` iterations
+    of `ITERATION_COST` evaluations each, one evaluation timed here."""
+    iterations, cost = EXPECTED_ITERATIONS[gait], ITERATION_COST[gait]
     start = time.process_time()
     nlp = problem.nlp("exact")
     nlp.constraints(x), nlp.jacobian(x)
     assert nlp.hessian is not None  # derivatives="exact"
     nlp.hessian(x, 1.0, np.ones(problem.m))
     seconds = time.process_time() - start
-    print(f"  estimate: about {iterations} IPOPT iterations of ~{ITERATION_COST * seconds:.2f} s of CPU each, "
-          f"~{iterations * ITERATION_COST * seconds:.0f} s in all (one evaluation of the functions and derivatives took {seconds:.2f} s)",
+    print(f"  estimate: about {iterations} IPOPT iterations of ~{cost * seconds:.2f} s of CPU each, "
+          f"~{iterations * cost * seconds:.0f} s in all (one evaluation of the functions and derivatives took {seconds:.2f} s)",
           flush=True)
 
 
