@@ -36,5 +36,5 @@ pub use error::{Error, Result};
 pub use geometry::{circle_line, rotation_toward_line, Circle, CircleLine, CircleLineColumns, Line};
 pub use joint::Joint;
 pub use mass::MassProperties;
-pub use model::{Data, JointLimits, Model, STANDARD_GRAVITY};
+pub use model::{Data, JointLimits, Model, ROOT_JOINT, STANDARD_GRAVITY};
 pub use spatial::Transform;

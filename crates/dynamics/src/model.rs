@@ -7,6 +7,10 @@
 //! body's frame; the body's frame is the joint frame after the joint's motion. Bodies are numbered parent
 //! before child.
 //!
+//! Bodies and joints have names, in two namespaces as a URDF's links and joints: a body's joint is named
+//! after the body unless a loader names it ([`Model::set_joint_name`]), and the base's joint is
+//! [`ROOT_JOINT`], as Pinocchio names the free flyer it puts under a URDF.
+//!
 //! Each joint may carry [`JointLimits`] (position range, effort and velocity bounds). The dynamics
 //! algorithms ignore them: they describe the mechanism for the simulation (which enforces the position
 //! range and the effort bound) and for controllers (which read them with [`Model::limits`]).
@@ -95,6 +99,9 @@ impl Default for JointLimits {
     }
 }
 
+/// The name of the base's joint (Pinocchio's name for the free flyer `buildModelFromUrdf` adds).
+pub const ROOT_JOINT: &str = "root_joint";
+
 /// Standard gravity (m/s²): a new model's gravity is (0, 0, −g).
 pub const STANDARD_GRAVITY: f64 = 9.81;
 
@@ -112,6 +119,10 @@ pub struct Model {
     names: Vec<String>,
     /// Each name's body, so that adding and finding a body by name does not scan the others.
     index_of_name: HashMap<String, usize>,
+    /// The name of each body's joint.
+    joint_names: Vec<String>,
+    /// Each joint name's body (the first, should two joints share a name), built by the first lookup.
+    index_of_joint_name: OnceLock<HashMap<String, usize>>,
     idx_q: Vec<usize>,
     idx_v: Vec<usize>,
     /// The velocity indices of each body's subtree as increasing ranges (one range when bodies are
@@ -143,6 +154,8 @@ impl Model {
             inertias: vec![RigidInertia::from_body(&base)],
             names: vec![base_name.to_owned()],
             index_of_name: HashMap::from([(base_name.to_owned(), 0)]),
+            joint_names: vec![ROOT_JOINT.to_owned()],
+            index_of_joint_name: OnceLock::new(),
             idx_q: vec![0],
             idx_v: vec![0],
             subtree_columns: OnceLock::new(),
@@ -204,6 +217,8 @@ impl Model {
         self.inertias.push(RigidInertia::from_body(&body));
         self.names.push(name.to_owned());
         self.index_of_name.insert(name.to_owned(), self.joints.len() - 1);
+        self.joint_names.push(name.to_owned());
+        self.index_of_joint_name = OnceLock::new();
         self.idx_q.push(self.nq);
         self.idx_v.push(self.nv);
         self.nq += joint.nq();
@@ -227,6 +242,7 @@ impl Model {
         self.inertias.try_reserve_exact(bodies).map_err(fail)?;
         self.names.try_reserve_exact(bodies).map_err(fail)?;
         self.index_of_name.try_reserve(bodies).map_err(fail)?;
+        self.joint_names.try_reserve_exact(bodies).map_err(fail)?;
         self.idx_q.try_reserve_exact(bodies).map_err(fail)?;
         self.idx_v.try_reserve_exact(bodies).map_err(fail)?;
         self.armature.try_reserve_exact(dofs).map_err(fail)?;
@@ -306,6 +322,26 @@ impl Model {
     /// The body named `name`, if any.
     pub fn body_index(&self, name: &str) -> Option<usize> {
         self.index_of_name.get(name).copied()
+    }
+    /// Name of the joint that moves body `i`.
+    pub fn joint_name(&self, i: usize) -> &str {
+        &self.joint_names[i]
+    }
+    /// Names the joint that moves body `i` (which must exist) `name`.
+    pub fn set_joint_name(&mut self, i: usize, name: &str) {
+        name.clone_into(&mut self.joint_names[i]);
+        self.index_of_joint_name = OnceLock::new();
+    }
+    /// The body moved by the joint named `name`, if any (the first, should two joints share the name).
+    pub fn joint_index(&self, name: &str) -> Option<usize> {
+        let index = self.index_of_joint_name.get_or_init(|| {
+            let mut index = HashMap::with_capacity(self.joint_names.len());
+            for (i, joint_name) in self.joint_names.iter().enumerate() {
+                index.entry(joint_name.clone()).or_insert(i);
+            }
+            index
+        });
+        index.get(name).copied()
     }
     /// Index of body `i`'s joint's first coordinate in q.
     pub fn idx_q(&self, i: usize) -> usize {

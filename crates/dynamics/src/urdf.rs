@@ -50,14 +50,17 @@
 //!   `friction` (Coulomb joint friction) is not modelled and is ignored.
 //!
 //! Everything else (`<visual>`, `<safety_controller>`, `<mimic>`, `<material>`,
-//! `<transmission>`, `<gazebo>`, ...) is ignored; joint names are checked for uniqueness but not kept.
+//! `<transmission>`, `<gazebo>`, ...) is ignored.
 //!
 //! Naming and ordering: the tree's single root link (the one link that is no joint's child) becomes the
-//! base, body 0, fixed to the world or free-floating. Every other link becomes one body **named after
-//! the link** (not the joint that moves it), attached to its parent link's body through the link's parent
-//! joint, whose `<origin>` is the body's placement. Bodies are numbered breadth-first from the root,
-//! children of a link in the order their joints appear in the file, so a parent always precedes its
-//! children whatever the order of the elements in the file.
+//! base, body 0, fixed to the world or free-floating, its joint named [`crate::ROOT_JOINT`]. Every other link
+//! becomes one body **named after the link**, attached to its parent link's body through the link's parent
+//! joint, whose `<origin>` is the body's placement and whose name is the body's joint's name. Bodies are
+//! numbered as Pinocchio's `buildModelFromUrdf` numbers its joints: depth first from the root, the children
+//! of a link in the order of their joints' names (byte by byte, as urdfdom's `std::map` of joints keeps them),
+//! whatever the order of the elements in the file. So q and v are Pinocchio's, coordinate for coordinate (a
+//! `continuous` joint's q is its angle, where Pinocchio's is its cosine and sine), and a parent always
+//! precedes its children.
 //!
 //! Every problem in the file is an [`Error`] with argument `"urdf"` and a message naming the offending
 //! element, e.g. `joint "knee": unknown parent link "thigh2"`. A document, or the model it describes, too
@@ -69,7 +72,7 @@
 //! tolerance passes silently), and `effort="0"` or `velocity="0"`. With [`UrdfOptions::strict`] these
 //! are errors instead.
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Vector3};
@@ -197,7 +200,7 @@ fn parse(xml: &str, argument: &'static str, options: &UrdfOptions, folder: Optio
         joints.push(joint);
     }
 
-    // The root, and a breadth-first order from it.
+    // The root, and Pinocchio's depth-first order from it.
     let roots: Vec<usize> = (0..links.len()).filter(|&l| parent_joint[l].is_none()).collect();
     let root = match roots.as_slice() {
         [root] => *root,
@@ -215,8 +218,8 @@ fn parse(xml: &str, argument: &'static str, options: &UrdfOptions, folder: Optio
             )));
         }
     };
-    // Each link's child joints in file order: `by_parent[first_child[l]..first_child[l + 1]]` (a counting
-    // sort, in two tables rather than a vector per link).
+    // Each link's child joints by name: `by_parent[first_child[l]..first_child[l + 1]]` (a counting sort,
+    // in two tables rather than a vector per link, then each link's joints sorted).
     let mut first_child: Vec<usize> = filled(argument, links.len() + 1, 0)?;
     for joint in &joints {
         first_child[joint.parent + 1] += 1;
@@ -231,6 +234,9 @@ fn parse(xml: &str, argument: &'static str, options: &UrdfOptions, folder: Optio
         by_parent[next[joint.parent]] = j;
         next[joint.parent] += 1;
     }
+    for l in 0..links.len() {
+        by_parent[first_child[l]..first_child[l + 1]].sort_unstable_by_key(|&j| joints[j].name);
+    }
 
     if let Some(joint) = joints.iter().find(|j| options.floating_base && j.free && j.parent == root) {
         return Err(invalid(format!(
@@ -243,29 +249,27 @@ fn parse(xml: &str, argument: &'static str, options: &UrdfOptions, folder: Optio
     model.try_reserve(argument, links.len() - 1 + 3 * floating, joints.iter().map(|j| j.joint.nv()).sum::<usize>() + 3 * floating)?;
     let mut body_of_link: Vec<Option<usize>> = filled(argument, links.len(), None)?;
     body_of_link[root] = Some(0);
-    let mut queue: VecDeque<usize> = VecDeque::new();
-    queue.try_reserve_exact(links.len()).map_err(|_| too_large(argument, "links", links.len()))?;
-    queue.push_back(root);
-    while let Some(link) = queue.pop_front() {
+    // Joints still to add, the next on top: a link's child joints go on in reverse name order, so that the
+    // first comes off first, and its subtree before its siblings.
+    let mut stack: Vec<usize> = with_capacity(argument, joints.len())?;
+    stack.extend(by_parent[first_child[root]..first_child[root + 1]].iter().rev());
+    while let Some(j) = stack.pop() {
         cancel_point(model.nbodies())?;
-        let parent_body = body_of_link[link].expect("queued links have bodies");
-        for &j in &by_parent[first_child[link]..first_child[link + 1]] {
-            let joint = &joints[j];
-            let child = &links[joint.child];
-            let fail = |e: Error| invalid(format!("joint {:?}: {e}", joint.name));
-            let (mut parent, mut placement) = (parent_body, joint.placement);
-            if joint.free {
-                for (k, axis) in ["x", "y", "z"].iter().zip([Vector3::x(), Vector3::y(), Vector3::z()]) {
-                    let name = format!("{}/{}:{k}", child.name, joint.name);
-                    parent =
-                        model.add_body(parent, Joint::Prismatic(axis), placement, MassProperties::zero(), &name, JointLimits::NONE).map_err(fail)?;
-                    placement = Transform::identity();
-                }
+        let joint = &joints[j];
+        let child = &links[joint.child];
+        let fail = |e: Error| invalid(format!("joint {:?}: {e}", joint.name));
+        let (mut parent, mut placement) = (body_of_link[joint.parent].expect("a joint is added after its parent link"), joint.placement);
+        if joint.free {
+            for (k, axis) in ["x", "y", "z"].iter().zip([Vector3::x(), Vector3::y(), Vector3::z()]) {
+                let name = format!("{}/{}:{k}", child.name, joint.name);
+                parent = model.add_body(parent, Joint::Prismatic(axis), placement, MassProperties::zero(), &name, JointLimits::NONE).map_err(fail)?;
+                placement = Transform::identity();
             }
-            let body = model.add_body(parent, joint.joint, placement, child.body, child.name, joint.limits).map_err(fail)?;
-            body_of_link[joint.child] = Some(body);
-            queue.push_back(joint.child);
         }
+        let body = model.add_body(parent, joint.joint, placement, child.body, child.name, joint.limits).map_err(fail)?;
+        model.set_joint_name(body, joint.name);
+        body_of_link[joint.child] = Some(body);
+        stack.extend(by_parent[first_child[joint.child]..first_child[joint.child + 1]].iter().rev());
     }
     // With one parent per link and a single root, a link not reached from the root lies on a cycle.
     if let Some(unreached) = body_of_link.iter().position(Option::is_none) {
@@ -787,6 +791,38 @@ mod tests {
             let mut all: Vec<&str> = links.iter().map(String::as_str).collect();
             all.sort_unstable();
             assert_eq!(names, all);
+        }
+    }
+
+    #[test]
+    fn joints_are_numbered_as_pinocchio_numbers_them_depth_first_siblings_by_joint_name() {
+        // (joint, parent link, child link, type) in file order; sibling joints out of name order, a fixed joint
+        // with a moving child, and names where byte order differs from case-blind order ("Z_h" < "a_c").
+        let joints = [
+            ("z_b", "root", "B", "revolute"),
+            ("a_c", "root", "C", "revolute"),
+            ("m_d", "B", "D", "revolute"),
+            ("b_e", "C", "E", "revolute"),
+            ("f_f", "root", "F", "fixed"),
+            ("c_g", "F", "G", "revolute"),
+            ("Z_h", "root", "H", "revolute"),
+        ];
+        let mut body: String = ["G", "root", "B", "C", "D", "E", "F", "H"].iter().map(|l| format!(r#"<link name="{l}"/>"#)).collect();
+        for (name, parent, child, kind) in joints {
+            body += &format!(r#"<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/><axis xyz="0 0 1"/></joint>"#);
+        }
+        let xml = format!("<robot name=\"order\">{body}</robot>");
+        for floating in [false, true] {
+            let model = parse_urdf(&xml, &UrdfOptions { floating_base: floating, ..Default::default() }).unwrap().model;
+            // What pin.buildModelFromUrdf gives for this file (model.names[1:], and the bodies of model.frames).
+            let joint_names: Vec<&str> = (0..model.nbodies()).map(|i| model.joint_name(i)).collect();
+            assert_eq!(joint_names, [crate::ROOT_JOINT, "Z_h", "a_c", "b_e", "f_f", "c_g", "z_b", "m_d"]);
+            let body_names: Vec<&str> = (0..model.nbodies()).map(|i| model.name(i)).collect();
+            assert_eq!(body_names, ["root", "H", "C", "E", "F", "G", "B", "D"]);
+            for (i, name) in joint_names.iter().enumerate() {
+                assert_eq!(model.joint_index(name), Some(i));
+            }
+            assert_eq!(model.joint_index("B"), None);
         }
     }
 
