@@ -5,9 +5,9 @@ legkit must load every file Pinocchio loads (what exporters write slightly wrong
 1e-9 (relative to max(1, max|want|)) on random states, with a fixed and with a floating base (the centroidal derivatives
 with a floating base: a fixed base's root link counts in legkit's centre of mass and not in Pinocchio's).
 
-The two number joints differently: legkit's bodies are the links, breadth first, and fixed joints are
-bodies too; Pinocchio's joints are the moving joints, depth first, and a continuous joint has q = (cos, sin).
-Each legkit body on a moving joint is matched to Pinocchio's joint through the link's body frame.
+Both number the coordinates alike (Pinocchio's depth-first walk, siblings by joint name) and name the joints alike:
+legkit's q, v, a, tau and every result go to Pinocchio and back as they are, index for index. The one difference is
+a continuous joint's q: legkit's is its angle, Pinocchio's (cos, sin), so q is converted joint by joint, in place.
 
 Two robots (Romeo, Romeo LAAS small) have moving joints that carry no inertia (their mass matrices are singular), so ABA is not
 defined for them: for those the test checks that M is singular instead.
@@ -49,21 +49,18 @@ def legkit_model(path: Path, floating: bool) -> lk.Model:
 
 
 class Twin:
-    """legkit's and Pinocchio's model of one URDF, and the maps between their coordinates."""
+    """legkit's and Pinocchio's model of one URDF: the same joint names, v and q, but that each continuous joint's
+    angle in legkit's q is its (cos, sin) in Pinocchio's."""
 
     def __init__(self, model: lk.Model, reference: pin.Model):
         self.model, self.reference = model, reference
-        base = 6 if model.floating_base else 0
-        # (legkit q index, legkit v index, Pinocchio q index, Pinocchio v index, continuous) per moving joint.
-        self.joints = []
-        for body in range(1, model.nbodies):
-            if model.joint_type(body) == "fixed":
-                continue
-            joint = reference.joints[reference.frames[reference.getFrameId(model.names[body], pin.FrameType.BODY)].parentJoint]
-            self.joints.append((model.idx_q[body], model.idx_v[body], joint.idx_q, joint.idx_v, joint.nq == 2))
-        assert len(self.joints) + base == model.nv == reference.nv
-        self.lk_v = np.array(list(range(base)) + [j[1] for j in self.joints], dtype=int)
-        self.pin_v = np.array(list(range(base)) + [j[3] for j in self.joints], dtype=int)
+        assert model.joint_names == list(reference.names)[1:]
+        assert model.nv == reference.nv
+        self.continuous = [joint.nq == 2 and joint.nv == 1 for joint in list(reference.joints)[1:]]
+        # Each joint's first q index in Pinocchio's is legkit's plus the continuous joints before it; v's are equal.
+        for k, (name, joint) in enumerate(zip(model.joint_names, list(reference.joints)[1:])):
+            body = model.joint_index(name)
+            assert (model.idx_q[body] + sum(self.continuous[:k]), model.idx_v[body]) == (joint.idx_q, joint.idx_v), name
 
     def state(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """A random configuration in legkit's layout, and the same in Pinocchio's."""
@@ -74,37 +71,14 @@ class Twin:
         return q, self.to_pin_q(q)
 
     def to_pin_q(self, q: np.ndarray) -> np.ndarray:
-        q_pin = np.zeros(self.reference.nq)
-        if self.model.floating_base:
-            q_pin[:7] = q[:7]
-        for lk_q, _, pin_q, _, continuous in self.joints:
-            if continuous:
-                q_pin[pin_q:pin_q + 2] = np.cos(q[lk_q]), np.sin(q[lk_q])
-            else:
-                q_pin[pin_q] = q[lk_q]
-        return q_pin
-
-    def to_pin_v(self, v: np.ndarray) -> np.ndarray:
-        out = np.zeros(self.reference.nv)
-        out[self.pin_v] = v[self.lk_v]
-        return out
-
-    def to_lk_m(self, m_pin: np.ndarray) -> np.ndarray:
-        """An nv x nv matrix in Pinocchio's velocity order, in legkit's."""
-        out = np.zeros((self.model.nv, self.model.nv))
-        out[np.ix_(self.lk_v, self.lk_v)] = m_pin[np.ix_(self.pin_v, self.pin_v)]
-        return out
-
-    def to_lk_columns(self, m_pin: np.ndarray) -> np.ndarray:
-        """A (k, nv) matrix with its columns in Pinocchio's velocity order, in legkit's."""
-        out = np.zeros((m_pin.shape[0], self.model.nv))
-        out[:, self.lk_v] = m_pin[:, self.pin_v]
-        return out
-
-    def to_lk_v(self, v_pin: np.ndarray) -> np.ndarray:
-        out = np.zeros(self.model.nv)
-        out[self.lk_v] = v_pin[self.pin_v]
-        return out
+        if not any(self.continuous):
+            return q
+        pieces, k = [], 0
+        for joint, continuous in zip(list(self.reference.joints)[1:], self.continuous):
+            width = 1 if continuous else joint.nq
+            pieces.append([np.cos(q[k]), np.sin(q[k])] if continuous else q[k:k + width])
+            k += width
+        return np.concatenate(pieces)
 
 
 def assert_close(got: np.ndarray, want: np.ndarray, what: str, rtol: float = RTOL) -> None:
@@ -125,34 +99,36 @@ def test_legkit_loads_what_pinocchio_loads_and_matches_its_dynamics(path: Path, 
         return
     twin = Twin(legkit_model(path, floating), reference)
     # Both read <dynamics damping> per joint (pin's free flyer has none either).
-    assert np.array_equal(twin.model.damping, twin.to_lk_v(np.asarray(reference.damping)))
+    assert np.array_equal(twin.model.damping, np.asarray(reference.damping))
     data = reference.createData()
     rng = np.random.default_rng(len(path.name))
     for _ in range(2):
         q, q_pin = twin.state(rng)
         v, a = rng.normal(size=twin.model.nv), rng.normal(size=twin.model.nv)
-        v_pin, a_pin = twin.to_pin_v(v), twin.to_pin_v(a)
-        assert_close(lk.rnea(twin.model, q, v, a), twin.to_lk_v(pin.rnea(reference, data, q_pin, v_pin, a_pin)), "rnea")
+        assert_close(lk.rnea(twin.model, q, v, a), pin.rnea(reference, data, q_pin, v, a), "rnea")
         mass = pin.crba(reference, data, q_pin)
         mass = np.triu(mass) + np.triu(mass, 1).T
-        assert_close(lk.crba(twin.model, q), twin.to_lk_m(mass), "crba")
+        assert_close(lk.crba(twin.model, q), mass, "crba")
         singular = mass.size > 0 and np.linalg.eigvalsh(mass).min() <= 1e-12 * np.abs(mass).max()
         assert singular == (path.name in SINGULAR_MASS_MATRIX)
         if not singular:
             tau = rng.normal(size=twin.model.nv)
-            expected_a = twin.to_lk_v(pin.aba(reference, data, q_pin, v_pin, twin.to_pin_v(tau)))
-            assert_close(lk.aba(twin.model, q, v, tau), expected_a, "aba")
+            # A solve with M loses up to its condition number's worth of digits (2e9 for iCub: Pinocchio's and
+            # legkit's accelerations differ by 1e-9 of the largest there, each solving M ddq = tau - b to 1e-18 of
+            # |M| |ddq|; Pinocchio's derivatives multiply by a formed M^-1, where legkit's solve leaves M X + dtau/dq
+            # at 1e-19 of |M| |X|): compared at 1e-9 up to a condition number of 1e6, and in proportion beyond, and
+            # each of legkit's solves checked by its residual below.
+            tolerance = RTOL * max(1.0, np.linalg.cond(mass) / 1e6 if mass.size else 1.0)
+            got_a = lk.aba(twin.model, q, v, tau)
+            assert_close(got_a, pin.aba(reference, data, q_pin, v, tau), "aba", tolerance)
+            residual = np.abs(lk.rnea(twin.model, q, v, got_a) - tau).max(initial=0.0)
+            assert residual <= 1e-12 * np.abs(mass).max(initial=0.0) * np.abs(got_a).max(initial=1.0), f"aba: M ddq + b - tau = {residual:.3e}"
             # Pinocchio's derivative arrays are views of `data`: copied before the next call overwrites them.
-            expected_d = [np.array(x) for x in pin.computeABADerivatives(reference, data, q_pin, v_pin, twin.to_pin_v(tau))]
+            expected_d = [np.array(x) for x in pin.computeABADerivatives(reference, data, q_pin, v, tau)]
             expected_d[2] = np.triu(expected_d[2]) + np.triu(expected_d[2], 1).T
             got_d = lk.aba_derivatives(twin.model, q, v, tau)
-            # Pinocchio multiplies by a formed M^-1, whose error grows with M's condition number (2e9 for iCub: it is
-            # off by 1e-9 of the largest entry there, where legkit's solve leaves M X + dtau/dq at 1e-19 of |M| |X|):
-            # compared at 1e-9 up to a condition number of 1e6, and in proportion beyond (its condition number is
-            # the same in either order).
-            tolerance = RTOL * max(1.0, np.linalg.cond(mass) / 1e6 if mass.size else 1.0)
             for got, want, what in zip(got_d, expected_d, ["dddq/dq", "dddq/dv", "dddq/dtau"]):
-                assert_close(got, twin.to_lk_m(want), what, tolerance)
+                assert_close(got, want, what, tolerance)
             # Exactly: M dddq/dq = -dtau/dq and M dddq/dv = -dtau/dv at the accelerations aba gives.
             dtau = lk.rnea_derivatives(twin.model, q, v, lk.aba(twin.model, q, v, tau))
             m = lk.crba(twin.model, q)
@@ -160,13 +136,13 @@ def test_legkit_loads_what_pinocchio_loads_and_matches_its_dynamics(path: Path, 
                 residual = np.abs(m @ got + minus).max(initial=0.0)
                 bound = 1e-12 * np.abs(m).max(initial=0.0) * np.abs(got).max(initial=0.0)
                 assert residual <= bound, f"{what}: M X + dtau = {residual:.3e}"
-        expected_d = [np.array(x) for x in pin.computeRNEADerivatives(reference, data, q_pin, v_pin, a_pin)]
+        expected_d = [np.array(x) for x in pin.computeRNEADerivatives(reference, data, q_pin, v, a)]
         for got, want, what in zip(lk.rnea_derivatives(twin.model, q, v, a), expected_d, ["dtau/dq", "dtau/dv"]):
-            assert_close(got, twin.to_lk_m(want), what)
+            assert_close(got, want, what)
         if floating:  # a fixed base's root link counts in legkit's COM, not in Pinocchio's (its universe's)
-            expected_d = pin.computeCentroidalDynamicsDerivatives(reference, data, q_pin, v_pin, a_pin)
+            expected_d = pin.computeCentroidalDynamicsDerivatives(reference, data, q_pin, v, a)
             for got, want, what in zip(lk.centroidal_derivatives(twin.model, q, v, a), expected_d, ["dh/dq", "dhdot/dq", "dhdot/dv", "dhdot/da"]):
-                assert_close(got, twin.to_lk_columns(np.array(want).reshape(6, -1)), what)
+                assert_close(got, np.array(want).reshape(6, -1), what)
 
 
 def test_a_non_physical_inertia_loads_as_written_with_a_warning_and_strict_refuses_it():
@@ -316,10 +292,10 @@ def test_second_order_derivatives_are_the_slopes_of_pinocchios_first(relative: s
     v, a = rng.normal(size=nv), rng.normal(size=nv)
 
     def first(q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        q_pin, v_pin = twin.to_pin_q(q), twin.to_pin_v(v)
-        dq, dv = (twin.to_lk_m(np.array(x)) for x in pin.computeRNEADerivatives(reference, data, q_pin, v_pin, twin.to_pin_v(a))[:2])
+        q_pin = twin.to_pin_q(q)
+        dq, dv = (np.array(x) for x in pin.computeRNEADerivatives(reference, data, q_pin, v, a)[:2])
         mass = pin.crba(reference, data, q_pin)
-        return dq, dv, twin.to_lk_m(np.triu(mass) + np.triu(mass, 1).T)
+        return dq, dv, np.triu(mass) + np.triu(mass, 1).T
 
     def slope(at) -> np.ndarray:
         """Five-point slopes of `at(j, step)` for each coordinate j, stacked along a last axis."""

@@ -57,7 +57,9 @@ class Model:
     """A kinematic tree. Body 0 is the base: fixed to the world, or a free flyer with
     q = [x, y, z, qx, qy, qz, qw] and v = [v_lin, v_ang] in the base frame. Every other body hangs off a
     revolute, prismatic, helical or fixed joint whose frame is placed (4x4, or (R, t)) in its parent's frame; the
-    body's frame is the joint frame after the joint's motion. Bodies are numbered parent first."""
+    body's frame is the joint frame after the joint's motion. Bodies are numbered parent first. Bodies and joints
+    are named (apart: a joint may share a link's name); a body's joint is named after the body unless a loader names
+    it, the base's joint "root_joint"."""
 
     def __init__(
         self, floating_base: bool = False, base: MassProperties | None = None, base_name: str = "base",
@@ -101,7 +103,15 @@ class Model:
     def parents(self) -> list[int]:
         """Parent of each body; the base is its own parent (``parents[0] == 0``), as in Pinocchio."""
     @property
-    def names(self) -> list[str]: ...
+    def names(self) -> list[str]:
+        """Each body's name (a URDF's link names, an MJCF's body names), in body order."""
+    @property
+    def joint_names(self) -> list[str]:
+        """The names of the joints with coordinates, in q (and v) order: Pinocchio's ``model.names[1:]`` for a URDF,
+        a floating base's joint first as "root_joint"."""
+    def joint_index(self, name: str) -> int:
+        """The body the joint named ``name`` moves (Pinocchio's ``getJointId``), so its coordinates start at
+        ``idx_q[i]`` and ``idx_v[i]``; IndexError naming ``name`` if no joint has it."""
     @property
     def gravity(self) -> np.ndarray: ...
     @property
@@ -143,7 +153,11 @@ class Model:
         path_or_xml: str | os.PathLike[str], floating_base: bool = False, strict: bool = False,
         package_dirs: Sequence[str | os.PathLike[str]] | None = None,
     ) -> Model:
-        """A model from a URDF path or XML string; bodies are named after links, the root link is the base.
+        """A model from a URDF path or XML string; bodies are named after links, the root link is the base,
+        joints after the URDF's joints. q and v are Pinocchio's (``pin.buildModelFromUrdf``, with
+        ``pin.JointModelFreeFlyer()`` for floating_base=True), coordinate for coordinate: joints depth first from the
+        root, a link's children in the order of their joints' names; but a continuous joint's q is its angle, where
+        Pinocchio's is (cos, sin).
         What exporters write and Pinocchio loads (non-physical inertias, effort="0") loads as written with
         a UrdfWarning naming the element, or raises ValueError if strict. A string starting with "<" (after a byte
         order mark and blanks) is XML, anything else a path; a path that is not a regular file (a FIFO, a device)

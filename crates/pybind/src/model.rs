@@ -194,7 +194,10 @@ impl PyModel {
     }
 
     /// A model from a URDF file path or an XML string: links become bodies named after them (the root link
-    /// is the base), revolute/continuous/prismatic/fixed joints their joints, `<limit>`s their limits.
+    /// is the base), revolute/continuous/prismatic/fixed joints their joints, named as in the file, `<limit>`s
+    /// their limits. q and v are Pinocchio's (`buildModelFromUrdf`; with `JointModelFreeFlyer()` for
+    /// `floating_base`), coordinate for coordinate: joints depth first from the root, a link's children in the
+    /// order of their joints' names; but a continuous joint's q is its angle, where Pinocchio's is (cos, sin).
     /// What exporters write and Pinocchio loads (non-physical inertias, `effort="0"`) loads as written
     /// with a `UrdfWarning` naming the element, or is a ValueError if `strict`. `<collision>` meshes
     /// become convex hulls; `package://` names resolve in `package_dirs`, then `ROS_PACKAGE_PATH`, then
@@ -332,9 +335,22 @@ impl PyModel {
     fn parents(&self) -> Vec<usize> {
         self.per_body(Model::parent)
     }
+    /// Each body's name (a URDF's link names, an MJCF's body names), in body order.
     #[getter]
     fn names(&self) -> Vec<String> {
         self.per_body(|model, i| model.name(i).to_owned())
+    }
+    /// The names of the joints with coordinates, in q (and v) order: Pinocchio's `model.names[1:]` for a URDF,
+    /// a floating base's joint first as "root_joint".
+    #[getter]
+    fn joint_names(&self) -> Vec<String> {
+        let moving = (0..self.model.nbodies()).filter(|&i| self.model.joint(i).nq() > 0);
+        moving.map(|i| self.model.joint_name(i).to_owned()).collect()
+    }
+    /// `joint_index(name)`: the body the joint named `name` moves (Pinocchio's `getJointId`), so its coordinates
+    /// start at `idx_q[i]` and `idx_v[i]`; IndexError naming `name` if no joint has it.
+    fn joint_index(&self, name: &str) -> PyResult<usize> {
+        self.model.joint_index(name).ok_or_else(|| PyIndexError::new_err(format!("name: no joint is named {name:?}")))
     }
     #[getter]
     fn gravity<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
