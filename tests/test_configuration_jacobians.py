@@ -63,6 +63,18 @@ def test_difference_matches_pinocchio(tw: Twin, rng):
     assert_close(lk.difference(tw.model, q0, q1), tw.v_lk(want), "difference")
 
 
+@examples(30)
+@given(tw=twins(), rng=rngs())
+def test_integrate_without_dt_is_pinocchios_integrate(tw: Twin, rng):
+    """``lk.integrate(model, q, v)`` as ``pin.integrate(model, q, v)``: dt defaults to 1."""
+    q, v = tw.random_q(rng), below_pi(tw, tw.random_v(rng))
+    note_case(tw, q=q, v=v)
+    got = lk.integrate(tw.model, q, v)
+    np.testing.assert_array_equal(got, lk.integrate(tw.model, q, v, 1.0))
+    want = pin.integrate(tw.pin_model, tw.q_pin(q), tw.v_pin(v))
+    assert_close(lk.difference(tw.model, q, got), tw.v_lk(pin.difference(tw.pin_model, tw.q_pin(q), want)), "integrate")
+
+
 @examples(60)
 @given(tw=twins(), rng=rngs(), dt=st.sampled_from([1.0, 1e-3, 0.37, -0.8]))
 def test_integrate_jacobians_match_pinocchio(tw: Twin, rng, dt):

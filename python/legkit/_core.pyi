@@ -347,8 +347,8 @@ def reduced_dynamics(
     model: Model, q: npt.ArrayLike, v: npt.ArrayLike, tau: npt.ArrayLike, contacts: _ContactPoints, independent: Sequence[int] | None = None
 ) -> tuple[np.ndarray, list[int], list[int], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(ddq, independent, dependent, basis N, reduced mass N^T M N, reduced force, offset) for one state."""
-def integrate(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, dt: float) -> np.ndarray:
-    """q (+) v dt: (..., nq)."""
+def integrate(model: Model, q: npt.ArrayLike, v: npt.ArrayLike, dt: float = 1.0) -> np.ndarray:
+    """q (+) v dt: (..., nq); dt = 1 is Pinocchio's integrate(model, q, v)."""
 def difference(model: Model, q0: npt.ArrayLike, q1: npt.ArrayLike) -> np.ndarray:
     """q1 (-) q0, the velocity v with integrate(q0, v, 1) = q1, as Pinocchio's difference: (..., nv). A free-flyer base's
     part is the SE(3) log of q0's pose to q1's, [v_lin, w] in the base frame at q0, of angle <= pi; the other

@@ -15,7 +15,9 @@ use crate::workspace::{check_state, finite_result, run, singular, singular_facto
 use legkit_dynamics::validate::{array_len, zeros};
 
 /// `q ⊕ v dt`: joint coordinates add; a free-flyer base moves along exp(v dt) in its own frame: `(..., nq)`.
+/// `dt` defaults to 1, as Pinocchio's `integrate(model, q, v)`.
 #[pyfunction(crate = "crate::arguments")]
+#[pyo3(signature = (model, q, v, dt = 1.0))]
 pub fn integrate<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>, v: ArrayArg<'_>, dt: f64) -> PyResult<FloatArray<'py>> {
     let m = &model.model;
     legkit_dynamics::validate::finite("dt", dt).map_err(crate::convert::kernel_error)?;

@@ -159,7 +159,7 @@ impl PyGround {
 /// A contact simulation of a `Model`.
 ///
 /// `Simulation(model, dt=1e-3, ground=None, shapes=None, self_collision=False, substeps=1, backend="tree",
-/// solver_iterations=20)`: `ground` a `Ground` or None;
+/// solver_iterations=50, friction_law="coulomb")`: `ground` a `Ground` or None;
 /// `shapes` maps bodies (index or name) to ("box", (sx, sy, sz)) full edge lengths, ("sphere", r),
 /// ("capsule", half_height, r), ("cylinder", half_height, r) along z or ("convex", points (n, 3)) (their
 /// convex hull), each optionally followed by a 4x4 placement in the body frame (default: at the body's
@@ -169,7 +169,8 @@ impl PyGround {
 /// reflected rotor inertia) adds to each joint's inertia. `backend` is "tree" (legkit's reduced-coordinate engine:
 /// O(n) dynamics, parry contacts, a warm-started Newton contact solver with at most `solver_iterations`
 /// iterations, servos and damping integrated implicitly) or "rapier" (Rapier's multibody,
-/// the reference). Both integrate semi-implicitly to first order in dt / `substeps`. `substeps` and
+/// the reference). `friction_law` (tree engine) is "coulomb" (Coulomb's law) or "cone" (its convex relaxation
+/// |f_t| <= mu f_n). Both integrate semi-implicitly to first order in dt / `substeps`. `substeps` and
 /// `solver_iterations` are at most 1000 (a step is the unit Ctrl-C interrupts at, so it stays short); shape
 /// sizes and offsets at most 1e6 m.
 /// The robot starts at `model.neutral()`, at rest, at time 0.

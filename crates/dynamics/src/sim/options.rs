@@ -109,7 +109,7 @@ impl Backend {
 
 impl Options {
     /// Defaults around step length `dt` (s): no ground, the model's shapes, no self-collision, one substep,
-    /// the tree engine with [`DEFAULT_SOLVER_ITERATIONS`] and the cone friction law. Checked by
+    /// the tree engine with [`DEFAULT_SOLVER_ITERATIONS`] and Coulomb's friction law. Checked by
     /// [`Simulation::new`](super::Simulation::new).
     pub fn new(dt: f64) -> Self {
         Options {
