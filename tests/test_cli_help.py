@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import re
 
+import numpy as np
 import pytest
 
 from legkit import cli
@@ -72,3 +73,33 @@ def test_help_formatter_adds_a_missing_default_once() -> None:
     assert "stated (default 3)" in text and "(default 3) (default" not in text
     assert "items (default: a b)" in text
     assert "a flag" in text and "a flag (default" not in text
+
+
+WRITERS = ["balance", "strain", "gait", "sweep"]
+
+
+@pytest.mark.parametrize("command", WRITERS)
+def test_every_command_writes_to_out_under_legkit_out_by_default(command: str, monkeypatch: pytest.MonkeyPatch,
+                                                                 capsys: pytest.CaptureFixture[str], tmp_path) -> None:
+    monkeypatch.chdir(tmp_path)  # parsing the default creates it: here, not in the checkout
+    parser, _ = _parser_and_help([command], monkeypatch, capsys)
+    (out,) = [a for a in parser._actions if "--out" in a.option_strings]
+    assert str(out.default) == f"legkit-out/{command}"
+    assert str(parser.parse_args([]).out) == f"legkit-out/{command}"
+    assert str(parser.parse_args(["--out", str(tmp_path / "elsewhere")]).out) == str(tmp_path / "elsewhere")
+
+
+def test_the_demo_turns_the_com_nearest_the_support_line(capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli.run(["demo"]) == 0
+    text = capsys.readouterr().out
+    theta = float(re.search(r"theta = (-?[\d.]+) deg", text).group(1))  # type: ignore[union-attr]
+    before, after = (float(x) for x in re.findall(r"([\d.]+) m from the line", text))
+    # Brute force: the composite's COM (mass-weighted by hand) yawed through every tenth of a degree.
+    masses = np.array([0.25, 0.10, 0.05])
+    com = (masses[:, None] * np.array([[0.0, 0.0, 0.042], [0.15, 0.0, 0.1], [0.3, 0.0, 0.1]])).sum(axis=0) / masses.sum()
+    angles = np.radians(np.arange(0.0, 360.0, 0.1))
+    y, z = np.hypot(com[0], com[1]) * np.sin(angles), np.full(angles.shape, com[2])
+    distance = np.hypot(y - 0.12, z)
+    assert before == pytest.approx(np.hypot(com[1] - 0.12, com[2]), abs=1e-4)
+    assert after == pytest.approx(distance.min(), abs=1e-4) and after < before
+    assert theta == pytest.approx(np.degrees(angles[np.argmin(distance)]), abs=0.1)

@@ -85,7 +85,8 @@ def cases() -> list[tuple[str, str]]:
             parameters = inspect.signature(function).parameters
         except ValueError:  # no signature: takes no arguments
             continue
-        found += [(name, p) for p in parameters if p != "self"]
+        # **options pass through to another callable, walked there.
+        found += [(name, p) for p, parameter in parameters.items() if p != "self" and parameter.kind != parameter.VAR_KEYWORD]
     return found
 
 
@@ -104,7 +105,7 @@ def test_a_wrong_typed_argument_is_named_in_the_message(name, argument):
     values = valid(objects)
     values |= {key: objects[kind] for key, kind in OVERRIDES.get(name, {}).items()}
     function = callables()[name]
-    parameters = [p for p in inspect.signature(function).parameters.values() if p.name != "self"]
+    parameters = [p for p in inspect.signature(function).parameters.values() if p.name != "self" and p.kind != p.VAR_KEYWORD]
     owner, _, method = name.partition(".")
     bound = method and isinstance(inspect.getattr_static(getattr(lk, owner), method), type(lk.Model.neutral))
     if bound:

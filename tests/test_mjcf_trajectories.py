@@ -100,7 +100,7 @@ def dropped(path: str, m: mujoco.MjModel, d: mujoco.MjData, seconds: float) -> t
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", lk.MjcfWarning)
         loaded = lk.load_mjcf(path)
-    sim = lk.Simulation(loaded.model, dt=m.opt.timestep, ground=lk.Ground.plane(friction=1.0))
+    sim = loaded.simulation()  # on the file's floor, at its timestep
     sim.q, sim.v = mapped(m, d, loaded, joint_ids(m, loaded))[:2]
     steps = round(seconds / m.opt.timestep)
     mujoco.mj_step(m, d, steps)

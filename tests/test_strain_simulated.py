@@ -206,8 +206,11 @@ def test_stream_is_self_consistent_and_deterministic(walk):
     assert np.all(np.abs(walk.hip_angle) <= np.pi)
     np.testing.assert_allclose(walk.toes, toe_in_body(walk.hip_angle, walk.length, walk.deflection, np.arange(6)), atol=1e-15)
     short = SimulationSettings(warmup_periods=0.5, settle_time=0.05)
-    a, b = (simulated_walk(walk.speed, 0.2, seed=11, settings=short) for _ in range(2))
+    ticks: list[float] = []
+    a, b = simulated_walk(walk.speed, 0.2, seed=11, settings=short), simulated_walk(walk.speed, 0.2, seed=11, settings=short, ticks=ticks.append)
     assert np.array_equal(a.strain, b.strain) and np.array_equal(a.body_position, b.body_position)
+    # One tick per strain sample, warm-up included, rising to the whole walk.
+    assert len(ticks) > len(a.time) and np.all(np.diff(ticks) > 0) and ticks[0] > 0 and ticks[-1] == 1.0
 
 
 # --- the accuracy targets on simulated data (benches/strain_simulated_targets.py prints them for seeds 3-5) -----

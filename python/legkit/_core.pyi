@@ -193,7 +193,7 @@ class MjcfWarning(UserWarning):
     message names it."""
 
 class Mjcf:
-    """An MJCF file read into a Model, with its joints, joint actuators and options."""
+    """An MJCF file read into a Model, with its joints, joint actuators, options and floor."""
     @property
     def model(self) -> Model: ...
     @property
@@ -208,6 +208,13 @@ class Mjcf:
     @property
     def gravity(self) -> np.ndarray:
         """``<option gravity>`` (m/s^2), also the model's gravity."""
+    @property
+    def ground(self) -> Ground | None:
+        """The floor: the world body's first colliding plane geom, placed as in MuJoCo, with its sliding friction;
+        None when the file has none."""
+    def simulation(self, **options: Any) -> Simulation:
+        """``Simulation(model, dt=timestep, ground=ground, **options)``: the model on its own floor at the file's
+        timestep (``options`` are Simulation's; ``dt`` and ``ground`` override the file's)."""
     @property
     def warnings(self) -> list[str]:
         """What was loaded with a warning (also raised as MjcfWarnings)."""
@@ -384,9 +391,11 @@ def rotation_toward_line(
 _ShapeSpec = tuple[Any, ...] | None
 
 class Ground:
-    """Terrain for a Simulation: the plane z = 0, or a heightfield centred on the origin."""
+    """Terrain for a Simulation: a plane (z = 0, or placed anywhere), or a heightfield centred on the origin."""
     @staticmethod
-    def plane(friction: float = 0.8) -> Ground: ...
+    def plane(friction: float = 0.8, placement: _Placement | None = None) -> Ground:
+        """The plane z = 0, solid below; with ``placement`` (4x4 or (R, t), plane to world) the plane z = 0 of that
+        frame, its normal the frame's z axis, as MuJoCo places a plane geom."""
     @staticmethod
     def heightfield(heights: npt.ArrayLike, cell_size: float, friction: float = 0.8) -> Ground:
         """heights (nx, ny), nx, ny >= 2: height at x = (i - (nx-1)/2) cell_size, y = (j - (ny-1)/2) cell_size."""
@@ -398,6 +407,9 @@ class Ground:
     def heights(self) -> np.ndarray | None: ...
     @property
     def cell_size(self) -> float | None: ...
+    @property
+    def placement(self) -> np.ndarray | None:
+        """A plane's frame in the world (4, 4) (the identity: z = 0); None for a heightfield."""
 
 class Simulation:
     """Contact simulation of a Model: legkit's tree engine (backend="tree", default) or Rapier's multibody

@@ -74,3 +74,8 @@ def progress(iterable: Iterable[T], *, enabled: bool = True, extra: str = "plot"
         return iterable
     tqdm = load("tqdm", extra).tqdm
     return tqdm(iterable, **options)
+
+
+def progress_bar(*, extra: str = "plot", **options: Any) -> Any:
+    """A tqdm progress bar for work that ticks as it goes (``update``; a context manager), tqdm from ``extra``."""
+    return load("tqdm", extra).tqdm(**options)

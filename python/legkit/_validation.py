@@ -250,3 +250,18 @@ def output_folder_argument(text: str) -> Path:
         return output_folder(Path(text))
     except ValueError as error:
         raise argparse.ArgumentTypeError(str(error)) from None
+
+
+#: Every ``legkit`` command that writes files writes them to ``--out DIR``, by default ``legkit-out/<command>``
+#: in the working folder.
+OUTPUT_ROOT = Path("legkit-out")
+
+
+def add_output_folder(parser: argparse.ArgumentParser, command: str, what: str, checked: bool = True) -> None:
+    """The ``--out`` option of ``legkit <command>``: the folder ``what`` goes to, by default
+    ``legkit-out/<command>``; ``checked`` (default): created and checked writable as the command line is read."""
+    default = OUTPUT_ROOT / command
+    parser.add_argument(
+        "--out", type=output_folder_argument if checked else Path, default=str(default),
+        help=f"folder for {what} (default ./{default})",
+    )

@@ -14,22 +14,34 @@ from legkit._help import HelpFormatter
 
 
 def demo(_: argparse.Namespace) -> int:
-    """A composite mass and a circle–line query: the two quantities the balancing controller builds on."""
+    """The two quantities the balancing controller builds on [Moll 2006]: a composite's mass properties, and the
+    joint angle that brings its centre of mass nearest a support line (a circle-line distance), checked by
+    turning the composite through that angle."""
     module = lk.MassProperties.solid_box(0.25, [0.084, 0.084, 0.084], center=[0.0, 0.0, 0.042])
     arm = lk.MassProperties.solid_box(0.10, [0.3, 0.03, 0.03], center=[0.15, 0.0, 0.1])
     tip = lk.MassProperties.point(0.05, [0.3, 0.0, 0.1])
     total = sum([module, arm, tip], lk.MassProperties.zero())
-    np.set_printoptions(precision=6, suppress=True)
-    print("Composite of a 0.25 kg cube, a 0.10 kg arm and a 0.05 kg tip mass:")
-    print(f"  mass    {total.mass:.6f} kg")
-    print(f"  com     {total.com} m")
-    print(f"  inertia about the com (kg m^2):\n{total.inertia}")
+    np.set_printoptions(precision=4, suppress=True)
+    print("A 0.25 kg cube module carrying a 0.10 kg arm with a 0.05 kg tip mass, along +x (m, kg, kg m^2):")
+    print(f"  mass {total.mass:.3f}, centre of mass {total.com}, principal moments about it {np.linalg.eigvalsh(total.inertia)}")
 
-    r = lk.circle_line(center=[0, 0, 0.1], normal=[0, 0, 1], radius=0.3, line_point=[0.5, -1, 0], line_direction=[0, 1, 0])
-    print("\nCircle (centre [0 0 0.1], normal z, radius 0.3) to the line x = 0.5, z = 0:")
-    print(f"  distance {r.distance:.6f} m at circle point {r.circle_points[0]} and line point {r.line_points[0]}")
-    theta, distance = lk.rotation_toward_line([0, 0, 0], [0, 0, 1], total.com, [0.5, -1, 0], [0, 1, 0])
-    print(f"\nYawing the composite's COM toward that line: theta = {np.degrees(theta):.3f} deg, distance {distance:.6f} m")
+    # The module yaws about its vertical axis; the COM then moves on a circle, which the support line y = 0.12
+    # (a polygon edge on the ground, along x) meets nearest where the arm points at it.
+    axis_point, axis, line_point, line_direction = [0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.12, 0.0], [1.0, 0.0, 0.0]
+    theta, _ = lk.rotation_toward_line(axis_point, axis, total.com, line_point, line_direction)
+    radius = float(np.hypot(*total.com[:2]))
+    nearest = lk.circle_line(center=[0.0, 0.0, total.com[2]], normal=axis, radius=radius, line_point=line_point, line_direction=line_direction)
+
+    def off_line(point: np.ndarray) -> float:
+        """Distance (m) of a point to the support line."""
+        return float(np.hypot(point[1] - line_point[1], point[2] - line_point[2]))
+
+    c, s = np.cos(float(theta)), np.sin(float(theta))
+    turned = total.transformed(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.zeros(3))
+    print("\nBringing the COM nearest the support line y = 0.12 m, z = 0 by a yaw theta of the module:")
+    print(f"  before: COM {off_line(total.com):.4f} m from the line")
+    print(f"  theta = {np.degrees(float(theta)):.2f} deg (the circle-line distance: {nearest.distance:.4f} m at {nearest.circle_points[0]})")
+    print(f"  after turning the composite by theta: COM at {turned.com}, {off_line(turned.com):.4f} m from the line")
     return 0
 
 
@@ -87,7 +99,8 @@ def run(argv: list[str]) -> int:
         return importlib.import_module(module).main(argv[1:])
     parser = argparse.ArgumentParser(prog="legkit", description="Physics for legged and modular robots.", formatter_class=HelpFormatter)
     commands = parser.add_subparsers(dest="command", required=True, metavar="command")
-    commands.add_parser("demo", help="print a composite mass and a circle-line query", formatter_class=HelpFormatter).set_defaults(run=demo)
+    demo_help = "a composite mass and the yaw bringing its COM nearest a support line"
+    commands.add_parser("demo", help=demo_help, formatter_class=HelpFormatter).set_defaults(run=demo)
     for name, (_, summary) in EXPERIMENTS.items():
         commands.add_parser(name, help=f"{summary}; legkit {name} --help for its options", add_help=False)
     args = parser.parse_args(argv)

@@ -32,8 +32,11 @@
 //!   ASCII STL).
 //! - Collision shapes: sphere, capsule, cylinder and box geoms, and meshes (STL, OBJ, MSH) as the convex hull of
 //!   their vertices, except geoms with `contype="0" conaffinity="0"` (visual only). Pair filtering by the
-//!   bits of `contype`/`conaffinity` is not expressible: every other geom collides. Planes and height
-//!   fields (the floor: `lk.Ground`), ellipsoids and unreadable meshes are listed in a warning.
+//!   bits of `contype`/`conaffinity` is not expressible: every other geom collides. Ellipsoids and
+//!   unreadable meshes are listed in a warning.
+//! - The floor: the world body's first colliding plane geom, placed where MuJoCo places it, is
+//!   [`Mjcf::ground`] with the geom's sliding `friction` (MuJoCo's default 1). Further planes, planes on
+//!   moving bodies and height fields are listed in a warning (`lk.Ground.heightfield` takes a height field).
 //! - `<actuator>`: `motor`, `position` (`kp`, `kv`), `velocity` (`kv`) and `general` (`gaintype`
 //!   fixed/affine, `gainprm`, `biastype` none/affine, `biasprm`, `dyntype none`) on a hinge or slide
 //!   `joint=` transmission, with `gear`, `ctrlrange`/`ctrllimited` and `forcerange`/`forcelimited`:
@@ -71,6 +74,7 @@ use roxmltree::Node;
 
 use crate::geometry::{Convex, Shape, ShapeKind};
 use crate::mesh::{cancel_point, hull_points, mesh_triangles, mesh_vertices};
+use crate::sim::Ground;
 use crate::validate::check_cancelled;
 use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform};
 
@@ -150,6 +154,8 @@ pub struct Mjcf {
     pub timestep: f64,
     /// `<option gravity>` (m/s², world frame; zero when `<flag gravity="disable">`), also the model's.
     pub gravity: Vector3<f64>,
+    /// The floor: the world body's first colliding plane geom with its sliding friction; None without one.
+    pub ground: Option<Ground>,
 }
 
 impl Mjcf {
@@ -814,11 +820,11 @@ fn parse(xml: &str, argument: &'static str, label: &str, folder: Option<&Path>, 
         mass: MassProperties::zero(),
         shapes: Vec::new(),
     }];
-    let mut walker = Walker { reader: &mut reader, meshes: &meshes, bodies, joint_count: 0 };
+    let mut walker = Walker { reader: &mut reader, meshes: &meshes, bodies, joint_count: 0, ground: None };
     for world in root.elements("worldbody") {
         walker.body(world, 0, "main")?;
     }
-    let mut bodies = walker.bodies;
+    let (mut bodies, ground) = (walker.bodies, walker.ground);
 
     if reader.compiler.total_mass > 0.0 {
         // MuJoCo's mj_setTotalmass: every mass and inertia times one factor.
@@ -836,7 +842,7 @@ fn parse(xml: &str, argument: &'static str, label: &str, folder: Option<&Path>, 
     let actuators = actuators(&root, &joints, &mut reader)?;
     let Reader { mut warnings, notes, .. } = reader;
     warnings.extend(notes);
-    Ok(Mjcf { model, warnings, joints, actuators, timestep, gravity })
+    Ok(Mjcf { model, warnings, joints, actuators, timestep, gravity, ground })
 }
 
 /// `<asset><mesh>` by name: the file's vertices scaled, or why they could not be read.
@@ -1055,6 +1061,8 @@ struct Contents {
     geoms: Vec<MassProperties>,
     mesh_mass: Vec<String>,
     unshaped: Vec<String>,
+    /// Its colliding plane geoms: what they are, their frames in the body's and their sliding friction.
+    planes: Vec<(String, Transform, f64)>,
 }
 
 /// Reads bodies depth first (MuJoCo's numbering) into `bodies`.
@@ -1063,6 +1071,8 @@ struct Walker<'r, 'a> {
     meshes: &'r Meshes,
     bodies: Vec<Body>,
     joint_count: usize,
+    /// The world's first plane, the floor.
+    ground: Option<Ground>,
 }
 
 impl Walker<'_, '_> {
@@ -1072,6 +1082,13 @@ impl Walker<'_, '_> {
         self.children(el, index, &Transform::identity(), childclass, &mut contents)?;
         let reader = &mut *self.reader;
         let name = &self.bodies[index].name;
+        let mut planes = contents.planes.into_iter();
+        if index == 0 && self.ground.is_none() {
+            if let Some((what, placement, friction)) = planes.next() {
+                self.ground = Some(Ground::placed_plane(friction, placement).map_err(|e| invalid(format!("{what}: {e}")))?);
+            }
+        }
+        contents.unshaped.extend(planes.map(|(what, ..)| format!("{what} (a plane besides the floor)")));
         if !contents.unshaped.is_empty() {
             reader.notes.push(format!("body {name:?}: geoms without a collision shape: {}", contents.unshaped.join(", ")));
         }
@@ -1322,6 +1339,11 @@ fn geom(
         "capsule" => ShapeKind::Capsule { half_height: b, radius: a },
         "cylinder" => ShapeKind::Cylinder { half_height: b, radius: a },
         "box" => ShapeKind::Box(Vector3::new(2.0 * a, 2.0 * b, 2.0 * c)),
+        "plane" => {
+            let friction = reader.nums(el, class, "friction")?.and_then(|f| f.first().copied()).unwrap_or(1.0);
+            contents.planes.push((what, frame, friction));
+            return Ok(());
+        }
         "mesh" => match mesh {
             Some((name, Ok(asset))) => match hull_points(&asset.vertices).and_then(|(points, thinned)| Ok((Convex::hull(&points)?, thinned))) {
                 Ok((hull, thinned)) => {

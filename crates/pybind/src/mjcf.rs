@@ -8,9 +8,11 @@ use pyo3::types::{PyDict, PyList};
 
 use crate::convert::{kernel_error, numbers, vector_to_numpy, Vector};
 use crate::model::{read_mjcf, PyModel};
+use crate::sim::{PyGround, PySimulation};
 
 /// An MJCF file read into a `Model` (`model`), with its hinge, slide and free joints (`joints`), its joint
-/// actuators (`actuators`, `actuator_torques`), `<option>`'s `timestep` and `gravity`, and the `warnings`.
+/// actuators (`actuators`, `actuator_torques`), `<option>`'s `timestep` and `gravity`, its floor (`ground`),
+/// and the `warnings`; `simulation()` simulates it on its floor at its timestep.
 #[pyclass(name = "Mjcf", module = "legkit")]
 pub struct PyMjcf {
     inner: mjcf::Mjcf,
@@ -85,6 +87,24 @@ impl PyMjcf {
     #[getter]
     fn gravity<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         vector_to_numpy(py, &self.inner.gravity)
+    }
+    /// The floor: the world body's first colliding plane geom, placed as in MuJoCo, with its sliding friction
+    /// (a `Ground`); None when the file has none.
+    #[getter]
+    fn ground(&self) -> Option<PyGround> {
+        self.inner.ground.clone().map(|ground| PyGround { ground })
+    }
+    /// `Simulation(model, dt=timestep, ground=ground, **options)`: the model on its own floor at the file's
+    /// timestep (`options` are `Simulation`'s, `dt` and `ground` among them to override the file's).
+    #[pyo3(signature = (**options))]
+    fn simulation<'py>(&self, py: Python<'py>, options: Option<&Bound<'py, PyDict>>) -> PyResult<Bound<'py, PyAny>> {
+        let arguments = PyDict::new(py);
+        arguments.set_item("dt", self.inner.timestep)?;
+        arguments.set_item("ground", self.ground())?;
+        if let Some(options) = options {
+            arguments.update(options.as_mapping())?;
+        }
+        py.get_type::<PySimulation>().call((self.model.clone_ref(py),), Some(&arguments))
     }
     /// What was loaded with a warning (also raised as `MjcfWarning`s).
     #[getter]

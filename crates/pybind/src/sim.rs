@@ -6,6 +6,7 @@ use legkit_dynamics::sim::{
     MAX_SUBSTEPS,
 };
 use legkit_dynamics::validate::{array_len, cancellable, with_capacity};
+use legkit_dynamics::Transform;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
@@ -18,7 +19,7 @@ use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
 use crate::batch::on_all_threads;
-use crate::convert::{batch_error, batch_error_noting, homogeneous, kernel_error, to_numpy, Floats, Integer};
+use crate::convert::{batch_error, batch_error_noting, homogeneous, kernel_error, to_numpy, transform, Floats, Integer};
 use crate::interrupt::{in_pieces, interruptible, Pace};
 use crate::model::PyModel;
 use crate::shapes::shape_overrides;
@@ -88,11 +89,14 @@ pub struct PyGround {
 #[pymethods]
 #[pyo3(crate = "crate::arguments")]
 impl PyGround {
-    /// The plane z = 0, solid below, with Coulomb friction coefficient `friction` (>= 0).
+    /// The plane z = 0, solid below, with Coulomb friction coefficient `friction` (>= 0); with `placement`
+    /// (a 4x4 transform or an (R, t) pair, plane to world) the plane z = 0 of that frame, its normal the
+    /// frame's z axis, as MuJoCo places a plane geom.
     #[staticmethod]
-    #[pyo3(signature = (friction = 0.8))]
-    fn plane(friction: f64) -> PyResult<Self> {
-        Ok(PyGround { ground: Ground::plane(friction).map_err(kernel_error)? })
+    #[pyo3(signature = (friction = 0.8, placement = None))]
+    fn plane(friction: f64, placement: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
+        let placement = placement.map(transform).transpose()?.unwrap_or_default();
+        Ok(PyGround { ground: Ground::placed_plane(friction, placement).map_err(kernel_error)? })
     }
 
     /// Terrain heights (m) on a regular grid: `heights[i, j]` is the height at
@@ -137,6 +141,15 @@ impl PyGround {
         }
     }
 
+    /// The plane's frame in the world, a 4x4 transform (the identity: z = 0); None for a heightfield.
+    #[getter]
+    fn placement<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray2<f64>>> {
+        match &self.ground {
+            Ground::Plane { placement, .. } => Some(to_numpy(py, (4, 4), homogeneous(placement).to_vec())),
+            Ground::Heightfield { .. } => None,
+        }
+    }
+
     /// Grid spacing (m) of a heightfield, None for a plane.
     #[getter]
     fn cell_size(&self) -> Option<f64> {
@@ -148,7 +161,14 @@ impl PyGround {
 
     fn __repr__(&self) -> String {
         match &self.ground {
-            Ground::Plane { friction } => format!("Ground.plane(friction={friction})"),
+            Ground::Plane { friction, placement } if *placement == Transform::identity() => format!("Ground.plane(friction={friction})"),
+            Ground::Plane { friction, placement } => {
+                format!(
+                    "Ground.plane(friction={friction}, placement=<origin {:?}, normal {:?}>)",
+                    placement.translation.as_slice(),
+                    placement.rotation.column(2).as_slice()
+                )
+            }
             Ground::Heightfield { heights, cell_size, friction } => {
                 format!("Ground.heightfield(<{}x{} heights>, cell_size={cell_size}, friction={friction})", heights.nrows(), heights.ncols())
             }

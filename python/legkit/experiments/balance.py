@@ -32,7 +32,7 @@ import numpy as np
 import legkit as lk
 from legkit._extras import require
 from legkit._help import HelpFormatter
-from legkit._validation import bounded_int, output_folder_argument
+from legkit._validation import add_output_folder, bounded_int
 from legkit.control.closed_loop import DEFAULT_FRICTION, PLANTS, RunResult, run_balance
 from legkit.robots.superbot import MAX_RANDOM_MODULES, ModuleTree, random_tree
 
@@ -154,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=DEFAULT_DURATION, help=f"simulated seconds (default {DEFAULT_DURATION})")
     parser.add_argument("--loss", type=float, default=0.0, help="message loss probability (default 0: synchronous bus)")
     parser.add_argument("--friction", type=float, default=DEFAULT_FRICTION, help=f"ground friction coefficient (default {DEFAULT_FRICTION})")
-    parser.add_argument("--out", type=output_folder_argument, default="balance-out", help="output folder (default ./balance-out)")
+    add_output_folder(parser, "balance", "balance.csv, balance.png and the animation")
     parser.add_argument("--plant", choices=PLANTS, default="tree", help="simulator: legkit's tree engine (default), Rapier, or free (no contacts)")
     parser.add_argument("--no-animation", action="store_true", help="do not write balance.html (or balance.gif)")
     parser.add_argument("--gif", action="store_true", help="also write balance.gif, the animation as a picture (about 1.2 s to render)")

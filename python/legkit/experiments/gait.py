@@ -31,7 +31,7 @@ import numpy as np
 import legkit.stability as st
 from legkit._extras import load, require
 from legkit._help import HelpFormatter
-from legkit._validation import bounded_float, bounded_int, output_folder_argument
+from legkit._validation import add_output_folder, bounded_float, bounded_int
 from legkit.gaits.analysis import GaitAnalysis, analyse, biped_extras
 from legkit.gaits.references import AMBLE_HIP_HEIGHT, AMBLE_QUADRUPED, MAX_SAMPLES, biped_walk, quadruped_amble
 from legkit.robots.biped import JOINT_LABELS, SIDES, Biped, build_biped
@@ -144,6 +144,15 @@ def plot(path: Path, analysis: GaitAnalysis, title: str) -> None:
     plt.close(fig)
 
 
+#: What the tables' signs mean, printed under them (units are in each row's brackets).
+LEGEND = (
+    "Signs: a margin is > 0 when its condition holds and < 0 by how much it fails: static and ZMP margins, the COM's\n"
+    "ground projection and the ZMP inside the support polygon (on one or two feet there is no inside: never > 0);\n"
+    "friction, inside the friction cone; torque-speed, within the motor's torque at that speed; foot-torque and FRI,\n"
+    "the foot not tipping. S_H > 0 is stable [Hardt 2002, eq. 10]; '-': not defined for that robot."
+)
+
+
 def print_table(analyses: list[GaitAnalysis]) -> None:
     keys = list(dict.fromkeys(k for a in analyses for k in a.summary))
     width = max(len(k) for k in keys)
@@ -151,6 +160,7 @@ def print_table(analyses: list[GaitAnalysis]) -> None:
     for key in keys:
         cells = [f"{a.summary[key]:12.5g}" if key in a.summary else f"{'-':>12}" for a in analyses]
         print(f"{key:{width}}  " + "  ".join(cells))
+    print(LEGEND)
 
 
 def reference(robot_name: str, options: GaitOptions) -> tuple[Any, Any]:
@@ -572,7 +582,7 @@ def main(argv: list[str] | None = None) -> int:
     """`legkit gait`: analyse the quadruped amble and/or the biped walk; writes CSVs and figures to --out."""
     parser = argparse.ArgumentParser(prog="legkit gait", formatter_class=HelpFormatter, description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=["quadruped", "biped", "both"], default="both", help="robots to analyse")
-    parser.add_argument("--out", type=output_folder_argument, default="gait_results", help="output folder (created)")
+    add_output_folder(parser, "gait", "the CSVs, figures and animation")
     parser.add_argument("--cycles", type=_positive_int, default=1, help="gait cycles to analyse")
     parser.add_argument("--samples", type=_positive_int, default=400, help="samples per cycle (>= 8)")
     parser.add_argument("--mu", type=float, default=None,
@@ -659,6 +669,7 @@ def main(argv: list[str] | None = None) -> int:
             width = max(len(k) for k in summary)
             for key, value in summary.items():
                 print(f"{key:{width}}  {value:12.5g}")
+            print(LEGEND)
             for line in verdict(summary, options.replay_cycles):
                 print(line)
             if name == "quadruped":

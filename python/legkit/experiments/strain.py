@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from legkit._extras import progress, require
+from legkit._extras import progress, progress_bar, require
 from legkit._help import HelpFormatter
-from legkit._validation import bounded_int, integer, output_folder_argument, positive_scalar
+from legkit._validation import add_output_folder, bounded_int, integer, positive_scalar
 from legkit.strain.benchtop import (
     BenchtopData,
     CompliantFourBarLeg,
@@ -255,9 +255,16 @@ def run(
     assert first is not None  # runs >= 1
     plot_stride(*first, figure, source_label)
     detection: list[StanceDetection] = []
-    for speed in progress(SPEEDS, desc="stance detection", leave=False):
-        stream = simulated_walk(speed, duration, seed)
-        detection += stance_detection(stream, evaluate_run(stream, model, seed)[1])
+    # Each simulated walk takes seconds (the contact simulation's steps): the bar ticks per strain sample.
+    with progress_bar(desc="stance detection (simulated walks)", total=len(SPEEDS), unit="walk", leave=False,
+                  bar_format="{l_bar}{bar}| {n:.2f}/{total} walks [{elapsed}<{remaining}]") as bar:
+        for done, speed in enumerate(SPEEDS):
+
+            def tick(fraction: float, done: int = done) -> None:
+                bar.update(done + fraction - bar.n)
+
+            stream = simulated_walk(speed, duration, seed, ticks=tick)
+            detection += stance_detection(stream, evaluate_run(stream, model, seed)[1])
     return ExperimentResult(
         model, order_table, format_walking_table(results), results, figure, format_detection_table(detection), detection
     )
@@ -266,7 +273,7 @@ def run(
 def main(argv: list[str] | None = None) -> int:
     """``legkit strain``: print Tables 1 and 2 analogues and write the Fig. 7 analogue to --out."""
     parser = argparse.ArgumentParser(prog="legkit strain", formatter_class=HelpFormatter, description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=output_folder_argument, default="strain_out", help="directory for the figure")
+    add_output_folder(parser, "strain", "the figures")
     parser.add_argument("--runs", type=bounded_int(1, 1000), default=5, help="walking runs per speed")
     parser.add_argument("--duration", type=float, default=4.0, help="length of each walking run (s)")
     parser.add_argument("--seed", type=bounded_int(0, 2**31 - 1), default=0,

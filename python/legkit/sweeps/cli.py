@@ -4,7 +4,7 @@ Every axis takes one or more values; ``a:b:n`` stands for n values evenly from a
 values apply to every scheme, or to one with ``scheme=values`` (``--c1 distance=0:1:6 momentum=0:5:6``).
 Examples:
 
-    legkit sweep --trees 8 --out sweep-out                       # 8 trees x 3 schemes, the paper's gains
+    legkit sweep --trees 8                                       # 8 trees x 3 schemes, the paper's gains, into legkit-out/sweep
     legkit sweep --trees 16 --schemes distance momentum --c0 0:1:5 --c1 0:2:5 --out grid
     legkit sweep --trees 32 --loss 0 0.1 0.3 --terrain 0 0.01 --noise 0 0.02 --seeds 2 --ray auto --out faults
 
@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from legkit._help import HelpFormatter
-from legkit._validation import bounded_int
+from legkit._validation import add_output_folder, bounded_int
 from legkit.control.gains import SCHEMES
 from legkit.sweeps.spec import SweepSpec
 
@@ -95,7 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="run on Ray: 'auto' or 'ray://host:10001' (a running cluster), or 'local' (start one here, even if RAY_ADDRESS is set)")
     parser.add_argument("--strict", action="store_true", help="refuse a damaged or foreign part in --out (naming it) rather than run its batch again")
     parser.add_argument("--allow-mixed", action="store_true", help="resume a folder started by another legkit build (each row records its build)")
-    parser.add_argument("--out", type=Path, default=Path("sweep-out"), help="output folder (default ./sweep-out)")
+    add_output_folder(parser, "sweep", "results.parquet and its figures (checked when the sweep starts)", checked=False)
     parser.add_argument("--no-figures", action="store_true", help="do not draw the summary figures")
     parser.add_argument("--dry-run", action="store_true", help="print the number of runs and batches, run nothing")
     return parser

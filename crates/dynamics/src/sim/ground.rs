@@ -1,21 +1,25 @@
-//! The ground: an infinite plane z = 0, or a heightfield over the xy plane.
+//! The ground: an infinite plane (z = 0, or placed anywhere), or a heightfield over the xy plane.
 
 use nalgebra::DMatrix;
 use parry3d_f64::math::{Matrix, Pose, Rotation, Vector};
 use parry3d_f64::shape::{HeightFieldFlags, SharedShape};
 use parry3d_f64::utils::Array2;
 
-use crate::geometry::MAX_SHAPE_SIZE;
-use crate::validate::finite;
+use crate::geometry::{to_pose, MAX_SHAPE_SIZE};
+use crate::spatial::Transform;
+use crate::validate::{finite, finite_vector, rotation};
 use crate::{Error, Result};
 
 /// The terrain under the robot, with its Coulomb friction coefficient.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Ground {
-    /// The plane z = 0, solid below.
+    /// The plane z = 0 of the frame `placement` (plane to world), solid below: its normal is the
+    /// placement's z axis.
     Plane {
         /// Coulomb friction coefficient, >= 0.
         friction: f64,
+        /// The plane's frame in the world (the identity: the world's z = 0).
+        placement: Transform,
     },
     /// Heights on a regular grid: `heights[(i, j)]` is the terrain height at
     /// x = (i − (nx − 1)/2) cell_size, y = (j − (ny − 1)/2) cell_size, so the grid is centred on the world
@@ -41,7 +45,17 @@ fn check_friction(friction: f64) -> Result<f64> {
 impl Ground {
     /// The plane z = 0 with friction coefficient `friction` (finite, >= 0).
     pub fn plane(friction: f64) -> Result<Self> {
-        Ok(Ground::Plane { friction: check_friction(friction)? })
+        Self::placed_plane(friction, Transform::identity())
+    }
+
+    /// The plane z = 0 of the frame `placement` (a rotation and a finite translation, at most
+    /// `MAX_SHAPE_SIZE` from the origin), as MuJoCo places a plane geom.
+    pub fn placed_plane(friction: f64, placement: Transform) -> Result<Self> {
+        rotation("placement", &placement.rotation)?;
+        if !(finite_vector("placement", placement.translation)?.amax() <= MAX_SHAPE_SIZE) {
+            return Err(Error::invalid("placement", format!("the plane's origin must be within {MAX_SHAPE_SIZE:e} m of the world's")));
+        }
+        Ok(Ground::Plane { friction: check_friction(friction)?, placement })
     }
 
     /// A heightfield of at least 2 x 2 finite samples spaced `cell_size` (> 0) apart.
@@ -65,14 +79,14 @@ impl Ground {
     /// The ground's Coulomb friction coefficient.
     pub fn friction(&self) -> f64 {
         match self {
-            Ground::Plane { friction } | Ground::Heightfield { friction, .. } => *friction,
+            Ground::Plane { friction, .. } | Ground::Heightfield { friction, .. } => *friction,
         }
     }
 
     /// The ground's parry shape and its pose in the world.
     pub(crate) fn shape(&self) -> (SharedShape, Pose) {
         match self {
-            Ground::Plane { .. } => (SharedShape::halfspace(Vector::Z), Pose::IDENTITY),
+            Ground::Plane { placement, .. } => (SharedShape::halfspace(Vector::Z), to_pose(placement)),
             Ground::Heightfield { heights, cell_size, .. } => {
                 // Parry's heightfield lies in its local xz plane with heights along local y, rows along z
                 // and columns along x, spanning [-1/2, 1/2] x scale. The rotation local (x, y, z) →

@@ -1,7 +1,7 @@
 //! The simulation against the dynamics core (free motion against ABA + RK4), statics (contact forces
 //! against weight), determinism, actuation and input checks.
 
-use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
+use nalgebra::{Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
 
 use super::*;
 use crate::algorithms::{free_rollout, Method};
@@ -192,6 +192,30 @@ fn box_resting_on_the_plane_carries_its_weight(backend: Backend) {
     assert!((force.z - weight).abs() < 0.01 * weight, "vertical contact force {} vs weight {weight}", force.z);
     assert!(force.xy().norm() < 0.01 * weight);
     assert!(contacts.iter().all(|c| c.body == 0 && c.other.is_none() && (c.normal - Vector3::z()).norm() < 1e-9 && c.point.z.abs() < 2e-3));
+}
+
+/// A box lying on a plane tilted by 0.2 rad and lifted 0.5 m, friction holding it (tan 0.2 < 0.8): the plane's
+/// normal carries its weight and friction the rest, and the box rests half its height above the plane.
+fn box_resting_on_a_placed_plane_carries_its_weight(backend: Backend) {
+    let model = floating_box(3.0, Vector3::new(0.4, 0.3, 0.2));
+    let plane = Transform::new(Rotation3::from_euler_angles(0.2, 0.0, 0.3).into_inner(), Vector3::new(0.3, -0.2, 0.5));
+    let normal = plane.rotation.column(2).into_owned();
+    let mut options = opts(backend, 1e-3);
+    options.ground = Some(Ground::placed_plane(0.8, plane).unwrap());
+    let mut sim = Simulation::new(&model, options).unwrap();
+    let start = plane.compose(&Transform::from_translation(Vector3::new(0.0, 0.0, 0.1)));
+    let quaternion = UnitQuaternion::from_matrix(&start.rotation);
+    let q = [start.translation.x, start.translation.y, start.translation.z, quaternion.i, quaternion.j, quaternion.k, quaternion.w];
+    sim.set_state(Some(&q), None).unwrap();
+    sim.step(None, 1000).unwrap();
+    let contacts = sim.contacts();
+    assert!(contacts.len() >= 4, "a box face on a plane has 4 contact points, got {}", contacts.len());
+    let force = total_normal_force(&contacts);
+    let weight = 3.0 * STANDARD_GRAVITY;
+    assert!((force - Vector3::new(0.0, 0.0, weight)).norm() < 0.01 * weight, "contact force {force:?} vs weight {weight}");
+    assert!(contacts.iter().all(|c| (c.normal - normal).norm() < 1e-9 && (c.point - plane.translation).dot(&normal).abs() < 2e-3));
+    let height = (Vector3::new(sim.q()[0], sim.q()[1], sim.q()[2]) - plane.translation).dot(&normal);
+    assert!((height - 0.1).abs() < 2e-3, "the box's centre is {height} m above the plane");
 }
 
 #[path = "../../tests/fixtures/quadruped.rs"]
@@ -658,6 +682,7 @@ on_both_backends!(
     floating_base_follows_aba_rk4,
     joint_torques_match_aba_accelerations,
     box_resting_on_the_plane_carries_its_weight,
+    box_resting_on_a_placed_plane_carries_its_weight,
     quadruped_standing_on_servos_carries_its_weight,
     identical_inputs_give_identical_trajectories,
     servo_torques_respect_limits_and_hold_targets,

@@ -106,7 +106,8 @@ pub(super) struct Collision {
     colliders: Vec<Collider>,
     /// The ground as a parry shape, for the colliders that meet it through parry; None if none does.
     ground: Option<(SharedShape, Pose)>,
-    plane: bool,
+    /// The ground plane's frame (plane to world), met in closed form by the primitives; None if no plane.
+    plane: Option<Transform>,
     /// Impulses of each collider's features on the plane, from the last step, and whether any may be
     /// non-zero (the collider touched the plane).
     plane_warm: Vec<[Warm; MAX_FEATURES]>,
@@ -126,7 +127,10 @@ impl Collision {
     /// The colliders of `options` on `model`, body i moving with body `fused_body[i]` of `fused` (see
     /// `TreeSimulation`).
     pub(super) fn new(model: &Model, options: &Options, fused: &Model, fused_body: &[usize]) -> Self {
-        let plane = matches!(options.ground, Some(Ground::Plane { .. }));
+        let plane = match &options.ground {
+            Some(Ground::Plane { placement, .. }) => Some(*placement),
+            _ => None,
+        };
         let colliders: Vec<Collider> = options
             .colliders(model)
             .map(|(i, shape, in_body)| {
@@ -136,7 +140,7 @@ impl Collision {
                     body: i,
                     carrier,
                     parent_carrier: if carrier == 0 { 0 } else { fused.parent(carrier) },
-                    parry_ground: options.ground.is_some() && (!plane || matches!(shape.kind, ShapeKind::Convex(_))),
+                    parry_ground: options.ground.is_some() && (plane.is_none() || matches!(shape.kind, ShapeKind::Convex(_))),
                     reach: reach(&shape.kind),
                     kind: shape.kind,
                     local: in_body,
@@ -218,10 +222,12 @@ impl Collision {
     /// Finds the contacts of bodies at world poses `poses`, appending them to `out`; the plane impulses of
     /// the colliders it may change go to `history` first.
     pub(super) fn detect(&mut self, poses: &[Transform], out: &mut Vec<Found>, history: &mut History) {
-        if self.plane {
-            let up = tangents(&Vector3::z());
+        if let Some(plane) = &self.plane {
+            // Each shape is met in the plane's frame, where the plane is z = 0; points go back to the world.
+            let (to_plane, normal) = (plane.inverse(), plane.rotation.column(2).into_owned());
+            let frame = tangents(&normal);
             for (index, c) in self.colliders.iter().enumerate() {
-                let pose = poses[c.body].compose(&c.local);
+                let pose = to_plane.compose(&poses[c.body].compose(&c.local));
                 let warm = &mut self.plane_warm[index];
                 let mut touching = [false; MAX_FEATURES];
                 plane_points(&c.kind, c.reach, &pose, PREDICTION, |p| {
@@ -229,9 +235,9 @@ impl Collision {
                     out.push(Found {
                         body: c.body,
                         other: None,
-                        point: Vector3::new(p.surface.x, p.surface.y, 0.5 * p.height),
-                        normal: Vector3::z(),
-                        tangents: up,
+                        point: plane.transform_point(&Vector3::new(p.surface.x, p.surface.y, 0.5 * p.height)),
+                        normal,
+                        tangents: frame,
                         distance: p.height,
                         warm: warm[p.feature],
                         source: Source::Plane(index as u32, p.feature as u32),
@@ -344,10 +350,10 @@ impl Collision {
         let mut moved = *f;
         match f.source {
             Source::Plane(index, feature) => {
-                let c = &self.colliders[index as usize];
-                plane_points(&c.kind, c.reach, &poses[c.body].compose(&c.local), f64::INFINITY, |p| {
+                let (c, plane) = (&self.colliders[index as usize], self.plane.as_ref().expect("a plane contact has the plane"));
+                plane_points(&c.kind, c.reach, &plane.inverse().compose(&poses[c.body].compose(&c.local)), f64::INFINITY, |p| {
                     if p.feature == feature as usize {
-                        moved.point = Vector3::new(p.surface.x, p.surface.y, 0.5 * p.height);
+                        moved.point = plane.transform_point(&Vector3::new(p.surface.x, p.surface.y, 0.5 * p.height));
                         moved.distance = p.height;
                     }
                 });
