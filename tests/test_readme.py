@@ -31,7 +31,7 @@ def blocks(page: str, language: str) -> list[str]:
 
 
 #: The pages whose ```bash commands are checked.
-COMMAND_PAGES = ["README.md", "docs/sweeps.md"]
+COMMAND_PAGES = ["README.md", "docs/experiments.md", "docs/sweeps.md", "CONTRIBUTING.md"]
 
 
 def commands(prefix: str) -> list[str]:
