@@ -4,7 +4,8 @@
 #   lint         rustfmt and clippy (warnings are errors) on the crates; rustdoc on the core crate, with and
 #                without its default features (every public item documented, no broken links: warnings are
 #                errors); ruff check and mypy on the Python package and its stub (configured in rustfmt.toml,
-#                Cargo.toml and pyproject.toml)
+#                Cargo.toml and pyproject.toml); the API reference built from the docstrings and the stub
+#                (mkdocs.yml; warnings are errors)
 #   rust         the Rust unit tests (cargo test, release optimisation without fat LTO), and the core crate checked
 #                without its default features (no Rapier)
 #   python-fast  the Python suite without the tests marked slow (pytest -m "not slow": the inner loop)
@@ -62,6 +63,10 @@ lint() {  # every linter runs; the tier fails if any does
     RUSTDOCFLAGS="-D warnings" cargo doc --quiet -p legkit-dynamics --no-deps --no-default-features || rc=1
     python -m ruff check || rc=1
     python -m mypy || rc=1
+    local site
+    site="$(mktemp -d)"
+    python -m mkdocs build --strict --quiet --site-dir "$site" || rc=1
+    rm -rf "$site"
     return "$rc"
 }
 
