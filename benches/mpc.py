@@ -1,4 +1,4 @@
-"""Tracking MPC benchmark (issue 37): the README's amble (0.67 m/s, period 1.25 s; J_s2 solved on 4 intervals per
+"""Tracking MPC benchmark (issue 37): the amble of docs/experiments.md (0.67 m/s, period 1.25 s; J_s2 solved on 4 intervals per
 phase with a 3 N stance-force floor at mu 0.6 and refined onto 16) replayed in `lk.Simulation` under
 `legkit.optimize.tracking` for --cycles cycles, on one core (BLAS limited to one thread), with the plant's masses
 exact and scaled by each --mass factor (model mismatch: the controller's model keeps the plan's masses). Prints the

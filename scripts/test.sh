@@ -4,9 +4,10 @@
 #   lint         rustfmt and clippy (warnings are errors) on the crates; rustdoc on the core crate, with and
 #                without its default features (every public item documented, no broken links: warnings are
 #                errors); ruff check and mypy on the Python package and its stub (configured in rustfmt.toml,
-#                Cargo.toml and pyproject.toml)
-#   rust         the Rust unit tests (cargo test, release optimisation without fat LTO), and the core crate checked
-#                without its default features (no Rapier)
+#                Cargo.toml and pyproject.toml); the API reference built from the docstrings and the stub
+#                (mkdocs.yml; warnings are errors)
+#   rust         the Rust unit tests (cargo test, release optimisation without fat LTO: the profile the lint tier's
+#                clippy and rustdoc use), and the core crate checked without its default features (no Rapier)
 #   python-fast  the Python suite without the tests marked slow (pytest -m "not slow": the inner loop)
 #   python-slow  the tests marked slow (end-to-end experiments, simulations), except the browser's
 #   browser      the tests marked browser: the viewer's HTML rendered by headless Chromium. Chromium is
@@ -52,26 +53,34 @@ setup() {
     return 0
 }
 
+# clippy, rustdoc, the Rust tests and the feature check share one profile: the release profile without its fat LTO and
+# single codegen unit, which make every test binary slow to build (the wheel keeps them). Sharing it, rustdoc and the
+# check reuse clippy's checked dependencies, and the tests most of its build scripts and proc macros.
+shared_profile_cargo() {  # shared_profile_cargo SUBCOMMAND ARGS...
+    env CARGO_PROFILE_RELEASE_LTO=false CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 cargo "$1" --release "${@:2}"
+}
+
 lint() {  # every linter runs; the tier fails if any does
     local rc=0
     # A minimal rustup profile lacks them.
     { cargo fmt --version && cargo clippy --version; } >/dev/null 2>&1 || rustup component add rustfmt clippy || rc=1
     cargo fmt --all -- --check || rc=1
-    cargo clippy --quiet --workspace --all-targets -- -D warnings || rc=1
-    RUSTDOCFLAGS="-D warnings" cargo doc --quiet -p legkit-dynamics --no-deps || rc=1
-    RUSTDOCFLAGS="-D warnings" cargo doc --quiet -p legkit-dynamics --no-deps --no-default-features || rc=1
+    shared_profile_cargo clippy --quiet --workspace --all-targets -- -D warnings || rc=1
+    RUSTDOCFLAGS="-D warnings" shared_profile_cargo doc --quiet -p legkit-dynamics --no-deps || rc=1
+    RUSTDOCFLAGS="-D warnings" shared_profile_cargo doc --quiet -p legkit-dynamics --no-deps --no-default-features || rc=1
     python -m ruff check || rc=1
     python -m mypy || rc=1
+    local site
+    site="$(mktemp -d)"
+    python -m mkdocs build --strict --quiet --site-dir "$site" || rc=1
+    rm -rf "$site"
     return "$rc"
 }
 
 rust() {
     local rc=0
-    # Optimised like the release build but without its fat LTO and single codegen unit, which make every
-    # test binary slow to build; the wheel keeps them.
-    env CARGO_PROFILE_RELEASE_LTO=false CARGO_PROFILE_RELEASE_CODEGEN_UNITS=16 \
-        cargo test --release --workspace --exclude legkit-pybind || rc=1
-    cargo check --quiet -p legkit-dynamics --no-default-features || rc=1
+    shared_profile_cargo test --workspace --exclude legkit-pybind || rc=1
+    shared_profile_cargo check --quiet -p legkit-dynamics --no-default-features || rc=1
     return "$rc"
 }
 

@@ -2,7 +2,7 @@
 
 Each case runs in a child interpreter with a timeout and an address-space limit, so a crash (a signal, an
 abort, a Rust panic) or a hang fails its test instead of the run. A case passes when the child raises the
-class of the README's error table, with a message naming the argument, and exits normally.
+class of the error table (docs/errors.md), with a message naming the argument, and exits normally.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Every argument of every public callable of `legkit`, given a value of a type no argument accepts, raises an
-error whose message names that argument (README, "Errors"). The others are given valid values, so that it is
+error whose message names that argument (docs/errors.md). The others are given valid values, so that it is
 the one that fails."""
 
 from __future__ import annotations

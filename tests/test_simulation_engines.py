@@ -535,7 +535,7 @@ def steps_before_failing(sim, tau, n):
 
 
 def test_a_batch_is_per_member_a_diverging_one_stops_the_others_advance_and_each_members_steps_are_reported():
-    """The policy (README, docstring): per member. Members 1 and 2 diverge (a 1e12 N m torque on a 3e-4 kg m^2
+    """The policy (docs/errors.md, docstring): per member. Members 1 and 2 diverge (a 1e12 N m torque on a 3e-4 kg m^2
     rod; member 2 after 20 good steps of its own first): each stops at its last good state, bit-identical to
     stepping it alone up to its failing step; the others take all 150 steps, bit-identical to stepping alone; the
     error names index 1 and, with `steps`, what every member took."""

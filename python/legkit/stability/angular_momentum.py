@@ -112,7 +112,7 @@ def angular_momentum_stability(
     direction: npt.ArrayLike | None = None,
     diagonal_pairs: npt.ArrayLike | None = None,
 ) -> np.ndarray:
-    """S_H (...,) [N m s] [Hardt 2002, eq. 10]: the minimum over the support edges of S_H^l (module docstring).
+    """S_H [Hardt 2002, eq. 10], (...,) [N m s]: the minimum over the support edges of S_H^l (module docstring).
 
     com: (..., 3) [m]; linear_momentum: (..., 3) [kg m/s]; angular_momentum: (..., 3) about the COM [N m s]
     (both as `lk.centroidal_momentum`); mass [kg]; contact_points: (..., k, 3) with optional active (..., k)

@@ -54,7 +54,7 @@ def joule_loss_index(
     gear_ratio: npt.ArrayLike,
     torque_constant: npt.ArrayLike,
 ) -> float:
-    """Energy Performance 1, J_e1 [Hardt 2002, eq. 12] [J/m]: the Joule loss integrated over t (trapezoidal
+    """Energy Performance 1, J_e1 [Hardt 2002, eq. 12], in J/m: the Joule loss integrated over t (trapezoidal
     rule) per distance d_S travelled.
 
     torques: (T, n) [N m]; t: (T,) [s]; distance > 0 [m] travelled over t; motor parameters as the module

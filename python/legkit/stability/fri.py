@@ -55,7 +55,7 @@ def foot_rotation_indicator(
     foot: int | str | Sequence[int | str],
     ground_height: float = 0.0,
 ) -> np.ndarray:
-    """FRI point S (..., 3) [m] [Hardt 2002, eq. 8] on the plane z = ground_height for the support foot or
+    """FRI point S [Hardt 2002, eq. 8], (..., 3) [m], on the plane z = ground_height for the support foot or
     feet `foot` (an index or name, or a sequence of them: the N_f feet in contact).
 
     q, v, a: (..., nq), (..., nv), (..., nv) of the whole robot (the feet's own accelerations are ignored, as
