@@ -44,6 +44,7 @@ from legkit.optimize.gaits import (
     AMBLE_DERIVATIVES,
     AMBLE_IPOPT,
     AMBLE_MIRROR,
+    AMBLE_REGULARISED_FIRST,
     WALK_DERIVATIVES,
     WALK_MIRROR,
     AmbleOptions,
@@ -175,7 +176,8 @@ def main() -> None:
     robot = build_quadruped(AMBLE_QUADRUPED)
     objective = [lo.MinMaxStability(2.0, DIAGONAL_PAIRS)]
     args.polish = args.polish and args.derivatives == "legkit"  # the polish follows an L-BFGS run
-    options = {"tol": args.tol, "max_iter": args.max_iter, "derivatives": args.derivatives, "options": AMBLE_IPOPT, "polish": args.polish,
+    options = {"tol": args.tol, "max_iter": args.max_iter, "derivatives": args.derivatives, "options": AMBLE_IPOPT,
+               "regularised_first": AMBLE_REGULARISED_FIRST, "polish": args.polish,
                "polish_max_iter": args.polish_max_iter}
 
     def cold(speed: float, **variant: object) -> tuple[lo.MultiphaseProblem, lo.SolveResult]:
@@ -218,7 +220,7 @@ def main() -> None:
     other, neighbour = cold(args.neighbour)
     report(f"cold, {args.neighbour:g} m/s (the neighbour)", other, neighbour)
     warm = target.solve(target.continued(neighbour, args.neighbour), derivatives="exact", tol=args.tol, max_iter=args.polish_max_iter,
-                        options=AMBLE_IPOPT)[1]
+                        options=AMBLE_IPOPT, regularised_first=AMBLE_REGULARISED_FIRST)[1]
     report(f"warm from {args.neighbour:g} m/s, exact", target, warm)
 
 

@@ -3,6 +3,8 @@ optimal control problems whose optima are derived here by hand."""
 
 from __future__ import annotations
 
+import gc
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -222,6 +224,30 @@ def test_warm_start_from_a_solve_result_carries_its_multipliers():
     lam_x, lam_g = neighbour.multipliers
     with pytest.raises(ValueError, match="multipliers"):
         solve(far.nlp("exact"), neighbour.x, multipliers=(lam_x, lam_g[:-1]))
+
+
+def test_regularised_first_factorises_every_system_regularised_to_the_same_optimum(tmp_path):
+    # IPOPT's journal: lg(rg) is "-" for a system factorised unregularised. With regularised_first the idle variable
+    # makes the first systems singular, so every later one starts from the last regularisation; the optimum, the
+    # point's and multipliers' sizes are those of the problem given.
+    problem = replace(swing_up(pendulum(0.0), 10, 2.0), u_bounds=(np.array([-1.0]), np.array([1.0])))
+    nlp, x0 = problem.nlp("exact"), problem.pack(pendulum_guess(10, 2.0))
+    runs, logs = {}, {}
+    for flag in (False, True):
+        log = tmp_path / f"ipopt-{flag}.txt"
+        runs[flag] = solve(nlp, x0, regularised_first=flag, options={"output_file": str(log), "file_print_level": 5})
+        gc.collect()  # IPOPT's journal is written out when the solver is freed
+    for flag in (False, True):
+        text = (tmp_path / f"ipopt-{flag}.txt").read_text()
+        logs[flag] = [line.split()[6] for line in text.splitlines() if re.match(r"^ *\d+ ", line)]
+    assert runs[True].success and runs[False].success
+    assert set(logs[False]) == {"-"}
+    assert len(logs[True]) == runs[True].iterations + 1 and "-" not in logs[True][1:]
+    assert runs[True].objective == pytest.approx(runs[False].objective, rel=1e-7)
+    assert runs[True].x.shape == (nlp.n,) and [m.shape for m in runs[True].multipliers] == [(nlp.n,), (nlp.m,)]
+    assert nlp.violation(runs[True].x) <= 1e-6
+    warm = solve(nlp, runs[True].x, multipliers=runs[True].multipliers, regularised_first=True)
+    assert warm.success and warm.iterations <= 2 and warm.x.shape == (nlp.n,)
 
 
 def test_stall_ends_a_run_once_its_objective_stops_improving():

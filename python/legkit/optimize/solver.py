@@ -129,13 +129,18 @@ class _Timer:
 def solve(
     nlp: NLP, x0: np.ndarray, *, tol: float = 1e-6, max_iter: int = 3000, progress: Progress | None = None,
     options: dict | None = None, multipliers: tuple[np.ndarray, np.ndarray] | None = None, stall: tuple[int, float] | None = None,
+    regularised_first: bool = False,
 ) -> SolveResult:
     """Solve `nlp` from x0 with IPOPT (MUMPS; the NLP's Hessian, or L-BFGS without one). progress(iteration, objective, violation) is
     called once per IPOPT iteration. options: extra IPOPT options (without the "ipopt." prefix). multipliers:
     (bound, constraint) multipliers to start from with x0, e.g. a neighbouring problem's
     `SolveResult.multipliers`: a primal-dual warm start with `WARM_START`'s options (options override them).
     stall (window, gain): stop (status "User_Requested_Stop") at an iterate whose objective is less than gain
-    below that of the iterate window iterations before."""
+    below that of the iterate window iterations before. regularised_first (with the NLP's Hessian): IPOPT factorises
+    each KKT system first with the last iteration's Hessian regularisation (`_with_idle_variable`) rather than
+    none, which saves a factorisation per iteration where the unregularised systems have the wrong inertia
+    (`legkit.optimize.gaits.AMBLE_REGULARISED_FIRST`). The regularisation never reaches 0, so where they have the
+    right inertia it costs exact Newton steps (IPOPT's default, False)."""
     require("casadi")
     import casadi as ca
 
@@ -150,6 +155,11 @@ def solve(
             raise ValueError(f"multipliers must have shapes ({nlp.n},) and ({nlp.m},), got {lam_x.shape} and {lam_g.shape}")
         start_duals = {"lam_x0": lam_x, "lam_g0": lam_g}
         options = {**WARM_START, **(options or {})}
+    n_given = nlp.n
+    if regularised_first and nlp.hessian is not None:
+        nlp, x0 = _with_idle_variable(nlp), np.r_[x0, 0.0]
+        if "lam_x0" in start_duals:
+            start_duals["lam_x0"] = np.r_[start_duals["lam_x0"], 0.0]
     timer = _Timer()
     pattern = ca.Sparsity.triplet(nlp.m, nlp.n, nlp.jac_rows.tolist(), nlp.jac_cols.tolist())
     # casadi stores column-compressed; order our (row, col) values to match once.
@@ -274,9 +284,26 @@ def solve(
         raise timer.error
     stats = solver.stats()
     x = np.asarray(result["x"]).ravel()
-    return SolveResult(x, float(result["f"]), stats["return_status"], bool(stats["success"]), int(stats["iter_count"]),
-                       wall, timer.seconds, nlp.violation(x), history, best[0], tol,
-                       (np.asarray(result["lam_x"]).ravel(), np.asarray(result["lam_g"]).ravel()))
+    kept = None if best[0] is None else (best[0][0], best[0][1], best[0][2][:n_given])
+    return SolveResult(x[:n_given], float(result["f"]), stats["return_status"], bool(stats["success"]), int(stats["iter_count"]),
+                       wall, timer.seconds, nlp.violation(x), history, kept, tol,
+                       (np.asarray(result["lam_x"]).ravel()[:n_given], np.asarray(result["lam_g"]).ravel()))
+
+
+def _with_idle_variable(nlp: NLP) -> NLP:
+    """nlp with one more variable, free and in no function. IPOPT first factorises each KKT system unregularised
+    and, at the wrong inertia, again with a regularisation; a system found singular unregularised in its first three
+    iterations marks the Hessian structurally degenerate (Ipopt's PDPerturbationHandler, `hess_degenerate_`), after
+    which every system is first factorised with the last regularisation times perturb_dec_fact. The idle
+    variable's zero row makes the unregularised system singular; its own step and multiplier stay 0."""
+    n = nlp.n
+
+    def given(function: Callable) -> Callable:
+        return lambda x, *args: function(x[:n], *args)
+
+    return NLP(np.r_[nlp.x_lower, -np.inf], np.r_[nlp.x_upper, np.inf], nlp.g_lower, nlp.g_upper, given(nlp.objective),
+               lambda x: np.r_[nlp.gradient(x[:n]), 0.0], given(nlp.constraints), given(nlp.jacobian), nlp.jac_rows, nlp.jac_cols,
+               None if nlp.hessian is None else given(nlp.hessian), nlp.hess_rows, nlp.hess_cols)
 
 
 @contextlib.contextmanager
