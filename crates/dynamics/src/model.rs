@@ -627,6 +627,8 @@ pub(crate) struct Derivatives {
     pub velocity_before: Matrix6xX<f64>,
     pub velocity_through: Matrix6xX<f64>,
     pub acceleration_after: Matrix6xX<f64>,
+    /// ∂h_O/∂q (6 x nv), the momentum about the centred frame's origin (`centroidal_momentum_hessian`).
+    pub origin_momentum_dq: Matrix6xX<f64>,
     /// The centroidal derivatives (`centroidal_derivatives`): per body its momentum I v (after the backward pass its
     /// subtree's), and ∂h/∂q, ∂ḣ/∂q, ∂ḣ/∂q̇ (6 x nv, about the centre of mass; ∂ḣ/∂q̈ = A_G is `Data::centroidal_map`).
     pub momentum: Vec<Force>,
@@ -726,6 +728,7 @@ impl Derivatives {
             velocity_before: columns()?,
             velocity_through: columns()?,
             acceleration_after: columns()?,
+            origin_momentum_dq: columns()?,
             momentum: filled("model", n, Force::zeros())?,
             dh_dq: columns()?,
             dhdot_dq: columns()?,

@@ -135,23 +135,25 @@ pub fn centroidal_momentum_hessian(
     let momentum = linear(&data.derivatives.momentum[0]);
     // Γ's slope along q_e is [J_c,e × w_ang; 0]: its share of the curvature is the COM's, weighted by w_ang × p.
     add_com_hessian(model, data, mass, &w_ang.cross(&momentum), qq);
-    let d = &data.derivatives;
+    let Data { derivatives: d, com_jacobian, .. } = data;
     let parent_velocity = |body: usize| if body == 0 { Motion::zeros() } else { d.velocity[model.parent(body)] };
-    // ∂h_O/∂q_e and the COM's column J_c,e.
-    let momentum_slope = |e: usize, body_e: usize| {
+    // Per coordinate e: ∂h_O/∂q_e = S_e ×* H_e - I_e (S_e × B_e), the COM's column J_c,e and the gradient.
+    coordinates(model, |e, body_e| {
         let s_e = column(&d.subspace, e);
-        cross_force(&s_e, &d.momentum[body_e]) - d.composite[body_e].apply(&cross_motion(&s_e, &parent_velocity(body_e)))
-    };
-    let com_column = |e: usize, body_e: usize| linear(&d.composite[body_e].apply(&column(&d.subspace, e))) / mass;
+        let slope = cross_force(&s_e, &d.momentum[body_e]) - d.composite[body_e].apply(&cross_motion(&s_e, &parent_velocity(body_e)));
+        let com_e = linear(&d.composite[body_e].apply(&s_e)) / mass;
+        set_column(&mut d.origin_momentum_dq, e, &slope);
+        com_jacobian.set_column(e, &com_e);
+        gradient[e] = com_e.cross(&w_ang).dot(&momentum) + gamma.dot(&slope);
+    });
     coordinates(model, |e, body_e| {
         let (s_e, before_e) = (column(&d.subspace, e), parent_velocity(body_e));
-        let (slope_e, com_e) = (momentum_slope(e, body_e), com_column(e, body_e));
-        gradient[e] = com_e.cross(&w_ang).dot(&momentum) + gamma.dot(&slope_e);
+        let (slope_e, com_e) = (column(&d.origin_momentum_dq, e), com_jacobian.column(e).into_owned());
+        let momentum_e = linear(&d.composite[body_e].apply(&s_e)); // ∂p/∂v_e
         coordinates(model, |c, body_c| {
             let s_c = column(&d.subspace, c);
-            let com_c = com_column(c, body_c);
-            qv[c * nv + e] = com_c.cross(&w_ang).dot(&linear(&d.composite[body_e].apply(&s_e)))
-                + gamma.dot(&column_slope(model, &d.composite, &s_c, &s_e, body_c, body_e));
+            let com_c = com_jacobian.column(c).into_owned();
+            qv[c * nv + e] = com_c.cross(&w_ang).dot(&momentum_e) + gamma.dot(&column_slope(model, &d.composite, &s_c, &s_e, body_c, body_e));
             // ∂²h_O/∂q_e ∂q_c: the slope along q_c of S_e ×* H_e - I_e (S_e × B_e).
             let mut second = Force::zeros();
             if let Some((inertia, c_before_e)) = shared(model, &d.composite, body_c, body_e) {
@@ -171,7 +173,7 @@ pub fn centroidal_momentum_hessian(
                 }
             }
             qq[e * nv + c] +=
-                com_e.cross(&w_ang).dot(&linear(&momentum_slope(c, body_c))) + com_c.cross(&w_ang).dot(&linear(&slope_e)) + gamma.dot(&second);
+                com_e.cross(&w_ang).dot(&linear(&column(&d.origin_momentum_dq, c))) + com_c.cross(&w_ang).dot(&linear(&slope_e)) + gamma.dot(&second);
         });
     });
 }
