@@ -96,14 +96,15 @@ def split(problem: lo.MultiphaseProblem, solve: Callable[[dict], lo.SolveResult]
     if count is None:
         raise RuntimeError(f"no iteration count in IPOPT's output:\n{text[-2000:]}")
     iterations = int(count.group(1))
-    print(f"cold solve: {result.status}, {result.iterations} IPOPT iterations in all, {cpu:.1f} s of CPU; its J_s2 stage, "
-          f"{iterations} iterations, by component (CPU):")
+    x, objective = result.best()
+    s_h = min(s.min() for s in problem.stability_index(x))
+    print(f"cold solve: {result.status}, {result.iterations} IPOPT iterations in all, {cpu:.1f} s of CPU, p1 {-objective:.5f}, "
+          f"S_H min {s_h:.5f} N m s; its J_s2 stage, {iterations} iterations, by component (CPU):")
     print(f"  {'component':<34} {'[s]':>8} {'per iteration [s]':>18}")
     for label, pattern in TIMINGS.items():
         seconds = sum(float(m) for m in re.findall(rf"^ *{pattern}\.*: *([0-9.]+)", text, flags=re.MULTILINE))
         print(f"  {label:<34} {seconds:8.2f} {seconds / iterations:18.4f}")
     lam = np.random.default_rng(0).normal(size=problem.m)
-    x = result.best()[0]
     timed: dict[str, float] = {}
     for block, start, stop in zip(problem.blocks, problem._offsets, problem._offsets[1:]):
         name = type(block).__name__

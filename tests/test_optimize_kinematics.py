@@ -10,8 +10,10 @@ import numpy as np
 import pytest
 
 import legkit as lk
+from legkit.gaits import AMBLE_QUADRUPED
 from legkit.optimize import kinematics as kin
 from legkit.optimize.collocation import complex_step_jacobian
+from legkit.optimize.gaits import amble_plan_problem, amble_reference, guess_from_reference
 from legkit.robots.biped import build_biped
 from legkit.robots.quadruped import build_quadruped
 
@@ -143,3 +145,31 @@ def test_complex_steps_differentiate_closed_form_algebra_exactly():
     expected[:, 1, 0], expected[:, 1, 1], expected[:, 1, 2] = z[:, 2] / z[:, 1], -z[:, 0] * z[:, 2] / z[:, 1] ** 2, z[:, 0] / z[:, 1]
     np.testing.assert_allclose(complex_step_jacobian(f, z, np.arange(3)), expected, rtol=1e-14, atol=1e-15)
     np.testing.assert_allclose(complex_step_jacobian(f, z, np.array([2, 0])), expected[:, :, [2, 0]], rtol=1e-14, atol=1e-15)
+
+
+@pytest.fixture(scope="module")
+def amble():
+    """The 16-interval amble `legkit gait --optimize` solves, and its reference's variables."""
+    robot = build_quadruped(AMBLE_QUADRUPED)
+    problem = amble_plan_problem(robot, 16)
+    return problem, problem.pack(guess_from_reference(problem, amble_reference(robot, 0.67, 1.25, 16)))
+
+
+@pytest.mark.parametrize("name", ["_smooth_margin.<locals>.margin", "stance_blocks.<locals>.accelerations",
+                                  "velocity_transition.<locals>.<lambda>"])
+def test_block_curvature_matches_central_differences_of_its_jacobian(amble, name):
+    """A block's exact curvature (`Point.curvature`, from the core's second-order kernels) against central differences
+    of its exact Jacobian, weighted, and that Jacobian against differences of its values, at random points near the
+    amble's reference (the quaternion of any norm)."""
+    problem, x = amble
+    rng = np.random.default_rng(11)
+    blocks = [b for b in problem.blocks if getattr(getattr(b, "function", None), "__qualname__", "") == name]
+    assert blocks, name
+    for block in blocks:
+        z = x[block.index][rng.choice(len(block.index), min(3, len(block.index)), replace=False)]
+        z = z + rng.normal(0.0, 0.05, z.shape)
+        weights = rng.normal(size=(len(z), block.outputs))
+        slope_differences = central(lambda zz, w=weights, b=block: np.einsum("br,brk->bk", w, b.derivative(zz)), z)
+        for got, want in [(block.curvature(z, weights), slope_differences), (block.derivative(z), central(block.function, z))]:
+            scale = max(1.0, float(np.abs(want).max()))
+            assert np.abs(got - want).max() <= TOLERANCE * scale, (name, np.abs(got - want).max(), scale)

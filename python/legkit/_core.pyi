@@ -257,6 +257,15 @@ def centroidal_derivatives(
     its tangent space as in ``rnea_derivatives``, as Pinocchio's computeCentroidalDynamicsDerivatives."""
 def center_of_mass_jacobian(model: Model, q: npt.ArrayLike) -> np.ndarray:
     """d(center_of_mass)/dq, (..., 3, nv) in world axes, q on its tangent space (Pinocchio's jacobianCenterOfMass)."""
+def center_of_mass_hessian(model: Model, q: npt.ArrayLike, weights: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """(Hessian (..., nv, nv), gradient (..., nv)) with respect to q (on its tangent space, as ``rnea_derivatives``; entry
+    [e, d] the slope along q_d of the gradient's entry e) of ``weights`` (..., 3) . the world centre of mass."""
+def centroidal_momentum_hessian(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, weights: npt.ArrayLike,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(qq (..., nv, nv), qv (..., nv, nv), q-gradient (..., nv)) of ``weights`` (..., 6) . ``centroidal_momentum`` h
+    ([linear; angular about the COM]): qq [e, d] the slope along q_d of the gradient's entry e (q on its tangent space),
+    qv [d, e] = d2/dq_d dv_e; vv is zero (h is linear in v)."""
 def crba(model: Model, q: npt.ArrayLike) -> np.ndarray:
     """Joint-space mass matrix M(q): (..., nv, nv)."""
 def minv(model: Model, q: npt.ArrayLike) -> np.ndarray:
@@ -284,6 +293,13 @@ def point_velocity_hessian(
     """(Hessian (..., nv, nv), gradient (..., nv)) with respect to q (on its tangent space, as ``rnea_derivatives``; entry
     [e, d] the slope along q_d of the gradient's entry e) of ``weights`` (..., 3) . the world velocity J_lin(q) v of
     `point` on `body`: the curvature of a load's virtual power F . J(q) v."""
+def point_acceleration_hessian(
+    model: Model, q: npt.ArrayLike, v: npt.ArrayLike, a: npt.ArrayLike, body: _Body, point: npt.ArrayLike | None, weights: npt.ArrayLike,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(qq, qv, vv, qa, q-gradient) of ``weights`` (..., 3) . the classical world acceleration of `point` on `body` (as
+    ``point_accelerations``) with respect to q (on its tangent space, as ``rnea_derivatives``), v and a: each (..., nv, nv)
+    (qq [b, d] the slope along q_d of the gradient's entry b; qv, qa [d, e] = d2/dq_d dv_e, d2/dq_d da_e), the gradient
+    (..., nv); aa and va are zero."""
 def frame_velocity(
     model: Model, q: npt.ArrayLike, v: npt.ArrayLike, body: _Body, point: npt.ArrayLike | None = None, frame: _Frame = "local_world_aligned"
 ) -> np.ndarray:

@@ -658,6 +658,13 @@ pub(crate) struct Derivatives {
     /// Per velocity coordinate on a frame's support (6 x nv): the world velocity of its joint and the joints after it
     /// (`point_velocity_hessian`).
     pub velocity_after: Matrix6xX<f64>,
+    /// Per velocity coordinate on a frame's support (6 x nv, `point_acceleration_hessian`): the world velocity of the
+    /// joints before its joint, through it (its own included) and the acceleration terms of its joint and after it.
+    pub velocity_before: Matrix6xX<f64>,
+    pub velocity_through: Matrix6xX<f64>,
+    pub acceleration_after: Matrix6xX<f64>,
+    /// ∂h_O/∂q (6 x nv), the momentum about the centred frame's origin (`centroidal_momentum_hessian`).
+    pub origin_momentum_dq: Matrix6xX<f64>,
     /// The centroidal derivatives (`centroidal_derivatives`): per body its momentum I v (after the backward pass its
     /// subtree's), and ∂h/∂q, ∂ḣ/∂q, ∂ḣ/∂q̇ (6 x nv, about the centre of mass; ∂ḣ/∂q̈ = A_G is `Data::centroidal_map`).
     pub momentum: Vec<Force>,
@@ -754,6 +761,10 @@ impl Derivatives {
             frame_acceleration_da: columns()?,
             jacobian_rate: columns()?,
             velocity_after: columns()?,
+            velocity_before: columns()?,
+            velocity_through: columns()?,
+            acceleration_after: columns()?,
+            origin_momentum_dq: columns()?,
             momentum: filled("model", n, Force::zeros())?,
             dh_dq: columns()?,
             dhdot_dq: columns()?,

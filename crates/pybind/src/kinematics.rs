@@ -131,6 +131,40 @@ pub fn point_velocity_hessian<'py>(
     Ok((parts.next().expect("two"), parts.next().expect("two")))
 }
 
+/// (qq, qv, vv, qa, q-gradient) of `weights` . the classical world acceleration of `point` on `body` (as
+/// `point_accelerations`), with respect to q (on its tangent space, as `rnea_derivatives`), v and a: each `(..., nv, nv)`
+/// (qq `[b, d]` the slope along q_d of the gradient's entry b; qv, qa `[d, e]` = d2/dq_d dv_e, d2/dq_d da_e), the
+/// gradient `(..., nv)`; aa and va are zero.
+#[pyfunction(crate = "crate::arguments")]
+#[pyo3(signature = (model, q, v, a, body, point, weights))]
+#[allow(clippy::too_many_arguments)]
+pub fn point_acceleration_hessian<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    a: ArrayArg<'_>,
+    body: &Bound<'_, PyAny>,
+    point: Option<Vector<'_>>,
+    weights: ArrayArg<'_>,
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>, FloatArray<'py>, FloatArray<'py>, FloatArray<'py>)> {
+    let (body, point, _) = frame_arguments(&model, body, point, "local_world_aligned")?;
+    let nv = model.model.nv();
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("a", &a, &[nv]), ("weights", &weights, &[3])])?;
+    let packed = run_packed(py, &model, &batch, 4 * nv * nv + nv, |m, w, i, out| {
+        let (q, v, a, f) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i), batch.rows[3].row(i));
+        check_state(m, q, Some(v))?;
+        check_vector("a", a, nv)?;
+        legkit_dynamics::validate::finite_vector("weights", Vector3::from_column_slice(f))?;
+        algorithms::point_acceleration_hessian(m, w.dense(&[Dense::Workspace])?, q, v, a, body, &point, &Vector3::from_column_slice(f), out);
+        finite_result(out)
+    })?;
+    let square: &[usize] = &[nv, nv];
+    let mut parts = unpack(py, &batch, &packed, &[square, square, square, square, &[nv]])?.into_iter();
+    let mut next = || parts.next().expect("five");
+    Ok((next(), next(), next(), next(), next()))
+}
+
 /// The model's centre of mass in the world frame: `(..., 3)`.
 #[pyfunction(crate = "crate::arguments")]
 pub fn center_of_mass<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
@@ -141,6 +175,57 @@ pub fn center_of_mass<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayA
         out.copy_from_slice(algorithms::center_of_mass(m, w.data(), q).as_slice());
         finite_result(out)
     })
+}
+
+/// (Hessian `(..., nv, nv)`, gradient `(..., nv)`) with respect to q (on its tangent space, as `rnea_derivatives`;
+/// entry [e, d] the slope along q_d of the gradient's entry e) of `weights` . the world centre of mass.
+#[pyfunction(crate = "crate::arguments")]
+pub fn center_of_mass_hessian<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    weights: ArrayArg<'_>,
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
+    let nv = model.model.nv();
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("weights", &weights, &[3])])?;
+    let packed = run_packed(py, &model, &batch, nv * nv + nv, |m, w, i, out| {
+        let (q, f) = (batch.rows[0].row(i), batch.rows[1].row(i));
+        check_state(m, q, None)?;
+        legkit_dynamics::validate::finite_vector("weights", Vector3::from_column_slice(f))?;
+        let (hessian, gradient) = out.split_at_mut(nv * nv);
+        algorithms::center_of_mass_hessian(m, w.dense(&[Dense::Workspace])?, q, &Vector3::from_column_slice(f), hessian, gradient);
+        finite_result(out)
+    })?;
+    let mut parts = unpack(py, &batch, &packed, &[&[nv, nv], &[nv]])?.into_iter();
+    Ok((parts.next().expect("two"), parts.next().expect("two")))
+}
+
+/// (qq, qv, q-gradient) of `weights` (..., 6) . the centroidal momentum h = [linear; angular about the COM]
+/// (`centroidal_momentum`): qq `(..., nv, nv)` (entry [e, d] the slope along q_d of the gradient's entry e, q on its
+/// tangent space), qv `(..., nv, nv)` (entry [d, e] = d2/dq_d dv_e), the gradient `(..., nv)`; vv is zero.
+#[pyfunction(crate = "crate::arguments")]
+pub fn centroidal_momentum_hessian<'py>(
+    py: Python<'py>,
+    model: PyRef<'_, PyModel>,
+    q: ArrayArg<'_>,
+    v: ArrayArg<'_>,
+    weights: ArrayArg<'_>,
+) -> PyResult<(FloatArray<'py>, FloatArray<'py>, FloatArray<'py>)> {
+    let nv = model.model.nv();
+    let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("weights", &weights, &[6])])?;
+    let packed = run_packed(py, &model, &batch, 2 * nv * nv + nv, |m, w, i, out| {
+        let (q, v, f) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
+        check_state(m, q, Some(v))?;
+        check_vector("weights", f, 6)?;
+        let weights: [f64; 6] = f.try_into().expect("six weights, as broadcast");
+        let (qq, rest) = out.split_at_mut(nv * nv);
+        let (qv, gradient) = rest.split_at_mut(nv * nv);
+        algorithms::centroidal_momentum_hessian(m, w.dense(&[Dense::Workspace])?, q, v, &weights, qq, qv, gradient);
+        finite_result(out)
+    })?;
+    let mut parts = unpack(py, &batch, &packed, &[&[nv, nv], &[nv, nv], &[nv]])?.into_iter();
+    let mut next = || parts.next().expect("three");
+    Ok((next(), next(), next()))
 }
 
 /// Mass properties of the subtree rooted at each body, in world coordinates (inertia about the subtree's

@@ -47,6 +47,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(kinematics::jacobian_time_variation, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::kinematic_hessian, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::point_velocity_hessian, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::point_acceleration_hessian, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::center_of_mass_hessian, m)?)?;
+    m.add_function(wrap_pyfunction!(kinematics::centroidal_momentum_hessian, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::frame_velocity, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::frame_acceleration, m)?)?;
     m.add_function(wrap_pyfunction!(kinematics::frame_velocity_derivatives, m)?)?;

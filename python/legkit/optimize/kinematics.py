@@ -196,14 +196,21 @@ def point_jacobians(model: lk.Model, q: np.ndarray, points: Sequence[ContactPoin
     return out
 
 
-def position_curvature(model: lk.Model, q: np.ndarray, points: Sequence[ContactPoint], weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(Hessian (B, nq, nq), gradient (B, nq)) with respect to raw q (B, nq) of sum_c weights[:, c] . the world
-    position of point c, weights (B, len(points), 3): `raw_hessian` of `lk.kinematic_hessian`'s linear rows."""
-    unit_q = unit(model, q)
-    curvature, gradient = np.zeros((len(q), model.nv, model.nv)), np.zeros((len(q), model.nv))
+def tangent_position_curvature(model: lk.Model, unit_q: np.ndarray, points: Sequence[ContactPoint], weights: np.ndarray
+                               ) -> tuple[np.ndarray, np.ndarray]:
+    """(curvature (B, nv, nv), gradient (B, nv)) on the tangent space at unit q (B, nq) of sum_c weights[:, c] . the
+    world position of point c, weights (B, len(points), 3): `lk.kinematic_hessian`'s and `lk.jacobian`'s linear rows."""
+    curvature, gradient = np.zeros((len(unit_q), model.nv, model.nv)), np.zeros((len(unit_q), model.nv))
     for c, (body, point) in enumerate(points):  # a few feet; each line is batched over all rows
         curvature += np.einsum("br,brad->bad", weights[:, c], np.asarray(lk.kinematic_hessian(model, unit_q, body, point, _WORLD))[:, :3])
         gradient += np.einsum("br,bra->ba", weights[:, c], np.asarray(lk.jacobian(model, unit_q, body, point, _WORLD))[:, :3])
+    return curvature, gradient
+
+
+def position_curvature(model: lk.Model, q: np.ndarray, points: Sequence[ContactPoint], weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(Hessian (B, nq, nq), gradient (B, nq)) with respect to raw q (B, nq) of sum_c weights[:, c] . the world
+    position of point c, weights (B, len(points), 3): `raw_hessian` of `tangent_position_curvature`."""
+    curvature, gradient = tangent_position_curvature(model, unit(model, q), points, weights)
     return raw_hessian(model, q, curvature, gradient), raw(model, q, gradient[:, None])[:, 0]
 
 

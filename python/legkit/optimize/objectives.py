@@ -39,7 +39,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -306,69 +305,119 @@ def _smooth_edge(problem: ContactModel, k: int, term: MinMaxStability) -> tuple[
     return (contacts if side > 0.0 else contacts[::-1]), diagonal
 
 
-def _smooth_margin(problem: ContactModel, k: int, term: MinMaxStability) -> tuple[Callable, int, Callable]:
-    """The smooth constraint rows (module docstring) as a function of (B, nx + 1) = [q, v, p1], their number and
-    their Jacobian (B, rows, nx + 1)."""
+def _smooth_margin(problem: ContactModel, k: int, term: MinMaxStability) -> tuple[Callable, int, Callable, Callable]:
+    """The smooth constraint rows (module docstring) as a function of (B, nx + 1) = [q, v, p1], their number, their
+    Jacobian (B, rows, nx + 1) and their curvature ((B, nx + 1), weights (B, rows)) -> (B, nx + 1, nx + 1)."""
     edge, diagonal = _smooth_edge(problem, k, term)
-    model, nq, nx = problem.model, problem.nq, problem.nx
+    model, nq, nv, nx = problem.model, problem.nq, problem.nv, problem.nx
     m, g = model.total_mass, -float(model.gravity[2])
     outputs = 2  # rows per point, on either kind of pair
+    p1_slopes = np.array([-1.0, -1.0 if diagonal else 0.0])
+    basis = np.eye(15)  # d of each geometry variable: c, start, end, h
+    d_o = basis[0:3] - basis[3:6]  # o = c - start
+    d_edge = basis[6:8] - basis[3:5]  # (dx, dy) = end - start
+    d_h = basis[9:]
 
-    def rows(c: Any, h: Any, start: Any, end: Any, p1: Any) -> np.ndarray:
-        """(B, 2): the rows from COM c, centroidal momentum h = [P, k_G], the edge's feet (each component-major:
-        c[0] is the x of every point) and p1."""
-        sqrt = np.sqrt
-        dx, dy = end[0] - start[0], end[1] - start[1]
-        length = sqrt(dx * dx + dy * dy)
-        nx_, ny_ = dy / length, -dx / length
-        ax, ay = -ny_, nx_  # e_l = z x n
-        ox, oy, oz = c[0] - start[0], c[1] - start[1], c[2] - start[2]
-        d = -(nx_ * ox + ny_ * oy)
-        r = sqrt(d * d + oz * oz)
-        momentum = ax * (h[3] + oy * h[2] - oz * h[1]) + ay * (h[4] + oz * h[0] - ox * h[2])  # H = H_p . e_l
-        h_ref = m * r * d * sqrt(2.0 * g / (r + oz))  # eq. 10's H_ref, continued with the sign of d
+    def primitives(geometry: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(H, d, H_ref, r) at geometry (B, 15) = [c, start, end, h] and their slopes (B, 15) in it: H = e_l . (k_G +
+        o x P), the momentum about the edge, with o = c - start; d = e_l x o the GCoM's distance inside the edge;
+        r = |(d, o_z)|; H_ref = m r d sqrt(2 g / (r + o_z)). Closed form, complex-analytic (`complex_step_jacobian`)."""
+        c, start, end, h = geometry[:, 0:3], geometry[:, 3:6], geometry[:, 6:9], geometry[:, 9:]
+        dx, dy = end[:, 0] - start[:, 0], end[:, 1] - start[:, 1]
+        length = np.sqrt(dx * dx + dy * dy)
+        ax, ay = dx / length, dy / length  # e_l; its slope is n n^T / length along (dx, dy), n = (ay, -ax)
+        ox, oy, oz = (c - start).T
+        turn = (ay[:, None] * d_edge[0] - ax[:, None] * d_edge[1]) / length[:, None]  # (B, 15): d e_l = turn (ay, -ax)
+        d_ax, d_ay = ay[:, None] * turn, -ax[:, None] * turn
+        kx, ky = h[:, 3] + oy * h[:, 2] - oz * h[:, 1], h[:, 4] + oz * h[:, 0] - ox * h[:, 2]
+        momentum = ax * kx + ay * ky
+        d_kx = d_h[3] + oy[:, None] * d_h[2] + h[:, 2, None] * d_o[1] - oz[:, None] * d_h[1] - h[:, 1, None] * d_o[2]
+        d_ky = d_h[4] + oz[:, None] * d_h[0] + h[:, 0, None] * d_o[2] - ox[:, None] * d_h[2] - h[:, 2, None] * d_o[0]
+        d_momentum = d_ax * kx[:, None] + d_ay * ky[:, None] + ax[:, None] * d_kx + ay[:, None] * d_ky
+        d = ax * oy - ay * ox
+        d_d = d_ax * oy[:, None] + ax[:, None] * d_o[1] - d_ay * ox[:, None] - ay[:, None] * d_o[0]
+        r = np.sqrt(d * d + oz * oz)
+        d_r = (d[:, None] * d_d + oz[:, None] * d_o[2]) / r[:, None]
+        root = np.sqrt(2.0 * g / (r + oz))
+        d_root = -0.5 * root[:, None] * (d_r + d_o[2]) / (r + oz)[:, None]
+        h_ref = m * r * d * root  # eq. 10's H_ref, continued with the sign of d
+        d_h_ref = m * (d_r * (d * root)[:, None] + d_d * (r * root)[:, None] + d_root * (r * d)[:, None])
+        return momentum, d, h_ref, r, d_momentum, d_d, d_h_ref, d_r
+
+    def rows(geometry: np.ndarray, p1: np.ndarray) -> np.ndarray:
+        """(B, 2): the rows at geometry (B, 15) and p1 (B,)."""
+        momentum, d, h_ref, r = primitives(geometry)[:4]
         if diagonal:
-            return stacked([momentum - h_ref - p1, m * r * term.v_tip_max - momentum - p1])
-        return stacked([h_ref - momentum - p1, d])  # d >= 0: the GCoM stays on the side the published rule reads
+            return np.stack([momentum - h_ref - p1, m * r * term.v_tip_max - momentum - p1], axis=1)
+        return np.stack([h_ref - momentum - p1, d], axis=1)  # d >= 0: the GCoM stays on the side the published rule reads
 
-    def stacked(r: list) -> np.ndarray:
-        return np.stack(np.broadcast_arrays(*r), axis=1)
-
-    def margin(z: np.ndarray) -> np.ndarray:
-        q = problem.configuration(z[:, :nq])
-        c = np.asarray(lk.center_of_mass(model, q)).T
-        h = np.asarray(lk.centroidal_momentum(model, q, z[:, nq:nx])).T
-        feet = problem.foot_positions(z[:, :nq], edge)
-        return rows(c, h, feet[:, 0].T, feet[:, 1].T, z[:, nx])
+    def slopes(geometry: np.ndarray) -> np.ndarray:
+        """(B, 2, 15): the rows' slopes in the geometry (p1's are `p1_slopes`)."""
+        _, _, _, _, d_momentum, d_d, d_h_ref, d_r = primitives(geometry)
+        if diagonal:
+            return np.stack([d_momentum - d_h_ref, m * term.v_tip_max * d_r - d_momentum], axis=1)
+        return np.stack([d_h_ref - d_momentum, d_d], axis=1)
 
     points = [(problem.foot_body[n], problem.foot_point[n]) for n in edge]
 
-    def derivative(z: np.ndarray) -> np.ndarray:
-        """The rows' slopes in c, the feet (complex steps of their closed form), h and p1 (exact: the rows are affine
-        in them), chained with the COM's, the feet's and the momentum's derivatives from the kernels (h = A_G(q) v;
-        d/dq of h by `lk.centroidal_derivatives`). A free-flyer's position drops out of every difference."""
+    def geometry_of(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(unit q, the geometry (B, 15) = [c, start, end, h])."""
         q = problem.configuration(z[:, :nq])
         c = np.asarray(lk.center_of_mass(model, q))
         h = np.asarray(lk.centroidal_momentum(model, q, z[:, nq:nx]))
         feet = problem.foot_positions(z[:, :nq], edge)
-        geometry = np.concatenate([c, feet.reshape(len(z), 6), h], axis=1)  # (B, 15): c, start, end, h
+        return q, np.concatenate([c, feet.reshape(len(z), 6), h], axis=1)
 
-        def of_geometry(g: np.ndarray) -> np.ndarray:
-            return rows(g[:, :3].T, g[:, 9:].T, g[:, 3:6].T, g[:, 6:9].T, 0.0)
+    def margin(z: np.ndarray) -> np.ndarray:
+        return rows(geometry_of(z)[1], z[:, nx])
 
-        by_geometry = complex_step_jacobian(of_geometry, geometry, np.arange(9))  # (B, rows, 9)
-        unit = np.eye(7)[:, :, None]  # h = e_0..e_5 and p1 = 1, each against zeros (unit[6])
-        base = rows(c.T, np.zeros(6), feet[:, 0].T, feet[:, 1].T, 0.0)
-        slopes = np.stack([rows(c.T, unit[j, :6], feet[:, 0].T, feet[:, 1].T, unit[j, 6]) - base
-                           for j in range(7)], axis=-1)
-        centroidal = np.asarray(lk.centroidal_derivatives(model, q, z[:, nq:nx], np.zeros((len(z), problem.nv)))[0])
-        ends = kin.point_jacobians(model, q, points)[:, :, :3].reshape(len(z), 6, problem.nv)
-        tangent = (by_geometry[..., :3] @ np.asarray(lk.center_of_mass_jacobian(model, q)) + by_geometry[..., 3:] @ ends
-                   + slopes[..., :6] @ centroidal)
-        by_v = slopes[..., :6] @ np.asarray(lk.centroidal_map(model, q))
-        return np.concatenate([kin.raw(model, z[:, :nq], tangent), by_v, slopes[..., 6:]], axis=2)
+    def geometry_slopes(z: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """(B, 15, nx): the geometry's Jacobian in the raw (q, v) from the kernels (h = A_G(q) v; its q slope by
+        `lk.centroidal_derivatives`)."""
+        out = np.zeros((len(z), 15, nx))
+        centroidal = np.asarray(lk.centroidal_derivatives(model, q, z[:, nq:nx], np.zeros((len(z), nv)))[0])
+        tangent = np.concatenate([np.asarray(lk.center_of_mass_jacobian(model, q)),
+                                  kin.point_jacobians(model, q, points)[:, :, :3].reshape(len(z), 6, nv), centroidal], axis=1)
+        out[:, :, :nq] = kin.raw(model, z[:, :nq], tangent)
+        out[:, 9:, nq:] = np.asarray(lk.centroidal_map(model, q))
+        return out
 
-    return margin, outputs, derivative
+    def derivative(z: np.ndarray) -> np.ndarray:
+        """The rows' closed-form slopes in the geometry chained with its Jacobian from the kernels; p1 enters with
+        `p1_slopes`. A free-flyer's position drops out of every difference."""
+        q, geometry = geometry_of(z)
+        by_state = slopes(geometry) @ geometry_slopes(z, q)
+        return np.concatenate([by_state, np.broadcast_to(p1_slopes[:, None], (len(z), outputs, 1))], axis=2)
+
+    def curvature(z: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """(B, nx + 1, nx + 1): the Hessian of weights . rows = sum_r w_r rows_r(g(q, v)) - p1 terms:
+        J_g^T (d2/dg2) J_g + (d/dg) . d2 g/dx2. The rows' d2/dg2 by complex steps of their closed-form slopes along c and
+        the feet (they are affine in h); g's curvature from the kernels: `lk.center_of_mass_hessian`,
+        `lk.centroidal_momentum_hessian` and the feet's `kin.tangent_position_curvature`, through `kin.raw_hessian`."""
+        q, geometry = geometry_of(z)
+        count = len(z)
+        by_geometry = np.einsum("br,brk->bk", weights, slopes(geometry))  # (B, 15)
+        columns = np.arange(9)
+
+        def weighted(gg: np.ndarray) -> np.ndarray:
+            return np.einsum("br,brk->bk", np.repeat(weights, len(columns), axis=0), slopes(gg))
+
+        second = np.zeros((count, 15, 15))
+        second[:, :, columns] = complex_step_jacobian(weighted, geometry, columns)
+        second[:, columns, 9:] = np.swapaxes(second[:, 9:, columns], 1, 2)
+        jac = geometry_slopes(z, q)
+        out = np.zeros((count, nx + 1, nx + 1))
+        out[:, :nx, :nx] = np.swapaxes(jac, 1, 2) @ second @ jac
+        com_qq, com_q = (np.asarray(x) for x in lk.center_of_mass_hessian(model, q, by_geometry[:, :3]))
+        momentum_qq, momentum_qv, momentum_q = (np.asarray(x) for x in lk.centroidal_momentum_hessian(model, q, z[:, nq:nx], by_geometry[:, 9:]))
+        feet_qq, feet_q = kin.tangent_position_curvature(model, q, points, by_geometry[:, 3:9].reshape(count, 2, 3))
+        out[:, :nq, :nq] += kin.raw_hessian(model, z[:, :nq], com_qq + momentum_qq + feet_qq, com_q + momentum_q + feet_q)
+        cross = np.swapaxes(kin.tangent_map(model, z[:, :nq]), 1, 2) @ momentum_qv  # [q_raw, v]
+        out[:, :nq, nq:nx] += cross
+        out[:, nq:nx, :nq] += np.swapaxes(cross, 1, 2)
+        return out
+
+    return margin, outputs, derivative, curvature
 
 
 def _stability_block(problem: ContactModel, k: int, term: MinMaxStability) -> Block:
@@ -379,7 +428,8 @@ def _stability_block(problem: ContactModel, k: int, term: MinMaxStability) -> Bl
     index = problem.point_index[k]
     columns = np.concatenate([index[:, : problem.nx], np.full((len(index), 1), problem.p1_index)], axis=1)
     if term.smooth:
-        margin, rows, derivative = _smooth_margin(problem, k, term)
-        return Point(columns, margin, rows, 0.0, np.inf, derivative=derivative, nonlinear=problem.q_without_translation)
+        margin, rows, derivative, curvature = _smooth_margin(problem, k, term)
+        return Point(columns, margin, rows, 0.0, np.inf, derivative=derivative, nonlinear=problem.q_without_translation,
+                     curvature=curvature)
     nx = problem.nx
     return Point(columns, lambda z: (published_stability(problem, k, term, z) - z[:, nx])[:, None], 1, 0.0, np.inf)

@@ -30,9 +30,11 @@ The transcription of [Hardt 2002, Sect. 2.3 and 4.1], on legkit's kernels:
 The constraint Jacobian is exact, from the core's analytic derivatives (`lk.rnea_derivatives`, `lk.crba`, frame
 Jacobians and their velocity and acceleration derivatives) in the variables' raw coordinates (`kinematics`);
 its pattern, from the model's tree, is fixed before solving. So is the Hessian of the Lagrangian of the dynamics, the
-feet's positions and velocities and the swing clearance (`lk.rnea_second_order_derivatives`, `lk.kinematic_hessian`,
-`lk.point_velocity_hessian`, through `kinematics.raw_hessian`); the other blocks' curvature is differenced from their
-exact Jacobians (`blocks.group_hessian`). Objectives: `objectives.py`.
+feet's positions, velocities and accelerations, the swing clearance, the touchdown's impact and the smooth S_H margin
+(`lk.rnea_second_order_derivatives`, `lk.kinematic_hessian`, `lk.point_velocity_hessian`,
+`lk.point_acceleration_hessian`, `lk.center_of_mass_hessian`, `lk.centroidal_momentum_hessian`, through
+`kinematics.raw_hessian`); the other blocks' curvature is differenced from their exact Jacobians
+(`blocks.group_hessian`). Objectives: `objectives.py`.
 
 The house, importing downward only: `definition` (the fields, checked) <- `layout` (the variables) <- `contact` (contact
 kinematics at the point variables) <- `constraints` (one module per family) <- `assembly` (the NLP) <- `strategy` (how

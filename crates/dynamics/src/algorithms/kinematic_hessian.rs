@@ -9,8 +9,8 @@
 use nalgebra::Vector3;
 
 use super::jacobian::{jacobian, Frame};
-use super::kinematics_derivatives::{about, support};
-use super::rnea_derivatives::column;
+use super::kinematics_derivatives::{about, joints_to_root, support};
+use super::rnea_derivatives::{column, set_column};
 use crate::model::{Data, Model};
 use crate::spatial::{angular, cross_motion, linear, spatial, Motion};
 
@@ -78,20 +78,14 @@ pub fn point_velocity_hessian(
     slope.fill(0.0);
     // W per coordinate, summed from the body's joint to the root (a joint's coordinates share one W).
     let mut after = Motion::zeros();
-    let mut j = body;
-    loop {
-        let k = model.idx_v(j);
-        for (c, rate) in u.iter().enumerate().skip(k).take(model.joint(j).nv()) {
-            after += column(&data.jacobian, c) * *rate;
+    joints_to_root(model, body, |own, _| {
+        for c in own.clone() {
+            after += column(&data.jacobian, c) * u[c];
         }
-        for c in k..k + model.joint(j).nv() {
+        for c in own {
             data.derivatives.velocity_after.set_column(c, &after);
         }
-        if j == 0 {
-            break;
-        }
-        j = model.parent(j);
-    }
+    });
     let (columns, sums) = (&data.jacobian, &data.derivatives.velocity_after);
     let velocity = after;
     let linear_at = |m: &Motion| linear(m) + angular(m).cross(&origin);
@@ -123,7 +117,7 @@ pub fn point_velocity_hessian(
 }
 
 /// Whether `ancestor` is `joint` or one of its ancestors.
-fn is_ancestor(model: &Model, ancestor: usize, joint: usize) -> bool {
+pub(crate) fn is_ancestor(model: &Model, ancestor: usize, joint: usize) -> bool {
     let mut j = joint;
     loop {
         if j == ancestor {
@@ -134,4 +128,156 @@ fn is_ancestor(model: &Model, ancestor: usize, joint: usize) -> bool {
         }
         j = model.parent(j);
     }
+}
+
+/// One support coordinate's quantities for `point_acceleration_hessian` (world axes, about the world origin): its
+/// column S, the velocities W (its joint and after), B (before its joint), T = B + its joint's own, the acceleration
+/// terms Ā after it, and the slopes along it of the body's velocity Y = S × W, of its acceleration Z and of the
+/// point's velocity Q, with X = S × B and the point's column J.
+struct Coordinate {
+    s: Motion,
+    w: Motion,
+    before: Motion,
+    through: Motion,
+    after: Motion,
+    x: Motion,
+    y: Motion,
+    z: Motion,
+    j: Vector3<f64>,
+    point_rate: Vector3<f64>,
+}
+
+/// The second derivatives of F · a_p(q, v, a), a_p the classical world acceleration of `point` on `body` (as
+/// `point_accelerations`) and F = `weights`, on q's tangent space as `point_velocity_hessian`: `out` holds, row-major
+/// nv x nv each, qq (`[b, d]` the slope along q_d of the q-gradient's entry b), qv (`[d, e]` = ∂²/∂q_d ∂v_e), vv, qa
+/// (`[d, e]` = ∂²/∂q_d ∂a_e), then the q-gradient (nv); aa and va are zero. With the world columns S and the force
+/// F = [w; p × w] at the origin, a_p = F-paired: F · A + w · (ω × v_p), A = Σ S_a a_a + v_a T_a × S_a the body's
+/// spatial acceleration (T_a the velocity of joint a's body). A change of q_d turns the columns at and after its joint
+/// (∂S_a/∂q_d = S_d × S_a, Carpentier & Mansard, RSS 2018, eq. 7) and moves p along J_d, so ∂V/∂q_d = S_d × W_d and,
+/// by the Jacobi identity, ∂A/∂q_d = S_d × Ā_d - (S_d × B_d) × W_d; differentiating these once more gives each entry
+/// from a few cross products of per-coordinate sums: O(n²) for a support of n coordinates. Runs `jacobian`.
+#[allow(clippy::too_many_arguments)]
+pub fn point_acceleration_hessian(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    weights: &Vector3<f64>,
+    out: &mut [f64],
+) {
+    let nv = model.nv();
+    data.derivatives.reserve(model);
+    jacobian(model, data, q, body, point, Frame::World);
+    let p = data.o_m_i[body].transform_point(point);
+    let Data { jacobian: columns, derivatives: sums, .. } = data;
+    // W per coordinate from the body's joint to the root; then B = V - W, T and Ā (suffix sums of S a + v T × S).
+    let mut after = Motion::zeros();
+    joints_to_root(model, body, |own, _| {
+        for c in own.clone() {
+            after += column(columns, c) * v[c];
+        }
+        for c in own {
+            set_column(&mut sums.velocity_after, c, &after);
+        }
+    });
+    let velocity = after;
+    let mut acceleration = Motion::zeros();
+    joints_to_root(model, body, |own, _| {
+        let before = velocity - column(&sums.velocity_after, own.start);
+        let through = own.clone().fold(before, |t, c| t + column(columns, c) * v[c]);
+        for c in own.clone() {
+            let s = column(columns, c);
+            acceleration += s * a[c] + cross_motion(&through, &s) * v[c];
+        }
+        for c in own {
+            set_column(&mut sums.velocity_before, c, &before);
+            set_column(&mut sums.velocity_through, c, &through);
+            set_column(&mut sums.acceleration_after, c, &acceleration);
+        }
+    });
+    let force = spatial(*weights, p.cross(weights));
+    let (omega, point_velocity) = (angular(&velocity), linear_at(&velocity, &p));
+    let coordinate = |c: usize| {
+        let (s, w, before) = (column(columns, c), column(&sums.velocity_after, c), column(&sums.velocity_before, c));
+        let (x, y, after) = (cross_motion(&s, &before), cross_motion(&s, &w), column(&sums.acceleration_after, c));
+        let j = linear_at(&s, &p);
+        Coordinate {
+            s,
+            w,
+            before,
+            through: column(&sums.velocity_through, c),
+            after,
+            x,
+            y,
+            z: cross_motion(&s, &after) - cross_motion(&x, &w),
+            j,
+            point_rate: linear_at(&y, &p) + omega.cross(&j),
+        }
+    };
+    let wrench = |m: &Motion| force.dot(m); // F · m = w · (the velocity m gives p)
+    let turning = |j: &Vector3<f64>, m: &Motion| j.cross(weights).dot(&angular(m)); // (∂F/∂q along j) · m
+    let (qq, rest) = out.split_at_mut(nv * nv);
+    let (qv, rest) = rest.split_at_mut(nv * nv);
+    let (vv, rest) = rest.split_at_mut(nv * nv);
+    let (qa, gradient) = rest.split_at_mut(nv * nv);
+    support(model, body, |b, joint_b| {
+        let cb = coordinate(b);
+        let spin_b = angular(&cb.s);
+        // ∂A/∂v_b = S_b × (W_b - T_b).
+        let by_v = cross_motion(&cb.s, &(cb.w - cb.through));
+        gradient[b] = turning(&cb.j, &acceleration)
+            + wrench(&cb.z)
+            + weights.dot(&angular(&cb.y).cross(&point_velocity))
+            + weights.dot(&omega.cross(&cb.point_rate));
+        support(model, body, |d, joint_d| {
+            let cd = coordinate(d);
+            let (d_before_b, b_before_d) = (is_ancestor(model, joint_d, joint_b), is_ancestor(model, joint_b, joint_d));
+            let later = if d_before_b { &cb } else { &cd };
+            // The slopes along q_d of b's quantities.
+            let ds = if d_before_b { cross_motion(&cd.s, &cb.s) } else { Motion::zeros() };
+            let d_before = if d_before_b && joint_d != joint_b { cross_motion(&cd.s, &(cb.before - cd.before)) } else { Motion::zeros() };
+            let d_through = if d_before_b { cross_motion(&cd.s, &(cb.through - cd.before)) } else { Motion::zeros() };
+            let dw = cross_motion(&cd.s, &later.w);
+            let d_after = cross_motion(&cd.s, &later.after) - cross_motion(&cd.x, &later.w);
+            let dj = linear_at(&ds, &p) + spin_b.cross(&cd.j);
+            let dx = cross_motion(&ds, &cb.before) + cross_motion(&cb.s, &d_before);
+            let dy = cross_motion(&ds, &cb.w) + cross_motion(&cb.s, &dw);
+            let dz = cross_motion(&ds, &cb.after) + cross_motion(&cb.s, &d_after) - cross_motion(&dx, &cb.w) - cross_motion(&cb.x, &dw);
+            let d_rate = linear_at(&dy, &p) + angular(&cb.y).cross(&cd.j) + angular(&cd.y).cross(&cb.j) + omega.cross(&dj);
+            qq[b * nv + d] = dj.cross(weights).dot(&angular(&acceleration))
+                + turning(&cb.j, &cd.z)
+                + turning(&cd.j, &cb.z)
+                + wrench(&dz)
+                + weights.dot(&angular(&dy).cross(&point_velocity))
+                + weights.dot(&angular(&cb.y).cross(&cd.point_rate))
+                + weights.dot(&angular(&cd.y).cross(&cb.point_rate))
+                + weights.dot(&omega.cross(&d_rate));
+            let d_by_v = cross_motion(&ds, &(cb.w - cb.through)) + cross_motion(&cb.s, &(dw - d_through));
+            qv[d * nv + b] = turning(&cd.j, &by_v)
+                + wrench(&d_by_v)
+                + weights.dot(&angular(&ds).cross(&point_velocity))
+                + weights.dot(&spin_b.cross(&cd.point_rate))
+                + weights.dot(&angular(&cd.y).cross(&cb.j))
+                + weights.dot(&omega.cross(&dj));
+            qa[d * nv + b] = turning(&cd.j, &cb.s) + wrench(&ds);
+            // ∂²A/∂v_b ∂v_d = S_earlier × S_later (zero within a joint).
+            let mut joint_rates = Motion::zeros();
+            if d_before_b {
+                joint_rates += cross_motion(&cd.s, &cb.s);
+            }
+            if b_before_d {
+                joint_rates += cross_motion(&cb.s, &cd.s);
+            }
+            vv[b * nv + d] = wrench(&joint_rates) + weights.dot(&spin_b.cross(&cd.j)) + weights.dot(&angular(&cd.s).cross(&cb.j));
+        });
+    });
+}
+
+/// The velocity motion `m` gives the point `p` (world coordinates).
+#[inline(always)]
+fn linear_at(m: &Motion, p: &Vector3<f64>) -> Vector3<f64> {
+    linear(m) + angular(m).cross(p)
 }

@@ -100,12 +100,16 @@ impl FramePoint {
 
 /// Calls `visit(column, joint)` for each velocity coordinate of `joint` and of its ancestors, from it to the root.
 pub(crate) fn support(model: &Model, joint: usize, mut visit: impl FnMut(usize, usize)) {
+    joints_to_root(model, joint, |coordinates, j| coordinates.for_each(|c| visit(c, j)));
+}
+
+/// Calls `visit(coordinates, joint)` with the velocity coordinates of `joint` and of each of its ancestors, from it to the
+/// root.
+pub(crate) fn joints_to_root(model: &Model, joint: usize, mut visit: impl FnMut(std::ops::Range<usize>, usize)) {
     let mut j = joint;
     loop {
         let k = model.idx_v(j);
-        for c in k..k + model.joint(j).nv() {
-            visit(c, j);
-        }
+        visit(k..k + model.joint(j).nv(), j);
         if j == 0 {
             break;
         }

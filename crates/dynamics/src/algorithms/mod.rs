@@ -6,6 +6,7 @@ pub(crate) mod aba;
 pub(crate) mod aba_derivatives;
 pub(crate) mod centroidal;
 pub(crate) mod centroidal_derivatives;
+pub(crate) mod centroidal_hessian;
 pub(crate) mod com;
 pub(crate) mod configuration;
 pub(crate) mod contact;
@@ -26,6 +27,7 @@ pub use aba::{aba, aba_with_armature};
 pub use aba_derivatives::{aba_derivatives, aba_derivatives_into, minv_by_recursion};
 pub use centroidal::{center_of_mass_jacobian, centroidal_map, centroidal_momentum, centroidal_momentum_rate};
 pub use centroidal_derivatives::centroidal_derivatives;
+pub use centroidal_hessian::{center_of_mass_hessian, centroidal_momentum_hessian};
 pub use com::{center_of_mass, subtree_mass_properties};
 pub use configuration::{difference, difference_jacobians, integrate, integrate_jacobians};
 pub use contact::{
@@ -39,7 +41,7 @@ pub use crba::crba;
 pub use energy::{kinetic_energy, potential_energy};
 pub use integrate::{free_rollout, Integrator, Method};
 pub use jacobian::{jacobian, Frame};
-pub use kinematic_hessian::{kinematic_hessian, point_velocity_hessian};
+pub use kinematic_hessian::{kinematic_hessian, point_acceleration_hessian, point_velocity_hessian};
 pub use kinematics::forward_kinematics;
 pub use kinematics_derivatives::{
     frame_acceleration, frame_acceleration_derivatives, frame_velocity, frame_velocity_derivatives, jacobian_time_variation,

@@ -119,6 +119,31 @@ def stance_blocks(problem: ContactModel, k: int) -> list[Block]:
                 slopes[:, 3 * i : 3 * i + 3, problem.a_columns[k]] = by_a
             return slopes[:, axes][:, :, columns]
 
+        def acceleration_curvature(g: np.ndarray, weights: np.ndarray, columns: np.ndarray = acceleration_columns, rows: list = rows,
+                                   name: str = name) -> np.ndarray:
+            """(B, k, k): the Hessian of weights . the rows' accelerations, from `lk.point_acceleration_hessian` with the
+            rows' loads F = weights (`row_forces`): qq (its q-gradient for the quaternion's chart), qv, vv and qa (a
+            enters linearly)."""
+            z = full(g, columns)
+            q, v, a = z[:, :nq], z[:, nq:nx], problem.accelerations(z, k)
+            unit = problem.configuration(q)
+            loads = problem.row_forces(weights, [name])
+            parts = [np.zeros((len(g), nv, nv)) for _ in range(4)] + [np.zeros((len(g), nv))]
+            for c, (body, point, _) in enumerate(rows):  # a foot's few points; each call batched over all knots
+                for total, part in zip(parts, lk.point_acceleration_hessian(problem.model, unit, v, a, body, point, loads[:, c])):
+                    total += part
+            qq, qv, vv, qa, gradient = parts
+            out = np.zeros((len(g), width, width))
+            turn = np.swapaxes(kin.tangent_map(problem.model, q), 1, 2)  # [q_raw, dq]
+            accelerations = problem.a_columns[k]
+            out[:, :nq, :nq] = kin.raw_hessian(problem.model, q, qq, gradient)
+            out[:, :nq, nq:nx] = turn @ qv
+            out[:, :nq, accelerations] = turn @ qa
+            out[:, nq:nx, nq:nx] = vv
+            out[:, nq:nx, :nq] = np.swapaxes(out[:, :nq, nq:nx], 1, 2)
+            out[:, accelerations, :nq] = np.swapaxes(out[:, :nq, accelerations], 1, 2)
+            return out[:, columns][:, :, columns]
+
         held = knots
         if k > 0 or linked or problem.initial is not None:
             held = held[held > 0]
@@ -130,7 +155,7 @@ def stance_blocks(problem: ContactModel, k: int) -> list[Block]:
             blocks.append(Point(index[np.ix_(held, velocity_columns)], velocities, len(axes), derivative=velocity_slopes,
                                 nonlinear=np.arange(len(q_columns)), curvature=velocity_curvature))
         blocks.append(Point(index[np.ix_(knots, acceleration_columns)], accelerations, len(axes), derivative=acceleration_slopes,
-                            nonlinear=np.arange(len(velocity_columns))))
+                            nonlinear=np.arange(len(velocity_columns)), curvature=acceleration_curvature))
     return blocks
 
 
