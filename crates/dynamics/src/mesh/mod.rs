@@ -4,6 +4,7 @@
 
 mod collada;
 mod hull;
+mod inertia;
 mod obj;
 mod path;
 #[cfg(test)]
@@ -16,6 +17,7 @@ use nalgebra::Vector3;
 use crate::{Error, Result};
 pub(crate) use hull::hull_points;
 pub use hull::HULL_POINTS;
+pub(crate) use inertia::{inconsistent_edge, mesh_mass, MeshMass, OVERFLOW};
 pub use obj::MUJOCO_OBJ_CORNERS;
 pub use path::resolve_mesh;
 
@@ -66,7 +68,7 @@ pub fn mesh_triangles(path: &Path) -> Result<(Triangles, MujocoDiffers)> {
     let file = path.display();
     let (vertices, faces) = match extension.as_str() {
         // Each triangle lists its corners: those equal to the bit are one vertex, as MuJoCo's STL decoder merges
-        // them (google-deepmind/mujoco), so that its faces share edges (see `mjcf::inconsistent_edge`).
+        // them (google-deepmind/mujoco), so that its faces share edges (see `inconsistent_edge`).
         "stl" => stl(&bytes).and_then(|corners| {
             if binary_stl(&bytes).is_none() {
                 differs.refused = Some(format!("{file}: an ASCII STL, which MuJoCo refuses (it reads binary STL only); legkit reads it"));

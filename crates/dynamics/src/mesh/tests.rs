@@ -1,11 +1,14 @@
-//! Tests of the mesh readers, hull points and package paths.
+//! Tests of the mesh readers, hull points, package paths and mesh inertia.
 
 use std::borrow::Cow;
 use std::path::PathBuf;
 
+use nalgebra::Matrix3;
+
 use super::collada::collada;
 use super::obj::obj_faces;
 use super::*;
+use crate::Transform;
 
 const CUBE: [[f64; 3]; 8] = [[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [1., 1., 0.], [0., 0., 1.], [1., 0., 1.], [0., 1., 1.], [1., 1., 1.]];
 /// The cube's 12 triangles as vertex indices.
@@ -213,4 +216,46 @@ fn collada_nesting_deeper_than_the_call_stack_allows() {
     let vertices = collada(&text).unwrap();
     assert_eq!(vertices.len(), 8);
     assert_eq!(vertices[0], Vector3::new(depth as f64, 0.0, 0.0));
+}
+
+/// A box's triangles, half-sizes `h`, turned by `r` and moved by `t`, with every other face turned inside out.
+fn box_mesh(h: Vector3<f64>, r: &Matrix3<f64>, t: &Vector3<f64>) -> (Vec<Vector3<f64>>, Vec<[usize; 3]>) {
+    let corner = |i: usize| {
+        r * Vector3::new(
+            h.x * if i & 1 == 0 { -1.0 } else { 1.0 },
+            h.y * if i & 2 == 0 { -1.0 } else { 1.0 },
+            h.z * if i & 4 == 0 { -1.0 } else { 1.0 },
+        ) + t
+    };
+    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    let faces = quads
+        .iter()
+        .enumerate()
+        .flat_map(|(k, q)| if k % 2 == 0 { [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] } else { [[q[0], q[2], q[1]], [q[0], q[3], q[2]]] })
+        .collect();
+    ((0..8).map(corner).collect(), faces)
+}
+
+#[test]
+fn a_box_meshs_legacy_mass_is_the_solid_box_whatever_its_faces_orientation() {
+    let (h, r, t) =
+        (Vector3::new(0.1, 0.2, 0.3), Transform::rotation_about(&Vector3::new(1.0, 2.0, 3.0).normalize(), 0.7), Vector3::new(0.5, -1.0, 2.0));
+    let (vertices, faces) = box_mesh(h, &r, &t);
+    let mass = mesh_mass(&vertices, &faces, "legacy").unwrap();
+    let inertia = r
+        * Matrix3::from_diagonal(&Vector3::new(h.y * h.y + h.z * h.z, h.x * h.x + h.z * h.z, h.x * h.x + h.y * h.y))
+        * r.transpose()
+        * (8.0 * h.x * h.y * h.z / 3.0);
+    assert!((mass.volume - 8.0 * h.x * h.y * h.z).abs() < 1e-15);
+    assert!((mass.com - t).norm() < 1e-14);
+    assert!((mass.inertia - inertia).norm() < 1e-9 * inertia.norm(), "{} vs {inertia}", mass.inertia);
+    // "exact" sums signed pyramids: the inside-out faces cancel their opposites. MuJoCo refuses the mesh before:
+    // the inside-out faces run along the edges they share with their neighbours in the same direction.
+    assert!(mesh_mass(&vertices, &faces, "exact").is_err());
+    assert_eq!(inconsistent_edge(&vertices, &faces).unwrap(), Some([1, 5]));
+    let outward: Vec<[usize; 3]> = faces.iter().enumerate().map(|(k, f)| if (k / 2) % 2 == 1 { [f[0], f[2], f[1]] } else { *f }).collect();
+    assert_eq!(inconsistent_edge(&vertices, &outward).unwrap(), None);
+    // Faces of no area do not count.
+    let sliver = [outward.as_slice(), &[[0, 0, 1], [0, 0, 1]]].concat();
+    assert_eq!(inconsistent_edge(&vertices, &sliver).unwrap(), None);
 }
