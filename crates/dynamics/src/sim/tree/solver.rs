@@ -776,16 +776,16 @@ impl Solver {
     /// law's unsymmetric coupling if `coupled`; false if the factor fails.
     fn assemble(&mut self, model: &Model, data: &Data, armature: &[f64], constraints: &[Constraint], coupled: bool) -> bool {
         let tree = &mut self.tree;
-        tree.clear_stiffness(data);
+        tree.clear_stiffness();
         for c in constraints.iter().filter(|c| c.active()) {
             let projection = &c.projection;
             match c.target {
                 // Φ_aᵀ (F H_c Fᵀ) Φ_a, and likewise on b without the two chains' coupling.
                 Target::Bodies(a, b) => {
                     for body in std::iter::once(a).chain(b) {
-                        c.add_stiffness(projection, &mut tree.inertia[body]);
+                        c.add_stiffness(projection, &mut tree.stiffness[body]);
                         if coupled {
-                            c.add_coupling(projection, &mut tree.inertia[body]);
+                            c.add_coupling(projection, &mut tree.stiffness[body]);
                         }
                     }
                 }
