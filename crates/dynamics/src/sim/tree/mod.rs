@@ -22,6 +22,7 @@
 
 mod articulated;
 mod collision;
+mod constraint;
 mod delassus;
 mod plane;
 mod solver;
@@ -41,8 +42,9 @@ use crate::model::{Data, Model};
 use crate::spatial::{spatial, Transform};
 use crate::{Error, MassProperties, Result};
 use collision::{Collision, Found, History};
+use constraint::{Constraint, Kind, Target, BAUMGARTE, MAX_CORRECTION, TOLERANCE};
 use delassus::Delassus;
-use solver::{Constraint, Kind, Solver, Target, BAUMGARTE, MAX_CORRECTION, TOLERANCE};
+use solver::Solver;
 use transition::Transition;
 
 /// Joint limits are watched from this far off (rad or m), beyond the step's own travel.
