@@ -357,6 +357,18 @@ impl Constraint {
         self.projection.same_zone(&self.project_coulomb(std::array::from_fn(|r| self.residual[r] + self.slope[r]), None))
     }
 
+    /// Whether, in the zone of its projection, the law is affine (pressing or apart, and sticking or without
+    /// friction) and its Newton matrix term exact (on one body or coordinate): a full Newton step in that zone
+    /// lands on the law's solution.
+    pub(super) fn exact_in_zone(&self) -> bool {
+        matches!(self.projection.tangent, Tangent::Free | Tangent::Held(_)) && !matches!(self.target, Target::Bodies(_, Some(_)))
+    }
+
+    /// Whether its law's unsymmetric term is in play: pressing and sliding (`add_coupling`).
+    pub(super) fn couples(&self) -> bool {
+        matches!((self.projection.normal, self.projection.tangent), (Some(_), Tangent::Sliding { .. }))
+    }
+
     /// The diagonal entry H_c[0, 0] (a joint limit's stiffness on its coordinate, before the row's scale).
     pub(super) fn normal_stiffness(&self, projection: &Projection) -> f64 {
         if projection.normal.is_some() {

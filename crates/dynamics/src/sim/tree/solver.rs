@@ -199,6 +199,11 @@ impl Solver {
             }
             let alpha = if full { 1.0 } else { line_search(constraints, start, initial, curvature) };
             self.move_along(constraints, v_free, v, alpha);
+            // A full step in zones where the law is affine, its Jacobian exact (no sliding; no contact between
+            // two bodies, whose coupling the factor leaves out), lands on the solution: nothing left to check.
+            if full && constraints.iter().filter(|c| c.active()).all(Constraint::exact_in_zone) {
+                break;
+            }
             // The error left after a step, from the steps' contraction over two iterations r (linear where
             // contacts couple two bodies' chains, which the factor leaves out): step r / (1 − r), or a
             // thousand steps where they do not contract (the rounding floor).
@@ -296,8 +301,10 @@ impl Solver {
     }
 
     /// Assembles and factors the Newton matrix M̃ + Σ Jᵀ H_c J at the constraints' projections, with the
-    /// law's unsymmetric coupling if `coupled`; false if the factor fails.
+    /// law's unsymmetric coupling if `coupled`; false if the factor fails. Symmetric where no constraint
+    /// couples (nothing presses and slides): Cholesky for the base, no left factors.
     fn assemble(&mut self, model: &Model, data: &Data, armature: &[f64], constraints: &[Constraint], coupled: bool) -> bool {
+        let coupled = coupled && constraints.iter().any(|c| c.active() && c.couples());
         let tree = &mut self.tree;
         tree.clear_stiffness();
         for c in constraints.iter().filter(|c| c.active()) {
