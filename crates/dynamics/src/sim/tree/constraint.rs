@@ -83,8 +83,8 @@ pub(super) struct Constraint {
     pub(super) rows: [Vector6<f64>; 3],
     /// The velocities asked for, b: [normal bias, R_t λ_t1,warm, R_t λ_t2,warm].
     pub(super) asked: [f64; 3],
-    /// The warm start's friction impulses.
-    held: [f64; 2],
+    /// The warm start's impulses (clamped to the cone).
+    warm: [f64; 3],
     /// R_n^-½ and R_t^-½, zero where R is: R_n for an immovable constraint (it carries nothing), R_t for one
     /// whose tangent rows move nothing or that has no friction (its friction idles at the warm start, within
     /// the cone).
@@ -122,7 +122,7 @@ fn clamp_to_cone(lambda: &mut [f64; 3], mu: f64) {
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Projection {
     /// Π_n = s_n while pressing, None while apart.
-    normal: Option<f64>,
+    pub(super) normal: Option<f64>,
     tangent: Tangent,
 }
 
@@ -202,7 +202,7 @@ impl Constraint {
             lambda,
             rows,
             asked: [bias, r_t * lambda[1], r_t * lambda[2]],
-            held: [lambda[1], lambda[2]],
+            warm: lambda,
             inverse_sqrt_r,
             mu,
             cone_slope,
@@ -291,7 +291,7 @@ impl Constraint {
     }
 
     /// The projection of the law itself at residual `y`: the radius from the normal impulse at `y`.
-    fn project_coulomb(&self, y: [f64; 3], zone: Option<&Projection>) -> Projection {
+    pub(super) fn project_coulomb(&self, y: [f64; 3], zone: Option<&Projection>) -> Projection {
         self.project_in(y, self.radius_at(y, zone), zone)
     }
 
@@ -357,11 +357,16 @@ impl Constraint {
         self.projection.same_zone(&self.project_coulomb(std::array::from_fn(|r| self.residual[r] + self.slope[r]), None))
     }
 
-    /// Whether, in the zone of its projection, the law is affine (pressing or apart, and sticking or without
-    /// friction) and its Newton matrix term exact (on one body or coordinate): a full Newton step in that zone
-    /// lands on the law's solution.
-    pub(super) fn exact_in_zone(&self) -> bool {
-        matches!(self.projection.tangent, Tangent::Free | Tangent::Held(_)) && !matches!(self.target, Target::Bodies(_, Some(_)))
+    /// Whether, in the zone of `zone`, the law is affine (pressing or apart, and sticking or without friction)
+    /// and its Newton matrix term exact (on one body or coordinate): a full Newton step in that zone lands on
+    /// the law's solution.
+    pub(super) fn exact_in(&self, zone: &Projection) -> bool {
+        matches!(zone.tangent, Tangent::Free | Tangent::Held(_)) && !matches!(self.target, Target::Bodies(_, Some(_)))
+    }
+
+    /// Its impulses back to the warm start's.
+    pub(super) fn rewarm(&mut self) {
+        self.lambda = self.warm;
     }
 
     /// Whether its law's unsymmetric term is in play: pressing and sliding (`add_coupling`).
@@ -477,8 +482,8 @@ impl Constraint {
         let mut lambda = self.impulses(&self.project_coulomb(self.residual, zone));
         if let Kind::Contact { mu, .. } = self.kind {
             if self.inverse_sqrt_r[1] == 0.0 {
-                lambda[1] = self.held[0];
-                lambda[2] = self.held[1];
+                lambda[1] = self.warm[1];
+                lambda[2] = self.warm[2];
                 clamp_to_cone(&mut lambda, mu);
             }
         }

@@ -80,6 +80,9 @@ pub(super) struct Solver {
     /// The Newton step d and M̃ d.
     step: Vec<f64>,
     mass_step: Vec<f64>,
+    /// Whether the last solve's first step from v_free landed on its solution (`step_from_free`; true where
+    /// nothing is active).
+    pub landed: bool,
 }
 
 impl Solver {
@@ -92,12 +95,15 @@ impl Solver {
             descent: vec![0.0; nv],
             step: vec![0.0; nv],
             mass_step: vec![0.0; nv],
+            landed: false,
         }
     }
 
     /// Solves for the impulses (warm start in `constraints`, solution out) and the velocities `v` they
     /// leave from `v_free`, on the tree whose poses `aba_with_armature` left in `data` (with `armature`; a
-    /// free-flyer base's articulated inertia factored as `base`, `Delassus::base`).
+    /// free-flyer base's articulated inertia factored as `base`, `Delassus::base`); `from_free`: try the first
+    /// step from v_free (`step_from_free`), worth it where the zones hold from step to step (the caller's sign:
+    /// its last solve took at most one iteration; where they switch, a failed try costs a factor).
     /// Returns the Newton iterations done, or None if the Newton matrix is not positive definite.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn solve(
@@ -110,11 +116,21 @@ impl Solver {
         v_free: &[f64],
         v: &mut [f64],
         max_iterations: usize,
+        from_free: bool,
     ) -> Option<usize> {
         v.copy_from_slice(v_free);
         if !constraints.iter().any(Constraint::active) {
             constraints.iter_mut().for_each(Constraint::settle);
+            // v_free is the solution, as a first step from it would find.
+            self.landed = true;
             return Some(0);
+        }
+        // Under the cone law the problem is one convex minimisation: symmetric steps, each line-searched.
+        let coulomb = constraints.iter().any(|c| c.mu > 0.0 && c.cone_slope == 0.0);
+        self.landed = coulomb && from_free && self.step_from_free(model, data, armature, constraints, v_free, v);
+        if self.landed {
+            constraints.iter_mut().for_each(Constraint::settle);
+            return Some(1);
         }
         let tree = &mut self.tree;
         // Warm start: v = v_free + M̃⁻¹ Jᵀ λ_warm, so M̃ (v − v_free) = Jᵀ λ_warm, through ABA's own factor of M̃.
@@ -132,8 +148,6 @@ impl Solver {
             c.residual = std::array::from_fn(|r| velocity[r] - c.asked[r]);
         }
         let (mut iterations, mut last_gradient, mut steps) = (0, f64::INFINITY, [f64::INFINITY; 2]);
-        // Under the cone law the problem is one convex minimisation: symmetric steps, each line-searched.
-        let coulomb = constraints.iter().any(|c| c.mu > 0.0 && c.cone_slope == 0.0);
         // Whether the last step was a full unsymmetric one (to take back if it raised the gradient), and
         // the last direction's φ'(0) terms (`line_search`).
         let mut full = false;
@@ -201,7 +215,7 @@ impl Solver {
             self.move_along(constraints, v_free, v, alpha);
             // A full step in zones where the law is affine, its Jacobian exact (no sliding; no contact between
             // two bodies, whose coupling the factor leaves out), lands on the solution: nothing left to check.
-            if full && constraints.iter().filter(|c| c.active()).all(Constraint::exact_in_zone) {
+            if full && constraints.iter().filter(|c| c.active()).all(|c| c.exact_in(&c.projection)) {
                 break;
             }
             // The error left after a step, from the steps' contraction over two iterations r (linear where
@@ -249,6 +263,54 @@ impl Solver {
             c.slope = rows_times(c, &tree.motion, &self.step);
         }
         tree.mass_times_motions(model, data, armature, &self.step, &mut self.mass_step);
+    }
+
+    /// The first Newton step taken from v_free itself, where every active constraint's zone (its warm start's
+    /// where that presses: last step's solution; else the one at v_free) is one where the law is affine and the
+    /// factor exact (`Constraint::exact_in`): in those zones the step lands on the solution from wherever it
+    /// starts, so the warm start's own solve is saved (a resting robot's step: one factor, one solve). True if
+    /// it landed in the zones it assumed, the solution; otherwise false, with `v` at v_free and the warm-start
+    /// impulses back, for the warm start (one factor lost).
+    fn step_from_free(
+        &mut self,
+        model: &Model,
+        data: &Data,
+        armature: &[f64],
+        constraints: &mut [Constraint],
+        v_free: &[f64],
+        v: &mut [f64],
+    ) -> bool {
+        self.change.fill(0.0);
+        self.mass_change.fill(0.0);
+        self.tree.motions(model, data, v_free);
+        let (mut affine, mut pressing) = (true, false);
+        for c in constraints.iter_mut().filter(|c| c.active()) {
+            let velocity = rows_times(c, &self.tree.motion, v_free);
+            c.residual = std::array::from_fn(|r| velocity[r] - c.asked[r]);
+            let zone = c.warm_zone.unwrap_or_else(|| c.project_coulomb(c.residual, None));
+            if !c.exact_in(&zone) {
+                affine = false;
+                break;
+            }
+            pressing |= zone.normal.is_some();
+            c.radius = c.radius_at(c.residual, Some(&zone));
+            c.projection = c.project_in(c.residual, c.radius, Some(&zone));
+            c.lambda = c.impulses(&c.projection);
+        }
+        // Nothing pressing: the warm start is v_free itself, and optimal if nothing presses there either.
+        let landed = affine && pressing && {
+            self.descend(model, data, constraints);
+            self.assemble(model, data, armature, constraints, false) && {
+                self.direction(model, data, armature, constraints);
+                self.move_along(constraints, v_free, v, 1.0);
+                constraints.iter().filter(|c| c.active()).all(|c| c.projection.same_zone(&c.project_coulomb(c.residual, None)))
+            }
+        };
+        if !landed {
+            v.copy_from_slice(v_free);
+            constraints.iter_mut().for_each(Constraint::rewarm);
+        }
+        landed
     }
 
     /// Moves the velocities `v` (and the constraints' residuals) by `alpha` times the last step.
