@@ -631,7 +631,7 @@ def dog_scene() -> Scene:
     def legkit_runner(backend: str) -> Runner:
         sim = lk.Simulation(model, dt=DT, ground=lk.Ground.plane(FRICTION), backend=backend, **solver_options())
         sim.reset(start, np.zeros(model.nv))
-        return stepping_runner(sim)
+        return stepping_runner(sim, simulation=sim)
 
     def mujoco_runner() -> Runner:
         m, d = compiled()

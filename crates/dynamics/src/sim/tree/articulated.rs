@@ -15,12 +15,13 @@ use crate::model::{Data, Model};
 use crate::spatial::{add_reduced_inertia, dot6, Force, Motion};
 
 pub(super) struct Articulated {
-    /// Each body's I_b + K_b while H is assembled (`clear_stiffness`, then the caller adds K_b), which
-    /// `factor` turns into H's articulated inertias; and per one-degree-of-freedom joint U = I^A S, its left
+    /// Each body's stiffness K_b while H is assembled (the caller adds it), to which `factor` adds the
+    /// children's articulated inertias and reads the body's own as I_b + this; zero between assemblies (the
+    /// factor clears what it reads), so assembling copies no body's constant inertia. Per one-degree-of-freedom joint U = I^A S, its left
     /// counterpart (I^A)ᵀ S and D⁻¹ (eq. 7.38–7.44). K_b may be unsymmetric (a sliding contact's friction
     /// bound following its normal impulse, `solver`): the recursion is Gaussian elimination on the tree, and
     /// needs only nonzero pivots D, U on the right and (I^A)ᵀ S on the left.
-    pub inertia: Vec<Matrix6<f64>>,
+    pub stiffness: Vec<Matrix6<f64>>,
     u: Vec<Motion>,
     u_left: Vec<Motion>,
     d_inv: Vec<f64>,
@@ -57,7 +58,7 @@ impl Articulated {
     pub(super) fn new(model: &Model) -> Self {
         let (n, nv) = (model.nbodies(), model.nv());
         Articulated {
-            inertia: vec![Matrix6::zeros(); n],
+            stiffness: vec![Matrix6::zeros(); n],
             u: vec![Motion::zeros(); n],
             u_left: vec![Motion::zeros(); n],
             d_inv: vec![0.0; n],
@@ -120,63 +121,75 @@ impl Articulated {
         }
     }
 
-    /// Starts assembling H: every body's `inertia` its rigid inertia, no coordinate stiffness.
-    pub(super) fn clear_stiffness(&mut self, data: &Data) {
-        self.inertia.copy_from_slice(&data.rigid);
+    /// Starts assembling H: no coordinate stiffness (the bodies' is zero already, `stiffness`).
+    pub(super) fn clear_stiffness(&mut self) {
         self.coordinate_stiffness.fill(0.0);
     }
 
-    /// Factors H, assembled in `inertia` and `coordinate_stiffness`; false if a pivot D is not positive (H
-    /// is not positive definite) or, for an unsymmetric H (`definite` false), if one is nearly zero.
+    /// Factors H, assembled in `stiffness` and `coordinate_stiffness`, and clears `stiffness`; false if a pivot
+    /// D is not positive (H is not positive definite) or, for an unsymmetric H (`definite` false), if one is
+    /// nearly zero.
     pub(super) fn factor(&mut self, model: &Model, data: &Data, armature: &[f64], definite: bool) -> bool {
         self.of_aba = false;
         for i in (1..model.nbodies()).rev() {
-            let k = model.idx_v(i);
-            let (head, tail) = self.inertia.split_at_mut(i);
-            if model.joint(i).dofs() == Dofs::Ball {
-                // The same with three columns (eq. 7.43): the parent gets I^A − U D⁻¹ ((I^A)ᵀ S)ᵀ.
-                let s = ball_subspace(&data.centred_m_i[i]);
-                let u = tail[0] * s;
-                let u_left = if definite { u } else { tail[0].tr_mul(&s) };
-                let added = Vector3::from_fn(|r, _| armature[k + r] + self.coordinate_stiffness[k + r]);
-                let d = s.tr_mul(&u) + Matrix3::from_diagonal(&added);
-                let d_inv = if definite {
-                    d.cholesky().map(|c| c.inverse())
-                } else {
-                    let lu = d.lu();
-                    let scale = u.norm() * s.norm() + added.amax();
-                    let pivots = lu.u().diagonal();
-                    (d.iter().all(|x| x.is_finite()) && pivots.iter().all(|p| p.abs() > 1e-9 * scale)).then(|| lu.try_inverse()).flatten()
-                };
-                let Some(d_inv) = d_inv else {
-                    return false;
-                };
-                head[model.parent(i)] += tail[0] - u * d_inv * u_left.transpose();
-                self.ball[i] = BallFactor { s, u, u_left, d_inv };
-                continue;
+            if !self.factor_joint(model, data, armature, definite, i) {
+                self.stiffness[..i].fill(Matrix6::zeros());
+                return false;
             }
-            let w = if model.joint(i).nv() == 1 {
-                // eq. 7.39–7.40
-                let u = tail[0] * data.s[i];
-                // (I^A)ᵀ S is U itself while H is symmetric.
-                let u_left = if definite { u } else { tail[0].tr_mul(&data.s[i]) };
-                let added = armature[k] + self.coordinate_stiffness[k];
-                let d = dot6(&data.s[i], u.as_slice()) + added;
-                // Unsymmetric, a pivot may be negative; one that cancels to rounding would amplify it.
-                let pivot = if definite { d > 0.0 } else { d.is_finite() && d.abs() > 1e-9 * (u.norm() * data.s[i].norm() + added.abs()) };
-                if !pivot {
-                    return false;
-                }
-                self.u[i] = u;
-                self.u_left[i] = u_left;
-                self.d_inv[i] = 1.0 / d;
-                u_left / d
-            } else {
-                Motion::zeros()
-            };
-            add_reduced_inertia(&mut head[model.parent(i)], &tail[0], &self.u[i], &w);
         }
-        self.factor_base(model, self.inertia[0], definite)
+        let base = data.rigid[0] + std::mem::replace(&mut self.stiffness[0], Matrix6::zeros());
+        self.factor_base(model, base, definite)
+    }
+
+    /// Body `i`'s step of `factor`: its joint's pivots from its articulated inertia, I_i + `stiffness[i]`
+    /// (which it clears), and what passes to its parent; false if a pivot fails.
+    fn factor_joint(&mut self, model: &Model, data: &Data, armature: &[f64], definite: bool, i: usize) -> bool {
+        let k = model.idx_v(i);
+        let articulated = data.rigid[i] + std::mem::replace(&mut self.stiffness[i], Matrix6::zeros());
+        let parent = &mut self.stiffness[model.parent(i)];
+        if model.joint(i).dofs() == Dofs::Ball {
+            // The same with three columns (eq. 7.43): the parent gets I^A − U D⁻¹ ((I^A)ᵀ S)ᵀ.
+            let s = ball_subspace(&data.centred_m_i[i]);
+            let u = articulated * s;
+            let u_left = if definite { u } else { articulated.tr_mul(&s) };
+            let added = Vector3::from_fn(|r, _| armature[k + r] + self.coordinate_stiffness[k + r]);
+            let d = s.tr_mul(&u) + Matrix3::from_diagonal(&added);
+            let d_inv = if definite {
+                d.cholesky().map(|c| c.inverse())
+            } else {
+                let lu = d.lu();
+                let scale = u.norm() * s.norm() + added.amax();
+                let pivots = lu.u().diagonal();
+                (d.iter().all(|x| x.is_finite()) && pivots.iter().all(|p| p.abs() > 1e-9 * scale)).then(|| lu.try_inverse()).flatten()
+            };
+            let Some(d_inv) = d_inv else {
+                return false;
+            };
+            *parent += articulated - u * d_inv * u_left.transpose();
+            self.ball[i] = BallFactor { s, u, u_left, d_inv };
+            return true;
+        }
+        let w = if model.joint(i).nv() == 1 {
+            // eq. 7.39–7.40
+            let u = articulated * data.s[i];
+            // (I^A)ᵀ S is U itself while H is symmetric.
+            let u_left = if definite { u } else { articulated.tr_mul(&data.s[i]) };
+            let added = armature[k] + self.coordinate_stiffness[k];
+            let d = dot6(&data.s[i], u.as_slice()) + added;
+            // Unsymmetric, a pivot may be negative; one that cancels to rounding would amplify it.
+            let pivot = if definite { d > 0.0 } else { d.is_finite() && d.abs() > 1e-9 * (u.norm() * data.s[i].norm() + added.abs()) };
+            if !pivot {
+                return false;
+            }
+            self.u[i] = u;
+            self.u_left[i] = u_left;
+            self.d_inv[i] = 1.0 / d;
+            u_left / d
+        } else {
+            Motion::zeros()
+        };
+        add_reduced_inertia(parent, &articulated, &self.u[i], &w);
+        true
     }
 
     /// Takes the factor of M̃ itself (no stiffness) from the one `aba_with_armature` left in `data` (with

@@ -41,7 +41,7 @@ impl Delassus {
         self.base = None;
         self.omega[0] = if model.floating_base() {
             match data.inertia[0].cholesky() {
-                Some(c) => self.base.insert(c).inverse(),
+                Some(c) => inverse_from_cholesky(self.base.insert(c).l_dirty()),
                 None => return false,
             }
         } else {
@@ -125,6 +125,29 @@ impl Delassus {
     }
 }
 
+/// A⁻¹ = L⁻ᵀ L⁻¹ from the lower triangle of A's Cholesky factor L (the rest of `l` is ignored): the triangle's
+/// inverse by forward substitution, then its Gram matrix, written out for 6x6 (nalgebra's `inverse` solves
+/// against the identity column by column, at several times the cost, for every step of a free-flyer).
+fn inverse_from_cholesky(l: &Matrix6<f64>) -> Matrix6<f64> {
+    let mut w = [[0.0; 6]; 6]; // w[i][j] = (L⁻¹)_ij, i ≥ j
+    for j in 0..6 {
+        w[j][j] = 1.0 / l[(j, j)];
+        for i in j + 1..6 {
+            let sum: f64 = (j..i).map(|k| l[(i, k)] * w[k][j]).sum();
+            w[i][j] = -sum / l[(i, i)];
+        }
+    }
+    let mut inverse = Matrix6::zeros();
+    for i in 0..6 {
+        for j in 0..=i {
+            let entry: f64 = (i..6).map(|k| w[k][i] * w[k][j]).sum();
+            inverse[(i, j)] = entry;
+            inverse[(j, i)] = entry;
+        }
+    }
+    inverse
+}
+
 /// [fᵀ Ω f for the normal row f = [n; r × n], the same summed over the two tangent rows]. The three rows are
 /// P d for the frame's directions d, with P = [1; [r]×], so the sum over all three is tr(Pᵀ Ω P) =
 /// tr Ω_ll + 2 tr(Ω_la [r]×) + |r|² tr Ω_aa − rᵀ Ω_aa r (Ω symmetric): the tangents' sum without their rows.
@@ -162,5 +185,23 @@ fn transmit(model: &Model, data: &Data, ball: &[(Matrix6x3<f64>, Matrix6x3<f64>)
         for f in forces.iter_mut() {
             *f -= w * s.tr_mul(f);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Matrix6;
+
+    use super::inverse_from_cholesky;
+
+    #[test]
+    fn the_inverse_from_the_cholesky_factor_inverts() {
+        // A symmetric positive definite 6x6 of spread scales, as an articulated inertia (kg, kg m, kg m²).
+        let b = Matrix6::from_fn(|r, c| ((r * 7 + c * 3) % 11) as f64 / 11.0 - 0.4);
+        let a = b * b.transpose() + Matrix6::from_diagonal(&nalgebra::Vector6::new(3.0, 3.0, 3.0, 0.02, 0.03, 0.05));
+        let inverse = inverse_from_cholesky(a.cholesky().expect("positive definite").l_dirty());
+        let error = (a * inverse - Matrix6::identity()).abs().max();
+        assert!(error < 1e-12, "A A⁻¹ − 1 off by {error}");
+        assert_eq!(inverse, inverse.transpose());
     }
 }

@@ -22,6 +22,7 @@
 
 mod articulated;
 mod collision;
+mod constraint;
 mod delassus;
 mod plane;
 mod solver;
@@ -41,10 +42,13 @@ use crate::model::{Data, Model};
 use crate::spatial::{spatial, Transform};
 use crate::{Error, MassProperties, Result};
 use collision::{Collision, Found, History};
+use constraint::{Constraint, Kind, Target, BAUMGARTE, MAX_CORRECTION, TOLERANCE};
 use delassus::Delassus;
-use solver::{Constraint, Kind, Solver, Target, BAUMGARTE, MAX_CORRECTION, TOLERANCE};
+use solver::Solver;
 use transition::Transition;
 
+/// The most steps the solver waits between tries of its first step from v_free (`free_wait`).
+const MAX_FREE_WAIT: usize = 64;
 /// Joint limits are watched from this far off (rad or m), beyond the step's own travel.
 const LIMIT_MARGIN: f64 = 1e-3;
 
@@ -83,6 +87,7 @@ pub(crate) struct TreeSimulation {
     limit_impulses_before: Vec<[f64; 2]>,
     contacts_before: Vec<Contact>,
     iterations_before: usize,
+    free_wait_before: [usize; 2],
     /// Joints with a position range.
     limited: Vec<LimitedJoint>,
     /// Last step's limit impulses per velocity coordinate: [at the lower bound, at the upper bound].
@@ -94,6 +99,10 @@ pub(crate) struct TreeSimulation {
     solver: Solver,
     /// Newton iterations of the contact solver in the last substep.
     iterations: usize,
+    /// Steps to wait before the solver next tries its first step from v_free (`Solver::solve`), and the wait
+    /// after the next try that fails: doubled by each failure (a robot whose zones keep switching), reset by a
+    /// try that lands (a resting one).
+    free_wait: [usize; 2],
     poses: Vec<Transform>,
     q_dof: Vec<f64>,
     tau: Vec<f64>,
@@ -139,6 +148,7 @@ impl TreeSimulation {
             limit_impulses_before: vec![[0.0; 2]; nv],
             contacts_before: Vec::new(),
             iterations_before: 0,
+            free_wait_before: [0, 1],
             options: options.clone(),
             limited,
             limit_impulses: vec![[0.0; 2]; nv],
@@ -146,6 +156,7 @@ impl TreeSimulation {
             limit_rows: Vec::new(),
             constraints: Vec::new(),
             iterations: 0,
+            free_wait: [0, 1],
             poses: vec![Transform::identity(); model.nbodies()],
             q_dof: vec![0.0; nv],
             tau: vec![0.0; nv],
@@ -244,11 +255,26 @@ impl TreeSimulation {
                 detected = true;
             }
             self.constrain(model, q);
-            let most = self.options.solver_iterations;
+            let (most, from_free) = (self.options.solver_iterations, self.iterations <= 1 && self.free_wait[0] == 0);
+            self.free_wait[0] = self.free_wait[0].saturating_sub(1);
             self.iterations = self
                 .solver
-                .solve(model, &self.data, self.delassus.base(), &self.armature, &mut self.constraints, &self.v_free, &mut self.v_next, most)
+                .solve(
+                    model,
+                    &self.data,
+                    self.delassus.base(),
+                    &self.armature,
+                    &mut self.constraints,
+                    &self.v_free,
+                    &mut self.v_next,
+                    most,
+                    from_free,
+                )
                 .ok_or_else(|| Error::numerical("step", "the contact solver's Newton matrix stopped being positive definite"))?;
+            if from_free {
+                let [_, next] = self.free_wait;
+                self.free_wait = if self.solver.landed { [0, 1] } else { [next, (2 * next).min(MAX_FREE_WAIT)] };
+            }
             // An implicit servo whose force at the end of the step exceeds its bound saturates: redo the
             // step with it applying its bound.
             let mut redo = false;
@@ -311,6 +337,9 @@ impl Engine for TreeSimulation {
         self.collision.clear();
         self.limit_impulses.iter_mut().for_each(|x| *x = [0.0; 2]);
         self.contacts.clear();
+        // As new: no solve yet (which also sets how the next one starts, `Solver::solve`).
+        self.iterations = 0;
+        self.free_wait = [0, 1];
         Ok(())
     }
 
@@ -326,6 +355,7 @@ impl Engine for TreeSimulation {
         self.limit_impulses_before.copy_from_slice(&self.limit_impulses);
         self.contacts_before.clone_from(&self.contacts);
         self.iterations_before = self.iterations;
+        self.free_wait_before = self.free_wait;
     }
 
     fn undo(&mut self) {
@@ -333,6 +363,7 @@ impl Engine for TreeSimulation {
         self.limit_impulses.copy_from_slice(&self.limit_impulses_before);
         std::mem::swap(&mut self.contacts, &mut self.contacts_before);
         self.iterations = self.iterations_before;
+        self.free_wait = self.free_wait_before;
     }
 
     fn body_poses(&self, model: &Model, q: &[f64]) -> Vec<Transform> {

@@ -22,8 +22,9 @@ use nalgebra::{DMatrix, Matrix4, Matrix4x3, Matrix6, Matrix6x4, Matrix6xX, Vecto
 
 use super::articulated::Articulated;
 use super::collision::{Found, Source, Warm};
+use super::constraint::{Constraint, Stiffness};
 use super::delassus::Delassus;
-use super::solver::{impulses_at, Constraint, Stiffness};
+use super::solver::impulses_at;
 use super::{base_origin, contact_constraint, limit_constraint, TreeSimulation};
 use crate::algorithms::aba::ball_subspace;
 use crate::algorithms::{aba_with_armature, crba, integrate, integrate_jacobians, rnea_derivatives};
