@@ -23,7 +23,7 @@ use crate::interrupt::{in_pieces, interruptible, Pace};
 use crate::model::PyModel;
 use crate::shapes::shape_overrides;
 use legkit_dynamics::algorithms::finite_result;
-use crate::batch::on_all_threads;
+use legkit_dynamics::parallel::on_all_threads;
 
 /// Terrain for a `Simulation`: `Ground.plane(friction)` (the plane z = 0) or
 /// `Ground.heightfield(heights, cell_size, friction)`.
