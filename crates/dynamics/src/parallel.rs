@@ -43,7 +43,7 @@ pub struct RowError {
 }
 
 impl fmt::Display for RowError {
-    /// "argument[row]: reason", e.g. "q[4]: element 2 is not finite (NaN)".
+    /// `argument[row]: reason`, e.g. `q[4]: element 2 is not finite (NaN)`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}[{}]: {}", self.error.argument(), self.row, self.error.reason())
     }

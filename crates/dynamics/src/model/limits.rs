@@ -6,7 +6,7 @@ use crate::{Error, Result};
 /// (rad or m; ±inf where unbounded), and bounds on the magnitude of its generalized force `effort`
 /// (N m or N) and of its velocity `velocity` (rad/s or m/s), each +inf where unbounded.
 ///
-/// Build with [`JointLimits::new`] (checked) or start from [`JointLimits::NONE`]; [`Model::add_body`]
+/// Build with [`JointLimits::new`] (checked) or start from [`JointLimits::NONE`]; [`Model::add_body`](super::Model::add_body)
 /// checks again, so a model never holds invalid limits.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct JointLimits {
