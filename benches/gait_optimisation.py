@@ -16,6 +16,8 @@ midpoints (`MultiphaseProblem.stance_accelerations`; the knots hold it at 0, doc
     PYTHONPATH=python python3 benches/gait_optimisation.py [--intervals 4] [--max-iter 300] [--neighbour 0.6] [--no-mirror] [--no-polish]
     PYTHONPATH=python python3 benches/gait_optimisation.py --compare --intervals 16   # solver settings side by side
     PYTHONPATH=python python3 benches/gait_optimisation.py --split --intervals 16     # where an iteration's CPU goes
+    PYTHONPATH=python python3 benches/gait_optimisation.py --bounds --intervals 16    # which bound holds S_H
+    PYTHONPATH=python python3 benches/gait_optimisation.py --sequence --intervals 16  # warm starts across speeds
 
 The walk (cold, from `legkit gait`'s hand-built walk, constraints first by `solve_walk`): status, iterations,
 wall and CPU time of the solve, the evaluation share, the violation re-evaluated by legkit's kernels, J_e1
@@ -32,6 +34,7 @@ import re
 import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -164,6 +167,10 @@ def main() -> None:
     parser.add_argument("--polish-max-iter", type=int, default=1000, help="amble: IPOPT iteration limit of the polish and of the warm start")
     parser.add_argument("--split", action="store_true", help="amble: one cold solve's CPU by component per iteration, and the "
                         "Lagrangian Hessian's by block")
+    parser.add_argument("--bounds", action="store_true", help="amble: the plan's problem with each execution bound and the "
+                        "force floor switched off in turn (what holds S_H)")
+    parser.add_argument("--sequence", action="store_true", help="amble: the plan's problem at 0.55 to 0.75 m/s, the first "
+                        "cold, each next warm from the last")
     parser.add_argument("--compare", action="store_true",
                         help="amble: the cold solve under each solver setting side by side (exact Hessian with and without "
                              "perturb_always_cd, L-BFGS with the polish), CPU time per row")
@@ -194,6 +201,40 @@ def main() -> None:
         print(f"amble plan, {args.intervals} intervals per phase, {'mirrored half' if args.mirror else 'whole'} cycle, {args.speed:g} m/s: "
               f"{problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian and {len(problem.hess_rows)} Hessian nonzeros")
         split(problem, lambda ipopt: problem.solve(guess, feasibility_first=True, **{**options, "options": ipopt})[1])
+        return
+
+    if args.bounds or args.sequence:
+        plan = AmbleOptions(mirror=args.mirror)
+        print(f"amble plan (`amble_plan_problem`), {args.intervals} intervals per phase, "
+              f"{'mirrored half' if args.mirror else 'whole'} cycle, tol {args.tol:g}:")
+        print(f"{'run':<44} {'status':<28} {'iter':>6} {'CPU [s]':>8} {'f+J+H [%]':>9} {'violation':>10} {'p1':>9} "
+              f"{'S_H min':>9} {'foot acc':>10}")
+    if args.bounds:
+        execution = {"max_yaw": np.inf, "max_load_rate": np.inf, "dense_rates": False, "torque_rise": 0.0}
+        floorless = replace(plan, min_normal_force=0.0)
+        variants = [("none off (the CLI's problem)", plan, {})] + [(f"{key} off", plan, {key: value}) for key, value in execution.items()]
+        variants += [("min_normal_force off", floorless, {}), ("the four execution bounds off", plan, execution),
+                     ("those and the force floor off", floorless, execution)]
+        for label, settings, off in variants:
+            problem = amble_plan_problem(robot, args.intervals, args.speed, 1.25, settings, **off)
+            cpu = time.process_time()
+            result = problem.solve(guess_from_reference(problem, amble_reference(robot, args.speed, 1.25, args.intervals)),
+                                   feasibility_first=True, **options)[1]
+            report(label, problem, result, time.process_time() - cpu)
+        return
+    if args.sequence:
+        last: tuple[float, lo.SolveResult] | None = None
+        for speed in (0.55, 0.60, 0.65, 0.70, 0.75):
+            problem = amble_plan_problem(robot, args.intervals, speed, 1.25, plan)
+            cpu = time.process_time()
+            if last is None:
+                guess = guess_from_reference(problem, amble_reference(robot, speed, 1.25, args.intervals))
+                result = problem.solve(guess, feasibility_first=True, **options)[1]
+            else:
+                result = problem.solve(problem.continued(last[1], last[0]), derivatives="exact", tol=args.tol,
+                                       max_iter=args.polish_max_iter, options=AMBLE_IPOPT, regularised_first=AMBLE_REGULARISED_FIRST)[1]
+            report(f"{speed:g} m/s, " + ("cold" if last is None else f"warm from {last[0]:g}"), problem, result, time.process_time() - cpu)
+            last = (speed, result)
         return
 
     if args.compare:

@@ -10,6 +10,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_info, threadpool_limits
 
 import legkit as lk
 from legkit.gaits import AMBLE_QUADRUPED
@@ -285,3 +286,24 @@ def test_the_mpc_holds_the_optimised_amble_five_cycles(optimised_amble, mass):
                 torque_bounds=stall_torque_bounds(QUADRUPED_MOTOR, problem.nu))
     assert run.upright, run.fell_at
     assert run.drift_fraction < 0.1, run.drift_fraction
+
+
+def _blas_threads() -> int:
+    return max(pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas")
+
+
+def test_tracking_runs_blas_on_one_thread_and_gives_the_threads_back(amble, monkeypatch):
+    problem, trajectory, model = amble
+    seen: list[int] = []
+    condense = MPC.condense
+
+    def recorded(self, *args, **kwargs):
+        seen.append(_blas_threads())
+        return condense(self, *args, **kwargs)
+
+    monkeypatch.setattr(MPC, "condense", recorded)
+    with threadpool_limits(limits=2, user_api="blas"):
+        track(problem, trajectory, cycles=1, control_every=int(round(DT / 1e-3)), model=model, progress=False)
+        after = _blas_threads()
+    assert seen and set(seen) == {1}
+    assert after == 2

@@ -18,6 +18,7 @@ use std::ops::{Add, Sub};
 
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
+use crate::spatial::RigidInertia;
 use crate::validate::{finite, finite_matrix, finite_vector, rotation};
 use crate::{Error, Result};
 
@@ -189,6 +190,14 @@ impl MassProperties {
     }
 }
 
+impl RigidInertia {
+    /// The inertia of `body` about its frame's origin (parallel axes: I_O = I_c − m ĉĉ).
+    pub fn from_body(body: &MassProperties) -> Self {
+        let (m, c) = (body.mass(), body.com().cross_matrix());
+        Self { mass: m, first_moment: body.com() * m, rotational: body.inertia() - m * c * c }
+    }
+}
+
 impl Add for MassProperties {
     type Output = MassProperties;
 
@@ -351,6 +360,21 @@ pub(crate) mod tests {
         assert_eq!(composite, Matrix3::from_diagonal(&Vector3::new(0.0, 2.0, 2.0)));
         let average = (a.inertia() * a.mass() + b.inertia() * b.mass()) / (a.mass() + b.mass());
         assert_eq!(average, Matrix3::zeros());
+    }
+
+    #[test]
+    fn a_moved_bodys_rigid_inertia_is_its_rigid_inertia_moved() {
+        let body = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::new(0.1, 0.2, -0.3), &Matrix3::identity()).unwrap();
+        let x = crate::Transform::new(Rotation3::from_euler_angles(0.3, -1.2, 2.0).into_inner(), Vector3::new(0.4, -0.7, 1.1));
+        // X* I X⁻¹ (eq. 2.66, `act_rigid_inertia`) of the body's inertia is the inertia of the transformed body.
+        let moved = RigidInertia::from_body(&body.transformed(&x.rotation, &x.translation).unwrap());
+        assert!((x.act_rigid_inertia(&RigidInertia::from_body(&body)).matrix() - moved.matrix()).amax() < 1e-13);
+        // A centred, axis-aligned body's rotational inertia about the origin is exactly diagonal (the diagonal
+        // shortcut of `rotate_symmetric`).
+        let centred =
+            RigidInertia::from_body(&MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity()).unwrap());
+        let r = &centred.rotational;
+        assert!(r[(0, 1)] == 0.0 && r[(0, 2)] == 0.0 && r[(1, 2)] == 0.0);
     }
 
     #[test]

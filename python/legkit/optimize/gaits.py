@@ -174,13 +174,14 @@ class AmbleOptions:
 
 
 def amble_plan_problem(robot: Quadruped, intervals: int = 16, speed: float = 0.67, period: float = 1.25,
-                       options: AmbleOptions = AmbleOptions()) -> MultiphaseProblem:
+                       options: AmbleOptions = AmbleOptions(), **execution: Any) -> MultiphaseProblem:
     """The problem `plan_amble` solves on `intervals` per phase: `amble_problem` maximising the worst-case S_H (J_s2, eq. 11)
     with `QUADRUPED_MOTOR` and the defaults a tracking controller needs (`AmbleOptions`: soft touchdowns, a stance-force
-    floor, mu 0.6), and the execution bounds."""
+    floor, mu 0.6), and the execution bounds (`execution`: `amble_problem`'s max_yaw, max_load_rate, torque_rise and
+    dense_rates, to change one; each costs some S_H, docs/optimize.md)."""
     return amble_problem(robot, [MinMaxStability(options.tip_speed, DIAGONAL_PAIRS)], speed, period, intervals, QUADRUPED_MOTOR,
                          options.friction, max_impulse=options.max_impulse, mirror=options.mirror,
-                         min_normal_force=options.min_normal_force, torque_margin=options.torque_margin)
+                         min_normal_force=options.min_normal_force, torque_margin=options.torque_margin, **execution)
 
 
 @dataclass

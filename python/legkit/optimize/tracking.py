@@ -32,6 +32,7 @@ from typing import Any, Literal
 
 import numpy as np
 from scipy.optimize import nnls
+from threadpoolctl import threadpool_limits
 
 import legkit as lk
 from legkit._extras import progress as progress_bar
@@ -87,6 +88,13 @@ def sampled_reference(problem: ContactModel, trajectory: Trajectory, t: np.ndarr
     return raised, v, u
 
 
+#: `TrackingModel.build` and `track` (the MPC's condensation and its per-period solves) run numpy's and scipy's BLAS on
+#: one thread: these products are small and batched, and OpenBLAS's default thread per core made them up to 40x slower in
+#: CPU on a loaded 2-core machine (`legkit gait --robot biped --optimize`'s one-cycle replay: 44 s of CPU, 4 s on one
+#: thread).
+ONE_BLAS_THREAD = threadpool_limits.wrap(limits=1, user_api="blas")
+
+
 @dataclass
 class TrackingModel:
     """One cycle of the plan, linearised every control period (module docstring). Deviations e (2 nv) are the
@@ -121,6 +129,7 @@ class TrackingModel:
     cost_to_go: np.ndarray
 
     @classmethod
+    @ONE_BLAS_THREAD
     def build(cls, problem: ContactModel, trajectory: Trajectory, dt: float = 2e-3, swing_clearance: float = 0.01,
               substeps: int = 4) -> TrackingModel:
         """Sample the plan every dt (rounded so that whole control periods make one cycle) and linearise the
@@ -482,6 +491,7 @@ def force_rows(model: TrackingModel, friction: float) -> tuple[np.ndarray, int]:
     return rows, per_foot
 
 
+@ONE_BLAS_THREAD
 def track(problem: ContactModel, trajectory: Trajectory, cycles: int = 5, foot_radius: float = 0.002, dt: float = 1e-3,
           control_every: int = 2, ground_friction: float = 0.8, swing_clearance: float = 0.01, model: TrackingModel | None = None,
           joint_offset: np.ndarray | None = None, plant: lk.Model | None = None, progress: bool = True, **mpc: Any) -> Replay:

@@ -6,7 +6,8 @@
 use std::collections::HashSet;
 use std::sync::OnceLock;
 
-use super::{invalid, El};
+use super::element::El;
+use super::invalid;
 use crate::mesh::cancel_point;
 use crate::Result;
 
