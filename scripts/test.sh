@@ -3,7 +3,8 @@
 # project's virtual environment: see venv.sh) and runs the linters and every test in five tiers, timing each:
 #   lint         rustfmt and clippy (warnings are errors) on the crates; rustdoc on the core crate, with and
 #                without its default features (every public item documented, no broken links: warnings are
-#                errors); ruff check and mypy on the Python package and its stub (configured in rustfmt.toml,
+#                errors); the core crate packaged (cargo package, offline, without its verifying build); ruff
+#                check and mypy on the Python package and its stub (configured in rustfmt.toml,
 #                Cargo.toml and pyproject.toml); the API reference built from the docstrings and the stub
 #                (mkdocs.yml; warnings are errors)
 #   rust         the Rust unit tests (cargo test, release optimisation without fat LTO: the profile the lint tier's
@@ -68,6 +69,9 @@ lint() {  # every linter runs; the tier fails if any does
     shared_profile_cargo clippy --quiet --workspace --all-targets -- -D warnings || rc=1
     RUSTDOCFLAGS="-D warnings" shared_profile_cargo doc --quiet -p legkit-dynamics --no-deps || rc=1
     RUSTDOCFLAGS="-D warnings" shared_profile_cargo doc --quiet -p legkit-dynamics --no-deps --no-default-features || rc=1
+    # The core as a crate (its manifest, the files it ships): packaged offline without the verifying build of the
+    # tarball, which takes minutes (`cargo package -p legkit-dynamics` runs it).
+    cargo package --quiet -p legkit-dynamics --no-verify --offline --allow-dirty || rc=1
     python -m ruff check || rc=1
     python -m mypy || rc=1
     local site

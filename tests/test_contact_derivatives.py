@@ -22,7 +22,7 @@ import legkit as lk
 from conftest import examples
 from legkit.robots.biped import build_biped
 from robots import Twin, rngs, twins
-from test_derivatives import FD_RTOL, coordinate_differences, tangent_differences
+from test_derivatives import FD_RTOL, coordinate_differences, settled, tangent_differences
 from test_dynamics_pinocchio import RTOL, note_case, state
 from test_urdf_robots import Twin as UrdfTwin
 
@@ -181,10 +181,11 @@ def test_the_biped_on_both_flat_feet_matches_pinocchio():
 
 
 def slopes(m: lk.Model, f, q: np.ndarray, *vectors: np.ndarray) -> list[np.ndarray]:
-    """Central differences of f(q, *vectors) along q (tangent space) and along each vector."""
-    out = [tangent_differences(m, lambda x: f(x, *vectors), q)]
+    """Central differences of f(q, *vectors) along q (tangent space) and along each vector, each at its settled step
+    (`settled`: the contacts' conditioning and the trees' depth leave no one step right for every case)."""
+    out = [settled(lambda h: tangent_differences(m, lambda x: f(x, *vectors), q, h))]
     for i, x0 in enumerate(vectors):
-        out.append(coordinate_differences(lambda x: f(q, *vectors[:i], x, *vectors[i + 1 :]), x0))  # noqa: B023 (used at once)
+        out.append(settled(lambda h: coordinate_differences(lambda x: f(q, *vectors[:i], x, *vectors[i + 1 :]), x0, h)))  # noqa: B023
     return out
 
 

@@ -1,4 +1,5 @@
-//! ABA, RNEA, CRBA and M⁻¹ on the 63-DoF SuperBot-like modular tree, ABA on revolute chains of 64 and 1024 links
+//! ABA, RNEA, CRBA and M⁻¹ on the 63-DoF SuperBot-like modular tree, ABA on revolute chains of 64 and 1024 links, CRBA
+//! and M⁻¹ on the 64-link chain
 //! (targets: ABA on the 63-DoF tree <= 5 µs; ABA linear in the number of bodies), and the RNEA, ABA and centroidal
 //! derivatives on the tree and on chains of 64 and 512 links (`benches/derivatives_vs_pinocchio.py` compares them with
 //! Pinocchio's).
@@ -168,6 +169,17 @@ fn chains(c: &mut Criterion) {
     group.finish();
 }
 
+/// CRBA and M⁻¹ on the 64-link chain, the row of `benches/dynamics_vs_pinocchio.py` where M⁻¹ is furthest from CRBA.
+fn chain64(c: &mut Criterion) {
+    let model = chain(64);
+    let mut data = Data::new(&model);
+    let (q, _, _) = random_state(&model, 64);
+    let mut group = c.benchmark_group("chain64");
+    group.bench_function("crba", |b| b.iter(|| crba(&model, &mut data, black_box(&q))[(0, 0)]));
+    group.bench_function("minv", |b| b.iter(|| minv(&model, &mut data, black_box(&q))[(0, 0)]));
+    group.finish();
+}
+
 fn derivatives(c: &mut Criterion) {
     let mut group = c.benchmark_group("derivatives");
     for (name, model) in [("quadruped", quadruped().0), ("tree63", superbot_tree()), ("chain64", chain(64)), ("chain512", chain(512))] {
@@ -220,5 +232,5 @@ fn contacts(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, tree, chains, derivatives, contacts);
+criterion_group!(benches, tree, chains, chain64, derivatives, contacts);
 criterion_main!(benches);

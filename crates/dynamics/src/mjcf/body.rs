@@ -6,7 +6,7 @@ use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use super::assets::Meshes;
 use super::compiler::{Compiler, InertiaFromGeom};
 use super::element::El;
-use super::geom::geom;
+use super::geom::{geom, Contents};
 use super::invalid;
 use super::joint::{joint, JointSpec};
 use super::reader::Reader;
@@ -42,17 +42,6 @@ pub(super) fn bodies(root: &El, reader: &mut Reader, meshes: &Meshes) -> Result<
         walker.body(world, 0, "main")?;
     }
     Ok((walker.bodies, walker.ground))
-}
-
-/// What a body's elements add up to: its `<inertial>`, its geoms' masses, and what they leave out.
-#[derive(Default)]
-pub(super) struct Contents {
-    pub(super) inertial: Option<MassProperties>,
-    pub(super) geoms: Vec<MassProperties>,
-    pub(super) mesh_mass: Vec<String>,
-    pub(super) unshaped: Vec<String>,
-    /// Its colliding plane geoms: what they are, their frames in the body's and their sliding friction.
-    pub(super) planes: Vec<(String, Transform, f64)>,
 }
 
 /// Reads bodies depth first (MuJoCo's numbering) into `bodies`.

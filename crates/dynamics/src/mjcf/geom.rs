@@ -3,13 +3,23 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::assets::{MeshAsset, Meshes};
-use super::body::Contents;
 use super::element::El;
 use super::invalid;
 use super::reader::{z_to, Reader};
 use crate::geometry::{Convex, Shape, ShapeKind};
 use crate::mesh::hull_points;
 use crate::{MassProperties, Result, Transform};
+
+/// What a body's elements add up to: its `<inertial>`, its geoms' masses, and what they leave out.
+#[derive(Default)]
+pub(super) struct Contents {
+    pub(super) inertial: Option<MassProperties>,
+    pub(super) geoms: Vec<MassProperties>,
+    pub(super) mesh_mass: Vec<String>,
+    pub(super) unshaped: Vec<String>,
+    /// Its colliding plane geoms: what they are, their frames in the body's and their sliding friction.
+    pub(super) planes: Vec<(String, Transform, f64)>,
+}
 
 /// A geom's mass (into `contents`, when its group counts) and collision shape (into `shapes`).
 pub(super) fn geom(
