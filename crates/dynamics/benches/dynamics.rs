@@ -149,10 +149,10 @@ fn tree(c: &mut Criterion) {
     let mut data = Data::new(&model);
     let (q, v, tau) = random_state(&model, 1);
     let mut group = c.benchmark_group("tree63");
-    group.bench_function("aba", |b| b.iter(|| aba(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None)[0]));
-    group.bench_function("rnea", |b| b.iter(|| rnea(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None)[0]));
-    group.bench_function("crba", |b| b.iter(|| crba(&model, &mut data, black_box(&q))[(0, 0)]));
-    group.bench_function("minv", |b| b.iter(|| minv(&model, &mut data, black_box(&q))[(0, 0)]));
+    group.bench_function("aba", |b| b.iter(|| aba(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None).unwrap()[0]));
+    group.bench_function("rnea", |b| b.iter(|| rnea(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None).unwrap()[0]));
+    group.bench_function("crba", |b| b.iter(|| crba(&model, &mut data, black_box(&q)).unwrap()[(0, 0)]));
+    group.bench_function("minv", |b| b.iter(|| minv(&model, &mut data, black_box(&q)).unwrap()[(0, 0)]));
     group.finish();
 }
 
@@ -163,7 +163,7 @@ fn chains(c: &mut Criterion) {
         let mut data = Data::new(&model);
         let (q, v, tau) = random_state(&model, n as u64);
         group.bench_with_input(BenchmarkId::from_parameter(n), &n, |b, _| {
-            b.iter(|| aba(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None)[0])
+            b.iter(|| aba(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None).unwrap()[0])
         });
     }
     group.finish();
@@ -175,8 +175,8 @@ fn chain64(c: &mut Criterion) {
     let mut data = Data::new(&model);
     let (q, _, _) = random_state(&model, 64);
     let mut group = c.benchmark_group("chain64");
-    group.bench_function("crba", |b| b.iter(|| crba(&model, &mut data, black_box(&q))[(0, 0)]));
-    group.bench_function("minv", |b| b.iter(|| minv(&model, &mut data, black_box(&q))[(0, 0)]));
+    group.bench_function("crba", |b| b.iter(|| crba(&model, &mut data, black_box(&q)).unwrap()[(0, 0)]));
+    group.bench_function("minv", |b| b.iter(|| minv(&model, &mut data, black_box(&q)).unwrap()[(0, 0)]));
     group.finish();
 }
 
@@ -189,18 +189,18 @@ fn derivatives(c: &mut Criterion) {
             q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
         }
         group.bench_function(BenchmarkId::new("rnea", name), |b| {
-            b.iter(|| rnea_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None).0[(0, 0)])
+            b.iter(|| rnea_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None).unwrap().0[(0, 0)])
         });
         group.bench_function(BenchmarkId::new("aba", name), |b| {
-            b.iter(|| aba_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None).0[(0, 0)])
+            b.iter(|| aba_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau), None).unwrap().0[(0, 0)])
         });
         if model.nv() <= 64 {
             group.bench_function(BenchmarkId::new("rnea_second_order", name), |b| {
-                b.iter(|| rnea_second_order_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau)).dqdq[0])
+                b.iter(|| rnea_second_order_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau)).unwrap().dqdq[0])
             });
         }
         group.bench_function(BenchmarkId::new("centroidal", name), |b| {
-            b.iter(|| centroidal_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau)).0[(0, 0)])
+            b.iter(|| centroidal_derivatives(&model, &mut data, black_box(&q), black_box(&v), black_box(&tau)).unwrap().0[(0, 0)])
         });
     }
     group.finish();

@@ -6,10 +6,27 @@
 //! ("[Featherstone 2008, Table 7.1]", "[Moll 2006, Algorithm 1]").
 //!
 //! The API: a [`Model`] (built body by body, or loaded by [`urdf`] and [`mjcf`]) and its [`Data`] workspace; the
-//! dynamics [`algorithms`] and their derivatives, free functions on both; the contact simulation [`sim`]; the
-//! mass-property algebra ([`MassProperties`]), spatial algebra ([`spatial`]) and [`geometry`] they rest on; the
-//! distributed balance [`agents`]; and the argument checks the Python bindings share ([`validate`]). Every fallible
-//! call returns [`Error`], naming the argument at fault.
+//! dynamics [`algorithms`] and their derivatives, free functions on both, which check their arguments (sizes,
+//! finiteness, unit quaternions, a `Data` built for that model) and their results; batches of them on all cores with
+//! per-thread workspaces and cancellation ([`parallel`]); the contact simulation [`sim`]; the mass-property algebra
+//! ([`MassProperties`]), spatial algebra ([`spatial`]) and [`geometry`] they rest on; the distributed balance
+//! [`agents`]; and the argument checks shared with the Python bindings ([`validate`]). Every fallible call returns
+//! [`Error`], naming the argument at fault; `examples/` has a URDF robot's dynamics and a simulation.
+//!
+//! ```
+//! use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+//! use nalgebra::{Matrix3, Vector3};
+//!
+//! let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+//! let mut model = Model::new(false, MassProperties::zero(), "base");
+//! model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "link", JointLimits::NONE)?;
+//! let mut data = Data::new(&model);
+//! let ddq = algorithms::aba(&model, &mut data, &[0.3], &[0.0], &[0.0], None)?;
+//! assert!(ddq[0] < 0.0, "the link swings down");
+//! let error = algorithms::aba(&model, &mut data, &[0.3, 0.1], &[0.0], &[0.0], None).unwrap_err();
+//! assert_eq!(error.to_string(), "q: expected length 1, got 2");
+//! # Ok::<(), legkit_dynamics::Error>(())
+//! ```
 //!
 //! Cargo features: `rapier` (on by default, and in the Python wheel) builds `sim`'s Rapier reference backend;
 //! without it the crate needs parry alone and `sim::Backend::Rapier` is refused with `Error::InvalidArgument`.
@@ -26,6 +43,7 @@ mod mass;
 pub mod mesh;
 pub mod mjcf;
 pub mod model;
+pub mod parallel;
 pub mod sim;
 pub mod spatial;
 pub mod urdf;

@@ -26,14 +26,14 @@ fn centroidal_derivatives_are_the_slopes_of_the_momentum_and_its_rate() {
         let nv = model.nv();
         let a: Vec<f64> = (0..nv).map(|_| rng.random_range(-3.0..3.0)).collect();
         let (q, v) = (q.as_slice(), v.as_slice());
-        let (dh_dq, dhdot_dq, dhdot_dv, dhdot_da) = centroidal_derivatives(&model, &mut data, q, v, &a);
+        let (dh_dq, dhdot_dq, dhdot_dv, dhdot_da) = centroidal_derivatives(&model, &mut data, q, v, &a).unwrap();
         let got = [dh_dq, dhdot_dq, dhdot_dv, dhdot_da].map(|m| DMatrix::from_column_slice(6, nv, m.as_slice()));
         let mut scratch = Data::new(&model);
-        let mut momentum = |q: &[f64], v: &[f64]| DVector::from_column_slice(centroidal_momentum(&model, &mut scratch, q, v).as_slice());
+        let mut momentum = |q: &[f64], v: &[f64]| DVector::from_column_slice(centroidal_momentum(&model, &mut scratch, q, v).unwrap().as_slice());
         let want_dh_dq = central_differences(nv, |j, h| momentum(&stepped_q(&model, q, j, h), v));
         let want_dh_dv = central_differences(nv, |j, h| momentum(q, &stepped(v, j, h)));
         let mut rate =
-            |q: &[f64], v: &[f64], a: &[f64]| DVector::from_column_slice(centroidal_momentum_rate(&model, &mut scratch, q, v, a).as_slice());
+            |q: &[f64], v: &[f64], a: &[f64]| DVector::from_column_slice(centroidal_momentum_rate(&model, &mut scratch, q, v, a).unwrap().as_slice());
         let want_dhdot_dq = central_differences(nv, |j, h| rate(&stepped_q(&model, q, j, h), v, &a));
         let want_dhdot_dv = central_differences(nv, |j, h| rate(q, &stepped(v, j, h), &a));
         let want_dhdot_da = central_differences(nv, |j, h| rate(q, v, &stepped(&a, j, h)));
@@ -43,7 +43,7 @@ fn centroidal_derivatives_are_the_slopes_of_the_momentum_and_its_rate() {
         assert_close(&got[3], &want_dhdot_da, &format!("case {case}: dhdot/da"));
         // h is linear in v: dh/dv is A_G exactly as `centroidal_map` gives it.
         assert_close(&got[3], &want_dh_dv, &format!("case {case}: dh/dv"));
-        let map = centroidal_map(&model, &mut scratch, q);
+        let map = centroidal_map(&model, &mut scratch, q).unwrap();
         assert_close(&got[3], &DMatrix::from_column_slice(6, nv, map.as_slice()), &format!("case {case}: A_G"));
     }
 }
@@ -55,11 +55,12 @@ fn center_of_mass_jacobian_is_the_slope_of_the_center_of_mass() {
         let (model, mut data, q, _) = random_case(&mut rng, case);
         let nv = model.nv();
         let q = q.as_slice();
-        let got = center_of_mass_jacobian(&model, &mut data, q);
+        let got = center_of_mass_jacobian(&model, &mut data, q).unwrap();
         let got = DMatrix::from_column_slice(3, nv, got.as_slice());
         let mut scratch = Data::new(&model);
-        let want =
-            central_differences(nv, |j, h| DVector::from_column_slice(center_of_mass(&model, &mut scratch, &stepped_q(&model, q, j, h)).as_slice()));
+        let want = central_differences(nv, |j, h| {
+            DVector::from_column_slice(center_of_mass(&model, &mut scratch, &stepped_q(&model, q, j, h)).unwrap().as_slice())
+        });
         assert_close(&got, &want, &format!("case {case}: dc/dq"));
     }
 }

@@ -18,13 +18,13 @@ const STEP: f64 = 1e-6;
 
 fn integrated(model: &Model, q: &[f64], v: &[f64], dt: f64) -> Vec<f64> {
     let mut out = vec![0.0; model.nq()];
-    integrate(model, q, v, dt, &mut out);
+    integrate(model, q, v, dt, &mut out).unwrap();
     out
 }
 
 fn differenced(model: &Model, q0: &[f64], q1: &[f64]) -> DVector<f64> {
     let mut out = DVector::zeros(model.nv());
-    difference(model, q0, q1, out.as_mut_slice());
+    difference(model, q0, q1, out.as_mut_slice()).unwrap();
     out
 }
 
@@ -50,13 +50,13 @@ fn central_differences(nv: usize, mut f: impl FnMut(usize, f64) -> DVector<f64>)
 
 fn jacobians_of_integrate(model: &Model, v: &[f64], dt: f64) -> (DMatrix<f64>, DMatrix<f64>) {
     let (mut dq, mut dv) = (DMatrix::from_element(model.nv(), model.nv(), f64::NAN), DMatrix::from_element(model.nv(), model.nv(), f64::NAN));
-    integrate_jacobians(model, v, dt, &mut dq, &mut dv);
+    integrate_jacobians(model, v, dt, &mut dq, &mut dv).unwrap();
     (dq, dv)
 }
 
 fn jacobians_of_difference(model: &Model, q0: &[f64], q1: &[f64]) -> (DMatrix<f64>, DMatrix<f64>) {
     let (mut d0, mut d1) = (DMatrix::from_element(model.nv(), model.nv(), f64::NAN), DMatrix::from_element(model.nv(), model.nv(), f64::NAN));
-    difference_jacobians(model, q0, q1, &mut d0, &mut d1);
+    difference_jacobians(model, q0, q1, &mut d0, &mut d1).unwrap();
     (d0, d1)
 }
 

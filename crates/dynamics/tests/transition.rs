@@ -29,7 +29,7 @@ fn jacobians_and_differences(build: &dyn Fn() -> Simulation, tau: &[f64], displa
         let mut d = vec![0.0; 5 * nv];
         d[input] = delta;
         let mut q1 = vec![0.0; model.nq()];
-        integrate(&model, &q, &d[..nv], 1.0, &mut q1);
+        integrate(&model, &q, &d[..nv], 1.0, &mut q1).unwrap();
         let v1: Vec<f64> = (0..nv).map(|k| v[k] + d[nv + k]).collect();
         let tau1: Vec<f64> = (0..nv).map(|k| tau[k] + d[2 * nv + k]).collect();
         let mut servo1 = servo.clone();
@@ -48,8 +48,8 @@ fn jacobians_and_differences(build: &dyn Fn() -> Simulation, tau: &[f64], displa
     for input in 0..5 * nv {
         let ((q_plus, v_plus), (q_minus, v_minus)) = (step(input, displacement), step(input, -displacement));
         // Both on the tangent space at the undisplaced step's q⁺, where A and B map.
-        difference(&model, &q_next, &q_plus, &mut plus);
-        difference(&model, &q_next, &q_minus, &mut minus);
+        difference(&model, &q_next, &q_plus, &mut plus).unwrap();
+        difference(&model, &q_next, &q_minus, &mut minus).unwrap();
         for k in 0..nv {
             numeric[(k, input)] = (plus[k] - minus[k]) / (2.0 * displacement);
             numeric[(nv + k, input)] = (v_plus[k] - v_minus[k]) / (2.0 * displacement);

@@ -1,9 +1,10 @@
-//! Broadcasting of leading batch dimensions, and batch loops spread over all cores.
+//! Broadcasting of leading batch dimensions; the batch loops are the core's (`legkit_dynamics::parallel`).
 //!
 //! Each argument has a core shape (a scalar, or a vector of known length); whatever dimensions lead it
 //! form its batch shape, and the batch shapes broadcast as in NumPy. Every argument is copied once, with the
 //! GIL held, before the kernels run without it: another Python thread may write the array meanwhile.
 
+use legkit_dynamics::parallel;
 use legkit_dynamics::Error;
 use numpy::ndarray::{ArrayViewD, Axis, IxDyn};
 use numpy::{PyArrayMethods, PyUntypedArrayMethods};
@@ -11,8 +12,6 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rayon::prelude::*;
 use smallvec::SmallVec;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
 
 use crate::convert::{batch_error, kernel_error, new_array, FloatArray};
 use legkit_dynamics::validate::{array_len, filled, with_capacity};
@@ -169,64 +168,18 @@ fn broadcast_shapes(a: &[usize], b: &[usize]) -> Option<Shape> {
         .collect()
 }
 
-/// Rows per parallel task: large enough that a task's setup (e.g. a fresh workspace) is amortised.
-const MIN_ROWS_PER_TASK: usize = 64;
-
-/// Evaluates `kernel(state, i, row)` for each batch row `i` of `out` (`width` numbers per row), which holds
-/// rows `first..` of a batch of `total` (all of it, or a piece of it), in tasks of rows shared by the calling
-/// thread and the pool's other threads (`on_all_threads`; each thread with its own `state` from `init`). A
-/// failure names the lowest failing row, so the message does not depend on scheduling.
+/// Evaluates `kernel(state, i, row)` for each batch row `i` of `out` on all cores (`parallel::map_rows`: rows
+/// `first..` of a batch of `total`, each thread with its own `state` from `init`); the lowest failing row's error,
+/// named by its index unless the batch is one row.
 pub fn map_rows<S, I, K>(out: &mut [f64], width: usize, first: usize, total: usize, init: I, kernel: K) -> PyResult<()>
 where
     I: Fn() -> S + Sync,
     K: Fn(&mut S, usize, &mut [f64]) -> Result<(), Error> + Sync,
 {
-    if width == 0 {
-        return Ok(());
-    }
-    let len = out.len() / width;
-    let first_failure = |state: &mut S, first_row: usize, rows: &mut [f64]| {
-        rows.chunks_mut(width).enumerate().find_map(|(j, row)| kernel(state, first_row + j, row).err().map(|e| (first_row + j, e)))
-    };
-    let failure = if len < 2 * MIN_ROWS_PER_TASK {
-        first_failure(&mut init(), first, out)
-    } else {
-        let tasks: Vec<&mut [f64]> = out.chunks_mut(MIN_ROWS_PER_TASK * width).collect();
-        let failures = on_all_threads(tasks, &init, |state, k, rows| first_failure(state, first + k * MIN_ROWS_PER_TASK, rows));
-        failures.into_iter().flatten().min_by_key(|(i, _)| *i)
-    };
-    match failure {
-        Some((_, e)) if total == 1 => Err(crate::convert::kernel_error(e)),
-        Some((i, e)) => Err(batch_error(e, i)),
-        None => Ok(()),
-    }
-}
-
-/// `task(state, k, item)` for every item `k`, on the calling thread and the pool's other threads together,
-/// each taking the next item no one has taken (each thread with its own `state` from `init`); the outputs in
-/// the items' order. The caller starts at once: in a closed loop that runs Python between calls the pool's
-/// threads are asleep, and waking one costs 0.3-0.4 ms on this kind of machine, so it joins for whatever is
-/// left (handing all the work to the pool, as a parallel iterator does, waits for the wake-up first).
-pub fn on_all_threads<T: Send, S, R: Send>(items: Vec<T>, init: impl Fn() -> S + Sync, task: impl Fn(&mut S, usize, T) -> R + Sync) -> Vec<R> {
-    let slots: Vec<Mutex<(Option<T>, Option<R>)>> = items.into_iter().map(|item| Mutex::new((Some(item), None))).collect();
-    let next = AtomicUsize::new(0);
-    let work = || {
-        let mut state = None;
-        loop {
-            let k = next.fetch_add(1, Ordering::Relaxed);
-            let Some(slot) = slots.get(k) else { break };
-            let mut slot = slot.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-            let item = slot.0.take().expect("each item is taken once");
-            slot.1 = Some(task(state.get_or_insert_with(&init), k, item));
-        }
-    };
-    rayon::in_place_scope(|scope| {
-        for _ in 1..rayon::current_num_threads().min(slots.len()) {
-            scope.spawn(|_| work());
-        }
-        work();
-    });
-    slots.into_iter().map(|slot| slot.into_inner().unwrap_or_else(|poisoned| poisoned.into_inner()).1.expect("every item is done")).collect()
+    parallel::map_rows(out, width, first, init, kernel, None).map_err(|failure| match total {
+        1 => kernel_error(failure.error),
+        _ => batch_error(failure.error, failure.row),
+    })
 }
 
 pub fn to_numpy<'py>(py: Python<'py>, shape: Shape, data: Vec<f64>) -> FloatArray<'py> {

@@ -1,7 +1,7 @@
 //! Contact-constrained dynamics, the reduced ODE and impacts.
 
 use legkit_dynamics::algorithms::{self, ContactDim, ContactPoint};
-use legkit_dynamics::model::{check_vector, Dense};
+use legkit_dynamics::model::Dense;
 use legkit_dynamics::{Data, Error, Model};
 use nalgebra::DVector;
 use numpy::ndarray::{ArrayViewD, IxDyn, ShapeBuilder};
@@ -12,7 +12,8 @@ use pyo3::types::PyTuple;
 use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::convert::{kernel_error, numbers, to_numpy, vector3, FloatArray, Integer, Vector};
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
+use crate::workspace::{run, run_packed, unpack};
+use legkit_dynamics::algorithms::finite_result;
 
 /// The `dim` argument: 3 holds each contact's point still, 6 its body's frame at the point.
 fn contact_dim(dim: Integer) -> PyResult<ContactDim> {
@@ -53,7 +54,7 @@ where
         let (generalized, per_contact) = kernel(m, w.dense(&[Dense::Inverse, Dense::Workspace])?, i)?;
         out[..nv].copy_from_slice(generalized.as_slice());
         out[nv..].copy_from_slice(per_contact.as_slice());
-        finite_result(out)
+        Ok(())
     })?;
     let mut parts = unpack(py, batch, &packed, &[&[nv], &[k, d]])?.into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap()))
@@ -79,8 +80,6 @@ pub fn contact_dynamics<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("tau", &tau, &[nv])])?;
     per_state(py, &model, &batch, (contacts.len(), dim.rows()), |m, data, i| {
         let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("tau", tau, nv)?;
         let solution = algorithms::contact_dynamics(m, data, q, v, tau, &contacts, dim)?;
         Ok((solution.ddq, solution.forces))
     })
@@ -103,7 +102,6 @@ pub fn impact<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[model.model.nv()])])?;
     per_state(py, &model, &batch, (contacts.len(), dim.rows()), |m, data, i| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
-        check_state(m, q, Some(v))?;
         algorithms::impact(m, data, q, v, &contacts, dim)
     })
 }
@@ -128,10 +126,8 @@ pub fn point_accelerations<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("a", &a, &[nv])])?;
     run(py, &model, &batch, &[points.len(), dim.rows()], |m, w, i, out| {
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("a", a, nv)?;
-        algorithms::point_accelerations(m, w.dense(&[Dense::Workspace])?, q, v, Some(a), &points, dim, out);
-        finite_result(out)
+        algorithms::point_accelerations(m, w.data(), q, v, Some(a), &points, dim, out)?;
+        Ok(())
     })
 }
 
@@ -162,8 +158,6 @@ pub fn reduced_dynamics<'py>(
     let contacts = self::contacts(&model, contacts)?;
     let m = &model.model;
     let (q, v, tau) = (&numbers("q", &q)?[..], &numbers("v", &v)?[..], &numbers("tau", &tau)?[..]);
-    check_state(m, q, Some(v)).map_err(kernel_error)?;
-    check_vector("tau", tau, m.nv()).map_err(kernel_error)?;
     let mut data = model.take_workspace();
     let result = data
         .reserve_dense(m, &[Dense::MassMatrix])
@@ -242,12 +236,10 @@ pub fn contact_dynamics_derivatives<'py>(
     let width = 3 * nv * (nv + k * d);
     let out = run(py, &model, &batch, &[width], |m, w, i, out| {
         let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("tau", tau, nv)?;
         // Straight into the array, column-major.
         let (ddq_d, forces_d) = out.split_at_mut(3 * nv * nv);
         algorithms::contact_dynamics_derivatives_into(m, w.dense(&[Dense::Inverse, Dense::Workspace])?, q, v, tau, &contacts, dim, ddq_d, forces_d)?;
-        finite_result(out)
+        Ok(())
     })?;
     PyTuple::new(py, matrix_views(&out, 3, nv, (k, d)))
 }
@@ -271,10 +263,9 @@ pub fn impact_derivatives<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv])])?;
     let out = run(py, &model, &batch, &[2 * nv * (nv + k * d)], |m, w, i, out| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
-        check_state(m, q, Some(v))?;
         let (velocity_d, impulses_d) = out.split_at_mut(2 * nv * nv);
         algorithms::impact_derivatives_into(m, w.dense(&[Dense::Inverse, Dense::Workspace])?, q, v, &contacts, dim, velocity_d, impulses_d)?;
-        finite_result(out)
+        Ok(())
     })?;
     PyTuple::new(py, matrix_views(&out, 2, nv, (k, d)))
 }

@@ -1,7 +1,6 @@
 //! The derivatives of the dynamics over batches of states, as `dynamics.rs` runs the dynamics.
 
 use legkit_dynamics::algorithms;
-use legkit_dynamics::model::{check_vector, Dense};
 use legkit_dynamics::{Error, Model};
 use numpy::ndarray::Axis;
 use numpy::{PyArrayDyn, PyArrayMethods};
@@ -12,7 +11,7 @@ use crate::convert::FloatArray;
 use crate::dynamics::state_batch;
 use crate::kinematics::row_major;
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_dynamics, finite_result, run, Workspace};
+use crate::workspace::{run, Workspace};
 
 /// Copies `matrices` (column-major, as nalgebra stores them) one after the other into `out`.
 pub(crate) fn write_columns(matrices: &[&[f64]], out: &mut [f64]) {
@@ -75,14 +74,11 @@ pub fn rnea_derivatives<'py>(
     let batch = state_batch(&model.model, &q, &v, ("a", &a), f_ext.as_ref())?;
     let parts = run_matrices(py, &model, &batch, 2, nv, |m, w, i, out| {
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("a", a, m.nv())?;
-        w.dense(&[Dense::Workspace])?;
-        let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
+        let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)));
         // Straight into the arrays: no nv x nv workspace, no copy.
         let (dq, dv) = out.split_at_mut(m.nv() * m.nv());
-        algorithms::rnea_derivatives_into(m, data, q, v, a, forces, dq, dv);
-        finite_result(out)
+        algorithms::rnea_derivatives_into(m, data, q, v, a, forces, dq, dv)?;
+        Ok(())
     })?;
     pair(parts)
 }
@@ -102,11 +98,9 @@ pub fn rnea_second_order_derivatives<'py>(
     let batch = state_batch(&model.model, &q, &v, ("a", &a), None)?;
     let out = run(py, &model, &batch, &[4, nv, nv, nv], |m, w, i, out| {
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("a", a, m.nv())?;
-        let second = algorithms::rnea_second_order_derivatives(m, w.dense(&[Dense::SecondOrder])?, q, v, a);
+        let second = algorithms::rnea_second_order_derivatives(m, w.data(), q, v, a)?;
         write_columns(&[&second.dqdq, &second.dvdv, &second.dqdv, &second.dadq], out);
-        finite_result(out)
+        Ok(())
     })?;
     // SAFETY: the array was just filled and nothing else refers to it; the views keep it alive as their base.
     let buffer = unsafe { out.as_array() };
@@ -131,18 +125,12 @@ pub fn aba_derivatives<'py>(
     let batch = state_batch(&model.model, &q, &v, ("tau", &tau), f_ext.as_ref())?;
     let parts = run_matrices(py, &model, &batch, 3, nv, |m, w, i, out| {
         let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("tau", tau, m.nv())?;
-        // M⁻¹'s recursion's force sets (and M⁻¹'s own square, which stays unused) on the models that use them.
-        let dense: &[Dense] = if algorithms::minv_by_recursion(m) { &[Dense::Inverse, Dense::Workspace] } else { &[Dense::Workspace] };
-        w.dense(dense)?;
-        let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
+        let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)));
         // Straight into the arrays: no nv x nv workspace for them, no copy.
         let (dq, rest) = out.split_at_mut(m.nv() * m.nv());
         let (dv, minv) = rest.split_at_mut(m.nv() * m.nv());
-        algorithms::aba_derivatives_into(m, data, q, v, tau, forces, dq, dv, minv);
-        // M⁻¹ is positive definite: a singular M shows on its diagonal, and spreads to the other two.
-        finite_dynamics(m, w.data(), out)
+        algorithms::aba_derivatives_into(m, data, q, v, tau, forces, dq, dv, minv)?;
+        Ok(())
     })?;
     let mut parts = parts.into_iter();
     Ok((parts.next().expect("three"), parts.next().expect("three"), parts.next().expect("three")))
@@ -162,11 +150,9 @@ pub fn centroidal_derivatives<'py>(
     let batch = state_batch(&model.model, &q, &v, ("a", &a), None)?;
     let parts = run_matrices(py, &model, &batch, 4, 6, |m, w, i, out| {
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("a", a, m.nv())?;
-        let (dh_dq, dhdot_dq, dhdot_dv, dhdot_da) = algorithms::centroidal_derivatives(m, w.dense(&[Dense::Workspace])?, q, v, a);
+        let (dh_dq, dhdot_dq, dhdot_dv, dhdot_da) = algorithms::centroidal_derivatives(m, w.data(), q, v, a)?;
         write_columns(&[dh_dq.as_slice(), dhdot_dq.as_slice(), dhdot_dv.as_slice(), dhdot_da.as_slice()], out);
-        finite_result(out)
+        Ok(())
     })?;
     let mut parts = parts.into_iter();
     Ok((parts.next().expect("four"), parts.next().expect("four"), parts.next().expect("four"), parts.next().expect("four")))
@@ -180,8 +166,7 @@ pub fn center_of_mass_jacobian<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, 
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
     run(py, &model, &batch, &[3, nv], |m, w, i, out| {
         let q = batch.rows[0].row(i);
-        check_state(m, q, None)?;
-        row_major(algorithms::center_of_mass_jacobian(m, w.data(), q), out);
+        row_major(algorithms::center_of_mass_jacobian(m, w.data(), q)?, out);
         Ok(())
     })
 }

@@ -2,7 +2,6 @@
 //! checked, and the batch is spread over all cores with the GIL released.
 
 use legkit_dynamics::algorithms;
-use legkit_dynamics::model::{check_vector, Dense};
 use legkit_dynamics::Model;
 use pyo3::prelude::*;
 
@@ -10,7 +9,7 @@ use crate::convert::FloatArray;
 
 use crate::batch::{broadcast, ArrayArg, Batch};
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_dynamics, finite_result, run};
+use crate::workspace::run;
 
 /// The batch of (q, v, x[, f_ext]) with cores (nq,), (nv,), (nv,) and (nbodies, 6).
 pub(crate) fn state_batch(
@@ -44,11 +43,9 @@ pub fn rnea<'py>(
     let batch = state_batch(&model.model, &q, &v, ("a", &a), f_ext.as_ref())?;
     run(py, &model, &batch, &[nv], |m, w, i, out| {
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("a", a, m.nv())?;
-        let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
-        out.copy_from_slice(algorithms::rnea(m, data, q, v, a, forces).as_slice());
-        finite_result(out)
+        let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)));
+        out.copy_from_slice(algorithms::rnea(m, data, q, v, a, forces)?.as_slice());
+        Ok(())
     })
 }
 
@@ -67,11 +64,9 @@ pub fn aba<'py>(
     let batch = state_batch(&model.model, &q, &v, ("tau", &tau), f_ext.as_ref())?;
     run(py, &model, &batch, &[nv], |m, w, i, out| {
         let (q, v, tau) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("tau", tau, m.nv())?;
-        let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)))?;
-        out.copy_from_slice(algorithms::aba(m, data, q, v, tau, forces).as_slice());
-        finite_dynamics(m, data, out)
+        let (data, forces) = w.with_forces(batch.rows.get(3).map(|r| r.row(i)));
+        out.copy_from_slice(algorithms::aba(m, data, q, v, tau, forces)?.as_slice());
+        Ok(())
     })
 }
 
@@ -81,14 +76,9 @@ pub fn crba<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) ->
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()])])?;
     run(py, &model, &batch, &[m.nv(), m.nv()], |m, w, i, out| {
-        let q = batch.rows[0].row(i);
-        m.check_configuration(q)?;
         // M is symmetric, so its column-major storage is also its row-major layout.
-        out.copy_from_slice(algorithms::crba(m, w.dense(&[Dense::MassMatrix])?, q).as_slice());
-        // M is positive definite, |M_ij| <= sqrt(M_ii M_jj): an overflow shows on its diagonal, checked alone (the
-        // whole nv x nv output took a quarter of CRBA's time on a 512-link chain).
-        let overflowed = out.iter().step_by(m.nv() + 1).any(|x| !x.is_finite());
-        finite_result(if overflowed { &[f64::NAN] } else { &[] })
+        out.copy_from_slice(algorithms::crba(m, w.data(), batch.rows[0].row(i))?.as_slice());
+        Ok(())
     })
 }
 
@@ -98,11 +88,8 @@ pub fn minv<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) ->
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()])])?;
     run(py, &model, &batch, &[m.nv(), m.nv()], |m, w, i, out| {
-        let q = batch.rows[0].row(i);
-        m.check_configuration(q)?;
-        out.copy_from_slice(algorithms::minv(m, w.dense(&[Dense::Inverse])?, q).as_slice());
-        // M⁻¹ is positive definite, so |M⁻¹_ij| <= sqrt(M⁻¹_ii M⁻¹_jj): a singular M shows on the diagonal.
-        finite_dynamics(m, w.data(), out)
+        out.copy_from_slice(algorithms::minv(m, w.data(), batch.rows[0].row(i))?.as_slice());
+        Ok(())
     })
 }
 
@@ -112,10 +99,8 @@ pub fn kinetic_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayA
     let m = &model.model;
     let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()])])?;
     run(py, &model, &batch, &[], |m, w, i, out| {
-        let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
-        check_state(m, q, Some(v))?;
-        out[0] = algorithms::kinetic_energy(m, w.data(), q, v);
-        finite_result(out)
+        out[0] = algorithms::kinetic_energy(m, w.data(), batch.rows[0].row(i), batch.rows[1].row(i))?;
+        Ok(())
     })
 }
 
@@ -124,9 +109,7 @@ pub fn kinetic_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayA
 pub fn potential_energy<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
     run(py, &model, &batch, &[], |m, w, i, out| {
-        let q = batch.rows[0].row(i);
-        check_state(m, q, None)?;
-        out[0] = algorithms::potential_energy(m, w.data(), q);
-        finite_result(out)
+        out[0] = algorithms::potential_energy(m, w.data(), batch.rows[0].row(i))?;
+        Ok(())
     })
 }

@@ -11,7 +11,7 @@ use crate::convert::{kernel_error, shown, FloatArray, Integer};
 use crate::derivatives::{pair, run_matrices, write_columns};
 use crate::interrupt::{in_pieces, Pace};
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_result, run, singular, singular_factor, unpack, Workspace};
+use crate::workspace::{run, unpack, Workspace};
 use legkit_dynamics::validate::{array_len, zeros};
 
 /// `q ⊕ v dt`: joint coordinates add; a free-flyer base moves along exp(v dt) in its own frame: `(..., nq)`.
@@ -22,12 +22,7 @@ pub fn integrate<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayArg<'_
     let m = &model.model;
     legkit_dynamics::validate::finite("dt", dt).map_err(crate::convert::kernel_error)?;
     let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()])])?;
-    run(py, &model, &batch, &[m.nq()], |m, _, i, out| {
-        let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
-        check_state(m, q, Some(v))?;
-        algorithms::integrate(m, q, v, dt, out);
-        finite_result(out)
-    })
+    run(py, &model, &batch, &[m.nq()], |m, _, i, out| algorithms::integrate(m, batch.rows[0].row(i), batch.rows[1].row(i), dt, out))
 }
 
 /// Rolls the free dynamics (ABA: no contacts, no ground, no joint limits) out for `steps` steps of `dt` from
@@ -76,6 +71,7 @@ pub fn free_rollout<'py>(
         }
         None => vec![0.0; nv],
     };
+    // Checked whole here, before any step: the pieces below pass the core one step's rows at a time.
     if let Some(bad) = tau.iter().find(|x| !x.is_finite()) {
         return Err(PyValueError::new_err(format!("tau: must be finite, got {bad}")));
     }
@@ -89,13 +85,23 @@ pub fn free_rollout<'py>(
         width,
         0,
         batch.len,
-        || (),
-        |_, i, out| {
-            let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
-            check_state(&owner.model, q, Some(v))?;
-            out[..nq].copy_from_slice(q);
-            out[rows * nq..rows * nq + nv].copy_from_slice(v);
-            Ok(())
+        || Workspace::new(owner),
+        |w, i, out| {
+            // The initial state, checked and written by a rollout of no steps.
+            let (qs, vs) = out.split_at_mut(rows * nq);
+            let tau = if tau.len() == nv { &tau[..] } else { &[] };
+            algorithms::free_rollout(
+                &owner.model,
+                w.data(),
+                batch.rows[0].row(i),
+                batch.rows[1].row(i),
+                tau,
+                dt,
+                0,
+                method,
+                &mut qs[..nq],
+                &mut vs[..nv],
+            )
         },
     )?;
     let mut done = 0;
@@ -113,20 +119,7 @@ pub fn free_rollout<'py>(
                 let (q0, v0) = (qs[from * nq..(from + 1) * nq].to_vec(), vs[from * nv..(from + 1) * nv].to_vec());
                 let tau = if tau.len() == nv { &tau[..] } else { &tau[from * nv..to * nv] };
                 let (qs, vs) = (&mut qs[from * nq..(to + 1) * nq], &mut vs[from * nv..(to + 1) * nv]);
-                let model = &owner.model;
-                algorithms::free_rollout(model, w.data(), &q0, &v0, tau, dt, to - from, method, qs, vs)?;
-                finite_result(qs).and_then(|()| finite_result(vs)).map_err(|overflow| {
-                    // The factor at the last finite state tells a singular mass matrix from an overflow.
-                    let finite = |x: &[f64]| x.iter().all(|x| x.is_finite());
-                    let last = qs.chunks_exact(nq).zip(vs.chunks_exact(nv)).take_while(|(q, v)| finite(q) && finite(v)).last();
-                    let (q, v) = last.unwrap_or((&q0, &v0));
-                    algorithms::aba(model, w.data(), q, v, &tau[..nv], None);
-                    if singular_factor(model, w.data()) {
-                        singular()
-                    } else {
-                        overflow
-                    }
-                })
+                algorithms::free_rollout(&owner.model, w.data(), &q0, &v0, tau, dt, to - from, method, qs, vs)
             },
         )?;
         done = to;
@@ -142,11 +135,7 @@ pub fn free_rollout<'py>(
 pub fn difference<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q0: ArrayArg<'_>, q1: ArrayArg<'_>) -> PyResult<FloatArray<'py>> {
     let nq = model.model.nq();
     let batch = broadcast(&[("q0", &q0, &[nq]), ("q1", &q1, &[nq])])?;
-    run(py, &model, &batch, &[model.model.nv()], |m, _, i, out| {
-        let (q0, q1) = configuration_pair(m, &batch, i)?;
-        algorithms::difference(m, q0, q1, out);
-        Ok(())
-    })
+    run(py, &model, &batch, &[model.model.nv()], |m, _, i, out| algorithms::difference(m, batch.rows[0].row(i), batch.rows[1].row(i), out))
 }
 
 /// (∂(q ⊕ v dt)/∂q, ∂(q ⊕ v dt)/∂v), each `(..., nv, nv)`, on the tangent spaces: Pinocchio's `dIntegrate` at v dt,
@@ -164,10 +153,9 @@ pub fn integrate_jacobians<'py>(
     legkit_dynamics::validate::finite("dt", dt).map_err(crate::convert::kernel_error)?;
     let batch = broadcast(&[("q", &q, &[nq]), ("v", &v, &[nv])])?;
     run_matrix_pair(py, &model, &batch, |m, i, dq, dv| {
-        let v = batch.rows[1].row(i);
-        check_state(m, batch.rows[0].row(i), Some(v))?;
-        algorithms::integrate_jacobians(m, v, dt, dq, dv);
-        finite_result(dq.as_slice()).and_then(|()| finite_result(dv.as_slice()))
+        // The Jacobians do not depend on q, which is checked as `integrate` checks it.
+        m.check_configuration(batch.rows[0].row(i))?;
+        algorithms::integrate_jacobians(m, batch.rows[1].row(i), dt, dq, dv)
     })
 }
 
@@ -182,19 +170,7 @@ pub fn difference_jacobians<'py>(
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
     let nq = model.model.nq();
     let batch = broadcast(&[("q0", &q0, &[nq]), ("q1", &q1, &[nq])])?;
-    run_matrix_pair(py, &model, &batch, |m, i, d0, d1| {
-        let (q0, q1) = configuration_pair(m, &batch, i)?;
-        algorithms::difference_jacobians(m, q0, q1, d0, d1);
-        Ok(())
-    })
-}
-
-/// Row `i` of a batch of (q0, q1), each checked as a configuration.
-fn configuration_pair<'b>(m: &Model, batch: &'b Batch, i: usize) -> Result<(&'b [f64], &'b [f64]), Error> {
-    let (q0, q1) = (batch.rows[0].row(i), batch.rows[1].row(i));
-    m.check_configuration_named("q0", q0)?;
-    m.check_configuration_named("q1", q1)?;
-    Ok((q0, q1))
+    run_matrix_pair(py, &model, &batch, |m, i, d0, d1| algorithms::difference_jacobians(m, batch.rows[0].row(i), batch.rows[1].row(i), d0, d1))
 }
 
 /// Runs `kernel(model, row, a, b)`, which writes two nv x nv matrices, over the batch: `(..., nv, nv)` each.

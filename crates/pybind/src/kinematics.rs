@@ -2,7 +2,6 @@
 //! centroidal momentum.
 
 use legkit_dynamics::algorithms::{self, Frame};
-use legkit_dynamics::model::{check_vector, Dense};
 use nalgebra::{Dim, Dyn, Matrix, RawStorage, Vector3};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -10,7 +9,7 @@ use pyo3::prelude::*;
 use crate::batch::{broadcast, ArrayArg};
 use crate::convert::{homogeneous, vector3, FloatArray, Vector};
 use crate::model::PyModel;
-use crate::workspace::{check_state, finite_result, run, run_packed, unpack};
+use crate::workspace::{run, run_packed, unpack};
 
 /// World pose (4x4) of every body: `(..., nbodies, 4, 4)`.
 #[pyfunction(crate = "crate::arguments")]
@@ -19,13 +18,12 @@ pub fn forward_kinematics<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: Ar
     let batch = broadcast(&[("q", &q, &[m.nq()])])?;
     run(py, &model, &batch, &[m.nbodies(), 4, 4], |m, w, i, out| {
         let q = batch.rows[0].row(i);
-        m.check_configuration(q)?;
         let data = w.data();
-        algorithms::forward_kinematics(m, data, q);
+        algorithms::forward_kinematics(m, data, q)?;
         for (pose, chunk) in data.o_m_i.iter().zip(out.chunks_exact_mut(16)) {
             chunk.copy_from_slice(&homogeneous(pose));
         }
-        finite_result(out)
+        Ok(())
     })
 }
 
@@ -61,7 +59,10 @@ pub fn jacobian<'py>(
 ) -> PyResult<FloatArray<'py>> {
     let (body, point, convention) = frame_arguments(&model, body, point, frame)?;
     let nv = model.model.nv();
-    of_configuration(py, &model, &q, &[6, nv], |m, data, q, out| row_major(algorithms::jacobian(m, data, q, body, &point, convention), out))
+    of_configuration(py, &model, &q, &[6, nv], |m, data, q, out| {
+        row_major(algorithms::jacobian(m, data, q, body, &point, convention)?, out);
+        Ok(())
+    })
 }
 
 /// A kernel of the configuration alone over a batch of q: `kernel(model, data, q, out)` writes each row's `shape` numbers.
@@ -70,15 +71,10 @@ fn of_configuration<'py>(
     model: &PyModel,
     q: &ArrayArg<'_>,
     shape: &[usize],
-    kernel: impl Fn(&legkit_dynamics::Model, &mut legkit_dynamics::Data, &[f64], &mut [f64]) + Sync,
+    kernel: impl Fn(&legkit_dynamics::Model, &mut legkit_dynamics::Data, &[f64], &mut [f64]) -> Result<(), legkit_dynamics::Error> + Sync,
 ) -> PyResult<FloatArray<'py>> {
     let batch = broadcast(&[("q", q, &[model.model.nq()])])?;
-    run(py, model, &batch, shape, |m, w, i, out| {
-        let q = batch.rows[0].row(i);
-        check_state(m, q, None)?;
-        kernel(m, w.data(), q, out);
-        finite_result(out)
-    })
+    run(py, model, &batch, shape, |m, w, i, out| kernel(m, w.data(), batch.rows[0].row(i), out))
 }
 
 /// d/dq_d of entry [r, a] of `jacobian` at [r, a, d] (Pinocchio's `getJointKinematicHessian`; q on its tangent space,
@@ -121,11 +117,9 @@ pub fn point_velocity_hessian<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("weights", &weights, &[3])])?;
     let packed = run_packed(py, &model, &batch, nv * nv + nv, |m, w, i, out| {
         let (q, v, f) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        legkit_dynamics::validate::finite_vector("weights", Vector3::from_column_slice(f))?;
         let (hessian, gradient) = out.split_at_mut(nv * nv);
-        algorithms::point_velocity_hessian(m, w.dense(&[Dense::Workspace])?, q, v, body, &point, &Vector3::from_column_slice(f), hessian, gradient);
-        finite_result(out)
+        algorithms::point_velocity_hessian(m, w.data(), q, v, body, &point, &Vector3::from_column_slice(f), hessian, gradient)?;
+        Ok(())
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[nv, nv], &[nv]])?.into_iter();
     Ok((parts.next().expect("two"), parts.next().expect("two")))
@@ -153,11 +147,8 @@ pub fn point_acceleration_hessian<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("a", &a, &[nv]), ("weights", &weights, &[3])])?;
     let packed = run_packed(py, &model, &batch, 4 * nv * nv + nv, |m, w, i, out| {
         let (q, v, a, f) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i), batch.rows[3].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("a", a, nv)?;
-        legkit_dynamics::validate::finite_vector("weights", Vector3::from_column_slice(f))?;
-        algorithms::point_acceleration_hessian(m, w.dense(&[Dense::Workspace])?, q, v, a, body, &point, &Vector3::from_column_slice(f), out);
-        finite_result(out)
+        algorithms::point_acceleration_hessian(m, w.data(), q, v, a, body, &point, &Vector3::from_column_slice(f), out)?;
+        Ok(())
     })?;
     let square: &[usize] = &[nv, nv];
     let mut parts = unpack(py, &batch, &packed, &[square, square, square, square, &[nv]])?.into_iter();
@@ -171,9 +162,8 @@ pub fn center_of_mass<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayA
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
     run(py, &model, &batch, &[3], |m, w, i, out| {
         let q = batch.rows[0].row(i);
-        check_state(m, q, None)?;
-        out.copy_from_slice(algorithms::center_of_mass(m, w.data(), q).as_slice());
-        finite_result(out)
+        out.copy_from_slice(algorithms::center_of_mass(m, w.data(), q)?.as_slice());
+        Ok(())
     })
 }
 
@@ -190,11 +180,9 @@ pub fn center_of_mass_hessian<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("weights", &weights, &[3])])?;
     let packed = run_packed(py, &model, &batch, nv * nv + nv, |m, w, i, out| {
         let (q, f) = (batch.rows[0].row(i), batch.rows[1].row(i));
-        check_state(m, q, None)?;
-        legkit_dynamics::validate::finite_vector("weights", Vector3::from_column_slice(f))?;
         let (hessian, gradient) = out.split_at_mut(nv * nv);
-        algorithms::center_of_mass_hessian(m, w.dense(&[Dense::Workspace])?, q, &Vector3::from_column_slice(f), hessian, gradient);
-        finite_result(out)
+        algorithms::center_of_mass_hessian(m, w.data(), q, &Vector3::from_column_slice(f), hessian, gradient)?;
+        Ok(())
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[nv, nv], &[nv]])?.into_iter();
     Ok((parts.next().expect("two"), parts.next().expect("two")))
@@ -215,13 +203,11 @@ pub fn centroidal_momentum_hessian<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("weights", &weights, &[6])])?;
     let packed = run_packed(py, &model, &batch, 2 * nv * nv + nv, |m, w, i, out| {
         let (q, v, f) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("weights", f, 6)?;
         let weights: [f64; 6] = f.try_into().expect("six weights, as broadcast");
         let (qq, rest) = out.split_at_mut(nv * nv);
         let (qv, gradient) = rest.split_at_mut(nv * nv);
-        algorithms::centroidal_momentum_hessian(m, w.dense(&[Dense::Workspace])?, q, v, &weights, qq, qv, gradient);
-        finite_result(out)
+        algorithms::centroidal_momentum_hessian(m, w.data(), q, v, &weights, qq, qv, gradient)?;
+        Ok(())
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[nv, nv], &[nv, nv], &[nv]])?.into_iter();
     let mut next = || parts.next().expect("three");
@@ -240,15 +226,14 @@ pub fn subtree_mass_properties<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
     let packed = run_packed(py, &model, &batch, 13 * nb, |m, w, i, out| {
         let q = batch.rows[0].row(i);
-        check_state(m, q, None)?;
         let (masses, rest) = out.split_at_mut(nb);
         let (coms, inertias) = rest.split_at_mut(3 * nb);
-        for (b, body) in algorithms::subtree_mass_properties(m, w.data(), q).iter().enumerate() {
+        for (b, body) in algorithms::subtree_mass_properties(m, w.data(), q)?.iter().enumerate() {
             masses[b] = body.mass();
             coms[3 * b..3 * b + 3].copy_from_slice(body.com().as_slice());
             inertias[9 * b..9 * b + 9].copy_from_slice(body.inertia().transpose().as_slice());
         }
-        finite_result(out)
+        Ok(())
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[nb], &[nb, 3], &[nb, 3, 3]])?.into_iter();
     Ok((parts.next().unwrap(), parts.next().unwrap(), parts.next().unwrap()))
@@ -261,9 +246,8 @@ pub fn centroidal_momentum<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: A
     let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()])])?;
     run(py, &model, &batch, &[6], |m, w, i, out| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
-        check_state(m, q, Some(v))?;
-        out.copy_from_slice(algorithms::centroidal_momentum(m, w.data(), q, v).as_slice());
-        finite_result(out)
+        out.copy_from_slice(algorithms::centroidal_momentum(m, w.data(), q, v)?.as_slice());
+        Ok(())
     })
 }
 
@@ -274,9 +258,8 @@ pub fn centroidal_map<'py>(py: Python<'py>, model: PyRef<'_, PyModel>, q: ArrayA
     let batch = broadcast(&[("q", &q, &[model.model.nq()])])?;
     run(py, &model, &batch, &[6, nv], |m, w, i, out| {
         let q = batch.rows[0].row(i);
-        check_state(m, q, None)?;
-        row_major(algorithms::centroidal_map(m, w.data(), q), out);
-        finite_result(out)
+        row_major(algorithms::centroidal_map(m, w.data(), q)?, out);
+        Ok(())
     })
 }
 
@@ -293,10 +276,8 @@ pub fn centroidal_momentum_rate<'py>(
     let batch = broadcast(&[("q", &q, &[m.nq()]), ("v", &v, &[m.nv()]), ("a", &a, &[m.nv()])])?;
     run(py, &model, &batch, &[6], |m, w, i, out| {
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("a", a, m.nv())?;
-        out.copy_from_slice(algorithms::centroidal_momentum_rate(m, w.data(), q, v, a).as_slice());
-        finite_result(out)
+        out.copy_from_slice(algorithms::centroidal_momentum_rate(m, w.data(), q, v, a)?.as_slice());
+        Ok(())
     })
 }
 
@@ -326,9 +307,8 @@ pub fn frame_velocity<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[model.model.nv()])])?;
     run(py, &model, &batch, &[6], |m, w, i, out| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
-        check_state(m, q, Some(v))?;
-        out.copy_from_slice(algorithms::frame_velocity(m, w.dense(&[Dense::Workspace])?, q, v, body, &point, convention).as_slice());
-        finite_result(out)
+        out.copy_from_slice(algorithms::frame_velocity(m, w.data(), q, v, body, &point, convention)?.as_slice());
+        Ok(())
     })
 }
 
@@ -353,10 +333,8 @@ pub fn frame_acceleration<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("a", &a, &[nv])])?;
     run(py, &model, &batch, &[6], |m, w, i, out| {
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("a", a, nv)?;
-        out.copy_from_slice(algorithms::frame_acceleration(m, w.dense(&[Dense::Workspace])?, q, v, a, body, &point, convention).as_slice());
-        finite_result(out)
+        out.copy_from_slice(algorithms::frame_acceleration(m, w.data(), q, v, a, body, &point, convention)?.as_slice());
+        Ok(())
     })
 }
 
@@ -379,12 +357,11 @@ pub fn frame_velocity_derivatives<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv])])?;
     let packed = run_packed(py, &model, &batch, 12 * nv, |m, w, i, out| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
-        check_state(m, q, Some(v))?;
-        let (dq, dv) = algorithms::frame_velocity_derivatives(m, w.dense(&[Dense::Workspace])?, q, v, body, &point, convention);
+        let (dq, dv) = algorithms::frame_velocity_derivatives(m, w.data(), q, v, body, &point, convention)?;
         for (matrix, chunk) in [dq, dv].into_iter().zip(out.chunks_exact_mut(6 * nv)) {
             row_major(matrix, chunk);
         }
-        finite_result(out)
+        Ok(())
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[6, nv], &[6, nv]])?.into_iter();
     Ok((parts.next().expect("two"), parts.next().expect("two")))
@@ -411,14 +388,11 @@ pub fn frame_acceleration_derivatives<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv]), ("a", &a, &[nv])])?;
     let packed = run_packed(py, &model, &batch, 24 * nv, |m, w, i, out| {
         let (q, v, a) = (batch.rows[0].row(i), batch.rows[1].row(i), batch.rows[2].row(i));
-        check_state(m, q, Some(v))?;
-        check_vector("a", a, nv)?;
-        let (v_dq, a_dq, a_dv, a_da) =
-            algorithms::frame_acceleration_derivatives(m, w.dense(&[Dense::Workspace])?, q, v, a, body, &point, convention);
+        let (v_dq, a_dq, a_dv, a_da) = algorithms::frame_acceleration_derivatives(m, w.data(), q, v, a, body, &point, convention)?;
         for (matrix, chunk) in [v_dq, a_dq, a_dv, a_da].into_iter().zip(out.chunks_exact_mut(6 * nv)) {
             row_major(matrix, chunk);
         }
-        finite_result(out)
+        Ok(())
     })?;
     let mut parts = unpack(py, &batch, &packed, &[&[6, nv], &[6, nv], &[6, nv], &[6, nv]])?.into_iter();
     let mut next = || parts.next().expect("four");
@@ -443,8 +417,7 @@ pub fn jacobian_time_variation<'py>(
     let batch = broadcast(&[("q", &q, &[model.model.nq()]), ("v", &v, &[nv])])?;
     run(py, &model, &batch, &[6, nv], |m, w, i, out| {
         let (q, v) = (batch.rows[0].row(i), batch.rows[1].row(i));
-        check_state(m, q, Some(v))?;
-        row_major(algorithms::jacobian_time_variation(m, w.dense(&[Dense::Workspace])?, q, v, body, &point, convention), out);
-        finite_result(out)
+        row_major(algorithms::jacobian_time_variation(m, w.data(), q, v, body, &point, convention)?, out);
+        Ok(())
     })
 }

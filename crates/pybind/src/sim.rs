@@ -18,12 +18,12 @@ use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
-use crate::batch::on_all_threads;
 use crate::convert::{batch_error, batch_error_noting, homogeneous, kernel_error, to_numpy, transform, Floats, Integer};
 use crate::interrupt::{in_pieces, interruptible, Pace};
 use crate::model::PyModel;
 use crate::shapes::shape_overrides;
-use crate::workspace::finite_result;
+use legkit_dynamics::algorithms::finite_result;
+use legkit_dynamics::parallel::on_all_threads;
 
 /// Terrain for a `Simulation`: `Ground.plane(friction)` (the plane z = 0) or
 /// `Ground.heightfield(heights, cell_size, friction)`.

@@ -1,8 +1,7 @@
 //! Running a kernel over a batch of states with per-task workspaces, the GIL released.
 
-use legkit_dynamics::model::check_vector;
 use legkit_dynamics::model::Dense;
-use legkit_dynamics::spatial::{spd_inverse6, Force};
+use legkit_dynamics::spatial::Force;
 use legkit_dynamics::validate::{array_len, filled, with_capacity, zeros};
 use legkit_dynamics::{Data, Error, Model};
 use nalgebra::DMatrix;
@@ -46,16 +45,15 @@ impl<'m> Workspace<'m> {
     }
 
     /// The workspace and the external forces read from a row of `nbodies x 6` numbers (None when the
-    /// argument was not given).
-    pub fn with_forces(&mut self, row: Option<&[f64]>) -> Result<(&mut Data, Option<&[Force]>), Error> {
+    /// argument was not given; the kernels check them).
+    pub fn with_forces(&mut self, row: Option<&[f64]>) -> (&mut Data, Option<&[Force]>) {
         let data = self.data.as_mut().expect("present until dropped");
-        let Some(row) = row else { return Ok((data, None)) };
-        self.forces.resize(self.owner.model.nbodies(), Force::zeros());
-        check_vector("f_ext", row, 6 * self.forces.len())?;
+        let Some(row) = row else { return (data, None) };
+        self.forces.resize(row.len() / 6, Force::zeros());
         for (force, values) in self.forces.iter_mut().zip(row.chunks_exact(6)) {
             force.copy_from_slice(values);
         }
-        Ok((data, Some(&self.forces)))
+        (data, Some(&self.forces))
     }
 
     /// Two n x n matrices, allocated (fallibly) by the task's first row and reused by the others.
@@ -140,55 +138,4 @@ pub fn unpack<'py>(py: Python<'py>, batch: &Batch, packed: &[f64], cores: &[&[us
             Ok(to_numpy(py, batch.output_shape(core), part))
         })
         .collect()
-}
-
-/// Fails on NaN or infinity in a result: with valid (finite) inputs, a number overflowed. A numerical failure
-/// (RuntimeError), never reported as a singular mass matrix.
-pub fn finite_result(values: &[f64]) -> Result<(), Error> {
-    if all_finite(values) {
-        Ok(())
-    } else {
-        Err(Error::numerical("result", "not finite: a number overflowed float64 (are the inputs' magnitudes physical?)"))
-    }
-}
-
-/// Whether every number is finite, without a branch per number: x 0 is 0 for a finite x and NaN otherwise, summed in
-/// eight lanes the compiler keeps in vector registers (an early-exit loop took 10 µs of `aba_derivatives`' 95 µs on a
-/// 64-joint chain).
-fn all_finite(values: &[f64]) -> bool {
-    let mut lanes = [0.0f64; 8];
-    let chunks = values.chunks_exact(8);
-    let tail: f64 = chunks.remainder().iter().map(|x| x * 0.0).sum();
-    for chunk in chunks {
-        for (lane, x) in lanes.iter_mut().zip(chunk) {
-            *lane += x * 0.0;
-        }
-    }
-    lanes.iter().sum::<f64>() + tail == 0.0
-}
-
-/// `finite_result` for the outputs of the articulated-body factorisation left in `data` (ABA, Minv, and what
-/// runs them), which also fail on a singular mass matrix.
-pub fn finite_dynamics(model: &Model, data: &Data, values: &[f64]) -> Result<(), Error> {
-    finite_result(values).map_err(|overflow| if singular_factor(model, data) { singular() } else { overflow })
-}
-
-/// Whether the articulated-body factor in `data` is singular: a joint's pivot infinite or non-positive, or a
-/// floating base's finite articulated inertia not positive definite (an overflowed state leaves NaN instead).
-pub fn singular_factor(model: &Model, data: &Data) -> bool {
-    let base = &data.inertia[0];
-    let base_singular = model.floating_base() && base.iter().all(|x| x.is_finite()) && spd_inverse6(base)[(0, 0)].is_nan();
-    base_singular || (1..model.nbodies()).any(|i| model.joint(i).nv() == 1 && (data.d_inv[i].is_infinite() || data.d_inv[i] <= 0.0))
-}
-
-pub fn singular() -> Error {
-    Error::numerical("model", "the mass matrix is singular at this configuration (a body or joint without inertia?)")
-}
-
-pub fn check_state(model: &Model, q: &[f64], v: Option<&[f64]>) -> Result<(), Error> {
-    model.check_configuration(q)?;
-    if let Some(v) = v {
-        check_vector("v", v, model.nv())?;
-    }
-    Ok(())
 }

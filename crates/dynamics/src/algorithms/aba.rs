@@ -6,11 +6,14 @@
 
 use nalgebra::{DVector, Matrix3, Matrix6x3, Vector3, Vector6};
 
+use super::checks::{check_forces, check_state, finite_dynamics};
 use super::kinematics::base_centred_root;
 use super::world_pose;
 use crate::joint::Dofs;
+use crate::model::check_vector;
 use crate::model::{Block6, Data, Model, BLOCK};
 use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inertia_times_pair, spd_inverse6, Force, Inertia, Motion, Transform};
+use crate::{Error, Result};
 
 /// Forward dynamics by the articulated-body algorithm [Featherstone 2008, Table 7.1], O(n):
 /// q̈ = M⁻¹(τ − C q̇ − g + Jᵀ f_ext).
@@ -20,8 +23,17 @@ use crate::spatial::{add_reduced_inertia, cross_force, cross_motion, dot6, inert
 /// `kinematics::base_centred_kinematics`), `data.centred_m_i` holds each body's pose, `data.rigid` its rigid
 /// inertia, `data.centred_v` its velocity and `data.centred_a` its acceleration with gravity as a base
 /// acceleration (§5.3).
-pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>) -> &'d DVector<f64> {
-    aba_with_armature(model, data, q, v, tau, f_ext, model.armature())
+pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>) -> Result<&'d DVector<f64>> {
+    check_state(model, data, q, &[("v", v), ("tau", tau)])?;
+    check_forces(model, f_ext)?;
+    aba_unchecked(model, data, q, v, tau, f_ext);
+    finite_dynamics(model, data, data.ddq.as_slice())?;
+    Ok(&data.ddq)
+}
+
+/// [`aba`] without its checks, for the crate's inner loops.
+pub(crate) fn aba_unchecked<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>) -> &'d DVector<f64> {
+    aba_with_armature_unchecked(model, data, q, v, tau, f_ext, model.armature())
 }
 
 /// `aba` for the mass matrix M + diag(armature) (one non-negative entry per velocity coordinate; the
@@ -29,8 +41,29 @@ pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f
 /// armature, as Pinocchio's. The simulation adds the implicit servo and damping terms this way. The
 /// joints' `data.u`, `data.d_inv` and the base's articulated inertia `data.inertia[0]` are then the
 /// factors of M + diag(armature) = Lᵀ D L (L_ki = D_k⁻¹ U_kᵀ S_i for each ancestor i of k).
-#[inline(always)]
 pub fn aba_with_armature<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    f_ext: Option<&[Force]>,
+    armature: &[f64],
+) -> Result<&'d DVector<f64>> {
+    check_state(model, data, q, &[("v", v), ("tau", tau)])?;
+    check_forces(model, f_ext)?;
+    check_vector("armature", armature, model.nv())?;
+    if let Some(k) = armature.iter().position(|x| *x < 0.0) {
+        return Err(Error::invalid("armature", format!("element {k} is negative ({})", armature[k])));
+    }
+    aba_with_armature_unchecked(model, data, q, v, tau, f_ext, armature);
+    finite_dynamics(model, data, data.ddq.as_slice())?;
+    Ok(&data.ddq)
+}
+
+/// [`aba_with_armature`] without its checks, for the crate's inner loops.
+#[inline(always)]
+pub(crate) fn aba_with_armature_unchecked<'d>(
     model: &Model,
     data: &'d mut Data,
     q: &[f64],

@@ -8,13 +8,16 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::aba;
 use super::aba::{solve_columns, Factors};
+use super::aba_unchecked;
+use super::checks::{check_forces, check_output, check_state, finite_dynamics};
 use super::minv::minv_after_aba_into;
 use super::rnea_derivatives::derivatives_into;
+use crate::model::Dense;
 use crate::model::BLOCK;
 use crate::model::{reserve_square, Data, Model};
 use crate::spatial::Force;
+use crate::Result;
 
 /// Criterion `derivatives/aba`: with dense products the quadruped (nv 18) took 0.70x the solves' time, the 63-DoF
 /// tree 1.33x; in proportion to the products' work (nv per nonzero of ∂τ), they cross between 26 and 47 nonzeros per
@@ -31,6 +34,26 @@ pub fn aba_derivatives<'d>(
     v: &[f64],
     tau: &[f64],
     f_ext: Option<&[Force]>,
+) -> Result<(&'d DMatrix<f64>, &'d DMatrix<f64>, &'d DMatrix<f64>)> {
+    check_state(model, data, q, &[("v", v), ("tau", tau)])?;
+    check_forces(model, f_ext)?;
+    data.reserve_dense(model, &[Dense::AbaDerivatives, Dense::Inverse])?;
+    aba_derivatives_unchecked(model, data, q, v, tau, f_ext);
+    // M⁻¹ is positive definite: a singular M shows on its diagonal, and spreads to the other two.
+    for matrix in [&data.derivatives.ddq_dq, &data.derivatives.ddq_dv, &data.minv] {
+        finite_dynamics(model, data, matrix.as_slice())?;
+    }
+    Ok((&data.derivatives.ddq_dq, &data.derivatives.ddq_dv, &data.minv))
+}
+
+/// [`aba_derivatives`] without its checks, for the crate's inner loops.
+pub(crate) fn aba_derivatives_unchecked<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    f_ext: Option<&[Force]>,
 ) -> (&'d DMatrix<f64>, &'d DMatrix<f64>, &'d DMatrix<f64>) {
     let nv = model.nv();
     reserve_square(&mut data.derivatives.ddq_dq, nv);
@@ -41,7 +64,7 @@ pub fn aba_derivatives<'d>(
     let mut dq = std::mem::replace(&mut data.derivatives.ddq_dq, empty());
     let mut dv = std::mem::replace(&mut data.derivatives.ddq_dv, empty());
     let mut minv = std::mem::replace(&mut data.minv, empty());
-    aba_derivatives_into(model, data, q, v, tau, f_ext, dq.as_mut_slice(), dv.as_mut_slice(), minv.as_mut_slice());
+    aba_derivatives_into_unchecked(model, data, q, v, tau, f_ext, dq.as_mut_slice(), dv.as_mut_slice(), minv.as_mut_slice());
     (data.derivatives.ddq_dq, data.derivatives.ddq_dv, data.minv) = (dq, dv, minv);
     (&data.derivatives.ddq_dq, &data.derivatives.ddq_dv, &data.minv)
 }
@@ -66,11 +89,41 @@ pub fn aba_derivatives_into(
     ddq_dq: &mut [f64],
     ddq_dv: &mut [f64],
     minv: &mut [f64],
+) -> Result<()> {
+    check_state(model, data, q, &[("v", v), ("tau", tau)])?;
+    check_forces(model, f_ext)?;
+    let nv = model.nv();
+    check_output("ddq_dq", ddq_dq, nv * nv)?;
+    check_output("ddq_dv", ddq_dv, nv * nv)?;
+    check_output("minv", minv, nv * nv)?;
+    // M⁻¹'s recursion's force sets (and M⁻¹'s own square, which stays unused) on the models that use them.
+    let dense: &[Dense] = if minv_by_recursion(model) { &[Dense::Inverse, Dense::Workspace] } else { &[Dense::Workspace] };
+    data.reserve_dense(model, dense)?;
+    aba_derivatives_into_unchecked(model, data, q, v, tau, f_ext, ddq_dq, ddq_dv, minv);
+    // M⁻¹ is positive definite: a singular M shows on its diagonal, and spreads to the other two.
+    for matrix in [&*ddq_dq, &*ddq_dv, &*minv] {
+        finite_dynamics(model, data, matrix)?;
+    }
+    Ok(())
+}
+
+/// [`aba_derivatives_into`] without its checks, for the crate's inner loops.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn aba_derivatives_into_unchecked(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    f_ext: Option<&[Force]>,
+    ddq_dq: &mut [f64],
+    ddq_dv: &mut [f64],
+    minv: &mut [f64],
 ) {
     let nv = model.nv();
     let square = nv * nv;
     assert!(ddq_dq.len() == square && ddq_dv.len() == square && minv.len() == square, "aba_derivatives_into: outputs of nv x nv");
-    aba(model, data, q, v, tau, f_ext);
+    aba_unchecked(model, data, q, v, tau, f_ext);
     // An empty vector holds no allocation: q̈ is lent to the RNEA derivatives and put back.
     let ddq = std::mem::replace(&mut data.ddq, DVector::zeros(0));
     // On ABA's poses (same q): the forward pass composes no transform again.

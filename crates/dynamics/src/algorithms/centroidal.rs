@@ -4,11 +4,13 @@
 
 use nalgebra::{Matrix3xX, Matrix6xX, Vector3, Vector6};
 
+use super::checks::{check_state, finite_result};
 use super::com::world_com;
 use super::kinematics::{base_centred_kinematics, body_motions};
 use crate::joint::Dofs;
 use crate::model::{Data, Model};
 use crate::spatial::{angular, cross_force, linear, spatial, Force, Motion};
+use crate::Result;
 
 /// Body velocities, accelerations (without gravity) and poses; returns the spatial momentum and its rate
 /// about the world origin in world coordinates, and the centre of mass.
@@ -29,7 +31,15 @@ fn world_momentum(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Optio
 }
 
 /// `[h_lin; h_ang]`: linear momentum and angular momentum about the COM, world-aligned.
-pub fn centroidal_momentum(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Vector6<f64> {
+pub fn centroidal_momentum(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result<Vector6<f64>> {
+    check_state(model, data, q, &[("v", v)])?;
+    let h = centroidal_momentum_unchecked(model, data, q, v);
+    finite_result(h.as_slice())?;
+    Ok(h)
+}
+
+/// [`centroidal_momentum`] without its checks, for the crate's inner loops.
+pub(crate) fn centroidal_momentum_unchecked(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Vector6<f64> {
     let (momentum, _, com) = world_momentum(model, data, q, v, None);
     // Shift the moment from the world origin to the COM: L_G = L_O − c × p.
     spatial(linear(&momentum), angular(&momentum) - com.cross(&linear(&momentum)))
@@ -37,7 +47,15 @@ pub fn centroidal_momentum(model: &Model, data: &mut Data, q: &[f64], v: &[f64])
 
 /// d/dt `[h_lin; h_ang]` for joint accelerations `a` (gravity excluded): the net external wrench about the
 /// COM. Since ċ × p = ċ × m ċ = 0, the rate about the COM is L̇_O − c × ṗ.
-pub fn centroidal_momentum_rate(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Vector6<f64> {
+pub fn centroidal_momentum_rate(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<Vector6<f64>> {
+    check_state(model, data, q, &[("v", v), ("a", a)])?;
+    let rate = centroidal_momentum_rate_unchecked(model, data, q, v, a);
+    finite_result(rate.as_slice())?;
+    Ok(rate)
+}
+
+/// [`centroidal_momentum_rate`] without its checks, for the crate's inner loops.
+pub(crate) fn centroidal_momentum_rate_unchecked(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Vector6<f64> {
     let (_, rate, com) = world_momentum(model, data, q, v, Some(a));
     spatial(linear(&rate), angular(&rate) - com.cross(&linear(&rate)))
 }
@@ -46,7 +64,15 @@ pub fn centroidal_momentum_rate(model: &Model, data: &mut Data, q: &[f64], v: &[
 /// `data.centroidal_map`. As CRBA (Table 6.2) in the centred frame: a joint moves its subtree as one rigid
 /// body, so its column is the subtree's composite inertia times its motion subspace (eq. 6.17's F), whose
 /// moment is then taken about the COM.
-pub fn centroidal_map<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d Matrix6xX<f64> {
+pub fn centroidal_map<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d Matrix6xX<f64>> {
+    check_state(model, data, q, &[])?;
+    centroidal_map_unchecked(model, data, q);
+    finite_result(data.centroidal_map.as_slice())?;
+    Ok(&data.centroidal_map)
+}
+
+/// [`centroidal_map`] without its checks, for the crate's inner loops.
+pub(crate) fn centroidal_map_unchecked<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d Matrix6xX<f64> {
     let n = model.nbodies();
     base_centred_kinematics(model, data, q);
     for i in 0..n {
@@ -81,8 +107,15 @@ pub fn centroidal_map<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d M
 /// The centre of mass's Jacobian ∂c/∂q (3 x nv, world axes; q on its tangent space, as `integrate` steps it;
 /// Pinocchio's `jacobianCenterOfMass`) in `data.com_jacobian`: the linear rows of the centroidal momentum matrix
 /// over the mass, since the linear momentum is m ċ = A_G q̇ (zeros for a massless model).
-pub fn center_of_mass_jacobian<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d Matrix3xX<f64> {
-    centroidal_map(model, data, q);
+pub fn center_of_mass_jacobian<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d Matrix3xX<f64>> {
+    check_state(model, data, q, &[])?;
+    center_of_mass_jacobian_unchecked(model, data, q);
+    Ok(&data.com_jacobian)
+}
+
+/// [`center_of_mass_jacobian`] without its checks, for the crate's inner loops.
+pub(crate) fn center_of_mass_jacobian_unchecked<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d Matrix3xX<f64> {
+    centroidal_map_unchecked(model, data, q);
     let mass = data.composite[0].mass;
     let per_mass = if mass > 0.0 { 1.0 / mass } else { 0.0 };
     for (mut jacobian, map) in data.com_jacobian.column_iter_mut().zip(data.centroidal_map.column_iter()) {

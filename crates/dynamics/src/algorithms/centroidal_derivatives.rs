@@ -13,14 +13,36 @@
 
 use nalgebra::{Matrix6xX, Vector3};
 
+use super::checks::{check_state, finite_result};
 use super::rnea_derivatives::{column, forward_pass, set_column};
+use crate::model::Dense;
 use crate::model::{Data, Model};
 use crate::spatial::{angular, cross_force, linear, spatial, Motion};
+use crate::Result;
 
 /// ∂h/∂q, ∂ḣ/∂q, ∂ḣ/∂q̇ and ∂ḣ/∂q̈ = A_G (6 x nv each, rows `[linear; angular about the COM]` in world axes) at
 /// configuration `q`, velocity `v` and acceleration `a`. Writes the first three to `data.derivatives.dh_dq`,
 /// `dhdot_dq` and `dhdot_dv`, A_G to `data.centroidal_map`, and returns them.
+#[allow(clippy::type_complexity)]
 pub fn centroidal_derivatives<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+) -> Result<(&'d Matrix6xX<f64>, &'d Matrix6xX<f64>, &'d Matrix6xX<f64>, &'d Matrix6xX<f64>)> {
+    check_state(model, data, q, &[("v", v), ("a", a)])?;
+    data.reserve_dense(model, &[Dense::Workspace])?;
+    centroidal_derivatives_unchecked(model, data, q, v, a);
+    let d = &data.derivatives;
+    for matrix in [&d.dh_dq, &d.dhdot_dq, &d.dhdot_dv, &data.centroidal_map] {
+        finite_result(matrix.as_slice())?;
+    }
+    Ok((&d.dh_dq, &d.dhdot_dq, &d.dhdot_dv, &data.centroidal_map))
+}
+
+/// [`centroidal_derivatives`] without its checks, for the crate's inner loops.
+pub(crate) fn centroidal_derivatives_unchecked<'d>(
     model: &Model,
     data: &'d mut Data,
     q: &[f64],

@@ -12,11 +12,16 @@
 
 use nalgebra::Vector3;
 
+use super::checks::{check_output, check_state, finite_result};
 use super::kinematic_hessian::is_ancestor;
 use super::kinematics::base_centred_kinematics;
 use super::rnea_derivatives::{column, set_column};
+use crate::model::check_vector;
+use crate::model::Dense;
 use crate::model::{Data, Model};
 use crate::spatial::{cross_force, cross_motion, linear, spatial, Force, Motion, RigidInertia};
+use crate::validate::finite_vector;
+use crate::Result;
 
 /// Each coordinate's column (`data.derivatives.subspace`), each body's velocity (`velocity`, zero without `v`) and
 /// its subtree's inertia (`composite`) and momentum (`momentum`), centred frame; returns the total mass and the COM.
@@ -96,7 +101,33 @@ fn add_com_hessian(model: &Model, data: &Data, mass: f64, weights: &Vector3<f64>
 
 /// The q-Hessian `hessian` (nv x nv, row-major, `[e, d]` the slope along q_d of the gradient's entry e) and the
 /// gradient `gradient` (nv) of `weights` · the centre of mass (world; zeros for a massless model).
-pub fn center_of_mass_hessian(model: &Model, data: &mut Data, q: &[f64], weights: &Vector3<f64>, hessian: &mut [f64], gradient: &mut [f64]) {
+pub fn center_of_mass_hessian(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    weights: &Vector3<f64>,
+    hessian: &mut [f64],
+    gradient: &mut [f64],
+) -> Result<()> {
+    check_state(model, data, q, &[])?;
+    finite_vector("weights", *weights)?;
+    check_output("hessian", hessian, model.nv() * model.nv())?;
+    check_output("gradient", gradient, model.nv())?;
+    data.reserve_dense(model, &[Dense::Workspace])?;
+    center_of_mass_hessian_unchecked(model, data, q, weights, hessian, gradient);
+    finite_result(hessian)?;
+    finite_result(gradient)
+}
+
+/// [`center_of_mass_hessian`] without its checks, for the crate's inner loops.
+pub(crate) fn center_of_mass_hessian_unchecked(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    weights: &Vector3<f64>,
+    hessian: &mut [f64],
+    gradient: &mut [f64],
+) {
     let (mass, _) = subtree_sums(model, data, q, None);
     hessian.fill(0.0);
     gradient.fill(0.0);
@@ -113,6 +144,31 @@ pub fn center_of_mass_hessian(model: &Model, data: &mut Data, q: &[f64], weights
 /// [linear; angular about the COM] (`centroidal_momentum`); linear in v, so vv is zero.
 #[allow(clippy::too_many_arguments)]
 pub fn centroidal_momentum_hessian(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    weights: &[f64; 6],
+    qq: &mut [f64],
+    qv: &mut [f64],
+    gradient: &mut [f64],
+) -> Result<()> {
+    check_state(model, data, q, &[("v", v)])?;
+    check_vector("weights", weights, 6)?;
+    let nv = model.nv();
+    check_output("qq", qq, nv * nv)?;
+    check_output("qv", qv, nv * nv)?;
+    check_output("gradient", gradient, nv)?;
+    data.reserve_dense(model, &[Dense::Workspace])?;
+    centroidal_momentum_hessian_unchecked(model, data, q, v, weights, qq, qv, gradient);
+    finite_result(qq)?;
+    finite_result(qv)?;
+    finite_result(gradient)
+}
+
+/// [`centroidal_momentum_hessian`] without its checks, for the crate's inner loops.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn centroidal_momentum_hessian_unchecked(
     model: &Model,
     data: &mut Data,
     q: &[f64],

@@ -2,14 +2,28 @@
 
 use nalgebra::Vector3;
 
-use super::forward_kinematics;
+use super::checks::{check_state, finite_result};
+use super::forward_kinematics_unchecked;
 use crate::model::{Data, Model};
+use crate::Result;
 
 /// Fills `data.subtree[i]` with the mass properties of the subtree rooted at body `i`, in the world frame
 /// (inertia about the subtree's COM): the quantity the distributed agents of Moll et al. compute by
 /// message passing. Runs forward kinematics first.
-pub fn subtree_mass_properties<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d [crate::MassProperties] {
-    forward_kinematics(model, data, q);
+pub fn subtree_mass_properties<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d [crate::MassProperties]> {
+    check_state(model, data, q, &[])?;
+    subtree_mass_properties_unchecked(model, data, q);
+    for body in &data.subtree {
+        finite_result(&[body.mass()])?;
+        finite_result(body.com().as_slice())?;
+        finite_result(body.inertia().as_slice())?;
+    }
+    Ok(&data.subtree)
+}
+
+/// [`subtree_mass_properties`] without its checks, for the crate's inner loops.
+pub(crate) fn subtree_mass_properties_unchecked<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d [crate::MassProperties] {
+    forward_kinematics_unchecked(model, data, q);
     for i in 0..model.nbodies() {
         let pose = &data.o_m_i[i];
         data.subtree[i] = model.body(i).transformed_unchecked(&pose.rotation, &pose.translation);
@@ -22,8 +36,16 @@ pub fn subtree_mass_properties<'d>(model: &Model, data: &'d mut Data, q: &[f64])
 }
 
 /// The whole model's centre of mass in the world frame.
-pub fn center_of_mass(model: &Model, data: &mut Data, q: &[f64]) -> Vector3<f64> {
-    forward_kinematics(model, data, q);
+pub fn center_of_mass(model: &Model, data: &mut Data, q: &[f64]) -> Result<Vector3<f64>> {
+    check_state(model, data, q, &[])?;
+    let com = center_of_mass_unchecked(model, data, q);
+    finite_result(com.as_slice())?;
+    Ok(com)
+}
+
+/// [`center_of_mass`] without its checks, for the crate's inner loops.
+pub(crate) fn center_of_mass_unchecked(model: &Model, data: &mut Data, q: &[f64]) -> Vector3<f64> {
+    forward_kinematics_unchecked(model, data, q);
     world_com(model, data)
 }
 

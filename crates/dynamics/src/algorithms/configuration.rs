@@ -7,8 +7,12 @@ use std::ops::Range;
 
 use nalgebra::{DMatrix, DMatrixViewMut};
 
+use super::checks::{check_output, check_square, finite_result};
 use crate::joint::Joint;
+use crate::model::check_vector;
 use crate::model::Model;
+use crate::validate::finite;
+use crate::Result;
 
 /// Each joint with the ranges of its coordinates in q and in v.
 fn joints(model: &Model) -> impl Iterator<Item = (&Joint, Range<usize>, Range<usize>)> {
@@ -19,14 +23,33 @@ fn joints(model: &Model) -> impl Iterator<Item = (&Joint, Range<usize>, Range<us
 }
 
 /// `q ⊕ v dt` into `out` (nq).
-pub fn integrate(model: &Model, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
+pub fn integrate(model: &Model, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) -> Result<()> {
+    model.check_configuration(q)?;
+    check_vector("v", v, model.nv())?;
+    finite("dt", dt)?;
+    check_output("out", out, model.nq())?;
+    integrate_unchecked(model, q, v, dt, out);
+    finite_result(out)
+}
+
+/// [`integrate`] without its checks, for the crate's inner loops.
+pub(crate) fn integrate_unchecked(model: &Model, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
     for (joint, cq, cv) in joints(model) {
         joint.integrate(&q[cq.clone()], &v[cv], dt, &mut out[cq]);
     }
 }
 
 /// `q1 ⊖ q0` into `out` (nv): the v with `integrate(q0, v, 1) = q1` (Pinocchio's `difference`).
-pub fn difference(model: &Model, q0: &[f64], q1: &[f64], out: &mut [f64]) {
+pub fn difference(model: &Model, q0: &[f64], q1: &[f64], out: &mut [f64]) -> Result<()> {
+    model.check_configuration_named("q0", q0)?;
+    model.check_configuration_named("q1", q1)?;
+    check_output("out", out, model.nv())?;
+    difference_unchecked(model, q0, q1, out);
+    finite_result(out)
+}
+
+/// [`difference`] without its checks, for the crate's inner loops.
+pub(crate) fn difference_unchecked(model: &Model, q0: &[f64], q1: &[f64], out: &mut [f64]) {
     for (joint, cq, cv) in joints(model) {
         joint.difference(&q0[cq.clone()], &q1[cq], &mut out[cv]);
     }
@@ -34,13 +57,35 @@ pub fn difference(model: &Model, q0: &[f64], q1: &[f64], out: &mut [f64]) {
 
 /// ∂(q ⊕ v dt)/∂q and ∂(q ⊕ v dt)/∂v into `dq` and `dv` (nv x nv): Pinocchio's `dIntegrate(model, q, v dt, ARG0)`
 /// and dt `dIntegrate(model, q, v dt, ARG1)`. They do not depend on q (`Joint::integrate_jacobians`).
-pub fn integrate_jacobians(model: &Model, v: &[f64], dt: f64, dq: &mut DMatrix<f64>, dv: &mut DMatrix<f64>) {
+pub fn integrate_jacobians(model: &Model, v: &[f64], dt: f64, dq: &mut DMatrix<f64>, dv: &mut DMatrix<f64>) -> Result<()> {
+    check_vector("v", v, model.nv())?;
+    finite("dt", dt)?;
+    check_square("dq", dq, model.nv())?;
+    check_square("dv", dv, model.nv())?;
+    integrate_jacobians_unchecked(model, v, dt, dq, dv);
+    finite_result(dq.as_slice())?;
+    finite_result(dv.as_slice())
+}
+
+/// [`integrate_jacobians`] without its checks, for the crate's inner loops.
+pub(crate) fn integrate_jacobians_unchecked(model: &Model, v: &[f64], dt: f64, dq: &mut DMatrix<f64>, dv: &mut DMatrix<f64>) {
     block_diagonal(model, dq, dv, |joint, _, cv, dq, dv| joint.integrate_jacobians(&v[cv], dt, dq, dv));
 }
 
 /// ∂(q1 ⊖ q0)/∂q0 and ∂(q1 ⊖ q0)/∂q1 into `d0` and `d1` (nv x nv): Pinocchio's `dDifference(model, q0, q1, ARG0)`
 /// and `(..., ARG1)`.
-pub fn difference_jacobians(model: &Model, q0: &[f64], q1: &[f64], d0: &mut DMatrix<f64>, d1: &mut DMatrix<f64>) {
+pub fn difference_jacobians(model: &Model, q0: &[f64], q1: &[f64], d0: &mut DMatrix<f64>, d1: &mut DMatrix<f64>) -> Result<()> {
+    model.check_configuration_named("q0", q0)?;
+    model.check_configuration_named("q1", q1)?;
+    check_square("d0", d0, model.nv())?;
+    check_square("d1", d1, model.nv())?;
+    difference_jacobians_unchecked(model, q0, q1, d0, d1);
+    finite_result(d0.as_slice())?;
+    finite_result(d1.as_slice())
+}
+
+/// [`difference_jacobians`] without its checks, for the crate's inner loops.
+pub(crate) fn difference_jacobians_unchecked(model: &Model, q0: &[f64], q1: &[f64], d0: &mut DMatrix<f64>, d1: &mut DMatrix<f64>) {
     block_diagonal(model, d0, d1, |joint, cq, _, d0, d1| joint.difference_jacobians(&q0[cq.clone()], &q1[cq], d0, d1));
 }
 

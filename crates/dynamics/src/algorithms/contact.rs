@@ -10,9 +10,12 @@
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
+use super::checks::{check_output, check_state, finite_result};
 use super::kinematics_derivatives::FramePoint;
 use super::rnea_derivatives::motion_derivatives;
-use super::{crba, minv, rnea};
+use super::{crba_unchecked, minv_unchecked, rnea_unchecked};
+use crate::model::check_vector;
+use crate::model::Dense;
 use crate::model::{ContactWorkspace, Data, Model};
 use crate::spatial::Motion;
 use crate::{Error, Result};
@@ -176,6 +179,29 @@ pub fn point_accelerations(
     points: &[ContactPoint],
     dim: ContactDim,
     out: &mut [f64],
+) -> Result<()> {
+    check_state(model, data, q, &[("v", v)])?;
+    if let Some(a) = a {
+        check_vector("a", a, model.nv())?;
+    }
+    check_contacts(model, points)?;
+    check_output("out", out, points.len() * dim.rows())?;
+    data.reserve_dense(model, &[Dense::Workspace])?;
+    point_accelerations_unchecked(model, data, q, v, a, points, dim, out);
+    finite_result(out)
+}
+
+/// [`point_accelerations`] without its checks, for the crate's inner loops.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn point_accelerations_unchecked(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: Option<&[f64]>,
+    points: &[ContactPoint],
+    dim: ContactDim,
+    out: &mut [f64],
 ) {
     motion_derivatives(model, data, q, v, a, Motion::zeros());
     for (point, chunk) in points.iter().zip(out.chunks_exact_mut(dim.rows())) {
@@ -234,7 +260,7 @@ fn singular_mass_matrix() -> Error {
 
 /// M⁻¹ at q, checked: an error if M is singular.
 fn checked_minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d DMatrix<f64>> {
-    let minv = minv(model, data, q);
+    let minv = minv_unchecked(model, data, q);
     // The diagonal read in place (`diagonal()` would copy it out).
     if !minv.as_slice().iter().step_by(minv.nrows() + 1).all(|x| x.is_finite() && *x > 0.0) {
         return Err(singular_mass_matrix());
@@ -321,9 +347,12 @@ pub fn contact_dynamics(
     contacts: &[ContactPoint],
     dim: ContactDim,
 ) -> Result<ContactDynamics> {
+    check_state(model, data, q, &[("v", v), ("tau", tau)])?;
     check_contacts(model, contacts)?;
     with_workspace(data, |data, w| {
         contact_solution(model, data, w, q, v, tau, contacts, dim)?;
+        finite_result(&w.solution)?;
+        finite_result(&w.forces)?;
         Ok(ContactDynamics { ddq: DVector::from_column_slice(&w.solution), forces: DVector::from_column_slice(&w.forces) })
     })
 }
@@ -344,7 +373,7 @@ pub(crate) fn contact_solution(
     w.drift.iter_mut().for_each(|x| *x = -*x);
     // τ − h, h = rnea(q, v, 0), in `rhs_top`'s first column.
     let nv = model.nv();
-    let bias = rnea(model, data, q, v, &w.zeros, None);
+    let bias = rnea_unchecked(model, data, q, v, &w.zeros, None);
     for ((x, t), h) in w.rhs_top[..nv].iter_mut().zip(tau).zip(bias.iter()) {
         *x = t - h;
     }
@@ -365,9 +394,12 @@ pub fn impact(
     contacts: &[ContactPoint],
     dim: ContactDim,
 ) -> Result<(DVector<f64>, DVector<f64>)> {
+    check_state(model, data, q, &[("v", v)])?;
     check_contacts(model, contacts)?;
     with_workspace(data, |data, w| {
         impact_solution(model, data, w, q, v, contacts, dim)?;
+        finite_result(&w.solution)?;
+        finite_result(&w.forces)?;
         Ok((DVector::from_column_slice(&w.solution), DVector::from_column_slice(&w.forces)))
     })
 }
@@ -431,10 +463,11 @@ pub fn reduced_dynamics(
     contacts: &[ContactPoint],
     independent: Option<&[usize]>,
 ) -> Result<ReducedDynamics> {
+    check_state(model, data, q, &[("v", v), ("tau", tau)])?;
     check_contacts(model, contacts)?;
     let nv = model.nv();
-    let mass = crba(model, data, q).clone();
-    let bias = rnea(model, data, q, v, &vec![0.0; nv], None).clone();
+    let mass = crba_unchecked(model, data, q).clone();
+    let bias = rnea_unchecked(model, data, q, v, &vec![0.0; nv], None).clone();
     if mass.clone().cholesky().is_none() {
         return Err(singular_mass_matrix());
     }

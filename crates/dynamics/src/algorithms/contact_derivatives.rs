@@ -16,6 +16,7 @@
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
+use super::checks::{check_output, check_state, finite_result};
 use super::contact::{check_contacts, contact_solution, gemm, impact_solution, plain, with_workspace, ContactDim, ContactPoint};
 use super::jacobian::Frame;
 use super::kinematics_derivatives::{for_each_frame_derivative, FramePoint};
@@ -190,9 +191,11 @@ pub fn contact_dynamics_derivatives_into(
     ddq_d: &mut [f64],
     forces_d: &mut [f64],
 ) -> Result<()> {
+    check_state(model, data, q, &[("v", v), ("tau", tau)])?;
     check_contacts(model, contacts)?;
     let (nv, r) = (model.nv(), rows(contacts, dim));
-    assert!(ddq_d.len() == 3 * nv * nv && forces_d.len() == 3 * r * nv, "contact_dynamics_derivatives_into: outputs of 3 nv x nv and 3 r x nv");
+    check_output("ddq_d", ddq_d, 3 * nv * nv)?;
+    check_output("forces_d", forces_d, 3 * r * nv)?;
     with_workspace(data, |data, w| {
         if let Some(row) = contact_solution(model, data, w, q, v, tau, contacts, dim)? {
             return Err(dependent(contacts, dim, row));
@@ -210,7 +213,9 @@ pub fn contact_dynamics_derivatives_into(
         ddq_dtau.copy_from_slice(&w.projected);
         forces_dtau.iter_mut().zip(&w.gain).for_each(|(out, g)| *out = -g);
         Ok(())
-    })
+    })?;
+    finite_result(ddq_d)?;
+    finite_result(forces_d)
 }
 
 /// Runs an `_into` variant on outputs of N nv x nv and N r x nv matrices it allocates, and returns the solution it
@@ -261,9 +266,11 @@ pub fn impact_derivatives_into(
     velocity_d: &mut [f64],
     impulses_d: &mut [f64],
 ) -> Result<()> {
+    check_state(model, data, q, &[("v", v)])?;
     check_contacts(model, contacts)?;
     let (nv, r) = (model.nv(), rows(contacts, dim));
-    assert!(velocity_d.len() == 2 * nv * nv && impulses_d.len() == 2 * r * nv, "impact_derivatives_into: outputs of 2 nv x nv and 2 r x nv");
+    check_output("velocity_d", velocity_d, 2 * nv * nv)?;
+    check_output("impulses_d", impulses_d, 2 * r * nv)?;
     with_workspace(data, |data, w| {
         // M (v⁺ − v) − Jᵀ Λ = 0, J v⁺ = 0.
         if let Some(row) = impact_solution(model, data, w, q, v, contacts, dim)? {
@@ -296,5 +303,7 @@ pub fn impact_derivatives_into(
             velocity_dv[i + nv * i] += 1.0;
         }
         Ok(())
-    })
+    })?;
+    finite_result(velocity_d)?;
+    finite_result(impulses_d)
 }

@@ -6,15 +6,30 @@
 
 use nalgebra::DMatrix;
 
+use super::checks::{check_state, finite_result};
 use super::kinematics::base_centred_kinematics;
 use crate::joint::Dofs;
+use crate::model::Dense;
 use crate::model::{reserve_square, Data, Model};
 use crate::spatial::{Force, RigidInertia};
+use crate::Result;
 
 /// The joint-space mass matrix M(q) by the composite-rigid-body algorithm [Featherstone 2008, Table 6.2].
 ///
 /// Fills `data.mass_matrix` (both triangles, each entry as it is found) and returns it. Works for any parent-before-child order.
-pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64> {
+pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d DMatrix<f64>> {
+    check_state(model, data, q, &[])?;
+    data.reserve_dense(model, &[Dense::MassMatrix])?;
+    let m = crba_unchecked(model, data, q);
+    // M is positive definite, |M_ij| <= sqrt(M_ii M_jj): an overflow shows on its diagonal, checked alone (the whole
+    // nv x nv matrix took a quarter of CRBA's time on a 512-link chain).
+    let overflowed = m.as_slice().iter().step_by(m.nrows() + 1).any(|x| !x.is_finite());
+    finite_result(if overflowed { &[f64::NAN] } else { &[] })?;
+    Ok(&data.mass_matrix)
+}
+
+/// [`crba`] without its checks, for the crate's inner loops.
+pub(crate) fn crba_unchecked<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64> {
     let n = model.nbodies();
     reserve_square(&mut data.mass_matrix, model.nv());
     base_centred_kinematics(model, data, q);

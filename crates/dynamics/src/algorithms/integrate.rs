@@ -3,9 +3,10 @@
 
 use nalgebra::DVector;
 
-use super::{aba, integrate};
+use super::checks::{check_output, check_state, finite_result, singular, singular_factor};
+use super::{aba_unchecked, integrate_unchecked};
 use crate::model::{Data, Model};
-use crate::Result;
+use crate::{Error, Result};
 
 /// How [`Integrator`] and [`free_rollout`] step the free dynamics.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -44,9 +45,9 @@ impl Integrator {
     pub fn step(&mut self, model: &Model, data: &mut Data, q: &mut [f64], v: &mut DVector<f64>, tau: &[f64], dt: f64) {
         match self.method {
             Method::SemiImplicitEuler => {
-                let acceleration = aba(model, data, q, v.as_slice(), tau, None);
+                let acceleration = aba_unchecked(model, data, q, v.as_slice(), tau, None);
                 v.axpy(dt, acceleration, 1.0);
-                integrate(model, q, v.as_slice(), dt, &mut self.q_next);
+                integrate_unchecked(model, q, v.as_slice(), dt, &mut self.q_next);
             }
             Method::Rk4 => {
                 // Stage s evaluates q̈ at (q ⊕ c_s h v_{s−1}, v + c_s h a_{s−1}); weights 1, 2, 2, 1.
@@ -55,16 +56,16 @@ impl Integrator {
                 self.q_stage.copy_from_slice(q);
                 self.v_stage.copy_from(v);
                 for (fraction, weight) in [(0.5, 1.0), (0.5, 2.0), (1.0, 2.0), (0.0, 1.0)] {
-                    let acceleration = aba(model, data, &self.q_stage, self.v_stage.as_slice(), tau, None);
+                    let acceleration = aba_unchecked(model, data, &self.q_stage, self.v_stage.as_slice(), tau, None);
                     self.v_sum.axpy(weight, &self.v_stage, 1.0);
                     self.a_sum.axpy(weight, acceleration, 1.0);
                     if fraction > 0.0 {
-                        integrate(model, q, self.v_stage.as_slice(), fraction * dt, &mut self.q_stage);
+                        integrate_unchecked(model, q, self.v_stage.as_slice(), fraction * dt, &mut self.q_stage);
                         self.v_stage.copy_from(v);
                         self.v_stage.axpy(fraction * dt, &data.ddq, 1.0);
                     }
                 }
-                integrate(model, q, self.v_sum.as_slice(), dt / 6.0, &mut self.q_next);
+                integrate_unchecked(model, q, self.v_sum.as_slice(), dt / 6.0, &mut self.q_next);
                 v.axpy(dt / 6.0, &self.a_sum, 1.0);
             }
         }
@@ -72,12 +73,58 @@ impl Integrator {
     }
 }
 
-/// Rolls the free dynamics (ABA, no contacts, no joint limits) out for `steps` steps from (q0, v0), with `tau`
-/// constant (nv numbers) or per step (steps x nv). Writes (steps + 1) x nq configurations and (steps + 1) x nv
-/// velocities, row by row. "Rollout" as in MuJoCo's `rollout`; "free" to keep it apart from the contact
-/// `sim::Simulation`.
+/// Rolls the free dynamics (ABA, no contacts, no joint limits) out for `steps` steps from (q, v), with `tau`
+/// constant (nv numbers) or per step (steps x nv). Writes (steps + 1) x nq configurations to `qs` and (steps + 1) x nv
+/// velocities to `vs`, row by row. "Rollout" as in MuJoCo's `rollout`; "free" to keep it apart from the contact
+/// `sim::Simulation`. Errors: `data` of another model, `q`, `v`, `tau`, `dt`, `qs` or `vs` invalid; `Error::Numerical`
+/// if the state stops being finite: a singular mass matrix (told apart by the factor at the last finite state) or an
+/// overflow.
 #[allow(clippy::too_many_arguments)]
 pub fn free_rollout(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    dt: f64,
+    steps: usize,
+    method: Method,
+    qs: &mut [f64],
+    vs: &mut [f64],
+) -> Result<()> {
+    let (nq, nv) = (model.nq(), model.nv());
+    check_state(model, data, q, &[("v", v)])?;
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(Error::invalid("dt", format!("must be finite and > 0, got {dt}")));
+    }
+    if tau.len() != nv && Some(tau.len()) != nv.checked_mul(steps) {
+        return Err(Error::invalid("tau", format!("expected {nv} or steps x {nv} = {} numbers, got {}", nv.saturating_mul(steps), tau.len())));
+    }
+    if let Some(bad) = tau.iter().find(|x| !x.is_finite()) {
+        return Err(Error::invalid("tau", format!("must be finite, got {bad}")));
+    }
+    let rows = steps.saturating_add(1);
+    check_output("qs", qs, rows.saturating_mul(nq))?;
+    check_output("vs", vs, rows.saturating_mul(nv))?;
+    free_rollout_unchecked(model, data, q, v, tau, dt, steps, method, qs, vs);
+    finite_result(qs).and_then(|()| finite_result(vs)).map_err(|overflow| {
+        // The factor at the last finite state tells a singular mass matrix from an overflow.
+        let finite = |x: &[f64]| x.iter().all(|x| x.is_finite());
+        let last = qs.chunks_exact(nq.max(1)).zip(vs.chunks_exact(nv.max(1))).take_while(|(q, v)| finite(q) && finite(v)).last();
+        let (q, v) = last.unwrap_or((q, v));
+        let Some(tau) = tau.get(..nv) else { return overflow };
+        aba_unchecked(model, data, q, v, tau, None);
+        if singular_factor(model, data) {
+            singular()
+        } else {
+            overflow
+        }
+    })
+}
+
+/// [`free_rollout`] without its checks.
+#[allow(clippy::too_many_arguments)]
+fn free_rollout_unchecked(
     model: &Model,
     data: &mut Data,
     q0: &[f64],
@@ -88,14 +135,8 @@ pub fn free_rollout(
     method: Method,
     qs: &mut [f64],
     vs: &mut [f64],
-) -> Result<()> {
+) {
     let (nq, nv) = (model.nq(), model.nv());
-    if !(dt.is_finite() && dt > 0.0) {
-        return Err(crate::Error::invalid("dt", format!("must be finite and > 0, got {dt}")));
-    }
-    if tau.len() != nv && tau.len() != nv * steps {
-        return Err(crate::Error::invalid("tau", format!("expected {nv} or steps x {nv} = {} numbers, got {}", nv * steps, tau.len())));
-    }
     let mut integrator = Integrator::new(model, method);
     let mut q = q0.to_vec();
     let mut v = DVector::from_column_slice(v0);
@@ -107,5 +148,4 @@ pub fn free_rollout(
         qs[(s + 1) * nq..(s + 2) * nq].copy_from_slice(&q);
         vs[(s + 1) * nv..(s + 2) * nv].copy_from_slice(v.as_slice());
     }
-    Ok(())
 }

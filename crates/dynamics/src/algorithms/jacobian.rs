@@ -2,10 +2,12 @@
 
 use nalgebra::{Matrix6xX, Vector3};
 
-use super::forward_kinematics;
+use super::checks::{check_frame, check_state, finite_result};
+use super::forward_kinematics_unchecked;
 use crate::joint::Dofs;
 use crate::model::{Data, Model};
 use crate::spatial::{angular, linear, spatial, Motion, Transform};
+use crate::Result;
 
 /// The frame a Jacobian's rows are expressed in (Pinocchio's `ReferenceFrame`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -20,8 +22,24 @@ pub enum Frame {
 
 /// The 6 x nv Jacobian (rows `[linear; angular]`) of the frame at `point` (body coordinates) on `body`.
 /// Runs forward kinematics; writes and returns `data.jacobian`.
-pub fn jacobian<'d>(model: &Model, data: &'d mut Data, q: &[f64], body: usize, point: &Vector3<f64>, frame: Frame) -> &'d Matrix6xX<f64> {
-    forward_kinematics(model, data, q);
+pub fn jacobian<'d>(model: &Model, data: &'d mut Data, q: &[f64], body: usize, point: &Vector3<f64>, frame: Frame) -> Result<&'d Matrix6xX<f64>> {
+    check_state(model, data, q, &[])?;
+    check_frame(model, body, point)?;
+    jacobian_unchecked(model, data, q, body, point, frame);
+    finite_result(data.jacobian.as_slice())?;
+    Ok(&data.jacobian)
+}
+
+/// [`jacobian`] without its checks, for the crate's inner loops.
+pub(crate) fn jacobian_unchecked<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    frame: Frame,
+) -> &'d Matrix6xX<f64> {
+    forward_kinematics_unchecked(model, data, q);
     data.jacobian.fill(0.0);
     // Columns in the world frame (eq. 8.x of Featherstone: J = [⋯ ⁰Xⱼ Sⱼ ⋯] over the body's support).
     let mut j = body;

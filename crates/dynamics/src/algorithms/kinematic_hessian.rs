@@ -8,19 +8,42 @@
 
 use nalgebra::Vector3;
 
-use super::jacobian::{jacobian, Frame};
+use super::checks::{check_frame, check_frame_state, check_output, check_state, finite_result};
+use super::jacobian::{jacobian_unchecked, Frame};
 use super::kinematics_derivatives::{about, joints_to_root, support};
 use super::rnea_derivatives::{column, set_column};
 use crate::model::{Data, Model};
 use crate::spatial::{angular, cross_motion, linear, spatial, Motion};
+use crate::validate::finite_vector;
+use crate::{Error, Result};
 
 /// `out` (6 x nv x nv, row-major, entry `[r, a, d]`): the slope along q_d (q on its tangent space, as
 /// `rnea_derivatives`) of entry `[r, a]` of the Jacobian `jacobian(model, data, q, body, point, frame)` returns, for
 /// `frame` `World` or `LocalWorldAligned` (`Local` is not covered). Runs `jacobian`; zero outside the body's support.
-pub fn kinematic_hessian(model: &Model, data: &mut Data, q: &[f64], body: usize, point: &Vector3<f64>, frame: Frame, out: &mut [f64]) {
+pub fn kinematic_hessian(model: &Model, data: &mut Data, q: &[f64], body: usize, point: &Vector3<f64>, frame: Frame, out: &mut [f64]) -> Result<()> {
+    check_state(model, data, q, &[])?;
+    check_frame(model, body, point)?;
+    if frame == Frame::Local {
+        return Err(Error::invalid("frame", "kinematic_hessian takes World or LocalWorldAligned, got Local"));
+    }
+    check_output("out", out, 6 * model.nv() * model.nv())?;
+    kinematic_hessian_unchecked(model, data, q, body, point, frame, out);
+    finite_result(out)
+}
+
+/// [`kinematic_hessian`] without its checks, for the crate's inner loops.
+pub(crate) fn kinematic_hessian_unchecked(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    frame: Frame,
+    out: &mut [f64],
+) {
     debug_assert!(frame != Frame::Local, "kinematic_hessian covers World and LocalWorldAligned");
     let nv = model.nv();
-    jacobian(model, data, q, body, point, Frame::World);
+    jacobian_unchecked(model, data, q, body, point, Frame::World);
     let origin = data.o_m_i[body].transform_point(point);
     let columns = &data.jacobian;
     out.fill(0.0);
@@ -53,13 +76,35 @@ fn add(out: &mut [f64], nv: usize, a: usize, d: usize, m: &Motion) {
 }
 
 /// The Hessian `out` (nv x nv, row-major, `[e, d]`: the slope along q_d of the gradient's entry e, q on its tangent
-/// space) and the gradient `slope` (nv) of F · v_p(q), v_p = J_lin(q) u the velocity of `point` on `body` (world axes)
-/// for joint velocity `u`, F = `weights`. With W_e = Σ_{a after e} u_a S_a (world columns, a at or after e's joint)
+/// space) and the gradient `slope` (nv) of F · v_p(q), v_p = J_lin(q) v the velocity of `point` on `body` (world axes)
+/// for joint velocity `v`, F = `weights`. With W_e = Σ_{a after e} v_a S_a (world columns, a at or after e's joint)
 /// the derivative of the world velocity V is D_e V = S_e × W_e, and with J_e the point's linear column and m the later
 /// of d and e: D_d(S_e × W_e) = [d ≼ e] (S_d × S_e) × W_e + S_e × (S_d × W_m). Runs `jacobian`; W goes to
 /// `data.derivatives.velocity_after`.
 #[allow(clippy::too_many_arguments)]
 pub fn point_velocity_hessian(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    weights: &Vector3<f64>,
+    out: &mut [f64],
+    slope: &mut [f64],
+) -> Result<()> {
+    check_frame_state(model, data, q, &[("v", v)], body, point)?;
+    finite_vector("weights", *weights)?;
+    check_output("out", out, model.nv() * model.nv())?;
+    check_output("slope", slope, model.nv())?;
+    point_velocity_hessian_unchecked(model, data, q, v, body, point, weights, out, slope);
+    finite_result(out)?;
+    finite_result(slope)
+}
+
+/// [`point_velocity_hessian`] without its checks, for the crate's inner loops.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn point_velocity_hessian_unchecked(
     model: &Model,
     data: &mut Data,
     q: &[f64],
@@ -72,7 +117,7 @@ pub fn point_velocity_hessian(
 ) {
     let nv = model.nv();
     data.derivatives.reserve(model);
-    jacobian(model, data, q, body, point, Frame::World);
+    jacobian_unchecked(model, data, q, body, point, Frame::World);
     let origin = data.o_m_i[body].transform_point(point);
     out.fill(0.0);
     slope.fill(0.0);
@@ -167,10 +212,30 @@ pub fn point_acceleration_hessian(
     point: &Vector3<f64>,
     weights: &Vector3<f64>,
     out: &mut [f64],
+) -> Result<()> {
+    check_frame_state(model, data, q, &[("v", v), ("a", a)], body, point)?;
+    finite_vector("weights", *weights)?;
+    check_output("out", out, (4 * model.nv() + 1) * model.nv())?;
+    point_acceleration_hessian_unchecked(model, data, q, v, a, body, point, weights, out);
+    finite_result(out)
+}
+
+/// [`point_acceleration_hessian`] without its checks, for the crate's inner loops.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn point_acceleration_hessian_unchecked(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    weights: &Vector3<f64>,
+    out: &mut [f64],
 ) {
     let nv = model.nv();
     data.derivatives.reserve(model);
-    jacobian(model, data, q, body, point, Frame::World);
+    jacobian_unchecked(model, data, q, body, point, Frame::World);
     let p = data.o_m_i[body].transform_point(point);
     let Data { jacobian: columns, derivatives: sums, .. } = data;
     // W per coordinate from the body's joint to the root; then B = V - W, T and Ā (suffix sums of S a + v T × S).

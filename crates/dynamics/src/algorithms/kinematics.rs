@@ -2,12 +2,25 @@
 
 use nalgebra::Vector3;
 
+use super::checks::{check_state, finite_result};
 use super::{joint_motion, joint_placement, world_pose};
 use crate::model::{Data, Model};
 use crate::spatial::{cross_motion, Motion, Transform};
+use crate::Result;
 
 /// Writes each body's pose in the world to `data.o_m_i`.
-pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
+pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) -> Result<()> {
+    check_state(model, data, q, &[])?;
+    forward_kinematics_unchecked(model, data, q);
+    if data.o_m_i.iter().all(|pose| pose.rotation.iter().chain(pose.translation.iter()).all(|x| x.is_finite())) {
+        Ok(())
+    } else {
+        finite_result(&[f64::NAN])
+    }
+}
+
+/// [`forward_kinematics`] without its checks, for the crate's inner loops.
+pub(crate) fn forward_kinematics_unchecked(model: &Model, data: &mut Data, q: &[f64]) {
     poses_from(model, &mut data.o_m_i, q, joint_placement(model, 0, q));
 }
 

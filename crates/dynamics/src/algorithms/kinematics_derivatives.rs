@@ -13,11 +13,13 @@
 
 use nalgebra::{Matrix6xX, Vector3};
 
+use super::checks::{check_frame_state, finite_result};
 use super::jacobian::Frame;
 use super::joint_placement;
 use super::rnea_derivatives::{column, motion_derivatives, set_column};
 use crate::model::{Data, Model};
 use crate::spatial::{angular, cross_motion, linear, spatial, Motion, Transform};
+use crate::Result;
 
 /// A frame at `point` on a body after `motion_derivatives`: its pose in the centred frame, its origin in the world,
 /// and its velocity and acceleration (world axes, about its origin: `Frame::LocalWorldAligned`).
@@ -119,7 +121,23 @@ pub(crate) fn joints_to_root(model: &Model, joint: usize, mut visit: impl FnMut(
 
 /// The velocity (rows `[linear; angular]`) of the frame at `point` (body coordinates) on `body`, in `frame`, at
 /// configuration `q` and velocity `v` (Pinocchio's `getFrameVelocity`).
-pub fn frame_velocity(model: &Model, data: &mut Data, q: &[f64], v: &[f64], body: usize, point: &Vector3<f64>, frame: Frame) -> Motion {
+pub fn frame_velocity(model: &Model, data: &mut Data, q: &[f64], v: &[f64], body: usize, point: &Vector3<f64>, frame: Frame) -> Result<Motion> {
+    check_frame_state(model, data, q, &[("v", v)], body, point)?;
+    let velocity = frame_velocity_unchecked(model, data, q, v, body, point, frame);
+    finite_result(velocity.as_slice())?;
+    Ok(velocity)
+}
+
+/// [`frame_velocity`] without its checks, for the crate's inner loops.
+pub(crate) fn frame_velocity_unchecked(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    frame: Frame,
+) -> Motion {
     motion_derivatives(model, data, q, v, None, Motion::zeros());
     let at = FramePoint::new(model, data, q, body, point);
     at.express(&at.velocity, frame)
@@ -138,6 +156,24 @@ pub fn frame_acceleration(
     body: usize,
     point: &Vector3<f64>,
     frame: Frame,
+) -> Result<Motion> {
+    check_frame_state(model, data, q, &[("v", v), ("a", a)], body, point)?;
+    let acceleration = frame_acceleration_unchecked(model, data, q, v, a, body, point, frame);
+    finite_result(acceleration.as_slice())?;
+    Ok(acceleration)
+}
+
+/// [`frame_acceleration`] without its checks, for the crate's inner loops.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn frame_acceleration_unchecked(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    frame: Frame,
 ) -> Motion {
     motion_derivatives(model, data, q, v, Some(a), Motion::zeros());
     let at = FramePoint::new(model, data, q, body, point);
@@ -147,6 +183,24 @@ pub fn frame_acceleration(
 /// ∂v/∂q and ∂v/∂q̇ (6 x nv each; the second is the frame's Jacobian) of `frame_velocity`. Writes
 /// `data.derivatives.frame_velocity_dq` and `frame_velocity_dv` and returns them.
 pub fn frame_velocity_derivatives<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    v: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    frame: Frame,
+) -> Result<(&'d Matrix6xX<f64>, &'d Matrix6xX<f64>)> {
+    check_frame_state(model, data, q, &[("v", v)], body, point)?;
+    frame_velocity_derivatives_unchecked(model, data, q, v, body, point, frame);
+    let d = &data.derivatives;
+    finite_result(d.frame_velocity_dq.as_slice())?;
+    finite_result(d.frame_velocity_dv.as_slice())?;
+    Ok((&d.frame_velocity_dq, &d.frame_velocity_dv))
+}
+
+/// [`frame_velocity_derivatives`] without its checks, for the crate's inner loops.
+pub(crate) fn frame_velocity_derivatives_unchecked<'d>(
     model: &Model,
     data: &'d mut Data,
     q: &[f64],
@@ -174,6 +228,28 @@ pub fn frame_velocity_derivatives<'d>(
 /// `_da`) and returns them.
 #[allow(clippy::too_many_arguments)]
 pub fn frame_acceleration_derivatives<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    frame: Frame,
+) -> Result<FrameAccelerationDerivatives<'d>> {
+    check_frame_state(model, data, q, &[("v", v), ("a", a)], body, point)?;
+    frame_acceleration_derivatives_unchecked(model, data, q, v, a, body, point, frame);
+    let d = &data.derivatives;
+    let out = (&d.frame_velocity_dq, &d.frame_acceleration_dq, &d.frame_acceleration_dv, &d.frame_acceleration_da);
+    for matrix in [out.0, out.1, out.2, out.3] {
+        finite_result(matrix.as_slice())?;
+    }
+    Ok(out)
+}
+
+/// [`frame_acceleration_derivatives`] without its checks, for the crate's inner loops.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn frame_acceleration_derivatives_unchecked<'d>(
     model: &Model,
     data: &'d mut Data,
     q: &[f64],
@@ -240,6 +316,22 @@ pub(crate) fn for_each_frame_derivative(model: &Model, data: &Data, at: &FramePo
 /// `getFrameJacobianTimeVariation`): column c is joint c's motion S_c carried by its body's velocity v_j × S_c, less the
 /// frame's own turn. Writes `data.derivatives.jacobian_rate` and returns it.
 pub fn jacobian_time_variation<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    v: &[f64],
+    body: usize,
+    point: &Vector3<f64>,
+    frame: Frame,
+) -> Result<&'d Matrix6xX<f64>> {
+    check_frame_state(model, data, q, &[("v", v)], body, point)?;
+    jacobian_time_variation_unchecked(model, data, q, v, body, point, frame);
+    finite_result(data.derivatives.jacobian_rate.as_slice())?;
+    Ok(&data.derivatives.jacobian_rate)
+}
+
+/// [`jacobian_time_variation`] without its checks, for the crate's inner loops.
+pub(crate) fn jacobian_time_variation_unchecked<'d>(
     model: &Model,
     data: &'d mut Data,
     q: &[f64],

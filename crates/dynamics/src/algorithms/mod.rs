@@ -1,12 +1,15 @@
 //! The algorithms, one per file, each a free function `algorithm(model, data, q, ...)` that writes its
-//! intermediates into `data` and allocates nothing. Inputs are assumed checked (`Model::check_configuration`,
-//! `check_vector`); the bindings check them.
+//! intermediates into `data` and allocates nothing. The public functions check their arguments first (`checks`: the
+//! `data` is the model's, sizes, finiteness, unit quaternions) and their outputs after (an overflow or a singular mass
+//! matrix is `Error::Numerical`), returning the crate's [`Error`](crate::Error) naming the argument; each has an
+//! unchecked twin, `algorithm_unchecked`, for the crate's own inner loops (the simulation, the derivatives).
 
 pub(crate) mod aba;
 pub(crate) mod aba_derivatives;
 pub(crate) mod centroidal;
 pub(crate) mod centroidal_derivatives;
 pub(crate) mod centroidal_hessian;
+mod checks;
 pub(crate) mod com;
 pub(crate) mod configuration;
 pub(crate) mod contact;
@@ -24,12 +27,15 @@ pub(crate) mod rnea_derivatives;
 pub(crate) mod rnea_second_order_derivatives;
 
 pub use aba::{aba, aba_with_armature};
+pub(crate) use aba::{aba_unchecked, aba_with_armature_unchecked};
 pub use aba_derivatives::{aba_derivatives, aba_derivatives_into, minv_by_recursion};
 pub use centroidal::{center_of_mass_jacobian, centroidal_map, centroidal_momentum, centroidal_momentum_rate};
 pub use centroidal_derivatives::centroidal_derivatives;
 pub use centroidal_hessian::{center_of_mass_hessian, centroidal_momentum_hessian};
+pub use checks::{finite_dynamics, finite_result, singular, singular_factor};
 pub use com::{center_of_mass, subtree_mass_properties};
 pub use configuration::{difference, difference_jacobians, integrate, integrate_jacobians};
+pub(crate) use configuration::{integrate_jacobians_unchecked, integrate_unchecked};
 pub use contact::{
     check_contacts, contact_dynamics, impact, point_accelerations, reduced_dynamics, ContactDim, ContactDynamics, ContactPoint, ReducedDynamics,
 };
@@ -38,25 +44,44 @@ pub use contact_derivatives::{
     ImpactDerivatives,
 };
 pub use crba::crba;
+pub(crate) use crba::crba_unchecked;
 pub use energy::{kinetic_energy, potential_energy};
 pub use integrate::{free_rollout, Integrator, Method};
 pub use jacobian::{jacobian, Frame};
 pub use kinematic_hessian::{kinematic_hessian, point_acceleration_hessian, point_velocity_hessian};
 pub use kinematics::forward_kinematics;
+pub(crate) use kinematics::forward_kinematics_unchecked;
 pub use kinematics_derivatives::{
     frame_acceleration, frame_acceleration_derivatives, frame_velocity, frame_velocity_derivatives, jacobian_time_variation,
     FrameAccelerationDerivatives,
 };
-pub use minv::minv;
+pub(crate) use minv::minv as minv_unchecked;
 pub use rnea::rnea;
+pub(crate) use rnea::rnea_unchecked;
+pub(crate) use rnea_derivatives::rnea_derivatives_unchecked;
 pub use rnea_derivatives::{rnea_derivatives, rnea_derivatives_into};
 pub use rnea_second_order_derivatives::rnea_second_order_derivatives;
 
 use crate::joint::Dofs;
-use crate::model::Model;
-use nalgebra::Vector3;
+use crate::model::{Data, Dense, Model};
+use crate::Result;
+use checks::{check_state, finite_dynamics as finite_factor};
+use nalgebra::{DMatrix, Vector3};
 
 use crate::spatial::{spatial, Motion, Transform};
+
+/// The inverse of the joint-space mass matrix, M(q)⁻¹ (nv x nv), by the O(n) articulated-body recursion [Carpentier
+/// 2018], without forming or factorising M: written to `data.minv` and returned. Errors: `data` of another model, `q`
+/// not a configuration of the model; `Error::Numerical` for a singular mass matrix, `Error::TooLarge` for an nv x nv
+/// matrix that cannot be allocated. (Checked here rather than in `minv.rs`, whose kernel is being tuned apart.)
+pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d DMatrix<f64>> {
+    check_state(model, data, q, &[])?;
+    data.reserve_dense(model, &[Dense::Inverse])?;
+    minv_unchecked(model, data, q);
+    // M⁻¹ is positive definite, so |M⁻¹_ij| <= sqrt(M⁻¹_ii M⁻¹_jj): a singular M shows on the diagonal.
+    finite_factor(model, data, data.minv.as_slice())?;
+    Ok(&data.minv)
+}
 
 /// The motion across joint `i` for joint velocity `v` (the model's full velocity vector), in body `i`'s frame.
 #[inline(always)]

@@ -10,11 +10,14 @@
 
 use nalgebra::{DMatrix, Matrix6xX, Vector6};
 
+use super::checks::{check_forces, check_output, check_state, finite_result};
 use super::kinematics::base_centred_root;
 use super::world_pose;
 use crate::joint::Dofs;
+use crate::model::Dense;
 use crate::model::{reserve_square, Data, Model};
 use crate::spatial::{cross_force, cross_motion, dot6, Force, Motion};
+use crate::Result;
 
 #[inline(always)]
 pub(crate) fn column(m: &Matrix6xX<f64>, c: usize) -> Vector6<f64> {
@@ -35,6 +38,25 @@ pub fn rnea_derivatives<'d>(
     v: &[f64],
     a: &[f64],
     f_ext: Option<&[Force]>,
+) -> Result<(&'d DMatrix<f64>, &'d DMatrix<f64>)> {
+    check_state(model, data, q, &[("v", v), ("a", a)])?;
+    check_forces(model, f_ext)?;
+    data.reserve_dense(model, &[Dense::RneaDerivatives])?;
+    rnea_derivatives_unchecked(model, data, q, v, a, f_ext);
+    let d = &data.derivatives;
+    finite_result(d.dtau_dq.as_slice())?;
+    finite_result(d.dtau_dv.as_slice())?;
+    Ok((&d.dtau_dq, &d.dtau_dv))
+}
+
+/// [`rnea_derivatives`] without its checks, for the crate's inner loops.
+pub(crate) fn rnea_derivatives_unchecked<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    f_ext: Option<&[Force]>,
 ) -> (&'d DMatrix<f64>, &'d DMatrix<f64>) {
     derivatives_with_base_acceleration(model, data, q, v, a, f_ext, model.gravity_bias())
 }
@@ -43,6 +65,28 @@ pub fn rnea_derivatives<'d>(
 /// `Data`, which then holds no nv x nv matrix: O(n) workspace beyond the outputs.
 #[allow(clippy::too_many_arguments)]
 pub fn rnea_derivatives_into(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    f_ext: Option<&[Force]>,
+    dtau_dq: &mut [f64],
+    dtau_dv: &mut [f64],
+) -> Result<()> {
+    check_state(model, data, q, &[("v", v), ("a", a)])?;
+    check_forces(model, f_ext)?;
+    check_output("dtau_dq", dtau_dq, model.nv() * model.nv())?;
+    check_output("dtau_dv", dtau_dv, model.nv() * model.nv())?;
+    data.reserve_dense(model, &[Dense::Workspace])?;
+    rnea_derivatives_into_unchecked(model, data, q, v, a, f_ext, dtau_dq, dtau_dv);
+    finite_result(dtau_dq)?;
+    finite_result(dtau_dv)
+}
+
+/// [`rnea_derivatives_into`] without its checks, for the crate's inner loops.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn rnea_derivatives_into_unchecked(
     model: &Model,
     data: &mut Data,
     q: &[f64],

@@ -10,9 +10,12 @@
 
 use nalgebra::{Matrix6, Vector6};
 
+use super::checks::{check_state, finite_result};
 use super::rnea_derivatives::{column, forward_pass};
+use crate::model::Dense;
 use crate::model::{Data, Model, SecondOrder};
 use crate::spatial::{cross_force, Force, Motion};
+use crate::Result;
 
 /// m ↦ m ×* f as a matrix (Pinocchio's `ForceCrossMatrix`; the paper's f×̄).
 fn bar(f: &Force) -> Matrix6<f64> {
@@ -48,7 +51,19 @@ fn coordinates(model: &Model, i: usize) -> std::ops::Range<usize> {
 
 /// Fills `data.derivatives.second_order` with the second derivatives of `rnea(q, v, a)` (no external forces) and
 /// returns them.
-pub fn rnea_second_order_derivatives<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64]) -> &'d SecondOrder {
+pub fn rnea_second_order_derivatives<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<&'d SecondOrder> {
+    check_state(model, data, q, &[("v", v), ("a", a)])?;
+    data.reserve_dense(model, &[Dense::SecondOrder])?;
+    rnea_second_order_derivatives_unchecked(model, data, q, v, a);
+    let second = &data.derivatives.second_order;
+    for tensor in [&second.dqdq, &second.dvdv, &second.dqdv, &second.dadq] {
+        finite_result(tensor)?;
+    }
+    Ok(second)
+}
+
+/// [`rnea_second_order_derivatives`] without its checks, for the crate's inner loops.
+pub(crate) fn rnea_second_order_derivatives_unchecked<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64]) -> &'d SecondOrder {
     let (n, nv) = (model.nbodies(), model.nv());
     forward_pass(model, data, q, v, a, model.gravity_bias());
     let d = &mut data.derivatives;

@@ -37,7 +37,8 @@ use nalgebra::{DMatrix, Vector3, Vector6};
 use super::actuation::{dof_coordinates, Actuation};
 use super::options::{FrictionLaw, Options, DEFAULT_FRICTION};
 use super::{Contact, Engine};
-use crate::algorithms::{aba_with_armature, integrate, joint_placement, world_pose};
+// The unchecked kernels: the engine checks its state once, not per call.
+use crate::algorithms::{aba_with_armature_unchecked as aba_with_armature, integrate_unchecked as integrate, joint_placement, world_pose};
 use crate::model::{Data, Model};
 use crate::spatial::{spatial, Transform};
 use crate::{Error, MassProperties, Result};

@@ -6,7 +6,7 @@ use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Rotation3, UnitQuaternion, Ve
 
 use super::articulated::Articulated;
 use super::delassus::Delassus;
-use crate::algorithms::{aba_with_armature, crba};
+use crate::algorithms::{aba_with_armature_unchecked as aba_with_armature, crba_unchecked as crba};
 use crate::model::{Data, JointLimits, Model};
 use crate::sim::tests::ten_link_tree;
 use crate::spatial::spatial;

@@ -27,7 +27,11 @@ use super::delassus::Delassus;
 use super::solver::impulses_at;
 use super::{base_origin, contact_constraint, limit_constraint, TreeSimulation};
 use crate::algorithms::aba::ball_subspace;
-use crate::algorithms::{aba_with_armature, crba, integrate, integrate_jacobians, rnea_derivatives};
+// The unchecked kernels: the engine checks its state once, not per call.
+use crate::algorithms::{
+    aba_with_armature_unchecked as aba_with_armature, crba_unchecked as crba, integrate_jacobians_unchecked as integrate_jacobians,
+    integrate_unchecked as integrate, rnea_derivatives_unchecked as rnea_derivatives,
+};
 use crate::joint::Dofs;
 use crate::model::{Data, Dense, Model};
 use crate::sim::actuation::Actuation;
