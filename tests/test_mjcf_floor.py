@@ -191,3 +191,33 @@ def test_a_bad_placement_is_refused_naming_it() -> None:
         lk.Ground.plane(placement=(np.eye(3), [np.inf, 0.0, 0.0]))
     np.testing.assert_array_equal(lk.Ground.plane().placement, np.eye(4))
     assert lk.Ground.heightfield(np.zeros((2, 2)), 0.1).placement is None
+
+
+@pytest.mark.parametrize(("name", "floating_base"), [(name, None) for name in OWN_FLOOR] + [(name, True) for name in OWN_FLOOR[:2]])
+def test_joint_names_are_mujocos_in_its_order(name: str, floating_base: bool | None) -> None:
+    """A free joint off a floating base is four legkit joints: its name (where its coordinates start), then :y, :z
+    and :rotation. (The quadruped's ball is a second free body: it has no floating base.)"""
+    path = next(f for f in corpus() if f.endswith(name))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lk.MjcfWarning)
+        loaded = lk.load_mjcf(path, floating_base=floating_base)
+    m = mujoco.MjModel.from_xml_path(path)
+    model, want = loaded.model, []
+    for j in range(m.njnt):
+        named = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"
+        chain = m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE and not (j == 0 and model.floating_base)
+        want += [named + suffix for suffix in ("", ":y", ":z", ":rotation")] if chain else [named]
+    assert model.joint_names == want
+    for joint in loaded.joints:
+        assert model.idx_q[model.joint_index(joint["name"])] == joint["idx_q"]
+
+
+def test_a_second_free_body_is_named_as_its_four_joints() -> None:
+    xml = """<mujoco><worldbody>
+      <body name="a"><freejoint name="first"/><geom size="0.1"/></body>
+      <body name="b" pos="1 0 0"><freejoint name="second"/><geom size="0.1"/></body>
+    </worldbody></mujoco>"""
+    loaded = quiet_load(xml)
+    second = next(joint for joint in loaded.joints if joint["name"] == "second")
+    assert loaded.model.joint_names[-4:] == ["second", "second:y", "second:z", "second:rotation"]
+    assert loaded.model.idx_q[loaded.model.joint_index("second")] == second["idx_q"]

@@ -108,7 +108,8 @@ class Model:
     @property
     def joint_names(self) -> list[str]:
         """The names of the joints with coordinates, in q (and v) order: Pinocchio's ``model.names[1:]`` for a URDF,
-        a floating base's joint first as "root_joint"."""
+        a floating base's joint first as "root_joint"; MuJoCo's for an MJCF (a free joint off the floating base as
+        four: its name, then ":y", ":z" and ":rotation")."""
     def joint_index(self, name: str) -> int:
         """The body the joint named ``name`` moves (Pinocchio's ``getJointId``), so its coordinates start at
         ``idx_q[i]`` and ``idx_v[i]``; IndexError naming ``name`` if no joint has it."""

@@ -341,7 +341,8 @@ impl PyModel {
         self.per_body(|model, i| model.name(i).to_owned())
     }
     /// The names of the joints with coordinates, in q (and v) order: Pinocchio's `model.names[1:]` for a URDF,
-    /// a floating base's joint first as "root_joint".
+    /// a floating base's joint first as "root_joint"; MuJoCo's for an MJCF (a free joint off the floating base as
+    /// four: its name, then ":y", ":z" and ":rotation").
     #[getter]
     fn joint_names(&self) -> Vec<String> {
         let moving = (0..self.model.nbodies()).filter(|&i| self.model.joint(i).nq() > 0);

@@ -53,6 +53,7 @@ pub(super) fn build(bodies: &[Body], options: &MjcfOptions, reader: &mut Reader)
         kept[b] = true;
         let spec = &body.joints[0];
         joints.push(MjcfJoint { name: spec.name.clone(), kind: JointKind::Free, body: 0, idx_q: 0, idx_v: 0 });
+        model.set_joint_name(0, &spec.name);
         // legkit's free-flyer coordinates carry no armature or damping (Pinocchio's neither).
         for (key, value) in [("damping", spec.damping), ("armature", spec.armature)] {
             if value != 0.0 {
@@ -106,6 +107,10 @@ pub(super) fn build(bodies: &[Body], options: &MjcfOptions, reader: &mut Reader)
             parent = model.add_body(parent, Joint::Spherical, Transform::identity(), body.mass, &body.name, JointLimits::NONE).map_err(fail)?;
             let (idx_q, idx_v) = (model.idx_q(first), model.idx_v(first));
             joints.push(MjcfJoint { name: spec.name.clone(), kind: JointKind::Free, body: parent, idx_q, idx_v });
+            // Its four legkit joints: the first under its name (where its coordinates start), the others suffixed.
+            for (i, suffix) in (first..=parent).zip(["", ":y", ":z", ":rotation"]) {
+                model.set_joint_name(i, &format!("{}{suffix}", spec.name));
+            }
             for k in idx_v..idx_v + 6 {
                 damping.push((k, spec.damping));
                 armature.push((k, spec.armature));
@@ -139,6 +144,7 @@ pub(super) fn build(bodies: &[Body], options: &MjcfOptions, reader: &mut Reader)
             parent = model.add_body(parent, joint, placement, mass, &name, limits).map_err(fail)?;
             let kind = spec.kind;
             joints.push(MjcfJoint { name: spec.name.clone(), kind, body: parent, idx_q: model.idx_q(parent), idx_v: model.idx_v(parent) });
+            model.set_joint_name(parent, &spec.name);
             for k in model.idx_v(parent)..model.idx_v(parent) + model.joint(parent).nv() {
                 damping.push((k, spec.damping));
                 armature.push((k, spec.armature));
