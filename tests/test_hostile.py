@@ -902,7 +902,7 @@ def worker_cpu():  # CPU seconds of the from_urdf worker threads alive now
             if open(f"/proc/self/task/{{t}}/comm").read().strip() == "from_{kind}":
                 fields = open(f"/proc/self/task/{{t}}/stat").read().rsplit(")", 1)[1].split()
                 total += (int(fields[11]) + int(fields[12])) / TICK
-        except FileNotFoundError:  # ended meanwhile
+        except OSError:  # the thread ended meanwhile (ENOENT or ESRCH)
             pass
     return total
 started, started_cpu = time.monotonic(), time.process_time()
