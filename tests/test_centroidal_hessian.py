@@ -15,7 +15,7 @@ from hypothesis import assume, given
 import legkit as lk
 from conftest import examples
 from robots import Twin, rngs, twins
-from test_derivatives import assert_slopes, tangent_differences
+from test_derivatives import assert_hessian_of_slope, assert_slopes, tangent_differences
 from test_dynamics_pinocchio import assert_close, note_case, state
 
 
@@ -29,9 +29,7 @@ def test_center_of_mass_hessian_is_the_slope_of_its_jacobian(tw: Twin, rng):
     def slope(x: np.ndarray) -> np.ndarray:
         return weights @ np.asarray(lk.center_of_mass_jacobian(tw.model, x))
 
-    hessian, gradient = lk.center_of_mass_hessian(tw.model, q, weights)
-    assert_close(gradient, slope(q), "gradient")
-    assert_slopes(hessian, tangent_differences(tw.model, slope, q), "d2(w . c)/dq2")
+    assert_hessian_of_slope(tw.model, lk.center_of_mass_hessian(tw.model, q, weights), slope, q, "d2(w . c)/dq2")
 
 
 @examples(40)

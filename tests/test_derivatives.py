@@ -18,7 +18,7 @@ from hypothesis import given
 import legkit as lk
 from conftest import examples
 from robots import Twin, rngs, twins
-from test_dynamics_pinocchio import assert_close, note_case, pin_f_ext, pin_sym, state
+from test_dynamics_pinocchio import assert_close, dynamics_case, note_case, pin_f_ext, pin_sym, state
 
 STEP = 1e-4
 FD_RTOL = 1e-6
@@ -73,13 +73,19 @@ def assert_slopes(got, want, what: str) -> None:
     assert error <= FD_RTOL * scale, f"{what}: max error {error:.3e} > {FD_RTOL:g} * {scale:.3e}"
 
 
+def assert_hessian_of_slope(model: lk.Model, hessian_and_gradient, slope, q: np.ndarray, what: str) -> None:
+    """A scalar's (Hessian, gradient) in q, as the Hessian kernels return them: the gradient is `slope` at q and the
+    Hessian the tangent differences of `slope`."""
+    hessian, gradient = hessian_and_gradient
+    assert_close(gradient, slope(q), "gradient")
+    assert_slopes(hessian, tangent_differences(model, slope, q), what)
+
+
 @pytest.mark.parametrize("with_f_ext", [False, True], ids=["no_f_ext", "f_ext"])
 @examples(60)
 @given(tw=twins(), rng=rngs())
 def test_rnea_derivatives_match_pinocchio(with_f_ext, tw: Twin, rng):
-    q, v, a = state(tw, rng)
-    f = tw.random_f_ext(rng) if with_f_ext else None
-    note_case(tw, q=q, v=v, a=a, f_ext=f)
+    q, v, a, f = dynamics_case(tw, rng, with_f_ext, given="a")
     dq, dv, _ = pinocchio(pin.computeRNEADerivatives, tw, tw.q_pin(q), tw.v_pin(v), tw.v_pin(a), *pin_f_ext(tw, f))
     got_dq, got_dv = lk.rnea_derivatives(tw.model, q, v, a, f)
     assert_close(got_dq, tw.m_lk(dq), "dtau/dq")
@@ -90,10 +96,7 @@ def test_rnea_derivatives_match_pinocchio(with_f_ext, tw: Twin, rng):
 @examples(60)
 @given(tw=twins(), rng=rngs())
 def test_aba_derivatives_match_pinocchio(with_f_ext, tw: Twin, rng):
-    q, v, _ = state(tw, rng)
-    tau = rng.uniform(-20.0, 20.0, size=tw.nv)
-    f = tw.random_f_ext(rng) if with_f_ext else None
-    note_case(tw, q=q, v=v, tau=tau, f_ext=f)
+    q, v, tau, f = dynamics_case(tw, rng, with_f_ext, given="tau")
     dq, dv, dtau = pinocchio(pin.computeABADerivatives, tw, tw.q_pin(q), tw.v_pin(v), tw.v_pin(tau), *pin_f_ext(tw, f))
     got_dq, got_dv, got_dtau = lk.aba_derivatives(tw.model, q, v, tau, f)
     assert_close(got_dq, tw.m_lk(dq), "dddq/dq")
@@ -117,10 +120,7 @@ def test_rnea_derivatives_are_the_slopes_of_rnea(tw: Twin, rng):
 @examples(40)
 @given(tw=twins(max_bodies=30), rng=rngs())
 def test_aba_derivatives_are_the_slopes_of_aba(tw: Twin, rng):
-    q, v, _ = state(tw, rng)
-    tau = rng.uniform(-20.0, 20.0, size=tw.nv)
-    f = tw.random_f_ext(rng)
-    note_case(tw, q=q, v=v, tau=tau, f_ext=f)
+    q, v, tau, f = dynamics_case(tw, rng, with_f_ext=True, given="tau")
     dq, dv, dtau = lk.aba_derivatives(tw.model, q, v, tau, f)
     assert_slopes(dq, tangent_differences(tw.model, lambda x: lk.aba(tw.model, x, v, tau, f), q), "dddq/dq")
     assert_slopes(dv, coordinate_differences(lambda x: lk.aba(tw.model, q, x, tau, f), v), "dddq/dv")

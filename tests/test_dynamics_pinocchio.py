@@ -72,6 +72,16 @@ def state(tw: Twin, rng: np.random.Generator):
     return tw.random_q(rng), tw.random_v(rng), tw.random_v(rng)
 
 
+def dynamics_case(tw: Twin, rng: np.random.Generator, with_f_ext: bool, given: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """A random case of inverse (given "a": q, v, a) or forward (given "tau": q, v, tau) dynamics, with external
+    forces or None, noted for hypothesis' report."""
+    q, v, a = state(tw, rng)
+    given_value = a if given == "a" else rng.uniform(-20.0, 20.0, size=tw.nv)
+    f = tw.random_f_ext(rng) if with_f_ext else None
+    note_case(tw, q=q, v=v, **{given: given_value}, f_ext=f)
+    return q, v, given_value, f
+
+
 # --------------------------------------------------------------------------------------------------
 # Model bookkeeping
 # --------------------------------------------------------------------------------------------------
@@ -125,9 +135,7 @@ def test_forward_kinematics(tw: Twin, rng):
 @fast(60)
 @given(tw=twins(), rng=rngs())
 def test_rnea(with_f_ext, tw: Twin, rng):
-    q, v, a = state(tw, rng)
-    f = tw.random_f_ext(rng) if with_f_ext else None
-    note_case(tw, q=q, v=v, a=a, f_ext=f)
+    q, v, a, f = dynamics_case(tw, rng, with_f_ext, given="a")
     want = pin.rnea(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v), tw.v_pin(a), *pin_f_ext(tw, f))
     assert_close(lk.rnea(tw.model, q, v, a, f), tw.v_lk(want), "rnea with f_ext" if with_f_ext else "rnea")
     if with_f_ext:
@@ -139,10 +147,7 @@ def test_rnea(with_f_ext, tw: Twin, rng):
 @fast(60)
 @given(tw=twins(), rng=rngs())
 def test_aba(with_f_ext, tw: Twin, rng):
-    q, v, _ = state(tw, rng)
-    tau = rng.uniform(-20.0, 20.0, size=tw.nv)
-    f = tw.random_f_ext(rng) if with_f_ext else None
-    note_case(tw, q=q, v=v, tau=tau, f_ext=f)
+    q, v, tau, f = dynamics_case(tw, rng, with_f_ext, given="tau")
     want = pin.aba(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v), tw.v_pin(tau), *pin_f_ext(tw, f))
     assert_close(lk.aba(tw.model, q, v, tau, f), tw.v_lk(want), "aba with f_ext" if with_f_ext else "aba")
 
@@ -241,9 +246,7 @@ def test_default_gravity():
 @fast(60)
 @given(twins(), rngs())
 def test_aba_equals_crba_solve(tw: Twin, rng):
-    q, v, _ = state(tw, rng)
-    tau = rng.uniform(-20.0, 20.0, size=tw.nv)
-    note_case(tw, q=q, v=v, tau=tau)
+    q, v, tau, _ = dynamics_case(tw, rng, with_f_ext=False, given="tau")
     bias = lk.rnea(tw.model, q, v, np.zeros(tw.nv))
     want = np.linalg.solve(lk.crba(tw.model, q), tau - bias) if tw.nv else np.zeros(0)
     assert_close(lk.aba(tw.model, q, v, tau), want, "aba vs solve(crba, tau - rnea(q, v, 0))")

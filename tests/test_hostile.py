@@ -15,7 +15,9 @@ import sys
 import textwrap
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -189,6 +191,7 @@ def test_a_mesh_whose_whole_hull_would_not_fit_loads_its_thinned_hull(tmp_path):
     (tmp_path / "r.urdf").write_text(MESH_URDF.format(filename="leg.stl"))
     body = LIMITED.format(headroom=200) + f"""
 import warnings
+from collections.abc import Callable
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
     lk.Model.from_urdf({str(tmp_path / "r.urdf")!r})
@@ -745,6 +748,32 @@ def threads_cpu_seconds(pid: int) -> dict[str, float]:
     return namespace["cpu_seconds"]()
 
 
+def interrupted_child(body: str, *, memory: int, after: float, timeout: float,
+                      at_signal: Callable[[int], Any] = lambda pid: None) -> tuple[dict, Any]:
+    """Runs `body` in a child (inside PRELUDE, under a `memory`-byte limit); the body prints `STARTED whole` before
+    its interruptible call and reports how it ended. SIGINTs the child `after` times `whole` seconds after that line,
+    and expects KeyboardInterrupt. Returns the child's report and what `at_signal(pid)` returned just before the
+    signal."""
+    code = PRELUDE.format(memory=memory, body=textwrap.indent(body, "    "))
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             preexec_fn=ctrl_c_restored)
+    try:
+        assert child.stdout is not None
+        started, whole = child.stdout.readline().split()
+        assert started == "STARTED"
+        time.sleep(after * float(whole))
+        before_signal = at_signal(child.pid)
+        child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=timeout)
+    finally:
+        child.kill()
+    results = [line for line in out.splitlines() if line.startswith("RESULT ")]
+    assert results, err[-2000:]
+    result = json.loads(results[0].removeprefix("RESULT "))
+    assert result["raised"] == "KeyboardInterrupt", (result, err[-2000:])
+    return result, before_signal
+
+
 def assert_ctrl_c_answered_within_a_second(setup: str, call: str, *, after: float, memory: int) -> dict:
     """Runs `setup` in a child, then `call`, SIGINT `after` s into it (`after` times `whole` if `setup` sets
     `whole`, the call's duration as timed in the child), and expects KeyboardInterrupt to end the
@@ -754,23 +783,7 @@ def assert_ctrl_c_answered_within_a_second(setup: str, call: str, *, after: floa
     work on, still does. Returns the child's report, with the names of the threads alive at the answer."""
     started = "print('STARTED', globals().get('whole', 1.0), flush=True)"
     body = f"{CPU_SECONDS}\n{setup}\n{started}\ntry:\n    {call}\nexcept KeyboardInterrupt:\n    answer()"
-    code = PRELUDE.format(memory=memory, body=textwrap.indent(body, "    "))
-    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                             preexec_fn=ctrl_c_restored)
-    try:
-        assert child.stdout is not None
-        started, whole = child.stdout.readline().split()
-        assert started == "STARTED"
-        time.sleep(after * float(whole))
-        at_signal = threads_cpu_seconds(child.pid)
-        child.send_signal(signal.SIGINT)
-        out, err = child.communicate(timeout=60)
-    finally:
-        child.kill()
-    results = [line for line in out.splitlines() if line.startswith("RESULT ")]
-    assert results, err[-2000:]
-    result = json.loads(results[0].removeprefix("RESULT "))
-    assert result["raised"] == "KeyboardInterrupt", (result, err[-2000:])
+    result, at_signal = interrupted_child(body, memory=memory, after=after, timeout=60, at_signal=threads_cpu_seconds)
     worked = {tid: cpu - at_signal.get(tid, 0.0) for tid, cpu in result["cpu"].items()}
     assert max(worked.values()) < 1.0, worked
     return result
@@ -921,21 +934,7 @@ except KeyboardInterrupt:
         time.sleep(0.005)
     report(raised="KeyboardInterrupt", whole=whole, worker_cpu_after=max(last - at_interrupt, 0.0))
 """
-    code = PRELUDE.format(memory=8 * GIB, body=textwrap.indent(body.strip(), "    "))
-    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                             preexec_fn=ctrl_c_restored)
-    try:
-        assert child.stdout is not None
-        started, whole = child.stdout.readline().split()
-        assert started == "STARTED"
-        time.sleep(0.5 * float(whole))
-        child.send_signal(signal.SIGINT)
-        out, err = child.communicate(timeout=120)
-    finally:
-        child.kill()
-    result = json.loads(next(line for line in out.splitlines() if line.startswith("RESULT ")).removeprefix("RESULT "))
-    assert result["raised"] == "KeyboardInterrupt", (result, err[-2000:])
-    return result
+    return interrupted_child(body.strip(), memory=8 * GIB, after=0.5, timeout=120)[0]
 
 
 @pytest.mark.slow
