@@ -17,13 +17,14 @@ walks at the paper's 1.8 km/h; every value is an overridable field of `BipedPara
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import ClassVar
 
 import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
 from legkit._validation import choice, float_array, instance, parameter_fields
-from legkit.robots.legs import limb_segment, model_to_urdf, roll_pitch_knee_ik
+from legkit.robots.legs import FreeFlyerUrdf, box_trunk, limb_segment, roll_pitch_knee_ik
 
 SIDES = ("l", "r")
 LEG_JOINTS = ("hip_yaw", "hip_roll", "thigh", "shank", "ankle", "foot")  # body names after the side prefix
@@ -72,11 +73,12 @@ class BipedParameters:
 
 
 @dataclass
-class Biped:
+class Biped(FreeFlyerUrdf):
     """The built biped: its legkit model, parameters and sole contact points."""
 
     model: lk.Model
     parameters: BipedParameters
+    urdf_name: ClassVar[str] = "biped"
 
     @property
     def feet(self) -> dict[str, list[tuple[str, np.ndarray]]]:
@@ -117,17 +119,12 @@ class Biped:
         # R_x(roll) R_y(pitch + knee) R_y(ankle_pitch) R_x(ankle_roll) = I.
         return np.stack([np.zeros_like(roll), roll, pitch, knee, -(pitch + knee), -roll], axis=-1)
 
-    def to_urdf(self) -> str:
-        """URDF text of the model (root link `pelvis`); load with Model.from_urdf(xml, floating_base=True)."""
-        return model_to_urdf(self.model, "biped")
-
 
 def build_biped(parameters: BipedParameters | None = None) -> Biped:
     """The biped of the module docstring as an `lk.Model` with a free-flyer pelvis."""
     p = BipedParameters() if parameters is None else parameters
     instance(p, BipedParameters, "parameters")
-    model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(p.pelvis_mass, list(p.pelvis_size)), base_name="pelvis")
-    model.add_fixed("pelvis", (np.eye(3), list(p.torso_position)), lk.MassProperties.solid_box(p.torso_mass, list(p.torso_size)), "torso")
+    model = box_trunk("pelvis", p.pelvis_mass, p.pelvis_size, "torso", p.torso_mass, p.torso_size, p.torso_position)
     foot_length = p.foot_toe + p.foot_heel
     foot_body = lk.MassProperties.solid_box(
         p.foot_mass, [foot_length, 2.0 * p.foot_half_width, p.ankle_height],

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import ClassVar
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -63,6 +65,27 @@ def _inertial(body: lk.MassProperties) -> str:
         f'<inertia ixx="{i[0]}" ixy="{i[1]}" ixz="{i[2]}" iyy="{i[4]}" iyz="{i[5]}" izz="{i[8]}"/>'
         "</inertial>"
     )
+
+
+def box_trunk(base_name: str, base_mass: float, base_size: Sequence[float], part_name: str, part_mass: float,
+              part_size: Sequence[float], part_position: Sequence[float]) -> lk.Model:
+    """A free-flyer model whose base is a solid box with a second box fixed to it at part_position [m] in the base's
+    frame: the trunk the legged robots' limbs are added to (the biped's torso on its pelvis, the quadruped's head on
+    its torso)."""
+    model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(base_mass, list(base_size)), base_name=base_name)
+    model.add_fixed(base_name, (np.eye(3), list(part_position)), lk.MassProperties.solid_box(part_mass, list(part_size)), part_name)
+    return model
+
+
+class FreeFlyerUrdf:
+    """`to_urdf` for a built free-flyer robot (its `model`, named `urdf_name` in the URDF)."""
+
+    model: lk.Model
+    urdf_name: ClassVar[str]
+
+    def to_urdf(self) -> str:
+        """URDF text of the model (the free-flyer base as the root link); load with Model.from_urdf(xml, floating_base=True)."""
+        return model_to_urdf(self.model, self.urdf_name)
 
 
 def model_to_urdf(model: lk.Model, robot_name: str) -> str:

@@ -18,13 +18,14 @@ parameter table was not at hand, so every value is a documented, overridable fie
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 import numpy.typing as npt
 
 import legkit as lk
 from legkit._validation import choice, float_array, instance, parameter_fields
-from legkit.robots.legs import limb_segment, model_to_urdf, roll_pitch_knee_ik
+from legkit.robots.legs import FreeFlyerUrdf, box_trunk, limb_segment, roll_pitch_knee_ik
 
 LEGS = ("lf", "rf", "lh", "rh")
 #: Diagonal leg pairs and lateral leg pairs (support lines of a two-legged stance).
@@ -76,11 +77,12 @@ class QuadrupedParameters:
 
 
 @dataclass
-class Quadruped:
+class Quadruped(FreeFlyerUrdf):
     """The built quadruped: its legkit model, parameters and foot contact points."""
 
     model: lk.Model
     parameters: QuadrupedParameters
+    urdf_name: ClassVar[str] = "quadruped"
 
     @property
     def feet(self) -> dict[str, tuple[str, np.ndarray]]:
@@ -110,17 +112,12 @@ class Quadruped:
         relative = float_array(foot_in_torso, "foot_in_torso", last=3) - p.hip_position(leg)
         return roll_pitch_knee_ik(relative, p.thigh_length, p.shank_length, p.knee_direction[leg])
 
-    def to_urdf(self) -> str:
-        """URDF text of the model (free-flyer root link `torso`); load with Model.from_urdf(xml, floating_base=True)."""
-        return model_to_urdf(self.model, "quadruped")
-
 
 def build_quadruped(parameters: QuadrupedParameters | None = None) -> Quadruped:
     """The quadruped of the module docstring as an `lk.Model` with a free-flyer torso."""
     p = QuadrupedParameters() if parameters is None else parameters
     instance(p, QuadrupedParameters, "parameters")
-    model = lk.Model(floating_base=True, base=lk.MassProperties.solid_box(p.torso_mass, list(p.torso_size)), base_name="torso")
-    model.add_fixed("torso", (np.eye(3), list(p.head_position)), lk.MassProperties.solid_box(p.head_mass, list(p.head_size)), "head")
+    model = box_trunk("torso", p.torso_mass, p.torso_size, "head", p.head_mass, p.head_size, p.head_position)
     knee = (np.eye(3), [0.0, 0.0, -p.thigh_length])
     for leg in LEGS:
         hip = model.add_revolute("torso", [1.0, 0.0, 0.0], (np.eye(3), p.hip_position(leg)), None, f"{leg}_hip")
