@@ -3,6 +3,20 @@
 //! quaternions; after, its outputs are finite, a failure there being numerical (an overflow, or a singular mass
 //! matrix) rather than an argument's. Each error names the argument; nothing has been written when an argument is
 //! refused.
+//!
+//! # Examples
+//!
+//! The result checks, for code of one's own around the kernels: a number that overflowed is a numerical failure, not the
+//! caller's argument; a singular mass matrix is the model's.
+//!
+//! ```
+//! use legkit_dynamics::algorithms;
+//!
+//! assert!(algorithms::finite_result(&[1.0, -2.5]).is_ok());
+//! let error = algorithms::finite_result(&[1.0, f64::INFINITY]).unwrap_err();
+//! assert!(error.to_string().starts_with("result: not finite"));
+//! assert!(algorithms::singular().to_string().starts_with("model: the mass matrix is singular"));
+//! ```
 
 use nalgebra::{DMatrix, Vector3};
 
