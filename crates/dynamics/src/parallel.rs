@@ -49,6 +49,21 @@
 //! parallel::map_rows(&mut hold, 1, 0, || pool.take(), gravity, None).unwrap();
 //! assert!(hold.iter().zip(&q).all(|(tau, angle)| (tau + 9.81 * 0.2 * angle.sin()).abs() < 1e-12));
 //! ```
+//!
+//! Items of any kind on [`on_all_threads`], the outputs in the items' order, each task with its thread's state (here
+//! a buffer each thread fills again for every item it takes):
+//!
+//! ```
+//! use legkit_dynamics::parallel;
+//!
+//! let items: Vec<u64> = (0..1000).collect();
+//! let sums = parallel::on_all_threads(items, Vec::new, |buffer: &mut Vec<u64>, _, n| {
+//!     buffer.clear();
+//!     buffer.extend(1..=n);
+//!     buffer.iter().sum::<u64>()
+//! });
+//! assert!(sums.iter().zip(0_u64..).all(|(&sum, n)| sum == n * (n + 1) / 2));
+//! ```
 
 use std::fmt;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
