@@ -18,7 +18,51 @@
 //! let q: Vec<f64> = (0..n).map(|i| i as f64 / n as f64).collect();
 //! let (v, tau) = (vec![0.0; n], vec![0.5; n]);
 //! let mut ddq = vec![0.0; n];
-//! parallel::aba(&DataPool::new(&model), &q, &v, &tau, &mut ddq, None).unwrap();
+//! let pool = DataPool::new(&model);
+//! parallel::aba(&pool, &q, &v, &tau, &mut ddq, None).unwrap();
+//! let mut data = legkit_dynamics::Data::new(&model);
+//! assert_eq!(ddq[700], legkit_dynamics::algorithms::aba(&model, &mut data, &q[700..701], &[0.0], &[0.5], None).unwrap()[0]);
+//! // A row's error names the row.
+//! let mut bad = q.clone();
+//! bad[400] = f64::NAN;
+//! let error = parallel::aba(&pool, &bad, &v, &tau, &mut ddq, None).unwrap_err();
+//! assert_eq!(error.to_string(), "q[400]: element 0 is not finite (NaN)");
+//! ```
+//!
+//! A kernel of one's own on [`map_rows`], here the torque that holds each pose of that link (its centre of mass 0.2
+//! m above the hinge) against gravity, each thread with a `Data` of the pool:
+//!
+//! ```
+//! # use legkit_dynamics::parallel::{self, DataPool};
+//! # use legkit_dynamics::{algorithms, Joint, JointLimits, MassProperties, Model, Transform};
+//! # use nalgebra::{Matrix3, Vector3};
+//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, 0.2), &Matrix3::identity()).unwrap();
+//! # let mut model = Model::new(false, link, "base");
+//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "link", JointLimits::NONE).unwrap();
+//! let (n, pool) = (1000, DataPool::new(&model));
+//! let q: Vec<f64> = (0..n).map(|i| i as f64 / n as f64).collect();
+//! let mut hold = vec![0.0; n];
+//! let gravity = |data: &mut parallel::Pooled<'_, '_>, i: usize, row: &mut [f64]| {
+//!     row.copy_from_slice(algorithms::rnea(&model, data.data(), &q[i..i + 1], &[0.0], &[0.0], None)?.as_slice());
+//!     Ok(())
+//! };
+//! parallel::map_rows(&mut hold, 1, 0, || pool.take(), gravity, None).unwrap();
+//! assert!(hold.iter().zip(&q).all(|(tau, angle)| (tau + 9.81 * 0.2 * angle.sin()).abs() < 1e-12));
+//! ```
+//!
+//! Items of any kind on [`on_all_threads`], the outputs in the items' order, each task with its thread's state (here
+//! a buffer each thread fills again for every item it takes):
+//!
+//! ```
+//! use legkit_dynamics::parallel;
+//!
+//! let items: Vec<u64> = (0..1000).collect();
+//! let sums = parallel::on_all_threads(items, Vec::new, |buffer: &mut Vec<u64>, _, n| {
+//!     buffer.clear();
+//!     buffer.extend(1..=n);
+//!     buffer.iter().sum::<u64>()
+//! });
+//! assert!(sums.iter().zip(0_u64..).all(|(&sum, n)| sum == n * (n + 1) / 2));
 //! ```
 
 use std::fmt;

@@ -63,6 +63,37 @@
 //! flex and flexcomp, non-joint transmissions, static bodies beside a floating base) loads with a
 //! warning naming it, or is an error with [`MjcfOptions::strict`].
 //!
+//! # Examples
+//!
+//! A pendulum from an MJCF string (a file's path loads the same way): a 1 kg bob 0.3 m below a hinge about y, driven
+//! by a motor of gear 2, with MuJoCo's options beside the model. An attribute MuJoCo does not know is an error naming it.
+//!
+//! ```
+//! use legkit_dynamics::mjcf::{load_mjcf, MjcfOptions};
+//! use legkit_dynamics::{algorithms, Data};
+//!
+//! let xml = r#"<mujoco>
+//!   <option timestep="0.005"/>
+//!   <worldbody>
+//!     <body name="bob">
+//!       <joint name="hinge" type="hinge" axis="0 1 0"/>
+//!       <inertial pos="0 0 -0.3" mass="1" diaginertia="0.01 0.01 0.01"/>
+//!     </body>
+//!   </worldbody>
+//!   <actuator><motor joint="hinge" gear="2"/></actuator>
+//! </mujoco>"#;
+//! let mjcf = load_mjcf(xml, &MjcfOptions::default())?;
+//! let model = &mjcf.model;
+//! assert_eq!((model.nv(), model.name(1), mjcf.timestep, mjcf.actuators.len()), (1, "bob", 0.005, 1));
+//! let theta: f64 = 0.5;
+//! let hold = algorithms::rnea(model, &mut Data::new(model), &[theta], &[0.0], &[0.0], None)?[0];
+//! assert!((hold - 9.81 * 0.3 * theta.sin()).abs() < 1e-12);
+//! assert_eq!(mjcf.actuator_torques(&[theta], &[0.0], &[0.25])?.as_slice(), &[0.5]);
+//! let error = load_mjcf(&xml.replace("axis=", "axs="), &MjcfOptions::default()).unwrap_err();
+//! assert!(error.to_string().contains("axs"), "{error}");
+//! # Ok::<(), legkit_dynamics::Error>(())
+//! ```
+//!
 //! [`Joint::Spherical`]: crate::Joint::Spherical
 
 mod actuators;

@@ -14,6 +14,32 @@
 //! Each joint may carry [`JointLimits`] (position range, effort and velocity bounds). The dynamics
 //! algorithms ignore them: they describe the mechanism for the simulation (which enforces the position
 //! range and the effort bound) and for controllers (which read them with [`Model::limits`]).
+//!
+//! # Examples
+//!
+//! A two-link arm on a fixed base, built body by body, each on a joint placed in its parent's frame: the model's sizes,
+//! tree and names follow. A body that would break the tree, or take a name already given, is refused.
+//!
+//! ```
+//! use legkit_dynamics::{Joint, JointLimits, MassProperties, Model, Transform};
+//! use nalgebra::{Matrix3, Vector3};
+//!
+//! let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+//! let mut model = Model::new(false, MassProperties::zero(), "base");
+//! let upper = model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+//! let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+//! let lower = model.add_body(upper, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+//! assert_eq!((model.nbodies(), model.nq(), model.nv(), model.total_mass()), (3, 2, 2, 2.0));
+//! assert_eq!((model.parent(lower), model.body_index("lower"), model.idx_v(lower)), (upper, Some(2), 1));
+//! let error = model.add_body(7, Joint::Fixed, elbow, link, "hand", JointLimits::NONE).unwrap_err();
+//! assert_eq!(error.to_string(), "parent: body 7 does not exist (the model has 3 bodies)");
+//! let error = model.add_body(lower, Joint::Fixed, elbow, link, "upper", JointLimits::NONE).unwrap_err();
+//! assert_eq!(error.to_string(), "name: a body is already named \"upper\"");
+//! // A free-flyer base: q = [x, y, z, qx, qy, qz, qw], v = [v; ω].
+//! let floating = Model::new(true, link, "box");
+//! assert_eq!((floating.nq(), floating.nv(), floating.neutral().as_slice()), (7, 6, &[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0][..]));
+//! # Ok::<(), legkit_dynamics::Error>(())
+//! ```
 
 mod check;
 mod data;

@@ -8,6 +8,51 @@
 //! unchanged. A step that would leave the state non-finite or exploding (a speed or position beyond
 //! `DIVERGENCE_BOUND`) stops with `Error::Numerical`, naming the step and the body, and leaves the
 //! simulation exactly as before that step. The same inputs give bit-identical trajectories on either backend.
+//!
+//! # Examples
+//!
+//! A 2 kg box on a free-flyer base, dropped onto a plane with friction, comes to rest on its 0.1 m high face, the
+//! contacts bearing its weight; a torque of the wrong length is refused and steps nothing.
+//!
+//! ```
+//! use legkit_dynamics::sim::{Ground, Options, Simulation};
+//! use legkit_dynamics::{MassProperties, Model};
+//! use nalgebra::{Matrix3, Vector3};
+//!
+//! let body = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity())?;
+//! let model = Model::new(true, body, "box");
+//! let mut sim = Simulation::new(&model, Options { ground: Some(Ground::plane(0.8)?), ..Options::new(1e-3) })?;
+//! sim.set_state(Some(&[0.0, 0.0, 0.2, 0.0, 0.0, 0.0, 1.0]), None)?;
+//! sim.step(None, 1000)?;
+//! let support: f64 = sim.contacts().iter().map(|contact| contact.normal_force).sum();
+//! assert!((sim.q()[2] - 0.05).abs() < 1e-3, "resting at {}", sim.q()[2]);
+//! assert!((support - 2.0 * 9.81).abs() < 1e-2, "bearing {support} N");
+//! let error = sim.step(Some(&[0.0; 3]), 1).unwrap_err();
+//! assert_eq!((error.to_string().as_str(), sim.steps()), ("tau: expected length 6, got 3", 1000));
+//! # Ok::<(), legkit_dynamics::Error>(())
+//! ```
+//!
+//! With the `rapier` feature (on by default) the same simulation runs on Rapier's multibody, the reference backend;
+//! without it that backend is refused.
+//!
+//! ```
+//! # use legkit_dynamics::sim::{Ground, Options, Simulation};
+//! # use legkit_dynamics::{MassProperties, Model};
+//! # use nalgebra::{Matrix3, Vector3};
+//! # let body = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity())?;
+//! # let model = Model::new(true, body, "box");
+//! use legkit_dynamics::sim::Backend;
+//! let options = Options { ground: Some(Ground::plane(0.8)?), backend: Backend::Rapier, ..Options::new(1e-3) };
+//! match Simulation::new(&model, options) {
+//!     Ok(mut sim) => {
+//!         sim.set_state(Some(&[0.0, 0.0, 0.2, 0.0, 0.0, 0.0, 1.0]), None)?;
+//!         sim.step(None, 1000)?;
+//!         assert!(cfg!(feature = "rapier") && (sim.q()[2] - 0.05).abs() < 2e-3, "resting at {}", sim.q()[2]);
+//!     }
+//!     Err(error) => assert!(!cfg!(feature = "rapier"), "{error}"),
+//! }
+//! # Ok::<(), legkit_dynamics::Error>(())
+//! ```
 
 mod actuation;
 mod ground;

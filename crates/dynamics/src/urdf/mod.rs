@@ -72,6 +72,34 @@
 //! tolerance passes silently), and `effort="0"` or `velocity="0"`. With [`UrdfOptions::strict`] these
 //! are errors instead.
 //!
+//! # Examples
+//!
+//! A pendulum from a URDF string (a file's path loads the same way): a 1 kg bob 0.3 m below a continuous joint about
+//! y, so that holding it at angle θ takes m g l sin θ. A joint naming a link the file lacks is an error naming both.
+//!
+//! ```
+//! use legkit_dynamics::urdf::{load_urdf, UrdfOptions};
+//! use legkit_dynamics::{algorithms, Data};
+//!
+//! let xml = r#"<robot name="pendulum">
+//!   <link name="world"/>
+//!   <link name="bob">
+//!     <inertial><origin xyz="0 0 -0.3"/><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+//!   </link>
+//!   <joint name="hinge" type="continuous"><parent link="world"/><child link="bob"/><axis xyz="0 1 0"/></joint>
+//! </robot>"#;
+//! let urdf = load_urdf(xml, &UrdfOptions::default())?;
+//! let model = urdf.model;
+//! assert_eq!((model.nq(), model.name(1), model.joint_name(1), urdf.warnings.len()), (1, "bob", "hinge", 0));
+//! let theta: f64 = 0.5;
+//! let hold = algorithms::rnea(&model, &mut Data::new(&model), &[theta], &[0.0], &[0.0], None)?[0];
+//! assert!((hold - 9.81 * 0.3 * theta.sin()).abs() < 1e-12);
+//! let typo = xml.replace(r#"<parent link="world"/>"#, r#"<parent link="wrld"/>"#);
+//! let error = load_urdf(&typo, &UrdfOptions::default()).unwrap_err();
+//! assert_eq!(error.to_string(), r#"urdf: joint "hinge": unknown parent link "wrld""#);
+//! # Ok::<(), legkit_dynamics::Error>(())
+//! ```
+//!
 //! [`Joint::Revolute`]: crate::Joint::Revolute
 //! [`Joint::Prismatic`]: crate::Joint::Prismatic
 //! [`Joint::Fixed`]: crate::Joint::Fixed
