@@ -109,8 +109,9 @@ pub(crate) trait Engine: Send + Sync {
     fn write_state(&mut self, model: &Model, q: &[f64], v: &[f64]);
     /// Starts over from (q, v) with no history.
     fn restart(&mut self, model: &Model, q: &[f64], v: &[f64]) -> Result<()>;
-    /// Advances (q, v) by one step; writes the generalized forces the actuation applied.
-    fn step(&mut self, model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64]) -> Result<()>;
+    /// Advances (q, v) by one step; writes the generalized forces the actuation applied; with `ab`, that step's
+    /// transition Jacobians A and B at its start too, in one pass (see `Simulation::transition_jacobians`).
+    fn step(&mut self, model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64], ab: Jacobians) -> Result<()>;
     /// Keeps what a step changes (contact history, warm starts, reported contacts), for `undo`.
     fn save(&mut self);
     /// Returns to the state of the last `save`, bit for bit: the step since then failed.
@@ -121,33 +122,11 @@ pub(crate) trait Engine: Send + Sync {
     fn contact_tolerance(&self) -> f64;
     /// Contact-solver iterations of the last (sub)step, where the engine stops on convergence.
     fn solver_iterations(&self) -> Option<usize>;
-    /// ∂x⁺/∂x and ∂x⁺/∂u of one step from (q, v), changing nothing (see `Simulation::transition_jacobians`).
-    fn transition_jacobians(
-        &mut self,
-        model: &Model,
-        actuation: &Actuation<'_>,
-        q: &[f64],
-        v: &[f64],
-        a: &mut DMatrix<f64>,
-        b: &mut DMatrix<f64>,
-    ) -> Result<()>;
-    /// `step` with the Jacobians of that step at its start into `a` and `b` (`transition_jacobians`), in one pass
-    /// where the engine can (a rollout's steps); by default the two calls.
-    #[allow(clippy::too_many_arguments)]
-    fn step_with_jacobians(
-        &mut self,
-        model: &Model,
-        actuation: &Actuation<'_>,
-        q: &mut [f64],
-        v: &mut [f64],
-        applied: &mut [f64],
-        a: &mut DMatrix<f64>,
-        b: &mut DMatrix<f64>,
-    ) -> Result<()> {
-        self.transition_jacobians(model, actuation, q, v, a, b)?;
-        self.step(model, actuation, q, v, applied)
-    }
 }
+
+/// Where a step writes its transition Jacobians A = ∂x⁺/∂x and B = ∂x⁺/∂u (`Simulation::transition_jacobians`), if
+/// they are asked for.
+pub(crate) type Jacobians<'a> = Option<(&'a mut DMatrix<f64>, &'a mut DMatrix<f64>)>;
 
 /// What `Simulation::rollout` gives, one row per step, row-major; grown once, reused.
 #[derive(Debug, Clone, Default)]
@@ -343,9 +322,24 @@ impl Simulation {
         Ok(())
     }
 
-    /// One step with the feed-forward in `tau_ff`, as `step` describes it; with `jacobians`, that step's transition
-    /// Jacobians at its start written into them (`Engine::step_with_jacobians`).
-    fn advance(&mut self, jacobians: Option<(&mut DMatrix<f64>, &mut DMatrix<f64>)>) -> Result<()> {
+    /// One step with the feed-forward in `tau_ff`, as `step` describes it; with `ab`, that step's transition
+    /// Jacobians at its start written into them (`Engine::step`).
+    fn advance(&mut self, ab: Jacobians) -> Result<()> {
+        let outcome =
+            self.try_step(ab).and_then(|()| divergence(&self.model, &self.q_next, &self.v_next, &self.applied, self.steps + 1, self.options.dt));
+        if let Err(error) = outcome {
+            self.undo_step();
+            return Err(error);
+        }
+        std::mem::swap(&mut self.q, &mut self.q_next);
+        std::mem::swap(&mut self.v, &mut self.v_next);
+        self.steps += 1;
+        Ok(())
+    }
+
+    /// Takes one step from (q, v) into (q_next, v_next), writing `applied` (and with `ab` its Jacobians), for `advance` to keep or `undo_step` to
+    /// take back (the forces before in `applied_before`, the engine's state in its `save`).
+    fn try_step(&mut self, ab: Jacobians) -> Result<()> {
         self.q_next.copy_from_slice(&self.q);
         self.v_next.copy_from_slice(&self.v);
         self.applied_before.copy_from_slice(&self.applied);
@@ -355,23 +349,15 @@ impl Simulation {
         let (q_next, v_next, applied) = (&mut self.q_next, &mut self.v_next, &mut self.applied);
         // A panic inside a dependency (parry, Rapier) must not cross into the caller (Python): it fails
         // the step like a divergence.
-        let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| match jacobians {
-            Some((a, b)) => engine.step_with_jacobians(model, &actuation, q_next, v_next, applied, a, b),
-            None => engine.step(model, &actuation, q_next, v_next, applied),
-        }))
-        .unwrap_or_else(|panic| {
+        std::panic::catch_unwind(AssertUnwindSafe(|| engine.step(model, &actuation, q_next, v_next, applied, ab))).unwrap_or_else(|panic| {
             Err(Error::numerical("step", format!("the physics engine failed at step {}: {}", self.steps + 1, panic_message(&panic))))
-        });
-        let outcome = outcome.and_then(|()| divergence(&self.model, &self.q_next, &self.v_next, &self.applied, self.steps + 1, self.options.dt));
-        if let Err(error) = outcome {
-            self.engine.undo();
-            self.applied.copy_from_slice(&self.applied_before);
-            return Err(error);
-        }
-        std::mem::swap(&mut self.q, &mut self.q_next);
-        std::mem::swap(&mut self.v, &mut self.v_next);
-        self.steps += 1;
-        Ok(())
+        })
+    }
+
+    /// Takes back the step `try_step` took: the engine's state and the applied forces as before it.
+    fn undo_step(&mut self) {
+        self.engine.undo();
+        self.applied.copy_from_slice(&self.applied_before);
     }
 
     /// Advances one step per row of `targets` (row-major, nv per row: the servos' position targets per
@@ -424,8 +410,10 @@ impl Simulation {
             }
             None => self.tau_ff.fill(0.0),
         }
-        let actuation = Actuation { servo: &self.servo, effort: &self.effort, tau_ff: &self.tau_ff };
-        self.engine.transition_jacobians(&self.model, &actuation, &self.q, &self.v, a, b)
+        // The step is taken and taken back, as a failed step is.
+        let outcome = self.try_step(Some((a, b)));
+        self.undo_step();
+        outcome
     }
 
     /// Steps once per row of `tau` (row-major, nv per row: each step's feed-forward generalized forces), from the
@@ -458,7 +446,7 @@ impl Simulation {
         for (k, row) in tau.chunks_exact(nv).enumerate() {
             check_cancelled("rollout")?;
             self.tau_ff.copy_from_slice(row);
-            // The step and its Jacobians in one pass (`Engine::step_with_jacobians`).
+            // The step and its Jacobians in one pass (`Engine::step`).
             self.advance(jacobians.then_some((&mut a, &mut b)))?;
             if jacobians {
                 // Row-major, as NumPy reads them.
@@ -506,6 +494,13 @@ fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
 /// `DIVERGENCE_BOUND` (speeds; the base's position and prismatic joints' coordinates), or whose actuation
 /// is beyond `ACTUATION_BOUND`.
 fn divergence(model: &Model, q: &[f64], v: &[f64], applied: &[f64], step: u64, dt: f64) -> Result<()> {
+    // Nearly every step: every number within its bound (NaN is not), so no body's can be beyond it. Checked over the
+    // whole vectors first, and body by body only to name one that is: a URDF's many fixed links made that walk a
+    // tenth of a standing ANYmal's step.
+    let within = |x: &[f64], bound: f64| x.iter().all(|x| x.abs() <= bound);
+    if within(q, DIVERGENCE_BOUND) && within(v, DIVERGENCE_BOUND) && within(applied, ACTUATION_BOUND) {
+        return Ok(());
+    }
     for i in 0..model.nbodies() {
         let (kq, kv, joint) = (model.idx_q(i), model.idx_v(i), model.joint(i));
         let speeds = &v[kv..kv + joint.nv()];

@@ -584,6 +584,28 @@ fn a_failed_step_leaves_a_never_failed_twin(backend: Backend) {
     }
 }
 
+/// Jacobians asked of the Rapier backend are refused and change nothing: after `transition_jacobians` or a
+/// rollout asking for them, the simulation steps on as a twin never asked (the refused step counted, so that
+/// the undo replays the steps before it from the checkpoint, and only those).
+#[cfg(feature = "rapier")]
+#[test]
+fn refused_jacobians_leave_a_rapier_simulation_as_its_twin() {
+    let state = |sim: &Simulation| (sim.q().to_vec(), sim.v().to_vec(), sim.time(), sim.applied_tau().to_vec(), sim.contacts());
+    let (mut sim, mut twin) = (quadruped_on_plane(1, Backend::Rapier), quadruped_on_plane(1, Backend::Rapier));
+    let nv = sim.model().nv();
+    for s in [&mut sim, &mut twin] {
+        s.step(None, 5).unwrap();
+    }
+    let (mut a, mut b) = (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0));
+    assert_eq!(sim.transition_jacobians(None, &mut a, &mut b).unwrap_err().argument(), "backend");
+    assert_eq!(sim.rollout(&vec![0.0; nv], true, &mut Rollout::default()).unwrap_err().argument(), "backend");
+    assert_eq!(state(&sim), state(&twin));
+    for s in [&mut sim, &mut twin] {
+        s.step(None, 40).unwrap();
+    }
+    assert_eq!(state(&sim), state(&twin), "40 steps after the refusals");
+}
+
 #[cfg(not(feature = "rapier"))]
 #[test]
 fn the_rapier_backend_is_refused_without_its_feature() {

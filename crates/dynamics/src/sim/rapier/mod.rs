@@ -23,7 +23,7 @@
 mod builder;
 mod state;
 
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::Vector3;
 use rapier3d_f64::prelude::{
     BroadPhaseBvh, CCDSolver, ColliderSet, ImpulseJointSet, IslandManager, MultibodyJointSet, NarrowPhase, PhysicsWorld, RigidBodySet,
 };
@@ -36,7 +36,7 @@ use builder::{Layout, RapierAxis};
 
 use super::actuation::{dof_coordinates, Actuation};
 use super::options::Options;
-use super::{Contact, Engine};
+use super::{Contact, Engine, Jacobians};
 use crate::geometry::{from_pose, to_vector};
 
 /// The world-frame wrench of one generalized force, to apply to Rapier bodies.
@@ -173,9 +173,15 @@ impl Engine for RapierSimulation {
         Ok(())
     }
 
-    fn step(&mut self, model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64]) -> Result<()> {
+    fn step(&mut self, model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64], ab: Jacobians) -> Result<()> {
         // Counted before anything can fail, so that `undo` replays exactly the steps before this one.
         let logged = self.checkpoint.as_mut().map(|c| c.steps += 1).is_some();
+        if ab.is_some() {
+            return Err(Error::invalid(
+                "backend",
+                "transition Jacobians are those of legkit's tree engine (backend='tree'); Rapier's step is not differentiated",
+            ));
+        }
         dof_coordinates(model, q, &mut self.q_dof);
         actuation.explicit(&self.q_dof, v, applied);
         if logged {
@@ -222,18 +228,6 @@ impl Engine for RapierSimulation {
 
     fn solver_iterations(&self) -> Option<usize> {
         None
-    }
-
-    fn transition_jacobians(
-        &mut self,
-        _model: &Model,
-        _actuation: &Actuation<'_>,
-        _q: &[f64],
-        _v: &[f64],
-        _a: &mut DMatrix<f64>,
-        _b: &mut DMatrix<f64>,
-    ) -> Result<()> {
-        Err(Error::invalid("backend", "transition Jacobians are those of legkit's tree engine (backend='tree'); Rapier's step is not differentiated"))
     }
 }
 

@@ -227,22 +227,32 @@ impl Collision {
             let (to_plane, normal) = (plane.inverse(), plane.rotation.column(2).into_owned());
             let frame = tangents(&normal);
             for (index, c) in self.colliders.iter().enumerate() {
-                let pose = to_plane.compose(&poses[c.body].compose(&c.local));
+                // The shape's origin in the plane's frame first, by the products that place its pose below: a
+                // shape beyond its reach of the plane (most of a standing robot's) has no point near it
+                // (`plane_points`), and one that had none last step either has nothing to find or log.
+                let origin = to_plane.transform_point(&poses[c.body].transform_point(&c.local.translation));
+                let near = c.reach.is_some_and(|reach| origin.z - reach <= PREDICTION);
+                if !near && !self.plane_active[index] {
+                    continue;
+                }
                 let warm = &mut self.plane_warm[index];
                 let mut touching = [false; MAX_FEATURES];
-                plane_points(&c.kind, c.reach, &pose, PREDICTION, |p| {
-                    touching[p.feature] = true;
-                    out.push(Found {
-                        body: c.body,
-                        other: None,
-                        point: plane.transform_point(&Vector3::new(p.surface.x, p.surface.y, 0.5 * p.height)),
-                        normal,
-                        tangents: frame,
-                        distance: p.height,
-                        warm: warm[p.feature],
-                        source: Source::Plane(index as u32, p.feature as u32),
+                if near {
+                    let pose = to_plane.compose(&poses[c.body].compose(&c.local));
+                    plane_points(&c.kind, c.reach, &pose, PREDICTION, |p| {
+                        touching[p.feature] = true;
+                        out.push(Found {
+                            body: c.body,
+                            other: None,
+                            point: plane.transform_point(&Vector3::new(p.surface.x, p.surface.y, 0.5 * p.height)),
+                            normal,
+                            tangents: frame,
+                            distance: p.height,
+                            warm: warm[p.feature],
+                            source: Source::Plane(index as u32, p.feature as u32),
+                        });
                     });
-                });
+                }
                 // Only a collider touching now or last step has impulses to change: it is logged whole.
                 let touches = touching.contains(&true);
                 if touches || self.plane_active[index] {

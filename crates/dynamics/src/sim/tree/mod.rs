@@ -32,11 +32,11 @@ mod transition;
 
 use std::sync::Arc;
 
-use nalgebra::{DMatrix, Vector3, Vector6};
+use nalgebra::{Vector3, Vector6};
 
 use super::actuation::{dof_coordinates, Actuation};
 use super::options::{FrictionLaw, Options, DEFAULT_FRICTION};
-use super::{Contact, Engine};
+use super::{Contact, Engine, Jacobians};
 // The unchecked kernels: the engine checks its state once, not per call.
 use crate::algorithms::{aba_with_armature_unchecked as aba_with_armature, integrate_unchecked as integrate, joint_placement, world_pose};
 use crate::model::{Data, Model};
@@ -344,7 +344,10 @@ impl Engine for TreeSimulation {
         Ok(())
     }
 
-    fn step(&mut self, _model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64]) -> Result<()> {
+    fn step(&mut self, _model: &Model, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64], ab: Jacobians) -> Result<()> {
+        if let Some(ab) = ab {
+            return self.step_with_jacobians(actuation, q, v, applied, ab);
+        }
         for _ in 0..self.options.substeps {
             self.substep(actuation, q, v, applied)?;
         }
@@ -386,31 +389,6 @@ impl Engine for TreeSimulation {
 
     fn solver_iterations(&self) -> Option<usize> {
         Some(self.iterations)
-    }
-
-    fn transition_jacobians(
-        &mut self,
-        _model: &Model,
-        actuation: &Actuation<'_>,
-        q: &[f64],
-        v: &[f64],
-        a: &mut DMatrix<f64>,
-        b: &mut DMatrix<f64>,
-    ) -> Result<()> {
-        TreeSimulation::transition_jacobians(self, actuation, q, v, a, b)
-    }
-
-    fn step_with_jacobians(
-        &mut self,
-        _model: &Model,
-        actuation: &Actuation<'_>,
-        q: &mut [f64],
-        v: &mut [f64],
-        applied: &mut [f64],
-        a: &mut DMatrix<f64>,
-        b: &mut DMatrix<f64>,
-    ) -> Result<()> {
-        TreeSimulation::step_with_jacobians(self, actuation, q, v, applied, a, b)
     }
 }
 

@@ -69,6 +69,14 @@ pub(super) fn impulses_at(
     generalized_impulses(tree, model, data, constraints, out);
 }
 
+/// M̃ on the tree: the model, the poses and factor `aba_with_armature` left in `data`, and the armature it added.
+#[derive(Clone, Copy)]
+struct Mass<'a> {
+    model: &'a Model,
+    data: &'a Data,
+    armature: &'a [f64],
+}
+
 /// The Newton solver's buffers, sized for one model.
 pub(super) struct Solver {
     tree: Articulated,
@@ -118,6 +126,7 @@ impl Solver {
         max_iterations: usize,
         from_free: bool,
     ) -> Option<usize> {
+        let mass = Mass { model, data, armature };
         v.copy_from_slice(v_free);
         if !constraints.iter().any(Constraint::active) {
             constraints.iter_mut().for_each(Constraint::settle);
@@ -127,7 +136,7 @@ impl Solver {
         }
         // Under the cone law the problem is one convex minimisation: symmetric steps, each line-searched.
         let coulomb = constraints.iter().any(|c| c.mu > 0.0 && c.cone_slope == 0.0);
-        self.landed = coulomb && from_free && self.step_from_free(model, data, armature, constraints, v_free, v);
+        self.landed = coulomb && from_free && self.step_from_free(mass, constraints, v_free, v);
         if self.landed {
             constraints.iter_mut().for_each(Constraint::settle);
             return Some(1);
@@ -181,7 +190,7 @@ impl Solver {
                 }
                 iterations += 1;
                 last_gradient = gradient;
-                if coulomb && iterations == 1 && self.step_in_warm_zones(model, data, armature, constraints, v_free, v) {
+                if coulomb && iterations == 1 && self.step_in_warm_zones(mass, constraints, v_free, v) {
                     guessed = true;
                     continue;
                 }
@@ -191,14 +200,14 @@ impl Solver {
                 // that problem's symmetric Hessian, whose step does.
                 let mut coupled = coulomb;
                 (start, initial, curvature) = loop {
-                    if !self.assemble(model, data, armature, constraints, coupled) {
+                    if !self.assemble(mass, constraints, coupled) {
                         if coupled {
                             coupled = false;
                             continue;
                         }
                         return None;
                     }
-                    self.direction(model, data, armature, constraints);
+                    self.direction(mass, constraints);
                     let start = dot(&self.mass_change, &self.step);
                     let initial = start - constraints.iter().filter(|c| c.active()).map(|c| dot(&c.lambda, &c.slope)).sum::<f64>();
                     if coupled && !(initial < 0.0) {
@@ -255,7 +264,7 @@ impl Solver {
     }
 
     /// The step d = H⁻¹ `descent` through the factor of the last `assemble`, M̃ d and each constraint's J d.
-    fn direction(&mut self, model: &Model, data: &Data, armature: &[f64], constraints: &mut [Constraint]) {
+    fn direction(&mut self, Mass { model, data, armature }: Mass<'_>, constraints: &mut [Constraint]) {
         let tree = &mut self.tree;
         tree.solve(model, data, &self.descent, &mut self.step);
         tree.motions(model, data, &self.step);
@@ -271,15 +280,8 @@ impl Solver {
     /// starts, so the warm start's own solve is saved (a resting robot's step: one factor, one solve). True if
     /// it landed in the zones it assumed, the solution; otherwise false, with `v` at v_free and the warm-start
     /// impulses back, for the warm start (one factor lost).
-    fn step_from_free(
-        &mut self,
-        model: &Model,
-        data: &Data,
-        armature: &[f64],
-        constraints: &mut [Constraint],
-        v_free: &[f64],
-        v: &mut [f64],
-    ) -> bool {
+    fn step_from_free(&mut self, mass: Mass<'_>, constraints: &mut [Constraint], v_free: &[f64], v: &mut [f64]) -> bool {
+        let Mass { model, data, .. } = mass;
         self.change.fill(0.0);
         self.mass_change.fill(0.0);
         self.tree.motions(model, data, v_free);
@@ -300,8 +302,8 @@ impl Solver {
         // Nothing pressing: the warm start is v_free itself, and optimal if nothing presses there either.
         let landed = affine && pressing && {
             self.descend(model, data, constraints);
-            self.assemble(model, data, armature, constraints, false) && {
-                self.direction(model, data, armature, constraints);
+            self.assemble(mass, constraints, false) && {
+                self.direction(mass, constraints);
                 self.move_along(constraints, v_free, v, 1.0);
                 constraints.iter().filter(|c| c.active()).all(|c| c.projection.same_zone(&c.project_coulomb(c.residual, None)))
             }
@@ -330,15 +332,8 @@ impl Solver {
     /// constraint's impulses by the formula of its warm zone. Where the zones guessed are the solution's, and
     /// none slides, the law is affine there and the step lands on its solution. Returns false, with the
     /// constraints and the descent as they were, where every zone agrees or the factor fails.
-    fn step_in_warm_zones(
-        &mut self,
-        model: &Model,
-        data: &Data,
-        armature: &[f64],
-        constraints: &mut [Constraint],
-        v_free: &[f64],
-        v: &mut [f64],
-    ) -> bool {
+    fn step_in_warm_zones(&mut self, mass: Mass<'_>, constraints: &mut [Constraint], v_free: &[f64], v: &mut [f64]) -> bool {
+        let Mass { model, data, .. } = mass;
         let mut differs = false;
         for c in constraints.iter_mut().filter(|c| c.active()) {
             if let Some(zone) = c.warm_zone.filter(|zone| !zone.same_zone(&c.projection)) {
@@ -352,8 +347,8 @@ impl Solver {
             return false;
         }
         self.descend(model, data, constraints);
-        if self.assemble(model, data, armature, constraints, true) {
-            self.direction(model, data, armature, constraints);
+        if self.assemble(mass, constraints, true) {
+            self.direction(mass, constraints);
             self.move_along(constraints, v_free, v, 1.0);
             return true;
         }
@@ -365,7 +360,7 @@ impl Solver {
     /// Assembles and factors the Newton matrix M̃ + Σ Jᵀ H_c J at the constraints' projections, with the
     /// law's unsymmetric coupling if `coupled`; false if the factor fails. Symmetric where no constraint
     /// couples (nothing presses and slides): Cholesky for the base, no left factors.
-    fn assemble(&mut self, model: &Model, data: &Data, armature: &[f64], constraints: &[Constraint], coupled: bool) -> bool {
+    fn assemble(&mut self, Mass { model, data, armature }: Mass<'_>, constraints: &[Constraint], coupled: bool) -> bool {
         let coupled = coupled && constraints.iter().any(|c| c.active() && c.couples());
         let tree = &mut self.tree;
         tree.clear_stiffness();

@@ -35,7 +35,6 @@ use crate::algorithms::{
 use crate::joint::Dofs;
 use crate::model::{Data, Dense, Model};
 use crate::sim::actuation::Actuation;
-use crate::sim::Engine;
 use crate::spatial::{Motion, Transform};
 use crate::validate::{array_len, check_cancelled, filled};
 use crate::{Error, Result};
@@ -74,9 +73,8 @@ pub(super) struct Transition {
     integrate_v: DMatrix<f64>,
     /// Across substeps (`Substeps`).
     substeps: Substeps,
-    /// The state a substep starts from, and a step's own state, applied forces (for a step taken and undone).
+    /// The state a substep starts from.
     start: [Vec<f64>; 2],
-    step: [Vec<f64>; 3],
 }
 
 /// An r x c matrix of zeros, allocated fallibly: `Error::TooLarge` naming the model where it cannot be (the
@@ -156,7 +154,6 @@ impl Transition {
             integrate_v: zeros(nv, nv)?,
             substeps: Substeps::default(),
             start: [vec![0.0; fused.nq()], vec![0.0; nv]],
-            step: [vec![0.0; fused.nq()], vec![0.0; nv], vec![0.0; nv]],
         })
     }
 
@@ -228,68 +225,30 @@ impl TreeSimulation {
         }
     }
 
-    /// A = ∂x⁺/∂x (2 nv square) and B = ∂x⁺/∂u (2 nv x 3 nv, u = (τ_ff, target_q, target_v)) of one step from
-    /// (q, v) under `actuation`, leaving the simulation as it was.
-    pub(super) fn transition_jacobians(
-        &mut self,
-        actuation: &Actuation<'_>,
-        q: &[f64],
-        v: &[f64],
-        a: &mut DMatrix<f64>,
-        b: &mut DMatrix<f64>,
-    ) -> Result<()> {
-        let mut transition = self.take_transition()?;
-        let [mut q_s, mut v_s, mut applied] = std::mem::take(&mut transition.step);
-        q_s.copy_from_slice(q);
-        v_s.copy_from_slice(v);
-        // The step is taken and undone, as a failed step is (`Engine::save`, `Engine::undo`).
-        self.save();
-        let outcome = self.chain(&mut transition, actuation, &mut q_s, &mut v_s, &mut applied, a, b);
-        transition.step = [q_s, v_s, applied];
-        self.transition = Some(transition);
-        self.undo();
-        outcome
-    }
-
     /// One step from (q, v), as `Engine::step` takes it (the same substeps, bit for bit), with its Jacobians at its
-    /// start into `a` and `b`: a rollout's step and its linearisation in one pass.
+    /// start into `a` and `b`, A = ∂x⁺/∂x (2 nv square) and B = ∂x⁺/∂u (2 nv x 3 nv, u = (τ_ff, target_q, target_v)): a
+    /// rollout's step and its linearisation in one pass.
     pub(super) fn step_with_jacobians(
         &mut self,
         actuation: &Actuation<'_>,
         q: &mut [f64],
         v: &mut [f64],
         applied: &mut [f64],
-        a: &mut DMatrix<f64>,
-        b: &mut DMatrix<f64>,
+        (a, b): (&mut DMatrix<f64>, &mut DMatrix<f64>),
     ) -> Result<()> {
         let mut transition = self.take_transition()?;
-        let outcome = self.chain(&mut transition, actuation, q, v, applied, a, b);
+        let mut start = std::mem::take(&mut transition.start);
+        let outcome = self.chain(&mut transition, &mut start, actuation, q, v, applied, a, b);
+        transition.start = start;
         self.transition = Some(transition);
         outcome
     }
 
-    /// Takes the step's substeps from (q, v), in place, each linearised at its start, and composes their Jacobians
-    /// into `a` and `b` (`Substeps`): A = A_k ⋯ A_1 and B = Σ_s A_k ⋯ A_s+1 B_s, with each substep's warm starts
-    /// followed from the impulses of the substep before it.
+    /// Takes the step's substeps from (q, v), in place, each linearised at its start (from `q_start`, `v_start`), and
+    /// composes their Jacobians into `a` and `b` (`Substeps`): A = A_k ⋯ A_1 and B = Σ_s A_k ⋯ A_s+1 B_s, with each
+    /// substep's warm starts followed from the impulses of the substep before it.
     #[allow(clippy::too_many_arguments)]
     fn chain(
-        &mut self,
-        t: &mut Transition,
-        actuation: &Actuation<'_>,
-        q: &mut [f64],
-        v: &mut [f64],
-        applied: &mut [f64],
-        a: &mut DMatrix<f64>,
-        b: &mut DMatrix<f64>,
-    ) -> Result<()> {
-        let mut start = std::mem::take(&mut t.start);
-        let outcome = self.chain_from(t, &mut start, actuation, q, v, applied, a, b);
-        t.start = start;
-        outcome
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn chain_from(
         &mut self,
         t: &mut Transition,
         [q_start, v_start]: &mut [Vec<f64>; 2],
