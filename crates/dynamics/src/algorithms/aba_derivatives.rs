@@ -47,10 +47,10 @@ use super::aba::{solve_columns, Factors};
 use super::aba_unchecked;
 use super::checks::{check_forces, check_output, check_state, finite_dynamics};
 use super::minv::minv_after_aba_into;
-use super::rnea_derivatives::derivatives_into;
+use super::rnea_derivatives::{derivatives_into, lend_squares};
 use crate::model::Dense;
 use crate::model::BLOCK;
-use crate::model::{reserve_square, Data, Model};
+use crate::model::{Data, Model};
 use crate::spatial::Force;
 use crate::Result;
 
@@ -73,35 +73,19 @@ pub fn aba_derivatives<'d>(
     check_state(model, data, q, &[("v", v), ("tau", tau)])?;
     check_forces(model, f_ext)?;
     data.reserve_dense(model, &[Dense::AbaDerivatives, Dense::Inverse])?;
-    aba_derivatives_unchecked(model, data, q, v, tau, f_ext);
+    lend_squares(
+        model,
+        data,
+        |d| [&mut d.derivatives.ddq_dq, &mut d.derivatives.ddq_dv, &mut d.minv],
+        |data, [dq, dv, minv]| {
+            aba_derivatives_into_unchecked(model, data, q, v, tau, f_ext, dq, dv, minv);
+        },
+    );
     // M⁻¹ is positive definite: a singular M shows on its diagonal, and spreads to the other two.
     for matrix in [&data.derivatives.ddq_dq, &data.derivatives.ddq_dv, &data.minv] {
         finite_dynamics(model, data, matrix.as_slice())?;
     }
     Ok((&data.derivatives.ddq_dq, &data.derivatives.ddq_dv, &data.minv))
-}
-
-/// [`aba_derivatives`] without its checks, for the crate's inner loops.
-pub(crate) fn aba_derivatives_unchecked<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    f_ext: Option<&[Force]>,
-) -> (&'d DMatrix<f64>, &'d DMatrix<f64>, &'d DMatrix<f64>) {
-    let nv = model.nv();
-    reserve_square(&mut data.derivatives.ddq_dq, nv);
-    reserve_square(&mut data.derivatives.ddq_dv, nv);
-    reserve_square(&mut data.minv, nv);
-    // Empty matrices hold no allocation: the outputs are lent to `aba_derivatives_into` and put back.
-    let empty = || DMatrix::zeros(0, 0);
-    let mut dq = std::mem::replace(&mut data.derivatives.ddq_dq, empty());
-    let mut dv = std::mem::replace(&mut data.derivatives.ddq_dv, empty());
-    let mut minv = std::mem::replace(&mut data.minv, empty());
-    aba_derivatives_into_unchecked(model, data, q, v, tau, f_ext, dq.as_mut_slice(), dv.as_mut_slice(), minv.as_mut_slice());
-    (data.derivatives.ddq_dq, data.derivatives.ddq_dv, data.minv) = (dq, dv, minv);
-    (&data.derivatives.ddq_dq, &data.derivatives.ddq_dv, &data.minv)
 }
 
 /// `aba_derivatives` into `ddq_dq`, `ddq_dv` and `minv` (nv x nv each, column-major; every entry written) instead of
@@ -142,7 +126,7 @@ pub fn aba_derivatives_into(
     Ok(())
 }
 
-/// [`aba_derivatives_into`] without its checks, for the crate's inner loops.
+/// [`aba_derivatives_into`] without its checks, for `aba_derivatives`' own outputs.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn aba_derivatives_into_unchecked(
     model: &Model,

@@ -66,31 +66,21 @@ fn world_momentum(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Optio
 /// `[h_lin; h_ang]`: linear momentum and angular momentum about the COM, world-aligned.
 pub fn centroidal_momentum(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result<Vector6<f64>> {
     check_state(model, data, q, &[("v", v)])?;
-    let h = centroidal_momentum_unchecked(model, data, q, v);
-    finite_result(h.as_slice())?;
-    Ok(h)
-}
-
-/// [`centroidal_momentum`] without its checks, for the crate's inner loops.
-pub(crate) fn centroidal_momentum_unchecked(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Vector6<f64> {
     let (momentum, _, com) = world_momentum(model, data, q, v, None);
     // Shift the moment from the world origin to the COM: L_G = L_O − c × p.
-    spatial(linear(&momentum), angular(&momentum) - com.cross(&linear(&momentum)))
+    let h = spatial(linear(&momentum), angular(&momentum) - com.cross(&linear(&momentum)));
+    finite_result(h.as_slice())?;
+    Ok(h)
 }
 
 /// d/dt `[h_lin; h_ang]` for joint accelerations `a` (gravity excluded): the net external wrench about the
 /// COM. Since ċ × p = ċ × m ċ = 0, the rate about the COM is L̇_O − c × ṗ.
 pub fn centroidal_momentum_rate(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<Vector6<f64>> {
     check_state(model, data, q, &[("v", v), ("a", a)])?;
-    let rate = centroidal_momentum_rate_unchecked(model, data, q, v, a);
+    let (_, rate, com) = world_momentum(model, data, q, v, Some(a));
+    let rate = spatial(linear(&rate), angular(&rate) - com.cross(&linear(&rate)));
     finite_result(rate.as_slice())?;
     Ok(rate)
-}
-
-/// [`centroidal_momentum_rate`] without its checks, for the crate's inner loops.
-pub(crate) fn centroidal_momentum_rate_unchecked(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Vector6<f64> {
-    let (_, rate, com) = world_momentum(model, data, q, v, Some(a));
-    spatial(linear(&rate), angular(&rate) - com.cross(&linear(&rate)))
 }
 
 /// The centroidal momentum matrix A_G (6 x nv, `h = A_G(q) v`, rows as `centroidal_momentum`'s) in
@@ -142,17 +132,11 @@ pub(crate) fn centroidal_map_unchecked<'d>(model: &Model, data: &'d mut Data, q:
 /// over the mass, since the linear momentum is m ċ = A_G q̇ (zeros for a massless model).
 pub fn center_of_mass_jacobian<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d Matrix3xX<f64>> {
     check_state(model, data, q, &[])?;
-    center_of_mass_jacobian_unchecked(model, data, q);
-    Ok(&data.com_jacobian)
-}
-
-/// [`center_of_mass_jacobian`] without its checks, for the crate's inner loops.
-pub(crate) fn center_of_mass_jacobian_unchecked<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d Matrix3xX<f64> {
     centroidal_map_unchecked(model, data, q);
     let mass = data.composite[0].mass;
     let per_mass = if mass > 0.0 { 1.0 / mass } else { 0.0 };
     for (mut jacobian, map) in data.com_jacobian.column_iter_mut().zip(data.centroidal_map.column_iter()) {
         jacobian.copy_from(&(map.fixed_rows::<3>(0) * per_mass));
     }
-    &data.com_jacobian
+    Ok(&data.com_jacobian)
 }

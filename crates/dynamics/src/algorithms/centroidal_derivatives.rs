@@ -63,22 +63,6 @@ pub fn centroidal_derivatives<'d>(
 ) -> Result<(&'d Matrix6xX<f64>, &'d Matrix6xX<f64>, &'d Matrix6xX<f64>, &'d Matrix6xX<f64>)> {
     check_state(model, data, q, &[("v", v), ("a", a)])?;
     data.reserve_dense(model, &[Dense::Workspace])?;
-    centroidal_derivatives_unchecked(model, data, q, v, a);
-    let d = &data.derivatives;
-    for matrix in [&d.dh_dq, &d.dhdot_dq, &d.dhdot_dv, &data.centroidal_map] {
-        finite_result(matrix.as_slice())?;
-    }
-    Ok((&d.dh_dq, &d.dhdot_dq, &d.dhdot_dv, &data.centroidal_map))
-}
-
-/// [`centroidal_derivatives`] without its checks, for the crate's inner loops.
-pub(crate) fn centroidal_derivatives_unchecked<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
-) -> (&'d Matrix6xX<f64>, &'d Matrix6xX<f64>, &'d Matrix6xX<f64>, &'d Matrix6xX<f64>) {
     forward_pass(model, data, q, v, a, Motion::zeros());
     let Data { derivatives: d, centroidal_map, .. } = data;
     // Backward pass: each joint's columns about O from its subtree's sums (Pinocchio's dHdq, dFdq, dFdv, dFda).
@@ -117,5 +101,9 @@ pub(crate) fn centroidal_derivatives_unchecked<'d>(
             set_column(matrix, c, &spatial(linear(&f), angular(&f) - com.cross(&linear(&f)) + moving.cross(&dc_dq)));
         }
     }
-    (&d.dh_dq, &d.dhdot_dq, &d.dhdot_dv, centroidal_map)
+    let d = &data.derivatives;
+    for matrix in [&d.dh_dq, &d.dhdot_dq, &d.dhdot_dv, &data.centroidal_map] {
+        finite_result(matrix.as_slice())?;
+    }
+    Ok((&d.dh_dq, &d.dhdot_dq, &d.dhdot_dv, &data.centroidal_map))
 }

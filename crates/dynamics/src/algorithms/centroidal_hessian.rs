@@ -169,29 +169,17 @@ pub fn center_of_mass_hessian(
     check_output("hessian", hessian, model.nv() * model.nv())?;
     check_output("gradient", gradient, model.nv())?;
     data.reserve_dense(model, &[Dense::Workspace])?;
-    center_of_mass_hessian_unchecked(model, data, q, weights, hessian, gradient);
-    finite_result(hessian)?;
-    finite_result(gradient)
-}
-
-/// [`center_of_mass_hessian`] without its checks, for the crate's inner loops.
-pub(crate) fn center_of_mass_hessian_unchecked(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    weights: &Vector3<f64>,
-    hessian: &mut [f64],
-    gradient: &mut [f64],
-) {
     let (mass, _) = subtree_sums(model, data, q, None);
     hessian.fill(0.0);
     gradient.fill(0.0);
     if mass <= 0.0 {
-        return;
+        return Ok(());
     }
     let d = &data.derivatives;
     coordinates(model, |e, body_e| gradient[e] = weights.dot(&linear(&d.composite[body_e].apply(&column(&d.subspace, e)))) / mass);
     add_com_hessian(model, data, mass, weights, hessian);
+    finite_result(hessian)?;
+    finite_result(gradient)
 }
 
 /// The Hessians `qq` (`[e, d]` the slope along q_d of the q-gradient's entry e) and `qv` (`[d, e]` = ∂²/∂q_d ∂v_e),
@@ -215,31 +203,12 @@ pub fn centroidal_momentum_hessian(
     check_output("qv", qv, nv * nv)?;
     check_output("gradient", gradient, nv)?;
     data.reserve_dense(model, &[Dense::Workspace])?;
-    centroidal_momentum_hessian_unchecked(model, data, q, v, weights, qq, qv, gradient);
-    finite_result(qq)?;
-    finite_result(qv)?;
-    finite_result(gradient)
-}
-
-/// [`centroidal_momentum_hessian`] without its checks, for the crate's inner loops.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn centroidal_momentum_hessian_unchecked(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    weights: &[f64; 6],
-    qq: &mut [f64],
-    qv: &mut [f64],
-    gradient: &mut [f64],
-) {
-    let nv = model.nv();
     let (mass, com) = subtree_sums(model, data, q, Some(v));
     qq.fill(0.0);
     qv.fill(0.0);
     gradient.fill(0.0);
     if mass <= 0.0 {
-        return;
+        return Ok(());
     }
     let (w_lin, w_ang) = (Vector3::new(weights[0], weights[1], weights[2]), Vector3::new(weights[3], weights[4], weights[5]));
     let gamma = spatial(w_lin + com.cross(&w_ang), w_ang);
@@ -287,4 +256,7 @@ pub(crate) fn centroidal_momentum_hessian_unchecked(
                 com_e.cross(&w_ang).dot(&linear(&column(&d.origin_momentum_dq, c))) + com_c.cross(&w_ang).dot(&linear(&slope_e)) + gamma.dot(&second);
         });
     });
+    finite_result(qq)?;
+    finite_result(qv)?;
+    finite_result(gradient)
 }

@@ -37,17 +37,6 @@ use crate::Result;
 /// message passing. Runs forward kinematics first.
 pub fn subtree_mass_properties<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d [crate::MassProperties]> {
     check_state(model, data, q, &[])?;
-    subtree_mass_properties_unchecked(model, data, q);
-    for body in &data.subtree {
-        finite_result(&[body.mass()])?;
-        finite_result(body.com().as_slice())?;
-        finite_result(body.inertia().as_slice())?;
-    }
-    Ok(&data.subtree)
-}
-
-/// [`subtree_mass_properties`] without its checks, for the crate's inner loops.
-pub(crate) fn subtree_mass_properties_unchecked<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> &'d [crate::MassProperties] {
     forward_kinematics_unchecked(model, data, q);
     for i in 0..model.nbodies() {
         let pose = &data.o_m_i[i];
@@ -57,21 +46,21 @@ pub(crate) fn subtree_mass_properties_unchecked<'d>(model: &Model, data: &'d mut
         let p = model.parent(i);
         data.subtree[p] = data.subtree[p] + data.subtree[i];
     }
-    &data.subtree
+    for body in &data.subtree {
+        finite_result(&[body.mass()])?;
+        finite_result(body.com().as_slice())?;
+        finite_result(body.inertia().as_slice())?;
+    }
+    Ok(&data.subtree)
 }
 
 /// The whole model's centre of mass in the world frame.
 pub fn center_of_mass(model: &Model, data: &mut Data, q: &[f64]) -> Result<Vector3<f64>> {
     check_state(model, data, q, &[])?;
-    let com = center_of_mass_unchecked(model, data, q);
+    forward_kinematics_unchecked(model, data, q);
+    let com = world_com(model, data);
     finite_result(com.as_slice())?;
     Ok(com)
-}
-
-/// [`center_of_mass`] without its checks, for the crate's inner loops.
-pub(crate) fn center_of_mass_unchecked(model: &Model, data: &mut Data, q: &[f64]) -> Vector3<f64> {
-    forward_kinematics_unchecked(model, data, q);
-    world_com(model, data)
 }
 
 /// The centre of mass at the bodies' world poses in `data.o_m_i`: sum m_i c_i / M, without the inertias that

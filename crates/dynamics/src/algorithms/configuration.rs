@@ -95,15 +95,10 @@ pub fn difference(model: &Model, q0: &[f64], q1: &[f64], out: &mut [f64]) -> Res
     model.check_configuration_named("q0", q0)?;
     model.check_configuration_named("q1", q1)?;
     check_output("out", out, model.nv())?;
-    difference_unchecked(model, q0, q1, out);
-    finite_result(out)
-}
-
-/// [`difference`] without its checks, for the crate's inner loops.
-pub(crate) fn difference_unchecked(model: &Model, q0: &[f64], q1: &[f64], out: &mut [f64]) {
     for (joint, cq, cv) in joints(model) {
         joint.difference(&q0[cq.clone()], &q1[cq], &mut out[cv]);
     }
+    finite_result(out)
 }
 
 /// ∂(q ⊕ v dt)/∂q and ∂(q ⊕ v dt)/∂v into `dq` and `dv` (nv x nv): Pinocchio's `dIntegrate(model, q, v dt, ARG0)`
@@ -130,14 +125,9 @@ pub fn difference_jacobians(model: &Model, q0: &[f64], q1: &[f64], d0: &mut DMat
     model.check_configuration_named("q1", q1)?;
     check_square("d0", d0, model.nv())?;
     check_square("d1", d1, model.nv())?;
-    difference_jacobians_unchecked(model, q0, q1, d0, d1);
+    block_diagonal(model, d0, d1, |joint, cq, _, d0, d1| joint.difference_jacobians(&q0[cq.clone()], &q1[cq], d0, d1));
     finite_result(d0.as_slice())?;
     finite_result(d1.as_slice())
-}
-
-/// [`difference_jacobians`] without its checks, for the crate's inner loops.
-pub(crate) fn difference_jacobians_unchecked(model: &Model, q0: &[f64], q1: &[f64], d0: &mut DMatrix<f64>, d1: &mut DMatrix<f64>) {
-    block_diagonal(model, d0, d1, |joint, cq, _, d0, d1| joint.difference_jacobians(&q0[cq.clone()], &q1[cq], d0, d1));
 }
 
 /// Zeroes `a` and `b` (nv x nv), then has `write` fill each joint's diagonal blocks of them, given the joint and its

@@ -239,26 +239,11 @@ pub fn point_accelerations(
     check_contacts(model, points)?;
     check_output("out", out, points.len() * dim.rows())?;
     data.reserve_dense(model, &[Dense::Workspace])?;
-    point_accelerations_unchecked(model, data, q, v, a, points, dim, out);
-    finite_result(out)
-}
-
-/// [`point_accelerations`] without its checks, for the crate's inner loops.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn point_accelerations_unchecked(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: Option<&[f64]>,
-    points: &[ContactPoint],
-    dim: ContactDim,
-    out: &mut [f64],
-) {
     motion_derivatives(model, data, q, v, a, Motion::zeros());
     for (point, chunk) in points.iter().zip(out.chunks_exact_mut(dim.rows())) {
         contact_acceleration(&FramePoint::new(model, data, q, point.body, &point.point), dim, chunk);
     }
+    finite_result(out)
 }
 
 /// What a contact holds at zero: the point's classical acceleration (3), or the frame's spatial acceleration [linear;

@@ -36,28 +36,19 @@ use crate::Result;
 /// `crba`, as Pinocchio's).
 pub fn kinetic_energy(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result<f64> {
     check_state(model, data, q, &[("v", v)])?;
-    let energy = kinetic_energy_unchecked(model, data, q, v);
-    finite_result(&[energy])?;
-    Ok(energy)
-}
-
-/// [`kinetic_energy`] without its checks, for the crate's inner loops.
-pub(crate) fn kinetic_energy_unchecked(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> f64 {
     body_motions(model, data, q, v, None, Motion::zeros());
     let bodies: f64 = (0..model.nbodies()).map(|i| 0.5 * data.v[i].dot(&model.inertia(i).apply(&data.v[i]))).sum();
-    bodies + model.armature().iter().zip(v).map(|(a, v)| 0.5 * a * v * v).sum::<f64>()
+    let energy = bodies + model.armature().iter().zip(v).map(|(a, v)| 0.5 * a * v * v).sum::<f64>();
+    finite_result(&[energy])?;
+    Ok(energy)
 }
 
 /// −Σ mᵢ gᵀ cᵢ: zero when every COM is at the world origin's height (for the default gravity).
 pub fn potential_energy(model: &Model, data: &mut Data, q: &[f64]) -> Result<f64> {
     check_state(model, data, q, &[])?;
-    let energy = potential_energy_unchecked(model, data, q);
+    forward_kinematics_unchecked(model, data, q);
+    let energy: f64 =
+        (0..model.nbodies()).map(|i| -model.body(i).mass() * model.gravity.dot(&data.o_m_i[i].transform_point(&model.body(i).com()))).sum();
     finite_result(&[energy])?;
     Ok(energy)
-}
-
-/// [`potential_energy`] without its checks, for the crate's inner loops.
-pub(crate) fn potential_energy_unchecked(model: &Model, data: &mut Data, q: &[f64]) -> f64 {
-    forward_kinematics_unchecked(model, data, q);
-    (0..model.nbodies()).map(|i| -model.body(i).mass() * model.gravity.dot(&data.o_m_i[i].transform_point(&model.body(i).com()))).sum()
 }

@@ -139,7 +139,20 @@ pub fn free_rollout(
     let rows = steps.saturating_add(1);
     check_output("qs", qs, rows.saturating_mul(nq))?;
     check_output("vs", vs, rows.saturating_mul(nv))?;
-    free_rollout_unchecked(model, data, q, v, tau, dt, steps, method, qs, vs);
+    {
+        // The states shadow (q, v) here only: the error below falls back on the initial ones.
+        let mut integrator = Integrator::new(model, method);
+        let mut q = q.to_vec();
+        let mut v = DVector::from_column_slice(v);
+        qs[..nq].copy_from_slice(&q);
+        vs[..nv].copy_from_slice(v.as_slice());
+        for s in 0..steps {
+            let tau_s = if tau.len() == nv { tau } else { &tau[s * nv..(s + 1) * nv] };
+            integrator.step(model, data, &mut q, &mut v, tau_s, dt);
+            qs[(s + 1) * nq..(s + 2) * nq].copy_from_slice(&q);
+            vs[(s + 1) * nv..(s + 2) * nv].copy_from_slice(v.as_slice());
+        }
+    }
     finite_result(qs).and_then(|()| finite_result(vs)).map_err(|overflow| {
         // The factor at the last finite state tells a singular mass matrix from an overflow.
         let finite = |x: &[f64]| x.iter().all(|x| x.is_finite());
@@ -153,32 +166,4 @@ pub fn free_rollout(
             overflow
         }
     })
-}
-
-/// [`free_rollout`] without its checks.
-#[allow(clippy::too_many_arguments)]
-fn free_rollout_unchecked(
-    model: &Model,
-    data: &mut Data,
-    q0: &[f64],
-    v0: &[f64],
-    tau: &[f64],
-    dt: f64,
-    steps: usize,
-    method: Method,
-    qs: &mut [f64],
-    vs: &mut [f64],
-) {
-    let (nq, nv) = (model.nq(), model.nv());
-    let mut integrator = Integrator::new(model, method);
-    let mut q = q0.to_vec();
-    let mut v = DVector::from_column_slice(v0);
-    qs[..nq].copy_from_slice(&q);
-    vs[..nv].copy_from_slice(v.as_slice());
-    for s in 0..steps {
-        let tau_s = if tau.len() == nv { tau } else { &tau[s * nv..(s + 1) * nv] };
-        integrator.step(model, data, &mut q, &mut v, tau_s, dt);
-        qs[(s + 1) * nq..(s + 2) * nq].copy_from_slice(&q);
-        vs[(s + 1) * nv..(s + 2) * nv].copy_from_slice(v.as_slice());
-    }
 }

@@ -73,7 +73,7 @@
 //! # Ok::<(), legkit_dynamics::Error>(())
 //! ```
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix6xX, Vector3};
 
 use super::checks::{check_frame, check_frame_state, check_output, check_state, finite_result};
 use super::jacobian::{jacobian_unchecked, Frame};
@@ -94,21 +94,6 @@ pub fn kinematic_hessian(model: &Model, data: &mut Data, q: &[f64], body: usize,
         return Err(Error::invalid("frame", "kinematic_hessian takes World or LocalWorldAligned, got Local"));
     }
     check_output("out", out, 6 * model.nv() * model.nv())?;
-    kinematic_hessian_unchecked(model, data, q, body, point, frame, out);
-    finite_result(out)
-}
-
-/// [`kinematic_hessian`] without its checks, for the crate's inner loops.
-pub(crate) fn kinematic_hessian_unchecked(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    frame: Frame,
-    out: &mut [f64],
-) {
-    debug_assert!(frame != Frame::Local, "kinematic_hessian covers World and LocalWorldAligned");
     let nv = model.nv();
     jacobian_unchecked(model, data, q, body, point, Frame::World);
     let origin = data.o_m_i[body].transform_point(point);
@@ -132,6 +117,7 @@ pub(crate) fn kinematic_hessian_unchecked(
             });
         }
     });
+    finite_result(out)
 }
 
 /// Adds `m` to entries `[r, a, d]` of the row-major 6 x nv x nv `out`.
@@ -164,42 +150,14 @@ pub fn point_velocity_hessian(
     finite_vector("weights", *weights)?;
     check_output("out", out, model.nv() * model.nv())?;
     check_output("slope", slope, model.nv())?;
-    point_velocity_hessian_unchecked(model, data, q, v, body, point, weights, out, slope);
-    finite_result(out)?;
-    finite_result(slope)
-}
-
-/// [`point_velocity_hessian`] without its checks, for the crate's inner loops.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn point_velocity_hessian_unchecked(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    u: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    weights: &Vector3<f64>,
-    out: &mut [f64],
-    slope: &mut [f64],
-) {
     let nv = model.nv();
     data.derivatives.reserve(model);
     jacobian_unchecked(model, data, q, body, point, Frame::World);
     let origin = data.o_m_i[body].transform_point(point);
     out.fill(0.0);
     slope.fill(0.0);
-    // W per coordinate, summed from the body's joint to the root (a joint's coordinates share one W).
-    let mut after = Motion::zeros();
-    joints_to_root(model, body, |own, _| {
-        for c in own.clone() {
-            after += column(&data.jacobian, c) * u[c];
-        }
-        for c in own {
-            data.derivatives.velocity_after.set_column(c, &after);
-        }
-    });
+    let velocity = velocities_after(model, body, &data.jacobian, v, &mut data.derivatives.velocity_after);
     let (columns, sums) = (&data.jacobian, &data.derivatives.velocity_after);
-    let velocity = after;
     let linear_at = |m: &Motion| linear(m) + angular(m).cross(&origin);
     support(model, body, |e, joint_e| {
         let (s_e, w_e) = (column(columns, e), column(sums, e));
@@ -226,6 +184,24 @@ pub(crate) fn point_velocity_hessian_unchecked(
                 + angular(&velocity).dot(&column_change.cross(weights));
         });
     });
+    finite_result(out)?;
+    finite_result(slope)
+}
+
+/// W per coordinate of `body`'s support into `after`: Σ v_a S_a over the joints from the coordinate's to `body`'s
+/// (world `columns` S, one W shared by a joint's coordinates), summed from `body`'s joint to the root. Returns the
+/// root's W, the body's velocity V.
+fn velocities_after(model: &Model, body: usize, columns: &Matrix6xX<f64>, v: &[f64], after: &mut Matrix6xX<f64>) -> Motion {
+    let mut sum = Motion::zeros();
+    joints_to_root(model, body, |own, _| {
+        for c in own.clone() {
+            sum += column(columns, c) * v[c];
+        }
+        for c in own {
+            set_column(after, c, &sum);
+        }
+    });
+    sum
 }
 
 /// Whether `ancestor` is `joint` or one of its ancestors.
@@ -283,39 +259,13 @@ pub fn point_acceleration_hessian(
     check_frame_state(model, data, q, &[("v", v), ("a", a)], body, point)?;
     finite_vector("weights", *weights)?;
     check_output("out", out, (4 * model.nv() + 1) * model.nv())?;
-    point_acceleration_hessian_unchecked(model, data, q, v, a, body, point, weights, out);
-    finite_result(out)
-}
-
-/// [`point_acceleration_hessian`] without its checks, for the crate's inner loops.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn point_acceleration_hessian_unchecked(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    weights: &Vector3<f64>,
-    out: &mut [f64],
-) {
     let nv = model.nv();
     data.derivatives.reserve(model);
     jacobian_unchecked(model, data, q, body, point, Frame::World);
     let p = data.o_m_i[body].transform_point(point);
     let Data { jacobian: columns, derivatives: sums, .. } = data;
-    // W per coordinate from the body's joint to the root; then B = V - W, T and Ā (suffix sums of S a + v T × S).
-    let mut after = Motion::zeros();
-    joints_to_root(model, body, |own, _| {
-        for c in own.clone() {
-            after += column(columns, c) * v[c];
-        }
-        for c in own {
-            set_column(&mut sums.velocity_after, c, &after);
-        }
-    });
-    let velocity = after;
+    // W per coordinate; then B = V - W, T and Ā (suffix sums of S a + v T × S).
+    let velocity = velocities_after(model, body, columns, v, &mut sums.velocity_after);
     let mut acceleration = Motion::zeros();
     joints_to_root(model, body, |own, _| {
         let before = velocity - column(&sums.velocity_after, own.start);
@@ -406,6 +356,7 @@ pub(crate) fn point_acceleration_hessian_unchecked(
             vv[b * nv + d] = wrench(&joint_rates) + weights.dot(&spin_b.cross(&cd.j)) + weights.dot(&angular(&cd.s).cross(&cb.j));
         });
     });
+    finite_result(out)
 }
 
 /// The velocity motion `m` gives the point `p` (world coordinates).

@@ -187,24 +187,11 @@ pub(crate) fn joints_to_root(model: &Model, joint: usize, mut visit: impl FnMut(
 /// configuration `q` and velocity `v` (Pinocchio's `getFrameVelocity`).
 pub fn frame_velocity(model: &Model, data: &mut Data, q: &[f64], v: &[f64], body: usize, point: &Vector3<f64>, frame: Frame) -> Result<Motion> {
     check_frame_state(model, data, q, &[("v", v)], body, point)?;
-    let velocity = frame_velocity_unchecked(model, data, q, v, body, point, frame);
-    finite_result(velocity.as_slice())?;
-    Ok(velocity)
-}
-
-/// [`frame_velocity`] without its checks, for the crate's inner loops.
-pub(crate) fn frame_velocity_unchecked(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    frame: Frame,
-) -> Motion {
     motion_derivatives(model, data, q, v, None, Motion::zeros());
     let at = FramePoint::new(model, data, q, body, point);
-    at.express(&at.velocity, frame)
+    let velocity = at.express(&at.velocity, frame);
+    finite_result(velocity.as_slice())?;
+    Ok(velocity)
 }
 
 /// The spatial acceleration (gravity excluded; rows `[linear; angular]`) of the frame at `point` on `body`, in `frame`,
@@ -222,26 +209,11 @@ pub fn frame_acceleration(
     frame: Frame,
 ) -> Result<Motion> {
     check_frame_state(model, data, q, &[("v", v), ("a", a)], body, point)?;
-    let acceleration = frame_acceleration_unchecked(model, data, q, v, a, body, point, frame);
-    finite_result(acceleration.as_slice())?;
-    Ok(acceleration)
-}
-
-/// [`frame_acceleration`] without its checks, for the crate's inner loops.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn frame_acceleration_unchecked(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    frame: Frame,
-) -> Motion {
     motion_derivatives(model, data, q, v, Some(a), Motion::zeros());
     let at = FramePoint::new(model, data, q, body, point);
-    at.express(&at.acceleration, frame)
+    let acceleration = at.express(&at.acceleration, frame);
+    finite_result(acceleration.as_slice())?;
+    Ok(acceleration)
 }
 
 /// ∂v/∂q and ∂v/∂q̇ (6 x nv each; the second is the frame's Jacobian) of `frame_velocity`. Writes
@@ -256,23 +228,6 @@ pub fn frame_velocity_derivatives<'d>(
     frame: Frame,
 ) -> Result<(&'d Matrix6xX<f64>, &'d Matrix6xX<f64>)> {
     check_frame_state(model, data, q, &[("v", v)], body, point)?;
-    frame_velocity_derivatives_unchecked(model, data, q, v, body, point, frame);
-    let d = &data.derivatives;
-    finite_result(d.frame_velocity_dq.as_slice())?;
-    finite_result(d.frame_velocity_dv.as_slice())?;
-    Ok((&d.frame_velocity_dq, &d.frame_velocity_dv))
-}
-
-/// [`frame_velocity_derivatives`] without its checks, for the crate's inner loops.
-pub(crate) fn frame_velocity_derivatives_unchecked<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    frame: Frame,
-) -> (&'d Matrix6xX<f64>, &'d Matrix6xX<f64>) {
     motion_derivatives(model, data, q, v, None, Motion::zeros());
     let at = FramePoint::new(model, data, q, body, point);
     let d = &mut data.derivatives;
@@ -284,7 +239,9 @@ pub(crate) fn frame_velocity_derivatives_unchecked<'d>(
         set_column(&mut d.frame_velocity_dq, c, &at.derivative(&column(&d.dv_dq, c), &at.velocity, &turn, &travel, frame));
         set_column(&mut d.frame_velocity_dv, c, &at.express(&s, frame));
     });
-    (&d.frame_velocity_dq, &d.frame_velocity_dv)
+    finite_result(d.frame_velocity_dq.as_slice())?;
+    finite_result(d.frame_velocity_dv.as_slice())?;
+    Ok((&d.frame_velocity_dq, &d.frame_velocity_dv))
 }
 
 /// ∂v/∂q, ∂a/∂q, ∂a/∂q̇ and ∂a/∂q̈ (6 x nv each; the last is the frame's Jacobian) of `frame_velocity` and
@@ -302,27 +259,6 @@ pub fn frame_acceleration_derivatives<'d>(
     frame: Frame,
 ) -> Result<FrameAccelerationDerivatives<'d>> {
     check_frame_state(model, data, q, &[("v", v), ("a", a)], body, point)?;
-    frame_acceleration_derivatives_unchecked(model, data, q, v, a, body, point, frame);
-    let d = &data.derivatives;
-    let out = (&d.frame_velocity_dq, &d.frame_acceleration_dq, &d.frame_acceleration_dv, &d.frame_acceleration_da);
-    for matrix in [out.0, out.1, out.2, out.3] {
-        finite_result(matrix.as_slice())?;
-    }
-    Ok(out)
-}
-
-/// [`frame_acceleration_derivatives`] without its checks, for the crate's inner loops.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn frame_acceleration_derivatives_unchecked<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    frame: Frame,
-) -> FrameAccelerationDerivatives<'d> {
     motion_derivatives(model, data, q, v, Some(a), Motion::zeros());
     let at = FramePoint::new(model, data, q, body, point);
     // Out of `data` while the pass's columns are read.
@@ -337,7 +273,11 @@ pub(crate) fn frame_acceleration_derivatives_unchecked<'d>(
     });
     let d = &mut data.derivatives;
     [d.frame_velocity_dq, d.frame_acceleration_dq, d.frame_acceleration_dv, d.frame_acceleration_da] = out;
-    (&d.frame_velocity_dq, &d.frame_acceleration_dq, &d.frame_acceleration_dv, &d.frame_acceleration_da)
+    let out = (&d.frame_velocity_dq, &d.frame_acceleration_dq, &d.frame_acceleration_dv, &d.frame_acceleration_da);
+    for matrix in [out.0, out.1, out.2, out.3] {
+        finite_result(matrix.as_slice())?;
+    }
+    Ok(out)
 }
 
 /// ∂v/∂q, ∂a/∂q, ∂a/∂q̇, ∂a/∂q̈ of a frame.
@@ -389,21 +329,6 @@ pub fn jacobian_time_variation<'d>(
     frame: Frame,
 ) -> Result<&'d Matrix6xX<f64>> {
     check_frame_state(model, data, q, &[("v", v)], body, point)?;
-    jacobian_time_variation_unchecked(model, data, q, v, body, point, frame);
-    finite_result(data.derivatives.jacobian_rate.as_slice())?;
-    Ok(&data.derivatives.jacobian_rate)
-}
-
-/// [`jacobian_time_variation`] without its checks, for the crate's inner loops.
-pub(crate) fn jacobian_time_variation_unchecked<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    frame: Frame,
-) -> &'d Matrix6xX<f64> {
     motion_derivatives(model, data, q, v, None, Motion::zeros());
     let at = FramePoint::new(model, data, q, body, point);
     let d = &mut data.derivatives;
@@ -415,5 +340,6 @@ pub(crate) fn jacobian_time_variation_unchecked<'d>(
         let s = at.jacobian_column(&d.subspace, c);
         set_column(&mut d.jacobian_rate, c, &at.derivative(&change, &s, &turn, &travel, frame));
     });
-    &d.jacobian_rate
+    finite_result(d.jacobian_rate.as_slice())?;
+    Ok(&d.jacobian_rate)
 }

@@ -1,8 +1,8 @@
 //! The algorithms, one per file, each a free function `algorithm(model, data, q, ...)` that writes its
 //! intermediates into `data` and allocates nothing. The public functions check their arguments first (`checks`: the
 //! `data` is the model's, sizes, finiteness, unit quaternions) and their outputs after (an overflow or a singular mass
-//! matrix is `Error::Numerical`), returning the crate's [`Error`](crate::Error) naming the argument; each has an
-//! unchecked twin, `algorithm_unchecked`, for the crate's own inner loops (the simulation, the derivatives).
+//! matrix is `Error::Numerical`), returning the crate's [`Error`](crate::Error) naming the argument; those the crate's
+//! own inner loops call (the simulation, the derivatives) have an unchecked twin there, `algorithm_unchecked`.
 
 pub(crate) mod aba;
 pub(crate) mod aba_derivatives;

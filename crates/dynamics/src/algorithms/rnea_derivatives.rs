@@ -89,7 +89,33 @@ pub(crate) fn rnea_derivatives_unchecked<'d>(
     a: &[f64],
     f_ext: Option<&[Force]>,
 ) -> (&'d DMatrix<f64>, &'d DMatrix<f64>) {
-    derivatives_with_base_acceleration(model, data, q, v, a, f_ext, model.gravity_bias())
+    lend_squares(
+        model,
+        data,
+        |d| [&mut d.derivatives.dtau_dq, &mut d.derivatives.dtau_dv],
+        |data, [dq, dv]| {
+            derivatives_into::<false>(model, data, q, v, a, f_ext, model.gravity_bias(), dq, dv);
+        },
+    );
+    (&data.derivatives.dtau_dq, &data.derivatives.dtau_dv)
+}
+
+/// Runs `kernel` on the nv x nv matrices of `data` that `outputs` picks, sized and lent out of `data` as slices (an
+/// empty matrix in their place holds no allocation), and puts them back: an `_into` kernel writing `Data`'s own outputs.
+pub(crate) fn lend_squares<const N: usize>(
+    model: &Model,
+    data: &mut Data,
+    outputs: fn(&mut Data) -> [&mut DMatrix<f64>; N],
+    kernel: impl FnOnce(&mut Data, [&mut [f64]; N]),
+) {
+    let mut lent = outputs(data).map(|matrix| {
+        reserve_square(matrix, model.nv());
+        std::mem::replace(matrix, DMatrix::zeros(0, 0))
+    });
+    kernel(data, lent.each_mut().map(|matrix| matrix.as_mut_slice()));
+    for (matrix, output) in outputs(data).into_iter().zip(lent) {
+        *matrix = output;
+    }
 }
 
 /// `rnea_derivatives` into `dtau_dq` and `dtau_dv` (nv x nv each, column-major; every entry written) instead of
@@ -110,53 +136,15 @@ pub fn rnea_derivatives_into(
     check_output("dtau_dq", dtau_dq, model.nv() * model.nv())?;
     check_output("dtau_dv", dtau_dv, model.nv() * model.nv())?;
     data.reserve_dense(model, &[Dense::Workspace])?;
-    rnea_derivatives_into_unchecked(model, data, q, v, a, f_ext, dtau_dq, dtau_dv);
+    derivatives_into::<false>(model, data, q, v, a, f_ext, model.gravity_bias(), dtau_dq, dtau_dv);
     finite_result(dtau_dq)?;
     finite_result(dtau_dv)
 }
 
-/// [`rnea_derivatives_into`] without its checks, for the crate's inner loops.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn rnea_derivatives_into_unchecked(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
-    f_ext: Option<&[Force]>,
-    dtau_dq: &mut [f64],
-    dtau_dv: &mut [f64],
-) {
-    let square = model.nv() * model.nv();
-    assert!(dtau_dq.len() == square && dtau_dv.len() == square, "rnea_derivatives_into: outputs of nv x nv");
-    derivatives_into::<false>(model, data, q, v, a, f_ext, model.gravity_bias(), dtau_dq, dtau_dv);
-}
-
-/// `rnea_derivatives` with the base accelerating at `base_acceleration` instead of against gravity (zero: the
-/// derivatives of M(q) a alone, as an impact's need).
-pub(crate) fn derivatives_with_base_acceleration<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
-    f_ext: Option<&[Force]>,
-    base_acceleration: Motion,
-) -> (&'d DMatrix<f64>, &'d DMatrix<f64>) {
-    reserve_square(&mut data.derivatives.dtau_dq, model.nv());
-    reserve_square(&mut data.derivatives.dtau_dv, model.nv());
-    // Empty matrices hold no allocation: the outputs are lent to `derivatives_into` and put back.
-    let d = &mut data.derivatives;
-    let (mut dq, mut dv) = (std::mem::replace(&mut d.dtau_dq, DMatrix::zeros(0, 0)), std::mem::replace(&mut d.dtau_dv, DMatrix::zeros(0, 0)));
-    derivatives_into::<false>(model, data, q, v, a, f_ext, base_acceleration, dq.as_mut_slice(), dv.as_mut_slice());
-    let d = &mut data.derivatives;
-    (d.dtau_dq, d.dtau_dv) = (dq, dv);
-    (&d.dtau_dq, &d.dtau_dv)
-}
-
-/// `derivatives_with_base_acceleration` into `dtau_dq` and `dtau_dv` (nv x nv each, column-major; every entry
-/// written), for the callers that keep them elsewhere (`aba_derivatives_into`, the Python bindings' arrays); with
-/// `POSES_KNOWN`, on the poses `aba` just left in `data` at `q`.
+/// `rnea_derivatives` with the base accelerating at `base_acceleration` (the model's `gravity_bias`, or zero: the
+/// derivatives of M(q) a alone, as an impact's need) into `dtau_dq` and `dtau_dv` (nv x nv each, column-major; every
+/// entry written), for the callers that keep them elsewhere (`aba_derivatives_into`, the Python bindings' arrays);
+/// with `POSES_KNOWN`, on the poses `aba` just left in `data` at `q`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn derivatives_into<const POSES_KNOWN: bool>(
     model: &Model,

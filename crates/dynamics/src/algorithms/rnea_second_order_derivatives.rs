@@ -85,16 +85,6 @@ fn coordinates(model: &Model, i: usize) -> std::ops::Range<usize> {
 pub fn rnea_second_order_derivatives<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<&'d SecondOrder> {
     check_state(model, data, q, &[("v", v), ("a", a)])?;
     data.reserve_dense(model, &[Dense::SecondOrder])?;
-    rnea_second_order_derivatives_unchecked(model, data, q, v, a);
-    let second = &data.derivatives.second_order;
-    for tensor in [&second.dqdq, &second.dvdv, &second.dqdv, &second.dadq] {
-        finite_result(tensor)?;
-    }
-    Ok(second)
-}
-
-/// [`rnea_second_order_derivatives`] without its checks, for the crate's inner loops.
-pub(crate) fn rnea_second_order_derivatives_unchecked<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64]) -> &'d SecondOrder {
     let (n, nv) = (model.nbodies(), model.nv());
     forward_pass(model, data, q, v, a, model.gravity_bias());
     let d = &mut data.derivatives;
@@ -207,5 +197,9 @@ pub(crate) fn rnea_second_order_derivatives_unchecked<'d>(model: &Model, data: &
             d.force[p] += force;
         }
     }
-    &data.derivatives.second_order
+    let second = &data.derivatives.second_order;
+    for tensor in [&second.dqdq, &second.dvdv, &second.dqdv, &second.dadq] {
+        finite_result(tensor)?;
+    }
+    Ok(second)
 }
