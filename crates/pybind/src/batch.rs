@@ -21,6 +21,9 @@ pub type ArrayArg<'py> = crate::convert::Floats<'py>;
 /// The core shape of one argument (`&[]` for a scalar); the dimensions before it are its batch shape.
 pub type Core<'c> = &'c [usize];
 
+/// A batched argument: its name (for errors), its array and its core shape.
+pub type Argument<'a, 'py> = (&'static str, &'a ArrayArg<'py>, Core<'a>);
+
 /// One argument's rows, one per batch element: a copy of the argument, taken with the GIL held.
 pub struct Rows {
     data: Vec<f64>,
@@ -50,6 +53,12 @@ pub struct Batch {
 }
 
 impl Batch {
+    /// Row `i` of each of the first `N` arguments, in order.
+    #[inline]
+    pub fn row<const N: usize>(&self, i: usize) -> [&[f64]; N] {
+        std::array::from_fn(|k| self.rows[k].row(i))
+    }
+
     /// The shape of an output with the given core dimensions.
     pub fn output_shape(&self, core: &[usize]) -> Shape {
         self.shape.iter().chain(core).copied().collect()
@@ -71,7 +80,7 @@ fn describe(core: Core) -> String {
 
 /// Every argument's rows over the broadcast batch shape. MemoryError, naming the argument, for a batch
 /// whose copy cannot be allocated (or whose size does not even fit in a machine word).
-pub fn broadcast(arguments: &[(&'static str, &ArrayArg<'_>, Core)]) -> PyResult<Batch> {
+pub fn broadcast(arguments: &[Argument<'_, '_>]) -> PyResult<Batch> {
     let mut shape = Shape::new();
     let mut arrays: SmallVec<[_; 4]> = SmallVec::new();
     let (mut largest, mut most) = ("", 0);
@@ -179,6 +188,24 @@ where
     parallel::map_rows(out, width, first, init, kernel, None).map_err(|failure| match total {
         1 => kernel_error(failure.error),
         _ => batch_error(failure.error, failure.row),
+    })
+}
+
+/// `parts` (a call's outputs, as many as its kernel writes) as an array, to destructure.
+pub fn array<T, const N: usize>(parts: Vec<T>) -> [T; N] {
+    match parts.try_into() {
+        Ok(array) => array,
+        Err(parts) => unreachable!("{N} parts expected, {} made", parts.len()),
+    }
+}
+
+/// `out` cut into `N` consecutive parts of the given `widths` (their sum is `out`'s length).
+#[inline]
+pub fn split<const N: usize>(mut out: &mut [f64], widths: [usize; N]) -> [&mut [f64]; N] {
+    std::array::from_fn(|k| {
+        let (part, rest) = std::mem::take(&mut out).split_at_mut(widths[k]);
+        out = rest;
+        part
     })
 }
 

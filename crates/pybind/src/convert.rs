@@ -15,6 +15,11 @@ use std::ffi::c_int;
 
 /// A NumPy float64 array returned to Python.
 pub type FloatArray<'py> = Bound<'py, PyArrayDyn<f64>>;
+/// Two to five arrays: what the functions with several outputs return.
+pub type Arrays2<'py> = (FloatArray<'py>, FloatArray<'py>);
+pub type Arrays3<'py> = (FloatArray<'py>, FloatArray<'py>, FloatArray<'py>);
+pub type Arrays4<'py> = (FloatArray<'py>, FloatArray<'py>, FloatArray<'py>, FloatArray<'py>);
+pub type Arrays5<'py> = (FloatArray<'py>, FloatArray<'py>, FloatArray<'py>, FloatArray<'py>, FloatArray<'py>);
 
 /// A float64 array argument: anything NumPy converts to real numbers (float64 arrays, strided or not, are used in
 /// place; anything else goes through `numpy.asarray`). Extraction never fails; `get` raises an argument that is not

@@ -1,6 +1,18 @@
 //! `legkit._core`: the compiled half of the `legkit` Python package. Conversions and error mapping only;
 //! every computation lives in `legkit-dynamics`.
 
+/// Declares a `#[pyfunction]` of a model: `fn name(py, model, q: ArrayArg<'_>, ...) -> Output { ... }` takes
+/// `py: Python<'py>` and `model: PyRef<'_, PyModel>` first, then the arguments given, and returns `PyResult<Output>`;
+/// attributes (its docstring, `#[pyo3(signature = ...)]`) go before `fn`.
+macro_rules! model_function {
+    ($(#[$attr:meta])* fn $name:ident($py:ident, $model:ident $(, $arg:ident: $ty:ty)* $(,)?) -> $out:ty $body:block) => {
+        #[pyfunction(crate = "crate::arguments")]
+        $(#[$attr])*
+        #[allow(clippy::too_many_arguments)]
+        pub fn $name<'py>($py: Python<'py>, $model: PyRef<'_, PyModel> $(, $arg: $ty)*) -> PyResult<$out> $body
+    };
+}
+
 mod agents;
 mod arguments;
 mod batch;

@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 
 use crate::convert::{kernel_error, FloatArray};
 
-use crate::batch::{map_rows, to_numpy, Batch};
+use crate::batch::{array, broadcast, map_rows, to_numpy, Argument, Batch};
 use crate::interrupt::{in_pieces, Pace};
 use crate::model::PyModel;
 
@@ -87,6 +87,40 @@ where
     let out = unsafe { array.as_slice_mut() }.expect("a new array is contiguous");
     fill(py, owner, batch, out, out_core.iter().product(), kernel)?;
     Ok(array)
+}
+
+/// Broadcasts `arguments` and `run`s `kernel(model, workspace, rows, out)` over the batch, `rows` the arguments'
+/// rows in order: the array `batch + out_core`.
+pub fn batched<'py, const N: usize, K>(
+    py: Python<'py>,
+    owner: &PyModel,
+    arguments: [Argument<'_, '_>; N],
+    out_core: &[usize],
+    kernel: K,
+) -> PyResult<FloatArray<'py>>
+where
+    K: Fn(&Model, &mut Workspace<'_>, [&[f64]; N], &mut [f64]) -> Result<(), Error> + Sync,
+{
+    let batch = broadcast(&arguments)?;
+    run(py, owner, &batch, out_core, |m, w, i, out| kernel(m, w, batch.row(i), out))
+}
+
+/// `batched` for a kernel with `P` outputs, which writes each row's one after the other into `out` (`split` cuts it):
+/// an array `batch + core` for each of `cores`.
+pub fn batched_parts<'py, const N: usize, const P: usize, K>(
+    py: Python<'py>,
+    owner: &PyModel,
+    arguments: [Argument<'_, '_>; N],
+    cores: [&[usize]; P],
+    kernel: K,
+) -> PyResult<[FloatArray<'py>; P]>
+where
+    K: Fn(&Model, &mut Workspace<'_>, [&[f64]; N], &mut [f64]) -> Result<(), Error> + Sync,
+{
+    let batch = broadcast(&arguments)?;
+    let width = cores.iter().map(|core| core.iter().product::<usize>()).sum();
+    let packed = run_packed(py, owner, &batch, width, |m, w, i, out| kernel(m, w, batch.row(i), out))?;
+    Ok(array(unpack(py, &batch, &packed, &cores)?))
 }
 
 /// `run` with `width` numbers per row, left packed (see `unpack`).
