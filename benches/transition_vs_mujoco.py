@@ -37,22 +37,24 @@ import time
 from collections.abc import Callable
 
 import numpy as np
-import simulation_vs_mujoco
-from simulation_vs_mujoco import DT, Runner, Scene, load_average, quadruped_scene, robot_scene, tree_scene
+import simulation_scenes
+from simulation_robots import robot_scene
+from simulation_scenes import DT, Runner, Scene, quadruped_scene, tree_scene
+from simulation_vs_mujoco import load_average
 
 import legkit as lk
 
 # The figures in docs/derivatives.md were measured on the default (cone) friction law; the step bench runs
 # Coulomb's, against MuJoCo's elliptic cone.
-simulation_vs_mujoco.FRICTION_LAW = "cone"
+simulation_scenes.FRICTION_LAW = "cone"
 
 CHECK_STEP = 1e-7
-SOLVER_OPTIONS = simulation_vs_mujoco.solver_options
+SOLVER_OPTIONS = simulation_scenes.solver_options
 
 
 def use_substeps(substeps: int) -> None:
     """Builds legkit's scenes with each step cut into `substeps` (the step, dt, unchanged)."""
-    simulation_vs_mujoco.solver_options = lambda: {**SOLVER_OPTIONS(), "substeps": substeps}
+    simulation_scenes.solver_options = lambda: {**SOLVER_OPTIONS(), "substeps": substeps}
 
 
 def scene(name: str) -> Scene:
@@ -100,8 +102,8 @@ def central_differences(build: Callable[[], lk.Simulation]) -> tuple[float, floa
         d = np.zeros(3 * nv)
         d[column] = delta
         displaced.q = lk.integrate(model, q, d[:nv], 1.0)
-        displaced.v = v + d[nv:2 * nv]
-        displaced.step(d[2 * nv:])
+        displaced.v = v + d[nv : 2 * nv]
+        displaced.step(d[2 * nv :])
         return displaced.q, displaced.v
 
     q_next, _ = step(0, 0.0)
@@ -181,19 +183,38 @@ def main() -> None:
             if args.rollout:
                 t_ours_rollout = time_calls(legkit_rollout(ours, args.rollout), args.blocks, rollout_calls)
                 rollouts.append((name, substeps, t_ours_rollout, t_theirs_rollout))
-            rows.append((name, substeps, a.shape[0] // 2, contacts, theirs.contacts(), f"{b.shape[1]} / {b_mj.shape[1]}",
-                         t_ours, t_theirs, spectral_radius(a), spectral_radius(a_mj), check))
+            rows.append(
+                (
+                    name,
+                    substeps,
+                    a.shape[0] // 2,
+                    contacts,
+                    theirs.contacts(),
+                    f"{b.shape[1]} / {b_mj.shape[1]}",
+                    t_ours,
+                    t_theirs,
+                    spectral_radius(a),
+                    spectral_radius(a_mj),
+                    check,
+                )
+            )
         print(f"{name}: done", flush=True)
     print()
-    print("| scene | substeps | nv | contacts legkit / MuJoCo | B columns legkit / MuJoCo | legkit (µs) | MuJoCo FD (µs) | ratio |"
-          " spectral radius of A legkit / MuJoCo |" + (" legkit vs central differences (relative) |" if args.check else ""))
+    print(
+        "| scene | substeps | nv | contacts legkit / MuJoCo | B columns legkit / MuJoCo | legkit (µs) | MuJoCo FD (µs) | ratio |"
+        " spectral radius of A legkit / MuJoCo |" + (" legkit vs central differences (relative) |" if args.check else "")
+    )
     print("|---|---|---|---|---|---|---|---|---|" + ("---|" if args.check else ""))
     for name, substeps, nv, c_ours, c_theirs, columns, t_ours, t_theirs, rho, rho_mj, check in rows:
-        print(f"| {name} | {substeps} | {nv} | {c_ours} / {c_theirs} | {columns} | {t_ours * 1e6:.0f} | {t_theirs * 1e6:.0f} | "
-              f"{t_ours / t_theirs:.2f}x | {rho:.4f} / {rho_mj:.4f} |" + (f" {check} |" if args.check else ""))
+        print(
+            f"| {name} | {substeps} | {nv} | {c_ours} / {c_theirs} | {columns} | {t_ours * 1e6:.0f} | {t_theirs * 1e6:.0f} | "
+            f"{t_ours / t_theirs:.2f}x | {rho:.4f} / {rho_mj:.4f} |" + (f" {check} |" if args.check else "")
+        )
     if rollouts:
-        print(f"\n| scene | substeps | legkit rollout of {args.rollout} steps with Jacobians (ms) |"
-              f" MuJoCo {args.rollout} x (mjd_transitionFD + mj_step) (ms) | ratio |")
+        print(
+            f"\n| scene | substeps | legkit rollout of {args.rollout} steps with Jacobians (ms) |"
+            f" MuJoCo {args.rollout} x (mjd_transitionFD + mj_step) (ms) | ratio |"
+        )
         print("|---|---|---|---|---|")
         for name, substeps, t_ours, t_theirs in rollouts:
             print(f"| {name} | {substeps} | {t_ours * 1e3:.1f} | {t_theirs * 1e3:.1f} | {t_ours / t_theirs:.2f}x |")

@@ -81,27 +81,27 @@ def assert_hessian_of_slope(model: lk.Model, hessian_and_gradient, slope, q: np.
     assert_slopes(hessian, tangent_differences(model, slope, q), what)
 
 
-@pytest.mark.parametrize("with_f_ext", [False, True], ids=["no_f_ext", "f_ext"])
-@examples(60)
-@given(tw=twins(), rng=rngs())
-def test_rnea_derivatives_match_pinocchio(with_f_ext, tw: Twin, rng):
-    q, v, a, f = dynamics_case(tw, rng, with_f_ext, given="a")
-    dq, dv, _ = pinocchio(pin.computeRNEADerivatives, tw, tw.q_pin(q), tw.v_pin(v), tw.v_pin(a), *pin_f_ext(tw, f))
-    got_dq, got_dv = lk.rnea_derivatives(tw.model, q, v, a, f)
-    assert_close(got_dq, tw.m_lk(dq), "dtau/dq")
-    assert_close(got_dv, tw.m_lk(dv), "dtau/dv")
+#: legkit's derivatives, Pinocchio's, the input given besides q and v, and the names of legkit's outputs, compared with
+#: Pinocchio's first ones in order (RNEA's third, the mass matrix, is not).
+DYNAMICS_DERIVATIVES = {
+    "rnea": (lk.rnea_derivatives, pin.computeRNEADerivatives, "a", ("dtau/dq", "dtau/dv")),
+    "aba": (lk.aba_derivatives, pin.computeABADerivatives, "tau", ("dddq/dq", "dddq/dv", "dddq/dtau")),
+}
 
 
 @pytest.mark.parametrize("with_f_ext", [False, True], ids=["no_f_ext", "f_ext"])
+@pytest.mark.parametrize("algorithm", DYNAMICS_DERIVATIVES)
 @examples(60)
 @given(tw=twins(), rng=rngs())
-def test_aba_derivatives_match_pinocchio(with_f_ext, tw: Twin, rng):
-    q, v, tau, f = dynamics_case(tw, rng, with_f_ext, given="tau")
-    dq, dv, dtau = pinocchio(pin.computeABADerivatives, tw, tw.q_pin(q), tw.v_pin(v), tw.v_pin(tau), *pin_f_ext(tw, f))
-    got_dq, got_dv, got_dtau = lk.aba_derivatives(tw.model, q, v, tau, f)
-    assert_close(got_dq, tw.m_lk(dq), "dddq/dq")
-    assert_close(got_dv, tw.m_lk(dv), "dddq/dv")
-    assert_close(got_dtau, tw.m_lk(pin_sym(dtau)), "dddq/dtau")
+def test_dynamics_derivatives_match_pinocchio(algorithm, with_f_ext, tw: Twin, rng):
+    ours, theirs, given_input, names = DYNAMICS_DERIVATIVES[algorithm]
+    q, v, x, f = dynamics_case(tw, rng, with_f_ext, given=given_input)
+    want = pinocchio(theirs, tw, tw.q_pin(q), tw.v_pin(v), tw.v_pin(x), *pin_f_ext(tw, f))
+    got = ours(tw.model, q, v, x, f)
+    assert len(got) == len(names)
+    for got_k, want_k, name in zip(got, want, names):
+        # dddq/dtau is the inverse mass matrix, of which Pinocchio fills the upper triangle.
+        assert_close(got_k, tw.m_lk(pin_sym(want_k) if name == "dddq/dtau" else want_k), name)
 
 
 @examples(40)

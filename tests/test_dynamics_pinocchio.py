@@ -131,25 +131,25 @@ def test_forward_kinematics(tw: Twin, rng):
     assert_close(lk.forward_kinematics(tw.model, q), tw.pin_world_poses(data), "forward_kinematics")
 
 
-@pytest.mark.parametrize("with_f_ext", [pytest.param(False, marks=pytest.mark.slow), True], ids=["no_f_ext", "f_ext"])
+#: legkit's inverse or forward dynamics, Pinocchio's, and the input given besides q and v.
+DYNAMICS = {"rnea": (lk.rnea, pin.rnea, "a"), "aba": (lk.aba, pin.aba, "tau")}
+
+
+@pytest.mark.parametrize(
+    "name, with_f_ext",
+    [pytest.param("rnea", False, marks=pytest.mark.slow), ("rnea", True), ("aba", False), ("aba", True)],
+    ids=["rnea-no_f_ext", "rnea-f_ext", "aba-no_f_ext", "aba-f_ext"],
+)
 @fast(60)
 @given(tw=twins(), rng=rngs())
-def test_rnea(with_f_ext, tw: Twin, rng):
-    q, v, a, f = dynamics_case(tw, rng, with_f_ext, given="a")
-    want = pin.rnea(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v), tw.v_pin(a), *pin_f_ext(tw, f))
-    assert_close(lk.rnea(tw.model, q, v, a, f), tw.v_lk(want), "rnea with f_ext" if with_f_ext else "rnea")
+def test_dynamics(name, with_f_ext, tw: Twin, rng):
+    ours, theirs, given_input = DYNAMICS[name]
+    q, v, x, f = dynamics_case(tw, rng, with_f_ext, given=given_input)
+    want = theirs(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v), tw.v_pin(x), *pin_f_ext(tw, f))
+    assert_close(ours(tw.model, q, v, x, f), tw.v_lk(want), f"{name} with f_ext" if with_f_ext else name)
     if with_f_ext:
         # Zero external forces are the same as none.
-        assert_close(lk.rnea(tw.model, q, v, a, np.zeros((tw.nbodies, 6))), lk.rnea(tw.model, q, v, a), "rnea f_ext=0")
-
-
-@pytest.mark.parametrize("with_f_ext", [False, True], ids=["no_f_ext", "f_ext"])
-@fast(60)
-@given(tw=twins(), rng=rngs())
-def test_aba(with_f_ext, tw: Twin, rng):
-    q, v, tau, f = dynamics_case(tw, rng, with_f_ext, given="tau")
-    want = pin.aba(tw.pin_model, tw.data(), tw.q_pin(q), tw.v_pin(v), tw.v_pin(tau), *pin_f_ext(tw, f))
-    assert_close(lk.aba(tw.model, q, v, tau, f), tw.v_lk(want), "aba with f_ext" if with_f_ext else "aba")
+        assert_close(ours(tw.model, q, v, x, np.zeros((tw.nbodies, 6))), ours(tw.model, q, v, x), f"{name} f_ext=0")
 
 
 @pytest.mark.parametrize(

@@ -38,7 +38,7 @@ from legkit.strain.benchtop import (
     physically_relevant,
     synthetic_benchtop,
 )
-from legkit.strain.model import LegModel, format_order_table, nrmse, order_selection_table, text_table
+from legkit.strain.model import LegModel, column_table, format_order_table, nrmse, order_selection_table, text_table
 from legkit.strain.pose import coplanarity, plane_residual
 from legkit.strain.simulated import simulated_walk
 from legkit.strain.walking import PoseEstimate, WalkingSource, WalkingStream, estimate_body_pose, kinematic_walk
@@ -195,14 +195,21 @@ def stance_detection(stream: WalkingStream, estimate: PoseEstimate) -> list[Stan
     return rows
 
 
+DETECTION_COLUMNS = (
+    ("speed m/s", ".2f"),
+    ("measure                   ", "s"),
+    ("  AUC", ".3f"),
+    ("balanced acc.", ".3f"),
+    ("threshold ", ".3g"),
+    ("median tripod", ".3g"),
+    ("median >3 toes", ".3g"),
+)
+
+
 def format_detection_table(rows: list[StanceDetection]) -> str:
-    return text_table(
-        "speed m/s | measure                    |   AUC | balanced acc. | threshold  | median tripod | median >3 toes",
-        [
-            f"{r.speed:9.2f} | {r.measure:26s} | {r.auc:5.3f} | {r.balanced_accuracy:13.3f} | {r.threshold:10.3g} | "
-            f"{r.tripod_median:13.3g} | {r.more_toes_median:14.3g}"
-            for r in rows
-        ],
+    return column_table(
+        DETECTION_COLUMNS,
+        [(r.speed, r.measure, r.auc, r.balanced_accuracy, r.threshold, r.tripod_median, r.more_toes_median) for r in rows],
     )
 
 

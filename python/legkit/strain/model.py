@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -327,13 +327,16 @@ def text_table(header: str, rows: Iterable[str]) -> str:
     return "\n".join([header, rule, *rows])
 
 
+def column_table(columns: Sequence[tuple[str, str]], rows: Iterable[Sequence[object]]) -> str:
+    """A `text_table` of `columns` (title, format spec) joined by ' | ': each value formatted as wide as its column's
+    title (pad a title to widen its column)."""
+    header = " | ".join(title for title, _ in columns)
+    return text_table(header, (" | ".join(format(value, f"{len(title)}{spec}") for (title, spec), value in zip(columns, row)) for row in rows))
+
+
+ORDER_COLUMNS = (("order", "d"), ("fit length %", ".3f"), ("fit deflection %", ".3f"), ("CV length %", ".3f"), ("CV deflection %", ".3f"))
+
+
 def format_order_table(rows: list[OrderSelectionRow]) -> str:
     """Plain-text rendering of ``order_selection_table`` (percent NRMSE)."""
-    return text_table(
-        "order | fit length % | fit deflection % | CV length % | CV deflection %",
-        [
-            f"{row.order:5d} | {row.fit_length:12.3f} | {row.fit_deflection:16.3f} | "
-            f"{row.cv_length:11.3f} | {row.cv_deflection:15.3f}"
-            for row in rows
-        ],
-    )
+    return column_table(ORDER_COLUMNS, [(row.order, row.fit_length, row.fit_deflection, row.cv_length, row.cv_deflection) for row in rows])
