@@ -159,12 +159,18 @@ fn inverse_into(model: &Model, data: &mut Data, factored: bool, out: &mut [f64])
                 pairs.for_each(|(to, from)| to.copy_from_slice(from));
                 continue;
             }
-            for (c, ((to, from), entry)) in (columns.start..).zip(pairs.zip(&mut row[columns.clone()])) {
+            let mut pairs = pairs.zip(&mut row[columns.clone()]);
+            if columns.start == k {
+                // i's own column comes first, where F_i is zero.
+                let ((to, _), entry) = pairs.next().expect("i's own column");
+                *entry = dinv;
+                axpy(to.try_into().expect("6"), &[0.0; 6], &u, dinv);
+            }
+            for ((to, from), entry) in pairs {
                 let (to, from): (&mut [f64; 6], &[f64; 6]) = (to.try_into().expect("6"), from.try_into().expect("6"));
-                // F_i is zero on i's own column.
-                let m = if c == k { dinv } else { -dinv * dot6(&s, from) };
+                let m = -dinv * dot6(&s, from);
                 *entry = m;
-                axpy(to, if c == k { &[0.0; 6] } else { from }, &u, m);
+                axpy(to, from, &u, m);
             }
         }
         if !factored {
