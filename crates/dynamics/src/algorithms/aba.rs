@@ -3,36 +3,6 @@
 //! Worked in the world's axes about the base (`kinematics::base_centred_kinematics`), as Pinocchio's in world
 //! coordinates: each body's rigid inertia moves to the world once, in its 10-parameter form, and articulated
 //! inertias and bias forces then pass to the parent without a transform.
-//!
-//! # Examples
-//!
-//! Forward and inverse dynamics undo each other, RNEA(q, q̇, ABA(q, q̇, τ)) = τ, here on a double pendulum (two 1 kg
-//! links 0.4 m long, hinged about y; built in the hidden lines). Rotor inertia on the joints (`aba_with_armature`) adds
-//! to M's diagonal: (M + diag(armature)) q̈ = τ − RNEA(q, q̇, 0).
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! let (q, v, tau) = ([0.3, -0.5], [1.0, 2.0], DVector::from_vec(vec![0.4, -0.1]));
-//! let ddq = algorithms::aba(&model, &mut data, &q, &v, tau.as_slice(), None)?.clone();
-//! let back = algorithms::rnea(&model, &mut data, &q, &v, ddq.as_slice(), None)?;
-//! assert!((back - &tau).amax() < 1e-12);
-//!
-//! let armature = [0.05, 0.02];
-//! let ddq = algorithms::aba_with_armature(&model, &mut data, &q, &v, tau.as_slice(), None, &armature)?.clone();
-//! let bias = algorithms::rnea(&model, &mut data, &q, &v, &[0.0; 2], None)?.clone();
-//! let mass = algorithms::crba(&model, &mut data, &q)?.clone() + DMatrix::from_diagonal(&DVector::from_row_slice(&armature));
-//! assert!((mass * ddq - (&tau - bias)).amax() < 1e-12);
-//! let error = algorithms::aba_with_armature(&model, &mut data, &q, &v, tau.as_slice(), None, &[-0.05, 0.02]).unwrap_err();
-//! assert_eq!(error.to_string(), "armature: element 0 is negative (-0.05)");
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::{DVector, Matrix3, Matrix6x3, Vector3, Vector6};
 
@@ -53,6 +23,36 @@ use crate::{Error, Result};
 /// `kinematics::base_centred_kinematics`), `data.centred_m_i` holds each body's pose, `data.rigid` its rigid
 /// inertia, `data.centred_v` its velocity and `data.centred_a` its acceleration with gravity as a base
 /// acceleration (§5.3).
+///
+/// # Examples
+///
+/// Forward and inverse dynamics undo each other, RNEA(q, q̇, ABA(q, q̇, τ)) = τ, here on a double pendulum (two 1 kg
+/// links 0.4 m long, hinged about y; built in the hidden lines). Rotor inertia on the joints (`aba_with_armature`) adds
+/// to M's diagonal: (M + diag(armature)) q̈ = τ − RNEA(q, q̇, 0).
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// let (q, v, tau) = ([0.3, -0.5], [1.0, 2.0], DVector::from_vec(vec![0.4, -0.1]));
+/// let ddq = algorithms::aba(&model, &mut data, &q, &v, tau.as_slice(), None)?.clone();
+/// let back = algorithms::rnea(&model, &mut data, &q, &v, ddq.as_slice(), None)?;
+/// assert!((back - &tau).amax() < 1e-12);
+///
+/// let armature = [0.05, 0.02];
+/// let ddq = algorithms::aba_with_armature(&model, &mut data, &q, &v, tau.as_slice(), None, &armature)?.clone();
+/// let bias = algorithms::rnea(&model, &mut data, &q, &v, &[0.0; 2], None)?.clone();
+/// let mass = algorithms::crba(&model, &mut data, &q)?.clone() + DMatrix::from_diagonal(&DVector::from_row_slice(&armature));
+/// assert!((mass * ddq - (&tau - bias)).amax() < 1e-12);
+/// let error = algorithms::aba_with_armature(&model, &mut data, &q, &v, tau.as_slice(), None, &[-0.05, 0.02]).unwrap_err();
+/// assert_eq!(error.to_string(), "armature: element 0 is negative (-0.05)");
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>) -> Result<&'d DVector<f64>> {
     check_state(model, data, q, &[("v", v), ("tau", tau)])?;
     check_forces(model, f_ext)?;

@@ -5,41 +5,6 @@
 //! The products by M⁻¹ run where ∂τ is sparse (a branched tree), else solves with the articulated-body factors ABA
 //! leaves behind (`aba_derivatives_into`); the outputs can be written in place (`aba_derivatives_into`), with O(n)
 //! workspace beyond them.
-//!
-//! # Examples
-//!
-//! ∂q̈/∂q and ∂q̈/∂q̇ of a double pendulum (two 1 kg links 0.4 m long, hinged about y; built in the hidden lines)
-//! against central differences of `aba`, and ∂q̈/∂τ = M⁻¹; `aba_derivatives_into` writes the same numbers into the
-//! caller's slices.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
-//! let (q, v, tau, h) = ([0.3, -0.5], [1.0, 2.0], [0.4, -0.1], 1e-6);
-//! let (ddq_dq, ddq_dv, ddq_dtau) = algorithms::aba_derivatives(&model, &mut data, &q, &v, &tau, None)?;
-//! let (ddq_dq, ddq_dv, ddq_dtau) = (ddq_dq.clone(), ddq_dv.clone(), ddq_dtau.clone());
-//! assert!((&ddq_dtau * algorithms::crba(&model, &mut data, &q)? - DMatrix::identity(2, 2)).amax() < 1e-12);
-//! for k in 0..2 {
-//!     let plus = algorithms::aba(&model, &mut data, &nudge(q, k, h), &v, &tau, None)?.clone();
-//!     let by_q = (plus - algorithms::aba(&model, &mut data, &nudge(q, k, -h), &v, &tau, None)?) / (2.0 * h);
-//!     let plus = algorithms::aba(&model, &mut data, &q, &nudge(v, k, h), &tau, None)?.clone();
-//!     let by_v = (plus - algorithms::aba(&model, &mut data, &q, &nudge(v, k, -h), &tau, None)?) / (2.0 * h);
-//!     assert!((ddq_dq.column(k) - by_q).norm() < 1e-7 && (ddq_dv.column(k) - by_v).norm() < 1e-7);
-//! }
-//! // A model this small takes M⁻¹ from Minv's recursion.
-//! assert!(algorithms::minv_by_recursion(&model));
-//! let (mut into_q, mut into_v, mut minv) = ([0.0; 4], [0.0; 4], [0.0; 4]);
-//! algorithms::aba_derivatives_into(&model, &mut data, &q, &v, &tau, None, &mut into_q, &mut into_v, &mut minv)?;
-//! assert!(into_q == ddq_dq.as_slice() && into_v == ddq_dv.as_slice() && minv == ddq_dtau.as_slice());
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::{DMatrix, DVector};
 
@@ -62,6 +27,41 @@ const DENSE_LIMIT: usize = 32;
 /// ∂q̈/∂q, ∂q̈/∂q̇ and ∂q̈/∂τ = M⁻¹ (nv x nv; q on its tangent space) at configuration `q`, velocity `v` and joint
 /// forces `tau`, with `f_ext` as in `aba`. Leaves q̈ in `data.ddq`, the first two in `data.derivatives.ddq_dq` and
 /// `ddq_dv`, and M⁻¹ (by `minv`'s passes on ABA's factors) in `data.minv`.
+///
+/// # Examples
+///
+/// ∂q̈/∂q and ∂q̈/∂q̇ of a double pendulum (two 1 kg links 0.4 m long, hinged about y; built in the hidden lines)
+/// against central differences of `aba`, and ∂q̈/∂τ = M⁻¹; `aba_derivatives_into` writes the same numbers into the
+/// caller's slices.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
+/// let (q, v, tau, h) = ([0.3, -0.5], [1.0, 2.0], [0.4, -0.1], 1e-6);
+/// let (ddq_dq, ddq_dv, ddq_dtau) = algorithms::aba_derivatives(&model, &mut data, &q, &v, &tau, None)?;
+/// let (ddq_dq, ddq_dv, ddq_dtau) = (ddq_dq.clone(), ddq_dv.clone(), ddq_dtau.clone());
+/// assert!((&ddq_dtau * algorithms::crba(&model, &mut data, &q)? - DMatrix::identity(2, 2)).amax() < 1e-12);
+/// for k in 0..2 {
+///     let plus = algorithms::aba(&model, &mut data, &nudge(q, k, h), &v, &tau, None)?.clone();
+///     let by_q = (plus - algorithms::aba(&model, &mut data, &nudge(q, k, -h), &v, &tau, None)?) / (2.0 * h);
+///     let plus = algorithms::aba(&model, &mut data, &q, &nudge(v, k, h), &tau, None)?.clone();
+///     let by_v = (plus - algorithms::aba(&model, &mut data, &q, &nudge(v, k, -h), &tau, None)?) / (2.0 * h);
+///     assert!((ddq_dq.column(k) - by_q).norm() < 1e-7 && (ddq_dv.column(k) - by_v).norm() < 1e-7);
+/// }
+/// // A model this small takes M⁻¹ from Minv's recursion.
+/// assert!(algorithms::minv_by_recursion(&model));
+/// let (mut into_q, mut into_v, mut minv) = ([0.0; 4], [0.0; 4], [0.0; 4]);
+/// algorithms::aba_derivatives_into(&model, &mut data, &q, &v, &tau, None, &mut into_q, &mut into_v, &mut minv)?;
+/// assert!(into_q == ddq_dq.as_slice() && into_v == ddq_dv.as_slice() && minv == ddq_dtau.as_slice());
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn aba_derivatives<'d>(
     model: &Model,
     data: &'d mut Data,

@@ -1,39 +1,6 @@
 //! Centroidal momentum (Orin & Goswami): the robot's linear momentum and its angular momentum about the
 //! centre of mass, in world-aligned axes, its time derivative, the centroidal momentum matrix A_G, and the centre of
 //! mass's Jacobian (A_G's linear rows over the mass).
-//!
-//! # Examples
-//!
-//! The centroidal momentum of a double pendulum (two 1 kg links 0.4 m long, hinged about y; built in the hidden lines)
-//! is A_G q̇ (`centroidal_map`); its linear part is the mass times the COM's velocity J_c q̇ (`center_of_mass_jacobian`,
-//! checked against central differences of `center_of_mass` along the motion), and its rate (`centroidal_momentum_rate`)
-//! is its time derivative along (q̇, q̈).
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! let (q, v, a, h) = ([0.3, -0.5], DVector::from_vec(vec![1.0, 2.0]), DVector::from_vec(vec![-3.0, 0.5]), 1e-6);
-//! let momentum = algorithms::centroidal_momentum(&model, &mut data, &q, v.as_slice())?;
-//! assert!((momentum - algorithms::centroidal_map(&model, &mut data, &q)? * &v).norm() < 1e-12);
-//! let com_velocity = algorithms::center_of_mass_jacobian(&model, &mut data, &q)? * &v;
-//! assert!((momentum.fixed_rows::<3>(0) - 2.0 * com_velocity).norm() < 1e-12);
-//! // The state a time h before and after, moving with (q̇, q̈).
-//! let along = |h: f64| (vec![q[0] + h * v[0], q[1] + h * v[1]], &v + h * &a);
-//! let ((q_after, v_after), (q_before, v_before)) = (along(h), along(-h));
-//! let com_after = algorithms::center_of_mass(&model, &mut data, &q_after)?;
-//! assert!(((com_after - algorithms::center_of_mass(&model, &mut data, &q_before)?) / (2.0 * h) - com_velocity).norm() < 1e-8);
-//! let rate = algorithms::centroidal_momentum_rate(&model, &mut data, &q, v.as_slice(), a.as_slice())?;
-//! let after = algorithms::centroidal_momentum(&model, &mut data, &q_after, v_after.as_slice())?;
-//! let before = algorithms::centroidal_momentum(&model, &mut data, &q_before, v_before.as_slice())?;
-//! assert!((rate - (after - before) / (2.0 * h)).norm() < 1e-7);
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::{Matrix3xX, Matrix6xX, Vector3, Vector6};
 
@@ -64,6 +31,39 @@ fn world_momentum(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Optio
 }
 
 /// `[h_lin; h_ang]`: linear momentum and angular momentum about the COM, world-aligned.
+///
+/// # Examples
+///
+/// The centroidal momentum of a double pendulum (two 1 kg links 0.4 m long, hinged about y; built in the hidden lines)
+/// is A_G q̇ (`centroidal_map`); its linear part is the mass times the COM's velocity J_c q̇ (`center_of_mass_jacobian`,
+/// checked against central differences of `center_of_mass` along the motion), and its rate (`centroidal_momentum_rate`)
+/// is its time derivative along (q̇, q̈).
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// let (q, v, a, h) = ([0.3, -0.5], DVector::from_vec(vec![1.0, 2.0]), DVector::from_vec(vec![-3.0, 0.5]), 1e-6);
+/// let momentum = algorithms::centroidal_momentum(&model, &mut data, &q, v.as_slice())?;
+/// assert!((momentum - algorithms::centroidal_map(&model, &mut data, &q)? * &v).norm() < 1e-12);
+/// let com_velocity = algorithms::center_of_mass_jacobian(&model, &mut data, &q)? * &v;
+/// assert!((momentum.fixed_rows::<3>(0) - 2.0 * com_velocity).norm() < 1e-12);
+/// // The state a time h before and after, moving with (q̇, q̈).
+/// let along = |h: f64| (vec![q[0] + h * v[0], q[1] + h * v[1]], &v + h * &a);
+/// let ((q_after, v_after), (q_before, v_before)) = (along(h), along(-h));
+/// let com_after = algorithms::center_of_mass(&model, &mut data, &q_after)?;
+/// assert!(((com_after - algorithms::center_of_mass(&model, &mut data, &q_before)?) / (2.0 * h) - com_velocity).norm() < 1e-8);
+/// let rate = algorithms::centroidal_momentum_rate(&model, &mut data, &q, v.as_slice(), a.as_slice())?;
+/// let after = algorithms::centroidal_momentum(&model, &mut data, &q_after, v_after.as_slice())?;
+/// let before = algorithms::centroidal_momentum(&model, &mut data, &q_before, v_before.as_slice())?;
+/// assert!((rate - (after - before) / (2.0 * h)).norm() < 1e-7);
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn centroidal_momentum(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result<Vector6<f64>> {
     check_state(model, data, q, &[("v", v)])?;
     let (momentum, _, com) = world_momentum(model, data, q, v, None);

@@ -10,36 +10,6 @@
 //! ∂a/∂q, so that its momentum changes by I ∂v/∂q more and its force by I ∂a/∂q + B ∂v/∂q. A column needs only its
 //! own subtree's sums: O(n) for n bodies, and nothing allocated once sized. The columns, about the centred frame's
 //! origin O, are then taken about the COM, which moves as well.
-//!
-//! # Examples
-//!
-//! ∂h/∂q and ∂ḣ/∂q̇ of a double pendulum's centroidal momentum (two 1 kg links 0.4 m long, hinged about y; built in the
-//! hidden lines) against central differences of `centroidal_momentum` and `centroidal_momentum_rate`; ∂ḣ/∂q̈ is A_G.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
-//! let (q, v, a, h) = ([0.3, -0.5], [1.0, 2.0], [-3.0, 0.5], 1e-6);
-//! let (dh_dq, _, dhdot_dv, dhdot_da) = algorithms::centroidal_derivatives(&model, &mut data, &q, &v, &a)?;
-//! let (dh_dq, dhdot_dv, dhdot_da) = (dh_dq.clone(), dhdot_dv.clone(), dhdot_da.clone());
-//! assert!((dhdot_da - algorithms::centroidal_map(&model, &mut data, &q)?).amax() < 1e-12);
-//! for k in 0..2 {
-//!     let plus = algorithms::centroidal_momentum(&model, &mut data, &nudge(q, k, h), &v)?;
-//!     let minus = algorithms::centroidal_momentum(&model, &mut data, &nudge(q, k, -h), &v)?;
-//!     assert!((dh_dq.column(k) - (plus - minus) / (2.0 * h)).norm() < 1e-8);
-//!     let plus = algorithms::centroidal_momentum_rate(&model, &mut data, &q, &nudge(v, k, h), &a)?;
-//!     let minus = algorithms::centroidal_momentum_rate(&model, &mut data, &q, &nudge(v, k, -h), &a)?;
-//!     assert!((dhdot_dv.column(k) - (plus - minus) / (2.0 * h)).norm() < 1e-8);
-//! }
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::{Matrix6xX, Vector3};
 
@@ -53,6 +23,36 @@ use crate::Result;
 /// ∂h/∂q, ∂ḣ/∂q, ∂ḣ/∂q̇ and ∂ḣ/∂q̈ = A_G (6 x nv each, rows `[linear; angular about the COM]` in world axes) at
 /// configuration `q`, velocity `v` and acceleration `a`. Writes the first three to `data.derivatives.dh_dq`,
 /// `dhdot_dq` and `dhdot_dv`, A_G to `data.centroidal_map`, and returns them.
+///
+/// # Examples
+///
+/// ∂h/∂q and ∂ḣ/∂q̇ of a double pendulum's centroidal momentum (two 1 kg links 0.4 m long, hinged about y; built in the
+/// hidden lines) against central differences of `centroidal_momentum` and `centroidal_momentum_rate`; ∂ḣ/∂q̈ is A_G.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
+/// let (q, v, a, h) = ([0.3, -0.5], [1.0, 2.0], [-3.0, 0.5], 1e-6);
+/// let (dh_dq, _, dhdot_dv, dhdot_da) = algorithms::centroidal_derivatives(&model, &mut data, &q, &v, &a)?;
+/// let (dh_dq, dhdot_dv, dhdot_da) = (dh_dq.clone(), dhdot_dv.clone(), dhdot_da.clone());
+/// assert!((dhdot_da - algorithms::centroidal_map(&model, &mut data, &q)?).amax() < 1e-12);
+/// for k in 0..2 {
+///     let plus = algorithms::centroidal_momentum(&model, &mut data, &nudge(q, k, h), &v)?;
+///     let minus = algorithms::centroidal_momentum(&model, &mut data, &nudge(q, k, -h), &v)?;
+///     assert!((dh_dq.column(k) - (plus - minus) / (2.0 * h)).norm() < 1e-8);
+///     let plus = algorithms::centroidal_momentum_rate(&model, &mut data, &q, &nudge(v, k, h), &a)?;
+///     let minus = algorithms::centroidal_momentum_rate(&model, &mut data, &q, &nudge(v, k, -h), &a)?;
+///     assert!((dhdot_dv.column(k) - (plus - minus) / (2.0 * h)).norm() < 1e-8);
+/// }
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 #[allow(clippy::type_complexity)]
 pub fn centroidal_derivatives<'d>(
     model: &Model,

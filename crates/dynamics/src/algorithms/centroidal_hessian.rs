@@ -9,61 +9,6 @@
 //! the origin h_O = Σ_e I_e S_e v_e has ∂h_O/∂q_e = S_e ×* H_e - I_e (S_e × B_e) (Pinocchio's dhdq), and
 //! w · h = Γ · h_O with the motion Γ = [w_lin + c × w_ang; w_ang], whose slope is the COM's. Each entry is then a few
 //! cross products of subtree sums: O(nv²) and the depth of the tree.
-//!
-//! # Examples
-//!
-//! The q-Hessian of a weighted centre of mass w · c(q), on a double pendulum (two 1 kg links 0.4 m long, hinged about
-//! y; built in the hidden lines): the gradient is w · J_c (`center_of_mass_jacobian`), and the Hessian's entries
-//! `[e, d]` (row-major) its slopes, checked here against central differences.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
-//! let (q, nv, h, weights) = ([0.3, -0.5], 2, 1e-6, Vector3::new(1.0, -2.0, 0.5));
-//! let (mut hessian, mut gradient) = (vec![0.0; nv * nv], vec![0.0; nv]);
-//! algorithms::center_of_mass_hessian(&model, &mut data, &q, &weights, &mut hessian, &mut gradient)?;
-//! let mut gradient_at = |q: &[f64]| -> legkit_dynamics::Result<_> { Ok(weights.transpose() * algorithms::center_of_mass_jacobian(&model, &mut data, q)?) };
-//! assert!((DVector::from_vec(gradient).transpose() - gradient_at(&q)?).norm() < 1e-12);
-//! for d in 0..nv {
-//!     let slope = (gradient_at(&nudge(q, d, h))? - gradient_at(&nudge(q, d, -h))?) / (2.0 * h);
-//!     (0..nv).for_each(|e| assert!((hessian[e * nv + d] - slope[e]).abs() < 1e-8));
-//! }
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
-//!
-//! A weighted centroidal momentum w · h(q, q̇) is linear in q̇, w · A_G(q) q̇: its mixed Hessian `qv` (`[d, e]`,
-//! ∂²/∂q_d ∂q̇_e) is the q-slope of w · A_G, and its q-gradient that slope times q̇.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
-//! let (q, v, nv, h) = ([0.3, -0.5], [1.0, 2.0], 2, 1e-6);
-//! let weights = [1.0, -2.0, 0.5, 0.3, 0.2, -1.0];
-//! let (mut qq, mut qv, mut gradient) = (vec![0.0; nv * nv], vec![0.0; nv * nv], vec![0.0; nv]);
-//! algorithms::centroidal_momentum_hessian(&model, &mut data, &q, &v, &weights, &mut qq, &mut qv, &mut gradient)?;
-//! let w = Vector6::from_row_slice(&weights);
-//! let mut weighted_map = |q: &[f64]| -> legkit_dynamics::Result<_> { Ok(w.transpose() * algorithms::centroidal_map(&model, &mut data, q)?) };
-//! for d in 0..nv {
-//!     let slope = (weighted_map(&nudge(q, d, h))? - weighted_map(&nudge(q, d, -h))?) / (2.0 * h);
-//!     (0..nv).for_each(|e| assert!((qv[d * nv + e] - slope[e]).abs() < 1e-8));
-//!     assert!((gradient[d] - (slope * DVector::from_row_slice(&v))[0]).abs() < 1e-8);
-//! }
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::Vector3;
 
@@ -156,6 +101,34 @@ fn add_com_hessian(model: &Model, data: &Data, mass: f64, weights: &Vector3<f64>
 
 /// The q-Hessian `hessian` (nv x nv, row-major, `[e, d]` the slope along q_d of the gradient's entry e) and the
 /// gradient `gradient` (nv) of `weights` · the centre of mass (world; zeros for a massless model).
+///
+/// # Examples
+///
+/// The q-Hessian of a weighted centre of mass w · c(q), on a double pendulum (two 1 kg links 0.4 m long, hinged about
+/// y; built in the hidden lines): the gradient is w · J_c (`center_of_mass_jacobian`), and the Hessian's entries
+/// `[e, d]` (row-major) its slopes, checked here against central differences.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
+/// let (q, nv, h, weights) = ([0.3, -0.5], 2, 1e-6, Vector3::new(1.0, -2.0, 0.5));
+/// let (mut hessian, mut gradient) = (vec![0.0; nv * nv], vec![0.0; nv]);
+/// algorithms::center_of_mass_hessian(&model, &mut data, &q, &weights, &mut hessian, &mut gradient)?;
+/// let mut gradient_at = |q: &[f64]| -> legkit_dynamics::Result<_> { Ok(weights.transpose() * algorithms::center_of_mass_jacobian(&model, &mut data, q)?) };
+/// assert!((DVector::from_vec(gradient).transpose() - gradient_at(&q)?).norm() < 1e-12);
+/// for d in 0..nv {
+///     let slope = (gradient_at(&nudge(q, d, h))? - gradient_at(&nudge(q, d, -h))?) / (2.0 * h);
+///     (0..nv).for_each(|e| assert!((hessian[e * nv + d] - slope[e]).abs() < 1e-8));
+/// }
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn center_of_mass_hessian(
     model: &Model,
     data: &mut Data,
@@ -185,6 +158,35 @@ pub fn center_of_mass_hessian(
 /// The Hessians `qq` (`[e, d]` the slope along q_d of the q-gradient's entry e) and `qv` (`[d, e]` = ∂²/∂q_d ∂v_e),
 /// nv x nv row-major, and the q-gradient `gradient` (nv) of `weights` · h(q, v), h the centroidal momentum
 /// [linear; angular about the COM] (`centroidal_momentum`); linear in v, so vv is zero.
+///
+/// # Examples
+///
+/// A weighted centroidal momentum w · h(q, q̇) is linear in q̇, w · A_G(q) q̇: its mixed Hessian `qv` (`[d, e]`,
+/// ∂²/∂q_d ∂q̇_e) is the q-slope of w · A_G, and its q-gradient that slope times q̇.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
+/// let (q, v, nv, h) = ([0.3, -0.5], [1.0, 2.0], 2, 1e-6);
+/// let weights = [1.0, -2.0, 0.5, 0.3, 0.2, -1.0];
+/// let (mut qq, mut qv, mut gradient) = (vec![0.0; nv * nv], vec![0.0; nv * nv], vec![0.0; nv]);
+/// algorithms::centroidal_momentum_hessian(&model, &mut data, &q, &v, &weights, &mut qq, &mut qv, &mut gradient)?;
+/// let w = Vector6::from_row_slice(&weights);
+/// let mut weighted_map = |q: &[f64]| -> legkit_dynamics::Result<_> { Ok(w.transpose() * algorithms::centroidal_map(&model, &mut data, q)?) };
+/// for d in 0..nv {
+///     let slope = (weighted_map(&nudge(q, d, h))? - weighted_map(&nudge(q, d, -h))?) / (2.0 * h);
+///     (0..nv).for_each(|e| assert!((qv[d * nv + e] - slope[e]).abs() < 1e-8));
+///     assert!((gradient[d] - (slope * DVector::from_row_slice(&v))[0]).abs() < 1e-8);
+/// }
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 #[allow(clippy::too_many_arguments)]
 pub fn centroidal_momentum_hessian(
     model: &Model,

@@ -3,35 +3,6 @@
 //! quaternions; after, its outputs are finite, a failure there being numerical (an overflow, or a singular mass
 //! matrix) rather than an argument's. Each error names the argument; nothing has been written when an argument is
 //! refused.
-//!
-//! # Examples
-//!
-//! The result checks, for code of one's own around the kernels: a number that overflowed is a numerical failure, not the
-//! caller's argument; a singular mass matrix is the model's.
-//!
-//! ```
-//! use legkit_dynamics::algorithms;
-//!
-//! assert!(algorithms::finite_result(&[1.0, -2.5]).is_ok());
-//! let error = algorithms::finite_result(&[1.0, f64::INFINITY]).unwrap_err();
-//! assert!(error.to_string().starts_with("result: not finite"));
-//! assert!(algorithms::singular().to_string().starts_with("model: the mass matrix is singular"));
-//! ```
-//!
-//! A link without mass leaves ABA's factor singular: `singular_factor` tells it from an overflow, and
-//! `finite_dynamics` reports a non-finite result of it as the model's singular mass matrix.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::Vector3;
-//! let mut massless = Model::new(false, MassProperties::zero(), "base");
-//! massless.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), MassProperties::zero(), "link", JointLimits::NONE)?;
-//! let mut data = Data::new(&massless);
-//! assert!(algorithms::aba(&massless, &mut data, &[0.0], &[0.0], &[1.0], None).is_err());
-//! assert!(algorithms::singular_factor(&massless, &data));
-//! assert_eq!(algorithms::finite_dynamics(&massless, &data, data.ddq.as_slice()), Err(algorithms::singular()));
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::{DMatrix, Vector3};
 
@@ -103,6 +74,20 @@ pub(crate) fn check_square(argument: &'static str, m: &DMatrix<f64>, n: usize) -
 
 /// Fails on NaN or infinity in a result: with valid (finite) inputs, a number overflowed. A numerical failure, never
 /// reported as a singular mass matrix.
+///
+/// # Examples
+///
+/// The result checks, for code of one's own around the kernels: a number that overflowed is a numerical failure, not the
+/// caller's argument; a singular mass matrix is the model's.
+///
+/// ```
+/// use legkit_dynamics::algorithms;
+///
+/// assert!(algorithms::finite_result(&[1.0, -2.5]).is_ok());
+/// let error = algorithms::finite_result(&[1.0, f64::INFINITY]).unwrap_err();
+/// assert!(error.to_string().starts_with("result: not finite"));
+/// assert!(algorithms::singular().to_string().starts_with("model: the mass matrix is singular"));
+/// ```
 pub fn finite_result(values: &[f64]) -> Result<()> {
     if all_finite(values) {
         Ok(())
@@ -134,6 +119,23 @@ pub fn finite_dynamics(model: &Model, data: &Data, values: &[f64]) -> Result<()>
 
 /// Whether the articulated-body factor in `data` is singular: a joint's pivot infinite or non-positive, or a floating
 /// base's finite articulated inertia not positive definite (an overflowed state leaves NaN instead).
+///
+/// # Examples
+///
+/// A link without mass leaves ABA's factor singular: `singular_factor` tells it from an overflow, and
+/// `finite_dynamics` reports a non-finite result of it as the model's singular mass matrix.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::Vector3;
+/// let mut massless = Model::new(false, MassProperties::zero(), "base");
+/// massless.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), MassProperties::zero(), "link", JointLimits::NONE)?;
+/// let mut data = Data::new(&massless);
+/// assert!(algorithms::aba(&massless, &mut data, &[0.0], &[0.0], &[1.0], None).is_err());
+/// assert!(algorithms::singular_factor(&massless, &data));
+/// assert_eq!(algorithms::finite_dynamics(&massless, &data, data.ddq.as_slice()), Err(algorithms::singular()));
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn singular_factor(model: &Model, data: &Data) -> bool {
     let base = &data.inertia[0];
     let base_singular = model.floating_base() && base.iter().all(|x| x.is_finite()) && spd_inverse6(base)[(0, 0)].is_nan();

@@ -1,29 +1,4 @@
 //! Centre of mass and the mass properties of every subtree, in world coordinates.
-//!
-//! # Examples
-//!
-//! A double pendulum (two 1 kg links 0.4 m long, hinged about y, hanging along −z at q = 0; built in the hidden lines)
-//! held straight at angle θ: its centre of mass is 0.4 m from the shoulder along the links, the lower link's 0.6 m, and
-//! the subtree below the shoulder holds the whole 2 kg.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! let theta: f64 = 0.3;
-//! let along = |r: f64| Vector3::new(-r * theta.sin(), 0.0, -r * theta.cos());
-//! let com = algorithms::center_of_mass(&model, &mut data, &[theta, 0.0])?;
-//! assert!((com - along(0.4)).norm() < 1e-12);
-//! let subtrees = algorithms::subtree_mass_properties(&model, &mut data, &[theta, 0.0])?;
-//! assert!((subtrees[1].mass() - 2.0).abs() < 1e-12 && (subtrees[1].com() - along(0.4)).norm() < 1e-12);
-//! assert!((subtrees[2].mass() - 1.0).abs() < 1e-12 && (subtrees[2].com() - along(0.6)).norm() < 1e-12);
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::Vector3;
 
@@ -55,6 +30,31 @@ pub fn subtree_mass_properties<'d>(model: &Model, data: &'d mut Data, q: &[f64])
 }
 
 /// The whole model's centre of mass in the world frame.
+///
+/// # Examples
+///
+/// A double pendulum (two 1 kg links 0.4 m long, hinged about y, hanging along −z at q = 0; built in the hidden lines)
+/// held straight at angle θ: its centre of mass is 0.4 m from the shoulder along the links, the lower link's 0.6 m, and
+/// the subtree below the shoulder holds the whole 2 kg.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// let theta: f64 = 0.3;
+/// let along = |r: f64| Vector3::new(-r * theta.sin(), 0.0, -r * theta.cos());
+/// let com = algorithms::center_of_mass(&model, &mut data, &[theta, 0.0])?;
+/// assert!((com - along(0.4)).norm() < 1e-12);
+/// let subtrees = algorithms::subtree_mass_properties(&model, &mut data, &[theta, 0.0])?;
+/// assert!((subtrees[1].mass() - 2.0).abs() < 1e-12 && (subtrees[1].com() - along(0.4)).norm() < 1e-12);
+/// assert!((subtrees[2].mass() - 1.0).abs() < 1e-12 && (subtrees[2].com() - along(0.6)).norm() < 1e-12);
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn center_of_mass(model: &Model, data: &mut Data, q: &[f64]) -> Result<Vector3<f64>> {
     check_state(model, data, q, &[])?;
     forward_kinematics_unchecked(model, data, q);

@@ -7,58 +7,6 @@
 //! axes, whose spatial acceleration is held at zero; Pinocchio's CONTACT_6D in LOCAL_WORLD_ALIGNED). Contact forces act on the robot at the points, in world axes:
 //! 3-vectors, or wrenches [force; torque about the point]. The k-dependent matrices live in `ContactWorkspace`, sized
 //! (fallibly) on first use.
-//!
-//! # Examples
-//!
-//! A 2 kg box (0.3 x 0.2 x 0.1 m on a free-flyer base; built in the hidden lines) standing on its bottom face's centre,
-//! held there as a flat foot (`ContactDim::Frame`), does not move, the contact carrying its weight, 2 × 9.81 N up, and no
-//! torque. Falling at 1 m/s onto a point foot there (`impact`), it stops dead, the impulse taking up its momentum.
-//!
-//! ```
-//! # use legkit_dynamics::algorithms::{self, ContactDim, ContactPoint};
-//! # use legkit_dynamics::{Data, MassProperties, Model};
-//! # use nalgebra::{DVector, Matrix3, Vector3};
-//! # let body = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity())?;
-//! # let model = Model::new(true, body, "box");
-//! # let mut data = Data::new(&model);
-//! let q = [0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 1.0];
-//! let foot = [ContactPoint { body: 0, point: Vector3::new(0.0, 0.0, -0.05) }];
-//! let standing = algorithms::contact_dynamics(&model, &mut data, &q, &[0.0; 6], &[0.0; 6], &foot, ContactDim::Frame)?;
-//! assert!(standing.ddq.amax() < 1e-12);
-//! assert!((standing.forces - DVector::from_row_slice(&[0.0, 0.0, 2.0 * 9.81, 0.0, 0.0, 0.0])).amax() < 1e-12);
-//! let falling = [0.0, 0.0, -1.0, 0.0, 0.0, 0.0];
-//! let (after, impulse) = algorithms::impact(&model, &mut data, &q, &falling, &foot, ContactDim::Point)?;
-//! assert!(after.amax() < 1e-12 && (impulse - DVector::from_row_slice(&[0.0, 0.0, 2.0])).amax() < 1e-12);
-//! let error = algorithms::check_contacts(&model, &[ContactPoint { body: 1, point: Vector3::zeros() }]).unwrap_err();
-//! assert_eq!(error.to_string(), "contacts: body 1 does not exist");
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
-//!
-//! Pivoting on a corner (`ContactDim::Point`) at a velocity that leaves the corner still: at the q̈ of
-//! `contact_dynamics` the corner does not accelerate (`point_accelerations`), and the dynamics reduced to independent
-//! coordinates (`reduced_dynamics`, [Hardt 2002, eq. 7]) give the same q̈.
-//!
-//! ```
-//! # use legkit_dynamics::algorithms::{self, ContactDim, ContactPoint};
-//! # use legkit_dynamics::{Data, MassProperties, Model};
-//! # use nalgebra::{DVector, Matrix3, Vector3};
-//! # let body = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity())?;
-//! # let model = Model::new(true, body, "box");
-//! # let mut data = Data::new(&model);
-//! let q = [0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 1.0];
-//! let corner = [ContactPoint { body: 0, point: Vector3::new(0.15, 0.1, -0.05) }];
-//! let (spin, pivot) = (Vector3::new(0.0, 0.5, 0.0), corner[0].point);
-//! let drift = -spin.cross(&pivot);
-//! let v = [drift.x, drift.y, drift.z, spin.x, spin.y, spin.z];
-//! let pivoting = algorithms::contact_dynamics(&model, &mut data, &q, &v, &[0.0; 6], &corner, ContactDim::Point)?;
-//! let mut corner_acceleration = [1.0; 3];
-//! let ddq = Some(pivoting.ddq.as_slice());
-//! algorithms::point_accelerations(&model, &mut data, &q, &v, ddq, &corner, ContactDim::Point, &mut corner_acceleration)?;
-//! assert!(corner_acceleration.iter().all(|a| a.abs() < 1e-12));
-//! let reduced = algorithms::reduced_dynamics(&model, &mut data, &q, &v, &[0.0; 6], &corner, None)?;
-//! assert!((reduced.ddq - &pivoting.ddq).amax() < 1e-10);
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
@@ -375,6 +323,32 @@ pub(crate) fn with_workspace<T>(data: &mut Data, kernel: impl FnOnce(&mut Data, 
 
 /// Constrained forward dynamics: [M −Jᵀ; J 0] [q̈; λ] = [τ − h; −γ], by the Schur complement
 /// (J M⁻¹ Jᵀ) λ = −γ − J M⁻¹ (τ − h).
+///
+/// # Examples
+///
+/// A 2 kg box (0.3 x 0.2 x 0.1 m on a free-flyer base; built in the hidden lines) standing on its bottom face's centre,
+/// held there as a flat foot (`ContactDim::Frame`), does not move, the contact carrying its weight, 2 × 9.81 N up, and no
+/// torque. Falling at 1 m/s onto a point foot there (`impact`), it stops dead, the impulse taking up its momentum.
+///
+/// ```
+/// # use legkit_dynamics::algorithms::{self, ContactDim, ContactPoint};
+/// # use legkit_dynamics::{Data, MassProperties, Model};
+/// # use nalgebra::{DVector, Matrix3, Vector3};
+/// # let body = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity())?;
+/// # let model = Model::new(true, body, "box");
+/// # let mut data = Data::new(&model);
+/// let q = [0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 1.0];
+/// let foot = [ContactPoint { body: 0, point: Vector3::new(0.0, 0.0, -0.05) }];
+/// let standing = algorithms::contact_dynamics(&model, &mut data, &q, &[0.0; 6], &[0.0; 6], &foot, ContactDim::Frame)?;
+/// assert!(standing.ddq.amax() < 1e-12);
+/// assert!((standing.forces - DVector::from_row_slice(&[0.0, 0.0, 2.0 * 9.81, 0.0, 0.0, 0.0])).amax() < 1e-12);
+/// let falling = [0.0, 0.0, -1.0, 0.0, 0.0, 0.0];
+/// let (after, impulse) = algorithms::impact(&model, &mut data, &q, &falling, &foot, ContactDim::Point)?;
+/// assert!(after.amax() < 1e-12 && (impulse - DVector::from_row_slice(&[0.0, 0.0, 2.0])).amax() < 1e-12);
+/// let error = algorithms::check_contacts(&model, &[ContactPoint { body: 1, point: Vector3::zeros() }]).unwrap_err();
+/// assert_eq!(error.to_string(), "contacts: body 1 does not exist");
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn contact_dynamics(
     model: &Model,
     data: &mut Data,
@@ -491,6 +465,34 @@ fn pivot_columns(j: &DMatrix<f64>) -> Vec<usize> {
 /// The reduced ODE on independent coordinates (Hardt & von Stryk eq. 7): the velocity coordinates split
 /// into dependent ones D (J_D invertible; chosen by pivoting unless `independent` is given) and independent
 /// ones I, with v_D = −J_D⁻¹ J_I v_I. Then Nᵀ M N v̇_I = Nᵀ (τ − h − M d), where d holds −J_D⁻¹ γ on D.
+///
+/// # Examples
+///
+/// Pivoting on a corner (`ContactDim::Point`) at a velocity that leaves the corner still: at the q̈ of
+/// `contact_dynamics` the corner does not accelerate (`point_accelerations`), and the dynamics reduced to independent
+/// coordinates (`reduced_dynamics`, [Hardt 2002, eq. 7]) give the same q̈.
+///
+/// ```
+/// # use legkit_dynamics::algorithms::{self, ContactDim, ContactPoint};
+/// # use legkit_dynamics::{Data, MassProperties, Model};
+/// # use nalgebra::{DVector, Matrix3, Vector3};
+/// # let body = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity())?;
+/// # let model = Model::new(true, body, "box");
+/// # let mut data = Data::new(&model);
+/// let q = [0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 1.0];
+/// let corner = [ContactPoint { body: 0, point: Vector3::new(0.15, 0.1, -0.05) }];
+/// let (spin, pivot) = (Vector3::new(0.0, 0.5, 0.0), corner[0].point);
+/// let drift = -spin.cross(&pivot);
+/// let v = [drift.x, drift.y, drift.z, spin.x, spin.y, spin.z];
+/// let pivoting = algorithms::contact_dynamics(&model, &mut data, &q, &v, &[0.0; 6], &corner, ContactDim::Point)?;
+/// let mut corner_acceleration = [1.0; 3];
+/// let ddq = Some(pivoting.ddq.as_slice());
+/// algorithms::point_accelerations(&model, &mut data, &q, &v, ddq, &corner, ContactDim::Point, &mut corner_acceleration)?;
+/// assert!(corner_acceleration.iter().all(|a| a.abs() < 1e-12));
+/// let reduced = algorithms::reduced_dynamics(&model, &mut data, &q, &v, &[0.0; 6], &corner, None)?;
+/// assert!((reduced.ddq - &pivoting.ddq).amax() < 1e-10);
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn reduced_dynamics(
     model: &Model,
     data: &mut Data,

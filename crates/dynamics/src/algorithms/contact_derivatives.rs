@@ -13,63 +13,6 @@
 //!
 //! Dense O(nv³ + r³) linear algebra for r constraint rows, in `ContactWorkspace` (`Data::contact`): nothing is
 //! allocated once it is sized, apart from the outputs of the owning variants.
-//!
-//! # Examples
-//!
-//! The box of `contact_dynamics`' examples (2 kg, 0.3 x 0.2 x 0.1 m, floating; built in the hidden lines) pivoting on a
-//! corner: whatever τ, the corner stays put, J ∂q̈/∂τ = 0 (J its linear Jacobian, world axes); ∂q̈/∂q̇ is checked against
-//! central differences; `contact_dynamics_derivatives_into` writes the same numbers into the caller's slices.
-//!
-//! ```
-//! # use legkit_dynamics::algorithms::{self, ContactDim, ContactPoint};
-//! # use legkit_dynamics::{Data, MassProperties, Model};
-//! # use nalgebra::{DVector, Matrix3, Vector3};
-//! # let body = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity())?;
-//! # let model = Model::new(true, body, "box");
-//! # let mut data = Data::new(&model);
-//! use legkit_dynamics::algorithms::Frame;
-//! let (q, v, tau, h) = ([0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 1.0], [0.025, 0.0, 0.075, 0.0, 0.5, 0.0], [0.0; 6], 1e-6);
-//! let corner = [ContactPoint { body: 0, point: Vector3::new(0.15, 0.1, -0.05) }];
-//! let d = algorithms::contact_dynamics_derivatives(&model, &mut data, &q, &v, &tau, &corner, ContactDim::Point)?;
-//! let j = algorithms::jacobian(&model, &mut data, &q, 0, &corner[0].point, Frame::LocalWorldAligned)?.fixed_rows::<3>(0).into_owned();
-//! assert!((&j * &d.ddq_dtau).amax() < 1e-12);
-//! for k in 0..6 {
-//!     let nudge = |step: f64| { let mut v = v; v[k] += step; v };
-//!     let plus = algorithms::contact_dynamics(&model, &mut data, &q, &nudge(h), &tau, &corner, ContactDim::Point)?.ddq;
-//!     let minus = algorithms::contact_dynamics(&model, &mut data, &q, &nudge(-h), &tau, &corner, ContactDim::Point)?.ddq;
-//!     assert!((d.ddq_dv.column(k) - (plus - minus) / (2.0 * h)).norm() < 1e-7);
-//! }
-//! // ∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂τ (nv x nv each) and the forces' (3 x nv each), column-major.
-//! let (mut ddq_d, mut forces_d) = (vec![0.0; 3 * 6 * 6], vec![0.0; 3 * 3 * 6]);
-//! algorithms::contact_dynamics_derivatives_into(&model, &mut data, &q, &v, &tau, &corner, ContactDim::Point, &mut ddq_d, &mut forces_d)?;
-//! assert!(ddq_d[2 * 36..] == *d.ddq_dtau.as_slice() && forces_d[2 * 18..] == *d.forces_dtau.as_slice());
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
-//!
-//! An impact on that corner leaves it still whatever the velocity before (J ∂v⁺/∂v = 0), and its derivatives carry
-//! the velocity after, as `impact` gives it:
-//!
-//! ```
-//! # use legkit_dynamics::algorithms::{self, ContactDim, ContactPoint};
-//! # use legkit_dynamics::{Data, MassProperties, Model};
-//! # use nalgebra::{DVector, Matrix3, Vector3};
-//! # let body = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity())?;
-//! # let model = Model::new(true, body, "box");
-//! # let mut data = Data::new(&model);
-//! use legkit_dynamics::algorithms::Frame;
-//! let (q, v) = ([0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 1.0], [0.3, -0.1, -1.0, 0.2, 0.5, 0.0]);
-//! let corner = [ContactPoint { body: 0, point: Vector3::new(0.15, 0.1, -0.05) }];
-//! let d = algorithms::impact_derivatives(&model, &mut data, &q, &v, &corner, ContactDim::Point)?;
-//! let j = algorithms::jacobian(&model, &mut data, &q, 0, &corner[0].point, Frame::LocalWorldAligned)?.fixed_rows::<3>(0).into_owned();
-//! assert!((&j * &d.velocity_dv).amax() < 1e-12 && (&j * &d.velocity).amax() < 1e-12);
-//! let (after, impulses) = algorithms::impact(&model, &mut data, &q, &v, &corner, ContactDim::Point)?;
-//! assert!((after - &d.velocity).amax() < 1e-12 && (impulses - &d.impulses).amax() < 1e-12);
-//! // ∂v⁺/∂q, ∂v⁺/∂v (nv x nv each) and the impulses' (3 x nv each), column-major.
-//! let (mut velocity_d, mut impulses_d) = (vec![0.0; 2 * 6 * 6], vec![0.0; 2 * 3 * 6]);
-//! algorithms::impact_derivatives_into(&model, &mut data, &q, &v, &corner, ContactDim::Point, &mut velocity_d, &mut impulses_d)?;
-//! assert!(velocity_d[36..] == *d.velocity_dv.as_slice() && impulses_d[18..] == *d.impulses_dv.as_slice());
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
@@ -217,6 +160,38 @@ fn rows(contacts: &[ContactPoint], dim: ContactDim) -> usize {
 /// `contact_dynamics` (q̈ and the contact forces at configuration `q`, velocity `v`, joint forces `tau`, the
 /// `contacts` held still) and its derivatives with respect to q, q̇ and τ. An error if M is singular or the contacts are
 /// not independent.
+///
+/// # Examples
+///
+/// The box of `contact_dynamics`' example (2 kg, 0.3 x 0.2 x 0.1 m, floating; built in the hidden lines) pivoting on a
+/// corner: whatever τ, the corner stays put, J ∂q̈/∂τ = 0 (J its linear Jacobian, world axes); ∂q̈/∂q̇ is checked against
+/// central differences; `contact_dynamics_derivatives_into` writes the same numbers into the caller's slices.
+///
+/// ```
+/// # use legkit_dynamics::algorithms::{self, ContactDim, ContactPoint};
+/// # use legkit_dynamics::{Data, MassProperties, Model};
+/// # use nalgebra::{DVector, Matrix3, Vector3};
+/// # let body = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity())?;
+/// # let model = Model::new(true, body, "box");
+/// # let mut data = Data::new(&model);
+/// use legkit_dynamics::algorithms::Frame;
+/// let (q, v, tau, h) = ([0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 1.0], [0.025, 0.0, 0.075, 0.0, 0.5, 0.0], [0.0; 6], 1e-6);
+/// let corner = [ContactPoint { body: 0, point: Vector3::new(0.15, 0.1, -0.05) }];
+/// let d = algorithms::contact_dynamics_derivatives(&model, &mut data, &q, &v, &tau, &corner, ContactDim::Point)?;
+/// let j = algorithms::jacobian(&model, &mut data, &q, 0, &corner[0].point, Frame::LocalWorldAligned)?.fixed_rows::<3>(0).into_owned();
+/// assert!((&j * &d.ddq_dtau).amax() < 1e-12);
+/// for k in 0..6 {
+///     let nudge = |step: f64| { let mut v = v; v[k] += step; v };
+///     let plus = algorithms::contact_dynamics(&model, &mut data, &q, &nudge(h), &tau, &corner, ContactDim::Point)?.ddq;
+///     let minus = algorithms::contact_dynamics(&model, &mut data, &q, &nudge(-h), &tau, &corner, ContactDim::Point)?.ddq;
+///     assert!((d.ddq_dv.column(k) - (plus - minus) / (2.0 * h)).norm() < 1e-7);
+/// }
+/// // ∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂τ (nv x nv each) and the forces' (3 x nv each), column-major.
+/// let (mut ddq_d, mut forces_d) = (vec![0.0; 3 * 6 * 6], vec![0.0; 3 * 3 * 6]);
+/// algorithms::contact_dynamics_derivatives_into(&model, &mut data, &q, &v, &tau, &corner, ContactDim::Point, &mut ddq_d, &mut forces_d)?;
+/// assert!(ddq_d[2 * 36..] == *d.ddq_dtau.as_slice() && forces_d[2 * 18..] == *d.forces_dtau.as_slice());
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn contact_dynamics_derivatives(
     model: &Model,
     data: &mut Data,
@@ -295,6 +270,33 @@ fn owned<const N: usize>(
 
 /// `impact` (the velocity after a perfectly inelastic impact at the contacts, and its impulses, at configuration `q`
 /// and velocity `v` before it) and its derivatives with respect to q and that velocity.
+///
+/// # Examples
+///
+/// An impact on the box's corner leaves it still whatever the velocity before (J ∂v⁺/∂v = 0), and its derivatives carry
+/// the velocity after, as `impact` gives it:
+///
+/// ```
+/// # use legkit_dynamics::algorithms::{self, ContactDim, ContactPoint};
+/// # use legkit_dynamics::{Data, MassProperties, Model};
+/// # use nalgebra::{DVector, Matrix3, Vector3};
+/// # let body = MassProperties::solid_box(2.0, Vector3::new(0.3, 0.2, 0.1), Vector3::zeros(), &Matrix3::identity())?;
+/// # let model = Model::new(true, body, "box");
+/// # let mut data = Data::new(&model);
+/// use legkit_dynamics::algorithms::Frame;
+/// let (q, v) = ([0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 1.0], [0.3, -0.1, -1.0, 0.2, 0.5, 0.0]);
+/// let corner = [ContactPoint { body: 0, point: Vector3::new(0.15, 0.1, -0.05) }];
+/// let d = algorithms::impact_derivatives(&model, &mut data, &q, &v, &corner, ContactDim::Point)?;
+/// let j = algorithms::jacobian(&model, &mut data, &q, 0, &corner[0].point, Frame::LocalWorldAligned)?.fixed_rows::<3>(0).into_owned();
+/// assert!((&j * &d.velocity_dv).amax() < 1e-12 && (&j * &d.velocity).amax() < 1e-12);
+/// let (after, impulses) = algorithms::impact(&model, &mut data, &q, &v, &corner, ContactDim::Point)?;
+/// assert!((after - &d.velocity).amax() < 1e-12 && (impulses - &d.impulses).amax() < 1e-12);
+/// // ∂v⁺/∂q, ∂v⁺/∂v (nv x nv each) and the impulses' (3 x nv each), column-major.
+/// let (mut velocity_d, mut impulses_d) = (vec![0.0; 2 * 6 * 6], vec![0.0; 2 * 3 * 6]);
+/// algorithms::impact_derivatives_into(&model, &mut data, &q, &v, &corner, ContactDim::Point, &mut velocity_d, &mut impulses_d)?;
+/// assert!(velocity_d[36..] == *d.velocity_dv.as_slice() && impulses_d[18..] == *d.impulses_dv.as_slice());
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn impact_derivatives(
     model: &Model,
     data: &mut Data,

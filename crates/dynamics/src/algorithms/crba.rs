@@ -3,31 +3,6 @@
 //! Worked in the world's axes about the base (`kinematics::base_centred_kinematics`), as Pinocchio works in world
 //! coordinates: composite inertias, in their 10-parameter rigid form, then add without transforms, and each entry
 //! M_ji = S_jᵀ F_i is one dot product, whatever the depth of the tree.
-//!
-//! # Examples
-//!
-//! The mass matrix of a double pendulum (two 1 kg links, 0.1 x 0.1 x 0.4 m, hinged about y; built in the hidden lines)
-//! is symmetric, ½ q̇ᵀ M q̇ is its kinetic energy, and the elbow's entry is the lower link's inertia about its own
-//! hinge, m (w² + l²)/12 + m (l/2)², in any pose.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! let q = [0.3, -0.5];
-//! let mass = algorithms::crba(&model, &mut data, &q)?.clone();
-//! assert_eq!(mass, mass.transpose());
-//! assert!((mass[(1, 1)] - ((0.1f64.powi(2) + 0.4f64.powi(2)) / 12.0 + 0.2f64.powi(2))).abs() < 1e-12);
-//! let v = DVector::from_vec(vec![1.0, 2.0]);
-//! let energy = algorithms::kinetic_energy(&model, &mut data, &q, v.as_slice())?;
-//! assert!((0.5 * v.dot(&(&mass * &v)) - energy).abs() < 1e-12);
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::DMatrix;
 
@@ -42,6 +17,31 @@ use crate::Result;
 /// The joint-space mass matrix M(q) by the composite-rigid-body algorithm [Featherstone 2008, Table 6.2].
 ///
 /// Fills `data.mass_matrix` (both triangles, each entry as it is found) and returns it. Works for any parent-before-child order.
+///
+/// # Examples
+///
+/// The mass matrix of a double pendulum (two 1 kg links, 0.1 x 0.1 x 0.4 m, hinged about y; built in the hidden lines)
+/// is symmetric, ½ q̇ᵀ M q̇ is its kinetic energy, and the elbow's entry is the lower link's inertia about its own
+/// hinge, m (w² + l²)/12 + m (l/2)², in any pose.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// let q = [0.3, -0.5];
+/// let mass = algorithms::crba(&model, &mut data, &q)?.clone();
+/// assert_eq!(mass, mass.transpose());
+/// assert!((mass[(1, 1)] - ((0.1f64.powi(2) + 0.4f64.powi(2)) / 12.0 + 0.2f64.powi(2))).abs() < 1e-12);
+/// let v = DVector::from_vec(vec![1.0, 2.0]);
+/// let energy = algorithms::kinetic_energy(&model, &mut data, &q, v.as_slice())?;
+/// assert!((0.5 * v.dot(&(&mass * &v)) - energy).abs() < 1e-12);
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d DMatrix<f64>> {
     check_state(model, data, q, &[])?;
     data.reserve_dense(model, &[Dense::MassMatrix])?;

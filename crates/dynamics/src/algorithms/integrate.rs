@@ -1,38 +1,5 @@
 //! Free dynamics (no contacts, no ground) integrated over the articulated-body algorithm: semi-implicit Euler
 //! and RK4. `free_rollout` is the trajectory of it; contact simulation is `sim::Simulation`.
-//!
-//! # Examples
-//!
-//! RK4 keeps a swinging double pendulum's energy (two 1 kg links 0.4 m long, hinged about y; built in the hidden lines)
-//! to a part in a million over a second of 1 ms steps; an `Integrator` takes the same steps one at a time.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! use legkit_dynamics::algorithms::{Integrator, Method};
-//! let (q0, v0, steps, dt) = ([1.0, -0.5], [0.0, 2.0], 1000, 1e-3);
-//! let (mut qs, mut vs) = (vec![0.0; 2 * (steps + 1)], vec![0.0; 2 * (steps + 1)]);
-//! algorithms::free_rollout(&model, &mut data, &q0, &v0, &[0.0; 2], dt, steps, Method::Rk4, &mut qs, &mut vs)?;
-//! let mut energy = |q: &[f64], v: &[f64]| -> legkit_dynamics::Result<f64> {
-//!     Ok(algorithms::kinetic_energy(&model, &mut data, q, v)? + algorithms::potential_energy(&model, &mut data, q)?)
-//! };
-//! let (start, end) = (energy(&q0, &v0)?, energy(&qs[2 * steps..], &vs[2 * steps..])?);
-//! assert!((end - start).abs() < 1e-6 * start.abs());
-//!
-//! let (mut q, mut v) = (q0, DVector::from_row_slice(&v0));
-//! let mut integrator = Integrator::new(&model, Method::Rk4);
-//! (0..steps).for_each(|_| integrator.step(&model, &mut data, &mut q, &mut v, &[0.0; 2], dt));
-//! assert!(q == qs[2 * steps..] && v.as_slice() == &vs[2 * steps..]);
-//! let error = algorithms::free_rollout(&model, &mut data, &q0, &v0, &[0.0; 2], dt, steps, Method::Rk4, &mut qs[1..], &mut vs).unwrap_err();
-//! assert_eq!(error.to_string(), "qs: expected 2002 numbers, got 2001");
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::DVector;
 
@@ -112,6 +79,39 @@ impl Integrator {
 /// `sim::Simulation`. Errors: `data` of another model, `q`, `v`, `tau`, `dt`, `qs` or `vs` invalid; `Error::Numerical`
 /// if the state stops being finite: a singular mass matrix (told apart by the factor at the last finite state) or an
 /// overflow.
+///
+/// # Examples
+///
+/// RK4 keeps a swinging double pendulum's energy (two 1 kg links 0.4 m long, hinged about y; built in the hidden lines)
+/// to a part in a million over a second of 1 ms steps; an `Integrator` takes the same steps one at a time.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// use legkit_dynamics::algorithms::{Integrator, Method};
+/// let (q0, v0, steps, dt) = ([1.0, -0.5], [0.0, 2.0], 1000, 1e-3);
+/// let (mut qs, mut vs) = (vec![0.0; 2 * (steps + 1)], vec![0.0; 2 * (steps + 1)]);
+/// algorithms::free_rollout(&model, &mut data, &q0, &v0, &[0.0; 2], dt, steps, Method::Rk4, &mut qs, &mut vs)?;
+/// let mut energy = |q: &[f64], v: &[f64]| -> legkit_dynamics::Result<f64> {
+///     Ok(algorithms::kinetic_energy(&model, &mut data, q, v)? + algorithms::potential_energy(&model, &mut data, q)?)
+/// };
+/// let (start, end) = (energy(&q0, &v0)?, energy(&qs[2 * steps..], &vs[2 * steps..])?);
+/// assert!((end - start).abs() < 1e-6 * start.abs());
+///
+/// let (mut q, mut v) = (q0, DVector::from_row_slice(&v0));
+/// let mut integrator = Integrator::new(&model, Method::Rk4);
+/// (0..steps).for_each(|_| integrator.step(&model, &mut data, &mut q, &mut v, &[0.0; 2], dt));
+/// assert!(q == qs[2 * steps..] && v.as_slice() == &vs[2 * steps..]);
+/// let error = algorithms::free_rollout(&model, &mut data, &q0, &v0, &[0.0; 2], dt, steps, Method::Rk4, &mut qs[1..], &mut vs).unwrap_err();
+/// assert_eq!(error.to_string(), "qs: expected 2002 numbers, got 2001");
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 #[allow(clippy::too_many_arguments)]
 pub fn free_rollout(
     model: &Model,

@@ -1,29 +1,4 @@
 //! Jacobians of frames attached to bodies, in Pinocchio's three conventions.
-//!
-//! # Examples
-//!
-//! The tip of a double pendulum (links 0.4 m long, hinged about y, hanging along −z at q = 0; built in the hidden
-//! lines), 0.8 m below the shoulder: in `Frame::LocalWorldAligned` (the point's own velocity, world axes) the shoulder
-//! moves it along −x at 0.8 m/s per rad/s, the elbow at 0.4, and both turn it about y.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! use legkit_dynamics::algorithms::Frame;
-//! let tip = Vector3::new(0.0, 0.0, -0.4);
-//! let j = algorithms::jacobian(&model, &mut data, &[0.0, 0.0], 2, &tip, Frame::LocalWorldAligned)?;
-//! assert!((j.column(0) - Vector6::new(-0.8, 0.0, 0.0, 0.0, 1.0, 0.0)).norm() < 1e-12);
-//! assert!((j.column(1) - Vector6::new(-0.4, 0.0, 0.0, 0.0, 1.0, 0.0)).norm() < 1e-12);
-//! let error = algorithms::jacobian(&model, &mut data, &[0.0, 0.0], 3, &tip, Frame::World).unwrap_err();
-//! assert_eq!(error.to_string(), "body: body 3 does not exist (the model has 3 bodies)");
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::{Matrix6xX, Vector3};
 
@@ -47,6 +22,31 @@ pub enum Frame {
 
 /// The 6 x nv Jacobian (rows `[linear; angular]`) of the frame at `point` (body coordinates) on `body`.
 /// Runs forward kinematics; writes and returns `data.jacobian`.
+///
+/// # Examples
+///
+/// The tip of a double pendulum (links 0.4 m long, hinged about y, hanging along −z at q = 0; built in the hidden
+/// lines), 0.8 m below the shoulder: in `Frame::LocalWorldAligned` (the point's own velocity, world axes) the shoulder
+/// moves it along −x at 0.8 m/s per rad/s, the elbow at 0.4, and both turn it about y.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// use legkit_dynamics::algorithms::Frame;
+/// let tip = Vector3::new(0.0, 0.0, -0.4);
+/// let j = algorithms::jacobian(&model, &mut data, &[0.0, 0.0], 2, &tip, Frame::LocalWorldAligned)?;
+/// assert!((j.column(0) - Vector6::new(-0.8, 0.0, 0.0, 0.0, 1.0, 0.0)).norm() < 1e-12);
+/// assert!((j.column(1) - Vector6::new(-0.4, 0.0, 0.0, 0.0, 1.0, 0.0)).norm() < 1e-12);
+/// let error = algorithms::jacobian(&model, &mut data, &[0.0, 0.0], 3, &tip, Frame::World).unwrap_err();
+/// assert_eq!(error.to_string(), "body: body 3 does not exist (the model has 3 bodies)");
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn jacobian<'d>(model: &Model, data: &'d mut Data, q: &[f64], body: usize, point: &Vector3<f64>, frame: Frame) -> Result<&'d Matrix6xX<f64>> {
     check_state(model, data, q, &[])?;
     check_frame(model, body, point)?;

@@ -5,73 +5,6 @@
 //! coordinate d of an ancestor (or of the same multi-DoF joint, whose coordinates perturb it on the right)
 //! turns it as ∂S_a/∂q_d = S_d × S_a (Carpentier & Mansard, RSS 2018, eq. 7); joints after it leave it unchanged.
 //! A point's linear column S_a,lin + ω_a × p also changes as the point moves: ω_a × J_lin,d.
-//!
-//! # Examples
-//!
-//! The kinematic Hessian is the Jacobian's slope along q, entry `[r, a, d]` of `out` (6 x nv x nv, row-major) being
-//! ∂J_ra/∂q_d: checked here against central differences of `jacobian` at the tip of a double pendulum (links 0.4 m
-//! long, hinged about y; built in the hidden lines).
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
-//! use legkit_dynamics::algorithms::Frame;
-//! let (q, tip, nv, h) = ([0.3, -0.5], Vector3::new(0.0, 0.0, -0.4), 2, 1e-6);
-//! let mut hessian = vec![0.0; 6 * nv * nv];
-//! algorithms::kinematic_hessian(&model, &mut data, &q, 2, &tip, Frame::World, &mut hessian)?;
-//! for d in 0..nv {
-//!     let plus = algorithms::jacobian(&model, &mut data, &nudge(q, d, h), 2, &tip, Frame::World)?.clone();
-//!     let slope = (plus - algorithms::jacobian(&model, &mut data, &nudge(q, d, -h), 2, &tip, Frame::World)?) / (2.0 * h);
-//!     for (r, a) in (0..6).flat_map(|r| (0..nv).map(move |a| (r, a))) {
-//!         assert!((hessian[(r * nv + a) * nv + d] - slope[(r, a)]).abs() < 1e-8);
-//!     }
-//! }
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
-//!
-//! `point_velocity_hessian` and `point_acceleration_hessian` differentiate twice a weighted velocity F · v_p and
-//! acceleration F · a_p of a point (world axes); their q-gradients, checked here against central differences of
-//! J_lin q̇ and of `point_accelerations` at the pendulum's tip:
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
-//! use legkit_dynamics::algorithms::{ContactDim, ContactPoint, Frame};
-//! let (q, v, a, nv, h) = ([0.3, -0.5], [1.0, 2.0], [-3.0, 0.5], 2, 1e-6);
-//! let (tip, weights) = (Vector3::new(0.0, 0.0, -0.4), Vector3::new(1.0, -2.0, 0.5));
-//! let (mut velocity_hessian, mut velocity_gradient) = (vec![0.0; nv * nv], vec![0.0; nv]);
-//! algorithms::point_velocity_hessian(&model, &mut data, &q, &v, 2, &tip, &weights, &mut velocity_hessian, &mut velocity_gradient)?;
-//! // qq, qv, vv and qa Hessians (nv x nv each), then the q-gradient.
-//! let mut acceleration_hessians = vec![0.0; 4 * nv * nv + nv];
-//! algorithms::point_acceleration_hessian(&model, &mut data, &q, &v, &a, 2, &tip, &weights, &mut acceleration_hessians)?;
-//! let mut weighted = |q: &[f64]| -> legkit_dynamics::Result<(f64, f64)> {
-//!     let j = algorithms::jacobian(&model, &mut data, q, 2, &tip, Frame::LocalWorldAligned)?;
-//!     let velocity = weights.dot(&(j.fixed_rows::<3>(0) * DVector::from_row_slice(&v)));
-//!     let mut acceleration = [0.0; 3];
-//!     algorithms::point_accelerations(&model, &mut data, q, &v, Some(&a), &[ContactPoint { body: 2, point: tip }], ContactDim::Point, &mut acceleration)?;
-//!     Ok((velocity, weights.dot(&Vector3::from(acceleration))))
-//! };
-//! for d in 0..nv {
-//!     let ((velocity_plus, acceleration_plus), (velocity_minus, acceleration_minus)) = (weighted(&nudge(q, d, h))?, weighted(&nudge(q, d, -h))?);
-//!     assert!((velocity_gradient[d] - (velocity_plus - velocity_minus) / (2.0 * h)).abs() < 1e-8);
-//!     assert!((acceleration_hessians[4 * nv * nv + d] - (acceleration_plus - acceleration_minus) / (2.0 * h)).abs() < 1e-8);
-//! }
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::{Matrix6xX, Vector3};
 
@@ -87,6 +20,36 @@ use crate::{Error, Result};
 /// `out` (6 x nv x nv, row-major, entry `[r, a, d]`): the slope along q_d (q on its tangent space, as
 /// `rnea_derivatives`) of entry `[r, a]` of the Jacobian `jacobian(model, data, q, body, point, frame)` returns, for
 /// `frame` `World` or `LocalWorldAligned` (`Local` is not covered). Runs `jacobian`; zero outside the body's support.
+///
+/// # Examples
+///
+/// The kinematic Hessian is the Jacobian's slope along q, entry `[r, a, d]` of `out` (6 x nv x nv, row-major) being
+/// ∂J_ra/∂q_d: checked here against central differences of `jacobian` at the tip of a double pendulum (links 0.4 m
+/// long, hinged about y; built in the hidden lines).
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
+/// use legkit_dynamics::algorithms::Frame;
+/// let (q, tip, nv, h) = ([0.3, -0.5], Vector3::new(0.0, 0.0, -0.4), 2, 1e-6);
+/// let mut hessian = vec![0.0; 6 * nv * nv];
+/// algorithms::kinematic_hessian(&model, &mut data, &q, 2, &tip, Frame::World, &mut hessian)?;
+/// for d in 0..nv {
+///     let plus = algorithms::jacobian(&model, &mut data, &nudge(q, d, h), 2, &tip, Frame::World)?.clone();
+///     let slope = (plus - algorithms::jacobian(&model, &mut data, &nudge(q, d, -h), 2, &tip, Frame::World)?) / (2.0 * h);
+///     for (r, a) in (0..6).flat_map(|r| (0..nv).map(move |a| (r, a))) {
+///         assert!((hessian[(r * nv + a) * nv + d] - slope[(r, a)]).abs() < 1e-8);
+///     }
+/// }
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn kinematic_hessian(model: &Model, data: &mut Data, q: &[f64], body: usize, point: &Vector3<f64>, frame: Frame, out: &mut [f64]) -> Result<()> {
     check_state(model, data, q, &[])?;
     check_frame(model, body, point)?;
@@ -134,6 +97,46 @@ fn add(out: &mut [f64], nv: usize, a: usize, d: usize, m: &Motion) {
 /// the derivative of the world velocity V is D_e V = S_e × W_e, and with J_e the point's linear column and m the later
 /// of d and e: D_d(S_e × W_e) = [d ≼ e] (S_d × S_e) × W_e + S_e × (S_d × W_m). Runs `jacobian`; W goes to
 /// `data.derivatives.velocity_after`.
+///
+/// # Examples
+///
+/// `point_velocity_hessian` and `point_acceleration_hessian` differentiate twice a weighted velocity F · v_p and
+/// acceleration F · a_p of a point (world axes); their q-gradients, checked here against central differences of
+/// J_lin q̇ and of `point_accelerations` at the tip of `kinematic_hessian`'s double pendulum (built in the hidden
+/// lines):
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
+/// use legkit_dynamics::algorithms::{ContactDim, ContactPoint, Frame};
+/// let (q, v, a, nv, h) = ([0.3, -0.5], [1.0, 2.0], [-3.0, 0.5], 2, 1e-6);
+/// let (tip, weights) = (Vector3::new(0.0, 0.0, -0.4), Vector3::new(1.0, -2.0, 0.5));
+/// let (mut velocity_hessian, mut velocity_gradient) = (vec![0.0; nv * nv], vec![0.0; nv]);
+/// algorithms::point_velocity_hessian(&model, &mut data, &q, &v, 2, &tip, &weights, &mut velocity_hessian, &mut velocity_gradient)?;
+/// // qq, qv, vv and qa Hessians (nv x nv each), then the q-gradient.
+/// let mut acceleration_hessians = vec![0.0; 4 * nv * nv + nv];
+/// algorithms::point_acceleration_hessian(&model, &mut data, &q, &v, &a, 2, &tip, &weights, &mut acceleration_hessians)?;
+/// let mut weighted = |q: &[f64]| -> legkit_dynamics::Result<(f64, f64)> {
+///     let j = algorithms::jacobian(&model, &mut data, q, 2, &tip, Frame::LocalWorldAligned)?;
+///     let velocity = weights.dot(&(j.fixed_rows::<3>(0) * DVector::from_row_slice(&v)));
+///     let mut acceleration = [0.0; 3];
+///     algorithms::point_accelerations(&model, &mut data, q, &v, Some(&a), &[ContactPoint { body: 2, point: tip }], ContactDim::Point, &mut acceleration)?;
+///     Ok((velocity, weights.dot(&Vector3::from(acceleration))))
+/// };
+/// for d in 0..nv {
+///     let ((velocity_plus, acceleration_plus), (velocity_minus, acceleration_minus)) = (weighted(&nudge(q, d, h))?, weighted(&nudge(q, d, -h))?);
+///     assert!((velocity_gradient[d] - (velocity_plus - velocity_minus) / (2.0 * h)).abs() < 1e-8);
+///     assert!((acceleration_hessians[4 * nv * nv + d] - (acceleration_plus - acceleration_minus) / (2.0 * h)).abs() < 1e-8);
+/// }
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 #[allow(clippy::too_many_arguments)]
 pub fn point_velocity_hessian(
     model: &Model,

@@ -1,29 +1,4 @@
 //! Forward kinematics: the pose of every body in the world.
-//!
-//! # Examples
-//!
-//! A double pendulum (links 0.4 m long, hinged about y, hanging along −z at q = 0; built in the hidden lines): the
-//! elbow, the lower link's origin, is 0.4 m from the shoulder along the upper link, and the lower link is turned by
-//! both angles.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! let q: [f64; 2] = [0.3, -0.8];
-//! algorithms::forward_kinematics(&model, &mut data, &q)?;
-//! let lower = data.o_m_i[2];
-//! assert!((lower.translation - Vector3::new(-0.4 * q[0].sin(), 0.0, -0.4 * q[0].cos())).norm() < 1e-12);
-//! assert!((lower.rotation - Transform::rotation_about(&Vector3::y(), q[0] + q[1])).amax() < 1e-12);
-//! let error = algorithms::forward_kinematics(&model, &mut data, &[0.3, f64::NAN]).unwrap_err();
-//! assert_eq!(error.to_string(), "q: element 1 is not finite (NaN)");
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::Vector3;
 
@@ -34,6 +9,31 @@ use crate::spatial::{cross_motion, Motion, Transform};
 use crate::Result;
 
 /// Writes each body's pose in the world to `data.o_m_i`.
+///
+/// # Examples
+///
+/// A double pendulum (links 0.4 m long, hinged about y, hanging along −z at q = 0; built in the hidden lines): the
+/// elbow, the lower link's origin, is 0.4 m from the shoulder along the upper link, and the lower link is turned by
+/// both angles.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// let q: [f64; 2] = [0.3, -0.8];
+/// algorithms::forward_kinematics(&model, &mut data, &q)?;
+/// let lower = data.o_m_i[2];
+/// assert!((lower.translation - Vector3::new(-0.4 * q[0].sin(), 0.0, -0.4 * q[0].cos())).norm() < 1e-12);
+/// assert!((lower.rotation - Transform::rotation_about(&Vector3::y(), q[0] + q[1])).amax() < 1e-12);
+/// let error = algorithms::forward_kinematics(&model, &mut data, &[0.3, f64::NAN]).unwrap_err();
+/// assert_eq!(error.to_string(), "q: element 1 is not finite (NaN)");
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) -> Result<()> {
     check_state(model, data, q, &[])?;
     forward_kinematics_unchecked(model, data, q);

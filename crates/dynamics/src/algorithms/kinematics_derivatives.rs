@@ -10,70 +10,6 @@
 //! `frame_velocity` and `frame_acceleration` return. Pinocchio's `LOCAL_WORLD_ALIGNED` q-derivatives differ from
 //! these in the linear rows, by ω × J_lin for the velocity and α × J_lin for the acceleration: they hold the frame's
 //! origin still.
-//!
-//! # Examples
-//!
-//! The velocity of a double pendulum's tip (links 0.4 m long, hinged about y; built in the hidden lines) is J q̇; its
-//! derivatives are the Jacobian (by q̇) and, checked here against central differences of `frame_velocity`, its slope
-//! along q.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
-//! use legkit_dynamics::algorithms::Frame;
-//! let (q, v, tip, frame, h) = ([0.3, -0.5], [1.0, 2.0], Vector3::new(0.0, 0.0, -0.4), Frame::LocalWorldAligned, 1e-6);
-//! let velocity = algorithms::frame_velocity(&model, &mut data, &q, &v, 2, &tip, frame)?;
-//! let j = algorithms::jacobian(&model, &mut data, &q, 2, &tip, frame)?.clone();
-//! assert!((velocity - &j * DVector::from_row_slice(&v)).norm() < 1e-12);
-//! let (dq, dv) = algorithms::frame_velocity_derivatives(&model, &mut data, &q, &v, 2, &tip, frame)?;
-//! let (dq, dv) = (dq.clone(), dv.clone());
-//! assert!((dv - &j).amax() < 1e-12);
-//! for k in 0..2 {
-//!     let plus = algorithms::frame_velocity(&model, &mut data, &nudge(q, k, h), &v, 2, &tip, frame)?;
-//!     let minus = algorithms::frame_velocity(&model, &mut data, &nudge(q, k, -h), &v, 2, &tip, frame)?;
-//!     assert!((dq.column(k) - (plus - minus) / (2.0 * h)).norm() < 1e-8);
-//! }
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
-//!
-//! In world axes about the world's origin (`Frame::World`) a frame's spatial acceleration is d/dt (J q̇) = J q̈ + J̇ q̇,
-//! J̇ from `jacobian_time_variation`. Of the acceleration's derivatives (`frame_acceleration_derivatives`), the one by
-//! q̈ is J, and the one by q̇ is checked here against central differences.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
-//! use legkit_dynamics::algorithms::Frame;
-//! let (q, v, a, tip, h) = ([0.3, -0.5], [1.0, 2.0], [-3.0, 0.5], Vector3::new(0.0, 0.0, -0.4), 1e-6);
-//! let acceleration = algorithms::frame_acceleration(&model, &mut data, &q, &v, &a, 2, &tip, Frame::World)?;
-//! let j = algorithms::jacobian(&model, &mut data, &q, 2, &tip, Frame::World)?.clone();
-//! let j_rate = algorithms::jacobian_time_variation(&model, &mut data, &q, &v, 2, &tip, Frame::World)?.clone();
-//! let (velocity, accelerations) = (DVector::from_row_slice(&v), DVector::from_row_slice(&a));
-//! assert!((acceleration - (&j * accelerations + j_rate * velocity)).norm() < 1e-12);
-//! let (_, _, by_v, by_a) = algorithms::frame_acceleration_derivatives(&model, &mut data, &q, &v, &a, 2, &tip, Frame::World)?;
-//! let (by_v, by_a) = (by_v.clone(), by_a.clone());
-//! assert!((by_a - &j).amax() < 1e-12);
-//! for k in 0..2 {
-//!     let plus = algorithms::frame_acceleration(&model, &mut data, &q, &nudge(v, k, h), &a, 2, &tip, Frame::World)?;
-//!     let minus = algorithms::frame_acceleration(&model, &mut data, &q, &nudge(v, k, -h), &a, 2, &tip, Frame::World)?;
-//!     assert!((by_v.column(k) - (plus - minus) / (2.0 * h)).norm() < 1e-8);
-//! }
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::{Matrix6xX, Vector3};
 
@@ -218,6 +154,38 @@ pub fn frame_acceleration(
 
 /// ∂v/∂q and ∂v/∂q̇ (6 x nv each; the second is the frame's Jacobian) of `frame_velocity`. Writes
 /// `data.derivatives.frame_velocity_dq` and `frame_velocity_dv` and returns them.
+///
+/// # Examples
+///
+/// The velocity of a double pendulum's tip (links 0.4 m long, hinged about y; built in the hidden lines) is J q̇; its
+/// derivatives are the Jacobian (by q̇) and, checked here against central differences of `frame_velocity`, its slope
+/// along q.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
+/// use legkit_dynamics::algorithms::Frame;
+/// let (q, v, tip, frame, h) = ([0.3, -0.5], [1.0, 2.0], Vector3::new(0.0, 0.0, -0.4), Frame::LocalWorldAligned, 1e-6);
+/// let velocity = algorithms::frame_velocity(&model, &mut data, &q, &v, 2, &tip, frame)?;
+/// let j = algorithms::jacobian(&model, &mut data, &q, 2, &tip, frame)?.clone();
+/// assert!((velocity - &j * DVector::from_row_slice(&v)).norm() < 1e-12);
+/// let (dq, dv) = algorithms::frame_velocity_derivatives(&model, &mut data, &q, &v, 2, &tip, frame)?;
+/// let (dq, dv) = (dq.clone(), dv.clone());
+/// assert!((dv - &j).amax() < 1e-12);
+/// for k in 0..2 {
+///     let plus = algorithms::frame_velocity(&model, &mut data, &nudge(q, k, h), &v, 2, &tip, frame)?;
+///     let minus = algorithms::frame_velocity(&model, &mut data, &nudge(q, k, -h), &v, 2, &tip, frame)?;
+///     assert!((dq.column(k) - (plus - minus) / (2.0 * h)).norm() < 1e-8);
+/// }
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn frame_velocity_derivatives<'d>(
     model: &Model,
     data: &'d mut Data,
@@ -247,6 +215,40 @@ pub fn frame_velocity_derivatives<'d>(
 /// ∂v/∂q, ∂a/∂q, ∂a/∂q̇ and ∂a/∂q̈ (6 x nv each; the last is the frame's Jacobian) of `frame_velocity` and
 /// `frame_acceleration`. Writes them to `data.derivatives` (`frame_velocity_dq`, `frame_acceleration_dq`, `_dv`,
 /// `_da`) and returns them.
+///
+/// # Examples
+///
+/// In world axes about the world's origin (`Frame::World`) a frame's spatial acceleration is d/dt (J q̇) = J q̈ + J̇ q̇,
+/// J̇ from `jacobian_time_variation`. Of the acceleration's derivatives (`frame_acceleration_derivatives`), the one by
+/// q̈ is J, and the one by q̇ is checked here against central differences.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
+/// use legkit_dynamics::algorithms::Frame;
+/// let (q, v, a, tip, h) = ([0.3, -0.5], [1.0, 2.0], [-3.0, 0.5], Vector3::new(0.0, 0.0, -0.4), 1e-6);
+/// let acceleration = algorithms::frame_acceleration(&model, &mut data, &q, &v, &a, 2, &tip, Frame::World)?;
+/// let j = algorithms::jacobian(&model, &mut data, &q, 2, &tip, Frame::World)?.clone();
+/// let j_rate = algorithms::jacobian_time_variation(&model, &mut data, &q, &v, 2, &tip, Frame::World)?.clone();
+/// let (velocity, accelerations) = (DVector::from_row_slice(&v), DVector::from_row_slice(&a));
+/// assert!((acceleration - (&j * accelerations + j_rate * velocity)).norm() < 1e-12);
+/// let (_, _, by_v, by_a) = algorithms::frame_acceleration_derivatives(&model, &mut data, &q, &v, &a, 2, &tip, Frame::World)?;
+/// let (by_v, by_a) = (by_v.clone(), by_a.clone());
+/// assert!((by_a - &j).amax() < 1e-12);
+/// for k in 0..2 {
+///     let plus = algorithms::frame_acceleration(&model, &mut data, &q, &nudge(v, k, h), &a, 2, &tip, Frame::World)?;
+///     let minus = algorithms::frame_acceleration(&model, &mut data, &q, &nudge(v, k, -h), &a, 2, &tip, Frame::World)?;
+///     assert!((by_v.column(k) - (plus - minus) / (2.0 * h)).norm() < 1e-8);
+/// }
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 #[allow(clippy::too_many_arguments)]
 pub fn frame_acceleration_derivatives<'d>(
     model: &Model,

@@ -74,6 +74,32 @@ use crate::spatial::{spatial, Motion, Transform};
 /// 2018], without forming or factorising M: written to `data.minv` and returned. Errors: `data` of another model, `q`
 /// not a configuration of the model; `Error::Numerical` for a singular mass matrix, `Error::TooLarge` for an nv x nv
 /// matrix that cannot be allocated. (Checked here rather than in `minv.rs`, whose kernel is being tuned apart.)
+///
+/// # Examples
+///
+/// On a double pendulum (two 1 kg links 0.4 m long, hinged about y; built in the hidden lines): M⁻¹ M = I, M from
+/// `crba`. A link without mass makes M singular, an error rather than infinities.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// let q = [0.3, -0.5];
+/// let mass = algorithms::crba(&model, &mut data, &q)?.clone();
+/// let inverse = algorithms::minv(&model, &mut data, &q)?;
+/// assert!((inverse * mass - DMatrix::identity(2, 2)).amax() < 1e-12);
+///
+/// let mut massless = Model::new(false, MassProperties::zero(), "base");
+/// massless.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), MassProperties::zero(), "link", JointLimits::NONE)?;
+/// let error = algorithms::minv(&massless, &mut Data::new(&massless), &[0.0]).unwrap_err();
+/// assert!(error.to_string().starts_with("model: the mass matrix is singular"));
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn minv<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d DMatrix<f64>> {
     check_state(model, data, q, &[])?;
     data.reserve_dense(model, &[Dense::Inverse])?;

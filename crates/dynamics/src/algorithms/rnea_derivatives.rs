@@ -7,37 +7,6 @@
 //! joint torques Sᵀ f unchanged), and the velocities and accelerations it sees change by ∂v/∂q = v_λ × S_j and
 //! ∂a/∂q = a_λ × S_j + v_λ × ∂v/∂q. Each body's force then changes by I ∂a + B ∂v (`RigidInertia::rate_matrix`),
 //! summed over subtrees as composite I and B. O(n d) for n bodies of depth d; allocates nothing once sized.
-//!
-//! # Examples
-//!
-//! ∂τ/∂q and ∂τ/∂q̇ of a double pendulum (two 1 kg links 0.4 m long, hinged about y; built in the hidden lines) against
-//! central differences of `rnea`; `rnea_derivatives_into` writes the same numbers into the caller's slices.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
-//! let (q, v, a, h) = ([0.3, -0.5], [1.0, 2.0], [-3.0, 0.5], 1e-6);
-//! let (dtau_dq, dtau_dv) = algorithms::rnea_derivatives(&model, &mut data, &q, &v, &a, None)?;
-//! let (dtau_dq, dtau_dv) = (dtau_dq.clone(), dtau_dv.clone());
-//! for k in 0..2 {
-//!     let plus = algorithms::rnea(&model, &mut data, &nudge(q, k, h), &v, &a, None)?.clone();
-//!     let by_q = (plus - algorithms::rnea(&model, &mut data, &nudge(q, k, -h), &v, &a, None)?) / (2.0 * h);
-//!     let plus = algorithms::rnea(&model, &mut data, &q, &nudge(v, k, h), &a, None)?.clone();
-//!     let by_v = (plus - algorithms::rnea(&model, &mut data, &q, &nudge(v, k, -h), &a, None)?) / (2.0 * h);
-//!     assert!((dtau_dq.column(k) - by_q).norm() < 1e-8 && (dtau_dv.column(k) - by_v).norm() < 1e-8);
-//! }
-//! let (mut into_q, mut into_v) = ([0.0; 4], [0.0; 4]);
-//! algorithms::rnea_derivatives_into(&model, &mut data, &q, &v, &a, None, &mut into_q, &mut into_v)?;
-//! assert!(into_q == dtau_dq.as_slice() && into_v == dtau_dv.as_slice());
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::{DMatrix, Matrix6xX, Vector6};
 
@@ -62,6 +31,37 @@ pub(crate) fn set_column(m: &mut Matrix6xX<f64>, c: usize, x: &Vector6<f64>) {
 
 /// ∂τ/∂q and ∂τ/∂q̇ (nv x nv) at configuration `q`, velocity `v` and acceleration `a`, with `f_ext` as in `rnea`
 /// (forces fixed in their bodies' frames). Writes `data.derivatives.dtau_dq` and `dtau_dv` and returns them.
+///
+/// # Examples
+///
+/// ∂τ/∂q and ∂τ/∂q̇ of a double pendulum (two 1 kg links 0.4 m long, hinged about y; built in the hidden lines) against
+/// central differences of `rnea`; `rnea_derivatives_into` writes the same numbers into the caller's slices.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
+/// let (q, v, a, h) = ([0.3, -0.5], [1.0, 2.0], [-3.0, 0.5], 1e-6);
+/// let (dtau_dq, dtau_dv) = algorithms::rnea_derivatives(&model, &mut data, &q, &v, &a, None)?;
+/// let (dtau_dq, dtau_dv) = (dtau_dq.clone(), dtau_dv.clone());
+/// for k in 0..2 {
+///     let plus = algorithms::rnea(&model, &mut data, &nudge(q, k, h), &v, &a, None)?.clone();
+///     let by_q = (plus - algorithms::rnea(&model, &mut data, &nudge(q, k, -h), &v, &a, None)?) / (2.0 * h);
+///     let plus = algorithms::rnea(&model, &mut data, &q, &nudge(v, k, h), &a, None)?.clone();
+///     let by_v = (plus - algorithms::rnea(&model, &mut data, &q, &nudge(v, k, -h), &a, None)?) / (2.0 * h);
+///     assert!((dtau_dq.column(k) - by_q).norm() < 1e-8 && (dtau_dv.column(k) - by_v).norm() < 1e-8);
+/// }
+/// let (mut into_q, mut into_v) = ([0.0; 4], [0.0; 4]);
+/// algorithms::rnea_derivatives_into(&model, &mut data, &q, &v, &a, None, &mut into_q, &mut into_v)?;
+/// assert!(into_q == dtau_dq.as_slice() && into_v == dtau_dv.as_slice());
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn rnea_derivatives<'d>(
     model: &Model,
     data: &'d mut Data,

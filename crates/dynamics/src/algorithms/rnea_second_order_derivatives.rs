@@ -7,37 +7,6 @@
 //! matrix B (`RigidInertia::rate_matrix`) and net force f. The backward pass sums I, B and f over subtrees and, for
 //! each coordinate p of body i, each coordinate j on i's support and each k on j's, writes the tensor entries that
 //! involve (p, j, k) (the paper's Algorithm 2, in Pinocchio's order). Everything is in the centred frame.
-//!
-//! # Examples
-//!
-//! On a double pendulum (two 1 kg links 0.4 m long, hinged about y; built in the hidden lines), against central
-//! differences: ∂M/∂q (`dadq`, entry (i, j, k) = ∂M_ij/∂q_k at (i nv + j) nv + k) of `crba`'s M, and ∂²τ/∂q̇² (`dvdv`)
-//! of `rnea_derivatives`' ∂τ/∂q̇.
-//!
-//! ```
-//! # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
-//! # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
-//! # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
-//! # let mut model = Model::new(false, MassProperties::zero(), "base");
-//! # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
-//! # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
-//! # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
-//! # let mut data = Data::new(&model);
-//! # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
-//! let (q, v, a, nv, h) = ([0.3, -0.5], [1.0, 2.0], [-3.0, 0.5], 2, 1e-6);
-//! let second = algorithms::rnea_second_order_derivatives(&model, &mut data, &q, &v, &a)?.clone();
-//! for k in 0..nv {
-//!     let plus = algorithms::crba(&model, &mut data, &nudge(q, k, h))?.clone();
-//!     let by_q = (plus - algorithms::crba(&model, &mut data, &nudge(q, k, -h))?) / (2.0 * h);
-//!     let plus = algorithms::rnea_derivatives(&model, &mut data, &q, &nudge(v, k, h), &a, None)?.1.clone();
-//!     let by_v = (plus - algorithms::rnea_derivatives(&model, &mut data, &q, &nudge(v, k, -h), &a, None)?.1) / (2.0 * h);
-//!     for (i, j) in (0..nv).flat_map(|i| (0..nv).map(move |j| (i, j))) {
-//!         assert!((second.dadq[(i * nv + j) * nv + k] - by_q[(i, j)]).abs() < 1e-8);
-//!         assert!((second.dvdv[(i * nv + j) * nv + k] - by_v[(i, j)]).abs() < 1e-8);
-//!     }
-//! }
-//! # Ok::<(), legkit_dynamics::Error>(())
-//! ```
 
 use nalgebra::{Matrix6, Vector6};
 
@@ -82,6 +51,37 @@ fn coordinates(model: &Model, i: usize) -> std::ops::Range<usize> {
 
 /// Fills `data.derivatives.second_order` with the second derivatives of `rnea(q, v, a)` (no external forces) and
 /// returns them.
+///
+/// # Examples
+///
+/// On a double pendulum (two 1 kg links 0.4 m long, hinged about y; built in the hidden lines), against central
+/// differences: ∂M/∂q (`dadq`, entry (i, j, k) = ∂M_ij/∂q_k at (i nv + j) nv + k) of `crba`'s M, and ∂²τ/∂q̇² (`dvdv`)
+/// of `rnea_derivatives`' ∂τ/∂q̇.
+///
+/// ```
+/// # use legkit_dynamics::{algorithms, Data, Joint, JointLimits, MassProperties, Model, Transform};
+/// # use nalgebra::{DMatrix, DVector, Matrix3, Vector3, Vector6};
+/// # let link = MassProperties::solid_box(1.0, Vector3::new(0.1, 0.1, 0.4), Vector3::new(0.0, 0.0, -0.2), &Matrix3::identity())?;
+/// # let mut model = Model::new(false, MassProperties::zero(), "base");
+/// # model.add_body(0, Joint::Revolute(Vector3::y()), Transform::identity(), link, "upper", JointLimits::NONE)?;
+/// # let elbow = Transform::from_translation(Vector3::new(0.0, 0.0, -0.4));
+/// # model.add_body(1, Joint::Revolute(Vector3::y()), elbow, link, "lower", JointLimits::NONE)?;
+/// # let mut data = Data::new(&model);
+/// # let nudge = |x: [f64; 2], k: usize, step: f64| { let mut x = x; x[k] += step; x };
+/// let (q, v, a, nv, h) = ([0.3, -0.5], [1.0, 2.0], [-3.0, 0.5], 2, 1e-6);
+/// let second = algorithms::rnea_second_order_derivatives(&model, &mut data, &q, &v, &a)?.clone();
+/// for k in 0..nv {
+///     let plus = algorithms::crba(&model, &mut data, &nudge(q, k, h))?.clone();
+///     let by_q = (plus - algorithms::crba(&model, &mut data, &nudge(q, k, -h))?) / (2.0 * h);
+///     let plus = algorithms::rnea_derivatives(&model, &mut data, &q, &nudge(v, k, h), &a, None)?.1.clone();
+///     let by_v = (plus - algorithms::rnea_derivatives(&model, &mut data, &q, &nudge(v, k, -h), &a, None)?.1) / (2.0 * h);
+///     for (i, j) in (0..nv).flat_map(|i| (0..nv).map(move |j| (i, j))) {
+///         assert!((second.dadq[(i * nv + j) * nv + k] - by_q[(i, j)]).abs() < 1e-8);
+///         assert!((second.dvdv[(i * nv + j) * nv + k] - by_v[(i, j)]).abs() < 1e-8);
+///     }
+/// }
+/// # Ok::<(), legkit_dynamics::Error>(())
+/// ```
 pub fn rnea_second_order_derivatives<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<&'d SecondOrder> {
     check_state(model, data, q, &[("v", v), ("a", a)])?;
     data.reserve_dense(model, &[Dense::SecondOrder])?;
