@@ -185,9 +185,7 @@ fn stacked(a: &DVector<f64>, b: &DVector<f64>) -> DVector<f64> {
 /// each `ContactDim` (`Frame` needs six coordinates per contact: on fewer trees); it returns false for dependent
 /// contacts, which the derivatives refuse, and most are independent.
 fn for_contact_cases(
-    seed: u64,
-    dim: ContactDim,
-    mut check: impl FnMut(&mut StdRng, usize, &Model, &mut Data, &[f64], &[f64], &[ContactPoint]) -> bool,
+    seed: u64, dim: ContactDim, mut check: impl FnMut(&mut StdRng, usize, &Model, &mut Data, &[f64], &[f64], &[ContactPoint]) -> bool,
 ) {
     let mut rng = StdRng::seed_from_u64(seed);
     let mut checked = 0;

@@ -47,23 +47,9 @@ impl PyBalanceKernel {
     #[new]
     #[allow(clippy::too_many_arguments)]
     fn new(
-        partner_link: Vec<i64>,
-        mate: Floats<'_>,
-        part_moments: Floats<'_>,
-        connector_rotation: Floats<'_>,
-        connector_position: Floats<'_>,
-        joint_axes: [usize; 3],
-        joint_z: [f64; 3],
-        ground_module: Vec<i64>,
-        ground_block: Vec<i64>,
-        ground_pose: Floats<'_>,
-        ground_line: Floats<'_>,
-        ground_priority: Vec<f64>,
-        angles: Floats<'_>,
-        scheme: Vec<i64>,
-        gains: Floats<'_>,
-        limit: f64,
-        width: f64,
+        partner_link: Vec<i64>, mate: Floats<'_>, part_moments: Floats<'_>, connector_rotation: Floats<'_>, connector_position: Floats<'_>,
+        joint_axes: [usize; 3], joint_z: [f64; 3], ground_module: Vec<i64>, ground_block: Vec<i64>, ground_pose: Floats<'_>, ground_line: Floats<'_>,
+        ground_priority: Vec<f64>, angles: Floats<'_>, scheme: Vec<i64>, gains: Floats<'_>, limit: f64, width: f64,
     ) -> PyResult<Self> {
         let links = partner_link.len();
         let n = links / SLOTS;

@@ -39,9 +39,7 @@ pub mod impl_ {
         }
 
         pub fn extract_argument<'a, 'holder, 'py, T, const F: bool>(
-            obj: Borrowed<'a, 'py, PyAny>,
-            holder: &'holder mut T::Holder,
-            arg_name: &str,
+            obj: Borrowed<'a, 'py, PyAny>, holder: &'holder mut T::Holder, arg_name: &str,
         ) -> PyResult<T>
         where
             T: PyFunctionArgument<'a, 'holder, 'py, F>,
@@ -62,9 +60,7 @@ pub mod impl_ {
         }
 
         pub fn extract_required_argument<'a, 'holder, 'py, T, const F: bool>(
-            obj: Option<Borrowed<'a, 'py, PyAny>>,
-            holder: &'holder mut T::Holder,
-            arg_name: &str,
+            obj: Option<Borrowed<'a, 'py, PyAny>>, holder: &'holder mut T::Holder, arg_name: &str,
         ) -> PyResult<T>
         where
             T: PyFunctionArgument<'a, 'holder, 'py, F>,
@@ -77,10 +73,7 @@ pub mod impl_ {
         }
 
         pub fn extract_argument_with_default<'a, 'holder, 'py, T, const F: bool>(
-            obj: Option<Borrowed<'a, 'py, PyAny>>,
-            holder: &'holder mut T::Holder,
-            arg_name: &str,
-            default: fn() -> T,
+            obj: Option<Borrowed<'a, 'py, PyAny>>, holder: &'holder mut T::Holder, arg_name: &str, default: fn() -> T,
         ) -> PyResult<T>
         where
             T: PyFunctionArgument<'a, 'holder, 'py, F>,

@@ -45,11 +45,7 @@ fn contacts(model: &PyModel, value: &Bound<'_, PyAny>) -> PyResult<Vec<ContactPo
 /// Broadcasts `arguments` and runs `kernel(model, data, rows)`, which returns (nv numbers, d per contact), over the
 /// batch: the arrays `(..., nv)` and `(..., k, d)`.
 fn per_state<'py, const N: usize, K>(
-    py: Python<'py>,
-    model: &PyModel,
-    arguments: [Argument<'_, '_>; N],
-    (k, d): (usize, usize),
-    kernel: K,
+    py: Python<'py>, model: &PyModel, arguments: [Argument<'_, '_>; N], (k, d): (usize, usize), kernel: K,
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>)>
 where
     K: Fn(&Model, &mut Data, [&[f64]; N]) -> Result<(DVector<f64>, DVector<f64>), Error> + Sync,

@@ -326,9 +326,7 @@ pub fn numbers(argument: &'static str, value: &Floats<'_>) -> PyResult<Vec<f64>>
 }
 
 pub fn to_numpy<'py, D: Dimension, S: IntoDimension<Dim = D>, T: numpy::Element>(
-    py: Python<'py>,
-    shape: S,
-    data: Vec<T>,
+    py: Python<'py>, shape: S, data: Vec<T>,
 ) -> Bound<'py, PyArray<T, D>> {
     let array = Array::from_shape_vec(shape, data).expect("output length matches its shape");
     PyArray::from_owned_array(py, array)

@@ -28,11 +28,7 @@ pub(crate) fn write_columns(matrices: &[&[f64]], out: &mut [f64]) {
 /// views of one buffer (as Pinocchio's, which are Eigen's), so that nothing is transposed. (Transposing chain512's two
 /// 512 x 512 matrices into row-major arrays took as long as computing them.)
 pub(crate) fn run_matrices<'py, const COUNT: usize, K>(
-    py: Python<'py>,
-    owner: &PyModel,
-    batch: &Batch,
-    rows: usize,
-    kernel: K,
+    py: Python<'py>, owner: &PyModel, batch: &Batch, rows: usize, kernel: K,
 ) -> PyResult<[FloatArray<'py>; COUNT]>
 where
     K: Fn(&Model, &mut Workspace<'_>, usize, &mut [f64]) -> Result<(), Error> + Sync,

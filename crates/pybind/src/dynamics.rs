@@ -14,11 +14,7 @@ use crate::workspace::{batched, run, Workspace};
 
 /// The batch of (q, v, x[, f_ext]) with cores (nq,), (nv,), (nv,) and (nbodies, 6).
 pub(crate) fn state_batch(
-    m: &Model,
-    q: &ArrayArg<'_>,
-    v: &ArrayArg<'_>,
-    (name, x): (&'static str, &ArrayArg<'_>),
-    f_ext: Option<&ArrayArg<'_>>,
+    m: &Model, q: &ArrayArg<'_>, v: &ArrayArg<'_>, (name, x): (&'static str, &ArrayArg<'_>), f_ext: Option<&ArrayArg<'_>>,
 ) -> PyResult<Batch> {
     let (q_core, v_core, force_core) = ([m.nq()], [m.nv()], [m.nbodies(), 6]);
     let arguments = [("q", q, &q_core[..]), ("v", v, &v_core[..]), (name, x, &v_core[..])];

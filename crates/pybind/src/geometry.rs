@@ -37,12 +37,7 @@ type CircleLineArrays<'py> = (FloatArray<'py>, Bound<'py, PyArrayDyn<i64>>, Floa
 /// (distance, count, circle_points (..., 2, 3), line_points (..., 2, 3), equidistant) over the batch.
 #[pyfunction(crate = "crate::arguments")]
 pub fn circle_line<'py>(
-    py: Python<'py>,
-    center: ArrayArg<'_>,
-    normal: ArrayArg<'_>,
-    radius: ArrayArg<'_>,
-    line_point: ArrayArg<'_>,
-    line_direction: ArrayArg<'_>,
+    py: Python<'py>, center: ArrayArg<'_>, normal: ArrayArg<'_>, radius: ArrayArg<'_>, line_point: ArrayArg<'_>, line_direction: ArrayArg<'_>,
 ) -> PyResult<CircleLineArrays<'py>> {
     let batch = broadcast(&[
         ("center", &center, &[3]),
@@ -98,11 +93,7 @@ pub fn circle_line<'py>(
 /// (theta, distance) over the batch.
 #[pyfunction(crate = "crate::arguments")]
 pub fn rotation_toward_line<'py>(
-    py: Python<'py>,
-    axis_point: ArrayArg<'_>,
-    axis_direction: ArrayArg<'_>,
-    point: ArrayArg<'_>,
-    line_point: ArrayArg<'_>,
+    py: Python<'py>, axis_point: ArrayArg<'_>, axis_direction: ArrayArg<'_>, point: ArrayArg<'_>, line_point: ArrayArg<'_>,
     line_direction: ArrayArg<'_>,
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>)> {
     let batch = broadcast(&[

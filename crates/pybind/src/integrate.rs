@@ -148,10 +148,7 @@ model_function! {
 /// Broadcasts the two `arguments` and runs `kernel(model, rows, a, b)`, which writes two nv x nv matrices, over the
 /// batch: `(..., nv, nv)` each.
 fn run_matrix_pair<'py, K>(
-    py: Python<'py>,
-    owner: &PyModel,
-    arguments: [Argument<'_, '_>; 2],
-    kernel: K,
+    py: Python<'py>, owner: &PyModel, arguments: [Argument<'_, '_>; 2], kernel: K,
 ) -> PyResult<(FloatArray<'py>, FloatArray<'py>)>
 where
     K: Fn(&Model, [&[f64]; 2], &mut DMatrix<f64>, &mut DMatrix<f64>) -> Result<(), Error> + Sync,

@@ -60,10 +60,7 @@ model_function! {
 
 /// A kernel of the configuration alone over a batch of q: `kernel(model, data, q, out)` writes each row's `shape` numbers.
 fn of_configuration<'py>(
-    py: Python<'py>,
-    model: &PyModel,
-    q: &ArrayArg<'_>,
-    shape: &[usize],
+    py: Python<'py>, model: &PyModel, q: &ArrayArg<'_>, shape: &[usize],
     kernel: impl Fn(&legkit_dynamics::Model, &mut legkit_dynamics::Data, &[f64], &mut [f64]) -> Result<(), legkit_dynamics::Error> + Sync,
 ) -> PyResult<FloatArray<'py>> {
     batched(py, model, [("q", q, &[model.model.nq()])], shape, |m, w, [q], out| kernel(m, w.data(), q, out))

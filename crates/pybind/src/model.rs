@@ -74,13 +74,8 @@ impl PyModel {
     }
 
     fn add(
-        &mut self,
-        parent: &Bound<'_, PyAny>,
-        joint: Joint,
-        placement: Option<&Bound<'_, PyAny>>,
-        body: Option<PyMassProperties>,
-        name: Option<String>,
-        limits: Option<&Bound<'_, PyAny>>,
+        &mut self, parent: &Bound<'_, PyAny>, joint: Joint, placement: Option<&Bound<'_, PyAny>>, body: Option<PyMassProperties>,
+        name: Option<String>, limits: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<usize> {
         let parent = self.body_index("parent", parent)?;
         let limits = joint_limits(limits)?;
@@ -207,11 +202,7 @@ impl PyModel {
     #[staticmethod]
     #[pyo3(signature = (path_or_xml, floating_base = false, strict = false, package_dirs = None))]
     fn from_urdf(
-        py: Python<'_>,
-        path_or_xml: &Bound<'_, PyAny>,
-        floating_base: bool,
-        strict: bool,
-        package_dirs: Option<Vec<std::path::PathBuf>>,
+        py: Python<'_>, path_or_xml: &Bound<'_, PyAny>, floating_base: bool, strict: bool, package_dirs: Option<Vec<std::path::PathBuf>>,
     ) -> PyResult<Self> {
         let source = source_text(py, path_or_xml)?;
         let options = UrdfOptions { floating_base, strict, package_dirs: package_dirs.unwrap_or_default() };
@@ -243,13 +234,8 @@ impl PyModel {
     /// effort), ignored by the dynamics algorithms.
     #[pyo3(signature = (parent, axis, placement = None, body = None, name = None, limits = None))]
     fn add_revolute(
-        &mut self,
-        parent: &Bound<'_, PyAny>,
-        axis: Vector<'_>,
-        placement: Option<&Bound<'_, PyAny>>,
-        body: Option<PyMassProperties>,
-        name: Option<String>,
-        limits: Option<&Bound<'_, PyAny>>,
+        &mut self, parent: &Bound<'_, PyAny>, axis: Vector<'_>, placement: Option<&Bound<'_, PyAny>>, body: Option<PyMassProperties>,
+        name: Option<String>, limits: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<usize> {
         self.add(parent, Joint::Revolute(vector3("axis", &axis)?), placement, body, name, limits)
     }
@@ -258,13 +244,8 @@ impl PyModel {
     /// for `add_revolute`, in m, N and m/s.
     #[pyo3(signature = (parent, axis, placement = None, body = None, name = None, limits = None))]
     fn add_prismatic(
-        &mut self,
-        parent: &Bound<'_, PyAny>,
-        axis: Vector<'_>,
-        placement: Option<&Bound<'_, PyAny>>,
-        body: Option<PyMassProperties>,
-        name: Option<String>,
-        limits: Option<&Bound<'_, PyAny>>,
+        &mut self, parent: &Bound<'_, PyAny>, axis: Vector<'_>, placement: Option<&Bound<'_, PyAny>>, body: Option<PyMassProperties>,
+        name: Option<String>, limits: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<usize> {
         self.add(parent, Joint::Prismatic(vector3("axis", &axis)?), placement, body, name, limits)
     }
@@ -275,14 +256,8 @@ impl PyModel {
     #[pyo3(signature = (parent, axis, pitch, placement = None, body = None, name = None, limits = None))]
     #[allow(clippy::too_many_arguments)]
     fn add_helical(
-        &mut self,
-        parent: &Bound<'_, PyAny>,
-        axis: Vector<'_>,
-        pitch: f64,
-        placement: Option<&Bound<'_, PyAny>>,
-        body: Option<PyMassProperties>,
-        name: Option<String>,
-        limits: Option<&Bound<'_, PyAny>>,
+        &mut self, parent: &Bound<'_, PyAny>, axis: Vector<'_>, pitch: f64, placement: Option<&Bound<'_, PyAny>>, body: Option<PyMassProperties>,
+        name: Option<String>, limits: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<usize> {
         self.add(parent, Joint::Helical { axis: vector3("axis", &axis)?, pitch }, placement, body, name, limits)
     }
@@ -292,11 +267,7 @@ impl PyModel {
     /// (Pinocchio's `JointModelSpherical`). The tree engine simulates it (no position servo on it); Rapier refuses it.
     #[pyo3(signature = (parent, placement = None, body = None, name = None))]
     fn add_spherical(
-        &mut self,
-        parent: &Bound<'_, PyAny>,
-        placement: Option<&Bound<'_, PyAny>>,
-        body: Option<PyMassProperties>,
-        name: Option<String>,
+        &mut self, parent: &Bound<'_, PyAny>, placement: Option<&Bound<'_, PyAny>>, body: Option<PyMassProperties>, name: Option<String>,
     ) -> PyResult<usize> {
         self.add(parent, Joint::Spherical, placement, body, name, None)
     }
@@ -304,11 +275,7 @@ impl PyModel {
     /// Adds a body rigidly attached to `parent`; returns its index.
     #[pyo3(signature = (parent, placement = None, body = None, name = None))]
     fn add_fixed(
-        &mut self,
-        parent: &Bound<'_, PyAny>,
-        placement: Option<&Bound<'_, PyAny>>,
-        body: Option<PyMassProperties>,
-        name: Option<String>,
+        &mut self, parent: &Bound<'_, PyAny>, placement: Option<&Bound<'_, PyAny>>, body: Option<PyMassProperties>, name: Option<String>,
     ) -> PyResult<usize> {
         self.add(parent, Joint::Fixed, placement, body, name, None)
     }

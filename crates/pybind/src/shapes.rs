@@ -65,8 +65,7 @@ fn parse_shape(value: &Bound<'_, PyAny>) -> PyResult<Option<Shape>> {
 
 /// The `shapes` argument: bodies (index or name) to their replacement shape, or None for no collider.
 pub fn shape_overrides(
-    shapes: Option<&Bound<'_, PyDict>>,
-    body_index: impl Fn(&Bound<'_, PyAny>) -> PyResult<usize>,
+    shapes: Option<&Bound<'_, PyDict>>, body_index: impl Fn(&Bound<'_, PyAny>) -> PyResult<usize>,
 ) -> PyResult<Vec<(usize, Option<Shape>)>> {
     let Some(shapes) = shapes else { return Ok(Vec::new()) };
     shapes

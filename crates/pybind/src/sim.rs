@@ -59,12 +59,7 @@ fn finite_rollout(sim: &mut Simulation, controls: &[f64], jacobians: bool) -> le
 /// The arrays of `outs` (one per simulation, each of `n` steps), stacked with `batch` leading (None: one simulation):
 /// (q, v), and with `jacobians` (q, v, A, B).
 fn rollout_arrays<'py>(
-    py: Python<'py>,
-    batch: Option<usize>,
-    n: usize,
-    (nq, nv): (usize, usize),
-    outs: Vec<Rollout>,
-    jacobians: bool,
+    py: Python<'py>, batch: Option<usize>, n: usize, (nq, nv): (usize, usize), outs: Vec<Rollout>, jacobians: bool,
 ) -> PyResult<Bound<'py, PyTuple>> {
     let lead: Vec<usize> = batch.into_iter().chain([n]).collect();
     let shaped = |tail: &[usize], take: &dyn Fn(&Rollout) -> &[f64]| {
@@ -238,15 +233,8 @@ impl PySimulation {
         text_signature = "(model, dt=0.001, ground=None, shapes=None, self_collision=False, substeps=1, backend='tree', solver_iterations=50, friction_law='coulomb')")]
     #[allow(clippy::too_many_arguments)]
     fn new(
-        model: PyRef<'_, PyModel>,
-        dt: f64,
-        ground: Option<PyRef<'_, PyGround>>,
-        shapes: Option<Bound<'_, PyDict>>,
-        self_collision: bool,
-        substeps: Integer,
-        backend: &str,
-        solver_iterations: Integer,
-        friction_law: &str,
+        model: PyRef<'_, PyModel>, dt: f64, ground: Option<PyRef<'_, PyGround>>, shapes: Option<Bound<'_, PyDict>>, self_collision: bool,
+        substeps: Integer, backend: &str, solver_iterations: Integer, friction_law: &str,
     ) -> PyResult<Self> {
         let mut options = Options::new(dt);
         options.ground = ground.map(|g| g.ground.clone());
@@ -396,11 +384,7 @@ impl PySimulation {
     /// `target_v`: (nv,) (None: zero). Clear servos with kp = kd = 0.
     #[pyo3(signature = (kp, kd = None, torque_limit = None, target_q = None, target_v = None))]
     fn set_servo(
-        slf: &Bound<'_, Self>,
-        kp: Floats<'_>,
-        kd: Option<Floats<'_>>,
-        torque_limit: Option<Floats<'_>>,
-        target_q: Option<Floats<'_>>,
+        slf: &Bound<'_, Self>, kp: Floats<'_>, kd: Option<Floats<'_>>, torque_limit: Option<Floats<'_>>, target_q: Option<Floats<'_>>,
         target_v: Option<Floats<'_>>,
     ) -> PyResult<()> {
         let mut this = in_use(slf)?;

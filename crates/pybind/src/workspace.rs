@@ -92,11 +92,7 @@ where
 /// Broadcasts `arguments` and `run`s `kernel(model, workspace, rows, out)` over the batch, `rows` the arguments'
 /// rows in order: the array `batch + out_core`.
 pub fn batched<'py, const N: usize, K>(
-    py: Python<'py>,
-    owner: &PyModel,
-    arguments: [Argument<'_, '_>; N],
-    out_core: &[usize],
-    kernel: K,
+    py: Python<'py>, owner: &PyModel, arguments: [Argument<'_, '_>; N], out_core: &[usize], kernel: K,
 ) -> PyResult<FloatArray<'py>>
 where
     K: Fn(&Model, &mut Workspace<'_>, [&[f64]; N], &mut [f64]) -> Result<(), Error> + Sync,
@@ -108,11 +104,7 @@ where
 /// `batched` for a kernel with `P` outputs, which writes each row's one after the other into `out` (`split` cuts it):
 /// an array `batch + core` for each of `cores`.
 pub fn batched_parts<'py, const N: usize, const P: usize, K>(
-    py: Python<'py>,
-    owner: &PyModel,
-    arguments: [Argument<'_, '_>; N],
-    cores: [&[usize]; P],
-    kernel: K,
+    py: Python<'py>, owner: &PyModel, arguments: [Argument<'_, '_>; N], cores: [&[usize]; P], kernel: K,
 ) -> PyResult<[FloatArray<'py>; P]>
 where
     K: Fn(&Model, &mut Workspace<'_>, [&[f64]; N], &mut [f64]) -> Result<(), Error> + Sync,

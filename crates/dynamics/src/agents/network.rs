@@ -129,11 +129,7 @@ impl Network {
     /// Agents for `partner` (per link: the mated link or None) with `mate` rotations, grounded by `ground`,
     /// sensing `angles` at start; each runs Algorithm 2 once (round 0).
     pub fn new(
-        spec: ModuleSpec,
-        partner: Vec<Option<usize>>,
-        mate: Vec<Matrix3<f64>>,
-        ground: Vec<GroundContact>,
-        angles: &[[f64; 3]],
+        spec: ModuleSpec, partner: Vec<Option<usize>>, mate: Vec<Matrix3<f64>>, ground: Vec<GroundContact>, angles: &[[f64; 3]],
     ) -> Result<Network> {
         let links = partner.len();
         let n = links / SLOTS;

@@ -72,13 +72,7 @@ pub(crate) fn aba_unchecked<'d>(model: &Model, data: &'d mut Data, q: &[f64], v:
 /// joints' `data.u`, `data.d_inv` and the base's articulated inertia `data.inertia[0]` are then the
 /// factors of M + diag(armature) = Lᵀ D L (L_ki = D_k⁻¹ U_kᵀ S_i for each ancestor i of k).
 pub fn aba_with_armature<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    f_ext: Option<&[Force]>,
-    armature: &[f64],
+    model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>, armature: &[f64],
 ) -> Result<&'d DVector<f64>> {
     check_state(model, data, q, &[("v", v), ("tau", tau)])?;
     check_forces(model, f_ext)?;
@@ -94,13 +88,7 @@ pub fn aba_with_armature<'d>(
 /// [`aba_with_armature`] without its checks, for the crate's inner loops.
 #[inline(always)]
 pub(crate) fn aba_with_armature_unchecked<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    f_ext: Option<&[Force]>,
-    armature: &[f64],
+    model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>, armature: &[f64],
 ) -> &'d DVector<f64> {
     let n = model.nbodies();
     // Pass 1: poses, velocities v_i = v_λ + S q̇, velocity-product accelerations c_i = v_λ × S q̇ and bias
@@ -238,12 +226,7 @@ pub(crate) struct Factors<'a> {
 /// nv columns where a dense product costs O(nv³). Columns go `BLOCK` at a time; `rows` (nv) holds a block row by row
 /// and `forces` and `accelerations` (one per body) its bias forces and accelerations.
 pub(crate) fn solve_columns(
-    model: &Model,
-    factors: &Factors<'_>,
-    columns: &mut [f64],
-    rows: &mut [[f64; BLOCK]],
-    forces: &mut [Block6],
-    accelerations: &mut [Block6],
+    model: &Model, factors: &Factors<'_>, columns: &mut [f64], rows: &mut [[f64; BLOCK]], forces: &mut [Block6], accelerations: &mut [Block6],
 ) {
     let (n, nv) = (model.nbodies(), model.nv());
     if nv == 0 {

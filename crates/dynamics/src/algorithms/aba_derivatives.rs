@@ -63,12 +63,7 @@ const DENSE_LIMIT: usize = 32;
 /// # Ok::<(), legkit_dynamics::Error>(())
 /// ```
 pub fn aba_derivatives<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    f_ext: Option<&[Force]>,
+    model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>,
 ) -> Result<(&'d DMatrix<f64>, &'d DMatrix<f64>, &'d DMatrix<f64>)> {
     check_state(model, data, q, &[("v", v), ("tau", tau)])?;
     check_forces(model, f_ext)?;
@@ -99,14 +94,7 @@ pub fn aba_derivatives<'d>(
 /// nv³: nv per nonzero of ∂τ. (MuJoCo likewise works dense below 60 degrees of freedom.)
 #[allow(clippy::too_many_arguments)]
 pub fn aba_derivatives_into(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    f_ext: Option<&[Force]>,
-    ddq_dq: &mut [f64],
-    ddq_dv: &mut [f64],
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>, ddq_dq: &mut [f64], ddq_dv: &mut [f64],
     minv: &mut [f64],
 ) -> Result<()> {
     check_state(model, data, q, &[("v", v), ("tau", tau)])?;
@@ -129,14 +117,7 @@ pub fn aba_derivatives_into(
 /// [`aba_derivatives_into`] without its checks, for `aba_derivatives`' own outputs.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn aba_derivatives_into_unchecked(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    f_ext: Option<&[Force]>,
-    ddq_dq: &mut [f64],
-    ddq_dv: &mut [f64],
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64], f_ext: Option<&[Force]>, ddq_dq: &mut [f64], ddq_dv: &mut [f64],
     minv: &mut [f64],
 ) {
     let nv = model.nv();

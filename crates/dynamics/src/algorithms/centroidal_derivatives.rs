@@ -55,11 +55,7 @@ use crate::Result;
 /// ```
 #[allow(clippy::type_complexity)]
 pub fn centroidal_derivatives<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
+    model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64],
 ) -> Result<(&'d Matrix6xX<f64>, &'d Matrix6xX<f64>, &'d Matrix6xX<f64>, &'d Matrix6xX<f64>)> {
     check_state(model, data, q, &[("v", v), ("a", a)])?;
     data.reserve_dense(model, &[Dense::Workspace])?;

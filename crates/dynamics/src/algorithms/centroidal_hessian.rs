@@ -130,12 +130,7 @@ fn add_com_hessian(model: &Model, data: &Data, mass: f64, weights: &Vector3<f64>
 /// # Ok::<(), legkit_dynamics::Error>(())
 /// ```
 pub fn center_of_mass_hessian(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    weights: &Vector3<f64>,
-    hessian: &mut [f64],
-    gradient: &mut [f64],
+    model: &Model, data: &mut Data, q: &[f64], weights: &Vector3<f64>, hessian: &mut [f64], gradient: &mut [f64],
 ) -> Result<()> {
     check_state(model, data, q, &[])?;
     finite_vector("weights", *weights)?;
@@ -189,14 +184,7 @@ pub fn center_of_mass_hessian(
 /// ```
 #[allow(clippy::too_many_arguments)]
 pub fn centroidal_momentum_hessian(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    weights: &[f64; 6],
-    qq: &mut [f64],
-    qv: &mut [f64],
-    gradient: &mut [f64],
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], weights: &[f64; 6], qq: &mut [f64], qv: &mut [f64], gradient: &mut [f64],
 ) -> Result<()> {
     check_state(model, data, q, &[("v", v)])?;
     check_vector("weights", weights, 6)?;

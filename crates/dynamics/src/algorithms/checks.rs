@@ -44,12 +44,7 @@ pub(crate) fn check_frame(model: &Model, body: usize, point: &Vector3<f64>) -> R
 
 /// `check_state` and `check_frame`, and the derivative workspace sized (fallibly): the opening of the frame kernels.
 pub(crate) fn check_frame_state(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    vectors: &[(&'static str, &[f64])],
-    body: usize,
-    point: &Vector3<f64>,
+    model: &Model, data: &mut Data, q: &[f64], vectors: &[(&'static str, &[f64])], body: usize, point: &Vector3<f64>,
 ) -> Result<()> {
     check_state(model, data, q, vectors)?;
     check_frame(model, body, point)?;

@@ -135,9 +135,7 @@ pub fn difference_jacobians(model: &Model, q0: &[f64], q1: &[f64], d0: &mut DMat
 /// Zeroes `a` and `b` (nv x nv), then has `write` fill each joint's diagonal blocks of them, given the joint and its
 /// ranges in q and v.
 fn block_diagonal(
-    model: &Model,
-    a: &mut DMatrix<f64>,
-    b: &mut DMatrix<f64>,
+    model: &Model, a: &mut DMatrix<f64>, b: &mut DMatrix<f64>,
     mut write: impl FnMut(&Joint, Range<usize>, Range<usize>, &mut DMatrixViewMut<'_, f64>, &mut DMatrixViewMut<'_, f64>),
 ) {
     // As slices, a memset: nalgebra's element-wise `fill` took 0.8 µs of 1.2 µs on an 18-DoF free-flying tree.

@@ -143,13 +143,7 @@ pub(crate) fn transposed(rows: usize) -> (usize, usize) {
 /// The contacts' constraint rows J into `w.jacobian` and γ (their accelerations at q̈ = 0, `contact_acceleration`) into
 /// `w.drift`, after sizing `w`.
 pub(crate) fn constraint(
-    model: &Model,
-    data: &mut Data,
-    w: &mut ContactWorkspace,
-    q: &[f64],
-    v: &[f64],
-    contacts: &[ContactPoint],
-    dim: ContactDim,
+    model: &Model, data: &mut Data, w: &mut ContactWorkspace, q: &[f64], v: &[f64], contacts: &[ContactPoint], dim: ContactDim,
 ) -> Result<()> {
     let (d, r) = (dim.rows(), dim.rows() * contacts.len());
     w.reserve(model, r)?;
@@ -171,14 +165,7 @@ pub(crate) fn constraint(
 /// at (q, v, q̈), or with q̈ None the velocity-product term γ = J̇_c q̇ alone.
 #[allow(clippy::too_many_arguments)]
 pub fn point_accelerations(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: Option<&[f64]>,
-    points: &[ContactPoint],
-    dim: ContactDim,
-    out: &mut [f64],
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Option<&[f64]>, points: &[ContactPoint], dim: ContactDim, out: &mut [f64],
 ) -> Result<()> {
     check_state(model, data, q, &[("v", v)])?;
     if let Some(a) = a {
@@ -350,13 +337,7 @@ pub(crate) fn with_workspace<T>(data: &mut Data, kernel: impl FnOnce(&mut Data, 
 /// # Ok::<(), legkit_dynamics::Error>(())
 /// ```
 pub fn contact_dynamics(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    contacts: &[ContactPoint],
-    dim: ContactDim,
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64], contacts: &[ContactPoint], dim: ContactDim,
 ) -> Result<ContactDynamics> {
     check_state(model, data, q, &[("v", v), ("tau", tau)])?;
     check_contacts(model, contacts)?;
@@ -371,14 +352,7 @@ pub fn contact_dynamics(
 /// `contact_dynamics` into `w.solution` and `w.forces`; Ok(the first dependent constraint row, if any: `factor`).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn contact_solution(
-    model: &Model,
-    data: &mut Data,
-    w: &mut ContactWorkspace,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    contacts: &[ContactPoint],
-    dim: ContactDim,
+    model: &Model, data: &mut Data, w: &mut ContactWorkspace, q: &[f64], v: &[f64], tau: &[f64], contacts: &[ContactPoint], dim: ContactDim,
 ) -> Result<Option<usize>> {
     constraint(model, data, w, q, v, contacts, dim)?;
     w.drift.iter_mut().for_each(|x| *x = -*x);
@@ -398,12 +372,7 @@ pub(crate) fn contact_solution(
 /// Post-impact velocities of a perfectly inelastic impact at the contacts: M (v⁺ − v⁻) = Jᵀ Λ, J v⁺ = 0.
 /// Returns (v⁺, the impulses Λ, 3 or 6 per contact).
 pub fn impact(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    contacts: &[ContactPoint],
-    dim: ContactDim,
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint], dim: ContactDim,
 ) -> Result<(DVector<f64>, DVector<f64>)> {
     check_state(model, data, q, &[("v", v)])?;
     check_contacts(model, contacts)?;
@@ -417,13 +386,7 @@ pub fn impact(
 
 /// `impact` into `w.solution` (v⁺) and `w.forces`; Ok(the first dependent constraint row, if any: `factor`).
 pub(crate) fn impact_solution(
-    model: &Model,
-    data: &mut Data,
-    w: &mut ContactWorkspace,
-    q: &[f64],
-    v: &[f64],
-    contacts: &[ContactPoint],
-    dim: ContactDim,
+    model: &Model, data: &mut Data, w: &mut ContactWorkspace, q: &[f64], v: &[f64], contacts: &[ContactPoint], dim: ContactDim,
 ) -> Result<Option<usize>> {
     constraint(model, data, w, q, v, contacts, dim)?;
     let nv = model.nv();
@@ -494,13 +457,7 @@ fn pivot_columns(j: &DMatrix<f64>) -> Vec<usize> {
 /// # Ok::<(), legkit_dynamics::Error>(())
 /// ```
 pub fn reduced_dynamics(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    contacts: &[ContactPoint],
-    independent: Option<&[usize]>,
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64], contacts: &[ContactPoint], independent: Option<&[usize]>,
 ) -> Result<ReducedDynamics> {
     check_state(model, data, q, &[("v", v), ("tau", tau)])?;
     check_contacts(model, contacts)?;

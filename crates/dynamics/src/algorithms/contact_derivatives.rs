@@ -193,13 +193,7 @@ fn rows(contacts: &[ContactPoint], dim: ContactDim) -> usize {
 /// # Ok::<(), legkit_dynamics::Error>(())
 /// ```
 pub fn contact_dynamics_derivatives(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    contacts: &[ContactPoint],
-    dim: ContactDim,
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64], contacts: &[ContactPoint], dim: ContactDim,
 ) -> Result<ContactDynamicsDerivatives> {
     let (ddq, forces, [ddq_dq, ddq_dv, ddq_dtau], [forces_dq, forces_dv, forces_dtau]) =
         owned(model, data, rows(contacts, dim), |data, ddq_d, forces_d| {
@@ -213,14 +207,7 @@ pub fn contact_dynamics_derivatives(
 /// `data.contact`. Allocates nothing once `data` is sized for the contacts (`TooLarge` naming them if it cannot be).
 #[allow(clippy::too_many_arguments)]
 pub fn contact_dynamics_derivatives_into(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    contacts: &[ContactPoint],
-    dim: ContactDim,
-    ddq_d: &mut [f64],
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64], contacts: &[ContactPoint], dim: ContactDim, ddq_d: &mut [f64],
     forces_d: &mut [f64],
 ) -> Result<()> {
     check_state(model, data, q, &[("v", v), ("tau", tau)])?;
@@ -254,10 +241,7 @@ pub fn contact_dynamics_derivatives_into(
 /// leaves in `data.contact` with those matrices.
 #[allow(clippy::type_complexity)]
 fn owned<const N: usize>(
-    model: &Model,
-    data: &mut Data,
-    r: usize,
-    kernel: impl FnOnce(&mut Data, &mut [f64], &mut [f64]) -> Result<()>,
+    model: &Model, data: &mut Data, r: usize, kernel: impl FnOnce(&mut Data, &mut [f64], &mut [f64]) -> Result<()>,
 ) -> Result<(DVector<f64>, DVector<f64>, [DMatrix<f64>; N], [DMatrix<f64>; N])> {
     let nv = model.nv();
     let (mut generalized, mut per_row) = (vec![0.0; N * nv * nv], vec![0.0; N * r * nv]);
@@ -298,12 +282,7 @@ fn owned<const N: usize>(
 /// # Ok::<(), legkit_dynamics::Error>(())
 /// ```
 pub fn impact_derivatives(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    contacts: &[ContactPoint],
-    dim: ContactDim,
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint], dim: ContactDim,
 ) -> Result<ImpactDerivatives> {
     let (velocity, impulses, [velocity_dq, velocity_dv], [impulses_dq, impulses_dv]) =
         owned(model, data, rows(contacts, dim), |data, velocity_d, impulses_d| {
@@ -316,14 +295,7 @@ pub fn impact_derivatives(
 /// and the impulses are left in `data.contact`. Allocates nothing once `data` is sized for the contacts.
 #[allow(clippy::too_many_arguments)]
 pub fn impact_derivatives_into(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    contacts: &[ContactPoint],
-    dim: ContactDim,
-    velocity_d: &mut [f64],
-    impulses_d: &mut [f64],
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], contacts: &[ContactPoint], dim: ContactDim, velocity_d: &mut [f64], impulses_d: &mut [f64],
 ) -> Result<()> {
     check_state(model, data, q, &[("v", v)])?;
     check_contacts(model, contacts)?;

@@ -114,16 +114,7 @@ impl Integrator {
 /// ```
 #[allow(clippy::too_many_arguments)]
 pub fn free_rollout(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    dt: f64,
-    steps: usize,
-    method: Method,
-    qs: &mut [f64],
-    vs: &mut [f64],
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64], dt: f64, steps: usize, method: Method, qs: &mut [f64], vs: &mut [f64],
 ) -> Result<()> {
     let (nq, nv) = (model.nq(), model.nv());
     check_state(model, data, q, &[("v", v)])?;

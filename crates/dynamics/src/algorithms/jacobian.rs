@@ -57,12 +57,7 @@ pub fn jacobian<'d>(model: &Model, data: &'d mut Data, q: &[f64], body: usize, p
 
 /// [`jacobian`] without its checks, for the crate's inner loops.
 pub(crate) fn jacobian_unchecked<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    frame: Frame,
+    model: &Model, data: &'d mut Data, q: &[f64], body: usize, point: &Vector3<f64>, frame: Frame,
 ) -> &'d Matrix6xX<f64> {
     forward_kinematics_unchecked(model, data, q);
     data.jacobian.fill(0.0);

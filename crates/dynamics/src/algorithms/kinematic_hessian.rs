@@ -139,14 +139,7 @@ fn add(out: &mut [f64], nv: usize, a: usize, d: usize, m: &Motion) {
 /// ```
 #[allow(clippy::too_many_arguments)]
 pub fn point_velocity_hessian(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    weights: &Vector3<f64>,
-    out: &mut [f64],
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], body: usize, point: &Vector3<f64>, weights: &Vector3<f64>, out: &mut [f64],
     slope: &mut [f64],
 ) -> Result<()> {
     check_frame_state(model, data, q, &[("v", v)], body, point)?;
@@ -249,15 +242,7 @@ struct Coordinate {
 /// from a few cross products of per-coordinate sums: O(n²) for a support of n coordinates. Runs `jacobian`.
 #[allow(clippy::too_many_arguments)]
 pub fn point_acceleration_hessian(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    weights: &Vector3<f64>,
-    out: &mut [f64],
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64], body: usize, point: &Vector3<f64>, weights: &Vector3<f64>, out: &mut [f64],
 ) -> Result<()> {
     check_frame_state(model, data, q, &[("v", v), ("a", a)], body, point)?;
     finite_vector("weights", *weights)?;

@@ -135,14 +135,7 @@ pub fn frame_velocity(model: &Model, data: &mut Data, q: &[f64], v: &[f64], body
 /// is the world-aligned linear part plus ω × v.
 #[allow(clippy::too_many_arguments)]
 pub fn frame_acceleration(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    frame: Frame,
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64], body: usize, point: &Vector3<f64>, frame: Frame,
 ) -> Result<Motion> {
     check_frame_state(model, data, q, &[("v", v), ("a", a)], body, point)?;
     motion_derivatives(model, data, q, v, Some(a), Motion::zeros());
@@ -187,13 +180,7 @@ pub fn frame_acceleration(
 /// # Ok::<(), legkit_dynamics::Error>(())
 /// ```
 pub fn frame_velocity_derivatives<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    frame: Frame,
+    model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], body: usize, point: &Vector3<f64>, frame: Frame,
 ) -> Result<(&'d Matrix6xX<f64>, &'d Matrix6xX<f64>)> {
     check_frame_state(model, data, q, &[("v", v)], body, point)?;
     motion_derivatives(model, data, q, v, None, Motion::zeros());
@@ -251,14 +238,7 @@ pub fn frame_velocity_derivatives<'d>(
 /// ```
 #[allow(clippy::too_many_arguments)]
 pub fn frame_acceleration_derivatives<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    frame: Frame,
+    model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64], body: usize, point: &Vector3<f64>, frame: Frame,
 ) -> Result<FrameAccelerationDerivatives<'d>> {
     check_frame_state(model, data, q, &[("v", v), ("a", a)], body, point)?;
     motion_derivatives(model, data, q, v, Some(a), Motion::zeros());
@@ -322,13 +302,7 @@ pub(crate) fn for_each_frame_derivative(model: &Model, data: &Data, at: &FramePo
 /// `getFrameJacobianTimeVariation`): column c is joint c's motion S_c carried by its body's velocity v_j × S_c, less the
 /// frame's own turn. Writes `data.derivatives.jacobian_rate` and returns it.
 pub fn jacobian_time_variation<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    body: usize,
-    point: &Vector3<f64>,
-    frame: Frame,
+    model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], body: usize, point: &Vector3<f64>, frame: Frame,
 ) -> Result<&'d Matrix6xX<f64>> {
     check_frame_state(model, data, q, &[("v", v)], body, point)?;
     motion_derivatives(model, data, q, v, None, Motion::zeros());

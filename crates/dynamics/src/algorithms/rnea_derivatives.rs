@@ -63,12 +63,7 @@ pub(crate) fn set_column(m: &mut Matrix6xX<f64>, c: usize, x: &Vector6<f64>) {
 /// # Ok::<(), legkit_dynamics::Error>(())
 /// ```
 pub fn rnea_derivatives<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
-    f_ext: Option<&[Force]>,
+    model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64], f_ext: Option<&[Force]>,
 ) -> Result<(&'d DMatrix<f64>, &'d DMatrix<f64>)> {
     check_state(model, data, q, &[("v", v), ("a", a)])?;
     check_forces(model, f_ext)?;
@@ -82,12 +77,7 @@ pub fn rnea_derivatives<'d>(
 
 /// [`rnea_derivatives`] without its checks, for the crate's inner loops.
 pub(crate) fn rnea_derivatives_unchecked<'d>(
-    model: &Model,
-    data: &'d mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
-    f_ext: Option<&[Force]>,
+    model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64], f_ext: Option<&[Force]>,
 ) -> (&'d DMatrix<f64>, &'d DMatrix<f64>) {
     lend_squares(
         model,
@@ -103,10 +93,7 @@ pub(crate) fn rnea_derivatives_unchecked<'d>(
 /// Runs `kernel` on the nv x nv matrices of `data` that `outputs` picks, sized and lent out of `data` as slices (an
 /// empty matrix in their place holds no allocation), and puts them back: an `_into` kernel writing `Data`'s own outputs.
 pub(crate) fn lend_squares<const N: usize>(
-    model: &Model,
-    data: &mut Data,
-    outputs: fn(&mut Data) -> [&mut DMatrix<f64>; N],
-    kernel: impl FnOnce(&mut Data, [&mut [f64]; N]),
+    model: &Model, data: &mut Data, outputs: fn(&mut Data) -> [&mut DMatrix<f64>; N], kernel: impl FnOnce(&mut Data, [&mut [f64]; N]),
 ) {
     let mut lent = outputs(data).map(|matrix| {
         reserve_square(matrix, model.nv());
@@ -122,14 +109,7 @@ pub(crate) fn lend_squares<const N: usize>(
 /// `Data`, which then holds no nv x nv matrix: O(n) workspace beyond the outputs.
 #[allow(clippy::too_many_arguments)]
 pub fn rnea_derivatives_into(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
-    f_ext: Option<&[Force]>,
-    dtau_dq: &mut [f64],
-    dtau_dv: &mut [f64],
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64], f_ext: Option<&[Force]>, dtau_dq: &mut [f64], dtau_dv: &mut [f64],
 ) -> Result<()> {
     check_state(model, data, q, &[("v", v), ("a", a)])?;
     check_forces(model, f_ext)?;
@@ -147,14 +127,7 @@ pub fn rnea_derivatives_into(
 /// with `POSES_KNOWN`, on the poses `aba` just left in `data` at `q`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn derivatives_into<const POSES_KNOWN: bool>(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
-    f_ext: Option<&[Force]>,
-    base_acceleration: Motion,
-    dtau_dq: &mut [f64],
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64], f_ext: Option<&[Force]>, base_acceleration: Motion, dtau_dq: &mut [f64],
     dtau_dv: &mut [f64],
 ) {
     let n = model.nbodies();
@@ -224,12 +197,7 @@ pub(crate) fn motion_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &
 /// taken as they are instead of composed again.
 #[inline(always)]
 fn motion_derivatives_with<const POSES_KNOWN: bool>(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    v: &[f64],
-    a: Option<&[f64]>,
-    base_acceleration: Motion,
+    model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: Option<&[f64]>, base_acceleration: Motion,
 ) {
     data.derivatives.reserve(model);
     let Data { centred_m_i: poses, derivatives: d, .. } = data;

@@ -23,13 +23,7 @@ pub(super) struct Contents {
 
 /// A geom's mass (into `contents`, when its group counts) and collision shape (into `shapes`).
 pub(super) fn geom(
-    el: &El,
-    class: &str,
-    prefix: &Transform,
-    reader: &mut Reader,
-    meshes: &Meshes,
-    contents: &mut Contents,
-    shapes: &mut Vec<Shape>,
+    el: &El, class: &str, prefix: &Transform, reader: &mut Reader, meshes: &Meshes, contents: &mut Contents, shapes: &mut Vec<Shape>,
 ) -> Result<()> {
     let what = el.what();
     let kind = reader.get(el, class, "type").unwrap_or("sphere").to_owned();

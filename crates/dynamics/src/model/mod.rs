@@ -164,13 +164,7 @@ impl Model {
     /// normalised; a zero axis, a parent that does not exist yet, an improper rotation, a repeated name,
     /// invalid limits or limits on a fixed joint are errors.
     pub fn add_body(
-        &mut self,
-        parent: usize,
-        joint: Joint,
-        placement: Transform,
-        body: MassProperties,
-        name: &str,
-        limits: JointLimits,
+        &mut self, parent: usize, joint: Joint, placement: Transform, body: MassProperties, name: &str, limits: JointLimits,
     ) -> Result<usize> {
         if parent >= self.joints.len() {
             return Err(Error::invalid("parent", format!("body {parent} does not exist (the model has {} bodies)", self.joints.len())));

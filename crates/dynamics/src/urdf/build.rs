@@ -12,11 +12,7 @@ use crate::{Error, Joint, JointLimits, MassProperties, Model, Result, Transform}
 /// The model of `links` and `joints` (`parent_joint` the joint whose child each link is); `argument` is what a
 /// size that cannot be allocated is reported against.
 pub(super) fn model(
-    links: &[Link],
-    joints: &[UrdfJoint],
-    parent_joint: &[Option<usize>],
-    options: &UrdfOptions,
-    argument: &'static str,
+    links: &[Link], joints: &[UrdfJoint], parent_joint: &[Option<usize>], options: &UrdfOptions, argument: &'static str,
 ) -> Result<Model> {
     // The root, and Pinocchio's depth-first order from it.
     let roots: Vec<usize> = (0..links.len()).filter(|&l| parent_joint[l].is_none()).collect();

@@ -141,11 +141,7 @@ pub(super) fn inertial(link: Node, name: &str, accept: &mut dyn FnMut(String) ->
 /// The `<collision>` shapes of a `<link>` in the link frame. A mesh that cannot be found or read leaves the
 /// link colliding as the box of its inertia (`Shape::default_box`), and `notes` says so.
 pub(super) fn collisions(
-    link: Node,
-    name: &str,
-    body: &MassProperties,
-    (folder, package_dirs): (Option<&Path>, &[PathBuf]),
-    notes: &mut Vec<String>,
+    link: Node, name: &str, body: &MassProperties, (folder, package_dirs): (Option<&Path>, &[PathBuf]), notes: &mut Vec<String>,
 ) -> Result<Vec<Shape>> {
     let owner = format!("link {name:?}");
     let mut shapes = Vec::new();
@@ -195,10 +191,7 @@ pub(super) fn collisions(
 
 /// A `<joint>`, its links resolved to indices.
 pub(super) fn joint<'a>(
-    node: Node<'a, '_>,
-    name: &'a str,
-    link_index: &HashMap<&str, usize>,
-    accept: &mut dyn FnMut(String) -> Result<()>,
+    node: Node<'a, '_>, name: &'a str, link_index: &HashMap<&str, usize>, accept: &mut dyn FnMut(String) -> Result<()>,
 ) -> Result<UrdfJoint<'a>> {
     let owner = format!("joint {name:?}");
     let link = |tag: &str| -> Result<usize> {

@@ -86,13 +86,7 @@ impl Delassus {
     /// (tr Ω |F|² per unit row), below which a row counts as immovable. `rows` are the forces [d; r × d] on
     /// body `a` (and opposite on `b`) of an orthonormal frame d = n, t1, t2 at arm `arm`.
     pub(super) fn contact(
-        &self,
-        model: &Model,
-        data: &Data,
-        a: usize,
-        b: Option<usize>,
-        rows: &[Vector6<f64>; 3],
-        arm: &Vector3<f64>,
+        &self, model: &Model, data: &Data, a: usize, b: Option<usize>, rows: &[Vector6<f64>; 3], arm: &Vector3<f64>,
     ) -> ([f64; 2], f64) {
         let mut diagonal = point(&self.omega[a], &rows[0], arm);
         let mut trace = self.omega[a].trace();

@@ -436,15 +436,7 @@ fn fuse(model: &Model) -> Result<(Model, Vec<usize>, Vec<Transform>)> {
 /// asked on the piece of gap `piece` (`asked_normal_velocity`).
 #[allow(clippy::too_many_arguments)]
 fn contact_constraint(
-    coulomb: bool,
-    model: &Model,
-    data: &Data,
-    delassus: &Delassus,
-    fused_body: &[usize],
-    mu: f64,
-    h: f64,
-    f: &Found,
-    piece: f64,
+    coulomb: bool, model: &Model, data: &Data, delassus: &Delassus, fused_body: &[usize], mu: f64, h: f64, f: &Found, piece: f64,
     origin: &Vector3<f64>,
 ) -> Constraint {
     let (body, other) = (fused_body[f.body], f.other.map(|o| fused_body[o]));
@@ -470,15 +462,7 @@ fn contact_constraint(
 /// factor `data` and `delassus` hold.
 #[allow(clippy::too_many_arguments)]
 fn limit_constraint(
-    model: &Model,
-    data: &Data,
-    delassus: &Delassus,
-    h: f64,
-    joint: &LimitedJoint,
-    side: usize,
-    q: &[f64],
-    piece: &[f64],
-    warm: f64,
+    model: &Model, data: &Data, delassus: &Delassus, h: f64, joint: &LimitedJoint, side: usize, q: &[f64], piece: &[f64], warm: f64,
 ) -> Constraint {
     let gap = |q: &[f64]| if side == 0 { q[joint.q] - joint.lower } else { joint.upper - q[joint.q] };
     let sign = if side == 0 { 1.0 } else { -1.0 };

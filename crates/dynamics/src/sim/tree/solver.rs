@@ -54,13 +54,7 @@ const LINE_TOLERANCE: f64 = 1e-4;
 /// from the poses in `data`, each in the zone (apart, sticking, sliding) the same constraint of `solved` ended
 /// in (the primal's gradient term with the zones held, `transition`).
 pub(super) fn impulses_at(
-    tree: &mut Articulated,
-    model: &Model,
-    data: &Data,
-    constraints: &mut [Constraint],
-    solved: &[Constraint],
-    v: &[f64],
-    out: &mut [f64],
+    tree: &mut Articulated, model: &Model, data: &Data, constraints: &mut [Constraint], solved: &[Constraint], v: &[f64], out: &mut [f64],
 ) {
     tree.motions(model, data, v);
     for (c, solved) in constraints.iter_mut().zip(solved) {
@@ -115,16 +109,8 @@ impl Solver {
     /// Returns the Newton iterations done, or None if the Newton matrix is not positive definite.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn solve(
-        &mut self,
-        model: &Model,
-        data: &Data,
-        base: Option<&Cholesky<f64, U6>>,
-        armature: &[f64],
-        constraints: &mut [Constraint],
-        v_free: &[f64],
-        v: &mut [f64],
-        max_iterations: usize,
-        from_free: bool,
+        &mut self, model: &Model, data: &Data, base: Option<&Cholesky<f64, U6>>, armature: &[f64], constraints: &mut [Constraint], v_free: &[f64],
+        v: &mut [f64], max_iterations: usize, from_free: bool,
     ) -> Option<usize> {
         let mass = Mass { model, data, armature };
         v.copy_from_slice(v_free);

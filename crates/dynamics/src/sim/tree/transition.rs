@@ -229,12 +229,7 @@ impl TreeSimulation {
     /// start into `a` and `b`, A = ∂x⁺/∂x (2 nv square) and B = ∂x⁺/∂u (2 nv x 3 nv, u = (τ_ff, target_q, target_v)): a
     /// rollout's step and its linearisation in one pass.
     pub(super) fn step_with_jacobians(
-        &mut self,
-        actuation: &Actuation<'_>,
-        q: &mut [f64],
-        v: &mut [f64],
-        applied: &mut [f64],
-        (a, b): (&mut DMatrix<f64>, &mut DMatrix<f64>),
+        &mut self, actuation: &Actuation<'_>, q: &mut [f64], v: &mut [f64], applied: &mut [f64], (a, b): (&mut DMatrix<f64>, &mut DMatrix<f64>),
     ) -> Result<()> {
         let mut transition = self.take_transition()?;
         let mut start = std::mem::take(&mut transition.start);
@@ -249,15 +244,8 @@ impl TreeSimulation {
     /// substep's warm starts followed from the impulses of the substep before it.
     #[allow(clippy::too_many_arguments)]
     fn chain(
-        &mut self,
-        t: &mut Transition,
-        [q_start, v_start]: &mut [Vec<f64>; 2],
-        actuation: &Actuation<'_>,
-        q_s: &mut [f64],
-        v_s: &mut [f64],
-        applied: &mut [f64],
-        a: &mut DMatrix<f64>,
-        b: &mut DMatrix<f64>,
+        &mut self, t: &mut Transition, [q_start, v_start]: &mut [Vec<f64>; 2], actuation: &Actuation<'_>, q_s: &mut [f64], v_s: &mut [f64],
+        applied: &mut [f64], a: &mut DMatrix<f64>, b: &mut DMatrix<f64>,
     ) -> Result<()> {
         let (nv, substeps) = (self.fused.nv(), self.options.substeps);
         zeroed(a, 2 * nv, 2 * nv)?;
