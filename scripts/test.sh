@@ -11,6 +11,8 @@
 #                clippy and rustdoc use), and the core crate checked without its default features (no Rapier)
 #   python-fast  the Python suite without the tests marked slow (pytest -m "not slow": the inner loop)
 #   python-slow  the tests marked slow (end-to-end experiments, simulations), except the browser's
+#                (both tiers on one pytest-xdist worker per core, -n auto: on 2 cores they take 0.55-0.6x their
+#                serial wall time)
 #   browser      the tests marked browser: the viewer's HTML rendered by headless Chromium. Chromium is
 #                installed with apt-get as root, or through sudo when that needs no password; when it cannot
 #                be, the tier is reported as NOT RUN in the summary (with the command that installs it)
@@ -91,8 +93,8 @@ rust() {
 if tier setup setup; then
     tier lint lint
     tier rust rust
-    tier python-fast python -m pytest tests -q -m "not slow"
-    tier python-slow python -m pytest tests -q -m "slow and not browser"
+    tier python-fast python -m pytest tests -q -m "not slow" -n auto
+    tier python-slow python -m pytest tests -q -m "slow and not browser" -n auto
     if command -v chromium >/dev/null; then
         tier browser python -m pytest tests -q -m browser
     else
