@@ -48,6 +48,7 @@ from legkit.optimize.gaits import (
     AMBLE_IPOPT,
     AMBLE_MIRROR,
     AMBLE_REGULARISED_FIRST,
+    AMBLE_WARM_IPOPT,
     WALK_DERIVATIVES,
     WALK_MIRROR,
     AmbleOptions,
@@ -170,7 +171,7 @@ def main() -> None:
     parser.add_argument("--bounds", action="store_true", help="amble: the plan's problem with each execution bound and the "
                         "force floor switched off in turn (what holds S_H)")
     parser.add_argument("--sequence", action="store_true", help="amble: the plan's problem at 0.55 to 0.75 m/s, the first "
-                        "cold, each next warm from the last")
+                        "cold, each next warm from the last, under the adaptive and the monotone barrier update")
     parser.add_argument("--compare", action="store_true",
                         help="amble: the cold solve under each solver setting side by side (exact Hessian with and without "
                              "perturb_always_cd, L-BFGS with the polish), CPU time per row")
@@ -223,18 +224,28 @@ def main() -> None:
             report(label, problem, result, time.process_time() - cpu)
         return
     if args.sequence:
-        last: tuple[float, lo.SolveResult] | None = None
-        for speed in (0.55, 0.60, 0.65, 0.70, 0.75):
-            problem = amble_plan_problem(robot, args.intervals, speed, 1.25, plan)
+        # The first speed cold, then each next from the last under each barrier update; and the first speed's optimum
+        # restarted on itself and on a speed 0.01 m/s faster: what a warm start costs when there is almost nothing to do.
+        speeds = (0.55, 0.60, 0.65, 0.70, 0.75)
+        problem = amble_plan_problem(robot, args.intervals, speeds[0], 1.25, plan)
+        cpu = time.process_time()
+        first = problem.solve(guess_from_reference(problem, amble_reference(robot, speeds[0], 1.25, args.intervals)),
+                              feasibility_first=True, **options)[1]
+        report(f"{speeds[0]:g} m/s, cold", problem, first, time.process_time() - cpu)
+        def warm(speed: float, last: tuple[float, lo.SolveResult], update: str, warm_options: dict) -> lo.SolveResult:
+            target = amble_plan_problem(robot, args.intervals, speed, 1.25, plan)
             cpu = time.process_time()
-            if last is None:
-                guess = guess_from_reference(problem, amble_reference(robot, speed, 1.25, args.intervals))
-                result = problem.solve(guess, feasibility_first=True, **options)[1]
-            else:
-                result = problem.solve(problem.continued(last[1], last[0]), derivatives="exact", tol=args.tol,
-                                       max_iter=args.polish_max_iter, options=AMBLE_IPOPT, regularised_first=AMBLE_REGULARISED_FIRST)[1]
-            report(f"{speed:g} m/s, " + ("cold" if last is None else f"warm from {last[0]:g}"), problem, result, time.process_time() - cpu)
-            last = (speed, result)
+            result = target.solve(target.continued(last[1], last[0]), derivatives="exact", tol=args.tol, max_iter=args.polish_max_iter,
+                                  options=warm_options, regularised_first=AMBLE_REGULARISED_FIRST)[1]
+            report(f"{speed:g} m/s, warm from {last[0]:g}, {update}", target, result, time.process_time() - cpu)
+            return result
+
+        for update, warm_options in (("adaptive", AMBLE_WARM_IPOPT), ("monotone", AMBLE_IPOPT)):
+            for speed in (speeds[0], speeds[0] + 0.01):
+                warm(speed, (speeds[0], first), update, warm_options)
+            last = (speeds[0], first)
+            for speed in speeds[1:]:
+                last = (speed, warm(speed, last, update, warm_options))
         return
 
     if args.compare:
@@ -262,7 +273,7 @@ def main() -> None:
     other, neighbour = cold(args.neighbour)
     report(f"cold, {args.neighbour:g} m/s (the neighbour)", other, neighbour)
     warm = target.solve(target.continued(neighbour, args.neighbour), derivatives="exact", tol=args.tol, max_iter=args.polish_max_iter,
-                        options=AMBLE_IPOPT, regularised_first=AMBLE_REGULARISED_FIRST)[1]
+                        options=AMBLE_WARM_IPOPT, regularised_first=AMBLE_REGULARISED_FIRST)[1]
     report(f"warm from {args.neighbour:g} m/s, exact", target, warm)
 
 

@@ -44,6 +44,11 @@ from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, Quadruped
 #: 17 + 169 and 19 + 188, to optima within 0.3 % of METIS's (p1 0.1577 and 0.1640 against 0.1579 and 0.1644).
 AMBLE_IPOPT = {"mu_strategy": "monotone", "perturb_always_cd": "yes", "mumps_pivot_order": 0, "mumps_scaling": 0}
 
+#: `AMBLE_IPOPT` for a warm start from a neighbour's optimum (`MultiphaseProblem.continued`): the barrier update
+#: adaptive, as `legkit.optimize.solver.WARM_START` has it. The plan at 0.60 to 0.75 m/s, each from the last, from
+#: 0.55 m/s (`benches/gait_optimisation.py --sequence`): 53, 45, 91, 49 iterations against 92, 44, 71, 102 monotone.
+AMBLE_WARM_IPOPT = {**AMBLE_IPOPT, "mu_strategy": "adaptive"}
+
 #: The amble's KKT systems are factorised first with the last iteration's regularisation
 #: (`legkit.optimize.solver.solve(regularised_first=True)`): unregularised, every one of them had the wrong inertia.
 #: `legkit gait --optimize`'s 16-interval amble at 0.67 m/s: 113 iterations and 36.6 s of CPU against 117 and 54.8 s

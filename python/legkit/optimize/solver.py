@@ -25,11 +25,15 @@ from legkit._validation import count, float_array, positive_scalar
 
 Progress = Callable[[int, float, float], None]
 
-#: IPOPT options of a primal-dual warm start (`solve(..., multipliers=)`): the start kept within 1e-6 of its bounds
-#: and a small initial barrier parameter. The 16-interval mirrored amble (exact Hessian, `AMBLE_IPOPT`) from its 0.67
-#: m/s optimum and multipliers (`continued`): to 0.70 m/s in 53 iterations with mu_init 1e-6, against 131, 77, 111 and
-#: 254 with 1e-4, 1e-5, 1e-7 and 1e-8, 116 from the point alone and 111 cold; to 0.64 m/s in 52 against 124 (1e-4).
-WARM_START = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6, "mu_init": 1e-6}
+#: IPOPT options of a primal-dual warm start (`solve(..., multipliers=)`): the start kept within 1e-6 of its bounds, a
+#: small initial barrier parameter, and the adaptive barrier update, which leaves it where the start is already
+#: central: the monotone update re-solves the barrier problem from mu_init down. The 16-interval amble plan
+#: (`amble_plan_problem`, exact Hessian) from its 0.55 m/s optimum and multipliers: back onto itself in 2 iterations
+#: against 35 (monotone); to 0.60 m/s (`continued`) in 53 against 92 (monotone; 97 with mu_init 1e-5, 203 with mu_init
+#: and the pushes 1e-8), 82 and 85 with the pushes 1e-3 and 1e-4 (mu_init 1e-4, 1e-5), 51 with the loqo oracle, 228
+#: with probing.
+WARM_START = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6, "mu_init": 1e-6,
+              "mu_strategy": "adaptive"}
 
 
 @dataclass
