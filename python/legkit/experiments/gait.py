@@ -450,10 +450,10 @@ def plot_torque_speed(path: Path, robot: Biped, joint_speed: np.ndarray, torque:
 #: IPOPT iterations of the gaits' cold solves with the default options, constraints and objective stages together
 #: (docs/optimize.md, "Results"), and the CPU an iteration took in units of one evaluation of the NLP's functions
 #: and derivatives (constraints, Jacobian, Hessian) timed before it: the KKT factorisations take the rest, more of it
-#: on the amble's larger system (45.7 s over 117 iterations after a 0.08 s evaluation; the walk 23.2 s over 107
-#: after 0.10 s). For the estimate printed before a solve.
-EXPECTED_ITERATIONS = {"amble": 117, "walk": 107}
-ITERATION_COST = {"amble": 4.9, "walk": 2.2}
+#: on the amble's larger system (45.7 s over 117 iterations after a 0.08 s evaluation; the walk on 12 intervals 21.6 s
+#: over 90 after 0.09 s). For the estimate printed before a solve.
+EXPECTED_ITERATIONS = {"amble": 117, "walk": 90}
+ITERATION_COST = {"amble": 4.9, "walk": 2.7}
 
 
 def _announce(problem: MultiphaseProblem, x: np.ndarray, gait: str) -> None:
@@ -606,8 +606,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--derivatives", choices=("exact", "legkit"), default="exact",
                         help="--optimize: the amble's J_s2 run with the exact Hessian of the Lagrangian (exact) or IPOPT's L-BFGS "
                              "approximation of it (legkit, then the --polish stages); the Jacobian is exact in both")
-    parser.add_argument("--biped-intervals", type=_positive_int, default=8,
-                        help="--optimize: collocation intervals per biped single-support phase (a quarter, at least 1, per double support)")
+    parser.add_argument("--biped-intervals", type=_positive_int, default=12,
+                        help="--optimize: collocation intervals per biped single-support phase (a quarter, at least 1, per double "
+                             "support; 12: a plan that is a motion of the model, 8 drifts 0.15 rad at the joints over an interval)")
     parser.add_argument("--max-iter", type=_positive_int, default=300,
                         help="--optimize: IPOPT iteration limit for the amble (per continuation stage)")
     parser.add_argument("--biped-max-iter", type=_positive_int, default=1000,

@@ -247,7 +247,7 @@ SOLE_TORSION = 0.04
 #: system's constraint block always regularised.
 WALK_IPOPT = {"mu_strategy": "monotone", "perturb_always_cd": "yes"}
 
-#: Derivatives for the walk's J_e1 stage: the exact Hessian (with `WALK_IPOPT`, the walk of `legkit gait --optimize`, (2, 8)
+#: Derivatives for the walk's J_e1 stage: the exact Hessian (with `WALK_IPOPT`, the walk on (2, 8)
 #: intervals, converged to 7.01 J/m in 17 + 94 iterations; L-BFGS on the exact Jacobian took 700 to 7.11 J/m).
 WALK_DERIVATIVES = "exact"
 
