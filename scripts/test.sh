@@ -12,7 +12,7 @@
 #   python-fast  the Python suite without the tests marked slow (pytest -m "not slow": the inner loop)
 #   python-slow  the tests marked slow (end-to-end experiments, simulations), except the browser's
 #                (both tiers on one pytest-xdist worker per core, -n auto: on 2 cores they take 0.55-0.6x their
-#                serial wall time)
+#                serial wall time), then those marked serial alone (a worker's CPU after Ctrl-C, measured)
 #   browser      the tests marked browser: the viewer's HTML rendered by headless Chromium. Chromium is
 #                installed with apt-get as root, or through sudo when that needs no password; when it cannot
 #                be, the tier is reported as NOT RUN in the summary (with the command that installs it)
@@ -83,6 +83,13 @@ lint() {  # every linter runs; the tier fails if any does
     return "$rc"
 }
 
+python_slow() {  # the slow tests on every core, then the serial ones alone
+    local rc=0
+    python -m pytest tests -q -m "slow and not browser and not serial" -n auto || rc=1
+    python -m pytest tests -q -m "serial and not browser" || rc=1
+    return "$rc"
+}
+
 rust() {
     local rc=0
     shared_profile_cargo test --workspace --exclude legkit-pybind || rc=1
@@ -93,8 +100,8 @@ rust() {
 if tier setup setup; then
     tier lint lint
     tier rust rust
-    tier python-fast python -m pytest tests -q -m "not slow" -n auto
-    tier python-slow python -m pytest tests -q -m "slow and not browser" -n auto
+    tier python-fast python -m pytest tests -q -m "not slow and not serial" -n auto
+    tier python-slow python_slow
     if command -v chromium >/dev/null; then
         tier browser python -m pytest tests -q -m browser
     else

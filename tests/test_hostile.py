@@ -749,11 +749,12 @@ def threads_cpu_seconds(pid: int) -> dict[str, float]:
 
 
 def interrupted_child(body: str, *, memory: int, after: float, timeout: float,
-                      at_signal: Callable[[int], Any] = lambda pid: None) -> tuple[dict, Any]:
+                      at_signal: Callable[[int], Any] = lambda pid: None, cpu_paced: bool = False) -> tuple[dict, Any]:
     """Runs `body` in a child (inside PRELUDE, under a `memory`-byte limit); the body prints `STARTED whole` before
-    its interruptible call and reports how it ended. SIGINTs the child `after` times `whole` seconds after that line,
-    and expects KeyboardInterrupt. Returns the child's report and what `at_signal(pid)` returned just before the
-    signal."""
+    its interruptible call and reports how it ended. SIGINTs the child `after` times `whole` seconds after that line
+    (cpu_paced: once its threads have worked that many CPU seconds since, so that a loaded machine, on which the
+    child gets less than a core, does not move the signal to an earlier point of its work), and expects
+    KeyboardInterrupt. Returns the child's report and what `at_signal(pid)` returned just before the signal."""
     code = PRELUDE.format(memory=memory, body=textwrap.indent(body, "    "))
     child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                              preexec_fn=ctrl_c_restored)
@@ -761,7 +762,17 @@ def interrupted_child(body: str, *, memory: int, after: float, timeout: float,
         assert child.stdout is not None
         started, whole = child.stdout.readline().split()
         assert started == "STARTED"
-        time.sleep(after * float(whole))
+        if cpu_paced:
+            # Each live thread's CPU since that line: a thread that ends meanwhile (the last call's worker) leaves the sum.
+            base, deadline = threads_cpu_seconds(child.pid), time.monotonic() + timeout
+
+            def worked() -> float:
+                return sum(cpu - base.get(tid, 0.0) for tid, cpu in threads_cpu_seconds(child.pid).items())
+
+            while worked() < after * float(whole) and child.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.005)
+        else:
+            time.sleep(after * float(whole))
         before_signal = at_signal(child.pid)
         child.send_signal(signal.SIGINT)
         out, err = child.communicate(timeout=timeout)
@@ -901,10 +912,10 @@ def flat_mjcf(bodies: int) -> str:
 
 def interrupted_load(path: Path, kind: str, whole: float | None = None) -> dict:
     """Loads `path` (a URDF or MJCF file) in a child once to time it (T), then again, interrupted halfway through
-    that second load; the child reports T (`whole`, CPU seconds) and the CPU seconds its worker thread (named
-    from_urdf or from_mjcf) ran after the interrupt, until it ended (`worker_cpu_after`). CPU seconds, not wall
-    time, so that a loaded machine does not stretch what is measured. A load too long to time is given its
-    `whole` (s) instead: it is interrupted once, at half that."""
+    that second load (once the child has worked T / 2 CPU seconds on it); the child reports T (`whole`, CPU
+    seconds) and the CPU seconds its worker thread (named from_urdf or from_mjcf) ran after the interrupt, until it
+    ended (`worker_cpu_after`). CPU seconds, not wall time, so that a loaded machine does not stretch what is
+    measured. A load too long to time is given its `whole` (CPU s) instead: it is interrupted once, at half that."""
     body = f"""
 import os, time
 TICK = os.sysconf("SC_CLK_TCK")
@@ -918,10 +929,10 @@ def worker_cpu():  # CPU seconds of the from_urdf worker threads alive now
         except OSError:  # the thread ended meanwhile (ENOENT or ESRCH)
             pass
     return total
-started, started_cpu = time.monotonic(), time.process_time()
+started_cpu = time.process_time()
 {f"lk.Model.from_{kind}({str(path)!r})" if whole is None else ""}
-whole = time.process_time() - started_cpu  # CPU seconds: the worker's work, whatever else runs on the machine
-print("STARTED", {"time.monotonic() - started" if whole is None else whole}, flush=True)
+whole = {"time.process_time() - started_cpu" if whole is None else whole}  # CPU seconds: the worker's work, whatever else runs
+print("STARTED", whole, flush=True)
 try:
     lk.Model.from_{kind}({str(path)!r})
 except KeyboardInterrupt:
@@ -934,10 +945,11 @@ except KeyboardInterrupt:
         time.sleep(0.005)
     report(raised="KeyboardInterrupt", whole=whole, worker_cpu_after=max(last - at_interrupt, 0.0))
 """
-    return interrupted_child(body.strip(), memory=8 * GIB, after=0.5, timeout=120)[0]
+    return interrupted_child(body.strip(), memory=8 * GIB, after=0.5, timeout=120, cpu_paced=True)[0]
 
 
 @pytest.mark.slow
+@pytest.mark.serial
 @pytest.mark.parametrize(("kind", "document"), [("urdf", chain_urdf), ("mjcf", flat_mjcf)])
 def test_an_interrupted_load_stops_its_worker_thread(tmp_path, kind, document):
     # A 500,000-link model: interrupted halfway, the worker thread is cancelled and ends, instead of loading on in
@@ -949,6 +961,7 @@ def test_an_interrupted_load_stops_its_worker_thread(tmp_path, kind, document):
 
 
 @pytest.mark.slow
+@pytest.mark.serial
 @pytest.mark.parametrize("kind", ["urdf", "mjcf"])
 def test_an_interrupted_load_of_a_mesh_with_a_huge_hull_stops_within_a_second(tmp_path, kind):
     # 900,000 vertices on a sphere, all on its hull: parry took 52 s of CPU over them in one call that cannot be

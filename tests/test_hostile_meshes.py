@@ -190,6 +190,7 @@ def test_an_obj_face_of_millions_of_corners_loads_as_a_collision_mesh_without_cu
 
 
 @pytest.mark.slow
+@pytest.mark.serial
 def test_an_interrupted_cut_of_an_obj_face_of_a_million_corners_stops_its_worker(tmp_path):
     # Ear clipping takes time growing with the square of the corners (0.7 s of CPU for 16,384, so about an hour for a
     # million): it checks for Ctrl-C about every millisecond of work, so the load stops within a second of it.

@@ -69,6 +69,7 @@ def test_a_count_beyond_the_element_bound_is_a_memory_error_before_any_copy(xml)
 
 
 @pytest.mark.slow
+@pytest.mark.serial
 def test_an_interrupted_expansion_stops_its_worker_thread(tmp_path):
     # 450,000 copies of a body (1.8 million elements, under the bound): interrupted halfway, the worker is cancelled.
     path = tmp_path / "model.mjcf"
