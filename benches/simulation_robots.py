@@ -28,7 +28,11 @@ ROBOTS = {
 }
 ROBOT_KP, ROBOT_KD = 60.0, 2.0  # N m/rad, N m s/rad: the servos holding the crouch
 FALL_KD = 0.5  # N m s/rad: limp joints while falling over
-FALL_ROLL, FALL_HEIGHT = 0.7, 0.45  # rad, m: released rolled, so it tips onto its side
+FALL_ROLL = 0.7  # rad: released rolled, so it tips onto its side
+# Base heights (m) that put the rolled robot's lowest point at least 1 mm above the ground: released at 0.45 m, ANYmal's
+# right shanks started 0.145 m into it (MuJoCo's contacts at the start), which each engine resolved its own way (MuJoCo's
+# lay on its side with 8-12 contacts, legkit's righted itself and lay on its belly with 24).
+FALL_HEIGHT = {"go1": 0.45, "anymal": 0.596}
 
 
 def physical_urdf(path: Path) -> Path:
@@ -74,7 +78,7 @@ def robot_scene(robot: str, fall: bool) -> Scene:
     for joint, angle in angles.items():
         start[model.idx_q[model.names.index(child_of[joint])]] = angle
     roll = FALL_ROLL if fall else 0.0
-    start[2] = FALL_HEIGHT if fall else stand_height
+    start[2] = FALL_HEIGHT[robot] if fall else stand_height
     start[3:7] = [np.sin(roll / 2), 0.0, 0.0, np.cos(roll / 2)]
     kp, kd = (0.0, FALL_KD) if fall else (ROBOT_KP, ROBOT_KD)
 

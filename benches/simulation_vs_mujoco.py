@@ -18,7 +18,8 @@ Scenes, each built twice from the same numbers (a `legkit.Model` and an MJCF str
   URDFs, loaded by both engines from the same file (a copy whose placeholder inertias are made physical:
   MuJoCo refuses them; MuJoCo also told not to infer masses from geometry), with the URDFs' own collision
   shapes touching the ground (no self-collision). Standing: PD servos hold a crouch. Falling: released
-  rolled by 0.7 rad at 0.45 m with limp, damped joints, it tips over onto its side. See the behaviour table
+  rolled by 0.7 rad with limp, damped joints, its lowest point 1 mm above the ground (Go1 at 0.45 m, ANYmal at
+  0.596 m), it tips over onto its side. See the behaviour table
   for the poses each engine ends in: with MuJoCo's default pyramidal cone a diagonal friction force is
   bounded by μ/√2, which standing ANYmal's feet exceed (|f_t|/f_n = 0.58 diagonally), so it sags.
 * ``dog-fall``: the dm_control suite's dog (85 DoF, with its ball: two free bodies, each on three slides and a ball
