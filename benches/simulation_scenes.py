@@ -374,7 +374,8 @@ def quadruped_scene(trot: bool) -> Scene:
             sim.reset(q, v)
             done[0] = steps
 
-        return Runner(advance, lambda: len(sim.contacts()["body"]), base, lambda: (sim.q, sim.v, done[0]), restore, simulation=sim)
+        return Runner(advance, lambda: len(sim.contacts()["body"]), base, lambda: (sim.q, sim.v, done[0]), restore,
+                      jacobians=sim.transition_jacobians, simulation=sim)
 
     def mujoco_runner() -> Runner:
         import mujoco
@@ -401,7 +402,7 @@ def quadruped_scene(trot: bool) -> Scene:
             w, x, y, _ = d.qpos[3:7]
             return np.array([d.qpos[0], d.qpos[1], d.qpos[2], 1 - 2 * (x * x + y * y)])
 
-        return Runner(advance, lambda: int(d.ncon), base)
+        return Runner(advance, lambda: int(d.ncon), base, jacobians=mujoco_jacobians(m, d), model_data=(m, d))
 
     return Scene("quadruped-trot" if trot else "quadruped-stand", 12, legkit_runner, mujoco_runner)
 
