@@ -44,10 +44,11 @@ from legkit.robots.quadruped import DIAGONAL_PAIRS, LEGS, Quadruped
 #: 17 + 169 and 19 + 188, to optima within 0.3 % of METIS's (p1 0.1577 and 0.1640 against 0.1579 and 0.1644).
 AMBLE_IPOPT = {"mu_strategy": "monotone", "perturb_always_cd": "yes", "mumps_pivot_order": 0, "mumps_scaling": 0}
 
-#: `AMBLE_IPOPT` for a warm start from a neighbour's optimum (`MultiphaseProblem.continued`): the barrier update
-#: adaptive, as `legkit.optimize.solver.WARM_START` has it. The plan at 0.60 to 0.75 m/s, each from the last, from
-#: 0.55 m/s (`benches/gait_optimisation.py --sequence`): 53, 45, 91, 49 iterations against 92, 44, 71, 102 monotone.
-AMBLE_WARM_IPOPT = {**AMBLE_IPOPT, "mu_strategy": "adaptive"}
+#: `AMBLE_IPOPT` for a warm start from a neighbour's optimum (`MultiphaseProblem.continued`): without its barrier
+#: update, so that `legkit.optimize.solver.WARM_START`'s adaptive one applies. The plan at 0.60 to 0.75 m/s, each from
+#: the last, from 0.55 m/s (`benches/gait_optimisation.py --sequence`): 53, 45, 91, 49 iterations against 92, 44, 71,
+#: 102 with the monotone update.
+AMBLE_WARM_IPOPT = {key: value for key, value in AMBLE_IPOPT.items() if key != "mu_strategy"}
 
 #: The amble's KKT systems are factorised first with the last iteration's regularisation
 #: (`legkit.optimize.solver.solve(regularised_first=True)`): unregularised, every one of them had the wrong inertia.
