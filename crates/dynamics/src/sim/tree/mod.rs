@@ -213,10 +213,14 @@ impl TreeSimulation {
     }
 
     /// The world poses of the original model's bodies that carry colliders from the fused model's, which
-    /// `data` holds about the base origin of `q`, into `poses` (indexed by body; the others are left as they are).
-    fn collision_poses(&self, data: &Data, q: &[f64], poses: &mut [Transform]) {
+    /// `data` holds about the base origin of `q`, into `poses` (indexed by body; the others are left as they are), with
+    /// `moving` those of the fused bodies it marks alone.
+    fn collision_poses(&self, data: &Data, q: &[f64], poses: &mut [Transform], moving: Option<&[bool]>) {
         let origin = base_origin(&self.fused, q);
         for &i in &self.collider_bodies {
+            if moving.is_some_and(|moving| !moving[self.fused_body[i]]) {
+                continue;
+            }
             let centred = &data.centred_m_i[self.fused_body[i]];
             let pose = Transform::new(centred.rotation, centred.translation + origin);
             poses[i] = match &self.offset[i] {
@@ -244,7 +248,7 @@ impl TreeSimulation {
             }
             if !detected {
                 let mut poses = std::mem::take(&mut self.poses);
-                self.collision_poses(&self.data, q, &mut poses);
+                self.collision_poses(&self.data, q, &mut poses, None);
                 self.poses = poses;
                 self.found.clear();
                 self.collision.detect(&self.poses, &mut self.found, &mut self.history);

@@ -6,7 +6,10 @@ use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Rotation3, UnitQuaternion, Ve
 
 use super::articulated::Articulated;
 use super::delassus::Delassus;
-use crate::algorithms::{aba_with_armature_unchecked as aba_with_armature, crba_unchecked as crba};
+use crate::algorithms::{
+    aba_factor_update_unchecked as aba_factor_update, aba_with_armature_unchecked as aba_with_armature, crba_unchecked as crba,
+    integrate_unchecked as integrate,
+};
 use crate::model::{Data, JointLimits, Model};
 use crate::sim::tests::ten_link_tree;
 use crate::spatial::spatial;
@@ -201,6 +204,57 @@ fn delassus_diagonals_match_dense_inverse_mass_matrix() {
             if model.joint(a).nv() == 1 {
                 let k = model.idx_v(a);
                 assert!((delassus.coordinate(&model, &data, a) - inverse[(k, k)]).abs() < 1e-10 * inverse[(k, k)]);
+            }
+        }
+    }
+}
+
+/// The factor updated over a displaced joint's subtree and its ancestors (`aba_factor_update`, what the transition
+/// Jacobians' differences use) against the full ABA at each displaced configuration, coordinate after coordinate (each
+/// update putting back the last one's bodies): the poses, subspaces, articulated inertias, U and D⁻¹ that the Delassus
+/// diagonals read, and those diagonals. A free-flyer's position moves none of it.
+#[test]
+fn the_factor_updated_over_a_subtree_is_the_full_factor() {
+    for model in models() {
+        let (q, armature, reference, _) = prepared(&model);
+        let (nv, zeros) = (model.nv(), vec![0.0; model.nv()]);
+        let mut data = Data::new(&model);
+        let mut written: Vec<usize> = (0..model.nbodies()).collect();
+        let (mut updated, mut full) = (Delassus::new(&model), Delassus::new(&model));
+        let (mut displaced, mut direction) = (vec![0.0; model.nq()], vec![0.0; nv]);
+        for k in 0..nv {
+            direction[k] = 1.0;
+            // Large enough that an update missing a body would show.
+            integrate(&model, &q, &direction, 0.3, &mut displaced);
+            direction[k] = 0.0;
+            let joint_body = (0..model.nbodies()).find(|&i| (model.idx_v(i)..model.idx_v(i) + model.joint(i).nv()).contains(&k)).unwrap();
+            let refactored = if model.floating_base() && k < 3 { None } else { Some(joint_body) };
+            aba_factor_update(&model, &mut data, &reference, &displaced, refactored, &armature, &mut written);
+            let mut expected = Data::new(&model);
+            aba_with_armature(&model, &mut expected, &displaced, &zeros, &zeros, None, &armature);
+            let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-12 * (1.0 + y.abs()));
+            for i in 0..model.nbodies() {
+                let label = format!("floating base {}, coordinate {k}, body {i}", model.floating_base());
+                let (pose, want) = (&data.centred_m_i[i], &expected.centred_m_i[i]);
+                assert!(
+                    close(pose.rotation.as_slice(), want.rotation.as_slice()) && close(pose.translation.as_slice(), want.translation.as_slice()),
+                    "{label}: pose"
+                );
+                assert!(close(data.s[i].as_slice(), expected.s[i].as_slice()), "{label}: S");
+                assert!(close(data.inertia[i].as_slice(), expected.inertia[i].as_slice()), "{label}: articulated inertia");
+                if model.joint(i).nv() == 1 {
+                    assert!(
+                        close(data.u[i].as_slice(), expected.u[i].as_slice()) && close(&[data.d_inv[i]], &[expected.d_inv[i]]),
+                        "{label}: U, D⁻¹"
+                    );
+                }
+            }
+            assert!(updated.update(&model, &data, &armature) && full.update(&model, &expected, &armature));
+            let rows = [Vector3::z(), Vector3::x(), Vector3::y()].map(|d| spatial(d, Vector3::new(0.1, 0.2, 0.0).cross(&d)));
+            for a in 1..model.nbodies() {
+                let (got, _) = updated.contact(&model, &data, a, None, &rows, &Vector3::zeros());
+                let (want, _) = full.contact(&model, &expected, a, None, &rows, &Vector3::zeros());
+                assert!(close(&got, &want), "coordinate {k}, body {a}: Delassus diagonals {got:?} vs {want:?}");
             }
         }
     }

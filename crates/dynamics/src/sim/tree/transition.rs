@@ -11,7 +11,9 @@
 //! ∂g/∂v and ∂g/∂u are analytic: the RNEA derivatives and the actuation's slopes. In ∂g/∂q the rigid-body and
 //! actuation terms are analytic too; the contacts' Σ J_cᵀ λ_c, whose rows, gaps and regularisation move with
 //! the configuration (through the contact geometry and the Delassus diagonals), is differentiated by central
-//! differences at fixed v⁺: one ABA factor and one pass over the contacts per coordinate, no contact solve.
+//! differences at fixed v⁺, no contact solve: per coordinate, the step's ABA factor updated over the subtree its joint
+//! moves and that subtree's ancestors, and one pass over the contacts, those between bodies it does not move keeping
+//! their geometry.
 //!
 //! What is differentiated: the step from the given state with its contact set, each contact's zone (apart,
 //! sticking, sliding), its saturated servos and the joint limits in play held; the Jacobians are the step's
@@ -29,7 +31,7 @@ use super::{base_origin, contact_constraint, limit_constraint, TreeSimulation};
 use crate::algorithms::aba::ball_subspace;
 // The unchecked kernels: the engine checks its state once, not per call.
 use crate::algorithms::{
-    aba_with_armature_unchecked as aba_with_armature, crba_unchecked as crba, integrate_jacobians_unchecked as integrate_jacobians,
+    aba_factor_update_unchecked as aba_factor_update, crba_unchecked as crba, integrate_jacobians_unchecked as integrate_jacobians,
     integrate_unchecked as integrate, rnea_derivatives_unchecked as rnea_derivatives,
 };
 use crate::joint::Dofs;
@@ -44,8 +46,15 @@ const STEP: f64 = 1e-6;
 
 /// Buffers for the Jacobians of one model, grown once.
 pub(super) struct Transition {
-    /// The factor, Delassus diagonals, collision poses and constraints at a displaced configuration.
+    /// The factor, Delassus diagonals, collision poses and constraints at a displaced configuration: the factor the
+    /// step's own but for the bodies in `written` (`aba_factor_update`), and the body whose joint each coordinate is.
     data: Data,
+    written: Vec<usize>,
+    body_of: Vec<usize>,
+    /// The fused bodies a displacement moves (its coordinate's joint's subtree), and the step's contacts re-evaluated
+    /// at its own configuration (`Collision::moved`), which a contact between bodies it does not move keeps.
+    moving: Vec<bool>,
+    found_at_q: Vec<Found>,
     delassus: Delassus,
     tree: Articulated,
     constraints: Vec<Constraint>,
@@ -62,11 +71,13 @@ pub(super) struct Transition {
     columns: Vec<usize>,
     touched: Vec<bool>,
     /// H, then its LU factors in place with their row swaps (`lu_factor`), and H⁻¹ from them: its products with the
-    /// 5 nv columns of a substep are one matrix product, not 5 nv triangular solves. No allocation per substep.
+    /// 3 nv columns of a substep are one matrix product, not 3 nv triangular solves. No allocation per substep.
     hessian: DMatrix<f64>,
     pivots: Vec<usize>,
     inverse: DMatrix<f64>,
-    /// ∂g/∂(q, v, τ_ff, target_q, target_v), nv x 5 nv; of a lone substep, after the solve, ∂v⁺ by them.
+    /// ∂g/∂(q, v, τ_ff), nv x 3 nv; of a lone substep, after the solve, ∂v⁺ by them. Every substep's slopes by the
+    /// servo targets are its slopes by τ_ff times kp and kd, so the chain carries τ_ff's columns alone
+    /// (`servo_columns`).
     slopes: DMatrix<f64>,
     /// ∂(q ⊕ h v⁺)/∂q and /∂v⁺.
     integrate_q: DMatrix<f64>,
@@ -100,19 +111,19 @@ fn zeroed(matrix: &mut DMatrix<f64>, rows: usize, columns: usize) -> Result<()> 
 /// substep's solution depends on it, and through it on the state and controls at the step's start.
 #[derive(Default)]
 struct Substeps {
-    /// ∂(q_s, v_s)/∂(x, u) (2 nv x 5 nv) and ∂W_s/∂(x, u) (4 k_s x 5 nv).
+    /// ∂(q_s, v_s)/∂(x, τ_ff) (2 nv x 3 nv) and ∂W_s/∂(x, τ_ff) (4 k_s x 3 nv).
     state: DMatrix<f64>,
     warm: DMatrix<f64>,
     /// Per contact, the spatial force F ∂λ_c/∂W_c its impulses' slopes by its warm start exert (6 x 4; a contact's
     /// impulses at fixed v⁺ depend on its own warm start alone).
     warm_force: Vec<Matrix6x4<f64>>,
-    /// ∂v⁺ and ∂q⁺ by (x, u) of the substep being folded in (nv x 5 nv each), and ∂W⁺ before it is passed on.
+    /// ∂v⁺ and ∂q⁺ by (x, τ_ff) of the substep being folded in (nv x 3 nv each), and ∂W⁺ before it is passed on.
     velocity_by: DMatrix<f64>,
     position_by: DMatrix<f64>,
-    /// The right-hand side ∂g d(x_s, u, W_s) of dv⁺ (nv x 5 nv).
+    /// The right-hand side ∂g d(x_s, τ_ff, W_s) of dv⁺ (nv x 3 nv).
     rhs: DMatrix<f64>,
     warm_by: DMatrix<f64>,
-    /// The last substep's contacts (where their impulses went) and impulses, and ∂W⁺/∂(x, u) (4 k x 5 nv).
+    /// The last substep's contacts (where their impulses went) and impulses, and ∂W⁺/∂(x, τ_ff) (4 k x 3 nv).
     sources: Vec<(Source, usize, Option<usize>, Warm)>,
     next_warm: DMatrix<f64>,
     /// Per contact of this substep: ∂W⁺/∂q at fixed v⁺ (4 k x nv), ∂W_c⁺/∂W_c (4 x 4), and ∂W_c⁺/∂(J_c v⁺) (4 x 3: a
@@ -133,6 +144,10 @@ impl Transition {
         let nv = fused.nv();
         Ok(Transition {
             data: Data::new(fused),
+            written: Vec::with_capacity(nbodies),
+            body_of: (0..fused.nbodies()).flat_map(|i| std::iter::repeat_n(i, fused.joint(i).nv())).collect(),
+            moving: vec![false; fused.nbodies()],
+            found_at_q: Vec::new(),
             delassus: Delassus::new(fused),
             tree: Articulated::new(fused),
             constraints: Vec::new(),
@@ -149,7 +164,7 @@ impl Transition {
             hessian: zeros(nv, nv)?,
             pivots: Vec::with_capacity(nv),
             inverse: zeros(nv, nv)?,
-            slopes: zeros(nv, 5 * nv)?,
+            slopes: zeros(nv, 3 * nv)?,
             integrate_q: zeros(nv, nv)?,
             integrate_v: zeros(nv, nv)?,
             substeps: Substeps::default(),
@@ -267,36 +282,38 @@ impl TreeSimulation {
             if substeps == 1 {
                 // ∂v⁺ = −H⁻¹ ∂g.
                 let solved = &mut t.substeps.velocity_by;
-                zeroed(solved, nv, 5 * nv)?;
+                zeroed(solved, nv, 3 * nv)?;
                 solved.gemm(-1.0, &t.inverse, &t.slopes, 0.0);
                 std::mem::swap(&mut t.slopes, solved);
                 self.write_jacobians(t, a, b);
+                servo_columns(actuation, b);
                 return Ok(());
             }
             self.compose(t, s == 0, passes_on)?;
         }
         let state = &t.substeps.state;
         a.copy_from(&state.columns(0, 2 * nv));
-        b.copy_from(&state.columns(2 * nv, 3 * nv));
+        b.columns_mut(0, nv).copy_from(&state.columns(2 * nv, nv));
+        servo_columns(actuation, b);
         Ok(())
     }
 
-    /// A and B of a lone substep from its slopes.
+    /// A and B's feed-forward columns of a lone substep from its slopes.
     fn write_jacobians(&self, t: &Transition, a: &mut DMatrix<f64>, b: &mut DMatrix<f64>) {
         let nv = self.fused.nv();
-        let (by_state, by_control) = (t.slopes.columns(0, 2 * nv), t.slopes.columns(2 * nv, 3 * nv));
+        let (by_state, by_control) = (t.slopes.columns(0, 2 * nv), t.slopes.columns(2 * nv, nv));
         a.view_mut((0, 0), (nv, 2 * nv)).gemm(1.0, &t.integrate_v, &by_state, 0.0);
         a.view_mut((0, 0), (nv, nv)).zip_apply(&t.integrate_q, |x, d| *x += d);
         a.view_mut((nv, 0), (nv, 2 * nv)).copy_from(&by_state);
-        b.view_mut((0, 0), (nv, 3 * nv)).gemm(1.0, &t.integrate_v, &by_control, 0.0);
-        b.view_mut((nv, 0), (nv, 3 * nv)).copy_from(&by_control);
+        b.view_mut((0, 0), (nv, nv)).gemm(1.0, &t.integrate_v, &by_control, 0.0);
+        b.view_mut((nv, 0), (nv, nv)).copy_from(&by_control);
     }
 
     /// ∂W_s/∂(x, u) of this substep's contacts from the last substep's impulses: a contact inherits the impulses of
     /// the last substep's contact at the same place (`Source`) on the same bodies, exactly as stored (`report`);
     /// any other warm start is the last step's, constant.
     fn inherited_warm(&self, t: &mut Transition) -> Result<()> {
-        let columns = 5 * self.fused.nv();
+        let columns = 3 * self.fused.nv();
         let Substeps { warm, next_warm, sources, inherits_from, .. } = &mut t.substeps;
         zeroed(warm, 4 * self.found.len(), columns)?;
         inherits_from.clear();
@@ -326,26 +343,32 @@ impl TreeSimulation {
         Ok(())
     }
 
-    /// Folds this substep's Jacobians (its slopes by (q_s, v_s, u, W_s), `linearise`) into ∂(q, v)/∂(x, u) and, if
-    /// `passes_on`, its impulses' into ∂W⁺/∂(x, u). The slopes are applied to the running block before the solve, so
-    /// H⁻¹ (from its factor) multiplies 5 nv columns once, and the warm starts' act as forces on their bodies.
+    /// Folds this substep's Jacobians (its slopes by (q_s, v_s, τ_ff, W_s), `linearise`) into ∂(q, v)/∂(x, τ_ff) and,
+    /// if `passes_on`, its impulses' into ∂W⁺/∂(x, τ_ff). The slopes are applied to the running block before the solve, so
+    /// H⁻¹ (from its factor) multiplies 3 nv columns once, and the warm starts' act as forces on their bodies.
     fn compose(&self, t: &mut Transition, first: bool, passes_on: bool) -> Result<()> {
         let model = self.fused.as_ref();
         let (nv, k) = (model.nv(), self.found.len());
-        let (columns, k4) = (5 * nv, 4 * k);
+        let (columns, k4) = (3 * nv, 4 * k);
         let ss = &mut t.substeps;
         if first {
             zeroed(&mut ss.state, 2 * nv, columns)?;
             ss.state.view_mut((0, 0), (2 * nv, 2 * nv)).fill_with_identity();
             zeroed(&mut ss.warm, k4, columns)?;
         }
-        // dv⁺ = −H⁻¹ (∂g/∂(q_s, v_s) d(q_s, v_s) + ∂g/∂u du + ∂g/∂W dW_s), ∂g/∂W_c = −J_cᵀ F ∂λ_c/∂W_c.
+        // dv⁺ = −H⁻¹ (∂g/∂(q_s, v_s) d(q_s, v_s) + ∂g/∂τ_ff dτ_ff + ∂g/∂W dW_s), ∂g/∂W_c = −J_cᵀ F ∂λ_c/∂W_c. The
+        // first substep's d(q_s, v_s) is the identity on the state's columns: its products are copies.
         zeroed(&mut ss.rhs, nv, columns)?;
         let rhs = &mut ss.rhs;
-        rhs.gemm(1.0, &t.slopes.columns(0, 2 * nv), &ss.state, 0.0);
-        rhs.columns_mut(2 * nv, 3 * nv).zip_apply(&t.slopes.columns(2 * nv, 3 * nv), |x, p| *x += p);
+        if first {
+            rhs.columns_mut(0, 2 * nv).copy_from(&t.slopes.columns(0, 2 * nv));
+        } else {
+            rhs.gemm(1.0, &t.slopes.columns(0, 2 * nv), &ss.state, 0.0);
+        }
+        rhs.columns_mut(2 * nv, nv).zip_apply(&t.slopes.columns(2 * nv, nv), |x, p| *x += p);
         if !first && ss.warm.nrows() == k4 && ss.warm_force.len() == k {
-            // Column by column: the contacts' forces on their bodies, then one pass down the tree (`generalized`).
+            // Column by column: the contacts' forces on their bodies, then one pass down the tree (`generalized`),
+            // O(n + k) a column where a product with Σ_c J_cᵀ F ∂λ_c/∂W_c would be O(nv k).
             for (j, mut column) in rhs.column_iter_mut().enumerate() {
                 t.tree.force.fill(Vector6::zeros());
                 for (c, force) in ss.warm_force.iter().enumerate() {
@@ -364,13 +387,21 @@ impl TreeSimulation {
         ss.velocity_by.gemm(-1.0, &t.inverse, &ss.rhs, 0.0);
         // dq⁺ = ∂(q ⊕ h v⁺)/∂q dq_s + ∂(q ⊕ h v⁺)/∂v⁺ dv⁺.
         zeroed(&mut ss.position_by, nv, columns)?;
-        ss.position_by.gemm(1.0, &t.integrate_q, &ss.state.rows(0, nv), 0.0);
+        if first {
+            ss.position_by.columns_mut(0, nv).copy_from(&t.integrate_q);
+        } else {
+            ss.position_by.gemm(1.0, &t.integrate_q, &ss.state.rows(0, nv), 0.0);
+        }
         ss.position_by.gemm(1.0, &t.integrate_v, &ss.velocity_by, 1.0);
         if passes_on {
-            // dW⁺ = ∂W⁺/∂q dq_s + ∂W⁺/∂W dW_s + ∂W_c⁺/∂y_c J_c dv⁺ (each contact's own warm start and rows alone): one
-            // pass over the tree per column for the bodies' motions, no 4 k x nv product.
+            // dW⁺ = ∂W⁺/∂q dq_s + ∂W⁺/∂W dW_s + ∂W_c⁺/∂y_c J_c dv⁺ (each contact's own warm start and rows alone).
             zeroed(&mut ss.warm_by, k4, columns)?;
-            ss.warm_by.gemm(1.0, &ss.warm_dq, &ss.state.rows(0, nv), 0.0);
+            if first {
+                ss.warm_by.columns_mut(0, nv).copy_from(&ss.warm_dq);
+            } else {
+                ss.warm_by.gemm(1.0, &ss.warm_dq, &ss.state.rows(0, nv), 0.0);
+            }
+            // Column by column, one pass over the tree each for the bodies' motions: O(n + k), not a 3 k x nv product.
             let inherited = ss.warm.nrows() == k4;
             for (j, column) in ss.velocity_by.column_iter().enumerate() {
                 t.tree.motions(model, &self.data, column.as_slice());
@@ -397,7 +428,7 @@ impl TreeSimulation {
         Ok(())
     }
 
-    /// The Jacobians of the substep just taken from (q, v), whose solution `self` holds: ∂g/∂(q, v, u) in
+    /// The Jacobians of the substep just taken from (q, v), whose solution `self` holds: ∂g/∂(q, v, τ_ff) in
     /// `t.slopes` and H factored in `t.hessian`, and with `inherits` the warm starts' forces (`Substeps::warm_force`);
     /// with `passes_on`, the derivatives of its impulses (the next substep's warm starts) in `t.substeps`.
     fn linearise(&self, t: &mut Transition, actuation: &Actuation<'_>, q: &[f64], v: &[f64], inherits: bool, passes_on: bool) -> Result<()> {
@@ -408,7 +439,7 @@ impl TreeSimulation {
         // CRBA's M and the RNEA derivatives' two squares, reserved fallibly (`Data::reserve_dense`).
         t.rigid.reserve_dense(model, &[Dense::MassMatrix, Dense::RneaDerivatives])?;
         t.hessian.copy_from(crba(model, &mut t.rigid, q));
-        zeroed(&mut t.slopes, nv, 5 * nv)?;
+        zeroed(&mut t.slopes, nv, 3 * nv)?;
         if passes_on {
             let ss = &mut t.substeps;
             zeroed(&mut ss.warm_dq, k4, nv)?;
@@ -420,8 +451,9 @@ impl TreeSimulation {
         let first_joint = if model.floating_base() { 6 } else { 0 };
         for (k, (acceleration, (after, before))) in t.acceleration.iter_mut().zip(v_next.iter().zip(v)).enumerate() {
             *acceleration = (after - before) / h;
-            // The actuation's forces and their slopes by (q_k, v_k, τ_ff, target_q, target_v): an implicit servo
-            // acts at the step's end (`actuate`), an unsaturated explicit one at its start, a saturated one not.
+            // The actuation's forces and their slopes by (q_k, v_k, τ_ff): an implicit servo acts at the step's end
+            // (`actuate`), an unsaturated explicit one at its start, a saturated one not. Its slopes by target_q and
+            // target_v are −h gain kp and −h gain kd, kp and kd times τ_ff's (`servo_columns`).
             let s = &actuation.servo;
             let (kp, kd, damping) = (s.kp[k], s.kd[k], model.damping()[k]);
             let active = self.implicit[k] || actuation.raw(k, &self.q_dof, v).abs() < actuation.bound(k);
@@ -432,8 +464,6 @@ impl TreeSimulation {
             t.slopes[(k, k)] += h * gain * kp;
             t.slopes[(k, nv + k)] += -added - h * by_velocity;
             t.slopes[(k, 2 * nv + k)] = -h * gain;
-            t.slopes[(k, 3 * nv + k)] = -h * gain * kp;
-            t.slopes[(k, 4 * nv + k)] = -h * gain * kd;
         }
         for c in &self.constraints {
             match c.stiffness() {
@@ -445,17 +475,28 @@ impl TreeSimulation {
         let (dtau_dq, dtau_dv) = rnea_derivatives(model, &mut t.rigid, q, v, &t.acceleration, None);
         t.slopes.columns_mut(0, nv).zip_apply(dtau_dq, |s, d| *s += h * d);
         t.slopes.columns_mut(nv, nv).zip_apply(dtau_dv, |s, d| *s += h * d);
-        // − ∂(Σ J_cᵀ λ_c)/∂q at fixed v⁺, by central differences.
+        // − ∂(Σ J_cᵀ λ_c)/∂q at fixed v⁺, by central differences; the displaced factors are updated from the step's,
+        // which `t.data` is to hold first.
+        t.written.clear();
+        t.written.extend(0..model.nbodies());
+        t.found_at_q.clear();
+        t.found_at_q.extend(self.found.iter().map(|f| self.collision.moved(f, &self.poses)));
         for k in 0..nv {
             // One coordinate's pair of contact passes: on a model of a thousand links the loop takes seconds.
             check_cancelled("transition_jacobians")?;
             t.direction[k] = 1.0;
+            let joint_body = t.body_of[k];
+            for i in 0..model.nbodies() {
+                t.moving[i] = i == joint_body || (i > joint_body && t.moving[model.parent(i)]);
+            }
+            // The poses of the bodies this coordinate does not move stay the step's (`collision_poses`).
+            t.poses.copy_from_slice(&self.poses);
             integrate(model, q, &t.direction, -STEP, &mut t.displaced);
-            self.contact_impulses(t, q, v)?;
+            self.contact_impulses(t, q, k)?;
             std::mem::swap(&mut t.plus, &mut t.minus);
             std::mem::swap(&mut t.substeps.warm_plus, &mut t.substeps.warm_minus);
             integrate(model, q, &t.direction, STEP, &mut t.displaced);
-            self.contact_impulses(t, q, v)?;
+            self.contact_impulses(t, q, k)?;
             t.direction[k] = 0.0;
             for (r, (plus, minus)) in t.plus.iter().zip(&t.minus).enumerate() {
                 t.slopes[(r, k)] -= (plus - minus) / (2.0 * STEP);
@@ -543,9 +584,9 @@ impl TreeSimulation {
 
     /// Σ J_cᵀ λ_c at v⁺ = `self.v_next` with the configuration at `t.displaced`: the step's contacts and
     /// limits (at `q`) moved there, each its impulses at J_c v⁺ − b_c (no solve, b_c on its piece at `q`), into
-    /// `t.plus`.
-    fn contact_impulses(&self, t: &mut Transition, q: &[f64], v: &[f64]) -> Result<()> {
-        self.constraints_at(t, q, v)?;
+    /// `t.plus`. The displacement is along coordinate `k`.
+    fn contact_impulses(&self, t: &mut Transition, q: &[f64], k: usize) -> Result<()> {
+        self.constraints_at(t, q, k)?;
         let model = self.fused.as_ref();
         impulses_at(&mut t.tree, model, &t.data, &mut t.constraints, &self.constraints, &self.v_next, &mut t.plus);
         warm_starts(&t.constraints, &t.substeps.tangents, &mut t.substeps.warm_plus);
@@ -553,28 +594,50 @@ impl TreeSimulation {
     }
 
     /// The step's contacts and limits (at `q`) moved to the configuration at `t.displaced`, into `t.constraints`
-    /// (and the contacts' tangents there into `t.substeps.tangents`), with the factor there in `t.data`.
-    fn constraints_at(&self, t: &mut Transition, q: &[f64], v: &[f64]) -> Result<()> {
+    /// (and the contacts' tangents there into `t.substeps.tangents`), with the factor there in `t.data`; the
+    /// displacement is along coordinate `k`, which moves its joint's subtree alone.
+    fn constraints_at(&self, t: &mut Transition, q: &[f64], k: usize) -> Result<()> {
         let model = self.fused.as_ref();
         let displaced = &t.displaced;
-        aba_with_armature(model, &mut t.data, displaced, v, &self.tau, None, &self.armature);
-        if !t.delassus.update(model, &t.data, &self.armature) {
-            return Err(Error::numerical("transition_jacobians", "the mass matrix stopped being positive definite near the state"));
-        }
-        self.collision_poses(&t.data, displaced, &mut t.poses);
+        // The factor is in the base's frame at its origin: the base's position moves none of it.
+        let refactored = match t.body_of[k] {
+            0 if displaced[3..] == q[3..] => None,
+            body => Some(body),
+        };
+        aba_factor_update(model, &mut t.data, &self.data, displaced, refactored, &self.armature, &mut t.written);
+        let delassus = match refactored {
+            None => &self.delassus,
+            Some(_) if t.delassus.update(model, &t.data, &self.armature) => &t.delassus,
+            Some(_) => return Err(Error::numerical("transition_jacobians", "the mass matrix stopped being positive definite near the state")),
+        };
+        self.collision_poses(&t.data, displaced, &mut t.poses, Some(&t.moving));
         let origin = base_origin(model, displaced);
         t.constraints.clear();
         t.substeps.tangents.clear();
-        for f in &self.found {
-            let moved = self.collision.moved(f, &t.poses);
-            t.substeps.tangents.push(moved.tangents);
-            t.constraints.push(self.contact_row(model, &t.data, &t.delassus, &moved, f.distance, &origin));
+        for (f, at_q) in self.found.iter().zip(&t.found_at_q) {
+            let moves = |body: usize| t.moving[self.fused_body[body]];
+            let contact = if moves(f.body) || f.other.is_some_and(moves) { self.collision.moved(f, &t.poses) } else { *at_q };
+            t.substeps.tangents.push(contact.tangents);
+            t.constraints.push(self.contact_row(model, &t.data, delassus, &contact, f.distance, &origin));
         }
         for &(index, side) in &self.limit_rows {
             // A limit's warm start only seeds the solver: its impulse at a given v⁺ does not depend on it.
-            t.constraints.push(limit_constraint(model, &t.data, &t.delassus, self.h, &self.limited[index], side, displaced, q, 0.0));
+            t.constraints.push(limit_constraint(model, &t.data, delassus, self.h, &self.limited[index], side, displaced, q, 0.0));
         }
         Ok(())
+    }
+}
+
+/// B's servo-target columns from its feed-forward ones (the first nv): a servo's force on coordinate k follows
+/// target_q,k and target_v,k as kp_k and kd_k times it follows τ_ff,k, in every substep, saturated or not.
+fn servo_columns(actuation: &Actuation<'_>, b: &mut DMatrix<f64>) {
+    let nv = actuation.servo.kp.len();
+    for (k, (kp, kd)) in actuation.servo.kp.iter().zip(&actuation.servo.kd).enumerate() {
+        for (offset, gain) in [(nv, kp), (2 * nv, kd)] {
+            for r in 0..b.nrows() {
+                b[(r, offset + k)] = gain * b[(r, k)];
+            }
+        }
     }
 }
 
