@@ -215,6 +215,12 @@ impl Constraint {
         }
     }
 
+    /// The same constraint with another Delassus diagonal and scale (`Delassus::contact`), which set its
+    /// regularisation, from its warm start.
+    pub(super) fn with_diagonal(&self, diagonal: [f64; 2], scale: f64) -> Constraint {
+        Constraint::new(self.kind, self.target, self.rows, self.asked[0], self.warm, diagonal, scale)
+    }
+
     pub(super) fn active(&self) -> bool {
         self.inverse_sqrt_r[0] > 0.0
     }
@@ -443,7 +449,7 @@ impl Constraint {
 
     /// `settle`, the impulses in the zone of `zone` if given, whichever zone the residual is in.
     /// Its impulses at velocities `v` whose body motions are `motion` (`Articulated::motions`), in the zone of
-    /// `solved`, the step's own constraint (`impulses_at`).
+    /// `solved`, the step's own constraint (`transition`).
     pub(super) fn settle_at(&mut self, solved: &Constraint, motion: &[Vector6<f64>], v: &[f64]) {
         self.settle_with(solved, rows_times(self, motion, v));
     }

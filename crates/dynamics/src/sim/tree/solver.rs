@@ -50,19 +50,6 @@ pub(super) const CONVERGED: f64 = 1e-10;
 const LINE_ITERATIONS: usize = 30;
 const LINE_TOLERANCE: f64 = 1e-4;
 
-/// out = Jᵀ λ for the impulses the constraints give at velocities `v`, without solving: λ(J v − b) of each,
-/// from the poses in `data`, each in the zone (apart, sticking, sliding) the same constraint of `solved` ended
-/// in (the primal's gradient term with the zones held, `transition`).
-pub(super) fn impulses_at(
-    tree: &mut Articulated, model: &Model, data: &Data, constraints: &mut [Constraint], solved: &[Constraint], v: &[f64], out: &mut [f64],
-) {
-    tree.motions(model, data, v);
-    for (c, solved) in constraints.iter_mut().zip(solved) {
-        c.settle_at(solved, &tree.motion, v);
-    }
-    generalized_impulses(tree, model, data, constraints, out);
-}
-
 /// M̃ on the tree: the model, the poses and factor `aba_with_armature` left in `data`, and the armature it added.
 #[derive(Clone, Copy)]
 struct Mass<'a> {
@@ -380,7 +367,7 @@ fn project(constraints: &mut [Constraint]) {
 }
 
 /// out = Jᵀ λ for the constraints' impulses.
-fn generalized_impulses(tree: &mut Articulated, model: &Model, data: &Data, constraints: &[Constraint], out: &mut [f64]) {
+pub(super) fn generalized_impulses(tree: &mut Articulated, model: &Model, data: &Data, constraints: &[Constraint], out: &mut [f64]) {
     tree.force.fill(Vector6::zeros());
     for c in constraints.iter().filter(|c| c.lambda != [0.0; 3]) {
         if let Target::Bodies(a, b) = c.target {

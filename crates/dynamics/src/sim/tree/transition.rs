@@ -12,21 +12,22 @@
 //! actuation terms are analytic too; the contacts' Σ J_cᵀ λ_c, whose rows, gaps and regularisation move with
 //! the configuration (through the contact geometry and the Delassus diagonals), is differentiated by central
 //! differences at fixed v⁺, no contact solve: per coordinate, the step's ABA factor updated over the subtree its joint
-//! moves and that subtree's ancestors, and one pass over the contacts, those between bodies it does not move keeping
-//! their geometry.
+//! moves and that subtree's ancestors, and one pass over the contacts it moves; the others keep their rows, gap and
+//! velocity and change through their Delassus diagonals alone, which the chain rule carries (their impulses' slopes by
+//! the diagonal, once per substep).
 //!
 //! What is differentiated: the step from the given state with its contact set, each contact's zone (apart,
 //! sticking, sliding), its saturated servos and the joint limits in play held; the Jacobians are the step's
 //! away from switches between them, with the contact solve taken as converged. A step of several substeps is the
 //! chain of theirs, each substep's contact set and zones held, the warm starts it passes on followed (`Substeps`).
 
-use nalgebra::{DMatrix, Matrix4, Matrix4x3, Matrix6, Matrix6x4, Matrix6xX, Vector3, Vector4, Vector6};
+use nalgebra::{DMatrix, Matrix3x2, Matrix4, Matrix4x3, Matrix6, Matrix6x4, Matrix6xX, Vector2, Vector3, Vector4, Vector6};
 
 use super::articulated::Articulated;
 use super::collision::{Found, Source, Warm};
-use super::constraint::{Constraint, Stiffness};
+use super::constraint::{Constraint, Kind, Stiffness};
 use super::delassus::Delassus;
-use super::solver::impulses_at;
+use super::solver::generalized_impulses;
 use super::{base_origin, contact_constraint, limit_constraint, TreeSimulation};
 use crate::algorithms::aba::ball_subspace;
 // The unchecked kernels: the engine checks its state once, not per call.
@@ -55,6 +56,15 @@ pub(super) struct Transition {
     /// at its own configuration (`Collision::moved`), which a contact between bodies it does not move keeps.
     moving: Vec<bool>,
     found_at_q: Vec<Found>,
+    /// Per contact: whether the displacement moves it, its constraint built at the step's configuration, and the
+    /// slopes of its impulses by its Delassus diagonal [normal, tangents] (3 x 2). A contact the displacement does not
+    /// move keeps its rows, gap and velocity and changes through its diagonal alone (the factor moves, `delassus`), so
+    /// its impulses' differences follow the diagonal's by the chain rule, no constraint rebuilt.
+    contact_moves: Vec<bool>,
+    held: Vec<Constraint>,
+    by_diagonal: Vec<Matrix3x2<f64>>,
+    /// Each contact's diagonal at the displaced configurations (−, +).
+    diagonals: [Vec<Vector2<f64>>; 2],
     delassus: Delassus,
     tree: Articulated,
     constraints: Vec<Constraint>,
@@ -148,6 +158,10 @@ impl Transition {
             body_of: (0..fused.nbodies()).flat_map(|i| std::iter::repeat_n(i, fused.joint(i).nv())).collect(),
             moving: vec![false; fused.nbodies()],
             found_at_q: Vec::new(),
+            contact_moves: Vec::new(),
+            held: Vec::new(),
+            by_diagonal: Vec::new(),
+            diagonals: [Vec::new(), Vec::new()],
             delassus: Delassus::new(fused),
             tree: Articulated::new(fused),
             constraints: Vec::new(),
@@ -481,6 +495,7 @@ impl TreeSimulation {
         t.written.extend(0..model.nbodies());
         t.found_at_q.clear();
         t.found_at_q.extend(self.found.iter().map(|f| self.collision.moved(f, &self.poses)));
+        self.held_contacts(t, q);
         for k in 0..nv {
             // One coordinate's pair of contact passes: on a model of a thousand links the loop takes seconds.
             check_cancelled("transition_jacobians")?;
@@ -489,23 +504,57 @@ impl TreeSimulation {
             for i in 0..model.nbodies() {
                 t.moving[i] = i == joint_body || (i > joint_body && t.moving[model.parent(i)]);
             }
+            t.contact_moves.clear();
+            t.contact_moves.extend(self.found.iter().map(|f| {
+                let moves = |body: usize| t.moving[self.fused_body[body]];
+                moves(f.body) || f.other.is_some_and(moves)
+            }));
             // The poses of the bodies this coordinate does not move stay the step's (`collision_poses`).
             t.poses.copy_from_slice(&self.poses);
             integrate(model, q, &t.direction, -STEP, &mut t.displaced);
-            self.contact_impulses(t, q, k)?;
+            self.contact_impulses(t, q, k, 0)?;
             std::mem::swap(&mut t.plus, &mut t.minus);
             std::mem::swap(&mut t.substeps.warm_plus, &mut t.substeps.warm_minus);
             integrate(model, q, &t.direction, STEP, &mut t.displaced);
-            self.contact_impulses(t, q, k)?;
+            self.contact_impulses(t, q, k, 1)?;
             t.direction[k] = 0.0;
             for (r, (plus, minus)) in t.plus.iter().zip(&t.minus).enumerate() {
                 t.slopes[(r, k)] -= (plus - minus) / (2.0 * STEP);
             }
+            // The contacts it moves (rebuilt, in order, with the limits), then the others through their diagonals.
+            let ss = &mut t.substeps;
+            let moved = t.contact_moves.iter().enumerate().filter(|(_, moves)| **moves).map(|(c, _)| c);
             if passes_on {
-                let ss = &mut t.substeps;
-                for (r, (plus, minus)) in ss.warm_plus.iter().zip(&ss.warm_minus).enumerate() {
-                    ss.warm_dq[(r, k)] = (plus - minus) / (2.0 * STEP);
+                for (i, c) in moved.enumerate() {
+                    for j in 0..4 {
+                        ss.warm_dq[(4 * c + j, k)] = (ss.warm_plus[4 * i + j] - ss.warm_minus[4 * i + j]) / (2.0 * STEP);
+                    }
                 }
+            }
+            t.tree.force.fill(Vector6::zeros());
+            for (c, held) in t.held.iter().enumerate().filter(|(c, _)| !t.contact_moves[*c]) {
+                let change = (t.diagonals[1][c] - t.diagonals[0][c]) / (2.0 * STEP);
+                let slope = t.by_diagonal[c] * change;
+                if slope == Vector3::zeros() {
+                    continue;
+                }
+                let Some((body, other)) = held.bodies() else { continue };
+                let force = held.force(&slope.into());
+                t.tree.force[body] += force;
+                if let Some(other) = other {
+                    t.tree.force[other] -= force;
+                }
+                if passes_on {
+                    let [t1, t2] = t.found_at_q[c].tangents;
+                    let friction = t1 * slope[1] + t2 * slope[2];
+                    for (j, x) in [slope[0], friction.x, friction.y, friction.z].into_iter().enumerate() {
+                        ss.warm_dq[(4 * c + j, k)] = x;
+                    }
+                }
+            }
+            t.tree.generalized(model, &self.data, &mut t.minus);
+            for (r, held) in t.minus.iter().enumerate() {
+                t.slopes[(r, k)] -= held;
             }
         }
         if passes_on {
@@ -582,21 +631,29 @@ impl TreeSimulation {
         }
     }
 
-    /// Σ J_cᵀ λ_c at v⁺ = `self.v_next` with the configuration at `t.displaced`: the step's contacts and
-    /// limits (at `q`) moved there, each its impulses at J_c v⁺ − b_c (no solve, b_c on its piece at `q`), into
-    /// `t.plus`. The displacement is along coordinate `k`.
-    fn contact_impulses(&self, t: &mut Transition, q: &[f64], k: usize) -> Result<()> {
-        self.constraints_at(t, q, k)?;
+    /// Σ J_cᵀ λ_c at v⁺ = `self.v_next` with the configuration at `t.displaced`, of the contacts the displacement moves
+    /// (`t.contact_moves`) and the limits: the step's (at `q`) moved there, each its impulses at J_c v⁺ − b_c in its
+    /// zone (no solve, b_c on its piece at `q`), into `t.plus`, and their impulses into `t.substeps.warm_plus`; the other
+    /// contacts' diagonals there into `t.diagonals[side]`. The displacement is along coordinate `k`.
+    fn contact_impulses(&self, t: &mut Transition, q: &[f64], k: usize, side: usize) -> Result<()> {
+        self.constraints_at(t, q, k, side)?;
         let model = self.fused.as_ref();
-        impulses_at(&mut t.tree, model, &t.data, &mut t.constraints, &self.constraints, &self.v_next, &mut t.plus);
+        t.tree.motions(model, &t.data, &self.v_next);
+        let moved = t.contact_moves.iter().enumerate().filter(|(_, moves)| **moves).map(|(c, _)| c);
+        let solved = moved.chain(self.found.len()..self.constraints.len());
+        for (constraint, c) in t.constraints.iter_mut().zip(solved) {
+            constraint.settle_at(&self.constraints[c], &t.tree.motion, &self.v_next);
+        }
+        generalized_impulses(&mut t.tree, model, &t.data, &t.constraints, &mut t.plus);
         warm_starts(&t.constraints, &t.substeps.tangents, &mut t.substeps.warm_plus);
         Ok(())
     }
 
-    /// The step's contacts and limits (at `q`) moved to the configuration at `t.displaced`, into `t.constraints`
-    /// (and the contacts' tangents there into `t.substeps.tangents`), with the factor there in `t.data`; the
-    /// displacement is along coordinate `k`, which moves its joint's subtree alone.
-    fn constraints_at(&self, t: &mut Transition, q: &[f64], k: usize) -> Result<()> {
+    /// The contacts the displacement moves and the limits (at `q`) moved to the configuration at `t.displaced`, into
+    /// `t.constraints` (and those contacts' tangents there into `t.substeps.tangents`), with the factor there in
+    /// `t.data`, and the other contacts' diagonals into `t.diagonals[side]`; the displacement is along coordinate `k`,
+    /// which moves its joint's subtree alone.
+    fn constraints_at(&self, t: &mut Transition, q: &[f64], k: usize, side: usize) -> Result<()> {
         let model = self.fused.as_ref();
         let displaced = &t.displaced;
         // The factor is in the base's frame at its origin: the base's position moves none of it.
@@ -614,17 +671,70 @@ impl TreeSimulation {
         let origin = base_origin(model, displaced);
         t.constraints.clear();
         t.substeps.tangents.clear();
-        for (f, at_q) in self.found.iter().zip(&t.found_at_q) {
-            let moves = |body: usize| t.moving[self.fused_body[body]];
-            let contact = if moves(f.body) || f.other.is_some_and(moves) { self.collision.moved(f, &t.poses) } else { *at_q };
-            t.substeps.tangents.push(contact.tangents);
-            t.constraints.push(self.contact_row(model, &t.data, delassus, &contact, f.distance, &origin));
+        for (c, f) in self.found.iter().enumerate() {
+            if t.contact_moves[c] {
+                let moved = self.collision.moved(f, &t.poses);
+                t.substeps.tangents.push(moved.tangents);
+                t.constraints.push(self.contact_row(model, &t.data, delassus, &moved, f.distance, &origin));
+            } else {
+                t.diagonals[side][c] = contact_diagonal(model, &t.data, delassus, &t.held[c]).0;
+            }
         }
         for &(index, side) in &self.limit_rows {
             // A limit's warm start only seeds the solver: its impulse at a given v⁺ does not depend on it.
             t.constraints.push(limit_constraint(model, &t.data, delassus, self.h, &self.limited[index], side, displaced, q, 0.0));
         }
         Ok(())
+    }
+
+    /// Each contact rebuilt at the step's configuration `q` from `t.found_at_q` into `t.held`, and the slopes of its
+    /// impulses at v⁺ (in the zone it ended in) by its Delassus diagonal into `t.by_diagonal`, by central differences
+    /// in the diagonal (relative steps; no pass over the tree).
+    fn held_contacts(&self, t: &mut Transition, q: &[f64]) {
+        let model = self.fused.as_ref();
+        let origin = base_origin(model, q);
+        t.tree.motions(model, &self.data, &self.v_next);
+        t.held.clear();
+        t.by_diagonal.clear();
+        for (c, (f, at_q)) in self.found.iter().zip(&t.found_at_q).enumerate() {
+            let held = self.contact_row(model, &self.data, &self.delassus, at_q, f.distance, &origin);
+            let (diagonal, scale) = contact_diagonal(model, &self.data, &self.delassus, &held);
+            let mut slopes = Matrix3x2::zeros();
+            for j in 0..2 {
+                let step = STEP * diagonal[j].abs();
+                if step == 0.0 {
+                    continue;
+                }
+                let mut lambda = [[0.0; 3]; 2];
+                for (side, sign) in [(0, 1.0), (1, -1.0)] {
+                    let mut displaced = diagonal;
+                    displaced[j] += sign * step;
+                    let mut constraint = held.with_diagonal(displaced.into(), scale);
+                    constraint.settle_at(&self.constraints[c], &t.tree.motion, &self.v_next);
+                    lambda[side] = constraint.lambda;
+                }
+                for r in 0..3 {
+                    slopes[(r, j)] = (lambda[0][r] - lambda[1][r]) / (2.0 * step);
+                }
+            }
+            t.held.push(held);
+            t.by_diagonal.push(slopes);
+        }
+        for diagonals in &mut t.diagonals {
+            diagonals.clear();
+            diagonals.resize(self.found.len(), Vector2::zeros());
+        }
+    }
+}
+
+/// A contact's Delassus diagonal [normal, tangents] and scale on the factor in `data` and `delassus` (`Delassus::contact`).
+fn contact_diagonal(model: &Model, data: &Data, delassus: &Delassus, contact: &Constraint) -> (Vector2<f64>, f64) {
+    match (contact.kind, contact.bodies()) {
+        (Kind::Contact { arm, .. }, Some((body, other))) => {
+            let (diagonal, scale) = delassus.contact(model, data, body, other, &contact.rows, &arm);
+            (diagonal.into(), scale)
+        }
+        _ => (Vector2::zeros(), 0.0),
     }
 }
 
