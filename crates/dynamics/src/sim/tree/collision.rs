@@ -25,6 +25,13 @@ pub(super) const PREDICTION: f64 = 1e-3;
 /// What a contact point carries from one step to the next: the impulses [λ_n, λ_t (world, 3)].
 pub(super) type Warm = [f64; 4];
 
+/// A contact's impulses [λ_n, λ_t1, λ_t2] along its normal and `tangents` as a warm start: λ_n and its friction in the
+/// world's axes (what `Collision::store` keeps).
+pub(super) fn warm_of(tangents: &[Vector3<f64>; 2], lambda: &[f64; 3]) -> Warm {
+    let friction = tangents[0] * lambda[1] + tangents[1] * lambda[2];
+    [lambda[0], friction.x, friction.y, friction.z]
+}
+
 struct Collider {
     body: usize,
     /// The body of the fused model that `body` moves with, and that body's parent.

@@ -24,6 +24,7 @@ mod articulated;
 mod collision;
 mod constraint;
 mod delassus;
+mod lu;
 mod plane;
 mod solver;
 #[cfg(test)]
@@ -42,7 +43,7 @@ use crate::algorithms::{aba_with_armature_unchecked as aba_with_armature, integr
 use crate::model::{Data, Model};
 use crate::spatial::{spatial, Transform};
 use crate::{Error, MassProperties, Result};
-use collision::{Collision, Found, History};
+use collision::{warm_of, Collision, Found, History};
 use constraint::{Constraint, Kind, Target, BAUMGARTE, MAX_CORRECTION, TOLERANCE};
 use delassus::Delassus;
 use solver::Solver;
@@ -313,9 +314,9 @@ impl TreeSimulation {
         self.contacts.clear();
         let per_second = 1.0 / h;
         for (f, c) in self.found.iter().zip(&self.constraints) {
-            let [t1, t2] = f.tangents;
-            let friction = t1 * c.lambda[1] + t2 * c.lambda[2];
-            self.collision.store(f.source, [c.lambda[0], friction.x, friction.y, friction.z]);
+            let warm = warm_of(&f.tangents, &c.lambda);
+            let friction = Vector3::new(warm[1], warm[2], warm[3]);
+            self.collision.store(f.source, warm);
             self.contacts.push(Contact {
                 body: f.body,
                 other: f.other,

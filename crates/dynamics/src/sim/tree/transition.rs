@@ -24,9 +24,10 @@
 use nalgebra::{DMatrix, Matrix3x2, Matrix4, Matrix4x3, Matrix6, Matrix6x4, Matrix6xX, Vector2, Vector3, Vector4, Vector6};
 
 use super::articulated::Articulated;
-use super::collision::{Found, Source, Warm};
+use super::collision::{warm_of, Found, Source, Warm};
 use super::constraint::{Constraint, Kind, Stiffness};
 use super::delassus::Delassus;
+use super::lu::{lu_factor, lu_solve};
 use super::solver::generalized_impulses;
 use super::{base_origin, contact_constraint, limit_constraint, TreeSimulation};
 use crate::algorithms::aba::ball_subspace;
@@ -432,9 +433,7 @@ impl TreeSimulation {
             std::mem::swap(&mut ss.next_warm, &mut ss.warm_by);
             ss.sources.clear();
             for (f, c) in self.found.iter().zip(&self.constraints) {
-                let [t1, t2] = f.tangents;
-                let friction = t1 * c.lambda[1] + t2 * c.lambda[2];
-                ss.sources.push((f.source, f.body, f.other, [c.lambda[0], friction.x, friction.y, friction.z]));
+                ss.sources.push((f.source, f.body, f.other, warm_of(&f.tangents, &c.lambda)));
             }
         }
         ss.state.rows_mut(0, nv).copy_from(&ss.position_by);
@@ -545,9 +544,7 @@ impl TreeSimulation {
                     t.tree.force[other] -= force;
                 }
                 if passes_on {
-                    let [t1, t2] = t.found_at_q[c].tangents;
-                    let friction = t1 * slope[1] + t2 * slope[2];
-                    for (j, x) in [slope[0], friction.x, friction.y, friction.z].into_iter().enumerate() {
+                    for (j, x) in warm_of(&t.found_at_q[c].tangents, &slope.into()).into_iter().enumerate() {
                         ss.warm_dq[(4 * c + j, k)] = x;
                     }
                 }
@@ -589,8 +586,7 @@ impl TreeSimulation {
                     velocity[r] += sign * STEP;
                     let mut constraint = solved.clone();
                     constraint.settle_with(solved, velocity);
-                    let friction = f.tangents[0] * constraint.lambda[1] + f.tangents[1] * constraint.lambda[2];
-                    impulses[side] = Vector4::new(constraint.lambda[0], friction.x, friction.y, friction.z);
+                    impulses[side] = Vector4::from(warm_of(&f.tangents, &constraint.lambda));
                 }
                 slope.set_column(r, &((impulses[0] - impulses[1]) / (2.0 * STEP)));
             }
@@ -621,8 +617,7 @@ impl TreeSimulation {
                 let slope: [f64; 3] = std::array::from_fn(|r| (lambda[0][r] - lambda[1][r]) / (2.0 * step));
                 force.set_column(j, &self.constraints[c].force(&slope));
                 if passes_on {
-                    let friction = f.tangents[0] * slope[1] + f.tangents[1] * slope[2];
-                    for (r, x) in [slope[0], friction.x, friction.y, friction.z].into_iter().enumerate() {
+                    for (r, x) in warm_of(&f.tangents, &slope).into_iter().enumerate() {
                         t.substeps.warm_dw[c][(r, j)] = x;
                     }
                 }
@@ -755,59 +750,7 @@ fn servo_columns(actuation: &Actuation<'_>, b: &mut DMatrix<f64>) {
 /// `constraints` (contacts first) with their `tangents`, into `out` (4 per contact).
 fn warm_starts(constraints: &[Constraint], tangents: &[[nalgebra::Vector3<f64>; 2]], out: &mut Vec<f64>) {
     out.clear();
-    for (c, [t1, t2]) in constraints.iter().zip(tangents) {
-        let friction = t1 * c.lambda[1] + t2 * c.lambda[2];
-        out.extend_from_slice(&[c.lambda[0], friction.x, friction.y, friction.z]);
-    }
-}
-
-/// LU factors of the square `m` with partial pivoting, in place (L unit lower below the diagonal, U on and above),
-/// the row swapped in at each column into `pivots`; false if `m` is singular.
-fn lu_factor(m: &mut DMatrix<f64>, pivots: &mut Vec<usize>) -> bool {
-    let n = m.nrows();
-    pivots.clear();
-    for j in 0..n {
-        let (p, largest) = (j..n).map(|i| (i, m[(i, j)].abs())).fold((j, -1.0), |best, x| if x.1 > best.1 { x } else { best });
-        if !(largest > 0.0) {
-            return false;
-        }
-        pivots.push(p);
-        m.swap_rows(j, p);
-        let (left, right) = m.as_mut_slice().split_at_mut((j + 1) * n);
-        let pivot_column = &mut left[j * n..];
-        let inverse = 1.0 / pivot_column[j];
-        pivot_column[j + 1..].iter_mut().for_each(|l| *l *= inverse);
-        // The Schur complement: each later column less its row j times L's column j.
-        for column in right.chunks_exact_mut(n) {
-            let u = column[j];
-            if u != 0.0 {
-                column[j + 1..].iter_mut().zip(&pivot_column[j + 1..]).for_each(|(x, l)| *x -= l * u);
-            }
-        }
-    }
-    true
-}
-
-/// Solves (`lu_factor`'s factors) x = rhs for every column of `rhs`, in place: the swaps, L forward, U back.
-fn lu_solve(lu: &DMatrix<f64>, pivots: &[usize], rhs: &mut DMatrix<f64>) {
-    let n = lu.nrows();
-    if n == 0 {
-        return;
-    }
-    let factors = lu.as_slice();
-    for x in rhs.as_mut_slice().chunks_exact_mut(n) {
-        for (j, &p) in pivots.iter().enumerate() {
-            x.swap(j, p);
-        }
-        for j in 0..n {
-            let xj = x[j];
-            x[j + 1..].iter_mut().zip(&factors[j * n + j + 1..(j + 1) * n]).for_each(|(x, l)| *x -= l * xj);
-        }
-        for j in (0..n).rev() {
-            let column = &factors[j * n..(j + 1) * n];
-            x[j] /= column[j];
-            let xj = x[j];
-            x[..j].iter_mut().zip(&column[..j]).for_each(|(x, u)| *x -= u * xj);
-        }
+    for (c, tangents) in constraints.iter().zip(tangents) {
+        out.extend_from_slice(&warm_of(tangents, &c.lambda));
     }
 }
