@@ -21,8 +21,9 @@ legkit's ``Simulation.rollout(controls, jacobians=True)`` (one call) against tha
 ``mjd_transitionFD`` at its start (``mj_step`` after it), both from the settled state, restored before each call.
 
 ``--check`` also measures legkit's A and B's feed-forward columns against central differences of its own step
-(each displaced step replayed from a freshly settled scene, contact history included; displacement 1e-7), the
-accuracy figure of docs/derivatives.md; slow on the tree (6 nv settled replays).
+(each displaced step replayed from a freshly settled scene, contact history included; displacement 1e-7 / substeps², as the tests: a resting contact settles within about
+ε g h² of its law's bend, docs/derivatives.md), the accuracy figure of docs/derivatives.md; slow on the tree (6 nv
+settled replays).
 
 Run: ``python benches/transition_vs_mujoco.py [--scenes go1-stand tree-21] [--substeps 1] [--settle 0.3]
 [--blocks 7] [--calls 20] [--check]``. Prints a Markdown table and the load average.
@@ -88,19 +89,20 @@ def spectral_radius(a: np.ndarray) -> float:
     return float(np.abs(np.linalg.eigvals(a)).max())
 
 
-def central_differences(build: Callable[[], lk.Simulation]) -> tuple[float, float]:
+def central_differences(build: Callable[[], lk.Simulation], substeps: int) -> tuple[float, float]:
     """Largest |[A B_tau] − central differences of the step| and largest |[A B_tau]| (B_tau: B's feed-forward
     columns; the servo-target columns are checked in tests/), the displaced steps replayed from `build`."""
+    delta = CHECK_STEP / substeps**2
     sim = build()
     a, b = sim.transition_jacobians()
     nv, model = sim.model.nv, sim.model
     analytic = np.hstack([a, b[:, :nv]])
     q, v = sim.q.copy(), sim.v.copy()
 
-    def step(column: int, delta: float) -> tuple[np.ndarray, np.ndarray]:
+    def step(column: int, offset: float) -> tuple[np.ndarray, np.ndarray]:
         displaced = build()
         d = np.zeros(3 * nv)
-        d[column] = delta
+        d[column] = offset
         displaced.q = lk.integrate(model, q, d[:nv], 1.0)
         displaced.v = v + d[nv : 2 * nv]
         displaced.step(d[2 * nv :])
@@ -109,9 +111,9 @@ def central_differences(build: Callable[[], lk.Simulation]) -> tuple[float, floa
     q_next, _ = step(0, 0.0)
     numeric = np.zeros_like(analytic)
     for column in range(3 * nv):
-        (q_plus, v_plus), (q_minus, v_minus) = step(column, CHECK_STEP), step(column, -CHECK_STEP)
-        numeric[:nv, column] = (lk.difference(model, q_next, q_plus) - lk.difference(model, q_next, q_minus)) / (2 * CHECK_STEP)
-        numeric[nv:, column] = (v_plus - v_minus) / (2 * CHECK_STEP)
+        (q_plus, v_plus), (q_minus, v_minus) = step(column, delta), step(column, -delta)
+        numeric[:nv, column] = (lk.difference(model, q_next, q_plus) - lk.difference(model, q_next, q_minus)) / (2 * delta)
+        numeric[nv:, column] = (v_plus - v_minus) / (2 * delta)
     return float(np.abs(analytic - numeric).max()), float(np.abs(analytic).max())
 
 
@@ -178,7 +180,7 @@ def main() -> None:
             t_ours = time_calls(ours.jacobians, args.blocks, args.calls)
             check = ""
             if args.check:
-                error, scale = central_differences(lambda scene=s: settled(scene, "legkit", args.settle).simulation)
+                error, scale = central_differences(lambda scene=s: settled(scene, "legkit", args.settle).simulation, substeps)
                 check = f"{error / scale:.1e}"
             if args.rollout:
                 t_ours_rollout = time_calls(legkit_rollout(ours, args.rollout), args.blocks, rollout_calls)

@@ -181,6 +181,16 @@ pub(crate) fn aba_with_armature_unchecked<'d>(
 /// the base at `q`, into `data` (its parent placed already), the articulated inertia starting from the rigid one.
 #[inline(always)]
 fn place(model: &Model, data: &mut Data, q: &[f64], i: usize) -> (Transform, RigidInertia) {
+    let pose = place_pose(model, data, q, i);
+    let inertia = pose.act_rigid_inertia(model.inertia(i));
+    data.rigid[i] = inertia.matrix();
+    data.inertia[i] = data.rigid[i];
+    (pose, inertia)
+}
+
+/// Body `i`'s pose and one-degree-of-freedom subspace S (zero for other joints) at `q`, into `data` (its parent placed).
+#[inline(always)]
+fn place_pose(model: &Model, data: &mut Data, q: &[f64], i: usize) -> Transform {
     let pose = match i {
         0 => base_centred_root(model, q),
         _ => world_pose(model, i, &data.centred_m_i[model.parent(i)], q),
@@ -190,102 +200,29 @@ fn place(model: &Model, data: &mut Data, q: &[f64], i: usize) -> (Transform, Rig
         _ => Motion::zeros(),
     };
     data.centred_m_i[i] = pose;
-    let inertia = pose.act_rigid_inertia(model.inertia(i));
-    data.rigid[i] = inertia.matrix();
-    data.inertia[i] = data.rigid[i];
-    (pose, inertia)
+    pose
 }
 
-/// The factor of M + diag(`armature`) at `q` that [`aba_with_armature`] leaves in `Data` — poses, subspaces, rigid and
-/// articulated inertias I^A, U = I^A S and D⁻¹ (eq. 7.38–7.44 without velocities) — without the velocities, bias forces
-/// and accelerations: what the recursions on M⁻¹ over the tree read (a contact's inverse inertia at a nearby
-/// configuration, `sim::tree`), for less than half the work.
-pub(crate) fn aba_factor_unchecked(model: &Model, data: &mut Data, q: &[f64], armature: &[f64]) {
-    for i in 0..model.nbodies() {
-        place(model, data, q, i);
-    }
-    for i in (1..model.nbodies()).rev() {
-        let to_parent = reduce(model, data, i, armature);
-        data.inertia[model.parent(i)] += to_parent;
-    }
-}
-
-/// [`aba_factor_unchecked`] at `q` from `reference`'s factor at a configuration that differs from `q` in the coordinates
-/// of body `moved`'s joint alone (None: in none of the factor's, which is `reference`'s): `moved`'s subtree placed and
-/// reduced again, and each ancestor's articulated inertia corrected by its child's change on the way up (eq. 7.40), in
-/// O(subtree + depth). `data` must hold `reference`'s factor but for the bodies in `written`, which are put back first;
-/// the bodies written this time are left there.
-pub(crate) fn aba_factor_update_unchecked(
-    model: &Model, data: &mut Data, reference: &Data, q: &[f64], moved: Option<usize>, armature: &[f64], written: &mut Vec<usize>,
+/// The poses and subspaces [`aba_with_armature`] leaves in `Data` (the world's axes about the base), at `q` from
+/// `reference`'s at a configuration that differs from `q` in the coordinates of body `moved`'s joint alone (None: in
+/// none that move a body about the base, which leaves `reference`'s): `moved`'s subtree placed again, O(subtree), or
+/// every body for the root. `data` must hold `reference`'s poses but for the bodies in `written`, which are put back
+/// first; the bodies placed this time are left there.
+pub(crate) fn placement_update_unchecked(
+    model: &Model, data: &mut Data, reference: &Data, q: &[f64], moved: Option<usize>, written: &mut Vec<usize>,
 ) {
     for &i in written.iter() {
         data.centred_m_i[i] = reference.centred_m_i[i];
         data.s[i] = reference.s[i];
-        data.rigid[i] = reference.rigid[i];
-        data.inertia[i] = reference.inertia[i];
-        data.u[i] = reference.u[i];
-        data.d_inv[i] = reference.d_inv[i];
     }
     written.clear();
     let Some(moved) = moved else { return };
-    if moved == 0 {
-        aba_factor_unchecked(model, data, q, armature);
-        written.extend(0..model.nbodies());
-        return;
-    }
-    // The subtree, parents before children (as the model numbers them), placed and reduced below `moved`.
+    // The subtree, parents before children (as the model numbers them).
     for i in moved..model.nbodies() {
         if i == moved || written.binary_search(&model.parent(i)).is_ok() {
-            place(model, data, q, i);
+            place_pose(model, data, q, i);
             written.push(i);
         }
-    }
-    for w in (1..written.len()).rev() {
-        let i = written[w];
-        let to_parent = reduce(model, data, i, armature);
-        data.inertia[model.parent(i)] += to_parent;
-    }
-    // Each ancestor's I^A gains what its child now passes up less what it passed at `reference`.
-    let mut child = moved;
-    loop {
-        let change = reduce(model, data, child, armature) - reduced(model, reference, child, armature).0;
-        let ancestor = model.parent(child);
-        data.inertia[ancestor] += change;
-        written.push(ancestor);
-        if ancestor == 0 {
-            return;
-        }
-        child = ancestor;
-    }
-}
-
-/// [`reduced`] of body `i` (not the root) with its U and D⁻¹ written into `data`.
-#[inline(always)]
-fn reduce(model: &Model, data: &mut Data, i: usize, armature: &[f64]) -> Inertia {
-    let (to_parent, u, d_inv) = reduced(model, data, i, armature);
-    data.u[i] = u;
-    data.d_inv[i] = d_inv;
-    to_parent
-}
-
-/// What body `i`'s articulated inertia in `data` passes to its parent's, I^A − U D⁻¹ Uᵀ (eq. 7.40), with its
-/// one-degree-of-freedom joint's U and D⁻¹ (zero for other joints).
-#[inline(always)]
-fn reduced(model: &Model, data: &Data, i: usize, armature: &[f64]) -> (Inertia, Motion, f64) {
-    let (k, inertia) = (model.idx_v(i), &data.inertia[i]);
-    match model.joint(i).dofs() {
-        Dofs::One(_) => {
-            let u = inertia * data.s[i];
-            let d_inv = 1.0 / (dot6(&data.s[i], u.as_slice()) + armature[k]);
-            let mut to_parent = Inertia::zeros();
-            add_reduced_inertia(&mut to_parent, inertia, &u, &(u * d_inv));
-            (to_parent, u, d_inv)
-        }
-        Dofs::Ball => {
-            let (_, u3, d_inv) = ball_factors(&data.centred_m_i[i], inertia, &armature[k..k + 3]);
-            (inertia - u3 * d_inv * u3.transpose(), Motion::zeros(), 0.0)
-        }
-        Dofs::Zero | Dofs::Free => (*inertia, Motion::zeros(), 0.0),
     }
 }
 

@@ -27,7 +27,7 @@ pub(crate) mod rnea_derivatives;
 pub(crate) mod rnea_second_order_derivatives;
 
 pub use aba::{aba, aba_with_armature};
-pub(crate) use aba::{aba_factor_update_unchecked, aba_unchecked, aba_with_armature_unchecked};
+pub(crate) use aba::{aba_unchecked, aba_with_armature_unchecked, placement_update_unchecked};
 pub use aba_derivatives::{aba_derivatives, aba_derivatives_into, minv_by_recursion};
 pub use centroidal::{center_of_mass_jacobian, centroidal_map, centroidal_momentum, centroidal_momentum_rate};
 pub use centroidal_derivatives::centroidal_derivatives;

@@ -24,6 +24,7 @@ mod articulated;
 mod collision;
 mod constraint;
 mod delassus;
+mod delassus_derivatives;
 mod lu;
 mod plane;
 mod solver;
@@ -436,19 +437,19 @@ fn fuse(model: &Model) -> Result<(Model, Vec<usize>, Vec<Transform>)> {
     Ok((fused, fused_body, offset))
 }
 
-/// The constraint of contact `f` (on the original model's bodies, `fused_body` mapping them to the fused
-/// `model`, whose factor `data` and `delassus` hold) for a step of `h` with friction `mu`, its normal velocity
-/// asked on the piece of gap `piece` (`asked_normal_velocity`).
+/// The constraint of contact `f` (on the original model's bodies, `fused_body` mapping them to the fused model's) for a
+/// step of `h` with friction `mu`, its normal velocity asked on the piece of gap `piece` (`asked_normal_velocity`), its
+/// Delassus diagonal and scale from `diagonal` of its bodies, rows and arm (`Delassus::contact`).
 #[allow(clippy::too_many_arguments)]
 fn contact_constraint(
-    coulomb: bool, model: &Model, data: &Data, delassus: &Delassus, fused_body: &[usize], mu: f64, h: f64, f: &Found, piece: f64,
-    origin: &Vector3<f64>,
+    coulomb: bool, fused_body: &[usize], mu: f64, h: f64, f: &Found, piece: f64, origin: &Vector3<f64>,
+    diagonal: impl FnOnce(usize, Option<usize>, &[Vector6<f64>; 3], &Vector3<f64>) -> ([f64; 2], f64),
 ) -> Constraint {
     let (body, other) = (fused_body[f.body], f.other.map(|o| fused_body[o]));
     let [t1, t2] = f.tangents;
     let r = f.point - origin;
     let rows = [f.normal, t1, t2].map(|d| spatial(d, r.cross(&d)));
-    let (diagonal, scale) = delassus.contact(model, data, body, other, &rows, &r);
+    let (diagonal, scale) = diagonal(body, other, &rows, &r);
     let warm_t = Vector3::new(f.warm[1], f.warm[2], f.warm[3]);
     let warm = [f.warm[0], warm_t.dot(&t1), warm_t.dot(&t2)];
     Constraint::new(

@@ -5,10 +5,12 @@
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Rotation3, UnitQuaternion, Vector3, Vector6};
 
 use super::articulated::Articulated;
+use super::constraint::{Constraint, Kind, Target};
 use super::delassus::Delassus;
+use super::delassus_derivatives::DiagonalSlopes;
 use crate::algorithms::{
-    aba_factor_update_unchecked as aba_factor_update, aba_with_armature_unchecked as aba_with_armature, crba_unchecked as crba,
-    integrate_unchecked as integrate,
+    aba_with_armature_unchecked as aba_with_armature, crba_unchecked as crba, integrate_unchecked as integrate,
+    placement_update_unchecked as placement_update,
 };
 use crate::model::{Data, JointLimits, Model};
 use crate::sim::tests::ten_link_tree;
@@ -209,29 +211,31 @@ fn delassus_diagonals_match_dense_inverse_mass_matrix() {
     }
 }
 
-/// The factor updated over a displaced joint's subtree and its ancestors (`aba_factor_update`, what the transition
+/// The body whose joint coordinate `k` is.
+fn body_of(model: &Model, k: usize) -> usize {
+    (0..model.nbodies()).find(|&i| (model.idx_v(i)..model.idx_v(i) + model.joint(i).nv()).contains(&k)).unwrap()
+}
+
+/// The poses and subspaces updated over a displaced joint's subtree (`placement_update`, what the transition
 /// Jacobians' differences use) against the full ABA at each displaced configuration, coordinate after coordinate (each
-/// update putting back the last one's bodies): the poses, subspaces, articulated inertias, U and D⁻¹ that the Delassus
-/// diagonals read, and those diagonals. A free-flyer's position moves none of it.
+/// update putting back the last one's bodies). A free-flyer's position moves none of them.
 #[test]
-fn the_factor_updated_over_a_subtree_is_the_full_factor() {
+fn the_poses_updated_over_a_subtree_are_the_full_placement() {
     for model in models() {
-        let (q, armature, reference, _) = prepared(&model);
+        let (q, _, reference, _) = prepared(&model);
         let (nv, zeros) = (model.nv(), vec![0.0; model.nv()]);
         let mut data = Data::new(&model);
         let mut written: Vec<usize> = (0..model.nbodies()).collect();
-        let (mut updated, mut full) = (Delassus::new(&model), Delassus::new(&model));
         let (mut displaced, mut direction) = (vec![0.0; model.nq()], vec![0.0; nv]);
         for k in 0..nv {
             direction[k] = 1.0;
             // Large enough that an update missing a body would show.
             integrate(&model, &q, &direction, 0.3, &mut displaced);
             direction[k] = 0.0;
-            let joint_body = (0..model.nbodies()).find(|&i| (model.idx_v(i)..model.idx_v(i) + model.joint(i).nv()).contains(&k)).unwrap();
-            let refactored = if model.floating_base() && k < 3 { None } else { Some(joint_body) };
-            aba_factor_update(&model, &mut data, &reference, &displaced, refactored, &armature, &mut written);
+            let moved = if model.floating_base() && k < 3 { None } else { Some(body_of(&model, k)) };
+            placement_update(&model, &mut data, &reference, &displaced, moved, &mut written);
             let mut expected = Data::new(&model);
-            aba_with_armature(&model, &mut expected, &displaced, &zeros, &zeros, None, &armature);
+            aba_with_armature(&model, &mut expected, &displaced, &zeros, &zeros, None, &zeros);
             let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-12 * (1.0 + y.abs()));
             for i in 0..model.nbodies() {
                 let label = format!("floating base {}, coordinate {k}, body {i}", model.floating_base());
@@ -241,20 +245,98 @@ fn the_factor_updated_over_a_subtree_is_the_full_factor() {
                     "{label}: pose"
                 );
                 assert!(close(data.s[i].as_slice(), expected.s[i].as_slice()), "{label}: S");
-                assert!(close(data.inertia[i].as_slice(), expected.inertia[i].as_slice()), "{label}: articulated inertia");
-                if model.joint(i).nv() == 1 {
-                    assert!(
-                        close(data.u[i].as_slice(), expected.u[i].as_slice()) && close(&[data.d_inv[i]], &[expected.d_inv[i]]),
-                        "{label}: U, D⁻¹"
-                    );
+            }
+        }
+    }
+}
+
+/// The analytic slopes of the Delassus diagonals by the configuration at fixed rows (`DiagonalSlopes`) against central
+/// differences of `Delassus::contact` and `Delassus::coordinate` on the full factor at displaced configurations: contacts
+/// with the ground (three on each body, more rows than a pair's basis of six forces) and between bodies, and every
+/// one-degree-of-freedom joint's limit row; and each contact row's motions V_a − V_b against a solve of its own. A
+/// free-flyer's position moves none of them.
+#[test]
+fn delassus_diagonal_slopes_match_differences_of_the_diagonals() {
+    const STEP: f64 = 1e-5;
+    for model in models() {
+        let (q, armature, data, mut tree) = prepared(&model);
+        let (n, nv, zeros) = (model.nbodies(), model.nv(), vec![0.0; model.nv()]);
+        let normal = Vector3::new(0.3, -0.5, 0.8).normalize();
+        let t1 = normal.cross(&Vector3::new(1.0, 0.2, -0.1)).normalize();
+        let contact = |arm: Vector3<f64>, target| {
+            let rows = [normal, t1, normal.cross(&t1)].map(|d| spatial(d, arm.cross(&d)));
+            Constraint::new(Kind::Contact { mu: 0.5, arm, coulomb: false }, target, rows, 0.0, [0.0; 3], [1.0; 2], 1.0)
+        };
+        let arms = [Vector3::new(0.7, -0.4, 0.25), Vector3::new(-0.2, 0.5, -0.3), Vector3::new(0.1, 0.1, 0.9)];
+        let mut constraints = Vec::new();
+        for a in 1..n {
+            for b in [None, Some(a / 2), Some(n - 1)] {
+                if b != Some(a) {
+                    constraints.push(contact(arms[0], Target::Bodies(a, b)));
                 }
             }
-            assert!(updated.update(&model, &data, &armature) && full.update(&model, &expected, &armature));
-            let rows = [Vector3::z(), Vector3::x(), Vector3::y()].map(|d| spatial(d, Vector3::new(0.1, 0.2, 0.0).cross(&d)));
-            for a in 1..model.nbodies() {
-                let (got, _) = updated.contact(&model, &data, a, None, &rows, &Vector3::zeros());
-                let (want, _) = full.contact(&model, &expected, a, None, &rows, &Vector3::zeros());
-                assert!(close(&got, &want), "coordinate {k}, body {a}: Delassus diagonals {got:?} vs {want:?}");
+            constraints.extend(arms[1..].iter().map(|&arm| contact(arm, Target::Bodies(a, None))));
+            if model.joint(a).nv() == 1 {
+                let unit = Vector6::new(-1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+                let target = Target::Coordinate(model.idx_v(a));
+                constraints.push(Constraint::new(Kind::Limit, target, [unit, Vector6::zeros(), Vector6::zeros()], 0.0, [0.0; 3], [1.0, 0.0], 1.0));
+            }
+        }
+        let diagonals = |q: &[f64]| -> Vec<[f64; 2]> {
+            let mut data = Data::new(&model);
+            aba_with_armature(&model, &mut data, q, &zeros, &zeros, None, &armature);
+            let mut delassus = Delassus::new(&model);
+            assert!(delassus.update(&model, &data, &armature));
+            constraints
+                .iter()
+                .map(|c| match c.target {
+                    Target::Bodies(a, b) => {
+                        let Kind::Contact { arm, .. } = c.kind else { unreachable!("contacts are on bodies") };
+                        delassus.contact(&model, &data, a, b, &c.rows, &arm).0
+                    }
+                    Target::Coordinate(k) => [delassus.coordinate(&model, &data, body_of(&model, k)), 0.0],
+                })
+                .collect()
+        };
+        let mut delassus = Delassus::new(&model);
+        assert!(delassus.update(&model, &data, &armature));
+        let mut slopes = DiagonalSlopes::default();
+        assert!(slopes.compute(&model, &data, &armature, delassus.base(), &mut tree, &constraints).unwrap());
+        let (mut rhs, mut x) = (vec![0.0; nv], vec![0.0; nv]);
+        for (c, constraint) in constraints.iter().enumerate() {
+            let Some((a, b)) = constraint.bodies() else { continue };
+            for (r, f) in constraint.rows.iter().enumerate() {
+                tree.force.fill(Vector6::zeros());
+                tree.force[a] = *f;
+                if let Some(b) = b {
+                    tree.force[b] = -f;
+                }
+                tree.generalized(&model, &data, &mut rhs);
+                tree.solve(&model, &data, &rhs, &mut x);
+                let want = b.map_or(tree.motion[a], |b| tree.motion[a] - tree.motion[b]);
+                let got = slopes.motions[c][r];
+                assert!((got - want).norm() <= 1e-12 * want.norm().max(1.0), "constraint {c} row {r}: {got} vs {want}");
+            }
+        }
+        let (mut displaced, mut direction) = (vec![0.0; model.nq()], vec![0.0; nv]);
+        for k in 0..nv {
+            let mut side = |sign: f64| {
+                direction[k] = 1.0;
+                integrate(&model, &q, &direction, sign * STEP, &mut displaced);
+                direction[k] = 0.0;
+                diagonals(&displaced)
+            };
+            let (plus, minus) = (side(1.0), side(-1.0));
+            for (c, (plus, minus)) in plus.iter().zip(&minus).enumerate() {
+                for r in 0..2 {
+                    let (got, want) = (slopes.slopes[(2 * c + r, k)], (plus[r] - minus[r]) / (2.0 * STEP));
+                    let label =
+                        format!("floating base {}, constraint {c} ({:?}) row {r}, coordinate {k}", model.floating_base(), constraints[c].target);
+                    assert!((got - want).abs() <= 1e-6 * plus[r].abs().max(1e-12), "{label}: {got} vs {want}");
+                    if model.floating_base() && k < 3 {
+                        assert_eq!(got, 0.0, "{label}: the base's position");
+                    }
+                }
             }
         }
     }

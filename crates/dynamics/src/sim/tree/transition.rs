@@ -11,10 +11,11 @@
 //! ∂g/∂v and ∂g/∂u are analytic: the RNEA derivatives and the actuation's slopes. In ∂g/∂q the rigid-body and
 //! actuation terms are analytic too; the contacts' Σ J_cᵀ λ_c, whose rows, gaps and regularisation move with
 //! the configuration (through the contact geometry and the Delassus diagonals), is differentiated by central
-//! differences at fixed v⁺, no contact solve: per coordinate, the step's ABA factor updated over the subtree its joint
-//! moves and that subtree's ancestors, and one pass over the contacts it moves; the others keep their rows, gap and
-//! velocity and change through their Delassus diagonals alone, which the chain rule carries (their impulses' slopes by
-//! the diagonal, once per substep).
+//! differences at fixed v⁺ and fixed Delassus diagonals, no contact solve: per coordinate, the poses of the subtree its
+//! joint moves and one pass over the contacts it moves (the others keep their rows, gap and velocity). Every
+//! constraint's diagonal changes with the configuration too, through M̃ and its rows; the chain rule carries that: its
+//! impulses' slopes by its diagonal (once per substep) times the diagonal's slopes by q, analytic at fixed rows
+//! (`delassus_derivatives`) plus the moved rows' own change.
 //!
 //! What is differentiated: the step from the given state with its contact set, each contact's zone (apart,
 //! sticking, sliding), its saturated servos and the joint limits in play held; the Jacobians are the step's
@@ -25,16 +26,17 @@ use nalgebra::{DMatrix, Matrix3x2, Matrix4, Matrix4x3, Matrix6, Matrix6x4, Matri
 
 use super::articulated::Articulated;
 use super::collision::{warm_of, Found, Source, Warm};
-use super::constraint::{Constraint, Kind, Stiffness};
+use super::constraint::{Constraint, Kind, Stiffness, Target};
 use super::delassus::Delassus;
+use super::delassus_derivatives::DiagonalSlopes;
 use super::lu::{lu_factor, lu_solve};
 use super::solver::generalized_impulses;
 use super::{base_origin, contact_constraint, limit_constraint, TreeSimulation};
 use crate::algorithms::aba::ball_subspace;
 // The unchecked kernels: the engine checks its state once, not per call.
 use crate::algorithms::{
-    aba_factor_update_unchecked as aba_factor_update, crba_unchecked as crba, integrate_jacobians_unchecked as integrate_jacobians,
-    integrate_unchecked as integrate, rnea_derivatives_unchecked as rnea_derivatives,
+    crba_unchecked as crba, integrate_jacobians_unchecked as integrate_jacobians, integrate_unchecked as integrate,
+    placement_update_unchecked as placement_update, rnea_derivatives_unchecked as rnea_derivatives,
 };
 use crate::joint::Dofs;
 use crate::model::{Data, Dense, Model};
@@ -48,8 +50,8 @@ const STEP: f64 = 1e-6;
 
 /// Buffers for the Jacobians of one model, grown once.
 pub(super) struct Transition {
-    /// The factor, Delassus diagonals, collision poses and constraints at a displaced configuration: the factor the
-    /// step's own but for the bodies in `written` (`aba_factor_update`), and the body whose joint each coordinate is.
+    /// The poses, collision poses and constraints at a displaced configuration: the poses the step's own but for the
+    /// bodies in `written` (`placement_update`), and the body whose joint each coordinate is.
     data: Data,
     written: Vec<usize>,
     body_of: Vec<usize>,
@@ -57,16 +59,16 @@ pub(super) struct Transition {
     /// at its own configuration (`Collision::moved`), which a contact between bodies it does not move keeps.
     moving: Vec<bool>,
     found_at_q: Vec<Found>,
-    /// Per contact: whether the displacement moves it, its constraint built at the step's configuration, and the
-    /// slopes of its impulses by its Delassus diagonal [normal, tangents] (3 x 2). A contact the displacement does not
-    /// move keeps its rows, gap and velocity and changes through its diagonal alone (the factor moves, `delassus`), so
-    /// its impulses' differences follow the diagonal's by the chain rule, no constraint rebuilt.
+    /// Per contact, whether the displacement moves it; per constraint (contacts, then limits), its constraint built at
+    /// the step's configuration, its Delassus diagonal and scale there, and the slopes of its impulses by that diagonal
+    /// [normal, tangents] (3 x 2), which carry its change (`DiagonalSlopes`) by the chain rule.
     contact_moves: Vec<bool>,
     held: Vec<Constraint>,
+    held_diagonals: Vec<(Vector2<f64>, f64)>,
     by_diagonal: Vec<Matrix3x2<f64>>,
-    /// Each contact's diagonal at the displaced configurations (−, +).
-    diagonals: [Vec<Vector2<f64>>; 2],
-    delassus: Delassus,
+    diagonal_slopes: DiagonalSlopes,
+    /// The rows of the moved contacts at the displacement's − side, for their rows' own change.
+    rows_minus: Vec<[Vector6<f64>; 3]>,
     tree: Articulated,
     constraints: Vec<Constraint>,
     poses: Vec<Transform>,
@@ -161,9 +163,10 @@ impl Transition {
             found_at_q: Vec::new(),
             contact_moves: Vec::new(),
             held: Vec::new(),
+            held_diagonals: Vec::new(),
             by_diagonal: Vec::new(),
-            diagonals: [Vec::new(), Vec::new()],
-            delassus: Delassus::new(fused),
+            diagonal_slopes: DiagonalSlopes::default(),
+            rows_minus: Vec::new(),
             tree: Articulated::new(fused),
             constraints: Vec::new(),
             poses: vec![Transform::identity(); nbodies],
@@ -244,7 +247,13 @@ impl TreeSimulation {
     /// `contact_constraint` of contact `f` with this simulation's law, friction, step and body map, on the factor in
     /// `data` and `delassus` (the step's own, or one at a displaced configuration), its gap law's piece `piece`.
     pub(super) fn contact_row(&self, model: &Model, data: &Data, delassus: &Delassus, f: &Found, piece: f64, origin: &Vector3<f64>) -> Constraint {
-        contact_constraint(self.coulomb, model, data, delassus, &self.fused_body, self.friction, self.h, f, piece, origin)
+        let diagonal = |body, other, rows: &_, arm: &_| delassus.contact(model, data, body, other, rows, arm);
+        contact_constraint(self.coulomb, &self.fused_body, self.friction, self.h, f, piece, origin, diagonal)
+    }
+
+    /// `contact_row` with the Delassus diagonal and scale given.
+    fn contact_row_with(&self, f: &Found, piece: f64, origin: &Vector3<f64>, (diagonal, scale): (Vector2<f64>, f64)) -> Constraint {
+        contact_constraint(self.coulomb, &self.fused_body, self.friction, self.h, f, piece, origin, |_, _, _, _| (diagonal.into(), scale))
     }
 
     /// The Jacobians' buffers, taken out of `self` while they are in use.
@@ -488,13 +497,17 @@ impl TreeSimulation {
         let (dtau_dq, dtau_dv) = rnea_derivatives(model, &mut t.rigid, q, v, &t.acceleration, None);
         t.slopes.columns_mut(0, nv).zip_apply(dtau_dq, |s, d| *s += h * d);
         t.slopes.columns_mut(nv, nv).zip_apply(dtau_dv, |s, d| *s += h * d);
-        // − ∂(Σ J_cᵀ λ_c)/∂q at fixed v⁺, by central differences; the displaced factors are updated from the step's,
-        // which `t.data` is to hold first.
+        // − ∂(Σ J_cᵀ λ_c)/∂q at fixed v⁺: central differences of the moved contacts and the limits at fixed diagonals, on
+        // displaced poses updated from the step's, which `t.data` is to hold first; then every diagonal's change.
         t.written.clear();
         t.written.extend(0..model.nbodies());
         t.found_at_q.clear();
         t.found_at_q.extend(self.found.iter().map(|f| self.collision.moved(f, &self.poses)));
-        self.held_contacts(t, q);
+        self.held_constraints(t, q);
+        if !t.diagonal_slopes.compute(model, &self.data, &self.armature, self.delassus.base(), &mut t.tree, &t.held)? {
+            return Err(Error::numerical("transition_jacobians", "the mass matrix stopped being positive definite near the state"));
+        }
+        let contacts = self.found.len();
         for k in 0..nv {
             // One coordinate's pair of contact passes: on a model of a thousand links the loop takes seconds.
             check_cancelled("transition_jacobians")?;
@@ -511,16 +524,15 @@ impl TreeSimulation {
             // The poses of the bodies this coordinate does not move stay the step's (`collision_poses`).
             t.poses.copy_from_slice(&self.poses);
             integrate(model, q, &t.direction, -STEP, &mut t.displaced);
-            self.contact_impulses(t, q, k, 0)?;
+            self.contact_impulses(t, q, k, 0);
             std::mem::swap(&mut t.plus, &mut t.minus);
             std::mem::swap(&mut t.substeps.warm_plus, &mut t.substeps.warm_minus);
             integrate(model, q, &t.direction, STEP, &mut t.displaced);
-            self.contact_impulses(t, q, k, 1)?;
+            self.contact_impulses(t, q, k, 1);
             t.direction[k] = 0.0;
             for (r, (plus, minus)) in t.plus.iter().zip(&t.minus).enumerate() {
                 t.slopes[(r, k)] -= (plus - minus) / (2.0 * STEP);
             }
-            // The contacts it moves (rebuilt, in order, with the limits), then the others through their diagonals.
             let ss = &mut t.substeps;
             let moved = t.contact_moves.iter().enumerate().filter(|(_, moves)| **moves).map(|(c, _)| c);
             if passes_on {
@@ -530,22 +542,39 @@ impl TreeSimulation {
                     }
                 }
             }
+            // Each constraint's diagonal change: its slope at fixed rows, and a moved contact's rows' own change.
+            let ds = &t.diagonal_slopes;
             t.tree.force.fill(Vector6::zeros());
-            for (c, held) in t.held.iter().enumerate().filter(|(c, _)| !t.contact_moves[*c]) {
-                let change = (t.diagonals[1][c] - t.diagonals[0][c]) / (2.0 * STEP);
+            let mut moved = 0;
+            for (c, held) in t.held.iter().enumerate() {
+                let mut change = Vector2::new(ds.slopes[(2 * c, k)], ds.slopes[(2 * c + 1, k)]);
+                if c < contacts && t.contact_moves[c] {
+                    let (minus, plus, motions) = (&t.rows_minus[moved], &t.constraints[moved].rows, &ds.motions[c]);
+                    let along = |r: usize| (plus[r] - minus[r]).dot(&motions[r]) / STEP;
+                    change += Vector2::new(along(0), along(1) + along(2));
+                    moved += 1;
+                }
                 let slope = t.by_diagonal[c] * change;
                 if slope == Vector3::zeros() {
                     continue;
                 }
-                let Some((body, other)) = held.bodies() else { continue };
-                let force = held.force(&slope.into());
-                t.tree.force[body] += force;
-                if let Some(other) = other {
-                    t.tree.force[other] -= force;
+                match held.bodies() {
+                    Some((body, other)) => {
+                        let force = held.force(&slope.into());
+                        t.tree.force[body] += force;
+                        if let Some(other) = other {
+                            t.tree.force[other] -= force;
+                        }
+                    }
+                    None => {
+                        if let Target::Coordinate(j) = held.target {
+                            t.slopes[(j, k)] -= held.rows[0][0] * slope[0];
+                        }
+                    }
                 }
-                if passes_on {
+                if passes_on && c < contacts {
                     for (j, x) in warm_of(&t.found_at_q[c].tangents, &slope.into()).into_iter().enumerate() {
-                        ss.warm_dq[(4 * c + j, k)] = x;
+                        ss.warm_dq[(4 * c + j, k)] += x;
                     }
                 }
             }
@@ -627,11 +656,11 @@ impl TreeSimulation {
     }
 
     /// Σ J_cᵀ λ_c at v⁺ = `self.v_next` with the configuration at `t.displaced`, of the contacts the displacement moves
-    /// (`t.contact_moves`) and the limits: the step's (at `q`) moved there, each its impulses at J_c v⁺ − b_c in its
-    /// zone (no solve, b_c on its piece at `q`), into `t.plus`, and their impulses into `t.substeps.warm_plus`; the other
-    /// contacts' diagonals there into `t.diagonals[side]`. The displacement is along coordinate `k`.
-    fn contact_impulses(&self, t: &mut Transition, q: &[f64], k: usize, side: usize) -> Result<()> {
-        self.constraints_at(t, q, k, side)?;
+    /// (`t.contact_moves`) and the limits: the step's (at `q`) moved there at their diagonals at `q`, each its impulses at
+    /// J_c v⁺ − b_c in its zone (no solve, b_c on its piece at `q`), into `t.plus`, and their impulses into
+    /// `t.substeps.warm_plus`. The displacement is along coordinate `k`; `side` 0 keeps the moved contacts' rows.
+    fn contact_impulses(&self, t: &mut Transition, q: &[f64], k: usize, side: usize) {
+        self.constraints_at(t, q, k, side);
         let model = self.fused.as_ref();
         t.tree.motions(model, &t.data, &self.v_next);
         let moved = t.contact_moves.iter().enumerate().filter(|(_, moves)| **moves).map(|(c, _)| c);
@@ -641,59 +670,68 @@ impl TreeSimulation {
         }
         generalized_impulses(&mut t.tree, model, &t.data, &t.constraints, &mut t.plus);
         warm_starts(&t.constraints, &t.substeps.tangents, &mut t.substeps.warm_plus);
-        Ok(())
     }
 
-    /// The contacts the displacement moves and the limits (at `q`) moved to the configuration at `t.displaced`, into
-    /// `t.constraints` (and those contacts' tangents there into `t.substeps.tangents`), with the factor there in
-    /// `t.data`, and the other contacts' diagonals into `t.diagonals[side]`; the displacement is along coordinate `k`,
+    /// The contacts the displacement moves and the limits (at `q`) moved to the configuration at `t.displaced`, at their
+    /// diagonals at `q`, into `t.constraints` (and those contacts' tangents there into `t.substeps.tangents`, their rows
+    /// into `t.rows_minus` on `side` 0), with the poses there in `t.data`; the displacement is along coordinate `k`,
     /// which moves its joint's subtree alone.
-    fn constraints_at(&self, t: &mut Transition, q: &[f64], k: usize, side: usize) -> Result<()> {
+    fn constraints_at(&self, t: &mut Transition, q: &[f64], k: usize, side: usize) {
         let model = self.fused.as_ref();
         let displaced = &t.displaced;
-        // The factor is in the base's frame at its origin: the base's position moves none of it.
-        let refactored = match t.body_of[k] {
+        // The poses are in the base's frame at its origin: the base's position moves none of them.
+        let moved_body = match t.body_of[k] {
             0 if displaced[3..] == q[3..] => None,
             body => Some(body),
         };
-        aba_factor_update(model, &mut t.data, &self.data, displaced, refactored, &self.armature, &mut t.written);
-        let delassus = match refactored {
-            None => &self.delassus,
-            Some(_) if t.delassus.update(model, &t.data, &self.armature) => &t.delassus,
-            Some(_) => return Err(Error::numerical("transition_jacobians", "the mass matrix stopped being positive definite near the state")),
-        };
+        placement_update(model, &mut t.data, &self.data, displaced, moved_body, &mut t.written);
         self.collision_poses(&t.data, displaced, &mut t.poses, Some(&t.moving));
         let origin = base_origin(model, displaced);
         t.constraints.clear();
         t.substeps.tangents.clear();
+        if side == 0 {
+            t.rows_minus.clear();
+        }
         for (c, f) in self.found.iter().enumerate() {
             if t.contact_moves[c] {
                 let moved = self.collision.moved(f, &t.poses);
                 t.substeps.tangents.push(moved.tangents);
-                t.constraints.push(self.contact_row(model, &t.data, delassus, &moved, f.distance, &origin));
-            } else {
-                t.diagonals[side][c] = contact_diagonal(model, &t.data, delassus, &t.held[c]).0;
+                let constraint = self.contact_row_with(&moved, f.distance, &origin, t.held_diagonals[c]);
+                if side == 0 {
+                    t.rows_minus.push(constraint.rows);
+                }
+                t.constraints.push(constraint);
             }
         }
         for &(index, side) in &self.limit_rows {
             // A limit's warm start only seeds the solver: its impulse at a given v⁺ does not depend on it.
-            t.constraints.push(limit_constraint(model, &t.data, delassus, self.h, &self.limited[index], side, displaced, q, 0.0));
+            t.constraints.push(limit_constraint(model, &self.data, &self.delassus, self.h, &self.limited[index], side, displaced, q, 0.0));
         }
-        Ok(())
     }
 
-    /// Each contact rebuilt at the step's configuration `q` from `t.found_at_q` into `t.held`, and the slopes of its
-    /// impulses at v⁺ (in the zone it ended in) by its Delassus diagonal into `t.by_diagonal`, by central differences
-    /// in the diagonal (relative steps; no pass over the tree).
-    fn held_contacts(&self, t: &mut Transition, q: &[f64]) {
+    /// Each contact rebuilt at the step's configuration `q` from `t.found_at_q`, then each limit, into `t.held` with
+    /// their diagonals into `t.held_diagonals`, and the slopes of their impulses at v⁺ (in the zone each ended in) by
+    /// their diagonals into `t.by_diagonal`, by central differences in the diagonal (relative steps; no pass over the tree).
+    fn held_constraints(&self, t: &mut Transition, q: &[f64]) {
         let model = self.fused.as_ref();
         let origin = base_origin(model, q);
         t.tree.motions(model, &self.data, &self.v_next);
         t.held.clear();
+        t.held_diagonals.clear();
         t.by_diagonal.clear();
-        for (c, (f, at_q)) in self.found.iter().zip(&t.found_at_q).enumerate() {
-            let held = self.contact_row(model, &self.data, &self.delassus, at_q, f.distance, &origin);
-            let (diagonal, scale) = contact_diagonal(model, &self.data, &self.delassus, &held);
+        for (c, solved) in self.constraints.iter().enumerate() {
+            let (held, diagonal, scale) = match self.found.get(c) {
+                Some(f) => {
+                    let held = self.contact_row(model, &self.data, &self.delassus, &t.found_at_q[c], f.distance, &origin);
+                    let (diagonal, scale) = contact_diagonal(model, &self.data, &self.delassus, &held);
+                    (held, diagonal, scale)
+                }
+                None => {
+                    let Target::Coordinate(k) = solved.target else { unreachable!("contacts come first") };
+                    let diagonal = self.delassus.coordinate(model, &self.data, t.body_of[k]);
+                    (solved.clone(), Vector2::new(diagonal, 0.0), diagonal)
+                }
+            };
             let mut slopes = Matrix3x2::zeros();
             for j in 0..2 {
                 let step = STEP * diagonal[j].abs();
@@ -705,7 +743,7 @@ impl TreeSimulation {
                     let mut displaced = diagonal;
                     displaced[j] += sign * step;
                     let mut constraint = held.with_diagonal(displaced.into(), scale);
-                    constraint.settle_at(&self.constraints[c], &t.tree.motion, &self.v_next);
+                    constraint.settle_at(solved, &t.tree.motion, &self.v_next);
                     lambda[side] = constraint.lambda;
                 }
                 for r in 0..3 {
@@ -713,11 +751,8 @@ impl TreeSimulation {
                 }
             }
             t.held.push(held);
+            t.held_diagonals.push((diagonal, scale));
             t.by_diagonal.push(slopes);
-        }
-        for diagonals in &mut t.diagonals {
-            diagonals.clear();
-            diagonals.resize(self.found.len(), Vector2::zeros());
         }
     }
 }
