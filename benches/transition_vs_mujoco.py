@@ -21,9 +21,9 @@ legkit's ``Simulation.rollout(controls, jacobians=True)`` (one call) against tha
 ``mjd_transitionFD`` at its start (``mj_step`` after it), both from the settled state, restored before each call.
 
 ``--check`` also measures legkit's A and B's feed-forward columns against central differences of its own step
-(each displaced step replayed from a freshly settled scene, contact history included; displacement 1e-7 / substeps², as the tests: a resting contact settles within about
-ε g h² of its law's bend, docs/derivatives.md), the accuracy figure of docs/derivatives.md; slow on the tree (6 nv
-settled replays).
+(each displaced step replayed from a freshly settled scene, contact history included; displacement 1e-7 /
+substeps², as the tests: a resting contact settles within about ε g h² of its law's bend, docs/derivatives.md), the
+accuracy figure of docs/derivatives.md; slow on the tree (6 nv settled replays).
 
 Run: ``python benches/transition_vs_mujoco.py [--scenes go1-stand tree-21] [--substeps 1] [--settle 0.3]
 [--blocks 7] [--calls 20] [--check]``. Prints a Markdown table and the load average.
