@@ -86,7 +86,7 @@ impl DiagonalSlopes {
             let unit = 3 * (end - start) > 6;
             self.basis.clear();
             if unit {
-                self.basis.extend((0..6).map(|m| Force::from_fn(|r, _| if r == m { 1.0 } else { 0.0 })));
+                self.basis.extend((0..6).map(|m| Force::ith(m, 1.0)));
             } else {
                 self.basis.extend(self.order[start..end].iter().flat_map(|&c| constraints[c].rows));
             }
@@ -99,7 +99,7 @@ impl DiagonalSlopes {
                 tree.generalized(model, data, &mut self.rhs);
                 self.respond(model, data, tree, m);
             }
-            self.kinetic_forms(model, data);
+            self.kinetic_forms(model, data, self.basis.len());
             for (body, sign) in [(Some(a), 2.0), (b, -2.0)] {
                 if let Some(body) = body {
                     self.moving_forms(model, data, body, sign);
@@ -129,12 +129,10 @@ impl DiagonalSlopes {
         for (c, constraint) in constraints.iter().enumerate() {
             if let Target::Coordinate(k) = constraint.target {
                 // A unit generalized force on its coordinate: the form's one coefficient is the row's.
-                self.basis.clear();
-                self.basis.push(Force::zeros());
                 self.rhs.fill(0.0);
                 self.rhs[k] = 1.0;
                 self.respond(model, data, tree, 0);
-                self.kinetic_forms(model, data);
+                self.kinetic_forms(model, data, 1);
                 for (j, form) in self.forms.iter().enumerate() {
                     self.slopes[(2 * c, j)] += form[(0, 0)];
                 }
@@ -158,9 +156,8 @@ impl DiagonalSlopes {
     }
 
     /// D_k = −xᵀ (∂M/∂q_k) x = −2 ∂T/∂q_k as forms in the basis: [D_k]_mn = 2 h^m_i · (S_k × V^n_λ(i)) (the module's
-    /// formula), overwriting `forms`.
-    fn kinetic_forms(&mut self, model: &Model, data: &Data) {
-        let size = self.basis.len();
+    /// formula) for the first `size` responses, overwriting `forms`.
+    fn kinetic_forms(&mut self, model: &Model, data: &Data, size: usize) {
         self.forms.iter_mut().for_each(|form| form.fill(0.0));
         for i in 1..model.nbodies() {
             let (k, parent) = (model.idx_v(i), model.parent(i));
@@ -200,7 +197,7 @@ impl DiagonalSlopes {
         if model.joint(0).dofs() == Dofs::Free {
             // The rotation's three: the translation moves the frame with the base.
             for c in 3..6 {
-                let axis = data.centred_m_i[0].act_motion(&Motion::from_fn(|r, _| if r == c { 1.0 } else { 0.0 }));
+                let axis = data.centred_m_i[0].act_motion(&Motion::ith(c, 1.0));
                 add(c, &axis, None);
             }
         }

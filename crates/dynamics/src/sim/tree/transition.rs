@@ -26,7 +26,7 @@ use nalgebra::{DMatrix, Matrix3x2, Matrix4, Matrix4x3, Matrix6, Matrix6x4, Matri
 
 use super::articulated::Articulated;
 use super::collision::{warm_of, Found, Source, Warm};
-use super::constraint::{Constraint, Kind, Stiffness, Target};
+use super::constraint::{Constraint, Stiffness, Target};
 use super::delassus::Delassus;
 use super::delassus_derivatives::DiagonalSlopes;
 use super::lu::{lu_factor, lu_solve};
@@ -724,9 +724,16 @@ impl TreeSimulation {
         for (c, solved) in self.constraints.iter().enumerate() {
             let (held, diagonal, scale) = match self.found.get(c) {
                 Some(f) => {
-                    let held = self.contact_row(model, &self.data, &self.delassus, &t.found_at_q[c], f.distance, &origin);
-                    let (diagonal, scale) = contact_diagonal(model, &self.data, &self.delassus, &held);
-                    (held, diagonal, scale)
+                    // The diagonal its rows are built with, kept.
+                    let mut at_q = (Vector2::zeros(), 0.0);
+                    let diagonal = |body, other, rows: &_, arm: &_| {
+                        let (diagonal, scale) = self.delassus.contact(model, &self.data, body, other, rows, arm);
+                        at_q = (diagonal.into(), scale);
+                        (diagonal, scale)
+                    };
+                    let held =
+                        contact_constraint(self.coulomb, &self.fused_body, self.friction, self.h, &t.found_at_q[c], f.distance, &origin, diagonal);
+                    (held, at_q.0, at_q.1)
                 }
                 None => {
                     let Target::Coordinate(k) = solved.target else { unreachable!("contacts come first") };
@@ -756,17 +763,6 @@ impl TreeSimulation {
             t.held_diagonals.push((diagonal, scale));
             t.by_diagonal.push(slopes);
         }
-    }
-}
-
-/// A contact's Delassus diagonal [normal, tangents] and scale on the factor in `data` and `delassus` (`Delassus::contact`).
-fn contact_diagonal(model: &Model, data: &Data, delassus: &Delassus, contact: &Constraint) -> (Vector2<f64>, f64) {
-    match (contact.kind, contact.bodies()) {
-        (Kind::Contact { arm, .. }, Some((body, other))) => {
-            let (diagonal, scale) = delassus.contact(model, data, body, other, &contact.rows, &arm);
-            (diagonal.into(), scale)
-        }
-        _ => (Vector2::zeros(), 0.0),
     }
 }
 
