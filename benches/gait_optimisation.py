@@ -15,7 +15,7 @@ midpoints (`MultiphaseProblem.stance_accelerations`; the knots hold it at 0, doc
 
     PYTHONPATH=python python3 benches/gait_optimisation.py [--intervals 4] [--max-iter 300] [--neighbour 0.6] [--no-mirror] [--no-polish]
     PYTHONPATH=python python3 benches/gait_optimisation.py --compare --intervals 16   # solver settings side by side
-    PYTHONPATH=python python3 benches/gait_optimisation.py --split --intervals 16     # where an iteration's CPU goes
+    PYTHONPATH=python python3 benches/gait_optimisation.py --split --intervals 16     # where an iteration's CPU goes, cold and warm
     PYTHONPATH=python python3 benches/gait_optimisation.py --bounds --intervals 16    # which bound holds S_H
     PYTHONPATH=python python3 benches/gait_optimisation.py --sequence --intervals 16  # warm starts across speeds
 
@@ -78,36 +78,56 @@ def report(label: str, problem: lo.MultiphaseProblem, result: lo.SolveResult, cp
 
 
 #: IPOPT's timing statistics (`print_timing_statistics`) that `split` reads: CPU seconds of the whole solve, of its
-#: linear algebra (the KKT factorisations and solves), and of legkit's Hessian and of its values, gradient and
-#: Jacobian (one call computes the gradient with the Jacobian, charged to whichever IPOPT asks for first).
+#: linear algebra (the KKT factorisations and solves; the adaptive barrier update's among them), of the barrier update
+#: (its solves included), and of legkit's Hessian and of its values, gradient and Jacobian (one call computes the
+#: gradient with the Jacobian, charged to whichever IPOPT asks for first).
 TIMINGS = {"whole solve": "OverallAlgorithm", "KKT factorisations and solves": "PDSystemSolverTotal",
+           "barrier update (its solves included)": "UpdateBarrierParameter",
            "Lagrangian Hessian": "Lagrangian Hessian",
            "values, gradient and Jacobian": "(?:Objective function|Objective function gradient|Equality constraints|Inequality constraints|"
                                             "Equality constraint Jacobian|Inequality constraint Jacobian)"}
 
 
-def split(problem: lo.MultiphaseProblem, solve: Callable[[dict], lo.SolveResult]) -> None:
-    """--split: one cold solve's last IPOPT stage (J_s2) by component, per iteration, from IPOPT's timing statistics;
-    then the Lagrangian Hessian by block at the reference point (CPU, median of 5 evaluations)."""
+def components(solve: Callable[[dict], lo.SolveResult], ipopt: dict) -> tuple[lo.SolveResult, float, int, dict[str, float]]:
+    """One solve under IPOPT's timing statistics: its result, its CPU time, and its last IPOPT stage's iterations and
+    CPU seconds by component (`TIMINGS`)."""
     with tempfile.TemporaryDirectory() as folder:
         log = Path(folder) / "ipopt.txt"
         cpu = time.process_time()
-        result = solve({**AMBLE_IPOPT, "print_timing_statistics": "yes", "output_file": str(log), "file_print_level": 5})
+        result = solve({**ipopt, "print_timing_statistics": "yes", "output_file": str(log), "file_print_level": 5})
         cpu = time.process_time() - cpu
         gc.collect()  # IPOPT's journal writes its file out when the solver is freed
         text = log.read_text()
     count = re.search(r"Number of Iterations\.*:\s*(\d+)", text)
     if count is None:
         raise RuntimeError(f"no iteration count in IPOPT's output:\n{text[-2000:]}")
-    iterations = int(count.group(1))
-    x, objective = result.best()
-    s_h = min(s.min() for s in problem.stability_index(x))
-    print(f"cold solve: {result.status}, {result.iterations} IPOPT iterations in all, {cpu:.1f} s of CPU, p1 {-objective:.5f}, "
-          f"S_H min {s_h:.5f} N m s; its J_s2 stage, {iterations} iterations, by component (CPU):")
+    seconds = {label: sum(float(m) for m in re.findall(rf"^ *{pattern}\.*: *([0-9.]+)", text, flags=re.MULTILINE))
+               for label, pattern in TIMINGS.items()}
+    return result, cpu, int(count.group(1)), seconds
+
+
+def print_components(seconds: dict[str, float], iterations: int) -> None:
     print(f"  {'component':<34} {'[s]':>8} {'per iteration [s]':>18}")
-    for label, pattern in TIMINGS.items():
-        seconds = sum(float(m) for m in re.findall(rf"^ *{pattern}\.*: *([0-9.]+)", text, flags=re.MULTILINE))
-        print(f"  {label:<34} {seconds:8.2f} {seconds / iterations:18.4f}")
+    for label, value in seconds.items():
+        print(f"  {label:<34} {value:8.2f} {value / iterations:18.4f}")
+
+
+def split(problem: lo.MultiphaseProblem, solve: Callable[[dict], lo.SolveResult], target: lo.MultiphaseProblem,
+          warm: Callable[[dict, lo.SolveResult], lo.SolveResult]) -> None:
+    """--split: one cold solve's last IPOPT stage (J_s2), then `warm` (a solve of `target` from the cold optimum), by
+    component per iteration from IPOPT's timing statistics; then the Lagrangian Hessian by block at the cold optimum
+    (CPU, median of 5 evaluations)."""
+    result, cpu, iterations, seconds = components(solve, AMBLE_IPOPT)
+    x, objective = result.best()
+    print(f"cold solve: {result.status}, {result.iterations} IPOPT iterations in all, {cpu:.1f} s of CPU, p1 {-objective:.5f}, "
+          f"S_H min {min(s.min() for s in problem.stability_index(x)):.5f} N m s; its J_s2 stage, {iterations} iterations, by component (CPU):")
+    print_components(seconds, iterations)
+    warmed, cpu, iterations, seconds = components(lambda ipopt: warm(ipopt, result), AMBLE_WARM_IPOPT)
+    x_warm, objective_warm = warmed.best()
+    print(f"warm start at {target.speed:g} m/s from that optimum (`continued`, AMBLE_WARM_IPOPT): {warmed.status}, {iterations} "
+          f"iterations, {cpu:.1f} s of CPU, p1 {-objective_warm:.5f}, S_H min {min(s.min() for s in target.stability_index(x_warm)):.5f} "
+          "N m s; by component (CPU):")
+    print_components(seconds, iterations)
     lam = np.random.default_rng(0).normal(size=problem.m)
     timed: dict[str, float] = {}
     for block, start, stop in zip(problem.blocks, problem._offsets, problem._offsets[1:]):
@@ -166,8 +186,8 @@ def main() -> None:
     parser.add_argument("--polish", action=argparse.BooleanOptionalAction, default=True,
                         help="amble, --derivatives legkit: after the L-BFGS runs, an exact-Hessian polish (durations held, then free)")
     parser.add_argument("--polish-max-iter", type=int, default=1000, help="amble: IPOPT iteration limit of the polish and of the warm start")
-    parser.add_argument("--split", action="store_true", help="amble: one cold solve's CPU by component per iteration, and the "
-                        "Lagrangian Hessian's by block")
+    parser.add_argument("--split", action="store_true", help="amble: one cold solve's CPU by component per iteration, a warm start's "
+                        "from its optimum at --neighbour, and the Lagrangian Hessian's by block")
     parser.add_argument("--bounds", action="store_true", help="amble: the plan's problem with each execution bound and the "
                         "force floor switched off in turn (what holds S_H)")
     parser.add_argument("--sequence", action="store_true", help="amble: the plan's problem at 0.55 to 0.75 m/s, the first "
@@ -201,7 +221,13 @@ def main() -> None:
         guess = guess_from_reference(problem, amble_reference(robot, args.speed, 1.25, args.intervals))
         print(f"amble plan, {args.intervals} intervals per phase, {'mirrored half' if args.mirror else 'whole'} cycle, {args.speed:g} m/s: "
               f"{problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian and {len(problem.hess_rows)} Hessian nonzeros")
-        split(problem, lambda ipopt: problem.solve(guess, feasibility_first=True, **{**options, "options": ipopt})[1])
+        target = amble_plan_problem(robot, args.intervals, args.neighbour, 1.25, AmbleOptions(mirror=args.mirror))
+
+        def warm(ipopt: dict, last: lo.SolveResult) -> lo.SolveResult:
+            return target.solve(target.continued(last, args.speed), derivatives="exact", tol=args.tol, max_iter=args.polish_max_iter,
+                                options=ipopt, regularised_first=AMBLE_REGULARISED_FIRST)[1]
+
+        split(problem, lambda ipopt: problem.solve(guess, feasibility_first=True, **{**options, "options": ipopt})[1], target, warm)
         return
 
     if args.bounds or args.sequence:
