@@ -65,12 +65,23 @@ from legkit.robots.motors import BIPED_MOTOR, QUADRUPED_MOTOR
 from legkit.robots.quadruped import DIAGONAL_PAIRS, build_quadruped
 
 
+def worst_s_h(problem: lo.MultiphaseProblem, x: np.ndarray) -> float:
+    """The worst published S_H (eq. 10) over the points of x."""
+    return min(s.min() for s in problem.stability_index(x))
+
+
+def warm_solve(target: lo.MultiphaseProblem, last: lo.SolveResult, speed: float, args: argparse.Namespace, ipopt: dict) -> lo.SolveResult:
+    """`target` solved from `last`, an optimum at `speed` [m/s] (`continued`), with the exact Hessian and `ipopt`'s options."""
+    return target.solve(target.continued(last, speed), derivatives="exact", tol=args.tol, max_iter=args.polish_max_iter,
+                        options=ipopt, regularised_first=AMBLE_REGULARISED_FIRST)[1]
+
+
 def report(label: str, problem: lo.MultiphaseProblem, result: lo.SolveResult, cpu: float | None = None) -> None:
     """One row; violation and S_H min (published, eq. 10) of the kept point (`SolveResult.best`), re-evaluated
     by legkit's kernels; the solve's wall time, or its CPU time when given."""
     share = 100.0 * result.evaluation_time / result.wall_time
     x, objective = result.best()
-    s_h = min(s.min() for s in problem.stability_index(x))
+    s_h = worst_s_h(problem, x)
     stance = midpoint_stance_acceleration(problem, x)
     print(f"{label:<{44 if cpu is not None else 30}} {result.status:<28} {result.iterations:6d} "
           f"{result.wall_time if cpu is None else cpu:{8 if cpu is not None else 9}.2f} {share:8.1f} "
@@ -120,12 +131,12 @@ def split(problem: lo.MultiphaseProblem, solve: Callable[[dict], lo.SolveResult]
     result, cpu, iterations, seconds = components(solve, AMBLE_IPOPT)
     x, objective = result.best()
     print(f"cold solve: {result.status}, {result.iterations} IPOPT iterations in all, {cpu:.1f} s of CPU, p1 {-objective:.5f}, "
-          f"S_H min {min(s.min() for s in problem.stability_index(x)):.5f} N m s; its J_s2 stage, {iterations} iterations, by component (CPU):")
+          f"S_H min {worst_s_h(problem, x):.5f} N m s; its J_s2 stage, {iterations} iterations, by component (CPU):")
     print_components(seconds, iterations)
     warmed, cpu, iterations, seconds = components(lambda ipopt: warm(ipopt, result), AMBLE_WARM_IPOPT)
     x_warm, objective_warm = warmed.best()
     print(f"warm start at {target.speed:g} m/s from that optimum (`continued`, AMBLE_WARM_IPOPT): {warmed.status}, {iterations} "
-          f"iterations, {cpu:.1f} s of CPU, p1 {-objective_warm:.5f}, S_H min {min(s.min() for s in target.stability_index(x_warm)):.5f} "
+          f"iterations, {cpu:.1f} s of CPU, p1 {-objective_warm:.5f}, S_H min {worst_s_h(target, x_warm):.5f} "
           "N m s; by component (CPU):")
     print_components(seconds, iterations)
     lam = np.random.default_rng(0).normal(size=problem.m)
@@ -147,8 +158,8 @@ def split(problem: lo.MultiphaseProblem, solve: Callable[[dict], lo.SolveResult]
         problem.hessian(x, 1.0, lam)
         whole.append(time.process_time() - begin)
     print(f"the Lagrangian Hessian at the optimum: {1e3 * np.median(whole):.1f} ms (median of 5); by block [ms]:")
-    for name, seconds in sorted(timed.items(), key=lambda item: -item[1])[:8]:
-        print(f"  {1e3 * seconds:7.2f}  {name}")
+    for name, block_seconds in sorted(timed.items(), key=lambda item: -item[1])[:8]:
+        print(f"  {1e3 * block_seconds:7.2f}  {name}")
 
 
 def walk(args: argparse.Namespace) -> None:
@@ -223,11 +234,8 @@ def main() -> None:
               f"{problem.n} variables, {problem.m} constraints, {len(problem.jac_rows)} Jacobian and {len(problem.hess_rows)} Hessian nonzeros")
         target = amble_plan_problem(robot, args.intervals, args.neighbour, 1.25, AmbleOptions(mirror=args.mirror))
 
-        def warm(ipopt: dict, last: lo.SolveResult) -> lo.SolveResult:
-            return target.solve(target.continued(last, args.speed), derivatives="exact", tol=args.tol, max_iter=args.polish_max_iter,
-                                options=ipopt, regularised_first=AMBLE_REGULARISED_FIRST)[1]
-
-        split(problem, lambda ipopt: problem.solve(guess, feasibility_first=True, **{**options, "options": ipopt})[1], target, warm)
+        split(problem, lambda ipopt: problem.solve(guess, feasibility_first=True, **{**options, "options": ipopt})[1], target,
+              lambda ipopt, last: warm_solve(target, last, args.speed, args, ipopt))
         return
 
     if args.bounds or args.sequence:
@@ -261,8 +269,7 @@ def main() -> None:
         def warm(speed: float, last: tuple[float, lo.SolveResult], update: str, warm_options: dict) -> lo.SolveResult:
             target = amble_plan_problem(robot, args.intervals, speed, 1.25, plan)
             cpu = time.process_time()
-            result = target.solve(target.continued(last[1], last[0]), derivatives="exact", tol=args.tol, max_iter=args.polish_max_iter,
-                                  options=warm_options, regularised_first=AMBLE_REGULARISED_FIRST)[1]
+            result = warm_solve(target, last[1], last[0], args, warm_options)
             report(f"{speed:g} m/s, warm from {last[0]:g}, {update}", target, result, time.process_time() - cpu)
             return result
 
@@ -298,9 +305,8 @@ def main() -> None:
     report(f"cold, {args.speed:g} m/s", target, result)
     other, neighbour = cold(args.neighbour)
     report(f"cold, {args.neighbour:g} m/s (the neighbour)", other, neighbour)
-    warm = target.solve(target.continued(neighbour, args.neighbour), derivatives="exact", tol=args.tol, max_iter=args.polish_max_iter,
-                        options=AMBLE_WARM_IPOPT, regularised_first=AMBLE_REGULARISED_FIRST)[1]
-    report(f"warm from {args.neighbour:g} m/s, exact", target, warm)
+    warmed = warm_solve(target, neighbour, args.neighbour, args, AMBLE_WARM_IPOPT)
+    report(f"warm from {args.neighbour:g} m/s, exact", target, warmed)
 
 
 if __name__ == "__main__":
